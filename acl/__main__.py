@@ -1,0 +1,5 @@
+import sys
+
+from acl.cli import main
+
+sys.exit(main())

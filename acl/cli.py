@@ -1,0 +1,100 @@
+"""The `acl` command line: thin. Parses arguments, calls one stage function, renders the result.
+
+Each subcommand lives in ``acl/commands/<name>.py`` and exposes ``add_parser(subparsers)`` and
+``run(args) -> int``.  Command modules are imported lazily so `acl check` stays fast.
+Exit codes: 0 clean, 1 errors in the design / findings / infeasible, 2 usage or I/O error.
+"""
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+
+COMMANDS = {
+    "check": "Parse and type-check designs (units, names, geometry, printability).",
+    "show": "Print the resolved design as a tree, or as JSON.",
+    "analyze": "Predict resonances, forces, equilibria and latch margins.",
+    "compile": "Compile a program into a drive-signal schedule and waveform files.",
+    "lint": "Run design rules (for CI): rule codes, configuration, machine-readable output.",
+    "fit": "Fit the model to measured data, find missing effects, report before/after.",
+    "synth": "Generate synthetic measurement data from a design (to test analyses).",
+}
+
+EPILOG = """\
+examples:
+  acl check examples/fig2_vertical_cantilever.acl
+  acl show examples/fig3_three_orifice.acl --json
+  acl analyze examples/fig4h_unequal_pair.acl --at "85 kHz @ 5 V"
+  acl compile examples/fig3_three_orifice.acl --program rectangle -o out/
+  acl lint examples/ --format github
+  acl fit design.acl data.csv --report fit/
+
+exit codes: 0 clean, 1 errors in the design or findings, 2 usage or I/O error.
+docs: docs/language.md, docs/physics.md, docs/rules.md, docs/data.md
+"""
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message: str):  # usage errors: a diagnostic line and exit 2, no traceback
+        self.print_usage(sys.stderr)
+        sys.stderr.write(f"acl: error[E-USAGE]: {message}\n")
+        raise SystemExit(2)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    from acl import __version__
+
+    parser = _Parser(
+        prog="acl",
+        description="acl: a language and compiler for acoustically programmable soft micro-mechanisms.",
+        epilog=EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    parser.add_argument("--version", action="version", version=f"acl {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+    argv = sys.argv[1:]
+    wanted = next((a for a in argv if a in COMMANDS), None)
+    for name, help_text in COMMANDS.items():
+        if wanted is not None and name != wanted:
+            sub.add_parser(name, help=help_text)   # cheap placeholder, keeps --help complete
+            continue
+        try:
+            module = importlib.import_module(f"acl.commands.{name}")
+        except ModuleNotFoundError:
+            continue
+        p = sub.add_parser(name, help=help_text, description=help_text,
+                           formatter_class=argparse.RawDescriptionHelpFormatter)
+        module.add_parser(p)
+        p.set_defaults(_module=module)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    if argv is not None:
+        sys.argv = [sys.argv[0], *argv]
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if not getattr(args, "command", None) or not hasattr(args, "_module"):
+        parser.print_help()
+        return 2
+    try:
+        return int(args._module.run(args) or 0)
+    except KeyboardInterrupt:
+        sys.stderr.write("acl: interrupted\n")
+        return 130
+    except BrokenPipeError:
+        return 0
+    except Exception as exc:  # last resort: never a traceback for the user
+        import traceback
+        import os
+
+        sys.stderr.write(f"acl: internal error[E-INTERNAL]: {type(exc).__name__}: {exc}\n")
+        if os.environ.get("ACL_DEBUG"):
+            traceback.print_exc()
+        else:
+            sys.stderr.write("acl: set ACL_DEBUG=1 for a traceback, and please report it.\n")
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())
