@@ -1,0 +1,352 @@
+"""Acoustic analysis of a design: capsule modes, orifice responses, thrust, pair forces, selectivity.
+
+Turns :mod:`acl.design.model` objects into calls of :mod:`acl.physics.resonance`,
+:mod:`acl.physics.transducer` and :mod:`acl.physics.forces`.  Per-capsule modal data are cached on
+a hashable key (geometry + medium), so the equilibrium solver and the fitter can call
+:func:`force_model` in inner loops.
+
+Defaults: a design without ``medium`` uses :data:`acl.physics.constants.WATER_20C`; without
+``transducer`` a flat :data:`acl.physics.constants.DEFAULT_GAIN_PA_PER_V`.  :func:`defaults_used`
+lists what was assumed, and the result objects carry the same notes.
+
+Geometry: a capsule translates rigidly (no rotation) when its centre is moved in ``positions``;
+its orifice centres move with it.  Pair distances are between orifice centres (the vibrating
+surfaces, paper Eq. 3).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from functools import lru_cache
+from typing import Mapping, Sequence
+
+import numpy as np
+
+from acl.design.model import Capsule, Cavity, Design, Drive
+from acl.physics import constants as C
+from acl.physics.forces import bjerknes_vectors, jet_drag, thrust_magnitude
+from acl.physics.resonance import BubbleModes, capsule_modes as _physics_modes, volume_response
+from acl.physics.transducer import pressure_per_volt
+
+
+# ----------------------------------------------------------------------------------------------
+# Results
+# ----------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Mode:
+    """One natural mode of a capsule: frequency, Q, which interface moves and how much."""
+
+    frequency_hz: float
+    q: float
+    dominant_orifice: str
+    share: float                               # |dV| of the dominant interface / sum of |dV|
+    shares: dict = field(default_factory=dict)  # orifice name -> share
+    q_declared: bool = False                   # Q from Capsule.quality_factor
+    notes: tuple[str, ...] = ()
+
+
+@dataclass(frozen=True)
+class PairForce:
+    """Interaction of two capsules (sum over tones and orifice pairs).
+
+    ``force_on_a``/``force_on_b`` are the Bjerknes vectors (N, equal and opposite); ``attraction``
+    their attraction-positive magnitude along the line of centres; ``phase_difference`` (rad, in
+    (-pi, pi]) between the dominant interfaces at the strongest tone; ``critical_distance`` (m)
+    where Bjerknes attraction would balance the thrusts pushing the pair apart (paper Eq. 3), None
+    where the pair does not attract or is not pushed apart.
+    """
+
+    a: str
+    b: str
+    force_on_a: np.ndarray
+    force_on_b: np.ndarray
+    attraction: float
+    attract: bool
+    phase_difference: float
+    distance: float
+    critical_distance: float | None
+    notes: tuple[str, ...] = ()
+
+
+@dataclass(frozen=True)
+class Selectivity:
+    """Thrust per V^2 of each capsule vs frequency and its share of the total at each frequency."""
+
+    frequencies: np.ndarray
+    capsules: tuple[str, ...]
+    thrust_per_v2: np.ndarray      # (n_capsules, F) N/V^2
+    share: np.ndarray              # (n_capsules, F)
+    outside_table: np.ndarray      # (F,) bool: transducer gain extrapolated
+    notes: tuple[str, ...] = ()
+
+
+# ----------------------------------------------------------------------------------------------
+# Environment (medium, transducer) with documented fallbacks
+# ----------------------------------------------------------------------------------------------
+
+
+def _medium(design: Design) -> C.MediumConstants:
+    m = design.medium
+    if m is None:
+        return C.WATER_20C
+    return C.MediumConstants(
+        density=m.density, viscosity=m.viscosity, sound_speed=m.sound_speed,
+        surface_tension=m.surface_tension, ambient_pressure=m.ambient_pressure,
+        polytropic_index=m.polytropic_index, gas_thermal_diffusivity=m.gas_thermal_diffusivity,
+    )
+
+
+def defaults_used(design: Design) -> tuple[str, ...]:
+    """Notes naming every documented default the acoustic analysis of ``design`` relies on."""
+    notes = []
+    if design.medium is None:
+        notes.append("no medium declared: water at 20 C assumed (acl.physics.constants.WATER_20C)")
+    if design.transducer is None:
+        notes.append(f"no transducer declared: flat {C.DEFAULT_GAIN_PA_PER_V:g} Pa/V assumed")
+    return tuple(notes)
+
+
+def drive_gain(design: Design, frequencies) -> tuple[np.ndarray, np.ndarray]:
+    """Transducer gain (Pa/V) at ``frequencies`` and the mask of frequencies outside its table."""
+    f = np.asarray(frequencies, float)
+    t = design.transducer
+    if t is None:
+        return np.full(f.shape, C.DEFAULT_GAIN_PA_PER_V), np.zeros(f.shape, bool)
+    return pressure_per_volt(f, t.gain_frequencies, t.gain_pa_per_v)
+
+
+# ----------------------------------------------------------------------------------------------
+# Capsule modal data (cached)
+# ----------------------------------------------------------------------------------------------
+
+
+def thermal_radius(cavity: Cavity) -> float:
+    """Length for the thermal model: 3 V / S (sphere-equivalent) of the gas, or the equal-volume sphere radius."""
+    v = cavity.volume
+    if cavity.shape == "cylinder" and cavity.radius and cavity.height:
+        s = 2 * math.pi * cavity.radius**2 + 2 * math.pi * cavity.radius * cavity.height
+        return 3 * v / s
+    if cavity.shape == "prism" and cavity.side and cavity.height:
+        s = math.sqrt(3) / 2 * cavity.side**2 + 3 * cavity.side * cavity.height
+        return 3 * v / s
+    return (3 * v / (4 * math.pi)) ** (1 / 3)
+
+
+def _outer_radius(capsule: Capsule) -> float:
+    """Equal-volume sphere radius of the cavity plus its wall: the body the jets of others drag."""
+    return (3 * capsule.cavity.volume / (4 * math.pi)) ** (1 / 3) + capsule.cavity.wall
+
+
+@lru_cache(maxsize=4096)
+def _modes_for(volume: float, radii: tuple[float, ...], r_th: float, medium: tuple,
+               q_override: float | None, n_modes: int) -> BubbleModes:
+    rho, mu, c, sigma, p0, kappa, diff, gamma = medium
+    return _physics_modes(volume, np.asarray(radii), rho, sigma, p0, kappa, mu, c, r_th,
+                          heat_capacity_ratio=gamma, thermal_diffusivity=diff,
+                          quality_override=q_override, n_modes=n_modes)
+
+
+def _capsule(design: Design, capsule) -> Capsule:
+    return capsule if isinstance(capsule, Capsule) else design.capsule(capsule)
+
+
+def modal_data(design: Design, capsule, n_modes: int = C.DEFAULT_MEMBRANE_MODES) -> BubbleModes:
+    """The physics-level modes of ``capsule`` (all Rayleigh-Ritz modes), cached per geometry and medium."""
+    cap = _capsule(design, capsule)
+    radii = tuple(o.radius for o in cap.orifices)
+    return _modes_for(cap.cavity.volume, radii, thermal_radius(cap.cavity),
+                      _medium(design).as_tuple(), cap.quality_factor, n_modes)
+
+
+def capsule_modes(design: Design, capsule, n_modes: int = C.DEFAULT_MEMBRANE_MODES) -> list[Mode]:
+    """The fundamental modes of ``capsule``: one per orifice, ascending in frequency."""
+    cap = _capsule(design, capsule)
+    md = modal_data(design, cap, n_modes)
+    names = [o.name for o in cap.orifices]
+    share = md.share
+    notes = defaults_used(design)
+    out = []
+    for n in range(len(names)):
+        k = int(np.argmax(share[:, n]))
+        out.append(Mode(frequency_hz=float(md.frequency[n]), q=float(md.quality[n]),
+                        dominant_orifice=names[k], share=float(share[k, n]),
+                        shares={nm: float(share[i, n]) for i, nm in enumerate(names)},
+                        q_declared=cap.quality_factor is not None, notes=notes))
+    return out
+
+
+def orifice_response(design: Design, capsule, frequencies) -> np.ndarray:
+    """Complex inward volume amplitude (m^3 per V peak) of each orifice, shape (F, n_orifices).
+
+    Transducer gain included (flat-extrapolated outside its table: see :func:`drive_gain`).
+    Phase convention of :func:`acl.physics.resonance.volume_response`.
+    """
+    f = np.atleast_1d(np.asarray(frequencies, float))
+    gain, _ = drive_gain(design, f)
+    return volume_response(modal_data(design, capsule), f) * gain[:, None]
+
+
+# ----------------------------------------------------------------------------------------------
+# Forces
+# ----------------------------------------------------------------------------------------------
+
+
+def _tones(drive: Drive) -> tuple[np.ndarray, np.ndarray]:
+    f = np.array([t.frequency for t in drive.tones], float)
+    v = np.array([t.amplitude for t in drive.tones], float)
+    return f, v
+
+
+def _thrust_scale(design: Design, cap: Capsule) -> float:
+    """Factor that makes predicted thrust match a declared Capsule.thrust_coefficient at mode 1."""
+    if cap.thrust_coefficient is None:
+        return 1.0
+    md = modal_data(design, cap)
+    f1 = md.frequency[:1]
+    per_v2 = _orifice_thrust(design, cap, f1, np.ones(1))       # (1, n_or), N at 1 V
+    total = np.linalg.norm((per_v2[0][:, None] * -_normals(cap)).sum(axis=0))
+    return cap.thrust_coefficient / total if total > 0 else 1.0
+
+
+def _normals(cap: Capsule) -> np.ndarray:
+    n = np.array([o.normal for o in cap.orifices], float)
+    return n / np.linalg.norm(n, axis=1, keepdims=True)
+
+
+def _orifice_thrust(design: Design, cap: Capsule, f: np.ndarray, volts: np.ndarray) -> np.ndarray:
+    """Thrust magnitude (N) of each orifice for each tone, shape (T, n_orifices)."""
+    med = _medium(design)
+    dv = orifice_response(design, cap, f) * volts[:, None]
+    radii = np.array([o.radius for o in cap.orifices])
+    return thrust_magnitude(dv, radii[None, :], 2 * np.pi * f[:, None], med.density,
+                            C.STREAMING_CONSTANT)
+
+
+def _thrust_per_orifice(design: Design, cap: Capsule, drive: Drive) -> np.ndarray:
+    """Thrust magnitude (N) per orifice summed over tones (tones add in power), with declared scale."""
+    f, v = _tones(drive)
+    if f.size == 0:
+        return np.zeros(len(cap.orifices))
+    return _orifice_thrust(design, cap, f, v).sum(axis=0) * _thrust_scale(design, cap)
+
+
+def thrust_vectors(design: Design, drive: Drive) -> dict[str, np.ndarray]:
+    """Streaming thrust (N, 3-vector) on each capsule: sum over orifices of -|F| n_outward."""
+    out = {}
+    for cap in design.capsules:
+        mag = _thrust_per_orifice(design, cap, drive)
+        out[cap.name] = (mag[:, None] * -_normals(cap)).sum(axis=0)
+    return out
+
+
+def _centres(design: Design, positions: Mapping[str, Sequence[float]] | None) -> dict[str, np.ndarray]:
+    pos = {c.name: np.asarray(c.center, float) for c in design.capsules}
+    if positions:
+        for k, p in positions.items():
+            pos[k] = np.asarray(p, float)
+    return pos
+
+
+def _orifice_positions(cap: Capsule, centre: np.ndarray) -> np.ndarray:
+    offset = centre - np.asarray(cap.center, float)
+    return np.array([o.center for o in cap.orifices], float) + offset
+
+
+def _tone_volumes(design: Design, cap: Capsule, drive: Drive) -> tuple[np.ndarray, np.ndarray]:
+    f, v = _tones(drive)
+    return f, orifice_response(design, cap, f) * v[:, None]          # (T, n_or)
+
+
+def pair_forces(design: Design, drive: Drive,
+                positions: Mapping[str, Sequence[float]] | None = None) -> list[PairForce]:
+    """Secondary Bjerknes force of every capsule pair (sum over tones and orifice pairs)."""
+    pos = _centres(design, positions)
+    caps = list(design.capsules)
+    vols = {c.name: _tone_volumes(design, c, drive) for c in caps}
+    thrusts = {c.name: _thrust_per_orifice(design, c, drive) for c in caps}
+    med = _medium(design)
+    notes = defaults_used(design)
+    out = []
+    for i, ca in enumerate(caps):
+        for cb in caps[i + 1:]:
+            f, va = vols[ca.name]
+            _, vb = vols[cb.name]
+            pa = _orifice_positions(ca, pos[ca.name])
+            pb = _orifice_positions(cb, pos[cb.name])
+            omega = 2 * np.pi * f
+            # (T, n_a, n_b) pairs
+            on_a, _ = bjerknes_vectors(omega[:, None, None], va[:, :, None], pa[None, :, None, :],
+                                       vb[:, None, :], pb[None, None, :, :], med.density)
+            fa = on_a.reshape(-1, 3).sum(axis=0)
+            line = pos[cb.name] - pos[ca.name]
+            dist = float(np.linalg.norm(line))
+            unit = line / dist if dist > 0 else np.zeros(3)
+            attraction = float(fa @ unit)
+            # phase difference between the dominant interfaces at the strongest tone
+            if f.size:
+                t = int(np.argmax(np.abs(va).max(axis=1) * np.abs(vb).max(axis=1)))
+                ia, ib = int(np.argmax(np.abs(va[t]))), int(np.argmax(np.abs(vb[t])))
+                dphi = float(np.angle(va[t, ia] * np.conj(vb[t, ib])))
+                gap = float(np.linalg.norm(pb[ib] - pa[ia]))
+            else:
+                dphi, gap = 0.0, dist
+            # reduced law (paper Eq. 3): alpha = attraction d^2, 2 gamma = thrusts pushing apart
+            push_a = float((thrusts[ca.name][:, None] * -_normals(ca)).sum(axis=0) @ -unit)
+            push_b = float((thrusts[cb.name][:, None] * -_normals(cb)).sum(axis=0) @ unit)
+            gamma2 = push_a + push_b
+            alpha = attraction * gap**2
+            dc = math.sqrt(alpha / gamma2) if alpha > 0 and gamma2 > 0 else None
+            out.append(PairForce(a=ca.name, b=cb.name, force_on_a=fa, force_on_b=-fa,
+                                 attraction=attraction, attract=attraction > 0,
+                                 phase_difference=dphi, distance=gap, critical_distance=dc,
+                                 notes=notes))
+    return out
+
+
+def force_model(design: Design, positions: Mapping[str, Sequence[float]] | None,
+                drive: Drive) -> dict[str, np.ndarray]:
+    """Total acoustic force (N, 3-vector) on each capsule: thrust + Bjerknes + drag in others' jets.
+
+    ``positions`` maps capsule names to displaced centres (missing names stay at rest).  Tones at
+    different frequencies add in power (cross terms average to zero).
+    """
+    pos = _centres(design, positions)
+    caps = list(design.capsules)
+    total = {name: vec.copy() for name, vec in thrust_vectors(design, drive).items()}
+    for pf in pair_forces(design, drive, pos):
+        total[pf.a] = total[pf.a] + pf.force_on_a
+        total[pf.b] = total[pf.b] + pf.force_on_b
+    # drag of each capsule's jets on the others
+    for src in caps:
+        mags = _thrust_per_orifice(design, src, drive)
+        if not np.any(mags):
+            continue
+        origins = _orifice_positions(src, pos[src.name])
+        normals = _normals(src)
+        for tgt in caps:
+            if tgt.name == src.name:
+                continue
+            x = pos[tgt.name][None, :] - origins
+            dist = np.linalg.norm(x, axis=1)
+            cos = np.einsum("ij,ij->i", x, normals) / dist
+            drag = jet_drag(mags, dist, cos, _outer_radius(tgt))
+            total[tgt.name] = total[tgt.name] + (drag[:, None] * normals).sum(axis=0)
+    return total
+
+
+def selectivity(design: Design, frequencies) -> Selectivity:
+    """Thrust magnitude per V^2 of every capsule over ``frequencies`` and its share per frequency."""
+    f = np.atleast_1d(np.asarray(frequencies, float))
+    rows = []
+    for cap in design.capsules:
+        per = _orifice_thrust(design, cap, f, np.ones_like(f)) * _thrust_scale(design, cap)
+        rows.append(np.linalg.norm((per[:, :, None] * -_normals(cap)[None]).sum(axis=1), axis=-1))
+    t = np.array(rows).reshape(len(design.capsules), f.size)
+    tot = t.sum(axis=0, keepdims=True)
+    share = np.divide(t, tot, out=np.zeros_like(t), where=tot > 0)
+    _, outside = drive_gain(design, f)
+    return Selectivity(frequencies=f, capsules=tuple(c.name for c in design.capsules),
+                       thrust_per_v2=t, share=share, outside_table=outside,
+                       notes=defaults_used(design))
