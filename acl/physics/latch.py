@@ -1,0 +1,136 @@
+"""Bistable latch of paper Fig. 6a: a mirror-symmetric pair of inclined beams carrying a shuttle.
+
+Reduced model: a von Mises truss (Bazant & Cedolin, Stability of Structures, Sec. 2.x) whose two bars
+are the inclined beams, with
+
+* axial stretching/compression of each beam, stiffness E A / L, capped in compression by Euler
+  buckling of a clamped-clamped column (P_cr = 4 pi^2 E I / L^2) and following the buckled
+  elastica beyond it (Timoshenko & Gere, Theory of Elastic Stability, Sec. 2.7: shortening
+  2 (1 - E(m)/K(m)) L at load P_cr (2 K(m)/pi)^2);
+* bending of each beam whose two clamped ends keep their angle while the chord rotates by
+  psi = theta - phi: a rotational spring with energy 6 E I psi^2 / L (slope-deflection, both ends
+  rotated by psi relative to the chord).
+
+The shuttle moves by ``u`` along the actuation direction (towards the beams' clamps, u = 0 is the
+as-printed state a).  ``latch_force(u)`` is the external force along that direction that holds the
+shuttle at ``u`` (positive: the latch pushes back towards state a).  The inclined-beam physics
+follows Jiang, Korpas & Raney, Nat. Commun. 10, 128 (2019) (paper ref. 20): switching force grows
+with theta, bistability needs enough angle and slenderness.  All SI; vectorized over ``u``.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import lru_cache
+
+import numpy as np
+
+
+@lru_cache(maxsize=8)
+def _buckled_column_table(n: int = 4000):
+    """Buckled clamped-clamped elastica: shortening/L and P/P_cr vs modulus m (Timoshenko & Gere Sec. 2.7)."""
+    from scipy.special import ellipe, ellipk
+
+    m = np.concatenate([[0.0], np.geomspace(1e-9, 0.97, n)])
+    K, Ek = ellipk(m), ellipe(m)
+    shortening = 2.0 * (1.0 - Ek / K)
+    load = (2.0 * K / np.pi) ** 2
+    return shortening, load
+
+
+def axial_force(compression, slenderness: float):
+    """Nondimensional compressive force N L^2/(E I) of one beam vs compression/L: linear E A / L, then buckled elastica (Timoshenko & Gere Sec. 2.7)."""
+    c = np.asarray(compression, dtype=float)
+    k_axial = 12.0 / slenderness**2            # E A L / (E I) for a rectangle of width w: 12 (L/w)^2
+    p_cr = 4.0 * np.pi**2
+    short, load = _buckled_column_table()
+    total = p_cr * load / k_axial + short     # elastic shortening at that load + geometric shortening
+    buckled = np.interp(c, total, p_cr * load)
+    return np.where(c * k_axial <= p_cr, k_axial * c, buckled)
+
+
+def _axial_energy(compression, slenderness: float):
+    """Nondimensional strain energy of one beam's axial member, integral of axial_force (Clapeyron)."""
+    from scipy.integrate import cumulative_trapezoid
+
+    c = np.asarray(compression, dtype=float)
+    hi = max(float(np.max(c, initial=0.0)), 1e-12)
+    grid = np.linspace(0.0, hi, 20001)
+    cum = cumulative_trapezoid(axial_force(grid, slenderness), grid, initial=0.0)
+    k_axial = 12.0 / slenderness**2
+    return np.where(c <= 0.0, 0.5 * k_axial * c**2, np.interp(c, grid, cum))
+
+
+def _geometry(u, theta):
+    u = np.asarray(u, dtype=float)
+    c, s = np.cos(theta), np.sin(theta)
+    chord = np.hypot(c, s - u)
+    phi = np.arctan2(s - u, c)
+    return chord, phi, c
+
+
+def _scale(L: float, w: float, t: float, E: float) -> float:
+    return E * t * w**3 / 12.0 / L**2           # E I / L^2, N
+
+
+def latch_force(u, theta: float, L: float, w: float, t: float, E: float):
+    """Force (N) along the actuation direction holding the shuttle at ``u`` (m): von Mises truss with buckling bars and rotational springs (module docstring)."""
+    chord, phi, c = _geometry(np.asarray(u, dtype=float) / L, theta)
+    n = axial_force(1.0 - chord, w / L)
+    per_beam = n * np.sin(phi) + 12.0 * (theta - phi) * c / chord**2
+    return 2.0 * per_beam * _scale(L, w, t, E)
+
+
+def latch_energy(u, theta: float, L: float, w: float, t: float, E: float):
+    """Strain energy (J) of the beam pair at shuttle displacement ``u``: axial + 6 E I psi^2 / L per beam (module docstring)."""
+    chord, phi, _ = _geometry(np.asarray(u, dtype=float) / L, theta)
+    per_beam = _axial_energy(1.0 - chord, w / L) + 6.0 * (theta - phi) ** 2
+    return 2.0 * per_beam * _scale(L, w, t, E) * L
+
+
+def latch_stiffness(u, theta: float, L: float, w: float, t: float, E: float):
+    """Tangent stiffness dF/du (N/m) of latch_force by central differences."""
+    u = np.asarray(u, dtype=float)
+    h = 1e-7 * L
+    return (latch_force(u + h, theta, L, w, t, E) - latch_force(u - h, theta, L, w, t, E)) / (2 * h)
+
+
+@dataclass(frozen=True)
+class LatchLandscape:
+    """Energy landscape along the actuation direction and its critical points (SI)."""
+
+    u: np.ndarray               # m, shuttle displacement from state a
+    energy: np.ndarray          # J
+    force: np.ndarray           # N, holding force (latch_force)
+    bistable: bool
+    state_b: float | None       # m, second stable state (None if monostable)
+    unstable: float | None      # m, the energy maximum between the states
+    barrier: float | None       # J, energy(unstable) - energy(a)
+    switching_force: float      # N, max holding force between a and the unstable point (a -> b)
+    release_force: float | None  # N, max force pulling back between b and the unstable point (b -> a)
+
+
+def latch_landscape(theta: float, L: float, w: float, t: float, E: float,
+                    n: int = 2001, reach: float = 2.6) -> LatchLandscape:
+    """Energy landscape (as paper Fig. 6d), stable states, barrier, switching and release forces of the latch model."""
+    u = np.linspace(0.0, reach * L * np.sin(theta), n)
+    F = latch_force(u, theta, L, w, t, E)
+    U = latch_energy(u, theta, L, w, t, E)
+    # Sign changes of the holding force after state a: + -> - is the barrier top, - -> + is state b.
+    down = np.nonzero((F[1:-1] > 0) & (F[2:] <= 0))[0] + 1
+    if down.size == 0:
+        return LatchLandscape(u, U, F, False, None, None, None, float(F.max()), None)
+    i0 = down[0]
+    up = np.nonzero((F[i0:-1] < 0) & (F[i0 + 1:] >= 0))[0]
+    if up.size == 0:
+        return LatchLandscape(u, U, F, False, None, None, None, float(F.max()), None)
+    i1 = i0 + up[0]
+    from scipy.optimize import brentq
+
+    def f(x):
+        return float(latch_force(x, theta, L, w, t, E))
+
+    u_top = brentq(f, u[i0], u[i0 + 1], xtol=1e-14 * L)
+    u_b = brentq(f, u[i1], u[i1 + 1], xtol=1e-14 * L)
+    barrier = float(latch_energy(u_top, theta, L, w, t, E))
+    return LatchLandscape(u, U, F, True, u_b, u_top, barrier,
+                          float(F[: i0 + 1].max()), float(-F[i0: i1 + 1].min()))
