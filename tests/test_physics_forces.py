@@ -1,0 +1,127 @@
+"""Acoustic forces (acl.physics.forces) and drive pressure (acl.physics.transducer)."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from acl.physics.forces import (
+    bjerknes_attraction,
+    bjerknes_vectors,
+    critical_distance,
+    jet_drag,
+    pair_law_force,
+    thrust_magnitude,
+)
+from acl.physics.transducer import drive_pressure, pressure_per_volt
+
+RHO = 998.2
+OMEGA = 2 * math.pi * 125e3
+
+# Paper Eq. (3) fit at 125 kHz: alpha = 174.5 nN um^2 V^-2 (printed unit corrected), gamma = 0.027 nN V^-2.
+ALPHA = 174.5e-9 * 1e-12
+GAMMA = 0.027e-9
+
+phases = st.floats(min_value=0.0, max_value=2 * math.pi, allow_nan=False)
+amplitudes = st.floats(min_value=1e-20, max_value=1e-14)
+
+
+@given(phase=phases, a=amplitudes, b=amplitudes)
+def test_bjerknes_attracts_within_a_quarter_period_and_repels_beyond(phase, a, b):
+    # Paper text at Fig. 4f: attraction for |dphi| < 90 deg, repulsion for 90 < dphi < 270 deg.
+    f = bjerknes_attraction(OMEGA, a, b * np.exp(1j * phase), 20e-6, RHO)
+    c = math.cos(phase)
+    if abs(c) > 1e-9:
+        assert np.sign(f) == np.sign(c)
+
+
+@pytest.mark.parametrize("deg, sign", [(89.0, 1), (91.0, -1), (269.0, -1), (271.0, 1)])
+def test_bjerknes_sign_changes_at_90_and_270_degrees(deg, sign):
+    f = bjerknes_attraction(OMEGA, 1e-16, 1e-16 * np.exp(1j * math.radians(deg)), 20e-6, RHO)
+    assert np.sign(f) == sign
+
+
+def test_bjerknes_equals_time_average_of_volume_velocity_product():
+    # F = -rho/(4 pi d^2) <dV1/dt dV2/dt>, averaged numerically over one period (attraction positive).
+    v1, v2, d = 3e-16, 2e-16 * np.exp(1j * 0.7), 30e-6
+    t = np.linspace(0, 2 * math.pi / OMEGA, 20001)[:-1]
+    dv1 = np.real(1j * OMEGA * v1 * np.exp(1j * OMEGA * t))
+    dv2 = np.real(1j * OMEGA * v2 * np.exp(1j * OMEGA * t))
+    expected = RHO / (4 * math.pi * d**2) * np.mean(dv1 * dv2)
+    assert bjerknes_attraction(OMEGA, v1, v2, d, RHO) == pytest.approx(expected, rel=1e-9)
+
+
+@settings(max_examples=50)
+@given(phase=phases,
+       pa=st.tuples(*[st.floats(-1e-4, 1e-4)] * 3),
+       pb=st.tuples(*[st.floats(-1e-4, 1e-4)] * 3))
+def test_bjerknes_pair_forces_are_equal_and_opposite_along_the_line(phase, pa, pb):
+    sep = np.subtract(pb, pa)
+    if np.linalg.norm(sep) < 1e-6:
+        return
+    on_a, on_b = bjerknes_vectors(OMEGA, 1e-16, pa, 1e-16 * np.exp(1j * phase), pb, RHO)
+    np.testing.assert_allclose(on_a, -on_b)
+    assert np.linalg.norm(np.cross(on_a, sep)) <= 1e-9 * np.linalg.norm(on_a) * np.linalg.norm(sep) + 1e-30
+
+
+def test_critical_distance_of_paper_eq3_is_56p85_um():
+    # d_c = sqrt(alpha / (2 gamma)) with the paper's Eq. (3) fit; tolerance 0.01 um.
+    assert critical_distance(ALPHA, GAMMA) == pytest.approx(56.85e-6, abs=0.01e-6)
+
+
+def test_reduced_pair_law_attracts_inside_and_repels_outside_critical_distance():
+    dc = critical_distance(ALPHA, GAMMA)
+    assert pair_law_force(ALPHA, GAMMA, 0.9 * dc, 5.0) > 0
+    assert pair_law_force(ALPHA, GAMMA, 1.1 * dc, 5.0) < 0
+    assert pair_law_force(ALPHA, GAMMA, dc, 5.0) == pytest.approx(0.0, abs=1e-20)
+
+
+def test_thrust_is_quadratic_in_volume_amplitude():
+    f1 = thrust_magnitude(1e-16, 10e-6, OMEGA, RHO, 1e-3)
+    f2 = thrust_magnitude(2e-16, 10e-6, OMEGA, RHO, 1e-3)
+    assert f2 == pytest.approx(4 * f1, rel=1e-12)
+
+
+def test_thrust_equals_momentum_flux_of_paraboloid_centre_velocity():
+    # F = C_s rho (omega eps)^2 pi R^2 with eps = 2 dV / (pi R^2).
+    dv, r, cs = 1e-16, 10e-6, 0.3
+    eps = 2 * dv / (math.pi * r**2)
+    assert thrust_magnitude(dv, r, OMEGA, RHO, cs) == pytest.approx(cs * RHO * (OMEGA * eps) ** 2 * math.pi * r**2)
+
+
+def test_jet_drag_vanishes_behind_the_orifice_and_never_exceeds_the_jet_flux():
+    assert jet_drag(1e-9, 50e-6, -0.5, 25e-6) == 0.0
+    assert jet_drag(1e-9, 1e-6, 1.0, 25e-6) == pytest.approx(1e-9)
+    assert jet_drag(1e-9, 200e-6, 1.0, 25e-6) < 1e-9
+
+
+# --- drive pressure -----------------------------------------------------------------------------
+
+TABLE_F = (50e3, 100e3, 150e3)
+TABLE_G = (200.0, 400.0, 100.0)
+
+
+def test_gain_is_interpolated_linearly_inside_the_table():
+    g, outside = pressure_per_volt([75e3, 125e3], TABLE_F, TABLE_G)
+    np.testing.assert_allclose(g, [300.0, 250.0])
+    assert not outside.any()
+
+
+def test_gain_is_held_flat_and_flagged_outside_the_table():
+    g, outside = pressure_per_volt([10e3, 200e3, 100e3], TABLE_F, TABLE_G)
+    np.testing.assert_allclose(g, [200.0, 100.0, 400.0])
+    assert outside.tolist() == [True, True, False]
+
+
+def test_drive_pressure_is_linear_in_voltage():
+    p1, _ = drive_pressure(120e3, 1.0, TABLE_F, TABLE_G)
+    p7, _ = drive_pressure(120e3, 7.0, TABLE_F, TABLE_G)
+    assert p7 == pytest.approx(7 * p1)
+
+
+def test_unsorted_gain_table_is_rejected():
+    with pytest.raises(ValueError):
+        pressure_per_volt(1e5, (2e5, 1e5), (1.0, 2.0))
