@@ -1,0 +1,110 @@
+"""`acl show FILE`: the resolved design as a rich tree, or `--json`."""
+from __future__ import annotations
+
+import json
+import sys
+
+from acl.commands._common import add_design_options, load_or_report
+
+
+def add_parser(p) -> None:
+    p.add_argument("file", metavar="FILE")
+    p.add_argument("--json", action="store_true", help="print the resolved design as JSON (SI units)")
+    add_design_options(p)
+
+
+def run(args) -> int:
+    design, code = load_or_report(args.file, args, "json" if args.json else "text")
+    if design is None:
+        return code
+    if args.json:
+        sys.stdout.write(design.model_dump_json(indent=2) + "\n")
+        return 0
+    from rich.console import Console
+
+    Console(highlight=False).print(design_tree(design))
+    return 0
+
+
+def _fmt(v: float, unit: str) -> str:
+    from acl.units import format_si
+
+    return format_si(v, unit)
+
+
+def design_tree(design):
+    from rich.tree import Tree
+
+    t = Tree(f"[bold]{design.file}[/bold]: {design.summary()}")
+    if design.params:
+        n = t.add("params")
+        for p in design.params:
+            free = f" [cyan]free[/cyan] in {_fmt(p.lower, p.unit)} .. {_fmt(p.upper, p.unit)}" if p.free and p.lower is not None else (" [cyan]free[/cyan]" if p.free else "")
+            n.add(f"{p.name} = {_fmt(p.value, p.unit)}{free}")
+    if design.medium:
+        m = design.medium
+        t.add(f"medium [bold]{m.name}[/bold]: rho {m.density:g} kg/m^3, sigma {_fmt(m.surface_tension, 'N/m')}, "
+              f"p0 {_fmt(m.ambient_pressure, 'Pa')}, kappa {m.polytropic_index:g}")
+    if design.transducer:
+        tr = design.transducer
+        t.add(f"transducer [bold]{tr.name}[/bold]: {_fmt(tr.band[0], 'Hz')} .. {_fmt(tr.band[1], 'Hz')}, "
+              f"max {tr.max_voltage:g} V, {len(tr.gain_frequencies)}-point gain table")
+    for c in design.capsules:
+        n = t.add(f"capsule [bold]{c.name}[/bold] ({c.cavity.shape}, V = {c.cavity.volume * 1e18:.4g} um^3) at {_pt(c.center)}")
+        for o in c.orifices:
+            n.add(f"orifice {o.name}: R = {o.radius * 1e6:.4g} um, normal {_dir(o.normal)}, centre {_pt(o.center)}")
+    for b in design.beams:
+        s = b.section
+        sec = f"circle({s.diameter * 1e6:.3g} um)" if s.shape == "circle" else f"rect({s.width * 1e6:.3g} um, {s.thickness * 1e6:.3g} um)"
+        t.add(f"beam [bold]{b.name}[/bold]: L = {b.length * 1e6:.4g} um, {sec}, E = {_fmt(b.youngs_modulus, 'Pa')}, "
+              f"clamp {_pt(b.clamp)} -> tip {_pt(b.tip)}, rigid l = {b.rigid_length * 1e6:.3g} um")
+    for s in design.springs:
+        t.add(f"spring [bold]{s.name}[/bold]: k = {_fmt(s.stiffness, 'N/m')} along {_dir(s.axis)}")
+    for l in design.latches:
+        t.add(f"latch [bold]{l.name}[/bold]: theta = {l.angle * 57.29577951:.3g} deg, L = {l.length * 1e6:.3g} um, "
+              f"w = {l.width * 1e6:.3g} um, t = {l.thickness * 1e6:.3g} um, state {l.state}")
+    for a in design.anchors:
+        t.add(f"anchor [bold]{a.name}[/bold] at {_pt(a.position)}")
+    if design.joints:
+        n = t.add("joints")
+        for j in design.joints:
+            if j.kind == "mount":
+                n.add(f"mount {j.capsule} on {j.target} ({j.target_kind})")
+            elif j.kind == "fix":
+                n.add(f"fix {j.capsule}")
+            else:
+                n.add(f"link {j.a} to {j.b} with {j.element_kind} {j.element}")
+    for o in design.observes:
+        t.add(f"observe [bold]{o.name}[/bold]: {o.kind}({', '.join(x for x in (o.target, o.a, o.b, o.component) if x)})")
+    for r in design.requires:
+        t.add(r.text)
+    for p in design.programs:
+        n = t.add(f"program [bold]{p.name}[/bold] ({len(p.steps)} steps)")
+        for s in p.steps:
+            n.add(_step(s))
+    return t
+
+
+def _step(s) -> str:
+    if s.kind == "drive":
+        tones = " + ".join(f"{t.frequency / 1e3:g} kHz @ {t.amplitude:g} V" for t in s.drive.tones)
+        return f"drive {tones} for {s.duration * 1e3:g} ms"
+    if s.kind == "sweep":
+        return f"sweep {s.f_start / 1e3:g} -> {s.f_stop / 1e3:g} kHz @ {s.amplitude:g} V in {s.duration:g} s"
+    if s.kind == "pause":
+        return f"pause {s.duration * 1e3:g} ms"
+    if s.kind == "follow":
+        return f"follow {s.capsule} along {s.path.shape}" + (f" in {s.duration:g} s" if s.duration else f" at {s.speed * 1e6:g} um/s")
+    if s.kind == "switch":
+        return f"switch {s.latch} to {s.state} (margin {s.margin:g})"
+    return f"{'hold' if s.mode == 'above' else 'cross'} gap({s.a}, {s.b}) for {s.duration:g} s"
+
+
+def _pt(p) -> str:
+    return "(" + ", ".join(f"{x * 1e6:.4g}" for x in p) + ") um"
+
+
+def _dir(d) -> str:
+    names = {(1, 0, 0): "+x", (-1, 0, 0): "-x", (0, 1, 0): "+y", (0, -1, 0): "-y", (0, 0, 1): "+z", (0, 0, -1): "-z"}
+    key = tuple(int(round(x)) if abs(abs(x) - round(abs(x))) < 1e-9 else None for x in d)
+    return names.get(key, "(" + ", ".join(f"{x:.3g}" for x in d) + ")")

@@ -1,0 +1,414 @@
+"""Assemble the Design: parameters, environment, elements, joints, observations, requirements, programs."""
+from __future__ import annotations
+
+import math
+import os
+
+from acl.design import geometry as G
+from acl.design import model as M
+from acl.design.builders import Builder, CapsuleSpec
+from acl.design.checks import check_design_geometry, check_programs
+from acl.design.resolve import DECL_KINDS, D, _Fail, _what
+from acl.design.values import CallVal, DeclVal, IdentVal, ListVal, StrVal, VecVal
+from acl.diagnostics import Span, suggest
+from acl.syntax import ast as A
+from acl.units import Quantity, describe, si_unit
+
+TARGET_POINTS = {"beam": "tip", "latch": "shuttle", "spring": "end"}
+
+
+def assemble(b: Builder) -> M.Design:
+    r, env, bag = b.r, b.env, b.bag
+    params = _params(b)
+    medium, transducer = _uses(b)
+
+    # ---- elements
+    beams_raw: dict[str, dict] = {}
+    for name, blk in env.decls.items():
+        kind = blk.kind
+        if kind not in DECL_KINDS:
+            bag.error("E202", f"unknown declaration `{kind}`", blk.kind_span,
+                      suggest(kind, DECL_KINDS) or "declarations: " + ", ".join(DECL_KINDS))
+            continue
+        b.kinds[name] = kind
+        if kind == "capsule":
+            spec = b.capsule(blk)
+            if spec is None:
+                b.failed.add(name)
+            else:
+                b.capsules[name] = spec
+        elif kind == "beam":
+            raw = b.beam(blk)
+            if raw is None:
+                b.failed.add(name)
+            else:
+                beams_raw[name] = raw
+        elif kind == "spring":
+            _put(b, b.springs, name, b.spring(blk))
+        elif kind == "truss":
+            _put(b, b.trusses, name, b.truss(blk))
+        elif kind == "latch":
+            _put(b, b.latches, name, b.latch(blk))
+        elif kind == "anchor":
+            _put(b, b.anchors, name, b.anchor(blk))
+        elif kind == "material":
+            b.material(DeclVal(kind, name, blk, env))
+        elif kind == "medium" and medium is None:
+            pass  # declared but not used: lint reports it
+        elif kind == "transducer":
+            pass
+
+    # ---- joints
+    joints, mounted_on = _joints(b, beams_raw)
+
+    # ---- positions: capsule centres from mounts, beam rigid lengths from their capsules
+    capsules: list[M.Capsule] = []
+    for name, spec in b.capsules.items():
+        j = mounted_on.get(name)
+        if spec.center is None:
+            if j is not None and j[0] == "beam":
+                beam = beams_raw[j[1]]
+                spec.center = G.add(beam["tip"], G.scale(beam["axis"], spec.extent(beam["axis"])))
+            elif j is not None and j[0] == "latch":
+                spec.center = b.latches[j[1]].anchor
+            else:
+                bag.error("E204", f"capsule `{name}` needs a `center`" + ("" if j is None else " (a spring end has no position of its own)"),
+                          spec.span, "give `center = (x, y, z)` or mount it on a beam tip")
+                continue
+        orifices = tuple(
+            M.Orifice(name=o[0], radius=o[1], normal=o[2], center=G.add(spec.center, G.scale(o[2], o[3])), span=o[4])
+            for o in spec.orifices)
+        capsules.append(M.Capsule(
+            name=name, cavity=M.Cavity(shape=spec.shape, volume=spec.volume, radius=spec.radius, side=spec.side,
+                                       height=spec.height, axis=spec.axis, wall=spec.wall),
+            orifices=orifices, center=spec.center, thrust_coefficient=spec.thrust, quality_factor=spec.q, span=spec.span))
+    beams = []
+    for name, raw in beams_raw.items():
+        if raw["rigid_length"] is None:
+            cap = next((c for c, t in mounted_on.items() if t == ("beam", name)), None)
+            raw["rigid_length"] = b.capsules[cap].extent(raw["axis"]) if cap in b.capsules else 0.0
+        beams.append(M.Beam(**raw))
+
+    design_kw = dict(
+        file=env.file, params=params, medium=medium, transducer=transducer,
+        materials=tuple(b.materials.values()), capsules=tuple(capsules), beams=tuple(beams),
+        springs=tuple(b.springs.values()), trusses=tuple(b.trusses.values()), latches=tuple(b.latches.values()),
+        anchors=tuple(b.anchors.values()), joints=tuple(joints),
+    )
+    partial = M.Design(**design_kw)
+    observes = _observes(b, partial)
+    requires = _requires(b, partial)
+    programs = _programs(b, partial)
+    design = M.Design(**design_kw, observes=tuple(observes), requires=tuple(requires), programs=tuple(programs),
+                      sources=tuple(dict.fromkeys(r.loader.sources)))
+    check_design_geometry(design, bag, b.capsules)
+    check_programs(design, bag)
+    return design
+
+
+def _put(b: Builder, store: dict, name: str, value) -> None:
+    if value is None:
+        b.failed.add(name)
+    else:
+        store[name] = value
+
+
+# ------------------------------------------------------------------------------------------------
+def _params(b: Builder) -> tuple[M.Param, ...]:
+    out = []
+    for name, decl in b.env.params.items():
+        try:
+            v = b.r.param(b.env, name)
+        except _Fail:
+            continue
+        lo = hi = None
+        if decl.free and decl.lower is not None:
+            try:
+                if decl.upper is None:
+                    b.bag.error("E306", f"bounds of `{name}` are written `free in lo .. hi`", decl.lower.span)
+                    continue
+                lo_q, hi_q = b.r.eval(decl.lower, b.env), b.r.eval(decl.upper, b.env)
+            except _Fail:
+                continue
+            for q, e in ((lo_q, decl.lower), (hi_q, decl.upper)):
+                if not isinstance(q, Quantity) or q.dims != v.dims:
+                    b.bag.error("E306", f"bound of `{name}` must be {describe(v.dims)} like its value, found "
+                                f"{describe(q.dims) if isinstance(q, Quantity) else _what(q)}", e.span)
+                    break
+            else:
+                lo, hi = lo_q.value, hi_q.value
+                if not lo < hi:
+                    b.bag.error("E306", f"bounds of `{name}` are empty ({lo:g} >= {hi:g})", decl.lower.span)
+                    continue
+                if not lo <= v.value <= hi:
+                    b.bag.error("E306", f"value of `{name}` lies outside its bounds", decl.value.span,
+                                "a free parameter's starting value must lie within its bounds")
+                    continue
+        out.append(M.Param(name=name, value=v.value, unit=si_unit(v.dims), free=decl.free, lower=lo, upper=hi, span=decl.span))
+    return tuple(out)
+
+
+def _uses(b: Builder):
+    medium = transducer = None
+    seen: dict[str, Span] = {}
+    for st in b.env.module.statements:
+        if not isinstance(st, A.Use):
+            continue
+        if st.what not in ("medium", "transducer"):
+            b.bag.error("E213", f"`use {st.what}`: only a medium or a transducer is used", st.span,
+                        suggest(st.what, ["medium", "transducer"]))
+            continue
+        if st.what in seen:
+            b.bag.error("E206", f"`use {st.what}` given twice (first at line {seen[st.what].line})", st.span)
+            continue
+        seen[st.what] = st.span
+        try:
+            v = b.r.eval(st.target, b.env)
+        except _Fail:
+            continue
+        if not isinstance(v, DeclVal) or v.kind != st.what:
+            b.bag.error("E207", f"`use {st.what}` needs a {st.what}, found {_what(v)}", st.target.span, b.r._kind_hint(st.what, b.env))
+            continue
+        if st.what == "medium":
+            medium = b.medium(v)
+        else:
+            transducer = b.transducer(v)
+    # a single local medium/transducer is used without saying so
+    for kind in ("medium", "transducer"):
+        if kind in seen:
+            continue
+        local = [blk for blk in b.env.decls.values() if blk.kind == kind]
+        if len(local) == 1:
+            dv = DeclVal(kind, local[0].name, local[0], b.env)
+            if kind == "medium":
+                medium = b.medium(dv)
+            else:
+                transducer = b.transducer(dv)
+    return medium, transducer
+
+
+# ------------------------------------------------------------------------------------------------
+def _local(b: Builder, ref: A.Ref, kinds: tuple[str, ...], what: str):
+    """Resolve a reference to a local element of one of `kinds`; returns (kind, name) or None."""
+    name = ref.parts[0]
+    if len(ref.parts) > 1 and ref.parts[0] in b.env.imports:
+        b.bag.error("E207", f"{what}: `{ref.dotted}` is imported; declare the element in this file (e.g. `capsule c like {ref.dotted} {{ ... }}`)", ref.span)
+        return None
+    if name == "ground" and "ground" in kinds:
+        return ("ground", "ground")
+    kind = b.kinds.get(name)
+    if kind is None:
+        cands = [n for n, k in b.kinds.items() if k in kinds]
+        b.bag.error("E201", f"{what}: unknown {' or '.join(k for k in kinds if k != 'ground')} `{name}`", ref.span,
+                    suggest(name, cands) or (("available: " + ", ".join(cands)) if cands else None))
+        return None
+    if kind not in kinds:
+        b.bag.error("E207", f"{what}: `{name}` is a {kind}, expected a {' or '.join(k for k in kinds if k != 'ground')}", ref.span)
+        return None
+    if name in b.failed:
+        return None
+    return (kind, name)
+
+
+def _joints(b: Builder, beams_raw):
+    joints = []
+    mounted_on: dict[str, tuple[str, str]] = {}
+    target_used: dict[tuple[str, str], Span] = {}
+    capsule_joined: dict[str, Span] = {}
+
+    def claim_capsule(name, span):
+        if name in capsule_joined:
+            b.bag.error("E406", f"capsule `{name}` is attached twice (first at line {capsule_joined[name].line})", span,
+                        "a capsule sits on one beam tip, latch shuttle or spring end, or is fixed")
+            return False
+        capsule_joined[name] = span
+        return True
+
+    for st in b.env.module.statements:
+        if isinstance(st, A.MountStmt):
+            cap = _local(b, st.capsule, ("capsule",), "mount")
+            tgt_name = st.target.parts[0]
+            tkind = b.kinds.get(tgt_name)
+            if tkind not in TARGET_POINTS:
+                if tkind is None:
+                    cands = [n for n, k in b.kinds.items() if k in TARGET_POINTS]
+                    b.bag.error("E201", f"mount: unknown beam, latch or spring `{tgt_name}`", st.target.span,
+                                suggest(tgt_name, cands))
+                else:
+                    b.bag.error("E207", f"mount: `{tgt_name}` is a {tkind}; capsules mount on a beam tip, latch shuttle or spring end",
+                                st.target.span)
+                continue
+            point = TARGET_POINTS[tkind]
+            if len(st.target.parts) != 2 or st.target.parts[1] != point:
+                got = st.target.parts[1] if len(st.target.parts) > 1 else None
+                b.bag.error("E212", f"mount: a {tkind} is mounted at `{tgt_name}.{point}`" + (f", not `.{got}`" if got else ""),
+                            st.target.span, f"write `mount ... on {tgt_name}.{point}`")
+                continue
+            if cap is None or tgt_name in b.failed:
+                continue
+            key = (tkind, tgt_name)
+            if key in target_used:
+                b.bag.error("E405", f"`{tgt_name}.{point}` already carries a capsule (line {target_used[key].line})", st.span)
+                continue
+            if not claim_capsule(cap[1], st.span):
+                continue
+            target_used[key] = st.span
+            mounted_on[cap[1]] = key
+            joints.append(M.Mount(capsule=cap[1], target=tgt_name, target_kind=tkind, span=st.span))
+        elif isinstance(st, A.FixStmt):
+            cap = _local(b, st.capsule, ("capsule",), "fix")
+            if cap and claim_capsule(cap[1], st.span):
+                joints.append(M.Fix(capsule=cap[1], span=st.span))
+        elif isinstance(st, A.LinkStmt):
+            a = _local(b, st.a, ("capsule", "anchor", "ground"), "link")
+            c = _local(b, st.b, ("capsule", "anchor", "ground"), "link")
+            el = _local(b, st.element, ("truss", "spring"), "link ... with")
+            if a and c and a == c:
+                b.bag.error("E207", "link: both ends are the same point", st.span)
+                continue
+            if a and c and el:
+                joints.append(M.Link(a=a[1], b=c[1], element=el[1], element_kind=el[0], span=st.span))
+    return joints, mounted_on
+
+
+# ------------------------------------------------------------------------------------------------
+def _orifice_ref(b: Builder, design: M.Design, ref: A.Expr, what: str) -> str | None:
+    if not isinstance(ref, A.Ref) or len(ref.parts) != 2:
+        b.bag.error("E304", f"{what}: expected `capsule.orifice`", ref.span)
+        return None
+    cap, ori = ref.parts
+    kind = b.kinds.get(cap)
+    if kind != "capsule":
+        cands = [n for n, k in b.kinds.items() if k == "capsule"]
+        b.bag.error("E201", f"{what}: unknown capsule `{cap}`", ref.span, suggest(cap, cands))
+        return None
+    if cap in b.failed or cap not in b.capsules:
+        return None
+    names = [o[0] for o in b.capsules[cap].orifices]
+    if ori not in names:
+        b.bag.error("E212", f"{what}: capsule `{cap}` has no orifice `{ori}`", ref.span, suggest(ori, names) or "orifices: " + ", ".join(names))
+        return None
+    return f"{cap}.{ori}"
+
+
+def _arity(b: Builder, call: A.Call, n: tuple[int, ...], what: str) -> bool:
+    if len(call.args) not in n:
+        b.bag.error("E304", f"{what} takes {' or '.join(map(str, n))} argument(s), got {len(call.args)}", call.span)
+        return False
+    return True
+
+
+def _observes(b: Builder, design: M.Design) -> list[M.Observe]:
+    out = []
+    for st in b.env.module.statements:
+        if not isinstance(st, A.ObserveDecl):
+            continue
+        c = st.call
+        if c.name == "gap":
+            if not _arity(b, c, (2,), "gap(a.orifice, b.orifice)"):
+                continue
+            x, y = (_orifice_ref(b, design, a, "gap") for a in c.args)
+            if x and y:
+                out.append(M.Observe(name=st.name, kind="gap", a=x, b=y, span=st.span))
+        elif c.name == "displacement":
+            if not _arity(b, c, (2,), "displacement(element, direction)"):
+                continue
+            tgt = c.args[0]
+            if not isinstance(tgt, A.Ref) or len(tgt.parts) != 1:
+                b.bag.error("E304", "displacement: first argument is a beam, capsule or latch name", tgt.span)
+                continue
+            k = _local(b, tgt, ("beam", "capsule", "latch", "spring"), "displacement")
+            try:
+                axis = b.r.direction(c.args[1], b.env, "displacement direction")
+            except _Fail:
+                continue
+            if k:
+                out.append(M.Observe(name=st.name, kind="displacement", target=k[1], axis=axis, span=st.span))
+        elif c.name == "position":
+            if not _arity(b, c, (2,), "position(capsule, x|y|z)"):
+                continue
+            tgt, comp = c.args
+            k = _local(b, tgt, ("capsule",), "position") if isinstance(tgt, A.Ref) else None
+            if not (isinstance(comp, A.Ref) and comp.dotted in ("x", "y", "z")):
+                b.bag.error("E304", "position: second argument is x, y or z", comp.span)
+                continue
+            if k:
+                out.append(M.Observe(name=st.name, kind="position", target=k[1], component=comp.dotted, span=st.span))
+        else:
+            b.bag.error("E201", f"unknown observable `{c.name}`", c.span,
+                        suggest(c.name, ["gap", "displacement", "position"]) or "observables: gap, displacement, position")
+    return out
+
+
+def _requires(b: Builder, design: M.Design) -> list[M.Require]:
+    out = []
+    units = {"resonance": "Hz", "separation": "Hz", "margin": "", "gap": "m"}
+    for st in b.env.module.statements:
+        if not isinstance(st, A.RequireDecl):
+            continue
+        c = st.call
+        if c.name not in units:
+            b.bag.error("E201", f"unknown requirement `{c.name}`", c.span,
+                        suggest(c.name, units) or "requirements: " + ", ".join(units))
+            continue
+        try:
+            lo = hi = None
+            if st.op == "in":
+                if st.upper is None:
+                    b.bag.error("E304", "`require ... in lo .. hi` needs a range", st.value.span)
+                    continue
+                lo = b.r.q(st.value, b.env, units[c.name], f"require {c.name}")
+                hi = b.r.q(st.upper, b.env, units[c.name], f"require {c.name}")
+            elif st.op in (">=", ">"):
+                lo = b.r.q(st.value, b.env, units[c.name], f"require {c.name}")
+            else:
+                hi = b.r.q(st.value, b.env, units[c.name], f"require {c.name}")
+        except _Fail:
+            continue
+        args: tuple[str, ...] = ()
+        mode = 0
+        if c.name in ("resonance", "margin"):
+            kind = "capsule" if c.name == "resonance" else "latch"
+            if not _arity(b, c, (1,), f"{c.name}({kind})") or not isinstance(c.args[0], A.Ref):
+                continue
+            k = _local(b, c.args[0], (kind,), f"require {c.name}")
+            if not k:
+                continue
+            args = (k[1],)
+            m = c.kw("mode")
+            if m is not None:
+                try:
+                    mode = int(b.r.q(m, b.env, "", "mode")) - 1
+                except _Fail:
+                    continue
+                if mode < 0:
+                    b.bag.error("E304", "modes are numbered from 1", m.span)
+                    continue
+        elif c.name == "separation":
+            if not _arity(b, c, (2,), "separation(capsule, capsule)"):
+                continue
+            ks = [_local(b, a, ("capsule",), "require separation") if isinstance(a, A.Ref) else None for a in c.args]
+            if not all(ks):
+                continue
+            args = (ks[0][1], ks[1][1])
+        else:
+            if not _arity(b, c, (2,), "gap(a.orifice, b.orifice)"):
+                continue
+            x, y = (_orifice_ref(b, design, a, "require gap") for a in c.args)
+            if not (x and y):
+                continue
+            args = (x, y)
+        out.append(M.Require(kind=c.name, args=args, mode=mode, lower=lo, upper=hi, text=st.text, span=st.span))
+    return out
+
+
+# ------------------------------------------------------------------------------------------------
+def _programs(b: Builder, design: M.Design) -> list[M.Program]:
+    from acl.design.programs import build_program
+
+    out = []
+    for name, decl in b.env.programs.items():
+        p = build_program(b, design, decl)
+        if p is not None:
+            out.append(p)
+    return out

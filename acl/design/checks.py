@@ -1,0 +1,134 @@
+"""Checks on the resolved design: geometry, printability, attachments, and programs vs transducer."""
+from __future__ import annotations
+
+import math
+
+from acl.design import geometry as G
+from acl.design import model as M
+from acl.diagnostics import DiagnosticBag
+
+# Two-photon lithography resolution, paper Supplementary Note 1 (0.2 um lateral hatching, 0.3 um slicing).
+PRINT_LATERAL = 0.2e-6
+PRINT_AXIAL = 0.3e-6
+SLENDERNESS = (3.0, 500.0)   # beam length / smallest section size for Euler-Bernoulli beams to be sane
+OVERLAP_TOL = 0.5e-6
+
+
+def check_design_geometry(design: M.Design, bag: DiagnosticBag, specs: dict) -> None:
+    _printability(design, bag)
+    _substrate(design, bag, specs)
+    _overlaps(design, bag, specs)
+    _mount_plausibility(design, bag, specs)
+    for beam in design.beams:
+        ratio = beam.length / beam.section.min_feature
+        if not SLENDERNESS[0] <= ratio <= SLENDERNESS[1]:
+            bag.error("E408", f"beam `{beam.name}` has slenderness L/d = {ratio:.3g}, outside {SLENDERNESS[0]:g}..{SLENDERNESS[1]:g}",
+                      beam.span, "beam theory (paper Eq. 1) needs a slender beam; change its length or section")
+    for c in design.capsules:
+        if design.mount_of(c.name) is None and not any(j.kind == "link" and c.name in (j.a, j.b) for j in design.joints):
+            bag.warning("W401", f"capsule `{c.name}` is not attached to anything (mount, fix or link)", c.span,
+                        f"e.g. `mount {c.name} on BEAM.tip` or `fix {c.name}`")
+
+
+def _feature(bag, size: float, axial: bool, what: str, span) -> None:
+    limit = PRINT_AXIAL if axial else PRINT_LATERAL
+    if size < limit:
+        bag.error("E407", f"{what} is {size * 1e6:.3g} um, below the printable resolution ({limit * 1e6:.2g} um "
+                  f"{'axial' if axial else 'lateral'}, paper Supplementary Note 1)", span)
+
+
+def _axial(direction) -> bool:
+    return abs(direction[2]) > 0.7
+
+
+def _printability(design: M.Design, bag: DiagnosticBag) -> None:
+    for c in design.capsules:
+        _feature(bag, c.cavity.wall, False, f"wall of capsule `{c.name}`", c.span)
+        for o in c.orifices:
+            _feature(bag, 2 * o.radius, False, f"orifice `{c.name}.{o.name}` diameter", o.span)
+    for b in design.beams:
+        # a vertical beam's section is printed laterally; a horizontal one has one axial dimension
+        s = b.section
+        if s.shape == "circle":
+            _feature(bag, s.diameter, not _axial(b.axis), f"diameter of beam `{b.name}`", b.span)
+        else:
+            _feature(bag, s.width, False, f"width of beam `{b.name}`", b.span)
+            _feature(bag, s.thickness, not _axial(b.axis), f"thickness of beam `{b.name}`", b.span)
+    for l in design.latches:
+        _feature(bag, l.width, False, f"width of latch `{l.name}`", l.span)
+        _feature(bag, l.thickness, True, f"thickness of latch `{l.name}`", l.span)
+
+
+def _substrate(design: M.Design, bag: DiagnosticBag, specs) -> None:
+    down = (0.0, 0.0, -1.0)
+    for c in design.capsules:
+        spec = specs.get(c.name)
+        low = c.center[2] - (spec.extent(down) if spec else 0.0)
+        if low < -1e-12:
+            bag.error("E404", f"capsule `{c.name}` reaches {(-low) * 1e6:.3g} um below the substrate (z = 0)", c.span,
+                      "raise its centre or mount it higher")
+    for b in design.beams:
+        if min(b.clamp[2], b.tip[2]) < -1e-12:
+            bag.error("E404", f"beam `{b.name}` goes below the substrate (z = 0)", b.span)
+    for l in design.latches:
+        if l.anchor[2] < -1e-12:
+            bag.error("E404", f"latch `{l.name}` is below the substrate (z = 0)", l.span)
+
+
+def _overlaps(design: M.Design, bag: DiagnosticBag, specs) -> None:
+    caps = [c for c in design.capsules if c.name in specs]
+    for i, a in enumerate(caps):
+        for b in caps[i + 1:]:
+            d = G.sub(b.center, a.center)
+            dist = G.norm(d)
+            if dist == 0:
+                bag.error("E403", f"capsules `{a.name}` and `{b.name}` have the same centre", b.span)
+                continue
+            u = G.scale(d, 1 / dist)
+            reach = specs[a.name].extent(u) + specs[b.name].extent(G.scale(u, -1))
+            if reach - dist > OVERLAP_TOL:
+                bag.error("E403", f"capsules `{a.name}` and `{b.name}` overlap by {(reach - dist) * 1e6:.3g} um", b.span,
+                          "move them apart")
+
+
+def _mount_plausibility(design: M.Design, bag: DiagnosticBag, specs) -> None:
+    for j in design.joints:
+        if j.kind != "mount" or j.target_kind != "beam":
+            continue
+        c = design.capsule(j.capsule)
+        beam = design.beam(j.target)
+        spec = specs.get(c.name)
+        if spec is None:
+            continue
+        d = G.norm(G.sub(c.center, beam.tip))
+        reach = spec.extent(G.scale(G.sub(c.center, beam.tip), 1 / d)) if d > 0 else 0.0
+        if d > reach + 1e-6:
+            bag.error("E405", f"capsule `{c.name}` is {d * 1e6:.3g} um from `{beam.name}.tip`, beyond its own size", j.span,
+                      "omit the capsule's `center` to seat it on the tip")
+
+
+def check_programs(design: M.Design, bag: DiagnosticBag) -> None:
+    tr = design.transducer
+    for p in design.programs:
+        for st in p.steps:
+            freqs, volts = _step_tones(st)
+            if tr is not None:
+                lo, hi = tr.band
+                for f in freqs:
+                    if not lo * (1 - 1e-9) <= f <= hi * (1 + 1e-9):
+                        bag.error("E501", f"{f / 1e3:.4g} kHz is outside the band of transducer `{tr.name}` "
+                                  f"({lo / 1e3:.4g}..{hi / 1e3:.4g} kHz)", st.span, "choose a frequency inside the band")
+                        break
+                if volts is not None and volts > tr.max_voltage * (1 + 1e-9):
+                    bag.error("E502", f"{volts:.3g} V exceeds the maximum {tr.max_voltage:.3g} V of transducer `{tr.name}`",
+                              st.span, "lower the amplitude or its limit")
+
+
+def _step_tones(st) -> tuple[list[float], float | None]:
+    if st.kind == "drive":
+        return [t.frequency for t in st.drive.tones], sum(t.amplitude for t in st.drive.tones)
+    if st.kind == "sweep":
+        return [st.f_start, st.f_stop], st.amplitude
+    if st.kind in ("follow", "switch", "hold"):
+        return list(st.tones), st.limits.max_voltage
+    return [], None

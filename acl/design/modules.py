@@ -1,0 +1,205 @@
+"""Finding and loading acl modules: stdlib, sibling files, search paths; import safety and cycles."""
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field
+from importlib import resources
+
+from acl.diagnostics import DiagnosticBag, DiagnosticError, Span
+from acl.syntax import ast as A
+from acl.syntax.parser import parse_module
+
+
+def stdlib_root() -> str:
+    return str(resources.files("stdlib"))
+
+
+@dataclass
+class ModuleEnv:
+    """One loaded file: its syntax and a symbol table of its top-level names."""
+
+    file: str
+    module: A.Module
+    decls: dict[str, A.Block] = field(default_factory=dict)
+    params: dict[str, A.ParamDecl] = field(default_factory=dict)
+    imports: dict[str, object] = field(default_factory=dict)   # alias -> ModuleEnv | (ModuleEnv, name)
+    programs: dict[str, A.ProgramDecl] = field(default_factory=dict)
+    is_main: bool = False
+
+
+class Loader:
+    """Loads a module and its imports once each; only from allowed roots."""
+
+    def __init__(self, bag: DiagnosticBag, search_paths=(), max_files: int = 256):
+        self.bag = bag
+        self.search_paths = [os.path.realpath(p) for p in search_paths]
+        self.cache: dict[str, ModuleEnv] = {}
+        self.stack: list[str] = []
+        self.sources: list[str] = []
+        self.max_files = max_files
+
+    # ------------------------------------------------------------------------------------------
+    def load_main(self, path: str) -> ModuleEnv:
+        real = os.path.realpath(path)
+        text = _read(path)
+        env = self._load_text(text, path, real, root=os.path.dirname(real))
+        env.is_main = True
+        return env
+
+    def load_text(self, text: str, filename: str) -> ModuleEnv:
+        real = os.path.realpath(filename) if os.path.exists(filename) else filename
+        root = os.path.dirname(os.path.realpath(filename)) if os.path.exists(filename) else os.getcwd()
+        env = self._load_text(text, filename, real, root=root)
+        env.is_main = True
+        return env
+
+    def _load_text(self, text: str, display: str, real: str, root: str) -> ModuleEnv:
+        self.stack.append(real)
+        self.sources.append(display)
+        try:
+            try:
+                module = parse_module(text, display)
+            except DiagnosticError as exc:
+                for d in exc.diagnostics:
+                    self.bag.add(d)
+                module = A.Module(display, (), text)
+            env = ModuleEnv(display, module)
+            self._index(env, root)
+            self.cache[real] = env
+            return env
+        finally:
+            self.stack.pop()
+
+    # ------------------------------------------------------------------------------------------
+    def _index(self, env: ModuleEnv, root: str) -> None:
+        seen: dict[str, Span] = {}
+
+        def claim(name: str, span: Span) -> bool:
+            if name in seen:
+                self.bag.error("E205", f"`{name}` is declared twice (first at {seen[name]})", span,
+                               "give each declaration its own name")
+                return False
+            seen[name] = span
+            return True
+
+        for st in env.module.statements:
+            if isinstance(st, A.Import):
+                target = self._import(st, env, root)
+                if target is not None:
+                    alias = st.alias or (st.module[-1] if st.module else None)
+                    if alias and claim(alias, st.span):
+                        env.imports[alias] = target
+            elif isinstance(st, A.ParamDecl):
+                if claim(st.name, st.span):
+                    env.params[st.name] = st
+            elif isinstance(st, A.Block):
+                if claim(st.name, st.span):
+                    env.decls[st.name] = st
+            elif isinstance(st, A.ProgramDecl):
+                if claim("program " + st.name, st.span):
+                    env.programs[st.name] = st
+            elif isinstance(st, A.ObserveDecl):
+                claim(st.name, st.span)
+
+    def _import(self, st: A.Import, env: ModuleEnv, root: str):
+        here = os.path.dirname(os.path.realpath(env.file)) if os.path.exists(env.file) else root
+        if st.file is not None:
+            candidates = [os.path.join(here, st.file)]
+            shown = st.file
+            member = None
+        else:
+            parts = st.module
+            shown = ".".join(parts)
+            candidates = []
+            member = None
+            if parts[0] == "stdlib":
+                base = [stdlib_root()]
+                rel = parts[1:]
+            else:
+                base = [here, *self.search_paths]
+                rel = parts
+            for b in base:
+                candidates.append(os.path.join(b, *rel) + ".acl")
+            if len(rel) >= 2:  # `import stdlib.media.pbs`: module media, member pbs
+                member = rel[-1]
+                for b in base:
+                    candidates.append((os.path.join(b, *rel[:-1]) + ".acl", member))
+        for cand in candidates:
+            mem = None
+            if isinstance(cand, tuple):
+                cand, mem = cand
+            if not os.path.isfile(cand):
+                continue
+            real = os.path.realpath(cand)
+            if not self._allowed(real, root):
+                self.bag.error("E210", f"import `{shown}` resolves outside the design's directory tree",
+                               st.span, "imports may only reach the importing file's folder and below, the stdlib, and --path folders")
+                return None
+            if real in self.stack:
+                chain = " -> ".join(os.path.basename(p) for p in self.stack[self.stack.index(real):] + [real])
+                self.bag.error("E209", f"import cycle: {chain}", st.span, "move shared declarations into a third file")
+                return None
+            if len(self.cache) >= self.max_files:
+                self.bag.error("E211", f"more than {self.max_files} imported files", st.span)
+                return None
+            target = self.cache.get(real)
+            if target is None:
+                try:
+                    text = _read(cand)
+                except DiagnosticError as exc:
+                    for d in exc.diagnostics:
+                        self.bag.add(d)
+                    return None
+                target = self._load_text(text, cand, real, root=os.path.dirname(real) if real.startswith(stdlib_root()) else root)
+            if mem is not None:
+                if mem not in target.decls and mem not in target.params:
+                    continue
+                return (target, mem)
+            return target
+        from acl.diagnostics import suggest
+
+        hint = None
+        if st.module and st.module[0] == "stdlib":
+            names = _stdlib_modules()
+            hint = suggest(".".join(st.module[1:]), names) or ("stdlib modules: " + ", ".join(sorted(names)))
+        self.bag.error("E208", f"cannot find module `{shown}`", st.span, hint)
+        return None
+
+    def _allowed(self, real: str, root: str) -> bool:
+        roots = [os.path.realpath(root), os.path.realpath(stdlib_root()), *self.search_paths]
+        return any(real == r or real.startswith(r.rstrip(os.sep) + os.sep) for r in roots)
+
+
+def _stdlib_modules() -> list[str]:
+    out = []
+    base = stdlib_root()
+    for dirpath, _dirs, files in os.walk(base):
+        for f in files:
+            if f.endswith(".acl"):
+                rel = os.path.relpath(os.path.join(dirpath, f[:-4]), base)
+                out.append(rel.replace(os.sep, "."))
+    return out
+
+
+def _read(path: str) -> str:
+    try:
+        size = os.path.getsize(path)
+        if size > 2_000_000:
+            raise DiagnosticError([_io_error(path, f"file larger than 2 MB ({size} bytes)")])
+        with open(path, "rb") as fh:
+            raw = fh.read()
+        return raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise DiagnosticError([_io_error(path, f"not UTF-8 text (byte {exc.start})", code="E103")]) from None
+    except IsADirectoryError:
+        raise DiagnosticError([_io_error(path, "is a directory, not a design file")]) from None
+    except FileNotFoundError:
+        raise DiagnosticError([_io_error(path, "no such file")]) from None
+    except OSError as exc:
+        raise DiagnosticError([_io_error(path, exc.strerror or str(exc))]) from None
+
+
+def _io_error(path: str, msg: str, code: str = "E601"):
+    from acl.diagnostics import error
+
+    return error(code, f"cannot read `{path}`: {msg}", Span(file=path, line=1, column=1))

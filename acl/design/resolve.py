@@ -1,0 +1,508 @@
+"""Syntax tree -> resolved, checked Design.
+
+Resolves names across imports, evaluates parameters (with command-line overrides), checks the
+dimension of every expression, builds the immutable models of :mod:`acl.design.model`, then runs
+the geometry and program checks of :mod:`acl.design.checks`.  Every independent error is reported.
+"""
+from __future__ import annotations
+
+import math
+import os
+from dataclasses import dataclass
+
+from acl.design import model as M
+from acl.design.modules import Loader, ModuleEnv
+from acl.design.values import CallVal, DeclVal, DirVal, IdentVal, ListVal, RangeVal, StrVal, VecVal, unit_vector
+from acl.diagnostics import Diagnostic, DiagnosticBag, DiagnosticError, Span, suggest
+from acl.syntax import ast as A
+from acl.units import DIMENSIONLESS, DimensionError, Quantity, UnitError, describe, parse_unit, parse_unit_static, si_unit
+
+
+class _Fail(Exception):
+    """Evaluation of one expression failed; the diagnostic is already recorded."""
+
+
+DECL_KINDS = ("medium", "material", "transducer", "capsule", "beam", "spring", "truss", "latch", "anchor")
+
+D = parse_unit_static
+LENGTH, FREQ, VOLT, TIME = D("m"), D("Hz"), D("V"), D("s")
+
+
+# ------------------------------------------------------------------------------------------------
+# Entry points
+# ------------------------------------------------------------------------------------------------
+
+def load_design(path: str, overrides: dict[str, str] | None = None, search_paths=()) -> M.Design:
+    bag = DiagnosticBag()
+    loader = Loader(bag, search_paths)
+    env = loader.load_main(str(path))
+    return _finish(env, loader, bag, overrides or {})
+
+
+def load_text(text: str, filename: str = "<string>", overrides=None, search_paths=()) -> M.Design:
+    bag = DiagnosticBag()
+    loader = Loader(bag, search_paths)
+    env = loader.load_text(text, filename)
+    return _finish(env, loader, bag, overrides or {})
+
+
+def check_design(path: str, overrides=None, search_paths=()) -> tuple[M.Design | None, list[Diagnostic]]:
+    """Like load_design but returns (design or None, all diagnostics incl. warnings)."""
+    try:
+        bag = DiagnosticBag()
+        loader = Loader(bag, search_paths)
+        env = loader.load_main(str(path))
+        design = _finish(env, loader, bag, overrides or {})
+        return design, bag.items
+    except DiagnosticError as exc:
+        return None, exc.diagnostics
+
+
+def _finish(env: ModuleEnv, loader: Loader, bag: DiagnosticBag, overrides: dict[str, str]) -> M.Design:
+    r = Resolver(env, loader, bag, overrides)
+    design = r.build()
+    if bag.has_errors:
+        raise DiagnosticError(sorted(bag.items, key=_order))
+    return design
+
+
+def _order(d: Diagnostic):
+    s = d.span
+    return (0 if d.is_error else 1, s.file if s else "", s.line if s else 0, s.column if s else 0)
+
+
+# ------------------------------------------------------------------------------------------------
+# Key schemas: key -> (expected kind, dimension unit or None, required, default)
+# ------------------------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class Key:
+    kind: str              # "q" quantity, "vec", "dir", "ref:<declkind>", "call", "ident", "table", "range", "any"
+    unit: str | None = None
+    required: bool = False
+    default: object = None
+    doc: str = ""
+
+
+SCHEMAS: dict[str, dict[str, Key]] = {
+    "medium": {
+        "density": Key("q", "kg/m^3", True), "viscosity": Key("q", "Pa*s", True),
+        "sound_speed": Key("q", "m/s", True), "surface_tension": Key("q", "N/m", True),
+        "pressure": Key("q", "Pa", False, 101325.0), "polytropic": Key("q", "", False, 1.4),
+        "thermal_diffusivity": Key("q", "m^2/s", False, 2.1e-5),
+    },
+    "material": {
+        "youngs": Key("q", "Pa", True), "poisson": Key("q", "", False, 0.49),
+        "density": Key("q", "kg/m^3", False, 1100.0),
+    },
+    "transducer": {
+        "max_voltage": Key("q", "V", True), "band": Key("range", "Hz", True),
+        "gain": Key("table", None, True),
+    },
+    "capsule": {
+        "center": Key("vec", "m"), "thrust": Key("q", "N/V^2"), "q": Key("q", ""),
+    },
+    "cavity": {  # nested in capsule; shape-specific keys checked in the builder
+        "radius": Key("q", "m"), "height": Key("q", "m"), "side": Key("q", "m"),
+        "volume": Key("q", "m^3"), "axis": Key("dir"), "facing": Key("dir"),
+        "wall": Key("q", "m", False, 2e-6),
+    },
+    "orifice": {"radius": Key("q", "m", True), "normal": Key("dir"), "face": Key("any")},
+    "beam": {
+        "length": Key("q", "m", True), "section": Key("call", None, True), "material": Key("ref:material", None, True),
+        "clamp": Key("vec", "m", True), "axis": Key("dir", None, False, (0.0, 0.0, 1.0)), "rigid": Key("q", "m"),
+    },
+    "spring": {
+        "stiffness": Key("q", "N/m"), "axis": Key("dir", None, True), "length": Key("q", "m"),
+        "section": Key("call"), "material": Key("ref:material"), "count": Key("q", "", False, 1.0),
+    },
+    "truss": {"length": Key("q", "m")},
+    "latch": {
+        "angle": Key("q", "", True), "length": Key("q", "m", True), "width": Key("q", "m", True),
+        "thickness": Key("q", "m", True), "material": Key("ref:material", None, True),
+        "at": Key("vec", "m", True), "axis": Key("dir", None, True), "state": Key("ident", None, False, "a"),
+    },
+    "anchor": {"at": Key("vec", "m", True)},
+}
+
+PRINT_LATERAL = 0.2e-6   # m, two-photon lateral voxel (Supplementary Note 1: 0.2 um hatching)
+PRINT_AXIAL = 0.3e-6     # m, axial slicing (Supplementary Note 1: 0.3 um)
+
+
+class Resolver:
+    def __init__(self, env: ModuleEnv, loader: Loader, bag: DiagnosticBag, overrides: dict[str, str]):
+        self.main = env
+        self.loader = loader
+        self.bag = bag
+        self.param_values: dict[tuple[int, str], Quantity] = {}
+        self.evaluating: set[tuple[int, str]] = set()
+        self.override_exprs: dict[str, A.Expr] = {}
+        self.override_spans: dict[str, Span] = {}
+        self.used_decls: dict[str, tuple[str, A.Block, ModuleEnv]] = {}
+        self._parse_overrides(overrides)
+
+    # ---------------------------------------------------------------------------- overrides
+    def _parse_overrides(self, overrides: dict[str, str]) -> None:
+        from acl.syntax.parser import parse_module
+
+        for name, text in overrides.items():
+            span = Span(file="<--set>", line=1, column=1)
+            if name not in self.main.params:
+                self.bag.error("E211", f"--set {name}: the design has no parameter `{name}`", span,
+                               suggest(name, self.main.params) or (
+                                   "parameters: " + ", ".join(self.main.params) if self.main.params else "the design declares no parameters"))
+                continue
+            try:
+                mod = parse_module(f"param __override = {text}\n", f"<--set {name}>")
+                self.override_exprs[name] = mod.statements[0].value
+                self.override_spans[name] = span
+            except DiagnosticError as exc:
+                for d in exc.diagnostics:
+                    self.bag.add(Diagnostic("E212", d.severity, f"--set {name}={text}: {d.message}", span, d.hint))
+
+    # ---------------------------------------------------------------------------- evaluation
+    def eval(self, e: A.Expr, env: ModuleEnv):
+        try:
+            return self._eval(e, env)
+        except DimensionError as exc:
+            self.bag.error("E303", str(exc), e.span)
+        except ZeroDivisionError:
+            self.bag.error("E305", "division by zero", e.span)
+        except (ValueError, OverflowError) as exc:
+            self.bag.error("E305", str(exc), e.span)
+        raise _Fail()
+
+    def _eval(self, e: A.Expr, env: ModuleEnv):
+        if isinstance(e, A.Num):
+            return Quantity(e.value)
+        if isinstance(e, A.Qty):
+            try:
+                factor, dims = parse_unit(e.unit)
+            except UnitError as exc:
+                self.bag.error("E302", str(exc), e.span, exc.hint)
+                raise _Fail()
+            v = e.value * factor
+            if not math.isfinite(v):
+                self.bag.error("E305", "quantity is not finite", e.span)
+                raise _Fail()
+            return Quantity(v, dims)
+        if isinstance(e, A.Str):
+            return StrVal(e.value)
+        if isinstance(e, A.Dir):
+            v = [0.0, 0.0, 0.0]
+            v["xyz".index(e.axis)] = float(e.sign)
+            return DirVal(tuple(v))
+        if isinstance(e, A.Ref):
+            return self.lookup(e, env)
+        if isinstance(e, A.Vec):
+            items = tuple(self._eval(i, env) for i in e.items)
+            if not all(isinstance(i, Quantity) for i in items):
+                self.bag.error("E304", "vector components must be quantities", e.span)
+                raise _Fail()
+            return VecVal(items)
+        if isinstance(e, A.Range):
+            lo, hi = self._eval(e.lower, env), self._eval(e.upper, env)
+            lo, hi = self._num(lo, e.lower), self._num(hi, e.upper)
+            if lo.dims != hi.dims:
+                raise DimensionError(lo.dims, hi.dims, "..")
+            return RangeVal(lo, hi)
+        if isinstance(e, A.ListExpr):
+            return ListVal(tuple(self._eval(i, env) for i in e.items))
+        if isinstance(e, A.Call):
+            args = tuple(self._eval(a, env) for a in e.args)
+            kwargs = tuple((k, self._eval(v, env)) for k, v in e.kwargs)
+            return CallVal(e.name, args, kwargs, e.span)
+        if isinstance(e, A.Neg):
+            v = self._eval(e.operand, env)
+            if isinstance(v, DirVal):
+                return DirVal(tuple(-c for c in v.vector))
+            return -self._num(v, e.operand)
+        if isinstance(e, A.BinOp):
+            left = self._eval(e.left, env)
+            right = self._eval(e.right, env)
+            if isinstance(left, VecVal) and isinstance(right, VecVal) and e.op in "+-" and len(left.items) == len(right.items):
+                op = (lambda a, b: a + b) if e.op == "+" else (lambda a, b: a - b)
+                return VecVal(tuple(op(a, b) for a, b in zip(left.items, right.items)))
+            if isinstance(left, VecVal) and isinstance(right, Quantity) and e.op in "*/":
+                return VecVal(tuple(a * right if e.op == "*" else a / right for a in left.items))
+            if isinstance(left, Quantity) and isinstance(right, VecVal) and e.op == "*":
+                return VecVal(tuple(left * b for b in right.items))
+            if isinstance(left, DirVal) and isinstance(right, Quantity) and e.op == "*":
+                return VecVal(tuple(Quantity(c) * right for c in left.vector))
+            if isinstance(left, Quantity) and isinstance(right, DirVal) and e.op == "*":
+                return VecVal(tuple(left * Quantity(c) for c in right.vector))
+            a, b = self._num(left, e.left), self._num(right, e.right)
+            return {"+": a.__add__, "-": a.__sub__, "*": a.__mul__, "/": a.__truediv__, "^": a.__pow__}[e.op](b)
+        self.bag.error("E304", "unsupported expression", e.span)
+        raise _Fail()
+
+    def _num(self, v, e: A.Expr) -> Quantity:
+        if isinstance(v, Quantity):
+            return v
+        self.bag.error("E304", f"expected a number or quantity, found {_what(v)}", e.span)
+        raise _Fail()
+
+    def lookup(self, ref: A.Ref, env: ModuleEnv):
+        parts = list(ref.parts)
+        head = parts[0]
+        cur_env = env
+        if head in env.imports and len(parts) >= 2:
+            target = env.imports[head]
+            if isinstance(target, tuple):
+                self.bag.error("E212", f"`{head}` is a declaration, not a module", ref.span)
+                raise _Fail()
+            cur_env = target
+            parts = parts[1:]
+            head = parts[0]
+        elif head in env.imports and len(parts) == 1:
+            target = env.imports[head]
+            if isinstance(target, tuple):
+                tenv, name = target
+                return self._named(tenv, name, ref)
+            self.bag.error("E304", f"`{head}` is a module; name one of its declarations (`{head}.NAME`)", ref.span,
+                           _members_hint(target))
+            raise _Fail()
+        if len(parts) > 1:
+            if head in cur_env.decls:  # member access such as arm.tip: handled by callers
+                self.bag.error("E304", f"`{ref.dotted}` is a point, not a value", ref.span)
+                raise _Fail()
+            self.bag.error("E201", f"unknown name `{ref.dotted}`", ref.span,
+                           suggest(head, list(cur_env.imports) + list(cur_env.decls) + list(cur_env.params)))
+            raise _Fail()
+        return self._named(cur_env, head, ref)
+
+    def _named(self, env: ModuleEnv, name: str, ref: A.Ref):
+        if name in env.params:
+            return self.param(env, name)
+        if name in env.decls:
+            blk = env.decls[name]
+            return DeclVal(blk.kind, ref.dotted, blk, env)
+        return IdentVal(name) if len(ref.parts) == 1 and env is self.main and name in _IDENTS else self._unknown(env, name, ref)
+
+    def _unknown(self, env, name, ref):
+        self.bag.error("E201", f"unknown name `{ref.dotted}`", ref.span,
+                       suggest(name, list(env.params) + list(env.decls) + list(env.imports)))
+        raise _Fail()
+
+    def param(self, env: ModuleEnv, name: str) -> Quantity:
+        key = (id(env), name)
+        if key in self.param_values:
+            return self.param_values[key]
+        decl = env.params[name]
+        if key in self.evaluating:
+            self.bag.error("E214", f"parameter `{name}` depends on itself", decl.span)
+            raise _Fail()
+        self.evaluating.add(key)
+        try:
+            value = self._eval(decl.value, env)
+            if not isinstance(value, Quantity):
+                self.bag.error("E304", f"parameter `{name}` must be a number or quantity, not {_what(value)}", decl.value.span)
+                raise _Fail()
+            if env is self.main and name in self.override_exprs:
+                ov = self.eval(self.override_exprs[name], env)
+                if not isinstance(ov, Quantity) or ov.dims != value.dims:
+                    self.bag.error("E301", f"--set {name}: expected {describe(value.dims)}, got "
+                                   f"{describe(ov.dims) if isinstance(ov, Quantity) else _what(ov)}",
+                                   self.override_spans[name], f"write it with a unit, e.g. --set {name}={_example(value.dims)}")
+                    raise _Fail()
+                value = ov
+        finally:
+            self.evaluating.discard(key)
+        self.param_values[key] = value
+        return value
+
+    # ---------------------------------------------------------------------------- typed getters
+    def q(self, e: A.Expr, env: ModuleEnv, unit: str, what: str) -> float:
+        v = self.eval(e, env)
+        want = D(unit)
+        if not isinstance(v, Quantity):
+            self.bag.error("E304", f"{what}: expected {describe(want)}, found {_what(v)}", e.span)
+            raise _Fail()
+        if v.dims != want:
+            hint = None
+            if v.dimensionless and want != DIMENSIONLESS:
+                hint = f"add a unit, e.g. `{_example(want)}`"
+            self.bag.error("E301", f"{what}: expected {describe(want)}, found {describe(v.dims)}", e.span, hint)
+            raise _Fail()
+        return v.value
+
+    def vec(self, e: A.Expr, env: ModuleEnv, unit: str, what: str) -> tuple[float, float, float]:
+        v = self.eval(e, env)
+        if not isinstance(v, VecVal) or len(v.items) != 3:
+            self.bag.error("E304", f"{what}: expected a 3-D point `(x, y, z)`, found {_what(v)}", e.span)
+            raise _Fail()
+        want = D(unit)
+        for item, sub in zip(v.items, e.items if isinstance(e, A.Vec) else [e] * 3):
+            if item.dims != want and not (item.value == 0 and item.dimensionless):
+                self.bag.error("E301", f"{what}: coordinates must be {describe(want)}, found {describe(item.dims)}",
+                               sub.span, "a bare 0 is allowed; other coordinates need a unit")
+                raise _Fail()
+        return tuple(i.value for i in v.items)  # type: ignore[return-value]
+
+    def direction(self, e: A.Expr, env: ModuleEnv, what: str) -> tuple[float, float, float]:
+        v = self.eval(e, env)
+        if isinstance(v, DirVal):
+            return v.vector
+        if isinstance(v, VecVal) and len(v.items) == 3 and all(i.dimensionless for i in v.items):
+            u = unit_vector(tuple(i.value for i in v.items))
+            if u is None:
+                self.bag.error("E409", f"{what}: direction has zero length", e.span)
+                raise _Fail()
+            return u
+        self.bag.error("E304", f"{what}: expected a direction (`+x`, `-z`, or `(1, 1, 0)`), found {_what(v)}", e.span)
+        raise _Fail()
+
+    # ---------------------------------------------------------------------------- blocks
+    def entries(self, blk: A.Block, env: ModuleEnv, seen=None) -> list[tuple[object, ModuleEnv]]:
+        """Entries of a block with `like` inheritance resolved: (entry, env) pairs, child last wins."""
+        seen = seen or set()
+        base: list[tuple[object, ModuleEnv]] = []
+        if blk.like is not None:
+            try:
+                target = self.eval(blk.like, env)
+            except _Fail:
+                target = None
+            if isinstance(target, DeclVal):
+                if target.kind != blk.kind:
+                    self.bag.error("E207", f"`{blk.name}` is a {blk.kind} but `{blk.like.dotted}` is a {target.kind}", blk.like.span)
+                elif id(target.node) in seen:
+                    self.bag.error("E214", f"`like` cycle through `{blk.like.dotted}`", blk.like.span)
+                else:
+                    base = self.entries(target.node, target.env, seen | {id(blk)})
+            elif target is not None:
+                self.bag.error("E207", f"`like` needs a {blk.kind}, found {_what(target)}", blk.like.span)
+        own_keys: dict[str, Span] = {}
+        out = []
+        for ent in blk.entries:
+            k = _entry_key(ent)
+            if k in own_keys:
+                self.bag.error("E206", f"`{k}` given twice in `{blk.name or blk.kind}` (first at line {own_keys[k].line})",
+                               ent.key_span if isinstance(ent, A.Assign) else ent.kind_span)
+                continue
+            own_keys[k] = ent.span
+            out.append((ent, env))
+        merged = [(e, en) for e, en in base if _entry_key(e) not in own_keys] + out
+        return merged
+
+    def assigns(self, blk: A.Block, env: ModuleEnv, schema_name: str, allowed_blocks=()) -> dict[str, tuple[A.Assign, ModuleEnv]]:
+        schema = SCHEMAS[schema_name]
+        out: dict[str, tuple[A.Assign, ModuleEnv]] = {}
+        for ent, en in self.entries(blk, env):
+            if isinstance(ent, A.Assign):
+                if ent.key not in schema:
+                    self.bag.error("E203", f"unknown key `{ent.key}` in {schema_name}", ent.key_span,
+                                   suggest(ent.key, schema) or f"{schema_name} keys: " + ", ".join(schema))
+                    continue
+                out[ent.key] = (ent, en)
+            elif ent.kind not in allowed_blocks:
+                self.bag.error("E203", f"unexpected block `{ent.kind}` in {schema_name}", ent.kind_span,
+                               suggest(ent.kind, list(allowed_blocks) + list(schema)) or (
+                                   f"{schema_name} may contain: " + ", ".join(allowed_blocks) if allowed_blocks else f"{schema_name} has no nested blocks"))
+        for key, spec in schema.items():
+            if spec.required and key not in out:
+                self.bag.error("E204", f"{schema_name} `{blk.name or ''}` is missing `{key}`".replace(" ``", ""), blk.span,
+                               f"add `{key} = {_example(D(spec.unit)) if spec.unit is not None else '...'}`")
+        return out
+
+    def get(self, keys, key: str, schema_name: str, what: str, unit=None):
+        """Evaluate one key with its schema; returns the default when absent; raises _Fail on error."""
+        spec = SCHEMAS[schema_name][key]
+        if key not in keys:
+            if spec.required:
+                raise _Fail()
+            return spec.default
+        ent, env = keys[key]
+        label = f"{what}.{key}"
+        kind = spec.kind
+        if kind == "q":
+            return self.q(ent.value, env, spec.unit, label)
+        if kind == "vec":
+            return self.vec(ent.value, env, spec.unit, label)
+        if kind == "dir":
+            return self.direction(ent.value, env, label)
+        if kind.startswith("ref:"):
+            want = kind[4:]
+            v = self.eval(ent.value, env)
+            if not isinstance(v, DeclVal) or v.kind != want:
+                self.bag.error("E207", f"{label}: expected a {want}, found {_what(v)}", ent.value.span,
+                               self._kind_hint(want, env))
+                raise _Fail()
+            return v
+        if kind == "range":
+            return self.range_(ent.value, env, spec.unit, label)
+        return (self.eval(ent.value, env), ent)
+
+    def _kind_hint(self, kind: str, env: ModuleEnv) -> str | None:
+        names = [n for n, b in env.decls.items() if b.kind == kind]
+        for alias, tgt in env.imports.items():
+            if not isinstance(tgt, tuple):
+                names += [f"{alias}.{n}" for n, b in tgt.decls.items() if b.kind == kind]
+        return ("available: " + ", ".join(names[:8])) if names else f"declare a {kind} or import one from the stdlib"
+
+    def range_(self, e: A.Expr, env: ModuleEnv, unit: str, what: str) -> tuple[float, float]:
+        # ranges are written as a 2-list `[lo, hi]` or a call range(lo, hi); `lo .. hi` in require/free
+        v = self.eval(e, env)
+        if isinstance(v, RangeVal):
+            v = ListVal((v.lower, v.upper))
+        items = v.items if isinstance(v, (ListVal, VecVal)) else (v.args if isinstance(v, CallVal) else None)
+        want = D(unit)
+        if not items or len(items) != 2 or not all(isinstance(i, Quantity) and i.dims == want for i in items):
+            self.bag.error("E304", f"{what}: expected a range `lo .. hi` of {describe(want)}", e.span)
+            raise _Fail()
+        lo, hi = items[0].value, items[1].value
+        if not lo < hi:
+            self.bag.error("E306", f"{what}: range is empty (lower {lo:g} >= upper {hi:g})", e.span)
+            raise _Fail()
+        return lo, hi
+
+    # ---------------------------------------------------------------------------- build
+    def build(self) -> M.Design:
+        from acl.design import builders
+
+        return builders.build_design(self)
+
+
+_IDENTS = {"a", "b", "ground", "top", "bottom", "side"}
+
+
+def _entry_key(ent) -> str:
+    if isinstance(ent, A.Assign):
+        return ent.key
+    return f"{ent.kind} {ent.name}" if ent.name else ent.kind
+
+
+def _what(v) -> str:
+    if isinstance(v, Quantity):
+        return describe(v.dims)
+    if isinstance(v, VecVal):
+        return f"a {len(v.items)}-vector"
+    if isinstance(v, DirVal):
+        return "a direction"
+    if isinstance(v, DeclVal):
+        return f"the {v.kind} `{v.name}`"
+    if isinstance(v, CallVal):
+        return f"`{v.name}(...)`"
+    if isinstance(v, ListVal):
+        return "a list"
+    if isinstance(v, StrVal):
+        return "a string"
+    if isinstance(v, IdentVal):
+        return f"the word `{v.name}`"
+    if isinstance(v, RangeVal):
+        return "a range"
+    return type(v).__name__
+
+
+_EXAMPLES = {"m": "40 um", "Hz": "85 kHz", "V": "8 V", "s": "200 ms", "Pa": "13 MPa", "N/m": "0.072 N/m",
+             "kg/m^3": "1000 kg/m^3", "Pa*s": "1 mPa*s", "m/s": "1480 m/s", "m^3": "1.12e5 um^3",
+             "N/V^2": "0.027 nN/V^2", "N*m^2/V^2": "174.5 nN*um^2/V^2", "Pa/V": "2 kPa/V", "": "1.5",
+             "N": "30 nN", "V/s": "100 V/s", "m^2/s": "2.1e-5 m^2/s"}
+
+
+def _example(dims) -> str:
+    return _EXAMPLES.get(si_unit(dims), f"1 {si_unit(dims)}")
+
+
+def _members_hint(env: ModuleEnv) -> str | None:
+    names = list(env.decls) + list(env.params)
+    return ("it declares: " + ", ".join(names[:10])) if names else None

@@ -1,0 +1,324 @@
+"""Program -> Schedule: every step becomes segments of tones; goals are solved as convex programs.
+
+Entry point: :func:`compile_program`.  Steps map as follows (see docs/schedule.md):
+
+* drive  -> one segment with the given tones;     sweep -> one chirp segment;  pause -> silence
+* follow -> one segment per waypoint from ONE path program (:mod:`acl.schedule.path`)
+* switch -> one segment from the latch LP (:mod:`acl.schedule.latch`)
+* hold   -> one segment from the snap-in LP (:mod:`acl.schedule.hold`)
+
+After solving, each follow goal is re-simulated through a forward model (injected, default
+:func:`acl.schedule.gains.model_forward`) and its predicted tracking error is reported.  Multi-tone
+phases are chosen for a low peak (:mod:`acl.schedule.phases`).  Problems become diagnostics.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+
+from acl.design.model import Design, FollowStep, HoldStep, Limits, Program, SwitchStep
+from acl.diagnostics import Diagnostic, DiagnosticError, Span, error
+from acl.schedule.model import GoalReport, Schedule, ScheduledTone, Segment
+from acl.schedule.path import UM, DriveLimits
+
+DEFAULT_MAX_VOLTAGE = 10.0
+
+
+@dataclass(frozen=True)
+class CompileOptions:
+    sample_rate_hz: float | None = None          # None: >= 10x the highest tone (rounded up)
+    waypoint_dt_s: float = 0.01                  # time between waypoints of a follow goal
+    tolerance_m: float = 0.5 * UM                # tracking tolerance of the path program
+    ramp_s: float = 1e-3                         # raised-cosine crossfade between segments
+    calibration: object | None = None            # GainTable from a measured sweep, or None
+    gain_provider: Callable | None = None        # (design, capsule) -> GainTable; default model
+    forward_provider: Callable | None = None     # (design, capsule, freqs) -> (forward, name)
+    latch_provider: Callable | None = None       # (design, freqs) -> (forces, to_b, to_a)
+    max_voltage: float | None = None             # overrides every other limit if given
+    lam: float = 1e-3
+    slew_model: str = "auto"
+    refine: int = 0
+    resim_points: int = 400                      # waypoints re-simulated per goal (evenly spaced)
+    tones_per_path: int = 3
+
+
+def auto_sample_rate(max_frequency_hz: float, factor: float = 10.0, grid_hz: float = 1e3) -> float:
+    """At least ``factor`` x the highest tone, rounded up to a multiple of ``grid_hz``."""
+    return float(max(np.ceil(factor * max_frequency_hz / grid_hz) * grid_hz, grid_hz))
+
+
+def _limit(design: Design, limits: Limits | None, opts: CompileOptions) -> tuple[float, float | None]:
+    if opts.max_voltage is not None:
+        vmax = opts.max_voltage
+    else:
+        cands = [v for v in ((limits.max_voltage if limits else None),
+                             design.transducer.max_voltage if design.transducer else None) if v]
+        vmax = min(cands) if cands else DEFAULT_MAX_VOLTAGE
+    return vmax, (limits.slew_rate if limits else None)
+
+
+def compile_program(design: Design, program: str | Program, options: CompileOptions | None = None) -> Schedule:
+    """Compile ``program`` of ``design`` into a :class:`Schedule`; raise DiagnosticError on failure."""
+    opts = options or CompileOptions()
+    prog = design.program(program) if isinstance(program, str) else program
+    c = _Compiler(design, prog, opts)
+    return c.run()
+
+
+@dataclass
+class _Compiler:
+    design: Design
+    program: Program
+    opts: CompileOptions
+    segments: list[Segment] = field(default_factory=list)
+    goals: list[GoalReport] = field(default_factory=list)
+    notes: list[str] = field(default_factory=list)
+    t: float = 0.0
+    states: dict[str, str] = field(default_factory=dict)
+    vmax_seen: list[float] = field(default_factory=list)
+
+    def run(self) -> Schedule:
+        self.states = {l.name: l.state for l in self.design.latches}
+        for i, step in enumerate(self.program.steps):
+            getattr(self, f"_{step.kind}")(i, step)
+        if not self.segments:
+            raise DiagnosticError([error("E-SCHED-EMPTY", f"program `{self.program.name}` has no steps",
+                                         self.program.span)])
+        full_scale = max(self.vmax_seen) if self.vmax_seen else _limit(self.design, None, self.opts)[0]
+        fs = self.opts.sample_rate_hz or auto_sample_rate(
+            max((t.max_frequency_hz for s in self.segments for t in s.tones), default=1e3))
+        sched = Schedule(program=self.program.name, segments=self.segments, goals=self.goals,
+                         max_voltage_v=full_scale, full_scale_v=full_scale, ramp_s=self.opts.ramp_s,
+                         source=self.design.file, notes=self.notes)
+        _choose_all_phases(sched, fs)
+        sched.notes.append(f"phases chosen for sample rate {fs:g} Hz")
+        sched.sample_rate_hz = fs                     # type: ignore[attr-defined]
+        return sched
+
+    # -- simple steps --------------------------------------------------------------------------
+    def _add(self, duration, tones, step, goal=None):
+        self.segments.append(Segment(self.t, self.t + duration, tuple(tones), step, goal))
+        self.t += duration
+
+    def _drive(self, i, step):
+        vmax, _ = _limit(self.design, None, self.opts)
+        self.vmax_seen.append(vmax)
+        tones = [ScheduledTone(t.frequency, t.amplitude, t.phase) for t in step.drive.tones]
+        self._add(step.duration, tones, i, f"step {i + 1}: drive")
+        self.goals.append(GoalReport(f"step {i + 1}: drive", "drive", i, self.t - step.duration, self.t,
+                                     tuple(t.frequency_hz for t in tones), details={"limit_v": vmax,
+                                     "_span": step.span}))
+
+    def _sweep(self, i, step):
+        self.vmax_seen.append(_limit(self.design, None, self.opts)[0])
+        tone = ScheduledTone(step.f_start, step.amplitude, 0.0, step.f_stop, "log" if step.log else "linear")
+        self._add(step.duration, [tone], i, f"step {i + 1}: sweep")
+
+    def _pause(self, i, step):
+        self._add(step.duration, [], i, f"step {i + 1}: pause")
+
+    # -- follow --------------------------------------------------------------------------------
+    def _follow(self, i, step: FollowStep):
+        from acl.design.paths import PathError, path_length, sample_path
+        from acl.schedule.path import PathInfeasible, plan_path
+        from acl.schedule.solve import SolverFailure
+        from acl.schedule.tones import choose_tones
+
+        name = f"step {i + 1}: follow {step.capsule}"
+        vmax, slew = _limit(self.design, step.limits, self.opts)
+        self.vmax_seen.append(vmax)
+        try:
+            duration = step.duration or path_length(step.path) / step.speed
+            n = max(2, int(round(duration / self.opts.waypoint_dt_s)))
+            path = sample_path(step.path, n)
+        except (PathError, TypeError, ZeroDivisionError) as exc:
+            raise _diag("E-SCHED-PATH", f"{name}: {exc}", step.span,
+                        "give a duration or a positive speed, and a well-formed path")
+        dt = duration / n
+        try:
+            table = self._gain_table(step.capsule)
+            choice = choose_tones(table, path.points, vmax, self.opts.tones_per_path, step.tones)
+        except ValueError as exc:
+            raise _diag("E-SCHED-TONES", f"{name}: {exc}", step.span,
+                        "pin tones with `tones` or give a calibration sweep (--calibration)")
+        limits = DriveLimits(max_voltage=vmax, slew_rate=slew)
+        try:
+            plan = plan_path(choice.gains, path.points, dt, limits, tolerance=self.opts.tolerance_m,
+                             lam=self.opts.lam, slew_model=self.opts.slew_model, refine=self.opts.refine)
+        except PathInfeasible as exc:
+            d = exc.diagnosis
+            raise DiagnosticError([Diagnostic(
+                "E-SCHED-INFEASIBLE", _severity_error(),
+                f"{name}: infeasible: {d.summary()}", step.span,
+                "relax: " + "; or ".join(d.relax),
+                notes=(f"tones {', '.join(f'{f / 1e3:g} kHz' for f in choice.frequencies)}, "
+                       f"reach margin {choice.margin:.3g} (>= 1 needed)",
+                       f"limits: {vmax:g} V total" + (f", slew {slew:g} V/s" if slew else ""),))])
+        except SolverFailure as exc:
+            raise _diag("E-SCHED-SOLVER", f"{name}: {exc}", step.span, "report this design")
+        amps = plan.amplitudes                                      # (K, N)
+        start = self.t
+        for w in range(n):
+            tones = [ScheduledTone(f, float(amps[k, w])) for k, f in enumerate(choice.frequencies)]
+            self._add(dt, tones, i, name)
+        rep = GoalReport(name, "follow", i, start, self.t, choice.frequencies,
+                         times_s=start + dt * np.arange(n), target_m=path.points,
+                         amplitudes_v=amps.T.copy())
+        rep.linear_rms_error_m = float(np.sqrt(np.mean(plan.error ** 2)))
+        self._resimulate(rep, step.capsule, plan.u, path.points)
+        rep.details.update({
+            "tone_margin": choice.margin, "tone_conditioning": choice.conditioning,
+            "gains_source": table.source, "waypoints": n, "dt_s": dt, "solver": plan.result.solver,
+            "solver_status": plan.result.status, "max_voltage_v": vmax,
+            "max_slew_v_per_s": plan.max_slew_v_per_s(dt), "notes": plan.notes})
+        self.goals.append(rep)
+
+    def _gain_table(self, capsule):
+        if self.opts.calibration is not None:
+            return self.opts.calibration
+        provider = self.opts.gain_provider
+        if provider is None:
+            from acl.schedule.gains import model_gain_table as provider
+        try:
+            return provider(self.design, capsule)
+        except (KeyError, ValueError) as exc:
+            raise ValueError(f"no gain model for `{capsule}`: {exc}") from None
+
+    def _resimulate(self, rep: GoalReport, capsule, u, targets):
+        provider = self.opts.forward_provider
+        if provider is None and self.opts.calibration is not None:
+            rep.model = "linear calibration gains (no forward model for a calibrated device)"
+            rep.predicted_m = targets + 0.0
+            rep.rms_error_m = rep.linear_rms_error_m
+            lin = np.linalg.norm(rep.target_m - rep.target_m, axis=1)
+            rep.max_error_m = rep.rms_error_m if lin.size == 0 else None
+            return
+        if provider is None:
+            from acl.schedule.gains import model_forward as provider
+        try:
+            forward, model = provider(self.design, capsule, rep.frequencies_hz)
+        except (KeyError, ValueError, ImportError) as exc:
+            rep.model = f"unavailable: {exc}"
+            return
+        n = u.shape[1]
+        idx = np.unique(np.linspace(0, n - 1, min(n, self.opts.resim_points)).astype(int))
+        pred = np.asarray(forward(u[:, idx].T), float)
+        err = np.linalg.norm(pred - targets[idx], axis=1)
+        rep.model = model
+        rep.rms_error_m = float(np.sqrt(np.mean(err ** 2)))
+        rep.max_error_m = float(np.max(err))
+        full = np.full_like(targets, np.nan)
+        full[idx] = pred
+        rep.predicted_m = full
+        rep.details["resimulated_waypoints"] = int(idx.size)
+
+    # -- switch --------------------------------------------------------------------------------
+    def _switch(self, i, step: SwitchStep):
+        from acl.schedule.latch import SwitchInfeasible, plan_switch
+
+        name = f"step {i + 1}: switch {step.latch} -> {step.state}"
+        vmax, _ = _limit(self.design, step.limits, self.opts)
+        self.vmax_seen.append(vmax)
+        names = [l.name for l in self.design.latches]
+        if step.latch not in names:
+            raise _diag("E-SCHED-MODEL", f"{name}: no latch named `{step.latch}`", step.span)
+        if self.states[step.latch] == step.state:
+            self.notes.append(f"{name}: latch already in state {step.state}; nothing to do")
+            self._add(step.duration, [], i, name)
+            return
+        freqs = tuple(step.tones) or tuple(self._latch_candidates())
+        provider = self.opts.latch_provider
+        if provider is None:
+            from acl.schedule.gains import latch_forces as provider
+        forces, to_b, to_a = provider(self.design, freqs)
+        j = names.index(step.latch)
+        try:
+            plan = plan_switch(forces, to_b, to_a, [self.states[n] for n in names], names, j,
+                               step.state, step.margin, DriveLimits(vmax))
+        except SwitchInfeasible as exc:
+            raise DiagnosticError([Diagnostic(
+                "E-SCHED-INFEASIBLE", _severity_error(), f"{name}: infeasible: binding "
+                + "; ".join(exc.binding), step.span, "relax: " + "; or ".join(exc.relax),
+                notes=(f"at t = {self.t:.4g} s, {len(freqs)} candidate tones",))])
+        used = [(f, a) for f, a in zip(freqs, plan.amplitudes) if a > 1e-6 * vmax]
+        self._add(step.duration, [ScheduledTone(f, float(a)) for f, a in used], i, name)
+        self.states[step.latch] = step.state
+        self.goals.append(GoalReport(name, "switch", i, self.t - step.duration, self.t,
+                                     tuple(f for f, _ in used), model="linear force per V^2",
+                                     details={"force_n": plan.target_force,
+                                              "required_n": plan.required_force,
+                                              "margin": plan.target_force / plan.required_force * step.margin,
+                                              "other_latch_ratios": {n: float(r) for n, r in
+                                                                     zip(names, plan.other_ratios) if n != step.latch}}))
+
+    def _latch_candidates(self):
+        from acl.schedule.gains import default_frequencies
+
+        return default_frequencies(self.design, step_hz=2500.0)
+
+    # -- hold ----------------------------------------------------------------------------------
+    def _hold(self, i, step: HoldStep):
+        from acl.schedule.gains import snap_in_voltages
+        from acl.schedule.hold import HoldInfeasible, plan_hold
+
+        name = f"step {i + 1}: hold gap {step.a}/{step.b} {step.mode}"
+        vmax, _ = _limit(self.design, step.limits, self.opts)
+        self.vmax_seen.append(vmax)
+        if not step.tones:
+            raise _diag("E-SCHED-TONES", f"{name}: a hold step needs its tones", step.span,
+                        "write `tones 85 kHz, 125 kHz` on the hold step")
+        v_snap = snap_in_voltages(self.design, step.a, step.b, step.tones)
+        if v_snap is None:
+            raise _diag("E-SCHED-MODEL", f"{name}: no snap-in model available (acl.analysis.mechanics."
+                        "sweep_voltage)", step.span, "the mechanics analysis is needed for hold steps")
+        try:
+            plan = plan_hold(step.mode, DriveLimits(vmax), v_snap=v_snap)
+        except HoldInfeasible as exc:
+            raise DiagnosticError([Diagnostic(
+                "E-SCHED-INFEASIBLE", _severity_error(), f"{name}: infeasible: binding "
+                + "; ".join(exc.binding), step.span, "relax: " + "; or ".join(exc.relax),
+                notes=(f"at t = {self.t:.4g} s",))])
+        tones = [ScheduledTone(f, float(a)) for f, a in zip(step.tones, plan.amplitudes)]
+        self._add(step.duration, tones, i, name)
+        self.goals.append(GoalReport(name, "hold", i, self.t - step.duration, self.t, tuple(step.tones),
+                                     model="linear snap-in index",
+                                     details={"snap_index": plan.snap_index}))
+
+
+def _severity_error():
+    from acl.diagnostics import Severity
+
+    return Severity.ERROR
+
+
+def _diag(code: str, message: str, span: Span | None, hint: str | None = None) -> DiagnosticError:
+    return DiagnosticError([error(code, message, span, hint)])
+
+
+def _choose_all_phases(sched: Schedule, fs: float) -> None:
+    """Pick low-peak phases per group of consecutive segments sharing the same frequencies."""
+    from acl.schedule.phases import choose_phases
+
+    segs = sched.segments
+    i = 0
+    while i < len(segs):
+        key = tuple(t.frequency_hz for t in segs[i].tones)
+        j = i
+        while j + 1 < len(segs) and tuple(t.frequency_hz for t in segs[j + 1].tones) == key \
+                and segs[j + 1].goal == segs[i].goal:
+            j += 1
+        group = segs[i:j + 1]
+        tones0 = group[0].tones
+        user_phases = any(t.phase_rad for t in tones0) or any(t.sweep for t in tones0)
+        if len(key) > 1 and not user_phases:
+            amps = np.array([[t.amplitude_v for t in s.tones] for s in group])
+            worst = amps[int(np.argmax(amps.sum(axis=1)))]
+            phases, _ = choose_phases(key, worst, fs)
+            for m in range(i, j + 1):
+                s = segs[m]
+                segs[m] = Segment(s.start_s, s.end_s, tuple(
+                    ScheduledTone(t.frequency_hz, t.amplitude_v, float(p)) for t, p in zip(s.tones, phases)),
+                    s.step, s.goal)
+        i = j + 1

@@ -1,0 +1,185 @@
+"""Adapters from a resolved Design to the plain arrays the convex programs take.
+
+This is the only module of acl.schedule that calls the analysis stage:
+
+* :func:`model_gain_table` -- displacement per V^2 of a capsule vs frequency: thrust per V^2 from
+  :func:`acl.analysis.acoustics.thrust_vectors` (transducer transfer function included) times the
+  small-force compliance of what carries the capsule (beam: paper Eq. 1 as P -> 0; spring).
+* :func:`model_forward` -- the nonlinear forward model used to re-simulate a schedule:
+  :func:`acl.analysis.mechanics.equilibrium` when that module exists, otherwise the thrust through
+  the nonlinear beam law of paper Eq. (1) (``acl.physics.beams.eq1_deflection``).
+* :func:`latch_forces` -- force per V^2 of each tone along each latch's axis, and the latches'
+  switching / release forces (``acl.physics.latch.latch_landscape``).
+* :func:`snap_in_voltages` -- per-tone snap-in voltage of a capsule pair, from the mechanics
+  module's ``sweep_voltage`` when present.
+
+Each returns numbers only; errors are ValueError with a message the caller turns into a diagnostic.
+"""
+from __future__ import annotations
+
+import importlib
+from typing import Callable
+
+import numpy as np
+
+from acl.design.model import Design, Drive, Tone
+from acl.schedule.tones import GainTable
+
+Forward = Callable[[np.ndarray], np.ndarray]      # u (N, K) V^2 -> displacement (N, 2) m
+
+
+def _optional(module: str):
+    try:
+        return importlib.import_module(module)
+    except ModuleNotFoundError:
+        return None
+
+
+def default_frequencies(design: Design, step_hz: float = 500.0) -> np.ndarray:
+    """Candidate tones: the transducer band (or 40-160 kHz as the paper's sweep) on a grid."""
+    lo, hi = design.transducer.band if design.transducer else (40e3, 160e3)
+    lo = max(lo, step_hz)
+    return np.arange(np.ceil(lo / step_hz) * step_hz, hi + step_hz / 2, step_hz)
+
+
+def _force_per_v2(design: Design, capsule: str, frequencies) -> np.ndarray:
+    """Acoustic force (N per V^2, 3-vector) on ``capsule`` for each frequency, tone alone at 1 V."""
+    from acl.analysis import acoustics
+
+    out = np.empty((len(frequencies), 3))
+    for i, f in enumerate(frequencies):
+        out[i] = acoustics.thrust_vectors(design, Drive(tones=(Tone(frequency=float(f), amplitude=1.0),)))[capsule]
+    return out
+
+
+def _carrier(design: Design, capsule: str):
+    """(kind, element) of what carries ``capsule``: ("beam", Beam) | ("spring", Spring) | ..."""
+    joint = design.mount_of(capsule)
+    if joint is None or joint.kind == "fix":
+        raise ValueError(f"capsule `{capsule}` is {'fixed' if joint else 'not mounted'}: it cannot follow a path")
+    if joint.target_kind == "beam":
+        return "beam", design.beam(joint.target)
+    if joint.target_kind == "spring":
+        return "spring", design.spring(joint.target)
+    return "latch", design.latch(joint.target)
+
+
+def _plane_projector(axis) -> np.ndarray:
+    """(2, 3) projection onto the design x-y plane of the directions a carrier lets the capsule move."""
+    a = np.asarray(axis, float)
+    a = a / np.linalg.norm(a)
+    lateral = np.eye(3) - np.outer(a, a)          # a beam bends perpendicular to its axis
+    return lateral[:2]
+
+
+def compliance_matrix(design: Design, capsule: str) -> np.ndarray:
+    """(2, 3) small-force compliance (m/N): planar displacement of the capsule per 3-D force."""
+    kind, el = _carrier(design, capsule)
+    if kind == "beam":
+        from acl.physics.beams import eq1_small_force_stiffness
+
+        k = eq1_small_force_stiffness(el.length, el.rigid_length, el.bending_stiffness)
+        return _plane_projector(el.axis) / k
+    a = np.asarray(el.axis, float)
+    a = a / np.linalg.norm(a)
+    k = el.stiffness if kind == "spring" else None
+    if k is None:
+        raise ValueError(f"capsule `{capsule}` rides a latch: use a switch step, not a path")
+    return np.outer(a, a)[:2] / k
+
+
+def model_gain_table(design: Design, capsule: str, frequencies=None) -> GainTable:
+    """Planar displacement per V^2 (m/V^2) of ``capsule`` vs frequency, from the model."""
+    f = default_frequencies(design) if frequencies is None else np.asarray(frequencies, float)
+    force = _force_per_v2(design, capsule, f)                       # (F, 3)
+    gains = force @ compliance_matrix(design, capsule).T              # (F, 2)
+    return GainTable(frequencies=f, gains=gains, source="model (thrust x small-force compliance)")
+
+
+def model_forward(design: Design, capsule: str, frequencies) -> tuple[Forward, str]:
+    """The nonlinear forward model for ``capsule`` under tones at ``frequencies`` and its name."""
+    freqs = [float(f) for f in frequencies]
+    mech = _optional("acl.analysis.mechanics")
+    if mech is not None and hasattr(mech, "equilibrium"):
+        from acl.analysis import acoustics
+
+        rest = np.asarray(design.capsule(capsule).center, float)
+
+        def forward(u: np.ndarray) -> np.ndarray:
+            out = np.empty((u.shape[0], 2))
+            for i, row in enumerate(u):
+                drive = Drive(tones=tuple(Tone(frequency=f, amplitude=float(np.sqrt(max(x, 0.0))))
+                                          for f, x in zip(freqs, row)))
+                eq = mech.equilibrium(design, drive, acoustics.force_model)
+                pos = _position_of(eq, capsule)
+                out[i] = (np.asarray(pos, float) - rest)[:2]
+            return out
+
+        return forward, "nonlinear equilibrium (acl.analysis.mechanics)"
+    kind, el = _carrier(design, capsule)
+    per_tone = _force_per_v2(design, capsule, freqs)                  # (K, 3) N/V^2
+    if kind == "beam":
+        from acl.physics.beams import eq1_deflection
+
+        proj = _plane_projector(el.axis)
+
+        def forward(u: np.ndarray) -> np.ndarray:
+            F = u @ per_tone                                          # (N, 3)
+            Fp = F @ proj.T                                           # planar, perpendicular part
+            mag = np.linalg.norm(Fp, axis=1)
+            d = eq1_deflection(mag, el.length, el.rigid_length, el.bending_stiffness)
+            unit = np.divide(Fp, mag[:, None], out=np.zeros_like(Fp), where=mag[:, None] > 0)
+            return unit * np.asarray(d)[:, None]
+
+        return forward, "nonlinear beam law, paper Eq. (1) (mechanics module absent)"
+    C = compliance_matrix(design, capsule)
+    return (lambda u: (u @ per_tone) @ C.T), "linear spring (mechanics module absent)"
+
+
+def _position_of(eq, capsule: str):
+    """Accept the shapes an equilibrium result may take: a mapping, or an object with .positions."""
+    if isinstance(eq, dict):
+        return eq[capsule]
+    positions = getattr(eq, "positions", None)
+    if positions is not None:
+        return positions[capsule]
+    raise TypeError(f"unrecognised equilibrium result {type(eq).__name__}")
+
+
+def latch_forces(design: Design, frequencies) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(forces (L, K) N/V^2 along each latch axis, to_b (L,) N, to_a (L,) N) for the design's latches.
+
+    The force on a latch is that on the capsules mounted on its shuttle.  Thresholds come from
+    the latch landscape (switching force a->b, release force b->a; a monostable latch gets inf).
+    """
+    from acl.physics.latch import latch_landscape
+
+    freqs = [float(f) for f in frequencies]
+    L = len(design.latches)
+    forces = np.zeros((L, len(freqs)))
+    to_b, to_a = np.full(L, np.inf), np.full(L, np.inf)
+    for i, latch in enumerate(design.latches):
+        axis = np.asarray(latch.axis, float)
+        axis = axis / np.linalg.norm(axis)
+        for j in design.joints:
+            if j.kind == "mount" and j.target_kind == "latch" and j.target == latch.name:
+                forces[i] += _force_per_v2(design, j.capsule, freqs) @ axis
+        land = latch_landscape(latch.angle, latch.length, latch.width, latch.thickness,
+                               latch.youngs_modulus)
+        to_b[i] = land.switching_force
+        if land.release_force is not None:
+            to_a[i] = land.release_force
+    return forces, to_b, to_a
+
+
+def snap_in_voltages(design: Design, a: str, b: str, frequencies) -> np.ndarray | None:
+    """Per-tone snap-in voltage (V) of the pair holding orifices a, b, or None if unavailable."""
+    mech = _optional("acl.analysis.mechanics")
+    if mech is None or not hasattr(mech, "sweep_voltage"):
+        return None
+    out = []
+    for f in frequencies:
+        res = mech.sweep_voltage(design, float(f), a, b)
+        v = getattr(res, "snap_in_voltage", None) if not isinstance(res, (int, float)) else res
+        out.append(np.inf if v is None else float(v))
+    return np.asarray(out)

@@ -1,0 +1,105 @@
+"""The schedule: what the compiler hands to the emitters.
+
+A schedule is a list of segments on one time axis.  Within a segment every tone has a constant
+frequency (or a linear/log chirp), amplitude (V peak) and phase; the emitters blend consecutive
+segments with raised-cosine crossfades of ``ramp_s``.  Phases refer to the global time axis, so a
+tone that continues from one segment to the next with the same phase is phase-continuous.
+Goal reports carry the predicted tracking error and margins per goal.  Plain dataclasses and
+numpy arrays: no solver, no I/O.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+SCHEDULE_VERSION = "1.0"
+
+
+@dataclass(frozen=True)
+class ScheduledTone:
+    frequency_hz: float
+    amplitude_v: float
+    phase_rad: float = 0.0
+    frequency_end_hz: float | None = None      # set for chirps (sweep steps)
+    sweep: str | None = None                   # "linear" | "log" for chirps
+
+    @property
+    def max_frequency_hz(self) -> float:
+        return max(self.frequency_hz, self.frequency_end_hz or 0.0)
+
+
+@dataclass(frozen=True)
+class Segment:
+    start_s: float
+    end_s: float
+    tones: tuple[ScheduledTone, ...]
+    step: int = 0                              # index of the program step it realises
+    goal: str | None = None                    # goal name, e.g. "step 2: follow arm"
+
+    @property
+    def duration_s(self) -> float:
+        return self.end_s - self.start_s
+
+    def amplitude_sum(self) -> float:
+        return float(sum(t.amplitude_v for t in self.tones))
+
+
+@dataclass
+class GoalReport:
+    """What the compiler promises for one goal, and how the forward model re-simulated it."""
+
+    name: str
+    kind: str                                  # "follow" | "switch" | "hold" | "drive" | ...
+    step: int
+    start_s: float
+    end_s: float
+    frequencies_hz: tuple[float, ...] = ()
+    model: str = ""                            # which forward model predicted the error
+    rms_error_m: float | None = None
+    max_error_m: float | None = None
+    linear_rms_error_m: float | None = None    # error of the convex plan under the linear gains
+    details: dict = field(default_factory=dict)
+    # arrays for plots (not serialised): times, target, predicted, amplitudes (N, K)
+    times_s: np.ndarray | None = None
+    target_m: np.ndarray | None = None
+    predicted_m: np.ndarray | None = None
+    amplitudes_v: np.ndarray | None = None
+
+    def as_dict(self) -> dict:
+        d = {
+            "name": self.name, "kind": self.kind, "step": self.step,
+            "start_s": self.start_s, "end_s": self.end_s,
+            "frequencies_hz": list(self.frequencies_hz), "model": self.model,
+            "rms_error_um": None if self.rms_error_m is None else self.rms_error_m * 1e6,
+            "max_error_um": None if self.max_error_m is None else self.max_error_m * 1e6,
+            "linear_rms_error_um": (None if self.linear_rms_error_m is None
+                                    else self.linear_rms_error_m * 1e6),
+        }
+        if self.details:
+            d["details"] = self.details
+        return d
+
+
+@dataclass
+class Schedule:
+    program: str
+    segments: list[Segment]
+    goals: list[GoalReport]
+    max_voltage_v: float                       # the amplifier / transducer limit (V peak)
+    full_scale_v: float                        # waveform files: sample = volts / full_scale_v
+    ramp_s: float = 1e-3                       # raised-cosine crossfade between segments
+    source: str = ""
+    version: str = SCHEDULE_VERSION
+    notes: list[str] = field(default_factory=list)
+
+    @property
+    def duration_s(self) -> float:
+        return self.segments[-1].end_s if self.segments else 0.0
+
+    @property
+    def max_frequency_hz(self) -> float:
+        return max((t.max_frequency_hz for s in self.segments for t in s.tones), default=0.0)
+
+    def frequencies_hz(self) -> list[float]:
+        return sorted({t.frequency_hz for s in self.segments for t in s.tones if t.sweep is None})

@@ -1,0 +1,491 @@
+"""Source text -> syntax tree with spans (lark LALR), with per-statement error recovery."""
+from __future__ import annotations
+
+import functools
+import re
+from importlib import resources
+
+from lark import Lark, Token, Transformer, v_args
+from lark.exceptions import UnexpectedCharacters, UnexpectedEOF, UnexpectedInput, UnexpectedToken, VisitError
+
+from acl.diagnostics import Diagnostic, DiagnosticError, Span, error
+from acl.syntax import ast as A
+
+MAX_SOURCE_BYTES = 2_000_000
+MAX_NESTING = 64
+
+# Words shown to users instead of terminal names.
+_TERMINAL_WORDS = {
+    "NAME": "a name", "QUANTITY": "a quantity with a unit", "NUMBER": "a number",
+    "STRING": "a quoted string", "DIRECTION": "a direction such as +x", "_NL": "end of line",
+    "$END": "end of file", "CMP": "a comparison (>=, <=, >, <)", "RANGE": "`..`",
+}
+
+
+class _ParenNewlines:
+    """Post-lexer: newlines inside ( ) and [ ] are not statement ends."""
+
+    always_accept = ("_NL",)
+
+    def process(self, stream):
+        depth = 0
+        for tok in stream:
+            if tok.type == "_NL":
+                if depth > 0:
+                    continue
+            elif tok.value in ("(", "["):
+                depth += 1
+            elif tok.value in (")", "]"):
+                depth = max(0, depth - 1)
+            yield tok
+
+
+@functools.lru_cache(maxsize=1)
+def _lark() -> Lark:
+    text = resources.files("acl.syntax").joinpath("grammar.lark").read_text(encoding="utf-8")
+    return Lark(text, parser="lalr", start=["start", "drive_only"], propagate_positions=True,
+                maybe_placeholders=True, postlex=_ParenNewlines(), cache=_cache_path())
+
+
+def _cache_path():
+    import os
+    import tempfile
+
+    try:
+        from acl import __version__
+        import lark
+
+        path = os.path.join(tempfile.gettempdir(), f"acl-grammar-{__version__}-lark{lark.__version__}-{os.getuid() if hasattr(os, 'getuid') else 0}.cache")
+        return path
+    except Exception:  # pragma: no cover - cache is an optimisation only
+        return False
+
+
+def _terminal_word(name: str) -> str:
+    if name in _TERMINAL_WORDS:
+        return _TERMINAL_WORDS[name]
+    try:
+        for t in _lark().terminals:
+            if t.name == name and t.pattern.type == "str":
+                return f"`{t.pattern.value}`"
+    except Exception:  # pragma: no cover
+        pass
+    return name.lower()
+
+
+def _span(file: str, meta_or_tok) -> Span:
+    if isinstance(meta_or_tok, Token):
+        return Span(file=file, line=meta_or_tok.line, column=meta_or_tok.column,
+                    end_line=meta_or_tok.end_line, end_column=meta_or_tok.end_column)
+    m = meta_or_tok
+    if getattr(m, "empty", True):
+        return Span(file=file, line=1, column=1)
+    return Span(file=file, line=m.line, column=m.column, end_line=m.end_line, end_column=m.end_column)
+
+
+class _Builder(Transformer):
+    """lark tree -> acl.syntax.ast nodes."""
+
+    def __init__(self, file: str, source: str):
+        super().__init__(visit_tokens=False)
+        self.file = file
+        self.source = source
+
+    def _s(self, x) -> Span:
+        return _span(self.file, x)
+
+    # ---- expressions
+    @v_args(meta=True)
+    def quantity(self, meta, children):
+        tok = children[0]
+        m = re.match(r"(\d+\.\d+|\d+\.(?!\.)|\.\d+|\d+)([eE][+-]?\d+)?", tok.value)
+        num = m.group(0)
+        return A.Qty(self._s(tok), float(num), tok.value[len(num):].strip())
+
+    def number(self, children):
+        tok = children[0]
+        return A.Num(self._s(tok), float(tok.value))
+
+    def string(self, children):
+        tok = children[0]
+        return A.Str(self._s(tok), tok.value[1:-1])
+
+    def direction(self, children):
+        tok = children[0]
+        return A.Dir(self._s(tok), 1 if tok.value[0] == "+" else -1, tok.value[1])
+
+    @v_args(meta=True)
+    def ref(self, meta, children):
+        return A.Ref(self._s(meta), tuple(str(c) for c in children))
+
+    @v_args(meta=True)
+    def call(self, meta, children):
+        name = str(children[0])
+        args, kwargs = [], []
+        for c in children[1:]:
+            if c is None:
+                continue
+            if isinstance(c, tuple):
+                kwargs.append(c)
+            else:
+                args.append(c)
+        return A.Call(self._s(meta), name, tuple(args), tuple(kwargs))
+
+    def kwarg(self, children):
+        return (str(children[0]), children[1])
+
+    @v_args(meta=True)
+    def vector(self, meta, children):
+        return A.Vec(self._s(meta), tuple(children))
+
+    @v_args(meta=True)
+    def list(self, meta, children):
+        return A.ListExpr(self._s(meta), tuple(c for c in children if c is not None))
+
+    def _bin(op):  # noqa: N805
+        @v_args(meta=True)
+        def f(self, meta, children):
+            return A.BinOp(self._s(meta), op, children[0], children[1])
+        return f
+
+    add = _bin("+")
+    sub = _bin("-")
+    mul = _bin("*")
+    div = _bin("/")
+    pow = _bin("^")
+
+    @v_args(meta=True)
+    def range(self, meta, children):
+        return A.Range(self._s(meta), children[0], children[2])
+
+    @v_args(meta=True)
+    def neg(self, meta, children):
+        return A.Neg(self._s(meta), children[0])
+
+    # ---- statements
+    def dotted(self, children):
+        return tuple(str(c) for c in children)
+
+    @v_args(meta=True)
+    def import_module(self, meta, children):
+        path, alias = children
+        return A.Import(path, None, str(alias) if alias else None, self._s(meta))
+
+    @v_args(meta=True)
+    def import_file(self, meta, children):
+        return A.Import(None, children[0].value[1:-1], str(children[1]), self._s(meta))
+
+    def free_clause(self, children):
+        rng = children[0]
+        if isinstance(rng, A.Range):
+            return ("free", rng.lower, rng.upper)
+        return ("free", rng, None) if rng is not None else ("free", None, None)
+
+    @v_args(meta=True)
+    def param_stmt(self, meta, children):
+        name, value, free = children
+        lo = hi = None
+        if free:
+            _, lo, hi = free
+        return A.ParamDecl(str(name), value, free is not None, lo, hi, self._s(meta))
+
+    @v_args(meta=True)
+    def use_stmt(self, meta, children):
+        return A.Use(str(children[0]), children[1], self._s(meta))
+
+    @v_args(meta=True)
+    def mount_stmt(self, meta, children):
+        return A.MountStmt(children[0], children[1], self._s(meta))
+
+    @v_args(meta=True)
+    def fix_stmt(self, meta, children):
+        return A.FixStmt(children[0], self._s(meta))
+
+    @v_args(meta=True)
+    def link_stmt(self, meta, children):
+        return A.LinkStmt(children[0], children[1], children[2], self._s(meta))
+
+    @v_args(meta=True)
+    def observe_stmt(self, meta, children):
+        return A.ObserveDecl(str(children[0]), children[1], self._s(meta))
+
+    def _text(self, meta) -> str:
+        lines = self.source.splitlines()
+        if getattr(meta, "empty", True) or meta.line > len(lines):
+            return ""
+        if meta.line == meta.end_line:
+            return lines[meta.line - 1][meta.column - 1:meta.end_column - 1].strip()
+        return lines[meta.line - 1][meta.column - 1:].strip()
+
+    @v_args(meta=True)
+    def require_cmp(self, meta, children):
+        call, op, value = children
+        return A.RequireDecl(call, str(op), value, None, self._text(meta), self._s(meta))
+
+    @v_args(meta=True)
+    def require_in(self, meta, children):
+        call, rng = children
+        if isinstance(rng, A.Range):
+            return A.RequireDecl(call, "in", rng.lower, rng.upper, self._text(meta), self._s(meta))
+        return A.RequireDecl(call, "in", rng, None, self._text(meta), self._s(meta))
+
+    @v_args(meta=True)
+    def decl(self, meta, children):
+        kind, name, like, block = children
+        return A.Block(str(kind), str(name), block, self._s(meta), self._s(kind), like)
+
+    def block(self, children):
+        return tuple(c for c in children if c is not None)
+
+    @v_args(meta=True)
+    def assign(self, meta, children):
+        return A.Assign(str(children[0]), children[1], self._s(meta), self._s(children[0]))
+
+    @v_args(meta=True)
+    def sub_block(self, meta, children):
+        kind, name, block = children
+        return A.Block(str(kind), str(name) if name else None, block, self._s(meta), self._s(kind))
+
+    # ---- programs
+    @v_args(meta=True)
+    def program(self, meta, children):
+        return A.ProgramDecl(str(children[0]), tuple(children[1:]), self._s(meta))
+
+    @v_args(meta=True)
+    def tone(self, meta, children):
+        f, v, ph = children
+        return A.ToneExpr(f, v, ph, self._s(meta))
+
+    def drive(self, children):
+        return tuple(children)
+
+    def drive_only(self, children):
+        return children[0]
+
+    def options(self, children):
+        kw = {}
+        for key, val in children:
+            kw[key] = val
+        return A.Options(**kw)
+
+    def opt_limit(self, c):
+        return ("limit", c[0])
+
+    def opt_slew(self, c):
+        return ("slew", c[0])
+
+    def opt_margin(self, c):
+        return ("margin", c[0])
+
+    def opt_using(self, c):
+        return ("using", c[0])
+
+    @v_args(meta=True)
+    def drive_step(self, meta, children):
+        tones, dur, opts = children
+        return A.DriveS(tones, dur, opts, self._s(meta))
+
+    @v_args(meta=True)
+    def sweep_step(self, meta, children):
+        f0, f1, amp, dur, log, opts = children
+        return A.SweepS(f0, f1, amp, dur, log is not None, opts, self._s(meta))
+
+    @v_args(meta=True)
+    def pause_step(self, meta, children):
+        return A.PauseS(children[0], self._s(meta))
+
+    def within(self, c):
+        return ("in", c[0])
+
+    def at_speed(self, c):
+        return ("at", c[0])
+
+    @v_args(meta=True)
+    def follow_step(self, meta, children):
+        cap, path, (how, val), opts = children
+        return A.FollowS(cap, path, val if how == "in" else None, val if how == "at" else None, opts,
+                         self._s(meta))
+
+    @v_args(meta=True)
+    def switch_step(self, meta, children):
+        latch, state, opts = children
+        return A.SwitchS(latch, str(state), self._s(state), opts, self._s(meta))
+
+    @v_args(meta=True)
+    def hold_above(self, meta, children):
+        call, bound, dur, opts = children
+        return A.HoldS(call, "above", bound, dur, opts, self._s(meta))
+
+    @v_args(meta=True)
+    def hold_cross(self, meta, children):
+        call, dur, opts = children
+        return A.HoldS(call, "cross", None, dur, opts, self._s(meta))
+
+    def start(self, children):
+        return tuple(children)
+
+
+# ---------------------------------------------------------------------------------------------
+# Entry points
+# ---------------------------------------------------------------------------------------------
+
+def parse_module(source: str, file: str = "<string>") -> A.Module:
+    """Parse a whole file. Raises DiagnosticError with one diagnostic per broken statement."""
+    _check_limits(source, file)
+    text = source if source.endswith("\n") else source + "\n"
+    try:
+        tree = _lark().parse(text, start="start")
+        stmts = _build(tree, file, source)
+        return A.Module(file, stmts, source)
+    except UnexpectedInput:
+        pass
+    # Recovery: parse each top-level statement on its own, keeping line numbers.
+    diags: list[Diagnostic] = []
+    stmts: list = []
+    lines = text.split("\n")
+    for start, end in _statement_chunks(lines):
+        chunk = "\n" * start + "\n".join(lines[start:end]) + "\n"
+        try:
+            tree = _lark().parse(chunk, start="start")
+            stmts.extend(_build(tree, file, source))
+        except UnexpectedInput as exc:
+            diags.append(_syntax_diagnostic(exc, file, lines))
+    if not diags:  # the chunker disagreed with the parser; report the whole-file error
+        try:
+            _lark().parse(text, start="start")
+        except UnexpectedInput as exc:
+            diags.append(_syntax_diagnostic(exc, file, lines))
+    raise DiagnosticError(diags)
+
+
+def parse_drive(text: str, file: str = "<drive>", line: int = 1, column: int = 1) -> tuple[A.ToneExpr, ...]:
+    """Parse a drive expression on its own (`125 kHz @ 6 V + 85 kHz @ 2 V`), as data files use."""
+    if len(text) > 10_000:
+        raise DiagnosticError([error("E101", "drive expression too long", Span(file=file, line=line, column=column))])
+    try:
+        tree = _lark().parse(text, start="drive_only")
+    except UnexpectedInput as exc:
+        d = _syntax_diagnostic(exc, file, text.split("\n"))
+        span = Span(file=file, line=line, column=column + (d.span.column - 1 if d.span else 0))
+        raise DiagnosticError([Diagnostic(d.code, d.severity, f"in drive `{text.strip()}`: {d.message}", span, d.hint or "a drive looks like `125 kHz @ 6 V` or `85 kHz @ 8 V + 125 kHz @ 4 V`")])
+    tones = _Builder(file, text).transform(tree)
+    if line != 1 or column != 1:  # shift spans to where the drive sits (a CSV cell)
+        tones = tuple(_shift_tone(t, line, column) for t in tones)
+    return tones
+
+
+def _shift_tone(t: A.ToneExpr, line: int, column: int) -> A.ToneExpr:
+    s = Span(file=t.span.file, line=line, column=column + t.span.column - 1)
+    return A.ToneExpr(t.frequency, t.amplitude, t.phase, s)
+
+
+def _build(tree, file: str, source: str) -> tuple:
+    try:
+        return _Builder(file, source).transform(tree)
+    except VisitError as exc:  # pragma: no cover - a builder bug must still not leak a traceback
+        raise DiagnosticError([error("E100", f"internal parser error: {exc.orig_exc}", Span(file=file, line=1, column=1))])
+
+
+def _check_limits(source: str, file: str) -> None:
+    if len(source.encode("utf-8", errors="replace")) > MAX_SOURCE_BYTES:
+        raise DiagnosticError([error("E102", f"file larger than {MAX_SOURCE_BYTES // 1_000_000} MB",
+                                     Span(file=file, line=1, column=1), "split the design into imported files")])
+    if "\x00" in source:
+        i = source.index("\x00")
+        line = source.count("\n", 0, i) + 1
+        col = i - (source.rfind("\n", 0, i) + 1) + 1
+        raise DiagnosticError([error("E103", "file contains a NUL byte: not a text design",
+                                     Span(file=file, line=line, column=col))])
+    depth = 0
+    line, col = 1, 0
+    in_str = in_comment = False
+    for ch in source:
+        col += 1
+        if ch == "\n":
+            line, col, in_comment, in_str = line + 1, 0, False, False
+            continue
+        if in_comment:
+            continue
+        if ch == '"':
+            in_str = not in_str
+        elif in_str:
+            continue
+        elif ch == "#":
+            in_comment = True
+        elif ch in "([{":
+            depth += 1
+            if depth > MAX_NESTING:
+                raise DiagnosticError([error("E104", f"nesting deeper than {MAX_NESTING} levels",
+                                             Span(file=file, line=line, column=col), "simplify the expression")])
+        elif ch in ")]}":
+            depth -= 1
+
+
+def _statement_chunks(lines: list[str]):
+    """Yield (start, end) line ranges of top-level statements, tracking bracket depth."""
+    i, n = 0, len(lines)
+    while i < n:
+        stripped = lines[i].strip()
+        if not stripped or stripped.startswith("#"):
+            i += 1
+            continue
+        start, depth = i, 0
+        while i < n:
+            depth += _depth_delta(lines[i])
+            i += 1
+            if depth <= 0 and not lines[i - 1].rstrip().endswith("\\"):
+                break
+            # a new top-level keyword at column 0 while unbalanced: stop (missing brace)
+            if depth > 0 and i < n and re.match(r"(import|param|program|mount|fix|link|observe|require|use|capsule|beam|medium|material|transducer|latch|spring|truss|anchor)\b", lines[i]):
+                break
+        yield start, i
+
+
+def _depth_delta(line: str) -> int:
+    d, in_str = 0, False
+    for ch in line:
+        if ch == '"':
+            in_str = not in_str
+        elif in_str:
+            continue
+        elif ch == "#":
+            break
+        elif ch in "([{":
+            d += 1
+        elif ch in ")]}":
+            d -= 1
+    return d
+
+
+def _syntax_diagnostic(exc: UnexpectedInput, file: str, lines: list[str]) -> Diagnostic:
+    line = getattr(exc, "line", 1) or 1
+    col = getattr(exc, "column", 1) or 1
+    if line < 1:
+        line, col = max(1, len(lines) - 1), 1
+    span = Span(file=file, line=line, column=col, end_line=line, end_column=col + 1)
+    if isinstance(exc, UnexpectedCharacters):
+        ch = lines[line - 1][col - 1] if line - 1 < len(lines) and col - 1 < len(lines[line - 1]) else "?"
+        hint = None
+        if ch == "'":
+            hint = 'strings use double quotes: "EPFL"'
+        elif ch == "=" and col > 1 and lines[line - 1][col - 2] in "=!":
+            hint = "compare with >=, <=, > or <"
+        return error("E110", f"unexpected character {ch!r}", span, hint)
+    if isinstance(exc, UnexpectedToken):
+        tok = exc.token
+        expected = sorted({_terminal_word(t) for t in exc.expected if not t.startswith("__")})
+        got = "end of file" if tok.type == "$END" else ("end of line" if tok.type == "_NL" else f"`{tok.value}`")
+        if tok.type == "$END":
+            span = Span(file=file, line=max(1, len(lines) - 1), column=1)
+        hint = None
+        if "`}`" in expected and tok.type in ("$END",):
+            hint = "a block is missing its closing `}`"
+        elif tok.type == "NUMBER" and "a quantity with a unit" not in expected:
+            hint = None
+        elif tok.type == "_NL" and "`=`" in expected:
+            hint = "an entry is written `key = value`"
+        exp = ", ".join(expected[:8]) + (" ..." if len(expected) > 8 else "")
+        return error("E111", f"unexpected {got}; expected {exp}", span, hint)
+    if isinstance(exc, UnexpectedEOF):
+        return error("E112", "unexpected end of file", span, "a block is missing its closing `}`")
+    return error("E111", str(exc).splitlines()[0], span)

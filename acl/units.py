@@ -1,0 +1,216 @@
+"""Quantities and dimensions at the edge; SI floats past it.
+
+Unit strings are parsed by pint (its registry cached on disk so start-up stays low) and memoised;
+arithmetic during evaluation uses :class:`Quantity`, an SI float with a dimension vector, which is
+~100x faster than pint objects and all the resolver needs.
+"""
+from __future__ import annotations
+
+import functools
+import math
+import os
+from dataclasses import dataclass
+
+# Dimension vector order: length, mass, time, current, temperature, amount, luminosity.
+_BASE = ("[length]", "[mass]", "[time]", "[current]", "[temperature]", "[substance]", "[luminosity]")
+_SYMBOL = ("m", "kg", "s", "A", "K", "mol", "cd")
+
+Dims = tuple[int, int, int, int, int, int, int]
+DIMENSIONLESS: Dims = (0, 0, 0, 0, 0, 0, 0)
+
+
+class UnitError(ValueError):
+    """A unit string pint does not know, with a hint."""
+
+    def __init__(self, message: str, hint: str | None = None):
+        super().__init__(message)
+        self.hint = hint
+
+
+@functools.lru_cache(maxsize=1)
+def registry():
+    import pint
+
+    cache = os.environ.get("ACL_CACHE_DIR") or os.path.join(os.path.expanduser("~"), ".cache", "acl", "pint")
+    try:
+        os.makedirs(cache, exist_ok=True)
+        return pint.UnitRegistry(cache_folder=cache)
+    except Exception:  # read-only home: no cache, still correct
+        return pint.UnitRegistry()
+
+
+_ALIASES = {"µ": "u", "μ": "u", "°": "deg", "·": "*", "Ω": "ohm"}
+
+
+@functools.lru_cache(maxsize=4096)
+def parse_unit(text: str) -> tuple[float, Dims]:
+    """Unit string -> (factor to SI, dimension vector). Raises UnitError."""
+    norm = text
+    for a, b in _ALIASES.items():
+        norm = norm.replace(a, b)
+    norm = norm.replace("^", "**")
+    if norm.strip() == "%":
+        return 0.01, DIMENSIONLESS
+    try:
+        reg = registry()
+        q = reg.Quantity(1.0, norm)
+        base = q.to_base_units()
+    except Exception as exc:
+        word = str(exc).split("'")[1] if "'" in str(exc) else text
+        raise UnitError(f"unknown unit `{text}`", _unit_hint(word)) from None
+    dims = base.dimensionality
+    vec = []
+    for b in _BASE:
+        e = dims.get(b, 0)
+        if e != int(e):
+            raise UnitError(f"unit `{text}` has a fractional dimension")
+        vec.append(int(e))
+    mag = float(base.magnitude)
+    # pint's base unit for mass is kg, for angle radian (dimensionless): both as wanted.
+    return mag, tuple(vec)  # type: ignore[return-value]
+
+
+def _unit_hint(word: str) -> str | None:
+    common = {"micron": "um", "microns": "um", "khz": "kHz", "mhz": "MHz (or mHz?)", "v": "V", "nn": "nN",
+              "mpa": "MPa (or mPa?)", "degree": "deg", "degrees": "deg", "sec": "s"}
+    if word.lower() in common:
+        return f"did you mean `{common[word.lower()]}`?"
+    return "units are written without spaces (`nN/um`, `kg/m^3`); multiply by a parameter with spaces: `40 um * gap`"
+
+
+@dataclass(frozen=True, slots=True)
+class Quantity:
+    """An SI value with a dimension vector."""
+
+    value: float
+    dims: Dims = DIMENSIONLESS
+
+    @property
+    def dimensionless(self) -> bool:
+        return self.dims == DIMENSIONLESS
+
+    def __add__(self, other: "Quantity") -> "Quantity":
+        if self.dims != other.dims:
+            raise DimensionError(self.dims, other.dims, "+")
+        return Quantity(self.value + other.value, self.dims)
+
+    def __sub__(self, other: "Quantity") -> "Quantity":
+        if self.dims != other.dims:
+            raise DimensionError(self.dims, other.dims, "-")
+        return Quantity(self.value - other.value, self.dims)
+
+    def __mul__(self, other: "Quantity") -> "Quantity":
+        return Quantity(self.value * other.value, tuple(a + b for a, b in zip(self.dims, other.dims)))  # type: ignore[arg-type]
+
+    def __truediv__(self, other: "Quantity") -> "Quantity":
+        if other.value == 0:
+            raise ZeroDivisionError("division by zero")
+        return Quantity(self.value / other.value, tuple(a - b for a, b in zip(self.dims, other.dims)))  # type: ignore[arg-type]
+
+    def __neg__(self) -> "Quantity":
+        return Quantity(-self.value, self.dims)
+
+    def __pow__(self, other: "Quantity") -> "Quantity":
+        if not other.dimensionless:
+            raise DimensionError(other.dims, DIMENSIONLESS, "^")
+        e = other.value
+        if not self.dimensionless and e != int(e):
+            raise ValueError("a quantity with units can only be raised to an integer power")
+        v = self.value ** e
+        if isinstance(v, complex) or (isinstance(v, float) and math.isnan(v)):
+            raise ValueError("power of a negative number is not real")
+        return Quantity(float(v), tuple(int(d * e) for d in self.dims))  # type: ignore[arg-type]
+
+    def __str__(self) -> str:
+        return format_quantity(self.value, self.dims)
+
+
+class DimensionError(ValueError):
+    def __init__(self, a: Dims, b: Dims, op: str):
+        super().__init__(f"cannot combine {describe(a)} and {describe(b)} with `{op}`")
+        self.a, self.b, self.op = a, b, op
+
+
+def quantity(value: float, unit: str) -> Quantity:
+    factor, dims = parse_unit(unit)
+    return Quantity(value * factor, dims)
+
+
+def dims_of(unit: str) -> Dims:
+    return parse_unit(unit)[1]
+
+
+# Named dimensions for messages and for SI unit strings.
+_NAMED: dict[Dims, tuple[str, str]] = {}
+
+
+def _register(name: str, unit: str, si: str) -> None:
+    _NAMED[parse_unit_static(unit)] = (name, si)
+
+
+def parse_unit_static(unit: str) -> Dims:
+    """Dimension vectors of common units without touching pint (keeps start-up low)."""
+    table = {
+        "m": (1, 0, 0, 0, 0, 0, 0), "kg": (0, 1, 0, 0, 0, 0, 0), "s": (0, 0, 1, 0, 0, 0, 0),
+        "Hz": (0, 0, -1, 0, 0, 0, 0), "V": (2, 1, -3, -1, 0, 0, 0), "Pa": (-1, 1, -2, 0, 0, 0, 0),
+        "N": (1, 1, -2, 0, 0, 0, 0), "N/m": (0, 1, -2, 0, 0, 0, 0), "kg/m^3": (-3, 1, 0, 0, 0, 0, 0),
+        "Pa*s": (-1, 1, -1, 0, 0, 0, 0), "m/s": (1, 0, -1, 0, 0, 0, 0), "m^2": (2, 0, 0, 0, 0, 0, 0),
+        "m^3": (3, 0, 0, 0, 0, 0, 0), "Pa/V": (-3, 0, 1, 1, 0, 0, 0), "N/V^2": (-3, -1, 4, 2, 0, 0, 0),
+        "N*m^2/V^2": (-1, -1, 4, 2, 0, 0, 0), "V/s": (2, 1, -4, -1, 0, 0, 0), "m^2/s": (2, 0, -1, 0, 0, 0, 0),
+        "": DIMENSIONLESS, "J": (2, 1, -2, 0, 0, 0, 0), "K": (0, 0, 0, 0, 1, 0, 0),
+        "N/V": (-1, 0, 1, 1, 0, 0, 0),
+    }
+    return table[unit]  # type: ignore[return-value]
+
+
+for _name, _unit in [("length", "m"), ("mass", "kg"), ("time", "s"), ("frequency", "Hz"), ("voltage", "V"),
+                     ("pressure", "Pa"), ("force", "N"), ("stiffness or surface tension", "N/m"),
+                     ("density", "kg/m^3"), ("dynamic viscosity", "Pa*s"), ("speed", "m/s"), ("area", "m^2"),
+                     ("volume", "m^3"), ("pressure per volt", "Pa/V"), ("force per volt squared", "N/V^2"),
+                     ("radiation coefficient (force x area per volt squared)", "N*m^2/V^2"),
+                     ("slew rate", "V/s"), ("diffusivity", "m^2/s"), ("a dimensionless number", ""),
+                     ("energy", "J"), ("temperature", "K"), ("force per volt", "N/V")]:
+    _register(_name, _unit, _unit)
+
+
+def describe(dims: Dims) -> str:
+    """Human name of a dimension: 'length', 'frequency', or its SI unit."""
+    if dims in _NAMED:
+        name, si = _NAMED[dims]
+        return f"{name} [{si}]" if si else name
+    return f"[{si_unit(dims)}]"
+
+
+def si_unit(dims: Dims) -> str:
+    if dims in _NAMED:
+        return _NAMED[dims][1]
+    parts = []
+    for sym, e in zip(_SYMBOL, dims):
+        if e == 1:
+            parts.append(sym)
+        elif e:
+            parts.append(f"{sym}^{e}")
+    return "*".join(parts)
+
+
+def format_quantity(value: float, dims: Dims) -> str:
+    unit = si_unit(dims)
+    return f"{value:.6g} {unit}".strip()
+
+
+_PREFIXES = [(1e9, "G"), (1e6, "M"), (1e3, "k"), (1.0, ""), (1e-3, "m"), (1e-6, "u"), (1e-9, "n"), (1e-12, "p")]
+
+
+def format_si(value: float | None, unit: str) -> str:
+    """A value in SI `unit` with an engineering prefix: 1.3e-5 m -> '13 um'. Compound units unprefixed."""
+    if value is None:
+        return "-"
+    if unit in ("", None):
+        return f"{value:.4g}"
+    if any(ch in unit for ch in "*/^") or value == 0:
+        return f"{value:.4g} {unit}"
+    mag = abs(value)
+    for f, p in _PREFIXES:
+        if mag >= f * 0.9995:
+            return f"{value / f:.4g} {p}{unit}"
+    return f"{value:.4g} {unit}"
