@@ -199,46 +199,83 @@ def _tones(drive: Drive) -> tuple[np.ndarray, np.ndarray]:
     return f, v
 
 
-def _thrust_scale(design: Design, cap: Capsule) -> float:
-    """Factor that makes predicted thrust match a declared Capsule.thrust_coefficient at mode 1."""
-    if cap.thrust_coefficient is None:
-        return 1.0
-    md = modal_data(design, cap)
-    f1 = md.frequency[:1]
-    per_v2 = _orifice_thrust(design, cap, f1, np.ones(1))       # (1, n_or), N at 1 V
-    total = np.linalg.norm((per_v2[0][:, None] * -_normals(cap)).sum(axis=0))
-    return cap.thrust_coefficient / total if total > 0 else 1.0
-
-
 def _normals(cap: Capsule) -> np.ndarray:
     n = np.array([o.normal for o in cap.orifices], float)
     return n / np.linalg.norm(n, axis=1, keepdims=True)
 
 
 def _orifice_thrust(design: Design, cap: Capsule, f: np.ndarray, volts: np.ndarray) -> np.ndarray:
-    """Thrust magnitude (N) of each orifice for each tone, shape (T, n_orifices)."""
-    med = _medium(design)
+    """Thrust magnitude (N) of each orifice for each tone, shape (T, n_orifices), unscaled."""
     dv = orifice_response(design, cap, f) * volts[:, None]
+    return _thrust_from_volumes(design, cap, f, dv)
+
+
+def _thrust_from_volumes(design: Design, cap: Capsule, f: np.ndarray, dv: np.ndarray) -> np.ndarray:
     radii = np.array([o.radius for o in cap.orifices])
-    return thrust_magnitude(dv, radii[None, :], 2 * np.pi * f[:, None], med.density,
+    return thrust_magnitude(dv, radii[None, :], 2 * np.pi * f[:, None], _medium(design).density,
                             C.STREAMING_CONSTANT)
 
 
-def _thrust_per_orifice(design: Design, cap: Capsule, drive: Drive) -> np.ndarray:
-    """Thrust magnitude (N) per orifice summed over tones (tones add in power), with declared scale."""
+def _thrust_scale(design: Design, cap: Capsule) -> float:
+    """Factor that makes predicted thrust match a declared Capsule.thrust_coefficient at mode 1."""
+    if cap.thrust_coefficient is None:
+        return 1.0
+    f1 = modal_data(design, cap).frequency[:1]
+    per_v2 = _orifice_thrust(design, cap, f1, np.ones(1))       # (1, n_or), N at 1 V
+    total = np.linalg.norm((per_v2[0][:, None] * -_normals(cap)).sum(axis=0))
+    return cap.thrust_coefficient / total if total > 0 else 1.0
+
+
+@dataclass(frozen=True)
+class _DriveState:
+    """One capsule under one drive: tone frequencies, orifice volume amplitudes, thrusts."""
+
+    cap: Capsule
+    f: np.ndarray               # (T,) Hz
+    volumes: np.ndarray         # (T, n_or) complex m^3
+    thrust: np.ndarray          # (n_or,) N, summed over tones (power), declared scale applied
+    normals: np.ndarray         # (n_or, 3) outward unit normals
+    offsets: np.ndarray         # (n_or, 3) orifice centre - capsule centre (rest)
+
+    def orifices_at(self, centre: np.ndarray) -> np.ndarray:
+        return self.offsets + centre
+
+    @property
+    def thrust_vector(self) -> np.ndarray:
+        return (self.thrust[:, None] * -self.normals).sum(axis=0)
+
+
+_LAST_STATES: list = []   # [(design, drive, states)]: identity cache for solver inner loops
+
+
+def _drive_states(design: Design, drive: Drive) -> dict[str, _DriveState]:
+    """Per-capsule drive state; the last (design, drive) pair is reused by identity (both frozen)."""
+    if _LAST_STATES and _LAST_STATES[0][0] is design and _LAST_STATES[0][1] is drive:
+        return _LAST_STATES[0][2]
+    states = _compute_drive_states(design, drive)
+    _LAST_STATES[:] = [(design, drive, states)]
+    return states
+
+
+def _compute_drive_states(design: Design, drive: Drive) -> dict[str, _DriveState]:
     f, v = _tones(drive)
-    if f.size == 0:
-        return np.zeros(len(cap.orifices))
-    return _orifice_thrust(design, cap, f, v).sum(axis=0) * _thrust_scale(design, cap)
+    out = {}
+    for cap in design.capsules:
+        normals = _normals(cap)
+        offsets = np.array([o.center for o in cap.orifices], float) - np.asarray(cap.center, float)
+        if f.size == 0:
+            vols = np.zeros((0, len(cap.orifices)), complex)
+            thrust = np.zeros(len(cap.orifices))
+        else:
+            vols = orifice_response(design, cap, f) * v[:, None]
+            thrust = _thrust_from_volumes(design, cap, f, vols).sum(axis=0) * _thrust_scale(design, cap)
+        out[cap.name] = _DriveState(cap, f, vols, thrust, normals, offsets)
+    return out
 
 
 def thrust_vectors(design: Design, drive: Drive) -> dict[str, np.ndarray]:
     """Streaming thrust (N, 3-vector) on each capsule: sum over orifices of -|F| n_outward."""
-    out = {}
-    for cap in design.capsules:
-        mag = _thrust_per_orifice(design, cap, drive)
-        out[cap.name] = (mag[:, None] * -_normals(cap)).sum(axis=0)
-    return out
+    return {name: st.thrust_vector for name, st in _drive_states(design, drive).items()}
 
 
 def _centres(design: Design, positions: Mapping[str, Sequence[float]] | None) -> dict[str, np.ndarray]:
@@ -249,43 +286,32 @@ def _centres(design: Design, positions: Mapping[str, Sequence[float]] | None) ->
     return pos
 
 
-def _orifice_positions(cap: Capsule, centre: np.ndarray) -> np.ndarray:
-    offset = centre - np.asarray(cap.center, float)
-    return np.array([o.center for o in cap.orifices], float) + offset
-
-
-def _tone_volumes(design: Design, cap: Capsule, drive: Drive) -> tuple[np.ndarray, np.ndarray]:
-    f, v = _tones(drive)
-    return f, orifice_response(design, cap, f) * v[:, None]          # (T, n_or)
-
-
 def pair_forces(design: Design, drive: Drive,
                 positions: Mapping[str, Sequence[float]] | None = None) -> list[PairForce]:
     """Secondary Bjerknes force of every capsule pair (sum over tones and orifice pairs)."""
-    pos = _centres(design, positions)
-    caps = list(design.capsules)
-    vols = {c.name: _tone_volumes(design, c, drive) for c in caps}
-    thrusts = {c.name: _thrust_per_orifice(design, c, drive) for c in caps}
-    med = _medium(design)
+    return _pair_forces(design, _drive_states(design, drive), _centres(design, positions))
+
+
+def _pair_forces(design: Design, states: dict[str, _DriveState],
+                 pos: dict[str, np.ndarray]) -> list[PairForce]:
+    rho = _medium(design).density
     notes = defaults_used(design)
+    names = [c.name for c in design.capsules]
     out = []
-    for i, ca in enumerate(caps):
-        for cb in caps[i + 1:]:
-            f, va = vols[ca.name]
-            _, vb = vols[cb.name]
-            pa = _orifice_positions(ca, pos[ca.name])
-            pb = _orifice_positions(cb, pos[cb.name])
+    for i, na in enumerate(names):
+        for nb in names[i + 1:]:
+            sa, sb = states[na], states[nb]
+            va, vb, f = sa.volumes, sb.volumes, sa.f
+            pa, pb = sa.orifices_at(pos[na]), sb.orifices_at(pos[nb])
             omega = 2 * np.pi * f
-            # (T, n_a, n_b) pairs
             on_a, _ = bjerknes_vectors(omega[:, None, None], va[:, :, None], pa[None, :, None, :],
-                                       vb[:, None, :], pb[None, None, :, :], med.density)
+                                       vb[:, None, :], pb[None, None, :, :], rho)
             fa = on_a.reshape(-1, 3).sum(axis=0)
-            line = pos[cb.name] - pos[ca.name]
+            line = pos[nb] - pos[na]
             dist = float(np.linalg.norm(line))
             unit = line / dist if dist > 0 else np.zeros(3)
             attraction = float(fa @ unit)
-            # phase difference between the dominant interfaces at the strongest tone
-            if f.size:
+            if f.size:   # phase difference between the dominant interfaces at the strongest tone
                 t = int(np.argmax(np.abs(va).max(axis=1) * np.abs(vb).max(axis=1)))
                 ia, ib = int(np.argmax(np.abs(va[t]))), int(np.argmax(np.abs(vb[t])))
                 dphi = float(np.angle(va[t, ia] * np.conj(vb[t, ib])))
@@ -293,12 +319,10 @@ def pair_forces(design: Design, drive: Drive,
             else:
                 dphi, gap = 0.0, dist
             # reduced law (paper Eq. 3): alpha = attraction d^2, 2 gamma = thrusts pushing apart
-            push_a = float((thrusts[ca.name][:, None] * -_normals(ca)).sum(axis=0) @ -unit)
-            push_b = float((thrusts[cb.name][:, None] * -_normals(cb)).sum(axis=0) @ unit)
-            gamma2 = push_a + push_b
+            gamma2 = float(sa.thrust_vector @ -unit + sb.thrust_vector @ unit)
             alpha = attraction * gap**2
             dc = math.sqrt(alpha / gamma2) if alpha > 0 and gamma2 > 0 else None
-            out.append(PairForce(a=ca.name, b=cb.name, force_on_a=fa, force_on_b=-fa,
+            out.append(PairForce(a=na, b=nb, force_on_a=fa, force_on_b=-fa,
                                  attraction=attraction, attract=attraction > 0,
                                  phase_difference=dphi, distance=gap, critical_distance=dc,
                                  notes=notes))
@@ -313,26 +337,23 @@ def force_model(design: Design, positions: Mapping[str, Sequence[float]] | None,
     different frequencies add in power (cross terms average to zero).
     """
     pos = _centres(design, positions)
-    caps = list(design.capsules)
-    total = {name: vec.copy() for name, vec in thrust_vectors(design, drive).items()}
-    for pf in pair_forces(design, drive, pos):
+    states = _drive_states(design, drive)
+    total = {name: st.thrust_vector for name, st in states.items()}
+    for pf in _pair_forces(design, states, pos):
         total[pf.a] = total[pf.a] + pf.force_on_a
         total[pf.b] = total[pf.b] + pf.force_on_b
-    # drag of each capsule's jets on the others
-    for src in caps:
-        mags = _thrust_per_orifice(design, src, drive)
-        if not np.any(mags):
+    for src_name, src in states.items():           # drag of each capsule's jets on the others
+        if not np.any(src.thrust):
             continue
-        origins = _orifice_positions(src, pos[src.name])
-        normals = _normals(src)
-        for tgt in caps:
-            if tgt.name == src.name:
+        origins = src.orifices_at(pos[src_name])
+        for tgt in design.capsules:
+            if tgt.name == src_name:
                 continue
             x = pos[tgt.name][None, :] - origins
             dist = np.linalg.norm(x, axis=1)
-            cos = np.einsum("ij,ij->i", x, normals) / dist
-            drag = jet_drag(mags, dist, cos, _outer_radius(tgt))
-            total[tgt.name] = total[tgt.name] + (drag[:, None] * normals).sum(axis=0)
+            cos = np.einsum("ij,ij->i", x, src.normals) / dist
+            drag = jet_drag(src.thrust, dist, cos, _outer_radius(tgt))
+            total[tgt.name] = total[tgt.name] + (drag[:, None] * src.normals).sum(axis=0)
     return total
 
 
