@@ -92,10 +92,21 @@ class _Compiler:
         sched = Schedule(program=self.program.name, segments=self.segments, goals=self.goals,
                          max_voltage_v=full_scale, full_scale_v=full_scale, ramp_s=self.opts.ramp_s,
                          source=self.design.file, notes=self.notes)
+        sched.sample_rate_hz = fs
         _choose_all_phases(sched, fs)
-        sched.notes.append(f"phases chosen for sample rate {fs:g} Hz")
-        sched.sample_rate_hz = fs                     # type: ignore[attr-defined]
+        self._check_peaks(sched)
         return sched
+
+    def _check_peaks(self, sched: Schedule) -> None:
+        """Every segment's peak within its step's limit (drive steps are the user's tones)."""
+        for seg in sched.segments:
+            step = self.program.steps[seg.step]
+            vmax, _ = _limit(self.design, getattr(step, "limits", None), self.opts)
+            if seg.peak_v is not None and seg.peak_v > vmax * (1 + 1e-6):
+                raise _diag("E-SCHED-VOLTAGE",
+                            f"step {seg.step + 1}: peak {seg.peak_v:.4g} V exceeds the {vmax:g} V limit "
+                            f"at t = {seg.start_s:.4g} s", step.span,
+                            "lower the tone amplitudes or raise the transducer's max voltage")
 
     # -- simple steps --------------------------------------------------------------------------
     def _add(self, duration, tones, step, goal=None):
@@ -108,8 +119,7 @@ class _Compiler:
         tones = [ScheduledTone(t.frequency, t.amplitude, t.phase) for t in step.drive.tones]
         self._add(step.duration, tones, i, f"step {i + 1}: drive")
         self.goals.append(GoalReport(f"step {i + 1}: drive", "drive", i, self.t - step.duration, self.t,
-                                     tuple(t.frequency_hz for t in tones), details={"limit_v": vmax,
-                                     "_span": step.span}))
+                                     tuple(t.frequency_hz for t in tones), details={"limit_v": vmax}))
 
     def _sweep(self, i, step):
         self.vmax_seen.append(_limit(self.design, None, self.opts)[0])
@@ -167,7 +177,7 @@ class _Compiler:
                          times_s=start + dt * np.arange(n), target_m=path.points,
                          amplitudes_v=amps.T.copy())
         rep.linear_rms_error_m = float(np.sqrt(np.mean(plan.error ** 2)))
-        self._resimulate(rep, step.capsule, plan.u, path.points)
+        self._resimulate(rep, step.capsule, plan.u, path.points, plan.predicted)
         rep.details.update({
             "tone_margin": choice.margin, "tone_conditioning": choice.conditioning,
             "gains_source": table.source, "waypoints": n, "dt_s": dt, "solver": plan.result.solver,
@@ -186,14 +196,14 @@ class _Compiler:
         except (KeyError, ValueError) as exc:
             raise ValueError(f"no gain model for `{capsule}`: {exc}") from None
 
-    def _resimulate(self, rep: GoalReport, capsule, u, targets):
+    def _resimulate(self, rep: GoalReport, capsule, u, targets, linear_pred):
         provider = self.opts.forward_provider
         if provider is None and self.opts.calibration is not None:
-            rep.model = "linear calibration gains (no forward model for a calibrated device)"
-            rep.predicted_m = targets + 0.0
-            rep.rms_error_m = rep.linear_rms_error_m
-            lin = np.linalg.norm(rep.target_m - rep.target_m, axis=1)
-            rep.max_error_m = rep.rms_error_m if lin.size == 0 else None
+            # a calibrated device has no better model than its calibration: report the linear plan
+            err = np.linalg.norm(linear_pred - targets, axis=1)
+            rep.model = "linear calibration gains"
+            rep.predicted_m = linear_pred
+            rep.rms_error_m, rep.max_error_m = float(np.sqrt(np.mean(err ** 2))), float(err.max())
             return
         if provider is None:
             from acl.schedule.gains import model_forward as provider
@@ -299,7 +309,7 @@ def _diag(code: str, message: str, span: Span | None, hint: str | None = None) -
 
 def _choose_all_phases(sched: Schedule, fs: float) -> None:
     """Pick low-peak phases per group of consecutive segments sharing the same frequencies."""
-    from acl.schedule.phases import choose_phases
+    from acl.schedule.phases import choose_phases, group_peaks
 
     segs = sched.segments
     i = 0
@@ -310,15 +320,19 @@ def _choose_all_phases(sched: Schedule, fs: float) -> None:
                 and segs[j + 1].goal == segs[i].goal:
             j += 1
         group = segs[i:j + 1]
+        amps = np.array([[t.amplitude_v for t in s.tones] for s in group]).reshape(len(group), -1)
         tones0 = group[0].tones
-        user_phases = any(t.phase_rad for t in tones0) or any(t.sweep for t in tones0)
-        if len(key) > 1 and not user_phases:
-            amps = np.array([[t.amplitude_v for t in s.tones] for s in group])
-            worst = amps[int(np.argmax(amps.sum(axis=1)))]
-            phases, _ = choose_phases(key, worst, fs)
-            for m in range(i, j + 1):
-                s = segs[m]
-                segs[m] = Segment(s.start_s, s.end_s, tuple(
-                    ScheduledTone(t.frequency_hz, t.amplitude_v, float(p)) for t, p in zip(s.tones, phases)),
-                    s.step, s.goal)
+        phases = np.array([t.phase_rad for t in tones0])
+        if any(t.sweep for t in tones0):
+            peaks = amps.sum(axis=1)
+        else:
+            if len(key) > 1 and not np.any(phases):
+                worst = amps[int(np.argmax(amps.sum(axis=1)))]
+                phases, _ = choose_phases(key, worst, fs)
+            peaks = group_peaks(key, phases, amps, fs)
+        for m in range(i, j + 1):
+            s = segs[m]
+            segs[m] = Segment(s.start_s, s.end_s, tuple(
+                ScheduledTone(t.frequency_hz, t.amplitude_v, float(p), t.frequency_end_hz, t.sweep)
+                for t, p in zip(s.tones, phases)), s.step, s.goal, float(peaks[m - i]))
         i = j + 1

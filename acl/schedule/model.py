@@ -36,6 +36,7 @@ class Segment:
     tones: tuple[ScheduledTone, ...]
     step: int = 0                              # index of the program step it realises
     goal: str | None = None                    # goal name, e.g. "step 2: follow arm"
+    peak_v: float | None = None                # sampled peak (periodic tones) or sum of amplitudes
 
     @property
     def duration_s(self) -> float:
@@ -89,6 +90,7 @@ class Schedule:
     max_voltage_v: float                       # the amplifier / transducer limit (V peak)
     full_scale_v: float                        # waveform files: sample = volts / full_scale_v
     ramp_s: float = 1e-3                       # raised-cosine crossfade between segments
+    sample_rate_hz: float = 0.0                # the rate the phases/peaks were computed for
     source: str = ""
     version: str = SCHEDULE_VERSION
     notes: list[str] = field(default_factory=list)

@@ -78,3 +78,21 @@ def choose_phases(frequencies, amplitudes, sample_rate: float, window: int = 409
                 best_x, best = np.asarray(r.x), float(r.fun)
     phi = np.mod(np.concatenate([[0.0], best_x]), 2 * np.pi)
     return phi, best
+
+
+def group_peaks(frequencies, phases, amplitudes: np.ndarray, sample_rate: float,
+                window: int = 4096, chunk: int = 512) -> np.ndarray:
+    """Peak (V) of each row of ``amplitudes`` (N, K) with shared tones: the sampled peak over one
+    common period when there is one, else the bound ``sum_k A_k`` (reached for incommensurate tones)."""
+    a = np.atleast_2d(np.asarray(amplitudes, float))
+    f = np.asarray(frequencies, float)
+    if f.size == 0:
+        return np.zeros(a.shape[0])
+    period = common_period_samples(f, sample_rate)
+    if period is None or period > 1 << 16:
+        return np.abs(a).sum(axis=1)
+    S = np.sin(_basis(f, sample_rate, period) + np.asarray(phases, float)[:, None])
+    out = np.empty(a.shape[0])
+    for s in range(0, a.shape[0], chunk):
+        out[s:s + chunk] = np.max(np.abs(a[s:s + chunk] @ S), axis=1)
+    return out
