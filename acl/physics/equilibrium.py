@@ -1,0 +1,360 @@
+"""Quasi-static equilibrium of a mechanism under a drive voltage, with continuation and snap detection.
+
+Generic in the degrees of freedom ``q`` (an array, SI lengths) and the drive amplitude ``V``:
+
+* ``restoring(q) -> (f, K)``: the elastic force the structure needs to be held at ``q`` (the
+  gradient of its strain energy, or any nonlinear force law) and its Jacobian ``K`` (or ``None``:
+  finite differences);
+* ``external(q, V) -> f``: the applied (acoustic) generalized force.
+
+Equilibrium is ``R(q, V) = restoring(q) - external(q, V) = 0`` with tangent stiffness
+``K_T = dR/dq``; an equilibrium is stable when every eigenvalue of ``K_T`` has a positive real part
+(divergence stability; Bazant & Cedolin, Stability of Structures, Ch. 4).  Continuation in ``V`` is
+pseudo-arclength (Keller 1977; Allgower & Georg, Introduction to Numerical Continuation Methods,
+Ch. 2); a saddle-node (snap-in, latch switching) is where ``det K_T`` changes sign along the branch and
+is refined by Brent's method on the arclength.  Every reported equilibrium has its residual checked
+and its stability computed; failure is a status, never a silent answer.  Pure numpy/scipy.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Callable, Optional
+
+import numpy as np
+
+Restoring = Callable[[np.ndarray], tuple]
+External = Callable[[np.ndarray, float], np.ndarray]
+Admissible = Optional[Callable[[np.ndarray], bool]]
+
+
+@dataclass(frozen=True)
+class Equilibrium:
+    """One solve: ``status`` is ``"ok"``, ``"no_convergence"`` or ``"inadmissible"``."""
+
+    q: np.ndarray
+    voltage: float
+    residual: float            # |R| (N) at q, recomputed after the solve
+    min_eig: float             # smallest real part of the eigenvalues of K_T (N/m)
+    stable: bool
+    status: str
+    iterations: int
+    message: str = ""
+
+
+@dataclass(frozen=True)
+class SnapIn:
+    """The saddle-node where the equilibrium branch is lost."""
+
+    voltage: float
+    q: np.ndarray
+
+
+@dataclass(frozen=True)
+class Branch:
+    """Stable equilibria along increasing voltage; ``status`` ``"ok"`` | ``"snap_in"`` | ``"no_convergence"``."""
+
+    voltage: np.ndarray        # (m,)
+    q: np.ndarray              # (m, n)
+    residual: np.ndarray       # (m,)
+    min_eig: np.ndarray        # (m,)
+    status: str
+    snap: Optional[SnapIn] = None
+    message: str = ""
+    extra: dict = field(default_factory=dict)
+
+
+# ----------------------------------------------------------------------------------------------
+# Derivatives
+# ----------------------------------------------------------------------------------------------
+
+def _force_only(restoring: Restoring, q: np.ndarray) -> np.ndarray:
+    out = restoring(q)
+    return np.atleast_1d(np.asarray(out[0] if isinstance(out, tuple) else out, dtype=float))
+
+
+def _restoring(restoring: Restoring, q: np.ndarray, h: float):
+    out = restoring(q)
+    f, K = (out if isinstance(out, tuple) else (out, None))
+    f = np.atleast_1d(np.asarray(f, dtype=float))
+    if K is None:
+        K = np.empty((q.size, q.size))
+        for j in range(q.size):
+            e = np.zeros(q.size)
+            e[j] = h
+            K[:, j] = (_force_only(restoring, q + e) - _force_only(restoring, q - e)) / (2 * h)
+    return f, np.atleast_2d(np.asarray(K, dtype=float))
+
+
+def _external_jacobian(external: External, q: np.ndarray, V: float, h: float) -> np.ndarray:
+    J = np.empty((q.size, q.size))
+    for j in range(q.size):
+        e = np.zeros(q.size)
+        e[j] = h
+        J[:, j] = (np.atleast_1d(external(q + e, V)) - np.atleast_1d(external(q - e, V))) / (2 * h)
+    return J
+
+
+def residual_and_tangent(restoring: Restoring, external: External, q, V: float, h: float = 1e-12):
+    """R = restoring(q) - external(q, V) and K_T = dR/dq (central differences where no Jacobian is given)."""
+    q = np.atleast_1d(np.asarray(q, dtype=float))
+    f, K = _restoring(restoring, q, h)
+    fe = np.atleast_1d(np.asarray(external(q, V), dtype=float))
+    return f - fe, K - _external_jacobian(external, q, V, h), max(np.abs(f).max(), np.abs(fe).max())
+
+
+def _min_eig(KT: np.ndarray) -> float:
+    return float(np.min(np.linalg.eigvals(KT).real))
+
+
+# ----------------------------------------------------------------------------------------------
+# One equilibrium
+# ----------------------------------------------------------------------------------------------
+
+def solve_equilibrium(restoring: Restoring, external: External, q0, V: float, *,
+                      admissible: Admissible = None, rtol: float = 1e-10, atol: float = 1e-20,
+                      max_iter: int = 60, h: float = 1e-12) -> Equilibrium:
+    """Newton with backtracking on |R| for R(q, V) = 0 (Dennis & Schnabel, Numerical Methods for Unconstrained Optimization, Ch. 6).
+
+    Converged when |R| <= rtol * (force scale) + atol; the answer is rejected (``inadmissible``) if
+    ``admissible(q)`` is false, and the residual is recomputed at the returned point.
+    """
+    q = np.atleast_1d(np.asarray(q0, dtype=float)).copy()
+    ok = admissible or (lambda _q: True)
+    R, KT, scale = residual_and_tangent(restoring, external, q, V, h)
+    norm = np.linalg.norm(R)
+    it = 0
+    status, message = "no_convergence", f"no convergence in {max_iter} Newton steps"
+    for it in range(1, max_iter + 1):
+        if not np.all(np.isfinite(R)):
+            message = "non-finite force"
+            break
+        if norm <= rtol * scale + atol:
+            status = "ok"
+            break
+        try:
+            step = np.linalg.solve(KT, -R)
+        except np.linalg.LinAlgError:
+            message = "singular tangent stiffness"
+            break
+        t = 1.0
+        while t > 1e-6:
+            trial = q + t * step
+            if ok(trial):
+                Rt, KTt, st = residual_and_tangent(restoring, external, trial, V, h)
+                if np.all(np.isfinite(Rt)) and np.linalg.norm(Rt) < (1 - 1e-4 * t) * norm:
+                    break
+            t *= 0.5
+        else:
+            message = "line search failed (no admissible descent)"
+            break
+        q, R, KT, scale = trial, Rt, KTt, st
+        norm = np.linalg.norm(R)
+    else:
+        if norm <= rtol * scale + atol:
+            status = "ok"
+    if status == "ok" and not ok(q):
+        status, message = "inadmissible", "equilibrium outside the admissible set"
+    if status == "ok":
+        message = ""
+    mev = _min_eig(KT) if np.all(np.isfinite(KT)) else float("nan")
+    return Equilibrium(q, float(V), float(norm), mev, bool(mev > 0), status, it, message)
+
+
+# ----------------------------------------------------------------------------------------------
+# Continuation in voltage
+# ----------------------------------------------------------------------------------------------
+
+def continuation(restoring: Restoring, external: External, q0, v_max: float, *, v_start: float = 0.0,
+                 admissible: Admissible = None, length_scale: float = 1e-6, ds: float = 0.05,
+                 ds_min: float = 1e-7, ds_max: float = 0.1, max_steps: int = 2000,
+                 rtol: float = 1e-10, h: float = 1e-12) -> Branch:
+    """Pseudo-arclength continuation of stable equilibria from ``v_start`` to ``v_max`` (Keller 1977), stopping at a saddle-node.
+
+    Variables are scaled as (q / length_scale, V / v_max).  Returns the stable branch; status
+    ``"snap_in"`` with the refined saddle-node (det K_T = 0), ``"ok"`` if ``v_max`` is reached, or
+    ``"no_convergence"`` (with a message) if a step cannot be completed even at ``ds_min``.
+    """
+    ok = admissible or (lambda _q: True)
+    qs, vs = float(length_scale), float(v_max)
+    first = solve_equilibrium(restoring, external, q0, v_start, admissible=admissible, rtol=rtol, h=h)
+    if first.status != "ok" or not first.stable:
+        reason = first.message or "starting equilibrium is unstable"
+        return Branch(np.array([]), np.empty((0, np.size(q0))), np.array([]), np.array([]),
+                      "no_convergence", None, f"no stable equilibrium at V = {v_start:g}: {reason}")
+    pts = [first]
+    y = np.concatenate([first.q / qs, [first.voltage / vs]])
+    t = _tangent(restoring, external, first.q, first.voltage, qs, vs, h, None)
+    det_prev = _det(restoring, external, first.q, first.voltage, h)
+
+    def correct(y_prev, t_prev, sigma):
+        """Pseudo-arclength corrector from y_prev along t_prev by sigma."""
+        y_new = y_prev + sigma * t_prev
+        for _ in range(30):
+            q, V = y_new[:-1] * qs, y_new[-1] * vs
+            if not ok(q):
+                return None
+            R, KT, scale = residual_and_tangent(restoring, external, q, V, h)
+            g = float(t_prev @ (y_new - y_prev) - sigma)
+            if not np.all(np.isfinite(R)):
+                return None
+            if np.linalg.norm(R) <= rtol * scale + 1e-20 and abs(g) < 1e-12:
+                return y_new
+            fV = (np.atleast_1d(external(q, V + 1e-6 * vs)) - np.atleast_1d(external(q, V - 1e-6 * vs))) / (2e-6 * vs)
+            J = np.zeros((y.size, y.size))
+            J[:-1, :-1] = KT * qs
+            J[:-1, -1] = -fV * vs
+            J[-1] = t_prev
+            fscale = max(scale, 1e-300)
+            try:
+                dy = np.linalg.solve(J / np.r_[np.full(R.size, fscale), 1.0][:, None],
+                                     -np.r_[R / fscale, g])
+            except np.linalg.LinAlgError:
+                return None
+            y_new = y_new + dy
+        return None
+
+    step = ds
+    for _ in range(max_steps):
+        y_new = correct(y, t, step)
+        if y_new is None:
+            step *= 0.5
+            if step < ds_min:
+                return _branch(pts, "no_convergence",
+                               message=f"continuation step below {ds_min:g} at V = {y[-1] * vs:.6g}")
+            continue
+        q_new, V_new = y_new[:-1] * qs, y_new[-1] * vs
+        det_new = _det(restoring, external, q_new, V_new, h)
+        if np.sign(det_new) != np.sign(det_prev) or y_new[-1] < y[-1]:
+            snap = _refine_fold(restoring, external, correct, y, t, step, qs, vs, h)
+            if snap is not None:
+                return _branch(pts, "snap_in", snap=snap)
+            step *= 0.5
+            if step < ds_min:
+                return _branch(pts, "no_convergence", message="fold refinement failed")
+            continue
+        if V_new >= v_max:
+            # land exactly on v_max: natural-parameter solve from the chord between the two points
+            w = (v_max - y[-1] * vs) / (V_new - y[-1] * vs)
+            guess = (1 - w) * y[:-1] * qs + w * q_new
+            eq = solve_equilibrium(restoring, external, guess, v_max, admissible=admissible, rtol=rtol, h=h)
+            if eq.status == "ok" and eq.stable and \
+                    np.sign(_det(restoring, external, eq.q, v_max, h)) == np.sign(det_prev):
+                pts.append(eq)
+                return _branch(pts, "ok")
+            step *= 0.5
+            if step < ds_min:
+                return _branch(pts, "no_convergence", message="could not land on v_max")
+            continue
+        eq = _verified(restoring, external, q_new, V_new, h)
+        if not eq.stable:
+            step *= 0.5
+            if step < ds_min:
+                return _branch(pts, "no_convergence", message="branch lost stability without a fold")
+            continue
+        pts.append(eq)
+        t = _tangent(restoring, external, q_new, V_new, qs, vs, h, t)
+        y, det_prev = y_new, det_new
+        step = min(step * 1.5, ds_max)
+    return _branch(pts, "no_convergence", message=f"no end after {max_steps} steps")
+
+
+def _verified(restoring, external, q, V, h) -> Equilibrium:
+    R, KT, _ = residual_and_tangent(restoring, external, q, V, h)
+    mev = _min_eig(KT)
+    return Equilibrium(q, float(V), float(np.linalg.norm(R)), mev, bool(mev > 0), "ok", 0)
+
+
+def _det(restoring, external, q, V, h) -> float:
+    _, KT, _ = residual_and_tangent(restoring, external, q, V, h)
+    return float(np.linalg.det(KT))
+
+
+def _tangent(restoring, external, q, V, qs, vs, h, t_prev):
+    """Unit tangent of the branch in scaled variables: K_T dq = f_V dV (implicit function theorem)."""
+    _, KT, _ = residual_and_tangent(restoring, external, q, V, h)
+    fV = (np.atleast_1d(external(q, V + 1e-6 * vs)) - np.atleast_1d(external(q, V - 1e-6 * vs))) / (2e-6 * vs)
+    dq = np.linalg.solve(KT, fV)
+    t = np.concatenate([dq * vs / qs, [1.0]])
+    t /= np.linalg.norm(t)
+    if t_prev is not None and t @ t_prev < 0:
+        t = -t
+    return t
+
+
+def _refine_fold(restoring, external, correct, y, t, step, qs, vs, h) -> Optional[SnapIn]:
+    """Brent's method on the arclength for det K_T = 0 between the last stable point and the trial step."""
+    from scipy.optimize import brentq
+
+    def det_at(sigma):
+        yy = correct(y, t, sigma)
+        if yy is None:
+            raise ValueError("corrector failed")
+        return _det(restoring, external, yy[:-1] * qs, yy[-1] * vs, h)
+
+    try:
+        d0 = _det(restoring, external, y[:-1] * qs, y[-1] * vs, h)
+        hi = step
+        d1 = det_at(hi)
+        if np.sign(d1) == np.sign(d0):
+            return None
+        sigma = brentq(det_at, 0.0, hi, xtol=1e-13, rtol=1e-12)
+        yy = correct(y, t, sigma)
+    except ValueError:
+        return None
+    return SnapIn(float(yy[-1] * vs), yy[:-1] * qs)
+
+
+def _branch(pts, status, snap=None, message="") -> Branch:
+    n = pts[0].q.size if pts else 0
+    return Branch(np.array([p.voltage for p in pts]),
+                  np.array([p.q for p in pts]).reshape(len(pts), n),
+                  np.array([p.residual for p in pts]),
+                  np.array([p.min_eig for p in pts]),
+                  status, snap, message)
+
+
+def settle(restoring: Restoring, external: External, q0, V: float, *, admissible: Admissible = None,
+           length_scale: float = 1e-6, max_iter: int = 20000, rtol: float = 1e-10, h: float = 1e-12) -> Equilibrium:
+    """Where the mechanism goes after losing equilibrium: pseudo-transient continuation of the overdamped flow (Kelley & Keyes, SIAM J. Numer. Anal. 35, 1998).
+
+    Returns ``inadmissible`` if the flow leaves the admissible set (e.g. contact), or the
+    equilibrium it reaches (e.g. a latch's other state) with its stability.
+    """
+    ok = admissible or (lambda _q: True)
+    q = np.atleast_1d(np.asarray(q0, dtype=float)).copy()
+    _, K = _restoring(restoring, q, h)
+    rate = max(float(np.max(np.abs(np.linalg.eigvals(K)))), 1e-300)
+    R, KT, scale = residual_and_tangent(restoring, external, q, V, h)
+    dt = 1e-2
+    eye = np.eye(q.size)
+    for it in range(1, max_iter + 1):
+        norm = np.linalg.norm(R)
+        if norm <= rtol * scale + 1e-20:
+            eq = solve_equilibrium(restoring, external, q, V, admissible=admissible, rtol=rtol, h=h)
+            return Equilibrium(eq.q, eq.voltage, eq.residual, eq.min_eig, eq.stable, eq.status,
+                               it + eq.iterations, eq.message)
+        try:
+            # shift so that the step never climbs back along an unstable direction
+            shift = rate / dt + 2.0 * max(0.0, -_min_eig(0.5 * (KT + KT.T)))
+            s = np.linalg.solve(shift * eye + KT, -R)
+        except np.linalg.LinAlgError:
+            dt *= 0.25
+            continue
+        trial = q + s
+        if not ok(trial) or not np.all(np.isfinite(trial)):
+            dt *= 0.25
+            if np.linalg.norm(s) <= 1e-9 * length_scale or dt < 1e-30:
+                return Equilibrium(q, float(V), float(norm), float("nan"), False, "inadmissible", it,
+                                   "the mechanism leaves the admissible set (contact)")
+            continue
+        R_new, KT_new, scale = residual_and_tangent(restoring, external, trial, V, h)
+        if not np.all(np.isfinite(R_new)):
+            dt *= 0.25
+            continue
+        if np.linalg.norm(s) <= 1e-9 * length_scale and np.linalg.norm(R_new) > norm:
+            return Equilibrium(trial, float(V), float(np.linalg.norm(R_new)), float("nan"), False,
+                               "inadmissible", it, "the mechanism runs into the admissible set's boundary (contact)")
+        dt = min(dt * max(norm / max(np.linalg.norm(R_new), 1e-300), 2.0), 1e12)
+        q, R, KT = trial, R_new, KT_new
+    return Equilibrium(q, float(V), float(np.linalg.norm(R)), _min_eig(KT), False, "no_convergence",
+                       max_iter, f"no rest state after {max_iter} pseudo-time steps")
