@@ -8,7 +8,7 @@ from acl.design import geometry as G
 from acl.design import model as M
 from acl.design.builders import Builder, CapsuleSpec
 from acl.design.checks import check_design_geometry, check_programs
-from acl.design.resolve import DECL_KINDS, D, _Fail, _what
+from acl.design.resolve import DECL_KINDS, EFFECTS, D, _Fail, _what
 from acl.design.values import CallVal, DeclVal, IdentVal, ListVal, StrVal, VecVal
 from acl.diagnostics import Span, suggest
 from acl.syntax import ast as A
@@ -24,6 +24,7 @@ def assemble(b: Builder) -> M.Design:
 
     # ---- elements
     beams_raw: dict[str, dict] = {}
+    effects: list[M.Effect] = []
     for name, blk in env.decls.items():
         kind = blk.kind
         if kind not in DECL_KINDS:
@@ -57,6 +58,10 @@ def assemble(b: Builder) -> M.Design:
             pass  # declared but not used: lint reports it
         elif kind == "transducer":
             pass
+        elif kind == "effect":
+            eff = _effect(b, blk)
+            if eff is not None:
+                effects.append(eff)
 
     # ---- joints
     joints, mounted_on = _joints(b, beams_raw)
@@ -100,10 +105,32 @@ def assemble(b: Builder) -> M.Design:
     requires = _requires(b, partial)
     programs = _programs(b, partial)
     design = M.Design(**design_kw, observes=tuple(observes), requires=tuple(requires), programs=tuple(programs),
-                      sources=tuple(dict.fromkeys(r.loader.sources)))
+                      effects=tuple(effects), sources=tuple(dict.fromkeys(r.loader.sources)))
     check_design_geometry(design, bag, b.capsules)
     check_programs(design, bag)
     return design
+
+
+def _effect(b: Builder, blk: A.Block) -> M.Effect | None:
+    """`effect drive_saturation { v_sat = 8.2 V }`: the name is the effect identifier; keys are its coefficients."""
+    if blk.name not in EFFECTS:
+        b.bag.error("E202", f"unknown effect `{blk.name}`", blk.span, suggest(blk.name, EFFECTS) or "effects: " + ", ".join(EFFECTS))
+        return None
+    params, units = {}, {}
+    for ent, env in b.r.entries(blk, b.env):
+        if not isinstance(ent, A.Assign):
+            b.bag.error("E203", "an effect holds only `coefficient = value` entries", ent.kind_span)
+            return None
+        try:
+            v = b.r.eval(ent.value, env)
+        except _Fail:
+            return None
+        if not isinstance(v, Quantity):
+            b.bag.error("E304", f"effect coefficient `{ent.key}` must be a quantity, found {_what(v)}", ent.value.span)
+            return None
+        params[ent.key] = v.value
+        units[ent.key] = si_unit(v.dims)
+    return M.Effect(name=blk.name, params=params, units=units, span=blk.span)
 
 
 def _put(b: Builder, store: dict, name: str, value) -> None:
@@ -151,7 +178,7 @@ def _params(b: Builder) -> tuple[M.Param, ...]:
 def _uses(b: Builder):
     medium = transducer = None
     seen: dict[str, Span] = {}
-    for st in b.env.module.statements:
+    for st in b.env.statements:
         if not isinstance(st, A.Use):
             continue
         if st.what not in ("medium", "transducer"):
@@ -224,7 +251,7 @@ def _joints(b: Builder, beams_raw):
         capsule_joined[name] = span
         return True
 
-    for st in b.env.module.statements:
+    for st in b.env.statements:
         if isinstance(st, A.MountStmt):
             cap = _local(b, st.capsule, ("capsule",), "mount")
             tgt_name = st.target.parts[0]
@@ -300,7 +327,7 @@ def _arity(b: Builder, call: A.Call, n: tuple[int, ...], what: str) -> bool:
 
 def _observes(b: Builder, design: M.Design) -> list[M.Observe]:
     out = []
-    for st in b.env.module.statements:
+    for st in b.env.statements:
         if not isinstance(st, A.ObserveDecl):
             continue
         c = st.call
@@ -343,7 +370,7 @@ def _observes(b: Builder, design: M.Design) -> list[M.Observe]:
 def _requires(b: Builder, design: M.Design) -> list[M.Require]:
     out = []
     units = {"resonance": "Hz", "separation": "Hz", "margin": "", "gap": "m"}
-    for st in b.env.module.statements:
+    for st in b.env.statements:
         if not isinstance(st, A.RequireDecl):
             continue
         c = st.call

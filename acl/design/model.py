@@ -394,6 +394,19 @@ class Program(Frozen):
     span: Span
 
 
+class Effect(Frozen):
+    """A physical effect added to the base model (written by `acl fit`, or declared by hand).
+
+    ``name`` is the effect's stable identifier (see docs/fit.md, e.g. ``drive_saturation``);
+    ``params`` its coefficients in SI, ``units`` their SI unit strings.
+    """
+
+    name: str
+    params: dict[str, float]
+    units: dict[str, str] = {}
+    span: Span
+
+
 # ----------------------------------------------------------------------------------------------
 # The whole design
 # ----------------------------------------------------------------------------------------------
@@ -414,6 +427,7 @@ class Design(Frozen):
     observes: tuple[Observe, ...] = ()
     requires: tuple[Require, ...] = ()
     programs: tuple[Program, ...] = ()
+    effects: tuple[Effect, ...] = ()
     sources: tuple[str, ...] = ()  # every file read (design, imports, csv), in order
 
     # -- lookups -------------------------------------------------------------------------------
@@ -440,6 +454,10 @@ class Design(Frozen):
 
     def observe(self, name: str) -> Observe:
         return _find(self.observes, name, "observe")
+
+    def effect(self, name: str) -> Effect | None:
+        """The declared effect with this identifier, or None."""
+        return next((e for e in self.effects if e.name == name), None)
 
     def mount_of(self, capsule: str):
         """The joint that holds ``capsule`` (Mount or Fix), or None if it floats."""

@@ -24,6 +24,8 @@ class ModuleEnv:
     params: dict[str, A.ParamDecl] = field(default_factory=dict)
     imports: dict[str, object] = field(default_factory=dict)   # alias -> ModuleEnv | (ModuleEnv, name)
     programs: dict[str, A.ProgramDecl] = field(default_factory=dict)
+    statements: list = field(default_factory=list)   # own statements, after those of an `extends` base
+    base: "ModuleEnv | None" = None
     is_main: bool = False
 
 
@@ -82,7 +84,30 @@ class Loader:
             seen[name] = span
             return True
 
-        for st in env.module.statements:
+        own = list(env.module.statements)
+        extends = [st for st in own if isinstance(st, A.Extends)]
+        for extra in extends[1:]:
+            self.bag.error("E215", "a design extends at most one file", extra.span)
+        if extends:
+            base = self._extends(extends[0], env, root)
+            if base is not None:
+                env.base = base
+                env.imports.update(base.imports)
+                env.decls.update(base.decls)
+                env.params.update(base.params)
+                env.programs.update(base.programs)
+                overridden = {st.name for st in own if isinstance(st, (A.ParamDecl, A.Block, A.ProgramDecl))}
+                for st in base.statements:
+                    if isinstance(st, (A.ParamDecl, A.Block, A.ProgramDecl)) and st.name in overridden:
+                        continue
+                    env.statements.append(st)
+                for name in base.decls:
+                    seen[name] = base.decls[name].span
+        env.statements.extend(own)
+        base_names = set(env.base.params) | set(env.base.decls) | {"program " + p for p in env.base.programs} if env.base else set()
+        for st in own:
+            if isinstance(st, A.Extends):
+                continue
             if isinstance(st, A.Import):
                 target = self._import(st, env, root)
                 if target is not None:
@@ -90,16 +115,46 @@ class Loader:
                     if alias and claim(alias, st.span):
                         env.imports[alias] = target
             elif isinstance(st, A.ParamDecl):
-                if claim(st.name, st.span):
+                if st.name in base_names and st.name in env.params:
+                    env.params[st.name] = st       # a calibrated value replaces the base's
+                    seen[st.name] = st.span
+                elif claim(st.name, st.span):
                     env.params[st.name] = st
             elif isinstance(st, A.Block):
-                if claim(st.name, st.span):
+                if st.name in base_names and st.name in env.decls and env.decls[st.name].kind == st.kind:
+                    env.decls[st.name] = st
+                    seen[st.name] = st.span
+                elif claim(st.name, st.span):
                     env.decls[st.name] = st
             elif isinstance(st, A.ProgramDecl):
-                if claim("program " + st.name, st.span):
+                if "program " + st.name in base_names:
+                    env.programs[st.name] = st
+                elif claim("program " + st.name, st.span):
                     env.programs[st.name] = st
             elif isinstance(st, A.ObserveDecl):
                 claim(st.name, st.span)
+
+    def _extends(self, st: A.Extends, env: ModuleEnv, root: str) -> "ModuleEnv | None":
+        here = os.path.dirname(os.path.realpath(env.file)) if os.path.exists(env.file) else root
+        cand = os.path.join(here, st.file)
+        if not os.path.isfile(cand):
+            self.bag.error("E208", f"cannot find `{st.file}` to extend", st.span)
+            return None
+        real = os.path.realpath(cand)
+        if not self._allowed(real, root):
+            self.bag.error("E210", f"`{st.file}` is outside the design's directory tree", st.span,
+                           "pass its folder with --path to allow it")
+            return None
+        if real in self.stack:
+            self.bag.error("E209", f"extends cycle through `{st.file}`", st.span)
+            return None
+        try:
+            text = _read(cand)
+        except DiagnosticError as exc:
+            for d in exc.diagnostics:
+                self.bag.add(d)
+            return None
+        return self._load_text(text, cand, real, root=os.path.dirname(real))
 
     def _import(self, st: A.Import, env: ModuleEnv, root: str):
         here = os.path.dirname(os.path.realpath(env.file)) if os.path.exists(env.file) else root

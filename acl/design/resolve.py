@@ -22,7 +22,11 @@ class _Fail(Exception):
     """Evaluation of one expression failed; the diagnostic is already recorded."""
 
 
-DECL_KINDS = ("medium", "material", "transducer", "capsule", "beam", "spring", "truss", "latch", "anchor")
+DECL_KINDS = ("medium", "material", "transducer", "capsule", "beam", "spring", "truss", "latch", "anchor", "effect")
+
+# Effects of the model library (docs/fit.md); `effect NAME { coefficient = quantity, ... }`.
+EFFECTS = ("transducer_gain", "drive_saturation", "large_deflection", "stiffness_scale", "stiffness_gradient",
+           "offset_drift", "bubble_shrinkage", "neighbour_drag", "substrate_proximity")
 
 D = parse_unit_static
 LENGTH, FREQ, VOLT, TIME = D("m"), D("Hz"), D("V"), D("s")
@@ -204,7 +208,8 @@ class Resolver:
             lo, hi = self._eval(e.lower, env), self._eval(e.upper, env)
             lo, hi = self._num(lo, e.lower), self._num(hi, e.upper)
             if lo.dims != hi.dims:
-                raise DimensionError(lo.dims, hi.dims, "..")
+                self.bag.error("E303", str(DimensionError(lo.dims, hi.dims, "..")), e.span)
+                raise _Fail()
             return RangeVal(lo, hi)
         if isinstance(e, A.ListExpr):
             return ListVal(tuple(self._eval(i, env) for i in e.items))
@@ -232,7 +237,15 @@ class Resolver:
             if isinstance(left, Quantity) and isinstance(right, DirVal) and e.op == "*":
                 return VecVal(tuple(left * Quantity(c) for c in right.vector))
             a, b = self._num(left, e.left), self._num(right, e.right)
-            return {"+": a.__add__, "-": a.__sub__, "*": a.__mul__, "/": a.__truediv__, "^": a.__pow__}[e.op](b)
+            try:
+                return {"+": a.__add__, "-": a.__sub__, "*": a.__mul__, "/": a.__truediv__, "^": a.__pow__}[e.op](b)
+            except DimensionError as exc:
+                self.bag.error("E303", str(exc), e.span)
+            except ZeroDivisionError:
+                self.bag.error("E305", "division by zero", e.span)
+            except (ValueError, OverflowError) as exc:
+                self.bag.error("E305", str(exc), e.span)
+            raise _Fail()
         self.bag.error("E304", "unsupported expression", e.span)
         raise _Fail()
 

@@ -122,6 +122,12 @@ class Import:
 
 
 @dataclass(frozen=True)
+class Extends:
+    file: str
+    span: Span
+
+
+@dataclass(frozen=True)
 class ParamDecl:
     name: str
     value: Expr

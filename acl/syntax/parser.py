@@ -175,6 +175,10 @@ class _Builder(Transformer):
     def import_file(self, meta, children):
         return A.Import(None, children[0].value[1:-1], str(children[1]), self._s(meta))
 
+    @v_args(meta=True)
+    def extends_stmt(self, meta, children):
+        return A.Extends(children[0].value[1:-1], self._s(meta))
+
     def free_clause(self, children):
         rng = children[0]
         if isinstance(rng, A.Range):
@@ -349,7 +353,7 @@ def parse_module(source: str, file: str = "<string>") -> A.Module:
             tree = _lark().parse(chunk, start="start")
             stmts.extend(_build(tree, file, source))
         except UnexpectedInput as exc:
-            diags.append(_syntax_diagnostic(exc, file, lines))
+            diags.append(_syntax_diagnostic(exc, file, lines, eof_line=_last_line(lines, start, end)))
     if not diags:  # the chunker disagreed with the parser; report the whole-file error
         try:
             _lark().parse(text, start="start")
@@ -436,7 +440,7 @@ def _statement_chunks(lines: list[str]):
             if depth <= 0 and not lines[i - 1].rstrip().endswith("\\"):
                 break
             # a new top-level keyword at column 0 while unbalanced: stop (missing brace)
-            if depth > 0 and i < n and re.match(r"(import|param|program|mount|fix|link|observe|require|use|capsule|beam|medium|material|transducer|latch|spring|truss|anchor)\b", lines[i]):
+            if depth > 0 and i < n and re.match(r"(import|extends|param|program|mount|fix|link|observe|require|use|capsule|beam|medium|material|transducer|latch|spring|truss|anchor|effect)\b", lines[i]):
                 break
         yield start, i
 
@@ -457,7 +461,14 @@ def _depth_delta(line: str) -> int:
     return d
 
 
-def _syntax_diagnostic(exc: UnexpectedInput, file: str, lines: list[str]) -> Diagnostic:
+def _last_line(lines: list[str], start: int, end: int) -> int:
+    for i in range(min(end, len(lines)) - 1, start - 1, -1):
+        if lines[i].strip():
+            return i + 1
+    return start + 1
+
+
+def _syntax_diagnostic(exc: UnexpectedInput, file: str, lines: list[str], eof_line: int | None = None) -> Diagnostic:
     line = getattr(exc, "line", 1) or 1
     col = getattr(exc, "column", 1) or 1
     if line < 1:
@@ -476,7 +487,8 @@ def _syntax_diagnostic(exc: UnexpectedInput, file: str, lines: list[str]) -> Dia
         expected = sorted({_terminal_word(t) for t in exc.expected if not t.startswith("__")})
         got = "end of file" if tok.type == "$END" else ("end of line" if tok.type == "_NL" else f"`{tok.value}`")
         if tok.type == "$END":
-            span = Span(file=file, line=max(1, len(lines) - 1), column=1)
+            ln = eof_line or _last_line(lines, 0, len(lines))
+            span = Span(file=file, line=ln, column=max(1, len(lines[ln - 1].rstrip()) if ln - 1 < len(lines) else 1))
         hint = None
         if "`}`" in expected and tok.type in ("$END",):
             hint = "a block is missing its closing `}`"
