@@ -4,7 +4,7 @@ Decision variable: per-tone power ``u[k, t] = V[k, t]**2 >= 0`` at every waypoin
 displacement is linear in ``u`` through the gain matrix ``G`` (2 x K, metres per V^2; from the
 model including the transducer, or from a calibration sweep)::
 
-    minimise    sum_t |G u_t - p_t|^2 / N  +  lambda * sum_{k,t} u_kt / N
+    minimise    sum_t |G u_t - p_t|^2 / N  +  lambda |g|max * sum_{k,t} u_kt / N   (um, u/Vmax^2)
     subject to  0 <= u_kt <= Vtone_k^2                          per-tone amplitude limit
                 sum_k u_kt <= Vmax^2 / K                          total amplitude (see below)
                 |G u_t - p_t|_inf <= tol                          the goal: track within tol
@@ -107,7 +107,7 @@ def plan_path(gains: np.ndarray, targets: np.ndarray, dt: float, limits: DriveLi
     """Solve the whole path as one convex program; raise :class:`PathInfeasible` with a diagnosis.
 
     gains (2, K) m/V^2; targets (N, 2) m; dt s between waypoints; u_start (K,) V^2 the power at
-    the start (slew from it; default 0); lam the relative weight of total drive (scaled units).
+    the start (slew from it; default 0); lam the weight of total drive: it biases the tracking error by about lam/2 micrometres.
     """
     import time
 
@@ -172,8 +172,9 @@ def _build(G, P, dt, limits, tolerance, u_start, lam, slew_model, total_coeffs=N
     Gs, Ps, vmax2 = _scaled(G, P, limits)
     X = cp.Variable((K, N), nonneg=True)
     err = Gs @ X - Ps
-    gscale = float(np.max(np.sum(Gs ** 2, axis=0))) or 1.0
-    objective = cp.sum_squares(err) / N + lam * gscale * cp.sum(X) / N
+    # drive weight: with |g| um per unit x, the drive term biases the error by about lam/2 um
+    gnorm = float(np.sqrt(np.max(np.sum(Gs ** 2, axis=0)))) or 1.0
+    objective = cp.sum_squares(err) / N + lam * gnorm * cp.sum(X) / N
     cons = []
     if with_tone:
         cap = (limits.tone_cap(K) ** 2 / vmax2).reshape(K, 1)
