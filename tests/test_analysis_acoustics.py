@@ -213,3 +213,18 @@ def test_force_model_sums_thrust_bjerknes_and_drag_for_every_capsule():
     (pair,) = A.pair_forces(d, drive)
     drag_on_small = total["small"] - thrust["small"] - pair.force_on_b
     assert drag_on_small[0] > 0           # big's jet (along +x) pushes small away along +x
+
+
+def test_capsule_without_orifices_has_no_modes_and_no_thrust():
+    blind = Capsule(name="blind", cavity=Cavity(shape="volume", volume=1e-13), orifices=(),
+                    center=(0.0, 0.0, 0.0), span=SP)
+    d = Design(file="blind", capsules=(blind, by_volume("d1", 6.51e4 * UM**3, 10 * UM, center=(100 * UM, 0, 0))))
+    assert A.capsule_modes(d, "blind") == []
+    total = A.force_model(d, None, tone(125e3, 3.0))
+    np.testing.assert_array_equal(total["blind"], np.zeros(3))
+
+
+def test_empty_drive_gives_zero_forces():
+    d = facing_pair(40 * UM)
+    total = A.force_model(d, None, Drive(tones=()))
+    assert all(not v.any() for v in total.values())

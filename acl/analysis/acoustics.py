@@ -200,7 +200,7 @@ def _tones(drive: Drive) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _normals(cap: Capsule) -> np.ndarray:
-    n = np.array([o.normal for o in cap.orifices], float)
+    n = np.array([o.normal for o in cap.orifices], float).reshape(-1, 3)
     return n / np.linalg.norm(n, axis=1, keepdims=True)
 
 
@@ -262,7 +262,8 @@ def _compute_drive_states(design: Design, drive: Drive) -> dict[str, _DriveState
     out = {}
     for cap in design.capsules:
         normals = _normals(cap)
-        offsets = np.array([o.center for o in cap.orifices], float) - np.asarray(cap.center, float)
+        offsets = (np.array([o.center for o in cap.orifices], float).reshape(-1, 3)
+                   - np.asarray(cap.center, float))
         if f.size == 0:
             vols = np.zeros((0, len(cap.orifices)), complex)
             thrust = np.zeros(len(cap.orifices))
@@ -311,7 +312,7 @@ def _pair_forces(design: Design, states: dict[str, _DriveState],
             dist = float(np.linalg.norm(line))
             unit = line / dist if dist > 0 else np.zeros(3)
             attraction = float(fa @ unit)
-            if f.size:   # phase difference between the dominant interfaces at the strongest tone
+            if f.size and va.size and vb.size:   # phase of the dominant interfaces, strongest tone
                 t = int(np.argmax(np.abs(va).max(axis=1) * np.abs(vb).max(axis=1)))
                 ia, ib = int(np.argmax(np.abs(va[t]))), int(np.argmax(np.abs(vb[t])))
                 dphi = float(np.angle(va[t, ia] * np.conj(vb[t, ib])))

@@ -203,6 +203,9 @@ def capsule_modes(volume, radii, density, surface_tension, ambient_pressure, pol
     """
     from scipy.linalg import eigh
 
+    if np.asarray(radii).size == 0:          # no interface: nothing oscillates
+        empty = np.zeros(0)
+        return BubbleModes(omega=empty, quality=empty, orifice_volume=np.zeros((0, 0)))
     k, m, c_visc, b = capsule_matrices(volume, radii, density, surface_tension, ambient_pressure,
                                        polytropic_index, viscosity, n_modes)
     w2, x = eigh(k, m)
