@@ -18,7 +18,7 @@ import numpy as np
 
 
 def interface_centre_amplitude(volume_amplitude, radius):
-    """Centre displacement eps = 2 |dV| / (pi R^2) of a paraboloidal pinned interface (volume of a paraboloid cap)."""
+    """Centre displacement eps = 2 |dV| / (pi R^2) of a paraboloidal pinned interface (cap volume pi R^2 eps / 2)."""
     return 2 * np.abs(volume_amplitude) / (np.pi * np.asarray(radius, float) ** 2)
 
 

@@ -58,7 +58,7 @@ class ShapeMatrices:
 
 @lru_cache(maxsize=None)
 def shape_matrices(n_modes: int) -> ShapeMatrices:
-    """Exact dimensionless mass, tension, viscous and volume integrals of the shapes (module doc)."""
+    """Exact dimensionless M, K_s, C_v, v of the pinned shapes (Lamb, Hydrodynamics §102/§329; Watson §13.41)."""
     if n_modes < 1:
         raise ValueError("n_modes must be >= 1")
     m = np.arange(1, n_modes + 1)
@@ -111,7 +111,7 @@ def _reduced_single(n_modes: int):
 
 def single_orifice_frequencies(volume, radius, density, surface_tension, ambient_pressure,
                                polytropic_index, n_modes: int = 4, all_modes: bool = False):
-    """Natural frequencies (Hz) of single-orifice capsules, vectorized over V and R (module doc; K x = w^2 M x).
+    """Natural frequencies (Hz) of single-orifice capsules, K x = w^2 M x, vectorized over V and R (paper Fig. 1e; Lamb §102 added mass).
 
     Reduced form: w^2 = eig[sigma/(rho R^3) A + kappa p0 R/(rho V) u u^T], A and u fixed
     (Cholesky reduction of the exact shape matrices), solved with one stacked ``eigvalsh``.
@@ -157,7 +157,7 @@ class BubbleModes:
 
 def capsule_matrices(volume, radii, density, surface_tension, ambient_pressure,
                      polytropic_index, viscosity=0.0, n_modes: int = 4):
-    """Stiffness K, mass M, viscous C and volume matrix B (n_orifices x dof) of one capsule (module doc)."""
+    """K, M, C_v and volume matrix B (n_orifices x dof) of one capsule (Rayleigh-Ritz; Lamb §102/§329; gas spring kappa p0/V)."""
     s = shape_matrices(n_modes)
     radii = np.asarray(radii, float)
     n_or = radii.size
@@ -191,7 +191,7 @@ def capsule_modes(volume, radii, density, surface_tension, ambient_pressure, pol
                   viscosity, sound_speed, thermal_radius, heat_capacity_ratio=1.4,
                   thermal_diffusivity=2.1e-5, quality_override=None,
                   n_modes: int = 4) -> BubbleModes:
-    """Axisymmetric natural modes of a capsule and their Q (K x = w^2 M x; damping: module doc and below).
+    """Natural modes of a capsule, K x = w^2 M x, and their Q (Lamb §329; Leighton ch. 3; Prosperetti 1977).
 
     Damping per mode, Q = omega_n / (x^T C(omega_n) x) for mass-normalized x, with C the sum of
     (i) viscous loss of the baffled potential flow (Lamb art. 329), (ii) acoustic radiation of the
@@ -225,7 +225,7 @@ def capsule_modes(volume, radii, density, surface_tension, ambient_pressure, pol
 
 
 def volume_response(modes: BubbleModes, frequency) -> np.ndarray:
-    """Inward volume displacement (m^3/Pa) of each interface vs frequency, modal sum sum_n phi phi^T/(w_n^2 - w^2 + i w w_n/Q_n).
+    """Inward volume displacement (m^3/Pa) per interface: modal superposition sum_n phi phi^T/(w_n^2 - w^2 + i w w_n/Q_n) (Meirovitch, Elements of Vibration Analysis, ch. 7).
 
     ``frequency`` (F,) Hz -> complex array (F, n_orifices); uniform incident pressure (capsule
     small against the wavelength).  e^{i omega t}; -90 deg at an undamped natural frequency.
