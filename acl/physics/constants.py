@@ -49,6 +49,7 @@ DEFAULT_GAIN_PA_PER_V = 100.0
 #: flux (C_s = 1/2) would put d_c at 1.8 um, contradicting Fig. 4 (docs/physics-acoustics.md).
 STREAMING_CONSTANT = (10e-6 / (8 * 50e-6)) ** 2
 
-#: Number of axisymmetric membrane shapes per interface in the Rayleigh-Ritz model (first
-#: frequency converged to < 0.05 % at 4; tests/test_physics_resonance.py).
-DEFAULT_MEMBRANE_MODES = 4
+#: Number of axisymmetric membrane shapes per interface in the Rayleigh-Ritz model: the first
+#: frequency at 3 shapes is within 0.001 % of 8 shapes over the Fig. 1e range
+#: (tests/test_physics_resonance.py checks 0.2 %).
+DEFAULT_MEMBRANE_MODES = 3

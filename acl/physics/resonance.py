@@ -110,7 +110,7 @@ def _reduced_single(n_modes: int):
 
 
 def single_orifice_frequencies(volume, radius, density, surface_tension, ambient_pressure,
-                               polytropic_index, n_modes: int = 4, all_modes: bool = False):
+                               polytropic_index, n_modes: int = 3, all_modes: bool = False):
     """Natural frequencies (Hz) of single-orifice capsules, K x = w^2 M x, vectorized over V and R (paper Fig. 1e; Lamb §102 added mass).
 
     Reduced form: w^2 = eig[sigma/(rho R^3) A + kappa p0 R/(rho V) u u^T], A and u fixed
@@ -156,7 +156,7 @@ class BubbleModes:
 
 
 def capsule_matrices(volume, radii, density, surface_tension, ambient_pressure,
-                     polytropic_index, viscosity=0.0, n_modes: int = 4):
+                     polytropic_index, viscosity=0.0, n_modes: int = 3):
     """K, M, C_v and volume matrix B (n_orifices x dof) of one capsule (Rayleigh-Ritz; Lamb §102/§329; gas spring kappa p0/V)."""
     s = shape_matrices(n_modes)
     radii = np.asarray(radii, float)
@@ -190,7 +190,7 @@ def thermal_polytropic(omega, thermal_radius, heat_capacity_ratio, thermal_diffu
 def capsule_modes(volume, radii, density, surface_tension, ambient_pressure, polytropic_index,
                   viscosity, sound_speed, thermal_radius, heat_capacity_ratio=1.4,
                   thermal_diffusivity=2.1e-5, quality_override=None,
-                  n_modes: int = 4) -> BubbleModes:
+                  n_modes: int = 3) -> BubbleModes:
     """Natural modes of a capsule, K x = w^2 M x, and their Q (Lamb §329; Leighton ch. 3; Prosperetti 1977).
 
     Damping per mode, Q = omega_n / (x^T C(omega_n) x) for mass-normalized x, with C the sum of
