@@ -172,27 +172,30 @@ def _elastica_table(lam: float, mode: str, p_max: float, n: int = 161):
     return p, sol.deflection
 
 
+@lru_cache(maxsize=64)
+def _elastica_inverse(lam: float, mode: str, p_max: float):
+    from scipy.interpolate import PchipInterpolator
+
+    p, d = _elastica_table(lam, mode, p_max)
+    inverse = PchipInterpolator(d, p, extrapolate=False)
+    return inverse, inverse.derivative()
+
+
 def elastica_force(delta, L: float, l: float, EI: float, mode: str = "dead", p_max: float = 6.0):
-    """Load P giving load-point deflection ``delta`` on the elastica (monotone cubic inverse of a cached table).
+    """Load P for load-point deflection ``delta``: inverse of the elastica (Bisshopp & Drucker 1945), monotone cubic on a cached table.
 
     Returns NaN where |delta| exceeds the deflection reached at P L^2/EI = ``p_max``.
     """
-    from scipy.interpolate import PchipInterpolator
-
-    p, d = _elastica_table(round(l / L, 9), mode, float(p_max))
-    inverse = PchipInterpolator(d, p, extrapolate=False)
+    inverse, _ = _elastica_inverse(round(l / L, 9), mode, float(p_max))
     delta = np.asarray(delta, dtype=float)
     return np.sign(delta) * inverse(np.abs(delta) / L) * EI / L**2
 
 
 def elastica_tangent_stiffness(delta, L: float, l: float, EI: float, mode: str = "dead",
                                p_max: float = 6.0):
-    """dP/d(delta) along the tabulated elastica (derivative of the monotone cubic inverse)."""
-    from scipy.interpolate import PchipInterpolator
-
-    p, d = _elastica_table(round(l / L, 9), mode, float(p_max))
-    inverse = PchipInterpolator(d, p, extrapolate=False)
-    return inverse.derivative()(np.abs(np.asarray(delta, dtype=float)) / L) * EI / L**3
+    """dP/d(delta) along the tabulated elastica (Bisshopp & Drucker 1945), derivative of the monotone cubic inverse."""
+    _, slope = _elastica_inverse(round(l / L, 9), mode, float(p_max))
+    return slope(np.abs(np.asarray(delta, dtype=float)) / L) * EI / L**3
 
 
 # ----------------------------------------------------------------------------------------------

@@ -166,7 +166,7 @@ def solve_equilibrium(restoring: Restoring, external: External, q0, V: float, *,
 
 def continuation(restoring: Restoring, external: External, q0, v_max: float, *, v_start: float = 0.0,
                  admissible: Admissible = None, length_scale: float = 1e-6, ds: float = 0.05,
-                 ds_min: float = 1e-7, ds_max: float = 0.1, max_steps: int = 2000,
+                 ds_min: float = 1e-7, ds_max: float = 0.5, max_steps: int = 2000,
                  rtol: float = 1e-10, h: float = 1e-12) -> Branch:
     """Pseudo-arclength continuation of stable equilibria from ``v_start`` to ``v_max`` (Keller 1977), stopping at a saddle-node.
 

@@ -1,0 +1,523 @@
+"""Mechanics of a design: degrees of freedom, quasi-static equilibrium under a drive, snap-in, latch margins.
+
+Turns :mod:`acl.design.model` objects into calls of :mod:`acl.physics.beams`, :mod:`acl.physics.latch`
+and :mod:`acl.physics.equilibrium`.  Forces come from an injected ``force_model(design, positions,
+drive) -> {capsule: force 3-vector (N)}`` (``acl.analysis.acoustics.force_model`` in production,
+:func:`reduced_eq3_force_model` for tests and quick estimates); ``positions`` maps every capsule to
+its centre (m, absolute).
+
+Degrees of freedom (capsules translate rigidly, no rotation):
+
+* Mount on a beam: the two in-plane directions perpendicular to the beam axis, restoring force
+  from paper Eq. (1) (``mode="eq1"``) or the dead-load elastica (``mode="large"``), isotropic in
+  that plane (smallest second moment of the section);
+* Mount on a latch: one DOF along the latch axis (its direction a -> b), latch force law;
+* Mount on a spring: one DOF along the spring axis, linear;
+* Fix: none; a capsule that is neither mounted nor fixed moves along the axes of the springs
+  linking it;
+* Link by a truss: the linked capsules form a rigid group that moves together (its allowed
+  displacements are the intersection of its members'); to an anchor or ``ground``: fixed.
+* Link by a spring: linear spring along the spring axis between the two ends.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Callable, Mapping
+
+import numpy as np
+
+from acl.design.model import Design, Drive, Tone
+from acl.diagnostics import Diagnostic, DiagnosticBag, warning
+from acl.physics import beams as B
+from acl.physics import equilibrium as EQ
+from acl.physics import latch as LT
+
+ForceModel = Callable[[Design, Mapping[str, np.ndarray], Drive], Mapping[str, np.ndarray]]
+
+CONTACT_GAP = 0.0     # m; orifice centres closer than this (along their rest direction) = contact
+
+
+# ----------------------------------------------------------------------------------------------
+# Results
+# ----------------------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class MechanismState:
+    """One equilibrium of the whole mechanism (``status`` from :mod:`acl.physics.equilibrium`)."""
+
+    positions: dict           # capsule -> centre (m)
+    displacements: dict       # capsule -> displacement from rest (m)
+    deflections: dict         # beam -> load-point deflection (m); latch -> shuttle travel; spring -> extension
+    status: str
+    stable: bool
+    residual: float           # N
+    diagnostics: tuple[Diagnostic, ...] = ()
+
+
+@dataclass(frozen=True)
+class VoltageSweep:
+    """Stable branch in drive scale ``V`` (multiplier of the drive shape's amplitudes)."""
+
+    voltage: np.ndarray
+    positions: dict           # capsule -> (m, 3) centres
+    status: str               # "ok" | "snap_in" | "no_convergence"
+    snap_voltage: float | None
+    snap_positions: dict | None
+    message: str = ""
+    diagnostics: tuple[Diagnostic, ...] = ()
+
+    def gap(self, design: Design, a: str, b: str) -> np.ndarray:
+        """Distance between the closest orifice centres of capsules a and b along the branch (m)."""
+        ca, cb = design.capsule(a), design.capsule(b)
+        oa, ob = _closest_orifices(ca, cb)
+        da = self.positions[a] - np.asarray(ca.center)
+        db = self.positions[b] - np.asarray(cb.center)
+        return np.linalg.norm((np.asarray(ob) + db) - (np.asarray(oa) + da), axis=-1)
+
+
+@dataclass(frozen=True)
+class LatchMargin:
+    """Force available along a latch's switching direction vs the force its model requires."""
+
+    latch: str
+    state: str                # rest state of the latch ("a" or "b")
+    bistable: bool
+    required: float           # N, switching force (a -> b) or release force (b -> a)
+    available: float          # N, drive force on the shuttle's capsules along the switching direction
+    margin: float             # available / required (inf if required == 0)
+    switching_force: float
+    release_force: float | None
+    barrier: float | None     # J
+
+
+# ----------------------------------------------------------------------------------------------
+# A reduced force law (paper Eq. 3) for tests and quick estimates
+# ----------------------------------------------------------------------------------------------
+
+def reduced_eq3_force_model(alpha: float, gamma: float) -> ForceModel:
+    """Paper Eq. (3): every capsule pair attracts with (alpha/d^2 - 2 gamma) V^2 along the line of closest orifices.
+
+    ``alpha`` in N m^2/V^2 (paper: 174.5 nN um^2 V^-2 = 1.745e-22), ``gamma`` in N/V^2 (0.027 nN V^-2);
+    V is the root-sum-square of the drive's tone amplitudes; d the distance between orifice centres.
+    """
+    def model(design: Design, positions: Mapping[str, np.ndarray], drive: Drive) -> dict:
+        V2 = sum(t.amplitude**2 for t in drive.tones)
+        out = {c.name: np.zeros(3) for c in design.capsules}
+        caps = design.capsules
+        for i, ca in enumerate(caps):
+            for cb in caps[i + 1:]:
+                oa, ob = _closest_orifices(ca, cb)
+                pa = np.asarray(oa) + np.asarray(positions[ca.name]) - np.asarray(ca.center)
+                pb = np.asarray(ob) + np.asarray(positions[cb.name]) - np.asarray(cb.center)
+                r = pb - pa
+                d = float(np.linalg.norm(r))
+                f = (alpha / d**2 - 2 * gamma) * V2 * r / d
+                out[ca.name] = out[ca.name] + f
+                out[cb.name] = out[cb.name] - f
+        return out
+
+    return model
+
+
+def _closest_orifices(ca, cb):
+    best = None
+    for oa in ca.orifices:
+        for ob in cb.orifices:
+            d = np.linalg.norm(np.subtract(ob.center, oa.center))
+            if best is None or d < best[0]:
+                best = (d, oa.center, ob.center)
+    if best is None:
+        return ca.center, cb.center
+    return best[1], best[2]
+
+
+# ----------------------------------------------------------------------------------------------
+# Degrees of freedom
+# ----------------------------------------------------------------------------------------------
+
+def _unit(v) -> np.ndarray:
+    v = np.asarray(v, dtype=float)
+    return v / np.linalg.norm(v)
+
+
+def _perp_basis(axis) -> np.ndarray:
+    a = _unit(axis)
+    trial = np.array([1.0, 0.0, 0.0]) if abs(a[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    e1 = _unit(trial - a * (trial @ a))
+    return np.column_stack([e1, np.cross(a, e1)])
+
+
+def _intersect(A: np.ndarray, Bm: np.ndarray) -> np.ndarray:
+    """Orthonormal basis of span(A) intersected with span(B) (3 x k)."""
+    if A.shape[1] == 0 or Bm.shape[1] == 0:
+        return np.zeros((3, 0))
+    PA = A @ np.linalg.pinv(A)
+    PB = Bm @ np.linalg.pinv(Bm)
+    w, v = np.linalg.eigh(0.5 * (PA @ PB + PB @ PA))
+    return v[:, w > 1 - 1e-9]
+
+
+@dataclass
+class _Element:
+    """A restoring element acting on one capsule group's displacement x (3-vector)."""
+
+    kind: str
+    name: str
+    group: int
+    force: Callable[[np.ndarray], tuple]      # x -> (f (3,), K (3, 3))
+    measure: Callable[[np.ndarray], float]    # x -> reported deflection
+    span: object = None
+    beam: object = None
+
+
+@dataclass
+class _Mechanism:
+    groups: list                 # list of lists of capsule names
+    bases: list                  # 3 x k_g per group
+    offsets: list                # start index in q per group
+    elements: list
+    links: list                  # (spring k, axis n, group a or None, group b or None)
+    n: int
+    member_group: dict           # capsule -> group index (None = fixed)
+
+
+class _UnionFind:
+    def __init__(self, items):
+        self.parent = {i: i for i in items}
+
+    def find(self, x):
+        while self.parent[x] != x:
+            self.parent[x] = self.parent[self.parent[x]]
+            x = self.parent[x]
+        return x
+
+    def union(self, a, b):
+        self.parent[self.find(a)] = self.find(b)
+
+
+def _beam_law(beam, mode: str):
+    L, l, EI = beam.length, beam.rigid_length, beam.bending_stiffness
+    basis = _perp_basis(beam.axis)
+    P_perp = basis @ basis.T
+    k0 = B.eq1_small_force_stiffness(L, l, EI)
+
+    def law(x):
+        u = P_perp @ x
+        delta = float(np.linalg.norm(u))
+        if delta < 1e-15 * L:
+            return k0 * u, k0 * P_perp
+        if mode == "large":
+            P = float(B.elastica_force(delta, L, l, EI))
+            kt = float(B.elastica_tangent_stiffness(delta, L, l, EI))
+        else:
+            P = float(B.eq1_force(delta, L, l, EI))
+            kt = float(B.eq1_tangent_stiffness(delta, L, l, EI))
+        n = u / delta
+        K = kt * np.outer(n, n) + (P / delta) * (P_perp - np.outer(n, n))
+        return P * n, K
+
+    return law, basis, (lambda x: float(np.linalg.norm(P_perp @ x)))
+
+
+def _latch_law(latch):
+    a = _unit(latch.axis)
+    geo = (latch.angle, latch.length, latch.width, latch.thickness, latch.youngs_modulus)
+    u0 = 0.0
+    if latch.state == "b":
+        land = LT.latch_landscape(*geo)
+        u0 = land.state_b if land.bistable else 0.0
+
+    def law(x):
+        u = u0 + float(a @ x)
+        f = float(LT.latch_force(u, *geo))
+        k = float(LT.latch_stiffness(u, *geo))
+        return f * a, k * np.outer(a, a)
+
+    return law, a[:, None], (lambda x: u0 + float(a @ x))
+
+
+def build_mechanism(design: Design, mode: str = "eq1") -> _Mechanism:
+    """Degrees of freedom and restoring elements of ``design`` (module docstring); raises DiagnosticError on bad joints."""
+    bag = DiagnosticBag()
+    names = [c.name for c in design.capsules]
+    uf = _UnionFind(names)
+    grounded: set = set()
+    anchors = {a.name for a in design.anchors}
+    trusses = {t.name for t in design.trusses}
+    springs = {s.name: s for s in design.springs}
+    for j in design.joints:
+        if j.kind != "link":
+            continue
+        for end in (j.a, j.b):
+            if end not in names and end not in anchors and end != "ground":
+                bag.error("E-MECH-001", f"link end `{end}` is not a capsule, an anchor or ground", j.span,
+                          "link capsules, anchors or `ground`")
+        if j.element_kind == "truss":
+            if j.element not in trusses:
+                bag.error("E-MECH-002", f"no truss named `{j.element}`", j.span)
+                continue
+            ends = [e for e in (j.a, j.b) if e in names]
+            if len(ends) == 2:
+                uf.union(ends[0], ends[1])
+            else:
+                grounded.update(ends)
+        elif j.element not in springs:
+            bag.error("E-MECH-002", f"no spring named `{j.element}`", j.span)
+    bag.raise_if_errors()
+
+    roots = sorted({uf.find(n) for n in names}, key=names.index)
+    groups = [[n for n in names if uf.find(n) == r] for r in roots]
+    member_group = {n: gi for gi, g in enumerate(groups) for n in g}
+
+    elements: list[_Element] = []
+    allowed = [np.eye(3) for _ in groups]
+    mounted = [False] * len(groups)
+    for gi, g in enumerate(groups):
+        for cname in g:
+            joint = design.mount_of(cname)
+            if cname in grounded or (joint is not None and joint.kind == "fix"):
+                allowed[gi] = np.zeros((3, 0))
+                mounted[gi] = True
+                continue
+            if joint is None:
+                continue
+            mounted[gi] = True
+            try:
+                if joint.target_kind == "beam":
+                    beam = design.beam(joint.target)
+                    law, basis, measure = _beam_law(beam, mode)
+                    elements.append(_Element("beam", beam.name, gi, law, measure, beam.span, beam))
+                elif joint.target_kind == "latch":
+                    lt = design.latch(joint.target)
+                    law, basis, measure = _latch_law(lt)
+                    elements.append(_Element("latch", lt.name, gi, law, measure, lt.span))
+                else:
+                    sp = design.spring(joint.target)
+                    n_ax = _unit(sp.axis)
+                    basis = n_ax[:, None]
+                    elements.append(_Element(
+                        "spring", sp.name, gi,
+                        (lambda x, k=sp.stiffness, n_=n_ax: (k * n_ * (n_ @ x), k * np.outer(n_, n_))),
+                        (lambda x, n_=n_ax: float(n_ @ x)), sp.span))
+            except KeyError as exc:
+                bag.error("E-MECH-003", f"capsule `{cname}` is mounted on a missing element: {exc}",
+                          joint.span)
+                continue
+            allowed[gi] = _intersect(allowed[gi], basis)
+
+    links = []
+    for j in design.joints:
+        if j.kind == "link" and j.element_kind == "spring":
+            sp = springs[j.element]
+            ga = member_group.get(j.a)
+            gb = member_group.get(j.b)
+            links.append((sp.stiffness, _unit(sp.axis), ga, gb, sp.name))
+    # floating groups move along the axes of their springs
+    for gi in range(len(groups)):
+        if not mounted[gi]:
+            axes = [n for (_, n, ga, gb, _) in links if gi in (ga, gb)]
+            if not axes:
+                bag.error("E-MECH-004", f"capsule group {groups[gi]} is neither mounted, fixed nor linked by a spring",
+                          design.capsule(groups[gi][0]).span, "add `mount`, `fix` or a spring link")
+                continue
+            allowed[gi] = np.linalg.svd(np.column_stack(axes), full_matrices=False)[0][:, :np.linalg.matrix_rank(np.column_stack(axes))]
+    bag.raise_if_errors()
+    offsets, n = [], 0
+    for A in allowed:
+        offsets.append(n)
+        n += A.shape[1]
+    return _Mechanism(groups, allowed, offsets, elements, links, n, member_group)
+
+
+def _group_x(mech: _Mechanism, q: np.ndarray, gi) -> np.ndarray:
+    if gi is None:
+        return np.zeros(3)
+    A = mech.bases[gi]
+    o = mech.offsets[gi]
+    return A @ q[o:o + A.shape[1]]
+
+
+def _restoring(mech: _Mechanism):
+    def restoring(q):
+        f = np.zeros(mech.n)
+        K = np.zeros((mech.n, mech.n))
+        for el in mech.elements:
+            A, o = mech.bases[el.group], mech.offsets[el.group]
+            k = A.shape[1]
+            if k == 0:
+                continue
+            fe, Ke = el.force(A @ q[o:o + k])
+            f[o:o + k] += A.T @ fe
+            K[o:o + k, o:o + k] += A.T @ Ke @ A
+        for (ks, nax, ga, gb, _) in mech.links:
+            ext = nax @ (_group_x(mech, q, ga) - _group_x(mech, q, gb))
+            for g, sgn in ((ga, 1.0), (gb, -1.0)):
+                if g is None or mech.bases[g].shape[1] == 0:
+                    continue
+                A, o = mech.bases[g], mech.offsets[g]
+                f[o:o + A.shape[1]] += sgn * ks * ext * (A.T @ nax)
+            blocks = [(g, s) for g, s in ((ga, 1.0), (gb, -1.0)) if g is not None and mech.bases[g].shape[1]]
+            for g1, s1 in blocks:
+                for g2, s2 in blocks:
+                    A1, o1, A2, o2 = mech.bases[g1], mech.offsets[g1], mech.bases[g2], mech.offsets[g2]
+                    K[o1:o1 + A1.shape[1], o2:o2 + A2.shape[1]] += s1 * s2 * ks * np.outer(A1.T @ nax, A2.T @ nax)
+        return f, K
+
+    return restoring
+
+
+def _positions(design: Design, mech: _Mechanism, q: np.ndarray) -> dict:
+    return {c.name: np.asarray(c.center, float) + _group_x(mech, q, mech.member_group[c.name])
+            for c in design.capsules}
+
+
+def _scaled_drive(drive: Drive, V: float) -> Drive:
+    return Drive(tones=tuple(Tone(frequency=t.frequency, amplitude=t.amplitude * V, phase=t.phase)
+                             for t in drive.tones))
+
+
+def _external(design: Design, mech: _Mechanism, drive: Drive, force_model: ForceModel):
+    def external(q, V):
+        forces = force_model(design, _positions(design, mech, q), _scaled_drive(drive, V))
+        g = np.zeros(mech.n)
+        for gi, members in enumerate(mech.groups):
+            A, o = mech.bases[gi], mech.offsets[gi]
+            if A.shape[1] == 0:
+                continue
+            total = sum((np.asarray(forces.get(c, np.zeros(3)), float) for c in members), np.zeros(3))
+            g[o:o + A.shape[1]] += A.T @ total
+        return g
+
+    return external
+
+
+def _admissible(design: Design, mech: _Mechanism):
+    caps = design.capsules
+    pairs = []
+    for i, ca in enumerate(caps):
+        for cb in caps[i + 1:]:
+            if mech.member_group[ca.name] == mech.member_group[cb.name]:
+                continue
+            oa, ob = _closest_orifices(ca, cb)
+            rest = np.subtract(ob, oa)
+            pairs.append((ca.name, cb.name, np.asarray(oa), np.asarray(ob), rest / np.linalg.norm(rest)))
+
+    def admissible(q):
+        pos = _positions(design, mech, q)
+        for a, b, oa, ob, n in pairs:
+            da = pos[a] - np.asarray(design.capsule(a).center)
+            db = pos[b] - np.asarray(design.capsule(b).center)
+            if n @ ((ob + db) - (oa + da)) <= CONTACT_GAP:
+                return False
+        return True
+
+    return admissible
+
+
+def _deflections(mech: _Mechanism, q: np.ndarray) -> dict:
+    out = {el.name: el.measure(_group_x(mech, q, el.group)) for el in mech.elements}
+    for (_, nax, ga, gb, name) in mech.links:
+        out[name] = float(nax @ (_group_x(mech, q, ga) - _group_x(mech, q, gb)))
+    return out
+
+
+def _validity(mech: _Mechanism, q: np.ndarray, mode: str) -> tuple[Diagnostic, ...]:
+    if mode != "eq1":
+        return ()
+    found = []
+    for el in mech.elements:
+        if el.kind != "beam":
+            continue
+        beam = el.beam
+        delta = el.measure(_group_x(mech, q, el.group))
+        limit = B.eq1_validity_limit(beam.length, beam.rigid_length)
+        if delta > limit:
+            found.append(warning(
+                "W-MECH-001",
+                f"beam `{beam.name}` deflects {delta * 1e6:.3g} um, beyond the {limit * 1e6:.3g} um where "
+                f"paper Eq. (1) departs from the elastica by more than {B.EQ1_TOLERANCE:.0%}",
+                beam.span, "analyse with mode='large' (elastica)"))
+    return tuple(found)
+
+
+# ----------------------------------------------------------------------------------------------
+# Public entry points
+# ----------------------------------------------------------------------------------------------
+
+def equilibrium(design: Design, drive: Drive, force_model: ForceModel, *, mode: str = "eq1",
+                start: Mapping[str, np.ndarray] | None = None) -> MechanismState:
+    """Stable equilibrium of the whole mechanism under ``drive``, reached by continuation from rest.
+
+    Continuation in the drive scale from 0 to 1 avoids jumping to a far root; if the branch snaps
+    before full drive, the status is ``snap_in`` and the positions are those at the snap.
+    ``start`` (capsule -> centre) instead solves directly from that configuration.
+    """
+    mech = build_mechanism(design, mode)
+    rest, ext, adm = _restoring(mech), _external(design, mech, drive, force_model), _admissible(design, mech)
+    if mech.n == 0:
+        return MechanismState(_positions(design, mech, np.zeros(0)), {}, {}, "ok", True, 0.0)
+    if start is not None:
+        q0 = np.zeros(mech.n)
+        for gi, g in enumerate(mech.groups):
+            A, o = mech.bases[gi], mech.offsets[gi]
+            d = np.asarray(start[g[0]], float) - np.asarray(design.capsule(g[0]).center)
+            q0[o:o + A.shape[1]] = A.T @ d
+        eq = EQ.solve_equilibrium(rest, ext, q0, 1.0, admissible=adm)
+        q, status, stable, res = eq.q, eq.status, eq.stable, eq.residual
+    else:
+        br = EQ.continuation(rest, ext, np.zeros(mech.n), 1.0, admissible=adm)
+        if br.status == "snap_in":
+            q, status, stable, res = br.snap.q, "snap_in", False, float("nan")
+        elif br.voltage.size and br.status == "ok":
+            q, status, stable, res = br.q[-1], "ok", True, float(br.residual[-1])
+        else:
+            q = br.q[-1] if br.voltage.size else np.zeros(mech.n)
+            status, stable, res = "no_convergence", False, float("nan")
+    pos = _positions(design, mech, q)
+    disp = {c.name: pos[c.name] - np.asarray(c.center, float) for c in design.capsules}
+    return MechanismState(pos, disp, _deflections(mech, q), status, stable, res, _validity(mech, q, mode))
+
+
+def sweep_voltage(design: Design, drive_shape: Drive, v_max: float, force_model: ForceModel, *,
+                  mode: str = "eq1") -> VoltageSweep:
+    """Stable equilibria as the drive shape's amplitudes are scaled by V from 0 to ``v_max``; reports snap-in."""
+    mech = build_mechanism(design, mode)
+    rest, ext, adm = _restoring(mech), _external(design, mech, drive_shape, force_model), _admissible(design, mech)
+    if mech.n == 0:
+        return VoltageSweep(np.array([0.0, v_max]), {c.name: np.tile(c.center, (2, 1)) for c in design.capsules},
+                            "ok", None, None)
+    br = EQ.continuation(rest, ext, np.zeros(mech.n), v_max, admissible=adm)
+    per_point = [_positions(design, mech, q) for q in br.q]
+    positions = {c.name: np.array([p[c.name] for p in per_point]).reshape(len(per_point), 3)
+                 for c in design.capsules}
+    snap_v, snap_pos, diags = None, None, []
+    if br.status == "snap_in":
+        snap_v, snap_pos = br.snap.voltage, _positions(design, mech, br.snap.q)
+    if br.q.size:
+        diags.extend(_validity(mech, br.q[-1], mode))
+    return VoltageSweep(br.voltage, positions, br.status, snap_v, snap_pos, br.message, tuple(diags))
+
+
+def latch_margins(design: Design, drive: Drive, force_model: ForceModel) -> dict[str, LatchMargin]:
+    """For every latch: drive force on its shuttle's capsules along the switching direction / force required to switch.
+
+    A latch at rest in state a must be pushed along +axis by more than its switching force; one in
+    state b along -axis by more than its release force.  Forces are evaluated at rest positions.
+    """
+    positions = {c.name: np.asarray(c.center, float) for c in design.capsules}
+    forces = force_model(design, positions, drive)
+    out = {}
+    for lt in design.latches:
+        land = LT.latch_landscape(lt.angle, lt.length, lt.width, lt.thickness, lt.youngs_modulus)
+        a = _unit(lt.axis)
+        carried = [j.capsule for j in design.joints
+                   if j.kind == "mount" and j.target_kind == "latch" and j.target == lt.name]
+        push = float(sum((np.asarray(forces.get(c, np.zeros(3)), float) @ a for c in carried), 0.0))
+        if lt.state == "a":
+            required, available = land.switching_force, push
+        else:
+            required, available = (land.release_force if land.bistable else 0.0), -push
+        margin = available / required if required > 0 else float("inf")
+        out[lt.name] = LatchMargin(lt.name, lt.state, land.bistable, float(required), available, margin,
+                                   land.switching_force, land.release_force, land.barrier)
+    return out
