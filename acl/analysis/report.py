@@ -1,0 +1,241 @@
+"""Design -> analysis report: what `acl analyze` prints (tables) and emits (`--json`, documented in docs/analyze.md).
+
+Modes of every capsule, a selectivity matrix over the program frequencies, every bubble pair at every
+program frequency (attract/repel, phase, d_c, snap-in voltage), latch margins per program step, the
+equilibrium at a chosen drive, and the design's `require` statements evaluated.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from acl.design import model as M
+from acl.design.drives import describe_drive
+
+CROSSTALK_THRESHOLD = 0.3     # relative response of a non-target capsule flagged as crosstalk
+SELECTIVITY_SWEEP = (20e3, 400e3, 761)   # Hz grid used to find each capsule's thrust peak
+DEFAULT_V = 1.0               # V, reference amplitude when a program gives none
+
+
+@dataclass
+class Report:
+    file: str
+    notes: list = field(default_factory=list)
+    capsules: list = field(default_factory=list)
+    frequencies_hz: list = field(default_factory=list)
+    selectivity: list = field(default_factory=list)
+    pairs: list = field(default_factory=list)
+    latches: list = field(default_factory=list)
+    equilibrium: dict | None = None
+    requires: list = field(default_factory=list)
+
+    @property
+    def requires_ok(self) -> bool:
+        return all(r["ok"] for r in self.requires)
+
+    def as_dict(self) -> dict:
+        return {"version": 1, "file": self.file, "notes": self.notes, "capsules": self.capsules,
+                "frequencies_hz": self.frequencies_hz, "selectivity": self.selectivity, "pairs": self.pairs,
+                "latches": self.latches, "equilibrium": self.equilibrium, "requires": self.requires}
+
+
+def _loc(span) -> dict:
+    return {"file": span.file, "line": span.line, "column": span.column}
+
+
+def program_frequencies(design: M.Design) -> list[float]:
+    """Every frequency a program uses (tones, sweep ends, pinned goal tones), sorted."""
+    fs = set()
+    for p in design.programs:
+        for st in p.steps:
+            if st.kind == "drive":
+                fs.update(t.frequency for t in st.drive.tones)
+            elif st.kind == "sweep":
+                fs.update((st.f_start, st.f_stop))
+            elif st.kind in ("follow", "switch", "hold"):
+                fs.update(st.tones)
+    return sorted(fs)
+
+
+def _amplitude_at(design: M.Design, f: float) -> float:
+    """Largest amplitude the programs apply at frequency f (V), else the reference 1 V."""
+    best = 0.0
+    for p in design.programs:
+        for st in p.steps:
+            if st.kind == "drive":
+                best = max([best] + [t.amplitude for t in st.drive.tones if t.frequency == f])
+            elif st.kind in ("follow", "switch", "hold") and f in st.tones:
+                lim = st.limits.max_voltage or (design.transducer.max_voltage if design.transducer else None)
+                if lim:
+                    best = max(best, lim)
+    return best or DEFAULT_V
+
+
+def step_drives(design: M.Design):
+    """(program, step index, step, Drive) for every step that applies a definite drive."""
+    for p in design.programs:
+        for i, st in enumerate(p.steps):
+            if st.kind == "drive":
+                yield p, i, st, st.drive
+            elif st.kind in ("switch", "hold", "follow") and st.tones:
+                v = st.limits.max_voltage or (design.transducer.max_voltage if design.transducer else DEFAULT_V)
+                per = v / len(st.tones)
+                yield p, i, st, M.Drive(tones=tuple(M.Tone(frequency=f, amplitude=per) for f in st.tones))
+
+
+def analyze(design: M.Design, at: M.Drive | None = None, snap_in: bool = True, progress=None) -> Report:
+    from acl.analysis import acoustics as AC
+    from acl.analysis import mechanics as ME
+
+    rep = Report(file=design.file, notes=list(AC.defaults_used(design)))
+    modes = {}
+    for c in design.capsules:
+        ms = AC.capsule_modes(design, c)
+        modes[c.name] = ms
+        rep.capsules.append({"name": c.name, **_loc(c.span), "volume_m3": c.cavity.volume,
+                             "modes": [{"frequency_hz": m.frequency_hz, "q": m.q, "q_declared": m.q_declared,
+                                        "dominant_orifice": m.dominant_orifice, "share": m.share} for m in ms]})
+    freqs = program_frequencies(design) or sorted({ms[0].frequency_hz for ms in modes.values() if ms})
+    rep.frequencies_hz = freqs
+    if design.capsules and freqs:
+        grid = np.linspace(*SELECTIVITY_SWEEP)
+        sweep = AC.selectivity(design, grid)
+        peak = sweep.thrust_per_v2.max(axis=1)
+        at_f = AC.selectivity(design, freqs)
+        for j, f in enumerate(freqs):
+            rel = np.divide(at_f.thrust_per_v2[:, j], peak, out=np.zeros_like(peak), where=peak > 0)
+            best = at_f.capsules[int(np.argmax(rel))]
+            for i, name in enumerate(at_f.capsules):
+                # capsules tuned like the best-responding one (first modes within 2 %) are meant to move together
+                target = _same_tuning(modes.get(name), modes.get(best))
+                rep.selectivity.append({"frequency_hz": f, "capsule": name, "relative_response": float(rel[i]),
+                                        "target": bool(target),
+                                        "crosstalk": bool(not target and rel[i] >= CROSSTALK_THRESHOLD)})
+    # ---- pairs at each program frequency
+    fm = AC.force_model
+    snaps: dict[float, tuple[float | None, str]] = {}
+    vmax = design.transducer.max_voltage if design.transducer else 20.0
+    for j, f in enumerate(freqs):
+        v = _amplitude_at(design, f)
+        drive = M.Drive(tones=(M.Tone(frequency=f, amplitude=v),))
+        pfs = AC.pair_forces(design, drive)
+        if snap_in and pfs:
+            if progress:
+                progress(f"snap-in sweep at {f / 1e3:g} kHz")
+            sw = ME.sweep_voltage(design, M.Drive(tones=(M.Tone(frequency=f, amplitude=1.0),)), vmax, fm)
+            snaps[f] = (sw.snap_voltage, sw.status)
+        for pf in pfs:
+            rep.pairs.append({
+                "a": pf.a, "b": pf.b, "frequency_hz": f, "voltage_v": v, "force_n": pf.attraction,
+                "attract": bool(pf.attract), "phase_difference_deg": math.degrees(pf.phase_difference),
+                "critical_distance_m": pf.critical_distance, "gap_m": pf.distance,
+                "snap_in_voltage_v": snaps.get(f, (None, ""))[0],
+                "sweep_status": snaps.get(f, (None, "not computed"))[1],
+            })
+    # ---- latches
+    if design.latches:
+        per_latch = {lt.name: {"name": lt.name, **_loc(lt.span), "state": lt.state, "margins": []} for lt in design.latches}
+        intended = {(p.name, st.latch) for p in design.programs for st in p.steps if st.kind == "switch"}
+        first = None
+        for p, i, st, drive in step_drives(design):
+            lm = ME.latch_margins(design, drive, fm)
+            for name, m in lm.items():
+                first = first or m
+                want = st.kind == "switch" and st.latch == name
+                per_latch[name]["margins"].append({
+                    "program": p.name, "step": i + 1, "line": st.span.line, "drive": describe_drive(drive),
+                    "margin": m.margin, "available_force_n": m.available, "switches": bool(m.margin >= 1.0),
+                    "intended": bool(want), "required_margin": st.margin if want else None,
+                    "unintended": bool(m.margin >= 1.0 and not want and (p.name, name) not in intended)})
+        for lt in design.latches:
+            m0 = ME.latch_margins(design, M.Drive(tones=()), fm)[lt.name]
+            per_latch[lt.name].update({"bistable": bool(m0.bistable), "switching_force_n": m0.switching_force,
+                                       "release_force_n": m0.release_force, "barrier_j": m0.barrier})
+        rep.latches = list(per_latch.values())
+    # ---- equilibrium at a chosen drive
+    if at is not None and at.tones:
+        st = ME.equilibrium(design, at, fm)
+        rep.equilibrium = {
+            "drive": describe_drive(at), "status": st.status, "stable": bool(st.stable),
+            "residual_n": st.residual,
+            "capsules": [{"name": k, "displacement_m": [float(x) for x in v]} for k, v in st.displacements.items()],
+            "deflections_m": {k: float(np.linalg.norm(v)) if np.ndim(v) else float(v) for k, v in st.deflections.items()},
+            "gaps": [_gap(design, a, b, st.positions) for a, b in _pairs(design)],
+            "warnings": [d.message for d in st.diagnostics],
+        }
+    rep.requires = [_require(design, r, modes, rep) for r in design.requires]
+    return rep
+
+
+def _same_tuning(ma, mb, tol: float = 0.02) -> bool:
+    if not ma or not mb:
+        return False
+    return abs(ma[0].frequency_hz - mb[0].frequency_hz) <= tol * mb[0].frequency_hz
+
+
+def _pairs(design):
+    names = [c.name for c in design.capsules]
+    return [(a, b) for i, a in enumerate(names) for b in names[i + 1:]]
+
+
+def _gap(design, a, b, positions) -> dict:
+    ca, cb = design.capsule(a), design.capsule(b)
+    best = None
+    for oa in ca.orifices:
+        for ob in cb.orifices:
+            pa = np.asarray(oa.center) + (np.asarray(positions[a]) - np.asarray(ca.center))
+            pb = np.asarray(ob.center) + (np.asarray(positions[b]) - np.asarray(cb.center))
+            d = float(np.linalg.norm(pb - pa))
+            if best is None or d < best[0]:
+                best = (d, oa.name, ob.name)
+    return {"a": f"{a}.{best[1]}", "b": f"{b}.{best[2]}", "gap_m": best[0]}
+
+
+def orifice_gap(design, a: str, b: str, positions) -> float:
+    ca, oa = a.split(".")
+    cb, ob = b.split(".")
+    pa = np.asarray(design.capsule(ca).orifice(oa).center) + np.asarray(positions[ca]) - np.asarray(design.capsule(ca).center)
+    pb = np.asarray(design.capsule(cb).orifice(ob).center) + np.asarray(positions[cb]) - np.asarray(design.capsule(cb).center)
+    return float(np.linalg.norm(pb - pa))
+
+
+def _require(design, r: M.Require, modes, rep: Report) -> dict:
+    from acl.analysis import acoustics as AC
+    from acl.analysis import mechanics as ME
+
+    value, unit, detail = None, "", ""
+    if r.kind == "resonance":
+        ms = modes.get(r.args[0], [])
+        value = ms[r.mode].frequency_hz if r.mode < len(ms) else None
+        unit = "Hz"
+        detail = f"mode {r.mode + 1} of {r.args[0]}"
+    elif r.kind == "separation":
+        fa, fb = modes.get(r.args[0], []), modes.get(r.args[1], [])
+        value = abs(fa[0].frequency_hz - fb[0].frequency_hz) if fa and fb else None
+        unit = "Hz"
+        detail = f"first modes of {r.args[0]} and {r.args[1]}"
+    elif r.kind == "margin":
+        margins = [m["margin"] for lt in rep.latches if lt["name"] == r.args[0] for m in lt["margins"] if m["intended"]]
+        if not margins:
+            margins = [m["margin"] for lt in rep.latches if lt["name"] == r.args[0] for m in lt["margins"]]
+            detail = "best margin over program steps (no switch step targets it)"
+        else:
+            detail = "smallest margin over its switch steps"
+            margins = [min(margins)]
+        value = max(margins) if margins else None
+    elif r.kind == "gap":
+        gaps = []
+        ca, cb = r.args[0].split(".")[0], r.args[1].split(".")[0]
+        rest = {c.name: c.center for c in design.capsules}
+        gaps.append(orifice_gap(design, r.args[0], r.args[1], rest))
+        for _p, _i, _st, drive in step_drives(design):
+            st = ME.equilibrium(design, drive, AC.force_model)
+            gaps.append(0.0 if st.status != "ok" else orifice_gap(design, r.args[0], r.args[1], st.positions))
+        value = min(gaps)
+        unit = "m"
+        detail = "smallest gap over rest and every program step (0 after snap-in)"
+    ok = value is not None and (r.lower is None or value >= r.lower) and (r.upper is None or value <= r.upper)
+    return {"text": r.text, "kind": r.kind, "ok": bool(ok), "value": value, "unit": unit,
+            "lower": r.lower, "upper": r.upper, "detail": detail, **_loc(r.span)}

@@ -1,0 +1,171 @@
+"""`acl analyze FILE [--at DRIVE] [--set P=V] [--json] [--plot DIR]`: predictions as tables, JSON, figures."""
+from __future__ import annotations
+
+import json
+import math
+import sys
+
+from acl.commands._common import add_design_options, load_or_report, report
+from acl.diagnostics import DiagnosticError, Span, error
+
+
+def add_parser(p) -> None:
+    p.add_argument("file", metavar="FILE")
+    p.add_argument("--at", metavar="DRIVE", help='equilibrium under a drive, e.g. --at "125 kHz @ 6 V"')
+    p.add_argument("--json", action="store_true", help="print one JSON object (docs/analyze.md)")
+    p.add_argument("--plot", metavar="DIR", help="write PNG figures into DIR")
+    p.add_argument("--no-snap", action="store_true", help="skip the snap-in voltage sweeps (faster)")
+    add_design_options(p)
+
+
+def run(args) -> int:
+    fmt = "json" if args.json else "text"
+    at = None
+    if args.at is not None:
+        from acl.design.drives import drive_from_text
+
+        try:
+            at = drive_from_text(args.at, "<--at>")
+        except DiagnosticError as exc:
+            report(exc.diagnostics, fmt)
+            return 2
+    design, code = load_or_report(args.file, args, fmt)
+    if design is None:
+        return code
+    if at is not None and design.transducer is not None:
+        lo, hi = design.transducer.band
+        bad = [t for t in at.tones if not lo <= t.frequency <= hi] + [t for t in at.tones if t.amplitude > design.transducer.max_voltage]
+        if bad:
+            report([error("E501", f"--at {args.at}: outside transducer `{design.transducer.name}` "
+                          f"({lo / 1e3:g}..{hi / 1e3:g} kHz, max {design.transducer.max_voltage:g} V)",
+                          Span(file="<--at>", line=1, column=1))], fmt)
+            return 2
+    from acl.analysis.report import analyze
+
+    if args.json:
+        rep = analyze(design, at, snap_in=not args.no_snap)
+    else:
+        from rich.console import Console
+
+        con = Console(stderr=True)
+        with con.status("analyzing...") as status:
+            rep = analyze(design, at, snap_in=not args.no_snap, progress=lambda m: status.update(m))
+    if args.plot:
+        from acl.emit.analysis_figures import write_figures
+
+        try:
+            written = write_figures(design, rep, args.plot)
+        except OSError as exc:
+            report([error("E601", f"cannot write figures to `{args.plot}`: {exc.strerror or exc}",
+                          Span(file=args.plot, line=1, column=1))], fmt)
+            return 2
+    if args.json:
+        sys.stdout.write(json.dumps(rep.as_dict(), indent=2, default=_json_default) + "\n")
+    else:
+        print_report(design, rep)
+        if args.plot:
+            from rich.console import Console
+
+            Console().print(f"wrote {len(written)} figure(s) to {args.plot}")
+    return 0 if rep.requires_ok else 1
+
+
+def _json_default(o):
+    import numpy as np
+
+    if isinstance(o, (np.floating, np.integer)):
+        return o.item()
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    raise TypeError(type(o).__name__)
+
+
+def _k(hz):
+    return f"{hz / 1e3:.1f}"
+
+
+def print_report(design, rep) -> None:
+    from rich.console import Console
+    from rich.table import Table
+
+    con = Console(highlight=False)
+    for n in rep.notes:
+        con.print(f"[yellow]note:[/yellow] {n}")
+    t = Table(title="Capsule modes", title_justify="left")
+    for col in ("capsule", "mode", "f (kHz)", "Q", "dominant orifice", "share", "declared at"):
+        t.add_column(col)
+    for c in rep.capsules:
+        for i, m in enumerate(c["modes"]):
+            t.add_row(c["name"] if i == 0 else "", str(i + 1), _k(m["frequency_hz"]),
+                      f"{m['q']:.1f}" + (" (declared)" if m["q_declared"] else ""), m["dominant_orifice"],
+                      f"{m['share']:.0%}", f"{c['file']}:{c['line']}" if i == 0 else "")
+    con.print(t)
+    if rep.selectivity:
+        caps = [c["name"] for c in rep.capsules]
+        t = Table(title=f"Selectivity: response relative to each capsule's peak (crosstalk >= {30}% flagged)", title_justify="left")
+        t.add_column("f (kHz)")
+        for c in caps:
+            t.add_column(c)
+        for f in rep.frequencies_hz:
+            row = [_k(f)]
+            for c in caps:
+                cell = next(s for s in rep.selectivity if s["frequency_hz"] == f and s["capsule"] == c)
+                txt = f"{cell['relative_response']:.0%}"
+                if cell["target"]:
+                    txt = f"[bold green]{txt}[/bold green]"
+                elif cell["crosstalk"]:
+                    txt = f"[bold red]{txt} crosstalk[/bold red]"
+                row.append(txt)
+            t.add_row(*row)
+        con.print(t)
+    if rep.pairs:
+        t = Table(title="Bubble pairs (Bjerknes force at rest, attraction positive)", title_justify="left")
+        for col in ("pair", "f (kHz)", "V", "force (nN)", "", "phase diff (deg)", "gap (um)", "d_c (um)", "snap-in V"):
+            t.add_column(col)
+        for p in rep.pairs:
+            dc = f"{p['critical_distance_m'] * 1e6:.1f}" if p["critical_distance_m"] else "-"
+            sv = f"{p['snap_in_voltage_v']:.2f}" if p["snap_in_voltage_v"] else ("none" if p["sweep_status"] == "ok" else p["sweep_status"])
+            t.add_row(f"{p['a']}-{p['b']}", _k(p["frequency_hz"]), f"{p['voltage_v']:g}", f"{p['force_n'] * 1e9:.3g}",
+                      "[green]attract[/green]" if p["attract"] else "[magenta]repel[/magenta]",
+                      f"{p['phase_difference_deg']:.1f}", f"{p['gap_m'] * 1e6:.1f}", dc, sv)
+        con.print(t)
+    for lt in rep.latches:
+        t = Table(title=f"Latch {lt['name']} ({lt['file']}:{lt['line']}): "
+                        f"{'bistable' if lt['bistable'] else 'MONOSTABLE'}, switching force {lt['switching_force_n'] * 1e9:.3g} nN, "
+                        f"state {lt['state']}", title_justify="left")
+        for col in ("program", "step", "drive", "margin", "switches", "intended"):
+            t.add_column(col)
+        for m in lt["margins"]:
+            flag = "[red]UNINTENDED[/red]" if m["unintended"] else ("yes" if m["intended"] else "")
+            short = m["intended"] and m["required_margin"] and m["margin"] < m["required_margin"]
+            t.add_row(m["program"], f"{m['step']} (line {m['line']})", m["drive"],
+                      f"[red]{m['margin']:.2f}[/red]" if short else f"{m['margin']:.2f}", "yes" if m["switches"] else "no", flag)
+        con.print(t)
+    if rep.equilibrium:
+        e = rep.equilibrium
+        t = Table(title=f"Equilibrium at {e['drive']}: {e['status']}", title_justify="left")
+        t.add_column("capsule")
+        t.add_column("displacement (um)")
+        for c in e["capsules"]:
+            t.add_row(c["name"], "(" + ", ".join(f"{x * 1e6:.3f}" for x in c["displacement_m"]) + ")")
+        for g in e["gaps"]:
+            t.add_row(f"gap {g['a']}-{g['b']}", f"{g['gap_m'] * 1e6:.2f}")
+        con.print(t)
+        for w in e["warnings"]:
+            con.print(f"[yellow]warning:[/yellow] {w}")
+    if rep.requires:
+        t = Table(title="Requirements", title_justify="left")
+        for col in ("requirement", "value", "ok", "at"):
+            t.add_column(col)
+        for r in rep.requires:
+            v = r["value"]
+            if v is None:
+                vs = "n/a"
+            elif r["unit"] == "Hz":
+                vs = f"{v / 1e3:.2f} kHz"
+            elif r["unit"] == "m":
+                vs = f"{v * 1e6:.2f} um"
+            else:
+                vs = f"{v:.3g}"
+            t.add_row(r["text"], vs, "[green]ok[/green]" if r["ok"] else "[red]FAILED[/red]", f"{r['file']}:{r['line']}")
+        con.print(t)
