@@ -180,3 +180,26 @@ def test_latch_switches_when_pushed_beyond_its_switching_force():
     assert sweep.status == "snap_in"
     m = M.latch_margins(d, UNIT_DRIVE, push)["l"]
     assert sweep.snap_voltage**2 * 1e-9 == pytest.approx(m.switching_force, rel=1e-3)
+
+
+def test_truss_between_two_supported_capsules_keeps_their_distance_only():
+    # Paper Fig. 5a: a moving capsule tied by a truss to an anchored one can still move across the tie.
+    d = fig2_pair(30e-6)
+    d = d.model_copy(update={
+        "trusses": (Truss(name="t", span=SP),),
+        "joints": (d.joints[0], Fix(capsule="b", span=SP),
+                   Link(a="a", b="b", element="t", element_kind="truss", span=SP))})
+
+    def sideways(design, positions, drive):
+        return {"a": np.array([1e-10, 2e-10, 0.0]), "b": np.zeros(3)}
+
+    state = M.equilibrium(d, UNIT_DRIVE, sideways)
+    assert state.status == "ok"
+    assert abs(state.displacements["a"][0]) < 1e-18        # along the tie: held
+    assert state.displacements["a"][1] > 1e-7               # across the tie: free to bend
+
+
+def test_drive_above_snap_in_reports_snap_not_an_equilibrium():
+    v = independent_snap_voltage(30e-6)[0]
+    state = M.equilibrium(fig2_pair(30e-6), Drive(tones=(Tone(frequency=125e3, amplitude=1.01 * v),)), EQ3)
+    assert state.status == "snap_in" and not state.stable

@@ -177,8 +177,13 @@ class _Mechanism:
     offsets: list                # start index in q per group
     elements: list
     links: list                  # (spring k, axis n, group a or None, group b or None)
-    n: int
-    member_group: dict           # capsule -> group index (None = fixed)
+    n: int                       # number of group coordinates q (before truss-bar constraints)
+    member_group: dict           # capsule -> group index
+    Z: np.ndarray = None         # q = Z z: null space of the truss-bar constraints (n x m)
+
+    @property
+    def m(self) -> int:
+        return self.Z.shape[1]
 
 
 class _UnionFind:
@@ -242,9 +247,11 @@ def build_mechanism(design: Design, mode: str = "eq1") -> _Mechanism:
     names = [c.name for c in design.capsules]
     uf = _UnionFind(names)
     grounded: set = set()
-    anchors = {a.name for a in design.anchors}
+    bars: list = []                   # (capsule, capsule or anchor position) distance constraints
+    anchors = {a.name: a for a in design.anchors}
     trusses = {t.name for t in design.trusses}
     springs = {s.name: s for s in design.springs}
+    supported = {n for n in names if design.mount_of(n) is not None}
     for j in design.joints:
         if j.kind != "link":
             continue
@@ -257,8 +264,13 @@ def build_mechanism(design: Design, mode: str = "eq1") -> _Mechanism:
                 bag.error("E-MECH-002", f"no truss named `{j.element}`", j.span)
                 continue
             ends = [e for e in (j.a, j.b) if e in names]
-            if len(ends) == 2:
-                uf.union(ends[0], ends[1])
+            other = j.b if j.a in names else j.a
+            if len(ends) == 2 and ends[0] in supported and ends[1] in supported:
+                bars.append((ends[0], ends[1], j.span))            # two-force member between supports
+            elif len(ends) == 2:
+                uf.union(ends[0], ends[1])                         # carries the unsupported capsule
+            elif len(ends) == 1 and ends[0] in supported and other in anchors:
+                bars.append((ends[0], np.asarray(anchors[other].position, float), j.span))
             else:
                 grounded.update(ends)
         elif j.element not in springs:
@@ -326,7 +338,26 @@ def build_mechanism(design: Design, mode: str = "eq1") -> _Mechanism:
     for A in allowed:
         offsets.append(n)
         n += A.shape[1]
-    return _Mechanism(groups, allowed, offsets, elements, links, n, member_group)
+    # truss bars between supported capsules keep their length (linearized): n . (x_a - x_b) = 0
+    rows = []
+    for a, b, _span in bars:
+        pa = np.asarray(design.capsule(a).center, float)
+        pb = np.asarray(design.capsule(b).center, float) if isinstance(b, str) else b
+        nb = _unit(pb - pa)
+        row = np.zeros(n)
+        for end, sgn in ((a, 1.0), (b, -1.0)):
+            if isinstance(end, str):
+                g = member_group[end]
+                A, o = allowed[g], offsets[g]
+                row[o:o + A.shape[1]] += sgn * (A.T @ nb)
+        rows.append(row)
+    Z = np.eye(n)
+    if rows and n:
+        C = np.array(rows)
+        _, s, vt = np.linalg.svd(C)
+        rank = int(np.sum(s > 1e-9 * max(s.max(), 1e-300)))
+        Z = vt[rank:].T
+    return _Mechanism(groups, allowed, offsets, elements, links, n, member_group, Z)
 
 
 def _group_x(mech: _Mechanism, q: np.ndarray, gi) -> np.ndarray:
@@ -338,7 +369,11 @@ def _group_x(mech: _Mechanism, q: np.ndarray, gi) -> np.ndarray:
 
 
 def _restoring(mech: _Mechanism):
-    def restoring(q):
+    def restoring(z):
+        f, K = restoring_q(mech.Z @ z)
+        return mech.Z.T @ f, mech.Z.T @ K @ mech.Z
+
+    def restoring_q(q):
         f = np.zeros(mech.n)
         K = np.zeros((mech.n, mech.n))
         for el in mech.elements:
@@ -377,7 +412,8 @@ def _scaled_drive(drive: Drive, V: float) -> Drive:
 
 
 def _external(design: Design, mech: _Mechanism, drive: Drive, force_model: ForceModel):
-    def external(q, V):
+    def external(z, V):
+        q = mech.Z @ z
         forces = force_model(design, _positions(design, mech, q), _scaled_drive(drive, V))
         g = np.zeros(mech.n)
         for gi, members in enumerate(mech.groups):
@@ -386,7 +422,7 @@ def _external(design: Design, mech: _Mechanism, drive: Drive, force_model: Force
                 continue
             total = sum((np.asarray(forces.get(c, np.zeros(3)), float) for c in members), np.zeros(3))
             g[o:o + A.shape[1]] += A.T @ total
-        return g
+        return mech.Z.T @ g
 
     return external
 
@@ -402,8 +438,8 @@ def _admissible(design: Design, mech: _Mechanism):
             rest = np.subtract(ob, oa)
             pairs.append((ca.name, cb.name, np.asarray(oa), np.asarray(ob), rest / np.linalg.norm(rest)))
 
-    def admissible(q):
-        pos = _positions(design, mech, q)
+    def admissible(z):
+        pos = _positions(design, mech, mech.Z @ z)
         for a, b, oa, ob, n in pairs:
             da = pos[a] - np.asarray(design.capsule(a).center)
             db = pos[b] - np.asarray(design.capsule(b).center)
@@ -454,28 +490,34 @@ def equilibrium(design: Design, drive: Drive, force_model: ForceModel, *, mode: 
     """
     mech = build_mechanism(design, mode)
     rest, ext, adm = _restoring(mech), _external(design, mech, drive, force_model), _admissible(design, mech)
-    if mech.n == 0:
-        return MechanismState(_positions(design, mech, np.zeros(0)), {}, {}, "ok", True, 0.0)
+    if mech.m == 0:
+        q = np.zeros(mech.n)
+        return MechanismState(_positions(design, mech, q), _displacements(design, mech, q),
+                              _deflections(mech, q), "ok", True, 0.0)
     if start is not None:
         q0 = np.zeros(mech.n)
         for gi, g in enumerate(mech.groups):
             A, o = mech.bases[gi], mech.offsets[gi]
             d = np.asarray(start[g[0]], float) - np.asarray(design.capsule(g[0]).center)
             q0[o:o + A.shape[1]] = A.T @ d
-        eq = EQ.solve_equilibrium(rest, ext, q0, 1.0, admissible=adm)
-        q, status, stable, res = eq.q, eq.status, eq.stable, eq.residual
+        eq = EQ.solve_equilibrium(rest, ext, mech.Z.T @ q0, 1.0, admissible=adm)
+        z, status, stable, res = eq.q, eq.status, eq.stable, eq.residual
     else:
-        br = EQ.continuation(rest, ext, np.zeros(mech.n), 1.0, admissible=adm)
+        br = EQ.continuation(rest, ext, np.zeros(mech.m), 1.0, admissible=adm)
         if br.status == "snap_in":
-            q, status, stable, res = br.snap.q, "snap_in", False, float("nan")
+            z, status, stable, res = br.snap.q, "snap_in", False, float("nan")
         elif br.voltage.size and br.status == "ok":
-            q, status, stable, res = br.q[-1], "ok", True, float(br.residual[-1])
+            z, status, stable, res = br.q[-1], "ok", True, float(br.residual[-1])
         else:
-            q = br.q[-1] if br.voltage.size else np.zeros(mech.n)
+            z = br.q[-1] if br.voltage.size else np.zeros(mech.m)
             status, stable, res = "no_convergence", False, float("nan")
-    pos = _positions(design, mech, q)
-    disp = {c.name: pos[c.name] - np.asarray(c.center, float) for c in design.capsules}
-    return MechanismState(pos, disp, _deflections(mech, q), status, stable, res, _validity(mech, q, mode))
+    q = mech.Z @ z
+    return MechanismState(_positions(design, mech, q), _displacements(design, mech, q),
+                          _deflections(mech, q), status, stable, res, _validity(mech, q, mode))
+
+
+def _displacements(design: Design, mech: _Mechanism, q: np.ndarray) -> dict:
+    return {c.name: _group_x(mech, q, mech.member_group[c.name]) for c in design.capsules}
 
 
 def sweep_voltage(design: Design, drive_shape: Drive, v_max: float, force_model: ForceModel, *,
@@ -483,18 +525,18 @@ def sweep_voltage(design: Design, drive_shape: Drive, v_max: float, force_model:
     """Stable equilibria as the drive shape's amplitudes are scaled by V from 0 to ``v_max``; reports snap-in."""
     mech = build_mechanism(design, mode)
     rest, ext, adm = _restoring(mech), _external(design, mech, drive_shape, force_model), _admissible(design, mech)
-    if mech.n == 0:
+    if mech.m == 0:
         return VoltageSweep(np.array([0.0, v_max]), {c.name: np.tile(c.center, (2, 1)) for c in design.capsules},
                             "ok", None, None)
-    br = EQ.continuation(rest, ext, np.zeros(mech.n), v_max, admissible=adm)
-    per_point = [_positions(design, mech, q) for q in br.q]
+    br = EQ.continuation(rest, ext, np.zeros(mech.m), v_max, admissible=adm)
+    per_point = [_positions(design, mech, mech.Z @ z) for z in br.q]
     positions = {c.name: np.array([p[c.name] for p in per_point]).reshape(len(per_point), 3)
                  for c in design.capsules}
     snap_v, snap_pos, diags = None, None, []
     if br.status == "snap_in":
-        snap_v, snap_pos = br.snap.voltage, _positions(design, mech, br.snap.q)
+        snap_v, snap_pos = br.snap.voltage, _positions(design, mech, mech.Z @ br.snap.q)
     if br.q.size:
-        diags.extend(_validity(mech, br.q[-1], mode))
+        diags.extend(_validity(mech, mech.Z @ br.q[-1], mode))
     return VoltageSweep(br.voltage, positions, br.status, snap_v, snap_pos, br.message, tuple(diags))
 
 
