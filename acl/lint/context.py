@@ -1,0 +1,159 @@
+"""What a rule sees: the resolved design, thresholds, the raw source, and cached analyses.
+
+Analyses that several rules need (capsule modes, peak thrust, the drives of each program step)
+are computed once per design here; the acoustic analysis also caches modal data per geometry
+across designs (:func:`acl.analysis.acoustics.modal_data`).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Iterator
+
+import numpy as np
+
+from acl.design.model import Design, Drive, Program, Tone
+from acl.diagnostics import Diagnostic, Severity, Span
+from acl.lint.config import LintConfig
+from acl.lint.registry import RULES
+from acl.lint.source import SourceFile
+
+
+class Unavailable(Exception):
+    """The analysis a rule needs is not available; the rule reports nothing and says why (--verbose)."""
+
+
+@dataclass
+class Context:
+    design: Design
+    config: LintConfig
+    source: SourceFile | None
+    notes: list[str] = field(default_factory=list)
+    _cache: dict = field(default_factory=dict)
+
+    # -- bookkeeping ---------------------------------------------------------------------------
+    def threshold(self, name: str) -> float:
+        return self.config.threshold(name)
+
+    def note(self, code: str, text: str) -> None:
+        self.notes.append(f"{code}: {text}")
+
+    def finding(self, code: str, message: str, span: Span | None, notes=(), hint: str | None = None,
+                severity: Severity | None = None) -> Diagnostic:
+        sev = severity or RULES[code].severity
+        return Diagnostic(code, sev, message, span, hint, tuple(notes))
+
+    def cached(self, key, compute):
+        if key not in self._cache:
+            self._cache[key] = compute()
+        return self._cache[key]
+
+    # -- acoustics -----------------------------------------------------------------------------
+    def modes(self, capsule) -> list:
+        from acl.analysis.acoustics import capsule_modes
+
+        return self.cached(("modes", capsule.name), lambda: capsule_modes(self.design, capsule))
+
+    def gain(self, frequencies) -> np.ndarray:
+        from acl.analysis.acoustics import drive_gain
+
+        return drive_gain(self.design, frequencies)[0]
+
+    def band(self) -> tuple[float, float]:
+        """The transducer band, or the span of every capsule's modes when none is declared."""
+        t = self.design.transducer
+        if t is not None:
+            return t.band
+        fs = [m.frequency_hz for c in self.design.capsules for m in self.modes(c)]
+        return (min(fs) / 2, max(fs) * 2) if fs else (1e3, 1e6)
+
+    def thrust_grid(self) -> tuple[np.ndarray, np.ndarray]:
+        """(frequencies, thrust per V^2 of each capsule) on a grid fine around every mode; cached."""
+        def compute():
+            from acl.analysis.acoustics import selectivity
+
+            lo, hi = self.band()
+            parts = [np.geomspace(lo, hi, 200)]
+            for c in self.design.capsules:
+                for m in self.modes(c):
+                    parts.append(m.frequency_hz * (1 + np.linspace(-2, 2, 41) / max(m.q, 0.5)))
+            f = np.unique(np.concatenate(parts))
+            f = f[f > 0]
+            return f, selectivity(self.design, f).thrust_per_v2
+        return self.cached("thrust_grid", compute)
+
+    def relative_thrust(self, frequencies) -> np.ndarray:
+        """Thrust of each capsule at ``frequencies`` / its own peak thrust: shape (n_capsules, F)."""
+        from acl.analysis.acoustics import selectivity
+
+        _, grid = self.thrust_grid()
+        peak = grid.max(axis=1, keepdims=True)
+        t = selectivity(self.design, np.atleast_1d(frequencies)).thrust_per_v2
+        return np.divide(t, peak, out=np.zeros_like(t), where=peak > 0)
+
+    # -- programs ------------------------------------------------------------------------------
+    def steps(self) -> Iterator[tuple[Program, object]]:
+        for p in self.design.programs:
+            for st in p.steps:
+                yield p, st
+
+    def max_voltage(self, step) -> float | None:
+        lim = getattr(step, "limits", None)
+        if lim is not None and lim.max_voltage is not None:
+            return lim.max_voltage
+        t = self.design.transducer
+        return t.max_voltage if t is not None else None
+
+    def sweep_frequencies(self, f0: float, f1: float) -> np.ndarray:
+        lo, hi = sorted((f0, f1))
+        n = int(self.threshold("sweep_samples"))
+        modes = [m.frequency_hz for c in self.design.capsules for m in self.modes(c)]
+        f = np.concatenate([np.geomspace(lo, hi, max(n, 2)), [x for x in modes if lo <= x <= hi]])
+        return np.unique(f)
+
+    def step_drives(self, step) -> list[Drive]:
+        """The drives a step applies, as the worst cases lint can know before compiling.
+
+        drive: its tones; sweep: single tones sampled across it (with every mode inside);
+        follow/switch/hold with pinned tones (``using``): each tone alone at the step's limit (or
+        the transducer's maximum); unpinned goal steps: nothing (the compiler picks the drive).
+        """
+        kind = step.kind
+        if kind == "drive":
+            return [step.drive]
+        if kind == "sweep":
+            return [Drive(tones=(Tone(frequency=float(f), amplitude=step.amplitude),))
+                    for f in self.sweep_frequencies(step.f_start, step.f_stop)]
+        if kind in ("follow", "switch", "hold") and step.tones:
+            v = self.max_voltage(step)
+            if v is None:
+                return []
+            return [Drive(tones=(Tone(frequency=f, amplitude=v),)) for f in step.tones]
+        return []
+
+    def step_frequencies(self, step) -> list[float]:
+        if step.kind == "drive":
+            return [t.frequency for t in step.drive.tones]
+        if step.kind == "sweep":
+            return [step.f_start, step.f_stop]
+        return list(getattr(step, "tones", ()))
+
+    def forces(self, drive: Drive) -> dict:
+        """Total acoustic force on each capsule at rest under ``drive`` (cached per drive)."""
+        from acl.analysis.acoustics import force_model
+
+        key = ("forces", tuple((t.frequency, t.amplitude, t.phase) for t in drive.tones))
+        return self.cached(key, lambda: force_model(self.design, None, drive))
+
+    def pair_forces(self, drive: Drive) -> list:
+        from acl.analysis.acoustics import pair_forces
+
+        key = ("pairs", tuple((t.frequency, t.amplitude, t.phase) for t in drive.tones))
+        return self.cached(key, lambda: pair_forces(self.design, drive))
+
+
+def khz(f: float) -> str:
+    return f"{f / 1e3:.4g} kHz"
+
+
+def um(x: float) -> str:
+    return f"{x * 1e6:.3g} um"

@@ -1,0 +1,109 @@
+"""ACL4xx: cantilevers under the program's loads: elastic strain and the small-deflection model.
+
+The load is the acoustic force on the carried capsule at rest, perpendicular to the beam (paper
+Eq. 1 with the rigid actuator length); a `follow` step instead prescribes the tip's path, so its
+largest excursion is the deflection.  Strain is the bending strain at the clamp,
+P (L + l) c / (E I), with c the half-thickness in the bending plane (its largest value).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from acl.diagnostics import Severity
+from acl.lint.context import Context, khz, um
+from acl.lint.registry import rule
+
+
+def _carried(ctx: Context, beam) -> str | None:
+    return next((j.capsule for j in ctx.design.joints if j.kind == "mount" and j.target == beam.name), None)
+
+
+def _half_depth(beam) -> float:
+    s = beam.section
+    return s.diameter / 2 if s.shape == "circle" else min(s.width, s.thickness) / 2
+
+
+def beam_loads(ctx: Context, beam):
+    """Worst load of each program on ``beam``: {program: (deflection m, strain, step, how)}; cached."""
+    def compute():
+        from acl.physics.beams import eq1_deflection, eq1_force
+
+        cap = _carried(ctx, beam)
+        out = {}
+        if cap is None:
+            return out
+        L, l, EI = beam.length, beam.rigid_length, beam.bending_stiffness
+        axis = np.asarray(beam.axis, float)
+        for p in ctx.design.programs:
+            worst = None
+            for st in p.steps:
+                if st.kind == "follow":
+                    if st.capsule != cap:
+                        continue
+                    ext = _path_extent(st)
+                    if ext is None:
+                        continue
+                    P = float(eq1_force(ext, L, l, EI))
+                    cand = (ext, P, st, f"path of `follow` reaches {um(ext)} from rest")
+                else:
+                    cand = None
+                    for drive in ctx.step_drives(st):
+                        F = np.asarray(ctx.forces(drive)[cap], float)
+                        P = float(np.linalg.norm(F - (F @ axis) * axis))
+                        if cand is None or P > cand[1]:
+                            tones = " + ".join(f"{khz(t.frequency)} @ {t.amplitude:.3g} V" for t in drive.tones)
+                            cand = (float(eq1_deflection(P, L, l, EI)), P, st, f"drive {tones}")
+                    if cand is None:
+                        continue
+                if worst is None or cand[1] > worst[1]:
+                    worst = cand
+            if worst is not None:
+                defl, P, st, how = worst
+                strain = P * (L + l) * _half_depth(beam) / EI
+                out[p.name] = (defl, strain, P, st, how)
+        return out
+    return ctx.cached(("beam", beam.name), compute)
+
+
+def _path_extent(step) -> float | None:
+    try:
+        from acl.design.paths import sample_path
+
+        pts = sample_path(step.path, 400).points
+    except Exception:
+        return None
+    return float(np.max(np.linalg.norm(pts, axis=1))) if len(pts) else None
+
+
+@rule("ACL401", "beam-strain",
+      "bending strain beyond the material's elastic range deforms the beam for good",
+      Severity.ERROR, "beams", ("strain_limit", "sweep_samples"))
+def beam_strain(ctx: Context):
+    limit = ctx.threshold("strain_limit")
+    for beam in ctx.design.beams:
+        for prog, (defl, strain, P, st, how) in beam_loads(ctx, beam).items():
+            if strain > limit:
+                yield ctx.finding("ACL401",
+                    f"program `{prog}` strains beam `{beam.name}` to {strain:.1%} at the clamp, beyond the "
+                    f"{limit:.0%} elastic limit", st.span, notes=[
+                        f"{how}: tip load {P * 1e9:.3g} nN, tip deflection {um(defl)}",
+                        f"strain = P (L + l) c / (E I), L = {um(beam.length)}, l = {um(beam.rigid_length)}, "
+                        f"c = {um(_half_depth(beam))}, E = {beam.youngs_modulus / 1e6:.3g} MPa",
+                        f"threshold strain_limit = {limit:g}"],
+                    hint="lower the drive, or use a longer or thinner beam")
+
+
+@rule("ACL402", "beam-large-deflection",
+      "beyond about 0.3 L the small-deflection model of paper Eq. (1) no longer predicts the tip",
+      Severity.WARNING, "beams", ("deflection_ratio", "sweep_samples"))
+def beam_large_deflection(ctx: Context):
+    ratio = ctx.threshold("deflection_ratio")
+    for beam in ctx.design.beams:
+        for prog, (defl, strain, P, st, how) in beam_loads(ctx, beam).items():
+            if defl > ratio * beam.length:
+                yield ctx.finding("ACL402",
+                    f"program `{prog}` deflects beam `{beam.name}` by {um(defl)} = {defl / beam.length:.2f} L, beyond "
+                    f"{ratio:g} L where Eq. (1) holds", st.span, notes=[
+                        f"{how}: tip load {P * 1e9:.3g} nN",
+                        f"threshold deflection_ratio = {ratio:g}"],
+                    hint="keep deflections small, or check the elastica (acl.physics.beams.elastica)")

@@ -1,0 +1,93 @@
+"""ACL2xx: secondary Bjerknes forces between bubble pairs (snap-in, sign changes over frequency)."""
+from __future__ import annotations
+
+import numpy as np
+
+from acl.design.model import Drive, Tone
+from acl.diagnostics import Severity
+from acl.lint.context import Context, khz, um
+from acl.lint.registry import rule
+
+
+def _both_fixed(ctx: Context, a: str, b: str) -> bool:
+    fixed = {j.capsule for j in ctx.design.joints if j.kind == "fix"}
+    return a in fixed and b in fixed
+
+
+def _crossing(program) -> set[tuple[str, str]]:
+    """Pairs a program deliberately drives below snap-in (`cross gap(a, b)`)."""
+    return {tuple(sorted((st.a.split(".")[0], st.b.split(".")[0])))
+            for st in program.steps if st.kind == "hold" and st.mode == "cross"}
+
+
+@rule("ACL201", "snap-in",
+      "a bubble pair closer than its critical distance is pulled together by Bjerknes attraction (paper Eq. 3)",
+      Severity.ERROR, "forces", ("snap_margin", "sweep_samples"))
+def snap_in(ctx: Context):
+    if len(ctx.design.capsules) < 2:
+        return
+    margin = ctx.threshold("snap_margin")
+    for p in ctx.design.programs:
+        crossing = _crossing(p)
+        reported: set[tuple[str, str]] = set()
+        for st in p.steps:
+            for drive in ctx.step_drives(st):
+                for pf in ctx.pair_forces(drive):
+                    key = tuple(sorted((pf.a, pf.b)))
+                    if key in reported or key in crossing or _both_fixed(ctx, pf.a, pf.b):
+                        continue
+                    dc = pf.critical_distance
+                    if dc is None or pf.distance >= margin * dc:
+                        continue
+                    reported.add(key)
+                    tones = " + ".join(f"{khz(t.frequency)} @ {t.amplitude:.3g} V" for t in drive.tones)
+                    yield ctx.finding("ACL201",
+                        f"`{pf.a}` and `{pf.b}` are {um(pf.distance)} apart, closer than their critical distance "
+                        f"{um(dc)}: program `{p.name}` snaps them together", st.span, notes=[
+                            f"drive {tones}",
+                            f"Bjerknes attraction {pf.attraction * 1e9:.3g} nN at rest, phase difference "
+                            f"{np.degrees(pf.phase_difference):.0f} deg",
+                            f"d_c = sqrt(alpha / 2 gamma) (paper Eq. 3); threshold snap_margin = {margin:g}"],
+                        hint="increase the gap, or use `cross gap(a, b)` if the program means to bring them together")
+
+
+def program_range(ctx: Context, program) -> tuple[float, float] | None:
+    fs = [f for st in program.steps for f in ctx.step_frequencies(st)]
+    if not fs or max(fs) <= min(fs) * (1 + 1e-9):
+        return None
+    return min(fs), max(fs)
+
+
+@rule("ACL202", "force-sign-change",
+      "a pair that attracts at some program frequencies and repels at others reverses its motion "
+      "inside the program; say so with a justified suppression if that is the intent",
+      Severity.WARNING, "forces", ("sweep_samples",))
+def force_sign_change(ctx: Context):
+    if len(ctx.design.capsules) < 2:
+        return
+    for p in ctx.design.programs:
+        rng = program_range(ctx, p)
+        if rng is None:
+            continue
+        freqs = ctx.sweep_frequencies(*rng)
+        att: dict[tuple[str, str], list[tuple[float, float]]] = {}
+        for f in freqs:
+            for pf in ctx.pair_forces(Drive(tones=(Tone(frequency=float(f), amplitude=1.0),))):
+                att.setdefault((pf.a, pf.b), []).append((float(f), pf.attraction))
+        for (a, b), rows in att.items():
+            if _both_fixed(ctx, a, b):
+                continue
+            vals = np.array([v for _, v in rows])
+            scale = np.abs(vals).max()
+            if scale == 0:
+                continue
+            strong = np.abs(vals) > 1e-3 * scale
+            pos = [f for (f, v), s in zip(rows, strong) if s and v > 0]
+            neg = [f for (f, v), s in zip(rows, strong) if s and v < 0]
+            if pos and neg:
+                yield ctx.finding("ACL202",
+                    f"`{a}` and `{b}` attract and repel within the {khz(rng[0])} .. {khz(rng[1])} range of program `{p.name}`",
+                    p.span, notes=[
+                        f"attract at {khz(min(pos))} .. {khz(max(pos))}; repel at {khz(min(neg))} .. {khz(max(neg))}",
+                        f"{len(freqs)} frequencies sampled, 1 V single tones; peak |force| {scale * 1e9:.3g} nN/V^2"],
+                    hint="if the reversal is intended, write `# acl: ignore[ACL202] <why>` on the program's line")
