@@ -97,7 +97,7 @@ class LatchMargin:
 def reduced_eq3_force_model(alpha: float, gamma: float) -> ForceModel:
     """Paper Eq. (3): every capsule pair attracts with (alpha/d^2 - 2 gamma) V^2 along the line of closest orifices.
 
-    ``alpha`` in N m^2/V^2 (paper: 174.5 nN um^2 V^-2 = 1.745e-22), ``gamma`` in N/V^2 (0.027 nN V^-2);
+    ``alpha`` in N m^2/V^2 (paper: 174.5 nN um^2 V^-2 = 1.745e-19), ``gamma`` in N/V^2 (0.027 nN V^-2);
     V is the root-sum-square of the drive's tone amplitudes; d the distance between orifice centres.
     """
     def model(design: Design, positions: Mapping[str, np.ndarray], drive: Drive) -> dict:
