@@ -49,7 +49,7 @@ def eq1_compliance(P, L: float, l: float, EI: float):
 
 
 def eq1_small_force_stiffness(L: float, l: float, EI: float) -> float:
-    """Load-point stiffness of paper Eq. (1) as P -> 0: 6EI / [L (L(3l + 2L) + 3l(2l + L))]."""
+    """Load-point stiffness of paper Eq. (1) as P -> 0 (its first-order term): 6EI / [L (L(3l + 2L) + 3l(2l + L))]."""
     return 6 * EI / (L * (L * (3 * l + 2 * L) + 3 * l * (2 * l + L)))
 
 
@@ -225,7 +225,7 @@ def _eq1_limit_ratio(lam: float, tolerance: float) -> float:
 
 
 def eq1_validity_limit(L: float, l: float, tolerance: float = EQ1_TOLERANCE) -> float:
-    """Load-point deflection (m) beyond which Eq. (1) departs from the elastica by more than ``tolerance``.
+    """Deflection (m) beyond which paper Eq. (1) departs from the Bisshopp & Drucker elastica by more than ``tolerance``.
 
     About 0.21 L without rigid segment, 0.33 L at l = L/4, 0.44 L at l = L/2 (docs/physics-mechanics.md).
     """
@@ -233,5 +233,5 @@ def eq1_validity_limit(L: float, l: float, tolerance: float = EQ1_TOLERANCE) -> 
 
 
 def eq1_is_valid(delta, L: float, l: float, tolerance: float = EQ1_TOLERANCE):
-    """True where |delta| is within the range in which Eq. (1) matches the elastica to ``tolerance``."""
+    """True where |delta| is within the range in which paper Eq. (1) matches the elastica (Bisshopp & Drucker 1945) to ``tolerance``."""
     return np.abs(np.asarray(delta, dtype=float)) <= eq1_validity_limit(L, l, tolerance)

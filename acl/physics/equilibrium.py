@@ -95,7 +95,7 @@ def _external_jacobian(external: External, q: np.ndarray, V: float, h: float) ->
 
 
 def residual_and_tangent(restoring: Restoring, external: External, q, V: float, h: float = 1e-12):
-    """R = restoring(q) - external(q, V) and K_T = dR/dq (central differences where no Jacobian is given)."""
+    """Residual R = restoring - external and tangent stiffness K_T = dR/dq (Bazant & Cedolin Ch. 4); central differences where no Jacobian is given."""
     q = np.atleast_1d(np.asarray(q, dtype=float))
     f, K = _restoring(restoring, q, h)
     fe = np.atleast_1d(np.asarray(external(q, V), dtype=float))

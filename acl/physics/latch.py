@@ -73,7 +73,7 @@ def _scale(L: float, w: float, t: float, E: float) -> float:
 
 
 def latch_force(u, theta: float, L: float, w: float, t: float, E: float):
-    """Force (N) along the actuation direction holding the shuttle at ``u`` (m): von Mises truss with buckling bars and rotational springs (module docstring)."""
+    """Holding force (N) at shuttle travel ``u``: von Mises truss (Bazant & Cedolin) with Euler-buckling bars (Timoshenko & Gere 2.7) and 6EI psi^2/L bending."""
     chord, phi, c = _geometry(np.asarray(u, dtype=float) / L, theta)
     n = axial_force(1.0 - chord, w / L)
     per_beam = n * np.sin(phi) + 12.0 * (theta - phi) * c / chord**2
@@ -81,14 +81,14 @@ def latch_force(u, theta: float, L: float, w: float, t: float, E: float):
 
 
 def latch_energy(u, theta: float, L: float, w: float, t: float, E: float):
-    """Strain energy (J) of the beam pair at shuttle displacement ``u``: axial + 6 E I psi^2 / L per beam (module docstring)."""
+    """Strain energy (J) at shuttle travel ``u``: axial (Timoshenko & Gere 2.7) + slope-deflection bending 6 E I psi^2 / L per beam."""
     chord, phi, _ = _geometry(np.asarray(u, dtype=float) / L, theta)
     per_beam = _axial_energy(1.0 - chord, w / L) + 6.0 * (theta - phi) ** 2
     return 2.0 * per_beam * _scale(L, w, t, E) * L
 
 
 def latch_stiffness(u, theta: float, L: float, w: float, t: float, E: float):
-    """Tangent stiffness dF/du (N/m) of latch_force by central differences."""
+    """Tangent stiffness dF/du (N/m): derivative of the von Mises truss holding force (latch_force), central differences."""
     u = np.asarray(u, dtype=float)
     h = 1e-7 * L
     return (latch_force(u + h, theta, L, w, t, E) - latch_force(u - h, theta, L, w, t, E)) / (2 * h)
@@ -111,7 +111,7 @@ class LatchLandscape:
 
 def latch_landscape(theta: float, L: float, w: float, t: float, E: float,
                     n: int = 2001, reach: float = 2.6) -> LatchLandscape:
-    """Energy landscape (as paper Fig. 6d), stable states, barrier, switching and release forces of the latch model."""
+    """Energy landscape (as paper Fig. 6d), stable states, barrier, switching and release forces of the von Mises truss latch model."""
     u = np.linspace(0.0, reach * L * np.sin(theta), n)
     F = latch_force(u, theta, L, w, t, E)
     U = latch_energy(u, theta, L, w, t, E)
