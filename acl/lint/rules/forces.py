@@ -14,6 +14,17 @@ def _both_fixed(ctx: Context, a: str, b: str) -> bool:
     return a in fixed and b in fixed
 
 
+def _pushed_apart(ctx: Context, drive, a: str, b: str) -> bool:
+    """Eq. 3's premise: each capsule's own thrust pushes it away from the other."""
+    from acl.analysis.acoustics import thrust_vectors
+
+    thrust = ctx.cached(("thrust", tuple((t.frequency, t.amplitude) for t in drive.tones)),
+                        lambda: thrust_vectors(ctx.design, drive))
+    ca, cb = np.asarray(ctx.design.capsule(a).center), np.asarray(ctx.design.capsule(b).center)
+    u = (cb - ca) / max(float(np.linalg.norm(cb - ca)), 1e-300)
+    return float(thrust[a] @ -u) > 0 and float(thrust[b] @ u) > 0
+
+
 def _crossing(program) -> set[tuple[str, str]]:
     """Pairs a program deliberately drives below snap-in (`cross gap(a, b)`)."""
     return {tuple(sorted((st.a.split(".")[0], st.b.split(".")[0])))
@@ -37,7 +48,7 @@ def snap_in(ctx: Context):
                     if key in reported or key in crossing or _both_fixed(ctx, pf.a, pf.b):
                         continue
                     dc = pf.critical_distance
-                    if dc is None or pf.distance >= margin * dc:
+                    if dc is None or pf.distance >= margin * dc or not _pushed_apart(ctx, drive, pf.a, pf.b):
                         continue
                     reported.add(key)
                     tones = " + ".join(f"{khz(t.frequency)} @ {t.amplitude:.3g} V" for t in drive.tones)
