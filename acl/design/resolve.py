@@ -139,7 +139,9 @@ class Resolver:
         self.loader = loader
         self.bag = bag
         self.param_values: dict[tuple[int, str], Quantity] = {}
-        self.evaluating: set[tuple[int, str]] = set()
+        self.evaluating: dict[tuple[int, str], None] = {}   # ordered: the chain being evaluated
+        self.failed_params: set[tuple[int, str]] = set()
+        self._entries_cache: dict[tuple[int, int], list] = {}
         self.override_exprs: dict[str, A.Expr] = {}
         self.override_spans: dict[str, Span] = {}
         self.used_decls: dict[str, tuple[str, A.Block, ModuleEnv]] = {}
@@ -301,11 +303,17 @@ class Resolver:
         key = (id(env), name)
         if key in self.param_values:
             return self.param_values[key]
+        if key in self.failed_params:      # already reported once
+            raise _Fail()
         decl = env.params[name]
         if key in self.evaluating:
-            self.bag.error("E214", f"parameter `{name}` depends on itself", decl.span)
+            chain = [n for (e, n) in self.evaluating if e == id(env)]
+            chain = chain[chain.index(name):] + [name] if name in chain else [name, name]
+            self.bag.error("E214", f"parameter `{name}` depends on itself: {' -> '.join(chain)}", decl.span,
+                           "give one of them a value that does not refer back")
             raise _Fail()
-        self.evaluating.add(key)
+        self.evaluating[key] = None
+        ok = False
         try:
             value = self._eval(decl.value, env)
             if not isinstance(value, Quantity):
@@ -319,8 +327,11 @@ class Resolver:
                                    self.override_spans[name], f"write it with a unit, e.g. --set {name}={_example(value.dims)}")
                     raise _Fail()
                 value = ov
+            ok = True
         finally:
-            self.evaluating.discard(key)
+            self.evaluating.pop(key, None)
+            if not ok:
+                self.failed_params.add(key)
         self.param_values[key] = value
         return value
 
@@ -368,7 +379,15 @@ class Resolver:
     # ---------------------------------------------------------------------------- blocks
     def entries(self, blk: A.Block, env: ModuleEnv, seen=None) -> list[tuple[object, ModuleEnv]]:
         """Entries of a block with `like` inheritance resolved: (entry, env) pairs, child last wins."""
-        seen = seen or set()
+        ck = (id(blk), id(env))
+        if not seen and ck in self._entries_cache:
+            return self._entries_cache[ck]
+        out = self._entries(blk, env, seen or set())
+        if not seen:
+            self._entries_cache[ck] = out
+        return out
+
+    def _entries(self, blk: A.Block, env: ModuleEnv, seen) -> list[tuple[object, ModuleEnv]]:
         base: list[tuple[object, ModuleEnv]] = []
         if blk.like is not None:
             try:
