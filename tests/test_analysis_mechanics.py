@@ -203,3 +203,20 @@ def test_drive_above_snap_in_reports_snap_not_an_equilibrium():
     v = independent_snap_voltage(30e-6)[0]
     state = M.equilibrium(fig2_pair(30e-6), Drive(tones=(Tone(frequency=125e3, amplitude=1.01 * v),)), EQ3)
     assert state.status == "snap_in" and not state.stable
+
+
+def test_direct_solve_from_a_start_matches_continuation():
+    drive = Drive(tones=(Tone(frequency=125e3, amplitude=0.8),))
+    design = fig2_pair(30e-6)
+    cont = M.equilibrium(design, drive, EQ3)
+    direct = M.equilibrium(design, drive, EQ3, start={c.name: c.center for c in design.capsules})
+    assert direct.status == "ok" and direct.stable
+    assert np.allclose(direct.positions["a"], cont.positions["a"], rtol=0, atol=1e-12)
+
+
+def test_latch_resting_in_state_b_is_force_free_and_needs_the_release_force_back():
+    d, push = _latched("b", -30.0)       # pushes along -axis, back towards state a
+    state = M.equilibrium(d, Drive(tones=(Tone(frequency=125e3, amplitude=0.0),)), push)
+    assert state.status == "ok" and np.allclose(state.displacements["c"], 0.0)
+    m = M.latch_margins(d, UNIT_DRIVE, push)["l"]
+    assert m.required == pytest.approx(m.release_force) and m.margin == pytest.approx(30e-9 / m.release_force)
