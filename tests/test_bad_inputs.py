@@ -110,9 +110,6 @@ def test_bad_set_is_reported_once_even_if_the_parameter_is_used_twice():
     assert [d.code for d in diags].count("E301") == 1
 
 
-@pytest.mark.xfail(reason="Builder._gain_table reads keys['gain'] unguarded: a transducer without `gain` "
-                          "(or with it misspelt) raises KeyError instead of E204 (found by fuzzing)",
-                   raises=KeyError, strict=True)
 def test_transducer_without_gain_is_a_missing_key_diagnostic():
     text = "transducer t {\n  max_voltage = 20 V\n  band = 40 kHz .. 200 kHz\n}\n"
     with pytest.raises(DiagnosticError) as info:

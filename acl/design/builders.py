@@ -99,6 +99,8 @@ class Builder:
             return None
 
     def _gain_table(self, keys, dv: DeclVal):
+        if "gain" not in keys:      # missing key already reported by assigns()
+            raise _Fail()
         ent, env = keys["gain"]
         v = self.r.eval(ent.value, env)
         if isinstance(v, Quantity):  # a flat gain
