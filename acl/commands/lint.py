@@ -29,9 +29,11 @@ def add_parser(p) -> None:
 
 
 def _fail(diags) -> int:
+    from rich.console import Console
+
     from acl.diagnostics import render
 
-    render(diags)
+    render(diags, Console(stderr=True, highlight=False, soft_wrap=True))
     return 2
 
 
@@ -56,7 +58,7 @@ def _codes(items: list[str], flag: str, rules) -> tuple[tuple[str, ...], list]:
 
 
 def run(args) -> int:
-    from acl.lint import ConfigError, collect_files, find_config, lint_file, load_config, rules as load_rules
+    from acl.lint import ConfigError, collect_files, find_config, lint_file, load_config, load_rules
     from acl.lint.formats import WRITERS, statistics
 
     rules = load_rules()

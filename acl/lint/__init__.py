@@ -3,7 +3,7 @@
 Public face::
 
     from acl.lint import lint_file, load_config, find_config
-    report = lint_file("examples/fig2_vertical_cantilever.acl", load_config(None, rules()))
+    report = lint_file("examples/fig2_vertical_cantilever.acl", load_config(None, load_rules()))
     for d in report.findings: print(d.code, d.message)
 
 Modules: ``registry`` (rules, thresholds), ``config`` (TOML), ``source`` (comments, suppressions,
@@ -14,8 +14,8 @@ design and the analysis layer; it never imports cvxpy or matplotlib.
 from __future__ import annotations
 
 from acl.lint.config import ConfigError, LintConfig, find_config, load_config
-from acl.lint.registry import RULES, THRESHOLDS, load_rules as rules
+from acl.lint.registry import RULES, THRESHOLDS, load_rules
 from acl.lint.runner import FileReport, collect_files, lint_file
 
 __all__ = ["ConfigError", "FileReport", "LintConfig", "RULES", "THRESHOLDS", "collect_files", "find_config",
-           "lint_file", "load_config", "rules"]
+           "lint_file", "load_config", "load_rules"]
