@@ -1,0 +1,38 @@
+"""Fit a design to measured data, find missing physical effects, report before/after (docs/fit.md).
+
+Pipeline (one way): data (acl.fit.data) -> design instances (acl.fit.mechanism) -> vectorized
+forward model (acl.fit.forward) -> least squares (acl.fit.solve) -> residual tests
+(acl.fit.residuals) -> effect selection (acl.fit.select, library acl.fit.effects) -> report
+(acl.fit.report) and calibrated design (acl.fit.calibrated).  Synthetic data: acl.fit.synth.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+
+@dataclass
+class FitOutcome:
+    problem: object
+    selection: object
+    report: dict
+    calibrated: str
+
+
+def run_fit(design_path, data_paths, free=(), search_paths=(), candidates=None, seed=0, progress=None) -> FitOutcome:
+    """Everything `acl fit` does except writing files; raises DiagnosticError on bad input."""
+    from acl.fit.calibrated import calibrated_text
+    from acl.fit.problem import load_problem
+    from acl.fit.report import build_report
+    from acl.fit.residuals import covariates, examine
+    from acl.fit.select import select_effects
+    from acl.fit.solve import NOMINAL_SIGMA
+
+    import numpy as np
+
+    problem = load_problem(design_path, data_paths, free=free, search_paths=search_paths)
+    selection = select_effects(problem, candidates=candidates, seed=seed, progress=progress)
+    w = 1.0 / np.where(np.isfinite(problem.sigma), problem.sigma, NOMINAL_SIGMA)
+    before = examine(selection.base.residual, covariates(problem.data, problem.prepared, selection.base.prediction), w, seed)
+    after = examine(selection.final.residual, covariates(problem.data, problem.prepared, selection.final.prediction), w, seed)
+    report = build_report(problem, selection, before, after, calibrated_name="calibrated.acl")
+    return FitOutcome(problem, selection, report, calibrated_text(problem, selection))

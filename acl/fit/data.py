@@ -1,0 +1,259 @@
+"""Measured data: tidy CSV files (docs/data.md) read into one :class:`Dataset`, every bad cell a diagnostic.
+
+One observation per row.  Columns: ``observable`` (a name the design declares with ``observe``),
+``value`` and ``unit`` (any unit of the observable's dimension), ``drive`` (acl drive syntax, empty
+for none); optional ``time`` (s since start), ``sigma`` (same unit as ``value``) and ``set:NAME``
+(override of design parameter NAME for that row, e.g. ``40 um``).  Nothing is dropped silently: a
+file with any bad row raises :class:`DiagnosticError` listing every bad cell (file:row:column).
+"""
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from acl.diagnostics import DiagnosticBag, DiagnosticError, Span, suggest
+
+REQUIRED = ("observable", "value", "unit", "drive")
+OPTIONAL = ("time", "sigma")
+LENGTH = (1, 0, 0, 0, 0, 0, 0)
+MAX_ROWS = 2_000_000
+_NUM_UNIT = re.compile(r"^\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*(.*?)\s*$")
+
+
+@dataclass
+class Dataset:
+    """Rows of measurements in SI; arrays are aligned (length ``n``)."""
+
+    observable: np.ndarray               # (n,) str, names of design observables
+    value: np.ndarray                    # (n,) SI
+    sigma: np.ndarray                    # (n,) SI, NaN where not given
+    time: np.ndarray                     # (n,) s, NaN where not given
+    tones: list                          # n tuples of (frequency Hz, amplitude V)
+    sets: dict                           # NAME -> (n,) object array of override text ('' = design value)
+    set_si: dict                         # NAME -> (n,) float SI value of the override (NaN where '')
+    spans: list                          # n Spans (file, line, column 1)
+    units: np.ndarray                    # (n,) str, the unit the row was written in
+    files: tuple = ()
+    columns: dict = field(default_factory=dict)   # column name -> 1-based index, per file (last file)
+
+    @property
+    def n(self) -> int:
+        return int(self.value.size)
+
+    @property
+    def has_sigma(self) -> bool:
+        return bool(np.all(np.isfinite(self.sigma)))
+
+    @property
+    def has_time(self) -> bool:
+        return bool(np.any(np.isfinite(self.time)))
+
+    def subset(self, idx) -> "Dataset":
+        idx = np.asarray(idx)
+        return Dataset(self.observable[idx], self.value[idx], self.sigma[idx], self.time[idx],
+                       [self.tones[i] for i in idx], {k: v[idx] for k, v in self.sets.items()},
+                       {k: v[idx] for k, v in self.set_si.items()}, [self.spans[i] for i in idx],
+                       self.units[idx], self.files, self.columns)
+
+    def override_key(self, i: int) -> tuple:
+        return tuple((k, self.sets[k][i]) for k in sorted(self.sets) if self.sets[k][i])
+
+
+def split_line(line: str) -> list[tuple[str, int]]:
+    """Split one CSV line into (field, 1-based column) pairs; double quotes protect commas."""
+    out, buf, start, quoted, i = [], [], 1, False, 0
+    while i < len(line):
+        ch = line[i]
+        if quoted:
+            if ch == '"' and i + 1 < len(line) and line[i + 1] == '"':
+                buf.append('"')
+                i += 1
+            elif ch == '"':
+                quoted = False
+            else:
+                buf.append(ch)
+        elif ch == '"':
+            quoted = True
+        elif ch == ",":
+            out.append(("".join(buf).strip(), start))
+            buf, start = [], i + 2
+        else:
+            buf.append(ch)
+        i += 1
+    out.append(("".join(buf).strip(), start))
+    return out
+
+
+def parse_quantity(text: str) -> tuple[float, tuple]:
+    """``'40 um'`` -> (4e-5, length dims).  Raises ValueError / UnitError."""
+    from acl.units import parse_unit
+
+    m = _NUM_UNIT.match(text)
+    if not m:
+        raise ValueError(f"`{text}` is not a number with a unit")
+    factor, dims = parse_unit(m.group(2)) if m.group(2) else (1.0, (0,) * 7)
+    return float(m.group(1)) * factor, dims
+
+
+def read_data(paths, design) -> Dataset:
+    """Read and check every file against ``design``; raise DiagnosticError with all bad cells."""
+    from acl.fit.drive import parse_drive_cell
+    from acl.units import UnitError, parse_unit
+
+    bag = DiagnosticBag()
+    obs_names = [o.name for o in design.observes]
+    param_names = [p.name for p in design.params]
+    cols: dict[str, list] = {k: [] for k in ("observable", "value", "sigma", "time", "tones", "spans", "units")}
+    sets: dict[str, list] = {}
+    n_before = 0
+    for path in paths:
+        try:
+            with open(path, encoding="utf-8-sig") as fh:
+                lines = fh.read().splitlines()
+        except OSError as exc:
+            raise DiagnosticError([_io(path, exc)])
+        head_i = next((i for i, ln in enumerate(lines) if ln.strip() and not ln.lstrip().startswith("#")), None)
+        if head_i is None:
+            bag.error("E801", "data file is empty (no header row)", Span(file=path, line=1, column=1),
+                      "the header is `observable,value,unit,drive[,time][,sigma][,set:NAME...]`")
+            continue
+        header = split_line(lines[head_i])
+        index: dict[str, int] = {}
+        for j, (name, col) in enumerate(header):
+            sp = Span(file=path, line=head_i + 1, column=col)
+            key = name.strip().lower() if not name.strip().startswith("set:") else name.strip()
+            if key in index:
+                bag.error("E801", f"column `{name}` appears twice", sp)
+            elif key in REQUIRED or key in OPTIONAL:
+                index[key] = j
+            elif key.startswith("set:"):
+                pname = key[4:].strip()
+                if pname not in param_names:
+                    bag.error("E805", f"`{key}`: the design has no parameter `{pname}`", sp,
+                              suggest(pname, param_names) or f"parameters: {', '.join(param_names) or 'none'}")
+                index[key] = j
+            else:
+                bag.error("E801", f"unknown column `{name}`", sp,
+                          suggest(key, [*REQUIRED, *OPTIONAL]) or "columns: observable, value, unit, drive, time, sigma, set:NAME")
+        missing = [k for k in REQUIRED if k not in index]
+        if missing:
+            bag.error("E801", f"missing column(s) {', '.join(missing)}", Span(file=path, line=head_i + 1, column=1),
+                      "the header is `observable,value,unit,drive[,time][,sigma][,set:NAME...]`")
+            continue
+        set_keys = [k for k in index if k.startswith("set:")]
+        for k in set_keys:
+            sets.setdefault(k[4:], [""] * n_before)
+        n_file = 0
+        for li in range(head_i + 1, len(lines)):
+            raw = lines[li]
+            if not raw.strip() or raw.lstrip().startswith("#"):
+                continue
+            if n_before + n_file >= MAX_ROWS:
+                bag.error("E801", f"more than {MAX_ROWS} rows", Span(file=path, line=li + 1, column=1))
+                break
+            cells = split_line(raw)
+            line = li + 1
+            if len(cells) != len(header):
+                bag.error("E801", f"row has {len(cells)} cells, the header has {len(header)}",
+                          Span(file=path, line=line, column=1))
+                continue
+
+            def cell(key):
+                return cells[index[key]]
+
+            def sp(key):
+                return Span(file=path, line=line, column=cell(key)[1])
+
+            ok = True
+            name = cell("observable")[0]
+            if name not in obs_names:
+                bag.error("E803", f"unknown observable `{name}`" if name else "missing observable", sp("observable"),
+                          suggest(name, obs_names) or f"the design observes: {', '.join(obs_names) or 'nothing'}")
+                ok = False
+            unit = cell("unit")[0]
+            factor = None
+            try:
+                factor, dims = parse_unit(unit) if unit else (None, None)
+                if factor is None:
+                    bag.error("E804", "missing unit", sp("unit"), "every observable is a length: write e.g. `um`")
+                    ok = False
+                elif dims != LENGTH:
+                    from acl.units import describe
+                    bag.error("E804", f"unit `{unit}` is a {describe(dims)}, the observable is a length", sp("unit"))
+                    ok = False
+            except UnitError as exc:
+                bag.error("E804", str(exc), sp("unit"), exc.hint)
+                ok = False
+            value = _number(bag, cell("value")[0], sp("value"), "value", required=True)
+            sigma = _number(bag, cell("sigma")[0], sp("sigma"), "sigma", required=False, positive=True) \
+                if "sigma" in index else math.nan
+            time = _number(bag, cell("time")[0], sp("time"), "time", required=False) if "time" in index else math.nan
+            if value is None or sigma is None or time is None:
+                ok = False
+            try:
+                tones = parse_drive_cell(cell("drive")[0], path, line, cell("drive")[1])
+            except DiagnosticError as exc:
+                for d in exc.diagnostics:
+                    bag.add(d)
+                ok = False
+            row_sets = {}
+            for k in set_keys:
+                text = cell(k)[0]
+                if text:
+                    try:
+                        parse_quantity(text)
+                    except (ValueError, UnitError) as exc:
+                        bag.error("E805", f"`{k}` = `{text}`: {exc}", sp(k), "write a number with a unit, e.g. `40 um`")
+                        ok = False
+                row_sets[k[4:]] = text
+            if not ok or factor is None:
+                continue
+            cols["observable"].append(name)
+            cols["value"].append(value * factor)
+            cols["sigma"].append(sigma * factor)
+            cols["time"].append(time)
+            cols["tones"].append(tones)
+            cols["spans"].append(Span(file=path, line=line, column=1))
+            cols["units"].append(unit)
+            for k in sets:
+                sets[k].append(row_sets.get(k, ""))
+            n_file += 1
+        n_before += n_file
+        if n_file == 0 and not bag.has_errors:
+            bag.error("E801", "data file has no rows", Span(file=path, line=head_i + 1, column=1))
+    bag.raise_if_errors()
+    sets_arr = {k: np.array(v, dtype=object) for k, v in sets.items()}
+    set_si = {k: np.array([parse_quantity(t)[0] if t else np.nan for t in v], float) for k, v in sets.items()}
+    return Dataset(np.array(cols["observable"], dtype=object), np.array(cols["value"], float),
+                   np.array(cols["sigma"], float), np.array(cols["time"], float), cols["tones"], sets_arr,
+                   set_si, cols["spans"], np.array(cols["units"], dtype=object), tuple(paths))
+
+
+def _number(bag, text, span, what, required, positive=False):
+    if not text:
+        if required:
+            bag.error("E806", f"missing {what}", span)
+            return None
+        return math.nan
+    try:
+        x = float(text)
+    except ValueError:
+        bag.error("E806", f"{what} `{text}` is not a number", span,
+                  "write the number alone; its unit goes in the `unit` column" if what in ("value", "sigma") else None)
+        return None
+    if not math.isfinite(x):
+        bag.error("E806", f"{what} `{text}` is not finite", span)
+        return None
+    if positive and x <= 0:
+        bag.error("E806", f"{what} must be positive, got {text}", span)
+        return None
+    return x
+
+
+def _io(path, exc):
+    from acl.diagnostics import error
+
+    return error("E601", f"cannot read data file: {exc.strerror or exc}", Span(file=str(path), line=1, column=1))

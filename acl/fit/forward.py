@@ -1,0 +1,284 @@
+"""Forward model: predict every observable of every row from design + overrides + drive + coefficients + effects.
+
+Rows are grouped by override set (one :class:`acl.fit.mechanism.Instance` each); the frequency
+responses are looked up once per (instance, frequency); then every row is evaluated at once with
+numpy (no per-row Python).  Base model, per row:
+
+* thrust of actuator i: gamma tau_i(f) V^2 summed over tones (tones add in power), tau_i the thrust
+  per V^2 of :mod:`acl.analysis.acoustics` relative to the reference actuator at ``f_ref``;
+* single actuator: load P = thrust x (share perpendicular to the beam); deflection by paper Eq. (1);
+* facing pair: paper Eq. (3) with attraction positive, P(d) = alpha a(f) V^2/d^2 - (thrust_a + thrust_b)
+  (own thrust plus the drag of the partner's jet, F_AS = F_d as the paper assumes), each beam
+  deflecting by Eq. (1); the stable equilibrium d = d0 - delta_a - delta_b reached from the rest gap,
+  or contact (d = 0) past snap-in.  Solved by a vectorized bracket search and bisection.
+
+Effects (acl.fit.effects) modify these steps; each modifier below cites its source.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from acl.fit import beam as B
+
+N_GRID = 48
+N_BISECT = 44
+
+
+@dataclass
+class Prepared:
+    """Row-aligned arrays for the forward model (built once per data set)."""
+
+    n: int
+    f: np.ndarray            # (n, T) Hz (0 where no tone)
+    v: np.ndarray            # (n, T) V peak
+    tau: np.ndarray          # (2, n, T) relative thrust of actuators 0, 1
+    arel: np.ndarray         # (n, T) relative Bjerknes coefficient
+    pair: np.ndarray         # (n,) bool
+    L: np.ndarray            # (2, n)
+    l: np.ndarray            # (2, n)
+    EI: np.ndarray           # (2, n)
+    cd: np.ndarray           # (2, n) Eq. (1) integrals at declared uniform stiffness
+    ct: np.ndarray           # (2, n)
+    height: np.ndarray       # (2, n)
+    proj: np.ndarray         # (n,) thrust share perpendicular to the beam (single)
+    d0: np.ndarray           # (n,) rest gap (pair)
+    base: np.ndarray         # (n,) observable = base + s0 delta_0 + s1 delta_1
+    s0: np.ndarray
+    s1: np.ndarray
+    fn: np.ndarray           # (2, n) natural frequency of each actuator
+    q: np.ndarray            # (2, n) its quality factor
+    t: np.ndarray            # (n,) time (s), 0 where not given
+    f_ref: float
+    gamma0: float            # thrust per V^2 of the reference actuator at f_ref (design value)
+    alpha0: float            # Bjerknes coefficient at f_ref (design or physics)
+    E0: float                # declared Young's modulus of the first beam
+    vmax: float
+    instances: dict          # override key -> Instance
+
+
+def prepare(data, load_instance, f_ref: float | None = None) -> Prepared:
+    """Build the row arrays; ``load_instance(key)`` returns the Instance of an override set."""
+    from acl.fit.mechanism import alpha_per_v2, thrust_per_v2
+
+    n = data.n
+    T = max(1, max((len(t) for t in data.tones), default=1))
+    f = np.zeros((n, T))
+    v = np.zeros((n, T))
+    for i, tones in enumerate(data.tones):
+        for k, (fk, vk) in enumerate(tones):
+            f[i, k], v[i, k] = fk, vk
+    if f_ref is None:
+        used = f[v > 0]
+        vals, counts = np.unique(used, return_counts=True) if used.size else (np.array([1e5]), np.array([1]))
+        top = vals[counts == counts.max()]
+        f_ref = float(top[np.argmin(np.abs(top - np.median(used)))]) if used.size else 1e5
+    keys = [data.override_key(i) for i in range(n)]
+    instances = {}
+    for key in dict.fromkeys(keys):
+        instances[key] = load_instance(key)
+    ref = instances[keys[0]]
+    gamma0 = float(thrust_per_v2(ref, f_ref)[0])
+    alpha_ref = alpha_per_v2(ref, f_ref) if ref.kind == "pair" else 0.0
+    arr = {k: np.zeros((2, n)) for k in ("L", "l", "EI", "height", "fn", "q")}
+    arr["L"][:] = 1.0
+    arr["EI"][:] = 1.0
+    tau = np.zeros((2, n, T))
+    arel = np.zeros((n, T))
+    pair = np.zeros(n, bool)
+    proj = np.ones(n)
+    d0 = np.full(n, np.nan)
+    base, s0, s1 = np.zeros(n), np.zeros(n), np.zeros(n)
+    by_key: dict = {}
+    for i, key in enumerate(keys):
+        by_key.setdefault(key, []).append(i)
+    for key, rows in by_key.items():
+        inst = instances[key]
+        rows = np.asarray(rows)
+        k = len(inst.capsules)
+        for name, src in (("L", inst.L), ("l", inst.l), ("EI", inst.EI), ("height", inst.height)):
+            arr[name][:k, rows] = src[:, None]
+        arr["fn"][:k, rows] = inst.modes[:, 0][:, None]
+        arr["q"][:k, rows] = inst.modes[:, 1][:, None]
+        pair[rows] = inst.kind == "pair"
+        proj[rows] = inst.proj[0]
+        d0[rows] = inst.d0
+        for fk in np.unique(f[rows][v[rows] > 0]):
+            m = (f[rows] == fk) & (v[rows] > 0)
+            tp = thrust_per_v2(inst, fk) / gamma0
+            for c in range(k):
+                tau[c, rows] += m * tp[c]
+            if inst.kind == "pair" and alpha_ref:
+                arel[rows] += m * alpha_per_v2(inst, fk) / alpha_ref
+        for name in set(data.observable[rows]):
+            b, a0, a1 = inst.output_map(inst.design.observe(name))
+            sel = rows[data.observable[rows] == name]
+            base[sel], s0[sel], s1[sel] = b, a0, a1
+    cd, ct = B.stiffness_integrals(arr["L"], arr["l"], arr["EI"])
+    alpha0 = _alpha0(ref, alpha_ref)
+    t = np.where(np.isfinite(data.time), data.time, 0.0)
+    return Prepared(n, f, v, tau, arel, pair, arr["L"], arr["l"], arr["EI"], cd, ct, arr["height"], proj, d0,
+                    base, s0, s1, arr["fn"], arr["q"], t, f_ref, gamma0, alpha0, float(ref.E[0]),
+                    float(max(v.sum(axis=1).max(), 1e-9)), instances)
+
+
+def _alpha0(inst, alpha_ref: float) -> float:
+    """Design value of alpha: a parameter named `alpha`, else the physics prediction at f_ref."""
+    for p in inst.design.params:
+        if p.name == "alpha":
+            return float(p.value)
+    return float(alpha_ref) if alpha_ref > 0 else 1.745e-19   # paper Eq. (3): 174.5 nN um^2/V^2
+
+
+# ----------------------------------------------------------------------------------------------
+# Effect modifiers (each one formula, its source in the docstring)
+# ----------------------------------------------------------------------------------------------
+
+def gain_tilt(f, f_ref, slope):
+    """Pressure gain factor exp(s (f - f_ref)/f_ref): smooth tilt of the transducer transfer function (paper Fig. S1)."""
+    return np.exp(slope * (f - f_ref) / f_ref)
+
+
+def saturation(vtot, inv_vsat2):
+    """Pressure factor 1/sqrt(1 + (V/V_s)^2) of a saturating drive (soft limiter; paper Fig. 2e is its linear part)."""
+    return 1.0 / np.sqrt(1.0 + inv_vsat2 * vtot * vtot)
+
+
+def shrinkage_factor(f, fn, q, t, rate):
+    """|H(f; f_n(t))|^2 / |H(f; f_n0)|^2 of a one-mode resonator, f_n(t) = f_n0 exp(r t / 2) (gas spring, f ~ V^-1/2, Minnaert)."""
+    def h2(fr):
+        return 1.0 / ((fr * fr - f * f) ** 2 + (f * fr / q) ** 2)
+    return h2(fn * np.exp(0.5 * rate * t)) / h2(fn)
+
+
+def substrate_factor(z, h):
+    """Force factor 1 - exp(-z/h) near a rigid wall (image-source weakening, Leighton, The Acoustic Bubble, ch. 4; phenomenological)."""
+    with np.errstate(divide="ignore", over="ignore"):
+        return np.where(h > 0, 1.0 - np.exp(-z / np.maximum(h, 1e-300)), 1.0)
+
+
+# ----------------------------------------------------------------------------------------------
+# Prediction
+# ----------------------------------------------------------------------------------------------
+
+def predict(P: Prepared, coeffs: dict, effects: dict) -> np.ndarray:
+    """Predicted value (SI) of every row.  ``coeffs``: gamma, alpha, e_scale, gain (absent = design value);
+    ``effects``: effect id -> {param: value} (internal coordinates, acl.fit.effects)."""
+    with np.errstate(all="ignore"):
+        return _predict(P, coeffs, effects)
+
+
+def _predict(P: Prepared, coeffs: dict, effects: dict) -> np.ndarray:
+    gamma = coeffs.get("gamma", P.gamma0)
+    alpha = coeffs.get("alpha", P.alpha0)
+    e_scale = coeffs.get("e_scale", 1.0)
+    gain = coeffs.get("gain", 1.0)
+    v2 = P.v * P.v
+    g2 = np.full(P.v.shape, gain * gain)
+    if "transducer_gain" in effects:
+        g2 = g2 * gain_tilt(P.f, P.f_ref, effects["transducer_gain"]["gain_slope"]) ** 2
+    if "drive_saturation" in effects:
+        vtot = P.v.sum(axis=1, keepdims=True)
+        g2 = g2 * saturation(vtot, effects["drive_saturation"]["inv_vsat2"]) ** 2
+    w = v2 * g2
+    thrust = np.empty((2, P.n))
+    sub = np.ones((2, P.n))
+    if "substrate_proximity" in effects:
+        sub = substrate_factor(P.height, effects["substrate_proximity"]["h_substrate"])
+    for c in range(2):
+        wc = w
+        if "bubble_shrinkage" in effects:
+            wc = w * shrinkage_factor(P.f, P.fn[c][:, None], P.q[c][:, None], P.t[:, None],
+                                      effects["bubble_shrinkage"]["shrink_rate"])
+        thrust[c] = gamma * (P.tau[c] * wc).sum(axis=1) * sub[c]
+    es = e_scale * (effects["stiffness_scale"]["e_scale"] if "stiffness_scale" in effects else 1.0)
+    if "stiffness_gradient" in effects:
+        cd, ct = B.stiffness_integrals(P.L, P.l, P.EI * es, effects["stiffness_gradient"]["e_gradient"])
+    else:
+        cd, ct = P.cd / es, P.ct / es
+    lam = effects["large_deflection"]["elastica_weight"] if "large_deflection" in effects else 0.0
+
+    def law(c, idx, load):
+        d = B.eq1_deflection(load, P.l[c, idx], cd[c, idx], ct[c, idx])
+        if lam:
+            d = (1 - lam) * d + lam * B.elastica_deflection(load, P.L[c, idx], P.l[c, idx], P.EI[c, idx] * es)
+        return d
+
+    d_0 = np.zeros(P.n)
+    d_1 = np.zeros(P.n)
+    single = ~P.pair
+    if np.any(single):
+        idx = np.flatnonzero(single)
+        load = thrust[0, idx] * P.proj[idx]
+        if "neighbour_drag" in effects and effects["neighbour_drag"]["inv_plateau"] > 0:
+            c_p = effects["neighbour_drag"]["inv_plateau"]
+            d_0[idx] = _drag_equilibrium(lambda x: law(0, idx, x), load, c_p)
+        else:
+            d_0[idx] = law(0, idx, load)
+    if np.any(P.pair):
+        idx = np.flatnonzero(P.pair)
+        sub_ab = np.sqrt(sub[0, idx] * sub[1, idx])
+        a_rad = alpha * (P.arel[idx] * w[idx]).sum(axis=1) * sub_ab
+        push = thrust[0, idx] + thrust[1, idx]
+        da, db = _pair_equilibrium(lambda c, x: law(c, idx, x), a_rad, push, P.d0[idx])
+        d_0[idx], d_1[idx] = da, db
+    out = P.base + P.s0 * d_0 + P.s1 * d_1
+    if "offset_drift" in effects:
+        e = effects["offset_drift"]
+        out = out + e["offset"] + e["drift"] * P.t
+    return out
+
+
+def _drag_equilibrium(law, load, c_p):
+    """delta = law(P (1 - c_p delta)) on [0, law(P)]: bisection (the residual decreases in delta)."""
+    lo = np.zeros_like(load)
+    hi = np.minimum(law(load), 1.0 / c_p)
+    for _ in range(N_BISECT):
+        mid = 0.5 * (lo + hi)
+        r = law(load * np.clip(1.0 - c_p * mid, 0.0, None)) - mid
+        lo = np.where(r > 0, mid, lo)
+        hi = np.where(r > 0, hi, mid)
+    return 0.5 * (lo + hi)
+
+
+def _pair_equilibrium(law, a_rad, push, d0):
+    """Stable gap of a facing pair under P(d) = a/d^2 - b, first root of d0 - d - delta_a - delta_b from d0.
+
+    Returns (delta_a, delta_b); past snap-in (no root before contact) the pair is in contact, d = 0.
+    """
+    def g(d):
+        load = a_rad / (d * d) - push
+        return d0 - d - law(0, load) - law(1, load)
+
+    attract = a_rad / (d0 * d0) - push >= 0
+    far = np.where(attract, 0.02 * d0, d0 - law(0, -push) - law(1, -push) + 1e-12)
+    s = np.linspace(0.0, 1.0, N_GRID + 1)[1:]
+    prev = d0.copy()
+    g_prev = g(prev)
+    lo = np.full_like(d0, np.nan)
+    hi = np.full_like(d0, np.nan)
+    found = np.zeros(d0.shape, bool)
+    for sk in s:
+        d = d0 + sk * (far - d0)
+        gd = g(d)
+        cross = ~found & (np.sign(gd) != np.sign(g_prev)) & (g_prev != 0)
+        lo = np.where(cross, prev, lo)
+        hi = np.where(cross, d, hi)
+        found |= cross | (g_prev == 0)
+        lo = np.where(g_prev == 0, prev, lo)
+        hi = np.where(g_prev == 0, prev, hi)
+        prev, g_prev = d, gd
+    a, b = np.where(found, lo, d0), np.where(found, hi, d0)
+    ga = g(a)
+    for _ in range(N_BISECT):
+        m = 0.5 * (a + b)
+        gm = g(m)
+        same = np.sign(gm) == np.sign(ga)
+        a, ga = np.where(same, m, a), np.where(same, gm, ga)
+        b = np.where(same, b, m)
+    d = np.where(found, 0.5 * (a + b), d0)
+    load = a_rad / (d * d) - push
+    da = np.where(found, law(0, load), 0.5 * d0)
+    db = np.where(found, law(1, load), 0.5 * d0)
+    return da, db

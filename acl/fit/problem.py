@@ -1,0 +1,162 @@
+"""Assemble a fit problem: design + data -> prepared rows + the free coefficients (names in docs/data.md).
+
+Names accepted by ``--free`` and by ``free`` design parameters:
+
+* ``gamma`` -- thrust coefficient (N/V^2) of the (first) actuator at the reference frequency; a design
+  parameter used as a capsule's ``thrust`` stands for it;
+* ``alpha`` -- Bjerknes coefficient of paper Eq. (3) (N m^2/V^2); a design parameter named ``alpha``
+  gives its value and bounds;
+* ``E`` -- Young's modulus of the beams (fitted as a scale of the declared value); a design
+  parameter used as a material's ``youngs`` stands for it;
+* ``gain`` -- transducer gain scale (degenerate with gamma and alpha: free only with both fixed).
+
+Other free design parameters (geometry) are refused with a diagnostic (E812): the fit model does not
+re-resolve geometry per iteration.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from acl.diagnostics import DiagnosticError, Span, error, suggest
+from acl.fit.solve import Coef
+
+COEFFICIENTS = ("gamma", "alpha", "E", "gain")
+
+
+@dataclass
+class Problem:
+    path: str
+    design: object
+    data: object
+    prepared: object
+    coefs: list
+    y: np.ndarray
+    sigma: np.ndarray
+    param_roles: dict          # design param name -> role
+
+
+def load_problem(design_path, data_paths, free=(), search_paths=()):
+    """Load design and data, build the rows and the free coefficients; DiagnosticError on any problem."""
+    import acl
+    from acl.fit.data import read_data
+    from acl.fit.forward import prepare
+    from acl.fit.mechanism import build_instance
+
+    design = acl.load(design_path, search_paths=search_paths)
+    data = read_data(data_paths, design)
+    cache: dict = {}
+
+    def load_instance(key):
+        if key not in cache:
+            try:
+                d = acl.load(design_path, overrides=dict(key), search_paths=search_paths) if key else design
+            except DiagnosticError as exc:
+                row = next(i for i in range(data.n) if data.override_key(i) == key)
+                sp = data.spans[row]
+                raise DiagnosticError([error("E805", f"the design does not resolve with "
+                                             f"{', '.join(f'{k} = {v}' for k, v in key)}: {exc.diagnostics[0].message}",
+                                             Span(file=sp.file, line=sp.line, column=1),
+                                             f"see {exc.diagnostics[0].location()}")])
+            cache[key] = build_instance(d)
+        return cache[key]
+
+    P = prepare(data, load_instance)
+    roles = classify_params(design_path, design, search_paths)
+    names = [p.name for p in design.params if p.free] + [n for n in free if n]
+    coefs = []
+    seen = set()
+    for name in names:
+        role = name if name in COEFFICIENTS else roles.get(name)
+        if role is None:
+            cands = [*COEFFICIENTS, *[p.name for p in design.params]]
+            raise DiagnosticError([error("E-USAGE", f"--free {name}: not a design parameter nor a model coefficient",
+                                         Span(file="<--free>", line=1, column=1),
+                                         suggest(name, cands) or f"names: {', '.join(cands)}")])
+        if role == "geometry":
+            p = design.param(name)
+            raise DiagnosticError([error("E812", f"parameter `{name}` changes the geometry; the fit model cannot "
+                                         "fit geometry yet", p.span, "fix it, or give it per row with set:" + name)])
+        if role == "unused":
+            p = design.param(name)
+            raise DiagnosticError([error("E812", f"parameter `{name}` is not used by the design: the data cannot "
+                                         "determine it", p.span)])
+        if role in seen:
+            continue
+        seen.add(role)
+        coefs.append(_coef(role, name, design, P))
+    y = data.value
+    return Problem(design_path, design, data, P, coefs, y, data.sigma, roles)
+
+
+def _coef(role, name, design, P) -> Coef:
+    dp = name if name not in COEFFICIENTS or _has_param(design, name) else None
+    if role == "gamma":
+        v = P.gamma0
+        lo, hi = v / 1e3, v * 1e3
+        if dp and _has_param(design, dp):
+            p = design.param(dp)
+            ratio = v / p.value if p.value else 1.0
+            lo = p.lower * ratio if p.lower is not None else lo
+            hi = p.upper * ratio if p.upper is not None else hi
+        return Coef("gamma", "gamma", v, lo, hi, v, "N/V^2", design_param=dp)
+    if role == "alpha":
+        v = P.alpha0
+        lo, hi = v / 1e3, v * 1e3
+        if _has_param(design, "alpha"):
+            p = design.param("alpha")
+            lo = p.lower if p.lower is not None else lo
+            hi = p.upper if p.upper is not None else hi
+        return Coef("alpha", "alpha", v, lo, hi, v, "N*m^2/V^2", design_param="alpha" if _has_param(design, "alpha") else None)
+    if role == "E":
+        return Coef("E", "e_scale", 1.0, 0.01, 100.0, 1.0, "", design_param=dp)
+    return Coef("gain", "gain", 1.0, 0.01, 100.0, 1.0, "")
+
+
+def _has_param(design, name):
+    return any(p.name == name for p in design.params)
+
+
+def classify_params(path, design, search_paths=()) -> dict:
+    """Role of each design parameter, found by perturbing it: gamma | E | alpha | geometry | unused."""
+    import acl
+
+    roles = {}
+    base = design.model_dump(exclude={"params", "sources", "file"})
+    for p in design.params:
+        if p.name == "alpha":
+            roles[p.name] = "alpha"
+            continue
+        if not p.value:
+            roles[p.name] = "geometry"
+            continue
+        try:
+            d = acl.load(path, overrides={p.name: f"{p.value * 1.01!r} {p.unit}".strip()}, search_paths=search_paths)
+        except DiagnosticError:
+            roles[p.name] = "geometry"
+            continue
+        new = d.model_dump(exclude={"params", "sources", "file"})
+        changed = set(_diff(base, new))
+        if not changed:
+            roles[p.name] = "alpha" if p.name == "alpha" else ("gamma" if p.name == "gamma" else "unused")
+        elif all(c.endswith("thrust_coefficient") for c in changed):
+            roles[p.name] = "gamma"
+        elif all(c.endswith("youngs_modulus") for c in changed):
+            roles[p.name] = "E"
+        else:
+            roles[p.name] = "geometry"
+    return roles
+
+
+def _diff(a, b, path=""):
+    if isinstance(a, dict) and isinstance(b, dict):
+        for k in a:
+            if k == "span":
+                continue
+            yield from _diff(a[k], b.get(k), f"{path}.{k}")
+    elif isinstance(a, (list, tuple)) and isinstance(b, (list, tuple)) and len(a) == len(b):
+        for i, (x, y) in enumerate(zip(a, b)):
+            yield from _diff(x, y, f"{path}[{i}]")
+    elif a != b:
+        yield path

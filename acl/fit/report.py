@@ -1,0 +1,254 @@
+"""Before/after report of a fit: rich table, ``report.json`` (fields in docs/fit.md), PNG figures, atomically."""
+from __future__ import annotations
+
+import json
+import math
+import os
+
+import numpy as np
+
+from acl.fit import solve
+from acl.fit.effects import EFFECTS
+
+REPORT_VERSION = 1
+
+
+def param_entries(fit, problem) -> list[dict]:
+    """Each fitted coordinate with value, 95 % interval and the user-facing form (E in Pa, v_sat in V, ...)."""
+    P = problem.prepared
+    out = []
+    for k, c in enumerate(fit.coefs):
+        v, se = float(fit.values[k]), float(fit.stderr[k])
+        lo, hi = (float(x) for x in fit.ci[k])
+        e = {"name": c.name, "value": _n(v), "unit": c.unit, "stderr": _n(se), "ci95": [_n(lo), _n(hi)],
+             "initial": _n(c.value), "lower": _n(c.lower), "upper": _n(c.upper), "design_param": c.design_param}
+        if c.kind == "gamma":
+            e["note"] = f"thrust coefficient of the first actuator at f_ref = {P.f_ref:.6g} Hz"
+        if c.kind == "e_scale":
+            e.update(name="E", value=_n(v * P.E0), unit="Pa", stderr=_n(se * P.E0), ci95=[_n(lo * P.E0), _n(hi * P.E0)],
+                     initial=_n(P.E0), note="Young's modulus of the beams (fitted as a scale of the declared value)")
+        if c.kind == "effect":
+            spec = next(p for p in EFFECTS[c.effect].params if p.name == c.param)
+            if spec.report:
+                name, val, unit = spec.report(v)
+                e["reported"] = {"name": name, "value": _n(val), "unit": unit}
+        out.append(e)
+    return out
+
+
+def per_observable(problem, fit) -> dict:
+    d = problem.data
+    w = 1.0 / np.where(np.isfinite(problem.sigma), problem.sigma, solve.NOMINAL_SIGMA)
+    out = {}
+    for name in sorted(set(d.observable)):
+        m = d.observable == name
+        r = fit.residual[m]
+        out[name] = {"n": int(m.sum()), "rmse": _n(float(np.sqrt(np.mean(r * r)))),
+                     "redchi": _n(float(np.sum((r * w[m]) ** 2) / max(m.sum() - fit.p * m.mean(), 1)))}
+    return out
+
+
+def critical_distance(fit, problem) -> dict | None:
+    """d_c = sqrt(alpha/(2 gamma)) (paper Eq. 3) with a delta-method 95 % interval, when both were fitted or known."""
+    P = problem.prepared
+    if not np.any(P.pair):
+        return None
+    names = [c.kind for c in fit.coefs]
+    a = fit.values[names.index("alpha")] if "alpha" in names else P.alpha0
+    g = fit.values[names.index("gamma")] if "gamma" in names else P.gamma0
+    va = (fit.stderr[names.index("alpha")] / a) ** 2 if "alpha" in names else 0.0
+    vg = (fit.stderr[names.index("gamma")] / g) ** 2 if "gamma" in names else 0.0
+    cov = 0.0
+    if "alpha" in names and "gamma" in names:
+        i, j = names.index("alpha"), names.index("gamma")
+        cov = fit.corr[i, j] * fit.stderr[i] * fit.stderr[j] / (a * g)
+    dc = math.sqrt(a / (2 * g))
+    rel = 0.5 * math.sqrt(max(va + vg - 2 * cov, 0.0))
+    return {"value": _n(dc), "unit": "m", "stderr": _n(dc * rel), "ci95": [_n(dc * (1 - 1.96 * rel)), _n(dc * (1 + 1.96 * rel))],
+            "formula": "sqrt(alpha / (2 gamma)), paper Eq. (3)"}
+
+
+def build_report(problem, selection, tests_before, tests_after, calibrated_name=None) -> dict:
+    from acl.fit.residuals import structured
+
+    base, final = selection.base, selection.final
+    P = problem.prepared
+    tried = []
+    for t in selection.trials:
+        item = {"effect": t.effect, "round": t.round, "status": t.status, "reason": t.reason,
+                "f_statistic": _n(t.f_stat), "p_value": _n(t.p_value), "delta_bic": _n(t.delta_bic),
+                "delta_aicc": _n(t.delta_aicc), "cv_mse": _n(t.cv), "cv_mse_current": _n(t.cv_current)}
+        if t.fit is not None:
+            item["rmse"] = _n(t.fit.rmse)
+            item["parameters"] = [e for e in param_entries(t.fit, problem) if e["name"].startswith(t.effect + ".")]
+        tried.append(item)
+    return {
+        "version": REPORT_VERSION,
+        "design": problem.path,
+        "data": list(problem.data.files),
+        "rows": problem.data.n,
+        "f_ref": P.f_ref,
+        "sigma_given": problem.data.has_sigma,
+        "base": {"parameters": param_entries(base, problem), "rmse": _n(base.rmse), "redchi": _n(base.redchi),
+                 "chi2": _n(base.chi2), "aicc": _n(base.aicc), "bic": _n(base.bic), "warnings": base.warnings,
+                 "per_observable": per_observable(problem, base)},
+        "residual_tests_before": [t.as_dict() for t in tests_before],
+        "effects_tried": tried,
+        "effects_selected": list(selection.selected),
+        "final": {"parameters": param_entries(final, problem), "effects": selection.effects,
+                  "rmse": _n(final.rmse), "redchi": _n(final.redchi), "chi2": _n(final.chi2),
+                  "aicc": _n(final.aicc), "bic": _n(final.bic), "warnings": final.warnings,
+                  "per_observable": per_observable(problem, final)},
+        "critical_distance": critical_distance(final, problem),
+        "rmse_before": _n(base.rmse),
+        "rmse_after": _n(final.rmse),
+        "unexplained": [t.as_dict() for t in structured(tests_after)],
+        "residual_tests_after": [t.as_dict() for t in tests_after],
+        "calibrated_design": calibrated_name,
+    }
+
+
+def render_table(report, console=None) -> None:
+    """Rich tables: parameters before/after, per-observable and overall errors, effects tried."""
+    from rich.console import Console
+    from rich.table import Table
+
+    con = console or Console(highlight=False)
+    t = Table(title="fit: before (base model) and after (with selected effects)")
+    for col in ("observable", "n", "RMSE before", "RMSE after", "red. chi2 before", "red. chi2 after"):
+        t.add_column(col, justify="right" if col != "observable" else "left")
+    b, a = report["base"]["per_observable"], report["final"]["per_observable"]
+    for name in b:
+        t.add_row(name, str(b[name]["n"]), _um(b[name]["rmse"]), _um(a[name]["rmse"]),
+                  _g(b[name]["redchi"]), _g(a[name]["redchi"]))
+    t.add_row("[bold]overall", str(report["rows"]), _um(report["rmse_before"]), _um(report["rmse_after"]),
+              _g(report["base"]["redchi"]), _g(report["final"]["redchi"]))
+    con.print(t)
+    pt = Table(title="parameters (95 % intervals)")
+    for col in ("parameter", "before", "after", "95 % interval", "unit"):
+        pt.add_column(col)
+    before = {p["name"]: p for p in report["base"]["parameters"]}
+    for p in report["final"]["parameters"]:
+        shown = p.get("reported")
+        pt.add_row(p["name"], _g(before[p["name"]]["value"]) if p["name"] in before else "-", _g(p["value"]),
+                   f"[{_g(p['ci95'][0])}, {_g(p['ci95'][1])}]",
+                   p["unit"] + (f"  ({shown['name']} = {_g(shown['value'])} {shown['unit']})" if shown else ""))
+    con.print(pt)
+    if report.get("critical_distance"):
+        dc = report["critical_distance"]
+        con.print(f"critical distance d_c = sqrt(alpha/(2 gamma)) = {_um(dc['value'])} "
+                  f"[{_um(dc['ci95'][0])}, {_um(dc['ci95'][1])}]")
+    et = Table(title="effects tried")
+    for col in ("round", "effect", "status", "F-test p", "dBIC", "CV", "reason"):
+        et.add_column(col)
+    for e in report["effects_tried"]:
+        et.add_row(str(e["round"]), e["effect"], e["status"], _g(e["p_value"]), _g(e["delta_bic"]),
+                   _g(e["cv_mse"]), e["reason"])
+    con.print(et)
+    sel = report["effects_selected"]
+    con.print(f"effects selected: {', '.join(sel) if sel else 'none'}")
+    for w in report["final"]["warnings"]:
+        con.print(f"[yellow]warning:[/yellow] {w}")
+    if report["unexplained"]:
+        for u in report["unexplained"]:
+            con.print(f"[yellow]unexplained:[/yellow] the residual still follows {u['covariate']} "
+                      f"({u['test']}, statistic {_g(u['statistic'])}, p = {_g(u['p_value'])}); "
+                      "no effect in the library explains it")
+    else:
+        con.print("no structure left in the residual (every test p_adjusted >= 0.01)")
+
+
+def figures(problem, selection, outdir) -> list[str]:
+    """fit.png (data and model before/after vs voltage) and residuals.png (residual vs every covariate)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from acl.fit.residuals import covariates
+
+    P, d = problem.prepared, problem.data
+    volts = P.v.sum(axis=1)
+    names = sorted(set(d.observable))
+    files = []
+    fig, axes = plt.subplots(2, 2 * len(names), figsize=(6 * len(names) + 2, 7), squeeze=False)
+    for j, name in enumerate(names):
+        m = d.observable == name
+        for k, (label, fit) in enumerate((("before", selection.base), ("after", selection.final))):
+            ax = axes[0, 2 * j + k]
+            ax.plot(volts[m], d.value[m] * 1e6, ".", ms=3, label="data")
+            ax.plot(volts[m], fit.prediction[m] * 1e6, "x", ms=3, label="model")
+            ax.set_title(f"{name}: {label}")
+            ax.set_xlabel("voltage (V)")
+            ax.set_ylabel("um")
+            ax.legend(fontsize=7)
+            ax = axes[1, 2 * j + k]
+            ax.plot(volts[m], fit.residual[m] * 1e6, ".", ms=3)
+            ax.axhline(0, color="k", lw=0.5)
+            ax.set_xlabel("voltage (V)")
+            ax.set_ylabel(f"residual {label} (um)")
+    fig.tight_layout()
+    path = os.path.join(outdir, "fit.png")
+    fig.savefig(path, dpi=90)
+    plt.close(fig)
+    files.append("fit.png")
+    cov = covariates(d, P, selection.final.prediction)
+    usable = [(k, v) for k, v in cov.items() if np.unique(v[np.isfinite(v)]).size >= 2]
+    fig, axes = plt.subplots(2, max(1, len(usable)), figsize=(3.2 * max(1, len(usable)), 6), squeeze=False)
+    for j, (k, x) in enumerate(usable):
+        for i, (label, fit) in enumerate((("before", selection.base), ("after", selection.final))):
+            ax = axes[i, j]
+            ax.plot(x, fit.residual * 1e6, ".", ms=2)
+            ax.axhline(0, color="k", lw=0.5)
+            ax.set_xlabel(k)
+            ax.set_ylabel(f"residual {label} (um)")
+    fig.tight_layout()
+    fig.savefig(os.path.join(outdir, "residuals.png"), dpi=90)
+    plt.close(fig)
+    files.append("residuals.png")
+    return files
+
+
+def write_report_dir(target, write) -> None:
+    """Run ``write(tmpdir)`` then move the directory to ``target`` atomically (rename)."""
+    import shutil
+    import tempfile
+
+    target = os.path.abspath(target)
+    parent = os.path.dirname(target) or "."
+    os.makedirs(parent, exist_ok=True)
+    tmp = tempfile.mkdtemp(prefix=".acl-fit-", dir=parent)
+    try:
+        write(tmp)
+        if os.path.isdir(target):
+            old = tempfile.mkdtemp(prefix=".acl-fit-old-", dir=parent)
+            os.rmdir(old)
+            os.rename(target, old)
+            os.rename(tmp, target)
+            shutil.rmtree(old, ignore_errors=True)
+        else:
+            os.rename(tmp, target)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+
+
+def dump_json(report, path) -> None:
+    with open(path, "w", encoding="utf-8") as fh:
+        json.dump(report, fh, indent=2, allow_nan=False)
+        fh.write("\n")
+
+
+def _n(x):
+    if x is None:
+        return None
+    x = float(x)
+    return x if math.isfinite(x) else None
+
+
+def _g(x):
+    return "-" if x is None else f"{x:.4g}"
+
+
+def _um(x):
+    return "-" if x is None else f"{x * 1e6:.4g} um"

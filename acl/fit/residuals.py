@@ -1,0 +1,98 @@
+"""Structure in a residual: trend, runs and heteroscedasticity against every covariate the data have.
+
+For each covariate with at least 3 distinct values: Spearman rank correlation of residual vs
+covariate (trend), the Wald-Wolfowitz runs test on the residual signs ordered by the covariate
+(curvature, plateaus, any non-monotone structure), and Spearman correlation of |residual| vs
+covariate (heteroscedasticity, a Breusch-Pagan-like check robust to outliers).  A finding is
+reported when its Bonferroni-adjusted p-value (over all tests run) is below ``alpha``.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+ALPHA = 0.01
+
+
+@dataclass
+class Test:
+    covariate: str
+    test: str              # "trend" | "runs" | "heteroscedasticity"
+    statistic: float
+    p_value: float
+    p_adjusted: float = 1.0
+
+    def as_dict(self):
+        return {"covariate": self.covariate, "test": self.test, "statistic": _num(self.statistic),
+                "p_value": _num(self.p_value), "p_adjusted": _num(self.p_adjusted)}
+
+
+def covariates(data, P, prediction) -> dict[str, np.ndarray]:
+    """Covariates of each row: voltage (sum of tone amplitudes), frequency (strongest tone),
+    time, every numeric set: column, the predicted value (deflection/gap/position) and the
+    actuator height above the substrate."""
+    out = {}
+    out["voltage"] = P.v.sum(axis=1)
+    strongest = np.argmax(P.v, axis=1)
+    out["frequency"] = P.f[np.arange(P.n), strongest]
+    if data.has_time:
+        out["time"] = np.where(np.isfinite(data.time), data.time, np.nan)
+    for k, v in data.set_si.items():
+        out[f"set:{k}"] = v
+    out["prediction"] = prediction
+    out["height"] = P.height[0]
+    return out
+
+
+def runs_test(signs_in_order) -> tuple[float, float]:
+    """Wald-Wolfowitz runs test (normal approximation): (z, two-sided p)."""
+    s = np.asarray(signs_in_order)
+    s = s[s != 0]
+    n1, n2 = int(np.sum(s > 0)), int(np.sum(s < 0))
+    n = n1 + n2
+    if n1 == 0 or n2 == 0 or n < 3:
+        return float("nan"), 1.0
+    runs = 1 + int(np.sum(s[1:] != s[:-1]))
+    mu = 2.0 * n1 * n2 / n + 1
+    var = 2.0 * n1 * n2 * (2.0 * n1 * n2 - n) / (n * n * (n - 1))
+    if var <= 0:
+        return float("nan"), 1.0
+    z = (runs - mu) / math.sqrt(var)
+    return float(z), float(math.erfc(abs(z) / math.sqrt(2)))
+
+
+def examine(residual, cov: dict[str, np.ndarray], weights=None, seed: int = 0) -> list[Test]:
+    """Every test on every usable covariate, p-values Bonferroni-adjusted over the whole list."""
+    from scipy.stats import spearmanr
+
+    r = np.asarray(residual, float) * (1.0 if weights is None else np.asarray(weights, float))
+    rng = np.random.default_rng(seed)
+    tests: list[Test] = []
+    for name, x in cov.items():
+        x = np.asarray(x, float)
+        ok = np.isfinite(x) & np.isfinite(r)
+        if np.unique(x[ok]).size < 3 or ok.sum() < 8:
+            continue
+        xs, rs = x[ok], r[ok]
+        rho, p = spearmanr(xs, rs)
+        tests.append(Test(name, "trend", float(rho), float(p) if np.isfinite(p) else 1.0))
+        order = np.lexsort((rng.random(xs.size), xs))     # ties broken at random, fixed seed
+        z, p = runs_test(np.sign(rs[order]))
+        tests.append(Test(name, "runs", z, p))
+        rho, p = spearmanr(xs, np.abs(rs))
+        tests.append(Test(name, "heteroscedasticity", float(rho), float(p) if np.isfinite(p) else 1.0))
+    m = max(len(tests), 1)
+    for t in tests:
+        t.p_adjusted = min(1.0, t.p_value * m)
+    return tests
+
+
+def structured(tests: list[Test], alpha: float = ALPHA) -> list[Test]:
+    return sorted([t for t in tests if t.p_adjusted < alpha], key=lambda t: t.p_value)
+
+
+def _num(x):
+    x = float(x)
+    return x if math.isfinite(x) else None

@@ -1,0 +1,191 @@
+"""Trace a structured residual to a missing effect: fit each candidate on top of the current model, keep the best.
+
+A candidate is added when, against the current model, (1) the nested F-test gives p < ``P_LIMIT``,
+(2) BIC improves, (3) the k-fold cross-validated weighted error improves (folds fixed by ``seed``),
+and (4) its parameters are identifiable (full-rank Jacobian, relative standard error < 1).  Among
+the candidates that pass, the lowest BIC wins; the loop repeats until none passes.  Cross-validation
+is computed only for candidates that pass (1), (2) and (4) (documented; keeps the fit fast).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from acl.fit import solve
+from acl.fit.effects import EFFECTS
+
+P_LIMIT = 0.01
+K_FOLDS = 5
+
+
+@dataclass
+class Trial:
+    effect: str
+    round: int
+    status: str                     # "selected" | "rejected" | "not applicable"
+    reason: str
+    fit: object = None
+    f_stat: float = float("nan")
+    p_value: float = float("nan")
+    delta_bic: float = float("nan")
+    delta_aicc: float = float("nan")
+    cv: float | None = None
+    cv_current: float | None = None
+
+
+@dataclass
+class Selection:
+    base: object
+    final: object
+    selected: list
+    trials: list = field(default_factory=list)
+    effects: dict = field(default_factory=dict)      # effect id -> {param: value}
+
+
+def applicable(eid, problem, current_kinds) -> str | None:
+    """Why effect ``eid`` cannot be tried on these data (None if it can)."""
+    P, data = problem.prepared, problem.data
+    eff = EFFECTS[eid]
+    active = P.v.sum(axis=1) > 0
+    for req in eff.requires:
+        if req == "time" and not data.has_time:
+            return "the data have no time column"
+        if req == "frequencies" and np.unique(P.f[P.v > 0]).size < 2:
+            return "the data have fewer than two drive frequencies"
+        if req == "single" and not np.any(~P.pair & active):
+            return "only for an actuator on its own (paper Eq. (3) already has the partner's jet drag)"
+        if req == "lengths" and np.unique(np.round(P.L[0][active], 12)).size < 2:
+            return "every row has the same beam length"
+        if req == "heights" and np.unique(np.round(P.height[0][active], 12)).size < 2:
+            return "every row has the actuator at the same height"
+    if eid == "stiffness_scale" and "e_scale" in current_kinds:
+        return "E is already free"
+    return None
+
+
+def effect_coefs(eid, problem) -> tuple[list, list]:
+    """Coefficients of effect ``eid`` (start values scaled to the data) and extra starting points."""
+    P, data = problem.prepared, problem.data
+    defl = float(np.max(np.abs(data.value - P.base))) or 1e-6
+    tspan = float(np.nanmax(data.time) - np.nanmin(data.time)) if data.has_time else 1.0
+    tspan = tspan or 1.0
+    mags = {"1": 1.0, "vmax": 1.0 / P.vmax**2, "deflection": defl, "deflection/time": defl / tspan,
+            "1/time": 1.0 / tspan, "1/deflection": 1.0 / defl, "height": float(np.median(P.height[0]))}
+    eff = EFFECTS[eid]
+    coefs = []
+    for p in eff.params:
+        s = mags[p.scale]
+        start = p.start * s if p.scale != "1" else p.start
+        lower, upper = p.lower, p.upper
+        if p.scale in ("vmax", "1/deflection", "1/time"):
+            upper = min(upper, 1e3 * s)
+        coefs.append(solve.Coef(f"{eid}.{p.name}", "effect", start, lower, upper, s if p.scale != "1" else 1.0,
+                                p.unit, effect=eid, param=p.name))
+    starts = []
+    for st in eff.starts:
+        starts.append([v * c.scale for v, c in zip(st, coefs)])
+    return coefs, starts
+
+
+def cross_validate(problem, coefs, x0, k=K_FOLDS, seed=0) -> float:
+    """k-fold cross-validated mean squared weighted residual (folds from a fixed seed)."""
+    P = problem.prepared
+    n = problem.y.size
+    folds = np.array_split(np.random.default_rng(seed).permutation(n), k)
+    w = 1.0 / np.where(np.isfinite(problem.sigma), problem.sigma, solve.NOMINAL_SIGMA)
+    sq = []
+    from acl.fit.forward import predict
+
+    for fold in folds:
+        train = np.setdiff1d(np.arange(n), fold)
+        start = [dict(zip([c.name for c in coefs], x0))[c.name] for c in coefs]
+        cs = [solve.Coef(c.name, c.kind, v, c.lower, c.upper, c.scale, c.unit, c.effect, c.param, c.design_param)
+              for c, v in zip(coefs, start)]
+        r = solve.fit(lambda a, b: predict(P, a, b), problem.y, problem.sigma, cs, train=train, max_nfev=60)
+        sq.append(((r.residual[fold]) * w[fold]) ** 2)
+    return float(np.mean(np.concatenate(sq)))
+
+
+def select_effects(problem, candidates=None, p_limit=P_LIMIT, k_folds=K_FOLDS, seed=0, max_rounds=4,
+                   progress=None) -> Selection:
+    from acl.fit.forward import predict
+
+    P = problem.prepared
+
+    def model(a, b):
+        return predict(P, a, b)
+
+    base = solve.fit(model, problem.y, problem.sigma, problem.coefs)
+    current_coefs = list(problem.coefs)
+    current = base
+    selected: list[str] = []
+    trials: list[Trial] = []
+    cv_current = None
+    names = list(candidates) if candidates is not None else list(EFFECTS)
+    for rnd in range(1, max_rounds + 1):
+        passing = []
+        kinds = {c.kind for c in current_coefs}
+        for eid in names:
+            if eid in selected:
+                continue
+            why = applicable(eid, problem, kinds)
+            if why:
+                if rnd == 1:
+                    trials.append(Trial(eid, rnd, "not applicable", why))
+                continue
+            if progress:
+                progress(f"round {rnd}: trying {eid}")
+            ecoefs, estarts = effect_coefs(eid, problem)
+            coefs = [solve.Coef(c.name, c.kind, v, c.lower, c.upper, c.scale, c.unit, c.effect, c.param, c.design_param)
+                     for c, v in zip(current_coefs, current.values)] + ecoefs
+            starts = [list(current.values) + s for s in estarts]
+            trial_fit = solve.fit(model, problem.y, problem.sigma, coefs, starts=starts)
+            F, p = solve.f_test(current.chi2, current.p, trial_fit.chi2, trial_fit.p, problem.y.size)
+            t = Trial(eid, rnd, "rejected", "", trial_fit, F, p, trial_fit.bic - current.bic,
+                      trial_fit.aicc - current.aicc)
+            loose = _loose(trial_fit)
+            if not trial_fit.identifiable:
+                t.reason = "not identifiable from these data: " + "; ".join(
+                    w for w in trial_fit.warnings if "identifiable" in w)
+            elif not p < p_limit:
+                t.reason = f"not significant (F-test p = {p:.3g} >= {p_limit})"
+            elif loose:
+                t.reason = "not identifiable from these data: " + ", ".join(loose) + " (relative standard error > 1)"
+            elif not t.delta_bic < 0:
+                t.reason = f"BIC does not improve (dBIC = {t.delta_bic:+.3g})"
+            else:
+                if cv_current is None:
+                    cv_current = cross_validate(problem, current_coefs, current.values, k_folds, seed)
+                t.cv_current = cv_current
+                t.cv = cross_validate(problem, coefs, trial_fit.values, k_folds, seed)
+                if not t.cv < cv_current:
+                    t.reason = f"cross-validated error does not improve ({t.cv:.4g} >= {cv_current:.4g})"
+                else:
+                    t.reason = "passes F-test, BIC and cross-validation"
+                    passing.append(t)
+            trials.append(t)
+        if not passing:
+            break
+        best = min(passing, key=lambda t: t.fit.bic)
+        best.status = "selected"
+        for t in passing:
+            if t is not best:
+                t.reason += f"; {best.effect} explains more (lower BIC)"
+        selected.append(best.effect)
+        current = best.fit
+        current_coefs = list(best.fit.coefs)
+        cv_current = best.cv
+    effects = solve.split_coefs(current.coefs, current.values)[1]
+    return Selection(base, current, selected, trials, effects)
+
+
+def _loose(fit) -> list[str]:
+    """Effect parameters whose standard error exceeds their distance from the effect's null value."""
+    out = []
+    for c, v, se in zip(fit.coefs, fit.values, fit.stderr):
+        if c.kind == "effect":
+            null = next(p.null for p in EFFECTS[c.effect].params if p.name == c.param)
+            if not np.isfinite(se) or se > abs(v - null):
+                out.append(c.name)
+    return out

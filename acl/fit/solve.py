@@ -1,0 +1,190 @@
+"""Bounded, weighted nonlinear least squares with lmfit-style statistics (values, intervals, correlations, warnings).
+
+Coordinates are fitted in units of their typical magnitude (``Coef.scale``) with
+``scipy.optimize.least_squares(method="trf", x_scale="jac")``; weights are 1/sigma (unit weights of
+1 um when the data give no sigma, the scale then estimated from the residual).  Covariance
+cov = s^2 (J^T J)^-1 with s^2 the reduced chi-square (lmfit's default), intervals from Student's t.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+NOMINAL_SIGMA = 1e-6      # m: weight unit when the data give no sigma
+CORR_STRONG = 0.9
+
+
+@dataclass
+class Coef:
+    """One fitted coordinate: a model coefficient (gamma, alpha, E, gain) or an effect parameter."""
+
+    name: str                 # shown to the user: gamma, alpha, E, gain, or effect.param
+    kind: str                 # "gamma" | "alpha" | "e_scale" | "gain" | "effect"
+    value: float              # current / initial value (internal coordinate, SI)
+    lower: float
+    upper: float
+    scale: float              # typical magnitude (fit coordinate = value / scale)
+    unit: str = ""
+    effect: str | None = None
+    param: str | None = None
+    design_param: str | None = None   # the design parameter it stands for, if any
+
+
+@dataclass
+class FitResult:
+    coefs: list
+    values: np.ndarray
+    stderr: np.ndarray
+    ci: np.ndarray                    # (p, 2) 95 % interval
+    corr: np.ndarray
+    prediction: np.ndarray            # (n,) SI, all rows
+    residual: np.ndarray              # (n,) prediction - data, SI
+    train: np.ndarray                 # rows used
+    n: int
+    p: int
+    chi2: float                       # weighted sum of squares (train rows)
+    redchi: float
+    rmse: float                       # SI, unweighted, train rows
+    aicc: float
+    bic: float
+    success: bool
+    message: str
+    warnings: list = field(default_factory=list)
+    identifiable: bool = True
+
+    def value(self, name):
+        for c, v in zip(self.coefs, self.values):
+            if c.name == name:
+                return float(v)
+        raise KeyError(name)
+
+    def as_inputs(self):
+        return split_coefs(self.coefs, self.values)
+
+
+def split_coefs(coefs, values, fixed_effects=None):
+    """(coeffs dict, effects dict) for acl.fit.forward.predict from coordinates and values."""
+    coeffs: dict = {}
+    effects: dict = {k: dict(v) for k, v in (fixed_effects or {}).items()}
+    for c, v in zip(coefs, values):
+        if c.kind == "effect":
+            effects.setdefault(c.effect, {})[c.param] = float(v)
+        else:
+            coeffs[c.kind] = float(v)
+    return coeffs, effects
+
+
+def fit(predict, y, sigma, coefs, train=None, starts=None, max_nfev=200) -> FitResult:
+    """Fit ``coefs`` so that ``predict(coeffs, effects)`` matches ``y`` on rows ``train``.
+
+    ``starts``: extra starting vectors (values); the best (lowest cost) solution is kept.
+    """
+    from scipy.optimize import least_squares
+
+    n_all = y.size
+    train = np.arange(n_all) if train is None else np.asarray(train)
+    w = 1.0 / np.where(np.isfinite(sigma), sigma, NOMINAL_SIGMA)
+    scale = np.array([c.scale for c in coefs], float)
+    lo = np.array([c.lower for c in coefs], float) / scale if coefs else np.zeros(0)
+    hi = np.array([c.upper for c in coefs], float) / scale if coefs else np.zeros(0)
+
+    def full(u):
+        coeffs, effects = split_coefs(coefs, u * scale)
+        return predict(coeffs, effects)
+
+    def resid(u):
+        r = (full(u)[train] - y[train]) * w[train]
+        return np.where(np.isfinite(r), r, 1e6)
+
+    best, message, success = None, "no free parameters", True
+    x0s = [np.array([c.value for c in coefs], float)] + [np.asarray(s, float) for s in (starts or [])]
+    if coefs:
+        for x0 in x0s:
+            u0 = np.clip(x0 / scale, lo, hi)
+            span = hi - lo
+            u0 = np.clip(u0, lo + 1e-6 * span, hi - 1e-6 * span)
+            try:
+                sol = least_squares(resid, u0, bounds=(lo, hi), method="trf", x_scale="jac",
+                                    max_nfev=max_nfev, xtol=1e-10, ftol=1e-10, gtol=1e-10)
+            except ValueError as exc:
+                message, success = str(exc), False
+                continue
+            if best is None or sol.cost < best.cost:
+                best = sol
+        if best is None:
+            u, J = x0s[0] / scale, np.zeros((train.size, len(coefs)))
+        else:
+            u, J, message, success = best.x, best.jac, best.message, bool(best.status > 0)
+    else:
+        u, J = np.zeros(0), np.zeros((train.size, 0))
+    pred = full(u)
+    r = pred - y
+    rw = r[train] * w[train]
+    n, p = train.size, len(coefs)
+    chi2 = float(rw @ rw)
+    dof = max(n - p, 1)
+    redchi = chi2 / dof
+    values = u * scale
+    stderr = np.full(p, np.nan)
+    corr = np.eye(p)
+    warnings: list[str] = []
+    identifiable = True
+    if p:
+        sv = np.linalg.svd(J, compute_uv=False)
+        if sv.size == 0 or sv[-1] <= 1e-9 * max(sv[0], 1e-300):
+            identifiable = False
+            warnings.append("the parameters are not all identifiable from these data (rank-deficient Jacobian)")
+        else:
+            try:
+                cov_u = np.linalg.inv(J.T @ J) * redchi
+            except np.linalg.LinAlgError:
+                cov_u = np.linalg.pinv(J.T @ J) * redchi
+                identifiable = False
+                warnings.append("the parameters are not all identifiable from these data (singular J^T J)")
+            stderr = np.sqrt(np.clip(np.diag(cov_u), 0, None)) * scale
+            d = np.sqrt(np.clip(np.diag(cov_u), 1e-300, None))
+            with np.errstate(all="ignore"):
+                corr = np.nan_to_num(cov_u / np.outer(d, d))
+    from scipy.stats import t as student
+
+    tq = float(student.ppf(0.975, dof))
+    ci = np.column_stack([values - tq * stderr, values + tq * stderr])
+    for k, c in enumerate(coefs):
+        span = c.upper - c.lower
+        if np.isfinite(span) and (abs(values[k] - c.lower) <= 1e-4 * span or abs(c.upper - values[k]) <= 1e-4 * span):
+            if not (c.kind == "effect" and abs(values[k] - c.lower) <= 1e-4 * span and c.lower == 0.0):
+                warnings.append(f"{c.name} is at a bound ({_fmt(values[k])})")
+        rel = stderr[k] / max(abs(values[k]), 1e-300)
+        if c.kind != "effect" and np.isfinite(rel) and rel > 1.0:
+            identifiable = False
+            warnings.append(f"{c.name} is not identifiable (relative standard error {rel:.3g})")
+    for i in range(p):
+        for j in range(i + 1, p):
+            if abs(corr[i, j]) > CORR_STRONG:
+                warnings.append(f"strong correlation {coefs[i].name} / {coefs[j].name}: r = {corr[i, j]:+.3f}")
+    rss_ll = max(chi2, 1e-300)
+    k = p + 1
+    aic = n * math.log(rss_ll / n) + 2 * k
+    aicc = aic + (2 * k * (k + 1)) / max(n - k - 1, 1)
+    bic = n * math.log(rss_ll / n) + k * math.log(n)
+    rmse = float(np.sqrt(np.mean(r[train] ** 2)))
+    return FitResult(list(coefs), values, stderr, ci, corr, pred, r, train, n, p, chi2, redchi, rmse, aicc, bic,
+                     success, str(message), warnings, identifiable)
+
+
+def f_test(chi2_small, p_small, chi2_big, p_big, n) -> tuple[float, float]:
+    """Nested-model F-test: F = ((RSS0 - RSS1)/(p1 - p0)) / (RSS1/(n - p1)); returns (F, p-value)."""
+    from scipy.stats import f as fdist
+
+    dp = p_big - p_small
+    dof = n - p_big
+    if dp <= 0 or dof <= 0 or chi2_big <= 0:
+        return float("nan"), 1.0
+    F = ((chi2_small - chi2_big) / dp) / (chi2_big / dof)
+    return float(F), float(fdist.sf(F, dp, dof)) if F > 0 else 1.0
+
+
+def _fmt(v):
+    return f"{v:.4g}"
