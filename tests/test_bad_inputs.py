@@ -115,3 +115,9 @@ def test_transducer_without_gain_is_a_missing_key_diagnostic():
     with pytest.raises(DiagnosticError) as info:
         acl.loads(text, "no_gain.acl")
     assert [d.code for d in info.value.diagnostics] == ["E204"]
+
+
+def test_parameter_cycle_is_reported_once_naming_the_whole_cycle():
+    _, diags = check_design(str(BAD / "param_cycle.acl"))
+    assert [d.code for d in diags] == ["E214"]
+    assert "a -> b -> a" in diags[0].message
