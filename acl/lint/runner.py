@@ -25,6 +25,7 @@ class FileReport:
     notes: list[str] = field(default_factory=list)
     resolved: bool = True
     seconds: float = 0.0
+    check_seconds: float = 0.0      # of which the check stage (parse, resolve, checks)
 
     @property
     def unreadable(self) -> bool:
@@ -53,6 +54,7 @@ def lint_file(path: str, config: LintConfig, overrides: dict | None = None, sear
     rules = load_rules()
     t0 = time.perf_counter()
     design, check_diags = check_design(path, overrides=overrides or {}, search_paths=search_paths)
+    t_check = time.perf_counter() - t0
     notes: list[str] = []
     source = _read_source(path)
     findings = list(check_diags)
@@ -76,7 +78,7 @@ def lint_file(path: str, config: LintConfig, overrides: dict | None = None, sear
         notes.extend(ctx.notes)
     findings = _apply(findings, source, config, path, design is not None)
     findings.sort(key=_order)
-    return FileReport(path, findings, notes, design is not None, time.perf_counter() - t0)
+    return FileReport(path, findings, notes, design is not None, time.perf_counter() - t0, t_check)
 
 
 def _read_source(path: str) -> SourceFile | None:

@@ -6,6 +6,8 @@ switching and release forces are those of :func:`acl.physics.latch.latch_landsca
 """
 from __future__ import annotations
 
+from functools import lru_cache
+
 import numpy as np
 
 from acl.design.model import Drive, Tone
@@ -15,13 +17,17 @@ from acl.lint.registry import rule
 
 
 def landscape(ctx: Context, latch):
-    def compute():
-        try:
-            from acl.physics.latch import latch_landscape
-        except ImportError as exc:  # pragma: no cover - physics module missing
-            raise Unavailable(f"latch physics unavailable ({exc})") from None
-        return latch_landscape(latch.angle, latch.length, latch.width, latch.thickness, latch.youngs_modulus)
-    return ctx.cached(("latch", latch.name), compute)
+    """The latch's energy landscape, shared by every design with the same latch geometry."""
+    return _landscape(latch.angle, latch.length, latch.width, latch.thickness, latch.youngs_modulus)
+
+
+@lru_cache(maxsize=256)
+def _landscape(angle: float, length: float, width: float, thickness: float, youngs: float):
+    try:
+        from acl.physics.latch import latch_landscape
+    except ImportError as exc:  # pragma: no cover - physics module missing
+        raise Unavailable(f"latch physics unavailable ({exc})") from None
+    return latch_landscape(angle, length, width, thickness, youngs)
 
 
 def _carried(ctx: Context, latch) -> list[str]:

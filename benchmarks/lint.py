@@ -1,0 +1,143 @@
+"""Benchmark `acl lint`: lint N generated designs in one process and print the time per design.
+
+    python benchmarks/lint.py [N]        (default 200)
+
+Designs are variations (seeded) of four shapes: one cantilever, a facing pair, a frequency-
+selective pair and a latch, each with programs, so that every rule family runs.  The first design
+pays the start-up (imports, grammar, stdlib); the figure that matters is the time per design after
+it (target < 50 ms).
+"""
+from __future__ import annotations
+
+import random
+import statistics
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+HEAD = """\
+import stdlib.media
+import stdlib.materials
+import stdlib.capsules
+import stdlib.beams
+import stdlib.transducers
+use medium media.pbs
+use transducer transducers.contact_piezo
+"""
+
+
+def cantilever(rng: random.Random) -> str:
+    r = rng.choice([8, 9, 10, 11, 12, 13])
+    v = rng.uniform(1, 8)
+    return HEAD + f"""\
+param volts = {v:.2f} V
+beam arm like beams.cantilever50 {{ clamp = (0, 0, 0) }}
+capsule a like capsules.design1 {{ orifice jet {{ radius = {r} um, normal = +x }} }}
+mount a on arm.tip
+require resonance(a) in 60 kHz .. 180 kHz
+program ramp {{
+  drive 125 kHz @ volts for 1 s
+  sweep 80 kHz to 160 kHz @ 2 V in 1 s
+}}
+"""
+
+
+def pair(rng: random.Random) -> str:
+    gap = rng.uniform(20, 90)
+    return HEAD + f"""\
+param gap = {gap:.1f} um
+beam left_arm like beams.cantilever50 {{ clamp = (0, 0, 0) }}
+beam right_arm like beams.cantilever50 {{ clamp = (54 um + gap, 0, 0) }}
+capsule left like capsules.design1 {{ thrust = 0.027 nN/V^2 }}
+capsule right like capsules.design1 {{ thrust = 0.027 nN/V^2, orifice jet {{ radius = 10 um, normal = -x }} }}
+mount left on left_arm.tip
+mount right on right_arm.tip
+program ramp {{
+  drive 125 kHz @ 2 V for 1 s
+  drive 125 kHz @ 4 V for 1 s
+}}
+"""
+
+
+def selective(rng: random.Random) -> str:
+    spacing = rng.uniform(80, 200)
+    return HEAD + f"""\
+beam arm_low like beams.cantilever50 {{ clamp = (0, 0, 0) }}
+beam arm_high like beams.cantilever50 {{ clamp = ({spacing:.1f} um, 0, 0) }}
+capsule low like capsules.design2 {{ }}
+capsule high like capsules.design3 {{ }}
+mount low on arm_low.tip
+mount high on arm_high.tip
+require separation(low, high) >= 50 kHz
+program sequential {{
+  drive 85 kHz @ 3 V for 1 s
+  drive 170 kHz @ 3 V for 1 s
+}}
+"""
+
+
+def latch(rng: random.Random) -> str:
+    angle = rng.choice([30, 45, 60])
+    return HEAD + f"""\
+latch l {{
+  angle = {angle} deg
+  length = 50 um
+  width = {rng.choice([0.5, 0.8, 1.0])} um
+  thickness = 1.7 um
+  material = materials.tpeta
+  at = (0, 0, 60 um)
+  axis = +x
+}}
+capsule c like capsules.design1 {{ thrust = 0.027 nN/V^2, orifice jet {{ radius = 10 um, normal = -x }} }}
+mount c on l.shuttle
+program flip {{
+  drive 100 kHz @ 5 V for 1 s
+  switch l to b, margin 1.2, using [125 kHz], limit 20 V
+}}
+"""
+
+
+SHAPES = (cantilever, pair, selective, latch)
+
+
+def main(n: int = 200) -> None:
+    t_import = time.perf_counter()
+    from acl.lint import LintConfig, lint_file
+
+    t_import = time.perf_counter() - t_import
+    rng = random.Random(5)
+    with tempfile.TemporaryDirectory() as tmp:
+        paths = []
+        for i in range(n):
+            p = Path(tmp) / f"design_{i:03d}.acl"
+            p.write_text(SHAPES[i % len(SHAPES)](rng))
+            paths.append(str(p))
+        cfg = LintConfig()
+        times, checks, findings = [], [], 0
+        for p in paths:
+            t = time.perf_counter()
+            report = lint_file(p, cfg)
+            times.append(time.perf_counter() - t)
+            checks.append(report.check_seconds)
+            findings += len(report.findings)
+            if not report.resolved:
+                raise SystemExit(f"generated design does not resolve: {p}: {report.findings[0].message}")
+    first, rest = times[0], times[1:]
+    print(f"acl lint benchmark: {n} designs, {findings} findings")
+    print(f"  import acl.lint:           {t_import * 1e3:8.1f} ms")
+    print(f"  first design (start-up):   {first * 1e3:8.1f} ms")
+    print(f"  per design after start-up: mean {statistics.mean(rest) * 1e3:.1f} ms, "
+          f"median {statistics.median(rest) * 1e3:.1f} ms, max {max(rest) * 1e3:.1f} ms")
+    rules = [t - c for t, c in zip(rest, checks[1:])]
+    print(f"    of which check stage:    mean {statistics.mean(checks[1:]) * 1e3:.1f} ms (parse + resolve + checks)")
+    print(f"    of which lint rules:     mean {statistics.mean(rules) * 1e3:.1f} ms, max {max(rules) * 1e3:.1f} ms")
+    print(f"  total:                     {sum(times):8.2f} s")
+    import sys as _sys
+
+    heavy = sorted(m for m in _sys.modules if m.split(".")[0] in ("cvxpy", "matplotlib"))
+    print(f"  heavy modules imported:    {', '.join(heavy) or 'none'}")
+
+
+if __name__ == "__main__":
+    main(int(sys.argv[1]) if len(sys.argv) > 1 else 200)
