@@ -135,3 +135,21 @@ def test_continuation_points_are_verified_stable_equilibria(k, d0):
     assert np.all(branch.residual <= 1e-9 * forces + 1e-20)
     assert np.all(branch.min_eig > 0)
     assert np.all(branch.voltage <= branch.snap.voltage)
+
+
+def test_limit_point_at_a_kink_in_the_force_law_is_a_snap():
+    # Force law rising linearly then softening past q1 (like a column buckling): the limit is the kink.
+    k, q1 = 1e-3, 1e-6
+
+    def restoring(q):
+        x = q[0]
+        if x <= q1:
+            return np.array([k * x]), np.array([[k]])
+        return np.array([k * q1 - 1e-2 * k * (x - q1)]), np.array([[-1e-2 * k]])
+
+    def external(q, V):
+        return np.array([1e-10 * V**2])
+
+    branch = continuation(restoring, external, [0.0], 10.0, length_scale=5e-6)
+    assert branch.status == "snap_in"
+    assert branch.snap.voltage == pytest.approx(np.sqrt(k * q1 / 1e-10), rel=1e-5)

@@ -35,6 +35,7 @@ from acl.physics import latch as LT
 ForceModel = Callable[[Design, Mapping[str, np.ndarray], Drive], Mapping[str, np.ndarray]]
 
 CONTACT_GAP = 0.0     # m; orifice centres closer than this (along their rest direction) = contact
+LENGTH_SCALE = 5e-6   # m; continuation scales displacements by this (steps of at most 0.5 of it)
 
 
 # ----------------------------------------------------------------------------------------------
@@ -503,7 +504,7 @@ def equilibrium(design: Design, drive: Drive, force_model: ForceModel, *, mode: 
         eq = EQ.solve_equilibrium(rest, ext, mech.Z.T @ q0, 1.0, admissible=adm)
         z, status, stable, res = eq.q, eq.status, eq.stable, eq.residual
     else:
-        br = EQ.continuation(rest, ext, np.zeros(mech.m), 1.0, admissible=adm)
+        br = EQ.continuation(rest, ext, np.zeros(mech.m), 1.0, admissible=adm, length_scale=LENGTH_SCALE)
         if br.status == "snap_in":
             z, status, stable, res = br.snap.q, "snap_in", False, float("nan")
         elif br.voltage.size and br.status == "ok":
@@ -528,7 +529,7 @@ def sweep_voltage(design: Design, drive_shape: Drive, v_max: float, force_model:
     if mech.m == 0:
         return VoltageSweep(np.array([0.0, v_max]), {c.name: np.tile(c.center, (2, 1)) for c in design.capsules},
                             "ok", None, None)
-    br = EQ.continuation(rest, ext, np.zeros(mech.m), v_max, admissible=adm)
+    br = EQ.continuation(rest, ext, np.zeros(mech.m), v_max, admissible=adm, length_scale=LENGTH_SCALE)
     per_point = [_positions(design, mech, mech.Z @ z) for z in br.q]
     positions = {c.name: np.array([p[c.name] for p in per_point]).reshape(len(per_point), 3)
                  for c in design.capsules}

@@ -219,6 +219,10 @@ def continuation(restoring: Restoring, external: External, q0, v_max: float, *, 
         if y_new is None:
             step *= 0.5
             if step < ds_min:
+                if _no_equilibrium_above(restoring, external, y[:-1] * qs, y[-1] * vs, admissible, rtol, h):
+                    # a limit point where K_T jumps (a kink in the force law): the branch ends here
+                    return _branch(pts, "snap_in", snap=SnapIn(float(y[-1] * vs), y[:-1] * qs),
+                                   message="non-smooth limit point (kink in the force law)")
                 return _branch(pts, "no_convergence",
                                message=f"continuation step below {ds_min:g} at V = {y[-1] * vs:.6g}")
             continue
@@ -256,6 +260,19 @@ def continuation(restoring: Restoring, external: External, q0, v_max: float, *, 
         y, det_prev = y_new, det_new
         step = min(step * 1.5, ds_max)
     return _branch(pts, "no_convergence", message=f"no end after {max_steps} steps")
+
+
+def _no_equilibrium_above(restoring, external, q, V, admissible, rtol, h) -> bool:
+    """True if no equilibrium is found near ``q`` just above ``V`` while (q, V) is a stable equilibrium."""
+    here = _verified(restoring, external, q, V, h)
+    if not here.stable:
+        return False
+    for dv in (1e-6, 1e-4):
+        trial = solve_equilibrium(restoring, external, q, V * (1 + dv) + dv, admissible=admissible,
+                                  rtol=rtol, h=h, max_iter=30)
+        if trial.status == "ok" and trial.stable and np.linalg.norm(trial.q - q) <= 1e-2 * max(np.linalg.norm(q), 1e-300):
+            return False
+    return True
 
 
 def _verified(restoring, external, q, V, h) -> Equilibrium:
