@@ -211,3 +211,11 @@ def test_lint_never_imports_cvxpy_or_matplotlib(tmp_path):
 def test_list_rules_names_every_rule(capsys):
     rc, out, _ = run(capsys, "--list-rules")
     assert rc == 0 and "ACL101  resonance-outside-band" in out and "ACL900" in out
+
+
+def test_build_and_hidden_folders_are_not_searched(tmp_path, capsys):
+    write(tmp_path, "d/build/lib/x.acl", FAILING)
+    write(tmp_path, "d/.venv/y.acl", FAILING)
+    write(tmp_path, "d/ok.acl", CLEAN)
+    rc, out, _ = run(capsys, "--format", "concise", str(tmp_path / "d"))
+    assert rc == 0 and "1 file" in out

@@ -385,3 +385,8 @@ def test_a_clean_design_is_clean(tmp_path):
 def test_ignored_rules_do_not_run(tmp_path, code):
     text = NARROW + "param spare = 1 um\n"
     assert code not in codes(lint(tmp_path, text, LintConfig(ignore=(code,))))
+
+
+def test_acl601_leaves_library_modules_alone(tmp_path):
+    lib = "material soft { youngs = 1 MPa }\nparam spare = 3 um\n"
+    assert "ACL601" not in codes(lint(tmp_path, lib))

@@ -16,6 +16,8 @@ from acl.lint.registry import RULES, load_rules
 from acl.lint.source import SourceFile, scan
 
 UNREADABLE = ("E601", "E103")
+# folders never searched when a directory is linted (hidden folders are skipped too)
+EXCLUDED_DIRS = frozenset({"build", "dist", "node_modules", "venv", "__pycache__", "site-packages"})
 
 
 @dataclass
@@ -38,7 +40,7 @@ def collect_files(paths: list[str]) -> tuple[list[str], list[str]]:
     for p in paths:
         if os.path.isdir(p):
             for dirpath, dirs, names in os.walk(p):
-                dirs[:] = sorted(d for d in dirs if not d.startswith("."))
+                dirs[:] = sorted(d for d in dirs if not d.startswith(".") and d not in EXCLUDED_DIRS)
                 files.extend(os.path.join(dirpath, n) for n in sorted(names) if n.endswith(".acl"))
         elif os.path.exists(p):
             files.append(p)

@@ -20,6 +20,9 @@ def unused_declaration(ctx: Context):
     src = ctx.source
     if src is None:
         return
+    if is_library(ctx):
+        ctx.note("ACL601", "a library module (no program, joint or `use`): its declarations are for importers")
+        return
     used = {u.name for u in src.uses}
     d = ctx.design
     auto = {x.name for x in (d.medium, d.transducer) if x is not None}
@@ -32,6 +35,13 @@ def unused_declaration(ctx: Context):
         yield ctx.finding("ACL601", f"{what} `{decl.name}` is never used", Span(file=src.path, line=decl.line,
                           column=decl.column, end_line=decl.line, end_column=decl.column + len(decl.name)),
                           hint=hint)
+
+
+def is_library(ctx: Context) -> bool:
+    """A module that only declares things for others to import: no program, no joint, no `use`."""
+    d = ctx.design
+    uses = any(re.match(r"\s*use\s", line) for line in ctx.source.code)
+    return not d.programs and not d.joints and not uses
 
 
 _DIMLESS_STEP = re.compile(r"\b(phase|margin)\s*$")
