@@ -40,7 +40,7 @@ class CompileOptions:
     lam: float = 1e-3
     slew_model: str = "auto"
     refine: int = 0
-    resim_points: int = 400                      # waypoints re-simulated per goal (evenly spaced)
+    resim_points: int = 100                      # waypoints re-simulated per goal (evenly spaced)
     tones_per_path: int = 3
 
 
@@ -279,7 +279,7 @@ class _Compiler:
         if not step.tones:
             raise _diag("E-SCHED-TONES", f"{name}: a hold step needs its tones", step.span,
                         "write `tones 85 kHz, 125 kHz` on the hold step")
-        v_snap = snap_in_voltages(self.design, step.a, step.b, step.tones)
+        v_snap = snap_in_voltages(self.design, step.a, step.b, step.tones, vmax)
         if v_snap is None:
             raise _diag("E-SCHED-MODEL", f"{name}: no snap-in model available (acl.analysis.mechanics."
                         "sweep_voltage)", step.span, "the mechanics analysis is needed for hold steps")

@@ -6,12 +6,12 @@ This is the only module of acl.schedule that calls the analysis stage:
   :func:`acl.analysis.acoustics.thrust_vectors` (transducer transfer function included) times the
   small-force compliance of what carries the capsule (beam: paper Eq. 1 as P -> 0; spring).
 * :func:`model_forward` -- the nonlinear forward model used to re-simulate a schedule:
-  :func:`acl.analysis.mechanics.equilibrium` when that module exists, otherwise the thrust through
-  the nonlinear beam law of paper Eq. (1) (``acl.physics.beams.eq1_deflection``).
-* :func:`latch_forces` -- force per V^2 of each tone along each latch's axis, and the latches'
-  switching / release forces (``acl.physics.latch.latch_landscape``).
-* :func:`snap_in_voltages` -- per-tone snap-in voltage of a capsule pair, from the mechanics
-  module's ``sweep_voltage`` when present.
+  :func:`acl.analysis.mechanics.equilibrium` (warm-started along the path) when that module
+  exists, otherwise the thrust through the nonlinear beam law of paper Eq. (1).
+* :func:`latch_forces` -- force per V^2 of each tone along each latch's axis (the full
+  :func:`acl.analysis.acoustics.force_model` at rest), and the latches' switching / release forces
+  (``acl.physics.latch.latch_landscape``).
+* :func:`snap_in_voltages` -- per-tone snap-in voltage from ``acl.analysis.mechanics.sweep_voltage``.
 
 Each returns numbers only; errors are ValueError with a message the caller turns into a diagnostic.
 """
@@ -103,16 +103,21 @@ def model_forward(design: Design, capsule: str, frequencies) -> tuple[Forward, s
     if mech is not None and hasattr(mech, "equilibrium"):
         from acl.analysis import acoustics
 
-        rest = np.asarray(design.capsule(capsule).center, float)
-
         def forward(u: np.ndarray) -> np.ndarray:
-            out = np.empty((u.shape[0], 2))
+            out = np.full((u.shape[0], 2), np.nan)
+            start = None
             for i, row in enumerate(u):
                 drive = Drive(tones=tuple(Tone(frequency=f, amplitude=float(np.sqrt(max(x, 0.0))))
                                           for f, x in zip(freqs, row)))
-                eq = mech.equilibrium(design, drive, acoustics.force_model)
-                pos = _position_of(eq, capsule)
-                out[i] = (np.asarray(pos, float) - rest)[:2]
+                # warm start from the previous waypoint (continuation from rest for the first)
+                eq = mech.equilibrium(design, drive, acoustics.force_model, start=start)
+                if eq.status != "ok" and start is not None:
+                    eq = mech.equilibrium(design, drive, acoustics.force_model)
+                if eq.status == "ok":
+                    out[i] = np.asarray(eq.displacements[capsule], float)[:2]
+                    start = eq.positions
+                else:
+                    start = None                       # snapped or lost: NaN, reported as such
             return out
 
         return forward, "nonlinear equilibrium (acl.analysis.mechanics)"
@@ -136,34 +141,29 @@ def model_forward(design: Design, capsule: str, frequencies) -> tuple[Forward, s
     return (lambda u: (u @ per_tone) @ C.T), "linear spring (mechanics module absent)"
 
 
-def _position_of(eq, capsule: str):
-    """Accept the shapes an equilibrium result may take: a mapping, or an object with .positions."""
-    if isinstance(eq, dict):
-        return eq[capsule]
-    positions = getattr(eq, "positions", None)
-    if positions is not None:
-        return positions[capsule]
-    raise TypeError(f"unrecognised equilibrium result {type(eq).__name__}")
-
-
 def latch_forces(design: Design, frequencies) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(forces (L, K) N/V^2 along each latch axis, to_b (L,) N, to_a (L,) N) for the design's latches.
 
     The force on a latch is that on the capsules mounted on its shuttle.  Thresholds come from
     the latch landscape (switching force a->b, release force b->a; a monostable latch gets inf).
     """
+    from acl.analysis import acoustics
     from acl.physics.latch import latch_landscape
 
     freqs = [float(f) for f in frequencies]
     L = len(design.latches)
     forces = np.zeros((L, len(freqs)))
     to_b, to_a = np.full(L, np.inf), np.full(L, np.inf)
+    rest = {c.name: np.asarray(c.center, float) for c in design.capsules}
+    per_tone = [acoustics.force_model(design, rest, Drive(tones=(Tone(frequency=f, amplitude=1.0),)))
+                for f in freqs]
     for i, latch in enumerate(design.latches):
         axis = np.asarray(latch.axis, float)
         axis = axis / np.linalg.norm(axis)
-        for j in design.joints:
-            if j.kind == "mount" and j.target_kind == "latch" and j.target == latch.name:
-                forces[i] += _force_per_v2(design, j.capsule, freqs) @ axis
+        carried = [j.capsule for j in design.joints
+                   if j.kind == "mount" and j.target_kind == "latch" and j.target == latch.name]
+        for k, fm in enumerate(per_tone):
+            forces[i, k] = sum(float(np.asarray(fm.get(c, np.zeros(3)), float) @ axis) for c in carried)
         land = latch_landscape(latch.angle, latch.length, latch.width, latch.thickness,
                                latch.youngs_modulus)
         to_b[i] = land.switching_force
@@ -172,14 +172,17 @@ def latch_forces(design: Design, frequencies) -> tuple[np.ndarray, np.ndarray, n
     return forces, to_b, to_a
 
 
-def snap_in_voltages(design: Design, a: str, b: str, frequencies) -> np.ndarray | None:
-    """Per-tone snap-in voltage (V) of the pair holding orifices a, b, or None if unavailable."""
+def snap_in_voltages(design: Design, a: str, b: str, frequencies, v_max: float) -> np.ndarray | None:
+    """Per-tone snap-in voltage (V; inf if no snap up to ``v_max``) of the mechanism, or None if
+    the mechanics analysis is unavailable.  ``a``/``b`` (capsule.orifice) name the pair (for messages)."""
     mech = _optional("acl.analysis.mechanics")
     if mech is None or not hasattr(mech, "sweep_voltage"):
         return None
+    from acl.analysis import acoustics
+
     out = []
     for f in frequencies:
-        res = mech.sweep_voltage(design, float(f), a, b)
-        v = getattr(res, "snap_in_voltage", None) if not isinstance(res, (int, float)) else res
-        out.append(np.inf if v is None else float(v))
+        shape = Drive(tones=(Tone(frequency=float(f), amplitude=1.0),))
+        sw = mech.sweep_voltage(design, shape, v_max, acoustics.force_model)
+        out.append(np.inf if sw.snap_voltage is None else float(sw.snap_voltage))
     return np.asarray(out)

@@ -60,7 +60,7 @@ def plan_switch(forces: np.ndarray, to_b: np.ndarray, to_a: np.ndarray, states: 
     base = [x <= cap, cp.sum(x) <= 1.0 / K]
     goal = [sig_t * Fs[target] @ x >= margin * thr_t / fs]
     others = [i for i in range(L) if i != target]
-    keep = [sigma[others] * (Fs[others] @ x) <= thr[others] / margin / fs] if others else []
+    keep = [(sigma[others, None] * Fs[others]) @ x <= thr[others] / margin / fs] if others else []
     prob = cp.Problem(cp.Minimize(cp.sum(x)), base + goal + keep)
     res = solve(prob, f"switch latch {names[target]}")
     if not res.ok:
@@ -91,7 +91,7 @@ def _diagnose(Fs, thr, thr_t, sig_t, sigma, target, others, names, margin, cap, 
         rest = [j for j in others if j != i]
         cons = [x <= cap, cp.sum(x) <= 1.0 / K, sig_t * Fs[target] @ x >= margin * thr_t / fs]
         if rest:
-            cons.append(sigma[rest] * (Fs[rest] @ x) <= thr[rest] / margin / fs)
+            cons.append((sigma[rest, None] * Fs[rest]) @ x <= thr[rest] / margin / fs)
         if solve(cp.Problem(cp.Minimize(cp.sum(x)), cons), "switch diagnosis").ok:
             binding.append(f"latch `{names[i]}` would switch too (crosstalk)")
     if not binding:

@@ -249,7 +249,9 @@ def diagnose_path(G, P, dt, limits, tolerance, u_start, slew_model, status="infe
             relax.append(f"raise the max voltage above {limits.max_voltage:g} V")
         elif free_tone is None:
             binding.append("per-tone amplitude limit")
-            relax.append("raise the per-tone voltage limit")
+            relax.append("raise the per-tone voltage limit" if limits.per_tone_voltage is not None
+                         else f"raise the max voltage above {limits.max_voltage:g} V "
+                              "(it also caps each tone alone)")
         else:
             binding.append("direction: the target lies outside the cone of the tones' gain vectors")
             relax.append("choose tones whose displacement directions surround the path")

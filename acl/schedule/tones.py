@@ -6,8 +6,10 @@ program, the displacements reachable with tones ``S`` are the polygon ``conv{0, 
 For each candidate triple we compute its *margin*: the smallest, over the path's waypoints, of
 (reach of the polygon along the waypoint's direction) / (waypoint distance) -- >= 1 means every
 waypoint is reachable, and a direction outside the cone of the gain vectors gives 0.  The score
-is ``min(margin, 2) + 0.5 * sigma_min/sigma_max`` of the normalised gain matrix: reach first, then
-conditioning (tones pointing in well separated directions).
+is ``margin * (1 + 0.25 * sigma_min/sigma_max)`` of the column-normalised gain matrix: reach first
+(the strongest tones that surround the path: least drive, as the paper's choice of the largest
+deflections), then conditioning (well separated directions) as a factor of at most 1.25, so that
+a tiny margin never wins by conditioning alone.
 """
 from __future__ import annotations
 
@@ -119,15 +121,19 @@ def choose_tones(table: GainTable, targets: np.ndarray, max_voltage: float, k: i
         g = table.at(pinned)
         margin, cond = score_sets(g.T[None], targets, budget)
         return ToneChoice(tuple(float(f) for f in pinned), g, float(margin[0]), float(cond[0]),
-                          float(min(margin[0], 2.0) + 0.5 * cond[0]))
+                          float(_score(margin, cond)[0]))
     cand = candidate_indices(table)
     if cand.size < k:
         raise ValueError(f"the gain table has {cand.size} usable frequencies; {k} tones are needed")
     triples = np.array(list(combinations(cand, k)))
     vectors = table.gains[triples]                              # (M, k, 2)
     margin, cond = score_sets(vectors, targets, budget)
-    score = np.minimum(margin, 2.0) + 0.5 * cond
+    score = _score(margin, cond)
     best = int(np.argmax(score))
     freqs = tuple(float(table.frequencies[i]) for i in triples[best])
     return ToneChoice(freqs, table.gains[triples[best]].T, float(margin[best]), float(cond[best]),
                       float(score[best]))
+
+
+def _score(margin: np.ndarray, cond: np.ndarray) -> np.ndarray:
+    return margin * (1.0 + 0.25 * cond)

@@ -1,0 +1,48 @@
+"""Tone choice from a gain table (acl.schedule.tones)."""
+import numpy as np
+import pytest
+
+from acl.schedule.tones import GainTable, choose_tones, reach
+
+UM = 1e-6
+
+
+def fake_sweep():
+    """A Fig. S4a-like sweep: three resonances pushing at 10, 130 and 250 degrees, plus weak noise floor."""
+    f = np.arange(40e3, 160.5e3, 500.0)
+    g = np.zeros((f.size, 2))
+    for f0, ang in ((60e3, 10), (95e3, 130), (140e3, 250)):
+        amp = 1.0 / (1 + ((f - f0) / 3e3) ** 2)
+        g += amp[:, None] * [np.cos(np.radians(ang)), np.sin(np.radians(ang))]
+    g += 0.01 * np.column_stack([np.ones_like(f), np.zeros_like(f)])   # weak +x everywhere
+    return GainTable(f, g * UM / 100)
+
+
+def test_chosen_tones_are_the_three_resonances_for_a_path_around_the_rest_position():
+    a = np.linspace(0, 2 * np.pi, 50)
+    path = np.column_stack([np.cos(a), np.sin(a)]) * 0.3 * UM
+    choice = choose_tones(fake_sweep(), path, max_voltage=20.0)
+    assert sorted(choice.frequencies) == [60e3, 95e3, 140e3]
+    assert choice.margin >= 1
+
+
+def test_a_path_along_one_direction_prefers_the_tone_pointing_that_way():
+    path = np.column_stack([np.linspace(0.1, 1.0, 10), np.zeros(10)]) * UM * np.cos(np.radians(10))
+    choice = choose_tones(fake_sweep(), path, max_voltage=20.0, k=1)
+    assert choice.frequencies == (60e3,)
+
+
+def test_pinned_tones_are_kept_and_scored():
+    path = np.array([[0.0, -0.5 * UM]])
+    choice = choose_tones(fake_sweep(), path, max_voltage=20.0, pinned=(60e3, 95e3))
+    assert choice.frequencies == (60e3, 95e3)
+    assert choice.margin == 0.0                          # -y lies outside the cone of 10 and 130 deg
+
+
+def test_reach_is_the_hull_boundary_and_zero_outside_the_cone():
+    v = np.array([[[1.0, 0.0], [0.0, 1.0]]])             # hull of 0, e_x, e_y
+    d = np.array([[1.0, 0.0], [np.sqrt(0.5), np.sqrt(0.5)], [-1.0, 0.0]])
+    r = reach(v, d)[0]
+    assert r[0] == pytest.approx(1.0)
+    assert r[1] == pytest.approx(np.sqrt(0.5))
+    assert r[2] == 0.0
