@@ -7,6 +7,8 @@ P (L + l) c / (E I), with c the half-thickness in the bending plane (its largest
 """
 from __future__ import annotations
 
+from functools import lru_cache
+
 import numpy as np
 
 from acl.diagnostics import Severity
@@ -93,17 +95,35 @@ def beam_strain(ctx: Context):
                     hint="lower the drive, or use a longer or thinner beam")
 
 
+@lru_cache(maxsize=512)
+def eq1_limit_ratio(rigid_ratio: float, tolerance: float) -> float:
+    """Deflection / L where Eq. (1) departs from the elastica by ``tolerance`` (l/L rounded to 0.01)."""
+    from acl.physics.beams import eq1_validity_limit
+
+    return eq1_validity_limit(1.0, rigid_ratio, tolerance)
+
+
+# Eq. (1) holds to 5 % up to 0.21 L without a rigid part and further with one (acl.physics.beams):
+# below this fraction of L no beam can be flagged at the default tolerance, so the elastica is skipped.
+SAFE_RATIO = 0.2
+
+
 @rule("ACL402", "beam-large-deflection",
-      "beyond about 0.3 L the small-deflection model of paper Eq. (1) no longer predicts the tip",
-      Severity.WARNING, "beams", ("deflection_ratio", "sweep_samples"))
+      "beyond about 0.3 L (0.21-0.5 L with the actuator's rigid length) paper Eq. (1) no longer predicts the tip",
+      Severity.WARNING, "beams", ("eq1_tolerance", "sweep_samples"))
 def beam_large_deflection(ctx: Context):
-    ratio = ctx.threshold("deflection_ratio")
+    tol = ctx.threshold("eq1_tolerance")
     for beam in ctx.design.beams:
         for prog, (defl, strain, P, st, how) in beam_loads(ctx, beam).items():
-            if defl > ratio * beam.length:
+            L = beam.length
+            if tol >= 0.05 and defl < SAFE_RATIO * L:
+                continue
+            ratio = eq1_limit_ratio(round(beam.rigid_length / L, 2), tol)
+            if defl > ratio * L:
                 yield ctx.finding("ACL402",
-                    f"program `{prog}` deflects beam `{beam.name}` by {um(defl)} = {defl / beam.length:.2f} L, beyond "
-                    f"{ratio:g} L where Eq. (1) holds", st.span, notes=[
+                    f"program `{prog}` deflects beam `{beam.name}` by {um(defl)} = {defl / L:.2f} L, beyond the "
+                    f"{ratio:.2f} L where paper Eq. (1) holds", st.span, notes=[
                         f"{how}: tip load {P * 1e9:.3g} nN",
-                        f"threshold deflection_ratio = {ratio:g}"],
-                    hint="keep deflections small, or check the elastica (acl.physics.beams.elastica)")
+                        f"Eq. (1) departs from the elastica by more than {tol:.0%} beyond {ratio:.2f} L "
+                        f"(rigid length l = {beam.rigid_length / L:.2f} L; acl.physics.beams.eq1_validity_limit)"],
+                    hint="keep deflections smaller, or analyse with the elastica (mode='large')")
