@@ -1,0 +1,113 @@
+"""Data files and the fit/synth command line: every bad cell a diagnostic with file:row:column, exit codes."""
+from __future__ import annotations
+
+import os
+
+import numpy as np
+import pytest
+
+from acl.cli import main
+
+HERE = os.path.dirname(__file__)
+CANTILEVER = os.path.join(HERE, "data", "fit_cantilever.acl")
+HEADER = "observable,value,unit,drive,time,sigma,set:length\n"
+GOOD = "deflection,1.2,um,125 kHz @ 3 V,0,0.2,50 um\n"
+
+
+def _csv(tmp_path, body, header=HEADER, name="d.csv"):
+    p = tmp_path / name
+    p.write_text(header + body)
+    return str(p)
+
+
+@pytest.mark.parametrize("row,column,code,words", [
+    ("deflection,abc,um,125 kHz @ 3 V,0,0.2,50 um", 12, "E806", "not a number"),
+    ("deflektion,1.2,um,125 kHz @ 3 V,0,0.2,50 um", 1, "E803", "did you mean `deflection`"),
+    ("deflection,1.2,V,125 kHz @ 3 V,0,0.2,50 um", 16, "E804", "length"),
+    ("deflection,1.2,um,125 kHz @@ 3 V,0,0.2,50 um", 19, "E1", "drive"),
+    ("deflection,1.2,um,125 V @ 3 kHz,0,0.2,50 um", 19, "E802", "frequency"),
+    ("deflection,,um,125 kHz @ 3 V,0,0.2,50 um", 12, "E806", "missing value"),
+    ("deflection,1.2,um,125 kHz @ 3 V,0,-1,50 um", 35, "E806", "positive"),
+    ("deflection,1.2,um,125 kHz @ 3 V,0,0.2,fifty", 39, "E805", "number"),
+])
+def test_bad_cell_is_reported_at_file_row_column_and_nothing_is_written(tmp_path, capsys, row, column, code, words):
+    path = _csv(tmp_path, GOOD + row + "\n")
+    rep = tmp_path / "rep"
+    assert main(["fit", CANTILEVER, path, "--free", "gamma", "--report", str(rep)]) == 1
+    err = capsys.readouterr().err
+    assert f"{path}:3:" in err and code in err and words in err
+    assert f"{path}:3:{column}" in err or code == "E1"
+    assert "Traceback" not in err
+    assert not rep.exists()
+
+
+def test_every_bad_row_is_reported_not_only_the_first(tmp_path, capsys):
+    path = _csv(tmp_path, "deflection,x,um,,0,0.2,50 um\nfoo,1,um,,0,0.2,50 um\n")
+    assert main(["fit", CANTILEVER, path]) == 1
+    err = capsys.readouterr().err
+    assert f"{path}:2:12" in err and f"{path}:3:1" in err
+
+
+def test_unknown_column_and_unknown_set_parameter_are_reported(tmp_path, capsys):
+    path = _csv(tmp_path, "deflection,1,um,,0,0.2,50 um,1\n", header="observable,value,unit,drive,time,sigma,set:lenght,colour\n")
+    assert main(["fit", CANTILEVER, path]) == 1
+    err = capsys.readouterr().err
+    assert "set:lenght" in err and "did you mean `length`" in err and "unknown column `colour`" in err
+
+
+def test_override_that_breaks_the_design_points_at_the_row(tmp_path, capsys):
+    path = _csv(tmp_path, GOOD + "deflection,1.2,um,125 kHz @ 3 V,1,0.2,-5 um\n")
+    assert main(["fit", CANTILEVER, path, "--free", "gamma"]) == 1
+    err = capsys.readouterr().err
+    assert f"{path}:3:1" in err and "E805" in err
+
+
+@pytest.mark.parametrize("args,words", [
+    (["--free", "gamm"], "did you mean `gamma`"),
+    (["--free", "length"], "changes the geometry"),
+    (["--effects", "saturation"], "unknown effect"),
+])
+def test_bad_options_are_usage_or_design_errors_without_traceback(tmp_path, capsys, args, words):
+    path = _csv(tmp_path, GOOD)
+    code = main(["fit", CANTILEVER, path, *args])
+    err = capsys.readouterr().err
+    assert code in (1, 2) and words in err and "Traceback" not in err
+    if args[0] == "--free" and args[1] == "gamm" or args[0] == "--effects":
+        assert code == 2
+
+
+def test_missing_data_file_is_exit_2(tmp_path, capsys):
+    assert main(["fit", CANTILEVER, str(tmp_path / "nope.csv")]) == 2
+
+
+def test_units_and_multi_tone_drives_are_read_in_si(tmp_path):
+    import acl
+    from acl.fit.data import read_data
+
+    path = _csv(tmp_path, "deflection,1200,nm,85 kHz @ 2 V + 125 kHz @ 3000 mV,,0.1,\n")
+    d = read_data([path], acl.load(CANTILEVER))
+    assert d.value[0] == pytest.approx(1.2e-6) and d.sigma[0] == pytest.approx(1e-10)
+    assert d.tones[0] == ((85e3, 2.0), (125e3, 3.0))
+    assert d.sets["length"][0] == "" and not d.has_time
+
+
+def test_synth_command_writes_data_the_fit_reads_back(tmp_path, capsys):
+    out = tmp_path / "s.csv"
+    assert main(["synth", CANTILEVER, "-o", str(out), "--effect", "drive_saturation=v_sat:6V", "--noise", "0.2um",
+                 "--frequencies", "110kHz,125kHz,140kHz", "--voltages", "0V..10V:11", "--repeats", "2",
+                 "--seed", "1"]) == 0
+    lines = out.read_text().splitlines()
+    assert lines[0].startswith("observable,value,unit,drive,time,sigma") and len(lines) == 67
+    capsys.readouterr()
+    assert main(["fit", CANTILEVER, str(out), "--free", "gamma", "--json"]) == 0
+    import json
+    report = json.loads(capsys.readouterr().out)
+    assert report["effects_selected"] == ["drive_saturation"]
+
+
+def test_synth_rejects_unknown_effects_and_parameters(tmp_path, capsys):
+    out = tmp_path / "s.csv"
+    assert main(["synth", CANTILEVER, "-o", str(out), "--effect", "drive_saturaton=v_sat:6V"]) == 2
+    assert main(["synth", CANTILEVER, "-o", str(out), "--effect", "drive_saturation=vs:6V"]) == 2
+    assert "did you mean `drive_saturation`" in capsys.readouterr().err
+    assert not out.exists()
