@@ -45,3 +45,33 @@ def test_pair_equilibrium_balances_eq3_against_eq1():
     force = pair_law_force(alpha, gamma, d, V)            # attraction-positive, paper Eq. (3)
     np.testing.assert_allclose(PB.eq1_force(da, L, l, EI), force, rtol=1e-6, atol=1e-15)
     assert np.all((d < d0) == (d0 < np.sqrt(alpha / (2 * gamma))))   # attract below d_c, repel above
+
+
+def test_vectorized_pair_agrees_with_the_mechanics_analysis_layer():
+    """Same design, same Eq. (3) law: acl.fit.forward vs acl.analysis.mechanics.equilibrium (continuation)."""
+    import os
+
+    import acl
+    from acl.analysis.mechanics import equilibrium, reduced_eq3_force_model
+    from acl.design.model import Drive, Tone
+    from acl.fit.data import Dataset
+    from acl.fit.forward import predict, prepare
+    from acl.fit.mechanism import build_instance
+
+    path = os.path.join(os.path.dirname(__file__), "data", "fit_pair.acl")
+    alpha, gamma = 1.745e-19, 2.7e-11
+    cases = [("35 um", 0.8), ("45 um", 1.5), ("70 um", 2.5)]
+    n = len(cases)
+    data = Dataset(np.array(["distance"] * n, dtype=object), np.zeros(n), np.full(n, np.nan), np.full(n, np.nan),
+                   [((125e3, v),) for _, v in cases], {"gap": np.array([g for g, _ in cases], dtype=object)}, {},
+                   [None] * n, np.array(["um"] * n, dtype=object))
+    P = prepare(data, lambda key: build_instance(acl.load(path, overrides=dict(key))))
+    ours = predict(P, {"alpha": alpha, "gamma": gamma}, {})
+    for (gap, v), mine in zip(cases, ours):
+        design = acl.load(path, overrides={"gap": gap})
+        state = equilibrium(design, Drive(tones=(Tone(frequency=125e3, amplitude=v),)),
+                            reduced_eq3_force_model(alpha, gamma))
+        assert state.status == "ok"
+        pa = np.asarray(design.capsule("a").orifices[0].center) + state.displacements["a"]
+        pb = np.asarray(design.capsule("b").orifices[0].center) + state.displacements["b"]
+        assert mine == pytest.approx(float(np.linalg.norm(pb - pa)), rel=1e-6)
