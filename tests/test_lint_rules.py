@@ -143,9 +143,19 @@ program p {{
 
 
 def test_acl201_fires_below_the_critical_distance(tmp_path):
-    r = lint(tmp_path, facing("30 um", "drive 125 kHz @ 1 V for 1 s"))
+    r = lint(tmp_path, facing("40 um", "drive 125 kHz @ 1 V for 1 s\n  drive 125 kHz @ 6 V for 1 s"))
     hit = [d for d in r.findings if d.code == "ACL201"]
     assert hit and hit[0].is_error and any("Eq. 3" in n for n in hit[0].notes)
+
+
+def test_acl201_fires_at_the_programs_strongest_drive(tmp_path):
+    r = lint(tmp_path, facing("40 um", "drive 125 kHz @ 1 V for 1 s\n  drive 125 kHz @ 6 V for 1 s"))
+    hit = next(d for d in r.findings if d.code == "ACL201")
+    assert hit.span.line == facing("40 um", "x").count("\n") and "snaps in" in hit.notes[-1]
+
+
+def test_acl201_quiet_when_the_beams_hold_the_pair_at_this_drive(tmp_path):
+    assert "ACL201" not in codes(lint(tmp_path, facing("40 um", "drive 125 kHz @ 1 V for 1 s")))
 
 
 def test_acl201_quiet_above_the_critical_distance(tmp_path):
@@ -153,7 +163,7 @@ def test_acl201_quiet_above_the_critical_distance(tmp_path):
 
 
 def test_acl201_quiet_when_the_program_means_to_cross(tmp_path):
-    text = facing("30 um", "drive 125 kHz @ 1 V for 1 s\n  cross gap(left.jet, right.jet) for 1 s")
+    text = facing("40 um", "drive 125 kHz @ 6 V for 1 s\n  cross gap(left.jet, right.jet) for 1 s")
     assert "ACL201" not in codes(lint(tmp_path, text))
 
 
@@ -344,6 +354,13 @@ def test_acl603_fires_for_a_failing_requirement(tmp_path):
     r = lint(tmp_path, ONE + "require resonance(a) in 50 kHz .. 60 kHz\n")
     hit = [d for d in r.findings if d.code == "ACL603"]
     assert hit and hit[0].span.line == ONE.count("\n") + 1
+
+
+def test_acl603_evaluates_gap_requirements_at_each_steps_equilibrium(tmp_path):
+    need = "\nrequire gap(left.jet, right.jet) >= 10 um\n"
+    closes = lint(tmp_path, facing("40 um", "drive 125 kHz @ 6 V for 1 s") + need)
+    holds = lint(tmp_path, facing("40 um", "drive 125 kHz @ 1 V for 1 s") + need)
+    assert "ACL603" in codes(closes) and "ACL603" not in codes(holds)
 
 
 def test_acl603_quiet_for_a_met_requirement(tmp_path):

@@ -3,6 +3,8 @@ from __future__ import annotations
 
 import re
 
+import numpy as np
+
 
 from acl.design.model import Drive, Tone
 from acl.diagnostics import Severity, Span
@@ -99,8 +101,9 @@ def require_failed(ctx: Context):
         ok = (r.lower is None or value >= r.lower) and (r.upper is None or value <= r.upper)
         if ok:
             continue
-        shown = khz(value) if unit == "Hz" else f"{value:.3g}"
-        bounds = " .. ".join("" if b is None else (khz(b) if unit == "Hz" else f"{b:.3g}") for b in (r.lower, r.upper))
+        fmt = {"Hz": khz, "m": lambda x: f"{x * 1e6:.3g} um"}.get(unit, lambda x: f"{x:.3g}")
+        shown = fmt(value)
+        bounds = " .. ".join("" if b is None else fmt(b) for b in (r.lower, r.upper))
         yield ctx.finding("ACL603", f"`{r.text}` fails: predicted {shown}", r.span,
                           notes=[f"required range {bounds}", *extra],
                           hint="change the design or the requirement")
@@ -138,5 +141,44 @@ def _evaluate(ctx: Context, r):
                                        latch.state))
         return best / needed, "", [f"best push {best * 1e9:.3g} nN at {v:.3g} V on a carried mode; "
                                    f"switching needs {needed * 1e9:.3g} nN"]
-    ctx.note("ACL603", f"`{r.text}`: gap requirements need the equilibrium analysis; not evaluated")
-    return None, "", []
+    return _gap(ctx, r)
+
+
+def _gap(ctx: Context, r):
+    """Smallest gap between the two orifices over the equilibria of every program step with a known drive."""
+    try:
+        from acl.analysis.acoustics import force_model
+        from acl.analysis.mechanics import equilibrium
+    except ImportError as exc:  # pragma: no cover - analysis not installed
+        ctx.note("ACL603", f"`{r.text}`: mechanics analysis unavailable ({exc})")
+        return None, "", []
+    from acl.diagnostics import DiagnosticError
+
+    d = ctx.design
+    (ca, oa), (cb, ob) = (x.split(".") for x in r.args)
+    pa, pb = np.asarray(d.capsule(ca).orifice(oa).center), np.asarray(d.capsule(cb).orifice(ob).center)
+    worst, where, skipped = None, "", 0
+    for p, st in ctx.steps():
+        drives = ctx.step_drives(st)
+        if not drives and st.kind in ("follow", "hold", "switch"):
+            skipped += 1
+        for drive in drives:
+            key = ("equilibrium", tuple((t.frequency, t.amplitude, t.phase) for t in drive.tones))
+            try:
+                state = ctx.cached(key, lambda: equilibrium(d, drive, force_model))
+            except DiagnosticError as exc:
+                ctx.note("ACL603", f"`{r.text}`: mechanism not analysable ({exc})")
+                return None, "", []
+            da, db = (np.asarray(state.displacements[c]) for c in (ca, cb))
+            gap = float(np.linalg.norm((pb + db) - (pa + da)))
+            if state.status == "snap_in":
+                gap = 0.0
+            if worst is None or gap < worst:
+                tones = " + ".join(f"{khz(t.frequency)} @ {t.amplitude:.3g} V" for t in drive.tones)
+                worst, where = gap, f"program `{p.name}`, line {st.span.line}: {tones} ({state.status})"
+    if skipped:
+        ctx.note("ACL603", f"`{r.text}`: {skipped} step(s) whose drive the compiler chooses were not evaluated")
+    if worst is None:
+        return None, "", []
+    return worst, "m", [f"smallest gap {worst * 1e6:.3g} um at {where}",
+                        "quasi-static equilibrium (acl.analysis.mechanics.equilibrium, Eq. 1 beams)"]

@@ -40,26 +40,57 @@ def snap_in(ctx: Context):
     margin = ctx.threshold("snap_margin")
     for p in ctx.design.programs:
         crossing = _crossing(p)
-        reported: set[tuple[str, str]] = set()
+        flagged: dict[tuple[str, str], tuple] = {}      # pair -> (amplitude, step, drive, pair force)
         for st in p.steps:
             for drive in ctx.step_drives(st):
+                amp = sum(t.amplitude for t in drive.tones)
                 for pf in ctx.pair_forces(drive):
                     key = tuple(sorted((pf.a, pf.b)))
-                    if key in reported or key in crossing or _both_fixed(ctx, pf.a, pf.b):
+                    if key in crossing or _both_fixed(ctx, pf.a, pf.b):
                         continue
                     dc = pf.critical_distance
                     if dc is None or pf.distance >= margin * dc or not _pushed_apart(ctx, drive, pf.a, pf.b):
                         continue
-                    reported.add(key)
-                    tones = " + ".join(f"{khz(t.frequency)} @ {t.amplitude:.3g} V" for t in drive.tones)
-                    yield ctx.finding("ACL201",
-                        f"`{pf.a}` and `{pf.b}` are {um(pf.distance)} apart, closer than their critical distance "
-                        f"{um(dc)}: program `{p.name}` snaps them together", st.span, notes=[
-                            f"drive {tones}",
-                            f"Bjerknes attraction {pf.attraction * 1e9:.3g} nN at rest, phase difference "
-                            f"{np.degrees(pf.phase_difference):.0f} deg",
-                            f"d_c = sqrt(alpha / 2 gamma) (paper Eq. 3); threshold snap_margin = {margin:g}"],
-                        hint="increase the gap, or use `cross gap(a, b)` if the program means to bring them together")
+                    if key not in flagged or amp > flagged[key][0]:
+                        flagged[key] = (amp, st, drive, pf)
+        for key, (amp, st, drive, pf) in sorted(flagged.items()):
+            verdict = _mechanics_verdict(ctx, drive, pf)
+            if verdict is False:
+                ctx.note("ACL201", f"`{pf.a}`/`{pf.b}` in `{p.name}`: below d_c, but the structure holds them "
+                                   f"at the strongest drive ({amp:.3g} V)")
+                continue
+            tones = " + ".join(f"{khz(t.frequency)} @ {t.amplitude:.3g} V" for t in drive.tones)
+            yield ctx.finding("ACL201",
+                f"`{pf.a}` and `{pf.b}` are {um(pf.distance)} apart, closer than their critical distance "
+                f"{um(pf.critical_distance)}: program `{p.name}` snaps them together", st.span, notes=[
+                    f"strongest drive {tones}",
+                    f"Bjerknes attraction {pf.attraction * 1e9:.3g} nN at rest, phase difference "
+                    f"{np.degrees(pf.phase_difference):.0f} deg",
+                    f"d_c = sqrt(alpha / 2 gamma) (paper Eq. 3); threshold snap_margin = {margin:g}",
+                    "quasi-static equilibrium at this drive: " + (
+                        "snaps in (acl.analysis.mechanics)" if verdict else "not computed")],
+                hint="increase the gap, or use `cross gap(a, b)` if the program means to bring them together")
+
+
+def _mechanics_verdict(ctx: Context, drive, pf) -> bool | None:
+    """True if the equilibrium under ``drive`` snaps in, False if it holds, None if unknown."""
+    try:
+        from acl.analysis.acoustics import force_model
+        from acl.analysis.mechanics import equilibrium
+    except ImportError:
+        ctx.note("ACL201", "mechanics analysis unavailable: Eq. 3 criterion only")
+        return None
+    from acl.diagnostics import DiagnosticError
+
+    key = ("equilibrium", tuple((t.frequency, t.amplitude, t.phase) for t in drive.tones))
+    try:
+        state = ctx.cached(key, lambda: equilibrium(ctx.design, drive, force_model))
+    except DiagnosticError as exc:
+        ctx.note("ACL201", f"mechanism not analysable ({exc}): Eq. 3 criterion only")
+        return None
+    if state.status == "ok":
+        return False
+    return True if state.status == "snap_in" else None
 
 
 def program_range(ctx: Context, program) -> tuple[float, float] | None:
