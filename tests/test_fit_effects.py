@@ -80,3 +80,21 @@ def test_fitted_effect_parameter_is_close_to_the_planted_value(tmp_path):
     lo, hi = sel.final.ci[k]
     assert lo <= 1 / 36 <= hi
     assert abs(inv ** -0.5 - 6.0) < 0.6
+
+
+def test_structure_no_effect_explains_is_reported_with_its_covariate(tmp_path, capsys):
+    # one drive frequency responds 25 % weaker than the model (a notch no library effect has)
+    from acl.fit import run_fit
+    from acl.fit.report import render_table
+
+    ex = Experiment(frequencies=(100e3, 112e3, 125e3, 137e3, 150e3), voltages=tuple(np.linspace(0, 10, 11)), repeats=2)
+    data, _ = generate(CANTILEVER, ex, {}, noise=0.0, seed=1)
+    f = np.array([t[0][0] if t else 0.0 for t in data.tones])
+    data.value = np.where(f == 125e3, 0.75, 1.0) * data.value + np.random.default_rng(3).normal(0, NOISE, data.n)
+    path = tmp_path / "notch.csv"
+    write_csv(data, str(path))
+    out = run_fit(CANTILEVER, [str(path)], free=["gamma"])
+    assert out.selection.final.rmse > 1.3 * NOISE
+    assert "frequency" in {u["covariate"] for u in out.report["unexplained"]}
+    render_table(out.report)
+    assert "no effect in the library explains it" in capsys.readouterr().out

@@ -126,7 +126,7 @@ def render_table(report, console=None) -> None:
     con.print(t)
     pt = Table(title="parameters (95 % intervals)")
     for col in ("parameter", "before", "after", "95 % interval", "unit"):
-        pt.add_column(col)
+        pt.add_column(col, no_wrap=True)
     before = {p["name"]: p for p in report["base"]["parameters"]}
     for p in report["final"]["parameters"]:
         shown = p.get("reported")
@@ -138,9 +138,10 @@ def render_table(report, console=None) -> None:
         dc = report["critical_distance"]
         con.print(f"critical distance d_c = sqrt(alpha/(2 gamma)) = {_um(dc['value'])} "
                   f"[{_um(dc['ci95'][0])}, {_um(dc['ci95'][1])}]")
-    et = Table(title="effects tried")
-    for col in ("round", "effect", "status", "F-test p", "dBIC", "CV", "reason"):
-        et.add_column(col)
+    et = Table(title="effects tried (all scores in report.json)")
+    for col in ("round", "effect", "status", "F-test p", "dBIC", "CV MSE"):
+        et.add_column(col, no_wrap=True)
+    et.add_column("reason", overflow="ellipsis", no_wrap=True, max_width=48)
     for e in report["effects_tried"]:
         et.add_row(str(e["round"]), e["effect"], e["status"], _g(e["p_value"]), _g(e["delta_bic"]),
                    _g(e["cv_mse"]), e["reason"])
@@ -150,6 +151,8 @@ def render_table(report, console=None) -> None:
     for w in report["final"]["warnings"]:
         con.print(f"[yellow]warning:[/yellow] {w}")
     if report["unexplained"]:
+        if sel:
+            con.print("[yellow]the selected effects leave structure in the residual:[/yellow]")
         for u in report["unexplained"]:
             con.print(f"[yellow]unexplained:[/yellow] the residual still follows {u['covariate']} "
                       f"({u['test']}, statistic {_g(u['statistic'])}, p = {_g(u['p_value'])}); "

@@ -2,8 +2,10 @@
 
 For each covariate with at least 3 distinct values: Spearman rank correlation of residual vs
 covariate (trend), the Wald-Wolfowitz runs test on the residual signs ordered by the covariate
-(curvature, plateaus, any non-monotone structure), and Spearman correlation of |residual| vs
-covariate (heteroscedasticity, a Breusch-Pagan-like check robust to outliers).  A finding is
+(curvature, plateaus, any non-monotone structure), Spearman correlation of |residual| vs
+covariate (heteroscedasticity, a Breusch-Pagan-like check robust to outliers) and, for covariates
+with few distinct values (frequencies, set: values), the Kruskal-Wallis test of the residual grouped
+by value (a level that stands out, e.g. one frequency).  A finding is
 reported when its Bonferroni-adjusted p-value (over all tests run) is below ``alpha``.
 """
 from __future__ import annotations
@@ -14,12 +16,13 @@ from dataclasses import dataclass
 import numpy as np
 
 ALPHA = 0.01
+MAX_LEVELS = 20      # covariates with at most this many distinct values also get a groups test
 
 
 @dataclass
 class Test:
     covariate: str
-    test: str              # "trend" | "runs" | "heteroscedasticity"
+    test: str              # "trend" | "runs" | "heteroscedasticity" | "groups"
     statistic: float
     p_value: float
     p_adjusted: float = 1.0
@@ -65,7 +68,7 @@ def runs_test(signs_in_order) -> tuple[float, float]:
 
 def examine(residual, cov: dict[str, np.ndarray], weights=None, seed: int = 0) -> list[Test]:
     """Every test on every usable covariate, p-values Bonferroni-adjusted over the whole list."""
-    from scipy.stats import spearmanr
+    from scipy.stats import kruskal, spearmanr
 
     r = np.asarray(residual, float) * (1.0 if weights is None else np.asarray(weights, float))
     rng = np.random.default_rng(seed)
@@ -83,6 +86,12 @@ def examine(residual, cov: dict[str, np.ndarray], weights=None, seed: int = 0) -
         tests.append(Test(name, "runs", z, p))
         rho, p = spearmanr(xs, np.abs(rs))
         tests.append(Test(name, "heteroscedasticity", float(rho), float(p) if np.isfinite(p) else 1.0))
+        levels = np.unique(xs)
+        if 3 <= levels.size <= MAX_LEVELS:
+            groups = [rs[xs == v] for v in levels]
+            if min(g.size for g in groups) >= 2:
+                h, p = kruskal(*groups)
+                tests.append(Test(name, "groups", float(h), float(p) if np.isfinite(p) else 1.0))
     m = max(len(tests), 1)
     for t in tests:
         t.p_adjusted = min(1.0, t.p_value * m)
