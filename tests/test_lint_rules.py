@@ -151,11 +151,16 @@ def test_acl201_fires_below_the_critical_distance(tmp_path):
 def test_acl201_fires_at_the_programs_strongest_drive(tmp_path):
     r = lint(tmp_path, facing("40 um", "drive 125 kHz @ 1 V for 1 s\n  drive 125 kHz @ 6 V for 1 s"))
     hit = next(d for d in r.findings if d.code == "ACL201")
-    assert hit.span.line == facing("40 um", "x").count("\n") and "snaps in" in hit.notes[-1]
+    assert hit.span.line == facing("40 um", "x").count("\n") and "not computed" in hit.notes[-1]
 
 
-def test_acl201_quiet_when_the_beams_hold_the_pair_at_this_drive(tmp_path):
-    assert "ACL201" not in codes(lint(tmp_path, facing("40 um", "drive 125 kHz @ 1 V for 1 s")))
+MECHANICS = LintConfig(mechanics=True)
+
+
+def test_acl201_with_mechanics_quiet_when_the_beams_hold_the_pair_at_this_drive(tmp_path):
+    text = facing("40 um", "drive 125 kHz @ 1 V for 1 s")
+    assert "ACL201" in codes(lint(tmp_path, text))                 # Eq. 3 alone: below d_c
+    assert "ACL201" not in codes(lint(tmp_path, text, MECHANICS))  # the beams hold at 1 V
 
 
 def test_acl201_quiet_above_the_critical_distance(tmp_path):
@@ -358,9 +363,10 @@ def test_acl603_fires_for_a_failing_requirement(tmp_path):
 
 def test_acl603_evaluates_gap_requirements_at_each_steps_equilibrium(tmp_path):
     need = "\nrequire gap(left.jet, right.jet) >= 10 um\n"
-    closes = lint(tmp_path, facing("40 um", "drive 125 kHz @ 6 V for 1 s") + need)
-    holds = lint(tmp_path, facing("40 um", "drive 125 kHz @ 1 V for 1 s") + need)
+    closes = lint(tmp_path, facing("40 um", "drive 125 kHz @ 6 V for 1 s") + need, MECHANICS)
+    holds = lint(tmp_path, facing("40 um", "drive 125 kHz @ 1 V for 1 s") + need, MECHANICS)
     assert "ACL603" in codes(closes) and "ACL603" not in codes(holds)
+    assert "ACL603" not in codes(lint(tmp_path, facing("40 um", "drive 125 kHz @ 6 V for 1 s") + need))
 
 
 def test_acl603_quiet_for_a_met_requirement(tmp_path):

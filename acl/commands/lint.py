@@ -24,6 +24,9 @@ def add_parser(p) -> None:
     p.add_argument("--config", metavar="PATH", help="acl.toml or pyproject.toml to use (default: found by walking up)")
     p.add_argument("--statistics", action="store_true", help="print the number of findings per rule")
     p.add_argument("--list-rules", action="store_true", help="list every rule and exit")
+    p.add_argument("--mechanics", action="store_true",
+                   help="confirm snap-in (ACL201) and evaluate `require gap` (ACL603) with the quasi-static "
+                        "equilibrium (about a second per drive)")
     p.add_argument("--verbose", action="store_true", help="say which rules could not run and time each one")
     add_design_options(p)
 
@@ -83,6 +86,7 @@ def run(args) -> int:
             if args.select:
                 cfg.select = select
             cfg.ignore = tuple(dict.fromkeys(cfg.ignore + ignore))
+            cfg.mechanics = cfg.mechanics or args.mechanics
             configs[where] = cfg
         return configs[where]
 

@@ -6,7 +6,9 @@ diagnostics that point at the line of the TOML file, never a silent default.
 
 Keys: ``select`` / ``ignore`` (codes, prefixes such as ``ACL1``, or ``ALL``), ``per-file-ignores``
 (glob -> codes, globs relative to the configuration file), ``severity`` (code -> error | warning |
-info), ``thresholds`` (name -> number in SI, or a string with a unit such as ``"40 um"``).
+info), ``thresholds`` (name -> number in SI, or a string with a unit such as ``"40 um"``),
+``mechanics`` (true: confirm ACL201 and evaluate `require gap` with the quasi-static equilibrium,
+about a second per drive).
 """
 from __future__ import annotations
 
@@ -18,7 +20,7 @@ from dataclasses import dataclass, field
 from acl.diagnostics import Diagnostic, Severity, Span, error, suggest
 from acl.lint.registry import THRESHOLDS, match_codes
 
-KEYS = ("select", "ignore", "per-file-ignores", "severity", "thresholds")
+KEYS = ("select", "ignore", "per-file-ignores", "severity", "thresholds", "mechanics")
 CHECK_CODE = re.compile(r"^[EW]\d{3}$")
 
 
@@ -35,6 +37,7 @@ class LintConfig:
     per_file_ignores: tuple[tuple[str, tuple[str, ...]], ...] = ()
     severity: dict[str, Severity] = field(default_factory=dict)
     thresholds: dict[str, float] = field(default_factory=dict)
+    mechanics: bool = False                        # confirm with the (slow) quasi-static equilibrium
     root: str = "."                                # folder the globs are relative to
     path: str | None = None                        # the file it came from
 
@@ -145,6 +148,11 @@ def _parse(table: dict, text: str, path: str, prefix: str, rules: dict) -> LintC
             out.extend(found)
         return tuple(dict.fromkeys(out))
 
+    if "mechanics" in table:
+        if not isinstance(table["mechanics"], bool):
+            bad("`mechanics` must be true or false", "mechanics")
+        else:
+            cfg.mechanics = table["mechanics"]
     if "select" in table:
         cfg.select = codes(table["select"], "select", "select")
     if "ignore" in table:

@@ -146,6 +146,9 @@ def _evaluate(ctx: Context, r):
 
 def _gap(ctx: Context, r):
     """Smallest gap between the two orifices over the equilibria of every program step with a known drive."""
+    if not ctx.config.mechanics:
+        ctx.note("ACL603", f"`{r.text}`: gap requirements need the equilibrium (`mechanics = true` or --mechanics)")
+        return None, "", []
     try:
         from acl.analysis.acoustics import force_model
         from acl.analysis.mechanics import equilibrium

@@ -68,12 +68,15 @@ def snap_in(ctx: Context):
                     f"{np.degrees(pf.phase_difference):.0f} deg",
                     f"d_c = sqrt(alpha / 2 gamma) (paper Eq. 3); threshold snap_margin = {margin:g}",
                     "quasi-static equilibrium at this drive: " + (
-                        "snaps in (acl.analysis.mechanics)" if verdict else "not computed")],
+                        "snaps in (acl.analysis.mechanics)" if verdict else
+                        "not computed (set `mechanics = true` in the configuration or pass --mechanics)")],
                 hint="increase the gap, or use `cross gap(a, b)` if the program means to bring them together")
 
 
 def _mechanics_verdict(ctx: Context, drive, pf) -> bool | None:
-    """True if the equilibrium under ``drive`` snaps in, False if it holds, None if unknown."""
+    """True if the equilibrium under ``drive`` snaps in, False if it holds, None if unknown (or not asked)."""
+    if not ctx.config.mechanics:
+        return None
     try:
         from acl.analysis.acoustics import force_model
         from acl.analysis.mechanics import equilibrium
