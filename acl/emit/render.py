@@ -39,11 +39,11 @@ class RenderStats:
     def update(self, x: np.ndarray) -> None:
         if x.size == 0:
             return
-        self.peak_v = max(self.peak_v, float(np.max(np.abs(x))))
-        self.sum_sq += float(np.dot(x, x))
-        jumps = np.abs(np.diff(x))
-        if jumps.size:
-            self.max_jump_v = max(self.max_jump_v, float(jumps.max()))
+        self.peak_v = max(self.peak_v, float(x.max()), -float(x.min()))
+        self.sum_sq += float(np.einsum("i,i->", x, x))       # no BLAS threads: predictable
+        if x.size > 1:
+            d = np.subtract(x[1:], x[:-1])
+            self.max_jump_v = max(self.max_jump_v, float(d.max()), -float(d.min()))
         if self._last is not None:
             self.max_jump_v = max(self.max_jump_v, abs(float(x[0]) - self._last))
         self._last = float(x[-1])
@@ -90,6 +90,7 @@ class _Segments:
         self.b0[-1], self.b1[-1] = ends[-1] - 2 * self.h[-1], ends[-1]
         self.support_end = np.maximum.accumulate(self.b1)
         self._templates: dict[int, np.ndarray | None] = {}
+        self._tiled: dict[int, np.ndarray] = {}
 
     def overlapping(self, t0: float, t1: float) -> range:
         lo = int(np.searchsorted(self.support_end, t0, side="right"))
@@ -109,6 +110,17 @@ class _Segments:
                 self._templates.clear()
             self._templates[i] = tpl
         return self._templates[i]
+
+
+    def tiled(self, i: int, tpl: np.ndarray, length: int) -> np.ndarray:
+        """The template repeated to cover ``length + period`` samples (long segments: a slice is a copy)."""
+        big = self._tiled.get(i)
+        if big is None or big.size < length + tpl.size:
+            if len(self._tiled) >= 2:
+                self._tiled.clear()
+            big = np.tile(tpl, (length + 2 * tpl.size - 1) // tpl.size)
+            self._tiled[i] = big
+        return big
 
 
 def _tones_at(seg: Segment, n: np.ndarray, fs: float) -> np.ndarray:
@@ -155,12 +167,17 @@ def render_chunks(schedule: Schedule, sample_rate: float, chunk: int = CHUNK,
             s1 = min(n1, int(np.ceil(S.b1[i] * fs - 1e-9)))
             if s1 <= s0:
                 continue
-            n = np.arange(s0, s1, dtype=np.int64)
             tpl = S.template(i)
-            x = tpl[n % tpl.size] if tpl is not None else _tones_at(seg, n, fs)
+            if tpl is not None and s1 - s0 >= chunk // 2:
+                o = s0 % tpl.size
+                x = S.tiled(i, tpl, chunk)[o:o + (s1 - s0)]
+            elif tpl is not None:
+                x = tpl[np.arange(s0, s1, dtype=np.int64) % tpl.size]
+            else:
+                x = _tones_at(seg, np.arange(s0, s1, dtype=np.int64), fs)
             # weights: only where a fade is active
             if s0 / fs < S.a1[i] or (s1 - 1) / fs > S.b0[i]:
-                t = n / fs
+                t = np.arange(s0, s1, dtype=np.int64) / fs
                 w = _rc((t - S.a0[i]) / max(S.a1[i] - S.a0[i], 1e-300))
                 w *= 1.0 - _rc((t - S.b0[i]) / max(S.b1[i] - S.b0[i], 1e-300))
                 x = w * x
