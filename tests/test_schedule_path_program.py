@@ -87,3 +87,12 @@ def test_too_tight_slew_is_diagnosed_at_the_first_waypoint_it_cannot_follow():
     d = exc.value.diagnosis
     assert d.waypoint == 10
     assert any("slew" in b for b in d.binding)
+
+
+def test_total_amplitude_refinement_stays_within_the_true_limit_and_never_raises_the_drive():
+    pts = circle(80, r=0.6 * UM, c=(0.0, 0.0))
+    base = plan_path(G, pts, 0.01, DriveLimits(20.0))
+    refined = plan_path(G, pts, 0.01, DriveLimits(20.0), refine=2)
+    assert refined.amplitudes.sum(axis=0).max() <= 20.0 * (1 + 1e-6)
+    assert refined.u.sum() <= base.u.sum() * (1 + 1e-6)
+    assert refined.error.max() <= 0.5 * UM * np.sqrt(2)
