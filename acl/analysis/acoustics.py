@@ -358,6 +358,11 @@ def force_model(design: Design, positions: Mapping[str, Sequence[float]] | None,
     return total
 
 
+# Every term (thrust, Bjerknes, jet drag) is quadratic in the tone amplitudes (linear acoustics):
+# callers scaling a whole drive by V may evaluate once and multiply by V^2.
+force_model.quadratic_in_amplitude = True
+
+
 def selectivity(design: Design, frequencies) -> Selectivity:
     """Thrust magnitude per V^2 of every capsule over ``frequencies`` and its share per frequency."""
     f = np.atleast_1d(np.asarray(frequencies, float))

@@ -117,6 +117,7 @@ def reduced_eq3_force_model(alpha: float, gamma: float) -> ForceModel:
                 out[cb.name] = out[cb.name] - f
         return out
 
+    model.quadratic_in_amplitude = True   # (alpha/d^2 - 2 gamma) V^2
     return model
 
 
@@ -413,9 +414,18 @@ def _scaled_drive(drive: Drive, V: float) -> Drive:
 
 
 def _external(design: Design, mech: _Mechanism, drive: Drive, force_model: ForceModel):
+    # Linear acoustics: every force of a drive whose amplitudes all scale by V scales by V^2.  A force
+    # model that declares it (``quadratic_in_amplitude``) is evaluated once per configuration at
+    # unit scale instead of rebuilding its drive state for every V of the continuation.
+    quadratic = bool(getattr(force_model, "quadratic_in_amplitude", False))
+
     def external(z, V):
         q = mech.Z @ z
-        forces = force_model(design, _positions(design, mech, q), _scaled_drive(drive, V))
+        if quadratic:
+            unit = force_model(design, _positions(design, mech, q), drive)
+            forces = {k: np.asarray(v, float) * V * V for k, v in unit.items()}
+        else:
+            forces = force_model(design, _positions(design, mech, q), _scaled_drive(drive, V))
         g = np.zeros(mech.n)
         for gi, members in enumerate(mech.groups):
             A, o = mech.bases[gi], mech.offsets[gi]
