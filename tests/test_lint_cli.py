@@ -219,3 +219,12 @@ def test_build_and_hidden_folders_are_not_searched(tmp_path, capsys):
     write(tmp_path, "d/ok.acl", CLEAN)
     rc, out, _ = run(capsys, "--format", "concise", str(tmp_path / "d"))
     assert rc == 0 and "1 file" in out
+
+
+def test_no_rule_crashes_on_the_bad_corpus_or_the_examples(capsys):
+    root = Path(__file__).resolve().parents[1]
+    dirs = [str(root / d) for d in ("tests/bad", "examples") if (root / d).is_dir()]
+    if not dirs:
+        pytest.skip("no tests/bad or examples folder")
+    rc, out, err = run(capsys, "--format", "concise", *dirs)
+    assert rc in (0, 1, 2) and "ACL999" not in out and "internal error" not in err
