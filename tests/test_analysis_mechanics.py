@@ -109,8 +109,7 @@ def test_spring_pair_snaps_at_two_thirds_gap_without_thrust():
     model = M.reduced_eq3_force_model(ALPHA, 0.0)
     sweep = M.sweep_voltage(spring_pair(30e-6), UNIT_DRIVE, 50.0, model)
     assert sweep.status == "snap_in"
-    gap = sweep.snap_positions["top"][0] - sweep.snap_positions["bottom"][0] - 2 * (H_CAP / 2 + WALL)
-    assert gap / 30e-6 == pytest.approx(2 / 3, rel=1e-3)
+    assert sweep.snap_gap(spring_pair(30e-6), "top", "bottom") / 30e-6 == pytest.approx(2 / 3, rel=1e-3)
 
 
 def test_equilibrium_reports_spring_extension_and_small_residual():

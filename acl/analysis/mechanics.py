@@ -67,6 +67,16 @@ class VoltageSweep:
     message: str = ""
     diagnostics: tuple[Diagnostic, ...] = ()
 
+    def snap_gap(self, design: Design, a: str, b: str) -> float | None:
+        """Distance between the closest orifice centres of a and b at the snap-in (m), None without snap."""
+        if self.snap_positions is None:
+            return None
+        ca, cb = design.capsule(a), design.capsule(b)
+        oa, ob = _closest_orifices(ca, cb)
+        da = self.snap_positions[a] - np.asarray(ca.center)
+        db = self.snap_positions[b] - np.asarray(cb.center)
+        return float(np.linalg.norm((np.asarray(ob) + db) - (np.asarray(oa) + da)))
+
     def gap(self, design: Design, a: str, b: str) -> np.ndarray:
         """Distance between the closest orifice centres of capsules a and b along the branch (m)."""
         ca, cb = design.capsule(a), design.capsule(b)
@@ -497,7 +507,8 @@ def equilibrium(design: Design, drive: Drive, force_model: ForceModel, *, mode: 
 
     Continuation in the drive scale from 0 to 1 avoids jumping to a far root; if the branch snaps
     before full drive, the status is ``snap_in`` and the positions are those at the snap.
-    ``start`` (capsule -> centre) instead solves directly from that configuration.
+    ``start`` (capsule -> centre) instead solves directly from that configuration (a warm start,
+    which keeps hysteresis such as a switched latch); if that fails or is unstable, it continues from rest.
     """
     mech = build_mechanism(design, mode)
     rest, ext, adm = _restoring(mech), _external(design, mech, drive, force_model), _admissible(design, mech)
@@ -513,7 +524,9 @@ def equilibrium(design: Design, drive: Drive, force_model: ForceModel, *, mode: 
             q0[o:o + A.shape[1]] = A.T @ d
         eq = EQ.solve_equilibrium(rest, ext, mech.Z.T @ q0, 1.0, admissible=adm)
         z, status, stable, res = eq.q, eq.status, eq.stable, eq.residual
-    else:
+    if start is None or status != "ok" or not stable:     # only stable equilibria: continue from rest
+        start = None
+    if start is None:
         br = EQ.continuation(rest, ext, np.zeros(mech.m), 1.0, admissible=adm, length_scale=LENGTH_SCALE)
         if br.status == "snap_in":
             z, status, stable, res = br.snap.q, "snap_in", False, float("nan")
