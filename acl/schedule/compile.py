@@ -36,6 +36,7 @@ class CompileOptions:
     gain_provider: Callable | None = None        # (design, capsule) -> GainTable; default model
     forward_provider: Callable | None = None     # (design, capsule, freqs) -> (forward, name)
     latch_provider: Callable | None = None       # (design, freqs) -> (forces, to_b, to_a)
+    snap_provider: Callable | None = None        # (design, a, b, freqs, vmax) -> v_snap (K,) | None
     max_voltage: float | None = None             # overrides every other limit if given
     lam: float = 1e-3
     slew_model: str = "auto"
@@ -279,7 +280,8 @@ class _Compiler:
         if not step.tones:
             raise _diag("E-SCHED-TONES", f"{name}: a hold step needs its tones", step.span,
                         "write `tones 85 kHz, 125 kHz` on the hold step")
-        v_snap = snap_in_voltages(self.design, step.a, step.b, step.tones, vmax)
+        provider = self.opts.snap_provider or snap_in_voltages
+        v_snap = provider(self.design, step.a, step.b, step.tones, vmax)
         if v_snap is None:
             raise _diag("E-SCHED-MODEL", f"{name}: no snap-in model available (acl.analysis.mechanics."
                         "sweep_voltage)", step.span, "the mechanics analysis is needed for hold steps")
