@@ -350,6 +350,18 @@ def test_acl602_fires_for_a_bare_number_used_as_a_length(tmp_path):
     assert "ACL602" in codes(lint(tmp_path, text))
 
 
+def test_acl602_sees_uses_inside_nested_blocks_on_one_line(tmp_path):
+    text = ONE.replace("capsules.design1 { }", "capsules.design1 { orifice jet { radius = r * 1 um, normal = +x } }")
+    assert "ACL602" in codes(lint(tmp_path, text + "param r = 10\n"))
+
+
+def test_acl602_quiet_for_a_count(tmp_path):
+    text = ONE + "param n = 2\nspring s { length = 20 um, section = circle(2 um), material = materials.tpeta, " \
+                 "count = n, axis = +x }\nlink a to ground with s\n"
+    text = text.replace("import stdlib.media\n", "import stdlib.media\nimport stdlib.materials\n")
+    assert "ACL602" not in codes(lint(tmp_path, text))
+
+
 def test_acl602_quiet_for_a_param_with_its_unit(tmp_path):
     text = ONE.replace("clamp = (0, 0, 0)", "clamp = (x0, 0, 0)") + "param x0 = 3 um\n"
     assert "ACL602" not in codes(lint(tmp_path, text))

@@ -164,8 +164,8 @@ def _names(src: SourceFile) -> None:
         for m in NAME.finditer(masked):
             start = m.start()
             # braces before this name change the block context
-            for ch in masked[pos:start]:
-                depth, statement = _brace(ch, depth, kinds, masked, statement)
+            for j in range(pos, start):
+                depth = _brace(masked, j, depth, kinds)
             pos = start
             if start in skip:
                 continue
@@ -175,22 +175,25 @@ def _names(src: SourceFile) -> None:
                 continue                                    # member: arm.tip, pbs.water
             if after.startswith("=") and not after.startswith("=="):
                 continue                                    # a key or a declared name
-            if m.group(0) in ("like",):
-                continue
+            if m.group(0) in ("like",) or (m.group(0) in ("x", "y", "z") and masked[start - 1:start] in ("+", "-")):
+                continue                                    # a keyword, or a direction such as +x
             keys = list(_KEY.finditer(masked[:start]))
             src.uses.append(Use(m.group(0), i, start + 1, kinds[-1] if kinds else None,
                                 keys[-1].group(1) if keys else None, statement, stmt_name, masked[:start]))
-        for ch in masked[pos:]:
-            depth, statement = _brace(ch, depth, kinds, masked, statement)
+        for j in range(pos, len(masked)):
+            depth = _brace(masked, j, depth, kinds)
 
 
-def _brace(ch: str, depth: int, kinds: list[str], line: str, statement: str):
+def _brace(line: str, j: int, depth: int, kinds: list[str]) -> int:
+    """Track block nesting at ``line[j]``; a block's kind is the first word of its opening statement."""
+    ch = line[j]
     if ch == "{":
-        first = NAME.match(line.strip())
-        kinds.append(first.group(0) if first else "")
-        return depth + 1, statement
+        head = re.split(r"[{},]", line[:j])[-1]
+        m = re.match(r"\s*([A-Za-z_]\w*)", head)
+        kinds.append(m.group(1) if m else "")
+        return depth + 1
     if ch == "}":
         if kinds:
             kinds.pop()
-        return max(0, depth - 1), statement
-    return depth, statement
+        return max(0, depth - 1)
+    return depth
