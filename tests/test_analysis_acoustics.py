@@ -172,7 +172,7 @@ def test_fig4h_pair_attracts_at_85_and_repels_at_125_khz_with_declared_q_40():
 
 
 def test_fig4h_predicted_damping_is_too_strong_to_give_repulsion():
-    # Documented disagreement (docs/physics-acoustics.md): predicted Q ~ 6.6 keeps the phase
+    # Documented disagreement (docs/physics.md (part A)): predicted Q ~ 6.6 keeps the phase
     # difference at 125 kHz below 90 deg, so the model predicts attraction at both frequencies.
     d = facing_pair(40 * UM)
     (p125,) = A.pair_forces(d, tone(125e3))

@@ -21,7 +21,7 @@ class MediumConstants:
     # at 100 kHz, sqrt(2 D / omega) ~ 7 um, is as large as the cavity's volume-to-wall ratio
     # (~7 um) and the polymer walls are a heat reservoir, so the gas stays near wall temperature;
     # Prosperetti (J. Acoust. Soc. Am. 61, 17 (1977)) gives Re(Phi)/3 ~ 1.1 at this Peclet number.
-    # See docs/physics-acoustics.md for the check against Table S1 with 1.4.
+    # See docs/physics.md (part A) for the check against Table S1 with 1.4.
     polytropic_index: float = 1.0
     gas_thermal_diffusivity: float = 2.1e-5   # m^2/s, air 20 C
     gas_heat_capacity_ratio: float = 1.4      # air; used by the thermal damping model only
@@ -46,7 +46,7 @@ DEFAULT_GAIN_PA_PER_V = 100.0
 #: critical distance of two facing identical Design-1 capsules (d_c = 50 um, paper text at Fig. 4):
 #: with the free-field Bjerknes force rho w^2 |dV|^2/(8 pi d^2) and 2 F_thrust pushing apart,
 #: d_c = R / (8 sqrt(C_s)), so C_s = (10 um / (8 * 50 um))^2.  The naive rectified momentum
-#: flux (C_s = 1/2) would put d_c at 1.8 um, contradicting Fig. 4 (docs/physics-acoustics.md).
+#: flux (C_s = 1/2) would put d_c at 1.8 um, contradicting Fig. 4 (docs/physics.md (part A)).
 STREAMING_CONSTANT = (10e-6 / (8 * 50e-6)) ** 2
 
 #: Number of axisymmetric membrane shapes per interface in the Rayleigh-Ritz model: the first

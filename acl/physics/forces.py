@@ -23,7 +23,7 @@ def interface_centre_amplitude(volume_amplitude, radius):
 
 
 def thrust_magnitude(volume_amplitude, radius, omega, density, streaming_constant):
-    """Streaming thrust |F| = C_s rho (omega eps)^2 pi R^2 of one orifice (jet momentum flux, reduced form gamma V^2 of paper Eq. 3; docs/physics-acoustics.md)."""
+    """Streaming thrust |F| = C_s rho (omega eps)^2 pi R^2 of one orifice (jet momentum flux, reduced form gamma V^2 of paper Eq. 3; docs/physics.md (part A))."""
     eps = interface_centre_amplitude(volume_amplitude, radius)
     r = np.asarray(radius, float)
     return streaming_constant * density * (np.asarray(omega, float) * eps) ** 2 * np.pi * r**2
