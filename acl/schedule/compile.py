@@ -253,7 +253,8 @@ class _Compiler:
                 "E-SCHED-INFEASIBLE", _severity_error(), f"{name}: infeasible: binding "
                 + "; ".join(exc.binding), step.span, "relax: " + "; or ".join(exc.relax),
                 notes=(f"at t = {self.t:.4g} s, {len(freqs)} candidate tones",))])
-        used = [(f, a) for f, a in zip(freqs, plan.amplitudes) if a > 1e-6 * vmax]
+        # interior-point dust: a tone with < 1e-6 of the largest power adds < 1e-6 of the force
+        used = [(f, a) for f, a, u in zip(freqs, plan.amplitudes, plan.u) if u > 1e-6 * plan.u.max()]
         self._add(step.duration, [ScheduledTone(f, float(a)) for f, a in used], i, name)
         self.states[step.latch] = step.state
         self.goals.append(GoalReport(name, "switch", i, self.t - step.duration, self.t,

@@ -144,7 +144,7 @@ def model_forward(design: Design, capsule: str, frequencies) -> tuple[Forward, s
 def latch_forces(design: Design, frequencies) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(forces (L, K) N/V^2 along each latch axis, to_b (L,) N, to_a (L,) N) for the design's latches.
 
-    The force on a latch is that on the capsules mounted on its shuttle.  Thresholds come from
+    The force on a latch is that on the capsules mounted on its shuttle and those trussed to them.  Thresholds come from
     the latch landscape (switching force a->b, release force b->a; a monostable latch gets inf).
     """
     from acl.analysis import acoustics
@@ -160,8 +160,8 @@ def latch_forces(design: Design, frequencies) -> tuple[np.ndarray, np.ndarray, n
     for i, latch in enumerate(design.latches):
         axis = np.asarray(latch.axis, float)
         axis = axis / np.linalg.norm(axis)
-        carried = [j.capsule for j in design.joints
-                   if j.kind == "mount" and j.target_kind == "latch" and j.target == latch.name]
+        carried = _rigidly_linked(design, [j.capsule for j in design.joints if j.kind == "mount"
+                                            and j.target_kind == "latch" and j.target == latch.name])
         for k, fm in enumerate(per_tone):
             forces[i, k] = sum(float(np.asarray(fm.get(c, np.zeros(3)), float) @ axis) for c in carried)
         land = latch_landscape(latch.angle, latch.length, latch.width, latch.thickness,
@@ -170,6 +170,20 @@ def latch_forces(design: Design, frequencies) -> tuple[np.ndarray, np.ndarray, n
         if land.release_force is not None:
             to_a[i] = land.release_force
     return forces, to_b, to_a
+
+
+def _rigidly_linked(design: Design, capsules: list[str]) -> list[str]:
+    """The capsules plus every capsule joined to them through truss links (they move as one)."""
+    group, frontier = set(capsules), list(capsules)
+    while frontier:
+        c = frontier.pop()
+        for j in design.joints:
+            if j.kind == "link" and j.element_kind == "truss" and c in (j.a, j.b):
+                other = j.b if j.a == c else j.a
+                if other not in group and other != "ground" and other in {x.name for x in design.capsules}:
+                    group.add(other)
+                    frontier.append(other)
+    return sorted(group)
 
 
 def snap_in_voltages(design: Design, a: str, b: str, frequencies, v_max: float) -> np.ndarray | None:
