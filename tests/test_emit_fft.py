@@ -125,3 +125,30 @@ def test_peak_of_the_file_equals_the_scheduled_segment_peaks(tmp_path):
     scheduled = max(seg.peak_v for seg in s.segments)
     assert r.stats.peak_v <= scheduled * (1 + 1e-6)
     assert r.stats.peak_v >= 0.98 * scheduled
+
+
+def test_crossfades_form_a_partition_of_unity():
+    """Many short segments of one unchanged tone render exactly as that tone (weights sum to 1)."""
+    from hypothesis import given, settings
+    from hypothesis import strategies as st
+
+    from acl.emit.render import render_chunks
+
+    @settings(max_examples=25, deadline=None)
+    @given(st.lists(st.floats(min_value=2e-4, max_value=5e-3), min_size=2, max_size=12),
+           st.floats(min_value=0.0, max_value=4e-3))
+    def check(durations, ramp):
+        edges = np.concatenate([[0.0], np.cumsum(durations)])
+        tone = (ScheduledTone(40e3, 1.0, 0.7),)
+        segs = [Segment(a, b, tone, i) for i, (a, b) in enumerate(zip(edges[:-1], edges[1:]))]
+        s = Schedule("u", segs, [], 1.0, 1.0, ramp_s=ramp)
+        fs = 1e6
+        x = np.concatenate([c for _, c in render_chunks(s, fs, chunk=1000)])
+        n = np.arange(x.size)
+        pure = np.sin(2 * np.pi * 40e3 * n / fs + 0.7)
+        h0 = min(ramp / 2, durations[0] / 2)
+        h1 = min(ramp / 2, durations[-1] / 2)
+        inner = (n / fs >= 2 * h0) & (n / fs <= edges[-1] - 2 * h1)
+        assert np.allclose(x[inner], pure[inner], atol=1e-9)
+
+    check()

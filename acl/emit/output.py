@@ -42,6 +42,9 @@ def check_options(schedule: Schedule, formats, sample_rate: float) -> None:
                            f"use at least {2 * fmax:g} Hz; the default is 10x the highest tone"))
     elif "wav" in formats and int(sample_rate) != sample_rate:
         diags.append(error("E-EMIT-RATE", "a WAV sample rate must be a whole number of Hz", None))
+    elif "wav" in formats and 4 * total_samples(schedule, sample_rate) + 64 >= 2 ** 32:
+        diags.append(error("E-EMIT-SIZE", f"{schedule.duration_s:g} s at {sample_rate:g} S/s exceeds the "
+                           "4 GiB limit of a WAV file", None, "use --format npy, or a lower sample rate"))
     if diags:
         raise DiagnosticError(diags)
 
