@@ -163,6 +163,11 @@ def test_acl201_with_mechanics_quiet_when_the_beams_hold_the_pair_at_this_drive(
     assert "ACL201" not in codes(lint(tmp_path, text, MECHANICS))  # the beams hold at 1 V
 
 
+def test_acl201_quiet_when_a_hold_step_governs_the_gap(tmp_path):
+    text = facing("40 um", "hold gap(left.jet, right.jet) above 10 um for 1 s, using [125 kHz], limit 10 V")
+    assert "ACL201" not in codes(lint(tmp_path, text))
+
+
 def test_acl201_quiet_above_the_critical_distance(tmp_path):
     assert "ACL201" not in codes(lint(tmp_path, facing("80 um", "drive 125 kHz @ 1 V for 1 s")))
 
@@ -172,6 +177,20 @@ def test_acl201_quiet_when_the_program_means_to_cross(tmp_path):
     assert "ACL201" not in codes(lint(tmp_path, text))
 
 
+UNEQUAL = HEAD + """\
+use transducer transducers.contact_piezo
+beam big_arm like beams.cantilever50 { clamp = (0, 0, 0) }
+beam small_arm like beams.cantilever50 { clamp = (86.5 um, 0, 0) }
+capsule big like capsules.large25 { q = 40 }
+capsule small like capsules.small17 { q = 40, orifice jet { radius = 10 um, normal = -x } }
+mount big on big_arm.tip
+mount small on small_arm.tip
+program p {  SUPPRESS
+  drive 85 kHz @ 1 V for 1 s
+  drive LAST @ 1 V for 1 s
+}
+"""
+
 SELECTIVE = HEAD + """\
 use transducer transducers.contact_piezo
 beam arm_low like beams.cantilever50 { clamp = (0, 0, 0) }
@@ -180,24 +199,28 @@ capsule low like capsules.design2 { }
 capsule high like capsules.design3 { }
 mount low on arm_low.tip
 mount high on arm_high.tip
-program p {  SUPPRESS
+program p {
   drive 85 kHz @ 1 V for 1 s
-  drive LAST @ 1 V for 1 s
+  drive 170 kHz @ 1 V for 1 s
 }
 """
 
 
 def test_acl202_fires_when_the_force_changes_sign_in_the_program_range(tmp_path):
-    r = lint(tmp_path, SELECTIVE.replace("SUPPRESS", "").replace("LAST", "170 kHz"))
+    r = lint(tmp_path, UNEQUAL.replace("SUPPRESS", "").replace("LAST", "125 kHz"))   # paper Fig. 4h
     assert "ACL202" in codes(r)
 
 
 def test_acl202_quiet_for_a_single_frequency_program(tmp_path):
-    assert "ACL202" not in codes(lint(tmp_path, SELECTIVE.replace("SUPPRESS", "").replace("LAST", "85 kHz")))
+    assert "ACL202" not in codes(lint(tmp_path, UNEQUAL.replace("SUPPRESS", "").replace("LAST", "85 kHz")))
+
+
+def test_acl202_quiet_when_the_force_is_negligible_next_to_the_thrust(tmp_path):
+    assert "ACL202" not in codes(lint(tmp_path, SELECTIVE))
 
 
 def test_acl202_is_accepted_with_a_justified_suppression_on_the_program(tmp_path):
-    text = SELECTIVE.replace("SUPPRESS", "# acl: ignore[ACL202] reversal is the point").replace("LAST", "170 kHz")
+    text = UNEQUAL.replace("SUPPRESS", "# acl: ignore[ACL202] reversal is the point").replace("LAST", "125 kHz")
     r = lint(tmp_path, text)
     assert not codes(r) & {"ACL202", "ACL900", "ACL901"}
 
@@ -248,6 +271,14 @@ def test_acl302_fires_when_the_margin_is_short(tmp_path):
 def test_acl302_quiet_with_enough_margin(tmp_path):
     r = lint(tmp_path, latch("0.5 um", "switch l to b, margin 1.2, using [125 kHz], limit 20 V"))
     assert "ACL302" not in codes(r)
+
+
+def test_latch_force_counts_capsules_tied_to_the_shuttle_by_a_truss(tmp_path):
+    text = latch("0.5 um", "switch l to b, margin 1.2, using [125 kHz], limit 20 V").replace(
+        "mount c on l.shuttle", "capsule d like capsules.design1 { center = (0, 80 um, 60 um), "
+        "orifice jet { radius = 10 um, normal = -x } }\ntruss tie { }\nmount c on l.shuttle\nlink d to c with tie")
+    r = lint(tmp_path, text)
+    assert "ACL104" not in codes(r)          # d moves with the shuttle: the tone is meant for it too
 
 
 # ---- ACL4xx ------------------------------------------------------------------------------------

@@ -90,6 +90,23 @@ class Context:
         t = selectivity(self.design, np.atleast_1d(frequencies)).thrust_per_v2
         return np.divide(t, peak, out=np.zeros_like(t), where=peak > 0)
 
+    # -- structure -----------------------------------------------------------------------------
+    def carried(self, target: str) -> list[str]:
+        """Capsules moving with the element ``target``: mounted on it, and rigidly tied to those by trusses."""
+        d = self.design
+        group = [j.capsule for j in d.joints if j.kind == "mount" and j.target == target]
+        names = {c.name for c in d.capsules}
+        grew = True
+        while grew:
+            grew = False
+            for j in d.joints:
+                if j.kind == "link" and j.element_kind == "truss" and j.a in names and j.b in names:
+                    for x, y in ((j.a, j.b), (j.b, j.a)):
+                        if x in group and y not in group:
+                            group.append(y)
+                            grew = True
+        return group
+
     # -- programs ------------------------------------------------------------------------------
     def steps(self) -> Iterator[tuple[Program, object]]:
         for p in self.design.programs:

@@ -43,6 +43,8 @@ THRESHOLDS: dict[str, Threshold] = {t.name: t for t in (
               "ACL103: modes overlap when |f1 - f2| < k (f1/Q1 + f2/Q2) / 2; this is k"),
     Threshold("crosstalk_ratio", 0.1, "",
               "ACL104: thrust of an unintended capsule relative to its own peak thrust, above which it is excited"),
+    Threshold("force_significance", 0.05, "",
+              "ACL202: Bjerknes force / the larger thrust of the pair below which its sign is not counted"),
     Threshold("snap_margin", 1.0, "", "ACL201: a pair snaps in when its gap < snap_margin x critical distance"),
     Threshold("latch_hold_factor", 1.2, "",
               "ACL301: a step endangers a latch when its force x this factor reaches the switching force"),

@@ -115,7 +115,7 @@ def _intended(ctx: Context, step, rel: np.ndarray, freqs) -> list[set[str]]:
     if step.kind == "hold":
         return [{step.a.split(".")[0], step.b.split(".")[0]} for _ in freqs]
     if step.kind == "switch":
-        on = {j.capsule for j in ctx.design.joints if j.kind == "mount" and j.target == step.latch}
+        on = set(ctx.carried(step.latch))
         return [on for _ in freqs]
     out = []
     for j, f in enumerate(freqs):

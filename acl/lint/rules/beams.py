@@ -47,6 +47,8 @@ def beam_loads(ctx: Context, beam):
                         continue
                     P = float(eq1_force(ext, L, l, EI))
                     cand = (ext, P, st, f"path of `follow` reaches {um(ext)} from rest")
+                elif st.kind == "hold" and st.mode == "cross" and cap in (st.a.split(".")[0], st.b.split(".")[0]):
+                    continue          # the pair ends in contact: the load at rest geometry does not apply
                 else:
                     cand = None
                     for drive in ctx.step_drives(st):

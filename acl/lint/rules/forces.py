@@ -25,10 +25,10 @@ def _pushed_apart(ctx: Context, drive, a: str, b: str) -> bool:
     return float(thrust[a] @ -u) > 0 and float(thrust[b] @ u) > 0
 
 
-def _crossing(program) -> set[tuple[str, str]]:
-    """Pairs a program deliberately drives below snap-in (`cross gap(a, b)`)."""
+def _managed(program) -> set[tuple[str, str]]:
+    """Pairs whose gap a program governs itself: `hold gap(a, b) above ...` or `cross gap(a, b)`."""
     return {tuple(sorted((st.a.split(".")[0], st.b.split(".")[0])))
-            for st in program.steps if st.kind == "hold" and st.mode == "cross"}
+            for st in program.steps if st.kind == "hold"}
 
 
 @rule("ACL201", "snap-in",
@@ -39,7 +39,7 @@ def snap_in(ctx: Context):
         return
     margin = ctx.threshold("snap_margin")
     for p in ctx.design.programs:
-        crossing = _crossing(p)
+        crossing = _managed(p)
         flagged: dict[tuple[str, str], tuple] = {}      # pair -> (amplitude, step, drive, pair force)
         for st in p.steps:
             for drive in ctx.step_drives(st):
@@ -106,27 +106,35 @@ def program_range(ctx: Context, program) -> tuple[float, float] | None:
 @rule("ACL202", "force-sign-change",
       "a pair that attracts at some program frequencies and repels at others reverses its motion "
       "inside the program; say so with a justified suppression if that is the intent",
-      Severity.WARNING, "forces", ("sweep_samples",))
+      Severity.WARNING, "forces", ("sweep_samples", "force_significance"))
 def force_sign_change(ctx: Context):
     if len(ctx.design.capsules) < 2:
         return
+    from acl.analysis.acoustics import selectivity
+
+    significance = ctx.threshold("force_significance")
+    names = [c.name for c in ctx.design.capsules]
     for p in ctx.design.programs:
         rng = program_range(ctx, p)
         if rng is None:
             continue
         freqs = ctx.sweep_frequencies(*rng)
-        att: dict[tuple[str, str], list[tuple[float, float]]] = {}
-        for f in freqs:
+        thrust = selectivity(ctx.design, freqs).thrust_per_v2          # (capsules, F), N at 1 V
+        att: dict[tuple[str, str], list[tuple[float, float, float]]] = {}
+        for k, f in enumerate(freqs):
             for pf in ctx.pair_forces(Drive(tones=(Tone(frequency=float(f), amplitude=1.0),))):
-                att.setdefault((pf.a, pf.b), []).append((float(f), pf.attraction))
+                push = max(thrust[names.index(pf.a), k], thrust[names.index(pf.b), k])
+                att.setdefault((pf.a, pf.b), []).append((float(f), pf.attraction, push))
         for (a, b), rows in att.items():
             if _both_fixed(ctx, a, b):
                 continue
-            vals = np.array([v for _, v in rows])
+            vals = np.array([v for _, v, _ in rows])
             scale = np.abs(vals).max()
             if scale == 0:
                 continue
-            strong = np.abs(vals) > 1e-3 * scale
+            # a sign only counts where the Bjerknes force matters next to the pair's own thrust
+            strong = np.abs(vals) >= significance * np.array([t for _, _, t in rows])
+            rows = [(f, v) for f, v, _ in rows]
             pos = [f for (f, v), s in zip(rows, strong) if s and v > 0]
             neg = [f for (f, v), s in zip(rows, strong) if s and v < 0]
             if pos and neg:
@@ -134,5 +142,6 @@ def force_sign_change(ctx: Context):
                     f"`{a}` and `{b}` attract and repel within the {khz(rng[0])} .. {khz(rng[1])} range of program `{p.name}`",
                     p.span, notes=[
                         f"attract at {khz(min(pos))} .. {khz(max(pos))}; repel at {khz(min(neg))} .. {khz(max(neg))}",
-                        f"{len(freqs)} frequencies sampled, 1 V single tones; peak |force| {scale * 1e9:.3g} nN/V^2"],
+                        f"{len(freqs)} frequencies sampled, 1 V single tones; peak |force| {scale * 1e9:.3g} nN/V^2",
+                        f"counted where |Bjerknes| >= force_significance = {significance:g} x the larger thrust"],
                     hint="if the reversal is intended, write `# acl: ignore[ACL202] <why>` on the program's line")

@@ -31,7 +31,7 @@ def _landscape(angle: float, length: float, width: float, thickness: float, youn
 
 
 def _carried(ctx: Context, latch) -> list[str]:
-    return [j.capsule for j in ctx.design.joints if j.kind == "mount" and j.target == latch.name]
+    return ctx.carried(latch.name)
 
 
 def _push(ctx: Context, latch, drive: Drive, state: str) -> float:
