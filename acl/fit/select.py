@@ -1,6 +1,7 @@
 """Trace a structured residual to a missing effect: fit each candidate on top of the current model, keep the best.
 
-A candidate is added when, against the current model, (1) the nested F-test gives p < ``P_LIMIT``,
+A candidate is added when, against the current model, (1) the nested F-test gives p < ``P_LIMIT``
+divided by the number of candidates tried in the round (Bonferroni),
 (2) BIC improves, (3) the k-fold cross-validated weighted error improves (folds fixed by ``seed``),
 and (4) its parameters are identifiable (full-rank Jacobian, relative standard error < 1).  Among
 the candidates that pass, the lowest BIC wins; the loop repeats until none passes.  Cross-validation
@@ -126,6 +127,8 @@ def select_effects(problem, candidates=None, p_limit=P_LIMIT, k_folds=K_FOLDS, s
     for rnd in range(1, max_rounds + 1):
         passing = []
         kinds = {c.kind for c in current_coefs}
+        tried = [e for e in names if e not in selected and not applicable(e, problem, kinds)]
+        limit = p_limit / max(len(tried), 1)          # Bonferroni over the candidates of this round
         for eid in names:
             if eid in selected:
                 continue
@@ -148,8 +151,8 @@ def select_effects(problem, candidates=None, p_limit=P_LIMIT, k_folds=K_FOLDS, s
             if not trial_fit.identifiable:
                 t.reason = "not identifiable from these data: " + "; ".join(
                     w for w in trial_fit.warnings if "identifiable" in w)
-            elif not p < p_limit:
-                t.reason = f"not significant (F-test p = {p:.3g} >= {p_limit})"
+            elif not p < limit:
+                t.reason = f"not significant (F-test p = {p:.3g} >= {limit:.3g} = {p_limit}/{len(tried)} candidates)"
             elif loose:
                 t.reason = "not identifiable from these data: " + ", ".join(loose) + " (relative standard error > 1)"
             elif not t.delta_bic < 0:

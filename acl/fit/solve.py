@@ -14,6 +14,7 @@ import numpy as np
 
 NOMINAL_SIGMA = 1e-6      # m: weight unit when the data give no sigma
 CORR_STRONG = 0.9
+SPIKE = 100.0            # a Jacobian row this many times the median row norm is a fold row
 
 
 @dataclass
@@ -132,6 +133,13 @@ def fit(predict, y, sigma, coefs, train=None, starts=None, max_nfev=200) -> FitR
     warnings: list[str] = []
     identifiable = True
     if p:
+        rn = np.linalg.norm(J, axis=1)
+        med = float(np.median(rn[rn > 0])) if np.any(rn > 0) else 0.0
+        spike = rn > SPIKE * med if med > 0 else np.zeros(rn.size, bool)
+        if np.any(spike) and spike.sum() < rn.size - p:
+            J = J[~spike]
+            warnings.append(f"{int(spike.sum())} row(s) sit where the model is nearly singular (e.g. at the "
+                            "snap-in fold); left out of the interval estimate")
         sv = np.linalg.svd(J, compute_uv=False)
         if sv.size == 0 or sv[-1] <= 1e-9 * max(sv[0], 1e-300):
             identifiable = False
