@@ -84,7 +84,7 @@ def test_infeasible_switch_names_the_goal_time_and_relaxation():
 
 
 def test_hold_and_cross_steps_use_the_snap_in_model():
-    snap = lambda design, a, b, freqs, vmax: np.array([6.0, np.inf])[: len(freqs)]   # noqa: E731
+    snap = lambda design, a, b, freqs, vmax, bound: np.array([6.0, np.inf])[: len(freqs)]   # noqa: E731
     d = design(M.HoldStep(a="x.jet", b="y.jet", mode="above", duration=0.1, tones=(85e3, 125e3), span=sp(11)),
                M.HoldStep(a="x.jet", b="y.jet", mode="cross", duration=0.1, tones=(85e3,), span=sp(12)))
     s = compile_program(d, "p", CompileOptions(snap_provider=snap))

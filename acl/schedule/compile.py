@@ -36,7 +36,7 @@ class CompileOptions:
     gain_provider: Callable | None = None        # (design, capsule) -> GainTable; default model
     forward_provider: Callable | None = None     # (design, capsule, freqs) -> (forward, name)
     latch_provider: Callable | None = None       # (design, freqs) -> (forces, to_b, to_a)
-    snap_provider: Callable | None = None        # (design, a, b, freqs, vmax) -> v_snap (K,) | None
+    snap_provider: Callable | None = None        # (design, a, b, freqs, vmax, bound) -> (K,) V | None
     max_voltage: float | None = None             # overrides every other limit if given
     lam: float = 1e-3
     slew_model: str = "auto"
@@ -282,7 +282,11 @@ class _Compiler:
             raise _diag("E-SCHED-TONES", f"{name}: a hold step needs its tones", step.span,
                         "write `tones 85 kHz, 125 kHz` on the hold step")
         provider = self.opts.snap_provider or snap_in_voltages
-        v_snap = provider(self.design, step.a, step.b, step.tones, vmax)
+        v_snap = provider(self.design, step.a, step.b, step.tones, vmax,
+                          step.bound if step.mode == "above" else None)
+        if v_snap is not None and np.any(np.asarray(v_snap) <= 0):
+            raise _diag("E-SCHED-INFEASIBLE", f"{name}: the gap is already below its bound at rest",
+                        step.span, "lower the bound or widen the rest gap")
         if v_snap is None:
             raise _diag("E-SCHED-MODEL", f"{name}: no snap-in model available (acl.analysis.mechanics."
                         "sweep_voltage)", step.span, "the mechanics analysis is needed for hold steps")
@@ -293,11 +297,14 @@ class _Compiler:
                 "E-SCHED-INFEASIBLE", _severity_error(), f"{name}: infeasible: binding "
                 + "; ".join(exc.binding), step.span, "relax: " + "; or ".join(exc.relax),
                 notes=(f"at t = {self.t:.4g} s",))])
-        tones = [ScheduledTone(f, float(a)) for f, a in zip(step.tones, plan.amplitudes)]
+        tones = [ScheduledTone(f, float(a)) for f, a, u in zip(step.tones, plan.amplitudes, plan.u)
+                 if u > 1e-6 * max(plan.u.max(), 1e-300)]
         self._add(step.duration, tones, i, name)
-        self.goals.append(GoalReport(name, "hold", i, self.t - step.duration, self.t, tuple(step.tones),
-                                     model="linear snap-in index",
-                                     details={"snap_index": plan.snap_index}))
+        self.goals.append(GoalReport(name, "hold", i, self.t - step.duration, self.t,
+                                     tuple(t.frequency_hz for t in tones),
+                                     model="snap index sum u/Vcrit^2 (forces add in V^2)",
+                                     details={"snap_index": plan.snap_index,
+                                              "critical_voltages_v": [float(v) for v in v_snap]}))
 
 
 def _severity_error():

@@ -11,7 +11,8 @@ This is the only module of acl.schedule that calls the analysis stage:
 * :func:`latch_forces` -- force per V^2 of each tone along each latch's axis (the full
   :func:`acl.analysis.acoustics.force_model` at rest), and the latches' switching / release forces
   (``acl.physics.latch.latch_landscape``).
-* :func:`snap_in_voltages` -- per-tone snap-in voltage from ``acl.analysis.mechanics.sweep_voltage``.
+* :func:`snap_in_voltages` -- per-tone snap-in (or gap-bound) voltage from
+  ``acl.analysis.mechanics.sweep_voltage``.
 
 Each returns numbers only; errors are ValueError with a message the caller turns into a diagnostic.
 """
@@ -186,17 +187,37 @@ def _rigidly_linked(design: Design, capsules: list[str]) -> list[str]:
     return sorted(group)
 
 
-def snap_in_voltages(design: Design, a: str, b: str, frequencies, v_max: float) -> np.ndarray | None:
-    """Per-tone snap-in voltage (V; inf if no snap up to ``v_max``) of the mechanism, or None if
-    the mechanics analysis is unavailable.  ``a``/``b`` (capsule.orifice) name the pair (for messages)."""
+def snap_in_voltages(design: Design, a: str, b: str, frequencies, v_max: float,
+                     bound: float | None = None) -> np.ndarray | None:
+    """Per-tone critical voltage (V; inf if none up to ``v_max``), or None without a mechanics model.
+
+    The critical voltage of a tone alone is its snap-in voltage (``mechanics.sweep_voltage``) or,
+    when ``bound`` (m) is given, the voltage at which the gap between the capsules of orifices
+    ``a`` and ``b`` (``capsule.orifice``) first falls to ``bound`` on the stable branch, if lower.
+    Forces add in V^2, so a multi-tone drive is below every critical point when
+    ``sum_k u_k / Vcrit_k^2 < 1`` (the snap index of :mod:`acl.schedule.hold`).
+    """
     mech = _optional("acl.analysis.mechanics")
     if mech is None or not hasattr(mech, "sweep_voltage"):
         return None
     from acl.analysis import acoustics
 
+    ca, cb = a.split(".")[0], b.split(".")[0]
     out = []
     for f in frequencies:
         shape = Drive(tones=(Tone(frequency=float(f), amplitude=1.0),))
         sw = mech.sweep_voltage(design, shape, v_max, acoustics.force_model)
-        out.append(np.inf if sw.snap_voltage is None else float(sw.snap_voltage))
+        v = np.inf if sw.snap_voltage is None else float(sw.snap_voltage)
+        if bound is not None and sw.voltage.size > 1:
+            gap = sw.gap(design, ca, cb)
+            below = np.flatnonzero(gap <= bound)
+            if below.size:
+                i = int(below[0])
+                if i == 0:
+                    v = 0.0
+                else:     # interpolate the crossing between branch points i-1 and i
+                    g0, g1 = gap[i - 1], gap[i]
+                    w = (g0 - bound) / (g0 - g1) if g0 != g1 else 1.0
+                    v = min(v, float(sw.voltage[i - 1] + w * (sw.voltage[i] - sw.voltage[i - 1])))
+        out.append(v)
     return np.asarray(out)
