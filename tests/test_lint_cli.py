@@ -228,3 +228,15 @@ def test_no_rule_crashes_on_the_bad_corpus_or_the_examples(capsys):
         pytest.skip("no tests/bad or examples folder")
     rc, out, err = run(capsys, "--format", "concise", *dirs)
     assert rc in (0, 1, 2) and "ACL999" not in out and "internal error" not in err
+
+
+def test_lint_package_never_imports_the_parser_or_the_cli():
+    import ast
+
+    root = Path(__file__).resolve().parents[1] / "acl" / "lint"
+    for path in root.rglob("*.py"):
+        for node in ast.walk(ast.parse(path.read_text())):
+            names = [a.name for a in node.names] if isinstance(node, ast.Import) else \
+                [node.module or ""] if isinstance(node, ast.ImportFrom) else []
+            for name in names:
+                assert not name.startswith(("acl.syntax", "acl.cli", "acl.commands")), f"{path.name} imports {name}"
