@@ -97,3 +97,17 @@ def test_out_of_reach_path_is_an_infeasible_diagnostic_naming_goal_waypoint_and_
     assert "follow module" in d.message and "waypoint" in d.message
     assert d.span.line == 23
     assert "max voltage" in d.hint
+
+
+def test_waypoints_the_forward_model_cannot_settle_are_counted_not_averaged(design):
+    def flaky(design, capsule, freqs):
+        def forward(u):
+            out = np.zeros((u.shape[0], 2))
+            out[::2] = np.nan                                  # every other waypoint "snaps"
+            return out
+        return forward, "flaky"
+
+    s = compile_program(design, "circle", CompileOptions(forward_provider=flaky, resim_points=10))
+    goal = s.goals[0]
+    assert goal.details["unconverged_waypoints"] == 5
+    assert np.isfinite(goal.rms_error_m) and any("no stable equilibrium" in n for n in s.notes)

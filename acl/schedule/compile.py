@@ -216,10 +216,17 @@ class _Compiler:
         n = u.shape[1]
         idx = np.unique(np.linspace(0, n - 1, min(n, self.opts.resim_points)).astype(int))
         pred = np.asarray(forward(u[:, idx].T), float)
-        err = np.linalg.norm(pred - targets[idx], axis=1)
+        ok = np.all(np.isfinite(pred), axis=1)
+        err = np.linalg.norm(pred[ok] - targets[idx][ok], axis=1)
         rep.model = model
-        rep.rms_error_m = float(np.sqrt(np.mean(err ** 2)))
-        rep.max_error_m = float(np.max(err))
+        if err.size:
+            rep.rms_error_m = float(np.sqrt(np.mean(err ** 2)))
+            rep.max_error_m = float(np.max(err))
+        if not ok.all():
+            rep.details["unconverged_waypoints"] = int((~ok).sum())
+            self.notes.append(f"{rep.name}: the forward model found no stable equilibrium at "
+                              f"{int((~ok).sum())} of {ok.size} re-simulated waypoints (snap-in?); "
+                              "their error is not in the figures")
         full = np.full_like(targets, np.nan)
         full[idx] = pred
         rep.predicted_m = full
