@@ -84,11 +84,39 @@ def test_units_and_multi_tone_drives_are_read_in_si(tmp_path):
     import acl
     from acl.fit.data import read_data
 
-    path = _csv(tmp_path, "deflection,1200,nm,85 kHz @ 2 V + 125 kHz @ 3000 mV,,0.1,\n")
+    path = _csv(tmp_path, "deflection,1200,nm,85 kHz @ 2 V + 125 kHz @ 3000 mV,0.1\n",
+                header="observable,value,unit,drive,sigma\n")
     d = read_data([path], acl.load(CANTILEVER))
     assert d.value[0] == pytest.approx(1.2e-6) and d.sigma[0] == pytest.approx(1e-10)
     assert d.tones[0] == ((85e3, 2.0), (125e3, 3.0))
-    assert d.sets["length"][0] == "" and not d.has_time
+    assert not d.has_time and d.sets == {}
+
+
+def test_several_files_are_one_data_set_and_keep_their_row_origins(tmp_path):
+    import acl
+    from acl.fit.data import read_data
+
+    a = _csv(tmp_path, GOOD, name="a.csv")
+    b = _csv(tmp_path, "deflection,2,um,125 kHz @ 4 V,0.3\n", header="observable,value,unit,drive,sigma\n",
+             name="b.csv")
+    d = read_data([a, b], acl.load(CANTILEVER))
+    assert d.n == 2 and str(d.spans[0]) == f"{a}:2:1" and str(d.spans[1]) == f"{b}:2:1"
+    assert list(d.sets["length"]) == ["50 um", ""] and np.isnan(d.time[1])
+    assert not d.has_time          # time effects need every row timed
+
+
+def test_files_that_mix_sigma_and_no_sigma_are_refused(tmp_path, capsys):
+    a = _csv(tmp_path, GOOD, name="a.csv")
+    b = _csv(tmp_path, "deflection,2,um,125 kHz @ 4 V\n", header="observable,value,unit,drive\n", name="b.csv")
+    assert main(["fit", CANTILEVER, a, b, "--free", "gamma"]) == 1
+    assert "some files give sigma" in capsys.readouterr().err
+
+
+def test_an_optional_column_once_present_is_needed_on_every_row(tmp_path, capsys):
+    path = _csv(tmp_path, GOOD + "deflection,1.3,um,125 kHz @ 3 V,,0.2,50 um\n")
+    assert main(["fit", CANTILEVER, path, "--free", "gamma"]) == 1
+    err = capsys.readouterr().err
+    assert f"{path}:3:33" in err and "missing time" in err
 
 
 def test_synth_command_writes_data_the_fit_reads_back(tmp_path, capsys):

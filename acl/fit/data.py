@@ -49,7 +49,8 @@ class Dataset:
 
     @property
     def has_time(self) -> bool:
-        return bool(np.any(np.isfinite(self.time)))
+        """Every row is timed (time effects need a common clock)."""
+        return bool(self.time.size and np.all(np.isfinite(self.time)))
 
     def subset(self, idx) -> "Dataset":
         idx = np.asarray(idx)
@@ -188,9 +189,10 @@ def read_data(paths, design) -> Dataset:
                 bag.error("E804", str(exc), sp("unit"), exc.hint)
                 ok = False
             value = _number(bag, cell("value")[0], sp("value"), "value", required=True)
-            sigma = _number(bag, cell("sigma")[0], sp("sigma"), "sigma", required=False, positive=True) \
+            # an optional column, once present, is needed on every row (a mix would be silently inconsistent)
+            sigma = _number(bag, cell("sigma")[0], sp("sigma"), "sigma", required=True, positive=True) \
                 if "sigma" in index else math.nan
-            time = _number(bag, cell("time")[0], sp("time"), "time", required=False) if "time" in index else math.nan
+            time = _number(bag, cell("time")[0], sp("time"), "time", required=True) if "time" in index else math.nan
             if value is None or sigma is None or time is None:
                 ok = False
             try:
@@ -224,6 +226,11 @@ def read_data(paths, design) -> Dataset:
         n_before += n_file
         if n_file == 0 and not bag.has_errors:
             bag.error("E801", "data file has no rows", Span(file=path, line=head_i + 1, column=1))
+    sig = np.isfinite(np.array(cols["sigma"], float))
+    if sig.any() and not sig.all():
+        first = cols["spans"][int(np.argmin(sig))]
+        bag.error("E801", "some files give sigma and others do not: the weights would be inconsistent",
+                  Span(file=first.file, line=1, column=1), "give a sigma column in every file, or in none")
     bag.raise_if_errors()
     sets_arr = {k: np.array(v, dtype=object) for k, v in sets.items()}
     set_si = {k: np.array([parse_quantity(t)[0] if t else np.nan for t in v], float) for k, v in sets.items()}
@@ -235,7 +242,8 @@ def read_data(paths, design) -> Dataset:
 def _number(bag, text, span, what, required, positive=False):
     if not text:
         if required:
-            bag.error("E806", f"missing {what}", span)
+            bag.error("E806", f"missing {what}", span,
+                      None if what == "value" else f"the file has a `{what}` column: give it on every row, or drop the column")
             return None
         return math.nan
     try:

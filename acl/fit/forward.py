@@ -152,6 +152,16 @@ def shrinkage_factor(f, fn, q, t, rate):
     return h2(fn * np.exp(0.5 * rate * t)) / h2(fn)
 
 
+def elastica_blend(d_eq1, d_elastica, weight):
+    """(1 - w) paper Eq. (1) + w dead-load elastica (Bisshopp & Drucker 1945): w = 1 is the large-deflection beam."""
+    return (1.0 - weight) * d_eq1 + weight * d_elastica
+
+
+def drag_load(load, delta, inv_plateau):
+    """P (1 - delta/delta_p), floored at 0: drag of a neighbour's jet growing with penetration (paper Fig. 5b plateau; phenomenological)."""
+    return load * np.clip(1.0 - inv_plateau * delta, 0.0, None)
+
+
 def substrate_factor(z, h):
     """Force factor 1 - exp(-z/h) near a rigid wall (image-source weakening, Leighton, The Acoustic Bubble, ch. 4; phenomenological)."""
     with np.errstate(divide="ignore", over="ignore"):
@@ -202,7 +212,7 @@ def _predict(P: Prepared, coeffs: dict, effects: dict) -> np.ndarray:
     def law(c, idx, load):
         d = B.eq1_deflection(load, P.l[c, idx], cd[c, idx], ct[c, idx])
         if lam:
-            d = (1 - lam) * d + lam * B.elastica_deflection(load, P.L[c, idx], P.l[c, idx], P.EI[c, idx] * es)
+            d = elastica_blend(d, B.elastica_deflection(load, P.L[c, idx], P.l[c, idx], P.EI[c, idx] * es), lam)
         return d
 
     d_0 = np.zeros(P.n)
@@ -236,7 +246,7 @@ def _drag_equilibrium(law, load, c_p):
     hi = np.minimum(law(load), 1.0 / c_p)
     for _ in range(N_BISECT):
         mid = 0.5 * (lo + hi)
-        r = law(load * np.clip(1.0 - c_p * mid, 0.0, None)) - mid
+        r = law(drag_load(load, mid, c_p)) - mid
         lo = np.where(r > 0, mid, lo)
         hi = np.where(r > 0, hi, mid)
     return 0.5 * (lo + hi)
