@@ -18,6 +18,7 @@ def add_parser(p) -> None:
                    help="comma-separated effect ids to consider (default: the whole library; `none` for none)")
     p.add_argument("--seed", type=int, default=0, help="seed of the cross-validation folds (default 0)")
     p.add_argument("--json", action="store_true", help="print report.json to stdout instead of the tables")
+    p.add_argument("--verbose", action="store_true", help="print each stage and effect trial with its time (stderr)")
     p.add_argument("--path", action="append", default=[], metavar="DIR", help="extra folder imports may read from")
 
 
@@ -41,11 +42,23 @@ def run(args) -> int:
             return 2
     from acl.fit import run_fit
 
+    progress = None
+    if args.verbose:
+        import time
+
+        start = time.perf_counter()
+
+        def progress(msg):
+            sys.stderr.write(f"[{time.perf_counter() - start:7.2f} s] {msg}\n")
     try:
-        out = run_fit(args.design, args.data, free=free, search_paths=args.path, candidates=candidates, seed=args.seed)
+        out = run_fit(args.design, args.data, free=free, search_paths=args.path, candidates=candidates,
+                      seed=args.seed, progress=progress)
     except DiagnosticError as exc:
         report(exc.diagnostics)
         return exit_code(exc.diagnostics)
+    if args.verbose:
+        for stage, secs in out.report["timing_s"].items():
+            sys.stderr.write(f"stage {stage}: {secs:.2f} s\n")
     if args.report:
         from acl.fit.report import dump_json, figures, write_report_dir
 

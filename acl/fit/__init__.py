@@ -29,10 +29,20 @@ def run_fit(design_path, data_paths, free=(), search_paths=(), candidates=None, 
 
     import numpy as np
 
+    import time
+
+    timing = {}
+    t0 = time.perf_counter()
     problem = load_problem(design_path, data_paths, free=free, search_paths=search_paths)
+    timing["load"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
     selection = select_effects(problem, candidates=candidates, seed=seed, progress=progress)
+    timing["fit_and_effect_search"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
     w = 1.0 / np.where(np.isfinite(problem.sigma), problem.sigma, NOMINAL_SIGMA)
     before = examine(selection.base.residual, covariates(problem.data, problem.prepared, selection.base.prediction), w, seed)
     after = examine(selection.final.residual, covariates(problem.data, problem.prepared, selection.final.prediction), w, seed)
+    timing["residual_tests"] = time.perf_counter() - t0
     report = build_report(problem, selection, before, after, calibrated_name="calibrated.acl")
+    report["timing_s"] = timing
     return FitOutcome(problem, selection, report, calibrated_text(problem, selection))
