@@ -60,7 +60,7 @@ class Loader:
         self.sources.append(display)
         try:
             try:
-                module = parse_module(text, display)
+                module = _parse_cached(text, display)
             except DiagnosticError as exc:
                 for d in exc.diagnostics:
                     self.bag.add(d)
@@ -223,6 +223,24 @@ class Loader:
     def _allowed(self, real: str, root: str) -> bool:
         roots = [os.path.realpath(root), os.path.realpath(stdlib_root()), *self.search_paths]
         return any(real == r or real.startswith(r.rstrip(os.sep) + os.sep) for r in roots)
+
+
+_PARSED: dict[tuple[str, str], A.Module] = {}
+
+
+def _parse_cached(text: str, display: str) -> A.Module:
+    """Parse once per (file, content) in a process: linting many designs reuses stdlib modules.
+
+    Syntax trees are immutable, so sharing them is safe; files with errors are not cached.
+    """
+    key = (display, text)
+    hit = _PARSED.get(key)
+    if hit is None:
+        hit = parse_module(text, display)
+        if len(_PARSED) > 512:
+            _PARSED.clear()
+        _PARSED[key] = hit
+    return hit
 
 
 def _stdlib_modules() -> list[str]:

@@ -22,6 +22,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from functools import lru_cache
 
+import functools
+
 import numpy as np
 
 
@@ -109,12 +111,15 @@ class LatchLandscape:
     release_force: float | None  # N, max force pulling back between b and the unstable point (b -> a)
 
 
+@functools.lru_cache(maxsize=256)
 def latch_landscape(theta: float, L: float, w: float, t: float, E: float,
                     n: int = 2001, reach: float = 2.6) -> LatchLandscape:
     """Energy landscape (as paper Fig. 6d), stable states, barrier, switching and release forces of the von Mises truss latch model."""
     u = np.linspace(0.0, reach * L * np.sin(theta), n)
+    u.flags.writeable = False   # results are cached and shared
     F = latch_force(u, theta, L, w, t, E)
     U = latch_energy(u, theta, L, w, t, E)
+    F.flags.writeable = U.flags.writeable = False
     # Sign changes of the holding force after state a: + -> - is the barrier top, - -> + is state b.
     down = np.nonzero((F[1:-1] > 0) & (F[2:] <= 0))[0] + 1
     if down.size == 0:
