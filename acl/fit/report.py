@@ -175,21 +175,30 @@ def figures(problem, selection, outdir) -> list[str]:
     names = sorted(set(d.observable))
     files = []
     fig, axes = plt.subplots(2, 2 * len(names), figsize=(6 * len(names) + 2, 7), squeeze=False)
+    strongest = P.f[np.arange(P.n), np.argmax(P.v, axis=1)]
+    driven = P.v.sum(axis=1) > 0
+    keys = np.array([" ".join(f"{k}={v}" for k, v in d.override_key(i)) for i in range(d.n)], dtype=object)
     for j, name in enumerate(names):
         m = d.observable == name
+        groups = list(dict.fromkeys((keys[i], strongest[i]) for i in np.flatnonzero(m & driven)))
         for k, (label, fit) in enumerate((("before", selection.base), ("after", selection.final))):
-            ax = axes[0, 2 * j + k]
-            ax.plot(volts[m], d.value[m] * 1e6, ".", ms=3, label="data")
-            ax.plot(volts[m], fit.prediction[m] * 1e6, "x", ms=3, label="model")
-            ax.set_title(f"{name}: {label}")
+            ax, axr = axes[0, 2 * j + k], axes[1, 2 * j + k]
+            for gi, (key, freq) in enumerate(groups):
+                sel = m & (keys == key) & (~driven | (strongest == freq))
+                colour = f"C{gi % 10}"
+                order = np.argsort(volts[sel], kind="stable")
+                ax.plot(volts[sel], d.value[sel] * 1e6, ".", ms=3, color=colour,
+                        label=f"{freq / 1e3:g} kHz {key}" if len(groups) <= 10 else None)
+                ax.plot(volts[sel][order], fit.prediction[sel][order] * 1e6, "-", lw=0.8, color=colour)
+                axr.plot(volts[sel], fit.residual[sel] * 1e6, ".", ms=3, color=colour)
+            ax.set_title(f"{name}: {label} (dots data, lines model)")
             ax.set_xlabel("voltage (V)")
             ax.set_ylabel("um")
-            ax.legend(fontsize=7)
-            ax = axes[1, 2 * j + k]
-            ax.plot(volts[m], fit.residual[m] * 1e6, ".", ms=3)
-            ax.axhline(0, color="k", lw=0.5)
-            ax.set_xlabel("voltage (V)")
-            ax.set_ylabel(f"residual {label} (um)")
+            if groups and len(groups) <= 10:
+                ax.legend(fontsize=6)
+            axr.axhline(0, color="k", lw=0.5)
+            axr.set_xlabel("voltage (V)")
+            axr.set_ylabel(f"residual {label} (um)")
     fig.tight_layout()
     path = os.path.join(outdir, "fit.png")
     fig.savefig(path, dpi=90)
