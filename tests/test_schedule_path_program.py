@@ -61,7 +61,8 @@ def test_whole_path_is_one_problem_and_reaches_the_solver_as_a_qp():
 
 def test_out_of_reach_waypoint_is_diagnosed_with_its_index_and_the_binding_limit():
     pts = circle(50, r=0.2 * UM)
-    pts[30] = (3 * UM, 0.0)     # 300 V^2 on one tone: under the per-tone 400 V^2, over the total
+    # at 60 degrees, between the 0 and 120 degree tones: 250 V^2 on each, 15.8 V + 15.8 V > 20 V
+    pts[30] = 2.5 * UM * np.array([0.5, np.sqrt(3) / 2])
     with pytest.raises(PathInfeasible) as exc:
         plan_path(G, pts, 0.01, DriveLimits(20.0))
     d = exc.value.diagnosis
@@ -96,3 +97,12 @@ def test_total_amplitude_refinement_stays_within_the_true_limit_and_never_raises
     assert refined.amplitudes.sum(axis=0).max() <= 20.0 * (1 + 1e-6)
     assert refined.u.sum() <= base.u.sum() * (1 + 1e-6)
     assert refined.error.max() <= 0.5 * UM * np.sqrt(2)
+
+
+def test_a_single_tone_may_use_nearly_the_whole_limit_thanks_to_the_tangent_retry():
+    pts = circle(20, r=0.2 * UM)
+    pts[10] = (3 * UM, 0.0)          # 300 V^2 = 17.3 V on one tone: beyond Vmax^2/K, within Vmax
+    plan = plan_path(G, pts, 0.01, DriveLimits(20.0))
+    assert plan.error.max() <= 0.5 * UM * np.sqrt(2)
+    assert plan.amplitudes.sum(axis=0).max() <= 20.0 * (1 + 1e-6)
+    assert any("tangent" in n for n in plan.notes)

@@ -16,6 +16,9 @@ model including the transducer, or from a calibration sweep)::
 solution respects the limit whatever the phases (it is the tangent of the concave constraint at
 the symmetric point).  Optionally (``refine > 0``) the tangent is moved to the previous solution
 (a convex-concave iteration): each iterate stays sound and the objective can only decrease.
+When the Cauchy-Schwarz plane makes the path infeasible, the program is re-solved once with the
+tangent planes at each waypoint's least-power static solution (sound too; reaches up to
+``sqrt(K)`` times further along a single tone).
 
 *Slew.*  A slew limit ``|V_k,t+1 - V_k,t| <= s`` (``s = slew * dt``) is exactly convex in ``u``:
 ``sqrt(u2) <= sqrt(u1) + s``  <=>  ``u2 - u1 - s^2 <= 2 s sqrt(u1)`` (affine <= concave), and the same
@@ -116,7 +119,8 @@ def plan_path(gains: np.ndarray, targets: np.ndarray, dt: float, limits: DriveLi
     if G.ndim != 2 or G.shape[0] != 2 or P.ndim != 2 or P.shape[1] != 2:
         raise ValueError("gains must be (2, K) and targets (N, 2)")
     kw = {} if solvers is None else {"solvers": solvers}
-    model = "linear" if slew_model == "auto" else slew_model
+    auto_slew = slew_model == "auto"
+    model = "linear" if auto_slew else slew_model
     t0 = time.perf_counter()
     prob, X, scale = _build(G, P, dt, limits, tolerance, u_start, lam, model)
     t1 = time.perf_counter()
@@ -133,8 +137,27 @@ def plan_path(gains: np.ndarray, targets: np.ndarray, dt: float, limits: DriveLi
         t2 = time.perf_counter()
     slew_model = model
     if result.infeasible:
-        raise PathInfeasible(diagnose_path(G, P, dt, limits, tolerance, u_start, slew_model,
-                                           status=result.status))
+        # the Cauchy-Schwarz plane is conservative; retry with the tangent planes of the true
+        # total-amplitude limit at each waypoint's least-power static solution (still sound)
+        u0 = _static_least_power(G, P, limits, tolerance, solvers)
+        retry = None if u0 is None else _tangent_solve(G, P, dt, limits, tolerance, u_start, lam,
+                                                        slew_model, u0, solvers)
+        if retry is None:
+            raise PathInfeasible(diagnose_path(G, P, dt, limits, tolerance, u_start, slew_model,
+                                               status=result.status))
+        X, result = retry
+        if (auto_slew and limits.slew_rate is not None and slew_model == "linear"
+                and _max_slew(np.asarray(X.value) * scale["vmax2"], u_start, dt)
+                > limits.slew_rate * (1 + 1e-6)):
+            slew_model = "exact"
+            retry = _tangent_solve(G, P, dt, limits, tolerance, u_start, lam, slew_model, u0, solvers)
+            if retry is None:
+                raise PathInfeasible(diagnose_path(G, P, dt, limits, tolerance, u_start, slew_model,
+                                                   status="infeasible"))
+            X, result = retry
+        t2 = time.perf_counter()
+        notes.append("the conservative total-amplitude plane was infeasible; solved with tangent "
+                     "planes of the exact limit at each waypoint's least-power solution")
     if not result.ok:
         raise PathInfeasible(PathDiagnosis(0, 0.0, tuple(P[0]), ("solver status " + result.status,),
                                            ("check the gains: a zero or non-finite gain vector",),
@@ -207,20 +230,45 @@ def _build(G, P, dt, limits, tolerance, u_start, lam, slew_model, total_coeffs=N
     return prob, X, {"vmax2": vmax2}
 
 
-def _refine_total(G, P, dt, limits, tolerance, u_start, lam, slew_model, u, solvers):
-    """One convex-concave step: tangent of sum_k sqrt(x_k) <= 1 at the current solution."""
-    vmax2 = limits.max_voltage ** 2
-    x = np.maximum(u / vmax2, (0.02) ** 2)
-    a = 1.0 / (2.0 * np.sqrt(x))                       # d sqrt / dx at x
-    b = 1.0 - np.sum(np.sqrt(x) / 2.0, axis=0)          # sum sqrt(x)/2 + sum x/(2 sqrt x) <= 1
+def _tangent_coeffs(u, vmax):
+    """Tangent plane of sum_k sqrt(x_k) <= 1 at x = u / Vmax^2 (floored): sum_k a_k x_k <= b."""
+    x = np.maximum(u / vmax ** 2, 0.02 ** 2)
+    return 1.0 / (2.0 * np.sqrt(x)), 1.0 - np.sum(np.sqrt(x) / 2.0, axis=0)
+
+
+def _tangent_solve(G, P, dt, limits, tolerance, u_start, lam, slew_model, u, solvers):
+    """Solve with the total limit replaced by its tangent planes at ``u``; (X, result) or None."""
+    a, b = _tangent_coeffs(u, limits.max_voltage)
     if np.any(b <= 0):
         return None
     prob, X, _ = _build(G, P, dt, limits, tolerance, u_start, lam, slew_model, total_coeffs=(a, b))
     kw = {} if solvers is None else {"solvers": solvers}
-    res = solve(prob, "path following (total-amplitude refinement)", **kw)
+    res = solve(prob, "path following (tangent total-amplitude limit)", **kw)
+    return (X, res) if res.ok else None
+
+
+def _refine_total(G, P, dt, limits, tolerance, u_start, lam, slew_model, u, solvers):
+    """One convex-concave step: tangent of sum_k sqrt(x_k) <= 1 at the current solution."""
+    out = _tangent_solve(G, P, dt, limits, tolerance, u_start, lam, slew_model, u, solvers)
+    return None if out is None else np.maximum(np.asarray(out[0].value), 0.0) * limits.max_voltage ** 2
+
+
+def _static_least_power(G, P, limits, tolerance, solvers):
+    """Per waypoint, the least total power meeting the tolerance under per-tone caps (one LP), or
+    None if some waypoint cannot be met or its least power breaks the true total limit."""
+    import cvxpy as cp
+
+    prob, X, _ = _build(G, P, 1.0, limits, tolerance, None, 0.0, "linear", with_total=False,
+                        with_slew=False)
+    kw = {} if solvers is None else {"solvers": solvers}
+    res = solve(cp.Problem(cp.Minimize(cp.sum(X)), prob.constraints), "path (least power)", **kw)
     if not res.ok:
         return None
-    return np.maximum(np.asarray(X.value), 0.0) * vmax2
+    u = np.maximum(np.asarray(X.value), 0.0) * limits.max_voltage ** 2
+    a, b = _tangent_coeffs(u, limits.max_voltage)
+    if np.any(np.sum(a * u / limits.max_voltage ** 2, axis=0) > b * (1 - 1e-9)):
+        return None
+    return u
 
 
 # --------------------------------------------------------------------------------------------
