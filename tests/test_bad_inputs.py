@@ -121,3 +121,22 @@ def test_parameter_cycle_is_reported_once_naming_the_whole_cycle():
     _, diags = check_design(str(BAD / "param_cycle.acl"))
     assert [d.code for d in diags] == ["E214"]
     assert "a -> b -> a" in diags[0].message
+
+
+def test_overlong_drive_text_is_refused():
+    from acl.syntax.parser import parse_drive
+
+    with pytest.raises(DiagnosticError) as info:
+        parse_drive("125 kHz @ 1 V + " * 1000 + "85 kHz @ 1 V", "data.csv", line=3, column=2)
+    (d,) = info.value.diagnostics
+    assert (d.code, d.span.file, d.span.line, d.span.column) == ("E101", "data.csv", 3, 2)
+
+
+def test_drive_syntax_error_points_into_the_data_cell():
+    from acl.design.drives import drive_from_text
+
+    with pytest.raises(DiagnosticError) as info:
+        drive_from_text("125 kHz 4 V", "data.csv", line=7, column=3)
+    (d,) = info.value.diagnostics
+    assert (d.code, d.span.file, d.span.line) == ("E111", "data.csv", 7)
+    assert d.span.column > 3

@@ -134,3 +134,19 @@ def test_fig6e_capsules_share_a_cavity_size_and_differ_in_orifice():
 def test_flextensional_has_two_pairs():
     d = _load("figS6_flextensional.acl")
     assert len(d.capsules) == 4 and len(d.beams) == 4
+
+
+def _doc_blocks():
+    doc = (EXAMPLES[0].parents[1] / "docs" / "language.md").read_text()
+    return re.findall(r"```acl\n(.*?)```", doc, re.S)
+
+
+def test_language_doc_has_checked_examples():
+    assert _doc_blocks()
+
+
+@pytest.mark.parametrize("i", range(len(_doc_blocks())))
+def test_language_doc_acl_block_resolves(tmp_path, i):
+    f = tmp_path / f"doc_{i}.acl"
+    f.write_text(_doc_blocks()[i])
+    acl.load(str(f))
