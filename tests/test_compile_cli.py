@@ -114,3 +114,14 @@ def test_compile_does_not_import_heavy_modules_for_a_bad_option(design, tmp_path
             "print(rc, 'cvxpy' in sys.modules, 'matplotlib' in sys.modules)")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True).stdout.split()
     assert out == ["2", "False", "False"]
+
+
+def test_matplotlib_is_imported_only_for_plots(design, tmp_path):
+    import subprocess
+    import sys
+
+    code = ("import sys; from acl.cli import main; "
+            f"rc = main(['compile', {design!r}, '--program', 'tones', '-o', {str(tmp_path / 'o')!r}]); "
+            "print(rc, 'matplotlib' in sys.modules, 'cvxpy' in sys.modules)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True).stdout.split()
+    assert out == ["0", "False", "False"]         # a drive-only program needs no solver either
