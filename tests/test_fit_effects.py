@@ -91,6 +91,7 @@ def test_structure_no_effect_explains_is_reported_with_its_covariate(tmp_path, c
     data, _ = generate(CANTILEVER, ex, {}, noise=0.0, seed=1)
     f = np.array([t[0][0] if t else 0.0 for t in data.tones])
     data.value = np.where(f == 125e3, 0.75, 1.0) * data.value + np.random.default_rng(3).normal(0, NOISE, data.n)
+    data.sigma = np.full(data.n, NOISE)
     path = tmp_path / "notch.csv"
     write_csv(data, str(path))
     out = run_fit(CANTILEVER, [str(path)], free=["gamma"])

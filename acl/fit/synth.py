@@ -108,12 +108,13 @@ def write_csv(data, path, unit: str = "um") -> None:
 
     factor, _ = parse_unit(unit)
     set_names = sorted(data.sets)
-    head = ["observable", "value", "unit", "drive", "time", "sigma", *[f"set:{k}" for k in set_names]]
+    with_sigma = bool(np.all(np.isfinite(data.sigma)))     # noise-free data have no sigma column
+    head = ["observable", "value", "unit", "drive", "time", *(["sigma"] if with_sigma else []),
+            *[f"set:{k}" for k in set_names]]
     lines = [",".join(head)]
     for i in range(data.n):
-        sig = data.sigma[i]
         cells = [data.observable[i], f"{data.value[i] / factor:.6g}", unit, format_drive(data.tones[i]),
-                 f"{data.time[i]:.6g}", f"{sig / factor:.6g}" if np.isfinite(sig) else "",
+                 f"{data.time[i]:.6g}", *([f"{data.sigma[i] / factor:.6g}"] if with_sigma else []),
                  *[data.sets[k][i] for k in set_names]]
         lines.append(",".join(cells))
     tmp = f"{path}.tmp{os.getpid()}"
