@@ -19,7 +19,7 @@ from typing import Callable
 import numpy as np
 
 from acl.design.model import Design, FollowStep, HoldStep, Limits, Program, SwitchStep
-from acl.diagnostics import Diagnostic, DiagnosticError, Span, error
+from acl.diagnostics import Diagnostic, DiagnosticError, Severity, Span, error
 from acl.schedule.model import GoalReport, Schedule, ScheduledTone, Segment
 from acl.schedule.path import UM, DriveLimits
 
@@ -161,7 +161,7 @@ class _Compiler:
         except PathInfeasible as exc:
             d = exc.diagnosis
             raise DiagnosticError([Diagnostic(
-                "E-SCHED-INFEASIBLE", _severity_error(),
+                "E-SCHED-INFEASIBLE", Severity.ERROR,
                 f"{name}: infeasible: {d.summary()}", step.span,
                 "relax: " + "; or ".join(d.relax),
                 notes=(f"tones {', '.join(f'{f / 1e3:g} kHz' for f in choice.frequencies)}, "
@@ -257,7 +257,7 @@ class _Compiler:
                                step.state, step.margin, DriveLimits(vmax))
         except SwitchInfeasible as exc:
             raise DiagnosticError([Diagnostic(
-                "E-SCHED-INFEASIBLE", _severity_error(), f"{name}: infeasible: binding "
+                "E-SCHED-INFEASIBLE", Severity.ERROR, f"{name}: infeasible: binding "
                 + "; ".join(exc.binding), step.span, "relax: " + "; or ".join(exc.relax),
                 notes=(f"at t = {self.t:.4g} s, {len(freqs)} candidate tones",))])
         # interior-point dust: a tone with < 1e-6 of the largest power adds < 1e-6 of the force
@@ -301,7 +301,7 @@ class _Compiler:
             plan = plan_hold(step.mode, DriveLimits(vmax), v_snap=v_snap)
         except HoldInfeasible as exc:
             raise DiagnosticError([Diagnostic(
-                "E-SCHED-INFEASIBLE", _severity_error(), f"{name}: infeasible: binding "
+                "E-SCHED-INFEASIBLE", Severity.ERROR, f"{name}: infeasible: binding "
                 + "; ".join(exc.binding), step.span, "relax: " + "; or ".join(exc.relax),
                 notes=(f"at t = {self.t:.4g} s",))])
         tones = [ScheduledTone(f, float(a)) for f, a, u in zip(step.tones, plan.amplitudes, plan.u)
@@ -312,12 +312,6 @@ class _Compiler:
                                      model="snap index sum u/Vcrit^2 (forces add in V^2)",
                                      details={"snap_index": plan.snap_index,
                                               "critical_voltages_v": [float(v) for v in v_snap]}))
-
-
-def _severity_error():
-    from acl.diagnostics import Severity
-
-    return Severity.ERROR
 
 
 def _diag(code: str, message: str, span: Span | None, hint: str | None = None) -> DiagnosticError:
