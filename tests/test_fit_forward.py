@@ -75,3 +75,20 @@ def test_vectorized_pair_agrees_with_the_mechanics_analysis_layer():
         pa = np.asarray(design.capsule("a").orifices[0].center) + state.displacements["a"]
         pb = np.asarray(design.capsule("b").orifices[0].center) + state.displacements["b"]
         assert mine == pytest.approx(float(np.linalg.norm(pb - pa)), rel=1e-6)
+
+
+def test_displacement_and_position_observables_of_one_actuator_are_consistent():
+    """examples/fig2: `delta` = displacement(arm, +x) and `act_x` = position(act, x) see the same motion."""
+    import os
+
+    import acl
+    from acl.fit.synth import Experiment, generate
+
+    path = os.path.join(os.path.dirname(__file__), "..", "examples", "fig2_vertical_cantilever.acl")
+    design = acl.load(path)
+    data, _ = generate(path, Experiment(frequencies=(125e3,), voltages=(0.0, 3.0, 6.0)))
+    delta = data.value[data.observable == "delta"]
+    x = data.value[data.observable == "act_x"]
+    # the jet leaves along the orifice normal (+x) and pushes the actuator towards -x (acl.physics.forces)
+    assert delta[0] == 0 and np.all(np.diff(delta) < 0)
+    np.testing.assert_allclose(x - design.capsule("act").center[0], delta, rtol=1e-12, atol=1e-18)

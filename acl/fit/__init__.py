@@ -40,8 +40,12 @@ def run_fit(design_path, data_paths, free=(), search_paths=(), candidates=None, 
     timing["fit_and_effect_search"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     w = 1.0 / np.where(np.isfinite(problem.sigma), problem.sigma, NOMINAL_SIGMA)
-    before = examine(selection.base.residual, covariates(problem.data, problem.prepared, selection.base.prediction), w, seed)
-    after = examine(selection.final.residual, covariates(problem.data, problem.prepared, selection.final.prediction), w, seed)
+    kinds = {problem.design.observe(n).kind for n in set(problem.data.observable)}
+    pname = f"predicted {'deflection' if kinds == {'displacement'} else kinds.pop()}" if len(kinds) == 1 else "prediction"
+    before = examine(selection.base.residual,
+                     covariates(problem.data, problem.prepared, selection.base.prediction, pname), w, seed)
+    after = examine(selection.final.residual,
+                    covariates(problem.data, problem.prepared, selection.final.prediction, pname), w, seed)
     timing["residual_tests"] = time.perf_counter() - t0
     report = build_report(problem, selection, before, after, calibrated_name="calibrated.acl")
     report["timing_s"] = timing

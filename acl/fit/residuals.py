@@ -32,9 +32,10 @@ class Test:
                 "p_value": _num(self.p_value), "p_adjusted": _num(self.p_adjusted)}
 
 
-def covariates(data, P, prediction) -> dict[str, np.ndarray]:
+def covariates(data, P, prediction, predicted_name: str = "prediction") -> dict[str, np.ndarray]:
     """Covariates of each row: voltage (sum of tone amplitudes), frequency (strongest tone),
-    time, every numeric set: column, the predicted value (deflection/gap/position) and the
+    time, every numeric set: column, the predicted value (named ``predicted deflection``, ``predicted
+    gap`` or ``predicted position`` after the observables, ``prediction`` if mixed) and the
     actuator height above the substrate."""
     out = {}
     out["voltage"] = P.v.sum(axis=1)
@@ -44,7 +45,7 @@ def covariates(data, P, prediction) -> dict[str, np.ndarray]:
         out["time"] = np.where(np.isfinite(data.time), data.time, np.nan)
     for k, v in data.set_si.items():
         out[f"set:{k}"] = v
-    out["prediction"] = prediction
+    out[predicted_name] = prediction
     out["height"] = P.height[0]
     return out
 

@@ -91,7 +91,7 @@ def generate(design_path, experiment: Experiment, effects: dict | None = None, n
                                         if key else design)
         return cache[key]
 
-    # the reference frequency is the experiment's first (so the declared gamma means the same thing)
+    # coefficients in ``coeffs`` (gamma, alpha) refer to f_ref of these rows: the most common frequency
     P = prepare(data, load_instance)
     y = predict(P, dict(coeffs or {}), effect_inputs(effects or {}))
     rng = np.random.default_rng(seed)
