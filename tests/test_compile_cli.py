@@ -125,3 +125,21 @@ def test_matplotlib_is_imported_only_for_plots(design, tmp_path):
             "print(rc, 'matplotlib' in sys.modules, 'cvxpy' in sys.modules)")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True).stdout.split()
     assert out == ["0", "False", "False"]         # a drive-only program needs no solver either
+
+
+def test_non_positive_tolerance_is_an_option_diagnostic(design, tmp_path, capsys):
+    assert run(design, "--program", "tones", "--tolerance", "0", "-o", str(tmp_path / "o")) == 2
+    assert "E-COMPILE-OPTION" in capsys.readouterr().err
+    assert not (tmp_path / "o").exists()
+
+
+def test_unwritable_output_is_an_io_diagnostic(design, tmp_path, capsys, monkeypatch):
+    from acl.emit import output as output_mod
+
+    def no_space(*a, **k):
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(output_mod, "write_segments_csv", no_space)
+    assert run(design, "--program", "tones", "-o", str(tmp_path / "o")) == 2
+    assert "E-COMPILE-IO" in capsys.readouterr().err
+    assert not (tmp_path / "o").exists()

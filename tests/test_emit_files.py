@@ -113,3 +113,11 @@ def test_output_path_that_is_a_file_is_a_diagnostic(tmp_path):
         emit(schedule(), str(tmp_path / "out"), ("wav",))
     assert exc.value.diagnostics[0].code == "E-EMIT-OUTPUT"
     assert (tmp_path / "out").read_text() == "x"
+
+
+def test_a_wav_beyond_4_gib_is_refused_before_writing(tmp_path):
+    long = Schedule("p", [Segment(0.0, 600.0, (ScheduledTone(100e3, 1.0),), 0)], [], 10.0, 10.0)
+    with pytest.raises(DiagnosticError) as exc:
+        emit(long, str(tmp_path / "out"), ("wav",), 2e6)
+    assert exc.value.diagnostics[0].code == "E-EMIT-SIZE"
+    assert os.listdir(tmp_path) == []

@@ -66,3 +66,8 @@ def test_unreadable_file_is_a_diagnostic(tmp_path):
     with pytest.raises(DiagnosticError) as exc:
         read_sweep_csv(str(tmp_path / "missing.csv"))
     assert exc.value.diagnostics[0].code == "E-CSV-READ"
+
+
+def test_file_without_data_rows_is_a_diagnostic(tmp_path):
+    d = diag(tmp_path, "# voltage: 1 V\nfrequency [kHz], dx [um], dy [um]\n")
+    assert d.code == "E-CSV-EMPTY"

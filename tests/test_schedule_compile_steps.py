@@ -98,3 +98,54 @@ def test_hold_without_a_snap_in_model_is_a_model_diagnostic():
     with pytest.raises(DiagnosticError) as exc:
         compile_program(d, "p", CompileOptions(snap_provider=lambda *a: None))
     assert exc.value.diagnostics[0].code == "E-SCHED-MODEL"
+
+
+def follow_design(path, **kw):
+    beam = M.Beam(name="arm", length=50e-6, section=M.Section(shape="circle", diameter=2e-6),
+                  material="tpeta", youngs_modulus=13e6, clamp=(0, 0, 0), axis=(0, 0, 1),
+                  tip=(0, 0, 50e-6), span=sp(3))
+    step = M.FollowStep(capsule="module", path=path, duration=0.1, span=sp(11), **kw)
+    d = design(step)
+    return d.model_copy(update={"beams": (beam,), "joints": (
+        M.Mount(capsule="module", target="arm", target_kind="beam", span=sp(4)),)})
+
+
+def test_unsupported_glyph_is_a_path_diagnostic_at_the_step():
+    d = follow_design(M.PathSpec(shape="text", text="A#", height=1e-6))
+    with pytest.raises(DiagnosticError) as exc:
+        compile_program(d, "p", CompileOptions(gain_provider=lambda d, c: None))
+    dg = exc.value.diagnostics[0]
+    assert dg.code == "E-SCHED-PATH" and "'#'" in dg.message and dg.span.line == 11
+
+
+def test_missing_gain_model_is_a_tones_diagnostic():
+    def no_model(design, capsule):
+        raise ValueError("capsule `module` is not mounted")
+
+    d = follow_design(M.PathSpec(shape="circle", radius=1e-6))
+    with pytest.raises(DiagnosticError) as exc:
+        compile_program(d, "p", CompileOptions(gain_provider=no_model))
+    assert exc.value.diagnostics[0].code == "E-SCHED-TONES"
+
+
+def test_solver_failure_is_a_diagnostic_not_a_traceback(monkeypatch):
+    from acl.schedule import path as path_mod
+    from acl.schedule.solve import SolverFailure
+    from acl.schedule.tones import GainTable
+
+    def broken(problem, what, **kw):
+        raise SolverFailure(what, "solver error", ("CLARABEL", "OSQP", "SCS"))
+
+    monkeypatch.setattr(path_mod, "solve", broken)
+    f = np.array([60e3, 100e3, 140e3])
+    g = np.array([[1, 0], [-0.5, 0.87], [-0.5, -0.87]]) * 1e-8
+    d = follow_design(M.PathSpec(shape="circle", radius=0.1e-6))
+    with pytest.raises(DiagnosticError) as exc:
+        compile_program(d, "p", CompileOptions(calibration=GainTable(f, g)))
+    assert exc.value.diagnostics[0].code == "E-SCHED-SOLVER"
+
+
+def test_empty_program_is_a_diagnostic():
+    with pytest.raises(DiagnosticError) as exc:
+        compile_program(design(), "p")
+    assert exc.value.diagnostics[0].code == "E-SCHED-EMPTY"
