@@ -36,11 +36,13 @@ def _run(capsys, *args: str) -> tuple[int, str, str]:
     ((str(BAD),), 1),
     ((str(GOOD), str(BAD)), 1),
     ((str(ROOT / "no_such_design.acl"),), 2),
+    ((str(ROOT / "examples"),), 2),
+    ((str(ROOT / "tests" / "bad" / "syntax_not_utf8.acl"),), 1),
     ((str(FACING), "--set", "gap"), 2),
     ((str(FACING), "--set", "=20um"), 2),
     ((str(GOOD), "--format", "yaml"), 2),
     ((), 2),
-], ids=["clean", "set-override", "design-error", "worst-of-several", "missing-file", "set-without-value",
+], ids=["clean", "set-override", "design-error", "worst-of-several", "missing-file", "directory", "not-utf8", "set-without-value",
         "set-without-name", "bad-format", "no-file"])
 def test_check_exit_code(capsys, args, want):
     code, _, err = _run(capsys, "check", *args)
