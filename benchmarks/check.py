@@ -40,7 +40,8 @@ param base_volts = 2 V
 
 
 def generate(n_lines: int) -> str:
-    """A valid design of about ``n_lines`` lines: ~2/3 elements and params, ~1/3 program steps."""
+    """A valid design of about ``n_lines`` lines: ~2/3 elements, params, observations and
+    requirements, ~1/3 program steps."""
     out = [HEADER]
     lines = HEADER.count("\n")
     i = 0
@@ -57,6 +58,7 @@ def generate(n_lines: int) -> str:
             f"capsule cap{i} like capsules.{design} {{ }}\n"
             f"mount cap{i} on arm{i}.tip\n"
             f"observe bend{i} = displacement(arm{i}, +x)\n"
+            + (f"require resonance(cap{i}) in 60 kHz .. 200 kHz\n" if i % 4 == 0 else "")
         )
         out.append(block)
         lines += block.count("\n")
