@@ -37,10 +37,10 @@ def test_pair_equilibrium_balances_eq3_against_eq1():
     d0 = np.array([30e-6, 45e-6, 60e-6, 80e-6])
     V = np.array([0.8, 1.5, 3.0, 3.0])
 
-    def law(c, load):
+    def law(load):
         return B.eq1_deflection(load, l, cd, ct)
 
-    da, db = _pair_equilibrium(law, alpha * V**2, 2 * gamma * V**2, d0)
+    da, db = _pair_equilibrium(law, law, alpha * V**2, 2 * gamma * V**2, d0)
     d = d0 - da - db
     force = pair_law_force(alpha, gamma, d, V)            # attraction-positive, paper Eq. (3)
     np.testing.assert_allclose(PB.eq1_force(da, L, l, EI), force, rtol=1e-6, atol=1e-15)

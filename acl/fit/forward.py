@@ -22,8 +22,8 @@ import numpy as np
 
 from acl.fit import beam as B
 
-N_GRID = 48
-N_BISECT = 44
+N_GRID = 32
+N_BISECT = 30
 
 
 @dataclass
@@ -209,29 +209,38 @@ def _predict(P: Prepared, coeffs: dict, effects: dict) -> np.ndarray:
         cd, ct = P.cd / es, P.ct / es
     lam = effects["large_deflection"]["elastica_weight"] if "large_deflection" in effects else 0.0
 
-    def law(c, idx, load):
-        d = B.eq1_deflection(load, P.l[c, idx], cd[c, idx], ct[c, idx])
-        if lam:
-            d = elastica_blend(d, B.elastica_deflection(load, P.L[c, idx], P.l[c, idx], P.EI[c, idx] * es), lam)
-        return d
+    def rows(idx):
+        """Deflection laws of beams 0 and 1 restricted to rows ``idx`` (one law when both beams are alike)."""
+        arrs = [(P.l[c, idx], cd[c, idx], ct[c, idx], P.L[c, idx], P.EI[c, idx] * es) for c in range(2)]
+
+        def make(l_, cd_, ct_, L_, EI_):
+            if lam:
+                return lambda load: elastica_blend(B.eq1_deflection(load, l_, cd_, ct_),
+                                                   B.elastica_deflection(load, L_, l_, EI_), lam)
+            return lambda load: B.eq1_deflection(load, l_, cd_, ct_)
+
+        first = make(*arrs[0])
+        same = all(np.array_equal(a, b) for a, b in zip(arrs[0], arrs[1]))
+        return first, (first if same else make(*arrs[1])), same
 
     d_0 = np.zeros(P.n)
     d_1 = np.zeros(P.n)
     single = ~P.pair
     if np.any(single):
         idx = np.flatnonzero(single)
+        law0, _, _ = rows(idx)
         load = thrust[0, idx] * P.proj[idx]
         if "neighbour_drag" in effects and effects["neighbour_drag"]["inv_plateau"] > 0:
-            c_p = effects["neighbour_drag"]["inv_plateau"]
-            d_0[idx] = _drag_equilibrium(lambda x: law(0, idx, x), load, c_p)
+            d_0[idx] = _drag_equilibrium(law0, load, effects["neighbour_drag"]["inv_plateau"])
         else:
-            d_0[idx] = law(0, idx, load)
+            d_0[idx] = law0(load)
     if np.any(P.pair):
         idx = np.flatnonzero(P.pair)
+        law0, law1, same = rows(idx)
         sub_ab = np.sqrt(sub[0, idx] * sub[1, idx])
         a_rad = alpha * (P.arel[idx] * w[idx]).sum(axis=1) * sub_ab
         push = thrust[0, idx] + thrust[1, idx]
-        da, db = _pair_equilibrium(lambda c, x: law(c, idx, x), a_rad, push, P.d0[idx])
+        da, db = _pair_equilibrium(law0, law1, a_rad, push, P.d0[idx], same)
         d_0[idx], d_1[idx] = da, db
     out = P.base + P.s0 * d_0 + P.s1 * d_1
     if "offset_drift" in effects:
@@ -252,43 +261,51 @@ def _drag_equilibrium(law, load, c_p):
     return 0.5 * (lo + hi)
 
 
-def _pair_equilibrium(law, a_rad, push, d0):
+def _pair_equilibrium(law0, law1, a_rad, push, d0, same=False):
     """Stable gap of a facing pair under P(d) = a/d^2 - b, first root of d0 - d - delta_a - delta_b from d0.
 
+    Bracketed on a grid from d0 (towards contact when the pair attracts at rest, outwards up to the
+    largest repulsive opening otherwise), then bisection and a final secant step inside the bracket.
     Returns (delta_a, delta_b); past snap-in (no root before contact) the pair is in contact, d = 0.
     """
+    def both(load):
+        da = law0(load)
+        return da, (da if same else law1(load))
+
     def g(d):
-        load = a_rad / (d * d) - push
-        return d0 - d - law(0, load) - law(1, load)
+        da, db = both(a_rad / (d * d) - push)
+        return d0 - d - da - db
 
     attract = a_rad / (d0 * d0) - push >= 0
-    far = np.where(attract, 0.02 * d0, d0 - law(0, -push) - law(1, -push) + 1e-12)
-    s = np.linspace(0.0, 1.0, N_GRID + 1)[1:]
+    ra, rb = both(-push)
+    far = np.where(attract, 0.02 * d0, d0 - ra - rb + 1e-12)
     prev = d0.copy()
     g_prev = g(prev)
-    lo = np.full_like(d0, np.nan)
-    hi = np.full_like(d0, np.nan)
-    found = np.zeros(d0.shape, bool)
-    for sk in s:
+    lo = prev.copy()
+    hi = prev.copy()
+    g_lo = g_prev.copy()
+    found = g_prev == 0
+    for sk in np.linspace(0.0, 1.0, N_GRID + 1)[1:]:
         d = d0 + sk * (far - d0)
         gd = g(d)
-        cross = ~found & (np.sign(gd) != np.sign(g_prev)) & (g_prev != 0)
+        cross = ~found & (np.sign(gd) != np.sign(g_prev))
         lo = np.where(cross, prev, lo)
+        g_lo = np.where(cross, g_prev, g_lo)
         hi = np.where(cross, d, hi)
-        found |= cross | (g_prev == 0)
-        lo = np.where(g_prev == 0, prev, lo)
-        hi = np.where(g_prev == 0, prev, hi)
+        found |= cross
         prev, g_prev = d, gd
-    a, b = np.where(found, lo, d0), np.where(found, hi, d0)
-    ga = g(a)
+    a, b, ga = lo, hi, g_lo
     for _ in range(N_BISECT):
         m = 0.5 * (a + b)
         gm = g(m)
-        same = np.sign(gm) == np.sign(ga)
-        a, ga = np.where(same, m, a), np.where(same, gm, ga)
-        b = np.where(same, b, m)
-    d = np.where(found, 0.5 * (a + b), d0)
+        same_sign = np.sign(gm) == np.sign(ga)
+        a, ga = np.where(same_sign, m, a), np.where(same_sign, gm, ga)
+        b = np.where(same_sign, b, m)
+    gb = g(b)
+    denom = gb - ga
+    sec = np.where(denom != 0, a - ga * (b - a) / np.where(denom != 0, denom, 1.0), 0.5 * (a + b))
+    lo_ab, hi_ab = np.minimum(a, b), np.maximum(a, b)
+    d = np.where(found, np.clip(sec, lo_ab, hi_ab), d0)
     load = a_rad / (d * d) - push
-    da = np.where(found, law(0, load), 0.5 * d0)
-    db = np.where(found, law(1, load), 0.5 * d0)
-    return da, db
+    da, db = both(load)
+    return np.where(found, da, 0.5 * d0), np.where(found, db, 0.5 * d0)

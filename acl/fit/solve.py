@@ -14,6 +14,7 @@ import numpy as np
 
 NOMINAL_SIGMA = 1e-6      # m: weight unit when the data give no sigma
 CORR_STRONG = 0.9
+JUMP = 10.0             # weighted residual (in sigma) beyond which a row is a jump suspect
 SPIKE = 100.0            # a Jacobian row this many times the median row norm is a fold row
 
 
@@ -77,10 +78,13 @@ def split_coefs(coefs, values, fixed_effects=None):
     return coeffs, effects
 
 
-def fit(predict, y, sigma, coefs, train=None, starts=None, max_nfev=200) -> FitResult:
+def fit(predict, y, sigma, coefs, train=None, starts=None, max_nfev=200, robust_start=False) -> FitResult:
     """Fit ``coefs`` so that ``predict(coeffs, effects)`` matches ``y`` on rows ``train``.
 
     ``starts``: extra starting vectors (values); the best (lowest cost) solution is kept.
+    ``robust_start``: begin each start with a soft-l1 pass (f_scale 3 sigma), so that a few rows with
+    huge residuals (e.g. predicted in contact past snap-in while measured before it) do not trap the
+    optimizer; the final fit is always the plain weighted least squares.
     """
     from scipy.optimize import least_squares
 
@@ -107,6 +111,10 @@ def fit(predict, y, sigma, coefs, train=None, starts=None, max_nfev=200) -> FitR
             span = hi - lo
             u0 = np.clip(u0, lo + 1e-6 * span, hi - 1e-6 * span)
             try:
+                if robust_start:   # soft-l1 pass first: jumps (snap-in rows) cannot trap the start
+                    pre = least_squares(resid, u0, bounds=(lo, hi), method="trf", x_scale="jac", loss="soft_l1",
+                                        f_scale=3.0, max_nfev=max_nfev // 2, xtol=1e-8, ftol=1e-8, gtol=1e-8)
+                    u0 = np.clip(pre.x, lo + 1e-9 * span, hi - 1e-9 * span)
                 sol = least_squares(resid, u0, bounds=(lo, hi), method="trf", x_scale="jac",
                                     max_nfev=max_nfev, xtol=1e-10, ftol=1e-10, gtol=1e-10)
             except ValueError as exc:
@@ -114,6 +122,8 @@ def fit(predict, y, sigma, coefs, train=None, starts=None, max_nfev=200) -> FitR
                 continue
             if best is None or sol.cost < best.cost:
                 best = sol
+        if best is not None:
+            best = _escape_jumps(best, resid, train, full, y, w, lo, hi, max_nfev, least_squares)
         if best is None:
             u, J = x0s[0] / scale, np.zeros((train.size, len(coefs)))
         else:
@@ -180,6 +190,32 @@ def fit(predict, y, sigma, coefs, train=None, starts=None, max_nfev=200) -> FitR
     rmse = float(np.sqrt(np.mean(r[train] ** 2)))
     return FitResult(list(coefs), values, stderr, ci, corr, pred, r, train, n, p, chi2, redchi, rmse, aicc, bic,
                      success, str(message), warnings, identifiable)
+
+
+def _escape_jumps(best, resid, train, full, y, w, lo, hi, max_nfev, least_squares):
+    """Leave out the few rows beyond JUMP sigma (a discontinuity such as snap-in traps the optimizer there),
+    refit, and keep the result only if the cost over *all* rows is lower; then polish on all rows."""
+    r = best.fun
+    big = np.abs(r) > JUMP
+    if not big.any() or big.sum() > 0.05 * r.size:
+        return best
+    keep = train[~big]
+
+    def sub(u):
+        rr = (full(u)[keep] - y[keep]) * w[keep]
+        return np.where(np.isfinite(rr), rr, 1e6)
+
+    try:
+        alt = least_squares(sub, best.x, bounds=(lo, hi), method="trf", x_scale="jac", max_nfev=max_nfev,
+                            xtol=1e-10, ftol=1e-10, gtol=1e-10)
+        cost = 0.5 * float(np.sum(resid(alt.x) ** 2))
+        if cost < best.cost:
+            pol = least_squares(resid, alt.x, bounds=(lo, hi), method="trf", x_scale="jac", max_nfev=max_nfev,
+                                xtol=1e-10, ftol=1e-10, gtol=1e-10)
+            return pol if pol.cost <= cost else best
+    except ValueError:
+        pass
+    return best
 
 
 def f_test(chi2_small, p_small, chi2_big, p_big, n) -> tuple[float, float]:
