@@ -38,14 +38,9 @@ def test_module_imports_by_name_from_an_unrelated_directory(tmp_path, monkeypatc
     ("transducers.contact_piezo", "transducer"), ("transducers.immersion", "transducer"),
 ])
 def test_named_declaration_exists_with_its_kind(tmp_path, ref, kind):
-    module, name = ref.split(".")
-    text = f"import stdlib.{module}\n{kind} probe like {ref} {{ }}\n"
-    if kind == "capsule":
-        text += "fix probe\n"
-        text = text.replace("{ }", "{ center = (0, 0, 100 um) }")
-    if kind == "beam":
-        text = f"import stdlib.{module}\n{kind} probe like {ref} {{ }}\n"
-    _design(tmp_path, text)
+    module, _ = ref.split(".")
+    body = "{ center = (0, 0, 100 um) }\nfix probe" if kind == "capsule" else "{ }"
+    _design(tmp_path, f"import stdlib.{module}\n{kind} probe like {ref} {body}\n")
 
 
 def _capsule(tmp_path, name: str):
