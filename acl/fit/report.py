@@ -68,6 +68,22 @@ def critical_distance(fit, problem) -> dict | None:
             "formula": "sqrt(alpha / (2 gamma)), paper Eq. (3)"}
 
 
+def outliers(problem, fit, limit: float = solve.JUMP) -> list[dict]:
+    """Rows farther than ``limit`` sigma from the final model (typically measured just before a snap-in the
+    model puts slightly earlier, or vice versa: the fold makes the prediction jump)."""
+    d = problem.data
+    sig = np.where(np.isfinite(problem.sigma), problem.sigma, solve.NOMINAL_SIGMA)
+    z = fit.residual / sig
+    if not problem.data.has_sigma:
+        z = z / max(math.sqrt(fit.redchi), 1e-300)
+    out = []
+    for i in np.flatnonzero(np.abs(z) > limit)[:50]:
+        sp = d.spans[i]
+        out.append({"file": sp.file if sp else None, "line": sp.line if sp else None, "observable": d.observable[i],
+                    "value": _n(d.value[i]), "prediction": _n(fit.prediction[i]), "z": _n(z[i])})
+    return out
+
+
 def build_report(problem, selection, tests_before, tests_after, calibrated_name=None) -> dict:
     from acl.fit.residuals import structured
 
@@ -103,6 +119,7 @@ def build_report(problem, selection, tests_before, tests_after, calibrated_name=
         "rmse_before": _n(base.rmse),
         "rmse_after": _n(final.rmse),
         "unexplained": [t.as_dict() for t in structured(tests_after)],
+        "outliers": outliers(problem, final),
         "residual_tests_after": [t.as_dict() for t in tests_after],
         "calibrated_design": calibrated_name,
     }
@@ -150,6 +167,12 @@ def render_table(report, console=None) -> None:
     con.print(f"effects selected: {', '.join(sel) if sel else 'none'}")
     for w in report["final"]["warnings"]:
         con.print(f"[yellow]warning:[/yellow] {w}")
+    if report.get("outliers"):
+        o = report["outliers"]
+        where = ", ".join(f"{x['file']}:{x['line']}" for x in o[:5])
+        con.print(f"[yellow]warning:[/yellow] {len(o)} row(s) more than {solve.JUMP:g} sigma from the model "
+                  f"({where}{', ...' if len(o) > 5 else ''}); near a snap-in the prediction jumps, so a row "
+                  "measured just before (or after) the fold can sit on the other branch")
     if report["unexplained"]:
         if sel:
             con.print("[yellow]the selected effects leave structure in the residual:[/yellow]")

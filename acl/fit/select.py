@@ -4,7 +4,11 @@ A candidate is added when, against the current model, (1) the nested F-test give
 divided by the number of candidates tried in the round (Bonferroni),
 (2) BIC improves, (3) the k-fold cross-validated weighted error improves (folds fixed by ``seed``),
 and (4) its parameters are identifiable (full-rank Jacobian, relative standard error < 1).  Among
-the candidates that pass, the lowest BIC wins; the loop repeats until none passes.  Cross-validation
+the candidates that pass, the lowest BIC wins; the loop repeats until none passes.  Before a
+significant candidate is judged, the current model is refitted from the candidate's solution: if
+that alone lowers its cost (a snap-in jump or a local minimum the optimizer had not left), the
+better fit becomes the current model and the round starts over, so that an effect is never
+credited with an improvement of the optimizer.  Cross-validation
 is computed only for candidates that pass (1), (2) and (4) (documented; keeps the fit fast).
 """
 from __future__ import annotations
@@ -18,6 +22,7 @@ from acl.fit.effects import EFFECTS
 
 P_LIMIT = 0.01
 K_FOLDS = 5
+MAX_RESTARTS = 3     # times a round starts over after a better fit of the current model is found
 
 
 @dataclass
@@ -125,49 +130,65 @@ def select_effects(problem, candidates=None, p_limit=P_LIMIT, k_folds=K_FOLDS, s
     cv_current = None
     names = list(candidates) if candidates is not None else list(EFFECTS)
     for rnd in range(1, max_rounds + 1):
-        passing = []
-        kinds = {c.kind for c in current_coefs}
-        tried = [e for e in names if e not in selected and not applicable(e, problem, kinds)]
-        limit = p_limit / max(len(tried), 1)          # Bonferroni over the candidates of this round
-        for eid in names:
-            if eid in selected:
-                continue
-            why = applicable(eid, problem, kinds)
-            if why:
-                if rnd == 1:
-                    trials.append(Trial(eid, rnd, "not applicable", why))
-                continue
-            if progress:
-                progress(f"round {rnd}: trying {eid}")
-            ecoefs, estarts = effect_coefs(eid, problem)
-            coefs = [solve.Coef(c.name, c.kind, v, c.lower, c.upper, c.scale, c.unit, c.effect, c.param, c.design_param)
-                     for c, v in zip(current_coefs, current.values)] + ecoefs
-            starts = [list(current.values) + s for s in estarts]
-            trial_fit = solve.fit(model, problem.y, problem.sigma, coefs, starts=starts)
-            F, p = solve.f_test(current.chi2, current.p, trial_fit.chi2, trial_fit.p, problem.y.size)
-            t = Trial(eid, rnd, "rejected", "", trial_fit, F, p, trial_fit.bic - current.bic,
-                      trial_fit.aicc - current.aicc)
-            loose = _loose(trial_fit)
-            if not trial_fit.identifiable:
-                t.reason = "not identifiable from these data: " + "; ".join(
-                    w for w in trial_fit.warnings if "identifiable" in w)
-            elif not p < limit:
-                t.reason = f"not significant (F-test p = {p:.3g} >= {limit:.3g} = {p_limit}/{len(tried)} candidates)"
-            elif loose:
-                t.reason = "not identifiable from these data: " + ", ".join(loose) + " (relative standard error > 1)"
-            elif not t.delta_bic < 0:
-                t.reason = f"BIC does not improve (dBIC = {t.delta_bic:+.3g})"
-            else:
-                if cv_current is None:
-                    cv_current = cross_validate(problem, current_coefs, current.values, k_folds, seed)
-                t.cv_current = cv_current
-                t.cv = cross_validate(problem, coefs, trial_fit.values, k_folds, seed)
-                if not t.cv < cv_current:
-                    t.reason = f"cross-validated error does not improve ({t.cv:.4g} >= {cv_current:.4g})"
+        for _restart in range(MAX_RESTARTS + 1):
+            passing, round_trials, improved = [], [], None
+            kinds = {c.kind for c in current_coefs}
+            tried = [e for e in names if e not in selected and not applicable(e, problem, kinds)]
+            limit = p_limit / max(len(tried), 1)          # Bonferroni over the candidates of this round
+            for eid in names:
+                if eid in selected:
+                    continue
+                why = applicable(eid, problem, kinds)
+                if why:
+                    if rnd == 1:
+                        round_trials.append(Trial(eid, rnd, "not applicable", why))
+                    continue
+                if progress:
+                    progress(f"round {rnd}: trying {eid}")
+                ecoefs, estarts = effect_coefs(eid, problem)
+                coefs = [_with_value(c, v) for c, v in zip(current_coefs, current.values)] + ecoefs
+                starts = [list(current.values) + s for s in estarts]
+                trial_fit = solve.fit(model, problem.y, problem.sigma, coefs, starts=starts)
+                F, p = solve.f_test(current.chi2, current.p, trial_fit.chi2, trial_fit.p, problem.y.size)
+                if p < limit:
+                    # is the gain the effect's, or did the optimizer just find a better point of the current
+                    # model (a jump at a snap-in fold, a local minimum)?  Refit the current model from there.
+                    alt = solve.fit(model, problem.y, problem.sigma,
+                                    [_with_value(c, v) for c, v in zip(current_coefs, trial_fit.values)])
+                    if alt.chi2 < current.chi2 * (1 - 1e-9):
+                        improved = alt
+                        break
+                t = Trial(eid, rnd, "rejected", "", trial_fit, F, p, trial_fit.bic - current.bic,
+                          trial_fit.aicc - current.aicc)
+                loose = _loose(trial_fit)
+                if not trial_fit.identifiable:
+                    t.reason = "not identifiable from these data: " + "; ".join(
+                        w for w in trial_fit.warnings if "identifiable" in w)
+                elif not p < limit:
+                    t.reason = f"not significant (F-test p = {p:.3g} >= {limit:.3g} = {p_limit}/{len(tried)} candidates)"
+                elif loose:
+                    t.reason = "not identifiable from these data: " + ", ".join(loose) + " (relative standard error > 1)"
+                elif not t.delta_bic < 0:
+                    t.reason = f"BIC does not improve (dBIC = {t.delta_bic:+.3g})"
                 else:
-                    t.reason = "passes F-test, BIC and cross-validation"
-                    passing.append(t)
-            trials.append(t)
+                    if cv_current is None:
+                        cv_current = cross_validate(problem, current_coefs, current.values, k_folds, seed)
+                    t.cv_current = cv_current
+                    t.cv = cross_validate(problem, coefs, trial_fit.values, k_folds, seed)
+                    if not t.cv < cv_current:
+                        t.reason = f"cross-validated error does not improve ({t.cv:.4g} >= {cv_current:.4g})"
+                    else:
+                        t.reason = "passes F-test, BIC and cross-validation"
+                        passing.append(t)
+                round_trials.append(t)
+            if improved is None:
+                break
+            if progress:
+                progress(f"round {rnd}: a better fit of the current model was found; judging the candidates again")
+            current, cv_current = improved, None
+            if not selected:
+                base = improved
+        trials.extend(round_trials)
         if not passing:
             break
         best = min(passing, key=lambda t: t.fit.bic)
@@ -181,6 +202,10 @@ def select_effects(problem, candidates=None, p_limit=P_LIMIT, k_folds=K_FOLDS, s
         cv_current = best.cv
     effects = solve.split_coefs(current.coefs, current.values)[1]
     return Selection(base, current, selected, trials, effects)
+
+
+def _with_value(c, v):
+    return solve.Coef(c.name, c.kind, v, c.lower, c.upper, c.scale, c.unit, c.effect, c.param, c.design_param)
 
 
 def _loose(fit) -> list[str]:
