@@ -57,3 +57,15 @@ def test_fit_command_writes_report_figures_and_a_loadable_calibrated_design(tmp_
     from acl.fit.mechanism import build_instance, thrust_per_v2
     t = thrust_per_v2(build_instance(design), report["f_ref"])[0]
     assert abs(t / fitted["value"] - 1) < 1e-4
+
+
+def test_saturation_planted_in_pair_data_is_found_despite_snap_in_jumps(tmp_path):
+    # snap-in makes the prediction jump; the search must not credit an effect with an optimizer gain
+    ex = Experiment(frequencies=(120e3, 130e3), voltages=tuple(np.linspace(0, 4, 13)),
+                    sets={"gap": ["25 um", "40 um", "55 um", "70 um"]})
+    data, _ = generate(PAIR, ex, {"drive_saturation": {"v_sat": 3.0}}, noise=NOISE, seed=1, coeffs={"alpha": ALPHA})
+    path = tmp_path / "sat.csv"
+    write_csv(data, str(path))
+    out = run_fit(PAIR, [str(path)], free=["alpha"])
+    assert out.selection.selected == ["drive_saturation"]
+    assert out.selection.final.rmse < 1.3 * NOISE
