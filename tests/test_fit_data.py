@@ -139,3 +139,12 @@ def test_synth_rejects_unknown_effects_and_parameters(tmp_path, capsys):
     assert main(["synth", CANTILEVER, "-o", str(out), "--effect", "drive_saturation=vs:6V"]) == 2
     assert "did you mean `drive_saturation`" in capsys.readouterr().err
     assert not out.exists()
+
+
+@pytest.mark.parametrize("example,obs", [("fig5c_linear_spring.acl", "d"), ("fig3_three_orifice.acl", "mx")])
+def test_mechanisms_outside_the_fit_model_are_a_diagnostic_not_a_guess(tmp_path, capsys, example, obs):
+    design = os.path.join(HERE, "..", "examples", example)
+    path = _csv(tmp_path, f"{obs},1,um,125 kHz @ 3 V\n", header="observable,value,unit,drive\n")
+    assert main(["fit", design, path]) == 1
+    err = capsys.readouterr().err
+    assert "E810" in err and "Traceback" not in err
