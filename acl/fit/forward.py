@@ -196,12 +196,12 @@ def _predict(P: Prepared, coeffs: dict, effects: dict) -> np.ndarray:
     sub = np.ones((2, P.n))
     if "substrate_proximity" in effects:
         sub = substrate_factor(P.height, effects["substrate_proximity"]["h_substrate"])
+    shrink = [np.ones_like(w), np.ones_like(w)]
     for c in range(2):
-        wc = w
         if "bubble_shrinkage" in effects:
-            wc = w * shrinkage_factor(P.f, P.fn[c][:, None], P.q[c][:, None], P.t[:, None],
-                                      effects["bubble_shrinkage"]["shrink_rate"])
-        thrust[c] = gamma * (P.tau[c] * wc).sum(axis=1) * sub[c]
+            shrink[c] = shrinkage_factor(P.f, P.fn[c][:, None], P.q[c][:, None], P.t[:, None],
+                                         effects["bubble_shrinkage"]["shrink_rate"])
+        thrust[c] = gamma * (P.tau[c] * w * shrink[c]).sum(axis=1) * sub[c]
     es = e_scale * (effects["stiffness_scale"]["e_scale"] if "stiffness_scale" in effects else 1.0)
     if "stiffness_gradient" in effects:
         cd, ct = B.stiffness_integrals(P.L, P.l, P.EI * es, effects["stiffness_gradient"]["e_gradient"])
@@ -238,7 +238,8 @@ def _predict(P: Prepared, coeffs: dict, effects: dict) -> np.ndarray:
         idx = np.flatnonzero(P.pair)
         law0, law1, same = rows(idx)
         sub_ab = np.sqrt(sub[0, idx] * sub[1, idx])
-        a_rad = alpha * (P.arel[idx] * w[idx]).sum(axis=1) * sub_ab
+        # Bjerknes force ~ product of the two volume amplitudes: geometric mean of the per-bubble factors
+        a_rad = alpha * (P.arel[idx] * w[idx] * np.sqrt(shrink[0][idx] * shrink[1][idx])).sum(axis=1) * sub_ab
         push = thrust[0, idx] + thrust[1, idx]
         da, db = _pair_equilibrium(law0, law1, a_rad, push, P.d0[idx], same)
         d_0[idx], d_1[idx] = da, db
