@@ -155,13 +155,17 @@ def render_table(report, console=None) -> None:
         dc = report["critical_distance"]
         con.print(f"critical distance d_c = sqrt(alpha/(2 gamma)) = {_um(dc['value'])} "
                   f"[{_um(dc['ci95'][0])}, {_um(dc['ci95'][1])}]")
-    et = Table(title="effects tried (all scores in report.json)")
-    for col in ("round", "effect", "status", "F-test p", "dBIC", "CV MSE"):
-        et.add_column(col, no_wrap=True)
-    et.add_column("reason", overflow="ellipsis", no_wrap=True, max_width=48)
+    et = Table(title="effects tried (full reasons and CV scores in report.json)")
+    et.add_column("#", no_wrap=True)
+    et.add_column("effect", no_wrap=True)
+    et.add_column("status", no_wrap=True)
+    et.add_column("F-test p", no_wrap=True, justify="right")
+    et.add_column("dBIC", no_wrap=True, justify="right")
+    et.add_column("reason", overflow="fold", min_width=12)
     for e in report["effects_tried"]:
-        et.add_row(str(e["round"]), e["effect"], e["status"], _g(e["p_value"]), _g(e["delta_bic"]),
-                   _g(e["cv_mse"]), e["reason"])
+        short = e["reason"].split(" (")[0].split(":")[0].split(";")[0]
+        status = {"not applicable": "n/a"}.get(e["status"], e["status"])
+        et.add_row(str(e["round"]), e["effect"], status, _g3(e["p_value"]), _g3(e["delta_bic"]), short)
     con.print(et)
     sel = report["effects_selected"]
     con.print(f"effects selected: {', '.join(sel) if sel else 'none'}")
@@ -283,6 +287,10 @@ def _n(x):
 
 def _g(x):
     return "-" if x is None else f"{x:.4g}"
+
+
+def _g3(x):
+    return "-" if x is None else f"{x:.3g}"
 
 
 def _um(x):
