@@ -34,6 +34,9 @@ class CapsuleSpec:
     def extent(self, u) -> float:
         return G.half_extent(self.shape, u, self.axis, self.radius, self.side, self.height, self.volume, self.wall)
 
+    def bounding_radius(self) -> float:
+        return G.bounding_radius(self.shape, self.radius, self.side, self.height, self.volume, self.wall)
+
 
 class Builder:
     def __init__(self, r: Resolver):

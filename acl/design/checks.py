@@ -76,19 +76,36 @@ def _substrate(design: M.Design, bag: DiagnosticBag, specs) -> None:
 
 
 def _overlaps(design: M.Design, bag: DiagnosticBag, specs) -> None:
+    """Pairs whose outer bodies overlap along their line of centres; a spatial grid keeps it linear."""
     caps = [c for c in design.capsules if c.name in specs]
-    for i, a in enumerate(caps):
-        for b in caps[i + 1:]:
-            d = G.sub(b.center, a.center)
-            dist = G.norm(d)
-            if dist == 0:
-                bag.error("E403", f"capsules `{a.name}` and `{b.name}` have the same centre", b.span)
-                continue
-            u = G.scale(d, 1 / dist)
-            reach = specs[a.name].extent(u) + specs[b.name].extent(G.scale(u, -1))
-            if reach - dist > OVERLAP_TOL:
-                bag.error("E403", f"capsules `{a.name}` and `{b.name}` overlap by {(reach - dist) * 1e6:.3g} um", b.span,
-                          "move them apart")
+    if len(caps) < 2:
+        return
+    bound = {c.name: specs[c.name].bounding_radius() for c in caps}
+    cell = 2 * max(bound.values())
+    grid: dict[tuple[int, int, int], list[int]] = {}
+    for i, c in enumerate(caps):
+        grid.setdefault(tuple(int(math.floor(x / cell)) for x in c.center), []).append(i)
+    for key, members in grid.items():
+        near = [j for dx in (-1, 0, 1) for dy in (-1, 0, 1) for dz in (-1, 0, 1)
+                for j in grid.get((key[0] + dx, key[1] + dy, key[2] + dz), ())]
+        for i in members:
+            a = caps[i]
+            for j in near:
+                if j <= i:
+                    continue
+                b = caps[j]
+                d = G.sub(b.center, a.center)
+                dist = G.norm(d)
+                if dist >= bound[a.name] + bound[b.name]:
+                    continue
+                if dist == 0:
+                    bag.error("E403", f"capsules `{a.name}` and `{b.name}` have the same centre", b.span)
+                    continue
+                u = G.scale(d, 1 / dist)
+                reach = specs[a.name].extent(u) + specs[b.name].extent(G.scale(u, -1))
+                if reach - dist > OVERLAP_TOL:
+                    bag.error("E403", f"capsules `{a.name}` and `{b.name}` overlap by {(reach - dist) * 1e6:.3g} um", b.span,
+                              "move them apart")
 
 
 def _mount_plausibility(design: M.Design, bag: DiagnosticBag, specs) -> None:

@@ -79,3 +79,12 @@ def inscribed_radius(shape: str, radius=None, side=None, height=None, volume=Non
     if shape == "prism":
         return min(prism_inradius(side), height / 2)
     return (3 * volume / (4 * math.pi)) ** (1 / 3) * 0.5
+
+
+def bounding_radius(shape: str, radius=None, side=None, height=None, volume=None, wall=0.0) -> float:
+    """Radius of the smallest centred sphere containing the capsule's outer body."""
+    if shape == "cylinder":
+        return math.hypot(radius, height / 2) + wall
+    if shape == "prism":
+        return math.hypot(side / math.sqrt(3), height / 2) + wall
+    return (3 * volume / (4 * math.pi)) ** (1 / 3) + wall

@@ -87,31 +87,27 @@ class _Builder(Transformer):
     """lark tree -> acl.syntax.ast nodes."""
 
     def __init__(self, file: str, source: str):
-        super().__init__(visit_tokens=False)
+        super().__init__(visit_tokens=True)
         self.file = file
         self.source = source
+        self._lines: list[str] | None = None   # split once, on first need
 
     def _s(self, x) -> Span:
         return _span(self.file, x)
 
-    # ---- expressions
-    @v_args(meta=True)
-    def quantity(self, meta, children):
-        tok = children[0]
+    # ---- expressions (literals arrive as tokens: no tree node of their own)
+    def QUANTITY(self, tok):
         m = re.match(r"(\d+\.\d+|\d+\.(?!\.)|\.\d+|\d+)([eE][+-]?\d+)?", tok.value)
         num = m.group(0)
         return A.Qty(self._s(tok), float(num), tok.value[len(num):].strip())
 
-    def number(self, children):
-        tok = children[0]
+    def NUMBER(self, tok):
         return A.Num(self._s(tok), float(tok.value))
 
-    def string(self, children):
-        tok = children[0]
+    def STRING(self, tok):
         return A.Str(self._s(tok), tok.value[1:-1])
 
-    def direction(self, children):
-        tok = children[0]
+    def DIRECTION(self, tok):
         return A.Dir(self._s(tok), 1 if tok.value[0] == "+" else -1, tok.value[1])
 
     @v_args(meta=True)
@@ -173,11 +169,11 @@ class _Builder(Transformer):
 
     @v_args(meta=True)
     def import_file(self, meta, children):
-        return A.Import(None, children[0].value[1:-1], str(children[1]), self._s(meta))
+        return A.Import(None, children[0].value, str(children[1]), self._s(meta))   # a Str node
 
     @v_args(meta=True)
     def extends_stmt(self, meta, children):
-        return A.Extends(children[0].value[1:-1], self._s(meta))
+        return A.Extends(children[0].value, self._s(meta))   # a Str node
 
     def free_clause(self, children):
         rng = children[0]
@@ -214,7 +210,9 @@ class _Builder(Transformer):
         return A.ObserveDecl(str(children[0]), children[1], self._s(meta))
 
     def _text(self, meta) -> str:
-        lines = self.source.splitlines()
+        if self._lines is None:
+            self._lines = self.source.splitlines()
+        lines = self._lines
         if getattr(meta, "empty", True) or meta.line > len(lines):
             return ""
         if meta.line == meta.end_line:
