@@ -147,3 +147,24 @@ def test_deep_nesting_is_bounded():
     with pytest.raises(DiagnosticError) as e:
         acl.loads("param a = " + "(" * 100 + "1" + ")" * 100 + "\n")
     assert codes(e.value) == ["E104"]
+
+
+PAIR = HEAD + """beam la like beams.cantilever50 { clamp = (0, 0, 50 um) }
+beam ra like beams.cantilever50 { clamp = (94 um, 0, 50 um) }
+capsule a like capsules.design1 { }
+capsule b like capsules.design1 { orifice jet { radius = 10 um, normal = -x } }
+mount a on la.tip
+mount b on ra.tip
+"""
+
+
+def test_hold_takes_a_margin():
+    d = acl.loads(PAIR + "program p {\n  hold gap(a.jet, b.jet) above 20 um for 1 s, margin 1.5\n}\n")
+    assert d.program("p").steps[0].margin == 1.5
+
+
+def test_hold_margin_below_one_is_rejected_at_its_column():
+    with pytest.raises(DiagnosticError) as e:
+        acl.loads(PAIR + "program p {\n  cross gap(a.jet, b.jet) for 1 s, margin 0.5\n}\n")
+    d = e.value.diagnostics[0]
+    assert d.code == "E505" and d.span.column == 43   # the `0.5`

@@ -378,6 +378,7 @@ class HoldStep(Frozen):
     b: str
     mode: Literal["above", "cross"] = "above"
     bound: float | None = None
+    margin: float = 1.2            # safety factor on the snap-in voltage (above) or beyond it (cross)
     duration: float
     tones: tuple[float, ...] = ()
     limits: Limits = Limits()

@@ -156,7 +156,6 @@ def _step(b, design: M.Design, st):
         return M.SwitchStep(latch=k[1], state=st.state, margin=margin, tones=_using(b, st.options),
                             limits=_limits(b, st.options), span=st.span)
     if isinstance(st, A.HoldS):
-        _no(b, st.options, ("margin",), "hold")
         from acl.design.assemble import _orifice_ref, _arity
 
         c = st.gap
@@ -172,7 +171,11 @@ def _step(b, design: M.Design, st):
         if bound is not None and bound <= 0:
             b.bag.error("E401", "hold bound must be positive", st.bound.span)
             raise _Fail()
-        return M.HoldStep(a=x, b=y, mode=st.mode, bound=bound, duration=_dur(b, st.duration, "hold duration"),
+        margin = b.r.q(st.options.margin, b.env, "", "margin") if st.options.margin is not None else 1.2
+        if margin < 1:
+            b.bag.error("E505", f"hold margin {margin:g} is below 1: it would not keep clear of snap-in", st.options.margin.span)
+            raise _Fail()
+        return M.HoldStep(a=x, b=y, mode=st.mode, bound=bound, margin=margin, duration=_dur(b, st.duration, "hold duration"),
                           tones=_using(b, st.options), limits=_limits(b, st.options), span=st.span)
     raise _Fail()  # pragma: no cover
 

@@ -298,7 +298,7 @@ class _Compiler:
             raise _diag("E-SCHED-MODEL", f"{name}: no snap-in model available (acl.analysis.mechanics."
                         "sweep_voltage)", step.span, "the mechanics analysis is needed for hold steps")
         try:
-            plan = plan_hold(step.mode, DriveLimits(vmax), v_snap=v_snap)
+            plan = plan_hold(step.mode, DriveLimits(vmax), v_snap=v_snap, margin=step.margin)
         except HoldInfeasible as exc:
             raise DiagnosticError([Diagnostic(
                 "E-SCHED-INFEASIBLE", Severity.ERROR, f"{name}: infeasible: binding "
