@@ -34,11 +34,20 @@ def parse_sets(items: list[str]) -> tuple[dict[str, str], list[Diagnostic]]:
     return out, diags
 
 
+def check_paths(paths) -> list[Diagnostic]:
+    """--path folders must exist: a typo would silently change what imports resolve to."""
+    import os
+
+    return [error("E-USAGE", f"--path {p!r}: no such folder", Span(file="<--path>", line=1, column=1))
+            for p in paths or [] if not os.path.isdir(p)]
+
+
 def load_or_report(path: str, args, fmt: str = "text"):
     """Load a design; on errors render them and return (None, exit_code)."""
     from acl.design.resolve import load_design
 
     overrides, diags = parse_sets(getattr(args, "set", []) or [])
+    diags += check_paths(getattr(args, "path", []))
     if diags:
         report(diags, fmt)
         return None, 2

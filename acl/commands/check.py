@@ -4,7 +4,7 @@ from __future__ import annotations
 import json
 import sys
 
-from acl.commands._common import add_design_options, exit_code, parse_sets, report
+from acl.commands._common import add_design_options, check_paths, exit_code, parse_sets, report
 
 
 def add_parser(p) -> None:
@@ -17,6 +17,7 @@ def run(args) -> int:
     from acl.design.resolve import check_design
 
     overrides, diags = parse_sets(args.set)
+    diags += check_paths(args.path)
     if diags:
         report(diags, args.format)
         return 2

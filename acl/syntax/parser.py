@@ -351,7 +351,13 @@ def parse_module(source: str, file: str = "<string>") -> A.Module:
             tree = _lark().parse(chunk, start="start")
             stmts.extend(_build(tree, file, source))
         except UnexpectedInput as exc:
-            diags.append(_syntax_diagnostic(exc, file, lines, eof_line=_last_line(lines, start, end)))
+            d = _syntax_diagnostic(exc, file, lines, eof_line=_last_line(lines, start, end))
+            opened = _unclosed_brace(lines, start, end) if _at_end(exc) else None
+            if opened is not None:  # point at the block that never closes, not at where the text ran out
+                ln, col = opened
+                d = error("E112", "this block is never closed", Span(file=file, line=ln, column=col, end_line=ln, end_column=col + 1),
+                          f"add the missing `}}` (the statement runs to line {_last_line(lines, start, end)})")
+            diags.append(d)
     if not diags:  # the chunker disagreed with the parser; report the whole-file error
         try:
             _lark().parse(text, start="start")
@@ -457,6 +463,29 @@ def _depth_delta(line: str) -> int:
         elif ch in ")]}":
             d -= 1
     return d
+
+
+def _at_end(exc) -> bool:
+    return isinstance(exc, UnexpectedEOF) or (isinstance(exc, UnexpectedToken) and exc.token.type == "$END")
+
+
+def _unclosed_brace(lines: list[str], start: int, end: int) -> tuple[int, int] | None:
+    """(line, column) of the last `{` in lines[start:end] left open, ignoring strings and comments."""
+    stack = []
+    for i in range(start, min(end, len(lines))):
+        in_str = False
+        for j, ch in enumerate(lines[i]):
+            if ch == '"':
+                in_str = not in_str
+            elif in_str:
+                continue
+            elif ch == "#":
+                break
+            elif ch == "{":
+                stack.append((i + 1, j + 1))
+            elif ch == "}" and stack:
+                stack.pop()
+    return stack[-1] if stack else None
 
 
 def _last_line(lines: list[str], start: int, end: int) -> int:

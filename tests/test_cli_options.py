@@ -1,0 +1,29 @@
+"""Shared CLI options: --path must exist; --set syntax; no tracebacks."""
+from __future__ import annotations
+
+import subprocess
+import sys
+
+
+def run(*args):
+    return subprocess.run([sys.executable, "-m", "acl", *args], capture_output=True, text=True, timeout=120)
+
+
+def test_missing_path_folder_is_a_usage_error():
+    r = run("check", "--path", "/no/such/folder", "examples/fig2_vertical_cantilever.acl")
+    assert r.returncode == 2 and "E-USAGE" in r.stderr and "Traceback" not in r.stderr
+
+
+def test_missing_path_folder_is_rejected_by_show_too():
+    r = run("show", "--path", "/no/such/folder", "examples/fig2_vertical_cantilever.acl")
+    assert r.returncode == 2 and "--path" in r.stderr
+
+
+def test_set_without_equals_is_a_usage_error():
+    r = run("check", "--set", "gap", "examples/fig4_facing_pair.acl")
+    assert r.returncode == 2 and "NAME=VALUE" in r.stderr
+
+
+def test_unknown_command_is_a_usage_error():
+    r = run("frobnicate")
+    assert r.returncode == 2 and "Traceback" not in r.stderr
