@@ -23,7 +23,9 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from acl.design.model import Capsule, Cavity, Design, Drive
+from acl.analysis import effects as EF
 from acl.physics import constants as C
+from acl.physics import effects as PE
 from acl.physics.forces import bjerknes_vectors, jet_drag, thrust_magnitude
 from acl.physics.resonance import BubbleModes, capsule_modes as _physics_modes, volume_response
 from acl.physics.transducer import pressure_per_volt
@@ -115,6 +117,34 @@ def drive_gain(design: Design, frequencies) -> tuple[np.ndarray, np.ndarray]:
     if t is None:
         return np.full(f.shape, C.DEFAULT_GAIN_PA_PER_V), np.zeros(f.shape, bool)
     return pressure_per_volt(f, t.gain_frequencies, t.gain_pa_per_v)
+
+
+def effect_pressure_factor(design: Design, f, vtot: float | None = None) -> np.ndarray:
+    """Factor on the drive pressure from declared transducer_gain (gain, tilt) and drive_saturation (at total amplitude ``vtot``).
+
+    Formulas of :mod:`acl.physics.effects` (the fit's forward model uses the same); 1 without effects.
+    """
+    f = np.asarray(f, float)
+    out = np.ones(f.shape)
+    tg = EF.coefficients(design, "transducer_gain")
+    if tg:
+        out = out * tg["gain"]
+        if tg["gain_slope"] and math.isfinite(tg["f_ref"]):
+            out = out * PE.gain_tilt(f, tg["f_ref"], tg["gain_slope"])
+    sat = EF.coefficients(design, "drive_saturation")
+    if sat and vtot is not None:
+        out = out * PE.saturation(vtot, sat["inv_vsat2"])
+    return out
+
+
+def substrate_factor(design: Design, capsule) -> float:
+    """Force factor of a declared substrate_proximity at the capsule's (first) orifice height at rest; 1 without it."""
+    sp = EF.coefficients(design, "substrate_proximity")
+    if not sp or sp["h_substrate"] <= 0:
+        return 1.0
+    cap = _capsule(design, capsule)
+    z = cap.orifices[0].center[2] if cap.orifices else cap.center[2]
+    return float(PE.substrate_factor(np.asarray(z, float), np.asarray(sp["h_substrate"], float)))
 
 
 # ----------------------------------------------------------------------------------------------
@@ -268,8 +298,11 @@ def _compute_drive_states(design: Design, drive: Drive) -> dict[str, _DriveState
             vols = np.zeros((0, len(cap.orifices)), complex)
             thrust = np.zeros(len(cap.orifices))
         else:
-            vols = orifice_response(design, cap, f) * v[:, None]
-            thrust = _thrust_from_volumes(design, cap, f, vols).sum(axis=0) * _thrust_scale(design, cap)
+            # declared effects scale the pressure after the thrust calibration (which is at the base model)
+            gain = effect_pressure_factor(design, f, float(v.sum()))
+            vols = orifice_response(design, cap, f) * (v * gain)[:, None]
+            thrust = (_thrust_from_volumes(design, cap, f, vols).sum(axis=0) * _thrust_scale(design, cap)
+                      * substrate_factor(design, cap))
         out[cap.name] = _DriveState(cap, f, vols, thrust, normals, offsets)
     return out
 
@@ -308,6 +341,8 @@ def _pair_forces(design: Design, states: dict[str, _DriveState],
             on_a, _ = bjerknes_vectors(omega[:, None, None], va[:, :, None], pa[None, :, None, :],
                                        vb[:, None, :], pb[None, None, :, :], rho)
             fa = on_a.reshape(-1, 3).sum(axis=0)
+            if design.effects:   # ~ product of the two volume amplitudes: geometric mean (as acl.fit.forward)
+                fa = fa * math.sqrt(substrate_factor(design, sa.cap) * substrate_factor(design, sb.cap))
             line = pos[nb] - pos[na]
             dist = float(np.linalg.norm(line))
             unit = line / dist if dist > 0 else np.zeros(3)
@@ -355,6 +390,12 @@ def force_model(design: Design, positions: Mapping[str, Sequence[float]] | None,
             cos = np.einsum("ij,ij->i", x, src.normals) / dist
             drag = jet_drag(src.thrust, dist, cos, _outer_radius(tgt))
             total[tgt.name] = total[tgt.name] + (drag[:, None] * src.normals).sum(axis=0)
+    nd = EF.coefficients(design, "neighbour_drag") if design.effects else None
+    if nd and nd["inv_plateau"] > 0:
+        # P (1 - delta/delta_p) with delta the capsule's displacement from rest (acl.physics.effects.drag_load)
+        for c in design.capsules:
+            delta = float(np.linalg.norm(pos[c.name] - np.asarray(c.center, float)))
+            total[c.name] = PE.drag_load(total[c.name], delta, nd["inv_plateau"])
     return total
 
 
@@ -363,12 +404,30 @@ def force_model(design: Design, positions: Mapping[str, Sequence[float]] | None,
 force_model.quadratic_in_amplitude = True
 
 
+def _saturating_force_model(design: Design, positions, drive: Drive) -> dict[str, np.ndarray]:
+    """:func:`force_model` of a design with drive_saturation: forces are not quadratic in the amplitude."""
+    return force_model(design, positions, drive)
+
+
+_saturating_force_model.quadratic_in_amplitude = False
+
+
+def force_model_for(design: Design):
+    """The force model to hand to :mod:`acl.analysis.mechanics` for ``design``.
+
+    :func:`force_model` itself, flagged ``quadratic_in_amplitude`` (evaluate once, scale by V^2),
+    unless the design declares drive_saturation, whose pressure factor depends on V.
+    """
+    return _saturating_force_model if design.effect("drive_saturation") is not None else force_model
+
+
 def selectivity(design: Design, frequencies) -> Selectivity:
     """Thrust magnitude per V^2 of every capsule over ``frequencies`` and its share per frequency."""
     f = np.atleast_1d(np.asarray(frequencies, float))
     rows = []
     for cap in design.capsules:
-        per = _orifice_thrust(design, cap, f, np.ones_like(f)) * _thrust_scale(design, cap)
+        per = (_orifice_thrust(design, cap, f, np.ones_like(f)) * _thrust_scale(design, cap)
+               * effect_pressure_factor(design, f)[:, None] ** 2 * substrate_factor(design, cap))
         rows.append(np.linalg.norm((per[:, :, None] * -_normals(cap)[None]).sum(axis=1), axis=-1))
     t = np.array(rows).reshape(len(design.capsules), f.size)
     tot = t.sum(axis=0, keepdims=True)

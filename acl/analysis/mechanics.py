@@ -28,7 +28,9 @@ import numpy as np
 
 from acl.design.model import Design, Drive, Tone
 from acl.diagnostics import Diagnostic, DiagnosticBag, warning
+from acl.analysis import effects as EF
 from acl.physics import beams as B
+from acl.physics import effects as PE
 from acl.physics import equilibrium as EQ
 from acl.physics import latch as LT
 
@@ -212,18 +214,42 @@ class _UnionFind:
         self.parent[self.find(a)] = self.find(b)
 
 
-def _beam_law(beam, mode: str):
+def _beam_effects(design: Design | None) -> tuple[float, float, float] | None:
+    """(E scale, E gradient, elastica weight) of declared stiffness_scale / stiffness_gradient / large_deflection, None if none."""
+    if design is None or not any(design.effect(n) for n in ("stiffness_scale", "stiffness_gradient", "large_deflection")):
+        return None
+    es = (EF.coefficients(design, "stiffness_scale") or {"e_scale": 1.0})["e_scale"]
+    g = (EF.coefficients(design, "stiffness_gradient") or {"e_gradient": 0.0})["e_gradient"]
+    w = (EF.coefficients(design, "large_deflection") or {"elastica_weight": 0.0})["elastica_weight"]
+    return es, g, w
+
+
+def _e_scale(design: Design | None) -> float:
+    sc = EF.coefficients(design, "stiffness_scale") if design is not None else None
+    return sc["e_scale"] if sc else 1.0
+
+
+def _beam_law(beam, mode: str, design: Design | None = None):
     L, l, EI = beam.length, beam.rigid_length, beam.bending_stiffness
     basis = _perp_basis(beam.axis)
     P_perp = basis @ basis.T
-    k0 = B.eq1_small_force_stiffness(L, l, EI)
+    eff = _beam_effects(design)
+    if eff is not None:
+        # declared effects: the fit's deflection law (acl.physics.effects), inverted; mode "large" = full elastica
+        es, g, w = eff
+        w = 1.0 if mode == "large" else w
+        k0 = 1e-30 / float(PE.effective_beam_deflection(1e-30, L, l, EI, es, g, w))
+    else:
+        k0 = B.eq1_small_force_stiffness(L, l, EI)
 
     def law(x):
         u = P_perp @ x
         delta = float(np.linalg.norm(u))
         if delta < 1e-15 * L:
             return k0 * u, k0 * P_perp
-        if mode == "large":
+        if eff is not None:
+            P, kt = PE.effective_beam_force(delta, L, l, EI, es, g, w)
+        elif mode == "large":
             P = float(B.elastica_force(delta, L, l, EI))
             kt = float(B.elastica_tangent_stiffness(delta, L, l, EI))
         else:
@@ -236,9 +262,14 @@ def _beam_law(beam, mode: str):
     return law, basis, (lambda x: float(np.linalg.norm(P_perp @ x)))
 
 
-def _latch_law(latch):
+def _latch_geometry(latch, design: Design | None = None) -> tuple:
+    """(angle, length, width, thickness, E) of a latch; E scaled by a declared stiffness_scale."""
+    return (latch.angle, latch.length, latch.width, latch.thickness, latch.youngs_modulus * _e_scale(design))
+
+
+def _latch_law(latch, design: Design | None = None):
     a = _unit(latch.axis)
-    geo = (latch.angle, latch.length, latch.width, latch.thickness, latch.youngs_modulus)
+    geo = _latch_geometry(latch, design)
     u0 = 0.0
     if latch.state == "b":
         land = LT.latch_landscape(*geo)
@@ -309,11 +340,11 @@ def build_mechanism(design: Design, mode: str = "eq1") -> _Mechanism:
             try:
                 if joint.target_kind == "beam":
                     beam = design.beam(joint.target)
-                    law, basis, measure = _beam_law(beam, mode)
+                    law, basis, measure = _beam_law(beam, mode, design)
                     elements.append(_Element("beam", beam.name, gi, law, measure, beam.span, beam))
                 elif joint.target_kind == "latch":
                     lt = design.latch(joint.target)
-                    law, basis, measure = _latch_law(lt)
+                    law, basis, measure = _latch_law(lt, design)
                     elements.append(_Element("latch", lt.name, gi, law, measure, lt.span))
                 else:
                     sp = design.spring(joint.target)
@@ -574,7 +605,7 @@ def latch_margins(design: Design, drive: Drive, force_model: ForceModel) -> dict
     forces = force_model(design, positions, drive)
     out = {}
     for lt in design.latches:
-        land = LT.latch_landscape(lt.angle, lt.length, lt.width, lt.thickness, lt.youngs_modulus)
+        land = LT.latch_landscape(*_latch_geometry(lt, design))
         a = _unit(lt.axis)
         carried = [j.capsule for j in design.joints
                    if j.kind == "mount" and j.target_kind == "latch" and j.target == lt.name]

@@ -89,7 +89,9 @@ def analyze(design: M.Design, at: M.Drive | None = None, snap_in: bool = True, p
     from acl.analysis import acoustics as AC
     from acl.analysis import mechanics as ME
 
-    rep = Report(file=design.file, notes=list(AC.defaults_used(design)))
+    from acl.analysis.effects import notes as effect_notes
+
+    rep = Report(file=design.file, notes=list(AC.defaults_used(design)) + effect_notes(design))
     modes = {}
     for c in design.capsules:
         ms = AC.capsule_modes(design, c)
@@ -114,7 +116,7 @@ def analyze(design: M.Design, at: M.Drive | None = None, snap_in: bool = True, p
                                         "target": bool(target),
                                         "crosstalk": bool(not target and rel[i] >= CROSSTALK_THRESHOLD)})
     # ---- pairs at each program frequency
-    fm = AC.force_model
+    fm = AC.force_model_for(design)
     snaps: dict[float, tuple[float | None, str]] = {}
     vmax = design.transducer.max_voltage if design.transducer else 20.0
     for j, f in enumerate(freqs):
@@ -231,7 +233,7 @@ def _require(design, r: M.Require, modes, rep: Report) -> dict:
         rest = {c.name: c.center for c in design.capsules}
         gaps.append(orifice_gap(design, r.args[0], r.args[1], rest))
         for _p, _i, _st, drive in step_drives(design):
-            st = ME.equilibrium(design, drive, AC.force_model)
+            st = ME.equilibrium(design, drive, AC.force_model_for(design))
             gaps.append(0.0 if st.status != "ok" else orifice_gap(design, r.args[0], r.args[1], st.positions))
         value = min(gaps)
         unit = "m"

@@ -79,7 +79,7 @@ def write_figures(design, rep, outdir: str) -> list[str]:
     for fr in rep.frequencies_hz[:4]:
         if len(caps) < 2:
             break
-        sw = ME.sweep_voltage(design, M.Drive(tones=(M.Tone(frequency=fr, amplitude=1.0),)), vmax, AC.force_model)
+        sw = ME.sweep_voltage(design, M.Drive(tones=(M.Tone(frequency=fr, amplitude=1.0),)), vmax, AC.force_model_for(design))
         fig, ax = plt.subplots(figsize=(6, 4))
         for i, a in enumerate(caps):
             for b in caps[i + 1:]:

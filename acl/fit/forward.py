@@ -135,37 +135,9 @@ def _alpha0(inst, alpha_ref: float) -> float:
 # Effect modifiers (each one formula, its source in the docstring)
 # ----------------------------------------------------------------------------------------------
 
-def gain_tilt(f, f_ref, slope):
-    """Pressure gain factor exp(s (f - f_ref)/f_ref): smooth tilt of the transducer transfer function (paper Fig. S1)."""
-    return np.exp(slope * (f - f_ref) / f_ref)
-
-
-def saturation(vtot, inv_vsat2):
-    """Pressure factor 1/sqrt(1 + (V/V_s)^2) of a saturating drive (soft limiter; paper Fig. 2e is its linear part)."""
-    return 1.0 / np.sqrt(1.0 + inv_vsat2 * vtot * vtot)
-
-
-def shrinkage_factor(f, fn, q, t, rate):
-    """|H(f; f_n(t))|^2 / |H(f; f_n0)|^2 of a one-mode resonator, f_n(t) = f_n0 exp(r t / 2) (gas spring, f ~ V^-1/2, Minnaert)."""
-    def h2(fr):
-        return 1.0 / ((fr * fr - f * f) ** 2 + (f * fr / q) ** 2)
-    return h2(fn * np.exp(0.5 * rate * t)) / h2(fn)
-
-
-def elastica_blend(d_eq1, d_elastica, weight):
-    """(1 - w) paper Eq. (1) + w dead-load elastica (Bisshopp & Drucker 1945): w = 1 is the large-deflection beam."""
-    return (1.0 - weight) * d_eq1 + weight * d_elastica
-
-
-def drag_load(load, delta, inv_plateau):
-    """P (1 - delta/delta_p), floored at 0: drag of a neighbour's jet growing with penetration (paper Fig. 5b plateau; phenomenological)."""
-    return load * np.clip(1.0 - inv_plateau * delta, 0.0, None)
-
-
-def substrate_factor(z, h):
-    """Force factor 1 - exp(-z/h) near a rigid wall (image-source weakening, Leighton, The Acoustic Bubble, ch. 4; phenomenological)."""
-    with np.errstate(divide="ignore", over="ignore"):
-        return np.where(h > 0, 1.0 - np.exp(-z / np.maximum(h, 1e-300)), 1.0)
+# The formulas live in acl.physics.effects (the analysis applies the same ones to declared effects).
+from acl.physics.effects import (drag_load, elastica_blend, gain_tilt, saturation,  # noqa: E402,F401
+                                 shrinkage_factor, substrate_factor)
 
 
 # ----------------------------------------------------------------------------------------------

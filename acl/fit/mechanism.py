@@ -66,6 +66,9 @@ def _unsupported(obs, why):
 
 def build_instance(design) -> Instance:
     """Reduce a resolved design to an :class:`Instance` (raises E810 for unsupported mechanisms)."""
+    # the fit's base model is the design without declared effects (the fit adds them itself: a
+    # calibrated design fitted again must not apply them twice)
+    design = design.model_copy(update={"effects": ()}) if design.effects else design
     mounts = [j for j in design.joints if j.kind == "mount" and j.target_kind == "beam"]
     span = design.capsules[0].span if design.capsules else None
     if len(mounts) not in (1, 2):

@@ -111,9 +111,9 @@ def model_forward(design: Design, capsule: str, frequencies) -> tuple[Forward, s
                 drive = Drive(tones=tuple(Tone(frequency=f, amplitude=float(np.sqrt(max(x, 0.0))))
                                           for f, x in zip(freqs, row)))
                 # warm start from the previous waypoint (continuation from rest for the first)
-                eq = mech.equilibrium(design, drive, acoustics.force_model, start=start)
+                eq = mech.equilibrium(design, drive, acoustics.force_model_for(design), start=start)
                 if eq.status != "ok" and start is not None:
-                    eq = mech.equilibrium(design, drive, acoustics.force_model)
+                    eq = mech.equilibrium(design, drive, acoustics.force_model_for(design))
                 if eq.status == "ok":
                     out[i] = np.asarray(eq.displacements[capsule], float)[:2]
                     start = eq.positions
@@ -149,6 +149,7 @@ def latch_forces(design: Design, frequencies) -> tuple[np.ndarray, np.ndarray, n
     the latch landscape (switching force a->b, release force b->a; a monostable latch gets inf).
     """
     from acl.analysis import acoustics
+    from acl.analysis.mechanics import _latch_geometry
     from acl.physics.latch import latch_landscape
 
     freqs = [float(f) for f in frequencies]
@@ -165,8 +166,7 @@ def latch_forces(design: Design, frequencies) -> tuple[np.ndarray, np.ndarray, n
                                             and j.target_kind == "latch" and j.target == latch.name])
         for k, fm in enumerate(per_tone):
             forces[i, k] = sum(float(np.asarray(fm.get(c, np.zeros(3)), float) @ axis) for c in carried)
-        land = latch_landscape(latch.angle, latch.length, latch.width, latch.thickness,
-                               latch.youngs_modulus)
+        land = latch_landscape(*_latch_geometry(latch, design))
         to_b[i] = land.switching_force
         if land.release_force is not None:
             to_a[i] = land.release_force
@@ -206,7 +206,7 @@ def snap_in_voltages(design: Design, a: str, b: str, frequencies, v_max: float,
     out = []
     for f in frequencies:
         shape = Drive(tones=(Tone(frequency=float(f), amplitude=1.0),))
-        sw = mech.sweep_voltage(design, shape, v_max, acoustics.force_model)
+        sw = mech.sweep_voltage(design, shape, v_max, acoustics.force_model_for(design))
         v = np.inf if sw.snap_voltage is None else float(sw.snap_voltage)
         if bound is not None and sw.voltage.size > 1:
             gap = sw.gap(design, ca, cb)

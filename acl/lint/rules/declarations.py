@@ -150,7 +150,7 @@ def _gap(ctx: Context, r):
         ctx.note("ACL603", f"`{r.text}`: gap requirements need the equilibrium (`mechanics = true` or --mechanics)")
         return None, "", []
     try:
-        from acl.analysis.acoustics import force_model
+        from acl.analysis.acoustics import force_model_for
         from acl.analysis.mechanics import equilibrium
     except ImportError as exc:  # pragma: no cover - analysis not installed
         ctx.note("ACL603", f"`{r.text}`: mechanics analysis unavailable ({exc})")
@@ -168,7 +168,7 @@ def _gap(ctx: Context, r):
         for drive in drives:
             key = ("equilibrium", tuple((t.frequency, t.amplitude, t.phase) for t in drive.tones))
             try:
-                state = ctx.cached(key, lambda: equilibrium(d, drive, force_model))
+                state = ctx.cached(key, lambda: equilibrium(d, drive, force_model_for(d)))
             except DiagnosticError as exc:
                 ctx.note("ACL603", f"`{r.text}`: mechanism not analysable ({exc})")
                 return None, "", []

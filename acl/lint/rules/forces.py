@@ -78,7 +78,7 @@ def _mechanics_verdict(ctx: Context, drive, pf) -> bool | None:
     if not ctx.config.mechanics:
         return None
     try:
-        from acl.analysis.acoustics import force_model
+        from acl.analysis.acoustics import force_model_for
         from acl.analysis.mechanics import equilibrium
     except ImportError:
         ctx.note("ACL201", "mechanics analysis unavailable: Eq. 3 criterion only")
@@ -87,7 +87,7 @@ def _mechanics_verdict(ctx: Context, drive, pf) -> bool | None:
 
     key = ("equilibrium", tuple((t.frequency, t.amplitude, t.phase) for t in drive.tones))
     try:
-        state = ctx.cached(key, lambda: equilibrium(ctx.design, drive, force_model))
+        state = ctx.cached(key, lambda: equilibrium(ctx.design, drive, force_model_for(ctx.design)))
     except DiagnosticError as exc:
         ctx.note("ACL201", f"mechanism not analysable ({exc}): Eq. 3 criterion only")
         return None

@@ -1,0 +1,84 @@
+"""Declared effects (``effect ID { ... }``, Design.effects) as the coefficients the analysis applies.
+
+Coefficient names and SI units are those of :mod:`acl.fit.effects` (the calibrated design written by
+`acl fit` uses them); the user-facing forms the fit reports are accepted too (``v_sat`` for
+drive_saturation, ``plateau`` for neighbour_drag, ``factor`` for stiffness_scale).  transducer_gain
+also takes ``f_ref`` (Hz, where the tilt is 1; required with a non-zero ``gain_slope``) and ``gain``
+(a frequency-independent pressure scale, default 1).  The formulas are in :mod:`acl.physics.effects`.
+"""
+from __future__ import annotations
+
+import math
+
+from acl.design.model import Design
+
+# effect -> {coefficient: value at which the effect vanishes} (acl.fit.effects internal coordinates)
+NULLS = {
+    "transducer_gain": {"gain_slope": 0.0, "f_ref": math.nan, "gain": 1.0},
+    "drive_saturation": {"inv_vsat2": 0.0},
+    "large_deflection": {"elastica_weight": 0.0},
+    "stiffness_scale": {"e_scale": 1.0},
+    "stiffness_gradient": {"e_gradient": 0.0},
+    "offset_drift": {"offset": 0.0, "drift": 0.0},
+    "bubble_shrinkage": {"shrink_rate": 0.0},
+    "neighbour_drag": {"inv_plateau": 0.0},
+    "substrate_proximity": {"h_substrate": 0.0},
+}
+ALIASES = {
+    ("drive_saturation", "v_sat"): ("inv_vsat2", lambda v: 1.0 / (v * v) if v > 0 else 0.0),
+    ("neighbour_drag", "plateau"): ("inv_plateau", lambda v: 1.0 / v if v > 0 else 0.0),
+    ("stiffness_scale", "factor"): ("e_scale", lambda v: v),
+}
+STATIC_NOTES = {
+    "offset_drift": "a measurement artefact (offset and drift of the observation), not a property of the device",
+    "bubble_shrinkage": "time-dependent (the bubble loses gas after filling); the analysis is at t = 0",
+}
+WHERE = {
+    "transducer_gain": "drive pressure (acoustics)",
+    "drive_saturation": "drive pressure (acoustics; forces no longer scale as V^2)",
+    "large_deflection": "beam force law (mechanics)",
+    "stiffness_scale": "Young's modulus of beams and latches (mechanics)",
+    "stiffness_gradient": "beam force law (mechanics)",
+    "neighbour_drag": "force on each capsule vs its displacement (acoustics)",
+    "substrate_proximity": "thrust, jet drag and Bjerknes forces vs height (acoustics)",
+}
+
+
+def coefficients(design: Design, name: str) -> dict | None:
+    """Coefficients (internal SI coordinates) of the declared effect ``name``, nulls filled in; None if not declared."""
+    eff = design.effect(name)
+    if eff is None:
+        return None
+    out = dict(NULLS.get(name, {}))
+    for key, value in eff.params.items():
+        if (name, key) in ALIASES:
+            key, conv = ALIASES[(name, key)]
+            value = conv(value)
+        out[key] = float(value)
+    return out
+
+
+def unused_coefficients(design: Design) -> list[str]:
+    """``effect.coefficient`` names the analysis does not know (reported as notes)."""
+    bad = []
+    for eff in design.effects:
+        known = set(NULLS.get(eff.name, {})) | {k for (e, k) in ALIASES if e == eff.name}
+        bad.extend(f"{eff.name}.{k}" for k in eff.params if k not in known)
+    return bad
+
+
+def notes(design: Design) -> list[str]:
+    """One note per declared effect: where it acts, or why it does not change static predictions."""
+    out = []
+    for eff in design.effects:
+        coefs = ", ".join(f"{k} = {v:.6g}" for k, v in eff.params.items())
+        if eff.name in STATIC_NOTES:
+            out.append(f"declared effect {eff.name} does not change static predictions: {STATIC_NOTES[eff.name]}")
+        else:
+            out.append(f"effect {eff.name} active ({coefs}): {WHERE[eff.name]}")
+    tg = coefficients(design, "transducer_gain")
+    if tg and tg["gain_slope"] and not math.isfinite(tg["f_ref"]):
+        out.append("effect transducer_gain has a gain_slope but no f_ref: the tilt is ignored (declare `f_ref = 125 kHz`)")
+    for name in unused_coefficients(design):
+        out.append(f"effect coefficient {name} is not used by the analysis")
+    return out

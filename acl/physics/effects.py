@@ -1,0 +1,82 @@
+"""Formulas of the effect library (docs/fit.md), shared by the fit's forward model and the analysis.
+
+Pure numpy, SI.  :mod:`acl.fit.forward` applies them row-wise to measured data;
+:mod:`acl.analysis.acoustics` and :mod:`acl.analysis.mechanics` apply them to a design that declares
+``effect ID { ... }``.  One implementation of each formula, its source in its docstring.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from acl.physics import cantilever as CB
+
+
+def gain_tilt(f, f_ref, slope):
+    """Pressure gain factor exp(s (f - f_ref)/f_ref): smooth tilt of the transducer transfer function (paper Fig. S1)."""
+    return np.exp(slope * (f - f_ref) / f_ref)
+
+
+def saturation(vtot, inv_vsat2):
+    """Pressure factor 1/sqrt(1 + (V/V_s)^2) of a saturating drive (soft limiter; paper Fig. 2e is its linear part)."""
+    return 1.0 / np.sqrt(1.0 + inv_vsat2 * vtot * vtot)
+
+
+def shrinkage_factor(f, fn, q, t, rate):
+    """|H(f; f_n(t))|^2 / |H(f; f_n0)|^2 of a one-mode resonator, f_n(t) = f_n0 exp(r t / 2) (gas spring, f ~ V^-1/2, Minnaert)."""
+    def h2(fr):
+        return 1.0 / ((fr * fr - f * f) ** 2 + (f * fr / q) ** 2)
+    return h2(fn * np.exp(0.5 * rate * t)) / h2(fn)
+
+
+def elastica_blend(d_eq1, d_elastica, weight):
+    """(1 - w) paper Eq. (1) + w dead-load elastica (Bisshopp & Drucker 1945): w = 1 is the large-deflection beam."""
+    return (1.0 - weight) * d_eq1 + weight * d_elastica
+
+
+def drag_load(load, delta, inv_plateau):
+    """P (1 - delta/delta_p), floored at 0: drag of a neighbour's jet growing with penetration (paper Fig. 5b plateau; phenomenological)."""
+    return load * np.clip(1.0 - inv_plateau * delta, 0.0, None)
+
+
+def substrate_factor(z, h):
+    """Force factor 1 - exp(-z/h) near a rigid wall (image-source weakening, Leighton, The Acoustic Bubble, ch. 4; phenomenological)."""
+    with np.errstate(divide="ignore", over="ignore"):
+        return np.where(h > 0, 1.0 - np.exp(-z / np.maximum(h, 1e-300)), 1.0)
+
+
+def effective_beam_deflection(P, L, l, EI, e_scale=1.0, gradient=0.0, weight=0.0):
+    """Load-point deflection of a cantilever with E scaled, E graded along it and the elastica blended (paper Eq. (1), Suppl. Note 2; Bisshopp & Drucker 1945)."""
+    ei = EI * e_scale
+    c_d, c_t = CB.stiffness_integrals(L, l, ei, gradient)
+    d = CB.eq1_deflection(P, l, c_d, c_t)
+    if weight:
+        d = elastica_blend(d, CB.elastica_deflection(P, L, l, ei), weight)
+    return d
+
+
+def effective_beam_force(delta, L, l, EI, e_scale=1.0, gradient=0.0, weight=0.0):
+    """(load P, tangent dP/d delta) giving load-point deflection ``delta``: inverse of :func:`effective_beam_deflection` (bisection, secant tangent)."""
+    delta = float(delta)
+    if delta <= 0.0:
+        d1 = float(effective_beam_deflection(1e-30, L, l, EI, e_scale, gradient, weight))
+        return 0.0, 1e-30 / d1
+    def defl(p):
+        return float(effective_beam_deflection(p, L, l, EI, e_scale, gradient, weight))
+    k0 = 1e-30 / defl(1e-30)                       # small-load stiffness
+    lo, hi = 0.0, k0 * delta
+    for _ in range(200):                           # Eq. (1) and the elastica stiffen: expand the bracket
+        if defl(hi) >= delta:
+            break
+        lo, hi = hi, 2.0 * hi
+    for _ in range(80):
+        mid = 0.5 * (lo + hi)
+        if defl(mid) < delta:
+            lo = mid
+        else:
+            hi = mid
+        if hi - lo <= 1e-13 * hi:
+            break
+    P = 0.5 * (lo + hi)
+    h = 1e-6 * P
+    kt = 2 * h / (defl(P + h) - defl(P - h)) if P > h else k0
+    return P, kt
