@@ -13,7 +13,11 @@ def add_parser(p) -> None:
     p.add_argument("--free", default="", metavar="NAMES",
                    help="comma-separated names to fit besides the design's `free` params: gamma, alpha, E, gain "
                         "or design parameters (docs/data.md)")
-    p.add_argument("--report", metavar="DIR", help="write report.json, fit.png, residuals.png, calibrated.acl to DIR")
+    p.add_argument("--report", metavar="DIR", help="write report.json, fit.png, residuals.png to DIR (and the "
+                                                     "calibrated design next to DESIGN, see --calibrated)")
+    p.add_argument("--calibrated", metavar="PATH", default=None,
+                   help="write the calibrated design (extends DESIGN) to PATH; default with --report: "
+                        "DESIGN's folder as <stem>.calibrated.acl (loads without --path)")
     p.add_argument("--effects", default=None, metavar="IDS",
                    help="comma-separated effect ids to consider (default: the whole library; `none` for none)")
     p.add_argument("--seed", type=int, default=0, help="seed of the cross-validation folds (default 0)")
@@ -52,7 +56,7 @@ def run(args) -> int:
             sys.stderr.write(f"[{time.perf_counter() - start:7.2f} s] {msg}\n")
     try:
         out = run_fit(args.design, args.data, free=free, search_paths=args.path, candidates=candidates,
-                      seed=args.seed, progress=progress)
+                      seed=args.seed, progress=progress, calibrated_path=args.calibrated, report_dir=args.report)
     except DiagnosticError as exc:
         report(exc.diagnostics)
         return exit_code(exc.diagnostics)
@@ -65,13 +69,18 @@ def run(args) -> int:
         def write(tmp):
             dump_json(out.report, os.path.join(tmp, "report.json"))
             figures(out.problem, out.selection, tmp)
-            with open(os.path.join(tmp, "calibrated.acl"), "w", encoding="utf-8") as fh:
-                fh.write(out.calibrated)
 
         try:
             write_report_dir(args.report, write)
         except OSError as exc:
             report([error("E601", f"cannot write the report: {exc.strerror or exc}", Span(file=args.report, line=1, column=1))])
+            return 2
+    if args.report or args.calibrated:
+        try:
+            _write_atomic(out.calibrated_path, out.calibrated)
+        except OSError as exc:
+            report([error("E601", f"cannot write the calibrated design: {exc.strerror or exc}",
+                          Span(file=out.calibrated_path, line=1, column=1))])
             return 2
     if args.json:
         import json
@@ -85,4 +94,27 @@ def run(args) -> int:
             from rich.console import Console
 
             Console(stderr=True, highlight=False).print(f"report written to {args.report}/")
+        if args.report or args.calibrated:
+            from rich.console import Console
+
+            extra = out.report.get("calibrated_needs_path")
+            how = f" (load it with --path {extra})" if extra else ""
+            Console(stderr=True, highlight=False).print(f"calibrated design written to {out.calibrated_path}{how}")
     return 0
+
+
+def _write_atomic(path: str, text: str) -> None:
+    """Write ``text`` to ``path`` via a temporary file in the same folder and os.replace."""
+    import tempfile
+
+    folder = os.path.dirname(os.path.abspath(path)) or "."
+    os.makedirs(folder, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=".acl-calibrated-", suffix=".tmp", dir=folder)
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as fh:
+            fh.write(text)
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise

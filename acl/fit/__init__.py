@@ -15,12 +15,14 @@ class FitOutcome:
     problem: object
     selection: object
     report: dict
-    calibrated: str
+    calibrated: str              # source of the calibrated design
+    calibrated_path: str = ""    # where it is meant to be written (report["calibrated_design"])
 
 
-def run_fit(design_path, data_paths, free=(), search_paths=(), candidates=None, seed=0, progress=None) -> FitOutcome:
+def run_fit(design_path, data_paths, free=(), search_paths=(), candidates=None, seed=0, progress=None,
+            calibrated_path=None, report_dir=None) -> FitOutcome:
     """Everything `acl fit` does except writing files; raises DiagnosticError on bad input."""
-    from acl.fit.calibrated import calibrated_text
+    from acl.fit.calibrated import calibrated_text, default_path, needs_path
     from acl.fit.problem import load_problem
     from acl.fit.report import build_report
     from acl.fit.residuals import covariates, examine
@@ -47,6 +49,11 @@ def run_fit(design_path, data_paths, free=(), search_paths=(), candidates=None, 
     after = examine(selection.final.residual,
                     covariates(problem.data, problem.prepared, selection.final.prediction, pname), w, seed)
     timing["residual_tests"] = time.perf_counter() - t0
-    report = build_report(problem, selection, before, after, calibrated_name="calibrated.acl")
+    import os
+
+    cal_path = os.path.abspath(calibrated_path or default_path(design_path))
+    report = build_report(problem, selection, before, after, calibrated_name=cal_path)
+    report["calibrated_needs_path"] = needs_path(design_path, cal_path)
     report["timing_s"] = timing
-    return FitOutcome(problem, selection, report, calibrated_text(problem, selection))
+    text = calibrated_text(problem, selection, cal_path, data_paths, report_dir)
+    return FitOutcome(problem, selection, report, text, cal_path)

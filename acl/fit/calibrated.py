@@ -1,94 +1,130 @@
-"""Write the calibrated design in the current language: a copy of the design with fitted parameter values.
+"""Write the calibrated design: ``extends`` the original, fitted ``param`` values, the found effects as ``effect`` blocks.
 
-The language has no ``effect`` declaration yet, so selected effects and fitted coefficients that no
-design parameter carries are written as comments in the proposed syntax (``# effect
-drive_saturation { v_sat = 8.2 V }``); relative imports and csv() paths are made absolute so the
-copy loads from anywhere.  The result must load with :func:`acl.load` (tested).
+The file goes next to the original (``<stem>.calibrated.acl``) so its ``extends`` obeys the import
+safety rule without ``--path``; elsewhere (``acl fit --calibrated PATH``) it loads with ``--path``
+naming the original's folder.  A ``param`` replaces the original's value (docs/language.md,
+``extends``); effects carry the coefficient names and SI units of :mod:`acl.fit.effects`, read by
+:mod:`acl.analysis.effects`.  Coefficients without a design parameter become effects where one is
+the same physics (E scale -> ``stiffness_scale``, transducer gain scale -> ``transducer_gain``,
+thrust coefficient of a lone actuator -> ``transducer_gain``), otherwise a comment saying how to
+declare them.  The result must load with :func:`acl.load` (tested).
 """
 from __future__ import annotations
 
+import datetime
+import math
 import os
-import re
 
 from acl.fit.effects import EFFECTS
 
 
-def _si(value, unit):
-    from acl.units import format_si
+def default_path(design_path: str) -> str:
+    """``<folder>/<stem>.calibrated.acl`` next to the original design."""
+    folder, name = os.path.split(os.path.abspath(design_path))
+    stem = name[:-4] if name.endswith(".acl") else name
+    return os.path.join(folder, f"{stem}.calibrated.acl")
 
-    text = format_si(value, unit) if unit else f"{value:.6g}"
-    return text.replace(" ", " ") if unit and not any(ch in unit for ch in "*/^") else (
-        f"{value:.6g} {unit}".strip())
+
+def needs_path(design_path: str, calibrated_path: str) -> str | None:
+    """The folder to pass as ``--path`` when the calibrated file is outside the original's folder tree, else None."""
+    orig = os.path.dirname(os.path.abspath(design_path))
+    here = os.path.dirname(os.path.abspath(calibrated_path))
+    inside = os.path.commonpath([orig, here]) == here
+    return None if inside else orig
 
 
-def calibrated_text(problem, selection) -> str:
-    src_path = problem.path
-    with open(src_path, encoding="utf-8") as fh:
-        text = fh.read()
-    base_dir = os.path.dirname(os.path.abspath(src_path))
-
-    def absolutize(m):
-        path = m.group(2)
-        if os.path.isabs(path):
-            return m.group(0)
-        return f'{m.group(1)}"{os.path.join(base_dir, path)}"'
-
-    text = re.sub(r'(import\s+)"([^"]+)"', absolutize, text)
-    text = re.sub(r'(csv\(\s*)"([^"]+)"', absolutize, text)
+def calibrated_text(problem, selection, out_path: str, data_paths=(), report_dir: str | None = None,
+                    now: datetime.datetime | None = None) -> str:
+    """The calibrated design's source, to be written at ``out_path``."""
     final, P = selection.final, problem.prepared
-    notes = []
-    for c, v in zip(final.coefs, final.values):
+    rel = os.path.relpath(os.path.abspath(problem.path), os.path.dirname(os.path.abspath(out_path)))
+    rel = rel.replace(os.sep, "/")
+    now = now or datetime.datetime.now(datetime.timezone.utc)
+    head = ["# Calibrated by `acl fit`: the original design plus fitted values and the effects found.",
+            f"# date: {now.strftime('%Y-%m-%d %H:%M:%S %Z').strip()}",
+            f"# design: {os.path.abspath(problem.path)}"]
+    head += [f"# data: {os.path.abspath(p)}" for p in data_paths]
+    if report_dir:
+        head.append(f"# report: {os.path.abspath(report_dir)}/report.json")
+    extra = needs_path(problem.path, out_path)
+    if extra:
+        head.append(f"# load with `--path {extra}` (the original is outside this file's folder tree)")
+    lines = head + ["", f'extends "{rel}"', ""]
+    params, comments = [], []
+    effects = {eid: dict(selection.effects.get(eid, {})) for eid in selection.selected}
+    single = not bool(P.pair.any())
+    gain = 1.0                                   # pressure scale for transducer_gain
+    e_scale = 1.0                                # Young's modulus scale for stiffness_scale
+    for k, (c, v) in enumerate(zip(final.coefs, final.values)):
         if c.kind == "effect":
             continue
+        lo, hi = (float(x) for x in final.ci[k])
         if c.design_param:
             p = problem.design.param(c.design_param)
-            if c.kind == "gamma":
-                new = p.value * v / P.gamma0
-            elif c.kind == "e_scale":
-                new = p.value * v
-            else:
-                new = v
-            text, n = re.subn(rf"(?m)^(\s*param\s+{re.escape(c.design_param)}\s*=\s*)([^\n#]*?)(\s+free\b[^\n#]*)?(\s*(#.*)?)$",
-                              lambda m: f"{m.group(1)}{_literal(new, p.unit)}{m.group(4) or ''}", text, count=1)
-            if n:
-                notes.append(f"# {c.design_param}: fitted by `acl fit` ({_literal(new, p.unit)})")
-                continue
-        notes.append(_coef_comment(c, v, P))
-    lines = ["", "# ---- calibrated by `acl fit` " + "-" * 40] + notes
-    if selection.selected:
-        lines.append("# effects found (proposed syntax; the language has no `effect` declaration yet):")
-        for eid in selection.selected:
-            vals = selection.effects.get(eid, {})
-            parts = []
-            for p in EFFECTS[eid].params:
-                v = vals.get(p.name, p.null)
-                if p.report:
-                    name, val, unit = p.report(v)
-                    if name in ("v_sat", "plateau"):
-                        parts.append(f"{name} = {_literal(val, unit)}")
-                        continue
-                parts.append(f"{p.name} = {_literal(v, p.unit)}")
-            lines.append(f"# effect {eid} {{ {', '.join(parts)} }}")
+            conv = {"gamma": lambda x: p.value * x / P.gamma0, "e_scale": lambda x: p.value * x}.get(c.kind, lambda x: x)
+            params.append(f"param {c.design_param} = {_literal(conv(v), p.unit)}"
+                          f"    # 95% interval {_literal(conv(lo), p.unit)} .. {_literal(conv(hi), p.unit)}")
+        elif c.kind == "e_scale":
+            e_scale *= v
+            comments.append(f"# E/E_declared = {v:.6g} (95% interval {lo:.6g} .. {hi:.6g}): stiffness_scale below")
+        elif c.kind == "gain":
+            gain *= v
+            comments.append(f"# transducer gain scale = {v:.6g} (95% interval {lo:.6g} .. {hi:.6g}): transducer_gain below")
+        elif c.kind == "gamma" and single and P.gamma0 > 0 and v > 0:
+            # thrust ~ pressure^2: a lone actuator's thrust coefficient is a pressure scale sqrt(gamma/gamma0)
+            gain *= math.sqrt(v / P.gamma0)
+            comments.append(f"# gamma (thrust at {P.f_ref / 1e3:.6g} kHz) = {_literal(v, 'N/V^2')} (95% interval "
+                            f"{_literal(lo, 'N/V^2')} .. {_literal(hi, 'N/V^2')}): as transducer_gain below "
+                            f"(gain = sqrt(gamma/{_literal(P.gamma0, 'N/V^2')})); or declare `param gamma` and "
+                            "use it as the capsule's `thrust`")
+        elif c.kind == "gamma":
+            comments.append(f"# gamma (thrust at {P.f_ref / 1e3:.6g} kHz) = {_literal(v, 'N/V^2')} (95% interval "
+                            f"{_literal(lo, 'N/V^2')} .. {_literal(hi, 'N/V^2')}): not applied; declare "
+                            "`param gamma = ...` in the original, use it as each capsule's `thrust` (thrust at its "
+                            "first mode; docs/data.md) and fit again")
+        elif c.kind == "alpha":
+            comments.append(f"# alpha (paper Eq. 3) = {_literal(v, 'N*m^2/V^2')} (95% interval {_literal(lo, 'N*m^2/V^2')}"
+                            f" .. {_literal(hi, 'N*m^2/V^2')}): not applied; the language has no Bjerknes coefficient "
+                            "declaration (the analysis computes it from the capsules); declare `param alpha` to "
+                            "record it")
+    if e_scale != 1.0:
+        eff = effects.setdefault("stiffness_scale", {"e_scale": 1.0})
+        eff["e_scale"] = eff.get("e_scale", 1.0) * e_scale
+    if gain != 1.0 or "transducer_gain" in effects:
+        eff = effects.setdefault("transducer_gain", {"gain_slope": 0.0})
+        eff["gain"] = eff.get("gain", 1.0) * gain
+    if params:
+        lines += ["# fitted design parameters"] + params + [""]
+    if comments:
+        lines += comments + [""]
+    if effects:
+        lines.append("# effects (acl.fit.effects; coefficients in SI)")
+        for eid, vals in effects.items():
+            lines.append(_effect_block(eid, vals, P.f_ref))
     else:
         lines.append("# no effect beyond the base model was found")
-    return text.rstrip("\n") + "\n" + "\n".join(lines) + "\n"
+    return "\n".join(lines) + "\n"
 
 
-def _coef_comment(c, v, P):
-    if c.kind == "gamma":
-        return f"# gamma (thrust coefficient at {P.f_ref / 1e3:.6g} kHz) = {_literal(v, 'N/V^2')}"
-    if c.kind == "alpha":
-        return f"# alpha (paper Eq. 3) = {_literal(v, 'N*m^2/V^2')}"
-    if c.kind == "e_scale":
-        return f"# E (beams) = {_literal(v * P.E0, 'Pa')}"
-    return f"# transducer gain scale = {v:.6g}"
+def _effect_block(eid: str, vals: dict, f_ref: float) -> str:
+    parts = []
+    for p in EFFECTS[eid].params:
+        v = vals.get(p.name, p.null)
+        parts.append(f"{p.name} = {_literal(v, p.unit)}")
+    if eid == "transducer_gain":
+        parts.append(f"f_ref = {_literal(f_ref, 'Hz')}")
+        parts.append(f"gain = {_literal(vals.get('gain', 1.0), '')}")
+    shown = [p.report(vals.get(p.name, p.null)) for p in EFFECTS[eid].params if p.report]   # user-facing forms
+    note = "  # " + ", ".join(f"{n} = {_literal(val, u)}" for n, val, u in shown) if shown else ""
+    return f"effect {eid} {{ {', '.join(parts)} }}{note}"
 
 
 def _literal(value, unit):
-    """An acl literal: `2.7e-11 N/V^2`, `8.2 V`, `0.5` (SI units, no spaces inside the unit)."""
-    import math
-
+    """An acl literal: `2.7e-11 N/V^2`, `8.2 V`, `0.5` (SI units, no spaces inside the unit; 9 digits)."""
     if not math.isfinite(value):
         return "inf"
     unit = (unit or "").replace(" ", "")
-    return f"{value:.6g} {unit}".strip() if unit else f"{value:.6g}"
+    if unit.startswith("1/"):                      # the language writes 1/V^2 as V^-2
+        base, _, power = unit[2:].partition("^")
+        unit = f"{base}^-{power or 1}"
+    return f"{value:.9g} {unit}".strip() if unit else f"{value:.9g}"
