@@ -152,3 +152,19 @@ def test_crossfades_form_a_partition_of_unity():
         assert np.allclose(x[inner], pure[inner], atol=1e-9)
 
     check()
+
+
+def test_zero_ramp_boundary_sample_is_not_dropped():
+    """Regression (found by hypothesis): with no ramp, a boundary sample that float rounding puts in
+    the next segment must still carry the tone (it used to render as 0)."""
+    from acl.emit.render import render_chunks
+
+    durations = [0.001, 0.0002, 0.00390625]
+    edges = np.concatenate([[0.0], np.cumsum(durations)])
+    tone = (ScheduledTone(40e3, 1.0, 0.7),)
+    segs = [Segment(a, b, tone, i) for i, (a, b) in enumerate(zip(edges[:-1], edges[1:]))]
+    s = Schedule("u", segs, [], 1.0, 1.0, ramp_s=0.0)
+    fs = 1e6
+    x = np.concatenate([c for _, c in render_chunks(s, fs, chunk=1000)])
+    n = np.arange(x.size)
+    assert np.allclose(x, np.sin(2 * np.pi * 40e3 * n / fs + 0.7), atol=1e-9)

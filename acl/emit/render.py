@@ -176,10 +176,18 @@ def render_chunks(schedule: Schedule, sample_rate: float, chunk: int = CHUNK,
             else:
                 x = _tones_at(seg, np.arange(s0, s1, dtype=np.int64), fs)
             # weights: only where a fade is active
-            if s0 / fs < S.a1[i] or (s1 - 1) / fs > S.b0[i]:
+            # A fade shorter than one sample is a step, and the support [s0, s1) above already
+            # assigns each boundary sample to exactly one segment: applying a weight computed in
+            # seconds there could drop a sample that rounding put on the other side.
+            fade_in = S.a1[i] - S.a0[i] >= 1.0 / fs
+            fade_out = S.b1[i] - S.b0[i] >= 1.0 / fs
+            if (fade_in and s0 / fs < S.a1[i]) or (fade_out and (s1 - 1) / fs > S.b0[i]):
                 t = np.arange(s0, s1, dtype=np.int64) / fs
-                w = _rc((t - S.a0[i]) / max(S.a1[i] - S.a0[i], 1e-300))
-                w *= 1.0 - _rc((t - S.b0[i]) / max(S.b1[i] - S.b0[i], 1e-300))
+                w = np.ones(t.size)
+                if fade_in:
+                    w *= _rc((t - S.a0[i]) / (S.a1[i] - S.a0[i]))
+                if fade_out:
+                    w *= 1.0 - _rc((t - S.b0[i]) / (S.b1[i] - S.b0[i]))
                 x = w * x
             out[s0 - n0:s1 - n0] += x
         if progress is not None:
