@@ -43,15 +43,21 @@ def test_fig4e_fit_recovers_alpha_gamma_and_the_critical_distance(tmp_path):
 def test_fit_command_writes_report_figures_and_a_loadable_calibrated_design(tmp_path):
     import acl
 
+    import shutil
+
     data = _data(tmp_path, seed=8)
+    design_path = str(tmp_path / "fit_pair.acl")       # the calibrated design is written next to the design
+    shutil.copy(PAIR, design_path)
     rep = tmp_path / "rep"
-    assert main(["fit", PAIR, data, "--free", "alpha", "--report", str(rep), "--effects", "none"]) == 0
+    assert main(["fit", design_path, data, "--free", "alpha", "--report", str(rep), "--effects", "none"]) == 0
     report = json.loads((rep / "report.json").read_text())
     for key in ("base", "effects_tried", "effects_selected", "final", "rmse_before", "rmse_after", "unexplained",
                 "critical_distance"):
         assert key in report
     assert (rep / "fit.png").stat().st_size > 0 and (rep / "residuals.png").stat().st_size > 0
-    design = acl.load(str(rep / "calibrated.acl"))
+    assert report["calibrated_design"] == str(tmp_path / "fit_pair.calibrated.acl")
+    assert report["calibrated_needs_path"] is None
+    design = acl.load(report["calibrated_design"])
     fitted = next(p for p in report["final"]["parameters"] if p["name"] == "gamma")
     # the calibrated design's gamma reproduces the fitted thrust coefficient at f_ref (up to the printed digits)
     from acl.fit.mechanism import build_instance, thrust_per_v2
