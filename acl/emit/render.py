@@ -162,9 +162,15 @@ def render_chunks(schedule: Schedule, sample_rate: float, chunk: int = CHUNK,
             seg = S.segs[i]
             if not seg.tones:
                 continue
+            # A fade shorter than one sample is a step at the middle of its interval; both neighbours
+            # compute that middle identically, so each boundary sample goes to exactly one segment.
+            fade_in = S.a1[i] - S.a0[i] >= 1.0 / fs
+            fade_out = S.b1[i] - S.b0[i] >= 1.0 / fs
+            lo = S.a0[i] if fade_in else (S.a0[i] + S.a1[i]) / 2
+            hi = S.b1[i] if fade_out else (S.b0[i] + S.b1[i]) / 2
             # samples of this chunk inside the segment's support
-            s0 = max(n0, int(np.ceil(S.a0[i] * fs - 1e-9)))
-            s1 = min(n1, int(np.ceil(S.b1[i] * fs - 1e-9)))
+            s0 = max(n0, int(np.ceil(lo * fs - 1e-9)))
+            s1 = min(n1, int(np.ceil(hi * fs - 1e-9)))
             if s1 <= s0:
                 continue
             tpl = S.template(i)
@@ -176,11 +182,8 @@ def render_chunks(schedule: Schedule, sample_rate: float, chunk: int = CHUNK,
             else:
                 x = _tones_at(seg, np.arange(s0, s1, dtype=np.int64), fs)
             # weights: only where a fade is active
-            # A fade shorter than one sample is a step, and the support [s0, s1) above already
-            # assigns each boundary sample to exactly one segment: applying a weight computed in
-            # seconds there could drop a sample that rounding put on the other side.
-            fade_in = S.a1[i] - S.a0[i] >= 1.0 / fs
-            fade_out = S.b1[i] - S.b0[i] >= 1.0 / fs
+            # (a step's weight is 1 on the support: a weight computed in seconds could drop a
+            # sample that rounding put on the other side)
             if (fade_in and s0 / fs < S.a1[i]) or (fade_out and (s1 - 1) / fs > S.b0[i]):
                 t = np.arange(s0, s1, dtype=np.int64) / fs
                 w = np.ones(t.size)
