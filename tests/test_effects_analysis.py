@@ -93,15 +93,15 @@ def test_time_and_measurement_effects_leave_static_predictions_and_are_noted(tmp
 
 
 def test_stiffness_scale_also_scales_latches():
-    from acl.analysis.mechanics import _latch_geometry
+    from acl.analysis.mechanics import latch_geometry
     from acl.physics.latch import latch_landscape
 
     class L:   # the latch fields the mechanics reads
         angle, length, width, thickness, youngs_modulus = 0.5, 40e-6, 4e-6, 10e-6, 1e9
     design = acl.loads("effect stiffness_scale { e_scale = 0.5 }\n")
-    geo = _latch_geometry(L, design)
+    geo = latch_geometry(L, design)
     assert geo[-1] == 0.5e9
-    assert latch_landscape(*geo).switching_force == pytest.approx(0.5 * latch_landscape(*_latch_geometry(L)).switching_force)
+    assert latch_landscape(*geo).switching_force == pytest.approx(0.5 * latch_landscape(*latch_geometry(L)).switching_force)
 
 
 def _run(capsys, argv):

@@ -262,14 +262,14 @@ def _beam_law(beam, mode: str, design: Design | None = None):
     return law, basis, (lambda x: float(np.linalg.norm(P_perp @ x)))
 
 
-def _latch_geometry(latch, design: Design | None = None) -> tuple:
+def latch_geometry(latch, design: Design | None = None) -> tuple:
     """(angle, length, width, thickness, E) of a latch; E scaled by a declared stiffness_scale."""
     return (latch.angle, latch.length, latch.width, latch.thickness, latch.youngs_modulus * _e_scale(design))
 
 
 def _latch_law(latch, design: Design | None = None):
     a = _unit(latch.axis)
-    geo = _latch_geometry(latch, design)
+    geo = latch_geometry(latch, design)
     u0 = 0.0
     if latch.state == "b":
         land = LT.latch_landscape(*geo)
@@ -605,7 +605,7 @@ def latch_margins(design: Design, drive: Drive, force_model: ForceModel) -> dict
     forces = force_model(design, positions, drive)
     out = {}
     for lt in design.latches:
-        land = LT.latch_landscape(*_latch_geometry(lt, design))
+        land = LT.latch_landscape(*latch_geometry(lt, design))
         a = _unit(lt.axis)
         carried = [j.capsule for j in design.joints
                    if j.kind == "mount" and j.target_kind == "latch" and j.target == lt.name]

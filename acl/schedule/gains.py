@@ -149,7 +149,7 @@ def latch_forces(design: Design, frequencies) -> tuple[np.ndarray, np.ndarray, n
     the latch landscape (switching force a->b, release force b->a; a monostable latch gets inf).
     """
     from acl.analysis import acoustics
-    from acl.analysis.mechanics import _latch_geometry
+    from acl.analysis.mechanics import latch_geometry
     from acl.physics.latch import latch_landscape
 
     freqs = [float(f) for f in frequencies]
@@ -166,7 +166,7 @@ def latch_forces(design: Design, frequencies) -> tuple[np.ndarray, np.ndarray, n
                                             and j.target_kind == "latch" and j.target == latch.name])
         for k, fm in enumerate(per_tone):
             forces[i, k] = sum(float(np.asarray(fm.get(c, np.zeros(3)), float) @ axis) for c in carried)
-        land = latch_landscape(*_latch_geometry(latch, design))
+        land = latch_landscape(*latch_geometry(latch, design))
         to_b[i] = land.switching_force
         if land.release_force is not None:
             to_a[i] = land.release_force
