@@ -78,7 +78,7 @@ def test_vectorized_pair_agrees_with_the_mechanics_analysis_layer():
 
 
 def test_displacement_and_position_observables_of_one_actuator_are_consistent():
-    """examples/fig2: `delta` = displacement(arm, +x) and `act_x` = position(act, x) see the same motion."""
+    """examples/fig2: `delta` = displacement(arm, -x) and `act_x` = position(act, x) see the same motion."""
     import os
 
     import acl
@@ -90,5 +90,5 @@ def test_displacement_and_position_observables_of_one_actuator_are_consistent():
     delta = data.value[data.observable == "delta"]
     x = data.value[data.observable == "act_x"]
     # the jet leaves along the orifice normal (+x) and pushes the actuator towards -x (acl.physics.forces)
-    assert delta[0] == 0 and np.all(np.diff(delta) < 0)
-    np.testing.assert_allclose(x - design.capsule("act").center[0], delta, rtol=1e-12, atol=1e-18)
+    assert delta[0] == 0 and np.all(np.diff(delta) > 0)
+    np.testing.assert_allclose(x - design.capsule("act").center[0], -delta, rtol=1e-12, atol=1e-18)
