@@ -25,6 +25,22 @@ def _half_depth(beam) -> float:
     return s.diameter / 2 if s.shape == "circle" else min(s.width, s.thickness) / 2
 
 
+def _linked(ctx: Context, capsule: str) -> bool:
+    return any(j.kind == "link" and capsule in (j.a, j.b) for j in ctx.design.joints)
+
+
+def _equilibrium_load(ctx: Context, beam, cap: str, drive):
+    """Tip deflection and load from the whole mechanism's equilibrium (links carry part of the load)."""
+    from acl.analysis import acoustics, mechanics
+    from acl.physics.beams import eq1_force
+
+    state = mechanics.equilibrium(ctx.design, drive, acoustics.force_model)
+    axis = np.asarray(beam.axis, float)
+    d = np.asarray(state.displacements[cap], float)
+    defl = float(np.linalg.norm(d - (d @ axis) * axis))
+    return defl, float(eq1_force(defl, beam.length, beam.rigid_length, beam.bending_stiffness))
+
+
 def beam_loads(ctx: Context, beam):
     """Worst load of each program on ``beam``: {program: (deflection m, strain, step, how)}; cached."""
     def compute():
@@ -33,6 +49,11 @@ def beam_loads(ctx: Context, beam):
         cap = _carried(ctx, beam)
         out = {}
         if cap is None:
+            return out
+        linked = _linked(ctx, cap)
+        if linked and not ctx.config.mechanics:
+            ctx.note("ACL401", f"beam `{beam.name}`: capsule `{cap}` is linked by a truss or spring, so the "
+                     "free-cantilever load does not apply; not checked without --mechanics")
             return out
         L, l, EI = beam.length, beam.rigid_length, beam.bending_stiffness
         axis = np.asarray(beam.axis, float)
@@ -52,10 +73,15 @@ def beam_loads(ctx: Context, beam):
                 else:
                     cand = None
                     for drive in ctx.step_drives(st):
+                        tones = " + ".join(f"{khz(t.frequency)} @ {t.amplitude:.3g} V" for t in drive.tones)
+                        if linked:   # the mechanism's equilibrium (mechanics enabled)
+                            defl, P = _equilibrium_load(ctx, beam, cap, drive)
+                            if cand is None or P > cand[1]:
+                                cand = (defl, P, st, f"drive {tones} (equilibrium of the linked mechanism)")
+                            continue
                         F = np.asarray(ctx.forces(drive)[cap], float)
                         P = float(np.linalg.norm(F - (F @ axis) * axis))
                         if cand is None or P > cand[1]:
-                            tones = " + ".join(f"{khz(t.frequency)} @ {t.amplitude:.3g} V" for t in drive.tones)
                             cand = (float(eq1_deflection(P, L, l, EI)), P, st, f"drive {tones}")
                     if cand is None:
                         continue
