@@ -119,7 +119,10 @@ def beam_strain(ctx: Context):
                         f"{how}: tip load {P * 1e9:.3g} nN, tip deflection {um(defl)}",
                         f"strain = P (L + l) c / (E I), L = {um(beam.length)}, l = {um(beam.rigid_length)}, "
                         f"c = {um(_half_depth(beam))}, E = {beam.youngs_modulus / 1e6:.3g} MPa",
-                        f"threshold strain_limit = {limit:g}"],
+                        f"threshold strain_limit = {limit:g}"] + ([
+                        f"the deflection is {defl / beam.length:.2g} L, far beyond the range of Eq. (1) (see ACL402): "
+                        "the numbers are an extrapolation of the small-deflection model, not a prediction"]
+                        if defl > 0.5 * beam.length else []),
                     hint="lower the drive, or use a longer or thinner beam")
 
 
