@@ -94,9 +94,28 @@ def _external_jacobian(external: External, q: np.ndarray, V: float, h: float) ->
     return J
 
 
+_RT_MEMO: dict = {}
+
+
 def residual_and_tangent(restoring: Restoring, external: External, q, V: float, h: float = 1e-12):
-    """Residual R = restoring - external and tangent stiffness K_T = dR/dq (Bazant & Cedolin Ch. 4); central differences where no Jacobian is given."""
+    """Residual R = restoring - external and tangent stiffness K_T = dR/dq (Bazant & Cedolin Ch. 4); central differences where no Jacobian is given.
+
+    Memoised on (functions, q, V, h) for the last few points: continuation asks for the same point's
+    tangent several times (convergence check, stability, determinant, next tangent).
+    """
     q = np.atleast_1d(np.asarray(q, dtype=float))
+    key = (restoring, external, q.tobytes(), float(V), h)
+    hit = _RT_MEMO.get(key)
+    if hit is not None:
+        return hit
+    out = _residual_and_tangent(restoring, external, q, V, h)
+    if len(_RT_MEMO) >= 8:
+        _RT_MEMO.pop(next(iter(_RT_MEMO)))
+    _RT_MEMO[key] = out
+    return out
+
+
+def _residual_and_tangent(restoring, external, q, V, h):
     f, K = _restoring(restoring, q, h)
     fe = np.atleast_1d(np.asarray(external(q, V), dtype=float))
     return f - fe, K - _external_jacobian(external, q, V, h), max(np.abs(f).max(), np.abs(fe).max())
@@ -187,27 +206,45 @@ def continuation(restoring: Restoring, external: External, q0, v_max: float, *, 
     det_prev = _det(restoring, external, first.q, first.voltage, h)
 
     def correct(y_prev, t_prev, sigma):
-        """Pseudo-arclength corrector from y_prev along t_prev by sigma."""
+        """Pseudo-arclength corrector from y_prev along t_prev by sigma.
+
+        Chord iterations (the Jacobian of the predicted point reused, Keller 1977) while they
+        contract; a fresh Jacobian when they stall.  Convergence is judged on the true residual.
+        """
         y_new = y_prev + sigma * t_prev
-        for _ in range(30):
+        J = None
+        last = np.inf
+        for _ in range(40):
             q, V = y_new[:-1] * qs, y_new[-1] * vs
             if not ok(q):
                 return None
-            R, KT, scale = residual_and_tangent(restoring, external, q, V, h)
+            if J is None:
+                R, KT, scale = residual_and_tangent(restoring, external, q, V, h)
+            else:
+                f_int, _ = _restoring(restoring, q, h)
+                fe = np.atleast_1d(np.asarray(external(q, V), dtype=float))
+                R, scale = f_int - fe, max(np.abs(f_int).max(), np.abs(fe).max())
             g = float(t_prev @ (y_new - y_prev) - sigma)
             if not np.all(np.isfinite(R)):
                 return None
-            if np.linalg.norm(R) <= rtol * scale + 1e-20 and abs(g) < 1e-12:
+            res = np.linalg.norm(R)
+            if res <= rtol * scale + 1e-20 and abs(g) < 1e-12:
                 return y_new
-            fV = (np.atleast_1d(external(q, V + 1e-6 * vs)) - np.atleast_1d(external(q, V - 1e-6 * vs))) / (2e-6 * vs)
-            J = np.zeros((y.size, y.size))
-            J[:-1, :-1] = KT * qs
-            J[:-1, -1] = -fV * vs
-            J[-1] = t_prev
+            if J is not None and res > 0.5 * last:      # chord stalls: refresh the Jacobian
+                R, KT, scale = residual_and_tangent(restoring, external, q, V, h)
+                J = None
+            last = res
             fscale = max(scale, 1e-300)
+            if J is None:
+                fV = (np.atleast_1d(external(q, V + 1e-6 * vs)) - np.atleast_1d(external(q, V - 1e-6 * vs))) / (2e-6 * vs)
+                J = np.zeros((y.size, y.size))
+                J[:-1, :-1] = KT * qs
+                J[:-1, -1] = -fV * vs
+                J[-1] = t_prev
+                J_scale = fscale
             try:
-                dy = np.linalg.solve(J / np.r_[np.full(R.size, fscale), 1.0][:, None],
-                                     -np.r_[R / fscale, g])
+                dy = np.linalg.solve(J / np.r_[np.full(R.size, J_scale), 1.0][:, None],
+                                     -np.r_[R / J_scale, g])
             except np.linalg.LinAlgError:
                 return None
             y_new = y_new + dy
