@@ -201,6 +201,7 @@ def _register(name: str, unit: str, si: str) -> None:
     _NAMED[parse_unit_static(unit)] = (name, si)
 
 
+@functools.lru_cache(maxsize=None)
 def parse_unit_static(unit: str) -> Dims:
     """Dimension vectors of common units without touching pint (keeps start-up low)."""
     table = {

@@ -88,9 +88,10 @@ def assemble(b: Builder) -> M.Design:
                                        height=spec.height, axis=spec.axis, wall=spec.wall),
             orifices=orifices, center=spec.center, thrust_coefficient=spec.thrust, quality_factor=spec.q, span=spec.span))
     beams = []
+    carried = {t: c for c, t in mounted_on.items()}
     for name, raw in beams_raw.items():
         if raw["rigid_length"] is None:
-            cap = next((c for c, t in mounted_on.items() if t == ("beam", name)), None)
+            cap = carried.get(("beam", name))
             raw["rigid_length"] = b.capsules[cap].extent(raw["axis"]) if cap in b.capsules else 0.0
         beams.append(M.Beam(**raw))
 

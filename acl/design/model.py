@@ -14,6 +14,7 @@ Conventions
 """
 from __future__ import annotations
 
+import functools
 import math
 from typing import Annotated, Literal, Union
 
@@ -433,28 +434,28 @@ class Design(Frozen):
 
     # -- lookups -------------------------------------------------------------------------------
     def capsule(self, name: str) -> Capsule:
-        return _find(self.capsules, name, "capsule")
+        return _find(self._index["capsules"], name, "capsule")
 
     def beam(self, name: str) -> Beam:
-        return _find(self.beams, name, "beam")
+        return _find(self._index["beams"], name, "beam")
 
     def latch(self, name: str) -> Latch:
-        return _find(self.latches, name, "latch")
+        return _find(self._index["latches"], name, "latch")
 
     def spring(self, name: str) -> Spring:
-        return _find(self.springs, name, "spring")
+        return _find(self._index["springs"], name, "spring")
 
     def program(self, name: str) -> Program:
-        return _find(self.programs, name, "program")
+        return _find(self._index["programs"], name, "program")
 
     def param(self, name: str) -> Param:
-        return _find(self.params, name, "param")
+        return _find(self._index["params"], name, "param")
 
     def material(self, name: str) -> Material:
-        return _find(self.materials, name, "material")
+        return _find(self._index["materials"], name, "material")
 
     def observe(self, name: str) -> Observe:
-        return _find(self.observes, name, "observe")
+        return _find(self._index["observes"], name, "observe")
 
     def effect(self, name: str) -> Effect | None:
         """The declared effect with this identifier, or None."""
@@ -462,10 +463,19 @@ class Design(Frozen):
 
     def mount_of(self, capsule: str):
         """The joint that holds ``capsule`` (Mount or Fix), or None if it floats."""
+        return self._index["holds"].get(capsule)
+
+    @functools.cached_property
+    def _index(self) -> dict:
+        """Name -> element per kind, built once (the model is frozen, so it never goes stale)."""
+        idx = {kind: {it.name: it for it in getattr(self, kind)}
+               for kind in ("capsules", "beams", "latches", "springs", "programs", "params", "materials", "observes")}
+        holds = {}
         for j in self.joints:
-            if j.kind in ("mount", "fix") and j.capsule == capsule:
-                return j
-        return None
+            if j.kind in ("mount", "fix") and j.capsule not in holds:
+                holds[j.capsule] = j
+        idx["holds"] = holds
+        return idx
 
     def summary(self) -> str:
         parts = [f"{len(self.capsules)} capsules", f"{len(self.beams)} beams"]
@@ -480,8 +490,8 @@ class Design(Frozen):
         return f"<Design {self.file}: {self.summary()}>"
 
 
-def _find(items, name: str, what: str):
-    for it in items:
-        if it.name == name:
-            return it
-    raise KeyError(f"no {what} named {name!r}")
+def _find(index: dict, name: str, what: str):
+    try:
+        return index[name]
+    except KeyError:
+        raise KeyError(f"no {what} named {name!r}") from None
