@@ -5,7 +5,7 @@ import functools
 import re
 from importlib import resources
 
-from lark import Lark, Token, Transformer, v_args
+from lark import Lark, Token, Transformer
 from lark.exceptions import UnexpectedCharacters, UnexpectedEOF, UnexpectedInput, UnexpectedToken, VisitError
 
 from acl.diagnostics import Diagnostic, DiagnosticError, Span, error
@@ -84,7 +84,23 @@ def _span(file: str, meta_or_tok) -> Span:
 
 
 class _Builder(Transformer):
-    """lark tree -> acl.syntax.ast nodes."""
+    """lark tree -> acl.syntax.ast nodes.
+
+    Every rule method takes ``(meta, children)`` and is called directly (lark's ``v_args``
+    wrappers are rebuilt on every lookup, a measurable cost on 10,000-line designs).
+    """
+
+    def _call_userfunc(self, tree, new_children=None):
+        children = new_children if new_children is not None else tree.children
+        f = getattr(self, tree.data, None)
+        if f is None:
+            return self.__default__(tree.data, children, tree.meta)
+        try:
+            return f(tree.meta, children)
+        except DiagnosticError:
+            raise
+        except Exception as e:  # same contract as lark: wrap so callers see VisitError
+            raise VisitError(tree.data, tree, e) from e
 
     def __init__(self, file: str, source: str):
         super().__init__(visit_tokens=True)
@@ -110,11 +126,9 @@ class _Builder(Transformer):
     def DIRECTION(self, tok):
         return A.Dir(self._s(tok), 1 if tok.value[0] == "+" else -1, tok.value[1])
 
-    @v_args(meta=True)
     def ref(self, meta, children):
         return A.Ref(self._s(meta), tuple(str(c) for c in children))
 
-    @v_args(meta=True)
     def call(self, meta, children):
         name = str(children[0])
         args, kwargs = [], []
@@ -127,19 +141,16 @@ class _Builder(Transformer):
                 args.append(c)
         return A.Call(self._s(meta), name, tuple(args), tuple(kwargs))
 
-    def kwarg(self, children):
+    def kwarg(self, meta, children):
         return (str(children[0]), children[1])
 
-    @v_args(meta=True)
     def vector(self, meta, children):
         return A.Vec(self._s(meta), tuple(children))
 
-    @v_args(meta=True)
     def list(self, meta, children):
         return A.ListExpr(self._s(meta), tuple(c for c in children if c is not None))
 
     def _bin(op):  # noqa: N805
-        @v_args(meta=True)
         def f(self, meta, children):
             return A.BinOp(self._s(meta), op, children[0], children[1])
         return f
@@ -150,38 +161,32 @@ class _Builder(Transformer):
     div = _bin("/")
     pow = _bin("^")
 
-    @v_args(meta=True)
     def range(self, meta, children):
         return A.Range(self._s(meta), children[0], children[2])
 
-    @v_args(meta=True)
     def neg(self, meta, children):
         return A.Neg(self._s(meta), children[0])
 
     # ---- statements
-    def dotted(self, children):
+    def dotted(self, meta, children):
         return tuple(str(c) for c in children)
 
-    @v_args(meta=True)
     def import_module(self, meta, children):
         path, alias = children
         return A.Import(path, None, str(alias) if alias else None, self._s(meta))
 
-    @v_args(meta=True)
     def import_file(self, meta, children):
         return A.Import(None, children[0].value, str(children[1]), self._s(meta))   # a Str node
 
-    @v_args(meta=True)
     def extends_stmt(self, meta, children):
         return A.Extends(children[0].value, self._s(meta))   # a Str node
 
-    def free_clause(self, children):
+    def free_clause(self, meta, children):
         rng = children[0]
         if isinstance(rng, A.Range):
             return ("free", rng.lower, rng.upper)
         return ("free", rng, None) if rng is not None else ("free", None, None)
 
-    @v_args(meta=True)
     def param_stmt(self, meta, children):
         name, value, free = children
         lo = hi = None
@@ -189,23 +194,18 @@ class _Builder(Transformer):
             _, lo, hi = free
         return A.ParamDecl(str(name), value, free is not None, lo, hi, self._s(meta))
 
-    @v_args(meta=True)
     def use_stmt(self, meta, children):
         return A.Use(str(children[0]), children[1], self._s(meta))
 
-    @v_args(meta=True)
     def mount_stmt(self, meta, children):
         return A.MountStmt(children[0], children[1], self._s(meta))
 
-    @v_args(meta=True)
     def fix_stmt(self, meta, children):
         return A.FixStmt(children[0], self._s(meta))
 
-    @v_args(meta=True)
     def link_stmt(self, meta, children):
         return A.LinkStmt(children[0], children[1], children[2], self._s(meta))
 
-    @v_args(meta=True)
     def observe_stmt(self, meta, children):
         return A.ObserveDecl(str(children[0]), children[1], self._s(meta))
 
@@ -219,111 +219,97 @@ class _Builder(Transformer):
             return lines[meta.line - 1][meta.column - 1:meta.end_column - 1].strip()
         return lines[meta.line - 1][meta.column - 1:].strip()
 
-    @v_args(meta=True)
     def require_cmp(self, meta, children):
         call, op, value = children
         return A.RequireDecl(call, str(op), value, None, self._text(meta), self._s(meta))
 
-    @v_args(meta=True)
     def require_in(self, meta, children):
         call, rng = children
         if isinstance(rng, A.Range):
             return A.RequireDecl(call, "in", rng.lower, rng.upper, self._text(meta), self._s(meta))
         return A.RequireDecl(call, "in", rng, None, self._text(meta), self._s(meta))
 
-    @v_args(meta=True)
     def decl(self, meta, children):
         kind, name, like, block = children
         return A.Block(str(kind), str(name), block, self._s(meta), self._s(kind), like)
 
-    def block(self, children):
+    def block(self, meta, children):
         return tuple(c for c in children if c is not None)
 
-    @v_args(meta=True)
     def assign(self, meta, children):
         return A.Assign(str(children[0]), children[1], self._s(meta), self._s(children[0]))
 
-    @v_args(meta=True)
     def sub_block(self, meta, children):
         kind, name, block = children
         return A.Block(str(kind), str(name) if name else None, block, self._s(meta), self._s(kind))
 
     # ---- programs
-    @v_args(meta=True)
     def program(self, meta, children):
         return A.ProgramDecl(str(children[0]), tuple(children[1:]), self._s(meta))
 
-    @v_args(meta=True)
     def tone(self, meta, children):
         f, v, ph = children
         return A.ToneExpr(f, v, ph, self._s(meta))
 
-    def drive(self, children):
+    def drive(self, meta, children):
         return tuple(children)
 
-    def drive_only(self, children):
+    def drive_only(self, meta, children):
         return children[0]
 
-    def options(self, children):
+    def options(self, meta, children):
         kw = {}
         for key, val in children:
             kw[key] = val
         return A.Options(**kw)
 
-    def opt_limit(self, c):
+    def opt_limit(self, meta, c):
         return ("limit", c[0])
 
-    def opt_slew(self, c):
+    def opt_slew(self, meta, c):
         return ("slew", c[0])
 
-    def opt_margin(self, c):
+    def opt_margin(self, meta, c):
         return ("margin", c[0])
 
-    def opt_using(self, c):
+    def opt_using(self, meta, c):
         return ("using", c[0])
 
-    @v_args(meta=True)
     def drive_step(self, meta, children):
         tones, dur, opts = children
         return A.DriveS(tones, dur, opts, self._s(meta))
 
-    @v_args(meta=True)
     def sweep_step(self, meta, children):
         f0, f1, amp, dur, log, opts = children
         return A.SweepS(f0, f1, amp, dur, log is not None, opts, self._s(meta))
 
-    @v_args(meta=True)
     def pause_step(self, meta, children):
         return A.PauseS(children[0], self._s(meta))
 
-    def within(self, c):
+    def within(self, meta, c):
         return ("in", c[0])
 
-    def at_speed(self, c):
+    def at_speed(self, meta, c):
         return ("at", c[0])
 
-    @v_args(meta=True)
     def follow_step(self, meta, children):
         cap, path, (how, val), opts = children
         return A.FollowS(cap, path, val if how == "in" else None, val if how == "at" else None, opts,
                          self._s(meta))
 
-    @v_args(meta=True)
     def switch_step(self, meta, children):
         latch, state, opts = children
         return A.SwitchS(latch, str(state), self._s(state), opts, self._s(meta))
 
-    @v_args(meta=True)
     def hold_above(self, meta, children):
         call, bound, dur, opts = children
         return A.HoldS(call, "above", bound, dur, opts, self._s(meta))
 
-    @v_args(meta=True)
     def hold_cross(self, meta, children):
         call, dur, opts = children
         return A.HoldS(call, "cross", None, dur, opts, self._s(meta))
 
-    def start(self, children):
+    def start(self, meta, children):
         return tuple(children)
 
 
