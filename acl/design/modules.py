@@ -148,13 +148,17 @@ class Loader:
         if real in self.stack:
             self.bag.error("E209", f"extends cycle through `{st.file}`", st.span)
             return None
+        text = self._read(cand)
+        return None if text is None else self._load_text(text, cand, real, root=os.path.dirname(real))
+
+    def _read(self, path: str) -> str | None:
+        """A file's text, or None after recording why it cannot be read."""
         try:
-            text = _read(cand)
+            return _read(path)
         except DiagnosticError as exc:
             for d in exc.diagnostics:
                 self.bag.add(d)
             return None
-        return self._load_text(text, cand, real, root=os.path.dirname(real))
 
     def _import(self, st: A.Import, env: ModuleEnv, root: str):
         here = os.path.dirname(os.path.realpath(env.file)) if os.path.exists(env.file) else root
@@ -199,11 +203,8 @@ class Loader:
                 return None
             target = self.cache.get(real)
             if target is None:
-                try:
-                    text = _read(cand)
-                except DiagnosticError as exc:
-                    for d in exc.diagnostics:
-                        self.bag.add(d)
+                text = self._read(cand)
+                if text is None:
                     return None
                 target = self._load_text(text, cand, real, root=os.path.dirname(real) if real.startswith(stdlib_root()) else root)
             if mem is not None:

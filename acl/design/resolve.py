@@ -168,15 +168,8 @@ class Resolver:
 
     # ---------------------------------------------------------------------------- evaluation
     def eval(self, e: A.Expr, env: ModuleEnv):
-        try:
-            return self._eval(e, env)
-        except DimensionError as exc:
-            self.bag.error("E303", str(exc), e.span)
-        except ZeroDivisionError:
-            self.bag.error("E305", "division by zero", e.span)
-        except (ValueError, OverflowError) as exc:
-            self.bag.error("E305", str(exc), e.span)
-        raise _Fail()
+        """Evaluate an expression; errors are recorded (at the operation that failed) and raise _Fail."""
+        return self._eval(e, env)
 
     def _eval(self, e: A.Expr, env: ModuleEnv):
         if isinstance(e, A.Num):
@@ -227,20 +220,8 @@ class Resolver:
         if isinstance(e, A.BinOp):
             left = self._eval(e.left, env)
             right = self._eval(e.right, env)
-            if isinstance(left, VecVal) and isinstance(right, VecVal) and e.op in "+-" and len(left.items) == len(right.items):
-                op = (lambda a, b: a + b) if e.op == "+" else (lambda a, b: a - b)
-                return VecVal(tuple(op(a, b) for a, b in zip(left.items, right.items)))
-            if isinstance(left, VecVal) and isinstance(right, Quantity) and e.op in "*/":
-                return VecVal(tuple(a * right if e.op == "*" else a / right for a in left.items))
-            if isinstance(left, Quantity) and isinstance(right, VecVal) and e.op == "*":
-                return VecVal(tuple(left * b for b in right.items))
-            if isinstance(left, DirVal) and isinstance(right, Quantity) and e.op == "*":
-                return VecVal(tuple(Quantity(c) * right for c in left.vector))
-            if isinstance(left, Quantity) and isinstance(right, DirVal) and e.op == "*":
-                return VecVal(tuple(left * Quantity(c) for c in right.vector))
-            a, b = self._num(left, e.left), self._num(right, e.right)
             try:
-                return {"+": a.__add__, "-": a.__sub__, "*": a.__mul__, "/": a.__truediv__, "^": a.__pow__}[e.op](b)
+                return self._binop(e, left, right)
             except DimensionError as exc:
                 self.bag.error("E303", str(exc), e.span)
             except ZeroDivisionError:
@@ -250,6 +231,22 @@ class Resolver:
             raise _Fail()
         self.bag.error("E304", "unsupported expression", e.span)
         raise _Fail()
+
+    def _binop(self, e: A.BinOp, left, right):
+        """Arithmetic on quantities, vectors and directions; raises the unit layer's errors."""
+        if isinstance(left, VecVal) and isinstance(right, VecVal) and e.op in "+-" and len(left.items) == len(right.items):
+            op = (lambda a, b: a + b) if e.op == "+" else (lambda a, b: a - b)
+            return VecVal(tuple(op(a, b) for a, b in zip(left.items, right.items)))
+        if isinstance(left, VecVal) and isinstance(right, Quantity) and e.op in "*/":
+            return VecVal(tuple(a * right if e.op == "*" else a / right for a in left.items))
+        if isinstance(left, Quantity) and isinstance(right, VecVal) and e.op == "*":
+            return VecVal(tuple(left * b for b in right.items))
+        if isinstance(left, DirVal) and isinstance(right, Quantity) and e.op == "*":
+            return VecVal(tuple(Quantity(c) * right for c in left.vector))
+        if isinstance(left, Quantity) and isinstance(right, DirVal) and e.op == "*":
+            return VecVal(tuple(left * Quantity(c) for c in right.vector))
+        a, b = self._num(left, e.left), self._num(right, e.right)
+        return {"+": a.__add__, "-": a.__sub__, "*": a.__mul__, "/": a.__truediv__, "^": a.__pow__}[e.op](b)
 
     def _num(self, v, e: A.Expr) -> Quantity:
         if isinstance(v, Quantity):

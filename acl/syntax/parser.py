@@ -435,20 +435,22 @@ def _statement_chunks(lines: list[str]):
         yield start, i
 
 
-def _depth_delta(line: str) -> int:
-    d, in_str = 0, False
-    for ch in line:
+def _code_chars(line: str):
+    """(column index, character) of a line's code: outside strings, before a comment."""
+    in_str = False
+    for j, ch in enumerate(line):
         if ch == '"':
             in_str = not in_str
         elif in_str:
             continue
         elif ch == "#":
-            break
-        elif ch in "([{":
-            d += 1
-        elif ch in ")]}":
-            d -= 1
-    return d
+            return
+        else:
+            yield j, ch
+
+
+def _depth_delta(line: str) -> int:
+    return sum((ch in "([{") - (ch in ")]}") for _, ch in _code_chars(line))
 
 
 def _at_end(exc) -> bool:
@@ -459,15 +461,8 @@ def _unclosed_brace(lines: list[str], start: int, end: int) -> tuple[int, int] |
     """(line, column) of the last `{` in lines[start:end] left open, ignoring strings and comments."""
     stack = []
     for i in range(start, min(end, len(lines))):
-        in_str = False
-        for j, ch in enumerate(lines[i]):
-            if ch == '"':
-                in_str = not in_str
-            elif in_str:
-                continue
-            elif ch == "#":
-                break
-            elif ch == "{":
+        for j, ch in _code_chars(lines[i]):
+            if ch == "{":
                 stack.append((i + 1, j + 1))
             elif ch == "}" and stack:
                 stack.pop()
