@@ -27,3 +27,14 @@ def test_set_without_equals_is_a_usage_error():
 def test_unknown_command_is_a_usage_error():
     r = run("frobnicate")
     assert r.returncode == 2 and "Traceback" not in r.stderr
+
+
+def test_check_imports_no_heavy_module():
+    """`acl check` must start fast: no scipy, cvxpy or matplotlib (and, with the shipped unit
+    table, not pint or numpy either for the examples' units)."""
+    code = ("import sys\nfrom acl.cli import main\n"
+            "rc = main(['check', 'examples/fig2_vertical_cantilever.acl'])\n"
+            "heavy = sorted({m.split('.')[0] for m in sys.modules} & {'scipy', 'cvxpy', 'matplotlib', 'pint', 'numpy'})\n"
+            "sys.stderr.write('HEAVY=' + ','.join(heavy) + ' RC=' + str(rc))\n")
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert "HEAVY= RC=0" in r.stderr, r.stderr[-2000:]
