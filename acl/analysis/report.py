@@ -183,16 +183,10 @@ def _pairs(design):
 
 
 def _gap(design, a, b, positions) -> dict:
-    ca, cb = design.capsule(a), design.capsule(b)
-    best = None
-    for oa in ca.orifices:
-        for ob in cb.orifices:
-            pa = np.asarray(oa.center) + (np.asarray(positions[a]) - np.asarray(ca.center))
-            pb = np.asarray(ob.center) + (np.asarray(positions[b]) - np.asarray(cb.center))
-            d = float(np.linalg.norm(pb - pa))
-            if best is None or d < best[0]:
-                best = (d, oa.name, ob.name)
-    return {"a": f"{a}.{best[1]}", "b": f"{b}.{best[2]}", "gap_m": best[0]}
+    """The closest pair of orifices of capsules a and b at ``positions``."""
+    d, oa, ob = min((orifice_gap(design, f"{a}.{x.name}", f"{b}.{y.name}", positions), x.name, y.name)
+                    for x in design.capsule(a).orifices for y in design.capsule(b).orifices)
+    return {"a": f"{a}.{oa}", "b": f"{b}.{ob}", "gap_m": d}
 
 
 def orifice_gap(design, a: str, b: str, positions) -> float:
@@ -229,7 +223,6 @@ def _require(design, r: M.Require, modes, rep: Report) -> dict:
         value = max(margins) if margins else None
     elif r.kind == "gap":
         gaps = []
-        ca, cb = r.args[0].split(".")[0], r.args[1].split(".")[0]
         rest = {c.name: c.center for c in design.capsules}
         gaps.append(orifice_gap(design, r.args[0], r.args[1], rest))
         for _p, _i, _st, drive in step_drives(design):

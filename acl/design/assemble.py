@@ -33,17 +33,9 @@ def assemble(b: Builder) -> M.Design:
             continue
         b.kinds[name] = kind
         if kind == "capsule":
-            spec = b.capsule(blk)
-            if spec is None:
-                b.failed.add(name)
-            else:
-                b.capsules[name] = spec
+            _put(b, b.capsules, name, b.capsule(blk))
         elif kind == "beam":
-            raw = b.beam(blk)
-            if raw is None:
-                b.failed.add(name)
-            else:
-                beams_raw[name] = raw
+            _put(b, beams_raw, name, b.beam(blk))
         elif kind == "spring":
             _put(b, b.springs, name, b.spring(blk))
         elif kind == "truss":

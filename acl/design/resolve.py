@@ -129,8 +129,6 @@ SCHEMAS: dict[str, dict[str, Key]] = {
     "anchor": {"at": Key("vec", "m", True)},
 }
 
-PRINT_LATERAL = 0.2e-6   # m, two-photon lateral voxel (Supplementary Note 1: 0.2 um hatching)
-PRINT_AXIAL = 0.3e-6     # m, axial slicing (Supplementary Note 1: 0.3 um)
 
 
 class Resolver:
