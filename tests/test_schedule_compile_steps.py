@@ -41,7 +41,8 @@ def test_drive_pause_and_sweep_steps_become_timed_segments():
                M.PauseStep(duration=0.005, span=sp(12)),
                M.SweepStep(f_start=40e3, f_stop=160e3, amplitude=1.0, duration=0.01, span=sp(13)))
     s = compile_program(d, "p")
-    assert [(g.start_s, g.end_s) for g in s.segments] == pytest.approx([(0, 0.02), (0.02, 0.025), (0.025, 0.035)])
+    bounds = [t for g in s.segments for t in (g.start_s, g.end_s)]
+    assert bounds == pytest.approx([0, 0.02, 0.02, 0.025, 0.025, 0.035])
     assert s.segments[1].tones == ()
     assert s.segments[2].tones[0].sweep == "linear" and s.segments[2].tones[0].frequency_end_hz == 160e3
     assert s.sample_rate_hz >= 10 * 160e3
