@@ -324,7 +324,26 @@ def _fundamentals(cm: CoupledModes, n_interfaces: int) -> list[int]:
     return sorted(set(picked))
 
 
-@lru_cache(maxsize=512)
+def _per_design(fn):
+    """Cache ``fn(design, *args)`` by the design's identity (designs with effects are not hashable)."""
+    store: dict = {}
+
+    def wrapper(design, *args):
+        key = (id(design), args)
+        hit = store.get(key)
+        if hit is not None and hit[0] is design:
+            return hit[1]
+        val = fn(design, *args)
+        if len(store) >= 512:
+            store.pop(next(iter(store)))
+        store[key] = (design, val)
+        return val
+
+    wrapper.__doc__ = fn.__doc__
+    return wrapper
+
+
+@_per_design
 def _modes_cached(design: Design, idx: tuple[int, ...]) -> tuple[Mode, ...]:
     med = _medium(design)
     lay = _layout(design)
@@ -431,13 +450,14 @@ def _thrust_from_volumes(design: Design, radii: np.ndarray, f: np.ndarray, dv: n
     return thrust_magnitude(dv, radii, 2 * np.pi * f[:, None], _medium(design).viscosity, C.STREAMING_CONSTANT)
 
 
-@lru_cache(maxsize=256)
+@_per_design
 def _isolated_thrust_per_v2(design: Design, c: int) -> float:
     lay = _layout(design)
     med = _medium(design)
-    f1 = modal_data(design, lay.caps[c]).frequency[:1]
-    if f1.size == 0:
+    ms = capsule_modes(design, lay.caps[c])
+    if not ms:
         return 0.0
+    f1 = np.array([ms[0].frequency_hz])
     u = _physics_coupled(_system(design, [c]), f1, med.density, med.sound_speed, C.SUBSTRATE_REFLECTION)
     u = u * drive_gain(design, f1)[0][:, None]
     sel = lay.body == c
@@ -446,7 +466,7 @@ def _isolated_thrust_per_v2(design: Design, c: int) -> float:
 
 
 def _thrust_scale(design: Design, cap: Capsule) -> float:
-    """Factor that makes predicted thrust match a declared Capsule.thrust_coefficient at mode 1 (the capsule alone)."""
+    """Factor that makes predicted thrust match a declared Capsule.thrust_coefficient at its first reported mode (:func:`capsule_modes`; the capsule alone)."""
     if cap.thrust_coefficient is None:
         return 1.0
     total = _isolated_thrust_per_v2(design, _capsule_index(design, cap))
