@@ -10,6 +10,23 @@ from acl.diagnostics import Diagnostic, DiagnosticError, Span, diagnostics_to_js
 _SET = re.compile(r"^\s*([A-Za-z_][A-Za-z0-9_]*)\s*=\s*(.+?)\s*$")
 
 
+# A leading number: digits with an optional fraction and an optional exponent (`2.0e1`, `2e-5`).
+_LEADING_NUMBER = re.compile(r"\s*([+-]?(?:\d+\.\d*|\.\d+|\d+)(?:[eE][+-]?\d+)?)\s*(.*?)\s*$", re.S)
+
+
+def quantity_text(text: str) -> str:
+    """A value from the command line as acl text: `60um` -> `60 um`, `2.0e1um` -> `2.0e1 um`.
+
+    The one place the CLI splits a number from its unit (--set, synth's --noise, --sweep, --effect):
+    scientific notation stays one number, never a number followed by the unit `e`.
+    """
+    m = _LEADING_NUMBER.fullmatch(text)
+    if not m:
+        return text.strip()
+    number, unit = m.groups()
+    return f"{number} {unit}" if unit else number
+
+
 def add_design_options(p, sets: bool = True) -> None:
     if sets:
         p.add_argument("--set", action="append", default=[], metavar="P=V",
@@ -27,10 +44,7 @@ def parse_sets(items: list[str]) -> tuple[dict[str, str], list[Diagnostic]]:
             diags.append(error("E-USAGE", f"--set {item!r}: expected NAME=VALUE, e.g. --set gap=60um",
                                Span(file="<--set>", line=1, column=1)))
             continue
-        value = m.group(2)
-        # allow `60um` as well as `60 um`
-        value = re.sub(r"^([0-9.eE+-]+)([A-Za-z\u00b5\u03bc])", r"\1 \2", value)
-        out[m.group(1)] = value
+        out[m.group(1)] = quantity_text(m.group(2))
     return out, diags
 
 

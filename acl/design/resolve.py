@@ -140,7 +140,7 @@ class Resolver:
         self.evaluating: dict[tuple[int, str], None] = {}   # ordered: the chain being evaluated
         self.failed_params: set[tuple[int, str]] = set()
         self._entries_cache: dict[tuple[int, int], list] = {}
-        self.override_exprs: dict[str, A.Expr] = {}
+        self.override_exprs: dict[str, A.Expr | float] = {}   # a float: an SI value (Python API)
         self.override_spans: dict[str, Span] = {}
         self.used_decls: dict[str, tuple[str, A.Block, ModuleEnv]] = {}
         self._parse_overrides(overrides)
@@ -155,6 +155,14 @@ class Resolver:
                 self.bag.error("E211", f"--set {name}: the design has no parameter `{name}`", span,
                                suggest(name, self.main.params) or (
                                    "parameters: " + ", ".join(self.main.params) if self.main.params else "the design declares no parameters"))
+                continue
+            if isinstance(text, (int, float)) and not isinstance(text, bool):
+                # a Python number is an SI value: it takes the parameter's own dimension
+                if not math.isfinite(text):
+                    self.bag.error("E305", f"--set {name}: value {text!r} is not finite", span)
+                    continue
+                self.override_exprs[name] = float(text)
+                self.override_spans[name] = span
                 continue
             try:
                 mod = parse_module(f"param __override = {text}\n", f"<--set {name}>")
@@ -315,7 +323,8 @@ class Resolver:
                 self.bag.error("E304", f"parameter `{name}` must be a number or quantity, not {_what(value)}", decl.value.span)
                 raise _Fail()
             if env is self.main and name in self.override_exprs:
-                ov = self.eval(self.override_exprs[name], env)
+                ov = self.override_exprs[name]
+                ov = Quantity(ov, value.dims) if isinstance(ov, float) else self.eval(ov, env)
                 if not isinstance(ov, Quantity) or ov.dims != value.dims:
                     self.bag.error("E301", f"--set {name}: expected {describe(value.dims)}, got "
                                    f"{describe(ov.dims) if isinstance(ov, Quantity) else _what(ov)}",
