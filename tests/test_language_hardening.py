@@ -82,3 +82,78 @@ def test_python_float_override_is_an_si_value():
 def test_python_non_finite_override_is_e305():
     _, diags = check_design(str(PAIR), overrides={"gap": math.inf})
     assert [d.code for d in diags if d.is_error] == ["E305"]
+
+
+# ------------------------------------------------------------------------------ deep structures
+def _diags(path) -> list[tuple[str, str, int, int]]:
+    _, diags = check_design(str(path))
+    return [(d.code, Path(d.span.file).name, d.span.line, d.span.column) for d in diags if d.is_error]
+
+
+def test_two_hundred_chained_parameters_in_either_order():
+    forward = "param p0 = 1 um\n" + "".join(f"param p{i} = p{i - 1} + 1 um\n" for i in range(1, 201))
+    assert _param(_load(forward), "p200").value == pytest.approx(201e-6)
+    backward = "".join(f"param p{i} = p{i + 1} + 1 um\n" for i in range(1000)) + "param p1000 = 1 um\n"
+    assert _param(_load(backward), "p0").value == pytest.approx(1001e-6)
+
+
+def test_a_thousand_long_parameter_cycle_is_one_e214_naming_its_ends():
+    text = "".join(f"param p{i} = p{i + 1} + 1 um\n" for i in range(1000)) + "param p1000 = p0\n"
+    with pytest.raises(DiagnosticError) as info:
+        _load(text)
+    (d,) = info.value.diagnostics
+    assert (d.code, d.span.line, d.span.column) == ("E214", 1, 1)
+    assert d.message.startswith("parameter `p0` depends on itself: p0 -> p1") and "(1001 parameters)" in d.message
+
+
+@pytest.mark.parametrize("text, col", [
+    ("param s = " + " + ".join(["1 um"] * 500) + "\n", 11),
+    ("param n = " + "-" * 1000 + "1 um\n", 209),
+])
+def test_too_deep_expression_is_a_located_e104(text, col):
+    assert _codes(text) == [("E104", 1, col)]
+
+
+def test_long_sum_within_the_limit_is_evaluated():
+    assert _param(_load("param s = " + " + ".join(["1 um"] * 150) + "\n"), "s").value == pytest.approx(150e-6)
+
+
+def test_a_thousand_long_like_chain():
+    text = "material m0 { youngs = 13 MPa }\n" + "".join(f"material m{i} like m{i - 1} {{ }}\n" for i in range(1, 1001))
+    text += ("medium w { density = 1000 kg/m^3\n viscosity = 1 mPa*s\n sound_speed = 1480 m/s\n surface_tension = 0.072 N/m }\n"
+             "beam b { length = 50 um\n section = circle(2 um)\n material = m1000\n clamp = (0, 0, 0) }\n")
+    design = _load(text)
+    assert design.beams[0].youngs_modulus == pytest.approx(13e6)
+
+
+def _chain(folder: Path, n: int, stmt: str) -> Path:
+    folder.mkdir(exist_ok=True)
+    (folder / "f0.acl").write_text("param a = 1 um\n")
+    for i in range(1, n + 1):
+        (folder / f"f{i}.acl").write_text(stmt.format(i - 1))
+    return folder / f"f{n}.acl"
+
+
+@pytest.mark.parametrize("n, stmt", [(400, 'extends "f{}.acl"\n'), (1000, 'import "f{}.acl" as m\n')], ids=["extends", "import"])
+def test_long_file_chains_stop_at_the_chain_limit(tmp_path, n, stmt):
+    from acl.design.modules import MAX_CHAIN
+
+    got = _diags(_chain(tmp_path / "c", n, stmt))
+    assert got == [("E211", f"f{n - MAX_CHAIN + 1}.acl", 1, 1)]
+
+
+def test_chains_count_towards_the_file_limit(tmp_path):
+    from acl.design.modules import MAX_FILES
+
+    for k in range(6):   # six 50-long chains: 301 files, no chain deeper than the chain limit
+        _chain(tmp_path / f"c{k}", 50, 'import "f{}.acl" as m\n')
+    main = tmp_path / "main.acl"
+    main.write_text("".join(f'import "c{k}/f50.acl" as m{k}\n' for k in range(6)))
+    got = _diags(main)
+    assert got and all(g[0] == "E211" for g in got)
+    assert ("E211", "main.acl", 6, 1) in got and MAX_FILES == 256
+
+
+def test_short_chains_still_load(tmp_path):
+    main = _chain(tmp_path / "c", 30, 'import "f{}.acl" as m\n')
+    assert check_design(str(main))[0] is not None

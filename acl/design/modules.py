@@ -29,16 +29,21 @@ class ModuleEnv:
     is_main: bool = False
 
 
+MAX_FILES = 256      # files one design may read (itself, its imports and extends)
+MAX_CHAIN = 64       # files importing or extending each other in one chain
+
+
 class Loader:
     """Loads a module and its imports once each; only from allowed roots."""
 
-    def __init__(self, bag: DiagnosticBag, search_paths=(), max_files: int = 256):
+    def __init__(self, bag: DiagnosticBag, search_paths=(), max_files: int = MAX_FILES):
         self.bag = bag
         self.search_paths = [os.path.realpath(p) for p in search_paths]
         self.cache: dict[str, ModuleEnv] = {}
         self.stack: list[str] = []
         self.sources: list[str] = []
         self.max_files = max_files
+        self.opened = 0          # files read so far (a chain counts as much as a wide import)
 
     # ------------------------------------------------------------------------------------------
     def load_main(self, path: str) -> ModuleEnv:
@@ -56,6 +61,7 @@ class Loader:
         return env
 
     def _load_text(self, text: str, display: str, real: str, root: str) -> ModuleEnv:
+        self.opened += 1
         self.stack.append(real)
         self.sources.append(display)
         try:
@@ -148,6 +154,8 @@ class Loader:
         if real in self.stack:
             self.bag.error("E209", f"extends cycle through `{st.file}`", st.span)
             return None
+        if not self._room(st, "extends"):
+            return None
         text = self._read(cand)
         return None if text is None else self._load_text(text, cand, real, root=os.path.dirname(real))
 
@@ -198,11 +206,10 @@ class Loader:
                 chain = " -> ".join(os.path.basename(p) for p in self.stack[self.stack.index(real):] + [real])
                 self.bag.error("E209", f"import cycle: {chain}", st.span, "move shared declarations into a third file")
                 return None
-            if len(self.cache) >= self.max_files:
-                self.bag.error("E211", f"more than {self.max_files} imported files", st.span)
-                return None
             target = self.cache.get(real)
             if target is None:
+                if not self._room(st, "import"):
+                    return None
                 text = self._read(cand)
                 if text is None:
                     return None
@@ -220,6 +227,18 @@ class Loader:
             hint = suggest(".".join(st.module[1:]), names) or ("stdlib modules: " + ", ".join(sorted(names)))
         self.bag.error("E208", f"cannot find module `{shown}`", st.span, hint)
         return None
+
+    def _room(self, st, what: str) -> bool:
+        """Whether one more file may be read for `st`; records the limit's diagnostic if not."""
+        if self.opened >= self.max_files:
+            self.bag.error("E211", f"more than {self.max_files} files imported or extended", st.span,
+                           "a design reads at most this many files, counting chains of imports")
+            return False
+        if len(self.stack) >= MAX_CHAIN:
+            self.bag.error("E211", f"{what} chain deeper than {MAX_CHAIN} files", st.span,
+                           f"files importing each other through {MAX_CHAIN} levels: flatten the chain")
+            return False
+        return True
 
     def _allowed(self, real: str, root: str) -> bool:
         roots = [os.path.realpath(root), os.path.realpath(stdlib_root()), *self.search_paths]

@@ -6,6 +6,8 @@ the geometry and program checks of :mod:`acl.design.checks`.  Every independent 
 """
 from __future__ import annotations
 
+import contextlib
+import gc
 import math
 import os
 from dataclasses import dataclass
@@ -36,7 +38,29 @@ LENGTH, FREQ, VOLT, TIME = D("m"), D("Hz"), D("V"), D("s")
 # Entry points
 # ------------------------------------------------------------------------------------------------
 
+@contextlib.contextmanager
+def _no_gc():
+    """Pause the cyclic garbage collector while a design is built.
+
+    The front end allocates ~10 objects per source token and frees none of them until the end; the
+    collector's passes over that growing heap cost more than the parse itself on large designs
+    (benchmarks/check.py). Reference counting still frees everything; a collection runs after.
+    """
+    was = gc.isenabled()
+    gc.disable()
+    try:
+        yield
+    finally:
+        if was:
+            gc.enable()
+
+
 def load_design(path: str, overrides: dict[str, str] | None = None, search_paths=()) -> M.Design:
+    with _no_gc():
+        return _load_design(path, overrides, search_paths)
+
+
+def _load_design(path: str, overrides: dict[str, str] | None = None, search_paths=()) -> M.Design:
     bag = DiagnosticBag()
     loader = Loader(bag, search_paths)
     env = loader.load_main(str(path))
@@ -44,6 +68,11 @@ def load_design(path: str, overrides: dict[str, str] | None = None, search_paths
 
 
 def load_text(text: str, filename: str = "<string>", overrides=None, search_paths=()) -> M.Design:
+    with _no_gc():
+        return _load_text(text, filename, overrides, search_paths)
+
+
+def _load_text(text: str, filename: str = "<string>", overrides=None, search_paths=()) -> M.Design:
     bag = DiagnosticBag()
     loader = Loader(bag, search_paths)
     env = loader.load_text(text, filename)
@@ -52,6 +81,11 @@ def load_text(text: str, filename: str = "<string>", overrides=None, search_path
 
 def check_design(path: str, overrides=None, search_paths=()) -> tuple[M.Design | None, list[Diagnostic]]:
     """Like load_design but returns (design or None, all diagnostics incl. warnings)."""
+    with _no_gc():
+        return _check_design(path, overrides, search_paths)
+
+
+def _check_design(path: str, overrides=None, search_paths=()) -> tuple[M.Design | None, list[Diagnostic]]:
     try:
         bag = DiagnosticBag()
         loader = Loader(bag, search_paths)
@@ -140,6 +174,7 @@ class Resolver:
         self.evaluating: dict[tuple[int, str], None] = {}   # ordered: the chain being evaluated
         self.failed_params: set[tuple[int, str]] = set()
         self._entries_cache: dict[tuple[int, int], list] = {}
+        self._like_cycle: set[int] = set()   # blocks found on a `like` cycle
         self.override_exprs: dict[str, A.Expr | float] = {}   # a float: an SI value (Python API)
         self.override_spans: dict[str, Span] = {}
         self.used_decls: dict[str, tuple[str, A.Block, ModuleEnv]] = {}
@@ -309,6 +344,10 @@ class Resolver:
         if key in self.failed_params:      # already reported once
             raise _Fail()
         decl = env.params[name]
+        if not self.evaluating:  # outermost: evaluate what it depends on first, so nothing recurses deeply
+            self._evaluate_dependencies(env, name)
+            if key in self.failed_params:
+                raise _Fail()
         if key in self.evaluating:
             chain = [n for (e, n) in self.evaluating if e == id(env)]
             chain = chain[chain.index(name):] + [name] if name in chain else [name, name]
@@ -338,6 +377,65 @@ class Resolver:
                 self.failed_params.add(key)
         self.param_values[key] = value
         return value
+
+    def _param_deps(self, env: ModuleEnv, name: str):
+        """The parameters a parameter's expression (and its --set override) names, as (env, name)."""
+        exprs = [env.params[name].value]
+        if env is self.main and isinstance(self.override_exprs.get(name), A.Expr):
+            exprs.append(self.override_exprs[name])
+        out = []
+        for ref in _refs(exprs):
+            parts, head = ref.parts, ref.parts[0]
+            target = env.imports.get(head)
+            if target is not None:
+                if isinstance(target, tuple):
+                    if len(parts) == 1 and target[1] in target[0].params:
+                        out.append((target[0], target[1]))
+                elif len(parts) == 2 and parts[1] in target.params:
+                    out.append((target, parts[1]))
+            elif len(parts) == 1 and head in env.params:
+                out.append((env, head))
+        return out
+
+    def _evaluate_dependencies(self, env: ModuleEnv, name: str) -> None:
+        """Evaluate the parameters that `name` depends on, deepest first (an iterative walk).
+
+        A chain of any length then costs one level of recursion per parameter evaluated; a cycle is
+        reported here once, naming the whole cycle, and every parameter on it fails quietly after.
+        """
+        state = {(id(env), name): 1}            # 1: on the walk's stack, 2: done
+        stack = [(env, name, iter(self._param_deps(env, name)))]
+        order = []
+        while stack:
+            e, n, deps = stack[-1]
+            for e2, n2 in deps:
+                k2 = (id(e2), n2)
+                if k2 in self.param_values or k2 in self.failed_params or state.get(k2) == 2:
+                    continue
+                if state.get(k2) == 1:   # a cycle: from n2 around to here
+                    names = [x[1] for x in stack]
+                    names = names[names.index(n2):] + [n2] if n2 in names else [n2, n2]
+                    decl = e2.params[n2]
+                    shown = names if len(names) <= 12 else names[:5] + ["..."] + names[-5:]
+                    self.bag.error("E214", f"parameter `{n2}` depends on itself: {' -> '.join(shown)}"
+                                   + (f" ({len(names) - 1} parameters)" if len(names) > 12 else ""), decl.span,
+                                   "give one of them a value that does not refer back")
+                    start = next(i for i, x in enumerate(stack) if (id(x[0]), x[1]) == k2)
+                    for x in stack[start:]:
+                        self.failed_params.add((id(x[0]), x[1]))
+                    continue
+                state[k2] = 1
+                stack.append((e2, n2, iter(self._param_deps(e2, n2))))
+                break
+            else:
+                stack.pop()
+                state[(id(e), n)] = 2
+                order.append((e, n))
+        for e, n in order[:-1]:
+            try:
+                self.param(e, n)
+            except _Fail:
+                pass
 
     # ---------------------------------------------------------------------------- typed getters
     def q(self, e: A.Expr, env: ModuleEnv, unit: str, what: str) -> float:
@@ -381,44 +479,60 @@ class Resolver:
         raise _Fail()
 
     # ---------------------------------------------------------------------------- blocks
-    def entries(self, blk: A.Block, env: ModuleEnv, seen=None) -> list[tuple[object, ModuleEnv]]:
-        """Entries of a block with `like` inheritance resolved: (entry, env) pairs, child last wins."""
-        ck = (id(blk), id(env))
-        if not seen and ck in self._entries_cache:
-            return self._entries_cache[ck]
-        out = self._entries(blk, env, seen or set())
-        if not seen:
-            self._entries_cache[ck] = out
-        return out
+    def entries(self, blk: A.Block, env: ModuleEnv) -> list[tuple[object, ModuleEnv]]:
+        """Entries of a block with `like` inheritance resolved: (entry, env) pairs, child last wins.
 
-    def _entries(self, blk: A.Block, env: ModuleEnv, seen) -> list[tuple[object, ModuleEnv]]:
+        The `like` chain is followed iteratively (any length); each block's merged entries are
+        computed once, so an error in a shared base is reported once.
+        """
+        cache = self._entries_cache
+        ck = (id(blk), id(env))
+        if ck in cache:
+            return cache[ck]
+        chain = [(blk, env)]
+        on_chain = {id(blk)}
         base: list[tuple[object, ModuleEnv]] = []
-        if blk.like is not None:
+        cyclic = False   # blocks on a cycle are merged again from their own start (each reports it)
+        cur, cenv = blk, env
+        while cur.like is not None:
             try:
-                target = self.eval(blk.like, env)
+                target = self.eval(cur.like, cenv)
             except _Fail:
-                target = None
-            if isinstance(target, DeclVal):
-                if target.kind != blk.kind:
-                    self.bag.error("E207", f"`{blk.name}` is a {blk.kind} but `{blk.like.dotted}` is a {target.kind}", blk.like.span)
-                elif id(target.node) in seen:
-                    self.bag.error("E214", f"`like` cycle through `{blk.like.dotted}`", blk.like.span)
-                else:
-                    base = self.entries(target.node, target.env, seen | {id(blk)})
-            elif target is not None:
-                self.bag.error("E207", f"`like` needs a {blk.kind}, found {_what(target)}", blk.like.span)
-        own_keys: dict[str, Span] = {}
-        out = []
-        for ent in blk.entries:
-            k = _entry_key(ent)
-            if k in own_keys:
-                self.bag.error("E206", f"`{k}` given twice in `{blk.name or blk.kind}` (first at line {own_keys[k].line})",
-                               ent.key_span if isinstance(ent, A.Assign) else ent.kind_span)
-                continue
-            own_keys[k] = ent.span
-            out.append((ent, env))
-        merged = [(e, en) for e, en in base if _entry_key(e) not in own_keys] + out
-        return merged
+                break
+            if not isinstance(target, DeclVal):
+                self.bag.error("E207", f"`like` needs a {cur.kind}, found {_what(target)}", cur.like.span)
+                break
+            if target.kind != cur.kind:
+                self.bag.error("E207", f"`{cur.name}` is a {cur.kind} but `{cur.like.dotted}` is a {target.kind}", cur.like.span)
+                break
+            if id(target.node) in on_chain:
+                self.bag.error("E214", f"`like` cycle through `{cur.like.dotted}`", cur.like.span)
+                cyclic = True
+                ids = [id(x[0]) for x in chain]
+                self._like_cycle.update(ids[ids.index(id(target.node)):])
+                break
+            tk = (id(target.node), id(target.env))
+            if tk in cache and id(target.node) not in self._like_cycle:
+                base = cache[tk]
+                break
+            chain.append((target.node, target.env))
+            on_chain.add(id(target.node))
+            cur, cenv = target.node, target.env
+        for b, e in reversed(chain):   # the deepest base first
+            own_keys: dict[str, Span] = {}
+            own = []
+            for ent in b.entries:
+                k = _entry_key(ent)
+                if k in own_keys:
+                    self.bag.error("E206", f"`{k}` given twice in `{b.name or b.kind}` (first at line {own_keys[k].line})",
+                                   ent.key_span if isinstance(ent, A.Assign) else ent.kind_span)
+                    continue
+                own_keys[k] = ent.span
+                own.append((ent, e))
+            base = [(x, en) for x, en in base if _entry_key(x) not in own_keys] + own
+            if not cyclic or b is blk:
+                cache[(id(b), id(e))] = base
+        return base
 
     def assigns(self, blk: A.Block, env: ModuleEnv, schema_name: str, allowed_blocks=()) -> dict[str, tuple[A.Assign, ModuleEnv]]:
         schema = SCHEMAS[schema_name]
@@ -499,6 +613,19 @@ class Resolver:
 
 
 _IDENTS = {"a", "b", "ground", "top", "bottom", "side"}
+
+
+def _refs(exprs):
+    """Every name reference inside the expressions (an iterative walk over any expression node)."""
+    stack = list(exprs)
+    while stack:
+        x = stack.pop()
+        if isinstance(x, A.Ref):
+            yield x
+        elif isinstance(x, A.Expr):
+            stack.extend(v for v in vars(x).values() if isinstance(v, (A.Expr, tuple)))
+        elif isinstance(x, tuple):
+            stack.extend(v for v in x if isinstance(v, (A.Expr, tuple)))
 
 
 def _entry_key(ent) -> str:
