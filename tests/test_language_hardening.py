@@ -157,3 +157,23 @@ def test_chains_count_towards_the_file_limit(tmp_path):
 def test_short_chains_still_load(tmp_path):
     main = _chain(tmp_path / "c", 30, 'import "f{}.acl" as m\n')
     assert check_design(str(main))[0] is not None
+
+
+# ------------------------------------------------------------------------------ non-finite values
+@pytest.mark.parametrize("expr", ["1e308 um * 1e308", "1e400", "(1e300 m, 0, 0) * 1e300", "2 ^ 5000", "-1e308 m - 1e308 m"])
+def test_overflow_is_e305_where_it_arises(expr):
+    assert _codes(f"param g = {expr}\n") == [("E305", 1, 11)]
+
+
+def test_overflow_in_a_value_derived_from_entries_is_e305_at_its_declaration(tmp_path):
+    f = tmp_path / "huge.acl"
+    f.write_text("import stdlib.media\nimport stdlib.transducers\nuse medium media.pbs\n"
+                 "use transducer transducers.contact_piezo\n"
+                 "capsule c {\n  center = (0, 0, 100 um)\n  cavity cylinder { radius = 1e160 m, height = 1e160 m }\n"
+                 "  orifice jet { radius = 10 um, normal = +x }\n}\nfix c\n")
+    assert _diags(f) == [("E305", "huge.acl", 5, 1)]
+
+
+def test_overflowing_parameter_never_reaches_analyze(capsys):
+    assert main(["analyze", str(PAIR), "--set", "gap=1e308 um * 1e308"]) == 1
+    assert "E305" in capsys.readouterr().err

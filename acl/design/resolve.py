@@ -214,6 +214,9 @@ class Resolver:
 
     def _eval(self, e: A.Expr, env: ModuleEnv):
         if isinstance(e, A.Num):
+            if not math.isfinite(e.value):
+                self.bag.error("E305", "number is not finite (too large for a 64-bit float)", e.span)
+                raise _Fail()
             return Quantity(e.value)
         if isinstance(e, A.Qty):
             try:
@@ -262,12 +265,20 @@ class Resolver:
             left = self._eval(e.left, env)
             right = self._eval(e.right, env)
             try:
-                return self._binop(e, left, right)
+                out = self._binop(e, left, right)
+                if not _finite(out):
+                    self.bag.error("E305", f"result of `{e.op}` is not finite (overflow)", e.span,
+                                   "check the magnitudes and units of both sides")
+                    raise _Fail()
+                return out
             except DimensionError as exc:
                 self.bag.error("E303", str(exc), e.span)
             except ZeroDivisionError:
                 self.bag.error("E305", "division by zero", e.span)
-            except (ValueError, OverflowError) as exc:
+            except OverflowError:
+                self.bag.error("E305", f"result of `{e.op}` is not finite (overflow)", e.span,
+                               "check the magnitudes and units of both sides")
+            except ValueError as exc:
                 self.bag.error("E305", str(exc), e.span)
             raise _Fail()
         self.bag.error("E304", "unsupported expression", e.span)
@@ -613,6 +624,14 @@ class Resolver:
 
 
 _IDENTS = {"a", "b", "ground", "top", "bottom", "side"}
+
+
+def _finite(v) -> bool:
+    if isinstance(v, Quantity):
+        return math.isfinite(v.value)
+    if isinstance(v, VecVal):
+        return all(math.isfinite(i.value) for i in v.items)
+    return True
 
 
 def _refs(exprs):
