@@ -177,3 +177,27 @@ def test_overflow_in_a_value_derived_from_entries_is_e305_at_its_declaration(tmp
 def test_overflowing_parameter_never_reaches_analyze(capsys):
     assert main(["analyze", str(PAIR), "--set", "gap=1e308 um * 1e308"]) == 1
     assert "E305" in capsys.readouterr().err
+
+
+# ------------------------------------------------------------------------------ error recovery is linear
+def test_recovery_after_an_unclosed_brace_parses_each_line_a_bounded_number_of_times(monkeypatch):
+    """One unclosed `{` in a long file: recovery re-parses statement by statement; the text it
+    hands the parser must stay proportional to the file (it was padded to each statement's line:
+    quadratic, 57 s for 40k lines)."""
+    from acl.syntax import parser as P
+
+    body = "".join(f"param p{i} = {i} um\nmaterial m{i} {{ youngs = 1 MPa }}\n" for i in range(2000))
+    text = "beam broken {\n  length = 1 um\n" + body
+    real = P._lark()
+    fed = []
+
+    class Counting:
+        def parse(self, chunk, start):
+            fed.append(len(chunk))
+            return real.parse(chunk, start=start)
+
+    monkeypatch.setattr(P, "_lark", lambda: Counting())
+    with pytest.raises(DiagnosticError) as info:
+        P.parse_module(text, "big.acl")
+    assert [(d.code, d.span.line, d.span.column) for d in info.value.diagnostics] == [("E112", 1, 13)]
+    assert sum(fed) <= 3 * len(text)

@@ -359,15 +359,15 @@ def parse_module(source: str, file: str = "<string>") -> A.Module:
         pass
     # Recovery: parse each top-level statement on its own, keeping line numbers.
     diags: list[Diagnostic] = []
-    stmts: list = []
     lines = text.split("\n")
     for start, end in _statement_chunks(lines):
-        chunk = "\n" * start + "\n".join(lines[start:end]) + "\n"
+        # each statement alone, without padding it to its line (that made recovery quadratic):
+        # the error's line is shifted back by `start` below
+        chunk = "\n".join(lines[start:end]) + "\n"
         try:
-            tree = _lark().parse(chunk, start="start")
-            stmts.extend(_build(tree, file, source))
+            _lark().parse(chunk, start="start")
         except UnexpectedInput as exc:
-            d = _syntax_diagnostic(exc, file, lines, eof_line=_last_line(lines, start, end))
+            d = _syntax_diagnostic(exc, file, lines, eof_line=_last_line(lines, start, end), line_offset=start)
             opened = _unclosed_brace(lines, start, end) if _at_end(exc) else None
             if opened is not None:  # point at the block that never closes, not at where the text ran out
                 ln, col = opened
@@ -506,11 +506,14 @@ def _last_line(lines: list[str], start: int, end: int) -> int:
     return start + 1
 
 
-def _syntax_diagnostic(exc: UnexpectedInput, file: str, lines: list[str], eof_line: int | None = None) -> Diagnostic:
+def _syntax_diagnostic(exc: UnexpectedInput, file: str, lines: list[str], eof_line: int | None = None,
+                       line_offset: int = 0) -> Diagnostic:
     line = getattr(exc, "line", 1) or 1
     col = getattr(exc, "column", 1) or 1
     if line < 1:
         line, col = max(1, len(lines) - 1), 1
+    else:
+        line += line_offset
     span = Span(file=file, line=line, column=col, end_line=line, end_column=col + 1)
     if isinstance(exc, UnexpectedCharacters):
         ch = lines[line - 1][col - 1] if line - 1 < len(lines) and col - 1 < len(lines[line - 1]) else "?"
