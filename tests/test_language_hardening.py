@@ -201,3 +201,83 @@ def test_recovery_after_an_unclosed_brace_parses_each_line_a_bounded_number_of_t
         P.parse_module(text, "big.acl")
     assert [(d.code, d.span.line, d.span.column) for d in info.value.diagnostics] == [("E112", 1, 13)]
     assert sum(fed) <= 3 * len(text)
+
+
+# ------------------------------------------------------------------------------ input that is not a regular file
+import json  # noqa: E402
+import os  # noqa: E402
+import subprocess  # noqa: E402
+
+needs_posix = pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="FIFOs and /dev/zero are POSIX")
+
+
+def _acl(*args: str, stdin: str | None = None) -> subprocess.CompletedProcess:
+    # the timeout guards against the hang being tested for; it is not a speed assertion
+    return subprocess.run([sys.executable, "-m", "acl", *args], capture_output=True, text=True, cwd=ROOT,
+                          input=stdin if stdin is not None else "", timeout=60)
+
+
+@needs_posix
+@pytest.mark.parametrize("command", ["check", "lint"])
+def test_a_fifo_named_acl_is_refused_not_waited_on(tmp_path, command):
+    fifo = tmp_path / "pipe.acl"
+    os.mkfifo(fifo)
+    r = _acl(command, str(fifo))
+    assert r.returncode in (1, 2) and "E601" in r.stdout + r.stderr and "FIFO" in r.stdout + r.stderr
+    assert "Traceback" not in r.stderr
+
+
+@needs_posix
+def test_a_design_symlinked_to_dev_zero_is_refused_before_reading(tmp_path):
+    if not os.path.exists("/dev/zero"):
+        pytest.skip("no /dev/zero")
+    link = tmp_path / "zero.acl"
+    link.symlink_to("/dev/zero")
+    _, diags = check_design(str(link))
+    assert [(d.code, d.span.line, d.span.column) for d in diags] == [("E601", 1, 1)]
+    assert "device" in diags[0].message
+
+
+def test_the_size_limit_counts_bytes_read_not_the_stat_size(tmp_path, monkeypatch):
+    from acl.design import modules
+
+    big = tmp_path / "big.acl"
+    big.write_text("# padding\n" * 300)
+    monkeypatch.setattr(os, "fstat", lambda fd, _real=os.fstat: type("S", (), {"st_mode": _real(fd).st_mode, "st_size": 0})())
+    with pytest.raises(DiagnosticError) as info:
+        modules.read_source(str(big), limit=1000)
+    assert info.value.diagnostics[0].code == "E601" and "larger than" in info.value.diagnostics[0].message
+
+
+@needs_posix
+def test_lint_of_a_folder_does_not_follow_a_symlink_out_of_it(tmp_path):
+    outside = tmp_path / "outside"
+    outside.mkdir()
+    (outside / "secret.acl").write_text("param x = 1 V + 1 um\n")
+    folder = tmp_path / "designs"
+    folder.mkdir()
+    (folder / "good.acl").write_text((ROOT / "examples" / "fig2_vertical_cantilever.acl").read_text())
+    (folder / "escape.acl").symlink_to(outside / "secret.acl")
+    (folder / "sub").symlink_to(outside, target_is_directory=True)
+    os.mkfifo(folder / "pipe.acl")
+    from acl.lint.runner import collect_files
+
+    files, missing = collect_files([str(folder)])
+    assert [os.path.basename(f) for f in files] == ["good.acl"] and not missing
+    r = _acl("lint", str(folder), "--format", "json")
+    assert "secret" not in r.stdout and "E303" not in r.stdout
+
+
+@pytest.mark.parametrize("command", ["check", "lint"])
+def test_standard_input_with_stdin_filename(command):
+    r = _acl(command, "-", "--stdin-filename", "examples/unsaved.acl", stdin="param x = 1 V + 1 um\n")
+    assert r.returncode == 1
+    assert "examples/unsaved.acl:1:11" in (r.stdout + r.stderr).replace("\n", "")
+    good = (ROOT / "examples" / "fig2_vertical_cantilever.acl").read_text()   # imports resolve from examples/
+    assert _acl(command, "-", "--stdin-filename", "examples/unsaved.acl", stdin=good).returncode == 0
+
+
+def test_check_json_names_the_stdin_file():
+    r = _acl("check", "-", "--stdin-filename", "buffer.acl", "--format", "json", stdin="param x = 1 V + 1 um\n")
+    doc = json.loads(r.stdout)
+    assert doc["files"] == ["buffer.acl"] and doc["diagnostics"][0]["file"] == "buffer.acl"

@@ -78,8 +78,30 @@ def exit_code(diags) -> int:
     return 1 if any(d.is_error for d in diags) else 0
 
 
-def report(diags, fmt: str = "text") -> None:
+def report(diags, fmt: str = "text", sources: dict[str, str] | None = None) -> None:
     if fmt == "json":
         sys.stdout.write(diagnostics_to_json(diags) + "\n")
     else:
-        render(diags)
+        render(diags, sources=sources)
+
+
+STDIN = "-"
+
+
+def add_stdin_option(p) -> None:
+    p.add_argument("--stdin-filename", metavar="NAME", default="<stdin>",
+                   help="the name (and folder, for imports) of the design read from standard input (`-`)")
+
+
+def read_stdin(name: str) -> tuple[str | None, list[Diagnostic]]:
+    """The design on standard input (`-`): UTF-8 text, at most the design size limit."""
+    from acl.design.modules import MAX_BYTES
+
+    raw = sys.stdin.buffer.read(MAX_BYTES + 1)
+    span = Span(file=name, line=1, column=1)
+    if len(raw) > MAX_BYTES:
+        return None, [error("E601", f"cannot read standard input: larger than {MAX_BYTES // 1_000_000} MB", span)]
+    try:
+        return raw.decode("utf-8"), []
+    except UnicodeDecodeError as exc:
+        return None, [error("E103", f"cannot read standard input: not UTF-8 text (byte {exc.start})", span)]

@@ -79,17 +79,20 @@ def _load_text(text: str, filename: str = "<string>", overrides=None, search_pat
     return _finish(env, loader, bag, overrides or {})
 
 
-def check_design(path: str, overrides=None, search_paths=()) -> tuple[M.Design | None, list[Diagnostic]]:
-    """Like load_design but returns (design or None, all diagnostics incl. warnings)."""
+def check_design(path: str, overrides=None, search_paths=(), text: str | None = None) -> tuple[M.Design | None, list[Diagnostic]]:
+    """Like load_design but returns (design or None, all diagnostics incl. warnings).
+
+    With ``text``, that is the design's source and ``path`` only its name (standard input).
+    """
     with _no_gc():
-        return _check_design(path, overrides, search_paths)
+        return _check_design(path, overrides, search_paths, text)
 
 
-def _check_design(path: str, overrides=None, search_paths=()) -> tuple[M.Design | None, list[Diagnostic]]:
+def _check_design(path: str, overrides=None, search_paths=(), text=None) -> tuple[M.Design | None, list[Diagnostic]]:
     try:
         bag = DiagnosticBag()
         loader = Loader(bag, search_paths)
-        env = loader.load_main(str(path))
+        env = loader.load_main(str(path)) if text is None else loader.load_text(text, str(path))
         design = _finish(env, loader, bag, overrides or {})
         return design, bag.items
     except DiagnosticError as exc:
