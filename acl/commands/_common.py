@@ -69,3 +69,18 @@ def report(diags, fmt: str = "text") -> None:
         sys.stdout.write(diagnostics_to_json(diags) + "\n")
     else:
         render(diags)
+
+
+def plotting_missing(option: str, fmt: str = "text") -> bool:
+    """Report E-PLOT and return True when matplotlib (the `plot` extra) is not installed."""
+    import importlib.util
+
+    try:
+        found = importlib.util.find_spec("matplotlib") is not None
+    except (ImportError, ValueError):
+        found = False
+    if not found:
+        report([error("E-PLOT", f"{option} draws figures with matplotlib, which is not installed",
+                      Span(file=f"<{option}>", line=1, column=1),
+                      "install the plotting extra: pip install 'acl[plot]'")], fmt)
+    return not found

@@ -5,7 +5,7 @@ import json
 import math
 import sys
 
-from acl.commands._common import add_design_options, load_or_report, report
+from acl.commands._common import add_design_options, load_or_report, plotting_missing, report
 from acl.diagnostics import DiagnosticError, Span, error
 
 
@@ -29,6 +29,8 @@ def run(args) -> int:
         except DiagnosticError as exc:
             report(exc.diagnostics, fmt)
             return 2
+    if args.plot and plotting_missing("--plot", fmt):
+        return 2
     design, code = load_or_report(args.file, args, fmt)
     if design is None:
         return code

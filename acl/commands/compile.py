@@ -9,7 +9,7 @@ from __future__ import annotations
 import re
 import sys
 
-from acl.commands._common import add_design_options, load_or_report, report
+from acl.commands._common import add_design_options, load_or_report, plotting_missing, report
 from acl.diagnostics import DiagnosticError, Span, error, suggest
 
 _RATE = re.compile(r"^\s*([0-9]*\.?[0-9]+(?:[eE][-+]?[0-9]+)?)\s*(hz|khz|mhz|k|m|ms/s|ks/s)?\s*$", re.I)
@@ -82,6 +82,8 @@ def run(args) -> int:
         diags.append(_usage("E-COMPILE-OPTION", "--ramp must not be negative"))
     if diags:
         report(diags, fmt)
+        return 2
+    if args.plot and plotting_missing("--plot", fmt):
         return 2
     design, code = load_or_report(args.file, args, fmt)
     if design is None:

@@ -4,7 +4,7 @@ from __future__ import annotations
 import os
 import sys
 
-from acl.commands._common import exit_code, report
+from acl.commands._common import exit_code, plotting_missing, report
 
 
 def add_parser(p) -> None:
@@ -40,6 +40,8 @@ def run(args) -> int:
                           f"effects: {', '.join(EFFECTS)}")])
             return 2
         candidates = names
+    if args.report and plotting_missing("--report", "json" if args.json else "text"):
+        return 2
     for path in [args.design, *args.data]:
         if not os.path.isfile(path):
             report([error("E601", f"no such file: {path}", Span(file=path, line=1, column=1))])
