@@ -47,9 +47,9 @@ def run(args) -> int:
     if args.json:
         rep = analyze(design, at, snap_in=not args.no_snap)
     else:
-        from rich.console import Console
+        from acl._console import make_console
 
-        con = Console(stderr=True)
+        con = make_console(stderr=True)
         with con.status("analyzing...") as status:
             rep = analyze(design, at, snap_in=not args.no_snap, progress=lambda m: status.update(m))
     if args.plot:
@@ -66,9 +66,9 @@ def run(args) -> int:
     else:
         print_report(design, rep)
         if args.plot:
-            from rich.console import Console
+            from acl._console import make_console
 
-            Console().print(f"wrote {len(written)} figure(s) to {args.plot}")
+            make_console().print(f"wrote {len(written)} figure(s) to {args.plot}")
     return 0 if rep.requires_ok else 1
 
 
@@ -87,10 +87,10 @@ def _k(hz):
 
 
 def print_report(design, rep) -> None:
-    from rich.console import Console
+    from acl._console import make_console
     from rich.table import Table
 
-    con = Console(highlight=False)
+    con = make_console(highlight=False)
     for n in rep.notes:
         con.print(f"[yellow]note:[/yellow] {n}")
     t = Table(title="Capsule modes", title_justify="left")

@@ -36,9 +36,9 @@ def run(args) -> int:
         return worst
     if all_diags:
         report(all_diags)
-    from rich.console import Console
+    from acl._console import make_console
 
-    con = Console(stderr=True, highlight=False)
+    con = make_console(stderr=True, highlight=False)
     for f, design in ok_files:
         con.print(f"[green]ok[/green] {f}: {design.summary()}")
     n_err = sum(d.is_error for d in all_diags)

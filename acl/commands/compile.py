@@ -130,9 +130,9 @@ def _emit(schedule, args, formats, rate, fmt) -> int:
     except DiagnosticError as exc:
         report(exc.diagnostics, fmt)
         return 2
-    from rich.console import Console
+    from acl._console import make_console
 
-    console = Console(stderr=True, highlight=False)
+    console = make_console(stderr=True, highlight=False)
     n = total_samples(schedule, fs)
     try:
         if n > 4_000_000 and console.is_terminal:

@@ -93,15 +93,15 @@ def run(args) -> int:
 
         render_table(out.report)
         if args.report:
-            from rich.console import Console
+            from acl._console import make_console
 
-            Console(stderr=True, highlight=False).print(f"report written to {args.report}/")
+            make_console(stderr=True, highlight=False).print(f"report written to {args.report}/")
         if args.report or args.calibrated:
-            from rich.console import Console
+            from acl._console import make_console
 
             extra = out.report.get("calibrated_needs_path")
             how = f" (load it with --path {extra})" if extra else ""
-            Console(stderr=True, highlight=False).print(f"calibrated design written to {out.calibrated_path}{how}")
+            make_console(stderr=True, highlight=False).print(f"calibrated design written to {out.calibrated_path}{how}")
     return 0
 
 

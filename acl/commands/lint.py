@@ -32,11 +32,11 @@ def add_parser(p) -> None:
 
 
 def _fail(diags) -> int:
-    from rich.console import Console
+    from acl._console import make_console
 
     from acl.diagnostics import render
 
-    render(diags, Console(stderr=True, highlight=False, soft_wrap=True))
+    render(diags, make_console(stderr=True, highlight=False, soft_wrap=True))
     return 2
 
 

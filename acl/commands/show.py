@@ -20,9 +20,9 @@ def run(args) -> int:
     if args.json:
         sys.stdout.write(design.model_dump_json(indent=2) + "\n")
         return 0
-    from rich.console import Console
+    from acl._console import make_console
 
-    Console(highlight=False).print(design_tree(design))
+    make_console(highlight=False).print(design_tree(design))
     return 0
 
 

@@ -93,7 +93,7 @@ def run(args) -> int:
         write_csv(data, args.output)
     except OSError as exc:
         return _usage(f"cannot write {args.output}: {exc.strerror or exc}")
-    from rich.console import Console
+    from acl._console import make_console
 
-    Console(stderr=True, highlight=False).print(f"wrote {data.n} rows to {args.output}")
+    make_console(stderr=True, highlight=False).print(f"wrote {data.n} rows to {args.output}")
     return 0

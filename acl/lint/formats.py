@@ -48,11 +48,11 @@ def statistics(reports) -> str:
 # ----------------------------------------------------------------------------------------------
 
 def write_full(reports, out: TextIO) -> None:
-    from rich.console import Console
+    from acl._console import make_console
 
     from acl.diagnostics import render
 
-    console = Console(file=out, highlight=False, soft_wrap=True)
+    console = make_console(file=out, highlight=False, soft_wrap=True)
     ds = _all(reports)
     named = [Diagnostic(d.code, d.severity, f"{d.message} ({rule_name(d.code)})", d.span, d.hint, d.notes) for d in ds]
     render(named, console)
