@@ -4,11 +4,11 @@ from __future__ import annotations
 import os
 import sys
 
-from acl.commands._common import exit_code, plotting_missing, report
+from acl.commands._common import add_output_format, exit_code, one_design, plotting_missing, report
 
 
 def add_parser(p) -> None:
-    p.add_argument("design", metavar="DESIGN", help="design file (.acl)")
+    p.add_argument("design", metavar="DESIGN", help="design file (.acl), or a folder holding one design")
     p.add_argument("data", nargs="+", metavar="DATA", help="measurement CSV files (docs/data.md)")
     p.add_argument("--free", default="", metavar="NAMES",
                    help="comma-separated names to fit besides the design's `free` params: gamma, alpha, E, gain "
@@ -21,8 +21,7 @@ def add_parser(p) -> None:
     p.add_argument("--effects", default=None, metavar="IDS",
                    help="comma-separated effect ids to consider (default: the whole library; `none` for none)")
     p.add_argument("--seed", type=int, default=0, help="seed of the cross-validation folds (default 0)")
-    p.add_argument("--json", action="store_true", help="print report.json to stdout instead of the tables")
-    p.add_argument("--verbose", action="store_true", help="print each stage and effect trial with its time (stderr)")
+    add_output_format(p, old=("--json",))
     p.add_argument("--path", action="append", default=[], metavar="DIR", help="extra folder imports may read from")
 
 
@@ -40,8 +39,12 @@ def run(args) -> int:
                           f"effects: {', '.join(EFFECTS)}")])
             return 2
         candidates = names
-    if args.report and plotting_missing("--report", "json" if args.json else "text"):
+    if args.report and plotting_missing("--report", args.output_format):
         return 2
+    design = one_design(args.design)
+    if design is None:
+        return 2
+    args.design = design
     for path in [args.design, *args.data]:
         if not os.path.isfile(path):
             report([error("E601", f"no such file: {path}", Span(file=path, line=1, column=1))])
@@ -84,7 +87,7 @@ def run(args) -> int:
             report([error("E601", f"cannot write the calibrated design: {exc.strerror or exc}",
                           Span(file=out.calibrated_path, line=1, column=1))])
             return 2
-    if args.json:
+    if args.output_format == "json":
         import json
 
         sys.stdout.write(json.dumps(out.report, indent=2) + "\n")
@@ -92,11 +95,11 @@ def run(args) -> int:
         from acl.fit.report import render_table
 
         render_table(out.report)
-        if args.report:
+        if args.report and not args.quiet:
             from acl._console import make_console
 
             make_console(stderr=True, highlight=False).print(f"report written to {args.report}/")
-        if args.report or args.calibrated:
+        if (args.report or args.calibrated) and not args.quiet:
             from acl._console import make_console
 
             extra = out.report.get("calibrated_needs_path")

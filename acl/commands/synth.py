@@ -3,11 +3,11 @@ from __future__ import annotations
 
 import re
 
-from acl.commands._common import exit_code, parse_sets, report
+from acl.commands._common import exit_code, one_design, parse_sets, report
 
 
 def add_parser(p) -> None:
-    p.add_argument("design", metavar="DESIGN", help="design file (.acl)")
+    p.add_argument("design", metavar="DESIGN", help="design file (.acl), or a folder holding one design")
     p.add_argument("-o", "--output", required=True, metavar="CSV", help="output CSV (docs/data.md format)")
     p.add_argument("--effect", action="append", default=[], metavar="NAME[=P:V,...]",
                    help="plant an effect, e.g. drive_saturation=v_sat:8V or offset_drift=offset:0.5um,drift:10nm/s "
@@ -80,10 +80,13 @@ def run(args) -> int:
         return _usage(str(exc))
     if noise < 0 or args.repeats < 1 or not freqs:
         return _usage("noise must not be negative, repeats at least 1, and one frequency at least")
+    design = one_design(args.design)
+    if design is None:
+        return 2
     ex = Experiment(frequencies=freqs, voltages=volts, sets=sets, repeats=args.repeats, interval=interval,
                     observables=tuple(s.strip() for s in args.observe.split(",") if s.strip()))
     try:
-        data, _ = generate(args.design, ex, effects, noise=noise, seed=args.seed, search_paths=args.path)
+        data, _ = generate(design, ex, effects, noise=noise, seed=args.seed, search_paths=args.path)
     except DiagnosticError as exc:
         report(exc.diagnostics)
         return exit_code(exc.diagnostics)
@@ -93,7 +96,8 @@ def run(args) -> int:
         write_csv(data, args.output)
     except OSError as exc:
         return _usage(f"cannot write {args.output}: {exc.strerror or exc}")
-    from acl._console import make_console
+    if not args.quiet:
+        from acl._console import make_console
 
-    make_console(stderr=True, highlight=False).print(f"wrote {data.n} rows to {args.output}")
+        make_console(stderr=True, highlight=False).print(f"wrote {data.n} rows to {args.output}")
     return 0
