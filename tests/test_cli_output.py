@@ -199,3 +199,36 @@ def test_sarif_has_help_uris_and_percent_encoded_locations(tmp_path):
         pytest.skip("SARIF schema not found in ../shared/schemas")
     jsonschema = pytest.importorskip("jsonschema")
     jsonschema.validate(doc, json.loads(schema.read_text()))
+
+
+# -- outputs respect the umask -------------------------------------------------------------------------
+
+def _modes(root: Path) -> dict[str, int]:
+    out = {str(root): root.stat().st_mode & 0o777} if root.is_dir() else {}
+    for p in ([root] if root.is_file() else root.rglob("*")):
+        out[str(p)] = p.stat().st_mode & 0o777
+    return out
+
+
+@pytest.mark.parametrize("mask", [0o022, 0o027])
+def test_outputs_respect_the_umask(tmp_path, mask):
+    env = {k: v for k, v in os.environ.items() if k != "COLUMNS"}
+    env["PYTHONPATH"] = str(ROOT)
+
+    def acl(*args):
+        r = subprocess.run([sys.executable, "-m", "acl", *args], capture_output=True, text=True, cwd=ROOT,
+                           env=env, timeout=600, preexec_fn=lambda: os.umask(mask))
+        assert r.returncode == 0, r.stderr
+    fig2 = "examples/fig2_vertical_cantilever.acl"
+    acl("compile", "examples/fig3_three_orifice.acl", "--program", "rectangle", "-o", str(tmp_path / "out"))
+    acl("analyze", FIG4, "--no-snap", "--plot", str(tmp_path / "figs"))
+    acl("synth", fig2, "--voltages", "0V..6V:4", "--noise", "0.05um", "-o", str(tmp_path / "data.csv"))
+    acl("fit", fig2, str(tmp_path / "data.csv"), "--effects", "none", "--free", "gamma",
+        "--report", str(tmp_path / "fit"), "--calibrated", str(tmp_path / "cal.acl"))
+    modes = {}
+    for name in ("out", "figs", "data.csv", "fit", "cal.acl"):
+        modes.update(_modes(tmp_path / name))
+    assert len(modes) > 8
+    for path, mode in modes.items():
+        want = (0o777 if os.path.isdir(path) else 0o666) & ~mask
+        assert mode == want, f"{path}: {oct(mode)}, umask {oct(mask)} gives {oct(want)}"

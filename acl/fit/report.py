@@ -258,6 +258,9 @@ def write_report_dir(target, write) -> None:
     os.makedirs(parent, exist_ok=True)
     tmp = tempfile.mkdtemp(prefix=".acl-fit-", dir=parent)
     try:
+        from acl._files import as_umask
+
+        as_umask(tmp, directory=True)
         write(tmp)
         if os.path.isdir(target):
             old = tempfile.mkdtemp(prefix=".acl-fit-old-", dir=parent)
