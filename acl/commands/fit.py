@@ -47,7 +47,11 @@ def run(args) -> int:
     args.design = design
     for path in [args.design, *args.data]:
         if not os.path.isfile(path):
-            report([error("E601", f"no such file: {path}", Span(file=path, line=1, column=1))])
+            what = ("no such file" if not os.path.lexists(path) else
+                    "not a regular file (a folder)" if os.path.isdir(path) else
+                    "not a regular file (a pipe, device or socket)")
+            report([error("E601", f"{what}: {path}", Span(file=path, line=1, column=1),
+                          "give a CSV file; save a pipe's output to a file first" if os.path.lexists(path) else None)])
             return 2
     from acl.fit import run_fit
 
@@ -65,6 +69,8 @@ def run(args) -> int:
     except DiagnosticError as exc:
         report(exc.diagnostics)
         return exit_code(exc.diagnostics)
+    if not out.problem.coefs and not args.quiet:
+        _nothing_free(args, candidates)
     if args.verbose:
         for stage, secs in out.report["timing_s"].items():
             sys.stderr.write(f"stage {stage}: {secs:.2f} s\n")
@@ -106,6 +112,16 @@ def run(args) -> int:
             how = f" (load it with --path {extra})" if extra else ""
             make_console(stderr=True, highlight=False).print(f"calibrated design written to {out.calibrated_path}{how}")
     return 0
+
+
+def _nothing_free(args, candidates) -> None:
+    """W810 on stderr: no coefficient was free, so the base model was compared with the data, not fitted."""
+    from acl.diagnostics import Span, render, warning
+
+    searched = "" if candidates == [] else "; only the effect library was searched on top of the declared model"
+    render([warning("W810", f"nothing is free: no --free names and no `free` parameters in the design{searched}",
+                    Span(file=args.design, line=1, column=1),
+                    "free the coefficients the data should determine, e.g. --free gamma (docs/data.md)")])
 
 
 def _write_atomic(path: str, text: str) -> None:
