@@ -37,6 +37,7 @@ class CompileOptions:
     forward_provider: Callable | None = None     # (design, capsule, freqs) -> (forward, name)
     latch_provider: Callable | None = None       # (design, freqs) -> (forces, to_b, to_a)
     snap_provider: Callable | None = None        # (design, a, b, freqs, vmax, bound) -> (K,) V | None
+    critical_provider: Callable | None = None    # (design, a, b, [(f, V)], s_max, bound) -> scale | None
     max_voltage: float | None = None             # overrides every other limit if given
     lam: float = 1e-3
     slew_model: str = "auto"
@@ -289,8 +290,10 @@ class _Compiler:
             raise _diag("E-SCHED-TONES", f"{name}: a hold step needs its tones", step.span,
                         "write `tones 85 kHz, 125 kHz` on the hold step")
         provider = self.opts.snap_provider or snap_in_voltages
-        v_snap = provider(self.design, step.a, step.b, step.tones, vmax,
-                          step.bound if step.mode == "above" else None)
+        bound = step.bound if step.mode == "above" else None
+        # above: a tone driven at vmax must still be `margin` from snap-in, so look up to margin x vmax
+        v_snap = provider(self.design, step.a, step.b, step.tones,
+                          vmax * step.margin if step.mode == "above" else vmax, bound)
         if v_snap is not None and np.any(np.asarray(v_snap) <= 0):
             raise _diag("E-SCHED-INFEASIBLE", f"{name}: the gap is already below its bound at rest",
                         step.span, "lower the bound or widen the rest gap")
@@ -306,12 +309,68 @@ class _Compiler:
                 notes=(f"at t = {self.t:.4g} s",))])
         tones = [ScheduledTone(f, float(a)) for f, a, u in zip(step.tones, plan.amplitudes, plan.u)
                  if u > 1e-6 * max(plan.u.max(), 1e-300)]
+        tones, ratio = self._hold_resimulate(name, step, tones, vmax, bound)
         self._add(step.duration, tones, i, name)
+        details = {"snap_index": float(sum(t.amplitude_v ** 2 / v ** 2 for t in tones
+                                           for f, v in zip(step.tones, v_snap) if f == t.frequency_hz)),
+                   "critical_voltages_v": [float(v) for v in v_snap], "margin": step.margin}
+        if ratio is not None:
+            details["resimulated_margin"] = ratio
         self.goals.append(GoalReport(name, "hold", i, self.t - step.duration, self.t,
                                      tuple(t.frequency_hz for t in tones),
-                                     model="snap index sum u/Vcrit^2 (forces add in V^2)",
-                                     details={"snap_index": plan.snap_index,
-                                              "critical_voltages_v": [float(v) for v in v_snap]}))
+                                     model=("snap-in of the whole drive re-simulated (acl.analysis.mechanics)"
+                                            if ratio is not None else
+                                            "snap index sum u/Vcrit^2 (forces add in V^2)"),
+                                     details=details))
+
+    def _hold_resimulate(self, name, step: HoldStep, tones, vmax, bound):
+        """Re-simulate the drive's snap-in and rescale it so the voltage margin holds; (tones, ratio).
+
+        ratio is the scale of the drive at snap-in (or at the gap bound) over the drive itself:
+        >= margin for `above`; for `cross` the drive is margin x a snapping drive, ratio <= 1/margin
+        (reported as its inverse, the factor by which the drive exceeds snap-in).
+        """
+        provider = self.opts.critical_provider
+        if provider is None:
+            if self.opts.snap_provider is not None:
+                return tones, None          # an injected snap model: nothing better to re-simulate
+            from acl.schedule.gains import critical_scale as provider
+        if not tones:
+            return tones, None
+        pairs = [(t.frequency_hz, t.amplitude_v) for t in tones]
+        total = sum(a for _, a in pairs)
+        margin = step.margin
+        if step.mode == "above":
+            s = provider(self.design, step.a, step.b, pairs, 1.5 * margin, bound)
+            if s is None:
+                return tones, None
+            if s < margin:
+                # the safe set is star-shaped about zero drive: scale the drive back onto the margin
+                f = s / margin * (1 - 1e-6)
+                tones = [ScheduledTone(t.frequency_hz, t.amplitude_v * f) for t in tones]
+                self.notes.append(f"{name}: the whole drive snaps at {s:.4g} x itself (the per-tone "
+                                  f"snap index promised {margin:g}); amplitudes scaled by {f:.4g}")
+                s = provider(self.design, step.a, step.b,
+                             [(t.frequency_hz, t.amplitude_v) for t in tones], 1.5 * margin, bound)
+                if s is None or s < margin * (1 - 1e-4):
+                    raise _diag("E-SCHED-MODEL", f"{name}: the re-simulated snap-in margin "
+                                f"{s if s is not None else float('nan'):.4g} stays below {margin:g}",
+                                step.span, "pin a single tone with `using`")
+            return tones, float(s)
+        s = provider(self.design, step.a, step.b, pairs, vmax / total, None)
+        if s is None:
+            return tones, None
+        if not s * margin <= 1.0 + 1e-9:
+            f = s * margin * (1 + 1e-6)
+            if not np.isfinite(f) or total * f > vmax * (1 + 1e-9):
+                raise _diag("E-SCHED-INFEASIBLE", f"{name}: infeasible: the whole drive snaps only at "
+                            f"{s:.4g} x itself; {margin:g} x that exceeds the {vmax:g} V limit",
+                            step.span, f"raise the max voltage above {vmax:g} V; or lower the margin")
+            tones = [ScheduledTone(t.frequency_hz, t.amplitude_v * f) for t in tones]
+            self.notes.append(f"{name}: the whole drive snaps only at {s:.4g} x itself; amplitudes "
+                              f"scaled by {f:.4g} to cross by the margin {margin:g}")
+            s = s / f
+        return tones, float(1.0 / s)
 
 
 def _diag(code: str, message: str, span: Span | None, hint: str | None = None) -> DiagnosticError:

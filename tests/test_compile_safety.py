@@ -1,0 +1,143 @@
+"""The compiler's safety margins (issue 11): every margin the compiler promises is re-checked here
+by an independent computation of what the emitted schedule actually does."""
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import acl
+from acl.design.resolve import load_design
+from acl.schedule.compile import CompileOptions, compile_program
+from acl.schedule.latch import plan_switch
+from acl.schedule.path import DriveLimits
+
+EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
+NN = 1e-9
+
+
+def _drive(segment):
+    from acl.design.model import Drive, Tone
+
+    return Drive(tones=tuple(Tone(frequency=t.frequency_hz, amplitude=t.amplitude_v) for t in segment.tones))
+
+
+def _snap_scale(design, segment, s_max):
+    """Scale of the scheduled drive at snap-in, by an independent continuation (inf if none)."""
+    from acl.analysis import acoustics, mechanics
+
+    sw = mechanics.sweep_voltage(design, _drive(segment), s_max, acoustics.force_model_for(design))
+    assert sw.status in ("ok", "snap_in"), sw.message
+    return np.inf if sw.snap_voltage is None else sw.snap_voltage
+
+
+# -- hold / cross: the margin is on voltage --------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def fig4():
+    return load_design(str(EXAMPLES / "fig4_facing_pair.acl"))
+
+
+def test_fig4_keep_apart_drive_can_be_raised_by_the_margin_before_snap_in(fig4):
+    # before: 2.156 V against a 2.361 V snap-in, ratio 1.095 = sqrt(1.2) (margin applied to V^2)
+    s = compile_program(fig4, "keep_apart")
+    (seg,) = s.segments
+    ratio = _snap_scale(fig4, seg, 3.0)
+    assert ratio >= 1.2 * (1 - 1e-6)
+    assert ratio == pytest.approx(1.2, rel=1e-3)          # and no more: the step drives as hard as allowed
+    assert s.goals[0].details["resimulated_margin"] == pytest.approx(ratio, rel=1e-4)
+
+
+def test_fig4_snap_drive_exceeds_snap_in_by_the_margin(fig4):
+    s = compile_program(fig4, "snap")
+    (seg,) = s.segments
+    ratio = 1.0 / _snap_scale(fig4, seg, 1.0)             # drive / snapping drive along the same shape
+    assert ratio >= 1.2 * (1 - 1e-6)
+
+
+def _two_tone_hold(mode):
+    from acl.design import model as M
+    from acl.diagnostics import Span
+
+    sp = Span(file="h.acl", line=1, column=1)
+    tr = M.Transducer(name="t", max_voltage=20.0, band=(40e3, 200e3), gain_frequencies=(40e3, 200e3),
+                      gain_pa_per_v=(2e3, 2e3), span=sp)
+    step = M.HoldStep(a="a.o", b="b.o", mode=mode, margin=1.2, duration=0.1, tones=(85e3, 125e3), span=sp)
+    return M.Design(file="h.acl", transducer=tr,
+                    programs=(M.Program(name="p", steps=(step,), span=sp),))
+
+
+def test_multi_tone_hold_is_rescaled_when_the_whole_drive_snaps_earlier_than_the_snap_index_says():
+    # each tone alone snaps at 3 V, but together their forces add in V, not V^2: the critical set
+    # is V1 + V2 = 3 (inside the snap-index simplex u1/9 + u2/9 = 1), as when the tones' forces
+    # peak at different gaps.  The compiler must re-simulate the whole drive and back off.
+    def critical(design, a, b, tones, s_max, bound):
+        s = 3.0 / sum(v for _, v in tones)
+        return s if s <= s_max else np.inf
+
+    opts = CompileOptions(snap_provider=lambda *a: np.array([3.0, 3.0]), critical_provider=critical)
+    s = compile_program(_two_tone_hold("above"), "p", opts)
+    total = sum(t.amplitude_v for t in s.segments[0].tones)
+    assert 3.0 / total >= 1.2 * (1 - 1e-5)
+    assert s.goals[0].details["resimulated_margin"] >= 1.2 * (1 - 1e-5)
+    assert any("scaled" in n for n in s.notes)
+
+
+def test_multi_tone_cross_is_scaled_up_when_the_whole_drive_does_not_snap_by_the_margin():
+    def critical(design, a, b, tones, s_max, bound):     # snaps later than the simplex says
+        s = 3.0 * np.sqrt(2) / np.sqrt(sum(v ** 2 for _, v in tones)) * 1.3
+        return s if s <= s_max else np.inf
+
+    opts = CompileOptions(snap_provider=lambda *a: np.array([3.0, 3.0]), critical_provider=critical)
+    s = compile_program(_two_tone_hold("cross"), "p", opts)
+    scale = critical(None, None, None, [(t.frequency_hz, t.amplitude_v) for t in s.segments[0].tones],
+                     10.0, None)
+    assert 1.0 / scale >= 1.2 * (1 - 1e-6)
+
+
+# -- switch: automatic tone choice must not make a feasible switch infeasible ------------------
+
+def test_fig6e_switch_with_automatic_tones_is_feasible_and_as_cheap_as_the_pinned_tone():
+    text = (EXAMPLES / "fig6e_reversible_latch.acl").read_text(encoding="utf-8")
+    auto = text.replace("switch l to b, margin 1.2, using [85 kHz], limit 100 V",
+                        "switch l to b, margin 1.2, limit 100 V")
+    assert auto != text
+    pinned = compile_program(acl.loads(text, filename=str(EXAMPLES / "pinned.acl")), "forth")
+    # before: "raise the max voltage above 100 V" (65 candidates, each capped at 100 V / sqrt(65))
+    free = compile_program(acl.loads(auto, filename=str(EXAMPLES / "auto.acl")), "forth")
+    (p,) = pinned.segments[0].tones
+    assert p.amplitude_v == pytest.approx(27.0, abs=0.5)
+    assert sum(t.amplitude_v for t in free.segments[0].tones) <= p.amplitude_v * (1 + 1e-6)
+    assert free.goals[0].details["margin"] >= 1.2 * (1 - 1e-6)
+
+
+def test_switch_with_many_candidate_tones_uses_the_true_peak_limit():
+    K = 65
+    forces = np.full((1, K), 0.01) * NN
+    forces[0, 17] = 1.0 * NN                      # one strong tone: needs u = 48 V^2, 6.93 V
+    plan = plan_switch(forces, np.array([40.0]) * NN, np.array([30.0]) * NN, ["a"], ["l"], 0, "b",
+                       1.2, DriveLimits(10.0))
+    assert np.sum(plan.amplitudes) <= 10.0 * (1 + 1e-6)
+    assert plan.target_force >= 1.2 * 40 * NN * (1 - 1e-6)
+    assert plan.amplitudes[17] == pytest.approx(np.sqrt(48.0), rel=1e-4)
+
+
+@pytest.mark.parametrize("seed", range(12))
+def test_every_switch_plan_respects_the_sum_of_amplitudes_whatever_the_phases(seed):
+    rng = np.random.default_rng(seed)
+    L, K = 2, int(rng.integers(2, 9))
+    forces = rng.uniform(-0.3, 1.0, (L, K)) * NN
+    to_b, to_a = rng.uniform(5, 40, L) * NN, rng.uniform(5, 40, L) * NN
+    vmax = float(rng.uniform(6, 15))
+    from acl.schedule.latch import SwitchInfeasible
+
+    try:
+        plan = plan_switch(forces, to_b, to_a, ["a", "a"], ["l", "m"], 0, "b", 1.2, DriveLimits(vmax))
+    except SwitchInfeasible:
+        # then no single tone can do it either (a single tone's peak is exact)
+        ok = [k for k in range(K) if forces[0, k] > 0 and 1.2 * to_b[0] / forces[0, k] <= vmax ** 2
+              and forces[1, k] * 1.2 * to_b[0] / forces[0, k] <= to_b[1] / 1.2]
+        assert not ok
+        return
+    assert np.sum(plan.amplitudes) <= vmax * (1 + 1e-6)
+    assert plan.target_force >= plan.required_force * (1 - 1e-6)
+    assert plan.other_ratios[1] <= 1 / 1.2 + 1e-6
