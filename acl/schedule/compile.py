@@ -118,7 +118,8 @@ class _Compiler:
     def _drive(self, i, step):
         vmax, _ = _limit(self.design, None, self.opts)
         self.vmax_seen.append(vmax)
-        tones = [ScheduledTone(t.frequency, t.amplitude, t.phase) for t in step.drive.tones]
+        tones = [ScheduledTone(t.frequency, t.amplitude, t.phase, phase_fixed=t.phase_given)
+                 for t in step.drive.tones]
         self._add(step.duration, tones, i, f"step {i + 1}: drive")
         self.goals.append(GoalReport(f"step {i + 1}: drive", "drive", i, self.t - step.duration, self.t,
                                      tuple(t.frequency_hz for t in tones), details={"limit_v": vmax}))
@@ -378,7 +379,8 @@ def _diag(code: str, message: str, span: Span | None, hint: str | None = None) -
 
 
 def _choose_all_phases(sched: Schedule, fs: float) -> None:
-    """Pick low-peak phases per group of consecutive segments sharing the same frequencies."""
+    """Pick low-peak phases per group of consecutive segments sharing the same frequencies (phases
+    the user gave are kept), and record each segment's analog peak bound."""
     from acl.schedule.phases import choose_phases, group_peaks
 
     segs = sched.segments
@@ -394,15 +396,17 @@ def _choose_all_phases(sched: Schedule, fs: float) -> None:
         tones0 = group[0].tones
         phases = np.array([t.phase_rad for t in tones0])
         if any(t.sweep for t in tones0):
-            peaks = amps.sum(axis=1)
+            peaks = np.abs(amps).sum(axis=1)
         else:
-            if len(key) > 1 and not np.any(phases):
+            if len(key) > 1:
                 worst = amps[int(np.argmax(amps.sum(axis=1)))]
-                phases, _ = choose_phases(key, worst, fs)
+                phases, _ = choose_phases(key, worst, fs, fixed=[t.phase_fixed for t in tones0],
+                                          start=phases)
             peaks = group_peaks(key, phases, amps, fs)
         for m in range(i, j + 1):
             s = segs[m]
             segs[m] = Segment(s.start_s, s.end_s, tuple(
-                ScheduledTone(t.frequency_hz, t.amplitude_v, float(p), t.frequency_end_hz, t.sweep)
+                ScheduledTone(t.frequency_hz, t.amplitude_v, float(p), t.frequency_end_hz, t.sweep,
+                              t.phase_fixed)
                 for t, p in zip(s.tones, phases)), s.step, s.goal, float(peaks[m - i]))
         i = j + 1
