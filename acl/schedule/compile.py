@@ -24,6 +24,10 @@ from acl.schedule.model import GoalReport, Schedule, ScheduledTone, Segment
 from acl.schedule.path import UM, DriveLimits
 
 DEFAULT_MAX_VOLTAGE = 10.0
+MAX_PROGRAM_S = 86_400.0          # a program longer than a day is refused (E-SCHED-DURATION)
+MAX_WAYPOINTS = 20_000            # per follow goal (E-SCHED-PATH): raise --waypoint-dt
+VOLTAGE_RANGE = (1e-3, 1e4)       # V: a `limit` outside it is refused (E-SCHED-LIMIT)
+SLEW_RANGE = (1e-6, 1e12)         # V/s
 
 
 @dataclass(frozen=True)
@@ -39,6 +43,7 @@ class CompileOptions:
     snap_provider: Callable | None = None        # (design, a, b, freqs, vmax, bound) -> (K,) V | None
     critical_provider: Callable | None = None    # (design, a, b, [(f, V)], s_max, bound) -> scale | None
     max_voltage: float | None = None             # overrides every other limit if given
+    full_scale_v: float | None = None            # WAV full scale; default: the transducer's max voltage
     lam: float = 1e-3
     slew_model: str = "auto"
     refine: int = 0
@@ -83,24 +88,61 @@ class _Compiler:
 
     def run(self) -> Schedule:
         self.states = {l.name: l.state for l in self.design.latches}
+        self._check_numbers()
         for i, step in enumerate(self.program.steps):
             getattr(self, f"_{step.kind}")(i, step)
         if not self.segments:
             raise DiagnosticError([error("E-SCHED-EMPTY", f"program `{self.program.name}` has no steps",
                                          self.program.span)])
-        full_scale = max(self.vmax_seen) if self.vmax_seen else _limit(self.design, None, self.opts)[0]
+        vmax = max(self.vmax_seen) if self.vmax_seen else _limit(self.design, None, self.opts)[0]
+        full_scale, source = self._full_scale(vmax)
         fs = self.opts.sample_rate_hz or auto_sample_rate(
             max((t.max_frequency_hz for s in self.segments for t in s.tones), default=1e3))
         sched = Schedule(program=self.program.name, segments=self.segments, goals=self.goals,
-                         max_voltage_v=full_scale, full_scale_v=full_scale, ramp_s=self.opts.ramp_s,
-                         source=self.design.file, notes=self.notes)
+                         max_voltage_v=vmax, full_scale_v=full_scale, ramp_s=self.opts.ramp_s,
+                         source=self.design.file, notes=self.notes, full_scale_source=source)
         sched.sample_rate_hz = fs
         _choose_all_phases(sched, fs)
         self._check_peaks(sched)
         return sched
 
+    def _full_scale(self, vmax: float) -> tuple[float, str]:
+        """WAV full scale: --full-scale, else the transducer's max voltage, else the largest limit."""
+        if self.opts.full_scale_v is not None:
+            return float(self.opts.full_scale_v), "--full-scale"
+        tr = self.design.transducer
+        if tr is not None and tr.max_voltage and np.isfinite(tr.max_voltage):
+            return float(tr.max_voltage), f"max_voltage of transducer `{tr.name}`"
+        return float(vmax), "largest voltage limit of the program (no transducer declared)"
+
+    def _check_numbers(self) -> None:
+        """Durations, limits and slews the solver and the renderer can work with (finite, in range)."""
+        t = 0.0
+        for i, step in enumerate(self.program.steps):
+            d = getattr(step, "duration", None)
+            if d is not None:
+                if not (np.isfinite(d) and d > 0):
+                    raise _diag("E-SCHED-DURATION", f"step {i + 1}: duration {d:g} s is not a positive "
+                                "finite time", step.span)
+                t += d
+                if t > MAX_PROGRAM_S:
+                    raise _diag("E-SCHED-DURATION", f"step {i + 1}: the program would last {t:.4g} s, "
+                                f"more than {MAX_PROGRAM_S:g} s", step.span,
+                                "split it into several programs, or shorten the steps")
+            lim = getattr(step, "limits", None)
+            if lim is None:
+                continue
+            lo, hi = VOLTAGE_RANGE
+            if lim.max_voltage is not None and not lo <= lim.max_voltage <= hi:
+                raise _diag("E-SCHED-LIMIT", f"step {i + 1}: limit {lim.max_voltage:g} V is outside "
+                            f"{lo:g} V .. {hi:g} V", step.span, "give the amplifier's real peak voltage")
+            lo, hi = SLEW_RANGE
+            if lim.slew_rate is not None and not lo <= lim.slew_rate <= hi:
+                raise _diag("E-SCHED-LIMIT", f"step {i + 1}: slew {lim.slew_rate:g} V/s is outside "
+                            f"{lo:g} .. {hi:g} V/s", step.span)
+
     def _check_peaks(self, sched: Schedule) -> None:
-        """Every segment's peak within its step's limit (drive steps are the user's tones)."""
+        """Every segment's analog peak within its step's limit and the WAV full scale."""
         for seg in sched.segments:
             step = self.program.steps[seg.step]
             vmax, _ = _limit(self.design, getattr(step, "limits", None), self.opts)
@@ -109,9 +151,18 @@ class _Compiler:
                             f"step {seg.step + 1}: peak {seg.peak_v:.4g} V exceeds the {vmax:g} V limit "
                             f"at t = {seg.start_s:.4g} s", step.span,
                             "lower the tone amplitudes or raise the transducer's max voltage")
+            if seg.peak_v is not None and seg.peak_v > sched.full_scale_v * (1 + 1e-9):
+                raise _diag("E-SCHED-FULLSCALE",
+                            f"step {seg.step + 1}: peak {seg.peak_v:.4g} V exceeds the WAV full scale "
+                            f"{sched.full_scale_v:g} V ({sched.full_scale_source})", step.span,
+                            "raise --full-scale, or lower the step's amplitudes or limit")
 
     # -- simple steps --------------------------------------------------------------------------
     def _add(self, duration, tones, step, goal=None):
+        if not self.t + duration <= MAX_PROGRAM_S:
+            raise _diag("E-SCHED-DURATION", f"step {step + 1}: the program would last "
+                        f"{self.t + duration:.4g} s, more than {MAX_PROGRAM_S:g} s",
+                        self.program.steps[step].span, "split it into several programs")
         self.segments.append(Segment(self.t, self.t + duration, tuple(tones), step, goal))
         self.t += duration
 
@@ -144,7 +195,14 @@ class _Compiler:
         self.vmax_seen.append(vmax)
         try:
             duration = step.duration or path_length(step.path) / step.speed
-            n = max(2, int(round(duration / self.opts.waypoint_dt_s)))
+            if not (np.isfinite(duration) and 0 < duration <= MAX_PROGRAM_S):
+                raise _diag("E-SCHED-DURATION", f"{name}: the path takes {duration:.4g} s, not a positive "
+                            f"time up to {MAX_PROGRAM_S:g} s", step.span, "give a duration or a sensible speed")
+            n = duration / self.opts.waypoint_dt_s
+            if not n <= MAX_WAYPOINTS:
+                raise _diag("E-SCHED-PATH", f"{name}: {n:.4g} waypoints, more than {MAX_WAYPOINTS}",
+                            step.span, f"raise --waypoint-dt above {duration / MAX_WAYPOINTS:.3g} s")
+            n = max(2, int(round(n)))
             path = sample_path(step.path, n)
         except (PathError, TypeError, ZeroDivisionError) as exc:
             raise _diag("E-SCHED-PATH", f"{name}: {exc}", step.span,

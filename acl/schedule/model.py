@@ -95,6 +95,7 @@ class Schedule:
     source: str = ""
     version: str = SCHEDULE_VERSION
     notes: list[str] = field(default_factory=list)
+    full_scale_source: str = ""                # where full_scale_v came from (option, transducer, limit)
 
     @property
     def duration_s(self) -> float:
