@@ -172,3 +172,160 @@ def test_explicit_zero_phases_are_not_overridden_by_the_crest_factor_search():
     assert mixed.tones[0].phase_rad == pytest.approx(np.pi / 2)
     for seg in s.segments:                                           # peak_v bounds the analog peak
         assert _dense(seg) <= seg.peak_v <= _dense(seg) + 1e-3
+
+
+# -- the command line: full scale, warnings, absurd numbers, locations ----------------------------
+
+HOSTILE_PROGRAMS = """
+program longpause {
+  drive 85 kHz @ 1 V for 10 ms
+  pause 1e308 s
+}
+program tinylimit {
+  hold gap(left.jet, right.jet) above 10 um for 1 s, using [125 kHz], limit 1e-200 V
+}
+program hugeslew {
+  hold gap(left.jet, right.jet) above 10 um for 1 s, using [125 kHz], slew 1e300 V/s
+}
+program tones {
+  drive 85 kHz @ 3 V + 125 kHz @ 2 V for 20 ms
+}
+program keep_apart {
+  hold gap(left.jet, right.jet) above 10 um for 1 s, using [125 kHz], limit 8 V
+}
+"""
+
+
+@pytest.fixture
+def hostile(tmp_path):
+    text = (EXAMPLES / "fig4_facing_pair.acl").read_text(encoding="utf-8")
+    p = tmp_path / "hostile.acl"
+    p.write_text(text[:text.index("program ramp")] + HOSTILE_PROGRAMS, encoding="utf-8")
+    return str(p)
+
+
+def cli(*args):
+    from acl.cli import main
+
+    return main(["compile", *args])
+
+
+def _json_diags(capsys):
+    import json
+
+    return json.loads(capsys.readouterr().out)["diagnostics"]
+
+
+@pytest.mark.parametrize("args,code,where", [
+    (["--sample-rate", "1e400"], "E-COMPILE-RATE", "<--sample-rate>:1:1"),
+    (["--sample-rate", "inf"], "E-COMPILE-RATE", "<--sample-rate>:1:1"),
+    (["--ramp", "inf"], "E-COMPILE-OPTION", "<--ramp>:1:1"),
+    (["--ramp", "-1"], "E-COMPILE-OPTION", "<--ramp>:1:1"),
+    (["--tolerance", "inf"], "E-COMPILE-OPTION", "<--tolerance>:1:1"),
+    (["--waypoint-dt", "inf"], "E-COMPILE-OPTION", "<--waypoint-dt>:1:1"),
+    (["--waypoint-dt", "nan"], "E-COMPILE-OPTION", "<--waypoint-dt>:1:1"),
+    (["--waypoint-dt", "1e-300"], "E-COMPILE-OPTION", "<--waypoint-dt>:1:1"),
+    (["--full-scale", "inf"], "E-COMPILE-OPTION", "<--full-scale>:1:1"),
+    (["--full-scale", "ten"], "E-COMPILE-OPTION", "<--full-scale>:1:1"),
+    (["--sample-rate", "200k"], "E-EMIT-RATE", "<--sample-rate>:1:1"),
+    (["--format", "mp3"], "E-COMPILE-FORMAT", "<--format>:1:1"),
+    (["--program", "nope"], "E-COMPILE-PROGRAM", "<--program>:1:1"),
+])
+def test_absurd_options_are_usage_errors_naming_the_option(hostile, tmp_path, capsys, args, code, where):
+    out = tmp_path / "out"
+    rc = cli(hostile, "-o", str(out), *(args if "--program" in args else ["--program", "tones", *args]),
+             "--diagnostics", "json")
+    (d,) = _json_diags(capsys)
+    assert rc == 2 and d["code"] == code
+    assert f"{d['file']}:{d['line']}:{d['column']}" == where
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("program,code,line", [("longpause", "E-SCHED-DURATION", "pause 1e308 s"),
+                                               ("tinylimit", "E-SCHED-LIMIT", "limit 1e-200 V"),
+                                               ("hugeslew", "E-SCHED-LIMIT", "slew 1e300 V/s")])
+def test_absurd_numbers_in_a_design_are_located_design_errors(hostile, tmp_path, capsys, program, code, line):
+    out = tmp_path / "out"
+    assert cli(hostile, "-o", str(out), "--program", program, "--diagnostics", "json") == 1
+    (d,) = _json_diags(capsys)
+    assert d["code"] == code and d["file"] == hostile
+    assert line in Path(hostile).read_text().splitlines()[d["line"] - 1]
+    assert not out.exists()
+
+
+def test_output_path_that_is_a_file_names_the_output_option(hostile, tmp_path, capsys):
+    (tmp_path / "out").write_text("x")
+    assert cli(hostile, "-o", str(tmp_path / "out"), "--program", "tones") == 2
+    err = capsys.readouterr().err
+    assert "<--output>:1:1" in err and "E-EMIT-OUTPUT" in err and "<unknown>" not in err
+
+
+def test_wav_size_error_names_an_option(tmp_path):
+    from acl.diagnostics import DiagnosticError
+    from acl.emit.output import emit
+    from acl.schedule.model import Schedule, ScheduledTone, Segment
+
+    long = Schedule("p", [Segment(0.0, 600.0, (ScheduledTone(100e3, 1.0),), 0, None, 1.0)], [], 10.0, 10.0)
+    with pytest.raises(DiagnosticError) as exc:
+        emit(long, str(tmp_path / "out"), ("wav",), 2e6)
+    assert exc.value.diagnostics[0].location() != "<unknown>"
+
+
+def test_full_scale_defaults_to_the_transducer_and_is_printed(hostile, tmp_path, capsys):
+    import json
+
+    from acl.emit.writers import read_wav_float32
+
+    out = tmp_path / "out"
+    assert cli(hostile, "-o", str(out), "--program", "keep_apart") == 0
+    data = json.loads((out / "schedule.json").read_text())
+    # before: the step's 8 V limit became the scale (8, 15, 20, 30 or 100 V across the examples)
+    assert data["full_scale_v"] == 20.0 and "transducer" in data["full_scale_source"]
+    assert "WAV full scale 20 V" in " ".join(capsys.readouterr().err.split())
+    out2 = tmp_path / "out2"
+    assert cli(hostile, "-o", str(out2), "--program", "keep_apart", "--full-scale", "10V") == 0
+    w10, _ = read_wav_float32(str(out2 / "waveform.wav"))
+    w20, _ = read_wav_float32(str(out / "waveform.wav"))
+    assert np.allclose(w10, 2 * w20, atol=1e-6)
+    assert "WAV full scale 10 V (--full-scale)" in " ".join(capsys.readouterr().err.split())
+
+
+def test_a_peak_beyond_the_full_scale_is_refused_and_nothing_written(hostile, tmp_path, capsys):
+    out = tmp_path / "out"
+    assert cli(hostile, "-o", str(out), "--program", "tones", "--full-scale", "4V",
+               "--diagnostics", "json") == 1
+    (d,) = _json_diags(capsys)
+    assert d["code"] == "E-SCHED-FULLSCALE" and d["file"] == hostile
+    assert not out.exists()
+
+
+def test_low_sample_rate_and_large_sample_csv_are_warned(hostile, tmp_path, capsys, monkeypatch):
+    from acl.emit import output
+
+    monkeypatch.setattr(output, "CSV_WARN_BYTES", 1000)
+    out = tmp_path / "out"
+    assert cli(hostile, "-o", str(out), "--program", "tones", "--sample-rate", "300k",
+               "--format", "wav,csv", "--diagnostics", "json") == 0
+    codes = {d["code"] for d in _json_diags(capsys)}
+    assert codes == {"W-EMIT-RATE", "W-EMIT-SIZE"}
+    assert (out / "waveform-samples.csv").exists()
+
+
+def test_reusing_an_output_folder_through_the_cli_leaves_no_stale_file(hostile, tmp_path, capsys):
+    out = tmp_path / "out"
+    assert cli(hostile, "-o", str(out), "--program", "tones", "--format", "npy,csv") == 0
+    assert cli(hostile, "-o", str(out), "--program", "keep_apart") == 0
+    assert sorted(p.name for p in out.iterdir()) == ["schedule.json", "segments.csv", "waveform.wav"]
+    (out / "mine.txt").write_text("x")
+    assert cli(hostile, "-o", str(out), "--program", "tones") == 2
+    assert "mine.txt" in capsys.readouterr().err and (out / "mine.txt").exists()
+
+
+def test_too_many_waypoints_is_a_located_error_not_a_memory_blow_up(tmp_path, capsys):
+    text = (EXAMPLES / "fig3_three_orifice.acl").read_text(encoding="utf-8")
+    p = tmp_path / "fig3.acl"
+    p.write_text(text, encoding="utf-8")
+    assert cli(str(p), "-o", str(tmp_path / "out"), "--program", "rectangle", "--waypoint-dt", "1e-5",
+               "--diagnostics", "json") == 1
+    (d,) = _json_diags(capsys)
+    assert d["code"] == "E-SCHED-PATH" and d["file"] == str(p) and "waypoint-dt" in d["hint"]
