@@ -163,9 +163,12 @@ def _source_lines(path: str, cache: dict, sources: dict[str, str] | None) -> lis
     if sources and path in sources:
         text = sources[path]
     else:
+        import os
+
         try:
-            with open(path, encoding="utf-8", errors="replace") as fh:
-                text = fh.read(2_000_000)
+            if os.path.isfile(path):   # never a FIFO or a device: excerpts must not hang
+                with open(path, encoding="utf-8", errors="replace") as fh:
+                    text = fh.read(2_000_000)
         except OSError:
             text = None
     cache[path] = text.splitlines() if text is not None else None

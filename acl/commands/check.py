@@ -4,11 +4,13 @@ from __future__ import annotations
 import json
 import sys
 
-from acl.commands._common import add_design_options, check_paths, exit_code, parse_sets, report
+from acl.commands._common import (STDIN, add_design_options, add_stdin_option, check_paths, exit_code, parse_sets,
+                                  read_stdin, report)
 
 
 def add_parser(p) -> None:
-    p.add_argument("files", nargs="+", metavar="FILE", help="design files (.acl)")
+    p.add_argument("files", nargs="+", metavar="FILE", help="design files (.acl); `-` reads standard input")
+    add_stdin_option(p)
     p.add_argument("--format", choices=["text", "json"], default="text", help="diagnostics as text (default) or JSON")
     add_design_options(p)
 
@@ -24,18 +26,28 @@ def run(args) -> int:
     all_diags = []
     worst = 0
     ok_files = []
+    sources: dict[str, str] = {}
     for f in args.files:
-        design, diags = check_design(f, overrides=overrides, search_paths=args.path)
+        if f == STDIN:
+            f = args.stdin_filename
+            text, diags = read_stdin(f)
+            if text is not None:
+                sources[f] = text
+                design, diags = check_design(f, overrides=overrides, search_paths=args.path, text=text)
+            else:
+                design = None
+        else:
+            design, diags = check_design(f, overrides=overrides, search_paths=args.path)
         all_diags.extend(diags)
         worst = max(worst, exit_code(diags))
         if design is not None:
             ok_files.append((f, design))
     if args.format == "json":
-        sys.stdout.write(json.dumps({"files": args.files, "ok": worst == 0,
+        sys.stdout.write(json.dumps({"files": [args.stdin_filename if f == STDIN else f for f in args.files], "ok": worst == 0,
                                      "diagnostics": [d.as_dict() for d in all_diags]}, indent=2) + "\n")
         return worst
     if all_diags:
-        report(all_diags)
+        report(all_diags, sources=sources)
     from rich.console import Console
 
     con = Console(stderr=True, highlight=False)
