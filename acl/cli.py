@@ -18,6 +18,7 @@ COMMANDS = {
     "lint": "Run design rules (for CI): rule codes, configuration, machine-readable output.",
     "fit": "Fit the model to measured data, find missing effects, report before/after.",
     "synth": "Generate synthetic measurement data from a design (to test analyses).",
+    "fmt": "Rewrite designs in the one canonical layout (--check for CI, --diff, - for stdin).",
 }
 
 EPILOG = """\
@@ -28,6 +29,7 @@ examples:
   acl compile examples/fig3_three_orifice.acl --program rectangle -o out/
   acl lint examples/ --format github
   acl fit design.acl data.csv --report fit/
+  acl fmt examples/ --check
 
 exit codes: 0 clean, 1 errors in the design or findings, 2 usage or I/O error.
 docs: docs/language.md, docs/physics.md, docs/rules.md, docs/data.md
