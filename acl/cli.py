@@ -19,6 +19,7 @@ COMMANDS = {
     "fit": "Fit the model to measured data, find missing effects, report before/after.",
     "synth": "Generate synthetic measurement data from a design (to test analyses).",
     "rule": "Print the documentation of a rule or diagnostic code (e.g. ACL201, E303).",
+    "fmt": "Rewrite designs in the one canonical layout (--check for CI, --diff, - for stdin).",
 }
 
 EPILOG = """\
@@ -30,6 +31,7 @@ examples:
   acl lint examples/ --output-format github
   acl rule ACL201
   acl fit design.acl data.csv --report fit/
+  acl fmt examples/ --check
 
 exit codes: 0 clean, 1 errors in the design or findings, 2 usage or I/O error.
 docs: docs/language.md, docs/physics.md, docs/rules.md, docs/data.md
