@@ -18,6 +18,7 @@ COMMANDS = {
     "lint": "Run design rules (for CI): rule codes, configuration, machine-readable output.",
     "fit": "Fit the model to measured data, find missing effects, report before/after.",
     "synth": "Generate synthetic measurement data from a design (to test analyses).",
+    "lsp": "Start the language server (LSP over stdio) for editors; needs acl[lsp].",
 }
 
 EPILOG = """\
