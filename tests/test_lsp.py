@@ -292,3 +292,31 @@ def test_lsp_without_pygls_is_a_coded_diagnostic():
                           env={"PYTHONPATH": str(ROOT), "PATH": ""}, timeout=60)
     assert proc.returncode == 2
     assert "E-DEPENDENCY" in proc.stderr and "acl[lsp]" in proc.stderr and "Traceback" not in proc.stderr
+
+
+def _corpus():
+    files = sorted((ROOT / "examples").glob("*.acl")) + sorted((ROOT / "stdlib").glob("*.acl")) + \
+        sorted((ROOT / "tests" / "bad").glob("*.acl"))
+    return [f for f in files if f.stat().st_size < 200_000]
+
+
+def test_incremental_parse_equals_whole_file_parse():
+    from acl.diagnostics import DiagnosticError
+    from acl.lsp.incremental import IncrementalParser
+    from acl.syntax.parser import parse_module
+
+    for f in _corpus():
+        text = f.read_text(encoding="utf-8", errors="replace")
+        got = IncrementalParser().parse(text, str(f))
+        try:
+            want = parse_module(text, str(f))
+        except DiagnosticError:
+            assert got is None, f      # a file with syntax errors always takes the whole-file path
+            continue
+        assert got == want, f
+    # edits through one parser (cached statements reused) still give the whole-file tree
+    p = IncrementalParser()
+    text = DESIGN
+    for old, new in (("300 ms", "250 ms"), ("fix c3", "fix c3\nparam extra = 2 um"), ("c2", "c22"), ("{ }", "{\n}")):
+        text = text.replace(old, new)
+        assert p.parse(text, "d.acl") == parse_module(text, "d.acl"), (old, new)

@@ -35,10 +35,21 @@ class Snapshot:
         return self.lines[n] if 0 <= n < len(self.lines) else ""
 
 
-def check_text(text: str, path: str, version: int | None = None, search_paths=()) -> Snapshot:
-    """Parse, resolve and check ``text`` as if it were the file ``path`` (the same stages as `acl check`)."""
+def check_text(text: str, path: str, version: int | None = None, search_paths=(), parser=None) -> Snapshot:
+    """Parse, resolve and check ``text`` as if it were the file ``path`` (the same stages as `acl check`).
+
+    ``parser``: an :class:`acl.lsp.incremental.IncrementalParser` kept per document, so that an edit
+    re-parses only the statements it touched (the tree is the same as a whole-file parse).
+    """
     from acl.design.modules import Loader
     from acl.design.resolve import _finish
+
+    if parser is not None:
+        from acl.lsp.incremental import prime
+
+        module = parser.parse(text, path)
+        if module is not None:
+            prime(module, text, path)
 
     bag = DiagnosticBag()
     loader = Loader(bag, search_paths)

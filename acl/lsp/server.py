@@ -34,6 +34,7 @@ class AclLanguageServer(LanguageServer):
         self._pending: dict[str, asyncio.Task] = {}
         self._lint_tasks: dict[str, asyncio.Task] = {}
         self._executor = None
+        self._parsers: dict[str, object] = {}
 
     # ---------------------------------------------------------------------------------- state
     def path_of(self, uri: str) -> str:
@@ -49,7 +50,10 @@ class AclLanguageServer(LanguageServer):
 
     def _check(self, uri: str) -> Snapshot:
         doc = self.workspace.get_text_document(uri)
-        snap = check_text(doc.source, self.path_of(uri), doc.version)
+        from acl.lsp.incremental import IncrementalParser
+
+        parser = self._parsers.setdefault(uri, IncrementalParser())
+        snap = check_text(doc.source, self.path_of(uri), doc.version, parser=parser)
         self.snapshots[uri] = snap
         if snap.parsed and snap.env is not None:
             self.resolved[uri] = snap
@@ -211,7 +215,7 @@ async def _did_save(ls: AclLanguageServer, params: T.DidSaveTextDocumentParams) 
 @server.feature(T.TEXT_DOCUMENT_DID_CLOSE)
 def _did_close(ls: AclLanguageServer, params: T.DidCloseTextDocumentParams) -> None:
     uri = params.text_document.uri
-    for store in (ls.snapshots, ls.resolved, ls.lint_findings):
+    for store in (ls.snapshots, ls.resolved, ls.lint_findings, ls._parsers):
         store.pop(uri, None)
     for tasks in (ls._pending, ls._lint_tasks):
         t = tasks.pop(uri, None)
