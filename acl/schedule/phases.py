@@ -9,7 +9,7 @@ sample grid misses the crest by up to ``1 - cos(pi f / fs)`` (4.9 % at 10 sample
 :func:`analog_peaks` bounds it rigorously: ``|x''| <= D2 = sum_k A_k (2 pi f_k)^2``, so within
 ``h / 2`` of the true crest a grid of step ``h`` has a point at most ``D2 h^2 / 8`` below it.  A
 grid of 8 points per cycle of the highest tone finds the candidate intervals, each is refined on a
-32-point sub-grid, and the bound ``max + D2 h_sub^2 / 8`` (within 1e-4 of ``sum A``) is reported.
+32-point sub-grid, and the bound ``max + D2 h_sub^2 / 8`` (within 2e-4 of ``sum A``) is reported.
 The phases minimise the peak on a 16-point-per-cycle grid of one common period (Nelder-Mead from
 Schroeder's phases); phases the user gave are kept.
 """
