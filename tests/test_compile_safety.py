@@ -387,3 +387,27 @@ def test_a_hold_slew_limit_the_crossfade_cannot_meet_is_a_located_error(hostile,
     assert cli(hostile, "-o", str(tmp_path / "out"), "--program", "hugeslew", "--diagnostics", "json") == 1
     (d,) = _json_diags(capsys)
     assert d["code"] == "E-SCHED-LIMIT" and "slew 10 V/s" in text.splitlines()[d["line"] - 1]
+
+
+# -- snap-in models: what is not known is not safe ------------------------------------------------
+
+def test_a_snap_in_between_the_limit_and_margin_times_the_limit_is_found():
+    # fig4's pair snaps at 2.36 V; with `limit 2.2 V` the per-tone sweep used to stop at 2.2 V,
+    # call the tone "never snaps" and drive it at 2.2 V: a ratio of 1.07 for a margin of 1.2
+    text = (EXAMPLES / "fig4_facing_pair.acl").read_text(encoding="utf-8")
+    text = text[:text.index("program ramp")] + (
+        "program near {\n  hold gap(left.jet, right.jet) above 10 um for 1 s, using [125 kHz], limit 2.2 V\n}\n")
+    d = acl.loads(text, filename=str(EXAMPLES / "near.acl"))
+    s = compile_program(d, "near")
+    (seg,) = s.segments
+    assert _snap_scale(d, seg, 3.0) >= 1.2 * (1 - 1e-6)
+
+
+def test_a_lost_continuation_branch_counts_as_critical_where_it_was_lost(fig4):
+    from types import SimpleNamespace
+
+    from acl.schedule.gains import _critical_scale
+
+    lost = SimpleNamespace(snap_voltage=None, status="no_convergence", voltage=np.array([0.0, 0.5, 1.3]))
+    mech = SimpleNamespace(sweep_voltage=lambda *a, **k: lost)
+    assert _critical_scale(mech, fig4, "left.jet", "right.jet", None, 5.0, None) == 1.3     # was inf
