@@ -327,9 +327,10 @@ class _Compiler:
             rep.max_error_m = float(np.max(err))
         if not ok.all():
             rep.details["unconverged_waypoints"] = int((~ok).sum())
+            rep.max_error_m = float("inf")     # a waypoint without equilibrium: its error is unbounded
             self.notes.append(f"{rep.name}: the forward model found no stable equilibrium at "
                               f"{int((~ok).sum())} of {ok.size} re-simulated waypoints (snap-in?); "
-                              "their error is not in the figures")
+                              "the RMS error leaves them out and the maximum error is unbounded (null)")
         full = np.full_like(targets, np.nan)
         full[idx] = pred
         rep.predicted_m = full
