@@ -10,7 +10,8 @@ import math
 import re
 import sys
 
-from acl.commands._common import add_design_options, load_or_report, report
+from acl.commands._common import (add_design_options, add_output_format, load_or_report, one_design,
+                                  plotting_missing, report)
 from acl.diagnostics import DiagnosticError, Span, error, suggest
 
 _RATE = re.compile(r"^\s*([0-9]*\.?[0-9]+(?:[eE][-+]?[0-9]+)?)\s*(hz|khz|mhz|k|m|ms/s|ks/s)?\s*$", re.I)
@@ -18,7 +19,7 @@ _RATE_UNITS = {None: 1.0, "hz": 1.0, "khz": 1e3, "k": 1e3, "ks/s": 1e3, "mhz": 1
 
 
 def add_parser(p) -> None:
-    p.add_argument("file", metavar="FILE", help="design file (.acl)")
+    p.add_argument("file", metavar="FILE", help="design file (.acl), or a folder holding one design")
     p.add_argument("-o", "--output", required=True, metavar="OUT",
                    help="output directory: new, empty, or holding a previous compile (replaced)")
     p.add_argument("--program", metavar="NAME", help="program to compile (default: the only one)")
@@ -38,8 +39,7 @@ def add_parser(p) -> None:
     p.add_argument("--ramp", default="1e-3", metavar="S",
                    help="raised-cosine crossfade between segments in seconds (default 0.001)")
     p.add_argument("--plot", action="store_true", help="write a PNG per path goal")
-    p.add_argument("--diagnostics", choices=["text", "json"], default="text",
-                   help="diagnostics as text (default) or JSON on stdout")
+    add_output_format(p, old=("--diagnostics",))
     add_design_options(p)
 
 
@@ -116,7 +116,7 @@ def _numbers(args):
 
 
 def run(args) -> int:
-    fmt = args.diagnostics
+    fmt = args.output_format
     formats, diags = _formats(args.format)
     rate, more = _rate(args.sample_rate)
     diags += more
@@ -127,7 +127,12 @@ def run(args) -> int:
     if diags:
         report(diags, fmt)
         return 2
-    design, code = load_or_report(args.file, args, fmt)
+    if args.plot and plotting_missing("--plot", fmt):
+        return 2
+    path = one_design(args.file, fmt)
+    if path is None:
+        return 2
+    design, code = load_or_report(path, args, fmt)
     if design is None:
         return code
     names = [p.name for p in design.programs]
@@ -181,12 +186,12 @@ def _emit(schedule, args, formats, rate, fmt) -> int:
     except DiagnosticError as exc:
         report(exc.diagnostics, fmt)
         return 2
-    from rich.console import Console
+    from acl._console import make_console
 
-    console = Console(stderr=True, highlight=False)
+    console = make_console(stderr=True, highlight=False)
     n = total_samples(schedule, fs)
     try:
-        if n > 4_000_000 and console.is_terminal:
+        if n > 4_000_000 and console.is_terminal and not args.quiet:
             from rich.progress import BarColumn, Progress, TimeRemainingColumn
 
             with Progress("rendering", BarColumn(), "{task.percentage:>3.0f}%", TimeRemainingColumn(),
@@ -212,7 +217,8 @@ def _emit(schedule, args, formats, rate, fmt) -> int:
     else:
         if result.warnings:
             report(result.warnings, fmt)
-        _summary(console, schedule, result)
+        if not args.quiet:
+            _summary(console, schedule, result)
     return 0
 
 

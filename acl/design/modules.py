@@ -3,7 +3,6 @@ from __future__ import annotations
 
 import os
 from dataclasses import dataclass, field
-from importlib import resources
 
 from acl.diagnostics import DiagnosticBag, DiagnosticError, Span
 from acl.syntax import ast as A
@@ -11,7 +10,9 @@ from acl.syntax.parser import parse_module
 
 
 def stdlib_root() -> str:
-    return str(resources.files("stdlib"))
+    from acl._resources import shipped_dir
+
+    return shipped_dir("stdlib")
 
 
 @dataclass

@@ -149,9 +149,9 @@ def emit(schedule: Schedule, out_dir: str, formats=("wav",), sample_rate: float 
     parent = os.path.dirname(os.path.abspath(out_dir)) or "."
     os.makedirs(parent, exist_ok=True)
     tmp = tempfile.mkdtemp(prefix=".acl-compile-", dir=parent)
-    umask = os.umask(0)
-    os.umask(umask)
-    os.chmod(tmp, 0o777 & ~umask)
+    from acl._files import as_umask
+
+    as_umask(tmp, directory=True)
     result = EmitResult(out_dir=out_dir, sample_rate_hz=fs, warnings=warns)
     try:
         n = total_samples(schedule, fs)
