@@ -75,7 +75,7 @@ def _grid(frequencies, period: float, per_cycle: int) -> np.ndarray:
     return np.arange(n) * (period / n)
 
 
-def analog_peaks(frequencies, phases, amplitudes, chunk: int = 256) -> np.ndarray:
+def analog_peaks(frequencies, phases, amplitudes, chunk: int | None = None) -> np.ndarray:
     """Upper bound (V, tight to ~1e-4 of sum A) on the analog peak of each row of ``amplitudes`` (N, K).
 
     Without a common period short enough to scan, the bound is ``sum_k |A_k|`` (reached for
@@ -94,6 +94,7 @@ def analog_peaks(frequencies, phases, amplitudes, chunk: int = 256) -> np.ndarra
     h = t[1] - t[0]
     w = 2 * np.pi * f
     S = np.sin(np.outer(w, t) + phi[:, None])                          # (K, n)
+    chunk = chunk or max(1, (1 << 21) // t.size)                       # rows x grid <= 16 MB
     d2 = a @ (w ** 2)                                                  # (N,) bound on |x''|
     sub = np.linspace(-0.5, 0.5, 32) * h                               # sub-grid around a point
     h_sub = h / 31
