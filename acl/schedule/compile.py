@@ -364,17 +364,30 @@ class _Compiler:
                 "E-SCHED-INFEASIBLE", Severity.ERROR, f"{name}: infeasible: binding "
                 + "; ".join(exc.binding), step.span, "relax: " + "; or ".join(exc.relax),
                 notes=(f"at t = {self.t:.4g} s, {len(freqs)} candidate tones",))])
-        # interior-point dust: a tone with < 1e-6 of the largest power adds < 1e-6 of the force
-        used = [(f, a) for f, a, u in zip(freqs, plan.amplitudes, plan.u) if u > 1e-6 * plan.u.max()]
+        # interior-point dust: a tone with < 1e-6 of the largest power adds < 1e-6 of the force;
+        # the margins reported are those of the tones actually emitted
+        keep = plan.u > 1e-6 * plan.u.max()
+        used = [(f, a) for f, a, k in zip(freqs, plan.amplitudes, keep) if k]
         self._add(step.duration, [ScheduledTone(f, float(a)) for f, a in used], i, name)
         self.states[step.latch] = step.state
+        F = np.asarray(forces, float) @ np.where(keep, plan.u, 0.0)            # (L,) N
+        sig = 1.0 if step.state == "b" else -1.0
+        force = float(sig * F[j])
+        others = {}
+        for k, n in enumerate(names):
+            if n != step.latch:       # force along the other latch's own switching direction / threshold
+                own = 1.0 if self.states[n] == "a" else -1.0
+                thr = to_b[k] if own > 0 else to_a[k]
+                others[n] = float(own * F[k] / thr)
+        if force < plan.required_force * (1 - 1e-6) or any(r > 1 / step.margin * (1 + 1e-6)
+                                                              for r in others.values()):
+            raise _diag("E-SCHED-SOLVER", f"{name}: the emitted tones miss the switching margins "
+                        "the latch program promised", step.span, "report this design")
         self.goals.append(GoalReport(name, "switch", i, self.t - step.duration, self.t,
                                      tuple(f for f, _ in used), model="linear force per V^2",
-                                     details={"force_n": plan.target_force,
-                                              "required_n": plan.required_force,
-                                              "margin": plan.target_force / plan.required_force * step.margin,
-                                              "other_latch_ratios": {n: float(r) for n, r in
-                                                                     zip(names, plan.other_ratios) if n != step.latch}}))
+                                     details={"force_n": force, "required_n": plan.required_force,
+                                              "margin": force / plan.required_force * step.margin,
+                                              "other_latch_ratios": others}))
 
     def _latch_candidates(self):
         from acl.schedule.gains import default_frequencies
