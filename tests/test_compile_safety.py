@@ -311,6 +311,18 @@ def test_low_sample_rate_and_large_sample_csv_are_warned(hostile, tmp_path, caps
     assert (out / "waveform-samples.csv").exists()
 
 
+def test_a_crossfade_too_short_to_be_band_limited_is_warned(hostile, tmp_path, capsys):
+    assert cli(hostile, "-o", str(tmp_path / "out"), "--program", "longpause", "--ramp", "0",
+               "--diagnostics", "json") == 1          # (the pause is refused; use a program that runs)
+    capsys.readouterr()
+    Path(hostile).write_text(Path(hostile).read_text().replace("pause 1e308 s", "pause 10 ms"))
+    assert cli(hostile, "-o", str(tmp_path / "out"), "--program", "longpause", "--ramp", "0",
+               "--diagnostics", "json") == 0
+    assert [d["code"] for d in _json_diags(capsys)] == ["W-EMIT-RAMP"]
+    assert cli(hostile, "-o", str(tmp_path / "out"), "--program", "longpause", "--diagnostics", "json") == 0
+    assert _json_diags(capsys) == []
+
+
 def test_reusing_an_output_folder_through_the_cli_leaves_no_stale_file(hostile, tmp_path, capsys):
     out = tmp_path / "out"
     assert cli(hostile, "-o", str(out), "--program", "tones", "--format", "npy,csv") == 0
