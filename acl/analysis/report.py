@@ -140,7 +140,7 @@ def analyze(design: M.Design, at: M.Drive | None = None, snap_in: bool = True, p
         amps = AC.interface_amplitudes(design, drive)
         rep.drives.append(_drive_entry(None, None, describe_drive(drive), amps))
         for pf in pfs:
-            rev = _reversal_q(design, pf, f) if _unequal(modes, pf) else None
+            study = _q_study(design, pf, f) if _unequal(modes, pf) else {}
             rep.pairs.append({
                 "a": pf.a, "b": pf.b, "frequency_hz": f, "voltage_v": v, "force_n": pf.attraction,
                 "attract": bool(pf.attract), "phase_difference_deg": math.degrees(pf.phase_difference),
@@ -149,7 +149,11 @@ def analyze(design: M.Design, at: M.Drive | None = None, snap_in: bool = True, p
                 "sweep_status": snaps.get(f, (None, "not computed"))[1],
                 "q_predicted": [modes[pf.a][0].q_predicted if modes[pf.a] else None,
                                 modes[pf.b][0].q_predicted if modes[pf.b] else None],
-                "reversal_q": rev,
+                "attract_with_predicted_q": study.get("attract_with_predicted_q", bool(pf.attract)
+                                                      if not any(c.quality_factor for c in design.capsules
+                                                                 if c.name in (pf.a, pf.b)) else None),
+                "phase_difference_predicted_q_deg": study.get("phase_difference_predicted_q_deg"),
+                "repel_from_q": study.get("repel_from_q"),
                 "interface_amplitude_over_radius": {k: v for k, v in amps.items()
                                                     if k.split(".")[0] in (pf.a, pf.b)},
             })
@@ -206,25 +210,33 @@ def _unequal(modes, pf, tol: float = 0.005) -> bool:
     return bool(ma and mb and abs(ma[0].frequency_hz - mb[0].frequency_hz) > tol * mb[0].frequency_hz)
 
 
-REVERSAL_Q_GRID = (3.0, 4.0, 5.0, 7.0, 10.0, 14.0, 20.0, 28.0, 40.0, 57.0, 80.0, 113.0, 160.0, 226.0, 320.0, 640.0, 1000.0)
+REPEL_Q_GRID = (3.0, 4.0, 5.0, 7.0, 10.0, 14.0, 20.0, 28.0, 40.0, 57.0, 80.0, 113.0, 160.0, 226.0, 320.0, 640.0, 1000.0)
 
 
-def _reversal_q(design: M.Design, pf, f: float) -> float | None:
-    """Smallest Q on the grid that, declared on both capsules of an unequal pair, reverses the sign of their force at f (coupled model).
+def _with_q(design: M.Design, names, q):
+    caps = tuple(c.model_copy(update={"quality_factor": q}) if c.name in names else c for c in design.capsules)
+    return design.model_copy(update={"capsules": caps})
 
-    The Q that the damping would need for the other sign (paper Fig. 4f-h); None if no Q up to 1000 does.
+
+def _q_study(design: M.Design, pf, f: float) -> dict:
+    """Sign of an unequal pair's Bjerknes force at f with the predicted damping, and the smallest Q (declared on both) that makes it repel.
+
+    What the damping would need for the repulsion of paper Fig. 4f-h; ``repel_from_q`` None if no Q up
+    to 1000 repels (strong coupling: docs/physics.md part A section 6).
     """
     from acl.analysis import acoustics as AC
 
     drive = M.Drive(tones=(M.Tone(frequency=f, amplitude=1.0),))
-    for q in REVERSAL_Q_GRID:
-        caps = tuple(c.model_copy(update={"quality_factor": q}) if c.name in (pf.a, pf.b) else c
-                     for c in design.capsules)
-        d = design.model_copy(update={"capsules": caps})
-        p = next(x for x in AC.pair_forces(d, drive) if (x.a, x.b) == (pf.a, pf.b))
-        if p.attract != pf.attract:
-            return q
-    return None
+
+    def pair_at(q):
+        d = _with_q(design, (pf.a, pf.b), q)
+        return next(x for x in AC.pair_forces(d, drive) if (x.a, x.b) == (pf.a, pf.b))
+
+    pred = pair_at(None)
+    repel_q = next((q for q in REPEL_Q_GRID if not pair_at(q).attract), None)
+    return {"attract_with_predicted_q": bool(pred.attract),
+            "phase_difference_predicted_q_deg": math.degrees(pred.phase_difference),
+            "repel_from_q": repel_q}
 
 
 def _same_tuning(ma, mb, tol: float = 0.02) -> bool:
