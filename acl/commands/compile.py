@@ -39,6 +39,8 @@ def add_parser(p) -> None:
     p.add_argument("--ramp", default="1e-3", metavar="S",
                    help="raised-cosine crossfade between segments in seconds (default 0.001)")
     p.add_argument("--plot", action="store_true", help="write a PNG per path goal")
+    p.add_argument("--allow-nonlinear", action="store_true",
+                   help="plan drives beyond the linear bubble model (interface amplitude eps/R > 0.2; docs/physics.md)")
     add_output_format(p, old=("--diagnostics",))
     add_design_options(p)
 
@@ -160,7 +162,8 @@ def run(args) -> int:
         return 2
     opts = CompileOptions(sample_rate_hz=rate, waypoint_dt_s=numbers["waypoint_dt"],
                           tolerance_m=numbers["tolerance"] * 1e-6, ramp_s=numbers["ramp"],
-                          calibration=calibration, full_scale_v=full_scale)
+                          calibration=calibration, full_scale_v=full_scale,
+                          allow_nonlinear=bool(getattr(args, "allow_nonlinear", False)))
     try:
         schedule = compile_program(design, program, opts)
     except DiagnosticError as exc:

@@ -20,6 +20,13 @@ from acl.syntax import ast as A
 from acl.units import DIMENSIONLESS, DimensionError, Quantity, UnitError, describe, parse_unit, parse_unit_static, si_unit
 
 
+# One polytropic default for every medium: the physics constant (isothermal, 1.0; justified in
+# docs/physics.md part A section 1 and acl.physics.constants.MediumConstants).
+from acl.physics.constants import WATER_20C as _WATER  # noqa: E402
+
+_POLYTROPIC_DEFAULT = _WATER.polytropic_index
+
+
 class _Fail(Exception):
     """Evaluation of one expression failed; the diagnostic is already recorded."""
 
@@ -129,7 +136,7 @@ SCHEMAS: dict[str, dict[str, Key]] = {
     "medium": {
         "density": Key("q", "kg/m^3", True), "viscosity": Key("q", "Pa*s", True),
         "sound_speed": Key("q", "m/s", True), "surface_tension": Key("q", "N/m", True),
-        "pressure": Key("q", "Pa", False, 101325.0), "polytropic": Key("q", "", False, 1.4),
+        "pressure": Key("q", "Pa", False, 101325.0), "polytropic": Key("q", "", False, _POLYTROPIC_DEFAULT),
         "thermal_diffusivity": Key("q", "m^2/s", False, 2.1e-5),
     },
     "material": {

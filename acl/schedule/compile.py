@@ -49,6 +49,7 @@ class CompileOptions:
     refine: int = 0
     resim_points: int = 100                      # waypoints re-simulated per goal (evenly spaced)
     tones_per_path: int = 3
+    allow_nonlinear: bool = False                # plan drives beyond the linear bubble model (eps/R > limit)
 
 
 def auto_sample_rate(max_frequency_hz: float, factor: float = 10.0, grid_hz: float = 1e3) -> float:
@@ -105,7 +106,44 @@ class _Compiler:
         _choose_all_phases(sched, fs)
         self._check_peaks(sched)
         self._check_slews(sched)
+        self._check_linear(sched)
         return sched
+
+    def _check_linear(self, sched: Schedule) -> None:
+        """Refuse a segment that drives an interface beyond the linear bubble model (eps/R > LINEAR_AMPLITUDE_LIMIT; docs/physics.md).
+
+        Tone amplitudes add (the worst-case peak); chirps are sampled at 9 frequencies.  Allowed with
+        ``allow_nonlinear`` (then noted): the predicted forces are then not trustworthy.
+        """
+        from acl.analysis.acoustics import interface_amplitudes
+        from acl.design.model import Drive, Tone
+        from acl.physics.constants import LINEAR_AMPLITUDE_LIMIT
+
+        for seg in sched.segments:
+            if not seg.tones or not self.design.capsules:
+                continue
+            worst, where = 0.0, ""
+            chirps = [t for t in seg.tones if t.frequency_end_hz]
+            grid = np.linspace(0.0, 1.0, 9) if chirps else np.zeros(1)
+            for x in grid:
+                tones = tuple(Tone(frequency=t.frequency_hz + x * ((t.frequency_end_hz or t.frequency_hz) - t.frequency_hz),
+                                   amplitude=t.amplitude_v) for t in seg.tones if t.amplitude_v > 0)
+                if not tones:
+                    continue
+                amps = interface_amplitudes(self.design, Drive(tones=tones))
+                k, v = max(amps.items(), key=lambda kv: kv[1], default=("", 0.0))
+                if v > worst:
+                    worst, where = v, k
+            if worst <= LINEAR_AMPLITUDE_LIMIT:
+                continue
+            step = self.program.steps[seg.step]
+            text = (f"step {seg.step + 1} drives interface `{where}` to eps/R = {worst:.2f}, beyond the linear "
+                    f"bubble model (eps/R <= {LINEAR_AMPLITUDE_LIMIT:g}; docs/physics.md)")
+            if self.opts.allow_nonlinear:
+                self.notes.append(text + ": allowed by --allow-nonlinear; forces there are not trustworthy")
+                continue
+            raise _diag("E-SCHED-NONLINEAR", text, step.span,
+                        "lower the voltage, move the tone off resonance, or pass --allow-nonlinear")
 
     def _check_slews(self, sched: Schedule) -> None:
         """Every step with a slew limit: the emitted amplitude envelope, crossfades included, obeys it.
