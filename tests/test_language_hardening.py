@@ -281,3 +281,44 @@ def test_check_json_names_the_stdin_file():
     r = _acl("check", "-", "--stdin-filename", "buffer.acl", "--format", "json", stdin="param x = 1 V + 1 um\n")
     doc = json.loads(r.stdout)
     assert doc["files"] == ["buffer.acl"] and doc["diagnostics"][0]["file"] == "buffer.acl"
+
+
+# ------------------------------------------------------------------------------ diagnostics: the root cause, once
+BAD = ROOT / "tests" / "bad"
+
+
+def _errors(name: str, **kw):
+    _, diags = check_design(str(BAD / name), **kw)
+    return [d for d in diags if d.is_error]
+
+
+@pytest.mark.parametrize("name, code", [
+    ("diag_mount_unknown_target_once.acl", "E201"),   # was 7: + E204 needs a center, 5 x E509 not on a beam tip
+    ("diag_unknown_unit_once.acl", "E302"),           # was 3 x E302 (+ cascaded E204 on the capsule)
+    ("diag_direction_without_sign.acl", "E201"),
+    ("diag_stdlib_without_import.acl", "E201"),       # was + E204 "has no cavity" from the failed `like`
+])
+def test_one_root_cause_is_one_error(name, code):
+    assert [d.code for d in _errors(name)] == [code]
+
+
+@pytest.mark.parametrize("name, hint", [
+    ("diag_direction_without_sign.acl", "did you mean `+x`"),
+    ("diag_stdlib_without_import.acl", "add `import stdlib.capsules`"),
+    ("syntax_wait_for_pause.acl", "did you mean `pause`?"),
+    ("syntax_to_for_range.acl", "`lo .. hi`"),
+    ("diag_unknown_unit_once.acl", "MPa"),
+])
+def test_hint_names_the_fix(name, hint):
+    (d,) = _errors(name)
+    assert hint in d.hint
+
+
+def test_the_same_diagnostic_reached_twice_is_recorded_once():
+    from acl.diagnostics import DiagnosticBag, Span
+
+    bag = DiagnosticBag()
+    for _ in range(3):
+        bag.error("E302", "unknown unit `Mpa`", Span(file="a.acl", line=1, column=2))
+    bag.error("E302", "unknown unit `Mpa`", Span(file="a.acl", line=2, column=2))
+    assert len(bag.items) == 2

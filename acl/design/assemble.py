@@ -47,6 +47,8 @@ def assemble(b: Builder) -> M.Design:
     # ---- positions: capsule centres from mounts, beam rigid lengths from their capsules
     capsules: list[M.Capsule] = []
     for name, spec in b.capsules.items():
+        if name in b.failed:    # its mount was wrong (reported there)
+            continue
         j = mounted_on.get(name)
         if spec.center is None:
             if j is not None and j[0] == "beam":
@@ -283,6 +285,11 @@ def _joints(b: Builder, beams_raw):
         capsule_joined[name] = span
         return True
 
+    def unplaced(cap):
+        # the mount is wrong: its capsule has no position, which every later use would report again
+        if cap is not None:
+            b.failed.add(cap[1])
+
     for st in b.env.statements:
         if isinstance(st, A.MountStmt):
             cap = _local(b, st.capsule, ("capsule",), "mount")
@@ -296,14 +303,17 @@ def _joints(b: Builder, beams_raw):
                 else:
                     b.bag.error("E207", f"mount: `{tgt_name}` is a {tkind}; capsules mount on a beam tip, latch shuttle or spring end",
                                 st.target.span)
+                unplaced(cap)
                 continue
             point = TARGET_POINTS[tkind]
             if len(st.target.parts) != 2 or st.target.parts[1] != point:
                 got = st.target.parts[1] if len(st.target.parts) > 1 else None
                 b.bag.error("E212", f"mount: a {tkind} is mounted at `{tgt_name}.{point}`" + (f", not `.{got}`" if got else ""),
                             st.target.span, f"write `mount ... on {tgt_name}.{point}`")
+                unplaced(cap)
                 continue
             if cap is None or tgt_name in b.failed:
+                unplaced(cap)
                 continue
             key = (tkind, tgt_name)
             if key in target_used:

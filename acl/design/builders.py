@@ -54,11 +54,15 @@ class Builder:
         self.transducers: dict[str, M.Transducer] = {}
         self.kinds: dict[str, str] = {}      # local element name -> kind
         self.failed: set[str] = set()        # local elements whose declaration had errors
+        self.failed_materials: set[str] = set()
 
     # ------------------------------------------------------------------------------ materials
     def material(self, dv: DeclVal) -> M.Material | None:
         if dv.name in self.materials:
             return self.materials[dv.name]
+        if dv.name in self.failed_materials:   # reported once, where it is declared
+            return None
+        self.failed_materials.add(dv.name)
         try:
             keys = self.r.assigns(dv.node, dv.env, "material")
             E = self._pos(keys, "youngs", "material", dv.name)
@@ -70,6 +74,7 @@ class Builder:
             m = M.Material(name=dv.name, youngs_modulus=E, poisson_ratio=nu, density=rho, span=dv.node.span)
         except _Fail:
             return None
+        self.failed_materials.discard(dv.name)
         self.materials[dv.name] = m
         return m
 
@@ -203,6 +208,8 @@ class Builder:
             return None
         cavities = [(e, en) for e, en in self.r.entries(blk, self.env) if isinstance(e, A.Block) and e.kind == "cavity"]
         orifices = [(e, en) for e, en in self.r.entries(blk, self.env) if isinstance(e, A.Block) and e.kind == "orifice"]
+        if (not cavities or not orifices) and self.r.incomplete(blk):
+            return None
         if not cavities:
             self.bag.error("E204", f"capsule `{name}` has no cavity", blk.span, "add `cavity cylinder { radius = 25 um, height = 33 um }`")
             return None

@@ -1,6 +1,7 @@
 """Finding and loading acl modules: stdlib, sibling files, search paths; import safety and cycles."""
 from __future__ import annotations
 
+import functools
 import os
 from dataclasses import dataclass, field
 from importlib import resources
@@ -262,6 +263,12 @@ def _parse_cached(text: str, display: str) -> A.Module:
             _PARSED.clear()
         _PARSED[key] = hit
     return hit
+
+
+@functools.lru_cache(maxsize=1)
+def stdlib_modules() -> tuple[str, ...]:
+    """Dotted names of the stdlib's modules (`media`, `capsules`, ...)."""
+    return tuple(_stdlib_modules())
 
 
 def _stdlib_modules() -> list[str]:

@@ -178,6 +178,7 @@ class Resolver:
         self.failed_params: set[tuple[int, str]] = set()
         self._entries_cache: dict[tuple[int, int], list] = {}
         self._like_cycle: set[int] = set()   # blocks found on a `like` cycle
+        self._like_failed: set[int] = set()  # blocks whose `like` base could not be used (reported)
         self.override_exprs: dict[str, A.Expr | float] = {}   # a float: an SI value (Python API)
         self.override_spans: dict[str, Span] = {}
         self.used_decls: dict[str, tuple[str, A.Block, ModuleEnv]] = {}
@@ -334,6 +335,7 @@ class Resolver:
                 self.bag.error("E304", f"`{ref.dotted}` is a point, not a value", ref.span)
                 raise _Fail()
             self.bag.error("E201", f"unknown name `{ref.dotted}`", ref.span,
+                           _import_hint(head, cur_env) or
                            suggest(head, list(cur_env.imports) + list(cur_env.decls) + list(cur_env.params)))
             raise _Fail()
         return self._named(cur_env, head, ref)
@@ -347,8 +349,11 @@ class Resolver:
         return IdentVal(name) if len(ref.parts) == 1 and env is self.main and name in _IDENTS else self._unknown(env, name, ref)
 
     def _unknown(self, env, name, ref):
+        hint = None
+        if name in ("x", "y", "z"):
+            hint = f"a direction carries its sign: did you mean `+{name}` (or `-{name}`)?"
         self.bag.error("E201", f"unknown name `{ref.dotted}`", ref.span,
-                       suggest(name, list(env.params) + list(env.decls) + list(env.imports)))
+                       hint or suggest(name, list(env.params) + list(env.decls) + list(env.imports)))
         raise _Fail()
 
     def param(self, env: ModuleEnv, name: str) -> Quantity:
@@ -512,12 +517,15 @@ class Resolver:
             try:
                 target = self.eval(cur.like, cenv)
             except _Fail:
+                self._like_failed.update(id(x[0]) for x in chain)
                 break
             if not isinstance(target, DeclVal):
                 self.bag.error("E207", f"`like` needs a {cur.kind}, found {_what(target)}", cur.like.span)
+                self._like_failed.update(id(x[0]) for x in chain)
                 break
             if target.kind != cur.kind:
                 self.bag.error("E207", f"`{cur.name}` is a {cur.kind} but `{cur.like.dotted}` is a {target.kind}", cur.like.span)
+                self._like_failed.update(id(x[0]) for x in chain)
                 break
             if id(target.node) in on_chain:
                 self.bag.error("E214", f"`like` cycle through `{cur.like.dotted}`", cur.like.span)
@@ -528,6 +536,8 @@ class Resolver:
             tk = (id(target.node), id(target.env))
             if tk in cache and id(target.node) not in self._like_cycle:
                 base = cache[tk]
+                if id(target.node) in self._like_failed:
+                    self._like_failed.update(id(x[0]) for x in chain)
                 break
             chain.append((target.node, target.env))
             on_chain.add(id(target.node))
@@ -548,6 +558,10 @@ class Resolver:
                 cache[(id(b), id(e))] = base
         return base
 
+    def incomplete(self, blk: A.Block) -> bool:
+        """Whether the block's `like` base failed (reported there): its missing entries are not news."""
+        return id(blk) in self._like_failed
+
     def assigns(self, blk: A.Block, env: ModuleEnv, schema_name: str, allowed_blocks=()) -> dict[str, tuple[A.Assign, ModuleEnv]]:
         schema = SCHEMAS[schema_name]
         out: dict[str, tuple[A.Assign, ModuleEnv]] = {}
@@ -563,7 +577,7 @@ class Resolver:
                                suggest(ent.kind, list(allowed_blocks) + list(schema)) or (
                                    f"{schema_name} may contain: " + ", ".join(allowed_blocks) if allowed_blocks else f"{schema_name} has no nested blocks"))
         for key, spec in schema.items():
-            if spec.required and key not in out:
+            if spec.required and key not in out and not self.incomplete(blk):
                 self.bag.error("E204", f"{schema_name} `{blk.name or ''}` is missing `{key}`".replace(" ``", ""), blk.span,
                                f"add `{key} = {_example(D(spec.unit)) if spec.unit is not None else '...'}`")
         return out
@@ -686,6 +700,17 @@ _EXAMPLES = {"m": "40 um", "Hz": "85 kHz", "V": "8 V", "s": "200 ms", "Pa": "13 
 
 def _example(dims) -> str:
     return _EXAMPLES.get(si_unit(dims), f"1 {si_unit(dims)}")
+
+
+def _import_hint(head: str, env: ModuleEnv) -> str | None:
+    """`media.pbs` without `import stdlib.media`: say which import is missing."""
+    if head in env.imports or head in env.decls or head in env.params:
+        return None
+    from acl.design.modules import stdlib_modules
+
+    if head in stdlib_modules():
+        return f"`{head}` is a stdlib module: add `import stdlib.{head}`"
+    return None
 
 
 def _members_hint(env: ModuleEnv) -> str | None:

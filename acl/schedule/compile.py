@@ -153,7 +153,7 @@ class _Compiler:
             choice = choose_tones(table, path.points, vmax, self.opts.tones_per_path, step.tones)
         except ValueError as exc:
             raise _diag("E-SCHED-TONES", f"{name}: {exc}", step.span,
-                        "pin tones with `tones` or give a calibration sweep (--calibration)")
+                        "pin the tones with `, using [85 kHz, 125 kHz]` on the follow step, or give a calibration sweep (--calibration)")
         limits = DriveLimits(max_voltage=vmax, slew_rate=slew)
         try:
             plan = plan_path(choice.gains, path.points, dt, limits, tolerance=self.opts.tolerance_m,
@@ -287,7 +287,7 @@ class _Compiler:
         self.vmax_seen.append(vmax)
         if not step.tones:
             raise _diag("E-SCHED-TONES", f"{name}: a hold step needs its tones", step.span,
-                        "write `tones 85 kHz, 125 kHz` on the hold step")
+                        "write `, using [85 kHz, 125 kHz]` on the hold step")
         provider = self.opts.snap_provider or snap_in_voltages
         v_snap = provider(self.design, step.a, step.b, step.tones, vmax,
                           step.bound if step.mode == "above" else None)

@@ -23,6 +23,11 @@ _TERMINAL_WORDS = {
 }
 
 
+# Words from other languages for program steps -> the acl step.
+_STEP_WORDS = {"wait": "pause", "sleep": "pause", "delay": "pause", "idle": "pause", "ramp": "sweep",
+               "play": "drive", "tone": "drive", "move": "follow", "trace": "follow", "toggle": "switch"}
+
+
 class _ParenNewlines:
     """Post-lexer: newlines inside ( ) and [ ] are not statement ends."""
 
@@ -531,8 +536,13 @@ def _syntax_diagnostic(exc: UnexpectedInput, file: str, lines: list[str], eof_li
             ln = eof_line or _last_line(lines, 0, len(lines))
             span = Span(file=file, line=ln, column=max(1, len(lines[ln - 1].rstrip()) if ln - 1 < len(lines) else 1))
         hint = None
+        word = tok.value if tok.type not in ("$END", "_NL") else None
         if "`}`" in expected and tok.type in ("$END",):
             hint = "a block is missing its closing `}`"
+        elif word in _STEP_WORDS and "`pause`" in expected:
+            hint = f"did you mean `{_STEP_WORDS[word]}`?"
+        elif word == "to" and "`..`" in expected:
+            hint = "a range is written `lo .. hi`, e.g. `40 kHz .. 200 kHz`"
         elif tok.type == "NUMBER" and "a quantity with a unit" not in expected:
             hint = None
         elif tok.type == "_NL" and "`=`" in expected:
