@@ -132,10 +132,10 @@ def diagnostics_to_json(diags: Sequence[Diagnostic]) -> str:
 
 def render(diags: Sequence[Diagnostic], console=None, sources: dict[str, str] | None = None) -> None:
     """Render diagnostics with a caret excerpt of the source line (rich)."""
-    from rich.console import Console
+    from acl._console import make_console
     from rich.text import Text
 
-    console = console or Console(stderr=True, highlight=False)
+    console = console or make_console(stderr=True, highlight=False)
     cache: dict[str, list[str] | None] = {}
     colours = {Severity.ERROR: "bold red", Severity.WARNING: "bold yellow", Severity.INFO: "bold blue"}
     for d in diags:

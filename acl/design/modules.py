@@ -4,7 +4,6 @@ from __future__ import annotations
 import functools
 import os
 from dataclasses import dataclass, field
-from importlib import resources
 
 from acl.diagnostics import DiagnosticBag, DiagnosticError, Span
 from acl.syntax import ast as A
@@ -12,7 +11,9 @@ from acl.syntax.parser import parse_module
 
 
 def stdlib_root() -> str:
-    return str(resources.files("stdlib"))
+    from acl._resources import shipped_dir
+
+    return shipped_dir("stdlib")
 
 
 @dataclass

@@ -63,12 +63,22 @@ def lint_file(path: str, config: LintConfig, overrides: dict | None = None, sear
     """Lint one design; with ``text`` (standard input) that is its source and ``path`` its name."""
     from acl.design.resolve import check_design
 
-    rules = load_rules()
     t0 = time.perf_counter()
     design, check_diags = check_design(path, overrides=overrides or {}, search_paths=search_paths, text=text)
     t_check = time.perf_counter() - t0
+    return lint_design(path, design, check_diags, _read_source(path, text), config, verbose, t0, t_check)
+
+
+def lint_design(path: str, design, check_diags: list[Diagnostic], source: SourceFile | None, config: LintConfig,
+                verbose: bool = False, t0: float | None = None, t_check: float = 0.0) -> FileReport:
+    """Rules over an already checked design (``design`` None when it did not resolve).
+
+    ``source`` is :func:`acl.lint.source.scan` of the file's text (None when unreadable); the
+    language server passes the editor's unsaved text here.
+    """
+    rules = load_rules()
+    t0 = time.perf_counter() if t0 is None else t0
     notes: list[str] = []
-    source = _read_source(path, text)
     findings = list(check_diags)
     if design is None:
         notes.append("design does not resolve: rules not run")
