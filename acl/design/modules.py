@@ -150,7 +150,7 @@ class Loader:
             self.bag.error("E208", f"cannot find `{st.file}` to extend", st.span)
             return None
         real = os.path.realpath(cand)
-        if not self._allowed(real, root):
+        if not self.allowed(real, root):
             self.bag.error("E210", f"`{st.file}` is outside the design's directory tree", st.span,
                            "pass its folder with --path to allow it")
             return None
@@ -201,7 +201,7 @@ class Loader:
             if not os.path.isfile(cand):
                 continue
             real = os.path.realpath(cand)
-            if not self._allowed(real, root):
+            if not self.allowed(real, root):
                 self.bag.error("E210", f"import `{shown}` resolves outside the design's directory tree",
                                st.span, "imports may only reach the importing file's folder and below, the stdlib, and --path folders")
                 return None
@@ -243,7 +243,8 @@ class Loader:
             return False
         return True
 
-    def _allowed(self, real: str, root: str) -> bool:
+    def allowed(self, real: str, root: str) -> bool:
+        """Whether a file may be read: under the design's folder, the stdlib or a --path folder."""
         roots = [os.path.realpath(root), os.path.realpath(stdlib_root()), *self.search_paths]
         return any(real == r or real.startswith(r.rstrip(os.sep) + os.sep) for r in roots)
 
