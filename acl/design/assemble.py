@@ -124,7 +124,11 @@ def _all_finite(design: M.Design, bag) -> bool:
     from a huge radius), so no NaN or infinity reaches the analyses. An iterative walk over the models.
     """
     ok = True
-    stack = [(design, None, "design")]
+    # the elements: their derived values (volumes, tips, stiffnesses, orifice centres) are computed
+    # by the builders; parameters, observations and program steps hold evaluated expressions only
+    stack = [(x, None, "design") for x in (design.medium, design.transducer, design.materials, design.capsules,
+                                           design.beams, design.springs, design.latches, design.anchors,
+                                           design.effects) if x is not None]
     while stack:
         v, span, where = stack.pop()
         if isinstance(v, float):

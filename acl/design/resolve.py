@@ -7,9 +7,6 @@ of :mod:`acl.design.checks`.  Every independent error is reported.
 """
 from __future__ import annotations
 
-import contextlib
-import gc
-
 from acl.design import model as M
 from acl.design.assemble import assemble
 from acl.design.builders import Builder
@@ -17,25 +14,9 @@ from acl.design.core import DECL_KINDS, EFFECTS, SCHEMAS, Key  # noqa: F401  (re
 from acl.design.evaluate import Resolver
 from acl.design.modules import Loader, ModuleEnv
 from acl.diagnostics import Diagnostic, DiagnosticBag, DiagnosticError
+from acl.syntax.parser import paused_gc as _no_gc
 
 __all__ = ["load_design", "load_text", "check_design", "Resolver", "SCHEMAS", "DECL_KINDS", "EFFECTS", "Key"]
-
-
-@contextlib.contextmanager
-def _no_gc():
-    """Pause the cyclic garbage collector while a design is built.
-
-    The front end allocates ~10 objects per source token and frees none of them until the end; the
-    collector's passes over that growing heap cost more than the parse itself on large designs
-    (benchmarks/check.py). Reference counting still frees everything; a collection runs after.
-    """
-    was = gc.isenabled()
-    gc.disable()
-    try:
-        yield
-    finally:
-        if was:
-            gc.enable()
 
 
 def load_design(path: str, overrides: dict[str, str] | None = None, search_paths=()) -> M.Design:
