@@ -6,6 +6,7 @@ builders do).
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 
 from acl.design.core import D, IDENTS, SCHEMAS, Fail, example, what_is
@@ -497,7 +498,7 @@ def _refs(exprs):
         if isinstance(x, A.Ref):
             yield x
         elif isinstance(x, A.Expr):
-            stack.extend(v for v in vars(x).values() if isinstance(v, (A.Expr, tuple)))
+            stack.extend(v for v in (getattr(x, f.name) for f in dataclasses.fields(x)) if isinstance(v, (A.Expr, tuple)))
         elif isinstance(x, tuple):
             stack.extend(v for v in x if isinstance(v, (A.Expr, tuple)))
 
