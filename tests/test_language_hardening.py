@@ -322,3 +322,28 @@ def test_the_same_diagnostic_reached_twice_is_recorded_once():
         bag.error("E302", "unknown unit `Mpa`", Span(file="a.acl", line=1, column=2))
     bag.error("E302", "unknown unit `Mpa`", Span(file="a.acl", line=2, column=2))
     assert len(bag.items) == 2
+
+
+# ------------------------------------------------------------------------------ the grammar cache is private
+@pytest.mark.skipif(not hasattr(os, "getuid"), reason="POSIX ownership")
+def test_grammar_cache_is_never_read_from_a_folder_others_can_write(tmp_path, monkeypatch):
+    """lark's cache is a pickle (loading it runs code): a cache folder or file that another user
+    could write is not used."""
+    from acl.syntax import parser as P
+
+    shared = tmp_path / "shared"
+    shared.mkdir()
+    shared.chmod(0o777)
+    monkeypatch.setenv("ACL_CACHE_DIR", str(shared))
+    import tempfile
+
+    monkeypatch.setattr(tempfile, "gettempdir", lambda: str(tmp_path / "t"))
+    path = P._cache_path("grammar text")
+    assert path is False or not str(path).startswith(str(shared))
+    own = tmp_path / "own"
+    monkeypatch.setenv("ACL_CACHE_DIR", str(own))
+    path = P._cache_path("grammar text")
+    assert str(path).startswith(str(own)) and (own.stat().st_mode & 0o077) == 0
+    Path(path).write_bytes(b"planted")
+    Path(path).chmod(0o666)
+    assert P._cache_path("grammar text") != path

@@ -52,21 +52,54 @@ class _ParenNewlines:
 def _lark() -> Lark:
     text = resources.files("acl.syntax").joinpath("grammar.lark").read_text(encoding="utf-8")
     return Lark(text, parser="lalr", start=["start", "drive_only"], propagate_positions=True,
-                maybe_placeholders=True, postlex=_ParenNewlines(), cache=_cache_path())
+                maybe_placeholders=True, postlex=_ParenNewlines(), cache=_cache_path(text))
 
 
-def _cache_path():
+def _cache_path(grammar: str):
+    """Where lark may keep the compiled grammar, or False (no cache).
+
+    lark's cache is a pickle, and loading a pickle runs code: it is kept only in a folder this user
+    owns and nobody else may write (``$ACL_CACHE_DIR``, ``~/.cache/acl``, else a private folder in
+    the temporary directory), never as a guessable name in a shared /tmp that another user could
+    plant first.
+    """
+    import hashlib
     import os
     import tempfile
 
     try:
-        from acl import __version__
         import lark
 
-        path = os.path.join(tempfile.gettempdir(), f"acl-grammar-{__version__}-lark{lark.__version__}-{os.getuid() if hasattr(os, 'getuid') else 0}.cache")
-        return path
-    except Exception:  # pragma: no cover - cache is an optimisation only
+        from acl import __version__
+
+        uid = os.getuid() if hasattr(os, "getuid") else None
+        folders = [os.environ.get("ACL_CACHE_DIR") or os.path.join(os.path.expanduser("~"), ".cache", "acl"),
+                   os.path.join(tempfile.gettempdir(), f"acl-cache-{uid if uid is not None else 'user'}")]
+        for folder in folders:
+            if _private(folder, uid, make=True):
+                digest = hashlib.sha256(grammar.encode("utf-8")).hexdigest()[:16]   # worktrees differ
+                path = os.path.join(folder, f"grammar-{__version__}-lark{lark.__version__}-{digest}.cache")
+                if not os.path.lexists(path) or _private(path, uid, make=False):
+                    return path
+    except Exception:  # pragma: no cover - the cache is an optimisation only
+        pass
+    return False
+
+
+def _private(path: str, uid, make: bool) -> bool:
+    """Whether ``path`` (created as a 0700 folder if ``make``) is this user's and not writable by others."""
+    import os
+    import stat
+
+    try:
+        if make:
+            os.makedirs(path, mode=0o700, exist_ok=True)
+        st = os.lstat(path)
+    except OSError:
         return False
+    if stat.S_ISLNK(st.st_mode) or (uid is not None and st.st_uid != uid):
+        return False
+    return not st.st_mode & (stat.S_IWGRP | stat.S_IWOTH)
 
 
 def _terminal_word(name: str) -> str:
