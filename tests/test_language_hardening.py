@@ -347,3 +347,12 @@ def test_grammar_cache_is_never_read_from_a_folder_others_can_write(tmp_path, mo
     Path(path).write_bytes(b"planted")
     Path(path).chmod(0o666)
     assert P._cache_path("grammar text") != path
+
+
+def test_too_deep_drive_cell_is_placed_in_its_cell():
+    from acl.syntax.parser import parse_drive
+
+    with pytest.raises(DiagnosticError) as info:
+        parse_drive("125 kHz @ (" + "-" * 300 + "1 V)", "data.csv", line=3, column=5)
+    (d,) = info.value.diagnostics
+    assert (d.code, d.span.file, d.span.line) == ("E104", "data.csv", 3) and d.span.column > 5

@@ -454,7 +454,12 @@ def parse_drive(text: str, file: str = "<drive>", line: int = 1, column: int = 1
         d = _syntax_diagnostic(exc, file, text.split("\n"))
         span = Span(file=file, line=line, column=column + (d.span.column - 1 if d.span else 0))
         raise DiagnosticError([Diagnostic(d.code, d.severity, f"in drive `{text.strip()}`: {d.message}", span, d.hint or "a drive looks like `125 kHz @ 6 V` or `85 kHz @ 8 V + 125 kHz @ 4 V`")])
-    tones = _Builder(file, text).transform(tree)
+    try:
+        tones = _Builder(file, text).transform(tree)
+    except DiagnosticError as exc:   # too deep: place it in the cell, as syntax errors are
+        raise DiagnosticError([Diagnostic(d.code, d.severity, f"in drive `{text.strip()[:60]}`: {d.message}",
+                                          Span(file=file, line=line, column=column + (d.span.column - 1 if d.span else 0)),
+                                          d.hint) for d in exc.diagnostics]) from None
     if line != 1 or column != 1:  # shift spans to where the drive sits (a CSV cell)
         tones = tuple(_shift_tone(t, line, column) for t in tones)
     return tones
