@@ -8,13 +8,16 @@ Generated parts of a page are marked with HTML comments (invisible once rendered
 ``<!-- doc: = EXPR -->VALUE<!-- /doc -->``
     an inline value: the Python expression EXPR, with ``acl``, ``json_of("ARGS")`` (the JSON output
     of ``acl ARGS --output-format json``, cached), ``out_of("ARGS")`` and ``ci(d, ...)`` (a value
-    and its 95 % interval from a report entry, e.g. ``48.6 um [48.4, 48.8]``).
+    and its 95 % interval from a report entry, e.g. ``48.6 um [48.4, 48.8]``), ``block(obj)`` (a
+    fenced JSON block).
 ``<!-- doc: doctest -->`` ```` ```python ```` ... ``<!-- /doc -->``
     a ``>>>`` session; each statement is run and the lines after it replaced by what it prints.
 ``<!-- doc-run: acl ARGS -->``
     runs ``acl ARGS`` and shows nothing (data a later marker uses, e.g. ``acl synth``).
 
 A marker quoted in inline code (right after a backtick) is left alone.
+A page is stale when its text differs from a fresh run other than in numbers that agree to 0.2 %
+(magnitudes below 1e-20 in SI, solver residuals, are noise); JSON blocks show 6 significant digits.
 Every page runs in a fresh scratch folder holding copies of ``examples/`` and ``tests/data/``, in
 page order, so commands may use files made by earlier ones and nothing is written to the repository.
 
@@ -108,7 +111,11 @@ class Session:
             v, (lo, hi) = entry["value"] * scale, [x * scale for x in entry["ci95"]]
             return f"{v:{fmt}} {unit} [{lo:{fmt}}, {hi:{fmt}}]"
 
-        return {"acl": acl, "json_of": json_of, "out_of": out_of, "ci": ci}
+        def block(obj, lang: str = "json") -> str:
+            text = json.dumps(_rounded(obj), indent=2) if lang == "json" else str(obj)
+            return f"\n```{lang}\n{text.rstrip()}\n```\n"
+
+        return {"acl": acl, "json_of": json_of, "out_of": out_of, "ci": ci, "block": block}
 
     def evaluate(self, expr: str) -> str:
         with contextlib.chdir(self.dir):
@@ -141,6 +148,34 @@ class Session:
                 if printed:
                     out.extend(printed.split("\n"))
         return "\n".join(out)
+
+
+def _rounded(obj, digits: int = 6):
+    """Floats to ``digits`` significant digits (the last digits of a solver's result are noise)."""
+    if isinstance(obj, float):
+        return float(f"{obj:.{digits}g}")
+    if isinstance(obj, dict):
+        return {k: _rounded(v, digits) for k, v in obj.items()}
+    if isinstance(obj, list):
+        return [_rounded(v, digits) for v in obj]
+    return obj
+
+
+NUMBER = re.compile(r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?")
+REL_TOL = 2e-3      # numbers agree to 0.2 % (one unit in the 4th digit; BLAS and solver versions differ)
+NOISE = 1e-20       # SI magnitudes below this (solver residuals) are numerical noise
+
+
+def same(old: str, new: str) -> bool:
+    """The texts are equal but for numbers that agree within REL_TOL (or are both below NOISE)."""
+    if old == new:
+        return True
+    if NUMBER.split(old) != NUMBER.split(new):
+        return False
+    for a, b in zip(map(float, NUMBER.findall(old)), map(float, NUMBER.findall(new))):
+        if not (abs(a - b) <= REL_TOL * max(abs(a), abs(b)) or max(abs(a), abs(b)) < NOISE):
+            return False
+    return True
 
 
 def render(page: str, text: str) -> str:
@@ -179,15 +214,16 @@ def _exit(cmd: str) -> tuple[str, int]:
     return (cmd[:m.start()], int(m.group(1))) if m else (cmd, 0)
 
 
-def stale(pages=None) -> dict[str, tuple[str, str]]:
-    """{page: (unified diff, fresh text)} of the pages whose marked parts no longer match a fresh run."""
+def stale(pages=None, exact: bool = False) -> dict[str, tuple[str, str]]:
+    """{page: (unified diff, fresh text)} of the pages whose marked parts no longer match a fresh run
+    (``exact``: any difference, also in the last digits)."""
     out = {}
     for page in pages or PAGES:
         old = (ROOT / page).read_text(encoding="utf-8")
         if "<!-- doc" not in old:
             continue
         new = render(page, old)
-        if new != old:
+        if new != old if exact else not same(old, new):
             diff = "".join(difflib.unified_diff(old.splitlines(True), new.splitlines(True), page, page + " (fresh run)"))
             out[page] = (diff, new)
     return out
@@ -198,7 +234,7 @@ def main(argv: list[str]) -> int:
     pages = [a for a in argv if not a.startswith("--")] or None
     sys.path.insert(0, str(ROOT))
     try:
-        diffs = stale(pages)
+        diffs = stale(pages, exact=update)
     except DocError as exc:
         sys.stderr.write(f"docs_sync: {exc}\n")
         return 2

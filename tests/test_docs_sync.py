@@ -31,3 +31,11 @@ def test_harness_regenerates_commands_values_and_sessions(tmp_path):
 def test_a_command_that_fails_unexpectedly_is_an_error():
     with pytest.raises(docs_sync.DocError):
         docs_sync.render("example.md", "<!-- doc: $ acl check nowhere.acl --><!-- /doc -->")
+
+
+def test_numbers_compare_to_a_relative_tolerance_and_text_exactly():
+    assert docs_sync.same("d_c = 48.6 um, r = 5.0e-26", "d_c = 48.6 um, r = 3.1e-25")
+    assert docs_sync.same("f = 123139.0 Hz", "f = 123139.2 Hz")
+    assert not docs_sync.same("d_c = 56.5 um", "d_c = 48.6 um")
+    assert not docs_sync.same("3 programs", "1 programs")
+    assert not docs_sync.same("attract", "repel")
