@@ -14,6 +14,9 @@ Generated parts of a page are marked with HTML comments (invisible once rendered
     a ``>>>`` session; each statement is run and the lines after it replaced by what it prints.
 ``<!-- doc-run: acl ARGS -->``
     runs ``acl ARGS`` and shows nothing (data a later marker uses, e.g. ``acl synth``).
+``<!-- doc-py: STATEMENTS -->``
+    runs Python statements (imports, small helper functions) and shows nothing; the names they
+    define are available to the later markers of the page.
 
 A marker quoted in inline code (right after a backtick) is left alone.
 A page is stale when its text differs from a fresh run other than in numbers that agree to 0.2 %
@@ -44,7 +47,8 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 PAGES = ["README.md", *sorted(str(p.relative_to(ROOT)) for p in (ROOT / "docs").glob("*.md"))]
 # a marker quoted in inline code (after a backtick) is text, not a marker
-MARK = re.compile(r"(?<!`)<!-- doc-run: (?P<run>.*?) -->|(?<!`)<!-- doc: (?P<key>.*?) -->(?P<body>.*?)<!-- /doc -->", re.S)
+MARK = re.compile(r"(?<!`)<!-- doc-run: (?P<run>.*?) -->|(?<!`)<!-- doc-py:(?P<py>.*?)-->|"
+                  r"(?<!`)<!-- doc: (?P<key>.*?) -->(?P<body>.*?)<!-- /doc -->", re.S)
 EXIT = re.compile(r"\s*->\s*exit\s+(\d+)\s*$")
 
 
@@ -62,6 +66,7 @@ class Session:
             if (ROOT / name).is_dir():
                 shutil.copytree(ROOT / name, Path(self.dir) / name)
         self.cache: dict[str, tuple[int, str, str]] = {}
+        self.ns: dict | None = None
 
     def close(self) -> None:
         shutil.rmtree(self.dir, ignore_errors=True)
@@ -99,6 +104,18 @@ class Session:
         return out, both
 
     def namespace(self) -> dict:
+        """The page's Python namespace, shared by its doc-py, `=` and doctest markers."""
+        if self.ns is None:
+            self.ns = self._namespace()
+        return self.ns
+
+    def run_py(self, code: str) -> None:
+        import textwrap
+
+        with contextlib.chdir(self.dir):
+            exec(compile(textwrap.dedent(code).strip() + "\n", f"<{self.page}>", "exec"), self.namespace())
+
+    def _namespace(self) -> dict:
         import acl
 
         def json_of(args: str):
@@ -189,6 +206,10 @@ def render(page: str, text: str) -> str:
             if m.group("run") is not None:
                 cmd, want = _exit(m.group("run"))
                 session.acl(cmd, want)
+                pieces.append(m.group(0))
+                continue
+            if m.group("py") is not None:
+                session.run_py(m.group("py"))
                 pieces.append(m.group(0))
                 continue
             key, body = m.group("key").strip(), m.group("body")
