@@ -112,6 +112,12 @@ def test_planted_effect_changes_the_data_and_is_announced(tmp_path, capsys):
     rc, err, out = _synth(capsys, tmp_path, "--voltages", "0V..8V:5", "--effect", "drive_saturation=v_sat:6V")
     assert rc == 0 and "planted drive_saturation: v_sat = 6" in err
     assert out.read_text() != base
+    import json
+
+    assert main(["synth", CANTILEVER, "-o", str(out), "--voltages", "0V..8V:5", "--effect", "drive_saturation=v_sat:6V",
+                 "--output-format", "json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc == {"output": str(out), "rows": 5, "planted": {"drive_saturation": {"v_sat": 6.0}}}
 
 
 def test_fit_warns_when_nothing_is_free(tmp_path, capsys):
