@@ -105,9 +105,10 @@ def test_lint_output_formats_include_text_as_full():
 # -- -q / -v on every command -----------------------------------------------------------------------
 
 @pytest.mark.parametrize("command", ["check", "show", "analyze", "compile", "lint", "fit", "synth", "rule"])
-def test_every_command_takes_quiet_and_verbose(command):
+def test_every_command_takes_quiet_and_verbose(command, monkeypatch):
     from acl.cli import build_parser
 
+    monkeypatch.setattr(sys, "argv", ["acl", command])     # build_parser builds the named command in full
     parser = build_parser()
     sub = next(a for a in parser._actions if a.dest == "command").choices[command]
     for flag in ("-q", "--quiet", "-v", "--verbose"):
