@@ -166,8 +166,7 @@ def _source_lines(path: str, cache: dict, sources: dict[str, str] | None) -> lis
         import os
 
         try:
-            # only regular files: opening a FIFO or a device to quote it would block or never end
-            if os.path.isfile(path):
+            if os.path.isfile(path):   # never a FIFO or a device: excerpts must not hang
                 with open(path, encoding="utf-8", errors="replace") as fh:
                     text = fh.read(2_000_000)
         except OSError:

@@ -10,6 +10,23 @@ from acl.diagnostics import Diagnostic, DiagnosticError, Span, diagnostics_to_js
 _SET = re.compile(r"^\s*([A-Za-z_][A-Za-z0-9_]*)\s*=\s*(.+?)\s*$")
 
 
+# A leading number: digits with an optional fraction and an optional exponent (`2.0e1`, `2e-5`).
+_LEADING_NUMBER = re.compile(r"\s*([+-]?(?:\d+\.\d*|\.\d+|\d+)(?:[eE][+-]?\d+)?)\s*(.*?)\s*$", re.S)
+
+
+def quantity_text(text: str) -> str:
+    """A value from the command line as acl text: `60um` -> `60 um`, `2.0e1um` -> `2.0e1 um`.
+
+    The one place the CLI splits a number from its unit (--set, synth's --noise, --sweep, --effect):
+    scientific notation stays one number, never a number followed by the unit `e`.
+    """
+    m = _LEADING_NUMBER.fullmatch(text)
+    if not m:
+        return text.strip()
+    number, unit = m.groups()
+    return f"{number} {unit}" if unit else number
+
+
 def add_design_options(p, sets: bool = True) -> None:
     if sets:
         p.add_argument("--set", action="append", default=[], metavar="P=V",
@@ -27,10 +44,7 @@ def parse_sets(items: list[str]) -> tuple[dict[str, str], list[Diagnostic]]:
             diags.append(error("E-USAGE", f"--set {item!r}: expected NAME=VALUE, e.g. --set gap=60um",
                                Span(file="<--set>", line=1, column=1)))
             continue
-        value = m.group(2)
-        # allow `60um` as well as `60 um`
-        value = re.sub(r"^([0-9.eE+-]+)([A-Za-z\u00b5\u03bc])", r"\1 \2", value)
-        out[m.group(1)] = value
+        out[m.group(1)] = quantity_text(m.group(2))
     return out, diags
 
 
@@ -64,11 +78,33 @@ def exit_code(diags) -> int:
     return 1 if any(d.is_error for d in diags) else 0
 
 
-def report(diags, fmt: str = "text") -> None:
+def report(diags, fmt: str = "text", sources: dict[str, str] | None = None) -> None:
     if fmt == "json":
         sys.stdout.write(diagnostics_to_json(diags) + "\n")
     else:
-        render(diags)
+        render(diags, sources=sources)
+
+
+STDIN = "-"
+
+
+def add_stdin_option(p) -> None:
+    p.add_argument("--stdin-filename", metavar="NAME", default="<stdin>",
+                   help="the name (and folder, for imports) of the design read from standard input (`-`)")
+
+
+def read_stdin(name: str) -> tuple[str | None, list[Diagnostic]]:
+    """The design on standard input (`-`): UTF-8 text, at most the design size limit."""
+    from acl.design.modules import MAX_BYTES
+
+    raw = sys.stdin.buffer.read(MAX_BYTES + 1)
+    span = Span(file=name, line=1, column=1)
+    if len(raw) > MAX_BYTES:
+        return None, [error("E601", f"cannot read standard input: larger than {MAX_BYTES // 1_000_000} MB", span)]
+    try:
+        return raw.decode("utf-8"), []
+    except UnicodeDecodeError as exc:
+        return None, [error("E103", f"cannot read standard input: not UTF-8 text (byte {exc.start})", span)]
 
 
 def plotting_missing(option: str, fmt: str = "text") -> bool:

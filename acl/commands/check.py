@@ -4,12 +4,14 @@ from __future__ import annotations
 import json
 import sys
 
-from acl.commands._common import (add_design_options, add_output_format, check_paths, design_files, exit_code,
-                                  parse_sets, report)
+from acl.commands._common import (STDIN, add_design_options, add_output_format, add_stdin_option, check_paths,
+                                  design_files, exit_code, parse_sets, read_stdin, report)
 
 
 def add_parser(p) -> None:
-    p.add_argument("files", nargs="+", metavar="PATH", help="design files (.acl) or folders (searched for *.acl)")
+    p.add_argument("files", nargs="+", metavar="PATH",
+                   help="design files (.acl) or folders (searched for *.acl); `-` reads standard input")
+    add_stdin_option(p)
     add_output_format(p, old=("--format",))
     add_design_options(p)
 
@@ -27,18 +29,29 @@ def run(args) -> int:
     all_diags = []
     ok_files = []
     worst = 0
+    sources: dict[str, str] = {}
     for f in files:
-        design, diags = check_design(f, overrides=overrides, search_paths=args.path)
+        if f == STDIN:
+            f = args.stdin_filename
+            text, diags = read_stdin(f)
+            if text is not None:
+                sources[f] = text
+                design, diags = check_design(f, overrides=overrides, search_paths=args.path, text=text)
+            else:
+                design = None
+        else:
+            design, diags = check_design(f, overrides=overrides, search_paths=args.path)
         all_diags.extend(diags)
         worst = max(worst, exit_code(diags))
         if design is not None:
             ok_files.append((f, design))
     if fmt == "json":
-        sys.stdout.write(json.dumps({"files": files, "ok": worst == 0,
+        sys.stdout.write(json.dumps({"files": [args.stdin_filename if f == STDIN else f for f in files],
+                                     "ok": worst == 0,
                                      "diagnostics": [d.as_dict() for d in all_diags]}, indent=2) + "\n")
         return worst
     if all_diags:
-        report(all_diags)
+        report(all_diags, sources=sources)
     from acl._console import make_console
 
     con = make_console(stderr=True, highlight=False)

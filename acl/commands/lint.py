@@ -7,7 +7,8 @@ from __future__ import annotations
 
 import sys
 
-from acl.commands._common import add_design_options, add_output_format, add_verbosity, parse_sets
+from acl.commands._common import (STDIN, add_design_options, add_output_format, add_stdin_option, add_verbosity,
+                                  parse_sets, read_stdin)
 from acl.diagnostics import Span, error
 
 FORMATS = ("full", "concise", "json", "sarif", "github", "junit", "text")   # text: the same as full
@@ -15,7 +16,8 @@ FORMATS = ("full", "concise", "json", "sarif", "github", "junit", "text")   # te
 
 def add_parser(p) -> None:
     p.add_argument("paths", nargs="*", default=["."], metavar="PATH",
-                   help="design files or folders (folders are searched for *.acl); default: .")
+                   help="design files or folders (folders are searched for *.acl); `-` reads standard input; default: .")
+    add_stdin_option(p)
     add_output_format(p, choices=FORMATS, default="full", old=("--format",))
     p.add_argument("--select", action="append", default=[], metavar="CODES",
                    help="only these rules: codes or prefixes, comma-separated (replaces the configuration's)")
@@ -74,7 +76,14 @@ def run(args) -> int:
     ignore, d2 = _codes(args.ignore, "--ignore", rules)
     if diags or d1 or d2:
         return _fail(diags + d1 + d2)
-    files, missing = collect_files(args.paths)
+    stdin_text = None
+    if STDIN in args.paths:
+        stdin_text, d3 = read_stdin(args.stdin_filename)
+        if d3:
+            return _fail(d3)
+    files, missing = collect_files([p for p in args.paths if p != STDIN])
+    if stdin_text is not None:
+        files.insert(args.paths.index(STDIN), STDIN)
     if missing:
         return _fail([error("E-USAGE", f"no such file or folder: `{m}`", Span(file=m, line=1, column=1)) for m in missing])
     configs: dict[str | None, object] = {}
@@ -95,7 +104,11 @@ def run(args) -> int:
         if args.config:
             config_for(args.config)
         for f in files:
-            reports.append(lint_file(f, config_for(f), overrides, args.path, verbose=args.verbose))
+            if f == STDIN:
+                name = args.stdin_filename
+                reports.append(lint_file(name, config_for(name), overrides, args.path, verbose=args.verbose, text=stdin_text))
+            else:
+                reports.append(lint_file(f, config_for(f), overrides, args.path, verbose=args.verbose))
     except ConfigError as exc:
         return _fail(exc.diagnostics)
     if not files:

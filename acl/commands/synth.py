@@ -4,7 +4,7 @@ from __future__ import annotations
 import math
 import re
 
-from acl.commands._common import add_output_format, exit_code, one_design, parse_sets, report
+from acl.commands._common import add_output_format, exit_code, one_design, parse_sets, quantity_text, report
 
 
 def add_parser(p) -> None:
@@ -73,7 +73,7 @@ def _qty(text, dims_name):
     from acl.fit.data import parse_quantity
     from acl.units import parse_unit_static
 
-    text = re.sub(r"^([0-9.eE+-]+)([A-Za-z\u00b5])", r"\1 \2", text.strip())
+    text = quantity_text(text)
     value, dims = parse_quantity(text)
     if dims != parse_unit_static(dims_name):
         raise ValueError(f"`{text}` is not in {dims_name}")
@@ -111,7 +111,7 @@ def run(args) -> int:
                 k, sep, v = part.partition(":")
                 if not sep:
                     return _usage(f"--effect {item!r}: parameters are NAME:VALUE, e.g. drive_saturation=v_sat:8V")
-                v = re.sub(r"^([0-9.eE+-]+)([A-Za-z\u00b5/])", r"\1 \2", v.strip())
+                v = quantity_text(v)
                 from acl.fit.data import parse_quantity
                 params[k.strip()] = parse_quantity(v)[0]
             effects[name.strip()] = params
@@ -120,7 +120,7 @@ def run(args) -> int:
             k, sep, vals = item.partition("=")
             if not sep:
                 return _usage(f"--sweep {item!r}: expected P=V1,V2,...")
-            sets[k.strip()] = [re.sub(r"^([0-9.eE+-]+)([A-Za-z\u00b5])", r"\1 \2", v.strip())
+            sets[k.strip()] = [quantity_text(v)
                                for v in vals.split(",") if v.strip()]
     except (ValueError, UnitError) as exc:
         return _usage(str(exc))
