@@ -63,7 +63,9 @@ def test_reader_refuses_a_fifo_itself(tmp_path):
     ("deflection,1.2,um,125 kHz @ 3 V,0,1e308,50 um", 35, "E806", "beyond 1 m"),
     ("deflection,1.2,um,1e308 kHz @ 3 V,0,0.2,50 um", 19, "E501", "outside the band"),
     ("deflection,1.2,um,125 kHz @ 3 V,1e300,0.2,50 um", 33, "E806", "time"),
-], ids=["above-band", "above-max-voltage", "value-1e308-um", "sigma-1e308", "drive-1e308-kHz", "time-1e300"])
+    ("deflection,1.2,um,125 kHz @ 3 V,0,0.2,1e308 um", 1, "E805", "does not resolve"),
+], ids=["above-band", "above-max-voltage", "value-1e308-um", "sigma-1e308", "drive-1e308-kHz", "time-1e300",
+        "set-1e308-um"])
 def test_out_of_range_cells_are_located_diagnostics_without_numpy_warnings(tmp_path, capsys, row, column, code, words):
     code_, err, path = _fit(capsys, tmp_path, HEADER + GOOD + row + "\n")
     assert code_ == 1 and f"{path}:3:{column}" in err and code in err and words in err, err
