@@ -307,3 +307,24 @@ def test_vscode_extension_script_is_valid_javascript():
         pytest.skip("node is not installed")
     r = subprocess.run([node, "--check", str(VSCODE / "extension.js")], capture_output=True, text=True, timeout=60)
     assert r.returncode == 0, r.stderr
+
+
+# ---- acl show ----------------------------------------------------------------------------------
+
+def test_acl_show_colours_source_lines_on_a_terminal_only():
+    import io
+
+    from rich.console import Console
+
+    import acl
+    from acl.commands.show import design_tree
+
+    tree = design_tree(acl.load(str(ROOT / "examples" / "fig1f_selective_beams.acl")))
+    term = io.StringIO()
+    Console(file=term, force_terminal=True, color_system="256", width=200).print(tree)
+    line = next(x for x in term.getvalue().splitlines() if "separation" in x)
+    assert re.search(r"\x1b\[[0-9;]*mrequire\x1b\[0m", line) and re.search(r"\x1b\[[0-9;]*mkHz\x1b\[0m", line)
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]))
+    r = subprocess.run([sys.executable, "-m", "acl", "show", "examples/fig1f_selective_beams.acl"], cwd=ROOT,
+                       capture_output=True, text=True, env=env, timeout=120)
+    assert "require separation(low, high) >= 50 kHz" in r.stdout and "\x1b[" not in r.stdout
