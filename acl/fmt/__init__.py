@@ -27,6 +27,8 @@ def format_source(text: str, path: str = "<stdin>") -> str:
     source = text.replace("\r\n", "\n")
     before = parse_module(source, path)
     out = layout(tokenize(source, path))
+    if out == text:   # already canonical: nothing to check
+        return out
     try:
         after = parse_module(out, path)
     except DiagnosticError as exc:

@@ -77,6 +77,9 @@ class _Builder:
     def newline(self) -> None:
         if self.cur is not None:
             self.flush()
+        elif self.cont:   # `\` joined its line to an empty one, which ends the statement: drop it
+            self.lines[-1].code = self.lines[-1].code[:-2]
+            self.cont = False
         else:
             self.blank = True
 
