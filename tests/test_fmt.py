@@ -198,6 +198,11 @@ def test_backslash_continuations_are_kept():
     assert format_source("param a = 1 +   \\\n 2\n") == "param a = 1 + \\\n    2\n"
 
 
+def test_a_backslash_before_an_empty_line_is_dropped():
+    """`\\` joins its line to an empty one, whose newline ends the statement: the `}` stays on its line."""
+    assert format_source("program p {\n  pause 1 s \\\n\n}\n") == "program p {\n  pause 1 s\n}\n"
+
+
 def test_crlf_and_missing_final_newline_are_normalised():
     assert format_source("param a = 1\r\nparam b = 2") == "param a = 1\nparam b = 2\n"
 
