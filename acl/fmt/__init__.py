@@ -44,7 +44,7 @@ def format_source(text: str, path: str = "<stdin>") -> str:
 
 def format_file(path: str) -> tuple[str, str]:
     """(original text, formatted text) of a design file; raises DiagnosticError (E601/E103/E1xx)."""
-    from acl.design.modules import _read
+    from acl.design.modules import read_source
 
-    text = _read(path)
+    text = read_source(path)
     return text, format_source(text, path)
