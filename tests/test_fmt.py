@@ -68,9 +68,10 @@ def resolved(text: str, name: str):
 
 
 def _comments(text: str) -> list[str]:
+    """Every comment's words (the formatter may put a space after the `#`)."""
     from acl.fmt.tokens import tokenize
 
-    return sorted(t.text.rstrip() for t in tokenize(text) if t.type == "COMMENT")
+    return sorted(t.text[1:].strip() for t in tokenize(text) if t.type == "COMMENT")
 
 
 # ---- the corpus --------------------------------------------------------------------------------
@@ -192,6 +193,11 @@ def test_wrapped_brackets_line_up_or_hang():
     src = "transducer t {\n gain = [(40 kHz, 9 Pa/V),\n (60 kHz, 15 Pa/V)]\n band = [\n40 kHz,\n 200 kHz\n   ]\n}\n"
     assert format_source(src) == ("transducer t {\n  gain = [(40 kHz, 9 Pa/V),\n          (60 kHz, 15 Pa/V)]\n"
                                   "  band = [\n    40 kHz,\n    200 kHz\n  ]\n}\n")
+
+
+def test_comments_get_a_space_after_the_hash():
+    src = "#note\n##  banner\n#!keep\nparam a = 1 #acl: ignore[ACL601] unused\n"
+    assert format_source(src) == "# note\n##  banner\n#!keep\nparam a = 1  # acl: ignore[ACL601] unused\n"
 
 
 def test_backslash_continuations_are_kept():
