@@ -25,7 +25,7 @@ def format_source(text: str, path: str = "<stdin>") -> str:
     from acl.syntax.parser import parse_module
 
     source = text.replace("\r\n", "\n")
-    before = parse_module(source, path)
+    before = parse_module(source, path)    # the parser's diagnostics and limits, as `acl check` gives them
     out = layout(tokenize(source, path))
     if out == text:   # already canonical: nothing to check
         return out

@@ -106,7 +106,7 @@ class _Builder:
             if starts:
                 self.stmt_indent = indent
                 if self.depth == 0:
-                    self.stmts.append(_Stmt(len(self.lines), len(self.lines), is_import=t.type == "IMPORT"))
+                    self.stmts.append(_Stmt(len(self.lines), len(self.lines), is_import=t.type == "KEYWORD" and t.text == "import"))
             self.cur = _Line(indent, stmt=len(self.stmts) - 1 if self.stmts else None)
             sep = ""
         else:
