@@ -161,6 +161,7 @@ def test_mutants_format_stably_and_keep_their_meaning(source, data):
     ("param y = -( x )\n", "param y = -(x)\n"),
     ("param w = a -x\n", "param w = a - x\n"),
     ("param d = 2.1e-5   m^2/s\n", "param d = 2.1e-5 m^2/s\n"),
+    ("param e=2e-5*4.9E-1/2.0e1um\n", "param e = 2e-5 * 4.9E-1 / 2.0e1 um\n"),
     ("beam b like beams.cantilever50{clamp=(0,0,0)}\n", "beam b like beams.cantilever50 { clamp = (0, 0, 0) }\n"),
     ("capsule c {}\n", "capsule c { }\n"),
     ("require resonance( c ,mode=1 ) in 75kHz..95kHz\n", "require resonance(c, mode = 1) in 75 kHz .. 95 kHz\n"),

@@ -36,6 +36,7 @@ SAMPLE = '''# a sample: every class once
 import stdlib.media
 import "lib/parts.acl" as parts
 param d = 2.1e-5 m^2/s free in 1e-6 m^2/s .. 1.5e-4 m^2/s
+param e = 2e-5 * 4.9E-1 / 2.0e1 um
 param k = 0.7563 nN/um  # acl: ignore[ACL601] unused on purpose
 param x = 5 inch
 capsule c like parts.c1 { orifice jet { radius = 10 um, normal = -x }, q = 40 }
@@ -125,6 +126,7 @@ def test_pygments_sample_covers_every_class():
     def cls_of(word, nth=0):
         i = [m.start() for m in re.finditer(rf"(?<![\w.]){re.escape(word)}(?![\w])", SAMPLE)][nth]
         return {per_char[j] for j in range(i, i + len(word))}
+    assert cls_of("2e-5") == cls_of("4.9E-1") == {Number.Float}   # one number each, as the parser reads them
     assert cls_of("2.1e-5") == {Number.Float} and cls_of("m^2/s") == {Keyword.Type}
     assert cls_of("inch") == {Keyword.Type} and cls_of("in", 0) == {Keyword}   # `free in`
     assert cls_of("# acl: ignore[ACL601] unused on purpose") == {Comment.Special}
@@ -228,6 +230,7 @@ def test_textmate_sample_covers_every_class(engine):
         i = [m.start() for m in re.finditer(rf"(?<![\w.]){re.escape(word)}(?![\w])", SAMPLE)][nth]
         return {chars[j][1][-1] for j in range(i, i + len(word))}
     assert scopes_of("m^2/s") == {"keyword.other.unit.acl"}
+    assert scopes_of("2e-5") == scopes_of("4.9E-1") == {"constant.numeric.float.acl"}
     assert scopes_of("inch") == {"keyword.other.unit.acl"} and scopes_of("in", 0) == {"keyword.other.acl"}
     assert scopes_of("ACL601") == {"constant.other.rule-code.acl"}
     assert scopes_of("switch", 0) == {"entity.name.function.program.acl"}
