@@ -31,7 +31,7 @@ VSCODE = ROOT / "editors" / "vscode"
 GRAMMAR = json.loads((VSCODE / "syntaxes" / "acl.tmLanguage.json").read_text(encoding="utf-8"))
 SOURCES = sorted((ROOT / "examples").glob("*.acl")) + sorted((ROOT / "stdlib").glob("*.acl"))
 
-# Every lexical class once, including scientific notation with and without a unit.
+# Every lexical class and every statement and step of the grammar (it parses; it need not resolve).
 SAMPLE = '''# a sample: every class once
 import stdlib.media
 import "lib/parts.acl" as parts
@@ -47,6 +47,21 @@ program switch {
   follow c along text("EPFL", height = 6 um) in 12 s, limit 20 V
   switch l to b, margin 1.2
   sweep 40 kHz to 160 kHz @ 5 V in 4 s log
+}
+extends "base.acl"
+anchor post { at = (0, 0, 0) }
+effect drag { kind = "added_mass", factor = 1.5 }
+mount c on l.shuttle
+fix c
+link c to c with t
+require gap(c.jet, c.jet) > 10 um
+require resonance(c) < 200 kHz
+program more {
+  drive 85 kHz @ 2 V phase 90 deg + 170 kHz @ 1 V for 1 s, limit 5 V
+  follow c along circle(radius = 3 um) at 10 um/s, slew 100 V/s, using [85 kHz, 125 kHz]
+  hold gap(c.jet, c.jet) above 10 um for 1 s, margin 1.5
+  cross gap(c.jet, c.jet) for 500 ms
+  pause 500 ms
 }
 '''
 _NUMBER = re.compile(r"(\d+\.\d+|\d+\.(?!\.)|\.\d+|\d+)([eE][+-]?\d+)?")
@@ -117,6 +132,12 @@ def check_pygments(text: str) -> None:
 @pytest.mark.parametrize("path", SOURCES, ids=lambda p: p.name)
 def test_pygments_lexer_classes_every_token_of_the_file_as_the_parser_reads_it(path):
     check_pygments(path.read_text(encoding="utf-8"))
+
+
+def test_the_sample_parses():
+    from acl.syntax.parser import parse_module
+
+    parse_module(SAMPLE)
 
 
 def test_pygments_sample_covers_every_class():
