@@ -309,6 +309,13 @@ def test_fmt_keeps_the_file_mode(tmp_path):
     assert f.stat().st_mode & 0o777 == 0o640
 
 
+def test_fmt_rewrites_the_target_of_a_symbolic_link(tmp_path):
+    (tmp_path / "real.acl").write_text(UGLY)
+    (tmp_path / "link.acl").symlink_to("real.acl")
+    assert acl_fmt("link.acl", cwd=tmp_path).returncode == 0
+    assert (tmp_path / "link.acl").is_symlink() and (tmp_path / "real.acl").read_text() == PRETTY
+
+
 def test_fmt_imports_no_heavy_module():
     code = ("import sys\nfrom acl.cli import main\n"
             "rc = main(['fmt', '--check', 'examples'])\n"
