@@ -151,6 +151,40 @@ def test_mutants_format_stably_and_keep_their_meaning(source, data):
     assert _comments(once) == _comments(mutant)
 
 
+def _offsets(text: str):
+    from acl.fmt.tokens import tokenize
+
+    starts = [0] + [m.end() for m in re.finditer("\n", text)]
+    return [(starts[t.line - 1] + t.column - 1, t) for t in tokenize(text) if t.type not in ("NL", "CONT")]
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(st.sampled_from(SOURCES), st.data())
+def test_the_layout_does_not_depend_on_spaces_indentation_or_extra_blank_lines(source, data):
+    """One canonical layout: extra spaces and tabs between tokens, any indentation, trailing
+    whitespace and extra blank lines where there is one already all format to the same text."""
+    path, text = source
+    out, pos = [], 0
+    pad = st.text(st.sampled_from(" \t"), max_size=3)
+    for start, t in _offsets(text):
+        gap = text[pos:start]
+        if "\n" in gap:
+            lines = gap.split("\n")
+            lines = [ln + data.draw(pad, label="trailing") if not ln.lstrip().startswith("#") else ln
+                     for ln in lines[:-1]] + [data.draw(pad, label="indent")]
+            gap = "\n".join(lines)
+            if gap.count("\n") >= 2:
+                gap = "\n" * data.draw(st.integers(0, 2), label="blank lines") + gap
+        elif pos > 0:
+            gap += data.draw(pad, label="spaces")
+        out.append(gap)
+        out.append(text[start:start + len(t.text)])
+        pos = start + len(t.text)
+    out.append(text[pos:])
+    perturbed = "".join(out)
+    assert format_source(perturbed, path) == format_source(text, path)
+
+
 # ---- the layout rules ------------------------------------------------------------------------
 
 @pytest.mark.parametrize("before, after", [
