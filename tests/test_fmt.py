@@ -112,6 +112,14 @@ def test_examples_and_stdlib_are_formatted():
     assert r.returncode == 0, r.stdout[-3000:] + r.stderr[-2000:]
 
 
+def test_acl_blocks_in_the_docs_are_formatted():
+    blocks = [(doc.name, b) for doc in sorted((ROOT / "docs").glob("*.md")) + [ROOT / "README.md"]
+              for b in re.findall(r"```acl\n(.*?)```", doc.read_text(encoding="utf-8"), re.S)]
+    assert blocks
+    for name, block in blocks:
+        assert format_source(block, name) == block, name
+
+
 # ---- hypothesis: mutants of the examples -----------------------------------------------------
 
 SOURCES = [(str(p), p.read_text(encoding="utf-8")) for p in EXAMPLES]
