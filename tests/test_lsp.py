@@ -320,3 +320,36 @@ def test_incremental_parse_equals_whole_file_parse():
     for old, new in (("300 ms", "250 ms"), ("fix c3", "fix c3\nparam extra = 2 um"), ("c2", "c22"), ("{ }", "{\n}")):
         text = text.replace(old, new)
         assert p.parse(text, "d.acl") == parse_module(text, "d.acl"), (old, new)
+
+
+def _apply(text: str, edits: list[dict]) -> str:
+    lines = text.split("\n")
+    offsets = [0]
+    for ln in lines:
+        offsets.append(offsets[-1] + len(ln) + 1)
+
+    def off(p):
+        return offsets[p["line"]] + p["character"]
+
+    for e in sorted(edits, key=lambda e: off(e["range"]["start"]), reverse=True):
+        text = text[:off(e["range"]["start"])] + e["newText"] + text[off(e["range"]["end"]):]
+    return text
+
+
+def test_formatting_is_acl_fmt(client, tmp_path):
+    from acl.fmt import format_source
+
+    messy = DESIGN.replace("param dwell = 300 ms", "param   dwell=300 ms    # the step").replace(
+        "capsule c1 like capsules.design1 { }", "capsule c1 like capsules.design1 {  }")
+    assert format_source(messy, "m.acl") != messy
+    path = tmp_path / "messy.acl"
+    u, _ = _open(client, path, messy)
+    opts = {"textDocument": {"uri": u}, "options": {"tabSize": 2, "insertSpaces": True}}
+    edits = client.request("textDocument/formatting", opts)
+    assert edits
+    formatted = _apply(messy, edits)
+    assert formatted == format_source(messy, str(path))
+    client.change(u, 2, formatted)
+    assert client.request("textDocument/formatting", opts) == []       # idempotent: nothing left to do
+    client.change(u, 3, formatted + "param broken = (\n")
+    assert client.request("textDocument/formatting", opts) is None     # syntax errors: left alone
