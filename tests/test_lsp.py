@@ -242,12 +242,14 @@ def test_document_symbols_outline(client, tmp_path):
 
 def test_code_actions_fix_every_did_you_mean(client, tmp_path):
     bad = DESIGN.replace("capsules.design2", "capsules.desing2").replace("use medium", "use meduim")
+    bad = bad.replace("drive 125 kHz", "drive 125 khz")
     bad = bad.replace("program ramp", "capsule c5 { center = (0, 300 um, 100 um), cavity cylinder { radius = 25 um, height = 33 um }, "
                       "orifice jet { raduis = 10 um } }\nprogram ramp")
     path = tmp_path / "fix.acl"
     u, pub = _open(client, path, bad)
     hinted = [d for d in pub["diagnostics"] if "did you mean" in d["message"]]
-    assert len(hinted) >= 3, pub["diagnostics"]
+    assert len(hinted) >= 4, pub["diagnostics"]
+    assert {"E201", "E302"} <= {d["code"] for d in hinted}
     text = bad
     for d in hinted:
         acts = client.request("textDocument/codeAction", {"textDocument": {"uri": u}, "range": d["range"],
@@ -353,3 +355,14 @@ def test_formatting_is_acl_fmt(client, tmp_path):
     assert client.request("textDocument/formatting", opts) == []       # idempotent: nothing left to do
     client.change(u, 3, formatted + "param broken = (\n")
     assert client.request("textDocument/formatting", opts) is None     # syntax errors: left alone
+
+
+def test_quick_fix_picks_the_misspelt_part_and_skips_ambiguous_hints():
+    from acl.lsp.actions import fix
+
+    line = "capsule c1 like capsules.desing1 { }"
+    a = line.index("capsules")
+    assert fix(line, a, a + len("capsules.desing1"), "did you mean `design1`?") == (a + 9, a + 16, "design1")
+    assert fix("  drive 125 mhz @ 1 V", 8, 15, "did you mean `MHz (or mHz?)`?") is None
+    assert fix("use meduim media.pbs", 4, 10, "did you mean `medium`?") == (4, 10, "medium")
+    assert fix("x", 0, 1, "stdlib modules: media, beams") is None

@@ -1,4 +1,4 @@
-"""`acl lsp`: start the language server on stdin/stdout (editors start it; see docs/editors.md)."""
+"""`acl lsp`: start the language server on stdin/stdout (editors start it; see docs/lsp.md)."""
 from __future__ import annotations
 
 from acl.commands._common import report
