@@ -366,3 +366,34 @@ def test_quick_fix_picks_the_misspelt_part_and_skips_ambiguous_hints():
     assert fix("  drive 125 mhz @ 1 V", 8, 15, "did you mean `MHz (or mHz?)`?") is None
     assert fix("use meduim media.pbs", 4, 10, "did you mean `medium`?") == (4, 10, "medium")
     assert fix("x", 0, 1, "stdlib modules: media, beams") is None
+
+
+def test_hover_on_keys_and_completion_of_capsule_members(client, tmp_path):
+    text = DESIGN + "observe gap1 = gap(c1.jet, c2.jet)\n"
+    path = tmp_path / "keys.acl"
+    u, _ = _open(client, path, text)
+    ln = _line(text, "capsule c2")
+    hv = _hover_text(client, u, ln, text.split("\n")[ln].index("center") + 1)
+    assert hv.startswith("**capsule.center**") and "`m`" in hv
+    ln_o = _line(text, "observe gap1")
+    members = _labels(client.at("textDocument/completion", u, ln_o, text.split("\n")[ln_o].index("jet")))
+    assert members == ["jet"]
+
+
+def test_every_request_anywhere_in_any_corpus_file_answers_without_error(client):
+    """Hover, definition, completion and symbols at many positions of every example, stdlib module
+    and bad input: the server answers each (None is an answer) and never returns an error."""
+    for f in _corpus():
+        text = f.read_text(encoding="utf-8", errors="replace")
+        u = client.open(f, text, 1)
+        client.request("textDocument/documentSymbol", {"textDocument": {"uri": u}})
+        lines = text.split("\n")
+        for ln in range(0, len(lines), max(1, len(lines) // 12)):
+            for ch in sorted({0, len(lines[ln]) // 3, len(lines[ln]) // 2, len(lines[ln])}):
+                for method in ("textDocument/hover", "textDocument/definition", "textDocument/completion"):
+                    client.at(method, u, ln, ch)       # raises on a JSON-RPC error
+        client.request("textDocument/codeAction", {"textDocument": {"uri": u}, "range": {
+            "start": {"line": 0, "character": 0}, "end": {"line": len(lines) - 1, "character": 0}},
+            "context": {"diagnostics": []}})
+        client.notify("textDocument/didClose", {"textDocument": {"uri": u}})
+    assert client.proc.poll() is None
