@@ -397,3 +397,19 @@ def test_every_request_anywhere_in_any_corpus_file_answers_without_error(client)
             "context": {"diagnostics": []}})
         client.notify("textDocument/didClose", {"textDocument": {"uri": u}})
     assert client.proc.poll() is None
+
+
+def test_errors_in_an_imported_file_show_on_its_import(client, tmp_path):
+    (tmp_path / "parts.acl").write_text("param size = 10 um\nparam broken = (3 um\n", encoding="utf-8")
+    text = "import parts\nparam twice = 2 * parts.size\n"
+    path = tmp_path / "main.acl"
+    u, pub = _open(client, path, text)
+    proc = subprocess.run([sys.executable, "-m", "acl", "check", "--format", "json", str(path)],
+                          capture_output=True, text=True, cwd=ROOT, env={"PYTHONPATH": str(ROOT), "PATH": ""})
+    cli = json.loads(proc.stdout)["diagnostics"]
+    assert any(d["file"].endswith("parts.acl") for d in cli)
+    assert sorted(d["code"] for d in pub["diagnostics"]) == sorted(d["code"] for d in cli)
+    imported = [d for d in pub["diagnostics"] if "parts.acl:2:" in d["message"]]
+    assert len(imported) == sum(d["file"].endswith("parts.acl") for d in cli)
+    for d in imported:
+        assert d["range"]["start"] == {"line": 0, "character": 0} and d["range"]["end"]["character"] == len("import parts")
