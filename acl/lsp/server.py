@@ -122,7 +122,10 @@ class AclLanguageServer(LanguageServer):
             import multiprocessing
             from concurrent.futures import ProcessPoolExecutor
 
-            self._executor = ProcessPoolExecutor(max_workers=1, mp_context=multiprocessing.get_context("spawn"))
+            from acl.lsp.lint import lower_priority
+
+            self._executor = ProcessPoolExecutor(max_workers=1, mp_context=multiprocessing.get_context("spawn"),
+                                                 initializer=lower_priority)
         return self._executor
 
     def close(self) -> None:
