@@ -141,14 +141,25 @@ class Analysis:
         return all(r["ok"] for r in self.requires)
 
     def resonance(self, capsule: str) -> float:
-        """First natural frequency (Hz) of ``capsule``."""
+        """First natural frequency (Hz) of ``capsule``.
+
+        >>> import acl
+        >>> a = acl.analyze("examples/fig1f_selective_beams.acl", snap_in=False)
+        >>> round(a.resonance("high") / 1e3, 1)       # Table S1 design 3 (paper: 171.8 kHz)
+        174.9
+        """
         for c in self.capsules:
             if c.name == capsule:
                 return c.modes[0].frequency_hz
         raise KeyError(f"no capsule named {capsule!r}")
 
     def as_dict(self) -> dict:
-        """The JSON object of `acl analyze --json`."""
+        """The JSON object of `acl analyze --json`.
+
+        >>> import acl
+        >>> sorted(acl.analyze("examples/fig1f_selective_beams.acl", snap_in=False).as_dict())[:4]
+        ['capsules', 'equilibrium', 'file', 'frequencies_hz']
+        """
         return self._raw
 
     def _repr_html_(self) -> str:
@@ -161,7 +172,13 @@ class Analysis:
         return out
 
     def plot(self, ax=None):
-        """Each capsule's modes as stems (frequency vs Q); program frequencies as dashed lines."""
+        """Each capsule's modes as stems (frequency vs Q); program frequencies as dashed lines.
+
+        >>> import acl
+        >>> ax = acl.analyze("examples/fig1f_selective_beams.acl", snap_in=False).plot()
+        >>> ax.get_xlabel()
+        'frequency (kHz)'
+        """
         ax = new_axes(ax)
         for c in self.capsules:
             f = [m.frequency_hz / 1e3 for m in c.modes]
@@ -211,11 +228,21 @@ class LintResult:
         return not any(f.severity == "error" for f in self.findings)
 
     def codes(self) -> list[str]:
-        """The codes found, in order."""
+        """The codes found, in order.
+
+        >>> import acl
+        >>> acl.lint("examples/fig1f_selective_beams.acl").codes()
+        []
+        """
         return [f.code for f in self.findings]
 
     def as_dict(self) -> dict:
-        """The JSON document of `acl lint --format json PATH`."""
+        """The JSON document of `acl lint --format json PATH`.
+
+        >>> import acl
+        >>> acl.lint("examples/fig1f_selective_beams.acl").as_dict()["summary"]
+        {'findings': 0, 'errors': 0}
+        """
         return self._raw
 
     def _repr_html_(self) -> str:
@@ -224,7 +251,12 @@ class LintResult:
                           ["code", "rule", "severity", "at", "message"], rows)
 
     def plot(self, ax=None):
-        """Number of findings per code (horizontal bars)."""
+        """Number of findings per code (horizontal bars).
+
+        >>> import acl
+        >>> acl.lint("examples/fig1f_selective_beams.acl").plot().get_xlabel()
+        'findings'
+        """
         ax = new_axes(ax)
         counts: dict[str, int] = {}
         for f in self.findings:
@@ -277,7 +309,12 @@ class Compiled:
                    [g.as_dict() for g in schedule.goals], schedule)
 
     def as_dict(self) -> dict:
-        """schedule.json (docs/schedule.md) without the rendered-waveform entries."""
+        """schedule.json (docs/schedule.md) without the rendered-waveform entries.
+
+        >>> import acl
+        >>> acl.compile("examples/fig1f_selective_beams.acl", "sequential").as_dict()["duration_s"]
+        3.0
+        """
         from acl.emit.schedule_json import schedule_dict
 
         return schedule_dict(self.schedule, self.sample_rate_hz)
@@ -290,7 +327,13 @@ class Compiled:
                           ["start (s)", "end (s)", "step", "tones"], rows, more)
 
     def plot(self, ax=None):
-        """Amplitude (V peak) of each tone frequency over time, as steps."""
+        """Amplitude (V peak) of each tone frequency over time, as steps.
+
+        >>> import acl
+        >>> ax = acl.compile("examples/fig1f_selective_beams.acl", "sequential").plot()
+        >>> [t.get_text() for t in ax.get_legend().get_texts()]
+        ['85 kHz', '170 kHz']
+        """
         ax = new_axes(ax)
         freqs = sorted({f for s in self.segments for f, _ in s.tones})
         for f in freqs:
@@ -352,7 +395,7 @@ class FitReport:
                    per, out.calibrated, r)
 
     def as_dict(self) -> dict:
-        """The report.json object (docs/fit.md)."""
+        """The report.json object (docs/fit.md); examples: docs/python.md, section Fit."""
         return self._raw
 
     def _repr_html_(self) -> str:

@@ -187,12 +187,15 @@ def test_api_docstring_examples_run(monkeypatch):
     import acl
 
     monkeypatch.chdir(ROOT)
+    import acl.notebook
+
     finder = doctest.DocTestFinder()
     runner = doctest.DocTestRunner(optionflags=doctest.ELLIPSIS)
-    for t in finder.find(acl, "acl"):
-        runner.run(t)
+    for module in (acl, acl.notebook):
+        for t in finder.find(module, module.__name__):
+            runner.run(t)
     failed, attempted = runner.summarize(verbose=False)
-    assert attempted >= 8 and failed == 0
+    assert attempted >= 20 and failed == 0
 
 
 def test_every_public_function_has_a_docstring_with_an_example():
