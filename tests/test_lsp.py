@@ -316,6 +316,12 @@ def test_incremental_parse_equals_whole_file_parse():
             assert got is None, f      # a file with syntax errors always takes the whole-file path
             continue
         assert got == want, f
+    # a broken statement: parse() refuses, parse_partial() keeps every other statement
+    broken = DESIGN.replace("fix c3", "fix c3 (")
+    assert IncrementalParser().parse(broken, "b.acl") is None
+    part = IncrementalParser().parse_partial(broken, "b.acl")
+    whole = parse_module(DESIGN, "b.acl").statements
+    assert len(part.statements) == len(whole) - 1
     # edits through one parser (cached statements reused) still give the whole-file tree
     p = IncrementalParser()
     text = DESIGN
@@ -413,3 +419,17 @@ def test_errors_in_an_imported_file_show_on_its_import(client, tmp_path):
     assert len(imported) == sum(d["file"].endswith("parts.acl") for d in cli)
     for d in imported:
         assert d["range"]["start"] == {"line": 0, "character": 0} and d["range"]["end"]["character"] == len("import parts")
+
+
+def test_definition_into_a_sibling_file_and_use_completion(client, tmp_path):
+    (tmp_path / "parts.acl").write_text("# shared sizes\nparam size = 10 um\n", encoding="utf-8")
+    text = 'import "parts.acl" as p\nimport stdlib.media\nparam twice = 2 * p.size\nuse medium \n'
+    path = tmp_path / "main.acl"
+    u, _ = _open(client, path, text)
+    got = client.at("textDocument/definition", u, 2, text.split("\n")[2].index("size") + 1)
+    assert got == {"uri": uri(tmp_path / "parts.acl"),
+                   "range": {"start": {"line": 1, "character": 6}, "end": {"line": 1, "character": 10}}}
+    got = client.at("textDocument/definition", u, 0, 3)            # the import line itself
+    assert got["uri"] == uri(tmp_path / "parts.acl")
+    media = _labels(client.at("textDocument/completion", u, 3, len("use medium ")))
+    assert "media.pbs" in media and all(m.startswith("media.") for m in media)

@@ -193,6 +193,11 @@ def _same_file(a: str, b: str) -> bool:
     return a == b or (os.path.exists(a) and os.path.exists(b) and os.path.samefile(a, b))
 
 
+def _no_names(snap: Snapshot) -> bool:
+    """True when the snapshot knows no names (then the last one that parsed serves)."""
+    return snap.env is None or (not snap.parsed and not snap.env.module.statements)
+
+
 def _range(t) -> T.Range:
     return T.Range(start=T.Position(line=t[0], character=t[1]), end=T.Position(line=t[2], character=t[3]))
 
@@ -255,7 +260,7 @@ def _hover(ls: AclLanguageServer, params: T.HoverParams) -> T.Hover | None:
     from acl.lsp.hover import hover
 
     snap = ls.snapshot(params.text_document.uri)
-    if snap.env is None or not snap.parsed:
+    if _no_names(snap):
         snap = ls.resolved.get(params.text_document.uri, snap)
     got = hover(snap, params.position.line, params.position.character)
     if got is None:
@@ -269,7 +274,7 @@ def _definition(ls: AclLanguageServer, params: T.DefinitionParams) -> T.Location
     from acl.lsp.definition import definition
 
     snap = ls.snapshot(params.text_document.uri)
-    if snap.env is None or not snap.parsed:
+    if _no_names(snap):
         snap = ls.resolved.get(params.text_document.uri, snap)
     got = definition(snap, params.position.line, params.position.character)
     if got is None:
@@ -284,7 +289,8 @@ def _completion(ls: AclLanguageServer, params: T.CompletionParams) -> T.Completi
 
     uri = params.text_document.uri
     snap = ls.snapshot(uri)
-    items = complete(snap, ls.resolved.get(uri), params.position.line, params.position.character)
+    names = snap if not _no_names(snap) else ls.resolved.get(uri)
+    items = complete(snap, names, params.position.line, params.position.character)
     return T.CompletionList(is_incomplete=False, items=[
         T.CompletionItem(label=label, kind=_COMPLETION_KIND[kind], detail=detail) for label, kind, detail in items])
 
@@ -295,7 +301,7 @@ def _symbols(ls: AclLanguageServer, params: T.DocumentSymbolParams) -> list[T.Do
 
     uri = params.text_document.uri
     snap = ls.snapshot(uri)
-    if snap.env is None or not snap.parsed:
+    if _no_names(snap):
         snap = ls.resolved.get(uri, snap)
 
     def conv(s: dict) -> T.DocumentSymbol:
