@@ -63,7 +63,7 @@ def _design(design, search_paths=()):
 
 
 def analyze(design, at=None, snap_in=True) -> "Analysis":
-    """Predict modes, selectivity, pair forces, latch margins and `require`s (as `acl analyze --json`).
+    """Predict modes, selectivity, pair forces, latch margins and `require`s (as `acl analyze --output-format json`).
 
     ``design``: a :class:`~acl.design.model.Design` or a path.  ``at``: a drive such as
     ``"125 kHz @ 6 V"`` for the equilibrium under it.  ``snap_in=False`` skips the snap-in voltage
@@ -123,7 +123,7 @@ def compile(design, program=None, sample_rate_hz=None, ramp_s=1e-3, tolerance_m=
 
 
 def _lint(path, select=None, ignore=None, config=None) -> "LintResult":
-    """Run the design rules on a file (as `acl lint --format json PATH`).
+    """Run the design rules on a file (as `acl lint --output-format json PATH`).
 
     ``select``/``ignore``: rule codes or prefixes; ``config``: a configuration file (default: the
     nearest acl.toml or pyproject.toml).  Returns an :class:`acl.notebook.LintResult`.
@@ -157,7 +157,7 @@ def _lint(path, select=None, ignore=None, config=None) -> "LintResult":
 
 
 def _fit(design, data, free=(), effects=None, seed=0, search_paths=()) -> "FitReport":
-    """Fit the model to measured data and search for missing effects (as `acl fit --json`).
+    """Fit the model to measured data and search for missing effects (as `acl fit --output-format json`).
 
     ``design``: path of the design; ``data``: a CSV path or a list of them (docs/data.md);
     ``free``: names to fit besides the design's `free` params (gamma, alpha, E, gain, params);

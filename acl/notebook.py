@@ -106,7 +106,7 @@ class CapsuleModes:
 
 @dataclass
 class Analysis:
-    """What `acl analyze --json` prints, typed.  Fields (docs/analyze.md):
+    """What `acl analyze --output-format json` prints, typed.  Fields (docs/analyze.md):
 
     ``capsules`` (modes per capsule), ``frequencies_hz`` (the program frequencies),
     ``selectivity`` (relative response of each capsule at each frequency, crosstalk flagged),
@@ -154,7 +154,7 @@ class Analysis:
         raise KeyError(f"no capsule named {capsule!r}")
 
     def as_dict(self) -> dict:
-        """The JSON object of `acl analyze --json`.
+        """The JSON object of `acl analyze --output-format json`.
 
         >>> import acl
         >>> sorted(acl.analyze("examples/fig1f_selective_beams.acl", snap_in=False).as_dict())[:4]
@@ -201,7 +201,7 @@ class Analysis:
 
 @dataclass(frozen=True)
 class Finding:
-    """One lint finding or check diagnostic (as `acl lint --format json`)."""
+    """One lint finding or check diagnostic (as `acl lint --output-format json`)."""
 
     code: str                    #: rule code (ACLnnn) or check code (Ennn/Wnnn)
     name: str                    #: rule name, e.g. unused-declaration
@@ -237,7 +237,7 @@ class LintResult:
         return [f.code for f in self.findings]
 
     def as_dict(self) -> dict:
-        """The JSON document of `acl lint --format json PATH`.
+        """The JSON document of `acl lint --output-format json PATH`.
 
         >>> import acl
         >>> acl.lint("examples/fig1f_selective_beams.acl").as_dict()["summary"]
@@ -369,7 +369,7 @@ class FitParameter:
 
 @dataclass
 class FitReport:
-    """What `acl fit --json` prints, typed: RMSE before/after, selected effects, parameters.
+    """What `acl fit --output-format json` prints, typed: RMSE before/after, selected effects, parameters.
 
     ``calibrated_source`` is the calibrated design's text (`acl fit --calibrated` writes it).
     """

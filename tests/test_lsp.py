@@ -78,7 +78,7 @@ def test_diagnostics_are_those_of_acl_check(client, tmp_path):
     bad += "beam b2 like beams.cantilever50 { clamp = (0, 0, 0), lenght = 40 um }\n"
     path = tmp_path / "bad.acl"
     u, pub = _open(client, path, bad)
-    proc = subprocess.run([sys.executable, "-m", "acl", "check", "--format", "json", str(path)],
+    proc = subprocess.run([sys.executable, "-m", "acl", "check", "--output-format", "json", str(path)],
                           capture_output=True, text=True, cwd=ROOT, env={"PYTHONPATH": str(ROOT), "PATH": ""})
     cli = json.loads(proc.stdout)["diagnostics"]
     assert len(cli) >= 3
@@ -410,7 +410,7 @@ def test_errors_in_an_imported_file_show_on_its_import(client, tmp_path):
     text = "import parts\nparam twice = 2 * parts.size\n"
     path = tmp_path / "main.acl"
     u, pub = _open(client, path, text)
-    proc = subprocess.run([sys.executable, "-m", "acl", "check", "--format", "json", str(path)],
+    proc = subprocess.run([sys.executable, "-m", "acl", "check", "--output-format", "json", str(path)],
                           capture_output=True, text=True, cwd=ROOT, env={"PYTHONPATH": str(ROOT), "PATH": ""})
     cli = json.loads(proc.stdout)["diagnostics"]
     assert any(d["file"].endswith("parts.acl") for d in cli)

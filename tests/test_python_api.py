@@ -54,7 +54,7 @@ def test_analyze_equals_acl_analyze_json(monkeypatch):
 
     monkeypatch.chdir(ROOT)
     got = acl.analyze(PAIR, snap_in=False)
-    proc = _cli("analyze", PAIR, "--json", "--no-snap")
+    proc = _cli("analyze", PAIR, "--output-format", "json", "--no-snap")
     want = json.loads(proc.stdout)
     assert json.loads(json.dumps(got.as_dict())) == want
     assert [c.name for c in got.capsules] == [c["name"] for c in want["capsules"]]
@@ -68,7 +68,7 @@ def test_analyze_at_a_drive_gives_the_equilibrium(monkeypatch):
 
     monkeypatch.chdir(ROOT)
     got = acl.analyze(PAIR, at="125 kHz @ 5 V", snap_in=False)
-    want = json.loads(_cli("analyze", PAIR, "--json", "--no-snap", "--at", "125 kHz @ 5 V").stdout)
+    want = json.loads(_cli("analyze", PAIR, "--output-format", "json", "--no-snap", "--at", "125 kHz @ 5 V").stdout)
     assert got.equilibrium is not None     # (compared as JSON text: a NaN residual equals itself there)
     assert json.dumps(got.equilibrium, sort_keys=True) == json.dumps(want["equilibrium"], sort_keys=True)
 
@@ -105,7 +105,7 @@ def test_lint_equals_acl_lint_json(monkeypatch):
     monkeypatch.chdir(ROOT)
     path = "tests/bad/geom_double_mount.acl" if (ROOT / "tests/bad/geom_double_mount.acl").exists() else PAIR
     got = acl.lint(path)
-    want = json.loads(_cli("lint", path, "--format", "json").stdout)
+    want = json.loads(_cli("lint", path, "--output-format", "json").stdout)
     assert got.as_dict() == want
     assert got.codes() == [f["code"] for f in want["findings"]]
     assert got.ok == (want["summary"]["errors"] == 0)
@@ -149,7 +149,7 @@ def test_fit_report_is_the_json_of_acl_fit(tmp_path, monkeypatch):
     write_csv(data, str(csv))
     got = acl.fit("tests/data/fit_cantilever.acl", csv, free=["gamma"], effects=[])
     want = json.loads(_cli("fit", "tests/data/fit_cantilever.acl", str(csv), "--free", "gamma", "--effects", "none",
-                           "--json").stdout)
+                           "--output-format", "json").stdout)
     a, b = got.as_dict(), want
     for k in ("timing_s",):
         a, b = {**a, k: None}, {**b, k: None}
@@ -206,3 +206,14 @@ def test_every_public_function_has_a_docstring_with_an_example():
             continue
         doc = getattr(acl, "_" + name, None).__doc__ if name in ("lint", "fit") else getattr(acl, name).__doc__
         assert doc and ">>>" in doc, name
+
+
+def test_load_is_the_design_acl_show_prints(monkeypatch):
+    import acl
+
+    monkeypatch.chdir(ROOT)
+    d = acl.load(PAIR)
+    want = json.loads(_cli("show", PAIR, "--output-format", "json").stdout)
+    assert json.loads(d.model_dump_json()) == want
+    html = d._repr_html_()
+    assert "<table>" in html and all(c.name in html for c in d.capsules)
