@@ -57,3 +57,9 @@ def run_fit(design_path, data_paths, free=(), search_paths=(), candidates=None, 
     report["timing_s"] = timing
     text = calibrated_text(problem, selection, cal_path, data_paths, report_dir)
     return FitOutcome(problem, selection, report, text, cal_path)
+
+
+# `acl.fit(...)` is also the Python API function (acl/__init__.py): keep it callable.
+from acl._callable import make_callable as _make_callable  # noqa: E402
+
+_make_callable(__name__)
