@@ -61,7 +61,7 @@ def test_fit_command_writes_report_figures_and_a_loadable_calibrated_design(tmp_
     fitted = next(p for p in report["final"]["parameters"] if p["name"] == "gamma")
     # the calibrated design's gamma reproduces the fitted thrust coefficient at f_ref (up to the printed digits)
     from acl.fit.mechanism import build_instance, thrust_per_v2
-    t = thrust_per_v2(build_instance(design), report["f_ref"])[0]
+    t = thrust_per_v2(build_instance(design), report["f_ref"])["a"]
     assert abs(t / fitted["value"] - 1) < 1e-4
 
 
