@@ -25,7 +25,7 @@ def run_fit(design_path, data_paths, free=(), search_paths=(), candidates=None, 
     from acl.fit.calibrated import calibrated_text, default_path, needs_path
     from acl.fit.problem import load_problem
     from acl.fit.report import build_report
-    from acl.fit.residuals import covariates, examine
+    from acl.fit.residuals import covariates, examine, examine_groups
     from acl.fit.select import select_effects
     from acl.fit.solve import NOMINAL_SIGMA
 
@@ -48,6 +48,14 @@ def run_fit(design_path, data_paths, free=(), search_paths=(), candidates=None, 
                      covariates(problem.data, problem.prepared, selection.base.prediction, pname), w, seed)
     after = examine(selection.final.residual,
                     covariates(problem.data, problem.prepared, selection.final.prediction, pname), w, seed)
+    labels = {"observable": problem.data.observable, "experiment": problem.data.experiment}
+    sigma_given = problem.data.has_sigma
+    before += examine_groups(selection.base.residual,
+                             covariates(problem.data, problem.prepared, selection.base.prediction, pname), w, labels,
+                             selection.base.p, sigma_given, seed)
+    after += examine_groups(selection.final.residual,
+                            covariates(problem.data, problem.prepared, selection.final.prediction, pname), w, labels,
+                            selection.final.p, sigma_given, seed)
     timing["residual_tests"] = time.perf_counter() - t0
     import os
 

@@ -111,6 +111,8 @@ def _effect_block(eid: str, vals: dict, f_ref: float) -> str:
     for p in EFFECTS[eid].params:
         v = vals.get(p.name, p.null)
         parts.append(f"{p.name} = {_literal(v, p.unit)}")
+    if eid == "transducer_resonance":
+        parts.append(f"f_ref = {_literal(f_ref, 'Hz')}")
     if eid == "transducer_gain":
         parts.append(f"f_ref = {_literal(f_ref, 'Hz')}")
         parts.append(f"gain = {_literal(vals.get('gain', 1.0), '')}")

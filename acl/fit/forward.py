@@ -16,7 +16,7 @@ Effects (acl.fit.effects) modify these steps; each modifier below cites its sour
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -24,6 +24,7 @@ from acl.fit import beam as B
 
 N_GRID = 32
 N_BISECT = 30
+N_REFINE = 14
 
 
 @dataclass
@@ -68,6 +69,8 @@ class Prepared:
     ref_capsule: str = ""
     units: np.ndarray = None     # (n,) object: unit label ("pair a-b", "single c")
     experiment: np.ndarray = None  # (n,) object: experiment label of the row ('' none)
+    modes0: dict = None          # capsule -> (natural frequency Hz, Q) in the reference instance
+    cavity: dict = field(default_factory=dict)   # free cavity parameter -> {"value", "dlnv": {capsule: dlnV/dp}}
 
     @property
     def beam(self):
@@ -169,11 +172,16 @@ def prepare(data, load_instance, f_ref: float | None = None) -> Prepared:
     t = np.where(np.isfinite(data.time), data.time, 0.0)
     E0 = next((s.E for u in ref.units.values() for s in u.sides if s.law == "beam"), 0.0)
     exp = getattr(data, "experiment", None)
+    modes0 = {}
+    for inst in instances.values():
+        for u in inst.units.values():
+            for s in u.sides:
+                modes0.setdefault(s.capsule, s.mode)
     return Prepared(n, f, v, tau, arel, pair, arr["L"], arr["l"], arr["EI"], arr["cd"], arr["ct"], arr["height"],
                     proj, d0, base, s0, s1, arr["fn"], arr["q"], t, f_ref, gamma0, alpha0, float(E0),
                     float(max(v.sum(axis=1).max(), 1e-9)), instances, law, caps, arr["volume"], arr["radius"],
                     medium, latch_id, latch_tables, caps == ref_cap, ref_cap, units,
-                    exp if exp is not None else np.full(n, "", dtype=object))
+                    exp if exp is not None else np.full(n, "", dtype=object), modes0)
 
 
 def latch_table(geometry) -> tuple:
@@ -235,18 +243,29 @@ def _resonance_factors(P: Prepared, coeffs: dict, effects: dict):
     (normalised so that the reference capsule's thrust at f_ref keeps its value gamma) and bubble
     shrinkage (the volume V0 exp(-r t) through the resonance model, acl.physics.effects.shrunk_frequency)."""
     keys = [k for k in coeffs if k.split("@")[0] in ("f0", "q")]
+    cav = [k for k in coeffs if k.startswith("cavity@")]
     rate = effects.get("bubble_shrinkage", {}).get("shrink_rate", 0.0)
-    if not keys and not rate:
+    if not keys and not rate and not cav:
         return None
     fn = P.fn.copy()
     q = P.q.copy()
     for k in keys:
         what, _, cap = k.partition("@")
-        arr = fn if what == "f0" else q
-        if cap:
-            arr[P.caps == cap] *= coeffs[k]
+        arr, j = (fn, 0) if what == "f0" else (q, 1)
+        cap = cap or P.ref_capsule
+        scale = coeffs[k] / P.modes0[cap][j]
+        if k.partition("@")[2]:
+            arr[P.caps == cap] *= scale
         else:
-            arr *= coeffs[k]
+            arr *= scale
+    for k in cav:      # a free cavity parameter: gas volumes linear in it, the resonance follows (resonance model)
+        spec = P.cavity[k.partition("@")[2]]
+        for cap, dlnv in spec["dlnv"].items():
+            m = P.caps == cap
+            ratio = max(1.0 + dlnv * (coeffs[k] - spec["value"]), 1e-6)
+            shifted = shrunk_frequency(fn, P.volume, P.radius, *P.medium[:, None, :].repeat(2, 1), -np.log(ratio), 1.0)
+            fn = np.where(m, shifted, fn)
+    keys = keys + cav
     norm = 1.0
     for c in range(2 if keys else 0):   # the reference capsule's thrust at f_ref stays gamma
         r = np.flatnonzero(P.ref_side[c])
@@ -353,7 +372,7 @@ def _predict(P: Prepared, coeffs: dict, effects: dict) -> np.ndarray:
     return out
 
 
-def _with_drag(law, c_p, steps=4):
+def _with_drag(law, c_p, steps=3):
     """Deflection law under a neighbour's jet drag, delta = law(P (1 - c_p |delta|)) (acl.physics.effects.drag_load),
     solved by Newton from the linear-law solution delta_lin / (1 + c_p |delta_lin|)."""
     def dragged(load):
@@ -386,7 +405,8 @@ def _pair_equilibrium(law0, law1, a_rad, push, d0, same=False):
     """Stable gap of a facing pair under P(d) = a/d^2 - b, first root of d0 - d - delta_a - delta_b from d0.
 
     Bracketed on a grid from d0 (towards contact when the pair attracts at rest, outwards up to the
-    largest repulsive opening otherwise), then bisection and a final secant step inside the bracket.
+    largest repulsive opening otherwise; the whole grid in one vectorized evaluation), then refined by
+    the Illinois variant of regula falsi (superlinear, always inside the bracket).
     Returns (delta_a, delta_b); past snap-in (no root before contact) the pair is in contact, d = 0.
     """
     def both(load):
@@ -400,33 +420,28 @@ def _pair_equilibrium(law0, law1, a_rad, push, d0, same=False):
     attract = a_rad / (d0 * d0) - push >= 0
     ra, rb = both(-push)
     far = np.where(attract, 0.02 * d0, d0 - ra - rb + 1e-12)
-    prev = d0.copy()
-    g_prev = g(prev)
-    lo = prev.copy()
-    hi = prev.copy()
-    g_lo = g_prev.copy()
-    found = g_prev == 0
-    for sk in np.linspace(0.0, 1.0, N_GRID + 1)[1:]:
-        d = d0 + sk * (far - d0)
-        gd = g(d)
-        cross = ~found & (np.sign(gd) != np.sign(g_prev))
-        lo = np.where(cross, prev, lo)
-        g_lo = np.where(cross, g_prev, g_lo)
-        hi = np.where(cross, d, hi)
-        found |= cross
-        prev, g_prev = d, gd
-    a, b, ga = lo, hi, g_lo
-    for _ in range(N_BISECT):
-        m = 0.5 * (a + b)
-        gm = g(m)
-        same_sign = np.sign(gm) == np.sign(ga)
-        a, ga = np.where(same_sign, m, a), np.where(same_sign, gm, ga)
-        b = np.where(same_sign, b, m)
-    gb = g(b)
-    denom = gb - ga
-    sec = np.where(denom != 0, a - ga * (b - a) / np.where(denom != 0, denom, 1.0), 0.5 * (a + b))
-    lo_ab, hi_ab = np.minimum(a, b), np.maximum(a, b)
-    d = np.where(found, np.clip(sec, lo_ab, hi_ab), d0)
+    s = np.linspace(0.0, 1.0, N_GRID + 1)[:, None]
+    D = d0 + s * (far - d0)                       # (N_GRID + 1, n)
+    G = g(D)
+    sg = np.sign(G)
+    cross = sg[1:] != sg[:-1]
+    found = cross.any(axis=0)
+    k = np.argmax(cross, axis=0)
+    cols = np.arange(d0.size)
+    a, fa = D[k, cols], G[k, cols]
+    b, fb = D[k + 1, cols], G[k + 1, cols]
+    exact = G[0] == 0
+    for _ in range(N_REFINE):
+        den = fb - fa
+        c = np.where(den != 0, b - fb * (b - a) / np.where(den != 0, den, 1.0), 0.5 * (a + b))
+        lo, hi = np.minimum(a, b), np.maximum(a, b)
+        c = np.where((c > lo) & (c < hi), c, 0.5 * (a + b))
+        fc = g(c)
+        flip = np.sign(fc) != np.sign(fb)
+        a, fa = np.where(flip, b, a), np.where(flip, fb, 0.5 * fa)
+        b, fb = c, fc
+    d = np.where(exact, d0, b)
+    found = found | exact
     load = a_rad / (d * d) - push
     da, db = both(load)
     return np.where(found, da, 0.5 * d0), np.where(found, db, 0.5 * d0)

@@ -59,6 +59,8 @@ def applicable(eid, problem, current_kinds) -> str | None:
             return "the data have no time column"
         if req == "frequencies" and np.unique(P.f[P.v > 0]).size < 2:
             return "the data have fewer than two drive frequencies"
+        if req == "frequencies3" and np.unique(P.f[P.v > 0]).size < 4:
+            return "the data have fewer than four drive frequencies (a resonance shape needs a sweep)"
         if req == "single" and not np.any(~P.pair & active):
             return "only for an actuator on its own (paper Eq. (3) already has the partner's jet drag)"
         if req == "lengths" and np.unique(np.round(P.L[0][active], 12)).size < 2:
@@ -214,6 +216,8 @@ def _loose(fit) -> list[str]:
     for c, v, se in zip(fit.coefs, fit.values, fit.stderr):
         if c.kind == "effect":
             null = next(p.null for p in EFFECTS[c.effect].params if p.name == c.param)
+            if not np.isfinite(null):      # a shape parameter without a null value (e.g. a resonance's Q)
+                continue
             if not np.isfinite(se) or se > abs(v - null):
                 out.append(c.name)
     return out
