@@ -24,7 +24,7 @@ from acl.fit import beam as B
 
 N_GRID = 32
 N_BISECT = 30
-N_REFINE = 14
+N_REFINE = 12
 
 
 @dataclass
@@ -71,6 +71,18 @@ class Prepared:
     experiment: np.ndarray = None  # (n,) object: experiment label of the row ('' none)
     modes0: dict = None          # capsule -> (natural frequency Hz, Q) in the reference instance
     cavity: dict = field(default_factory=dict)   # free cavity parameter -> {"value", "dlnv": {capsule: dlnV/dp}}
+    side_table: np.ndarray = None    # (2, n) index into ftables (-1: no capsule)
+    ftables: list = None             # (ln V/V0, ln f/f0) of each capsule kind (acl.physics.effects.volume_frequency_table)
+
+    def volume_shift(self, c, fn, lnx):
+        """Natural frequency of side ``c`` after its gas volume changed by a factor exp(lnx) (rows), from the tables."""
+        out = fn.copy()
+        for j, (lx, lf) in enumerate(self.ftables):
+            m = self.side_table[c] == j
+            if np.any(m):
+                x = np.broadcast_to(lnx, fn.shape)[m]
+                out[m] = fn[m] * np.exp(np.interp(x, lx, lf))
+        return out
 
     @property
     def beam(self):
@@ -172,6 +184,21 @@ def prepare(data, load_instance, f_ref: float | None = None) -> Prepared:
     t = np.where(np.isfinite(data.time), data.time, 0.0)
     E0 = next((s.E for u in ref.units.values() for s in u.sides if s.law == "beam"), 0.0)
     exp = getattr(data, "experiment", None)
+    # first natural frequency vs gas volume of every side's capsule, tabulated (bubble shrinkage, cavity)
+    ftab_index: dict = {}
+    ftables: list = []
+    side_table = np.full((2, n), -1)
+    for c in range(2):
+        combo = np.column_stack([arr["volume"][c], arr["radius"][c], medium.T])
+        uniq, inv = np.unique(combo, axis=0, return_inverse=True)
+        for j, row in enumerate(uniq):
+            if row[0] <= 0:
+                continue
+            key = tuple(row)
+            if key not in ftab_index:
+                ftab_index[key] = len(ftables)
+                ftables.append(volume_frequency_table(*row))
+            side_table[c, inv.ravel() == j] = ftab_index[key]
     modes0 = {}
     for inst in instances.values():
         for u in inst.units.values():
@@ -181,7 +208,7 @@ def prepare(data, load_instance, f_ref: float | None = None) -> Prepared:
                     proj, d0, base, s0, s1, arr["fn"], arr["q"], t, f_ref, gamma0, alpha0, float(E0),
                     float(max(v.sum(axis=1).max(), 1e-9)), instances, law, caps, arr["volume"], arr["radius"],
                     medium, latch_id, latch_tables, caps == ref_cap, ref_cap, units,
-                    exp if exp is not None else np.full(n, "", dtype=object), modes0)
+                    exp if exp is not None else np.full(n, "", dtype=object), modes0, {}, side_table, ftables)
 
 
 def latch_table(geometry) -> tuple:
@@ -223,7 +250,8 @@ def _alpha0(inst, alpha_ref: float) -> float:
 
 # The formulas live in acl.physics.effects (the analysis applies the same ones to declared effects).
 from acl.physics.effects import (drag_load, elastica_blend, gain_tilt, mode_response_ratio,  # noqa: E402,F401
-                                 saturation, shrunk_frequency, substrate_factor, transducer_resonance)
+                                 saturation, shrunk_frequency, substrate_factor, transducer_resonance,
+                                 volume_frequency_table)
 
 
 # ----------------------------------------------------------------------------------------------
@@ -263,8 +291,8 @@ def _resonance_factors(P: Prepared, coeffs: dict, effects: dict):
         for cap, dlnv in spec["dlnv"].items():
             m = P.caps == cap
             ratio = max(1.0 + dlnv * (coeffs[k] - spec["value"]), 1e-6)
-            shifted = shrunk_frequency(fn, P.volume, P.radius, *P.medium[:, None, :].repeat(2, 1), -np.log(ratio), 1.0)
-            fn = np.where(m, shifted, fn)
+            for c in range(2):
+                fn[c] = np.where(m[c], P.volume_shift(c, fn[c], np.log(ratio)), fn[c])
     keys = keys + cav
     norm = 1.0
     for c in range(2 if keys else 0):   # the reference capsule's thrust at f_ref stays gamma
@@ -277,7 +305,7 @@ def _resonance_factors(P: Prepared, coeffs: dict, effects: dict):
     for c in range(2):
         fc = fn[c]
         if rate:
-            fc = shrunk_frequency(fc, P.volume[c], P.radius[c], *P.medium, rate, P.t)
+            fc = P.volume_shift(c, fc, -rate * P.t)
         out[c] = mode_response_ratio(P.f, P.fn[c][:, None], P.q[c][:, None], fc[:, None], q[c][:, None]) / norm
     return np.where(np.isfinite(out), out, 0.0)
 
@@ -383,8 +411,8 @@ def _with_drag(law, c_p, steps=3):
             r = law(x) - d
             h = 1e-6 * np.maximum(np.abs(x), 1e-30)
             slope = (law(x + h) - law(x)) / h                       # d law / d load
-            dr = -slope * load * c_p * np.sign(d) * (x > 0) - 1.0  # d r / d delta
-            d = d - r / np.where(dr != 0, dr, -1.0)
+            dr = -slope * load * c_p * np.sign(d) * (1.0 - c_p * np.abs(d) > 0) - 1.0   # d r / d delta
+            d = np.clip(d - r / np.where(dr != 0, dr, -1.0), np.minimum(lin, 0.0), np.maximum(lin, 0.0))
         return d
     return dragged
 

@@ -38,6 +38,7 @@ class Trial:
     delta_aicc: float = float("nan")
     cv: float | None = None
     cv_current: float | None = None
+    cv_coefs: list | None = None
 
 
 @dataclass
@@ -173,15 +174,9 @@ def select_effects(problem, candidates=None, p_limit=P_LIMIT, k_folds=K_FOLDS, s
                 elif not t.delta_bic < 0:
                     t.reason = f"BIC does not improve (dBIC = {t.delta_bic:+.3g})"
                 else:
-                    if cv_current is None:
-                        cv_current = cross_validate(problem, current_coefs, current.values, k_folds, seed)
-                    t.cv_current = cv_current
-                    t.cv = cross_validate(problem, coefs, trial_fit.values, k_folds, seed)
-                    if not t.cv < cv_current:
-                        t.reason = f"cross-validated error does not improve ({t.cv:.4g} >= {cv_current:.4g})"
-                    else:
-                        t.reason = "passes F-test, BIC and cross-validation"
-                        passing.append(t)
+                    t.reason = "passes F-test and BIC"
+                    t.cv_coefs = coefs
+                    passing.append(t)
                 round_trials.append(t)
             if improved is None:
                 break
@@ -190,14 +185,26 @@ def select_effects(problem, candidates=None, p_limit=P_LIMIT, k_folds=K_FOLDS, s
             current, cv_current = improved, None
             if not selected:
                 base = improved
+        # cross-validation, lazily: in order of BIC, until a candidate passes it (the lowest BIC among those
+        # passing all tests wins, so later ones cannot change the choice)
+        best = None
+        for t in sorted(passing, key=lambda t: t.fit.bic):
+            if best is not None:
+                t.reason += f"; {best.effect} explains more (lower BIC; cross-validation not needed)"
+                continue
+            if cv_current is None:
+                cv_current = cross_validate(problem, current_coefs, current.values, k_folds, seed)
+            t.cv_current = cv_current
+            t.cv = cross_validate(problem, t.cv_coefs, t.fit.values, k_folds, seed)
+            if not t.cv < cv_current:
+                t.reason = f"cross-validated error does not improve ({t.cv:.4g} >= {cv_current:.4g})"
+            else:
+                t.reason = "passes F-test, BIC and cross-validation"
+                best = t
         trials.extend(round_trials)
-        if not passing:
+        if best is None:
             break
-        best = min(passing, key=lambda t: t.fit.bic)
         best.status = "selected"
-        for t in passing:
-            if t is not best:
-                t.reason += f"; {best.effect} explains more (lower BIC)"
         selected.append(best.effect)
         current = best.fit
         current_coefs = list(best.fit.coefs)

@@ -49,6 +49,18 @@ def shrunk_frequency(fn0, volume, radius, density, surface_tension, ambient_pres
     return np.where(ok, fn0 * ft / f0, fn0)
 
 
+def volume_frequency_table(volume, radius, density, surface_tension, ambient_pressure, polytropic_index, n=241, span=8.0):
+    """(ln x, ln f(x V0)/f(V0)) on x in [e^-span, e^span]: the first natural frequency of a single-orifice capsule vs its
+    gas volume (acl.physics.resonance.single_orifice_frequencies, paper Fig. 1e model), for fast interpolation."""
+    from acl.physics.resonance import single_orifice_frequencies
+
+    lx = np.linspace(-span, span, n)
+    f = single_orifice_frequencies(volume * np.exp(lx), radius, density, surface_tension, ambient_pressure,
+                                   polytropic_index)
+    f0 = single_orifice_frequencies(volume, radius, density, surface_tension, ambient_pressure, polytropic_index)
+    return lx, np.log(f / f0)
+
+
 def shrinkage_factor(f, fn, q, t, rate):
     """|H(f; f_n(t))|^2 / |H(f; f_n0)|^2 of a one-mode resonator, f_n(t) = f_n0 exp(r t / 2) (gas spring, f ~ V^-1/2, Minnaert)."""
     def h2(fr):
