@@ -355,8 +355,14 @@ def _predict(P: Prepared, coeffs: dict, effects: dict) -> np.ndarray:
                                                    np.where(beam_, B.elastica_deflection(load, L_, l_, EI_), 0.0), wgt)
             return lambda load: B.eq1_deflection(load, l_, cd_, ct_)
 
-        first = make(*arrs[0])
+        def still(load):                                     # a side fixed to the substrate does not move
+            return np.zeros(np.shape(load))
+
+        fixed = [bool(np.all(P.law[c, idx] == 2)) for c in range(2)]
+        first = still if fixed[0] else make(*arrs[0])
         same = all(np.array_equal(a, b) for a, b in zip(arrs[0], arrs[1]))
+        if fixed[1] and not same:
+            return first, still, False
         return first, (first if same else make(*arrs[1])), same
 
     d_0 = np.zeros(P.n)
@@ -459,15 +465,18 @@ def _pair_equilibrium(law0, law1, a_rad, push, d0, same=False):
     a, fa = D[k, cols], G[k, cols]
     b, fb = D[k + 1, cols], G[k + 1, cols]
     exact = G[0] == 0
+    tol = 1e-12 * np.max(d0)
     for _ in range(N_REFINE):
         den = fb - fa
         c = np.where(den != 0, b - fb * (b - a) / np.where(den != 0, den, 1.0), 0.5 * (a + b))
         lo, hi = np.minimum(a, b), np.maximum(a, b)
-        c = np.where((c > lo) & (c < hi), c, 0.5 * (a + b))
+        c = np.where((c >= lo) & (c <= hi), c, 0.5 * (a + b))
         fc = g(c)
         flip = np.sign(fc) != np.sign(fb)
         a, fa = np.where(flip, b, a), np.where(flip, fb, 0.5 * fa)
         b, fb = c, fc
+        if np.all(np.abs(fc[found]) <= tol):
+            break
     d = np.where(exact, d0, b)
     found = found | exact
     load = a_rad / (d * d) - push

@@ -22,6 +22,7 @@ from acl.fit.effects import EFFECTS
 
 P_LIMIT = 0.01
 K_FOLDS = 5
+ALT_GAIN = 1e-3     # relative chi-square drop of a refit of the current model that restarts a round
 MAX_RESTARTS = 3     # times a round starts over after a better fit of the current model is found
 
 
@@ -64,7 +65,7 @@ def applicable(eid, problem, current_kinds) -> str | None:
             return "the data have fewer than four drive frequencies (a resonance shape needs a sweep)"
         if req == "single" and not np.any(~P.pair & active):
             return "only for an actuator on its own (paper Eq. (3) already has the partner's jet drag)"
-        if req == "lengths" and np.unique(np.round(P.L[0][active], 12)).size < 2:
+        if req == "lengths" and np.unique(np.round(P.L[P.beam & active], 12)).size < 2:
             return "every row has the same beam length"
         if req == "heights" and np.unique(np.round(P.height[0][active], 12)).size < 2:
             return "every row has the actuator at the same height"
@@ -158,7 +159,7 @@ def select_effects(problem, candidates=None, p_limit=P_LIMIT, k_folds=K_FOLDS, s
                     # model (a jump at a snap-in fold, a local minimum)?  Refit the current model from there.
                     alt = solve.fit(model, problem.y, problem.sigma,
                                     [_with_value(c, v) for c, v in zip(current_coefs, trial_fit.values)])
-                    if alt.chi2 < current.chi2 * (1 - 1e-9):
+                    if alt.chi2 < current.chi2 - max(ALT_GAIN * current.chi2, 1.0):   # a real jump, not round-off
                         improved = alt
                         break
                 t = Trial(eid, rnd, "rejected", "", trial_fit, F, p, trial_fit.bic - current.bic,
