@@ -336,8 +336,15 @@ def _predict(P: Prepared, coeffs: dict, effects: dict) -> np.ndarray:
         thrust[c] = gamma * (P.tau[c] * wc).sum(axis=1) * sub[c]
     es = e_scale * (effects["stiffness_scale"]["e_scale"] if "stiffness_scale" in effects else 1.0)
     beam = P.beam
-    if "stiffness_gradient" in effects:
-        cd, ct = B.stiffness_integrals(P.L, P.l, P.EI * es, effects["stiffness_gradient"]["e_gradient"])
+    rigid = P.l
+    cav = [k for k in coeffs if k.startswith("cavity@")]
+    for k in cav:       # a free cavity size also lengthens the actuator (its rigid half-length on the beam)
+        spec = P.cavity[k.partition("@")[2]]
+        for cap, dl in spec.get("dl", {}).items():
+            rigid = np.where(P.caps == cap, rigid + dl * (coeffs[k] - spec["value"]), rigid)
+    if "stiffness_gradient" in effects or cav:
+        grad = effects["stiffness_gradient"]["e_gradient"] if "stiffness_gradient" in effects else 0.0
+        cd, ct = B.stiffness_integrals(P.L, rigid, P.EI * es, grad)
         cd, ct = np.where(beam, cd, P.cd), np.where(beam, ct, P.ct)
     else:
         cd, ct = np.where(beam, P.cd / es, P.cd), np.where(beam, P.ct / es, P.ct)
@@ -346,7 +353,7 @@ def _predict(P: Prepared, coeffs: dict, effects: dict) -> np.ndarray:
 
     def rows(idx):
         """Deflection laws of sides 0 and 1 restricted to rows ``idx`` (one law when both sides are alike)."""
-        arrs = [(P.l[c, idx], cd[c, idx], ct[c, idx], P.L[c, idx], P.EI[c, idx] * es, beam[c, idx]) for c in range(2)]
+        arrs = [(rigid[c, idx], cd[c, idx], ct[c, idx], P.L[c, idx], P.EI[c, idx] * es, beam[c, idx]) for c in range(2)]
 
         def make(l_, cd_, ct_, L_, EI_, beam_):
             if lam and np.any(beam_):

@@ -143,11 +143,15 @@ def _cavity_coef(name, design, P, path, search_paths) -> Coef:
 
     p = design.param(name)
     d = acl.load(path, overrides={name: f"{p.value * 1.01!r} {p.unit}".strip()}, search_paths=search_paths)
-    slopes = {}
+    slopes, dl = {}, {}
+    dp = 0.01 * p.value
     for c0, c1 in zip(design.capsules, d.capsules):
         if c0.cavity.volume != c1.cavity.volume:
-            slopes[c0.name] = (c1.cavity.volume / c0.cavity.volume - 1.0) / (0.01 * p.value)
-    P.cavity[name] = {"value": float(p.value), "dlnv": slopes}
+            slopes[c0.name] = (c1.cavity.volume / c0.cavity.volume - 1.0) / dp
+            m = design.mount_of(c0.name)
+            if m is not None and getattr(m, "target_kind", "") == "beam":
+                dl[c0.name] = (d.beam(m.target).rigid_length - design.beam(m.target).rigid_length) / dp
+    P.cavity[name] = {"value": float(p.value), "dlnv": slopes, "dl": dl}
     lo = p.lower if p.lower is not None else 0.3 * p.value
     hi = p.upper if p.upper is not None else 3.0 * p.value
     return Coef(name, f"cavity@{name}", float(p.value), lo, hi, abs(float(p.value)), p.unit, design_param=name)
@@ -183,8 +187,11 @@ def classify_params(path, design, search_paths=()) -> dict:
             roles[p.name] = "gamma"
         elif all(c.endswith("youngs_modulus") for c in changed):
             roles[p.name] = "E"
-        elif all(".cavity." in c and c.startswith(".capsules[") for c in changed) and \
-                any(c.endswith(".volume") for c in changed):
+        elif any(c.endswith(".cavity.volume") for c in changed) and all(
+                (c.startswith(".capsules[") and (".cavity." in c or c.endswith("center[2]")))
+                or c.endswith(".rigid_length") for c in changed):
+            # a cavity size: the gas volume (resonance) and the actuator's size on its beam; the orifice's
+            # small shift in height is neglected (docs/fit.md)
             roles[p.name] = "cavity"
         else:
             roles[p.name] = "geometry"

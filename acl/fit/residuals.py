@@ -124,7 +124,8 @@ def examine_groups(residual, cov: dict[str, np.ndarray], weights, labels: dict[s
     and a **scatter** test: with sigma given, the chi-square of its weighted residual against its share of
     the degrees of freedom (an observable left at 1.2 sigma shows as chi2/dof = 1.44); without sigma, an
     F-test of its variance against the other rows'.  Across groups, a **groups** test (Kruskal-Wallis)
-    of the weighted residual by label.  p-values are Bonferroni-adjusted over all these tests together.
+    of the weighted residual by label.  p-values are Bonferroni-adjusted within two families: the
+    scatter and groups tests, and the covariate tests inside the groups.
     """
     from scipy.stats import f as fdist
     from scipy.stats import kruskal
@@ -158,7 +159,12 @@ def examine_groups(residual, cov: dict[str, np.ndarray], weights, labels: dict[s
         if min(g.size for g in groups) >= 2:
             h, p = kruskal(*groups)
             tests.append(Test(family, "groups", float(h), float(p) if np.isfinite(p) else 1.0))
-    m = max(len(tests), 1)
-    for t in tests:
-        t.p_adjusted = min(1.0, t.p_value * m)
+    # Bonferroni within two families: the scatter and groups tests (one per group / label family), and the
+    # covariate tests inside the groups (many, correlated with the pooled ones)
+    level = [t for t in tests if t.test in ("scatter", "groups") and not t.covariate.startswith("[") or t.test == "scatter"]
+    inner = [t for t in tests if t not in level]
+    for fam in (level, inner):
+        m = max(len(fam), 1)
+        for t in fam:
+            t.p_adjusted = min(1.0, t.p_value * m)
     return tests

@@ -22,6 +22,7 @@ from acl.fit.effects import EFFECTS
 
 P_LIMIT = 0.01
 K_FOLDS = 5
+SCREEN_P = 0.5      # a candidate whose first fit gives an F-test p above this is not refitted from its other starts
 ALT_GAIN = 1e-3     # relative chi-square drop of a refit of the current model that restarts a round
 MAX_RESTARTS = 3     # times a round starts over after a better fit of the current model is found
 
@@ -152,8 +153,13 @@ def select_effects(problem, candidates=None, p_limit=P_LIMIT, k_folds=K_FOLDS, s
                 ecoefs, estarts = effect_coefs(eid, problem)
                 coefs = [_with_value(c, v) for c, v in zip(current_coefs, current.values)] + ecoefs
                 starts = [list(current.values) + s for s in estarts]
-                trial_fit = solve.fit(model, problem.y, problem.sigma, coefs, starts=starts)
+                trial_fit = solve.fit(model, problem.y, problem.sigma, coefs)
                 F, p = solve.f_test(current.chi2, current.p, trial_fit.chi2, trial_fit.p, problem.y.size)
+                if starts and p < SCREEN_P:   # the effect may matter: look for a better minimum from its other starts
+                    again = solve.fit(model, problem.y, problem.sigma, coefs, starts=[list(trial_fit.values)] + starts)
+                    if again.chi2 < trial_fit.chi2:
+                        trial_fit = again
+                        F, p = solve.f_test(current.chi2, current.p, trial_fit.chi2, trial_fit.p, problem.y.size)
                 if p < limit:
                     # is the gain the effect's, or did the optimizer just find a better point of the current
                     # model (a jump at a snap-in fold, a local minimum)?  Refit the current model from there.

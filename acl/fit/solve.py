@@ -57,6 +57,11 @@ class FitResult:
     warnings: list = field(default_factory=list)
     identifiable: bool = True
 
+    @property
+    def covariance(self) -> np.ndarray:
+        """(p, p) covariance of the fitted coordinates (SI): s^2 (J^T J)^-1, NaN where not identifiable."""
+        return self.corr * np.outer(self.stderr, self.stderr)
+
     def value(self, name):
         for c, v in zip(self.coefs, self.values):
             if c.name == name:
