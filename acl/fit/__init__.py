@@ -26,7 +26,7 @@ def run_fit(design_path, data_paths, free=(), search_paths=(), candidates=None, 
     from acl.fit.problem import load_problem
     from acl.fit.report import build_report
     from acl.fit.residuals import covariates, examine, examine_groups
-    from acl.fit.select import select_effects
+    from acl.fit.select import select_effects, withdraw_if_inadequate
     from acl.fit.solve import NOMINAL_SIGMA
 
     import numpy as np
@@ -38,7 +38,8 @@ def run_fit(design_path, data_paths, free=(), search_paths=(), candidates=None, 
     problem = load_problem(design_path, data_paths, free=free, search_paths=search_paths)
     timing["load"] = time.perf_counter() - t0
     t0 = time.perf_counter()
-    selection = select_effects(problem, candidates=candidates, seed=seed, progress=progress)
+    selection = withdraw_if_inadequate(select_effects(problem, candidates=candidates, seed=seed, progress=progress),
+                                       problem)
     timing["fit_and_effect_search"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     w = 1.0 / np.where(np.isfinite(problem.sigma), problem.sigma, NOMINAL_SIGMA)

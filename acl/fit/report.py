@@ -121,6 +121,8 @@ def build_report(problem, selection, tests_before, tests_after, calibrated_name=
         "residual_tests_before": [t.as_dict() for t in tests_before],
         "effects_tried": tried,
         "effects_selected": list(selection.selected),
+        "effects_tentative": list(getattr(selection, "tentative", [])),
+        "adequacy": getattr(selection, "adequacy", {}),
         "final": {"parameters": param_entries(final, problem), "effects": selection.effects,
                   "rmse": _n(final.rmse), "redchi": _n(final.redchi), "chi2": _n(final.chi2),
                   "aicc": _n(final.aicc), "bic": _n(final.bic), "warnings": final.warnings,
@@ -180,6 +182,11 @@ def render_table(report, console=None) -> None:
     con.print(et)
     sel = report["effects_selected"]
     con.print(f"effects selected: {', '.join(sel) if sel else 'none'}")
+    if report.get("effects_tentative"):
+        ad = report["adequacy"]
+        con.print(f"[yellow]withdrawn (tentative): {', '.join(report['effects_tentative'])}: they improve the fit but "
+                  f"the model still fails the goodness of fit (chi2 = {ad['chi2']:.4g} for {ad['dof']} dof, "
+                  f"p = {ad['p_value']:.2g}); what remains is outside the library[/yellow]")
     for w in report["final"]["warnings"]:
         con.print(f"[yellow]warning:[/yellow] {w}")
     if report.get("outliers"):

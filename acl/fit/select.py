@@ -50,6 +50,8 @@ class Selection:
     selected: list
     trials: list = field(default_factory=list)
     effects: dict = field(default_factory=dict)      # effect id -> {param: value}
+    tentative: list = field(default_factory=list)    # effects withdrawn because the final model stayed inadequate
+    adequacy: dict = field(default_factory=dict)     # goodness of fit of the final model (sigma given)
 
 
 def applicable(eid, problem, current_kinds) -> str | None:
@@ -235,3 +237,38 @@ def _loose(fit) -> list[str]:
             if not np.isfinite(se) or se > abs(v - null):
                 out.append(c.name)
     return out
+
+
+GOF_P = 1e-3     # a final model whose chi-square goodness of fit is below this is inadequate (sigma given)
+
+
+def withdraw_if_inadequate(selection, problem) -> Selection:
+    """Claims need an adequate model: when the data give sigma and the final model still fails the chi-square
+    goodness of fit (p < GOF_P; rows beyond solve.JUMP sigma left out), the selected effects are withdrawn
+    (listed as ``tentative``: they improve the fit but do not explain the data) and the final model is the
+    base model, whose residual structure is then reported as unexplained.  Something outside the library
+    (creep, an out-of-plane tilt) is then reported as structure, not as a wrong effect."""
+    from scipy.stats import chi2
+
+    if not problem.data.has_sigma:
+        selection.adequacy = {"tested": False, "reason": "no sigma column: the scale is estimated"}
+        return selection
+    fit = selection.final
+    z = fit.residual / problem.sigma
+    keep = np.abs(z) <= solve.JUMP
+    dof = max(int(keep.sum()) - fit.p, 1)
+    stat = float(np.sum(z[keep] ** 2))
+    p = float(chi2.sf(stat, dof))
+    selection.adequacy = {"tested": True, "chi2": stat, "dof": dof, "p_value": p, "adequate": p >= GOF_P}
+    if p >= GOF_P or not selection.selected:
+        return selection
+    selection.tentative = list(selection.selected)
+    for t in selection.trials:
+        if t.status == "selected":
+            t.status = "tentative"
+            t.reason += (f"; withdrawn: the final model still fails the goodness of fit (chi2 = {stat:.4g} for "
+                         f"{dof} dof, p = {p:.2g} < {GOF_P}), so what remains is outside the library")
+    selection.selected = []
+    selection.effects = {}
+    selection.final = selection.base
+    return selection
