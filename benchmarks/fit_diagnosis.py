@@ -154,12 +154,15 @@ def main(argv=None) -> int:
     ap.add_argument("--first-seed", type=int, default=100)
     ap.add_argument("--only", default="")
     ap.add_argument("--json", default="")
+    ap.add_argument("--exclude", default="", help="comma-separated substrings of case labels to skip")
     args = ap.parse_args(argv)
     rows = []
     print(f"{'kind':20s} {'planted':52s} {'rate':>6s} {'rmse/noise':>10s}  wrong selections / unexplained")
     for kind_name, planted in CASES:
         label = f"{kind_name} {'+'.join(sorted(planted)) or 'clean'}"
         if args.only and args.only not in label:
+            continue
+        if any(x and x in label for x in args.exclude.split(",")):
             continue
         res = [run_case(kind_name, planted, s) for s in range(args.first_seed, args.first_seed + args.seeds)]
         rows.extend(res)
