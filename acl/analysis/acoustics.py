@@ -135,6 +135,9 @@ def effect_pressure_factor(design: Design, f, vtot: float | None = None) -> np.n
         out = out * tg["gain"]
         if tg["gain_slope"] and math.isfinite(tg["f_ref"]):
             out = out * PE.gain_tilt(f, tg["f_ref"], tg["gain_slope"])
+    tr = EF.coefficients(design, "transducer_resonance")
+    if tr and tr["inv_f_ratio"] and math.isfinite(tr["f_ref"]):
+        out = out * PE.transducer_resonance(f, tr["f_ref"], tr["inv_f_ratio"], tr["gain_q"])
     sat = EF.coefficients(design, "drive_saturation")
     if sat and vtot is not None:
         out = out * PE.saturation(vtot, sat["inv_vsat2"])

@@ -11,8 +11,8 @@ def add_parser(p) -> None:
     p.add_argument("design", metavar="DESIGN", help="design file (.acl), or a folder holding one design")
     p.add_argument("data", nargs="+", metavar="DATA", help="measurement CSV files (docs/data.md)")
     p.add_argument("--free", default="", metavar="NAMES",
-                   help="comma-separated names to fit besides the design's `free` params: gamma, alpha, E, gain "
-                        "or design parameters (docs/data.md)")
+                   help="comma-separated names to fit besides the design's `free` params: gamma, alpha, E, gain, "
+                        "f0, q, f0:CAPSULE, q:CAPSULE or design parameters (docs/data.md)")
     p.add_argument("--report", metavar="DIR", help="write report.json, fit.png, residuals.png to DIR (and the "
                                                      "calibrated design next to DESIGN, see --calibrated)")
     p.add_argument("--calibrated", metavar="PATH", default=None,

@@ -20,7 +20,7 @@ class Fail(Exception):
 DECL_KINDS = ("medium", "material", "transducer", "capsule", "beam", "spring", "truss", "latch", "anchor", "effect")
 
 # Effects of the model library (docs/fit.md); `effect NAME { coefficient = quantity, ... }`.
-EFFECTS = ("transducer_gain", "drive_saturation", "large_deflection", "stiffness_scale", "stiffness_gradient",
+EFFECTS = ("transducer_gain", "transducer_resonance", "drive_saturation", "large_deflection", "stiffness_scale", "stiffness_gradient",
            "offset_drift", "bubble_shrinkage", "neighbour_drag", "substrate_proximity")
 
 D = parse_unit_static

@@ -82,6 +82,13 @@ def calibrated_text(problem, selection, out_path: str, data_paths=(), report_dir
                             f"{_literal(lo, 'N/V^2')} .. {_literal(hi, 'N/V^2')}): not applied; declare "
                             "`param gamma = ...` in the original, use it as each capsule's `thrust` (thrust at its "
                             "first mode; docs/data.md) and fit again")
+        elif c.kind.split("@")[0] in ("f0", "q"):
+            what = "natural frequency" if c.kind.startswith("f0") else "quality factor"
+            cap = c.kind.partition("@")[2] or P.ref_capsule
+            scope = f"capsule `{cap}`" if "@" in c.kind else f"capsule `{cap}` (every capsule scaled alike)"
+            comments.append(f"# {what} of {scope} = {_literal(v, c.unit)} (95% interval {_literal(lo, c.unit)} .. "
+                            f"{_literal(hi, c.unit)}): not applied; the language declares the capsule's geometry, "
+                            "not its resonance (fit a free cavity parameter to carry it into the design)")
         elif c.kind == "alpha":
             comments.append(f"# alpha (paper Eq. 3) = {_literal(v, 'N*m^2/V^2')} (95% interval {_literal(lo, 'N*m^2/V^2')}"
                             f" .. {_literal(hi, 'N*m^2/V^2')}): not applied; the language has no Bjerknes coefficient "
@@ -111,6 +118,8 @@ def _effect_block(eid: str, vals: dict, f_ref: float) -> str:
     for p in EFFECTS[eid].params:
         v = vals.get(p.name, p.null)
         parts.append(f"{p.name} = {_literal(v, p.unit)}")
+    if eid == "transducer_resonance":
+        parts.append(f"f_ref = {_literal(f_ref, 'Hz')}")
     if eid == "transducer_gain":
         parts.append(f"f_ref = {_literal(f_ref, 'Hz')}")
         parts.append(f"gain = {_literal(vals.get('gain', 1.0), '')}")
