@@ -101,7 +101,7 @@ SCHEMAS: dict[str, dict[str, Key]] = {
     },
     "transducer": {
         "max_voltage": Key("q", "V", True), "band": Key("range", "Hz", True),
-        "gain": Key("table", None, True),
+        "gain": Key("table", None, True), "gain_uncertainty": Key("q", "", False, None),
     },
     "capsule": {
         "center": Key("vec", "m"), "thrust": Key("q", "N/V^2"), "q": Key("q", ""),
