@@ -32,6 +32,11 @@ def add_parser(p) -> None:
                    help="path tracking tolerance in micrometres (default 0.5)")
     p.add_argument("--ramp", type=float, default=1e-3, metavar="S",
                    help="raised-cosine crossfade between segments in seconds (default 0.001)")
+    p.add_argument("--robust", action="store_true",
+                   help="plan paths for the least expected error over the declared uncertainty (docs/schedule.md)")
+    p.add_argument("--band-samples", type=int, default=20, metavar="N",
+                   help="draws of the declared uncertainty for each goal's 95 %% error band (default 20; 0: none)")
+    p.add_argument("--band-seed", type=int, default=0, metavar="N", help="seed of those draws (default 0)")
     p.add_argument("--plot", action="store_true", help="write a PNG per path goal")
     p.add_argument("--diagnostics", choices=["text", "json"], default="text",
                    help="diagnostics as text (default) or JSON on stdout")
@@ -80,6 +85,8 @@ def run(args) -> int:
             diags.append(_usage("E-COMPILE-OPTION", f"{name} must be positive"))
     if not args.ramp >= 0:
         diags.append(_usage("E-COMPILE-OPTION", "--ramp must not be negative"))
+    if args.band_samples < 0:
+        diags.append(_usage("E-COMPILE-OPTION", "--band-samples must not be negative"))
     if diags:
         report(diags, fmt)
         return 2
@@ -109,13 +116,30 @@ def run(args) -> int:
         report(exc.diagnostics, fmt)
         return 2
     opts = CompileOptions(sample_rate_hz=rate, waypoint_dt_s=args.waypoint_dt,
-                          tolerance_m=args.tolerance * 1e-6, ramp_s=args.ramp, calibration=calibration)
+                          tolerance_m=args.tolerance * 1e-6, ramp_s=args.ramp, calibration=calibration,
+                          robust=args.robust, band_samples=args.band_samples, band_seed=args.band_seed,
+                          reload=_reloader(args))
     try:
         schedule = compile_program(design, program, opts)
     except DiagnosticError as exc:
         report(exc.diagnostics, fmt)
         return 1
     return _emit(schedule, args, formats, rate, fmt)
+
+
+def _reloader(args):
+    """{param: "v unit"} -> the design resolved again with those values (for the uncertainty draws)."""
+    from acl.commands._common import parse_sets
+
+    sets, _ = parse_sets(getattr(args, "set", []) or [])
+    paths = getattr(args, "path", []) or []
+
+    def reload(overrides):
+        import acl
+
+        return acl.load(args.file, overrides={**sets, **overrides}, search_paths=paths)
+
+    return reload
 
 
 def _emit(schedule, args, formats, rate, fmt) -> int:
@@ -164,13 +188,17 @@ def _summary(console, schedule, result) -> None:
     from rich.table import Table
 
     table = Table(title=f"acl compile: program `{schedule.program}` -> {result.out_dir}", title_justify="left")
-    for col in ("goal", "time (s)", "tones (kHz)", "predicted error RMS / max (um)", "model"):
+    for col in ("goal", "time (s)", "tones (kHz)", "predicted error RMS / max (um)",
+                "95 % band RMS / max (um)", "model"):
         table.add_column(col)
     for g in schedule.goals:
         err = ("-" if g.rms_error_m is None else f"{g.rms_error_m * 1e6:.3g} / {g.max_error_m * 1e6:.3g}")
+        band = ("-" if g.rms_error_p95_m is None else f"{g.rms_error_p95_m * 1e6:.3g} / {g.max_error_p95_m * 1e6:.3g}")
         table.add_row(g.name, f"{g.start_s:.3g}-{g.end_s:.3g}",
-                      ", ".join(f"{f / 1e3:g}" for f in g.frequencies_hz), err, g.model or "-")
+                      ", ".join(f"{f / 1e3:g}" for f in g.frequencies_hz), err, band, g.model or "-")
     console.print(table)
+    for note in schedule.notes:
+        console.print(note if note.startswith("warning:") else f"note: {note}")
     s = result.stats
     tones = ", ".join(f"{f / 1e3:g}" for f in schedule.frequencies_hz())
     console.print(f"duration {schedule.duration_s:.4g} s, {len(schedule.segments)} segments, tones {tones} kHz; "

@@ -43,6 +43,10 @@ class CompileOptions:
     refine: int = 0
     resim_points: int = 100                      # waypoints re-simulated per goal (evenly spaced)
     tones_per_path: int = 3
+    robust: bool = False                         # path program with the declared uncertainty (acl.schedule.robust)
+    band_samples: int = 0                        # draws of the declared uncertainty for the 95 % band (0: none)
+    band_seed: int = 0
+    reload: Callable | None = None               # {param: "v unit"} -> Design, to sample uncertain params
 
 
 def auto_sample_rate(max_frequency_hz: float, factor: float = 10.0, grid_hz: float = 1e3) -> float:
@@ -94,6 +98,9 @@ class _Compiler:
                          max_voltage_v=full_scale, full_scale_v=full_scale, ramp_s=self.opts.ramp_s,
                          source=self.design.file, notes=self.notes)
         sched.sample_rate_hz = fs
+        from acl.schedule.bands import coverage_notes
+
+        self.notes.extend(coverage_notes(self.design, sched))
         _choose_all_phases(sched, fs)
         self._check_peaks(sched)
         return sched
@@ -155,9 +162,11 @@ class _Compiler:
             raise _diag("E-SCHED-TONES", f"{name}: {exc}", step.span,
                         "pin tones with `tones` or give a calibration sweep (--calibration)")
         limits = DriveLimits(max_voltage=vmax, slew_rate=slew)
+        rq = self._robust_q(name, step.capsule, choice.frequencies) if self.opts.robust else None
         try:
             plan = plan_path(choice.gains, path.points, dt, limits, tolerance=self.opts.tolerance_m,
-                             lam=self.opts.lam, slew_model=self.opts.slew_model, refine=self.opts.refine)
+                             lam=self.opts.lam, slew_model=self.opts.slew_model, refine=self.opts.refine,
+                             robust_q=rq)
         except PathInfeasible as exc:
             d = exc.diagnosis
             raise DiagnosticError([Diagnostic(
@@ -184,7 +193,24 @@ class _Compiler:
             "gains_source": table.source, "waypoints": n, "dt_s": dt, "solver": plan.result.solver,
             "solver_status": plan.result.status, "max_voltage_v": vmax,
             "max_slew_v_per_s": plan.max_slew_v_per_s(dt), "notes": plan.notes})
+        if self.opts.robust:
+            rep.details["robust"] = rq is not None
         self.goals.append(rep)
+
+    def _robust_q(self, name, capsule, freqs):
+        """Q of the declared uncertainty at the chosen tones (None, with a note, when there is none)."""
+        from acl.schedule.robust import robust_q
+
+        if self.opts.calibration is not None:
+            self.notes.append(f"{name}: --robust ignored: a measured calibration table declares no uncertainty")
+            return None
+        provider = self.opts.gain_provider
+        if provider is None:
+            from acl.schedule.gains import model_gain_table as provider
+        q = robust_q(self.design, lambda d: provider(d, capsule, freqs).gains.T, self.opts.reload)
+        if q is None:
+            self.notes.append(f"{name}: --robust: the design declares no uncertainty; the plan is the nominal one")
+        return q
 
     def _gain_table(self, capsule):
         if self.opts.calibration is not None:
@@ -231,6 +257,28 @@ class _Compiler:
         full[idx] = pred
         rep.predicted_m = full
         rep.details["resimulated_waypoints"] = int(idx.size)
+        if self.opts.band_samples > 0:
+            self._band(rep, provider, capsule, u[:, idx], targets[idx])
+
+    def _band(self, rep: GoalReport, provider, capsule, u, targets):
+        """95th percentile of the re-simulated error over draws of the declared uncertainty."""
+        from acl.schedule.bands import error_band
+
+        band = error_band(self.design, lambda d: provider(d, capsule, rep.frequencies_hz)[0], u, targets,
+                          samples=self.opts.band_samples, seed=self.opts.band_seed, reload=self.opts.reload)
+        if band is None:
+            self.notes.append(f"{rep.name}: the design declares no uncertainty: no error band "
+                              "(declare `+- s` on parameters or `gain_uncertainty` on the transducer)")
+            return
+        rep.rms_error_p95_m, rep.max_error_p95_m = band.rms_p95_m, band.max_p95_m
+        rep.details["band"] = {"samples": band.samples, "failed": band.failed, "seed": self.opts.band_seed,
+                               "quantile": 95, "parameters": [p.name for p in self.design.uncertain_params()]
+                               if self.opts.reload is not None else [],
+                               "gain_uncertainty": self.design.transducer.gain_uncertainty
+                               if self.design.transducer else None}
+        if band.failed:
+            self.notes.append(f"{rep.name}: {band.failed} of {self.opts.band_samples} uncertainty draws lost the "
+                              "equilibrium (snap-in) or did not resolve; they count as missing the path")
 
     # -- switch --------------------------------------------------------------------------------
     def _switch(self, i, step: SwitchStep):

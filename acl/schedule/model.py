@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-SCHEDULE_VERSION = "1.0"
+SCHEDULE_VERSION = "1.1"
 
 
 @dataclass(frozen=True)
@@ -60,6 +60,8 @@ class GoalReport:
     rms_error_m: float | None = None
     max_error_m: float | None = None
     linear_rms_error_m: float | None = None    # error of the convex plan under the linear gains
+    rms_error_p95_m: float | None = None       # 95th percentile over the declared uncertainty (acl.schedule.bands)
+    max_error_p95_m: float | None = None
     details: dict = field(default_factory=dict)
     # arrays for plots (not serialised): times, target, predicted, amplitudes (N, K)
     times_s: np.ndarray | None = None
@@ -76,6 +78,8 @@ class GoalReport:
             "max_error_um": None if self.max_error_m is None else self.max_error_m * 1e6,
             "linear_rms_error_um": (None if self.linear_rms_error_m is None
                                     else self.linear_rms_error_m * 1e6),
+            "rms_error_p95_um": None if self.rms_error_p95_m is None else self.rms_error_p95_m * 1e6,
+            "max_error_p95_um": None if self.max_error_p95_m is None else self.max_error_p95_m * 1e6,
         }
         if self.details:
             d["details"] = self.details
