@@ -121,3 +121,132 @@ def write_csv(data, path, unit: str = "um") -> None:
     with open(tmp, "w", encoding="utf-8") as fh:
         fh.write("\n".join(lines) + "\n")
     os.replace(tmp, path)
+
+
+# ------------------------------------------------------------------------------------------------
+# Replaying a compiled schedule on a design (`acl synth TRUTH.acl --schedule schedule.json`)
+# ------------------------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class Waypoint:
+    """One constant-drive segment of a schedule: its start time, tones ((Hz, V peak), ...) and goal."""
+
+    time: float
+    tones: tuple
+    goal: str
+    step: int
+
+
+def read_schedule(path: str) -> tuple[list[Waypoint], int]:
+    """The constant-drive segments of a schedule.json (and how many chirp segments were skipped).
+
+    Raises DiagnosticError (E-SYNTH-SCHEDULE) at file:line:column for anything malformed.
+    """
+    import json
+    import math
+
+    def bad(msg, line=1, col=1, hint=None):
+        return DiagnosticError([error("E-SYNTH-SCHEDULE", msg, Span(file=path, line=line, column=col), hint)])
+
+    try:
+        with open(path, encoding="utf-8") as fh:
+            text = fh.read()
+    except OSError as exc:
+        raise bad(f"cannot read the schedule: {exc.strerror or exc}") from None
+    try:
+        doc = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise bad(f"not JSON: {exc.msg}", exc.lineno, exc.colno, "give the schedule.json `acl compile` wrote") from None
+    if not isinstance(doc, dict) or not isinstance(doc.get("segments"), list) or not str(doc.get("version", "")).startswith("1."):
+        raise bad("not an acl schedule (version 1.x with a list of segments)", hint="give the schedule.json `acl compile` wrote")
+    out, chirps = [], 0
+    for i, seg in enumerate(doc["segments"]):
+        where = f"segments[{i}]"
+        try:
+            start = float(seg["start_s"])
+            tones = []
+            chirp = False
+            for t in seg.get("tones", []):
+                f, v = float(t["frequency_hz"]), float(t["amplitude_v"])
+                if not (math.isfinite(f) and f > 0 and math.isfinite(v) and v >= 0):
+                    raise ValueError(f"tone {f!r} Hz @ {v!r} V")
+                chirp = chirp or t.get("frequency_end_hz") is not None
+                if v > 0:
+                    tones.append((f, v))
+            if not math.isfinite(start):
+                raise ValueError("start_s is not finite")
+        except (KeyError, TypeError, ValueError) as exc:
+            raise bad(f"{where}: malformed segment ({exc})", hint="each segment has start_s and tones "
+                      "[{frequency_hz, amplitude_v}]") from None
+        if chirp:
+            chirps += 1
+            continue
+        out.append(Waypoint(start, tuple(tones), str(seg.get("goal") or ""), int(seg.get("step", 0))))
+    if not out:
+        raise bad("the schedule has no constant-drive segment to replay")
+    return out, chirps
+
+
+def observe_value(design, obs, state) -> float:
+    """The value (m) of observable ``obs`` at a mechanism state (acl.analysis.mechanics.MechanismState).
+
+    displacement: the capsule's (or the capsule carried by the beam's) displacement along the axis;
+    position: a coordinate of the capsule centre; gap: distance between the two orifice centres.
+    """
+    import numpy as np
+
+    from acl.analysis.report import orifice_gap
+
+    if obs.kind == "gap":
+        return orifice_gap(design, obs.a, obs.b, state.positions)
+    cap = obs.target
+    if cap not in state.displacements:
+        held = [j.capsule for j in design.joints if j.kind == "mount" and j.target == obs.target]
+        if not held:
+            raise KeyError(f"observable `{obs.name}`: no capsule is carried by `{obs.target}`")
+        cap = held[0]
+    if obs.kind == "displacement":
+        axis = np.asarray(obs.axis, float)
+        return float(np.asarray(state.displacements[cap], float) @ (axis / np.linalg.norm(axis)))
+    return float(np.asarray(state.positions[cap], float)["xyz".index(obs.component)])
+
+
+def replay(design, waypoints: list[Waypoint], observables=(), noise: float = 0.0, seed: int = 0, progress=None):
+    """Equilibrium of ``design`` under every waypoint's drive (warm-started in order) -> (Dataset, lost).
+
+    The full nonlinear model of the analysis (acl.analysis.mechanics with the design's declared
+    effects).  ``lost`` counts waypoints with no stable equilibrium (snap-in): no row is written for them.
+    """
+    import numpy as np
+
+    from acl.analysis import acoustics
+    from acl.analysis import mechanics as mech
+    from acl.design.model import Drive, Tone
+    from acl.fit.data import Dataset
+
+    names = list(observables) or [o.name for o in design.observes]
+    obs = [design.observe(n) for n in names]
+    fm = acoustics.force_model_for(design)
+    rows, start, lost = [], None, 0
+    for i, w in enumerate(waypoints):
+        drive = Drive(tones=tuple(Tone(frequency=f, amplitude=v) for f, v in w.tones))
+        st = mech.equilibrium(design, drive, fm, start=start)
+        if st.status != "ok" and start is not None:
+            st = mech.equilibrium(design, drive, fm)
+        if st.status != "ok":
+            lost += 1
+            start = None
+        else:
+            start = st.positions
+            for o in obs:
+                rows.append((o.name, observe_value(design, o, st), w.time, w.tones))
+        if progress is not None:
+            progress(i + 1, len(waypoints))
+    n = len(rows)
+    value = np.array([r[1] for r in rows], float)
+    if noise > 0:
+        value = value + np.random.default_rng(seed).normal(0.0, noise, n)
+    data = Dataset(np.array([r[0] for r in rows], dtype=object), value, np.full(n, float(noise) or np.nan),
+                   np.array([r[2] for r in rows], float), [r[3] for r in rows], {}, {},
+                   [Span(file="<synth>", line=i + 2, column=1) for i in range(n)], np.array(["um"] * n, dtype=object))
+    return data, lost
