@@ -343,6 +343,9 @@ def _pair_forces(design: Design, states: dict[str, _DriveState],
             fa = on_a.reshape(-1, 3).sum(axis=0)
             if design.effects:   # ~ product of the two volume amplitudes: geometric mean (as acl.fit.forward)
                 fa = fa * math.sqrt(substrate_factor(design, sa.cap) * substrate_factor(design, sb.cap))
+                bs = EF.coefficients(design, "bjerknes_scale")
+                if bs is not None:       # a fitted Bjerknes coefficient (paper Eq. 3 alpha) relative to the physics
+                    fa = fa * bs["factor"]
             line = pos[nb] - pos[na]
             dist = float(np.linalg.norm(line))
             unit = line / dist if dist > 0 else np.zeros(3)

@@ -121,7 +121,7 @@ def _replay(args, noise) -> int:
 
     console = Console(stderr=True, highlight=False)
     try:
-        waypoints, chirps = read_schedule(args.schedule)
+        waypoints, chirps, targets = read_schedule(args.schedule)
     except DiagnosticError as exc:
         report(exc.diagnostics)
         return 2
@@ -141,10 +141,11 @@ def _replay(args, noise) -> int:
         with Progress("replaying", BarColumn(), "{task.completed}/{task.total} waypoints", console=console,
                       transient=True) as bar:
             task = bar.add_task("replay", total=len(waypoints))
-            data, lost = replay(design, waypoints, names, noise, args.seed,
-                                progress=lambda done, total: bar.update(task, completed=done))
+            res = replay(design, waypoints, names, noise, args.seed,
+                         progress=lambda done, total: bar.update(task, completed=done), targets=targets)
     else:
-        data, lost = replay(design, waypoints, names, noise, args.seed)
+        res = replay(design, waypoints, names, noise, args.seed, targets=targets)
+    data, lost = res.data, res.lost
     if data.n == 0:
         from acl.diagnostics import Span, error
 
@@ -157,6 +158,10 @@ def _replay(args, noise) -> int:
         return _usage(f"cannot write {args.output}: {exc.strerror or exc}")
     console.print(f"wrote {data.n} rows ({len(waypoints) - lost} waypoints x {len(names or known)} observables) "
                   f"to {args.output}")
+    for goal, t in res.tracking.items():
+        console.print(f"{goal}: tracking error on {args.design} RMS {t['rms_m'] * 1e6:.4g} um, "
+                      f"max {t['max_m'] * 1e6:.4g} um over {t['n']} waypoints (noise-free)"
+                      + (f", {t['lost']} lost" if t["lost"] else ""))
     if chirps:
         console.print(f"note: {chirps} sweep segments skipped (a chirp has no static equilibrium)")
     if lost:

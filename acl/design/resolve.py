@@ -26,7 +26,7 @@ DECL_KINDS = ("medium", "material", "transducer", "capsule", "beam", "spring", "
 
 # Effects of the model library (docs/fit.md); `effect NAME { coefficient = quantity, ... }`.
 EFFECTS = ("transducer_gain", "drive_saturation", "large_deflection", "stiffness_scale", "stiffness_gradient",
-           "offset_drift", "bubble_shrinkage", "neighbour_drag", "substrate_proximity")
+           "offset_drift", "bubble_shrinkage", "neighbour_drag", "substrate_proximity", "bjerknes_scale")
 
 D = parse_unit_static
 LENGTH, FREQ, VOLT, TIME = D("m"), D("Hz"), D("V"), D("s")

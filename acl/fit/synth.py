@@ -135,10 +135,20 @@ class Waypoint:
     tones: tuple
     goal: str
     step: int
+    index: int = 0                          # position among its goal's segments
 
 
-def read_schedule(path: str) -> tuple[list[Waypoint], int]:
-    """The constant-drive segments of a schedule.json (and how many chirp segments were skipped).
+@dataclass(frozen=True)
+class Target:
+    """A follow goal of the schedule: the capsule and its path, one point (m) per waypoint segment."""
+
+    capsule: str
+    points: object                          # (N, 2) m
+
+
+def read_schedule(path: str) -> tuple[list[Waypoint], int, dict]:
+    """The constant-drive segments of a schedule.json, how many chirp segments were skipped, and the
+    follow goals' targets {goal name: Target} (schedule 1.1+).
 
     Raises DiagnosticError (E-SYNTH-SCHEDULE) at file:line:column for anything malformed.
     """
@@ -159,7 +169,7 @@ def read_schedule(path: str) -> tuple[list[Waypoint], int]:
         raise bad(f"not JSON: {exc.msg}", exc.lineno, exc.colno, "give the schedule.json `acl compile` wrote") from None
     if not isinstance(doc, dict) or not isinstance(doc.get("segments"), list) or not str(doc.get("version", "")).startswith("1."):
         raise bad("not an acl schedule (version 1.x with a list of segments)", hint="give the schedule.json `acl compile` wrote")
-    out, chirps = [], 0
+    out, chirps, count = [], 0, {}
     for i, seg in enumerate(doc["segments"]):
         where = f"segments[{i}]"
         try:
@@ -181,10 +191,22 @@ def read_schedule(path: str) -> tuple[list[Waypoint], int]:
         if chirp:
             chirps += 1
             continue
-        out.append(Waypoint(start, tuple(tones), str(seg.get("goal") or ""), int(seg.get("step", 0))))
+        goal = str(seg.get("goal") or "")
+        out.append(Waypoint(start, tuple(tones), goal, int(seg.get("step", 0)), count.get(goal, 0)))
+        count[goal] = count.get(goal, 0) + 1
     if not out:
         raise bad("the schedule has no constant-drive segment to replay")
-    return out, chirps
+    import numpy as np
+
+    targets = {}
+    for j, g in enumerate(doc.get("goals") or []):
+        if isinstance(g, dict) and g.get("kind") == "follow" and g.get("capsule") and g.get("target_um") is not None:
+            try:
+                pts = np.asarray(g["target_um"], float).reshape(-1, 2) * 1e-6
+            except (TypeError, ValueError):
+                raise bad(f"goals[{j}].target_um: expected a list of [x, y] in um") from None
+            targets[str(g["name"])] = Target(str(g["capsule"]), pts)
+    return out, chirps, targets
 
 
 def observe_value(design, obs, state) -> float:
@@ -211,11 +233,22 @@ def observe_value(design, obs, state) -> float:
     return float(np.asarray(state.positions[cap], float)["xyz".index(obs.component)])
 
 
-def replay(design, waypoints: list[Waypoint], observables=(), noise: float = 0.0, seed: int = 0, progress=None):
-    """Equilibrium of ``design`` under every waypoint's drive (warm-started in order) -> (Dataset, lost).
+@dataclass
+class Replay:
+    data: object                            # Dataset: every observable at every waypoint
+    lost: int                               # waypoints without a stable equilibrium (no rows)
+    tracking: dict                          # follow goal -> {"rms_m", "max_m", "n", "lost", "errors_m"}
+
+
+def replay(design, waypoints: list[Waypoint], observables=(), noise: float = 0.0, seed: int = 0, progress=None,
+           targets: dict | None = None) -> Replay:
+    """Equilibrium of ``design`` under every waypoint's drive (warm-started in order).
 
     The full nonlinear model of the analysis (acl.analysis.mechanics with the design's declared
-    effects).  ``lost`` counts waypoints with no stable equilibrium (snap-in): no row is written for them.
+    effects).  ``lost`` counts waypoints with no stable equilibrium (snap-in): no row is written for
+    them.  With ``targets`` (from :func:`read_schedule`), the tracking error of each follow goal:
+    the distance in the plane between the capsule's displacement and the target (noise-free), a
+    lost waypoint counting as missed by the path's extent.
     """
     import numpy as np
 
@@ -227,6 +260,8 @@ def replay(design, waypoints: list[Waypoint], observables=(), noise: float = 0.0
     names = list(observables) or [o.name for o in design.observes]
     obs = [design.observe(n) for n in names]
     fm = acoustics.force_model_for(design)
+    targets = {k: t for k, t in (targets or {}).items() if t.capsule in {c.name for c in design.capsules}}
+    errors = {k: np.full(len(t.points), np.nan) for k, t in targets.items()}
     rows, start, lost = [], None, 0
     for i, w in enumerate(waypoints):
         drive = Drive(tones=tuple(Tone(frequency=f, amplitude=v) for f, v in w.tones))
@@ -240,6 +275,10 @@ def replay(design, waypoints: list[Waypoint], observables=(), noise: float = 0.0
             start = st.positions
             for o in obs:
                 rows.append((o.name, observe_value(design, o, st), w.time, w.tones))
+            t = targets.get(w.goal)
+            if t is not None and w.index < len(t.points):
+                d = np.asarray(st.displacements[t.capsule], float)[:2]
+                errors[w.goal][w.index] = float(np.linalg.norm(d - t.points[w.index]))
         if progress is not None:
             progress(i + 1, len(waypoints))
     n = len(rows)
@@ -249,4 +288,11 @@ def replay(design, waypoints: list[Waypoint], observables=(), noise: float = 0.0
     data = Dataset(np.array([r[0] for r in rows], dtype=object), value, np.full(n, float(noise) or np.nan),
                    np.array([r[2] for r in rows], float), [r[3] for r in rows], {}, {},
                    [Span(file="<synth>", line=i + 2, column=1) for i in range(n)], np.array(["um"] * n, dtype=object))
-    return data, lost
+    tracking = {}
+    for k, e in errors.items():
+        pts = targets[k].points
+        missed = ~np.isfinite(e)
+        e = np.where(missed, float(np.ptp(pts, axis=0).max() + np.abs(pts).max()), e)
+        tracking[k] = {"rms_m": float(np.sqrt(np.mean(e ** 2))), "max_m": float(e.max()), "n": int(e.size),
+                       "lost": int(missed.sum()), "errors_m": e}
+    return Replay(data, lost, tracking)

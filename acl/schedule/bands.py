@@ -57,8 +57,28 @@ def declared(design: Design, with_params: bool = True) -> Uncertainty:
                        tuple(p.unit for p in ps))
 
 
+def _anchor(design: Design, factors: np.ndarray) -> np.ndarray:
+    """Table factors relative to the gain at the calibrated frequencies, when a calibration measured it.
+
+    A calibrated design (``acl fit``) declares ``transducer_gain`` (the fitted pressure scale, with
+    its own uncertainty as parameters) and ``covered(frequency)``: the gain there is measured, so the
+    table's prior uncertainty only describes the shape relative to it.
+    """
+    cover = next((c for c in design.coverage if c.quantity == "frequency"), None)
+    if cover is None or design.effect("transducer_gain") is None:
+        return factors
+    from acl.physics.transducer import pressure_per_volt
+
+    t = design.transducer
+    f = np.linspace(cover.lower, cover.upper, 5)
+    g0, _ = pressure_per_volt(f, t.gain_frequencies, t.gain_pa_per_v)
+    g1, _ = pressure_per_volt(f, t.gain_frequencies, np.asarray(t.gain_pa_per_v) * factors)
+    return factors / float(np.exp(np.mean(np.log(np.asarray(g1) / np.asarray(g0)))))
+
+
 def _with_gain(design: Design, factors: np.ndarray) -> Design:
     t = design.transducer
+    factors = _anchor(design, np.asarray(factors, float))
     gains = tuple(float(g * f) for g, f in zip(t.gain_pa_per_v, factors))
     return design.model_copy(update={"transducer": t.model_copy(update={"gain_pa_per_v": gains})})
 

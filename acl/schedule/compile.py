@@ -185,7 +185,7 @@ class _Compiler:
             self._add(dt, tones, i, name)
         rep = GoalReport(name, "follow", i, start, self.t, choice.frequencies,
                          times_s=start + dt * np.arange(n), target_m=path.points,
-                         amplitudes_v=amps.T.copy())
+                         amplitudes_v=amps.T.copy(), capsule=step.capsule)
         rep.linear_rms_error_m = float(np.sqrt(np.mean(plan.error ** 2)))
         self._resimulate(rep, step.capsule, plan.u, path.points, plan.predicted)
         rep.details.update({
