@@ -37,6 +37,9 @@ def add_parser(p) -> None:
     p.add_argument("--band-samples", type=int, default=20, metavar="N",
                    help="draws of the declared uncertainty for each goal's 95 %% error band (default 20; 0: none)")
     p.add_argument("--band-seed", type=int, default=0, metavar="N", help="seed of those draws (default 0)")
+    p.add_argument("--nonlinear-passes", type=int, default=0, metavar="N",
+                   help="re-plan paths N times against the design's nonlinear model (saturation, stiffening, "
+                        "declared effects); default 0")
     p.add_argument("--plot", action="store_true", help="write a PNG per path goal")
     p.add_argument("--diagnostics", choices=["text", "json"], default="text",
                    help="diagnostics as text (default) or JSON on stdout")
@@ -87,6 +90,8 @@ def run(args) -> int:
         diags.append(_usage("E-COMPILE-OPTION", "--ramp must not be negative"))
     if args.band_samples < 0:
         diags.append(_usage("E-COMPILE-OPTION", "--band-samples must not be negative"))
+    if args.nonlinear_passes < 0:
+        diags.append(_usage("E-COMPILE-OPTION", "--nonlinear-passes must not be negative"))
     if diags:
         report(diags, fmt)
         return 2
@@ -118,6 +123,7 @@ def run(args) -> int:
     opts = CompileOptions(sample_rate_hz=rate, waypoint_dt_s=args.waypoint_dt,
                           tolerance_m=args.tolerance * 1e-6, ramp_s=args.ramp, calibration=calibration,
                           robust=args.robust, band_samples=args.band_samples, band_seed=args.band_seed,
+                          nonlinear_passes=args.nonlinear_passes,
                           reload=_reloader(args))
     try:
         schedule = compile_program(design, program, opts)

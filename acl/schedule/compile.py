@@ -47,6 +47,7 @@ class CompileOptions:
     band_samples: int = 0                        # draws of the declared uncertainty for the 95 % band (0: none)
     band_seed: int = 0
     reload: Callable | None = None               # {param: "v unit"} -> Design, to sample uncertain params
+    nonlinear_passes: int = 0                    # re-plan against the nonlinear model (acl.schedule.correct)
 
 
 def auto_sample_rate(max_frequency_hz: float, factor: float = 10.0, grid_hz: float = 1e3) -> float:
@@ -178,6 +179,8 @@ class _Compiler:
                        f"limits: {vmax:g} V total" + (f", slew {slew:g} V/s" if slew else ""),))])
         except SolverFailure as exc:
             raise _diag("E-SCHED-SOLVER", f"{name}: {exc}", step.span, "report this design")
+        if self.opts.nonlinear_passes > 0:
+            plan = self._correct(name, step.capsule, choice, plan, path.points, dt, limits, rq)
         amps = plan.amplitudes                                      # (K, N)
         start = self.t
         for w in range(n):
@@ -196,6 +199,35 @@ class _Compiler:
         if self.opts.robust:
             rep.details["robust"] = rq is not None
         self.goals.append(rep)
+
+    def _correct(self, name, capsule, choice, plan, points, dt, limits, rq):
+        """Re-plan against the nonlinear forward model (acl.schedule.correct); the first plan if unavailable."""
+        from acl.schedule.correct import correct_plan
+        from acl.schedule.path import PathInfeasible, plan_path
+        from acl.schedule.solve import SolverFailure
+
+        provider = self.opts.forward_provider
+        if provider is None:
+            from acl.schedule.gains import model_forward as provider
+        try:
+            forward, _ = provider(self.design, capsule, choice.frequencies)
+        except (KeyError, ValueError, ImportError) as exc:
+            self.notes.append(f"{name}: no nonlinear correction ({exc})")
+            return plan
+
+        def plan_for(p):
+            return plan_path(choice.gains, p, dt, limits, tolerance=self.opts.tolerance_m, lam=self.opts.lam,
+                             slew_model=self.opts.slew_model, refine=self.opts.refine, robust_q=rq)
+
+        try:
+            best, history = correct_plan(plan_for, forward, points, plan, self.opts.nonlinear_passes)
+        except (PathInfeasible, SolverFailure):
+            self.notes.append(f"{name}: a nonlinear correction pass was infeasible; kept the linear plan")
+            return plan
+        best.notes.append("nonlinear correction: RMS error " + " -> ".join(f"{h * 1e6:.3g}" for h in history)
+                          + " um over the passes (the best plan kept)")
+        best.targets = np.asarray(points, float)
+        return best
 
     def _robust_q(self, name, capsule, freqs):
         """Q of the declared uncertainty at the chosen tones (None, with a note, when there is none)."""
