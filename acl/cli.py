@@ -18,6 +18,9 @@ COMMANDS = {
     "lint": "Run design rules (for CI): rule codes, configuration, machine-readable output.",
     "fit": "Fit the model to measured data, find missing effects, report before/after.",
     "synth": "Generate synthetic measurement data from a design (to test analyses).",
+    "rule": "Print the documentation of a rule or diagnostic code (e.g. ACL201, E303).",
+    "fmt": "Rewrite designs in the one canonical layout (--check for CI, --diff, - for stdin).",
+    "lsp": "Start the language server (LSP over stdio) for editors; needs acl[lsp].",
 }
 
 EPILOG = """\
@@ -26,8 +29,10 @@ examples:
   acl show examples/fig3_three_orifice.acl --json
   acl analyze examples/fig4h_unequal_pair.acl --at "85 kHz @ 5 V"
   acl compile examples/fig3_three_orifice.acl --program rectangle -o out/
-  acl lint examples/ --format github
+  acl lint examples/ --output-format github
+  acl rule ACL201
   acl fit design.acl data.csv --report fit/
+  acl fmt examples/ --check
 
 exit codes: 0 clean, 1 errors in the design or findings, 2 usage or I/O error.
 docs: docs/language.md, docs/physics.md, docs/rules.md, docs/data.md
@@ -65,6 +70,9 @@ def build_parser() -> argparse.ArgumentParser:
         p = sub.add_parser(name, help=help_text, description=help_text,
                            formatter_class=argparse.RawDescriptionHelpFormatter)
         module.add_parser(p)
+        from acl.commands._common import add_verbosity
+
+        add_verbosity(p)
         p.set_defaults(_module=module)
     return parser
 
@@ -77,8 +85,17 @@ def main(argv: list[str] | None = None) -> int:
     if not getattr(args, "command", None) or not hasattr(args, "_module"):
         parser.print_help()
         return 2
+    if not getattr(args, "quiet", False):
+        for note in getattr(args, "deprecated_options", None) or []:
+            sys.stderr.write(f"acl: warning: {note}\n")
+    import time
+
+    start = time.perf_counter()
     try:
-        return int(args._module.run(args) or 0)
+        code = int(args._module.run(args) or 0)
+        if getattr(args, "verbose", False):
+            sys.stderr.write(f"acl {args.command}: exit {code} after {time.perf_counter() - start:.2f} s\n")
+        return code
     except KeyboardInterrupt:
         sys.stderr.write("acl: interrupted\n")
         return 130

@@ -127,10 +127,10 @@ def diagnostics_to_json(diags: Sequence[Diagnostic]) -> str:
 
 def render(diags: Sequence[Diagnostic], console=None, sources: dict[str, str] | None = None) -> None:
     """Render diagnostics with a caret excerpt of the source line (rich)."""
-    from rich.console import Console
+    from acl._console import make_console
     from rich.text import Text
 
-    console = console or Console(stderr=True, highlight=False)
+    console = console or make_console(stderr=True, highlight=False)
     cache: dict[str, list[str] | None] = {}
     colours = {Severity.ERROR: "bold red", Severity.WARNING: "bold yellow", Severity.INFO: "bold blue"}
     for d in diags:
@@ -163,9 +163,12 @@ def _source_lines(path: str, cache: dict, sources: dict[str, str] | None) -> lis
     if sources and path in sources:
         text = sources[path]
     else:
+        import os
+
         try:
-            with open(path, encoding="utf-8", errors="replace") as fh:
-                text = fh.read(2_000_000)
+            if os.path.isfile(path):   # never a FIFO or a device: excerpts must not hang
+                with open(path, encoding="utf-8", errors="replace") as fh:
+                    text = fh.read(2_000_000)
         except OSError:
             text = None
     cache[path] = text.splitlines() if text is not None else None

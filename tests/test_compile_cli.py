@@ -57,7 +57,7 @@ def test_formats_and_plot_are_written_when_asked(design, tmp_path):
     out = tmp_path / "out"
     assert run(design, "--program", "circle", "-o", str(out), "--format", "npy,csv", "--plot") == 0
     names = set(os.listdir(out))
-    assert {"waveform.npy", "waveform.csv", "goal-step1.png"} <= names and "waveform.wav" not in names
+    assert {"waveform.npy", "waveform-samples.csv", "goal-step1.png"} <= names and "waveform.wav" not in names
 
 
 def test_sample_rate_option_reaches_the_wav_header(design, tmp_path):

@@ -39,7 +39,7 @@ def test_wav_npy_and_csv_hold_the_same_samples_in_their_documented_scales(tmp_pa
     emit(schedule(), str(tmp_path / "out"), ("wav", "npy", "csv"), 1.25e6)
     wav, fs = read_wav_float32(str(tmp_path / "out" / "waveform.wav"))
     npy = np.load(tmp_path / "out" / "waveform.npy")
-    tv = np.loadtxt(tmp_path / "out" / "waveform.csv", delimiter=",", skiprows=1)
+    tv = np.loadtxt(tmp_path / "out" / "waveform-samples.csv", delimiter=",", skiprows=1)
     assert fs == 1_250_000 and wav.size == npy.size == tv.shape[0] == 37500
     assert np.allclose(wav * 10.0, npy, atol=1e-6)            # wav = volts / full scale
     assert np.allclose(tv[:, 1], npy, atol=1e-5)
@@ -87,13 +87,39 @@ def test_keyboard_interrupt_during_render_cleans_up(tmp_path):
     assert no_temp_dirs(tmp_path)
 
 
-def test_existing_output_directory_keeps_other_files_and_gets_the_new_ones(tmp_path):
+def test_an_output_folder_holding_files_acl_did_not_write_is_refused_and_left_alone(tmp_path):
+    # issue 11: an output folder holds one compile, nothing else; a user file is never deleted
     out = tmp_path / "out"
     out.mkdir()
     (out / "notes.txt").write_text("mine")
+    with pytest.raises(DiagnosticError) as exc:
+        emit(schedule(), str(out), ("wav",))
+    d = exc.value.diagnostics[0]
+    assert d.code == "E-EMIT-OUTPUT" and "notes.txt" in d.message and str(d.span) == "<--output>:1:1"
+    assert os.listdir(out) == ["notes.txt"] and (out / "notes.txt").read_text() == "mine"
+    assert no_temp_dirs(tmp_path)
+
+
+def test_reusing_an_output_folder_replaces_the_previous_compile_without_stale_files(tmp_path):
+    out = tmp_path / "out"
+    emit(schedule(), str(out), ("wav", "npy", "csv"))
+    assert {"waveform.npy", "waveform-samples.csv"} <= set(os.listdir(out))
     emit(schedule(), str(out), ("wav",))
-    assert (out / "notes.txt").read_text() == "mine"
-    assert (out / "schedule.json").exists() and (out / "waveform.wav").exists()
+    # before: waveform.npy and the csv of the first compile stayed beside the new schedule.json
+    assert sorted(os.listdir(out)) == ["schedule.json", "segments.csv", "waveform.wav"]
+    assert json.loads((out / "schedule.json").read_text())["files"]["wav"] == "waveform.wav"
+
+
+def test_a_previous_compile_whose_manifest_was_tampered_with_cannot_delete_other_files(tmp_path):
+    out = tmp_path / "out"
+    emit(schedule(), str(out), ("wav",))
+    data = json.loads((out / "schedule.json").read_text())
+    data["files"]["evil"] = "../victim.txt"
+    (out / "schedule.json").write_text(json.dumps(data))
+    (tmp_path / "victim.txt").write_text("keep")
+    emit(schedule(), str(out), ("npy",))
+    assert (tmp_path / "victim.txt").read_text() == "keep"
+    assert sorted(os.listdir(out)) == ["schedule.json", "segments.csv", "waveform.npy"]
     assert no_temp_dirs(tmp_path)
 
 

@@ -60,7 +60,7 @@ def test_show_json_lists_uncertainty(tmp_path):
 @pytest.mark.parametrize("text, code, line, col", [
     ("param g = 27 pN/V^2 +- -2 pN/V^2\n", "E320", 5, 24),              # negative
     ("param g = 27 pN/V^2 +- 2 um\n", "E321", 5, 24),                     # wrong unit
-    ("param g = 3 um +- 1e200 um * 1e200\n", "E322", 5, 19),             # not finite
+    ("param g = 3 um +- 1e200 um * 1e200\n", "E305", 5, 19),             # not finite
     ("param g = 3 um +- 1 um\nuncertainty { correlation(g, q) = 0.5 }\n", "E323", 6, 15),   # unknown name
     ("param g = 3 um +- 1 um\nparam q = 2 um\nuncertainty { correlation(g, q) = 0.5 }\n", "E323", 7, 15),
     ("param g = 3 um +- 1 um\nparam q = 2 um +- 1 um\nuncertainty { correlation(g, q) = 1.5 }\n", "E324", 7, 35),

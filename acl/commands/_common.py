@@ -10,6 +10,23 @@ from acl.diagnostics import Diagnostic, DiagnosticError, Span, diagnostics_to_js
 _SET = re.compile(r"^\s*([A-Za-z_][A-Za-z0-9_]*)\s*=\s*(.+?)\s*$")
 
 
+# A leading number: digits with an optional fraction and an optional exponent (`2.0e1`, `2e-5`).
+_LEADING_NUMBER = re.compile(r"\s*([+-]?(?:\d+\.\d*|\.\d+|\d+)(?:[eE][+-]?\d+)?)\s*(.*?)\s*$", re.S)
+
+
+def quantity_text(text: str) -> str:
+    """A value from the command line as acl text: `60um` -> `60 um`, `2.0e1um` -> `2.0e1 um`.
+
+    The one place the CLI splits a number from its unit (--set, synth's --noise, --sweep, --effect):
+    scientific notation stays one number, never a number followed by the unit `e`.
+    """
+    m = _LEADING_NUMBER.fullmatch(text)
+    if not m:
+        return text.strip()
+    number, unit = m.groups()
+    return f"{number} {unit}" if unit else number
+
+
 def add_design_options(p, sets: bool = True) -> None:
     if sets:
         p.add_argument("--set", action="append", default=[], metavar="P=V",
@@ -27,10 +44,7 @@ def parse_sets(items: list[str]) -> tuple[dict[str, str], list[Diagnostic]]:
             diags.append(error("E-USAGE", f"--set {item!r}: expected NAME=VALUE, e.g. --set gap=60um",
                                Span(file="<--set>", line=1, column=1)))
             continue
-        value = m.group(2)
-        # allow `60um` as well as `60 um`
-        value = re.sub(r"^([0-9.eE+-]+)([A-Za-z\u00b5\u03bc])", r"\1 \2", value)
-        out[m.group(1)] = value
+        out[m.group(1)] = quantity_text(m.group(2))
     return out, diags
 
 
@@ -64,8 +78,132 @@ def exit_code(diags) -> int:
     return 1 if any(d.is_error for d in diags) else 0
 
 
-def report(diags, fmt: str = "text") -> None:
+def report(diags, fmt: str = "text", sources: dict[str, str] | None = None) -> None:
     if fmt == "json":
         sys.stdout.write(diagnostics_to_json(diags) + "\n")
     else:
-        render(diags)
+        render(diags, sources=sources)
+
+
+STDIN = "-"
+
+
+def add_stdin_option(p) -> None:
+    p.add_argument("--stdin-filename", metavar="NAME", default="<stdin>",
+                   help="the name (and folder, for imports) of the design read from standard input (`-`)")
+
+
+def read_stdin(name: str) -> tuple[str | None, list[Diagnostic]]:
+    """The design on standard input (`-`): UTF-8 text, at most the design size limit."""
+    from acl.design.modules import MAX_BYTES
+
+    raw = sys.stdin.buffer.read(MAX_BYTES + 1)
+    span = Span(file=name, line=1, column=1)
+    if len(raw) > MAX_BYTES:
+        return None, [error("E601", f"cannot read standard input: larger than {MAX_BYTES // 1_000_000} MB", span)]
+    try:
+        return raw.decode("utf-8"), []
+    except UnicodeDecodeError as exc:
+        return None, [error("E103", f"cannot read standard input: not UTF-8 text (byte {exc.start})", span)]
+
+
+def plotting_missing(option: str, fmt: str = "text") -> bool:
+    """Report E-PLOT and return True when matplotlib (the `plot` extra) is not installed."""
+    import importlib.util
+
+    try:
+        found = importlib.util.find_spec("matplotlib") is not None
+    except (ImportError, ValueError):
+        found = False
+    if not found:
+        report([error("E-PLOT", f"{option} draws figures with matplotlib, which is not installed",
+                      Span(file=f"<{option}>", line=1, column=1),
+                      "install the plotting extra: pip install 'acl[plot]'")], fmt)
+    return not found
+
+
+# -- one machine-output option for every command (ruff's `--output-format`) -----------------------
+
+def _deprecated_alias(replacement: str, const=None):
+    """An argparse action for an old spelling of an option: it still works, and the command line
+    prints a one-line deprecation warning naming the new spelling (unless -q)."""
+    import argparse
+
+    class Alias(argparse.Action):
+        def __call__(self, parser, namespace, values, option_string=None):
+            setattr(namespace, self.dest, const if const is not None else values)
+            notes = list(getattr(namespace, "deprecated_options", None) or [])
+            notes.append(f"`{option_string}` is deprecated: use `{replacement}`")
+            namespace.deprecated_options = notes
+
+    return Alias
+
+
+def add_output_format(p, choices=("text", "json"), default: str = "text", old=()) -> None:
+    """``--output-format`` (dest ``output_format``), and the old spellings in ``old`` as hidden,
+    deprecated aliases: ``--json`` (a flag meaning json) or an option taking the same values."""
+    import argparse
+
+    p.add_argument("--output-format", choices=choices, default=default, metavar="FORMAT",
+                   help=f"output format: {', '.join(choices)} (default {default})")
+    for spelling in old:
+        if spelling == "--json":
+            p.add_argument("--json", dest="output_format", nargs=0, help=argparse.SUPPRESS,
+                           action=_deprecated_alias("--output-format json", const="json"))
+        else:
+            p.add_argument(spelling, dest="output_format", choices=choices, help=argparse.SUPPRESS,
+                           action=_deprecated_alias("--output-format"))
+
+
+def add_verbosity(p) -> None:
+    """-q/--quiet and -v/--verbose, the same on every command."""
+    if "--quiet" in p._option_string_actions or "--verbose" in p._option_string_actions:
+        return
+    g = p.add_mutually_exclusive_group()
+    g.add_argument("-q", "--quiet", action="store_true",
+                   help="print results and diagnostics only: no summaries, progress or notes")
+    g.add_argument("-v", "--verbose", action="store_true",
+                   help="also print what each stage did and how long it took (stderr)")
+
+
+# -- designs named by file or folder ---------------------------------------------------------------
+
+SKIPPED_DIRS = {"__pycache__", "node_modules", "venv", ".venv"}
+
+
+def design_files(paths) -> list[str]:
+    """Expand folders into the ``*.acl`` designs under them (recursively, sorted; hidden folders and
+    links leading out of the folder skipped); anything else is kept as given (the loader reports a
+    missing or unreadable file)."""
+    import os
+
+    files = []
+    for p in paths:
+        if os.path.isdir(p):
+            top = os.path.realpath(p)
+            for dirpath, dirs, names in os.walk(p):
+                dirs[:] = sorted(d for d in dirs if not d.startswith(".") and d not in SKIPPED_DIRS)
+                for n in sorted(names):
+                    full = os.path.join(dirpath, n)
+                    if n.endswith(".acl") and os.path.commonpath([top, os.path.realpath(full)]) == top:
+                        files.append(full)
+        else:
+            files.append(p)
+    return list(dict.fromkeys(files))
+
+
+def one_design(path: str, fmt: str = "text") -> str | None:
+    """The design a single-design command works on: ``path`` itself, or the one design in a folder.
+    A folder with none or several designs is reported (E-USAGE, naming them) and gives None."""
+    import os
+
+    if not os.path.isdir(path):
+        return path
+    files = design_files([path])
+    if len(files) == 1:
+        return files[0]
+    found = ", ".join(files[:8]) + (", ..." if len(files) > 8 else "")
+    report([error("E-USAGE", f"folder `{path}` holds {len(files) or 'no'} design{'s' * (len(files) != 1)}; "
+                  "this command works on one", Span(file=path, line=1, column=1),
+                  f"name one: {found}" if files else "give a .acl file")], fmt)
+    return None

@@ -5,21 +5,23 @@ import json
 import math
 import sys
 
-from acl.commands._common import add_design_options, load_or_report, report
+from acl.commands._common import (add_design_options, add_output_format, load_or_report, one_design,
+                                  plotting_missing, report)
 from acl.diagnostics import DiagnosticError, Span, error
 
 
 def add_parser(p) -> None:
-    p.add_argument("file", metavar="FILE")
+    p.add_argument("file", metavar="FILE", help="design file (.acl), or a folder holding one design")
     p.add_argument("--at", metavar="DRIVE", help='equilibrium under a drive, e.g. --at "125 kHz @ 6 V"')
-    p.add_argument("--json", action="store_true", help="print one JSON object (docs/analyze.md)")
+    add_output_format(p, old=("--json",))
     p.add_argument("--plot", metavar="DIR", help="write PNG figures into DIR")
     p.add_argument("--no-snap", action="store_true", help="skip the snap-in voltage sweeps (faster)")
     add_design_options(p)
 
 
 def run(args) -> int:
-    fmt = "json" if args.json else "text"
+    fmt = args.output_format
+    as_json = fmt == "json"
     at = None
     if args.at is not None:
         from acl.design.drives import drive_from_text
@@ -29,7 +31,12 @@ def run(args) -> int:
         except DiagnosticError as exc:
             report(exc.diagnostics, fmt)
             return 2
-    design, code = load_or_report(args.file, args, fmt)
+    if args.plot and plotting_missing("--plot", fmt):
+        return 2
+    path = one_design(args.file, fmt)
+    if path is None:
+        return 2
+    design, code = load_or_report(path, args, fmt)
     if design is None:
         return code
     if at is not None and design.transducer is not None:
@@ -42,12 +49,18 @@ def run(args) -> int:
             return 2
     from acl.analysis.report import analyze
 
-    if args.json:
+    if as_json or args.quiet:
         rep = analyze(design, at, snap_in=not args.no_snap)
-    else:
-        from rich.console import Console
+    elif args.verbose:
+        import time
 
-        con = Console(stderr=True)
+        t0 = time.perf_counter()
+        rep = analyze(design, at, snap_in=not args.no_snap,
+                      progress=lambda m: sys.stderr.write(f"[{time.perf_counter() - t0:7.2f} s] {m}\n"))
+    else:
+        from acl._console import make_console
+
+        con = make_console(stderr=True)
         with con.status("analyzing...") as status:
             rep = analyze(design, at, snap_in=not args.no_snap, progress=lambda m: status.update(m))
     if args.plot:
@@ -59,14 +72,14 @@ def run(args) -> int:
             report([error("E601", f"cannot write figures to `{args.plot}`: {exc.strerror or exc}",
                           Span(file=args.plot, line=1, column=1))], fmt)
             return 2
-    if args.json:
+    if as_json:
         sys.stdout.write(json.dumps(rep.as_dict(), indent=2, default=_json_default) + "\n")
     else:
         print_report(design, rep)
-        if args.plot:
-            from rich.console import Console
+        if args.plot and not args.quiet:
+            from acl._console import make_console
 
-            Console().print(f"wrote {len(written)} figure(s) to {args.plot}")
+            make_console().print(f"wrote {len(written)} figure(s) to {args.plot}")
     return 0 if rep.requires_ok else 1
 
 
@@ -85,10 +98,10 @@ def _k(hz):
 
 
 def print_report(design, rep) -> None:
-    from rich.console import Console
+    from acl._console import make_console
     from rich.table import Table
 
-    con = Console(highlight=False)
+    con = make_console(highlight=False)
     for n in rep.notes:
         con.print(f"[yellow]note:[/yellow] {n}")
     t = Table(title="Capsule modes", title_justify="left")

@@ -6,10 +6,12 @@ or a goal is infeasible / has errors; 2 bad options or input files.  OUT is only
 """
 from __future__ import annotations
 
+import math
 import re
 import sys
 
-from acl.commands._common import add_design_options, load_or_report, report
+from acl.commands._common import (add_design_options, add_output_format, load_or_report, one_design,
+                                  plotting_missing, report)
 from acl.diagnostics import DiagnosticError, Span, error, suggest
 
 _RATE = re.compile(r"^\s*([0-9]*\.?[0-9]+(?:[eE][-+]?[0-9]+)?)\s*(hz|khz|mhz|k|m|ms/s|ks/s)?\s*$", re.I)
@@ -17,20 +19,24 @@ _RATE_UNITS = {None: 1.0, "hz": 1.0, "khz": 1e3, "k": 1e3, "ks/s": 1e3, "mhz": 1
 
 
 def add_parser(p) -> None:
-    p.add_argument("file", metavar="FILE", help="design file (.acl)")
-    p.add_argument("-o", "--output", required=True, metavar="OUT", help="output directory")
+    p.add_argument("file", metavar="FILE", help="design file (.acl), or a folder holding one design")
+    p.add_argument("-o", "--output", required=True, metavar="OUT",
+                   help="output directory: new, empty, or holding a previous compile (replaced)")
     p.add_argument("--program", metavar="NAME", help="program to compile (default: the only one)")
     p.add_argument("--format", action="append", default=[], metavar="FMT",
-                   help="waveform formats, comma separated: wav, csv, npy (default wav)")
+                   help="waveform formats, comma separated: wav, npy, csv (raw samples, "
+                        "waveform-samples.csv; large) (default wav)")
     p.add_argument("--sample-rate", metavar="HZ",
                    help="samples per second, e.g. 2e6 or 2MHz (default: >= 10x the highest tone)")
+    p.add_argument("--full-scale", metavar="V",
+                   help="voltage of WAV sample +-1.0, e.g. 10V (default: the transducer's max voltage)")
     p.add_argument("--calibration", metavar="CSV",
                    help="measured frequency sweep (frequency, dx, dy) used instead of the model gains")
-    p.add_argument("--waypoint-dt", type=float, default=0.01, metavar="S",
+    p.add_argument("--waypoint-dt", default="0.01", metavar="S",
                    help="time between path waypoints in seconds (default 0.01)")
-    p.add_argument("--tolerance", type=float, default=0.5, metavar="UM",
+    p.add_argument("--tolerance", default="0.5", metavar="UM",
                    help="path tracking tolerance in micrometres (default 0.5)")
-    p.add_argument("--ramp", type=float, default=1e-3, metavar="S",
+    p.add_argument("--ramp", default="1e-3", metavar="S",
                    help="raised-cosine crossfade between segments in seconds (default 0.001)")
     p.add_argument("--robust", action="store_true",
                    help="plan paths for the least expected error over the declared uncertainty (docs/schedule.md)")
@@ -41,13 +47,12 @@ def add_parser(p) -> None:
                    help="re-plan paths N times against the design's nonlinear model (saturation, stiffening, "
                         "declared effects); default 0")
     p.add_argument("--plot", action="store_true", help="write a PNG per path goal")
-    p.add_argument("--diagnostics", choices=["text", "json"], default="text",
-                   help="diagnostics as text (default) or JSON on stdout")
+    add_output_format(p, old=("--diagnostics",))
     add_design_options(p)
 
 
-def _usage(code: str, message: str, hint: str | None = None):
-    return error(code, message, Span(file="<command line>", line=1, column=1), hint)
+def _usage(code: str, message: str, hint: str | None = None, option: str = "command line"):
+    return error(code, message, Span(file=f"<{option}>", line=1, column=1), hint)
 
 
 def _formats(items: list[str]):
@@ -60,10 +65,13 @@ def _formats(items: list[str]):
                 continue
             if f not in FORMATS:
                 diags.append(_usage("E-COMPILE-FORMAT", f"unknown waveform format {f!r}",
-                                    suggest(f, FORMATS) or f"choose from {', '.join(FORMATS)}"))
+                                    suggest(f, FORMATS) or f"choose from {', '.join(FORMATS)}", "--format"))
             elif f not in out:
                 out.append(f)
     return out, diags
+
+
+MAX_SAMPLE_RATE = 1e9
 
 
 def _rate(text: str | None):
@@ -71,42 +79,85 @@ def _rate(text: str | None):
         return None, []
     m = _RATE.match(text)
     if not m:
-        return None, [_usage("E-COMPILE-RATE", f"cannot read sample rate {text!r}", "e.g. 2e6 or 2MHz")]
+        return None, [_usage("E-COMPILE-RATE", f"cannot read sample rate {text!r}", "e.g. 2e6 or 2MHz",
+                             "--sample-rate")]
     value = float(m.group(1)) * _RATE_UNITS[m.group(2).lower() if m.group(2) else None]
-    if value <= 0:
-        return None, [_usage("E-COMPILE-RATE", "the sample rate must be positive")]
+    if not (math.isfinite(value) and 0 < value <= MAX_SAMPLE_RATE):
+        return None, [_usage("E-COMPILE-RATE", f"the sample rate {text!r} must be positive and at most "
+                             f"{MAX_SAMPLE_RATE:g} S/s", "e.g. 2e6 or 2MHz", "--sample-rate")]
     return value, []
 
 
+_VOLTS = re.compile(r"^\s*([0-9]*\.?[0-9]+(?:[eE][-+]?[0-9]+)?)\s*(mv|v|kv)?\s*$", re.I)
+
+
+def _full_scale(text: str | None):
+    if text is None:
+        return None, []
+    m = _VOLTS.match(text)
+    value = float(m.group(1)) * {"mv": 1e-3, "v": 1.0, "kv": 1e3}[(m.group(2) or "v").lower()] if m else None
+    if value is None or not (math.isfinite(value) and 1e-3 <= value <= 1e4):
+        return None, [_usage("E-COMPILE-OPTION", f"cannot use full scale {text!r}: a voltage from 1 mV "
+                             "to 10 kV", "e.g. --full-scale 10V", "--full-scale")]
+    return value, []
+
+
+# (option, attribute, smallest allowed value, largest allowed value, unit)
+_NUMBERS = (("--waypoint-dt", "waypoint_dt", 1e-6, 10.0, "s"),
+            ("--tolerance", "tolerance", 1e-6, 1e3, "um"),
+            ("--ramp", "ramp", 0.0, 10.0, "s"))
+
+
+def _numbers(args):
+    out, diags = {}, []
+    for option, attr, lo, hi, unit in _NUMBERS:
+        text = str(getattr(args, attr))
+        try:
+            value = float(text)
+        except ValueError:
+            value = float("nan")
+        if not (math.isfinite(value) and lo <= value <= hi) or (lo == 0.0 and value < 0):
+            diags.append(_usage("E-COMPILE-OPTION", f"{option} {text!r} must be a number from {lo:g} "
+                                f"to {hi:g} {unit}", None, option))
+        out[attr] = value
+    return out, diags
+
+
 def run(args) -> int:
-    fmt = args.diagnostics
+    fmt = args.output_format
     formats, diags = _formats(args.format)
     rate, more = _rate(args.sample_rate)
     diags += more
-    for name, val in (("--waypoint-dt", args.waypoint_dt), ("--tolerance", args.tolerance)):
-        if not val > 0:
-            diags.append(_usage("E-COMPILE-OPTION", f"{name} must be positive"))
-    if not args.ramp >= 0:
-        diags.append(_usage("E-COMPILE-OPTION", "--ramp must not be negative"))
-    if args.band_samples < 0:
-        diags.append(_usage("E-COMPILE-OPTION", "--band-samples must not be negative"))
-    if args.nonlinear_passes < 0:
-        diags.append(_usage("E-COMPILE-OPTION", "--nonlinear-passes must not be negative"))
+    full_scale, more = _full_scale(args.full_scale)
+    diags += more
+    numbers, more = _numbers(args)
+    diags += more
+    for option, value, hi in (("--band-samples", args.band_samples, 10_000),
+                              ("--nonlinear-passes", args.nonlinear_passes, 100)):
+        if not 0 <= value <= hi:
+            diags.append(_usage("E-COMPILE-OPTION", f"{option} {value} must be a whole number from 0 to {hi}",
+                                None, option))
     if diags:
         report(diags, fmt)
         return 2
-    design, code = load_or_report(args.file, args, fmt)
+    if args.plot and plotting_missing("--plot", fmt):
+        return 2
+    path = one_design(args.file, fmt)
+    if path is None:
+        return 2
+    design, code = load_or_report(path, args, fmt)
     if design is None:
         return code
     names = [p.name for p in design.programs]
     if args.program is None and len(names) != 1:
         report([_usage("E-COMPILE-PROGRAM", f"the design has {len(names)} programs; choose one with --program",
-                       "programs: " + (", ".join(names) or "none"))], fmt)
+                       "programs: " + (", ".join(names) or "none"), "--program")], fmt)
         return 2
     program = args.program or names[0]
     if program not in names:
         report([_usage("E-COMPILE-PROGRAM", f"no program named {program!r}",
-                       suggest(program, names) or ("programs: " + (", ".join(names) or "none")))], fmt)
+                       suggest(program, names) or ("programs: " + (", ".join(names) or "none")),
+                       "--program")], fmt)
         return 2
 
     from acl.schedule.compile import CompileOptions, compile_program
@@ -120,11 +171,11 @@ def run(args) -> int:
     except DiagnosticError as exc:
         report(exc.diagnostics, fmt)
         return 2
-    opts = CompileOptions(sample_rate_hz=rate, waypoint_dt_s=args.waypoint_dt,
-                          tolerance_m=args.tolerance * 1e-6, ramp_s=args.ramp, calibration=calibration,
+    opts = CompileOptions(sample_rate_hz=rate, waypoint_dt_s=numbers["waypoint_dt"],
+                          tolerance_m=numbers["tolerance"] * 1e-6, ramp_s=numbers["ramp"],
+                          calibration=calibration, full_scale_v=full_scale,
                           robust=args.robust, band_samples=args.band_samples, band_seed=args.band_seed,
-                          nonlinear_passes=args.nonlinear_passes,
-                          reload=_reloader(args))
+                          nonlinear_passes=args.nonlinear_passes, reload=_reloader(args, path))
     try:
         schedule = compile_program(design, program, opts)
     except DiagnosticError as exc:
@@ -133,7 +184,7 @@ def run(args) -> int:
     return _emit(schedule, args, formats, rate, fmt)
 
 
-def _reloader(args):
+def _reloader(args, path):
     """{param: "v unit"} -> the design resolved again with those values (for the uncertainty draws)."""
     from acl.commands._common import parse_sets
 
@@ -143,7 +194,7 @@ def _reloader(args):
     def reload(overrides):
         import acl
 
-        return acl.load(args.file, overrides={**sets, **overrides}, search_paths=paths)
+        return acl.load(path, overrides={**sets, **overrides}, search_paths=paths)
 
     return reload
 
@@ -158,12 +209,19 @@ def _emit(schedule, args, formats, rate, fmt) -> int:
     except DiagnosticError as exc:
         report(exc.diagnostics, fmt)
         return 2
-    from rich.console import Console
+    from acl.emit.output import check_output_dir
 
-    console = Console(stderr=True, highlight=False)
+    try:
+        check_output_dir(args.output)
+    except DiagnosticError as exc:
+        report(exc.diagnostics, fmt)
+        return 2
+    from acl._console import make_console
+
+    console = make_console(stderr=True, highlight=False)
     n = total_samples(schedule, fs)
     try:
-        if n > 4_000_000 and console.is_terminal:
+        if n > 4_000_000 and console.is_terminal and not args.quiet:
             from rich.progress import BarColumn, Progress, TimeRemainingColumn
 
             with Progress("rendering", BarColumn(), "{task.percentage:>3.0f}%", TimeRemainingColumn(),
@@ -178,15 +236,19 @@ def _emit(schedule, args, formats, rate, fmt) -> int:
         return 2
     except OSError as exc:
         report([_usage("E-COMPILE-IO", f"cannot write {args.output!r}: {exc.strerror or exc}",
-                       "check the path and free space; nothing was written")], fmt)
+                       "check the path and free space; nothing was written", "--output")], fmt)
         return 2
     if fmt == "json":
         import json
 
-        sys.stdout.write(json.dumps({"diagnostics": [], "output": args.output,
-                                     "files": result.files}, indent=2) + "\n")
+        sys.stdout.write(json.dumps({"diagnostics": [d.as_dict() for d in result.warnings],
+                                     "output": args.output, "files": result.files,
+                                     "removed": result.removed}, indent=2) + "\n")
     else:
-        _summary(console, schedule, result)
+        if result.warnings:
+            report(result.warnings, fmt)
+        if not args.quiet:
+            _summary(console, schedule, result)
     return 0
 
 
@@ -207,6 +269,10 @@ def _summary(console, schedule, result) -> None:
         console.print(note if note.startswith("warning:") else f"note: {note}")
     s = result.stats
     tones = ", ".join(f"{f / 1e3:g}" for f in schedule.frequencies_hz())
+    analog = max((g.peak_v or 0.0 for g in schedule.segments), default=0.0)
     console.print(f"duration {schedule.duration_s:.4g} s, {len(schedule.segments)} segments, tones {tones} kHz; "
-                  f"peak {s.peak_v:.4g} V (limit {schedule.max_voltage_v:g} V), RMS {s.rms_v:.4g} V; "
-                  f"{result.sample_rate_hz:g} S/s; files: {', '.join(result.files.values())}")
+                  f"peak {analog:.4g} V analog ({s.peak_v:.4g} V sampled; limit {schedule.max_voltage_v:g} V), "
+                  f"RMS {s.rms_v:.4g} V; {result.sample_rate_hz:g} S/s; "
+                  f"WAV full scale {schedule.full_scale_v:g} V ({schedule.full_scale_source}); "
+                  f"files: {', '.join(result.files.values())}"
+                  + (f"; replaced the previous compile's {', '.join(result.removed)}" if result.removed else ""))

@@ -4,11 +4,11 @@ from __future__ import annotations
 import os
 import sys
 
-from acl.commands._common import exit_code, report
+from acl.commands._common import add_output_format, exit_code, one_design, plotting_missing, report
 
 
 def add_parser(p) -> None:
-    p.add_argument("design", metavar="DESIGN", help="design file (.acl)")
+    p.add_argument("design", metavar="DESIGN", help="design file (.acl), or a folder holding one design")
     p.add_argument("data", nargs="+", metavar="DATA", help="measurement CSV files (docs/data.md)")
     p.add_argument("--free", default="", metavar="NAMES",
                    help="comma-separated names to fit besides the design's `free` params: gamma, alpha, E, gain "
@@ -21,8 +21,7 @@ def add_parser(p) -> None:
     p.add_argument("--effects", default=None, metavar="IDS",
                    help="comma-separated effect ids to consider (default: the whole library; `none` for none)")
     p.add_argument("--seed", type=int, default=0, help="seed of the cross-validation folds (default 0)")
-    p.add_argument("--json", action="store_true", help="print report.json to stdout instead of the tables")
-    p.add_argument("--verbose", action="store_true", help="print each stage and effect trial with its time (stderr)")
+    add_output_format(p, old=("--json",))
     p.add_argument("--path", action="append", default=[], metavar="DIR", help="extra folder imports may read from")
 
 
@@ -40,9 +39,19 @@ def run(args) -> int:
                           f"effects: {', '.join(EFFECTS)}")])
             return 2
         candidates = names
+    if args.report and plotting_missing("--report", args.output_format):
+        return 2
+    design = one_design(args.design)
+    if design is None:
+        return 2
+    args.design = design
     for path in [args.design, *args.data]:
         if not os.path.isfile(path):
-            report([error("E601", f"no such file: {path}", Span(file=path, line=1, column=1))])
+            what = ("no such file" if not os.path.lexists(path) else
+                    "not a regular file (a folder)" if os.path.isdir(path) else
+                    "not a regular file (a pipe, device or socket)")
+            report([error("E601", f"{what}: {path}", Span(file=path, line=1, column=1),
+                          "give a CSV file; save a pipe's output to a file first" if os.path.lexists(path) else None)])
             return 2
     from acl.fit import run_fit
 
@@ -60,6 +69,8 @@ def run(args) -> int:
     except DiagnosticError as exc:
         report(exc.diagnostics)
         return exit_code(exc.diagnostics)
+    if not out.problem.coefs and not args.quiet:
+        _nothing_free(args, candidates)
     if args.verbose:
         for stage, secs in out.report["timing_s"].items():
             sys.stderr.write(f"stage {stage}: {secs:.2f} s\n")
@@ -82,7 +93,7 @@ def run(args) -> int:
             report([error("E601", f"cannot write the calibrated design: {exc.strerror or exc}",
                           Span(file=out.calibrated_path, line=1, column=1))])
             return 2
-    if args.json:
+    if args.output_format == "json":
         import json
 
         sys.stdout.write(json.dumps(out.report, indent=2) + "\n")
@@ -90,17 +101,27 @@ def run(args) -> int:
         from acl.fit.report import render_table
 
         render_table(out.report)
-        if args.report:
-            from rich.console import Console
+        if args.report and not args.quiet:
+            from acl._console import make_console
 
-            Console(stderr=True, highlight=False).print(f"report written to {args.report}/")
-        if args.report or args.calibrated:
-            from rich.console import Console
+            make_console(stderr=True, highlight=False).print(f"report written to {args.report}/")
+        if (args.report or args.calibrated) and not args.quiet:
+            from acl._console import make_console
 
             extra = out.report.get("calibrated_needs_path")
             how = f" (load it with --path {extra})" if extra else ""
-            Console(stderr=True, highlight=False).print(f"calibrated design written to {out.calibrated_path}{how}")
+            make_console(stderr=True, highlight=False).print(f"calibrated design written to {out.calibrated_path}{how}")
     return 0
+
+
+def _nothing_free(args, candidates) -> None:
+    """W810 on stderr: no coefficient was free, so the base model was compared with the data, not fitted."""
+    from acl.diagnostics import Span, render, warning
+
+    searched = "" if candidates == [] else "; only the effect library was searched on top of the declared model"
+    render([warning("W810", f"nothing is free: no --free names and no `free` parameters in the design{searched}",
+                    Span(file=args.design, line=1, column=1),
+                    "free the coefficients the data should determine, e.g. --free gamma (docs/data.md)")])
 
 
 def _write_atomic(path: str, text: str) -> None:
@@ -113,6 +134,9 @@ def _write_atomic(path: str, text: str) -> None:
     try:
         with os.fdopen(fd, "w", encoding="utf-8") as fh:
             fh.write(text)
+        from acl._files import as_umask
+
+        as_umask(tmp, directory=False)
         os.replace(tmp, path)
     except BaseException:
         if os.path.exists(tmp):

@@ -7,16 +7,18 @@ from __future__ import annotations
 
 import sys
 
-from acl.commands._common import add_design_options, parse_sets
+from acl.commands._common import (STDIN, add_design_options, add_output_format, add_stdin_option, add_verbosity,
+                                  parse_sets, read_stdin)
 from acl.diagnostics import Span, error
 
-FORMATS = ("full", "concise", "json", "sarif", "github", "junit")
+FORMATS = ("full", "concise", "json", "sarif", "github", "junit", "text")   # text: the same as full
 
 
 def add_parser(p) -> None:
     p.add_argument("paths", nargs="*", default=["."], metavar="PATH",
-                   help="design files or folders (folders are searched for *.acl); default: .")
-    p.add_argument("--format", choices=FORMATS, default="full", help="output format (default: full)")
+                   help="design files or folders (folders are searched for *.acl); `-` reads standard input; default: .")
+    add_stdin_option(p)
+    add_output_format(p, choices=FORMATS, default="full", old=("--format",))
     p.add_argument("--select", action="append", default=[], metavar="CODES",
                    help="only these rules: codes or prefixes, comma-separated (replaces the configuration's)")
     p.add_argument("--ignore", action="append", default=[], metavar="CODES",
@@ -27,16 +29,16 @@ def add_parser(p) -> None:
     p.add_argument("--mechanics", action="store_true",
                    help="confirm snap-in (ACL201) and evaluate `require gap` (ACL603) with the quasi-static "
                         "equilibrium (about a second per drive)")
-    p.add_argument("--verbose", action="store_true", help="say which rules could not run and time each one")
+    add_verbosity(p)   # -v: say which rules could not run and time each one
     add_design_options(p)
 
 
 def _fail(diags) -> int:
-    from rich.console import Console
+    from acl._console import make_console
 
     from acl.diagnostics import render
 
-    render(diags, Console(stderr=True, highlight=False, soft_wrap=True))
+    render(diags, make_console(stderr=True, highlight=False, soft_wrap=True))
     return 2
 
 
@@ -74,7 +76,14 @@ def run(args) -> int:
     ignore, d2 = _codes(args.ignore, "--ignore", rules)
     if diags or d1 or d2:
         return _fail(diags + d1 + d2)
-    files, missing = collect_files(args.paths)
+    stdin_text = None
+    if STDIN in args.paths:
+        stdin_text, d3 = read_stdin(args.stdin_filename)
+        if d3:
+            return _fail(d3)
+    files, missing = collect_files([p for p in args.paths if p != STDIN])
+    if stdin_text is not None:
+        files.insert(args.paths.index(STDIN), STDIN)
     if missing:
         return _fail([error("E-USAGE", f"no such file or folder: `{m}`", Span(file=m, line=1, column=1)) for m in missing])
     configs: dict[str | None, object] = {}
@@ -95,14 +104,19 @@ def run(args) -> int:
         if args.config:
             config_for(args.config)
         for f in files:
-            reports.append(lint_file(f, config_for(f), overrides, args.path, verbose=args.verbose))
+            if f == STDIN:
+                name = args.stdin_filename
+                reports.append(lint_file(name, config_for(name), overrides, args.path, verbose=args.verbose, text=stdin_text))
+            else:
+                reports.append(lint_file(f, config_for(f), overrides, args.path, verbose=args.verbose))
     except ConfigError as exc:
         return _fail(exc.diagnostics)
     if not files:
         sys.stderr.write(f"acl lint: no .acl files under {', '.join(args.paths)}\n")
-    WRITERS[args.format](reports, sys.stdout)
+    fmt = "full" if args.output_format == "text" else args.output_format
+    WRITERS[fmt](reports, sys.stdout, **({"summary": False} if args.quiet and fmt in ("full", "concise") else {}))
     if args.statistics and reports:
-        sys.stdout.write(statistics(reports) + "\n") if args.format in ("full", "concise") else \
+        sys.stdout.write(statistics(reports) + "\n") if fmt in ("full", "concise") else \
             sys.stderr.write(statistics(reports) + "\n")
     if args.verbose:
         for r in reports:

@@ -4,25 +4,29 @@ from __future__ import annotations
 import json
 import sys
 
-from acl.commands._common import add_design_options, load_or_report
+from acl.commands._common import add_design_options, add_output_format, load_or_report, one_design
 
 
 def add_parser(p) -> None:
-    p.add_argument("file", metavar="FILE")
-    p.add_argument("--json", action="store_true", help="print the resolved design as JSON (SI units)")
+    p.add_argument("file", metavar="FILE", help="design file (.acl), or a folder holding one design")
+    add_output_format(p, old=("--json",))
     add_design_options(p)
 
 
 def run(args) -> int:
-    design, code = load_or_report(args.file, args, "json" if args.json else "text")
+    fmt = args.output_format
+    path = one_design(args.file, fmt)
+    if path is None:
+        return 2
+    design, code = load_or_report(path, args, fmt)
     if design is None:
         return code
-    if args.json:
+    if fmt == "json":
         sys.stdout.write(design.model_dump_json(indent=2) + "\n")
         return 0
-    from rich.console import Console
+    from acl._console import make_console
 
-    Console(highlight=False).print(design_tree(design))
+    make_console(highlight=False).print(design_tree(design))
     return 0
 
 

@@ -6,13 +6,14 @@ observable at every waypoint (docs/fit.md, closing the loop).
 """
 from __future__ import annotations
 
+import math
 import re
 
-from acl.commands._common import exit_code, parse_sets, report
+from acl.commands._common import exit_code, one_design, parse_sets, quantity_text, report
 
 
 def add_parser(p) -> None:
-    p.add_argument("design", metavar="DESIGN", help="design file (.acl)")
+    p.add_argument("design", metavar="DESIGN", help="design file (.acl), or a folder holding one design")
     p.add_argument("-o", "--output", required=True, metavar="CSV", help="output CSV (docs/data.md format)")
     p.add_argument("--effect", action="append", default=[], metavar="NAME[=P:V,...]",
                    help="plant an effect, e.g. drive_saturation=v_sat:8V or offset_drift=offset:0.5um,drift:10nm/s "
@@ -32,6 +33,13 @@ def add_parser(p) -> None:
     p.add_argument("--path", action="append", default=[], metavar="DIR", help="extra folder imports may read from")
 
 
+def _located(code, where, msg, hint=None):
+    from acl.diagnostics import Span, error
+
+    report([error(code, msg, Span(file=where, line=1, column=1), hint)])
+    return 2
+
+
 def _usage(msg, hint=None):
     from acl.diagnostics import Span, error
 
@@ -39,11 +47,40 @@ def _usage(msg, hint=None):
     return 2
 
 
+_EXAMPLES = {"drive_saturation": "v_sat:8V", "offset_drift": "offset:0.5um,drift:10nm/s",
+             "transducer_gain": "gain_slope:0.5", "large_deflection": "elastica_weight:1",
+             "stiffness_scale": "e_scale:0.7", "stiffness_gradient": "e_gradient:0.7",
+             "bubble_shrinkage": "shrink_rate:0.01", "neighbour_drag": "plateau:5um", "substrate_proximity": "h_substrate:20um"}
+
+
+def _example(eid: str) -> str:
+    return f"{eid}={_EXAMPLES.get(eid, 'PARAM:VALUE')}"
+
+
+def _param_names(eid: str) -> str:
+    from acl.fit.effects import EFFECTS
+    from acl.fit.synth import ALIASES
+
+    if eid not in EFFECTS:
+        return "see docs/fit.md"
+    names = [p.name for p in EFFECTS[eid].params]
+    return ", ".join(names + [a for a, (t, _) in ALIASES.items() if t in names])
+
+
+def _planted(effects: dict) -> list[str]:
+    """The effects that differ from their null value (checked names; DiagnosticError otherwise)."""
+    from acl.fit.effects import EFFECTS
+    from acl.fit.synth import effect_inputs
+
+    values = effect_inputs(effects)
+    return [eid for eid, vals in values.items() if any(vals[p.name] != p.null for p in EFFECTS[eid].params)]
+
+
 def _qty(text, dims_name):
     from acl.fit.data import parse_quantity
     from acl.units import parse_unit_static
 
-    text = re.sub(r"^([0-9.eE+-]+)([A-Za-z\u00b5])", r"\1 \2", text.strip())
+    text = quantity_text(text)
     value, dims = parse_quantity(text)
     if dims != parse_unit_static(dims_name):
         raise ValueError(f"`{text}` is not in {dims_name}")
@@ -54,6 +91,7 @@ def run(args) -> int:
     import numpy as np
 
     from acl.diagnostics import DiagnosticError
+    from acl.fit.data import MAX_LENGTH, MAX_ROWS
     from acl.fit.synth import Experiment, generate, write_csv
     from acl.units import UnitError
 
@@ -63,17 +101,24 @@ def run(args) -> int:
         m = re.match(r"^\s*(.+?)\s*\.\.\s*(.+?)\s*:\s*(\d+)\s*$", args.voltages)
         if not m:
             return _usage(f"--voltages {args.voltages!r}: expected LO..HI:N, e.g. 0V..10V:11")
-        volts = tuple(np.linspace(_qty(m.group(1), "V"), _qty(m.group(2), "V"), int(m.group(3))))
+        n_volts = int(m.group(3))
+        if not 1 <= n_volts <= MAX_ROWS:
+            return _usage(f"--voltages {args.voltages!r}: {n_volts} voltages; between 1 and {MAX_ROWS:,} "
+                          "(the most rows `acl fit` reads)")
+        volts = tuple(np.linspace(_qty(m.group(1), "V"), _qty(m.group(2), "V"), n_volts))
         interval = _qty(args.interval, "s")
         effects = {}
         for item in args.effect:
             name, _, rest = item.partition("=")
+            if not rest.strip():
+                return _usage(f"--effect {item!r}: give the effect's size, e.g. {_example(name.strip())}",
+                              "an effect at its null value plants nothing; parameters: " + _param_names(name.strip()))
             params = {}
             for part in filter(None, (s.strip() for s in rest.split(","))):
                 k, sep, v = part.partition(":")
                 if not sep:
                     return _usage(f"--effect {item!r}: parameters are NAME:VALUE, e.g. drive_saturation=v_sat:8V")
-                v = re.sub(r"^([0-9.eE+-]+)([A-Za-z\u00b5/])", r"\1 \2", v.strip())
+                v = quantity_text(v)
                 from acl.fit.data import parse_quantity
                 params[k.strip()] = parse_quantity(v)[0]
             effects[name.strip()] = params
@@ -82,10 +127,21 @@ def run(args) -> int:
             k, sep, vals = item.partition("=")
             if not sep:
                 return _usage(f"--sweep {item!r}: expected P=V1,V2,...")
-            sets[k.strip()] = [re.sub(r"^([0-9.eE+-]+)([A-Za-z\u00b5])", r"\1 \2", v.strip())
+            sets[k.strip()] = [quantity_text(v)
                                for v in vals.split(",") if v.strip()]
     except (ValueError, UnitError) as exc:
         return _usage(str(exc))
+    try:
+        planted = _planted(effects)
+    except DiagnosticError as exc:
+        report(exc.diagnostics)
+        return 2
+    except ArithmeticError:
+        return _usage(f"--effect: {', '.join(args.effect)}: v_sat and plateau must be positive and finite")
+    for eid, params in effects.items():
+        if eid not in planted:
+            return _usage(f"--effect {eid}: every parameter is at the effect's null value, so it plants nothing",
+                          "give a value that differs from the null, e.g. " + _example(eid))
     if noise < 0 or args.repeats < 1 or not freqs:
         return _usage("noise must not be negative, repeats at least 1, and one frequency at least")
     if args.schedule:
@@ -93,10 +149,37 @@ def run(args) -> int:
             return _usage("--schedule plays on the design as declared: declare effects in it (`effect ID { ... }`) "
                           "instead of --effect; --sweep does not apply")
         return _replay(args, noise)
+    if not all(math.isfinite(x) for x in (noise, interval, *freqs, *volts)) or noise > MAX_LENGTH or interval <= 0:
+        return _usage("--noise, --frequencies, --voltages and --interval must be finite; the noise at most "
+                      f"{MAX_LENGTH:g} m and the interval positive")
+    design = one_design(args.design)
+    if design is None:
+        return 2
+    import acl
+
+    try:
+        resolved = acl.load(design, search_paths=args.path)
+    except DiagnosticError as exc:
+        report(exc.diagnostics)
+        return exit_code(exc.diagnostics)
+    n_obs = len([s for s in args.observe.split(",") if s.strip()]) or len(resolved.observes)
+    n_rows = args.repeats * len(freqs) * len(volts) * max(1, n_obs) * math.prod(len(v) for v in sets.values())
+    if n_rows > MAX_ROWS:
+        return _usage(f"the experiment has {n_rows:,} rows; `acl fit` reads at most {MAX_ROWS:,}",
+                      "fewer voltages, frequencies, sweep values, repeats or observables")
+    tr = resolved.transducer
+    if tr is not None:
+        bad_f = [f for f in freqs if not tr.band[0] <= f <= tr.band[1]]
+        if bad_f:
+            return _located("E501", "<--frequencies>", f"drive frequency {bad_f[0] / 1e3:g} kHz is outside the band "
+                            f"of transducer `{tr.name}` ({tr.band[0] / 1e3:g} .. {tr.band[1] / 1e3:g} kHz)")
+        if max(volts) > tr.max_voltage or min(volts) < 0:
+            return _located("E502", "<--voltages>", f"drive amplitudes must lie in 0 .. {tr.max_voltage:g} V "
+                            f"(transducer `{tr.name}`), got {min(volts):g} .. {max(volts):g} V")
     ex = Experiment(frequencies=freqs, voltages=volts, sets=sets, repeats=args.repeats, interval=interval,
                     observables=tuple(s.strip() for s in args.observe.split(",") if s.strip()))
     try:
-        data, _ = generate(args.design, ex, effects, noise=noise, seed=args.seed, search_paths=args.path)
+        data, _ = generate(design, ex, effects, noise=noise, seed=args.seed, search_paths=args.path)
     except DiagnosticError as exc:
         report(exc.diagnostics)
         return exit_code(exc.diagnostics)
@@ -106,9 +189,14 @@ def run(args) -> int:
         write_csv(data, args.output)
     except OSError as exc:
         return _usage(f"cannot write {args.output}: {exc.strerror or exc}")
-    from rich.console import Console
+    if not args.quiet:
+        from acl._console import make_console
 
-    Console(stderr=True, highlight=False).print(f"wrote {data.n} rows to {args.output}")
+        con = make_console(stderr=True, highlight=False)
+        for eid in planted:
+            given = ", ".join(f"{k} = {v:g}" for k, v in effects[eid].items())
+            con.print(f"planted {eid}: {given} (SI units)")
+        con.print(f"wrote {data.n} rows to {args.output}")
     return 0
 
 

@@ -4,6 +4,8 @@ from __future__ import annotations
 import math
 import os
 
+from pydantic import BaseModel
+
 from acl.design import geometry as G
 from acl.design import model as M
 from acl.design.builders import Builder, CapsuleSpec
@@ -33,28 +35,12 @@ def assemble(b: Builder) -> M.Design:
                       suggest(kind, DECL_KINDS) or "declarations: " + ", ".join(DECL_KINDS))
             continue
         b.kinds[name] = kind
-        if kind == "capsule":
-            _put(b, b.capsules, name, b.capsule(blk))
-        elif kind == "beam":
-            _put(b, beams_raw, name, b.beam(blk))
-        elif kind == "spring":
-            _put(b, b.springs, name, b.spring(blk))
-        elif kind == "truss":
-            _put(b, b.trusses, name, b.truss(blk))
-        elif kind == "latch":
-            _put(b, b.latches, name, b.latch(blk))
-        elif kind == "anchor":
-            _put(b, b.anchors, name, b.anchor(blk))
-        elif kind == "material":
-            b.material(DeclVal(kind, name, blk, env))
-        elif kind == "medium" and medium is None:
-            pass  # declared but not used: lint reports it
-        elif kind == "transducer":
-            pass
-        elif kind == "effect":
-            eff = _effect(b, blk)
-            if eff is not None:
-                effects.append(eff)
+        try:
+            _element(b, name, blk, beams_raw, effects)
+        except OverflowError:
+            bag.error("E305", f"{kind} `{name}`: a value derived from its entries overflows", blk.span,
+                      "check the magnitudes and units of its entries")
+            b.failed.add(name)
 
     # ---- joints
     joints, mounted_on = _joints(b, beams_raw)
@@ -101,9 +87,62 @@ def assemble(b: Builder) -> M.Design:
     design = M.Design(**design_kw, observes=tuple(observes), requires=tuple(requires), programs=tuple(programs),
                       effects=tuple(effects), correlations=correlations, coverage=coverage,
                       sources=tuple(dict.fromkeys(r.loader.sources)))
+    if not _all_finite(design, bag):
+        return design
     check_design_geometry(design, bag, b.capsules)
     check_programs(design, bag)
     return design
+
+
+def _element(b: Builder, name: str, blk: A.Block, beams_raw: dict, effects: list) -> None:
+    kind = blk.kind
+    if kind == "capsule":
+        _put(b, b.capsules, name, b.capsule(blk))
+    elif kind == "beam":
+        _put(b, beams_raw, name, b.beam(blk))
+    elif kind == "spring":
+        _put(b, b.springs, name, b.spring(blk))
+    elif kind == "truss":
+        _put(b, b.trusses, name, b.truss(blk))
+    elif kind == "latch":
+        _put(b, b.latches, name, b.latch(blk))
+    elif kind == "anchor":
+        _put(b, b.anchors, name, b.anchor(blk))
+    elif kind == "material":
+        b.material(DeclVal(kind, name, blk, b.env))
+    elif kind == "effect":
+        eff = _effect(b, blk)
+        if eff is not None:
+            effects.append(eff)
+    # a medium or transducer is built when used (`use`); one declared but not used is lint's concern
+
+
+def _all_finite(design: M.Design, bag) -> bool:
+    """Every number of the resolved design is finite (E305 at the declaration holding one that is not).
+
+    Expressions are checked as they are evaluated; this catches values derived from them (a volume
+    from a huge radius), so no NaN or infinity reaches the analyses. An iterative walk over the models.
+    """
+    ok = True
+    stack = [(design, None, "design")]
+    while stack:
+        v, span, where = stack.pop()
+        if isinstance(v, float):
+            if not math.isfinite(v):
+                bag.error("E305", f"{where} is not finite ({v}): a value overflowed", span,
+                          "check the magnitudes and units of the values it is computed from")
+                ok = False
+        elif isinstance(v, BaseModel):
+            span = getattr(v, "span", None) or span
+            name = getattr(v, "name", None)
+            for k, x in v.__dict__.items():
+                if k != "span" and not isinstance(x, (str, int)):
+                    stack.append((x, span, f"{name}.{k}" if isinstance(name, str) else k))
+        elif isinstance(v, (tuple, list)):
+            stack.extend((x, span, where) for x in v if not isinstance(x, (str, bool)))
+        elif isinstance(v, dict):
+            stack.extend((x, span, f"{where}.{k}") for k, x in v.items())
+    return ok
 
 
 def _effect(b: Builder, blk: A.Block) -> M.Effect | None:
@@ -187,7 +226,7 @@ def _stddev(b: Builder, name: str, decl, v: Quantity):
                     f"write it in the value's unit, e.g. `+- {_example_unit(v)}`")
         return False
     if not math.isfinite(sd.value):
-        b.bag.error("E322", f"uncertainty of `{name}` is not finite", span, "give a finite standard deviation")
+        b.bag.error("E305", f"uncertainty of `{name}` is not finite", span, "give a finite standard deviation")
         return False
     if sd.value < 0:
         b.bag.error("E320", f"uncertainty of `{name}` is negative ({sd.value:g} {si_unit(v.dims)})", span,

@@ -98,7 +98,7 @@ class Builder:
             fs, gs = self._gain_table(keys, dv)
             unc = self.r.get(keys, "gain_uncertainty", "transducer", dv.name)
             if unc is not None and not (math.isfinite(unc) and unc >= 0):
-                self._err_key(keys, "gain_uncertainty", "E320" if math.isfinite(unc) else "E322",
+                self._err_key(keys, "gain_uncertainty", "E320" if math.isfinite(unc) else "E305",
                               f"{dv.name}.gain_uncertainty must be a finite relative standard deviation >= 0, "
                               f"got {unc:g}", "e.g. `gain_uncertainty = 40 %`")
                 return None

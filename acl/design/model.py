@@ -325,6 +325,7 @@ class Tone(Frozen):
     frequency: float               # Hz
     amplitude: float               # V, peak
     phase: float = 0.0             # rad
+    phase_given: bool = False      # the user wrote `phase ...`: the compiler keeps it as it is
 
 
 class Drive(Frozen):

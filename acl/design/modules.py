@@ -3,7 +3,6 @@ from __future__ import annotations
 
 import os
 from dataclasses import dataclass, field
-from importlib import resources
 
 from acl.diagnostics import DiagnosticBag, DiagnosticError, Span
 from acl.syntax import ast as A
@@ -11,7 +10,9 @@ from acl.syntax.parser import parse_module
 
 
 def stdlib_root() -> str:
-    return str(resources.files("stdlib"))
+    from acl._resources import shipped_dir
+
+    return shipped_dir("stdlib")
 
 
 @dataclass
@@ -29,16 +30,21 @@ class ModuleEnv:
     is_main: bool = False
 
 
+MAX_FILES = 256      # files one design may read (itself, its imports and extends)
+MAX_CHAIN = 64       # files importing or extending each other in one chain
+
+
 class Loader:
     """Loads a module and its imports once each; only from allowed roots."""
 
-    def __init__(self, bag: DiagnosticBag, search_paths=(), max_files: int = 256):
+    def __init__(self, bag: DiagnosticBag, search_paths=(), max_files: int = MAX_FILES):
         self.bag = bag
         self.search_paths = [os.path.realpath(p) for p in search_paths]
         self.cache: dict[str, ModuleEnv] = {}
         self.stack: list[str] = []
         self.sources: list[str] = []
         self.max_files = max_files
+        self.opened = 0          # files read so far (a chain counts as much as a wide import)
 
     # ------------------------------------------------------------------------------------------
     def load_main(self, path: str) -> ModuleEnv:
@@ -50,12 +56,14 @@ class Loader:
 
     def load_text(self, text: str, filename: str) -> ModuleEnv:
         real = os.path.realpath(filename) if os.path.exists(filename) else filename
-        root = os.path.dirname(os.path.realpath(filename)) if os.path.exists(filename) else os.getcwd()
+        folder = os.path.dirname(os.path.abspath(filename))   # imports of `--stdin-filename dir/x.acl` start in dir
+        root = os.path.realpath(folder) if os.path.isdir(folder) else os.getcwd()
         env = self._load_text(text, filename, real, root=root)
         env.is_main = True
         return env
 
     def _load_text(self, text: str, display: str, real: str, root: str) -> ModuleEnv:
+        self.opened += 1
         self.stack.append(real)
         self.sources.append(display)
         try:
@@ -148,6 +156,8 @@ class Loader:
         if real in self.stack:
             self.bag.error("E209", f"extends cycle through `{st.file}`", st.span)
             return None
+        if not self._room(st, "extends"):
+            return None
         text = self._read(cand)
         return None if text is None else self._load_text(text, cand, real, root=os.path.dirname(real))
 
@@ -198,11 +208,10 @@ class Loader:
                 chain = " -> ".join(os.path.basename(p) for p in self.stack[self.stack.index(real):] + [real])
                 self.bag.error("E209", f"import cycle: {chain}", st.span, "move shared declarations into a third file")
                 return None
-            if len(self.cache) >= self.max_files:
-                self.bag.error("E211", f"more than {self.max_files} imported files", st.span)
-                return None
             target = self.cache.get(real)
             if target is None:
+                if not self._room(st, "import"):
+                    return None
                 text = self._read(cand)
                 if text is None:
                     return None
@@ -220,6 +229,18 @@ class Loader:
             hint = suggest(".".join(st.module[1:]), names) or ("stdlib modules: " + ", ".join(sorted(names)))
         self.bag.error("E208", f"cannot find module `{shown}`", st.span, hint)
         return None
+
+    def _room(self, st, what: str) -> bool:
+        """Whether one more file may be read for `st`; records the limit's diagnostic if not."""
+        if self.opened >= self.max_files:
+            self.bag.error("E211", f"more than {self.max_files} files imported or extended", st.span,
+                           "a design reads at most this many files, counting chains of imports")
+            return False
+        if len(self.stack) >= MAX_CHAIN:
+            self.bag.error("E211", f"{what} chain deeper than {MAX_CHAIN} files", st.span,
+                           f"files importing each other through {MAX_CHAIN} levels: flatten the chain")
+            return False
+        return True
 
     def _allowed(self, real: str, root: str) -> bool:
         roots = [os.path.realpath(root), os.path.realpath(stdlib_root()), *self.search_paths]
@@ -255,25 +276,60 @@ def _stdlib_modules() -> list[str]:
     return out
 
 
-def _read(path: str) -> str:
+MAX_BYTES = 2_000_000
+
+
+def read_source(path: str, limit: int = MAX_BYTES) -> str:
+    """The UTF-8 text of a regular file, reading at most ``limit + 1`` bytes; DiagnosticError if not.
+
+    A FIFO, a device (a design symlinked to /dev/zero) or a socket is refused before any read, so
+    nothing hangs or fills memory; the size limit counts bytes read, not what `stat` claims (/proc
+    files say 0). Standard input is read by the commands (`-` with `--stdin-filename`), not here.
+    """
+    import stat
+
     try:
-        size = os.path.getsize(path)
-        if size > 2_000_000:
-            raise DiagnosticError([_io_error(path, f"file larger than 2 MB ({size} bytes)")])
-        with open(path, "rb") as fh:
-            raw = fh.read()
+        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_BINARY", 0))
+    except FileNotFoundError:
+        raise DiagnosticError([_io_error(path, "no such file")]) from None
+    except IsADirectoryError:
+        raise DiagnosticError([_io_error(path, "is a directory, not a design file")]) from None
+    except OSError as exc:
+        raise DiagnosticError([_io_error(path, exc.strerror or str(exc))]) from None
+    try:
+        mode = os.fstat(fd).st_mode
+        if stat.S_ISDIR(mode):
+            raise DiagnosticError([_io_error(path, "is a directory, not a design file")])
+        if not stat.S_ISREG(mode):
+            kind = "a FIFO" if stat.S_ISFIFO(mode) else "a device" if stat.S_ISCHR(mode) or stat.S_ISBLK(mode) \
+                else "a socket" if stat.S_ISSOCK(mode) else "not a regular file"
+            raise DiagnosticError([_io_error(path, f"is {kind}, not a regular file",
+                                             hint="pass a design file, or `-` to read standard input")])
+        chunks, n = [], 0
+        while n <= limit:
+            chunk = os.read(fd, min(1 << 20, limit + 1 - n))
+            if not chunk:
+                break
+            chunks.append(chunk)
+            n += len(chunk)
+        if n > limit:
+            raise DiagnosticError([_io_error(path, f"file larger than {limit // 1_000_000} MB",
+                                             hint="split the design into imported files")])
+        raw = b"".join(chunks)
+    except OSError as exc:
+        raise DiagnosticError([_io_error(path, exc.strerror or str(exc))]) from None
+    finally:
+        os.close(fd)
+    try:
         return raw.decode("utf-8")
     except UnicodeDecodeError as exc:
         raise DiagnosticError([_io_error(path, f"not UTF-8 text (byte {exc.start})", code="E103")]) from None
-    except IsADirectoryError:
-        raise DiagnosticError([_io_error(path, "is a directory, not a design file")]) from None
-    except FileNotFoundError:
-        raise DiagnosticError([_io_error(path, "no such file")]) from None
-    except OSError as exc:
-        raise DiagnosticError([_io_error(path, exc.strerror or str(exc))]) from None
 
 
-def _io_error(path: str, msg: str, code: str = "E601"):
+_read = read_source
+
+
+def _io_error(path: str, msg: str, code: str = "E601", hint: str | None = None):
     from acl.diagnostics import error
 
-    return error(code, f"cannot read `{path}`: {msg}", Span(file=path, line=1, column=1))
+    return error(code, f"cannot read `{path}`: {msg}", Span(file=path, line=1, column=1), hint)

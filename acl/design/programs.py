@@ -50,7 +50,7 @@ def _tones(b, tones: tuple[A.ToneExpr, ...]) -> M.Drive:
         if v < 0:
             b.bag.error("E401", "tone amplitude must not be negative", t.amplitude.span)
             raise _Fail()
-        out.append(M.Tone(frequency=f, amplitude=v, phase=ph))
+        out.append(M.Tone(frequency=f, amplitude=v, phase=ph, phase_given=t.phase is not None))
     freqs = [t.frequency for t in out]
     if len(set(freqs)) != len(freqs):
         b.bag.error("E504", "a drive lists the same frequency twice", tones[0].span, "merge the tones into one")

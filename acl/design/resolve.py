@@ -6,6 +6,8 @@ the geometry and program checks of :mod:`acl.design.checks`.  Every independent 
 """
 from __future__ import annotations
 
+import contextlib
+import gc
 import math
 import os
 from dataclasses import dataclass
@@ -36,7 +38,29 @@ LENGTH, FREQ, VOLT, TIME = D("m"), D("Hz"), D("V"), D("s")
 # Entry points
 # ------------------------------------------------------------------------------------------------
 
+@contextlib.contextmanager
+def _no_gc():
+    """Pause the cyclic garbage collector while a design is built.
+
+    The front end allocates ~10 objects per source token and frees none of them until the end; the
+    collector's passes over that growing heap cost more than the parse itself on large designs
+    (benchmarks/check.py). Reference counting still frees everything; a collection runs after.
+    """
+    was = gc.isenabled()
+    gc.disable()
+    try:
+        yield
+    finally:
+        if was:
+            gc.enable()
+
+
 def load_design(path: str, overrides: dict[str, str] | None = None, search_paths=()) -> M.Design:
+    with _no_gc():
+        return _load_design(path, overrides, search_paths)
+
+
+def _load_design(path: str, overrides: dict[str, str] | None = None, search_paths=()) -> M.Design:
     bag = DiagnosticBag()
     loader = Loader(bag, search_paths)
     env = loader.load_main(str(path))
@@ -44,18 +68,31 @@ def load_design(path: str, overrides: dict[str, str] | None = None, search_paths
 
 
 def load_text(text: str, filename: str = "<string>", overrides=None, search_paths=()) -> M.Design:
+    with _no_gc():
+        return _load_text(text, filename, overrides, search_paths)
+
+
+def _load_text(text: str, filename: str = "<string>", overrides=None, search_paths=()) -> M.Design:
     bag = DiagnosticBag()
     loader = Loader(bag, search_paths)
     env = loader.load_text(text, filename)
     return _finish(env, loader, bag, overrides or {})
 
 
-def check_design(path: str, overrides=None, search_paths=()) -> tuple[M.Design | None, list[Diagnostic]]:
-    """Like load_design but returns (design or None, all diagnostics incl. warnings)."""
+def check_design(path: str, overrides=None, search_paths=(), text: str | None = None) -> tuple[M.Design | None, list[Diagnostic]]:
+    """Like load_design but returns (design or None, all diagnostics incl. warnings).
+
+    With ``text``, that is the design's source and ``path`` only its name (standard input).
+    """
+    with _no_gc():
+        return _check_design(path, overrides, search_paths, text)
+
+
+def _check_design(path: str, overrides=None, search_paths=(), text=None) -> tuple[M.Design | None, list[Diagnostic]]:
     try:
         bag = DiagnosticBag()
         loader = Loader(bag, search_paths)
-        env = loader.load_main(str(path))
+        env = loader.load_main(str(path)) if text is None else loader.load_text(text, str(path))
         design = _finish(env, loader, bag, overrides or {})
         return design, bag.items
     except DiagnosticError as exc:
@@ -140,7 +177,8 @@ class Resolver:
         self.evaluating: dict[tuple[int, str], None] = {}   # ordered: the chain being evaluated
         self.failed_params: set[tuple[int, str]] = set()
         self._entries_cache: dict[tuple[int, int], list] = {}
-        self.override_exprs: dict[str, A.Expr] = {}
+        self._like_cycle: set[int] = set()   # blocks found on a `like` cycle
+        self.override_exprs: dict[str, A.Expr | float] = {}   # a float: an SI value (Python API)
         self.override_spans: dict[str, Span] = {}
         self.used_decls: dict[str, tuple[str, A.Block, ModuleEnv]] = {}
         self._parse_overrides(overrides)
@@ -155,6 +193,14 @@ class Resolver:
                 self.bag.error("E211", f"--set {name}: the design has no parameter `{name}`", span,
                                suggest(name, self.main.params) or (
                                    "parameters: " + ", ".join(self.main.params) if self.main.params else "the design declares no parameters"))
+                continue
+            if isinstance(text, (int, float)) and not isinstance(text, bool):
+                # a Python number is an SI value: it takes the parameter's own dimension
+                if not math.isfinite(text):
+                    self.bag.error("E305", f"--set {name}: value {text!r} is not finite", span)
+                    continue
+                self.override_exprs[name] = float(text)
+                self.override_spans[name] = span
                 continue
             try:
                 mod = parse_module(f"param __override = {text}\n", f"<--set {name}>")
@@ -171,6 +217,9 @@ class Resolver:
 
     def _eval(self, e: A.Expr, env: ModuleEnv):
         if isinstance(e, A.Num):
+            if not math.isfinite(e.value):
+                self.bag.error("E305", "number is not finite (too large for a 64-bit float)", e.span)
+                raise _Fail()
             return Quantity(e.value)
         if isinstance(e, A.Qty):
             try:
@@ -219,12 +268,20 @@ class Resolver:
             left = self._eval(e.left, env)
             right = self._eval(e.right, env)
             try:
-                return self._binop(e, left, right)
+                out = self._binop(e, left, right)
+                if not _finite(out):
+                    self.bag.error("E305", f"result of `{e.op}` is not finite (overflow)", e.span,
+                                   "check the magnitudes and units of both sides")
+                    raise _Fail()
+                return out
             except DimensionError as exc:
                 self.bag.error("E303", str(exc), e.span)
             except ZeroDivisionError:
                 self.bag.error("E305", "division by zero", e.span)
-            except (ValueError, OverflowError) as exc:
+            except OverflowError:
+                self.bag.error("E305", f"result of `{e.op}` is not finite (overflow)", e.span,
+                               "check the magnitudes and units of both sides")
+            except ValueError as exc:
                 self.bag.error("E305", str(exc), e.span)
             raise _Fail()
         self.bag.error("E304", "unsupported expression", e.span)
@@ -301,6 +358,10 @@ class Resolver:
         if key in self.failed_params:      # already reported once
             raise _Fail()
         decl = env.params[name]
+        if not self.evaluating:  # outermost: evaluate what it depends on first, so nothing recurses deeply
+            self._evaluate_dependencies(env, name)
+            if key in self.failed_params:
+                raise _Fail()
         if key in self.evaluating:
             chain = [n for (e, n) in self.evaluating if e == id(env)]
             chain = chain[chain.index(name):] + [name] if name in chain else [name, name]
@@ -315,7 +376,8 @@ class Resolver:
                 self.bag.error("E304", f"parameter `{name}` must be a number or quantity, not {_what(value)}", decl.value.span)
                 raise _Fail()
             if env is self.main and name in self.override_exprs:
-                ov = self.eval(self.override_exprs[name], env)
+                ov = self.override_exprs[name]
+                ov = Quantity(ov, value.dims) if isinstance(ov, float) else self.eval(ov, env)
                 if not isinstance(ov, Quantity) or ov.dims != value.dims:
                     self.bag.error("E301", f"--set {name}: expected {describe(value.dims)}, got "
                                    f"{describe(ov.dims) if isinstance(ov, Quantity) else _what(ov)}",
@@ -329,6 +391,65 @@ class Resolver:
                 self.failed_params.add(key)
         self.param_values[key] = value
         return value
+
+    def _param_deps(self, env: ModuleEnv, name: str):
+        """The parameters a parameter's expression (and its --set override) names, as (env, name)."""
+        exprs = [env.params[name].value]
+        if env is self.main and isinstance(self.override_exprs.get(name), A.Expr):
+            exprs.append(self.override_exprs[name])
+        out = []
+        for ref in _refs(exprs):
+            parts, head = ref.parts, ref.parts[0]
+            target = env.imports.get(head)
+            if target is not None:
+                if isinstance(target, tuple):
+                    if len(parts) == 1 and target[1] in target[0].params:
+                        out.append((target[0], target[1]))
+                elif len(parts) == 2 and parts[1] in target.params:
+                    out.append((target, parts[1]))
+            elif len(parts) == 1 and head in env.params:
+                out.append((env, head))
+        return out
+
+    def _evaluate_dependencies(self, env: ModuleEnv, name: str) -> None:
+        """Evaluate the parameters that `name` depends on, deepest first (an iterative walk).
+
+        A chain of any length then costs one level of recursion per parameter evaluated; a cycle is
+        reported here once, naming the whole cycle, and every parameter on it fails quietly after.
+        """
+        state = {(id(env), name): 1}            # 1: on the walk's stack, 2: done
+        stack = [(env, name, iter(self._param_deps(env, name)))]
+        order = []
+        while stack:
+            e, n, deps = stack[-1]
+            for e2, n2 in deps:
+                k2 = (id(e2), n2)
+                if k2 in self.param_values or k2 in self.failed_params or state.get(k2) == 2:
+                    continue
+                if state.get(k2) == 1:   # a cycle: from n2 around to here
+                    names = [x[1] for x in stack]
+                    names = names[names.index(n2):] + [n2] if n2 in names else [n2, n2]
+                    decl = e2.params[n2]
+                    shown = names if len(names) <= 12 else names[:5] + ["..."] + names[-5:]
+                    self.bag.error("E214", f"parameter `{n2}` depends on itself: {' -> '.join(shown)}"
+                                   + (f" ({len(names) - 1} parameters)" if len(names) > 12 else ""), decl.span,
+                                   "give one of them a value that does not refer back")
+                    start = next(i for i, x in enumerate(stack) if (id(x[0]), x[1]) == k2)
+                    for x in stack[start:]:
+                        self.failed_params.add((id(x[0]), x[1]))
+                    continue
+                state[k2] = 1
+                stack.append((e2, n2, iter(self._param_deps(e2, n2))))
+                break
+            else:
+                stack.pop()
+                state[(id(e), n)] = 2
+                order.append((e, n))
+        for e, n in order[:-1]:
+            try:
+                self.param(e, n)
+            except _Fail:
+                pass
 
     # ---------------------------------------------------------------------------- typed getters
     def q(self, e: A.Expr, env: ModuleEnv, unit: str, what: str) -> float:
@@ -372,44 +493,60 @@ class Resolver:
         raise _Fail()
 
     # ---------------------------------------------------------------------------- blocks
-    def entries(self, blk: A.Block, env: ModuleEnv, seen=None) -> list[tuple[object, ModuleEnv]]:
-        """Entries of a block with `like` inheritance resolved: (entry, env) pairs, child last wins."""
-        ck = (id(blk), id(env))
-        if not seen and ck in self._entries_cache:
-            return self._entries_cache[ck]
-        out = self._entries(blk, env, seen or set())
-        if not seen:
-            self._entries_cache[ck] = out
-        return out
+    def entries(self, blk: A.Block, env: ModuleEnv) -> list[tuple[object, ModuleEnv]]:
+        """Entries of a block with `like` inheritance resolved: (entry, env) pairs, child last wins.
 
-    def _entries(self, blk: A.Block, env: ModuleEnv, seen) -> list[tuple[object, ModuleEnv]]:
+        The `like` chain is followed iteratively (any length); each block's merged entries are
+        computed once, so an error in a shared base is reported once.
+        """
+        cache = self._entries_cache
+        ck = (id(blk), id(env))
+        if ck in cache:
+            return cache[ck]
+        chain = [(blk, env)]
+        on_chain = {id(blk)}
         base: list[tuple[object, ModuleEnv]] = []
-        if blk.like is not None:
+        cyclic = False   # blocks on a cycle are merged again from their own start (each reports it)
+        cur, cenv = blk, env
+        while cur.like is not None:
             try:
-                target = self.eval(blk.like, env)
+                target = self.eval(cur.like, cenv)
             except _Fail:
-                target = None
-            if isinstance(target, DeclVal):
-                if target.kind != blk.kind:
-                    self.bag.error("E207", f"`{blk.name}` is a {blk.kind} but `{blk.like.dotted}` is a {target.kind}", blk.like.span)
-                elif id(target.node) in seen:
-                    self.bag.error("E214", f"`like` cycle through `{blk.like.dotted}`", blk.like.span)
-                else:
-                    base = self.entries(target.node, target.env, seen | {id(blk)})
-            elif target is not None:
-                self.bag.error("E207", f"`like` needs a {blk.kind}, found {_what(target)}", blk.like.span)
-        own_keys: dict[str, Span] = {}
-        out = []
-        for ent in blk.entries:
-            k = _entry_key(ent)
-            if k in own_keys:
-                self.bag.error("E206", f"`{k}` given twice in `{blk.name or blk.kind}` (first at line {own_keys[k].line})",
-                               ent.key_span if isinstance(ent, A.Assign) else ent.kind_span)
-                continue
-            own_keys[k] = ent.span
-            out.append((ent, env))
-        merged = [(e, en) for e, en in base if _entry_key(e) not in own_keys] + out
-        return merged
+                break
+            if not isinstance(target, DeclVal):
+                self.bag.error("E207", f"`like` needs a {cur.kind}, found {_what(target)}", cur.like.span)
+                break
+            if target.kind != cur.kind:
+                self.bag.error("E207", f"`{cur.name}` is a {cur.kind} but `{cur.like.dotted}` is a {target.kind}", cur.like.span)
+                break
+            if id(target.node) in on_chain:
+                self.bag.error("E214", f"`like` cycle through `{cur.like.dotted}`", cur.like.span)
+                cyclic = True
+                ids = [id(x[0]) for x in chain]
+                self._like_cycle.update(ids[ids.index(id(target.node)):])
+                break
+            tk = (id(target.node), id(target.env))
+            if tk in cache and id(target.node) not in self._like_cycle:
+                base = cache[tk]
+                break
+            chain.append((target.node, target.env))
+            on_chain.add(id(target.node))
+            cur, cenv = target.node, target.env
+        for b, e in reversed(chain):   # the deepest base first
+            own_keys: dict[str, Span] = {}
+            own = []
+            for ent in b.entries:
+                k = _entry_key(ent)
+                if k in own_keys:
+                    self.bag.error("E206", f"`{k}` given twice in `{b.name or b.kind}` (first at line {own_keys[k].line})",
+                                   ent.key_span if isinstance(ent, A.Assign) else ent.kind_span)
+                    continue
+                own_keys[k] = ent.span
+                own.append((ent, e))
+            base = [(x, en) for x, en in base if _entry_key(x) not in own_keys] + own
+            if not cyclic or b is blk:
+                cache[(id(b), id(e))] = base
+        return base
 
     def assigns(self, blk: A.Block, env: ModuleEnv, schema_name: str, allowed_blocks=()) -> dict[str, tuple[A.Assign, ModuleEnv]]:
         schema = SCHEMAS[schema_name]
@@ -490,6 +627,27 @@ class Resolver:
 
 
 _IDENTS = {"a", "b", "ground", "top", "bottom", "side"}
+
+
+def _finite(v) -> bool:
+    if isinstance(v, Quantity):
+        return math.isfinite(v.value)
+    if isinstance(v, VecVal):
+        return all(math.isfinite(i.value) for i in v.items)
+    return True
+
+
+def _refs(exprs):
+    """Every name reference inside the expressions (an iterative walk over any expression node)."""
+    stack = list(exprs)
+    while stack:
+        x = stack.pop()
+        if isinstance(x, A.Ref):
+            yield x
+        elif isinstance(x, A.Expr):
+            stack.extend(v for v in vars(x).values() if isinstance(v, (A.Expr, tuple)))
+        elif isinstance(x, tuple):
+            stack.extend(v for v in x if isinstance(v, (A.Expr, tuple)))
 
 
 def _entry_key(ent) -> str:

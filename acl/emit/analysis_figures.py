@@ -10,9 +10,12 @@ import numpy as np
 
 
 def _save(fig, path: str) -> str:
+    from acl._files import as_umask
+
     fd, tmp = tempfile.mkstemp(prefix=".tmp-", suffix=".png", dir=os.path.dirname(path) or ".")
     os.close(fd)
     try:
+        as_umask(tmp, directory=False)
         fig.savefig(tmp, dpi=120, bbox_inches="tight")
         os.replace(tmp, path)
     finally:

@@ -54,6 +54,7 @@ def schedule_dict(schedule: Schedule, sample_rate: float, stats=None, files: dic
         "duration_s": schedule.duration_s,
         "max_voltage_v": schedule.max_voltage_v,
         "full_scale_v": schedule.full_scale_v,
+        "full_scale_source": schedule.full_scale_source,
         "sample_scale": "wav samples are volts / full_scale_v (float32, +-1 = full scale); "
                         "npy and csv hold volts",
         "ramp_s": schedule.ramp_s,
@@ -63,7 +64,8 @@ def schedule_dict(schedule: Schedule, sample_rate: float, stats=None, files: dic
     }
     if stats is not None:
         out["waveform"] = {"samples": stats.samples, "peak_v": stats.peak_v, "rms_v": stats.rms_v,
-                           "max_sample_jump_v": stats.max_jump_v}
+                           "max_sample_jump_v": stats.max_jump_v,
+                           "analog_peak_v": max((s.peak_v or 0.0 for s in schedule.segments), default=0.0)}
     if files:
         out["files"] = files
     return _clean(out)

@@ -4,8 +4,9 @@ Each writer knows the total sample count up front (the schedule fixes it), write
 first and then appends chunks, so memory never depends on duration.
 
 WAV scale: a sample is ``volts / full_scale_v`` (so +-1.0 is the full-scale voltage recorded in
-schedule.json); format tag 3 (IEEE float), 32 bits, mono, with the ``fact`` chunk non-PCM
-formats require.  NPY and CSV hold volts.
+schedule.json, fixed with ``acl compile --full-scale``); format tag 3 (IEEE float), 32 bits,
+mono, with the ``fact`` chunk non-PCM formats require.  NPY and CSV hold volts; the CSV
+(``waveform-samples.csv``) has one row per sample, about 24 bytes each.
 """
 from __future__ import annotations
 
@@ -67,7 +68,8 @@ class CsvWriter:
 
 
 WRITERS = {"wav": (WavWriter, "waveform.wav"), "npy": (NpyWriter, "waveform.npy"),
-           "csv": (CsvWriter, "waveform.csv")}
+           "csv": (CsvWriter, "waveform-samples.csv")}
+CSV_BYTES_PER_SAMPLE = 24          # "%.10g,%.7g\n": a typical row
 
 
 def read_wav_float32(path: str) -> tuple[np.ndarray, int]:

@@ -20,6 +20,9 @@ REQUIRED = ("observable", "value", "unit", "drive")
 OPTIONAL = ("time", "sigma")
 LENGTH = (1, 0, 0, 0, 0, 0, 0)
 MAX_ROWS = 2_000_000
+MAX_BYTES = 256 * 2**20                  # a data file larger than this is refused (E601)
+MAX_LENGTH = 1.0                         # m: |value| and sigma beyond this are no measurement of a micro-device
+MAX_TIME = 1e9                           # s: about 30 years
 _NUM_UNIT = re.compile(r"^\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*(.*?)\s*$")
 
 
@@ -110,12 +113,17 @@ def read_data(paths, design) -> Dataset:
     cols: dict[str, list] = {k: [] for k in ("observable", "value", "sigma", "time", "tones", "spans", "units")}
     sets: dict[str, list] = {}
     n_before = 0
+    band = design.transducer.band if design.transducer is not None else None
+    vmax = design.transducer.max_voltage if design.transducer is not None else None
     for path in paths:
-        try:
-            with open(path, encoding="utf-8-sig") as fh:
-                lines = fh.read().splitlines()
-        except OSError as exc:
-            raise DiagnosticError([_io(path, exc)])
+        text = _read_text(path)
+        if isinstance(text, tuple):           # (line, column, byte) of the first byte that is not UTF-8
+            line, column, byte = text
+            bag.error("E807", f"data file is not UTF-8 text: byte 0x{byte:02x} cannot be decoded",
+                      Span(file=path, line=line, column=column),
+                      "save the file as UTF-8 (CSV UTF-8 in a spreadsheet); units such as `µm` can be written `um`")
+            continue
+        lines = text.splitlines()
         head_i = next((i for i, ln in enumerate(lines) if ln.strip() and not ln.lstrip().startswith("#")), None)
         if head_i is None:
             bag.error("E801", "data file is empty (no header row)", Span(file=path, line=1, column=1),
@@ -201,6 +209,8 @@ def read_data(paths, design) -> Dataset:
                 for d in exc.diagnostics:
                     bag.add(d)
                 ok = False
+            else:
+                ok = _drive_in_range(bag, tones, band, vmax, design, sp("drive")) and ok
             row_sets = {}
             for k in set_keys:
                 text = cell(k)[0]
@@ -211,6 +221,12 @@ def read_data(paths, design) -> Dataset:
                         bag.error("E805", f"`{k}` = `{text}`: {exc}", sp(k), "write a number with a unit, e.g. `40 um`")
                         ok = False
                 row_sets[k[4:]] = text
+            if ok and factor is not None:
+                for what, x in (("value", value), ("sigma", sigma)):
+                    if math.isfinite(x) and abs(x * factor) > MAX_LENGTH:
+                        bag.error("E806", f"{what} {cell(what)[0]} {unit} is beyond {MAX_LENGTH:g} m: not a "
+                                  "displacement of a micro-device", sp(what), "check the unit column")
+                        ok = False
             if not ok or factor is None:
                 continue
             cols["observable"].append(name)
@@ -239,6 +255,55 @@ def read_data(paths, design) -> Dataset:
                    set_si, cols["spans"], np.array(cols["units"], dtype=object), tuple(paths))
 
 
+def _read_text(path):
+    """The text of a data file, or (line, column, byte) of its first byte that is not UTF-8.
+
+    Only regular files are read (a FIFO or a device would block or never end: E601), up to
+    :data:`MAX_BYTES`.  Raises DiagnosticError for files that cannot be read.
+    """
+    import os
+    import stat
+
+    try:
+        st = os.stat(path)
+        if not stat.S_ISREG(st.st_mode):
+            kind = "a folder" if stat.S_ISDIR(st.st_mode) else "a pipe (FIFO)" if stat.S_ISFIFO(st.st_mode) else \
+                "a device or socket"
+            raise DiagnosticError([_io_msg(path, f"not a regular file: `{path}` is {kind}",
+                                           "give a CSV file; a pipe can be saved to a file first")])
+        if st.st_size > MAX_BYTES:
+            raise DiagnosticError([_io_msg(path, f"data file is larger than {MAX_BYTES // 2**20} MB")])
+        with open(path, "rb") as fh:
+            raw = fh.read(MAX_BYTES + 1)
+    except OSError as exc:
+        raise DiagnosticError([_io(path, exc)])
+    if len(raw) > MAX_BYTES:
+        raise DiagnosticError([_io_msg(path, f"data file is larger than {MAX_BYTES // 2**20} MB")])
+    try:
+        return raw.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        start = exc.start
+        line_start = raw.rfind(b"\n", 0, start) + 1
+        column = len(raw[line_start:start].decode("utf-8-sig", errors="replace")) + 1
+        return raw.count(b"\n", 0, start) + 1, column, raw[start]
+
+
+def _drive_in_range(bag, tones, band, vmax, design, span) -> bool:
+    """Drives outside the transducer's band or above its maximum voltage are not data the model covers."""
+    ok = True
+    for f, v in tones:
+        if band is not None and not band[0] <= f <= band[1]:
+            bag.error("E501", f"drive frequency {f / 1e3:.6g} kHz is outside the band of transducer "
+                      f"`{design.transducer.name}` ({band[0] / 1e3:g} .. {band[1] / 1e3:g} kHz)", span,
+                      "the model knows the transducer only within its declared band")
+            ok = False
+        if vmax is not None and v > vmax:
+            bag.error("E502", f"drive amplitude {v:.6g} V is above the maximum of transducer "
+                      f"`{design.transducer.name}` ({vmax:g} V)", span)
+            ok = False
+    return ok
+
+
 def _number(bag, text, span, what, required, positive=False):
     if not text:
         if required:
@@ -258,7 +323,16 @@ def _number(bag, text, span, what, required, positive=False):
     if positive and x <= 0:
         bag.error("E806", f"{what} must be positive, got {text}", span)
         return None
+    if what == "time" and abs(x) > MAX_TIME:
+        bag.error("E806", f"time `{text}` s is beyond {MAX_TIME:g} s", span)
+        return None
     return x
+
+
+def _io_msg(path, message, hint=None):
+    from acl.diagnostics import error
+
+    return error("E601", message, Span(file=str(path), line=1, column=1), hint)
 
 
 def _io(path, exc):

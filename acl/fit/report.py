@@ -127,10 +127,10 @@ def build_report(problem, selection, tests_before, tests_after, calibrated_name=
 
 def render_table(report, console=None) -> None:
     """Rich tables: parameters before/after, per-observable and overall errors, effects tried."""
-    from rich.console import Console
+    from acl._console import make_console
     from rich.table import Table
 
-    con = console or Console(highlight=False)
+    con = console or make_console(highlight=False)
     t = Table(title="fit: before (base model) and after (with selected effects)")
     for col in ("observable", "n", "RMSE before", "RMSE after", "red. chi2 before", "red. chi2 after"):
         t.add_column(col, justify="right" if col != "observable" else "left")
@@ -258,6 +258,9 @@ def write_report_dir(target, write) -> None:
     os.makedirs(parent, exist_ok=True)
     tmp = tempfile.mkdtemp(prefix=".acl-fit-", dir=parent)
     try:
+        from acl._files import as_umask
+
+        as_umask(tmp, directory=True)
         write(tmp)
         if os.path.isdir(target):
             old = tempfile.mkdtemp(prefix=".acl-fit-old-", dir=parent)

@@ -47,22 +47,24 @@ def statistics(reports) -> str:
 
 # ----------------------------------------------------------------------------------------------
 
-def write_full(reports, out: TextIO) -> None:
-    from rich.console import Console
+def write_full(reports, out: TextIO, summary: bool = True) -> None:
+    from acl._console import make_console
 
     from acl.diagnostics import render
 
-    console = Console(file=out, highlight=False, soft_wrap=True)
+    console = make_console(file=out, highlight=False, soft_wrap=True)
     ds = _all(reports)
     named = [Diagnostic(d.code, d.severity, f"{d.message} ({rule_name(d.code)})", d.span, d.hint, d.notes) for d in ds]
     render(named, console)
-    console.print(summary_line(reports))
+    if summary:
+        console.print(summary_line(reports))
 
 
-def write_concise(reports, out: TextIO) -> None:
+def write_concise(reports, out: TextIO, summary: bool = True) -> None:
     for d in _all(reports):
         out.write(f"{_loc(d)}: {d.code} {d.message}\n")
-    out.write(summary_line(reports) + "\n")
+    if summary:
+        out.write(summary_line(reports) + "\n")
 
 
 def write_json(reports, out: TextIO) -> None:
@@ -93,7 +95,8 @@ def sarif_document(reports) -> dict:
         rules.append({
             "id": c, "name": rule_name(c),
             "shortDescription": {"text": desc},
-            "help": {"text": f"{desc}. See docs/rules.md#{c.lower()}"},
+            "help": {"text": f"{desc}. See `acl rule {c}` or docs/rules.md#{c.lower()}"},
+            "helpUri": help_uri(c),
             "defaultConfiguration": {"level": _SARIF_LEVEL[r.severity] if r else
                                      ("error" if c.startswith("E") else "warning")},
         })
@@ -122,7 +125,26 @@ def sarif_document(reports) -> dict:
     }
 
 
+def help_uri(code: str) -> str:
+    """A URI of the documentation of ``code``: the page shipped with acl (``acl rule CODE`` prints it)."""
+    from pathlib import Path
+
+    from acl._resources import shipped_dir
+
+    docs = Path(shipped_dir("docs"))
+    if code.startswith("ACL"):
+        return (docs / "rules.md").as_uri() + "#" + code.lower()
+    if code.startswith("E8"):
+        return (docs / "data.md").as_uri() + "#errors"
+    return (docs / "language.md").as_uri() + "#15-diagnostic-codes"
+
+
 def _uri(path: str) -> str:
+    """A percent-encoded URI reference (RFC 3986) for a file: relative to the working directory
+    when the file is under it, else an absolute ``file:`` URI."""
+    from pathlib import Path
+    from urllib.parse import quote
+
     p = path
     if os.path.isabs(p):
         try:
@@ -131,8 +153,9 @@ def _uri(path: str) -> str:
                 p = rel
         except ValueError:
             pass
-    p = p.replace(os.sep, "/")
-    return ("file://" + p) if p.startswith("/") else p.replace(" ", "%20")
+    if os.path.isabs(p):
+        return Path(p).as_uri()
+    return quote(p.replace(os.sep, "/"), safe="/")
 
 
 def write_sarif(reports, out: TextIO) -> None:

@@ -39,9 +39,14 @@ def collect_files(paths: list[str]) -> tuple[list[str], list[str]]:
     files, missing = [], []
     for p in paths:
         if os.path.isdir(p):
+            top = os.path.realpath(p)
             for dirpath, dirs, names in os.walk(p):
                 dirs[:] = sorted(d for d in dirs if not d.startswith(".") and d not in EXCLUDED_DIRS)
-                files.extend(os.path.join(dirpath, n) for n in sorted(names) if n.endswith(".acl"))
+                for n in sorted(names):
+                    f = os.path.join(dirpath, n)
+                    # a folder search stays in the folder: no symlink out of it, no FIFO or device
+                    if n.endswith(".acl") and _inside(os.path.realpath(f), top) and os.path.isfile(f):
+                        files.append(f)
         elif os.path.exists(p):
             files.append(p)
         else:
@@ -49,16 +54,31 @@ def collect_files(paths: list[str]) -> tuple[list[str], list[str]]:
     return list(dict.fromkeys(files)), missing
 
 
+def _inside(real: str, top: str) -> bool:
+    return real == top or real.startswith(top.rstrip(os.sep) + os.sep)
+
+
 def lint_file(path: str, config: LintConfig, overrides: dict | None = None, search_paths=(),
-              verbose: bool = False) -> FileReport:
+              verbose: bool = False, text: str | None = None) -> FileReport:
+    """Lint one design; with ``text`` (standard input) that is its source and ``path`` its name."""
     from acl.design.resolve import check_design
 
-    rules = load_rules()
     t0 = time.perf_counter()
-    design, check_diags = check_design(path, overrides=overrides or {}, search_paths=search_paths)
+    design, check_diags = check_design(path, overrides=overrides or {}, search_paths=search_paths, text=text)
     t_check = time.perf_counter() - t0
+    return lint_design(path, design, check_diags, _read_source(path, text), config, verbose, t0, t_check)
+
+
+def lint_design(path: str, design, check_diags: list[Diagnostic], source: SourceFile | None, config: LintConfig,
+                verbose: bool = False, t0: float | None = None, t_check: float = 0.0) -> FileReport:
+    """Rules over an already checked design (``design`` None when it did not resolve).
+
+    ``source`` is :func:`acl.lint.source.scan` of the file's text (None when unreadable); the
+    language server passes the editor's unsaved text here.
+    """
+    rules = load_rules()
+    t0 = time.perf_counter() if t0 is None else t0
     notes: list[str] = []
-    source = _read_source(path)
     findings = list(check_diags)
     if design is None:
         notes.append("design does not resolve: rules not run")
@@ -83,11 +103,15 @@ def lint_file(path: str, config: LintConfig, overrides: dict | None = None, sear
     return FileReport(path, findings, notes, design is not None, time.perf_counter() - t0, t_check)
 
 
-def _read_source(path: str) -> SourceFile | None:
+def _read_source(path: str, text: str | None = None) -> SourceFile | None:
+    from acl.design.modules import read_source
+    from acl.diagnostics import DiagnosticError
+
+    if text is not None:
+        return scan(path, text)
     try:
-        with open(path, encoding="utf-8") as fh:
-            return scan(path, fh.read())
-    except (OSError, UnicodeDecodeError):
+        return scan(path, read_source(path))   # never blocks on a FIFO, never reads past the size limit
+    except DiagnosticError:
         return None
 
 

@@ -24,6 +24,10 @@ from acl.schedule.model import GoalReport, Schedule, ScheduledTone, Segment
 from acl.schedule.path import UM, DriveLimits
 
 DEFAULT_MAX_VOLTAGE = 10.0
+MAX_PROGRAM_S = 86_400.0          # a program longer than a day is refused (E-SCHED-DURATION)
+MAX_WAYPOINTS = 20_000            # per follow goal (E-SCHED-PATH): raise --waypoint-dt
+VOLTAGE_RANGE = (1e-3, 1e4)       # V: a `limit` outside it is refused (E-SCHED-LIMIT)
+SLEW_RANGE = (1e-6, 1e12)         # V/s
 
 
 @dataclass(frozen=True)
@@ -37,7 +41,9 @@ class CompileOptions:
     forward_provider: Callable | None = None     # (design, capsule, freqs) -> (forward, name)
     latch_provider: Callable | None = None       # (design, freqs) -> (forces, to_b, to_a)
     snap_provider: Callable | None = None        # (design, a, b, freqs, vmax, bound) -> (K,) V | None
+    critical_provider: Callable | None = None    # (design, a, b, [(f, V)], s_max, bound) -> scale | None
     max_voltage: float | None = None             # overrides every other limit if given
+    full_scale_v: float | None = None            # WAV full scale; default: the transducer's max voltage
     lam: float = 1e-3
     slew_model: str = "auto"
     refine: int = 0
@@ -87,17 +93,19 @@ class _Compiler:
 
     def run(self) -> Schedule:
         self.states = {l.name: l.state for l in self.design.latches}
+        self._check_numbers()
         for i, step in enumerate(self.program.steps):
             getattr(self, f"_{step.kind}")(i, step)
         if not self.segments:
             raise DiagnosticError([error("E-SCHED-EMPTY", f"program `{self.program.name}` has no steps",
                                          self.program.span)])
-        full_scale = max(self.vmax_seen) if self.vmax_seen else _limit(self.design, None, self.opts)[0]
+        vmax = max(self.vmax_seen) if self.vmax_seen else _limit(self.design, None, self.opts)[0]
+        full_scale, source = self._full_scale(vmax)
         fs = self.opts.sample_rate_hz or auto_sample_rate(
             max((t.max_frequency_hz for s in self.segments for t in s.tones), default=1e3))
         sched = Schedule(program=self.program.name, segments=self.segments, goals=self.goals,
-                         max_voltage_v=full_scale, full_scale_v=full_scale, ramp_s=self.opts.ramp_s,
-                         source=self.design.file, notes=self.notes)
+                         max_voltage_v=vmax, full_scale_v=full_scale, ramp_s=self.opts.ramp_s,
+                         source=self.design.file, notes=self.notes, full_scale_source=source)
         sched.sample_rate_hz = fs
         from acl.schedule.bands import coverage_notes
 
@@ -106,8 +114,43 @@ class _Compiler:
         self._check_peaks(sched)
         return sched
 
+    def _full_scale(self, vmax: float) -> tuple[float, str]:
+        """WAV full scale: --full-scale, else the transducer's max voltage, else the largest limit."""
+        if self.opts.full_scale_v is not None:
+            return float(self.opts.full_scale_v), "--full-scale"
+        tr = self.design.transducer
+        if tr is not None and tr.max_voltage and np.isfinite(tr.max_voltage):
+            return float(tr.max_voltage), f"max_voltage of transducer `{tr.name}`"
+        return float(vmax), "largest voltage limit of the program (no transducer declared)"
+
+    def _check_numbers(self) -> None:
+        """Durations, limits and slews the solver and the renderer can work with (finite, in range)."""
+        t = 0.0
+        for i, step in enumerate(self.program.steps):
+            d = getattr(step, "duration", None)
+            if d is not None:
+                if not (np.isfinite(d) and d > 0):
+                    raise _diag("E-SCHED-DURATION", f"step {i + 1}: duration {d:g} s is not a positive "
+                                "finite time", step.span)
+                t += d
+                if t > MAX_PROGRAM_S:
+                    raise _diag("E-SCHED-DURATION", f"step {i + 1}: the program would last {t:.4g} s, "
+                                f"more than {MAX_PROGRAM_S:g} s", step.span,
+                                "split it into several programs, or shorten the steps")
+            lim = getattr(step, "limits", None)
+            if lim is None:
+                continue
+            lo, hi = VOLTAGE_RANGE
+            if lim.max_voltage is not None and not lo <= lim.max_voltage <= hi:
+                raise _diag("E-SCHED-LIMIT", f"step {i + 1}: limit {lim.max_voltage:g} V is outside "
+                            f"{lo:g} V .. {hi:g} V", step.span, "give the amplifier's real peak voltage")
+            lo, hi = SLEW_RANGE
+            if lim.slew_rate is not None and not lo <= lim.slew_rate <= hi:
+                raise _diag("E-SCHED-LIMIT", f"step {i + 1}: slew {lim.slew_rate:g} V/s is outside "
+                            f"{lo:g} .. {hi:g} V/s", step.span)
+
     def _check_peaks(self, sched: Schedule) -> None:
-        """Every segment's peak within its step's limit (drive steps are the user's tones)."""
+        """Every segment's analog peak within its step's limit and the WAV full scale."""
         for seg in sched.segments:
             step = self.program.steps[seg.step]
             vmax, _ = _limit(self.design, getattr(step, "limits", None), self.opts)
@@ -116,16 +159,26 @@ class _Compiler:
                             f"step {seg.step + 1}: peak {seg.peak_v:.4g} V exceeds the {vmax:g} V limit "
                             f"at t = {seg.start_s:.4g} s", step.span,
                             "lower the tone amplitudes or raise the transducer's max voltage")
+            if seg.peak_v is not None and seg.peak_v > sched.full_scale_v * (1 + 1e-9):
+                raise _diag("E-SCHED-FULLSCALE",
+                            f"step {seg.step + 1}: peak {seg.peak_v:.4g} V exceeds the WAV full scale "
+                            f"{sched.full_scale_v:g} V ({sched.full_scale_source})", step.span,
+                            "raise --full-scale, or lower the step's amplitudes or limit")
 
     # -- simple steps --------------------------------------------------------------------------
     def _add(self, duration, tones, step, goal=None):
+        if not self.t + duration <= MAX_PROGRAM_S:
+            raise _diag("E-SCHED-DURATION", f"step {step + 1}: the program would last "
+                        f"{self.t + duration:.4g} s, more than {MAX_PROGRAM_S:g} s",
+                        self.program.steps[step].span, "split it into several programs")
         self.segments.append(Segment(self.t, self.t + duration, tuple(tones), step, goal))
         self.t += duration
 
     def _drive(self, i, step):
         vmax, _ = _limit(self.design, None, self.opts)
         self.vmax_seen.append(vmax)
-        tones = [ScheduledTone(t.frequency, t.amplitude, t.phase) for t in step.drive.tones]
+        tones = [ScheduledTone(t.frequency, t.amplitude, t.phase, phase_fixed=t.phase_given)
+                 for t in step.drive.tones]
         self._add(step.duration, tones, i, f"step {i + 1}: drive")
         self.goals.append(GoalReport(f"step {i + 1}: drive", "drive", i, self.t - step.duration, self.t,
                                      tuple(t.frequency_hz for t in tones), details={"limit_v": vmax}))
@@ -150,7 +203,14 @@ class _Compiler:
         self.vmax_seen.append(vmax)
         try:
             duration = step.duration or path_length(step.path) / step.speed
-            n = max(2, int(round(duration / self.opts.waypoint_dt_s)))
+            if not (np.isfinite(duration) and 0 < duration <= MAX_PROGRAM_S):
+                raise _diag("E-SCHED-DURATION", f"{name}: the path takes {duration:.4g} s, not a positive "
+                            f"time up to {MAX_PROGRAM_S:g} s", step.span, "give a duration or a sensible speed")
+            n = duration / self.opts.waypoint_dt_s
+            if not n <= MAX_WAYPOINTS:
+                raise _diag("E-SCHED-PATH", f"{name}: {n:.4g} waypoints, more than {MAX_WAYPOINTS}",
+                            step.span, f"raise --waypoint-dt above {duration / MAX_WAYPOINTS:.3g} s")
+            n = max(2, int(round(n)))
             path = sample_path(step.path, n)
         except (PathError, TypeError, ZeroDivisionError) as exc:
             raise _diag("E-SCHED-PATH", f"{name}: {exc}", step.span,
@@ -369,8 +429,10 @@ class _Compiler:
             raise _diag("E-SCHED-TONES", f"{name}: a hold step needs its tones", step.span,
                         "write `tones 85 kHz, 125 kHz` on the hold step")
         provider = self.opts.snap_provider or snap_in_voltages
-        v_snap = provider(self.design, step.a, step.b, step.tones, vmax,
-                          step.bound if step.mode == "above" else None)
+        bound = step.bound if step.mode == "above" else None
+        # above: a tone driven at vmax must still be `margin` from snap-in, so look up to margin x vmax
+        v_snap = provider(self.design, step.a, step.b, step.tones,
+                          vmax * step.margin if step.mode == "above" else vmax, bound)
         if v_snap is not None and np.any(np.asarray(v_snap) <= 0):
             raise _diag("E-SCHED-INFEASIBLE", f"{name}: the gap is already below its bound at rest",
                         step.span, "lower the bound or widen the rest gap")
@@ -386,12 +448,68 @@ class _Compiler:
                 notes=(f"at t = {self.t:.4g} s",))])
         tones = [ScheduledTone(f, float(a)) for f, a, u in zip(step.tones, plan.amplitudes, plan.u)
                  if u > 1e-6 * max(plan.u.max(), 1e-300)]
+        tones, ratio = self._hold_resimulate(name, step, tones, vmax, bound)
         self._add(step.duration, tones, i, name)
+        details = {"snap_index": float(sum(t.amplitude_v ** 2 / v ** 2 for t in tones
+                                           for f, v in zip(step.tones, v_snap) if f == t.frequency_hz)),
+                   "critical_voltages_v": [float(v) for v in v_snap], "margin": step.margin}
+        if ratio is not None:
+            details["resimulated_margin"] = ratio
         self.goals.append(GoalReport(name, "hold", i, self.t - step.duration, self.t,
                                      tuple(t.frequency_hz for t in tones),
-                                     model="snap index sum u/Vcrit^2 (forces add in V^2)",
-                                     details={"snap_index": plan.snap_index,
-                                              "critical_voltages_v": [float(v) for v in v_snap]}))
+                                     model=("snap-in of the whole drive re-simulated (acl.analysis.mechanics)"
+                                            if ratio is not None else
+                                            "snap index sum u/Vcrit^2 (forces add in V^2)"),
+                                     details=details))
+
+    def _hold_resimulate(self, name, step: HoldStep, tones, vmax, bound):
+        """Re-simulate the drive's snap-in and rescale it so the voltage margin holds; (tones, ratio).
+
+        ratio is the scale of the drive at snap-in (or at the gap bound) over the drive itself:
+        >= margin for `above`; for `cross` the drive is margin x a snapping drive, ratio <= 1/margin
+        (reported as its inverse, the factor by which the drive exceeds snap-in).
+        """
+        provider = self.opts.critical_provider
+        if provider is None:
+            if self.opts.snap_provider is not None:
+                return tones, None          # an injected snap model: nothing better to re-simulate
+            from acl.schedule.gains import critical_scale as provider
+        if not tones:
+            return tones, None
+        pairs = [(t.frequency_hz, t.amplitude_v) for t in tones]
+        total = sum(a for _, a in pairs)
+        margin = step.margin
+        if step.mode == "above":
+            s = provider(self.design, step.a, step.b, pairs, 1.5 * margin, bound)
+            if s is None:
+                return tones, None
+            if s < margin:
+                # the safe set is star-shaped about zero drive: scale the drive back onto the margin
+                f = s / margin * (1 - 1e-6)
+                tones = [ScheduledTone(t.frequency_hz, t.amplitude_v * f) for t in tones]
+                self.notes.append(f"{name}: the whole drive snaps at {s:.4g} x itself (the per-tone "
+                                  f"snap index promised {margin:g}); amplitudes scaled by {f:.4g}")
+                s = provider(self.design, step.a, step.b,
+                             [(t.frequency_hz, t.amplitude_v) for t in tones], 1.5 * margin, bound)
+                if s is None or s < margin * (1 - 1e-4):
+                    raise _diag("E-SCHED-MODEL", f"{name}: the re-simulated snap-in margin "
+                                f"{s if s is not None else float('nan'):.4g} stays below {margin:g}",
+                                step.span, "pin a single tone with `using`")
+            return tones, float(s)
+        s = provider(self.design, step.a, step.b, pairs, vmax / total, None)
+        if s is None:
+            return tones, None
+        if not s * margin <= 1.0 + 1e-9:
+            f = s * margin * (1 + 1e-6)
+            if not np.isfinite(f) or total * f > vmax * (1 + 1e-9):
+                raise _diag("E-SCHED-INFEASIBLE", f"{name}: infeasible: the whole drive snaps only at "
+                            f"{s:.4g} x itself; {margin:g} x that exceeds the {vmax:g} V limit",
+                            step.span, f"raise the max voltage above {vmax:g} V; or lower the margin")
+            tones = [ScheduledTone(t.frequency_hz, t.amplitude_v * f) for t in tones]
+            self.notes.append(f"{name}: the whole drive snaps only at {s:.4g} x itself; amplitudes "
+                              f"scaled by {f:.4g} to cross by the margin {margin:g}")
+            s = s / f
+        return tones, float(1.0 / s)
 
 
 def _diag(code: str, message: str, span: Span | None, hint: str | None = None) -> DiagnosticError:
@@ -399,7 +517,8 @@ def _diag(code: str, message: str, span: Span | None, hint: str | None = None) -
 
 
 def _choose_all_phases(sched: Schedule, fs: float) -> None:
-    """Pick low-peak phases per group of consecutive segments sharing the same frequencies."""
+    """Pick low-peak phases per group of consecutive segments sharing the same frequencies (phases
+    the user gave are kept), and record each segment's analog peak bound."""
     from acl.schedule.phases import choose_phases, group_peaks
 
     segs = sched.segments
@@ -415,15 +534,17 @@ def _choose_all_phases(sched: Schedule, fs: float) -> None:
         tones0 = group[0].tones
         phases = np.array([t.phase_rad for t in tones0])
         if any(t.sweep for t in tones0):
-            peaks = amps.sum(axis=1)
+            peaks = np.abs(amps).sum(axis=1)
         else:
-            if len(key) > 1 and not np.any(phases):
+            if len(key) > 1:
                 worst = amps[int(np.argmax(amps.sum(axis=1)))]
-                phases, _ = choose_phases(key, worst, fs)
+                phases, _ = choose_phases(key, worst, fs, fixed=[t.phase_fixed for t in tones0],
+                                          start=phases)
             peaks = group_peaks(key, phases, amps, fs)
         for m in range(i, j + 1):
             s = segs[m]
             segs[m] = Segment(s.start_s, s.end_s, tuple(
-                ScheduledTone(t.frequency_hz, t.amplitude_v, float(p), t.frequency_end_hz, t.sweep)
+                ScheduledTone(t.frequency_hz, t.amplitude_v, float(p), t.frequency_end_hz, t.sweep,
+                              t.phase_fixed)
                 for t, p in zip(s.tones, phases)), s.step, s.goal, float(peaks[m - i]))
         i = j + 1

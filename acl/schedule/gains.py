@@ -194,30 +194,53 @@ def snap_in_voltages(design: Design, a: str, b: str, frequencies, v_max: float,
     The critical voltage of a tone alone is its snap-in voltage (``mechanics.sweep_voltage``) or,
     when ``bound`` (m) is given, the voltage at which the gap between the capsules of orifices
     ``a`` and ``b`` (``capsule.orifice``) first falls to ``bound`` on the stable branch, if lower.
-    Forces add in V^2, so a multi-tone drive is below every critical point when
-    ``sum_k u_k / Vcrit_k^2 < 1`` (the snap index of :mod:`acl.schedule.hold`).
+    Forces add in V^2, but their shapes along the gap differ per tone, so the snap index
+    ``sum_k u_k / Vcrit_k^2`` of :mod:`acl.schedule.hold` is exact for one tone only: a multi-tone
+    drive is re-simulated with :func:`critical_scale`.
     """
     mech = _optional("acl.analysis.mechanics")
     if mech is None or not hasattr(mech, "sweep_voltage"):
         return None
+    return np.asarray([_critical_scale(mech, design, a, b, Drive(tones=(Tone(frequency=float(f), amplitude=1.0),)),
+                                       v_max, bound) for f in frequencies])
+
+
+def critical_scale(design: Design, a: str, b: str, tones, s_max: float,
+                   bound: float | None = None) -> float | None:
+    """Factor by which the drive ``tones`` ((frequency Hz, amplitude V) pairs) can be scaled before
+    the pair snaps in (or the gap falls to ``bound``): inf if not up to ``s_max``; None without a
+    mechanics model.  Re-simulates the whole multi-tone drive (``mechanics.sweep_voltage``), so it
+    checks the margin of a hold/cross step without the superposition assumption of the snap index.
+    """
+    mech = _optional("acl.analysis.mechanics")
+    if mech is None or not hasattr(mech, "sweep_voltage"):
+        return None
+    shape = Drive(tones=tuple(Tone(frequency=float(f), amplitude=float(v)) for f, v in tones if v > 0))
+    if not shape.tones:
+        return float("inf")
+    return _critical_scale(mech, design, a, b, shape, s_max, bound)
+
+
+def _critical_scale(mech, design: Design, a: str, b: str, shape: Drive, v_max: float,
+                    bound: float | None) -> float:
+    """Scale of ``shape`` at snap-in or where gap(a, b) first reaches ``bound``; inf if neither up to v_max."""
     from acl.analysis import acoustics
 
     ca, cb = a.split(".")[0], b.split(".")[0]
-    out = []
-    for f in frequencies:
-        shape = Drive(tones=(Tone(frequency=float(f), amplitude=1.0),))
-        sw = mech.sweep_voltage(design, shape, v_max, acoustics.force_model_for(design))
-        v = np.inf if sw.snap_voltage is None else float(sw.snap_voltage)
-        if bound is not None and sw.voltage.size > 1:
-            gap = sw.gap(design, ca, cb)
-            below = np.flatnonzero(gap <= bound)
-            if below.size:
-                i = int(below[0])
-                if i == 0:
-                    v = 0.0
-                else:     # interpolate the crossing between branch points i-1 and i
-                    g0, g1 = gap[i - 1], gap[i]
-                    w = (g0 - bound) / (g0 - g1) if g0 != g1 else 1.0
-                    v = min(v, float(sw.voltage[i - 1] + w * (sw.voltage[i] - sw.voltage[i - 1])))
-        out.append(v)
-    return np.asarray(out)
+    sw = mech.sweep_voltage(design, shape, v_max, acoustics.force_model_for(design))
+    v = np.inf if sw.snap_voltage is None else float(sw.snap_voltage)
+    if sw.status not in ("ok", "snap_in"):
+        # the branch was lost before v_max: nothing is known beyond its last stable point
+        v = min(v, float(sw.voltage[-1]) if sw.voltage.size else 0.0)
+    if bound is not None and sw.voltage.size > 1:
+        gap = sw.gap(design, ca, cb)
+        below = np.flatnonzero(gap <= bound)
+        if below.size:
+            i = int(below[0])
+            if i == 0:
+                v = 0.0
+            else:     # interpolate the crossing between branch points i-1 and i
+                g0, g1 = gap[i - 1], gap[i]
+                w = (g0 - bound) / (g0 - g1) if g0 != g1 else 1.0
+                v = min(v, float(sw.voltage[i - 1] + w * (sw.voltage[i] - sw.voltage[i - 1])))
+    return v

@@ -6,9 +6,15 @@ Two descriptions of the gap, linear in ``u = V^2`` (forces superpose in V^2, pap
   the pair snaps when ``sum_k u_k / v_snap_k^2 >= 1``;
 * a linearised gap ``gap0 + dgap @ u`` (m, dgap m per V^2) compared with ``bound`` (m).
 
-mode ``above``: drive the tones as hard as allowed (maximise sum u) while the snap index stays
-``<= 1 / margin`` and the gap ``>= bound``.  mode ``cross``: the least drive with snap index
-``>= margin`` (or gap ``<= bound``).  Amplitude limits as in path.py.
+The margin is on voltage (docs/language.md): the drive may be scaled by ``margin`` before it
+snaps (``above``), or it is ``margin`` times a snapping drive (``cross``).  Scaling a drive by m
+scales ``u`` by m^2, so mode ``above``: drive the tones as hard as allowed (maximise sum u) while
+the snap index stays ``<= 1 / margin^2`` and the gap ``>= bound``.  mode ``cross``: the least
+drive with snap index ``>= margin^2`` (or gap ``<= bound``).  Amplitude limits as in path.py.
+
+The snap index is exact for one tone; with several tones it assumes the critical set is a
+simplex in u, which is optimistic when the tones' forces have different shapes along the gap, so
+the compiler re-simulates the chosen drive (:func:`acl.schedule.gains.critical_scale`).
 """
 from __future__ import annotations
 
@@ -51,7 +57,7 @@ def plan_hold(mode: str, limits: DriveLimits, *, v_snap: np.ndarray | None = Non
     if v_snap is not None:
         w = vmax2 / np.asarray(v_snap, dtype=float) ** 2          # inf -> 0 weight
         snap = w @ x
-        cons.append(snap <= 1.0 / margin if mode == "above" else snap >= margin)
+        cons.append(snap <= 1.0 / margin ** 2 if mode == "above" else snap >= margin ** 2)
     gap = None
     if gap0 is not None and dgap is not None and bound is not None:
         gap = (gap0 + (np.asarray(dgap, float) * vmax2) @ x) / 1e-6        # um

@@ -23,6 +23,7 @@ class ScheduledTone:
     phase_rad: float = 0.0
     frequency_end_hz: float | None = None      # set for chirps (sweep steps)
     sweep: str | None = None                   # "linear" | "log" for chirps
+    phase_fixed: bool = False                  # given by the user: the crest-factor search keeps it
 
     @property
     def max_frequency_hz(self) -> float:
@@ -36,7 +37,7 @@ class Segment:
     tones: tuple[ScheduledTone, ...]
     step: int = 0                              # index of the program step it realises
     goal: str | None = None                    # goal name, e.g. "step 2: follow arm"
-    peak_v: float | None = None                # sampled peak (periodic tones) or sum of amplitudes
+    peak_v: float | None = None                # analog peak bound (acl.schedule.phases.analog_peaks)
 
     @property
     def duration_s(self) -> float:
@@ -103,6 +104,7 @@ class Schedule:
     source: str = ""
     version: str = SCHEDULE_VERSION
     notes: list[str] = field(default_factory=list)
+    full_scale_source: str = ""                # where full_scale_v came from (option, transducer, limit)
 
     @property
     def duration_s(self) -> float:

@@ -5,7 +5,7 @@ import functools
 import re
 from importlib import resources
 
-from lark import Lark, Token, Transformer
+from lark import Lark, Token, Tree
 from lark.exceptions import UnexpectedCharacters, UnexpectedEOF, UnexpectedInput, UnexpectedToken, VisitError
 
 from acl.diagnostics import Diagnostic, DiagnosticError, Span, error
@@ -13,6 +13,7 @@ from acl.syntax import ast as A
 
 MAX_SOURCE_BYTES = 2_000_000
 MAX_NESTING = 64
+MAX_TREE_DEPTH = 200      # syntax tree levels: keeps every later tree walk far from Python's recursion limit
 
 # Words shown to users instead of terminal names.
 _TERMINAL_WORDS = {
@@ -83,27 +84,56 @@ def _span(file: str, meta_or_tok) -> Span:
     return Span(file=file, line=m.line, column=m.column, end_line=m.end_line, end_column=m.end_column)
 
 
-class _Builder(Transformer):
+class _Builder:
     """lark tree -> acl.syntax.ast nodes.
 
-    Every rule method takes ``(meta, children)`` and is called directly (lark's ``v_args``
-    wrappers are rebuilt on every lookup, a measurable cost on 10,000-line designs).
+    Every rule method takes ``(meta, children)``; token methods (named after the terminal) take the
+    token.  The walk is iterative (a design nested deeper than :data:`MAX_TREE_DEPTH` is refused with
+    a located E104), and rule methods are looked up once per builder, not once per node.
     """
 
-    def _call_userfunc(self, tree, new_children=None):
-        children = new_children if new_children is not None else tree.children
-        f = getattr(self, tree.data, None)
-        if f is None:
-            return self.__default__(tree.data, children, tree.meta)
-        try:
-            return f(tree.meta, children)
-        except DiagnosticError:
-            raise
-        except Exception as e:  # same contract as lark: wrap so callers see VisitError
-            raise VisitError(tree.data, tree, e) from e
+    def transform(self, root):
+        rules, tokens = self._dispatch()
+        frames = [(root, iter(root.children), [])]
+        while True:
+            tree, it, acc = frames[-1]
+            for c in it:
+                if type(c) is Tree:
+                    if len(frames) >= MAX_TREE_DEPTH:
+                        raise DiagnosticError([error(
+                            "E104", f"expression or block nested deeper than {MAX_TREE_DEPTH} levels", self._s(c.meta),
+                            "split it into parameters (`param part = ...`); a long sum or chain of `-` counts one level per term")])
+                    frames.append((c, iter(c.children), []))
+                    break
+                if type(c) is Token:
+                    f = tokens.get(c.type)
+                    acc.append(f(c) if f is not None else c)
+                else:
+                    acc.append(c)
+            else:
+                frames.pop()
+                f = rules.get(tree.data)
+                try:
+                    value = f(tree.meta, acc) if f is not None else Tree(tree.data, acc, tree.meta)
+                except DiagnosticError:
+                    raise
+                except Exception as e:  # same contract as lark's transformers: callers see VisitError
+                    raise VisitError(tree.data, tree, e) from e
+                if not frames:
+                    return value
+                frames[-1][2].append(value)
+
+    def _dispatch(self):
+        cls = type(self)
+        names = cls.__dict__.get("_NAMES")
+        if names is None:
+            names = [n for n in dir(cls) if not n.startswith("_") and n != "transform" and callable(getattr(cls, n))]
+            cls._NAMES = names
+        rules = {n: getattr(self, n) for n in names if not n.isupper()}
+        tokens = {n: getattr(self, n) for n in names if n.isupper()}
+        return rules, tokens
 
     def __init__(self, file: str, source: str):
-        super().__init__(visit_tokens=True)
         self.file = file
         self.source = source
         self._lines: list[str] | None = None   # split once, on first need
@@ -335,15 +365,15 @@ def parse_module(source: str, file: str = "<string>") -> A.Module:
         pass
     # Recovery: parse each top-level statement on its own, keeping line numbers.
     diags: list[Diagnostic] = []
-    stmts: list = []
     lines = text.split("\n")
     for start, end in _statement_chunks(lines):
-        chunk = "\n" * start + "\n".join(lines[start:end]) + "\n"
+        # each statement alone, without padding it to its line (that made recovery quadratic):
+        # the error's line is shifted back by `start` below
+        chunk = "\n".join(lines[start:end]) + "\n"
         try:
-            tree = _lark().parse(chunk, start="start")
-            stmts.extend(_build(tree, file, source))
+            _lark().parse(chunk, start="start")
         except UnexpectedInput as exc:
-            d = _syntax_diagnostic(exc, file, lines, eof_line=_last_line(lines, start, end))
+            d = _syntax_diagnostic(exc, file, lines, eof_line=_last_line(lines, start, end), line_offset=start)
             opened = _unclosed_brace(lines, start, end) if _at_end(exc) else None
             if opened is not None:  # point at the block that never closes, not at where the text ran out
                 ln, col = opened
@@ -482,11 +512,14 @@ def _last_line(lines: list[str], start: int, end: int) -> int:
     return start + 1
 
 
-def _syntax_diagnostic(exc: UnexpectedInput, file: str, lines: list[str], eof_line: int | None = None) -> Diagnostic:
+def _syntax_diagnostic(exc: UnexpectedInput, file: str, lines: list[str], eof_line: int | None = None,
+                       line_offset: int = 0) -> Diagnostic:
     line = getattr(exc, "line", 1) or 1
     col = getattr(exc, "column", 1) or 1
     if line < 1:
         line, col = max(1, len(lines) - 1), 1
+    else:
+        line += line_offset
     span = Span(file=file, line=line, column=col, end_line=line, end_column=col + 1)
     if isinstance(exc, UnexpectedCharacters):
         ch = lines[line - 1][col - 1] if line - 1 < len(lines) and col - 1 < len(lines[line - 1]) else "?"

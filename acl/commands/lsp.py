@@ -1,0 +1,23 @@
+"""`acl lsp`: start the language server on stdin/stdout (editors start it; see docs/editors.md)."""
+from __future__ import annotations
+
+from acl.commands._common import report
+from acl.diagnostics import Span, error
+
+
+def add_parser(p) -> None:
+    p.add_argument("--stdio", action="store_true", help="speak LSP over stdin/stdout (the default and only transport)")
+
+
+def run(args) -> int:
+    try:
+        import lsprotocol  # noqa: F401
+        import pygls  # noqa: F401
+    except ImportError as exc:
+        report([error("E-DEPENDENCY", f"`acl lsp` needs the optional packages pygls and lsprotocol ({exc.name} is missing)",
+                      Span(file="<acl lsp>", line=1, column=1), "install them with: pip install 'acl[lsp]'")])
+        return 2
+    from acl.lsp.server import serve
+
+    serve()
+    return 0

@@ -1,0 +1,48 @@
+"""`acl fmt`: one canonical layout for acl files, built on acl's own parser.
+
+    from acl.fmt import format_source
+    text = format_source(open("design.acl").read(), "design.acl")
+
+:func:`format_source` refuses text with syntax errors (it raises the parser's
+:class:`~acl.diagnostics.DiagnosticError`, codes E1xx with file:line:column) and checks its own
+output: the formatted text must parse to the same syntax tree, spans aside (else E190). The
+layout rules are listed in :mod:`acl.fmt.layout`.
+"""
+from __future__ import annotations
+
+__all__ = ["format_source", "format_file"]
+
+
+def format_source(text: str, path: str = "<stdin>") -> str:
+    """The canonical layout of ``text``; raises DiagnosticError on syntax errors.
+
+    Idempotent: ``format_source(format_source(t)) == format_source(t)``.
+    """
+    from acl.diagnostics import DiagnosticError, Span, error
+    from acl.fmt.layout import layout
+    from acl.fmt.meaning import meaning
+    from acl.fmt.tokens import tokenize
+    from acl.syntax.parser import parse_module
+
+    source = text.replace("\r\n", "\n")
+    before = parse_module(source, path)
+    out = layout(tokenize(source, path))
+    try:
+        after = parse_module(out, path)
+    except DiagnosticError as exc:
+        first = exc.diagnostics[0] if exc.diagnostics else None
+        raise DiagnosticError([error("E190", "internal formatter error: the formatted text does not parse"
+                                     + (f" ({first.code} {first.message})" if first else ""),
+                                     Span(file=path, line=1, column=1), "please report it; the file is left as it is")]) from None
+    if meaning(before) != meaning(after):
+        raise DiagnosticError([error("E190", "internal formatter error: formatting would change the design",
+                                     Span(file=path, line=1, column=1), "please report it; the file is left as it is")])
+    return out
+
+
+def format_file(path: str) -> tuple[str, str]:
+    """(original text, formatted text) of a design file; raises DiagnosticError (E601/E103/E1xx)."""
+    from acl.design.modules import _read
+
+    text = _read(path)
+    return text, format_source(text, path)

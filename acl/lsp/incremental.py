@@ -1,0 +1,53 @@
+"""Incremental parsing for the editor: re-parse only the top-level statements whose text changed.
+
+A document is cut into top-level statements with the parser's own statement chunker (the one its
+error recovery uses); each chunk is parsed at its real line offset, so spans are exactly those of
+a whole-file parse, and cached by (first line, text).  A keystroke re-parses one statement instead
+of the file.  When any chunk does not parse, :meth:`IncrementalParser.parse` returns None and the
+caller parses the whole file the usual way (which reports the syntax errors).  The result is handed
+to the loader through its parse cache, so resolution is unchanged.
+"""
+from __future__ import annotations
+
+from acl.diagnostics import DiagnosticError
+from acl.syntax import ast as A
+
+
+class IncrementalParser:
+    def __init__(self) -> None:
+        self._cache: dict[tuple[int, str], tuple] = {}
+
+    def parse(self, text: str, file: str) -> A.Module | None:
+        """The syntax tree of ``text`` (equal to :func:`acl.syntax.parser.parse_module`'s), or None."""
+        try:
+            from lark.exceptions import UnexpectedInput
+
+            from acl.syntax import parser as P
+
+            P._check_limits(text, file)
+            src = text if text.endswith("\n") else text + "\n"
+            lines = src.split("\n")
+            fresh: dict[tuple[int, str], tuple] = {}
+            stmts: list = []
+            for start, end in P._statement_chunks(lines):
+                chunk = "\n".join(lines[start:end])
+                key = (start, chunk)
+                hit = self._cache.get(key)
+                if hit is None:
+                    tree = P._lark().parse("\n" * start + chunk + "\n", start="start")
+                    hit = P._build(tree, file, text)
+                fresh[key] = hit
+                stmts.extend(hit)
+        except (UnexpectedInput, DiagnosticError, AttributeError, ImportError):
+            return None           # syntax errors (or a parser without these helpers): whole-file parse
+        self._cache = fresh
+        return A.Module(file, tuple(stmts), text)
+
+
+def prime(module: A.Module, text: str, file: str) -> None:
+    """Hand a parsed module to the loader's parse cache (:func:`acl.design.modules._parse_cached`)."""
+    from acl.design import modules
+
+    if len(modules._PARSED) > 512:
+        modules._PARSED.clear()
+    modules._PARSED[(file, text)] = module

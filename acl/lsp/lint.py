@@ -1,0 +1,35 @@
+"""Lint findings for the language server, computed in a worker process.
+
+Rules can take seconds on large designs (they run analyses), so the server runs them in one
+worker process after the check-stage diagnostics are published; a result for a document version
+that has since changed is dropped.  The configuration is the one `acl lint` would use for the file
+(the nearest acl.toml or pyproject.toml).
+"""
+from __future__ import annotations
+
+from acl.diagnostics import Diagnostic
+
+
+def lint_text(path: str, text: str) -> list[Diagnostic]:
+    """Every finding `acl lint PATH` would report if PATH held ``text`` (check-stage ones included)."""
+    from acl.lint.config import ConfigError, find_config, load_config
+    from acl.lint.registry import load_rules
+    from acl.lint.runner import lint_design
+    from acl.lint.source import scan
+    from acl.lsp.document import check_text
+
+    snap = check_text(text, path)
+    rules = load_rules()
+    try:
+        cfg = load_config(find_config(path), rules)
+    except ConfigError as exc:
+        return list(snap.diagnostics) + list(exc.diagnostics)
+    return lint_design(path, snap.design, snap.diagnostics, scan(path, text), cfg).findings
+
+
+def warm_up() -> bool:
+    """Import the rules and analyses in the worker before the first real request."""
+    from acl.lint.registry import load_rules
+
+    load_rules()
+    return True

@@ -1,0 +1,329 @@
+"""The acl language server (pygls 2): a thin protocol layer over :mod:`acl.lsp` features.
+
+Diagnostics: on open, and after each change once typing pauses for ``debounce`` seconds, the
+document is checked with the stages of `acl check` and its diagnostics are published at once;
+lint findings (the rules of `acl lint`) follow from a worker process and replace them when ready.
+Options (``initializationOptions``): ``{"debounce": 0.05, "lint": true, "lint_delay": 0.3}``.
+"""
+from __future__ import annotations
+
+import asyncio
+import os
+
+from lsprotocol import types as T
+from pygls.lsp.server import LanguageServer
+from pygls.uris import from_fs_path, to_fs_path
+
+from acl import __version__
+from acl.diagnostics import Diagnostic, Severity
+from acl.lsp.document import Snapshot, check_text
+
+_SEVERITY = {Severity.ERROR: T.DiagnosticSeverity.Error, Severity.WARNING: T.DiagnosticSeverity.Warning,
+             Severity.INFO: T.DiagnosticSeverity.Information}
+
+
+class AclLanguageServer(LanguageServer):
+    def __init__(self) -> None:
+        super().__init__("acl", __version__, text_document_sync_kind=T.TextDocumentSyncKind.Incremental)
+        self.debounce = 0.05
+        self.lint_enabled = True
+        self.lint_delay = 0.3
+        self.snapshots: dict[str, Snapshot] = {}
+        self.resolved: dict[str, Snapshot] = {}       # last snapshot whose text parsed (names for completion)
+        self.lint_findings: dict[str, tuple[str, list[Diagnostic]]] = {}
+        self._pending: dict[str, asyncio.Task] = {}
+        self._lint_tasks: dict[str, asyncio.Task] = {}
+        self._executor = None
+        self._parsers: dict[str, object] = {}
+
+    # ---------------------------------------------------------------------------------- state
+    def path_of(self, uri: str) -> str:
+        return to_fs_path(uri) or uri
+
+    def snapshot(self, uri: str) -> Snapshot:
+        """The checked state of the document's current text (checked now if out of date)."""
+        doc = self.workspace.get_text_document(uri)
+        snap = self.snapshots.get(uri)
+        if snap is None or snap.text != doc.source:
+            snap = self._check(uri)
+        return snap
+
+    def _check(self, uri: str) -> Snapshot:
+        doc = self.workspace.get_text_document(uri)
+        from acl.lsp.incremental import IncrementalParser
+
+        parser = self._parsers.setdefault(uri, IncrementalParser())
+        snap = check_text(doc.source, self.path_of(uri), doc.version, parser=parser)
+        self.snapshots[uri] = snap
+        if snap.parsed and snap.env is not None:
+            self.resolved[uri] = snap
+        return snap
+
+    # ---------------------------------------------------------------------------------- diagnostics
+    def schedule(self, uri: str, delay: float) -> None:
+        old = self._pending.pop(uri, None)
+        if old is not None:
+            old.cancel()
+        self._pending[uri] = asyncio.get_running_loop().create_task(self._diagnose(uri, delay))
+
+    async def _diagnose(self, uri: str, delay: float) -> None:
+        if delay > 0:
+            await asyncio.sleep(delay)
+        self._pending.pop(uri, None)
+        try:
+            snap = self._check(uri)
+        except KeyError:          # closed meanwhile
+            return
+        self.publish(uri, snap, snap.diagnostics)
+        if self.lint_enabled:
+            self.schedule_lint(uri)
+
+    def publish(self, uri: str, snap: Snapshot, diags: list[Diagnostic]) -> None:
+        self.text_document_publish_diagnostics(T.PublishDiagnosticsParams(
+            uri=uri, version=snap.version, diagnostics=[to_lsp(d, snap) for d in diags]))
+
+    def schedule_lint(self, uri: str) -> None:
+        old = self._lint_tasks.get(uri)
+        if old is not None and not old.done():
+            if getattr(old, "_acl_running", False):
+                return            # the running lint re-schedules itself when it sees the text changed
+            old.cancel()
+        self._lint_tasks[uri] = asyncio.get_running_loop().create_task(self._lint(uri))
+
+    async def _lint(self, uri: str) -> None:
+        await asyncio.sleep(self.lint_delay)
+        task = asyncio.current_task()
+        task._acl_running = True  # type: ignore[attr-defined]
+        snap = self.snapshots.get(uri)
+        if snap is None:
+            return
+        from acl.lsp.lint import lint_text
+
+        loop = asyncio.get_running_loop()
+        try:
+            findings = await loop.run_in_executor(self._lint_executor(), lint_text, snap.path, snap.text)
+        except Exception as exc:  # a broken worker must not take the server down
+            self.window_log_message(T.LogMessageParams(type=T.MessageType.Warning,
+                                                       message=f"acl lint failed: {type(exc).__name__}: {exc}"))
+            return
+        current = self.snapshots.get(uri)
+        if current is None:
+            return
+        if current.text == snap.text:
+            self.lint_findings[uri] = (snap.text, findings)
+            self.publish(uri, current, findings)
+        else:
+            self._lint_tasks[uri] = loop.create_task(self._lint(uri))
+
+    def _lint_executor(self):
+        if self._executor is None:
+            import multiprocessing
+            from concurrent.futures import ProcessPoolExecutor
+
+            self._executor = ProcessPoolExecutor(max_workers=1, mp_context=multiprocessing.get_context("spawn"))
+        return self._executor
+
+    def close(self) -> None:
+        for t in list(self._pending.values()) + list(self._lint_tasks.values()):
+            t.cancel()
+        if self._executor is not None:
+            self._executor.shutdown(wait=False, cancel_futures=True)
+            self._executor = None
+
+    def all_diagnostics(self, uri: str, snap: Snapshot) -> list[Diagnostic]:
+        lint = self.lint_findings.get(uri)
+        return lint[1] if lint and lint[0] == snap.text else snap.diagnostics
+
+
+# ------------------------------------------------------------------------------------------------
+# Conversions
+# ------------------------------------------------------------------------------------------------
+
+def to_lsp(d: Diagnostic, snap: Snapshot) -> T.Diagnostic:
+    """An acl diagnostic as LSP: same code, range from its span, the hint appended as `help:`."""
+    s = d.span
+    message = d.message
+    if s is not None and _same_file(s.file, snap.path):
+        ln = max(0, s.line - 1)
+        col = max(0, s.column - 1)
+        if s.end_line is not None and s.end_column is not None and (s.end_line, s.end_column) > (s.line, s.column):
+            end = T.Position(line=s.end_line - 1, character=s.end_column - 1)
+        else:
+            end = T.Position(line=ln, character=max(col + 1, len(snap.line(ln).rstrip())))
+        rng = T.Range(start=T.Position(line=ln, character=col), end=end)
+    else:
+        rng = T.Range(start=T.Position(line=0, character=0), end=T.Position(line=0, character=0))
+        if s is not None:
+            message = f"{s}: {message}"
+    if d.hint:
+        message += f"\nhelp: {d.hint}"
+    for n in d.notes:
+        message += f"\nnote: {n}"
+    return T.Diagnostic(range=rng, message=message, severity=_SEVERITY.get(d.severity, T.DiagnosticSeverity.Error),
+                        code=d.code, source="acl", data={"hint": d.hint} if d.hint else None)
+
+
+def _same_file(a: str, b: str) -> bool:
+    return a == b or (os.path.exists(a) and os.path.exists(b) and os.path.samefile(a, b))
+
+
+def _range(t) -> T.Range:
+    return T.Range(start=T.Position(line=t[0], character=t[1]), end=T.Position(line=t[2], character=t[3]))
+
+
+# ------------------------------------------------------------------------------------------------
+# Features
+# ------------------------------------------------------------------------------------------------
+
+server = AclLanguageServer()
+
+_COMPLETION_KIND = {"keyword": T.CompletionItemKind.Keyword, "key": T.CompletionItemKind.Property,
+                    "unit": T.CompletionItemKind.Unit, "name": T.CompletionItemKind.Variable,
+                    "module": T.CompletionItemKind.Module, "member": T.CompletionItemKind.Field,
+                    "function": T.CompletionItemKind.Function}
+
+
+@server.feature(T.INITIALIZE)
+def _initialize(ls: AclLanguageServer, params: T.InitializeParams) -> None:
+    opts = params.initialization_options or {}
+    if isinstance(opts, dict):
+        ls.debounce = float(opts.get("debounce", ls.debounce))
+        ls.lint_enabled = bool(opts.get("lint", ls.lint_enabled))
+        ls.lint_delay = float(opts.get("lint_delay", ls.lint_delay))
+
+
+@server.feature(T.SHUTDOWN)
+def _shutdown(ls: AclLanguageServer, *args) -> None:
+    ls.close()
+
+
+@server.feature(T.TEXT_DOCUMENT_DID_OPEN)
+async def _did_open(ls: AclLanguageServer, params: T.DidOpenTextDocumentParams) -> None:
+    ls.schedule(params.text_document.uri, 0.0)
+
+
+@server.feature(T.TEXT_DOCUMENT_DID_CHANGE)
+async def _did_change(ls: AclLanguageServer, params: T.DidChangeTextDocumentParams) -> None:
+    ls.schedule(params.text_document.uri, ls.debounce)
+
+
+@server.feature(T.TEXT_DOCUMENT_DID_SAVE)
+async def _did_save(ls: AclLanguageServer, params: T.DidSaveTextDocumentParams) -> None:
+    ls.schedule(params.text_document.uri, 0.0)
+
+
+@server.feature(T.TEXT_DOCUMENT_DID_CLOSE)
+def _did_close(ls: AclLanguageServer, params: T.DidCloseTextDocumentParams) -> None:
+    uri = params.text_document.uri
+    for store in (ls.snapshots, ls.resolved, ls.lint_findings, ls._parsers):
+        store.pop(uri, None)
+    for tasks in (ls._pending, ls._lint_tasks):
+        t = tasks.pop(uri, None)
+        if t is not None:
+            t.cancel()
+    ls.text_document_publish_diagnostics(T.PublishDiagnosticsParams(uri=uri, diagnostics=[]))
+
+
+@server.feature(T.TEXT_DOCUMENT_HOVER)
+def _hover(ls: AclLanguageServer, params: T.HoverParams) -> T.Hover | None:
+    from acl.lsp.hover import hover
+
+    snap = ls.snapshot(params.text_document.uri)
+    if snap.env is None or not snap.parsed:
+        snap = ls.resolved.get(params.text_document.uri, snap)
+    got = hover(snap, params.position.line, params.position.character)
+    if got is None:
+        return None
+    text, (ln, a, b) = got
+    return T.Hover(contents=T.MarkupContent(kind=T.MarkupKind.Markdown, value=text), range=_range((ln, a, ln, b)))
+
+
+@server.feature(T.TEXT_DOCUMENT_DEFINITION)
+def _definition(ls: AclLanguageServer, params: T.DefinitionParams) -> T.Location | None:
+    from acl.lsp.definition import definition
+
+    snap = ls.snapshot(params.text_document.uri)
+    if snap.env is None or not snap.parsed:
+        snap = ls.resolved.get(params.text_document.uri, snap)
+    got = definition(snap, params.position.line, params.position.character)
+    if got is None:
+        return None
+    path, rng = got
+    return T.Location(uri=from_fs_path(path) or path, range=_range(rng))
+
+
+@server.feature(T.TEXT_DOCUMENT_COMPLETION, T.CompletionOptions(trigger_characters=[".", " "]))
+def _completion(ls: AclLanguageServer, params: T.CompletionParams) -> T.CompletionList:
+    from acl.lsp.completion import complete
+
+    uri = params.text_document.uri
+    snap = ls.snapshot(uri)
+    items = complete(snap, ls.resolved.get(uri), params.position.line, params.position.character)
+    return T.CompletionList(is_incomplete=False, items=[
+        T.CompletionItem(label=label, kind=_COMPLETION_KIND[kind], detail=detail) for label, kind, detail in items])
+
+
+@server.feature(T.TEXT_DOCUMENT_DOCUMENT_SYMBOL)
+def _symbols(ls: AclLanguageServer, params: T.DocumentSymbolParams) -> list[T.DocumentSymbol]:
+    from acl.lsp.symbols import outline
+
+    uri = params.text_document.uri
+    snap = ls.snapshot(uri)
+    if snap.env is None or not snap.parsed:
+        snap = ls.resolved.get(uri, snap)
+
+    def conv(s: dict) -> T.DocumentSymbol:
+        return T.DocumentSymbol(name=s["name"], detail=s["detail"], kind=T.SymbolKind(s["kind"]),
+                                range=_range(s["range"]), selection_range=_range(s["selection"]),
+                                children=[conv(c) for c in s["children"]])
+
+    return [conv(s) for s in outline(snap)]
+
+
+@server.feature(T.TEXT_DOCUMENT_CODE_ACTION, T.CodeActionOptions(code_action_kinds=[T.CodeActionKind.QuickFix]))
+def _code_action(ls: AclLanguageServer, params: T.CodeActionParams) -> list[T.CodeAction]:
+    from acl.lsp.actions import fix
+
+    uri = params.text_document.uri
+    snap = ls.snapshot(uri)
+    wanted = params.range
+    candidates = list(params.context.diagnostics or [])
+    seen = {(d.code, d.range.start.line, d.range.start.character) for d in candidates}
+    for d in ls.all_diagnostics(uri, snap):       # the client may not send them back: use our own
+        ld = to_lsp(d, snap)
+        if (ld.code, ld.range.start.line, ld.range.start.character) not in seen and \
+                ld.range.start.line <= wanted.end.line and ld.range.end.line >= wanted.start.line:
+            candidates.append(ld)
+    actions = []
+    for d in candidates:
+        hint = d.data.get("hint") if isinstance(d.data, dict) else None
+        if hint is None and "\nhelp: " in d.message:
+            hint = d.message.split("\nhelp: ", 1)[1].split("\n")[0]
+        r = d.range
+        if r.start.line != r.end.line:
+            continue
+        got = fix(snap.line(r.start.line), r.start.character, r.end.character, hint)
+        if got is None:
+            continue
+        a, b, new = got
+        edit = T.TextEdit(range=_range((r.start.line, a, r.start.line, b)), new_text=new)
+        actions.append(T.CodeAction(title=f"Replace `{snap.line(r.start.line)[a:b]}` with `{new}` ({d.code})",
+                                    kind=T.CodeActionKind.QuickFix, diagnostics=[d], is_preferred=True,
+                                    edit=T.WorkspaceEdit(changes={uri: [edit]})))
+    return actions
+
+
+@server.feature(T.TEXT_DOCUMENT_FORMATTING)
+def _formatting(ls: AclLanguageServer, params: T.DocumentFormattingParams) -> list[T.TextEdit] | None:
+    from acl.lsp.formatting import format_edits
+
+    snap = ls.snapshot(params.text_document.uri)
+    got = format_edits(snap)
+    if got is None:
+        return None
+    return [T.TextEdit(range=_range(r), new_text=t) for r, t in got]
+
+
+def serve() -> None:
+    """Speak LSP over stdin/stdout until the client exits."""
+    server.start_io()

@@ -1,0 +1,125 @@
+"""Data files and `acl synth`/`acl fit` options under hostile input (issue 11, "Data files"):
+located diagnostics, never E-INTERNAL, no numpy warnings, no unbounded memory."""
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import warnings
+from pathlib import Path
+
+import pytest
+
+from acl.cli import main
+
+ROOT = Path(__file__).resolve().parents[1]
+CANTILEVER = str(ROOT / "tests" / "data" / "fit_cantilever.acl")
+HEADER = "observable,value,unit,drive,time,sigma,set:length\n"
+GOOD = "deflection,1.2,um,125 kHz @ 3 V,0,0.2,50 um\n"
+
+
+def _fit(capsys, tmp_path, body: bytes | str, *extra):
+    path = tmp_path / "d.csv"
+    path.write_bytes(body if isinstance(body, bytes) else body.encode())
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")          # a numpy RuntimeWarning fails the test
+        code = main(["fit", CANTILEVER, str(path), "--free", "gamma", "--report", str(tmp_path / "rep"), *extra])
+    err = capsys.readouterr().err
+    assert "E-INTERNAL" not in err and "Traceback" not in err
+    assert not (tmp_path / "rep").exists()
+    return code, err, str(path)
+
+
+def test_non_utf8_byte_is_located_at_row_and_column(tmp_path, capsys):
+    body = (HEADER + GOOD).encode() + "deflection,1.2,\xb5m,125 kHz @ 3 V,0,0.2,50 um\n".encode("latin-1")
+    code, err, path = _fit(capsys, tmp_path, body)
+    assert code == 1 and f"{path}:3:16" in err and "E807" in err and "UTF-8" in err
+
+
+def test_fifo_is_reported_as_not_a_regular_file_without_blocking(tmp_path):
+    fifo = tmp_path / "data.csv"
+    os.mkfifo(fifo)
+    r = subprocess.run([sys.executable, "-m", "acl", "fit", CANTILEVER, str(fifo)], capture_output=True, text=True,
+                       timeout=60, cwd=ROOT, env={**os.environ, "PYTHONPATH": str(ROOT)})
+    assert r.returncode == 2 and "E601" in r.stderr and "pipe" in r.stderr and "no such file" not in r.stderr
+
+
+def test_reader_refuses_a_fifo_itself(tmp_path):
+    import acl
+    from acl.diagnostics import DiagnosticError
+    from acl.fit.data import read_data
+
+    fifo = tmp_path / "data.csv"
+    os.mkfifo(fifo)
+    with pytest.raises(DiagnosticError) as exc:
+        read_data([str(fifo)], acl.load(CANTILEVER))
+    assert exc.value.diagnostics[0].code == "E601" and "FIFO" in exc.value.diagnostics[0].message
+
+
+@pytest.mark.parametrize("row, column, code, words", [
+    ("deflection,1.2,um,300 kHz @ 3 V,0,0.2,50 um", 19, "E501", "outside the band"),
+    ("deflection,1.2,um,125 kHz @ 300 V,0,0.2,50 um", 19, "E502", "above the maximum"),
+    ("deflection,1e308,um,125 kHz @ 3 V,0,0.2,50 um", 12, "E806", "beyond 1 m"),
+    ("deflection,1.2,um,125 kHz @ 3 V,0,1e308,50 um", 35, "E806", "beyond 1 m"),
+    ("deflection,1.2,um,1e308 kHz @ 3 V,0,0.2,50 um", 19, "E501", "outside the band"),
+    ("deflection,1.2,um,125 kHz @ 3 V,1e300,0.2,50 um", 33, "E806", "time"),
+], ids=["above-band", "above-max-voltage", "value-1e308-um", "sigma-1e308", "drive-1e308-kHz", "time-1e300"])
+def test_out_of_range_cells_are_located_diagnostics_without_numpy_warnings(tmp_path, capsys, row, column, code, words):
+    code_, err, path = _fit(capsys, tmp_path, HEADER + GOOD + row + "\n")
+    assert code_ == 1 and f"{path}:3:{column}" in err and code in err and words in err, err
+
+
+# -- acl synth -----------------------------------------------------------------------------------------
+
+def _synth(capsys, tmp_path, *args):
+    out = tmp_path / "s.csv"
+    code = main(["synth", CANTILEVER, "-o", str(out), *args])
+    err = capsys.readouterr().err
+    assert "E-INTERNAL" not in err and "Traceback" not in err
+    return code, err, out
+
+
+def test_huge_voltage_ramp_is_a_limit_diagnostic_not_out_of_memory(tmp_path, capsys):
+    code, err, out = _synth(capsys, tmp_path, "--voltages", "0V..10V:100000000")
+    assert code == 2 and "2,000,000" in err and not out.exists()
+
+
+def test_experiment_larger_than_fit_reads_is_refused(tmp_path, capsys):
+    code, err, out = _synth(capsys, tmp_path, "--voltages", "0V..10V:1000", "--repeats", "100000")
+    assert code == 2 and "rows" in err and not out.exists()
+
+
+@pytest.mark.parametrize("args, code", [
+    (("--frequencies", "300kHz"), "E501"), (("--voltages", "0V..300V:3"), "E502"),
+])
+def test_synth_drive_outside_the_transducer_is_a_diagnostic(tmp_path, capsys, args, code):
+    rc, err, out = _synth(capsys, tmp_path, *args)
+    assert rc == 2 and code in err and not out.exists()
+
+
+def test_effect_without_a_value_is_refused_not_silently_null(tmp_path, capsys):
+    rc, err, out = _synth(capsys, tmp_path, "--effect", "drive_saturation")
+    assert rc == 2 and "drive_saturation=v_sat:" in err and not out.exists()
+    rc, err, out = _synth(capsys, tmp_path, "--effect", "offset_drift=offset:0um")
+    assert rc == 2 and "plants nothing" in err and not out.exists()
+    rc, err, out = _synth(capsys, tmp_path, "--effect", "drive_saturation=v_sat:0V")
+    assert rc == 2 and "positive" in err and not out.exists()
+
+
+def test_planted_effect_changes_the_data_and_is_announced(tmp_path, capsys):
+    rc, err, plain = _synth(capsys, tmp_path, "--voltages", "0V..8V:5")
+    base = plain.read_text()
+    rc, err, out = _synth(capsys, tmp_path, "--voltages", "0V..8V:5", "--effect", "drive_saturation=v_sat:6V")
+    assert rc == 0 and "planted drive_saturation: v_sat = 6" in err
+    assert out.read_text() != base
+
+
+def test_fit_warns_when_nothing_is_free(tmp_path, capsys):
+    data = tmp_path / "s.csv"
+    assert main(["synth", CANTILEVER, "-o", str(data), "--voltages", "0V..8V:5", "--noise", "0.05um"]) == 0
+    capsys.readouterr()
+    assert main(["fit", CANTILEVER, str(data), "--effects", "none"]) == 0
+    err = capsys.readouterr().err
+    assert "W810" in err and "nothing is free" in err
+    assert main(["fit", CANTILEVER, str(data), "--effects", "none", "--free", "gamma"]) == 0
+    assert "W810" not in capsys.readouterr().err

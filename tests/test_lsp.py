@@ -1,0 +1,322 @@
+"""`acl lsp` driven through the real protocol: a subprocess `python -m acl lsp` spoken to over
+stdio with Content-Length framed JSON-RPC (tests/lsp_client.py)."""
+from __future__ import annotations
+
+import json
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+pytest.importorskip("pygls", reason="acl lsp needs the optional extra acl[lsp] (pygls)")
+pytest.importorskip("lsprotocol", reason="acl lsp needs the optional extra acl[lsp] (lsprotocol)")
+
+from lsp_client import ROOT, LspClient, uri  # noqa: E402
+
+DESIGN = """\
+import stdlib.media
+import stdlib.capsules
+import stdlib.beams
+import stdlib.transducers
+use medium media.pbs
+use transducer transducers.contact_piezo
+
+param dwell = 300 ms
+beam arm like beams.cantilever50 { clamp = (0, 0, 0) }
+capsule c1 like capsules.design1 { }
+capsule c2 like capsules.design2 { center = (300 um, 0, 100 um) }
+capsule c3 like capsules.design3 { center = (600 um, 0, 100 um) }
+mount c1 on arm.tip
+fix c2
+fix c3
+
+program ramp {
+  drive 125 kHz @ 2 V for dwell
+}
+"""
+
+# Paper Table S1: theoretical natural frequency (kHz) of designs 1-3; the same 3 % as `acl analyze`
+# (tests/test_physics_resonance.py).
+TABLE_S1_KHZ = {"design1": 122.0, "design2": 84.9, "design3": 171.8}
+
+
+@pytest.fixture(scope="module")
+def client():
+    c = LspClient({"lint": False, "debounce": 0.02})
+    yield c
+    c.close()
+
+
+def _line(text: str, needle: str) -> int:
+    return next(i for i, ln in enumerate(text.split("\n")) if needle in ln)
+
+
+def _open(client, path: Path, text: str, version: int = 1) -> tuple[str, dict]:
+    path.write_text(text, encoding="utf-8")
+    u = client.open(path, text, version)
+    return u, client.wait_for("textDocument/publishDiagnostics", lambda p: p["uri"] == u and p.get("version") == version)
+
+
+def _hover_text(client, u, line, character) -> str:
+    got = client.at("textDocument/hover", u, line, character)
+    assert got is not None, f"no hover at {line}:{character}"
+    return got["contents"]["value"]
+
+
+def test_initialize_advertises_every_feature(client):
+    caps = client.init_result["capabilities"]
+    for key in ("hoverProvider", "definitionProvider", "completionProvider", "documentSymbolProvider",
+                "codeActionProvider", "documentFormattingProvider"):
+        assert caps.get(key), key
+    assert client.init_result["serverInfo"]["name"] == "acl"
+
+
+def test_diagnostics_are_those_of_acl_check(client, tmp_path):
+    bad = DESIGN.replace("capsules.design2", "capsules.desing2").replace("param dwell = 300 ms", "param dwell = 300 ms + 2 V")
+    bad += "beam b2 like beams.cantilever50 { clamp = (0, 0, 0), lenght = 40 um }\n"
+    path = tmp_path / "bad.acl"
+    u, pub = _open(client, path, bad)
+    proc = subprocess.run([sys.executable, "-m", "acl", "check", "--format", "json", str(path)],
+                          capture_output=True, text=True, cwd=ROOT, env={"PYTHONPATH": str(ROOT), "PATH": ""})
+    cli = json.loads(proc.stdout)["diagnostics"]
+    assert len(cli) >= 3
+    want = sorted((d["code"], d["line"] - 1, d["column"] - 1, d["hint"]) for d in cli)
+    got = sorted((d["code"], d["range"]["start"]["line"], d["range"]["start"]["character"],
+                  d["message"].split("\nhelp: ", 1)[1].split("\n")[0] if "\nhelp: " in d["message"] else None)
+                 for d in pub["diagnostics"])
+    assert got == want
+    for d in pub["diagnostics"]:
+        assert d["source"] == "acl" and d["severity"] in (1, 2)
+
+
+def test_did_change_updates_diagnostics(client, tmp_path):
+    path = tmp_path / "edit.acl"
+    u, pub = _open(client, path, DESIGN)
+    assert pub["diagnostics"] == []
+    ln = _line(DESIGN, "capsule c1")
+    col = DESIGN.split("\n")[ln].index("design1")
+    client.edit(u, 2, ln, col, col + len("design1"), "desing1")        # incremental edit: a typo
+    pub = client.wait_for("textDocument/publishDiagnostics", lambda p: p["uri"] == u and p.get("version") == 2)
+    e201 = [d for d in pub["diagnostics"] if d["code"] == "E201"]
+    assert len(e201) == 1 and "did you mean `design1`?" in e201[0]["message"]
+    assert e201[0]["range"]["start"] == {"line": ln, "character": DESIGN.split("\n")[ln].index("capsules")}
+    client.edit(u, 3, ln, col, col + len("desing1"), "design1")        # fixed again
+    pub = client.wait_for("textDocument/publishDiagnostics", lambda p: p["uri"] == u and p.get("version") == 3)
+    assert pub["diagnostics"] == []
+
+
+def test_debounce_publishes_once_for_a_burst_of_changes(tmp_path):
+    c = LspClient({"lint": False, "debounce": 0.5})
+    try:
+        path = tmp_path / "burst.acl"
+        u, _ = _open(c, path, DESIGN)
+        for v in range(2, 7):
+            c.change(u, v, DESIGN + f"# edit {v}\n")
+        pub = c.wait_for("textDocument/publishDiagnostics", lambda p: p["uri"] == u)
+        assert pub["version"] == 6          # versions 2..5 were superseded before the pause ended
+    finally:
+        c.close()
+
+
+@pytest.mark.parametrize("template", sorted(TABLE_S1_KHZ))
+def test_hover_on_table_s1_capsule_shows_its_resonance(client, tmp_path, template):
+    path = tmp_path / "s1.acl"
+    u, _ = _open(client, path, DESIGN)
+    name = {"design1": "c1", "design2": "c2", "design3": "c3"}[template]
+    ln = _line(DESIGN, f"capsule {name}")
+    text_line = DESIGN.split("\n")[ln]
+    for col in (text_line.index(name), text_line.index(template) + 2):    # the capsule, and its stdlib template
+        text = _hover_text(client, u, ln, col)
+        m = re.search(r"\| 1 \| ([\d.]+) \| ([\d.]+)", text)
+        assert m, text
+        f_khz, q = float(m.group(1)), float(m.group(2))
+        assert abs(f_khz / TABLE_S1_KHZ[template] - 1) < 0.03, (template, f_khz)
+        assert q > 1
+    own = _hover_text(client, u, ln, text_line.index(name))
+    assert "phase of `jet`" in own and "125 kHz" in own        # phase at the program's frequency
+
+
+def test_hover_quantity_param_beam_and_rule(client, tmp_path):
+    text = DESIGN + "# acl: ignore[ACL601] kept for a later program\n"
+    path = tmp_path / "hover.acl"
+    u, _ = _open(client, path, text)
+    ln = _line(text, "drive 125 kHz")
+    col = text.split("\n")[ln].index("125")
+    assert "**125000 Hz**" in _hover_text(client, u, ln, col)
+    assert "frequency" in _hover_text(client, u, ln, col + 5)
+    ln_p = _line(text, "param dwell")
+    assert "**0.3 s**" in _hover_text(client, u, ln_p, text.split("\n")[ln_p].index("300"))
+    assert "= **0.3 s**" in _hover_text(client, u, ln, text.split("\n")[ln].index("dwell") + 1)
+    # beam: the tip stiffness of paper Eq. 1 for the resolved beam
+    import acl
+    from acl.physics.beams import eq1_small_force_stiffness
+
+    b = acl.load(str(path)).beam("arm")
+    k = eq1_small_force_stiffness(b.length, b.rigid_length, b.bending_stiffness)
+    ln_b = _line(text, "beam arm")
+    hv = _hover_text(client, u, ln_b, 6)
+    got = float(re.search(r"k = ([\d.e+-]+) N/m", hv).group(1))
+    assert got == pytest.approx(k, rel=1e-3)
+    # a lint code in a suppression comment: the rule's text from the registry
+    from acl.lint.registry import load_rules
+
+    ln_c = _line(text, "ignore[ACL601]")
+    hv = _hover_text(client, u, ln_c, text.split("\n")[ln_c].index("ACL601") + 2)
+    assert load_rules()["ACL601"].summary in hv and "unused-declaration" in hv
+
+
+def test_definition_across_imports_and_stdlib(client, tmp_path):
+    path = tmp_path / "defs.acl"
+    u, _ = _open(client, path, DESIGN)
+    lines = DESIGN.split("\n")
+    ln = _line(DESIGN, "capsule c1")
+    got = client.at("textDocument/definition", u, ln, lines[ln].index("design1") + 1)
+    stdlib_caps = ROOT / "stdlib" / "capsules.acl"
+    assert got["uri"] == uri(stdlib_caps)
+    decl_line = _line(stdlib_caps.read_text(), "capsule design1")
+    assert got["range"]["start"] == {"line": decl_line, "character": len("capsule ")}
+    # `arm` in `mount c1 on arm.tip` -> the beam's declaration in this file
+    ln_m = _line(DESIGN, "mount c1")
+    got = client.at("textDocument/definition", u, ln_m, lines[ln_m].index("arm") + 1)
+    assert got["uri"] == u and got["range"]["start"]["line"] == _line(DESIGN, "beam arm")
+    # an import -> the module file; a module alias -> the module file
+    got = client.at("textDocument/definition", u, _line(DESIGN, "import stdlib.beams"), 10)
+    assert got["uri"] == uri(ROOT / "stdlib" / "beams.acl")
+    got = client.at("textDocument/definition", u, ln, lines[ln].index("capsules") + 1)
+    assert got["uri"] == uri(stdlib_caps)
+    # a name in an expression -> its param
+    ln_d = _line(DESIGN, "drive 125")
+    got = client.at("textDocument/definition", u, ln_d, lines[ln_d].index("dwell") + 1)
+    assert got["range"]["start"]["line"] == _line(DESIGN, "param dwell")
+
+
+def _labels(result) -> list[str]:
+    items = result["items"] if isinstance(result, dict) else result
+    return [i["label"] for i in items]
+
+
+def test_completion_by_context(client, tmp_path):
+    text = DESIGN + "\ncapsule c4 {\n  orifice o { radius = 10 }\n  \n}\n"
+    path = tmp_path / "comp.acl"
+    u, _ = _open(client, path, text)
+    lines = text.split("\n")
+    # top level: declaration kinds and statements
+    top = _labels(client.at("textDocument/completion", u, len(lines) - 1, 0))
+    assert {"capsule", "beam", "param", "program", "import"} <= set(top)
+    # keys of the declaration at the cursor
+    ln_blank = len(lines) - 3
+    keys = _labels(client.at("textDocument/completion", u, ln_blank, 2))
+    assert {"center", "thrust", "cavity", "orifice"} <= set(keys) and "clamp" not in keys
+    # units of the key's dimension: radius is a length
+    ln_o = _line(text, "orifice o")
+    units = _labels(client.at("textDocument/completion", u, ln_o, len(lines[ln_o].rstrip("}").rstrip()) + 1))
+    assert "um" in units and "mm" in units and "kHz" not in units and "V" not in units
+    # members of a module, names in scope, stdlib modules
+    ln_c = _line(text, "capsule c1")
+    members = _labels(client.at("textDocument/completion", u, ln_c, lines[ln_c].index("design1")))
+    assert {"design1", "design2", "design3"} <= set(members)
+    ln_d = _line(text, "drive 125")
+    scope = _labels(client.at("textDocument/completion", u, ln_d, lines[ln_d].index("dwell")))
+    assert {"dwell", "arm", "c1", "capsules"} <= set(scope)
+    client.change(u, 2, text + "import \n")
+    n = len(text.split("\n")) - 1
+    mods = _labels(client.at("textDocument/completion", u, n, len("import ")))
+    assert {"stdlib.capsules", "stdlib.media", "stdlib.beams"} <= set(mods)
+    # inside a program: its steps
+    steps = _labels(client.at("textDocument/completion", u, ln_d, 2))
+    assert {"drive", "sweep", "pause"} <= set(steps)
+
+
+def test_document_symbols_outline(client, tmp_path):
+    path = tmp_path / "sym.acl"
+    u, _ = _open(client, path, DESIGN)
+    syms = client.request("textDocument/documentSymbol", {"textDocument": {"uri": u}})
+    by = {s["name"]: s for s in syms}
+    assert {"dwell", "arm", "c1", "c2", "c3", "ramp", "stdlib.capsules"} <= set(by)
+    assert by["c1"]["detail"] == "capsule like capsules.design1"
+    assert by["arm"]["selectionRange"]["start"] == {"line": _line(DESIGN, "beam arm"), "character": 5}
+    assert [c["name"] for c in by["ramp"]["children"]] == ["1. drive"]
+
+
+def test_code_actions_fix_every_did_you_mean(client, tmp_path):
+    bad = DESIGN.replace("capsules.design2", "capsules.desing2").replace("use medium", "use meduim")
+    bad = bad.replace("program ramp", "capsule c5 { center = (0, 300 um, 100 um), cavity cylinder { radius = 25 um, height = 33 um }, "
+                      "orifice jet { raduis = 10 um } }\nprogram ramp")
+    path = tmp_path / "fix.acl"
+    u, pub = _open(client, path, bad)
+    hinted = [d for d in pub["diagnostics"] if "did you mean" in d["message"]]
+    assert len(hinted) >= 3, pub["diagnostics"]
+    text = bad
+    for d in hinted:
+        acts = client.request("textDocument/codeAction", {"textDocument": {"uri": u}, "range": d["range"],
+                                                          "context": {"diagnostics": [d]}})
+        assert acts, d
+        edit = acts[0]["edit"]["changes"][u][0]
+        assert acts[0]["kind"] == "quickfix"
+        lines = text.split("\n")
+        r = edit["range"]
+        ln = lines[r["start"]["line"]]
+        lines[r["start"]["line"]] = ln[:r["start"]["character"]] + edit["newText"] + ln[r["end"]["character"]:]
+        text = "\n".join(lines)
+    assert text == DESIGN.replace("program ramp", "capsule c5 { center = (0, 300 um, 100 um), cavity cylinder { radius = 25 um, "
+                                  "height = 33 um }, orifice jet { radius = 10 um } }\nprogram ramp")
+    client.change(u, 2, text)
+    pub = client.wait_for("textDocument/publishDiagnostics", lambda p: p["uri"] == u and p.get("version") == 2)
+    assert not any("did you mean" in d["message"] for d in pub["diagnostics"])
+
+
+def test_lint_findings_follow_the_check_diagnostics(tmp_path):
+    c = LspClient({"lint": True, "debounce": 0.02, "lint_delay": 0.05})
+    try:
+        path = tmp_path / "lint.acl"
+        text = DESIGN + "param unused_gap = 30 um\n"
+        u, first = _open(c, path, text)
+        assert first["diagnostics"] == []          # the check stage is clean
+        later = c.wait_for("textDocument/publishDiagnostics",
+                           lambda p: p["uri"] == u and any(d["code"] == "ACL601" for d in p["diagnostics"]), timeout=120)
+        from acl.lint import find_config, lint_file, load_config, load_rules
+
+        rep = lint_file(str(path), load_config(find_config(str(path)), load_rules()))
+        assert sorted((d.code, d.span.line - 1) for d in rep.findings) == \
+            sorted((d["code"], d["range"]["start"]["line"]) for d in later["diagnostics"])
+    finally:
+        c.close()
+
+
+def test_lsp_without_pygls_is_a_coded_diagnostic():
+    code = ("import sys; sys.modules['pygls'] = None; sys.modules['lsprotocol'] = None\n"
+            "from acl.cli import main; sys.exit(main(['lsp']))")
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT,
+                          env={"PYTHONPATH": str(ROOT), "PATH": ""}, timeout=60)
+    assert proc.returncode == 2
+    assert "E-DEPENDENCY" in proc.stderr and "acl[lsp]" in proc.stderr and "Traceback" not in proc.stderr
+
+
+def _corpus():
+    files = sorted((ROOT / "examples").glob("*.acl")) + sorted((ROOT / "stdlib").glob("*.acl")) + \
+        sorted((ROOT / "tests" / "bad").glob("*.acl"))
+    return [f for f in files if f.stat().st_size < 200_000]
+
+
+def test_incremental_parse_equals_whole_file_parse():
+    from acl.diagnostics import DiagnosticError
+    from acl.lsp.incremental import IncrementalParser
+    from acl.syntax.parser import parse_module
+
+    for f in _corpus():
+        text = f.read_text(encoding="utf-8", errors="replace")
+        got = IncrementalParser().parse(text, str(f))
+        try:
+            want = parse_module(text, str(f))
+        except DiagnosticError:
+            assert got is None, f      # a file with syntax errors always takes the whole-file path
+            continue
+        assert got == want, f
+    # edits through one parser (cached statements reused) still give the whole-file tree
+    p = IncrementalParser()
+    text = DESIGN
+    for old, new in (("300 ms", "250 ms"), ("fix c3", "fix c3\nparam extra = 2 um"), ("c2", "c22"), ("{ }", "{\n}")):
+        text = text.replace(old, new)
+        assert p.parse(text, "d.acl") == parse_module(text, "d.acl"), (old, new)

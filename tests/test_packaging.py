@@ -1,0 +1,88 @@
+"""The wheel: only `acl` at the top level, the stdlib and the docs shipped inside it, extras as documented."""
+from __future__ import annotations
+
+import os
+import re
+import shutil
+import subprocess
+import sys
+import zipfile
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+OFFLINE = re.compile(r"No matching distribution|Could not find a version|Failed to establish|"
+                     r"Temporary failure in name resolution|Network is unreachable", re.I)
+
+
+@pytest.fixture(scope="module")
+def wheel(tmp_path_factory) -> zipfile.ZipFile:
+    """Build the wheel from a copy of the checkout (a build must not leave build/ in the repository)."""
+    src = tmp_path_factory.mktemp("src")
+    for name in ("pyproject.toml", "setup.py", "README.md"):
+        shutil.copy2(ROOT / name, src / name)
+    for name in ("acl", "stdlib", "docs"):
+        shutil.copytree(ROOT / name, src / name, ignore=shutil.ignore_patterns("__pycache__", "*.pyc"))
+    out = tmp_path_factory.mktemp("wheel")
+    proc = subprocess.run([sys.executable, "-m", "pip", "wheel", "--no-deps", "--quiet",
+                           "--disable-pip-version-check", str(src), "-w", str(out)],
+                          capture_output=True, text=True, timeout=300)
+    if proc.returncode != 0 and OFFLINE.search(proc.stdout + proc.stderr):
+        pytest.skip("building a wheel needs setuptools from the package index, which is unreachable")
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    (path,) = out.glob("acl-*.whl")
+    return zipfile.ZipFile(path)
+
+
+def test_wheel_installs_only_the_acl_package(wheel):
+    names = wheel.namelist()
+    tops = {n.split("/", 1)[0] for n in names if not n.split("/", 1)[0].endswith((".dist-info", ".data"))}
+    assert tops == {"acl"}, tops
+    top_level = next(n for n in names if n.endswith(".dist-info/top_level.txt"))
+    assert wheel.read(top_level).decode().split() == ["acl"]
+
+
+def test_wheel_ships_every_module_the_stdlib_and_the_docs(wheel):
+    names = set(wheel.namelist())
+    for path in (ROOT / "acl").rglob("*"):
+        if path.suffix in (".py", ".lark", ".json") and "__pycache__" not in path.parts:
+            assert path.relative_to(ROOT).as_posix() in names, f"{path} is not in the wheel"
+    for acl_file in (ROOT / "stdlib").glob("*.acl"):
+        assert f"acl/stdlib/{acl_file.name}" in names
+    for md in (ROOT / "docs").glob("*.md"):
+        assert f"acl/docs/{md.name}" in names
+
+
+def test_plotting_is_an_extra_and_test_pulls_in_every_extra(wheel):
+    meta = next(n for n in wheel.namelist() if n.endswith(".dist-info/METADATA"))
+    requires = [line.split(":", 1)[1].strip() for line in wheel.read(meta).decode().splitlines()
+                if line.startswith("Requires-Dist:")]
+    core = [r for r in requires if "extra ==" not in r]
+    assert not any(r.startswith(("matplotlib", "osqp", "scs")) for r in core), core
+    assert any(r.startswith("matplotlib") and 'extra == "plot"' in r for r in requires)
+    assert any(r.startswith("pygls") and 'extra == "lsp"' in r for r in requires)
+    test = [r for r in requires if 'extra == "test"' in r]
+    assert any(r.startswith("acl[") and "plot" in r and "lsp" in r for r in test), test
+
+
+def test_installed_layout_finds_the_stdlib_and_the_docs(tmp_path):
+    """Unpacked as pip would install it (acl/stdlib inside the package), designs still import the stdlib."""
+    site = tmp_path / "site"
+    shutil.copytree(ROOT / "acl", site / "acl", ignore=shutil.ignore_patterns("__pycache__"))
+    shutil.copytree(ROOT / "stdlib", site / "acl" / "stdlib")
+    shutil.copytree(ROOT / "docs", site / "acl" / "docs")
+    code = ("import acl, acl._resources as r; print(r.shipped_dir('stdlib')); print(r.shipped_dir('docs')); "
+            "d = acl.load(%r); print(d.medium.name)" % str(ROOT / "examples" / "fig2_vertical_cantilever.acl"))
+    env = {**os.environ, "PYTHONPATH": str(site)}
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    stdlib_dir, docs_dir, medium = proc.stdout.split()
+    assert stdlib_dir == str(site / "acl" / "stdlib") and docs_dir == str(site / "acl" / "docs")
+    assert medium
+
+
+def test_shipped_ci_workflow_installs_acl_from_the_checkout():
+    text = (ROOT / ".github" / "workflows" / "acl-lint.yml").read_text()
+    installs = [line for line in text.splitlines() if "pip install" in line and not line.lstrip().startswith("#")]
+    assert installs and all(re.search(r"pip install\s+(\.|'\.|\"\.|\S*git\+)", line) for line in installs), installs
