@@ -22,7 +22,7 @@ TARGET_POINTS = {"beam": "tip", "latch": "shuttle", "spring": "end"}
 def assemble(b: Builder) -> M.Design:
     r, env, bag = b.r, b.env, b.bag
     params = _params(b)
-    correlations, coverage = _uncertainty(b, params)
+    correlations, coverage, discrepancy = _uncertainty(b, params)
     medium, transducer = _uses(b)
 
     # ---- elements
@@ -85,7 +85,7 @@ def assemble(b: Builder) -> M.Design:
     requires = _requires(b, partial)
     programs = _programs(b, partial)
     design = M.Design(**design_kw, observes=tuple(observes), requires=tuple(requires), programs=tuple(programs),
-                      effects=tuple(effects), correlations=correlations, coverage=coverage,
+                      effects=tuple(effects), correlations=correlations, coverage=coverage, discrepancy=discrepancy,
                       sources=tuple(dict.fromkeys(r.loader.sources)))
     if not _all_finite(design, bag):
         return design
@@ -248,6 +248,7 @@ def _uncertainty(b: Builder, params: tuple[M.Param, ...]):
     sds = {p.name: p.stddev for p in params}
     corr: dict[tuple[str, str], M.Correlation] = {}
     cover: dict[str, M.Coverage] = {}
+    discrepancy = None
     for st in b.env.statements:
         if not isinstance(st, A.UncertaintyDecl):
             continue
@@ -303,9 +304,22 @@ def _uncertainty(b: Builder, params: tuple[M.Param, ...]):
                     b.bag.error("E325", f"covered({q}): the range must be finite and lo <= hi", ent.value.span)
                     continue
                 cover[q] = M.Coverage(quantity=q, lower=lo, upper=hi, span=ent.span)
+            elif key.name == "discrepancy":
+                if not (len(key.args) == 1 and isinstance(key.args[0], A.Ref) and key.args[0].dotted == "position"):
+                    b.bag.error("E325", "write `discrepancy(position) = LENGTH`", key.span)
+                    continue
+                try:
+                    v = b.r.eval(ent.value, b.env)
+                except _Fail:
+                    continue
+                if not (isinstance(v, Quantity) and v.dims == D("m") and math.isfinite(v.value) and v.value >= 0):
+                    b.bag.error("E325", "discrepancy(position): expected a finite length >= 0", ent.value.span)
+                    continue
+                discrepancy = float(v.value)
             else:
                 b.bag.error("E325", f"unknown uncertainty entry `{key.name}`", key.span,
-                            suggest(key.name, ["correlation", "covered"]) or "entries: correlation(a, b), covered(q)")
+                            suggest(key.name, ["correlation", "covered", "discrepancy"])
+                            or "entries: correlation(a, b), covered(q), discrepancy(position)")
     correlations = tuple(corr.values())
     if correlations:
         import numpy as np
@@ -319,7 +333,7 @@ def _uncertainty(b: Builder, params: tuple[M.Param, ...]):
             b.bag.error("E324", "the correlations are not consistent (the correlation matrix is not positive "
                         "semidefinite)", correlations[0].span, "check the signs and sizes of the correlations")
             correlations = ()
-    return correlations, tuple(cover.values())
+    return correlations, tuple(cover.values()), discrepancy
 
 
 def _uses(b: Builder):

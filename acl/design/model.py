@@ -460,6 +460,7 @@ class Design(Frozen):
     effects: tuple[Effect, ...] = ()
     correlations: tuple[Correlation, ...] = ()
     coverage: tuple[Coverage, ...] = ()
+    discrepancy: float | None = None   # m: RMS difference of the calibrated model from its data (uncertainty block)
     sources: tuple[str, ...] = ()  # every file read (design, imports, csv), in order
 
     # -- lookups -------------------------------------------------------------------------------

@@ -18,6 +18,8 @@ design -> ``acl analyze`` reproduces the fit's predictions):
   (fit_gamma / gamma0)^0.5 }``, which scales thrust, jet drag and Bjerknes force alike); the Bjerknes
   coefficient alpha of a pair is then ``bjerknes_scale { factor = (fit_alpha / alpha0) / (fit_gamma /
   gamma0) }``; a modulus scale E is ``stiffness_scale``; a gain scale multiplies ``transducer_gain``;
+* ``discrepancy(position)`` is the fit's RMS residual: what the calibrated model still misses
+  (model error and measurement noise), which the error bands add per waypoint;
 * ``covered(voltage|frequency|deflection)`` records the range of the data, so a program that drives
   outside it is warned about (``acl compile``), and the transducer's prior table uncertainty
   becomes relative to the gain at the covered frequencies (acl.schedule.bands).
@@ -124,6 +126,8 @@ def calibrated_text(problem, selection, out_path: str, data_paths=(), report_dir
         lines.append("uncertainty {")
         lines += [f"  correlation({a}, {b}) = {r:.6g}" for a, b, r in corr]
         lines += [f"  covered({q}) = {_literal(lo, u)} .. {_literal(hi, u)}" for q, (lo, hi, u) in cover.items()]
+        if math.isfinite(final.rmse) and final.rmse > 0:
+            lines.append(f"  discrepancy(position) = {_literal(final.rmse, 'm')}    # RMS residual of the fit")
         lines += ["}", ""]
     if notes:
         lines += notes + [""]

@@ -10,7 +10,9 @@ tables, which are not measured, declare 30 %).  This module turns it into
   their multivariate normal and the design resolved again with them (``reload``: overrides ->
   Design, supplied by the caller that knows the source file);
 * :func:`error_band` -- the 95th percentile of a goal's RMS and maximum tracking error over those
-  designs, each re-simulated through the full nonlinear forward model with the schedule's drive;
+  designs, each re-simulated through the full nonlinear forward model with the schedule's drive,
+  plus, for a calibrated design, its declared ``discrepancy(position)`` (the fit's RMS residual:
+  what the calibrated model still misses) as an independent Gaussian error per waypoint and axis;
 * :func:`gain_sensitivity` -- the linearised spread of the gain matrix, ``Q = sum_j dG_j^T dG_j``
   (K x K), one ``dG_j`` per independent 1-sigma direction (a table point, a principal direction of
   the parameter covariance), for the robust path program (:mod:`acl.schedule.robust`);
@@ -36,6 +38,7 @@ class Uncertainty:
     """What a design declares: table-point log-sd of the transducer gain, and uncertain parameters."""
 
     gain_sd: float                          # relative sd of each gain-table value (0: none)
+    discrepancy: float                      # m, RMS model discrepancy of a calibration (0: none)
     n_table: int
     names: tuple[str, ...]                  # uncertain parameters
     mean: np.ndarray                        # (P,) SI
@@ -44,7 +47,7 @@ class Uncertainty:
 
     @property
     def empty(self) -> bool:
-        return self.gain_sd <= 0 and not self.names
+        return self.gain_sd <= 0 and not self.names and self.discrepancy <= 0
 
 
 def declared(design: Design, with_params: bool = True) -> Uncertainty:
@@ -52,7 +55,7 @@ def declared(design: Design, with_params: bool = True) -> Uncertainty:
     t = design.transducer
     gain_sd = float(t.gain_uncertainty or 0.0) if t is not None else 0.0
     ps = design.uncertain_params() if with_params else ()
-    return Uncertainty(gain_sd, len(t.gain_pa_per_v) if t is not None else 0, tuple(p.name for p in ps),
+    return Uncertainty(gain_sd, float(design.discrepancy or 0.0), len(t.gain_pa_per_v) if t is not None else 0, tuple(p.name for p in ps),
                        np.array([p.value for p in ps]), design.covariance([p.name for p in ps]) if ps else np.zeros((0, 0)),
                        tuple(p.unit for p in ps))
 
@@ -141,6 +144,8 @@ def error_band(design: Design, forward_for: Callable, u: np.ndarray, targets: np
     if declared(design, with_params=reload is not None).empty or samples <= 0:
         return None
     rms, mx, failed = [], [], 0
+    disc = float(design.discrepancy or 0.0)
+    noise = np.random.default_rng([seed, 1])
     scale = float(np.max(np.linalg.norm(targets - targets.mean(axis=0), axis=1))) + float(
         np.max(np.linalg.norm(targets, axis=1)))
     for _, d in sample_designs(design, samples, seed, reload):
@@ -152,6 +157,8 @@ def error_band(design: Design, forward_for: Callable, u: np.ndarray, targets: np
         except (ValueError, KeyError, FloatingPointError):
             failed += 1
             continue
+        if disc > 0:     # what the calibrated model misses, independent per waypoint and axis (conservative)
+            pred = pred + noise.normal(0.0, disc, pred.shape)
         err = np.linalg.norm(pred - targets, axis=1)
         bad = ~np.isfinite(err)
         if bad.any():
