@@ -116,3 +116,13 @@ def test_nonlinear_correction_tracks_a_saturating_design():
     linear = compile_program(truth, "stroke", CompileOptions(waypoint_dt_s=0.02))
     corrected = compile_program(truth, "stroke", CompileOptions(waypoint_dt_s=0.02, nonlinear_passes=3))
     assert corrected.goals[0].rms_error_m < 0.5 * linear.goals[0].rms_error_m
+
+
+def test_robust_compile_narrows_the_band_of_an_uncalibrated_design(fig3):
+    # the same seeded draws of the stdlib's 30 % table uncertainty for both plans
+    opts = dict(band_samples=10, resim_points=25, band_seed=3)
+    nominal = compile_program(fig3, "rectangle", CompileOptions(**opts)).goals[0]
+    robust = compile_program(fig3, "rectangle", CompileOptions(robust=True, **opts)).goals[0]
+    assert robust.details["robust"] is True
+    assert robust.rms_error_m > nominal.rms_error_m           # it gives up nominal accuracy ...
+    assert robust.rms_error_p95_m < 0.95 * nominal.rms_error_p95_m   # ... for a narrower band
