@@ -101,7 +101,7 @@ def calibrated_text(problem, selection, out_path: str, data_paths=(), report_dir
     if "gain" in by_kind:
         gain_terms.append(by_kind["gain"])
     if "gamma" in by_kind and not _is_design(final, "gamma") and P.gamma0 > 0:
-        gain_terms.append(f"({by_kind['gamma']} / {_literal(P.gamma0, 'N/V^2')}) ^ 0.5")
+        gain_terms.append(f"({by_kind['gamma']} / {_literal(P.gamma0, 'N/V^2')})^0.5")
         notes.append(f"# gamma is the thrust per V^2 at {P.f_ref / 1e3:.6g} kHz; the design's is "
                      f"{_literal(P.gamma0, 'N/V^2')}: thrust ~ pressure^2, so it scales the drive pressure by "
                      "(gamma/gamma0)^0.5 (transducer_gain below)")
