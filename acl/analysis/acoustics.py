@@ -542,6 +542,9 @@ def _compute_engine(design: Design, drive: Drive) -> _Engine:
     sub = np.array([substrate_factor(design, c) for c in lay.caps]) if design.effects else np.ones(ncap)
     scale = np.array([_thrust_scale(design, c) for c in lay.caps]) * sub
     pair = np.sqrt(np.outer(sub, sub)) if design.effects else np.ones((ncap, ncap))
+    bs = EF.coefficients(design, "bjerknes_scale") if design.effects else None
+    if bs is not None:   # a fitted Bjerknes coefficient (paper Eq. 3 alpha) relative to the physics
+        pair = pair * bs["factor"]
     outer = np.array([_outer_radius(c) for c in lay.caps])
     return _Engine(design, lay, sysm, f, pressure, h0, scale, pair, outer, med.density, med.sound_speed)
 

@@ -24,6 +24,7 @@ NULLS = {
     "bubble_shrinkage": {"shrink_rate": 0.0},
     "neighbour_drag": {"inv_plateau": 0.0},
     "substrate_proximity": {"h_substrate": 0.0},
+    "bjerknes_scale": {"factor": 1.0},
 }
 ALIASES = {
     ("drive_saturation", "v_sat"): ("inv_vsat2", lambda v: 1.0 / (v * v) if v > 0 else 0.0),
@@ -43,6 +44,7 @@ WHERE = {
     "stiffness_gradient": "beam force law (mechanics)",
     "neighbour_drag": "force on each capsule vs its displacement (acoustics)",
     "substrate_proximity": "thrust, jet drag and Bjerknes forces vs height (acoustics)",
+    "bjerknes_scale": "secondary Bjerknes force between capsules (acoustics; a pair's fitted alpha, paper Eq. 3)",
 }
 
 

@@ -9,7 +9,7 @@ from acl.design import geometry as G
 from acl.design import model as M
 from acl.design.builders import Builder
 from acl.design.checks import check_design_geometry, check_programs
-from acl.design.core import DECL_KINDS, EFFECTS, Fail, what_is
+from acl.design.core import D, DECL_KINDS, EFFECTS, Fail, what_is
 from acl.design.programs import build_program
 from acl.design.values import DeclVal
 from acl.diagnostics import Span, suggest
@@ -22,6 +22,7 @@ TARGET_POINTS = {"beam": "tip", "latch": "shuttle", "spring": "end"}
 def assemble(b: Builder) -> M.Design:
     r, env, bag = b.r, b.env, b.bag
     params = _params(b)
+    correlations, coverage, discrepancy = _uncertainty(b, params)
     medium, transducer = _uses(b)
 
     # ---- elements
@@ -86,7 +87,8 @@ def assemble(b: Builder) -> M.Design:
     requires = _requires(b, partial)
     programs = _programs(b, partial)
     design = M.Design(**design_kw, observes=tuple(observes), requires=tuple(requires), programs=tuple(programs),
-                      effects=tuple(effects), sources=tuple(dict.fromkeys(r.loader.sources)))
+                      effects=tuple(effects), correlations=correlations, coverage=coverage, discrepancy=discrepancy,
+                      sources=tuple(dict.fromkeys(r.loader.sources)))
     if not _all_finite(design, bag):
         return design
     check_design_geometry(design, bag, b.capsules)
@@ -209,8 +211,135 @@ def _params(b: Builder) -> tuple[M.Param, ...]:
                     b.bag.error("E306", f"value of `{name}` lies outside its bounds", decl.value.span,
                                 "a free parameter's starting value must lie within its bounds")
                     continue
-        out.append(M.Param(name=name, value=v.value, unit=si_unit(v.dims), free=decl.free, lower=lo, upper=hi, span=decl.span))
+        sd = _stddev(b, name, decl, v) if decl.stddev is not None else None
+        if sd is False:
+            continue
+        out.append(M.Param(name=name, value=v.value, unit=si_unit(v.dims), free=decl.free, lower=lo, upper=hi,
+                           stddev=sd, span=decl.span))
     return tuple(out)
+
+
+def _stddev(b: Builder, name: str, decl, v: Quantity):
+    """The standard deviation of ``param NAME = v +- s`` in SI; False (reported) when it is bad."""
+    try:
+        sd = b.r.eval(decl.stddev, b.env)
+    except Fail:
+        return False
+    span = decl.stddev.span
+    if not isinstance(sd, Quantity) or sd.dims != v.dims:
+        b.bag.error("E321", f"uncertainty of `{name}` must be {describe(v.dims)} like its value, found "
+                    f"{describe(sd.dims) if isinstance(sd, Quantity) else what_is(sd)}", span,
+                    f"write it in the value's unit, e.g. `+- {_example_unit(v)}`")
+        return False
+    if not math.isfinite(sd.value):
+        b.bag.error("E305", f"uncertainty of `{name}` is not finite", span, "give a finite standard deviation")
+        return False
+    if sd.value < 0:
+        b.bag.error("E320", f"uncertainty of `{name}` is negative ({sd.value:g} {si_unit(v.dims)})", span,
+                    "a standard deviation is >= 0: write `+- s` with s positive")
+        return False
+    return float(sd.value)
+
+
+def _example_unit(v: Quantity) -> str:
+    u = si_unit(v.dims)
+    return f"{abs(v.value) * 0.1:.3g} {u}".strip()
+
+
+COVERED = {"voltage": "V", "frequency": "Hz", "deflection": "m"}
+
+
+def _uncertainty(b: Builder, params: tuple[M.Param, ...]):
+    """``uncertainty { correlation(a, b) = r, covered(q) = lo .. hi }`` -> (correlations, coverage)."""
+    sds = {p.name: p.stddev for p in params}
+    corr: dict[tuple[str, str], M.Correlation] = {}
+    cover: dict[str, M.Coverage] = {}
+    discrepancy = None
+    for st in b.env.statements:
+        if not isinstance(st, A.UncertaintyDecl):
+            continue
+        for ent in st.entries:
+            key = ent.key
+            if key.name == "correlation":
+                names = [a.dotted if isinstance(a, A.Ref) else None for a in key.args]
+                if len(names) != 2 or None in names or key.kwargs:
+                    b.bag.error("E323", "write a correlation as `correlation(a, b) = r` with two parameter names",
+                                key.span)
+                    continue
+                bad = [n for n in names if n not in sds]
+                if bad:
+                    b.bag.error("E323", f"correlation: no parameter named `{bad[0]}`", key.span,
+                                suggest(bad[0], list(sds)))
+                    continue
+                exact = [n for n in names if not sds[n]]
+                if exact:
+                    b.bag.error("E323", f"correlation: `{exact[0]}` declares no uncertainty (`+- s`)", key.span,
+                                f"write `param {exact[0]} = value +- s`")
+                    continue
+                if names[0] == names[1]:
+                    b.bag.error("E323", "a parameter's correlation with itself is 1", key.span)
+                    continue
+                try:
+                    r = b.r.eval(ent.value, b.env)
+                except Fail:
+                    continue
+                if not isinstance(r, Quantity) or r.dims != D("") or not math.isfinite(r.value) or abs(r.value) > 1:
+                    b.bag.error("E324", "a correlation is a number in -1 .. 1", ent.value.span)
+                    continue
+                corr[tuple(sorted(names))] = M.Correlation(a=names[0], b=names[1], value=float(r.value), span=ent.span)
+            elif key.name == "covered":
+                q = key.args[0].dotted if len(key.args) == 1 and isinstance(key.args[0], A.Ref) else None
+                if q not in COVERED:
+                    b.bag.error("E325", "write `covered(voltage|frequency|deflection) = lo .. hi`", key.span,
+                                suggest(q, COVERED) if q else None)
+                    continue
+                from acl.design.values import RangeVal
+
+                try:
+                    rv = b.r.eval(ent.value, b.env)
+                except Fail:
+                    continue
+                want = D(COVERED[q])
+                if not (isinstance(rv, RangeVal) and all(isinstance(x, Quantity) and x.dims == want
+                                                         for x in (rv.lower, rv.upper))):
+                    b.bag.error("E325", f"covered({q}): expected a range `lo .. hi` of {describe(want)}",
+                                ent.value.span)
+                    continue
+                lo, hi = rv.lower.value, rv.upper.value
+                if not (math.isfinite(lo) and math.isfinite(hi) and lo <= hi):
+                    b.bag.error("E325", f"covered({q}): the range must be finite and lo <= hi", ent.value.span)
+                    continue
+                cover[q] = M.Coverage(quantity=q, lower=lo, upper=hi, span=ent.span)
+            elif key.name == "discrepancy":
+                if not (len(key.args) == 1 and isinstance(key.args[0], A.Ref) and key.args[0].dotted == "position"):
+                    b.bag.error("E325", "write `discrepancy(position) = LENGTH`", key.span)
+                    continue
+                try:
+                    v = b.r.eval(ent.value, b.env)
+                except Fail:
+                    continue
+                if not (isinstance(v, Quantity) and v.dims == D("m") and math.isfinite(v.value) and v.value >= 0):
+                    b.bag.error("E325", "discrepancy(position): expected a finite length >= 0", ent.value.span)
+                    continue
+                discrepancy = float(v.value)
+            else:
+                b.bag.error("E325", f"unknown uncertainty entry `{key.name}`", key.span,
+                            suggest(key.name, ["correlation", "covered", "discrepancy"])
+                            or "entries: correlation(a, b), covered(q), discrepancy(position)")
+    correlations = tuple(corr.values())
+    if correlations:
+        import numpy as np
+
+        names = [p.name for p in params if p.stddev]
+        pos = {n: i for i, n in enumerate(names)}
+        C = np.eye(len(names))
+        for c in correlations:
+            C[pos[c.a], pos[c.b]] = C[pos[c.b], pos[c.a]] = c.value
+        if np.linalg.eigvalsh(C).min() < -1e-9:
+            b.bag.error("E324", "the correlations are not consistent (the correlation matrix is not positive "
+                        "semidefinite)", correlations[0].span, "check the signs and sizes of the correlations")
+            correlations = ()
+    return correlations, tuple(cover.values()), discrepancy
 
 
 def _uses(b: Builder):

@@ -102,8 +102,14 @@ class Builder:
                 self._err_key(keys, "band", "E401", "band must be at positive frequencies")
                 return None
             fs, gs = self._gain_table(keys, dv)
+            unc = self.r.get(keys, "gain_uncertainty", "transducer", dv.name)
+            if unc is not None and not (math.isfinite(unc) and unc >= 0):
+                self._err_key(keys, "gain_uncertainty", "E320" if math.isfinite(unc) else "E305",
+                              f"{dv.name}.gain_uncertainty must be a finite relative standard deviation >= 0, "
+                              f"got {unc:g}", "e.g. `gain_uncertainty = 40 %`")
+                return None
             return M.Transducer(name=dv.name, max_voltage=vmax, band=band, gain_frequencies=fs,
-                                gain_pa_per_v=gs, span=dv.node.span)
+                                gain_pa_per_v=gs, gain_uncertainty=unc, span=dv.node.span)
         except Fail:
             return None
 

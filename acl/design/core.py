@@ -21,7 +21,7 @@ DECL_KINDS = ("medium", "material", "transducer", "capsule", "beam", "spring", "
 
 # Effects of the model library (docs/fit.md); `effect NAME { coefficient = quantity, ... }`.
 EFFECTS = ("transducer_gain", "transducer_resonance", "drive_saturation", "large_deflection", "stiffness_scale", "stiffness_gradient",
-           "offset_drift", "bubble_shrinkage", "neighbour_drag", "substrate_proximity")
+           "offset_drift", "bubble_shrinkage", "neighbour_drag", "substrate_proximity", "bjerknes_scale")
 
 D = parse_unit_static
 LENGTH, FREQ, VOLT, TIME = D("m"), D("Hz"), D("V"), D("s")
@@ -53,7 +53,7 @@ SCHEMAS: dict[str, dict[str, Key]] = {
     },
     "transducer": {
         "max_voltage": Key("q", "V", True), "band": Key("range", "Hz", True),
-        "gain": Key("table", None, True),
+        "gain": Key("table", None, True), "gain_uncertainty": Key("q", "", False, None),
     },
     "capsule": {
         "center": Key("vec", "m"), "thrust": Key("q", "N/V^2"), "q": Key("q", ""),

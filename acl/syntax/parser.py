@@ -258,11 +258,17 @@ class _Builder:
         return ("free", rng, None) if rng is not None else ("free", None, None)
 
     def param_stmt(self, meta, children):
-        name, value, free = children
+        name, value, stddev, free = children
         lo = hi = None
         if free:
             _, lo, hi = free
-        return A.ParamDecl(str(name), value, free is not None, lo, hi, self._s(meta))
+        return A.ParamDecl(str(name), value, free is not None, lo, hi, self._s(meta), stddev)
+
+    def uncertainty_entry(self, meta, children):
+        return A.UncertaintyEntry(children[0], children[1], self._s(meta))
+
+    def uncertainty_stmt(self, meta, children):
+        return A.UncertaintyDecl(tuple(c for c in children if c is not None), self._s(meta))
 
     def use_stmt(self, meta, children):
         return A.Use(str(children[0]), children[1], self._s(meta))
@@ -527,7 +533,7 @@ def _statement_chunks(lines: list[str]):
             if depth <= 0 and not lines[i - 1].rstrip().endswith("\\"):
                 break
             # a new top-level keyword at column 0 while unbalanced: stop (missing brace)
-            if depth > 0 and i < n and re.match(r"(import|extends|param|program|mount|fix|link|observe|require|use|capsule|beam|medium|material|transducer|latch|spring|truss|anchor|effect)\b", lines[i]):
+            if depth > 0 and i < n and re.match(r"(import|extends|param|uncertainty|program|mount|fix|link|observe|require|use|capsule|beam|medium|material|transducer|latch|spring|truss|anchor|effect)\b", lines[i]):
                 break
         yield start, i
 
