@@ -202,10 +202,11 @@ def _coverage(problem) -> dict:
 
 def _alpha_physics(P) -> float:
     """The physics' Bjerknes coefficient at f_ref of the reference pair (what the analysis computes)."""
-    from acl.fit.mechanism import alpha_per_v2
+    from acl.fit.mechanism import alpha_per_v2, reference_unit
 
     inst = next(iter(P.instances.values()))
-    return float(alpha_per_v2(inst, P.f_ref)) if inst.kind == "pair" else 0.0
+    unit = reference_unit(inst, "pair")
+    return float(alpha_per_v2(inst, unit, P.f_ref)) if unit is not None else 0.0
 
 
 def _effect_block(eid: str, vals: dict, f_ref: float) -> str:
