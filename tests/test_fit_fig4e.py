@@ -64,7 +64,7 @@ def test_fit_command_writes_report_figures_and_a_loadable_calibrated_design(tmp_
     # the neighbour's distance (acl.physics.coupling), so it is compared where the fit defined it
     from acl.fit.mechanism import build_instance, thrust_per_v2
     ref = acl.load(report["calibrated_design"], overrides={"gap": "20 um"})
-    t = thrust_per_v2(build_instance(ref), report["f_ref"])[0]
+    t = thrust_per_v2(build_instance(ref), report["f_ref"])["a"]
     assert abs(t / fitted["value"] - 1) < 1e-4
 
 

@@ -135,6 +135,9 @@ def effect_pressure_factor(design: Design, f, vtot: float | None = None) -> np.n
         out = out * tg["gain"]
         if tg["gain_slope"] and math.isfinite(tg["f_ref"]):
             out = out * PE.gain_tilt(f, tg["f_ref"], tg["gain_slope"])
+    tr = EF.coefficients(design, "transducer_resonance")
+    if tr and tr["inv_f_ratio"] and math.isfinite(tr["f_ref"]):
+        out = out * PE.transducer_resonance(f, tr["f_ref"], tr["inv_f_ratio"], tr["gain_q"])
     sat = EF.coefficients(design, "drive_saturation")
     if sat and vtot is not None:
         out = out * PE.saturation(vtot, sat["inv_vsat2"])
@@ -539,6 +542,9 @@ def _compute_engine(design: Design, drive: Drive) -> _Engine:
     sub = np.array([substrate_factor(design, c) for c in lay.caps]) if design.effects else np.ones(ncap)
     scale = np.array([_thrust_scale(design, c) for c in lay.caps]) * sub
     pair = np.sqrt(np.outer(sub, sub)) if design.effects else np.ones((ncap, ncap))
+    bs = EF.coefficients(design, "bjerknes_scale") if design.effects else None
+    if bs is not None:   # a fitted Bjerknes coefficient (paper Eq. 3 alpha) relative to the physics
+        pair = pair * bs["factor"]
     outer = np.array([_outer_radius(c) for c in lay.caps])
     return _Engine(design, lay, sysm, f, pressure, h0, scale, pair, outer, med.density, med.sound_speed)
 

@@ -1,4 +1,4 @@
-"""`acl analyze FILE [--at DRIVE] [--set P=V] [--json] [--plot DIR]`: predictions as tables, JSON, figures."""
+"""`acl analyze FILE [--at DRIVE] [--set P=V] [--output-format json] [--plot DIR]`: predictions as tables, JSON, figures."""
 from __future__ import annotations
 
 import json
