@@ -48,7 +48,7 @@ def add_parser(p) -> None:
                         "declared effects); default 0")
     p.add_argument("--plot", action="store_true", help="write a PNG per path goal")
     p.add_argument("--allow-nonlinear", action="store_true",
-                   help="plan drives beyond the linear bubble model (interface amplitude eps/R > 0.2; docs/physics.md)")
+                   help="plan drives beyond the linear bubble model (interface amplitude eps/R > 0.25; docs/physics.md)")
     add_output_format(p, old=("--diagnostics",))
     add_design_options(p)
 
