@@ -72,7 +72,7 @@ def analyze(design, at=None, snap_in=True) -> "Analysis":
     >>> import acl
     >>> a = acl.analyze("examples/fig2_vertical_cantilever.acl")
     >>> round(a.resonance("act") / 1e3)     # kHz; paper Table S1 design 1: 122 kHz
-    123
+    122
     """
     from acl.analysis.report import analyze as _analyze
     from acl.notebook import Analysis

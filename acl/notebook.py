@@ -146,7 +146,7 @@ class Analysis:
         >>> import acl
         >>> a = acl.analyze("examples/fig1f_selective_beams.acl", snap_in=False)
         >>> round(a.resonance("high") / 1e3, 1)       # Table S1 design 3 (paper: 171.8 kHz)
-        174.9
+        173.9
         """
         for c in self.capsules:
             if c.name == capsule:
@@ -158,7 +158,7 @@ class Analysis:
 
         >>> import acl
         >>> sorted(acl.analyze("examples/fig1f_selective_beams.acl", snap_in=False).as_dict())[:4]
-        ['capsules', 'equilibrium', 'file', 'frequencies_hz']
+        ['capsules', 'coupled_modes', 'drives', 'equilibrium']
         """
         return self._raw
 
