@@ -283,7 +283,7 @@ def _definition(ls: AclLanguageServer, params: T.DefinitionParams) -> T.Location
     return T.Location(uri=from_fs_path(path) or path, range=_range(rng))
 
 
-@server.feature(T.TEXT_DOCUMENT_COMPLETION, T.CompletionOptions(trigger_characters=[".", " "]))
+@server.feature(T.TEXT_DOCUMENT_COMPLETION, T.CompletionOptions(trigger_characters=["."]))
 def _completion(ls: AclLanguageServer, params: T.CompletionParams) -> T.CompletionList:
     from acl.lsp.completion import complete
 
@@ -292,7 +292,8 @@ def _completion(ls: AclLanguageServer, params: T.CompletionParams) -> T.Completi
     names = snap if not _no_names(snap) else ls.resolved.get(uri)
     items = complete(snap, names, params.position.line, params.position.character)
     return T.CompletionList(is_incomplete=False, items=[
-        T.CompletionItem(label=label, kind=_COMPLETION_KIND[kind], detail=detail) for label, kind, detail in items])
+        T.CompletionItem(label=label, kind=_COMPLETION_KIND[kind], detail=detail,
+                         insert_text=f"{label} = " if kind == "key" else None) for label, kind, detail in items])
 
 
 @server.feature(T.TEXT_DOCUMENT_DOCUMENT_SYMBOL)
