@@ -433,3 +433,21 @@ def test_definition_into_a_sibling_file_and_use_completion(client, tmp_path):
     assert got["uri"] == uri(tmp_path / "parts.acl")
     media = _labels(client.at("textDocument/completion", u, 3, len("use medium ")))
     assert "media.pbs" in media and all(m.startswith("media.") for m in media)
+
+
+def test_positions_are_utf16_code_units(client, tmp_path):
+    """A non-BMP character (2 UTF-16 units) before a diagnostic and a hover on the same line."""
+    line = 'beam b2 like beams.cantilever50 { clamp = (0, 0, 0), material = "\U0001F600", lenght = 40 um }'
+    text = DESIGN + line + "\n"
+    path = tmp_path / "utf16.acl"
+    u, pub = _open(client, path, text)
+    ln = len(DESIGN.split("\n")) - 1
+    e203 = next(d for d in pub["diagnostics"] if d["code"] == "E203")
+    assert e203["range"]["start"] == {"line": ln, "character": line.index("lenght") + 1}
+    hv = client.at("textDocument/hover", u, ln, line.index("40 um") + 1 + 1)
+    assert "**4e-05 m**" in hv["contents"]["value"]
+    assert hv["range"]["start"]["character"] == line.index("40 um") + 1
+    acts = client.request("textDocument/codeAction", {"textDocument": {"uri": u}, "range": e203["range"],
+                                                      "context": {"diagnostics": [e203]}})
+    edit = acts[0]["edit"]["changes"][u][0]
+    assert edit["newText"] == "length" and edit["range"]["start"]["character"] == line.index("lenght") + 1
