@@ -132,7 +132,11 @@ class AclLanguageServer(LanguageServer):
         for t in list(self._pending.values()) + list(self._lint_tasks.values()):
             t.cancel()
         if self._executor is not None:
+            workers = list(getattr(self._executor, "_processes", {}).values())
             self._executor.shutdown(wait=False, cancel_futures=True)
+            for w in workers:       # a rule run can take seconds: do not make the editor wait for it
+                if w.is_alive():
+                    w.terminate()
             self._executor = None
 
     def all_diagnostics(self, uri: str, snap: Snapshot) -> list[Diagnostic]:
@@ -402,4 +406,7 @@ def _formatting(ls: AclLanguageServer, params: T.DocumentFormattingParams) -> li
 
 def serve() -> None:
     """Speak LSP over stdin/stdout until the client exits."""
-    server.start_io()
+    try:
+        server.start_io()
+    finally:
+        server.close()
