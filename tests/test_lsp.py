@@ -316,6 +316,13 @@ def test_incremental_parse_equals_whole_file_parse():
             assert got is None, f      # a file with syntax errors always takes the whole-file path
             continue
         assert got == want, f
+    # its chunker (with remembered line depths) cuts exactly where the parser's does
+    from acl.syntax.parser import _statement_chunks
+
+    ip = IncrementalParser()
+    for f in _corpus():
+        lines = (f.read_text(encoding="utf-8", errors="replace") + "\n").split("\n")
+        assert list(ip._chunks(lines)) == list(_statement_chunks(lines)), f
     # a broken statement: parse() refuses, parse_partial() keeps every other statement
     broken = DESIGN.replace("fix c3", "fix c3 (")
     assert IncrementalParser().parse(broken, "b.acl") is None
@@ -328,6 +335,7 @@ def test_incremental_parse_equals_whole_file_parse():
     for old, new in (("300 ms", "250 ms"), ("fix c3", "fix c3\nparam extra = 2 um"), ("c2", "c22"), ("{ }", "{\n}")):
         text = text.replace(old, new)
         assert p.parse(text, "d.acl") == parse_module(text, "d.acl"), (old, new)
+    assert p.parse(text, "other.acl") == parse_module(text, "other.acl")     # another file name: no stale spans
 
 
 def _apply(text: str, edits: list[dict]) -> str:
