@@ -280,6 +280,9 @@ def test_lint_findings_follow_the_check_diagnostics(tmp_path):
                            lambda p: p["uri"] == u and any(d["code"] == "ACL601" for d in p["diagnostics"]), timeout=120)
         from acl.lint import find_config, lint_file, load_config, load_rules
 
+        acl601 = next(d for d in later["diagnostics"] if d["code"] == "ACL601")
+        assert acl601["codeDescription"]["href"] == uri(ROOT / "docs" / "rules.md") + "#acl601"
+        assert "## ACL601" in (ROOT / "docs" / "rules.md").read_text()
         rep = lint_file(str(path), load_config(find_config(str(path)), load_rules()))
         assert sorted((d.code, d.span.line - 1) for d in rep.findings) == \
             sorted((d["code"], d["range"]["start"]["line"]) for d in later["diagnostics"])

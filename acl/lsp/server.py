@@ -169,7 +169,20 @@ def to_lsp(d: Diagnostic, snap: Snapshot) -> T.Diagnostic:
     for n in d.notes:
         message += f"\nnote: {n}"
     return T.Diagnostic(range=rng, message=message, severity=_SEVERITY.get(d.severity, T.DiagnosticSeverity.Error),
-                        code=d.code, source="acl", data={"hint": d.hint} if d.hint else None)
+                        code=d.code, source="acl", data={"hint": d.hint} if d.hint else None,
+                        code_description=_rule_doc(d.code))
+
+
+def _rule_doc(code: str) -> T.CodeDescription | None:
+    """A link to the rule's section of docs/rules.md (shipped with acl) for ACL codes."""
+    if not code.startswith("ACL"):
+        return None
+    try:
+        from acl._resources import shipped_dir
+
+        return T.CodeDescription(href=from_fs_path(os.path.join(shipped_dir("docs"), "rules.md")) + "#" + code.lower())
+    except (FileNotFoundError, ImportError):
+        return None
 
 
 def _import_range(snap: Snapshot, file: str | None) -> T.Range:
