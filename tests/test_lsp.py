@@ -462,3 +462,23 @@ def test_positions_are_utf16_code_units(client, tmp_path):
                                                       "context": {"diagnostics": [e203]}})
     edit = acts[0]["edit"]["changes"][u][0]
     assert edit["newText"] == "length" and edit["range"]["start"]["character"] == line.index("lenght") + 1
+
+
+def test_hover_on_a_facing_pair_shows_the_coupled_modes_with_phases(client):
+    path = ROOT / "examples" / "fig4_facing_pair.acl"
+    text = path.read_text(encoding="utf-8")
+    u = client.open(path, text, 1)
+    client.wait_for("textDocument/publishDiagnostics", lambda p: p["uri"] == u)
+    ln = _line(text, "capsule left")
+    hv = _hover_text(client, u, ln, len("capsule l"))
+    import acl
+    from acl.analysis import acoustics as AC
+
+    if not hasattr(AC, "coupled_modes"):
+        pytest.skip("this physics has no coupled modes")
+    modes = AC.coupled_modes(acl.load(str(path)))
+    assert "with its neighbours" in hv
+    for m in modes:
+        assert f"| {m.frequency_hz / 1e3:.1f} |" in hv
+    assert "(180 deg)" in hv          # the antisymmetric mode: the two interfaces in antiphase
+    client.notify("textDocument/didClose", {"textDocument": {"uri": u}})
