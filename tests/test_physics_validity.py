@@ -109,3 +109,16 @@ def test_analyze_json_keeps_old_fields_and_adds_issue_10_fields():
     pair = rep["pairs"][0]
     assert {"critical_distance_m", "interface_amplitude_over_radius", "repel_from_q"} <= set(pair)
     json.dumps(rep)
+
+
+def test_equilibrium_reports_beam_deflection_against_eq1_validity():
+    # deflection / eq1_validity_limit(L, l) per beam (paper Eq. 1 vs the elastica, 5 %), 1e-12 rel.
+    from acl.physics.beams import eq1_validity_limit
+
+    d = acl.load(str(ROOT / "examples" / "fig4_facing_pair.acl"))
+    rep = analyze(d, at=Drive(tones=(Tone(frequency=125e3, amplitude=2.0),)), snap_in=False).as_dict()
+    eq = rep["equilibrium"]
+    for name, ratio in eq["deflection_over_eq1_limit"].items():
+        b = next(b for b in d.beams if b.name == name)
+        assert ratio == pytest.approx(eq["deflections_m"][name] / eq1_validity_limit(b.length, b.rigid_length), rel=1e-12)
+    assert set(eq["interface_amplitude_over_radius"]) == {"left.jet", "right.jet"}
