@@ -311,6 +311,18 @@ def test_low_sample_rate_and_large_sample_csv_are_warned(hostile, tmp_path, caps
     assert (out / "waveform-samples.csv").exists()
 
 
+def test_a_crossfade_too_short_to_be_band_limited_is_warned(hostile, tmp_path, capsys):
+    assert cli(hostile, "-o", str(tmp_path / "out"), "--program", "longpause", "--ramp", "0",
+               "--diagnostics", "json") == 1          # (the pause is refused; use a program that runs)
+    capsys.readouterr()
+    Path(hostile).write_text(Path(hostile).read_text().replace("pause 1e308 s", "pause 10 ms"))
+    assert cli(hostile, "-o", str(tmp_path / "out"), "--program", "longpause", "--ramp", "0",
+               "--diagnostics", "json") == 0
+    assert [d["code"] for d in _json_diags(capsys)] == ["W-EMIT-RAMP"]
+    assert cli(hostile, "-o", str(tmp_path / "out"), "--program", "longpause", "--diagnostics", "json") == 0
+    assert _json_diags(capsys) == []
+
+
 def test_reusing_an_output_folder_through_the_cli_leaves_no_stale_file(hostile, tmp_path, capsys):
     out = tmp_path / "out"
     assert cli(hostile, "-o", str(out), "--program", "tones", "--format", "npy,csv") == 0
@@ -329,3 +341,85 @@ def test_too_many_waypoints_is_a_located_error_not_a_memory_blow_up(tmp_path, ca
                "--diagnostics", "json") == 1
     (d,) = _json_diags(capsys)
     assert d["code"] == "E-SCHED-PATH" and d["file"] == str(p) and "waypoint-dt" in d["hint"]
+
+
+# -- slew: the emitted envelope, crossfades included, obeys the limit ------------------------------
+
+def _envelope_slew(s):
+    """Largest |d/dt| of any tone's emitted amplitude, from the renderer's own crossfade weights."""
+    from acl.emit.render import _rc, _Segments
+
+    S = _Segments(s, 1e9)
+    t = np.linspace(0.0, s.duration_s, 200_001)
+    freqs = sorted({x.frequency_hz for seg in s.segments for x in seg.tones})
+    env = np.zeros((len(freqs), t.size), complex)
+    for i, seg in enumerate(s.segments):
+        w = np.where((t >= S.a0[i]) & (t <= S.b1[i]), 1.0, 0.0)
+        if S.a1[i] > S.a0[i]:
+            w *= _rc((t - S.a0[i]) / (S.a1[i] - S.a0[i]))
+        if S.b1[i] > S.b0[i]:
+            w *= 1.0 - _rc((t - S.b0[i]) / (S.b1[i] - S.b0[i]))
+        for x in seg.tones:
+            env[freqs.index(x.frequency_hz)] += w * x.amplitude_v * np.exp(1j * x.phase_rad)
+    return float(np.max(np.abs(np.diff(np.abs(env), axis=1))) / (t[1] - t[0]))
+
+
+def test_a_follow_slew_limit_holds_for_the_emitted_waveform_not_only_between_waypoints():
+    import sys
+
+    sys.path.insert(0, str(Path(__file__).parent))
+    from test_compile_cli import DESIGN
+
+    follow = "  follow module along circle(radius = r, center = (0.2 um, 0 um)) in 0.3 s\n"
+    assert follow in DESIGN
+    text = DESIGN.replace(follow, "  pause 50 ms\n  follow module along polyline([(0 um, 0 um), (1 um, 0.5 um), "
+                                  "(0 um, 0 um)]) in 0.6 s, slew 80 V/s\n  pause 50 ms\n")
+    s = compile_program(acl.loads(text, filename="slew.acl"), "circle", CompileOptions(ramp_s=0.01))
+    # before: the plan kept |dV|/dt <= 80 V/s between waypoints (59 V/s) but the raised-cosine
+    # crossfade played the steps at pi/2 x that: 92.9 V/s
+    assert _envelope_slew(s) <= 80.0 * (1 + 1e-3)
+    goal = next(g for g in s.goals if g.kind == "follow")
+    assert goal.details["emitted_max_slew_v_per_s"] <= 80.0 * (1 + 1e-6)
+
+
+def test_the_slew_bound_covers_a_first_segment_fading_in_and_out_at_once():
+    from acl.schedule.compile import segment_slews
+    from acl.schedule.model import Schedule, ScheduledTone, Segment
+
+    segs = [Segment(0.0, 0.01, (ScheduledTone(100e3, 1.0),), 0), Segment(0.01, 0.02, (ScheduledTone(100e3, 3.0),), 0),
+            Segment(0.02, 0.03, (ScheduledTone(100e3, 0.5),), 0)]
+    s = Schedule("p", segs, [], 10.0, 10.0, ramp_s=0.01, sample_rate_hz=1e6)
+    bound = segment_slews(s)
+    assert _envelope_slew(s) <= bound.max() <= 1.01 * _envelope_slew(s)
+
+
+def test_a_hold_slew_limit_the_crossfade_cannot_meet_is_a_located_error(hostile, tmp_path, capsys):
+    text = Path(hostile).read_text().replace("slew 1e300 V/s", "slew 10 V/s")
+    Path(hostile).write_text(text)
+    assert cli(hostile, "-o", str(tmp_path / "out"), "--program", "hugeslew", "--diagnostics", "json") == 1
+    (d,) = _json_diags(capsys)
+    assert d["code"] == "E-SCHED-LIMIT" and "slew 10 V/s" in text.splitlines()[d["line"] - 1]
+
+
+# -- snap-in models: what is not known is not safe ------------------------------------------------
+
+def test_a_snap_in_between_the_limit_and_margin_times_the_limit_is_found():
+    # fig4's pair snaps at 2.36 V; with `limit 2.2 V` the per-tone sweep used to stop at 2.2 V,
+    # call the tone "never snaps" and drive it at 2.2 V: a ratio of 1.07 for a margin of 1.2
+    text = (EXAMPLES / "fig4_facing_pair.acl").read_text(encoding="utf-8")
+    text = text[:text.index("program ramp")] + (
+        "program near {\n  hold gap(left.jet, right.jet) above 10 um for 1 s, using [125 kHz], limit 2.2 V\n}\n")
+    d = acl.loads(text, filename=str(EXAMPLES / "near.acl"))
+    s = compile_program(d, "near")
+    (seg,) = s.segments
+    assert _snap_scale(d, seg, 3.0) >= 1.2 * (1 - 1e-6)
+
+
+def test_a_lost_continuation_branch_counts_as_critical_where_it_was_lost(fig4):
+    from types import SimpleNamespace
+
+    from acl.schedule.gains import _critical_scale
+
+    lost = SimpleNamespace(snap_voltage=None, status="no_convergence", voltage=np.array([0.0, 0.5, 1.3]))
+    mech = SimpleNamespace(sweep_voltage=lambda *a, **k: lost)
+    assert _critical_scale(mech, fig4, "left.jet", "right.jet", None, 5.0, None) == 1.3     # was inf

@@ -111,3 +111,4 @@ def test_waypoints_the_forward_model_cannot_settle_are_counted_not_averaged(desi
     goal = s.goals[0]
     assert goal.details["unconverged_waypoints"] == 5
     assert np.isfinite(goal.rms_error_m) and any("no stable equilibrium" in n for n in s.notes)
+    assert goal.max_error_m == np.inf          # not the largest error of the waypoints that settled

@@ -80,6 +80,12 @@ def check_options(schedule: Schedule, formats, sample_rate: float) -> list[Diagn
                                  f"{100 * (1 - math.cos(math.pi * fmax / sample_rate)):.0f} % and the "
                                  "instrument's reconstruction filter decides the waveform", rate,
                                  f"use at least {4 * fmax:g} Hz (the default is 10x)"))
+        if fmax > 0 and len(schedule.segments) > 1 and schedule.ramp_s < 10.0 / fmax:
+            warns.append(warning("W-EMIT-RAMP", f"crossfades of {schedule.ramp_s:g} s are shorter than 10 "
+                                 f"periods of the highest tone ({10.0 / fmax:.3g} s): segment boundaries "
+                                 "are near-hard switches, and the instrument's reconstruction filter can "
+                                 "ring above the peak the compiler checked", option_span("--ramp"),
+                                 f"use --ramp {10.0 / fmax:.2g} or longer (default 0.001)"))
         size = CSV_BYTES_PER_SAMPLE * total_samples(schedule, sample_rate)
         if "csv" in formats and size > CSV_WARN_BYTES:
             warns.append(warning("W-EMIT-SIZE", f"waveform-samples.csv holds one row per sample: about "

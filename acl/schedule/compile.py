@@ -112,7 +112,35 @@ class _Compiler:
         self.notes.extend(coverage_notes(self.design, sched))
         _choose_all_phases(sched, fs)
         self._check_peaks(sched)
+        self._check_slews(sched)
         return sched
+
+    def _check_slews(self, sched: Schedule) -> None:
+        """Every step with a slew limit: the emitted amplitude envelope, crossfades included, obeys it.
+
+        At a boundary faded over 2h by a raised cosine, a tone's phasor moves from A1 e^(i phi1) to
+        A2 e^(i phi2) with weight slope at most pi / (4 h): its amplitude changes at most
+        pi |A2 e^(i phi2) - A1 e^(i phi1)| / (4 h) per second (docs/schedule.md, Waveforms).
+        """
+        rates = segment_slews(sched)
+        for i, seg in enumerate(sched.segments):
+            step = self.program.steps[seg.step]
+            slew = _limit(self.design, getattr(step, "limits", None), self.opts)[1]
+            if slew is None:
+                continue
+            worst = rates[i]
+            for g in self.goals:
+                if g.step == seg.step:
+                    g.details["emitted_max_slew_v_per_s"] = max(
+                        g.details.get("emitted_max_slew_v_per_s", 0.0), float(worst))
+            if worst > slew * (1 + 1e-6):
+                raise _diag("E-SCHED-LIMIT",
+                            f"step {seg.step + 1}: the amplitude changes at up to {worst:.4g} V/s in the "
+                            f"crossfades of the segment at t = {seg.start_s:.4g} s, over its slew limit "
+                            f"{slew:g} V/s", step.span,
+                            "lengthen the crossfade (--ramp, up to --waypoint-dt inside a path); start a "
+                            "path where the previous drive leaves the capsule (a line from rest); or "
+                            "raise the slew limit")
 
     def _full_scale(self, vmax: float) -> tuple[float, str]:
         """WAV full scale: --full-scale, else the transducer's max voltage, else the largest limit."""
@@ -222,12 +250,20 @@ class _Compiler:
         except ValueError as exc:
             raise _diag("E-SCHED-TONES", f"{name}: {exc}", step.span,
                         "pin tones with `tones` or give a calibration sweep (--calibration)")
-        limits = DriveLimits(max_voltage=vmax, slew_rate=slew)
+        # the renderer crossfades consecutive waypoints with a raised cosine over min(ramp, dt), whose
+        # steepest slope is pi/2 x the mean: the plan's step per waypoint must leave room for it
+        fade = min(self.opts.ramp_s, dt)
+        plan_slew = None if slew is None else slew * 2.0 * fade / (np.pi * dt) * (1 - 1e-4)
+        limits = DriveLimits(max_voltage=vmax, slew_rate=plan_slew)
+        u_start = None
+        if slew is not None:        # slew from what is playing before the goal (silence at the start)
+            before = {t.frequency_hz: t.amplitude_v for t in self.segments[-1].tones} if self.segments else {}
+            u_start = np.array([before.get(f, 0.0) ** 2 for f in choice.frequencies])
         rq = self._robust_q(name, step.capsule, choice.frequencies) if self.opts.robust else None
         try:
             plan = plan_path(choice.gains, path.points, dt, limits, tolerance=self.opts.tolerance_m,
-                             lam=self.opts.lam, slew_model=self.opts.slew_model, refine=self.opts.refine,
-                             robust_q=rq)
+                             u_start=u_start, lam=self.opts.lam, slew_model=self.opts.slew_model,
+                             refine=self.opts.refine, robust_q=rq)
         except PathInfeasible as exc:
             d = exc.diagnosis
             raise DiagnosticError([Diagnostic(
@@ -236,11 +272,15 @@ class _Compiler:
                 "relax: " + "; or ".join(d.relax),
                 notes=(f"tones {', '.join(f'{f / 1e3:g} kHz' for f in choice.frequencies)}, "
                        f"reach margin {choice.margin:.3g} (>= 1 needed)",
-                       f"limits: {vmax:g} V total" + (f", slew {slew:g} V/s" if slew else ""),))])
+                       f"limits: {vmax:g} V total" + (f", slew {slew:g} V/s" if slew else ""),)
+                + ((f"the slew limit allows {plan_slew:.4g} V/s from waypoint to waypoint: the renderer "
+                    f"crossfades them over min(--ramp, --waypoint-dt) = {fade:g} s with a raised cosine, "
+                    "whose steepest slope is pi/2 x its mean; a longer --ramp relaxes it",)
+                   if slew else ()))])
         except SolverFailure as exc:
             raise _diag("E-SCHED-SOLVER", f"{name}: {exc}", step.span, "report this design")
         if self.opts.nonlinear_passes > 0:
-            plan = self._correct(name, step.capsule, choice, plan, path.points, dt, limits, rq)
+            plan = self._correct(name, step.capsule, choice, plan, path.points, dt, limits, rq, u_start)
         amps = plan.amplitudes                                      # (K, N)
         start = self.t
         for w in range(n):
@@ -256,11 +296,13 @@ class _Compiler:
             "gains_source": table.source, "waypoints": n, "dt_s": dt, "solver": plan.result.solver,
             "solver_status": plan.result.status, "max_voltage_v": vmax,
             "max_slew_v_per_s": plan.max_slew_v_per_s(dt), "notes": plan.notes})
+        if slew is not None:
+            rep.details["slew_limit_v_per_s"] = slew
         if self.opts.robust:
             rep.details["robust"] = rq is not None
         self.goals.append(rep)
 
-    def _correct(self, name, capsule, choice, plan, points, dt, limits, rq):
+    def _correct(self, name, capsule, choice, plan, points, dt, limits, rq, u_start=None):
         """Re-plan against the nonlinear forward model (acl.schedule.correct); the first plan if unavailable."""
         from acl.schedule.correct import correct_plan
         from acl.schedule.path import PathInfeasible, plan_path
@@ -276,8 +318,9 @@ class _Compiler:
             return plan
 
         def plan_for(p):
-            return plan_path(choice.gains, p, dt, limits, tolerance=self.opts.tolerance_m, lam=self.opts.lam,
-                             slew_model=self.opts.slew_model, refine=self.opts.refine, robust_q=rq)
+            return plan_path(choice.gains, p, dt, limits, tolerance=self.opts.tolerance_m, u_start=u_start,
+                             lam=self.opts.lam, slew_model=self.opts.slew_model, refine=self.opts.refine,
+                             robust_q=rq)
 
         try:
             best, history = correct_plan(plan_for, forward, points, plan, self.opts.nonlinear_passes)
@@ -342,9 +385,10 @@ class _Compiler:
             rep.max_error_m = float(np.max(err))
         if not ok.all():
             rep.details["unconverged_waypoints"] = int((~ok).sum())
+            rep.max_error_m = float("inf")     # a waypoint without equilibrium: its error is unbounded
             self.notes.append(f"{rep.name}: the forward model found no stable equilibrium at "
                               f"{int((~ok).sum())} of {ok.size} re-simulated waypoints (snap-in?); "
-                              "their error is not in the figures")
+                              "the RMS error leaves them out and the maximum error is unbounded (null)")
         full = np.full_like(targets, np.nan)
         full[idx] = pred
         rep.predicted_m = full
@@ -400,17 +444,30 @@ class _Compiler:
                 "E-SCHED-INFEASIBLE", Severity.ERROR, f"{name}: infeasible: binding "
                 + "; ".join(exc.binding), step.span, "relax: " + "; or ".join(exc.relax),
                 notes=(f"at t = {self.t:.4g} s, {len(freqs)} candidate tones",))])
-        # interior-point dust: a tone with < 1e-6 of the largest power adds < 1e-6 of the force
-        used = [(f, a) for f, a, u in zip(freqs, plan.amplitudes, plan.u) if u > 1e-6 * plan.u.max()]
+        # interior-point dust: a tone with < 1e-6 of the largest power adds < 1e-6 of the force;
+        # the margins reported are those of the tones actually emitted
+        keep = plan.u > 1e-6 * plan.u.max()
+        used = [(f, a) for f, a, k in zip(freqs, plan.amplitudes, keep) if k]
         self._add(step.duration, [ScheduledTone(f, float(a)) for f, a in used], i, name)
         self.states[step.latch] = step.state
+        F = np.asarray(forces, float) @ np.where(keep, plan.u, 0.0)            # (L,) N
+        sig = 1.0 if step.state == "b" else -1.0
+        force = float(sig * F[j])
+        others = {}
+        for k, n in enumerate(names):
+            if n != step.latch:       # force along the other latch's own switching direction / threshold
+                own = 1.0 if self.states[n] == "a" else -1.0
+                thr = to_b[k] if own > 0 else to_a[k]
+                others[n] = float(own * F[k] / thr)
+        if force < plan.required_force * (1 - 1e-6) or any(r > 1 / step.margin * (1 + 1e-6)
+                                                              for r in others.values()):
+            raise _diag("E-SCHED-SOLVER", f"{name}: the emitted tones miss the switching margins "
+                        "the latch program promised", step.span, "report this design")
         self.goals.append(GoalReport(name, "switch", i, self.t - step.duration, self.t,
                                      tuple(f for f, _ in used), model="linear force per V^2",
-                                     details={"force_n": plan.target_force,
-                                              "required_n": plan.required_force,
-                                              "margin": plan.target_force / plan.required_force * step.margin,
-                                              "other_latch_ratios": {n: float(r) for n, r in
-                                                                     zip(names, plan.other_ratios) if n != step.latch}}))
+                                     details={"force_n": force, "required_n": plan.required_force,
+                                              "margin": force / plan.required_force * step.margin,
+                                              "other_latch_ratios": others}))
 
     def _latch_candidates(self):
         from acl.schedule.gains import default_frequencies
@@ -510,6 +567,76 @@ class _Compiler:
                               f"scaled by {f:.4g} to cross by the margin {margin:g}")
             s = s / f
         return tones, float(1.0 / s)
+
+
+def segment_slews(sched: Schedule) -> np.ndarray:
+    """Bound (V/s) on the rate of change of any tone's emitted amplitude while each segment plays
+    (n,), crossfades included (the renderer's law, docs/schedule.md Waveforms).
+
+    A raised cosine over L has slope at most pi / (2 L).  Where segments i and i+1 crossfade
+    (weights summing to one) a tone's phasor moves along P_i -> P_i+1: |P_i+1 - P_i| pi / (2 L).
+    The first segment fades in over [0, 2h] and may still be fading in when its fade-out starts
+    (the last one likewise): there both slopes add, each times the largest phasor it can move.
+    """
+    segs = sched.segments
+    n = len(segs)
+    d = np.array([s.duration_s for s in segs])
+    half = sched.ramp_s / 2
+    h = np.empty(n + 1)
+    h[0], h[-1] = min(half, d[0] / 2), min(half, d[-1] / 2)
+    if n > 1:
+        h[1:-1] = np.minimum(half, np.minimum(d[:-1], d[1:]) / 2)
+    starts = np.array([s.start_s for s in segs])
+    a0, a1, b0, b1 = starts - h[:n], starts + h[:n], starts + d - h[1:], starts + d + h[1:]
+    a0[0], a1[0] = starts[0], starts[0] + 2 * h[0]
+    b0[-1], b1[-1] = starts[-1] + d[-1] - 2 * h[-1], starts[-1] + d[-1]
+    fs = sched.sample_rate_hz or np.inf
+
+    def phasors(i):
+        if i < 0 or i >= n:
+            return {}
+        return {(t.frequency_hz, t.sweep): t.amplitude_v * (np.exp(1j * t.phase_rad) if t.sweep is None else 1)
+                for t in segs[i].tones}
+
+    def jump(p, q, *extra):
+        keys = set(p) | set(q)
+        return max((max([abs(q.get(k, 0) - p.get(k, 0))] + [abs(e.get(k, 0)) for e in extra])
+                    for k in keys), default=0.0)
+
+    def rate(j, length):
+        if j == 0:
+            return 0.0
+        return np.inf if length < 1.0 / fs or length <= 0 else np.pi * j / (2 * length)
+
+    out = np.zeros(n)
+    for i in range(n):
+        prev, cur, nxt = phasors(i - 1), phasors(i), phasors(i + 1)
+        r_in, r_out = rate(jump(prev, cur), a1[i] - a0[i]), rate(jump(cur, nxt), b1[i] - b0[i])
+        out[i] = max(r_in, r_out)
+        if a1[i] > b0[i] and np.isfinite(out[i]):      # fading in and out at once
+            out[i] = max(out[i], _overlap_slew(prev, cur, nxt, a0[i], a1[i], b0[i], b1[i]))
+    return out
+
+
+def _overlap_slew(prev, cur, nxt, a0, a1, b0, b1, n: int = 2001) -> float:
+    """Bound on |d/dt| of each tone's envelope (1 - x) P_prev + x (1 - y) P_cur + y P_next on
+    [b0, a1], x = rc over [a0, a1], y = rc over [b0, b1]: the exact derivative on a grid of n
+    points plus (grid step / 2) x a bound on the second derivative."""
+    lx, ly = a1 - a0, b1 - b0
+    t = np.linspace(b0, a1, n)
+    ux, uy = np.clip((t - a0) / lx, 0, 1), np.clip((t - b0) / ly, 0, 1)
+    x, y = 0.5 - 0.5 * np.cos(np.pi * ux), 0.5 - 0.5 * np.cos(np.pi * uy)
+    dx, dy = np.pi / (2 * lx) * np.sin(np.pi * ux), np.pi / (2 * ly) * np.sin(np.pi * uy)
+    step = (a1 - b0) / (n - 1)
+    worst = 0.0
+    for k in set(prev) | set(cur) | set(nxt):
+        pp, pc, pn = prev.get(k, 0), cur.get(k, 0), nxt.get(k, 0)
+        d = np.abs(dx * (pc * (1 - y) - pp) + dy * (pn - x * pc)).max()
+        j1, j2 = max(abs(pc - pp), abs(pp)), max(abs(pn - pc), abs(pn))
+        e2 = (np.pi ** 2 / (2 * lx ** 2) * j1 + np.pi ** 2 / (2 * ly ** 2) * j2
+              + np.pi ** 2 / (2 * lx * ly) * abs(pc))
+        worst = max(worst, float(d + e2 * step / 2))
+    return worst
 
 
 def _diag(code: str, message: str, span: Span | None, hint: str | None = None) -> DiagnosticError:

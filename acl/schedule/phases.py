@@ -9,7 +9,7 @@ sample grid misses the crest by up to ``1 - cos(pi f / fs)`` (4.9 % at 10 sample
 :func:`analog_peaks` bounds it rigorously: ``|x''| <= D2 = sum_k A_k (2 pi f_k)^2``, so within
 ``h / 2`` of the true crest a grid of step ``h`` has a point at most ``D2 h^2 / 8`` below it.  A
 grid of 8 points per cycle of the highest tone finds the candidate intervals, each is refined on a
-32-point sub-grid, and the bound ``max + D2 h_sub^2 / 8`` (within 1e-4 of ``sum A``) is reported.
+32-point sub-grid, and the bound ``max + D2 h_sub^2 / 8`` (within 2e-4 of ``sum A``) is reported.
 The phases minimise the peak on a 16-point-per-cycle grid of one common period (Nelder-Mead from
 Schroeder's phases); phases the user gave are kept.
 """
@@ -75,7 +75,7 @@ def _grid(frequencies, period: float, per_cycle: int) -> np.ndarray:
     return np.arange(n) * (period / n)
 
 
-def analog_peaks(frequencies, phases, amplitudes, chunk: int = 256) -> np.ndarray:
+def analog_peaks(frequencies, phases, amplitudes, chunk: int | None = None) -> np.ndarray:
     """Upper bound (V, tight to ~1e-4 of sum A) on the analog peak of each row of ``amplitudes`` (N, K).
 
     Without a common period short enough to scan, the bound is ``sum_k |A_k|`` (reached for
@@ -94,6 +94,7 @@ def analog_peaks(frequencies, phases, amplitudes, chunk: int = 256) -> np.ndarra
     h = t[1] - t[0]
     w = 2 * np.pi * f
     S = np.sin(np.outer(w, t) + phi[:, None])                          # (K, n)
+    chunk = chunk or max(1, (1 << 21) // t.size)                       # rows x grid <= 16 MB
     d2 = a @ (w ** 2)                                                  # (N,) bound on |x''|
     sub = np.linspace(-0.5, 0.5, 32) * h                               # sub-grid around a point
     h_sub = h / 31
