@@ -126,3 +126,25 @@ def test_robust_compile_narrows_the_band_of_an_uncalibrated_design(fig3):
     assert robust.details["robust"] is True
     assert robust.rms_error_m > nominal.rms_error_m           # it gives up nominal accuracy ...
     assert robust.rms_error_p95_m < 0.95 * nominal.rms_error_p95_m   # ... for a narrower band
+
+
+def test_compile_cli_band_columns_and_bad_options(tmp_path):
+    import json
+    import subprocess
+    import sys
+
+    root = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..")
+    env = dict(os.environ, PYTHONPATH=root)
+    src = os.path.join(EX, "fig2_stroke.acl")
+    run = lambda *a: subprocess.run([sys.executable, "-m", "acl", "compile", src, "--program", "stroke", *a],  # noqa: E731
+                                    capture_output=True, text=True, env=env)
+    out = run("-o", str(tmp_path / "ok"), "--band-samples", "3", "--robust", "--waypoint-dt", "0.05")
+    assert out.returncode == 0, out.stderr
+    assert "95 % band" in out.stderr
+    goal = json.loads((tmp_path / "ok" / "schedule.json").read_text())["goals"][0]
+    assert goal["rms_error_p95_um"] >= 0 and goal["max_error_p95_um"] >= goal["rms_error_p95_um"]
+    assert goal["details"]["robust"] is True and goal["capsule"] == "act" and len(goal["target_um"]) == 40
+    for bad in (("--band-samples", "-1"), ("--nonlinear-passes", "-2")):
+        out = run("-o", str(tmp_path / "bad"), *bad)
+        assert out.returncode == 2 and "E-COMPILE-OPTION" in out.stderr + out.stdout
+        assert "Traceback" not in out.stderr and not (tmp_path / "bad").exists()
