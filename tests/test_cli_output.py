@@ -104,11 +104,17 @@ def test_lint_output_formats_include_text_as_full():
 
 # -- -q / -v on every command -----------------------------------------------------------------------
 
-@pytest.mark.parametrize("command", ["check", "show", "analyze", "compile", "lint", "fit", "synth", "rule"])
+def _commands():
+    from acl.cli import COMMANDS
+
+    return list(COMMANDS)
+
+
+@pytest.mark.parametrize("command", _commands())
 def test_every_command_takes_quiet_and_verbose(command):
     from acl.cli import build_parser
 
-    parser = build_parser()
+    parser = build_parser([command])          # builds the named command in full
     sub = next(a for a in parser._actions if a.dest == "command").choices[command]
     for flag in ("-q", "--quiet", "-v", "--verbose"):
         assert flag in sub._option_string_actions, (command, flag)
@@ -164,6 +170,13 @@ def test_every_lint_rule_has_a_page():
     pages = {e["code"]: e for e in json.loads(run("rule", "--all", "--output-format", "json").stdout)}
     for code, rule in load_rules().items():
         assert code in pages and pages[code]["name"] == rule.name and pages[code]["severity"] == rule.severity.value
+
+
+def test_codes_documented_in_prose_are_found_too():
+    r = run("rule", "E-EMIT-RATE")
+    assert r.returncode == 0 and "E-EMIT-RATE" in r.stdout and "docs/schedule.md" in r.stdout
+    r = run("rule", "E-PLOT")
+    assert r.returncode == 0 and "acl[plot]" in r.stdout
 
 
 def test_unknown_rule_is_a_usage_error_with_a_suggestion():
@@ -232,3 +245,13 @@ def test_outputs_respect_the_umask(tmp_path, mask):
     for path, mode in modes.items():
         want = (0o777 if os.path.isdir(path) else 0o666) & ~mask
         assert mode == want, f"{path}: {oct(mode)}, umask {oct(mask)} gives {oct(want)}"
+
+
+@pytest.mark.parametrize("command", ["check", "show", "analyze", "compile", "lint", "fit", "synth", "rule"])
+def test_every_command_with_machine_output_spells_it_output_format(command):
+    from acl.cli import build_parser
+
+    parser = build_parser([command])
+    sub = next(a for a in parser._actions if a.dest == "command").choices[command]
+    action = sub._option_string_actions["--output-format"]
+    assert {"text", "json"} <= set(action.choices) or command == "lint" and {"full", "json"} <= set(action.choices)

@@ -15,6 +15,7 @@ from acl.design.model import Design
 # effect -> {coefficient: value at which the effect vanishes} (acl.fit.effects internal coordinates)
 NULLS = {
     "transducer_gain": {"gain_slope": 0.0, "f_ref": math.nan, "gain": 1.0},
+    "transducer_resonance": {"inv_f_ratio": 0.0, "gain_q": 1.0, "f_ref": math.nan},
     "drive_saturation": {"inv_vsat2": 0.0},
     "large_deflection": {"elastica_weight": 0.0},
     "stiffness_scale": {"e_scale": 1.0},
@@ -36,6 +37,7 @@ STATIC_NOTES = {
 }
 WHERE = {
     "transducer_gain": "drive pressure (acoustics)",
+    "transducer_resonance": "drive pressure vs frequency (acoustics)",
     "drive_saturation": "drive pressure (acoustics; forces no longer scale as V^2)",
     "large_deflection": "beam force law (mechanics)",
     "stiffness_scale": "Young's modulus of beams and latches (mechanics)",

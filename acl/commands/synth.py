@@ -9,7 +9,7 @@ from __future__ import annotations
 import math
 import re
 
-from acl.commands._common import exit_code, one_design, parse_sets, quantity_text, report
+from acl.commands._common import add_output_format, exit_code, one_design, parse_sets, quantity_text, report
 
 
 def add_parser(p) -> None:
@@ -31,6 +31,7 @@ def add_parser(p) -> None:
                    help="play this compiled schedule (schedule.json of `acl compile`) on DESIGN and write every "
                         "observable at every waypoint; DESIGN may declare effects the compiling design lacks")
     p.add_argument("--path", action="append", default=[], metavar="DIR", help="extra folder imports may read from")
+    add_output_format(p)   # json: {"output", "rows", "planted"} on stdout
 
 
 def _located(code, where, msg, hint=None):
@@ -189,7 +190,13 @@ def run(args) -> int:
         write_csv(data, args.output)
     except OSError as exc:
         return _usage(f"cannot write {args.output}: {exc.strerror or exc}")
-    if not args.quiet:
+    if args.output_format == "json":
+        import json
+        import sys
+
+        sys.stdout.write(json.dumps({"output": args.output, "rows": data.n,
+                                     "planted": {e: effects[e] for e in planted}}, indent=2) + "\n")
+    elif not args.quiet:
         from acl._console import make_console
 
         con = make_console(stderr=True, highlight=False)

@@ -537,6 +537,18 @@ class Design(Frozen):
     def __repr__(self) -> str:  # readable in notebooks
         return f"<Design {self.file}: {self.summary()}>"
 
+    def _repr_html_(self) -> str:
+        """Notebook display: a compact table of the elements (acl.notebook)."""
+        from acl.notebook import design_html
+
+        return design_html(self)
+
+    def plot(self, ax=None):
+        """Top view of beams and capsules on ``ax`` (or a new Figure, backend untouched); returns the Axes."""
+        from acl.notebook import plot_design
+
+        return plot_design(self, ax)
+
 
 def _find(index: dict, name: str, what: str):
     try:

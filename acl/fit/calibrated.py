@@ -31,6 +31,7 @@ from __future__ import annotations
 import datetime
 import math
 import os
+import re
 
 from acl.fit.effects import EFFECTS
 
@@ -88,7 +89,13 @@ def calibrated_text(problem, selection, out_path: str, data_paths=(), report_dir
             v, se, lo, hi, unit, name = v * factor, se * factor, lo * factor, hi * factor, p.unit, c.design_param
         else:
             unit = {"gamma": "N/V^2", "alpha": "N*m^2/V^2"}.get(c.kind, c.unit or "")
-            name = f"fit_{c.kind}"
+            name = "fit_" + re.sub(r"\W", "_", c.kind)      # f0@left -> fit_f0_left
+            if c.kind.split("@")[0] in ("f0", "q"):
+                what = "natural frequency" if c.kind.startswith("f0") else "quality factor"
+                cap = c.kind.partition("@")[2] or P.ref_capsule
+                notes.append(f"# {name}: the {what} of capsule `{cap}`; not applied to the design (the language "
+                             "declares the capsule's geometry, not its resonance: fit a free cavity parameter to "
+                             "carry it into the design)")
         names.append(name)
         by_kind[c.kind] = name
         params.append(f"param {name} = {_literal(v, unit)}{_pm(se, unit)}"
@@ -195,10 +202,11 @@ def _coverage(problem) -> dict:
 
 def _alpha_physics(P) -> float:
     """The physics' Bjerknes coefficient at f_ref of the reference pair (what the analysis computes)."""
-    from acl.fit.mechanism import alpha_per_v2
+    from acl.fit.mechanism import alpha_per_v2, reference_unit
 
     inst = next(iter(P.instances.values()))
-    return float(alpha_per_v2(inst, P.f_ref)) if inst.kind == "pair" else 0.0
+    unit = reference_unit(inst, "pair")
+    return float(alpha_per_v2(inst, unit, P.f_ref)) if unit is not None else 0.0
 
 
 def _effect_block(eid: str, vals: dict, f_ref: float) -> str:

@@ -26,6 +26,7 @@ class Experiment:
     repeats: int = 1
     interval: float = 1.0                   # s between rows
     observables: tuple = ()                 # empty: every declared observable
+    label: str = ""                         # `experiment` column of its rows (several experiments, one data set)
 
 
 def effect_inputs(spec: dict) -> dict:
@@ -39,7 +40,7 @@ def effect_inputs(spec: dict) -> dict:
                                          suggest(eid, EFFECTS) or f"effects: {', '.join(EFFECTS)}")])
         eff = EFFECTS[eid]
         names = [p.name for p in eff.params]
-        vals = {p.name: p.null for p in eff.params}
+        vals = {p.name: (p.null if p.null == p.null else p.start) for p in eff.params}
         for k, v in params.items():
             if k in ALIASES and ALIASES[k][0] in names:
                 vals[ALIASES[k][0]] = ALIASES[k][1](v)
@@ -53,36 +54,48 @@ def effect_inputs(spec: dict) -> dict:
     return out
 
 
-def generate(design_path, experiment: Experiment, effects: dict | None = None, noise: float = 0.0,
+def generate(design_path, experiment, effects: dict | None = None, noise: float = 0.0,
              seed: int = 0, coeffs: dict | None = None, search_paths=()):
-    """Return (Dataset, Prepared) of synthetic rows (values in SI, sigma = noise)."""
+    """Return (Dataset, Prepared) of synthetic rows (values in SI, sigma = noise).
+
+    ``experiment``: one :class:`Experiment` or a list of them (run one after the other, in one data set,
+    rows tagged with each experiment's ``label``: e.g. a pair and its calibration beam)."""
     import acl
     from acl.fit.data import Dataset
     from acl.fit.forward import predict, prepare
     from acl.fit.mechanism import build_instance
 
     design = acl.load(design_path, search_paths=search_paths)
-    obs = list(experiment.observables) or [o.name for o in design.observes]
-    for name in obs:
-        design.observe(name)
-    sets = experiment.sets or {}
-    set_names = sorted(sets)
-    combos = list(itertools.product(*[sets[k] for k in set_names])) or [()]
-    rows = []
-    for _ in range(max(1, experiment.repeats)):
-        for combo in combos:
-            for f in experiment.frequencies:
-                for v in experiment.voltages:
-                    for name in obs:
-                        rows.append((name, combo, ((float(f), float(v)),) if v > 0 else ()))
+    experiments = [experiment] if isinstance(experiment, Experiment) else list(experiment)
+    set_names = sorted({k for ex in experiments for k in (ex.sets or {})})
+    rows, times = [], []
+    t = 0.0
+    for ex in experiments:
+        obs = list(ex.observables) or [o.name for o in design.observes]
+        for name in obs:
+            design.observe(name)
+        sets = ex.sets or {}
+        names = sorted(sets)
+        combos = list(itertools.product(*[sets[k] for k in names])) or [()]
+        for _ in range(max(1, ex.repeats)):
+            for combo in combos:
+                cell = dict(zip(names, combo))
+                for f in ex.frequencies:
+                    for v in ex.voltages:
+                        for name in obs:
+                            rows.append((name, tuple(cell.get(k, "") for k in set_names),
+                                         ((float(f), float(v)),) if v > 0 else (), ex.label))
+                            times.append(t)
+                            t += float(ex.interval)
     n = len(rows)
     from acl.fit.data import parse_quantity
 
     set_arr = {k: np.array([r[1][j] for r in rows], dtype=object) for j, k in enumerate(set_names)}
-    set_si = {k: np.array([parse_quantity(t)[0] for t in set_arr[k]], float) for k in set_names}
+    set_si = {k: np.array([parse_quantity(x)[0] if x else np.nan for x in set_arr[k]], float) for k in set_names}
     data = Dataset(np.array([r[0] for r in rows], dtype=object), np.zeros(n), np.full(n, float(noise) or np.nan),
-                   np.arange(n) * float(experiment.interval), [r[2] for r in rows], set_arr, set_si,
-                   [Span(file="<synth>", line=i + 2, column=1) for i in range(n)], np.array(["um"] * n, dtype=object))
+                   np.array(times, float), [r[2] for r in rows], set_arr, set_si,
+                   [Span(file="<synth>", line=i + 2, column=1) for i in range(n)], np.array(["um"] * n, dtype=object),
+                   experiment=np.array([r[3] for r in rows], dtype=object))
     cache: dict = {}
 
     def load_instance(key):
@@ -109,12 +122,14 @@ def write_csv(data, path, unit: str = "um") -> None:
     factor, _ = parse_unit(unit)
     set_names = sorted(data.sets)
     with_sigma = bool(np.all(np.isfinite(data.sigma)))     # noise-free data have no sigma column
+    with_exp = bool(np.any(data.experiment != ""))
     head = ["observable", "value", "unit", "drive", "time", *(["sigma"] if with_sigma else []),
-            *[f"set:{k}" for k in set_names]]
+            *(["experiment"] if with_exp else []), *[f"set:{k}" for k in set_names]]
     lines = [",".join(head)]
     for i in range(data.n):
         cells = [data.observable[i], f"{data.value[i] / factor:.6g}", unit, format_drive(data.tones[i]),
                  f"{data.time[i]:.6g}", *([f"{data.sigma[i] / factor:.6g}"] if with_sigma else []),
+                 *([data.experiment[i]] if with_exp else []),
                  *[data.sets[k][i] for k in set_names]]
         lines.append(",".join(cells))
     tmp = f"{path}.tmp{os.getpid()}"

@@ -250,17 +250,17 @@ class _Compiler:
             choice = choose_tones(table, path.points, vmax, self.opts.tones_per_path, step.tones)
         except ValueError as exc:
             raise _diag("E-SCHED-TONES", f"{name}: {exc}", step.span,
-                        "pin tones with `tones` or give a calibration sweep (--calibration)")
+                        "pin the tones with `, using [85 kHz, 125 kHz]` on the follow step, or give a calibration sweep (--calibration)")
         # the renderer crossfades consecutive waypoints with a raised cosine over min(ramp, dt), whose
         # steepest slope is pi/2 x the mean: the plan's step per waypoint must leave room for it
         fade = min(self.opts.ramp_s, dt)
         plan_slew = None if slew is None else slew * 2.0 * fade / (np.pi * dt) * (1 - 1e-4)
         limits = DriveLimits(max_voltage=vmax, slew_rate=plan_slew)
+        rq = self._robust_q(name, step.capsule, choice.frequencies) if self.opts.robust else None
         u_start = None
         if slew is not None:        # slew from what is playing before the goal (silence at the start)
             before = {t.frequency_hz: t.amplitude_v for t in self.segments[-1].tones} if self.segments else {}
             u_start = np.array([before.get(f, 0.0) ** 2 for f in choice.frequencies])
-        rq = self._robust_q(name, step.capsule, choice.frequencies) if self.opts.robust else None
         try:
             plan = plan_path(choice.gains, path.points, dt, limits, tolerance=self.opts.tolerance_m,
                              u_start=u_start, lam=self.opts.lam, slew_model=self.opts.slew_model,
@@ -486,7 +486,7 @@ class _Compiler:
         self.vmax_seen.append(vmax)
         if not step.tones:
             raise _diag("E-SCHED-TONES", f"{name}: a hold step needs its tones", step.span,
-                        "write `tones 85 kHz, 125 kHz` on the hold step")
+                        "write `, using [85 kHz, 125 kHz]` on the hold step")
         provider = self.opts.snap_provider or snap_in_voltages
         bound = step.bound if step.mode == "above" else None
         # above: a tone driven at vmax must still be `margin` from snap-in, so look up to margin x vmax
