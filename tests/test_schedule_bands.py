@@ -127,3 +127,57 @@ def test_robust_compile_narrows_the_band_of_an_uncalibrated_design(fig3):
     assert robust.details["robust"] is True
     assert robust.rms_error_m > nominal.rms_error_m           # it gives up nominal accuracy ...
     assert robust.rms_error_p95_m < 0.95 * nominal.rms_error_p95_m   # ... for a narrower band
+
+
+def test_compile_cli_band_columns_and_bad_options(tmp_path):
+    import json
+    import subprocess
+    import sys
+
+    root = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..")
+    env = dict(os.environ, PYTHONPATH=root)
+    src = os.path.join(EX, "fig2_stroke.acl")
+    run = lambda *a: subprocess.run([sys.executable, "-m", "acl", "compile", src, "--program", "stroke", *a],  # noqa: E731
+                                    capture_output=True, text=True, env=env)
+    out = run("-o", str(tmp_path / "ok"), "--band-samples", "3", "--robust", "--waypoint-dt", "0.05")
+    assert out.returncode == 0, out.stderr
+    assert "95 % band" in out.stderr
+    goal = json.loads((tmp_path / "ok" / "schedule.json").read_text())["goals"][0]
+    assert goal["rms_error_p95_um"] >= 0 and goal["max_error_p95_um"] >= goal["rms_error_p95_um"]
+    assert goal["details"]["robust"] is True and goal["capsule"] == "act" and len(goal["target_um"]) == 40
+    for bad in (("--band-samples", "-1"), ("--nonlinear-passes", "-2")):
+        out = run("-o", str(tmp_path / "bad"), *bad)
+        assert out.returncode == 2 and "E-COMPILE-OPTION" in out.stderr + out.stdout
+        assert "Traceback" not in out.stderr and not (tmp_path / "bad").exists()
+
+
+def test_worst_case_mode_lowers_the_worst_case_over_the_ellipsoid(fig3):
+    from acl.schedule.path import DriveLimits, plan_path
+    from acl.schedule.robust import robust_q
+
+    G = model_gain_table(fig3, "m", FREQS).gains.T
+    Q = robust_q(fig3, lambda d: model_gain_table(d, "m", FREQS).gains.T)
+    w, V = np.linalg.eigh(Q)
+    R = (V * np.sqrt(np.maximum(w, 0))).T                       # R^T R = Q
+    a = np.linspace(0, 2 * np.pi, 60)
+    P = np.column_stack([1e-6 + 3e-6 * np.cos(a), 1e-6 + 2e-6 * np.sin(a)])
+    lim = DriveLimits(max_voltage=20.0)
+
+    def worst(plan):    # bound of the error over |z| <= 1: |e_t| + |R u_t|, mean square over waypoints
+        e = np.linalg.norm((G @ plan.u).T - P, axis=1)
+        return float(np.mean((e + np.linalg.norm(R @ plan.u, axis=0)) ** 2))
+
+    def expected(plan):
+        e = np.linalg.norm((G @ plan.u).T - P, axis=1)
+        return float(np.mean(e ** 2 + np.linalg.norm(R @ plan.u, axis=0) ** 2))
+
+    nominal = plan_path(G, P, 0.01, lim)
+    mean = plan_path(G, P, 0.01, lim, robust_q=Q)
+    worst_plan = plan_path(G, P, 0.01, lim, robust_q=Q, robust_mode="worst")
+    # each mode is best at its own criterion (the small drive-weight term aside)
+    assert worst(worst_plan) <= min(worst(mean), worst(nominal)) * (1 + 1e-4)
+    assert expected(mean) <= min(expected(worst_plan), expected(nominal)) * (1 + 1e-4)
+    # the worst case is linear in |e|: unlike the mean, it does not trade tracking for a smaller spread
+    assert worst(mean) > worst(worst_plan)
+    with pytest.raises(ValueError):
+        plan_path(G, P, 0.01, lim, robust_q=Q, robust_mode="typo")

@@ -38,8 +38,9 @@ def add_parser(p) -> None:
                    help="path tracking tolerance in micrometres (default 0.5)")
     p.add_argument("--ramp", default="1e-3", metavar="S",
                    help="raised-cosine crossfade between segments in seconds (default 0.001)")
-    p.add_argument("--robust", action="store_true",
-                   help="plan paths for the least expected error over the declared uncertainty (docs/schedule.md)")
+    p.add_argument("--robust", nargs="?", const="mean", default=None, choices=("mean", "worst"),
+                   help="plan paths with the declared uncertainty: `mean` (default) the least expected squared "
+                        "error, `worst` the least worst case over its 1-sigma ellipsoid (docs/schedule.md)")
     p.add_argument("--band-samples", type=int, default=20, metavar="N",
                    help="draws of the declared uncertainty for each goal's 95 %% error band (default 20; 0: none)")
     p.add_argument("--band-seed", type=int, default=0, metavar="N", help="seed of those draws (default 0)")
@@ -176,7 +177,8 @@ def run(args) -> int:
     opts = CompileOptions(sample_rate_hz=rate, waypoint_dt_s=numbers["waypoint_dt"],
                           tolerance_m=numbers["tolerance"] * 1e-6, ramp_s=numbers["ramp"],
                           calibration=calibration, full_scale_v=full_scale,
-                          robust=args.robust, band_samples=args.band_samples, band_seed=args.band_seed,
+                          robust=args.robust is not None, robust_mode=args.robust or "mean",
+                          band_samples=args.band_samples, band_seed=args.band_seed,
                           nonlinear_passes=args.nonlinear_passes, reload=_reloader(args, path),
                           allow_nonlinear=bool(getattr(args, "allow_nonlinear", False)))
     try:

@@ -44,7 +44,8 @@ def design_tree(design):
         n = t.add("params")
         for p in design.params:
             free = f" [cyan]free[/cyan] in {_fmt(p.lower, p.unit)} .. {_fmt(p.upper, p.unit)}" if p.free and p.lower is not None else (" [cyan]free[/cyan]" if p.free else "")
-            n.add(f"{p.name} = {_fmt(p.value, p.unit)}{free}")
+            sd = f" +- {_fmt(p.stddev, p.unit)}" if p.stddev else ""
+            n.add(f"{p.name} = {_fmt(p.value, p.unit)}{sd}{free}")
     if design.medium:
         m = design.medium
         t.add(f"medium [bold]{m.name}[/bold]: rho {m.density:g} kg/m^3, sigma {_fmt(m.surface_tension, 'N/m')}, "

@@ -24,7 +24,7 @@ KINDS = ("medium", "material", "transducer", "capsule", "beam", "spring", "truss
 # Every keyword of the grammar: statements, program steps and the words that join their parts.
 KEYWORDS = ("param", "use", "mount", "fix", "link", "observe", "require", "program", "drive", "sweep", "pause",
             "follow", "switch", "hold", "cross", "on", "to", "with", "for", "in", "at", "along", "above", "phase",
-            "free", "like", "limit", "slew", "margin", "using", "log")
+            "free", "like", "limit", "slew", "margin", "using", "log", "uncertainty")
 # Words that can never start a unit (the grammar's QUANTITY look-ahead); nor can an exponent
 # (`2 e5` is a number and a name, `2e5` a number).
 NOT_UNITS = ("for", "in", "to", "at", "on", "with", "free", "limit", "slew", "margin", "using", "along", "above",
@@ -71,7 +71,7 @@ class AclLexer(RegexLexer):
             (rf"({INTEGER})([ \t]*)({UNIT})", bygroups(Number.Integer, Whitespace, Keyword.Type)),
             (INTEGER, Number.Integer),
             (NAME, Name),
-            (r"\.\.|>=|<=|[<>=+\-*/^@]", Operator),
+            (r"\.\.|>=|<=|\+-|[<>=+\-*/^@\u00b1]", Operator),
             (r"[(){}\[\],.]", Punctuation),
         ],
     }

@@ -11,7 +11,8 @@ import re
 
 from acl.lsp.document import Snapshot, code_part
 
-STATEMENTS = ("import", "extends", "param", "use", "mount", "fix", "link", "observe", "require", "program")
+STATEMENTS = ("import", "extends", "param", "use", "mount", "fix", "link", "observe", "require", "program",
+              "uncertainty")
 STEPS = ("drive", "sweep", "pause", "follow", "switch", "hold", "cross")
 FUNCTIONS = ("displacement", "position", "gap", "resonance", "separation", "margin",   # observe / require
              "circle", "rect", "csv",                                                  # sections, tables

@@ -139,7 +139,8 @@ def error_band(design: Design, forward_for: Callable, u: np.ndarray, targets: np
 
     ``forward_for(design) -> forward`` (u (N, K) V^2 -> (N, 2) m); ``u`` (K, M) and ``targets`` (M, 2)
     at the re-simulated waypoints.  A draw whose equilibrium is lost at a waypoint (snap-in) counts
-    that waypoint as missed by the path's full size (never as on target).  None when nothing is declared.
+    that waypoint as missed by the path's full size in the RMS (never as on target) and has an
+    unbounded maximum (as the nominal prediction).  None when nothing is declared.
     """
     if declared(design, with_params=reload is not None).empty or samples <= 0:
         return None
@@ -161,15 +162,22 @@ def error_band(design: Design, forward_for: Callable, u: np.ndarray, targets: np
             pred = pred + noise.normal(0.0, disc, pred.shape)
         err = np.linalg.norm(pred - targets, axis=1)
         bad = ~np.isfinite(err)
-        if bad.any():
+        if bad.any():   # lost equilibrium (snap-in): the RMS counts the path's extent, the maximum is unbounded
             failed += 1
             err[bad] = max(scale, float(np.nanmax(err)) if (~bad).any() else scale)
         rms.append(float(np.sqrt(np.mean(err ** 2))))
-        mx.append(float(err.max()))
+        mx.append(float("inf") if bad.any() else float(err.max()))
     if not rms:
         return Band(float("nan"), float("nan"), 0, failed, np.array([]), np.array([]))
     rms_a, mx_a = np.array(rms), np.array(mx)
-    return Band(float(np.percentile(rms_a, q)), float(np.percentile(mx_a, q)), len(rms), failed, rms_a, mx_a)
+    return Band(_quantile(rms_a, q), _quantile(mx_a, q), len(rms), failed, rms_a, mx_a)
+
+
+def _quantile(x: np.ndarray, q: float) -> float:
+    """The q-th percentile (linear interpolation); inf when it reaches an unbounded draw."""
+    with np.errstate(invalid="ignore"):
+        v = float(np.percentile(x, q))
+    return float("inf") if np.isnan(v) else v
 
 
 def gain_sensitivity(design: Design, gains_for: Callable, reload: Reload | None = None) -> np.ndarray | None:

@@ -50,6 +50,7 @@ class CompileOptions:
     resim_points: int = 100                      # waypoints re-simulated per goal (evenly spaced)
     tones_per_path: int = 3
     robust: bool = False                         # path program with the declared uncertainty (acl.schedule.robust)
+    robust_mode: str = "mean"                    # "mean" (expected squared error, QP) | "worst" (1-sigma ellipsoid, SOC)
     band_samples: int = 0                        # draws of the declared uncertainty for the 95 % band (0: none)
     band_seed: int = 0
     reload: Callable | None = None               # {param: "v unit"} -> Design, to sample uncertain params
@@ -301,7 +302,7 @@ class _Compiler:
         try:
             plan = plan_path(choice.gains, path.points, dt, limits, tolerance=self.opts.tolerance_m,
                              u_start=u_start, lam=self.opts.lam, slew_model=self.opts.slew_model,
-                             refine=self.opts.refine, robust_q=rq)
+                             refine=self.opts.refine, robust_q=rq, robust_mode=self.opts.robust_mode)
         except PathInfeasible as exc:
             d = exc.diagnosis
             raise DiagnosticError([Diagnostic(
@@ -318,7 +319,7 @@ class _Compiler:
         except SolverFailure as exc:
             raise _diag("E-SCHED-SOLVER", f"{name}: {exc}", step.span, "report this design")
         if self.opts.nonlinear_passes > 0:
-            plan = self._correct(name, step.capsule, choice, plan, path.points, dt, limits, rq)
+            plan = self._correct(name, step.capsule, choice, plan, path.points, dt, limits, rq, u_start)
         amps = plan.amplitudes                                      # (K, N)
         start = self.t
         for w in range(n):
@@ -338,9 +339,10 @@ class _Compiler:
             rep.details["slew_limit_v_per_s"] = slew
         if self.opts.robust:
             rep.details["robust"] = rq is not None
+            rep.details["robust_mode"] = self.opts.robust_mode
         self.goals.append(rep)
 
-    def _correct(self, name, capsule, choice, plan, points, dt, limits, rq):
+    def _correct(self, name, capsule, choice, plan, points, dt, limits, rq, u_start=None):
         """Re-plan against the nonlinear forward model (acl.schedule.correct); the first plan if unavailable."""
         from acl.schedule.correct import correct_plan
         from acl.schedule.path import PathInfeasible, plan_path
@@ -356,8 +358,9 @@ class _Compiler:
             return plan
 
         def plan_for(p):
-            return plan_path(choice.gains, p, dt, limits, tolerance=self.opts.tolerance_m, lam=self.opts.lam,
-                             slew_model=self.opts.slew_model, refine=self.opts.refine, robust_q=rq)
+            return plan_path(choice.gains, p, dt, limits, tolerance=self.opts.tolerance_m, u_start=u_start,
+                             lam=self.opts.lam, slew_model=self.opts.slew_model, refine=self.opts.refine,
+                             robust_q=rq, robust_mode=self.opts.robust_mode)
 
         try:
             best, history = correct_plan(plan_for, forward, points, plan, self.opts.nonlinear_passes)

@@ -106,14 +106,19 @@ class PathDiagnosis:
 def plan_path(gains: np.ndarray, targets: np.ndarray, dt: float, limits: DriveLimits, *,
               tolerance: float = 0.5 * UM, u_start: np.ndarray | None = None,
               lam: float = 1e-3, slew_model: str = "auto", refine: int = 0,
-              solvers: tuple[str, ...] | None = None, robust_q: np.ndarray | None = None) -> PathPlan:
+              solvers: tuple[str, ...] | None = None, robust_q: np.ndarray | None = None,
+              robust_mode: str = "mean") -> PathPlan:
     """Solve the whole path as one convex program; raise :class:`PathInfeasible` with a diagnosis.
 
     gains (2, K) m/V^2; targets (N, 2) m; dt s between waypoints; u_start (K,) V^2 the power at
     the start (slew from it; default 0); lam the weight of total drive: it biases the tracking error by about lam/2 micrometres.
-    robust_q (K, K) m^2/V^4 adds ``sum_t u_t^T Q u_t / N``: the squared error the declared gain
-    uncertainty adds (:mod:`acl.schedule.robust`).
+    robust_q (K, K) m^2/V^4: the declared gain uncertainty (:mod:`acl.schedule.robust`); robust_mode
+    "mean" adds ``sum_t u_t^T Q u_t / N`` (expected squared error, a QP), "worst" minimises
+    ``sum_t (|e_t| + |R u_t|)^2 / N`` with ``R^T R = Q`` (worst case over the 1-sigma ellipsoid, SOC).
     """
+    if robust_mode not in ("mean", "worst"):
+        raise ValueError(f"unknown robust mode {robust_mode!r}")
+    robust_q = None if robust_q is None else (robust_q, robust_mode)
     import time
 
     G = np.asarray(gains, dtype=float)
@@ -203,7 +208,13 @@ def _build(G, P, dt, limits, tolerance, u_start, lam, slew_model, total_coeffs=N
     if robust is not None:
         from acl.schedule.robust import scaled_factor
 
-        objective = objective + cp.sum_squares(scaled_factor(robust, vmax2) @ X) / N
+        Q, mode = robust
+        R = scaled_factor(Q, vmax2)
+        if mode == "worst":      # worst case over |z| <= 1: |e_t| + |R x_t| per waypoint (second-order cones)
+            objective = (cp.sum_squares(cp.norm(err, 2, axis=0) + cp.norm(R @ X, 2, axis=0)) / N
+                         + lam * gnorm * cp.sum(X) / N)
+        else:                    # expected squared error: |e_t|^2 + x_t^T Q x_t
+            objective = objective + cp.sum_squares(R @ X) / N
     cons = []
     if with_tone:
         cap = (limits.tone_cap(K) ** 2 / vmax2).reshape(K, 1)
