@@ -1,0 +1,222 @@
+"""The hostile corpus (issue 11): odd, malformed and absurd inputs to every command.
+
+Every row of ``tests/hostile/commands.txt`` (and check/show/lint/fmt of every input design in
+``tests/hostile/inputs``) is run through the command line, and must:
+
+* exit with the expected code (2 for usage/IO errors, 1 for design errors, never 0 on bad input);
+* print no Python traceback and no ``E-INTERNAL``;
+* give every error diagnostic a code and a location (``file:line:col``, ``file:row:col`` or
+  ``<--option>``), in text and in JSON output;
+* leave nothing in the output folder ``{O}`` when it fails (no partial output file);
+* finish: rows that could block (FIFOs, devices) run in a subprocess with a timeout, the others
+  in-process under a timer.
+
+Generated inputs (deep nesting, long chains, FIFOs, links, oversized files) are written into a
+temporary folder ``{G}`` at the start of the session.
+"""
+from __future__ import annotations
+
+import io
+import json
+import os
+import re
+import shlex
+import signal
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+HOSTILE = Path(__file__).parent / "hostile"
+INPUTS = HOSTILE / "inputs"
+EXAMPLES = ROOT / "examples"
+DATA = Path(__file__).parent / "data"
+IN_PROCESS_LIMIT_S = 60      # a run in-process longer than this counts as a hang
+SUBPROCESS_LIMIT_S = 60
+
+# -- the table ---------------------------------------------------------------------------------------
+
+
+def _rows() -> list[tuple[str, str, str, str]]:
+    rows = []
+    for n, line in enumerate((HOSTILE / "commands.txt").read_text().splitlines(), 1):
+        if not line.strip() or line.startswith("#"):
+            continue
+        exit_, flags, args = (part.strip() for part in line.split("|", 2))
+        rows.append((f"L{n}", exit_, flags, args))
+    for path in sorted(INPUTS.glob("*.acl")):
+        name = "{H}/" + path.name
+        for cmd in (f"check {name}", f"check --output-format json {name}", f"show {name}",
+                    f"lint {name}", f"lint --output-format json {name}", f"fmt --check {name}"):
+            rows.append((f"{path.stem}:{cmd.split('{')[0].strip()}", "any", "-", cmd))
+    return rows
+
+
+ROWS = _rows()
+
+# -- generated inputs ------------------------------------------------------------------------------------
+
+
+@pytest.fixture(scope="session")
+def generated(tmp_path_factory) -> Path:
+    g = tmp_path_factory.mktemp("hostile")
+    w = lambda name, text: (g / name).write_text(text)
+    os.mkfifo(g / "fifo.acl")
+    os.mkfifo(g / "fifo.csv")
+    os.symlink("/dev/zero", g / "zero.acl")
+    (g / "dir.acl").mkdir()
+    w("too_big.acl", "# padding\n" * 300_000)
+    w("deep_parens.acl", "param p = " + "(" * 50_000 + "1 um" + ")" * 50_000 + "\n")
+    w("deep_braces.acl", "program p {\n" * 5_000)
+    w("deep_minus.acl", "param p = " + "-" * 50_000 + "1 um\n")
+    w("long_sum.acl", "param p = " + " + ".join(["1 um"] * 150) + "\n")
+    w("long_like.acl", "import stdlib.capsules\ncapsule c0 like capsules.design1 { }\n"
+      + "".join(f"capsule c{i} like c{i - 1} {{ }}\n" for i in range(1, 2000)))
+    w("chain0.acl", 'import "chain1.acl" as m\n')
+    w("extends0.acl", 'extends "extends1.acl"\n')
+    for i in range(1, 300):
+        w(f"chain{i}.acl", f'import "chain{i + 1}.acl" as m\n')
+        w(f"extends{i}.acl", f'extends "extends{i + 1}.acl"\nparam p{i} = 1 um\n')
+    w("chain300.acl", "param a = 1 um\n")
+    w("extends300.acl", "param a = 1 um\n")
+    w("wide_imports.acl", "".join(f'import "chain{i}.acl" as m{i}\n' for i in range(1, 300)))
+    w("unclosed_many.acl", "program p {\n" + "  drive 125 kHz @ 2 V for 1 s\n" * 5_000)
+    (g / "linkdir").mkdir()
+    os.symlink("/etc/passwd", g / "linkdir" / "passwd.acl")
+    os.symlink("/", g / "linkdir" / "root")
+    os.mkfifo(g / "linkdir" / "fifo.acl")
+    w("bad.toml", "[lint\nselect = \n")
+    w("bad_values.toml", "[lint]\nselect = 3\nthresholds = 'x'\nseverity = {ACL201 = 'fatal'}\n")
+    w("pyproject.toml", "[tool.acl.lint]\nignore = [1, 2]\nper-file-ignores = 5\n")
+    return g
+
+
+# -- running one command line ------------------------------------------------------------------------------
+
+
+class _Hang(BaseException):
+    pass
+
+
+def _alarm(signum, frame):
+    raise _Hang()
+
+
+def _run_in_process(argv: list[str], stdin: bytes | None, capsys, monkeypatch) -> tuple[int, str, str]:
+    from acl.cli import main
+
+    if stdin is not None:
+        monkeypatch.setattr(sys, "stdin", io.TextIOWrapper(io.BytesIO(stdin), encoding="utf-8"))
+    capsys.readouterr()
+    old = signal.signal(signal.SIGALRM, _alarm)
+    signal.alarm(IN_PROCESS_LIMIT_S)
+    try:
+        code = main(argv)
+    except SystemExit as exc:
+        code = exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 2)
+    except _Hang:
+        pytest.fail(f"acl {shlex.join(argv)} did not finish within {IN_PROCESS_LIMIT_S} s")
+    finally:
+        signal.alarm(0)
+        signal.signal(signal.SIGALRM, old)
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def _run_subprocess(argv: list[str], stdin: bytes | None) -> tuple[int, str, str]:
+    env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    try:
+        p = subprocess.run([sys.executable, "-m", "acl", *argv], input=stdin or b"", capture_output=True,
+                           timeout=SUBPROCESS_LIMIT_S, env=env, cwd=ROOT)
+    except subprocess.TimeoutExpired:
+        pytest.fail(f"acl {shlex.join(argv)} hung (no exit within {SUBPROCESS_LIMIT_S} s)")
+    return p.returncode, p.stdout.decode("utf-8", "replace"), p.stderr.decode("utf-8", "replace")
+
+
+# -- what every run must satisfy -------------------------------------------------------------------------------
+
+_CODED = re.compile(r"^(?P<where>.*?):? ?(?:error|internal error)\[(?P<code>[A-Za-z0-9-]+)\]", re.M)
+_LOCATED = re.compile(r"^(?:.+:\d+:\d+|<[^<>\s]+>)$")
+_ANY_CODE = re.compile(r"\b(?:[EW]\d{3}|[EW]-[A-Z-]+|ACL\d{3})\b")
+_UNCODED_ERROR = re.compile(r"^(?:.*?: )?(?:error|Error|ERROR)\s*:", re.M)
+
+
+def _text_errors(text: str) -> list[tuple[str, str]]:
+    return [(m["where"], m["code"]) for m in _CODED.finditer(text)]
+
+
+def _json_errors(text: str) -> list[dict] | None:
+    try:
+        doc = json.loads(text)
+    except ValueError:
+        return None
+    found = []
+
+    def walk(node):
+        if isinstance(node, dict):
+            if node.get("severity") == "error" and "code" in node:
+                found.append(node)
+            for v in node.values():
+                walk(v)
+        elif isinstance(node, list):
+            for v in node:
+                walk(v)
+
+    walk(doc)
+    return found
+
+
+def _problems(code: int, out: str, err: str, expected: str) -> list[str]:
+    both = out + "\n" + err
+    problems = []
+    if "Traceback (most recent call last)" in both:
+        problems.append("a Python traceback")
+    if "E-INTERNAL" in both:
+        problems.append("E-INTERNAL")
+    allowed = {"0": {0}, "1": {1}, "2": {2}, "nz": {1, 2}, "any": {0, 1, 2}}[expected]
+    if code not in allowed:
+        problems.append(f"exit {code}, expected {expected}")
+    for where, diag_code in _text_errors(both):
+        if not _LOCATED.match(where.strip()):
+            problems.append(f"error[{diag_code}] without a location (printed at {where.strip()!r})")
+    for line in _UNCODED_ERROR.findall(both):
+        problems.append(f"an error without a code: {line!r}")
+    for d in _json_errors(out) or []:
+        if not d.get("code") or d.get("file") is None or d.get("line") is None or d.get("column") is None:
+            if not (d.get("file") or "").startswith("<"):
+                problems.append(f"JSON error without a location: {d}")
+    if code != 0 and not _ANY_CODE.search(both) and "usage:" not in both and "would be reformatted" not in err:
+        problems.append("failed without any coded diagnostic")
+    return problems
+
+
+@pytest.mark.parametrize("row", ROWS, ids=[r[0] for r in ROWS])
+def test_hostile_input(row, generated, tmp_path, capsys, monkeypatch):
+    _, expected, flags, args = row
+    out_dir = tmp_path / "o"
+    out_dir.mkdir()
+    text = (args.replace("{H}", str(INPUTS)).replace("{G}", str(generated)).replace("{O}", str(out_dir))
+            .replace("{EX}", str(EXAMPLES)).replace("{D}", str(DATA)))
+    argv = shlex.split(text)
+    stdin = None
+    for flag in flags.split(","):
+        if flag.startswith("stdin="):
+            stdin = (INPUTS / flag[len("stdin="):]).read_bytes()
+    monkeypatch.chdir(tmp_path)
+    if "sub" in flags.split(","):
+        code, out, err = _run_subprocess(argv, stdin)
+    else:
+        code, out, err = _run_in_process(argv, stdin, capsys, monkeypatch)
+    problems = _problems(code, out, err, expected)
+    if code != 0:
+        left = sorted(p.name for p in out_dir.iterdir())
+        if left:
+            problems.append(f"failed but left output behind: {left}")
+    assert not problems, f"acl {text}\n  " + "\n  ".join(problems) + f"\n--- stdout\n{out[-3000:]}\n--- stderr\n{err[-3000:]}"
+
+
+def test_corpus_size():
+    inputs = list(INPUTS.iterdir())
+    assert len(inputs) >= 70 and len(ROWS) >= 500
