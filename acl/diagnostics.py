@@ -31,8 +31,8 @@ class Span(BaseModel):
     end_line: int | None = None
     end_column: int | None = None
 
-    def __str__(self) -> str:
-        return f"{self.file}:{self.line}:{self.column}"
+    def __str__(self) -> str:   # an empty path (`acl check ""`) is still shown as a location
+        return f"{self.file or '<empty-path>'}:{self.line}:{self.column}"
 
 
 @dataclass(frozen=True)

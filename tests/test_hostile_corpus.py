@@ -24,6 +24,7 @@ import shlex
 import signal
 import subprocess
 import sys
+import warnings
 from pathlib import Path
 
 import pytest
@@ -113,7 +114,11 @@ def _run_in_process(argv: list[str], stdin: bytes | None, capsys, monkeypatch) -
     old = signal.signal(signal.SIGALRM, _alarm)
     signal.alarm(IN_PROCESS_LIMIT_S)
     try:
-        code = main(argv)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            code = main(argv)
+        for w in caught:   # what a user would see on stderr
+            sys.stderr.write(f"{w.filename}:{w.lineno}: {w.category.__name__}: {w.message}\n")
     except SystemExit as exc:
         code = exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 2)
     except _Hang:
@@ -173,6 +178,8 @@ def _problems(code: int, out: str, err: str, expected: str) -> list[str]:
     problems = []
     if "Traceback (most recent call last)" in both:
         problems.append("a Python traceback")
+    if re.search(r"\b\w+Warning: ", err):
+        problems.append("a Python warning printed")
     if "E-INTERNAL" in both:
         problems.append("E-INTERNAL")
     allowed = {"0": {0}, "1": {1}, "2": {2}, "nz": {1, 2}, "any": {0, 1, 2}}[expected]
@@ -220,3 +227,55 @@ def test_hostile_input(row, generated, tmp_path, capsys, monkeypatch):
 def test_corpus_size():
     inputs = list(INPUTS.iterdir())
     assert len(inputs) >= 70 and len(ROWS) >= 500
+
+
+# -- the defects the corpus found, pinned exactly --------------------------------------------------------------
+
+
+@pytest.mark.parametrize("argv, where", [
+    (["check", "--bogus", "x.acl"], "<--bogus>"),
+    (["check"], "<PATH>"),
+    (["check", "-q", "-v", "x.acl"], "<--verbose>"),
+    (["check", "--output-format", "yaml", "x.acl"], "<--output-format>"),
+    (["frobnicate"], "<COMMAND>"),
+    (["fit", "d.acl", "x.csv", "--seed", "-1"], "<--seed>"),
+])
+def test_usage_errors_name_the_option(argv, where, capsys):
+    from acl.cli import main
+
+    with pytest.raises(SystemExit) as exc:
+        main(argv)
+    assert exc.value.code == 2
+    assert capsys.readouterr().err.splitlines()[-1].startswith(f"{where}: error[E-USAGE]: ")
+
+
+def test_an_empty_path_is_still_a_location(capsys):
+    from acl.cli import main
+
+    assert main(["check", ""]) == 2
+    assert capsys.readouterr().err.startswith("<empty-path>:1:1: error[E601]")
+
+
+@pytest.mark.parametrize("gap", ["0um", "1e-300um", "0.1um"])
+def test_orifices_closer_than_the_printable_gap_are_e403(gap):
+    from acl.design.resolve import check_design
+
+    design, diags = check_design(str(EXAMPLES / "fig4_facing_pair.acl"), overrides={"gap": gap})
+    assert design is None
+    assert [(d.code, d.span.line) for d in diags if d.is_error] == [("E403", 30)]
+    assert "bubbles merge" in diags[0].message
+
+
+def test_orifices_at_the_printable_gap_are_fine():
+    from acl.design.resolve import check_design
+
+    assert check_design(str(EXAMPLES / "fig4_facing_pair.acl"), overrides={"gap": "0.3um"})[0] is not None
+
+
+def test_positions_beyond_the_print_volume_are_e414_not_overflow():
+    from acl.design.resolve import check_design
+
+    _, diags = check_design(str(EXAMPLES / "fig4_facing_pair.acl"), overrides={"gap": "1e308 m"})
+    assert sorted((d.code, d.span.line) for d in diags if d.is_error) == [("E414", 26), ("E414", 30)]
+    _, diags = check_design(str(INPUTS / "absurd_geometry.acl"))
+    assert [(d.code, d.span.line) for d in diags if d.is_error] == [("E414", 7), ("E414", 8)]

@@ -60,6 +60,9 @@ def _formats(items: list[str]):
                                     suggest(f, FORMATS) or f"choose from {', '.join(FORMATS)}", "--format"))
             elif f not in out:
                 out.append(f)
+    if not out and not diags:
+        diags.append(_usage("E-COMPILE-FORMAT", f"--format {','.join(items)!r} names no waveform format",
+                            f"choose from {', '.join(FORMATS)}", "--format"))
     return out, diags
 
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 import os
 import sys
 
-from acl.commands._common import add_output_format, exit_code, one_design, plotting_missing, report
+from acl.commands._common import add_output_format, exit_code, one_design, plotting_missing, report, seed
 
 
 def add_parser(p) -> None:
@@ -20,7 +20,7 @@ def add_parser(p) -> None:
                         "DESIGN's folder as <stem>.calibrated.acl (loads without --path)")
     p.add_argument("--effects", default=None, metavar="IDS",
                    help="comma-separated effect ids to consider (default: the whole library; `none` for none)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the cross-validation folds (default 0)")
+    p.add_argument("--seed", type=seed, default=0, help="seed of the cross-validation folds (default 0)")
     add_output_format(p, old=("--json",))
     p.add_argument("--path", action="append", default=[], metavar="DIR", help="extra folder imports may read from")
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 import math
 import re
 
-from acl.commands._common import exit_code, one_design, parse_sets, quantity_text, report
+from acl.commands._common import exit_code, one_design, parse_sets, quantity_text, report, seed
 
 
 def add_parser(p) -> None:
@@ -20,7 +20,7 @@ def add_parser(p) -> None:
                    help="parameter values to sweep (set:P columns), e.g. gap=20um,30um,40um (repeatable)")
     p.add_argument("--repeats", type=int, default=1, help="repeat the whole experiment N times (default 1)")
     p.add_argument("--interval", default="1 s", help="time between rows (default 1 s)")
-    p.add_argument("--seed", type=int, default=0, help="noise seed (default 0)")
+    p.add_argument("--seed", type=seed, default=0, help="noise seed (default 0)")
     p.add_argument("--observe", default="", metavar="NAMES", help="observables to write (default: all declared)")
     p.add_argument("--path", action="append", default=[], metavar="DIR", help="extra folder imports may read from")
 
@@ -121,6 +121,8 @@ def run(args) -> int:
                 return _usage(f"--sweep {item!r}: expected P=V1,V2,...")
             sets[k.strip()] = [quantity_text(v)
                                for v in vals.split(",") if v.strip()]
+            if not k.strip() or not sets[k.strip()]:
+                return _usage(f"--sweep {item!r}: expected P=V1,V2,... with at least one value")
     except (ValueError, UnitError) as exc:
         return _usage(str(exc))
     try:
