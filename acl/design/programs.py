@@ -13,6 +13,8 @@ from acl.units import Quantity, describe
 PATH_SHAPES = ("line", "polyline", "rectangle", "circle", "text", "csv")
 MAX_STEPS = 10_000
 
+MAX_MARGIN = 100.0   # switch/hold/cross margins are ratios (default 1.2); beyond this they only break the solver
+
 
 def build_program(b, design: M.Design, decl: A.ProgramDecl) -> M.Program | None:
     steps = []
@@ -153,6 +155,11 @@ def _step(b, design: M.Design, st):
         if margin < 1:
             b.bag.error("E505", f"switch margin {margin:g} is below 1: the latch would not switch", st.options.margin.span)
             raise _Fail()
+        if margin > MAX_MARGIN:
+            b.bag.error("E505", f"switch margin {margin:g} is above {MAX_MARGIN:g}: no drive within a transducer's range "
+                        "gives it, and the switching program becomes numerically meaningless", st.options.margin.span,
+                        "margins are ratios like 1.2 or 2")
+            raise _Fail()
         return M.SwitchStep(latch=k[1], state=st.state, margin=margin, tones=_using(b, st.options),
                             limits=_limits(b, st.options), span=st.span)
     if isinstance(st, A.HoldS):
@@ -174,6 +181,10 @@ def _step(b, design: M.Design, st):
         margin = b.r.q(st.options.margin, b.env, "", "margin") if st.options.margin is not None else 1.2
         if margin < 1:
             b.bag.error("E505", f"hold margin {margin:g} is below 1: it would not keep clear of snap-in", st.options.margin.span)
+            raise _Fail()
+        if margin > MAX_MARGIN:
+            b.bag.error("E505", f"{'hold' if st.mode == 'above' else 'cross'} margin {margin:g} is above {MAX_MARGIN:g}: "
+                        "the voltage bound it sets is meaningless", st.options.margin.span, "margins are ratios like 1.2 or 2")
             raise _Fail()
         return M.HoldStep(a=x, b=y, mode=st.mode, bound=bound, margin=margin, duration=_dur(b, st.duration, "hold duration"),
                           tones=_using(b, st.options), limits=_limits(b, st.options), span=st.span)
