@@ -10,6 +10,6 @@ from setuptools import find_packages, setup
 setup(
     packages=[*find_packages(include=["acl", "acl.*"]), "acl.stdlib", "acl.docs"],
     package_dir={"acl.stdlib": "stdlib", "acl.docs": "docs"},
-    package_data={"acl": ["syntax/*.lark", "**/*.json"], "acl.stdlib": ["*.acl"], "acl.docs": ["*.md"]},
+    package_data={"acl": ["syntax/*.lark", "**/*.json", "py.typed"], "acl.stdlib": ["*.acl"], "acl.docs": ["*.md"]},
     include_package_data=False,
 )

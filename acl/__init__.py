@@ -1,29 +1,184 @@
 """acl: a language and compiler for acoustically programmable soft micro-mechanisms.
 
-Public API (imports are lazy so that `import acl` stays cheap)::
+Python API (docs/python.md).  Every function imports what it needs when called, so ``import acl``
+stays cheap (no numpy, scipy, cvxpy, matplotlib or pygls)::
 
     import acl
-    design = acl.load("examples/fig2_vertical_cantilever.acl", overrides={"gap": "60 um"})
+    design = acl.load("examples/fig2_vertical_cantilever.acl")
+    report = acl.analyze(design)          # typed, shows as a table in notebooks, report.plot()
+    report.resonance("act")               # Hz
+
+Results (:mod:`acl.notebook`) hold the same data as the commands' JSON outputs (``as_dict()``),
+display as compact HTML tables in notebooks and draw with ``.plot(ax=None)`` without changing the
+matplotlib backend.  Errors in a design raise :class:`acl.diagnostics.DiagnosticError` carrying
+every diagnostic (code, file:line:column, hint).
 """
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 __version__ = "0.1.0"
 
-__all__ = ["load", "loads", "__version__"]
+__all__ = ["load", "loads", "analyze", "compile", "lint", "fit", "__version__"]
+
+if TYPE_CHECKING:  # pragma: no cover
+    from acl.design.model import Design
+    from acl.notebook import Analysis, Compiled, FitReport, LintResult
 
 
-def load(path, overrides=None, search_paths=()):
-    """Parse, resolve and check a design file; return the resolved :class:`acl.design.model.Design`.
+def load(path, overrides=None, search_paths=()) -> "Design":
+    """Parse, resolve and check a design file; return the resolved, immutable design (SI floats).
 
-    Raises :class:`acl.diagnostics.DiagnosticError` with every diagnostic if the design has errors.
+    ``overrides`` maps parameter names to values as written in the language (like ``--set``);
+    ``search_paths`` are extra folders imports may read from (like ``--path``).  Raises
+    :class:`acl.diagnostics.DiagnosticError` with every diagnostic if the design has errors.
+
+    >>> import acl
+    >>> d = acl.load("examples/fig2_vertical_cantilever.acl", overrides={"dwell": "100 ms"})
+    >>> d.capsule("act").orifices[0].radius * 1e6       # SI inside: metres
+    10.0
     """
     from acl.design.resolve import load_design
 
     return load_design(path, overrides=overrides or {}, search_paths=search_paths)
 
 
-def loads(text, filename="<string>", overrides=None, search_paths=()):
-    """Like :func:`load` but from source text."""
+def loads(text, filename="<string>", overrides=None, search_paths=()) -> "Design":
+    """Like :func:`load`, from source text; ``filename`` is used in diagnostics and to find imports.
+
+    >>> import acl
+    >>> d = acl.loads("import stdlib.capsules\\ncapsule c like capsules.design1 { center = (0, 0, 100 um) }\\n")
+    >>> round(d.capsule("c").cavity.volume * 1e18)
+    65090
+    """
     from acl.design.resolve import load_text
 
     return load_text(text, filename=filename, overrides=overrides or {}, search_paths=search_paths)
+
+
+def _design(design, search_paths=()):
+    from acl.design.model import Design
+
+    return design if isinstance(design, Design) else load(design, search_paths=search_paths)
+
+
+def analyze(design, at=None, snap_in=True) -> "Analysis":
+    """Predict modes, selectivity, pair forces, latch margins and `require`s (as `acl analyze --output-format json`).
+
+    ``design``: a :class:`~acl.design.model.Design` or a path.  ``at``: a drive such as
+    ``"125 kHz @ 6 V"`` for the equilibrium under it.  ``snap_in=False`` skips the snap-in voltage
+    sweeps (faster).  Returns an :class:`acl.notebook.Analysis`.
+
+    >>> import acl
+    >>> a = acl.analyze("examples/fig2_vertical_cantilever.acl")
+    >>> round(a.resonance("act") / 1e3)     # kHz; paper Table S1 design 1: 122 kHz
+    123
+    """
+    from acl.analysis.report import analyze as _analyze
+    from acl.notebook import Analysis
+
+    d = _design(design)
+    drive = None
+    if at is not None:
+        from acl.design.drives import drive_from_text
+
+        drive = drive_from_text(at, "<at>") if isinstance(at, str) else at
+    return Analysis.from_report(_analyze(d, drive, snap_in=snap_in))
+
+
+def compile(design, program=None, sample_rate_hz=None, ramp_s=1e-3, tolerance_m=0.5e-6, calibration=None) -> "Compiled":  # noqa: A001
+    """Compile a program of ``design`` into a drive schedule (as `acl compile`, without writing files).
+
+    ``program`` may be omitted when the design has one.  ``calibration``: path of a measured sweep
+    CSV (like ``--calibration``).  Raises :class:`acl.diagnostics.DiagnosticError` when the
+    program cannot be compiled.  Returns an :class:`acl.notebook.Compiled`.
+
+    >>> import acl
+    >>> s = acl.compile("examples/fig2_vertical_cantilever.acl", "ramp")
+    >>> round(s.duration_s, 3), len(s.segments)
+    (3.4, 9)
+    """
+    from acl.diagnostics import DiagnosticError, Span, error, suggest
+    from acl.notebook import Compiled
+    from acl.schedule.compile import CompileOptions, compile_program
+
+    d = _design(design)
+    names = [p.name for p in d.programs]
+    where = Span(file=d.file, line=1, column=1)
+    if program is None:
+        if len(names) != 1:
+            raise DiagnosticError([error("E-COMPILE-PROGRAM", f"the design has {len(names)} programs; choose one",
+                                         where, "programs: " + (", ".join(names) or "none"))])
+        program = names[0]
+    if program not in names:
+        raise DiagnosticError([error("E-COMPILE-PROGRAM", f"no program named {program!r}", where,
+                                     suggest(program, names) or "programs: " + (", ".join(names) or "none"))])
+    cal = None
+    if calibration is not None:
+        from acl.schedule.calibration import read_sweep_csv
+
+        cal = read_sweep_csv(str(calibration))
+    opts = CompileOptions(sample_rate_hz=sample_rate_hz, ramp_s=ramp_s, tolerance_m=tolerance_m, calibration=cal)
+    return Compiled.from_schedule(compile_program(d, program, opts))
+
+
+def _lint(path, select=None, ignore=None, config=None) -> "LintResult":
+    """Run the design rules on a file (as `acl lint --output-format json PATH`).
+
+    ``select``/``ignore``: rule codes or prefixes; ``config``: a configuration file (default: the
+    nearest acl.toml or pyproject.toml).  Returns an :class:`acl.notebook.LintResult`.
+
+    >>> import acl
+    >>> acl.lint("examples/fig2_vertical_cantilever.acl").ok
+    True
+    """
+    import io
+    import json
+
+    from acl.lint import find_config, lint_file, load_config, load_rules
+    from acl.lint.formats import rule_name, write_json
+    from acl.lint.registry import match_codes
+    from acl.notebook import Finding, LintResult
+
+    path = str(getattr(path, "file", path))
+    rules = load_rules()
+    cfg = load_config(str(config) if config else find_config(path), rules)
+    if select:
+        cfg.select = tuple(c for p in select for c in match_codes(p, rules))
+    if ignore:
+        cfg.ignore = tuple(dict.fromkeys(tuple(cfg.ignore) + tuple(c for p in ignore for c in match_codes(p, rules))))
+    rep = lint_file(path, cfg)
+    buf = io.StringIO()
+    write_json([rep], buf)
+    findings = [Finding(d.code, rule_name(d.code), d.severity.value, d.message, d.span.file if d.span else None,
+                        d.span.line if d.span else None, d.span.column if d.span else None, d.hint)
+                for d in rep.findings]
+    return LintResult(path, findings, list(rep.notes), json.loads(buf.getvalue()))
+
+
+def _fit(design, data, free=(), effects=None, seed=0, search_paths=()) -> "FitReport":
+    """Fit the model to measured data and search for missing effects (as `acl fit --output-format json`).
+
+    ``design``: path of the design; ``data``: a CSV path or a list of them (docs/data.md);
+    ``free``: names to fit besides the design's `free` params (gamma, alpha, E, gain, params);
+    ``effects``: effect ids to consider (None: the whole library).  Writes nothing; the calibrated
+    design's text is ``result.calibrated_source``.  Returns an :class:`acl.notebook.FitReport`.
+
+    >>> import acl
+    >>> r = acl.fit("tests/data/fit_cantilever.acl", "fit_data.csv", free=["gamma"], effects=[])  # doctest: +SKIP
+    >>> r.rmse_after < r.rmse_before                                                              # doctest: +SKIP
+    True
+    """
+    from acl.fit import run_fit
+    from acl.notebook import FitReport
+
+    paths = [str(data)] if isinstance(data, (str, bytes)) or hasattr(data, "__fspath__") else [str(p) for p in data]
+    out = run_fit(str(getattr(design, "file", design)), paths, free=list(free), search_paths=search_paths,
+                  candidates=None if effects is None else list(effects), seed=seed)
+    return FitReport.from_outcome(out)
+
+
+# `acl.lint` and `acl.fit` are also subpackages: once imported they replace these attributes with
+# modules that are callable with the same arguments (acl/_callable.py), so both spellings work.
+lint = _lint
+fit = _fit

@@ -26,7 +26,7 @@ COMMANDS = {
 EPILOG = """\
 examples:
   acl check examples/fig2_vertical_cantilever.acl
-  acl show examples/fig3_three_orifice.acl --json
+  acl show examples/fig3_three_orifice.acl --output-format json
   acl analyze examples/fig4h_unequal_pair.acl --at "85 kHz @ 5 V"
   acl compile examples/fig3_three_orifice.acl --program rectangle -o out/
   acl lint examples/ --output-format github

@@ -90,15 +90,20 @@ class DiagnosticBag:
     """Collects diagnostics during one stage so that every independent error is reported."""
 
     items: list[Diagnostic] = field(default_factory=list)
+    _seen: set = field(default_factory=set, repr=False, compare=False)
 
     def add(self, d: Diagnostic) -> None:
-        self.items.append(d)
+        """Record a diagnostic once: the same finding at the same place reached twice is one."""
+        key = (d.code, d.span, d.message)
+        if key not in self._seen:
+            self._seen.add(key)
+            self.items.append(d)
 
     def error(self, code: str, message: str, span: Span | None = None, hint: str | None = None) -> None:
-        self.items.append(error(code, message, span, hint))
+        self.add(error(code, message, span, hint))
 
     def warning(self, code: str, message: str, span: Span | None = None, hint: str | None = None) -> None:
-        self.items.append(warning(code, message, span, hint))
+        self.add(warning(code, message, span, hint))
 
     @property
     def has_errors(self) -> bool:

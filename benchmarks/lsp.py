@@ -68,8 +68,12 @@ def main() -> int:
             debounce = 50.0
         finally:
             client.close()
+    import os
+
+    load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
     print(f"acl lsp: didChange -> publishDiagnostics on a {n_lines}-line design ({args.runs} runs after "
-          f"{args.warmup} warm-up, debounce {debounce:.0f} ms included{', lint worker on' if args.lint else ''}):")
+          f"{args.warmup} warm-up, debounce {debounce:.0f} ms included{', lint worker on' if args.lint else ''}; "
+          f"load average {load:.1f} on {os.cpu_count()} CPUs):")
     for case, times in results.items():
         med = statistics.median(times)
         print(f"  {case}: median {med:.1f} ms, min {min(times):.1f} ms, max {max(times):.1f} ms "

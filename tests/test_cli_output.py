@@ -104,11 +104,17 @@ def test_lint_output_formats_include_text_as_full():
 
 # -- -q / -v on every command -----------------------------------------------------------------------
 
-@pytest.mark.parametrize("command", ["check", "show", "analyze", "compile", "lint", "fit", "synth", "rule"])
+def _commands():
+    from acl.cli import COMMANDS
+
+    return list(COMMANDS)
+
+
+@pytest.mark.parametrize("command", _commands())
 def test_every_command_takes_quiet_and_verbose(command):
     from acl.cli import build_parser
 
-    parser = build_parser()
+    parser = build_parser([command])          # builds the named command in full
     sub = next(a for a in parser._actions if a.dest == "command").choices[command]
     for flag in ("-q", "--quiet", "-v", "--verbose"):
         assert flag in sub._option_string_actions, (command, flag)
@@ -232,3 +238,13 @@ def test_outputs_respect_the_umask(tmp_path, mask):
     for path, mode in modes.items():
         want = (0o777 if os.path.isdir(path) else 0o666) & ~mask
         assert mode == want, f"{path}: {oct(mode)}, umask {oct(mask)} gives {oct(want)}"
+
+
+@pytest.mark.parametrize("command", ["check", "show", "analyze", "compile", "lint", "fit", "synth", "rule"])
+def test_every_command_with_machine_output_spells_it_output_format(command):
+    from acl.cli import build_parser
+
+    parser = build_parser([command])
+    sub = next(a for a in parser._actions if a.dest == "command").choices[command]
+    action = sub._option_string_actions["--output-format"]
+    assert {"text", "json"} <= set(action.choices) or command == "lint" and {"full", "json"} <= set(action.choices)

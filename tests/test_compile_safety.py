@@ -105,7 +105,9 @@ def test_fig6e_switch_with_automatic_tones_is_feasible_and_as_cheap_as_the_pinne
     # before: "raise the max voltage above 100 V" (65 candidates, each capped at 100 V / sqrt(65))
     free = compile_program(acl.loads(auto, filename=str(EXAMPLES / "auto.acl")), "forth")
     (p,) = pinned.segments[0].tones
-    assert p.amplitude_v == pytest.approx(27.0, abs=0.5)
+    # issue 11 measured 27 V with uncoupled bubbles; the coupled model (issue 10: the latch capsules hear
+    # each other and the substrate's image) needs about 30 V: a regression value of this model, not the paper
+    assert p.amplitude_v == pytest.approx(29.9, abs=0.5)
     assert sum(t.amplitude_v for t in free.segments[0].tones) <= p.amplitude_v * (1 + 1e-6)
     assert free.goals[0].details["margin"] >= 1.2 * (1 - 1e-6)
 

@@ -63,7 +63,9 @@ def test_reader_refuses_a_fifo_itself(tmp_path):
     ("deflection,1.2,um,125 kHz @ 3 V,0,1e308,50 um", 35, "E806", "beyond 1 m"),
     ("deflection,1.2,um,1e308 kHz @ 3 V,0,0.2,50 um", 19, "E501", "outside the band"),
     ("deflection,1.2,um,125 kHz @ 3 V,1e300,0.2,50 um", 33, "E806", "time"),
-], ids=["above-band", "above-max-voltage", "value-1e308-um", "sigma-1e308", "drive-1e308-kHz", "time-1e300"])
+    ("deflection,1.2,um,125 kHz @ 3 V,0,0.2,1e308 um", 1, "E805", "does not resolve"),
+], ids=["above-band", "above-max-voltage", "value-1e308-um", "sigma-1e308", "drive-1e308-kHz", "time-1e300",
+        "set-1e308-um"])
 def test_out_of_range_cells_are_located_diagnostics_without_numpy_warnings(tmp_path, capsys, row, column, code, words):
     code_, err, path = _fit(capsys, tmp_path, HEADER + GOOD + row + "\n")
     assert code_ == 1 and f"{path}:3:{column}" in err and code in err and words in err, err
@@ -112,6 +114,12 @@ def test_planted_effect_changes_the_data_and_is_announced(tmp_path, capsys):
     rc, err, out = _synth(capsys, tmp_path, "--voltages", "0V..8V:5", "--effect", "drive_saturation=v_sat:6V")
     assert rc == 0 and "planted drive_saturation: v_sat = 6" in err
     assert out.read_text() != base
+    import json
+
+    assert main(["synth", CANTILEVER, "-o", str(out), "--voltages", "0V..8V:5", "--effect", "drive_saturation=v_sat:6V",
+                 "--output-format", "json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc == {"output": str(out), "rows": 5, "planted": {"drive_saturation": {"v_sat": 6.0}}}
 
 
 def test_fit_warns_when_nothing_is_free(tmp_path, capsys):
@@ -122,4 +130,6 @@ def test_fit_warns_when_nothing_is_free(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "W810" in err and "nothing is free" in err
     assert main(["fit", CANTILEVER, str(data), "--effects", "none", "--free", "gamma"]) == 0
-    assert "W810" not in capsys.readouterr().err
+    out, err = capsys.readouterr()
+    assert "W810" not in err
+    assert "…" not in out and "gamma" in out             # the fit tables are whole when piped (not cut at 80)

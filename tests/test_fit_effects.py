@@ -25,12 +25,16 @@ RAMPS = Experiment(frequencies=(110e3, 125e3, 140e3), voltages=tuple(np.linspace
 GEOMETRY = Experiment(frequencies=(125e3,), voltages=tuple(np.linspace(0, 8, 9)),
                       sets={"length": ["35 um", "50 um", "65 um"], "pedestal": ["0 um", "30 um", "60 um"]})
 
+# a sweep of five frequencies: identifies the shape of the transducer gain (a broad resonance)
+SWEEP = Experiment(frequencies=(105e3, 115e3, 125e3, 135e3, 145e3), voltages=tuple(np.linspace(0, 10, 11)), repeats=2)
+
 CASES = [
     ("transducer_gain", {"gain_slope": 1.5}, RAMPS, ["gamma"]),
+    ("transducer_resonance", {"inv_f_ratio": 1 / 1.02, "gain_q": 2.0}, SWEEP, ["gamma"]),
     ("drive_saturation", {"v_sat": 6.0}, RAMPS, ["gamma"]),
     ("large_deflection", {"elastica_weight": 1.0}, RAMPS, ["gamma"]),
     ("offset_drift", {"offset": 0.5e-6, "drift": 0.01e-6}, RAMPS, ["gamma"]),
-    ("bubble_shrinkage", {"shrink_rate": 0.004}, RAMPS, ["gamma"]),
+    ("bubble_shrinkage", {"shrink_rate": 0.01}, RAMPS, ["gamma"]),
     ("neighbour_drag", {"plateau": 8e-6}, RAMPS, ["gamma"]),
     ("stiffness_gradient", {"e_gradient": 1.0}, GEOMETRY, ["gamma"]),
     ("substrate_proximity", {"h_substrate": 40e-6}, GEOMETRY, ["gamma"]),

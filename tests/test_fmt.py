@@ -68,9 +68,10 @@ def resolved(text: str, name: str):
 
 
 def _comments(text: str) -> list[str]:
+    """Every comment's words (the formatter may put a space after the `#`)."""
     from acl.fmt.tokens import tokenize
 
-    return sorted(t.text.rstrip() for t in tokenize(text) if t.type == "COMMENT")
+    return sorted(t.text[1:].strip() for t in tokenize(text) if t.type == "COMMENT")
 
 
 # ---- the corpus --------------------------------------------------------------------------------
@@ -109,6 +110,14 @@ def test_examples_and_stdlib_are_formatted():
     r = subprocess.run([sys.executable, "-m", "acl", "fmt", "--check", "examples", "stdlib"], cwd=ROOT,
                        capture_output=True, text=True, timeout=300, env=_env())
     assert r.returncode == 0, r.stdout[-3000:] + r.stderr[-2000:]
+
+
+def test_acl_blocks_in_the_docs_are_formatted():
+    blocks = [(doc.name, b) for doc in sorted((ROOT / "docs").glob("*.md")) + [ROOT / "README.md"]
+              for b in re.findall(r"```acl\n(.*?)```", doc.read_text(encoding="utf-8"), re.S)]
+    assert blocks
+    for name, block in blocks:
+        assert format_source(block, name) == block, name
 
 
 # ---- hypothesis: mutants of the examples -----------------------------------------------------
@@ -150,6 +159,40 @@ def test_mutants_format_stably_and_keep_their_meaning(source, data):
     assert _comments(once) == _comments(mutant)
 
 
+def _offsets(text: str):
+    from acl.fmt.tokens import tokenize
+
+    starts = [0] + [m.end() for m in re.finditer("\n", text)]
+    return [(starts[t.line - 1] + t.column - 1, t) for t in tokenize(text) if t.type not in ("NL", "CONT")]
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(st.sampled_from(SOURCES), st.data())
+def test_the_layout_does_not_depend_on_spaces_indentation_or_extra_blank_lines(source, data):
+    """One canonical layout: extra spaces and tabs between tokens, any indentation, trailing
+    whitespace and extra blank lines where there is one already all format to the same text."""
+    path, text = source
+    out, pos = [], 0
+    pad = st.text(st.sampled_from(" \t"), max_size=3)
+    for start, t in _offsets(text):
+        gap = text[pos:start]
+        if "\n" in gap:
+            lines = gap.split("\n")
+            lines = [ln + data.draw(pad, label="trailing") if not ln.lstrip().startswith("#") else ln
+                     for ln in lines[:-1]] + [data.draw(pad, label="indent")]
+            gap = "\n".join(lines)
+            if gap.count("\n") >= 2:
+                gap = "\n" * data.draw(st.integers(0, 2), label="blank lines") + gap
+        elif pos > 0:
+            gap += data.draw(pad, label="spaces")
+        out.append(gap)
+        out.append(text[start:start + len(t.text)])
+        pos = start + len(t.text)
+    out.append(text[pos:])
+    perturbed = "".join(out)
+    assert format_source(perturbed, path) == format_source(text, path)
+
+
 # ---- the layout rules ------------------------------------------------------------------------
 
 @pytest.mark.parametrize("before, after", [
@@ -160,6 +203,7 @@ def test_mutants_format_stably_and_keep_their_meaning(source, data):
     ("param y = -( x )\n", "param y = -(x)\n"),
     ("param w = a -x\n", "param w = a - x\n"),
     ("param d = 2.1e-5   m^2/s\n", "param d = 2.1e-5 m^2/s\n"),
+    ("param e=2e-5*4.9E-1/2.0e1um\n", "param e = 2e-5 * 4.9E-1 / 2.0e1 um\n"),
     ("beam b like beams.cantilever50{clamp=(0,0,0)}\n", "beam b like beams.cantilever50 { clamp = (0, 0, 0) }\n"),
     ("capsule c {}\n", "capsule c { }\n"),
     ("require resonance( c ,mode=1 ) in 75kHz..95kHz\n", "require resonance(c, mode = 1) in 75 kHz .. 95 kHz\n"),
@@ -194,8 +238,18 @@ def test_wrapped_brackets_line_up_or_hang():
                                   "  band = [\n    40 kHz,\n    200 kHz\n  ]\n}\n")
 
 
+def test_comments_get_a_space_after_the_hash():
+    src = "#note\n##  banner\n#!keep\nparam a = 1 #acl: ignore[ACL601] unused\n"
+    assert format_source(src) == "# note\n##  banner\n#!keep\nparam a = 1  # acl: ignore[ACL601] unused\n"
+
+
 def test_backslash_continuations_are_kept():
     assert format_source("param a = 1 +   \\\n 2\n") == "param a = 1 + \\\n    2\n"
+
+
+def test_a_backslash_before_an_empty_line_is_dropped():
+    """`\\` joins its line to an empty one, whose newline ends the statement: the `}` stays on its line."""
+    assert format_source("program p {\n  pause 1 s \\\n\n}\n") == "program p {\n  pause 1 s\n}\n"
 
 
 def test_crlf_and_missing_final_newline_are_normalised():
@@ -295,6 +349,13 @@ def test_fmt_keeps_the_file_mode(tmp_path):
     f.chmod(0o640)
     assert acl_fmt("a.acl", cwd=tmp_path).returncode == 0
     assert f.stat().st_mode & 0o777 == 0o640
+
+
+def test_fmt_rewrites_the_target_of_a_symbolic_link(tmp_path):
+    (tmp_path / "real.acl").write_text(UGLY)
+    (tmp_path / "link.acl").symlink_to("real.acl")
+    assert acl_fmt("link.acl", cwd=tmp_path).returncode == 0
+    assert (tmp_path / "link.acl").is_symlink() and (tmp_path / "real.acl").read_text() == PRETTY
 
 
 def test_fmt_imports_no_heavy_module():

@@ -31,11 +31,12 @@ VSCODE = ROOT / "editors" / "vscode"
 GRAMMAR = json.loads((VSCODE / "syntaxes" / "acl.tmLanguage.json").read_text(encoding="utf-8"))
 SOURCES = sorted((ROOT / "examples").glob("*.acl")) + sorted((ROOT / "stdlib").glob("*.acl"))
 
-# Every lexical class once, including scientific notation with and without a unit.
+# Every lexical class and every statement and step of the grammar (it parses; it need not resolve).
 SAMPLE = '''# a sample: every class once
 import stdlib.media
 import "lib/parts.acl" as parts
 param d = 2.1e-5 m^2/s free in 1e-6 m^2/s .. 1.5e-4 m^2/s
+param e = 2e-5 * 4.9E-1 / 2.0e1 um
 param k = 0.7563 nN/um  # acl: ignore[ACL601] unused on purpose
 param x = 5 inch
 capsule c like parts.c1 { orifice jet { radius = 10 um, normal = -x }, q = 40 }
@@ -46,6 +47,21 @@ program switch {
   follow c along text("EPFL", height = 6 um) in 12 s, limit 20 V
   switch l to b, margin 1.2
   sweep 40 kHz to 160 kHz @ 5 V in 4 s log
+}
+extends "base.acl"
+anchor post { at = (0, 0, 0) }
+effect drag { kind = "added_mass", factor = 1.5 }
+mount c on l.shuttle
+fix c
+link c to c with t
+require gap(c.jet, c.jet) > 10 um
+require resonance(c) < 200 kHz
+program more {
+  drive 85 kHz @ 2 V phase 90 deg + 170 kHz @ 1 V for 1 s, limit 5 V
+  follow c along circle(radius = 3 um) at 10 um/s, slew 100 V/s, using [85 kHz, 125 kHz]
+  hold gap(c.jet, c.jet) above 10 um for 1 s, margin 1.5
+  cross gap(c.jet, c.jet) for 500 ms
+  pause 500 ms
 }
 '''
 _NUMBER = re.compile(r"(\d+\.\d+|\d+\.(?!\.)|\.\d+|\d+)([eE][+-]?\d+)?")
@@ -118,6 +134,12 @@ def test_pygments_lexer_classes_every_token_of_the_file_as_the_parser_reads_it(p
     check_pygments(path.read_text(encoding="utf-8"))
 
 
+def test_the_sample_parses():
+    from acl.syntax.parser import parse_module
+
+    parse_module(SAMPLE)
+
+
 def test_pygments_sample_covers_every_class():
     check_pygments(SAMPLE)
     per_char = pygments_classes(SAMPLE)
@@ -125,6 +147,7 @@ def test_pygments_sample_covers_every_class():
     def cls_of(word, nth=0):
         i = [m.start() for m in re.finditer(rf"(?<![\w.]){re.escape(word)}(?![\w])", SAMPLE)][nth]
         return {per_char[j] for j in range(i, i + len(word))}
+    assert cls_of("2e-5") == cls_of("4.9E-1") == {Number.Float}   # one number each, as the parser reads them
     assert cls_of("2.1e-5") == {Number.Float} and cls_of("m^2/s") == {Keyword.Type}
     assert cls_of("inch") == {Keyword.Type} and cls_of("in", 0) == {Keyword}   # `free in`
     assert cls_of("# acl: ignore[ACL601] unused on purpose") == {Comment.Special}
@@ -228,6 +251,7 @@ def test_textmate_sample_covers_every_class(engine):
         i = [m.start() for m in re.finditer(rf"(?<![\w.]){re.escape(word)}(?![\w])", SAMPLE)][nth]
         return {chars[j][1][-1] for j in range(i, i + len(word))}
     assert scopes_of("m^2/s") == {"keyword.other.unit.acl"}
+    assert scopes_of("2e-5") == scopes_of("4.9E-1") == {"constant.numeric.float.acl"}
     assert scopes_of("inch") == {"keyword.other.unit.acl"} and scopes_of("in", 0) == {"keyword.other.acl"}
     assert scopes_of("ACL601") == {"constant.other.rule-code.acl"}
     assert scopes_of("switch", 0) == {"entity.name.function.program.acl"}
@@ -308,3 +332,24 @@ def test_vscode_extension_script_is_valid_javascript():
         pytest.skip("node is not installed")
     r = subprocess.run([node, "--check", str(VSCODE / "extension.js")], capture_output=True, text=True, timeout=60)
     assert r.returncode == 0, r.stderr
+
+
+# ---- acl show ----------------------------------------------------------------------------------
+
+def test_acl_show_colours_source_lines_on_a_terminal_only():
+    import io
+
+    from rich.console import Console
+
+    import acl
+    from acl.commands.show import design_tree
+
+    tree = design_tree(acl.load(str(ROOT / "examples" / "fig1f_selective_beams.acl")))
+    term = io.StringIO()
+    Console(file=term, force_terminal=True, color_system="256", width=200).print(tree)
+    line = next(x for x in term.getvalue().splitlines() if "separation" in x)
+    assert re.search(r"\x1b\[[0-9;]*mrequire\x1b\[0m", line) and re.search(r"\x1b\[[0-9;]*mkHz\x1b\[0m", line)
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]))
+    r = subprocess.run([sys.executable, "-m", "acl", "show", "examples/fig1f_selective_beams.acl"], cwd=ROOT,
+                       capture_output=True, text=True, env=env, timeout=120)
+    assert "require separation(low, high) >= 50 kHz" in r.stdout and "\x1b[" not in r.stdout

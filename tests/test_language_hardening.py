@@ -281,3 +281,78 @@ def test_check_json_names_the_stdin_file():
     r = _acl("check", "-", "--stdin-filename", "buffer.acl", "--format", "json", stdin="param x = 1 V + 1 um\n")
     doc = json.loads(r.stdout)
     assert doc["files"] == ["buffer.acl"] and doc["diagnostics"][0]["file"] == "buffer.acl"
+
+
+# ------------------------------------------------------------------------------ diagnostics: the root cause, once
+BAD = ROOT / "tests" / "bad"
+
+
+def _errors(name: str, **kw):
+    _, diags = check_design(str(BAD / name), **kw)
+    return [d for d in diags if d.is_error]
+
+
+@pytest.mark.parametrize("name, code", [
+    ("diag_mount_unknown_target_once.acl", "E201"),   # was 7: + E204 needs a center, 5 x E509 not on a beam tip
+    ("diag_unknown_unit_once.acl", "E302"),           # was 3 x E302 (+ cascaded E204 on the capsule)
+    ("diag_direction_without_sign.acl", "E201"),
+    ("diag_stdlib_without_import.acl", "E201"),       # was + E204 "has no cavity" from the failed `like`
+])
+def test_one_root_cause_is_one_error(name, code):
+    assert [d.code for d in _errors(name)] == [code]
+
+
+@pytest.mark.parametrize("name, hint", [
+    ("diag_direction_without_sign.acl", "did you mean `+x`"),
+    ("diag_stdlib_without_import.acl", "add `import stdlib.capsules`"),
+    ("syntax_wait_for_pause.acl", "did you mean `pause`?"),
+    ("syntax_to_for_range.acl", "`lo .. hi`"),
+    ("diag_unknown_unit_once.acl", "MPa"),
+])
+def test_hint_names_the_fix(name, hint):
+    (d,) = _errors(name)
+    assert hint in d.hint
+
+
+def test_the_same_diagnostic_reached_twice_is_recorded_once():
+    from acl.diagnostics import DiagnosticBag, Span
+
+    bag = DiagnosticBag()
+    for _ in range(3):
+        bag.error("E302", "unknown unit `Mpa`", Span(file="a.acl", line=1, column=2))
+    bag.error("E302", "unknown unit `Mpa`", Span(file="a.acl", line=2, column=2))
+    assert len(bag.items) == 2
+
+
+# ------------------------------------------------------------------------------ the grammar cache is private
+@pytest.mark.skipif(not hasattr(os, "getuid"), reason="POSIX ownership")
+def test_grammar_cache_is_never_read_from_a_folder_others_can_write(tmp_path, monkeypatch):
+    """lark's cache is a pickle (loading it runs code): a cache folder or file that another user
+    could write is not used."""
+    from acl.syntax import parser as P
+
+    shared = tmp_path / "shared"
+    shared.mkdir()
+    shared.chmod(0o777)
+    monkeypatch.setenv("ACL_CACHE_DIR", str(shared))
+    import tempfile
+
+    monkeypatch.setattr(tempfile, "gettempdir", lambda: str(tmp_path / "t"))
+    path = P._cache_path("grammar text")
+    assert path is False or not str(path).startswith(str(shared))
+    own = tmp_path / "own"
+    monkeypatch.setenv("ACL_CACHE_DIR", str(own))
+    path = P._cache_path("grammar text")
+    assert str(path).startswith(str(own)) and (own.stat().st_mode & 0o077) == 0
+    Path(path).write_bytes(b"planted")
+    Path(path).chmod(0o666)
+    assert P._cache_path("grammar text") != path
+
+
+def test_too_deep_drive_cell_is_placed_in_its_cell():
+    from acl.syntax.parser import parse_drive
+
+    with pytest.raises(DiagnosticError) as info:
+        parse_drive("125 kHz @ (" + "-" * 300 + "1 V)", "data.csv", line=3, column=5)
+    (d,) = info.value.diagnostics
+    assert (d.code, d.span.file, d.span.line) == ("E104", "data.csv", 3) and d.span.column > 5

@@ -177,16 +177,19 @@ def test_acl201_quiet_when_the_program_means_to_cross(tmp_path):
     assert "ACL201" not in codes(lint(tmp_path, text))
 
 
+# An unequal facing pair (Table S1 designs 2 and 1, resonances ~84 and ~122 kHz) 67 um apart: the
+# relative phase crosses 90 deg between the resonances (paper Fig. 4f-g), so with the predicted damping
+# the coupled model attracts at 80 kHz (Bjerknes 0.22 x thrust) and repels at 100 kHz (0.6 x thrust).
 UNEQUAL = HEAD + """\
 use transducer transducers.contact_piezo
 beam big_arm like beams.cantilever50 { clamp = (0, 0, 0) }
-beam small_arm like beams.cantilever50 { clamp = (86.5 um, 0, 0) }
-capsule big like capsules.large25 { q = 40 }
-capsule small like capsules.small17 { q = 40, orifice jet { radius = 10 um, normal = -x } }
+beam small_arm like beams.cantilever50 { clamp = (120 um, 0, 0) }
+capsule big like capsules.design2 { }
+capsule small like capsules.design1 { orifice jet { radius = 10 um, normal = -x } }
 mount big on big_arm.tip
 mount small on small_arm.tip
 program p {  SUPPRESS
-  drive 85 kHz @ 1 V for 1 s
+  drive 80 kHz @ 1 V for 1 s
   drive LAST @ 1 V for 1 s
 }
 """
@@ -207,12 +210,12 @@ program p {
 
 
 def test_acl202_fires_when_the_force_changes_sign_in_the_program_range(tmp_path):
-    r = lint(tmp_path, UNEQUAL.replace("SUPPRESS", "").replace("LAST", "125 kHz"))   # paper Fig. 4h
+    r = lint(tmp_path, UNEQUAL.replace("SUPPRESS", "").replace("LAST", "100 kHz"))   # paper Fig. 4f-g
     assert "ACL202" in codes(r)
 
 
 def test_acl202_quiet_for_a_single_frequency_program(tmp_path):
-    assert "ACL202" not in codes(lint(tmp_path, UNEQUAL.replace("SUPPRESS", "").replace("LAST", "85 kHz")))
+    assert "ACL202" not in codes(lint(tmp_path, UNEQUAL.replace("SUPPRESS", "").replace("LAST", "80 kHz")))
 
 
 def test_acl202_quiet_when_the_force_is_negligible_next_to_the_thrust(tmp_path):
@@ -220,7 +223,7 @@ def test_acl202_quiet_when_the_force_is_negligible_next_to_the_thrust(tmp_path):
 
 
 def test_acl202_is_accepted_with_a_justified_suppression_on_the_program(tmp_path):
-    text = UNEQUAL.replace("SUPPRESS", "# acl: ignore[ACL202] reversal is the point").replace("LAST", "125 kHz")
+    text = UNEQUAL.replace("SUPPRESS", "# acl: ignore[ACL202] reversal is the point").replace("LAST", "100 kHz")
     r = lint(tmp_path, text)
     assert not codes(r) & {"ACL202", "ACL900", "ACL901"}
 

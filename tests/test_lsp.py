@@ -78,7 +78,7 @@ def test_diagnostics_are_those_of_acl_check(client, tmp_path):
     bad += "beam b2 like beams.cantilever50 { clamp = (0, 0, 0), lenght = 40 um }\n"
     path = tmp_path / "bad.acl"
     u, pub = _open(client, path, bad)
-    proc = subprocess.run([sys.executable, "-m", "acl", "check", "--format", "json", str(path)],
+    proc = subprocess.run([sys.executable, "-m", "acl", "check", "--output-format", "json", str(path)],
                           capture_output=True, text=True, cwd=ROOT, env={"PYTHONPATH": str(ROOT), "PATH": ""})
     cli = json.loads(proc.stdout)["diagnostics"]
     assert len(cli) >= 3
@@ -242,12 +242,14 @@ def test_document_symbols_outline(client, tmp_path):
 
 def test_code_actions_fix_every_did_you_mean(client, tmp_path):
     bad = DESIGN.replace("capsules.design2", "capsules.desing2").replace("use medium", "use meduim")
+    bad = bad.replace("drive 125 kHz", "drive 125 khz")
     bad = bad.replace("program ramp", "capsule c5 { center = (0, 300 um, 100 um), cavity cylinder { radius = 25 um, height = 33 um }, "
                       "orifice jet { raduis = 10 um } }\nprogram ramp")
     path = tmp_path / "fix.acl"
     u, pub = _open(client, path, bad)
     hinted = [d for d in pub["diagnostics"] if "did you mean" in d["message"]]
-    assert len(hinted) >= 3, pub["diagnostics"]
+    assert len(hinted) >= 4, pub["diagnostics"]
+    assert {"E201", "E302"} <= {d["code"] for d in hinted}
     text = bad
     for d in hinted:
         acts = client.request("textDocument/codeAction", {"textDocument": {"uri": u}, "range": d["range"],
@@ -314,9 +316,120 @@ def test_incremental_parse_equals_whole_file_parse():
             assert got is None, f      # a file with syntax errors always takes the whole-file path
             continue
         assert got == want, f
+    # a broken statement: parse() refuses, parse_partial() keeps every other statement
+    broken = DESIGN.replace("fix c3", "fix c3 (")
+    assert IncrementalParser().parse(broken, "b.acl") is None
+    part = IncrementalParser().parse_partial(broken, "b.acl")
+    whole = parse_module(DESIGN, "b.acl").statements
+    assert len(part.statements) == len(whole) - 1
     # edits through one parser (cached statements reused) still give the whole-file tree
     p = IncrementalParser()
     text = DESIGN
     for old, new in (("300 ms", "250 ms"), ("fix c3", "fix c3\nparam extra = 2 um"), ("c2", "c22"), ("{ }", "{\n}")):
         text = text.replace(old, new)
         assert p.parse(text, "d.acl") == parse_module(text, "d.acl"), (old, new)
+
+
+def _apply(text: str, edits: list[dict]) -> str:
+    lines = text.split("\n")
+    offsets = [0]
+    for ln in lines:
+        offsets.append(offsets[-1] + len(ln) + 1)
+
+    def off(p):
+        return offsets[p["line"]] + p["character"]
+
+    for e in sorted(edits, key=lambda e: off(e["range"]["start"]), reverse=True):
+        text = text[:off(e["range"]["start"])] + e["newText"] + text[off(e["range"]["end"]):]
+    return text
+
+
+def test_formatting_is_acl_fmt(client, tmp_path):
+    from acl.fmt import format_source
+
+    messy = DESIGN.replace("param dwell = 300 ms", "param   dwell=300 ms    # the step").replace(
+        "capsule c1 like capsules.design1 { }", "capsule c1 like capsules.design1 {  }")
+    assert format_source(messy, "m.acl") != messy
+    path = tmp_path / "messy.acl"
+    u, _ = _open(client, path, messy)
+    opts = {"textDocument": {"uri": u}, "options": {"tabSize": 2, "insertSpaces": True}}
+    edits = client.request("textDocument/formatting", opts)
+    assert edits
+    formatted = _apply(messy, edits)
+    assert formatted == format_source(messy, str(path))
+    client.change(u, 2, formatted)
+    assert client.request("textDocument/formatting", opts) == []       # idempotent: nothing left to do
+    client.change(u, 3, formatted + "param broken = (\n")
+    assert client.request("textDocument/formatting", opts) is None     # syntax errors: left alone
+
+
+def test_quick_fix_picks_the_misspelt_part_and_skips_ambiguous_hints():
+    from acl.lsp.actions import fix
+
+    line = "capsule c1 like capsules.desing1 { }"
+    a = line.index("capsules")
+    assert fix(line, a, a + len("capsules.desing1"), "did you mean `design1`?") == (a + 9, a + 16, "design1")
+    assert fix("  drive 125 mhz @ 1 V", 8, 15, "did you mean `MHz (or mHz?)`?") is None
+    assert fix("use meduim media.pbs", 4, 10, "did you mean `medium`?") == (4, 10, "medium")
+    assert fix("x", 0, 1, "stdlib modules: media, beams") is None
+
+
+def test_hover_on_keys_and_completion_of_capsule_members(client, tmp_path):
+    text = DESIGN + "observe gap1 = gap(c1.jet, c2.jet)\n"
+    path = tmp_path / "keys.acl"
+    u, _ = _open(client, path, text)
+    ln = _line(text, "capsule c2")
+    hv = _hover_text(client, u, ln, text.split("\n")[ln].index("center") + 1)
+    assert hv.startswith("**capsule.center**") and "`m`" in hv
+    ln_o = _line(text, "observe gap1")
+    members = _labels(client.at("textDocument/completion", u, ln_o, text.split("\n")[ln_o].index("jet")))
+    assert members == ["jet"]
+
+
+def test_every_request_anywhere_in_any_corpus_file_answers_without_error(client):
+    """Hover, definition, completion and symbols at many positions of every example, stdlib module
+    and bad input: the server answers each (None is an answer) and never returns an error."""
+    for f in _corpus():
+        text = f.read_text(encoding="utf-8", errors="replace")
+        u = client.open(f, text, 1)
+        client.request("textDocument/documentSymbol", {"textDocument": {"uri": u}})
+        lines = text.split("\n")
+        for ln in range(0, len(lines), max(1, len(lines) // 12)):
+            for ch in sorted({0, len(lines[ln]) // 3, len(lines[ln]) // 2, len(lines[ln])}):
+                for method in ("textDocument/hover", "textDocument/definition", "textDocument/completion"):
+                    client.at(method, u, ln, ch)       # raises on a JSON-RPC error
+        client.request("textDocument/codeAction", {"textDocument": {"uri": u}, "range": {
+            "start": {"line": 0, "character": 0}, "end": {"line": len(lines) - 1, "character": 0}},
+            "context": {"diagnostics": []}})
+        client.notify("textDocument/didClose", {"textDocument": {"uri": u}})
+    assert client.proc.poll() is None
+
+
+def test_errors_in_an_imported_file_show_on_its_import(client, tmp_path):
+    (tmp_path / "parts.acl").write_text("param size = 10 um\nparam broken = (3 um\n", encoding="utf-8")
+    text = "import parts\nparam twice = 2 * parts.size\n"
+    path = tmp_path / "main.acl"
+    u, pub = _open(client, path, text)
+    proc = subprocess.run([sys.executable, "-m", "acl", "check", "--output-format", "json", str(path)],
+                          capture_output=True, text=True, cwd=ROOT, env={"PYTHONPATH": str(ROOT), "PATH": ""})
+    cli = json.loads(proc.stdout)["diagnostics"]
+    assert any(d["file"].endswith("parts.acl") for d in cli)
+    assert sorted(d["code"] for d in pub["diagnostics"]) == sorted(d["code"] for d in cli)
+    imported = [d for d in pub["diagnostics"] if "parts.acl:2:" in d["message"]]
+    assert len(imported) == sum(d["file"].endswith("parts.acl") for d in cli)
+    for d in imported:
+        assert d["range"]["start"] == {"line": 0, "character": 0} and d["range"]["end"]["character"] == len("import parts")
+
+
+def test_definition_into_a_sibling_file_and_use_completion(client, tmp_path):
+    (tmp_path / "parts.acl").write_text("# shared sizes\nparam size = 10 um\n", encoding="utf-8")
+    text = 'import "parts.acl" as p\nimport stdlib.media\nparam twice = 2 * p.size\nuse medium \n'
+    path = tmp_path / "main.acl"
+    u, _ = _open(client, path, text)
+    got = client.at("textDocument/definition", u, 2, text.split("\n")[2].index("size") + 1)
+    assert got == {"uri": uri(tmp_path / "parts.acl"),
+                   "range": {"start": {"line": 1, "character": 6}, "end": {"line": 1, "character": 10}}}
+    got = client.at("textDocument/definition", u, 0, 3)            # the import line itself
+    assert got["uri"] == uri(tmp_path / "parts.acl")
+    media = _labels(client.at("textDocument/completion", u, 3, len("use medium ")))
+    assert "media.pbs" in media and all(m.startswith("media.") for m in media)

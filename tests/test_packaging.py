@@ -86,3 +86,24 @@ def test_shipped_ci_workflow_installs_acl_from_the_checkout():
     text = (ROOT / ".github" / "workflows" / "acl-lint.yml").read_text()
     installs = [line for line in text.splitlines() if "pip install" in line and not line.lstrip().startswith("#")]
     assert installs and all(re.search(r"pip install\s+(\.|'\.|\"\.|\S*git\+)", line) for line in installs), installs
+
+
+@pytest.mark.parametrize("argv", [
+    ["analyze", "examples/fig4_facing_pair.acl", "--plot", "FIGS"],
+    ["compile", "examples/fig3_three_orifice.acl", "--program", "rectangle", "-o", "OUT", "--plot"],
+    ["fit", "examples/fig2_vertical_cantilever.acl", "DATA", "--report", "REPORT"],
+], ids=["analyze", "compile", "fit"])
+def test_plot_without_matplotlib_is_a_clear_diagnostic(tmp_path, monkeypatch, capsys, argv):
+    """matplotlib is the `plot` extra: without it, --plot/--report stop with E-PLOT before any work."""
+    from acl.cli import main
+
+    monkeypatch.setitem(sys.modules, "matplotlib", None)      # as if not installed
+    data = tmp_path / "d.csv"
+    data.write_text("observable,value,unit,drive\ntip_x,1,um,125 kHz @ 2 V\n")
+    names = {"FIGS": str(tmp_path / "figs"), "OUT": str(tmp_path / "out"), "DATA": str(data),
+             "REPORT": str(tmp_path / "rep")}
+    monkeypatch.chdir(ROOT)
+    assert main([names.get(a, a) for a in argv]) == 2
+    err = capsys.readouterr().err
+    assert "E-PLOT" in err and "acl[plot]" in err
+    assert not any((tmp_path / n).exists() for n in ("figs", "out", "rep"))

@@ -11,7 +11,10 @@ from hypothesis import strategies as st
 from acl.physics.forces import (
     bjerknes_attraction,
     bjerknes_vectors,
+    boundary_layer,
     critical_distance,
+    law_critical_distance,
+    streaming_constant_from_critical_distance,
     jet_drag,
     pair_law_force,
     thrust_magnitude,
@@ -79,17 +82,34 @@ def test_reduced_pair_law_attracts_inside_and_repels_outside_critical_distance()
     assert pair_law_force(ALPHA, GAMMA, dc, 5.0) == pytest.approx(0.0, abs=1e-20)
 
 
-def test_thrust_is_quadratic_in_volume_amplitude():
-    f1 = thrust_magnitude(1e-16, 10e-6, OMEGA, RHO, 1e-3)
-    f2 = thrust_magnitude(2e-16, 10e-6, OMEGA, RHO, 1e-3)
-    assert f2 == pytest.approx(4 * f1, rel=1e-12)
+def test_law_critical_distance_balances_bjerknes_against_two_thrusts():
+    # Identical in-phase interfaces: rho w^2 |dV|^2/(8 pi d_c^2) = 2 x thrust (Crum 1975 + the
+    # Stokes-regime streaming law, Stuart 1966).  The closed form must be that balance (1e-12 rel.),
+    # for any amplitude, radius, frequency and constant.
+    mu = 1.002e-3
+    for dv, r, f, cs in [(1e-16, 10e-6, 125e3, 8e-3), (3e-17, 6e-6, 80e3, 0.2), (5e-16, 15e-6, 200e3, 1e-3)]:
+        w = 2 * math.pi * f
+        dc = law_critical_distance(r, w, RHO, mu, cs)
+        bj = bjerknes_attraction(w, dv, dv, dc, RHO)
+        assert bj == pytest.approx(2 * thrust_magnitude(dv, r, w, mu, cs), rel=1e-12)
+        assert streaming_constant_from_critical_distance(dc, r, w, RHO, mu) == pytest.approx(cs, rel=1e-12)
 
 
-def test_thrust_equals_momentum_flux_of_paraboloid_centre_velocity():
-    # F = C_s rho (omega eps)^2 pi R^2 with eps = 2 dV / (pi R^2).
-    dv, r, cs = 1e-16, 10e-6, 0.3
-    eps = 2 * dv / (math.pi * r**2)
-    assert thrust_magnitude(dv, r, OMEGA, RHO, cs) == pytest.approx(cs * RHO * (OMEGA * eps) ** 2 * math.pi * r**2)
+def test_thrust_is_quadratic_in_amplitude_and_linear_in_frequency_and_viscosity():
+    # F = C_s 6 pi mu omega eps^2 (Stokes outer flow driven by a slip ~ omega eps^2 / R; Riley 2001):
+    # quadratic in eps (paper Eq. 3's gamma V^2), independent of R at fixed eps.  1e-12 rel.
+    r, cs, mu = 10e-6, 8e-3, 1e-3
+    f1 = thrust_magnitude(1e-16, r, OMEGA, mu, cs)
+    assert thrust_magnitude(2e-16, r, OMEGA, mu, cs) == pytest.approx(4 * f1, rel=1e-12)
+    assert thrust_magnitude(1e-16, r, 2 * OMEGA, mu, cs) == pytest.approx(2 * f1, rel=1e-12)
+    assert thrust_magnitude(1e-16, r, OMEGA, 2 * mu, cs) == pytest.approx(2 * f1, rel=1e-12)
+    # same centre amplitude on a twice larger orifice (4x the volume) gives the same thrust
+    assert thrust_magnitude(4e-16, 2 * r, OMEGA, mu, cs) == pytest.approx(f1, rel=1e-12)
+
+
+def test_boundary_layer_of_water_at_125_khz_is_1p6_um():
+    # delta = sqrt(2 nu / omega) (Landau & Lifshitz section 24): water, 125 kHz -> 1.60 um (0.5 %).
+    assert boundary_layer(2 * math.pi * 125e3, 998.2, 1.002e-3) == pytest.approx(1.60e-6, rel=5e-3)
 
 
 def test_jet_drag_vanishes_behind_the_orifice_and_never_exceeds_the_jet_flux():

@@ -127,6 +127,7 @@ def test_missing_gain_model_is_a_tones_diagnostic():
     with pytest.raises(DiagnosticError) as exc:
         compile_program(d, "p", CompileOptions(gain_provider=no_model))
     assert exc.value.diagnostics[0].code == "E-SCHED-TONES"
+    assert "`, using [" in exc.value.diagnostics[0].hint   # the step's keyword (issue 11: not `tones`)
 
 
 def test_solver_failure_is_a_diagnostic_not_a_traceback(monkeypatch):

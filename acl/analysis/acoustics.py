@@ -26,8 +26,10 @@ from acl.design.model import Capsule, Cavity, Design, Drive
 from acl.analysis import effects as EF
 from acl.physics import constants as C
 from acl.physics import effects as PE
-from acl.physics.forces import bjerknes_vectors, jet_drag, thrust_magnitude
-from acl.physics.resonance import BubbleModes, capsule_modes as _physics_modes, volume_response
+from acl.physics.coupling import (BubbleSystem, CoupledModes, build_system, coupled_modes as _physics_coupled_modes,
+                                  coupled_response as _physics_coupled, uncoupled_blocks)
+from acl.physics.forces import interface_centre_amplitude, jet_drag, thrust_magnitude
+from acl.physics.resonance import BubbleModes, capsule_modes as _physics_modes
 from acl.physics.transducer import pressure_per_volt
 
 
@@ -47,6 +49,8 @@ class Mode:
     shares: dict = field(default_factory=dict)  # orifice name -> share
     q_declared: bool = False                   # Q from Capsule.quality_factor
     notes: tuple[str, ...] = ()
+    q_predicted: float | None = None           # the physics' own Q (declared quality_factor ignored)
+    phases: dict = field(default_factory=dict)  # interface -> 0 (in phase with the dominant one) or 180 deg
 
 
 @dataclass(frozen=True)
@@ -131,6 +135,9 @@ def effect_pressure_factor(design: Design, f, vtot: float | None = None) -> np.n
         out = out * tg["gain"]
         if tg["gain_slope"] and math.isfinite(tg["f_ref"]):
             out = out * PE.gain_tilt(f, tg["f_ref"], tg["gain_slope"])
+    tr = EF.coefficients(design, "transducer_resonance")
+    if tr and tr["inv_f_ratio"] and math.isfinite(tr["f_ref"]):
+        out = out * PE.transducer_resonance(f, tr["f_ref"], tr["inv_f_ratio"], tr["gain_q"])
     sat = EF.coefficients(design, "drive_saturation")
     if sat and vtot is not None:
         out = out * PE.saturation(vtot, sat["inv_vsat2"])
@@ -182,40 +189,247 @@ def _capsule(design: Design, capsule) -> Capsule:
     return capsule if isinstance(capsule, Capsule) else design.capsule(capsule)
 
 
-def modal_data(design: Design, capsule, n_modes: int = C.DEFAULT_MEMBRANE_MODES) -> BubbleModes:
-    """The physics-level modes of ``capsule`` (all Rayleigh-Ritz modes), cached per geometry and medium."""
+def modal_data(design: Design, capsule, n_modes: int = C.DEFAULT_MEMBRANE_MODES,
+               predicted: bool = False) -> BubbleModes:
+    """The physics-level modes of ``capsule`` alone (bare: no liquid coupling, no wall), cached per geometry and medium.
+
+    ``predicted`` ignores a declared ``quality_factor`` (the physics' own damping).
+    """
     cap = _capsule(design, capsule)
     radii = tuple(o.radius for o in cap.orifices)
+    q = None if predicted else cap.quality_factor
     return _modes_for(cap.cavity.volume, radii, thermal_radius(cap.cavity),
-                      _medium(design).as_tuple(), cap.quality_factor, n_modes)
+                      _medium(design).as_tuple(), q, n_modes)
 
 
-def capsule_modes(design: Design, capsule, n_modes: int = C.DEFAULT_MEMBRANE_MODES) -> list[Mode]:
-    """The fundamental modes of ``capsule``: one per orifice, ascending in frequency."""
-    cap = _capsule(design, capsule)
-    md = modal_data(design, cap, n_modes)
-    names = [o.name for o in cap.orifices]
-    share = md.share
-    notes = defaults_used(design)
-    out = []
-    for n in range(len(names)):
-        k = int(np.argmax(share[:, n]))
-        out.append(Mode(frequency_hz=float(md.frequency[n]), q=float(md.quality[n]),
-                        dominant_orifice=names[k], share=float(share[k, n]),
-                        shares={nm: float(share[i, n]) for i, nm in enumerate(names)},
-                        q_declared=cap.quality_factor is not None, notes=notes))
+# ----------------------------------------------------------------------------------------------
+# The coupled bubble system of a design (acl.physics.coupling)
+# ----------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class _Layout:
+    """All interfaces of a design in one order: capsule by capsule, orifice by orifice."""
+
+    caps: tuple
+    labels: tuple[str, ...]       # "capsule.orifice"
+    body: np.ndarray              # (n,) capsule index
+    offsets: np.ndarray           # (n, 3) orifice centre - capsule centre (rest)
+    normals: np.ndarray           # (n, 3) outward unit normals
+    radii: np.ndarray             # (n,)
+    rest: np.ndarray              # (C, 3) capsule centres at rest
+    onehot: np.ndarray            # (n, C)
+
+    def points(self, centres: np.ndarray) -> np.ndarray:
+        """Orifice centres (..., n, 3) for capsule centres (..., C, 3)."""
+        return centres[..., self.body, :] + self.offsets
+
+
+_LAYOUTS: list = []
+
+
+def _layout(design: Design) -> _Layout:
+    for d, lay in _LAYOUTS:
+        if d is design:
+            return lay
+    caps = tuple(design.capsules)
+    body, offs, nrm, rad, labels = [], [], [], [], []
+    for c, cap in enumerate(caps):
+        for o in cap.orifices:
+            body.append(c)
+            offs.append(np.subtract(o.center, cap.center))
+            n = np.asarray(o.normal, float)
+            nrm.append(n / np.linalg.norm(n))
+            rad.append(o.radius)
+            labels.append(f"{cap.name}.{o.name}")
+    n = len(body)
+    body = np.asarray(body, int)
+    onehot = np.zeros((n, len(caps)))
+    onehot[np.arange(n), body] = 1.0
+    lay = _Layout(caps, tuple(labels), body, np.asarray(offs, float).reshape(n, 3),
+                  np.asarray(nrm, float).reshape(n, 3), np.asarray(rad, float),
+                  np.array([c.center for c in caps], float).reshape(len(caps), 3), onehot)
+    _LAYOUTS[:] = ([(design, lay)] + _LAYOUTS)[:4]
+    return lay
+
+
+def _system(design: Design, capsules=None, predicted: bool = False) -> BubbleSystem:
+    """The coupled system of ``capsules`` (indices; default all) at rest."""
+    lay = _layout(design)
+    idx = range(len(lay.caps)) if capsules is None else capsules
+    modes, pts, rad = [], [], []
+    rest_pts = lay.points(lay.rest)
+    for c in idx:
+        modes.append(modal_data(design, lay.caps[c], predicted=predicted))
+        sel = lay.body == c
+        pts.append(rest_pts[sel])
+        rad.append(lay.radii[sel])
+    return build_system(modes, pts, rad)
+
+
+def _centres_array(design: Design, positions) -> np.ndarray:
+    lay = _layout(design)
+    out = lay.rest.copy()
+    if positions:
+        for i, c in enumerate(lay.caps):
+            if c.name in positions:
+                out[i] = np.asarray(positions[c.name], float)
     return out
 
 
-def orifice_response(design: Design, capsule, frequencies) -> np.ndarray:
-    """Complex inward volume amplitude (m^3 per V peak) of each orifice, shape (F, n_orifices).
+def coupled_response(design: Design, frequencies, positions=None) -> np.ndarray:
+    """Inward volume amplitude (m^3 per V peak) of every interface of the design, (F, n) in :func:`interface_labels` order.
 
-    Transducer gain included (flat-extrapolated outside its table: see :func:`drive_gain`).
-    Phase convention of :func:`acl.physics.resonance.volume_response`.
+    All bubbles coupled through the liquid and the substrate's images (acl.physics.coupling);
+    transducer gain included.  ``positions`` maps capsule names to displaced centres.
     """
     f = np.atleast_1d(np.asarray(frequencies, float))
+    lay = _layout(design)
+    med = _medium(design)
+    sysm = _system(design)
+    if positions:
+        pts = lay.points(_centres_array(design, positions))
+        u = _physics_coupled(sysm, f, med.density, med.sound_speed, C.SUBSTRATE_REFLECTION, points=pts[None])[0]
+    else:
+        u = _physics_coupled(sysm, f, med.density, med.sound_speed, C.SUBSTRATE_REFLECTION)
     gain, _ = drive_gain(design, f)
-    return volume_response(modal_data(design, capsule), f) * gain[:, None]
+    return u * gain[:, None]
+
+
+def interface_labels(design: Design) -> tuple[str, ...]:
+    """``capsule.orifice`` of every interface, in the order of :func:`coupled_response`."""
+    return _layout(design).labels
+
+
+def _capsule_index(design: Design, capsule) -> int:
+    cap = _capsule(design, capsule)
+    for i, c in enumerate(_layout(design).caps):
+        if c.name == cap.name:
+            return i
+    raise KeyError(cap.name)
+
+
+def _fundamentals(cm: CoupledModes, n_interfaces: int) -> list[int]:
+    """Each interface's own fundamental: the lowest mode a uniform pressure excites in which that interface moves most (ties count), else its largest-share driven mode."""
+    if cm.omega.size == 0:
+        return []
+    share = cm.share
+    net = np.abs(cm.volume.sum(axis=0)) / np.maximum(np.abs(cm.volume).sum(axis=0), 1e-300)
+    driven = net > 1e-3
+    picked = []
+    for o in range(n_interfaces):
+        top = share[o] >= share.max(axis=0) * (1 - 1e-9)
+        cand = np.flatnonzero(top & driven)
+        if cand.size == 0:
+            cand = np.flatnonzero(driven) if driven.any() else np.arange(share.shape[1])
+            cand = cand[[int(np.argmax(share[o, cand]))]]
+        picked.append(int(cand[0]))
+    return sorted(set(picked))
+
+
+def _per_design(fn):
+    """Cache ``fn(design, *args)`` by the design's identity (designs with effects are not hashable)."""
+    store: dict = {}
+
+    def wrapper(design, *args):
+        key = (id(design), args)
+        hit = store.get(key)
+        if hit is not None and hit[0] is design:
+            return hit[1]
+        val = fn(design, *args)
+        if len(store) >= 512:
+            store.pop(next(iter(store)))
+        store[key] = (design, val)
+        return val
+
+    wrapper.__doc__ = fn.__doc__
+    return wrapper
+
+
+@_per_design
+def _modes_cached(design: Design, idx: tuple[int, ...]) -> tuple[Mode, ...]:
+    med = _medium(design)
+    lay = _layout(design)
+    sel = np.isin(lay.body, list(idx))
+    labels = [lab for lab, s in zip(lay.labels, sel) if s]
+    cm = _physics_coupled_modes(_system(design, idx), med.density, med.sound_speed, C.SUBSTRATE_REFLECTION)
+    cp = _physics_coupled_modes(_system(design, idx, predicted=True), med.density, med.sound_speed,
+                                C.SUBSTRATE_REFLECTION)
+    declared = any(lay.caps[c].quality_factor is not None for c in idx)
+    notes = defaults_used(design)
+    short = len(idx) == 1
+
+    def name(s):
+        return s.split(".", 1)[1] if short else s
+
+    out = []
+    for n in (_fundamentals(cm, len(labels)) if short else range(cm.omega.size)):
+        share = cm.share[:, n]
+        k = int(np.argmax(share))
+        q = cm.quality[n]
+        if short and lay.caps[idx[0]].quality_factor is not None:   # a declared Q is the capsule's Q as measured
+            q = lay.caps[idx[0]].quality_factor
+        out.append(Mode(frequency_hz=float(cm.frequency[n]), q=float(q),
+                        dominant_orifice=name(labels[k]), share=float(share[k]),
+                        shares={name(lab): float(share[i]) for i, lab in enumerate(labels)},
+                        q_declared=declared, notes=notes, q_predicted=float(cp.quality[n]),
+                        phases={name(lab): (0.0 if cm.volume[i, n] * cm.volume[k, n] >= 0 else 180.0)
+                                for i, lab in enumerate(labels)}))
+    return tuple(out)
+
+
+def capsule_modes(design: Design, capsule, n_modes: int = C.DEFAULT_MEMBRANE_MODES) -> list[Mode]:
+    """The fundamental mode of each orifice of ``capsule`` (the capsule alone: its interfaces coupled through the gas, the liquid and the substrate's image), ascending."""
+    cap = _capsule(design, capsule)
+    if n_modes != C.DEFAULT_MEMBRANE_MODES:        # bare modes with another basis size (convergence studies)
+        md = modal_data(design, cap, n_modes)
+        names = [o.name for o in cap.orifices]
+        out = []
+        for n in range(min(len(names), md.omega.size)):
+            k = int(np.argmax(md.share[:, n]))
+            out.append(Mode(frequency_hz=float(md.frequency[n]), q=float(md.quality[n]),
+                            dominant_orifice=names[k], share=float(md.share[k, n]),
+                            shares={nm: float(md.share[i, n]) for i, nm in enumerate(names)},
+                            q_declared=cap.quality_factor is not None, notes=defaults_used(design)))
+        return out
+    return list(_modes_cached(design, (_capsule_index(design, cap),)))
+
+
+def coupled_modes(design: Design) -> list[Mode]:
+    """Undamped modes of all bubbles of the design as one coupled system, ascending (shares keyed ``capsule.orifice``).
+
+    Listed: modes a uniform pressure excites (net volume >= 1e-3 of the moved volume) up to 1.5x the
+    highest capsule fundamental (membrane overtones are left out).
+    """
+    lay = _layout(design)
+    if not lay.caps:
+        return []
+    top = max((m.frequency_hz for c in lay.caps for m in capsule_modes(design, c)), default=0.0)
+    ms = _modes_cached(design, tuple(range(len(lay.caps))))
+    return [m for m in ms if m.frequency_hz <= 1.5 * top]
+
+
+def orifice_response(design: Design, capsule, frequencies) -> np.ndarray:
+    """Complex inward volume amplitude (m^3 per V peak) of each orifice of ``capsule``, shape (F, n_orifices).
+
+    In the coupled system of the whole design at rest (:func:`coupled_response`); transducer gain
+    included (flat-extrapolated outside its table: see :func:`drive_gain`).  Phase convention of
+    :func:`acl.physics.resonance.volume_response`.
+    """
+    c = _capsule_index(design, capsule)
+    return coupled_response(design, frequencies)[:, _layout(design).body == c]
+
+
+def interface_amplitudes(design: Design, drive: Drive, positions=None) -> dict[str, float]:
+    """Centre amplitude over radius, eps/R, of every interface under ``drive`` (tone amplitudes summed: the peak)."""
+    lay = _layout(design)
+    f, v = _tones(drive)
+    if f.size == 0 or not lay.labels:
+        return {lab: 0.0 for lab in lay.labels}
+    gain = effect_pressure_factor(design, f, float(v.sum()))
+    u = coupled_response(design, f, positions) * (v * gain)[:, None]
+    eps = interface_centre_amplitude(np.abs(u).sum(axis=0), lay.radii)
+    return {lab: float(e / r) for lab, e, r in zip(lay.labels, eps, lay.radii)}
 
 
 # ----------------------------------------------------------------------------------------------
@@ -234,82 +448,124 @@ def _normals(cap: Capsule) -> np.ndarray:
     return n / np.linalg.norm(n, axis=1, keepdims=True)
 
 
-def _orifice_thrust(design: Design, cap: Capsule, f: np.ndarray, volts: np.ndarray) -> np.ndarray:
-    """Thrust magnitude (N) of each orifice for each tone, shape (T, n_orifices), unscaled."""
-    dv = orifice_response(design, cap, f) * volts[:, None]
-    return _thrust_from_volumes(design, cap, f, dv)
+def _thrust_from_volumes(design: Design, radii: np.ndarray, f: np.ndarray, dv: np.ndarray) -> np.ndarray:
+    """Thrust magnitude (N) per tone and orifice from volume amplitudes (..., T, n) (acl.physics.forces.thrust_magnitude)."""
+    return thrust_magnitude(dv, radii, 2 * np.pi * f[:, None], _medium(design).viscosity, C.STREAMING_CONSTANT)
 
 
-def _thrust_from_volumes(design: Design, cap: Capsule, f: np.ndarray, dv: np.ndarray) -> np.ndarray:
-    radii = np.array([o.radius for o in cap.orifices])
-    return thrust_magnitude(dv, radii[None, :], 2 * np.pi * f[:, None], _medium(design).density,
-                            C.STREAMING_CONSTANT)
+@_per_design
+def _isolated_thrust_per_v2(design: Design, c: int) -> float:
+    lay = _layout(design)
+    med = _medium(design)
+    ms = capsule_modes(design, lay.caps[c])
+    if not ms:
+        return 0.0
+    f1 = np.array([ms[0].frequency_hz])
+    u = _physics_coupled(_system(design, [c]), f1, med.density, med.sound_speed, C.SUBSTRATE_REFLECTION)
+    u = u * drive_gain(design, f1)[0][:, None]
+    sel = lay.body == c
+    per = _thrust_from_volumes(design, lay.radii[sel], f1, u)[0]
+    return float(np.linalg.norm((per[:, None] * -lay.normals[sel]).sum(axis=0)))
 
 
 def _thrust_scale(design: Design, cap: Capsule) -> float:
-    """Factor that makes predicted thrust match a declared Capsule.thrust_coefficient at mode 1."""
+    """Factor that makes predicted thrust match a declared Capsule.thrust_coefficient at its first reported mode (:func:`capsule_modes`; the capsule alone)."""
     if cap.thrust_coefficient is None:
         return 1.0
-    f1 = modal_data(design, cap).frequency[:1]
-    per_v2 = _orifice_thrust(design, cap, f1, np.ones(1))       # (1, n_or), N at 1 V
-    total = np.linalg.norm((per_v2[0][:, None] * -_normals(cap)).sum(axis=0))
+    total = _isolated_thrust_per_v2(design, _capsule_index(design, cap))
     return cap.thrust_coefficient / total if total > 0 else 1.0
 
 
 @dataclass(frozen=True)
-class _DriveState:
-    """One capsule under one drive: tone frequencies, orifice volume amplitudes, thrusts."""
+class _Engine:
+    """One design under one drive: everything the force model needs, vectorised over configurations."""
 
-    cap: Capsule
+    design: Design
+    lay: _Layout
+    system: BubbleSystem
     f: np.ndarray               # (T,) Hz
-    volumes: np.ndarray         # (T, n_or) complex m^3
-    thrust: np.ndarray          # (n_or,) N, summed over tones (power), declared scale applied
-    normals: np.ndarray         # (n_or, 3) outward unit normals
-    offsets: np.ndarray         # (n_or, 3) orifice centre - capsule centre (rest)
+    pressure: np.ndarray        # (T,) Pa: tone amplitude x gain x effects
+    h0: np.ndarray | None       # (T, C, P, P) uncoupled blocks at the tones
+    scale: np.ndarray           # (C,) declared thrust scale x substrate effect
+    pair_scale: np.ndarray      # (C, C) effects factor on Bjerknes
+    outer: np.ndarray           # (C,) equal-volume sphere + wall radius (jet drag target)
+    rho: float
+    c: float
 
-    def orifices_at(self, centre: np.ndarray) -> np.ndarray:
-        return self.offsets + centre
+    def volumes(self, centres: np.ndarray) -> np.ndarray:
+        """Coupled inward volume amplitudes (B, T, n) for capsule centres (B, C, 3)."""
+        if self.f.size == 0 or self.lay.radii.size == 0:
+            return np.zeros((centres.shape[0], self.f.size, self.lay.radii.size), complex)
+        u = _physics_coupled(self.system, self.f, self.rho, self.c, C.SUBSTRATE_REFLECTION,
+                             points=self.lay.points(centres), h0=self.h0)
+        return u * self.pressure[None, :, None]
 
-    @property
-    def thrust_vector(self) -> np.ndarray:
-        return (self.thrust[:, None] * -self.normals).sum(axis=0)
+    def forces(self, centres: np.ndarray, parts: bool = False):
+        """Total acoustic force (B, C, 3) on each capsule for centres (B, C, 3): thrust + Bjerknes + jet drag."""
+        lay = self.lay
+        u = self.volumes(centres)                                           # (B, T, n)
+        thr = _thrust_from_volumes(self.design, lay.radii, self.f, u).sum(axis=1) * self.scale[lay.body]   # (B, n)
+        f_thr = np.einsum("bn,nk,nc->bck", thr, -lay.normals, lay.onehot)
+        pts = lay.points(centres)                                           # (B, n, 3)
+        sep = pts[:, None, :, :] - pts[:, :, None, :]                      # (B, i, j, 3): p_j - p_i
+        other = lay.body[:, None] != lay.body[None, :]
+        d = np.where(other, np.linalg.norm(sep, axis=-1), 1.0)
+        w = 2 * np.pi * self.f
+        prod = np.einsum("t,bti,btj->bij", w**2, u, np.conj(u)).real       # tones add in power
+        att = self.rho * prod / (8 * np.pi * d**2) * other * self.pair_scale[lay.body][:, lay.body]
+        f_bj = np.einsum("bij,bijk,ic->bck", att / d, sep, lay.onehot)     # Crum 1975, along p_j - p_i
+        # drag of each interface's jet on the other capsules (Schlichting laminar round jet)
+        x = centres[:, None, :, :] - pts[:, :, None, :]                    # (B, n, C, 3)
+        dist = np.linalg.norm(x, axis=-1)
+        cos = np.einsum("bnck,nk->bnc", x, lay.normals) / dist
+        mask = lay.body[:, None] != np.arange(len(lay.caps))[None, :]
+        drag = jet_drag(thr[:, :, None], np.where(mask, dist, 1.0), cos, self.outer[None, None, :]) * mask
+        f_dr = np.einsum("bnc,nk->bck", drag, lay.normals)
+        total = f_thr + f_bj + f_dr
+        if parts:
+            return total, u, thr, att
+        return total
 
 
-_LAST_STATES: list = []   # [(design, drive, states)]: identity cache for solver inner loops
-
-
-def _drive_states(design: Design, drive: Drive) -> dict[str, _DriveState]:
-    """Per-capsule drive state; the last (design, drive) pair is reused by identity (both frozen)."""
-    if _LAST_STATES and _LAST_STATES[0][0] is design and _LAST_STATES[0][1] is drive:
-        return _LAST_STATES[0][2]
-    states = _compute_drive_states(design, drive)
-    _LAST_STATES[:] = [(design, drive, states)]
-    return states
-
-
-def _compute_drive_states(design: Design, drive: Drive) -> dict[str, _DriveState]:
+def _compute_engine(design: Design, drive: Drive) -> _Engine:
+    lay = _layout(design)
+    med = _medium(design)
     f, v = _tones(drive)
-    out = {}
-    for cap in design.capsules:
-        normals = _normals(cap)
-        offsets = (np.array([o.center for o in cap.orifices], float).reshape(-1, 3)
-                   - np.asarray(cap.center, float))
-        if f.size == 0:
-            vols = np.zeros((0, len(cap.orifices)), complex)
-            thrust = np.zeros(len(cap.orifices))
-        else:
-            # declared effects scale the pressure after the thrust calibration (which is at the base model)
-            gain = effect_pressure_factor(design, f, float(v.sum()))
-            vols = orifice_response(design, cap, f) * (v * gain)[:, None]
-            thrust = (_thrust_from_volumes(design, cap, f, vols).sum(axis=0) * _thrust_scale(design, cap)
-                      * substrate_factor(design, cap))
-        out[cap.name] = _DriveState(cap, f, vols, thrust, normals, offsets)
-    return out
+    sysm = _system(design)
+    if f.size:
+        gain, _ = drive_gain(design, f)
+        pressure = v * gain * effect_pressure_factor(design, f, float(v.sum()))
+        h0 = uncoupled_blocks(sysm, 2 * np.pi * f)
+    else:
+        pressure, h0 = np.zeros(0), None
+    ncap = len(lay.caps)
+    sub = np.array([substrate_factor(design, c) for c in lay.caps]) if design.effects else np.ones(ncap)
+    scale = np.array([_thrust_scale(design, c) for c in lay.caps]) * sub
+    pair = np.sqrt(np.outer(sub, sub)) if design.effects else np.ones((ncap, ncap))
+    bs = EF.coefficients(design, "bjerknes_scale") if design.effects else None
+    if bs is not None:   # a fitted Bjerknes coefficient (paper Eq. 3 alpha) relative to the physics
+        pair = pair * bs["factor"]
+    outer = np.array([_outer_radius(c) for c in lay.caps])
+    return _Engine(design, lay, sysm, f, pressure, h0, scale, pair, outer, med.density, med.sound_speed)
 
 
-def thrust_vectors(design: Design, drive: Drive) -> dict[str, np.ndarray]:
-    """Streaming thrust (N, 3-vector) on each capsule: sum over orifices of -|F| n_outward."""
-    return {name: st.thrust_vector for name, st in _drive_states(design, drive).items()}
+_LAST_ENGINE: list = []   # [(design, drive, engine)]: identity cache for solver inner loops
+
+
+def _engine(design: Design, drive: Drive) -> _Engine:
+    if _LAST_ENGINE and _LAST_ENGINE[0][0] is design and _LAST_ENGINE[0][1] is drive:
+        return _LAST_ENGINE[0][2]
+    eng = _compute_engine(design, drive)
+    _LAST_ENGINE[:] = [(design, drive, eng)]
+    return eng
+
+
+def thrust_vectors(design: Design, drive: Drive, positions=None) -> dict[str, np.ndarray]:
+    """Streaming thrust (N, 3-vector) on each capsule: sum over orifices of -|F| n_outward (coupled volumes)."""
+    eng = _engine(design, drive)
+    _, _, thr, _ = eng.forces(_centres_array(design, positions)[None], parts=True)
+    vec = np.einsum("n,nk,nc->ck", thr[0], -eng.lay.normals, eng.lay.onehot)
+    return {c.name: vec[i] for i, c in enumerate(eng.lay.caps)}
 
 
 def _centres(design: Design, positions: Mapping[str, Sequence[float]] | None) -> dict[str, np.ndarray]:
@@ -322,47 +578,60 @@ def _centres(design: Design, positions: Mapping[str, Sequence[float]] | None) ->
 
 def pair_forces(design: Design, drive: Drive,
                 positions: Mapping[str, Sequence[float]] | None = None) -> list[PairForce]:
-    """Secondary Bjerknes force of every capsule pair (sum over tones and orifice pairs)."""
-    return _pair_forces(design, _drive_states(design, drive), _centres(design, positions))
-
-
-def _pair_forces(design: Design, states: dict[str, _DriveState],
-                 pos: dict[str, np.ndarray]) -> list[PairForce]:
-    rho = _medium(design).density
+    """Secondary Bjerknes force of every capsule pair (coupled volumes; sum over tones and orifice pairs)."""
+    eng = _engine(design, drive)
+    lay = eng.lay
+    centres = _centres_array(design, positions)
+    _, u, thr, att = eng.forces(centres[None], parts=True)
+    u, thr, att = u[0], thr[0], att[0]
+    pts = lay.points(centres)
+    thrust_vec = np.einsum("n,nk,nc->ck", thr, -lay.normals, lay.onehot)
     notes = defaults_used(design)
-    names = [c.name for c in design.capsules]
     out = []
-    for i, na in enumerate(names):
-        for nb in names[i + 1:]:
-            sa, sb = states[na], states[nb]
-            va, vb, f = sa.volumes, sb.volumes, sa.f
-            pa, pb = sa.orifices_at(pos[na]), sb.orifices_at(pos[nb])
-            omega = 2 * np.pi * f
-            on_a, _ = bjerknes_vectors(omega[:, None, None], va[:, :, None], pa[None, :, None, :],
-                                       vb[:, None, :], pb[None, None, :, :], rho)
-            fa = on_a.reshape(-1, 3).sum(axis=0)
-            if design.effects:   # ~ product of the two volume amplitudes: geometric mean (as acl.fit.forward)
-                fa = fa * math.sqrt(substrate_factor(design, sa.cap) * substrate_factor(design, sb.cap))
-            line = pos[nb] - pos[na]
+    ncap = len(lay.caps)
+    for a in range(ncap):
+        for b in range(a + 1, ncap):
+            ia, ib = np.flatnonzero(lay.body == a), np.flatnonzero(lay.body == b)
+            sep = pts[ib][None, :, :] - pts[ia][:, None, :]
+            dd = np.linalg.norm(sep, axis=-1)
+            fa = np.einsum("ij,ijk->k", att[np.ix_(ia, ib)] / dd, sep)
+            line = centres[b] - centres[a]
             dist = float(np.linalg.norm(line))
             unit = line / dist if dist > 0 else np.zeros(3)
             attraction = float(fa @ unit)
-            if f.size and va.size and vb.size:   # phase of the dominant interfaces, strongest tone
+            if eng.f.size and ia.size and ib.size:   # phase of the dominant interfaces, strongest tone
+                va, vb = u[:, ia], u[:, ib]
                 t = int(np.argmax(np.abs(va).max(axis=1) * np.abs(vb).max(axis=1)))
-                ia, ib = int(np.argmax(np.abs(va[t]))), int(np.argmax(np.abs(vb[t])))
-                dphi = float(np.angle(va[t, ia] * np.conj(vb[t, ib])))
-                gap = float(np.linalg.norm(pb[ib] - pa[ia]))
+                ja, jb = int(np.argmax(np.abs(va[t]))), int(np.argmax(np.abs(vb[t])))
+                dphi = float(np.angle(va[t, ja] * np.conj(vb[t, jb])))
+                gap = float(np.linalg.norm(pts[ib[jb]] - pts[ia[ja]]))
             else:
                 dphi, gap = 0.0, dist
             # reduced law (paper Eq. 3): alpha = attraction d^2, 2 gamma = thrusts pushing apart
-            gamma2 = float(sa.thrust_vector @ -unit + sb.thrust_vector @ unit)
+            gamma2 = float(thrust_vec[a] @ -unit + thrust_vec[b] @ unit)
             alpha = attraction * gap**2
             dc = math.sqrt(alpha / gamma2) if alpha > 0 and gamma2 > 0 else None
-            out.append(PairForce(a=na, b=nb, force_on_a=fa, force_on_b=-fa,
+            out.append(PairForce(a=lay.caps[a].name, b=lay.caps[b].name, force_on_a=fa, force_on_b=-fa,
                                  attraction=attraction, attract=attraction > 0,
                                  phase_difference=dphi, distance=gap, critical_distance=dc,
                                  notes=notes))
     return out
+
+
+def _apply_neighbour_drag(design: Design, lay: _Layout, centres: np.ndarray, total: np.ndarray) -> np.ndarray:
+    nd = EF.coefficients(design, "neighbour_drag") if design.effects else None
+    if nd and nd["inv_plateau"] > 0:
+        # P (1 - delta/delta_p) with delta the capsule's displacement from rest (acl.physics.effects.drag_load)
+        delta = np.linalg.norm(centres - lay.rest[None], axis=-1)
+        total = PE.drag_load(total, delta[..., None], nd["inv_plateau"])
+    return total
+
+
+def force_batch(design: Design, centres: np.ndarray, drive: Drive) -> np.ndarray:
+    """:func:`force_model` for many configurations at once: capsule centres (B, C, 3) in ``design.capsules`` order -> forces (B, C, 3)."""
+    eng = _engine(design, drive)
+    centres = np.asarray(centres, float)
+    return _apply_neighbour_drag(design, eng.lay, centres, eng.forces(centres))
 
 
 def force_model(design: Design, positions: Mapping[str, Sequence[float]] | None,
@@ -370,38 +639,17 @@ def force_model(design: Design, positions: Mapping[str, Sequence[float]] | None,
     """Total acoustic force (N, 3-vector) on each capsule: thrust + Bjerknes + drag in others' jets.
 
     ``positions`` maps capsule names to displaced centres (missing names stay at rest).  Tones at
-    different frequencies add in power (cross terms average to zero).
+    different frequencies add in power (cross terms average to zero).  Bubble volumes come from the
+    coupled system at these positions (acl.physics.coupling).
     """
-    pos = _centres(design, positions)
-    states = _drive_states(design, drive)
-    total = {name: st.thrust_vector for name, st in states.items()}
-    for pf in _pair_forces(design, states, pos):
-        total[pf.a] = total[pf.a] + pf.force_on_a
-        total[pf.b] = total[pf.b] + pf.force_on_b
-    for src_name, src in states.items():           # drag of each capsule's jets on the others
-        if not np.any(src.thrust):
-            continue
-        origins = src.orifices_at(pos[src_name])
-        for tgt in design.capsules:
-            if tgt.name == src_name:
-                continue
-            x = pos[tgt.name][None, :] - origins
-            dist = np.linalg.norm(x, axis=1)
-            cos = np.einsum("ij,ij->i", x, src.normals) / dist
-            drag = jet_drag(src.thrust, dist, cos, _outer_radius(tgt))
-            total[tgt.name] = total[tgt.name] + (drag[:, None] * src.normals).sum(axis=0)
-    nd = EF.coefficients(design, "neighbour_drag") if design.effects else None
-    if nd and nd["inv_plateau"] > 0:
-        # P (1 - delta/delta_p) with delta the capsule's displacement from rest (acl.physics.effects.drag_load)
-        for c in design.capsules:
-            delta = float(np.linalg.norm(pos[c.name] - np.asarray(c.center, float)))
-            total[c.name] = PE.drag_load(total[c.name], delta, nd["inv_plateau"])
-    return total
+    total = force_batch(design, _centres_array(design, positions)[None], drive)[0]
+    return {c.name: total[i] for i, c in enumerate(design.capsules)}
 
 
 # Every term (thrust, Bjerknes, jet drag) is quadratic in the tone amplitudes (linear acoustics):
 # callers scaling a whole drive by V may evaluate once and multiply by V^2.
 force_model.quadratic_in_amplitude = True
+force_model.batch = force_batch
 
 
 def _saturating_force_model(design: Design, positions, drive: Drive) -> dict[str, np.ndarray]:
@@ -410,6 +658,7 @@ def _saturating_force_model(design: Design, positions, drive: Drive) -> dict[str
 
 
 _saturating_force_model.quadratic_in_amplitude = False
+_saturating_force_model.batch = force_batch
 
 
 def force_model_for(design: Design):
@@ -422,14 +671,17 @@ def force_model_for(design: Design):
 
 
 def selectivity(design: Design, frequencies) -> Selectivity:
-    """Thrust magnitude per V^2 of every capsule over ``frequencies`` and its share per frequency."""
+    """Thrust magnitude per V^2 of every capsule over ``frequencies`` (coupled responses at rest) and its share per frequency."""
     f = np.atleast_1d(np.asarray(frequencies, float))
+    lay = _layout(design)
+    u = coupled_response(design, f) * effect_pressure_factor(design, f)[:, None]
+    thr = _thrust_from_volumes(design, lay.radii, f, u)                      # (F, n)
     rows = []
-    for cap in design.capsules:
-        per = (_orifice_thrust(design, cap, f, np.ones_like(f)) * _thrust_scale(design, cap)
-               * effect_pressure_factor(design, f)[:, None] ** 2 * substrate_factor(design, cap))
-        rows.append(np.linalg.norm((per[:, :, None] * -_normals(cap)[None]).sum(axis=1), axis=-1))
-    t = np.array(rows).reshape(len(design.capsules), f.size)
+    for c, cap in enumerate(lay.caps):
+        sel = lay.body == c
+        per = thr[:, sel] * _thrust_scale(design, cap) * substrate_factor(design, cap)
+        rows.append(np.linalg.norm((per[:, :, None] * -lay.normals[sel][None]).sum(axis=1), axis=-1))
+    t = np.array(rows).reshape(len(lay.caps), f.size)
     tot = t.sum(axis=0, keepdims=True)
     share = np.divide(t, tot, out=np.zeros_like(t), where=tot > 0)
     _, outside = drive_gain(design, f)

@@ -15,6 +15,7 @@ from acl.design.model import Design
 # effect -> {coefficient: value at which the effect vanishes} (acl.fit.effects internal coordinates)
 NULLS = {
     "transducer_gain": {"gain_slope": 0.0, "f_ref": math.nan, "gain": 1.0},
+    "transducer_resonance": {"inv_f_ratio": 0.0, "gain_q": 1.0, "f_ref": math.nan},
     "drive_saturation": {"inv_vsat2": 0.0},
     "large_deflection": {"elastica_weight": 0.0},
     "stiffness_scale": {"e_scale": 1.0},
@@ -23,6 +24,7 @@ NULLS = {
     "bubble_shrinkage": {"shrink_rate": 0.0},
     "neighbour_drag": {"inv_plateau": 0.0},
     "substrate_proximity": {"h_substrate": 0.0},
+    "bjerknes_scale": {"factor": 1.0},
 }
 ALIASES = {
     ("drive_saturation", "v_sat"): ("inv_vsat2", lambda v: 1.0 / (v * v) if v > 0 else 0.0),
@@ -35,12 +37,14 @@ STATIC_NOTES = {
 }
 WHERE = {
     "transducer_gain": "drive pressure (acoustics)",
+    "transducer_resonance": "drive pressure vs frequency (acoustics)",
     "drive_saturation": "drive pressure (acoustics; forces no longer scale as V^2)",
     "large_deflection": "beam force law (mechanics)",
     "stiffness_scale": "Young's modulus of beams and latches (mechanics)",
     "stiffness_gradient": "beam force law (mechanics)",
     "neighbour_drag": "force on each capsule vs its displacement (acoustics)",
     "substrate_proximity": "thrust, jet drag and Bjerknes forces vs height (acoustics)",
+    "bjerknes_scale": "secondary Bjerknes force between capsules (acoustics; a pair's fitted alpha, paper Eq. 3)",
 }
 
 

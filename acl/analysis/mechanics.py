@@ -460,7 +460,42 @@ def _external(design: Design, mech: _Mechanism, drive: Drive, force_model: Force
     # unit scale instead of rebuilding its drive state for every V of the continuation.
     quadratic = bool(getattr(force_model, "quadratic_in_amplitude", False))
 
+    batch = getattr(force_model, "batch", None)
+    caps = design.capsules
+    rest = np.array([c.center for c in caps], float).reshape(len(caps), 3)
+
+    def centres_of(qs: np.ndarray) -> np.ndarray:          # (B, n) -> (B, C, 3)
+        out = np.repeat(rest[None], qs.shape[0], axis=0)
+        for i, c in enumerate(caps):
+            gi = mech.member_group[c.name]
+            if gi is not None:
+                A, o = mech.bases[gi], mech.offsets[gi]
+                out[:, i] += qs[:, o:o + A.shape[1]] @ A.T
+        return out
+
+    def generalized(forces: np.ndarray) -> np.ndarray:     # (B, C, 3) -> (B, m)
+        g = np.zeros((forces.shape[0], mech.n))
+        for gi, members in enumerate(mech.groups):
+            A, o = mech.bases[gi], mech.offsets[gi]
+            if A.shape[1] == 0:
+                continue
+            idx = [i for i, c in enumerate(caps) if c.name in members]
+            g[:, o:o + A.shape[1]] += forces[:, idx].sum(axis=1) @ A
+        return g @ mech.Z
+
+    def external_batch(zs, V):
+        """external() for many configurations (B, m) at once (one vectorised force evaluation)."""
+        zs = np.atleast_2d(np.asarray(zs, float))
+        qs = zs @ mech.Z.T
+        if quadratic:
+            forces = batch(design, centres_of(qs), drive) * (V * V)
+        else:
+            forces = batch(design, centres_of(qs), _scaled_drive(drive, V))
+        return generalized(forces)
+
     def external(z, V):
+        if batch is not None:
+            return external_batch(np.asarray(z, float)[None], V)[0]
         q = mech.Z @ z
         if quadratic:
             unit = force_model(design, _positions(design, mech, q), drive)
@@ -476,6 +511,8 @@ def _external(design: Design, mech: _Mechanism, drive: Drive, force_model: Force
             g[o:o + A.shape[1]] += A.T @ total
         return mech.Z.T @ g
 
+    if batch is not None:
+        external.batch = external_batch
     return external
 
 

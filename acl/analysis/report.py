@@ -30,6 +30,8 @@ class Report:
     latches: list = field(default_factory=list)
     equilibrium: dict | None = None
     requires: list = field(default_factory=list)
+    coupled_modes: list = field(default_factory=list)
+    drives: list = field(default_factory=list)
 
     @property
     def requires_ok(self) -> bool:
@@ -38,7 +40,8 @@ class Report:
     def as_dict(self) -> dict:
         return {"version": 1, "file": self.file, "notes": self.notes, "capsules": self.capsules,
                 "frequencies_hz": self.frequencies_hz, "selectivity": self.selectivity, "pairs": self.pairs,
-                "latches": self.latches, "equilibrium": self.equilibrium, "requires": self.requires}
+                "latches": self.latches, "equilibrium": self.equilibrium, "requires": self.requires,
+                "coupled_modes": self.coupled_modes, "drives": self.drives}
 
 
 def _loc(span) -> dict:
@@ -98,7 +101,13 @@ def analyze(design: M.Design, at: M.Drive | None = None, snap_in: bool = True, p
         modes[c.name] = ms
         rep.capsules.append({"name": c.name, **_loc(c.span), "volume_m3": c.cavity.volume,
                              "modes": [{"frequency_hz": m.frequency_hz, "q": m.q, "q_declared": m.q_declared,
-                                        "dominant_orifice": m.dominant_orifice, "share": m.share} for m in ms]})
+                                        "q_predicted": m.q_predicted, "dominant_orifice": m.dominant_orifice,
+                                        "share": m.share, "shares": m.shares} for m in ms]})
+    if len(design.capsules) > 1:
+        rep.coupled_modes = [{"frequency_hz": m.frequency_hz, "q": m.q, "q_declared": m.q_declared,
+                              "q_predicted": m.q_predicted, "dominant_orifice": m.dominant_orifice,
+                              "share": m.share, "shares": m.shares, "phases_deg": m.phases}
+                             for m in AC.coupled_modes(design)]
     freqs = program_frequencies(design) or sorted({ms[0].frequency_hz for ms in modes.values() if ms})
     rep.frequencies_hz = freqs
     if design.capsules and freqs:
@@ -128,14 +137,29 @@ def analyze(design: M.Design, at: M.Drive | None = None, snap_in: bool = True, p
                 progress(f"snap-in sweep at {f / 1e3:g} kHz")
             sw = ME.sweep_voltage(design, M.Drive(tones=(M.Tone(frequency=f, amplitude=1.0),)), vmax, fm)
             snaps[f] = (sw.snap_voltage, sw.status)
+        amps = AC.interface_amplitudes(design, drive)
+        rep.drives.append(_drive_entry(None, None, describe_drive(drive), amps))
         for pf in pfs:
+            study = _q_study(design, pf, f) if _unequal(modes, pf) else {}
             rep.pairs.append({
                 "a": pf.a, "b": pf.b, "frequency_hz": f, "voltage_v": v, "force_n": pf.attraction,
                 "attract": bool(pf.attract), "phase_difference_deg": math.degrees(pf.phase_difference),
                 "critical_distance_m": pf.critical_distance, "gap_m": pf.distance,
                 "snap_in_voltage_v": snaps.get(f, (None, ""))[0],
                 "sweep_status": snaps.get(f, (None, "not computed"))[1],
+                "q_predicted": [modes[pf.a][0].q_predicted if modes[pf.a] else None,
+                                modes[pf.b][0].q_predicted if modes[pf.b] else None],
+                "attract_with_predicted_q": study.get("attract_with_predicted_q", bool(pf.attract)
+                                                      if not any(c.quality_factor for c in design.capsules
+                                                                 if c.name in (pf.a, pf.b)) else None),
+                "phase_difference_predicted_q_deg": study.get("phase_difference_predicted_q_deg"),
+                "repel_from_q": study.get("repel_from_q"),
+                "interface_amplitude_over_radius": {k: v for k, v in amps.items()
+                                                    if k.split(".")[0] in (pf.a, pf.b)},
             })
+    for p, i, st, drive in step_drives(design):
+        rep.drives.append(_drive_entry(p.name, i + 1, describe_drive(drive), AC.interface_amplitudes(design, drive),
+                                       st.span.line))
     # ---- latches
     if design.latches:
         per_latch = {lt.name: {"name": lt.name, **_loc(lt.span), "state": lt.state, "margins": []} for lt in design.latches}
@@ -169,6 +193,50 @@ def analyze(design: M.Design, at: M.Drive | None = None, snap_in: bool = True, p
         }
     rep.requires = [_require(design, r, modes, rep) for r in design.requires]
     return rep
+
+
+def _drive_entry(program, step, drive_text, amps: dict, line=None) -> dict:
+    """Linear-regime check of one drive: eps/R of every interface against LINEAR_AMPLITUDE_LIMIT."""
+    from acl.physics.constants import LINEAR_AMPLITUDE_LIMIT
+
+    worst = max(amps.values(), default=0.0)
+    return {"program": program, "step": step, "line": line, "drive": drive_text,
+            "interface_amplitude_over_radius": amps, "max_amplitude_over_radius": worst,
+            "linear_limit": LINEAR_AMPLITUDE_LIMIT, "linear": bool(worst <= LINEAR_AMPLITUDE_LIMIT)}
+
+
+def _unequal(modes, pf, tol: float = 0.005) -> bool:
+    ma, mb = modes.get(pf.a), modes.get(pf.b)
+    return bool(ma and mb and abs(ma[0].frequency_hz - mb[0].frequency_hz) > tol * mb[0].frequency_hz)
+
+
+REPEL_Q_GRID = (3.0, 4.0, 5.0, 7.0, 10.0, 14.0, 20.0, 28.0, 40.0, 57.0, 80.0, 113.0, 160.0, 226.0, 320.0, 640.0, 1000.0)
+
+
+def _with_q(design: M.Design, names, q):
+    caps = tuple(c.model_copy(update={"quality_factor": q}) if c.name in names else c for c in design.capsules)
+    return design.model_copy(update={"capsules": caps})
+
+
+def _q_study(design: M.Design, pf, f: float) -> dict:
+    """Sign of an unequal pair's Bjerknes force at f with the predicted damping, and the smallest Q (declared on both) that makes it repel.
+
+    What the damping would need for the repulsion of paper Fig. 4f-h; ``repel_from_q`` None if no Q up
+    to 1000 repels (strong coupling: docs/physics.md part A section 6).
+    """
+    from acl.analysis import acoustics as AC
+
+    drive = M.Drive(tones=(M.Tone(frequency=f, amplitude=1.0),))
+
+    def pair_at(q):
+        d = _with_q(design, (pf.a, pf.b), q)
+        return next(x for x in AC.pair_forces(d, drive) if (x.a, x.b) == (pf.a, pf.b))
+
+    pred = pair_at(None)
+    repel_q = next((q for q in REPEL_Q_GRID if not pair_at(q).attract), None)
+    return {"attract_with_predicted_q": bool(pred.attract),
+            "phase_difference_predicted_q_deg": math.degrees(pred.phase_difference),
+            "repel_from_q": repel_q}
 
 
 def _same_tuning(ma, mb, tol: float = 0.02) -> bool:

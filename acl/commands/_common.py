@@ -131,7 +131,7 @@ def plotting_missing(option: str, fmt: str = "text") -> bool:
     if not found:
         report([error("E-PLOT", f"{option} draws figures with matplotlib, which is not installed",
                       Span(file=f"<{option}>", line=1, column=1),
-                      "install the plotting extra: pip install 'acl[plot]'")], fmt)
+                      "install the plotting extra: pip install 'acl[plot]' (from a checkout: pip install '.[plot]')")], fmt)
     return not found
 
 

@@ -1,4 +1,4 @@
-"""`acl analyze FILE [--at DRIVE] [--set P=V] [--json] [--plot DIR]`: predictions as tables, JSON, figures."""
+"""`acl analyze FILE [--at DRIVE] [--set P=V] [--output-format json] [--plot DIR]`: predictions as tables, JSON, figures."""
 from __future__ import annotations
 
 import json
@@ -109,8 +109,10 @@ def print_report(design, rep) -> None:
         t.add_column(col)
     for c in rep.capsules:
         for i, m in enumerate(c["modes"]):
-            t.add_row(c["name"] if i == 0 else "", str(i + 1), _k(m["frequency_hz"]),
-                      f"{m['q']:.1f}" + (" (declared)" if m["q_declared"] else ""), m["dominant_orifice"],
+            qtxt = f"{m['q']:.1f}"
+            if m["q_declared"]:
+                qtxt += f" (declared; predicted {m['q_predicted']:.1f})" if m.get("q_predicted") else " (declared)"
+            t.add_row(c["name"] if i == 0 else "", str(i + 1), _k(m["frequency_hz"]), qtxt, m["dominant_orifice"],
                       f"{m['share']:.0%}", f"{c['file']}:{c['line']}" if i == 0 else "")
     con.print(t)
     if rep.selectivity:
@@ -131,16 +133,35 @@ def print_report(design, rep) -> None:
                 row.append(txt)
             t.add_row(*row)
         con.print(t)
+    if rep.coupled_modes:
+        t = Table(title="Coupled modes (all bubbles as one system: mutual radiation mass, substrate images)",
+                  title_justify="left")
+        for col in ("mode", "f (kHz)", "Q", "Q predicted", "interfaces: share (phase)"):
+            t.add_column(col)
+        for i, m in enumerate(rep.coupled_modes):
+            parts = ", ".join(f"{k} {v:.0%}" + (" (anti)" if m["phases_deg"].get(k) else "")
+                              for k, v in m["shares"].items() if v >= 0.05)
+            t.add_row(str(i + 1), _k(m["frequency_hz"]), f"{m['q']:.1f}", f"{m['q_predicted']:.1f}", parts)
+        con.print(t)
+    nonlinear = [d for d in rep.drives if not d["linear"]]
+    for d in nonlinear:
+        where = f"program {d['program']} step {d['step']} (line {d['line']})" if d["program"] else "pair analysis"
+        worst = max(d["interface_amplitude_over_radius"].items(), key=lambda kv: kv[1])
+        con.print(f"[red]warning:[/red] {where}: {d['drive']} drives {worst[0]} to eps/R = {worst[1]:.2f}, beyond the "
+                  f"linear bubble model (eps/R <= {d['linear_limit']:g}; docs/physics.md)")
     if rep.pairs:
         t = Table(title="Bubble pairs (Bjerknes force at rest, attraction positive)", title_justify="left")
-        for col in ("pair", "f (kHz)", "V", "force (nN)", "", "phase diff (deg)", "gap (um)", "d_c (um)", "snap-in V"):
+        for col in ("pair", "f (kHz)", "V", "force (nN)", "", "phase diff (deg)", "gap (um)", "d_c (um)", "snap-in V",
+                    "with predicted Q", "repels from Q"):
             t.add_column(col)
         for p in rep.pairs:
             dc = f"{p['critical_distance_m'] * 1e6:.1f}" if p["critical_distance_m"] else "-"
             sv = f"{p['snap_in_voltage_v']:.2f}" if p["snap_in_voltage_v"] else ("none" if p["sweep_status"] == "ok" else p["sweep_status"])
             t.add_row(f"{p['a']}-{p['b']}", _k(p["frequency_hz"]), f"{p['voltage_v']:g}", f"{p['force_n'] * 1e9:.3g}",
                       "[green]attract[/green]" if p["attract"] else "[magenta]repel[/magenta]",
-                      f"{p['phase_difference_deg']:.1f}", f"{p['gap_m'] * 1e6:.1f}", dc, sv)
+                      f"{p['phase_difference_deg']:.1f}", f"{p['gap_m'] * 1e6:.1f}", dc, sv,
+                      {True: "attract", False: "repel", None: "-"}[p.get("attract_with_predicted_q")],
+                      f"{p['repel_from_q']:g}" if p.get("repel_from_q") else "-")
         con.print(t)
     for lt in rep.latches:
         t = Table(title=f"Latch {lt['name']} ({lt['file']}:{lt['line']}): "

@@ -38,6 +38,14 @@ def add_parser(p) -> None:
                    help="path tracking tolerance in micrometres (default 0.5)")
     p.add_argument("--ramp", default="1e-3", metavar="S",
                    help="raised-cosine crossfade between segments in seconds (default 0.001)")
+    p.add_argument("--robust", action="store_true",
+                   help="plan paths for the least expected error over the declared uncertainty (docs/schedule.md)")
+    p.add_argument("--band-samples", type=int, default=20, metavar="N",
+                   help="draws of the declared uncertainty for each goal's 95 %% error band (default 20; 0: none)")
+    p.add_argument("--band-seed", type=int, default=0, metavar="N", help="seed of those draws (default 0)")
+    p.add_argument("--nonlinear-passes", type=int, default=0, metavar="N",
+                   help="re-plan paths N times against the design's nonlinear model (saturation, stiffening, "
+                        "declared effects); default 0")
     p.add_argument("--plot", action="store_true", help="write a PNG per path goal")
     add_output_format(p, old=("--diagnostics",))
     add_design_options(p)
@@ -127,6 +135,11 @@ def run(args) -> int:
     diags += more
     numbers, more = _numbers(args)
     diags += more
+    for option, value, hi in (("--band-samples", args.band_samples, 10_000),
+                              ("--nonlinear-passes", args.nonlinear_passes, 100)):
+        if not 0 <= value <= hi:
+            diags.append(_usage("E-COMPILE-OPTION", f"{option} {value} must be a whole number from 0 to {hi}",
+                                None, option))
     if diags:
         report(diags, fmt)
         return 2
@@ -163,13 +176,30 @@ def run(args) -> int:
         return 2
     opts = CompileOptions(sample_rate_hz=rate, waypoint_dt_s=numbers["waypoint_dt"],
                           tolerance_m=numbers["tolerance"] * 1e-6, ramp_s=numbers["ramp"],
-                          calibration=calibration, full_scale_v=full_scale)
+                          calibration=calibration, full_scale_v=full_scale,
+                          robust=args.robust, band_samples=args.band_samples, band_seed=args.band_seed,
+                          nonlinear_passes=args.nonlinear_passes, reload=_reloader(args, path))
     try:
         schedule = compile_program(design, program, opts)
     except DiagnosticError as exc:
         report(exc.diagnostics, fmt)
         return 1
     return _emit(schedule, args, formats, rate, fmt)
+
+
+def _reloader(args, path):
+    """{param: "v unit"} -> the design resolved again with those values (for the uncertainty draws)."""
+    from acl.commands._common import parse_sets
+
+    sets, _ = parse_sets(getattr(args, "set", []) or [])
+    paths = getattr(args, "path", []) or []
+
+    def reload(overrides):
+        import acl
+
+        return acl.load(path, overrides={**sets, **overrides}, search_paths=paths)
+
+    return reload
 
 
 def _emit(schedule, args, formats, rate, fmt) -> int:
@@ -229,13 +259,17 @@ def _summary(console, schedule, result) -> None:
     from rich.table import Table
 
     table = Table(title=f"acl compile: program `{schedule.program}` -> {result.out_dir}", title_justify="left")
-    for col in ("goal", "time (s)", "tones (kHz)", "predicted error RMS / max (um)", "model"):
+    for col in ("goal", "time (s)", "tones (kHz)", "predicted error RMS / max (um)",
+                "95 % band RMS / max (um)", "model"):
         table.add_column(col)
     for g in schedule.goals:
         err = ("-" if g.rms_error_m is None else f"{g.rms_error_m * 1e6:.3g} / {g.max_error_m * 1e6:.3g}")
+        band = ("-" if g.rms_error_p95_m is None else f"{g.rms_error_p95_m * 1e6:.3g} / {g.max_error_p95_m * 1e6:.3g}")
         table.add_row(g.name, f"{g.start_s:.3g}-{g.end_s:.3g}",
-                      ", ".join(f"{f / 1e3:g}" for f in g.frequencies_hz), err, g.model or "-")
+                      ", ".join(f"{f / 1e3:g}" for f in g.frequencies_hz), err, band, g.model or "-")
     console.print(table)
+    for note in schedule.notes:
+        console.print(note if note.startswith("warning:") else f"note: {note}")
     s = result.stats
     tones = ", ".join(f"{f / 1e3:g}" for f in schedule.frequencies_hz())
     analog = max((g.peak_v or 0.0 for g in schedule.segments), default=0.0)

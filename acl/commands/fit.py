@@ -11,8 +11,8 @@ def add_parser(p) -> None:
     p.add_argument("design", metavar="DESIGN", help="design file (.acl), or a folder holding one design")
     p.add_argument("data", nargs="+", metavar="DATA", help="measurement CSV files (docs/data.md)")
     p.add_argument("--free", default="", metavar="NAMES",
-                   help="comma-separated names to fit besides the design's `free` params: gamma, alpha, E, gain "
-                        "or design parameters (docs/data.md)")
+                   help="comma-separated names to fit besides the design's `free` params: gamma, alpha, E, gain, "
+                        "f0, q, f0:CAPSULE, q:CAPSULE or design parameters (docs/data.md)")
     p.add_argument("--report", metavar="DIR", help="write report.json, fit.png, residuals.png to DIR (and the "
                                                      "calibrated design next to DESIGN, see --calibrated)")
     p.add_argument("--calibrated", metavar="PATH", default=None,
@@ -26,6 +26,7 @@ def add_parser(p) -> None:
 
 
 def run(args) -> int:
+    fmt = args.output_format
     from acl.diagnostics import DiagnosticError, Span, error
     from acl.fit.effects import EFFECTS
 
@@ -36,12 +37,12 @@ def run(args) -> int:
         bad = [n for n in names if n not in EFFECTS]
         if bad:
             report([error("E-USAGE", f"--effects: unknown effect `{bad[0]}`", Span(file="<--effects>", line=1, column=1),
-                          f"effects: {', '.join(EFFECTS)}")])
+                          f"effects: {', '.join(EFFECTS)}")], fmt)
             return 2
         candidates = names
-    if args.report and plotting_missing("--report", args.output_format):
+    if args.report and plotting_missing("--report", fmt):
         return 2
-    design = one_design(args.design)
+    design = one_design(args.design, fmt)
     if design is None:
         return 2
     args.design = design
@@ -51,7 +52,7 @@ def run(args) -> int:
                     "not a regular file (a folder)" if os.path.isdir(path) else
                     "not a regular file (a pipe, device or socket)")
             report([error("E601", f"{what}: {path}", Span(file=path, line=1, column=1),
-                          "give a CSV file; save a pipe's output to a file first" if os.path.lexists(path) else None)])
+                          "give a CSV file; save a pipe's output to a file first" if os.path.lexists(path) else None)], fmt)
             return 2
     from acl.fit import run_fit
 
@@ -67,7 +68,7 @@ def run(args) -> int:
         out = run_fit(args.design, args.data, free=free, search_paths=args.path, candidates=candidates,
                       seed=args.seed, progress=progress, calibrated_path=args.calibrated, report_dir=args.report)
     except DiagnosticError as exc:
-        report(exc.diagnostics)
+        report(exc.diagnostics, fmt)
         return exit_code(exc.diagnostics)
     if not out.problem.coefs and not args.quiet:
         _nothing_free(args, candidates)
@@ -84,14 +85,14 @@ def run(args) -> int:
         try:
             write_report_dir(args.report, write)
         except OSError as exc:
-            report([error("E601", f"cannot write the report: {exc.strerror or exc}", Span(file=args.report, line=1, column=1))])
+            report([error("E601", f"cannot write the report: {exc.strerror or exc}", Span(file=args.report, line=1, column=1))], fmt)
             return 2
     if args.report or args.calibrated:
         try:
             _write_atomic(out.calibrated_path, out.calibrated)
         except OSError as exc:
             report([error("E601", f"cannot write the calibrated design: {exc.strerror or exc}",
-                          Span(file=out.calibrated_path, line=1, column=1))])
+                          Span(file=out.calibrated_path, line=1, column=1))], fmt)
             return 2
     if args.output_format == "json":
         import json

@@ -1,4 +1,4 @@
-"""`acl lsp`: start the language server on stdin/stdout (editors start it; see docs/editors.md)."""
+"""`acl lsp`: start the language server on stdin/stdout (editors start it; see docs/lsp.md)."""
 from __future__ import annotations
 
 from acl.commands._common import report
@@ -17,6 +17,10 @@ def run(args) -> int:
         report([error("E-DEPENDENCY", f"`acl lsp` needs the optional packages pygls and lsprotocol ({exc.name} is missing)",
                       Span(file="<acl lsp>", line=1, column=1), "install them with: pip install 'acl[lsp]'")])
         return 2
+    if getattr(args, "verbose", False):       # the protocol traffic and server events, on stderr
+        import logging
+
+        logging.basicConfig(level=logging.INFO, format="acl lsp: %(name)s: %(message)s")
     from acl.lsp.server import serve
 
     serve()

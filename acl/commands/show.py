@@ -81,12 +81,28 @@ def design_tree(design):
     for o in design.observes:
         t.add(f"observe [bold]{o.name}[/bold]: {o.kind}({', '.join(x for x in (o.target, o.a, o.b, o.component) if x)})")
     for r in design.requires:
-        t.add(r.text)
+        t.add(source_text(r.text))
     for p in design.programs:
         n = t.add(f"program [bold]{p.name}[/bold] ({len(p.steps)} steps)")
         for s in p.steps:
             n.add(_step(s))
     return t
+
+
+def source_text(code: str):
+    """A line of acl source as rich Text, coloured by acl's Pygments lexer when pygments is there
+    (rich writes the colours only to a terminal)."""
+    from rich.text import Text
+
+    try:
+        from rich.syntax import Syntax
+
+        from acl.editor.pygments_lexer import AclLexer
+    except ImportError:   # pygments is optional (acl[highlight])
+        return Text(code)
+    text = Syntax(code, AclLexer(), theme="ansi_dark", background_color="default").highlight(code)
+    text.rstrip()
+    return text
 
 
 def _step(s) -> str:

@@ -1,10 +1,19 @@
-"""`acl synth DESIGN --effect NAME=... --noise ... -o data.csv`: synthetic data from the fit's forward model."""
+"""`acl synth DESIGN --effect NAME=... --noise ... -o data.csv`: synthetic data from the fit's forward model.
+
+`acl synth TRUTH.acl --schedule out/schedule.json -o run.csv` instead plays a compiled schedule on a
+design (the analysis' nonlinear model with the design's declared effects) and writes every
+observable at every waypoint (docs/fit.md, closing the loop).
+"""
 from __future__ import annotations
 
 import math
 import re
 
+<<<<<<< HEAD
 from acl.commands._common import exit_code, one_design, parse_sets, quantity_text, report, seed
+=======
+from acl.commands._common import add_output_format, exit_code, one_design, parse_sets, quantity_text, report
+>>>>>>> main
 
 
 def add_parser(p) -> None:
@@ -22,7 +31,11 @@ def add_parser(p) -> None:
     p.add_argument("--interval", default="1 s", help="time between rows (default 1 s)")
     p.add_argument("--seed", type=seed, default=0, help="noise seed (default 0)")
     p.add_argument("--observe", default="", metavar="NAMES", help="observables to write (default: all declared)")
+    p.add_argument("--schedule", metavar="JSON",
+                   help="play this compiled schedule (schedule.json of `acl compile`) on DESIGN and write every "
+                        "observable at every waypoint; DESIGN may declare effects the compiling design lacks")
     p.add_argument("--path", action="append", default=[], metavar="DIR", help="extra folder imports may read from")
+    add_output_format(p)   # json: {"output", "rows", "planted"} on stdout
 
 
 def _located(code, where, msg, hint=None):
@@ -138,6 +151,11 @@ def run(args) -> int:
                           "give a value that differs from the null, e.g. " + _example(eid))
     if noise < 0 or args.repeats < 1 or not freqs:
         return _usage("noise must not be negative, repeats at least 1, and one frequency at least")
+    if args.schedule:
+        if effects or sets:
+            return _usage("--schedule plays on the design as declared: declare effects in it (`effect ID { ... }`) "
+                          "instead of --effect; --sweep does not apply")
+        return _replay(args, noise)
     if not all(math.isfinite(x) for x in (noise, interval, *freqs, *volts)) or noise > MAX_LENGTH or interval <= 0:
         return _usage("--noise, --frequencies, --voltages and --interval must be finite; the noise at most "
                       f"{MAX_LENGTH:g} m and the interval positive")
@@ -178,7 +196,13 @@ def run(args) -> int:
         write_csv(data, args.output)
     except OSError as exc:
         return _usage(f"cannot write {args.output}: {exc.strerror or exc}")
-    if not args.quiet:
+    if args.output_format == "json":
+        import json
+        import sys
+
+        sys.stdout.write(json.dumps({"output": args.output, "rows": data.n,
+                                     "planted": {e: effects[e] for e in planted}}, indent=2) + "\n")
+    elif not args.quiet:
         from acl._console import make_console
 
         con = make_console(stderr=True, highlight=False)
@@ -186,4 +210,61 @@ def run(args) -> int:
             given = ", ".join(f"{k} = {v:g}" for k, v in effects[eid].items())
             con.print(f"planted {eid}: {given} (SI units)")
         con.print(f"wrote {data.n} rows to {args.output}")
+    return 0
+
+
+def _replay(args, noise) -> int:
+    from rich.console import Console
+
+    from acl.commands._common import load_or_report
+    from acl.diagnostics import DiagnosticError
+    from acl.fit.synth import read_schedule, replay, write_csv
+
+    console = Console(stderr=True, highlight=False)
+    try:
+        waypoints, chirps, targets = read_schedule(args.schedule)
+    except DiagnosticError as exc:
+        report(exc.diagnostics)
+        return 2
+    design, code = load_or_report(args.design, args)
+    if design is None:
+        return code
+    names = [s.strip() for s in args.observe.split(",") if s.strip()]
+    known = [o.name for o in design.observes]
+    for n in names:
+        if n not in known:
+            return _usage(f"--observe: the design has no observable `{n}`", "observables: " + (", ".join(known) or "none"))
+    if not (names or known):
+        return _usage("the design declares no `observe`: nothing to write")
+    if len(waypoints) > 200 and console.is_terminal:
+        from rich.progress import BarColumn, Progress
+
+        with Progress("replaying", BarColumn(), "{task.completed}/{task.total} waypoints", console=console,
+                      transient=True) as bar:
+            task = bar.add_task("replay", total=len(waypoints))
+            res = replay(design, waypoints, names, noise, args.seed,
+                         progress=lambda done, total: bar.update(task, completed=done), targets=targets)
+    else:
+        res = replay(design, waypoints, names, noise, args.seed, targets=targets)
+    data, lost = res.data, res.lost
+    if data.n == 0:
+        from acl.diagnostics import Span, error
+
+        report([error("E-SYNTH-REPLAY", f"no waypoint of {args.schedule} has a stable equilibrium on {args.design}",
+                      Span(file=args.schedule, line=1, column=1), "lower the drive or check the design")])
+        return 1
+    try:
+        write_csv(data, args.output)
+    except OSError as exc:
+        return _usage(f"cannot write {args.output}: {exc.strerror or exc}")
+    console.print(f"wrote {data.n} rows ({len(waypoints) - lost} waypoints x {len(names or known)} observables) "
+                  f"to {args.output}")
+    for goal, t in res.tracking.items():
+        console.print(f"{goal}: tracking error on {args.design} RMS {t['rms_m'] * 1e6:.4g} um, "
+                      f"max {t['max_m'] * 1e6:.4g} um over {t['n']} waypoints (noise-free)"
+                      + (f", {t['lost']} lost" if t["lost"] else ""))
+    if chirps:
+        console.print(f"note: {chirps} sweep segments skipped (a chirp has no static equilibrium)")
+    if lost:
+        console.print(f"warning: {lost} waypoints have no stable equilibrium on this design (snap-in?): no rows")
     return 0

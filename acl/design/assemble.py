@@ -2,16 +2,16 @@
 from __future__ import annotations
 
 import math
-import os
 
 from pydantic import BaseModel
 
 from acl.design import geometry as G
 from acl.design import model as M
-from acl.design.builders import Builder, CapsuleSpec
+from acl.design.builders import Builder
 from acl.design.checks import check_design_geometry, check_programs
-from acl.design.resolve import DECL_KINDS, EFFECTS, D, _Fail, _what
-from acl.design.values import CallVal, DeclVal, IdentVal, ListVal, StrVal, VecVal
+from acl.design.core import D, DECL_KINDS, EFFECTS, Fail, what_is
+from acl.design.programs import build_program
+from acl.design.values import DeclVal
 from acl.diagnostics import Span, suggest
 from acl.syntax import ast as A
 from acl.units import Quantity, describe, si_unit
@@ -22,6 +22,7 @@ TARGET_POINTS = {"beam": "tip", "latch": "shuttle", "spring": "end"}
 def assemble(b: Builder) -> M.Design:
     r, env, bag = b.r, b.env, b.bag
     params = _params(b)
+    correlations, coverage, discrepancy = _uncertainty(b, params)
     medium, transducer = _uses(b)
 
     # ---- elements
@@ -47,6 +48,8 @@ def assemble(b: Builder) -> M.Design:
     # ---- positions: capsule centres from mounts, beam rigid lengths from their capsules
     capsules: list[M.Capsule] = []
     for name, spec in b.capsules.items():
+        if name in b.failed:    # its mount was wrong (reported there)
+            continue
         j = mounted_on.get(name)
         if spec.center is None:
             if j is not None and j[0] == "beam":
@@ -84,7 +87,8 @@ def assemble(b: Builder) -> M.Design:
     requires = _requires(b, partial)
     programs = _programs(b, partial)
     design = M.Design(**design_kw, observes=tuple(observes), requires=tuple(requires), programs=tuple(programs),
-                      effects=tuple(effects), sources=tuple(dict.fromkeys(r.loader.sources)))
+                      effects=tuple(effects), correlations=correlations, coverage=coverage, discrepancy=discrepancy,
+                      sources=tuple(dict.fromkeys(r.loader.sources)))
     if not _all_finite(design, bag):
         return design
     check_design_geometry(design, bag, b.capsules)
@@ -122,7 +126,11 @@ def _all_finite(design: M.Design, bag) -> bool:
     from a huge radius), so no NaN or infinity reaches the analyses. An iterative walk over the models.
     """
     ok = True
-    stack = [(design, None, "design")]
+    # the elements: their derived values (volumes, tips, stiffnesses, orifice centres) are computed
+    # by the builders; parameters, observations and program steps hold evaluated expressions only
+    stack = [(x, None, "design") for x in (design.medium, design.transducer, design.materials, design.capsules,
+                                           design.beams, design.springs, design.latches, design.anchors,
+                                           design.effects) if x is not None]
     while stack:
         v, span, where = stack.pop()
         if isinstance(v, float):
@@ -155,10 +163,10 @@ def _effect(b: Builder, blk: A.Block) -> M.Effect | None:
             return None
         try:
             v = b.r.eval(ent.value, env)
-        except _Fail:
+        except Fail:
             return None
         if not isinstance(v, Quantity):
-            b.bag.error("E304", f"effect coefficient `{ent.key}` must be a quantity, found {_what(v)}", ent.value.span)
+            b.bag.error("E304", f"effect coefficient `{ent.key}` must be a quantity, found {what_is(v)}", ent.value.span)
             return None
         params[ent.key] = v.value
         units[ent.key] = si_unit(v.dims)
@@ -178,7 +186,7 @@ def _params(b: Builder) -> tuple[M.Param, ...]:
     for name, decl in b.env.params.items():
         try:
             v = b.r.param(b.env, name)
-        except _Fail:
+        except Fail:
             continue
         lo = hi = None
         if decl.free and decl.lower is not None:
@@ -187,12 +195,12 @@ def _params(b: Builder) -> tuple[M.Param, ...]:
                     b.bag.error("E306", f"bounds of `{name}` are written `free in lo .. hi`", decl.lower.span)
                     continue
                 lo_q, hi_q = b.r.eval(decl.lower, b.env), b.r.eval(decl.upper, b.env)
-            except _Fail:
+            except Fail:
                 continue
             for q, e in ((lo_q, decl.lower), (hi_q, decl.upper)):
                 if not isinstance(q, Quantity) or q.dims != v.dims:
                     b.bag.error("E306", f"bound of `{name}` must be {describe(v.dims)} like its value, found "
-                                f"{describe(q.dims) if isinstance(q, Quantity) else _what(q)}", e.span)
+                                f"{describe(q.dims) if isinstance(q, Quantity) else what_is(q)}", e.span)
                     break
             else:
                 lo, hi = lo_q.value, hi_q.value
@@ -203,8 +211,135 @@ def _params(b: Builder) -> tuple[M.Param, ...]:
                     b.bag.error("E306", f"value of `{name}` lies outside its bounds", decl.value.span,
                                 "a free parameter's starting value must lie within its bounds")
                     continue
-        out.append(M.Param(name=name, value=v.value, unit=si_unit(v.dims), free=decl.free, lower=lo, upper=hi, span=decl.span))
+        sd = _stddev(b, name, decl, v) if decl.stddev is not None else None
+        if sd is False:
+            continue
+        out.append(M.Param(name=name, value=v.value, unit=si_unit(v.dims), free=decl.free, lower=lo, upper=hi,
+                           stddev=sd, span=decl.span))
     return tuple(out)
+
+
+def _stddev(b: Builder, name: str, decl, v: Quantity):
+    """The standard deviation of ``param NAME = v +- s`` in SI; False (reported) when it is bad."""
+    try:
+        sd = b.r.eval(decl.stddev, b.env)
+    except Fail:
+        return False
+    span = decl.stddev.span
+    if not isinstance(sd, Quantity) or sd.dims != v.dims:
+        b.bag.error("E321", f"uncertainty of `{name}` must be {describe(v.dims)} like its value, found "
+                    f"{describe(sd.dims) if isinstance(sd, Quantity) else what_is(sd)}", span,
+                    f"write it in the value's unit, e.g. `+- {_example_unit(v)}`")
+        return False
+    if not math.isfinite(sd.value):
+        b.bag.error("E305", f"uncertainty of `{name}` is not finite", span, "give a finite standard deviation")
+        return False
+    if sd.value < 0:
+        b.bag.error("E320", f"uncertainty of `{name}` is negative ({sd.value:g} {si_unit(v.dims)})", span,
+                    "a standard deviation is >= 0: write `+- s` with s positive")
+        return False
+    return float(sd.value)
+
+
+def _example_unit(v: Quantity) -> str:
+    u = si_unit(v.dims)
+    return f"{abs(v.value) * 0.1:.3g} {u}".strip()
+
+
+COVERED = {"voltage": "V", "frequency": "Hz", "deflection": "m"}
+
+
+def _uncertainty(b: Builder, params: tuple[M.Param, ...]):
+    """``uncertainty { correlation(a, b) = r, covered(q) = lo .. hi }`` -> (correlations, coverage)."""
+    sds = {p.name: p.stddev for p in params}
+    corr: dict[tuple[str, str], M.Correlation] = {}
+    cover: dict[str, M.Coverage] = {}
+    discrepancy = None
+    for st in b.env.statements:
+        if not isinstance(st, A.UncertaintyDecl):
+            continue
+        for ent in st.entries:
+            key = ent.key
+            if key.name == "correlation":
+                names = [a.dotted if isinstance(a, A.Ref) else None for a in key.args]
+                if len(names) != 2 or None in names or key.kwargs:
+                    b.bag.error("E323", "write a correlation as `correlation(a, b) = r` with two parameter names",
+                                key.span)
+                    continue
+                bad = [n for n in names if n not in sds]
+                if bad:
+                    b.bag.error("E323", f"correlation: no parameter named `{bad[0]}`", key.span,
+                                suggest(bad[0], list(sds)))
+                    continue
+                exact = [n for n in names if not sds[n]]
+                if exact:
+                    b.bag.error("E323", f"correlation: `{exact[0]}` declares no uncertainty (`+- s`)", key.span,
+                                f"write `param {exact[0]} = value +- s`")
+                    continue
+                if names[0] == names[1]:
+                    b.bag.error("E323", "a parameter's correlation with itself is 1", key.span)
+                    continue
+                try:
+                    r = b.r.eval(ent.value, b.env)
+                except Fail:
+                    continue
+                if not isinstance(r, Quantity) or r.dims != D("") or not math.isfinite(r.value) or abs(r.value) > 1:
+                    b.bag.error("E324", "a correlation is a number in -1 .. 1", ent.value.span)
+                    continue
+                corr[tuple(sorted(names))] = M.Correlation(a=names[0], b=names[1], value=float(r.value), span=ent.span)
+            elif key.name == "covered":
+                q = key.args[0].dotted if len(key.args) == 1 and isinstance(key.args[0], A.Ref) else None
+                if q not in COVERED:
+                    b.bag.error("E325", "write `covered(voltage|frequency|deflection) = lo .. hi`", key.span,
+                                suggest(q, COVERED) if q else None)
+                    continue
+                from acl.design.values import RangeVal
+
+                try:
+                    rv = b.r.eval(ent.value, b.env)
+                except Fail:
+                    continue
+                want = D(COVERED[q])
+                if not (isinstance(rv, RangeVal) and all(isinstance(x, Quantity) and x.dims == want
+                                                         for x in (rv.lower, rv.upper))):
+                    b.bag.error("E325", f"covered({q}): expected a range `lo .. hi` of {describe(want)}",
+                                ent.value.span)
+                    continue
+                lo, hi = rv.lower.value, rv.upper.value
+                if not (math.isfinite(lo) and math.isfinite(hi) and lo <= hi):
+                    b.bag.error("E325", f"covered({q}): the range must be finite and lo <= hi", ent.value.span)
+                    continue
+                cover[q] = M.Coverage(quantity=q, lower=lo, upper=hi, span=ent.span)
+            elif key.name == "discrepancy":
+                if not (len(key.args) == 1 and isinstance(key.args[0], A.Ref) and key.args[0].dotted == "position"):
+                    b.bag.error("E325", "write `discrepancy(position) = LENGTH`", key.span)
+                    continue
+                try:
+                    v = b.r.eval(ent.value, b.env)
+                except Fail:
+                    continue
+                if not (isinstance(v, Quantity) and v.dims == D("m") and math.isfinite(v.value) and v.value >= 0):
+                    b.bag.error("E325", "discrepancy(position): expected a finite length >= 0", ent.value.span)
+                    continue
+                discrepancy = float(v.value)
+            else:
+                b.bag.error("E325", f"unknown uncertainty entry `{key.name}`", key.span,
+                            suggest(key.name, ["correlation", "covered", "discrepancy"])
+                            or "entries: correlation(a, b), covered(q), discrepancy(position)")
+    correlations = tuple(corr.values())
+    if correlations:
+        import numpy as np
+
+        names = [p.name for p in params if p.stddev]
+        pos = {n: i for i, n in enumerate(names)}
+        C = np.eye(len(names))
+        for c in correlations:
+            C[pos[c.a], pos[c.b]] = C[pos[c.b], pos[c.a]] = c.value
+        if np.linalg.eigvalsh(C).min() < -1e-9:
+            b.bag.error("E324", "the correlations are not consistent (the correlation matrix is not positive "
+                        "semidefinite)", correlations[0].span, "check the signs and sizes of the correlations")
+            correlations = ()
+    return correlations, tuple(cover.values()), discrepancy
 
 
 def _uses(b: Builder):
@@ -223,10 +358,10 @@ def _uses(b: Builder):
         seen[st.what] = st.span
         try:
             v = b.r.eval(st.target, b.env)
-        except _Fail:
+        except Fail:
             continue
         if not isinstance(v, DeclVal) or v.kind != st.what:
-            b.bag.error("E207", f"`use {st.what}` needs a {st.what}, found {_what(v)}", st.target.span, b.r._kind_hint(st.what, b.env))
+            b.bag.error("E207", f"`use {st.what}` needs a {st.what}, found {what_is(v)}", st.target.span, b.r.kind_hint(st.what, b.env))
             continue
         if st.what == "medium":
             medium = b.medium(v)
@@ -247,28 +382,6 @@ def _uses(b: Builder):
 
 
 # ------------------------------------------------------------------------------------------------
-def _local(b: Builder, ref: A.Ref, kinds: tuple[str, ...], what: str):
-    """Resolve a reference to a local element of one of `kinds`; returns (kind, name) or None."""
-    name = ref.parts[0]
-    if len(ref.parts) > 1 and ref.parts[0] in b.env.imports:
-        b.bag.error("E207", f"{what}: `{ref.dotted}` is imported; declare the element in this file (e.g. `capsule c like {ref.dotted} {{ ... }}`)", ref.span)
-        return None
-    if name == "ground" and "ground" in kinds:
-        return ("ground", "ground")
-    kind = b.kinds.get(name)
-    if kind is None:
-        cands = [n for n, k in b.kinds.items() if k in kinds]
-        b.bag.error("E201", f"{what}: unknown {' or '.join(k for k in kinds if k != 'ground')} `{name}`", ref.span,
-                    suggest(name, cands) or (("available: " + ", ".join(cands)) if cands else None))
-        return None
-    if kind not in kinds:
-        b.bag.error("E207", f"{what}: `{name}` is a {kind}, expected a {' or '.join(k for k in kinds if k != 'ground')}", ref.span)
-        return None
-    if name in b.failed:
-        return None
-    return (kind, name)
-
-
 def _joints(b: Builder, beams_raw):
     joints = []
     mounted_on: dict[str, tuple[str, str]] = {}
@@ -283,9 +396,14 @@ def _joints(b: Builder, beams_raw):
         capsule_joined[name] = span
         return True
 
+    def unplaced(cap):
+        # the mount is wrong: its capsule has no position, which every later use would report again
+        if cap is not None:
+            b.failed.add(cap[1])
+
     for st in b.env.statements:
         if isinstance(st, A.MountStmt):
-            cap = _local(b, st.capsule, ("capsule",), "mount")
+            cap = b.local(st.capsule, ("capsule",), "mount")
             tgt_name = st.target.parts[0]
             tkind = b.kinds.get(tgt_name)
             if tkind not in TARGET_POINTS:
@@ -296,14 +414,17 @@ def _joints(b: Builder, beams_raw):
                 else:
                     b.bag.error("E207", f"mount: `{tgt_name}` is a {tkind}; capsules mount on a beam tip, latch shuttle or spring end",
                                 st.target.span)
+                unplaced(cap)
                 continue
             point = TARGET_POINTS[tkind]
             if len(st.target.parts) != 2 or st.target.parts[1] != point:
                 got = st.target.parts[1] if len(st.target.parts) > 1 else None
                 b.bag.error("E212", f"mount: a {tkind} is mounted at `{tgt_name}.{point}`" + (f", not `.{got}`" if got else ""),
                             st.target.span, f"write `mount ... on {tgt_name}.{point}`")
+                unplaced(cap)
                 continue
             if cap is None or tgt_name in b.failed:
+                unplaced(cap)
                 continue
             key = (tkind, tgt_name)
             if key in target_used:
@@ -315,13 +436,13 @@ def _joints(b: Builder, beams_raw):
             mounted_on[cap[1]] = key
             joints.append(M.Mount(capsule=cap[1], target=tgt_name, target_kind=tkind, span=st.span))
         elif isinstance(st, A.FixStmt):
-            cap = _local(b, st.capsule, ("capsule",), "fix")
+            cap = b.local(st.capsule, ("capsule",), "fix")
             if cap and claim_capsule(cap[1], st.span):
                 joints.append(M.Fix(capsule=cap[1], span=st.span))
         elif isinstance(st, A.LinkStmt):
-            a = _local(b, st.a, ("capsule", "anchor", "ground"), "link")
-            c = _local(b, st.b, ("capsule", "anchor", "ground"), "link")
-            el = _local(b, st.element, ("truss", "spring"), "link ... with")
+            a = b.local(st.a, ("capsule", "anchor", "ground"), "link")
+            c = b.local(st.b, ("capsule", "anchor", "ground"), "link")
+            el = b.local(st.element, ("truss", "spring"), "link ... with")
             if a and c and a == c:
                 b.bag.error("E207", "link: both ends are the same point", st.span)
                 continue
@@ -331,32 +452,6 @@ def _joints(b: Builder, beams_raw):
 
 
 # ------------------------------------------------------------------------------------------------
-def _orifice_ref(b: Builder, design: M.Design, ref: A.Expr, what: str) -> str | None:
-    if not isinstance(ref, A.Ref) or len(ref.parts) != 2:
-        b.bag.error("E304", f"{what}: expected `capsule.orifice`", ref.span)
-        return None
-    cap, ori = ref.parts
-    kind = b.kinds.get(cap)
-    if kind != "capsule":
-        cands = [n for n, k in b.kinds.items() if k == "capsule"]
-        b.bag.error("E201", f"{what}: unknown capsule `{cap}`", ref.span, suggest(cap, cands))
-        return None
-    if cap in b.failed or cap not in b.capsules:
-        return None
-    names = [o[0] for o in b.capsules[cap].orifices]
-    if ori not in names:
-        b.bag.error("E212", f"{what}: capsule `{cap}` has no orifice `{ori}`", ref.span, suggest(ori, names) or "orifices: " + ", ".join(names))
-        return None
-    return f"{cap}.{ori}"
-
-
-def _arity(b: Builder, call: A.Call, n: tuple[int, ...], what: str) -> bool:
-    if len(call.args) not in n:
-        b.bag.error("E304", f"{what} takes {' or '.join(map(str, n))} argument(s), got {len(call.args)}", call.span)
-        return False
-    return True
-
-
 def _observes(b: Builder, design: M.Design) -> list[M.Observe]:
     out = []
     for st in b.env.statements:
@@ -364,30 +459,30 @@ def _observes(b: Builder, design: M.Design) -> list[M.Observe]:
             continue
         c = st.call
         if c.name == "gap":
-            if not _arity(b, c, (2,), "gap(a.orifice, b.orifice)"):
+            if not b.arity(c, (2,), "gap(a.orifice, b.orifice)"):
                 continue
-            x, y = (_orifice_ref(b, design, a, "gap") for a in c.args)
+            x, y = (b.orifice_ref(a, "gap") for a in c.args)
             if x and y:
                 out.append(M.Observe(name=st.name, kind="gap", a=x, b=y, span=st.span))
         elif c.name == "displacement":
-            if not _arity(b, c, (2,), "displacement(element, direction)"):
+            if not b.arity(c, (2,), "displacement(element, direction)"):
                 continue
             tgt = c.args[0]
             if not isinstance(tgt, A.Ref) or len(tgt.parts) != 1:
                 b.bag.error("E304", "displacement: first argument is a beam, capsule or latch name", tgt.span)
                 continue
-            k = _local(b, tgt, ("beam", "capsule", "latch", "spring"), "displacement")
+            k = b.local(tgt, ("beam", "capsule", "latch", "spring"), "displacement")
             try:
                 axis = b.r.direction(c.args[1], b.env, "displacement direction")
-            except _Fail:
+            except Fail:
                 continue
             if k:
                 out.append(M.Observe(name=st.name, kind="displacement", target=k[1], axis=axis, span=st.span))
         elif c.name == "position":
-            if not _arity(b, c, (2,), "position(capsule, x|y|z)"):
+            if not b.arity(c, (2,), "position(capsule, x|y|z)"):
                 continue
             tgt, comp = c.args
-            k = _local(b, tgt, ("capsule",), "position") if isinstance(tgt, A.Ref) else None
+            k = b.local(tgt, ("capsule",), "position") if isinstance(tgt, A.Ref) else None
             if not (isinstance(comp, A.Ref) and comp.dotted in ("x", "y", "z")):
                 b.bag.error("E304", "position: second argument is x, y or z", comp.span)
                 continue
@@ -422,15 +517,15 @@ def _requires(b: Builder, design: M.Design) -> list[M.Require]:
                 lo = b.r.q(st.value, b.env, units[c.name], f"require {c.name}")
             else:
                 hi = b.r.q(st.value, b.env, units[c.name], f"require {c.name}")
-        except _Fail:
+        except Fail:
             continue
         args: tuple[str, ...] = ()
         mode = 0
         if c.name in ("resonance", "margin"):
             kind = "capsule" if c.name == "resonance" else "latch"
-            if not _arity(b, c, (1,), f"{c.name}({kind})") or not isinstance(c.args[0], A.Ref):
+            if not b.arity(c, (1,), f"{c.name}({kind})") or not isinstance(c.args[0], A.Ref):
                 continue
-            k = _local(b, c.args[0], (kind,), f"require {c.name}")
+            k = b.local(c.args[0], (kind,), f"require {c.name}")
             if not k:
                 continue
             args = (k[1],)
@@ -438,22 +533,22 @@ def _requires(b: Builder, design: M.Design) -> list[M.Require]:
             if m is not None:
                 try:
                     mode = int(b.r.q(m, b.env, "", "mode")) - 1
-                except _Fail:
+                except Fail:
                     continue
                 if mode < 0:
                     b.bag.error("E304", "modes are numbered from 1", m.span)
                     continue
         elif c.name == "separation":
-            if not _arity(b, c, (2,), "separation(capsule, capsule)"):
+            if not b.arity(c, (2,), "separation(capsule, capsule)"):
                 continue
-            ks = [_local(b, a, ("capsule",), "require separation") if isinstance(a, A.Ref) else None for a in c.args]
+            ks = [b.local(a, ("capsule",), "require separation") if isinstance(a, A.Ref) else None for a in c.args]
             if not all(ks):
                 continue
             args = (ks[0][1], ks[1][1])
         else:
-            if not _arity(b, c, (2,), "gap(a.orifice, b.orifice)"):
+            if not b.arity(c, (2,), "gap(a.orifice, b.orifice)"):
                 continue
-            x, y = (_orifice_ref(b, design, a, "require gap") for a in c.args)
+            x, y = (b.orifice_ref(a, "require gap") for a in c.args)
             if not (x and y):
                 continue
             args = (x, y)
@@ -463,8 +558,6 @@ def _requires(b: Builder, design: M.Design) -> list[M.Require]:
 
 # ------------------------------------------------------------------------------------------------
 def _programs(b: Builder, design: M.Design) -> list[M.Program]:
-    from acl.design.programs import build_program
-
     out = []
     for name, decl in b.env.programs.items():
         p = build_program(b, design, decl)

@@ -7,11 +7,12 @@ from dataclasses import dataclass, field
 
 from acl.design import geometry as G
 from acl.design import model as M
-from acl.design.resolve import DECL_KINDS, SCHEMAS, Resolver, _Fail, _what, D
-from acl.design.values import CallVal, DeclVal, DirVal, IdentVal, ListVal, RangeVal, StrVal, VecVal
+from acl.design.core import D, SCHEMAS, Fail, what_is
+from acl.design.evaluate import Resolver
+from acl.design.values import CallVal, DeclVal, IdentVal, ListVal, StrVal, VecVal
 from acl.diagnostics import Span, suggest
 from acl.syntax import ast as A
-from acl.units import Quantity, describe, si_unit
+from acl.units import Quantity, describe
 
 MAX_TRANSDUCER_VOLTAGE = 1e4   # V: the top of compile's accepted `limit` range (acl.schedule.compile.VOLTAGE_RANGE)
 
@@ -56,11 +57,15 @@ class Builder:
         self.transducers: dict[str, M.Transducer] = {}
         self.kinds: dict[str, str] = {}      # local element name -> kind
         self.failed: set[str] = set()        # local elements whose declaration had errors
+        self.failed_materials: set[str] = set()
 
     # ------------------------------------------------------------------------------ materials
     def material(self, dv: DeclVal) -> M.Material | None:
         if dv.name in self.materials:
             return self.materials[dv.name]
+        if dv.name in self.failed_materials:   # reported once, where it is declared
+            return None
+        self.failed_materials.add(dv.name)
         try:
             keys = self.r.assigns(dv.node, dv.env, "material")
             E = self._pos(keys, "youngs", "material", dv.name)
@@ -70,8 +75,9 @@ class Builder:
                 self._err_key(keys, "poisson", "E412", f"Poisson ratio {nu:g} outside (-1, 0.5]")
                 return None
             m = M.Material(name=dv.name, youngs_modulus=E, poisson_ratio=nu, density=rho, span=dv.node.span)
-        except _Fail:
+        except Fail:
             return None
+        self.failed_materials.discard(dv.name)
         self.materials[dv.name] = m
         return m
 
@@ -86,7 +92,7 @@ class Builder:
                             sound_speed=vals["sound_speed"], surface_tension=vals["surface_tension"],
                             ambient_pressure=vals["pressure"], polytropic_index=vals["polytropic"],
                             gas_thermal_diffusivity=vals["thermal_diffusivity"], span=dv.node.span)
-        except _Fail:
+        except Fail:
             return None
 
     def transducer(self, dv: DeclVal) -> M.Transducer | None:
@@ -103,20 +109,26 @@ class Builder:
                 self._err_key(keys, "band", "E401", "band must be at positive frequencies")
                 return None
             fs, gs = self._gain_table(keys, dv)
+            unc = self.r.get(keys, "gain_uncertainty", "transducer", dv.name)
+            if unc is not None and not (math.isfinite(unc) and unc >= 0):
+                self._err_key(keys, "gain_uncertainty", "E320" if math.isfinite(unc) else "E305",
+                              f"{dv.name}.gain_uncertainty must be a finite relative standard deviation >= 0, "
+                              f"got {unc:g}", "e.g. `gain_uncertainty = 40 %`")
+                return None
             return M.Transducer(name=dv.name, max_voltage=vmax, band=band, gain_frequencies=fs,
-                                gain_pa_per_v=gs, span=dv.node.span)
-        except _Fail:
+                                gain_pa_per_v=gs, gain_uncertainty=unc, span=dv.node.span)
+        except Fail:
             return None
 
     def _gain_table(self, keys, dv: DeclVal):
         if "gain" not in keys:      # missing key already reported by assigns()
-            raise _Fail()
+            raise Fail()
         ent, env = keys["gain"]
         v = self.r.eval(ent.value, env)
         if isinstance(v, Quantity):  # a flat gain
             if v.dims != D("Pa/V"):
                 self.bag.error("E301", f"{dv.name}.gain: expected {describe(D('Pa/V'))}, found {describe(v.dims)}", ent.value.span)
-                raise _Fail()
+                raise Fail()
             return (1.0,), (v.value,)
         if isinstance(v, CallVal) and v.name == "csv":
             return self._gain_csv(v, ent, env)
@@ -126,47 +138,95 @@ class Builder:
                 if not (isinstance(item, VecVal) and len(item.items) == 2 and item.items[0].dims == D("Hz")
                         and item.items[1].dims == D("Pa/V")):
                     self.bag.error("E304", "gain table rows are `(frequency, pressure per volt)`, e.g. `(85 kHz, 2 kPa/V)`", sub.span)
-                    raise _Fail()
+                    raise Fail()
                 fs.append(item.items[0].value)
                 gs.append(item.items[1].value)
             return self._check_table(fs, gs, ent.value.span)
-        self.bag.error("E304", f"{dv.name}.gain: expected a table `[(f, Pa/V), ...]`, `csv(\"file.csv\")` or a constant, found {_what(v)}", ent.value.span)
-        raise _Fail()
+        self.bag.error("E304", f"{dv.name}.gain: expected a table `[(f, Pa/V), ...]`, `csv(\"file.csv\")` or a constant, found {what_is(v)}", ent.value.span)
+        raise Fail()
 
     def _check_table(self, fs, gs, span):
         if any(b <= a for a, b in zip(fs, fs[1:])):
             self.bag.error("E413", "gain table frequencies must be strictly increasing", span)
-            raise _Fail()
+            raise Fail()
         if any(g < 0 or not math.isfinite(g) for g in gs) or any(f <= 0 for f in fs):
             self.bag.error("E413", "gain table needs positive frequencies and non-negative gains", span)
-            raise _Fail()
+            raise Fail()
         return tuple(fs), tuple(gs)
 
     def _gain_csv(self, call: CallVal, ent, env):
         from acl.design.tables import read_table
 
-        path = self._user_file(call, ent.value.span, env)
+        path = self.user_file(call, ent.value.span, env)
         rows = read_table(path, self.bag, [("frequency", D("Hz")), ("gain", D("Pa/V"))], ent.value.span)
         if rows is None:
-            raise _Fail()
+            raise Fail()
         self.r.loader.sources.append(path)
         return self._check_table([r[0] for r in rows], [r[1] for r in rows], ent.value.span)
 
-    def _user_file(self, call: CallVal, span: Span, env) -> str:
+    def user_file(self, call: CallVal, span: Span, env) -> str:
         if not call.args or not isinstance(call.args[0], StrVal):
             self.bag.error("E304", "csv(...) takes a quoted file path: csv(\"table.csv\")", span)
-            raise _Fail()
+            raise Fail()
         rel = call.args[0].value
         base = os.path.dirname(os.path.realpath(env.file)) if os.path.exists(env.file) else os.getcwd()
         path = os.path.realpath(os.path.join(base, rel))
-        if not self.r.loader._allowed(path, os.path.dirname(os.path.realpath(self.env.file)) if os.path.exists(self.env.file) else os.getcwd()):
+        if not self.r.loader.allowed(path, os.path.dirname(os.path.realpath(self.env.file)) if os.path.exists(self.env.file) else os.getcwd()):
             self.bag.error("E210", f"`{rel}` is outside the design's directory tree", span,
                            "a design reads only files in its folder and below, the stdlib, and --path folders")
-            raise _Fail()
+            raise Fail()
         if not os.path.isfile(path):
             self.bag.error("E507", f"cannot find `{rel}`", span)
-            raise _Fail()
+            raise Fail()
         return path
+
+    # ------------------------------------------------------------------------------ references to local elements
+    def local(self, ref: A.Ref, kinds: tuple[str, ...], what: str):
+        """Resolve a reference to a local element of one of `kinds`; returns (kind, name) or None."""
+        name = ref.parts[0]
+        if len(ref.parts) > 1 and ref.parts[0] in self.env.imports:
+            self.bag.error("E207", f"{what}: `{ref.dotted}` is imported; declare the element in this file (e.g. `capsule c like {ref.dotted} {{ ... }}`)", ref.span)
+            return None
+        if name == "ground" and "ground" in kinds:
+            return ("ground", "ground")
+        kind = self.kinds.get(name)
+        if kind is None:
+            cands = [n for n, k in self.kinds.items() if k in kinds]
+            self.bag.error("E201", f"{what}: unknown {' or '.join(k for k in kinds if k != 'ground')} `{name}`", ref.span,
+                        suggest(name, cands) or (("available: " + ", ".join(cands)) if cands else None))
+            return None
+        if kind not in kinds:
+            self.bag.error("E207", f"{what}: `{name}` is a {kind}, expected a {' or '.join(k for k in kinds if k != 'ground')}", ref.span)
+            return None
+        if name in self.failed:
+            return None
+        return (kind, name)
+
+    def orifice_ref(self, ref: A.Expr, what: str) -> str | None:
+        """`capsule.orifice` naming a built capsule's orifice, or None (reported unless the capsule failed)."""
+        if not isinstance(ref, A.Ref) or len(ref.parts) != 2:
+            self.bag.error("E304", f"{what}: expected `capsule.orifice`", ref.span)
+            return None
+        cap, ori = ref.parts
+        kind = self.kinds.get(cap)
+        if kind != "capsule":
+            cands = [n for n, k in self.kinds.items() if k == "capsule"]
+            self.bag.error("E201", f"{what}: unknown capsule `{cap}`", ref.span, suggest(cap, cands))
+            return None
+        if cap in self.failed or cap not in self.capsules:
+            return None
+        names = [o[0] for o in self.capsules[cap].orifices]
+        if ori not in names:
+            self.bag.error("E212", f"{what}: capsule `{cap}` has no orifice `{ori}`", ref.span, suggest(ori, names) or "orifices: " + ", ".join(names))
+            return None
+        return f"{cap}.{ori}"
+
+    def arity(self, call: A.Call, n: tuple[int, ...], what: str) -> bool:
+        """Whether a call has one of the argument counts `n` (reported if not)."""
+        if len(call.args) not in n:
+            self.bag.error("E304", f"{what} takes {' or '.join(map(str, n))} argument(s), got {len(call.args)}", call.span)
+            return False
+        return True
 
     # ------------------------------------------------------------------------------ helpers
     def _pos(self, keys, key, schema, what) -> float:
@@ -175,7 +235,7 @@ class Builder:
             return v
         if not (v > 0 and math.isfinite(v)):
             self._err_key(keys, key, "E401", f"{what}.{key} must be positive, got {Quantity(v, D(SCHEMAS[schema][key].unit)) if SCHEMAS[schema][key].unit is not None else v}")
-            raise _Fail()
+            raise Fail()
         return v
 
     def _err_key(self, keys, key, code, msg, hint=None):
@@ -186,17 +246,17 @@ class Builder:
         (v, ent) = self.r.get(keys, "section", schema, what)
         span = ent.value.span
         if not isinstance(v, CallVal) or v.name not in ("circle", "rect"):
-            self.bag.error("E304", f"{what}.section: expected `circle(diameter)` or `rect(width, thickness)`, found {_what(v)}", span,
+            self.bag.error("E304", f"{what}.section: expected `circle(diameter)` or `rect(width, thickness)`, found {what_is(v)}", span,
                            suggest(v.name, ["circle", "rect"]) if isinstance(v, CallVal) else None)
-            raise _Fail()
+            raise Fail()
         want = 1 if v.name == "circle" else 2
         vals = list(v.args) + [x for _, x in v.kwargs]
         if len(vals) != want or not all(isinstance(x, Quantity) and x.dims == D("m") for x in vals):
             self.bag.error("E304", f"{what}.section: `{v.name}` takes {want} length(s)", span)
-            raise _Fail()
+            raise Fail()
         if any(x.value <= 0 for x in vals):
             self.bag.error("E401", f"{what}.section sizes must be positive", span)
-            raise _Fail()
+            raise Fail()
         if v.name == "circle":
             return M.Section(shape="circle", diameter=vals[0].value)
         return M.Section(shape="rect", width=vals[0].value, thickness=vals[1].value)
@@ -206,10 +266,12 @@ class Builder:
         name = blk.name
         try:
             keys = self.r.assigns(blk, self.env, "capsule", allowed_blocks=("cavity", "orifice"))
-        except _Fail:
+        except Fail:
             return None
         cavities = [(e, en) for e, en in self.r.entries(blk, self.env) if isinstance(e, A.Block) and e.kind == "cavity"]
         orifices = [(e, en) for e, en in self.r.entries(blk, self.env) if isinstance(e, A.Block) and e.kind == "orifice"]
+        if (not cavities or not orifices) and self.r.incomplete(blk):
+            return None
         if not cavities:
             self.bag.error("E204", f"capsule `{name}` has no cavity", blk.span, "add `cavity cylinder { radius = 25 um, height = 33 um }`")
             return None
@@ -227,7 +289,7 @@ class Builder:
         ok = True
         try:
             spec.center = self.r.get(keys, "center", "capsule", name)
-        except _Fail:
+        except Fail:
             ok = False
         try:
             spec.thrust = self.r.get(keys, "thrust", "capsule", name)
@@ -235,7 +297,7 @@ class Builder:
             if spec.q is not None and spec.q <= 0:
                 self._err_key(keys, "q", "E401", f"{name}.q must be positive")
                 ok = False
-        except _Fail:
+        except Fail:
             ok = False
         seen = set()
         side_normals = []
@@ -270,17 +332,17 @@ class Builder:
                 if k not in allowed:
                     self.bag.error("E203", f"`{k}` does not apply to a {shape} cavity", ent.key_span,
                                    f"a {shape} cavity takes: " + ", ".join(sorted(allowed)))
-                    raise _Fail()
+                    raise Fail()
             need = {"cylinder": ("radius", "height"), "prism": ("side", "height"), "volume": ("volume",)}[shape]
             missing = [k for k in need if k not in keys]
             if missing:
                 self.bag.error("E204", f"{shape} cavity of `{name}` is missing " + ", ".join(f"`{k}`" for k in missing), cav.span)
-                raise _Fail()
+                raise Fail()
             vals = {k: self._pos(keys, k, "cavity", f"{name}.cavity") for k in need}
             wall = self._pos(keys, "wall", "cavity", f"{name}.cavity")
             axis = self.r.get(keys, "axis", "cavity", f"{name}.cavity") or (0.0, 0.0, 1.0)
             facing = self.r.get(keys, "facing", "cavity", f"{name}.cavity")
-        except _Fail:
+        except Fail:
             return None
         if shape == "cylinder":
             vol = G.cylinder_volume(vals["radius"], vals["height"])
@@ -308,8 +370,8 @@ class Builder:
                 face = _face_name(face_v)
                 if face is None:
                     self.bag.error("E304", f"{where}.face: expected 1, 2, 3, top, bottom or side", face_ent.value.span)
-                    raise _Fail()
-        except _Fail:
+                    raise Fail()
+        except Fail:
             return None
         span = ob.span
         ax = spec.axis
@@ -388,8 +450,8 @@ class Builder:
             rigid = self.r.get(keys, "rigid", "beam", name)
             if rigid is not None and rigid < 0:
                 self._err_key(keys, "rigid", "E401", f"{name}.rigid must not be negative")
-                raise _Fail()
-        except _Fail:
+                raise Fail()
+        except Fail:
             return None
         mat = self.material(mat_dv)
         if mat is None:
@@ -407,21 +469,21 @@ class Builder:
                 extra = [key for key in ("length", "section", "material") if key in keys]
                 if extra:
                     self._err_key(keys, extra[0], "E203", "give a spring either `stiffness` or its geometry, not both")
-                    raise _Fail()
+                    raise Fail()
             else:
                 missing = [key for key in ("length", "section", "material") if key not in keys]
                 if missing:
                     self.bag.error("E204", f"spring `{name}` needs `stiffness`, or `length`, `section` and `material`", blk.span,
                                    "e.g. `stiffness = 0.7563 nN/um` (paper Fig. 5c)")
-                    raise _Fail()
+                    raise Fail()
                 L = self._pos(keys, "length", "spring", name)
                 section = self._section(keys, "spring", name)
                 mat = self.material(self.r.get(keys, "material", "spring", name))
                 if mat is None:
-                    raise _Fail()
+                    raise Fail()
                 count = self._pos(keys, "count", "spring", name)
                 k = count * 12 * mat.youngs_modulus * section.second_moment / L**3  # guided beams (Roark)
-        except _Fail:
+        except Fail:
             return None
         return M.Spring(name=name, stiffness=k, axis=axis, span=blk.span)
 
@@ -433,7 +495,7 @@ class Builder:
             if not 0 < angle < math.pi / 2:
                 self._err_key(keys, "angle", "E411", f"latch angle {math.degrees(angle):.3g} deg outside (0, 90) deg",
                               "write the angle with a unit: `30 deg`")
-                raise _Fail()
+                raise Fail()
             L = self._pos(keys, "length", "latch", name)
             w = self._pos(keys, "width", "latch", name)
             t = self._pos(keys, "thickness", "latch", name)
@@ -445,11 +507,11 @@ class Builder:
                 v, ent = self.r.get(keys, "state", "latch", name)
                 state = v.name if isinstance(v, IdentVal) else None
                 if state not in ("a", "b"):
-                    self.bag.error("E506", f"latch state must be `a` or `b`, found {_what(v)}", ent.value.span)
-                    raise _Fail()
+                    self.bag.error("E506", f"latch state must be `a` or `b`, found {what_is(v)}", ent.value.span)
+                    raise Fail()
             if mat is None:
-                raise _Fail()
-        except _Fail:
+                raise Fail()
+        except Fail:
             return None
         return M.Latch(name=name, angle=angle, length=L, width=w, thickness=t, material=mat.name,
                        youngs_modulus=mat.youngs_modulus, anchor=at, axis=axis, state=state, span=blk.span)
@@ -458,14 +520,14 @@ class Builder:
         try:
             keys = self.r.assigns(blk, self.env, "anchor")
             at = self.r.get(keys, "at", "anchor", blk.name)
-        except _Fail:
+        except Fail:
             return None
         return M.Anchor(name=blk.name, position=at, span=blk.span)
 
     def truss(self, blk: A.Block) -> M.Truss | None:
         try:
             self.r.assigns(blk, self.env, "truss")
-        except _Fail:
+        except Fail:
             return None
         return M.Truss(name=blk.name, span=blk.span)
 
@@ -481,8 +543,3 @@ def _face_name(v) -> str | None:
         return v.name
     return None
 
-
-def build_design(r: Resolver) -> M.Design:
-    from acl.design.assemble import assemble
-
-    return assemble(Builder(r))

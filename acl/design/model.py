@@ -34,7 +34,11 @@ class Frozen(BaseModel):
 # ----------------------------------------------------------------------------------------------
 
 class Param(Frozen):
-    """``param NAME = expr [free [in lo .. hi]]``; value in SI, ``unit`` the SI unit string."""
+    """``param NAME = expr [+- sd] [free [in lo .. hi]]``; value in SI, ``unit`` the SI unit string.
+
+    ``stddev`` (same unit as the value) is the declared standard deviation of the value, None when
+    the value is taken as exact; correlations between parameters are in ``Design.correlations``.
+    """
 
     name: str
     value: float
@@ -42,6 +46,28 @@ class Param(Frozen):
     free: bool = False
     lower: float | None = None
     upper: float | None = None
+    stddev: float | None = None
+    span: Span
+
+
+class Correlation(Frozen):
+    """``correlation(a, b) = r`` in an ``uncertainty { }`` block: correlation of two uncertain parameters."""
+
+    a: str
+    b: str
+    value: float                   # in [-1, 1]
+    span: Span
+
+
+class Coverage(Frozen):
+    """``covered(QUANTITY) = lo .. hi``: the range a calibration's data covered (SI).
+
+    ``quantity`` is ``voltage`` (sum of tone amplitudes, V), ``frequency`` (Hz) or ``deflection`` (m).
+    """
+
+    quantity: Literal["voltage", "frequency", "deflection"]
+    lower: float
+    upper: float
     span: Span
 
 
@@ -75,6 +101,7 @@ class Transducer(Frozen):
     band: tuple[float, float]      # Hz
     gain_frequencies: tuple[float, ...]    # Hz, strictly increasing
     gain_pa_per_v: tuple[float, ...]       # Pa/V (pressure amplitude per volt amplitude)
+    gain_uncertainty: float | None = None  # relative standard deviation of each table value (independent)
     span: Span
 
 
@@ -431,6 +458,9 @@ class Design(Frozen):
     requires: tuple[Require, ...] = ()
     programs: tuple[Program, ...] = ()
     effects: tuple[Effect, ...] = ()
+    correlations: tuple[Correlation, ...] = ()
+    coverage: tuple[Coverage, ...] = ()
+    discrepancy: float | None = None   # m: RMS difference of the calibrated model from its data (uncertainty block)
     sources: tuple[str, ...] = ()  # every file read (design, imports, csv), in order
 
     # -- lookups -------------------------------------------------------------------------------
@@ -462,6 +492,23 @@ class Design(Frozen):
         """The declared effect with this identifier, or None."""
         return next((e for e in self.effects if e.name == name), None)
 
+    def uncertain_params(self) -> tuple[Param, ...]:
+        """The parameters that declare a standard deviation (``+- s``), in declaration order."""
+        return tuple(p for p in self.params if p.stddev)
+
+    def covariance(self, names=None):
+        """Covariance matrix (SI) of the uncertain parameters ``names`` (default all), from ``+- s`` and correlations."""
+        import numpy as np
+
+        ps = [self.param(n) for n in names] if names is not None else list(self.uncertain_params())
+        sd = np.array([p.stddev or 0.0 for p in ps])
+        corr = np.eye(len(ps))
+        pos = {p.name: i for i, p in enumerate(ps)}
+        for c in self.correlations:
+            if c.a in pos and c.b in pos:
+                corr[pos[c.a], pos[c.b]] = corr[pos[c.b], pos[c.a]] = c.value
+        return corr * np.outer(sd, sd)
+
     def mount_of(self, capsule: str):
         """The joint that holds ``capsule`` (Mount or Fix), or None if it floats."""
         return self._index["holds"].get(capsule)
@@ -489,6 +536,18 @@ class Design(Frozen):
 
     def __repr__(self) -> str:  # readable in notebooks
         return f"<Design {self.file}: {self.summary()}>"
+
+    def _repr_html_(self) -> str:
+        """Notebook display: a compact table of the elements (acl.notebook)."""
+        from acl.notebook import design_html
+
+        return design_html(self)
+
+    def plot(self, ax=None):
+        """Top view of beams and capsules on ``ax`` (or a new Figure, backend untouched); returns the Axes."""
+        from acl.notebook import plot_design
+
+        return plot_design(self, ax)
 
 
 def _find(index: dict, name: str, what: str):

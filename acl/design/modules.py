@@ -1,6 +1,7 @@
 """Finding and loading acl modules: stdlib, sibling files, search paths; import safety and cycles."""
 from __future__ import annotations
 
+import functools
 import os
 from dataclasses import dataclass, field
 
@@ -149,7 +150,7 @@ class Loader:
             self.bag.error("E208", f"cannot find `{st.file}` to extend", st.span)
             return None
         real = os.path.realpath(cand)
-        if not self._allowed(real, root):
+        if not self.allowed(real, root):
             self.bag.error("E210", f"`{st.file}` is outside the design's directory tree", st.span,
                            "pass its folder with --path to allow it")
             return None
@@ -200,7 +201,7 @@ class Loader:
             if not os.path.isfile(cand):
                 continue
             real = os.path.realpath(cand)
-            if not self._allowed(real, root):
+            if not self.allowed(real, root):
                 self.bag.error("E210", f"import `{shown}` resolves outside the design's directory tree",
                                st.span, "imports may only reach the importing file's folder and below, the stdlib, and --path folders")
                 return None
@@ -242,7 +243,8 @@ class Loader:
             return False
         return True
 
-    def _allowed(self, real: str, root: str) -> bool:
+    def allowed(self, real: str, root: str) -> bool:
+        """Whether a file may be read: under the design's folder, the stdlib or a --path folder."""
         roots = [os.path.realpath(root), os.path.realpath(stdlib_root()), *self.search_paths]
         return any(real == r or real.startswith(r.rstrip(os.sep) + os.sep) for r in roots)
 
@@ -263,6 +265,12 @@ def _parse_cached(text: str, display: str) -> A.Module:
             _PARSED.clear()
         _PARSED[key] = hit
     return hit
+
+
+@functools.lru_cache(maxsize=1)
+def stdlib_modules() -> tuple[str, ...]:
+    """Dotted names of the stdlib's modules (`media`, `capsules`, ...)."""
+    return tuple(_stdlib_modules())
 
 
 def _stdlib_modules() -> list[str]:

@@ -46,7 +46,6 @@ class AclLexer(RegexLexer):
     aliases = ["acl"]
     filenames = ["*.acl"]
     mimetypes = ["text/x-acl"]
-    url = "https://github.com/"   # the project page; acl has no separate site
 
     tokens = {
         "root": [

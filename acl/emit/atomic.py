@@ -10,8 +10,10 @@ import tempfile
 
 
 def write_text_atomic(path: str, text: str) -> None:
-    """Replace ``path`` with ``text`` (UTF-8, newlines as given) in one rename."""
-    folder = os.path.dirname(os.path.abspath(path))
+    """Replace ``path`` with ``text`` (UTF-8, newlines as given) in one rename; a symbolic link is
+    followed (its target is rewritten, the link stays)."""
+    path = os.path.realpath(path)
+    folder = os.path.dirname(path)
     try:
         mode = os.stat(path).st_mode & 0o7777
     except FileNotFoundError:

@@ -1,19 +1,37 @@
-"""Write the calibrated design: ``extends`` the original, fitted ``param`` values, the found effects as ``effect`` blocks.
+"""Write the calibrated design: ``extends`` the original, every fitted value applied, with its covariance.
 
 The file goes next to the original (``<stem>.calibrated.acl``) so its ``extends`` obeys the import
 safety rule without ``--path``; elsewhere (``acl fit --calibrated PATH``) it loads with ``--path``
-naming the original's folder.  A ``param`` replaces the original's value (docs/language.md,
-``extends``); effects carry the coefficient names and SI units of :mod:`acl.fit.effects`, read by
-:mod:`acl.analysis.effects`.  Coefficients without a design parameter become effects where one is
-the same physics (E scale -> ``stiffness_scale``, transducer gain scale -> ``transducer_gain``,
-thrust coefficient of a lone actuator -> ``transducer_gain``), otherwise a comment saying how to
-declare them.  The result must load with :func:`acl.load` (tested).
+naming the original's folder.
+
+Everything the fit found is *applied* by the analysis, compile and lint (tested: fit -> calibrated
+design -> ``acl analyze`` reproduces the fit's predictions):
+
+* every fitted coordinate is a parameter with its standard error, ``param fit_X = v +- s`` (a
+  fitted design parameter keeps its own name and replaces the original's value), and the fit's
+  correlations are an ``uncertainty { correlation(a, b) = r }`` block: the covariance of the fit,
+  in the language, for ``acl compile``'s robust mode and error bands;
+* effects are ``effect ID { coefficient = fit_ID_coefficient }`` (:mod:`acl.fit.effects` names, SI),
+  read by :mod:`acl.analysis.effects`;
+* coefficients without a design parameter are written as the physics they stand for: the thrust
+  coefficient gamma scales the drive pressure (thrust ~ p^2: ``transducer_gain { gain =
+  (fit_gamma / gamma0)^0.5 }``, which scales thrust, jet drag and Bjerknes force alike); the Bjerknes
+  coefficient alpha of a pair is then ``bjerknes_scale { factor = (fit_alpha / alpha0) / (fit_gamma /
+  gamma0) }``; a modulus scale E is ``stiffness_scale``; a gain scale multiplies ``transducer_gain``;
+* ``discrepancy(position)`` is the fit's RMS residual: what the calibrated model still misses
+  (model error and measurement noise), which the error bands add per waypoint;
+* ``covered(voltage|frequency|deflection)`` records the range of the data, so a program that drives
+  outside it is warned about (``acl compile``), and the transducer's prior table uncertainty
+  becomes relative to the gain at the covered frequencies (acl.schedule.bands).
+
+The result must load with :func:`acl.load` (tested).
 """
 from __future__ import annotations
 
 import datetime
 import math
 import os
+import re
 
 from acl.fit.effects import EFFECTS
 
@@ -36,11 +54,13 @@ def needs_path(design_path: str, calibrated_path: str) -> str | None:
 def calibrated_text(problem, selection, out_path: str, data_paths=(), report_dir: str | None = None,
                     now: datetime.datetime | None = None) -> str:
     """The calibrated design's source, to be written at ``out_path``."""
+    import numpy as np
+
     final, P = selection.final, problem.prepared
     rel = os.path.relpath(os.path.abspath(problem.path), os.path.dirname(os.path.abspath(out_path)))
     rel = rel.replace(os.sep, "/")
     now = now or datetime.datetime.now(datetime.timezone.utc)
-    head = ["# Calibrated by `acl fit`: the original design plus fitted values and the effects found.",
+    head = ["# Calibrated by `acl fit`: the original design with every fitted value and effect applied.",
             f"# date: {now.strftime('%Y-%m-%d %H:%M:%S %Z').strip()}",
             f"# design: {os.path.abspath(problem.path)}"]
     head += [f"# data: {os.path.abspath(p)}" for p in data_paths]
@@ -50,55 +70,76 @@ def calibrated_text(problem, selection, out_path: str, data_paths=(), report_dir
     if extra:
         head.append(f"# load with `--path {extra}` (the original is outside this file's folder tree)")
     lines = head + ["", f'extends "{rel}"', ""]
-    params, comments = [], []
-    effects = {eid: dict(selection.effects.get(eid, {})) for eid in selection.selected}
-    single = not bool(P.pair.any())
-    gain = 1.0                                   # pressure scale for transducer_gain
-    e_scale = 1.0                                # Young's modulus scale for stiffness_scale
+    pair = bool(P.pair.any())
+    names, params = [], []              # parameter name per fitted coordinate; its declaration
+    effects: dict[str, dict[str, str]] = {eid: {} for eid in selection.selected}
+    gain_terms: list[str] = []          # factors of the transducer_gain `gain` (pressure scale)
+    notes: list[str] = []
+    by_kind: dict[str, str] = {}
     for k, (c, v) in enumerate(zip(final.coefs, final.values)):
-        if c.kind == "effect":
-            continue
+        se = float(final.stderr[k]) if np.isfinite(final.stderr[k]) else float("nan")
         lo, hi = (float(x) for x in final.ci[k])
-        if c.design_param:
+        if c.kind == "effect":
+            unit = next((q.unit for q in EFFECTS[c.effect].params if q.name == c.param), c.unit)
+            name = f"fit_{c.effect}_{c.param}"
+            effects.setdefault(c.effect, {})[c.param] = name
+        elif c.design_param:
             p = problem.design.param(c.design_param)
-            conv = {"gamma": lambda x: p.value * x / P.gamma0, "e_scale": lambda x: p.value * x}.get(c.kind, lambda x: x)
-            params.append(f"param {c.design_param} = {_literal(conv(v), p.unit)}"
-                          f"    # 95% interval {_literal(conv(lo), p.unit)} .. {_literal(conv(hi), p.unit)}")
-        elif c.kind == "e_scale":
-            e_scale *= v
-            comments.append(f"# E/E_declared = {v:.6g} (95% interval {lo:.6g} .. {hi:.6g}): stiffness_scale below")
-        elif c.kind == "gain":
-            gain *= v
-            comments.append(f"# transducer gain scale = {v:.6g} (95% interval {lo:.6g} .. {hi:.6g}): transducer_gain below")
-        elif c.kind == "gamma" and single and P.gamma0 > 0 and v > 0:
-            # thrust ~ pressure^2: a lone actuator's thrust coefficient is a pressure scale sqrt(gamma/gamma0)
-            gain *= math.sqrt(v / P.gamma0)
-            comments.append(f"# gamma (thrust at {P.f_ref / 1e3:.6g} kHz) = {_literal(v, 'N/V^2')} (95% interval "
-                            f"{_literal(lo, 'N/V^2')} .. {_literal(hi, 'N/V^2')}): as transducer_gain below "
-                            f"(gain = sqrt(gamma/{_literal(P.gamma0, 'N/V^2')})); or declare `param gamma` and "
-                            "use it as the capsule's `thrust`")
-        elif c.kind == "gamma":
-            comments.append(f"# gamma (thrust at {P.f_ref / 1e3:.6g} kHz) = {_literal(v, 'N/V^2')} (95% interval "
-                            f"{_literal(lo, 'N/V^2')} .. {_literal(hi, 'N/V^2')}): not applied; declare "
-                            "`param gamma = ...` in the original, use it as each capsule's `thrust` (thrust at its "
-                            "first mode; docs/data.md) and fit again")
-        elif c.kind == "alpha":
-            comments.append(f"# alpha (paper Eq. 3) = {_literal(v, 'N*m^2/V^2')} (95% interval {_literal(lo, 'N*m^2/V^2')}"
-                            f" .. {_literal(hi, 'N*m^2/V^2')}): not applied; the language has no Bjerknes coefficient "
-                            "declaration (the analysis computes it from the capsules); declare `param alpha` to "
-                            "record it")
-    if e_scale != 1.0:
-        eff = effects.setdefault("stiffness_scale", {"e_scale": 1.0})
-        eff["e_scale"] = eff.get("e_scale", 1.0) * e_scale
-    if gain != 1.0 or "transducer_gain" in effects:
-        eff = effects.setdefault("transducer_gain", {"gain_slope": 0.0})
-        eff["gain"] = eff.get("gain", 1.0) * gain
-    if params:
-        lines += ["# fitted design parameters"] + params + [""]
-    if comments:
-        lines += comments + [""]
+            factor = {"gamma": p.value / P.gamma0, "e_scale": p.value}.get(c.kind, 1.0)
+            v, se, lo, hi, unit, name = v * factor, se * factor, lo * factor, hi * factor, p.unit, c.design_param
+        else:
+            unit = {"gamma": "N/V^2", "alpha": "N*m^2/V^2"}.get(c.kind, c.unit or "")
+            name = "fit_" + re.sub(r"\W", "_", c.kind)      # f0@left -> fit_f0_left
+            if c.kind.split("@")[0] in ("f0", "q"):
+                what = "natural frequency" if c.kind.startswith("f0") else "quality factor"
+                cap = c.kind.partition("@")[2] or P.ref_capsule
+                notes.append(f"# {name}: the {what} of capsule `{cap}`; not applied to the design (the language "
+                             "declares the capsule's geometry, not its resonance: fit a free cavity parameter to "
+                             "carry it into the design)")
+        names.append(name)
+        by_kind[c.kind] = name
+        params.append(f"param {name} = {_literal(v, unit)}{_pm(se, unit)}"
+                      f"    # 95% interval {_literal(lo, unit)} .. {_literal(hi, unit)}")
+    # coefficients that stand for physics the design has no parameter for
+    if "e_scale" in by_kind and not _is_design(final, "e_scale"):
+        effects.setdefault("stiffness_scale", {})
+        prev = effects["stiffness_scale"].get("e_scale")
+        effects["stiffness_scale"]["e_scale"] = by_kind["e_scale"] + (f" * {prev}" if prev else "")
+    if "gain" in by_kind:
+        gain_terms.append(by_kind["gain"])
+    if "gamma" in by_kind and not _is_design(final, "gamma") and P.gamma0 > 0:
+        gain_terms.append(f"({by_kind['gamma']} / {_literal(P.gamma0, 'N/V^2')})^0.5")
+        notes.append(f"# gamma is the thrust per V^2 at {P.f_ref / 1e3:.6g} kHz; the design's is "
+                     f"{_literal(P.gamma0, 'N/V^2')}: thrust ~ pressure^2, so it scales the drive pressure by "
+                     "(gamma/gamma0)^0.5 (transducer_gain below)")
+    if pair and "alpha" in by_kind:
+        alpha_phys = _alpha_physics(P)
+        if alpha_phys > 0:
+            g = f"{by_kind['gamma']} / {_literal(P.gamma0, 'N/V^2')}" if "gamma" in by_kind and not _is_design(final, "gamma") else "1"
+            effects.setdefault("bjerknes_scale", {})["factor"] = \
+                f"({by_kind['alpha']} / {_literal(alpha_phys, 'N*m^2/V^2')}) / ({g})"
+            notes.append(f"# alpha (paper Eq. 3) at {P.f_ref / 1e3:.6g} kHz; the physics gives "
+                         f"{_literal(alpha_phys, 'N*m^2/V^2')}: bjerknes_scale below applies the ratio beyond the "
+                         "pressure scale")
+        else:
+            notes.append("# alpha: not applied (the physics predicts no Bjerknes attraction for this pair)")
+    if gain_terms or "transducer_gain" in effects:
+        eff = effects.setdefault("transducer_gain", {})
+        eff["gain"] = " * ".join(gain_terms) if gain_terms else "1"
+    lines += ["# fitted values with their standard errors (+-); correlations below"] + params + [""]
+    corr = _correlations(final, names)
+    cover = _coverage(problem)
+    if corr or cover:
+        lines.append("uncertainty {")
+        lines += [f"  correlation({a}, {b}) = {r:.6g}" for a, b, r in corr]
+        lines += [f"  covered({q}) = {_literal(lo, u)} .. {_literal(hi, u)}" for q, (lo, hi, u) in cover.items()]
+        if math.isfinite(final.rmse) and final.rmse > 0:
+            lines.append(f"  discrepancy(position) = {_literal(final.rmse, 'm')}    # RMS residual of the fit")
+        lines += ["}", ""]
+    if notes:
+        lines += notes + [""]
     if effects:
-        lines.append("# effects (acl.fit.effects; coefficients in SI)")
+        lines.append("# effects (acl.fit.effects; coefficients in SI), applied by analyze, compile and lint")
         for eid, vals in effects.items():
             lines.append(_effect_block(eid, vals, P.f_ref))
     else:
@@ -106,17 +147,79 @@ def calibrated_text(problem, selection, out_path: str, data_paths=(), report_dir
     return "\n".join(lines) + "\n"
 
 
+def _is_design(final, kind) -> bool:
+    return any(c.kind == kind and c.design_param for c in final.coefs)
+
+
+def _pm(se: float, unit: str) -> str:
+    """`` +- s`` when the standard error is known."""
+    if not (math.isfinite(se) and se > 0):
+        return ""
+    return f" +- {_literal(se, unit)}"
+
+
+def _correlations(final, names) -> list[tuple[str, str, float]]:
+    """Pairs (a, b, r) of the fit's correlation matrix, rounded but still positive semidefinite."""
+    import numpy as np
+
+    ok = [i for i in range(len(names)) if np.isfinite(final.stderr[i]) and final.stderr[i] > 0]
+    if len(ok) < 2:
+        return []
+    C = np.array([[float(final.corr[i, j]) for j in ok] for i in ok])
+    C = np.where(np.isfinite(C), C, 0.0)
+    np.fill_diagonal(C, 1.0)
+    for _ in range(60):                         # rounding must not break positive semidefiniteness
+        R = np.round(C, 6)
+        np.fill_diagonal(R, 1.0)
+        if np.linalg.eigvalsh(R).min() >= 1e-9:
+            break
+        C = C * 0.999
+        np.fill_diagonal(C, 1.0)
+    return [(names[ok[i]], names[ok[j]], float(R[i, j])) for i in range(len(ok)) for j in range(i + 1, len(ok))
+            if abs(R[i, j]) >= 1e-6]
+
+
+def _coverage(problem) -> dict:
+    """The range of the data: voltage (sum of tone amplitudes), frequency, deflection; unit strings for writing."""
+    import numpy as np
+
+    data, P = problem.data, problem.prepared
+    volts = [sum(v for _, v in t) for t in data.tones]
+    vmax = max((v for t in data.tones for _, v in t), default=0.0)
+    # a tone counts as calibrated where it was driven at 10 % or more of the largest amplitude
+    freqs = [f for t in data.tones for f, v in t if v > 0 and v >= 0.1 * vmax]
+    out = {}
+    if volts:
+        out["voltage"] = (0.0, float(max(volts)), "V")
+    if freqs:
+        out["frequency"] = (float(min(freqs)), float(max(freqs)), "Hz")
+    dev = np.abs(np.asarray(data.value, float) - np.asarray(P.base, float))
+    dev = dev[np.isfinite(dev)]
+    if dev.size:
+        out["deflection"] = (0.0, float(dev.max()), "m")
+    return out
+
+
+def _alpha_physics(P) -> float:
+    """The physics' Bjerknes coefficient at f_ref of the reference pair (what the analysis computes)."""
+    from acl.fit.mechanism import alpha_per_v2, reference_unit
+
+    inst = next(iter(P.instances.values()))
+    unit = reference_unit(inst, "pair")
+    return float(alpha_per_v2(inst, unit, P.f_ref)) if unit is not None else 0.0
+
+
 def _effect_block(eid: str, vals: dict, f_ref: float) -> str:
+    """``effect ID { coefficient = expression, ... }``; ``vals`` maps coefficients to parameter expressions."""
     parts = []
-    for p in EFFECTS[eid].params:
-        v = vals.get(p.name, p.null)
-        parts.append(f"{p.name} = {_literal(v, p.unit)}")
+    lib = EFFECTS[eid].params if eid in EFFECTS else ()
+    for p in lib:
+        parts.append(f"{p.name} = {vals.get(p.name, _literal(p.null, p.unit))}")
     if eid == "transducer_gain":
         parts.append(f"f_ref = {_literal(f_ref, 'Hz')}")
-        parts.append(f"gain = {_literal(vals.get('gain', 1.0), '')}")
-    shown = [p.report(vals.get(p.name, p.null)) for p in EFFECTS[eid].params if p.report]   # user-facing forms
-    note = "  # " + ", ".join(f"{n} = {_literal(val, u)}" for n, val, u in shown) if shown else ""
-    return f"effect {eid} {{ {', '.join(parts)} }}{note}"
+        parts.append(f"gain = {vals.get('gain', '1')}")
+    parts += [f"{k} = {v}" for k, v in vals.items() if k not in {p.name for p in lib} | {"gain"}]
+    return f"effect {eid} {{ {', '.join(parts)} }}"
 
 
 def _literal(value, unit):

@@ -17,7 +17,7 @@ import numpy as np
 from acl.diagnostics import DiagnosticBag, DiagnosticError, Span, suggest
 
 REQUIRED = ("observable", "value", "unit", "drive")
-OPTIONAL = ("time", "sigma")
+OPTIONAL = ("time", "sigma", "experiment")
 LENGTH = (1, 0, 0, 0, 0, 0, 0)
 MAX_ROWS = 2_000_000
 MAX_BYTES = 256 * 2**20                  # a data file larger than this is refused (E601)
@@ -41,6 +41,11 @@ class Dataset:
     units: np.ndarray                    # (n,) str, the unit the row was written in
     files: tuple = ()
     columns: dict = field(default_factory=dict)   # column name -> 1-based index, per file (last file)
+    experiment: np.ndarray = None        # (n,) str: the row's `experiment` label ('' when not given)
+
+    def __post_init__(self):
+        if self.experiment is None:
+            self.experiment = np.full(self.value.size, "", dtype=object)
 
     @property
     def n(self) -> int:
@@ -60,7 +65,7 @@ class Dataset:
         return Dataset(self.observable[idx], self.value[idx], self.sigma[idx], self.time[idx],
                        [self.tones[i] for i in idx], {k: v[idx] for k, v in self.sets.items()},
                        {k: v[idx] for k, v in self.set_si.items()}, [self.spans[i] for i in idx],
-                       self.units[idx], self.files, self.columns)
+                       self.units[idx], self.files, self.columns, self.experiment[idx])
 
     def override_key(self, i: int) -> tuple:
         return tuple((k, self.sets[k][i]) for k in sorted(self.sets) if self.sets[k][i])
@@ -110,7 +115,8 @@ def read_data(paths, design) -> Dataset:
     bag = DiagnosticBag()
     obs_names = [o.name for o in design.observes]
     param_names = [p.name for p in design.params]
-    cols: dict[str, list] = {k: [] for k in ("observable", "value", "sigma", "time", "tones", "spans", "units")}
+    cols: dict[str, list] = {k: [] for k in ("observable", "value", "sigma", "time", "tones", "spans", "units",
+                                             "experiment")}
     sets: dict[str, list] = {}
     n_before = 0
     band = design.transducer.band if design.transducer is not None else None
@@ -127,7 +133,7 @@ def read_data(paths, design) -> Dataset:
         head_i = next((i for i, ln in enumerate(lines) if ln.strip() and not ln.lstrip().startswith("#")), None)
         if head_i is None:
             bag.error("E801", "data file is empty (no header row)", Span(file=path, line=1, column=1),
-                      "the header is `observable,value,unit,drive[,time][,sigma][,set:NAME...]`")
+                      "the header is `observable,value,unit,drive[,time][,sigma][,experiment][,set:NAME...]`")
             continue
         header = split_line(lines[head_i])
         index: dict[str, int] = {}
@@ -150,7 +156,7 @@ def read_data(paths, design) -> Dataset:
         missing = [k for k in REQUIRED if k not in index]
         if missing:
             bag.error("E801", f"missing column(s) {', '.join(missing)}", Span(file=path, line=head_i + 1, column=1),
-                      "the header is `observable,value,unit,drive[,time][,sigma][,set:NAME...]`")
+                      "the header is `observable,value,unit,drive[,time][,sigma][,experiment][,set:NAME...]`")
             continue
         set_keys = [k for k in index if k.startswith("set:")]
         for k in set_keys:
@@ -236,6 +242,7 @@ def read_data(paths, design) -> Dataset:
             cols["tones"].append(tones)
             cols["spans"].append(Span(file=path, line=line, column=1))
             cols["units"].append(unit)
+            cols["experiment"].append(cell("experiment")[0] if "experiment" in index else "")
             for k in sets:
                 sets[k].append(row_sets.get(k, ""))
             n_file += 1
@@ -252,7 +259,8 @@ def read_data(paths, design) -> Dataset:
     set_si = {k: np.array([parse_quantity(t)[0] if t else np.nan for t in v], float) for k, v in sets.items()}
     return Dataset(np.array(cols["observable"], dtype=object), np.array(cols["value"], float),
                    np.array(cols["sigma"], float), np.array(cols["time"], float), cols["tones"], sets_arr,
-                   set_si, cols["spans"], np.array(cols["units"], dtype=object), tuple(paths))
+                   set_si, cols["spans"], np.array(cols["units"], dtype=object), tuple(paths), {},
+                   np.array(cols["experiment"], dtype=object))
 
 
 def _read_text(path):

@@ -48,6 +48,14 @@ EFFECTS: dict[str, Effect] = {e.id: e for e in [
            "(p -> p exp(s (f - f_ref)/f_ref))",
            "a frequency sweep (three or more drive frequencies) at known voltages",
            requires=("frequencies",), starts=((0.5,), (-0.5,))),
+    Effect("transducer_resonance",
+           (EffectParam("inv_f_ratio", "", 0.0, 5.0, 0.0, 1.0,
+                        report=lambda v: ("transducer resonance f_t/f_ref", (1.0 / v) if v > 0 else math.inf, "")),
+            EffectParam("gain_q", "", 0.3, 30.0, math.nan, 2.0, report=lambda v: ("transducer Q", v, ""))),
+           "the transducer (or the chamber) has a broad resonance: its pressure per volt rises then falls with "
+           "frequency, p -> p |H(f)|/|H(f_ref)|, H = 1/(1 - (f/f_t)^2 + i f/(f_t Q_t)), which a monotone tilt cannot follow",
+           "a frequency sweep (four or more drive frequencies) across the transducer's band",
+           requires=("frequencies3",), starts=((0.8, 1.5), (1.25, 1.5), (1.0, 4.0))),
     Effect("drive_saturation",
            (EffectParam("inv_vsat2", "1/V^2", 0.0, 100.0, 0.0, 0.25, scale="vmax",
                         report=_inv_sqrt("v_sat", "V")),),
@@ -83,18 +91,19 @@ EFFECTS: dict[str, Effect] = {e.id: e for e in [
     Effect("bubble_shrinkage",
            (EffectParam("shrink_rate", "1/s", 0.0, 10.0, 0.0, 0.2, scale="1/time",
                         report=lambda v: ("volume time constant", (1.0 / v) if v > 0 else math.inf, "s")),),
-           "the trapped bubble loses gas (V = V0 exp(-r t)), so its resonance f_n = f_n0 exp(r t/2) "
-           "drifts away from (or through) the drive frequency",
+           "the trapped bubble loses gas (V = V0 exp(-r t), r the volume's rate), so its resonance, computed "
+           "for V(t) by the resonance model of the analysis (acl.physics.resonance), drifts away from (or "
+           "through) the drive frequency",
            "repeated voltage ramps at a fixed frequency spread over time",
            requires=("time",), starts=((1.0,), (0.05,))),
     Effect("neighbour_drag",
            (EffectParam("inv_plateau", "1/m", 0.0, 1e9, 0.0, 0.5, scale="1/deflection",
                         report=_inv("plateau", "m")),),
            "the actuator moves into a neighbour's streaming jet whose drag grows with the displacement "
-           "(paper Fig. 5b plateau): P -> P (1 - delta/delta_p)",
+           "(paper Fig. 5b plateau): P -> P (1 - |delta|/delta_p), on lone actuators and on each side of a pair",
            "voltage ramps into the plateau at two or more frequencies (the plateau displacement does not "
            "depend on frequency)",
-           requires=("single",), starts=((1.0,), (0.1,))),
+           starts=((1.0,), (0.1,))),
     Effect("substrate_proximity",
            (EffectParam("h_substrate", "m", 0.0, 1e-3, 0.0, 0.4, scale="height"),),
            "acoustic forces are weakened near the substrate (bubble-wall interaction, paper Fig. 2a): "

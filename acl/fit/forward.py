@@ -16,7 +16,7 @@ Effects (acl.fit.effects) modify these steps; each modifier below cites its sour
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -24,30 +24,32 @@ from acl.fit import beam as B
 
 N_GRID = 32
 N_BISECT = 30
+N_REFINE = 12
 
 
 @dataclass
 class Prepared:
-    """Row-aligned arrays for the forward model (built once per data set)."""
+    """Row-aligned arrays for the forward model (built once per data set).  Side 0 / 1 of a row are
+    the actuators of its observable's unit (acl.fit.mechanism); a single unit leaves side 1 empty."""
 
     n: int
     f: np.ndarray            # (n, T) Hz (0 where no tone)
     v: np.ndarray            # (n, T) V peak
-    tau: np.ndarray          # (2, n, T) relative thrust of actuators 0, 1
+    tau: np.ndarray          # (2, n, T) relative thrust of sides 0, 1
     arel: np.ndarray         # (n, T) relative Bjerknes coefficient
     pair: np.ndarray         # (n,) bool
     L: np.ndarray            # (2, n)
     l: np.ndarray            # (2, n)
     EI: np.ndarray           # (2, n)
-    cd: np.ndarray           # (2, n) Eq. (1) integrals at declared uniform stiffness
+    cd: np.ndarray           # (2, n) Eq. (1) integrals at declared uniform stiffness (spring: c_D = 1/k)
     ct: np.ndarray           # (2, n)
     height: np.ndarray       # (2, n)
-    proj: np.ndarray         # (n,) thrust share perpendicular to the beam (single)
+    proj: np.ndarray         # (n,) thrust share along the motion (single)
     d0: np.ndarray           # (n,) rest gap (pair)
     base: np.ndarray         # (n,) observable = base + s0 delta_0 + s1 delta_1
     s0: np.ndarray
     s1: np.ndarray
-    fn: np.ndarray           # (2, n) natural frequency of each actuator
+    fn: np.ndarray           # (2, n) natural frequency of each side's capsule
     q: np.ndarray            # (2, n) its quality factor
     t: np.ndarray            # (n,) time (s), 0 where not given
     f_ref: float
@@ -56,11 +58,40 @@ class Prepared:
     E0: float                # declared Young's modulus of the first beam
     vmax: float
     instances: dict          # override key -> Instance
+    law: np.ndarray = None   # (2, n) int: 0 beam, 1 spring, 2 fixed, 3 latch (acl.fit.mechanism.LAW_CODES)
+    caps: np.ndarray = None  # (2, n) object: capsule name of each side ('' none)
+    volume: np.ndarray = None    # (2, n) gas volume (m^3)
+    radius: np.ndarray = None    # (2, n) orifice radius (m)
+    medium: np.ndarray = None    # (4, n) density, surface tension, ambient pressure, polytropic index
+    latch_id: np.ndarray = None  # (n,) index into latch_tables (-1: none)
+    latch_tables: list = None
+    ref_side: np.ndarray = None  # (2, n) bool: the side is the reference capsule (for f_ref normalisation)
+    ref_capsule: str = ""
+    units: np.ndarray = None     # (n,) object: unit label ("pair a-b", "single c")
+    experiment: np.ndarray = None  # (n,) object: experiment label of the row ('' none)
+    modes0: dict = None          # capsule -> (natural frequency Hz, Q) in the reference instance
+    cavity: dict = field(default_factory=dict)   # free cavity parameter -> {"value", "dlnv": {capsule: dlnV/dp}}
+    side_table: np.ndarray = None    # (2, n) index into ftables (-1: no capsule)
+    ftables: list = None             # (ln V/V0, ln f/f0) of each capsule kind (acl.physics.effects.volume_frequency_table)
+
+    def volume_shift(self, c, fn, lnx):
+        """Natural frequency of side ``c`` after its gas volume changed by a factor exp(lnx) (rows), from the tables."""
+        out = fn.copy()
+        for j, (lx, lf) in enumerate(self.ftables):
+            m = self.side_table[c] == j
+            if np.any(m):
+                x = np.broadcast_to(lnx, fn.shape)[m]
+                out[m] = fn[m] * np.exp(np.interp(x, lx, lf))
+        return out
+
+    @property
+    def beam(self):
+        return self.law == 0
 
 
 def prepare(data, load_instance, f_ref: float | None = None) -> Prepared:
     """Build the row arrays; ``load_instance(key)`` returns the Instance of an override set."""
-    from acl.fit.mechanism import alpha_per_v2, thrust_per_v2
+    from acl.fit.mechanism import LAW_CODES, alpha_per_v2, reference_unit, thrust_per_v2
 
     n = data.n
     T = max(1, max((len(t) for t in data.tones), default=1))
@@ -79,48 +110,130 @@ def prepare(data, load_instance, f_ref: float | None = None) -> Prepared:
     for key in dict.fromkeys(keys):
         instances[key] = load_instance(key)
     ref = instances[keys[0]]
-    gamma0 = float(thrust_per_v2(ref, f_ref)[0])
-    alpha_ref = alpha_per_v2(ref, f_ref) if ref.kind == "pair" else 0.0
-    arr = {k: np.zeros((2, n)) for k in ("L", "l", "EI", "height", "fn", "q")}
+    ref_unit = ref.unit(data.observable[0]) if n else reference_unit(ref)
+    ref_cap = next((c.name for c in ref.design.capsules
+                    if any(c.name in u.capsules for u in ref.units.values())), ref_unit.capsules[0])
+    gamma0 = float(thrust_per_v2(ref, f_ref)[ref_cap])
+    pair_ref = None
+    for key in dict.fromkeys(keys):
+        pu = next((u for name, u in instances[key].units.items() if u.kind == "pair"
+                   and np.any(data.observable[np.array([k == key for k in keys])] == name)), None)
+        if pu is not None:
+            pair_ref = (instances[key], pu)
+            break
+    alpha_ref = alpha_per_v2(*pair_ref, f_ref) if pair_ref else 0.0
+    arr = {k: np.zeros((2, n)) for k in ("L", "l", "EI", "height", "fn", "q", "cd", "ct", "volume", "radius")}
     arr["L"][:] = 1.0
     arr["EI"][:] = 1.0
+    arr["fn"][:] = 1e5
+    arr["q"][:] = 10.0
+    law = np.full((2, n), LAW_CODES["fixed"], int)
+    caps = np.full((2, n), "", dtype=object)
+    medium = np.ones((4, n))
     tau = np.zeros((2, n, T))
     arel = np.zeros((n, T))
     pair = np.zeros(n, bool)
     proj = np.ones(n)
     d0 = np.full(n, np.nan)
     base, s0, s1 = np.zeros(n), np.zeros(n), np.zeros(n)
-    by_key: dict = {}
+    latch_id = np.full(n, -1)
+    latch_tables: list = []
+    latch_index: dict = {}
+    units = np.full(n, "", dtype=object)
+    by_group: dict = {}
     for i, key in enumerate(keys):
-        by_key.setdefault(key, []).append(i)
-    for key, rows in by_key.items():
+        by_group.setdefault((key, data.observable[i]), []).append(i)
+    from acl.fit.beam import stiffness_integrals
+
+    for (key, name), rows in by_group.items():
         inst = instances[key]
+        unit = inst.unit(name)
         rows = np.asarray(rows)
-        k = len(inst.capsules)
-        for name, src in (("L", inst.L), ("l", inst.l), ("EI", inst.EI), ("height", inst.height)):
-            arr[name][:k, rows] = src[:, None]
-        arr["fn"][:k, rows] = inst.modes[:, 0][:, None]
-        arr["q"][:k, rows] = inst.modes[:, 1][:, None]
-        pair[rows] = inst.kind == "pair"
-        proj[rows] = inst.proj[0]
-        d0[rows] = inst.d0
+        units[rows] = f"{unit.kind} {'-'.join(unit.capsules)}"
+        medium[:, rows] = np.asarray(inst.medium, float)[:, None]
+        for c, side in enumerate(unit.sides):
+            law[c, rows] = LAW_CODES[side.law]
+            caps[c, rows] = side.capsule
+            arr["height"][c, rows] = side.height
+            arr["fn"][c, rows], arr["q"][c, rows] = side.mode
+            arr["volume"][c, rows], arr["radius"][c, rows] = side.bubble
+            if side.law == "beam":
+                arr["L"][c, rows], arr["l"][c, rows], arr["EI"][c, rows] = side.L, side.l, side.EI
+                cd, ct = stiffness_integrals(np.array([side.L]), np.array([side.l]), np.array([side.EI]))
+                arr["cd"][c, rows], arr["ct"][c, rows] = cd[0], ct[0]
+            elif side.law == "spring":
+                arr["cd"][c, rows] = side.compliance
+            elif side.law == "latch":
+                if side.latch not in latch_index:
+                    latch_index[side.latch] = len(latch_tables)
+                    latch_tables.append(latch_table(side.latch))
+                latch_id[rows] = latch_index[side.latch]
+        pair[rows] = unit.kind == "pair"
+        proj[rows] = unit.sides[0].proj
+        d0[rows] = unit.d0
         for fk in np.unique(f[rows][v[rows] > 0]):
             m = (f[rows] == fk) & (v[rows] > 0)
-            tp = thrust_per_v2(inst, fk) / gamma0
-            for c in range(k):
-                tau[c, rows] += m * tp[c]
-            if inst.kind == "pair" and alpha_ref:
-                arel[rows] += m * alpha_per_v2(inst, fk) / alpha_ref
-        for name in set(data.observable[rows]):
-            b, a0, a1 = inst.output_map(inst.design.observe(name))
-            sel = rows[data.observable[rows] == name]
-            base[sel], s0[sel], s1[sel] = b, a0, a1
-    cd, ct = B.stiffness_integrals(arr["L"], arr["l"], arr["EI"])
+            tp = thrust_per_v2(inst, fk)
+            for c, side in enumerate(unit.sides):
+                tau[c, rows] += m * (tp[side.capsule] / gamma0)
+            if unit.kind == "pair" and alpha_ref:
+                arel[rows] += m * (alpha_per_v2(inst, unit, fk) / alpha_ref)
+        b, a0, a1 = inst.output_map(inst.design.observe(name))
+        base[rows], s0[rows], s1[rows] = b, a0, a1
     alpha0 = _alpha0(ref, alpha_ref)
     t = np.where(np.isfinite(data.time), data.time, 0.0)
-    return Prepared(n, f, v, tau, arel, pair, arr["L"], arr["l"], arr["EI"], cd, ct, arr["height"], proj, d0,
-                    base, s0, s1, arr["fn"], arr["q"], t, f_ref, gamma0, alpha0, float(ref.E[0]),
-                    float(max(v.sum(axis=1).max(), 1e-9)), instances)
+    E0 = next((s.E for u in ref.units.values() for s in u.sides if s.law == "beam"), 0.0)
+    exp = getattr(data, "experiment", None)
+    # first natural frequency vs gas volume of every side's capsule, tabulated (bubble shrinkage, cavity)
+    ftab_index: dict = {}
+    ftables: list = []
+    side_table = np.full((2, n), -1)
+    for c in range(2):
+        combo = np.column_stack([arr["volume"][c], arr["radius"][c], medium.T])
+        uniq, inv = np.unique(combo, axis=0, return_inverse=True)
+        for j, row in enumerate(uniq):
+            if row[0] <= 0:
+                continue
+            key = tuple(row)
+            if key not in ftab_index:
+                ftab_index[key] = len(ftables)
+                ftables.append(volume_frequency_table(*row))
+            side_table[c, inv.ravel() == j] = ftab_index[key]
+    modes0 = {}
+    for inst in instances.values():
+        for u in inst.units.values():
+            for s in u.sides:
+                modes0.setdefault(s.capsule, s.mode)
+    return Prepared(n, f, v, tau, arel, pair, arr["L"], arr["l"], arr["EI"], arr["cd"], arr["ct"], arr["height"],
+                    proj, d0, base, s0, s1, arr["fn"], arr["q"], t, f_ref, gamma0, alpha0, float(E0),
+                    float(max(v.sum(axis=1).max(), 1e-9)), instances, law, caps, arr["volume"], arr["radius"],
+                    medium, latch_id, latch_tables, caps == ref_cap, ref_cap, units,
+                    exp if exp is not None else np.full(n, "", dtype=object), modes0, {}, side_table, ftables)
+
+
+def latch_table(geometry) -> tuple:
+    """(F_a, u_a, F_switch, F_b, u_b): rising branches of the latch holding force (acl.physics.latch), from state a
+    up to the switching force and beyond state b, for a vectorized inverse (load -> shuttle travel)."""
+    from acl.physics.latch import latch_landscape
+
+    land = latch_landscape(*geometry)
+    u, F = np.asarray(land.u), np.asarray(land.force)
+    i_peak = int(np.argmax(F[: np.searchsorted(u, land.unstable)] if land.bistable else F))
+    Fa, ua = np.maximum.accumulate(F[: i_peak + 1]), u[: i_peak + 1]
+    if land.bistable:
+        ib = int(np.searchsorted(u, land.state_b))
+        Fb, ub = np.maximum.accumulate(F[ib:]), u[ib:]
+    else:
+        Fb, ub = Fa[-1:], ua[-1:]
+    return Fa, ua, float(Fa[-1]), Fb, ub
+
+
+def latch_travel(load, table, e_scale=1.0):
+    """Shuttle travel under ``load`` from state a: the first branch below the switching force, the far branch above it
+    (a fresh ramp from state a on every row; latch_force scales with E, acl.physics.latch)."""
+    Fa, ua, fsw, Fb, ub = table
+    x = np.asarray(load, float) / e_scale
+    return np.where(x <= fsw, np.interp(x, Fa, ua), np.interp(x, Fb, ub))
 
 
 def _alpha0(inst, alpha_ref: float) -> float:
@@ -136,8 +249,9 @@ def _alpha0(inst, alpha_ref: float) -> float:
 # ----------------------------------------------------------------------------------------------
 
 # The formulas live in acl.physics.effects (the analysis applies the same ones to declared effects).
-from acl.physics.effects import (drag_load, elastica_blend, gain_tilt, saturation,  # noqa: E402,F401
-                                 shrinkage_factor, substrate_factor)
+from acl.physics.effects import (drag_load, elastica_blend, gain_tilt, mode_response_ratio,  # noqa: E402,F401
+                                 saturation, shrunk_frequency, substrate_factor, transducer_resonance,
+                                 volume_frequency_table)
 
 
 # ----------------------------------------------------------------------------------------------
@@ -145,10 +259,55 @@ from acl.physics.effects import (drag_load, elastica_blend, gain_tilt, saturatio
 # ----------------------------------------------------------------------------------------------
 
 def predict(P: Prepared, coeffs: dict, effects: dict) -> np.ndarray:
-    """Predicted value (SI) of every row.  ``coeffs``: gamma, alpha, e_scale, gain (absent = design value);
+    """Predicted value (SI) of every row.  ``coeffs``: gamma, alpha, e_scale, gain, f0 / q (scales of every
+    capsule's natural frequency and Q), ``f0@CAP`` / ``q@CAP`` (one capsule's), absent = design value;
     ``effects``: effect id -> {param: value} (internal coordinates, acl.fit.effects)."""
     with np.errstate(all="ignore"):
         return _predict(P, coeffs, effects)
+
+
+def _resonance_factors(P: Prepared, coeffs: dict, effects: dict):
+    """(2, n, T) factor on each side's squared volume amplitude from a shifted resonance: free f0 / Q
+    (normalised so that the reference capsule's thrust at f_ref keeps its value gamma) and bubble
+    shrinkage (the volume V0 exp(-r t) through the resonance model, acl.physics.effects.shrunk_frequency)."""
+    keys = [k for k in coeffs if k.split("@")[0] in ("f0", "q")]
+    cav = [k for k in coeffs if k.startswith("cavity@")]
+    rate = effects.get("bubble_shrinkage", {}).get("shrink_rate", 0.0)
+    if not keys and not rate and not cav:
+        return None
+    fn = P.fn.copy()
+    q = P.q.copy()
+    for k in keys:
+        what, _, cap = k.partition("@")
+        arr, j = (fn, 0) if what == "f0" else (q, 1)
+        cap = cap or P.ref_capsule
+        scale = coeffs[k] / P.modes0[cap][j]
+        if k.partition("@")[2]:
+            arr[P.caps == cap] *= scale
+        else:
+            arr *= scale
+    for k in cav:      # a free cavity parameter: gas volumes linear in it, the resonance follows (resonance model)
+        spec = P.cavity[k.partition("@")[2]]
+        for cap, dlnv in spec["dlnv"].items():
+            m = P.caps == cap
+            ratio = max(1.0 + dlnv * (coeffs[k] - spec["value"]), 1e-6)
+            for c in range(2):
+                fn[c] = np.where(m[c], P.volume_shift(c, fn[c], np.log(ratio)), fn[c])
+    keys = keys + cav
+    norm = 1.0
+    for c in range(2 if keys else 0):   # the reference capsule's thrust at f_ref stays gamma
+        r = np.flatnonzero(P.ref_side[c])
+        if r.size:
+            i = int(r[0])
+            norm = float(mode_response_ratio(P.f_ref, P.fn[c, i], P.q[c, i], fn[c, i], q[c, i]))
+            break
+    out = np.ones((2,) + P.f.shape)
+    for c in range(2):
+        fc = fn[c]
+        if rate:
+            fc = P.volume_shift(c, fc, -rate * P.t)
+        out[c] = mode_response_ratio(P.f, P.fn[c][:, None], P.q[c][:, None], fc[:, None], q[c][:, None]) / norm
+    return np.where(np.isfinite(out), out, 0.0)
 
 
 def _predict(P: Prepared, coeffs: dict, effects: dict) -> np.ndarray:
@@ -160,6 +319,9 @@ def _predict(P: Prepared, coeffs: dict, effects: dict) -> np.ndarray:
     g2 = np.full(P.v.shape, gain * gain)
     if "transducer_gain" in effects:
         g2 = g2 * gain_tilt(P.f, P.f_ref, effects["transducer_gain"]["gain_slope"]) ** 2
+    if "transducer_resonance" in effects:
+        e = effects["transducer_resonance"]
+        g2 = g2 * transducer_resonance(P.f, P.f_ref, e["inv_f_ratio"], e["gain_q"]) ** 2
     if "drive_saturation" in effects:
         vtot = P.v.sum(axis=1, keepdims=True)
         g2 = g2 * saturation(vtot, effects["drive_saturation"]["inv_vsat2"]) ** 2
@@ -168,31 +330,46 @@ def _predict(P: Prepared, coeffs: dict, effects: dict) -> np.ndarray:
     sub = np.ones((2, P.n))
     if "substrate_proximity" in effects:
         sub = substrate_factor(P.height, effects["substrate_proximity"]["h_substrate"])
-    shrink = [np.ones_like(w), np.ones_like(w)]
+    res = _resonance_factors(P, coeffs, effects)
     for c in range(2):
-        if "bubble_shrinkage" in effects:
-            shrink[c] = shrinkage_factor(P.f, P.fn[c][:, None], P.q[c][:, None], P.t[:, None],
-                                         effects["bubble_shrinkage"]["shrink_rate"])
-        thrust[c] = gamma * (P.tau[c] * w * shrink[c]).sum(axis=1) * sub[c]
+        wc = w if res is None else w * res[c]
+        thrust[c] = gamma * (P.tau[c] * wc).sum(axis=1) * sub[c]
     es = e_scale * (effects["stiffness_scale"]["e_scale"] if "stiffness_scale" in effects else 1.0)
-    if "stiffness_gradient" in effects:
-        cd, ct = B.stiffness_integrals(P.L, P.l, P.EI * es, effects["stiffness_gradient"]["e_gradient"])
+    beam = P.beam
+    rigid = P.l
+    cav = [k for k in coeffs if k.startswith("cavity@")]
+    for k in cav:       # a free cavity size also lengthens the actuator (its rigid half-length on the beam)
+        spec = P.cavity[k.partition("@")[2]]
+        for cap, dl in spec.get("dl", {}).items():
+            rigid = np.where(P.caps == cap, rigid + dl * (coeffs[k] - spec["value"]), rigid)
+    if "stiffness_gradient" in effects or cav:
+        grad = effects["stiffness_gradient"]["e_gradient"] if "stiffness_gradient" in effects else 0.0
+        cd, ct = B.stiffness_integrals(P.L, rigid, P.EI * es, grad)
+        cd, ct = np.where(beam, cd, P.cd), np.where(beam, ct, P.ct)
     else:
-        cd, ct = P.cd / es, P.ct / es
+        cd, ct = np.where(beam, P.cd / es, P.cd), np.where(beam, P.ct / es, P.ct)
     lam = effects["large_deflection"]["elastica_weight"] if "large_deflection" in effects else 0.0
+    c_p = effects["neighbour_drag"]["inv_plateau"] if "neighbour_drag" in effects else 0.0
 
     def rows(idx):
-        """Deflection laws of beams 0 and 1 restricted to rows ``idx`` (one law when both beams are alike)."""
-        arrs = [(P.l[c, idx], cd[c, idx], ct[c, idx], P.L[c, idx], P.EI[c, idx] * es) for c in range(2)]
+        """Deflection laws of sides 0 and 1 restricted to rows ``idx`` (one law when both sides are alike)."""
+        arrs = [(rigid[c, idx], cd[c, idx], ct[c, idx], P.L[c, idx], P.EI[c, idx] * es, beam[c, idx]) for c in range(2)]
 
-        def make(l_, cd_, ct_, L_, EI_):
-            if lam:
+        def make(l_, cd_, ct_, L_, EI_, beam_):
+            if lam and np.any(beam_):
+                wgt = np.where(beam_, lam, 0.0)
                 return lambda load: elastica_blend(B.eq1_deflection(load, l_, cd_, ct_),
-                                                   B.elastica_deflection(load, L_, l_, EI_), lam)
+                                                   np.where(beam_, B.elastica_deflection(load, L_, l_, EI_), 0.0), wgt)
             return lambda load: B.eq1_deflection(load, l_, cd_, ct_)
 
-        first = make(*arrs[0])
+        def still(load):                                     # a side fixed to the substrate does not move
+            return np.zeros(np.shape(load))
+
+        fixed = [bool(np.all(P.law[c, idx] == 2)) for c in range(2)]
+        first = still if fixed[0] else make(*arrs[0])
         same = all(np.array_equal(a, b) for a, b in zip(arrs[0], arrs[1]))
+        if fixed[1] and not same:
+            return first, still, False
         return first, (first if same else make(*arrs[1])), same
 
     d_0 = np.zeros(P.n)
@@ -200,18 +377,32 @@ def _predict(P: Prepared, coeffs: dict, effects: dict) -> np.ndarray:
     single = ~P.pair
     if np.any(single):
         idx = np.flatnonzero(single)
-        law0, _, _ = rows(idx)
+        latch = P.latch_id[idx] >= 0
         load = thrust[0, idx] * P.proj[idx]
-        if "neighbour_drag" in effects and effects["neighbour_drag"]["inv_plateau"] > 0:
-            d_0[idx] = _drag_equilibrium(law0, load, effects["neighbour_drag"]["inv_plateau"])
-        else:
-            d_0[idx] = law0(load)
+        if np.any(~latch):
+            j = idx[~latch]
+            law0, _, _ = rows(j)
+            if c_p > 0:
+                d_0[j] = _drag_equilibrium(law0, load[~latch], c_p)
+            else:
+                d_0[j] = law0(load[~latch])
+        for tid in np.unique(P.latch_id[idx][latch]):
+            m = P.latch_id[idx] == tid
+            table = P.latch_tables[tid]
+            if c_p > 0:
+                d_0[idx[m]] = _drag_equilibrium(lambda x, tb=table: latch_travel(x, tb, es), load[m], c_p)
+            else:
+                d_0[idx[m]] = latch_travel(load[m], table, es)
     if np.any(P.pair):
         idx = np.flatnonzero(P.pair)
         law0, law1, same = rows(idx)
+        if c_p > 0:
+            law0 = _with_drag(law0, c_p)
+            law1 = law0 if same else _with_drag(law1, c_p)
         sub_ab = np.sqrt(sub[0, idx] * sub[1, idx])
         # Bjerknes force ~ product of the two volume amplitudes: geometric mean of the per-bubble factors
-        a_rad = alpha * (P.arel[idx] * w[idx] * np.sqrt(shrink[0][idx] * shrink[1][idx])).sum(axis=1) * sub_ab
+        wab = w[idx] if res is None else w[idx] * np.sqrt(res[0][idx] * res[1][idx])
+        a_rad = alpha * (P.arel[idx] * wab).sum(axis=1) * sub_ab
         push = thrust[0, idx] + thrust[1, idx]
         da, db = _pair_equilibrium(law0, law1, a_rad, push, P.d0[idx], same)
         d_0[idx], d_1[idx] = da, db
@@ -220,6 +411,23 @@ def _predict(P: Prepared, coeffs: dict, effects: dict) -> np.ndarray:
         e = effects["offset_drift"]
         out = out + e["offset"] + e["drift"] * P.t
     return out
+
+
+def _with_drag(law, c_p, steps=3):
+    """Deflection law under a neighbour's jet drag, delta = law(P (1 - c_p |delta|)) (acl.physics.effects.drag_load),
+    solved by Newton from the linear-law solution delta_lin / (1 + c_p |delta_lin|)."""
+    def dragged(load):
+        lin = law(load)
+        d = lin / (1.0 + c_p * np.abs(lin))
+        for _ in range(steps):
+            x = drag_load(load, np.abs(d), c_p)
+            r = law(x) - d
+            h = 1e-6 * np.maximum(np.abs(x), 1e-30)
+            slope = (law(x + h) - law(x)) / h                       # d law / d load
+            dr = -slope * load * c_p * np.sign(d) * (1.0 - c_p * np.abs(d) > 0) - 1.0   # d r / d delta
+            d = np.clip(d - r / np.where(dr != 0, dr, -1.0), np.minimum(lin, 0.0), np.maximum(lin, 0.0))
+        return d
+    return dragged
 
 
 def _drag_equilibrium(law, load, c_p):
@@ -238,7 +446,8 @@ def _pair_equilibrium(law0, law1, a_rad, push, d0, same=False):
     """Stable gap of a facing pair under P(d) = a/d^2 - b, first root of d0 - d - delta_a - delta_b from d0.
 
     Bracketed on a grid from d0 (towards contact when the pair attracts at rest, outwards up to the
-    largest repulsive opening otherwise), then bisection and a final secant step inside the bracket.
+    largest repulsive opening otherwise; the whole grid in one vectorized evaluation), then refined by
+    the Illinois variant of regula falsi (superlinear, always inside the bracket).
     Returns (delta_a, delta_b); past snap-in (no root before contact) the pair is in contact, d = 0.
     """
     def both(load):
@@ -252,33 +461,31 @@ def _pair_equilibrium(law0, law1, a_rad, push, d0, same=False):
     attract = a_rad / (d0 * d0) - push >= 0
     ra, rb = both(-push)
     far = np.where(attract, 0.02 * d0, d0 - ra - rb + 1e-12)
-    prev = d0.copy()
-    g_prev = g(prev)
-    lo = prev.copy()
-    hi = prev.copy()
-    g_lo = g_prev.copy()
-    found = g_prev == 0
-    for sk in np.linspace(0.0, 1.0, N_GRID + 1)[1:]:
-        d = d0 + sk * (far - d0)
-        gd = g(d)
-        cross = ~found & (np.sign(gd) != np.sign(g_prev))
-        lo = np.where(cross, prev, lo)
-        g_lo = np.where(cross, g_prev, g_lo)
-        hi = np.where(cross, d, hi)
-        found |= cross
-        prev, g_prev = d, gd
-    a, b, ga = lo, hi, g_lo
-    for _ in range(N_BISECT):
-        m = 0.5 * (a + b)
-        gm = g(m)
-        same_sign = np.sign(gm) == np.sign(ga)
-        a, ga = np.where(same_sign, m, a), np.where(same_sign, gm, ga)
-        b = np.where(same_sign, b, m)
-    gb = g(b)
-    denom = gb - ga
-    sec = np.where(denom != 0, a - ga * (b - a) / np.where(denom != 0, denom, 1.0), 0.5 * (a + b))
-    lo_ab, hi_ab = np.minimum(a, b), np.maximum(a, b)
-    d = np.where(found, np.clip(sec, lo_ab, hi_ab), d0)
+    s = np.linspace(0.0, 1.0, N_GRID + 1)[:, None]
+    D = d0 + s * (far - d0)                       # (N_GRID + 1, n)
+    G = g(D)
+    sg = np.sign(G)
+    cross = sg[1:] != sg[:-1]
+    found = cross.any(axis=0)
+    k = np.argmax(cross, axis=0)
+    cols = np.arange(d0.size)
+    a, fa = D[k, cols], G[k, cols]
+    b, fb = D[k + 1, cols], G[k + 1, cols]
+    exact = G[0] == 0
+    tol = 1e-12 * np.max(d0)
+    for _ in range(N_REFINE):
+        den = fb - fa
+        c = np.where(den != 0, b - fb * (b - a) / np.where(den != 0, den, 1.0), 0.5 * (a + b))
+        lo, hi = np.minimum(a, b), np.maximum(a, b)
+        c = np.where((c >= lo) & (c <= hi), c, 0.5 * (a + b))
+        fc = g(c)
+        flip = np.sign(fc) != np.sign(fb)
+        a, fa = np.where(flip, b, a), np.where(flip, fb, 0.5 * fa)
+        b, fb = c, fc
+        if np.all(np.abs(fc[found]) <= tol):
+            break
+    d = np.where(exact, d0, b)
+    found = found | exact
     load = a_rad / (d * d) - push
     da, db = both(load)
     return np.where(found, da, 0.5 * d0), np.where(found, db, 0.5 * d0)

@@ -1,10 +1,22 @@
-"""Design instances reduced to what the fit's forward model needs: beams, actuators, rest gap, observables.
+"""Design instances reduced to what the fit's forward model needs: units of one or two actuators and their supports.
 
-One :class:`Instance` per override set (``set:NAME`` columns).  Supported mechanisms (paper Figs. 2
-and 4): one single-orifice actuator on a cantilever (``single``), or two single-orifice actuators on
-two cantilevers facing each other (``pair``).  Anything else is a diagnostic, not a guess.
-Frequency responses come from :mod:`acl.analysis.acoustics` (thrust and Bjerknes coefficient per V^2
-at each tone frequency, with the design's transducer table), relative to a reference frequency.
+One :class:`Instance` per override set (``set:NAME`` columns).  A design is cut into independent
+**units** (docs/fit.md): two capsules named together in a ``gap`` observe form a *pair* (paper
+Eq. (3): Bjerknes attraction, thrust and the partner's jet drag); every other carried capsule is a
+*single* actuator.  A unit's sides are the capsules and what carries them:
+
+* ``beam`` -- a cantilever (paper Eq. (1), elastica with ``large_deflection``);
+* ``spring`` -- a linear flexure (paper Fig. 5c), deflection P/k along its axis;
+* ``fixed`` -- a capsule fixed to the substrate (it pushes its partner, it does not move);
+* ``latch`` -- a bistable inclined-beam latch (paper Fig. 6, :mod:`acl.physics.latch`), tabulated.
+
+Each row belongs to the unit of its observable, so one data set can mix experiments (a pair and an
+isolated calibration cantilever of the same design) that share every coefficient.  Capsules of
+different units are taken not to interact (declare a ``gap`` observe between two capsules to
+couple them).  Groups of three or more interacting capsules, trussed arms, multi-orifice capsules
+and planar (x, y) positioning are diagnostics (E810), not guesses.  Frequency responses come from
+:mod:`acl.analysis.acoustics` (thrust and Bjerknes coefficient per V^2 at each tone frequency, with
+the design's transducer table).
 """
 from __future__ import annotations
 
@@ -14,136 +26,246 @@ import numpy as np
 
 from acl.diagnostics import DiagnosticError, error
 
+LAW_CODES = {"beam": 0, "spring": 1, "fixed": 2, "latch": 3}
+
+
+@dataclass
+class Side:
+    capsule: str
+    element: str                 # beam / spring / latch name ("" when fixed)
+    law: str                     # "beam" | "spring" | "fixed" | "latch"
+    L: float = 1.0               # beam: flexible length
+    l: float = 0.0               # beam: rigid half-actuator length
+    EI: float = 1.0              # beam: bending stiffness
+    E: float = 0.0               # Young's modulus (beam, latch)
+    compliance: float = 0.0      # spring: 1/k
+    latch: tuple = ()            # latch: (angle, length, width, thickness, E)
+    height: float = 0.0          # orifice centre above the substrate
+    u: np.ndarray = field(default_factory=lambda: np.zeros(3))   # direction of positive deflection
+    proj: float = 1.0            # share of the load along u
+    rest: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    mode: tuple = (1e5, 10.0)    # natural frequency (Hz) and Q of the first mode
+    bubble: tuple = (0.0, 0.0)   # gas volume (m^3), orifice radius (m)
+
+
+@dataclass
+class Unit:
+    kind: str                    # "single" | "pair"
+    sides: tuple                 # 1 or 2 Side
+    d0: float = float("nan")     # pair: rest distance between the orifices
+
+    @property
+    def capsules(self):
+        return tuple(s.capsule for s in self.sides)
+
 
 @dataclass
 class Instance:
     design: object
-    kind: str                              # "single" | "pair"
-    capsules: tuple[str, ...]              # actuator on beam 0 (and beam 1)
-    beams: tuple[str, ...]
-    L: np.ndarray                          # (k,) flexible lengths
-    l: np.ndarray                          # (k,) rigid half-actuator lengths
-    EI: np.ndarray                         # (k,) declared bending stiffness
-    E: np.ndarray                          # (k,) declared Young's modulus
-    height: np.ndarray                     # (k,) actuator (orifice centre) height above the substrate
-    u: np.ndarray                          # (k, 3) direction of positive deflection
-    proj: np.ndarray                       # (k,) share of the thrust perpendicular to the beam
-    rest: np.ndarray                       # (k, 3) actuator centres at rest
-    d0: float                              # pair: rest distance between the orifices (m)
-    modes: np.ndarray                      # (k, 2) natural frequency (Hz) and Q of each actuator
+    units: dict                            # observable name -> Unit
+    medium: tuple                          # (density, surface tension, ambient pressure, polytropic index)
     _tau: dict = field(default_factory=dict)
 
+    @property
+    def kind(self):
+        kinds = {u.kind for u in self.units.values()}
+        return kinds.pop() if len(kinds) == 1 else "mixed"
+
+    def unit(self, name) -> Unit:
+        return self.units[name]
+
     def output_map(self, obs) -> tuple[float, float, float]:
-        """(base, scale on deflection 0, scale on deflection 1) of observable ``obs``."""
+        """(base, scale on deflection of side 0, scale on side 1) of observable ``obs``."""
+        unit = self.units[obs.name]
         if obs.kind == "gap":
-            names = {obs.a.split(".")[0], obs.b.split(".")[0]}
-            if self.kind == "pair" and names == set(self.capsules):
-                return self.d0, -1.0, -1.0
-            raise _unsupported(obs, "a gap is supported between the two actuators of a facing pair")
-        k = self._index(obs.target)
-        if k is None:
-            raise _unsupported(obs, f"`{obs.target}` is neither an actuator nor the beam carrying one")
+            return unit.d0, -1.0, -1.0
+        k = next(i for i, s in enumerate(unit.sides) if obs.target in (s.capsule, s.element))
         s = [0.0, 0.0]
+        side = unit.sides[k]
         if obs.kind == "displacement":
             axis = np.asarray(obs.axis, float)
-            s[k] = float(self.u[k] @ (axis / np.linalg.norm(axis)))
+            s[k] = float(side.u @ (axis / np.linalg.norm(axis)))
             return 0.0, s[0], s[1]
         comp = "xyz".index(obs.component)
-        s[k] = float(self.u[k][comp])
-        return float(self.rest[k][comp]), s[0], s[1]
-
-    def _index(self, target):
-        for k, (c, b) in enumerate(zip(self.capsules, self.beams)):
-            if target in (c, b):
-                return k
-        return None
+        s[k] = float(side.u[comp])
+        return float(side.rest[comp]), s[0], s[1]
 
 
-def _unsupported(obs, why):
+def _unsupported(obs, why, hint=None):
     return DiagnosticError([error("E810", f"observable `{obs.name}` cannot be predicted by the fit model: {why}",
-                                  obs.span)])
+                                  obs.span, hint)])
+
+
+def _carrier(design, cap):
+    """(law, element) carrying capsule ``cap``: beam / spring / latch mount, fixed, or (None, why)."""
+    for j in design.joints:
+        if j.kind == "link" and cap in (j.a, j.b):
+            return None, f"capsule `{cap}` is linked by a {j.element_kind} (`{j.element}`)"
+    for j in design.joints:
+        if j.kind == "mount" and j.capsule == cap:
+            return j.target_kind, j.target
+        if j.kind == "fix" and j.capsule == cap:
+            return "fixed", ""
+    return None, f"capsule `{cap}` is free (no mount, fix or link)"
+
+
+def _side(design, cap_name, direction) -> Side:
+    """Side for capsule ``cap_name`` whose load acts along unit vector ``direction`` (positive = deflection)."""
+    from acl.analysis.acoustics import capsule_modes
+
+    cap = design.capsule(cap_name)
+    law, element = _carrier(design, cap_name)
+    if law is None:
+        raise DiagnosticError([error("E810", f"{element}: the fit model handles capsules on cantilevers, springs "
+                                     "and latches, or fixed (trussed arms and free capsules are not in the fit "
+                                     "model, docs/fit.md)", cap.span)])
+    if len(cap.orifices) != 1:
+        raise DiagnosticError([error("E810", f"capsule `{cap.name}` has {len(cap.orifices)} orifices; the fit model "
+                                     "handles single-orifice actuators (1-D motion; planar x, y positioning is "
+                                     "not in the fit model, docs/fit.md)", cap.span)])
+    direction = np.asarray(direction, float)
+    m = capsule_modes(design, cap)[0]
+    s = Side(cap.name, element, law, height=float(cap.orifices[0].center[2]), rest=np.asarray(cap.center, float),
+             mode=(m.frequency_hz, m.q), bubble=(float(cap.cavity.volume), float(cap.orifices[0].radius)))
+    if law == "fixed":
+        s.u, s.proj = direction, 0.0
+        return s
+    if law == "beam":
+        b = design.beam(element)
+        ax = np.asarray(b.axis, float) / np.linalg.norm(b.axis)
+        perp = direction - (direction @ ax) * ax
+        s.L, s.l, s.EI, s.E = b.length, b.rigid_length, b.bending_stiffness, b.youngs_modulus
+    elif law == "spring":
+        sp = design.spring(element)
+        ax = np.asarray(sp.axis, float) / np.linalg.norm(sp.axis)
+        perp = (direction @ ax) * ax
+        s.compliance = 1.0 / sp.stiffness
+    else:
+        lt = design.latch(element)
+        ax = np.asarray(lt.axis, float) / np.linalg.norm(lt.axis)
+        perp = (direction @ ax) * ax
+        from acl.analysis.mechanics import latch_geometry
+
+        s.latch = tuple(float(x) for x in latch_geometry(lt))
+        s.E = float(lt.youngs_modulus)
+        if lt.state != "a":
+            raise DiagnosticError([error("E810", f"latch `{lt.name}` rests in state b; the fit model starts latches "
+                                         "in state a (as printed)", lt.span)])
+    norm = float(np.linalg.norm(perp))
+    if norm < 1e-9:
+        raise DiagnosticError([error("E810", f"the force on `{cap.name}` is along its {law} `{element}`'s stiff "
+                                     "direction: no motion the fit model can follow", cap.span)])
+    s.u, s.proj = perp / norm, norm
+    return s
 
 
 def build_instance(design) -> Instance:
-    """Reduce a resolved design to an :class:`Instance` (raises E810 for unsupported mechanisms)."""
+    """Cut a resolved design into units, one per observable (raises E810 for unsupported mechanisms)."""
+    from acl.analysis.acoustics import _medium
+
     # the fit's base model is the design without declared effects (the fit adds them itself: a
     # calibrated design fitted again must not apply them twice)
     design = design.model_copy(update={"effects": ()}) if design.effects else design
-    mounts = [j for j in design.joints if j.kind == "mount" and j.target_kind == "beam"]
-    span = design.capsules[0].span if design.capsules else None
-    if len(mounts) not in (1, 2):
-        raise DiagnosticError([error(
-            "E810", f"the fit model handles one actuator on a cantilever or two facing ones (paper Figs. 2, 4e); "
-                    f"this design mounts {len(mounts)} capsule(s) on beams", span,
-            "springs, latches, trusses and free capsules are not in the fit model yet (docs/fit.md)")])
-    caps = [design.capsule(m.capsule) for m in mounts]
-    beams = [design.beam(m.target) for m in mounts]
-    for c in caps:
-        if len(c.orifices) != 1:
-            raise DiagnosticError([error("E810", f"capsule `{c.name}` has {len(c.orifices)} orifices; the fit model "
-                                         "handles single-orifice actuators (1-D deflection)", c.span)])
-    k = len(caps)
-    axes = [np.asarray(b.axis, float) / np.linalg.norm(b.axis) for b in beams]
-    if k == 1:
-        t = -np.asarray(caps[0].orifices[0].normal, float)
-        t = t / np.linalg.norm(t)
-        perp = t - (t @ axes[0]) * axes[0]
-        norm = float(np.linalg.norm(perp))
-        if norm < 1e-9:
-            raise DiagnosticError([error("E810", f"the thrust of `{caps[0].name}` is along its beam: no bending",
-                                         caps[0].span)])
-        u = [perp / norm]
-        proj = [norm]
-        d0 = float("nan")
-    else:
-        pa = np.asarray(caps[0].orifices[0].center, float)
-        pb = np.asarray(caps[1].orifices[0].center, float)
-        line = pb - pa
-        d0 = float(np.linalg.norm(line))
-        if d0 <= 0:
-            raise DiagnosticError([error("E810", "the two actuators' orifices coincide", caps[1].span)])
-        ua = line / d0
-        u, proj = [], []
-        for sgn, ax in ((1.0, axes[0]), (-1.0, axes[1])):
-            perp = sgn * ua - (sgn * ua @ ax) * ax
-            proj.append(float(np.linalg.norm(perp)))
-            u.append(perp / max(proj[-1], 1e-300))
-    from acl.analysis.acoustics import capsule_modes
+    if not design.observes:
+        raise DiagnosticError([error("E810", "the design declares no `observe`: nothing to fit",
+                                     design.capsules[0].span if design.capsules else None)])
+    partners: dict[str, set] = {}
+    for o in design.observes:
+        if o.kind == "gap":
+            a, b = o.a.split(".")[0], o.b.split(".")[0]
+            if a != b:
+                partners.setdefault(a, set()).add(b)
+                partners.setdefault(b, set()).add(a)
+    groups = [c for c, p in partners.items() if len(p) > 1]
+    units_by_caps: dict = {}
 
-    modes = []
-    for c in caps:
-        m = capsule_modes(design, c)[0]
-        modes.append((m.frequency_hz, m.q))
-    return Instance(
-        design=design, kind="single" if k == 1 else "pair", capsules=tuple(c.name for c in caps),
-        beams=tuple(b.name for b in beams), L=np.array([b.length for b in beams]),
-        l=np.array([b.rigid_length for b in beams]), EI=np.array([b.bending_stiffness for b in beams]),
-        E=np.array([b.youngs_modulus for b in beams]),
-        height=np.array([c.orifices[0].center[2] for c in caps]), u=np.array(u), proj=np.array(proj),
-        rest=np.array([c.center for c in caps], float), d0=d0, modes=np.array(modes))
+    def pair_unit(a, b, obs):
+        key = tuple(sorted((a, b)))
+        if key not in units_by_caps:
+            for c in (a, b):
+                if len(partners.get(c, ())) > 1:
+                    raise _unsupported(obs, f"capsule `{c}` interacts with {len(partners[c])} others (a group); the "
+                                       "fit model handles pairs (paper Eq. (3))", "observe a pair and lone actuators")
+            ca, cb = design.capsule(a), design.capsule(b)
+            pa = np.asarray(ca.orifices[0].center if ca.orifices else ca.center, float)
+            pb = np.asarray(cb.orifices[0].center if cb.orifices else cb.center, float)
+            line = pb - pa
+            d0 = float(np.linalg.norm(line))
+            if d0 <= 0:
+                raise DiagnosticError([error("E810", "the two actuators' orifices coincide", cb.span)])
+            ua = line / d0
+            sa, sb = _side(design, a, ua), _side(design, b, -ua)
+            if "latch" in (sa.law, sb.law):
+                raise _unsupported(obs, "a latch in a pair is not in the fit model", "observe the latch alone")
+            if sa.law == "fixed" and sb.law == "fixed":
+                raise _unsupported(obs, "both capsules of the pair are fixed: nothing moves")
+            units_by_caps[key] = Unit("pair", (sa, sb), d0)
+        return units_by_caps[key]
+
+    units = {}
+    for o in design.observes:
+        if o.kind == "gap":
+            a, b = o.a.split(".")[0], o.b.split(".")[0]
+            units[o.name] = pair_unit(a, b, o)
+            continue
+        cap = _target_capsule(design, o)
+        if cap in partners:
+            units[o.name] = pair_unit(cap, next(iter(partners[cap])), o)
+            continue
+        if (cap,) not in units_by_caps:
+            c = design.capsule(cap)
+            if not c.orifices:
+                raise _unsupported(o, f"capsule `{cap}` has no orifice")
+            t = -np.asarray(c.orifices[0].normal, float)
+            units_by_caps[(cap,)] = Unit("single", (_side(design, cap, t / np.linalg.norm(t)),))
+        units[o.name] = units_by_caps[(cap,)]
+    del groups
+    med = _medium(design)
+    return Instance(design=design, units=units,
+                    medium=(med.density, med.surface_tension, med.ambient_pressure, med.polytropic_index))
 
 
-def thrust_per_v2(inst: Instance, frequency: float) -> np.ndarray:
-    """(k,) thrust magnitude (N/V^2) of each actuator at ``frequency`` (acl.analysis.acoustics, declared gamma applied)."""
+def _target_capsule(design, obs) -> str:
+    """The capsule whose motion a displacement / position observe follows (E810 if none)."""
+    names = {c.name for c in design.capsules}
+    if obs.target in names:
+        return obs.target
+    carried = [j.capsule for j in design.joints if j.kind == "mount" and j.target == obs.target]
+    if len(carried) == 1:
+        return carried[0]
+    raise _unsupported(obs, f"`{obs.target}` is neither an actuator nor an element carrying exactly one",
+                       "observe a capsule, or a beam / spring / latch carrying one capsule")
+
+
+def thrust_per_v2(inst: Instance, frequency: float) -> dict:
+    """{capsule: thrust magnitude (N/V^2)} at ``frequency`` (acl.analysis.acoustics, declared thrust applied)."""
     key = ("t", float(frequency))
     if key not in inst._tau:
         from acl.analysis.acoustics import thrust_vectors
         from acl.design.model import Drive, Tone
 
         tv = thrust_vectors(inst.design, Drive(tones=(Tone(frequency=float(frequency), amplitude=1.0),)))
-        inst._tau[key] = np.array([np.linalg.norm(tv[c]) for c in inst.capsules])
+        inst._tau[key] = {c: float(np.linalg.norm(v)) for c, v in tv.items()}
     return inst._tau[key]
 
 
-def alpha_per_v2(inst: Instance, frequency: float) -> float:
-    """Bjerknes coefficient alpha(f) = attraction d^2 per V^2 (N m^2/V^2) of a pair (acl.analysis.acoustics)."""
-    key = ("a", float(frequency))
+def alpha_per_v2(inst: Instance, unit: Unit, frequency: float) -> float:
+    """Bjerknes coefficient alpha(f) = attraction d^2 per V^2 (N m^2/V^2) of a pair unit (acl.analysis.acoustics)."""
+    want = set(unit.capsules)
+    key = ("a", float(frequency), tuple(sorted(want)))
     if key not in inst._tau:
         from acl.analysis.acoustics import pair_forces
         from acl.design.model import Drive, Tone
 
         pf = pair_forces(inst.design, Drive(tones=(Tone(frequency=float(frequency), amplitude=1.0),)))
-        want = set(inst.capsules)
         val = next((p.attraction * p.distance**2 for p in pf if {p.a, p.b} == want), 0.0)
         inst._tau[key] = float(val)
     return inst._tau[key]
+
+
+def reference_unit(inst: Instance, kind: str | None = None) -> Unit | None:
+    """The first unit (in observe order) of ``kind`` (any kind if None)."""
+    for u in inst.units.values():
+        if kind is None or u.kind == kind:
+            return u
+    return None

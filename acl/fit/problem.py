@@ -8,10 +8,14 @@ Names accepted by ``--free`` and by ``free`` design parameters:
   gives its value and bounds;
 * ``E`` -- Young's modulus of the beams (fitted as a scale of the declared value); a design
   parameter used as a material's ``youngs`` stands for it;
-* ``gain`` -- transducer gain scale (degenerate with gamma and alpha: free only with both fixed).
+* ``gain`` -- transducer gain scale (degenerate with gamma and alpha: free only with both fixed);
+* ``f0``, ``q`` -- natural frequency (Hz) and quality factor of the reference capsule's first mode,
+  every capsule's scaled alike; ``f0:CAP``, ``q:CAP`` -- one capsule's own (paper Fig. 1e / Table S1);
+* a design parameter that changes only capsule cavities (e.g. a cavity height) -- its value, acting
+  through the gas volume on the resonance (acl.physics.resonance), like ``f0`` but physical.
 
-Other free design parameters (geometry) are refused with a diagnostic (E812): the fit model does not
-re-resolve geometry per iteration.
+Other free design parameters (geometry that moves bodies) are refused with a diagnostic (E812): the
+fit model does not re-resolve geometry per iteration.
 """
 from __future__ import annotations
 
@@ -22,7 +26,7 @@ import numpy as np
 from acl.diagnostics import DiagnosticError, Span, error, suggest
 from acl.fit.solve import Coef
 
-COEFFICIENTS = ("gamma", "alpha", "E", "gain")
+COEFFICIENTS = ("gamma", "alpha", "E", "gain", "f0", "q")
 
 
 @dataclass
@@ -67,13 +71,24 @@ def load_problem(design_path, data_paths, free=(), search_paths=()):
     names = [p.name for p in design.params if p.free] + [n for n in free if n]
     coefs = []
     seen = set()
+    caps = {c.name for c in design.capsules}
     for name in names:
         role = name if name in COEFFICIENTS else roles.get(name)
+        what, sep, cap = name.partition(":")
+        if sep and what in ("f0", "q"):
+            if cap not in caps:
+                raise DiagnosticError([error("E-USAGE", f"--free {name}: no capsule `{cap}`",
+                                             Span(file="<--free>", line=1, column=1),
+                                             suggest(cap, sorted(caps)) or f"capsules: {', '.join(sorted(caps))}")])
+            role = f"{what}@{cap}"
         if role is None:
             cands = [*COEFFICIENTS, *[p.name for p in design.params]]
             raise DiagnosticError([error("E-USAGE", f"--free {name}: not a design parameter nor a model coefficient",
                                          Span(file="<--free>", line=1, column=1),
                                          suggest(name, cands) or f"names: {', '.join(cands)}")])
+        if role == "cavity":
+            coefs.append(_cavity_coef(name, design, P, design_path, search_paths))
+            continue
         if role == "geometry":
             p = design.param(name)
             raise DiagnosticError([error("E812", f"parameter `{name}` changes the geometry; the fit model cannot "
@@ -109,9 +124,37 @@ def _coef(role, name, design, P) -> Coef:
             lo = p.lower if p.lower is not None else lo
             hi = p.upper if p.upper is not None else hi
         return Coef("alpha", "alpha", v, lo, hi, v, "N*m^2/V^2", design_param="alpha" if _has_param(design, "alpha") else None)
+    if role.split("@")[0] in ("f0", "q"):
+        what, _, cap = role.partition("@")
+        cap = cap or P.ref_capsule
+        fn, q = P.modes0[cap]
+        if what == "f0":
+            return Coef(name, role, fn, 0.5 * fn, 2.0 * fn, fn, "Hz")
+        return Coef(name, role, q, 0.2, 200.0, q, "")
     if role == "E":
         return Coef("E", "e_scale", 1.0, 0.01, 100.0, 1.0, "", design_param=dp)
     return Coef("gain", "gain", 1.0, 0.01, 100.0, 1.0, "")
+
+
+def _cavity_coef(name, design, P, path, search_paths) -> Coef:
+    """A design parameter that changes capsule cavities only: the gas volumes are linear in it (checked by
+    perturbation), and the resonance follows them (acl.fit.forward._resonance_factors)."""
+    import acl
+
+    p = design.param(name)
+    d = acl.load(path, overrides={name: f"{p.value * 1.01!r} {p.unit}".strip()}, search_paths=search_paths)
+    slopes, dl = {}, {}
+    dp = 0.01 * p.value
+    for c0, c1 in zip(design.capsules, d.capsules):
+        if c0.cavity.volume != c1.cavity.volume:
+            slopes[c0.name] = (c1.cavity.volume / c0.cavity.volume - 1.0) / dp
+            m = design.mount_of(c0.name)
+            if m is not None and getattr(m, "target_kind", "") == "beam":
+                dl[c0.name] = (d.beam(m.target).rigid_length - design.beam(m.target).rigid_length) / dp
+    P.cavity[name] = {"value": float(p.value), "dlnv": slopes, "dl": dl}
+    lo = p.lower if p.lower is not None else 0.3 * p.value
+    hi = p.upper if p.upper is not None else 3.0 * p.value
+    return Coef(name, f"cavity@{name}", float(p.value), lo, hi, abs(float(p.value)), p.unit, design_param=name)
 
 
 def _has_param(design, name):
@@ -144,6 +187,12 @@ def classify_params(path, design, search_paths=()) -> dict:
             roles[p.name] = "gamma"
         elif all(c.endswith("youngs_modulus") for c in changed):
             roles[p.name] = "E"
+        elif any(c.endswith(".cavity.volume") for c in changed) and all(
+                (c.startswith(".capsules[") and (".cavity." in c or c.endswith("center[2]")))
+                or c.endswith(".rigid_length") for c in changed):
+            # a cavity size: the gas volume (resonance) and the actuator's size on its beam; the orifice's
+            # small shift in height is neglected (docs/fit.md)
+            roles[p.name] = "cavity"
         else:
             roles[p.name] = "geometry"
     return roles

@@ -48,6 +48,16 @@ def per_observable(problem, fit) -> dict:
     return out
 
 
+def covariance(fit) -> dict:
+    """Covariance of the fitted coordinates (SI, the order of ``names``): cov = corr x stderr stderr^T (s^2 (J^T J)^-1),
+    for later stages (acl/fit/calibrated.py writes it; robust compile samples it)."""
+    se = np.asarray(fit.stderr, float)
+    cov = np.asarray(fit.corr, float) * np.outer(se, se)
+    return {"names": [c.name for c in fit.coefs], "units": [c.unit for c in fit.coefs],
+            "values": [_n(float(v)) for v in fit.values],
+            "matrix": [[_n(float(x)) for x in row] for row in cov]}
+
+
 def critical_distance(fit, problem) -> dict | None:
     """d_c = sqrt(alpha/(2 gamma)) (paper Eq. 3) with a delta-method 95 % interval, when both were fitted or known."""
     P = problem.prepared
@@ -111,10 +121,13 @@ def build_report(problem, selection, tests_before, tests_after, calibrated_name=
         "residual_tests_before": [t.as_dict() for t in tests_before],
         "effects_tried": tried,
         "effects_selected": list(selection.selected),
+        "effects_tentative": list(getattr(selection, "tentative", [])),
+        "adequacy": getattr(selection, "adequacy", {}),
         "final": {"parameters": param_entries(final, problem), "effects": selection.effects,
                   "rmse": _n(final.rmse), "redchi": _n(final.redchi), "chi2": _n(final.chi2),
                   "aicc": _n(final.aicc), "bic": _n(final.bic), "warnings": final.warnings,
-                  "per_observable": per_observable(problem, final)},
+                  "per_observable": per_observable(problem, final),
+                  "covariance": covariance(final)},
         "critical_distance": critical_distance(final, problem),
         "rmse_before": _n(base.rmse),
         "rmse_after": _n(final.rmse),
@@ -169,6 +182,11 @@ def render_table(report, console=None) -> None:
     con.print(et)
     sel = report["effects_selected"]
     con.print(f"effects selected: {', '.join(sel) if sel else 'none'}")
+    if report.get("effects_tentative"):
+        ad = report["adequacy"]
+        con.print(f"[yellow]withdrawn (tentative): {', '.join(report['effects_tentative'])}: they improve the fit but "
+                  f"the model still fails the goodness of fit (chi2 = {ad['chi2']:.4g} for {ad['dof']} dof, "
+                  f"p = {ad['p_value']:.2g}); what remains is outside the library[/yellow]")
     for w in report["final"]["warnings"]:
         con.print(f"[yellow]warning:[/yellow] {w}")
     if report.get("outliers"):

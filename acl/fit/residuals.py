@@ -106,3 +106,65 @@ def structured(tests: list[Test], alpha: float = ALPHA) -> list[Test]:
 def _num(x):
     x = float(x)
     return x if math.isfinite(x) else None
+
+
+def scatter_test(weighted_residual, dof) -> tuple[float, float]:
+    """Chi-square test of excess scatter of one group: sum (r/sigma)^2 against chi2(dof), one-sided (p of that much or more)."""
+    from scipy.stats import chi2
+
+    s = float(np.sum(np.asarray(weighted_residual, float) ** 2))
+    return s / max(dof, 1e-9), float(chi2.sf(s, max(dof, 1e-9)))
+
+
+def examine_groups(residual, cov: dict[str, np.ndarray], weights, labels: dict[str, np.ndarray], n_params: int,
+                   sigma_given: bool, seed: int = 0) -> list[Test]:
+    """Residual tests per observable and per experiment (each label family with 2+ groups), besides the pooled ones.
+
+    For each group: its own covariate tests (as :func:`examine`, covariate named ``[observable d] voltage``)
+    and a **scatter** test: with sigma given, the chi-square of its weighted residual against its share of
+    the degrees of freedom (an observable left at 1.2 sigma shows as chi2/dof = 1.44); without sigma, an
+    F-test of its variance against the other rows'.  Across groups, a **groups** test (Kruskal-Wallis)
+    of the weighted residual by label.  p-values are Bonferroni-adjusted within two families: the
+    scatter and groups tests, and the covariate tests inside the groups.
+    """
+    from scipy.stats import f as fdist
+    from scipy.stats import kruskal
+
+    r = np.asarray(residual, float) * np.asarray(weights, float)
+    n = r.size
+    tests: list[Test] = []
+    for family, lab in labels.items():
+        lab = np.asarray(lab, dtype=object)
+        levels = [x for x in dict.fromkeys(lab.tolist())]
+        if len(levels) < 2:
+            continue
+        groups = []
+        for level in levels:
+            m = lab == level
+            groups.append(r[m])
+            name = f"[{family} {level}]"
+            sub = {f"{name} {k}": np.asarray(v)[m] for k, v in cov.items()}
+            for t in examine(residual[m], sub, np.asarray(weights)[m], seed):
+                tests.append(t)
+            dof = m.sum() * (1.0 - n_params / max(n, 1))
+            if sigma_given:
+                stat, p = scatter_test(r[m], dof)
+            else:
+                rest = r[~m]
+                v_in = float(np.sum(r[m] ** 2)) / max(dof, 1)
+                v_out = float(np.sum(rest ** 2)) / max(rest.size * (1.0 - n_params / max(n, 1)), 1)
+                stat = v_in / max(v_out, 1e-300)
+                p = float(fdist.sf(stat, max(dof, 1), max(rest.size - n_params, 1)))
+            tests.append(Test(f"{name}", "scatter", stat, p))
+        if min(g.size for g in groups) >= 2:
+            h, p = kruskal(*groups)
+            tests.append(Test(family, "groups", float(h), float(p) if np.isfinite(p) else 1.0))
+    # Bonferroni within two families: the scatter and groups tests (one per group / label family), and the
+    # covariate tests inside the groups (many, correlated with the pooled ones)
+    level = [t for t in tests if t.test in ("scatter", "groups") and not t.covariate.startswith("[") or t.test == "scatter"]
+    inner = [t for t in tests if t not in level]
+    for fam in (level, inner):
+        m = max(len(fam), 1)
+        for t in fam:
+            t.p_adjusted = min(1.0, t.p_value * m)
+    return tests

@@ -1,7 +1,7 @@
 """Bounded, weighted nonlinear least squares with lmfit-style statistics (values, intervals, correlations, warnings).
 
 Coordinates are fitted in units of their typical magnitude (``Coef.scale``) with
-``scipy.optimize.least_squares(method="trf", x_scale="jac")``; weights are 1/sigma (unit weights of
+``scipy.optimize.least_squares(method="trf", x_scale="jac", diff_step=DIFF_STEP)``; weights are 1/sigma (unit weights of
 1 um when the data give no sigma, the scale then estimated from the residual).  Covariance
 cov = s^2 (J^T J)^-1 with s^2 the reduced chi-square (lmfit's default), intervals from Student's t.
 """
@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 NOMINAL_SIGMA = 1e-6      # m: weight unit when the data give no sigma
+DIFF_STEP = 1e-6          # relative finite-difference step of the Jacobian (well above the equilibrium solver's 1e-12 relative precision)
 CORR_STRONG = 0.9
 JUMP = 10.0             # weighted residual (in sigma) beyond which a row is a jump suspect
 SPIKE = 100.0            # a Jacobian row this many times the median row norm is a fold row
@@ -55,6 +56,11 @@ class FitResult:
     message: str
     warnings: list = field(default_factory=list)
     identifiable: bool = True
+
+    @property
+    def covariance(self) -> np.ndarray:
+        """(p, p) covariance of the fitted coordinates (SI): s^2 (J^T J)^-1, NaN where not identifiable."""
+        return self.corr * np.outer(self.stderr, self.stderr)
 
     def value(self, name):
         for c, v in zip(self.coefs, self.values):
@@ -106,22 +112,34 @@ def fit(predict, y, sigma, coefs, train=None, starts=None, max_nfev=200, robust_
     best, message, success = None, "no free parameters", True
     x0s = [np.array([c.value for c in coefs], float)] + [np.asarray(s, float) for s in (starts or [])]
     if coefs:
+        # several starts: a short run from each, then the best one is continued (multi-start pruning)
+        budget = max_nfev if len(x0s) == 1 else max(6, max_nfev // 30)
         for x0 in x0s:
             u0 = np.clip(x0 / scale, lo, hi)
             span = hi - lo
             u0 = np.clip(u0, lo + 1e-6 * span, hi - 1e-6 * span)
             try:
                 if robust_start:   # soft-l1 pass first: jumps (snap-in rows) cannot trap the start
-                    pre = least_squares(resid, u0, bounds=(lo, hi), method="trf", x_scale="jac", loss="soft_l1",
+                    pre = least_squares(resid, u0, bounds=(lo, hi), method="trf", x_scale="jac", diff_step=DIFF_STEP, loss="soft_l1",
                                         f_scale=3.0, max_nfev=max_nfev // 2, xtol=1e-8, ftol=1e-8, gtol=1e-8)
                     u0 = np.clip(pre.x, lo + 1e-9 * span, hi - 1e-9 * span)
-                sol = least_squares(resid, u0, bounds=(lo, hi), method="trf", x_scale="jac",
-                                    max_nfev=max_nfev, xtol=1e-10, ftol=1e-10, gtol=1e-10)
+                sol = least_squares(resid, u0, bounds=(lo, hi), method="trf", x_scale="jac", diff_step=DIFF_STEP,
+                                    max_nfev=budget, xtol=1e-10, ftol=1e-10, gtol=1e-10)
             except ValueError as exc:
                 message, success = str(exc), False
                 continue
             if best is None or sol.cost < best.cost:
                 best = sol
+        if best is not None and budget < max_nfev and best.status == 0:     # budget exhausted: continue the best
+            try:
+                span = hi - lo
+                u0 = np.clip(best.x, lo + 1e-9 * span, hi - 1e-9 * span)
+                sol = least_squares(resid, u0, bounds=(lo, hi), method="trf", x_scale="jac", diff_step=DIFF_STEP,
+                                    max_nfev=max_nfev, xtol=1e-10, ftol=1e-10, gtol=1e-10)
+                if sol.cost <= best.cost:
+                    best = sol
+            except ValueError:
+                pass
         if best is not None:
             best = _escape_jumps(best, resid, train, full, y, w, lo, hi, max_nfev, least_squares)
         if best is None:
@@ -206,11 +224,11 @@ def _escape_jumps(best, resid, train, full, y, w, lo, hi, max_nfev, least_square
         return np.where(np.isfinite(rr), rr, 1e6)
 
     try:
-        alt = least_squares(sub, best.x, bounds=(lo, hi), method="trf", x_scale="jac", max_nfev=max_nfev,
+        alt = least_squares(sub, best.x, bounds=(lo, hi), method="trf", x_scale="jac", diff_step=DIFF_STEP, max_nfev=max_nfev,
                             xtol=1e-10, ftol=1e-10, gtol=1e-10)
         cost = 0.5 * float(np.sum(resid(alt.x) ** 2))
         if cost < best.cost:
-            pol = least_squares(resid, alt.x, bounds=(lo, hi), method="trf", x_scale="jac", max_nfev=max_nfev,
+            pol = least_squares(resid, alt.x, bounds=(lo, hi), method="trf", x_scale="jac", diff_step=DIFF_STEP, max_nfev=max_nfev,
                                 xtol=1e-10, ftol=1e-10, gtol=1e-10)
             return pol if pol.cost <= cost else best
     except ValueError:

@@ -26,6 +26,7 @@ class Experiment:
     repeats: int = 1
     interval: float = 1.0                   # s between rows
     observables: tuple = ()                 # empty: every declared observable
+    label: str = ""                         # `experiment` column of its rows (several experiments, one data set)
 
 
 def effect_inputs(spec: dict) -> dict:
@@ -39,7 +40,7 @@ def effect_inputs(spec: dict) -> dict:
                                          suggest(eid, EFFECTS) or f"effects: {', '.join(EFFECTS)}")])
         eff = EFFECTS[eid]
         names = [p.name for p in eff.params]
-        vals = {p.name: p.null for p in eff.params}
+        vals = {p.name: (p.null if p.null == p.null else p.start) for p in eff.params}
         for k, v in params.items():
             if k in ALIASES and ALIASES[k][0] in names:
                 vals[ALIASES[k][0]] = ALIASES[k][1](v)
@@ -53,36 +54,48 @@ def effect_inputs(spec: dict) -> dict:
     return out
 
 
-def generate(design_path, experiment: Experiment, effects: dict | None = None, noise: float = 0.0,
+def generate(design_path, experiment, effects: dict | None = None, noise: float = 0.0,
              seed: int = 0, coeffs: dict | None = None, search_paths=()):
-    """Return (Dataset, Prepared) of synthetic rows (values in SI, sigma = noise)."""
+    """Return (Dataset, Prepared) of synthetic rows (values in SI, sigma = noise).
+
+    ``experiment``: one :class:`Experiment` or a list of them (run one after the other, in one data set,
+    rows tagged with each experiment's ``label``: e.g. a pair and its calibration beam)."""
     import acl
     from acl.fit.data import Dataset
     from acl.fit.forward import predict, prepare
     from acl.fit.mechanism import build_instance
 
     design = acl.load(design_path, search_paths=search_paths)
-    obs = list(experiment.observables) or [o.name for o in design.observes]
-    for name in obs:
-        design.observe(name)
-    sets = experiment.sets or {}
-    set_names = sorted(sets)
-    combos = list(itertools.product(*[sets[k] for k in set_names])) or [()]
-    rows = []
-    for _ in range(max(1, experiment.repeats)):
-        for combo in combos:
-            for f in experiment.frequencies:
-                for v in experiment.voltages:
-                    for name in obs:
-                        rows.append((name, combo, ((float(f), float(v)),) if v > 0 else ()))
+    experiments = [experiment] if isinstance(experiment, Experiment) else list(experiment)
+    set_names = sorted({k for ex in experiments for k in (ex.sets or {})})
+    rows, times = [], []
+    t = 0.0
+    for ex in experiments:
+        obs = list(ex.observables) or [o.name for o in design.observes]
+        for name in obs:
+            design.observe(name)
+        sets = ex.sets or {}
+        names = sorted(sets)
+        combos = list(itertools.product(*[sets[k] for k in names])) or [()]
+        for _ in range(max(1, ex.repeats)):
+            for combo in combos:
+                cell = dict(zip(names, combo))
+                for f in ex.frequencies:
+                    for v in ex.voltages:
+                        for name in obs:
+                            rows.append((name, tuple(cell.get(k, "") for k in set_names),
+                                         ((float(f), float(v)),) if v > 0 else (), ex.label))
+                            times.append(t)
+                            t += float(ex.interval)
     n = len(rows)
     from acl.fit.data import parse_quantity
 
     set_arr = {k: np.array([r[1][j] for r in rows], dtype=object) for j, k in enumerate(set_names)}
-    set_si = {k: np.array([parse_quantity(t)[0] for t in set_arr[k]], float) for k in set_names}
+    set_si = {k: np.array([parse_quantity(x)[0] if x else np.nan for x in set_arr[k]], float) for k in set_names}
     data = Dataset(np.array([r[0] for r in rows], dtype=object), np.zeros(n), np.full(n, float(noise) or np.nan),
-                   np.arange(n) * float(experiment.interval), [r[2] for r in rows], set_arr, set_si,
-                   [Span(file="<synth>", line=i + 2, column=1) for i in range(n)], np.array(["um"] * n, dtype=object))
+                   np.array(times, float), [r[2] for r in rows], set_arr, set_si,
+                   [Span(file="<synth>", line=i + 2, column=1) for i in range(n)], np.array(["um"] * n, dtype=object),
+                   experiment=np.array([r[3] for r in rows], dtype=object))
     cache: dict = {}
 
     def load_instance(key):
@@ -109,15 +122,192 @@ def write_csv(data, path, unit: str = "um") -> None:
     factor, _ = parse_unit(unit)
     set_names = sorted(data.sets)
     with_sigma = bool(np.all(np.isfinite(data.sigma)))     # noise-free data have no sigma column
+    with_exp = bool(np.any(data.experiment != ""))
     head = ["observable", "value", "unit", "drive", "time", *(["sigma"] if with_sigma else []),
-            *[f"set:{k}" for k in set_names]]
+            *(["experiment"] if with_exp else []), *[f"set:{k}" for k in set_names]]
     lines = [",".join(head)]
     for i in range(data.n):
         cells = [data.observable[i], f"{data.value[i] / factor:.6g}", unit, format_drive(data.tones[i]),
                  f"{data.time[i]:.6g}", *([f"{data.sigma[i] / factor:.6g}"] if with_sigma else []),
+                 *([data.experiment[i]] if with_exp else []),
                  *[data.sets[k][i] for k in set_names]]
         lines.append(",".join(cells))
     tmp = f"{path}.tmp{os.getpid()}"
     with open(tmp, "w", encoding="utf-8") as fh:
         fh.write("\n".join(lines) + "\n")
     os.replace(tmp, path)
+
+
+# ------------------------------------------------------------------------------------------------
+# Replaying a compiled schedule on a design (`acl synth TRUTH.acl --schedule schedule.json`)
+# ------------------------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class Waypoint:
+    """One constant-drive segment of a schedule: its start time, tones ((Hz, V peak), ...) and goal."""
+
+    time: float
+    tones: tuple
+    goal: str
+    step: int
+    index: int = 0                          # position among its goal's segments
+
+
+@dataclass(frozen=True)
+class Target:
+    """A follow goal of the schedule: the capsule and its path, one point (m) per waypoint segment."""
+
+    capsule: str
+    points: object                          # (N, 2) m
+
+
+def read_schedule(path: str) -> tuple[list[Waypoint], int, dict]:
+    """The constant-drive segments of a schedule.json, how many chirp segments were skipped, and the
+    follow goals' targets {goal name: Target} (schedule 1.1+).
+
+    Raises DiagnosticError (E-SYNTH-SCHEDULE) at file:line:column for anything malformed.
+    """
+    import json
+    import math
+
+    def bad(msg, line=1, col=1, hint=None):
+        return DiagnosticError([error("E-SYNTH-SCHEDULE", msg, Span(file=path, line=line, column=col), hint)])
+
+    try:
+        with open(path, encoding="utf-8") as fh:
+            text = fh.read()
+    except OSError as exc:
+        raise bad(f"cannot read the schedule: {exc.strerror or exc}") from None
+    try:
+        doc = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise bad(f"not JSON: {exc.msg}", exc.lineno, exc.colno, "give the schedule.json `acl compile` wrote") from None
+    if not isinstance(doc, dict) or not isinstance(doc.get("segments"), list) or not str(doc.get("version", "")).startswith("1."):
+        raise bad("not an acl schedule (version 1.x with a list of segments)", hint="give the schedule.json `acl compile` wrote")
+    out, chirps, count = [], 0, {}
+    for i, seg in enumerate(doc["segments"]):
+        where = f"segments[{i}]"
+        try:
+            start = float(seg["start_s"])
+            tones = []
+            chirp = False
+            for t in seg.get("tones", []):
+                f, v = float(t["frequency_hz"]), float(t["amplitude_v"])
+                if not (math.isfinite(f) and f > 0 and math.isfinite(v) and v >= 0):
+                    raise ValueError(f"tone {f!r} Hz @ {v!r} V")
+                chirp = chirp or t.get("frequency_end_hz") is not None
+                if v > 0:
+                    tones.append((f, v))
+            if not math.isfinite(start):
+                raise ValueError("start_s is not finite")
+        except (KeyError, TypeError, ValueError) as exc:
+            raise bad(f"{where}: malformed segment ({exc})", hint="each segment has start_s and tones "
+                      "[{frequency_hz, amplitude_v}]") from None
+        if chirp:
+            chirps += 1
+            continue
+        goal = str(seg.get("goal") or "")
+        out.append(Waypoint(start, tuple(tones), goal, int(seg.get("step", 0)), count.get(goal, 0)))
+        count[goal] = count.get(goal, 0) + 1
+    if not out:
+        raise bad("the schedule has no constant-drive segment to replay")
+    import numpy as np
+
+    targets = {}
+    for j, g in enumerate(doc.get("goals") or []):
+        if isinstance(g, dict) and g.get("kind") == "follow" and g.get("capsule") and g.get("target_um") is not None:
+            try:
+                pts = np.asarray(g["target_um"], float).reshape(-1, 2) * 1e-6
+            except (TypeError, ValueError):
+                raise bad(f"goals[{j}].target_um: expected a list of [x, y] in um") from None
+            targets[str(g["name"])] = Target(str(g["capsule"]), pts)
+    return out, chirps, targets
+
+
+def observe_value(design, obs, state) -> float:
+    """The value (m) of observable ``obs`` at a mechanism state (acl.analysis.mechanics.MechanismState).
+
+    displacement: the capsule's (or the capsule carried by the beam's) displacement along the axis;
+    position: a coordinate of the capsule centre; gap: distance between the two orifice centres.
+    """
+    import numpy as np
+
+    from acl.analysis.report import orifice_gap
+
+    if obs.kind == "gap":
+        return orifice_gap(design, obs.a, obs.b, state.positions)
+    cap = obs.target
+    if cap not in state.displacements:
+        held = [j.capsule for j in design.joints if j.kind == "mount" and j.target == obs.target]
+        if not held:
+            raise KeyError(f"observable `{obs.name}`: no capsule is carried by `{obs.target}`")
+        cap = held[0]
+    if obs.kind == "displacement":
+        axis = np.asarray(obs.axis, float)
+        return float(np.asarray(state.displacements[cap], float) @ (axis / np.linalg.norm(axis)))
+    return float(np.asarray(state.positions[cap], float)["xyz".index(obs.component)])
+
+
+@dataclass
+class Replay:
+    data: object                            # Dataset: every observable at every waypoint
+    lost: int                               # waypoints without a stable equilibrium (no rows)
+    tracking: dict                          # follow goal -> {"rms_m", "max_m", "n", "lost", "errors_m"}
+
+
+def replay(design, waypoints: list[Waypoint], observables=(), noise: float = 0.0, seed: int = 0, progress=None,
+           targets: dict | None = None) -> Replay:
+    """Equilibrium of ``design`` under every waypoint's drive (warm-started in order).
+
+    The full nonlinear model of the analysis (acl.analysis.mechanics with the design's declared
+    effects).  ``lost`` counts waypoints with no stable equilibrium (snap-in): no row is written for
+    them.  With ``targets`` (from :func:`read_schedule`), the tracking error of each follow goal:
+    the distance in the plane between the capsule's displacement and the target (noise-free), a
+    lost waypoint counting as missed by the path's extent.
+    """
+    import numpy as np
+
+    from acl.analysis import acoustics
+    from acl.analysis import mechanics as mech
+    from acl.design.model import Drive, Tone
+    from acl.fit.data import Dataset
+
+    names = list(observables) or [o.name for o in design.observes]
+    obs = [design.observe(n) for n in names]
+    fm = acoustics.force_model_for(design)
+    targets = {k: t for k, t in (targets or {}).items() if t.capsule in {c.name for c in design.capsules}}
+    errors = {k: np.full(len(t.points), np.nan) for k, t in targets.items()}
+    rows, start, lost = [], None, 0
+    for i, w in enumerate(waypoints):
+        drive = Drive(tones=tuple(Tone(frequency=f, amplitude=v) for f, v in w.tones))
+        st = mech.equilibrium(design, drive, fm, start=start)
+        if st.status != "ok" and start is not None:
+            st = mech.equilibrium(design, drive, fm)
+        if st.status != "ok":
+            lost += 1
+            start = None
+        else:
+            start = st.positions
+            for o in obs:
+                rows.append((o.name, observe_value(design, o, st), w.time, w.tones))
+            t = targets.get(w.goal)
+            if t is not None and w.index < len(t.points):
+                d = np.asarray(st.displacements[t.capsule], float)[:2]
+                errors[w.goal][w.index] = float(np.linalg.norm(d - t.points[w.index]))
+        if progress is not None:
+            progress(i + 1, len(waypoints))
+    n = len(rows)
+    value = np.array([r[1] for r in rows], float)
+    if noise > 0:
+        value = value + np.random.default_rng(seed).normal(0.0, noise, n)
+    data = Dataset(np.array([r[0] for r in rows], dtype=object), value, np.full(n, float(noise) or np.nan),
+                   np.array([r[2] for r in rows], float), [r[3] for r in rows], {}, {},
+                   [Span(file="<synth>", line=i + 2, column=1) for i in range(n)], np.array(["um"] * n, dtype=object))
+    tracking = {}
+    for k, e in errors.items():
+        pts = targets[k].points
+        missed = ~np.isfinite(e)
+        e = np.where(missed, float(np.ptp(pts, axis=0).max() + np.abs(pts).max()), e)
+        tracking[k] = {"rms_m": float(np.sqrt(np.mean(e ** 2))), "max_m": float(e.max()), "n": int(e.size),
+                       "lost": int(missed.sum()), "errors_m": e}
+    return Replay(data, lost, tracking)

@@ -25,8 +25,10 @@ def format_source(text: str, path: str = "<stdin>") -> str:
     from acl.syntax.parser import parse_module
 
     source = text.replace("\r\n", "\n")
-    before = parse_module(source, path)
+    before = parse_module(source, path)    # the parser's diagnostics and limits, as `acl check` gives them
     out = layout(tokenize(source, path))
+    if out == text:   # already canonical: nothing to check
+        return out
     try:
         after = parse_module(out, path)
     except DiagnosticError as exc:
@@ -42,7 +44,7 @@ def format_source(text: str, path: str = "<stdin>") -> str:
 
 def format_file(path: str) -> tuple[str, str]:
     """(original text, formatted text) of a design file; raises DiagnosticError (E601/E103/E1xx)."""
-    from acl.design.modules import _read
+    from acl.design.modules import read_source
 
-    text = _read(path)
+    text = read_source(path)
     return text, format_source(text, path)

@@ -13,7 +13,8 @@ Line breaks are the author's (as gofmt keeps them); everything else is canonical
   one blank line before it (above the comments that introduce it) and one after it;
 * imports: each run of consecutive single-line imports is sorted (stdlib and module imports by
   dotted name, then file imports by path);
-* comments: kept, each on its line; own-line comments take their line's indentation; the
+* comments: kept, each on its line, with a space after the `#` (`#note` becomes `# note`;
+  `#!`, `#:` and `##` are left alone); own-line comments take their line's indentation; the
   trailing comments of consecutive lines line up, two spaces after the longest code.
 """
 from __future__ import annotations
@@ -77,6 +78,9 @@ class _Builder:
     def newline(self) -> None:
         if self.cur is not None:
             self.flush()
+        elif self.cont:   # `\` joined its line to an empty one, which ends the statement: drop it
+            self.lines[-1].code = self.lines[-1].code[:-2]
+            self.cont = False
         else:
             self.blank = True
 
@@ -102,7 +106,7 @@ class _Builder:
             if starts:
                 self.stmt_indent = indent
                 if self.depth == 0:
-                    self.stmts.append(_Stmt(len(self.lines), len(self.lines), is_import=t.type == "IMPORT"))
+                    self.stmts.append(_Stmt(len(self.lines), len(self.lines), is_import=t.type == "KEYWORD" and t.text == "import"))
             self.cur = _Line(indent, stmt=len(self.stmts) - 1 if self.stmts else None)
             sep = ""
         else:
@@ -176,7 +180,7 @@ def layout(tokens: list[Tok]) -> str:
         if t.type == "NL":
             b.newline()
         elif t.type == "COMMENT":
-            b.comment(t.text.rstrip())
+            b.comment(_comment(t.text))
         elif t.type == "CONT":
             b.continuation()
         else:
@@ -188,6 +192,12 @@ def layout(tokens: list[Tok]) -> str:
     _blank_lines(lines, b.stmts)
     _align_comments(lines)
     return "".join(_render(line) for line in lines)
+
+
+def _comment(text: str) -> str:
+    """`#note` becomes `# note`; `#!`, `#:`, `##...` and comments already spaced are kept."""
+    text = text.rstrip()
+    return "# " + text[1:] if len(text) > 1 and text[1] not in " \t#!:" else text
 
 
 def _import_key(code: str):

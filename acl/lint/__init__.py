@@ -19,3 +19,9 @@ from acl.lint.runner import FileReport, collect_files, lint_file
 
 __all__ = ["ConfigError", "FileReport", "LintConfig", "RULES", "THRESHOLDS", "collect_files", "find_config",
            "lint_file", "load_config", "load_rules"]
+
+
+# `acl.lint(...)` is also the Python API function (acl/__init__.py): keep it callable.
+from acl._callable import make_callable as _make_callable  # noqa: E402
+
+_make_callable(__name__)

@@ -13,8 +13,11 @@ _WORD = re.compile(r"[A-Za-z_\u00b5\u03bc][A-Za-z0-9_\u00b5\u03bc^/*]*")
 
 
 def suggestion(hint: str | None) -> str | None:
+    """The single replacement a hint proposes (None for hints such as "`MHz` (or `mHz`?)")."""
     m = DID_YOU_MEAN.search(hint or "")
-    return m.group(1) if m else None
+    if not m or not re.fullmatch(r"[^\s`]+", m.group(1)):
+        return None
+    return m.group(1)
 
 
 def fix(line_text: str, start: int, end: int, hint: str | None) -> tuple[int, int, str] | None:

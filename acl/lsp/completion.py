@@ -93,7 +93,7 @@ def complete(snap: Snapshot, names_snap: Snapshot | None, line: int, character: 
     if m:
         return _of_kind(env, m.group(1))
     m = re.search(r"([A-Za-z_]\w*(?:\.[A-Za-z_]\w*)*)\.(\w*)$", before)
-    if m and not re.search(r"\d\.\w*$", before):
+    if m and not re.search(r"(?<![\w.])\d+\.\w*$", before):       # `12.` is a number, `c1.` a name
         return _members(env, m.group(1).split("."))
     # a unit after a number: of the key's dimension when the key is known
     m = re.search(r"(?:^|[^\w.])(\d+\.?\d*(?:[eE][+-]?\d+)?)\s+([A-Za-z\u00b5]*)$", before)
@@ -160,6 +160,21 @@ def _members(env, parts: list[str]) -> list[tuple[str, str, str]]:
     if t.what == "decl":
         blk = t.node
         if blk.kind == "capsule":
-            return [(b.name, "member", "orifice") for b in blk.blocks() if b.kind == "orifice" and b.name]
+            return [(n, "member", "orifice") for n in _orifices(t.env, blk)]
         return [(p, "member", "point") for p in POINTS.get(blk.kind, ())]
     return []
+
+
+def _orifices(env, blk, depth: int = 0) -> list[str]:
+    """Orifice names of a capsule declaration, its `like` bases' included (base first)."""
+    from acl.lsp.document import resolve_name
+
+    names: list[str] = []
+    if blk.like is not None and depth < 16:
+        base = resolve_name(env, list(blk.like.parts))
+        if base is not None and base.what == "decl":
+            names = _orifices(base.env, base.node, depth + 1)
+    for b in blk.blocks():
+        if b.kind == "orifice" and b.name and b.name not in names:
+            names.append(b.name)
+    return names

@@ -62,6 +62,10 @@ def check_text(text: str, path: str, version: int | None = None, search_paths=()
     except DiagnosticError as exc:
         diags = list(exc.diagnostics)
     parsed = not any(d.code.startswith("E1") and d.span is not None and d.span.file == path for d in diags)
+    if not parsed and parser is not None:      # names for hover, definition, completion while typing
+        from acl.lsp.incremental import partial_env
+
+        env = partial_env(parser, text, path, search_paths) or env
     return Snapshot(path, text, version, diags, env, design, parsed, text.split("\n"))
 
 

@@ -63,7 +63,7 @@ def hover(snap: Snapshot, line: int, character: int) -> tuple[str, tuple[int, in
     if target is None:
         if parts[0] in KIND_DOCS and upto == 1:
             return f"**{parts[0]}**: {KIND_DOCS[parts[0]]}", (line, start, end)
-        key = _key_doc(snap, line, parts[0]) if upto == 1 else None
+        key = _key_doc(snap, line, start, parts[0]) if upto == 1 else None
         return (key, (line, start, end)) if key else None
     return _target_text(snap, target), (line, start, start + len(".".join(parts[:upto])))
 
@@ -93,11 +93,11 @@ def _rule_text(code: str) -> str:
     return f"**{r.code} {r.name}** ({r.severity.value}, {r.family})\n\n{r.summary}\n\nSee docs/rules.md#{r.code.lower()}."
 
 
-def _key_doc(snap: Snapshot, line: int, word: str) -> str | None:
+def _key_doc(snap: Snapshot, line: int, character: int, word: str) -> str | None:
     from acl.design.resolve import SCHEMAS
     from acl.lsp.completion import enclosing_blocks
 
-    stack = enclosing_blocks(snap.lines, line, len(snap.line(line)))
+    stack = enclosing_blocks(snap.lines, line, character)
     if not stack:
         return None
     schema = SCHEMAS.get(stack[-1])

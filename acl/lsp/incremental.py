@@ -19,6 +19,14 @@ class IncrementalParser:
 
     def parse(self, text: str, file: str) -> A.Module | None:
         """The syntax tree of ``text`` (equal to :func:`acl.syntax.parser.parse_module`'s), or None."""
+        return self._parse(text, file, partial=False)
+
+    def parse_partial(self, text: str, file: str) -> A.Module | None:
+        """The statements of ``text`` that parse, skipping broken ones: names for editor features
+        while the user is typing (never used for diagnostics)."""
+        return self._parse(text, file, partial=True)
+
+    def _parse(self, text: str, file: str, partial: bool) -> A.Module | None:
         try:
             from lark.exceptions import UnexpectedInput
 
@@ -34,8 +42,13 @@ class IncrementalParser:
                 key = (start, chunk)
                 hit = self._cache.get(key)
                 if hit is None:
-                    tree = P._lark().parse("\n" * start + chunk + "\n", start="start")
-                    hit = P._build(tree, file, text)
+                    try:
+                        tree = P._lark().parse("\n" * start + chunk + "\n", start="start")
+                        hit = P._build(tree, file, text)
+                    except (UnexpectedInput, DiagnosticError):
+                        if not partial:
+                            raise
+                        continue
                 fresh[key] = hit
                 stmts.extend(hit)
         except (UnexpectedInput, DiagnosticError, AttributeError, ImportError):
@@ -51,3 +64,23 @@ def prime(module: A.Module, text: str, file: str) -> None:
     if len(modules._PARSED) > 512:
         modules._PARSED.clear()
     modules._PARSED[(file, text)] = module
+
+
+def partial_env(parser: IncrementalParser, text: str, file: str, search_paths=()):
+    """A module environment (names, imports) of the statements of ``text`` that parse, or None.
+
+    Loaded under a key the real check never uses (the text plus a NUL), so it cannot leak into
+    diagnostics; the loader's own diagnostics are discarded.
+    """
+    from acl.design.modules import Loader
+    from acl.diagnostics import DiagnosticBag
+
+    module = parser.parse_partial(text, file)
+    if module is None:
+        return None
+    key = text + "\x00"
+    prime(module, key, file)
+    try:
+        return Loader(DiagnosticBag(), search_paths).load_text(key, file)
+    except DiagnosticError:
+        return None

@@ -27,6 +27,16 @@ def lint_text(path: str, text: str) -> list[Diagnostic]:
     return lint_design(path, snap.design, snap.diagnostics, scan(path, text), cfg).findings
 
 
+def lower_priority() -> None:
+    """Worker initializer: run the rules at a lower CPU priority than the server answering keystrokes."""
+    import os
+
+    try:
+        os.nice(10)
+    except (AttributeError, OSError):   # not on this platform, or not allowed
+        pass
+
+
 def warm_up() -> bool:
     """Import the rules and analyses in the worker before the first real request."""
     from acl.lint.registry import load_rules

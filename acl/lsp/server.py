@@ -35,6 +35,7 @@ class AclLanguageServer(LanguageServer):
         self._lint_tasks: dict[str, asyncio.Task] = {}
         self._executor = None
         self._parsers: dict[str, object] = {}
+        self._lint_running: set[str] = set()
 
     # ---------------------------------------------------------------------------------- state
     def path_of(self, uri: str) -> str:
@@ -83,29 +84,30 @@ class AclLanguageServer(LanguageServer):
             uri=uri, version=snap.version, diagnostics=[to_lsp(d, snap) for d in diags]))
 
     def schedule_lint(self, uri: str) -> None:
+        if uri in self._lint_running:
+            return                # the running lint starts again when it sees the text changed
         old = self._lint_tasks.get(uri)
         if old is not None and not old.done():
-            if getattr(old, "_acl_running", False):
-                return            # the running lint re-schedules itself when it sees the text changed
             old.cancel()
         self._lint_tasks[uri] = asyncio.get_running_loop().create_task(self._lint(uri))
 
     async def _lint(self, uri: str) -> None:
         await asyncio.sleep(self.lint_delay)
-        task = asyncio.current_task()
-        task._acl_running = True  # type: ignore[attr-defined]
         snap = self.snapshots.get(uri)
         if snap is None:
             return
         from acl.lsp.lint import lint_text
 
         loop = asyncio.get_running_loop()
+        self._lint_running.add(uri)
         try:
             findings = await loop.run_in_executor(self._lint_executor(), lint_text, snap.path, snap.text)
         except Exception as exc:  # a broken worker must not take the server down
             self.window_log_message(T.LogMessageParams(type=T.MessageType.Warning,
                                                        message=f"acl lint failed: {type(exc).__name__}: {exc}"))
             return
+        finally:
+            self._lint_running.discard(uri)
         current = self.snapshots.get(uri)
         if current is None:
             return
@@ -120,7 +122,10 @@ class AclLanguageServer(LanguageServer):
             import multiprocessing
             from concurrent.futures import ProcessPoolExecutor
 
-            self._executor = ProcessPoolExecutor(max_workers=1, mp_context=multiprocessing.get_context("spawn"))
+            from acl.lsp.lint import lower_priority
+
+            self._executor = ProcessPoolExecutor(max_workers=1, mp_context=multiprocessing.get_context("spawn"),
+                                                 initializer=lower_priority)
         return self._executor
 
     def close(self) -> None:
@@ -151,8 +156,8 @@ def to_lsp(d: Diagnostic, snap: Snapshot) -> T.Diagnostic:
         else:
             end = T.Position(line=ln, character=max(col + 1, len(snap.line(ln).rstrip())))
         rng = T.Range(start=T.Position(line=ln, character=col), end=end)
-    else:
-        rng = T.Range(start=T.Position(line=0, character=0), end=T.Position(line=0, character=0))
+    else:       # in an imported file (or on the command line): shown on the import that reads it
+        rng = _import_range(snap, s.file if s is not None else None)
         if s is not None:
             message = f"{s}: {message}"
     if d.hint:
@@ -163,8 +168,34 @@ def to_lsp(d: Diagnostic, snap: Snapshot) -> T.Diagnostic:
                         code=d.code, source="acl", data={"hint": d.hint} if d.hint else None)
 
 
+def _import_range(snap: Snapshot, file: str | None) -> T.Range:
+    """The range of the document's import (or extends) that leads to ``file``; else line 1."""
+    from acl.syntax import ast as A
+
+    env = snap.env
+    if env is not None and file is not None:
+        for st in env.module.statements:
+            target = None
+            if isinstance(st, A.Import):
+                alias = st.alias or (st.module[-1] if st.module else None)
+                tgt = env.imports.get(alias) if alias else None
+                target = tgt[0] if isinstance(tgt, tuple) else tgt
+            elif isinstance(st, A.Extends):
+                target = env.base
+            if target is not None and _same_file(target.file, file):
+                ln = st.span.line - 1
+                return T.Range(start=T.Position(line=ln, character=st.span.column - 1),
+                               end=T.Position(line=ln, character=len(snap.line(ln).rstrip())))
+    return T.Range(start=T.Position(line=0, character=0), end=T.Position(line=0, character=0))
+
+
 def _same_file(a: str, b: str) -> bool:
     return a == b or (os.path.exists(a) and os.path.exists(b) and os.path.samefile(a, b))
+
+
+def _no_names(snap: Snapshot) -> bool:
+    """True when the snapshot knows no names (then the last one that parsed serves)."""
+    return snap.env is None or (not snap.parsed and not snap.env.module.statements)
 
 
 def _range(t) -> T.Range:
@@ -229,7 +260,7 @@ def _hover(ls: AclLanguageServer, params: T.HoverParams) -> T.Hover | None:
     from acl.lsp.hover import hover
 
     snap = ls.snapshot(params.text_document.uri)
-    if snap.env is None or not snap.parsed:
+    if _no_names(snap):
         snap = ls.resolved.get(params.text_document.uri, snap)
     got = hover(snap, params.position.line, params.position.character)
     if got is None:
@@ -243,7 +274,7 @@ def _definition(ls: AclLanguageServer, params: T.DefinitionParams) -> T.Location
     from acl.lsp.definition import definition
 
     snap = ls.snapshot(params.text_document.uri)
-    if snap.env is None or not snap.parsed:
+    if _no_names(snap):
         snap = ls.resolved.get(params.text_document.uri, snap)
     got = definition(snap, params.position.line, params.position.character)
     if got is None:
@@ -258,7 +289,8 @@ def _completion(ls: AclLanguageServer, params: T.CompletionParams) -> T.Completi
 
     uri = params.text_document.uri
     snap = ls.snapshot(uri)
-    items = complete(snap, ls.resolved.get(uri), params.position.line, params.position.character)
+    names = snap if not _no_names(snap) else ls.resolved.get(uri)
+    items = complete(snap, names, params.position.line, params.position.character)
     return T.CompletionList(is_incomplete=False, items=[
         T.CompletionItem(label=label, kind=_COMPLETION_KIND[kind], detail=detail) for label, kind, detail in items])
 
@@ -269,7 +301,7 @@ def _symbols(ls: AclLanguageServer, params: T.DocumentSymbolParams) -> list[T.Do
 
     uri = params.text_document.uri
     snap = ls.snapshot(uri)
-    if snap.env is None or not snap.parsed:
+    if _no_names(snap):
         snap = ls.resolved.get(uri, snap)
 
     def conv(s: dict) -> T.DocumentSymbol:

@@ -41,13 +41,40 @@ WATER_20C = MediumConstants()
 #: gamma (the gain that would reproduce gamma = 0.027 nN/V^2 is reported in the docs).
 DEFAULT_GAIN_PA_PER_V = 100.0
 
-#: Dimensionless streaming constant C_s in F = C_s rho (omega eps)^2 pi R^2 (thrust of the jet
-#: of one orifice; eps the centre amplitude of the interface).  Calibrated once from the measured
-#: critical distance of two facing identical Design-1 capsules (d_c = 50 um, paper text at Fig. 4):
-#: with the free-field Bjerknes force rho w^2 |dV|^2/(8 pi d^2) and 2 F_thrust pushing apart,
-#: d_c = R / (8 sqrt(C_s)), so C_s = (10 um / (8 * 50 um))^2.  The naive rectified momentum
-#: flux (C_s = 1/2) would put d_c at 1.8 um, contradicting Fig. 4 (docs/physics.md (part A)).
-STREAMING_CONSTANT = (10e-6 / (8 * 50e-6)) ** 2
+#: Calibration point of the streaming law (paper text at Fig. 4): two facing identical Design-1
+#: capsules (orifice radius 10 um) driven at 125 kHz (Fig. 4e caption) change from attraction to
+#: repulsion at the measured critical distance d_c = 50 um.
+STREAMING_CALIBRATION = {"radius_m": 10e-6, "frequency_hz": 125e3, "critical_distance_m": 50e-6}
+
+
+def _streaming_constant() -> float:
+    from math import pi, sqrt
+
+    r, f, dc = (STREAMING_CALIBRATION[k] for k in ("radius_m", "frequency_hz", "critical_distance_m"))
+    delta2 = 2 * WATER_20C.viscosity / (WATER_20C.density * 2 * pi * f)
+    return r**4 / (192 * delta2 * dc**2)     # acl.physics.forces.streaming_constant_from_critical_distance
+
+
+#: Dimensionless streaming constant C_s of the thrust law F = C_s 6 pi mu omega eps^2 (Stokes-regime
+#: steady streaming of an oscillating interface: Stuart, J. Fluid Mech. 24, 673 (1966); Riley,
+#: Annu. Rev. Fluid Mech. 33, 43 (2001); acl.physics.forces.thrust_magnitude).  A CALIBRATION, not a
+#: prediction: the one constant is set so that the law's d_c = R^2 / (delta sqrt(192 C_s)) equals the
+#: measured 50 um at R = 10 um, 125 kHz in water at 20 C (STREAMING_CALIBRATION; about 8.1e-3).  Every
+#: other d_c (other radii, frequencies, media, unequal pairs, coupled responses) is predicted.
+STREAMING_CONSTANT = _streaming_constant()
+
+#: Pressure reflection coefficient of the substrate (plane z = 0) for the image sources of the
+#: coupled bubble model (acl.physics.coupling).  +1 is a rigid wall.  The near field of the bubbles
+#: (distances << wavelength ~ 12 mm) is incompressible, where any wall much stiffer than water is
+#: rigid; a glass slide (impedance ~13 MRayl vs 1.5 MRayl) reflects 0.8 in the far field.
+SUBSTRATE_REFLECTION = 1.0
+
+#: Linear-regime limit of an interface: centre amplitude eps over orifice radius R.  The exact
+#: curvature of a pinned spherical cap, 2 eps/(R^2 + eps^2), departs from the linear 2 eps/R^2 by
+#: (eps/R)^2 (Young-Laplace), i.e. 4 % at 0.2, and the cap volume pi eps (3R^2 + eps^2)/6 by
+#: (eps/R)^2/3.  Beyond this, the resonance, the phase and the V^2 force laws (paper Eq. 3) no
+#: longer hold; the paper's measured deflections are quadratic in V (Fig. 2c), i.e. linear bubbles.
+LINEAR_AMPLITUDE_LIMIT = 0.2
 
 #: Number of axisymmetric membrane shapes per interface in the Rayleigh-Ritz model: the first
 #: frequency at 3 shapes is within 0.001 % of 8 shapes over the Fig. 1e range

@@ -21,6 +21,46 @@ def saturation(vtot, inv_vsat2):
     return 1.0 / np.sqrt(1.0 + inv_vsat2 * vtot * vtot)
 
 
+def transducer_resonance(f, f_ref, inv_ratio, q):
+    """Pressure gain |H(f)|/|H(f_ref)| of a second-order transducer resonance H = 1/(1 - (f/f_t)^2 + i f/(f_t Q_t)), u = f_ref/f_t (u = 0: flat; Kinsler et al., Fundamentals of Acoustics, driven oscillator)."""
+    def h2(x):
+        a = inv_ratio * x / f_ref
+        return 1.0 / ((1.0 - a * a) ** 2 + (a / q) ** 2)
+    return np.sqrt(h2(f) / h2(f_ref))
+
+
+def mode_response_ratio(f, fn0, q0, fn, q):
+    """|H(f; f_n, Q)|^2 / |H(f; f_n0, Q0)|^2 of the first bubble mode (one-mode term of acl.physics.resonance.volume_response)."""
+    def h2(fr, qq):
+        return 1.0 / ((fr * fr - f * f) ** 2 + (f * fr / qq) ** 2)
+    return h2(fn, q) / h2(fn0, q0)
+
+
+def shrunk_frequency(fn0, volume, radius, density, surface_tension, ambient_pressure, polytropic_index, rate, t):
+    """First natural frequency after the gas volume shrank to V0 exp(-r t): f_n0 f(V(t))/f(V0) with f the Rayleigh-Ritz resonance of acl.physics.resonance (paper Fig. 1e model)."""
+    from acl.physics.resonance import single_orifice_frequencies
+
+    ok = volume > 0
+    v0 = np.where(ok, volume, 1.0)
+    r = np.where(ok, radius, 1.0)
+    args = (density, surface_tension, ambient_pressure, polytropic_index)
+    f0 = single_orifice_frequencies(v0, r, *args)
+    ft = single_orifice_frequencies(v0 * np.exp(-rate * t), r, *args)
+    return np.where(ok, fn0 * ft / f0, fn0)
+
+
+def volume_frequency_table(volume, radius, density, surface_tension, ambient_pressure, polytropic_index, n=241, span=8.0):
+    """(ln x, ln f(x V0)/f(V0)) on x in [e^-span, e^span]: the first natural frequency of a single-orifice capsule vs its
+    gas volume (acl.physics.resonance.single_orifice_frequencies, paper Fig. 1e model), for fast interpolation."""
+    from acl.physics.resonance import single_orifice_frequencies
+
+    lx = np.linspace(-span, span, n)
+    f = single_orifice_frequencies(volume * np.exp(lx), radius, density, surface_tension, ambient_pressure,
+                                   polytropic_index)
+    f0 = single_orifice_frequencies(volume, radius, density, surface_tension, ambient_pressure, polytropic_index)
+    return lx, np.log(f / f0)
+
+
 def shrinkage_factor(f, fn, q, t, rate):
     """|H(f; f_n(t))|^2 / |H(f; f_n0)|^2 of a one-mode resonator, f_n(t) = f_n0 exp(r t / 2) (gas spring, f ~ V^-1/2, Minnaert)."""
     def h2(fr):

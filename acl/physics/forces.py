@@ -22,11 +22,38 @@ def interface_centre_amplitude(volume_amplitude, radius):
     return 2 * np.abs(volume_amplitude) / (np.pi * np.asarray(radius, float) ** 2)
 
 
-def thrust_magnitude(volume_amplitude, radius, omega, density, streaming_constant):
-    """Streaming thrust |F| = C_s rho (omega eps)^2 pi R^2 of one orifice (jet momentum flux, reduced form gamma V^2 of paper Eq. 3; docs/physics.md (part A))."""
+def boundary_layer(omega, density, viscosity):
+    """Stokes layer thickness delta = sqrt(2 nu / omega) (Landau & Lifshitz, Fluid Mechanics, section 24)."""
+    return np.sqrt(2 * np.asarray(viscosity, float) / (np.asarray(density, float) * np.asarray(omega, float)))
+
+
+def streaming_reynolds(eps, omega, density, viscosity):
+    """Streaming Reynolds number R_s = U^2/(omega nu) = omega eps^2/nu = 2 (eps/delta)^2 of an interface oscillating at amplitude eps (Riley, Annu. Rev. Fluid Mech. 33, 43 (2001))."""
+    return np.asarray(omega, float) * np.asarray(eps, float) ** 2 * np.asarray(density, float) / np.asarray(viscosity, float)
+
+
+def thrust_magnitude(volume_amplitude, radius, omega, viscosity, streaming_constant):
+    """Streaming thrust |F| = C_s 6 pi mu omega eps^2 of one orifice: slip velocity u_s ~ omega eps^2/R driving a Stokes outer flow (Stuart, J. Fluid Mech. 24, 673 (1966); Riley 2001), Stokes traction 6 pi mu R u_s.
+
+    ``eps`` = 2|dV|/(pi R^2) is the interface centre amplitude; valid for streaming Reynolds number
+    R_s = omega eps^2/nu below ~1 (:func:`streaming_reynolds`).  One constant C_s (a calibration:
+    :func:`streaming_constant_from_critical_distance`).  Quadratic in eps, so thrust = gamma V^2
+    (paper Eq. 3).
+    """
     eps = interface_centre_amplitude(volume_amplitude, radius)
-    r = np.asarray(radius, float)
-    return streaming_constant * density * (np.asarray(omega, float) * eps) ** 2 * np.pi * r**2
+    return (streaming_constant * 6 * np.pi * np.asarray(viscosity, float) * np.asarray(omega, float) * eps**2)
+
+
+def law_critical_distance(radius, omega, density, viscosity, streaming_constant):
+    """d_c = R^2 / (delta sqrt(192 C_s)) of two identical facing interfaces in phase (free-field Bjerknes rho w^2 |dV|^2/(8 pi d^2) = 2 x thrust of :func:`thrust_magnitude`)."""
+    delta = boundary_layer(omega, density, viscosity)
+    return np.asarray(radius, float) ** 2 / (delta * np.sqrt(192 * np.asarray(streaming_constant, float)))
+
+
+def streaming_constant_from_critical_distance(d_c, radius, omega, density, viscosity):
+    """C_s = R^4 / (192 delta^2 d_c^2): the inverse of :func:`law_critical_distance` (a calibration on one measured d_c)."""
+    delta = boundary_layer(omega, density, viscosity)
+    return np.asarray(radius, float) ** 4 / (192 * delta**2 * np.asarray(d_c, float) ** 2)
 
 
 def bjerknes_attraction(omega, volume_a, volume_b, distance, density):

@@ -49,6 +49,11 @@ class CompileOptions:
     refine: int = 0
     resim_points: int = 100                      # waypoints re-simulated per goal (evenly spaced)
     tones_per_path: int = 3
+    robust: bool = False                         # path program with the declared uncertainty (acl.schedule.robust)
+    band_samples: int = 0                        # draws of the declared uncertainty for the 95 % band (0: none)
+    band_seed: int = 0
+    reload: Callable | None = None               # {param: "v unit"} -> Design, to sample uncertain params
+    nonlinear_passes: int = 0                    # re-plan against the nonlinear model (acl.schedule.correct)
 
 
 def auto_sample_rate(max_frequency_hz: float, factor: float = 10.0, grid_hz: float = 1e3) -> float:
@@ -109,6 +114,9 @@ class _Compiler:
                          max_voltage_v=vmax, full_scale_v=full_scale, ramp_s=self.opts.ramp_s,
                          source=self.design.file, notes=self.notes, full_scale_source=source)
         sched.sample_rate_hz = fs
+        from acl.schedule.bands import coverage_notes
+
+        self.notes.extend(coverage_notes(self.design, sched))
         _choose_all_phases(sched, fs)
         self._check_peaks(sched)
         self._check_slews(sched)
@@ -254,12 +262,13 @@ class _Compiler:
             choice = choose_tones(table, path.points, vmax, self.opts.tones_per_path, step.tones)
         except ValueError as exc:
             raise _diag("E-SCHED-TONES", f"{name}: {exc}", step.span,
-                        "pin tones with `tones` or give a calibration sweep (--calibration)")
+                        "pin the tones with `, using [85 kHz, 125 kHz]` on the follow step, or give a calibration sweep (--calibration)")
         # the renderer crossfades consecutive waypoints with a raised cosine over min(ramp, dt), whose
         # steepest slope is pi/2 x the mean: the plan's step per waypoint must leave room for it
         fade = min(self.opts.ramp_s, dt)
         plan_slew = None if slew is None else slew * 2.0 * fade / (np.pi * dt) * (1 - 1e-4)
         limits = DriveLimits(max_voltage=vmax, slew_rate=plan_slew)
+        rq = self._robust_q(name, step.capsule, choice.frequencies) if self.opts.robust else None
         u_start = None
         if slew is not None:        # slew from what is playing before the goal (silence at the start)
             before = {t.frequency_hz: t.amplitude_v for t in self.segments[-1].tones} if self.segments else {}
@@ -267,7 +276,7 @@ class _Compiler:
         try:
             plan = plan_path(choice.gains, path.points, dt, limits, tolerance=self.opts.tolerance_m,
                              u_start=u_start, lam=self.opts.lam, slew_model=self.opts.slew_model,
-                             refine=self.opts.refine)
+                             refine=self.opts.refine, robust_q=rq)
         except PathInfeasible as exc:
             d = exc.diagnosis
             raise DiagnosticError([Diagnostic(
@@ -283,6 +292,8 @@ class _Compiler:
                    if slew else ()))])
         except SolverFailure as exc:
             raise _diag("E-SCHED-SOLVER", f"{name}: {exc}", step.span, "report this design")
+        if self.opts.nonlinear_passes > 0:
+            plan = self._correct(name, step.capsule, choice, plan, path.points, dt, limits, rq)
         amps = plan.amplitudes                                      # (K, N)
         start = self.t
         for w in range(n):
@@ -290,7 +301,7 @@ class _Compiler:
             self._add(dt, tones, i, name)
         rep = GoalReport(name, "follow", i, start, self.t, choice.frequencies,
                          times_s=start + dt * np.arange(n), target_m=path.points,
-                         amplitudes_v=amps.T.copy())
+                         amplitudes_v=amps.T.copy(), capsule=step.capsule)
         rep.linear_rms_error_m = float(np.sqrt(np.mean(plan.error ** 2)))
         self._resimulate(rep, step.capsule, plan.u, path.points, plan.predicted)
         rep.details.update({
@@ -300,7 +311,53 @@ class _Compiler:
             "max_slew_v_per_s": plan.max_slew_v_per_s(dt), "notes": plan.notes})
         if slew is not None:
             rep.details["slew_limit_v_per_s"] = slew
+        if self.opts.robust:
+            rep.details["robust"] = rq is not None
         self.goals.append(rep)
+
+    def _correct(self, name, capsule, choice, plan, points, dt, limits, rq):
+        """Re-plan against the nonlinear forward model (acl.schedule.correct); the first plan if unavailable."""
+        from acl.schedule.correct import correct_plan
+        from acl.schedule.path import PathInfeasible, plan_path
+        from acl.schedule.solve import SolverFailure
+
+        provider = self.opts.forward_provider
+        if provider is None:
+            from acl.schedule.gains import model_forward as provider
+        try:
+            forward, _ = provider(self.design, capsule, choice.frequencies)
+        except (KeyError, ValueError, ImportError) as exc:
+            self.notes.append(f"{name}: no nonlinear correction ({exc})")
+            return plan
+
+        def plan_for(p):
+            return plan_path(choice.gains, p, dt, limits, tolerance=self.opts.tolerance_m, lam=self.opts.lam,
+                             slew_model=self.opts.slew_model, refine=self.opts.refine, robust_q=rq)
+
+        try:
+            best, history = correct_plan(plan_for, forward, points, plan, self.opts.nonlinear_passes)
+        except (PathInfeasible, SolverFailure):
+            self.notes.append(f"{name}: a nonlinear correction pass was infeasible; kept the linear plan")
+            return plan
+        best.notes.append("nonlinear correction: RMS error " + " -> ".join(f"{h * 1e6:.3g}" for h in history)
+                          + " um over the passes (the best plan kept)")
+        best.targets = np.asarray(points, float)
+        return best
+
+    def _robust_q(self, name, capsule, freqs):
+        """Q of the declared uncertainty at the chosen tones (None, with a note, when there is none)."""
+        from acl.schedule.robust import robust_q
+
+        if self.opts.calibration is not None:
+            self.notes.append(f"{name}: --robust ignored: a measured calibration table declares no uncertainty")
+            return None
+        provider = self.opts.gain_provider
+        if provider is None:
+            from acl.schedule.gains import model_gain_table as provider
+        q = robust_q(self.design, lambda d: provider(d, capsule, freqs).gains.T, self.opts.reload)
+        if q is None:
+            self.notes.append(f"{name}: --robust: the design declares no uncertainty; the plan is the nominal one")
+        return q
 
     def _gain_table(self, capsule):
         if self.opts.calibration is not None:
@@ -348,6 +405,28 @@ class _Compiler:
         full[idx] = pred
         rep.predicted_m = full
         rep.details["resimulated_waypoints"] = int(idx.size)
+        if self.opts.band_samples > 0:
+            self._band(rep, provider, capsule, u[:, idx], targets[idx])
+
+    def _band(self, rep: GoalReport, provider, capsule, u, targets):
+        """95th percentile of the re-simulated error over draws of the declared uncertainty."""
+        from acl.schedule.bands import error_band
+
+        band = error_band(self.design, lambda d: provider(d, capsule, rep.frequencies_hz)[0], u, targets,
+                          samples=self.opts.band_samples, seed=self.opts.band_seed, reload=self.opts.reload)
+        if band is None:
+            self.notes.append(f"{rep.name}: the design declares no uncertainty: no error band "
+                              "(declare `+- s` on parameters or `gain_uncertainty` on the transducer)")
+            return
+        rep.rms_error_p95_m, rep.max_error_p95_m = band.rms_p95_m, band.max_p95_m
+        rep.details["band"] = {"samples": band.samples, "failed": band.failed, "seed": self.opts.band_seed,
+                               "quantile": 95, "parameters": [p.name for p in self.design.uncertain_params()]
+                               if self.opts.reload is not None else [],
+                               "gain_uncertainty": self.design.transducer.gain_uncertainty
+                               if self.design.transducer else None}
+        if band.failed:
+            self.notes.append(f"{rep.name}: {band.failed} of {self.opts.band_samples} uncertainty draws lost the "
+                              "equilibrium (snap-in) or did not resolve; they count as missing the path")
 
     # -- switch --------------------------------------------------------------------------------
     def _switch(self, i, step: SwitchStep):
@@ -417,7 +496,7 @@ class _Compiler:
         self.vmax_seen.append(vmax)
         if not step.tones:
             raise _diag("E-SCHED-TONES", f"{name}: a hold step needs its tones", step.span,
-                        "write `tones 85 kHz, 125 kHz` on the hold step")
+                        "write `, using [85 kHz, 125 kHz]` on the hold step")
         provider = self.opts.snap_provider or snap_in_voltages
         bound = step.bound if step.mode == "above" else None
         # above: a tone driven at vmax must still be `margin` from snap-in, so look up to margin x vmax

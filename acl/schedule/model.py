@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-SCHEDULE_VERSION = "1.0"
+SCHEDULE_VERSION = "1.1"
 
 
 @dataclass(frozen=True)
@@ -61,6 +61,9 @@ class GoalReport:
     rms_error_m: float | None = None
     max_error_m: float | None = None
     linear_rms_error_m: float | None = None    # error of the convex plan under the linear gains
+    rms_error_p95_m: float | None = None       # 95th percentile over the declared uncertainty (acl.schedule.bands)
+    max_error_p95_m: float | None = None
+    capsule: str | None = None                 # follow: the capsule that follows the path
     details: dict = field(default_factory=dict)
     # arrays for plots (not serialised): times, target, predicted, amplitudes (N, K)
     times_s: np.ndarray | None = None
@@ -77,7 +80,13 @@ class GoalReport:
             "max_error_um": None if self.max_error_m is None else self.max_error_m * 1e6,
             "linear_rms_error_um": (None if self.linear_rms_error_m is None
                                     else self.linear_rms_error_m * 1e6),
+            "rms_error_p95_um": None if self.rms_error_p95_m is None else self.rms_error_p95_m * 1e6,
+            "max_error_p95_um": None if self.max_error_p95_m is None else self.max_error_p95_m * 1e6,
         }
+        if self.kind == "follow" and self.capsule and self.target_m is not None:
+            # the path, one point per waypoint segment (so a replay can measure the tracking error)
+            d["capsule"] = self.capsule
+            d["target_um"] = [[round(float(x) * 1e6, 6), round(float(y) * 1e6, 6)] for x, y in self.target_m]
         if self.details:
             d["details"] = self.details
         return d

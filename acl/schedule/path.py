@@ -106,11 +106,13 @@ class PathDiagnosis:
 def plan_path(gains: np.ndarray, targets: np.ndarray, dt: float, limits: DriveLimits, *,
               tolerance: float = 0.5 * UM, u_start: np.ndarray | None = None,
               lam: float = 1e-3, slew_model: str = "auto", refine: int = 0,
-              solvers: tuple[str, ...] | None = None) -> PathPlan:
+              solvers: tuple[str, ...] | None = None, robust_q: np.ndarray | None = None) -> PathPlan:
     """Solve the whole path as one convex program; raise :class:`PathInfeasible` with a diagnosis.
 
     gains (2, K) m/V^2; targets (N, 2) m; dt s between waypoints; u_start (K,) V^2 the power at
     the start (slew from it; default 0); lam the weight of total drive: it biases the tracking error by about lam/2 micrometres.
+    robust_q (K, K) m^2/V^4 adds ``sum_t u_t^T Q u_t / N``: the squared error the declared gain
+    uncertainty adds (:mod:`acl.schedule.robust`).
     """
     import time
 
@@ -122,7 +124,7 @@ def plan_path(gains: np.ndarray, targets: np.ndarray, dt: float, limits: DriveLi
     auto_slew = slew_model == "auto"
     model = "linear" if auto_slew else slew_model
     t0 = time.perf_counter()
-    prob, X, scale = _build(G, P, dt, limits, tolerance, u_start, lam, model)
+    prob, X, scale = _build(G, P, dt, limits, tolerance, u_start, lam, model, robust=robust_q)
     t1 = time.perf_counter()
     result = solve(prob, "path following", **kw)
     t2 = time.perf_counter()
@@ -132,7 +134,7 @@ def plan_path(gains: np.ndarray, targets: np.ndarray, dt: float, limits: DriveLi
             > limits.slew_rate * (1 + 1e-6)):
         notes.append("the QP slew relaxation was violated; re-solved with exact slew cones")
         model = "exact"
-        prob, X, scale = _build(G, P, dt, limits, tolerance, u_start, lam, model)
+        prob, X, scale = _build(G, P, dt, limits, tolerance, u_start, lam, model, robust=robust_q)
         result = solve(prob, "path following (exact slew)", **kw)
         t2 = time.perf_counter()
     slew_model = model
@@ -141,7 +143,7 @@ def plan_path(gains: np.ndarray, targets: np.ndarray, dt: float, limits: DriveLi
         # total-amplitude limit at each waypoint's least-power static solution (still sound)
         u0 = _static_least_power(G, P, limits, tolerance, solvers)
         retry = None if u0 is None else _tangent_solve(G, P, dt, limits, tolerance, u_start, lam,
-                                                        slew_model, u0, solvers)
+                                                        slew_model, u0, solvers, robust_q)
         if retry is None:
             raise PathInfeasible(diagnose_path(G, P, dt, limits, tolerance, u_start, slew_model,
                                                status=result.status))
@@ -150,7 +152,7 @@ def plan_path(gains: np.ndarray, targets: np.ndarray, dt: float, limits: DriveLi
                 and _max_slew(np.asarray(X.value) * scale["vmax2"], u_start, dt)
                 > limits.slew_rate * (1 + 1e-6)):
             slew_model = "exact"
-            retry = _tangent_solve(G, P, dt, limits, tolerance, u_start, lam, slew_model, u0, solvers)
+            retry = _tangent_solve(G, P, dt, limits, tolerance, u_start, lam, slew_model, u0, solvers, robust_q)
             if retry is None:
                 raise PathInfeasible(diagnose_path(G, P, dt, limits, tolerance, u_start, slew_model,
                                                    status="infeasible"))
@@ -164,7 +166,7 @@ def plan_path(gains: np.ndarray, targets: np.ndarray, dt: float, limits: DriveLi
                                            result.status))
     u = np.maximum(np.asarray(X.value), 0.0) * scale["vmax2"]
     for it in range(refine):
-        u_new = _refine_total(G, P, dt, limits, tolerance, u_start, lam, slew_model, u, solvers)
+        u_new = _refine_total(G, P, dt, limits, tolerance, u_start, lam, slew_model, u, solvers, robust_q)
         if u_new is None:
             notes.append(f"total-amplitude refinement {it + 1} did not converge; kept previous")
             break
@@ -188,7 +190,7 @@ def _scaled(G, P, limits):
 
 
 def _build(G, P, dt, limits, tolerance, u_start, lam, slew_model, total_coeffs=None,
-           with_tolerance=True, with_total=True, with_tone=True, with_slew=True):
+           with_tolerance=True, with_total=True, with_tone=True, with_slew=True, robust=None):
     import cvxpy as cp
 
     K, N = G.shape[1], P.shape[0]
@@ -198,6 +200,10 @@ def _build(G, P, dt, limits, tolerance, u_start, lam, slew_model, total_coeffs=N
     # drive weight: with |g| um per unit x, the drive term biases the error by about lam/2 um
     gnorm = float(np.sqrt(np.max(np.sum(Gs ** 2, axis=0)))) or 1.0
     objective = cp.sum_squares(err) / N + lam * gnorm * cp.sum(X) / N
+    if robust is not None:
+        from acl.schedule.robust import scaled_factor
+
+        objective = objective + cp.sum_squares(scaled_factor(robust, vmax2) @ X) / N
     cons = []
     if with_tone:
         cap = (limits.tone_cap(K) ** 2 / vmax2).reshape(K, 1)
@@ -236,20 +242,20 @@ def _tangent_coeffs(u, vmax):
     return 1.0 / (2.0 * np.sqrt(x)), 1.0 - np.sum(np.sqrt(x) / 2.0, axis=0)
 
 
-def _tangent_solve(G, P, dt, limits, tolerance, u_start, lam, slew_model, u, solvers):
+def _tangent_solve(G, P, dt, limits, tolerance, u_start, lam, slew_model, u, solvers, robust=None):
     """Solve with the total limit replaced by its tangent planes at ``u``; (X, result) or None."""
     a, b = _tangent_coeffs(u, limits.max_voltage)
     if np.any(b <= 0):
         return None
-    prob, X, _ = _build(G, P, dt, limits, tolerance, u_start, lam, slew_model, total_coeffs=(a, b))
+    prob, X, _ = _build(G, P, dt, limits, tolerance, u_start, lam, slew_model, total_coeffs=(a, b), robust=robust)
     kw = {} if solvers is None else {"solvers": solvers}
     res = solve(prob, "path following (tangent total-amplitude limit)", **kw)
     return (X, res) if res.ok else None
 
 
-def _refine_total(G, P, dt, limits, tolerance, u_start, lam, slew_model, u, solvers):
+def _refine_total(G, P, dt, limits, tolerance, u_start, lam, slew_model, u, solvers, robust=None):
     """One convex-concave step: tangent of sum_k sqrt(x_k) <= 1 at the current solution."""
-    out = _tangent_solve(G, P, dt, limits, tolerance, u_start, lam, slew_model, u, solvers)
+    out = _tangent_solve(G, P, dt, limits, tolerance, u_start, lam, slew_model, u, solvers, robust)
     return None if out is None else np.maximum(np.asarray(out[0].value), 0.0) * limits.max_voltage ** 2
 
 

@@ -135,6 +135,24 @@ class ParamDecl:
     lower: Expr | None
     upper: Expr | None
     span: Span
+    stddev: Expr | None = None       # `param x = v +- s`: the standard deviation
+
+
+@dataclass(frozen=True)
+class UncertaintyEntry:
+    """One `KEY(args) = value` line of an `uncertainty { ... }` block."""
+
+    key: Call
+    value: Expr
+    span: Span
+
+
+@dataclass(frozen=True)
+class UncertaintyDecl:
+    """`uncertainty { correlation(a, b) = r, covered(voltage) = lo .. hi }`."""
+
+    entries: tuple[UncertaintyEntry, ...]
+    span: Span
 
 
 @dataclass(frozen=True)

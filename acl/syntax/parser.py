@@ -1,7 +1,9 @@
 """Source text -> syntax tree with spans (lark LALR), with per-statement error recovery."""
 from __future__ import annotations
 
+import contextlib
 import functools
+import gc
 import re
 from importlib import resources
 
@@ -21,6 +23,11 @@ _TERMINAL_WORDS = {
     "STRING": "a quoted string", "DIRECTION": "a direction such as +x", "_NL": "end of line",
     "$END": "end of file", "CMP": "a comparison (>=, <=, >, <)", "RANGE": "`..`",
 }
+
+
+# Words from other languages for program steps -> the acl step.
+_STEP_WORDS = {"wait": "pause", "sleep": "pause", "delay": "pause", "idle": "pause", "ramp": "sweep",
+               "play": "drive", "tone": "drive", "move": "follow", "trace": "follow", "toggle": "switch"}
 
 
 class _ParenNewlines:
@@ -45,21 +52,54 @@ class _ParenNewlines:
 def _lark() -> Lark:
     text = resources.files("acl.syntax").joinpath("grammar.lark").read_text(encoding="utf-8")
     return Lark(text, parser="lalr", start=["start", "drive_only"], propagate_positions=True,
-                maybe_placeholders=True, postlex=_ParenNewlines(), cache=_cache_path())
+                maybe_placeholders=True, postlex=_ParenNewlines(), cache=_cache_path(text))
 
 
-def _cache_path():
+def _cache_path(grammar: str):
+    """Where lark may keep the compiled grammar, or False (no cache).
+
+    lark's cache is a pickle, and loading a pickle runs code: it is kept only in a folder this user
+    owns and nobody else may write (``$ACL_CACHE_DIR``, ``~/.cache/acl``, else a private folder in
+    the temporary directory), never as a guessable name in a shared /tmp that another user could
+    plant first.
+    """
+    import hashlib
     import os
     import tempfile
 
     try:
-        from acl import __version__
         import lark
 
-        path = os.path.join(tempfile.gettempdir(), f"acl-grammar-{__version__}-lark{lark.__version__}-{os.getuid() if hasattr(os, 'getuid') else 0}.cache")
-        return path
-    except Exception:  # pragma: no cover - cache is an optimisation only
+        from acl import __version__
+
+        uid = os.getuid() if hasattr(os, "getuid") else None
+        folders = [os.environ.get("ACL_CACHE_DIR") or os.path.join(os.path.expanduser("~"), ".cache", "acl"),
+                   os.path.join(tempfile.gettempdir(), f"acl-cache-{uid if uid is not None else 'user'}")]
+        for folder in folders:
+            if _private(folder, uid, make=True):
+                digest = hashlib.sha256(grammar.encode("utf-8")).hexdigest()[:16]   # worktrees differ
+                path = os.path.join(folder, f"grammar-{__version__}-lark{lark.__version__}-{digest}.cache")
+                if not os.path.lexists(path) or _private(path, uid, make=False):
+                    return path
+    except Exception:  # pragma: no cover - the cache is an optimisation only
+        pass
+    return False
+
+
+def _private(path: str, uid, make: bool) -> bool:
+    """Whether ``path`` (created as a 0700 folder if ``make``) is this user's and not writable by others."""
+    import os
+    import stat
+
+    try:
+        if make:
+            os.makedirs(path, mode=0o700, exist_ok=True)
+        st = os.lstat(path)
+    except OSError:
         return False
+    if stat.S_ISLNK(st.st_mode) or (uid is not None and st.st_uid != uid):
+        return False
+    return not st.st_mode & (stat.S_IWGRP | stat.S_IWOTH)
 
 
 def _terminal_word(name: str) -> str:
@@ -218,11 +258,17 @@ class _Builder:
         return ("free", rng, None) if rng is not None else ("free", None, None)
 
     def param_stmt(self, meta, children):
-        name, value, free = children
+        name, value, stddev, free = children
         lo = hi = None
         if free:
             _, lo, hi = free
-        return A.ParamDecl(str(name), value, free is not None, lo, hi, self._s(meta))
+        return A.ParamDecl(str(name), value, free is not None, lo, hi, self._s(meta), stddev)
+
+    def uncertainty_entry(self, meta, children):
+        return A.UncertaintyEntry(children[0], children[1], self._s(meta))
+
+    def uncertainty_stmt(self, meta, children):
+        return A.UncertaintyDecl(tuple(c for c in children if c is not None), self._s(meta))
 
     def use_stmt(self, meta, children):
         return A.Use(str(children[0]), children[1], self._s(meta))
@@ -343,12 +389,34 @@ class _Builder:
         return tuple(children)
 
 
+@contextlib.contextmanager
+def paused_gc():
+    """Pause the cyclic garbage collector while a design is built.
+
+    The front end allocates ~10 objects per source token and frees none of them until the end; the
+    collector's passes over that growing heap cost more than the parse itself on large designs
+    (benchmarks/check.py). Reference counting still frees everything; a collection runs after.
+    """
+    was = gc.isenabled()
+    gc.disable()
+    try:
+        yield
+    finally:
+        if was:
+            gc.enable()
+
+
 # ---------------------------------------------------------------------------------------------
 # Entry points
 # ---------------------------------------------------------------------------------------------
 
 def parse_module(source: str, file: str = "<string>") -> A.Module:
     """Parse a whole file. Raises DiagnosticError with one diagnostic per broken statement."""
+    with paused_gc():
+        return _parse_module(source, file)
+
+
+def _parse_module(source: str, file: str) -> A.Module:
     _check_limits(source, file)
     text = source if source.endswith("\n") else source + "\n"
     try:
@@ -392,7 +460,12 @@ def parse_drive(text: str, file: str = "<drive>", line: int = 1, column: int = 1
         d = _syntax_diagnostic(exc, file, text.split("\n"))
         span = Span(file=file, line=line, column=column + (d.span.column - 1 if d.span else 0))
         raise DiagnosticError([Diagnostic(d.code, d.severity, f"in drive `{text.strip()}`: {d.message}", span, d.hint or "a drive looks like `125 kHz @ 6 V` or `85 kHz @ 8 V + 125 kHz @ 4 V`")])
-    tones = _Builder(file, text).transform(tree)
+    try:
+        tones = _Builder(file, text).transform(tree)
+    except DiagnosticError as exc:   # too deep: place it in the cell, as syntax errors are
+        raise DiagnosticError([Diagnostic(d.code, d.severity, f"in drive `{text.strip()[:60]}`: {d.message}",
+                                          Span(file=file, line=line, column=column + (d.span.column - 1 if d.span else 0)),
+                                          d.hint) for d in exc.diagnostics]) from None
     if line != 1 or column != 1:  # shift spans to where the drive sits (a CSV cell)
         tones = tuple(_shift_tone(t, line, column) for t in tones)
     return tones
@@ -460,7 +533,7 @@ def _statement_chunks(lines: list[str]):
             if depth <= 0 and not lines[i - 1].rstrip().endswith("\\"):
                 break
             # a new top-level keyword at column 0 while unbalanced: stop (missing brace)
-            if depth > 0 and i < n and re.match(r"(import|extends|param|program|mount|fix|link|observe|require|use|capsule|beam|medium|material|transducer|latch|spring|truss|anchor|effect)\b", lines[i]):
+            if depth > 0 and i < n and re.match(r"(import|extends|param|uncertainty|program|mount|fix|link|observe|require|use|capsule|beam|medium|material|transducer|latch|spring|truss|anchor|effect)\b", lines[i]):
                 break
         yield start, i
 
@@ -531,8 +604,13 @@ def _syntax_diagnostic(exc: UnexpectedInput, file: str, lines: list[str], eof_li
             ln = eof_line or _last_line(lines, 0, len(lines))
             span = Span(file=file, line=ln, column=max(1, len(lines[ln - 1].rstrip()) if ln - 1 < len(lines) else 1))
         hint = None
+        word = tok.value if tok.type not in ("$END", "_NL") else None
         if "`}`" in expected and tok.type in ("$END",):
             hint = "a block is missing its closing `}`"
+        elif word in _STEP_WORDS and "`pause`" in expected:
+            hint = f"did you mean `{_STEP_WORDS[word]}`?"
+        elif word == "to" and "`..`" in expected:
+            hint = "a range is written `lo .. hi`, e.g. `40 kHz .. 200 kHz`"
         elif tok.type == "NUMBER" and "a quantity with a unit" not in expected:
             hint = None
         elif tok.type == "_NL" and "`=`" in expected:

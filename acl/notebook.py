@@ -1,0 +1,424 @@
+"""Typed results of the Python API (:func:`acl.analyze`, :func:`acl.compile`, :func:`acl.lint`,
+:func:`acl.fit`) with notebook display (``_repr_html_``: a compact table) and ``.plot()``.
+
+Each result holds the same data as the command's JSON output (``as_dict()`` returns it, documented
+in docs/analyze.md, docs/schedule.md, docs/rules.md, docs/fit.md) plus typed views of the main
+rows.  ``.plot(ax=None)`` draws on the given matplotlib Axes, or on a new
+:class:`matplotlib.figure.Figure` (object-oriented API, never pyplot), so the caller's backend is
+never changed; it returns the Axes.  matplotlib is imported only when a plot is drawn.
+"""
+from __future__ import annotations
+
+import html
+from dataclasses import dataclass, field
+from typing import Any
+
+
+# ------------------------------------------------------------------------------------------------
+# Helpers
+# ------------------------------------------------------------------------------------------------
+
+def new_axes(ax=None, size=(6.0, 3.5)):
+    """``ax`` itself, or the Axes of a new Figure made without pyplot (the global backend is untouched)."""
+    if ax is not None:
+        return ax
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=size, layout="constrained")
+    return fig.add_subplot()
+
+
+def html_table(title: str, header: list[str], rows: list[list[Any]], note: str = "") -> str:
+    """A small HTML table (every cell escaped)."""
+    esc = html.escape
+    head = "".join(f"<th>{esc(str(h))}</th>" for h in header)
+    body = "".join("<tr>" + "".join(f"<td>{esc(str(c))}</td>" for c in r) + "</tr>" for r in rows)
+    foot = f"<p><small>{esc(note)}</small></p>" if note else ""
+    return (f"<div><strong>{esc(title)}</strong><table><thead><tr>{head}</tr></thead>"
+            f"<tbody>{body}</tbody></table>{foot}</div>")
+
+
+def _khz(hz: float | None) -> str:
+    return "-" if hz is None else f"{hz / 1e3:.1f}"
+
+
+# ------------------------------------------------------------------------------------------------
+# Design (acl.load / acl.loads): display helpers used by acl.design.model.Design
+# ------------------------------------------------------------------------------------------------
+
+def design_html(design) -> str:
+    rows = []
+    for c in design.capsules:
+        radii = ", ".join(f"{o.name} {o.radius * 1e6:g} um" for o in c.orifices)
+        rows.append(["capsule", c.name, f"V = {c.cavity.volume * 1e18:.4g} um^3; orifices {radii}"])
+    for b in design.beams:
+        rows.append(["beam", b.name, f"L = {b.length * 1e6:g} um, {b.material}, E = {b.youngs_modulus / 1e6:g} MPa"])
+    for lt in design.latches:
+        rows.append(["latch", lt.name, f"state {lt.state}"])
+    for s in design.springs:
+        rows.append(["spring", s.name, f"k = {s.stiffness:.3g} N/m"])
+    for p in design.programs:
+        rows.append(["program", p.name, f"{len(p.steps)} steps"])
+    return html_table(f"Design {design.file}: {design.summary()}", ["kind", "name", "summary"], rows)
+
+
+def plot_design(design, ax=None):
+    """Top view (x-y, um): beams from clamp to tip, capsules at their centres, labelled."""
+    ax = new_axes(ax)
+    for b in design.beams:
+        ax.plot([b.clamp[0] * 1e6, b.tip[0] * 1e6], [b.clamp[1] * 1e6, b.tip[1] * 1e6], "-", color="0.4", lw=2)
+        ax.plot([b.clamp[0] * 1e6], [b.clamp[1] * 1e6], "s", color="0.2", ms=5)
+    for c in design.capsules:
+        ax.plot([c.center[0] * 1e6], [c.center[1] * 1e6], "o", ms=10, alpha=0.7)
+        ax.annotate(c.name, (c.center[0] * 1e6, c.center[1] * 1e6), textcoords="offset points", xytext=(6, 6))
+    ax.set_xlabel("x (um)")
+    ax.set_ylabel("y (um)")
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.set_title(f"{design.file}: top view")
+    return ax
+
+
+# ------------------------------------------------------------------------------------------------
+# acl.analyze
+# ------------------------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class Mode:
+    """One predicted capsule mode (as `acl analyze`)."""
+
+    frequency_hz: float          #: natural frequency (Hz)
+    q: float                     #: quality factor (declared or predicted)
+    q_declared: bool             #: True when the design declares Q
+    dominant_orifice: str        #: orifice whose interface moves most
+    share: float                 #: that interface's share of the volume oscillation (0..1)
+
+
+@dataclass(frozen=True)
+class CapsuleModes:
+    """A capsule's predicted modes, ascending in frequency."""
+
+    name: str
+    file: str
+    line: int
+    volume_m3: float
+    modes: tuple[Mode, ...]
+
+
+@dataclass
+class Analysis:
+    """What `acl analyze --output-format json` prints, typed.  Fields (docs/analyze.md):
+
+    ``capsules`` (modes per capsule), ``frequencies_hz`` (the program frequencies),
+    ``selectivity`` (relative response of each capsule at each frequency, crosstalk flagged),
+    ``pairs`` (Bjerknes forces, critical distances, snap-in voltages), ``latches`` (margins per
+    program step), ``equilibrium`` (at ``at``, or None), ``requires`` (each `require` evaluated),
+    ``notes`` (defaults the model assumed).
+    """
+
+    file: str
+    capsules: list[CapsuleModes]
+    frequencies_hz: list[float]
+    selectivity: list[dict]
+    pairs: list[dict]
+    latches: list[dict]
+    equilibrium: dict | None
+    requires: list[dict]
+    notes: list[str]
+    _raw: dict = field(repr=False, default_factory=dict)
+
+    @classmethod
+    def from_report(cls, rep) -> "Analysis":
+        d = rep.as_dict()
+        caps = [CapsuleModes(c["name"], c["file"], c["line"], c["volume_m3"],
+                             tuple(Mode(m["frequency_hz"], m["q"], m["q_declared"], m["dominant_orifice"], m["share"])
+                                   for m in c["modes"])) for c in d["capsules"]]
+        return cls(d["file"], caps, list(d["frequencies_hz"]), d["selectivity"], d["pairs"], d["latches"],
+                   d["equilibrium"], d["requires"], d["notes"], d)
+
+    @property
+    def requires_ok(self) -> bool:
+        """True when every `require` of the design holds."""
+        return all(r["ok"] for r in self.requires)
+
+    def resonance(self, capsule: str) -> float:
+        """First natural frequency (Hz) of ``capsule``.
+
+        >>> import acl
+        >>> a = acl.analyze("examples/fig1f_selective_beams.acl", snap_in=False)
+        >>> round(a.resonance("high") / 1e3, 1)       # Table S1 design 3 (paper: 171.8 kHz)
+        174.9
+        """
+        for c in self.capsules:
+            if c.name == capsule:
+                return c.modes[0].frequency_hz
+        raise KeyError(f"no capsule named {capsule!r}")
+
+    def as_dict(self) -> dict:
+        """The JSON object of `acl analyze --output-format json`.
+
+        >>> import acl
+        >>> sorted(acl.analyze("examples/fig1f_selective_beams.acl", snap_in=False).as_dict())[:4]
+        ['capsules', 'equilibrium', 'file', 'frequencies_hz']
+        """
+        return self._raw
+
+    def _repr_html_(self) -> str:
+        rows = [[c.name, i + 1, _khz(m.frequency_hz), f"{m.q:.1f}", f"{m.dominant_orifice} ({m.share:.0%})"]
+                for c in self.capsules for i, m in enumerate(c.modes)]
+        out = html_table(f"Capsule modes ({self.file})", ["capsule", "mode", "f (kHz)", "Q", "dominant orifice"], rows)
+        if self.requires:
+            out += html_table("Requirements", ["requirement", "ok"], [[r["text"], "ok" if r["ok"] else "FAILED"]
+                                                                    for r in self.requires])
+        return out
+
+    def plot(self, ax=None):
+        """Each capsule's modes as stems (frequency vs Q); program frequencies as dashed lines.
+
+        >>> import acl
+        >>> ax = acl.analyze("examples/fig1f_selective_beams.acl", snap_in=False).plot()
+        >>> ax.get_xlabel()
+        'frequency (kHz)'
+        """
+        ax = new_axes(ax)
+        for c in self.capsules:
+            f = [m.frequency_hz / 1e3 for m in c.modes]
+            q = [m.q for m in c.modes]
+            ax.vlines(f, 0, q, lw=2, alpha=0.8)
+            ax.plot(f, q, "o", label=c.name)
+        for f in self.frequencies_hz:
+            ax.axvline(f / 1e3, ls="--", color="0.5", lw=1)
+        ax.set_xlabel("frequency (kHz)")
+        ax.set_ylabel("Q")
+        ax.set_title("predicted modes (dashed: program frequencies)")
+        if self.capsules:
+            ax.legend(fontsize="small")
+        return ax
+
+
+# ------------------------------------------------------------------------------------------------
+# acl.lint
+# ------------------------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class Finding:
+    """One lint finding or check diagnostic (as `acl lint --output-format json`)."""
+
+    code: str                    #: rule code (ACLnnn) or check code (Ennn/Wnnn)
+    name: str                    #: rule name, e.g. unused-declaration
+    severity: str                #: error | warning | info
+    message: str
+    file: str | None
+    line: int | None
+    column: int | None
+    hint: str | None
+
+
+@dataclass
+class LintResult:
+    """The findings of :func:`acl.lint` for one file, sorted by location."""
+
+    path: str
+    findings: list[Finding]
+    notes: list[str]
+    _raw: dict = field(repr=False, default_factory=dict)
+
+    @property
+    def ok(self) -> bool:
+        """True when there is no error (warnings allowed), as `acl lint` exits 0."""
+        return not any(f.severity == "error" for f in self.findings)
+
+    def codes(self) -> list[str]:
+        """The codes found, in order.
+
+        >>> import acl
+        >>> acl.lint("examples/fig1f_selective_beams.acl").codes()
+        []
+        """
+        return [f.code for f in self.findings]
+
+    def as_dict(self) -> dict:
+        """The JSON document of `acl lint --output-format json PATH`.
+
+        >>> import acl
+        >>> acl.lint("examples/fig1f_selective_beams.acl").as_dict()["summary"]
+        {'findings': 0, 'errors': 0}
+        """
+        return self._raw
+
+    def _repr_html_(self) -> str:
+        rows = [[f.code, f.name, f.severity, f"{f.line}:{f.column}" if f.line else "", f.message] for f in self.findings]
+        return html_table(f"acl lint {self.path}: {len(self.findings)} finding(s)",
+                          ["code", "rule", "severity", "at", "message"], rows)
+
+    def plot(self, ax=None):
+        """Number of findings per code (horizontal bars).
+
+        >>> import acl
+        >>> acl.lint("examples/fig1f_selective_beams.acl").plot().get_xlabel()
+        'findings'
+        """
+        ax = new_axes(ax)
+        counts: dict[str, int] = {}
+        for f in self.findings:
+            counts[f.code] = counts.get(f.code, 0) + 1
+        codes = sorted(counts)
+        ax.barh(codes, [counts[c] for c in codes])
+        if not codes:
+            ax.text(0.5, 0.5, "no findings", ha="center", va="center", transform=ax.transAxes)
+        ax.set_xlabel("findings")
+        ax.set_title(f"acl lint {self.path}")
+        return ax
+
+
+# ------------------------------------------------------------------------------------------------
+# acl.compile
+# ------------------------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class SegmentRow:
+    """One schedule segment: constant tones between ``start_s`` and ``end_s``."""
+
+    start_s: float
+    end_s: float
+    step: int
+    goal: str | None
+    tones: tuple[tuple[float, float], ...]      #: (frequency Hz, amplitude V peak) per tone
+
+
+@dataclass
+class Compiled:
+    """A compiled program (:class:`acl.schedule.model.Schedule`) with typed segments and goals.
+
+    ``as_dict()`` is the ``schedule.json`` that `acl compile` writes, without the ``waveform`` and
+    ``files`` entries (no waveform is rendered here).
+    """
+
+    program: str
+    duration_s: float
+    max_voltage_v: float
+    sample_rate_hz: float
+    segments: list[SegmentRow]
+    goals: list[dict]
+    schedule: Any = field(repr=False, default=None)
+
+    @classmethod
+    def from_schedule(cls, schedule) -> "Compiled":
+        segs = [SegmentRow(s.start_s, s.end_s, s.step, s.goal, tuple((t.frequency_hz, t.amplitude_v) for t in s.tones))
+                for s in schedule.segments]
+        return cls(schedule.program, schedule.duration_s, schedule.max_voltage_v, schedule.sample_rate_hz, segs,
+                   [g.as_dict() for g in schedule.goals], schedule)
+
+    def as_dict(self) -> dict:
+        """schedule.json (docs/schedule.md) without the rendered-waveform entries.
+
+        >>> import acl
+        >>> acl.compile("examples/fig1f_selective_beams.acl", "sequential").as_dict()["duration_s"]
+        3.0
+        """
+        from acl.emit.schedule_json import schedule_dict
+
+        return schedule_dict(self.schedule, self.sample_rate_hz)
+
+    def _repr_html_(self) -> str:
+        rows = [[f"{s.start_s:.4g}", f"{s.end_s:.4g}", s.step, ", ".join(f"{f / 1e3:g} kHz @ {a:.3g} V" for f, a in s.tones)]
+                for s in self.segments[:40]]
+        more = f"{len(self.segments) - 40} more segments" if len(self.segments) > 40 else ""
+        return html_table(f"program {self.program}: {self.duration_s:.4g} s, limit {self.max_voltage_v:g} V",
+                          ["start (s)", "end (s)", "step", "tones"], rows, more)
+
+    def plot(self, ax=None):
+        """Amplitude (V peak) of each tone frequency over time, as steps.
+
+        >>> import acl
+        >>> ax = acl.compile("examples/fig1f_selective_beams.acl", "sequential").plot()
+        >>> [t.get_text() for t in ax.get_legend().get_texts()]
+        ['85 kHz', '170 kHz']
+        """
+        ax = new_axes(ax)
+        freqs = sorted({f for s in self.segments for f, _ in s.tones})
+        for f in freqs:
+            t, v = [], []
+            for s in self.segments:
+                a = sum(amp for ff, amp in s.tones if ff == f)
+                t += [s.start_s, s.end_s]
+                v += [a, a]
+            ax.plot(t, v, label=f"{f / 1e3:g} kHz")
+        ax.axhline(self.max_voltage_v, ls="--", color="0.5", lw=1)
+        ax.set_xlabel("time (s)")
+        ax.set_ylabel("amplitude (V peak)")
+        ax.set_title(f"program {self.program} (dashed: voltage limit)")
+        if freqs:
+            ax.legend(fontsize="small")
+        return ax
+
+
+# ------------------------------------------------------------------------------------------------
+# acl.fit
+# ------------------------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class FitParameter:
+    """A fitted parameter after effect selection (docs/fit.md, report.json ``final.parameters``)."""
+
+    name: str
+    value: float
+    unit: str
+    low: float | None            #: 95 % interval, lower end
+    high: float | None           #: 95 % interval, upper end
+
+
+@dataclass
+class FitReport:
+    """What `acl fit --output-format json` prints, typed: RMSE before/after, selected effects, parameters.
+
+    ``calibrated_source`` is the calibrated design's text (`acl fit --calibrated` writes it).
+    """
+
+    design: str
+    rows: int
+    rmse_before: float | None
+    rmse_after: float | None
+    effects_selected: list[str]
+    parameters: list[FitParameter]
+    per_observable: dict
+    calibrated_source: str = field(repr=False, default="")
+    _raw: dict = field(repr=False, default_factory=dict)
+
+    @classmethod
+    def from_outcome(cls, out) -> "FitReport":
+        r = out.report
+        params = [FitParameter(p["name"], p["value"], p.get("unit", ""), *(tuple(p.get("ci95") or (None, None))[:2]))
+                  for p in r["final"]["parameters"]]
+        per = {k: {"n": v["n"], "rmse_before": r["base"]["per_observable"][k]["rmse"], "rmse_after": v["rmse"]}
+               for k, v in r["final"]["per_observable"].items()}
+        return cls(r["design"], r["rows"], r["rmse_before"], r["rmse_after"], list(r["effects_selected"]), params,
+                   per, out.calibrated, r)
+
+    def as_dict(self) -> dict:
+        """The report.json object (docs/fit.md); examples: docs/python.md, section Fit."""
+        return self._raw
+
+    def _repr_html_(self) -> str:
+        rows = [[p.name, f"{p.value:.4g}", p.unit, "-" if p.low is None else f"{p.low:.4g} .. {p.high:.4g}"]
+                for p in self.parameters]
+        note = (f"RMSE {self.rmse_before:.3g} -> {self.rmse_after:.3g} (SI); effects: "
+                f"{', '.join(self.effects_selected) or 'none'}") if self.rmse_before is not None else ""
+        return html_table(f"acl fit {self.design}: {self.rows} rows", ["parameter", "value", "unit", "95 % interval"],
+                          rows, note)
+
+    def plot(self, ax=None):
+        """RMSE per observable before and after the fit (grouped bars)."""
+        import numpy as np
+
+        ax = new_axes(ax)
+        names = sorted(self.per_observable)
+        x = np.arange(len(names))
+        before = [self.per_observable[n]["rmse_before"] or 0.0 for n in names]
+        after = [self.per_observable[n]["rmse_after"] or 0.0 for n in names]
+        ax.bar(x - 0.2, before, 0.4, label="before")
+        ax.bar(x + 0.2, after, 0.4, label="after")
+        ax.set_xticks(x, names)
+        ax.set_ylabel("RMSE (SI)")
+        ax.set_title("fit: error per observable")
+        ax.legend(fontsize="small")
+        return ax

@@ -1,0 +1,254 @@
+"""Acoustically coupled bubbles: every interface of every capsule hears every other one.
+
+Model (linear, e^{i omega t}).  Each capsule alone is described by its Rayleigh-Ritz modes
+(:mod:`acl.physics.resonance`): natural frequencies omega_m, modal damping omega_m/Q_m and the
+outward volume phi_om of interface o per mass-normalized modal coordinate.  An interface o whose
+inward volume displacement is U_o radiates, in the liquid, the pressure of a monopole of outward
+volume -U_o (Leighton, *The Acoustic Bubble*, eq. 3.xx; Pierce, *Acoustics*, 4.3):
+
+    p(r) = omega^2 rho U_o g(r),        g(r) = exp(-i k r) / (4 pi r),   k = omega / c.
+
+So the pressure driving interface i is p_inc + omega^2 rho sum_j g_ij U_j and, with H0 the
+uncoupled (block-diagonal, per capsule) inward response per pascal,
+
+    (I - omega^2 rho H0 g) U = H0 1 p_inc                           (coupled response)
+
+In the capsules' modal coordinates q the same coupling is a mutual *mass* rho g_ij between
+interfaces (Kinsler et al., *Fundamentals of Acoustics*, mutual radiation impedance of two small
+sources, Z_12 = i omega rho exp(-ikd)/(4 pi d) per volume velocity): the undamped modes solve
+Omega^2 q = omega^2 (I + rho Phi^T g0 Phi) q with the incompressible g0 = 1/(4 pi d)
+(:func:`coupled_modes`), and the real part -sin(kd)/(4 pi d) of g is the mutual radiation
+resistance that enters the damping of collective modes.
+
+Terms of g (``green_matrix``):
+
+* interfaces of *different* capsules: the retarded exp(-ikd)/(4 pi d) (kd need not be small);
+* interfaces of the *same* capsule (coupled through the gas already, here also through the
+  liquid): the incompressible 1/(4 pi d) only, because the capsule's own radiation resistance is
+  already in its modal Q (compact monopole on its total volume, :func:`resonance.capsule_modes`);
+* the substrate (plane z = 0) as a wall with pressure reflection coefficient R (image sources at the
+  mirrored points, Pierce, *Acoustics*, 5.1; R = +1 is a rigid wall): R exp(-ikd')/(4 pi d') for
+  every pair i, j' including an interface and its own image (which adds mass rho R/(8 pi z) and,
+  at R = 1, doubles the radiation resistance close to the wall).
+
+Both are free-field monopole terms: a capsule is small against the wavelength, so beyond a few
+orifice radii its interface radiates as a point source.  Between two orifices on the same flat face
+(a baffle) the true mutual mass is up to 2x larger (rho/(2 pi d)); that is not modelled.
+Distances are floored at the sum of the two orifice radii (touching interfaces).
+
+Pure numpy on SI floats; no acl.design import.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Sequence
+
+import numpy as np
+
+from acl.physics.resonance import BubbleModes
+
+
+@dataclass(frozen=True)
+class BubbleSystem:
+    """All interfaces of a design, with each capsule's own modes (arrays, SI).
+
+    ``points`` (n, 3) orifice centres; ``radii`` (n,); ``body`` (n,) capsule index of each interface.
+    Padded per-capsule modal data for the vectorised response: ``phi`` (C, P, Mx) outward volume
+    per modal coordinate (zero where padded), ``omega`` / ``damping`` (C, Mx) natural frequency and
+    omega_m/Q_m (padded modes: omega 1, damping 1, phi 0).  ``slot`` (n,) index of each interface
+    in the flattened padded (C*P) layout.
+    """
+
+    points: np.ndarray
+    radii: np.ndarray
+    body: np.ndarray
+    phi: np.ndarray
+    omega: np.ndarray
+    damping: np.ndarray
+    slot: np.ndarray
+
+    @property
+    def n(self) -> int:
+        return int(self.radii.size)
+
+
+def build_system(modes: Sequence[BubbleModes], points: Sequence, radii: Sequence) -> BubbleSystem:
+    """Stack the per-capsule modes (``modes[c]``) and interfaces (``points[c]`` (n_c, 3), ``radii[c]``)."""
+    ncap = len(modes)
+    p = max([m.orifice_volume.shape[0] for m in modes] + [1])
+    mx = max([m.omega.size for m in modes] + [1])
+    phi = np.zeros((ncap, p, mx))
+    om = np.ones((ncap, mx))
+    dmp = np.ones((ncap, mx))
+    pts, rad, body, slot = [], [], [], []
+    for c, m in enumerate(modes):
+        n_or, n_m = m.orifice_volume.shape if m.omega.size else (len(radii[c]), 0)
+        if n_m:
+            phi[c, :n_or, :n_m] = m.orifice_volume
+            om[c, :n_m] = m.omega
+            dmp[c, :n_m] = m.omega / m.quality
+        pts.append(np.asarray(points[c], float).reshape(-1, 3))
+        rad.append(np.asarray(radii[c], float).reshape(-1))
+        body += [c] * len(rad[-1])
+        slot += [c * p + i for i in range(len(rad[-1]))]
+    return BubbleSystem(points=np.concatenate(pts) if pts else np.zeros((0, 3)),
+                        radii=np.concatenate(rad) if rad else np.zeros(0),
+                        body=np.asarray(body, int), phi=phi, omega=om, damping=dmp,
+                        slot=np.asarray(slot, int))
+
+
+def _distances(points, radii, mirror: bool) -> np.ndarray:
+    """|p_i - p_j| (or to the mirror image of p_j in z = 0), floored at R_i + R_j; points (..., n, 3)."""
+    q = points.copy()
+    if mirror:
+        q[..., 2] = -q[..., 2]
+    d = np.linalg.norm(points[..., :, None, :] - q[..., None, :, :], axis=-1)
+    return np.maximum(d, radii[:, None] + radii[None, :])
+
+
+def green_matrix(points, radii, body, wavenumber=None, wall_reflection: float = 0.0) -> np.ndarray:
+    """Interface coupling g_ij = exp(-ik d)/(4 pi d) + R exp(-ik d')/(4 pi d') (free-field monopoles + wall images; Pierce, Acoustics 4.3/5.1).
+
+    ``points`` (..., n, 3).  ``wavenumber`` None gives the static (incompressible, k -> 0) real
+    matrix (..., n, n); an array (F,) gives the complex (..., F, n, n).  Same-capsule direct terms
+    stay incompressible (module doc); the diagonal direct term (self) is zero: each interface's own
+    mass is in its capsule's modes.
+    """
+    points = np.asarray(points, float)
+    radii = np.asarray(radii, float)
+    body = np.asarray(body)
+    n = radii.size
+    d = _distances(points, radii, False)
+    other = body[:, None] != body[None, :]
+    direct_mask = ~np.eye(n, dtype=bool)
+    di = _distances(points, radii, True) if wall_reflection else None
+    if wavenumber is None:
+        g = np.where(direct_mask, 1 / (4 * np.pi * d), 0.0)
+        if di is not None:
+            g = g + wall_reflection / (4 * np.pi * di)
+        return g
+    k = np.atleast_1d(np.asarray(wavenumber, float))[:, None, None]
+    d = d[..., None, :, :]
+    phase = np.where(other, np.exp(-1j * k * d), 1.0 + 0j)
+    g = np.where(direct_mask, phase / (4 * np.pi * d), 0.0)
+    if di is not None:
+        di = di[..., None, :, :]
+        g = g + wall_reflection * np.exp(-1j * k * di) / (4 * np.pi * di)
+    return g
+
+
+def uncoupled_blocks(system: BubbleSystem, omega) -> np.ndarray:
+    """Per-capsule inward volume response per pascal, H0 (F, C, P, P) = Phi diag(1/(w_m^2 - w^2 + i w w_m/Q_m)) Phi^T (Meirovitch ch. 7)."""
+    w = np.atleast_1d(np.asarray(omega, float))[:, None, None]
+    den = system.omega[None] ** 2 - w**2 + 1j * w * system.damping[None]
+    return np.einsum("cpm,fcm,cqm->fcpq", system.phi, 1.0 / den, system.phi, optimize=True)
+
+
+def coupled_response(system: BubbleSystem, frequency, density: float, sound_speed: float,
+                     wall_reflection: float = 0.0, points=None, h0=None, chunk: int = 64) -> np.ndarray:
+    """Inward volume displacement U (m^3 per Pa incident) of every interface, solving (I - w^2 rho H0 g) U = H0 1 (module doc; Kinsler et al. mutual radiation impedance).
+
+    ``frequency`` (F,) Hz -> complex (F, n) in the order of ``system.points``; uniform incident
+    pressure (the design is small against the wavelength).  ``points`` (B, n, 3) evaluates B
+    displaced configurations at once -> (B, F, n); ``h0`` reuses :func:`uncoupled_blocks` at these
+    frequencies.  Vectorised over frequencies in chunks of ``chunk``.
+    """
+    f = np.atleast_1d(np.asarray(frequency, float))
+    n = system.n
+    batch = points is not None
+    pts = np.asarray(points if batch else system.points, float).reshape(-1, n, 3)
+    nb = pts.shape[0]
+    out = np.zeros((nb, f.size, n), complex)
+    if n == 0 or f.size == 0:
+        return out if batch else out[0]
+    ncap, p, _ = system.phi.shape
+    npad = ncap * p
+    # padded layout (C*P slots); empty slots have no interface (zero H0 row -> zero response)
+    pad_pts = np.zeros((nb, npad, 3))
+    pad_pts[:, :] = 1.0 + np.arange(npad)[None, :, None]          # far apart, unused
+    pad_pts[:, system.slot] = pts
+    pad_rad = np.full(npad, 1e-9)
+    pad_rad[system.slot] = system.radii
+    pad_body = np.repeat(np.arange(ncap), p)
+    eye = np.eye(npad)
+    for s in range(0, f.size, chunk):
+        w = 2 * np.pi * f[s:s + chunk]
+        blk = uncoupled_blocks(system, w) if h0 is None else h0[s:s + chunk]      # (F, C, P, P)
+        g = green_matrix(pad_pts, pad_rad, pad_body, w / sound_speed, wall_reflection)  # (B, F, N, N)
+        g = g.reshape(nb, w.size, ncap, p, npad)
+        if p == 1:
+            hg = blk[None, :, :, 0, 0, None, None] * g
+        else:
+            hg = np.einsum("fcpq,bfcqn->bfcpn", blk, g, optimize=True)
+        a = eye - (w**2 * density)[None, :, None, None] * hg.reshape(nb, w.size, npad, npad)
+        rhs = np.broadcast_to(blk.sum(axis=-1).reshape(1, w.size, npad), (nb, w.size, npad))
+        u = np.linalg.solve(a, rhs[..., None])[..., 0]
+        out[:, s:s + chunk] = u[..., system.slot]
+    return out if batch else out[0]
+
+
+@dataclass(frozen=True)
+class CoupledModes:
+    """Undamped modes of the coupled system: ``omega`` (K,) rad/s ascending, ``volume`` (n, K)
+    outward volume of each interface per mass-normalized coordinate, ``quality`` (K,)."""
+
+    omega: np.ndarray
+    volume: np.ndarray
+    quality: np.ndarray
+
+    @property
+    def frequency(self) -> np.ndarray:
+        return self.omega / (2 * np.pi)
+
+    @property
+    def share(self) -> np.ndarray:
+        """(n, K): |dV_o| / sum |dV| of each interface in each mode."""
+        a = np.abs(self.volume)
+        s = a.sum(axis=0, keepdims=True)
+        return np.divide(a, s, out=np.zeros_like(a), where=s > 0)
+
+
+def _compact(system: BubbleSystem):
+    """Dense Phi (n, m) over the real modes, their omega and damping."""
+    ncap, p, mx = system.phi.shape
+    keep = np.abs(system.phi).sum(axis=1) > 0                     # (C, Mx) real modes
+    cols = np.flatnonzero(keep.reshape(-1))
+    big = np.zeros((system.n, ncap * mx))
+    for i, (c, sl) in enumerate(zip(system.body, system.slot)):
+        big[i, c * mx:(c + 1) * mx] = system.phi[c, sl - c * p]
+    return big[:, cols], system.omega.reshape(-1)[cols], system.damping.reshape(-1)[cols]
+
+
+def coupled_modes(system: BubbleSystem, density: float, sound_speed: float,
+                  wall_reflection: float = 0.0) -> CoupledModes:
+    """Undamped modes Omega^2 q = w^2 (I + rho Phi^T g0 Phi) q and their Q (mutual radiation mass and resistance; Kinsler et al. ch. 7/8).
+
+    Q_n = w_n / (q_n^T D q_n), q_n mass-normalized, D = diag(w_m/Q_m) of the capsules (viscous,
+    thermal, own radiation) + Phi^T (rho w_n^2/(4 pi c)) S Phi with S_ij = sin(k d_ij)/(k d_ij)
+    between capsules and R sin(k d'_ij)/(k d'_ij) for the wall images (mutual radiation resistance).
+    """
+    from scipy.linalg import eigh
+
+    phi, om, dmp = _compact(system)
+    if om.size == 0:
+        z = np.zeros(0)
+        return CoupledModes(omega=z, volume=np.zeros((system.n, 0)), quality=z)
+    g0 = green_matrix(system.points, system.radii, system.body, None, wall_reflection)
+    mass = np.eye(om.size) + density * phi.T @ g0 @ phi
+    w2, q = eigh(np.diag(om**2), (mass + mass.T) / 2)
+    omega = np.sqrt(np.maximum(w2, 0.0))
+    vol = phi @ q
+    d = _distances(system.points, system.radii, False)
+    other = system.body[:, None] != system.body[None, :]
+    di = _distances(system.points, system.radii, True) if wall_reflection else None
+    quality = np.empty_like(omega)
+    for n_, w in enumerate(omega):
+        k = w / sound_speed
+        s = np.where(other, np.sinc(k * d / np.pi), 0.0)
+        if di is not None:
+            s = s + wall_reflection * np.sinc(k * di / np.pi)
+        c_n = (dmp * q[:, n_] ** 2).sum() + density * w**2 / (4 * np.pi * sound_speed) * (vol[:, n_] @ s @ vol[:, n_])
+        quality[n_] = w / c_n if c_n > 0 else np.inf
+    for arr in (omega, vol, quality):
+        arr.setflags(write=False)
+    return CoupledModes(omega=omega, volume=vol, quality=quality)

@@ -1,0 +1,233 @@
+"""Honest error bounds: the declared uncertainty of a design, sampled and linearised.
+
+A design declares its uncertainty in the language (docs/language.md): ``param x = v +- s`` with
+``uncertainty { correlation(a, b) = r }`` (the covariance a calibration writes), and a transducer's
+``gain_uncertainty`` (relative standard deviation of each gain-table value, independent; the stdlib
+tables, which are not measured, declare 30 %).  This module turns it into
+
+* :func:`sample_designs` -- designs drawn from that distribution: the table values multiplied by
+  log-normal factors ``exp(s z)`` (one per table point), the uncertain parameters drawn from
+  their multivariate normal and the design resolved again with them (``reload``: overrides ->
+  Design, supplied by the caller that knows the source file);
+* :func:`error_band` -- the 95th percentile of a goal's RMS and maximum tracking error over those
+  designs, each re-simulated through the full nonlinear forward model with the schedule's drive,
+  plus, for a calibrated design, its declared ``discrepancy(position)`` (the fit's RMS residual:
+  what the calibrated model still misses) as an independent Gaussian error per waypoint and axis;
+* :func:`gain_sensitivity` -- the linearised spread of the gain matrix, ``Q = sum_j dG_j^T dG_j``
+  (K x K), one ``dG_j`` per independent 1-sigma direction (a table point, a principal direction of
+  the parameter covariance), for the robust path program (:mod:`acl.schedule.robust`);
+* :func:`coverage_notes` -- warnings when a schedule drives outside the range the calibration data
+  covered (``covered(voltage|frequency|deflection)``).
+
+Numbers only; the compiler turns them into report fields and notes.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+
+from acl.design.model import Design
+
+Reload = Callable[[dict], Design]          # {param: "value unit"} -> resolved Design
+
+
+@dataclass(frozen=True)
+class Uncertainty:
+    """What a design declares: table-point log-sd of the transducer gain, and uncertain parameters."""
+
+    gain_sd: float                          # relative sd of each gain-table value (0: none)
+    discrepancy: float                      # m, RMS model discrepancy of a calibration (0: none)
+    n_table: int
+    names: tuple[str, ...]                  # uncertain parameters
+    mean: np.ndarray                        # (P,) SI
+    cov: np.ndarray                         # (P, P) SI
+    units: tuple[str, ...]
+
+    @property
+    def empty(self) -> bool:
+        return self.gain_sd <= 0 and not self.names and self.discrepancy <= 0
+
+
+def declared(design: Design, with_params: bool = True) -> Uncertainty:
+    """The uncertainty a design declares (params only when they can be re-resolved: ``with_params``)."""
+    t = design.transducer
+    gain_sd = float(t.gain_uncertainty or 0.0) if t is not None else 0.0
+    ps = design.uncertain_params() if with_params else ()
+    return Uncertainty(gain_sd, float(design.discrepancy or 0.0), len(t.gain_pa_per_v) if t is not None else 0, tuple(p.name for p in ps),
+                       np.array([p.value for p in ps]), design.covariance([p.name for p in ps]) if ps else np.zeros((0, 0)),
+                       tuple(p.unit for p in ps))
+
+
+def _anchor(design: Design, factors: np.ndarray) -> np.ndarray:
+    """Table factors relative to the gain at the calibrated frequencies, when a calibration measured it.
+
+    A calibrated design (``acl fit``) declares ``transducer_gain`` (the fitted pressure scale, with
+    its own uncertainty as parameters) and ``covered(frequency)``: the gain there is measured, so the
+    table's prior uncertainty only describes the shape relative to it.
+    """
+    cover = next((c for c in design.coverage if c.quantity == "frequency"), None)
+    if cover is None or design.effect("transducer_gain") is None:
+        return factors
+    from acl.physics.transducer import pressure_per_volt
+
+    t = design.transducer
+    f = np.linspace(cover.lower, cover.upper, 5)
+    g0, _ = pressure_per_volt(f, t.gain_frequencies, t.gain_pa_per_v)
+    g1, _ = pressure_per_volt(f, t.gain_frequencies, np.asarray(t.gain_pa_per_v) * factors)
+    return factors / float(np.exp(np.mean(np.log(np.asarray(g1) / np.asarray(g0)))))
+
+
+def _with_gain(design: Design, factors: np.ndarray) -> Design:
+    t = design.transducer
+    factors = _anchor(design, np.asarray(factors, float))
+    gains = tuple(float(g * f) for g, f in zip(t.gain_pa_per_v, factors))
+    return design.model_copy(update={"transducer": t.model_copy(update={"gain_pa_per_v": gains})})
+
+
+def _literal(value: float, unit: str) -> str:
+    return f"{value:.12g} {unit}".strip()
+
+
+def _with_params(design: Design, unc: Uncertainty, theta: np.ndarray, reload: Reload | None) -> Design:
+    if not unc.names:
+        return design
+    if reload is None:
+        raise ValueError("uncertain parameters need the design to be resolved again (no reload given)")
+    return reload({n: _literal(float(v), u) for n, v, u in zip(unc.names, theta, unc.units)})
+
+
+def _chol(cov: np.ndarray) -> np.ndarray:
+    w, V = np.linalg.eigh(cov)
+    return V * np.sqrt(np.maximum(w, 0.0))
+
+
+def sample_designs(design: Design, n: int, seed: int = 0, reload: Reload | None = None):
+    """Yield (index, Design or None) for ``n`` draws of the declared uncertainty (None: failed to resolve)."""
+    from acl.diagnostics import DiagnosticError
+
+    unc = declared(design, with_params=reload is not None)
+    rng = np.random.default_rng(seed)
+    L = _chol(unc.cov) if unc.names else None
+    for i in range(n):
+        theta = unc.mean + L @ rng.standard_normal(len(unc.names)) if unc.names else None
+        z = rng.standard_normal(unc.n_table)
+        try:
+            d = _with_params(design, unc, theta, reload) if unc.names else design
+        except DiagnosticError:
+            yield i, None
+            continue
+        if unc.gain_sd > 0 and d.transducer is not None:
+            d = _with_gain(d, np.exp(unc.gain_sd * z[:len(d.transducer.gain_pa_per_v)]))
+        yield i, d
+
+
+@dataclass
+class Band:
+    rms_p95_m: float
+    max_p95_m: float
+    samples: int                            # draws that gave an answer
+    failed: int                             # draws whose design did not resolve or whose equilibrium was lost
+    rms_m: np.ndarray                       # per draw (for tests and plots)
+    max_m: np.ndarray
+
+
+def error_band(design: Design, forward_for: Callable, u: np.ndarray, targets: np.ndarray, *,
+               samples: int = 32, seed: int = 0, reload: Reload | None = None, q: float = 95.0) -> Band | None:
+    """95th percentile of RMS and max tracking error over designs drawn from the declared uncertainty.
+
+    ``forward_for(design) -> forward`` (u (N, K) V^2 -> (N, 2) m); ``u`` (K, M) and ``targets`` (M, 2)
+    at the re-simulated waypoints.  A draw whose equilibrium is lost at a waypoint (snap-in) counts
+    that waypoint as missed by the path's full size (never as on target).  None when nothing is declared.
+    """
+    if declared(design, with_params=reload is not None).empty or samples <= 0:
+        return None
+    rms, mx, failed = [], [], 0
+    disc = float(design.discrepancy or 0.0)
+    noise = np.random.default_rng([seed, 1])
+    scale = float(np.max(np.linalg.norm(targets - targets.mean(axis=0), axis=1))) + float(
+        np.max(np.linalg.norm(targets, axis=1)))
+    for _, d in sample_designs(design, samples, seed, reload):
+        if d is None:
+            failed += 1
+            continue
+        try:
+            pred = np.asarray(forward_for(d)(u.T), float)
+        except (ValueError, KeyError, FloatingPointError):
+            failed += 1
+            continue
+        if disc > 0:     # what the calibrated model misses, independent per waypoint and axis (conservative)
+            pred = pred + noise.normal(0.0, disc, pred.shape)
+        err = np.linalg.norm(pred - targets, axis=1)
+        bad = ~np.isfinite(err)
+        if bad.any():
+            failed += 1
+            err[bad] = max(scale, float(np.nanmax(err)) if (~bad).any() else scale)
+        rms.append(float(np.sqrt(np.mean(err ** 2))))
+        mx.append(float(err.max()))
+    if not rms:
+        return Band(float("nan"), float("nan"), 0, failed, np.array([]), np.array([]))
+    rms_a, mx_a = np.array(rms), np.array(mx)
+    return Band(float(np.percentile(rms_a, q)), float(np.percentile(mx_a, q)), len(rms), failed, rms_a, mx_a)
+
+
+def gain_sensitivity(design: Design, gains_for: Callable, reload: Reload | None = None) -> np.ndarray | None:
+    """Q (K, K) = sum_j dG_j^T dG_j over independent 1-sigma directions of the declared uncertainty.
+
+    ``gains_for(design) -> (2, K)`` gain matrix at the goal's tones.  Finite differences: a table point
+    scaled by ``exp(s)``; a parameter moved along one principal axis of its covariance by 1 sigma.
+    ``sum_t u_t^T Q u_t`` is the expected squared error the uncertainty adds to the linear plan.
+    """
+    unc = declared(design, with_params=reload is not None)
+    if unc.empty:
+        return None
+    G0 = np.asarray(gains_for(design), float)
+    K = G0.shape[1]
+    Q = np.zeros((K, K))
+    if unc.gain_sd > 0 and design.transducer is not None:
+        for j in range(unc.n_table):
+            f = np.ones(unc.n_table)
+            f[j] = np.exp(unc.gain_sd)
+            dG = np.asarray(gains_for(_with_gain(design, f)), float) - G0
+            Q += dG.T @ dG
+    if unc.names:
+        L = _chol(unc.cov)
+        for i in range(L.shape[1]):
+            if not np.any(L[:, i]):
+                continue
+            d = _with_params(design, unc, unc.mean + L[:, i], reload)
+            dG = np.asarray(gains_for(d), float) - G0
+            Q += dG.T @ dG
+    return 0.5 * (Q + Q.T)
+
+
+def coverage_notes(design: Design, schedule) -> list[str]:
+    """Warnings for goals that drive outside the declared ``covered`` ranges of a calibration."""
+    cover = {c.quantity: (c.lower, c.upper) for c in design.coverage}
+    if not cover:
+        return []
+    out = []
+    tol = 1e-9
+    for g in schedule.goals:
+        segs = [s for s in schedule.segments if s.step == g.step and s.goal == g.name]
+        if "voltage" in cover and segs:
+            v = max(s.amplitude_sum() for s in segs)
+            lo, hi = cover["voltage"]
+            if v > hi * (1 + 1e-6) + tol:
+                out.append(f"warning: {g.name}: drives up to {v:.3g} V (sum of tone amplitudes) but the "
+                           f"calibration data covered {lo:.3g} .. {hi:.3g} V: the calibrated model is extrapolated")
+        if "frequency" in cover and segs:
+            fs = [t.frequency_hz for s in segs for t in s.tones if t.amplitude_v > 0]
+            lo, hi = cover["frequency"]
+            outside = sorted({f for f in fs if f < lo * (1 - 1e-6) or f > hi * (1 + 1e-6)})
+            if outside:
+                out.append(f"warning: {g.name}: tones {', '.join(f'{f / 1e3:g}' for f in outside)} kHz lie outside "
+                           f"the calibrated {lo / 1e3:g} .. {hi / 1e3:g} kHz")
+        if "deflection" in cover and g.target_m is not None:
+            r = float(np.max(np.linalg.norm(np.asarray(g.target_m), axis=1)))
+            lo, hi = cover["deflection"]
+            if r > hi * (1 + 1e-6) + 1e-12:
+                out.append(f"warning: {g.name}: the path reaches {r * 1e6:.3g} um from rest but the calibration "
+                           f"data covered deflections up to {hi * 1e6:.3g} um")
+    return out
