@@ -172,6 +172,13 @@ def test_every_lint_rule_has_a_page():
         assert code in pages and pages[code]["name"] == rule.name and pages[code]["severity"] == rule.severity.value
 
 
+def test_codes_documented_in_prose_are_found_too():
+    r = run("rule", "E-EMIT-RATE")
+    assert r.returncode == 0 and "E-EMIT-RATE" in r.stdout and "docs/schedule.md" in r.stdout
+    r = run("rule", "E-PLOT")
+    assert r.returncode == 0 and "acl[plot]" in r.stdout
+
+
 def test_unknown_rule_is_a_usage_error_with_a_suggestion():
     r = run("rule", "ACL2011")
     assert r.returncode == 2 and "E-USAGE" in r.stderr and "ACL201" in r.stderr

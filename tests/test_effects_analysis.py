@@ -132,7 +132,7 @@ def test_synth_fit_calibrated_analyze_end_to_end(tmp_path, capsys):
     # the calibrated design's thrust at f_ref is the fitted gamma (up to the 9 printed digits); no absolute
     # slack (pytest.approx's default abs=1e-12 N/V^2 would pass any two thrusts of this size)
     from acl.fit.mechanism import build_instance, thrust_per_v2
-    t = thrust_per_v2(build_instance(d), report["f_ref"])[0]
+    t = next(iter(thrust_per_v2(build_instance(d), report["f_ref"]).values()))   # the one capsule
     assert t == pytest.approx(gamma["value"], rel=1e-7, abs=0)
     assert [e.name for e in d.effects] == report["effects_selected"]
     assert d.effect("drive_saturation").params["inv_vsat2"] == pytest.approx(

@@ -308,6 +308,8 @@ def test_one_root_cause_is_one_error(name, code):
     ("syntax_wait_for_pause.acl", "did you mean `pause`?"),
     ("syntax_to_for_range.acl", "`lo .. hi`"),
     ("diag_unknown_unit_once.acl", "MPa"),
+    ("syntax_misspelt_step.acl", "did you mean `drive`?"),
+    ("syntax_tones_for_using.acl", "did you mean `using`?"),
 ])
 def test_hint_names_the_fix(name, hint):
     (d,) = _errors(name)

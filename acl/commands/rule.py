@@ -66,6 +66,18 @@ def code_entries() -> dict[str, dict]:
     return out
 
 
+def mention(code: str) -> dict | None:
+    """A code documented in prose only: the first paragraph of docs/*.md that names it in backticks."""
+    for name in sorted(os.listdir(_docs()), key=lambda n: (n != "language.md", n)):
+        if not name.endswith(".md"):
+            continue
+        for para in re.split(r"\n\s*\n", _read(name)):
+            if f"`{code}`" in para:
+                return {"code": code, "name": "", "severity": "warning" if code.startswith("W") else "error",
+                        "family": "", "text": para.strip(), "source": f"docs/{name}"}
+    return None
+
+
 def run(args) -> int:
     fmt = args.output_format
     entries = {**code_entries(), **rule_pages()}
@@ -83,7 +95,7 @@ def run(args) -> int:
                       Span(file="<command line>", line=1, column=1))], fmt)
         return 2
     code = args.code.strip().upper()
-    entry = entries.get(code)
+    entry = entries.get(code) or (mention(code) if re.fullmatch(r"[EW][-A-Z0-9]+", code) else None)
     if entry is None:
         report([error("E-USAGE", f"unknown rule or diagnostic code `{args.code}`", Span(file="<command line>", line=1, column=1),
                       suggest(code, entries) or "list them with `acl rule --all`")], fmt)

@@ -611,6 +611,13 @@ def _syntax_diagnostic(exc: UnexpectedInput, file: str, lines: list[str], eof_li
             hint = f"did you mean `{_STEP_WORDS[word]}`?"
         elif word == "to" and "`..`" in expected:
             hint = "a range is written `lo .. hi`, e.g. `40 kHz .. 200 kHz`"
+        elif word in ("tones", "tone", "with", "freqs", "frequencies") and "`using`" in expected:
+            hint = "did you mean `using`? (`, using [85 kHz, 125 kHz]`)"
+        elif word and tok.type == "NAME":   # a misspelt keyword
+            from acl.diagnostics import suggest
+
+            keywords = [e.strip("`") for e in expected if e.startswith("`") and e.strip("`").isalpha()]
+            hint = suggest(word, keywords)
         elif tok.type == "NUMBER" and "a quantity with a unit" not in expected:
             hint = None
         elif tok.type == "_NL" and "`=`" in expected:
