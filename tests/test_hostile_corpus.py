@@ -97,6 +97,9 @@ def generated(tmp_path_factory) -> Path:
     w("bad.toml", "[lint\nselect = \n")
     w("bad_values.toml", "[lint]\nselect = 3\nthresholds = 'x'\nseverity = {ACL201 = 'fatal'}\n")
     w("pyproject.toml", "[tool.acl.lint]\nignore = [1, 2]\nper-file-ignores = 5\n")
+    (g / "data").mkdir()     # {D}: a copy, since `acl fit --report` writes the calibrated design beside it
+    for f in DATA.glob("*.acl"):
+        (g / "data" / f.name).write_bytes(f.read_bytes())
     return g
 
 
@@ -211,7 +214,7 @@ def test_hostile_input(row, generated, tmp_path, capsys, monkeypatch):
     out_dir = tmp_path / "o"
     out_dir.mkdir()
     text = (args.replace("{H}", str(INPUTS)).replace("{G}", str(generated)).replace("{O}", str(out_dir))
-            .replace("{EX}", str(EXAMPLES)).replace("{D}", str(DATA)))
+            .replace("{EX}", str(EXAMPLES)).replace("{D}", str(generated / "data")))
     argv = shlex.split(text)
     stdin = None
     for flag in flags.split(","):
@@ -321,3 +324,16 @@ def test_a_path_too_fast_for_its_waypoints_is_refused(tmp_path, capsys):
     err = capsys.readouterr().err
     assert code == 1 and ":44:3: error[E-SCHED-PATH]" in err and "misses the path by up to 4 um" in err
     assert not (tmp_path / "o").exists()
+
+
+def _listing() -> dict[str, float]:
+    return {str(p): p.stat().st_mtime for d in (EXAMPLES, DATA, INPUTS) for p in d.rglob("*")}
+
+
+_BEFORE = _listing()
+
+
+def test_the_corpus_left_the_repository_alone():
+    """Runs last in this file: no command of the corpus wrote beside its inputs (the default
+    calibrated design of `acl fit --report` once landed in tests/data/)."""
+    assert _listing() == _BEFORE

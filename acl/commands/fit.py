@@ -105,7 +105,7 @@ def run(args) -> int:
         if args.report and not args.quiet:
             from acl._console import make_console
 
-            make_console(stderr=True, highlight=False).print(f"report written to {args.report}/")
+            make_console(stderr=True, highlight=False).print(f"report written to {os.path.normpath(args.report)}/")
         if (args.report or args.calibrated) and not args.quiet:
             from acl._console import make_console
 
