@@ -97,6 +97,11 @@ def generated(tmp_path_factory) -> Path:
     w("bad.toml", "[lint\nselect = \n")
     w("bad_values.toml", "[lint]\nselect = 3\nthresholds = 'x'\nseverity = {ACL201 = 'fatal'}\n")
     w("pyproject.toml", "[tool.acl.lint]\nignore = [1, 2]\nper-file-ignores = 5\n")
+    seg = '{"start_s": %d, "duration_s": 0.5, "tones": [{"frequency_hz": 125e9, "amplitude_v": 2.0}]}'   # out of band: read, then refused
+    w("sched_many_segments.json", '{"version": "1.1", "segments": [' + ", ".join(seg % i for i in range(200_000)) + "]}")
+    os.mkfifo(g / "fifo.json")
+    (g / "stale").mkdir()    # an output folder holding a hostile schedule.json from "a previous compile"
+    (g / "stale" / "schedule.json").write_text("[" * 100_000 + "]" * 100_000)
     (g / "data").mkdir()     # {D}: a copy, since `acl fit --report` writes the calibrated design beside it
     for f in DATA.glob("*.acl"):
         (g / "data" / f.name).write_bytes(f.read_bytes())
