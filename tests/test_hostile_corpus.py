@@ -342,3 +342,15 @@ def test_the_corpus_left_the_repository_alone():
     """Runs last in this file: no command of the corpus wrote beside its inputs (the default
     calibrated design of `acl fit --report` once landed in tests/data/)."""
     assert _listing() == _BEFORE
+
+
+@pytest.mark.parametrize("overrides, code", [({1: 2}, "E211"), ({"gap": 10**400}, "E305"), ({"gap": -10**400}, "E305"),
+                                             ({"gap": float("nan")}, "E305"), ({"gap": [1, 2]}, "E301")])
+def test_python_overrides_of_any_type_are_diagnostics(overrides, code):
+    """acl.load(..., overrides={1: 2}) raised TypeError, {"gap": 10**400} OverflowError."""
+    import acl
+    from acl.diagnostics import DiagnosticError
+
+    with pytest.raises(DiagnosticError) as exc:
+        acl.load(str(EXAMPLES / "fig4_facing_pair.acl"), overrides=overrides)
+    assert [d.code for d in exc.value.diagnostics] == [code]
