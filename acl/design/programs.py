@@ -82,6 +82,10 @@ def _using(b, opts: A.Options) -> tuple[float, ...]:
             b.bag.error("E301", f"using: expected frequencies, found {what_is(it)}", opts.using.span, "e.g. `using [85 kHz, 125 kHz]`")
             raise Fail()
         out.append(it.value)
+    if not out:   # `using []` would otherwise mean "no `using`": every candidate tone
+        b.bag.error("E505", "using: an empty list allows no tone", opts.using.span,
+                    "name the tones, e.g. `using [85 kHz]`, or leave `using` out to let the compiler choose")
+        raise Fail()
     return tuple(out)
 
 
@@ -166,6 +170,10 @@ def _step(b, design: M.Design, st):
             raise Fail()
         x, y = (b.orifice_ref(a, "gap") for a in c.args)
         if not (x and y):
+            raise Fail()
+        if x == y:
+            b.bag.error("E505", f"`{'hold' if st.mode == 'above' else 'cross'}`: the gap between an orifice and itself is "
+                        "always 0", c.span, "name two orifices of different capsules")
             raise Fail()
         bound = b.r.q(st.bound, b.env, "m", "hold bound") if st.bound is not None else None
         if bound is not None and bound <= 0:
