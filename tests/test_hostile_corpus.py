@@ -102,6 +102,15 @@ def generated(tmp_path_factory) -> Path:
     os.mkfifo(g / "fifo.json")
     (g / "stale").mkdir()    # an output folder holding a hostile schedule.json from "a previous compile"
     (g / "stale" / "schedule.json").write_text("[" * 100_000 + "]" * 100_000)
+    (g / "escape").mkdir()   # links inside the design's folder that lead out of it
+    os.symlink("/etc/passwd", g / "escape" / "passwd.acl")
+    os.symlink("/etc/passwd", g / "escape" / "passwd.csv")
+    os.symlink("/etc", g / "escape" / "etc")
+    w("escape/import_link.acl", 'import "passwd.acl" as p\nparam a = 1 um\n')
+    w("escape/import_dir_link.acl", 'import "etc/passwd" as p\nparam a = 1 um\n')
+    w("escape/extends_link.acl", 'extends "passwd.acl"\n')
+    w("escape/csv_link.acl", 'import stdlib.transducers\ntransducer t like transducers.contact_piezo { gain = csv("passwd.csv") }\n')
+    w("escape/path_link.acl", 'import stdlib.beams\nprogram p {\n  follow m along csv("passwd.csv") in 1 s\n}\n')
     (g / "data").mkdir()     # {D}: a copy, since `acl fit --report` writes the calibrated design beside it
     for f in DATA.glob("*.acl"):
         (g / "data" / f.name).write_bytes(f.read_bytes())
@@ -194,6 +203,8 @@ def _problems(code: int, out: str, err: str, expected: str) -> list[str]:
         problems.append("a Python traceback")
     if re.search(r"\b\w+Warning: ", err):
         problems.append("a Python warning printed")
+    if "root:x:0:0" in both and "/etc/passwd" not in args:
+        problems.append("printed the contents of /etc/passwd, which it was never pointed to")
     if "error[E190]" in both:
         problems.append("E190 (internal formatter error)")
     if "E-INTERNAL" in both:
