@@ -378,3 +378,14 @@ def test_fmt_keeps_a_standard_error(text):
 
     out = format_source(text, "x.acl")
     assert out.replace(" ", "") == text.replace(" ", "") and "+ -" not in out
+
+
+def test_synth_dash_output_is_standard_output(tmp_path, monkeypatch, capsys):
+    """`acl synth D -o -` wrote a file named `-` into the working folder."""
+    from acl.cli import main
+
+    monkeypatch.chdir(tmp_path)
+    assert main(["synth", str(DATA / "fit_cantilever.acl"), "-o", "-", "--voltages", "0V..2V:3"]) == 0
+    out = capsys.readouterr().out
+    assert out.startswith("observable,value,unit,drive") and len(out.splitlines()) == 4
+    assert not any(tmp_path.iterdir())

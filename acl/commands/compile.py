@@ -135,6 +135,9 @@ def run(args) -> int:
     diags += more
     numbers, more = _numbers(args)
     diags += more
+    if args.output == "-":   # it made a folder named `-`
+        diags.append(_usage("E-EMIT-OUTPUT", "-o -: standard output cannot hold a compile (schedule.json and "
+                            "waveform files)", "give a folder, e.g. -o out/", "--output"))
     for option, value, hi in (("--band-samples", args.band_samples, 10_000),
                               ("--nonlinear-passes", args.nonlinear_passes, 100)):
         if not 0 <= value <= hi:

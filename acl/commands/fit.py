@@ -42,6 +42,12 @@ def run(args) -> int:
         candidates = names
     if args.report and plotting_missing("--report", fmt):
         return 2
+    if args.calibrated == "-" or args.report == "-":
+        option = "--calibrated" if args.calibrated == "-" else "--report"
+        report([error("E-USAGE", f"{option} -: standard output cannot hold it (the calibrated design extends DESIGN by "
+                      "a relative path; the report is a folder)", Span(file=f"<{option}>", line=1, column=1),
+                      "give a path")], fmt)
+        return 2
     design = one_design(args.design, fmt)
     if design is None:
         return 2

@@ -132,6 +132,11 @@ def write_csv(data, path, unit: str = "um") -> None:
                  *([data.experiment[i]] if with_exp else []),
                  *[data.sets[k][i] for k in set_names]]
         lines.append(",".join(cells))
+    if path == "-":   # `-o -`: standard output, as everywhere (it wrote a file named `-`)
+        import sys
+
+        sys.stdout.write("\n".join(lines) + "\n")
+        return
     tmp = f"{path}.tmp{os.getpid()}"
     with open(tmp, "w", encoding="utf-8") as fh:
         fh.write("\n".join(lines) + "\n")
