@@ -36,6 +36,7 @@ EXAMPLES = ROOT / "examples"
 DATA = Path(__file__).parent / "data"
 IN_PROCESS_LIMIT_S = 60      # a run in-process longer than this counts as a hang
 SUBPROCESS_LIMIT_S = 60
+MAX_OUTPUT = 2_000_000       # characters a run may print (a 20,000-column header once printed 6 GB)
 
 # -- the table ---------------------------------------------------------------------------------------
 
@@ -111,6 +112,8 @@ def generated(tmp_path_factory) -> Path:
     w("escape/extends_link.acl", 'extends "passwd.acl"\n')
     w("escape/csv_link.acl", 'import stdlib.transducers\ntransducer t like transducers.contact_piezo { gain = csv("passwd.csv") }\n')
     w("escape/path_link.acl", 'import stdlib.beams\nprogram p {\n  follow m along csv("passwd.csv") in 1 s\n}\n')
+    w("wide.csv", "observable,value,unit,drive," + ",".join(f"set:p{i}" for i in range(20_000)) + "\n"
+      + "deflection,1,um,125 kHz @ 1 V," + ",".join("1 um" for _ in range(20_000)) + "\n")
     (g / "data").mkdir()     # {D}: a copy, since `acl fit --report` writes the calibrated design beside it
     for f in DATA.glob("*.acl"):
         (g / "data" / f.name).write_bytes(f.read_bytes())
@@ -205,6 +208,8 @@ def _problems(code: int, out: str, err: str, expected: str) -> list[str]:
         problems.append("a Python warning printed")
     if "root:x:0:0" in both and "/etc/passwd" not in args:
         problems.append("printed the contents of /etc/passwd, which it was never pointed to")
+    if len(both) > MAX_OUTPUT:
+        problems.append(f"{len(both):,} characters of output (a flood: report the root cause once)")
     if "error[E190]" in both:
         problems.append("E190 (internal formatter error)")
     if "E-INTERNAL" in both:
