@@ -199,7 +199,7 @@ def _json_errors(text: str) -> list[dict] | None:
     return found
 
 
-def _problems(code: int, out: str, err: str, expected: str) -> list[str]:
+def _problems(code: int, out: str, err: str, expected: str, args: str = "") -> list[str]:
     both = out + "\n" + err
     problems = []
     if "Traceback (most recent call last)" in both:
@@ -248,7 +248,7 @@ def test_hostile_input(row, generated, tmp_path, capsys, monkeypatch):
         code, out, err = _run_subprocess(argv, stdin)
     else:
         code, out, err = _run_in_process(argv, stdin, capsys, monkeypatch)
-    problems = _problems(code, out, err, expected)
+    problems = _problems(code, out, err, expected, args)
     if code != 0:
         left = sorted(p.name for p in out_dir.iterdir())
         if left:
