@@ -27,6 +27,19 @@ def quantity_text(text: str) -> str:
     return f"{number} {unit}" if unit else number
 
 
+def seed(text: str) -> int:
+    """argparse type of a random seed: a non-negative integer (numpy refuses negative seeds)."""
+    import argparse
+
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"{text!r}: a seed is a non-negative integer")
+    return value
+
+
 def add_design_options(p, sets: bool = True) -> None:
     if sets:
         p.add_argument("--set", action="append", default=[], metavar="P=V",

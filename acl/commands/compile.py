@@ -71,6 +71,9 @@ def _formats(items: list[str]):
                                     suggest(f, FORMATS) or f"choose from {', '.join(FORMATS)}", "--format"))
             elif f not in out:
                 out.append(f)
+    if not out and not diags:
+        diags.append(_usage("E-COMPILE-FORMAT", f"--format {','.join(items)!r} names no waveform format",
+                            f"choose from {', '.join(FORMATS)}", "--format"))
     return out, diags
 
 
@@ -135,6 +138,9 @@ def run(args) -> int:
     diags += more
     numbers, more = _numbers(args)
     diags += more
+    if args.output == "-":   # it made a folder named `-`
+        diags.append(_usage("E-EMIT-OUTPUT", "-o -: standard output cannot hold a compile (schedule.json and "
+                            "waveform files)", "give a folder, e.g. -o out/", "--output"))
     for option, value, hi in (("--band-samples", args.band_samples, 10_000),
                               ("--nonlinear-passes", args.nonlinear_passes, 100)):
         if not 0 <= value <= hi:

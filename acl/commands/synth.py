@@ -9,7 +9,7 @@ from __future__ import annotations
 import math
 import re
 
-from acl.commands._common import add_output_format, exit_code, one_design, parse_sets, quantity_text, report
+from acl.commands._common import add_output_format, exit_code, one_design, parse_sets, quantity_text, report, seed
 
 
 def add_parser(p) -> None:
@@ -25,7 +25,7 @@ def add_parser(p) -> None:
                    help="parameter values to sweep (set:P columns), e.g. gap=20um,30um,40um (repeatable)")
     p.add_argument("--repeats", type=int, default=1, help="repeat the whole experiment N times (default 1)")
     p.add_argument("--interval", default="1 s", help="time between rows (default 1 s)")
-    p.add_argument("--seed", type=int, default=0, help="noise seed (default 0)")
+    p.add_argument("--seed", type=seed, default=0, help="noise seed (default 0)")
     p.add_argument("--observe", default="", metavar="NAMES", help="observables to write (default: all declared)")
     p.add_argument("--schedule", metavar="JSON",
                    help="play this compiled schedule (schedule.json of `acl compile`) on DESIGN and write every "
@@ -130,6 +130,8 @@ def run(args) -> int:
                 return _usage(f"--sweep {item!r}: expected P=V1,V2,...")
             sets[k.strip()] = [quantity_text(v)
                                for v in vals.split(",") if v.strip()]
+            if not k.strip() or not sets[k.strip()]:
+                return _usage(f"--sweep {item!r}: expected P=V1,V2,... with at least one value")
     except (ValueError, UnitError) as exc:
         return _usage(str(exc))
     try:
@@ -145,7 +147,7 @@ def run(args) -> int:
                           "give a value that differs from the null, e.g. " + _example(eid))
     if noise < 0 or args.repeats < 1 or not freqs:
         return _usage("noise must not be negative, repeats at least 1, and one frequency at least")
-    if args.schedule:
+    if args.schedule is not None:
         if effects or sets:
             return _usage("--schedule plays on the design as declared: declare effects in it (`effect ID { ... }`) "
                           "instead of --effect; --sweep does not apply")
@@ -207,6 +209,29 @@ def run(args) -> int:
     return 0
 
 
+def _outside_transducer(design, waypoints, path: str) -> list:
+    """E501/E502 for drives of the schedule outside the design's transducer band or maximum voltage
+    (as in data files: the model knows the transducer only there); one diagnostic per kind."""
+    from acl.diagnostics import Span, error
+
+    tr = design.transducer
+    band, vmax = (tr.band, tr.max_voltage) if tr is not None else (None, None)
+    out, seen = [], set()
+    for k, w in enumerate(waypoints):
+        for f, v in w.tones:
+            if "E501" not in seen and band is not None and not band[0] <= f <= band[1]:
+                seen.add("E501")
+                out.append(error("E501", f"waypoint {k} (t = {w.time:g} s) drives {f / 1e3:.6g} kHz, outside the band of "
+                                 f"transducer `{tr.name}` ({band[0] / 1e3:g} .. {band[1] / 1e3:g} kHz)",
+                                 Span(file=path, line=1, column=1), "was the schedule compiled for this design?"))
+            if "E502" not in seen and vmax is not None and v > vmax:
+                seen.add("E502")
+                out.append(error("E502", f"waypoint {k} (t = {w.time:g} s) drives {v:.6g} V, above the maximum "
+                                 f"of transducer `{tr.name}` ({vmax:g} V)", Span(file=path, line=1, column=1),
+                                 "was the schedule compiled for this design?"))
+    return out
+
+
 def _replay(args, noise) -> int:
     from rich.console import Console
 
@@ -223,6 +248,10 @@ def _replay(args, noise) -> int:
     design, code = load_or_report(args.design, args)
     if design is None:
         return code
+    bad = _outside_transducer(design, waypoints, args.schedule)
+    if bad:
+        report(bad)
+        return 1
     names = [s.strip() for s in args.observe.split(",") if s.strip()]
     known = [o.name for o in design.observes]
     for n in names:

@@ -20,6 +20,7 @@ REQUIRED = ("observable", "value", "unit", "drive")
 OPTIONAL = ("time", "sigma", "experiment")
 LENGTH = (1, 0, 0, 0, 0, 0, 0)
 MAX_ROWS = 2_000_000
+MAX_HEADER_ERRORS = 20                 # bad header columns reported one by one; then one E801 for the rest
 MAX_BYTES = 256 * 2**20                  # a data file larger than this is refused (E601)
 MAX_LENGTH = 1.0                         # m: |value| and sigma beyond this are no measurement of a micro-device
 MAX_TIME = 1e9                           # s: about 30 years
@@ -137,8 +138,18 @@ def read_data(paths, design) -> Dataset:
             continue
         header = split_line(lines[head_i])
         index: dict[str, int] = {}
+        header_errors = 0
         for j, (name, col) in enumerate(header):
             sp = Span(file=path, line=head_i + 1, column=col)
+            if header_errors == MAX_HEADER_ERRORS:   # one root cause (a wrong file) is not 20,000 errors
+                header_errors += 1
+                bag.error("E801", f"the header has more bad columns from here on (column {j + 1} of {len(header)}); "
+                          "only the first ones are reported", sp, "is this an acl data file? (docs/data.md)")
+            if header_errors > MAX_HEADER_ERRORS:
+                key = name.strip().lower() if not name.strip().startswith("set:") else name.strip()
+                index.setdefault(key, j)
+                continue
+            before = len(bag.items)
             key = name.strip().lower() if not name.strip().startswith("set:") else name.strip()
             if key in index:
                 bag.error("E801", f"column `{name}` appears twice", sp)
@@ -153,6 +164,7 @@ def read_data(paths, design) -> Dataset:
             else:
                 bag.error("E801", f"unknown column `{name}`", sp,
                           suggest(key, [*REQUIRED, *OPTIONAL]) or "columns: observable, value, unit, drive, time, sigma, set:NAME")
+            header_errors += len(bag.items) > before
         missing = [k for k in REQUIRED if k not in index]
         if missing:
             bag.error("E801", f"missing column(s) {', '.join(missing)}", Span(file=path, line=head_i + 1, column=1),

@@ -96,8 +96,15 @@ class _Compiler:
     def run(self) -> Schedule:
         self.states = {l.name: l.state for l in self.design.latches}
         self._check_numbers()
+        from acl.schedule.solve import SolverFailure
+
         for i, step in enumerate(self.program.steps):
-            getattr(self, f"_{step.kind}")(i, step)
+            try:
+                getattr(self, f"_{step.kind}")(i, step)
+            except SolverFailure as exc:   # every step, not only follow: a located error, never E-INTERNAL
+                raise _diag("E-SCHED-SOLVER", f"step {i + 1}: {exc}", step.span,
+                            "no solver could handle this step's convex program: check its margin, limit and "
+                            "slew for absurd values") from None
         if not self.segments:
             raise DiagnosticError([error("E-SCHED-EMPTY", f"program `{self.program.name}` has no steps",
                                          self.program.span)])
@@ -279,6 +286,12 @@ class _Compiler:
                             step.span, f"raise --waypoint-dt above {duration / MAX_WAYPOINTS:.3g} s")
             n = max(2, int(round(n)))
             path = sample_path(step.path, n)
+            miss = _sampling_miss(step.path, path.points, sample_path)
+            if miss > self.opts.tolerance_m:
+                raise _diag("E-SCHED-PATH", f"{name}: {n} waypoints {duration / n:.3g} s apart cut corners: the "
+                            f"device, moving from waypoint to waypoint, misses the path by up to {miss * 1e6:.3g} um "
+                            f"(tolerance {self.opts.tolerance_m * 1e6:g} um)", step.span,
+                            f"give the path more time, or lower --waypoint-dt below {self.opts.waypoint_dt_s:g} s")
         except (PathError, TypeError, ZeroDivisionError) as exc:
             raise _diag("E-SCHED-PATH", f"{name}: {exc}", step.span,
                         "give a duration or a positive speed, and a well-formed path")
@@ -677,6 +690,17 @@ def _overlap_slew(prev, cur, nxt, a0, a1, b0, b1, n: int = 2001) -> float:
               + np.pi ** 2 / (2 * lx * ly) * abs(pc))
         worst = max(worst, float(d + e2 * step / 2))
     return worst
+
+
+def _sampling_miss(spec, points: np.ndarray, sample_path) -> float:
+    """Largest distance (m) between the path and the straight moves joining its waypoints: both are
+    sampled evenly by arc length, so the path at each dense arc position is compared with the
+    waypoints interpolated there (a circle on two waypoints misses by its diameter)."""
+    n = len(points)
+    dense = sample_path(spec, int(min(max(20 * n, 2000), 200_000))).points
+    s_dense, s_way = np.linspace(0.0, 1.0, len(dense)), np.linspace(0.0, 1.0, n)
+    between = np.column_stack([np.interp(s_dense, s_way, points[:, k]) for k in range(points.shape[1])])
+    return float(np.max(np.linalg.norm(dense - between, axis=1)))
 
 
 def _diag(code: str, message: str, span: Span | None, hint: str | None = None) -> DiagnosticError:
