@@ -51,7 +51,7 @@ def _usage(msg, hint=None):
 _EXAMPLES = {"drive_saturation": "v_sat:8V", "offset_drift": "offset:0.5um,drift:10nm/s",
              "transducer_gain": "gain_slope:0.5", "large_deflection": "elastica_weight:1",
              "stiffness_scale": "e_scale:0.7", "stiffness_gradient": "e_gradient:0.7",
-             "bubble_shrinkage": "shrink_rate:0.01", "neighbour_drag": "plateau:5um", "substrate_proximity": "h_substrate:20um"}
+             "bubble_shrinkage": "shrink_rate:0.01Hz", "neighbour_drag": "plateau:5um", "substrate_proximity": "h_substrate:20um"}
 
 
 def _example(eid: str) -> str:
@@ -75,6 +75,39 @@ def _planted(effects: dict) -> list[str]:
 
     values = effect_inputs(effects)
     return [eid for eid, vals in values.items() if any(vals[p.name] != p.null for p in EFFECTS[eid].params)]
+
+
+class _EffectUnitError(Exception):
+    def __init__(self, diagnostic):
+        super().__init__(diagnostic.message)
+        self.diagnostic = diagnostic
+
+
+def _effect_value(eid: str, key: str, text: str, item: str, column: int) -> float:
+    """The SI value of one ``--effect`` parameter, its unit checked against the unit the effect
+    declares (acl.fit.effects): `v_sat:8um` is refused, not planted as 8e-6 V.  Unknown effects and
+    parameters are left to :func:`acl.fit.synth.effect_inputs`, which names them."""
+    from acl.diagnostics import Span, error
+    from acl.fit.data import parse_quantity
+    from acl.fit.synth import param_unit
+    from acl.units import DIMENSIONLESS, describe, parse_unit
+
+    value, dims = parse_quantity(quantity_text(text))
+    unit = param_unit(eid, key)
+    if unit is not None:
+        want = parse_unit(unit)[1] if unit else DIMENSIONLESS
+        if dims != want:
+            got = "a plain number" if dims == DIMENSIONLESS else f"a {describe(dims)}"
+            need = "a plain number" if not unit else f"a {describe(want)}, e.g. `{key}:{_unit_example(unit)}`"
+            raise _EffectUnitError(error(
+                "E-USAGE", f"--effect {item!r}: `{key}` is {got}; effect {eid} declares it as {need}",
+                Span(file="<--effect>", line=1, column=column),
+                f"`{key}` is in {unit}" if unit else f"`{key}` has no unit"))
+    return value
+
+
+def _unit_example(unit: str) -> str:
+    return {"V": "8V", "m": "5um", "m/s": "10nm/s", "1/s": "0.01Hz", "1/m": "1e5 1/m", "1/V^2": "0.01 1/V^2"}.get(unit, f"1 {unit}")
 
 
 def _qty(text, dims_name):
@@ -115,13 +148,15 @@ def run(args) -> int:
                 return _usage(f"--effect {item!r}: give the effect's size, e.g. {_example(name.strip())}",
                               "an effect at its null value plants nothing; parameters: " + _param_names(name.strip()))
             params = {}
-            for part in filter(None, (s.strip() for s in rest.split(","))):
+            for found in re.finditer(r"[^,]+", rest):
+                part = found.group()
+                if not part.strip():
+                    continue
                 k, sep, v = part.partition(":")
                 if not sep:
                     return _usage(f"--effect {item!r}: parameters are NAME:VALUE, e.g. drive_saturation=v_sat:8V")
-                v = quantity_text(v)
-                from acl.fit.data import parse_quantity
-                params[k.strip()] = parse_quantity(v)[0]
+                column = len(name) + 2 + found.start() + len(k) + 1 + (len(v) - len(v.lstrip()))
+                params[k.strip()] = _effect_value(name.strip(), k.strip(), v, item, column)
             effects[name.strip()] = params
         sets = {}
         for item in args.sweep:
@@ -132,6 +167,9 @@ def run(args) -> int:
                                for v in vals.split(",") if v.strip()]
             if not k.strip() or not sets[k.strip()]:
                 return _usage(f"--sweep {item!r}: expected P=V1,V2,... with at least one value")
+    except _EffectUnitError as exc:
+        report([exc.diagnostic])
+        return 2
     except (ValueError, UnitError) as exc:
         return _usage(str(exc))
     try:

@@ -32,6 +32,24 @@ EFFECTS = ("transducer_gain", "transducer_resonance", "drive_saturation", "large
 
 D = parse_unit_static
 LENGTH, FREQ, VOLT, TIME = D("m"), D("Hz"), D("V"), D("s")
+_ONE = D("")
+
+# The unit of each known effect coefficient (acl/fit/effects.py's SI units, plus the user-facing
+# aliases v_sat, plateau and factor, and transducer_gain's f_ref and gain): another dimension is E301
+# (`v_sat = 8 um` is not a saturation voltage).  Coefficients not listed are left to the analysis' note.
+EFFECT_UNITS = {
+    "transducer_gain": {"gain_slope": ("", _ONE), "f_ref": ("Hz", FREQ), "gain": ("", _ONE)},
+    "transducer_resonance": {"inv_f_ratio": ("", _ONE), "gain_q": ("", _ONE), "f_ref": ("Hz", FREQ)},
+    "drive_saturation": {"inv_vsat2": ("1/V^2", tuple(-2 * x for x in VOLT)), "v_sat": ("V", VOLT)},
+    "large_deflection": {"elastica_weight": ("", _ONE)},
+    "stiffness_scale": {"e_scale": ("", _ONE), "factor": ("", _ONE)},
+    "stiffness_gradient": {"e_gradient": ("", _ONE)},
+    "offset_drift": {"offset": ("m", LENGTH), "drift": ("m/s", D("m/s"))},
+    "bubble_shrinkage": {"shrink_rate": ("1/s", FREQ)},
+    "neighbour_drag": {"inv_plateau": ("1/m", tuple(-x for x in LENGTH)), "plateau": ("m", LENGTH)},
+    "substrate_proximity": {"h_substrate": ("m", LENGTH)},
+    "bjerknes_scale": {"factor": ("", _ONE)},
+}
 
 
 # ------------------------------------------------------------------------------------------------

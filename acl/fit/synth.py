@@ -16,6 +16,20 @@ from acl.diagnostics import DiagnosticError, Span, error, suggest
 
 # user-facing effect parameters that are the inverse of the fitted coordinate
 ALIASES = {"v_sat": ("inv_vsat2", lambda v: 1.0 / v**2), "plateau": ("inv_plateau", lambda v: 1.0 / v)}
+ALIAS_UNITS = {"v_sat": "V", "plateau": "m"}      # SI unit of each user-facing alias
+
+
+def param_unit(eid: str, name: str) -> str | None:
+    """The SI unit (acl.fit.effects) of parameter ``name`` of effect ``eid``, aliases included
+    ('' for a plain number); None when the effect or the parameter is unknown."""
+    from acl.fit.effects import EFFECTS
+
+    if eid not in EFFECTS:
+        return None
+    units = {p.name: p.unit for p in EFFECTS[eid].params}
+    if name in ALIASES and ALIASES[name][0] in units:
+        return ALIAS_UNITS[name]
+    return units.get(name)
 
 
 @dataclass
