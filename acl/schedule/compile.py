@@ -135,10 +135,11 @@ class _Compiler:
         from acl.design.model import Drive, Tone
         from acl.physics.constants import LINEAR_AMPLITUDE_LIMIT
 
+        worst_of: dict[int, tuple[float, str]] = {}     # step -> (worst eps/R over its segments, interface)
         for seg in sched.segments:
             if not seg.tones or not self.design.capsules:
                 continue
-            worst, where = 0.0, ""
+            worst, where = worst_of.get(seg.step, (0.0, ""))
             chirps = [t for t in seg.tones if t.frequency_end_hz]
             grid = np.linspace(0.0, 1.0, 9) if chirps else np.zeros(1)
             for x in grid:
@@ -150,10 +151,12 @@ class _Compiler:
                 k, v = max(amps.items(), key=lambda kv: kv[1], default=("", 0.0))
                 if v > worst:
                     worst, where = v, k
+            worst_of[seg.step] = (worst, where)
+        for step_index, (worst, where) in sorted(worst_of.items()):   # one finding per step, its worst segment
             if worst <= LINEAR_AMPLITUDE_LIMIT:
                 continue
-            step = self.program.steps[seg.step]
-            text = (f"step {seg.step + 1} drives interface `{where}` to eps/R = {worst:.2f}, beyond the linear "
+            step = self.program.steps[step_index]
+            text = (f"step {step_index + 1} drives interface `{where}` to eps/R = {worst:.3f}, beyond the linear "
                     f"bubble model (eps/R <= {LINEAR_AMPLITUDE_LIMIT:g}; docs/physics.md)")
             if self.opts.allow_nonlinear:
                 self.notes.append(text + ": allowed by --allow-nonlinear; forces there are not trustworthy")
