@@ -39,10 +39,23 @@ docs: docs/language.md, docs/physics.md, docs/rules.md, docs/data.md
 """
 
 
+def usage_location(message: str) -> str:
+    """Where on the command line an argparse error is: ``<--option>``, ``<PATH>``, ``<argv>``."""
+    import re
+
+    m = (re.match(r"argument ([^:\s]+)", message)
+         or re.match(r"unrecognized arguments: (\S+)", message)
+         or re.match(r"the following arguments are required: ([^,\s]+)", message))
+    if not m:
+        return "<argv>"
+    where = m.group(1).split("/")[-1] if m.group(1).startswith("-") else m.group(1)
+    return f"<{where}>"
+
+
 class _Parser(argparse.ArgumentParser):
-    def error(self, message: str):  # usage errors: a diagnostic line and exit 2, no traceback
+    def error(self, message: str):  # usage errors: a located diagnostic line and exit 2, no traceback
         self.print_usage(sys.stderr)
-        sys.stderr.write(f"acl: error[E-USAGE]: {message}\n")
+        sys.stderr.write(f"{usage_location(message)}: error[E-USAGE]: {message}\n")
         raise SystemExit(2)
 
 

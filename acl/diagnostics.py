@@ -31,8 +31,8 @@ class Span(BaseModel):
     end_line: int | None = None
     end_column: int | None = None
 
-    def __str__(self) -> str:
-        return f"{self.file}:{self.line}:{self.column}"
+    def __str__(self) -> str:   # an empty path (`acl check ""`) is still shown as a location
+        return f"{self.file or '<empty-path>'}:{self.line}:{self.column}"
 
 
 @dataclass(frozen=True)
@@ -130,6 +130,9 @@ def diagnostics_to_json(diags: Sequence[Diagnostic]) -> str:
     return json.dumps({"diagnostics": [d.as_dict() for d in diags]}, indent=2)
 
 
+MAX_EXCERPT = 240   # characters of a source line quoted under a diagnostic
+
+
 def render(diags: Sequence[Diagnostic], console=None, sources: dict[str, str] | None = None) -> None:
     """Render diagnostics with a caret excerpt of the source line (rich)."""
     from acl._console import make_console
@@ -149,11 +152,18 @@ def render(diags: Sequence[Diagnostic], console=None, sources: dict[str, str] | 
             if lines and 1 <= d.span.line <= len(lines):
                 src = lines[d.span.line - 1].rstrip("\n")
                 gutter = f"{d.span.line:>5} | "
-                console.print(Text(gutter, style="dim") + Text(src))
                 width = 1
                 if d.span.end_line == d.span.line and d.span.end_column:
                     width = max(1, d.span.end_column - d.span.column)
-                caret = " " * (len(gutter) + max(0, d.span.column - 1)) + "^" * width
+                column = d.span.column
+                if len(src) > MAX_EXCERPT:   # a 200 kB line is shown around its column, not whole
+                    start = max(0, column - 1 - MAX_EXCERPT // 4)
+                    cut = src[start:start + MAX_EXCERPT]
+                    src = ("…" if start else "") + cut + ("…" if start + MAX_EXCERPT < len(src) else "")
+                    column = column - start + (1 if start else 0)
+                    width = min(width, MAX_EXCERPT)
+                console.print(Text(gutter, style="dim") + Text(src))
+                caret = " " * (len(gutter) + max(0, column - 1)) + "^" * width
                 console.print(Text(caret, style=colours[d.severity]))
         for note in d.notes:
             console.print(Text(f"      = note: {note}", style="dim"))

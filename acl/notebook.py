@@ -91,17 +91,18 @@ class Mode:
     q_declared: bool             #: True when the design declares Q
     dominant_orifice: str        #: orifice whose interface moves most
     share: float                 #: that interface's share of the volume oscillation (0..1)
+    q_predicted: float | None = None   #: the model's Q when ``q`` is declared (None in older reports)
 
 
 @dataclass(frozen=True)
 class CapsuleModes:
     """A capsule's predicted modes, ascending in frequency."""
 
-    name: str
-    file: str
-    line: int
-    volume_m3: float
-    modes: tuple[Mode, ...]
+    name: str                    #: capsule name
+    file: str                    #: file of its declaration
+    line: int                    #: line of its declaration
+    volume_m3: float             #: gas volume (m^3)
+    modes: tuple[Mode, ...]      #: one per orifice, ascending in frequency
 
 
 @dataclass
@@ -115,25 +116,28 @@ class Analysis:
     ``notes`` (defaults the model assumed).
     """
 
-    file: str
-    capsules: list[CapsuleModes]
-    frequencies_hz: list[float]
-    selectivity: list[dict]
-    pairs: list[dict]
-    latches: list[dict]
-    equilibrium: dict | None
-    requires: list[dict]
-    notes: list[str]
+    file: str                    #: the design file
+    capsules: list[CapsuleModes]     #: predicted modes of each capsule
+    frequencies_hz: list[float]  #: every frequency a program uses (Hz)
+    selectivity: list[dict]      #: {frequency_hz, capsule, relative_response, target, crosstalk}
+    pairs: list[dict]            #: {a, b, frequency_hz, voltage_v, force_n, attract, ..., snap_in_voltage_v}
+    latches: list[dict]          #: {name, bistable, switching_force_n, margins: [...]}
+    equilibrium: dict | None     #: the equilibrium under ``at`` (None without it)
+    requires: list[dict]         #: {text, value, unit, ok, file, line} per `require`
+    notes: list[str]             #: defaults and effects the model used
+    coupled_modes: list[dict] = field(default_factory=list)   #: all bubbles as one system: f, Q, shares, phases_deg
+    drives: list[dict] = field(default_factory=list)          #: linear-regime check (eps/R) of each drive
     _raw: dict = field(repr=False, default_factory=dict)
 
     @classmethod
     def from_report(cls, rep) -> "Analysis":
         d = rep.as_dict()
         caps = [CapsuleModes(c["name"], c["file"], c["line"], c["volume_m3"],
-                             tuple(Mode(m["frequency_hz"], m["q"], m["q_declared"], m["dominant_orifice"], m["share"])
-                                   for m in c["modes"])) for c in d["capsules"]]
+                             tuple(Mode(m["frequency_hz"], m["q"], m["q_declared"], m["dominant_orifice"], m["share"],
+                                        m.get("q_predicted")) for m in c["modes"])) for c in d["capsules"]]
         return cls(d["file"], caps, list(d["frequencies_hz"]), d["selectivity"], d["pairs"], d["latches"],
-                   d["equilibrium"], d["requires"], d["notes"], d)
+                   d["equilibrium"], d["requires"], d["notes"], list(d.get("coupled_modes") or []),
+                   list(d.get("drives") or []), d)
 
     @property
     def requires_ok(self) -> bool:
@@ -145,8 +149,8 @@ class Analysis:
 
         >>> import acl
         >>> a = acl.analyze("examples/fig1f_selective_beams.acl", snap_in=False)
-        >>> round(a.resonance("high") / 1e3, 1)       # Table S1 design 3 (paper: 171.8 kHz)
-        174.9
+        >>> abs(a.resonance("high") / 171.8e3 - 1) < 0.03   # paper Table S1, design 3: 171.8 kHz (3 %)
+        True
         """
         for c in self.capsules:
             if c.name == capsule:
@@ -157,8 +161,9 @@ class Analysis:
         """The JSON object of `acl analyze --output-format json`.
 
         >>> import acl
-        >>> sorted(acl.analyze("examples/fig1f_selective_beams.acl", snap_in=False).as_dict())[:4]
-        ['capsules', 'equilibrium', 'file', 'frequencies_hz']
+        >>> d = acl.analyze("examples/fig1f_selective_beams.acl", snap_in=False).as_dict()
+        >>> d["capsules"][0]["name"], d["frequencies_hz"]
+        ('low', [85000.0, 170000.0])
         """
         return self._raw
 
@@ -217,9 +222,9 @@ class Finding:
 class LintResult:
     """The findings of :func:`acl.lint` for one file, sorted by location."""
 
-    path: str
-    findings: list[Finding]
-    notes: list[str]
+    path: str                    #: the linted file
+    findings: list[Finding]      #: findings and check diagnostics, sorted by location
+    notes: list[str]             #: rules that could not run, and why
     _raw: dict = field(repr=False, default_factory=dict)
 
     @property
@@ -293,13 +298,13 @@ class Compiled:
     ``files`` entries (no waveform is rendered here).
     """
 
-    program: str
-    duration_s: float
-    max_voltage_v: float
-    sample_rate_hz: float
-    segments: list[SegmentRow]
-    goals: list[dict]
-    schedule: Any = field(repr=False, default=None)
+    program: str                 #: program name
+    duration_s: float            #: total duration (s)
+    max_voltage_v: float         #: the amplifier / transducer limit the schedule respects (V peak)
+    sample_rate_hz: float        #: rate the phases and peaks were computed for (S/s)
+    segments: list[SegmentRow]   #: constant-tone segments on one time axis
+    goals: list[dict]            #: per-goal promises: predicted error, margins (schedule.json ``goals``)
+    schedule: Any = field(repr=False, default=None)   #: the :class:`acl.schedule.model.Schedule` itself
 
     @classmethod
     def from_schedule(cls, schedule) -> "Compiled":
@@ -374,14 +379,14 @@ class FitReport:
     ``calibrated_source`` is the calibrated design's text (`acl fit --calibrated` writes it).
     """
 
-    design: str
-    rows: int
-    rmse_before: float | None
-    rmse_after: float | None
-    effects_selected: list[str]
-    parameters: list[FitParameter]
-    per_observable: dict
-    calibrated_source: str = field(repr=False, default="")
+    design: str                  #: design file fitted
+    rows: int                    #: measurement rows used
+    rmse_before: float | None    #: RMSE of the base model (SI units of the observable)
+    rmse_after: float | None     #: RMSE with the selected effects
+    effects_selected: list[str]  #: effects the selection kept
+    parameters: list[FitParameter]   #: fitted parameters after selection, with 95 % intervals
+    per_observable: dict         #: observable -> {n, rmse_before, rmse_after}
+    calibrated_source: str = field(repr=False, default="")   #: text of the calibrated design
     _raw: dict = field(repr=False, default_factory=dict)
 
     @classmethod

@@ -91,7 +91,7 @@ def test_compile_keeps_format_for_waveforms_and_diagnostics_becomes_output_forma
     r = run("compile", "examples/fig3_three_orifice.acl", "--program", "nope", "-o", str(tmp_path / "o"),
             "--diagnostics", "json")
     assert r.returncode == 2 and json.loads(r.stdout)["diagnostics"] and "deprecated" in r.stderr
-    r = run("compile", "examples/fig3_three_orifice.acl", "--program", "rectangle", "-o", str(tmp_path / "o"),
+    r = run("compile", "examples/fig3_three_orifice.acl", "--program", "rectangle", "--allow-nonlinear", "-o", str(tmp_path / "o"),
             "--format", "mp3")
     assert r.returncode == 2 and "E-COMPILE-FORMAT" in r.stderr
 
@@ -233,7 +233,7 @@ def test_outputs_respect_the_umask(tmp_path, mask):
                            env=env, timeout=600, preexec_fn=lambda: os.umask(mask))
         assert r.returncode == 0, r.stderr
     fig2 = "examples/fig2_vertical_cantilever.acl"
-    acl("compile", "examples/fig3_three_orifice.acl", "--program", "rectangle", "-o", str(tmp_path / "out"))
+    acl("compile", "examples/fig3_three_orifice.acl", "--program", "rectangle", "--allow-nonlinear", "-o", str(tmp_path / "out"))
     acl("analyze", FIG4, "--no-snap", "--plot", str(tmp_path / "figs"))
     acl("synth", fig2, "--voltages", "0V..6V:4", "--noise", "0.05um", "-o", str(tmp_path / "data.csv"))
     acl("fit", fig2, str(tmp_path / "data.csv"), "--effects", "none", "--free", "gamma",

@@ -101,9 +101,12 @@ def test_fig6e_switch_with_automatic_tones_is_feasible_and_as_cheap_as_the_pinne
     auto = text.replace("switch l to b, margin 1.2, using [85 kHz], limit 100 V",
                         "switch l to b, margin 1.2, limit 100 V")
     assert auto != text
-    pinned = compile_program(acl.loads(text, filename=str(EXAMPLES / "pinned.acl")), "forth")
+    # switching the latch needs ~30 V, eps/R ~ 1.9 in the coupled model: far beyond linear (issue 10), so the
+    # planner is exercised with allow_nonlinear
+    lax = CompileOptions(allow_nonlinear=True)
+    pinned = compile_program(acl.loads(text, filename=str(EXAMPLES / "pinned.acl")), "forth", lax)
     # before: "raise the max voltage above 100 V" (65 candidates, each capped at 100 V / sqrt(65))
-    free = compile_program(acl.loads(auto, filename=str(EXAMPLES / "auto.acl")), "forth")
+    free = compile_program(acl.loads(auto, filename=str(EXAMPLES / "auto.acl")), "forth", lax)
     (p,) = pinned.segments[0].tones
     # issue 11 measured 27 V with uncoupled bubbles; the coupled model (issue 10: the latch capsules hear
     # each other and the substrate's image) needs about 30 V: a regression value of this model, not the paper

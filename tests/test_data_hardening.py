@@ -108,6 +108,27 @@ def test_effect_without_a_value_is_refused_not_silently_null(tmp_path, capsys):
     assert rc == 2 and "positive" in err and not out.exists()
 
 
+@pytest.mark.parametrize("effect, column, got, declared", [
+    ("drive_saturation=v_sat:8um", 24, "is a length", "voltage"),          # issue 11: was planted as 8e-6 V
+    ("drive_saturation=v_sat:8", 24, "is a plain number", "voltage"),
+    ("offset_drift=offset:0.5um, drift:3V", 34, "is a voltage", "speed"),
+    ("neighbour_drag=plateau:5V", 24, "is a voltage", "length"),
+    ("large_deflection=elastica_weight:0.5um", 34, "is a length", "a plain number"),
+])
+def test_effect_value_in_the_wrong_unit_is_a_located_usage_error(tmp_path, capsys, effect, column, got, declared):
+    """Each --effect value's unit is checked against the unit acl.fit.effects declares for the
+    parameter; the diagnostic points at the value's column in the option's text."""
+    rc, err, out = _synth(capsys, tmp_path, "--effect", effect)
+    assert rc == 2 and not out.exists()
+    assert f"<--effect>:1:{column}: error[E-USAGE]" in err and got in err and declared in err
+
+
+def test_effect_values_in_their_declared_units_are_planted(tmp_path, capsys):
+    rc, err, out = _synth(capsys, tmp_path, "--effect", "offset_drift=offset:0.5um,drift:10nm/s",
+                          "--effect", "neighbour_drag=plateau:5um", "--effect", "stiffness_scale=e_scale:0.7")
+    assert rc == 0 and out.exists(), err
+
+
 def test_planted_effect_changes_the_data_and_is_announced(tmp_path, capsys):
     rc, err, plain = _synth(capsys, tmp_path, "--voltages", "0V..8V:5")
     base = plain.read_text()

@@ -170,3 +170,38 @@ def test_calibrated_elsewhere_needs_path_and_says_so(tmp_path, capsys):
         acl.load(str(other))
     d = acl.load(str(other), search_paths=[str(tmp_path)])
     assert d.effect("stiffness_scale").params["e_scale"] == pytest.approx(0.7, rel=0.02)
+
+
+@pytest.mark.parametrize("decl, where, words", [
+    ("effect drive_saturation { v_sat = 8 um }", "v_sat = ", "expected voltage [V], found length [m]"),
+    ("effect offset_drift { offset = 0.5 um, drift = 3 V }", "drift = ", "expected speed"),
+    ("effect large_deflection { elastica_weight = 0.5 um }", "elastica_weight = ", "expected a plain number"),
+    ("effect transducer_gain { gain_slope = 0.5, f_ref = 125 um }", "f_ref = ", "expected frequency"),
+])
+def test_declared_effect_coefficient_in_the_wrong_unit_is_located_e301(tmp_path, decl, where, words):
+    """The design-side twin of `synth --effect v_sat:8um`: a coefficient's unit is checked against the
+    unit acl.fit.effects declares (was accepted: `v_sat = 8 um` became a saturation at 8e-6 "V")."""
+    text = open(CANTILEVER).read() + "\n" + decl + "\n"
+    path = tmp_path / "cant.acl"
+    path.write_text(text)
+    from acl.design.resolve import check_design
+
+    _, diags = check_design(str(path))
+    errors = [d for d in diags if d.is_error]
+    line = text.count("\n", 0, text.index(decl)) + 1
+    column = decl.index(where) + len(where) + 1
+    assert [(d.code, d.span.line, d.span.column) for d in errors] == [("E301", line, column)]
+    assert words in errors[0].message
+
+
+def test_design_effect_units_agree_with_the_fit_library():
+    """acl.design.core.EFFECT_UNITS (checked at load) names every coefficient of acl.fit.effects in its unit."""
+    from acl.design.core import EFFECT_UNITS, EFFECTS as DESIGN_EFFECTS
+    from acl.fit.effects import EFFECTS
+    from acl.units import DIMENSIONLESS, parse_unit
+
+    assert set(EFFECT_UNITS) == set(DESIGN_EFFECTS)
+    for eid, eff in EFFECTS.items():
+        for p in eff.params:
+            unit, dims = EFFECT_UNITS[eid][p.name]
+            assert unit == p.unit and dims == (parse_unit(p.unit)[1] if p.unit else DIMENSIONLESS), (eid, p.name)

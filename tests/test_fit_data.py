@@ -148,3 +148,17 @@ def test_mechanisms_outside_the_fit_model_are_a_diagnostic_not_a_guess(tmp_path,
     assert main(["fit", design, path]) == 1
     err = capsys.readouterr().err
     assert "E810" in err and "Traceback" not in err
+
+
+def test_a_wrong_name_repeated_on_many_rows_is_reported_once_with_a_count(tmp_path, capsys):
+    """Issue 11: 18 rows naming one wrong observable are one E803 (root cause once), not 18 blocks;
+    an unknown unit repeated on rows is one E804 too, while different findings stay separate."""
+    rows = "".join(f"deflektion,1.{i},um,125 kHz @ 3 V,{i},0.2,50 um\n" for i in range(18))
+    rows += "deflection,1,furlongz,125 kHz @ 3 V,0,0.2,50 um\n" * 3
+    rows += "deflection,abc,um,125 kHz @ 3 V,0,0.2,50 um\n"
+    path = _csv(tmp_path, rows)
+    assert main(["fit", CANTILEVER, path]) == 1
+    err = capsys.readouterr().err
+    assert err.count("[E803]") == 1 and f"{path}:2:1" in err and "and 17 more rows" in err
+    assert err.count("[E804]") == 1 and f"{path}:20:14" in err and "and 2 more rows (lines 21, 22)" in err
+    assert err.count("[E806]") == 1 and f"{path}:23:12" in err

@@ -268,6 +268,23 @@ def test_lint_of_a_folder_does_not_follow_a_symlink_out_of_it(tmp_path):
     assert "secret" not in r.stdout and "E303" not in r.stdout
 
 
+@needs_posix
+def test_check_of_a_folder_skips_a_fifo_inside_it_as_lint_does(tmp_path):
+    """Issue 11: `check DIR` reported a FIFO named *.acl found in the folder as E601 while `lint DIR`
+    skipped it; a folder walk keeps regular files only.  A FIFO named explicitly is still E601."""
+    from acl.commands._common import design_files
+
+    folder = tmp_path / "designs"
+    folder.mkdir()
+    (folder / "good.acl").write_text((ROOT / "examples" / "fig2_vertical_cantilever.acl").read_text())
+    os.mkfifo(folder / "pipe.acl")
+    assert [os.path.basename(f) for f in design_files([str(folder)])] == ["good.acl"]
+    r = _acl("check", str(folder))
+    assert r.returncode == 0 and "E601" not in r.stdout + r.stderr, r.stdout + r.stderr
+    r = _acl("check", str(folder / "pipe.acl"))
+    assert r.returncode == 2 and "E601" in r.stdout + r.stderr
+
+
 @pytest.mark.parametrize("command", ["check", "lint"])
 def test_standard_input_with_stdin_filename(command):
     r = _acl(command, "-", "--stdin-filename", "examples/unsaved.acl", stdin="param x = 1 V + 1 um\n")

@@ -437,8 +437,17 @@ def test_a_suppression_on_a_blocks_line_covers_the_whole_block(tmp_path):
 
 
 def test_acl901_flags_a_suppression_without_reason(tmp_path):
-    text = ONE + "program p {  # acl: ignore[ACL402]\n  drive 123 kHz @ 12 V for 1 s\n}\n"
+    text = ONE + "program p {  # acl: ignore[ACL402, ACL105]\n  drive 123 kHz @ 12 V for 1 s\n}\n"
     assert codes(lint(tmp_path, text)) == {"ACL901"}
+
+
+def test_acl105_fires_for_a_sweep_through_resonance_but_not_off_resonance(tmp_path):
+    # eps/R ~ 0.046 per V at design 1's resonance (coupled model, stdlib gain table): 8 V crosses the
+    # 0.2 linear limit there (docs/rules.md ACL105), a 8 V sweep over 40..60 kHz stays far below it.
+    through = ONE + "program p {\n  sweep 100 kHz to 150 kHz @ 8 V in 1 s\n}\n"
+    below = ONE + "program p {\n  sweep 40 kHz to 60 kHz @ 8 V in 1 s\n}\n"
+    assert "ACL105" in codes(lint(tmp_path, through))
+    assert "ACL105" not in codes(lint(tmp_path, below))
 
 
 def test_a_design_that_does_not_resolve_reports_its_check_errors(tmp_path):

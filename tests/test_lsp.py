@@ -280,6 +280,9 @@ def test_lint_findings_follow_the_check_diagnostics(tmp_path):
                            lambda p: p["uri"] == u and any(d["code"] == "ACL601" for d in p["diagnostics"]), timeout=120)
         from acl.lint import find_config, lint_file, load_config, load_rules
 
+        acl601 = next(d for d in later["diagnostics"] if d["code"] == "ACL601")
+        assert acl601["codeDescription"]["href"] == uri(ROOT / "docs" / "rules.md") + "#acl601"
+        assert "## ACL601" in (ROOT / "docs" / "rules.md").read_text()
         rep = lint_file(str(path), load_config(find_config(str(path)), load_rules()))
         assert sorted((d.code, d.span.line - 1) for d in rep.findings) == \
             sorted((d["code"], d["range"]["start"]["line"]) for d in later["diagnostics"])
@@ -316,6 +319,13 @@ def test_incremental_parse_equals_whole_file_parse():
             assert got is None, f      # a file with syntax errors always takes the whole-file path
             continue
         assert got == want, f
+    # its chunker (with remembered line depths) cuts exactly where the parser's does
+    from acl.syntax.parser import _statement_chunks
+
+    ip = IncrementalParser()
+    for f in _corpus():
+        lines = (f.read_text(encoding="utf-8", errors="replace") + "\n").split("\n")
+        assert list(ip._chunks(lines)) == list(_statement_chunks(lines)), f
     # a broken statement: parse() refuses, parse_partial() keeps every other statement
     broken = DESIGN.replace("fix c3", "fix c3 (")
     assert IncrementalParser().parse(broken, "b.acl") is None
@@ -328,6 +338,7 @@ def test_incremental_parse_equals_whole_file_parse():
     for old, new in (("300 ms", "250 ms"), ("fix c3", "fix c3\nparam extra = 2 um"), ("c2", "c22"), ("{ }", "{\n}")):
         text = text.replace(old, new)
         assert p.parse(text, "d.acl") == parse_module(text, "d.acl"), (old, new)
+    assert p.parse(text, "other.acl") == parse_module(text, "other.acl")     # another file name: no stale spans
 
 
 def _apply(text: str, edits: list[dict]) -> str:
@@ -433,3 +444,41 @@ def test_definition_into_a_sibling_file_and_use_completion(client, tmp_path):
     assert got["uri"] == uri(tmp_path / "parts.acl")
     media = _labels(client.at("textDocument/completion", u, 3, len("use medium ")))
     assert "media.pbs" in media and all(m.startswith("media.") for m in media)
+
+
+def test_positions_are_utf16_code_units(client, tmp_path):
+    """A non-BMP character (2 UTF-16 units) before a diagnostic and a hover on the same line."""
+    line = 'beam b2 like beams.cantilever50 { clamp = (0, 0, 0), material = "\U0001F600", lenght = 40 um }'
+    text = DESIGN + line + "\n"
+    path = tmp_path / "utf16.acl"
+    u, pub = _open(client, path, text)
+    ln = len(DESIGN.split("\n")) - 1
+    e203 = next(d for d in pub["diagnostics"] if d["code"] == "E203")
+    assert e203["range"]["start"] == {"line": ln, "character": line.index("lenght") + 1}
+    hv = client.at("textDocument/hover", u, ln, line.index("40 um") + 1 + 1)
+    assert "**4e-05 m**" in hv["contents"]["value"]
+    assert hv["range"]["start"]["character"] == line.index("40 um") + 1
+    acts = client.request("textDocument/codeAction", {"textDocument": {"uri": u}, "range": e203["range"],
+                                                      "context": {"diagnostics": [e203]}})
+    edit = acts[0]["edit"]["changes"][u][0]
+    assert edit["newText"] == "length" and edit["range"]["start"]["character"] == line.index("lenght") + 1
+
+
+def test_hover_on_a_facing_pair_shows_the_coupled_modes_with_phases(client):
+    path = ROOT / "examples" / "fig4_facing_pair.acl"
+    text = path.read_text(encoding="utf-8")
+    u = client.open(path, text, 1)
+    client.wait_for("textDocument/publishDiagnostics", lambda p: p["uri"] == u)
+    ln = _line(text, "capsule left")
+    hv = _hover_text(client, u, ln, len("capsule l"))
+    import acl
+    from acl.analysis import acoustics as AC
+
+    if not hasattr(AC, "coupled_modes"):
+        pytest.skip("this physics has no coupled modes")
+    modes = AC.coupled_modes(acl.load(str(path)))
+    assert "with its neighbours" in hv
+    for m in modes:
+        assert f"| {m.frequency_hz / 1e3:.1f} |" in hv
+    assert "(180 deg)" in hv          # the antisymmetric mode: the two interfaces in antiphase
+    client.notify("textDocument/didClose", {"textDocument": {"uri": u}})

@@ -2,6 +2,8 @@
 
 Gains come from the model (acoustics thrust x cantilever compliance), and, separately, from a
 documented fake calibration sweep (Fig. S4a-like: three resonances pushing 120 degrees apart).
+The paths at 20 V put the largest interface at eps/R ~ 0.20-0.25, the linear limit of the bubble model
+(issue 10, docs/physics.md): these tests check the planner, so they opt in with allow_nonlinear.
 """
 import numpy as np
 import pytest
@@ -56,7 +58,7 @@ def fake_calibration() -> GainTable:
 
 @pytest.mark.parametrize("program", ["rectangle", "circle", "epfl"])
 def test_paper_paths_compile_with_model_gains_and_report_a_small_predicted_error(design, program):
-    s = compile_program(design, program, CompileOptions(resim_points=12))
+    s = compile_program(design, program, CompileOptions(resim_points=12, allow_nonlinear=True))
     (goal,) = s.goals
     assert len(goal.frequencies_hz) == 3
     assert goal.rms_error_m is not None and goal.max_error_m is not None
@@ -66,7 +68,7 @@ def test_paper_paths_compile_with_model_gains_and_report_a_small_predicted_error
 
 @pytest.mark.parametrize("program", ["rectangle", "circle", "epfl"])
 def test_paper_paths_compile_with_a_calibration_and_pick_its_three_resonances(design, program):
-    s = compile_program(design, program, CompileOptions(calibration=fake_calibration()))
+    s = compile_program(design, program, CompileOptions(calibration=fake_calibration(), allow_nonlinear=True))
     (goal,) = s.goals
     assert sorted(goal.frequencies_hz) == [70e3, 110e3, 150e3]
     assert goal.max_error_m < 0.01e-6
@@ -77,7 +79,7 @@ def test_model_tones_surround_every_direction_of_the_circle(design):
     from acl.schedule.gains import model_gain_table
     from acl.schedule.tones import reach
 
-    goal = compile_program(design, "circle", CompileOptions(resim_points=5)).goals[0]
+    goal = compile_program(design, "circle", CompileOptions(resim_points=5, allow_nonlinear=True)).goals[0]
     g = model_gain_table(design, "module").at(goal.frequencies_hz).T        # (3, 2)
     a = np.linspace(0, 2 * np.pi, 72, endpoint=False)
     assert reach(g[None], np.column_stack([np.cos(a), np.sin(a)])).min() > 0
@@ -85,7 +87,7 @@ def test_model_tones_surround_every_direction_of_the_circle(design):
 
 
 def test_every_segment_respects_the_voltage_limit(design):
-    s = compile_program(design, "epfl", CompileOptions(resim_points=2))
+    s = compile_program(design, "epfl", CompileOptions(resim_points=2, allow_nonlinear=True))
     assert max(seg.peak_v for seg in s.segments) <= s.max_voltage_v
 
 
@@ -107,7 +109,7 @@ def test_waypoints_the_forward_model_cannot_settle_are_counted_not_averaged(desi
             return out
         return forward, "flaky"
 
-    s = compile_program(design, "circle", CompileOptions(forward_provider=flaky, resim_points=10))
+    s = compile_program(design, "circle", CompileOptions(forward_provider=flaky, resim_points=10, allow_nonlinear=True))
     goal = s.goals[0]
     assert goal.details["unconverged_waypoints"] == 5
     assert np.isfinite(goal.rms_error_m) and any("no stable equilibrium" in n for n in s.notes)

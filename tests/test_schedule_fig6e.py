@@ -60,7 +60,7 @@ def test_with_switching_forces_within_reach_the_toggle_uses_85_then_170_khz(desi
         forces, _, _ = latch_forces(d, freqs)
         return forces, np.array([2e-9]), np.array([2e-10])      # thresholds a soft latch would have
 
-    s = compile_program(design, "toggle", CompileOptions(latch_provider=reachable))
+    s = compile_program(design, "toggle", CompileOptions(latch_provider=reachable, allow_nonlinear=True))
     assert [t.frequency_hz for t in s.segments[0].tones] == [85e3]
     assert [t.frequency_hz for t in s.segments[1].tones] == [170e3]
 

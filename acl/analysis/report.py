@@ -188,11 +188,26 @@ def analyze(design: M.Design, at: M.Drive | None = None, snap_in: bool = True, p
             "residual_n": st.residual,
             "capsules": [{"name": k, "displacement_m": [float(x) for x in v]} for k, v in st.displacements.items()],
             "deflections_m": {k: float(np.linalg.norm(v)) if np.ndim(v) else float(v) for k, v in st.deflections.items()},
+            "deflection_over_eq1_limit": _eq1_ratios(design, st.deflections),
+            "interface_amplitude_over_radius": AC.interface_amplitudes(design, at, st.positions),
             "gaps": [_gap(design, a, b, st.positions) for a, b in _pairs(design)],
             "warnings": [d.message for d in st.diagnostics],
         }
     rep.requires = [_require(design, r, modes, rep) for r in design.requires]
     return rep
+
+
+def _eq1_ratios(design: M.Design, deflections: dict) -> dict:
+    """Beam deflection / the deflection where paper Eq. (1) departs 5 % from the elastica (docs/physics.md part B section 2); > 1: outside Eq. (1)."""
+    from acl.physics.beams import eq1_validity_limit
+
+    out = {}
+    for b in design.beams:
+        if b.name in deflections:
+            v = deflections[b.name]
+            d = float(np.linalg.norm(v)) if np.ndim(v) else float(v)
+            out[b.name] = d / eq1_validity_limit(b.length, b.rigid_length)
+    return out
 
 
 def _drive_entry(program, step, drive_text, amps: dict, line=None) -> dict:

@@ -27,6 +27,19 @@ def quantity_text(text: str) -> str:
     return f"{number} {unit}" if unit else number
 
 
+def seed(text: str) -> int:
+    """argparse type of a random seed: a non-negative integer (numpy refuses negative seeds)."""
+    import argparse
+
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"{text!r}: a seed is a non-negative integer")
+    return value
+
+
 def add_design_options(p, sets: bool = True) -> None:
     if sets:
         p.add_argument("--set", action="append", default=[], metavar="P=V",
@@ -172,9 +185,10 @@ SKIPPED_DIRS = {"__pycache__", "node_modules", "venv", ".venv"}
 
 
 def design_files(paths) -> list[str]:
-    """Expand folders into the ``*.acl`` designs under them (recursively, sorted; hidden folders and
-    links leading out of the folder skipped); anything else is kept as given (the loader reports a
-    missing or unreadable file)."""
+    """Expand folders into the ``*.acl`` designs under them (recursively, sorted; hidden folders,
+    links leading out of the folder and entries that are not regular files, such as a FIFO named
+    ``*.acl``, skipped, as ``acl lint`` does); anything else is kept as given (the loader reports a
+    missing or unreadable file, and a FIFO named explicitly as E601)."""
     import os
 
     files = []
@@ -185,7 +199,8 @@ def design_files(paths) -> list[str]:
                 dirs[:] = sorted(d for d in dirs if not d.startswith(".") and d not in SKIPPED_DIRS)
                 for n in sorted(names):
                     full = os.path.join(dirpath, n)
-                    if n.endswith(".acl") and os.path.commonpath([top, os.path.realpath(full)]) == top:
+                    if n.endswith(".acl") and os.path.commonpath([top, os.path.realpath(full)]) == top \
+                            and os.path.isfile(full):
                         files.append(full)
         else:
             files.append(p)

@@ -48,6 +48,8 @@ def add_parser(p) -> None:
                    help="re-plan paths N times against the design's nonlinear model (saturation, stiffening, "
                         "declared effects); default 0")
     p.add_argument("--plot", action="store_true", help="write a PNG per path goal")
+    p.add_argument("--allow-nonlinear", action="store_true",
+                   help="plan drives beyond the linear bubble model (interface amplitude eps/R > 0.25; docs/physics.md)")
     add_output_format(p, old=("--diagnostics",))
     add_design_options(p)
 
@@ -69,6 +71,9 @@ def _formats(items: list[str]):
                                     suggest(f, FORMATS) or f"choose from {', '.join(FORMATS)}", "--format"))
             elif f not in out:
                 out.append(f)
+    if not out and not diags:
+        diags.append(_usage("E-COMPILE-FORMAT", f"--format {','.join(items)!r} names no waveform format",
+                            f"choose from {', '.join(FORMATS)}", "--format"))
     return out, diags
 
 
@@ -133,6 +138,9 @@ def run(args) -> int:
     diags += more
     numbers, more = _numbers(args)
     diags += more
+    if args.output == "-":   # it made a folder named `-`
+        diags.append(_usage("E-EMIT-OUTPUT", "-o -: standard output cannot hold a compile (schedule.json and "
+                            "waveform files)", "give a folder, e.g. -o out/", "--output"))
     for option, value, hi in (("--band-samples", args.band_samples, 10_000),
                               ("--nonlinear-passes", args.nonlinear_passes, 100)):
         if not 0 <= value <= hi:
@@ -177,7 +185,8 @@ def run(args) -> int:
                           calibration=calibration, full_scale_v=full_scale,
                           robust=args.robust is not None, robust_mode=args.robust or "mean",
                           band_samples=args.band_samples, band_seed=args.band_seed,
-                          nonlinear_passes=args.nonlinear_passes, reload=_reloader(args, path))
+                          nonlinear_passes=args.nonlinear_passes, reload=_reloader(args, path),
+                          allow_nonlinear=bool(getattr(args, "allow_nonlinear", False)))
     try:
         schedule = compile_program(design, program, opts)
     except DiagnosticError as exc:

@@ -4,7 +4,7 @@ from __future__ import annotations
 import os
 import sys
 
-from acl.commands._common import add_output_format, exit_code, one_design, plotting_missing, report
+from acl.commands._common import add_output_format, exit_code, one_design, plotting_missing, report, seed
 
 
 def add_parser(p) -> None:
@@ -20,7 +20,7 @@ def add_parser(p) -> None:
                         "DESIGN's folder as <stem>.calibrated.acl (loads without --path)")
     p.add_argument("--effects", default=None, metavar="IDS",
                    help="comma-separated effect ids to consider (default: the whole library; `none` for none)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the cross-validation folds (default 0)")
+    p.add_argument("--seed", type=seed, default=0, help="seed of the cross-validation folds (default 0)")
     add_output_format(p, old=("--json",))
     p.add_argument("--path", action="append", default=[], metavar="DIR", help="extra folder imports may read from")
 
@@ -41,6 +41,12 @@ def run(args) -> int:
             return 2
         candidates = names
     if args.report and plotting_missing("--report", fmt):
+        return 2
+    if args.calibrated == "-" or args.report == "-":
+        option = "--calibrated" if args.calibrated == "-" else "--report"
+        report([error("E-USAGE", f"{option} -: standard output cannot hold it (the calibrated design extends DESIGN by "
+                      "a relative path; the report is a folder)", Span(file=f"<{option}>", line=1, column=1),
+                      "give a path")], fmt)
         return 2
     design = one_design(args.design, fmt)
     if design is None:
@@ -105,7 +111,7 @@ def run(args) -> int:
         if args.report and not args.quiet:
             from acl._console import make_console
 
-            make_console(stderr=True, highlight=False).print(f"report written to {args.report}/")
+            make_console(stderr=True, highlight=False).print(f"report written to {os.path.normpath(args.report)}/")
         if (args.report or args.calibrated) and not args.quiet:
             from acl._console import make_console
 

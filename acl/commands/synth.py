@@ -9,7 +9,7 @@ from __future__ import annotations
 import math
 import re
 
-from acl.commands._common import add_output_format, exit_code, one_design, parse_sets, quantity_text, report
+from acl.commands._common import add_output_format, exit_code, one_design, parse_sets, quantity_text, report, seed
 
 
 def add_parser(p) -> None:
@@ -25,7 +25,7 @@ def add_parser(p) -> None:
                    help="parameter values to sweep (set:P columns), e.g. gap=20um,30um,40um (repeatable)")
     p.add_argument("--repeats", type=int, default=1, help="repeat the whole experiment N times (default 1)")
     p.add_argument("--interval", default="1 s", help="time between rows (default 1 s)")
-    p.add_argument("--seed", type=int, default=0, help="noise seed (default 0)")
+    p.add_argument("--seed", type=seed, default=0, help="noise seed (default 0)")
     p.add_argument("--observe", default="", metavar="NAMES", help="observables to write (default: all declared)")
     p.add_argument("--schedule", metavar="JSON",
                    help="play this compiled schedule (schedule.json of `acl compile`) on DESIGN and write every "
@@ -51,7 +51,7 @@ def _usage(msg, hint=None):
 _EXAMPLES = {"drive_saturation": "v_sat:8V", "offset_drift": "offset:0.5um,drift:10nm/s",
              "transducer_gain": "gain_slope:0.5", "large_deflection": "elastica_weight:1",
              "stiffness_scale": "e_scale:0.7", "stiffness_gradient": "e_gradient:0.7",
-             "bubble_shrinkage": "shrink_rate:0.01", "neighbour_drag": "plateau:5um", "substrate_proximity": "h_substrate:20um"}
+             "bubble_shrinkage": "shrink_rate:0.01Hz", "neighbour_drag": "plateau:5um", "substrate_proximity": "h_substrate:20um"}
 
 
 def _example(eid: str) -> str:
@@ -75,6 +75,39 @@ def _planted(effects: dict) -> list[str]:
 
     values = effect_inputs(effects)
     return [eid for eid, vals in values.items() if any(vals[p.name] != p.null for p in EFFECTS[eid].params)]
+
+
+class _EffectUnitError(Exception):
+    def __init__(self, diagnostic):
+        super().__init__(diagnostic.message)
+        self.diagnostic = diagnostic
+
+
+def _effect_value(eid: str, key: str, text: str, item: str, column: int) -> float:
+    """The SI value of one ``--effect`` parameter, its unit checked against the unit the effect
+    declares (acl.fit.effects): `v_sat:8um` is refused, not planted as 8e-6 V.  Unknown effects and
+    parameters are left to :func:`acl.fit.synth.effect_inputs`, which names them."""
+    from acl.diagnostics import Span, error
+    from acl.fit.data import parse_quantity
+    from acl.fit.synth import param_unit
+    from acl.units import DIMENSIONLESS, describe, parse_unit
+
+    value, dims = parse_quantity(quantity_text(text))
+    unit = param_unit(eid, key)
+    if unit is not None:
+        want = parse_unit(unit)[1] if unit else DIMENSIONLESS
+        if dims != want:
+            got = "a plain number" if dims == DIMENSIONLESS else f"a {describe(dims)}"
+            need = "a plain number" if not unit else f"a {describe(want)}, e.g. `{key}:{_unit_example(unit)}`"
+            raise _EffectUnitError(error(
+                "E-USAGE", f"--effect {item!r}: `{key}` is {got}; effect {eid} declares it as {need}",
+                Span(file="<--effect>", line=1, column=column),
+                f"`{key}` is in {unit}" if unit else f"`{key}` has no unit"))
+    return value
+
+
+def _unit_example(unit: str) -> str:
+    return {"V": "8V", "m": "5um", "m/s": "10nm/s", "1/s": "0.01Hz", "1/m": "1e5 1/m", "1/V^2": "0.01 1/V^2"}.get(unit, f"1 {unit}")
 
 
 def _qty(text, dims_name):
@@ -115,13 +148,15 @@ def run(args) -> int:
                 return _usage(f"--effect {item!r}: give the effect's size, e.g. {_example(name.strip())}",
                               "an effect at its null value plants nothing; parameters: " + _param_names(name.strip()))
             params = {}
-            for part in filter(None, (s.strip() for s in rest.split(","))):
+            for found in re.finditer(r"[^,]+", rest):
+                part = found.group()
+                if not part.strip():
+                    continue
                 k, sep, v = part.partition(":")
                 if not sep:
                     return _usage(f"--effect {item!r}: parameters are NAME:VALUE, e.g. drive_saturation=v_sat:8V")
-                v = quantity_text(v)
-                from acl.fit.data import parse_quantity
-                params[k.strip()] = parse_quantity(v)[0]
+                column = len(name) + 2 + found.start() + len(k) + 1 + (len(v) - len(v.lstrip()))
+                params[k.strip()] = _effect_value(name.strip(), k.strip(), v, item, column)
             effects[name.strip()] = params
         sets = {}
         for item in args.sweep:
@@ -130,6 +165,11 @@ def run(args) -> int:
                 return _usage(f"--sweep {item!r}: expected P=V1,V2,...")
             sets[k.strip()] = [quantity_text(v)
                                for v in vals.split(",") if v.strip()]
+            if not k.strip() or not sets[k.strip()]:
+                return _usage(f"--sweep {item!r}: expected P=V1,V2,... with at least one value")
+    except _EffectUnitError as exc:
+        report([exc.diagnostic])
+        return 2
     except (ValueError, UnitError) as exc:
         return _usage(str(exc))
     try:
@@ -145,7 +185,7 @@ def run(args) -> int:
                           "give a value that differs from the null, e.g. " + _example(eid))
     if noise < 0 or args.repeats < 1 or not freqs:
         return _usage("noise must not be negative, repeats at least 1, and one frequency at least")
-    if args.schedule:
+    if args.schedule is not None:
         if effects or sets:
             return _usage("--schedule plays on the design as declared: declare effects in it (`effect ID { ... }`) "
                           "instead of --effect; --sweep does not apply")
@@ -207,6 +247,29 @@ def run(args) -> int:
     return 0
 
 
+def _outside_transducer(design, waypoints, path: str) -> list:
+    """E501/E502 for drives of the schedule outside the design's transducer band or maximum voltage
+    (as in data files: the model knows the transducer only there); one diagnostic per kind."""
+    from acl.diagnostics import Span, error
+
+    tr = design.transducer
+    band, vmax = (tr.band, tr.max_voltage) if tr is not None else (None, None)
+    out, seen = [], set()
+    for k, w in enumerate(waypoints):
+        for f, v in w.tones:
+            if "E501" not in seen and band is not None and not band[0] <= f <= band[1]:
+                seen.add("E501")
+                out.append(error("E501", f"waypoint {k} (t = {w.time:g} s) drives {f / 1e3:.6g} kHz, outside the band of "
+                                 f"transducer `{tr.name}` ({band[0] / 1e3:g} .. {band[1] / 1e3:g} kHz)",
+                                 Span(file=path, line=1, column=1), "was the schedule compiled for this design?"))
+            if "E502" not in seen and vmax is not None and v > vmax:
+                seen.add("E502")
+                out.append(error("E502", f"waypoint {k} (t = {w.time:g} s) drives {v:.6g} V, above the maximum "
+                                 f"of transducer `{tr.name}` ({vmax:g} V)", Span(file=path, line=1, column=1),
+                                 "was the schedule compiled for this design?"))
+    return out
+
+
 def _replay(args, noise) -> int:
     from rich.console import Console
 
@@ -223,6 +286,10 @@ def _replay(args, noise) -> int:
     design, code = load_or_report(args.design, args)
     if design is None:
         return code
+    bad = _outside_transducer(design, waypoints, args.schedule)
+    if bad:
+        report(bad)
+        return 1
     names = [s.strip() for s in args.observe.split(",") if s.strip()]
     known = [o.name for o in design.observes]
     for n in names:

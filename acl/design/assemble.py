@@ -9,7 +9,7 @@ from acl.design import geometry as G
 from acl.design import model as M
 from acl.design.builders import Builder
 from acl.design.checks import check_design_geometry, check_programs
-from acl.design.core import D, DECL_KINDS, EFFECTS, Fail, what_is
+from acl.design.core import D, DECL_KINDS, EFFECT_UNITS, EFFECTS, Fail, what_is
 from acl.design.programs import build_program
 from acl.design.values import DeclVal
 from acl.diagnostics import Span, suggest
@@ -167,6 +167,12 @@ def _effect(b: Builder, blk: A.Block) -> M.Effect | None:
             return None
         if not isinstance(v, Quantity):
             b.bag.error("E304", f"effect coefficient `{ent.key}` must be a quantity, found {what_is(v)}", ent.value.span)
+            return None
+        want = EFFECT_UNITS.get(blk.name, {}).get(ent.key)
+        if want is not None and v.dims != want[1]:
+            b.bag.error("E301", f"effect {blk.name}.{ent.key}: expected "
+                        f"{describe(want[1]) if want[0] else 'a plain number'}, found {describe(v.dims)}",
+                        ent.value.span, f"`{ent.key}` is in {want[0]}" if want[0] else f"`{ent.key}` has no unit")
             return None
         params[ent.key] = v.value
         units[ent.key] = si_unit(v.dims)

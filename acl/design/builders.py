@@ -14,6 +14,8 @@ from acl.diagnostics import Span, suggest
 from acl.syntax import ast as A
 from acl.units import Quantity, describe
 
+MAX_TRANSDUCER_VOLTAGE = 1e4   # V: the top of compile's accepted `limit` range (acl.schedule.compile.VOLTAGE_RANGE)
+
 
 @dataclass
 class CapsuleSpec:
@@ -97,6 +99,11 @@ class Builder:
         try:
             keys = self.r.assigns(dv.node, dv.env, "transducer")
             vmax = self._pos(keys, "max_voltage", "transducer", dv.name)
+            if vmax is not None and vmax > MAX_TRANSDUCER_VOLTAGE:   # as compile's limit range (E-SCHED-LIMIT)
+                self._err_key(keys, "max_voltage", "E502", f"transducer `{dv.name}`: max_voltage {vmax:.3g} V is above "
+                              f"{MAX_TRANSDUCER_VOLTAGE:g} V, beyond any amplifier driving a piezo transducer",
+                              "give the amplifier's real peak voltage")
+                return None
             band = self.r.get(keys, "band", "transducer", dv.name)
             if band[0] <= 0:
                 self._err_key(keys, "band", "E401", "band must be at positive frequencies")

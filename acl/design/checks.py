@@ -14,7 +14,12 @@ SLENDERNESS = (3.0, 500.0)   # beam length / smallest section size for Euler-Ber
 OVERLAP_TOL = 0.5e-6
 
 
+PRINT_VOLUME = 1.0   # m: no coordinate or beam length of a printed micro-mechanism comes near it
+
+
 def check_design_geometry(design: M.Design, bag: DiagnosticBag, specs: dict) -> None:
+    if not _inside_print_volume(design, bag):
+        return    # absurd sizes: distances would overflow, the other checks mean nothing
     _printability(design, bag)
     _substrate(design, bag, specs)
     _overlaps(design, bag, specs)
@@ -59,6 +64,28 @@ def _printability(design: M.Design, bag: DiagnosticBag) -> None:
         _feature(bag, l.thickness, True, f"thickness of latch `{l.name}`", l.span)
 
 
+def _inside_print_volume(design: M.Design, bag: DiagnosticBag) -> bool:
+    """Every position within PRINT_VOLUME of the origin, every beam shorter than it (E414)."""
+    ok = True
+    points = ([(f"capsule `{c.name}`", c.center, c.span) for c in design.capsules]
+              + [(f"beam `{b.name}`", p, b.span) for b in design.beams for p in (b.clamp, b.tip)]
+              + [(f"latch `{l.name}`", l.anchor, l.span) for l in design.latches])
+    reported = set()
+    for b in design.beams:
+        if b.length > PRINT_VOLUME:
+            bag.error("E414", f"beam `{b.name}` is {b.length:.3g} m long, beyond any print volume ({PRINT_VOLUME:g} m)",
+                      b.span, "check the units of its length")
+            reported.add(f"beam `{b.name}`")
+            ok = False
+    for what, p, span in points:
+        if max(abs(x) for x in p) > PRINT_VOLUME and what not in reported:
+            reported.add(what)
+            bag.error("E414", f"{what} is placed {max(abs(x) for x in p):.3g} m from the origin, "
+                      f"outside any print volume ({PRINT_VOLUME:g} m)", span, "check the units of its position")
+            ok = False
+    return ok
+
+
 def _substrate(design: M.Design, bag: DiagnosticBag, specs) -> None:
     down = (0.0, 0.0, -1.0)
     for c in design.capsules:
@@ -75,6 +102,23 @@ def _substrate(design: M.Design, bag: DiagnosticBag, specs) -> None:
             bag.error("E404", f"latch `{l.name}` is below the substrate (z = 0)", l.span)
 
 
+def _touching_orifices(a: M.Capsule, b: M.Capsule, bag: DiagnosticBag) -> None:
+    """Orifices of two capsules closer than the printable gap: the two bubbles are one (and the
+    bubble-bubble force of paper Eq. 3, ~1/d^2, has no finite value)."""
+    for oa in a.orifices:
+        for ob in b.orifices:
+            d = G.norm(G.sub(ob.center, oa.center))
+            if d < PRINT_LATERAL:
+                bag.error("E403", f"orifices `{a.name}.{oa.name}` and `{b.name}.{ob.name}` are {d * 1e6:.3g} um apart, "
+                          f"below the printable gap ({PRINT_LATERAL * 1e6:.2g} um): their bubbles merge", b.span,
+                          "move the capsules apart")
+
+
+def _cell_index(q: float) -> int:
+    """Grid cell of a coordinate in cell units; absurd (overflowing) coordinates share an end cell."""
+    return int(math.floor(q)) if math.isfinite(q) else (2**1100 if q > 0 else -2**1100)
+
+
 def _overlaps(design: M.Design, bag: DiagnosticBag, specs) -> None:
     """Pairs whose outer bodies overlap along their line of centres; a spatial grid keeps it linear."""
     caps = [c for c in design.capsules if c.name in specs]
@@ -84,7 +128,7 @@ def _overlaps(design: M.Design, bag: DiagnosticBag, specs) -> None:
     cell = 2 * max(bound.values())
     grid: dict[tuple[int, int, int], list[int]] = {}
     for i, c in enumerate(caps):
-        grid.setdefault(tuple(int(math.floor(x / cell)) for x in c.center), []).append(i)
+        grid.setdefault(tuple(_cell_index(x / cell) for x in c.center), []).append(i)
     for key, members in grid.items():
         near = [j for dx in (-1, 0, 1) for dy in (-1, 0, 1) for dz in (-1, 0, 1)
                 for j in grid.get((key[0] + dx, key[1] + dy, key[2] + dz), ())]
@@ -98,6 +142,7 @@ def _overlaps(design: M.Design, bag: DiagnosticBag, specs) -> None:
                 dist = G.norm(d)
                 if dist >= bound[a.name] + bound[b.name]:
                     continue
+                _touching_orifices(a, b, bag)
                 if dist == 0:
                     bag.error("E403", f"capsules `{a.name}` and `{b.name}` have the same centre", b.span)
                     continue

@@ -13,6 +13,13 @@ from acl.design.values import CallVal, DeclVal, DirVal, IdentVal, ListVal, Range
 from acl.units import Quantity, describe, parse_unit_static, si_unit
 
 
+# One polytropic default for every medium: the physics constant (isothermal, 1.0; justified in
+# docs/physics.md part A section 1 and acl.physics.constants.MediumConstants).
+from acl.physics.constants import WATER_20C as _WATER  # noqa: E402
+
+_POLYTROPIC_DEFAULT = _WATER.polytropic_index
+
+
 class Fail(Exception):
     """Evaluation of one expression failed; the diagnostic is already recorded."""
 
@@ -25,6 +32,24 @@ EFFECTS = ("transducer_gain", "transducer_resonance", "drive_saturation", "large
 
 D = parse_unit_static
 LENGTH, FREQ, VOLT, TIME = D("m"), D("Hz"), D("V"), D("s")
+_ONE = D("")
+
+# The unit of each known effect coefficient (acl/fit/effects.py's SI units, plus the user-facing
+# aliases v_sat, plateau and factor, and transducer_gain's f_ref and gain): another dimension is E301
+# (`v_sat = 8 um` is not a saturation voltage).  Coefficients not listed are left to the analysis' note.
+EFFECT_UNITS = {
+    "transducer_gain": {"gain_slope": ("", _ONE), "f_ref": ("Hz", FREQ), "gain": ("", _ONE)},
+    "transducer_resonance": {"inv_f_ratio": ("", _ONE), "gain_q": ("", _ONE), "f_ref": ("Hz", FREQ)},
+    "drive_saturation": {"inv_vsat2": ("1/V^2", tuple(-2 * x for x in VOLT)), "v_sat": ("V", VOLT)},
+    "large_deflection": {"elastica_weight": ("", _ONE)},
+    "stiffness_scale": {"e_scale": ("", _ONE), "factor": ("", _ONE)},
+    "stiffness_gradient": {"e_gradient": ("", _ONE)},
+    "offset_drift": {"offset": ("m", LENGTH), "drift": ("m/s", D("m/s"))},
+    "bubble_shrinkage": {"shrink_rate": ("1/s", FREQ)},
+    "neighbour_drag": {"inv_plateau": ("1/m", tuple(-x for x in LENGTH)), "plateau": ("m", LENGTH)},
+    "substrate_proximity": {"h_substrate": ("m", LENGTH)},
+    "bjerknes_scale": {"factor": ("", _ONE)},
+}
 
 
 # ------------------------------------------------------------------------------------------------
@@ -44,7 +69,7 @@ SCHEMAS: dict[str, dict[str, Key]] = {
     "medium": {
         "density": Key("q", "kg/m^3", True), "viscosity": Key("q", "Pa*s", True),
         "sound_speed": Key("q", "m/s", True), "surface_tension": Key("q", "N/m", True),
-        "pressure": Key("q", "Pa", False, 101325.0), "polytropic": Key("q", "", False, 1.4),
+        "pressure": Key("q", "Pa", False, 101325.0), "polytropic": Key("q", "", False, _POLYTROPIC_DEFAULT),
         "thermal_diffusivity": Key("q", "m^2/s", False, 2.1e-5),
     },
     "material": {

@@ -39,6 +39,9 @@ class Resolver:
 
         for name, text in overrides.items():
             span = Span(file="<--set>", line=1, column=1)
+            if not isinstance(name, str):
+                self.bag.error("E211", f"--set {name!r}: a parameter name is a string", span)
+                continue
             if name not in self.main.params:
                 self.bag.error("E211", f"--set {name}: the design has no parameter `{name}`", span,
                                suggest(name, self.main.params) or (
@@ -46,6 +49,8 @@ class Resolver:
                 continue
             if isinstance(text, (int, float)) and not isinstance(text, bool):
                 # a Python number is an SI value: it takes the parameter's own dimension
+                if isinstance(text, int) and abs(text) > 1e308:
+                    text = math.inf if text > 0 else -math.inf   # float() of a huge int raises: E305 as inf
                 if not math.isfinite(text):
                     self.bag.error("E305", f"--set {name}: value {text!r} is not finite", span)
                     continue

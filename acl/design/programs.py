@@ -12,6 +12,8 @@ from acl.units import Quantity
 PATH_SHAPES = ("line", "polyline", "rectangle", "circle", "text", "csv")
 MAX_STEPS = 10_000
 
+MAX_MARGIN = 100.0   # switch/hold/cross margins are ratios (default 1.2); beyond this they only break the solver
+
 
 def build_program(b: Builder, design: M.Design, decl: A.ProgramDecl) -> M.Program | None:
     steps = []
@@ -80,6 +82,10 @@ def _using(b, opts: A.Options) -> tuple[float, ...]:
             b.bag.error("E301", f"using: expected frequencies, found {what_is(it)}", opts.using.span, "e.g. `using [85 kHz, 125 kHz]`")
             raise Fail()
         out.append(it.value)
+    if not out:   # `using []` would otherwise mean "no `using`": every candidate tone
+        b.bag.error("E505", "using: an empty list allows no tone", opts.using.span,
+                    "name the tones, e.g. `using [85 kHz]`, or leave `using` out to let the compiler choose")
+        raise Fail()
     return tuple(out)
 
 
@@ -148,6 +154,11 @@ def _step(b, design: M.Design, st):
         if margin < 1:
             b.bag.error("E505", f"switch margin {margin:g} is below 1: the latch would not switch", st.options.margin.span)
             raise Fail()
+        if margin > MAX_MARGIN:
+            b.bag.error("E505", f"switch margin {margin:g} is above {MAX_MARGIN:g}: no drive within a transducer's range "
+                        "gives it, and the switching program becomes numerically meaningless", st.options.margin.span,
+                        "margins are ratios like 1.2 or 2")
+            raise Fail()
         return M.SwitchStep(latch=k[1], state=st.state, margin=margin, tones=_using(b, st.options),
                             limits=_limits(b, st.options), span=st.span)
     if isinstance(st, A.HoldS):
@@ -160,6 +171,10 @@ def _step(b, design: M.Design, st):
         x, y = (b.orifice_ref(a, "gap") for a in c.args)
         if not (x and y):
             raise Fail()
+        if x == y:
+            b.bag.error("E505", f"`{'hold' if st.mode == 'above' else 'cross'}`: the gap between an orifice and itself is "
+                        "always 0", c.span, "name two orifices of different capsules")
+            raise Fail()
         bound = b.r.q(st.bound, b.env, "m", "hold bound") if st.bound is not None else None
         if bound is not None and bound <= 0:
             b.bag.error("E401", "hold bound must be positive", st.bound.span)
@@ -167,6 +182,10 @@ def _step(b, design: M.Design, st):
         margin = b.r.q(st.options.margin, b.env, "", "margin") if st.options.margin is not None else 1.2
         if margin < 1:
             b.bag.error("E505", f"hold margin {margin:g} is below 1: it would not keep clear of snap-in", st.options.margin.span)
+            raise Fail()
+        if margin > MAX_MARGIN:
+            b.bag.error("E505", f"{'hold' if st.mode == 'above' else 'cross'} margin {margin:g} is above {MAX_MARGIN:g}: "
+                        "the voltage bound it sets is meaningless", st.options.margin.span, "margins are ratios like 1.2 or 2")
             raise Fail()
         return M.HoldStep(a=x, b=y, mode=st.mode, bound=bound, margin=margin, duration=_dur(b, st.duration, "hold duration"),
                           tones=_using(b, st.options), limits=_limits(b, st.options), span=st.span)

@@ -110,7 +110,7 @@ def previous_compile(out_dir: str) -> set[str] | None:
     try:
         with open(path, encoding="utf-8") as fh:
             data = json.load(fh)
-    except (OSError, ValueError, UnicodeDecodeError):
+    except (OSError, ValueError, UnicodeDecodeError, RecursionError):   # not ours (or hostile): refused later
         return None
     if not isinstance(data, dict) or not str(data.get("generator", "")).startswith("acl "):
         return None

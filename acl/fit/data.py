@@ -4,7 +4,8 @@ One observation per row.  Columns: ``observable`` (a name the design declares wi
 ``value`` and ``unit`` (any unit of the observable's dimension), ``drive`` (acl drive syntax, empty
 for none); optional ``time`` (s since start), ``sigma`` (same unit as ``value``) and ``set:NAME``
 (override of design parameter NAME for that row, e.g. ``40 um``).  Nothing is dropped silently: a
-file with any bad row raises :class:`DiagnosticError` listing every bad cell (file:row:column).
+file with any bad row raises :class:`DiagnosticError` listing every bad cell (file:row:column); a
+finding repeated identically on many rows is reported once, at its first row, with a count.
 """
 from __future__ import annotations
 
@@ -20,6 +21,7 @@ REQUIRED = ("observable", "value", "unit", "drive")
 OPTIONAL = ("time", "sigma", "experiment")
 LENGTH = (1, 0, 0, 0, 0, 0, 0)
 MAX_ROWS = 2_000_000
+MAX_HEADER_ERRORS = 20                 # bad header columns reported one by one; then one E801 for the rest
 MAX_BYTES = 256 * 2**20                  # a data file larger than this is refused (E601)
 MAX_LENGTH = 1.0                         # m: |value| and sigma beyond this are no measurement of a micro-device
 MAX_TIME = 1e9                           # s: about 30 years
@@ -137,8 +139,18 @@ def read_data(paths, design) -> Dataset:
             continue
         header = split_line(lines[head_i])
         index: dict[str, int] = {}
+        header_errors = 0
         for j, (name, col) in enumerate(header):
             sp = Span(file=path, line=head_i + 1, column=col)
+            if header_errors == MAX_HEADER_ERRORS:   # one root cause (a wrong file) is not 20,000 errors
+                header_errors += 1
+                bag.error("E801", f"the header has more bad columns from here on (column {j + 1} of {len(header)}); "
+                          "only the first ones are reported", sp, "is this an acl data file? (docs/data.md)")
+            if header_errors > MAX_HEADER_ERRORS:
+                key = name.strip().lower() if not name.strip().startswith("set:") else name.strip()
+                index.setdefault(key, j)
+                continue
+            before = len(bag.items)
             key = name.strip().lower() if not name.strip().startswith("set:") else name.strip()
             if key in index:
                 bag.error("E801", f"column `{name}` appears twice", sp)
@@ -153,6 +165,7 @@ def read_data(paths, design) -> Dataset:
             else:
                 bag.error("E801", f"unknown column `{name}`", sp,
                           suggest(key, [*REQUIRED, *OPTIONAL]) or "columns: observable, value, unit, drive, time, sigma, set:NAME")
+            header_errors += len(bag.items) > before
         missing = [k for k in REQUIRED if k not in index]
         if missing:
             bag.error("E801", f"missing column(s) {', '.join(missing)}", Span(file=path, line=head_i + 1, column=1),
@@ -162,6 +175,7 @@ def read_data(paths, design) -> Dataset:
         for k in set_keys:
             sets.setdefault(k[4:], [""] * n_before)
         n_file = 0
+        first_row_diag = len(bag.items)
         for li in range(head_i + 1, len(lines)):
             raw = lines[li]
             if not raw.strip() or raw.lstrip().startswith("#"):
@@ -247,6 +261,7 @@ def read_data(paths, design) -> Dataset:
                 sets[k].append(row_sets.get(k, ""))
             n_file += 1
         n_before += n_file
+        bag.items[first_row_diag:] = _collapse_repeats(bag.items[first_row_diag:])
         if n_file == 0 and not bag.has_errors:
             bag.error("E801", "data file has no rows", Span(file=path, line=head_i + 1, column=1))
     sig = np.isfinite(np.array(cols["sigma"], float))
@@ -261,6 +276,26 @@ def read_data(paths, design) -> Dataset:
                    np.array(cols["sigma"], float), np.array(cols["time"], float), cols["tones"], sets_arr,
                    set_si, cols["spans"], np.array(cols["units"], dtype=object), tuple(paths), {},
                    np.array(cols["experiment"], dtype=object))
+
+
+def _collapse_repeats(diags: list) -> list:
+    """One diagnostic per root cause: rows repeating an identical finding become the first row's
+    diagnostic with a note "and N more rows" (18 rows naming one wrong observable are one E803)."""
+    from dataclasses import replace
+
+    groups: dict[tuple, list] = {}
+    for d in diags:
+        groups.setdefault((d.code, d.severity, d.message, d.hint, d.span.file if d.span else None), []).append(d)
+    out = []
+    for group in groups.values():
+        first, rest = group[0], group[1:]
+        if rest:
+            lines = [str(d.span.line) for d in rest[:5] if d.span is not None]
+            where = f" (line{'s' if len(rest) > 1 else ''} {', '.join(lines)}{', ...' if len(rest) > 5 else ''})"
+            first = replace(first, notes=(*first.notes, f"and {len(rest)} more row{'s' if len(rest) > 1 else ''}"
+                                                      f"{where if lines else ''}"))
+        out.append(first)
+    return out
 
 
 def _read_text(path):

@@ -176,7 +176,6 @@ def build_instance(design) -> Instance:
             if a != b:
                 partners.setdefault(a, set()).add(b)
                 partners.setdefault(b, set()).add(a)
-    groups = [c for c, p in partners.items() if len(p) > 1]
     units_by_caps: dict = {}
 
     def pair_unit(a, b, obs):
@@ -219,7 +218,6 @@ def build_instance(design) -> Instance:
             t = -np.asarray(c.orifices[0].normal, float)
             units_by_caps[(cap,)] = Unit("single", (_side(design, cap, t / np.linalg.norm(t)),))
         units[o.name] = units_by_caps[(cap,)]
-    del groups
     med = _medium(design)
     return Instance(design=design, units=units,
                     medium=(med.density, med.surface_tension, med.ambient_pressure, med.polytropic_index))

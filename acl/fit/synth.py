@@ -16,6 +16,20 @@ from acl.diagnostics import DiagnosticError, Span, error, suggest
 
 # user-facing effect parameters that are the inverse of the fitted coordinate
 ALIASES = {"v_sat": ("inv_vsat2", lambda v: 1.0 / v**2), "plateau": ("inv_plateau", lambda v: 1.0 / v)}
+ALIAS_UNITS = {"v_sat": "V", "plateau": "m"}      # SI unit of each user-facing alias
+
+
+def param_unit(eid: str, name: str) -> str | None:
+    """The SI unit (acl.fit.effects) of parameter ``name`` of effect ``eid``, aliases included
+    ('' for a plain number); None when the effect or the parameter is unknown."""
+    from acl.fit.effects import EFFECTS
+
+    if eid not in EFFECTS:
+        return None
+    units = {p.name: p.unit for p in EFFECTS[eid].params}
+    if name in ALIASES and ALIASES[name][0] in units:
+        return ALIAS_UNITS[name]
+    return units.get(name)
 
 
 @dataclass
@@ -132,6 +146,11 @@ def write_csv(data, path, unit: str = "um") -> None:
                  *([data.experiment[i]] if with_exp else []),
                  *[data.sets[k][i] for k in set_names]]
         lines.append(",".join(cells))
+    if path == "-":   # `-o -`: standard output, as everywhere (it wrote a file named `-`)
+        import sys
+
+        sys.stdout.write("\n".join(lines) + "\n")
+        return
     tmp = f"{path}.tmp{os.getpid()}"
     with open(tmp, "w", encoding="utf-8") as fh:
         fh.write("\n".join(lines) + "\n")
@@ -173,21 +192,41 @@ def read_schedule(path: str) -> tuple[list[Waypoint], int, dict]:
     def bad(msg, line=1, col=1, hint=None):
         return DiagnosticError([error("E-SYNTH-SCHEDULE", msg, Span(file=path, line=line, column=col), hint)])
 
+    import os
+
+    from acl.fit.data import MAX_BYTES
+
+    if not os.path.isfile(path):   # never open a FIFO or a device: it would block or never end
+        raise DiagnosticError([error("E601", f"cannot read the schedule `{path}`: "
+                                     + ("no such file" if not os.path.lexists(path) else "not a regular file"),
+                                     Span(file=path or "<--schedule>", line=1, column=1))])
     try:
-        with open(path, encoding="utf-8") as fh:
-            text = fh.read()
+        with open(path, "rb") as fh:
+            raw = fh.read(MAX_BYTES + 1)
     except OSError as exc:
         raise bad(f"cannot read the schedule: {exc.strerror or exc}") from None
+    if len(raw) > MAX_BYTES:
+        raise bad(f"the schedule is larger than {MAX_BYTES // 2**20} MB")
+    try:
+        text = raw.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        line = raw.count(b"\n", 0, exc.start) + 1
+        col = exc.start - (raw.rfind(b"\n", 0, exc.start) + 1) + 1
+        raise bad(f"not UTF-8 text (byte 0x{raw[exc.start]:02x})", line, col,
+                  "give the schedule.json `acl compile` wrote") from None
     try:
         doc = json.loads(text)
     except json.JSONDecodeError as exc:
         raise bad(f"not JSON: {exc.msg}", exc.lineno, exc.colno, "give the schedule.json `acl compile` wrote") from None
+    except RecursionError:
+        raise bad("not an acl schedule: JSON nested too deeply", hint="give the schedule.json `acl compile` wrote") from None
     if not isinstance(doc, dict) or not isinstance(doc.get("segments"), list) or not str(doc.get("version", "")).startswith("1."):
         raise bad("not an acl schedule (version 1.x with a list of segments)", hint="give the schedule.json `acl compile` wrote")
     out, chirps, count = [], 0, {}
     for i, seg in enumerate(doc["segments"]):
         where = f"segments[{i}]"
         try:
+            step = int(seg.get("step", 0))
             start = float(seg["start_s"])
             tones = []
             chirp = False
@@ -200,22 +239,27 @@ def read_schedule(path: str) -> tuple[list[Waypoint], int, dict]:
                     tones.append((f, v))
             if not math.isfinite(start):
                 raise ValueError("start_s is not finite")
-        except (KeyError, TypeError, ValueError) as exc:
+        except (KeyError, TypeError, ValueError, OverflowError, AttributeError) as exc:
             raise bad(f"{where}: malformed segment ({exc})", hint="each segment has start_s and tones "
                       "[{frequency_hz, amplitude_v}]") from None
         if chirp:
             chirps += 1
             continue
         goal = str(seg.get("goal") or "")
-        out.append(Waypoint(start, tuple(tones), goal, int(seg.get("step", 0)), count.get(goal, 0)))
+        out.append(Waypoint(start, tuple(tones), goal, step, count.get(goal, 0)))
         count[goal] = count.get(goal, 0) + 1
     if not out:
         raise bad("the schedule has no constant-drive segment to replay")
     import numpy as np
 
     targets = {}
-    for j, g in enumerate(doc.get("goals") or []):
+    goals = doc.get("goals") or []
+    if not isinstance(goals, list):
+        raise bad("goals: expected a list", hint="give the schedule.json `acl compile` wrote")
+    for j, g in enumerate(goals):
         if isinstance(g, dict) and g.get("kind") == "follow" and g.get("capsule") and g.get("target_um") is not None:
+            if not g.get("name"):
+                raise bad(f"goals[{j}]: a follow goal without a name")
             try:
                 pts = np.asarray(g["target_um"], float).reshape(-1, 2) * 1e-6
             except (TypeError, ValueError):

@@ -24,7 +24,7 @@ def format_source(text: str, path: str = "<stdin>") -> str:
     from acl.fmt.tokens import tokenize
     from acl.syntax.parser import parse_module
 
-    source = text.replace("\r\n", "\n")
+    source = text.replace("\r\n", "\n").removeprefix("\ufeff")   # the canonical file has no byte-order mark
     before = parse_module(source, path)    # the parser's diagnostics and limits, as `acl check` gives them
     out = layout(tokenize(source, path))
     if out == text:   # already canonical: nothing to check

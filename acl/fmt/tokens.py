@@ -18,11 +18,11 @@ from acl.diagnostics import DiagnosticError, Span, error
 
 # What may lie between two leaves of the parse tree.
 _GAP = re.compile(r"(?P<cont>\\[ \t\f]*\r?\n)|(?P<comment>#[^\n]*)|(?P<nl>\r?\n)|(?P<ws>[ \t\f]+)"
-                  r"|(?P<word>[A-Za-z_][A-Za-z0-9_]*)|(?P<punct>\.\.|[{}()\[\],.=+\-*/^@])")
+                  r"|(?P<word>[A-Za-z_][A-Za-z0-9_]*)|(?P<punct>\.\.|\+-|±|[{}()\[\],.=+\-*/^@])")
 _KINDS = {"cont": "CONT", "comment": "COMMENT", "nl": "NL", "word": "KEYWORD"}
 _PUNCT = {"{": "LBRACE", "}": "RBRACE", "(": "LPAR", ")": "RPAR", "[": "LSQB", "]": "RSQB", ",": "COMMA",
           ".": "DOT", "=": "EQUAL", "+": "PLUS", "-": "MINUS", "*": "STAR", "/": "SLASH", "^": "CIRCUMFLEX",
-          "@": "AT", "..": "RANGE"}
+          "@": "AT", "..": "RANGE", "+-": "PM", "±": "PM"}   # `+-`/`±`: the grammar's filtered _PM terminal
 
 
 @dataclass(frozen=True)

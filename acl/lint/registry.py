@@ -56,6 +56,8 @@ THRESHOLDS: dict[str, Threshold] = {t.name: t for t in (
     Threshold("orifice_min_radius", 2e-6, "m", "ACL503: smallest orifice radius holding a lasting bubble"),
     Threshold("cap_volume_ratio", 2.0, "",
               "ACL504: gas volume / volume of the hemispherical caps of all orifices, below which the bubble is unstable"),
+    Threshold("linear_amplitude", 0.25, "",
+              "ACL105: interface centre amplitude / orifice radius beyond which the linear bubble model fails"),
     Threshold("sweep_samples", 21, "", "ACL104/ACL202/...: frequencies sampled across a sweep or a program's range"),
 )}
 

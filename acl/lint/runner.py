@@ -122,6 +122,7 @@ def _apply(findings: list[Diagnostic], source: SourceFile | None, config: LintCo
     used: set[tuple[int, str]] = set()
     sups = source.suppressions if source else []
     same_file = _same_file_test(path)
+    others: dict = {}
     out = []
     for d in findings:
         if d.code in file_ignored or (CHECK_CODE.match(d.code) and d.code.startswith("W") and d.code in config.ignore):
@@ -130,6 +131,15 @@ def _apply(findings: list[Diagnostic], source: SourceFile | None, config: LintCo
             hit = next((s for s in sups if d.code in s.codes and s.first <= d.span.line <= s.last), None)
             if hit is not None:
                 used.add((hit.line, d.code))
+                continue
+        elif not d.code.startswith("E") and d.span is not None and d.span.file:
+            # a finding inside a file this design extends or imports: that file's own suppressions
+            # apply (its unused ones are reported when that file is linted itself)
+            other = others.get(d.span.file)
+            if other is None:
+                other = others[d.span.file] = _read_source(d.span.file) if os.path.isfile(d.span.file) else None
+            if other is not None and any(d.code in s.codes and s.first <= d.span.line <= s.last
+                                         for s in other.suppressions):
                 continue
         out.append(d)
     if resolved and source is not None:

@@ -8,8 +8,8 @@ from acl.lsp.document import NAME_RE, Snapshot, code_part, name_position, part_a
 from acl.syntax import ast as A
 
 
-def definition(snap: Snapshot, line: int, character: int) -> tuple[str, tuple[int, int, int, int]] | None:
-    """(file path, (line, char, end_line, end_char)) of the declaration under the cursor."""
+def definition(snap: Snapshot, line: int, character: int) -> tuple[str, tuple[int, int, int, int], list[str]] | None:
+    """(file path, (line, char, end_line, end_char), that file's lines) of the declaration under the cursor."""
     env = snap.env
     if env is None:
         return None
@@ -22,7 +22,7 @@ def definition(snap: Snapshot, line: int, character: int) -> tuple[str, tuple[in
             if isinstance(tgt, tuple):
                 t = resolve_name(env, [alias])
                 return _location(t) if t else None
-            return tgt.file, (0, 0, 0, 0)
+            return tgt.file, (0, 0, 0, 0), []
         return None
     w = word_at(code, character, NAME_RE)
     if w is None:
@@ -34,7 +34,7 @@ def definition(snap: Snapshot, line: int, character: int) -> tuple[str, tuple[in
     if t is None:
         return None
     if t.what == "module":
-        return t.env.file, (0, 0, 0, 0)
+        return t.env.file, (0, 0, 0, 0), []
     return _location(t)
 
 
@@ -45,8 +45,9 @@ def _import_at(env, line: int):
     return None
 
 
-def _location(t) -> tuple[str, tuple[int, int, int, int]]:
+def _location(t) -> tuple[str, tuple[int, int, int, int], list[str]]:
     node = t.node
     name = t.name.split(".")[0]
-    ln, a, b = name_position(source_lines(t.env), node.span, name)
-    return os.path.abspath(t.env.file) if not t.env.file.startswith("<") else t.env.file, (ln, a, ln, b)
+    lines = source_lines(t.env)
+    ln, a, b = name_position(lines, node.span, name)
+    return os.path.abspath(t.env.file) if not t.env.file.startswith("<") else t.env.file, (ln, a, ln, b), lines

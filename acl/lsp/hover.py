@@ -213,6 +213,15 @@ def _capsule_text(snap: Snapshot, target: Target) -> str:
         ph = ", ".join(f"{f / 1e3:g} kHz: {math.degrees(float(np.angle(resp[j, k]))):.0f} deg"
                        for j, f in enumerate(freqs[:6]))
         out += f"\n\nphase of `{cap.orifices[k].name}` volume vs drive: {ph}"
+    if name != "__hover" and len(design.capsules) > 1 and hasattr(AC, "coupled_modes"):
+        mine = [m for m in AC.coupled_modes(design)
+                if sum(v for k, v in m.shares.items() if k.split(".")[0] == name) >= 0.1]
+        if mine:
+            rows = ["| coupled mode | f (kHz) | Q | interfaces: share (phase) |", "|---|---|---|---|"]
+            for i, m in enumerate(mine[:6]):
+                parts = ", ".join(f"{k} {v:.0%} ({m.phases.get(k, 0.0):.0f} deg)" for k, v in m.shares.items() if v >= 0.05)
+                rows.append(f"| {i + 1} | {m.frequency_hz / 1e3:.1f} | {m.q:.1f} | {parts} |")
+            out += "\n\n**with its neighbours** (all bubbles as one system):\n\n" + "\n".join(rows)
     notes = modes[0].notes if modes else ()
     if notes:
         out += "\n\n" + "\n".join(f"note: {n}" for n in notes)

@@ -9,13 +9,51 @@ to the loader through its parse cache, so resolution is unchanged.
 """
 from __future__ import annotations
 
+import re
+
 from acl.diagnostics import DiagnosticError
 from acl.syntax import ast as A
+
+# a new top-level statement at column 0 while brackets are open (the parser's chunker, same words)
+_TOP_KEYWORD = re.compile(r"(import|extends|param|program|mount|fix|link|observe|require|use|capsule|beam|medium|"
+                          r"material|transducer|latch|spring|truss|anchor|effect)\b")
 
 
 class IncrementalParser:
     def __init__(self) -> None:
         self._cache: dict[tuple[int, str], tuple] = {}
+        self._deltas: dict[str, int] = {}        # line text -> bracket depth change (parser._depth_delta)
+
+    def _chunks(self, lines: list[str]):
+        """The parser's statement chunks (:func:`acl.syntax.parser._statement_chunks`), with the
+        bracket depth of each line text remembered between edits; the boundaries are the same."""
+        from acl.syntax import parser as P
+
+        deltas = self._deltas
+        if len(deltas) > 200_000:
+            deltas.clear()
+
+        def delta(line: str) -> int:
+            d = deltas.get(line)
+            if d is None:
+                d = deltas[line] = P._depth_delta(line)
+            return d
+
+        i, n = 0, len(lines)
+        while i < n:
+            stripped = lines[i].strip()
+            if not stripped or stripped.startswith("#"):
+                i += 1
+                continue
+            start, depth = i, 0
+            while i < n:
+                depth += delta(lines[i])
+                i += 1
+                if depth <= 0 and not lines[i - 1].rstrip().endswith("\\"):
+                    break
+                if depth > 0 and i < n and _TOP_KEYWORD.match(lines[i]):
+                    break
+            yield start, i
 
     def parse(self, text: str, file: str) -> A.Module | None:
         """The syntax tree of ``text`` (equal to :func:`acl.syntax.parser.parse_module`'s), or None."""
@@ -27,6 +65,9 @@ class IncrementalParser:
         return self._parse(text, file, partial=True)
 
     def _parse(self, text: str, file: str, partial: bool) -> A.Module | None:
+        if file != getattr(self, "_file", file):
+            self._cache = {}                      # spans carry the file name
+        self._file = file
         try:
             from lark.exceptions import UnexpectedInput
 
@@ -37,7 +78,7 @@ class IncrementalParser:
             lines = src.split("\n")
             fresh: dict[tuple[int, str], tuple] = {}
             stmts: list = []
-            for start, end in P._statement_chunks(lines):
+            for start, end in self._chunks(lines):
                 chunk = "\n".join(lines[start:end])
                 key = (start, chunk)
                 hit = self._cache.get(key)

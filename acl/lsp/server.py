@@ -132,7 +132,11 @@ class AclLanguageServer(LanguageServer):
         for t in list(self._pending.values()) + list(self._lint_tasks.values()):
             t.cancel()
         if self._executor is not None:
+            workers = list(getattr(self._executor, "_processes", {}).values())
             self._executor.shutdown(wait=False, cancel_futures=True)
+            for w in workers:       # a rule run can take seconds: do not make the editor wait for it
+                if w.is_alive():
+                    w.terminate()
             self._executor = None
 
     def all_diagnostics(self, uri: str, snap: Snapshot) -> list[Diagnostic]:
@@ -152,10 +156,10 @@ def to_lsp(d: Diagnostic, snap: Snapshot) -> T.Diagnostic:
         ln = max(0, s.line - 1)
         col = max(0, s.column - 1)
         if s.end_line is not None and s.end_column is not None and (s.end_line, s.end_column) > (s.line, s.column):
-            end = T.Position(line=s.end_line - 1, character=s.end_column - 1)
+            end = (s.end_line - 1, s.end_column - 1)
         else:
-            end = T.Position(line=ln, character=max(col + 1, len(snap.line(ln).rstrip())))
-        rng = T.Range(start=T.Position(line=ln, character=col), end=end)
+            end = (ln, max(col + 1, len(snap.line(ln).rstrip())))
+        rng = _range((ln, col, *end), snap.lines)
     else:       # in an imported file (or on the command line): shown on the import that reads it
         rng = _import_range(snap, s.file if s is not None else None)
         if s is not None:
@@ -165,7 +169,20 @@ def to_lsp(d: Diagnostic, snap: Snapshot) -> T.Diagnostic:
     for n in d.notes:
         message += f"\nnote: {n}"
     return T.Diagnostic(range=rng, message=message, severity=_SEVERITY.get(d.severity, T.DiagnosticSeverity.Error),
-                        code=d.code, source="acl", data={"hint": d.hint} if d.hint else None)
+                        code=d.code, source="acl", data={"hint": d.hint} if d.hint else None,
+                        code_description=_rule_doc(d.code))
+
+
+def _rule_doc(code: str) -> T.CodeDescription | None:
+    """A link to the rule's section of docs/rules.md (shipped with acl) for ACL codes."""
+    if not code.startswith("ACL"):
+        return None
+    try:
+        from acl._resources import shipped_dir
+
+        return T.CodeDescription(href=from_fs_path(os.path.join(shipped_dir("docs"), "rules.md")) + "#" + code.lower())
+    except (FileNotFoundError, ImportError):
+        return None
 
 
 def _import_range(snap: Snapshot, file: str | None) -> T.Range:
@@ -184,8 +201,7 @@ def _import_range(snap: Snapshot, file: str | None) -> T.Range:
                 target = env.base
             if target is not None and _same_file(target.file, file):
                 ln = st.span.line - 1
-                return T.Range(start=T.Position(line=ln, character=st.span.column - 1),
-                               end=T.Position(line=ln, character=len(snap.line(ln).rstrip())))
+                return _range((ln, st.span.column - 1, ln, len(snap.line(ln).rstrip())), snap.lines)
     return T.Range(start=T.Position(line=0, character=0), end=T.Position(line=0, character=0))
 
 
@@ -198,8 +214,44 @@ def _no_names(snap: Snapshot) -> bool:
     return snap.env is None or (not snap.parsed and not snap.env.module.statements)
 
 
-def _range(t) -> T.Range:
-    return T.Range(start=T.Position(line=t[0], character=t[1]), end=T.Position(line=t[2], character=t[3]))
+# Positions: acl counts characters (code points); LSP clients count in the negotiated encoding
+# (UTF-16 unless the client offers another). Lines of ASCII need no conversion.
+_ENCODING = "utf-16"
+
+
+def _units(text: str) -> int:
+    if _ENCODING == "utf-32" or text.isascii():
+        return len(text)
+    if _ENCODING == "utf-8":
+        return len(text.encode("utf-8"))
+    return len(text.encode("utf-16-le")) // 2
+
+
+def col_out(lines, line: int, col: int) -> int:
+    """Code-point column ``col`` of ``line`` in the client's units."""
+    text = lines[line] if 0 <= line < len(lines) else ""
+    return col if text.isascii() else _units(text[:col])
+
+
+def col_in(lines, line: int, units: int) -> int:
+    """Client-unit column ``units`` of ``line`` as a code-point column."""
+    text = lines[line] if 0 <= line < len(lines) else ""
+    if text.isascii() or _ENCODING == "utf-32":
+        return units
+    n = 0
+    for i, ch in enumerate(text):
+        if n >= units:
+            return i
+        n += _units(ch)
+    return len(text)
+
+
+def _range(t, lines=None) -> T.Range:
+    """(line, char, end_line, end_char) in code points -> an LSP Range (client units when ``lines`` given)."""
+    a, b, c, d = t
+    if lines is not None:
+        b, d = col_out(lines, a, b), col_out(lines, c, d)
+    return T.Range(start=T.Position(line=a, character=b), end=T.Position(line=c, character=d))
 
 
 # ------------------------------------------------------------------------------------------------
@@ -216,6 +268,9 @@ _COMPLETION_KIND = {"keyword": T.CompletionItemKind.Keyword, "key": T.Completion
 
 @server.feature(T.INITIALIZE)
 def _initialize(ls: AclLanguageServer, params: T.InitializeParams) -> None:
+    global _ENCODING
+    enc = ls.workspace.position_encoding
+    _ENCODING = str(getattr(enc, "value", enc) or "utf-16").lower()
     opts = params.initialization_options or {}
     if isinstance(opts, dict):
         ls.debounce = float(opts.get("debounce", ls.debounce))
@@ -262,11 +317,13 @@ def _hover(ls: AclLanguageServer, params: T.HoverParams) -> T.Hover | None:
     snap = ls.snapshot(params.text_document.uri)
     if _no_names(snap):
         snap = ls.resolved.get(params.text_document.uri, snap)
-    got = hover(snap, params.position.line, params.position.character)
+    pos = params.position
+    got = hover(snap, pos.line, col_in(snap.lines, pos.line, pos.character))
     if got is None:
         return None
     text, (ln, a, b) = got
-    return T.Hover(contents=T.MarkupContent(kind=T.MarkupKind.Markdown, value=text), range=_range((ln, a, ln, b)))
+    return T.Hover(contents=T.MarkupContent(kind=T.MarkupKind.Markdown, value=text),
+                   range=_range((ln, a, ln, b), snap.lines))
 
 
 @server.feature(T.TEXT_DOCUMENT_DEFINITION)
@@ -276,23 +333,26 @@ def _definition(ls: AclLanguageServer, params: T.DefinitionParams) -> T.Location
     snap = ls.snapshot(params.text_document.uri)
     if _no_names(snap):
         snap = ls.resolved.get(params.text_document.uri, snap)
-    got = definition(snap, params.position.line, params.position.character)
+    pos = params.position
+    got = definition(snap, pos.line, col_in(snap.lines, pos.line, pos.character))
     if got is None:
         return None
-    path, rng = got
-    return T.Location(uri=from_fs_path(path) or path, range=_range(rng))
+    path, rng, lines = got
+    return T.Location(uri=from_fs_path(path) or path, range=_range(rng, lines))
 
 
-@server.feature(T.TEXT_DOCUMENT_COMPLETION, T.CompletionOptions(trigger_characters=[".", " "]))
+@server.feature(T.TEXT_DOCUMENT_COMPLETION, T.CompletionOptions(trigger_characters=["."]))
 def _completion(ls: AclLanguageServer, params: T.CompletionParams) -> T.CompletionList:
     from acl.lsp.completion import complete
 
     uri = params.text_document.uri
     snap = ls.snapshot(uri)
     names = snap if not _no_names(snap) else ls.resolved.get(uri)
-    items = complete(snap, names, params.position.line, params.position.character)
+    pos = params.position
+    items = complete(snap, names, pos.line, col_in(snap.lines, pos.line, pos.character))
     return T.CompletionList(is_incomplete=False, items=[
-        T.CompletionItem(label=label, kind=_COMPLETION_KIND[kind], detail=detail) for label, kind, detail in items])
+        T.CompletionItem(label=label, kind=_COMPLETION_KIND[kind], detail=detail,
+                         insert_text=f"{label} = " if kind == "key" else None) for label, kind, detail in items])
 
 
 @server.feature(T.TEXT_DOCUMENT_DOCUMENT_SYMBOL)
@@ -306,7 +366,7 @@ def _symbols(ls: AclLanguageServer, params: T.DocumentSymbolParams) -> list[T.Do
 
     def conv(s: dict) -> T.DocumentSymbol:
         return T.DocumentSymbol(name=s["name"], detail=s["detail"], kind=T.SymbolKind(s["kind"]),
-                                range=_range(s["range"]), selection_range=_range(s["selection"]),
+                                range=_range(s["range"], snap.lines), selection_range=_range(s["selection"], snap.lines),
                                 children=[conv(c) for c in s["children"]])
 
     return [conv(s) for s in outline(snap)]
@@ -334,11 +394,12 @@ def _code_action(ls: AclLanguageServer, params: T.CodeActionParams) -> list[T.Co
         r = d.range
         if r.start.line != r.end.line:
             continue
-        got = fix(snap.line(r.start.line), r.start.character, r.end.character, hint)
+        ln = r.start.line
+        got = fix(snap.line(ln), col_in(snap.lines, ln, r.start.character), col_in(snap.lines, ln, r.end.character), hint)
         if got is None:
             continue
         a, b, new = got
-        edit = T.TextEdit(range=_range((r.start.line, a, r.start.line, b)), new_text=new)
+        edit = T.TextEdit(range=_range((ln, a, ln, b), snap.lines), new_text=new)
         actions.append(T.CodeAction(title=f"Replace `{snap.line(r.start.line)[a:b]}` with `{new}` ({d.code})",
                                     kind=T.CodeActionKind.QuickFix, diagnostics=[d], is_preferred=True,
                                     edit=T.WorkspaceEdit(changes={uri: [edit]})))
@@ -353,9 +414,12 @@ def _formatting(ls: AclLanguageServer, params: T.DocumentFormattingParams) -> li
     got = format_edits(snap)
     if got is None:
         return None
-    return [T.TextEdit(range=_range(r), new_text=t) for r, t in got]
+    return [T.TextEdit(range=_range(r, snap.lines), new_text=t) for r, t in got]
 
 
 def serve() -> None:
     """Speak LSP over stdin/stdout until the client exits."""
-    server.start_io()
+    try:
+        server.start_io()
+    finally:
+        server.close()

@@ -164,11 +164,16 @@ def coupled_response(system: BubbleSystem, frequency, density: float, sound_spee
     ncap, p, _ = system.phi.shape
     npad = ncap * p
     # padded layout (C*P slots); empty slots have no interface (zero H0 row -> zero response)
-    pad_pts = np.zeros((nb, npad, 3))
-    pad_pts[:, :] = 1.0 + np.arange(npad)[None, :, None]          # far apart, unused
-    pad_pts[:, system.slot] = pts
-    pad_rad = np.full(npad, 1e-9)
-    pad_rad[system.slot] = system.radii
+    if npad == n:
+        pad_pts = pts[:, np.argsort(system.slot)] if np.any(np.diff(system.slot) < 0) else pts
+        pad_rad = np.empty(npad)
+        pad_rad[system.slot] = system.radii
+    else:
+        pad_pts = np.zeros((nb, npad, 3))
+        pad_pts[:, :] = 1.0 + np.arange(npad)[None, :, None]          # far apart, unused
+        pad_pts[:, system.slot] = pts
+        pad_rad = np.full(npad, 1e-9)
+        pad_rad[system.slot] = system.radii
     pad_body = np.repeat(np.arange(ncap), p)
     eye = np.eye(npad)
     for s in range(0, f.size, chunk):

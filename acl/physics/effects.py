@@ -61,13 +61,6 @@ def volume_frequency_table(volume, radius, density, surface_tension, ambient_pre
     return lx, np.log(f / f0)
 
 
-def shrinkage_factor(f, fn, q, t, rate):
-    """|H(f; f_n(t))|^2 / |H(f; f_n0)|^2 of a one-mode resonator, f_n(t) = f_n0 exp(r t / 2) (gas spring, f ~ V^-1/2, Minnaert)."""
-    def h2(fr):
-        return 1.0 / ((fr * fr - f * f) ** 2 + (f * fr / q) ** 2)
-    return h2(fn * np.exp(0.5 * rate * t)) / h2(fn)
-
-
 def elastica_blend(d_eq1, d_elastica, weight):
     """(1 - w) paper Eq. (1) + w dead-load elastica (Bisshopp & Drucker 1945): w = 1 is the large-deflection beam."""
     return (1.0 - weight) * d_eq1 + weight * d_elastica

@@ -55,6 +55,7 @@ class CompileOptions:
     band_seed: int = 0
     reload: Callable | None = None               # {param: "v unit"} -> Design, to sample uncertain params
     nonlinear_passes: int = 0                    # re-plan against the nonlinear model (acl.schedule.correct)
+    allow_nonlinear: bool = False                # plan drives beyond the linear bubble model (eps/R > limit)
 
 
 def auto_sample_rate(max_frequency_hz: float, factor: float = 10.0, grid_hz: float = 1e3) -> float:
@@ -95,8 +96,15 @@ class _Compiler:
     def run(self) -> Schedule:
         self.states = {l.name: l.state for l in self.design.latches}
         self._check_numbers()
+        from acl.schedule.solve import SolverFailure
+
         for i, step in enumerate(self.program.steps):
-            getattr(self, f"_{step.kind}")(i, step)
+            try:
+                getattr(self, f"_{step.kind}")(i, step)
+            except SolverFailure as exc:   # every step, not only follow: a located error, never E-INTERNAL
+                raise _diag("E-SCHED-SOLVER", f"step {i + 1}: {exc}", step.span,
+                            "no solver could handle this step's convex program: check its margin, limit and "
+                            "slew for absurd values") from None
         if not self.segments:
             raise DiagnosticError([error("E-SCHED-EMPTY", f"program `{self.program.name}` has no steps",
                                          self.program.span)])
@@ -114,7 +122,44 @@ class _Compiler:
         _choose_all_phases(sched, fs)
         self._check_peaks(sched)
         self._check_slews(sched)
+        self._check_linear(sched)
         return sched
+
+    def _check_linear(self, sched: Schedule) -> None:
+        """Refuse a segment that drives an interface beyond the linear bubble model (eps/R > LINEAR_AMPLITUDE_LIMIT; docs/physics.md).
+
+        Tone amplitudes add (the worst-case peak); chirps are sampled at 9 frequencies.  Allowed with
+        ``allow_nonlinear`` (then noted): the predicted forces are then not trustworthy.
+        """
+        from acl.analysis.acoustics import interface_amplitudes
+        from acl.design.model import Drive, Tone
+        from acl.physics.constants import LINEAR_AMPLITUDE_LIMIT
+
+        for seg in sched.segments:
+            if not seg.tones or not self.design.capsules:
+                continue
+            worst, where = 0.0, ""
+            chirps = [t for t in seg.tones if t.frequency_end_hz]
+            grid = np.linspace(0.0, 1.0, 9) if chirps else np.zeros(1)
+            for x in grid:
+                tones = tuple(Tone(frequency=t.frequency_hz + x * ((t.frequency_end_hz or t.frequency_hz) - t.frequency_hz),
+                                   amplitude=t.amplitude_v) for t in seg.tones if t.amplitude_v > 0)
+                if not tones:
+                    continue
+                amps = interface_amplitudes(self.design, Drive(tones=tones))
+                k, v = max(amps.items(), key=lambda kv: kv[1], default=("", 0.0))
+                if v > worst:
+                    worst, where = v, k
+            if worst <= LINEAR_AMPLITUDE_LIMIT:
+                continue
+            step = self.program.steps[seg.step]
+            text = (f"step {seg.step + 1} drives interface `{where}` to eps/R = {worst:.2f}, beyond the linear "
+                    f"bubble model (eps/R <= {LINEAR_AMPLITUDE_LIMIT:g}; docs/physics.md)")
+            if self.opts.allow_nonlinear:
+                self.notes.append(text + ": allowed by --allow-nonlinear; forces there are not trustworthy")
+                continue
+            raise _diag("E-SCHED-NONLINEAR", text, step.span,
+                        "lower the voltage, move the tone off resonance, or pass --allow-nonlinear")
 
     def _check_slews(self, sched: Schedule) -> None:
         """Every step with a slew limit: the emitted amplitude envelope, crossfades included, obeys it.
@@ -241,6 +286,12 @@ class _Compiler:
                             step.span, f"raise --waypoint-dt above {duration / MAX_WAYPOINTS:.3g} s")
             n = max(2, int(round(n)))
             path = sample_path(step.path, n)
+            miss = _sampling_miss(step.path, path.points, sample_path)
+            if miss > self.opts.tolerance_m:
+                raise _diag("E-SCHED-PATH", f"{name}: {n} waypoints {duration / n:.3g} s apart cut corners: the "
+                            f"device, moving from waypoint to waypoint, misses the path by up to {miss * 1e6:.3g} um "
+                            f"(tolerance {self.opts.tolerance_m * 1e6:g} um)", step.span,
+                            f"give the path more time, or lower --waypoint-dt below {self.opts.waypoint_dt_s:g} s")
         except (PathError, TypeError, ZeroDivisionError) as exc:
             raise _diag("E-SCHED-PATH", f"{name}: {exc}", step.span,
                         "give a duration or a positive speed, and a well-formed path")
@@ -639,6 +690,17 @@ def _overlap_slew(prev, cur, nxt, a0, a1, b0, b1, n: int = 2001) -> float:
               + np.pi ** 2 / (2 * lx * ly) * abs(pc))
         worst = max(worst, float(d + e2 * step / 2))
     return worst
+
+
+def _sampling_miss(spec, points: np.ndarray, sample_path) -> float:
+    """Largest distance (m) between the path and the straight moves joining its waypoints: both are
+    sampled evenly by arc length, so the path at each dense arc position is compared with the
+    waypoints interpolated there (a circle on two waypoints misses by its diameter)."""
+    n = len(points)
+    dense = sample_path(spec, int(min(max(20 * n, 2000), 200_000))).points
+    s_dense, s_way = np.linspace(0.0, 1.0, len(dense)), np.linspace(0.0, 1.0, n)
+    between = np.column_stack([np.interp(s_dense, s_way, points[:, k]) for k in range(points.shape[1])])
+    return float(np.max(np.linalg.norm(dense - between, axis=1)))
 
 
 def _diag(code: str, message: str, span: Span | None, hint: str | None = None) -> DiagnosticError:

@@ -412,6 +412,8 @@ def paused_gc():
 
 def parse_module(source: str, file: str = "<string>") -> A.Module:
     """Parse a whole file. Raises DiagnosticError with one diagnostic per broken statement."""
+    if source.startswith("\ufeff"):   # a UTF-8 byte-order mark (Windows editors) is not part of the text
+        source = source[1:]
     with paused_gc():
         return _parse_module(source, file)
 

@@ -152,3 +152,36 @@ def unintended_excitation(ctx: Context):
                         *(f"`{c.name}` modes: " + ", ".join(f"{khz(m.frequency_hz)} (Q {m.q:.3g})" for m in ctx.modes(c))
                           for c in ctx.design.capsules if c.name in intended[j] | {name})],
                     hint="move the tone or the capsule's resonance apart, or accept it with a justified suppression")
+
+
+@rule("ACL105", "bubble-beyond-linear",
+      "a drive that moves an interface beyond the linear regime makes every predicted force untrustworthy",
+      Severity.WARNING, "acoustics", ("linear_amplitude", "sweep_samples"))
+def bubble_beyond_linear(ctx: Context):
+    from acl.analysis.acoustics import interface_amplitudes
+    from acl.design.model import Drive, Tone
+
+    limit = ctx.threshold("linear_amplitude")
+    n = int(ctx.threshold("sweep_samples"))
+    for p, st in ctx.steps():
+        if st.kind == "drive":
+            drives = [st.drive]
+        elif st.kind == "sweep":
+            drives = [Drive(tones=(Tone(frequency=float(f), amplitude=st.amplitude),))
+                      for f in np.linspace(st.f_start, st.f_stop, n)]
+        else:
+            continue                      # the compiler decides those amplitudes and refuses them itself
+        worst, where, at = 0.0, "", None
+        for dr in drives:
+            amps = interface_amplitudes(ctx.design, dr)
+            k, v = max(amps.items(), key=lambda kv: kv[1], default=("", 0.0))
+            if v > worst:
+                worst, where, at = v, k, dr
+        if worst > limit:
+            f = at.tones[0].frequency if at and at.tones else 0.0
+            yield ctx.finding("ACL105",
+                f"program `{p.name}` drives interface `{where}` to eps/R = {worst:.2f} (at {khz(f)}), beyond the "
+                f"linear bubble model", st.span, notes=[
+                    f"threshold linear_amplitude = {limit:g} (centre amplitude / orifice radius; docs/physics.md)",
+                    "amplitude per volt from the coupled bubble model and the transducer gain table"],
+                hint="lower the voltage or move the tone off resonance (`acl compile` refuses it without --allow-nonlinear)")
