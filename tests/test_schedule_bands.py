@@ -139,7 +139,7 @@ def test_compile_cli_band_columns_and_bad_options(tmp_path):
     src = os.path.join(EX, "fig2_stroke.acl")
     run = lambda *a: subprocess.run([sys.executable, "-m", "acl", "compile", src, "--program", "stroke", *a],  # noqa: E731
                                     capture_output=True, text=True, env=env)
-    out = run("-o", str(tmp_path / "ok"), "--band-samples", "3", "--robust", "--waypoint-dt", "0.05")
+    out = run("-o", str(tmp_path / "ok"), "--band-samples", "3", "--robust", "--waypoint-dt", "0.05", "--allow-nonlinear")
     assert out.returncode == 0, out.stderr
     assert "95 % band" in out.stderr
     goal = json.loads((tmp_path / "ok" / "schedule.json").read_text())["goals"][0]
