@@ -320,7 +320,7 @@ def test_incremental_parse_equals_whole_file_parse():
             continue
         assert got == want, f
     # its chunker (with remembered line depths) cuts exactly where the parser's does
-    from acl.syntax.parser import _statement_chunks
+    from acl.syntax.parser import statement_chunks as _statement_chunks
 
     ip = IncrementalParser()
     for f in _corpus():

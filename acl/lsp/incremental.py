@@ -9,14 +9,8 @@ to the loader through its parse cache, so resolution is unchanged.
 """
 from __future__ import annotations
 
-import re
-
 from acl.diagnostics import DiagnosticError
 from acl.syntax import ast as A
-
-# a new top-level statement at column 0 while brackets are open (the parser's chunker, same words)
-_TOP_KEYWORD = re.compile(r"(import|extends|param|program|mount|fix|link|observe|require|use|capsule|beam|medium|"
-                          r"material|transducer|latch|spring|truss|anchor|effect)\b")
 
 
 class IncrementalParser:
@@ -25,7 +19,7 @@ class IncrementalParser:
         self._deltas: dict[str, int] = {}        # line text -> bracket depth change (parser._depth_delta)
 
     def _chunks(self, lines: list[str]):
-        """The parser's statement chunks (:func:`acl.syntax.parser._statement_chunks`), with the
+        """The parser's statement chunks (:func:`acl.syntax.parser.statement_chunks`), with the
         bracket depth of each line text remembered between edits; the boundaries are the same."""
         from acl.syntax import parser as P
 
@@ -39,21 +33,7 @@ class IncrementalParser:
                 d = deltas[line] = P._depth_delta(line)
             return d
 
-        i, n = 0, len(lines)
-        while i < n:
-            stripped = lines[i].strip()
-            if not stripped or stripped.startswith("#"):
-                i += 1
-                continue
-            start, depth = i, 0
-            while i < n:
-                depth += delta(lines[i])
-                i += 1
-                if depth <= 0 and not lines[i - 1].rstrip().endswith("\\"):
-                    break
-                if depth > 0 and i < n and _TOP_KEYWORD.match(lines[i]):
-                    break
-            yield start, i
+        yield from P.statement_chunks(lines, delta)
 
     def parse(self, text: str, file: str) -> A.Module | None:
         """The syntax tree of ``text`` (equal to :func:`acl.syntax.parser.parse_module`'s), or None."""

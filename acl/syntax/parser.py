@@ -430,7 +430,7 @@ def _parse_module(source: str, file: str) -> A.Module:
     # Recovery: parse each top-level statement on its own, keeping line numbers.
     diags: list[Diagnostic] = []
     lines = text.split("\n")
-    for start, end in _statement_chunks(lines):
+    for start, end in statement_chunks(lines):
         # each statement alone, without padding it to its line (that made recovery quadratic):
         # the error's line is shifted back by `start` below
         chunk = "\n".join(lines[start:end]) + "\n"
@@ -520,8 +520,18 @@ def _check_limits(source: str, file: str) -> None:
             depth -= 1
 
 
-def _statement_chunks(lines: list[str]):
-    """Yield (start, end) line ranges of top-level statements, tracking bracket depth."""
+#: a top-level keyword at column 0: while brackets are open it starts a new statement (missing brace)
+TOP_KEYWORD = re.compile(r"(import|extends|param|uncertainty|program|mount|fix|link|observe|require|use|capsule|"
+                         r"beam|medium|material|transducer|latch|spring|truss|anchor|effect)\b")
+
+
+def statement_chunks(lines: list[str], delta=None):
+    """Yield (start, end) line ranges of top-level statements, tracking bracket depth.
+
+    ``delta`` (default :func:`_depth_delta`) gives a line's change of bracket depth; the editor
+    passes a memoised one.  Used by error recovery here and by the language server's incremental parse.
+    """
+    delta = delta or _depth_delta
     i, n = 0, len(lines)
     while i < n:
         stripped = lines[i].strip()
@@ -530,12 +540,11 @@ def _statement_chunks(lines: list[str]):
             continue
         start, depth = i, 0
         while i < n:
-            depth += _depth_delta(lines[i])
+            depth += delta(lines[i])
             i += 1
             if depth <= 0 and not lines[i - 1].rstrip().endswith("\\"):
                 break
-            # a new top-level keyword at column 0 while unbalanced: stop (missing brace)
-            if depth > 0 and i < n and re.match(r"(import|extends|param|uncertainty|program|mount|fix|link|observe|require|use|capsule|beam|medium|material|transducer|latch|spring|truss|anchor|effect)\b", lines[i]):
+            if depth > 0 and i < n and TOP_KEYWORD.match(lines[i]):
                 break
         yield start, i
 
