@@ -181,7 +181,6 @@ def add_verbosity(p) -> None:
 
 # -- designs named by file or folder ---------------------------------------------------------------
 
-SKIPPED_DIRS = {"__pycache__", "node_modules", "venv", ".venv"}
 
 
 def design_files(paths) -> list[str]:
@@ -191,19 +190,11 @@ def design_files(paths) -> list[str]:
     missing or unreadable file, and a FIFO named explicitly as E601)."""
     import os
 
+    from acl._files import designs_under
+
     files = []
     for p in paths:
-        if os.path.isdir(p):
-            top = os.path.realpath(p)
-            for dirpath, dirs, names in os.walk(p):
-                dirs[:] = sorted(d for d in dirs if not d.startswith(".") and d not in SKIPPED_DIRS)
-                for n in sorted(names):
-                    full = os.path.join(dirpath, n)
-                    if n.endswith(".acl") and os.path.commonpath([top, os.path.realpath(full)]) == top \
-                            and os.path.isfile(full):
-                        files.append(full)
-        else:
-            files.append(p)
+        files.extend(designs_under(p) if os.path.isdir(p) else [p])
     return list(dict.fromkeys(files))
 
 

@@ -9,6 +9,7 @@ import os
 import time
 from dataclasses import dataclass, field, replace
 
+from acl._files import designs_under
 from acl.diagnostics import Diagnostic, Severity, Span
 from acl.lint.config import CHECK_CODE, LintConfig
 from acl.lint.context import Context, Unavailable
@@ -17,7 +18,6 @@ from acl.lint.source import SourceFile, scan
 
 UNREADABLE = ("E601", "E103")
 # folders never searched when a directory is linted (hidden folders are skipped too)
-EXCLUDED_DIRS = frozenset({"build", "dist", "node_modules", "venv", "__pycache__", "site-packages"})
 
 
 @dataclass
@@ -39,23 +39,12 @@ def collect_files(paths: list[str]) -> tuple[list[str], list[str]]:
     files, missing = [], []
     for p in paths:
         if os.path.isdir(p):
-            top = os.path.realpath(p)
-            for dirpath, dirs, names in os.walk(p):
-                dirs[:] = sorted(d for d in dirs if not d.startswith(".") and d not in EXCLUDED_DIRS)
-                for n in sorted(names):
-                    f = os.path.join(dirpath, n)
-                    # a folder search stays in the folder: no symlink out of it, no FIFO or device
-                    if n.endswith(".acl") and _inside(os.path.realpath(f), top) and os.path.isfile(f):
-                        files.append(f)
+            files.extend(designs_under(p))
         elif os.path.exists(p):
             files.append(p)
         else:
             missing.append(p)
     return list(dict.fromkeys(files)), missing
-
-
-def _inside(real: str, top: str) -> bool:
-    return real == top or real.startswith(top.rstrip(os.sep) + os.sep)
 
 
 def lint_file(path: str, config: LintConfig, overrides: dict | None = None, search_paths=(),
