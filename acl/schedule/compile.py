@@ -153,7 +153,7 @@ class _Compiler:
             if worst <= LINEAR_AMPLITUDE_LIMIT:
                 continue
             step = self.program.steps[seg.step]
-            text = (f"step {seg.step + 1} drives interface `{where}` to eps/R = {worst:.2f}, beyond the linear "
+            text = (f"step {seg.step + 1} drives interface `{where}` to eps/R = {worst:.6g}, beyond the linear "
                     f"bubble model (eps/R <= {LINEAR_AMPLITUDE_LIMIT:g}; docs/physics.md)")
             if self.opts.allow_nonlinear:
                 self.notes.append(text + ": allowed by --allow-nonlinear; forces there are not trustworthy")
