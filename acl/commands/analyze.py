@@ -147,7 +147,7 @@ def print_report(design, rep) -> None:
     for d in nonlinear:
         where = f"program {d['program']} step {d['step']} (line {d['line']})" if d["program"] else "pair analysis"
         worst = max(d["interface_amplitude_over_radius"].items(), key=lambda kv: kv[1])
-        con.print(f"[red]warning:[/red] {where}: {d['drive']} drives {worst[0]} to eps/R = {worst[1]:.3f}, beyond the "
+        con.print(f"[red]warning:[/red] {where}: {d['drive']} drives {worst[0]} to eps/R = {worst[1]:.6g}, beyond the "
                   f"linear bubble model (eps/R <= {d['linear_limit']:g}; docs/physics.md)")
     if rep.pairs:
         t = Table(title="Bubble pairs (Bjerknes force at rest, attraction positive)", title_justify="left")

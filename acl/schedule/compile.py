@@ -156,7 +156,7 @@ class _Compiler:
             if worst <= LINEAR_AMPLITUDE_LIMIT:
                 continue
             step = self.program.steps[step_index]
-            text = (f"step {step_index + 1} drives interface `{where}` to eps/R = {worst:.3f}, beyond the linear "
+            text = (f"step {step_index + 1} drives interface `{where}` to eps/R = {worst:.6g}, beyond the linear "
                     f"bubble model (eps/R <= {LINEAR_AMPLITUDE_LIMIT:g}; docs/physics.md)")
             if self.opts.allow_nonlinear:
                 self.notes.append(text + ": allowed by --allow-nonlinear; forces there are not trustworthy")

@@ -180,7 +180,7 @@ def bubble_beyond_linear(ctx: Context):
         if worst > limit:
             f = at.tones[0].frequency if at and at.tones else 0.0
             yield ctx.finding("ACL105",
-                f"program `{p.name}` drives interface `{where}` to eps/R = {worst:.3f} (at {khz(f)}), beyond the "
+                f"program `{p.name}` drives interface `{where}` to eps/R = {worst:.6g} (at {khz(f)}), beyond the "
                 f"linear bubble model", st.span, notes=[
                     f"threshold linear_amplitude = {limit:g} (centre amplitude / orifice radius; docs/physics.md)",
                     "amplitude per volt from the coupled bubble model and the transducer gain table"],
