@@ -70,9 +70,13 @@ def check_paths(paths) -> list[Diagnostic]:
 
 
 def load_or_report(path: str, args, fmt: str = "text"):
-    """Load a design; on errors render them and return (None, exit_code)."""
+    """Load a design (a file, or a folder holding one: :func:`one_design`); on errors render them
+    and return (None, exit_code)."""
     from acl.design.resolve import load_design
 
+    path = one_design(path, fmt)
+    if path is None:
+        return None, 2
     overrides, diags = parse_sets(getattr(args, "set", []) or [])
     diags += check_paths(getattr(args, "path", []))
     if diags:

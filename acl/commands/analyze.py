@@ -5,7 +5,7 @@ import json
 import math
 import sys
 
-from acl.commands._common import (add_design_options, add_output_format, load_or_report, one_design,
+from acl.commands._common import (add_design_options, add_output_format, load_or_report,
                                   plotting_missing, report)
 from acl.diagnostics import DiagnosticError, Span, error
 
@@ -33,10 +33,7 @@ def run(args) -> int:
             return 2
     if args.plot and plotting_missing("--plot", fmt):
         return 2
-    path = one_design(args.file, fmt)
-    if path is None:
-        return 2
-    design, code = load_or_report(path, args, fmt)
+    design, code = load_or_report(args.file, args, fmt)
     if design is None:
         return code
     if at is not None and design.transducer is not None:

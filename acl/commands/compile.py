@@ -10,7 +10,7 @@ import math
 import re
 import sys
 
-from acl.commands._common import (add_design_options, add_output_format, load_or_report, one_design,
+from acl.commands._common import (add_design_options, add_output_format, load_or_report,
                                   plotting_missing, report)
 from acl.diagnostics import DiagnosticError, Span, error, suggest
 
@@ -151,10 +151,7 @@ def run(args) -> int:
         return 2
     if args.plot and plotting_missing("--plot", fmt):
         return 2
-    path = one_design(args.file, fmt)
-    if path is None:
-        return 2
-    design, code = load_or_report(path, args, fmt)
+    design, code = load_or_report(args.file, args, fmt)
     if design is None:
         return code
     names = [p.name for p in design.programs]
@@ -185,7 +182,7 @@ def run(args) -> int:
                           calibration=calibration, full_scale_v=full_scale,
                           robust=args.robust is not None, robust_mode=args.robust or "mean",
                           band_samples=args.band_samples, band_seed=args.band_seed,
-                          nonlinear_passes=args.nonlinear_passes, reload=_reloader(args, path),
+                          nonlinear_passes=args.nonlinear_passes, reload=_reloader(args, design.file),
                           allow_nonlinear=bool(getattr(args, "allow_nonlinear", False)))
     try:
         schedule = compile_program(design, program, opts)

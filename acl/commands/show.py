@@ -4,7 +4,7 @@ from __future__ import annotations
 import json
 import sys
 
-from acl.commands._common import add_design_options, add_output_format, load_or_report, one_design
+from acl.commands._common import add_design_options, add_output_format, load_or_report
 
 
 def add_parser(p) -> None:
@@ -15,10 +15,7 @@ def add_parser(p) -> None:
 
 def run(args) -> int:
     fmt = args.output_format
-    path = one_design(args.file, fmt)
-    if path is None:
-        return 2
-    design, code = load_or_report(path, args, fmt)
+    design, code = load_or_report(args.file, args, fmt)
     if design is None:
         return code
     if fmt == "json":
