@@ -532,12 +532,13 @@ def _requires(b: Builder, design: M.Design) -> list[M.Require]:
                     b.bag.error("E304", "modes are numbered from 1", m.span)
                     continue
         elif c.name == "separation":
-            if not b.arity(c, (2,), "separation(capsule, capsule)"):
+            # separation(a, b): first modes of two capsules; separation(m): adjacent modes of one capsule
+            if not b.arity(c, (1, 2), "separation(capsule, capsule) or separation(capsule)"):
                 continue
             ks = [b.local(a, ("capsule",), "require separation") if isinstance(a, A.Ref) else None for a in c.args]
             if not all(ks):
                 continue
-            args = (ks[0][1], ks[1][1])
+            args = tuple(k[1] for k in ks)
         else:
             if not b.arity(c, (2,), "gap(a.orifice, b.orifice)"):
                 continue

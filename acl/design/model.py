@@ -332,7 +332,8 @@ class Require(Frozen):
     """Design intent checked by `acl analyze` and lint.
 
     kind ``resonance``: capsule's mode ``mode`` (0-based) frequency in [lower, upper] Hz.
-    kind ``separation``: |f(a) - f(b)| >= lower Hz.
+    kind ``separation``: |f(a) - f(b)| >= lower Hz (first modes of capsules a and b); with one
+    capsule, the smallest distance between its adjacent modes (as `acl analyze` lists them).
     kind ``margin``: latch switching margin >= lower (dimensionless).
     kind ``gap``: gap(a, b) >= lower (m) under every program step.
     """
