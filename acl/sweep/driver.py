@@ -101,3 +101,30 @@ def sweep(design, vary=None, tolerance=None, n=None, seed=0, quantities=None, at
 
             warnings.warn(note, SweepWarning, stacklevel=3)
     return table
+
+
+def scaled(spec: SweepSpec, factor: float) -> SweepSpec:
+    """The same sweep with every spread's deviation multiplied by ``factor`` (the same random draws)."""
+    from dataclasses import replace
+
+    from acl.design.model import Spread
+    from acl.sweep.spec import Tolerance
+
+    tols = tuple(Tolerance(t.name, Spread(kind=t.spread.kind, a=t.spread.a * factor, b=t.spread.b * factor,
+                                          relative=t.spread.relative), t.unit, t.source) for t in spec.tolerances)
+    return replace(spec, tolerances=tols)
+
+
+def yield_vs_tolerance(design: Design, spec: SweepSpec, scales, quantities=None, at=None, scheduler=None,
+                       overrides=None, search_paths=()) -> list[dict]:
+    """Yield of ``spec`` with its spreads scaled by each factor in ``scales`` (common random numbers:
+    the same seed, so the curve is smooth); rows {scale, yield, lower, upper, passed, total}."""
+    rows = []
+    for s in scales:
+        t = run_sweep(design, scaled(spec, float(s)), quantities, at, scheduler, None, overrides, search_paths)
+        y = t.yields().get("all")
+        if y is None:
+            raise DiagnosticError([error("E-USAGE", "yield vs tolerance: " + "; ".join(t.unevaluated.values()),
+                                         Span(file="<--tolerance-scales>", line=1, column=1))])
+        rows.append({"scale": float(s), **y.as_dict()})
+    return rows
