@@ -109,3 +109,9 @@ def test_yield_agrees_with_brute_force_analyze():
         passed += ok
     assert 0 < passed < 200                       # the spread straddles the band's edges
     assert t.yields()["all"].passed == passed
+
+
+def test_narrow_interval_gets_more_decimals():
+    """1,000,000 passes of 1,000,000: the lower bound 0.9999963 would print as 0.99 at two decimals."""
+    y = T.Yield(10**6, 10**6, *T.clopper_pearson(10**6, 10**6))
+    assert y.text() == "1.0000 [0.9999, 1.0000]"
