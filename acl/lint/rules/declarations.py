@@ -118,6 +118,12 @@ def _evaluate(ctx: Context, r):
         m = modes[r.mode]
         return m.frequency_hz, "Hz", [f"mode {r.mode + 1}: {khz(m.frequency_hz)}, Q = {m.q:.3g}, "
                                       f"dominant orifice `{m.dominant_orifice}`"]
+    if r.kind == "separation" and len(r.args) == 1:
+        fs = sorted(m.frequency_hz for m in ctx.modes(d.capsule(r.args[0])))
+        if len(fs) < 2:
+            return float("nan"), "Hz", [f"capsule `{r.args[0]}` has {len(fs)} distinct mode(s)"]
+        gaps = [b - a for a, b in zip(fs, fs[1:])]
+        return min(gaps), "Hz", ["adjacent modes " + ", ".join(khz(f) for f in fs)]
     if r.kind == "separation":
         fa = ctx.modes(d.capsule(r.args[0]))[0].frequency_hz
         fb = ctx.modes(d.capsule(r.args[1]))[0].frequency_hz
