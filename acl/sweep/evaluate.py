@@ -260,15 +260,9 @@ def evaluate(batch, quantities: Sequence[str] | None = None, at: str | None = No
 
 
 def _nominal(design, path: str) -> float:
-    obj = design
-    for part in path.split("."):
-        if isinstance(obj, tuple) and part.isdigit():
-            obj = obj[int(part)]
-        elif isinstance(obj, tuple):
-            obj = next(x for x in obj if getattr(x, "name", None) == part)
-        else:
-            obj = getattr(obj, part)
-    return float(obj)
+    from acl.sweep.perturb import field_value
+
+    return field_value(design, path)
 
 
 class _Evaluator:
