@@ -240,32 +240,58 @@ class Problem:
     seed: int
     search_paths: tuple = ()
     tolerance_args: tuple = ()
-    loads: int = 0
 
-    def design_at(self, x: np.ndarray):
-        """The design re-resolved with the free parameters at ``x`` (SI; the declarations' spreads and
-        ranges kept)."""
-        from acl.design.resolve import load_design
+    spec: object = None               # acl.sweep.spec.SweepSpec of the start (search and validation chunks)
+    fmap: object = None               # acl.sweep.perturb.FieldMap over the free box widened by the spreads
 
-        self.loads += 1
-        over = {f.name: f"{v!r} {f.unit}".strip() for f, v in zip(self.free, np.asarray(x, float))}
-        return load_design(self.path, overrides=over, search_paths=list(self.search_paths))
+    def setup(self) -> None:
+        """The sampling spec and the parameter-to-field map, found once (the design is resolved a few
+        times here and never again: every trial perturbs arrays)."""
+        import dataclasses
 
-    def margins(self, x: np.ndarray, block: int = 0) -> np.ndarray:
-        from acl.sweep.evaluate import evaluate
-        from acl.sweep.perturb import field_batch
-        from acl.sweep.sample import chunk_points
+        from acl.sweep.perturb import field_map
         from acl.sweep.spec import build_spec
 
-        design = self.design_at(x)
-        spec = build_spec(design, tolerance=list(self.tolerance_args), samples=self.samples + self.validate,
-                          seed=self.seed, chunk_size=self.samples)
+        self.spec = build_spec(self.design, tolerance=list(self.tolerance_args), samples=self.samples + self.validate,
+                               seed=self.seed, chunk_size=self.samples)
+        names = tuple(dict.fromkeys([*self.spec.names, *(f.name for f in self.free)]))
+        box = {n: (v, v) for n, v in ((n, self.design.param(n).value) for n in names)}
+        for n, (lo, hi) in self.spec.box().items():
+            box[n] = (lo, hi)
+        for f in self.free:                     # the free range, widened as the spec widens a nominal
+            at_lo = dataclasses.replace(self.spec, nominal={**self.spec.nominal, f.name: f.lower}).box()
+            at_hi = dataclasses.replace(self.spec, nominal={**self.spec.nominal, f.name: f.upper}).box()
+            box[f.name] = (min(at_lo.get(f.name, (f.lower,))[0], f.lower), max(at_hi.get(f.name, (0, f.upper))[1], f.upper))
+        self.fmap = field_map(self.design, names, box, search_paths=self.search_paths)
+
+    def points(self, x: np.ndarray, block: int = 0) -> dict[str, np.ndarray]:
+        """{parameter: SI values} of the search (block 0) or validation (block 1) sample about free values ``x``."""
+        import dataclasses
+
+        from acl.sweep.sample import chunk_points
+
+        if self.spec is None:
+            self.setup()
+        at = {f.name: float(v) for f, v in zip(self.free, np.asarray(x, float))}
+        spec = dataclasses.replace(self.spec, nominal={**self.spec.nominal, **at})
         chunks = [0] if block == 0 else range(1, spec.n_chunks)
         parts = [chunk_points(spec, k, spec.chunk_size) for k in chunks]
-        points = {name: np.concatenate([p[name] for p in parts]) for name in parts[0]}
-        batch = field_batch(design, points)
-        cols = evaluate(batch, quantities=[f"require_{i + 1}_value" for i in range(len(self.requires))])
-        return require_margins(self.requires, [cols[f"require_{i + 1}_value"] for i in range(len(self.requires))])
+        pts = {name: np.concatenate([p[name] for p in parts]) for name in parts[0]}
+        n = len(next(iter(pts.values())))
+        for name, v in at.items():
+            pts.setdefault(name, np.full(n, v))
+        return {name: pts[name] for name in self.fmap.names}
+
+    def margins(self, x: np.ndarray, block: int = 0) -> np.ndarray:
+        """Margins (samples x requirements) at free values ``x`` (SI) on sample ``block``."""
+        from acl.sweep.evaluate import evaluate
+        from acl.sweep.perturb import field_batch
+
+        pts = self.points(x, block)
+        batch = field_batch(self.design, pts, self.fmap)
+        wanted = [f"require_{i + 1}_value" for i in range(len(self.requires))]
+        cols = evaluate(batch, quantities=wanted)
+        return require_margins(self.requires, [cols[q] for q in wanted])
 
 
 def require_margins(requires, values) -> np.ndarray:
@@ -303,7 +329,6 @@ def prepare(path: str, tolerance: Sequence[str] = (), samples: int = 2000, valid
     from acl.design.resolve import load_design
     from acl.diagnostics import DiagnosticError, Span, error
     from acl.sweep.evaluate import supported
-    from acl.sweep.spec import build_spec
 
     diags = []
     validate = samples if validate is None else validate
@@ -350,10 +375,12 @@ def prepare(path: str, tolerance: Sequence[str] = (), samples: int = 2000, valid
                            "'r1=normal(0, 150 nm)'"))
     if diags:
         raise DiagnosticError(diags)
-    spec = build_spec(design, tolerance=list(tolerance), samples=samples + validate, seed=seed, chunk_size=samples)
-    return Problem(path=path, design=design, free=tuple(free), requires=tuple(design.requires),
-                   tolerances=spec.tolerances, samples=int(samples), validate=int(validate), seed=int(seed),
-                   search_paths=tuple(search_paths), tolerance_args=tuple(tolerance))
+    problem = Problem(path=path, design=design, free=tuple(free), requires=tuple(design.requires), tolerances=(),
+                      samples=int(samples), validate=int(validate), seed=int(seed), search_paths=tuple(search_paths),
+                      tolerance_args=tuple(tolerance))
+    problem.setup()
+    problem.tolerances = problem.spec.tolerances
+    return problem
 
 
 # ------------------------------------------------------------------------------------------------
