@@ -14,6 +14,8 @@ Arrays: medium constants are scalars or (N,); geometry carries the point axis fi
 """
 from __future__ import annotations
 
+from functools import lru_cache
+
 import numpy as np
 
 from acl.physics.resonance import shape_matrices, thermal_polytropic
@@ -22,6 +24,43 @@ from acl.physics.resonance import shape_matrices, thermal_polytropic
 # ----------------------------------------------------------------------------------------------
 # Bare capsule modes (resonance.capsule_modes)
 # ----------------------------------------------------------------------------------------------
+
+
+@lru_cache(maxsize=8)
+def _fixed_eigh(key):
+    a_h, u_h = np.array(key[0]), np.array(key[1])
+    lam, vec = np.linalg.eigh(a_h)
+    return lam, vec, vec.T @ u_h
+
+
+def _rank_one_eigh(a_h, u_h, alpha, beta, a):
+    """Eigenpairs of alpha A_h + beta u u^T (3 x 3, A_h and u fixed) per point: eigenvalues of the characteristic cubic in closed form (Smith, Commun. ACM 4, 168 (1961)), vectors (Lambda - lambda)^-1 U^T u of the rank-one update (Golub, SIAM Rev. 15, 318 (1973)).
+
+    Rows where a root comes within 1e-7 of a pole of the update (ill-conditioned vectors) are
+    solved by LAPACK (``a`` the assembled matrices).
+    """
+    lam_h, vec_h, ut = _fixed_eigh((tuple(map(tuple, a_h)), tuple(u_h)))
+    g = beta / alpha                                                    # B = Lambda + g ut ut^T, A = alpha U B U^T
+    d = lam_h
+    b00, b11, b22 = d[0] + g * ut[0] ** 2, d[1] + g * ut[1] ** 2, d[2] + g * ut[2] ** 2
+    b01, b02, b12 = g * ut[0] * ut[1], g * ut[0] * ut[2], g * ut[1] * ut[2]
+    q = (b00 + b11 + b22) / 3
+    c00, c11, c22 = b00 - q, b11 - q, b22 - q
+    p = np.sqrt((c00**2 + c11**2 + c22**2 + 2 * (b01**2 + b02**2 + b12**2)) / 6)
+    det = (c00 * (c11 * c22 - b12 * b12) - b01 * (b01 * c22 - b12 * b02) + b02 * (b01 * b12 - c11 * b02)) / p**3
+    phi = np.arccos(np.clip(det / 2, -1.0, 1.0)) / 3
+    hi = q + 2 * p * np.cos(phi)
+    lo = q + 2 * p * np.cos(phi + 2 * np.pi / 3)
+    roots = np.stack([lo, 3 * q - hi - lo, hi], axis=1)                 # (N, 3) ascending
+    den = d[None, :, None] - roots[:, None, :]                          # (N, i, k)
+    y = ut[None, :, None] / den
+    y = y / np.linalg.norm(y, axis=1, keepdims=True)
+    vec = vec_h[None] @ y
+    w2 = alpha[:, None] * roots
+    bad = ~(np.abs(den).min(axis=1) > 1e-7 * (d[-1] - d[0])).all(axis=1) | ~np.isfinite(w2).all(axis=1)
+    if bad.any():
+        w2[bad], vec[bad] = np.linalg.eigh(a[bad])
+    return w2, vec
 
 
 def _col(x, n):
@@ -59,13 +98,16 @@ def capsule_modes(volume, radii, density, surface_tension, ambient_pressure, pol
     u = (scale * radii**2)[:, :, None] * u_h[None, None, :]          # (N, P, J) = L^-1 b
     u = u.reshape(n, d)
     a += (kap * p0 / vol0)[:, None, None] * u[:, :, None] * u[:, None, :]
-    w2, y = np.linalg.eigh(a)
+    if p == 1 and j == 3:
+        w2, y = _rank_one_eigh(a_h, u_h, sig * scale[:, 0] ** 2, kap * p0 / vol0 * (scale[:, 0] * radii[:, 0] ** 2) ** 2, a)
+    else:
+        w2, y = np.linalg.eigh(a)
     x = (scale[:, :, None, None] * (li.T[None, None] @ y.reshape(n, p, j, d))).reshape(n, d, d)
     omega = np.sqrt(np.maximum(w2, 0.0))
     xo = x.reshape(n, p, j, d)
-    vol = radii[:, :, None] ** 2 * np.einsum("j,npjd->npd", s.volume, xo)        # (N, P, D)
+    vol = radii[:, :, None] ** 2 * (s.volume @ xo)                    # (N, P, D)
     vtot = vol.sum(axis=1)
-    c_v = (mu[:, None, None] * radii[:, :, None] * np.einsum("npid,ij,npjd->npd", xo, s.viscous, xo)).sum(axis=1)
+    c_v = (mu[:, None, None] * radii[:, :, None] * (xo * (s.viscous @ xo)).sum(axis=2)).sum(axis=1)
     c_rad = (rho / (4 * np.pi * c))[:, None] * omega**2 * vtot**2
     phi = thermal_polytropic(omega, _col(thermal_radius, n)[:, None], heat_capacity_ratio,
                              _col(thermal_diffusivity, n)[:, None])
@@ -144,6 +186,45 @@ def coupled_modes(phi, omega, damping, points, radii, body, density, sound_speed
     with np.errstate(divide="ignore"):
         quality = np.where(c_n > 0, om / c_n, np.inf)
     return om, vol, quality
+
+
+def lowest_single_interface_mode(phi, omega, damping, point, radius, density, sound_speed, wall_reflection: float = 0.0):
+    """Lowest coupled mode of one interface with its wall image: Omega^2 q = w^2 (I + rho g v v^T) q solved as a secular equation (coupling.coupled_modes for n = 1; Golub, SIAM Rev. 15 (1973) rank-one update).
+
+    ``phi`` (N, M) its outward volume per bare modal coordinate, ``omega``/``damping`` (N, M),
+    ``point`` (N, 3), ``radius`` (N,).  The lowest root of 1 = w^2 c sum_m v_m^2/(w_m^2 - w^2),
+    c = rho R/(4 pi d') the image's mutual mass, lies below w_1^2; Newton from below converges
+    monotonically (the secular function is convex there).  Returns (omega (N,), volume (N,), quality (N,)).
+    """
+    n, m = phi.shape
+    rho, c = _col(density, n), _col(sound_speed, n)
+    zz = np.abs(2 * point[:, 2])
+    d_img = np.maximum(zz, 2 * radius)                               # distance to its own image, floored at 2R
+    cc = rho * wall_reflection / (4 * np.pi * d_img)
+    om2 = omega**2
+    v2 = phi**2
+    lo = om2.min(axis=1)
+    lam = lo / (1 + cc * v2.sum(axis=1))                              # below the root (Rayleigh bound)
+    lam = np.minimum(lam, lo * (1 - 1e-12))
+    for _ in range(60):
+        den = om2 - lam[:, None]
+        g = 1.0 - lam * cc * (v2 / den).sum(axis=1)                  # > 0 below the root, decreasing
+        dg = -cc * (v2 / den).sum(axis=1) - lam * cc * (v2 / den**2).sum(axis=1)
+        step = -g / dg
+        lam = lam + step
+        if np.all(np.abs(step) <= 1e-15 * lam):
+            break
+    q = phi / (om2 - lam[:, None])                                    # eigenvector direction
+    norm = (q**2).sum(axis=1) + cc * ((phi * q).sum(axis=1)) ** 2      # q^T (I + c v v^T) q
+    q = q / np.sqrt(norm)[:, None]
+    w = np.sqrt(lam)
+    vol = (phi * q).sum(axis=1)
+    k = w / c
+    s = wall_reflection * np.sinc(k * d_img / np.pi)
+    c_n = (damping * q**2).sum(axis=1) + rho * w**2 / (4 * np.pi * c) * vol**2 * s
+    with np.errstate(divide="ignore"):
+        quality = np.where(c_n > 0, w / c_n, np.inf)
+    return w, vol, quality
 
 
 def uncoupled_response(phi, omega, damping, body, frequency):
