@@ -115,3 +115,14 @@ def test_narrow_interval_gets_more_decimals():
     """1,000,000 passes of 1,000,000: the lower bound 0.9999963 would print as 0.99 at two decimals."""
     y = T.Yield(10**6, 10**6, *T.clopper_pearson(10**6, 10**6))
     assert y.text() == "1.0000 [0.9999, 1.0000]"
+
+
+def test_api_takes_a_loaded_design_but_not_one_from_text():
+    from acl.diagnostics import DiagnosticError
+
+    d = acl.load(str(CANTILEVER))
+    assert len(acl.sweep(d, vary={"radius": "9um..10um:2"})) == 2
+    text = acl.loads(CANTILEVER.read_text(), filename="<string>")
+    with pytest.raises(DiagnosticError) as exc:
+        acl.sweep(text, vary={"radius": "9um..10um:2"})
+    assert exc.value.diagnostics[0].code == "E-USAGE" and "not a file" in exc.value.diagnostics[0].message
