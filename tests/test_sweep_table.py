@@ -126,3 +126,19 @@ def test_api_takes_a_loaded_design_but_not_one_from_text():
     with pytest.raises(DiagnosticError) as exc:
         acl.sweep(text, vary={"radius": "9um..10um:2"})
     assert exc.value.diagnostics[0].code == "E-USAGE" and "not a file" in exc.value.diagnostics[0].message
+
+
+def test_two_worker_local_cluster_table_equals_one_process_bit_for_bit():
+    """The whole sweep (sample, perturb, evaluate) as dask tasks on 2 worker processes: the same table."""
+    distributed = pytest.importorskip("distributed")
+    kw = dict(vary={"radius": "9um..11um:3"}, tolerance={"radius": "normal(0, 300 nm)"}, n=3000, seed=4)
+    single = acl.sweep(str(CANTILEVER), **kw)
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster:
+        from acl.sweep.driver import sweep
+
+        on_cluster = sweep(str(CANTILEVER), scheduler=cluster.scheduler_address, chunk_size=1000, **kw)
+        chunked_here = sweep(str(CANTILEVER), chunk_size=1000, **kw)
+    assert on_cluster.data.dtype == chunked_here.data.dtype
+    assert on_cluster.data.tobytes() == chunked_here.data.tobytes()
+    assert len(single) == len(on_cluster) == 9000
+    assert single.columns == on_cluster.columns
