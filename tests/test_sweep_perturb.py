@@ -94,3 +94,12 @@ def test_printability_and_positive_sizes_are_codes_not_exceptions():
     b = field_batch(d, {"radius": vals})
     assert b.code.tolist() == ["E401", "E401", "E407", ""]
     _compare_with_load(CANTILEVER, d, {"radius": vals}, b, range(4))
+
+
+def test_free_parameter_outside_its_bounds_is_invalid():
+    path = ROOT / "examples" / "fig3_robust_radii.acl"
+    d = acl.load(str(path))
+    vals = np.array([7e-6, 8e-6, 12e-6, 16.5e-6])        # r1 is `free in 8 um .. 16 um`
+    b = field_batch(d, {"r1": vals})
+    assert b.code.tolist() == ["E306", "", "", "E306"]
+    _compare_with_load(path, d, {"r1": vals}, b, range(4))

@@ -886,6 +886,14 @@ class _Evaluator:
         if r.kind == "resonance":
             f = self.modes(idx[r.args[0]])[0]
             value = f[:, r.mode] if r.mode < f.shape[1] else np.full(self.n, np.nan)
+        elif r.kind == "separation" and len(r.args) == 1:      # closest adjacent modes of one capsule
+            f = np.sort(self.modes(idx[r.args[0]])[0], axis=1)     # NaN (mode not reported) sorts last
+            if f.shape[1] < 2:
+                value = np.full(self.n, np.nan)
+            else:
+                gaps = np.diff(f, axis=1)
+                gaps = np.where(np.isfinite(gaps), gaps, np.inf).min(axis=1)
+                value = np.where(np.isfinite(gaps), gaps, np.nan)
         elif r.kind == "separation":
             value = np.abs(self.modes(idx[r.args[0]])[0][:, 0] - self.modes(idx[r.args[1]])[0][:, 0])
         elif r.kind == "margin":

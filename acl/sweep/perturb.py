@@ -200,6 +200,14 @@ def field_map(design: Design, names, box: dict[str, tuple[float, float]] | None 
     names = tuple(names)
     overrides = dict(overrides or {})
     source = design.file
+    import os
+
+    if names and not os.path.isfile(source):
+        from acl.diagnostics import Span, error
+
+        raise DiagnosticError([error("E-USAGE", f"the design `{source}` is not a file: a sweep resolves it again with "
+                                     "other parameter values", Span(file=source, line=1, column=1),
+                                     "save the design to a file and pass its path")])
     x0 = np.array([design.param(n).value for n in names], float)
     flat0 = flatten(design)
     keys = set(flat0)
