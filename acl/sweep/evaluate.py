@@ -88,6 +88,8 @@ QUANTITIES: tuple[Quantity, ...] = (
              "latches[name].margins[program,step].margin"),
     Quantity("tip_deflection_<beam>_m", "m", "load-point deflection of the beam at the drive `at`",
              "equilibrium.deflections_m[<beam>]"),
+    Quantity("equilibrium_ok", "bool", "a stable equilibrium is reached at `at` without snap-in",
+             "equilibrium.status == \"ok\""),
     Quantity("require_<i>_value", "(the require's)", "measured value of the i-th require (1-based, file order)",
              "requires[i-1].value"),
     Quantity("require_<i>_pass", "bool", "the i-th require holds", "requires[i-1].ok"),
@@ -98,8 +100,8 @@ QUANTITIES: tuple[Quantity, ...] = (
 
 STATIC_EFFECTS = {"offset_drift", "bubble_shrinkage"}
 LINT_RULES = ("acl101", "acl105", "acl503", "acl504", "acl603")
-SNAP_GRID = 32            # closure grid of the snap-in search
-SNAP_GOLDEN = 18          # golden-section steps on the fold
+SNAP_GRID = 24            # closure grid of the snap-in search
+SNAP_GOLDEN = 14          # golden-section steps on the fold
 SPLIT_ITER = 5            # secant steps for the split of the closure between the two beams
 
 
@@ -178,7 +180,7 @@ def supported(design: M.Design, at: str | None = None) -> tuple[list[str], dict[
         if at is not None:
             if mech == "beams" and 1 <= len(design.capsules) <= 2:
                 names += [f"tip_deflection_{_ident(j.target)}_m" for c in design.capsules
-                          for j in [design.mount_of(c.name)] if j.kind == "mount"]
+                          for j in [design.mount_of(c.name)] if j.kind == "mount"] + ["equilibrium_ok"]
             else:
                 missing["tip_deflection"] = "batched equilibria cover one capsule on a beam or a pair on two beams"
     for i, r in enumerate(design.requires, 1):
@@ -258,15 +260,9 @@ def evaluate(batch, quantities: Sequence[str] | None = None, at: str | None = No
 
 
 def _nominal(design, path: str) -> float:
-    obj = design
-    for part in path.split("."):
-        if isinstance(obj, tuple) and part.isdigit():
-            obj = obj[int(part)]
-        elif isinstance(obj, tuple):
-            obj = next(x for x in obj if getattr(x, "name", None) == part)
-        else:
-            obj = getattr(obj, part)
-    return float(obj)
+    from acl.sweep.perturb import field_value
+
+    return field_value(design, path)
 
 
 class _Evaluator:
@@ -462,6 +458,12 @@ class _Evaluator:
         v = np.asarray(volts, float)
         pressure = v * self.gain(f)                                       # (T,)
         pts = centres[:, lay["body"]] + lay["offsets"]                    # (N, n, 3)
+        if not parts and f.size == 1 and lay["body"].tolist() == [0, 1]:  # two one-orifice capsules, one tone
+            h = self.h0(tuple(freqs))[:, 0]
+            return PB.two_bubble_forces(np.stack([h[:, 0, 0], h[:, 1, 1]], axis=1), pts, lay["radii"], lay["normals"],
+                                        centres, lay["outer"], self.thrust_scale(), 2 * np.pi * f[0], pressure[0],
+                                        self.medium["density"], self.medium["sound_speed"], self.medium["viscosity"],
+                                        C.STREAMING_CONSTANT, C.SUBSTRATE_REFLECTION)
         u = PB.coupled_response(self.h0(tuple(freqs)), pts, lay["radii"], lay["body"], f[None, :],
                                 self.medium["density"], self.medium["sound_speed"], C.SUBSTRATE_REFLECTION)
         u = u * pressure[None, :, None]                                   # (N, T, n)
@@ -569,6 +571,7 @@ class _Evaluator:
             if done:
                 break
         out[f"tip_deflection_{_ident(bm['name'])}_m"] = delta
+        out["equilibrium_ok"] = np.isfinite(delta)
         return out
 
     def pair_setup(self):
@@ -602,10 +605,24 @@ class _Evaluator:
             return {"beams": beams, "dirs": dirs, "cos": cosines, "gap": g0, "n": nrm, "ia": ia, "ib": ib}
         return self.once("pair_setup", build)
 
-    def pair_closure(self, s, t, freqs, volts):
-        """V^2 balance at closure s and split t: (h residual, V^2 of beam a, V^2 of beam b, xa, xb, lateral force ratio)."""
+    def pair_eval(self, xa, xb, freqs, volts):
+        """Drive forces along each capsule's closing direction (fa, fb) and Eq. (1) beam loads (Pa, Pb) at deflections xa, xb."""
         ps = self.pair_setup()
         lay = self.layout()
+        centres = lay["rest"].copy()
+        for k, x in ((0, xa), (1, xb)):
+            centres[:, k] = centres[:, k] + x[:, None] * ps["dirs"][k]
+        F = self.forces(centres, freqs, volts)
+        out = []
+        for k, x in ((0, xa), (1, xb)):
+            bm = ps["beams"][k]
+            out.append(np.einsum("bk,bk->b", F[:, k], ps["dirs"][k]))
+            out.append(PB.eq1_force(x, bm["L"], bm["l"], bm["EI"]) if bm is not None else np.zeros_like(x))
+        return out
+
+    def pair_closure(self, s, t, freqs, volts):
+        """V^2 balance at closure s and split t: (h residual, V^2 of beam a, V^2 of beam b, xa, xb)."""
+        ps = self.pair_setup()
         xs = []
         for k, sgn in ((0, 1.0), (1, -1.0)):
             c = ps["cos"][k]
@@ -614,43 +631,70 @@ class _Evaluator:
             xs = [np.zeros_like(s), s / ps["cos"][1]]
         if ps["beams"][1] is None:
             xs = [s / ps["cos"][0], np.zeros_like(s)]
-        centres = lay["rest"].copy()
-        for k in range(2):
-            centres[:, k] = centres[:, k] + xs[k][:, None] * ps["dirs"][k]
-        F = self.forces(centres, freqs, volts)
-        res = []
-        for k in range(2):
-            fk = np.einsum("bk,bk->b", F[:, k], ps["dirs"][k])
-            bm = ps["beams"][k]
-            Pk = PB.eq1_force(xs[k], bm["L"], bm["l"], bm["EI"]) if bm is not None else np.zeros_like(s)
-            res.append((fk, Pk))
-        (fa, Pa), (fb, Pb) = res
+        fa, Pa, fb, Pb = self.pair_eval(xs[0], xs[1], freqs, volts)
         if ps["beams"][0] is None:
             return np.zeros_like(s), Pb / fb, Pb / fb, xs[0], xs[1]
         if ps["beams"][1] is None:
             return np.zeros_like(s), Pa / fa, Pa / fa, xs[0], xs[1]
         return Pa * fb - Pb * fa, Pa / fa, Pb / fb, xs[0], xs[1]
 
-    def pair_v2(self, s, t0, freqs, volts):
-        """V^2 on the equilibrium branch at closure s: the split t solved by secant from t0 (returns V^2, t)."""
+    def pair_newton(self, freqs, volts, steps: int = 8, iterations: int = 12):
+        """Equilibrium (xa, xb) at drive scale 1 by natural continuation in V^2 with Newton (finite-difference Jacobian): the pushed-apart branch."""
+        ps = self.pair_setup()
+        act = [ps["beams"][k] is not None for k in range(2)]
+        xa, xb = np.zeros(self.n), np.zeros(self.n)
+        h = 1e-10
+        for lam in np.linspace(0.0, 1.0, steps + 1)[1:]:
+            for _ in range(iterations):
+                fa, Pa, fb, Pb = self.pair_eval(xa, xb, freqs, volts)
+                ra, rb = Pa - lam * fa, Pb - lam * fb
+                fa1, Pa1, fb1, Pb1 = self.pair_eval(xa + h, xb, freqs, volts)
+                fa2, Pa2, fb2, Pb2 = self.pair_eval(xa, xb + h, freqs, volts)
+                j11 = ((Pa1 - lam * fa1) - ra) / h if act[0] else np.ones(self.n)
+                j21 = ((Pb1 - lam * fb1) - rb) / h
+                j12 = ((Pa2 - lam * fa2) - ra) / h
+                j22 = ((Pb2 - lam * fb2) - rb) / h if act[1] else np.ones(self.n)
+                if not act[0]:
+                    ra, j12, j21 = np.zeros(self.n), np.zeros(self.n), np.zeros(self.n)
+                if not act[1]:
+                    rb, j12, j21 = np.zeros(self.n), np.zeros(self.n), np.zeros(self.n)
+                det = j11 * j22 - j12 * j21
+                da = -(j22 * ra - j12 * rb) / det
+                db = -(-j21 * ra + j11 * rb) / det
+                xa, xb = xa + da, xb + db
+                if np.all(np.abs(da) + np.abs(db) <= 1e-13 * (np.abs(xa) + np.abs(xb) + 1e-18)):
+                    break
+        return xa, xb
+
+    def pair_v2(self, s, t0, freqs, volts, slope=None):
+        """V^2 on the equilibrium branch at closure s, the split t solved by secant from t0 (first step Newton with ``slope`` dh/dt when given).
+
+        Returns (V^2, t, slope) with the last secant slope, to start the next closure.
+        """
         ps = self.pair_setup()
         if ps["beams"][0] is None or ps["beams"][1] is None:
             _, va, _, _, _ = self.pair_closure(s, np.zeros_like(s), freqs, volts)
-            return va, np.zeros_like(s)
+            return va, np.zeros_like(s), None
         h0, va, vb, _, _ = self.pair_closure(s, t0, freqs, volts)
-        dt = 1e-3 * s + 1e-15
-        t1 = t0 + dt
+        if slope is None:
+            t1 = t0 + 1e-3 * s + 1e-15
+        else:
+            t1 = t0 - np.where(slope != 0, h0 / np.where(slope != 0, slope, 1.0), 0.0)
+            t1 = np.clip(t1, t0 - 0.5 * s, t0 + 0.5 * s)
         h1, va1, vb1, _, _ = self.pair_closure(s, t1, freqs, volts)
+        sl = slope
         for _ in range(SPLIT_ITER):
             den = h1 - h0
-            step = np.where(den != 0, -h1 * (t1 - t0) / np.where(den != 0, den, 1.0), 0.0)
+            ok = (den != 0) & (t1 != t0)
+            sl = np.where(ok, den / np.where(t1 != t0, t1 - t0, 1.0), sl if sl is not None else 0.0)
+            step = np.where(ok, -h1 / np.where(ok, sl, 1.0), 0.0)
             step = np.clip(step, -0.5 * s, 0.5 * s)
+            if np.all(np.abs(step) <= 1e-11 * np.maximum(s, 1e-300)):
+                break
             t0, h0 = t1, h1
             t1 = t1 + step
             h1, va1, vb1, _, _ = self.pair_closure(s, t1, freqs, volts)
-            if np.all(np.abs(step) <= 1e-12 * np.maximum(s, 1e-300)):
-                break
-        return 0.5 * (va1 + vb1), t1
+        return 0.5 * (va1 + vb1), t1, sl
 
     def pair_branch(self, freqs: tuple, volts: tuple) -> dict:
         """The fold (snap-in) of the pair's stable branch in the drive scale: V^2 max over the closure, and the lateral check."""
@@ -676,10 +720,14 @@ class _Evaluator:
             v2 = np.empty((self.n, grid.size))
             ts = np.empty((self.n, grid.size))
             t = np.zeros(self.n)
+            slope = None
+            prev = None
             for k, frac in enumerate(grid):
                 s = frac * gap * 0.999
-                v2[:, k], t = self.pair_v2(s, t, freqs, volts)
+                guess = t if prev is None else t * (frac / prev)
+                v2[:, k], t, slope = self.pair_v2(s, guess, freqs, volts, slope)
                 ts[:, k] = t
+                prev = frac
             pos = np.where(np.isfinite(v2) & (v2 > 0), v2, -np.inf)
             falls = pos[:, :-1] > pos[:, 1:]
             has = falls.any(axis=1)
@@ -690,14 +738,14 @@ class _Evaluator:
             tguess = ts[rows, k]
             g = (np.sqrt(5.0) - 1) / 2
             x1, x2 = hi - g * (hi - lo), lo + g * (hi - lo)
-            f1, t1 = self.pair_v2(x1, tguess, freqs, volts)
-            f2, t2 = self.pair_v2(x2, tguess, freqs, volts)
+            f1, t1, sl1 = self.pair_v2(x1, tguess, freqs, volts, slope)
+            f2, t2, _ = self.pair_v2(x2, tguess, freqs, volts, sl1)
             for _ in range(SNAP_GOLDEN):
                 left = f1 >= f2
                 hi = np.where(left, x2, hi)
                 lo = np.where(left, lo, x1)
                 nx = np.where(left, hi - g * (hi - lo), lo + g * (hi - lo))
-                nf, nt = self.pair_v2(nx, np.where(left, t1, t2), freqs, volts)
+                nf, nt, _ = self.pair_v2(nx, np.where(left, t1, t2), freqs, volts, sl1)
                 x2, f2, t2, x1, f1, t1 = (np.where(left, x1, nx), np.where(left, f1, nf), np.where(left, t1, nt),
                                           np.where(left, nx, x2), np.where(left, nf, f2), np.where(left, nt, t2))
             vmax2 = np.maximum(np.maximum(f1, f2), pos[rows, k])
@@ -715,25 +763,32 @@ class _Evaluator:
         return np.where(br["lateral"], np.nan, out)
 
     def pair_deflection(self, drive: M.Drive) -> dict:
-        """Beam deflections of the pair at drive scale 1 on the stable branch (NaN after snap-in)."""
+        """Beam deflections of the pair at drive scale 1 on the stable branch from rest (mechanics.equilibrium): NaN after snap-in.
+
+        A closing pair: bisection on V^2(s) = 1 below the fold; otherwise (pushed apart, or one
+        pushed and one pulled) natural continuation in V^2 with Newton.
+        """
         freqs = tuple(t.frequency for t in drive.tones)
         volts = tuple(t.amplitude for t in drive.tones)
         br = self.pair_branch(freqs, volts)
         ps = self.pair_setup()
         gap = ps["gap"]
+        closing = br["closing"]
         lo = np.zeros(self.n)
-        hi = np.where(np.isfinite(br["s_fold"]) & br["has_fold"], br["s_fold"], gap * 0.999)
+        hi = np.where(br["has_fold"], br["s_fold"], gap * 0.999)
         t = np.zeros(self.n)
-        for _ in range(48):                               # bisection on V^2(s) = 1 on the ascending branch
+        for _ in range(48):                               # bisection on V^2(s) = 1 below the fold
             mid = 0.5 * (lo + hi)
-            v2, t = self.pair_v2(mid, t, freqs, volts)
-            up = v2 < 1.0
-            lo, hi = np.where(up, mid, lo), np.where(up, hi, mid)
+            v2, t, _ = self.pair_v2(mid, t, freqs, volts)
+            below = v2 < 1.0
+            lo, hi = np.where(below, mid, lo), np.where(below, hi, mid)
         s = 0.5 * (lo + hi)
         _, _, _, xa, xb = self.pair_closure(s, self.pair_v2(s, t, freqs, volts)[1], freqs, volts)
-        ok = (br["v2_fold"] > 1.0) | (~br["has_fold"] & br["closing"])
-        ok &= ~br["lateral"] & br["closing"]
-        out = {}
+        if not closing.all():
+            na, nb = self.pair_newton(freqs, volts)
+            xa, xb = np.where(closing, xa, na), np.where(closing, xb, nb)
+        ok = np.where(closing, ~(br["v2_fold"] <= 1.0), np.isfinite(xa) & np.isfinite(xb)) & ~br["lateral"]
+        out = {"equilibrium_ok": ok}
         for k, x in ((0, xa), (1, xb)):
             bm = ps["beams"][k]
             if bm is not None:
@@ -884,7 +939,7 @@ class _Evaluator:
                 if q in cols:
                     return cols[q]
         m = re.fullmatch(r"tip_deflection_(.+)_m", q)
-        if m:
+        if m or q == "equilibrium_ok":
             from acl.design.drives import drive_from_text
 
             drive = drive_from_text(self.at, "<at>")

@@ -158,6 +158,19 @@ class FieldMap:
     exact_params: tuple[str, ...] = ()
     derived: tuple[str, ...] = ()
     notes: tuple[str, ...] = field(default=())
+    proportional: dict[str, tuple[int, float]] = field(default_factory=dict)   # path -> (parameter index, ratio)
+
+    def predict(self, path: str, base: float, x: np.ndarray) -> np.ndarray:
+        """Field ``path`` at points x (n, k) (or (k,)): proportional paths as ``ratio * x_i`` (exact copies
+        of a parameter, zeros stay zero), the others ``base + (x - nominal) @ coef``."""
+        prop = self.proportional.get(path)
+        if prop is not None:
+            i, ratio = prop
+            col = x[..., i]
+            return col.copy() if ratio == 1.0 else col * ratio
+        c = self.linear[path]
+        nz = np.flatnonzero(c)
+        return base + (x[..., nz] - self.nominal[nz]) @ c[nz]
 
 
 def _load(source: str, overrides: dict, search_paths) -> Design:
@@ -187,6 +200,14 @@ def field_map(design: Design, names, box: dict[str, tuple[float, float]] | None 
     names = tuple(names)
     overrides = dict(overrides or {})
     source = design.file
+    import os
+
+    if names and not os.path.isfile(source):
+        from acl.diagnostics import Span, error
+
+        raise DiagnosticError([error("E-USAGE", f"the design `{source}` is not a file: a sweep resolves it again with "
+                                     "other parameter values", Span(file=source, line=1, column=1),
+                                     "save the design to a file and pass its path")])
     x0 = np.array([design.param(n).value for n in names], float)
     flat0 = flatten(design)
     keys = set(flat0)
@@ -226,6 +247,13 @@ def field_map(design: Design, names, box: dict[str, tuple[float, float]] | None 
     derived = [p for p in derived if p in coef or _sizes_vary(p, coef)]
     for p in derived:
         coef.pop(p, None)
+    proportional = {}
+    for p, c in coef.items():        # a field that is a parameter times a constant: keep it exact (radius = r)
+        nz = np.flatnonzero(c)
+        if len(nz) == 1 and x0[nz[0]] != 0 and abs(flat0[p] - c[nz[0]] * x0[nz[0]]) <= 1e-12 * abs(flat0[p]):
+            proportional[p] = (int(nz[0]), 1.0 if flat0[p] == x0[nz[0]] else flat0[p] / x0[nz[0]])
+    tmp = FieldMap(source=source, overrides=overrides, search_paths=(), names=names, nominal=x0, linear=coef,
+                   proportional=proportional)
     # check at the box's corners and random joint points
     rng = np.random.default_rng(seed)
     lo = np.array([box.get(n, (v, v))[0] for n, v in zip(names, x0)])
@@ -243,7 +271,7 @@ def field_map(design: Design, names, box: dict[str, tuple[float, float]] | None 
         if flat is None or set(flat) != keys:
             continue
         dx = x - x0
-        pred = {p: flat0[p] + float(dx @ c) for p, c in coef.items()}
+        pred = {p: float(tmp.predict(p, flat0[p], x)) for p in coef}
         for p in derived:
             pred[p] = flat[p]            # recomputed from the sizes, checked below
         for p, v in flat.items():
@@ -255,7 +283,7 @@ def field_map(design: Design, names, box: dict[str, tuple[float, float]] | None 
             cap = p.split(".")[1]
             c = design.capsule(cap).cavity
             base = f"capsules.{cap}.cavity."
-            sizes = {k: flat0[base + k] + float(dx @ coef[base + k]) if base + k in coef else flat0.get(base + k)
+            sizes = {k: float(tmp.predict(base + k, flat0[base + k], x)) if base + k in coef else flat0.get(base + k)
                      for k in ("radius", "side", "height")}
             if abs(cavity_volume(c.shape, **sizes) - flat[p]) > RTOL * abs(flat[p]):
                 bad.setdefault(p, set()).update(names)
@@ -266,6 +294,7 @@ def field_map(design: Design, names, box: dict[str, tuple[float, float]] | None 
         dep = {n for n, c in zip(names, coef.get(p, np.zeros(len(names)))) if c != 0} | bad[p]
         exact_params |= dep or set(names)
         coef.pop(p, None)
+        proportional.pop(p, None)
         if p in derived:
             derived.remove(p)
     if structural:
@@ -279,7 +308,8 @@ def field_map(design: Design, names, box: dict[str, tuple[float, float]] | None 
                      + f" (e.g. `{exact[0]}`): resolved exactly for each unique value (slower)")
     ordered = tuple(n for n in names if n in exact_params)
     return FieldMap(source=source, overrides=overrides, search_paths=tuple(search_paths), names=names, nominal=x0,
-                    linear=coef, exact=tuple(exact), exact_params=ordered, derived=tuple(derived), notes=tuple(notes))
+                    linear=coef, exact=tuple(exact), exact_params=ordered, derived=tuple(derived), notes=tuple(notes),
+                    proportional=proportional)
 
 
 def _sizes_vary(volume_path: str, coef) -> bool:
@@ -302,15 +332,12 @@ def field_batch(design: Design, params: dict[str, np.ndarray], fmap: FieldMap | 
     arrays = [np.asarray(params[n], float) for n in fmap.names]
     n = int(arrays[0].size) if arrays else 0
     x = np.stack(arrays, axis=1) if arrays else np.zeros((0, 0))
-    dx = x - fmap.nominal
     fields: dict[str, np.ndarray] = {}
     for n_, v in zip(fmap.names, arrays):
         fields[f"params.{n_}"] = v
-    for path, c in fmap.linear.items():
-        if path.startswith("params."):
-            continue
-        nz = np.flatnonzero(c)
-        fields[path] = field_value(design, path) + dx[:, nz] @ c[nz]
+    for path in fmap.linear:
+        if not path.startswith("params."):
+            fields[path] = fmap.predict(path, field_value(design, path), x)
     valid = np.ones(n, bool)
     code = np.full(n, "", dtype="<U8")
     if fmap.exact:

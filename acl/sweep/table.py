@@ -38,12 +38,17 @@ class Yield:
         return self.passed / self.total if self.total else float("nan")
 
     def text(self) -> str:
-        """``0.93 [0.91, 0.95]``: the bounds rounded outwards (never optimistic)."""
+        """``0.93 [0.91, 0.95]``: the bounds rounded outwards (never optimistic), with more decimals
+        (up to 4) while rounding would widen a narrow interval by more than half."""
         if not self.total:
             return "n/a (no points)"
-        lo = math.floor(self.lower * 100) / 100
-        hi = math.ceil(self.upper * 100) / 100
-        return f"{self.value:.2f} [{lo:.2f}, {hi:.2f}]"
+        for digits in (2, 3, 4):
+            f = 10**digits
+            lo = math.floor(self.lower * f) / f
+            hi = math.ceil(self.upper * f) / f
+            if (hi - lo) - (self.upper - self.lower) <= 0.5 * (self.upper - self.lower):
+                break
+        return f"{self.value:.{digits}f} [{lo:.{digits}f}, {hi:.{digits}f}]"
 
     def as_dict(self) -> dict:
         return {"yield": self.value, "lower": self.lower, "upper": self.upper, "passed": self.passed, "total": self.total,

@@ -1,6 +1,6 @@
 """The resolver's geometry and printability checks (acl.design.builders, acl.design.checks), per point.
 
-Vectorised over a :class:`~acl.sweep.perturb.FieldBatch`: each check marks the points it fails with
+Vectorised over a :class:`~acl.sweep.perturb.FieldBatch` (plus E306, a `free` parameter outside its bounds): each check marks the points it fails with
 the diagnostic code the resolver would give the same design, the first failing check winning.
 Only fields that can vary are read (directions and shapes are fixed by the nominal design).
 """
@@ -42,6 +42,11 @@ def check_points(batch) -> None:
     # E305: a field that is not finite (an expression overflowing at some point)
     for path, arr in batch.fields.items():
         _mark(batch, ~np.isfinite(arr), "E305")
+    # E306: a free parameter outside its declared bounds (`free in lo .. hi`)
+    for p in d.params:
+        arr = batch.fields.get(f"params.{p.name}")
+        if arr is not None and p.lower is not None and p.upper is not None:
+            _mark(batch, (arr < p.lower) | (arr > p.upper), "E306")
     # E401: sizes that must be positive
     positive = []
     for c in d.capsules:
