@@ -87,15 +87,37 @@ def test_unreachable_scheduler_is_E601_after_the_timeout(monkeypatch):
     assert d.code == "E601" and "cannot reach" in d.message and d.span.file == "<--scheduler>"
 
 
-def test_two_worker_local_cluster_equals_one_process_bit_for_bit():
+@pytest.fixture(scope="module")
+def cluster():
+    """One LocalCluster of 2 worker processes for the module (starting one takes seconds)."""
     distributed = pytest.importorskip("distributed")
     import cloudpickle
 
     cloudpickle.register_pickle_by_value(sys.modules[__name__])   # workers need not import this test file
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as c:
+        yield c
+
+
+def test_two_worker_local_cluster_equals_one_process_bit_for_bit(cluster):
     single = map_chunks(_chunk, 6, None)
-    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster:
-        calls = []
-        on_cluster = map_chunks(_chunk, 6, cluster.scheduler_address, progress=lambda d, t: calls.append(d))
+    calls = []
+    on_cluster = map_chunks(_chunk, 6, cluster.scheduler_address, progress=lambda d, t: calls.append(d))
     assert len(on_cluster) == 6 and sorted(calls) == list(range(1, 7))
     for a, b in zip(single, on_cluster):
         assert a.dtype == b.dtype and a.tobytes() == b.tobytes()
+
+
+def test_a_sweep_on_the_cluster_equals_the_single_process_table_bit_for_bit(cluster):
+    from pathlib import Path
+
+    from acl.sweep.driver import sweep
+
+    design = Path(__file__).resolve().parents[1] / "benchmarks" / "designs" / "sweep_cantilever.acl"
+    kw = dict(n=3000, seed=11, chunk_size=1000, at="125 kHz @ 2 V",
+              quantities=["resonance_act_1_hz", "q_act_1", "tip_deflection_arm_m", "requires_pass"])
+    one = sweep(str(design), scheduler=None, **kw).data
+    two = sweep(str(design), scheduler=cluster.scheduler_address, **kw).data
+    assert one.dtype == two.dtype and len(one) == 3000
+    for name in one.dtype.names:
+        assert one[name].tobytes() == two[name].tobytes(), name
+    assert 0 < one["requires_pass"].sum() < 3000             # the columns hold real, varied results

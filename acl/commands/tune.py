@@ -150,14 +150,16 @@ def _render(result, written, quiet) -> None:
         r.add_column(col)
     for q in result.per_require:
         worst = q["worst_after"]
-        shown = literal(worst, q["unit"]) if abs(worst) != float("inf") else str(worst)
+        shown = literal(worst, q["unit"], 4) if abs(worst) != float("inf") else "invalid points"
         r.add_row(q["text"], str(q["line"]), q["before"].text(), q["after"].text(), shown)
     r.add_row("all together", "", result.before.text(), result.after.text(), "")
     console.print(r)
     print(f"yield before {result.before.text()}, after {result.after.text()} "
           f"({result.objective}, {result.search.evaluations} trials on {p.samples} samples, seed {p.seed})")
     if written and not quiet:
-        make_console(stderr=True, highlight=False).print(f"tuned design written to {written}")
+        here = os.path.relpath(written)
+        shown = here if not here.startswith("..") else written
+        make_console(stderr=True, highlight=False).print(f"tuned design written to {shown}")
 
 
 def _write_atomic(path: str, text: str) -> None:

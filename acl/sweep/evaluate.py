@@ -100,7 +100,7 @@ QUANTITIES: tuple[Quantity, ...] = (
 
 STATIC_EFFECTS = {"offset_drift", "bubble_shrinkage"}
 LINT_RULES = ("acl101", "acl105", "acl503", "acl504", "acl603")
-SNAP_GRID = 24            # closure grid of the snap-in search
+SNAP_GRID = 12            # closure grid of the snap-in search
 SNAP_GOLDEN = 14          # golden-section steps on the fold
 SPLIT_ITER = 5            # secant steps for the split of the closure between the two beams
 
@@ -206,7 +206,8 @@ def _require_supported(design, r, effects) -> bool:
         return False
     if r.kind == "margin":
         return any(lt.name == r.args[0] and lt.state == "a" for lt in design.latches)
-    return False       # gap: needs the equilibrium at every program step
+    # gap: the equilibrium at every program step, batched for a pair of capsules on two beams
+    return _mechanism(design) == "beams" and len(design.capsules) == 2
 
 
 def _pairs(design):
@@ -263,6 +264,20 @@ def _nominal(design, path: str) -> float:
     from acl.sweep.perturb import field_value
 
     return field_value(design, path)
+
+
+class _Rows:
+    """A FieldBatch restricted to some rows (same design, same fields)."""
+
+    def __init__(self, batch, rows):
+        self.design = batch.design
+        self.rows = rows
+        self.n = int(rows.size)
+        self.valid = np.asarray(batch.valid, bool)[rows]
+        self._batch = batch
+
+    def get(self, path: str) -> np.ndarray:
+        return np.broadcast_to(np.asarray(self._batch.get(path), float), (self._batch.n,))[self.rows]
 
 
 class _Evaluator:
@@ -689,69 +704,90 @@ class _Evaluator:
             sl = np.where(ok, den / np.where(t1 != t0, t1 - t0, 1.0), sl if sl is not None else 0.0)
             step = np.where(ok, -h1 / np.where(ok, sl, 1.0), 0.0)
             step = np.clip(step, -0.5 * s, 0.5 * s)
-            if np.all(np.abs(step) <= 1e-11 * np.maximum(s, 1e-300)):
+            if not np.any(np.abs(step) > 1e-10 * np.maximum(s, 1e-300)):      # NaN rows count as done
                 break
             t0, h0 = t1, h1
             t1 = t1 + step
             h1, va1, vb1, _, _ = self.pair_closure(s, t1, freqs, volts)
         return 0.5 * (va1 + vb1), t1, sl
 
+    def subset(self, rows: np.ndarray) -> "_Evaluator":
+        """An evaluator over the points ``rows`` only (the expensive branch searches skip the others)."""
+        sub = _Rows(self.batch, rows)
+        return _Evaluator(sub, self.at)
+
+    def rest_checks(self, freqs: tuple, volts: tuple) -> tuple[np.ndarray, np.ndarray]:
+        """(closing, lateral) at rest: the drive pulls the pair together; a lateral force the reduced branch ignores."""
+        ps = self.pair_setup()
+        lay = self.layout()
+        F0 = self.forces(lay["rest"], freqs, volts)
+        lateral = np.zeros(self.n, bool)
+        for k in range(2):
+            bm = ps["beams"][k]
+            if bm is None:
+                continue
+            ax = bm["axis"]
+            fperp = F0[:, k] - ax * np.einsum("bk,bk->b", F0[:, k], ax)[:, None]
+            along = np.einsum("bk,bk->b", fperp, ps["dirs"][k])
+            side = np.linalg.norm(fperp - along[:, None] * ps["dirs"][k], axis=-1)
+            lateral |= side > 1e-6 * np.maximum(np.abs(along), 1e-300)
+        closing = (np.einsum("bk,bk->b", F0[:, 0], ps["dirs"][0]) * (ps["beams"][0] is not None)
+                   + np.einsum("bk,bk->b", F0[:, 1], ps["dirs"][1]) * (ps["beams"][1] is not None)) > 0
+        return closing, lateral
+
+    def fold(self, freqs: tuple, volts: tuple) -> dict:
+        """First maximum of V^2 along the closure (grid of SNAP_GRID, then golden section): V^2 and s there, and whether one was found."""
+        gap = self.pair_setup()["gap"]
+        grid = np.linspace(0.0, 1.0, SNAP_GRID + 1)[1:]
+        v2 = np.empty((self.n, grid.size))
+        ts = np.empty((self.n, grid.size))
+        t = np.zeros(self.n)
+        slope = None
+        prev = None
+        for k, frac in enumerate(grid):
+            s = frac * gap * 0.999
+            guess = t if prev is None else t * (frac / prev)
+            v2[:, k], t, slope = self.pair_v2(s, guess, freqs, volts, slope)
+            ts[:, k] = t
+            prev = frac
+        pos = np.where(np.isfinite(v2) & (v2 > 0), v2, -np.inf)
+        falls = pos[:, :-1] > pos[:, 1:]
+        has = falls.any(axis=1)
+        k = np.where(has, np.argmax(falls, axis=1), grid.size - 1)
+        rows = np.arange(self.n)
+        lo = np.where(k > 0, grid[np.maximum(k - 1, 0)], 0.0) * gap * 0.999
+        hi = grid[np.minimum(k + 1, grid.size - 1)] * gap * 0.999
+        tguess = ts[rows, k]
+        g = (np.sqrt(5.0) - 1) / 2
+        x1, x2 = hi - g * (hi - lo), lo + g * (hi - lo)
+        f1, t1, sl1 = self.pair_v2(x1, tguess, freqs, volts, slope)
+        f2, t2, _ = self.pair_v2(x2, tguess, freqs, volts, sl1)
+        for _ in range(SNAP_GOLDEN):
+            left = f1 >= f2
+            hi = np.where(left, x2, hi)
+            lo = np.where(left, lo, x1)
+            nx = np.where(left, hi - g * (hi - lo), lo + g * (hi - lo))
+            nf, nt, _ = self.pair_v2(nx, np.where(left, t1, t2), freqs, volts, sl1)
+            x2, f2, t2, x1, f1, t1 = (np.where(left, x1, nx), np.where(left, f1, nf), np.where(left, t1, nt),
+                                      np.where(left, nx, x2), np.where(left, nf, f2), np.where(left, nt, t2))
+        best = np.maximum(np.maximum(f1, f2), pos[rows, k])
+        return {"v2": best, "s": np.where(f1 >= f2, x1, x2), "has": has}
+
     def pair_branch(self, freqs: tuple, volts: tuple) -> dict:
-        """The fold (snap-in) of the pair's stable branch in the drive scale: V^2 max over the closure, and the lateral check."""
+        """The fold (snap-in) of the pair's stable branch in the drive scale, searched only where the drive closes the pair."""
         def build():
-            ps = self.pair_setup()
-            gap = ps["gap"]
-            lay = self.layout()
-            # lateral force at rest (reduced model holds them at zero)
-            F0 = self.forces(lay["rest"], freqs, volts)
-            lateral = np.zeros(self.n, bool)
-            for k in range(2):
-                bm = ps["beams"][k]
-                if bm is None:
-                    continue
-                ax = bm["axis"]
-                fperp = F0[:, k] - ax * np.einsum("bk,bk->b", F0[:, k], ax)[:, None]
-                along = np.einsum("bk,bk->b", fperp, ps["dirs"][k])
-                side = np.linalg.norm(fperp - along[:, None] * ps["dirs"][k], axis=-1)
-                lateral |= side > 1e-6 * np.maximum(np.abs(along), 1e-300)
-            closing = (np.einsum("bk,bk->b", F0[:, 0], ps["dirs"][0]) * (ps["beams"][0] is not None)
-                       + np.einsum("bk,bk->b", F0[:, 1], ps["dirs"][1]) * (ps["beams"][1] is not None)) > 0
-            grid = np.linspace(0.0, 1.0, SNAP_GRID + 1)[1:]
-            v2 = np.empty((self.n, grid.size))
-            ts = np.empty((self.n, grid.size))
-            t = np.zeros(self.n)
-            slope = None
-            prev = None
-            for k, frac in enumerate(grid):
-                s = frac * gap * 0.999
-                guess = t if prev is None else t * (frac / prev)
-                v2[:, k], t, slope = self.pair_v2(s, guess, freqs, volts, slope)
-                ts[:, k] = t
-                prev = frac
-            pos = np.where(np.isfinite(v2) & (v2 > 0), v2, -np.inf)
-            falls = pos[:, :-1] > pos[:, 1:]
-            has = falls.any(axis=1)
-            k = np.where(has, np.argmax(falls, axis=1), grid.size - 1)
-            rows = np.arange(self.n)
-            lo = np.where(k > 0, grid[np.maximum(k - 1, 0)], 0.0) * gap * 0.999
-            hi = grid[np.minimum(k + 1, grid.size - 1)] * gap * 0.999
-            tguess = ts[rows, k]
-            g = (np.sqrt(5.0) - 1) / 2
-            x1, x2 = hi - g * (hi - lo), lo + g * (hi - lo)
-            f1, t1, sl1 = self.pair_v2(x1, tguess, freqs, volts, slope)
-            f2, t2, _ = self.pair_v2(x2, tguess, freqs, volts, sl1)
-            for _ in range(SNAP_GOLDEN):
-                left = f1 >= f2
-                hi = np.where(left, x2, hi)
-                lo = np.where(left, lo, x1)
-                nx = np.where(left, hi - g * (hi - lo), lo + g * (hi - lo))
-                nf, nt, _ = self.pair_v2(nx, np.where(left, t1, t2), freqs, volts, sl1)
-                x2, f2, t2, x1, f1, t1 = (np.where(left, x1, nx), np.where(left, f1, nf), np.where(left, t1, nt),
-                                          np.where(left, nx, x2), np.where(left, nf, f2), np.where(left, nt, t2))
-            vmax2 = np.maximum(np.maximum(f1, f2), pos[rows, k])
-            fold = has & closing & ~lateral
-            return {"v2_fold": np.where(fold, vmax2, np.nan), "s_fold": np.where(left, x1, x2),
-                    "lateral": lateral, "closing": closing, "has_fold": has}
+            closing, lateral = self.rest_checks(freqs, volts)
+            rows = np.flatnonzero(closing & ~lateral)
+            v2 = np.full(self.n, np.nan)
+            s = np.full(self.n, np.nan)
+            has = np.zeros(self.n, bool)
+            if rows.size:
+                sub = self if rows.size == self.n else self.subset(rows)
+                with np.errstate(all="ignore"):
+                    fo = sub.fold(freqs, volts)
+                v2[rows] = np.where(fo["has"], fo["v2"], np.nan)
+                s[rows], has[rows] = fo["s"], fo["has"]
+            return {"v2_fold": v2, "s_fold": s, "lateral": lateral, "closing": closing, "has_fold": has}
         return self.once(("branch", freqs, volts), build)
 
     def snap_in(self, f: float) -> np.ndarray:
@@ -762,38 +798,96 @@ class _Evaluator:
         # a lateral force at rest: the reduced branch does not apply (not evaluated)
         return np.where(br["lateral"], np.nan, out)
 
-    def pair_deflection(self, drive: M.Drive) -> dict:
-        """Beam deflections of the pair at drive scale 1 on the stable branch from rest (mechanics.equilibrium): NaN after snap-in.
-
-        A closing pair: bisection on V^2(s) = 1 below the fold; otherwise (pushed apart, or one
-        pushed and one pulled) natural continuation in V^2 with Newton.
-        """
-        freqs = tuple(t.frequency for t in drive.tones)
-        volts = tuple(t.amplitude for t in drive.tones)
-        br = self.pair_branch(freqs, volts)
-        ps = self.pair_setup()
-        gap = ps["gap"]
-        closing = br["closing"]
+    def closing_equilibrium(self, freqs, volts, hi):
+        """(xa, xb) where V^2(s) = 1 on the ascending branch, s in (0, hi): regula falsi (Illinois), V^2(0) = 0."""
         lo = np.zeros(self.n)
-        hi = np.where(br["has_fold"], br["s_fold"], gap * 0.999)
         t = np.zeros(self.n)
-        for _ in range(48):                               # bisection on V^2(s) = 1 below the fold
-            mid = 0.5 * (lo + hi)
-            v2, t, _ = self.pair_v2(mid, t, freqs, volts)
-            below = v2 < 1.0
-            lo, hi = np.where(below, mid, lo), np.where(below, hi, mid)
-        s = 0.5 * (lo + hi)
-        _, _, _, xa, xb = self.pair_closure(s, self.pair_v2(s, t, freqs, volts)[1], freqs, volts)
-        if not closing.all():
-            na, nb = self.pair_newton(freqs, volts)
-            xa, xb = np.where(closing, xa, na), np.where(closing, xb, nb)
-        ok = np.where(closing, ~(br["v2_fold"] <= 1.0), np.isfinite(xa) & np.isfinite(xb)) & ~br["lateral"]
+        f_lo = -np.ones(self.n)
+        f_hi, t_hi, _ = self.pair_v2(hi, t, freqs, volts)
+        f_hi = f_hi - 1.0
+        side = np.zeros(self.n)
+        s = hi
+        for _ in range(60):
+            s = np.where(f_hi != f_lo, hi - f_hi * (hi - lo) / np.where(f_hi != f_lo, f_hi - f_lo, 1.0), 0.5 * (lo + hi))
+            s = np.where((s > lo) & (s < hi), s, 0.5 * (lo + hi))
+            v2, t, _ = self.pair_v2(s, t_hi, freqs, volts)
+            fs = v2 - 1.0
+            below = fs < 0
+            lo, f_lo = np.where(below, s, lo), np.where(below, fs, f_lo)
+            hi, f_hi, t_hi = np.where(below, hi, s), np.where(below, f_hi, fs), np.where(below, t_hi, t)
+            # Illinois: halve the stale end's value when the same end is kept twice
+            f_hi = np.where(below & (side == 1), f_hi / 2, f_hi)
+            f_lo = np.where(~below & (side == -1), f_lo / 2, f_lo)
+            side = np.where(below, 1, -1)
+            if not np.any((np.abs(fs) > 1e-12) & (hi - lo > 1e-13 * np.maximum(hi, 1e-300))):
+                break
+        _, _, _, xa, xb = self.pair_closure(s, t, freqs, volts)
+        return xa, xb
+
+    def pair_deflection(self, drive: M.Drive) -> dict:
+        """Beam deflections of the pair at drive scale 1 on the stable branch from rest (mechanics.equilibrium): NaN after snap-in."""
+        xa, xb, ok = self.pair_equilibrium(drive)
         out = {"equilibrium_ok": ok}
         for k, x in ((0, xa), (1, xb)):
-            bm = ps["beams"][k]
+            bm = self.pair_setup()["beams"][k]
             if bm is not None:
                 out[f"tip_deflection_{_ident(bm['name'])}_m"] = np.where(ok, np.abs(x), np.nan)
         return out
+
+    def pair_equilibrium(self, drive: M.Drive):
+        """(xa, xb, ok): deflections of the pair's beams along their closing directions at ``drive`` (mechanics.equilibrium from rest).
+
+        A closing pair: regula falsi on V^2(s) = 1 below the fold (ok False if it folds first: snap-in);
+        otherwise (pushed apart, or one pushed and one pulled) natural continuation in V^2 with Newton.
+        """
+        freqs = tuple(t.frequency for t in drive.tones)
+        volts = tuple(t.amplitude for t in drive.tones)
+        return self.once(("pair_eq", freqs, volts), lambda: self._pair_equilibrium(freqs, volts))
+
+    def _pair_equilibrium(self, freqs, volts):
+        if not freqs:
+            z = np.zeros(self.n)
+            return z, z, np.ones(self.n, bool)
+        br = self.pair_branch(freqs, volts)
+        ps = self.pair_setup()
+        closing, lateral = br["closing"], br["lateral"]
+        reach = closing & ~lateral & ~(br["v2_fold"] <= 1.0)       # no fold below the drive
+        xa, xb = np.full(self.n, np.nan), np.full(self.n, np.nan)
+        rows = np.flatnonzero(reach)
+        if rows.size:
+            sub = self.subset(rows)
+            hi = np.where(br["has_fold"][rows], br["s_fold"][rows], ps["gap"][rows] * 0.999)
+            with np.errstate(all="ignore"):
+                xa[rows], xb[rows] = sub.closing_equilibrium(freqs, volts, hi)
+        rows = np.flatnonzero(~closing & ~lateral)
+        if rows.size:
+            with np.errstate(all="ignore"):
+                xa[rows], xb[rows] = self.subset(rows).pair_newton(freqs, volts)
+        return xa, xb, np.isfinite(xa) & np.isfinite(xb)
+
+    def gap_over_steps(self, a: str, b: str) -> np.ndarray:
+        """require gap: the smallest distance of orifices a, b over rest and the equilibrium of every program step, 0 after snap-in (report._require)."""
+        from acl.analysis.report import step_drives
+
+        ps = self.pair_setup()
+        lay = self.layout()
+        (ca, oa), (cb, ob) = a.split("."), b.split(".")
+        names = [c.name for c in self.caps]
+
+        def point(cap, orf, xs):
+            k = names.index(cap)
+            o = [x.name for x in self.caps[k].orifices].index(orf)
+            i = int(np.flatnonzero(lay["body"] == k)[o])
+            return lay["rest"][:, k] + lay["offsets"][:, i] + xs[k][:, None] * ps["dirs"][k]
+
+        zero = np.zeros(self.n)
+        gap = np.linalg.norm(point(cb, ob, (zero, zero)) - point(ca, oa, (zero, zero)), axis=-1)
+        for _p, _i, _st, drive in step_drives(self.design):
+            xa, xb, ok = self.pair_equilibrium(drive)
+            xs = (np.where(ok, xa, 0.0), np.where(ok, xb, 0.0))
+            g = np.linalg.norm(point(cb, ob, xs) - point(ca, oa, xs), axis=-1)
+            gap = np.minimum(gap, np.where(ok, g, 0.0))
+        return gap
 
     # -- latches ------------------------------------------------------------------------------------
     def latch(self, name: str) -> dict:
@@ -849,6 +943,8 @@ class _Evaluator:
                 value = np.max(allm, axis=0)
             else:
                 value = np.full(self.n, np.nan)
+        elif r.kind == "gap":
+            value = self.gap_over_steps(r.args[0], r.args[1])
         else:
             raise QuantityError("E-SWEEP-Q02", f"`{r.text}` is not batched")
         ok = np.isfinite(value) | np.isinf(value)
@@ -943,9 +1039,8 @@ class _Evaluator:
             from acl.design.drives import drive_from_text
 
             drive = drive_from_text(self.at, "<at>")
-            moving = [c for c in range(len(self.caps)) if self.beam_of(c) is not None]
-            cols = self.once(("at", self.at), lambda: self.single_deflection(drive) if len(self.caps) == 1 or len(moving) == 1
-                             and len(self.caps) == 1 else self.pair_deflection(drive))
+            cols = self.once(("at", self.at), lambda: self.single_deflection(drive) if len(self.caps) == 1
+                             else self.pair_deflection(drive))
             return cols[q]
         for lt in self.design.latches:
             key = _ident(lt.name)

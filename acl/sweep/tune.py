@@ -419,9 +419,14 @@ class Tuned:
             "before": est(self.before), "after": est(self.after),
             "search_sample": {"before": est(self.before_search), "after": est(self.after_search)},
             "requires": [{"text": r["text"], "line": r["line"], "before": est(r["before"]), "after": est(r["after"]),
-                          "worst_margin_before": r["worst_before"], "worst_margin_after": r["worst_after"],
+                          "worst_margin_before": _finite(r["worst_before"]), "worst_margin_after": _finite(r["worst_after"]),
                           "unit": r["unit"]} for r in self.per_require],
         }
+
+
+def _finite(x: float) -> float | None:
+    """JSON has no infinities: an invalid point's margin (-inf) is null."""
+    return float(x) if math.isfinite(x) else None
 
 
 def tune(problem: Problem, objective: str = "yield", method: str = "nelder-mead", max_evals: int = 200,
@@ -475,16 +480,16 @@ def default_path(design_path: str) -> str:
     return os.path.join(folder, f"{stem}.tuned.acl")
 
 
-def literal(value: float, unit: str) -> str:
+def literal(value: float, unit: str, digits: int = DIGITS) -> str:
     """An acl literal of an SI value, in a readable unit where one is obvious (um, nm, kHz)."""
     unit = (unit or "").replace(" ", "")
     if unit == "m" and value != 0 and 1e-7 <= abs(value) < 1e-3:
-        return f"{value * 1e6:.{DIGITS}g} um"
+        return f"{value * 1e6:.{digits}g} um"
     if unit == "m" and value != 0 and 1e-10 <= abs(value) < 1e-7:
-        return f"{value * 1e9:.{DIGITS}g} nm"
+        return f"{value * 1e9:.{digits}g} nm"
     if unit == "Hz" and 1e3 <= abs(value) < 1e6:
-        return f"{value / 1e3:.{DIGITS}g} kHz"
-    return f"{value:.{DIGITS}g} {unit}".strip()
+        return f"{value / 1e3:.{digits}g} kHz"
+    return f"{value:.{digits}g} {unit}".strip()
 
 
 def _spread_text(p) -> str:
