@@ -8,9 +8,10 @@ states its tolerance:
 * snap-in voltage: relative 1e-6 (the scalar continuation refines the fold by Brent on det K_T, the
   batched search by golden section on V^2 of the branch);
 * beam deflections at a drive: relative 1e-7 (Eq. (1) inverted by Newton in both);
-* latch switching force and margins: relative 1e-3, and never below the scalar value: the scalar
-  landscape takes the maximum over a 2001-point grid, which lies below the model's maximum when it
-  sits at the buckling kink; the batched value refines it by golden section.
+* latch switching and release forces: relative 2e-3, and never below the scalar value (margins never
+  above): the scalar landscape takes the extremes over a 2001-point grid, which lie below the model's
+  where they sit at a kink of the force law (buckling); the batched values refine them by golden
+  section (tests/test_sweep_evaluate_physics.py checks them against a dense scan).
 """
 from __future__ import annotations
 
@@ -133,8 +134,11 @@ def test_pair_deflections_at_a_drive_equal_analyze(pair):
                 assert math.isnan(cols[f"tip_deflection_{beam}_m"][i])
 
 
-def test_latch_margins_equal_analyze():
-    d = acl.load(str(EX / "fig6_bistable_latch.acl"))
+@pytest.mark.parametrize("state", ["a", "b"])
+def test_latch_margins_equal_analyze(state):
+    src = (EX / "fig6_bistable_latch.acl").read_text().replace("state = a", f"state = {state}")
+    d = acl.loads(src, filename=str(EX / "fig6_bistable_latch.acl"))
+    assert d.latch("snap").state == state
     rng = np.random.default_rng(3)
     n = 4
     theta = np.deg2rad(45) + np.deg2rad(8) * rng.standard_normal(n)
@@ -148,11 +152,17 @@ def test_latch_margins_equal_analyze():
         fs = cols["switching_force_snap_n"][i]
         assert lt["switching_force_n"] * (1 - 1e-12) <= fs < lt["switching_force_n"] * (1 + 1e-3)
         assert cols["bistable_snap"][i] == lt["bistable"]
+        if lt["release_force_n"] is None:
+            assert math.isnan(cols["release_force_snap_n"][i])
+        else:
+            rel = cols["release_force_snap_n"][i]
+            assert lt["release_force_n"] * (1 - 1e-12) <= rel < lt["release_force_n"] * (1 + 2e-3)
         for m in lt["margins"]:
             got = cols[f"margin_snap_{m['program']}_{m['step']}"][i]
-            assert _rel(got, m["margin"]) < 1e-3 and got <= m["margin"] * (1 + 1e-12)
+            assert _rel(got, m["margin"]) < 2e-3
+            assert abs(got) <= abs(m["margin"]) * (1 + 1e-12)          # never optimistic
         req = rep["requires"][0]
-        assert _rel(cols["require_1_value"][i], req["value"]) < 1e-3
+        assert _rel(cols["require_1_value"][i], req["value"]) < 2e-3
         assert cols["require_1_pass"][i] == req["ok"]
 
 

@@ -18,21 +18,22 @@ What is batched and how (the scalar code it equals):
   branch of ``P_a(x_a) = V^2 F_a(x)``, ``P_b(x_b) = V^2 F_b(x)`` (paper Eq. (1) beams, full force
   model at displaced positions) is traced in the closure ``s`` of the gap, the split between the
   two beams solved at each ``s`` (secant), and the fold is the first maximum of ``V^2(s)``
-  (grid, then golden section).  The lateral degrees of freedom are held at zero: exact when the
+  (grid, then golden section); ``require gap`` from the equilibrium of every program step.  The lateral degrees of freedom are held at zero: exact when the
   pair's forces at rest have no lateral component (facing pairs); points where they have one are
   NaN;
 * tip deflection at ``at`` of a capsule on a cantilever: the Eq. (1) deflection under the force at
   the displaced position (fixed point), or the pair branch at V = 1;
-* latch margins per program step (mechanics.latch_margins), the switching force refined by golden
-  section (acl.physics.batch.latch_switching_force; the scalar landscape takes the maximum of a
-  2001-point grid, lower by up to 5e-4 where the maximum is at the buckling kink);
+* latch margins per program step (mechanics.latch_margins, latches at rest in state a or b), the
+  switching and release forces refined by golden section (acl.physics.batch.latch_switching_force;
+  the scalar landscape takes the extremes of a 2001-point grid, lower by up to 5e-4 where the
+  maximum is at the buckling kink, so its margins are optimistic by as much);
 * every ``require`` (report._require) and the lint rules ACL101, ACL105 (program drive and sweep
   steps), ACL503, ACL504, ACL603, before suppressions and with the default thresholds.
 
 Not batched (not offered as quantities, :func:`supported` says why): designs declaring effects that
 change forces or beams (only resonance and Q are offered), snap-in and deflections of mechanisms
 other than one capsule on a beam or a pair of capsules on two beams (latches, springs, trusses,
-three or more moving capsules), ``require gap`` outside those, latches in state b, and the lint
+three or more moving capsules), ``require gap`` outside those, and the lint
 rules that need the full per-step equilibrium or the selectivity sweep (ACL102-104, ACL201-202,
 ACL301-302, ACL401-402, ACL501-502, ACL601-602).
 """
@@ -83,6 +84,8 @@ QUANTITIES: tuple[Quantity, ...] = (
              "pairs[a,b,frequency_hz=f].snap_in_voltage_v"),
     Quantity("switching_force_<latch>_n", "N", "force that switches the latch a -> b (model maximum, refined)",
              "latches[name].switching_force_n"),
+    Quantity("release_force_<latch>_n", "N", "force that releases the latch b -> a (NaN: monostable)",
+             "latches[name].release_force_n"),
     Quantity("bistable_<latch>", "bool", "the latch has a second stable state", "latches[name].bistable"),
     Quantity("margin_<latch>_<program>_<step>", "", "available / required force on the latch at a program step",
              "latches[name].margins[program,step].margin"),
@@ -172,10 +175,8 @@ def supported(design: M.Design, at: str | None = None) -> tuple[list[str], dict[
             else:
                 missing["snap_in"] = "batched snap-in covers a pair of capsules on beams only"
         for lt in design.latches:
-            if lt.state != "a":
-                missing[f"latch {lt.name}"] = "latches at rest in state b are not batched"
-                continue
-            names += [f"switching_force_{_ident(lt.name)}_n", f"bistable_{_ident(lt.name)}"]
+            names += [f"switching_force_{_ident(lt.name)}_n", f"release_force_{_ident(lt.name)}_n",
+                      f"bistable_{_ident(lt.name)}"]
             names += [f"margin_{_ident(lt.name)}_{_ident(p.name)}_{i + 1}" for p, i, _st, _d in step_drives(design)]
         if at is not None:
             if mech == "beams" and 1 <= len(design.capsules) <= 2:
@@ -205,7 +206,7 @@ def _require_supported(design, r, effects) -> bool:
     if effects:
         return False
     if r.kind == "margin":
-        return any(lt.name == r.args[0] and lt.state == "a" for lt in design.latches)
+        return any(lt.name == r.args[0] for lt in design.latches)
     # gap: the equilibrium at every program step, batched for a pair of capsules on two beams
     return _mechanism(design) == "beams" and len(design.capsules) == 2
 
@@ -897,7 +898,11 @@ class _Evaluator:
             lt = self.design.latch(name)
             base = f"latches.{name}"
             geo = [self.get(f"{base}.{k}") for k in ("angle", "length", "width", "thickness", "youngs_modulus")]
-            fsw, bistable = PB.latch_switching_force(*geo)
+            fsw, rel, bistable = PB.latch_switching_force(*geo)
+            if lt.state == "a":
+                required, sign = fsw, 1.0
+            else:                           # held in b: pulled back by more than the release force (0: monostable)
+                required, sign = np.where(bistable, rel, 0.0), -1.0
             axis = np.asarray(lt.axis, float)
             axis = axis / np.linalg.norm(axis)
             carried = [self.caps.index(self.design.capsule(j.capsule)) for j in self.design.joints
@@ -907,9 +912,9 @@ class _Evaluator:
             for p, i, _st, drive in step_drives(self.design):
                 F = self.forces(lay["rest"], tuple(t.frequency for t in drive.tones),
                                 tuple(t.amplitude for t in drive.tones))
-                push = sum((F[:, c] @ axis for c in carried), np.zeros(self.n))
-                margins[(p.name, i)] = np.where(fsw > 0, push / np.where(fsw > 0, fsw, 1.0), np.inf)
-            return {"switching": fsw, "bistable": bistable, "margins": margins}
+                push = sign * sum((F[:, c] @ axis for c in carried), np.zeros(self.n))
+                margins[(p.name, i)] = np.where(required > 0, push / np.where(required > 0, required, 1.0), np.inf)
+            return {"switching": fsw, "release": rel, "bistable": bistable, "margins": margins}
         return self.once(("latch", name), build)
 
     # -- requires and lint ------------------------------------------------------------------------------
@@ -1046,6 +1051,8 @@ class _Evaluator:
             key = _ident(lt.name)
             if q == f"switching_force_{key}_n":
                 return self.latch(lt.name)["switching"]
+            if q == f"release_force_{key}_n":
+                return self.latch(lt.name)["release"]
             if q == f"bistable_{key}":
                 return self.latch(lt.name)["bistable"]
             if q.startswith(f"margin_{key}_"):
