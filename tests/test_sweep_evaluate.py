@@ -197,15 +197,18 @@ def test_lint_columns_equal_the_rules(example):
     n = 4
     fields = {f"capsules.{cap.name}.orifices.{o.name}.radius": o.radius * (1 + 0.2 * rng.standard_normal(n))
               for o in cap.orifices}
+    fields[f"capsules.{cap.name}.cavity.wall"] = np.array([2e-6, 0.5e-6, 2e-6, 0.3e-6])      # 0.5 um: within 2x 0.2 um
+    fields[f"capsules.{cap.name}.center.2"] = cap.center[2] + np.array([0.0, -20e-6, 30e-6, 5e-6])
     b = _batch(d, fields)
-    cols = evaluate(b, [f"lint_{c}_pass" for c in ("acl101", "acl105", "acl503", "acl504")])
+    cols = evaluate(b, [f"lint_{c}_pass" for c in ("acl101", "acl105", "acl501", "acl502", "acl503", "acl504")])
     from acl.lint.config import load_config
     from acl.lint.context import Context
     from acl.lint.registry import load_rules
 
     rules = load_rules()
     fns = {"acl101": acoustics.resonance_outside_band, "acl105": acoustics.bubble_beyond_linear,
-           "acl503": fabrication.orifice_too_small, "acl504": fabrication.orifice_too_large}
+           "acl503": fabrication.orifice_too_small, "acl504": fabrication.orifice_too_large,
+           "acl501": fabrication.marginal_feature, "acl502": fabrication.substrate_proximity}
     seen = set()
     for i in range(n):
         di = materialize(b, i)
@@ -213,7 +216,8 @@ def test_lint_columns_equal_the_rules(example):
             found = list(fn(Context(di, load_config(None, rules), None)) or ())
             assert cols[f"lint_{code}_pass"][i] == (not found), (i, code)
             seen.add((code, bool(found)))
-    assert ("acl105", True) in seen and ("acl105", False) in seen     # both outcomes exercised
+    for code in ("acl105", "acl501", "acl502"):
+        assert (code, True) in seen and (code, False) in seen, code       # both outcomes exercised
 
 
 def test_invalid_points_are_nan_or_false_and_do_not_disturb_the_others():

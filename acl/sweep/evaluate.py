@@ -28,14 +28,16 @@ What is batched and how (the scalar code it equals):
   the scalar landscape takes the extremes of a 2001-point grid, lower by up to 5e-4 where the
   maximum is at the buckling kink, so its margins are optimistic by as much);
 * every ``require`` (report._require) and the lint rules ACL101, ACL105 (program drive and sweep
-  steps), ACL503, ACL504, ACL603, before suppressions and with the default thresholds.
+  steps), ACL501, ACL502, ACL503, ACL504, ACL603, before suppressions and with the default thresholds.
 
 Not batched (not offered as quantities, :func:`supported` says why): designs declaring effects that
 change forces or beams (only resonance and Q are offered), snap-in and deflections of mechanisms
 other than one capsule on a beam or a pair of capsules on two beams (latches, springs, trusses,
 three or more moving capsules), ``require gap`` outside those, and the lint
-rules that need the full per-step equilibrium or the selectivity sweep (ACL102-104, ACL201-202,
-ACL301-302, ACL401-402, ACL501-502, ACL601-602).
+rules that need a frequency sweep per point (ACL102 gain over the band, ACL103 mode overlap with its
+bandwidth factor, ACL104 crosstalk over the selectivity sweep), the per-step equilibria of whole
+programs with strain and elastica checks (ACL201-202, ACL301-302, ACL401-402), and the rules about
+the source text rather than the numbers (ACL601-602, unused declarations and units).
 """
 from __future__ import annotations
 
@@ -102,7 +104,7 @@ QUANTITIES: tuple[Quantity, ...] = (
 )
 
 STATIC_EFFECTS = {"offset_drift", "bubble_shrinkage"}
-LINT_RULES = ("acl101", "acl105", "acl503", "acl504", "acl603")
+LINT_RULES = ("acl101", "acl105", "acl501", "acl502", "acl503", "acl504", "acl603")
 SNAP_GRID = 12            # closure grid of the snap-in search
 SNAP_GOLDEN = 14          # golden-section steps on the fold
 SPLIT_ITER = 5            # secant steps for the split of the closure between the two beams
@@ -974,6 +976,17 @@ class _Evaluator:
                 f = self.modes(c)[0]
                 ok &= np.all(np.isnan(f) | ((f >= lo) & (f <= hi)), axis=1)
             return ok
+        if code == "acl501":
+            return self.marginal_features_ok(thr["print_margin"])
+        if code == "acl502":
+            fixed = {j.capsule for j in self.design.joints if j.kind == "fix"}
+            limit = thr["substrate_clearance"]
+            for c, cap in enumerate(self.caps):
+                if cap.name in fixed:
+                    continue
+                low = self.capsule(c)["center"][:, 2] - self.half_height(c)
+                ok &= ~(low < limit - 1e-9)
+            return ok
         if code == "acl503":
             for c in range(len(self.caps)):
                 ok &= np.all(self.capsule(c)["radii"] >= thr["orifice_min_radius"], axis=1)
@@ -991,6 +1004,44 @@ class _Evaluator:
         if code == "acl105":
             return self.linear_ok(thr["linear_amplitude"], int(thr["sweep_samples"]))
         raise QuantityError("E-SWEEP-Q01", f"lint rule {code} is not batched")
+
+    def half_height(self, c: int) -> np.ndarray:
+        """Extent of capsule c's outer body below its centre (geometry.half_extent along -z)."""
+        cap = self.caps[c]
+        base = f"capsules.{cap.name}.cavity"
+        cav = cap.cavity
+        wall = self.get(f"{base}.wall")
+        if cav.shape in ("cylinder", "prism"):
+            ax = self.vec(f"{base}.axis")
+            ca = np.abs(ax[:, 2]) / np.linalg.norm(ax, axis=-1)
+            across = self.get(f"{base}.radius") if cav.shape == "cylinder" else self.get(f"{base}.side") / math.sqrt(3)
+            return ca * self.get(f"{base}.height") / 2 + across * np.sqrt(np.maximum(0.0, 1 - ca * ca)) + wall
+        return (3 * self.get(f"{base}.volume") / (4 * np.pi)) ** (1 / 3) + wall
+
+    def marginal_features_ok(self, k: float) -> np.ndarray:
+        """ACL501: no printed feature within k x the print resolution (lint.rules.fabrication._features)."""
+        from acl.design.checks import PRINT_AXIAL, PRINT_LATERAL
+
+        ok = np.ones(self.n, bool)
+
+        def check(size, axial):
+            res = PRINT_AXIAL if axial else PRINT_LATERAL
+            return ~((res <= size) & (size < k * res))
+
+        for cap in self.caps:
+            ok &= check(self.get(f"capsules.{cap.name}.cavity.wall"), False)
+            for o in cap.orifices:
+                ok &= check(2 * self.get(f"capsules.{cap.name}.orifices.{o.name}.radius"), False)
+        for b in self.design.beams:
+            vertical = abs(b.axis[2]) > 0.7
+            base = f"beams.{b.name}.section"
+            if b.section.shape == "circle":
+                ok &= check(self.get(f"{base}.diameter"), not vertical)
+            else:
+                ok &= check(self.get(f"{base}.width"), False) & check(self.get(f"{base}.thickness"), not vertical)
+        for lt in self.design.latches:
+            ok &= check(self.get(f"latches.{lt.name}.width"), False) & check(self.get(f"latches.{lt.name}.thickness"), True)
+        return ok
 
     def linear_ok(self, limit: float, samples: int) -> np.ndarray:
         """ACL105: eps/R of every interface at every drive step and sampled sweep frequency within the limit (acoustics.interface_amplitudes)."""
