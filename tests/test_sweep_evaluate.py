@@ -242,11 +242,15 @@ def test_unknown_and_unsupported_quantities_are_diagnosed():
     assert exc.value.code == "E-SWEEP-Q01"
     with pytest.raises(QuantityError) as exc:
         evaluate(b, ["tip_deflection_arm_m"])          # needs `at`
-    assert exc.value.code in ("E-SWEEP-Q01", "E-SWEEP-Q02")
+    assert exc.value.code == "E-SWEEP-Q02" and "at" in str(exc.value)
     grip = acl.load(str(EX / "fig5a_gripper.acl"))
     names, missing = supported(grip, "125 kHz @ 5 V")
     assert not any(n.startswith("tip_deflection") for n in names)
-    assert "tip_deflection" in missing or "snap_in" in missing
+    assert "tip_deflection" in missing
+    with pytest.raises(QuantityError) as exc:
+        evaluate(_batch(grip, {grip.beams[0].name and f"beams.{grip.beams[0].name}.length": [grip.beams[0].length]}),
+                 [f"tip_deflection_{grip.beams[0].name}_m"], "125 kHz @ 5 V")
+    assert exc.value.code == "E-SWEEP-Q02"
 
 
 def test_every_column_family_is_documented():
@@ -282,3 +286,29 @@ def test_require_gap_of_a_pair_equals_analyze():
         assert cols["require_2_pass"][i] == r["ok"]
         outcomes.add((r["ok"], r["value"] == 0.0))
     assert len(outcomes) >= 2
+
+
+def test_pair_with_a_lateral_force_is_not_reduced_to_one_axis():
+    """The batched snap-in holds the lateral degrees of freedom at zero; a point whose forces at rest push sideways is NaN, not a wrong number."""
+    d = acl.load(str(EX / "fig4_facing_pair.acl"))
+    right = d.capsule("right")
+    dy = np.array([0.0, 3e-6])
+    b = _batch(d, {"capsules.right.center.1": right.center[1] + dy,
+                   "capsules.right.orifices.jet.center.1": right.orifices[0].center[1] + dy})
+    cols = evaluate(b, ["snap_in_left_right_125khz_v", "force_left_right_125khz_n"])
+    assert np.isfinite(cols["snap_in_left_right_125khz_v"][0])
+    assert math.isnan(cols["snap_in_left_right_125khz_v"][1])
+    p = analyze(materialize(b, 1), snap_in=False).as_dict()["pairs"][0]
+    assert _rel(cols["force_left_right_125khz_n"][1], p["force_n"]) < 1e-9      # forces at rest still batched
+
+
+def test_latch_columns_in_blocks_equal_one_block():
+    from acl.physics.batch import latch_switching_force
+
+    rng = np.random.default_rng(2)
+    n = 50
+    args = (np.deg2rad(rng.uniform(30, 60, n)), np.full(n, 50e-6), np.full(n, 1e-6), np.full(n, 1.7e-6), np.full(n, 13e6))
+    one = latch_switching_force(*args)
+    blocks = latch_switching_force(*args, block=7)
+    for a, b in zip(one, blocks):
+        np.testing.assert_array_equal(a, b)

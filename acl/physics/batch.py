@@ -342,7 +342,7 @@ def _golden_max(fn, lo, hi, iterations: int):
     return np.maximum(f1, f2)
 
 
-def latch_switching_force(theta, L, w, t, E, n_grid: int = 257, iterations: int = 60):
+def latch_switching_force(theta, L, w, t, E, n_grid: int = 257, iterations: int = 60, block: int = 4096):
     """Switching force a -> b (largest holding force between state a and the barrier top) and release force b -> a (largest pull back between state b and the top) per point (latch.latch_landscape, its 2001-point grid extrema refined by golden section).
 
     Arrays (N,) -> (switching (N,), release (N,) NaN when monostable, bistable (N,)): bistable when
@@ -351,6 +351,10 @@ def latch_switching_force(theta, L, w, t, E, n_grid: int = 257, iterations: int 
     """
     theta, L, w, t, E = (np.asarray(v, float) for v in (theta, L, w, t, E))
     n = theta.shape[0]
+    if n > block:                       # bounded memory: the landscape grid is (rows, n_grid)
+        parts = [latch_switching_force(theta[i:i + block], L[i:i + block], w[i:i + block], t[i:i + block],
+                                       E[i:i + block], n_grid, iterations, block) for i in range(0, n, block)]
+        return tuple(np.concatenate([p[k] for p in parts]) for k in range(3))
     rows = np.arange(n)
     reach = 2.6 * L * np.sin(theta)
     grid = np.linspace(0.0, 1.0, n_grid)[None, :] * reach[:, None]                  # (N, G)

@@ -160,8 +160,10 @@ def supported(design: M.Design, at: str | None = None) -> tuple[list[str], dict[
         for k in range(1, len(cap.orifices) + 1):
             names += [f"resonance_{_ident(cap.name)}_{k}_hz", f"q_{_ident(cap.name)}_{k}"]
     if effects:
-        missing["forces, snap-in, latches, deflections"] = (
-            f"the design declares effects ({', '.join(effects)}) that the batched forces and beams do not model")
+        why = f"the design declares effects ({', '.join(effects)}) that the batched forces and beams do not model"
+        for fam in ("force_", "attract_", "phase_", "critical_distance_", "snap_in_", "switching_force_",
+                    "release_force_", "bistable_", "margin_", "tip_deflection", "equilibrium_ok"):
+            missing[fam] = why
     mech = _mechanism(design)
     moving = [c for c in design.capsules if (design.mount_of(c.name) or M.Fix(capsule="", span=c.span)).kind == "mount"]
     freqs = program_frequencies(design) or []
@@ -175,12 +177,15 @@ def supported(design: M.Design, at: str | None = None) -> tuple[list[str], dict[
             if mech == "beams" and len(design.capsules) == 2 and len(moving) >= 1:
                 names += [f"snap_in_{_ident(a)}_{_ident(b)}_{_fkey(f)}_v" for f in freqs for a, b in pairs]
             else:
-                missing["snap_in"] = "batched snap-in covers a pair of capsules on beams only"
+                missing["snap_in_"] = "batched snap-in covers a pair of capsules on beams only"
         for lt in design.latches:
             names += [f"switching_force_{_ident(lt.name)}_n", f"release_force_{_ident(lt.name)}_n",
                       f"bistable_{_ident(lt.name)}"]
             names += [f"margin_{_ident(lt.name)}_{_ident(p.name)}_{i + 1}" for p, i, _st, _d in step_drives(design)]
-        if at is not None:
+        if at is None:
+            if any((design.mount_of(c.name) or M.Fix(capsule="", span=c.span)).kind == "mount" for c in design.capsules):
+                missing["tip_deflection"] = "deflections need a drive: give `at` (like `acl analyze --at`)"
+        else:
             if mech == "beams" and 1 <= len(design.capsules) <= 2:
                 names += [f"tip_deflection_{_ident(j.target)}_m" for c in design.capsules
                           for j in [design.mount_of(c.name)] if j.kind == "mount"] + ["equilibrium_ok"]
@@ -238,9 +243,10 @@ def evaluate(batch, quantities: Sequence[str] | None = None, at: str | None = No
         wanted = list(quantities)
         for q in wanted:
             if q not in names:
-                fam = next((k for k in missing if q.startswith(k.split()[0].replace("_", "")[:6])), None)
-                if fam:
-                    raise QuantityError("E-SWEEP-Q02", f"quantity `{q}` is not available: {missing[fam]}")
+                why = next((v for k, v in missing.items()
+                            if q.startswith(k) and (k.endswith("_") or q[len(k):len(k) + 1] in ("", "_"))), None)
+                if why is not None:
+                    raise QuantityError("E-SWEEP-Q02", f"quantity `{q}` is not available for this design: {why}")
                 raise QuantityError("E-SWEEP-Q01", f"quantity `{q}` is not defined for this design "
                                     f"(available: {', '.join(names) or 'none'})")
     ev = _Evaluator(batch, at)
