@@ -163,7 +163,8 @@ def maximise(evaluate: Callable[[np.ndarray], np.ndarray], free: Sequence[Free],
     width = np.where(hi > lo, hi - lo, 1.0)
     start = np.array([f.start for f in free], float)
     to_x = lambda u: rounded(lo + np.clip(u, 0.0, 1.0) * width)         # noqa: E731 (SI, as written)
-    m0 = evaluate(start)
+    start_written = rounded(start)
+    m0 = evaluate(start_written)
     scale = spreads(m0)
     history: list = []
     cache: dict[tuple, float] = {}
@@ -176,7 +177,7 @@ def maximise(evaluate: Callable[[np.ndarray], np.ndarray], free: Sequence[Free],
             return cache[key]
         if len(history) >= budget:
             return -cache_best()
-        m = m0 if np.array_equal(x, start) else evaluate(x)
+        m = m0 if np.array_equal(x, start_written) else evaluate(x)
         s = score(m, scale, objective)
         y = int(passing(m).sum())
         history.append((x, s, y))
