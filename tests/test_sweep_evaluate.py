@@ -243,3 +243,28 @@ def test_every_column_family_is_documented():
         names, _ = supported(acl.load(str(EX / f"{ex}.acl")), "125 kHz @ 3 V")
         for n in names:
             assert any(p.match(n) for p in pats), n
+
+
+def test_require_gap_of_a_pair_equals_analyze():
+    """require gap: smallest orifice distance over rest and each program step's equilibrium (0 after snap-in), relative 1e-7."""
+    src = (EX / "fig4_facing_pair.acl").read_text()
+    src = src[:src.index("# Fig. 4e: 125 kHz")] + (
+        "program gentle {\n  drive 125 kHz @ 2 V for dwell\n  drive 125 kHz @ 3.5 V for dwell\n}\n"
+        "require gap(left.jet, right.jet) >= 34 um\n")
+    d = acl.loads(src, filename=str(EX / "fig4_facing_pair.acl"))
+    rng = np.random.default_rng(3)
+    n = 6
+    b = _batch(d, {"capsules.left.orifices.jet.radius": 10e-6 + 0.4e-6 * rng.standard_normal(n),
+                   "beams.right_arm.youngs_modulus": 13e6 * (1 + 0.2 * rng.standard_normal(n))})
+    cols = evaluate(b, ["require_2_value", "require_2_pass"])
+    outcomes = set()
+    for i in range(n):
+        r = analyze(materialize(b, i)).as_dict()["requires"][1]
+        assert r["kind"] == "gap"
+        if r["value"] == 0.0:
+            assert cols["require_2_value"][i] == 0.0
+        else:
+            assert _rel(cols["require_2_value"][i], r["value"]) < 1e-7
+        assert cols["require_2_pass"][i] == r["ok"]
+        outcomes.add((r["ok"], r["value"] == 0.0))
+    assert len(outcomes) >= 2

@@ -281,15 +281,23 @@ def eq1_force(delta, L, l, EI, rtol: float = 1e-13):
 
 def axial_force(compression, slenderness):
     """N L^2/(E I) vs compression/L of one beam, per-point slenderness: linear E A/L, then the buckled elastica (latch.axial_force; Timoshenko & Gere 2.7)."""
+    c = np.asarray(compression, float)
+    k_axial = np.broadcast_to(12.0 / np.asarray(slenderness, float) ** 2, c.shape)
+    p_cr = 4.0 * np.pi**2
+    out = k_axial * c
+    buckled = c * k_axial > p_cr
+    if buckled.any():
+        out[buckled] = _buckled_force(c[buckled], p_cr / k_axial[buckled])
+    return out
+
+
+def _buckled_force(c, a):
+    """N L^2/(E I) on the buckled branch: np.interp(c, a load + short, p_cr load) with a = p_cr/k differing per element (latch.axial_force)."""
     from acl.physics.latch import _buckled_column_table
 
-    c = np.asarray(compression, float)
-    k_axial = 12.0 / np.asarray(slenderness, float) ** 2
     p_cr = 4.0 * np.pi**2
     short, load = _buckled_column_table()
-    # np.interp(c, total, p_cr load) with total = p_cr load / k + short differing per point: a vectorised
-    # binary search on the (monotone) table, then the same linear interpolation
-    a = np.broadcast_to(p_cr / k_axial, c.shape)
+    # a vectorised binary search on the (monotone) table, then the same linear interpolation
     lo = np.zeros(c.shape, int)
     hi = np.full(c.shape, short.size - 1)
     while True:
@@ -303,8 +311,7 @@ def axial_force(compression, slenderness):
     t1 = a * load[hi] + short[hi]
     frac = np.clip((c - t0) / np.where(t1 > t0, t1 - t0, 1.0), 0.0, 1.0)
     buckled = p_cr * (load[lo] + frac * (load[hi] - load[lo]))
-    buckled = np.where(c >= a * load[-1] + short[-1], p_cr * load[-1], buckled)
-    return np.where(c * k_axial <= p_cr, k_axial * c, buckled)
+    return np.where(c >= a * load[-1] + short[-1], p_cr * load[-1], buckled)
 
 
 def latch_force(u, theta, L, w, t, E):

@@ -206,7 +206,8 @@ def _require_supported(design, r, effects) -> bool:
         return False
     if r.kind == "margin":
         return any(lt.name == r.args[0] and lt.state == "a" for lt in design.latches)
-    return False       # gap: needs the equilibrium at every program step
+    # gap: the equilibrium at every program step, batched for a pair of capsules on two beams
+    return _mechanism(design) == "beams" and len(design.capsules) == 2
 
 
 def _pairs(design):
@@ -824,13 +825,29 @@ class _Evaluator:
         return xa, xb
 
     def pair_deflection(self, drive: M.Drive) -> dict:
-        """Beam deflections of the pair at drive scale 1 on the stable branch from rest (mechanics.equilibrium): NaN after snap-in.
+        """Beam deflections of the pair at drive scale 1 on the stable branch from rest (mechanics.equilibrium): NaN after snap-in."""
+        xa, xb, ok = self.pair_equilibrium(drive)
+        out = {"equilibrium_ok": ok}
+        for k, x in ((0, xa), (1, xb)):
+            bm = self.pair_setup()["beams"][k]
+            if bm is not None:
+                out[f"tip_deflection_{_ident(bm['name'])}_m"] = np.where(ok, np.abs(x), np.nan)
+        return out
 
-        A closing pair: regula falsi on V^2(s) = 1 below the fold; otherwise (pushed apart, or one
-        pushed and one pulled) natural continuation in V^2 with Newton.
+    def pair_equilibrium(self, drive: M.Drive):
+        """(xa, xb, ok): deflections of the pair's beams along their closing directions at ``drive`` (mechanics.equilibrium from rest).
+
+        A closing pair: regula falsi on V^2(s) = 1 below the fold (ok False if it folds first: snap-in);
+        otherwise (pushed apart, or one pushed and one pulled) natural continuation in V^2 with Newton.
         """
         freqs = tuple(t.frequency for t in drive.tones)
         volts = tuple(t.amplitude for t in drive.tones)
+        return self.once(("pair_eq", freqs, volts), lambda: self._pair_equilibrium(freqs, volts))
+
+    def _pair_equilibrium(self, freqs, volts):
+        if not freqs:
+            z = np.zeros(self.n)
+            return z, z, np.ones(self.n, bool)
         br = self.pair_branch(freqs, volts)
         ps = self.pair_setup()
         closing, lateral = br["closing"], br["lateral"]
@@ -846,13 +863,31 @@ class _Evaluator:
         if rows.size:
             with np.errstate(all="ignore"):
                 xa[rows], xb[rows] = self.subset(rows).pair_newton(freqs, volts)
-        ok = np.isfinite(xa) & np.isfinite(xb)
-        out = {"equilibrium_ok": ok}
-        for k, x in ((0, xa), (1, xb)):
-            bm = ps["beams"][k]
-            if bm is not None:
-                out[f"tip_deflection_{_ident(bm['name'])}_m"] = np.where(ok, np.abs(x), np.nan)
-        return out
+        return xa, xb, np.isfinite(xa) & np.isfinite(xb)
+
+    def gap_over_steps(self, a: str, b: str) -> np.ndarray:
+        """require gap: the smallest distance of orifices a, b over rest and the equilibrium of every program step, 0 after snap-in (report._require)."""
+        from acl.analysis.report import step_drives
+
+        ps = self.pair_setup()
+        lay = self.layout()
+        (ca, oa), (cb, ob) = a.split("."), b.split(".")
+        names = [c.name for c in self.caps]
+
+        def point(cap, orf, xs):
+            k = names.index(cap)
+            o = [x.name for x in self.caps[k].orifices].index(orf)
+            i = int(np.flatnonzero(lay["body"] == k)[o])
+            return lay["rest"][:, k] + lay["offsets"][:, i] + xs[k][:, None] * ps["dirs"][k]
+
+        zero = np.zeros(self.n)
+        gap = np.linalg.norm(point(cb, ob, (zero, zero)) - point(ca, oa, (zero, zero)), axis=-1)
+        for _p, _i, _st, drive in step_drives(self.design):
+            xa, xb, ok = self.pair_equilibrium(drive)
+            xs = (np.where(ok, xa, 0.0), np.where(ok, xb, 0.0))
+            g = np.linalg.norm(point(cb, ob, xs) - point(ca, oa, xs), axis=-1)
+            gap = np.minimum(gap, np.where(ok, g, 0.0))
+        return gap
 
     # -- latches ------------------------------------------------------------------------------------
     def latch(self, name: str) -> dict:
@@ -908,14 +943,16 @@ class _Evaluator:
                 value = np.max(allm, axis=0)
             else:
                 value = np.full(self.n, np.nan)
+        elif r.kind == "gap":
+            value = self.gap_over_steps(r.args[0], r.args[1])
         else:
             raise QuantityError("E-SWEEP-Q02", f"`{r.text}` is not batched")
         ok = np.isfinite(value) | np.isinf(value)
         ok &= ~np.isnan(value)
-        if r.lower is not None:
-            ok &= value >= r.lower
+        if r.lower is not None:      # bounds may follow a swept parameter (`in f0 - 5 kHz .. f0 + 5 kHz`)
+            ok &= value >= self.get(f"requires.{i - 1}.lower")
         if r.upper is not None:
-            ok &= value <= r.upper
+            ok &= value <= self.get(f"requires.{i - 1}.upper")
         return value, ok
 
     def lint(self, code: str) -> np.ndarray:
@@ -1002,9 +1039,8 @@ class _Evaluator:
             from acl.design.drives import drive_from_text
 
             drive = drive_from_text(self.at, "<at>")
-            moving = [c for c in range(len(self.caps)) if self.beam_of(c) is not None]
-            cols = self.once(("at", self.at), lambda: self.single_deflection(drive) if len(self.caps) == 1 or len(moving) == 1
-                             and len(self.caps) == 1 else self.pair_deflection(drive))
+            cols = self.once(("at", self.at), lambda: self.single_deflection(drive) if len(self.caps) == 1
+                             else self.pair_deflection(drive))
             return cols[q]
         for lt in self.design.latches:
             key = _ident(lt.name)
