@@ -18,23 +18,26 @@ What is batched and how (the scalar code it equals):
   branch of ``P_a(x_a) = V^2 F_a(x)``, ``P_b(x_b) = V^2 F_b(x)`` (paper Eq. (1) beams, full force
   model at displaced positions) is traced in the closure ``s`` of the gap, the split between the
   two beams solved at each ``s`` (secant), and the fold is the first maximum of ``V^2(s)``
-  (grid, then golden section).  The lateral degrees of freedom are held at zero: exact when the
+  (grid, then golden section); ``require gap`` from the equilibrium of every program step.  The lateral degrees of freedom are held at zero: exact when the
   pair's forces at rest have no lateral component (facing pairs); points where they have one are
   NaN;
 * tip deflection at ``at`` of a capsule on a cantilever: the Eq. (1) deflection under the force at
   the displaced position (fixed point), or the pair branch at V = 1;
-* latch margins per program step (mechanics.latch_margins), the switching force refined by golden
-  section (acl.physics.batch.latch_switching_force; the scalar landscape takes the maximum of a
-  2001-point grid, lower by up to 5e-4 where the maximum is at the buckling kink);
+* latch margins per program step (mechanics.latch_margins, latches at rest in state a or b), the
+  switching and release forces refined by golden section (acl.physics.batch.latch_switching_force;
+  the scalar landscape takes the extremes of a 2001-point grid, lower by up to 5e-4 where the
+  maximum is at the buckling kink, so its margins are optimistic by as much);
 * every ``require`` (report._require) and the lint rules ACL101, ACL105 (program drive and sweep
-  steps), ACL503, ACL504, ACL603, before suppressions and with the default thresholds.
+  steps), ACL501, ACL502, ACL503, ACL504, ACL603, before suppressions and with the default thresholds.
 
 Not batched (not offered as quantities, :func:`supported` says why): designs declaring effects that
 change forces or beams (only resonance and Q are offered), snap-in and deflections of mechanisms
 other than one capsule on a beam or a pair of capsules on two beams (latches, springs, trusses,
-three or more moving capsules), ``require gap`` outside those, latches in state b, and the lint
-rules that need the full per-step equilibrium or the selectivity sweep (ACL102-104, ACL201-202,
-ACL301-302, ACL401-402, ACL501-502, ACL601-602).
+three or more moving capsules), ``require gap`` outside those, and the lint
+rules that need a frequency sweep per point (ACL102 gain over the band, ACL103 mode overlap with its
+bandwidth factor, ACL104 crosstalk over the selectivity sweep), the per-step equilibria of whole
+programs with strain and elastica checks (ACL201-202, ACL301-302, ACL401-402), and the rules about
+the source text rather than the numbers (ACL601-602, unused declarations and units).
 """
 from __future__ import annotations
 
@@ -83,6 +86,8 @@ QUANTITIES: tuple[Quantity, ...] = (
              "pairs[a,b,frequency_hz=f].snap_in_voltage_v"),
     Quantity("switching_force_<latch>_n", "N", "force that switches the latch a -> b (model maximum, refined)",
              "latches[name].switching_force_n"),
+    Quantity("release_force_<latch>_n", "N", "force that releases the latch b -> a (NaN: monostable)",
+             "latches[name].release_force_n"),
     Quantity("bistable_<latch>", "bool", "the latch has a second stable state", "latches[name].bistable"),
     Quantity("margin_<latch>_<program>_<step>", "", "available / required force on the latch at a program step",
              "latches[name].margins[program,step].margin"),
@@ -99,7 +104,7 @@ QUANTITIES: tuple[Quantity, ...] = (
 )
 
 STATIC_EFFECTS = {"offset_drift", "bubble_shrinkage"}
-LINT_RULES = ("acl101", "acl105", "acl503", "acl504", "acl603")
+LINT_RULES = ("acl101", "acl105", "acl501", "acl502", "acl503", "acl504", "acl603")
 SNAP_GRID = 12            # closure grid of the snap-in search
 SNAP_GOLDEN = 14          # golden-section steps on the fold
 SPLIT_ITER = 5            # secant steps for the split of the closure between the two beams
@@ -155,8 +160,10 @@ def supported(design: M.Design, at: str | None = None) -> tuple[list[str], dict[
         for k in range(1, len(cap.orifices) + 1):
             names += [f"resonance_{_ident(cap.name)}_{k}_hz", f"q_{_ident(cap.name)}_{k}"]
     if effects:
-        missing["forces, snap-in, latches, deflections"] = (
-            f"the design declares effects ({', '.join(effects)}) that the batched forces and beams do not model")
+        why = f"the design declares effects ({', '.join(effects)}) that the batched forces and beams do not model"
+        for fam in ("force_", "attract_", "phase_", "critical_distance_", "snap_in_", "switching_force_",
+                    "release_force_", "bistable_", "margin_", "tip_deflection", "equilibrium_ok"):
+            missing[fam] = why
     mech = _mechanism(design)
     moving = [c for c in design.capsules if (design.mount_of(c.name) or M.Fix(capsule="", span=c.span)).kind == "mount"]
     freqs = program_frequencies(design) or []
@@ -170,14 +177,15 @@ def supported(design: M.Design, at: str | None = None) -> tuple[list[str], dict[
             if mech == "beams" and len(design.capsules) == 2 and len(moving) >= 1:
                 names += [f"snap_in_{_ident(a)}_{_ident(b)}_{_fkey(f)}_v" for f in freqs for a, b in pairs]
             else:
-                missing["snap_in"] = "batched snap-in covers a pair of capsules on beams only"
+                missing["snap_in_"] = "batched snap-in covers a pair of capsules on beams only"
         for lt in design.latches:
-            if lt.state != "a":
-                missing[f"latch {lt.name}"] = "latches at rest in state b are not batched"
-                continue
-            names += [f"switching_force_{_ident(lt.name)}_n", f"bistable_{_ident(lt.name)}"]
+            names += [f"switching_force_{_ident(lt.name)}_n", f"release_force_{_ident(lt.name)}_n",
+                      f"bistable_{_ident(lt.name)}"]
             names += [f"margin_{_ident(lt.name)}_{_ident(p.name)}_{i + 1}" for p, i, _st, _d in step_drives(design)]
-        if at is not None:
+        if at is None:
+            if any((design.mount_of(c.name) or M.Fix(capsule="", span=c.span)).kind == "mount" for c in design.capsules):
+                missing["tip_deflection"] = "deflections need a drive: give `at` (like `acl analyze --at`)"
+        else:
             if mech == "beams" and 1 <= len(design.capsules) <= 2:
                 names += [f"tip_deflection_{_ident(j.target)}_m" for c in design.capsules
                           for j in [design.mount_of(c.name)] if j.kind == "mount"] + ["equilibrium_ok"]
@@ -205,7 +213,7 @@ def _require_supported(design, r, effects) -> bool:
     if effects:
         return False
     if r.kind == "margin":
-        return any(lt.name == r.args[0] and lt.state == "a" for lt in design.latches)
+        return any(lt.name == r.args[0] for lt in design.latches)
     # gap: the equilibrium at every program step, batched for a pair of capsules on two beams
     return _mechanism(design) == "beams" and len(design.capsules) == 2
 
@@ -235,9 +243,10 @@ def evaluate(batch, quantities: Sequence[str] | None = None, at: str | None = No
         wanted = list(quantities)
         for q in wanted:
             if q not in names:
-                fam = next((k for k in missing if q.startswith(k.split()[0].replace("_", "")[:6])), None)
-                if fam:
-                    raise QuantityError("E-SWEEP-Q02", f"quantity `{q}` is not available: {missing[fam]}")
+                why = next((v for k, v in missing.items()
+                            if q.startswith(k) and (k.endswith("_") or q[len(k):len(k) + 1] in ("", "_"))), None)
+                if why is not None:
+                    raise QuantityError("E-SWEEP-Q02", f"quantity `{q}` is not available for this design: {why}")
                 raise QuantityError("E-SWEEP-Q01", f"quantity `{q}` is not defined for this design "
                                     f"(available: {', '.join(names) or 'none'})")
     ev = _Evaluator(batch, at)
@@ -897,7 +906,11 @@ class _Evaluator:
             lt = self.design.latch(name)
             base = f"latches.{name}"
             geo = [self.get(f"{base}.{k}") for k in ("angle", "length", "width", "thickness", "youngs_modulus")]
-            fsw, bistable = PB.latch_switching_force(*geo)
+            fsw, rel, bistable = PB.latch_switching_force(*geo)
+            if lt.state == "a":
+                required, sign = fsw, 1.0
+            else:                           # held in b: pulled back by more than the release force (0: monostable)
+                required, sign = np.where(bistable, rel, 0.0), -1.0
             axis = np.asarray(lt.axis, float)
             axis = axis / np.linalg.norm(axis)
             carried = [self.caps.index(self.design.capsule(j.capsule)) for j in self.design.joints
@@ -907,9 +920,9 @@ class _Evaluator:
             for p, i, _st, drive in step_drives(self.design):
                 F = self.forces(lay["rest"], tuple(t.frequency for t in drive.tones),
                                 tuple(t.amplitude for t in drive.tones))
-                push = sum((F[:, c] @ axis for c in carried), np.zeros(self.n))
-                margins[(p.name, i)] = np.where(fsw > 0, push / np.where(fsw > 0, fsw, 1.0), np.inf)
-            return {"switching": fsw, "bistable": bistable, "margins": margins}
+                push = sign * sum((F[:, c] @ axis for c in carried), np.zeros(self.n))
+                margins[(p.name, i)] = np.where(required > 0, push / np.where(required > 0, required, 1.0), np.inf)
+            return {"switching": fsw, "release": rel, "bistable": bistable, "margins": margins}
         return self.once(("latch", name), build)
 
     # -- requires and lint ------------------------------------------------------------------------------
@@ -969,6 +982,17 @@ class _Evaluator:
                 f = self.modes(c)[0]
                 ok &= np.all(np.isnan(f) | ((f >= lo) & (f <= hi)), axis=1)
             return ok
+        if code == "acl501":
+            return self.marginal_features_ok(thr["print_margin"])
+        if code == "acl502":
+            fixed = {j.capsule for j in self.design.joints if j.kind == "fix"}
+            limit = thr["substrate_clearance"]
+            for c, cap in enumerate(self.caps):
+                if cap.name in fixed:
+                    continue
+                low = self.capsule(c)["center"][:, 2] - self.half_height(c)
+                ok &= ~(low < limit - 1e-9)
+            return ok
         if code == "acl503":
             for c in range(len(self.caps)):
                 ok &= np.all(self.capsule(c)["radii"] >= thr["orifice_min_radius"], axis=1)
@@ -986,6 +1010,44 @@ class _Evaluator:
         if code == "acl105":
             return self.linear_ok(thr["linear_amplitude"], int(thr["sweep_samples"]))
         raise QuantityError("E-SWEEP-Q01", f"lint rule {code} is not batched")
+
+    def half_height(self, c: int) -> np.ndarray:
+        """Extent of capsule c's outer body below its centre (geometry.half_extent along -z)."""
+        cap = self.caps[c]
+        base = f"capsules.{cap.name}.cavity"
+        cav = cap.cavity
+        wall = self.get(f"{base}.wall")
+        if cav.shape in ("cylinder", "prism"):
+            ax = self.vec(f"{base}.axis")
+            ca = np.abs(ax[:, 2]) / np.linalg.norm(ax, axis=-1)
+            across = self.get(f"{base}.radius") if cav.shape == "cylinder" else self.get(f"{base}.side") / math.sqrt(3)
+            return ca * self.get(f"{base}.height") / 2 + across * np.sqrt(np.maximum(0.0, 1 - ca * ca)) + wall
+        return (3 * self.get(f"{base}.volume") / (4 * np.pi)) ** (1 / 3) + wall
+
+    def marginal_features_ok(self, k: float) -> np.ndarray:
+        """ACL501: no printed feature within k x the print resolution (lint.rules.fabrication._features)."""
+        from acl.design.checks import PRINT_AXIAL, PRINT_LATERAL
+
+        ok = np.ones(self.n, bool)
+
+        def check(size, axial):
+            res = PRINT_AXIAL if axial else PRINT_LATERAL
+            return ~((res <= size) & (size < k * res))
+
+        for cap in self.caps:
+            ok &= check(self.get(f"capsules.{cap.name}.cavity.wall"), False)
+            for o in cap.orifices:
+                ok &= check(2 * self.get(f"capsules.{cap.name}.orifices.{o.name}.radius"), False)
+        for b in self.design.beams:
+            vertical = abs(b.axis[2]) > 0.7
+            base = f"beams.{b.name}.section"
+            if b.section.shape == "circle":
+                ok &= check(self.get(f"{base}.diameter"), not vertical)
+            else:
+                ok &= check(self.get(f"{base}.width"), False) & check(self.get(f"{base}.thickness"), not vertical)
+        for lt in self.design.latches:
+            ok &= check(self.get(f"latches.{lt.name}.width"), False) & check(self.get(f"latches.{lt.name}.thickness"), True)
+        return ok
 
     def linear_ok(self, limit: float, samples: int) -> np.ndarray:
         """ACL105: eps/R of every interface at every drive step and sampled sweep frequency within the limit (acoustics.interface_amplitudes)."""
@@ -1046,6 +1108,8 @@ class _Evaluator:
             key = _ident(lt.name)
             if q == f"switching_force_{key}_n":
                 return self.latch(lt.name)["switching"]
+            if q == f"release_force_{key}_n":
+                return self.latch(lt.name)["release"]
             if q == f"bistable_{key}":
                 return self.latch(lt.name)["bistable"]
             if q.startswith(f"margin_{key}_"):
