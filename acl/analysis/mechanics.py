@@ -254,7 +254,7 @@ def _beam_law(beam, mode: str, design: Design | None = None):
             kt = float(B.elastica_tangent_stiffness(delta, L, l, EI))
         else:
             P = float(B.eq1_force(delta, L, l, EI))
-            kt = float(B.eq1_tangent_stiffness(delta, L, l, EI))
+            kt = float(1.0 / B.eq1_compliance(P, L, l, EI))       # = eq1_tangent_stiffness, one inversion
         n = u / delta
         K = kt * np.outer(n, n) + (P / delta) * (P_perp - np.outer(n, n))
         return P * n, K
@@ -483,15 +483,26 @@ def _external(design: Design, mech: _Mechanism, drive: Drive, force_model: Force
             g[:, o:o + A.shape[1]] += forces[:, idx].sum(axis=1) @ A
         return g @ mech.Z
 
+    # Continuation asks for the force at one configuration several times (the point, its voltage
+    # derivative at V +- dV, the tangent, the fold test): a quadratic model's unit-drive force of the
+    # last configurations is kept (keyed on the exact coordinates; the design is immutable).
+    memo: dict = {}
+
     def external_batch(zs, V):
         """external() for many configurations (B, m) at once (one vectorised force evaluation)."""
         zs = np.atleast_2d(np.asarray(zs, float))
-        qs = zs @ mech.Z.T
-        if quadratic:
-            forces = batch(design, centres_of(qs), drive) * (V * V)
-        else:
-            forces = batch(design, centres_of(qs), _scaled_drive(drive, V))
-        return generalized(forces)
+        if not quadratic:
+            return generalized(batch(design, centres_of(zs @ mech.Z.T), _scaled_drive(drive, V)))
+        keys = [z.tobytes() for z in zs]
+        missing = [i for i, k in enumerate(keys) if k not in memo]
+        if missing:
+            rows = generalized(batch(design, centres_of(zs[missing] @ mech.Z.T), drive))
+            for i, row in zip(missing, rows):
+                memo[keys[i]] = row
+        out = np.array([memo[k] for k in keys]).reshape(zs.shape[0], -1) * (V * V)
+        while len(memo) > 64:
+            memo.pop(next(iter(memo)))
+        return out
 
     def external(z, V):
         if batch is not None:

@@ -100,6 +100,10 @@ def _external_jacobian(external: External, q: np.ndarray, V: float, h: float) ->
 
 
 _RT_MEMO: dict = {}
+CORRECTOR_ITERATIONS = 12     # corrector iterations before a continuation step is rejected (and halved)
+STEP_CHECKED = 0.5            # scaled arclength up to which a continuation step needs no straightness check
+STRAIGHT_OFFSET = 0.02        # longer steps: corrector offset / step at most this ...
+STRAIGHT_TURN = 0.05          # ... and the tangent turns by at most this (rad)
 
 
 def residual_and_tangent(restoring: Restoring, external: External, q, V: float, h: float = 1e-12):
@@ -198,7 +202,7 @@ def solve_equilibrium(restoring: Restoring, external: External, q0, V: float, *,
 
 def continuation(restoring: Restoring, external: External, q0, v_max: float, *, v_start: float = 0.0,
                  admissible: Admissible = None, length_scale: float = 1e-6, ds: float = 0.05,
-                 ds_min: float = 1e-7, ds_max: float = 0.5, max_steps: int = 2000,
+                 ds_min: float = 1e-7, ds_max: float = 8.0, max_steps: int = 2000,
                  rtol: float = 1e-10, h: float = 1e-12) -> Branch:
     """Pseudo-arclength continuation of stable equilibria from ``v_start`` to ``v_max`` (Keller 1977), stopping at a saddle-node.
 
@@ -208,6 +212,8 @@ def continuation(restoring: Restoring, external: External, q0, v_max: float, *, 
     """
     ok = admissible or (lambda _q: True)
     qs, vs = float(length_scale), float(v_max)
+    restoring = _memoized(restoring)
+    checked = min(STEP_CHECKED, ds_max)
     first = solve_equilibrium(restoring, external, q0, v_start, admissible=admissible, rtol=rtol, h=h)
     if first.status != "ok" or not first.stable:
         reason = first.message or "starting equilibrium is unstable"
@@ -227,7 +233,9 @@ def continuation(restoring: Restoring, external: External, q0, v_max: float, *, 
         y_new = y_prev + sigma * t_prev
         J = None
         last = np.inf
-        for _ in range(40):
+        fresh = False           # the last step was a Newton step (fresh Jacobian)
+        stalls = 0
+        for _ in range(CORRECTOR_ITERATIONS):
             q, V = y_new[:-1] * qs, y_new[-1] * vs
             if not ok(q):
                 return None
@@ -243,9 +251,15 @@ def continuation(restoring: Restoring, external: External, q0, v_max: float, *, 
             res = np.linalg.norm(R)
             if res <= rtol * scale + 1e-20 and abs(g) < 1e-12:
                 return y_new
-            if J is not None and res > 0.5 * last:      # chord stalls: refresh the Jacobian
-                R, KT, scale = residual_and_tangent(restoring, external, q, V, h)
-                J = None
+            if res > 0.5 * last:
+                if fresh:                                # even Newton does not contract (a kink, or no
+                    stalls += 1                          # branch near the predictor): give up early
+                    if stalls >= 2:
+                        return None
+                if J is not None:                        # chord stalls: refresh the Jacobian
+                    R, KT, scale = residual_and_tangent(restoring, external, q, V, h)
+                    J = None
+            fresh = J is None
             last = res
             fscale = max(scale, 1e-300)
             if J is None:
@@ -269,7 +283,17 @@ def continuation(restoring: Restoring, external: External, q0, v_max: float, *, 
         if y_new is None:
             step *= 0.5
             if step < ds_min:
-                if _no_equilibrium_above(restoring, external, y[:-1] * qs, y[-1] * vs, admissible, rtol, h):
+                here, above = _equilibrium_just_above(restoring, external, y[:-1] * qs, y[-1] * vs,
+                                                      admissible, rtol, h)
+                if above is not None:
+                    # the corrector cannot cross a kink of the force law, a natural-parameter step can
+                    pts.append(above)
+                    y = np.concatenate([above.q / qs, [above.voltage / vs]])
+                    t = _tangent(restoring, external, above.q, above.voltage, qs, vs, h, t)
+                    det_prev = _det(restoring, external, above.q, above.voltage, h)
+                    step = 4 * ds_min
+                    continue
+                if here:
                     # a limit point where K_T jumps (a kink in the force law): the branch ends here
                     return _branch(pts, "snap_in", snap=SnapIn(float(y[-1] * vs), y[:-1] * qs),
                                    message="non-smooth limit point (kink in the force law)")
@@ -285,6 +309,17 @@ def continuation(restoring: Restoring, external: External, q0, v_max: float, *, 
             step *= 0.5
             if step < ds_min:
                 return _branch(pts, "no_convergence", message="fold refinement failed")
+            continue
+        # Straightness of the step (Allgower & Georg, Sec. 6.1): how far the corrector moved off the
+        # predictor (relative to the step) and how far the tangent turned.  Steps up to ``checked``
+        # are always taken; a longer one only on a nearly straight branch (else it is retried
+        # shorter), so that it cannot leap over a fold pair onto another stable branch.
+        t_new = _tangent(restoring, external, q_new, V_new, qs, vs, h, t)
+        offset = float(np.linalg.norm(y_new - (y + step * t))) / step
+        turn = float(np.arccos(np.clip(t @ t_new, -1.0, 1.0)))
+        straight = offset <= STRAIGHT_OFFSET and turn <= STRAIGHT_TURN
+        if step > checked and not straight:
+            step = max(0.5 * step, checked)
             continue
         if V_new >= v_max:
             # land exactly on v_max: natural-parameter solve from the chord between the two points
@@ -306,23 +341,40 @@ def continuation(restoring: Restoring, external: External, q0, v_max: float, *, 
                 return _branch(pts, "no_convergence", message="branch lost stability without a fold")
             continue
         pts.append(eq)
-        t = _tangent(restoring, external, q_new, V_new, qs, vs, h, t)
-        y, det_prev = y_new, det_new
-        step = min(step * 1.5, ds_max)
+        y, t, det_prev = y_new, t_new, det_new
+        step = min(step * 1.5, ds_max if straight else checked)
     return _branch(pts, "no_convergence", message=f"no end after {max_steps} steps")
 
 
-def _no_equilibrium_above(restoring, external, q, V, admissible, rtol, h) -> bool:
-    """True if no equilibrium is found near ``q`` just above ``V`` while (q, V) is a stable equilibrium."""
+def _memoized(restoring: Restoring) -> Restoring:
+    """``restoring`` remembering its last results by the exact coordinates (it is a pure function of q)."""
+    memo: dict = {}
+
+    def wrapped(q):
+        q = np.asarray(q, dtype=float)
+        key = q.tobytes()
+        hit = memo.get(key)
+        if hit is None:
+            hit = restoring(q)
+            if len(memo) >= 16:
+                memo.pop(next(iter(memo)))
+            memo[key] = hit
+        return hit
+
+    return wrapped
+
+
+def _equilibrium_just_above(restoring, external, q, V, admissible, rtol, h):
+    """(whether (q, V) is a stable equilibrium, a stable equilibrium near ``q`` just above ``V`` or None)."""
     here = _verified(restoring, external, q, V, h)
     if not here.stable:
-        return False
+        return False, None
     for dv in (1e-6, 1e-4):
         trial = solve_equilibrium(restoring, external, q, V * (1 + dv) + dv, admissible=admissible,
                                   rtol=rtol, h=h, max_iter=30)
         if trial.status == "ok" and trial.stable and np.linalg.norm(trial.q - q) <= 1e-2 * max(np.linalg.norm(q), 1e-300):
-            return False
-    return True
+            return True, trial
+    return True, None
 
 
 def _verified(restoring, external, q, V, h) -> Equilibrium:
