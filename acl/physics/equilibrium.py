@@ -101,9 +101,6 @@ def _external_jacobian(external: External, q: np.ndarray, V: float, h: float) ->
 
 _RT_MEMO: dict = {}
 CORRECTOR_ITERATIONS = 12     # corrector iterations before a continuation step is rejected (and halved)
-STEP_CHECKED = 0.5            # scaled arclength up to which a continuation step needs no straightness check
-STRAIGHT_OFFSET = 0.02        # longer steps: corrector offset / step at most this ...
-STRAIGHT_TURN = 0.05          # ... and the tangent turns by at most this (rad)
 
 
 def residual_and_tangent(restoring: Restoring, external: External, q, V: float, h: float = 1e-12):
@@ -202,7 +199,7 @@ def solve_equilibrium(restoring: Restoring, external: External, q0, V: float, *,
 
 def continuation(restoring: Restoring, external: External, q0, v_max: float, *, v_start: float = 0.0,
                  admissible: Admissible = None, length_scale: float = 1e-6, ds: float = 0.05,
-                 ds_min: float = 1e-7, ds_max: float = 8.0, max_steps: int = 2000,
+                 ds_min: float = 1e-7, ds_max: float = 0.5, max_steps: int = 2000,
                  rtol: float = 1e-10, h: float = 1e-12) -> Branch:
     """Pseudo-arclength continuation of stable equilibria from ``v_start`` to ``v_max`` (Keller 1977), stopping at a saddle-node.
 
@@ -213,7 +210,6 @@ def continuation(restoring: Restoring, external: External, q0, v_max: float, *, 
     ok = admissible or (lambda _q: True)
     qs, vs = float(length_scale), float(v_max)
     restoring = _memoized(restoring)
-    checked = min(STEP_CHECKED, ds_max)
     first = solve_equilibrium(restoring, external, q0, v_start, admissible=admissible, rtol=rtol, h=h)
     if first.status != "ok" or not first.stable:
         reason = first.message or "starting equilibrium is unstable"
@@ -310,17 +306,6 @@ def continuation(restoring: Restoring, external: External, q0, v_max: float, *, 
             if step < ds_min:
                 return _branch(pts, "no_convergence", message="fold refinement failed")
             continue
-        # Straightness of the step (Allgower & Georg, Sec. 6.1): how far the corrector moved off the
-        # predictor (relative to the step) and how far the tangent turned.  Steps up to ``checked``
-        # are always taken; a longer one only on a nearly straight branch (else it is retried
-        # shorter), so that it cannot leap over a fold pair onto another stable branch.
-        t_new = _tangent(restoring, external, q_new, V_new, qs, vs, h, t)
-        offset = float(np.linalg.norm(y_new - (y + step * t))) / step
-        turn = float(np.arccos(np.clip(t @ t_new, -1.0, 1.0)))
-        straight = offset <= STRAIGHT_OFFSET and turn <= STRAIGHT_TURN
-        if step > checked and not straight:
-            step = max(0.5 * step, checked)
-            continue
         if V_new >= v_max:
             # land exactly on v_max: natural-parameter solve from the chord between the two points
             w = (v_max - y[-1] * vs) / (V_new - y[-1] * vs)
@@ -341,8 +326,9 @@ def continuation(restoring: Restoring, external: External, q0, v_max: float, *, 
                 return _branch(pts, "no_convergence", message="branch lost stability without a fold")
             continue
         pts.append(eq)
-        y, t, det_prev = y_new, t_new, det_new
-        step = min(step * 1.5, ds_max if straight else checked)
+        t = _tangent(restoring, external, q_new, V_new, qs, vs, h, t)
+        y, det_prev = y_new, det_new
+        step = min(step * 1.5, ds_max)
     return _branch(pts, "no_convergence", message=f"no end after {max_steps} steps")
 
 
