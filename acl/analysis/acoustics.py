@@ -27,7 +27,7 @@ from acl.analysis import effects as EF
 from acl.physics import constants as C
 from acl.physics import effects as PE
 from acl.physics.coupling import (BubbleSystem, CoupledModes, build_system, coupled_modes as _physics_coupled_modes,
-                                  coupled_response as _physics_coupled, uncoupled_blocks)
+                                  coupled_response as _physics_coupled, prepared_response, uncoupled_blocks)
 from acl.physics.forces import interface_centre_amplitude, jet_drag, thrust_magnitude
 from acl.physics.resonance import BubbleModes, capsule_modes as _physics_modes
 from acl.physics.transducer import pressure_per_volt
@@ -491,14 +491,13 @@ class _Engine:
     outer: np.ndarray           # (C,) equal-volume sphere + wall radius (jet drag target)
     rho: float
     c: float
+    response: object = None     # acl.physics.coupling.prepared_response at the tones
 
     def volumes(self, centres: np.ndarray) -> np.ndarray:
         """Coupled inward volume amplitudes (B, T, n) for capsule centres (B, C, 3)."""
         if self.f.size == 0 or self.lay.radii.size == 0:
             return np.zeros((centres.shape[0], self.f.size, self.lay.radii.size), complex)
-        u = _physics_coupled(self.system, self.f, self.rho, self.c, C.SUBSTRATE_REFLECTION,
-                             points=self.lay.points(centres), h0=self.h0)
-        return u * self.pressure[None, :, None]
+        return self.response(self.lay.points(centres)) * self.pressure[None, :, None]
 
     def forces(self, centres: np.ndarray, parts: bool = False):
         """Total acoustic force (B, C, 3) on each capsule for centres (B, C, 3): thrust + Bjerknes + jet drag."""
@@ -546,7 +545,9 @@ def _compute_engine(design: Design, drive: Drive) -> _Engine:
     if bs is not None:   # a fitted Bjerknes coefficient (paper Eq. 3 alpha) relative to the physics
         pair = pair * bs["factor"]
     outer = np.array([_outer_radius(c) for c in lay.caps])
-    return _Engine(design, lay, sysm, f, pressure, h0, scale, pair, outer, med.density, med.sound_speed)
+    response = (prepared_response(sysm, f, med.density, med.sound_speed, C.SUBSTRATE_REFLECTION, h0=h0)
+                if f.size else None)
+    return _Engine(design, lay, sysm, f, pressure, h0, scale, pair, outer, med.density, med.sound_speed, response)
 
 
 _LAST_ENGINE: list = []   # [(design, drive, engine)]: identity cache for solver inner loops
