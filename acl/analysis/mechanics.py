@@ -566,6 +566,8 @@ def _validity(mech: _Mechanism, q: np.ndarray, mode: str) -> tuple[Diagnostic, .
             continue
         beam = el.beam
         delta = el.measure(_group_x(mech, q, el.group))
+        if delta <= B.EQ1_LIMIT_FLOOR * beam.length:       # below the limit of any rigid length
+            continue
         limit = B.eq1_validity_limit(beam.length, beam.rigid_length)
         if delta > limit:
             found.append(warning(

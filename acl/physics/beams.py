@@ -22,6 +22,10 @@ import numpy as np
 
 # Relative departure of Eq. (1) from the elastica above which Eq. (1) is flagged as invalid.
 EQ1_TOLERANCE = 0.05
+# A lower bound of eq1_validity_limit / L at EQ1_TOLERANCE for every rigid length l >= 0: the limit
+# grows with l/L from 0.2145 L at l = 0 (tests/test_physics_beams.py checks the bound and the growth
+# on a grid of l/L), so a smaller deflection needs no elastica solve to be judged valid.
+EQ1_LIMIT_FLOOR = 0.21
 
 
 # ----------------------------------------------------------------------------------------------
@@ -210,7 +214,7 @@ def eq1_departure(P, L: float, l: float, EI: float):
 
 @lru_cache(maxsize=64)
 def _eq1_limit_ratio(lam: float, tolerance: float) -> float:
-    from scipy.optimize import brentq
+    from acl.physics.roots import brentq
 
     solved: list = []      # (p, BVP solution): each new load starts from the nearest solved one
 

@@ -388,7 +388,7 @@ def _tangent(restoring, external, q, V, qs, vs, h, t_prev):
 
 def _refine_fold(restoring, external, correct, y, t, step, qs, vs, h) -> Optional[SnapIn]:
     """Brent's method on the arclength for det K_T = 0 between the last stable point and the trial step."""
-    from scipy.optimize import brentq
+    from acl.physics.roots import brentq
 
     def det_at(sigma):
         yy = correct(y, t, sigma)
