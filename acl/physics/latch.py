@@ -96,6 +96,13 @@ def latch_stiffness(u, theta: float, L: float, w: float, t: float, E: float):
     return (latch_force(u + h, theta, L, w, t, E) - latch_force(u - h, theta, L, w, t, E)) / (2 * h)
 
 
+def latch_force_and_stiffness(u: float, theta: float, L: float, w: float, t: float, E: float) -> tuple[float, float]:
+    """(:func:`latch_force`, :func:`latch_stiffness`) at one travel ``u`` from one vectorised evaluation of the von Mises truss law (same central difference)."""
+    h = 1e-7 * L
+    f = latch_force(np.array([u, u + h, u - h], dtype=float), theta, L, w, t, E)
+    return float(f[0]), float((f[1] - f[2]) / (2 * h))
+
+
 @dataclass(frozen=True)
 class LatchLandscape:
     """Energy landscape along the actuation direction and its critical points (SI)."""
