@@ -514,6 +514,13 @@ class _Engine:
     outer: np.ndarray           # (C,) equal-volume sphere + wall radius (jet drag target)
     rho: float
     c: float
+    _rest: list = field(default_factory=list, compare=False, repr=False)
+
+    def rest_forces(self):
+        """:meth:`forces` of the capsules at rest, with parts (total, u, thr, att), each (1, ...); computed once."""
+        if not self._rest:
+            self._rest.append(self.forces(self.lay.rest[None], parts=True))
+        return self._rest[0]
 
     def volumes(self, centres: np.ndarray) -> np.ndarray:
         """Coupled inward volume amplitudes (B, T, n) for capsule centres (B, C, 3)."""
@@ -586,7 +593,8 @@ def _engine(design: Design, drive: Drive) -> _Engine:
 def thrust_vectors(design: Design, drive: Drive, positions=None) -> dict[str, np.ndarray]:
     """Streaming thrust (N, 3-vector) on each capsule: sum over orifices of -|F| n_outward (coupled volumes)."""
     eng = _engine(design, drive)
-    _, _, thr, _ = eng.forces(_centres_array(design, positions)[None], parts=True)
+    at_rest = not positions
+    _, _, thr, _ = eng.rest_forces() if at_rest else eng.forces(_centres_array(design, positions)[None], parts=True)
     vec = np.einsum("n,nk,nc->ck", thr[0], -eng.lay.normals, eng.lay.onehot)
     return {c.name: vec[i] for i, c in enumerate(eng.lay.caps)}
 
@@ -630,7 +638,7 @@ def pair_table(design: Design, drive: Drive,
     eng = _engine(design, drive)
     lay = eng.lay
     centres = _centres_array(design, positions)
-    _, u, thr, att = eng.forces(centres[None], parts=True)
+    _, u, thr, att = eng.rest_forces() if not positions else eng.forces(centres[None], parts=True)
     u, thr, att = u[0], thr[0], att[0]
     pts = lay.points(centres)
     thrust_vec = np.einsum("n,nk,nc->ck", thr, -lay.normals, lay.onehot)
@@ -715,7 +723,11 @@ def force_model(design: Design, positions: Mapping[str, Sequence[float]] | None,
     different frequencies add in power (cross terms average to zero).  Bubble volumes come from the
     coupled system at these positions (acl.physics.coupling).
     """
-    total = force_batch(design, _centres_array(design, positions)[None], drive)[0]
+    if positions:
+        total = force_batch(design, _centres_array(design, positions)[None], drive)[0]
+    else:               # at rest: the engine's cached evaluation (pair_table and thrust_vectors share it)
+        eng = _engine(design, drive)
+        total = _apply_neighbour_drag(design, eng.lay, eng.lay.rest[None], eng.rest_forces()[0].copy())[0]
     return {c.name: total[i] for i, c in enumerate(design.capsules)}
 
 
