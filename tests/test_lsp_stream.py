@@ -166,3 +166,12 @@ def test_skipping_a_huge_body_reads_it_in_chunks():
     raw = FramedInput(Source(), log=diags.append, max_bytes=2**20)
     assert raw.readline() == b""
     assert [d.code for d in diags] == ["E-LSP-SIZE"] and src.left == 0
+
+
+def test_the_documented_limits_are_the_code_s():
+    from acl.lsp import stream
+
+    text = (ROOT / "docs" / "lsp.md").read_text()
+    assert f"over {stream.MAX_MESSAGE_BYTES // 2**20} MiB ({stream.MAX_MESSAGE_BYTES:,} bytes)" in text
+    assert f"over {stream.MAX_HEADER_LINE:,} bytes" in text and f"more than {stream.MAX_HEADER_LINES} lines" in text
+    assert f"in {stream._CHUNK // 2**20} MiB chunks" in text
