@@ -23,7 +23,6 @@ import numpy as np
 from acl.fit import beam as B
 
 N_GRID = 32
-N_BISECT = 30
 N_REFINE = 12
 
 
@@ -379,20 +378,14 @@ def _predict(P: Prepared, coeffs: dict, effects: dict) -> np.ndarray:
         idx = np.flatnonzero(single)
         latch = P.latch_id[idx] >= 0
         load = thrust[0, idx] * P.proj[idx]
+        # a lone actuator has no neighbour (units do not interact): neighbour_drag acts on pairs only
         if np.any(~latch):
             j = idx[~latch]
             law0, _, _ = rows(j)
-            if c_p > 0:
-                d_0[j] = _drag_equilibrium(law0, load[~latch], c_p)
-            else:
-                d_0[j] = law0(load[~latch])
+            d_0[j] = law0(load[~latch])
         for tid in np.unique(P.latch_id[idx][latch]):
             m = P.latch_id[idx] == tid
-            table = P.latch_tables[tid]
-            if c_p > 0:
-                d_0[idx[m]] = _drag_equilibrium(lambda x, tb=table: latch_travel(x, tb, es), load[m], c_p)
-            else:
-                d_0[idx[m]] = latch_travel(load[m], table, es)
+            d_0[idx[m]] = latch_travel(load[m], P.latch_tables[tid], es)
     if np.any(P.pair):
         idx = np.flatnonzero(P.pair)
         law0, law1, same = rows(idx)
@@ -428,18 +421,6 @@ def _with_drag(law, c_p, steps=3):
             d = np.clip(d - r / np.where(dr != 0, dr, -1.0), np.minimum(lin, 0.0), np.maximum(lin, 0.0))
         return d
     return dragged
-
-
-def _drag_equilibrium(law, load, c_p):
-    """delta = law(P (1 - c_p delta)) on [0, law(P)]: bisection (the residual decreases in delta)."""
-    lo = np.zeros_like(load)
-    hi = np.minimum(law(load), 1.0 / c_p)
-    for _ in range(N_BISECT):
-        mid = 0.5 * (lo + hi)
-        r = law(drag_load(load, mid, c_p)) - mid
-        lo = np.where(r > 0, mid, lo)
-        hi = np.where(r > 0, hi, mid)
-    return 0.5 * (lo + hi)
 
 
 def _pair_equilibrium(law0, law1, a_rad, push, d0, same=False):

@@ -66,8 +66,9 @@ def applicable(eid, problem, current_kinds) -> str | None:
             return "the data have fewer than two drive frequencies"
         if req == "frequencies3" and np.unique(P.f[P.v > 0]).size < 4:
             return "the data have fewer than four drive frequencies (a resonance shape needs a sweep)"
-        if req == "single" and not np.any(~P.pair & active):
-            return "only for an actuator on its own (paper Eq. (3) already has the partner's jet drag)"
+        if req == "neighbour" and not np.any(P.pair & active):
+            return ("no actuator in the data has a neighbour (only the sides of a pair do: capsules of different "
+                    "units do not interact)")
         if req == "lengths" and np.unique(np.round(P.L[P.beam & active], 12)).size < 2:
             return "every row has the same beam length"
         if req == "heights" and np.unique(np.round(P.height[0][active], 12)).size < 2:
