@@ -77,6 +77,8 @@ class Prepared:
     tauv: np.ndarray = None          # (n, T, 2) its thrust per V^2 along its basis directions, relative to gamma0
     obs_w: np.ndarray = None         # (n, 2) the observable's weights on those directions
     one_mode: np.ndarray = None      # (n,) bool: a vector row's body is one single-orifice capsule
+    groups: list = None              # acl.fit.group.GroupBlock of every group of 3+ capsules (their rows)
+    group_row: np.ndarray = None     # (n,) bool: the row belongs to one of them
 
     def volume_shift(self, c, fn, lnx):
         """Natural frequency of side ``c`` after its gas volume changed by a factor exp(lnx) (rows), from the tables."""
@@ -95,7 +97,8 @@ class Prepared:
 
 def prepare(data, load_instance, f_ref: float | None = None) -> Prepared:
     """Build the row arrays; ``load_instance(key)`` returns the Instance of an override set."""
-    from acl.fit.mechanism import LAW_CODES, alpha_per_v2, reference_unit, thrust_per_v2, thrust_vec_per_v2
+    from acl.fit.mechanism import (LAW_CODES, alpha_per_v2, pair_alpha_per_v2, reference_pair, reference_unit,
+                                   thrust_per_v2, thrust_vec_per_v2)
 
     n = data.n
     T = max(1, max((len(t) for t in data.tones), default=1))
@@ -120,12 +123,12 @@ def prepare(data, load_instance, f_ref: float | None = None) -> Prepared:
     gamma0 = float(thrust_per_v2(ref, f_ref)[ref_cap])
     pair_ref = None
     for key in dict.fromkeys(keys):
-        pu = next((u for name, u in instances[key].units.items() if u.kind == "pair"
+        pu = next((u for name, u in instances[key].units.items() if u.kind in ("pair", "group")
                    and np.any(data.observable[np.array([k == key for k in keys])] == name)), None)
         if pu is not None:
             pair_ref = (instances[key], pu)
             break
-    alpha_ref = alpha_per_v2(*pair_ref, f_ref) if pair_ref else 0.0
+    alpha_ref = pair_alpha_per_v2(pair_ref[0], *reference_pair(*pair_ref), f_ref) if pair_ref else 0.0
     arr = {k: np.zeros((2, n)) for k in ("L", "l", "EI", "height", "fn", "q", "cd", "ct", "volume", "radius")}
     arr["L"][:] = 1.0
     arr["EI"][:] = 1.0
@@ -148,6 +151,16 @@ def prepare(data, load_instance, f_ref: float | None = None) -> Prepared:
     tauv = np.zeros((n, T, 2))
     obs_w = np.zeros((n, 2))
     one_mode = np.zeros(n, bool)
+    groups: list = []
+    group_row = np.zeros(n, bool)
+    gtables: dict = {}
+
+    def gtable(volume, radius, med):
+        key = (volume, radius, *med)
+        if key not in gtables:
+            gtables[key] = volume_frequency_table(volume, radius, *med)
+        return gtables[key]
+
     by_group: dict = {}
     for i, key in enumerate(keys):
         by_group.setdefault((key, data.observable[i]), []).append(i)
@@ -159,6 +172,21 @@ def prepare(data, load_instance, f_ref: float | None = None) -> Prepared:
         rows = np.asarray(rows)
         units[rows] = f"{unit.kind} {'-'.join(unit.capsules)}"
         medium[:, rows] = np.asarray(inst.medium, float)[:, None]
+        if unit.kind == "group":
+            from acl.fit.group import block
+
+            blk = block(inst, unit, name, rows, f, v, gamma0, alpha_ref, gtable)
+            groups.append(blk)
+            group_row[rows] = True
+            s0_ = unit.sides[blk.oi[0]]
+            law[0, rows], caps[0, rows] = LAW_CODES[s0_.law], s0_.capsule
+            arr["height"][0, rows] = s0_.height
+            arr["fn"][0, rows], arr["q"][0, rows] = s0_.mode
+            arr["L"][0, rows], arr["l"][0, rows], arr["EI"][0, rows] = s0_.L, s0_.l, s0_.EI
+            rest_gap = np.linalg.norm(blk.points[blk.oj[0]] - blk.points[blk.oi[0]])
+            base[rows] = np.where(blk.kind == 0, rest_gap, blk.obase)
+            d0[rows] = rest_gap
+            continue
         for c, side in enumerate(unit.sides):
             law[c, rows] = LAW_CODES[side.law]
             caps[c, rows] = side.capsule
@@ -232,7 +260,7 @@ def prepare(data, load_instance, f_ref: float | None = None) -> Prepared:
                     float(max(v.sum(axis=1).max(), 1e-9)), instances, law, caps, arr["volume"], arr["radius"],
                     medium, latch_id, latch_tables, caps == ref_cap, ref_cap, units,
                     exp if exp is not None else np.full(n, "", dtype=object), modes0, {}, side_table, ftables,
-                    vector, tauv, obs_w, one_mode)
+                    vector, tauv, obs_w, one_mode, groups, group_row)
 
 
 def latch_table(geometry) -> tuple:
@@ -400,7 +428,8 @@ def _predict(P: Prepared, coeffs: dict, effects: dict) -> np.ndarray:
     d_1 = np.zeros(P.n)
     single = ~P.pair
     vec = single & P.vector if P.vector is not None else np.zeros(P.n, bool)
-    single = single & ~vec
+    grp = P.group_row if P.group_row is not None else np.zeros(P.n, bool)
+    single = single & ~vec & ~grp
     out_rows = np.zeros(P.n)
     if np.any(vec):
         _body_deflection(P, vec, gamma, w, res, sub, rows, c_p, es, out_rows)
@@ -438,6 +467,13 @@ def _predict(P: Prepared, coeffs: dict, effects: dict) -> np.ndarray:
     out = P.base + P.s0 * d_0 + P.s1 * d_1
     if np.any(vec):
         out = np.where(vec, P.base + out_rows, out)
+    if np.any(grp):
+        from acl.fit import group as G
+
+        grad = effects["stiffness_gradient"]["e_gradient"] if "stiffness_gradient" in effects else 0.0
+        for blk in P.groups:
+            change, _ = G.predict(P, blk, coeffs, effects, w[blk.rows], gamma, alpha, es, lam, grad, c_p)
+            out[blk.rows] = P.base[blk.rows] + change
     if "offset_drift" in effects:
         e = effects["offset_drift"]
         out = out + e["offset"] + e["drift"] * P.t

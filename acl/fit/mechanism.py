@@ -56,6 +56,9 @@ class Unit:
     sides: tuple                 # 1 or 2 Side
     d0: float = float("nan")     # pair: rest distance between the orifices
     vector: bool = False         # single: a body moving in 1 or 2 directions under the vector sum of its thrusts
+    points: np.ndarray = None    # group: (N, 3) orifice centres at rest
+    normals: np.ndarray = None   # group: (N, 3) outward orifice normals (the jets)
+    jets: tuple = ()             # group: index of the capsule each jet drags (-1: none)
 
     @property
     def capsules(self):
@@ -309,8 +312,28 @@ def build_instance(design) -> Instance:
                 partners.setdefault(a, set()).add(b)
                 partners.setdefault(b, set()).add(a)
     units_by_caps: dict = {}
+    comp: dict = {}                       # capsule -> its connected component of interacting capsules
+    for c in partners:
+        if c in comp:
+            continue
+        seen, todo = [], [c]
+        while todo:
+            x = todo.pop()
+            if x not in seen:
+                seen.append(x)
+                todo.extend(sorted(partners[x]))
+        members = tuple(n.name for n in design.capsules if n.name in seen)
+        for x in members:
+            comp[x] = members
+
+    def group_unit(caps, obs):
+        if caps not in units_by_caps:
+            units_by_caps[caps] = _group(design, caps, obs)
+        return units_by_caps[caps]
 
     def pair_unit(a, b, obs):
+        if len(comp.get(a, ())) > 2:
+            return group_unit(comp[a], obs)
         key = tuple(sorted((a, b)))
         if key not in units_by_caps:
             for c in (a, b):
@@ -340,6 +363,9 @@ def build_instance(design) -> Instance:
             units[o.name] = pair_unit(a, b, o)
             continue
         cap = _target_capsule(design, o)
+        if len(comp.get(cap, ())) > 2:
+            units[o.name] = group_unit(comp[cap], o)
+            continue
         if cap in partners:
             units[o.name] = pair_unit(cap, next(iter(partners[cap])), o)
             continue
@@ -355,6 +381,51 @@ def build_instance(design) -> Instance:
     med = _medium(design)
     return Instance(design=design, units=units,
                     medium=(med.density, med.surface_tension, med.ambient_pressure, med.polytropic_index))
+
+
+def _group(design, caps, obs) -> Unit:
+    """A group of three or more capsules named together in ``gap`` observes: each on its own support (a beam moves
+    across its axis, a spring along it, fixed not at all); every two interact (paper Eq. (3) Bjerknes attraction
+    along the line of their orifices) and each jet drags the first capsule it points at (the paper's F_AS = F_d of
+    Eq. (3), generalised: the drag equals the jet's thrust, along the jet)."""
+    from acl.analysis.acoustics import capsule_modes
+    from acl.analysis.mechanics import _perp_basis
+
+    sides = []
+    for name in caps:
+        cap = design.capsule(name)
+        law, element = _carrier(design, name)
+        if law is None:
+            raise DiagnosticError([error("E810", f"{element}: in a group the fit model handles capsules on "
+                                         "cantilevers and springs, or fixed (docs/fit.md)", cap.span)])
+        if law == "latch":
+            raise _unsupported(obs, f"capsule `{name}` rides a latch; a latch in a pair or a group is not in the fit "
+                               "model", "observe the latch alone")
+        s = _side(design, name, -np.asarray(cap.orifices[0].normal, float) if len(cap.orifices) == 1 else (1, 0, 0))
+        if law == "beam":
+            s.basis = _perp_basis(design.beam(element).axis)
+        elif law == "spring":
+            ax = np.asarray(design.spring(element).axis, float)
+            s.basis = (ax / np.linalg.norm(ax))[:, None]
+        else:
+            s.basis = np.zeros((3, 0))
+        s.members = (name,)
+        sides.append(s)
+    if all(s.law == "fixed" for s in sides):
+        raise _unsupported(obs, "every capsule of the group is fixed: nothing moves")
+    pts = np.array([design.capsule(n).orifices[0].center for n in caps], float)
+    nrm = np.array([design.capsule(n).orifices[0].normal for n in caps], float)
+    nrm /= np.linalg.norm(nrm, axis=1, keepdims=True)
+    jets = []
+    for i in range(len(caps)):
+        line = pts - pts[i]
+        dist = np.linalg.norm(line, axis=1)
+        cos = np.where(dist > 0, line @ nrm[i] / np.where(dist > 0, dist, 1.0), -1.0)
+        hit = np.flatnonzero(cos > np.cos(np.radians(30.0)))       # within 30 deg of the jet axis
+        jets.append(int(hit[np.argmin(dist[hit])]) if hit.size else -1)
+    return Unit("group", tuple(sides), float(np.min([np.linalg.norm(pts[i] - pts[j]) for i in range(len(caps))
+                                                    for j in range(i + 1, len(caps))])),
+                points=pts, normals=nrm, jets=tuple(jets))
 
 
 def _target_capsule(design, obs) -> str:
@@ -405,6 +476,31 @@ def alpha_per_v2(inst: Instance, unit: Unit, frequency: float) -> float:
         val = next((p.attraction * p.distance**2 for p in pf if {p.a, p.b} == want), 0.0)
         inst._tau[key] = float(val)
     return inst._tau[key]
+
+
+def pair_alpha_per_v2(inst: Instance, a: str, b: str, frequency: float) -> float:
+    """Bjerknes coefficient alpha(f) (N m^2/V^2) of capsules ``a`` and ``b`` (acl.analysis.acoustics.pair_forces)."""
+    key = ("a", float(frequency), tuple(sorted((a, b))))
+    if key not in inst._tau:
+        from acl.analysis.acoustics import pair_forces
+        from acl.design.model import Drive, Tone
+
+        pf = pair_forces(inst.design, Drive(tones=(Tone(frequency=float(frequency), amplitude=1.0),)))
+        for p in pf:
+            inst._tau[("a", float(frequency), tuple(sorted((p.a, p.b))))] = float(p.attraction * p.distance**2)
+    return inst._tau.get(key, 0.0)
+
+
+def reference_pair(inst: Instance, unit: Unit) -> tuple:
+    """The capsules of the reference pair of a pair or group unit: the pair, or the first gap observed in the group."""
+    if unit.kind == "pair":
+        return unit.capsules
+    for o in inst.design.observes:
+        if o.kind == "gap":
+            a, b = o.a.split(".")[0], o.b.split(".")[0]
+            if a in unit.capsules and b in unit.capsules:
+                return a, b
+    return unit.capsules[:2]
 
 
 def reference_unit(inst: Instance, kind: str | None = None) -> Unit | None:
