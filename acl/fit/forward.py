@@ -79,6 +79,8 @@ class Prepared:
     one_mode: np.ndarray = None      # (n,) bool: a vector row's body is one single-orifice capsule
     groups: list = None              # acl.fit.group.GroupBlock of every group of 3+ capsules (their rows)
     group_row: np.ndarray = None     # (n,) bool: the row belongs to one of them
+    state: np.ndarray = None         # (n,) bool: the row observes a latch state (0 a, 1 b), acl.fit.forward.switch_probability
+    pearson: tuple = None            # (measured values, row weights) when fitting: state rows predict y + r_P / w
 
     def volume_shift(self, c, fn, lnx):
         """Natural frequency of side ``c`` after its gas volume changed by a factor exp(lnx) (rows), from the tables."""
@@ -153,6 +155,7 @@ def prepare(data, load_instance, f_ref: float | None = None) -> Prepared:
     one_mode = np.zeros(n, bool)
     groups: list = []
     group_row = np.zeros(n, bool)
+    state = np.zeros(n, bool)
     gtables: dict = {}
 
     def gtable(volume, radius, med):
@@ -171,6 +174,7 @@ def prepare(data, load_instance, f_ref: float | None = None) -> Prepared:
         unit = inst.unit(name)
         rows = np.asarray(rows)
         units[rows] = f"{unit.kind} {'-'.join(unit.capsules)}"
+        state[rows] = inst.design.observe(name).kind == "state"
         medium[:, rows] = np.asarray(inst.medium, float)[:, None]
         if unit.kind == "group":
             from acl.fit.group import block
@@ -260,7 +264,7 @@ def prepare(data, load_instance, f_ref: float | None = None) -> Prepared:
                     float(max(v.sum(axis=1).max(), 1e-9)), instances, law, caps, arr["volume"], arr["radius"],
                     medium, latch_id, latch_tables, caps == ref_cap, ref_cap, units,
                     exp if exp is not None else np.full(n, "", dtype=object), modes0, {}, side_table, ftables,
-                    vector, tauv, obs_w, one_mode, groups, group_row)
+                    vector, tauv, obs_w, one_mode, groups, group_row, state)
 
 
 def latch_table(geometry) -> tuple:
@@ -431,8 +435,9 @@ def _predict(P: Prepared, coeffs: dict, effects: dict) -> np.ndarray:
     grp = P.group_row if P.group_row is not None else np.zeros(P.n, bool)
     single = single & ~vec & ~grp
     out_rows = np.zeros(P.n)
+    ratio = np.zeros(P.n)                    # latch rows: push / switching force
     if np.any(vec):
-        _body_deflection(P, vec, gamma, w, res, sub, rows, c_p, es, out_rows)
+        _body_deflection(P, vec, gamma, w, res, sub, rows, c_p, es, out_rows, ratio)
     if np.any(single):
         idx = np.flatnonzero(single)
         latch = P.latch_id[idx] >= 0
@@ -447,6 +452,7 @@ def _predict(P: Prepared, coeffs: dict, effects: dict) -> np.ndarray:
         for tid in np.unique(P.latch_id[idx][latch]):
             m = P.latch_id[idx] == tid
             table = P.latch_tables[tid]
+            ratio[idx[m]] = load[m] / (table[2] * es)
             if c_p > 0:
                 d_0[idx[m]] = _drag_equilibrium(lambda x, tb=table: latch_travel(x, tb, es), load[m], c_p)
             else:
@@ -477,10 +483,63 @@ def _predict(P: Prepared, coeffs: dict, effects: dict) -> np.ndarray:
     if "offset_drift" in effects:
         e = effects["offset_drift"]
         out = out + e["offset"] + e["drift"] * P.t
+    if P.state is not None and np.any(P.state):
+        p = switch_probability(ratio, coeffs.get("spread", SPREAD))
+        if P.pearson is not None:
+            # fitting a 0/1 outcome y of probability p: while the optimizer searches, the row enters the weighted
+            # least squares as its deviance residual sign(p - y) sqrt(-2 ln L) (the sum of squares is -2 ln L: the
+            # optimum is the maximum-likelihood probit fit); at that optimum the binomial variance p (1 - p) is held
+            # (acl.fit.solve._reweighted) and the row becomes its Pearson residual (p - y)/sqrt(p (1 - p)), whose
+            # J^T J is the Fisher information (the intervals) and whose score vanishes at the same optimum.
+            # The row "predicts" y + r / w.
+            y, wt, held = P.pearson
+            if REWEIGHT.active:
+                held["var"], held["gen"] = np.maximum(p * (1.0 - p), 1e-10), REWEIGHT.generation
+            if held.get("gen") == REWEIGHT.generation:
+                r = (p - y) / np.sqrt(held["var"])
+            else:
+                like = np.maximum(1.0 - np.abs(y - p), 1e-300)
+                r = np.sign(p - y) * np.sqrt(-2.0 * np.log(like))
+            p = y + r / wt
+        out = np.where(P.state, p, out)
     return out
 
 
-def _body_deflection(P, vec, gamma, w, res, sub, rows, c_p, es, out):
+SPREAD = 0.05     # default relative scatter of a latch's switching force from one ramp to the next
+
+
+class _Reweight:
+    """Latch states (acl.fit.solve.fit): each fit starts a new ``generation`` (deviance residuals, the likelihood);
+    ``with REWEIGHT: predict(...)`` at its optimum holds the binomial variances for the Pearson polish."""
+
+    def __init__(self):
+        self.active = False
+        self.generation = 0
+        self.users = 0                 # problems with state rows loaded (none: the solver skips all this)
+
+    def __enter__(self):
+        self.active = True
+        return self
+
+    def __exit__(self, *exc):
+        self.active = False
+        return False
+
+
+REWEIGHT = _Reweight()
+
+
+def switch_probability(ratio, spread):
+    """Probability that a ramp from state a ends in state b: Phi(ln(push / F_switch) / s), the switching force
+    log-normally scattered by s from ramp to ramp (a probit threshold model; F_switch of acl.physics.latch)."""
+    from scipy.special import ndtr
+
+    with np.errstate(divide="ignore"):
+        z = np.log(np.maximum(ratio, 1e-300)) / max(spread, 1e-9)
+    return ndtr(z)
+
+
+def _body_deflection(P, vec, gamma, w, res, sub, rows, c_p, es, out, ratio):
     """Bodies moving in 1-2 directions (multi-orifice capsules, trussed bodies; acl.fit.mechanism): the load is the
     vector sum of the members' thrusts (tones add in power) projected on the directions the support allows; a beam
     deflects along the load by paper Eq. (1) (isotropic across it, as acl.analysis.mechanics), a spring by P/k, a
@@ -505,6 +564,7 @@ def _body_deflection(P, vec, gamma, w, res, sub, rows, c_p, es, out):
         along = load[m, 0]                                  # signed push along the latch axis
         table = P.latch_tables[tid]
         push = np.maximum(along, 0.0)
+        ratio[idx[m]] = push / (table[2] * es)
         trav = (_drag_equilibrium(lambda x, tb=table: latch_travel(x, tb, es), push, c_p) if c_p > 0
                 else latch_travel(push, table, es))
         delta[m] = trav

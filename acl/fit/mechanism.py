@@ -85,6 +85,8 @@ class Instance:
         unit = self.units[obs.name]
         if unit.vector:
             raise ValueError("vector unit: use vector_map")
+        if obs.kind == "state":              # predicted from the latch's push (acl.fit.forward), not a position
+            return 0.0, 0.0, 0.0
         if obs.kind == "gap":
             return unit.d0, -1.0, -1.0
         k = next(i for i, s in enumerate(unit.sides) if obs.target in (s.capsule, s.element))
@@ -104,6 +106,8 @@ class Instance:
         side = self.units[obs.name].sides[0]
         w = np.zeros(2)
         k = side.basis.shape[1]
+        if obs.kind == "state":
+            return 0.0, w
         if obs.kind == "displacement":
             axis = np.asarray(obs.axis, float)
             w[:k] = (axis / np.linalg.norm(axis)) @ side.basis
