@@ -66,9 +66,9 @@ def applicable(eid, problem, current_kinds) -> str | None:
             return "the data have fewer than two drive frequencies"
         if req == "frequencies3" and np.unique(P.f[P.v > 0]).size < 4:
             return "the data have fewer than four drive frequencies (a resonance shape needs a sweep)"
-        if req == "neighbour" and not np.any(P.pair & active):
-            return ("no actuator in the data has a neighbour (only the sides of a pair do: capsules of different "
-                    "units do not interact)")
+        if req == "neighbour" and not np.any(_with_neighbour(P) & active):
+            return ("no actuator in the data has a neighbour (only the capsules of a pair or a group do: capsules "
+                    "of different units do not interact)")
         if req == "lengths" and np.unique(np.round(P.L[P.beam & active], 12)).size < 2:
             return "every row has the same beam length"
         if req == "heights" and np.unique(np.round(P.height[0][active], 12)).size < 2:
@@ -76,6 +76,12 @@ def applicable(eid, problem, current_kinds) -> str | None:
     if eid == "stiffness_scale" and "e_scale" in current_kinds:
         return "E is already free"
     return None
+
+
+def _with_neighbour(P) -> np.ndarray:
+    """Rows whose capsules have a neighbour (neighbour_drag acts there): a pair's or a group's rows."""
+    grp = getattr(P, "group_row", None)
+    return P.pair | grp if grp is not None else P.pair
 
 
 def effect_coefs(eid, problem) -> tuple[list, list]:

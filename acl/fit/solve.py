@@ -110,6 +110,9 @@ def fit(predict, y, sigma, coefs, train=None, starts=None, max_nfev=200, robust_
         return np.where(np.isfinite(r), r, 1e6)
 
     best, message, success = None, "no free parameters", True
+    from acl.fit.forward import REWEIGHT
+
+    REWEIGHT.generation += 1           # latch states: this fit searches on their likelihood (acl.fit.forward)
     x0s = [np.array([c.value for c in coefs], float)] + [np.asarray(s, float) for s in (starts or [])]
     if coefs:
         # several starts: a short run from each, then the best one is continued (multi-start pruning)
@@ -142,6 +145,8 @@ def fit(predict, y, sigma, coefs, train=None, starts=None, max_nfev=200, robust_
                 pass
         if best is not None:
             best = _escape_jumps(best, resid, train, full, y, w, lo, hi, max_nfev, least_squares)
+        if best is not None:
+            best = _reweighted(best, resid, full, lo, hi, max_nfev, least_squares)
         if best is None:
             u, J = x0s[0] / scale, np.zeros((train.size, len(coefs)))
         else:
@@ -162,7 +167,10 @@ def fit(predict, y, sigma, coefs, train=None, starts=None, max_nfev=200, robust_
     identifiable = True
     if p:
         rn = np.linalg.norm(J, axis=1)
-        med = float(np.median(rn[rn > 0])) if np.any(rn > 0) else 0.0
+        # the median over rows that carry information (a threshold observable, a latch state, has rows of
+        # essentially zero slope far from its threshold: they must not make its informative rows look like spikes)
+        live = rn > 1e-6 * rn.max() if rn.size else rn > 0
+        med = float(np.median(rn[live])) if np.any(live) else 0.0
         spike = rn > SPIKE * med if med > 0 else np.zeros(rn.size, bool)
         if np.any(spike) and spike.sum() < rn.size - p:
             J = J[~spike]
@@ -208,6 +216,25 @@ def fit(predict, y, sigma, coefs, train=None, starts=None, max_nfev=200, robust_
     rmse = float(np.sqrt(np.mean(r[train] ** 2)))
     return FitResult(list(coefs), values, stderr, ci, corr, pred, r, train, n, p, chi2, redchi, rmse, aicc, bic,
                      success, str(message), warnings, identifiable)
+
+
+def _reweighted(best, resid, full, lo, hi, max_nfev, least_squares):
+    """Latch states (0/1 rows, acl.fit.forward): the search ran on their deviance residuals (maximum likelihood);
+    hold their binomial variances at its optimum and polish on Pearson residuals, whose Jacobian gives the Fisher
+    information (the optimum does not move: the score is zero there).  Nothing happens without state rows."""
+    from acl.fit.forward import REWEIGHT
+
+    if not REWEIGHT.users:
+        return best
+    with REWEIGHT:
+        full(best.x)
+    span = hi - lo
+    try:
+        return least_squares(resid, np.clip(best.x, lo + 1e-9 * span, hi - 1e-9 * span), bounds=(lo, hi),
+                             method="trf", x_scale="jac", diff_step=DIFF_STEP, max_nfev=max_nfev,
+                             xtol=1e-10, ftol=1e-10, gtol=1e-10)
+    except ValueError:
+        return best
 
 
 def _escape_jumps(best, resid, train, full, y, w, lo, hi, max_nfev, least_squares):
