@@ -22,7 +22,8 @@ from acl.fit.effects import EFFECTS
 
 P_LIMIT = 0.01
 K_FOLDS = 5
-SCREEN_P = 0.5      # a candidate whose first fit gives an F-test p above this (and no worse fit than the current model) is not refitted from its other starts
+SCREEN_P = 0.5      # a candidate whose first fit gives an F-test p above this (and is no worse than the current
+#                     model) is not refitted from its other starts
 ALT_GAIN = 1e-3     # relative chi-square drop of a refit of the current model that restarts a round
 MAX_RESTARTS = 3     # times a round starts over after a better fit of the current model is found
 
@@ -257,7 +258,8 @@ def _revisit(problem, model, names, selected, current, trials, p_limit, progress
             if not p_keep < limit:
                 if progress:
                     progress(f"revisit: {eid} is not significant given the others; dropped")
-                _retire(trials, eid, f"dropped on revisit: not significant given {', '.join(e for e in selected if e != eid)} "
+                given = ", ".join(e for e in selected if e != eid)
+                _retire(trials, eid, f"dropped on revisit: not significant given {given} "
                                      f"(F-test p = {p_keep:.3g} >= {limit:.3g})")
                 selected = [e for e in selected if e != eid]
                 current, changed = reduced, True
@@ -278,8 +280,8 @@ def _revisit(problem, model, names, selected, current, trials, p_limit, progress
                 cid, trial, F, p = best
                 if progress:
                     progress(f"revisit: {cid} replaces {eid}")
-                _retire(trials, eid, f"replaced on revisit by {cid}: with the other selected effects, {cid} gives a lower "
-                                     f"BIC ({trial.bic - current.bic:+.3g})")
+                _retire(trials, eid, f"replaced on revisit by {cid}: with the other selected effects, {cid} gives a "
+                                     f"lower BIC ({trial.bic - current.bic:+.3g})")
                 t = Trial(cid, max((t.round for t in trials), default=0) + 1, "selected",
                           f"replaces {eid} on revisit: F-test p = {p:.3g} < {limit:.3g} against the model without "
                           f"{eid}, identifiable, BIC lower than with {eid} ({trial.bic - current.bic:+.3g})",
