@@ -11,6 +11,7 @@ Names accepted by ``--free`` and by ``free`` design parameters:
 * ``gain`` -- transducer gain scale (degenerate with gamma and alpha: free only with both fixed);
 * ``f0``, ``q`` -- natural frequency (Hz) and quality factor of the reference capsule's first mode,
   every capsule's scaled alike; ``f0:CAP``, ``q:CAP`` -- one capsule's own (paper Fig. 1e / Table S1);
+* ``spread`` -- relative scatter of a latch's switching force from ramp to ramp (0/1 ``state`` rows);
 * a design parameter that changes only capsule cavities (e.g. a cavity height) -- its value, acting
   through the gas volume on the resonance (acl.physics.resonance), like ``f0`` but physical.
 
@@ -26,7 +27,7 @@ import numpy as np
 from acl.diagnostics import DiagnosticError, Span, error, suggest
 from acl.fit.solve import Coef
 
-COEFFICIENTS = ("gamma", "alpha", "E", "gain", "f0", "q")
+COEFFICIENTS = ("gamma", "alpha", "E", "gain", "f0", "q", "spread")
 
 
 @dataclass
@@ -102,6 +103,21 @@ def load_problem(design_path, data_paths, free=(), search_paths=()):
         seen.add(role)
         coefs.append(_coef(role, name, design, P))
     y = data.value
+    if np.any(P.state):
+        from acl.fit.solve import NOMINAL_SIGMA
+
+        if not data.has_sigma:
+            sp = data.spans[int(np.flatnonzero(P.state)[0])]
+            raise DiagnosticError([error("E801", "latch states (0/1) need a `sigma` column: the fit weighs every other "
+                                         "row by it against the states' binomial scatter", sp,
+                                         "add a sigma column (for the state rows any positive number, e.g. 0.5)")])
+        from acl.fit.forward import REWEIGHT
+
+        P.pearson = (np.asarray(y, float), 1.0 / np.where(np.isfinite(data.sigma), data.sigma, NOMINAL_SIGMA), {})
+        REWEIGHT.users += 1
+        # a state row's weight is its own: the Pearson residual is already in units of its standard deviation
+        P.pearson[1][P.state] = 1.0
+        data.sigma = np.where(P.state, 1.0, data.sigma)
     return Problem(design_path, design, data, P, coefs, y, data.sigma, roles)
 
 
@@ -133,6 +149,14 @@ def _coef(role, name, design, P) -> Coef:
         return Coef(name, role, q, 0.2, 200.0, q, "")
     if role == "E":
         return Coef("E", "e_scale", 1.0, 0.01, 100.0, 1.0, "", design_param=dp)
+    if role == "spread":
+        from acl.fit.forward import SPREAD
+
+        if not np.any(P.state):
+            raise DiagnosticError([error("E-USAGE", "--free spread: the data observe no latch state (`state(latch)`)",
+                                         Span(file="<--free>", line=1, column=1),
+                                         "spread is the scatter of a latch's switching force, seen in 0/1 state rows")])
+        return Coef("spread", "spread", SPREAD, 1e-3, 2.0, SPREAD, "")
     return Coef("gain", "gain", 1.0, 0.01, 100.0, 1.0, "")
 
 

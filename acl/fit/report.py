@@ -45,7 +45,19 @@ def per_observable(problem, fit) -> dict:
         r = fit.residual[m]
         out[name] = {"n": int(m.sum()), "rmse": _n(float(np.sqrt(np.mean(r * r)))),
                      "redchi": _n(float(np.sum((r * w[m]) ** 2) / max(m.sum() - fit.p * m.mean(), 1)))}
+        if problem.design.observe(name).kind == "state":
+            # a latch state's residual is its Pearson residual (p - y)/sqrt(p (1 - p)), a pure number
+            out[name]["unit"] = "Pearson"
     return out
+
+
+def length_rmse(problem, fit) -> float:
+    """RMS residual (m) over the rows that observe a length (latch states, 0/1, left out)."""
+    st = problem.prepared.state
+    if st is None or not np.any(st):
+        return fit.rmse
+    r = fit.residual[~st]
+    return float(np.sqrt(np.mean(r * r))) if r.size else float("nan")
 
 
 def covariance(fit) -> dict:
@@ -129,8 +141,8 @@ def build_report(problem, selection, tests_before, tests_after, calibrated_name=
                   "per_observable": per_observable(problem, final),
                   "covariance": covariance(final)},
         "critical_distance": critical_distance(final, problem),
-        "rmse_before": _n(base.rmse),
-        "rmse_after": _n(final.rmse),
+        "rmse_before": _n(length_rmse(problem, base)),
+        "rmse_after": _n(length_rmse(problem, final)),
         "unexplained": [t.as_dict() for t in structured(tests_after)],
         "outliers": outliers(problem, final),
         "residual_tests_after": [t.as_dict() for t in tests_after],
@@ -149,7 +161,8 @@ def render_table(report, console=None) -> None:
         t.add_column(col, justify="right" if col != "observable" else "left")
     b, a = report["base"]["per_observable"], report["final"]["per_observable"]
     for name in b:
-        t.add_row(name, str(b[name]["n"]), _um(b[name]["rmse"]), _um(a[name]["rmse"]),
+        fmt = _um if b[name].get("unit") != "Pearson" else (lambda x: f"{_g(x)} (Pearson)")
+        t.add_row(name, str(b[name]["n"]), fmt(b[name]["rmse"]), fmt(a[name]["rmse"]),
                   _g(b[name]["redchi"]), _g(a[name]["redchi"]))
     t.add_row("[bold]overall", str(report["rows"]), _um(report["rmse_before"]), _um(report["rmse_after"]),
               _g(report["base"]["redchi"]), _g(report["final"]["redchi"]))
