@@ -621,8 +621,11 @@ def pair_forces(design: Design, drive: Drive,
 def _apply_neighbour_drag(design: Design, lay: _Layout, centres: np.ndarray, total: np.ndarray) -> np.ndarray:
     nd = EF.coefficients(design, "neighbour_drag") if design.effects else None
     if nd and nd["inv_plateau"] > 0:
-        # P (1 - delta/delta_p) with delta the capsule's displacement from rest (acl.physics.effects.drag_load)
+        # P (1 - delta/delta_p) with delta the capsule's displacement from rest (acl.physics.effects.drag_load),
+        # on capsules with a neighbour only (acl.analysis.effects.neighbour_capsules; the fit's pairs)
         delta = np.linalg.norm(centres - lay.rest[None], axis=-1)
+        near = EF.neighbour_capsules(design)
+        delta = delta * np.array([c.name in near for c in lay.caps], float)
         total = PE.drag_load(total, delta[..., None], nd["inv_plateau"])
     return total
 

@@ -23,7 +23,6 @@ import numpy as np
 from acl.fit import beam as B
 
 N_GRID = 32
-N_BISECT = 30
 N_REFINE = 12
 
 
@@ -437,26 +436,21 @@ def _predict(P: Prepared, coeffs: dict, effects: dict) -> np.ndarray:
     out_rows = np.zeros(P.n)
     ratio = np.zeros(P.n)                    # latch rows: push / switching force
     if np.any(vec):
-        _body_deflection(P, vec, gamma, w, res, sub, rows, c_p, es, out_rows, ratio)
+        _body_deflection(P, vec, gamma, w, res, sub, rows, es, out_rows, ratio)
     if np.any(single):
         idx = np.flatnonzero(single)
         latch = P.latch_id[idx] >= 0
         load = thrust[0, idx] * P.proj[idx]
+        # a lone actuator has no neighbour (units do not interact): neighbour_drag acts on pairs only
         if np.any(~latch):
             j = idx[~latch]
             law0, _, _ = rows(j)
-            if c_p > 0:
-                d_0[j] = _drag_equilibrium(law0, load[~latch], c_p)
-            else:
-                d_0[j] = law0(load[~latch])
+            d_0[j] = law0(load[~latch])
         for tid in np.unique(P.latch_id[idx][latch]):
             m = P.latch_id[idx] == tid
             table = P.latch_tables[tid]
             ratio[idx[m]] = load[m] / (table[2] * es)
-            if c_p > 0:
-                d_0[idx[m]] = _drag_equilibrium(lambda x, tb=table: latch_travel(x, tb, es), load[m], c_p)
-            else:
-                d_0[idx[m]] = latch_travel(load[m], table, es)
+            d_0[idx[m]] = latch_travel(load[m], table, es)
     if np.any(P.pair):
         idx = np.flatnonzero(P.pair)
         law0, law1, same = rows(idx)
@@ -539,7 +533,7 @@ def switch_probability(ratio, spread):
     return ndtr(z)
 
 
-def _body_deflection(P, vec, gamma, w, res, sub, rows, c_p, es, out, ratio):
+def _body_deflection(P, vec, gamma, w, res, sub, rows, es, out, ratio):
     """Bodies moving in 1-2 directions (multi-orifice capsules, trussed bodies; acl.fit.mechanism): the load is the
     vector sum of the members' thrusts (tones add in power) projected on the directions the support allows; a beam
     deflects along the load by paper Eq. (1) (isotropic across it, as acl.analysis.mechanics), a spring by P/k, a
@@ -555,19 +549,17 @@ def _body_deflection(P, vec, gamma, w, res, sub, rows, c_p, es, out, ratio):
     unit = np.divide(load, mag[:, None], out=np.zeros_like(load), where=mag[:, None] > 0)
     delta = np.zeros(idx.size)
     latch = P.latch_id[idx] >= 0
-    if np.any(~latch):
+    if np.any(~latch):                  # a lone body has no neighbour: neighbour_drag acts on pairs and groups only
         j = idx[~latch]
         law0, _, _ = rows(j)
-        delta[~latch] = _drag_equilibrium(law0, mag[~latch], c_p) if c_p > 0 else law0(mag[~latch])
+        delta[~latch] = law0(mag[~latch])
     for tid in np.unique(P.latch_id[idx][latch]):
         m = P.latch_id[idx] == tid
         along = load[m, 0]                                  # signed push along the latch axis
         table = P.latch_tables[tid]
         push = np.maximum(along, 0.0)
         ratio[idx[m]] = push / (table[2] * es)
-        trav = (_drag_equilibrium(lambda x, tb=table: latch_travel(x, tb, es), push, c_p) if c_p > 0
-                else latch_travel(push, table, es))
-        delta[m] = trav
+        delta[m] = latch_travel(push, table, es)
         unit[m] = np.array([1.0, 0.0])
     out[idx] = (unit * P.obs_w[idx]).sum(axis=1) * delta
 
@@ -587,18 +579,6 @@ def _with_drag(law, c_p, steps=3):
             d = np.clip(d - r / np.where(dr != 0, dr, -1.0), np.minimum(lin, 0.0), np.maximum(lin, 0.0))
         return d
     return dragged
-
-
-def _drag_equilibrium(law, load, c_p):
-    """delta = law(P (1 - c_p delta)) on [0, law(P)]: bisection (the residual decreases in delta)."""
-    lo = np.zeros_like(load)
-    hi = np.minimum(law(load), 1.0 / c_p)
-    for _ in range(N_BISECT):
-        mid = 0.5 * (lo + hi)
-        r = law(drag_load(load, mid, c_p)) - mid
-        lo = np.where(r > 0, mid, lo)
-        hi = np.where(r > 0, hi, mid)
-    return 0.5 * (lo + hi)
 
 
 def _pair_equilibrium(law0, law1, a_rad, push, d0, same=False):
