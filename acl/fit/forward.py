@@ -549,7 +549,7 @@ def _body_deflection(P, vec, gamma, w, res, sub, rows, es, out, ratio):
     unit = np.divide(load, mag[:, None], out=np.zeros_like(load), where=mag[:, None] > 0)
     delta = np.zeros(idx.size)
     latch = P.latch_id[idx] >= 0
-    if np.any(~latch):
+    if np.any(~latch):                  # a lone body has no neighbour: neighbour_drag acts on pairs and groups only
         j = idx[~latch]
         law0, _, _ = rows(j)
         delta[~latch] = law0(mag[~latch])      # a body of its own has no neighbour: neighbour_drag does not act
