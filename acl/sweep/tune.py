@@ -297,19 +297,28 @@ class Problem:
         batch = field_batch(self.batch_design, pts, self.fmap)
         wanted = [f"require_{i + 1}_value" for i in range(len(self.requires))]
         cols = evaluate(batch, quantities=wanted)
-        return require_margins(self.requires, [cols[q] for q in wanted])
+        # a bound may follow a parameter (`in f0 - 5 kHz .. f0 + 5 kHz` with f0 free or spread): per point
+        bounds = [(None if r.lower is None else batch.get(f"requires.{j}.lower"),
+                   None if r.upper is None else batch.get(f"requires.{j}.upper")) for j, r in enumerate(self.requires)]
+        return require_margins(self.requires, [cols[q] for q in wanted], bounds)
 
 
-def require_margins(requires, values) -> np.ndarray:
-    """(n, R): each requirement's value minus its nearer bound (positive: passes), nan where unknown."""
+def require_margins(requires, values, bounds=None) -> np.ndarray:
+    """(n, R): each requirement's value minus its nearer bound (positive: passes), nan where unknown.
+
+    ``bounds``: per requirement (lower, upper) arrays over the points when they vary (None: the
+    requirement's own bounds)."""
     out = []
-    for r, v in zip(requires, values):
+    for j, (r, v) in enumerate(zip(requires, values)):
         v = np.asarray(v, float)
+        lo, hi = bounds[j] if bounds is not None else (None, None)
+        lo = r.lower if lo is None else np.asarray(lo, float)
+        hi = r.upper if hi is None else np.asarray(hi, float)
         m = np.full(v.shape, np.inf)
         if r.lower is not None:
-            m = np.minimum(m, v - r.lower)
+            m = np.minimum(m, v - lo)
         if r.upper is not None:
-            m = np.minimum(m, r.upper - v)
+            m = np.minimum(m, hi - v)
         out.append(np.where(np.isfinite(v), m, np.nan))
     return np.stack(out, axis=1) if out else np.empty((0, 0))
 
