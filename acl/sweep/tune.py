@@ -377,11 +377,10 @@ def prepare(path: str, tolerance: Sequence[str] = (), samples: int = 2000, valid
         names, missing = supported(design)
         for i, r in enumerate(design.requires, start=1):
             if f"require_{i}_value" not in names:
-                why = next((v for k, v in missing.items() if k.startswith("require")), None)
+                why = next((v for k, v in missing.items() if k.split("_")[:2] == ["require", str(i)]), None)
                 diags.append(error("E873", f"`{r.text}` cannot be evaluated batched, so acl tune cannot use it"
                                    + (f": {why}" if why else ""), r.span,
-                                   "acl tune works with resonance, separation and latch margin requirements "
-                                   "(docs/tune.md)"))
+                                   "remove it or state it another way; docs/tune.md lists what acl tune evaluates"))
     spread_declared = any(p.distribution() is not None for p in design.params)
     if not spread_declared and not list(tolerance):
         diags.append(error("E874", "no tolerance: nothing in the design is spread, so every printed device is the "
