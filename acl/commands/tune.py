@@ -79,13 +79,21 @@ def run(args) -> int:
             report([error("E-USAGE", "--output names DESIGN itself; the tuned design extends it",
                           Span(file="<--output>", line=1, column=1), "give another path")], fmt)
             return 2
+    import time
+
+    t0 = time.perf_counter()
     try:
         problem = T.prepare(design, tolerance=args.tolerance, samples=args.samples, validate=args.validate,
                             seed=args.seed, search_paths=args.path)
+        prepared = time.perf_counter() - t0
         result = _search(T, problem, args)
     except DiagnosticError as exc:
         report(exc.diagnostics, fmt)
         return exit_code(exc.diagnostics)
+    if args.verbose:
+        for stage, secs in {"prepare": prepared, **result.timing_s}.items():
+            sys.stderr.write(f"stage {stage}: {secs:.2f} s\n")
+        sys.stderr.write(f"trials: {result.search.evaluations}\n")
     written = None
     if not args.no_write:
         text = T.tuned_text(result, out_path, command=_command_line(args))

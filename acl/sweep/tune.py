@@ -416,6 +416,7 @@ class Tuned:
     before_search: Estimate           # the sample the search used
     after_search: Estimate
     per_require: list                 # [{text, line, before, after (Estimate), worst_before, worst_after}]
+    timing_s: dict = field(default_factory=dict)   # stage -> seconds (search, validate)
 
     def to_json(self) -> dict:
         def est(e: Estimate) -> dict:
@@ -452,10 +453,14 @@ def tune(problem: Problem, objective: str = "yield", method: str = "nelder-mead"
     """
     from acl.diagnostics import DiagnosticError, error
 
+    import time
+
+    t0 = time.perf_counter()
     start = np.array([f.start for f in problem.free], float)
     found = maximise(problem.margins, problem.free, objective=objective, method=method, max_evals=max_evals,
                      seed=problem.seed, progress=progress)
     chosen = rounded(found.x)
+    t1 = time.perf_counter()
     m_before, m_after = problem.margins(start, 1), problem.margins(chosen, 1)
     s_before, s_after = problem.margins(start, 0), problem.margins(chosen, 0)
     n = m_before.shape[0]
@@ -478,7 +483,8 @@ def tune(problem: Problem, objective: str = "yield", method: str = "nelder-mead"
     ns = s_before.shape[0]
     return Tuned(problem=problem, objective=objective, method=method, start=start, chosen=chosen, search=found,
                  before=before, after=after, before_search=Estimate(int(passing(s_before).sum()), ns),
-                 after_search=Estimate(int(passing(s_after).sum()), ns), per_require=per)
+                 after_search=Estimate(int(passing(s_after).sum()), ns), per_require=per,
+                 timing_s={"search": t1 - t0, "validate": time.perf_counter() - t1})
 
 
 # ------------------------------------------------------------------------------------------------
