@@ -662,33 +662,103 @@ class _Evaluator:
             return np.zeros_like(s), Pa / fa, Pa / fa, xs[0], xs[1]
         return Pa * fb - Pb * fa, Pa / fa, Pb / fb, xs[0], xs[1]
 
-    def pair_newton(self, freqs, volts, steps: int = 8, iterations: int = 12):
-        """Equilibrium (xa, xb) at drive scale 1 by natural continuation in V^2 with Newton (finite-difference Jacobian): the pushed-apart branch."""
-        ps = self.pair_setup()
-        act = [ps["beams"][k] is not None for k in range(2)]
-        xa, xb = np.zeros(self.n), np.zeros(self.n)
-        h = 1e-10
+    def plane_setup(self):
+        """Moving capsules (on beams) and an orthonormal basis (N, 3, 2) of each one's plane of motion (mechanics._perp_basis)."""
+        def build():
+            out = []
+            for c in range(len(self.caps)):
+                bm = self.beam_of(c)
+                if bm is None:
+                    continue
+                ax = bm["axis"]
+                trial = np.where((np.abs(ax[:, 0]) < 0.9)[:, None], np.array([1.0, 0, 0]), np.array([0, 1.0, 0]))
+                e1 = trial - ax * np.einsum("bk,bk->b", trial, ax)[:, None]
+                e1 /= np.linalg.norm(e1, axis=-1, keepdims=True)
+                e2 = np.cross(ax, e1)
+                out.append((c, bm, np.stack([e1, e2], axis=2)))
+            return out
+        return self.once("plane_setup", build)
+
+    def plane_residual(self, q, lam, freqs, volts):
+        """Equilibrium residual (N, m) of the in-plane displacements q (N, m): Eq. (1) restoring force - V^2 x drive force, per moving capsule."""
+        lay = self.layout()
+        moving = self.plane_setup()
+        centres = lay["rest"].copy()
+        for j, (c, _bm, basis) in enumerate(moving):
+            centres[:, c] = centres[:, c] + np.einsum("bkj,bj->bk", basis, q[:, 2 * j:2 * j + 2])
+        F = self.forces(centres, freqs, volts)
+        res = np.empty_like(q)
+        for j, (c, bm, basis) in enumerate(moving):
+            qj = q[:, 2 * j:2 * j + 2]
+            delta = np.linalg.norm(qj, axis=-1)
+            P = PB.eq1_force(delta, bm["L"], bm["l"], bm["EI"])
+            from acl.physics.beams import eq1_small_force_stiffness
+
+            k0 = eq1_small_force_stiffness(bm["L"], bm["l"], bm["EI"])
+            ratio = np.where(delta > 1e-15 * bm["L"], P / np.where(delta > 0, delta, 1.0), k0)
+            res[:, 2 * j:2 * j + 2] = ratio[:, None] * qj - lam[:, None] * np.einsum("bkj,bk->bj", basis, F[:, c])
+        return res
+
+    def plane_solve(self, q, lam, freqs, volts, iterations: int = 20, h: float = 1e-11):
+        """Newton from q at drive scale lam (finite-difference Jacobian): (q, converged, smallest real eigenvalue of K_T)."""
+        m = q.shape[1]
+        conv = np.zeros(self.n, bool)
+        mev = np.full(self.n, np.nan)
+        for _ in range(iterations):
+            r = self.plane_residual(q, lam, freqs, volts)
+            J = np.empty((self.n, m, m))
+            for k in range(m):
+                dq = q.copy()
+                dq[:, k] += h
+                J[:, :, k] = (self.plane_residual(dq, lam, freqs, volts) - r) / h
+            try:
+                step = np.linalg.solve(J, -r[..., None])[..., 0]
+            except np.linalg.LinAlgError:
+                step = np.full_like(q, np.nan)
+            q = q + np.where(conv[:, None], 0.0, step)
+            small = np.linalg.norm(step, axis=-1) <= 1e-12 * np.linalg.norm(q, axis=-1) + 1e-19
+            conv |= small & np.isfinite(step).all(axis=1)
+            mev = np.linalg.eigvals(np.where(np.isfinite(J), J, 0.0)).real.min(axis=1)
+            if conv.all():
+                break
+        return q, conv & np.isfinite(q).all(axis=1), mev
+
+    def plane_equilibrium(self, freqs, volts, steps: int = 8):
+        """In-plane equilibrium at drive scale 1 by natural continuation in V^2 from rest: (q, ok); not ok after a lost or unstable step (snap-in)."""
+        m = 2 * len(self.plane_setup())
+        q = np.zeros((self.n, m))
+        ok = np.ones(self.n, bool)
         for lam in np.linspace(0.0, 1.0, steps + 1)[1:]:
-            for _ in range(iterations):
-                fa, Pa, fb, Pb = self.pair_eval(xa, xb, freqs, volts)
-                ra, rb = Pa - lam * fa, Pb - lam * fb
-                fa1, Pa1, fb1, Pb1 = self.pair_eval(xa + h, xb, freqs, volts)
-                fa2, Pa2, fb2, Pb2 = self.pair_eval(xa, xb + h, freqs, volts)
-                j11 = ((Pa1 - lam * fa1) - ra) / h if act[0] else np.ones(self.n)
-                j21 = ((Pb1 - lam * fb1) - rb) / h
-                j12 = ((Pa2 - lam * fa2) - ra) / h
-                j22 = ((Pb2 - lam * fb2) - rb) / h if act[1] else np.ones(self.n)
-                if not act[0]:
-                    ra, j12, j21 = np.zeros(self.n), np.zeros(self.n), np.zeros(self.n)
-                if not act[1]:
-                    rb, j12, j21 = np.zeros(self.n), np.zeros(self.n), np.zeros(self.n)
-                det = j11 * j22 - j12 * j21
-                da = -(j22 * ra - j12 * rb) / det
-                db = -(-j21 * ra + j11 * rb) / det
-                xa, xb = xa + da, xb + db
-                if np.all(np.abs(da) + np.abs(db) <= 1e-13 * (np.abs(xa) + np.abs(xb) + 1e-18)):
-                    break
-        return xa, xb
+            q, conv, mev = self.plane_solve(q, np.full(self.n, lam), freqs, volts)
+            ok &= conv & (mev > 0)
+        return q, ok
+
+    def plane_snap(self, freqs, volts, v_max: float, steps: int = 20, bisections: int = 32) -> np.ndarray:
+        """Snap-in voltage by natural continuation in V from 0 to v_max with Newton at each step, the lost step bisected (NaN: none below v_max)."""
+        m = 2 * len(self.plane_setup())
+        q = np.zeros((self.n, m))
+        v_ok = np.zeros(self.n)
+        v_bad = np.full(self.n, np.nan)
+        for v in np.linspace(0.0, v_max, steps + 1)[1:]:
+            live = np.isnan(v_bad)
+            if not live.any():
+                break
+            qn, conv, mev = self.plane_solve(q, np.full(self.n, v * v), freqs, volts)
+            good = conv & (mev > 0) & live
+            q = np.where(good[:, None], qn, q)
+            v_ok = np.where(good, v, v_ok)
+            v_bad = np.where(live & ~good, v, v_bad)
+        lost = np.isfinite(v_bad)
+        if lost.any():
+            lo, hi = v_ok.copy(), np.where(lost, v_bad, v_ok)
+            for _ in range(bisections):
+                mid = 0.5 * (lo + hi)
+                qn, conv, mev = self.plane_solve(q, mid * mid, freqs, volts)
+                good = conv & (mev > 0)
+                q = np.where((good & lost)[:, None], qn, q)
+                lo, hi = np.where(good, mid, lo), np.where(good, hi, mid)
+            return np.where(lost, 0.5 * (lo + hi), np.nan)
+        return np.full(self.n, np.nan)
 
     def pair_v2(self, s, t0, freqs, volts, slope=None):
         """V^2 on the equilibrium branch at closure s, the split t solved by secant from t0 (first step Newton with ``slope`` dh/dt when given).
@@ -804,8 +874,11 @@ class _Evaluator:
         br = self.pair_branch((f,), (1.0,))
         v = np.sqrt(br["v2_fold"])
         out = np.where(v <= vmax, v, np.nan)
-        # a lateral force at rest: the reduced branch does not apply (not evaluated)
-        return np.where(br["lateral"], np.nan, out)
+        rows = np.flatnonzero(br["lateral"])      # a lateral force at rest: both planes of motion, continuation in V
+        if rows.size:
+            with np.errstate(all="ignore"):
+                out[rows] = self.subset(rows).plane_snap((f,), (1.0,), vmax)
+        return out
 
     def closing_equilibrium(self, freqs, volts, hi):
         """(xa, xb) where V^2(s) = 1 on the ascending branch, s in (0, hi): regula falsi (Illinois), V^2(0) = 0."""
@@ -835,66 +908,72 @@ class _Evaluator:
 
     def pair_deflection(self, drive: M.Drive) -> dict:
         """Beam deflections of the pair at drive scale 1 on the stable branch from rest (mechanics.equilibrium): NaN after snap-in."""
-        xa, xb, ok = self.pair_equilibrium(drive)
+        disp, ok = self.pair_equilibrium(drive)
         out = {"equilibrium_ok": ok}
-        for k, x in ((0, xa), (1, xb)):
-            bm = self.pair_setup()["beams"][k]
+        for c in range(len(self.caps)):
+            bm = self.beam_of(c)
             if bm is not None:
-                out[f"tip_deflection_{_ident(bm['name'])}_m"] = np.where(ok, np.abs(x), np.nan)
+                out[f"tip_deflection_{_ident(bm['name'])}_m"] = np.where(ok, np.linalg.norm(disp[:, c], axis=-1), np.nan)
         return out
 
     def pair_equilibrium(self, drive: M.Drive):
-        """(xa, xb, ok): deflections of the pair's beams along their closing directions at ``drive`` (mechanics.equilibrium from rest).
+        """(displacement (N, C, 3), ok) of the pair's capsules at ``drive`` (mechanics.equilibrium from rest); not ok after snap-in.
 
-        A closing pair: regula falsi on V^2(s) = 1 below the fold (ok False if it folds first: snap-in);
-        otherwise (pushed apart, or one pushed and one pulled) natural continuation in V^2 with Newton.
+        A pair the drive pulls together along its line: regula falsi on V^2(s) = 1 below the fold of
+        the reduced branch; any other (pushed apart, one pushed and one pulled, a lateral force):
+        natural continuation in V^2 with Newton on both beams' planes of motion.
         """
         freqs = tuple(t.frequency for t in drive.tones)
         volts = tuple(t.amplitude for t in drive.tones)
         return self.once(("pair_eq", freqs, volts), lambda: self._pair_equilibrium(freqs, volts))
 
     def _pair_equilibrium(self, freqs, volts):
+        disp = np.zeros((self.n, len(self.caps), 3))
         if not freqs:
-            z = np.zeros(self.n)
-            return z, z, np.ones(self.n, bool)
+            return disp, np.ones(self.n, bool)
         br = self.pair_branch(freqs, volts)
         ps = self.pair_setup()
         closing, lateral = br["closing"], br["lateral"]
+        ok = np.zeros(self.n, bool)
         reach = closing & ~lateral & ~(br["v2_fold"] <= 1.0)       # no fold below the drive
-        xa, xb = np.full(self.n, np.nan), np.full(self.n, np.nan)
         rows = np.flatnonzero(reach)
         if rows.size:
             sub = self.subset(rows)
             hi = np.where(br["has_fold"][rows], br["s_fold"][rows], ps["gap"][rows] * 0.999)
             with np.errstate(all="ignore"):
-                xa[rows], xb[rows] = sub.closing_equilibrium(freqs, volts, hi)
-        rows = np.flatnonzero(~closing & ~lateral)
+                xa, xb = sub.closing_equilibrium(freqs, volts, hi)
+            for k, x in ((0, xa), (1, xb)):
+                disp[rows, k] = x[:, None] * ps["dirs"][k][rows]
+            ok[rows] = np.isfinite(xa) & np.isfinite(xb)
+        rows = np.flatnonzero(~closing | lateral)
         if rows.size:
+            sub = self.subset(rows)
             with np.errstate(all="ignore"):
-                xa[rows], xb[rows] = self.subset(rows).pair_newton(freqs, volts)
-        return xa, xb, np.isfinite(xa) & np.isfinite(xb)
+                q, good = sub.plane_equilibrium(freqs, volts)
+            for j, (c, _bm, basis) in enumerate(sub.plane_setup()):
+                disp[rows, c] = np.einsum("bkj,bj->bk", basis, q[:, 2 * j:2 * j + 2])
+            ok[rows] = good
+        return disp, ok
 
     def gap_over_steps(self, a: str, b: str) -> np.ndarray:
         """require gap: the smallest distance of orifices a, b over rest and the equilibrium of every program step, 0 after snap-in (report._require)."""
         from acl.analysis.report import step_drives
 
-        ps = self.pair_setup()
         lay = self.layout()
         (ca, oa), (cb, ob) = a.split("."), b.split(".")
         names = [c.name for c in self.caps]
 
-        def point(cap, orf, xs):
+        def point(cap, orf, disp):
             k = names.index(cap)
             o = [x.name for x in self.caps[k].orifices].index(orf)
             i = int(np.flatnonzero(lay["body"] == k)[o])
-            return lay["rest"][:, k] + lay["offsets"][:, i] + xs[k][:, None] * ps["dirs"][k]
+            return lay["rest"][:, k] + lay["offsets"][:, i] + disp[:, k]
 
-        zero = np.zeros(self.n)
-        gap = np.linalg.norm(point(cb, ob, (zero, zero)) - point(ca, oa, (zero, zero)), axis=-1)
+        zero = np.zeros((self.n, len(self.caps), 3))
+        gap = np.linalg.norm(point(cb, ob, zero) - point(ca, oa, zero), axis=-1)
         for _p, _i, _st, drive in step_drives(self.design):
-            xa, xb, ok = self.pair_equilibrium(drive)
-            xs = (np.where(ok, xa, 0.0), np.where(ok, xb, 0.0))
-            g = np.linalg.norm(point(cb, ob, xs) - point(ca, oa, xs), axis=-1)
+            disp, ok = self.pair_equilibrium(drive)
+            g = np.linalg.norm(point(cb, ob, disp) - point(ca, oa, disp), axis=-1)
             gap = np.minimum(gap, np.where(ok, g, 0.0))
         return gap
 
