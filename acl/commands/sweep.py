@@ -103,6 +103,11 @@ def run(args) -> int:
     except DiagnosticError as exc:
         report(exc.diagnostics, fmt)
         return 2
+    if args.verbose:
+        fm = table.field_map
+        sys.stderr.write(f"acl sweep: {spec.n_points} points in {spec.n_chunks} chunk(s) of {spec.chunk_size}; fields following "
+                         f"{', '.join(spec.names)}: {len(fm.linear) - len(fm.proportional)} affine, {len(fm.proportional)} "
+                         f"proportional, {len(fm.derived)} recomputed volume(s), {len(fm.exact)} resolved exactly\n")
     from acl.sweep.table import write_table
 
     try:

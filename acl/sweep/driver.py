@@ -106,7 +106,7 @@ def run_sweep(design: Design, spec: SweepSpec, quantities=None, at: str | None =
         notes.append(f"{len(dropped)} column(s) left out: " + next(iter(dropped.values())))
     notes += [why for why in unevaluated.values()]
     return SweepTable(assemble(parts, order), spec, units=units, notes=notes, unevaluated=unevaluated,
-                      n_requires=len(design.requires))
+                      n_requires=len(design.requires), field_map=fmap)
 
 
 def sweep(design, vary=None, tolerance=None, n=None, seed=0, quantities=None, at=None, scheduler=None,

@@ -83,6 +83,7 @@ class SweepTable:
     notes: list[str] = field(default_factory=list)
     unevaluated: dict[str, str] = field(default_factory=dict)   # requires the batched evaluation cannot give -> why
     n_requires: int = 0
+    field_map: object = None                       # acl.sweep.perturb.FieldMap used (how fields followed the parameters)
 
     # -- table access ------------------------------------------------------------------------
     @property
