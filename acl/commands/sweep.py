@@ -167,7 +167,8 @@ def _print(table, args, curve, written, design) -> None:
     for key, v in y.items():
         if key.startswith("require_"):
             i = int(key.split("_")[1])
-            con.print(f"  {key} `{design.requires[i - 1].text}`: {v.text()}")
+            verdict = v.text() if table.spec.montecarlo else f"{v.passed} of {v.total} points"
+            con.print(f"  {key} `{design.requires[i - 1].text}`: {verdict}")
     if curve:
         for r in curve:
             con.print(f"  tolerance x{r['scale']:g}: yield {r['yield']:.2f} [{r['lower']:.2f}, {r['upper']:.2f}]")
