@@ -98,8 +98,6 @@ def run_sweep(design: Design, spec: SweepSpec, quantities=None, at: str | None =
     task = ChunkTask(design, spec, fmap, tuple(cols), at)
     parts = map_chunks(task, spec.n_chunks, scheduler, progress)
     order = ["point", *spec.names, "valid", "code", *cols]
-    from acl.sweep.evaluate import QUANTITIES  # noqa: F401  (units of the families, docs/sweep.md)
-
     units = {n: spec.units[n] for n in spec.names}
     notes = list(spec.notes) + list(fmap.notes)
     if dropped and quantities is None:
