@@ -385,3 +385,32 @@ def test_every_example_nominal_equals_analyze(example):
             assert got == pytest.approx(want, rel=tol, abs=absolute), name
         checked += 1
     assert checked >= 2
+
+
+def test_a_fold_the_scalar_continuation_steps_over():
+    """Near d_c (one capsule pulled, one pushed) the branch can fold within 0.3 um of rest: the batched search finds the
+    saddle-node (smallest eigenvalue of K_T -> 0 there, no equilibrium just above), where `acl analyze`'s pseudo-arclength
+    continuation steps over it and reports a higher snap-in voltage (optimistic).  The batched value is the lower one."""
+    from acl.sweep.evaluate import _Evaluator
+
+    d = acl.load(str(EX / "fig4_facing_pair.acl"))
+    right = d.capsule("right")
+    dx = 9.421300890004399e-05 - right.center[0]
+    b = _batch(d, {"capsules.left.orifices.jet.radius": [1.0341683731893399e-05],
+                   "capsules.right.orifices.jet.radius": [9.808323936833488e-06],
+                   "beams.left_arm.youngs_modulus": [13121302.104411649],
+                   "capsules.right.center.0": [right.center[0] + dx],
+                   "capsules.right.orifices.jet.center.0": [right.orifices[0].center[0] + dx]})
+    v = evaluate(b, ["snap_in_left_right_125khz_v"])["snap_in_left_right_125khz_v"][0]
+    scalar = analyze(materialize(b, 0)).as_dict()["pairs"][0]["snap_in_voltage_v"]
+    assert 6.2 < v < scalar * 0.99
+    ev = _Evaluator(b, None)
+    q = np.zeros((1, 4))
+    mevs = []
+    for volts in np.linspace(0.5, v * (1 - 1e-6), 40):
+        q, conv, mev = ev.plane_solve(q, np.array([volts * volts]), (125e3,), (1.0,))
+        assert conv[0] and mev[0] > 0
+        mevs.append(mev[0])
+    assert mevs[-1] < 0.05 * mevs[0]                        # the tangent stiffness vanishes at the fold
+    _, conv, mev = ev.plane_solve(q, np.array([(v * 1.001) ** 2]), (125e3,), (1.0,))
+    assert not (conv[0] and mev[0] > 0)                      # no stable equilibrium next to the branch above it
