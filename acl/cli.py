@@ -105,6 +105,8 @@ def main(argv: list[str] | None = None) -> int:
             sys.stderr.write(f"acl: warning: {note}\n")
     import time
 
+    from acl.diagnostics import DiagnosticError
+
     start = time.perf_counter()
     try:
         code = int(args._module.run(args) or 0)
@@ -114,6 +116,12 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         sys.stderr.write("acl: interrupted\n")
         return 130
+    except DiagnosticError as exc:     # a stage that stops the whole command (a folder search at its limit: E602)
+        from acl.commands._common import exit_code, report
+
+        fmt = getattr(args, "output_format", "text")
+        report(exc.diagnostics, fmt if fmt == "json" else "text")
+        return max(exit_code(exc.diagnostics), 1)
     except BrokenPipeError:
         return 0
     except Exception as exc:  # last resort: never a traceback for the user

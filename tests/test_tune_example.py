@@ -53,3 +53,14 @@ def test_tune_pass_fail_equals_the_scalar_analysis_point_by_point():
         scalar.append(ok)
     assert 0 < sum(scalar) < len(scalar)                  # the sample straddles the requirement
     assert batched.tolist() == scalar
+
+
+def test_prints_beyond_a_free_range_are_devices_not_invalid_points():
+    """`free in lo .. hi` bounds the search; a device printed at the upper bound deviates above it."""
+    from acl.sweep.tune import prepare
+
+    p = prepare(str(FIG3), samples=400, validate=400, seed=2)
+    at_bounds = np.array([16e-6, 8e-6, 10.4e-6])                  # r1 at its upper, r2 at its lower bound
+    pts = p.points(at_bounds, 1)
+    assert (pts["r1"] > 16e-6).sum() > 100 and (pts["r2"] < 8e-6).sum() > 100
+    assert not np.isnan(p.margins(at_bounds, 1)).any()

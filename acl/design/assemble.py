@@ -481,9 +481,20 @@ def _observes(b: Builder, design: M.Design) -> list[M.Observe]:
                 continue
             if k:
                 out.append(M.Observe(name=st.name, kind="position", target=k[1], component=comp.dotted, span=st.span))
+        elif c.name == "state":
+            if not b.arity(c, (1,), "state(latch)"):
+                continue
+            tgt = c.args[0]
+            if not isinstance(tgt, A.Ref) or len(tgt.parts) != 1:
+                b.bag.error("E304", "state: the argument is a latch name", tgt.span)
+                continue
+            k = b.local(tgt, ("latch",), "state")
+            if k:
+                out.append(M.Observe(name=st.name, kind="state", target=k[1], span=st.span))
         else:
             b.bag.error("E201", f"unknown observable `{c.name}`", c.span,
-                        suggest(c.name, ["gap", "displacement", "position"]) or "observables: gap, displacement, position")
+                        suggest(c.name, ["gap", "displacement", "position", "state"])
+                        or "observables: gap, displacement, position, state")
     return out
 
 

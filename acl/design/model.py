@@ -315,11 +315,12 @@ class Observe(Frozen):
     kind ``displacement``: of ``target`` (beam name -> its tip, or capsule name) along ``axis``.
     kind ``gap``: distance between two orifices' vibrating surfaces; ``a``/``b`` are
     ``capsule.orifice``.  kind ``position``: planar coordinate ``component`` ("x"|"y"|"z") of a
-    capsule centre.
+    capsule centre.  kind ``state``: the state of latch ``target``, 0 (state a, as printed) or 1
+    (state b, snapped through).
     """
 
     name: str
-    kind: Literal["displacement", "gap", "position"]
+    kind: Literal["displacement", "gap", "position", "state"]
     target: str | None = None
     axis: Vec3 | None = None
     a: str | None = None

@@ -243,6 +243,7 @@ class Problem:
 
     spec: object = None               # acl.sweep.spec.SweepSpec of the start (search and validation chunks)
     fmap: object = None               # acl.sweep.perturb.FieldMap over the free box widened by the spreads
+    batch_design: object = None       # the design without the free ranges (they bound the search, not the prints)
 
     def setup(self) -> None:
         """The sampling spec and the parameter-to-field map, found once (the design is resolved a few
@@ -263,6 +264,10 @@ class Problem:
             at_hi = dataclasses.replace(self.spec, nominal={**self.spec.nominal, f.name: f.upper}).box()
             box[f.name] = (min(at_lo.get(f.name, (f.lower,))[0], f.lower), max(at_hi.get(f.name, (0, f.upper))[1], f.upper))
         self.fmap = field_map(self.design, names, box, search_paths=self.search_paths)
+        # `free in lo .. hi` bounds where the search may put the drawn value; a printed device deviates
+        # from it by its spread, beyond the range too: such samples are devices, not E306 points
+        unbounded = tuple(q.model_copy(update={"lower": None, "upper": None}) if q.free else q for q in self.design.params)
+        self.batch_design = self.design.model_copy(update={"params": unbounded})
 
     def points(self, x: np.ndarray, block: int = 0) -> dict[str, np.ndarray]:
         """{parameter: SI values} of the search (block 0) or validation (block 1) sample about free values ``x``."""
@@ -288,7 +293,7 @@ class Problem:
         from acl.sweep.perturb import field_batch
 
         pts = self.points(x, block)
-        batch = field_batch(self.design, pts, self.fmap)
+        batch = field_batch(self.batch_design, pts, self.fmap)
         wanted = [f"require_{i + 1}_value" for i in range(len(self.requires))]
         cols = evaluate(batch, quantities=wanted)
         return require_margins(self.requires, [cols[q] for q in wanted])
