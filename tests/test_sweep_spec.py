@@ -110,6 +110,7 @@ def test_vary_linear_log_list(design):
     (["radius=9um"], None, 0, 0, "E-USAGE", "<--samples>", 1),
     (["radius=9um"], None, None, -1, "E-USAGE", "<--seed>", 1),
     (None, None, None, 0, "E-USAGE", "<argv>", 1),
+    (["radius=1um..20um:1000"], None, 10**6, 0, "E-USAGE", "<argv>", 1),      # 1e9 rows: beyond memory
 ])
 def test_bad_sweep_inputs_are_located(design, vary, tol, samples, seed, code, where, col):
     with pytest.raises(DiagnosticError) as exc:

@@ -1058,10 +1058,10 @@ class _Evaluator:
             raise QuantityError("E-SWEEP-Q02", f"`{r.text}` is not batched")
         ok = np.isfinite(value) | np.isinf(value)
         ok &= ~np.isnan(value)
-        if r.lower is not None:
-            ok &= value >= r.lower
+        if r.lower is not None:      # bounds may follow a swept parameter (`in f0 - 5 kHz .. f0 + 5 kHz`)
+            ok &= value >= self.get(f"requires.{i - 1}.lower")
         if r.upper is not None:
-            ok &= value <= r.upper
+            ok &= value <= self.get(f"requires.{i - 1}.upper")
         return value, ok
 
     def lint(self, code: str) -> np.ndarray:

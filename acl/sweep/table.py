@@ -169,6 +169,7 @@ class SweepTable:
             "seed": spec.seed,
             "chunk_size": spec.chunk_size,
             "yields": {k: v.as_dict() for k, v in self.yields().items()},
+            "grid_yield": None if self.grid_yield() is None else self.grid_yield().tolist(),   # per grid point, axes in order
             "invalid_codes": _codes(self.data["code"]),
             "not_evaluated": self.unevaluated,
             "notes": list(self.notes),
