@@ -14,19 +14,24 @@ What is batched and how (the scalar code it equals):
   interface's fundamental);
 * forces at rest at each program frequency (acoustics.pair_forces: coupled volumes of all
   interfaces, thrust with a declared thrust coefficient's scale, Bjerknes, jet drag);
-* snap-in voltage of a pair of capsules each on its own beam (mechanics.sweep_voltage): the stable
-  branch of ``P_a(x_a) = V^2 F_a(x)``, ``P_b(x_b) = V^2 F_b(x)`` (paper Eq. (1) beams, full force
-  model at displaced positions) is traced in the closure ``s`` of the gap, the split between the
-  two beams solved at each ``s`` (secant), and the fold is the first maximum of ``V^2(s)``
-  (grid, then golden section); ``require gap`` from the equilibrium of every program step.  The lateral degrees of freedom are held at zero: exact when the
-  pair's forces at rest have no lateral component (facing pairs); points where they have one are
-  NaN;
-* tip deflection at ``at`` of a capsule on a cantilever: the Eq. (1) deflection under the force at
-  the displaced position (fixed point), or the pair branch at V = 1;
+* snap-in voltage of a pair of capsules each on its own beam (mechanics.sweep_voltage).  Where the
+  drive pulls both capsules together along their line, the stable branch of ``P_a(x_a) = V^2
+  F_a(x)``, ``P_b(x_b) = V^2 F_b(x)`` (paper Eq. (1) beams, the full force model at displaced
+  positions) is traced in the closure ``s`` of the gap, the split between the two beams solved at
+  each ``s`` (secant), and the fold is the first maximum of ``V^2(s)`` (grid, then golden
+  section).  Where one capsule is pulled and the other pushed (near d_c), or the forces at rest
+  have a component across the line: continuation in V on both beams' planes of motion (Newton,
+  finite-difference tangent stiffness, stable while its eigenvalues have positive real parts), the
+  step halved where the branch is lost.  Both pushed apart: no snap-in (NaN).  The scalar
+  pseudo-arclength continuation can step over a fold that turns back within a fraction of a
+  micrometre (near d_c; tests/test_sweep_evaluate.py has one, 3.5 % lower here): this one finds it;
+* tip deflection at ``at`` of a capsule on a cantilever (the Eq. (1) deflection under the force at
+  the displaced position, a fixed point) or of a pair (the same branches at V = 1, NaN after
+  snap-in); ``require gap`` from the equilibrium of every program step;
 * latch margins per program step (mechanics.latch_margins, latches at rest in state a or b), the
   switching and release forces refined by golden section (acl.physics.batch.latch_switching_force;
-  the scalar landscape takes the extremes of a 2001-point grid, lower by up to 5e-4 where the
-  maximum is at the buckling kink, so its margins are optimistic by as much);
+  the scalar landscape takes the extremes of a 2001-point grid, lower by up to 2e-3 where they
+  sit at a kink of the force law, so its margins are optimistic by as much);
 * every ``require`` (report._require) and the lint rules ACL101, ACL105 (program drive and sweep
   steps), ACL501, ACL502, ACL503, ACL504, ACL603, before suppressions and with the default thresholds.
 
