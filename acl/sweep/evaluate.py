@@ -22,9 +22,8 @@ What is batched and how (the scalar code it equals):
   section).  Where one capsule is pulled and the other pushed (near d_c), or the forces at rest
   have a component across the line: continuation in V on both beams' planes of motion (Newton,
   finite-difference tangent stiffness, stable while its eigenvalues have positive real parts), the
-  step halved where the branch is lost.  Both pushed apart: no snap-in (NaN).  The scalar
-  pseudo-arclength continuation can step over a fold that turns back within a fraction of a
-  micrometre (near d_c; tests/test_sweep_evaluate.py has one, 3.5 % lower here): this one finds it;
+  step halved where the branch is lost (a fold within a fraction of a micrometre of rest near d_c
+  is found: tests/test_sweep_evaluate.py).  Both pushed apart: no snap-in (NaN);
 * tip deflection at ``at`` of a capsule on a cantilever (the Eq. (1) deflection under the force at
   the displaced position, a fixed point) or of a pair (the same branches at V = 1, NaN after
   snap-in); ``require gap`` from the equilibrium of every program step;
