@@ -385,3 +385,34 @@ def test_every_example_nominal_equals_analyze(example):
             assert got == pytest.approx(want, rel=tol, abs=absolute), name
         checked += 1
     assert checked >= 2
+
+
+def test_a_fold_close_to_rest_near_the_critical_distance():
+    """Near d_c (one capsule pulled, one pushed) the branch folds within 0.3 um of rest: the batched search finds the
+    saddle-node (smallest eigenvalue of K_T -> 0 there, no stable equilibrium just above) and equals `acl analyze`
+    (relative 1e-6; before the mechanics changes merged at 18:10 the scalar continuation stepped over this fold and
+    reported 6.475 V)."""
+    from acl.sweep.evaluate import _Evaluator
+
+    d = acl.load(str(EX / "fig4_facing_pair.acl"))
+    right = d.capsule("right")
+    dx = 9.421300890004399e-05 - right.center[0]
+    b = _batch(d, {"capsules.left.orifices.jet.radius": [1.0341683731893399e-05],
+                   "capsules.right.orifices.jet.radius": [9.808323936833488e-06],
+                   "beams.left_arm.youngs_modulus": [13121302.104411649],
+                   "capsules.right.center.0": [right.center[0] + dx],
+                   "capsules.right.orifices.jet.center.0": [right.orifices[0].center[0] + dx]})
+    v = evaluate(b, ["snap_in_left_right_125khz_v"])["snap_in_left_right_125khz_v"][0]
+    scalar = analyze(materialize(b, 0)).as_dict()["pairs"][0]["snap_in_voltage_v"]
+    assert 6.2 < v < 6.3
+    assert _rel(v, scalar) < 1e-6
+    ev = _Evaluator(b, None)
+    q = np.zeros((1, 4))
+    mevs = []
+    for volts in np.linspace(0.5, v * (1 - 1e-6), 40):
+        q, conv, mev = ev.plane_solve(q, np.array([volts * volts]), (125e3,), (1.0,))
+        assert conv[0] and mev[0] > 0
+        mevs.append(mev[0])
+    assert mevs[-1] < 0.05 * mevs[0]                        # the tangent stiffness vanishes at the fold
+    _, conv, mev = ev.plane_solve(q, np.array([(v * 1.001) ** 2]), (125e3,), (1.0,))
+    assert not (conv[0] and mev[0] > 0)                      # no stable equilibrium next to the branch above it

@@ -4,8 +4,11 @@ Each function is the batched twin of a scalar one elsewhere in :mod:`acl.physics
 same floors, same conventions; tests/test_sweep_evaluate*.py compares them point by point), written
 so that a sweep evaluates 10^5..10^6 perturbed designs without a Python loop over points:
 
-* :func:`capsule_modes` -- :func:`acl.physics.resonance.capsule_modes` (Rayleigh-Ritz bare modes and Q);
+* :func:`capsule_modes` -- :func:`acl.physics.resonance.capsule_modes` (Rayleigh-Ritz bare modes and Q;
+  one-orifice capsules by the closed-form eigenpairs of a rank-one update, others by LAPACK);
 * :func:`coupled_modes` -- :func:`acl.physics.coupling.coupled_modes` (mutual radiation mass and resistance);
+  :func:`lowest_single_interface_mode` its lowest mode for one interface and its wall image (secular equation);
+* :func:`two_bubble_forces` -- the force engine of acl.analysis.acoustics for two one-orifice capsules, closed form;
 * :func:`coupled_response` -- :func:`acl.physics.coupling.coupled_response` at displaced configurations;
 * :func:`latch_force`, :func:`latch_switching_force` -- :mod:`acl.physics.latch` (von Mises truss);
 * :func:`eq1_force` -- the inverse of paper Eq. (1) (:func:`acl.physics.beams.eq1_force`) with per-point geometry.

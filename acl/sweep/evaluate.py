@@ -14,19 +14,23 @@ What is batched and how (the scalar code it equals):
   interface's fundamental);
 * forces at rest at each program frequency (acoustics.pair_forces: coupled volumes of all
   interfaces, thrust with a declared thrust coefficient's scale, Bjerknes, jet drag);
-* snap-in voltage of a pair of capsules each on its own beam (mechanics.sweep_voltage): the stable
-  branch of ``P_a(x_a) = V^2 F_a(x)``, ``P_b(x_b) = V^2 F_b(x)`` (paper Eq. (1) beams, full force
-  model at displaced positions) is traced in the closure ``s`` of the gap, the split between the
-  two beams solved at each ``s`` (secant), and the fold is the first maximum of ``V^2(s)``
-  (grid, then golden section); ``require gap`` from the equilibrium of every program step.  The lateral degrees of freedom are held at zero: exact when the
-  pair's forces at rest have no lateral component (facing pairs); points where they have one are
-  NaN;
-* tip deflection at ``at`` of a capsule on a cantilever: the Eq. (1) deflection under the force at
-  the displaced position (fixed point), or the pair branch at V = 1;
+* snap-in voltage of a pair of capsules each on its own beam (mechanics.sweep_voltage).  Where the
+  drive pulls both capsules together along their line, the stable branch of ``P_a(x_a) = V^2
+  F_a(x)``, ``P_b(x_b) = V^2 F_b(x)`` (paper Eq. (1) beams, the full force model at displaced
+  positions) is traced in the closure ``s`` of the gap, the split between the two beams solved at
+  each ``s`` (secant), and the fold is the first maximum of ``V^2(s)`` (grid, then golden
+  section).  Where one capsule is pulled and the other pushed (near d_c), or the forces at rest
+  have a component across the line: continuation in V on both beams' planes of motion (Newton,
+  finite-difference tangent stiffness, stable while its eigenvalues have positive real parts), the
+  step halved where the branch is lost (a fold within a fraction of a micrometre of rest near d_c
+  is found: tests/test_sweep_evaluate.py).  Both pushed apart: no snap-in (NaN);
+* tip deflection at ``at`` of a capsule on a cantilever (the Eq. (1) deflection under the force at
+  the displaced position, a fixed point) or of a pair (the same branches at V = 1, NaN after
+  snap-in); ``require gap`` from the equilibrium of every program step;
 * latch margins per program step (mechanics.latch_margins, latches at rest in state a or b), the
   switching and release forces refined by golden section (acl.physics.batch.latch_switching_force;
-  the scalar landscape takes the extremes of a 2001-point grid, lower by up to 5e-4 where the
-  maximum is at the buckling kink, so its margins are optimistic by as much);
+  the scalar landscape takes the extremes of a 2001-point grid, lower by up to 2e-3 where they
+  sit at a kink of the force law, so its margins are optimistic by as much);
 * every ``require`` (report._require) and the lint rules ACL101, ACL105 (program drive and sweep
   steps), ACL501, ACL502, ACL503, ACL504, ACL603, before suppressions and with the default thresholds.
 
@@ -703,8 +707,10 @@ class _Evaluator:
         """Newton from q at drive scale lam (finite-difference Jacobian): (q, converged, smallest real eigenvalue of K_T)."""
         m = q.shape[1]
         conv = np.zeros(self.n, bool)
+        lost = np.zeros(self.n, bool)            # Newton not contracting: no equilibrium near q (past a fold)
         mev = np.full(self.n, np.nan)
-        for _ in range(iterations):
+        prev = np.full(self.n, np.inf)
+        for it in range(iterations):
             r = self.plane_residual(q, lam, freqs, volts)
             J = np.empty((self.n, m, m))
             for k in range(m):
@@ -715,11 +721,15 @@ class _Evaluator:
                 step = np.linalg.solve(J, -r[..., None])[..., 0]
             except np.linalg.LinAlgError:
                 step = np.full_like(q, np.nan)
-            q = q + np.where(conv[:, None], 0.0, step)
-            small = np.linalg.norm(step, axis=-1) <= 1e-12 * np.linalg.norm(q, axis=-1) + 1e-19
-            conv |= small & np.isfinite(step).all(axis=1)
+            q = q + np.where((conv | lost)[:, None], 0.0, step)
+            size = np.linalg.norm(step, axis=-1)
+            small = size <= 1e-10 * np.linalg.norm(q, axis=-1) + 1e-18
+            conv |= small & np.isfinite(step).all(axis=1) & ~lost
+            if it >= 3:
+                lost |= ~conv & ~(size < 0.5 * prev)
+            prev = np.where(conv | lost, prev, size)
             mev = np.linalg.eigvals(np.where(np.isfinite(J), J, 0.0)).real.min(axis=1)
-            if conv.all():
+            if (conv | lost).all():
                 break
         return q, conv & np.isfinite(q).all(axis=1), mev
 
@@ -733,32 +743,32 @@ class _Evaluator:
             ok &= conv & (mev > 0)
         return q, ok
 
-    def plane_snap(self, freqs, volts, v_max: float, steps: int = 20, bisections: int = 32) -> np.ndarray:
-        """Snap-in voltage by natural continuation in V from 0 to v_max with Newton at each step, the lost step bisected (NaN: none below v_max)."""
+    def plane_snap(self, freqs, volts, v_max: float, steps: int = 12, rtol: float = 1e-8) -> np.ndarray:
+        """Snap-in voltage by continuation in V from 0 to v_max, Newton at each step, the step halved where the stable branch is lost (NaN: none below v_max)."""
         m = 2 * len(self.plane_setup())
         q = np.zeros((self.n, m))
-        v_ok = np.zeros(self.n)
-        v_bad = np.full(self.n, np.nan)
-        for v in np.linspace(0.0, v_max, steps + 1)[1:]:
-            live = np.isnan(v_bad)
+        v = np.zeros(self.n)
+        dv = np.full(self.n, v_max / steps)
+        done = np.zeros(self.n, bool)
+        snap = np.full(self.n, np.nan)
+        failed = np.zeros(self.n, bool)          # once a step failed, steps only shrink (bisection of the fold)
+        for _ in range(40 * steps):
+            live = ~done
             if not live.any():
                 break
-            qn, conv, mev = self.plane_solve(q, np.full(self.n, v * v), freqs, volts)
+            v_try = np.minimum(v + dv, v_max)
+            qn, conv, mev = self.plane_solve(q, v_try * v_try, freqs, volts, iterations=12)
             good = conv & (mev > 0) & live
             q = np.where(good[:, None], qn, q)
-            v_ok = np.where(good, v, v_ok)
-            v_bad = np.where(live & ~good, v, v_bad)
-        lost = np.isfinite(v_bad)
-        if lost.any():
-            lo, hi = v_ok.copy(), np.where(lost, v_bad, v_ok)
-            for _ in range(bisections):
-                mid = 0.5 * (lo + hi)
-                qn, conv, mev = self.plane_solve(q, mid * mid, freqs, volts)
-                good = conv & (mev > 0)
-                q = np.where((good & lost)[:, None], qn, q)
-                lo, hi = np.where(good, mid, lo), np.where(good, hi, mid)
-            return np.where(lost, 0.5 * (lo + hi), np.nan)
-        return np.full(self.n, np.nan)
+            v = np.where(good, v_try, v)
+            # grow after two successes in a row, halve after a failure (near the fold: a bisection)
+            dv = np.where(good, np.where(failed, dv, np.minimum(dv * 1.5, v_max / steps)), np.where(live, dv / 2, dv))
+            failed = live & ~good
+            reached = good & (v >= v_max)
+            folded = live & ~good & (dv < rtol * v_max)
+            snap = np.where(folded, v, snap)
+            done |= reached | folded
+        return snap
 
     def pair_v2(self, s, t0, freqs, volts, slope=None):
         """V^2 on the equilibrium branch at closure s, the split t solved by secant from t0 (first step Newton with ``slope`` dh/dt when given).
@@ -795,8 +805,8 @@ class _Evaluator:
         sub = _Rows(self.batch, rows)
         return _Evaluator(sub, self.at)
 
-    def rest_checks(self, freqs: tuple, volts: tuple) -> tuple[np.ndarray, np.ndarray]:
-        """(closing, lateral) at rest: the drive pulls the pair together; a lateral force the reduced branch ignores."""
+    def rest_checks(self, freqs: tuple, volts: tuple) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(closing, lateral, opening) at rest: the drive pulls both capsules towards each other; a lateral force the reduced branch ignores; it pushes both apart."""
         ps = self.pair_setup()
         lay = self.layout()
         F0 = self.forces(lay["rest"], freqs, volts)
@@ -810,9 +820,16 @@ class _Evaluator:
             along = np.einsum("bk,bk->b", fperp, ps["dirs"][k])
             side = np.linalg.norm(fperp - along[:, None] * ps["dirs"][k], axis=-1)
             lateral |= side > 1e-6 * np.maximum(np.abs(along), 1e-300)
-        closing = (np.einsum("bk,bk->b", F0[:, 0], ps["dirs"][0]) * (ps["beams"][0] is not None)
-                   + np.einsum("bk,bk->b", F0[:, 1], ps["dirs"][1]) * (ps["beams"][1] is not None)) > 0
-        return closing, lateral
+        # both moving capsules pulled towards each other: the closure parametrises the branch; both pushed
+        # apart: the gap only grows (thrust against a Bjerknes pull that weakens with distance), no snap-in
+        closing = np.ones(self.n, bool)
+        opening = np.ones(self.n, bool)
+        for k in range(2):
+            if ps["beams"][k] is not None:
+                along = np.einsum("bk,bk->b", F0[:, k], ps["dirs"][k])
+                closing &= along > 0
+                opening &= along <= 0
+        return closing, lateral, opening
 
     def fold(self, freqs: tuple, volts: tuple) -> dict:
         """First maximum of V^2 along the closure (grid of SNAP_GRID, then golden section): V^2 and s there, and whether one was found."""
@@ -855,7 +872,7 @@ class _Evaluator:
     def pair_branch(self, freqs: tuple, volts: tuple) -> dict:
         """The fold (snap-in) of the pair's stable branch in the drive scale, searched only where the drive closes the pair."""
         def build():
-            closing, lateral = self.rest_checks(freqs, volts)
+            closing, lateral, opening = self.rest_checks(freqs, volts)
             rows = np.flatnonzero(closing & ~lateral)
             v2 = np.full(self.n, np.nan)
             s = np.full(self.n, np.nan)
@@ -866,7 +883,8 @@ class _Evaluator:
                     fo = sub.fold(freqs, volts)
                 v2[rows] = np.where(fo["has"], fo["v2"], np.nan)
                 s[rows], has[rows] = fo["s"], fo["has"]
-            return {"v2_fold": v2, "s_fold": s, "lateral": lateral, "closing": closing, "has_fold": has}
+            return {"v2_fold": v2, "s_fold": s, "lateral": lateral, "closing": closing, "opening": opening & ~lateral,
+                    "has_fold": has}
         return self.once(("branch", freqs, volts), build)
 
     def snap_in(self, f: float) -> np.ndarray:
@@ -874,7 +892,8 @@ class _Evaluator:
         br = self.pair_branch((f,), (1.0,))
         v = np.sqrt(br["v2_fold"])
         out = np.where(v <= vmax, v, np.nan)
-        rows = np.flatnonzero(br["lateral"])      # a lateral force at rest: both planes of motion, continuation in V
+        # one pulled and one pushed, or a lateral force: both planes of motion, continuation in V
+        rows = np.flatnonzero(~br["closing"] & ~br["opening"] | br["lateral"])
         if rows.size:
             with np.errstate(all="ignore"):
                 out[rows] = self.subset(rows).plane_snap((f,), (1.0,), vmax)
@@ -889,7 +908,8 @@ class _Evaluator:
         f_hi = f_hi - 1.0
         side = np.zeros(self.n)
         s = hi
-        for _ in range(60):
+        fs = np.full(self.n, np.nan)
+        for _ in range(30):
             s = np.where(f_hi != f_lo, hi - f_hi * (hi - lo) / np.where(f_hi != f_lo, f_hi - f_lo, 1.0), 0.5 * (lo + hi))
             s = np.where((s > lo) & (s < hi), s, 0.5 * (lo + hi))
             v2, t, _ = self.pair_v2(s, t_hi, freqs, volts)
@@ -904,7 +924,8 @@ class _Evaluator:
             if not np.any((np.abs(fs) > 1e-12) & (hi - lo > 1e-13 * np.maximum(hi, 1e-300))):
                 break
         _, _, _, xa, xb = self.pair_closure(s, t, freqs, volts)
-        return xa, xb
+        bad = ~(np.abs(fs) <= 1e-9)                  # no root bracketed (or not converged): not an equilibrium
+        return np.where(bad, np.nan, xa), np.where(bad, np.nan, xb)
 
     def pair_deflection(self, drive: M.Drive) -> dict:
         """Beam deflections of the pair at drive scale 1 on the stable branch from rest (mechanics.equilibrium): NaN after snap-in."""
