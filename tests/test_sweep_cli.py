@@ -52,6 +52,17 @@ def test_figures(tmp_path, capsys):
     assert "tolerance x2" in capsys.readouterr().out
 
 
+def test_figures_of_a_quantity_the_sweep_does_not_move(tmp_path):
+    """A gap spread leaves the resonances constant up to round-off: the histogram once raised
+    `ValueError: Too many bins for data range` (E-INTERNAL) after the table was written."""
+    pytest.importorskip("matplotlib")
+    figs = tmp_path / "figs"
+    pair = str(ROOT / "examples" / "fig4_facing_pair.acl")
+    assert main(["sweep", pair, "--tolerance", "gap=normal(0, 2 um)", "--samples", "200", "--at", "125 kHz @ 2 V",
+                 "-o", str(tmp_path / "p.csv"), "--plot", str(figs)]) == 0
+    assert "hist_resonance_left_1_hz.png" in {p.name for p in figs.iterdir()}
+
+
 def _main(argv) -> int:
     try:
         return main(argv)

@@ -28,6 +28,16 @@ def _axis_label(name: str, unit: str) -> tuple[float, str]:
     return f, f"{name} ({u})" if u else name
 
 
+def _hist_range(x: np.ndarray) -> tuple[float, float]:
+    """Histogram range of ``x``: its extent, widened when it is (nearly) constant, where numpy cannot cut bins."""
+    lo, hi = float(x.min()), float(x.max())
+    scale = max(abs(lo), abs(hi))
+    if hi - lo > 1e-9 * scale:
+        return lo, hi
+    half = 1e-6 * scale if scale > 0 else 0.5
+    return (lo + hi) / 2 - half, (lo + hi) / 2 + half
+
+
 def write_figures(table: SweepTable, folder: str) -> list[str]:
     """Every figure the table supports into ``folder`` (created); returns the paths written."""
     os.makedirs(folder, exist_ok=True)
@@ -45,7 +55,7 @@ def write_figures(table: SweepTable, folder: str) -> list[str]:
         f, label = _axis_label(c, unit)
         fig = _figure()
         ax = fig.add_subplot()
-        ax.hist(vals * f, bins=min(60, max(10, int(np.sqrt(vals.size)))), color="#4477aa")
+        ax.hist(vals * f, bins=min(60, max(10, int(np.sqrt(vals.size)))), range=_hist_range(vals * f), color="#4477aa")
         ax.set_xlabel(label)
         ax.set_ylabel("points")
         ax.set_title(f"{c}: {vals.size} valid points", fontsize=9)
