@@ -167,3 +167,14 @@ def test_json_grid_yield_per_grid_point(tmp_path, capsys):
     g = s["grid_yield"]
     assert len(g) == 3 and all(len(row) == 2 for row in g)
     assert sum(sum(row) for row in g) * 40 == pytest.approx(s["yields"]["all"]["passed"])
+
+
+def test_a_spread_of_metres_gives_invalid_rows_not_a_usage_error(tmp_path, capsys):
+    """A 1000 km spread on a 10 um radius: the map's first step (the whole range) resolved nowhere and
+    the sweep stopped with E-USAGE at the design's line 1; now every point is a row with its code."""
+    out = tmp_path / "h.csv"
+    assert main(["sweep", CANTILEVER, "--tolerance", "radius=normal(0, 1e12 um)", "--samples", "100", "-o", str(out)]) == 0
+    rows = out.read_text().splitlines()[1:]
+    codes = {r.split(",")[4] for r in rows}
+    assert len(rows) == 100 and codes <= {"E401", "E402"} and len(codes) == 2
+    assert "100 invalid" in capsys.readouterr().out

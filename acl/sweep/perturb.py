@@ -226,18 +226,23 @@ def field_map(design: Design, names, box: dict[str, tuple[float, float]] | None 
         if not h > 0:
             h = abs(x0[i]) * 0.1 or 1e-9
         flat1, step = None, 0.0
-        for _ in range(12):            # the largest step that still resolves: round-off shrinks with it
-            for s in (h, -h):
-                x = x0.copy()
-                x[i] += s
-                try:
-                    flat1, step = resolve(x), s
+        # the largest step that still resolves (round-off shrinks with it); when a huge range (a
+        # spread of metres) resolves nowhere within 12 quarterings, start again from 10 % of the value
+        for h in (h, 0.1 * abs(x0[i]) or 1e-9):
+            for _ in range(12):
+                for s in (h, -h):
+                    x = x0.copy()
+                    x[i] += s
+                    try:
+                        flat1, step = resolve(x), s
+                        break
+                    except DiagnosticError:
+                        continue
+                if flat1 is not None:
                     break
-                except DiagnosticError:
-                    continue
+                h /= 4
             if flat1 is not None:
                 break
-            h /= 4
         if flat1 is None or set(flat1) != keys:
             structural.append(n)
             continue
@@ -300,9 +305,12 @@ def field_map(design: Design, names, box: dict[str, tuple[float, float]] | None 
     if structural:
         from acl.diagnostics import Span, error
 
+        where = design.param(structural[0]).span
         raise DiagnosticError([error("E-USAGE", "cannot sweep " + ", ".join(f"`{n}`" for n in structural)
                                      + ": the design does not resolve near its value, or its structure changes with it",
-                                     Span(file=source, line=1, column=1))])
+                                     where if where is not None and where.line else Span(file=source, line=1, column=1),
+                                     "a parameter that adds or removes parts, or that no nearby value resolves, "
+                                     "cannot be perturbed; vary it with several `acl sweep --set` runs instead")])
     if exact:
         notes.append(f"{len(exact)} field(s) depend nonlinearly on " + ", ".join(f"`{n}`" for n in sorted(exact_params))
                      + f" (e.g. `{exact[0]}`): resolved exactly for each unique value (slower)")
