@@ -79,7 +79,7 @@ def run(name, spec, seeds, tmp):
         claims.append("+".join(sel.selected) or "none")
     n = data.n
     parts = [f"{k}: covered {cover[k]}/{seeds}, median |err| {np.median(errors[k]):.2%}" for k in truth]
-    print(f"{name:18s} {n:4d} rows  {'; '.join(parts)};  claimed {dict(zip(*np.unique(claims, return_counts=True)))}; "
+    print(f"{name:18s} {n:4d} rows  {'; '.join(parts)};  claimed {', '.join(f'{c} x{claims.count(c)}' for c in sorted(set(claims)))}; "
           f"{np.median(times):.1f} s/fit", flush=True)
 
 
