@@ -51,19 +51,27 @@ def test_committed_sweep_covers_every_case_with_ten_seeds():
 
 
 def test_committed_sweep_diagnoses_at_least_nine_in_ten():
-    below = {case: c["correct"] for case, c in _summary().items() if c["correct"] < RATE * c["n"]}
+    """Cases the experiment cannot identify (FD.LIMITS, with the reason shown in docs/fit.md) are measured but not
+    counted; there a wrong effect must still not be claimed often (nothing, or the planted set, in 9 of 10)."""
+    summary = _summary()
+    below = {case: c["correct"] for case, c in summary.items() if c["correct"] < RATE * c["n"] and not c["limit"]}
     assert below == KNOWN_BELOW
+    for case, reason in FD.LIMITS.items():
+        assert reason and case in summary
+        runs = [r for r in _rows() if r["case"] == case]
+        safe = [r for r in runs if r["ok"] or not r["selected"]]
+        assert len(safe) >= RATE * len(runs), case
 
 
 def test_committed_sweep_claims_nothing_on_clean_data_and_reaches_the_noise():
     rows = _rows()
     clean = [r for r in rows if not r["planted"]]
     assert clean and all(r["selected"] == [] for r in clean)
-    library = [r for r in rows if not any(p.startswith("(") for p in r["planted"])]
+    library = [r for r in rows if not any(p.startswith("(") for p in r["planted"]) and r["case"] not in FD.LIMITS]
     # every correct diagnosis ends within 1.3 x the noise (a wrong one is counted as a failure above)
     assert max(r["rmse_after_over_noise"] for r in library if r["ok"]) <= RMSE_RATIO
     for c in _summary().values():
-        if not c["outside"]:
+        if not c["outside"] and not c["limit"]:
             assert c["rmse_after_over_noise"] <= RMSE_RATIO, c["case"]
 
 

@@ -552,7 +552,7 @@ def _body_deflection(P, vec, gamma, w, res, sub, rows, es, out, ratio):
     if np.any(~latch):                  # a lone body has no neighbour: neighbour_drag acts on pairs and groups only
         j = idx[~latch]
         law0, _, _ = rows(j)
-        delta[~latch] = law0(mag[~latch])
+        delta[~latch] = law0(mag[~latch])      # a body of its own has no neighbour: neighbour_drag does not act
     for tid in np.unique(P.latch_id[idx][latch]):
         m = P.latch_id[idx] == tid
         along = load[m, 0]                                  # signed push along the latch axis

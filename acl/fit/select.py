@@ -22,7 +22,8 @@ from acl.fit.effects import EFFECTS
 
 P_LIMIT = 0.01
 K_FOLDS = 5
-SCREEN_P = 0.5      # a candidate whose first fit gives an F-test p above this (and no worse fit than the current model) is not refitted from its other starts
+SCREEN_P = 0.5      # a candidate whose first fit gives an F-test p above this (and is no worse than the current
+#                     model) is not refitted from its other starts
 ALT_GAIN = 1e-3     # relative chi-square drop of a refit of the current model that restarts a round
 MAX_RESTARTS = 3     # times a round starts over after a better fit of the current model is found
 
@@ -66,9 +67,9 @@ def applicable(eid, problem, current_kinds) -> str | None:
             return "the data have fewer than two drive frequencies"
         if req == "frequencies3" and np.unique(P.f[P.v > 0]).size < 4:
             return "the data have fewer than four drive frequencies (a resonance shape needs a sweep)"
-        if req == "neighbour" and not np.any((P.pair | (P.group_row if P.group_row is not None else False)) & active):
-            return ("no actuator in the data has a neighbour (only the sides of a pair do: capsules of different "
-                    "units do not interact)")
+        if req == "neighbour" and not np.any(_with_neighbour(P) & active):
+            return ("no actuator in the data has a neighbour (only the capsules of a pair or a group do: capsules "
+                    "of different units do not interact)")
         if req == "lengths" and np.unique(np.round(P.L[P.beam & active], 12)).size < 2:
             return "every row has the same beam length"
         if req == "heights" and np.unique(np.round(P.height[0][active], 12)).size < 2:
@@ -76,6 +77,12 @@ def applicable(eid, problem, current_kinds) -> str | None:
     if eid == "stiffness_scale" and "e_scale" in current_kinds:
         return "E is already free"
     return None
+
+
+def _with_neighbour(P) -> np.ndarray:
+    """Rows whose capsules have a neighbour (neighbour_drag acts there): a pair's or a group's rows."""
+    grp = getattr(P, "group_row", None)
+    return P.pair | grp if grp is not None else P.pair
 
 
 def effect_coefs(eid, problem) -> tuple[list, list]:
@@ -251,7 +258,8 @@ def _revisit(problem, model, names, selected, current, trials, p_limit, progress
             if not p_keep < limit:
                 if progress:
                     progress(f"revisit: {eid} is not significant given the others; dropped")
-                _retire(trials, eid, f"dropped on revisit: not significant given {', '.join(e for e in selected if e != eid)} "
+                given = ", ".join(e for e in selected if e != eid)
+                _retire(trials, eid, f"dropped on revisit: not significant given {given} "
                                      f"(F-test p = {p_keep:.3g} >= {limit:.3g})")
                 selected = [e for e in selected if e != eid]
                 current, changed = reduced, True
@@ -272,8 +280,8 @@ def _revisit(problem, model, names, selected, current, trials, p_limit, progress
                 cid, trial, F, p = best
                 if progress:
                     progress(f"revisit: {cid} replaces {eid}")
-                _retire(trials, eid, f"replaced on revisit by {cid}: with the other selected effects, {cid} gives a lower "
-                                     f"BIC ({trial.bic - current.bic:+.3g})")
+                _retire(trials, eid, f"replaced on revisit by {cid}: with the other selected effects, {cid} gives a "
+                                     f"lower BIC ({trial.bic - current.bic:+.3g})")
                 t = Trial(cid, max((t.round for t in trials), default=0) + 1, "selected",
                           f"replaces {eid} on revisit: F-test p = {p:.3g} < {limit:.3g} against the model without "
                           f"{eid}, identifiable, BIC lower than with {eid} ({trial.bic - current.bic:+.3g})",
