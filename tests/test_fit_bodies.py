@@ -232,6 +232,9 @@ def test_state_rows_are_checked_cell_by_cell(tmp_path):
     nosigma = tmp_path / "n.csv"
     nosigma.write_text("observable,value,unit,drive\nswitched,1,1,125 kHz @ 45 V\n")
     assert main(["fit", LATCH, str(nosigma), "--free", "gamma"]) == 1
+    shuttle = tmp_path / "p.csv"
+    shuttle.write_text("observable,value,unit,drive\nshuttle,0.1,um,125 kHz @ 20 V\n")
+    assert main(["fit", LATCH, str(shuttle), "--free", "gamma,spread"]) == 2     # no state row: a usage error
 
 
 def test_switched_state_fits_gamma_and_spread_by_maximum_likelihood(tmp_path):
