@@ -113,10 +113,7 @@ def load_problem(design_path, data_paths, free=(), search_paths=()):
             raise DiagnosticError([error("E801", "latch states (0/1) need a `sigma` column: the fit weighs every other "
                                          "row by it against the states' binomial scatter", sp,
                                          "add a sigma column (for the state rows any positive number, e.g. 0.5)")])
-        from acl.fit.forward import REWEIGHT
-
         P.pearson = (np.asarray(y, float), 1.0 / np.where(np.isfinite(data.sigma), data.sigma, NOMINAL_SIGMA), {})
-        REWEIGHT.users += 1
         # a state row's weight is its own: the Pearson residual is already in units of its standard deviation
         P.pearson[1][P.state] = 1.0
         data.sigma = np.where(P.state, 1.0, data.sigma)
