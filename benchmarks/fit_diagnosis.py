@@ -154,7 +154,6 @@ LIMITS = {
     "latch transducer_resonance": _SWITCH,
     "latch drive_saturation": _SWITCH,
     "latch bubble_shrinkage": _SWITCH,
-    "latch/known-force stiffness_scale": _SWITCH,
     "latch drive_saturation+offset_drift": _SWITCH,
 }
 
