@@ -124,7 +124,9 @@ CASES = [
     ("spring+cal", {"transducer_resonance": RESONANCE}),
     ("spring+cal", {"offset_drift": DRIFT}),
     ("spring+cal", {"bubble_shrinkage": SHRINK}),
-    ("spring+cal", {"drive_saturation": SAT_PAIR, "neighbour_drag": {"plateau": 4e-6}}),
+    # V_s = 6 V: at 3 V saturation caps the spring pair's force so that the drag changes its gap by 0.04 um RMS
+    # (max 0.35 um) at 0.2 um noise: not in the data (measured 0/10, saturation alone found, RMSE/noise 1.01)
+    ("spring+cal", {"drive_saturation": SAT, "neighbour_drag": {"plateau": 4e-6}}),
     ("latch", {"offset_drift": DRIFT}),
     ("latch", {"transducer_gain": GAIN}),
     ("latch", {"transducer_resonance": RESONANCE}),
@@ -154,7 +156,6 @@ LIMITS = {
     "latch transducer_resonance": _SWITCH,
     "latch drive_saturation": _SWITCH,
     "latch bubble_shrinkage": _SWITCH,
-    "latch/known-force stiffness_scale": _SWITCH,
     "latch drive_saturation+offset_drift": _SWITCH,
 }
 
