@@ -168,3 +168,12 @@ def test_parameter_moving_a_program_leaves_out_program_columns():
     assert exc.value.diagnostics[0].code == "E-USAGE" and exc.value.diagnostics[0].span.file == "<--quantity>"
     moved = acl.sweep(path, vary={"spacing": "80um..120um:3"})      # geometry only: forces are batched
     assert "force_low_high_85khz_n" in moved.columns
+
+
+@pytest.mark.parametrize("k, n, want", [
+    (2999995, 3000000, "0.9999 [0.9999, 1.0000]"),   # 5 failures: never printed as a perfect 1.0000
+    (5, 3000000, "0.0001 [0.0000, 0.0001]"),         # 5 passes: never printed as 0.0000
+    (3000000, 3000000, "1.0000 [0.9999, 1.0000]"),
+])
+def test_point_estimate_is_not_rounded_to_all_or_nothing(k, n, want):
+    assert T.Yield(k, n, *T.clopper_pearson(k, n)).text() == want

@@ -48,7 +48,13 @@ class Yield:
             hi = math.ceil(self.upper * f) / f
             if (hi - lo) - (self.upper - self.lower) <= 0.5 * (self.upper - self.lower):
                 break
-        return f"{self.value:.{digits}f} [{lo:.{digits}f}, {hi:.{digits}f}]"
+        f = 10**digits
+        shown = round(self.value * f) / f
+        if self.passed < self.total and shown >= 1.0:       # 2999995 of 3000000 is not "1.0000"
+            shown = math.floor(self.value * f) / f
+        elif self.passed > 0 and shown <= 0.0:               # nor is 5 of 3000000 "0.0000"
+            shown = math.ceil(self.value * f) / f
+        return f"{shown:.{digits}f} [{lo:.{digits}f}, {hi:.{digits}f}]"
 
     def as_dict(self) -> dict:
         return {"yield": self.value, "lower": self.lower, "upper": self.upper, "passed": self.passed, "total": self.total,
