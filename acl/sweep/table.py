@@ -50,10 +50,8 @@ class Yield:
                 break
         f = 10**digits
         shown = round(self.value * f) / f
-        if self.passed < self.total and shown >= 1.0:       # 2999995 of 3000000 is not "1.0000"
-            shown = math.floor(self.value * f) / f
-        elif self.passed > 0 and shown <= 0.0:               # nor is 5 of 3000000 "0.0000"
-            shown = math.ceil(self.value * f) / f
+        if self.passed < self.total and shown >= 1.0:       # 2999995 of 3000000 is not "1.0000" (optimistic);
+            shown = math.floor(self.value * f) / f          # 5 of 3000000 as "0.0000" errs on the safe side
         return f"{shown:.{digits}f} [{lo:.{digits}f}, {hi:.{digits}f}]"
 
     def as_dict(self) -> dict:
