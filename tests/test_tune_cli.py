@@ -194,8 +194,10 @@ def test_bad_options_are_usage_errors(tmp_path, capsys, args, diag, where):
 
 def test_bad_tolerance_is_located_on_the_option(tmp_path, capsys):
     d = _design(tmp_path)
-    _bad(tmp_path, capsys, [d, *FAST, "--tolerance", "r1=normal(0, 150 Hz)"], 1, "E321", "<--tolerance>")
-    _bad(tmp_path, capsys, [d, *FAST, "--tolerance", "rr=150 nm"], 1, "E211", "<--tolerance>")
+    # a usage error, exit 2 as `acl sweep` gives for the same option (it was 1, as for a design error)
+    _bad(tmp_path, capsys, [d, *FAST, "--tolerance", "r1=normal(0, 150 Hz)"], 2, "E321", "<--tolerance>")
+    _bad(tmp_path, capsys, [d, *FAST, "--tolerance", "rr=150 nm"], 2, "E211", "<--tolerance>")
+    _bad(tmp_path, capsys, [d, *FAST, "--tolerance", "r1=normal(0,"], 2, "E111", "<--tolerance>")
 
 
 def test_output_into_a_missing_folder_is_E601(tmp_path, capsys):

@@ -105,7 +105,9 @@ def run(args) -> int:
         result = _search(T, problem, args)
     except DiagnosticError as exc:
         report(exc.diagnostics, fmt)
-        return exit_code(exc.diagnostics)
+        # a problem in an option's text (`<--tolerance>:1:12`) is a usage error, exit 2 as in `acl sweep`
+        options = any(d.span is not None and d.span.file.startswith("<--") for d in exc.diagnostics)
+        return 2 if options else exit_code(exc.diagnostics)
     if args.verbose:
         for stage, secs in {"prepare": prepared, **result.timing_s}.items():
             sys.stderr.write(f"stage {stage}: {secs:.2f} s\n")
