@@ -66,6 +66,15 @@ def test_bad_spread_is_located(text, code, col):
     assert (code, 1, col) in _errors(text)
 
 
+def test_unclosed_spread_says_which_bracket_and_names_plus_minus():
+    """`normal(0, 1 um` ending the file was hinted as a block missing its `}`, and listed `_pm`."""
+    with pytest.raises(DiagnosticError) as exc:
+        acl.loads("param r = 10 um +- normal(0, 1 um\n")
+    d = exc.value.diagnostics[0]
+    assert d.code == "E111" and d.hint == "a `(` is missing its closing `)`"
+    assert "_pm" not in d.message
+
+
 def test_correlation_accepts_new_spreads():
     d = acl.loads("param a = 1 um +- normal(0, 0.1 um)\nparam b = 2 um +- 5 %\nuncertainty { correlation(a, b) = 0.5 }\n")
     assert d.correlations[0].value == 0.5

@@ -21,7 +21,7 @@ MAX_TREE_DEPTH = 200      # syntax tree levels: keeps every later tree walk far 
 _TERMINAL_WORDS = {
     "NAME": "a name", "QUANTITY": "a quantity with a unit", "NUMBER": "a number",
     "STRING": "a quoted string", "DIRECTION": "a direction such as +x", "_NL": "end of line",
-    "$END": "end of file", "CMP": "a comparison (>=, <=, >, <)", "RANGE": "`..`",
+    "$END": "end of file", "CMP": "a comparison (>=, <=, >, <)", "RANGE": "`..`", "_PM": "`+-`",
 }
 
 
@@ -627,7 +627,10 @@ def _syntax_diagnostic(exc: UnexpectedInput, file: str, lines: list[str], eof_li
             span = Span(file=file, line=ln, column=max(1, len(lines[ln - 1].rstrip()) if ln - 1 < len(lines) else 1))
         hint = None
         word = tok.value if tok.type not in ("$END", "_NL") else None
-        if "`}`" in expected and tok.type in ("$END",):
+        text = "\n".join(lines)
+        if tok.type == "$END" and "`)`" in expected and text.count("(") > text.count(")"):
+            hint = "a `(` is missing its closing `)`"
+        elif "`}`" in expected and tok.type in ("$END",):
             hint = "a block is missing its closing `}`"
         elif word in _STEP_WORDS and "`pause`" in expected:
             hint = f"did you mean `{_STEP_WORDS[word]}`?"
