@@ -130,3 +130,19 @@ def test_affine_expressions_of_two_parameters_match_resolution(tmp_path):
         _compare_with_load(path, d, pts, b_, range(b_.n))
 
     check()
+
+
+def test_touching_orifices_are_E403_as_acl_check_says():
+    """Orifices of the Fig. 4 pair closer than the printable gap (0.2 um) are one bubble: `acl check`
+    says E403; the sweep said valid (it checked only the capsule bodies' overlap)."""
+    d = acl.load(str(PAIR))
+    s = build_spec(d, ["gap=0um,0.1um,0.19um,0.5um,40um"])
+    b = field_batch(d, chunk_points(s, 0, s.chunk_size))
+    for gap, code in zip(s.axes[0].values, b.code):
+        try:
+            acl.load(str(PAIR), overrides={"gap": float(gap)})
+            want = ""
+        except DiagnosticError as exc:
+            want = exc.diagnostics[0].code
+        assert code == want, gap
+    assert list(b.valid) == [False, False, False, True, True]

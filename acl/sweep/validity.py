@@ -155,6 +155,12 @@ def check_points(batch) -> None:
                 eb = _extent_cols(b.cavity.shape, -u, b.cavity.axis, *(_size(batch, f"capsules.{b.name}", k, b.cavity)
                                                                        for k in ("radius", "side", "height", "volume", "wall")))
                 _mark(batch, (dist == 0) | (ea + eb - dist > C.OVERLAP_TOL), "E403")
+                # orifices closer than the printable gap: one bubble (acl.design.checks._touching_orifices)
+                for oa in a.orifices:
+                    for ob in b.orifices:
+                        pa = np.stack([g(f"capsules.{a.name}.orifices.{oa.name}.center.{k}") for k in range(3)], axis=1)
+                        pb = np.stack([g(f"capsules.{b.name}.orifices.{ob.name}.center.{k}") for k in range(3)], axis=1)
+                        _mark(batch, np.linalg.norm(pb - pa, axis=1) < C.PRINT_LATERAL, "E403")
 
 
 def _size(batch, base: str, key: str, cav):
