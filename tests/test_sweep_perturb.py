@@ -146,3 +146,23 @@ def test_touching_orifices_are_E403_as_acl_check_says():
             want = exc.diagnostics[0].code
         assert code == want, gap
     assert list(b.valid) == [False, False, False, True, True]
+
+
+@pytest.mark.parametrize("example, vary, codes", [
+    ("fig3_three_orifice.acl", "vmax=-20V,0V,20V,30V", ["E401", "E401", "", "E502"]),   # limit above the transducer's
+    ("fig4h_unequal_pair.acl", "volts=-1.2V,1.2V", ["E401", ""]),                       # negative drive amplitude
+    ("fig4h_unequal_pair.acl", "q_declared=-40,0,40", ["E401", "E401", ""]),            # declared Q not positive
+    ("fig6_bistable_latch.acl", "vmax=100V,150V", ["", "E502"]),
+])
+def test_drive_transducer_and_q_points_get_the_code_acl_check_gives(example, vary, codes):
+    """These were valid rows (the vectorised checks cover geometry only), though `acl check` refuses them."""
+    path = ROOT / "examples" / example
+    name, values = vary.split("=")
+    t = acl.sweep(str(path), vary={name: values})
+    assert list(t["code"]) == codes
+    for x, code in zip(t[vary.split("=")[0]], codes):
+        try:
+            acl.load(str(path), overrides={vary.split("=")[0]: float(x)})
+            assert code == ""
+        except DiagnosticError as exc:
+            assert code in {d.code for d in exc.diagnostics if d.is_error}

@@ -359,7 +359,41 @@ def field_batch(design: Design, params: dict[str, np.ndarray], fmap: FieldMap | 
     from acl.sweep.validity import check_points
 
     check_points(batch)
+    _resolver_checks(design, fmap, x, batch)
     return batch
+
+
+# Fields whose checks (drive amplitudes and frequencies, step limits, the transducer's maximum
+# voltage: E401, E502) acl.sweep.validity does not vectorise: the resolver judges them.
+_RESOLVER_CHECKED = ("programs.", "transducer.")
+
+
+def _resolver_checks(design, fmap: FieldMap, x: np.ndarray, batch) -> None:
+    """Points whose program or transducer fields move get the resolver's verdict: each unique value
+    of the parameters those fields depend on is loaded once; an error marks its points invalid with
+    the resolver's first error code (as `acl check`), never a valid row for a drive it refuses."""
+    moved = [p for p in batch.fields if p.startswith(_RESOLVER_CHECKED)]
+    if not moved or not len(x):
+        return
+    dep = set()
+    for p in moved:
+        c = fmap.linear.get(p)
+        dep |= {n for n, ci in zip(fmap.names, c) if ci != 0} if c is not None else set(fmap.names)
+    cols = [i for i, n in enumerate(fmap.names) if n in dep]
+    if not cols:
+        return
+    uniq, inverse = np.unique(x[:, cols], axis=0, return_inverse=True)
+    inverse = inverse.ravel()
+    codes = np.full(len(uniq), "", dtype="<U8")
+    for u, row in enumerate(uniq):
+        ov = {**fmap.overrides, **{fmap.names[i]: float(v) for i, v in zip(cols, row)}}
+        try:
+            _load(fmap.source, ov, fmap.search_paths)
+        except DiagnosticError as exc:
+            codes[u] = next((d.code for d in exc.diagnostics if d.is_error), "E000")
+    bad = (codes[inverse] != "") & batch.valid
+    batch.code[bad] = codes[inverse][bad]
+    batch.valid[bad] = False
 
 
 def _exact_fields(design, fmap: FieldMap, x: np.ndarray, fields: dict, valid: np.ndarray, code: np.ndarray) -> None:

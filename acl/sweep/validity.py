@@ -60,6 +60,7 @@ def check_points(batch) -> None:
         positive += [f"beams.{b.name}.section.{k}" for k in ("diameter", "width", "thickness") if getattr(b.section, k) is not None]
     for la in d.latches:
         positive += [f"latches.{la.name}.{k}" for k in ("length", "width", "thickness", "youngs_modulus")]
+    positive += [f"capsules.{c.name}.quality_factor" for c in d.capsules]   # a declared `q` (builders: E401)
     positive += [f"springs.{s.name}.stiffness" for s in d.springs]
     positive += [f"materials.{m.name}.youngs_modulus" for m in d.materials]
     for path in positive:
