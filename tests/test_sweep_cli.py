@@ -178,3 +178,14 @@ def test_a_spread_of_metres_gives_invalid_rows_not_a_usage_error(tmp_path, capsy
     codes = {r.split(",")[4] for r in rows}
     assert len(rows) == 100 and codes <= {"E401", "E402"} and len(codes) == 2
     assert "100 invalid" in capsys.readouterr().out
+
+
+def test_yield_vs_tolerance_lines_round_their_bounds_outwards(tmp_path, capsys):
+    """`tolerance xS` lines printed bounds to the nearest 0.01 (a lower bound 0.998 of 2000 of 2000
+    as 1.00); they now use the summary's text, rounded outwards."""
+    from acl.sweep.table import Yield, clopper_pearson
+
+    assert main(["sweep", CANTILEVER, "--samples", "300", "--tolerance-scales", "0,1", "-o", str(tmp_path / "t.csv")]) == 0
+    lines = [ln.strip() for ln in capsys.readouterr().out.splitlines() if ln.strip().startswith("tolerance x0:")]
+    assert lines == [f"tolerance x0: yield {Yield(300, 300, *clopper_pearson(300, 300)).text()}"]
+    assert lines[0].endswith("[0.987, 1.000]")           # lower bound 0.9878, never shown as 1.00

@@ -156,6 +156,8 @@ def _run(run_sweep, design, spec, args, overrides, quiet):
 def _print(table, args, curve, written, design) -> None:
     from acl._console import make_console
 
+    from acl.sweep.table import Yield
+
     con = make_console()
     if not args.quiet:
         for n in table.notes:
@@ -171,6 +173,8 @@ def _print(table, args, curve, written, design) -> None:
             con.print(f"  {key} `{design.requires[i - 1].text}`: {verdict}")
     if curve:
         for r in curve:
-            con.print(f"  tolerance x{r['scale']:g}: yield {r['yield']:.2f} [{r['lower']:.2f}, {r['upper']:.2f}]")
+            # the same text as every other yield: bounds rounded outwards (was to nearest: 0.467 shown as 0.47)
+            y = Yield(int(r["passed"]), int(r["total"]), float(r["lower"]), float(r["upper"]))
+            con.print(f"  tolerance x{r['scale']:g}: yield {y.text()}")
     if written:
         con.print(f"wrote {len(written)} figure(s) to {args.plot}")
