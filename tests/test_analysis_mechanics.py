@@ -150,6 +150,10 @@ def test_large_deflection_warns_that_eq1_is_out_of_range():
     large = M.equilibrium(fig2_pair(30e-6), UNIT_DRIVE, push, mode="large")
     assert large.status == "ok" and not large.diagnostics
     assert abs(large.displacements["a"][0]) < abs(state.displacements["a"][0])
+    # a voltage sweep reports the same warning at its last point (computed when first read), and
+    # none while the deflection stays small
+    assert any(dg.code == "W-MECH-001" for dg in M.sweep_voltage(fig2_pair(30e-6), UNIT_DRIVE, 1.0, push).diagnostics)
+    assert not M.sweep_voltage(fig2_pair(30e-6), UNIT_DRIVE, 0.1, push).diagnostics
 
 
 def _latched(state, push_nN):

@@ -22,6 +22,7 @@ Degrees of freedom (capsules translate rigidly, no rotation):
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
 from typing import Callable, Mapping
 
 import numpy as np
@@ -67,7 +68,12 @@ class VoltageSweep:
     snap_voltage: float | None
     snap_positions: dict | None
     message: str = ""
-    diagnostics: tuple[Diagnostic, ...] = ()
+    checks: object = ()       # the validity diagnostics, or a function computing them on first use
+
+    @cached_property
+    def diagnostics(self) -> tuple[Diagnostic, ...]:
+        """Validity warnings at the branch's last point (Eq. (1) range: W-MECH-001), computed on first use."""
+        return tuple(self.checks() if callable(self.checks) else self.checks)
 
     def snap_gap(self, design: Design, a: str, b: str) -> float | None:
         """Distance between the closest orifice centres of a and b at the snap-in (m), None without snap."""
@@ -637,12 +643,13 @@ def sweep_voltage(design: Design, drive_shape: Drive, v_max: float, force_model:
     per_point = [_positions(design, mech, mech.Z @ z) for z in br.q]
     positions = {c.name: np.array([p[c.name] for p in per_point]).reshape(len(per_point), 3)
                  for c in design.capsules}
-    snap_v, snap_pos, diags = None, None, []
+    snap_v, snap_pos = None, None
     if br.status == "snap_in":
         snap_v, snap_pos = br.snap.voltage, _positions(design, mech, mech.Z @ br.snap.q)
-    if br.q.size:
-        diags.extend(_validity(mech, mech.Z @ br.q[-1], mode))
-    return VoltageSweep(br.voltage, positions, br.status, snap_v, snap_pos, br.message, tuple(diags))
+    last = mech.Z @ br.q[-1] if br.q.size else None
+    # the Eq. (1) validity check solves elastica BVPs: only when someone reads the diagnostics
+    checks = (lambda: _validity(mech, last, mode)) if last is not None else ()
+    return VoltageSweep(br.voltage, positions, br.status, snap_v, snap_pos, br.message, checks)
 
 
 def latch_margins(design: Design, drive: Drive, force_model: ForceModel) -> dict[str, LatchMargin]:
