@@ -123,6 +123,13 @@ def generate(design_path, experiment, effects: dict | None = None, noise: float 
     y = predict(P, dict(coeffs or {}), effect_inputs(effects or {}))
     rng = np.random.default_rng(seed)
     data.value = y + rng.normal(0.0, noise, n) if noise > 0 else y
+    if np.any(P.state):
+        # a latch state is 0 or 1: drawn with the model's switching probability (noise-free: the likelier state)
+        st = P.state
+        draw = rng.uniform(size=n) < y if noise > 0 else y >= 0.5
+        data.value = np.where(st, draw.astype(float), data.value)
+        data.sigma = np.where(st, 0.5 if noise > 0 else np.nan, data.sigma)
+        data.units = np.where(st, "1", data.units).astype(object)
     return data, P
 
 
@@ -141,8 +148,10 @@ def write_csv(data, path, unit: str = "um") -> None:
             *(["experiment"] if with_exp else []), *[f"set:{k}" for k in set_names]]
     lines = [",".join(head)]
     for i in range(data.n):
-        cells = [data.observable[i], f"{data.value[i] / factor:.6g}", unit, format_drive(data.tones[i]),
-                 f"{data.time[i]:.6g}", *([f"{data.sigma[i] / factor:.6g}"] if with_sigma else []),
+        dimensionless = data.units[i] == "1"          # a latch state (0/1) is a pure number
+        f_i, u_i = (1.0, "1") if dimensionless else (factor, unit)
+        cells = [data.observable[i], f"{data.value[i] / f_i:.6g}", u_i, format_drive(data.tones[i]),
+                 f"{data.time[i]:.6g}", *([f"{data.sigma[i] / f_i:.6g}"] if with_sigma else []),
                  *([data.experiment[i]] if with_exp else []),
                  *[data.sets[k][i] for k in set_names]]
         lines.append(",".join(cells))
@@ -180,11 +189,61 @@ class Target:
     points: object                          # (N, 2) m
 
 
-def read_schedule(path: str) -> tuple[list[Waypoint], int, dict]:
+MAX_SCHEDULE_BYTES = 64 * 2**20     # a schedule.json larger than this is refused (parsed, ~8x in memory)
+MAX_REPLAY_SEGMENTS = 20_000        # constant-drive segments one replay plays (--max-segments raises it)
+MAX_REPLAY_LIMIT = 200_000          # the highest --max-segments (each segment is an equilibrium solve, ~1-10 ms)
+
+
+def _segment_position(text: str, index: int) -> tuple[int, int]:
+    """(line, column) of element ``index`` of the top-level ``segments`` array of a JSON text, or (1, 1).
+
+    Walks the top level with the JSON decoder (only the elements before ``index`` are decoded)."""
+    import json
+
+    dec = json.JSONDecoder()
+    ws = " \t\n\r"
+
+    def skip(i):
+        while i < len(text) and text[i] in ws:
+            i += 1
+        return i
+
+    def where(i):
+        line = text.count("\n", 0, i) + 1
+        return line, i - (text.rfind("\n", 0, i) + 1) + 1
+
+    try:
+        i = skip(text.startswith("\ufeff") and 1 or 0)
+        if text[i] != "{":
+            return 1, 1
+        i, found = skip(i + 1), None
+        while i < len(text) and text[i] != "}":
+            key, i = dec.raw_decode(text, i)
+            i = skip(skip(i) + 1)             # past the colon
+            if key == "segments" and text[i] == "[":
+                found = i
+            _, i = dec.raw_decode(text, i)
+            i = skip(i)
+            if text[i] == ",":
+                i = skip(i + 1)
+        if found is None:
+            return 1, 1
+        i = skip(found + 1)
+        for _ in range(index):
+            _, i = dec.raw_decode(text, i)
+            i = skip(skip(i) + 1)             # past the comma
+        return where(i)
+    except (ValueError, IndexError, RecursionError):
+        return 1, 1
+
+
+def read_schedule(path: str, max_segments: int = MAX_REPLAY_SEGMENTS) -> tuple[list[Waypoint], int, dict]:
     """The constant-drive segments of a schedule.json, how many chirp segments were skipped, and the
     follow goals' targets {goal name: Target} (schedule 1.1+).
 
-    Raises DiagnosticError (E-SYNTH-SCHEDULE) at file:line:column for anything malformed.
+    Raises DiagnosticError (E-SYNTH-SCHEDULE) at file:line:column for anything malformed, for a
+    file over :data:`MAX_SCHEDULE_BYTES`, and for more than ``max_segments`` constant-drive
+    segments (located at the first one beyond).
     """
     import json
     import math
@@ -194,7 +253,7 @@ def read_schedule(path: str) -> tuple[list[Waypoint], int, dict]:
 
     import os
 
-    from acl.fit.data import MAX_BYTES
+    MAX_BYTES = MAX_SCHEDULE_BYTES
 
     if not os.path.isfile(path):   # never open a FIFO or a device: it would block or never end
         raise DiagnosticError([error("E601", f"cannot read the schedule `{path}`: "
@@ -240,11 +299,17 @@ def read_schedule(path: str) -> tuple[list[Waypoint], int, dict]:
             if not math.isfinite(start):
                 raise ValueError("start_s is not finite")
         except (KeyError, TypeError, ValueError, OverflowError, AttributeError) as exc:
-            raise bad(f"{where}: malformed segment ({exc})", hint="each segment has start_s and tones "
-                      "[{frequency_hz, amplitude_v}]") from None
+            raise bad(f"{where}: malformed segment ({exc})", *_segment_position(text, i),
+                      hint="each segment has start_s and tones [{frequency_hz, amplitude_v}]") from None
         if chirp:
             chirps += 1
             continue
+        if len(out) >= max_segments:
+            raise bad(f"{where}: more than {max_segments:,} constant-drive segments ({len(doc['segments']):,} segments "
+                      f"in all); a replay plays at most {max_segments:,} (each is an equilibrium solve)",
+                      *_segment_position(text, i),
+                      hint=f"replay a shorter program, compile with a larger --waypoint-dt, or raise --max-segments "
+                           f"(at most {MAX_REPLAY_LIMIT:,})")
         goal = str(seg.get("goal") or "")
         out.append(Waypoint(start, tuple(tones), goal, step, count.get(goal, 0)))
         count[goal] = count.get(goal, 0) + 1
@@ -280,6 +345,12 @@ def observe_value(design, obs, state) -> float:
 
     if obs.kind == "gap":
         return orifice_gap(design, obs.a, obs.b, state.positions)
+    if obs.kind == "state":      # past the unstable point of the latch landscape: state b (acl.physics.latch)
+        from acl.analysis.mechanics import latch_geometry
+        from acl.physics.latch import latch_landscape
+
+        land = latch_landscape(*latch_geometry(design.latch(obs.target), design))
+        return float(land.bistable and state.deflections[obs.target] > land.unstable)
     cap = obs.target
     if cap not in state.displacements:
         held = [j.capsule for j in design.joints if j.kind == "mount" and j.target == obs.target]
