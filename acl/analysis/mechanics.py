@@ -584,6 +584,23 @@ def _validity(mech: _Mechanism, q: np.ndarray, mode: str) -> tuple[Diagnostic, .
     return tuple(found)
 
 
+_PREPARED: list = []     # [(design, mode, (mechanism, restoring, admissible))], most recent first
+
+
+def _prepared(design: Design, mode: str):
+    """(mechanism, restoring, admissible) of ``design``: built once per design (immutable) and mode.
+
+    Schedulers solve thousands of equilibria of one design under different drives.
+    """
+    for d, m, hit in _PREPARED:
+        if d is design and m == mode:
+            return hit
+    mech = build_mechanism(design, mode)
+    hit = (mech, _restoring(mech), _admissible(design, mech))
+    _PREPARED[:] = ([(design, mode, hit)] + _PREPARED)[:8]
+    return hit
+
+
 # ----------------------------------------------------------------------------------------------
 # Public entry points
 # ----------------------------------------------------------------------------------------------
@@ -597,8 +614,8 @@ def equilibrium(design: Design, drive: Drive, force_model: ForceModel, *, mode: 
     ``start`` (capsule -> centre) instead solves directly from that configuration (a warm start,
     which keeps hysteresis such as a switched latch); if that fails or is unstable, it continues from rest.
     """
-    mech = build_mechanism(design, mode)
-    rest, ext, adm = _restoring(mech), _external(design, mech, drive, force_model), _admissible(design, mech)
+    mech, rest, adm = _prepared(design, mode)
+    ext = _external(design, mech, drive, force_model)
     if mech.m == 0:
         q = np.zeros(mech.n)
         return MechanismState(_positions(design, mech, q), _displacements(design, mech, q),
@@ -634,8 +651,8 @@ def _displacements(design: Design, mech: _Mechanism, q: np.ndarray) -> dict:
 def sweep_voltage(design: Design, drive_shape: Drive, v_max: float, force_model: ForceModel, *,
                   mode: str = "eq1") -> VoltageSweep:
     """Stable equilibria as the drive shape's amplitudes are scaled by V from 0 to ``v_max``; reports snap-in."""
-    mech = build_mechanism(design, mode)
-    rest, ext, adm = _restoring(mech), _external(design, mech, drive_shape, force_model), _admissible(design, mech)
+    mech, rest, adm = _prepared(design, mode)
+    ext = _external(design, mech, drive_shape, force_model)
     if mech.m == 0:
         return VoltageSweep(np.array([0.0, v_max]), {c.name: np.tile(c.center, (2, 1)) for c in design.capsules},
                             "ok", None, None)
