@@ -524,12 +524,6 @@ class _Engine:
             self._rest.append(self.forces(self.lay.rest[None], parts=True))
         return self._rest[0]
 
-    def volumes(self, centres: np.ndarray) -> np.ndarray:
-        """Coupled inward volume amplitudes (B, T, n) for capsule centres (B, C, 3)."""
-        if self.f.size == 0 or self.lay.radii.size == 0:
-            return np.zeros((centres.shape[0], self.f.size, self.lay.radii.size), complex)
-        return self.response(self.lay.points(centres)) * self.pressure[None, :, None]
-
     def forces(self, centres: np.ndarray, parts: bool = False):
         """Total acoustic force (B, C, 3) on each capsule for centres (B, C, 3): thrust + Bjerknes + jet drag."""
         k = self.consts
