@@ -9,6 +9,15 @@ planted, every library effect in every experiment kind that can identify it:
 * ``pair+cal``        tests/data/fit_pair_cal.acl: the pair, and the isolated calibration beam to 11 V
 * ``spring+cal``      tests/data/fit_spring_cal.acl: paper Fig. 5c spring pair, and the calibration beam
 * ``latch``           examples/fig6_bistable_latch.acl, ramps 0..60 V (through the switch) at 4 frequencies
+* ``.../known-force`` the same data with the thrust coefficient held at its declared value (a force known
+                       independently): the only way to identify ``stiffness_scale`` (delta depends on P/EI)
+
+Not planted where the experiment cannot identify the effect (docs/fit.md, "What a given kind of data cannot
+tell apart"): ``neighbour_drag`` on a lone actuator (no neighbour: not applicable), ``drive_saturation`` and
+``neighbour_drag`` on a pair alone (both bend the gap-voltage curve: the calibration beam separates them),
+``large_deflection`` on a pair alone (snap-in keeps its beams within Eq. (1)'s range; the calibration beam
+reaches it), ``stiffness_gradient`` and ``substrate_proximity`` without beams of several lengths and heights,
+``stiffness_scale`` with the thrust coefficient free.
 
 plus clean data (nothing may be claimed) and two effects outside the library, planted on the
 cantilever ramps by hand: viscoelastic creep (deflection x (1 + 0.25 (1 - exp(-t / 40 s)))) and an
@@ -16,8 +25,11 @@ out-of-plane tilt (the observed deflection foreshortened by cos(phi), phi = 0.4 
 for those, "correct" is: no effect selected and structure reported as unexplained with a covariate.
 
 A case is diagnosed correctly when the selected set equals the planted set.  Prints one row per case:
-rate over seeds, mean RMSE after / noise, and the wrong selections seen; `--json PATH` writes them.
-Run: python benchmarks/fit_diagnosis.py [--seeds 10] [--only SUBSTRING] [--json out.json]
+rate over seeds, mean RMSE after / noise, and the wrong selections seen; `--json PATH` writes every run (after each
+case; `--merge` keeps the other cases already in the file).  The committed benchmarks/fit_diagnosis.json is the run
+behind the table in docs/fit.md (rendered by tests/docs_sync.py with :func:`markdown`); tests/test_fit_diagnosis.py
+checks its rates and repeats a subset of its runs.
+Run: python benchmarks/fit_diagnosis.py [--seeds 10] [--only SUBSTRING] [--json benchmarks/fit_diagnosis.json]
 """
 from __future__ import annotations
 
@@ -62,64 +74,100 @@ def kinds():
     return {
         "cantilever": (CANT, ramps, ["gamma"], 0.2e-6, {}),
         "cantilever/geometry": (CANT, geometry, ["gamma"], 0.2e-6, {}),
+        "cantilever/known-force": (CANT, geometry, [], 0.2e-6, {}),
         "pair": (PAIR, pair, ["gamma", "alpha"], 0.3e-6, {"alpha": 1.745e-19}),
         "pair+cal": (PAIR_CAL, pair_cal, ["gamma", "alpha"], 0.2e-6, {"alpha": 1.745e-19}),
         "spring+cal": (SPRING_CAL, spring_cal, ["gamma", "alpha"], 0.2e-6, {"alpha": 1.745e-19}),
         "latch": (LATCH, latch, ["gamma"], 0.2e-6, {}),
+        "latch/known-force": (LATCH, latch, [], 0.2e-6, {}),
     }
 
 
 DRIFT = {"offset": 0.5e-6, "drift": 0.01e-6}
 RESONANCE = {"inv_f_ratio": 1.0 / 1.02, "gain_q": 2.0}      # broad transducer resonance at 127.5 kHz
+SAT, SAT_PAIR, SAT_LATCH = {"v_sat": 6.0}, {"v_sat": 3.0}, {"v_sat": 30.0}
+GAIN, SHRINK = {"gain_slope": 1.5}, {"shrink_rate": 0.004}
+LARGE = {"elastica_weight": 1.0}
 CASES = [
     # (kind, planted effects)
-    ("cantilever", {"transducer_gain": {"gain_slope": 1.5}}),
+    ("cantilever", {"transducer_gain": GAIN}),
     ("cantilever", {"transducer_resonance": RESONANCE}),
-    ("cantilever", {"drive_saturation": {"v_sat": 6.0}}),
-    ("cantilever", {"large_deflection": {"elastica_weight": 1.0}}),
+    ("cantilever", {"drive_saturation": SAT}),
+    ("cantilever", {"large_deflection": LARGE}),
     ("cantilever", {"offset_drift": DRIFT}),
-    ("cantilever", {"bubble_shrinkage": {"shrink_rate": 0.004}}),
-    ("cantilever", {"neighbour_drag": {"plateau": 8e-6}}),
+    ("cantilever", {"bubble_shrinkage": SHRINK}),
     ("cantilever/geometry", {"stiffness_gradient": {"e_gradient": 1.0}}),
     ("cantilever/geometry", {"substrate_proximity": {"h_substrate": 40e-6}}),
-    ("cantilever", {"transducer_resonance": RESONANCE, "bubble_shrinkage": {"shrink_rate": 0.004}}),
-    ("cantilever", {"drive_saturation": {"v_sat": 6.0}, "offset_drift": DRIFT}),
-    ("pair", {"transducer_gain": {"gain_slope": 1.5}}),
+    ("cantilever/known-force", {"stiffness_scale": {"e_scale": 0.7}}),
+    ("cantilever", {"transducer_resonance": RESONANCE, "bubble_shrinkage": SHRINK}),
+    ("cantilever", {"drive_saturation": SAT, "offset_drift": DRIFT}),
+    ("cantilever", {"large_deflection": LARGE, "transducer_gain": GAIN}),
+    ("cantilever/geometry", {"stiffness_gradient": {"e_gradient": 1.0}, "substrate_proximity": {"h_substrate": 40e-6}}),
+    ("pair", {"transducer_gain": GAIN}),
     ("pair", {"transducer_resonance": RESONANCE}),
     ("pair", {"offset_drift": DRIFT}),
-    ("pair", {"bubble_shrinkage": {"shrink_rate": 0.004}}),
-    ("pair+cal", {"drive_saturation": {"v_sat": 3.0}}),
+    ("pair", {"bubble_shrinkage": SHRINK}),
+    ("pair", {"transducer_resonance": RESONANCE, "bubble_shrinkage": SHRINK}),
+    ("pair+cal", {"drive_saturation": SAT_PAIR}),
     ("pair+cal", {"neighbour_drag": {"plateau": 8e-6}}),
-    ("pair+cal", {"transducer_gain": {"gain_slope": 1.5}}),
+    ("pair+cal", {"large_deflection": LARGE}),
+    ("pair+cal", {"transducer_gain": GAIN}),
     ("pair+cal", {"transducer_resonance": RESONANCE}),
     ("pair+cal", {"offset_drift": DRIFT}),
-    ("pair+cal", {"bubble_shrinkage": {"shrink_rate": 0.004}}),
-    ("pair+cal", {"drive_saturation": {"v_sat": 3.0}, "neighbour_drag": {"plateau": 8e-6}}),
-    ("spring+cal", {"drive_saturation": {"v_sat": 3.0}}),
+    ("pair+cal", {"bubble_shrinkage": SHRINK}),
+    ("pair+cal", {"drive_saturation": SAT_PAIR, "neighbour_drag": {"plateau": 8e-6}}),
+    ("pair+cal", {"transducer_resonance": RESONANCE, "bubble_shrinkage": SHRINK}),
+    ("spring+cal", {"drive_saturation": SAT_PAIR}),
     ("spring+cal", {"neighbour_drag": {"plateau": 4e-6}}),
-    ("spring+cal", {"transducer_gain": {"gain_slope": 1.5}}),
+    ("spring+cal", {"large_deflection": LARGE}),
+    ("spring+cal", {"transducer_gain": GAIN}),
     ("spring+cal", {"transducer_resonance": RESONANCE}),
     ("spring+cal", {"offset_drift": DRIFT}),
-    ("spring+cal", {"bubble_shrinkage": {"shrink_rate": 0.004}}),
+    ("spring+cal", {"bubble_shrinkage": SHRINK}),
+    ("spring+cal", {"drive_saturation": SAT_PAIR, "neighbour_drag": {"plateau": 4e-6}}),
     ("latch", {"offset_drift": DRIFT}),
-    ("latch", {"transducer_gain": {"gain_slope": 1.5}}),
-    ("latch", {"drive_saturation": {"v_sat": 30.0}}),
+    ("latch", {"transducer_gain": GAIN}),
+    ("latch", {"transducer_resonance": RESONANCE}),
+    ("latch", {"drive_saturation": SAT_LATCH}),
+    ("latch", {"bubble_shrinkage": SHRINK}),
+    ("latch/known-force", {"stiffness_scale": {"e_scale": 0.7}}),
+    ("latch", {"drive_saturation": SAT_LATCH, "offset_drift": DRIFT}),
     # clean data: nothing may be claimed
     ("cantilever", {}), ("cantilever/geometry", {}), ("pair", {}), ("pair+cal", {}), ("spring+cal", {}), ("latch", {}),
     # outside the library: reported as unexplained structure with a covariate, no effect claimed
     ("cantilever", {"(creep)": {}}),
     ("cantilever", {"(tilt)": {}}),
+    ("pair+cal", {"(creep)": {}}),
 ]
 
 
-def outside(kind_name, effects, data):
-    """Apply the hand-planted effects outside the library to noise-free values (see module docstring)."""
-    v = data.value.copy()
+# Cases measured but not counted against the 90 % bar, with the reason (docs/fit.md shows it): the experiment
+# cannot identify the effect.  The latch's shuttle moves less than the noise (< 0.1 um at 0.2 um) before it
+# switches and sits at state b after, so an effect that changes the switching voltage shows only in which 5 V step
+# switched: a step that least squares cannot follow (no gradient), and which the base model with a re-fitted gamma
+# often matches exactly.  (A `state(latch)` observable fitted by maximum likelihood, branch fitmech, is the way to
+# identify them; not yet in this sweep.)
+_SWITCH = ("the latch shows it only through which voltage step switched (shuttle travel before the switch is below "
+           "the noise): not identifiable by least squares on the shuttle displacement")
+LIMITS = {
+    "latch transducer_gain": _SWITCH,
+    "latch transducer_resonance": _SWITCH,
+    "latch drive_saturation": _SWITCH,
+    "latch bubble_shrinkage": _SWITCH,
+    "latch/known-force stiffness_scale": _SWITCH,
+    "latch drive_saturation+offset_drift": _SWITCH,
+}
+
+
+def outside(kind_name, effects, data, rest):
+    """Apply the hand-planted effects outside the library to noise-free values (see module docstring), on each
+    row's displacement from its rest value ``rest`` (a cantilever's deflection, a pair's closing of the gap)."""
+    u = data.value - rest
     if "(creep)" in effects:
-        v = v * (1.0 + 0.25 * (1.0 - np.exp(-data.time / 40.0)))
+        u = u * (1.0 + 0.25 * (1.0 - np.exp(-data.time / 40.0)))
     if "(tilt)" in effects:
-        v = v * np.cos(0.4 * v / 10e-6)
-    return v
+        u = u * np.cos(0.4 * u / 10e-6)
+    return rest + u
 
 
 def run_case(kind_name, planted, seed):
@@ -128,8 +176,8 @@ def run_case(kind_name, planted, seed):
 
     design, experiment, free, noise, coeffs = kinds()[kind_name]
     lib = {k: v for k, v in planted.items() if not k.startswith("(")}
-    data, _ = generate(design, experiment, lib, noise=0.0, seed=seed, coeffs=coeffs)
-    data.value = outside(kind_name, planted, data) + np.random.default_rng(seed).normal(0, noise, data.n)
+    data, P = generate(design, experiment, lib, noise=0.0, seed=seed, coeffs=coeffs)
+    data.value = outside(kind_name, planted, data, P.base) + np.random.default_rng(seed).normal(0, noise, data.n)
     data.sigma = np.full(data.n, noise)
     with tempfile.TemporaryDirectory() as tmp:
         path = os.path.join(tmp, "d.csv")
@@ -143,9 +191,48 @@ def run_case(kind_name, planted, seed):
         ok = not selected and bool(r["unexplained"])
     else:
         ok = sorted(selected) == sorted(lib)
-    return {"kind": kind_name, "planted": sorted(planted), "seed": seed, "selected": selected, "ok": bool(ok),
+    return {"case": label(kind_name, planted), "kind": kind_name, "planted": sorted(planted), "seed": seed, "selected": selected, "ok": bool(ok),
             "rmse_after_over_noise": r["rmse_after"] / noise, "rmse_before_over_noise": r["rmse_before"] / noise,
             "unexplained": sorted({u["covariate"] for u in r["unexplained"]}), "rows": r["rows"], "seconds": dt}
+
+
+def label(kind_name, planted) -> str:
+    return f"{kind_name} {'+'.join(sorted(planted)) or 'clean'}"
+
+
+def summary(rows) -> list[dict]:
+    """One entry per case (in the order first met): rate, mean RMSE after / noise, wrong selections, covariates."""
+    out = {}
+    for r in rows:
+        out.setdefault(r["case"], []).append(r)
+    table = []
+    for case, res in out.items():
+        outside_ = any(k.startswith("(") for k in res[0]["planted"])
+        table.append({"case": case, "kind": res[0]["kind"], "planted": res[0]["planted"], "outside": outside_,
+                      "limit": LIMITS.get(case, ""),
+                      "n": len(res), "correct": sum(r["ok"] for r in res),
+                      "seeds": [r["seed"] for r in res],
+                      "rmse_after_over_noise": float(np.mean([r["rmse_after_over_noise"] for r in res])),
+                      "rmse_after_over_noise_max": float(np.max([r["rmse_after_over_noise"] for r in res])),
+                      "wrong": sorted({"+".join(r["selected"]) or "none" for r in res if not r["ok"]}),
+                      "unexplained": sorted({c for r in res for c in r["unexplained"]}) if outside_ else []})
+    return table
+
+
+def markdown(rows) -> str:
+    """The docs/fit.md table of a run (tests/docs_sync.py renders it from benchmarks/fit_diagnosis.json)."""
+    lines = ["| kind | planted | correct | RMSE/noise mean (max) | wrong choices / structure reported |",
+             "|---|---|---|---|---|"]
+    for c in summary(rows):
+        planted = " + ".join(c["planted"]) or "none (clean)"
+        note = ", ".join(c["wrong"])
+        if c["outside"]:
+            note = (note + "; " if note else "") + "structure vs " + ", ".join(c["unexplained"])
+        if c["limit"]:
+            note = (note + "; " if note else "") + "not counted: " + c["limit"]
+        lines.append(f"| {c['kind']} | {planted} | {c['correct']}/{c['n']} | "
+                     f"{c['rmse_after_over_noise']:.2f} ({c['rmse_after_over_noise_max']:.2f}) | {note} |")
+    return "\n".join(lines)
 
 
 def main(argv=None) -> int:
@@ -155,14 +242,32 @@ def main(argv=None) -> int:
     ap.add_argument("--only", default="")
     ap.add_argument("--json", default="")
     ap.add_argument("--exclude", default="", help="comma-separated substrings of case labels to skip")
+    ap.add_argument("--merge", action="store_true",
+                    help="keep the other cases already in --json (rerun only the cases selected here)")
     args = ap.parse_args(argv)
     rows = []
+    kept = []
+    if args.merge and args.json and os.path.exists(args.json):
+        with open(args.json) as fh:
+            kept = json.load(fh)["rows"]
+    order = [label(k, p) for k, p in CASES]
+
+    def save():
+        if not args.json:
+            return
+        names = {r["case"] for r in rows}
+        every = [r for r in kept if r["case"] not in names and r["case"] in order] + rows
+        every.sort(key=lambda r: (order.index(r["case"]), r["seed"]))
+        with open(args.json + ".tmp", "w") as fh:
+            json.dump({"noise_note": "noise 0.2 um (pair 0.3 um); seeds as listed per row", "rows": every}, fh,
+                      indent=0)
+        os.replace(args.json + ".tmp", args.json)
     print(f"{'kind':20s} {'planted':52s} {'rate':>6s} {'rmse/noise':>10s}  wrong selections / unexplained")
     for kind_name, planted in CASES:
-        label = f"{kind_name} {'+'.join(sorted(planted)) or 'clean'}"
-        if args.only and args.only not in label:
+        name = label(kind_name, planted)
+        if args.only and args.only not in name:
             continue
-        if any(x and x in label for x in args.exclude.split(",")):
+        if any(x and x in name for x in args.exclude.split(",")):
             continue
         res = [run_case(kind_name, planted, s) for s in range(args.first_seed, args.first_seed + args.seeds)]
         rows.extend(res)
@@ -173,9 +278,7 @@ def main(argv=None) -> int:
         print(f"{kind_name:20s} {'+'.join(sorted(planted)) or 'clean':52s} {rate:6.0%} {rm:10.2f}  "
               f"{', '.join(wrong)}{' | unexplained: ' + ', '.join(unexp) if unexp else ''}  "
               f"({np.mean([r['seconds'] for r in res]):.1f} s/fit)", flush=True)
-    if args.json:
-        with open(args.json, "w") as fh:
-            json.dump(rows, fh, indent=1)
+        save()
     return 0
 
 

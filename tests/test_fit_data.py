@@ -141,7 +141,7 @@ def test_synth_rejects_unknown_effects_and_parameters(tmp_path, capsys):
     assert not out.exists()
 
 
-@pytest.mark.parametrize("example,obs", [("fig5a_gripper.acl", "left_delta"), ("fig3_three_orifice.acl", "mx")])
+@pytest.mark.parametrize("example,obs", [("fig5a_gripper.acl", "left_delta")])
 def test_mechanisms_outside_the_fit_model_are_a_diagnostic_not_a_guess(tmp_path, capsys, example, obs):
     design = os.path.join(HERE, "..", "examples", example)
     path = _csv(tmp_path, f"{obs},1,um,125 kHz @ 3 V\n", header="observable,value,unit,drive\n")

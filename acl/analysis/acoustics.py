@@ -27,7 +27,7 @@ from acl.analysis import effects as EF
 from acl.physics import constants as C
 from acl.physics import effects as PE
 from acl.physics.coupling import (BubbleSystem, CoupledModes, build_system, coupled_modes as _physics_coupled_modes,
-                                  coupled_response as _physics_coupled, uncoupled_blocks)
+                                  coupled_response as _physics_coupled, prepared_response, uncoupled_blocks)
 from acl.physics.forces import interface_centre_amplitude, jet_drag, thrust_magnitude
 from acl.physics.resonance import BubbleModes, capsule_modes as _physics_modes
 from acl.physics.transducer import pressure_per_volt
@@ -514,6 +514,8 @@ class _Engine:
     outer: np.ndarray           # (C,) equal-volume sphere + wall radius (jet drag target)
     rho: float
     c: float
+    response: object = None     # acl.physics.coupling.prepared_response at the tones
+    consts: dict = field(default_factory=dict)   # position-independent factors of forces()
     _rest: list = field(default_factory=list, compare=False, repr=False)
 
     def rest_forces(self):
@@ -526,35 +528,52 @@ class _Engine:
         """Coupled inward volume amplitudes (B, T, n) for capsule centres (B, C, 3)."""
         if self.f.size == 0 or self.lay.radii.size == 0:
             return np.zeros((centres.shape[0], self.f.size, self.lay.radii.size), complex)
-        u = _physics_coupled(self.system, self.f, self.rho, self.c, C.SUBSTRATE_REFLECTION,
-                             points=self.lay.points(centres), h0=self.h0)
-        return u * self.pressure[None, :, None]
+        return self.response(self.lay.points(centres)) * self.pressure[None, :, None]
 
     def forces(self, centres: np.ndarray, parts: bool = False):
         """Total acoustic force (B, C, 3) on each capsule for centres (B, C, 3): thrust + Bjerknes + jet drag."""
-        lay = self.lay
+        k = self.consts
+        nb, ncap = centres.shape[0], centres.shape[1]
         u = self.volumes(centres)                                           # (B, T, n)
-        thr = _thrust_from_volumes(self.design, lay.radii, self.f, u).sum(axis=1) * self.scale[lay.body]   # (B, n)
-        f_thr = np.einsum("bn,nk,nc->bck", thr, -lay.normals, lay.onehot)
-        pts = lay.points(centres)                                           # (B, n, 3)
+        # streaming thrust per orifice (acl.physics.forces.thrust_magnitude), tones added
+        thr = (k["thrust"] * (2 * np.abs(u) / k["area"]) ** 2).sum(axis=1) * k["thrust_scale"]   # (B, n)
+        f_thr = (thr @ k["thrust_dir"]).reshape(nb, ncap, 3)
+        pts = centres[:, self.lay.body, :] + self.lay.offsets                # (B, n, 3)
         sep = pts[:, None, :, :] - pts[:, :, None, :]                      # (B, i, j, 3): p_j - p_i
-        other = lay.body[:, None] != lay.body[None, :]
-        d = np.where(other, np.linalg.norm(sep, axis=-1), 1.0)
-        w = 2 * np.pi * self.f
-        prod = np.einsum("t,bti,btj->bij", w**2, u, np.conj(u)).real       # tones add in power
-        att = self.rho * prod / (8 * np.pi * d**2) * other * self.pair_scale[lay.body][:, lay.body]
-        f_bj = np.einsum("bij,bijk,ic->bck", att / d, sep, lay.onehot)     # Crum 1975, along p_j - p_i
+        d = np.where(k["other"], np.sqrt((sep * sep).sum(axis=-1)), 1.0)
+        prod = np.einsum("t,bti,btj->bij", k["w2"], u, np.conj(u)).real     # tones add in power
+        att = k["bjerknes"] * prod / d**2                                   # Crum 1975, along p_j - p_i
+        f_bj = np.einsum("bij,bijk->bik", att / d, sep)
+        f_bj = np.einsum("bik,ic->bck", f_bj, self.lay.onehot)
         # drag of each interface's jet on the other capsules (Schlichting laminar round jet)
         x = centres[:, None, :, :] - pts[:, :, None, :]                    # (B, n, C, 3)
-        dist = np.linalg.norm(x, axis=-1)
-        cos = np.einsum("bnck,nk->bnc", x, lay.normals) / dist
-        mask = lay.body[:, None] != np.arange(len(lay.caps))[None, :]
+        dist = np.sqrt((x * x).sum(axis=-1))
+        cos = np.einsum("bnck,nk->bnc", x, self.lay.normals) / dist
+        mask = k["drag_mask"]
         drag = jet_drag(thr[:, :, None], np.where(mask, dist, 1.0), cos, self.outer[None, None, :]) * mask
-        f_dr = np.einsum("bnc,nk->bck", drag, lay.normals)
+        f_dr = np.einsum("bnc,nk->bck", drag, self.lay.normals)
         total = f_thr + f_bj + f_dr
         if parts:
             return total, u, thr, att
         return total
+
+
+def _engine_constants(design: Design, lay: _Layout, f: np.ndarray, scale: np.ndarray, pair: np.ndarray) -> dict:
+    """Everything in :meth:`_Engine.forces` that does not depend on the capsule positions."""
+    med = _medium(design)
+    w = 2 * np.pi * f
+    other = lay.body[:, None] != lay.body[None, :]
+    ncap = len(lay.caps)
+    return {
+        "thrust": C.STREAMING_CONSTANT * 6 * np.pi * med.viscosity * w[:, None],   # (T, 1)
+        "area": np.pi * lay.radii**2,
+        "thrust_scale": scale[lay.body],
+        "thrust_dir": np.einsum("nk,nc->nck", -lay.normals, lay.onehot).reshape(lay.radii.size, 3 * ncap),
+        "other": other,
+        "w2": w**2,
+        "bjerknes": med.density / (8 * np.pi) * other * pair[lay.body][:, lay.body],
+        "drag_mask": lay.body[:, None] != np.arange(ncap)[None, :],
+    }
 
 
 def _compute_engine(design: Design, drive: Drive) -> _Engine:
@@ -576,7 +595,10 @@ def _compute_engine(design: Design, drive: Drive) -> _Engine:
     if bs is not None:   # a fitted Bjerknes coefficient (paper Eq. 3 alpha) relative to the physics
         pair = pair * bs["factor"]
     outer = np.array([_outer_radius(c) for c in lay.caps])
-    return _Engine(design, lay, sysm, f, pressure, h0, scale, pair, outer, med.density, med.sound_speed)
+    response = (prepared_response(sysm, f, med.density, med.sound_speed, C.SUBSTRATE_REFLECTION, h0=h0)
+                if f.size else None)
+    return _Engine(design, lay, sysm, f, pressure, h0, scale, pair, outer, med.density, med.sound_speed, response,
+                   _engine_constants(design, lay, f, scale, pair))
 
 
 _LAST_ENGINE: list = []   # [(design, drive, engine)]: identity cache for solver inner loops
@@ -702,8 +724,11 @@ def pair_forces(design: Design, drive: Drive,
 def _apply_neighbour_drag(design: Design, lay: _Layout, centres: np.ndarray, total: np.ndarray) -> np.ndarray:
     nd = EF.coefficients(design, "neighbour_drag") if design.effects else None
     if nd and nd["inv_plateau"] > 0:
-        # P (1 - delta/delta_p) with delta the capsule's displacement from rest (acl.physics.effects.drag_load)
+        # P (1 - delta/delta_p) with delta the capsule's displacement from rest (acl.physics.effects.drag_load),
+        # on capsules with a neighbour only (acl.analysis.effects.neighbour_capsules; the fit's pairs)
         delta = np.linalg.norm(centres - lay.rest[None], axis=-1)
+        near = EF.neighbour_capsules(design)
+        delta = delta * np.array([c.name in near for c in lay.caps], float)
         total = PE.drag_load(total, delta[..., None], nd["inv_plateau"])
     return total
 

@@ -42,7 +42,7 @@ WHERE = {
     "large_deflection": "beam force law (mechanics)",
     "stiffness_scale": "Young's modulus of beams and latches (mechanics)",
     "stiffness_gradient": "beam force law (mechanics)",
-    "neighbour_drag": "force on each capsule vs its displacement (acoustics)",
+    "neighbour_drag": "force on each capsule with a neighbour (named with it in a gap observe) vs its displacement (acoustics)",
     "substrate_proximity": "thrust, jet drag and Bjerknes forces vs height (acoustics)",
     "bjerknes_scale": "secondary Bjerknes force between capsules (acoustics; a pair's fitted alpha, paper Eq. 3)",
 }
@@ -86,3 +86,17 @@ def notes(design: Design) -> list[str]:
     for name in unused_coefficients(design):
         out.append(f"effect coefficient {name} is not used by the analysis")
     return out
+
+
+def neighbour_capsules(design: Design) -> frozenset[str]:
+    """Capsules that have a neighbour for ``neighbour_drag``: those named with another capsule in a ``gap`` observe.
+
+    Mirrors the fit's units (acl.fit.mechanism: such two capsules form a pair; capsules of different units do not
+    interact), so a calibration actuator far from the pair is not dragged, in the fit and in the analysis alike."""
+    out = set()
+    for o in design.observes:
+        if o.kind == "gap" and o.a and o.b:
+            a, b = o.a.partition(".")[0], o.b.partition(".")[0]
+            if a != b:
+                out.update((a, b))
+    return frozenset(out)

@@ -43,20 +43,20 @@ def run_fit(design_path, data_paths, free=(), search_paths=(), candidates=None, 
     timing["fit_and_effect_search"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     w = 1.0 / np.where(np.isfinite(problem.sigma), problem.sigma, NOMINAL_SIGMA)
-    kinds = {problem.design.observe(n).kind for n in set(problem.data.observable)}
+    # latch states (0/1) are left out of the residual tests: the sign of a binary residual is the outcome itself
+    # (a threshold model's residuals are + below it and - above it by construction), not structure
+    keep = ~problem.prepared.state if problem.prepared.state is not None else np.ones(problem.data.n, bool)
+    kinds = {problem.design.observe(n).kind for n in set(problem.data.observable[keep])}
     pname = f"predicted {'deflection' if kinds == {'displacement'} else kinds.pop()}" if len(kinds) == 1 else "prediction"
-    before = examine(selection.base.residual,
-                     covariates(problem.data, problem.prepared, selection.base.prediction, pname), w, seed)
-    after = examine(selection.final.residual,
-                    covariates(problem.data, problem.prepared, selection.final.prediction, pname), w, seed)
-    labels = {"observable": problem.data.observable, "experiment": problem.data.experiment}
+    labels = {"observable": problem.data.observable[keep], "experiment": problem.data.experiment[keep]}
     sigma_given = problem.data.has_sigma
-    before += examine_groups(selection.base.residual,
-                             covariates(problem.data, problem.prepared, selection.base.prediction, pname), w, labels,
-                             selection.base.p, sigma_given, seed)
-    after += examine_groups(selection.final.residual,
-                            covariates(problem.data, problem.prepared, selection.final.prediction, pname), w, labels,
-                            selection.final.p, sigma_given, seed)
+    before, after = [], []
+    if np.any(keep):
+        for out, fit in ((before, selection.base), (after, selection.final)):
+            cov = {k: np.asarray(v)[keep] for k, v in covariates(problem.data, problem.prepared, fit.prediction,
+                                                                   pname).items()}
+            out += examine(fit.residual[keep], cov, w[keep], seed)
+            out += examine_groups(fit.residual[keep], cov, w[keep], labels, fit.p, sigma_given, seed)
     timing["residual_tests"] = time.perf_counter() - t0
     import os
 

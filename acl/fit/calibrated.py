@@ -70,7 +70,7 @@ def calibrated_text(problem, selection, out_path: str, data_paths=(), report_dir
     if extra:
         head.append(f"# load with `--path {extra}` (the original is outside this file's folder tree)")
     lines = head + ["", f'extends "{rel}"', ""]
-    pair = bool(P.pair.any())
+    pair = bool(P.pair.any() or (P.group_row is not None and P.group_row.any()))
     names, params = [], []              # parameter name per fitted coordinate; its declaration
     effects: dict[str, dict[str, str]] = {eid: {} for eid in selection.selected}
     gain_terms: list[str] = []          # factors of the transducer_gain `gain` (pressure scale)
@@ -90,6 +90,9 @@ def calibrated_text(problem, selection, out_path: str, data_paths=(), report_dir
         else:
             unit = {"gamma": "N/V^2", "alpha": "N*m^2/V^2"}.get(c.kind, c.unit or "")
             name = "fit_" + re.sub(r"\W", "_", c.kind)      # f0@left -> fit_f0_left
+            if c.kind == "spread":
+                notes.append(f"# {name}: relative scatter of the latch's switching force from ramp to ramp (0/1 state "
+                             "rows); a property of the data, not applied (the analysis switches at the force itself)")
             if c.kind.split("@")[0] in ("f0", "q"):
                 what = "natural frequency" if c.kind.startswith("f0") else "quality factor"
                 cap = c.kind.partition("@")[2] or P.ref_capsule
@@ -133,8 +136,11 @@ def calibrated_text(problem, selection, out_path: str, data_paths=(), report_dir
         lines.append("uncertainty {")
         lines += [f"  correlation({a}, {b}) = {r:.6g}" for a, b, r in corr]
         lines += [f"  covered({q}) = {_literal(lo, u)} .. {_literal(hi, u)}" for q, (lo, hi, u) in cover.items()]
-        if math.isfinite(final.rmse) and final.rmse > 0:
-            lines.append(f"  discrepancy(position) = {_literal(final.rmse, 'm')}    # RMS residual of the fit")
+        from acl.fit.report import length_rmse
+
+        rmse = length_rmse(problem, final)
+        if math.isfinite(rmse) and rmse > 0:
+            lines.append(f"  discrepancy(position) = {_literal(rmse, 'm')}    # RMS residual of the fit")
         lines += ["}", ""]
     if notes:
         lines += notes + [""]
@@ -194,6 +200,8 @@ def _coverage(problem) -> dict:
     if freqs:
         out["frequency"] = (float(min(freqs)), float(max(freqs)), "Hz")
     dev = np.abs(np.asarray(data.value, float) - np.asarray(P.base, float))
+    if P.state is not None:
+        dev = dev[~P.state]                       # a latch state (0/1) is no deflection
     dev = dev[np.isfinite(dev)]
     if dev.size:
         out["deflection"] = (0.0, float(dev.max()), "m")
@@ -202,11 +210,11 @@ def _coverage(problem) -> dict:
 
 def _alpha_physics(P) -> float:
     """The physics' Bjerknes coefficient at f_ref of the reference pair (what the analysis computes)."""
-    from acl.fit.mechanism import alpha_per_v2, reference_unit
+    from acl.fit.mechanism import pair_alpha_per_v2, reference_pair, reference_unit
 
     inst = next(iter(P.instances.values()))
-    unit = reference_unit(inst, "pair")
-    return float(alpha_per_v2(inst, unit, P.f_ref)) if unit is not None else 0.0
+    unit = reference_unit(inst, "pair") or reference_unit(inst, "group")
+    return float(pair_alpha_per_v2(inst, *reference_pair(inst, unit), P.f_ref)) if unit is not None else 0.0
 
 
 def _effect_block(eid: str, vals: dict, f_ref: float) -> str:

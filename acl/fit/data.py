@@ -116,6 +116,7 @@ def read_data(paths, design) -> Dataset:
 
     bag = DiagnosticBag()
     obs_names = [o.name for o in design.observes]
+    state_names = {o.name for o in design.observes if o.kind == "state"}
     param_names = [p.name for p in design.params]
     cols: dict[str, list] = {k: [] for k in ("observable", "value", "sigma", "time", "tones", "spans", "units",
                                              "experiment")}
@@ -204,9 +205,16 @@ def read_data(paths, design) -> Dataset:
                 ok = False
             unit = cell("unit")[0]
             factor = None
+            state = name in state_names
             try:
-                factor, dims = parse_unit(unit) if unit else (None, None)
-                if factor is None:
+                factor, dims = parse_unit(unit) if unit or state else (None, None)
+                if state and dims != (0,) * 7:
+                    bag.error("E804", f"unit `{unit}`: `{name}` is a latch state, a pure number (write `1` or leave "
+                              "the unit empty)", sp("unit"))
+                    ok = False
+                elif state:
+                    pass
+                elif factor is None:
                     bag.error("E804", "missing unit", sp("unit"), "every observable is a length: write e.g. `um`")
                     ok = False
                 elif dims != LENGTH:
@@ -241,7 +249,11 @@ def read_data(paths, design) -> Dataset:
                         bag.error("E805", f"`{k}` = `{text}`: {exc}", sp(k), "write a number with a unit, e.g. `40 um`")
                         ok = False
                 row_sets[k[4:]] = text
-            if ok and factor is not None:
+            if ok and state and value not in (0.0, 1.0):
+                bag.error("E806", f"value {cell('value')[0]}: a latch state is 0 (state a, as printed) or 1 (state b, "
+                          "snapped through)", sp("value"))
+                ok = False
+            if ok and factor is not None and not state:
                 for what, x in (("value", value), ("sigma", sigma)):
                     if math.isfinite(x) and abs(x * factor) > MAX_LENGTH:
                         bag.error("E806", f"{what} {cell(what)[0]} {unit} is beyond {MAX_LENGTH:g} m: not a "

@@ -29,7 +29,7 @@ class Effect:
     params: tuple[EffectParam, ...]
     reason: str
     identified_by: str
-    requires: tuple[str, ...] = ()       # "time", "frequencies", "pair", "single", "heights", "lengths"
+    requires: tuple[str, ...] = ()       # "time", "frequencies", "frequencies3", "neighbour", "heights", "lengths"
     starts: tuple[tuple[float, ...], ...] = field(default=())   # extra starting points (in scale units)
 
 
@@ -100,10 +100,12 @@ EFFECTS: dict[str, Effect] = {e.id: e for e in [
            (EffectParam("inv_plateau", "1/m", 0.0, 1e9, 0.0, 0.5, scale="1/deflection",
                         report=_inv("plateau", "m")),),
            "the actuator moves into a neighbour's streaming jet whose drag grows with the displacement "
-           "(paper Fig. 5b plateau): P -> P (1 - |delta|/delta_p), on lone actuators and on each side of a pair",
-           "voltage ramps into the plateau at two or more frequencies (the plateau displacement does not "
-           "depend on frequency)",
-           starts=((1.0,), (0.1,))),
+           "(paper Fig. 5b plateau, 'drag force applied to the moving actuators by the anchored ones'): "
+           "P -> P (1 - |delta|/delta_p), on each side of a pair; a lone actuator has no neighbour in the model "
+           "(capsules of different units do not interact), so it is not dragged",
+           "a pair ramped into the plateau, with an isolated calibration actuator in the same data set to tell it "
+           "from drive saturation (the calibration actuator sees the drive but no neighbour)",
+           requires=("neighbour",), starts=((1.0,), (0.1,))),
     Effect("substrate_proximity",
            (EffectParam("h_substrate", "m", 0.0, 1e-3, 0.0, 0.4, scale="height"),),
            "acoustic forces are weakened near the substrate (bubble-wall interaction, paper Fig. 2a): "

@@ -23,7 +23,6 @@ import numpy as np
 from acl.fit import beam as B
 
 N_GRID = 32
-N_BISECT = 30
 N_REFINE = 12
 
 
@@ -73,6 +72,14 @@ class Prepared:
     cavity: dict = field(default_factory=dict)   # free cavity parameter -> {"value", "dlnv": {capsule: dlnV/dp}}
     side_table: np.ndarray = None    # (2, n) index into ftables (-1: no capsule)
     ftables: list = None             # (ln V/V0, ln f/f0) of each capsule kind (acl.physics.effects.volume_frequency_table)
+    vector: np.ndarray = None        # (n,) bool: the row's unit is a body moving in 1-2 directions (acl.fit.mechanism)
+    tauv: np.ndarray = None          # (n, T, 2) its thrust per V^2 along its basis directions, relative to gamma0
+    obs_w: np.ndarray = None         # (n, 2) the observable's weights on those directions
+    one_mode: np.ndarray = None      # (n,) bool: a vector row's body is one single-orifice capsule
+    groups: list = None              # acl.fit.group.GroupBlock of every group of 3+ capsules (their rows)
+    group_row: np.ndarray = None     # (n,) bool: the row belongs to one of them
+    state: np.ndarray = None         # (n,) bool: the row observes a latch state (0 a, 1 b), acl.fit.forward.switch_probability
+    pearson: tuple = None            # (measured values, row weights) when fitting: state rows predict y + r_P / w
 
     def volume_shift(self, c, fn, lnx):
         """Natural frequency of side ``c`` after its gas volume changed by a factor exp(lnx) (rows), from the tables."""
@@ -91,7 +98,8 @@ class Prepared:
 
 def prepare(data, load_instance, f_ref: float | None = None) -> Prepared:
     """Build the row arrays; ``load_instance(key)`` returns the Instance of an override set."""
-    from acl.fit.mechanism import LAW_CODES, alpha_per_v2, reference_unit, thrust_per_v2
+    from acl.fit.mechanism import (LAW_CODES, alpha_per_v2, pair_alpha_per_v2, reference_pair, reference_unit,
+                                   thrust_per_v2, thrust_vec_per_v2)
 
     n = data.n
     T = max(1, max((len(t) for t in data.tones), default=1))
@@ -116,12 +124,12 @@ def prepare(data, load_instance, f_ref: float | None = None) -> Prepared:
     gamma0 = float(thrust_per_v2(ref, f_ref)[ref_cap])
     pair_ref = None
     for key in dict.fromkeys(keys):
-        pu = next((u for name, u in instances[key].units.items() if u.kind == "pair"
+        pu = next((u for name, u in instances[key].units.items() if u.kind in ("pair", "group")
                    and np.any(data.observable[np.array([k == key for k in keys])] == name)), None)
         if pu is not None:
             pair_ref = (instances[key], pu)
             break
-    alpha_ref = alpha_per_v2(*pair_ref, f_ref) if pair_ref else 0.0
+    alpha_ref = pair_alpha_per_v2(pair_ref[0], *reference_pair(*pair_ref), f_ref) if pair_ref else 0.0
     arr = {k: np.zeros((2, n)) for k in ("L", "l", "EI", "height", "fn", "q", "cd", "ct", "volume", "radius")}
     arr["L"][:] = 1.0
     arr["EI"][:] = 1.0
@@ -140,6 +148,21 @@ def prepare(data, load_instance, f_ref: float | None = None) -> Prepared:
     latch_tables: list = []
     latch_index: dict = {}
     units = np.full(n, "", dtype=object)
+    vector = np.zeros(n, bool)
+    tauv = np.zeros((n, T, 2))
+    obs_w = np.zeros((n, 2))
+    one_mode = np.zeros(n, bool)
+    groups: list = []
+    group_row = np.zeros(n, bool)
+    state = np.zeros(n, bool)
+    gtables: dict = {}
+
+    def gtable(volume, radius, med):
+        key = (volume, radius, *med)
+        if key not in gtables:
+            gtables[key] = volume_frequency_table(volume, radius, *med)
+        return gtables[key]
+
     by_group: dict = {}
     for i, key in enumerate(keys):
         by_group.setdefault((key, data.observable[i]), []).append(i)
@@ -150,7 +173,23 @@ def prepare(data, load_instance, f_ref: float | None = None) -> Prepared:
         unit = inst.unit(name)
         rows = np.asarray(rows)
         units[rows] = f"{unit.kind} {'-'.join(unit.capsules)}"
+        state[rows] = inst.design.observe(name).kind == "state"
         medium[:, rows] = np.asarray(inst.medium, float)[:, None]
+        if unit.kind == "group":
+            from acl.fit.group import block
+
+            blk = block(inst, unit, name, rows, f, v, gamma0, alpha_ref, gtable)
+            groups.append(blk)
+            group_row[rows] = True
+            s0_ = unit.sides[blk.oi[0]]
+            law[0, rows], caps[0, rows] = LAW_CODES[s0_.law], s0_.capsule
+            arr["height"][0, rows] = s0_.height
+            arr["fn"][0, rows], arr["q"][0, rows] = s0_.mode
+            arr["L"][0, rows], arr["l"][0, rows], arr["EI"][0, rows] = s0_.L, s0_.l, s0_.EI
+            rest_gap = np.linalg.norm(blk.points[blk.oj[0]] - blk.points[blk.oi[0]])
+            base[rows] = np.where(blk.kind == 0, rest_gap, blk.obase)
+            d0[rows] = rest_gap
+            continue
         for c, side in enumerate(unit.sides):
             law[c, rows] = LAW_CODES[side.law]
             caps[c, rows] = side.capsule
@@ -171,6 +210,21 @@ def prepare(data, load_instance, f_ref: float | None = None) -> Prepared:
         pair[rows] = unit.kind == "pair"
         proj[rows] = unit.sides[0].proj
         d0[rows] = unit.d0
+        if unit.vector:
+            side = unit.sides[0]
+            vector[rows] = True
+            one_mode[rows] = len(side.members) == 1 and len(inst.design.capsule(side.capsule).orifices) == 1
+            k = side.basis.shape[1]
+            for fk in np.unique(f[rows][v[rows] > 0]):
+                m = (f[rows] == fk) & (v[rows] > 0)
+                tv = thrust_vec_per_v2(inst, fk)
+                total = sum((tv[c] for c in side.members), np.zeros(3))
+                tauv[rows, :, :k] += m[:, :, None] * (total @ side.basis / gamma0)[None, None, :]
+                tp = thrust_per_v2(inst, fk)
+                tau[0, rows] += m * (tp[side.capsule] / gamma0)
+            b, wts = inst.vector_map(inst.design.observe(name))
+            base[rows], obs_w[rows] = b, wts
+            continue
         for fk in np.unique(f[rows][v[rows] > 0]):
             m = (f[rows] == fk) & (v[rows] > 0)
             tp = thrust_per_v2(inst, fk)
@@ -208,7 +262,8 @@ def prepare(data, load_instance, f_ref: float | None = None) -> Prepared:
                     proj, d0, base, s0, s1, arr["fn"], arr["q"], t, f_ref, gamma0, alpha0, float(E0),
                     float(max(v.sum(axis=1).max(), 1e-9)), instances, law, caps, arr["volume"], arr["radius"],
                     medium, latch_id, latch_tables, caps == ref_cap, ref_cap, units,
-                    exp if exp is not None else np.full(n, "", dtype=object), modes0, {}, side_table, ftables)
+                    exp if exp is not None else np.full(n, "", dtype=object), modes0, {}, side_table, ftables,
+                    vector, tauv, obs_w, one_mode, groups, group_row, state)
 
 
 def latch_table(geometry) -> tuple:
@@ -375,24 +430,27 @@ def _predict(P: Prepared, coeffs: dict, effects: dict) -> np.ndarray:
     d_0 = np.zeros(P.n)
     d_1 = np.zeros(P.n)
     single = ~P.pair
+    vec = single & P.vector if P.vector is not None else np.zeros(P.n, bool)
+    grp = P.group_row if P.group_row is not None else np.zeros(P.n, bool)
+    single = single & ~vec & ~grp
+    out_rows = np.zeros(P.n)
+    ratio = np.zeros(P.n)                    # latch rows: push / switching force
+    if np.any(vec):
+        _body_deflection(P, vec, gamma, w, res, sub, rows, es, out_rows, ratio)
     if np.any(single):
         idx = np.flatnonzero(single)
         latch = P.latch_id[idx] >= 0
         load = thrust[0, idx] * P.proj[idx]
+        # a lone actuator has no neighbour (units do not interact): neighbour_drag acts on pairs only
         if np.any(~latch):
             j = idx[~latch]
             law0, _, _ = rows(j)
-            if c_p > 0:
-                d_0[j] = _drag_equilibrium(law0, load[~latch], c_p)
-            else:
-                d_0[j] = law0(load[~latch])
+            d_0[j] = law0(load[~latch])
         for tid in np.unique(P.latch_id[idx][latch]):
             m = P.latch_id[idx] == tid
             table = P.latch_tables[tid]
-            if c_p > 0:
-                d_0[idx[m]] = _drag_equilibrium(lambda x, tb=table: latch_travel(x, tb, es), load[m], c_p)
-            else:
-                d_0[idx[m]] = latch_travel(load[m], table, es)
+            ratio[idx[m]] = load[m] / (table[2] * es)
+            d_0[idx[m]] = latch_travel(load[m], table, es)
     if np.any(P.pair):
         idx = np.flatnonzero(P.pair)
         law0, law1, same = rows(idx)
@@ -407,10 +465,103 @@ def _predict(P: Prepared, coeffs: dict, effects: dict) -> np.ndarray:
         da, db = _pair_equilibrium(law0, law1, a_rad, push, P.d0[idx], same)
         d_0[idx], d_1[idx] = da, db
     out = P.base + P.s0 * d_0 + P.s1 * d_1
+    if np.any(vec):
+        out = np.where(vec, P.base + out_rows, out)
+    if np.any(grp):
+        from acl.fit import group as G
+
+        grad = effects["stiffness_gradient"]["e_gradient"] if "stiffness_gradient" in effects else 0.0
+        for blk in P.groups:
+            change, _ = G.predict(P, blk, coeffs, effects, w[blk.rows], gamma, alpha, es, lam, grad, c_p)
+            out[blk.rows] = P.base[blk.rows] + change
     if "offset_drift" in effects:
         e = effects["offset_drift"]
         out = out + e["offset"] + e["drift"] * P.t
+    if P.state is not None and np.any(P.state):
+        p = switch_probability(ratio, coeffs.get("spread", SPREAD))
+        if P.pearson is not None:
+            # fitting a 0/1 outcome y of probability p: while the optimizer searches, the row enters the weighted
+            # least squares as its deviance residual sign(p - y) sqrt(-2 ln L) (the sum of squares is -2 ln L: the
+            # optimum is the maximum-likelihood probit fit); at that optimum the binomial variance p (1 - p) is held
+            # (acl.fit.solve._reweighted) and the row becomes its Pearson residual (p - y)/sqrt(p (1 - p)), whose
+            # J^T J is the Fisher information (the intervals) and whose score vanishes at the same optimum.
+            # The row "predicts" y + r / w.
+            y, wt, held = P.pearson
+            if REWEIGHT.active:
+                held["var"], held["gen"] = np.maximum(p * (1.0 - p), 1e-10), REWEIGHT.generation
+            if held.get("gen") == REWEIGHT.generation:
+                r = (p - y) / np.sqrt(held["var"])
+            else:
+                like = np.maximum(1.0 - np.abs(y - p), 1e-300)
+                r = np.sign(p - y) * np.sqrt(-2.0 * np.log(like))
+            p = y + r / wt
+        out = np.where(P.state, p, out)
     return out
+
+
+SPREAD = 0.05     # default relative scatter of a latch's switching force from one ramp to the next
+
+
+class _Reweight:
+    """Latch states (acl.fit.solve.fit): each fit starts a new ``generation`` (deviance residuals, the likelihood);
+    ``with REWEIGHT: predict(...)`` at its optimum holds the binomial variances for the Pearson polish."""
+
+    def __init__(self):
+        self.active = False
+        self.generation = 0
+        self.users = 0                 # problems with state rows loaded (none: the solver skips all this)
+
+    def __enter__(self):
+        self.active = True
+        return self
+
+    def __exit__(self, *exc):
+        self.active = False
+        return False
+
+
+REWEIGHT = _Reweight()
+
+
+def switch_probability(ratio, spread):
+    """Probability that a ramp from state a ends in state b: Phi(ln(push / F_switch) / s), the switching force
+    log-normally scattered by s from ramp to ramp (a probit threshold model; F_switch of acl.physics.latch)."""
+    from scipy.special import ndtr
+
+    with np.errstate(divide="ignore"):
+        z = np.log(np.maximum(ratio, 1e-300)) / max(spread, 1e-9)
+    return ndtr(z)
+
+
+def _body_deflection(P, vec, gamma, w, res, sub, rows, es, out, ratio):
+    """Bodies moving in 1-2 directions (multi-orifice capsules, trussed bodies; acl.fit.mechanism): the load is the
+    vector sum of the members' thrusts (tones add in power) projected on the directions the support allows; a beam
+    deflects along the load by paper Eq. (1) (isotropic across it, as acl.analysis.mechanics), a spring by P/k, a
+    latch by its rising branches (a push towards state a leaves it at rest).  Writes the observable's change to
+    ``out``."""
+    idx = np.flatnonzero(vec)
+    # a shifted first mode (free f0 / q, bubble shrinkage) moves a lone single-orifice bubble's thrust; a body of
+    # several orifices or capsules mixes modes the one-mode ratio does not follow: not applied there (docs/fit.md)
+    one = (P.caps[0, idx] != "") & P.one_mode[idx] if P.one_mode is not None else np.zeros(idx.size, bool)
+    wc = w[idx] if res is None else w[idx] * np.where(one[:, None], res[0][idx], 1.0)
+    load = gamma * np.einsum("nt,ntk->nk", wc, P.tauv[idx]) * sub[0, idx][:, None]     # (n, 2)
+    mag = np.sqrt((load * load).sum(axis=1))
+    unit = np.divide(load, mag[:, None], out=np.zeros_like(load), where=mag[:, None] > 0)
+    delta = np.zeros(idx.size)
+    latch = P.latch_id[idx] >= 0
+    if np.any(~latch):                  # a lone body has no neighbour: neighbour_drag acts on pairs and groups only
+        j = idx[~latch]
+        law0, _, _ = rows(j)
+        delta[~latch] = law0(mag[~latch])      # a body of its own has no neighbour: neighbour_drag does not act
+    for tid in np.unique(P.latch_id[idx][latch]):
+        m = P.latch_id[idx] == tid
+        along = load[m, 0]                                  # signed push along the latch axis
+        table = P.latch_tables[tid]
+        push = np.maximum(along, 0.0)
+        ratio[idx[m]] = push / (table[2] * es)
+        delta[m] = latch_travel(push, table, es)
+        unit[m] = np.array([1.0, 0.0])
+    out[idx] = (unit * P.obs_w[idx]).sum(axis=1) * delta
 
 
 def _with_drag(law, c_p, steps=3):
@@ -428,18 +579,6 @@ def _with_drag(law, c_p, steps=3):
             d = np.clip(d - r / np.where(dr != 0, dr, -1.0), np.minimum(lin, 0.0), np.maximum(lin, 0.0))
         return d
     return dragged
-
-
-def _drag_equilibrium(law, load, c_p):
-    """delta = law(P (1 - c_p delta)) on [0, law(P)]: bisection (the residual decreases in delta)."""
-    lo = np.zeros_like(load)
-    hi = np.minimum(law(load), 1.0 / c_p)
-    for _ in range(N_BISECT):
-        mid = 0.5 * (lo + hi)
-        r = law(drag_load(load, mid, c_p)) - mid
-        lo = np.where(r > 0, mid, lo)
-        hi = np.where(r > 0, hi, mid)
-    return 0.5 * (lo + hi)
 
 
 def _pair_equilibrium(law0, law1, a_rad, push, d0, same=False):

@@ -46,6 +46,8 @@ class Side:
     rest: np.ndarray = field(default_factory=lambda: np.zeros(3))
     mode: tuple = (1e5, 10.0)    # natural frequency (Hz) and Q of the first mode
     bubble: tuple = (0.0, 0.0)   # gas volume (m^3), orifice radius (m)
+    members: tuple = ()          # body: every capsule moving with this side (trusses), all thrusts add (vector units)
+    basis: np.ndarray = None     # body: 3 x k directions it can move along (vector units; k = 1 or 2)
 
 
 @dataclass
@@ -53,6 +55,10 @@ class Unit:
     kind: str                    # "single" | "pair"
     sides: tuple                 # 1 or 2 Side
     d0: float = float("nan")     # pair: rest distance between the orifices
+    vector: bool = False         # single: a body moving in 1 or 2 directions under the vector sum of its thrusts
+    points: np.ndarray = None    # group: (N, 3) orifice centres at rest
+    normals: np.ndarray = None   # group: (N, 3) outward orifice normals (the jets)
+    jets: tuple = ()             # group: index of the capsule each jet drags (-1: none)
 
     @property
     def capsules(self):
@@ -77,6 +83,10 @@ class Instance:
     def output_map(self, obs) -> tuple[float, float, float]:
         """(base, scale on deflection of side 0, scale on side 1) of observable ``obs``."""
         unit = self.units[obs.name]
+        if unit.vector:
+            raise ValueError("vector unit: use vector_map")
+        if obs.kind == "state":              # predicted from the latch's push (acl.fit.forward), not a position
+            return 0.0, 0.0, 0.0
         if obs.kind == "gap":
             return unit.d0, -1.0, -1.0
         k = next(i for i, s in enumerate(unit.sides) if obs.target in (s.capsule, s.element))
@@ -91,6 +101,30 @@ class Instance:
         return float(side.rest[comp]), s[0], s[1]
 
 
+    def vector_map(self, obs) -> tuple[float, np.ndarray]:
+        """(base, weights on the body's basis directions) of observable ``obs`` of a vector unit."""
+        side = self.units[obs.name].sides[0]
+        w = np.zeros(2)
+        k = side.basis.shape[1]
+        if obs.kind == "state":
+            return 0.0, w
+        if obs.kind == "displacement":
+            axis = np.asarray(obs.axis, float)
+            w[:k] = (axis / np.linalg.norm(axis)) @ side.basis
+        else:
+            comp = "xyz".index(obs.component)
+            w[:k] = side.basis[comp]
+        if not np.any(np.abs(w) > 1e-9):
+            why = ", ".join(j.element for j in self.design.joints if j.kind == "link" and j.element_kind == "truss"
+                            and (j.a in side.members or j.b in side.members))
+            raise _unsupported(obs, f"it measures a direction in which the body of `{side.capsule}` cannot move "
+                               f"(its support{' and the truss ' + why if why else ''} hold it there): the data cannot "
+                               "tell any coefficient", "observe a direction the body moves in")
+        if obs.kind == "displacement":
+            return 0.0, w
+        return float(np.asarray(self.design.capsule(obs.target).center, float)["xyz".index(obs.component)]), w
+
+
 def _unsupported(obs, why, hint=None):
     return DiagnosticError([error("E810", f"observable `{obs.name}` cannot be predicted by the fit model: {why}",
                                   obs.span, hint)])
@@ -99,14 +133,67 @@ def _unsupported(obs, why, hint=None):
 def _carrier(design, cap):
     """(law, element) carrying capsule ``cap``: beam / spring / latch mount, fixed, or (None, why)."""
     for j in design.joints:
-        if j.kind == "link" and cap in (j.a, j.b):
-            return None, f"capsule `{cap}` is linked by a {j.element_kind} (`{j.element}`)"
+        if j.kind == "link" and j.element_kind == "spring" and cap in (j.a, j.b):
+            return None, f"capsule `{cap}` is linked by a spring (`{j.element}`)"
     for j in design.joints:
         if j.kind == "mount" and j.capsule == cap:
             return j.target_kind, j.target
         if j.kind == "fix" and j.capsule == cap:
             return "fixed", ""
+    for j in design.joints:
+        if j.kind == "link" and cap in (j.a, j.b):
+            return None, f"capsule `{cap}` is linked by a {j.element_kind} (`{j.element}`)"
     return None, f"capsule `{cap}` is free (no mount, fix or link)"
+
+
+def rigid_body(design, cap) -> tuple:
+    """(members, carrier capsule, basis 3 x k) of the rigid body that holds capsule ``cap``.
+
+    Trusses (paper Fig. 5a, Fig. 6e) as in :func:`acl.analysis.mechanics.build_mechanism`: a truss
+    that carries an unsupported capsule makes one rigid body with its partner (both move together);
+    a truss between a supported capsule and a fixed point (a fixed capsule, an anchor) is a bar whose
+    length is kept, which removes its direction from the body's motion; a truss between two moving
+    supports couples them (E810: not in the fit model).  ``basis`` spans the body's allowed motion
+    (a beam: the plane across it; a spring or latch: its axis; fixed: empty)."""
+    from acl.analysis.mechanics import build_mechanism
+
+    try:
+        mech = build_mechanism(design)
+    except DiagnosticError:
+        raise
+    g = mech.member_group[cap]
+    members = tuple(mech.groups[g])
+    held = [m for m in members if design.mount_of(m) is not None]
+    if len(held) > 1:
+        kinds = [design.mount_of(m) for m in held]
+        if all(k.kind == "fix" for k in kinds) or any(k.kind == "fix" for k in kinds):
+            return members, held[0], np.zeros((3, 0))
+        raise DiagnosticError([error("E810", f"capsules {', '.join(f'`{m}`' for m in held)} are held by two supports and "
+                                     "tied together: a body on two supports is not in the fit model", design.capsule(cap).span,
+                                     "observe each support's body alone, or tie it to a fixed point")])
+    if not held:
+        raise DiagnosticError([error("E810", f"capsule `{cap}` is held by no mount or fix (it floats on springs); "
+                                     "the fit model needs a beam, spring or latch carrying it", design.capsule(cap).span)])
+    A, o = mech.bases[g], mech.offsets[g]
+    k = A.shape[1]
+    if k == 0:
+        return members, held[0], A
+    Zg = mech.Z[o:o + k]                       # bar constraints (paper Fig. 5a trusses) on this body's coordinates
+    cols = np.flatnonzero(np.abs(Zg).max(axis=0) > 1e-12)
+    if cols.size:
+        others = np.abs(np.delete(mech.Z[:, cols], np.arange(o, o + k), axis=0))
+        if others.size and others.max() > 1e-9:
+            link = next((j for j in design.joints if j.kind == "link" and j.element_kind == "truss"
+                         and (j.a in members or j.b in members)), None)
+            raise DiagnosticError([error("E810", f"a truss ties the body of `{cap}` to another moving support: coupled "
+                                         "supports are not in the fit model",
+                                         link.span if link is not None else design.capsule(cap).span,
+                                         "observe bodies whose trusses end on fixed points")])
+    B_ = A @ Zg[:, cols] if cols.size else np.zeros((3, 0))
+    if B_.shape[1]:
+        u, sv, _ = np.linalg.svd(B_, full_matrices=False)
+        B_ = u[:, sv > 1e-9]
+    return members, held[0], B_
 
 
 def _side(design, cap_name, direction) -> Side:
@@ -120,9 +207,15 @@ def _side(design, cap_name, direction) -> Side:
                                      "and latches, or fixed (trussed arms and free capsules are not in the fit "
                                      "model, docs/fit.md)", cap.span)])
     if len(cap.orifices) != 1:
-        raise DiagnosticError([error("E810", f"capsule `{cap.name}` has {len(cap.orifices)} orifices; the fit model "
-                                     "handles single-orifice actuators (1-D motion; planar x, y positioning is "
-                                     "not in the fit model, docs/fit.md)", cap.span)])
+        raise DiagnosticError([error("E810", f"capsule `{cap.name}` has {len(cap.orifices)} orifices; in a pair or a "
+                                     "group the fit model handles single-orifice actuators (a multi-orifice capsule "
+                                     "is fitted alone, in the plane: docs/fit.md)", cap.span)])
+    tie = next((j for j in design.joints if j.kind == "link" and j.element_kind == "truss" and cap_name in (j.a, j.b)),
+               None)
+    if tie is not None:
+        raise DiagnosticError([error("E810", f"capsule `{cap_name}` is tied by the truss `{tie.element}`; in a pair or a "
+                                     "group the fit model handles capsules on their own supports (a trussed body is "
+                                     "fitted alone: docs/fit.md)", tie.span)])
     direction = np.asarray(direction, float)
     m = capsule_modes(design, cap)[0]
     s = Side(cap.name, element, law, height=float(cap.orifices[0].center[2]), rest=np.asarray(cap.center, float),
@@ -159,6 +252,52 @@ def _side(design, cap_name, direction) -> Side:
     return s
 
 
+def _needs_body(design, cap) -> bool:
+    """A capsule the 1-D single-actuator law cannot follow: several orifices, or tied by a truss."""
+    c = design.capsule(cap)
+    return len(c.orifices) != 1 or any(j.kind == "link" and j.element_kind == "truss" and cap in (j.a, j.b)
+                                       for j in design.joints)
+
+
+def _body_side(design, cap_name, obs) -> Side:
+    """Side of a rigid body (capsule + what trusses tie to it) on its support, moving in its allowed directions
+    under the vector sum of its members' thrusts (acl.analysis.acoustics.thrust_vectors)."""
+    from acl.analysis.acoustics import capsule_modes
+
+    members, held, basis = rigid_body(design, cap_name)
+    law, element = _carrier(design, held)
+    cap = design.capsule(held)
+    if law is None:
+        raise DiagnosticError([error("E810", f"{element}: the fit model handles bodies on cantilevers, springs and "
+                                     "latches, or fixed (docs/fit.md)", cap.span)])
+    if basis.shape[1] == 0:
+        raise _unsupported(obs, f"the body of `{cap_name}` ({', '.join(members)}) cannot move: it is fixed or held by "
+                           "trusses in every direction its support allows", "observe a body that can move")
+    m = capsule_modes(design, cap)[0] if cap.orifices else None
+    s = Side(held, element, law, height=float(cap.orifices[0].center[2] if cap.orifices else cap.center[2]),
+             rest=np.asarray(cap.center, float), mode=(m.frequency_hz, m.q) if m else (1e5, 10.0),
+             bubble=(float(cap.cavity.volume), float(cap.orifices[0].radius) if cap.orifices else 0.0),
+             members=members, basis=basis, u=basis[:, 0], proj=1.0)
+    if law == "beam":
+        b = design.beam(element)
+        s.L, s.l, s.EI, s.E = b.length, b.rigid_length, b.bending_stiffness, b.youngs_modulus
+    elif law == "spring":
+        s.compliance = 1.0 / design.spring(element).stiffness
+    elif law == "latch":
+        from acl.analysis.mechanics import latch_geometry
+
+        lt = design.latch(element)
+        s.latch = tuple(float(x) for x in latch_geometry(lt))
+        s.E = float(lt.youngs_modulus)
+        if lt.state != "a":
+            raise DiagnosticError([error("E810", f"latch `{lt.name}` rests in state b; the fit model starts latches "
+                                         "in state a (as printed)", lt.span)])
+        a = np.asarray(lt.axis, float) / np.linalg.norm(lt.axis)
+        s.basis = a[:, None]
+        s.u = a
+    return s
+
+
 def build_instance(design) -> Instance:
     """Cut a resolved design into units, one per observable (raises E810 for unsupported mechanisms)."""
     from acl.analysis.acoustics import _medium
@@ -177,8 +316,28 @@ def build_instance(design) -> Instance:
                 partners.setdefault(a, set()).add(b)
                 partners.setdefault(b, set()).add(a)
     units_by_caps: dict = {}
+    comp: dict = {}                       # capsule -> its connected component of interacting capsules
+    for c in partners:
+        if c in comp:
+            continue
+        seen, todo = [], [c]
+        while todo:
+            x = todo.pop()
+            if x not in seen:
+                seen.append(x)
+                todo.extend(sorted(partners[x]))
+        members = tuple(n.name for n in design.capsules if n.name in seen)
+        for x in members:
+            comp[x] = members
+
+    def group_unit(caps, obs):
+        if caps not in units_by_caps:
+            units_by_caps[caps] = _group(design, caps, obs)
+        return units_by_caps[caps]
 
     def pair_unit(a, b, obs):
+        if len(comp.get(a, ())) > 2:
+            return group_unit(comp[a], obs)
         key = tuple(sorted((a, b)))
         if key not in units_by_caps:
             for c in (a, b):
@@ -208,9 +367,14 @@ def build_instance(design) -> Instance:
             units[o.name] = pair_unit(a, b, o)
             continue
         cap = _target_capsule(design, o)
+        if len(comp.get(cap, ())) > 2:
+            units[o.name] = group_unit(comp[cap], o)
+            continue
         if cap in partners:
             units[o.name] = pair_unit(cap, next(iter(partners[cap])), o)
             continue
+        if (cap,) not in units_by_caps and _needs_body(design, cap):
+            units_by_caps[(cap,)] = Unit("single", (_body_side(design, cap, o),), vector=True)
         if (cap,) not in units_by_caps:
             c = design.capsule(cap)
             if not c.orifices:
@@ -221,6 +385,51 @@ def build_instance(design) -> Instance:
     med = _medium(design)
     return Instance(design=design, units=units,
                     medium=(med.density, med.surface_tension, med.ambient_pressure, med.polytropic_index))
+
+
+def _group(design, caps, obs) -> Unit:
+    """A group of three or more capsules named together in ``gap`` observes: each on its own support (a beam moves
+    across its axis, a spring along it, fixed not at all); every two interact (paper Eq. (3) Bjerknes attraction
+    along the line of their orifices) and each jet drags the first capsule it points at (the paper's F_AS = F_d of
+    Eq. (3), generalised: the drag equals the jet's thrust, along the jet)."""
+    from acl.analysis.acoustics import capsule_modes
+    from acl.analysis.mechanics import _perp_basis
+
+    sides = []
+    for name in caps:
+        cap = design.capsule(name)
+        law, element = _carrier(design, name)
+        if law is None:
+            raise DiagnosticError([error("E810", f"{element}: in a group the fit model handles capsules on "
+                                         "cantilevers and springs, or fixed (docs/fit.md)", cap.span)])
+        if law == "latch":
+            raise _unsupported(obs, f"capsule `{name}` rides a latch; a latch in a pair or a group is not in the fit "
+                               "model", "observe the latch alone")
+        s = _side(design, name, -np.asarray(cap.orifices[0].normal, float) if len(cap.orifices) == 1 else (1, 0, 0))
+        if law == "beam":
+            s.basis = _perp_basis(design.beam(element).axis)
+        elif law == "spring":
+            ax = np.asarray(design.spring(element).axis, float)
+            s.basis = (ax / np.linalg.norm(ax))[:, None]
+        else:
+            s.basis = np.zeros((3, 0))
+        s.members = (name,)
+        sides.append(s)
+    if all(s.law == "fixed" for s in sides):
+        raise _unsupported(obs, "every capsule of the group is fixed: nothing moves")
+    pts = np.array([design.capsule(n).orifices[0].center for n in caps], float)
+    nrm = np.array([design.capsule(n).orifices[0].normal for n in caps], float)
+    nrm /= np.linalg.norm(nrm, axis=1, keepdims=True)
+    jets = []
+    for i in range(len(caps)):
+        line = pts - pts[i]
+        dist = np.linalg.norm(line, axis=1)
+        cos = np.where(dist > 0, line @ nrm[i] / np.where(dist > 0, dist, 1.0), -1.0)
+        hit = np.flatnonzero(cos > np.cos(np.radians(30.0)))       # within 30 deg of the jet axis
+        jets.append(int(hit[np.argmin(dist[hit])]) if hit.size else -1)
+    return Unit("group", tuple(sides), float(np.min([np.linalg.norm(pts[i] - pts[j]) for i in range(len(caps))
+                                                    for j in range(i + 1, len(caps))])),
+                points=pts, normals=nrm, jets=tuple(jets))
 
 
 def _target_capsule(design, obs) -> str:
@@ -247,6 +456,18 @@ def thrust_per_v2(inst: Instance, frequency: float) -> dict:
     return inst._tau[key]
 
 
+def thrust_vec_per_v2(inst: Instance, frequency: float) -> dict:
+    """{capsule: thrust 3-vector (N/V^2)} at ``frequency`` (acl.analysis.acoustics, declared thrust applied)."""
+    key = ("tv", float(frequency))
+    if key not in inst._tau:
+        from acl.analysis.acoustics import thrust_vectors
+        from acl.design.model import Drive, Tone
+
+        tv = thrust_vectors(inst.design, Drive(tones=(Tone(frequency=float(frequency), amplitude=1.0),)))
+        inst._tau[key] = {c: np.asarray(v, float) for c, v in tv.items()}
+    return inst._tau[key]
+
+
 def alpha_per_v2(inst: Instance, unit: Unit, frequency: float) -> float:
     """Bjerknes coefficient alpha(f) = attraction d^2 per V^2 (N m^2/V^2) of a pair unit (acl.analysis.acoustics)."""
     want = set(unit.capsules)
@@ -259,6 +480,31 @@ def alpha_per_v2(inst: Instance, unit: Unit, frequency: float) -> float:
         val = next((p.attraction * p.distance**2 for p in pf if {p.a, p.b} == want), 0.0)
         inst._tau[key] = float(val)
     return inst._tau[key]
+
+
+def pair_alpha_per_v2(inst: Instance, a: str, b: str, frequency: float) -> float:
+    """Bjerknes coefficient alpha(f) (N m^2/V^2) of capsules ``a`` and ``b`` (acl.analysis.acoustics.pair_forces)."""
+    key = ("a", float(frequency), tuple(sorted((a, b))))
+    if key not in inst._tau:
+        from acl.analysis.acoustics import pair_forces
+        from acl.design.model import Drive, Tone
+
+        pf = pair_forces(inst.design, Drive(tones=(Tone(frequency=float(frequency), amplitude=1.0),)))
+        for p in pf:
+            inst._tau[("a", float(frequency), tuple(sorted((p.a, p.b))))] = float(p.attraction * p.distance**2)
+    return inst._tau.get(key, 0.0)
+
+
+def reference_pair(inst: Instance, unit: Unit) -> tuple:
+    """The capsules of the reference pair of a pair or group unit: the pair, or the first gap observed in the group."""
+    if unit.kind == "pair":
+        return unit.capsules
+    for o in inst.design.observes:
+        if o.kind == "gap":
+            a, b = o.a.split(".")[0], o.b.split(".")[0]
+            if a in unit.capsules and b in unit.capsules:
+                return a, b
+    return unit.capsules[:2]
 
 
 def reference_unit(inst: Instance, kind: str | None = None) -> Unit | None:

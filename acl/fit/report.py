@@ -45,7 +45,19 @@ def per_observable(problem, fit) -> dict:
         r = fit.residual[m]
         out[name] = {"n": int(m.sum()), "rmse": _n(float(np.sqrt(np.mean(r * r)))),
                      "redchi": _n(float(np.sum((r * w[m]) ** 2) / max(m.sum() - fit.p * m.mean(), 1)))}
+        if problem.design.observe(name).kind == "state":
+            # a latch state's residual is its Pearson residual (p - y)/sqrt(p (1 - p)), a pure number
+            out[name]["unit"] = "Pearson"
     return out
+
+
+def length_rmse(problem, fit) -> float:
+    """RMS residual (m) over the rows that observe a length (latch states, 0/1, left out)."""
+    st = problem.prepared.state
+    if st is None or not np.any(st):
+        return fit.rmse
+    r = fit.residual[~st]
+    return float(np.sqrt(np.mean(r * r))) if r.size else float("nan")
 
 
 def covariance(fit) -> dict:
@@ -129,8 +141,8 @@ def build_report(problem, selection, tests_before, tests_after, calibrated_name=
                   "per_observable": per_observable(problem, final),
                   "covariance": covariance(final)},
         "critical_distance": critical_distance(final, problem),
-        "rmse_before": _n(base.rmse),
-        "rmse_after": _n(final.rmse),
+        "rmse_before": _n(length_rmse(problem, base)),
+        "rmse_after": _n(length_rmse(problem, final)),
         "unexplained": [t.as_dict() for t in structured(tests_after)],
         "outliers": outliers(problem, final),
         "residual_tests_after": [t.as_dict() for t in tests_after],
@@ -149,7 +161,8 @@ def render_table(report, console=None) -> None:
         t.add_column(col, justify="right" if col != "observable" else "left")
     b, a = report["base"]["per_observable"], report["final"]["per_observable"]
     for name in b:
-        t.add_row(name, str(b[name]["n"]), _um(b[name]["rmse"]), _um(a[name]["rmse"]),
+        fmt = _um if b[name].get("unit") != "Pearson" else (lambda x: f"{_g(x)} (Pearson)")
+        t.add_row(name, str(b[name]["n"]), fmt(b[name]["rmse"]), fmt(a[name]["rmse"]),
                   _g(b[name]["redchi"]), _g(a[name]["redchi"]))
     t.add_row("[bold]overall", str(report["rows"]), _um(report["rmse_before"]), _um(report["rmse_after"]),
               _g(report["base"]["redchi"]), _g(report["final"]["redchi"]))
@@ -223,27 +236,38 @@ def figures(problem, selection, outdir) -> list[str]:
     strongest = P.f[np.arange(P.n), np.argmax(P.v, axis=1)]
     driven = P.v.sum(axis=1) > 0
     keys = np.array([" ".join(f"{k}={v}" for k, v in d.override_key(i)) for i in range(d.n)], dtype=object)
+    from acl.fit.forward import predict
+
     for j, name in enumerate(names):
         m = d.observable == name
+        state = problem.design.observe(name).kind == "state"     # 0/1: plotted as is, the model as a probability
+        scale, unit = (1.0, "state (0 a, 1 b)") if state else (1e6, "um")
         groups = list(dict.fromkeys((keys[i], strongest[i]) for i in np.flatnonzero(m & driven)))
         for k, (label, fit) in enumerate((("before", selection.base), ("after", selection.final))):
             ax, axr = axes[0, 2 * j + k], axes[1, 2 * j + k]
+            model = fit.prediction
+            if state:
+                held, P.pearson = P.pearson, None
+                try:
+                    model = predict(P, *fit.as_inputs())
+                finally:
+                    P.pearson = held
             for gi, (key, freq) in enumerate(groups):
                 sel = m & (keys == key) & (~driven | (strongest == freq))
                 colour = f"C{gi % 10}"
                 order = np.argsort(volts[sel], kind="stable")
-                ax.plot(volts[sel], d.value[sel] * 1e6, ".", ms=3, color=colour,
+                ax.plot(volts[sel], d.value[sel] * scale, ".", ms=3, color=colour,
                         label=f"{freq / 1e3:g} kHz {key}" if len(groups) <= 10 else None)
-                ax.plot(volts[sel][order], fit.prediction[sel][order] * 1e6, "-", lw=0.8, color=colour)
-                axr.plot(volts[sel], fit.residual[sel] * 1e6, ".", ms=3, color=colour)
+                ax.plot(volts[sel][order], model[sel][order] * scale, "-", lw=0.8, color=colour)
+                axr.plot(volts[sel], fit.residual[sel] * scale, ".", ms=3, color=colour)
             ax.set_title(f"{name}: {label} (dots data, lines model)")
             ax.set_xlabel("voltage (V)")
-            ax.set_ylabel("um")
+            ax.set_ylabel(unit)
             if groups and len(groups) <= 10:
                 ax.legend(fontsize=6)
             axr.axhline(0, color="k", lw=0.5)
             axr.set_xlabel("voltage (V)")
-            axr.set_ylabel(f"residual {label} (um)")
+            axr.set_ylabel(f"residual {label} ({'Pearson' if state else 'um'})")
     fig.tight_layout()
     path = os.path.join(outdir, "fit.png")
     fig.savefig(path, dpi=90)

@@ -22,7 +22,8 @@ from acl.fit.effects import EFFECTS
 
 P_LIMIT = 0.01
 K_FOLDS = 5
-SCREEN_P = 0.5      # a candidate whose first fit gives an F-test p above this is not refitted from its other starts
+SCREEN_P = 0.5      # a candidate whose first fit gives an F-test p above this (and is no worse than the current
+#                     model) is not refitted from its other starts
 ALT_GAIN = 1e-3     # relative chi-square drop of a refit of the current model that restarts a round
 MAX_RESTARTS = 3     # times a round starts over after a better fit of the current model is found
 
@@ -66,8 +67,9 @@ def applicable(eid, problem, current_kinds) -> str | None:
             return "the data have fewer than two drive frequencies"
         if req == "frequencies3" and np.unique(P.f[P.v > 0]).size < 4:
             return "the data have fewer than four drive frequencies (a resonance shape needs a sweep)"
-        if req == "single" and not np.any(~P.pair & active):
-            return "only for an actuator on its own (paper Eq. (3) already has the partner's jet drag)"
+        if req == "neighbour" and not np.any(_with_neighbour(P) & active):
+            return ("no actuator in the data has a neighbour (only the capsules of a pair or a group do: capsules "
+                    "of different units do not interact)")
         if req == "lengths" and np.unique(np.round(P.L[P.beam & active], 12)).size < 2:
             return "every row has the same beam length"
         if req == "heights" and np.unique(np.round(P.height[0][active], 12)).size < 2:
@@ -75,6 +77,12 @@ def applicable(eid, problem, current_kinds) -> str | None:
     if eid == "stiffness_scale" and "e_scale" in current_kinds:
         return "E is already free"
     return None
+
+
+def _with_neighbour(P) -> np.ndarray:
+    """Rows whose capsules have a neighbour (neighbour_drag acts there): a pair's or a group's rows."""
+    grp = getattr(P, "group_row", None)
+    return P.pair | grp if grp is not None else P.pair
 
 
 def effect_coefs(eid, problem) -> tuple[list, list]:
@@ -157,7 +165,10 @@ def select_effects(problem, candidates=None, p_limit=P_LIMIT, k_folds=K_FOLDS, s
                 starts = [list(current.values) + s for s in estarts]
                 trial_fit = solve.fit(model, problem.y, problem.sigma, coefs)
                 F, p = solve.f_test(current.chi2, current.p, trial_fit.chi2, trial_fit.p, problem.y.size)
-                if starts and p < SCREEN_P:   # the effect may matter: look for a better minimum from its other starts
+                # the effect may matter, or the fit ended worse than the current model it contains (at the effect's
+                # null value): a failed optimization, e.g. rows thrown past a snap-in fold by the first start.  Look
+                # for a better minimum from the effect's other starts.
+                if starts and (p < SCREEN_P or trial_fit.chi2 > current.chi2):
                     again = solve.fit(model, problem.y, problem.sigma, coefs, starts=[list(trial_fit.values)] + starts)
                     if again.chi2 < trial_fit.chi2:
                         trial_fit = again
@@ -218,8 +229,77 @@ def select_effects(problem, candidates=None, p_limit=P_LIMIT, k_folds=K_FOLDS, s
         current = best.fit
         current_coefs = list(best.fit.coefs)
         cv_current = best.cv
+    if selected:
+        current, selected = _revisit(problem, model, names, selected, current, trials, p_limit, progress)
     effects = solve.split_coefs(current.coefs, current.values)[1]
     return Selection(base, current, selected, trials, effects)
+
+
+MAX_SWAPS = 2     # passes of the revisit step
+
+
+def _revisit(problem, model, names, selected, current, trials, p_limit, progress):
+    """Forward selection can keep an effect that only stood in for one found later (a flexible transducer resonance
+    absorbing part of a large deflection before the elastica was tried).  Revisit each selected effect E given the
+    others: fit the model without E; if E is no longer significant there (nested F-test p >= the round's Bonferroni
+    limit), drop it; otherwise try every other applicable effect C in E's place, and swap when C passes the same
+    tests as in the search (F-test against the model without E, identifiable) and the model with C has a lower BIC
+    than the model with E (an equal or better fit with no more parameters).  At most MAX_SWAPS passes."""
+    for _pass in range(MAX_SWAPS):
+        changed = False
+        for eid in list(selected):
+            rest = [c for c in current.coefs if c.effect != eid]
+            vals = [v for c, v in zip(current.coefs, current.values) if c.effect != eid]
+            reduced = solve.fit(model, problem.y, problem.sigma, [_with_value(c, v) for c, v in zip(rest, vals)])
+            kinds = {c.kind for c in rest}
+            others = [e for e in names if e not in selected and not applicable(e, problem, kinds)]
+            limit = p_limit / max(len(others) + 1, 1)
+            _, p_keep = solve.f_test(reduced.chi2, reduced.p, current.chi2, current.p, problem.y.size)
+            if not p_keep < limit:
+                if progress:
+                    progress(f"revisit: {eid} is not significant given the others; dropped")
+                given = ", ".join(e for e in selected if e != eid)
+                _retire(trials, eid, f"dropped on revisit: not significant given {given} "
+                                     f"(F-test p = {p_keep:.3g} >= {limit:.3g})")
+                selected = [e for e in selected if e != eid]
+                current, changed = reduced, True
+                break
+            best = None
+            for cid in others:
+                if progress:
+                    progress(f"revisit: {cid} in place of {eid}")
+                ecoefs, estarts = effect_coefs(cid, problem)
+                coefs = [_with_value(c, v) for c, v in zip(rest, reduced.values)] + ecoefs
+                trial = solve.fit(model, problem.y, problem.sigma, coefs,
+                                  starts=[list(reduced.values) + st for st in estarts] or None)
+                F, p = solve.f_test(reduced.chi2, reduced.p, trial.chi2, trial.p, problem.y.size)
+                if (p < limit and trial.identifiable and not _loose(trial) and trial.bic < current.bic
+                        and (best is None or trial.bic < best[1].bic)):
+                    best = (cid, trial, F, p)
+            if best is not None:
+                cid, trial, F, p = best
+                if progress:
+                    progress(f"revisit: {cid} replaces {eid}")
+                _retire(trials, eid, f"replaced on revisit by {cid}: with the other selected effects, {cid} gives a "
+                                     f"lower BIC ({trial.bic - current.bic:+.3g})")
+                t = Trial(cid, max((t.round for t in trials), default=0) + 1, "selected",
+                          f"replaces {eid} on revisit: F-test p = {p:.3g} < {limit:.3g} against the model without "
+                          f"{eid}, identifiable, BIC lower than with {eid} ({trial.bic - current.bic:+.3g})",
+                          trial, F, p, trial.bic - reduced.bic, trial.aicc - reduced.aicc)
+                trials.append(t)
+                selected = [cid if e == eid else e for e in selected]
+                current, changed = trial, True
+                break
+        if not changed:
+            break
+    return current, selected
+
+
+def _retire(trials, eid, reason):
+    for t in trials:
+        if t.effect == eid and t.status == "selected":
+            t.status = "rejected"
+            t.reason += "; " + reason
 
 
 def _with_value(c, v):

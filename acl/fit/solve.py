@@ -110,6 +110,9 @@ def fit(predict, y, sigma, coefs, train=None, starts=None, max_nfev=200, robust_
         return np.where(np.isfinite(r), r, 1e6)
 
     best, message, success = None, "no free parameters", True
+    from acl.fit.forward import REWEIGHT
+
+    REWEIGHT.generation += 1           # latch states: this fit searches on their likelihood (acl.fit.forward)
     x0s = [np.array([c.value for c in coefs], float)] + [np.asarray(s, float) for s in (starts or [])]
     if coefs:
         # several starts: a short run from each, then the best one is continued (multi-start pruning)
@@ -142,6 +145,8 @@ def fit(predict, y, sigma, coefs, train=None, starts=None, max_nfev=200, robust_
                 pass
         if best is not None:
             best = _escape_jumps(best, resid, train, full, y, w, lo, hi, max_nfev, least_squares)
+        if best is not None:
+            best = _reweighted(best, resid, full, lo, hi, max_nfev, least_squares)
         if best is None:
             u, J = x0s[0] / scale, np.zeros((train.size, len(coefs)))
         else:
@@ -162,7 +167,10 @@ def fit(predict, y, sigma, coefs, train=None, starts=None, max_nfev=200, robust_
     identifiable = True
     if p:
         rn = np.linalg.norm(J, axis=1)
-        med = float(np.median(rn[rn > 0])) if np.any(rn > 0) else 0.0
+        # the median over rows that carry information (a threshold observable, a latch state, has rows of
+        # essentially zero slope far from its threshold: they must not make its informative rows look like spikes)
+        live = rn > 1e-6 * rn.max() if rn.size else rn > 0
+        med = float(np.median(rn[live])) if np.any(live) else 0.0
         spike = rn > SPIKE * med if med > 0 else np.zeros(rn.size, bool)
         if np.any(spike) and spike.sum() < rn.size - p:
             J = J[~spike]
@@ -210,9 +218,74 @@ def fit(predict, y, sigma, coefs, train=None, starts=None, max_nfev=200, robust_
                      success, str(message), warnings, identifiable)
 
 
+def _reweighted(best, resid, full, lo, hi, max_nfev, least_squares):
+    """Latch states (0/1 rows, acl.fit.forward): the search ran on their deviance residuals (maximum likelihood);
+    hold their binomial variances at its optimum and polish on Pearson residuals, whose Jacobian gives the Fisher
+    information (the optimum does not move: the score is zero there).  Nothing happens without state rows."""
+    from acl.fit.forward import REWEIGHT
+
+    if not REWEIGHT.users:
+        return best
+    with REWEIGHT:
+        full(best.x)
+    span = hi - lo
+    try:
+        return least_squares(resid, np.clip(best.x, lo + 1e-9 * span, hi - 1e-9 * span), bounds=(lo, hi),
+                             method="trf", x_scale="jac", diff_step=DIFF_STEP, max_nfev=max_nfev,
+                             xtol=1e-10, ftol=1e-10, gtol=1e-10)
+    except ValueError:
+        return best
+
+
 def _escape_jumps(best, resid, train, full, y, w, lo, hi, max_nfev, least_squares):
     """Leave out the few rows beyond JUMP sigma (a discontinuity such as snap-in traps the optimizer there),
-    refit, and keep the result only if the cost over *all* rows is lower; then polish on all rows."""
+    refit, and keep the result only if the cost over *all* rows is lower; then polish on all rows.  Then probe
+    across the fold (:func:`_probe_folds`)."""
+    best = _leave_out_jumps(best, resid, train, full, y, w, lo, hi, max_nfev, least_squares)
+    return _probe_folds(best, resid, lo, hi, max_nfev, least_squares)
+
+
+PROBE_STEPS = (-4.0, -2.0, -1.0, -0.5, 0.5, 1.0, 2.0, 4.0)   # probe offsets along each principal axis, in standard errors
+PROBE_POLISH = 2                                             # probes polished by a full fit
+
+
+def _probe_folds(best, resid, lo, hi, max_nfev, least_squares):
+    """Rows predicted on the other side of a fold (past snap-in in the model, not in the data) contribute no
+    gradient: the optimizer cannot see that a move of a fraction of a standard error would bring them back.  Probe
+    the solution along each principal axis of its covariance (the rows within JUMP sigma only) at PROBE_STEPS standard
+    errors (one model evaluation each); from the PROBE_POLISH probes with the fewest rows beyond JUMP sigma (then the
+    lowest cost) that have fewer than the solution, fit again, and keep a result whose cost over all rows is lower."""
+    r = best.fun
+    big = np.abs(r) > JUMP
+    p = best.x.size
+    if p == 0 or not big.any() or big.sum() > 0.05 * r.size or r.size - big.sum() <= p:
+        return best
+    J = best.jac[~big]
+    s2 = float(np.sum(r[~big] ** 2)) / (r.size - big.sum() - p)
+    lam, vec = np.linalg.eigh(J.T @ J)
+    ok = lam > 1e-12 * max(lam.max(), 1e-300)
+    probes = []
+    for k in np.flatnonzero(ok):
+        step = np.sqrt(s2 / lam[k]) * vec[:, k]
+        for m in PROBE_STEPS:
+            u = np.clip(best.x + m * step, lo, hi)
+            rr = resid(u)
+            probes.append((int(np.sum(np.abs(rr) > JUMP)), float(0.5 * rr @ rr), u))
+    better = sorted((q for q in probes if q[0] < big.sum()), key=lambda q: (q[0], q[1]))[:PROBE_POLISH]
+    span = hi - lo
+    for _, _, u in better:
+        try:
+            sol = least_squares(resid, np.clip(u, lo + 1e-9 * span, hi - 1e-9 * span), bounds=(lo, hi), method="trf",
+                                x_scale="jac", diff_step=DIFF_STEP, max_nfev=max_nfev, xtol=1e-10, ftol=1e-10,
+                                gtol=1e-10)
+        except ValueError:
+            continue
+        if sol.cost < best.cost:
+            best = sol
+    return best
+
+
+def _leave_out_jumps(best, resid, train, full, y, w, lo, hi, max_nfev, least_squares):
     r = best.fun
     big = np.abs(r) > JUMP
     if not big.any() or big.sum() > 0.05 * r.size:

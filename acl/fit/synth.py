@@ -123,6 +123,13 @@ def generate(design_path, experiment, effects: dict | None = None, noise: float 
     y = predict(P, dict(coeffs or {}), effect_inputs(effects or {}))
     rng = np.random.default_rng(seed)
     data.value = y + rng.normal(0.0, noise, n) if noise > 0 else y
+    if np.any(P.state):
+        # a latch state is 0 or 1: drawn with the model's switching probability (noise-free: the likelier state)
+        st = P.state
+        draw = rng.uniform(size=n) < y if noise > 0 else y >= 0.5
+        data.value = np.where(st, draw.astype(float), data.value)
+        data.sigma = np.where(st, 0.5 if noise > 0 else np.nan, data.sigma)
+        data.units = np.where(st, "1", data.units).astype(object)
     return data, P
 
 
@@ -141,8 +148,10 @@ def write_csv(data, path, unit: str = "um") -> None:
             *(["experiment"] if with_exp else []), *[f"set:{k}" for k in set_names]]
     lines = [",".join(head)]
     for i in range(data.n):
-        cells = [data.observable[i], f"{data.value[i] / factor:.6g}", unit, format_drive(data.tones[i]),
-                 f"{data.time[i]:.6g}", *([f"{data.sigma[i] / factor:.6g}"] if with_sigma else []),
+        dimensionless = data.units[i] == "1"          # a latch state (0/1) is a pure number
+        f_i, u_i = (1.0, "1") if dimensionless else (factor, unit)
+        cells = [data.observable[i], f"{data.value[i] / f_i:.6g}", u_i, format_drive(data.tones[i]),
+                 f"{data.time[i]:.6g}", *([f"{data.sigma[i] / f_i:.6g}"] if with_sigma else []),
                  *([data.experiment[i]] if with_exp else []),
                  *[data.sets[k][i] for k in set_names]]
         lines.append(",".join(cells))
@@ -336,6 +345,12 @@ def observe_value(design, obs, state) -> float:
 
     if obs.kind == "gap":
         return orifice_gap(design, obs.a, obs.b, state.positions)
+    if obs.kind == "state":      # past the unstable point of the latch landscape: state b (acl.physics.latch)
+        from acl.analysis.mechanics import latch_geometry
+        from acl.physics.latch import latch_landscape
+
+        land = latch_landscape(*latch_geometry(design.latch(obs.target), design))
+        return float(land.bistable and state.deflections[obs.target] > land.unstable)
     cap = obs.target
     if cap not in state.displacements:
         held = [j.capsule for j in design.joints if j.kind == "mount" and j.target == obs.target]

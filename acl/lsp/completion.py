@@ -14,7 +14,7 @@ from acl.lsp.document import Snapshot, code_part
 STATEMENTS = ("import", "extends", "param", "use", "mount", "fix", "link", "observe", "require", "program",
               "uncertainty")
 STEPS = ("drive", "sweep", "pause", "follow", "switch", "hold", "cross")
-FUNCTIONS = ("displacement", "position", "gap", "resonance", "separation", "margin",   # observe / require
+FUNCTIONS = ("displacement", "position", "gap", "state", "resonance", "separation", "margin",   # observe / require
              "circle", "rect", "csv",                                                  # sections, tables
              "line", "polyline", "rectangle", "text")                                  # follow paths
 NESTED = {"capsule": ("cavity", "orifice")}

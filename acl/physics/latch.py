@@ -52,12 +52,12 @@ def axial_force(compression, slenderness: float):
 
 def _axial_energy(compression, slenderness: float):
     """Nondimensional strain energy of one beam's axial member, integral of axial_force (Clapeyron)."""
-    from scipy.integrate import cumulative_trapezoid
-
     c = np.asarray(compression, dtype=float)
     hi = max(float(np.max(c, initial=0.0)), 1e-12)
     grid = np.linspace(0.0, hi, 20001)
-    cum = cumulative_trapezoid(axial_force(grid, slenderness), grid, initial=0.0)
+    f = axial_force(grid, slenderness)
+    # cumulative trapezoid rule (as scipy.integrate.cumulative_trapezoid, without importing scipy.integrate)
+    cum = np.concatenate([[0.0], np.cumsum(np.diff(grid) * (f[1:] + f[:-1]) / 2.0)])
     k_axial = 12.0 / slenderness**2
     return np.where(c <= 0.0, 0.5 * k_axial * c**2, np.interp(c, grid, cum))
 
@@ -96,6 +96,13 @@ def latch_stiffness(u, theta: float, L: float, w: float, t: float, E: float):
     return (latch_force(u + h, theta, L, w, t, E) - latch_force(u - h, theta, L, w, t, E)) / (2 * h)
 
 
+def latch_force_and_stiffness(u: float, theta: float, L: float, w: float, t: float, E: float) -> tuple[float, float]:
+    """(:func:`latch_force`, :func:`latch_stiffness`) at one travel ``u`` from one vectorised evaluation of the von Mises truss law (same central difference)."""
+    h = 1e-7 * L
+    f = latch_force(np.array([u, u + h, u - h], dtype=float), theta, L, w, t, E)
+    return float(f[0]), float((f[1] - f[2]) / (2 * h))
+
+
 @dataclass(frozen=True)
 class LatchLandscape:
     """Energy landscape along the actuation direction and its critical points (SI)."""
@@ -129,7 +136,7 @@ def latch_landscape(theta: float, L: float, w: float, t: float, E: float,
     if up.size == 0:
         return LatchLandscape(u, U, F, False, None, None, None, float(F.max()), None)
     i1 = i0 + up[0]
-    from scipy.optimize import brentq
+    from acl.physics.roots import brentq
 
     def f(x):
         return float(latch_force(x, theta, L, w, t, E))

@@ -73,7 +73,7 @@ def _separate_pairs(ctx: Context) -> dict[tuple[str, str], str]:
     names = [c.name for c in d.capsules]
     out: dict[tuple[str, str], str] = {}
     for r in d.requires:
-        if r.kind == "separation" and r.args[0] != r.args[1]:
+        if r.kind == "separation" and len(r.args) == 2 and r.args[0] != r.args[1]:
             out[tuple(sorted(r.args))] = f"`{r.text}`"
     alone: dict[str, str] = {}
     for p, st in ctx.steps():

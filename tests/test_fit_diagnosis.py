@@ -1,0 +1,151 @@
+"""Issue 9, first "done when": planted effects are diagnosed over seeds in every experiment kind that identifies them.
+
+The full sweep (every library effect in every kind, two-effect truths, clean data, creep and tilt outside the library,
+10 seeds each) takes about an hour on the shared machine, so it runs in `benchmarks/fit_diagnosis.py`; its run is
+committed as benchmarks/fit_diagnosis.json and rendered into docs/fit.md by tests/docs_sync.py.  Here:
+
+* the committed run meets the bar (>= 9 of 10 per case, nothing claimed on clean data, RMSE after <= 1.3 x noise),
+  with the cases below the bar listed exactly (KNOWN_BELOW), so a regression or an improvement both show;
+* a representative subset of its runs is repeated (same selection, same RMSE), so the file is what the code gives;
+* the three mechanisms the sweep needed are checked on the seeds that showed the defects.
+"""
+from __future__ import annotations
+
+import json
+import os
+import sys
+
+import numpy as np
+import pytest
+
+HERE = os.path.dirname(__file__)
+ROOT = os.path.join(HERE, "..")
+SWEEP = os.path.join(ROOT, "benchmarks", "fit_diagnosis.json")
+sys.path.insert(0, os.path.join(ROOT, "benchmarks"))
+
+import fit_diagnosis as FD  # noqa: E402
+
+RATE = 0.9          # issue 9: diagnosed correctly at least 90 % of the time
+RMSE_RATIO = 1.3    # issue 9: RMSE after within 1.3 x the noise
+KNOWN_BELOW: dict[str, int] = {}     # case -> correct runs of 10, for cases below the bar (none)
+
+
+def _rows():
+    with open(SWEEP) as fh:
+        return json.load(fh)["rows"]
+
+
+def _summary():
+    return {c["case"]: c for c in FD.summary(_rows())}
+
+
+def test_committed_sweep_covers_every_case_with_ten_seeds():
+    summary = _summary()
+    assert set(summary) == {FD.label(k, p) for k, p in FD.CASES}
+    assert all(c["n"] == 10 for c in summary.values())
+    from acl.fit.effects import EFFECTS
+    planted = {e for c in summary.values() for e in c["planted"] if not e.startswith("(")}
+    assert planted == set(EFFECTS)                   # every library effect is planted somewhere
+    assert {c["kind"].split("/")[0] for c in summary.values()} == {"cantilever", "pair", "pair+cal", "spring+cal",
+                                                                   "latch"}
+
+
+def test_committed_sweep_diagnoses_at_least_nine_in_ten():
+    """Cases the experiment cannot identify (FD.LIMITS, with the reason shown in docs/fit.md) are measured but not
+    counted; there a wrong effect must still not be claimed often (nothing, or the planted set, in 9 of 10)."""
+    summary = _summary()
+    below = {case: c["correct"] for case, c in summary.items() if c["correct"] < RATE * c["n"] and not c["limit"]}
+    assert below == KNOWN_BELOW
+    for case, reason in FD.LIMITS.items():
+        assert reason and case in summary
+        runs = [r for r in _rows() if r["case"] == case]
+        safe = [r for r in runs if r["ok"] or not r["selected"]]
+        assert len(safe) >= RATE * len(runs), case
+
+
+def test_committed_sweep_claims_nothing_on_clean_data_and_reaches_the_noise():
+    rows = _rows()
+    clean = [r for r in rows if not r["planted"]]
+    assert clean and all(r["selected"] == [] for r in clean)
+    library = [r for r in rows if not any(p.startswith("(") for p in r["planted"]) and r["case"] not in FD.LIMITS]
+    # every correct diagnosis ends within 1.3 x the noise (a wrong one is counted as a failure above)
+    assert max(r["rmse_after_over_noise"] for r in library if r["ok"]) <= RMSE_RATIO
+    for c in _summary().values():
+        if not c["outside"] and not c["limit"]:
+            assert c["rmse_after_over_noise"] <= RMSE_RATIO, c["case"]
+
+
+def test_effects_outside_the_library_are_structure_with_a_covariate_in_the_committed_sweep():
+    for c in _summary().values():
+        if c["outside"]:
+            assert c["correct"] == c["n"], c["case"]      # nothing claimed, structure reported
+            assert c["unexplained"], c["case"]
+
+
+# a representative subset of the committed runs, repeated: (case, seed)
+REPEAT = [
+    ("cantilever large_deflection", 101),
+    ("cantilever large_deflection+transducer_gain", 101),
+    ("cantilever bubble_shrinkage+transducer_resonance", 104),
+    ("cantilever/known-force stiffness_scale", 102),
+    ("cantilever clean", 100),
+    ("cantilever (tilt)", 103),
+    ("latch drive_saturation", 105),
+    ("pair+cal neighbour_drag", 100),
+]
+
+
+@pytest.mark.parametrize("case,seed", REPEAT, ids=[f"{c}-{s}" for c, s in REPEAT])
+def test_a_committed_run_is_repeated(case, seed):
+    row = next(r for r in _rows() if r["case"] == case and r["seed"] == seed)
+    kind, planted = next((k, p) for k, p in FD.CASES if FD.label(k, p) == case)
+    again = FD.run_case(kind, planted, seed)
+    assert again["selected"] == row["selected"] and again["ok"] == row["ok"]
+    assert again["rmse_after_over_noise"] == pytest.approx(row["rmse_after_over_noise"], rel=1e-3)
+
+
+def _problem(tmp_path, kind, planted, seed):
+    from acl.fit.problem import load_problem
+    from acl.fit.synth import generate, write_csv
+
+    design, experiment, free, noise, coeffs = FD.kinds()[kind]
+    data, _ = generate(design, experiment, planted, noise=0.0, seed=seed, coeffs=coeffs)
+    data.value = data.value + np.random.default_rng(seed).normal(0, noise, data.n)
+    data.sigma = np.full(data.n, noise)
+    path = str(tmp_path / "d.csv")
+    write_csv(data, path)
+    return load_problem(design, [path], free=free)
+
+
+def test_the_fit_leaves_a_snap_in_trap_that_gives_no_gradient(tmp_path):
+    """Pair, planted tilt, seed 109: from the base model's values the gain fit stopped with 4 rows predicted in contact
+    (past snap-in) while measured 37-48 um apart (chi-square 81,804 for 360 rows); the rows give no gradient, so only a
+    probe across the fold finds the minimum near the truth (a neighbour_drag was selected to get there)."""
+    from acl.fit import solve
+    from acl.fit.forward import predict
+    from acl.fit.select import _with_value, effect_coefs
+
+    problem = _problem(tmp_path, "pair", {"transducer_gain": FD.GAIN}, 109)
+    P = problem.prepared
+
+    def model(a, b):
+        return predict(P, a, b)
+
+    base = solve.fit(model, problem.y, problem.sigma, problem.coefs)
+    coefs = [_with_value(c, v) for c, v in zip(problem.coefs, base.values)] + effect_coefs("transducer_gain", problem)[0]
+    fit = solve.fit(model, problem.y, problem.sigma, coefs)
+    assert fit.chi2 < 1.2 * problem.y.size
+    assert not np.any(np.abs(fit.residual / problem.sigma) > solve.JUMP)
+    assert fit.value("transducer_gain.gain_slope") == pytest.approx(1.5, abs=0.1)
+
+
+def test_a_selected_effect_that_stood_in_for_a_later_one_is_replaced(tmp_path):
+    """Cantilever, tilt + large deflection, seed 101: the flexible resonance won round 1 (it absorbs part of the
+    stiffening too), the elastica came in round 2; given the elastica, the one-parameter tilt explains as much."""
+    from acl.fit.select import select_effects
+
+    planted = {"transducer_gain": FD.GAIN, "large_deflection": FD.LARGE}
+    sel = select_effects(_problem(tmp_path, "cantilever", planted, 101), seed=101)
+    assert sorted(sel.selected) == sorted(planted)
+    res = next(t for t in sel.trials if t.effect == "transducer_resonance" and t.round == 1)
+    assert res.status == "rejected" and "replaced on revisit by transducer_gain" in res.reason
