@@ -130,3 +130,16 @@ def test_cli_bad_uncertainty_exit_code_no_traceback(tmp_path):
     assert out.returncode == 1
     assert "E320" in out.stdout + out.stderr and "Traceback" not in out.stderr
     assert f"bad.acl:5:24" in out.stdout + out.stderr
+
+
+@pytest.mark.parametrize("spread, code, col, text", [
+    ("-3 %", "E320", 24, "is negative (-3 %)"),                       # printed -0.03 % (the fraction)
+    ("1e300 %", "E305", 24, "too large to compute with"),
+    ("normal(1 pN/V^2, 1e300 N/V^2)", "E305", 24, "too large to compute with"),
+    ("uniform(-1e300 N/V^2, 1e300 N/V^2)", "E305", 24, "too large to compute with"),
+])
+def test_spreads_too_large_or_negative_are_located(spread, code, col, text):
+    with pytest.raises(DiagnosticError) as exc:
+        acl.loads(BASE + f"param g = 27 pN/V^2 +- {spread}\n", "u.acl")
+    d = exc.value.diagnostics[0]
+    assert (d.code, d.span.line, d.span.column) == (code, 5, col) and text in d.message, (d.code, str(d.span), d.message)

@@ -86,7 +86,8 @@ def _check_sd(sd: float, name: str, span, report, unit: str) -> None:
         report("E305", f"uncertainty of `{name}` is not finite", span, "give a finite standard deviation")
         raise SpreadError()
     if sd < 0:
-        report("E320", f"uncertainty of `{name}` is negative ({sd:g} {unit})".replace(" )", ")"), span,
+        shown = sd * 100 if unit == "%" else sd     # a relative spread is held as a fraction, written in %
+        report("E320", f"uncertainty of `{name}` is negative ({shown:g} {unit})".replace(" )", ")"), span,
                "a standard deviation is >= 0: write `+- s` with s positive")
         raise SpreadError()
 
