@@ -35,6 +35,7 @@ examples:
   acl rule ACL201
   acl fit design.acl data.csv --report fit/
   acl fmt examples/ --check
+  acl sweep design.acl --vary radius=8um..12um:41 --tolerance "radius=normal(0, 150 nm)" -o sweep.csv
 
 exit codes: 0 clean, 1 errors in the design or findings, 2 usage or I/O error.
 docs: docs/language.md, docs/physics.md, docs/rules.md, docs/data.md

@@ -35,6 +35,7 @@ def test_json_summary_and_same_seed_same_rows(tmp_path, capsys):
     assert s["points"] == 30 and s["samples"] == 30 and {t["name"] for t in s["tolerances"]} == {"radius", "height"}
     y = s["yields"]["all"]
     assert y["lower"] <= y["yield"] <= y["upper"] and y["interval"] == "clopper-pearson"
+    assert s["grid_yield"] is None
     assert main(["sweep", *args, "-o", str(b)]) == 0
     assert a.read_text() == b.read_text()
 
@@ -146,3 +147,12 @@ def test_check_and_lint_do_not_import_the_sweep_stage():
             "sys.stderr.write('HEAVY=' + ','.join(heavy) + ' RC=' + str(rc))\n")
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, cwd=ROOT)
     assert "HEAVY= RC=" in r.stderr, r.stderr[-2000:]
+
+
+def test_json_grid_yield_per_grid_point(tmp_path, capsys):
+    assert main(["sweep", CANTILEVER, "--vary", "radius=9um..11um:3", "--vary", "height=30um,34um", "--samples", "40",
+                 "-o", str(tmp_path / "g.csv"), "--output-format", "json"]) == 0
+    s = json.loads(capsys.readouterr().out)
+    g = s["grid_yield"]
+    assert len(g) == 3 and all(len(row) == 2 for row in g)
+    assert sum(sum(row) for row in g) * 40 == pytest.approx(s["yields"]["all"]["passed"])

@@ -127,12 +127,25 @@ def test_latch_forces_and_switching_force_equal_scalar():
         np.testing.assert_allclose(PB.axial_force(c, w[i] / L[i]), LT.axial_force(c, w[i] / L[i]), rtol=1e-12, atol=1e-12)
         np.testing.assert_allclose(PB.latch_force(u, theta[i], L[i], w[i], t[i], E[i]),
                                    LT.latch_force(u, theta[i], L[i], w[i], t[i], E[i]), rtol=1e-10, atol=1e-22)
-    fs, bi = PB.latch_switching_force(theta, L, w, t, E)
+    fs, rel, bi = PB.latch_switching_force(theta, L, w, t, E)
+    assert bi.any()
     for i in range(n):
         land = LT.latch_landscape(theta[i], L[i], w[i], t[i], E[i])
         assert bi[i] == land.bistable
-        # the scalar maximum is over a 2001-point grid: never above the refined one, within 1e-3
+        u = np.linspace(0.0, land.unstable if land.bistable else 2.6 * L[i] * np.sin(theta[i]), 200001)
+        dense = LT.latch_force(u, theta[i], L[i], w[i], t[i], E[i]).max()
+        # fs is a value of the force (golden section evaluates it), so it cannot exceed the true maximum; a
+        # dense scan can only approach it from below
+        assert dense * (1 - 1e-12) <= fs[i] <= dense * (1 + 1e-5)
+        # the scalar extremes are over a 2001-point grid: never above the refined ones, within 1e-3
         assert land.switching_force * (1 - 1e-12) <= fs[i] <= land.switching_force * (1 + 1e-3)
+        if land.bistable:
+            assert land.release_force * (1 - 1e-12) <= rel[i] <= land.release_force * (1 + 5e-3)
+            u = np.linspace(land.unstable, land.state_b, 200001)         # a dense scan: the refined value is the model's
+            dense = -LT.latch_force(u, theta[i], L[i], w[i], t[i], E[i]).min()
+            assert dense * (1 - 1e-12) <= rel[i] <= dense * (1 + 1e-5)
+        else:
+            assert np.isnan(rel[i])
 
 
 def test_physics_batch_imports_no_design_sweep_or_cli():

@@ -103,3 +103,30 @@ def test_free_parameter_outside_its_bounds_is_invalid():
     b = field_batch(d, {"r1": vals})
     assert b.code.tolist() == ["E306", "", "", "E306"]
     _compare_with_load(path, d, {"r1": vals}, b, range(4))
+
+
+def test_affine_expressions_of_two_parameters_match_resolution(tmp_path):
+    """Property: for random affine expressions `a * radius + b * height + c`, every point's fields equal acl.load."""
+    from hypothesis import given, settings
+    from hypothesis import strategies as st
+
+    @settings(max_examples=15, deadline=None, derandomize=True)
+    @given(a=st.sampled_from(["0.5", "1", "0.25", "-0.1"]), b=st.sampled_from(["0", "0.1", "-0.05"]),
+           c=st.sampled_from(["0 um", "2 um", "3.3 um"]), seed=st.integers(0, 100))
+    def check(a, b, c, seed):
+        src = CANTILEVER.read_text().replace("orifice jet { radius = radius,",
+                                             f"orifice jet {{ radius = {a} * radius + {b} * height + {c},")
+        path = tmp_path / f"affine_{abs(hash((a, b, c)))}.acl"
+        path.write_text(src)
+        try:
+            d = acl.load(str(path))
+        except DiagnosticError:
+            return                                   # the nominal design itself is invalid: nothing to sweep
+        s = build_spec(d, None, ["radius=normal(0, 2 um)", "height=normal(0, 4 um)"], 12, seed=seed)
+        pts = chunk_points(s, 0, s.chunk_size)
+        with warnings.catch_warnings():
+            warnings.simplefilter("error", SweepWarning)      # affine: no exact fallback
+            b_ = field_batch(d, pts, field_map(d, s.names, s.box()))
+        _compare_with_load(path, d, pts, b_, range(b_.n))
+
+    check()

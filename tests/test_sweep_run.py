@@ -121,3 +121,15 @@ def test_a_sweep_on_the_cluster_equals_the_single_process_table_bit_for_bit(clus
     for name in one.dtype.names:
         assert one[name].tobytes() == two[name].tobytes(), name
     assert 0 < one["requires_pass"].sum() < 3000             # the columns hold real, varied results
+
+
+def test_dask_and_pyarrow_are_the_scale_extra_which_the_test_extra_pulls_in():
+    import tomllib
+    from pathlib import Path
+
+    project = tomllib.loads((Path(__file__).resolve().parents[1] / "pyproject.toml").read_text())["project"]
+    extras = project["optional-dependencies"]
+    assert not any(r.startswith(("dask", "distributed", "pyarrow")) for r in project["dependencies"])
+    assert any(r.startswith("dask[distributed]") for r in extras["scale"])
+    assert any(r.startswith("pyarrow") for r in extras["scale"])
+    assert any(r.startswith("acl[") and "scale" in r for r in extras["test"])

@@ -110,6 +110,7 @@ def test_vary_linear_log_list(design):
     (["radius=9um"], None, 0, 0, "E-USAGE", "<--samples>", 1),
     (["radius=9um"], None, None, -1, "E-USAGE", "<--seed>", 1),
     (None, None, None, 0, "E-USAGE", "<argv>", 1),
+    (["radius=1um..20um:1000"], None, 10**6, 0, "E-USAGE", "<argv>", 1),      # 1e9 rows: beyond memory
 ])
 def test_bad_sweep_inputs_are_located(design, vary, tol, samples, seed, code, where, col):
     with pytest.raises(DiagnosticError) as exc:
@@ -178,3 +179,11 @@ def test_declared_correlation_is_honoured():
     s = build_spec(d, None, None, 100_000, seed=3, chunk_size=100_000)
     p = chunk_points(s, 0, 100_000)
     assert np.corrcoef(p["a"], p["b"])[0, 1] == pytest.approx(0.8, abs=0.01)
+
+
+def test_show_prints_the_declared_spread():
+    import subprocess
+    import sys
+
+    r = subprocess.run([sys.executable, "-m", "acl", "show", str(CANTILEVER)], capture_output=True, text=True, cwd=ROOT)
+    assert "radius = 10 um +- normal(0, 150 nm)" in r.stdout and "height = 33.15 um +- uniform(-500 nm, 500 nm)" in r.stdout

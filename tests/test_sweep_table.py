@@ -126,3 +126,45 @@ def test_api_takes_a_loaded_design_but_not_one_from_text():
     with pytest.raises(DiagnosticError) as exc:
         acl.sweep(text, vary={"radius": "9um..10um:2"})
     assert exc.value.diagnostics[0].code == "E-USAGE" and "not a file" in exc.value.diagnostics[0].message
+
+
+def test_two_worker_local_cluster_table_equals_one_process_bit_for_bit():
+    """The whole sweep (sample, perturb, evaluate) as dask tasks on 2 worker processes: the same table."""
+    distributed = pytest.importorskip("distributed")
+    kw = dict(vary={"radius": "9um..11um:3"}, tolerance={"radius": "normal(0, 300 nm)"}, n=3000, seed=4)
+    single = acl.sweep(str(CANTILEVER), **kw)
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster:
+        from acl.sweep.driver import sweep
+
+        on_cluster = sweep(str(CANTILEVER), scheduler=cluster.scheduler_address, chunk_size=1000, **kw)
+        chunked_here = sweep(str(CANTILEVER), chunk_size=1000, **kw)
+    assert on_cluster.data.dtype == chunked_here.data.dtype
+    assert on_cluster.data.tobytes() == chunked_here.data.tobytes()
+    assert len(single) == len(on_cluster) == 9000
+    assert single.columns == on_cluster.columns
+
+
+def test_require_bounds_follow_a_swept_parameter(tmp_path):
+    """`require resonance(act) in f0 - 5 kHz .. f0 + 5 kHz` with f0 swept: the verdict uses each point's band."""
+    path = tmp_path / "band.acl"
+    path.write_text(CANTILEVER.read_text().replace("require resonance(act) in 110 kHz .. 135 kHz",
+                                                   "param f0 = 122 kHz\nrequire resonance(act) in f0 - 5 kHz .. f0 + 5 kHz"))
+    t = acl.sweep(str(path), vary={"f0": "100kHz..140kHz:5"}, quantities=["resonance_act_1_hz"])
+    f = t["resonance_act_1_hz"][0]
+    assert 117e3 < f < 127e3                                   # one point's band holds it
+    assert t["require_1_pass"].tolist() == [abs(f - f0) <= 5e3 for f0 in t["f0"]]
+    assert t["require_1_pass"].sum() == 1
+
+
+def test_parameter_moving_a_program_leaves_out_program_columns():
+    from acl.diagnostics import DiagnosticError
+
+    path = str(ROOT / "examples" / "fig1f_selective_beams.acl")
+    t = acl.sweep(path, vary={"volts": "1V..3V:3"})
+    assert "resonance_low_1_hz" in t.columns and not [c for c in t.columns if c.startswith(("force_", "snap_in_", "lint_"))]
+    assert any("nominal programs" in n for n in t.notes)
+    with pytest.raises(DiagnosticError) as exc:
+        acl.sweep(path, vary={"volts": "1V..3V:3"}, quantities=["force_low_high_85khz_n"])
+    assert exc.value.diagnostics[0].code == "E-USAGE" and exc.value.diagnostics[0].span.file == "<--quantity>"
+    moved = acl.sweep(path, vary={"spacing": "80um..120um:3"})      # geometry only: forces are batched
+    assert "force_low_high_85khz_n" in moved.columns

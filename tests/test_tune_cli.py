@@ -58,7 +58,7 @@ def fig3_tuned(tmp_path_factory):
     folder = tmp_path_factory.mktemp("fig3")
     design = folder / FIG3.name
     shutil.copy(FIG3, design)
-    code = main(["tune", str(design), "--samples", "1000", "--output-format", "json", "-q"])
+    code = main(["tune", str(design), "--samples", "1000", "--target", "0.95", "--output-format", "json", "-q"])
     return code, design, folder / "fig3_robust_radii.tuned.acl"
 
 
@@ -184,6 +184,8 @@ def test_infeasible_requirement_is_E875(tmp_path, capsys):
     (["--seed", "-1"], "E-USAGE", "<--seed>"),
     (["-o", "tuned.txt"], "E-USAGE", "<--output>"),
     (["-o", "-"], "E-USAGE", "<--output>"),
+    (["--target", "1.5"], "E-USAGE", "<--target>"),
+    (["--target", "0"], "E-USAGE", "<--target>"),
 ])
 def test_bad_options_are_usage_errors(tmp_path, capsys, args, diag, where):
     d = _design(tmp_path)
@@ -205,3 +207,15 @@ def test_a_design_with_errors_reports_them(tmp_path, capsys):
     d = tmp_path / "broken.acl"
     d.write_text("param r1 = 12 um free in 8 um .. 16 um\nrequire separation(nothing) >= 1 kHz\n")
     _bad(tmp_path, capsys, [d, *FAST], 1, "E201", "broken.acl:2:20")
+
+
+def test_a_missed_yield_target_is_E876_and_writes_nothing(tmp_path, capsys):
+    # 300 validation samples cannot show 0.999: the interval's lower end is at most 0.988
+    d = _design(tmp_path)
+    _bad(tmp_path, capsys, [d, "--samples", "300", "--max-evals", "30", "--target", "0.999"], 1, "E876", "<--target>")
+
+
+def test_a_met_yield_target_writes_the_tuned_design(tmp_path, capsys):
+    d = _design(tmp_path)
+    code, out, err = _tune([d, "--samples", "300", "--max-evals", "30", "--target", "0.9", "-q"], capsys)
+    assert code == 0 and (tmp_path / "d.tuned.acl").is_file(), err

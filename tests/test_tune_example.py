@@ -64,3 +64,21 @@ def test_prints_beyond_a_free_range_are_devices_not_invalid_points():
     pts = p.points(at_bounds, 1)
     assert (pts["r1"] > 16e-6).sum() > 100 and (pts["r2"] < 8e-6).sum() > 100
     assert not np.isnan(p.margins(at_bounds, 1)).any()
+
+
+def test_a_require_bound_that_follows_a_free_parameter_is_moved_with_it(tmp_path):
+    """`in f0 - 4 kHz .. f0 + 4 kHz` with f0 free: the bounds move per trial (never the nominal ones)."""
+    from acl.sweep.tune import prepare, tune
+
+    text = FIG3.read_text()
+    text = text.replace("free in 8 um .. 16 um", "").replace("free in 6 um .. 12 um", "")
+    text = text.replace("require separation(m) >= 30 kHz",
+                        "param f0 = 100 kHz free in 60 kHz .. 140 kHz\n"
+                        "require resonance(m, mode = 1) in f0 - 4 kHz .. f0 + 4 kHz")
+    d = tmp_path / "fig3_f0.acl"
+    d.write_text(text)
+    p = prepare(str(d), samples=300, seed=1)
+    assert [f.name for f in p.free] == ["f0"]
+    out = tune(p, max_evals=40)
+    assert out.before.value == 0.0 and out.after.value > 0.95
+    assert abs(out.chosen[0] - 90.5e3) < 2e3                       # centred on the mode (about 90.5 kHz)

@@ -66,6 +66,15 @@ def test_worst_case_margin_objective_centres_the_window():
     assert 4.0 < found.x[0] < 6.5 and worst.min() > 1.0
 
 
+def test_progress_reports_every_trial_with_the_best_yield_so_far():
+    evaluate = _window_problem(n=300)
+    calls = []
+    found = maximise(evaluate, FREE, max_evals=30, progress=lambda d, t, best: calls.append((d, t, best)))
+    assert [c[0] for c in calls] == list(range(1, found.evaluations + 1)) and {c[1] for c in calls} == {30}
+    bests = [c[2] for c in calls]
+    assert bests == sorted(bests) and 0 <= bests[0] <= bests[-1] <= 1
+
+
 def test_search_never_returns_worse_than_the_start():
     evaluate = _window_problem()
     good = (Free("x1", "", 0.0, 10.0, 5.0), Free("x2", "", 0.0, 10.0, 9.5))

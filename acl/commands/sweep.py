@@ -103,6 +103,11 @@ def run(args) -> int:
     except DiagnosticError as exc:
         report(exc.diagnostics, fmt)
         return 2
+    if args.verbose:
+        fm = table.field_map
+        sys.stderr.write(f"acl sweep: {spec.n_points} points in {spec.n_chunks} chunk(s) of {spec.chunk_size}; fields following "
+                         f"{', '.join(spec.names)}: {len(fm.linear) - len(fm.proportional)} affine, {len(fm.proportional)} "
+                         f"proportional, {len(fm.derived)} recomputed volume(s), {len(fm.exact)} resolved exactly\n")
     from acl.sweep.table import write_table
 
     try:
@@ -162,7 +167,8 @@ def _print(table, args, curve, written, design) -> None:
     for key, v in y.items():
         if key.startswith("require_"):
             i = int(key.split("_")[1])
-            con.print(f"  {key} `{design.requires[i - 1].text}`: {v.text()}")
+            verdict = v.text() if table.spec.montecarlo else f"{v.passed} of {v.total} points"
+            con.print(f"  {key} `{design.requires[i - 1].text}`: {verdict}")
     if curve:
         for r in curve:
             con.print(f"  tolerance x{r['scale']:g}: yield {r['yield']:.2f} [{r['lower']:.2f}, {r['upper']:.2f}]")

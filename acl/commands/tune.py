@@ -29,6 +29,9 @@ def add_parser(p) -> None:
                    help="search: nelder-mead (default, after a Latin hypercube scan), powell, differential-evolution")
     p.add_argument("--max-evals", type=_count, default=200, metavar="N",
                    help="most trial points the search evaluates (default 200)")
+    p.add_argument("--target", type=_fraction, default=None, metavar="YIELD",
+                   help="required yield, e.g. 0.95: unless the validated yield's 95%% interval lies at or above it, "
+                        "exit 1 (E876) and write nothing")
     p.add_argument("-o", "--output", metavar="PATH", default=None,
                    help="where to write the tuned design (default: <stem>.tuned.acl next to DESIGN)")
     p.add_argument("--no-write", action="store_true", help="report only; write no tuned design")
@@ -45,6 +48,19 @@ def _count(text: str) -> int:
         raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
     if v < 1:
         raise argparse.ArgumentTypeError(f"{text!r}: give an integer >= 1")
+    return v
+
+
+def _fraction(text: str) -> float:
+    import argparse
+    import math
+
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not (math.isfinite(v) and 0 < v <= 1):
+        raise argparse.ArgumentTypeError(f"{text!r}: a yield is a fraction in (0, 1], e.g. 0.95")
     return v
 
 
@@ -79,15 +95,24 @@ def run(args) -> int:
             report([error("E-USAGE", "--output names DESIGN itself; the tuned design extends it",
                           Span(file="<--output>", line=1, column=1), "give another path")], fmt)
             return 2
+    import time
+
+    t0 = time.perf_counter()
     try:
         problem = T.prepare(design, tolerance=args.tolerance, samples=args.samples, validate=args.validate,
                             seed=args.seed, search_paths=args.path)
+        prepared = time.perf_counter() - t0
         result = _search(T, problem, args)
     except DiagnosticError as exc:
         report(exc.diagnostics, fmt)
         return exit_code(exc.diagnostics)
+    if args.verbose:
+        for stage, secs in {"prepare": prepared, **result.timing_s}.items():
+            sys.stderr.write(f"stage {stage}: {secs:.2f} s\n")
+        sys.stderr.write(f"trials: {result.search.evaluations}\n")
     written = None
-    if not args.no_write:
+    missed = args.target is not None and result.after.interval[0] < args.target
+    if not args.no_write and not missed:
         text = T.tuned_text(result, out_path, command=_command_line(args))
         try:
             _write_atomic(out_path, text)
@@ -104,6 +129,14 @@ def run(args) -> int:
         sys.stdout.write(json.dumps(doc, indent=2) + "\n")
     else:
         _render(result, written, args.quiet)
+    if missed:
+        lo, hi = result.after.interval
+        report([error("E876", f"yield target {args.target:g} not met: the validated yield is {result.after.text()} "
+                      f"(95% interval lower end {lo:.4g}); no tuned design written",
+                      Span(file="<--target>", line=1, column=1),
+                      "widen the free ranges, tighten the tolerances, or give more --samples/--validate (a narrower "
+                      "interval)")], "text")
+        return 1
     return 0
 
 

@@ -4,8 +4,11 @@ Each function is the batched twin of a scalar one elsewhere in :mod:`acl.physics
 same floors, same conventions; tests/test_sweep_evaluate*.py compares them point by point), written
 so that a sweep evaluates 10^5..10^6 perturbed designs without a Python loop over points:
 
-* :func:`capsule_modes` -- :func:`acl.physics.resonance.capsule_modes` (Rayleigh-Ritz bare modes and Q);
+* :func:`capsule_modes` -- :func:`acl.physics.resonance.capsule_modes` (Rayleigh-Ritz bare modes and Q;
+  one-orifice capsules by the closed-form eigenpairs of a rank-one update, others by LAPACK);
 * :func:`coupled_modes` -- :func:`acl.physics.coupling.coupled_modes` (mutual radiation mass and resistance);
+  :func:`lowest_single_interface_mode` its lowest mode for one interface and its wall image (secular equation);
+* :func:`two_bubble_forces` -- the force engine of acl.analysis.acoustics for two one-orifice capsules, closed form;
 * :func:`coupled_response` -- :func:`acl.physics.coupling.coupled_response` at displaced configurations;
 * :func:`latch_force`, :func:`latch_switching_force` -- :mod:`acl.physics.latch` (von Mises truss);
 * :func:`eq1_force` -- the inverse of paper Eq. (1) (:func:`acl.physics.beams.eq1_force`) with per-point geometry.
@@ -325,14 +328,37 @@ def latch_force(u, theta, L, w, t, E):
     return 2.0 * per_beam * (E * t * w**3 / 12.0 / L**2)
 
 
-def latch_switching_force(theta, L, w, t, E, n_grid: int = 257, iterations: int = 60):
-    """Switching force (N): largest holding force between state a and the barrier top, per point (latch.latch_landscape's switching_force, refined by golden section instead of its 2001-point grid maximum).
+def _golden_max(fn, lo, hi, iterations: int):
+    """Maximum of a unimodal ``fn`` on [lo, hi] per element by golden section (Kiefer 1953); a kink is allowed."""
+    g = (np.sqrt(5.0) - 1) / 2
+    x1, x2 = hi - g * (hi - lo), lo + g * (hi - lo)
+    f1, f2 = fn(x1), fn(x2)
+    for _ in range(iterations):
+        left = f1 >= f2
+        hi = np.where(left, x2, hi)
+        lo = np.where(left, lo, x1)
+        x1n = np.where(left, hi - g * (hi - lo), x2)
+        x2n = np.where(left, x1, lo + g * (hi - lo))
+        new_f = fn(np.where(left, x1n, x2n))
+        f1, f2 = np.where(left, new_f, f2), np.where(left, f1, new_f)
+        x1, x2 = x1n, x2n
+    return np.maximum(f1, f2)
 
-    Also returns ``bistable`` (a barrier top then a second zero of the force within 2.6 L sin(theta)).
-    Arrays (N,) -> (force (N,), bistable (N,)).
+
+def latch_switching_force(theta, L, w, t, E, n_grid: int = 257, iterations: int = 60, block: int = 4096):
+    """Switching force a -> b (largest holding force between state a and the barrier top) and release force b -> a (largest pull back between state b and the top) per point (latch.latch_landscape, its 2001-point grid extrema refined by golden section).
+
+    Arrays (N,) -> (switching (N,), release (N,) NaN when monostable, bistable (N,)): bistable when
+    the force falls through zero (barrier top) and then rises through zero (state b) within
+    2.6 L sin(theta).
     """
     theta, L, w, t, E = (np.asarray(v, float) for v in (theta, L, w, t, E))
     n = theta.shape[0]
+    if n > block:                       # bounded memory: the landscape grid is (rows, n_grid)
+        parts = [latch_switching_force(theta[i:i + block], L[i:i + block], w[i:i + block], t[i:i + block],
+                                       E[i:i + block], n_grid, iterations, block) for i in range(0, n, block)]
+        return tuple(np.concatenate([p[k] for p in parts]) for k in range(3))
+    rows = np.arange(n)
     reach = 2.6 * L * np.sin(theta)
     grid = np.linspace(0.0, 1.0, n_grid)[None, :] * reach[:, None]                  # (N, G)
     args = (theta[:, None], L[:, None], w[:, None], t[:, None], E[:, None])
@@ -343,32 +369,21 @@ def latch_switching_force(theta, L, w, t, E, n_grid: int = 257, iterations: int 
     idx = np.arange(n_grid)[None, :]
     up = (idx[:, :-1] >= i0[:, None]) & (f[:, :-1] < 0) & (f[:, 1:] >= 0)
     bistable = has_down & up.any(axis=1)
+    i1 = np.where(bistable, i0 + np.argmax(np.where(idx[:, :-1] >= i0[:, None], up, False), axis=1) - i0, n_grid - 1)
     i0 = np.where(bistable, i0, n_grid - 1)            # monostable: the largest force over the whole reach
-    masked = np.where(idx <= i0[:, None], f, -np.inf)
-    k = np.argmax(masked, axis=1)
-    best = masked[np.arange(n), k]
-    # golden section on [u_{k-1}, u_{k+1}] (the force is unimodal there; a kink at buckling is allowed)
     h = reach / (n_grid - 1)
-    lo = np.maximum(grid[np.arange(n), k] - h, 0.0)
-    hi = np.minimum(grid[np.arange(n), k] + h, reach)
-    g = (np.sqrt(5.0) - 1) / 2
-    x1, x2 = hi - g * (hi - lo), lo + g * (hi - lo)
     a1 = (theta, L, w, t, E)
-    f1, f2 = latch_force(x1, *a1), latch_force(x2, *a1)
-    for _ in range(iterations):
-        left = f1 >= f2
-        hi = np.where(left, x2, hi)
-        lo = np.where(left, lo, x1)
-        x2n = np.where(left, x1, lo + g * (hi - lo))
-        x1n = np.where(left, hi - g * (hi - lo), x2)
-        f2n = np.where(left, f1, np.nan)
-        f1n = np.where(left, np.nan, f2)
-        new_x = np.where(left, x1n, x2n)
-        new_f = latch_force(new_x, *a1)
-        x1, x2 = x1n, x2n
-        f1 = np.where(left, new_f, f1n)
-        f2 = np.where(left, f2n, new_f)
-    return np.maximum(best, np.maximum(f1, f2)), bistable
+
+    def refine(values, k, sign):
+        lo = np.maximum(grid[rows, k] - h, 0.0)
+        hi = np.minimum(grid[rows, k] + h, reach)
+        return np.maximum(values[rows, k], _golden_max(lambda x: sign * latch_force(x, *a1), lo, hi, iterations))
+
+    masked = np.where(idx <= i0[:, None], f, -np.inf)
+    switching = refine(masked, np.argmax(masked, axis=1), 1.0)
+    pull = np.where((idx >= i0[:, None]) & (idx <= i1[:, None] + 1), -f, -np.inf)
+    release = np.where(bistable, refine(pull, np.argmax(pull, axis=1), -1.0), np.nan)
+    return switching, release, bistable
 
 
 # ----------------------------------------------------------------------------------------------

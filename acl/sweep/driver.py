@@ -58,6 +58,32 @@ def choose_quantities(design: Design, quantities=None, at: str | None = None) ->
     return wanted + [c for c in need if c in names and c not in wanted], unevaluated
 
 
+# Columns that do not read the design's programs or transducer (acl.sweep.evaluate reads those from
+# the nominal design: a column name carries a program frequency).
+_PROGRAM_FREE = ("resonance_", "q_")
+
+
+def _nominal_program_only(design: Design, fmap: FieldMap, cols: list[str], explicit: bool) -> tuple[list[str], dict[str, str]]:
+    """Drop (or, when asked for by name, refuse) columns that would silently use the nominal program
+    or transducer while a swept parameter moves them."""
+    moving = sorted(p for p in [*fmap.linear, *fmap.exact] if p.startswith(("programs.", "transducer.")))
+    if not moving:
+        return cols, {}
+    keep_requires = {f"require_{i}_{k}" for i, r in enumerate(design.requires, 1) if r.kind in ("resonance", "separation")
+                     for k in ("value", "pass")}
+    why = (f"a swept parameter moves `{moving[0]}`" + (f" and {len(moving) - 1} more program/transducer field(s)" if len(moving) > 1 else "")
+           + ": the batched forces, margins, gaps and lint rules use the design's nominal programs and transducer")
+    if all(f"require_{i}_pass" in keep_requires for i in range(1, len(design.requires) + 1)):
+        keep_requires.add("requires_pass")
+    bad = [c for c in cols if not (c.startswith(_PROGRAM_FREE) or c in keep_requires)]
+    if bad and explicit:
+        requested = [c for c in bad if not c.startswith("require")]
+        if requested:
+            raise DiagnosticError([error("E-USAGE", f"--quantity {requested[0]}: {why}", Span(file="<--quantity>", line=1, column=1),
+                                         "sweep resonances and Q only, or keep the program's values fixed")])
+    return [c for c in cols if c not in bad], {c: why for c in bad}
+
+
 def run_sweep(design: Design, spec: SweepSpec, quantities=None, at: str | None = None, scheduler: str | None = None,
               progress=None, overrides=None, search_paths=()) -> SweepTable:
     """Evaluate every point of ``spec`` on ``design`` (loaded from ``design.file`` with ``overrides``)."""
@@ -65,16 +91,20 @@ def run_sweep(design: Design, spec: SweepSpec, quantities=None, at: str | None =
 
     cols, unevaluated = choose_quantities(design, quantities, at)
     fmap = field_map(design, spec.names, spec.box(), overrides=overrides, search_paths=search_paths, seed=spec.seed)
+    cols, dropped = _nominal_program_only(design, fmap, cols, quantities is not None)
+    for i, r in enumerate(design.requires, 1):
+        if f"require_{i}_pass" in dropped:
+            unevaluated[f"require_{i}"] = f"require_{i} (`{r.text}`): {dropped[f'require_{i}_pass']}"
     task = ChunkTask(design, spec, fmap, tuple(cols), at)
     parts = map_chunks(task, spec.n_chunks, scheduler, progress)
     order = ["point", *spec.names, "valid", "code", *cols]
-    from acl.sweep.evaluate import QUANTITIES  # noqa: F401  (units of the families, docs/sweep.md)
-
     units = {n: spec.units[n] for n in spec.names}
     notes = list(spec.notes) + list(fmap.notes)
+    if dropped and quantities is None:
+        notes.append(f"{len(dropped)} column(s) left out: " + next(iter(dropped.values())))
     notes += [why for why in unevaluated.values()]
     return SweepTable(assemble(parts, order), spec, units=units, notes=notes, unevaluated=unevaluated,
-                      n_requires=len(design.requires))
+                      n_requires=len(design.requires), field_map=fmap)
 
 
 def sweep(design, vary=None, tolerance=None, n=None, seed=0, quantities=None, at=None, scheduler=None,

@@ -14,27 +14,34 @@ What is batched and how (the scalar code it equals):
   interface's fundamental);
 * forces at rest at each program frequency (acoustics.pair_forces: coupled volumes of all
   interfaces, thrust with a declared thrust coefficient's scale, Bjerknes, jet drag);
-* snap-in voltage of a pair of capsules each on its own beam (mechanics.sweep_voltage): the stable
-  branch of ``P_a(x_a) = V^2 F_a(x)``, ``P_b(x_b) = V^2 F_b(x)`` (paper Eq. (1) beams, full force
-  model at displaced positions) is traced in the closure ``s`` of the gap, the split between the
-  two beams solved at each ``s`` (secant), and the fold is the first maximum of ``V^2(s)``
-  (grid, then golden section).  The lateral degrees of freedom are held at zero: exact when the
-  pair's forces at rest have no lateral component (facing pairs); points where they have one are
-  NaN;
-* tip deflection at ``at`` of a capsule on a cantilever: the Eq. (1) deflection under the force at
-  the displaced position (fixed point), or the pair branch at V = 1;
-* latch margins per program step (mechanics.latch_margins), the switching force refined by golden
-  section (acl.physics.batch.latch_switching_force; the scalar landscape takes the maximum of a
-  2001-point grid, lower by up to 5e-4 where the maximum is at the buckling kink);
+* snap-in voltage of a pair of capsules each on its own beam (mechanics.sweep_voltage).  Where the
+  drive pulls both capsules together along their line, the stable branch of ``P_a(x_a) = V^2
+  F_a(x)``, ``P_b(x_b) = V^2 F_b(x)`` (paper Eq. (1) beams, the full force model at displaced
+  positions) is traced in the closure ``s`` of the gap, the split between the two beams solved at
+  each ``s`` (secant), and the fold is the first maximum of ``V^2(s)`` (grid, then golden
+  section).  Where one capsule is pulled and the other pushed (near d_c), or the forces at rest
+  have a component across the line: continuation in V on both beams' planes of motion (Newton,
+  finite-difference tangent stiffness, stable while its eigenvalues have positive real parts), the
+  step halved where the branch is lost (a fold within a fraction of a micrometre of rest near d_c
+  is found: tests/test_sweep_evaluate.py).  Both pushed apart: no snap-in (NaN);
+* tip deflection at ``at`` of a capsule on a cantilever (the Eq. (1) deflection under the force at
+  the displaced position, a fixed point) or of a pair (the same branches at V = 1, NaN after
+  snap-in); ``require gap`` from the equilibrium of every program step;
+* latch margins per program step (mechanics.latch_margins, latches at rest in state a or b), the
+  switching and release forces refined by golden section (acl.physics.batch.latch_switching_force;
+  the scalar landscape takes the extremes of a 2001-point grid, lower by up to 2e-3 where they
+  sit at a kink of the force law, so its margins are optimistic by as much);
 * every ``require`` (report._require) and the lint rules ACL101, ACL105 (program drive and sweep
-  steps), ACL503, ACL504, ACL603, before suppressions and with the default thresholds.
+  steps), ACL501, ACL502, ACL503, ACL504, ACL603, before suppressions and with the default thresholds.
 
 Not batched (not offered as quantities, :func:`supported` says why): designs declaring effects that
 change forces or beams (only resonance and Q are offered), snap-in and deflections of mechanisms
 other than one capsule on a beam or a pair of capsules on two beams (latches, springs, trusses,
-three or more moving capsules), ``require gap`` outside those, latches in state b, and the lint
-rules that need the full per-step equilibrium or the selectivity sweep (ACL102-104, ACL201-202,
-ACL301-302, ACL401-402, ACL501-502, ACL601-602).
+three or more moving capsules), ``require gap`` outside those, and the lint
+rules that need a frequency sweep per point (ACL102 gain over the band, ACL103 mode overlap with its
+bandwidth factor, ACL104 crosstalk over the selectivity sweep), the per-step equilibria of whole
+programs with strain and elastica checks (ACL201-202, ACL301-302, ACL401-402), and the rules about
+the source text rather than the numbers (ACL601-602, unused declarations and units).
 """
 from __future__ import annotations
 
@@ -83,6 +90,8 @@ QUANTITIES: tuple[Quantity, ...] = (
              "pairs[a,b,frequency_hz=f].snap_in_voltage_v"),
     Quantity("switching_force_<latch>_n", "N", "force that switches the latch a -> b (model maximum, refined)",
              "latches[name].switching_force_n"),
+    Quantity("release_force_<latch>_n", "N", "force that releases the latch b -> a (NaN: monostable)",
+             "latches[name].release_force_n"),
     Quantity("bistable_<latch>", "bool", "the latch has a second stable state", "latches[name].bistable"),
     Quantity("margin_<latch>_<program>_<step>", "", "available / required force on the latch at a program step",
              "latches[name].margins[program,step].margin"),
@@ -99,7 +108,7 @@ QUANTITIES: tuple[Quantity, ...] = (
 )
 
 STATIC_EFFECTS = {"offset_drift", "bubble_shrinkage"}
-LINT_RULES = ("acl101", "acl105", "acl503", "acl504", "acl603")
+LINT_RULES = ("acl101", "acl105", "acl501", "acl502", "acl503", "acl504", "acl603")
 SNAP_GRID = 12            # closure grid of the snap-in search
 SNAP_GOLDEN = 14          # golden-section steps on the fold
 SPLIT_ITER = 5            # secant steps for the split of the closure between the two beams
@@ -155,8 +164,10 @@ def supported(design: M.Design, at: str | None = None) -> tuple[list[str], dict[
         for k in range(1, len(cap.orifices) + 1):
             names += [f"resonance_{_ident(cap.name)}_{k}_hz", f"q_{_ident(cap.name)}_{k}"]
     if effects:
-        missing["forces, snap-in, latches, deflections"] = (
-            f"the design declares effects ({', '.join(effects)}) that the batched forces and beams do not model")
+        why = f"the design declares effects ({', '.join(effects)}) that the batched forces and beams do not model"
+        for fam in ("force_", "attract_", "phase_", "critical_distance_", "snap_in_", "switching_force_",
+                    "release_force_", "bistable_", "margin_", "tip_deflection", "equilibrium_ok"):
+            missing[fam] = why
     mech = _mechanism(design)
     moving = [c for c in design.capsules if (design.mount_of(c.name) or M.Fix(capsule="", span=c.span)).kind == "mount"]
     freqs = program_frequencies(design) or []
@@ -170,14 +181,15 @@ def supported(design: M.Design, at: str | None = None) -> tuple[list[str], dict[
             if mech == "beams" and len(design.capsules) == 2 and len(moving) >= 1:
                 names += [f"snap_in_{_ident(a)}_{_ident(b)}_{_fkey(f)}_v" for f in freqs for a, b in pairs]
             else:
-                missing["snap_in"] = "batched snap-in covers a pair of capsules on beams only"
+                missing["snap_in_"] = "batched snap-in covers a pair of capsules on beams only"
         for lt in design.latches:
-            if lt.state != "a":
-                missing[f"latch {lt.name}"] = "latches at rest in state b are not batched"
-                continue
-            names += [f"switching_force_{_ident(lt.name)}_n", f"bistable_{_ident(lt.name)}"]
+            names += [f"switching_force_{_ident(lt.name)}_n", f"release_force_{_ident(lt.name)}_n",
+                      f"bistable_{_ident(lt.name)}"]
             names += [f"margin_{_ident(lt.name)}_{_ident(p.name)}_{i + 1}" for p, i, _st, _d in step_drives(design)]
-        if at is not None:
+        if at is None:
+            if any((design.mount_of(c.name) or M.Fix(capsule="", span=c.span)).kind == "mount" for c in design.capsules):
+                missing["tip_deflection"] = "deflections need a drive: give `at` (like `acl analyze --at`)"
+        else:
             if mech == "beams" and 1 <= len(design.capsules) <= 2:
                 names += [f"tip_deflection_{_ident(j.target)}_m" for c in design.capsules
                           for j in [design.mount_of(c.name)] if j.kind == "mount"] + ["equilibrium_ok"]
@@ -205,8 +217,9 @@ def _require_supported(design, r, effects) -> bool:
     if effects:
         return False
     if r.kind == "margin":
-        return any(lt.name == r.args[0] and lt.state == "a" for lt in design.latches)
-    return False       # gap: needs the equilibrium at every program step
+        return any(lt.name == r.args[0] for lt in design.latches)
+    # gap: the equilibrium at every program step, batched for a pair of capsules on two beams
+    return _mechanism(design) == "beams" and len(design.capsules) == 2
 
 
 def _pairs(design):
@@ -234,9 +247,10 @@ def evaluate(batch, quantities: Sequence[str] | None = None, at: str | None = No
         wanted = list(quantities)
         for q in wanted:
             if q not in names:
-                fam = next((k for k in missing if q.startswith(k.split()[0].replace("_", "")[:6])), None)
-                if fam:
-                    raise QuantityError("E-SWEEP-Q02", f"quantity `{q}` is not available: {missing[fam]}")
+                why = next((v for k, v in missing.items()
+                            if q.startswith(k) and (k.endswith("_") or q[len(k):len(k) + 1] in ("", "_"))), None)
+                if why is not None:
+                    raise QuantityError("E-SWEEP-Q02", f"quantity `{q}` is not available for this design: {why}")
                 raise QuantityError("E-SWEEP-Q01", f"quantity `{q}` is not defined for this design "
                                     f"(available: {', '.join(names) or 'none'})")
     ev = _Evaluator(batch, at)
@@ -652,33 +666,109 @@ class _Evaluator:
             return np.zeros_like(s), Pa / fa, Pa / fa, xs[0], xs[1]
         return Pa * fb - Pb * fa, Pa / fa, Pb / fb, xs[0], xs[1]
 
-    def pair_newton(self, freqs, volts, steps: int = 8, iterations: int = 12):
-        """Equilibrium (xa, xb) at drive scale 1 by natural continuation in V^2 with Newton (finite-difference Jacobian): the pushed-apart branch."""
-        ps = self.pair_setup()
-        act = [ps["beams"][k] is not None for k in range(2)]
-        xa, xb = np.zeros(self.n), np.zeros(self.n)
-        h = 1e-10
+    def plane_setup(self):
+        """Moving capsules (on beams) and an orthonormal basis (N, 3, 2) of each one's plane of motion (mechanics._perp_basis)."""
+        def build():
+            out = []
+            for c in range(len(self.caps)):
+                bm = self.beam_of(c)
+                if bm is None:
+                    continue
+                ax = bm["axis"]
+                trial = np.where((np.abs(ax[:, 0]) < 0.9)[:, None], np.array([1.0, 0, 0]), np.array([0, 1.0, 0]))
+                e1 = trial - ax * np.einsum("bk,bk->b", trial, ax)[:, None]
+                e1 /= np.linalg.norm(e1, axis=-1, keepdims=True)
+                e2 = np.cross(ax, e1)
+                out.append((c, bm, np.stack([e1, e2], axis=2)))
+            return out
+        return self.once("plane_setup", build)
+
+    def plane_residual(self, q, lam, freqs, volts):
+        """Equilibrium residual (N, m) of the in-plane displacements q (N, m): Eq. (1) restoring force - V^2 x drive force, per moving capsule."""
+        lay = self.layout()
+        moving = self.plane_setup()
+        centres = lay["rest"].copy()
+        for j, (c, _bm, basis) in enumerate(moving):
+            centres[:, c] = centres[:, c] + np.einsum("bkj,bj->bk", basis, q[:, 2 * j:2 * j + 2])
+        F = self.forces(centres, freqs, volts)
+        res = np.empty_like(q)
+        for j, (c, bm, basis) in enumerate(moving):
+            qj = q[:, 2 * j:2 * j + 2]
+            delta = np.linalg.norm(qj, axis=-1)
+            P = PB.eq1_force(delta, bm["L"], bm["l"], bm["EI"])
+            from acl.physics.beams import eq1_small_force_stiffness
+
+            k0 = eq1_small_force_stiffness(bm["L"], bm["l"], bm["EI"])
+            ratio = np.where(delta > 1e-15 * bm["L"], P / np.where(delta > 0, delta, 1.0), k0)
+            res[:, 2 * j:2 * j + 2] = ratio[:, None] * qj - lam[:, None] * np.einsum("bkj,bk->bj", basis, F[:, c])
+        return res
+
+    def plane_solve(self, q, lam, freqs, volts, iterations: int = 20, h: float = 1e-11):
+        """Newton from q at drive scale lam (finite-difference Jacobian): (q, converged, smallest real eigenvalue of K_T)."""
+        m = q.shape[1]
+        conv = np.zeros(self.n, bool)
+        lost = np.zeros(self.n, bool)            # Newton not contracting: no equilibrium near q (past a fold)
+        mev = np.full(self.n, np.nan)
+        prev = np.full(self.n, np.inf)
+        for it in range(iterations):
+            r = self.plane_residual(q, lam, freqs, volts)
+            J = np.empty((self.n, m, m))
+            for k in range(m):
+                dq = q.copy()
+                dq[:, k] += h
+                J[:, :, k] = (self.plane_residual(dq, lam, freqs, volts) - r) / h
+            try:
+                step = np.linalg.solve(J, -r[..., None])[..., 0]
+            except np.linalg.LinAlgError:
+                step = np.full_like(q, np.nan)
+            q = q + np.where((conv | lost)[:, None], 0.0, step)
+            size = np.linalg.norm(step, axis=-1)
+            small = size <= 1e-10 * np.linalg.norm(q, axis=-1) + 1e-18
+            conv |= small & np.isfinite(step).all(axis=1) & ~lost
+            if it >= 3:
+                lost |= ~conv & ~(size < 0.5 * prev)
+            prev = np.where(conv | lost, prev, size)
+            mev = np.linalg.eigvals(np.where(np.isfinite(J), J, 0.0)).real.min(axis=1)
+            if (conv | lost).all():
+                break
+        return q, conv & np.isfinite(q).all(axis=1), mev
+
+    def plane_equilibrium(self, freqs, volts, steps: int = 8):
+        """In-plane equilibrium at drive scale 1 by natural continuation in V^2 from rest: (q, ok); not ok after a lost or unstable step (snap-in)."""
+        m = 2 * len(self.plane_setup())
+        q = np.zeros((self.n, m))
+        ok = np.ones(self.n, bool)
         for lam in np.linspace(0.0, 1.0, steps + 1)[1:]:
-            for _ in range(iterations):
-                fa, Pa, fb, Pb = self.pair_eval(xa, xb, freqs, volts)
-                ra, rb = Pa - lam * fa, Pb - lam * fb
-                fa1, Pa1, fb1, Pb1 = self.pair_eval(xa + h, xb, freqs, volts)
-                fa2, Pa2, fb2, Pb2 = self.pair_eval(xa, xb + h, freqs, volts)
-                j11 = ((Pa1 - lam * fa1) - ra) / h if act[0] else np.ones(self.n)
-                j21 = ((Pb1 - lam * fb1) - rb) / h
-                j12 = ((Pa2 - lam * fa2) - ra) / h
-                j22 = ((Pb2 - lam * fb2) - rb) / h if act[1] else np.ones(self.n)
-                if not act[0]:
-                    ra, j12, j21 = np.zeros(self.n), np.zeros(self.n), np.zeros(self.n)
-                if not act[1]:
-                    rb, j12, j21 = np.zeros(self.n), np.zeros(self.n), np.zeros(self.n)
-                det = j11 * j22 - j12 * j21
-                da = -(j22 * ra - j12 * rb) / det
-                db = -(-j21 * ra + j11 * rb) / det
-                xa, xb = xa + da, xb + db
-                if np.all(np.abs(da) + np.abs(db) <= 1e-13 * (np.abs(xa) + np.abs(xb) + 1e-18)):
-                    break
-        return xa, xb
+            q, conv, mev = self.plane_solve(q, np.full(self.n, lam), freqs, volts)
+            ok &= conv & (mev > 0)
+        return q, ok
+
+    def plane_snap(self, freqs, volts, v_max: float, steps: int = 12, rtol: float = 1e-8) -> np.ndarray:
+        """Snap-in voltage by continuation in V from 0 to v_max, Newton at each step, the step halved where the stable branch is lost (NaN: none below v_max)."""
+        m = 2 * len(self.plane_setup())
+        q = np.zeros((self.n, m))
+        v = np.zeros(self.n)
+        dv = np.full(self.n, v_max / steps)
+        done = np.zeros(self.n, bool)
+        snap = np.full(self.n, np.nan)
+        failed = np.zeros(self.n, bool)          # once a step failed, steps only shrink (bisection of the fold)
+        for _ in range(40 * steps):
+            live = ~done
+            if not live.any():
+                break
+            v_try = np.minimum(v + dv, v_max)
+            qn, conv, mev = self.plane_solve(q, v_try * v_try, freqs, volts, iterations=12)
+            good = conv & (mev > 0) & live
+            q = np.where(good[:, None], qn, q)
+            v = np.where(good, v_try, v)
+            # grow after two successes in a row, halve after a failure (near the fold: a bisection)
+            dv = np.where(good, np.where(failed, dv, np.minimum(dv * 1.5, v_max / steps)), np.where(live, dv / 2, dv))
+            failed = live & ~good
+            reached = good & (v >= v_max)
+            folded = live & ~good & (dv < rtol * v_max)
+            snap = np.where(folded, v, snap)
+            done |= reached | folded
+        return snap
 
     def pair_v2(self, s, t0, freqs, volts, slope=None):
         """V^2 on the equilibrium branch at closure s, the split t solved by secant from t0 (first step Newton with ``slope`` dh/dt when given).
@@ -715,8 +805,8 @@ class _Evaluator:
         sub = _Rows(self.batch, rows)
         return _Evaluator(sub, self.at)
 
-    def rest_checks(self, freqs: tuple, volts: tuple) -> tuple[np.ndarray, np.ndarray]:
-        """(closing, lateral) at rest: the drive pulls the pair together; a lateral force the reduced branch ignores."""
+    def rest_checks(self, freqs: tuple, volts: tuple) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(closing, lateral, opening) at rest: the drive pulls both capsules towards each other; a lateral force the reduced branch ignores; it pushes both apart."""
         ps = self.pair_setup()
         lay = self.layout()
         F0 = self.forces(lay["rest"], freqs, volts)
@@ -730,9 +820,16 @@ class _Evaluator:
             along = np.einsum("bk,bk->b", fperp, ps["dirs"][k])
             side = np.linalg.norm(fperp - along[:, None] * ps["dirs"][k], axis=-1)
             lateral |= side > 1e-6 * np.maximum(np.abs(along), 1e-300)
-        closing = (np.einsum("bk,bk->b", F0[:, 0], ps["dirs"][0]) * (ps["beams"][0] is not None)
-                   + np.einsum("bk,bk->b", F0[:, 1], ps["dirs"][1]) * (ps["beams"][1] is not None)) > 0
-        return closing, lateral
+        # both moving capsules pulled towards each other: the closure parametrises the branch; both pushed
+        # apart: the gap only grows (thrust against a Bjerknes pull that weakens with distance), no snap-in
+        closing = np.ones(self.n, bool)
+        opening = np.ones(self.n, bool)
+        for k in range(2):
+            if ps["beams"][k] is not None:
+                along = np.einsum("bk,bk->b", F0[:, k], ps["dirs"][k])
+                closing &= along > 0
+                opening &= along <= 0
+        return closing, lateral, opening
 
     def fold(self, freqs: tuple, volts: tuple) -> dict:
         """First maximum of V^2 along the closure (grid of SNAP_GRID, then golden section): V^2 and s there, and whether one was found."""
@@ -775,7 +872,7 @@ class _Evaluator:
     def pair_branch(self, freqs: tuple, volts: tuple) -> dict:
         """The fold (snap-in) of the pair's stable branch in the drive scale, searched only where the drive closes the pair."""
         def build():
-            closing, lateral = self.rest_checks(freqs, volts)
+            closing, lateral, opening = self.rest_checks(freqs, volts)
             rows = np.flatnonzero(closing & ~lateral)
             v2 = np.full(self.n, np.nan)
             s = np.full(self.n, np.nan)
@@ -786,7 +883,8 @@ class _Evaluator:
                     fo = sub.fold(freqs, volts)
                 v2[rows] = np.where(fo["has"], fo["v2"], np.nan)
                 s[rows], has[rows] = fo["s"], fo["has"]
-            return {"v2_fold": v2, "s_fold": s, "lateral": lateral, "closing": closing, "has_fold": has}
+            return {"v2_fold": v2, "s_fold": s, "lateral": lateral, "closing": closing, "opening": opening & ~lateral,
+                    "has_fold": has}
         return self.once(("branch", freqs, volts), build)
 
     def snap_in(self, f: float) -> np.ndarray:
@@ -794,8 +892,12 @@ class _Evaluator:
         br = self.pair_branch((f,), (1.0,))
         v = np.sqrt(br["v2_fold"])
         out = np.where(v <= vmax, v, np.nan)
-        # a lateral force at rest: the reduced branch does not apply (not evaluated)
-        return np.where(br["lateral"], np.nan, out)
+        # one pulled and one pushed, or a lateral force: both planes of motion, continuation in V
+        rows = np.flatnonzero(~br["closing"] & ~br["opening"] | br["lateral"])
+        if rows.size:
+            with np.errstate(all="ignore"):
+                out[rows] = self.subset(rows).plane_snap((f,), (1.0,), vmax)
+        return out
 
     def closing_equilibrium(self, freqs, volts, hi):
         """(xa, xb) where V^2(s) = 1 on the ascending branch, s in (0, hi): regula falsi (Illinois), V^2(0) = 0."""
@@ -806,7 +908,8 @@ class _Evaluator:
         f_hi = f_hi - 1.0
         side = np.zeros(self.n)
         s = hi
-        for _ in range(60):
+        fs = np.full(self.n, np.nan)
+        for _ in range(30):
             s = np.where(f_hi != f_lo, hi - f_hi * (hi - lo) / np.where(f_hi != f_lo, f_hi - f_lo, 1.0), 0.5 * (lo + hi))
             s = np.where((s > lo) & (s < hi), s, 0.5 * (lo + hi))
             v2, t, _ = self.pair_v2(s, t_hi, freqs, volts)
@@ -821,38 +924,79 @@ class _Evaluator:
             if not np.any((np.abs(fs) > 1e-12) & (hi - lo > 1e-13 * np.maximum(hi, 1e-300))):
                 break
         _, _, _, xa, xb = self.pair_closure(s, t, freqs, volts)
-        return xa, xb
+        bad = ~(np.abs(fs) <= 1e-9)                  # no root bracketed (or not converged): not an equilibrium
+        return np.where(bad, np.nan, xa), np.where(bad, np.nan, xb)
 
     def pair_deflection(self, drive: M.Drive) -> dict:
-        """Beam deflections of the pair at drive scale 1 on the stable branch from rest (mechanics.equilibrium): NaN after snap-in.
+        """Beam deflections of the pair at drive scale 1 on the stable branch from rest (mechanics.equilibrium): NaN after snap-in."""
+        disp, ok = self.pair_equilibrium(drive)
+        out = {"equilibrium_ok": ok}
+        for c in range(len(self.caps)):
+            bm = self.beam_of(c)
+            if bm is not None:
+                out[f"tip_deflection_{_ident(bm['name'])}_m"] = np.where(ok, np.linalg.norm(disp[:, c], axis=-1), np.nan)
+        return out
 
-        A closing pair: regula falsi on V^2(s) = 1 below the fold; otherwise (pushed apart, or one
-        pushed and one pulled) natural continuation in V^2 with Newton.
+    def pair_equilibrium(self, drive: M.Drive):
+        """(displacement (N, C, 3), ok) of the pair's capsules at ``drive`` (mechanics.equilibrium from rest); not ok after snap-in.
+
+        A pair the drive pulls together along its line: regula falsi on V^2(s) = 1 below the fold of
+        the reduced branch; any other (pushed apart, one pushed and one pulled, a lateral force):
+        natural continuation in V^2 with Newton on both beams' planes of motion.
         """
         freqs = tuple(t.frequency for t in drive.tones)
         volts = tuple(t.amplitude for t in drive.tones)
+        return self.once(("pair_eq", freqs, volts), lambda: self._pair_equilibrium(freqs, volts))
+
+    def _pair_equilibrium(self, freqs, volts):
+        disp = np.zeros((self.n, len(self.caps), 3))
+        if not freqs:
+            return disp, np.ones(self.n, bool)
         br = self.pair_branch(freqs, volts)
         ps = self.pair_setup()
         closing, lateral = br["closing"], br["lateral"]
+        ok = np.zeros(self.n, bool)
         reach = closing & ~lateral & ~(br["v2_fold"] <= 1.0)       # no fold below the drive
-        xa, xb = np.full(self.n, np.nan), np.full(self.n, np.nan)
         rows = np.flatnonzero(reach)
         if rows.size:
             sub = self.subset(rows)
             hi = np.where(br["has_fold"][rows], br["s_fold"][rows], ps["gap"][rows] * 0.999)
             with np.errstate(all="ignore"):
-                xa[rows], xb[rows] = sub.closing_equilibrium(freqs, volts, hi)
-        rows = np.flatnonzero(~closing & ~lateral)
+                xa, xb = sub.closing_equilibrium(freqs, volts, hi)
+            for k, x in ((0, xa), (1, xb)):
+                disp[rows, k] = x[:, None] * ps["dirs"][k][rows]
+            ok[rows] = np.isfinite(xa) & np.isfinite(xb)
+        rows = np.flatnonzero(~closing | lateral)
         if rows.size:
+            sub = self.subset(rows)
             with np.errstate(all="ignore"):
-                xa[rows], xb[rows] = self.subset(rows).pair_newton(freqs, volts)
-        ok = np.isfinite(xa) & np.isfinite(xb)
-        out = {"equilibrium_ok": ok}
-        for k, x in ((0, xa), (1, xb)):
-            bm = ps["beams"][k]
-            if bm is not None:
-                out[f"tip_deflection_{_ident(bm['name'])}_m"] = np.where(ok, np.abs(x), np.nan)
-        return out
+                q, good = sub.plane_equilibrium(freqs, volts)
+            for j, (c, _bm, basis) in enumerate(sub.plane_setup()):
+                disp[rows, c] = np.einsum("bkj,bj->bk", basis, q[:, 2 * j:2 * j + 2])
+            ok[rows] = good
+        return disp, ok
+
+    def gap_over_steps(self, a: str, b: str) -> np.ndarray:
+        """require gap: the smallest distance of orifices a, b over rest and the equilibrium of every program step, 0 after snap-in (report._require)."""
+        from acl.analysis.report import step_drives
+
+        lay = self.layout()
+        (ca, oa), (cb, ob) = a.split("."), b.split(".")
+        names = [c.name for c in self.caps]
+
+        def point(cap, orf, disp):
+            k = names.index(cap)
+            o = [x.name for x in self.caps[k].orifices].index(orf)
+            i = int(np.flatnonzero(lay["body"] == k)[o])
+            return lay["rest"][:, k] + lay["offsets"][:, i] + disp[:, k]
+
+        zero = np.zeros((self.n, len(self.caps), 3))
+        gap = np.linalg.norm(point(cb, ob, zero) - point(ca, oa, zero), axis=-1)
+        for _p, _i, _st, drive in step_drives(self.design):
+            disp, ok = self.pair_equilibrium(drive)
+            g = np.linalg.norm(point(cb, ob, disp) - point(ca, oa, disp), axis=-1)
+            gap = np.minimum(gap, np.where(ok, g, 0.0))
+        return gap
 
     # -- latches ------------------------------------------------------------------------------------
     def latch(self, name: str) -> dict:
@@ -862,7 +1006,11 @@ class _Evaluator:
             lt = self.design.latch(name)
             base = f"latches.{name}"
             geo = [self.get(f"{base}.{k}") for k in ("angle", "length", "width", "thickness", "youngs_modulus")]
-            fsw, bistable = PB.latch_switching_force(*geo)
+            fsw, rel, bistable = PB.latch_switching_force(*geo)
+            if lt.state == "a":
+                required, sign = fsw, 1.0
+            else:                           # held in b: pulled back by more than the release force (0: monostable)
+                required, sign = np.where(bistable, rel, 0.0), -1.0
             axis = np.asarray(lt.axis, float)
             axis = axis / np.linalg.norm(axis)
             carried = [self.caps.index(self.design.capsule(j.capsule)) for j in self.design.joints
@@ -872,9 +1020,9 @@ class _Evaluator:
             for p, i, _st, drive in step_drives(self.design):
                 F = self.forces(lay["rest"], tuple(t.frequency for t in drive.tones),
                                 tuple(t.amplitude for t in drive.tones))
-                push = sum((F[:, c] @ axis for c in carried), np.zeros(self.n))
-                margins[(p.name, i)] = np.where(fsw > 0, push / np.where(fsw > 0, fsw, 1.0), np.inf)
-            return {"switching": fsw, "bistable": bistable, "margins": margins}
+                push = sign * sum((F[:, c] @ axis for c in carried), np.zeros(self.n))
+                margins[(p.name, i)] = np.where(required > 0, push / np.where(required > 0, required, 1.0), np.inf)
+            return {"switching": fsw, "release": rel, "bistable": bistable, "margins": margins}
         return self.once(("latch", name), build)
 
     # -- requires and lint ------------------------------------------------------------------------------
@@ -908,14 +1056,16 @@ class _Evaluator:
                 value = np.max(allm, axis=0)
             else:
                 value = np.full(self.n, np.nan)
+        elif r.kind == "gap":
+            value = self.gap_over_steps(r.args[0], r.args[1])
         else:
             raise QuantityError("E-SWEEP-Q02", f"`{r.text}` is not batched")
         ok = np.isfinite(value) | np.isinf(value)
         ok &= ~np.isnan(value)
-        if r.lower is not None:
-            ok &= value >= r.lower
+        if r.lower is not None:      # bounds may follow a swept parameter (`in f0 - 5 kHz .. f0 + 5 kHz`)
+            ok &= value >= self.get(f"requires.{i - 1}.lower")
         if r.upper is not None:
-            ok &= value <= r.upper
+            ok &= value <= self.get(f"requires.{i - 1}.upper")
         return value, ok
 
     def lint(self, code: str) -> np.ndarray:
@@ -931,6 +1081,17 @@ class _Evaluator:
             for c in range(len(self.caps)):
                 f = self.modes(c)[0]
                 ok &= np.all(np.isnan(f) | ((f >= lo) & (f <= hi)), axis=1)
+            return ok
+        if code == "acl501":
+            return self.marginal_features_ok(thr["print_margin"])
+        if code == "acl502":
+            fixed = {j.capsule for j in self.design.joints if j.kind == "fix"}
+            limit = thr["substrate_clearance"]
+            for c, cap in enumerate(self.caps):
+                if cap.name in fixed:
+                    continue
+                low = self.capsule(c)["center"][:, 2] - self.half_height(c)
+                ok &= ~(low < limit - 1e-9)
             return ok
         if code == "acl503":
             for c in range(len(self.caps)):
@@ -949,6 +1110,44 @@ class _Evaluator:
         if code == "acl105":
             return self.linear_ok(thr["linear_amplitude"], int(thr["sweep_samples"]))
         raise QuantityError("E-SWEEP-Q01", f"lint rule {code} is not batched")
+
+    def half_height(self, c: int) -> np.ndarray:
+        """Extent of capsule c's outer body below its centre (geometry.half_extent along -z)."""
+        cap = self.caps[c]
+        base = f"capsules.{cap.name}.cavity"
+        cav = cap.cavity
+        wall = self.get(f"{base}.wall")
+        if cav.shape in ("cylinder", "prism"):
+            ax = self.vec(f"{base}.axis")
+            ca = np.abs(ax[:, 2]) / np.linalg.norm(ax, axis=-1)
+            across = self.get(f"{base}.radius") if cav.shape == "cylinder" else self.get(f"{base}.side") / math.sqrt(3)
+            return ca * self.get(f"{base}.height") / 2 + across * np.sqrt(np.maximum(0.0, 1 - ca * ca)) + wall
+        return (3 * self.get(f"{base}.volume") / (4 * np.pi)) ** (1 / 3) + wall
+
+    def marginal_features_ok(self, k: float) -> np.ndarray:
+        """ACL501: no printed feature within k x the print resolution (lint.rules.fabrication._features)."""
+        from acl.design.checks import PRINT_AXIAL, PRINT_LATERAL
+
+        ok = np.ones(self.n, bool)
+
+        def check(size, axial):
+            res = PRINT_AXIAL if axial else PRINT_LATERAL
+            return ~((res <= size) & (size < k * res))
+
+        for cap in self.caps:
+            ok &= check(self.get(f"capsules.{cap.name}.cavity.wall"), False)
+            for o in cap.orifices:
+                ok &= check(2 * self.get(f"capsules.{cap.name}.orifices.{o.name}.radius"), False)
+        for b in self.design.beams:
+            vertical = abs(b.axis[2]) > 0.7
+            base = f"beams.{b.name}.section"
+            if b.section.shape == "circle":
+                ok &= check(self.get(f"{base}.diameter"), not vertical)
+            else:
+                ok &= check(self.get(f"{base}.width"), False) & check(self.get(f"{base}.thickness"), not vertical)
+        for lt in self.design.latches:
+            ok &= check(self.get(f"latches.{lt.name}.width"), False) & check(self.get(f"latches.{lt.name}.thickness"), True)
+        return ok
 
     def linear_ok(self, limit: float, samples: int) -> np.ndarray:
         """ACL105: eps/R of every interface at every drive step and sampled sweep frequency within the limit (acoustics.interface_amplitudes)."""
@@ -1002,14 +1201,15 @@ class _Evaluator:
             from acl.design.drives import drive_from_text
 
             drive = drive_from_text(self.at, "<at>")
-            moving = [c for c in range(len(self.caps)) if self.beam_of(c) is not None]
-            cols = self.once(("at", self.at), lambda: self.single_deflection(drive) if len(self.caps) == 1 or len(moving) == 1
-                             and len(self.caps) == 1 else self.pair_deflection(drive))
+            cols = self.once(("at", self.at), lambda: self.single_deflection(drive) if len(self.caps) == 1
+                             else self.pair_deflection(drive))
             return cols[q]
         for lt in self.design.latches:
             key = _ident(lt.name)
             if q == f"switching_force_{key}_n":
                 return self.latch(lt.name)["switching"]
+            if q == f"release_force_{key}_n":
+                return self.latch(lt.name)["release"]
             if q == f"bistable_{key}":
                 return self.latch(lt.name)["bistable"]
             if q.startswith(f"margin_{key}_"):

@@ -372,7 +372,7 @@ def _exact_fields(design, fmap: FieldMap, x: np.ndarray, fields: dict, valid: np
             codes[u] = next((d.code for d in exc.diagnostics if d.is_error), "E000")
             continue
         for p in fmap.exact:
-            values[p][u] = flat[p]
+            values[p][u] = flat.get(p, np.nan)
     for p, v in values.items():
         fields[p] = v[inverse]
     bad = ~ok[inverse]

@@ -24,7 +24,7 @@ from acl.design.model import Design, Spread
 from acl.diagnostics import Diagnostic, DiagnosticError, Span, error, suggest
 from acl.units import Quantity, UnitError, describe, parse_unit
 
-MAX_POINTS = 2_000_000_000     # rows of one sweep: beyond it the table cannot be held or written
+MAX_POINTS = 100_000_000       # rows of one sweep: the table is held in memory (~10 GB at 100 million rows)
 DEFAULT_SAMPLES = 1000         # Monte Carlo samples per grid point when --samples is not given
 CHUNK_SIZE = 65_536            # points per task: fixed, so any scheduler gives the same chunks
 
@@ -365,8 +365,9 @@ def build_spec(design: Design, vary=None, tolerance=None, samples: int | None = 
     spec = SweepSpec(axes=tuple(axes), tolerances=tuple(tols.values()), samples=int(n_samples), seed=int(seed),
                      nominal={}, units={}, montecarlo=montecarlo, chunk_size=int(chunk_size), notes=tuple(notes))
     if spec.n_points > MAX_POINTS:
-        raise DiagnosticError([error("E-USAGE", f"{spec.n_points:.3g} points is more than one table holds ({MAX_POINTS:.0e})",
-                                     Span(file="<argv>", line=1, column=1), "use fewer grid points or samples")])
+        raise DiagnosticError([error("E-USAGE", f"{spec.n_points:.3g} points is more than one sweep holds in memory ({MAX_POINTS:.0e})",
+                                     Span(file="<argv>", line=1, column=1),
+                                     "use fewer grid points or samples, or several runs with different --seed")])
     names = spec.names
     corr = _correlation(design, spec.tolerances)
     return SweepSpec(axes=spec.axes, tolerances=spec.tolerances, samples=spec.samples, seed=spec.seed,

@@ -83,6 +83,7 @@ class SweepTable:
     notes: list[str] = field(default_factory=list)
     unevaluated: dict[str, str] = field(default_factory=dict)   # requires the batched evaluation cannot give -> why
     n_requires: int = 0
+    field_map: object = None                       # acl.sweep.perturb.FieldMap used (how fields followed the parameters)
 
     # -- table access ------------------------------------------------------------------------
     @property
@@ -169,6 +170,7 @@ class SweepTable:
             "seed": spec.seed,
             "chunk_size": spec.chunk_size,
             "yields": {k: v.as_dict() for k, v in self.yields().items()},
+            "grid_yield": None if self.grid_yield() is None else self.grid_yield().tolist(),   # per grid point, axes in order
             "invalid_codes": _codes(self.data["code"]),
             "not_evaluated": self.unevaluated,
             "notes": list(self.notes),

@@ -163,7 +163,8 @@ def maximise(evaluate: Callable[[np.ndarray], np.ndarray], free: Sequence[Free],
     width = np.where(hi > lo, hi - lo, 1.0)
     start = np.array([f.start for f in free], float)
     to_x = lambda u: rounded(lo + np.clip(u, 0.0, 1.0) * width)         # noqa: E731 (SI, as written)
-    m0 = evaluate(start)
+    start_written = rounded(start)
+    m0 = evaluate(start_written)
     scale = spreads(m0)
     history: list = []
     cache: dict[tuple, float] = {}
@@ -176,7 +177,7 @@ def maximise(evaluate: Callable[[np.ndarray], np.ndarray], free: Sequence[Free],
             return cache[key]
         if len(history) >= budget:
             return -cache_best()
-        m = m0 if np.array_equal(x, start) else evaluate(x)
+        m = m0 if np.array_equal(x, start_written) else evaluate(x)
         s = score(m, scale, objective)
         y = int(passing(m).sum())
         history.append((x, s, y))
@@ -296,19 +297,28 @@ class Problem:
         batch = field_batch(self.batch_design, pts, self.fmap)
         wanted = [f"require_{i + 1}_value" for i in range(len(self.requires))]
         cols = evaluate(batch, quantities=wanted)
-        return require_margins(self.requires, [cols[q] for q in wanted])
+        # a bound may follow a parameter (`in f0 - 5 kHz .. f0 + 5 kHz` with f0 free or spread): per point
+        bounds = [(None if r.lower is None else batch.get(f"requires.{j}.lower"),
+                   None if r.upper is None else batch.get(f"requires.{j}.upper")) for j, r in enumerate(self.requires)]
+        return require_margins(self.requires, [cols[q] for q in wanted], bounds)
 
 
-def require_margins(requires, values) -> np.ndarray:
-    """(n, R): each requirement's value minus its nearer bound (positive: passes), nan where unknown."""
+def require_margins(requires, values, bounds=None) -> np.ndarray:
+    """(n, R): each requirement's value minus its nearer bound (positive: passes), nan where unknown.
+
+    ``bounds``: per requirement (lower, upper) arrays over the points when they vary (None: the
+    requirement's own bounds)."""
     out = []
-    for r, v in zip(requires, values):
+    for j, (r, v) in enumerate(zip(requires, values)):
         v = np.asarray(v, float)
+        lo, hi = bounds[j] if bounds is not None else (None, None)
+        lo = r.lower if lo is None else np.asarray(lo, float)
+        hi = r.upper if hi is None else np.asarray(hi, float)
         m = np.full(v.shape, np.inf)
         if r.lower is not None:
-            m = np.minimum(m, v - r.lower)
+            m = np.minimum(m, v - lo)
         if r.upper is not None:
-            m = np.minimum(m, r.upper - v)
+            m = np.minimum(m, hi - v)
         out.append(np.where(np.isfinite(v), m, np.nan))
     return np.stack(out, axis=1) if out else np.empty((0, 0))
 
@@ -367,11 +377,10 @@ def prepare(path: str, tolerance: Sequence[str] = (), samples: int = 2000, valid
         names, missing = supported(design)
         for i, r in enumerate(design.requires, start=1):
             if f"require_{i}_value" not in names:
-                why = next((v for k, v in missing.items() if k.startswith("require")), None)
+                why = next((v for k, v in missing.items() if k.split("_")[:2] == ["require", str(i)]), None)
                 diags.append(error("E873", f"`{r.text}` cannot be evaluated batched, so acl tune cannot use it"
                                    + (f": {why}" if why else ""), r.span,
-                                   "acl tune works with resonance, separation and latch margin requirements "
-                                   "(docs/tune.md)"))
+                                   "remove it or state it another way; docs/tune.md lists what acl tune evaluates"))
     spread_declared = any(p.distribution() is not None for p in design.params)
     if not spread_declared and not list(tolerance):
         diags.append(error("E874", "no tolerance: nothing in the design is spread, so every printed device is the "
@@ -407,6 +416,7 @@ class Tuned:
     before_search: Estimate           # the sample the search used
     after_search: Estimate
     per_require: list                 # [{text, line, before, after (Estimate), worst_before, worst_after}]
+    timing_s: dict = field(default_factory=dict)   # stage -> seconds (search, validate)
 
     def to_json(self) -> dict:
         def est(e: Estimate) -> dict:
@@ -443,10 +453,14 @@ def tune(problem: Problem, objective: str = "yield", method: str = "nelder-mead"
     """
     from acl.diagnostics import DiagnosticError, error
 
+    import time
+
+    t0 = time.perf_counter()
     start = np.array([f.start for f in problem.free], float)
     found = maximise(problem.margins, problem.free, objective=objective, method=method, max_evals=max_evals,
                      seed=problem.seed, progress=progress)
     chosen = rounded(found.x)
+    t1 = time.perf_counter()
     m_before, m_after = problem.margins(start, 1), problem.margins(chosen, 1)
     s_before, s_after = problem.margins(start, 0), problem.margins(chosen, 0)
     n = m_before.shape[0]
@@ -469,7 +483,8 @@ def tune(problem: Problem, objective: str = "yield", method: str = "nelder-mead"
     ns = s_before.shape[0]
     return Tuned(problem=problem, objective=objective, method=method, start=start, chosen=chosen, search=found,
                  before=before, after=after, before_search=Estimate(int(passing(s_before).sum()), ns),
-                 after_search=Estimate(int(passing(s_after).sum()), ns), per_require=per)
+                 after_search=Estimate(int(passing(s_after).sum()), ns), per_require=per,
+                 timing_s={"search": t1 - t0, "validate": time.perf_counter() - t1})
 
 
 # ------------------------------------------------------------------------------------------------
