@@ -232,6 +232,9 @@ def test_state_rows_are_checked_cell_by_cell(tmp_path):
     nosigma = tmp_path / "n.csv"
     nosigma.write_text("observable,value,unit,drive\nswitched,1,1,125 kHz @ 45 V\n")
     assert main(["fit", LATCH, str(nosigma), "--free", "gamma"]) == 1
+    shuttle = tmp_path / "p.csv"
+    shuttle.write_text("observable,value,unit,drive\nshuttle,0.1,um,125 kHz @ 20 V\n")
+    assert main(["fit", LATCH, str(shuttle), "--free", "gamma,spread"]) == 2     # no state row: a usage error
 
 
 def test_switched_state_fits_gamma_and_spread_by_maximum_likelihood(tmp_path):
@@ -271,3 +274,23 @@ def test_replayed_state_is_that_of_the_analysis():
         assert st.status == "ok"
         states.append(observe_value(design, obs, st))
     assert states == [0.0, 1.0]
+
+
+def test_a_replayed_ramp_switches_the_latch_and_it_stays_switched(tmp_path):
+    """acl synth --schedule on a latch: the snap-through at 60 V is the switch (state b, 1), not a lost waypoint,
+    and the latch stays in state b when the drive stops (bistable memory); states are written as 0/1, unit 1."""
+    import json
+
+    from acl.cli import main
+
+    segs = [{"start_s": 0.5 * i, "tones": [{"frequency_hz": 125e3, "amplitude_v": v}] if v else []}
+            for i, v in enumerate((10.0, 40.0, 60.0, 80.0, 0.0))]
+    sched = tmp_path / "schedule.json"
+    sched.write_text(json.dumps({"version": "1.1", "segments": segs}))
+    out = tmp_path / "run.csv"
+    assert main(["synth", LATCH, "--schedule", str(sched), "-o", str(out), "--noise", "0.1um"]) == 0
+    rows = [line.split(",") for line in out.read_text().splitlines()[1:]]
+    states = [(r[1], r[2], r[5]) for r in rows if r[0] == "switched"]
+    assert states == [("0", "1", "0.5")] * 2 + [("1", "1", "0.5")] * 3
+    travel = [float(r[1]) for r in rows if r[0] == "shuttle"]
+    assert max(travel[:2]) < 1 and min(travel[2:]) > 60

@@ -52,14 +52,14 @@ def test_committed_sweep_covers_every_case_with_ten_seeds():
 
 def test_committed_sweep_diagnoses_at_least_nine_in_ten():
     """Cases the experiment cannot identify (FD.LIMITS, with the reason shown in docs/fit.md) are measured but not
-    counted; there a wrong effect must still not be claimed often (nothing, or the planted set, in 9 of 10)."""
+    counted; there an effect that was not planted must still not be claimed often (in at most 1 of 10)."""
     summary = _summary()
     below = {case: c["correct"] for case, c in summary.items() if c["correct"] < RATE * c["n"] and not c["limit"]}
     assert below == KNOWN_BELOW
     for case, reason in FD.LIMITS.items():
         assert reason and case in summary
         runs = [r for r in _rows() if r["case"] == case]
-        safe = [r for r in runs if r["ok"] or not r["selected"]]
+        safe = [r for r in runs if set(r["selected"]) <= set(r["planted"])]
         assert len(safe) >= RATE * len(runs), case
 
 

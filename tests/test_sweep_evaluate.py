@@ -416,3 +416,21 @@ def test_a_fold_close_to_rest_near_the_critical_distance():
     assert mevs[-1] < 0.05 * mevs[0]                        # the tangent stiffness vanishes at the fold
     _, conv, mev = ev.plane_solve(q, np.array([(v * 1.001) ** 2]), (125e3,), (1.0,))
     assert not (conv[0] and mev[0] > 0)                      # no stable equilibrium next to the branch above it
+
+
+def test_pair_with_one_capsule_fixed_equals_analyze():
+    d0 = acl.load(str(EX / "fig4_facing_pair.acl"))
+    c = d0.capsule("right").center
+    src = (EX / "fig4_facing_pair.acl").read_text().replace("mount right on right_arm.tip", "fix right").replace(
+        "capsule right like capsules.design1 {",
+        "capsule right like capsules.design1 {\n  center = (%r um, %r um, %r um)" % (c[0] * 1e6, c[1] * 1e6, c[2] * 1e6))
+    d = acl.loads(src, filename=str(EX / "fig4_facing_pair.acl"))
+    rng = np.random.default_rng(1)
+    n = 3
+    b = _batch(d, {"capsules.left.orifices.jet.radius": 10e-6 + 0.3e-6 * rng.standard_normal(n)})
+    at = "125 kHz @ 3 V"
+    cols = evaluate(b, ["snap_in_left_right_125khz_v", "tip_deflection_left_arm_m"], at)
+    for i in range(n):
+        rep = analyze(materialize(b, i), at=drive_from_text(at)).as_dict()
+        assert _rel(cols["snap_in_left_right_125khz_v"][i], rep["pairs"][0]["snap_in_voltage_v"]) < 1e-6
+        assert _rel(cols["tip_deflection_left_arm_m"][i], rep["equilibrium"]["deflections_m"]["left_arm"]) < 1e-7

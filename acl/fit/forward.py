@@ -487,6 +487,7 @@ def _predict(P: Prepared, coeffs: dict, effects: dict) -> np.ndarray:
             # J^T J is the Fisher information (the intervals) and whose score vanishes at the same optimum.
             # The row "predicts" y + r / w.
             y, wt, held = P.pearson
+            REWEIGHT.seen = True
             if REWEIGHT.active:
                 held["var"], held["gen"] = np.maximum(p * (1.0 - p), 1e-10), REWEIGHT.generation
             if held.get("gen") == REWEIGHT.generation:
@@ -509,7 +510,7 @@ class _Reweight:
     def __init__(self):
         self.active = False
         self.generation = 0
-        self.users = 0                 # problems with state rows loaded (none: the solver skips all this)
+        self.seen = False              # set by a prediction that had state rows to weigh
 
     def __enter__(self):
         self.active = True

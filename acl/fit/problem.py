@@ -117,10 +117,7 @@ def load_problem(design_path, data_paths, free=(), search_paths=()):
             raise DiagnosticError([error("E801", "latch states (0/1) need a `sigma` column: the fit weighs every other "
                                          "row by it against the states' binomial scatter", sp,
                                          "add a sigma column (for the state rows any positive number, e.g. 0.5)")])
-        from acl.fit.forward import REWEIGHT
-
         P.pearson = (np.asarray(y, float), 1.0 / np.where(np.isfinite(data.sigma), data.sigma, NOMINAL_SIGMA), {})
-        REWEIGHT.users += 1
         # a state row's weight is its own: the Pearson residual is already in units of its standard deviation
         P.pearson[1][P.state] = 1.0
         data.sigma = np.where(P.state, 1.0, data.sigma)
@@ -138,6 +135,9 @@ def _group_start(P, coefs, y, sigma) -> None:
     if not free:
         return
     w = 1.0 / np.where(np.isfinite(sigma), sigma, NOMINAL_SIGMA)
+    r0 = np.abs(predict(P, {c.kind: c.value for c in free}, {}) - y) * w
+    if not np.any(~np.isfinite(r0) | (r0 > JUMP)):
+        return                                   # no row on the wrong side of a jump: the design is a fine start
     grid = (0.4, 0.6, 0.8, 1.0, 1.25, 1.6, 2.5)
     best, best_cost = None, np.inf
     import itertools
@@ -158,7 +158,7 @@ def _group_start(P, coefs, y, sigma) -> None:
         return np.where(np.isfinite(r), r, 1e6)
 
     try:
-        sol = least_squares(resid, np.zeros(len(free)), loss="soft_l1", f_scale=3.0, max_nfev=40, x_scale=0.1,
+        sol = least_squares(resid, np.zeros(len(free)), loss="soft_l1", f_scale=3.0, max_nfev=25, x_scale=0.1,
                             diff_step=1e-6, bounds=([np.log(c.lower / best[c.kind]) for c in free],
                                                     [np.log(c.upper / best[c.kind]) for c in free]))
         best = {c.kind: best[c.kind] * np.exp(x) for c, x in zip(free, sol.x)}

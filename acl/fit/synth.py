@@ -363,6 +363,44 @@ def observe_value(design, obs, state) -> float:
     return float(np.asarray(state.positions[cap], float)["xyz".index(obs.component)])
 
 
+def _latch_far_sides(design) -> list:
+    """For every latch: the displacement (m, 3-vector) of its carried capsules from the as-printed state to the
+    other stable state of its landscape (acl.physics.latch); empty for a design without a bistable latch."""
+    import numpy as np
+
+    from acl.analysis.mechanics import latch_geometry
+    from acl.physics.latch import latch_landscape
+
+    out = []
+    for lt in design.latches:
+        land = latch_landscape(*latch_geometry(lt, design))
+        if not land.bistable:
+            continue
+        axis = np.asarray(lt.axis, float) / np.linalg.norm(lt.axis)
+        sign = 1.0 if lt.state == "a" else -1.0
+        carried = [j.capsule for j in design.joints if j.kind == "mount" and j.target == lt.name]
+        out.append((carried, sign * land.state_b * axis))
+    return out
+
+
+def _after_snap(design, drive, fm, flipped, snapped):
+    """Equilibrium after a snap-in of a latch: from the snap configuration with each latch's capsules moved to its
+    far state (the state they snap to); the snap state itself (a loss) if none is stable."""
+    import numpy as np
+
+    from acl.analysis import mechanics as mech
+
+    base = {c.name: np.asarray(c.center, float) for c in design.capsules}
+    for carried, shift in flipped:
+        start = dict(base)
+        for c in carried:
+            start[c] = base[c] + shift
+        st = mech.equilibrium(design, drive, fm, start=start)
+        if st.status == "ok" and st.stable:
+            return st
+    return snapped
+
+
 @dataclass
 class Replay:
     data: object                            # Dataset: every observable at every waypoint
@@ -393,11 +431,15 @@ def replay(design, waypoints: list[Waypoint], observables=(), noise: float = 0.0
     targets = {k: t for k, t in (targets or {}).items() if t.capsule in {c.name for c in design.capsules}}
     errors = {k: np.full(len(t.points), np.nan) for k, t in targets.items()}
     rows, start, lost = [], None, 0
+    flipped = _latch_far_sides(design)
     for i, w in enumerate(waypoints):
         drive = Drive(tones=tuple(Tone(frequency=f, amplitude=v) for f, v in w.tones))
         st = mech.equilibrium(design, drive, fm, start=start)
         if st.status != "ok" and start is not None:
             st = mech.equilibrium(design, drive, fm)
+        if st.status == "snap_in" and flipped:
+            # a latch snapping through is its switch, not a loss: look for the equilibrium on the far side
+            st = _after_snap(design, drive, fm, flipped, st)
         if st.status != "ok":
             lost += 1
             start = None
@@ -413,11 +455,14 @@ def replay(design, waypoints: list[Waypoint], observables=(), noise: float = 0.0
             progress(i + 1, len(waypoints))
     n = len(rows)
     value = np.array([r[1] for r in rows], float)
-    if noise > 0:
-        value = value + np.random.default_rng(seed).normal(0.0, noise, n)
-    data = Dataset(np.array([r[0] for r in rows], dtype=object), value, np.full(n, float(noise) or np.nan),
+    state = np.array([design.observe(r[0]).kind == "state" for r in rows], bool)
+    if noise > 0:       # a latch state (0/1) is read without noise; the other rows get the Gaussian noise
+        value = np.where(state, value, value + np.random.default_rng(seed).normal(0.0, noise, n))
+    sigma = np.where(state, 0.5, float(noise)) if noise > 0 else np.full(n, np.nan)
+    data = Dataset(np.array([r[0] for r in rows], dtype=object), value, sigma,
                    np.array([r[2] for r in rows], float), [r[3] for r in rows], {}, {},
-                   [Span(file="<synth>", line=i + 2, column=1) for i in range(n)], np.array(["um"] * n, dtype=object))
+                   [Span(file="<synth>", line=i + 2, column=1) for i in range(n)],
+                   np.where(state, "1", "um").astype(object))
     tracking = {}
     for k, e in errors.items():
         pts = targets[k].points
