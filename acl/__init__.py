@@ -120,7 +120,8 @@ def compile(design, program=None, sample_rate_hz=None, ramp_s=1e-3, tolerance_m=
     if calibration is not None:
         from acl.schedule.calibration import read_sweep_csv
 
-        cal = read_sweep_csv(str(calibration))
+        t = d.transducer
+        cal = read_sweep_csv(str(calibration), t.band if t is not None else None, t.name if t else "")
     opts = CompileOptions(sample_rate_hz=sample_rate_hz, ramp_s=ramp_s, tolerance_m=tolerance_m, calibration=cal,
                           allow_nonlinear=allow_nonlinear)
     return Compiled.from_schedule(compile_program(d, program, opts))

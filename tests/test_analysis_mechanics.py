@@ -150,6 +150,10 @@ def test_large_deflection_warns_that_eq1_is_out_of_range():
     large = M.equilibrium(fig2_pair(30e-6), UNIT_DRIVE, push, mode="large")
     assert large.status == "ok" and not large.diagnostics
     assert abs(large.displacements["a"][0]) < abs(state.displacements["a"][0])
+    # a voltage sweep reports the same warning at its last point (computed when first read), and
+    # none while the deflection stays small
+    assert any(dg.code == "W-MECH-001" for dg in M.sweep_voltage(fig2_pair(30e-6), UNIT_DRIVE, 1.0, push).diagnostics)
+    assert not M.sweep_voltage(fig2_pair(30e-6), UNIT_DRIVE, 0.1, push).diagnostics
 
 
 def _latched(state, push_nN):
@@ -219,3 +223,33 @@ def test_latch_resting_in_state_b_is_force_free_and_needs_the_release_force_back
     assert state.status == "ok" and np.allclose(state.displacements["c"], 0.0)
     m = M.latch_margins(d, UNIT_DRIVE, push)["l"]
     assert m.required == pytest.approx(m.release_force) and m.margin == pytest.approx(30e-9 / m.release_force)
+
+
+@pytest.mark.parametrize("name, khz, tol", [("fig4_facing_pair", 125, 1e-6), ("fig5c_linear_spring", 125, 1e-6),
+                                            ("figS6_flextensional", 125, 1e-6), ("fig6e_reversible_latch", 85, 1e-5),
+                                            ("fig6f_control_module", 85, 1e-5)])
+def test_snap_in_voltage_of_the_examples_is_bracketed_by_the_dynamics(name, khz, tol):
+    # Accuracy of the reported snap-in voltage (acl analyze's sweep), checked by where the mechanism
+    # goes (acl.physics.equilibrium.settle, overdamped flow from the snap state): just below it rests
+    # next to the snap state, just above it runs away (contact or the latch's far state).  Smooth
+    # folds (Fig. 4, 5c, S6): 1e-6 relative; the latches' kink limits (Fig. 6e, 6f: buckling onset
+    # of the tabulated post-buckling law, located by natural-parameter steps of 1e-6 V): 1e-5.
+    from pathlib import Path
+
+    import acl
+    from acl.analysis import acoustics as AC
+    from acl.physics.equilibrium import settle
+    d = acl.load(str(Path(__file__).resolve().parents[1] / "examples" / f"{name}.acl"))
+    drive = Drive(tones=(Tone(frequency=khz * 1e3, amplitude=1.0),))
+    fm = AC.force_model_for(d)
+    sweep = M.sweep_voltage(d, drive, d.transducer.max_voltage if d.transducer else 20.0, fm)
+    assert sweep.status == "snap_in"
+    mech = M.build_mechanism(d)
+    rest, ext, adm = M._restoring(mech), M._external(d, mech, drive, fm), M._admissible(d, mech)
+    z = mech.Z.T @ np.concatenate([mech.bases[g].T @ (sweep.snap_positions[grp[0]] - np.asarray(d.capsule(grp[0]).center))
+                                   for g, grp in enumerate(mech.groups)])
+    size = np.linalg.norm(z)
+    below = settle(rest, ext, z, sweep.snap_voltage * (1 - tol), admissible=adm, length_scale=M.LENGTH_SCALE)
+    assert below.status == "ok" and below.stable and np.linalg.norm(below.q - z) < 0.05 * size
+    above = settle(rest, ext, z, sweep.snap_voltage * (1 + tol), admissible=adm, length_scale=M.LENGTH_SCALE)
+    assert above.status == "inadmissible" or np.linalg.norm(above.q - z) > 0.5 * size

@@ -154,3 +154,19 @@ def test_fit_warns_when_nothing_is_free(tmp_path, capsys):
     out, err = capsys.readouterr()
     assert "W810" not in err
     assert "…" not in out and "gamma" in out             # the fit tables are whole when piped (not cut at 80)
+
+
+@pytest.mark.parametrize("free, message", [
+    ("q:", "--free q:: give a capsule after `q:`"),
+    ("f0:", "--free f0:: give a capsule after `f0:`"),
+    ("f0:nosuch", "--free f0:nosuch: no capsule `nosuch`"),
+    ("GAMMA", "--free GAMMA: not a design parameter nor a model coefficient"),
+])
+def test_bad_free_names_are_usage_errors_at_the_option(free, message, capsys):
+    data = ROOT / "tests" / "hostile" / "inputs" / "data_ok.csv"
+    assert main(["fit", CANTILEVER, str(data), "--effects", "none", "--free", free]) == 2
+    err = capsys.readouterr().err
+    assert f"<--free>:1:1: error[E-USAGE]: {message}" in err, err
+    hint = err.split("help:", 1)[-1]
+    names = [n.strip() for n in hint.split("names:", 1)[-1].split(",")] if "names:" in hint else []
+    assert len(names) == len(set(names)), f"a name listed twice in the hint: {hint}"

@@ -375,3 +375,28 @@ def test_too_deep_drive_cell_is_placed_in_its_cell():
         parse_drive("125 kHz @ (" + "-" * 300 + "1 V)", "data.csv", line=3, column=5)
     (d,) = info.value.diagnostics
     assert (d.code, d.span.file, d.span.line) == ("E104", "data.csv", 3) and d.span.column > 5
+
+
+@pytest.mark.parametrize("text, root", [
+    ('extends "nonexistent.acl"\nprogram s {\n  follow act along polyline([(0, 0), (-1 um, 0)]) in 1 s\n}\n', "E208"),
+    ('extends "/etc/hostname"\nprogram s {\n  follow act along polyline([(0, 0), (-1 um, 0)]) in 1 s\n}\n', "E210"),
+    ("import nonexistent as m\ncapsule c like m.design1 { }\n", "E208"),
+])
+def test_an_unreadable_import_or_base_is_reported_once(tmp_path, text, root):
+    """Issue 11 (report the root cause once): a base or module that cannot be read made every name
+    from it an E201 as well."""
+    from acl.design.resolve import check_design
+
+    f = tmp_path / "d.acl"
+    f.write_text(text)
+    design, diags = check_design(str(f))
+    assert design is None and [d.code for d in diags if d.is_error] == [root], [str(d.span) + d.message for d in diags]
+
+
+def test_an_unknown_name_unrelated_to_a_failed_import_is_still_reported(tmp_path):
+    from acl.design.resolve import check_design
+
+    f = tmp_path / "d.acl"
+    f.write_text("import stdlib.capsules\nimport nonexistent as m\ncapsule c like capsules.desing1 { }\n")
+    _, diags = check_design(str(f))
+    assert sorted(d.code for d in diags if d.is_error) == ["E201", "E208"]

@@ -2,14 +2,18 @@
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 import acl
 from acl.diagnostics import DiagnosticError
+
+ROOT = Path(__file__).resolve().parents[1]
 
 BASE = """import stdlib.media
 import stdlib.transducers
@@ -69,6 +73,14 @@ def test_show_json_lists_uncertainty(tmp_path):
     ("uncertainty { covered(voltage) = 0 um .. 4 um }\n", "E325", 5, 34),
     ("uncertainty { covered(pressure) = 0 V .. 4 V }\n", "E325", 5, 15),
     ("uncertainty { covered(voltage) = 4 V .. 1 V }\n", "E325", 5, 34),
+    # issue 11 hostile corpus (tests/hostile/inputs/unc_*, ublock_*): accepted silently before
+    ("param a = 3 um +- 1 um\nparam b = 2 um +- 1 um\n"
+     "uncertainty {\n correlation(a, b) = 0.5\n correlation(b, a) = -0.5\n}\n", "E323", 9, 2),   # a pair twice
+    ("uncertainty {\n covered(voltage) = 0 V .. 4 V\n covered(voltage) = 0 V .. 8 V\n}\n", "E325", 7, 2),
+    ("uncertainty {\n discrepancy(position) = 50 nm\n discrepancy(position) = 60 nm\n}\n", "E325", 7, 2),
+    ("uncertainty { discrepancy(position) = 1e300 m }\n", "E325", 5, 39),          # overflowed the error bands
+    ("param g = 27 pN/V^2 +- 1e300 pN/V^2\n", "E305", 5, 24),                      # variance overflows
+    ("param g = 3 um +- 1e170 um\n", "E305", 5, 19),
 ])
 def test_bad_uncertainty_is_a_located_diagnostic(text, code, line, col):
     errs = _errors(text)
@@ -83,6 +95,34 @@ def test_bad_transducer_gain_uncertainty():
     assert ("E320", 5, 21) in errs, errs
 
 
+@pytest.mark.parametrize("value", ["11", "1e300"])
+def test_an_absurd_gain_uncertainty_is_e320(value):
+    """Issue 11: gain_uncertainty = 1e300 passed check and `compile --robust` died with E-INTERNAL
+    (LinAlgError: exp(1e300) gains)."""
+    with pytest.raises(DiagnosticError) as exc:
+        acl.loads("transducer t {\n max_voltage = 10 V\n band = 40 kHz .. 200 kHz\n gain = 200 Pa/V\n"
+                  f" gain_uncertainty = {value}\n}}\nuse transducer t\n", "u.acl")
+    errs = [(d.code, d.span.line, d.span.column) for d in exc.value.diagnostics]
+    assert ("E320", 5, 21) in errs, errs
+    assert acl.loads("transducer t {\n max_voltage = 10 V\n band = 40 kHz .. 200 kHz\n gain = 200 Pa/V\n"
+                     " gain_uncertainty = 10\n}\nuse transducer t\n", "u.acl").transducer.gain_uncertainty == 10
+
+
+@pytest.mark.parametrize("sd, mode", [("1e20 N/V^2", "mean"), ("1e140 N/V^2", "worst")])
+def test_robust_compile_with_an_absurd_uncertainty_is_located(tmp_path, sd, mode):
+    """Issue 11: a finite but absurd `+- s` made `compile --robust` fail inside the solver (E-INTERNAL
+    ValueError from SCS, a TypeError formatting a missing slew limit, a bogus `<--set>` E212)."""
+    f = tmp_path / "u.acl"
+    f.write_text((ROOT / "tests" / "hostile" / "inputs" / "unc_huge.acl").read_text()
+                 .replace("+- 1e300 nN/V^2", f"+- {sd}"))
+    out = subprocess.run([sys.executable, "-m", "acl", "compile", str(f), "-o", str(tmp_path / "o"),
+                          "--robust", mode, "--band-samples", "0"], capture_output=True, text=True,
+                         env=dict(os.environ, PYTHONPATH=str(ROOT)))
+    assert out.returncode == 1 and "Traceback" not in out.stderr and "E-INTERNAL" not in out.stderr, out.stderr
+    assert f"{f}:16:3: error[E-SCHED-UNCERTAINTY]" in out.stderr and "gamma +- " in out.stderr
+    assert "Warning" not in out.stderr and not (tmp_path / "o").exists()
+
+
 def test_cli_bad_uncertainty_exit_code_no_traceback(tmp_path):
     f = tmp_path / "bad.acl"
     f.write_text(BASE + "param g = 27 pN/V^2 +- -2 pN/V^2\n")
@@ -90,3 +130,16 @@ def test_cli_bad_uncertainty_exit_code_no_traceback(tmp_path):
     assert out.returncode == 1
     assert "E320" in out.stdout + out.stderr and "Traceback" not in out.stderr
     assert f"bad.acl:5:24" in out.stdout + out.stderr
+
+
+@pytest.mark.parametrize("spread, code, col, text", [
+    ("-3 %", "E320", 24, "is negative (-3 %)"),                       # printed -0.03 % (the fraction)
+    ("1e300 %", "E305", 24, "too large to compute with"),
+    ("normal(1 pN/V^2, 1e300 N/V^2)", "E305", 24, "too large to compute with"),
+    ("uniform(-1e300 N/V^2, 1e300 N/V^2)", "E305", 24, "too large to compute with"),
+])
+def test_spreads_too_large_or_negative_are_located(spread, code, col, text):
+    with pytest.raises(DiagnosticError) as exc:
+        acl.loads(BASE + f"param g = 27 pN/V^2 +- {spread}\n", "u.acl")
+    d = exc.value.diagnostics[0]
+    assert (d.code, d.span.line, d.span.column) == (code, 5, col) and text in d.message, (d.code, str(d.span), d.message)

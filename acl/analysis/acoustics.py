@@ -524,53 +524,53 @@ class _Engine:
             self._rest.append(self.forces(self.lay.rest[None], parts=True))
         return self._rest[0]
 
-    def volumes(self, centres: np.ndarray) -> np.ndarray:
-        """Coupled inward volume amplitudes (B, T, n) for capsule centres (B, C, 3)."""
-        if self.f.size == 0 or self.lay.radii.size == 0:
-            return np.zeros((centres.shape[0], self.f.size, self.lay.radii.size), complex)
-        return self.response(self.lay.points(centres)) * self.pressure[None, :, None]
-
     def forces(self, centres: np.ndarray, parts: bool = False):
         """Total acoustic force (B, C, 3) on each capsule for centres (B, C, 3): thrust + Bjerknes + jet drag."""
         k = self.consts
-        nb, ncap = centres.shape[0], centres.shape[1]
-        u = self.volumes(centres)                                           # (B, T, n)
-        # streaming thrust per orifice (acl.physics.forces.thrust_magnitude), tones added
-        thr = (k["thrust"] * (2 * np.abs(u) / k["area"]) ** 2).sum(axis=1) * k["thrust_scale"]   # (B, n)
-        f_thr = (thr @ k["thrust_dir"]).reshape(nb, ncap, 3)
-        pts = centres[:, self.lay.body, :] + self.lay.offsets                # (B, n, 3)
-        sep = pts[:, None, :, :] - pts[:, :, None, :]                      # (B, i, j, 3): p_j - p_i
+        lay = self.lay
+        pts = centres[:, lay.body, :] + lay.offsets                        # (B, n, 3) orifice centres
+        if self.f.size == 0 or lay.radii.size == 0:
+            r = np.zeros((centres.shape[0], self.f.size, lay.radii.size), complex)
+        else:
+            r = self.response(pts)                                         # (B, T, n) per pascal
+        # streaming thrust per orifice (acl.physics.forces.thrust_magnitude), tones added; eps = 2|dV|/(pi R^2)
+        thr = ((r.real**2 + r.imag**2) * k["thrust"]).sum(axis=1)          # (B, n)
+        per = thr[:, :, None] * k["thrust_dir"]                           # (B, n, 3) along -n
+        # secondary Bjerknes force (Crum 1975) of every other-capsule pair, along p_j - p_i, tones in power
+        sep = pts[:, None, :, :] - pts[:, :, None, :]                      # (B, i, j, 3)
         d = np.where(k["other"], np.sqrt((sep * sep).sum(axis=-1)), 1.0)
-        prod = np.einsum("t,bti,btj->bij", k["w2"], u, np.conj(u)).real     # tones add in power
-        att = k["bjerknes"] * prod / d**2                                   # Crum 1975, along p_j - p_i
-        f_bj = np.einsum("bij,bijk->bik", att / d, sep)
-        f_bj = np.einsum("bik,ic->bck", f_bj, self.lay.onehot)
+        prod = np.einsum("t,bti,btj->bij", k["w2p2"], r, np.conj(r)).real
+        att = k["bjerknes"] * prod / d**2
+        c = att / d
+        per = per + c @ pts - c.sum(axis=-1)[..., None] * pts             # sum_j c_ij (p_j - p_i)
+        total = lay.onehot.T @ per                                          # (B, C, 3)
         # drag of each interface's jet on the other capsules (Schlichting laminar round jet)
         x = centres[:, None, :, :] - pts[:, :, None, :]                    # (B, n, C, 3)
         dist = np.sqrt((x * x).sum(axis=-1))
-        cos = np.einsum("bnck,nk->bnc", x, self.lay.normals) / dist
+        cos = (x * lay.normals[None, :, None, :]).sum(axis=-1) / dist
         mask = k["drag_mask"]
         drag = jet_drag(thr[:, :, None], np.where(mask, dist, 1.0), cos, self.outer[None, None, :]) * mask
-        f_dr = np.einsum("bnc,nk->bck", drag, self.lay.normals)
-        total = f_thr + f_bj + f_dr
+        total = total + drag.transpose(0, 2, 1) @ lay.normals
         if parts:
-            return total, u, thr, att
+            return total, r * self.pressure[None, :, None], thr, att
         return total
 
 
-def _engine_constants(design: Design, lay: _Layout, f: np.ndarray, scale: np.ndarray, pair: np.ndarray) -> dict:
+def _engine_constants(design: Design, lay: _Layout, f: np.ndarray, pressure: np.ndarray, scale: np.ndarray,
+                      pair: np.ndarray) -> dict:
     """Everything in :meth:`_Engine.forces` that does not depend on the capsule positions."""
     med = _medium(design)
     w = 2 * np.pi * f
     other = lay.body[:, None] != lay.body[None, :]
     ncap = len(lay.caps)
+    area = np.pi * lay.radii**2
     return {
-        "thrust": C.STREAMING_CONSTANT * 6 * np.pi * med.viscosity * w[:, None],   # (T, 1)
-        "area": np.pi * lay.radii**2,
-        "thrust_scale": scale[lay.body],
-        "thrust_dir": np.einsum("nk,nc->nck", -lay.normals, lay.onehot).reshape(lay.radii.size, 3 * ncap),
+        # C_s 6 pi mu w eps^2 with eps = 2 |p dV/dp| / (pi R^2), times the declared thrust scale
+        "thrust": (C.STREAMING_CONSTANT * 6 * np.pi * med.viscosity * w[:, None] * 4 / area**2
+                   * pressure[:, None] ** 2 * scale[lay.body]),
+        "thrust_dir": -lay.normals,
         "other": other,
-        "w2": w**2,
+        "w2p2": w**2 * pressure**2,
         "bjerknes": med.density / (8 * np.pi) * other * pair[lay.body][:, lay.body],
         "drag_mask": lay.body[:, None] != np.arange(ncap)[None, :],
     }
@@ -598,7 +598,7 @@ def _compute_engine(design: Design, drive: Drive) -> _Engine:
     response = (prepared_response(sysm, f, med.density, med.sound_speed, C.SUBSTRATE_REFLECTION, h0=h0)
                 if f.size else None)
     return _Engine(design, lay, sysm, f, pressure, h0, scale, pair, outer, med.density, med.sound_speed, response,
-                   _engine_constants(design, lay, f, scale, pair))
+                   _engine_constants(design, lay, f, pressure, scale, pair))
 
 
 _LAST_ENGINE: list = []   # [(design, drive, engine)]: identity cache for solver inner loops

@@ -22,6 +22,7 @@ Degrees of freedom (capsules translate rigidly, no rotation):
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
 from typing import Callable, Mapping
 
 import numpy as np
@@ -67,7 +68,12 @@ class VoltageSweep:
     snap_voltage: float | None
     snap_positions: dict | None
     message: str = ""
-    diagnostics: tuple[Diagnostic, ...] = ()
+    checks: object = ()       # the validity diagnostics, or a function computing them on first use
+
+    @cached_property
+    def diagnostics(self) -> tuple[Diagnostic, ...]:
+        """Validity warnings at the branch's last point (Eq. (1) range: W-MECH-001), computed on first use."""
+        return tuple(self.checks() if callable(self.checks) else self.checks)
 
     def snap_gap(self, design: Design, a: str, b: str) -> float | None:
         """Distance between the closest orifice centres of a and b at the snap-in (m), None without snap."""
@@ -578,6 +584,23 @@ def _validity(mech: _Mechanism, q: np.ndarray, mode: str) -> tuple[Diagnostic, .
     return tuple(found)
 
 
+_PREPARED: list = []     # [(design, mode, (mechanism, restoring, admissible))], most recent first
+
+
+def _prepared(design: Design, mode: str):
+    """(mechanism, restoring, admissible) of ``design``: built once per design (immutable) and mode.
+
+    Schedulers solve thousands of equilibria of one design under different drives.
+    """
+    for d, m, hit in _PREPARED:
+        if d is design and m == mode:
+            return hit
+    mech = build_mechanism(design, mode)
+    hit = (mech, _restoring(mech), _admissible(design, mech))
+    _PREPARED[:] = ([(design, mode, hit)] + _PREPARED)[:8]
+    return hit
+
+
 # ----------------------------------------------------------------------------------------------
 # Public entry points
 # ----------------------------------------------------------------------------------------------
@@ -591,8 +614,8 @@ def equilibrium(design: Design, drive: Drive, force_model: ForceModel, *, mode: 
     ``start`` (capsule -> centre) instead solves directly from that configuration (a warm start,
     which keeps hysteresis such as a switched latch); if that fails or is unstable, it continues from rest.
     """
-    mech = build_mechanism(design, mode)
-    rest, ext, adm = _restoring(mech), _external(design, mech, drive, force_model), _admissible(design, mech)
+    mech, rest, adm = _prepared(design, mode)
+    ext = _external(design, mech, drive, force_model)
     if mech.m == 0:
         q = np.zeros(mech.n)
         return MechanismState(_positions(design, mech, q), _displacements(design, mech, q),
@@ -628,8 +651,8 @@ def _displacements(design: Design, mech: _Mechanism, q: np.ndarray) -> dict:
 def sweep_voltage(design: Design, drive_shape: Drive, v_max: float, force_model: ForceModel, *,
                   mode: str = "eq1") -> VoltageSweep:
     """Stable equilibria as the drive shape's amplitudes are scaled by V from 0 to ``v_max``; reports snap-in."""
-    mech = build_mechanism(design, mode)
-    rest, ext, adm = _restoring(mech), _external(design, mech, drive_shape, force_model), _admissible(design, mech)
+    mech, rest, adm = _prepared(design, mode)
+    ext = _external(design, mech, drive_shape, force_model)
     if mech.m == 0:
         return VoltageSweep(np.array([0.0, v_max]), {c.name: np.tile(c.center, (2, 1)) for c in design.capsules},
                             "ok", None, None)
@@ -637,12 +660,13 @@ def sweep_voltage(design: Design, drive_shape: Drive, v_max: float, force_model:
     per_point = [_positions(design, mech, mech.Z @ z) for z in br.q]
     positions = {c.name: np.array([p[c.name] for p in per_point]).reshape(len(per_point), 3)
                  for c in design.capsules}
-    snap_v, snap_pos, diags = None, None, []
+    snap_v, snap_pos = None, None
     if br.status == "snap_in":
         snap_v, snap_pos = br.snap.voltage, _positions(design, mech, mech.Z @ br.snap.q)
-    if br.q.size:
-        diags.extend(_validity(mech, mech.Z @ br.q[-1], mode))
-    return VoltageSweep(br.voltage, positions, br.status, snap_v, snap_pos, br.message, tuple(diags))
+    last = mech.Z @ br.q[-1] if br.q.size else None
+    # the Eq. (1) validity check solves elastica BVPs: only when someone reads the diagnostics
+    checks = (lambda: _validity(mech, last, mode)) if last is not None else ()
+    return VoltageSweep(br.voltage, positions, br.status, snap_v, snap_pos, br.message, checks)
 
 
 def latch_margins(design: Design, drive: Drive, force_model: ForceModel) -> dict[str, LatchMargin]:

@@ -11,7 +11,7 @@ import re
 import sys
 
 from acl.commands._common import (add_design_options, add_output_format, load_or_report,
-                                  plotting_missing, report)
+                                  plotting_missing, report, seed)
 from acl.diagnostics import DiagnosticError, Span, error, suggest
 
 _RATE = re.compile(r"^\s*([0-9]*\.?[0-9]+(?:[eE][-+]?[0-9]+)?)\s*(hz|khz|mhz|k|m|ms/s|ks/s)?\s*$", re.I)
@@ -43,7 +43,7 @@ def add_parser(p) -> None:
                         "error, `worst` the least worst case over its 1-sigma ellipsoid (docs/schedule.md)")
     p.add_argument("--band-samples", type=int, default=20, metavar="N",
                    help="draws of the declared uncertainty for each goal's 95 %% error band (default 20; 0: none)")
-    p.add_argument("--band-seed", type=int, default=0, metavar="N", help="seed of those draws (default 0)")
+    p.add_argument("--band-seed", type=seed, default=0, metavar="N", help="seed of those draws (default 0)")
     p.add_argument("--nonlinear-passes", type=int, default=0, metavar="N",
                    help="re-plan paths N times against the design's nonlinear model (saturation, stiffening, "
                         "declared effects); default 0")
@@ -170,10 +170,11 @@ def run(args) -> int:
 
     calibration = None
     try:
-        if args.calibration:
+        if args.calibration is not None:      # `--calibration ""` is a path that cannot be read, not no option
             from acl.schedule.calibration import read_sweep_csv
 
-            calibration = read_sweep_csv(args.calibration)
+            t = design.transducer
+            calibration = read_sweep_csv(args.calibration, t.band if t is not None else None, t.name if t else "")
     except DiagnosticError as exc:
         report(exc.diagnostics, fmt)
         return 2

@@ -240,6 +240,7 @@ def _stddev(b: Builder, name: str, decl, v: Quantity):
 
 
 COVERED = {"voltage": "V", "frequency": "Hz", "deflection": "m"}
+MAX_DISCREPANCY = 1.0   # m: as data files (acl.fit.data.MAX_LENGTH), nothing of a micro-device is a metre off
 
 
 def _uncertainty(b: Builder, params: tuple[M.Param, ...]):
@@ -247,7 +248,7 @@ def _uncertainty(b: Builder, params: tuple[M.Param, ...]):
     sds = {p.name: p.stddev for p in params}
     corr: dict[tuple[str, str], M.Correlation] = {}
     cover: dict[str, M.Coverage] = {}
-    discrepancy = None
+    discrepancy = discrepancy_line = None
     for st in b.env.statements:
         if not isinstance(st, A.UncertaintyDecl):
             continue
@@ -279,7 +280,12 @@ def _uncertainty(b: Builder, params: tuple[M.Param, ...]):
                 if not isinstance(r, Quantity) or r.dims != D("") or not math.isfinite(r.value) or abs(r.value) > 1:
                     b.bag.error("E324", "a correlation is a number in -1 .. 1", ent.value.span)
                     continue
-                corr[tuple(sorted(names))] = M.Correlation(a=names[0], b=names[1], value=float(r.value), span=ent.span)
+                pair = tuple(sorted(names))
+                if pair in corr:
+                    b.bag.error("E323", f"correlation({pair[0]}, {pair[1]}) is given twice (first at line "
+                                f"{corr[pair].span.line})", key.span, "keep one of them")
+                    continue
+                corr[pair] = M.Correlation(a=names[0], b=names[1], value=float(r.value), span=ent.span)
             elif key.name == "covered":
                 q = key.args[0].dotted if len(key.args) == 1 and isinstance(key.args[0], A.Ref) else None
                 if q not in COVERED:
@@ -302,6 +308,10 @@ def _uncertainty(b: Builder, params: tuple[M.Param, ...]):
                 if not (math.isfinite(lo) and math.isfinite(hi) and lo <= hi):
                     b.bag.error("E325", f"covered({q}): the range must be finite and lo <= hi", ent.value.span)
                     continue
+                if q in cover:
+                    b.bag.error("E325", f"covered({q}) is given twice (first at line {cover[q].span.line})", key.span,
+                                "keep one range")
+                    continue
                 cover[q] = M.Coverage(quantity=q, lower=lo, upper=hi, span=ent.span)
             elif key.name == "discrepancy":
                 if not (len(key.args) == 1 and isinstance(key.args[0], A.Ref) and key.args[0].dotted == "position"):
@@ -314,7 +324,16 @@ def _uncertainty(b: Builder, params: tuple[M.Param, ...]):
                 if not (isinstance(v, Quantity) and v.dims == D("m") and math.isfinite(v.value) and v.value >= 0):
                     b.bag.error("E325", "discrepancy(position): expected a finite length >= 0", ent.value.span)
                     continue
-                discrepancy = float(v.value)
+                if v.value > MAX_DISCREPANCY:
+                    b.bag.error("E325", f"discrepancy(position) = {v.value:g} m: a residual beyond "
+                                f"{MAX_DISCREPANCY:g} m is no measurement of a micro-device", ent.value.span,
+                                "give the fit's RMS residual, e.g. `50 nm`")
+                    continue
+                if discrepancy is not None:
+                    b.bag.error("E325", f"discrepancy(position) is given twice (first at line {discrepancy_line})",
+                                key.span, "keep one of them")
+                    continue
+                discrepancy, discrepancy_line = float(v.value), ent.span.line
             else:
                 b.bag.error("E325", f"unknown uncertainty entry `{key.name}`", key.span,
                             suggest(key.name, ["correlation", "covered", "discrepancy"])

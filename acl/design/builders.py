@@ -14,6 +14,7 @@ from acl.diagnostics import Span, suggest
 from acl.syntax import ast as A
 from acl.units import Quantity, describe
 
+MAX_GAIN_UNCERTAINTY = 10.0     # log-normal sd of a gain-table value: exp(10) = 22,026x at 1 sigma (beyond: overflow)
 MAX_TRANSDUCER_VOLTAGE = 1e4   # V: the top of compile's accepted `limit` range (acl.schedule.compile.VOLTAGE_RANGE)
 
 
@@ -110,10 +111,11 @@ class Builder:
                 return None
             fs, gs = self._gain_table(keys, dv)
             unc = self.r.get(keys, "gain_uncertainty", "transducer", dv.name)
-            if unc is not None and not (math.isfinite(unc) and unc >= 0):
+            if unc is not None and not (math.isfinite(unc) and 0 <= unc <= MAX_GAIN_UNCERTAINTY):
                 self._err_key(keys, "gain_uncertainty", "E320" if math.isfinite(unc) else "E305",
-                              f"{dv.name}.gain_uncertainty must be a finite relative standard deviation >= 0, "
-                              f"got {unc:g}", "e.g. `gain_uncertainty = 40 %`")
+                              f"{dv.name}.gain_uncertainty must be a finite relative standard deviation in 0 .. "
+                              f"{MAX_GAIN_UNCERTAINTY:g} ({MAX_GAIN_UNCERTAINTY:.0%}), got {unc:g}",
+                              "e.g. `gain_uncertainty = 40 %`")
                 return None
             return M.Transducer(name=dv.name, max_voltage=vmax, band=band, gain_frequencies=fs,
                                 gain_pa_per_v=gs, gain_uncertainty=unc, span=dv.node.span)

@@ -67,8 +67,42 @@ def _finish(env: ModuleEnv, loader: Loader, bag: DiagnosticBag, overrides: dict[
     r = Resolver(env, loader, bag, overrides)
     design = assemble(Builder(r))
     if bag.has_errors:
-        raise DiagnosticError(sorted(bag.items, key=_order))
+        raise DiagnosticError(sorted(_root_causes(env, bag.items), key=_order))
     return design
+
+
+_UNREADABLE = ("E208", "E209", "E210", "E211")    # an import or extends that could not be read
+
+
+def _root_causes(env: ModuleEnv, diags: list) -> list:
+    """The diagnostics without the unknown names (E201) that only follow from an import or
+    `extends` of the main file that could not be read: `extends "x.acl"` failing makes every name
+    of the base unknown, `import x as m` failing every `m.name` (issue 11: report the root cause once)."""
+    from acl.syntax import ast as A
+
+    failed_at = {(d.span.file, d.span.line) for d in diags if d.code in _UNREADABLE and d.span is not None}
+    if not failed_at:
+        return diags
+    base_failed, aliases = False, set()
+    for st in env.module.statements:
+        if (st.span.file, st.span.line) not in failed_at:
+            continue
+        if isinstance(st, A.Extends):
+            base_failed = True
+        elif isinstance(st, A.Import):
+            aliases.add(st.alias or (st.module[-1] if st.module else None))
+    aliases.discard(None)
+    if not base_failed and not aliases:
+        return diags
+    main = env.module.file
+
+    def cascade(d) -> bool:
+        if d.code != "E201" or d.span is None or d.span.file != main:
+            return False
+        return base_failed or any(f"`{a}." in d.message for a in aliases)
+
+    kept = [d for d in diags if not cascade(d)]
+    return kept if any(d.is_error for d in kept) else diags
 
 
 def _order(d: Diagnostic):

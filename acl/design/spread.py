@@ -45,6 +45,19 @@ def spread_of(expr: A.Expr, value: Quantity, name: str, evaluate: Callable[[A.Ex
     reporting: E320 negative, E321 wrong dimension, E305 not finite, E322 unknown distribution or
     wrong arguments.
     """
+    sd, sp = _spread_of(expr, value, name, evaluate, report)
+    if not math.isfinite(sd * sd) or not math.isfinite(abs(value.value) + MAX_SIGMAS * sd):
+        report("E305", f"uncertainty of `{name}` is too large to compute with ({sd:g} {si_unit(value.dims)}: its "
+               f"variance, or the value {MAX_SIGMAS:g} standard deviations away, is not a finite number)".replace(" :", ":"),
+               expr.span, "give the standard deviation the data support")
+        raise SpreadError()
+    return sd, sp
+
+
+MAX_SIGMAS = 10.0     # draws of a declared uncertainty stay within this many standard deviations of the value
+
+
+def _spread_of(expr, value: Quantity, name: str, evaluate, report) -> tuple[float, Spread | None]:
     unit = si_unit(value.dims)
     example = f"{abs(value.value) * 0.01:.3g} {unit}".strip() if value.value else f"1 {unit}".strip()
     if isinstance(expr, A.Call):
@@ -73,7 +86,8 @@ def _check_sd(sd: float, name: str, span, report, unit: str) -> None:
         report("E305", f"uncertainty of `{name}` is not finite", span, "give a finite standard deviation")
         raise SpreadError()
     if sd < 0:
-        report("E320", f"uncertainty of `{name}` is negative ({sd:g} {unit})".replace(" )", ")"), span,
+        shown = sd * 100 if unit == "%" else sd     # a relative spread is held as a fraction, written in %
+        report("E320", f"uncertainty of `{name}` is negative ({shown:g} {unit})".replace(" )", ")"), span,
                "a standard deviation is >= 0: write `+- s` with s positive")
         raise SpreadError()
 

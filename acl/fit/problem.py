@@ -77,13 +77,17 @@ def load_problem(design_path, data_paths, free=(), search_paths=()):
         role = name if name in COEFFICIENTS else roles.get(name)
         what, sep, cap = name.partition(":")
         if sep and what in ("f0", "q"):
+            if not cap:
+                raise DiagnosticError([error("E-USAGE", f"--free {name}: give a capsule after `{what}:`",
+                                             Span(file="<--free>", line=1, column=1),
+                                             f"e.g. {what}:{sorted(caps)[0]}" if caps else "the design has no capsule")])
             if cap not in caps:
                 raise DiagnosticError([error("E-USAGE", f"--free {name}: no capsule `{cap}`",
                                              Span(file="<--free>", line=1, column=1),
                                              suggest(cap, sorted(caps)) or f"capsules: {', '.join(sorted(caps))}")])
             role = f"{what}@{cap}"
         if role is None:
-            cands = [*COEFFICIENTS, *[p.name for p in design.params]]
+            cands = list(dict.fromkeys([*COEFFICIENTS, *[p.name for p in design.params]]))
             raise DiagnosticError([error("E-USAGE", f"--free {name}: not a design parameter nor a model coefficient",
                                          Span(file="<--free>", line=1, column=1),
                                          suggest(name, cands) or f"names: {', '.join(cands)}")])

@@ -137,11 +137,25 @@ def green_matrix(points, radii, body, wavenumber=None, wall_reflection: float = 
     return g
 
 
+_PATHS: dict = {}
+
+
+def _einsum(subscripts: str, *operands) -> np.ndarray:
+    """``np.einsum(..., optimize=True)`` with the contraction order found once per shape (the search costs more than small contractions)."""
+    key = (subscripts,) + tuple(o.shape for o in operands)
+    path = _PATHS.get(key)
+    if path is None:
+        path = _PATHS[key] = np.einsum_path(subscripts, *operands, optimize=True)[0]
+        if len(_PATHS) > 256:
+            _PATHS.pop(next(iter(_PATHS)))
+    return np.einsum(subscripts, *operands, optimize=path)
+
+
 def uncoupled_blocks(system: BubbleSystem, omega) -> np.ndarray:
     """Per-capsule inward volume response per pascal, H0 (F, C, P, P) = Phi diag(1/(w_m^2 - w^2 + i w w_m/Q_m)) Phi^T (Meirovitch ch. 7)."""
     w = np.atleast_1d(np.asarray(omega, float))[:, None, None]
     den = system.omega[None] ** 2 - w**2 + 1j * w * system.damping[None]
-    return np.einsum("cpm,fcm,cqm->fcpq", system.phi, 1.0 / den, system.phi, optimize=True)
+    return _einsum("cpm,fcm,cqm->fcpq", system.phi, 1.0 / den, system.phi)
 
 
 def coupled_response(system: BubbleSystem, frequency, density: float, sound_speed: float,
@@ -184,7 +198,7 @@ def coupled_response(system: BubbleSystem, frequency, density: float, sound_spee
         if p == 1:
             hg = blk[None, :, :, 0, 0, None, None] * g
         else:
-            hg = np.einsum("fcpq,bfcqn->bfcpn", blk, g, optimize=True)
+            hg = _einsum("fcpq,bfcqn->bfcpn", blk, g)
         a = eye - (w**2 * density)[None, :, None, None] * hg.reshape(nb, w.size, npad, npad)
         rhs = np.broadcast_to(blk.sum(axis=-1).reshape(1, w.size, npad), (nb, w.size, npad))
         u = np.linalg.solve(a, rhs[..., None])[..., 0]
@@ -313,8 +327,7 @@ def prepared_response(system: BubbleSystem, frequency, density: float, sound_spe
         if p == 1:
             hg = diag * g
         else:
-            hg = np.einsum("fcpq,bfcqn->bfcpn", blk, g.reshape(nb, f.size, ncap, p, npad),
-                           optimize=True).reshape(nb, f.size, npad, npad)
+            hg = _einsum("fcpq,bfcqn->bfcpn", blk, g.reshape(nb, f.size, ncap, p, npad)).reshape(nb, f.size, npad, npad)
         u = np.linalg.solve(eye - coef * hg, np.broadcast_to(rhs, (nb, f.size, npad, 1)))[..., 0]
         return u[..., system.slot]
 

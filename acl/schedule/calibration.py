@@ -44,14 +44,52 @@ def _fields(line: str) -> list[tuple[str, int]]:
     return out
 
 
-def read_sweep_csv(path: str) -> GainTable:
-    """Parse a sweep CSV into a gain table (m per V^2), or raise DiagnosticError (E-CSV-*)."""
+MAX_BYTES = 16 * 2**20     # a measured sweep is a few hundred rows; a larger file is refused (E-CSV-READ)
+
+
+def _read_lines(path: str) -> list[str]:
+    """The lines of a calibration file: a regular file (a FIFO or a device would block or never
+    end) of at most :data:`MAX_BYTES`, UTF-8 (a bad byte is located at its line:column)."""
+    import os
+    import stat
+
+    where = Span(file=path or "<--calibration>", line=1, column=1)
     try:
-        with open(path, encoding="utf-8") as fh:
-            lines = fh.read().splitlines()
-    except (OSError, UnicodeDecodeError) as exc:
-        raise DiagnosticError([error("E-CSV-READ", f"cannot read calibration file: {exc}",
-                                     Span(file=path, line=1, column=1))]) from None
+        st = os.stat(path)
+        if not stat.S_ISREG(st.st_mode):
+            kind = "a folder" if stat.S_ISDIR(st.st_mode) else "a pipe (FIFO)" if stat.S_ISFIFO(st.st_mode) else \
+                "a device or socket"
+            raise DiagnosticError([error("E-CSV-READ", f"cannot read calibration file: `{path}` is {kind}, not a "
+                                         "regular file", where, "give the CSV file of the measured sweep")])
+        if st.st_size > MAX_BYTES:
+            raise DiagnosticError([error("E-CSV-READ", f"calibration file is larger than {MAX_BYTES // 2**20} MB",
+                                         where)])
+        with open(path, "rb") as fh:
+            raw = fh.read(MAX_BYTES + 1)
+    except OSError as exc:
+        raise DiagnosticError([error("E-CSV-READ", f"cannot read calibration file: {exc.strerror or exc}",
+                                     where)]) from None
+    if len(raw) > MAX_BYTES:
+        raise DiagnosticError([error("E-CSV-READ", f"calibration file is larger than {MAX_BYTES // 2**20} MB", where)])
+    try:
+        return raw.decode("utf-8-sig").splitlines()
+    except UnicodeDecodeError as exc:
+        start = exc.start
+        line_start = raw.rfind(b"\n", 0, start) + 1
+        column = len(raw[line_start:start].decode("utf-8", errors="replace")) + 1
+        _fail("E-CSV-READ", f"calibration file is not UTF-8 text (byte 0x{raw[start]:02x})", path,
+              raw.count(b"\n", 0, start) + 1, column, "save the file as UTF-8")
+
+
+MAX_DISPLACEMENT = 1.0     # m: as data files (acl.fit.data.MAX_LENGTH), no displacement of a micro-device
+
+
+def read_sweep_csv(path: str, band: tuple[float, float] | None = None, transducer: str = "") -> GainTable:
+    """Parse a sweep CSV into a gain table (m per V^2), or raise DiagnosticError (E-CSV-*).
+
+    ``band`` (Hz): the transducer's; a row outside it is E501 at its frequency (the schedule would
+    play that tone into a transducer that cannot)."""
+    lines = _read_lines(path)
     voltage = None
     header = None
     rows: list[tuple[int, list[tuple[str, int]]]] = []
@@ -66,7 +104,15 @@ def read_sweep_csv(path: str) -> GainTable:
                 if unit not in _UNITS["voltage"]:
                     _fail("E-CSV-UNIT", f"unknown voltage unit {m.group(2)!r}", path, no,
                           raw.index(m.group(2)) + 1, "use V or mV")
-                voltage = float(m.group(1)) * _UNITS["voltage"][unit]
+                col = raw.index(m.group(1)) + 1
+                try:
+                    voltage = float(m.group(1)) * _UNITS["voltage"][unit]
+                except ValueError:
+                    _fail("E-CSV-VOLTAGE", f"the sweep voltage is not a number: {m.group(1)!r}", path, no, col,
+                          "e.g. `# voltage: 10 V`")
+                if not (np.isfinite(voltage) and voltage > 0):
+                    _fail("E-CSV-VOLTAGE", f"the sweep voltage must be positive and finite, got {m.group(1)}",
+                          path, no, col, "e.g. `# voltage: 10 V`")
             continue
         if header is None:
             header = (no, _fields(raw))
@@ -89,6 +135,9 @@ def read_sweep_csv(path: str) -> GainTable:
             _fail("E-CSV-UNIT", f"column {name!r} needs a known unit"
                   + (f" (got {unit!r})" if unit else ""), path, hline, col,
                   f"write e.g. {key} [{next(iter(_UNITS[key]))}]")
+        if key in columns:
+            _fail("E-CSV-HEADER", f"column {name!r} repeats the {key} column (column "
+                  f"{hfields[columns[key][0]][1]})", path, hline, col, "keep one column per quantity")
         columns[key] = (idx, scale)
     for need in ("frequency", "dx", "dy"):
         if need not in columns:
@@ -114,16 +163,29 @@ def read_sweep_csv(path: str) -> GainTable:
                 val = float(text)
             except ValueError:
                 _fail("E-CSV-VALUE", f"{key} is not a number: {text!r}", path, no, col)
-            if not np.isfinite(val):
+            if not (np.isfinite(val) and np.isfinite(val * scale)):
                 _fail("E-CSV-VALUE", f"{key} is not finite: {text!r}", path, no, col)
+            if key in ("dx", "dy") and abs(val * scale) > MAX_DISPLACEMENT:
+                _fail("E-CSV-VALUE", f"{key} = {val * scale:g} m: beyond {MAX_DISPLACEMENT:g} m, no displacement of "
+                      "a micro-device", path, no, col, "check the column's unit")
             data[r, j] = val * scale
         if data[r, 3] <= 0:
             _fail("E-CSV-VALUE", "the sweep voltage must be positive", path, no,
                   fields[columns["voltage"][0]][1] if "voltage" in columns else 1)
         if data[r, 0] <= 0:
             _fail("E-CSV-VALUE", "frequency must be positive", path, no, fields[columns["frequency"][0]][1])
+        if band is not None and not band[0] <= data[r, 0] <= band[1]:
+            _fail("E501", f"frequency {data[r, 0] / 1e3:.6g} kHz is outside the band of transducer "
+                  f"`{transducer}` ({band[0] / 1e3:g} .. {band[1] / 1e3:g} kHz)", path, no,
+                  fields[columns["frequency"][0]][1], "was the sweep measured with this design's transducer?")
         if r and data[r, 0] <= data[r - 1, 0]:
             _fail("E-CSV-ORDER", "frequencies must be strictly increasing", path, no,
                   fields[columns["frequency"][0]][1], "sort the rows by frequency, without duplicates")
-    gains = data[:, 1:3] / data[:, 3:4] ** 2
+    with np.errstate(all="ignore"):
+        gains = data[:, 1:3] / data[:, 3:4] ** 2
+    bad = np.flatnonzero(~np.all(np.isfinite(gains), axis=1))
+    if bad.size:
+        no, fields = rows[int(bad[0])]
+        _fail("E-CSV-VALUE", "displacement / voltage^2 is not a finite number (the voltage is too small or the "
+              "displacement too large)", path, no, fields[columns["voltage"][0]][1] if "voltage" in columns else 1)
     return GainTable(frequencies=data[:, 0].copy(), gains=gains, source=f"calibration {path}")

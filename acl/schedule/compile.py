@@ -13,6 +13,7 @@ phases are chosen for a low peak (:mod:`acl.schedule.phases`).  Problems become 
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Callable
 
@@ -24,6 +25,7 @@ from acl.schedule.model import GoalReport, Schedule, ScheduledTone, Segment
 from acl.schedule.path import UM, DriveLimits
 
 DEFAULT_MAX_VOLTAGE = 10.0
+MAX_ROBUST_SPREAD = 100.0          # --robust: 1-sigma gain spread sqrt(|Q|) at most this many times |G0| (E-SCHED-UNCERTAINTY)
 MAX_PROGRAM_S = 86_400.0          # a program longer than a day is refused (E-SCHED-DURATION)
 MAX_WAYPOINTS = 20_000            # per follow goal (E-SCHED-PATH): raise --waypoint-dt
 VOLTAGE_RANGE = (1e-3, 1e4)       # V: a `limit` outside it is refused (E-SCHED-LIMIT)
@@ -310,7 +312,7 @@ class _Compiler:
         fade = min(self.opts.ramp_s, dt)
         plan_slew = None if slew is None else slew * 2.0 * fade / (np.pi * dt) * (1 - 1e-4)
         limits = DriveLimits(max_voltage=vmax, slew_rate=plan_slew)
-        rq = self._robust_q(name, step.capsule, choice.frequencies) if self.opts.robust else None
+        rq = self._robust_q(name, step.capsule, choice.frequencies, step.span) if self.opts.robust else None
         u_start = None
         if slew is not None:        # slew from what is playing before the goal (silence at the start)
             before = {t.frequency_hz: t.amplitude_v for t in self.segments[-1].tones} if self.segments else {}
@@ -388,7 +390,7 @@ class _Compiler:
         best.targets = np.asarray(points, float)
         return best
 
-    def _robust_q(self, name, capsule, freqs):
+    def _robust_q(self, name, capsule, freqs, span):
         """Q of the declared uncertainty at the chosen tones (None, with a note, when there is none)."""
         from acl.schedule.robust import robust_q
 
@@ -398,9 +400,23 @@ class _Compiler:
         provider = self.opts.gain_provider
         if provider is None:
             from acl.schedule.gains import model_gain_table as provider
-        q = robust_q(self.design, lambda d: provider(d, capsule, freqs).gains.T, self.opts.reload)
-        if q is None:
-            self.notes.append(f"{name}: --robust: the design declares no uncertainty; the plan is the nominal one")
+        with np.errstate(all="ignore"):      # overflow is checked below, as a located error
+            q = robust_q(self.design, lambda d: provider(d, capsule, freqs).gains.T, self.opts.reload)
+            if q is None:
+                self.notes.append(f"{name}: --robust: the design declares no uncertainty; the plan is the nominal one")
+                return q
+            g0 = np.linalg.norm(np.asarray(provider(self.design, capsule, freqs).gains, float), 2)
+            spread = float(np.sqrt(np.max(np.abs(np.linalg.eigvalsh(q))))) if np.all(np.isfinite(q)) else float("inf")
+        if not (math.isfinite(spread) and spread <= MAX_ROBUST_SPREAD * g0):
+            what = [f"`{p.name} +- {p.stddev:g} {p.unit}`".replace(" `", "`") for p in self.design.uncertain_params()]
+            t = self.design.transducer
+            if t is not None and t.gain_uncertainty:
+                what.append(f"`{t.name}.gain_uncertainty = {t.gain_uncertainty:g}`")
+            raise _diag("E-SCHED-UNCERTAINTY", f"{name}: --robust: at 1 sigma the declared uncertainty moves the "
+                        f"gains by {'more than' if not math.isfinite(spread) else ''} "
+                        f"{spread / g0 if math.isfinite(spread) and g0 > 0 else float('inf'):.3g} times their size "
+                        f"(at most {MAX_ROBUST_SPREAD:g}): no plan can be robust to it".replace("by  ", "by "),
+                        span, "check the declared uncertainty: " + (", ".join(what) or "none found"))
         return q
 
     def _gain_table(self, capsule):

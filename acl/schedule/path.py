@@ -323,6 +323,11 @@ def diagnose_path(G, P, dt, limits, tolerance, u_start, slew_model, status="infe
         relax.append("shrink or re-centre the path towards the rest position")
         relax.append(f"increase the tracking tolerance (now {tolerance / UM:g} um)")
         return PathDiagnosis(bad, bad * dt, tuple(P[bad]), tuple(binding), tuple(relax), status)
+    if limits.slew_rate is None:   # no slew limit to blame: every waypoint alone is reachable, together they are not
+        return PathDiagnosis(0, 0.0, tuple(P[0]), ("the solvers could not find a plan although every waypoint "
+                                                    "alone is reachable (a badly scaled problem)",),
+                             ("check the gains and the declared uncertainty for absurd values",
+                              f"increase the tracking tolerance (now {tolerance / UM:g} um)"), status)
     bad = _first_prefix_infeasible(G, P, dt, limits, tolerance, u_start, slew_model)
     return PathDiagnosis(bad, bad * dt, tuple(P[bad]),
                          (f"slew-rate limit ({limits.slew_rate:g} V/s)",),

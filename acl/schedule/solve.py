@@ -60,7 +60,7 @@ def solve(problem, what: str, solvers: tuple[str, ...] = SOLVERS, **kwargs) -> S
         tried.append(name)
         try:
             problem.solve(solver=name, **kwargs)
-        except cp.error.SolverError:
+        except (cp.error.SolverError, ValueError, ArithmeticError):   # SCS raises ValueError on a badly scaled problem
             status = "solver error"
             continue
         status = problem.status or "none"
