@@ -166,3 +166,19 @@ def test_drive_transducer_and_q_points_get_the_code_acl_check_gives(example, var
             assert code == ""
         except DiagnosticError as exc:
             assert code in {d.code for d in exc.diagnostics if d.is_error}
+
+
+def test_a_map_no_check_point_verifies_is_not_trusted_as_affine(tmp_path):
+    """A range so wide that no check point resolves (even halved six times towards the nominal) leaves
+    the one-step map unverified: a nonlinear field must then be resolved exactly, not linearised."""
+    src = CANTILEVER.read_text().replace("orifice jet { radius = radius,", "orifice jet { radius = radius * radius / 10 um,")
+    path = tmp_path / "nonlinear.acl"
+    path.write_text(src)
+    d = acl.load(str(path))
+    fmap = field_map(d, ["radius"], box={"radius": (-1e3, 1e3)})
+    assert "capsules.act.orifices.jet.radius" in fmap.exact
+    assert "capsules.act.orifices.jet.radius" not in fmap.linear
+    assert any("no point of the sweep's range resolved" in n for n in fmap.notes)
+    vals = np.array([9.5e-6, 10e-6, 10.5e-6])
+    b = field_batch(d, {"radius": vals}, fmap=fmap)
+    assert np.allclose(b.fields["capsules.act.orifices.jet.radius"], vals**2 / 10e-6, rtol=1e-14)

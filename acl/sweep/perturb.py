@@ -265,6 +265,7 @@ def field_map(design: Design, names, box: dict[str, tuple[float, float]] | None 
     hi = np.array([box.get(n, (v, v))[1] for n, v in zip(names, x0)])
     points = [lo, hi] + [lo + (hi - lo) * rng.random(len(names)) for _ in range(N_CHECKS)]
     bad: dict[str, set] = {}
+    verified = 0
     for x in points:
         flat = None
         for _ in range(6):
@@ -275,6 +276,7 @@ def field_map(design: Design, names, box: dict[str, tuple[float, float]] | None 
                 x = x0 + (x - x0) / 2
         if flat is None or set(flat) != keys:
             continue
+        verified += 1
         dx = x - x0
         pred = {p: float(tmp.predict(p, flat0[p], x)) for p in coef}
         for p in derived:
@@ -293,6 +295,18 @@ def field_map(design: Design, names, box: dict[str, tuple[float, float]] | None 
             if abs(cavity_volume(c.shape, **sizes) - flat[p]) > RTOL * abs(flat[p]):
                 bad.setdefault(p, set()).update(names)
     notes = []
+    if not verified and len(names) > 0:
+        # no check point resolved even halfway to the nominal: the one-step map is unverified, so no
+        # field is trusted as affine (each unique value is resolved exactly; points that do not
+        # resolve are invalid with the resolver's code)
+        for p, c in coef.items():
+            if p not in proportional:
+                bad.setdefault(p, set()).update(n for n, ci in zip(names, c) if ci != 0)
+        for p in derived:
+            bad.setdefault(p, set()).update(names)
+        if bad:
+            notes.append("no point of the sweep's range resolved to check the parameter-to-field map: "
+                         "every field that is not a parameter times a constant is resolved exactly")
     exact = sorted(bad)
     exact_params: set = set()
     for p in exact:
