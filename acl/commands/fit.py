@@ -132,20 +132,8 @@ def _nothing_free(args, candidates) -> None:
 
 
 def _write_atomic(path: str, text: str) -> None:
-    """Write ``text`` to ``path`` via a temporary file in the same folder and os.replace."""
-    import tempfile
+    """Write ``text`` to ``path`` in one rename (acl.emit.atomic.write_text_atomic)."""
+    from acl.emit.atomic import write_text_atomic
 
-    folder = os.path.dirname(os.path.abspath(path)) or "."
-    os.makedirs(folder, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=".acl-calibrated-", suffix=".tmp", dir=folder)
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as fh:
-            fh.write(text)
-        from acl._files import as_umask
-
-        as_umask(tmp, directory=False)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+    os.makedirs(os.path.dirname(os.path.abspath(path)) or ".", exist_ok=True)
+    write_text_atomic(path, text)

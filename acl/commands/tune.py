@@ -198,19 +198,7 @@ def _render(result, written, quiet) -> None:
 
 
 def _write_atomic(path: str, text: str) -> None:
-    """Write ``text`` to ``path`` via a temporary file in the same folder and os.replace."""
-    import tempfile
+    """Write ``text`` to ``path`` in one rename (acl.emit.atomic.write_text_atomic)."""
+    from acl.emit.atomic import write_text_atomic
 
-    folder = os.path.dirname(os.path.abspath(path)) or "."
-    fd, tmp = tempfile.mkstemp(prefix=".acl-tuned-", suffix=".tmp", dir=folder)
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as fh:
-            fh.write(text)
-        from acl._files import as_umask
-
-        as_umask(tmp, directory=False)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+    write_text_atomic(path, text)

@@ -263,18 +263,10 @@ def coupled_response(h0, points, radii, body, frequency, density, sound_speed, w
 
 
 def eq1_force(delta, L, l, EI, rtol: float = 1e-13):
-    """Load P for load-point deflection ``delta``, inverse of paper Eq. (1) by monotone Newton (beams.eq1_force with array geometry)."""
-    from acl.physics.beams import eq1_compliance, eq1_deflection, eq1_small_force_stiffness
+    """Load P for load-point deflection ``delta``, inverse of paper Eq. (1) (beams.eq1_force, which broadcasts over array geometry)."""
+    from acl.physics.beams import eq1_force as _eq1_force
 
-    delta = np.asarray(delta, float)
-    target = np.abs(delta)
-    P = eq1_small_force_stiffness(L, l, EI) * target
-    for _ in range(100):
-        step = (target - eq1_deflection(P, L, l, EI)) / eq1_compliance(P, L, l, EI)
-        P = P + step
-        if np.all(np.abs(step) <= rtol * np.maximum(np.abs(P), 1e-300)):
-            break
-    return np.sign(delta) * P
+    return _eq1_force(delta, L, l, EI, rtol)
 
 
 # ----------------------------------------------------------------------------------------------
