@@ -39,15 +39,21 @@ def _summary():
     return {c["case"]: c for c in FD.summary(_rows())}
 
 
+# cases of the script not in the committed run (each takes 10-15 min of the shared machine; docs/fit.md lists them)
+NOT_RUN: set[str] = set()
+
+
 def test_committed_sweep_covers_every_case_with_ten_seeds():
     summary = _summary()
-    assert set(summary) == {FD.label(k, p) for k, p in FD.CASES}
+    assert set(summary) == {FD.label(k, p) for k, p in FD.CASES} - NOT_RUN
     assert all(c["n"] == 10 for c in summary.values())
     from acl.fit.effects import EFFECTS
     planted = {e for c in summary.values() for e in c["planted"] if not e.startswith("(")}
     assert planted == set(EFFECTS)                   # every library effect is planted somewhere
     assert {c["kind"].split("/")[0] for c in summary.values()} == {"cantilever", "pair", "pair+cal", "spring+cal",
                                                                    "latch"}
+    # the run is one version of the code per case (`code`: its commit); a subset is repeated below with this one
+    assert all(len({r["code"] for r in _rows() if r["case"] == case}) == 1 for case in summary)
 
 
 def test_committed_sweep_diagnoses_at_least_nine_in_ten():
