@@ -27,7 +27,9 @@ import fit_diagnosis as FD  # noqa: E402
 
 RATE = 0.9          # issue 9: diagnosed correctly at least 90 % of the time
 RMSE_RATIO = 1.3    # issue 9: RMSE after within 1.3 x the noise
-KNOWN_BELOW: dict[str, int] = {}     # case -> correct runs of 10, for cases below the bar (none)
+# case -> correct runs of 10, for cases below the bar: on the Fig. 5c spring, with saturation at 6 V, a 4 um drag
+# plateau changes the gap by 0.13 um RMS under 0.2 um noise; 3 of 10 fits find saturation alone (docs/fit.md)
+KNOWN_BELOW: dict[str, int] = {"spring+cal drive_saturation+neighbour_drag": 7}
 
 
 def _rows():
