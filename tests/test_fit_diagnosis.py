@@ -76,11 +76,8 @@ def test_committed_sweep_claims_nothing_on_clean_data_and_reaches_the_noise():
     clean = [r for r in rows if not r["planted"]]
     assert clean and all(r["selected"] == [] for r in clean)
     library = [r for r in rows if not any(p.startswith("(") for p in r["planted"]) and r["case"] not in FD.LIMITS]
-    # every correct diagnosis ends within 1.3 x the noise (a wrong one is counted as a failure above)
+    # every correct diagnosis ends within 1.3 x the noise (a wrong one, or none, is counted as a failure above)
     assert max(r["rmse_after_over_noise"] for r in library if r["ok"]) <= RMSE_RATIO
-    for c in _summary().values():
-        if not c["outside"] and not c["limit"]:
-            assert c["rmse_after_over_noise"] <= RMSE_RATIO, c["case"]
 
 
 def test_effects_outside_the_library_are_structure_with_a_covariate_in_the_committed_sweep():
