@@ -19,11 +19,12 @@ from typing import TYPE_CHECKING
 
 __version__ = "0.1.0"
 
-__all__ = ["load", "loads", "analyze", "compile", "lint", "fit", "__version__"]
+__all__ = ["load", "loads", "analyze", "compile", "lint", "fit", "sweep", "__version__"]
 
 if TYPE_CHECKING:  # pragma: no cover
     from acl.design.model import Design
     from acl.notebook import Analysis, Compiled, FitReport, LintResult
+    from acl.sweep.table import SweepTable
 
 
 def load(path, overrides=None, search_paths=()) -> "Design":
@@ -181,7 +182,32 @@ def _fit(design, data, free=(), effects=None, seed=0, search_paths=()) -> "FitRe
     return FitReport.from_outcome(out)
 
 
+def _sweep(design, vary=None, tolerance=None, n=None, seed=0, quantities=None, at=None, scheduler=None,
+           overrides=None, search_paths=()) -> "SweepTable":
+    """Evaluate a design over grids and print tolerances (as `acl sweep`, without writing files; docs/sweep.md).
+
+    ``design``: a path (or a Design loaded from a file); ``vary``: ``{"radius": "8um..12um:41"}``,
+    ``{"radius": [8e-6, 9e-6]}`` (SI) or ``["radius=8um..12um:41"]``; ``tolerance``:
+    ``{"radius": "normal(0, 150 nm)"}`` (Monte Carlo; the design's own ``+- ...`` spreads are sampled
+    too); ``n`` samples per grid point (default 1000 with tolerances); ``seed``; ``quantities``:
+    column names (default: every quantity the batched evaluation gives); ``at``: a drive for tip
+    deflections; ``scheduler``: None/"local" or "tcp://HOST:PORT" (dask, `acl[scale]`).  Returns an
+    :class:`acl.sweep.table.SweepTable`: ``t["resonance_act_1_hz"]``, ``t.yields()["all"]``,
+    ``t.to_arrow()``, ``t.to_pandas()``.
+
+    >>> import acl
+    >>> t = acl.sweep("tests/data/sweep_cantilever.acl", vary={"radius": "9um..11um:5"})
+    >>> len(t), t.columns[:2]
+    (5, ('point', 'radius'))
+    """
+    from acl.sweep.driver import sweep as _run
+
+    return _run(design, vary=vary, tolerance=tolerance, n=n, seed=seed, quantities=quantities, at=at,
+                scheduler=scheduler, overrides=overrides, search_paths=search_paths)
+
+
 # `acl.lint` and `acl.fit` are also subpackages: once imported they replace these attributes with
 # modules that are callable with the same arguments (acl/_callable.py), so both spellings work.
 lint = _lint
 fit = _fit
+sweep = _sweep

@@ -9,6 +9,7 @@ file or folder would have had before they are renamed into place.
 from __future__ import annotations
 
 import os
+import re
 
 
 def umask() -> int:
@@ -28,19 +29,87 @@ def as_umask(path: str, directory: bool | None = None) -> None:
 #: folders a search for designs never enters (besides hidden ones)
 SKIPPED_DIRS = frozenset({"build", "dist", "node_modules", "venv", "__pycache__", "site-packages"})
 
+MAX_DEPTH = 32           # folder levels below the folder searched
+MAX_ENTRIES = 100_000    # directory entries examined by one search
+
+#: kernel and pseudo filesystems: a search never enters them (`acl check /` must not read /proc)
+VIRTUAL_FS = frozenset({"proc", "sysfs", "devtmpfs", "devpts", "cgroup", "cgroup2", "debugfs", "tracefs",
+                        "securityfs", "pstore", "bpf", "mqueue", "hugetlbfs", "configfs", "fusectl", "autofs",
+                        "binfmt_misc", "efivarfs", "rpc_pipefs", "nsfs", "selinuxfs", "devfs"})
+_ALWAYS_VIRTUAL = ("/proc", "/sys", "/dev")
+
+
+def virtual_mounts() -> frozenset[str]:
+    """Mount points of kernel and pseudo filesystems (from /proc/self/mounts where there is one),
+    and /proc, /sys and /dev always."""
+    found = set(_ALWAYS_VIRTUAL)
+    try:
+        with open("/proc/self/mounts", encoding="utf-8", errors="replace") as fh:
+            for line in fh:
+                parts = line.split()
+                if len(parts) >= 3 and parts[2] in VIRTUAL_FS:
+                    # the mount table escapes blanks as octal (\040)
+                    found.add(re.sub(r"\\([0-7]{3})", lambda m: chr(int(m.group(1), 8)), parts[1]))
+    except OSError:
+        pass
+    return frozenset(found)
+
+
+def _limit(folder: str, where: str, message: str, hint: str):
+    from acl.diagnostics import DiagnosticError, Span, error
+
+    return DiagnosticError([error("E602", f"search of folder `{folder}` stopped: {message}",
+                                  Span(file=where, line=1, column=1), hint)])
+
 
 def designs_under(folder: str) -> list[str]:
-    """The ``*.acl`` designs under ``folder`` (recursively, sorted).  The search stays in the folder:
-    hidden and build folders are skipped, and so are links leading out of it and entries that are
-    not regular files (a FIFO or a device named ``*.acl``)."""
+    """The ``*.acl`` designs under ``folder`` (recursively; each folder's files sorted, then its
+    sub-folders in order).  The search stays in the folder: hidden and build folders are skipped,
+    and so are kernel and pseudo filesystems (/proc, /sys, /dev), links leading out of it (links to
+    folders are not followed: no loops) and entries that are not regular files (a FIFO or a device
+    named ``*.acl``).  It is bounded: more than :data:`MAX_DEPTH` folder levels or
+    :data:`MAX_ENTRIES` entries raise DiagnosticError E602 (located at the folder where the limit
+    was reached) rather than returning part of the designs."""
     top = os.path.realpath(folder)
     inside = top.rstrip(os.sep) + os.sep
-    files = []
-    for dirpath, dirs, names in os.walk(folder):
-        dirs[:] = sorted(d for d in dirs if not d.startswith(".") and d not in SKIPPED_DIRS)
+    virtual = virtual_mounts()
+    if any(top == v or top.startswith(v.rstrip(os.sep) + os.sep) for v in virtual):
+        return []
+    files: list[str] = []
+    seen = 0
+    stack = [(folder, 0)]
+    while stack:
+        path, depth = stack.pop()
+        try:
+            with os.scandir(path) as it:
+                names, subdirs = [], []
+                for entry in it:
+                    seen += 1
+                    if seen > MAX_ENTRIES:
+                        raise _limit(folder, path, f"more than {MAX_ENTRIES:,} entries examined",
+                                     "name the folders that hold your designs, not a whole disk")
+                    n = entry.name
+                    try:
+                        is_dir = entry.is_dir(follow_symlinks=False)
+                    except OSError:
+                        continue
+                    if is_dir:
+                        if not n.startswith(".") and n not in SKIPPED_DIRS:
+                            subdirs.append(entry.path)
+                    elif n.endswith(".acl"):
+                        names.append(n)
+        except (PermissionError, FileNotFoundError, NotADirectoryError):
+            continue          # unreadable or vanished meanwhile: nothing of ours in it
+        except OSError:
+            continue
         for n in sorted(names):
-            f = os.path.join(dirpath, n)
+            f = os.path.join(path, n)
             real = os.path.realpath(f)
-            if n.endswith(".acl") and (real == top or real.startswith(inside)) and os.path.isfile(f):
+            if (real == top or real.startswith(inside)) and os.path.isfile(f):
                 files.append(f)
+        subdirs = [d for d in sorted(subdirs) if os.path.realpath(d) not in virtual]
+        if subdirs and depth + 1 > MAX_DEPTH:
+            raise _limit(folder, subdirs[0], f"folders nested more than {MAX_DEPTH} levels deep",
+                         "name the folders that hold your designs (a bind mount or a generated tree can nest without end)")
+        stack.extend((d, depth + 1) for d in reversed(subdirs))
     return files

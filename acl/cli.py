@@ -20,6 +20,8 @@ COMMANDS = {
     "synth": "Generate synthetic measurement data from a design (to test analyses).",
     "rule": "Print the documentation of a rule or diagnostic code (e.g. ACL201, E303).",
     "fmt": "Rewrite designs in the one canonical layout (--check for CI, --diff, - for stdin).",
+    "sweep": "Sweep parameters over grids and print tolerances (Monte Carlo): a table per point and the yield.",
+    "tune": "Choose the free parameters that maximise the yield of every require under print tolerances.",
     "lsp": "Start the language server (LSP over stdio) for editors; needs acl[lsp].",
 }
 
@@ -33,6 +35,7 @@ examples:
   acl rule ACL201
   acl fit design.acl data.csv --report fit/
   acl fmt examples/ --check
+  acl sweep design.acl --vary radius=8um..12um:41 --tolerance "radius=normal(0, 150 nm)" -o sweep.csv
 
 exit codes: 0 clean, 1 errors in the design or findings, 2 usage or I/O error.
 docs: docs/language.md, docs/physics.md, docs/rules.md, docs/data.md
@@ -103,6 +106,8 @@ def main(argv: list[str] | None = None) -> int:
             sys.stderr.write(f"acl: warning: {note}\n")
     import time
 
+    from acl.diagnostics import DiagnosticError
+
     start = time.perf_counter()
     try:
         code = int(args._module.run(args) or 0)
@@ -112,6 +117,12 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         sys.stderr.write("acl: interrupted\n")
         return 130
+    except DiagnosticError as exc:     # a stage that stops the whole command (a folder search at its limit: E602)
+        from acl.commands._common import exit_code, report
+
+        fmt = getattr(args, "output_format", "text")
+        report(exc.diagnostics, fmt if fmt == "json" else "text")
+        return max(exit_code(exc.diagnostics), 1)
     except BrokenPipeError:
         return 0
     except Exception as exc:  # last resort: never a traceback for the user

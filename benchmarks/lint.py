@@ -1,11 +1,13 @@
-"""Benchmark `acl lint`: lint N generated designs in one process and print the time per design.
+"""Benchmark `acl lint`: lint N generated designs in one process and print the time per design;
+then one large design (the generator of benchmarks/check.py) of 500 and 1,000 lines.
 
-    python benchmarks/lint.py [N]        (default 200)
+    python benchmarks/lint.py [N] [--large=1000]     (default 200 small designs)
 
 Designs are variations (seeded) of four shapes: one cantilever, a facing pair, a frequency-
 selective pair and a latch, each with programs, so that every rule family runs.  The first design
 pays the start-up (imports, grammar, stdlib); the figure that matters is the time per design after
-it (target < 50 ms).
+it (target < 50 ms).  The large design shows how lint scales with the size of one design (issue 11:
+1,000 lines took ~44 s; the pair, step and beam work was quadratic to cubic in the design's size).
 """
 from __future__ import annotations
 
@@ -139,5 +141,30 @@ def main(n: int = 200) -> None:
     print(f"  heavy modules imported:    {', '.join(heavy) or 'none'}")
 
 
+def large(lines: int) -> None:
+    """Lint one generated design of ``lines`` lines and of half as many: wall and CPU time."""
+    import importlib.util
+    import os
+
+    from acl.lint import LintConfig, lint_file
+
+    spec = importlib.util.spec_from_file_location("acl_benchmark_check", Path(__file__).with_name("check.py"))
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    with tempfile.TemporaryDirectory() as tmp:
+        for n in (lines // 2, lines):
+            p = Path(tmp) / f"large_{n}.acl"
+            text = mod.generate(n)
+            p.write_text(text)
+            t, c = time.perf_counter(), time.process_time()
+            report = lint_file(str(p), LintConfig())
+            wall, cpu = time.perf_counter() - t, time.process_time() - c
+            print(f"  one design of {text.count(chr(10)):,} lines: {wall:.2f} s wall, {cpu:.2f} s CPU, "
+                  f"{len(report.findings)} findings (load average {os.getloadavg()[0]:.1f})")
+
+
 if __name__ == "__main__":
-    main(int(sys.argv[1]) if len(sys.argv) > 1 else 200)
+    args = [a for a in sys.argv[1:] if not a.startswith("--large")]
+    size = next((int(a.split("=", 1)[1]) for a in sys.argv[1:] if a.startswith("--large=")), 1000)
+    main(int(args[0]) if args else 200)
+    large(size)

@@ -80,6 +80,17 @@ def test_eq1_validity_limit_near_0_3_L_for_quarter_length_actuator():
     assert 0.27 * L < limit < 0.37 * L
 
 
+def test_eq1_validity_limit_grows_with_the_rigid_length_above_its_floor():
+    # mechanics skips the elastica for deflections below EQ1_LIMIT_FLOOR * L: the floor must stay
+    # below the limit for every l/L >= 0.  The limit's minimum is at l = 0 (0.2145 L) and it grows
+    # with l/L; checked on a grid of l/L from 0 to 10.
+    lam = [0.0, 0.01, 0.03, 0.06, 0.1, 0.2, 0.35, 0.5, 1.0, 2.0, 5.0, 10.0]
+    ratio = [beams.eq1_validity_limit(1.0, x) for x in lam]
+    assert ratio[0] == pytest.approx(0.2145, abs=5e-4)
+    assert all(a < b for a, b in zip(ratio, ratio[1:]))
+    assert ratio[0] > beams.EQ1_LIMIT_FLOOR
+
+
 def test_eq1_departure_crosses_5_percent_at_the_validity_limit():
     limit = beams.eq1_validity_limit(L, LR)
     P_lim = beams.elastica_force(limit, L, LR, EI)

@@ -6,7 +6,7 @@ import math
 import numpy as np
 import pytest
 
-from acl.physics.coupling import build_system, coupled_modes, coupled_response, green_matrix
+from acl.physics.coupling import build_system, coupled_modes, coupled_response, green_matrix, prepared_response
 from acl.physics.resonance import capsule_modes, volume_response
 
 RHO, SIGMA, P0, MU, C = 998.2, 0.0728, 101325.0, 1.002e-3, 1482.0
@@ -108,3 +108,24 @@ def test_green_matrix_same_capsule_terms_are_incompressible_and_others_retarded(
     assert g[0, 1] == pytest.approx(1 / (4 * math.pi * 10e-6))                    # same capsule: real
     assert g[0, 2] == pytest.approx(np.exp(-1j * k * 1e-3) / (4 * math.pi * 1e-3))  # other capsule
     assert g[0, 0] == 0
+
+
+@pytest.mark.parametrize("wall", [0.0, 1.0])
+def test_prepared_response_equals_coupled_response(wall):
+    # The precomputed evaluator of solver loops (prepared_response) solves the same system as
+    # coupled_response: capsules with 1, 3 and 2 orifices (padded layout), displaced configurations,
+    # several frequencies; 1e-12 relative.
+    three = capsule_modes(V1, [10e-6, 8e-6, 6e-6], RHO, SIGMA, P0, 1.0, MU, C, 7e-6)
+    two = capsule_modes(V1, [9e-6, 12e-6], RHO, SIGMA, P0, 1.0, MU, C, 7e-6)
+    pts = [[[0.0, 0.0, 40e-6]], [[60e-6, 0.0, 40e-6], [80e-6, 20e-6, 40e-6], [70e-6, -20e-6, 50e-6]],
+           [[0.0, 90e-6, 30e-6], [20e-6, 90e-6, 30e-6]]]
+    sysm = build_system([single(), three, two], pts, [[R1], [10e-6, 8e-6, 6e-6], [9e-6, 12e-6]])
+    rng = np.random.default_rng(3)
+    moved = sysm.points[None] + rng.normal(scale=5e-6, size=(4, sysm.n, 3))
+    f = np.array([60e3, 125e3, 240e3])
+    expect = coupled_response(sysm, f, RHO, C, wall, points=moved)
+    got = prepared_response(sysm, f, RHO, C, wall)(moved)
+    np.testing.assert_allclose(got, expect, rtol=1e-12, atol=1e-12 * np.abs(expect).max())
+    one = build_system([single(), single()], [[[0.0, 0.0, 40e-6]], [[40e-6, 0.0, 40e-6]]], [[R1], [R1]])
+    np.testing.assert_allclose(prepared_response(one, f, RHO, C, wall)(one.points[None])[0],
+                               coupled_response(one, f, RHO, C, wall), rtol=1e-12)

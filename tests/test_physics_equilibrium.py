@@ -153,3 +153,27 @@ def test_limit_point_at_a_kink_in_the_force_law_is_a_snap():
     branch = continuation(restoring, external, [0.0], 10.0, length_scale=5e-6)
     assert branch.status == "snap_in"
     assert branch.snap.voltage == pytest.approx(np.sqrt(k * q1 / 1e-10), rel=1e-5)
+
+
+def test_a_narrow_fold_pair_on_a_long_straight_branch_is_not_leapt():
+    # A linear spring with a 2-length-scale dip 500 length scales out: the branch is straight up to
+    # the dip, where it folds (snap-in), turns back and rejoins the same straight line.  Steps that
+    # grow on the straight part must not jump from before the dip to the collinear branch beyond it.
+    # Reference: the dip's local force maximum found by bounded 1-D minimisation; tolerance 1e-9.
+    from scipy.optimize import minimize_scalar
+    k, x0, w, ls = 1e-3, 500e-6, 2e-6, 1e-6
+    a = 5 * k * w                      # non-monotone: needs a > k w sqrt(e / 2)
+    c = k * x0 / 100
+
+    def restoring(q):
+        e = np.exp(-((q[0] - x0) / w) ** 2)
+        return np.array([k * q[0] - a * e]), np.array([[k + a * 2 * (q[0] - x0) / w**2 * e]])
+
+    def external(q, V):
+        return np.array([c * V**2])
+
+    ref = minimize_scalar(lambda x: -(k * x - a * np.exp(-((x - x0) / w) ** 2)), bounds=(x0 - 3 * w, x0),
+                          method="bounded", options={"xatol": 1e-16})
+    branch = continuation(restoring, external, [0.0], 20.0, length_scale=ls)
+    assert branch.status == "snap_in"
+    assert branch.snap.voltage == pytest.approx(np.sqrt(-ref.fun / c), rel=1e-9)

@@ -75,3 +75,32 @@ def test_axial_force_follows_euler_load_and_initial_postbuckling_slope():
     assert latch.axial_force(c_cr, s) == pytest.approx(p_cr, rel=1e-9)
     slope = (latch.axial_force(c_cr + 2e-5, s) - latch.axial_force(c_cr + 1e-5, s)) / 1e-5
     assert slope == pytest.approx(1 / (1 / k_ax + 2 / p_cr), rel=1e-2)
+
+
+def test_force_and_stiffness_in_one_evaluation_match_the_separate_functions():
+    # The continuation's latch law evaluates u, u + h, u - h in one vectorised call; it must agree
+    # with latch_force / latch_stiffness (1e-12 relative on the force, 1e-6 on the stiffness, whose
+    # central difference magnifies last-bit differences of the vectorised trigonometry).
+    from acl.physics.latch import latch_force, latch_force_and_stiffness, latch_stiffness
+    geo = (np.radians(45), 50e-6, 1e-6, 1.7e-6, 1.3e7)
+    for u in np.linspace(-5e-6, 80e-6, 97):
+        f, k = latch_force_and_stiffness(u, *geo)
+        assert f == pytest.approx(float(latch_force(u, *geo)), rel=1e-12, abs=1e-18)
+        assert k == pytest.approx(float(latch_stiffness(u, *geo)), rel=1e-6, abs=1e-9)
+
+
+def test_switching_and_release_forces_are_never_below_a_dense_scan():
+    """The landscape's grid alone missed the extreme at the buckling kink (margins optimistic by up to
+    2e-3); the refined forces must be at least the maximum of a 200,001-point scan (tolerance 1e-12 rel)."""
+    import numpy as np
+
+    from acl.physics.latch import latch_force, latch_landscape
+
+    for theta_deg, L, w, t in [(6, 300e-6, 4e-6, 20e-6), (4, 250e-6, 3e-6, 15e-6), (8, 400e-6, 5e-6, 20e-6)]:
+        th = np.deg2rad(theta_deg)
+        land = latch_landscape(th, L, w, t, 2e9)
+        assert land.bistable
+        u = np.linspace(0.0, land.unstable, 200_001)
+        assert land.switching_force >= latch_force(u, th, L, w, t, 2e9).max() * (1 - 1e-12)
+        u = np.linspace(land.unstable, land.state_b, 200_001)
+        assert land.release_force >= (-latch_force(u, th, L, w, t, 2e9)).max() * (1 - 1e-12)

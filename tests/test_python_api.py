@@ -31,7 +31,7 @@ def test_import_acl_loads_no_heavy_module():
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT, env=ENV, timeout=60)
     lines = out.stdout.splitlines()
     assert lines[0] == "[]", out.stdout + out.stderr
-    assert lines[1] == str([True] * 6)
+    assert lines[1] == str([True] * 7)
 
 
 def test_py_typed_is_shipped():
@@ -204,7 +204,7 @@ def test_every_public_function_has_a_docstring_with_an_example():
     for name in acl.__all__:
         if name == "__version__":
             continue
-        doc = getattr(acl, "_" + name, None).__doc__ if name in ("lint", "fit") else getattr(acl, name).__doc__
+        doc = getattr(acl, "_" + name, None).__doc__ if name in ("lint", "fit", "sweep") else getattr(acl, name).__doc__
         assert doc and ">>>" in doc, name
 
 

@@ -83,3 +83,85 @@ def test_schedule_with_effect_option_is_a_usage_error(compiled):
                "-o", str(compiled / "x.csv"), "--effect", "drive_saturation=v_sat:6V")
     assert out.returncode == 2 and "E-USAGE" in out.stderr + out.stdout
     assert not (compiled / "x.csv").exists()
+
+
+# -- issue 11: a replay is capped (a 200,000-segment schedule replayed for minutes) ------------------
+
+_SEG = '{"start_s": %d, "duration_s": 0.5, "tones": [{"frequency_hz": 125e3, "amplitude_v": %.2f}]}'
+CANTILEVER = os.path.join(ROOT, "tests", "data", "fit_cantilever.acl")
+
+
+def _schedule(path, n, bad_at=None):
+    segs = [_SEG % (i, 1 + (i % 5) / 2) for i in range(n)]
+    if bad_at is not None:
+        segs[bad_at] = '{"start_s": "soon", "tones": []}'
+    path.write_text('{"version": "1.1",\n "segments": [\n  ' + ",\n  ".join(segs) + "\n]}\n")
+    return str(path)
+
+
+def test_a_200000_segment_schedule_is_refused_at_the_first_segment_beyond_the_cap(tmp_path):
+    sched = _schedule(tmp_path / "long.json", 200_000)
+    out = tmp_path / "r.csv"
+    r = _acl("synth", CANTILEVER, "--schedule", sched, "-o", str(out))
+    assert r.returncode == 2 and "Traceback" not in r.stderr
+    # segment k sits on line k + 3, after two spaces
+    assert f"{sched}:20003:3: error[E-SYNTH-SCHEDULE]: segments[20000]: more than 20,000 constant-drive segments" \
+        in r.stderr, r.stderr
+    assert "--max-segments" in r.stderr and not out.exists()
+
+
+def test_max_segments_sets_the_cap(tmp_path):
+    sched = _schedule(tmp_path / "s.json", 30)
+    r = _acl("synth", CANTILEVER, "--schedule", sched, "-o", str(tmp_path / "a.csv"), "--max-segments", "29")
+    assert r.returncode == 2 and f"{sched}:32:3: error[E-SYNTH-SCHEDULE]: segments[29]" in r.stderr, r.stderr
+    assert not (tmp_path / "a.csv").exists()
+    r = _acl("synth", CANTILEVER, "--schedule", sched, "-o", str(tmp_path / "b.csv"), "--max-segments", "30")
+    assert r.returncode == 0, r.stderr
+    assert len(list(csv.DictReader(open(tmp_path / "b.csv")))) == 30
+
+
+@pytest.mark.parametrize("value", ["0", "-3", "x", "200001", "1e3"])
+def test_max_segments_out_of_range_is_a_usage_error(tmp_path, value):
+    sched = _schedule(tmp_path / "s.json", 3)
+    r = _acl("synth", CANTILEVER, "--schedule", sched, "-o", str(tmp_path / "a.csv"), "--max-segments", value)
+    assert r.returncode == 2 and "<--max-segments>: error[E-USAGE]" in r.stderr, r.stderr
+
+
+def test_max_segments_without_schedule_is_a_usage_error(tmp_path):
+    r = _acl("synth", CANTILEVER, "-o", str(tmp_path / "a.csv"), "--max-segments", "5")
+    assert r.returncode == 2 and "error[E-USAGE]: --max-segments applies to --schedule only" in r.stderr
+
+
+def test_a_malformed_segment_is_located_at_its_line(tmp_path):
+    sched = _schedule(tmp_path / "s.json", 10, bad_at=6)
+    r = _acl("synth", CANTILEVER, "--schedule", sched, "-o", str(tmp_path / "a.csv"))
+    assert r.returncode == 2 and f"{sched}:9:3: error[E-SYNTH-SCHEDULE]: segments[6]: malformed segment" in r.stderr, r.stderr
+
+
+def test_a_schedule_over_the_size_limit_is_refused_before_parsing(tmp_path, monkeypatch, capsys):
+    from acl.cli import main
+    from acl.fit import synth
+
+    sched = _schedule(tmp_path / "s.json", 50)
+    monkeypatch.setattr(synth, "MAX_SCHEDULE_BYTES", os.path.getsize(sched) - 1)
+    monkeypatch.setattr(json, "loads", lambda *a, **k: pytest.fail("parsed a schedule over the limit"))
+    assert main(["synth", CANTILEVER, "--schedule", sched, "-o", str(tmp_path / "a.csv")]) == 2
+    assert "E-SYNTH-SCHEDULE" in capsys.readouterr().err and not (tmp_path / "a.csv").exists()
+
+
+def test_segment_positions_follow_the_json_not_the_text():
+    from acl.fit.synth import _segment_position
+
+    text = '{"goals": [{"segments": [1, 2]}], "segments" : [ {"a": "[,]"} ,\n {"b": 2}, 3 ]}'
+    assert _segment_position(text, 0) == (1, 50)
+    assert _segment_position(text, 1) == (2, 2)
+    assert _segment_position(text, 2) == (2, 12)
+    assert _segment_position("[]", 0) == (1, 1) and _segment_position('{"x": 1}', 0) == (1, 1)
+
+
+def test_the_documented_replay_limits_are_the_code_s():
+    from acl.fit import synth
+
+    text = open(os.path.join(ROOT, "docs", "fit.md")).read()
+    assert f"more than {synth.MAX_REPLAY_SEGMENTS:,} constant-drive segments" in text
+    assert f"at most {synth.MAX_REPLAY_LIMIT:,})" in text and f"over {synth.MAX_SCHEDULE_BYTES // 2**20} MB" in text

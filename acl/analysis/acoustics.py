@@ -27,7 +27,7 @@ from acl.analysis import effects as EF
 from acl.physics import constants as C
 from acl.physics import effects as PE
 from acl.physics.coupling import (BubbleSystem, CoupledModes, build_system, coupled_modes as _physics_coupled_modes,
-                                  coupled_response as _physics_coupled, uncoupled_blocks)
+                                  coupled_response as _physics_coupled, prepared_response, uncoupled_blocks)
 from acl.physics.forces import interface_centre_amplitude, jet_drag, thrust_magnitude
 from acl.physics.resonance import BubbleModes, capsule_modes as _physics_modes
 from acl.physics.transducer import pressure_per_volt
@@ -254,7 +254,37 @@ def _layout(design: Design) -> _Layout:
 
 
 def _system(design: Design, capsules=None, predicted: bool = False) -> BubbleSystem:
-    """The coupled system of ``capsules`` (indices; default all) at rest."""
+    """The coupled system of ``capsules`` (indices; default all) at rest (the whole design's: cached)."""
+    if capsules is None:
+        return _whole_system(design, predicted)
+    return _build_system(design, capsules, predicted)
+
+
+def _per_design(fn):
+    """Cache ``fn(design, *args)`` by the design's identity (designs with effects are not hashable)."""
+    store: dict = {}
+
+    def wrapper(design, *args):
+        key = (id(design), args)
+        hit = store.get(key)
+        if hit is not None and hit[0] is design:
+            return hit[1]
+        val = fn(design, *args)
+        if len(store) >= 512:
+            store.pop(next(iter(store)))
+        store[key] = (design, val)
+        return val
+
+    wrapper.__doc__ = fn.__doc__
+    return wrapper
+
+
+@_per_design
+def _whole_system(design: Design, predicted: bool) -> BubbleSystem:
+    return _build_system(design, None, predicted)
+
+
+def _build_system(design: Design, capsules, predicted: bool) -> BubbleSystem:
     lay = _layout(design)
     idx = range(len(lay.caps)) if capsules is None else capsules
     modes, pts, rad = [], [], []
@@ -325,25 +355,6 @@ def _fundamentals(cm: CoupledModes, n_interfaces: int) -> list[int]:
             cand = cand[[int(np.argmax(share[o, cand]))]]
         picked.append(int(cand[0]))
     return sorted(set(picked))
-
-
-def _per_design(fn):
-    """Cache ``fn(design, *args)`` by the design's identity (designs with effects are not hashable)."""
-    store: dict = {}
-
-    def wrapper(design, *args):
-        key = (id(design), args)
-        hit = store.get(key)
-        if hit is not None and hit[0] is design:
-            return hit[1]
-        val = fn(design, *args)
-        if len(store) >= 512:
-            store.pop(next(iter(store)))
-        store[key] = (design, val)
-        return val
-
-    wrapper.__doc__ = fn.__doc__
-    return wrapper
 
 
 @_per_design
@@ -420,6 +431,18 @@ def orifice_response(design: Design, capsule, frequencies) -> np.ndarray:
     return coupled_response(design, frequencies)[:, _layout(design).body == c]
 
 
+def sweep_interface_amplitudes(design: Design, frequencies, amplitude: float) -> np.ndarray:
+    """eps/R (F, n) of every interface under a single tone of ``amplitude`` at each of ``frequencies``:
+    :func:`interface_amplitudes` of each tone alone, in one coupled solve."""
+    lay = _layout(design)
+    f = np.atleast_1d(np.asarray(frequencies, float))
+    if f.size == 0 or not lay.labels:
+        return np.zeros((f.size, len(lay.labels)))
+    gain = effect_pressure_factor(design, f, float(amplitude))
+    u = coupled_response(design, f) * (amplitude * gain)[:, None]
+    return interface_centre_amplitude(np.abs(u), lay.radii) / lay.radii
+
+
 def interface_amplitudes(design: Design, drive: Drive, positions=None) -> dict[str, float]:
     """Centre amplitude over radius, eps/R, of every interface under ``drive`` (tone amplitudes summed: the peak)."""
     lay = _layout(design)
@@ -491,40 +514,66 @@ class _Engine:
     outer: np.ndarray           # (C,) equal-volume sphere + wall radius (jet drag target)
     rho: float
     c: float
+    response: object = None     # acl.physics.coupling.prepared_response at the tones
+    consts: dict = field(default_factory=dict)   # position-independent factors of forces()
+    _rest: list = field(default_factory=list, compare=False, repr=False)
+
+    def rest_forces(self):
+        """:meth:`forces` of the capsules at rest, with parts (total, u, thr, att), each (1, ...); computed once."""
+        if not self._rest:
+            self._rest.append(self.forces(self.lay.rest[None], parts=True))
+        return self._rest[0]
 
     def volumes(self, centres: np.ndarray) -> np.ndarray:
         """Coupled inward volume amplitudes (B, T, n) for capsule centres (B, C, 3)."""
         if self.f.size == 0 or self.lay.radii.size == 0:
             return np.zeros((centres.shape[0], self.f.size, self.lay.radii.size), complex)
-        u = _physics_coupled(self.system, self.f, self.rho, self.c, C.SUBSTRATE_REFLECTION,
-                             points=self.lay.points(centres), h0=self.h0)
-        return u * self.pressure[None, :, None]
+        return self.response(self.lay.points(centres)) * self.pressure[None, :, None]
 
     def forces(self, centres: np.ndarray, parts: bool = False):
         """Total acoustic force (B, C, 3) on each capsule for centres (B, C, 3): thrust + Bjerknes + jet drag."""
-        lay = self.lay
+        k = self.consts
+        nb, ncap = centres.shape[0], centres.shape[1]
         u = self.volumes(centres)                                           # (B, T, n)
-        thr = _thrust_from_volumes(self.design, lay.radii, self.f, u).sum(axis=1) * self.scale[lay.body]   # (B, n)
-        f_thr = np.einsum("bn,nk,nc->bck", thr, -lay.normals, lay.onehot)
-        pts = lay.points(centres)                                           # (B, n, 3)
+        # streaming thrust per orifice (acl.physics.forces.thrust_magnitude), tones added
+        thr = (k["thrust"] * (2 * np.abs(u) / k["area"]) ** 2).sum(axis=1) * k["thrust_scale"]   # (B, n)
+        f_thr = (thr @ k["thrust_dir"]).reshape(nb, ncap, 3)
+        pts = centres[:, self.lay.body, :] + self.lay.offsets                # (B, n, 3)
         sep = pts[:, None, :, :] - pts[:, :, None, :]                      # (B, i, j, 3): p_j - p_i
-        other = lay.body[:, None] != lay.body[None, :]
-        d = np.where(other, np.linalg.norm(sep, axis=-1), 1.0)
-        w = 2 * np.pi * self.f
-        prod = np.einsum("t,bti,btj->bij", w**2, u, np.conj(u)).real       # tones add in power
-        att = self.rho * prod / (8 * np.pi * d**2) * other * self.pair_scale[lay.body][:, lay.body]
-        f_bj = np.einsum("bij,bijk,ic->bck", att / d, sep, lay.onehot)     # Crum 1975, along p_j - p_i
+        d = np.where(k["other"], np.sqrt((sep * sep).sum(axis=-1)), 1.0)
+        prod = np.einsum("t,bti,btj->bij", k["w2"], u, np.conj(u)).real     # tones add in power
+        att = k["bjerknes"] * prod / d**2                                   # Crum 1975, along p_j - p_i
+        f_bj = np.einsum("bij,bijk->bik", att / d, sep)
+        f_bj = np.einsum("bik,ic->bck", f_bj, self.lay.onehot)
         # drag of each interface's jet on the other capsules (Schlichting laminar round jet)
         x = centres[:, None, :, :] - pts[:, :, None, :]                    # (B, n, C, 3)
-        dist = np.linalg.norm(x, axis=-1)
-        cos = np.einsum("bnck,nk->bnc", x, lay.normals) / dist
-        mask = lay.body[:, None] != np.arange(len(lay.caps))[None, :]
+        dist = np.sqrt((x * x).sum(axis=-1))
+        cos = np.einsum("bnck,nk->bnc", x, self.lay.normals) / dist
+        mask = k["drag_mask"]
         drag = jet_drag(thr[:, :, None], np.where(mask, dist, 1.0), cos, self.outer[None, None, :]) * mask
-        f_dr = np.einsum("bnc,nk->bck", drag, lay.normals)
+        f_dr = np.einsum("bnc,nk->bck", drag, self.lay.normals)
         total = f_thr + f_bj + f_dr
         if parts:
             return total, u, thr, att
         return total
+
+
+def _engine_constants(design: Design, lay: _Layout, f: np.ndarray, scale: np.ndarray, pair: np.ndarray) -> dict:
+    """Everything in :meth:`_Engine.forces` that does not depend on the capsule positions."""
+    med = _medium(design)
+    w = 2 * np.pi * f
+    other = lay.body[:, None] != lay.body[None, :]
+    ncap = len(lay.caps)
+    return {
+        "thrust": C.STREAMING_CONSTANT * 6 * np.pi * med.viscosity * w[:, None],   # (T, 1)
+        "area": np.pi * lay.radii**2,
+        "thrust_scale": scale[lay.body],
+        "thrust_dir": np.einsum("nk,nc->nck", -lay.normals, lay.onehot).reshape(lay.radii.size, 3 * ncap),
+        "other": other,
+        "w2": w**2,
+        "bjerknes": med.density / (8 * np.pi) * other * pair[lay.body][:, lay.body],
+        "drag_mask": lay.body[:, None] != np.arange(ncap)[None, :],
+    }
 
 
 def _compute_engine(design: Design, drive: Drive) -> _Engine:
@@ -546,7 +595,10 @@ def _compute_engine(design: Design, drive: Drive) -> _Engine:
     if bs is not None:   # a fitted Bjerknes coefficient (paper Eq. 3 alpha) relative to the physics
         pair = pair * bs["factor"]
     outer = np.array([_outer_radius(c) for c in lay.caps])
-    return _Engine(design, lay, sysm, f, pressure, h0, scale, pair, outer, med.density, med.sound_speed)
+    response = (prepared_response(sysm, f, med.density, med.sound_speed, C.SUBSTRATE_REFLECTION, h0=h0)
+                if f.size else None)
+    return _Engine(design, lay, sysm, f, pressure, h0, scale, pair, outer, med.density, med.sound_speed, response,
+                   _engine_constants(design, lay, f, scale, pair))
 
 
 _LAST_ENGINE: list = []   # [(design, drive, engine)]: identity cache for solver inner loops
@@ -563,7 +615,8 @@ def _engine(design: Design, drive: Drive) -> _Engine:
 def thrust_vectors(design: Design, drive: Drive, positions=None) -> dict[str, np.ndarray]:
     """Streaming thrust (N, 3-vector) on each capsule: sum over orifices of -|F| n_outward (coupled volumes)."""
     eng = _engine(design, drive)
-    _, _, thr, _ = eng.forces(_centres_array(design, positions)[None], parts=True)
+    at_rest = not positions
+    _, _, thr, _ = eng.rest_forces() if at_rest else eng.forces(_centres_array(design, positions)[None], parts=True)
     vec = np.einsum("n,nk,nc->ck", thr[0], -eng.lay.normals, eng.lay.onehot)
     return {c.name: vec[i] for i, c in enumerate(eng.lay.caps)}
 
@@ -576,46 +629,96 @@ def _centres(design: Design, positions: Mapping[str, Sequence[float]] | None) ->
     return pos
 
 
-def pair_forces(design: Design, drive: Drive,
-                positions: Mapping[str, Sequence[float]] | None = None) -> list[PairForce]:
-    """Secondary Bjerknes force of every capsule pair (coupled volumes; sum over tones and orifice pairs)."""
+@dataclass(frozen=True)
+class PairTable:
+    """:class:`PairForce` of every capsule pair as arrays (row k: capsules ``a[k] < b[k]``, in the
+    order of ``design.capsules``); ``critical_distance`` is NaN where PairForce has None."""
+
+    names: tuple[str, ...]
+    a: np.ndarray                    # (P,) capsule index
+    b: np.ndarray                    # (P,)
+    force_on_a: np.ndarray           # (P, 3) N
+    attraction: np.ndarray           # (P,) N, attraction positive
+    phase_difference: np.ndarray     # (P,) rad
+    distance: np.ndarray             # (P,) m
+    critical_distance: np.ndarray    # (P,) m or NaN
+    notes: tuple[str, ...] = ()
+
+    def row(self, k: int) -> PairForce:
+        dc = float(self.critical_distance[k])
+        fa = self.force_on_a[k]
+        return PairForce(a=self.names[self.a[k]], b=self.names[self.b[k]], force_on_a=fa, force_on_b=-fa,
+                         attraction=float(self.attraction[k]), attract=bool(self.attraction[k] > 0),
+                         phase_difference=float(self.phase_difference[k]), distance=float(self.distance[k]),
+                         critical_distance=None if math.isnan(dc) else dc, notes=self.notes)
+
+
+def pair_table(design: Design, drive: Drive,
+               positions: Mapping[str, Sequence[float]] | None = None) -> PairTable:
+    """Secondary Bjerknes force of every capsule pair (coupled volumes; sum over tones and orifice
+    pairs), vectorised over pairs; the reduced law of paper Eq. 3 gives each pair's critical distance."""
     eng = _engine(design, drive)
     lay = eng.lay
     centres = _centres_array(design, positions)
-    _, u, thr, att = eng.forces(centres[None], parts=True)
+    _, u, thr, att = eng.rest_forces() if not positions else eng.forces(centres[None], parts=True)
     u, thr, att = u[0], thr[0], att[0]
     pts = lay.points(centres)
     thrust_vec = np.einsum("n,nk,nc->ck", thr, -lay.normals, lay.onehot)
-    notes = defaults_used(design)
-    out = []
     ncap = len(lay.caps)
-    for a in range(ncap):
-        for b in range(a + 1, ncap):
-            ia, ib = np.flatnonzero(lay.body == a), np.flatnonzero(lay.body == b)
-            sep = pts[ib][None, :, :] - pts[ia][:, None, :]
-            dd = np.linalg.norm(sep, axis=-1)
-            fa = np.einsum("ij,ijk->k", att[np.ix_(ia, ib)] / dd, sep)
-            line = centres[b] - centres[a]
-            dist = float(np.linalg.norm(line))
-            unit = line / dist if dist > 0 else np.zeros(3)
-            attraction = float(fa @ unit)
-            if eng.f.size and ia.size and ib.size:   # phase of the dominant interfaces, strongest tone
-                va, vb = u[:, ia], u[:, ib]
-                t = int(np.argmax(np.abs(va).max(axis=1) * np.abs(vb).max(axis=1)))
-                ja, jb = int(np.argmax(np.abs(va[t]))), int(np.argmax(np.abs(vb[t])))
-                dphi = float(np.angle(va[t, ja] * np.conj(vb[t, jb])))
-                gap = float(np.linalg.norm(pts[ib[jb]] - pts[ia[ja]]))
-            else:
-                dphi, gap = 0.0, dist
-            # reduced law (paper Eq. 3): alpha = attraction d^2, 2 gamma = thrusts pushing apart
-            gamma2 = float(thrust_vec[a] @ -unit + thrust_vec[b] @ unit)
-            alpha = attraction * gap**2
-            dc = math.sqrt(alpha / gamma2) if alpha > 0 and gamma2 > 0 else None
-            out.append(PairForce(a=lay.caps[a].name, b=lay.caps[b].name, force_on_a=fa, force_on_b=-fa,
-                                 attraction=attraction, attract=attraction > 0,
-                                 phase_difference=dphi, distance=gap, critical_distance=dc,
-                                 notes=notes))
-    return out
+    pa, pb = np.triu_indices(ncap, 1)                 # the nested loops' order: a, then b > a
+    npair = pa.size
+    body = lay.body
+
+    def pair_index(a, b):
+        return a * ncap - a * (a + 1) // 2 + (b - a - 1)
+
+    # Bjerknes vector on a: sum over orifice pairs (i of a, j of b) of att_ij / d_ij * (p_j - p_i)
+    oi, oj = np.nonzero(body[:, None] < body[None, :])
+    fa = np.zeros((npair, 3))
+    if oi.size:
+        sep = pts[oj] - pts[oi]
+        dd = np.linalg.norm(sep, axis=-1)
+        contrib = (att[oi, oj] / dd)[:, None] * sep
+        k = pair_index(body[oi], body[oj])
+        for axis in range(3):
+            fa[:, axis] = np.bincount(k, weights=contrib[:, axis], minlength=npair)
+    line = centres[pb] - centres[pa]
+    dist = np.linalg.norm(line, axis=-1)
+    unit = np.divide(line, dist[:, None], out=np.zeros_like(line), where=dist[:, None] > 0)
+    attraction = np.einsum("pk,pk->p", fa, unit)
+    # phase of the dominant interfaces at the strongest tone (first maximum, as numpy's argmax)
+    dphi = np.zeros(npair)
+    gap = dist.copy()
+    counts = np.bincount(body, minlength=ncap) if body.size else np.zeros(ncap, int)
+    has = counts > 0
+    if eng.f.size and body.size:
+        mag = np.abs(u)                                               # (F, n)
+        starts = np.concatenate([[0], np.cumsum(counts)[:-1]])[has]   # orifices are grouped by capsule
+        peak = np.full((u.shape[0], ncap), -np.inf)
+        peak[:, has] = np.maximum.reduceat(mag, starts, axis=1)
+        first = np.zeros((u.shape[0], ncap), int)
+        at_peak = np.where(mag == peak[:, body], np.arange(body.size)[None, :], body.size)
+        first[:, has] = np.minimum.reduceat(at_peak, starts, axis=1)
+        ok = has[pa] & has[pb]
+        t = np.argmax(peak[:, pa[ok]] * peak[:, pb[ok]], axis=0)
+        ja, jb = first[t, pa[ok]], first[t, pb[ok]]
+        dphi[ok] = np.angle(u[t, ja] * np.conj(u[t, jb]))
+        gap[ok] = np.linalg.norm(pts[jb] - pts[ja], axis=-1)
+    # reduced law (paper Eq. 3): alpha = attraction d^2, 2 gamma = thrusts pushing apart
+    gamma2 = np.einsum("pk,pk->p", thrust_vec[pa], -unit) + np.einsum("pk,pk->p", thrust_vec[pb], unit)
+    alpha = attraction * gap**2
+    live = (alpha > 0) & (gamma2 > 0)
+    dc = np.full(npair, np.nan)
+    dc[live] = np.sqrt(alpha[live] / gamma2[live])
+    return PairTable(names=tuple(c.name for c in lay.caps), a=pa, b=pb, force_on_a=fa, attraction=attraction,
+                     phase_difference=dphi, distance=gap, critical_distance=dc, notes=defaults_used(design))
+
+
+def pair_forces(design: Design, drive: Drive,
+                positions: Mapping[str, Sequence[float]] | None = None) -> list[PairForce]:
+    """Secondary Bjerknes force of every capsule pair (coupled volumes; sum over tones and orifice pairs)."""
+    tab = pair_table(design, drive, positions)
+    return [tab.row(k) for k in range(tab.a.size)]
 
 
 def _apply_neighbour_drag(design: Design, lay: _Layout, centres: np.ndarray, total: np.ndarray) -> np.ndarray:
@@ -645,7 +748,11 @@ def force_model(design: Design, positions: Mapping[str, Sequence[float]] | None,
     different frequencies add in power (cross terms average to zero).  Bubble volumes come from the
     coupled system at these positions (acl.physics.coupling).
     """
-    total = force_batch(design, _centres_array(design, positions)[None], drive)[0]
+    if positions:
+        total = force_batch(design, _centres_array(design, positions)[None], drive)[0]
+    else:               # at rest: the engine's cached evaluation (pair_table and thrust_vectors share it)
+        eng = _engine(design, drive)
+        total = _apply_neighbour_drag(design, eng.lay, eng.lay.rest[None], eng.rest_forces()[0].copy())[0]
     return {c.name: total[i] for i, c in enumerate(design.capsules)}
 
 

@@ -254,7 +254,7 @@ def _beam_law(beam, mode: str, design: Design | None = None):
             kt = float(B.elastica_tangent_stiffness(delta, L, l, EI))
         else:
             P = float(B.eq1_force(delta, L, l, EI))
-            kt = float(B.eq1_tangent_stiffness(delta, L, l, EI))
+            kt = float(1.0 / B.eq1_compliance(P, L, l, EI))       # = eq1_tangent_stiffness, one inversion
         n = u / delta
         K = kt * np.outer(n, n) + (P / delta) * (P_perp - np.outer(n, n))
         return P * n, K
@@ -269,6 +269,7 @@ def latch_geometry(latch, design: Design | None = None) -> tuple:
 
 def _latch_law(latch, design: Design | None = None):
     a = _unit(latch.axis)
+    aa = np.outer(a, a)
     geo = latch_geometry(latch, design)
     u0 = 0.0
     if latch.state == "b":
@@ -276,10 +277,8 @@ def _latch_law(latch, design: Design | None = None):
         u0 = land.state_b if land.bistable else 0.0
 
     def law(x):
-        u = u0 + float(a @ x)
-        f = float(LT.latch_force(u, *geo))
-        k = float(LT.latch_stiffness(u, *geo))
-        return f * a, k * np.outer(a, a)
+        f, k = LT.latch_force_and_stiffness(u0 + float(a @ x), *geo)
+        return f * a, k * aa
 
     return law, a[:, None], (lambda x: u0 + float(a @ x))
 
@@ -463,35 +462,42 @@ def _external(design: Design, mech: _Mechanism, drive: Drive, force_model: Force
     batch = getattr(force_model, "batch", None)
     caps = design.capsules
     rest = np.array([c.center for c in caps], float).reshape(len(caps), 3)
+    # capsule displacements are linear in the coordinates: centres = rest + z P, and the generalized
+    # force is the transpose map, g = f P^T (P: m x 3C, each group's basis placed at its capsules)
+    place = np.zeros((mech.n, 3 * len(caps)))
+    for i, c in enumerate(caps):
+        gi = mech.member_group[c.name]
+        if gi is not None:
+            A, o = mech.bases[gi], mech.offsets[gi]
+            place[o:o + A.shape[1], 3 * i:3 * i + 3] = A.T
+    place = mech.Z.T @ place
 
-    def centres_of(qs: np.ndarray) -> np.ndarray:          # (B, n) -> (B, C, 3)
-        out = np.repeat(rest[None], qs.shape[0], axis=0)
-        for i, c in enumerate(caps):
-            gi = mech.member_group[c.name]
-            if gi is not None:
-                A, o = mech.bases[gi], mech.offsets[gi]
-                out[:, i] += qs[:, o:o + A.shape[1]] @ A.T
-        return out
+    def centres_of(zs: np.ndarray) -> np.ndarray:          # (B, m) -> (B, C, 3)
+        return rest[None] + (zs @ place).reshape(zs.shape[0], len(caps), 3)
 
     def generalized(forces: np.ndarray) -> np.ndarray:     # (B, C, 3) -> (B, m)
-        g = np.zeros((forces.shape[0], mech.n))
-        for gi, members in enumerate(mech.groups):
-            A, o = mech.bases[gi], mech.offsets[gi]
-            if A.shape[1] == 0:
-                continue
-            idx = [i for i, c in enumerate(caps) if c.name in members]
-            g[:, o:o + A.shape[1]] += forces[:, idx].sum(axis=1) @ A
-        return g @ mech.Z
+        return forces.reshape(forces.shape[0], -1) @ place.T
+
+    # Continuation asks for the force at one configuration several times (the point, its voltage
+    # derivative at V +- dV, the tangent, the fold test): a quadratic model's unit-drive force of the
+    # last configurations is kept (keyed on the exact coordinates; the design is immutable).
+    memo: dict = {}
 
     def external_batch(zs, V):
         """external() for many configurations (B, m) at once (one vectorised force evaluation)."""
         zs = np.atleast_2d(np.asarray(zs, float))
-        qs = zs @ mech.Z.T
-        if quadratic:
-            forces = batch(design, centres_of(qs), drive) * (V * V)
-        else:
-            forces = batch(design, centres_of(qs), _scaled_drive(drive, V))
-        return generalized(forces)
+        if not quadratic:
+            return generalized(batch(design, centres_of(zs), _scaled_drive(drive, V)))
+        keys = [z.tobytes() for z in zs]
+        missing = [i for i, k in enumerate(keys) if k not in memo]
+        if missing:
+            rows = generalized(batch(design, centres_of(zs[missing]), drive))
+            for i, row in zip(missing, rows):
+                memo[keys[i]] = row
+        out = np.array([memo[k] for k in keys]).reshape(zs.shape[0], -1) * (V * V)
+        while len(memo) > 64:
+            memo.pop(next(iter(memo)))
+        return out
 
     def external(z, V):
         if batch is not None:
@@ -527,14 +533,19 @@ def _admissible(design: Design, mech: _Mechanism):
             rest = np.subtract(ob, oa)
             pairs.append((ca.name, cb.name, np.asarray(oa), np.asarray(ob), rest / np.linalg.norm(rest)))
 
+    # each pair's gap along its rest direction is affine in the coordinates: gap = gap0 + z . slope
+    gap0 = np.array([n @ (ob - oa) for _, _, oa, ob, n in pairs], float)
+    slope = np.zeros((mech.m, len(pairs)))
+    for k, (a, b, _, _, n) in enumerate(pairs):
+        for name, sign in ((b, 1.0), (a, -1.0)):
+            gi = mech.member_group[name]
+            A, o = mech.bases[gi], mech.offsets[gi]
+            row = np.zeros(mech.n)
+            row[o:o + A.shape[1]] = A.T @ n
+            slope[:, k] += sign * (mech.Z.T @ row)
+
     def admissible(z):
-        pos = _positions(design, mech, mech.Z @ z)
-        for a, b, oa, ob, n in pairs:
-            da = pos[a] - np.asarray(design.capsule(a).center)
-            db = pos[b] - np.asarray(design.capsule(b).center)
-            if n @ ((ob + db) - (oa + da)) <= CONTACT_GAP:
-                return False
-        return True
+        return bool(np.all(gap0 + np.asarray(z, float) @ slope > CONTACT_GAP))
 
     return admissible
 
@@ -555,6 +566,8 @@ def _validity(mech: _Mechanism, q: np.ndarray, mode: str) -> tuple[Diagnostic, .
             continue
         beam = el.beam
         delta = el.measure(_group_x(mech, q, el.group))
+        if delta <= B.EQ1_LIMIT_FLOOR * beam.length:       # below the limit of any rigid length
+            continue
         limit = B.eq1_validity_limit(beam.length, beam.rigid_length)
         if delta > limit:
             found.append(warning(

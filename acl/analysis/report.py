@@ -290,6 +290,11 @@ def _require(design, r: M.Require, modes, rep: Report) -> dict:
         value = ms[r.mode].frequency_hz if r.mode < len(ms) else None
         unit = "Hz"
         detail = f"mode {r.mode + 1} of {r.args[0]}"
+    elif r.kind == "separation" and len(r.args) == 1:
+        fs = sorted(m.frequency_hz for m in modes.get(r.args[0], []))
+        value = min(b - a for a, b in zip(fs, fs[1:])) if len(fs) >= 2 else None
+        unit = "Hz"
+        detail = f"closest adjacent modes of {r.args[0]} ({len(fs)} mode(s))"
     elif r.kind == "separation":
         fa, fb = modes.get(r.args[0], []), modes.get(r.args[1], [])
         value = abs(fa[0].frequency_hz - fb[0].frequency_hz) if fa and fb else None

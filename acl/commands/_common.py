@@ -90,7 +90,7 @@ def load_or_report(path: str, args, fmt: str = "text"):
 
 
 def exit_code(diags) -> int:
-    if any(d.code in ("E601", "E-USAGE") for d in diags):
+    if any(d.code in ("E601", "E602", "E-USAGE") for d in diags):
         return 2
     return 1 if any(d.is_error for d in diags) else 0
 

@@ -1,7 +1,6 @@
 """`acl fmt [--check|--diff] PATHS|-`: rewrite designs in the canonical layout (acl.fmt)."""
 from __future__ import annotations
 
-import difflib
 import sys
 
 from acl.commands._common import STDIN, add_stdin_option, design_files, exit_code, read_stdin, report
@@ -20,6 +19,7 @@ def add_parser(p) -> None:
 
 def run(args) -> int:
     from acl.fmt import format_file, format_source
+    from acl.fmt.diff import unified_diff
 
     files = design_files(args.paths)
     diags, sources = [], {}
@@ -44,7 +44,7 @@ def run(args) -> int:
         else:
             changed += 1
         if args.check or args.diff:
-            sys.stdout.writelines(difflib.unified_diff(text.splitlines(keepends=True), new.splitlines(keepends=True),
+            sys.stdout.writelines(unified_diff(text.splitlines(keepends=True), new.splitlines(keepends=True),
                                                        f"{name} (original)", f"{name} (formatted)"))
         elif path == STDIN:
             sys.stdout.write(new)

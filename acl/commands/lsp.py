@@ -23,5 +23,5 @@ def run(args) -> int:
         logging.basicConfig(level=logging.INFO, format="acl lsp: %(name)s: %(message)s")
     from acl.lsp.server import serve
 
-    serve()
+    serve(verbose=bool(getattr(args, "verbose", False)))
     return 0

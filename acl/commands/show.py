@@ -33,6 +33,16 @@ def _fmt(v: float, unit: str) -> str:
     return format_si(v, unit)
 
 
+def _spread(p) -> str:
+    """``normal(0, 150 nm)``, ``uniform(-0.5 um, 0.5 um)``, ``3 %`` (docs/sweep.md, section 2)."""
+    sp = p.spread
+    if sp.relative:
+        if sp.kind == "normal" and sp.a == 0:
+            return f"{sp.b * 100:g} %"
+        return f"{sp.kind}({sp.a * 100:g} %, {sp.b * 100:g} %)"
+    return f"{sp.kind}({_fmt(sp.a, p.unit) if sp.a else 0}, {_fmt(sp.b, p.unit)})"
+
+
 def design_tree(design):
     from rich.tree import Tree
 
@@ -41,7 +51,7 @@ def design_tree(design):
         n = t.add("params")
         for p in design.params:
             free = f" [cyan]free[/cyan] in {_fmt(p.lower, p.unit)} .. {_fmt(p.upper, p.unit)}" if p.free and p.lower is not None else (" [cyan]free[/cyan]" if p.free else "")
-            sd = f" +- {_fmt(p.stddev, p.unit)}" if p.stddev else ""
+            sd = f" +- {_spread(p)}" if p.spread is not None else (f" +- {_fmt(p.stddev, p.unit)}" if p.stddev else "")
             n.add(f"{p.name} = {_fmt(p.value, p.unit)}{sd}{free}")
     if design.medium:
         m = design.medium

@@ -30,8 +30,25 @@ def add_parser(p) -> None:
     p.add_argument("--schedule", metavar="JSON",
                    help="play this compiled schedule (schedule.json of `acl compile`) on DESIGN and write every "
                         "observable at every waypoint; DESIGN may declare effects the compiling design lacks")
+    p.add_argument("--max-segments", type=_max_segments, default=None, metavar="N",
+                   help="with --schedule: the most constant-drive segments to replay (default 20,000; at most 200,000)")
     p.add_argument("--path", action="append", default=[], metavar="DIR", help="extra folder imports may read from")
     add_output_format(p)   # json: {"output", "rows", "planted"} on stdout
+
+
+def _max_segments(text: str) -> int:
+    """argparse type of --max-segments: a whole number in 1 .. MAX_REPLAY_LIMIT."""
+    import argparse
+
+    from acl.fit.synth import MAX_REPLAY_LIMIT
+
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
+    if not 1 <= value <= MAX_REPLAY_LIMIT:
+        raise argparse.ArgumentTypeError(f"{text!r}: give 1 .. {MAX_REPLAY_LIMIT:,}")
+    return value
 
 
 def _located(code, where, msg, hint=None):
@@ -185,6 +202,8 @@ def run(args) -> int:
                           "give a value that differs from the null, e.g. " + _example(eid))
     if noise < 0 or args.repeats < 1 or not freqs:
         return _usage("noise must not be negative, repeats at least 1, and one frequency at least")
+    if args.max_segments is not None and args.schedule is None:
+        return _usage("--max-segments applies to --schedule only")
     if args.schedule is not None:
         if effects or sets:
             return _usage("--schedule plays on the design as declared: declare effects in it (`effect ID { ... }`) "
@@ -279,7 +298,8 @@ def _replay(args, noise) -> int:
 
     console = Console(stderr=True, highlight=False)
     try:
-        waypoints, chirps, targets = read_schedule(args.schedule)
+        waypoints, chirps, targets = read_schedule(args.schedule, **(
+            {"max_segments": args.max_segments} if args.max_segments is not None else {}))
     except DiagnosticError as exc:
         report(exc.diagnostics)
         return 2

@@ -217,39 +217,26 @@ def _params(b: Builder) -> tuple[M.Param, ...]:
                     b.bag.error("E306", f"value of `{name}` lies outside its bounds", decl.value.span,
                                 "a free parameter's starting value must lie within its bounds")
                     continue
-        sd = _stddev(b, name, decl, v) if decl.stddev is not None else None
+        sd, spread = _stddev(b, name, decl, v) or (False, None) if decl.stddev is not None else (None, None)
         if sd is False:
             continue
         out.append(M.Param(name=name, value=v.value, unit=si_unit(v.dims), free=decl.free, lower=lo, upper=hi,
-                           stddev=sd, span=decl.span))
+                           stddev=sd, spread=spread, span=decl.span))
     return tuple(out)
 
 
 def _stddev(b: Builder, name: str, decl, v: Quantity):
-    """The standard deviation of ``param NAME = v +- s`` in SI; False (reported) when it is bad."""
+    """(standard deviation in SI, Spread or None) of ``param NAME = v +- SPREAD`` (acl.design.spread);
+    False (reported) when it is bad."""
+    from acl.design.spread import SpreadError, spread_of
+
+    def evaluate(e):
+        return b.r.eval(e, b.env)
+
     try:
-        sd = b.r.eval(decl.stddev, b.env)
-    except Fail:
+        return spread_of(decl.stddev, v, name, evaluate, lambda code, msg, span, hint: b.bag.error(code, msg, span, hint))
+    except (Fail, SpreadError):
         return False
-    span = decl.stddev.span
-    if not isinstance(sd, Quantity) or sd.dims != v.dims:
-        b.bag.error("E321", f"uncertainty of `{name}` must be {describe(v.dims)} like its value, found "
-                    f"{describe(sd.dims) if isinstance(sd, Quantity) else what_is(sd)}", span,
-                    f"write it in the value's unit, e.g. `+- {_example_unit(v)}`")
-        return False
-    if not math.isfinite(sd.value):
-        b.bag.error("E305", f"uncertainty of `{name}` is not finite", span, "give a finite standard deviation")
-        return False
-    if sd.value < 0:
-        b.bag.error("E320", f"uncertainty of `{name}` is negative ({sd.value:g} {si_unit(v.dims)})", span,
-                    "a standard deviation is >= 0: write `+- s` with s positive")
-        return False
-    return float(sd.value)
-
-
-def _example_unit(v: Quantity) -> str:
-    u = si_unit(v.dims)
-    return f"{abs(v.value) * 0.1:.3g} {u}".strip()
 
 
 COVERED = {"voltage": "V", "frequency": "Hz", "deflection": "m"}
@@ -556,12 +543,13 @@ def _requires(b: Builder, design: M.Design) -> list[M.Require]:
                     b.bag.error("E304", "modes are numbered from 1", m.span)
                     continue
         elif c.name == "separation":
-            if not b.arity(c, (2,), "separation(capsule, capsule)"):
+            # separation(a, b): first modes of two capsules; separation(m): adjacent modes of one capsule
+            if not b.arity(c, (1, 2), "separation(capsule, capsule) or separation(capsule)"):
                 continue
             ks = [b.local(a, ("capsule",), "require separation") if isinstance(a, A.Ref) else None for a in c.args]
             if not all(ks):
                 continue
-            args = (ks[0][1], ks[1][1])
+            args = tuple(k[1] for k in ks)
         else:
             if not b.arity(c, (2,), "gap(a.orifice, b.orifice)"):
                 continue

@@ -33,11 +33,33 @@ class Frozen(BaseModel):
 # Parameters and environment
 # ----------------------------------------------------------------------------------------------
 
+class Spread(Frozen):
+    """The distribution of a parameter's deviation from its value (docs/sweep.md, section 2).
+
+    ``+- normal(mean, sd)``: ``a`` = mean, ``b`` = standard deviation; ``+- uniform(lo, hi)``:
+    ``a`` = lo, ``b`` = hi (offsets from the value, lo <= hi).  ``relative``: ``a`` and ``b`` are
+    fractions of the value's magnitude (``+- 3 %`` is ``normal(0, 3 %)``); otherwise SI, in the
+    value's unit.
+    """
+
+    kind: Literal["normal", "uniform"]
+    a: float
+    b: float
+    relative: bool = False
+
+    def stddev(self, value: float) -> float:
+        """Standard deviation (SI) about a value: sd, or (hi - lo)/sqrt(12) for a uniform spread."""
+        s = self.b if self.kind == "normal" else (self.b - self.a) / math.sqrt(12.0)
+        return abs(value) * s if self.relative else s
+
+
 class Param(Frozen):
-    """``param NAME = expr [+- sd] [free [in lo .. hi]]``; value in SI, ``unit`` the SI unit string.
+    """``param NAME = expr [+- spread] [free [in lo .. hi]]``; value in SI, ``unit`` the SI unit string.
 
     ``stddev`` (same unit as the value) is the declared standard deviation of the value, None when
     the value is taken as exact; correlations between parameters are in ``Design.correlations``.
+    ``spread`` is the declared distribution when it is more than ``+- sd`` (a normal of mean 0):
+    ``+- normal(mean, sd)``, ``+- uniform(lo, hi)`` or relative ``+- 3 %``; None otherwise.
     """
 
     name: str
@@ -47,7 +69,14 @@ class Param(Frozen):
     lower: float | None = None
     upper: float | None = None
     stddev: float | None = None
+    spread: Spread | None = None
     span: Span
+
+    def distribution(self) -> Spread | None:
+        """The declared spread, ``+- sd`` as ``normal(0, sd)``; None when the value is exact."""
+        if self.spread is not None:
+            return self.spread
+        return Spread(kind="normal", a=0.0, b=self.stddev) if self.stddev else None
 
 
 class Correlation(Frozen):
@@ -304,7 +333,8 @@ class Require(Frozen):
     """Design intent checked by `acl analyze` and lint.
 
     kind ``resonance``: capsule's mode ``mode`` (0-based) frequency in [lower, upper] Hz.
-    kind ``separation``: |f(a) - f(b)| >= lower Hz.
+    kind ``separation``: |f(a) - f(b)| >= lower Hz (first modes of capsules a and b); with one
+    capsule, the smallest distance between its adjacent modes (as `acl analyze` lists them).
     kind ``margin``: latch switching margin >= lower (dimensionless).
     kind ``gap``: gap(a, b) >= lower (m) under every program step.
     """

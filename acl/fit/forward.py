@@ -487,6 +487,7 @@ def _predict(P: Prepared, coeffs: dict, effects: dict) -> np.ndarray:
             # J^T J is the Fisher information (the intervals) and whose score vanishes at the same optimum.
             # The row "predicts" y + r / w.
             y, wt, held = P.pearson
+            REWEIGHT.seen = True
             if REWEIGHT.active:
                 held["var"], held["gen"] = np.maximum(p * (1.0 - p), 1e-10), REWEIGHT.generation
             if held.get("gen") == REWEIGHT.generation:
@@ -509,7 +510,7 @@ class _Reweight:
     def __init__(self):
         self.active = False
         self.generation = 0
-        self.users = 0                 # problems with state rows loaded (none: the solver skips all this)
+        self.seen = False              # set by a prediction that had state rows to weigh
 
     def __enter__(self):
         self.active = True
@@ -549,7 +550,7 @@ def _body_deflection(P, vec, gamma, w, res, sub, rows, es, out, ratio):
     unit = np.divide(load, mag[:, None], out=np.zeros_like(load), where=mag[:, None] > 0)
     delta = np.zeros(idx.size)
     latch = P.latch_id[idx] >= 0
-    if np.any(~latch):
+    if np.any(~latch):                  # a lone body has no neighbour: neighbour_drag acts on pairs and groups only
         j = idx[~latch]
         law0, _, _ = rows(j)
         delta[~latch] = law0(mag[~latch])      # a body of its own has no neighbour: neighbour_drag does not act

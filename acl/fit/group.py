@@ -59,6 +59,7 @@ class GroupBlock:
     obase: np.ndarray         # (r,) position: rest coordinate
     cache: np.ndarray = None  # (r, m) last equilibrium found per row (warm start of the next evaluation)
     closing: np.ndarray = None    # (r, 2) the pair in contact of each row past snap-in at the last evaluation (-1)
+    fold: tuple = None            # ((r,) last stable continuation step of the rows that snapped, (r, m) configuration)
 
     def contact_rows(self):
         return self.closing[:, 0] >= 0 if self.closing is not None else np.zeros(self.rows.size, bool)
@@ -292,17 +293,35 @@ def predict(P, blk: GroupBlock, coeffs, effects, w, gamma, alpha, es, lam, grad,
         # evaluations) or from rest; the rows where that fails are followed from rest by continuation
         start = blk.cache if blk.cache is not None and blk.cache.shape == (r, m) else np.zeros((r, m))
         everyone = np.arange(r)
-        z, good, _ = solve(np.where(blk.contact_rows()[:, None], 0.0, start) if blk.cache is not None else start,
-                           np.ones(r), everyone, 8)
+        was = blk.contact_rows() if blk.cache is not None and blk.cache.shape == (r, m) else np.zeros(r, bool)
+        z = np.zeros((r, m))
+        good = np.zeros(r, bool)
+        tried = everyone[~was]                      # rows in contact last time go straight to their continuation
+        if tried.size:
+            z[tried], good[tried], _ = solve(start[tried], np.ones(tried.size), tried, 8)
         todo = everyone[~good]
+        first = np.ones(r, int)                       # first continuation step of each row
         if todo.size:
             z[todo] = 0.0
+            if blk.fold is not None and blk.fold[0].shape == (r,):
+                # rows that folded at the last evaluation: restart from their last stable step (not from rest)
+                k_prev, z_prev = blk.fold
+                again = todo[k_prev[todo] > 0]
+                if again.size:
+                    zl, ok, _ = solve(z_prev[again], k_prev[again] / N_STEPS, again)
+                    z[again[ok]] = zl[ok]
+                    first[again[ok]] = k_prev[again[ok]] + 1
+        last_good = np.zeros(r, int)
         for step in range(1, N_STEPS + 1):
+            rows_ = todo[first[todo] <= step]
             if todo.size == 0:
                 break
-            zl, ok, rel = solve(z[todo], np.full(todo.size, step / N_STEPS), todo)
-            z[todo[ok]] = zl[ok]
-            bad = todo[~ok]
+            if rows_.size == 0:
+                continue
+            zl, ok, rel = solve(z[rows_], np.full(rows_.size, step / N_STEPS), rows_)
+            z[rows_[ok]] = zl[ok]
+            last_good[rows_[ok]] = step
+            bad = rows_[~ok]
             if bad.size:
                 # no stable equilibrium next to the last one: the branch folded (snap-in); the pair closest to
                 # touching at the last stable configuration closes
@@ -310,7 +329,9 @@ def predict(P, blk: GroupBlock, coeffs, effects, w, gamma, alpha, es, lam, grad,
                 flat = rel.reshape(bad.size, -1).argmin(axis=1)
                 closing[bad] = np.column_stack(np.unravel_index(flat, (N, N)))
                 snapped[bad] = True
-            todo = todo[ok]
+                last_good[bad] = step - 1
+            todo = np.setdiff1d(todo, bad)
+        blk.fold = (np.where(snapped, last_good, 0), z.copy())
         for i, j in {(int(a), int(b)) for a, b in closing[snapped]}:
             sel = np.flatnonzero(snapped & (closing[:, 0] == i) & (closing[:, 1] == j))
             warm = start[sel] if blk.cache is not None else z[sel]

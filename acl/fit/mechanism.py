@@ -157,16 +157,12 @@ def rigid_body(design, cap) -> tuple:
     (a beam: the plane across it; a spring or latch: its axis; fixed: empty)."""
     from acl.analysis.mechanics import build_mechanism
 
-    try:
-        mech = build_mechanism(design)
-    except DiagnosticError:
-        raise
+    mech = build_mechanism(design)            # its joint errors are the analysis' own located diagnostics
     g = mech.member_group[cap]
     members = tuple(mech.groups[g])
     held = [m for m in members if design.mount_of(m) is not None]
     if len(held) > 1:
-        kinds = [design.mount_of(m) for m in held]
-        if all(k.kind == "fix" for k in kinds) or any(k.kind == "fix" for k in kinds):
+        if any(design.mount_of(m).kind == "fix" for m in held):       # tied to a fixed capsule: it cannot move
             return members, held[0], np.zeros((3, 0))
         raise DiagnosticError([error("E810", f"capsules {', '.join(f'`{m}`' for m in held)} are held by two supports and "
                                      "tied together: a body on two supports is not in the fit model", design.capsule(cap).span,

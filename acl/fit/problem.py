@@ -103,6 +103,8 @@ def load_problem(design_path, data_paths, free=(), search_paths=()):
         seen.add(role)
         coefs.append(_coef(role, name, design, P))
     y = data.value
+    if P.group_row is not None and np.any(P.group_row):
+        _group_start(P, coefs, y, data.sigma)
     if np.any(P.state):
         from acl.fit.solve import NOMINAL_SIGMA
 
@@ -111,14 +113,55 @@ def load_problem(design_path, data_paths, free=(), search_paths=()):
             raise DiagnosticError([error("E801", "latch states (0/1) need a `sigma` column: the fit weighs every other "
                                          "row by it against the states' binomial scatter", sp,
                                          "add a sigma column (for the state rows any positive number, e.g. 0.5)")])
-        from acl.fit.forward import REWEIGHT
-
         P.pearson = (np.asarray(y, float), 1.0 / np.where(np.isfinite(data.sigma), data.sigma, NOMINAL_SIGMA), {})
-        REWEIGHT.users += 1
         # a state row's weight is its own: the Pearson residual is already in units of its standard deviation
         P.pearson[1][P.state] = 1.0
         data.sigma = np.where(P.state, 1.0, data.sigma)
     return Problem(design_path, design, data, P, coefs, y, data.sigma, roles)
+
+
+def _group_start(P, coefs, y, sigma) -> None:
+    """Start gamma and alpha where the data are: a group snaps in at a voltage set by alpha/gamma (paper Eq. (3)),
+    and a start on the wrong side of that jump traps the least squares (rows predicted in contact while measured
+    apart).  A coarse grid of scale factors, each scored by its residuals clipped at 10 sigma, picks the start."""
+    from acl.fit.forward import predict
+    from acl.fit.solve import JUMP, NOMINAL_SIGMA
+
+    free = [c for c in coefs if c.kind in ("gamma", "alpha")]
+    if not free:
+        return
+    w = 1.0 / np.where(np.isfinite(sigma), sigma, NOMINAL_SIGMA)
+    r0 = np.abs(predict(P, {c.kind: c.value for c in free}, {}) - y) * w
+    if not np.any(~np.isfinite(r0) | (r0 > JUMP)):
+        return                                   # no row on the wrong side of a jump: the design is a fine start
+    grid = (0.4, 0.6, 0.8, 1.0, 1.25, 1.6, 2.5)
+    best, best_cost = None, np.inf
+    import itertools
+
+    for factors in itertools.product(grid, repeat=len(free)):
+        coeffs = {c.kind: c.value * f for c, f in zip(free, factors)}
+        if any(not (c.lower <= coeffs[c.kind] <= c.upper) for c in free):
+            continue
+        r = np.clip(np.abs(predict(P, coeffs, {}) - y) * w, 0.0, JUMP)
+        cost = float(np.sum(np.where(np.isfinite(r), r, JUMP) ** 2))
+        if cost < best_cost:
+            best, best_cost = coeffs, cost
+    # then a short robust (soft-l1) descent from there: the rows on the wrong side of a snap-in cannot pull it away
+    from scipy.optimize import least_squares
+
+    def resid(u):
+        r = (predict(P, {c.kind: best[c.kind] * np.exp(x) for c, x in zip(free, u)}, {}) - y) * w
+        return np.where(np.isfinite(r), r, 1e6)
+
+    try:
+        sol = least_squares(resid, np.zeros(len(free)), loss="soft_l1", f_scale=3.0, max_nfev=25, x_scale=0.1,
+                            diff_step=1e-6, bounds=([np.log(c.lower / best[c.kind]) for c in free],
+                                                    [np.log(c.upper / best[c.kind]) for c in free]))
+        best = {c.kind: best[c.kind] * np.exp(x) for c, x in zip(free, sol.x)}
+    except ValueError:
+        pass
+    for c in free:
+        c.value = float(best[c.kind])
 
 
 def _coef(role, name, design, P) -> Coef:

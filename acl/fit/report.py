@@ -236,27 +236,38 @@ def figures(problem, selection, outdir) -> list[str]:
     strongest = P.f[np.arange(P.n), np.argmax(P.v, axis=1)]
     driven = P.v.sum(axis=1) > 0
     keys = np.array([" ".join(f"{k}={v}" for k, v in d.override_key(i)) for i in range(d.n)], dtype=object)
+    from acl.fit.forward import predict
+
     for j, name in enumerate(names):
         m = d.observable == name
+        state = problem.design.observe(name).kind == "state"     # 0/1: plotted as is, the model as a probability
+        scale, unit = (1.0, "state (0 a, 1 b)") if state else (1e6, "um")
         groups = list(dict.fromkeys((keys[i], strongest[i]) for i in np.flatnonzero(m & driven)))
         for k, (label, fit) in enumerate((("before", selection.base), ("after", selection.final))):
             ax, axr = axes[0, 2 * j + k], axes[1, 2 * j + k]
+            model = fit.prediction
+            if state:
+                held, P.pearson = P.pearson, None
+                try:
+                    model = predict(P, *fit.as_inputs())
+                finally:
+                    P.pearson = held
             for gi, (key, freq) in enumerate(groups):
                 sel = m & (keys == key) & (~driven | (strongest == freq))
                 colour = f"C{gi % 10}"
                 order = np.argsort(volts[sel], kind="stable")
-                ax.plot(volts[sel], d.value[sel] * 1e6, ".", ms=3, color=colour,
+                ax.plot(volts[sel], d.value[sel] * scale, ".", ms=3, color=colour,
                         label=f"{freq / 1e3:g} kHz {key}" if len(groups) <= 10 else None)
-                ax.plot(volts[sel][order], fit.prediction[sel][order] * 1e6, "-", lw=0.8, color=colour)
-                axr.plot(volts[sel], fit.residual[sel] * 1e6, ".", ms=3, color=colour)
+                ax.plot(volts[sel][order], model[sel][order] * scale, "-", lw=0.8, color=colour)
+                axr.plot(volts[sel], fit.residual[sel] * scale, ".", ms=3, color=colour)
             ax.set_title(f"{name}: {label} (dots data, lines model)")
             ax.set_xlabel("voltage (V)")
-            ax.set_ylabel("um")
+            ax.set_ylabel(unit)
             if groups and len(groups) <= 10:
                 ax.legend(fontsize=6)
             axr.axhline(0, color="k", lw=0.5)
             axr.set_xlabel("voltage (V)")
-            axr.set_ylabel(f"residual {label} (um)")
+            axr.set_ylabel(f"residual {label} ({'Pearson' if state else 'um'})")
     fig.tight_layout()
     path = os.path.join(outdir, "fit.png")
     fig.savefig(path, dpi=90)

@@ -113,6 +113,7 @@ def fit(predict, y, sigma, coefs, train=None, starts=None, max_nfev=200, robust_
     from acl.fit.forward import REWEIGHT
 
     REWEIGHT.generation += 1           # latch states: this fit searches on their likelihood (acl.fit.forward)
+    REWEIGHT.seen = False
     x0s = [np.array([c.value for c in coefs], float)] + [np.asarray(s, float) for s in (starts or [])]
     if coefs:
         # several starts: a short run from each, then the best one is continued (multi-start pruning)
@@ -224,7 +225,7 @@ def _reweighted(best, resid, full, lo, hi, max_nfev, least_squares):
     information (the optimum does not move: the score is zero there).  Nothing happens without state rows."""
     from acl.fit.forward import REWEIGHT
 
-    if not REWEIGHT.users:
+    if not REWEIGHT.seen:                   # no prediction of this fit had state rows
         return best
     with REWEIGHT:
         full(best.x)

@@ -189,11 +189,61 @@ class Target:
     points: object                          # (N, 2) m
 
 
-def read_schedule(path: str) -> tuple[list[Waypoint], int, dict]:
+MAX_SCHEDULE_BYTES = 64 * 2**20     # a schedule.json larger than this is refused (parsed, ~8x in memory)
+MAX_REPLAY_SEGMENTS = 20_000        # constant-drive segments one replay plays (--max-segments raises it)
+MAX_REPLAY_LIMIT = 200_000          # the highest --max-segments (each segment is an equilibrium solve, ~1-10 ms)
+
+
+def _segment_position(text: str, index: int) -> tuple[int, int]:
+    """(line, column) of element ``index`` of the top-level ``segments`` array of a JSON text, or (1, 1).
+
+    Walks the top level with the JSON decoder (only the elements before ``index`` are decoded)."""
+    import json
+
+    dec = json.JSONDecoder()
+    ws = " \t\n\r"
+
+    def skip(i):
+        while i < len(text) and text[i] in ws:
+            i += 1
+        return i
+
+    def where(i):
+        line = text.count("\n", 0, i) + 1
+        return line, i - (text.rfind("\n", 0, i) + 1) + 1
+
+    try:
+        i = skip(text.startswith("\ufeff") and 1 or 0)
+        if text[i] != "{":
+            return 1, 1
+        i, found = skip(i + 1), None
+        while i < len(text) and text[i] != "}":
+            key, i = dec.raw_decode(text, i)
+            i = skip(skip(i) + 1)             # past the colon
+            if key == "segments" and text[i] == "[":
+                found = i
+            _, i = dec.raw_decode(text, i)
+            i = skip(i)
+            if text[i] == ",":
+                i = skip(i + 1)
+        if found is None:
+            return 1, 1
+        i = skip(found + 1)
+        for _ in range(index):
+            _, i = dec.raw_decode(text, i)
+            i = skip(skip(i) + 1)             # past the comma
+        return where(i)
+    except (ValueError, IndexError, RecursionError):
+        return 1, 1
+
+
+def read_schedule(path: str, max_segments: int = MAX_REPLAY_SEGMENTS) -> tuple[list[Waypoint], int, dict]:
     """The constant-drive segments of a schedule.json, how many chirp segments were skipped, and the
     follow goals' targets {goal name: Target} (schedule 1.1+).
 
-    Raises DiagnosticError (E-SYNTH-SCHEDULE) at file:line:column for anything malformed.
+    Raises DiagnosticError (E-SYNTH-SCHEDULE) at file:line:column for anything malformed, for a
+    file over :data:`MAX_SCHEDULE_BYTES`, and for more than ``max_segments`` constant-drive
+    segments (located at the first one beyond).
     """
     import json
     import math
@@ -203,7 +253,7 @@ def read_schedule(path: str) -> tuple[list[Waypoint], int, dict]:
 
     import os
 
-    from acl.fit.data import MAX_BYTES
+    MAX_BYTES = MAX_SCHEDULE_BYTES
 
     if not os.path.isfile(path):   # never open a FIFO or a device: it would block or never end
         raise DiagnosticError([error("E601", f"cannot read the schedule `{path}`: "
@@ -249,11 +299,17 @@ def read_schedule(path: str) -> tuple[list[Waypoint], int, dict]:
             if not math.isfinite(start):
                 raise ValueError("start_s is not finite")
         except (KeyError, TypeError, ValueError, OverflowError, AttributeError) as exc:
-            raise bad(f"{where}: malformed segment ({exc})", hint="each segment has start_s and tones "
-                      "[{frequency_hz, amplitude_v}]") from None
+            raise bad(f"{where}: malformed segment ({exc})", *_segment_position(text, i),
+                      hint="each segment has start_s and tones [{frequency_hz, amplitude_v}]") from None
         if chirp:
             chirps += 1
             continue
+        if len(out) >= max_segments:
+            raise bad(f"{where}: more than {max_segments:,} constant-drive segments ({len(doc['segments']):,} segments "
+                      f"in all); a replay plays at most {max_segments:,} (each is an equilibrium solve)",
+                      *_segment_position(text, i),
+                      hint=f"replay a shorter program, compile with a larger --waypoint-dt, or raise --max-segments "
+                           f"(at most {MAX_REPLAY_LIMIT:,})")
         goal = str(seg.get("goal") or "")
         out.append(Waypoint(start, tuple(tones), goal, step, count.get(goal, 0)))
         count[goal] = count.get(goal, 0) + 1
@@ -307,6 +363,44 @@ def observe_value(design, obs, state) -> float:
     return float(np.asarray(state.positions[cap], float)["xyz".index(obs.component)])
 
 
+def _latch_far_sides(design) -> list:
+    """For every latch: the displacement (m, 3-vector) of its carried capsules from the as-printed state to the
+    other stable state of its landscape (acl.physics.latch); empty for a design without a bistable latch."""
+    import numpy as np
+
+    from acl.analysis.mechanics import latch_geometry
+    from acl.physics.latch import latch_landscape
+
+    out = []
+    for lt in design.latches:
+        land = latch_landscape(*latch_geometry(lt, design))
+        if not land.bistable:
+            continue
+        axis = np.asarray(lt.axis, float) / np.linalg.norm(lt.axis)
+        sign = 1.0 if lt.state == "a" else -1.0
+        carried = [j.capsule for j in design.joints if j.kind == "mount" and j.target == lt.name]
+        out.append((carried, sign * land.state_b * axis))
+    return out
+
+
+def _after_snap(design, drive, fm, flipped, snapped):
+    """Equilibrium after a snap-in of a latch: from the snap configuration with each latch's capsules moved to its
+    far state (the state they snap to); the snap state itself (a loss) if none is stable."""
+    import numpy as np
+
+    from acl.analysis import mechanics as mech
+
+    base = {c.name: np.asarray(c.center, float) for c in design.capsules}
+    for carried, shift in flipped:
+        start = dict(base)
+        for c in carried:
+            start[c] = base[c] + shift
+        st = mech.equilibrium(design, drive, fm, start=start)
+        if st.status == "ok" and st.stable:
+            return st
+    return snapped
+
+
 @dataclass
 class Replay:
     data: object                            # Dataset: every observable at every waypoint
@@ -337,11 +431,15 @@ def replay(design, waypoints: list[Waypoint], observables=(), noise: float = 0.0
     targets = {k: t for k, t in (targets or {}).items() if t.capsule in {c.name for c in design.capsules}}
     errors = {k: np.full(len(t.points), np.nan) for k, t in targets.items()}
     rows, start, lost = [], None, 0
+    flipped = _latch_far_sides(design)
     for i, w in enumerate(waypoints):
         drive = Drive(tones=tuple(Tone(frequency=f, amplitude=v) for f, v in w.tones))
         st = mech.equilibrium(design, drive, fm, start=start)
         if st.status != "ok" and start is not None:
             st = mech.equilibrium(design, drive, fm)
+        if st.status == "snap_in" and flipped:
+            # a latch snapping through is its switch, not a loss: look for the equilibrium on the far side
+            st = _after_snap(design, drive, fm, flipped, st)
         if st.status != "ok":
             lost += 1
             start = None
@@ -357,11 +455,14 @@ def replay(design, waypoints: list[Waypoint], observables=(), noise: float = 0.0
             progress(i + 1, len(waypoints))
     n = len(rows)
     value = np.array([r[1] for r in rows], float)
-    if noise > 0:
-        value = value + np.random.default_rng(seed).normal(0.0, noise, n)
-    data = Dataset(np.array([r[0] for r in rows], dtype=object), value, np.full(n, float(noise) or np.nan),
+    state = np.array([design.observe(r[0]).kind == "state" for r in rows], bool)
+    if noise > 0:       # a latch state (0/1) is read without noise; the other rows get the Gaussian noise
+        value = np.where(state, value, value + np.random.default_rng(seed).normal(0.0, noise, n))
+    sigma = np.where(state, 0.5, float(noise)) if noise > 0 else np.full(n, np.nan)
+    data = Dataset(np.array([r[0] for r in rows], dtype=object), value, sigma,
                    np.array([r[2] for r in rows], float), [r[3] for r in rows], {}, {},
-                   [Span(file="<synth>", line=i + 2, column=1) for i in range(n)], np.array(["um"] * n, dtype=object))
+                   [Span(file="<synth>", line=i + 2, column=1) for i in range(n)],
+                   np.where(state, "1", "um").astype(object))
     tracking = {}
     for k, e in errors.items():
         pts = targets[k].points

@@ -18,15 +18,24 @@ def format_source(text: str, path: str = "<stdin>") -> str:
 
     Idempotent: ``format_source(format_source(t)) == format_source(t)``.
     """
+    from acl.syntax.parser import paused_gc
+
+    with paused_gc():   # as in `acl check`: the collector would rescan the growing trees (superlinear)
+        return _format(text, path)
+
+
+def _format(text: str, path: str) -> str:
     from acl.diagnostics import DiagnosticError, Span, error
     from acl.fmt.layout import layout
     from acl.fmt.meaning import meaning
     from acl.fmt.tokens import tokenize
-    from acl.syntax.parser import parse_module
+    from acl.syntax.parser import parse_module, parse_module_tree
 
     source = text.replace("\r\n", "\n").removeprefix("\ufeff")   # the canonical file has no byte-order mark
-    before = parse_module(source, path)    # the parser's diagnostics and limits, as `acl check` gives them
-    out = layout(tokenize(source, path))
+    # one parse gives the parser's diagnostics and limits (as `acl check`), the tree and its tokens
+    before, tree = parse_module_tree(source, path)
+    out = layout(tokenize(source, path, tree))
+    del tree
     if out == text:   # already canonical: nothing to check
         return out
     try:

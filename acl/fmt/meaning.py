@@ -22,19 +22,34 @@ def meaning(module: A.Module):
     return tuple(imports), rest
 
 
+_FIELDS: dict[type, tuple[str, ...] | None] = {}   # a dataclass's field names (None: not a dataclass)
+
+
+def _fields(t: type) -> tuple[str, ...] | None:
+    names = _FIELDS.get(t, ())
+    if names == ():
+        names = tuple(f.name for f in dataclasses.fields(t)) if dataclasses.is_dataclass(t) else None
+        _FIELDS[t] = names
+    return names
+
+
 def _norm(x):
-    if isinstance(x, Span):
+    t = type(x)
+    if t is Span:
         return None
-    if dataclasses.is_dataclass(x) and not isinstance(x, type):
-        out = [type(x).__name__]
-        for f in dataclasses.fields(x):
-            v = getattr(x, f.name)
-            if isinstance(v, Span):
-                continue
-            if f.name == "text" and isinstance(v, str):
-                v = _SPACE.sub("", v)
-            out.append((f.name, _norm(v)))
-        return tuple(out)
-    if isinstance(x, (tuple, list)):
+    if t is tuple or t is list:
         return tuple(_norm(v) for v in x)
-    return x
+    if t in (str, int, float, bool) or x is None:
+        return x
+    names = _fields(t)
+    if names is None or isinstance(x, type):
+        return x
+    out = [t.__name__]
+    for name in names:
+        v = getattr(x, name)
+        if type(v) is Span:
+            continue
+        if name == "text" and isinstance(v, str):
+            v = _SPACE.sub("", v)
+        out.append((name, _norm(v)))
+    return tuple(out)

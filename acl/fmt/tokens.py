@@ -37,10 +37,11 @@ class Tok:
     column: int    # 1-based
 
 
-def tokenize(source: str, file: str = "<stdin>") -> list[Tok]:
+def tokenize(source: str, file: str = "<stdin>", tree=None) -> list[Tok]:
     """The token stream of a source text, with comments, newlines and continuations in place.
 
-    Text that does not parse raises the parser's located diagnostics (DiagnosticError).
+    ``tree``: the lark tree of ``source`` when the caller has it (:func:`acl.syntax.parser.parse_module_tree`),
+    else it is parsed here. Text that does not parse raises the parser's located diagnostics (DiagnosticError).
     """
     from lark import Token, Tree
     from lark.exceptions import UnexpectedInput
@@ -48,13 +49,14 @@ def tokenize(source: str, file: str = "<stdin>") -> list[Tok]:
     from acl.syntax.parser import _lark, parse_module
 
     text = source if source.endswith("\n") else source + "\n"
-    try:
-        tree = _lark().parse(text, start="start")
-    except UnexpectedInput:
-        parse_module(source, file)   # raises the located diagnostics
-        raise DiagnosticError([error("E190", "internal formatter error: the parser and the formatter disagree",
-                                     Span(file=file, line=1, column=1), "please report it")]) from None
-    newlines = [i for i, ch in enumerate(text) if ch == "\n"]
+    if tree is None:
+        try:
+            tree = _lark().parse(text, start="start")
+        except UnexpectedInput:
+            parse_module(source, file)   # raises the located diagnostics
+            raise DiagnosticError([error("E190", "internal formatter error: the parser and the formatter disagree",
+                                         Span(file=file, line=1, column=1), "please report it")]) from None
+    newlines = [m.start() for m in re.finditer("\n", text)]
     out: list[Tok] = []
     pos = 0
     stack = [tree]

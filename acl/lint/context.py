@@ -120,14 +120,38 @@ class Context:
         t = self.design.transducer
         return t.max_voltage if t is not None else None
 
+    def mode_frequencies(self) -> np.ndarray:
+        """Every capsule's mode frequencies (Hz), in capsule order; cached."""
+        return self.cached("mode_frequencies", lambda: np.array(
+            [m.frequency_hz for c in self.design.capsules for m in self.modes(c)], float))
+
     def sweep_frequencies(self, f0: float, f1: float) -> np.ndarray:
         lo, hi = sorted((f0, f1))
-        n = int(self.threshold("sweep_samples"))
-        modes = [m.frequency_hz for c in self.design.capsules for m in self.modes(c)]
-        f = np.concatenate([np.geomspace(lo, hi, max(n, 2)), [x for x in modes if lo <= x <= hi]])
-        return np.unique(f)
+
+        def compute():
+            n = int(self.threshold("sweep_samples"))
+            modes = self.mode_frequencies()
+            return np.unique(np.concatenate([np.geomspace(lo, hi, max(n, 2)), modes[(modes >= lo) & (modes <= hi)]]))
+        return self.cached(("sweep_frequencies", lo, hi), compute)
 
     def step_drives(self, step) -> list[Drive]:
+        """:meth:`_step_drives`, cached per step (a sweep's drives are built once, not once per rule and beam)."""
+        return self.cached(("step_drives", id(step)), lambda: self._step_drives(step))
+
+    def step_forces(self, step) -> tuple[list[Drive], np.ndarray]:
+        """The drives of ``step`` and the total acoustic force on every capsule at rest under each:
+        (drives, array (D, C, 3) in ``design.capsules`` order); cached per step."""
+        def compute():
+            drives = self.step_drives(step)
+            names = [c.name for c in self.design.capsules]
+            forces = np.zeros((len(drives), len(names), 3))
+            for k, drive in enumerate(drives):
+                f = self.forces(drive)
+                forces[k] = [f[n] for n in names]
+            return drives, forces
+        return self.cached(("step_forces", id(step)), compute)
+
+    def _step_drives(self, step) -> list[Drive]:
         """The drives a step applies, as the worst cases lint can know before compiling.
 
         drive: its tones; sweep: single tones sampled across it (with every mode inside);
@@ -161,11 +185,32 @@ class Context:
         key = ("forces", tuple((t.frequency, t.amplitude, t.phase) for t in drive.tones))
         return self.cached(key, lambda: force_model(self.design, None, drive))
 
-    def pair_forces(self, drive: Drive) -> list:
-        from acl.analysis.acoustics import pair_forces
+    def pair_table(self, drive: Drive):
+        """Every capsule pair's Bjerknes interaction under ``drive`` as arrays (cached per drive):
+        :class:`acl.analysis.acoustics.PairTable`."""
+        from acl.analysis.acoustics import pair_table
 
         key = ("pairs", tuple((t.frequency, t.amplitude, t.phase) for t in drive.tones))
-        return self.cached(key, lambda: pair_forces(self.design, drive))
+        return self.cached(key, lambda: pair_table(self.design, drive))
+
+    def pair_forces(self, drive: Drive) -> list:
+        tab = self.pair_table(drive)
+        return [tab.row(k) for k in range(tab.a.size)]
+
+    def thrust_array(self, drive: Drive) -> np.ndarray:
+        """Streaming thrust vector (N) of every capsule at rest under ``drive``, (C, 3); cached per drive."""
+        from acl.analysis.acoustics import thrust_vectors
+
+        key = ("thrust", tuple((t.frequency, t.amplitude) for t in drive.tones))
+        thrust = self.cached(key, lambda: thrust_vectors(self.design, drive))
+        return self.cached(("thrust_array",) + key[1:], lambda: np.array(
+            [thrust[c.name] for c in self.design.capsules], float).reshape(-1, 3))
+
+    def fixed_pairs(self, tab) -> np.ndarray:
+        """(P,) True where both capsules of a pair of ``tab`` are fixed (`fix` joints)."""
+        fixed = {j.capsule for j in self.design.joints if j.kind == "fix"}
+        is_fixed = np.array([n in fixed for n in tab.names], bool)
+        return is_fixed[tab.a] & is_fixed[tab.b]
 
 
 def khz(f: float) -> str:

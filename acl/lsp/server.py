@@ -8,7 +8,9 @@ Options (``initializationOptions``): ``{"debounce": 0.05, "lint": true, "lint_de
 from __future__ import annotations
 
 import asyncio
+import logging
 import os
+import sys
 
 from lsprotocol import types as T
 from pygls.lsp.server import LanguageServer
@@ -417,9 +419,48 @@ def _formatting(ls: AclLanguageServer, params: T.DocumentFormattingParams) -> li
     return [T.TextEdit(range=_range(r, snap.lines), new_text=t) for r, t in got]
 
 
-def serve() -> None:
-    """Speak LSP over stdin/stdout until the client exits."""
+class _OneLine(logging.Handler):
+    """pygls's own log records (a message it cannot read, a handler that raised) as one coded line
+    each on stderr, located at the body of the latest message read (``<stdin>:line:1``); the
+    exception's type and text replace its traceback (`acl -v lsp` shows everything)."""
+
+    def __init__(self, stream) -> None:
+        super().__init__(logging.WARNING)
+        self.stream = stream
+
+    def emit(self, record: logging.LogRecord) -> None:
+        try:
+            text = record.getMessage()
+            if text.startswith("Unable to deserialize message"):
+                return          # pygls logs "Unable to handle message" next, with the same cause
+            text = text.split("Traceback (most recent call last)", 1)[0]
+            exc = record.exc_info[1] if record.exc_info else None
+            if exc is not None:
+                text += f": {type(exc).__name__}: {exc}"
+                cause = exc.__cause__
+                if cause is not None:
+                    text += f" ({type(cause).__name__}: {cause})"
+            text = " ".join(text.split())
+            if len(text) > 400:
+                text = text[:400] + "…"
+            code = "E-LSP-MESSAGE" if record.levelno >= logging.ERROR else "W-LSP-MESSAGE"
+            kind = "error" if record.levelno >= logging.ERROR else "warning"
+            print(f"acl lsp: {self.stream.location()}: {kind}[{code}]: {text}", file=sys.stderr, flush=True)
+        except Exception:       # logging must never take the server down
+            pass
+
+
+def serve(verbose: bool = False) -> None:
+    """Speak LSP over stdin/stdout until the client exits (input checked by :mod:`acl.lsp.stream`)."""
+    from acl.lsp.stream import FramedInput, LockedOutput
+
+    out = LockedOutput(sys.stdout.buffer)
+    stream = FramedInput(sys.stdin.buffer, reply=out.send)
+    if not verbose:
+        log = logging.getLogger("pygls")
+        log.handlers[:] = [_OneLine(stream)]
+        log.propagate = False
     try:
-        server.start_io()
+        server.start_io(stream, out)
     finally:
         server.close()

@@ -22,6 +22,10 @@ import numpy as np
 
 # Relative departure of Eq. (1) from the elastica above which Eq. (1) is flagged as invalid.
 EQ1_TOLERANCE = 0.05
+# A lower bound of eq1_validity_limit / L at EQ1_TOLERANCE for every rigid length l >= 0: the limit
+# grows with l/L from 0.2145 L at l = 0 (tests/test_physics_beams.py checks the bound and the growth
+# on a grid of l/L), so a smaller deflection needs no elastica solve to be judged valid.
+EQ1_LIMIT_FLOOR = 0.21
 
 
 # ----------------------------------------------------------------------------------------------
@@ -210,10 +214,25 @@ def eq1_departure(P, L: float, l: float, EI: float):
 
 @lru_cache(maxsize=64)
 def _eq1_limit_ratio(lam: float, tolerance: float) -> float:
-    from scipy.optimize import brentq
+    from acl.physics.roots import brentq
+
+    solved: list = []      # (p, BVP solution): each new load starts from the nearest solved one
+
+    def deflection(p):
+        """delta/L of the dead-load elastica (Bisshopp & Drucker) at p = P L^2/EI, as :func:`elastica`."""
+        near = min(solved, key=lambda s: abs(s[0] - p), default=(0.0, None))
+        sol, guess = None, near[1]
+        for pp in np.linspace(near[0], p, max(1, int(np.ceil(abs(p - near[0]) / 0.5))) + 1)[1:]:
+            sol = _elastica_bvp(pp, lam, "dead", guess)
+            if sol.status != 0:
+                return float(elastica(p, 1.0, lam, 1.0).deflection[0])      # from rest, as elastica does
+            guess = sol
+        solved.append((p, sol))
+        return float(sol.y[3, -1] + lam * np.sin(sol.p[0]))
 
     def excess(p):
-        return float(eq1_departure(p, 1.0, lam, 1.0)[0]) - tolerance
+        el = deflection(p)
+        return float((eq1_deflection(p, 1.0, lam, 1.0) - el) / el) - tolerance
 
     hi = 0.25
     while excess(hi) < 0:
@@ -221,7 +240,7 @@ def _eq1_limit_ratio(lam: float, tolerance: float) -> float:
         if hi > 50:
             return float("inf")
     p_star = brentq(excess, 1e-3, hi, xtol=1e-6)
-    return float(elastica(p_star, 1.0, lam, 1.0).deflection[0])
+    return deflection(p_star)
 
 
 def eq1_validity_limit(L: float, l: float, tolerance: float = EQ1_TOLERANCE) -> float:

@@ -100,6 +100,7 @@ def _external_jacobian(external: External, q: np.ndarray, V: float, h: float) ->
 
 
 _RT_MEMO: dict = {}
+CORRECTOR_ITERATIONS = 12     # corrector iterations before a continuation step is rejected (and halved)
 
 
 def residual_and_tangent(restoring: Restoring, external: External, q, V: float, h: float = 1e-12):
@@ -208,6 +209,7 @@ def continuation(restoring: Restoring, external: External, q0, v_max: float, *, 
     """
     ok = admissible or (lambda _q: True)
     qs, vs = float(length_scale), float(v_max)
+    restoring = _memoized(restoring)
     first = solve_equilibrium(restoring, external, q0, v_start, admissible=admissible, rtol=rtol, h=h)
     if first.status != "ok" or not first.stable:
         reason = first.message or "starting equilibrium is unstable"
@@ -227,7 +229,9 @@ def continuation(restoring: Restoring, external: External, q0, v_max: float, *, 
         y_new = y_prev + sigma * t_prev
         J = None
         last = np.inf
-        for _ in range(40):
+        fresh = False           # the last step was a Newton step (fresh Jacobian)
+        stalls = 0
+        for _ in range(CORRECTOR_ITERATIONS):
             q, V = y_new[:-1] * qs, y_new[-1] * vs
             if not ok(q):
                 return None
@@ -243,9 +247,15 @@ def continuation(restoring: Restoring, external: External, q0, v_max: float, *, 
             res = np.linalg.norm(R)
             if res <= rtol * scale + 1e-20 and abs(g) < 1e-12:
                 return y_new
-            if J is not None and res > 0.5 * last:      # chord stalls: refresh the Jacobian
-                R, KT, scale = residual_and_tangent(restoring, external, q, V, h)
-                J = None
+            if res > 0.5 * last:
+                if fresh:                                # even Newton does not contract (a kink, or no
+                    stalls += 1                          # branch near the predictor): give up early
+                    if stalls >= 2:
+                        return None
+                if J is not None:                        # chord stalls: refresh the Jacobian
+                    R, KT, scale = residual_and_tangent(restoring, external, q, V, h)
+                    J = None
+            fresh = J is None
             last = res
             fscale = max(scale, 1e-300)
             if J is None:
@@ -269,7 +279,17 @@ def continuation(restoring: Restoring, external: External, q0, v_max: float, *, 
         if y_new is None:
             step *= 0.5
             if step < ds_min:
-                if _no_equilibrium_above(restoring, external, y[:-1] * qs, y[-1] * vs, admissible, rtol, h):
+                here, above = _equilibrium_just_above(restoring, external, y[:-1] * qs, y[-1] * vs,
+                                                      admissible, rtol, h)
+                if above is not None:
+                    # the corrector cannot cross a kink of the force law, a natural-parameter step can
+                    pts.append(above)
+                    y = np.concatenate([above.q / qs, [above.voltage / vs]])
+                    t = _tangent(restoring, external, above.q, above.voltage, qs, vs, h, t)
+                    det_prev = _det(restoring, external, above.q, above.voltage, h)
+                    step = 4 * ds_min
+                    continue
+                if here:
                     # a limit point where K_T jumps (a kink in the force law): the branch ends here
                     return _branch(pts, "snap_in", snap=SnapIn(float(y[-1] * vs), y[:-1] * qs),
                                    message="non-smooth limit point (kink in the force law)")
@@ -312,17 +332,35 @@ def continuation(restoring: Restoring, external: External, q0, v_max: float, *, 
     return _branch(pts, "no_convergence", message=f"no end after {max_steps} steps")
 
 
-def _no_equilibrium_above(restoring, external, q, V, admissible, rtol, h) -> bool:
-    """True if no equilibrium is found near ``q`` just above ``V`` while (q, V) is a stable equilibrium."""
+def _memoized(restoring: Restoring) -> Restoring:
+    """``restoring`` remembering its last results by the exact coordinates (it is a pure function of q)."""
+    memo: dict = {}
+
+    def wrapped(q):
+        q = np.asarray(q, dtype=float)
+        key = q.tobytes()
+        hit = memo.get(key)
+        if hit is None:
+            hit = restoring(q)
+            if len(memo) >= 16:
+                memo.pop(next(iter(memo)))
+            memo[key] = hit
+        return hit
+
+    return wrapped
+
+
+def _equilibrium_just_above(restoring, external, q, V, admissible, rtol, h):
+    """(whether (q, V) is a stable equilibrium, a stable equilibrium near ``q`` just above ``V`` or None)."""
     here = _verified(restoring, external, q, V, h)
     if not here.stable:
-        return False
+        return False, None
     for dv in (1e-6, 1e-4):
         trial = solve_equilibrium(restoring, external, q, V * (1 + dv) + dv, admissible=admissible,
                                   rtol=rtol, h=h, max_iter=30)
         if trial.status == "ok" and trial.stable and np.linalg.norm(trial.q - q) <= 1e-2 * max(np.linalg.norm(q), 1e-300):
-            return False
-    return True
+            return True, trial
+    return True, None
 
 
 def _verified(restoring, external, q, V, h) -> Equilibrium:
@@ -350,7 +388,7 @@ def _tangent(restoring, external, q, V, qs, vs, h, t_prev):
 
 def _refine_fold(restoring, external, correct, y, t, step, qs, vs, h) -> Optional[SnapIn]:
     """Brent's method on the arclength for det K_T = 0 between the last stable point and the trial step."""
-    from scipy.optimize import brentq
+    from acl.physics.roots import brentq
 
     def det_at(sigma):
         yy = correct(y, t, sigma)

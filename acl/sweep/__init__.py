@@ -19,3 +19,8 @@ A stage beside the analyses, data flowing one way::
 
 Physics never imports this package; the CLI (acl/commands/sweep.py, tune.py) is thin.
 """
+
+from acl._callable import make_callable as _make_callable  # noqa: E402
+
+# `acl.sweep(...)` is the API function (acl._sweep) and this package: importing the package keeps it callable.
+_make_callable(__name__)

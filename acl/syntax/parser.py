@@ -418,13 +418,24 @@ def parse_module(source: str, file: str = "<string>") -> A.Module:
         return _parse_module(source, file)
 
 
-def _parse_module(source: str, file: str) -> A.Module:
+def parse_module_tree(source: str, file: str = "<string>") -> tuple[A.Module, Tree]:
+    """:func:`parse_module` and the lark tree it was built from (the formatter reads its tokens),
+    from one parse. Raises DiagnosticError as parse_module does."""
+    if source.startswith("\ufeff"):
+        source = source[1:]
+    with paused_gc():
+        got = _parse_module(source, file, keep_tree=True)
+    return got
+
+
+def _parse_module(source: str, file: str, keep_tree: bool = False):
     _check_limits(source, file)
     text = source if source.endswith("\n") else source + "\n"
     try:
         tree = _lark().parse(text, start="start")
         stmts = _build(tree, file, source)
-        return A.Module(file, stmts, source)
+        module = A.Module(file, stmts, source)
+        return (module, tree) if keep_tree else module
     except UnexpectedInput:
         pass
     # Recovery: parse each top-level statement on its own, keeping line numbers.

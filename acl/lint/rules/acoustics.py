@@ -73,7 +73,7 @@ def _separate_pairs(ctx: Context) -> dict[tuple[str, str], str]:
     names = [c.name for c in d.capsules]
     out: dict[tuple[str, str], str] = {}
     for r in d.requires:
-        if r.kind == "separation" and r.args[0] != r.args[1]:
+        if r.kind == "separation" and len(r.args) == 2 and r.args[0] != r.args[1]:
             out[tuple(sorted(r.args))] = f"`{r.text}`"
     alone: dict[str, str] = {}
     for p, st in ctx.steps():
@@ -158,25 +158,29 @@ def unintended_excitation(ctx: Context):
       "a drive that moves an interface beyond the linear regime makes every predicted force untrustworthy",
       Severity.WARNING, "acoustics", ("linear_amplitude", "sweep_samples"))
 def bubble_beyond_linear(ctx: Context):
-    from acl.analysis.acoustics import interface_amplitudes
+    from acl.analysis.acoustics import interface_amplitudes, interface_labels, sweep_interface_amplitudes
     from acl.design.model import Drive, Tone
 
     limit = ctx.threshold("linear_amplitude")
     n = int(ctx.threshold("sweep_samples"))
+    labels = interface_labels(ctx.design)
     for p, st in ctx.steps():
         if st.kind == "drive":
-            drives = [st.drive]
-        elif st.kind == "sweep":
-            drives = [Drive(tones=(Tone(frequency=float(f), amplitude=st.amplitude),))
-                      for f in np.linspace(st.f_start, st.f_stop, n)]
+            amps = ctx.cached(("eps", tuple((t.frequency, t.amplitude, t.phase) for t in st.drive.tones)),
+                              lambda: interface_amplitudes(ctx.design, st.drive))
+            k, v = max(amps.items(), key=lambda kv: kv[1], default=("", 0.0))
+            worst, where, at = (v, k, st.drive) if v > 0.0 else (0.0, "", None)
+        elif st.kind == "sweep":        # every sampled tone in one coupled solve
+            freqs = np.linspace(st.f_start, st.f_stop, n)
+            eps = sweep_interface_amplitudes(ctx.design, freqs, st.amplitude)      # (F, interfaces)
+            worst, where, at = 0.0, "", None
+            if eps.size:
+                j, i = np.unravel_index(int(np.argmax(eps)), eps.shape)        # the first largest, as the loop found it
+                if eps[j, i] > 0.0:
+                    worst, where = float(eps[j, i]), labels[i]
+                    at = Drive(tones=(Tone(frequency=float(freqs[j]), amplitude=st.amplitude),))
         else:
             continue                      # the compiler decides those amplitudes and refuses them itself
-        worst, where, at = 0.0, "", None
-        for dr in drives:
-            amps = interface_amplitudes(ctx.design, dr)
-            k, v = max(amps.items(), key=lambda kv: kv[1], default=("", 0.0))
-            if v > worst:
-                worst, where, at = v, k, dr
         if worst > limit:
             f = at.tones[0].frequency if at and at.tones else 0.0
             yield ctx.finding("ACL105",

@@ -57,6 +57,7 @@ def beam_loads(ctx: Context, beam):
             return out
         L, l, EI = beam.length, beam.rigid_length, beam.bending_stiffness
         axis = np.asarray(beam.axis, float)
+        ci = [c.name for c in ctx.design.capsules].index(cap)
         for p in ctx.design.programs:
             worst = None
             for st in p.steps:
@@ -70,21 +71,23 @@ def beam_loads(ctx: Context, beam):
                     cand = (ext, P, st, f"path of `follow` reaches {um(ext)} from rest")
                 elif st.kind == "hold" and st.mode == "cross" and cap in (st.a.split(".")[0], st.b.split(".")[0]):
                     continue          # the pair ends in contact: the load at rest geometry does not apply
-                else:
+                elif linked:   # the mechanism's equilibrium (mechanics enabled)
                     cand = None
                     for drive in ctx.step_drives(st):
-                        tones = " + ".join(f"{khz(t.frequency)} @ {t.amplitude:.3g} V" for t in drive.tones)
-                        if linked:   # the mechanism's equilibrium (mechanics enabled)
-                            defl, P = _equilibrium_load(ctx, beam, cap, drive)
-                            if cand is None or P > cand[1]:
-                                cand = (defl, P, st, f"drive {tones} (equilibrium of the linked mechanism)")
-                            continue
-                        F = np.asarray(ctx.forces(drive)[cap], float)
-                        P = float(np.linalg.norm(F - (F @ axis) * axis))
+                        defl, P = _equilibrium_load(ctx, beam, cap, drive)
                         if cand is None or P > cand[1]:
-                            cand = (float(eq1_deflection(P, L, l, EI)), P, st, f"drive {tones}")
+                            cand = (defl, P, st, f"drive {_tones(drive)} (equilibrium of the linked mechanism)")
                     if cand is None:
                         continue
+                else:
+                    drives, forces = ctx.step_forces(st)       # (D, C, 3), all drives of the step at once
+                    if not drives:
+                        continue
+                    F = forces[:, ci]
+                    loads = np.linalg.norm(F - (F @ axis)[:, None] * axis, axis=1)
+                    k = int(np.argmax(loads))                  # the first strongest drive
+                    P = float(loads[k])
+                    cand = (float(eq1_deflection(P, L, l, EI)), P, st, f"drive {_tones(drives[k])}")
                 if worst is None or cand[1] > worst[1]:
                     worst = cand
             if worst is not None:
@@ -93,6 +96,10 @@ def beam_loads(ctx: Context, beam):
                 out[p.name] = (defl, strain, P, st, how)
         return out
     return ctx.cached(("beam", beam.name), compute)
+
+
+def _tones(drive) -> str:
+    return " + ".join(f"{khz(t.frequency)} @ {t.amplitude:.3g} V" for t in drive.tones)
 
 
 def _path_extent(step) -> float | None:

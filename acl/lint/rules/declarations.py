@@ -28,15 +28,45 @@ def unused_declaration(ctx: Context):
     used = {u.name for u in src.uses}
     d = ctx.design
     auto = {x.name for x in (d.medium, d.transducer) if x is not None}
+    replaced = _declared_by_bases(src)
     for decl in src.declarations:
         if decl.kind not in CHECKED_KINDS or decl.name in used or decl.name in auto:
             continue
+        if decl.kind == "param" and decl.name in replaced:
+            continue            # redeclares a base's parameter (`extends`): used where the base uses it
         what = "parameter" if decl.kind == "param" else decl.kind
         hint = {"import": "remove the import", "medium": "`use medium NAME` it or remove it",
                 "transducer": "`use transducer NAME` it or remove it"}.get(decl.kind, "use it or remove it")
         yield ctx.finding("ACL601", f"{what} `{decl.name}` is never used", Span(file=src.path, line=decl.line,
                           column=decl.column, end_line=decl.line, end_column=decl.column + len(decl.name)),
                           hint=hint)
+
+
+_EXTENDS = re.compile(r'^\s*extends\s+"([^"]+)"')
+
+
+def _declared_by_bases(src, depth: int = 0) -> set[str]:
+    """Parameter names declared by the designs this file `extends` (transitively): a redeclaration
+    replaces the base's value (acl fit's calibrated and acl tune's tuned designs), so it is used
+    wherever the base uses the name."""
+    import os
+
+    from acl.lint.source import scan
+
+    names: set[str] = set()
+    for line in src.lines:
+        m = _EXTENDS.match(line)
+        if not m or depth > 8:
+            continue
+        base = os.path.join(os.path.dirname(os.path.abspath(src.path)), m.group(1))
+        try:
+            with open(base, encoding="utf-8") as fh:
+                text = fh.read(4_000_000)
+        except (OSError, UnicodeDecodeError):
+            continue
+        bsrc = scan(base, text)
+        names |= {d.name for d in bsrc.declarations if d.kind == "param"} | _declared_by_bases(bsrc, depth + 1)
+    return names
 
 
 def is_library(ctx: Context) -> bool:
@@ -118,6 +148,12 @@ def _evaluate(ctx: Context, r):
         m = modes[r.mode]
         return m.frequency_hz, "Hz", [f"mode {r.mode + 1}: {khz(m.frequency_hz)}, Q = {m.q:.3g}, "
                                       f"dominant orifice `{m.dominant_orifice}`"]
+    if r.kind == "separation" and len(r.args) == 1:
+        fs = sorted(m.frequency_hz for m in ctx.modes(d.capsule(r.args[0])))
+        if len(fs) < 2:
+            return float("nan"), "Hz", [f"capsule `{r.args[0]}` has {len(fs)} distinct mode(s)"]
+        gaps = [b - a for a, b in zip(fs, fs[1:])]
+        return min(gaps), "Hz", ["adjacent modes " + ", ".join(khz(f) for f in fs)]
     if r.kind == "separation":
         fa = ctx.modes(d.capsule(r.args[0]))[0].frequency_hz
         fb = ctx.modes(d.capsule(r.args[1]))[0].frequency_hz

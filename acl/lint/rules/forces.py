@@ -9,20 +9,13 @@ from acl.lint.context import Context, khz, um
 from acl.lint.registry import rule
 
 
-def _both_fixed(ctx: Context, a: str, b: str) -> bool:
-    fixed = {j.capsule for j in ctx.design.joints if j.kind == "fix"}
-    return a in fixed and b in fixed
-
-
-def _pushed_apart(ctx: Context, drive, a: str, b: str) -> bool:
-    """Eq. 3's premise: each capsule's own thrust pushes it away from the other."""
-    from acl.analysis.acoustics import thrust_vectors
-
-    thrust = ctx.cached(("thrust", tuple((t.frequency, t.amplitude) for t in drive.tones)),
-                        lambda: thrust_vectors(ctx.design, drive))
-    ca, cb = np.asarray(ctx.design.capsule(a).center), np.asarray(ctx.design.capsule(b).center)
-    u = (cb - ca) / max(float(np.linalg.norm(cb - ca)), 1e-300)
-    return float(thrust[a] @ -u) > 0 and float(thrust[b] @ u) > 0
+def _pushed_apart(ctx: Context, drive, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Eq. 3's premise, for pairs of capsule indices: each capsule's own thrust pushes it away from the other."""
+    thrust = ctx.thrust_array(drive)
+    centres = np.array([c.center for c in ctx.design.capsules], float).reshape(-1, 3)
+    line = centres[b] - centres[a]
+    u = line / np.maximum(np.linalg.norm(line, axis=1), 1e-300)[:, None]
+    return (np.einsum("pk,pk->p", thrust[a], -u) > 0) & (np.einsum("pk,pk->p", thrust[b], u) > 0)
 
 
 def _managed(program) -> set[tuple[str, str]]:
@@ -44,15 +37,19 @@ def snap_in(ctx: Context):
         for st in p.steps:
             for drive in ctx.step_drives(st):
                 amp = sum(t.amplitude for t in drive.tones)
-                for pf in ctx.pair_forces(drive):
-                    key = tuple(sorted((pf.a, pf.b)))
-                    if key in crossing or _both_fixed(ctx, pf.a, pf.b):
-                        continue
-                    dc = pf.critical_distance
-                    if dc is None or pf.distance >= margin * dc or not _pushed_apart(ctx, drive, pf.a, pf.b):
+                tab = ctx.pair_table(drive)
+                # closer than margin x d_c (NaN compares False: no d_c, no snap-in), not both fixed
+                close = np.flatnonzero((tab.distance < margin * tab.critical_distance) & ~ctx.fixed_pairs(tab))
+                if close.size == 0:
+                    continue
+                close = close[_pushed_apart(ctx, drive, tab.a[close], tab.b[close])]
+                for k in close:
+                    a, b = tab.names[tab.a[k]], tab.names[tab.b[k]]
+                    key = tuple(sorted((a, b)))
+                    if key in crossing:
                         continue
                     if key not in flagged or amp > flagged[key][0]:
-                        flagged[key] = (amp, st, drive, pf)
+                        flagged[key] = (amp, st, drive, tab.row(k))
         for key, (amp, st, drive, pf) in sorted(flagged.items()):
             verdict = _mechanics_verdict(ctx, drive, pf)
             if verdict is False:
@@ -120,23 +117,23 @@ def force_sign_change(ctx: Context):
             continue
         freqs = ctx.sweep_frequencies(*rng)
         thrust = selectivity(ctx.design, freqs).thrust_per_v2          # (capsules, F), N at 1 V
-        att: dict[tuple[str, str], list[tuple[float, float, float]]] = {}
-        for k, f in enumerate(freqs):
-            for pf in ctx.pair_forces(Drive(tones=(Tone(frequency=float(f), amplitude=1.0),))):
-                push = max(thrust[names.index(pf.a), k], thrust[names.index(pf.b), k])
-                att.setdefault((pf.a, pf.b), []).append((float(f), pf.attraction, push))
-        for (a, b), rows in att.items():
-            if _both_fixed(ctx, a, b):
-                continue
-            vals = np.array([v for _, v, _ in rows])
+        tabs = [ctx.pair_table(Drive(tones=(Tone(frequency=float(f), amplitude=1.0),))) for f in freqs]
+        if not tabs or tabs[0].a.size == 0:
+            continue
+        ia, ib = tabs[0].a, tabs[0].b
+        vals_all = np.array([t.attraction for t in tabs])                            # (F, P)
+        push_all = np.maximum(thrust[ia, :], thrust[ib, :]).T                       # (F, P)
+        # a sign only counts where the Bjerknes force matters next to the pair's own thrust
+        strong_all = np.abs(vals_all) >= significance * push_all
+        pos_all = strong_all & (vals_all > 0)
+        neg_all = strong_all & (vals_all < 0)
+        candidates = pos_all.any(axis=0) & neg_all.any(axis=0) & ~ctx.fixed_pairs(tabs[0])
+        for k in np.flatnonzero(candidates):
+            a, b = names[ia[k]], names[ib[k]]
+            vals = vals_all[:, k]
             scale = np.abs(vals).max()
-            if scale == 0:
-                continue
-            # a sign only counts where the Bjerknes force matters next to the pair's own thrust
-            strong = np.abs(vals) >= significance * np.array([t for _, _, t in rows])
-            rows = [(f, v) for f, v, _ in rows]
-            pos = [f for (f, v), s in zip(rows, strong) if s and v > 0]
-            neg = [f for (f, v), s in zip(rows, strong) if s and v < 0]
+            pos = [float(f) for f in freqs[pos_all[:, k]]]
+            neg = [float(f) for f in freqs[neg_all[:, k]]]
             if pos and neg:
                 yield ctx.finding("ACL202",
                     f"`{a}` and `{b}` attract and repel within the {khz(rng[0])} .. {khz(rng[1])} range of program `{p.name}`",

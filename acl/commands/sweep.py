@@ -1,0 +1,176 @@
+"""`acl sweep DESIGN [--vary NAME=LO..HI:N]... [--tolerance "NAME=normal(0, 150 nm)"]... [--samples N]
+[--seed S] [--scheduler local|tcp://HOST:PORT] -o TABLE.csv|TABLE.parquet`: grids and print-tolerance
+Monte Carlo, one row per point, the yield on the summary line (docs/sweep.md)."""
+from __future__ import annotations
+
+import json
+import sys
+
+from acl.commands._common import add_design_options, add_output_format, load_or_report, plotting_missing, report, seed
+from acl.diagnostics import DiagnosticError, Span, error
+
+
+def _samples(text: str) -> int:
+    import argparse
+
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"{text!r}: the number of samples is an integer >= 1")
+    return value
+
+
+def add_parser(p) -> None:
+    p.add_argument("file", metavar="DESIGN", help="design file (.acl), or a folder holding one design")
+    p.add_argument("--vary", action="append", default=[], metavar="NAME=LO..HI:N",
+                   help="grid of a parameter: NAME=LO..HI:N, NAME=LO..HI:N:log, NAME=V1,V2,... (repeatable: a full grid)")
+    p.add_argument("--tolerance", action="append", default=[], metavar="NAME=SPREAD",
+                   help="print spread of a parameter: 'NAME=normal(0, 150 nm)', 'NAME=uniform(-0.2um, 0.2um)', "
+                        "NAME=3%% (relative), NAME=150nm (standard deviation); repeatable")
+    p.add_argument("--samples", type=_samples, metavar="N",
+                   help="Monte Carlo samples per grid point (default 1000 when spreads are sampled); "
+                        "with no --tolerance, samples the spreads the design declares")
+    p.add_argument("--seed", type=seed, default=0, metavar="S", help="random seed (default 0): same seed, same rows")
+    p.add_argument("--scheduler", metavar="local|tcp://HOST:PORT", default=None,
+                   help="where chunks run: this machine (default) or a dask.distributed scheduler (acl[scale])")
+    p.add_argument("-o", "--output", required=True, metavar="TABLE.csv|TABLE.parquet",
+                   help="the table: one row per point (Parquet needs pyarrow, the acl[scale] extra)")
+    p.add_argument("--quantity", action="append", default=None, metavar="NAME",
+                   help="only these columns (repeatable; default every quantity the design offers, docs/sweep.md)")
+    p.add_argument("--at", metavar="DRIVE", help='drive for tip deflections, e.g. --at "125 kHz @ 6 V"')
+    p.add_argument("--plot", metavar="DIR", help="write PNG figures into DIR (histograms, yield, pass/fail map)")
+    p.add_argument("--tolerance-scales", metavar="S1,S2,...",
+                   help="also the yield with every spread scaled by each factor (yield vs tolerance; e.g. 0.5,1,2)")
+    add_output_format(p)
+    add_design_options(p)
+
+
+def _scales(text: str) -> list[float]:
+    import math
+
+    out = []
+    col = 1
+    for item in text.split(","):
+        try:
+            v = float(item)
+        except ValueError:
+            v = float("nan")
+        if not (math.isfinite(v) and v >= 0):
+            raise DiagnosticError([error("E-USAGE", f"--tolerance-scales: {item.strip()!r} is not a number >= 0",
+                                         Span(file="<--tolerance-scales>", line=1, column=col))])
+        out.append(v)
+        col += len(item) + 1
+    return out
+
+
+def run(args) -> int:
+    fmt = args.output_format
+    as_json = fmt == "json"
+    quiet = args.quiet or as_json
+    try:
+        from acl.sweep.run import scheduler_kind
+        from acl.sweep.table import check_output
+
+        check_output(args.output)
+        scheduler_kind(args.scheduler)
+        scales = _scales(args.tolerance_scales) if args.tolerance_scales else None
+        if args.at is not None:
+            from acl.design.drives import drive_from_text
+
+            drive_from_text(args.at, "<--at>")
+    except DiagnosticError as exc:
+        report(exc.diagnostics, fmt)
+        return 2
+    if args.plot and plotting_missing("--plot", fmt):
+        return 2
+    design, code = load_or_report(args.file, args, fmt)
+    if design is None:
+        return code
+    from acl.commands._common import parse_sets
+    from acl.sweep.driver import run_sweep, yield_vs_tolerance
+    from acl.sweep.spec import build_spec
+
+    overrides, _ = parse_sets(args.set or [])
+    try:
+        spec = build_spec(design, args.vary, args.tolerance, args.samples, args.seed)
+        if scales is not None and not spec.tolerances:
+            raise DiagnosticError([error("E-USAGE", "--tolerance-scales needs spreads to scale (--tolerance, or the design's)",
+                                         Span(file="<--tolerance-scales>", line=1, column=1))])
+        table = _run(run_sweep, design, spec, args, overrides, quiet)
+        curve = yield_vs_tolerance(design, spec, scales, args.quantity, args.at, args.scheduler, overrides, args.path) if scales else None
+    except DiagnosticError as exc:
+        report(exc.diagnostics, fmt)
+        return 2
+    if args.verbose:
+        fm = table.field_map
+        sys.stderr.write(f"acl sweep: {spec.n_points} points in {spec.n_chunks} chunk(s) of {spec.chunk_size}; fields following "
+                         f"{', '.join(spec.names)}: {len(fm.linear) - len(fm.proportional)} affine, {len(fm.proportional)} "
+                         f"proportional, {len(fm.derived)} recomputed volume(s), {len(fm.exact)} resolved exactly\n")
+    from acl.sweep.table import write_table
+
+    try:
+        write_table(table, args.output)
+    except OSError as exc:
+        report([error("E601", f"cannot write `{args.output}`: {exc.strerror or exc}", Span(file=args.output, line=1, column=1))], fmt)
+        return 2
+    written = []
+    if args.plot:
+        from acl.sweep.figures import plot_yield_vs_tolerance, write_figures
+
+        try:
+            written = write_figures(table, args.plot)
+            if curve:
+                written.append(plot_yield_vs_tolerance(curve, args.plot))
+        except OSError as exc:
+            report([error("E601", f"cannot write figures to `{args.plot}`: {exc.strerror or exc}",
+                          Span(file=args.plot, line=1, column=1))], fmt)
+            return 2
+    if as_json:
+        out = {"design": design.file, "output": args.output, "summary": table.summary_line(), **table.summary()}
+        if curve:
+            out["yield_vs_tolerance"] = curve
+        if args.plot:
+            out["figures"] = written
+        sys.stdout.write(json.dumps(out, indent=2, default=float) + "\n")
+        return 0
+    _print(table, args, curve, written, design)
+    return 0
+
+
+def _run(run_sweep, design, spec, args, overrides, quiet):
+    kw = dict(quantities=args.quantity, at=args.at, scheduler=args.scheduler, overrides=overrides, search_paths=args.path)
+    if quiet or spec.n_chunks < 2:
+        return run_sweep(design, spec, **kw)
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
+
+    from acl._console import make_console
+
+    with Progress(TextColumn("sweep"), BarColumn(), MofNCompleteColumn(), TextColumn("chunks"), TimeElapsedColumn(),
+                  TimeRemainingColumn(), console=make_console(stderr=True), transient=True) as prog:
+        bar = prog.add_task("sweep", total=spec.n_chunks)
+        return run_sweep(design, spec, progress=lambda done, total: prog.update(bar, completed=done), **kw)
+
+
+def _print(table, args, curve, written, design) -> None:
+    from acl._console import make_console
+
+    con = make_console()
+    if not args.quiet:
+        for n in table.notes:
+            con.print(f"[yellow]note:[/yellow] {n}")
+    y = table.yields()
+    con.print(f"{args.output}: {len(table)} points; {table.summary_line()}")
+    if args.quiet:
+        return
+    for key, v in y.items():
+        if key.startswith("require_"):
+            i = int(key.split("_")[1])
+            verdict = v.text() if table.spec.montecarlo else f"{v.passed} of {v.total} points"
+            con.print(f"  {key} `{design.requires[i - 1].text}`: {verdict}")
+    if curve:
+        for r in curve:
+            con.print(f"  tolerance x{r['scale']:g}: yield {r['yield']:.2f} [{r['lower']:.2f}, {r['upper']:.2f}]")
+    if written:
+        con.print(f"wrote {len(written)} figure(s) to {args.plot}")

@@ -1,0 +1,160 @@
+"""One sweep, end to end: spec -> the map parameters -> fields (once) -> chunks (sample, perturb,
+evaluate) on a scheduler -> the table.  Shared by ``acl.sweep(...)`` and ``acl sweep``."""
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass
+
+import numpy as np
+
+from acl.design.model import Design
+from acl.diagnostics import DiagnosticError, Span, error
+from acl.sweep.perturb import FieldMap, field_batch, field_map
+from acl.sweep.sample import chunk_points, chunk_range
+from acl.sweep.spec import SweepSpec
+from acl.sweep.table import SweepTable, assemble
+
+
+@dataclass(frozen=True)
+class ChunkTask:
+    """``task(k)``: the columns of chunk k (picklable, so a dask worker can run it)."""
+
+    design: Design
+    spec: SweepSpec
+    fmap: FieldMap
+    quantities: tuple[str, ...]
+    at: str | None = None
+
+    def __call__(self, k: int) -> dict[str, np.ndarray]:
+        from acl.sweep.evaluate import evaluate
+
+        spec = self.spec
+        start, stop = chunk_range(spec, k, spec.chunk_size)
+        pts = chunk_points(spec, k, spec.chunk_size)
+        batch = field_batch(self.design, pts, self.fmap)
+        cols = evaluate(batch, list(self.quantities), self.at)
+        return {"point": np.arange(start, stop, dtype=np.int64), **pts, "valid": batch.valid.copy(),
+                "code": batch.code.copy(), **cols}
+
+
+def choose_quantities(design: Design, quantities=None, at: str | None = None) -> tuple[list[str], dict[str, str]]:
+    """(columns to compute, {require_i: why not evaluated}); unknown names raise DiagnosticError."""
+    from acl.sweep.evaluate import supported
+
+    names, missing = supported(design, at)
+    unevaluated = {k: f"{k} (`{design.requires[int(k.split('_')[1]) - 1].text}`): {why}"
+                   for k, why in missing.items() if k.startswith("require_")}
+    if quantities is None:
+        return names, unevaluated
+    wanted = list(dict.fromkeys(quantities))
+    need = [f"require_{i}_pass" for i in range(1, len(design.requires) + 1)]
+    bad = [q for q in wanted if q not in names]
+    if bad:
+        from acl.diagnostics import suggest
+
+        raise DiagnosticError([error("E-USAGE", f"--quantity {q}: not available for this design", Span(file="<--quantity>", line=1, column=1),
+                                     suggest(q, names) or ("available: " + ", ".join(names)))
+                               for q in bad])
+    return wanted + [c for c in need if c in names and c not in wanted], unevaluated
+
+
+# Columns that do not read the design's programs or transducer (acl.sweep.evaluate reads those from
+# the nominal design: a column name carries a program frequency).
+_PROGRAM_FREE = ("resonance_", "q_")
+
+
+def _nominal_program_only(design: Design, fmap: FieldMap, cols: list[str], explicit: bool) -> tuple[list[str], dict[str, str]]:
+    """Drop (or, when asked for by name, refuse) columns that would silently use the nominal program
+    or transducer while a swept parameter moves them."""
+    moving = sorted(p for p in [*fmap.linear, *fmap.exact] if p.startswith(("programs.", "transducer.")))
+    if not moving:
+        return cols, {}
+    keep_requires = {f"require_{i}_{k}" for i, r in enumerate(design.requires, 1) if r.kind in ("resonance", "separation")
+                     for k in ("value", "pass")}
+    why = (f"a swept parameter moves `{moving[0]}`" + (f" and {len(moving) - 1} more program/transducer field(s)" if len(moving) > 1 else "")
+           + ": the batched forces, margins, gaps and lint rules use the design's nominal programs and transducer")
+    if all(f"require_{i}_pass" in keep_requires for i in range(1, len(design.requires) + 1)):
+        keep_requires.add("requires_pass")
+    bad = [c for c in cols if not (c.startswith(_PROGRAM_FREE) or c in keep_requires)]
+    if bad and explicit:
+        requested = [c for c in bad if not c.startswith("require")]
+        if requested:
+            raise DiagnosticError([error("E-USAGE", f"--quantity {requested[0]}: {why}", Span(file="<--quantity>", line=1, column=1),
+                                         "sweep resonances and Q only, or keep the program's values fixed")])
+    return [c for c in cols if c not in bad], {c: why for c in bad}
+
+
+def run_sweep(design: Design, spec: SweepSpec, quantities=None, at: str | None = None, scheduler: str | None = None,
+              progress=None, overrides=None, search_paths=()) -> SweepTable:
+    """Evaluate every point of ``spec`` on ``design`` (loaded from ``design.file`` with ``overrides``)."""
+    from acl.sweep.run import map_chunks
+
+    cols, unevaluated = choose_quantities(design, quantities, at)
+    fmap = field_map(design, spec.names, spec.box(), overrides=overrides, search_paths=search_paths, seed=spec.seed)
+    cols, dropped = _nominal_program_only(design, fmap, cols, quantities is not None)
+    for i, r in enumerate(design.requires, 1):
+        if f"require_{i}_pass" in dropped:
+            unevaluated[f"require_{i}"] = f"require_{i} (`{r.text}`): {dropped[f'require_{i}_pass']}"
+    task = ChunkTask(design, spec, fmap, tuple(cols), at)
+    parts = map_chunks(task, spec.n_chunks, scheduler, progress)
+    order = ["point", *spec.names, "valid", "code", *cols]
+    units = {n: spec.units[n] for n in spec.names}
+    notes = list(spec.notes) + list(fmap.notes)
+    if dropped and quantities is None:
+        notes.append(f"{len(dropped)} column(s) left out: " + next(iter(dropped.values())))
+    notes += [why for why in unevaluated.values()]
+    return SweepTable(assemble(parts, order), spec, units=units, notes=notes, unevaluated=unevaluated,
+                      n_requires=len(design.requires), field_map=fmap)
+
+
+def sweep(design, vary=None, tolerance=None, n=None, seed=0, quantities=None, at=None, scheduler=None,
+          overrides=None, search_paths=(), chunk_size=None, progress=None) -> SweepTable:
+    """The Python API behind ``acl.sweep`` (its docstring)."""
+    from acl.sweep.spec import CHUNK_SIZE, build_spec
+
+    if isinstance(design, Design):
+        if overrides:
+            raise DiagnosticError([error("E-USAGE", "overrides: give the design as a path when overriding parameters",
+                                         Span(file="<overrides>", line=1, column=1))])
+        d = design
+    else:
+        from acl.design.resolve import load_design
+
+        d = load_design(str(design), overrides=dict(overrides or {}), search_paths=search_paths)
+    spec = build_spec(d, vary, tolerance, n, seed, chunk_size or CHUNK_SIZE)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        table = run_sweep(d, spec, quantities, at, scheduler, progress, overrides, search_paths)
+    for note in table.notes:
+        if "nonlinear" in note:
+            from acl.sweep.perturb import SweepWarning
+
+            warnings.warn(note, SweepWarning, stacklevel=3)
+    return table
+
+
+def scaled(spec: SweepSpec, factor: float) -> SweepSpec:
+    """The same sweep with every spread's deviation multiplied by ``factor`` (the same random draws)."""
+    from dataclasses import replace
+
+    from acl.design.model import Spread
+    from acl.sweep.spec import Tolerance
+
+    tols = tuple(Tolerance(t.name, Spread(kind=t.spread.kind, a=t.spread.a * factor, b=t.spread.b * factor,
+                                          relative=t.spread.relative), t.unit, t.source) for t in spec.tolerances)
+    return replace(spec, tolerances=tols)
+
+
+def yield_vs_tolerance(design: Design, spec: SweepSpec, scales, quantities=None, at=None, scheduler=None,
+                       overrides=None, search_paths=()) -> list[dict]:
+    """Yield of ``spec`` with its spreads scaled by each factor in ``scales`` (common random numbers:
+    the same seed, so the curve is smooth); rows {scale, yield, lower, upper, passed, total}."""
+    rows = []
+    for s in scales:
+        t = run_sweep(design, scaled(spec, float(s)), quantities, at, scheduler, None, overrides, search_paths)
+        y = t.yields().get("all")
+        if y is None:
+            raise DiagnosticError([error("E-USAGE", "yield vs tolerance: " + "; ".join(t.unevaluated.values()),
+                                         Span(file="<--tolerance-scales>", line=1, column=1))])
+        rows.append({"scale": float(s), **y.as_dict()})
+    return rows

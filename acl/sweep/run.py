@@ -1,0 +1,134 @@
+"""Chunks of points as tasks: in this process, on a thread pool, or on a dask.distributed cluster.
+
+A chunk is the unit of work of a sweep (``task(k)`` evaluates chunk ``k``; its points come from a
+random stream keyed on (seed, k), :mod:`acl.sweep.sample`), so whichever executor runs it, on
+whichever worker, the chunk's numbers are the same and the results come back in chunk order: a
+cluster run equals a single-process run bit for bit (tested with a LocalCluster of 2 workers).
+
+``scheduler``:
+
+* ``None`` or ``"local"``: this machine. One chunk runs in this process; more run on a thread
+  pool (numpy releases the GIL inside its array loops; no pickling, no start-up cost). Needs
+  nothing beyond numpy: dask is not imported.
+* ``"tcp://HOST:PORT"`` (or ``tls://``): the scheduler of a dask.distributed cluster (the
+  ``acl[scale]`` extra). Missing dask is E-USAGE, an unreachable scheduler E601 (after
+  :data:`CONNECT_TIMEOUT_S`), both located at ``<--scheduler>`` (exit 2).
+"""
+from __future__ import annotations
+
+import os
+import re
+from typing import Callable, TypeVar
+
+from acl.diagnostics import DiagnosticError, Span, error
+
+T = TypeVar("T")
+
+CONNECT_TIMEOUT_S = 10.0
+_ADDRESS = re.compile(r"^(tcp|tls)://(\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9_.-]+):(\d{1,5})$")
+_WHERE = Span(file="<--scheduler>", line=1, column=1)
+
+
+def map_chunks(task: Callable[[int], T], n_chunks: int, scheduler: str | None = None,
+               progress: Callable[[int, int], None] | None = None) -> list[T]:
+    """``[task(0), ..., task(n_chunks - 1)]``, computed where ``scheduler`` says; results in chunk order.
+
+    ``progress(done, total)`` is called in this process after each chunk finishes (any order).
+    Exceptions raised by a task (e.g. a DiagnosticError) propagate unchanged.
+    """
+    if n_chunks < 0:
+        raise ValueError("n_chunks must be >= 0")
+    kind = scheduler_kind(scheduler)
+    if kind == "cluster":
+        return _on_cluster(task, n_chunks, scheduler, progress)
+    return _on_this_machine(task, n_chunks, progress)
+
+
+def scheduler_kind(scheduler: str | None) -> str:
+    """``"local"`` or ``"cluster"``; anything else is E-USAGE at ``<--scheduler>``."""
+    if scheduler is None or scheduler == "local":
+        return "local"
+    m = _ADDRESS.match(scheduler.strip())
+    if m and 0 < int(m.group(3)) < 65536:
+        return "cluster"
+    raise DiagnosticError([error(
+        "E-USAGE", f"--scheduler {scheduler!r}: expected `local` or the address of a dask scheduler, tcp://HOST:PORT",
+        _WHERE, "e.g. --scheduler tcp://10.0.0.5:8786 (start one with `dask scheduler` and `dask worker ADDRESS`)")])
+
+
+def local_workers(n_chunks: int) -> int:
+    """Threads used on this machine: one per usable core, never more than there are chunks."""
+    try:
+        cores = len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):
+        cores = os.cpu_count() or 1
+    return max(1, min(n_chunks, cores))
+
+
+def _on_this_machine(task, n_chunks, progress) -> list:
+    workers = local_workers(n_chunks)
+    if workers <= 1:
+        out = []
+        for k in range(n_chunks):
+            out.append(task(k))
+            if progress is not None:
+                progress(k + 1, n_chunks)
+        return out
+    from concurrent.futures import FIRST_EXCEPTION, ThreadPoolExecutor, wait
+
+    results: list = [None] * n_chunks
+    with ThreadPoolExecutor(max_workers=workers, thread_name_prefix="acl-chunk") as pool:
+        futures = {pool.submit(task, k): k for k in range(n_chunks)}
+        pending, done_count = set(futures), 0
+        try:
+            while pending:
+                done, pending = wait(pending, return_when=FIRST_EXCEPTION)
+                for f in done:
+                    results[futures[f]] = f.result()      # re-raises a task's exception here
+                    done_count += 1
+                    if progress is not None:
+                        progress(done_count, n_chunks)
+        except BaseException:
+            for f in pending:
+                f.cancel()
+            raise
+    return results
+
+
+def _client(address: str):
+    """A dask.distributed Client on ``address``, or a located diagnostic (dask missing, unreachable)."""
+    try:
+        from distributed import Client
+    except ImportError:
+        raise DiagnosticError([error(
+            "E-USAGE", f"--scheduler {address}: running on a cluster needs dask.distributed, which is not installed",
+            _WHERE, "install the scale extra: pip install 'acl[scale]' (from a checkout: pip install '.[scale]'), "
+                    "or use --scheduler local")]) from None
+    try:
+        return Client(address, timeout=f"{CONNECT_TIMEOUT_S:g}s", set_as_default=False)
+    except (OSError, TimeoutError) as exc:
+        reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        raise DiagnosticError([error(
+            "E601", f"--scheduler {address}: cannot reach the dask scheduler within {CONNECT_TIMEOUT_S:g} s ({reason})",
+            _WHERE, "start one (`dask scheduler`, then `dask worker ADDRESS` on each machine), check the address "
+                    "and the firewall, or use --scheduler local")]) from None
+
+
+def _on_cluster(task, n_chunks, address, progress) -> list:
+    if n_chunks == 0:
+        return []
+    client = _client(address)
+    try:
+        from distributed import as_completed
+
+        # pure=False: a task is keyed by its chunk, never deduplicated or cached across runs
+        futures = client.map(task, range(n_chunks), pure=False)
+        index = {f.key: k for k, f in enumerate(futures)}
+        results: list = [None] * n_chunks
+        for done_count, f in enumerate(as_completed(futures, loop=client.loop), start=1):
+            results[index[f.key]] = f.result()             # re-raises a task's exception here
+            if progress is not None:
+                progress(done_count, n_chunks)
+        return results
+    finally:
+        client.close()

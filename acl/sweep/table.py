@@ -1,0 +1,274 @@
+"""A sweep's result: one row per point (numpy structured array), yields with exact binomial intervals,
+CSV/Parquet written atomically.
+
+Columns, in order: ``point`` (index), one per varied or sampled parameter (its name, SI value),
+``valid`` and ``code`` (the diagnostic of an invalid point, "" when valid), then one per quantity
+(names say what and unit: ``resonance_act_1_hz``, ``require_1_pass``; acl.sweep.evaluate.QUANTITIES).
+
+Yield: the fraction of points that are valid and pass every ``require`` (``pass``), and per require,
+with the Clopper-Pearson 95 % interval (exact, never narrower than the binomial truth: a yield is a
+safety figure, so the interval errs wide).
+"""
+from __future__ import annotations
+
+import math
+import os
+import tempfile
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from acl.diagnostics import DiagnosticError, Span, error
+
+CONFIDENCE = 0.95
+SUFFIXES = (".csv", ".parquet")
+
+
+@dataclass(frozen=True)
+class Yield:
+    """k of n points pass; ``lower``/``upper`` the Clopper-Pearson interval at :data:`CONFIDENCE`."""
+
+    passed: int
+    total: int
+    lower: float
+    upper: float
+
+    @property
+    def value(self) -> float:
+        return self.passed / self.total if self.total else float("nan")
+
+    def text(self) -> str:
+        """``0.93 [0.91, 0.95]``: the bounds rounded outwards (never optimistic), with more decimals
+        (up to 4) while rounding would widen a narrow interval by more than half."""
+        if not self.total:
+            return "n/a (no points)"
+        for digits in (2, 3, 4):
+            f = 10**digits
+            lo = math.floor(self.lower * f) / f
+            hi = math.ceil(self.upper * f) / f
+            if (hi - lo) - (self.upper - self.lower) <= 0.5 * (self.upper - self.lower):
+                break
+        return f"{self.value:.{digits}f} [{lo:.{digits}f}, {hi:.{digits}f}]"
+
+    def as_dict(self) -> dict:
+        return {"yield": self.value, "lower": self.lower, "upper": self.upper, "passed": self.passed, "total": self.total,
+                "confidence": CONFIDENCE, "interval": "clopper-pearson"}
+
+
+def clopper_pearson(k: int, n: int, confidence: float = CONFIDENCE) -> tuple[float, float]:
+    """Exact binomial interval of k successes in n (Clopper & Pearson, Biometrika 26, 404 (1934))."""
+    from scipy.special import betaincinv
+
+    if n <= 0:
+        return float("nan"), float("nan")
+    a = 1 - confidence
+    lo = 0.0 if k == 0 else float(betaincinv(k, n - k + 1, a / 2))
+    hi = 1.0 if k == n else float(betaincinv(k + 1, n - k, 1 - a / 2))
+    return lo, hi
+
+
+def binomial_yield(passed: np.ndarray) -> Yield:
+    k, n = int(np.count_nonzero(passed)), int(passed.size)
+    lo, hi = clopper_pearson(k, n)
+    return Yield(k, n, lo, hi)
+
+
+@dataclass
+class SweepTable:
+    """The rows of a sweep (``data``, a numpy structured array) and what produced them."""
+
+    data: np.ndarray
+    spec: object                                   # acl.sweep.spec.SweepSpec
+    units: dict[str, str] = field(default_factory=dict)
+    notes: list[str] = field(default_factory=list)
+    unevaluated: dict[str, str] = field(default_factory=dict)   # requires the batched evaluation cannot give -> why
+    n_requires: int = 0
+    field_map: object = None                       # acl.sweep.perturb.FieldMap used (how fields followed the parameters)
+
+    # -- table access ------------------------------------------------------------------------
+    @property
+    def columns(self) -> tuple[str, ...]:
+        return tuple(self.data.dtype.names)
+
+    def __len__(self) -> int:
+        return int(self.data.shape[0])
+
+    def __getitem__(self, key):
+        return self.data[key]
+
+    def __repr__(self) -> str:
+        return f"<SweepTable {len(self)} points x {len(self.columns)} columns; {self.summary_line()}>"
+
+    def to_arrow(self):
+        """A pyarrow Table (pyarrow: the `acl[scale]` extra)."""
+        import pyarrow as pa
+
+        return pa.table({c: self.data[c] for c in self.columns})
+
+    def to_pandas(self):
+        """A pandas DataFrame (pandas must be installed)."""
+        import pandas as pd
+
+        return pd.DataFrame({c: self.data[c] for c in self.columns})
+
+    # -- yields ------------------------------------------------------------------------------
+    @property
+    def passed(self) -> np.ndarray | None:
+        """Points that are valid and pass every require; None when a require is not evaluated."""
+        if self.unevaluated:
+            return None
+        ok = self.data["valid"].copy()
+        for i in range(1, self.n_requires + 1):
+            ok &= self.data[f"require_{i}_pass"]
+        return ok
+
+    def yields(self) -> dict[str, Yield]:
+        """``{"all": ..., "require_1": ..., "valid": ...}``: the yield of every require that was evaluated
+        (a point counts when it is valid and passes it), of all of them together, and of validity."""
+        out = {}
+        p = self.passed
+        if p is not None:
+            out["all"] = binomial_yield(p)
+        for i in range(1, self.n_requires + 1):
+            c = f"require_{i}_pass"
+            if c in self.columns:
+                out[f"require_{i}"] = binomial_yield(self.data["valid"] & self.data[c])
+        out["valid"] = binomial_yield(self.data["valid"])
+        return out
+
+    def grid_yield(self) -> np.ndarray | None:
+        """Yield at each grid point (shape ``spec.grid_shape``), over its Monte Carlo samples."""
+        p = self.passed
+        if p is None or not self.spec.axes:
+            return None
+        return p.reshape(self.spec.n_grid, self.spec.samples).mean(axis=1).reshape(self.spec.grid_shape)
+
+    def summary_line(self) -> str:
+        """``yield 0.93 [0.91, 0.95] (930 of 1000 points; ...)`` or, for a grid, ``pass 12 of 41 points``."""
+        y = self.yields()
+        invalid = len(self) - y["valid"].passed
+        extra = f"; {invalid} invalid" if invalid else ""
+        if "all" not in y:
+            return f"yield not computed: {'; '.join(self.unevaluated.values())} ({len(self)} points{extra})"
+        a = y["all"]
+        what = "every require" if self.n_requires else "no require: valid points"
+        if self.spec.montecarlo:
+            return f"yield {a.text()} ({a.passed} of {a.total} points pass {what}{extra})"
+        return f"pass {a.passed} of {a.total} points ({what}{extra})"
+
+    def summary(self) -> dict:
+        """The JSON summary of `acl sweep --output-format json`."""
+        spec = self.spec
+        return {
+            "points": len(self),
+            "columns": list(self.columns),
+            "units": self.units,
+            "grid": [{"name": a.name, "points": len(a.values), "unit": a.unit, "log": a.log} for a in spec.axes],
+            "tolerances": [{"name": t.name, "source": t.source, "kind": t.spread.kind, "a": t.spread.a, "b": t.spread.b,
+                            "relative": t.spread.relative, "unit": t.unit} for t in spec.tolerances],
+            "samples": spec.samples,
+            "seed": spec.seed,
+            "chunk_size": spec.chunk_size,
+            "yields": {k: v.as_dict() for k, v in self.yields().items()},
+            "grid_yield": None if self.grid_yield() is None else self.grid_yield().tolist(),   # per grid point, axes in order
+            "invalid_codes": _codes(self.data["code"]),
+            "not_evaluated": self.unevaluated,
+            "notes": list(self.notes),
+        }
+
+
+def _codes(code: np.ndarray) -> dict[str, int]:
+    u, c = np.unique(code[code != ""], return_counts=True)
+    return {str(a): int(b) for a, b in zip(u, c)}
+
+
+def assemble(parts: list[dict[str, np.ndarray]], order: list[str]) -> np.ndarray:
+    """Chunks' columns -> one structured array, columns in ``order``."""
+    n = sum(len(p["point"]) for p in parts) if parts else 0
+    dtypes = []
+    for c in order:
+        a = parts[0][c] if parts else np.zeros(0)
+        if a.dtype.kind == "U":
+            dtypes.append((c, "U8"))
+        elif a.dtype == bool:
+            dtypes.append((c, bool))
+        elif a.dtype.kind in "iu":
+            dtypes.append((c, np.int64))
+        else:
+            dtypes.append((c, np.float64))
+    out = np.empty(n, dtype=dtypes)
+    i = 0
+    for p in parts:
+        m = len(p["point"])
+        for c in order:
+            out[c][i:i + m] = p[c]
+        i += m
+    return out
+
+
+# ------------------------------------------------------------------------------------------------
+# Output files
+# ------------------------------------------------------------------------------------------------
+
+def check_output(path: str, where: str = "<-o>") -> None:
+    """Fail early (before any work) on an output the sweep could not write: E-USAGE/E601, exit 2."""
+    span = Span(file=where, line=1, column=1)
+    suffix = os.path.splitext(str(path))[1].lower()
+    if suffix not in SUFFIXES:
+        raise DiagnosticError([error("E-USAGE", f"-o {path}: the table is written as .csv or .parquet, not {suffix or 'a file without suffix'!r}",
+                                     span, "e.g. -o sweep.csv or -o sweep.parquet")])
+    if suffix == ".parquet":
+        import importlib.util
+
+        if importlib.util.find_spec("pyarrow") is None:
+            raise DiagnosticError([error("E-USAGE", f"-o {path}: writing Parquet needs pyarrow, which is not installed", span,
+                                         "install the scale extra: pip install 'acl[scale]', or write CSV: -o TABLE.csv")])
+    folder = os.path.dirname(os.path.abspath(path))
+    if os.path.isdir(path):
+        raise DiagnosticError([error("E601", f"cannot write `{path}`: it is a folder", span)])
+    if not os.path.isdir(folder):
+        raise DiagnosticError([error("E601", f"cannot write `{path}`: no folder `{folder}`", span)])
+    if not os.access(folder, os.W_OK | os.X_OK):
+        raise DiagnosticError([error("E601", f"cannot write `{path}`: the folder is not writable", span)])
+
+
+def write_table(table: SweepTable, path: str) -> None:
+    """CSV or Parquet by suffix, atomically: a temporary file beside ``path``, then one rename."""
+    suffix = os.path.splitext(str(path))[1].lower()
+    folder = os.path.dirname(os.path.abspath(path))
+    fd, tmp = tempfile.mkstemp(prefix=".acl-", suffix=".tmp" + suffix, dir=folder)
+    try:
+        if suffix == ".parquet":
+            os.close(fd)
+            import pyarrow.parquet as pq
+
+            pq.write_table(table.to_arrow(), tmp)
+        else:
+            with os.fdopen(fd, "w", encoding="utf-8", newline="") as fh:
+                write_csv(table, fh)
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+
+
+def write_csv(table: SweepTable, fh, rows_per_block: int = 100_000) -> None:
+    """Header of column names, then one line per point; floats in the shortest form that reads back
+    bit for bit, booleans ``True``/``False``, NaN ``nan``."""
+    cols = table.columns
+    fh.write(",".join(cols) + "\n")
+    n = len(table)
+    for start in range(0, n, rows_per_block):
+        block = [_text(table.data[c][start:start + rows_per_block]) for c in cols]
+        fh.write("\n".join(map(",".join, zip(*block))))
+        fh.write("\n")
+
+
+def _text(a: np.ndarray) -> list[str]:
+    if a.dtype.kind == "f":
+        return [repr(x) for x in a.tolist()]
+    return [str(x) for x in a.tolist()]

@@ -1,0 +1,116 @@
+"""Benchmark of issue 13's done-when figures: Monte Carlo sweeps on one core, and a 2-worker cluster.
+
+1. 1,000,000 print-tolerance samples of a Table S1 capsule (design 1) on the 50 um cantilever
+   (benchmarks/designs/sweep_cantilever.acl): resonance, Q, tip deflection at 125 kHz @ 2 V and
+   the require's pass/fail. Target: under 5 s on one core.
+2. 100,000 samples of the Fig. 4 facing pair (examples/fig4_facing_pair.acl) with the snap-in
+   voltage at 125 kHz, the gap and the thrust coefficient spread. Target: under 20 s on one core.
+3. The same sweep (1.) on a dask LocalCluster of 2 worker processes and in one process: the tables
+   must be equal bit for bit (acl.sweep.run.map_chunks; needs the acl[scale] extra).
+
+"One core": the process is pinned to one CPU (os.sched_setaffinity) and the BLAS threads to one,
+so the local scheduler runs the chunks one after another in this process. Prints wall time and
+the process's CPU time (on a shared machine the CPU time is the steadier figure).
+
+    python benchmarks/sweep.py [--samples 1000000] [--pair-samples 100000] [--cluster-samples 200000]
+                               [--skip-cluster]
+"""
+from __future__ import annotations
+
+import os
+
+for _v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_v, "1")
+
+import argparse  # noqa: E402
+import sys  # noqa: E402
+import time  # noqa: E402
+import warnings  # noqa: E402
+
+import numpy as np  # noqa: E402
+
+ROOT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..")
+sys.path.insert(0, ROOT)
+
+CANTILEVER = os.path.join(ROOT, "benchmarks", "designs", "sweep_cantilever.acl")
+PAIR = os.path.join(ROOT, "examples", "fig4_facing_pair.acl")
+CANTILEVER_Q = ["resonance_act_1_hz", "q_act_1", "tip_deflection_arm_m", "requires_pass"]
+CANTILEVER_AT = "125 kHz @ 2 V"
+PAIR_Q = ["snap_in_left_right_125khz_v", "requires_pass"]
+PAIR_TOL = ["gap=normal(0, 1 um)", "gamma=10 %"]
+
+
+def one_core() -> str:
+    """Pin this process to one CPU; returns what was done."""
+    try:
+        cpu = min(os.sched_getaffinity(0))
+        os.sched_setaffinity(0, {cpu})
+        return f"pinned to CPU {cpu}"
+    except (AttributeError, OSError):
+        return "not pinned (no sched_setaffinity); the local scheduler may use threads"
+
+
+def timed(fn):
+    w0, c0 = time.perf_counter(), time.process_time()
+    out = fn()
+    return out, time.perf_counter() - w0, time.process_time() - c0
+
+
+def run(path, n, seed, quantities, at=None, tolerance=None, scheduler=None):
+    from acl.sweep.driver import sweep
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return sweep(path, tolerance=tolerance, n=n, seed=seed, quantities=quantities, at=at, scheduler=scheduler)
+
+
+def same_bits(a, b) -> bool:
+    """Two structured tables equal bit for bit (NaN included): same fields, dtypes and bytes."""
+    return a.dtype == b.dtype and a.shape == b.shape and all(
+        np.asarray(a[f]).tobytes() == np.asarray(b[f]).tobytes() for f in a.dtype.names)
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--samples", type=int, default=1_000_000)
+    ap.add_argument("--pair-samples", type=int, default=100_000)
+    ap.add_argument("--cluster-samples", type=int, default=200_000)
+    ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--skip-cluster", action="store_true")
+    args = ap.parse_args(argv)
+    import acl  # noqa: F401  (import time is not part of a sweep)
+    from acl.sweep.run import local_workers
+
+    print(f"one core: {one_core()}; local scheduler threads for 16 chunks: {local_workers(16)}")
+    run(CANTILEVER, 1000, args.seed, CANTILEVER_Q, CANTILEVER_AT)          # warm-up (imports, caches)
+    t, wall, cpu = timed(lambda: run(CANTILEVER, args.samples, args.seed, CANTILEVER_Q, CANTILEVER_AT))
+    f = t["resonance_act_1_hz"]
+    print(f"1. cantilever + Table S1 capsule, {args.samples:,} samples: {wall:.2f} s wall, {cpu:.2f} s CPU "
+          f"(target < 5 s); {args.samples / wall:,.0f} points/s")
+    print(f"   resonance {np.nanmean(f) / 1e3:.2f} +- {np.nanstd(f) / 1e3:.2f} kHz, Q {np.nanmean(t['q_act_1']):.2f}, "
+          f"tip deflection {np.nanmean(t['tip_deflection_arm_m']) * 1e6:.3f} um at {CANTILEVER_AT}; {t.summary_line()}")
+    run(PAIR, 1000, args.seed, PAIR_Q, tolerance=PAIR_TOL)
+    p, wall, cpu = timed(lambda: run(PAIR, args.pair_samples, args.seed, PAIR_Q, tolerance=PAIR_TOL))
+    v = p["snap_in_left_right_125khz_v"]
+    print(f"2. Fig. 4 pair snap-in, {args.pair_samples:,} samples: {wall:.2f} s wall, {cpu:.2f} s CPU (target < 20 s)")
+    print(f"   snap-in {np.nanmedian(v):.3f} V median, [{np.nanpercentile(v, 5):.3f}, {np.nanpercentile(v, 95):.3f}] V "
+          f"5-95 %, {np.isnan(v).sum()} without snap-in; {p.summary_line()}")
+    if args.skip_cluster:
+        return 0
+    try:
+        from distributed import LocalCluster
+    except ImportError:
+        print("3. cluster: skipped, dask.distributed is not installed (pip install 'acl[scale]')")
+        return 0
+    single = run(CANTILEVER, args.cluster_samples, args.seed, CANTILEVER_Q, CANTILEVER_AT)
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster:
+        c, wall, _ = timed(lambda: run(CANTILEVER, args.cluster_samples, args.seed, CANTILEVER_Q, CANTILEVER_AT,
+                                       scheduler=cluster.scheduler_address))
+    equal = same_bits(single.data, c.data)
+    print(f"3. 2-worker LocalCluster, {args.cluster_samples:,} samples ({single.spec.n_chunks} chunks): {wall:.2f} s; "
+          f"equal to the single-process table bit for bit: {equal}")
+    return 0 if equal else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())

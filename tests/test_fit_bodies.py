@@ -1,0 +1,296 @@
+"""`acl fit` on every mechanism the language declares (issue 9 item 1): capsules in the plane (multi-orifice,
+paper Fig. 3), trussed bodies (Fig. 6e), groups of three or more interacting capsules, the latch's switched
+state; located diagnostics where the fit model cannot follow (Fig. 5a)."""
+from __future__ import annotations
+
+import os
+
+import numpy as np
+import pytest
+
+import acl
+from acl.fit.synth import Experiment, generate, write_csv
+
+HERE = os.path.dirname(__file__)
+EXAMPLES = os.path.join(HERE, "..", "examples")
+FIG3 = os.path.join(EXAMPLES, "fig3_three_orifice.acl")
+FIG6E = os.path.join(EXAMPLES, "fig6e_reversible_latch.acl")
+GROUP = os.path.join(HERE, "data", "fit_group3.acl")
+LATCH = os.path.join(HERE, "data", "fit_latch_state.acl")
+SWEEP3 = Experiment(frequencies=(80e3, 100e3, 125e3, 150e3, 170e3), voltages=tuple(np.linspace(0, 6, 7)))
+
+
+def _recover(design, ex, truth, free, seeds, tmp_path, effects=None, candidates=(), noise=0.1e-6):
+    """Fit synthetic data of known truth over seeds; [(covered, {name: value/truth}, selected)]."""
+    from acl.fit.problem import load_problem
+    from acl.fit.select import select_effects
+
+    out = []
+    for seed in seeds:
+        data, _ = generate(design, ex, effects or {}, noise=noise, seed=seed, coeffs=truth)
+        path = str(tmp_path / f"d{seed}.csv")
+        write_csv(data, path)
+        sel = select_effects(load_problem(design, [path], free=free),
+                             candidates=None if candidates is None else list(candidates), seed=seed)
+        f = sel.final
+        got = {c.name: (f.values[k], *f.ci[k]) for k, c in enumerate(f.coefs) if c.name in truth}
+        covered = {n: lo <= truth[n] <= hi for n, (_, lo, hi) in got.items()}
+        out.append((covered, {n: v / truth[n] for n, (v, _, _) in got.items()}, sel.selected))
+    return out
+
+
+# ------------------------------------------------------------------------------------------------
+# capsules in the plane (paper Fig. 3)
+# ------------------------------------------------------------------------------------------------
+
+def test_a_three_orifice_capsule_moves_in_the_plane_as_the_analysis_says():
+    """Vector sum of the orifices' thrusts across the beam, paper Eq. (1) along it: the same x and y as
+    acl.analysis.mechanics.equilibrium with the full force model, one tone per mode and two tones at once."""
+    from acl.analysis import acoustics as A
+    from acl.analysis import mechanics as M
+    from acl.design.model import Drive, Tone
+    from acl.fit.forward import predict, prepare
+    from acl.fit.mechanism import build_instance
+    from acl.fit.synth import observe_value
+
+    design = acl.load(FIG3)
+    inst = build_instance(design)
+    assert inst.unit("mx").vector and inst.unit("mx").sides[0].basis.shape == (3, 2)
+    drives = [((85e3, 6.0),), ((125e3, 8.0),), ((170e3, 6.0),), ((85e3, 3.0), (170e3, 4.0))]
+    data, _ = generate(FIG3, Experiment(frequencies=(125e3,), voltages=(1.0,) * len(drives)))
+    data.tones = [t for t in drives for _ in range(2)]
+    got = predict(prepare(data, lambda key: inst), {}, {}).reshape(-1, 2)
+    for tones, row in zip(drives, got):
+        st = M.equilibrium(design, Drive(tones=tuple(Tone(frequency=f, amplitude=v) for f, v in tones)),
+                           A.force_model_for(design))
+        want = [observe_value(design, design.observe(o), st) for o in ("mx", "my")]
+        np.testing.assert_allclose(row, want, rtol=1e-6, atol=1e-12)
+    # the three modes push in three directions: the plane is really used
+    angles = np.degrees(np.arctan2(got[:3, 1], got[:3, 0]))
+    assert np.ptp(angles) > 90
+
+
+def test_planar_data_recover_gamma_and_diagnose_saturation(tmp_path):
+    _, P = generate(FIG3, SWEEP3)
+    truth = {"gamma": 0.8 * P.gamma0}
+    for covered, ratio, selected in _recover(FIG3, SWEEP3, truth, ["gamma"], range(3), tmp_path):
+        assert covered["gamma"] and abs(ratio["gamma"] - 1) < 0.03 and selected == []
+    [(covered, _, selected)] = _recover(FIG3, SWEEP3, truth, ["gamma"], [0], tmp_path,
+                                        effects={"drive_saturation": {"v_sat": 4.0}}, candidates=None)
+    assert selected == ["drive_saturation"] and covered["gamma"]
+
+
+# ------------------------------------------------------------------------------------------------
+# trussed bodies (paper Fig. 6e, Fig. 5a)
+# ------------------------------------------------------------------------------------------------
+
+def test_a_trussed_body_on_a_latch_adds_its_members_thrusts(tmp_path):
+    """Fig. 6e: the 170 kHz capsule rides the shuttle through its truss; 85 kHz pushes +x, 170 kHz -x."""
+    from acl.fit.mechanism import build_instance
+
+    unit = build_instance(acl.load(FIG6E)).unit("s")
+    assert unit.vector and set(unit.sides[0].members) == {"forward", "backward"}
+    _, P = generate(FIG6E, Experiment(frequencies=(85e3, 170e3), voltages=(10.0,)))
+    assert P.tauv[0, 0, 0] > 0 > P.tauv[1, 0, 0]
+    ex = Experiment(frequencies=(85e3, 170e3), voltages=tuple(np.linspace(0, 90, 19)))
+    truth = {"gamma": 1.2 * P.gamma0}
+    for covered, ratio, _ in _recover(FIG6E, ex, truth, ["gamma"], range(2), tmp_path):
+        assert covered["gamma"] and abs(ratio["gamma"] - 1) < 0.05
+
+
+def _variant(tmp_path, src, old, new, name="v.acl"):
+    text = open(src).read()
+    assert old in text
+    path = tmp_path / name
+    path.write_text(text.replace(old, new))
+    return str(path)
+
+
+def test_what_the_fit_model_cannot_follow_is_a_located_E810(tmp_path, capsys):
+    from acl.cli import main
+
+    root = os.path.join(HERE, "..")
+    csv = tmp_path / "d.csv"
+    # Fig. 5a: the truss holds each arm along its load (the analysis gives zero deflection too)
+    csv.write_text("observable,value,unit,drive\nleft_delta,1,um,125 kHz @ 3 V\n")
+    assert main(["fit", os.path.join(EXAMPLES, "fig5a_gripper.acl"), str(csv)]) == 1
+    err = capsys.readouterr().err
+    assert "E810" in err and "fig5a_gripper.acl:46:1" in err and "left_tie" in err and "Traceback" not in err
+    # a truss between two moving supports couples them
+    bad = _variant(tmp_path, os.path.join(EXAMPLES, "fig1f_selective_beams.acl"), "mount high on arm_high.tip",
+                   "mount high on arm_high.tip\ntruss tie { }\nlink low to high with tie")
+    csv.write_text("observable,value,unit,drive\nbend_low,1,um,85 kHz @ 3 V\n")
+    assert main(["fit", bad, str(csv), "--path", root]) == 1
+    err = capsys.readouterr().err
+    assert "E810" in err and "another moving support" in err and f"{bad}:" in err and "Traceback" not in err
+    # a multi-orifice capsule inside a pair
+    pair = _variant(tmp_path, os.path.join(HERE, "data", "fit_pair_cal.acl"), "capsule c like capsules.design1",
+                    "capsule c like capsules.prism3", "p.acl")
+    pair = _variant(tmp_path, pair, "observe cal = displacement(calbeam, -x)", "observe cal = gap(c.o1, a.jet)", "p2.acl")
+    csv.write_text("observable,value,unit,drive\ncal,1,um,125 kHz @ 3 V\n")
+    assert main(["fit", pair, str(csv), "--path", root]) == 1
+    err = capsys.readouterr().err
+    assert "E810" in err and "orifices" in err and "Traceback" not in err
+
+
+# ------------------------------------------------------------------------------------------------
+# groups of three or more interacting capsules
+# ------------------------------------------------------------------------------------------------
+
+def test_group_equilibrium_is_the_force_balance_of_an_independent_solver():
+    """acl.analysis.mechanics.equilibrium (its own continuation and beam law) with the group's forces written out
+    here from their statement (thrust, alpha a_ij V^2/d^2 between every two, each jet dragging the capsule it points
+    at with its thrust) finds the gaps acl.fit.group finds."""
+    from acl.analysis import mechanics as M
+    from acl.design.model import Drive, Tone
+    from acl.fit.forward import predict
+
+    design = acl.load(GROUP)
+    volts = (1.0, 2.0, 3.0)
+    data, P = generate(GROUP, Experiment(frequencies=(125e3,), voltages=volts, observables=("d_ab", "d_bc", "tip_c")))
+    got = predict(P, {}, {}).reshape(len(volts), 3)
+    blk = P.groups[0]
+    caps = blk.caps
+    assert blk.jets.tolist() == [1, 0, 1]          # a and b face each other; c's jet hits b's back
+    tau = blk.tau[0, 0] * P.gamma0                  # thrust per V^2 at 125 kHz
+    alpha = blk.arel[0, 0] * P.alpha0               # (N, N)
+    orifice = {c: np.asarray(design.capsule(c).orifices[0].center, float) - np.asarray(design.capsule(c).center)
+               for c in caps}
+
+    def forces(d, positions, drive):
+        v2 = sum(t.amplitude ** 2 for t in drive.tones)
+        pts = {c: np.asarray(positions[c], float) + orifice[c] for c in caps}
+        out = {c.name: np.zeros(3) for c in d.capsules}
+        for i, a in enumerate(caps):
+            out[a] += -tau[i] * v2 * blk.normals[i]
+            if blk.jets[i] >= 0:
+                out[caps[blk.jets[i]]] += tau[i] * v2 * blk.normals[i]
+            for j, b in enumerate(caps):
+                if j != i:
+                    sep = pts[b] - pts[a]
+                    out[a] += alpha[i, j] * v2 / np.linalg.norm(sep) ** 3 * sep
+        return out
+
+    forces.quadratic_in_amplitude = True
+    for V, row in zip(volts, got):
+        st = M.equilibrium(design, Drive(tones=(Tone(frequency=125e3, amplitude=V),)), forces)
+        assert st.status == "ok"
+        pos = {c: st.positions[c] + orifice[c] for c in caps}
+        want = [np.linalg.norm(pos["b"] - pos["a"]), np.linalg.norm(pos["c"] - pos["b"]), -st.displacements["c"][0]]
+        np.testing.assert_allclose(row, want, rtol=1e-6, atol=1e-12)
+
+
+def test_group_and_calibration_beam_recover_gamma_and_alpha_through_snap_in(tmp_path):
+    """Ramps past the a-b snap-in (contact rows) at three frequencies and a calibration cantilever; the truth's
+    gamma and alpha are 1.2x and 0.7x the design's (the start), so the fit must find them."""
+    ex = [Experiment(frequencies=(115e3, 125e3, 135e3), voltages=tuple(np.linspace(0, 6, 7)),
+                     observables=("d_ab", "d_bc", "tip_c"), label="group"),
+          Experiment(frequencies=(115e3, 125e3, 135e3), voltages=tuple(np.linspace(0, 8, 9)), observables=("bend",),
+                     label="calibration")]
+    _, P = generate(GROUP, ex)
+    truth = {"gamma": 1.2 * P.gamma0, "alpha": 0.7 * P.alpha0}
+    clean = generate(GROUP, ex, coeffs=truth)[0]
+    assert np.any((clean.observable == "d_ab") & (clean.value == 0.0))          # rows in contact past snap-in
+    runs = _recover(GROUP, ex, truth, ["gamma", "alpha"], [0], tmp_path)
+    ex[0].voltages = tuple(np.linspace(0, 3, 7))                                # no snap-in: two more seeds
+    runs += _recover(GROUP, ex, truth, ["gamma", "alpha"], [1, 2], tmp_path)
+    for covered, ratio, _ in runs:
+        assert all(covered.values()), ratio
+        assert all(abs(r - 1) < 0.03 for r in ratio.values()), ratio
+
+
+# ------------------------------------------------------------------------------------------------
+# the latch's switched state
+# ------------------------------------------------------------------------------------------------
+
+def test_state_is_an_observable_of_the_language(tmp_path):
+    from acl.diagnostics import DiagnosticError
+
+    design = acl.load(LATCH)
+    assert design.observe("switched").kind == "state" and design.observe("switched").target == "snap"
+    bad = _variant(tmp_path, LATCH, "observe switched = state(snap)", "observe switched = state(act)")
+    with pytest.raises(DiagnosticError) as exc:
+        acl.load(bad, search_paths=[os.path.join(HERE, "..")])
+    d = exc.value.diagnostics[0]
+    assert d.span.line and "latch" in d.message.lower()
+
+
+def test_state_rows_are_checked_cell_by_cell(tmp_path):
+    from acl.diagnostics import DiagnosticError
+    from acl.fit.data import read_data
+
+    design = acl.load(LATCH)
+    f = tmp_path / "s.csv"
+    f.write_text("observable,value,unit,drive,sigma\nswitched,2,1,125 kHz @ 40 V,0.5\nswitched,1,um,125 kHz @ 40 V,0.5\n"
+                 "switched,1,,125 kHz @ 45 V,0.5\n")
+    with pytest.raises(DiagnosticError) as exc:
+        read_data([str(f)], design)
+    found = {(d.code, d.span.line, d.span.column) for d in exc.value.diagnostics}
+    assert ("E806", 2, 10) in found and ("E804", 3, 12) in found and len(found) == 2
+    from acl.cli import main
+
+    nosigma = tmp_path / "n.csv"
+    nosigma.write_text("observable,value,unit,drive\nswitched,1,1,125 kHz @ 45 V\n")
+    assert main(["fit", LATCH, str(nosigma), "--free", "gamma"]) == 1
+    shuttle = tmp_path / "p.csv"
+    shuttle.write_text("observable,value,unit,drive\nshuttle,0.1,um,125 kHz @ 20 V\n")
+    assert main(["fit", LATCH, str(shuttle), "--free", "gamma,spread"]) == 2     # no state row: a usage error
+
+
+def test_switched_state_fits_gamma_and_spread_by_maximum_likelihood(tmp_path):
+    """Ten ramps at each of 17 voltages around the switching threshold, the switching force scattered by 8 % from
+    ramp to ramp (drawn by acl synth); the probit fit recovers gamma and the scatter within their intervals."""
+    ex = Experiment(frequencies=(125e3,), voltages=tuple(np.linspace(30, 46, 17)), repeats=10,
+                    observables=("switched",))
+    _, P = generate(LATCH, ex)
+    truth = {"gamma": 1.25 * P.gamma0, "spread": 0.08}
+    runs = _recover(LATCH, ex, truth, ["gamma", "spread"], range(5), tmp_path)
+    assert all(c["gamma"] for c, _, _ in runs)
+    assert sum(c["spread"] for c, _, _ in runs) >= 4
+    assert all(abs(r["gamma"] - 1) < 0.04 for _, r, _ in runs)
+    data, _ = generate(LATCH, ex, noise=0.1e-6, coeffs=truth)
+    path = tmp_path / "w.csv"
+    write_csv(data, str(path))
+    lines = open(path).read().splitlines()
+    assert lines[1].split(",")[1:3] in (["0", "1"], ["1", "1"])
+
+
+def test_replayed_state_is_that_of_the_analysis():
+    from acl.analysis import acoustics as A
+    from acl.analysis import mechanics as M
+    from acl.design.model import Drive, Tone
+    from acl.fit.synth import observe_value
+
+    from acl.physics.latch import latch_landscape
+
+    design = acl.load(LATCH)
+    obs = design.observe("switched")
+    land = latch_landscape(*M.latch_geometry(design.latch("snap")))
+    centre = np.asarray(design.capsule("act").center, float)
+    states = []
+    for V, start in ((20.0, None), (80.0, {"act": centre + np.array([land.state_b, 0, 0])})):
+        st = M.equilibrium(design, Drive(tones=(Tone(frequency=125e3, amplitude=V),)), A.force_model_for(design),
+                           start=start)
+        assert st.status == "ok"
+        states.append(observe_value(design, obs, st))
+    assert states == [0.0, 1.0]
+
+
+def test_a_replayed_ramp_switches_the_latch_and_it_stays_switched(tmp_path):
+    """acl synth --schedule on a latch: the snap-through at 60 V is the switch (state b, 1), not a lost waypoint,
+    and the latch stays in state b when the drive stops (bistable memory); states are written as 0/1, unit 1."""
+    import json
+
+    from acl.cli import main
+
+    segs = [{"start_s": 0.5 * i, "tones": [{"frequency_hz": 125e3, "amplitude_v": v}] if v else []}
+            for i, v in enumerate((10.0, 40.0, 60.0, 80.0, 0.0))]
+    sched = tmp_path / "schedule.json"
+    sched.write_text(json.dumps({"version": "1.1", "segments": segs}))
+    out = tmp_path / "run.csv"
+    assert main(["synth", LATCH, "--schedule", str(sched), "-o", str(out), "--noise", "0.1um"]) == 0
+    rows = [line.split(",") for line in out.read_text().splitlines()[1:]]
+    states = [(r[1], r[2], r[5]) for r in rows if r[0] == "switched"]
+    assert states == [("0", "1", "0.5")] * 2 + [("1", "1", "0.5")] * 3
+    travel = [float(r[1]) for r in rows if r[0] == "shuttle"]
+    assert max(travel[:2]) < 1 and min(travel[2:]) > 60
