@@ -177,3 +177,11 @@ def test_parameter_moving_a_program_leaves_out_program_columns():
 ])
 def test_point_estimate_is_not_rounded_up_to_all(k, n, want):
     assert T.Yield(k, n, *T.clopper_pearson(k, n)).text() == want
+
+
+def test_to_pandas_without_pandas_says_what_to_install(table, monkeypatch):
+    import sys
+
+    monkeypatch.setitem(sys.modules, "pandas", None)       # `import pandas` raises ImportError
+    with pytest.raises(ImportError, match="pip install pandas"):
+        table.to_pandas()

@@ -110,8 +110,12 @@ class SweepTable:
         return pa.table({c: self.data[c] for c in self.columns})
 
     def to_pandas(self):
-        """A pandas DataFrame (pandas must be installed)."""
-        import pandas as pd
+        """A pandas DataFrame (pandas must be installed: ``pip install pandas``)."""
+        try:
+            import pandas as pd
+        except ImportError as exc:
+            raise ImportError("SweepTable.to_pandas() needs pandas, which acl does not install: "
+                              "`pip install pandas`, or use .data (a numpy structured array) or .to_arrow()") from exc
 
         return pd.DataFrame({c: self.data[c] for c in self.columns})
 
