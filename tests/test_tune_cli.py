@@ -221,3 +221,8 @@ def test_a_met_yield_target_writes_the_tuned_design(tmp_path, capsys):
     d = _design(tmp_path)
     code, out, err = _tune([d, "--samples", "300", "--max-evals", "30", "--target", "0.9", "-q"], capsys)
     assert code == 0 and (tmp_path / "d.tuned.acl").is_file(), err
+
+
+def test_only_zero_spreads_is_E874(tmp_path, capsys):
+    d = _design(tmp_path, params=FREE.replace(" +- 150 nm", " +- 0 nm"))
+    _bad(tmp_path, capsys, [d, *FAST], 1, "E874")

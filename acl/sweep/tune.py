@@ -394,6 +394,10 @@ def prepare(path: str, tolerance: Sequence[str] = (), samples: int = 2000, valid
                       tolerance_args=tuple(tolerance))
     problem.setup()
     problem.tolerances = problem.spec.tolerances
+    if not any(hi > lo for lo, hi in problem.spec.box().values()):
+        raise DiagnosticError([error("E874", "no tolerance: every spread is zero, so every printed device is the "
+                                     "drawn one and the yield is 0 or 1", where,
+                                     "give a spread wider than zero, e.g. --tolerance 'r1=normal(0, 150 nm)'")])
     return problem
 
 
