@@ -224,5 +224,6 @@ def test_a_met_yield_target_writes_the_tuned_design(tmp_path, capsys):
 
 
 def test_only_zero_spreads_is_E874(tmp_path, capsys):
-    d = _design(tmp_path, params=FREE.replace(" +- 150 nm", " +- 0 nm"))
-    _bad(tmp_path, capsys, [d, *FAST], 1, "E874")
+    d = _design(tmp_path, params=FREE.replace(" +- 150 nm", ""))
+    zero = [a for r in ("r1", "r2", "r3") for a in ("--tolerance", f"{r}=0nm")]
+    _bad(tmp_path, capsys, [d, *zero, *FAST], 1, "E874")
