@@ -50,6 +50,7 @@ PAIR = os.path.join(ROOT, "tests", "data", "fit_pair.acl")
 PAIR_CAL = os.path.join(ROOT, "tests", "data", "fit_pair_cal.acl")
 SPRING_CAL = os.path.join(ROOT, "tests", "data", "fit_spring_cal.acl")
 LATCH = os.path.join(ROOT, "examples", "fig6_bistable_latch.acl")
+LATCH_STATE = os.path.join(ROOT, "tests", "data", "fit_latch_state.acl")
 
 FREQS = (105e3, 115e3, 125e3, 135e3, 145e3)
 
@@ -71,6 +72,9 @@ def kinds():
                   Experiment(frequencies=FREQS, voltages=tuple(np.linspace(0, 11, 12)), observables=("cal",),
                              repeats=2, label="calibration", interval=0.5)]
     latch = Experiment(frequencies=(115e3, 125e3, 135e3, 145e3), voltages=tuple(np.linspace(0, 60, 13)), repeats=2)
+    # the switched state observed too: ramps to the declared vmax = 100 V in 2.5 V steps at 5 frequencies, so the
+    # latch switches at 3-5 of them and the threshold voltage is seen per frequency and per repeat (time)
+    latch_state = Experiment(frequencies=FREQS, voltages=tuple(np.linspace(0, 100, 41)), repeats=2)
     return {
         "cantilever": (CANT, ramps, ["gamma"], 0.2e-6, {}),
         "cantilever/geometry": (CANT, geometry, ["gamma"], 0.2e-6, {}),
@@ -80,12 +84,14 @@ def kinds():
         "spring+cal": (SPRING_CAL, spring_cal, ["gamma", "alpha"], 0.2e-6, {"alpha": 1.745e-19}),
         "latch": (LATCH, latch, ["gamma"], 0.2e-6, {}),
         "latch/known-force": (LATCH, latch, [], 0.2e-6, {}),
+        "latch+state": (LATCH_STATE, latch_state, ["gamma"], 0.2e-6, {}),
     }
 
 
 DRIFT = {"offset": 0.5e-6, "drift": 0.01e-6}
 RESONANCE = {"inv_f_ratio": 1.0 / 1.02, "gain_q": 2.0}      # broad transducer resonance at 127.5 kHz
 SAT, SAT_PAIR, SAT_LATCH = {"v_sat": 6.0}, {"v_sat": 3.0}, {"v_sat": 30.0}
+SAT_STATE = {"v_sat": 60.0}     # at V_s = 30 V the capped force never reaches the switching force: no switch to 100 V
 GAIN, SHRINK = {"gain_slope": 1.5}, {"shrink_rate": 0.004}
 LARGE = {"elastica_weight": 1.0}
 CASES = [
@@ -134,8 +140,15 @@ CASES = [
     ("latch", {"bubble_shrinkage": SHRINK}),
     ("latch/known-force", {"stiffness_scale": {"e_scale": 0.7}}),
     ("latch", {"drive_saturation": SAT_LATCH, "offset_drift": DRIFT}),
+    ("latch+state", {"transducer_gain": GAIN}),
+    ("latch+state", {"transducer_resonance": RESONANCE}),
+    ("latch+state", {"drive_saturation": SAT_STATE}),
+    ("latch+state", {"bubble_shrinkage": SHRINK}),
+    ("latch+state", {"offset_drift": DRIFT}),
+    ("latch+state", {"drive_saturation": SAT_STATE, "offset_drift": DRIFT}),
     # clean data: nothing may be claimed
     ("cantilever", {}), ("cantilever/geometry", {}), ("pair", {}), ("pair+cal", {}), ("spring+cal", {}), ("latch", {}),
+    ("latch+state", {}),
     # outside the library: reported as unexplained structure with a covariate, no effect claimed
     ("cantilever", {"(creep)": {}}),
     ("cantilever", {"(tilt)": {}}),
@@ -177,9 +190,13 @@ def run_case(kind_name, planted, seed):
 
     design, experiment, free, noise, coeffs = kinds()[kind_name]
     lib = {k: v for k, v in planted.items() if not k.startswith("(")}
-    data, P = generate(design, experiment, lib, noise=0.0, seed=seed, coeffs=coeffs)
-    data.value = outside(kind_name, planted, data, P.base) + np.random.default_rng(seed).normal(0, noise, data.n)
-    data.sigma = np.full(data.n, noise)
+    if kind_name.endswith("+state"):
+        # state rows (0/1) drawn with the model's switching probability, no noise on them (acl.fit.synth.generate)
+        data, P = generate(design, experiment, lib, noise=noise, seed=seed, coeffs=coeffs)
+    else:
+        data, P = generate(design, experiment, lib, noise=0.0, seed=seed, coeffs=coeffs)
+        data.value = outside(kind_name, planted, data, P.base) + np.random.default_rng(seed).normal(0, noise, data.n)
+        data.sigma = np.full(data.n, noise)
     with tempfile.TemporaryDirectory() as tmp:
         path = os.path.join(tmp, "d.csv")
         write_csv(data, path)
@@ -236,6 +253,24 @@ def markdown(rows) -> str:
     return "\n".join(lines)
 
 
+NOTE = ("benchmarks/fit_diagnosis.py --seeds 10 (seeds 100..109); noise 0.2 um (pair 0.3 um); `code`: the commit each "
+        "case ran at")
+
+
+def _commit() -> str:
+    """The short commit of the code a case runs at (the `code` field of its rows); "+" when the tree has changes."""
+    import subprocess
+
+    try:
+        head = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, capture_output=True, text=True,
+                              check=True).stdout.strip()
+        dirty = subprocess.run(["git", "status", "--porcelain", "--", "acl", "benchmarks/fit_diagnosis.py"], cwd=ROOT,
+                               capture_output=True, text=True, check=True).stdout.strip()
+    except (OSError, subprocess.CalledProcessError):
+        return "unknown"
+    return head + ("+" if dirty else "")
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser()
     ap.add_argument("--seeds", type=int, default=10)
@@ -253,6 +288,7 @@ def main(argv=None) -> int:
         with open(args.json) as fh:
             kept = json.load(fh)["rows"]
     order = [label(k, p) for k, p in CASES]
+    code = _commit()
 
     def save():
         if not args.json:
@@ -261,8 +297,7 @@ def main(argv=None) -> int:
         every = [r for r in kept if r["case"] not in names and r["case"] in order] + rows
         every.sort(key=lambda r: (order.index(r["case"]), r["seed"]))
         with open(args.json + ".tmp", "w") as fh:
-            json.dump({"noise_note": "noise 0.2 um (pair 0.3 um); seeds as listed per row", "rows": every}, fh,
-                      indent=0)
+            json.dump({"note": NOTE, "rows": every}, fh, indent=0)
         os.replace(args.json + ".tmp", args.json)
     print(f"{'kind':20s} {'planted':52s} {'rate':>6s} {'rmse/noise':>10s}  wrong selections / unexplained")
     chosen = CASES
@@ -279,7 +314,8 @@ def main(argv=None) -> int:
             continue
         if any(x and x in name for x in args.exclude.split(",")):
             continue
-        res = [run_case(kind_name, planted, s) for s in range(args.first_seed, args.first_seed + args.seeds)]
+        res = [dict(run_case(kind_name, planted, s), code=code)
+               for s in range(args.first_seed, args.first_seed + args.seeds)]
         rows.extend(res)
         rate = sum(r["ok"] for r in res) / len(res)
         rm = float(np.mean([r["rmse_after_over_noise"] for r in res]))
