@@ -75,6 +75,10 @@ def kinds():
     # the switched state observed too: ramps to the declared vmax = 100 V in 2.5 V steps at 5 frequencies, so the
     # latch switches at 3-5 of them and the threshold voltage is seen per frequency and per repeat (time)
     latch_state = Experiment(frequencies=FREQS, voltages=tuple(np.linspace(0, 100, 41)), repeats=2)
+    # and latches of three angles (switching forces ~0.7x..1.4x): each frequency switches at several voltages, which
+    # separates a drive nonlinearity in V from a gain shape in f (one threshold per frequency cannot); 0.25 s a row
+    angles = Experiment(frequencies=FREQS, voltages=tuple(np.linspace(0, 100, 41)),
+                        sets={"theta": ["30 deg", "45 deg", "60 deg"]}, interval=0.25)
     return {
         "cantilever": (CANT, ramps, ["gamma"], 0.2e-6, {}),
         "cantilever/geometry": (CANT, geometry, ["gamma"], 0.2e-6, {}),
@@ -85,6 +89,7 @@ def kinds():
         "latch": (LATCH, latch, ["gamma"], 0.2e-6, {}),
         "latch/known-force": (LATCH, latch, [], 0.2e-6, {}),
         "latch+state": (LATCH_STATE, latch_state, ["gamma"], 0.2e-6, {}),
+        "latch+state/angles": (LATCH_STATE, angles, ["gamma"], 0.2e-6, {}),
     }
 
 
@@ -146,9 +151,14 @@ CASES = [
     ("latch+state", {"bubble_shrinkage": SHRINK}),
     ("latch+state", {"offset_drift": DRIFT}),
     ("latch+state", {"drive_saturation": SAT_STATE, "offset_drift": DRIFT}),
+    ("latch+state/angles", {"transducer_gain": GAIN}),
+    ("latch+state/angles", {"transducer_resonance": RESONANCE}),
+    ("latch+state/angles", {"drive_saturation": SAT_STATE}),
+    ("latch+state/angles", {"bubble_shrinkage": SHRINK}),
+    ("latch+state/angles", {"drive_saturation": SAT_STATE, "offset_drift": DRIFT}),
     # clean data: nothing may be claimed
     ("cantilever", {}), ("cantilever/geometry", {}), ("pair", {}), ("pair+cal", {}), ("spring+cal", {}), ("latch", {}),
-    ("latch+state", {}),
+    ("latch+state", {}), ("latch+state/angles", {}),
     # outside the library: reported as unexplained structure with a covariate, no effect claimed
     ("cantilever", {"(creep)": {}}),
     ("cantilever", {"(tilt)": {}}),
@@ -190,7 +200,7 @@ def run_case(kind_name, planted, seed):
 
     design, experiment, free, noise, coeffs = kinds()[kind_name]
     lib = {k: v for k, v in planted.items() if not k.startswith("(")}
-    if kind_name.endswith("+state"):
+    if "+state" in kind_name:
         # state rows (0/1) drawn with the model's switching probability, no noise on them (acl.fit.synth.generate)
         data, P = generate(design, experiment, lib, noise=noise, seed=seed, coeffs=coeffs)
     else:
