@@ -9,6 +9,10 @@ planted, every library effect in every experiment kind that can identify it:
 * ``pair+cal``        tests/data/fit_pair_cal.acl: the pair, and the isolated calibration beam to 11 V
 * ``spring+cal``      tests/data/fit_spring_cal.acl: paper Fig. 5c spring pair, and the calibration beam
 * ``latch``           examples/fig6_bistable_latch.acl, ramps 0..60 V (through the switch) at 4 frequencies
+* ``latch+state``     tests/data/fit_latch_state.acl (the latch with `observe switched = state(snap)`), ramps
+                       0..100 V in 2.5 V steps at 5 frequencies, twice: shuttle rows (noise) and 0/1 state rows
+                       (drawn with the model's switching probability)
+* ``latch+state/angles`` the same at latch angles 30/45/60 deg (several switching voltages per frequency), once
 * ``.../known-force`` the same data with the thrust coefficient held at its declared value (a force known
                        independently): the only way to identify ``stiffness_scale`` (delta depends on P/EI)
 
@@ -170,8 +174,8 @@ CASES = [
 # cannot identify the effect.  The latch's shuttle moves less than the noise (< 0.1 um at 0.2 um) before it
 # switches and sits at state b after, so an effect that changes the switching voltage shows only in which 5 V step
 # switched: a step that least squares cannot follow (no gradient), and which the base model with a re-fitted gamma
-# often matches exactly.  (A `state(latch)` observable fitted by maximum likelihood, branch fitmech, is the way to
-# identify them; not yet in this sweep.)
+# often matches exactly.  (A `state(latch)` observable fitted by maximum likelihood is the way to identify
+# them: the latch+state kinds; with one latch only partly, docs/fit.md.)
 _SWITCH = ("the latch shows it only through which voltage step switched (shuttle travel before the switch is below "
            "the noise): not identifiable by least squares on the shuttle displacement")
 LIMITS = {
