@@ -21,6 +21,9 @@ from functools import lru_cache
 
 import numpy as np
 
+# coupling's own distances and Green matrix broadcast over a leading axis of points: (N, n, n),
+# or (N, F, n, n) with wavenumbers (N, F)
+from acl.physics.coupling import _distances as distances, green_matrix
 from acl.physics.resonance import shape_matrices, thermal_polytropic
 
 
@@ -125,39 +128,6 @@ def capsule_modes(volume, radii, density, surface_tension, ambient_pressure, pol
 # ----------------------------------------------------------------------------------------------
 # Interface coupling (coupling.green_matrix, coupled_modes, coupled_response)
 # ----------------------------------------------------------------------------------------------
-
-
-def distances(points, radii, mirror: bool):
-    """|p_i - p_j| or to the mirror image of p_j in z = 0, floored at R_i + R_j (coupling._distances); points (N, n, 3)."""
-    q = points.copy()
-    if mirror:
-        q[..., 2] = -q[..., 2]
-    d = np.linalg.norm(points[..., :, None, :] - q[..., None, :, :], axis=-1)
-    return np.maximum(d, radii[..., :, None] + radii[..., None, :])
-
-
-def green_matrix(points, radii, body, wavenumber=None, wall_reflection: float = 0.0):
-    """g_ij = exp(-ik d)/(4 pi d) + R exp(-ik d')/(4 pi d') per point (coupling.green_matrix batched; Pierce, Acoustics 4.3/5.1).
-
-    ``points`` (N, n, 3), ``radii`` (N, n); ``wavenumber`` None -> static (N, n, n), else (N, F) -> (N, F, n, n).
-    """
-    n = radii.shape[-1]
-    d = distances(points, radii, False)
-    other = body[:, None] != body[None, :]
-    direct = ~np.eye(n, dtype=bool)
-    di = distances(points, radii, True) if wall_reflection else None
-    if wavenumber is None:
-        g = np.where(direct, 1 / (4 * np.pi * d), 0.0)
-        if di is not None:
-            g = g + wall_reflection / (4 * np.pi * di)
-        return g
-    k = np.asarray(wavenumber, float)[..., None, None]                 # (N, F, 1, 1)
-    d = d[:, None]
-    g = np.where(direct, np.where(other, np.exp(-1j * k * d), 1.0 + 0j) / (4 * np.pi * d), 0.0)
-    if di is not None:
-        di = di[:, None]
-        g = g + wall_reflection * np.exp(-1j * k * di) / (4 * np.pi * di)
-    return g
 
 
 def coupled_modes(phi, omega, damping, points, radii, body, density, sound_speed, wall_reflection: float = 0.0):

@@ -98,26 +98,27 @@ def build_system(modes: Sequence[BubbleModes], points: Sequence, radii: Sequence
 
 
 def _distances(points, radii, mirror: bool) -> np.ndarray:
-    """|p_i - p_j| (or to the mirror image of p_j in z = 0), floored at R_i + R_j; points (..., n, 3)."""
+    """|p_i - p_j| (or to the mirror image of p_j in z = 0), floored at R_i + R_j; points (..., n, 3), radii (n,) or (..., n)."""
     q = points.copy()
     if mirror:
         q[..., 2] = -q[..., 2]
     d = np.linalg.norm(points[..., :, None, :] - q[..., None, :, :], axis=-1)
-    return np.maximum(d, radii[:, None] + radii[None, :])
+    return np.maximum(d, radii[..., :, None] + radii[..., None, :])
 
 
 def green_matrix(points, radii, body, wavenumber=None, wall_reflection: float = 0.0) -> np.ndarray:
     """Interface coupling g_ij = exp(-ik d)/(4 pi d) + R exp(-ik d')/(4 pi d') (free-field monopoles + wall images; Pierce, Acoustics 4.3/5.1).
 
-    ``points`` (..., n, 3).  ``wavenumber`` None gives the static (incompressible, k -> 0) real
-    matrix (..., n, n); an array (F,) gives the complex (..., F, n, n).  Same-capsule direct terms
+    ``points`` (..., n, 3), ``radii`` (n,) or (..., n).  ``wavenumber`` None gives the static
+    (incompressible, k -> 0) real matrix (..., n, n); an array (F,) or (..., F) gives the complex
+    (..., F, n, n).  Same-capsule direct terms
     stay incompressible (module doc); the diagonal direct term (self) is zero: each interface's own
     mass is in its capsule's modes.
     """
     points = np.asarray(points, float)
     radii = np.asarray(radii, float)
     body = np.asarray(body)
-    n = radii.size
+    n = radii.shape[-1]
     d = _distances(points, radii, False)
     other = body[:, None] != body[None, :]
     direct_mask = ~np.eye(n, dtype=bool)
@@ -127,7 +128,7 @@ def green_matrix(points, radii, body, wavenumber=None, wall_reflection: float = 
         if di is not None:
             g = g + wall_reflection / (4 * np.pi * di)
         return g
-    k = np.atleast_1d(np.asarray(wavenumber, float))[:, None, None]
+    k = np.atleast_1d(np.asarray(wavenumber, float))[..., None, None]
     d = d[..., None, :, :]
     phase = np.where(other, np.exp(-1j * k * d), 1.0 + 0j)
     g = np.where(direct_mask, phase / (4 * np.pi * d), 0.0)
