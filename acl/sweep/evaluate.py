@@ -56,6 +56,7 @@ from acl.design import model as M
 from acl.physics import batch as PB
 from acl.physics import constants as C
 from acl.physics.forces import jet_drag, thrust_magnitude
+from acl.physics.transducer import pressure_per_volt_rows
 
 
 class QuantityError(ValueError):
@@ -287,6 +288,7 @@ class _Rows:
         self.rows = rows
         self.n = int(rows.size)
         self.valid = np.asarray(batch.valid, bool)[rows]
+        self.fields = batch.fields            # which fields vary (membership only; values through get)
         self._batch = batch
 
     def get(self, path: str) -> np.ndarray:
@@ -446,10 +448,117 @@ class _Evaluator:
                     "outer": np.stack([self.capsule(c)["outer"] for c in range(len(self.caps))], axis=1)}
         return self.once("layout", build)
 
+    # -- drives: the programs' amplitudes and the transducer's values per point -----------------------
+    def moving(self, path: str) -> bool:
+        """Whether field ``path`` varies over the points."""
+        return path in self.batch.fields
+
+    def transducer_moves(self) -> bool:
+        return self.design.transducer is not None and any(p.startswith("transducer.") for p in self.batch.fields)
+
     def gain(self, f) -> np.ndarray:
+        """Transducer gain (Pa/V) at the tones ``f`` (T,): (T,) from the design's table, or (N, T) from each
+        point's table when a swept parameter moves the transducer (paper Fig. S1, linear interpolation)."""
         from acl.analysis.acoustics import drive_gain
 
-        return drive_gain(self.design, f)[0]
+        if not self.transducer_moves():
+            return drive_gain(self.design, f)[0]
+        fs, gs = self.gain_table()
+        return pressure_per_volt_rows(np.broadcast_to(np.asarray(f, float), (self.n, np.size(f))), fs, gs)
+
+    def gain_rows(self, f: np.ndarray) -> np.ndarray:
+        """Gain (Pa/V) at one frequency per point ``f`` (N,)."""
+        from acl.analysis.acoustics import drive_gain
+
+        if not self.transducer_moves():
+            return drive_gain(self.design, f)[0]
+        fs, gs = self.gain_table()
+        return pressure_per_volt_rows(np.asarray(f, float)[:, None], fs, gs)[:, 0]
+
+    def gain_table(self) -> tuple[np.ndarray, np.ndarray]:
+        def build():
+            t = self.design.transducer
+            fs = np.stack([self.get(f"transducer.gain_frequencies.{k}") for k in range(len(t.gain_frequencies))], axis=1)
+            gs = np.stack([self.get(f"transducer.gain_pa_per_v.{k}") for k in range(len(t.gain_pa_per_v))], axis=1)
+            return fs, gs
+        return self.once("gain_table", build)
+
+    def volt(self, path: str, nominal: float, divisor: int = 1):
+        """One tone's amplitude: the float ``nominal`` (computed as the scalar code does) when ``path`` does
+        not vary, else a key (path, divisor) that :meth:`volts` reads per point (hashable: cache keys)."""
+        return ("field", path, divisor) if self.moving(path) else nominal
+
+    def volts(self, volts: tuple) -> np.ndarray:
+        """Tone amplitudes (T,) of a drive whose amplitudes are floats, else (N, T) per point."""
+        if all(isinstance(v, (int, float)) for v in volts):
+            return np.asarray(volts, float)
+        return np.stack([self._volt(v) for v in volts], axis=1) if volts else np.zeros((self.n, 0))
+
+    def _volt(self, v) -> np.ndarray:
+        if isinstance(v, (int, float)):
+            return np.full(self.n, float(v))
+        if v[0] == "field":
+            return self.get(v[1]) / v[2] if v[2] != 1 else self.get(v[1]).copy()
+        # ("max", elements): the largest amplitude applied at a frequency, 0 -> the reference (report._amplitude_at)
+        from acl.analysis.report import DEFAULT_V
+
+        best = np.zeros(self.n)
+        for e in v[1]:
+            best = np.maximum(best, self._volt(e))
+        return np.where(best > 0, best, DEFAULT_V)
+
+    def pressure(self, freqs, volts: tuple) -> np.ndarray:
+        """Drive pressure amplitude (Pa) of each tone: (T,), or (N, T) when amplitudes or gains vary per point."""
+        return self.volts(volts) * self.gain(np.asarray(freqs, float))
+
+    def limit_volt(self, p, i: int, st):
+        """The voltage limit of a follow/switch/hold step: its own `limit`, else the transducer's maximum
+        (None: neither; report.step_drives then uses the reference voltage)."""
+        if st.limits.max_voltage is not None:
+            return self.volt(f"programs.{p.name}.steps.{i}.limits.max_voltage", st.limits.max_voltage)
+        if self.design.transducer is not None:
+            return self.volt("transducer.max_voltage", self.design.transducer.max_voltage)
+        return None
+
+    def step_drives(self) -> list:
+        """(program, step index, step, frequencies, amplitudes) of every step with a definite drive
+        (report.step_drives), the amplitudes per point where a swept parameter moves them."""
+        def build():
+            from acl.analysis.report import step_drives
+
+            out = []
+            for p, i, st, drive in step_drives(self.design):
+                freqs = tuple(t.frequency for t in drive.tones)
+                if st.kind == "drive":
+                    volts = tuple(self.volt(f"programs.{p.name}.steps.{i}.drive.tones.{j}.amplitude", t.amplitude)
+                                  for j, t in enumerate(drive.tones))
+                else:
+                    lim = self.limit_volt(p, i, st)
+                    volts = tuple(t.amplitude if not isinstance(lim, tuple) else ("field", lim[1], len(st.tones))
+                                  for t in drive.tones)
+                out.append((p, i, st, freqs, volts))
+            return out
+        return self.once("step_drives", build)
+
+    def amplitude_at(self, f: float):
+        """The largest amplitude the programs apply at f (report._amplitude_at), per point when it moves."""
+        from acl.analysis.report import _amplitude_at
+
+        elems, moving = [], False
+        for p in self.design.programs:
+            for i, st in enumerate(p.steps):
+                if st.kind == "drive":
+                    for j, t in enumerate(st.drive.tones):
+                        if t.frequency == f:
+                            e = self.volt(f"programs.{p.name}.steps.{i}.drive.tones.{j}.amplitude", t.amplitude)
+                            elems.append(e)
+                            moving |= isinstance(e, tuple)
+                elif st.kind in ("follow", "switch", "hold") and f in st.tones:
+                    e = self.limit_volt(p, i, st)
+                    if e is not None:
+                        elems.append(e)
+                        moving |= isinstance(e, tuple)
+        return ("max", tuple(elems)) if moving else _amplitude_at(self.design, f)
 
     def thrust_scale(self) -> np.ndarray:
         """(N, C) declared thrust coefficient / the capsule's own thrust per V^2 at its first reported mode (acoustics._thrust_scale)."""
@@ -466,7 +575,7 @@ class _Evaluator:
                 h0 = PB.uncoupled_response(vol, om, om / q, body, f1[:, None])
                 u = PB.coupled_response(h0, g["points"], g["radii"], body, f1[:, None], self.medium["density"],
                                         self.medium["sound_speed"], C.SUBSTRATE_REFLECTION)[:, 0]
-                u = u * self.gain(f1)[:, None]
+                u = u * self.gain_rows(f1)[:, None]
                 per = thrust_magnitude(u, g["radii"], 2 * np.pi * f1[:, None], self.medium["viscosity"][:, None],
                                        C.STREAMING_CONSTANT)
                 total = np.linalg.norm((per[..., None] * -g["normals"]).sum(axis=1), axis=-1)
@@ -483,18 +592,17 @@ class _Evaluator:
         """Total acoustic force (N, C, 3) at capsule centres (N, C, 3) for tones (freqs, volts) (acoustics._Engine.forces)."""
         lay = self.layout()
         f = np.asarray(freqs, float)
-        v = np.asarray(volts, float)
-        pressure = v * self.gain(f)                                       # (T,)
+        pressure = self.pressure(f, volts)                                # (T,) or (N, T) per point
         pts = centres[:, lay["body"]] + lay["offsets"]                    # (N, n, 3)
         if not parts and f.size == 1 and lay["body"].tolist() == [0, 1]:  # two one-orifice capsules, one tone
             h = self.h0(tuple(freqs))[:, 0]
             return PB.two_bubble_forces(np.stack([h[:, 0, 0], h[:, 1, 1]], axis=1), pts, lay["radii"], lay["normals"],
-                                        centres, lay["outer"], self.thrust_scale(), 2 * np.pi * f[0], pressure[0],
+                                        centres, lay["outer"], self.thrust_scale(), 2 * np.pi * f[0], pressure[..., 0],
                                         self.medium["density"], self.medium["sound_speed"], self.medium["viscosity"],
                                         C.STREAMING_CONSTANT, C.SUBSTRATE_REFLECTION)
         u = PB.coupled_response(self.h0(tuple(freqs)), pts, lay["radii"], lay["body"], f[None, :],
                                 self.medium["density"], self.medium["sound_speed"], C.SUBSTRATE_REFLECTION)
-        u = u * pressure[None, :, None]                                   # (N, T, n)
+        u = u * (pressure[None, :, None] if pressure.ndim == 1 else pressure[:, :, None])   # (N, T, n)
         w = 2 * np.pi * f
         thr = thrust_magnitude(u, lay["radii"][:, None, :], w[None, :, None], self.medium["viscosity"][:, None, None],
                                C.STREAMING_CONSTANT).sum(axis=1) * self.thrust_scale()[:, lay["body"]]   # (N, n)
@@ -518,11 +626,9 @@ class _Evaluator:
 
     # -- pairs at the program frequencies -------------------------------------------------------------
     def pair_quantities(self, f: float) -> dict:
-        from acl.analysis.report import _amplitude_at
-
         def build():
             lay = self.layout()
-            v = _amplitude_at(self.design, f)
+            v = self.amplitude_at(f)
             centres = lay["rest"]
             _, u, thr, att, pts = self.forces(centres, (f,), (v,), parts=True)
             thrust_vec = np.einsum("bn,bnk,nc->bck", thr, -lay["normals"], lay["onehot"])
@@ -889,6 +995,8 @@ class _Evaluator:
 
     def snap_in(self, f: float) -> np.ndarray:
         vmax = self.design.transducer.max_voltage if self.design.transducer else 20.0
+        if self.design.transducer is not None and self.moving("transducer.max_voltage"):
+            vmax = self.get("transducer.max_voltage")          # each point's amplifier limit
         br = self.pair_branch((f,), (1.0,))
         v = np.sqrt(br["v2_fold"])
         out = np.where(v <= vmax, v, np.nan)
@@ -896,7 +1004,7 @@ class _Evaluator:
         rows = np.flatnonzero(~br["closing"] & ~br["opening"] | br["lateral"])
         if rows.size:
             with np.errstate(all="ignore"):
-                out[rows] = self.subset(rows).plane_snap((f,), (1.0,), vmax)
+                out[rows] = self.subset(rows).plane_snap((f,), (1.0,), vmax if np.ndim(vmax) == 0 else vmax[rows])
         return out
 
     def closing_equilibrium(self, freqs, volts, hi):
@@ -929,7 +1037,7 @@ class _Evaluator:
 
     def pair_deflection(self, drive: M.Drive) -> dict:
         """Beam deflections of the pair at drive scale 1 on the stable branch from rest (mechanics.equilibrium): NaN after snap-in."""
-        disp, ok = self.pair_equilibrium(drive)
+        disp, ok = self.pair_equilibrium(tuple(t.frequency for t in drive.tones), tuple(t.amplitude for t in drive.tones))
         out = {"equilibrium_ok": ok}
         for c in range(len(self.caps)):
             bm = self.beam_of(c)
@@ -937,15 +1045,13 @@ class _Evaluator:
                 out[f"tip_deflection_{_ident(bm['name'])}_m"] = np.where(ok, np.linalg.norm(disp[:, c], axis=-1), np.nan)
         return out
 
-    def pair_equilibrium(self, drive: M.Drive):
+    def pair_equilibrium(self, freqs: tuple, volts: tuple):
         """(displacement (N, C, 3), ok) of the pair's capsules at ``drive`` (mechanics.equilibrium from rest); not ok after snap-in.
 
         A pair the drive pulls together along its line: regula falsi on V^2(s) = 1 below the fold of
         the reduced branch; any other (pushed apart, one pushed and one pulled, a lateral force):
         natural continuation in V^2 with Newton on both beams' planes of motion.
         """
-        freqs = tuple(t.frequency for t in drive.tones)
-        volts = tuple(t.amplitude for t in drive.tones)
         return self.once(("pair_eq", freqs, volts), lambda: self._pair_equilibrium(freqs, volts))
 
     def _pair_equilibrium(self, freqs, volts):
@@ -978,8 +1084,6 @@ class _Evaluator:
 
     def gap_over_steps(self, a: str, b: str) -> np.ndarray:
         """require gap: the smallest distance of orifices a, b over rest and the equilibrium of every program step, 0 after snap-in (report._require)."""
-        from acl.analysis.report import step_drives
-
         lay = self.layout()
         (ca, oa), (cb, ob) = a.split("."), b.split(".")
         names = [c.name for c in self.caps]
@@ -992,8 +1096,8 @@ class _Evaluator:
 
         zero = np.zeros((self.n, len(self.caps), 3))
         gap = np.linalg.norm(point(cb, ob, zero) - point(ca, oa, zero), axis=-1)
-        for _p, _i, _st, drive in step_drives(self.design):
-            disp, ok = self.pair_equilibrium(drive)
+        for _p, _i, _st, freqs, volts in self.step_drives():
+            disp, ok = self.pair_equilibrium(freqs, volts)
             g = np.linalg.norm(point(cb, ob, disp) - point(ca, oa, disp), axis=-1)
             gap = np.minimum(gap, np.where(ok, g, 0.0))
         return gap
@@ -1001,8 +1105,6 @@ class _Evaluator:
     # -- latches ------------------------------------------------------------------------------------
     def latch(self, name: str) -> dict:
         def build():
-            from acl.analysis.report import step_drives
-
             lt = self.design.latch(name)
             base = f"latches.{name}"
             geo = [self.get(f"{base}.{k}") for k in ("angle", "length", "width", "thickness", "youngs_modulus")]
@@ -1017,9 +1119,8 @@ class _Evaluator:
                        if j.kind == "mount" and j.target_kind == "latch" and j.target == name]
             lay = self.layout()
             margins = {}
-            for p, i, _st, drive in step_drives(self.design):
-                F = self.forces(lay["rest"], tuple(t.frequency for t in drive.tones),
-                                tuple(t.amplitude for t in drive.tones))
+            for p, i, _st, freqs, volts in self.step_drives():
+                F = self.forces(lay["rest"], freqs, volts)
                 push = sign * sum((F[:, c] @ axis for c in carried), np.zeros(self.n))
                 margins[(p.name, i)] = np.where(required > 0, push / np.where(required > 0, required, 1.0), np.inf)
             return {"switching": fsw, "release": rel, "bistable": bistable, "margins": margins}
@@ -1077,7 +1178,7 @@ class _Evaluator:
             t = self.design.transducer
             if t is None:
                 return ok
-            lo, hi = t.band
+            lo, hi = (self.get(f"transducer.band.{k}") for k in (0, 1)) if self.transducer_moves() else t.band
             for c in range(len(self.caps)):
                 f = self.modes(c)[0]
                 ok &= np.all(np.isnan(f) | ((f >= lo) & (f <= hi)), axis=1)
@@ -1156,23 +1257,26 @@ class _Evaluator:
         lay = self.layout()
         ok = np.ones(self.n, bool)
         for p in self.design.programs:
-            for st in p.steps:
+            for i, st in enumerate(p.steps):
+                base = f"programs.{p.name}.steps.{i}."
                 if st.kind == "drive":
-                    drives = [st.drive]
+                    drives = [(tuple(t.frequency for t in st.drive.tones),
+                               tuple(self.volt(f"{base}drive.tones.{j}.amplitude", t.amplitude)
+                                     for j, t in enumerate(st.drive.tones)))]
                 elif st.kind == "sweep":
-                    drives = [M.Drive(tones=(M.Tone(frequency=float(f), amplitude=st.amplitude),))
-                              for f in np.linspace(st.f_start, st.f_stop, samples)]
+                    amp = self.volt(base + "amplitude", st.amplitude)
+                    drives = [((float(f),), (amp,)) for f in np.linspace(st.f_start, st.f_stop, samples)]
                 else:
                     continue
-                for dr in drives:
-                    f = np.array([t.frequency for t in dr.tones])
-                    v = np.array([t.amplitude for t in dr.tones])
+                for freqs, volts in drives:
+                    f = np.array(freqs)
                     if f.size == 0:
                         continue
                     pts = lay["rest"][:, lay["body"]] + lay["offsets"]
                     u = PB.coupled_response(self.h0(tuple(f)), pts, lay["radii"], lay["body"], f[None, :],
                                             self.medium["density"], self.medium["sound_speed"], C.SUBSTRATE_REFLECTION)
-                    u = u * (v * self.gain(f))[None, :, None]
+                    pr = self.pressure(f, volts)
+                    u = u * (pr[None, :, None] if pr.ndim == 1 else pr[:, :, None])
                     eps = interface_centre_amplitude(np.abs(u).sum(axis=1), lay["radii"])
                     ok &= np.all(eps / lay["radii"] <= limit, axis=1)
         return ok
