@@ -156,3 +156,52 @@ def test_a_parameter_moving_a_tone_frequency_still_leaves_the_program_columns_ou
     assert not [c for c in t.columns if c.startswith(("force_", "snap_in_", "lint_"))]
     assert any("programs' frequencies" in n for n in t.notes)
     assert list(t["code"]) == ["", "", ""]
+
+
+def _rule_verdicts(design, fns) -> dict:
+    from acl.lint.config import load_config
+    from acl.lint.context import Context
+    from acl.lint.registry import load_rules
+
+    ctx = Context(design, load_config(None, load_rules()), None)
+    return {code: not list(fn(ctx) or ()) for code, fn in fns.items()}
+
+
+def test_lint_acl102_and_acl103_columns_equal_the_rules_on_perturbed_points():
+    """ACL102 (low gain at a mode) and ACL103 (modes of separately driven capsules overlapping) are batched:
+    the verdict of each perturbed point equals the rule's on the materialised design, both outcomes hit."""
+    from acl.lint.rules import acoustics
+    from acl.sweep.evaluate import evaluate
+    from acl.sweep.perturb import FieldBatch, materialize
+
+    d = acl.load(str(EX / "fig1f_selective_beams.acl"))
+    rng = np.random.default_rng(8)
+    n = 24
+    fields = {}
+    for cap in d.capsules:
+        for o in cap.orifices:
+            fields[f"capsules.{cap.name}.orifices.{o.name}.radius"] = o.radius * np.exp(0.35 * rng.standard_normal(n))
+    b = FieldBatch(design=d, n=n, fields=fields, valid=np.ones(n, bool), code=np.full(n, ""))
+    cols = evaluate(b, ["lint_acl102_pass", "lint_acl103_pass"])
+    fns = {"acl102": acoustics.low_transducer_gain, "acl103": acoustics.mode_crosstalk}
+    seen = set()
+    for i in range(n):
+        want = _rule_verdicts(materialize(b, i), fns)
+        for code, ok in want.items():
+            assert cols[f"lint_{code}_pass"][i] == ok, (i, code)
+            seen.add((code, ok))
+    assert seen == {(c, v) for c in fns for v in (True, False)}, seen
+
+
+def test_lint_acl102_follows_each_points_transducer_table():
+    from acl.lint.rules import acoustics
+
+    t = acl.sweep(str(DRIVES), tolerance={"g125": "normal(0, 300 Pa/V)"}, n=40, seed=9,
+                  quantities=["lint_acl102_pass"])
+    seen = set()
+    for i in np.flatnonzero(t["valid"]):
+        d = acl.load(str(DRIVES), overrides={k: float(t[k][i]) for k in ("volts", "limit", "vmax", "g125")})
+        ok = _rule_verdicts(d, {"acl102": acoustics.low_transducer_gain})["acl102"]
+        assert t["lint_acl102_pass"][i] == ok, i
+        seen.add(ok)
+    assert seen == {True, False}

@@ -109,7 +109,7 @@ QUANTITIES: tuple[Quantity, ...] = (
 )
 
 STATIC_EFFECTS = {"offset_drift", "bubble_shrinkage"}
-LINT_RULES = ("acl101", "acl105", "acl501", "acl502", "acl503", "acl504", "acl603")
+LINT_RULES = ("acl101", "acl102", "acl103", "acl105", "acl501", "acl502", "acl503", "acl504", "acl603")
 SNAP_GRID = 12            # closure grid of the snap-in search
 SNAP_GOLDEN = 14          # golden-section steps on the fold
 SPLIT_ITER = 5            # secant steps for the split of the closure between the two beams
@@ -1210,7 +1210,65 @@ class _Evaluator:
             return ok
         if code == "acl105":
             return self.linear_ok(thr["linear_amplitude"], int(thr["sweep_samples"]))
+        if code == "acl102":
+            return self.gain_ok(thr["gain_ratio"])
+        if code == "acl103":
+            return self.crosstalk_ok(thr["bandwidth_overlap"])
         raise QuantityError("E-SWEEP-Q01", f"lint rule {code} is not batched")
+
+    def gain_ok(self, ratio: float) -> np.ndarray:
+        """ACL102: the transducer's gain at every in-band mode is at least ``ratio`` x its best gain over
+        a 400-point grid of the band (lint.rules.acoustics.low_transducer_gain), per point's band and table."""
+        ok = np.ones(self.n, bool)
+        t = self.design.transducer
+        if t is None:
+            return ok
+        moves = self.transducer_moves()
+        if moves:
+            lo, hi = self.get("transducer.band.0"), self.get("transducer.band.1")
+            step = (hi - lo) / 399                            # np.linspace(lo, hi, 400), row by row, same bits
+            grid = np.arange(400)[None, :] * step[:, None] + lo[:, None]
+            grid[:, -1] = hi
+            fs, gs = self.gain_table()
+            best = pressure_per_volt_rows(grid, fs, gs).max(axis=1)
+        else:
+            lo, hi = t.band
+            best = np.full(self.n, float(self.gain(np.linspace(lo, hi, 400)).max()))
+        lo_, hi_ = np.broadcast_to(lo, (self.n,))[:, None], np.broadcast_to(hi, (self.n,))[:, None]
+        for c in range(len(self.caps)):
+            f = self.modes(c)[0]                                          # (N, P), NaN padded
+            if f.shape[1] == 0:
+                continue
+            if moves:
+                g = pressure_per_volt_rows(np.where(np.isfinite(f), f, 0.0), *self.gain_table())
+            else:
+                g = self.gain(np.where(np.isfinite(f), f, 0.0).ravel()).reshape(f.shape)
+            inband = (lo_ <= f) & (f <= hi_)
+            ok &= ~np.any(inband & (g < ratio * best[:, None]) & (best[:, None] > 0), axis=1)
+        return ok
+
+    def crosstalk_ok(self, k: float) -> np.ndarray:
+        """ACL103: no two modes of capsules meant to be driven separately overlap within k x their mean
+        half-bandwidth (lint.rules.acoustics.mode_crosstalk), modes and Q of each point."""
+        from acl.lint.rules.acoustics import _separate_pairs
+
+        class _Steps:                       # what _separate_pairs reads: the design and its program steps
+            design = self.design
+
+            @staticmethod
+            def steps():
+                return ((p, st) for p in self.design.programs for st in p.steps)
+
+        ok = np.ones(self.n, bool)
+        idx = {c.name: i for i, c in enumerate(self.caps)}
+        for (a, b) in _separate_pairs(_Steps()):
+            fa, qa = self.modes(idx[a])
+            fb, qb = self.modes(idx[b])
+            f1, q1 = fa[:, :, None], qa[:, :, None]
+            f2, q2 = fb[:, None, :], qb[:, None, :]
+            half = (f1 / q1 + f2 / q2) / 2
+            ok &= ~np.any(np.abs(f1 - f2) < k * half, axis=(1, 2))
+        return ok
 
     def half_height(self, c: int) -> np.ndarray:
         """Extent of capsule c's outer body below its centre (geometry.half_extent along -z)."""
