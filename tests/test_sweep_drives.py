@@ -205,3 +205,46 @@ def test_lint_acl102_follows_each_points_transducer_table():
         assert t["lint_acl102_pass"][i] == ok, i
         seen.add(ok)
     assert seen == {True, False}
+
+
+def test_lint_acl201_column_equals_the_rule_across_the_critical_distance():
+    """ACL201 (Eq. 3 criterion, lint's default) per point: the Fig. 4 pair below and above d_c (~50 um),
+    with its thrust coefficient spread; verdicts equal lint.rules.forces.snap_in on each point's design."""
+    from acl.lint.rules import forces
+
+    path = EX / "fig4_facing_pair.acl"
+    t = acl.sweep(str(path), vary={"gap": "20um..80um:7"}, tolerance={"gamma": "30 %"}, n=3, seed=4,
+                  quantities=["lint_acl201_pass"])
+    seen = set()
+    for i in range(len(t)):
+        d = acl.load(str(path), overrides={"gap": float(t["gap"][i]), "gamma": float(t["gamma"][i])})
+        ok = _rule_verdicts(d, {"acl201": forces.snap_in})["acl201"]
+        assert t["lint_acl201_pass"][i] == ok, (i, float(t["gap"][i]))
+        seen.add(ok)
+    assert seen == {True, False}
+
+
+def test_lint_acl201_is_not_offered_with_a_sweep_step_and_says_why():
+    from acl.sweep.evaluate import supported
+
+    names, missing = supported(acl.load(str(DRIVES)))
+    assert "lint_acl201_pass" not in names and "sweep" in missing["lint_acl201"]
+
+
+@pytest.mark.parametrize("example", sorted(p.stem for p in EX.glob("*.acl")))
+def test_every_batched_lint_column_equals_its_rule_on_each_example(example):
+    from acl.lint.rules import acoustics, fabrication, forces
+    from acl.sweep.evaluate import evaluate, supported
+    from acl.sweep.perturb import FieldBatch
+
+    d = acl.load(str(EX / f"{example}.acl"))
+    fns = {"acl101": acoustics.resonance_outside_band, "acl102": acoustics.low_transducer_gain,
+           "acl103": acoustics.mode_crosstalk, "acl105": acoustics.bubble_beyond_linear, "acl201": forces.snap_in,
+           "acl501": fabrication.marginal_feature, "acl502": fabrication.substrate_proximity,
+           "acl503": fabrication.orifice_too_small, "acl504": fabrication.orifice_too_large}
+    names, _ = supported(d)
+    wanted = [f"lint_{c}_pass" for c in fns if f"lint_{c}_pass" in names]
+    b = FieldBatch(design=d, n=1, fields={}, valid=np.ones(1, bool), code=np.full(1, ""))
+    cols = evaluate(b, wanted)
+    want = _rule_verdicts(d, {c: fn for c, fn in fns.items() if f"lint_{c}_pass" in wanted})
+    assert {c: bool(cols[f"lint_{c}_pass"][0]) for c in want} == want

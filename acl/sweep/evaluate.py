@@ -109,7 +109,7 @@ QUANTITIES: tuple[Quantity, ...] = (
 )
 
 STATIC_EFFECTS = {"offset_drift", "bubble_shrinkage"}
-LINT_RULES = ("acl101", "acl102", "acl103", "acl105", "acl501", "acl502", "acl503", "acl504", "acl603")
+LINT_RULES = ("acl101", "acl102", "acl103", "acl105", "acl201", "acl501", "acl502", "acl503", "acl504", "acl603")
 SNAP_GRID = 12            # closure grid of the snap-in search
 SNAP_GOLDEN = 14          # golden-section steps on the fold
 SPLIT_ITER = 5            # secant steps for the split of the closure between the two beams
@@ -203,12 +203,17 @@ def supported(design: M.Design, at: str | None = None) -> tuple[list[str], dict[
             missing[f"require_{i}"] = f"`{r.text}` is not batched for this design"
     if design.requires and all(f"require_{i}_pass" in names for i in range(1, len(design.requires) + 1)):
         names.append("requires_pass")
+    sweeps = any(st.kind == "sweep" for p in design.programs for st in p.steps)
     names += [f"lint_{code}_pass" for code in LINT_RULES
-              if code != "acl105" or not effects]
+              if (code not in ("acl105", "acl201") or not effects) and (code != "acl201" or not sweeps)]
     if "lint_acl603_pass" in names and "requires_pass" not in names and design.requires:
         names.remove("lint_acl603_pass")
     if effects:
         missing["lint_acl105"] = "eps/R with declared effects is not batched"
+        missing["lint_acl201"] = "forces with declared effects are not batched"
+    elif sweeps:
+        missing["lint_acl201"] = ("a `sweep` step's tones include each point's own modes (acl.lint.context.sweep_frequencies): "
+                                  "not one set of frequencies for all points")
     return names, missing
 
 
@@ -1210,11 +1215,80 @@ class _Evaluator:
             return ok
         if code == "acl105":
             return self.linear_ok(thr["linear_amplitude"], int(thr["sweep_samples"]))
+        if code == "acl201":
+            return self.snap_in_ok(thr["snap_margin"])
         if code == "acl102":
             return self.gain_ok(thr["gain_ratio"])
         if code == "acl103":
             return self.crosstalk_ok(thr["bandwidth_overlap"])
         raise QuantityError("E-SWEEP-Q01", f"lint rule {code} is not batched")
+
+    def lint_drives(self, p) -> list:
+        """(step, frequencies, amplitudes) of each drive lint knows for the steps of program ``p``
+        (acl.lint.context.Context._step_drives): a drive step's tones; each pinned tone of a
+        follow/switch/hold alone at the step's limit (or the transducer's maximum); sweeps excluded."""
+        out = []
+        for i, st in enumerate(p.steps):
+            if st.kind == "drive":
+                out.append((st, tuple(t.frequency for t in st.drive.tones),
+                            tuple(self.volt(f"programs.{p.name}.steps.{i}.drive.tones.{j}.amplitude", t.amplitude)
+                                  for j, t in enumerate(st.drive.tones))))
+            elif st.kind in ("follow", "switch", "hold") and st.tones:
+                v = self.limit_volt(p, i, st)
+                if v is not None:
+                    out += [(st, (f,), (v,)) for f in st.tones]
+        return out
+
+    def snap_in_ok(self, margin: float) -> np.ndarray:
+        """ACL201 (the Eq. 3 criterion; lint's default, without `mechanics`): no pair, outside the pairs a
+        program's `hold`/`cross` governs and not both fixed, is closer than margin x d_c under a drive of
+        the program while each capsule's thrust pushes it away from the other
+        (lint.rules.forces.snap_in; acoustics.pair_table's dominant interfaces at the strongest tone)."""
+        from acl.lint.rules.forces import _managed
+
+        ok = np.ones(self.n, bool)
+        if len(self.caps) < 2:
+            return ok
+        lay = self.layout()
+        names = [c.name for c in self.caps]
+        fixed = {j.capsule for j in self.design.joints if j.kind == "fix"}
+        rows = np.arange(self.n)
+        for p in self.design.programs:
+            crossing = _managed(p)
+            for _st, freqs, volts in self.lint_drives(p):
+                if not freqs:
+                    continue
+                _, u, thr, att, pts = self.forces(lay["rest"], freqs, volts, parts=True)
+                thrust_vec = np.einsum("bn,bnk,nc->bck", thr, -lay["normals"], lay["onehot"])
+                mag = np.abs(u)                                                          # (N, T, n)
+                for a, b in _pairs(self.design):
+                    if tuple(sorted((a, b))) in crossing or (a in fixed and b in fixed):
+                        continue
+                    ca, cb = names.index(a), names.index(b)
+                    ia, ib = np.flatnonzero(lay["body"] == ca), np.flatnonzero(lay["body"] == cb)
+                    if not (ia.size and ib.size):
+                        continue
+                    sep = pts[:, ib][:, None, :, :] - pts[:, ia][:, :, None, :]
+                    dd = np.linalg.norm(sep, axis=-1)
+                    fa = np.einsum("bij,bijk->bk", att[:, ia][:, :, ib] / dd, sep)
+                    line = lay["rest"][:, cb] - lay["rest"][:, ca]
+                    dist = np.linalg.norm(line, axis=-1)
+                    unit = line / np.where(dist > 0, dist, 1.0)[:, None]
+                    attraction = np.einsum("bk,bk->b", fa, unit)
+                    # dominant interfaces at the strongest tone (first maxima, as numpy's argmax)
+                    t = np.argmax(mag[:, :, ia].max(axis=2) * mag[:, :, ib].max(axis=2), axis=1)
+                    ja = ia[np.argmax(mag[rows, t][:, ia], axis=1)]
+                    jb = ib[np.argmax(mag[rows, t][:, ib], axis=1)]
+                    gap = np.linalg.norm(pts[rows, jb] - pts[rows, ja], axis=-1)
+                    gamma2 = (np.einsum("bk,bk->b", thrust_vec[:, ca], -unit)
+                              + np.einsum("bk,bk->b", thrust_vec[:, cb], unit))
+                    alpha = attraction * gap**2
+                    dc = np.where((alpha > 0) & (gamma2 > 0), np.sqrt(np.abs(alpha / np.where(gamma2 != 0, gamma2, 1.0))),
+                                  np.nan)
+                    pushed = (np.einsum("bk,bk->b", thrust_vec[:, ca], -unit) > 0) & \
+                             (np.einsum("bk,bk->b", thrust_vec[:, cb], unit) > 0)
+                    ok &= ~((gap < margin * dc) & pushed)
+        return ok
 
     def gain_ok(self, ratio: float) -> np.ndarray:
         """ACL102: the transducer's gain at every in-band mode is at least ``ratio`` x its best gain over
