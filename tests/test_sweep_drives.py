@@ -233,13 +233,14 @@ def test_lint_acl201_is_not_offered_with_a_sweep_step_and_says_why():
 
 @pytest.mark.parametrize("example", sorted(p.stem for p in EX.glob("*.acl")))
 def test_every_batched_lint_column_equals_its_rule_on_each_example(example):
-    from acl.lint.rules import acoustics, fabrication, forces
+    from acl.lint.rules import acoustics, beams, fabrication, forces
     from acl.sweep.evaluate import evaluate, supported
     from acl.sweep.perturb import FieldBatch
 
     d = acl.load(str(EX / f"{example}.acl"))
     fns = {"acl101": acoustics.resonance_outside_band, "acl102": acoustics.low_transducer_gain,
            "acl103": acoustics.mode_crosstalk, "acl105": acoustics.bubble_beyond_linear, "acl201": forces.snap_in,
+           "acl401": beams.beam_strain, "acl402": beams.beam_large_deflection,
            "acl501": fabrication.marginal_feature, "acl502": fabrication.substrate_proximity,
            "acl503": fabrication.orifice_too_small, "acl504": fabrication.orifice_too_large}
     names, _ = supported(d)
@@ -248,3 +249,25 @@ def test_every_batched_lint_column_equals_its_rule_on_each_example(example):
     cols = evaluate(b, wanted)
     want = _rule_verdicts(d, {c: fn for c, fn in fns.items() if f"lint_{c}_pass" in wanted})
     assert {c: bool(cols[f"lint_{c}_pass"][0]) for c in want} == want
+
+
+@pytest.mark.parametrize("example", ["fig4_facing_pair", "fig4h_unequal_pair", "fig1f_selective_beams", "figS6_flextensional"])
+def test_lint_acl401_and_acl402_columns_equal_the_rules_on_softer_and_thinner_beams(example):
+    """Beam strain and Eq. (1) validity from each program's worst load, per point: beams made softer
+    (Young's modulus down to 1/300) and thinner until both rules fire; verdicts equal the rules."""
+    from acl.lint.rules import beams
+    from acl.sweep.evaluate import evaluate
+    from acl.sweep.perturb import FieldBatch, materialize
+
+    d = acl.load(str(EX / f"{example}.acl"))
+    scale = np.array([1.0, 0.3, 0.1, 0.03, 0.01, 0.0033])
+    fields = {f"beams.{b.name}.youngs_modulus": b.youngs_modulus * scale for b in d.beams}
+    b = FieldBatch(design=d, n=scale.size, fields=fields, valid=np.ones(scale.size, bool), code=np.full(scale.size, ""))
+    cols = evaluate(b, ["lint_acl401_pass", "lint_acl402_pass"])
+    seen = set()
+    for i in range(scale.size):
+        want = _rule_verdicts(materialize(b, i), {"acl401": beams.beam_strain, "acl402": beams.beam_large_deflection})
+        for code, ok in want.items():
+            assert cols[f"lint_{code}_pass"][i] == ok, (i, code)
+            seen.add((code, ok))
+    assert ("acl402", False) in seen and ("acl402", True) in seen, seen

@@ -31,17 +31,42 @@ What is batched and how (the scalar code it equals):
   switching and release forces refined by golden section (acl.physics.batch.latch_switching_force;
   the scalar landscape takes the extremes of a 2001-point grid, lower by up to 2e-3 where they
   sit at a kink of the force law, so its margins are optimistic by as much);
-* every ``require`` (report._require) and the lint rules ACL101, ACL105 (program drive and sweep
-  steps), ACL501, ACL502, ACL503, ACL504, ACL603, before suppressions and with the default thresholds.
+* every ``require`` (report._require) and the lint rules ACL101, ACL102 (gain at each mode against the
+  band's best), ACL103 (overlapping modes of capsules driven separately), ACL105 (program drive and
+  sweep steps), ACL201 (the Eq. 3 criterion under each program drive, lint's default without
+  ``mechanics``; not for designs with a `sweep` step), ACL501, ACL502, ACL503, ACL504, ACL603, before
+  suppressions and with the default thresholds (tests/test_sweep_drives.py: equal to the rules on
+  perturbed points and on every example).
+
+Drives and transducer per point: a swept parameter that moves a drive amplitude, a step's limit, the
+transducer's maximum, band or gain table is read per point (the forces take each point's pressure,
+amplitude times the point's interpolated gain; snap-in is cut at the point's maximum); a parameter
+that moves a tone's frequency is not (the frequency names the columns: acl.sweep.driver leaves the
+program columns out).
 
 Not batched (not offered as quantities, :func:`supported` says why): designs declaring effects that
 change forces or beams (only resonance and Q are offered), snap-in and deflections of mechanisms
 other than one capsule on a beam or a pair of capsules on two beams (latches, springs, trusses,
-three or more moving capsules), ``require gap`` outside those, and the lint
-rules that need a frequency sweep per point (ACL102 gain over the band, ACL103 mode overlap with its
-bandwidth factor, ACL104 crosstalk over the selectivity sweep), the per-step equilibria of whole
-programs with strain and elastica checks (ACL201-202, ACL301-302, ACL401-402), and the rules about
-the source text rather than the numbers (ACL601-602, unused declarations and units).
+three or more moving capsules), ``require gap`` outside those, and these lint rules, each for its
+reason:
+
+* ACL104 (unintended excitation): each capsule's thrust relative to its own peak over a selectivity
+  grid refined around each point's modes (acl.lint.context.thrust_grid: ~200 + 41 per mode
+  frequencies, deduplicated), so the grid differs per point in values and length, and a chunk would
+  hold ~300 coupled responses per point;
+* ACL202 (force sign change): the same per-point grid (sweep_frequencies adds each point's modes
+  inside the program's range) with the Bjerknes force at every frequency;
+* ACL201 with a `sweep` step: the sweep's tones include each point's modes (same reason);
+* ACL301, ACL302 (latch switch/hold against the switching and release forces): lint compares with the
+  extremes of the landscape's 2001-point grid, which the batched latch forces refine (up to 2e-3
+  higher at a kink); a batched verdict would differ from `acl lint` near the threshold, and the
+  batched margins (``margin_*`` columns, ``require margin``) already give the refined, never
+  optimistic figure;
+* ACL401, ACL402 (beam strain, large deflection): the worst load over every program step, a `follow`
+  step's excursion included, which comes from the path the compiler plans, not from the design's
+  numbers alone;
+* ACL601, ACL602 (unused declarations, parameters without units): about the source text, the same at
+  every point of a sweep.
 """
 from __future__ import annotations
 
@@ -109,7 +134,9 @@ QUANTITIES: tuple[Quantity, ...] = (
 )
 
 STATIC_EFFECTS = {"offset_drift", "bubble_shrinkage"}
-LINT_RULES = ("acl101", "acl102", "acl103", "acl105", "acl201", "acl501", "acl502", "acl503", "acl504", "acl603")
+LINT_RULES = ("acl101", "acl102", "acl103", "acl105", "acl201", "acl401", "acl402", "acl501", "acl502", "acl503",
+              "acl504", "acl603")
+_PROGRAM_LINT = ("acl201", "acl401", "acl402")      # rules over each program's drives (lint's step_drives)
 SNAP_GRID = 12            # closure grid of the snap-in search
 SNAP_GOLDEN = 14          # golden-section steps on the fold
 SPLIT_ITER = 5            # secant steps for the split of the closure between the two beams
@@ -205,15 +232,17 @@ def supported(design: M.Design, at: str | None = None) -> tuple[list[str], dict[
         names.append("requires_pass")
     sweeps = any(st.kind == "sweep" for p in design.programs for st in p.steps)
     names += [f"lint_{code}_pass" for code in LINT_RULES
-              if (code not in ("acl105", "acl201") or not effects) and (code != "acl201" or not sweeps)]
+              if (code not in ("acl105", *_PROGRAM_LINT) or not effects) and (code not in _PROGRAM_LINT or not sweeps)]
     if "lint_acl603_pass" in names and "requires_pass" not in names and design.requires:
         names.remove("lint_acl603_pass")
     if effects:
         missing["lint_acl105"] = "eps/R with declared effects is not batched"
-        missing["lint_acl201"] = "forces with declared effects are not batched"
+        for code in _PROGRAM_LINT:
+            missing[f"lint_{code}"] = "forces with declared effects are not batched"
     elif sweeps:
-        missing["lint_acl201"] = ("a `sweep` step's tones include each point's own modes (acl.lint.context.sweep_frequencies): "
-                                  "not one set of frequencies for all points")
+        for code in _PROGRAM_LINT:
+            missing[f"lint_{code}"] = ("a `sweep` step's tones include each point's own modes "
+                                       "(acl.lint.context.sweep_frequencies): not one set of frequencies for all points")
     return names, missing
 
 
@@ -1219,6 +1248,8 @@ class _Evaluator:
             return self.snap_in_ok(thr["snap_margin"])
         if code == "acl102":
             return self.gain_ok(thr["gain_ratio"])
+        if code in ("acl401", "acl402"):
+            return self.beam_lint(thr["strain_limit"], thr["eq1_tolerance"])[code]
         if code == "acl103":
             return self.crosstalk_ok(thr["bandwidth_overlap"])
         raise QuantityError("E-SWEEP-Q01", f"lint rule {code} is not batched")
@@ -1289,6 +1320,68 @@ class _Evaluator:
                              (np.einsum("bk,bk->b", thrust_vec[:, cb], unit) > 0)
                     ok &= ~((gap < margin * dc) & pushed)
         return ok
+
+    def beam_lint(self, strain_limit: float, tolerance: float) -> dict:
+        """ACL401 (clamp strain P (L + l) c / (E I) over the limit) and ACL402 (deflection beyond Eq. (1)'s
+        validity) from each program's worst load on each beam carrying a capsule (lint.rules.beams.beam_loads:
+        the first strongest drive of a step at rest, perpendicular to the beam; a `follow` path's reach)."""
+        def build():
+            from acl.lint.rules.beams import SAFE_RATIO, _linked, _path_extent, eq1_limit_ratio
+            from acl.physics.beams import eq1_deflection
+
+            ok401, ok402 = np.ones(self.n, bool), np.ones(self.n, bool)
+            lay = self.layout()
+            names = [c.name for c in self.caps]
+            for beam in self.design.beams:
+                cap = next((j.capsule for j in self.design.joints if j.kind == "mount" and j.target == beam.name), None)
+                if cap is None or _linked(self, cap):     # linked: lint checks it only with mechanics
+                    continue
+                ci = names.index(cap)
+                bm = self.beam_of(ci)
+                if bm is None:
+                    continue
+                L, l, EI, axis = bm["L"], bm["l"], bm["EI"], bm["axis"]
+                base = f"beams.{beam.name}.section"
+                c = self.get(f"{base}.diameter") / 2 if beam.section.shape == "circle" else \
+                    np.minimum(self.get(f"{base}.width"), self.get(f"{base}.thickness")) / 2
+                for p in self.design.programs:
+                    worst_p = np.full(self.n, np.nan)
+                    worst_d = np.full(self.n, np.nan)
+                    drives = {id(st): [] for st in p.steps}
+                    for st, freqs, volts in self.lint_drives(p):
+                        drives[id(st)].append((freqs, volts))
+                    for st in p.steps:
+                        if st.kind == "follow":
+                            if st.capsule != cap:
+                                continue
+                            ext = _path_extent(st)
+                            if ext is None:
+                                continue
+                            P, defl = PB.eq1_force(np.full(self.n, ext), L, l, EI), np.full(self.n, ext)
+                        elif st.kind == "hold" and st.mode == "cross" and cap in (st.a.split(".")[0], st.b.split(".")[0]):
+                            continue
+                        else:
+                            if not drives[id(st)]:
+                                continue
+                            P = None
+                            for freqs, volts in drives[id(st)]:       # the first strongest drive
+                                F = self.forces(lay["rest"], freqs, volts)[:, ci]
+                                load = np.linalg.norm(F - np.einsum("bk,bk->b", F, axis)[:, None] * axis, axis=-1)
+                                P = load if P is None else np.where(load > P, load, P)
+                            defl = eq1_deflection(P, L, l, EI)
+                        better = np.isnan(worst_p) | (P > worst_p)
+                        worst_p, worst_d = np.where(better, P, worst_p), np.where(better, defl, worst_d)
+                    has = np.isfinite(worst_p)
+                    strain = worst_p * (L + l) * c / EI
+                    ok401 &= ~(has & (strain > strain_limit))
+                    rigid = np.array([round(float(v), 2) for v in (l / L)]) if self.n else np.zeros(0)
+                    ratio = np.ones(self.n)
+                    for r in np.unique(rigid):
+                        ratio[rigid == r] = eq1_limit_ratio(float(r), tolerance)
+                    skip = (tolerance >= 0.05) & (worst_d < SAFE_RATIO * L)
+                    ok402 &= ~(has & ~skip & (worst_d > ratio * L))
+            return {"acl401": ok401, "acl402": ok402}
+        return self.once(("beam_lint", strain_limit, tolerance), build)
 
     def gain_ok(self, ratio: float) -> np.ndarray:
         """ACL102: the transducer's gain at every in-band mode is at least ``ratio`` x its best gain over
