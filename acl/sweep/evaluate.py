@@ -123,6 +123,8 @@ QUANTITIES: tuple[Quantity, ...] = (
              "latches[name].margins[program,step].margin"),
     Quantity("tip_deflection_<beam>_m", "m", "load-point deflection of the beam at the drive `at`",
              "equilibrium.deflections_m[<beam>]"),
+    Quantity("deflection_<element>_m", "m", "latch shuttle travel, spring extension or spring-link extension at the drive `at` (mechanics)",
+             "equilibrium.deflections_m[<element>]"),
     Quantity("equilibrium_ok", "bool", "a stable equilibrium is reached at `at` without snap-in",
              "equilibrium.status == \"ok\""),
     Quantity("require_<i>_value", "(the require's)", "measured value of the i-th require (1-based, file order)",
@@ -177,6 +179,21 @@ def _mechanism(design: M.Design) -> str:
     return "other"
 
 
+def _closed_form(design: M.Design) -> tuple[bool, bool]:
+    """(snap-in, deflections) given by the closed forms: a pair of capsules on beams, one or two capsules on beams."""
+    mech = _mechanism(design)
+    moving = [c for c in design.capsules if (design.mount_of(c.name) or M.Fix(capsule="", span=c.span)).kind == "mount"]
+    return (mech == "beams" and len(design.capsules) == 2 and len(moving) >= 1,
+            mech == "beams" and 1 <= len(design.capsules) <= 2)
+
+
+def _general(design: M.Design) -> str | None:
+    """Why the general batched mechanism (acl.sweep.mechanism) does not cover ``design``; None if it does."""
+    from acl.sweep.mechanism import not_batched
+
+    return not_batched(design)
+
+
 def _physical_effects(design: M.Design) -> list[str]:
     return [e.name for e in design.effects if e.name not in STATIC_EFFECTS]
 
@@ -205,11 +222,13 @@ def supported(design: M.Design, at: str | None = None) -> tuple[list[str], dict[
             for a, b in pairs:
                 tag = f"{_ident(a)}_{_ident(b)}_{_fkey(f)}"
                 names += [f"force_{tag}_n", f"attract_{tag}", f"phase_{tag}_deg", f"critical_distance_{tag}_m"]
+        closed_snap, closed_eq = _closed_form(design)
+        general = None if closed_snap and closed_eq else _general(design)
         if pairs and freqs:
-            if mech == "beams" and len(design.capsules) == 2 and len(moving) >= 1:
+            if closed_snap or general is None:
                 names += [f"snap_in_{_ident(a)}_{_ident(b)}_{_fkey(f)}_v" for f in freqs for a, b in pairs]
             else:
-                missing["snap_in_"] = "batched snap-in covers a pair of capsules on beams only"
+                missing["snap_in_"] = f"batched snap-in does not cover this mechanism: {general}"
         for lt in design.latches:
             names += [f"switching_force_{_ident(lt.name)}_n", f"release_force_{_ident(lt.name)}_n",
                       f"bistable_{_ident(lt.name)}"]
@@ -218,11 +237,15 @@ def supported(design: M.Design, at: str | None = None) -> tuple[list[str], dict[
             if any((design.mount_of(c.name) or M.Fix(capsule="", span=c.span)).kind == "mount" for c in design.capsules):
                 missing["tip_deflection"] = "deflections need a drive: give `at` (like `acl analyze --at`)"
         else:
-            if mech == "beams" and 1 <= len(design.capsules) <= 2:
+            if closed_eq:
                 names += [f"tip_deflection_{_ident(j.target)}_m" for c in design.capsules
                           for j in [design.mount_of(c.name)] if j.kind == "mount"] + ["equilibrium_ok"]
+            elif general is None:
+                names += [f"{'tip_deflection' if kind == 'beam' else 'deflection'}_{_ident(el)}_m"
+                          for el, kind in _elements(design)] + ["equilibrium_ok"]
             else:
-                missing["tip_deflection"] = "batched equilibria cover one capsule on a beam or a pair on two beams"
+                missing["tip_deflection"] = missing["deflection_"] = \
+                    f"batched equilibria do not cover this mechanism: {general}"
     for i, r in enumerate(design.requires, 1):
         if _require_supported(design, r, effects):
             names += [f"require_{i}_value", f"require_{i}_pass"]
@@ -253,8 +276,23 @@ def _require_supported(design, r, effects) -> bool:
         return False
     if r.kind == "margin":
         return any(lt.name == r.args[0] for lt in design.latches)
-    # gap: the equilibrium at every program step, batched for a pair of capsules on two beams
-    return _mechanism(design) == "beams" and len(design.capsules) == 2
+    # gap: the equilibrium at every program step: a pair of capsules on two beams, or the general mechanism
+    return (_mechanism(design) == "beams" and len(design.capsules) == 2) or _general(design) is None
+
+
+def _elements(design) -> list[tuple[str, str]]:
+    """(name, kind) of the mechanism's deflections, as mechanics._deflections reports them (elements, then spring links)."""
+    from acl.analysis import mechanics as ME
+
+    mech = ME.build_mechanism(design)
+    out = [(el.name, el.kind) for el in mech.elements]
+    out += [(name, "link") for (_k, _n, _a, _b, name) in mech.links if name not in {n for n, _ in out}]
+    return out
+
+
+def _uses_general(design) -> bool:
+    closed_snap, closed_eq = _closed_form(design)
+    return not (closed_snap and closed_eq) and _general(design) is None
 
 
 def _pairs(design):
@@ -1031,6 +1069,11 @@ class _Evaluator:
         vmax = self.design.transducer.max_voltage if self.design.transducer else 20.0
         if self.design.transducer is not None and self.moving("transducer.max_voltage"):
             vmax = self.get("transducer.max_voltage")          # each point's amplifier limit
+        if not _closed_form(self.design)[0]:                   # springs, latches, trusses, 3+ capsules
+            def general():
+                with np.errstate(all="ignore"):
+                    return self.mechanism().snap_in((f,), (1.0,), vmax)
+            return self.once(("general_snap", f), general)
         br = self.pair_branch((f,), (1.0,))
         v = np.sqrt(br["v2_fold"])
         out = np.where(v <= vmax, v, np.nan)
@@ -1077,6 +1120,39 @@ class _Evaluator:
             bm = self.beam_of(c)
             if bm is not None:
                 out[f"tip_deflection_{_ident(bm['name'])}_m"] = np.where(ok, np.linalg.norm(disp[:, c], axis=-1), np.nan)
+        return out
+
+    def mechanism(self):
+        """The general batched mechanism (acl.sweep.mechanism) of these points."""
+        from acl.sweep.mechanism import Mechanism, MechanismError
+
+        def build():
+            try:
+                return Mechanism(self)
+            except MechanismError as exc:
+                raise QuantityError("E-SWEEP-Q02", f"the mechanism is not batched for these points: {exc}") from None
+        return self.once("mechanism", build)
+
+    def general_equilibrium(self, freqs: tuple, volts: tuple):
+        """(displacement (N, C, 3), ok, deflections {element: (N,)}) of the general mechanism at a drive (mechanics.equilibrium)."""
+        def build():
+            me = self.mechanism()
+            if not freqs:
+                z, ok = np.zeros((self.n, me.m)), np.ones(self.n, bool)
+            else:
+                with np.errstate(all="ignore"):
+                    z, ok = me.equilibrium(freqs, volts)
+            return me.displacements(z), ok, me.deflections(z)
+        return self.once(("general_eq", freqs, volts), build)
+
+    def general_deflection(self, drive: M.Drive) -> dict:
+        """Deflection columns of the general mechanism at ``drive`` (NaN after snap-in)."""
+        _, ok, defl = self.general_equilibrium(tuple(t.frequency for t in drive.tones),
+                                               tuple(t.amplitude for t in drive.tones))
+        out = {"equilibrium_ok": ok}
+        for name, kind in _elements(self.design):
+            col = "tip_deflection" if kind == "beam" else "deflection"
+            out[f"{col}_{_ident(name)}_m"] = np.where(ok, defl[name], np.nan)
         return out
 
     def pair_equilibrium(self, freqs: tuple, volts: tuple):
@@ -1130,8 +1206,12 @@ class _Evaluator:
 
         zero = np.zeros((self.n, len(self.caps), 3))
         gap = np.linalg.norm(point(cb, ob, zero) - point(ca, oa, zero), axis=-1)
+        general = _uses_general(self.design) and not (_mechanism(self.design) == "beams" and len(self.caps) == 2)
         for _p, _i, _st, freqs, volts in self.step_drives():
-            disp, ok = self.pair_equilibrium(freqs, volts)
+            if general:
+                disp, ok, _ = self.general_equilibrium(freqs, volts)
+            else:
+                disp, ok = self.pair_equilibrium(freqs, volts)
             g = np.linalg.norm(point(cb, ob, disp) - point(ca, oa, disp), axis=-1)
             gap = np.minimum(gap, np.where(ok, g, 0.0))
         return gap
@@ -1525,13 +1605,16 @@ class _Evaluator:
                 cols = self.pair_quantities(f)
                 if q in cols:
                     return cols[q]
-        m = re.fullmatch(r"tip_deflection_(.+)_m", q)
+        m = re.fullmatch(r"(tip_)?deflection_(.+)_m", q)
         if m or q == "equilibrium_ok":
             from acl.design.drives import drive_from_text
 
             drive = drive_from_text(self.at, "<at>")
-            cols = self.once(("at", self.at), lambda: self.single_deflection(drive) if len(self.caps) == 1
-                             else self.pair_deflection(drive))
+            if not _closed_form(self.design)[1]:
+                cols = self.once(("at", self.at), lambda: self.general_deflection(drive))
+            else:
+                cols = self.once(("at", self.at), lambda: self.single_deflection(drive) if len(self.caps) == 1
+                                 else self.pair_deflection(drive))
             return cols[q]
         for lt in self.design.latches:
             key = _ident(lt.name)
