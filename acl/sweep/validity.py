@@ -295,16 +295,14 @@ def check_drives(batch) -> None:
             continue
         live = prog_ok & tr_ok
         band_lo, band_hi, vmax = g("transducer.band.0"), g("transducer.band.1"), g("transducer.max_voltage")
-        for st_i, st in enumerate(p.steps):
-            from acl.design.checks import _step_tones
-
-            freqs, _ = _step_tones(st)
+        for st in p.steps:
+            freqs, _ = C._step_tones(st)
             loc = where(st.span)
             out_band = np.zeros(n, bool)
             for f in freqs:
                 out_band |= ~((band_lo * (1 - 1e-9) <= f) & (f <= band_hi * (1 + 1e-9)))
             found.append((loc, live & out_band, "E501"))
-            for loc2, volts, st2 in checks:
+            for _loc, volts, st2 in checks:
                 if st2 is st:
                     found.append((loc, live & (volts > vmax * (1 + 1e-9)), "E502"))
     # the resolver sorts its errors by location; builder errors precede check errors at one location
