@@ -332,7 +332,7 @@ class Mechanism:
             step = np.where((ok_j & np.isfinite(r).all(axis=1))[:, None], step, np.nan)
             fine = np.isfinite(step).all(axis=1)
             size = np.linalg.norm(step, axis=-1)
-            if chord and np.any(active & ~(size < 0.5 * prev) & np.isfinite(prev)):
+            if chord and (it >= 4 or np.any(active & ~(size < 0.5 * prev) & np.isfinite(prev))):
                 chord = False                           # the chord stalls: Newton from here on
                 prev = np.full(self.n, np.inf)
                 continue
@@ -356,30 +356,44 @@ class Mechanism:
         Rows whose branch is still moving after ``budget`` x ``steps`` steps (millimetres of travel in
         STEP_REACH steps) stop there, not reached: their snap-in is the last stable voltage, a lower bound.
         """
-        v_max = np.broadcast_to(np.asarray(v_max, float), (self.n,))
+        v_max = np.broadcast_to(np.asarray(v_max, float), (self.n,)).copy()
         z = np.zeros((self.n, self.m))
-        v = np.zeros(self.n)
-        dv = v_max / steps
-        done = np.zeros(self.n, bool)
-        reached = np.zeros(self.n, bool)
-        failed = np.zeros(self.n, bool)
         if self.m == 0:
-            return v_max.copy(), z, np.ones(self.n, bool)
+            return v_max, z, np.ones(self.n, bool)
         _, _, J = self.solve(z, np.zeros(self.n), freqs, volts, np.zeros(self.n, bool))     # tangent at rest
-        for _ in range(budget * steps):
+        st = {"z": z, "J": J, "v": np.zeros(self.n), "dv": v_max / steps, "v_max": v_max,
+              "done": np.zeros(self.n, bool), "reached": np.zeros(self.n, bool), "failed": np.zeros(self.n, bool)}
+        self._march(st, freqs, volts, steps, rtol, budget * steps)
+        return st["v"], st["z"], st["reached"]
+
+    def _march(self, st: dict, freqs, volts, steps: int, rtol: float, left: int) -> None:
+        """Continuation steps on the state ``st`` (arrays over the points, updated in place); when fewer than half
+        the points are still going, the rest continue on a mechanism of those points only."""
+        z, J, v, dv, v_max = st["z"], st["J"], st["v"], st["dv"], st["v_max"]
+        done, reached, failed = st["done"], st["reached"], st["failed"]
+        while left > 0:
             live = ~done
             if not live.any():
                 break
+            if self.n >= 16 and live.sum() <= self.n // 2:
+                rows = np.flatnonzero(live)
+                sub = {k: a[rows].copy() for k, a in st.items()}
+                self.sub(rows)._march(sub, freqs, volts, steps, rtol, left)
+                for k, a in st.items():
+                    a[rows] = sub[k]
+                return
+            left -= 1
             v_try = np.minimum(v + dv, v_max)
             zn, conv, Jn = self.solve(z, v_try * v_try, freqs, volts, live, jacobian=J)
             near = np.linalg.norm(zn - z, axis=-1) <= STEP_REACH
             good = conv & near & live
-            z = np.where(good[:, None], zn, z)
-            J = np.where(good[:, None, None], Jn, J)
-            v = np.where(good, v_try, v)
+            z[...] = np.where(good[:, None], zn, z)
+            J[...] = np.where(good[:, None, None], Jn, J)
+            v[...] = np.where(good, v_try, v)
             # grow after two successes in a row, halve after a failure: near the fold, a bisection from below
-            dv = np.where(good, np.where(failed, dv, np.minimum(dv * 1.5, v_max / steps)), np.where(live, dv / 2, dv))
-            failed = live & ~good
+            dv[...] = np.where(good, np.where(failed, dv, np.minimum(dv * 1.5, v_max / steps)),
+                               np.where(live, dv / 2, dv))
+            failed[...] = live & ~good
             hit = good & (v >= v_max)
             folded = live & ~good & (dv < rtol * v_max)
             if folded.any():
@@ -391,16 +405,15 @@ class Mechanism:
                     zn, conv, Jn = self.solve(z, v_up * v_up, freqs, volts, folded, iterations=30, patient=True)
                     near = np.linalg.norm(zn - z, axis=-1) <= 1e-2 * np.maximum(np.linalg.norm(z, axis=-1), 1e-300)
                     over = folded & conv & near
-                    z = np.where(over[:, None], zn, z)
-                    J = np.where(over[:, None, None], Jn, J)
-                    v = np.where(over, v_up, v)
-                    dv = np.where(over, 4 * rtol * v_max, dv)
-                    failed = np.where(over, False, failed)
+                    z[...] = np.where(over[:, None], zn, z)
+                    J[...] = np.where(over[:, None, None], Jn, J)
+                    v[...] = np.where(over, v_up, v)
+                    dv[...] = np.where(over, 4 * rtol * v_max, dv)
+                    failed[...] = np.where(over, False, failed)
                     hit |= over & (v >= v_max)
                     folded &= ~over
             reached |= hit
             done |= hit | folded
-        return v, z, reached
 
     def smooth_one(self) -> bool:
         """One coordinate and smooth restoring laws (no latch): the branch is the curve V^2(z) = R(z)/G(z)."""
