@@ -1,16 +1,23 @@
 """Closed loop over seeded truths (issue 9, done-when bullet 2): prints the figures docs/fit.md quotes.
 
-    python benchmarks/closed_loop.py [--seeds 20] [--band-samples 20]
+    python benchmarks/closed_loop.py [--kind stroke|fig3] [--seeds 20] [--band-samples 20] [--json PATH]
 
-Each seed draws a truth from examples/fig2_stroke.acl (acl.fit.loop.seeded_truth: a per-tone gain
-tilt so the 110 and 140 kHz tones differ by up to 30 %, a level 0.85-1.15 and an undeclared drive
-saturation V_s 5-10 V), then runs compile -> play (noise 0.05 um) -> fit -> recompile -> play.
+``--kind stroke`` (default): each seed draws a truth from examples/fig2_stroke.acl (a cantilever along
+one axis; acl.fit.loop.seeded_truth: a per-tone gain tilt so the 110 and 140 kHz tones differ by up to
+30 %, a level 0.85-1.15 and an undeclared drive saturation V_s 5-10 V).
+``--kind fig3``: the Fig. 3 three-orifice module in the plane, program `rectangle` (x and y, three
+tones the compiler picks, 72.5-178.5 kHz): the tilt makes the outer tones differ by up to 30 %, level
+0.85-1.15, V_s 8-16 V; compiled with allow_nonlinear (the nominal plan touches eps/R = 0.257).
+Then compile -> play (noise 0.05 um) -> fit (--free gamma) -> recompile -> play.
 Reported per seed: tracking error before / after calibration / floor (compiled on the truth), the
 calibrated compile's predicted error and 95 % band, and whether the band covers the re-simulated error.
+``--json PATH`` writes the rows (docs/fit.md renders the fig3 study from benchmarks/closed_loop_fig3.json;
+tests/test_closed_loop.py repeats one of its seeds).
 """
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import shutil
 import sys
@@ -25,27 +32,52 @@ from acl.fit.loop import run_loop, seeded_truth  # noqa: E402
 
 HERE = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "examples")
 
+# kind -> (files to copy, nominal design, program, seeded_truth keywords, run_loop keywords)
+KINDS = {
+    "stroke": (("fig2_vertical_cantilever.acl", "fig2_stroke.acl"), "fig2_stroke.acl", "stroke", {}, {}),
+    "fig3": (("fig3_three_orifice.acl",), "fig3_three_orifice.acl", "rectangle",
+             {"span_hz": (72.5e3, 178.5e3), "v_sat": (8.0, 16.0)}, {"allow_nonlinear": True}),
+}
+
+
+def run_seed(kind: str, seed: int, tmp: str, band_samples: int = 20):
+    """One seeded truth of ``kind`` through the whole loop in ``tmp``: (LoopResult, truth text)."""
+    files, nominal, program, truth_kw, loop_kw = KINDS[kind]
+    for name in files:
+        shutil.copy(os.path.join(HERE, name), tmp)
+    rng = np.random.default_rng(1000 + seed)
+    text = seeded_truth("", rng, nominal, **truth_kw)
+    truth = os.path.join(tmp, f"truth{seed}.acl")
+    with open(truth, "w") as fh:
+        fh.write(text)
+    work = os.path.join(tmp, f"w{seed}")
+    os.makedirs(work, exist_ok=True)
+    return run_loop(os.path.join(tmp, nominal), truth, program, work, seed=seed,
+                    band_samples=band_samples, **loop_kw), text
+
+
+def row(seed: int, r, text: str) -> dict:
+    return {"seed": seed, "truth": text, "before_rms_m": r.before_rms_m, "before_max_m": r.before_max_m,
+            "after_rms_m": r.after_rms_m, "after_max_m": r.after_max_m, "floor_rms_m": r.floor_rms_m,
+            "floor_max_m": r.floor_max_m, "predicted_rms_m": r.predicted_rms_m,
+            "band_rms_p95_m": r.band_rms_p95_m, "band_max_p95_m": r.band_max_p95_m, "covered": r.covered,
+            "effects": r.effects, "warned": any(n.startswith("warning:") and "calibrat" in n for n in r.notes)}
+
 
 def main() -> int:
     ap = argparse.ArgumentParser()
+    ap.add_argument("--kind", choices=sorted(KINDS), default="stroke")
     ap.add_argument("--seeds", type=int, default=20)
     ap.add_argument("--band-samples", type=int, default=20)
+    ap.add_argument("--json", help="write the per-seed rows here")
     args = ap.parse_args()
-    rows = []
+    rows, out = [], []
     with tempfile.TemporaryDirectory() as tmp:
-        for name in ("fig2_vertical_cantilever.acl", "fig2_stroke.acl"):
-            shutil.copy(os.path.join(HERE, name), tmp)
         for seed in range(args.seeds):
-            rng = np.random.default_rng(1000 + seed)
-            truth = os.path.join(tmp, f"truth{seed}.acl")
-            with open(truth, "w") as fh:
-                fh.write(seeded_truth("", rng, "fig2_stroke.acl"))
-            work = os.path.join(tmp, f"w{seed}")
-            os.makedirs(work)
             t0 = time.perf_counter()
-            r = run_loop(os.path.join(tmp, "fig2_stroke.acl"), truth, "stroke", work, seed=seed,
-                         band_samples=args.band_samples)
+            r, text = run_seed(args.kind, seed, tmp, args.band_samples)
             rows.append(r)
+            out.append(row(seed, r, text))
             print(f"seed {seed:2d}: before {r.before_rms_m * 1e6:.3f} um, after {r.after_rms_m * 1e6:.3f} um, "
                   f"floor {r.floor_rms_m * 1e6:.3f} um, after/floor {r.after_rms_m / r.floor_rms_m:.2f}; "
                   f"predicted {r.predicted_rms_m * 1e6:.3f}, band p95 {r.band_rms_p95_m * 1e6:.3f} / "
@@ -57,6 +89,13 @@ def main() -> int:
           f"after {np.median([r.after_rms_m for r in rows]) * 1e6:.3f} um, floor "
           f"{np.median([r.floor_rms_m for r in rows]) * 1e6:.3f} um; after/floor max {ratio.max():.2f} "
           f"(<= 3 in {np.mean(ratio <= 3) * 100:.0f} %); band covers the re-simulated error in {cover * 100:.0f} %")
+    if args.json:
+        import subprocess
+
+        commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True,
+                                cwd=os.path.dirname(os.path.abspath(__file__))).stdout.strip()
+        with open(args.json, "w") as fh:
+            json.dump({"kind": args.kind, "band_samples": args.band_samples, "code": commit, "rows": out}, fh, indent=1)
     return 0
 
 
