@@ -587,10 +587,10 @@ class _Compiler:
             lo, hi = (lo, mid) if at(mid)[0] >= step.margin else (mid, hi)
             if hi - lo <= 1e-9 * hi:
                 break
-        used = [(f, a * hi) for f, a in used]
+        F = at(hi)[1]
         self.notes.append(f"{name}: the declared drive saturation leaves the planned drive at {r:.3g} x the "
                           f"switching force; amplitudes scaled by {hi:.4g} to reach the margin {step.margin:g}")
-        return used, at(hi)[1] if hi != top else F_top
+        return [(f, a * hi) for f, a in used], F
 
     def _switch_band(self, rep: GoalReport, used, step: SwitchStep, j, names):
         """5th percentile of the switch margin (and 95th of the other latches' ratios) over the uncertainty."""
