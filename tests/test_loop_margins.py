@@ -108,3 +108,33 @@ def test_margin_band_in_schedule_json_and_table(tmp_path):
     goal = json.loads((out / "schedule.json").read_text())["goals"][0]
     assert goal["rms_error_p95_um"] is None                 # the format is kept: a hold has no path
     assert np.isfinite(goal["details"]["band"]["margin_p05"])
+
+
+def test_synth_writes_contact_at_snap_in(tmp_path):
+    """A pair that snaps in during a replay is seen in contact: its gap is written 0 (the fit's pair model
+    past snap-in), not dropped; the other observables of that waypoint get no row.  Before, the Fig. 4
+    `keep_apart` drive played on a 1.3x-gain truth wrote nothing (E-SYNTH-REPLAY) although the lab sees
+    the bubbles touch."""
+    from acl.cli import main
+
+    tmp = str(tmp_path)
+    _design(tmp, "fig4_facing_pair.acl", "effect transducer_gain { gain_slope = 0, f_ref = 125 kHz, gain = 1.3 }",
+            "truth.acl")
+    out = os.path.join(tmp, "out")
+    assert main(["compile", os.path.join(EX, "fig4_facing_pair.acl"), "--program", "ramp", "-o", out, "-q",
+                 "--band-samples", "0"]) == 0
+    csv = os.path.join(tmp, "run.csv")
+    assert main(["synth", os.path.join(tmp, "truth.acl"), "--schedule", os.path.join(out, "schedule.json"),
+                 "-o", csv]) == 0
+    import csv as csvmod
+
+    with open(csv) as fh:
+        rows = list(csvmod.DictReader(fh))
+    by_drive = {}
+    for r in rows:
+        by_drive.setdefault(r["drive"], {})[r["observable"]] = float(r["value"])
+    # 1.3x gain: snap-in near 3.25/1.3 = 2.5 V; the 3..6 V steps are in contact, gap 0 and nothing else
+    for v in (3, 4, 5, 6):
+        assert by_drive[f"125 kHz @ {v} V"] == {"d": 0.0}
+    assert set(by_drive["125 kHz @ 1 V"]) == {"d", "left_delta", "right_delta"}
+    assert by_drive["125 kHz @ 1 V"]["d"] > 30.0
