@@ -138,3 +138,37 @@ def test_synth_writes_contact_at_snap_in(tmp_path):
         assert by_drive[f"125 kHz @ {v} V"] == {"d": 0.0}
     assert set(by_drive["125 kHz @ 1 V"]) == {"d", "left_delta", "right_delta"}
     assert by_drive["125 kHz @ 1 V"]["d"] > 30.0
+
+
+def test_contact_rows_do_not_widen_the_covered_range(tmp_path):
+    """The calibration's covered range is what the model was checked on: gaps measured in contact (a
+    snap-in) show only that the pair snapped, and a gap closes by both beams' deflections, so one side
+    moved at least half of it.  Before, a Fig. 4 ramp with contact at 3..6 V claimed covered(voltage)
+    up to 6 V and covered(deflection) up to the whole 40 um gap (so no warning for a program there)."""
+    from acl.cli import main
+
+    tmp = str(tmp_path)
+    shutil.copy(os.path.join(EX, "fig4_facing_pair.acl"), tmp)
+    _design(tmp, "fig4_facing_pair.acl", "effect transducer_gain { gain_slope = 0, f_ref = 125 kHz, gain = 1.3 }",
+            "truth.acl")
+    out = os.path.join(tmp, "out")
+    assert main(["compile", os.path.join(tmp, "fig4_facing_pair.acl"), "--program", "ramp", "-o", out, "-q",
+                 "--band-samples", "0"]) == 0
+    csv = os.path.join(tmp, "run.csv")
+    assert main(["synth", os.path.join(tmp, "truth.acl"), "--schedule", os.path.join(out, "schedule.json"),
+                 "-o", csv, "--noise", "0.1um", "--seed", "1"]) == 0
+    from acl.fit import run_fit
+
+    cal = os.path.join(tmp, "fig4_facing_pair.calibrated.acl")
+    fit = run_fit(os.path.join(tmp, "fig4_facing_pair.acl"), [csv], free=("gamma", "alpha"), calibrated_path=cal)
+    with open(cal, "w") as fh:
+        fh.write(fit.calibrated)
+    cover = {c.quantity: c for c in acl.load(cal).coverage}
+    assert cover["voltage"].upper == pytest.approx(2.0)          # the last step before contact
+    import csv as csvmod
+
+    with open(csv) as fh:
+        rows = [r for r in csvmod.DictReader(fh) if r["drive"] == "125 kHz @ 2 V"]
+    side = max(abs(float(r["value"])) for r in rows if r["observable"] != "d")
+    closed = 40.0 - float(next(r["value"] for r in rows if r["observable"] == "d"))
+    assert cover["deflection"].upper * 1e6 == pytest.approx(max(side, closed / 2), rel=1e-6)
