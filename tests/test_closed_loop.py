@@ -55,3 +55,22 @@ def test_fig3_study_seed_repeats(tmp_path):
         assert getattr(r, key) == pytest.approx(want[key], rel=5e-3), key
     assert r.covered == want["covered"] and sorted(r.effects) == sorted(want["effects"])
     assert r.after_rms_m <= 3 * r.floor_rms_m
+
+
+def test_pair_hold_study_seed_repeats(tmp_path):
+    """One truth of the pair-hold study (benchmarks/closed_loop.py --kind pair-hold, docs/fit.md): the
+    calibrated hold's margin band covers the margin the truth shows, and the JSON's figures repeat."""
+    import json
+    import sys
+
+    sys.path.insert(0, os.path.join(ROOT, "benchmarks"))
+    from closed_loop import run_hold_seed
+
+    with open(os.path.join(ROOT, "benchmarks", "closed_loop_pair_hold.json")) as fh:
+        study = json.load(fh)
+    want = study["rows"][1]
+    got = run_hold_seed(want["seed"], str(tmp_path), study["band_samples"])
+    assert got["truth"] == want["truth"] and got["rows"] == want["rows"]
+    for key in ("before_margin", "after_margin", "after_v", "margin_p05"):
+        assert got[key] == pytest.approx(want[key], rel=5e-3), key
+    assert got["covered"] and got["margin_p05"] <= got["after_margin"]
