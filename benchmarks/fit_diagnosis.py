@@ -197,6 +197,52 @@ LIMITS = {
 }
 
 
+def lrt_power(kind_name, planted, given, seed=0) -> dict:
+    """Power of the search's test for the planted effects not in ``given``, given those: the expected non-centrality
+    of the nested-model likelihood-ratio (F) test is the chi-square of the model with ``given`` alone fitted to the
+    noise-free truth (Wald 1943; e.g. Seber & Wild, Nonlinear Regression, sec. 5.9), and the test's power at the
+    search's gate (p < acl.fit.select.P_LIMIT / the candidates of that round) is the noncentral F tail beyond the
+    gate's critical value.  Also: RMS and largest change of the observables by the extra effects (same coefficients),
+    and the chance of at least 9 correct in 10 fits if this test were the only gate (RMS over the rows of the
+    observables the extra effects change)."""
+    from scipy.stats import binom, f as fdist, ncf
+
+    from acl.fit import solve
+    from acl.fit.forward import predict
+    from acl.fit.problem import load_problem
+    from acl.fit.select import P_LIMIT, applicable, effect_coefs
+    from acl.fit.synth import effect_inputs, generate, write_csv
+
+    design, experiment, free, noise, coeffs = kinds()[kind_name]
+    data, _ = generate(design, experiment, planted, noise=0.0, seed=seed, coeffs=coeffs)
+    null, _ = generate(design, experiment, {k: v for k, v in planted.items() if k in given}, noise=0.0, seed=seed,
+                       coeffs=coeffs)
+    data.sigma = np.full(data.n, noise)
+    with tempfile.TemporaryDirectory() as tmp:
+        path = os.path.join(tmp, "d.csv")
+        write_csv(data, path)
+        problem = load_problem(design, [path], free=free)
+    coefs = list(problem.coefs)
+    for eid in given:
+        coefs += effect_coefs(eid, problem)[0]
+    truth = effect_inputs({k: v for k, v in planted.items() if k in given})
+    start = [c.value for c in problem.coefs] + [truth[c.effect][c.param] for c in coefs[len(problem.coefs):]]
+    fit = solve.fit(lambda a, b: predict(problem.prepared, a, b), problem.y, problem.sigma, coefs, starts=[start])
+    kinds_ = {c.kind for c in coefs}
+    m = sum(1 for e in __import__("acl.fit.effects", fromlist=["EFFECTS"]).EFFECTS
+            if e not in given and not applicable(e, problem, kinds_))
+    gate = P_LIMIT / m
+    q = sum(len(effect_coefs(e, problem)[0]) for e in planted if e not in given)
+    dfd = problem.y.size - fit.p - q
+    crit = float(fdist.isf(gate, q, dfd))
+    power = float(ncf.sf(crit, q, dfd, fit.chi2))
+    change = data.value - null.value
+    moved = np.isin(data.observable, data.observable[change != 0])      # rows of the observables the effects change
+    return {"noncentrality": float(fit.chi2), "gate": gate, "candidates": m, "power": power,
+            "p9of10": float(binom.sf(8, 10, power)), "rms_change_m": float(np.sqrt(np.mean(change[moved] ** 2))),
+            "max_change_m": float(np.max(np.abs(change))), "rows": int(problem.y.size)}
+
+
 def outside(kind_name, effects, data, rest):
     """Apply the hand-planted effects outside the library to noise-free values (see module docstring), on each
     row's displacement from its rest value ``rest`` (a cantilever's deflection, a pair's closing of the gap)."""
