@@ -55,7 +55,9 @@ def test_a_three_orifice_capsule_moves_in_the_plane_as_the_analysis_says():
 
     design = acl.load(FIG3)
     inst = build_instance(design)
-    assert inst.unit("mx").vector and inst.unit("mx").sides[0].basis.shape == (3, 2)
+    unit = inst.unit("mx")
+    assert unit.kind == "group" and len(unit.sides) == 1 and unit.sides[0].basis.shape == (3, 2)
+    assert unit.net.labels == ("m.o1", "m.o2", "m.o3")            # each orifice its own bubble
     drives = [((85e3, 6.0),), ((125e3, 8.0),), ((170e3, 6.0),), ((85e3, 3.0), (170e3, 4.0))]
     data, _ = generate(FIG3, Experiment(frequencies=(125e3,), voltages=(1.0,) * len(drives)))
     data.tones = [t for t in drives for _ in range(2)]
@@ -89,9 +91,11 @@ def test_a_trussed_body_on_a_latch_adds_its_members_thrusts(tmp_path):
     from acl.fit.mechanism import build_instance
 
     unit = build_instance(acl.load(FIG6E)).unit("s")
-    assert unit.vector and set(unit.sides[0].members) == {"forward", "backward"}
+    assert unit.kind == "group" and len(unit.sides) == 1 and set(unit.sides[0].members) == {"forward", "backward"}
     _, P = generate(FIG6E, Experiment(frequencies=(85e3, 170e3), voltages=(10.0,)))
-    assert P.tauv[0, 0, 0] > 0 > P.tauv[1, 0, 0]
+    blk = P.groups[0]
+    push = np.einsum("rto,ok->rk", blk.tau, -blk.normals)[:, 0]     # along the latch axis (+x), per V^2
+    assert push[0] > 0 > push[1]                  # 85 kHz pushes the shuttle towards b, 170 kHz pulls it back
     ex = Experiment(frequencies=(85e3, 170e3), voltages=tuple(np.linspace(0, 90, 19)))
     truth = {"gamma": 1.2 * P.gamma0}
     for covered, ratio, _ in _recover(FIG6E, ex, truth, ["gamma"], range(2), tmp_path):
@@ -123,14 +127,12 @@ def test_what_the_fit_model_cannot_follow_is_a_located_E810(tmp_path, capsys):
     assert main(["fit", bad, str(csv), "--path", root]) == 1
     err = capsys.readouterr().err
     assert "E810" in err and "another moving support" in err and f"{bad}:" in err and "Traceback" not in err
-    # a multi-orifice capsule inside a pair
-    pair = _variant(tmp_path, os.path.join(HERE, "data", "fit_pair_cal.acl"), "capsule c like capsules.design1",
-                    "capsule c like capsules.prism3", "p.acl")
-    pair = _variant(tmp_path, pair, "observe cal = displacement(calbeam, -x)", "observe cal = gap(c.o1, a.jet)", "p2.acl")
-    csv.write_text("observable,value,unit,drive\ncal,1,um,125 kHz @ 3 V\n")
-    assert main(["fit", pair, str(csv), "--path", root]) == 1
+    # --free f0 of an orifice the design lacks: a usage error at the option (with a suggestion), not a traceback
+    csv.write_text("observable,value,unit,drive\nbend_low,1,um,85 kHz @ 3 V\n")
+    assert main(["fit", os.path.join(EXAMPLES, "fig1f_selective_beams.acl"), str(csv), "--free", "f0:high.nozzle",
+                 "--path", root]) == 2
     err = capsys.readouterr().err
-    assert "E810" in err and "orifices" in err and "Traceback" not in err
+    assert "E-USAGE" in err and "<--free>:1:1" in err and "no orifice `high.nozzle`" in err and "high.jet" in err and "Traceback" not in err
 
 
 # ------------------------------------------------------------------------------------------------
