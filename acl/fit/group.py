@@ -71,6 +71,13 @@ class GroupBlock:
     oj: np.ndarray            # (r,) gap: orifice b
     axis: np.ndarray          # (r, 3) displacement axis / position unit vector
     obase: np.ndarray         # (r,) position: rest coordinate
+    engines: list = None      # acl.analysis.acoustics force engines of a 1 V tone at each drive frequency of the rows
+    fidx: np.ndarray = None   # (r, T) index of each tone's engine (-1: no tone)
+    orif_ix: np.ndarray = None    # (n,) each orifice's interface index in the design (acl.analysis.acoustics layout)
+    cap_ix: np.ndarray = None     # (C,) each capsule's index in the design
+    all_rest: np.ndarray = None   # (C_all, 3) every capsule centre of the design at rest
+    gamma0: float = 1.0
+    alpha_ref: float = 0.0
     cache: np.ndarray = None  # (r, m) last equilibrium found per row (warm start of the next evaluation)
     closing: np.ndarray = None    # (r, 2) the orifice pair in contact of each row past snap-in at the last evaluation
     fold: tuple = None            # ((r,) last stable continuation step of the rows that snapped, (r, m) configuration)
@@ -151,12 +158,27 @@ def block(inst, unit, name, rows, f, v, gamma0, alpha_ref, ftable) -> GroupBlock
         tables.append(ftable(volume, radii, modes[o - first], med))
     height = np.array([net.offsets[np.flatnonzero(net.orif_cap == c)[0], 2] + net.rest[c, 2]
                        if np.any(net.orif_cap == c) else net.rest[c, 2] for c in range(len(net.caps))])
+    from acl.analysis.acoustics import _compute_engine, _layout
+    from acl.design.model import Drive, Tone
+
+    engines, fidx = [], np.full((r, T), -1)
+    for fk in np.unique(fr[vr > 0]):
+        key = ("eng", float(fk))
+        if key not in inst._tau:
+            inst._tau[key] = _compute_engine(inst.design, Drive(tones=(Tone(frequency=float(fk), amplitude=1.0),)))
+        fidx[(fr == fk) & (vr > 0)] = len(engines)
+        engines.append(inst._tau[key])
+    lay = _layout(inst.design)
+    names = [c.name for c in lay.caps]
+    extra = dict(engines=engines, fidx=fidx, orif_ix=np.array([lay.labels.index(lab) for lab in net.labels]),
+                 cap_ix=np.array([names.index(c) for c in net.caps]), all_rest=np.asarray(lay.rest, float),
+                 gamma0=float(gamma0), alpha_ref=float(alpha_ref))
     return GroupBlock(np.asarray(rows), net.caps, law, np.array([s.L for s in sides]), np.array([s.l for s in sides]),
                       np.array([s.EI for s in sides]), cd, basis, k, latch, np.asarray(net.cap_node, int),
                       np.asarray(net.rest, float), np.asarray(net.outer, float), height,
                       np.asarray(net.orif_cap, int), np.asarray(net.offsets, float), np.asarray(net.normals, float),
                       tuple(net.labels), tau, arel, net.modes[:, 0].copy(), net.modes[:, 1].copy(), tables,
-                      kind, oi, oj, axis, obase)
+                      kind, oi, oj, axis, obase, **extra)
 
 
 def _mode_factors(P, blk, coeffs, effects, t):
@@ -242,6 +264,34 @@ def predict(P, blk: GroupBlock, coeffs, effects, w, gamma, alpha, es, lam, grad,
             x[:, i] += z[:, s, None] * blk.basis[i, :, c][None]
         return x
 
+    moves = N > 1 and bool(blk.engines)
+    if moves:
+        wab_all = wab if res is not None else np.broadcast_to(wab, w.shape + (1, 1))
+        wt_all = np.broadcast_to(wt, w.shape + (n,))
+        a_scale = alpha / blk.alpha_ref if blk.alpha_ref else 1.0
+
+    def responses(xc, rows_):
+        """(thrust (B, n), Bjerknes attraction x distance^2 ... as att (B, n, n)) of the group's orifices with its
+        capsules displaced by xc: the analysis' coupled volumes at that configuration (acl.analysis.acoustics
+        _Engine.forces), each tone weighted by its drive, gain effects and mode factors."""
+        Bn = xc.shape[0]
+        centres = np.repeat(blk.all_rest[None], Bn, axis=0)
+        centres[:, blk.cap_ix] += xc
+        thr = np.zeros((Bn, n))
+        att = np.zeros((Bn, n, n))
+        fi = blk.fidx[rows_]
+        wr, wabr = wt_all[rows_], wab_all[rows_]
+        for k, eng in enumerate(blk.engines):
+            hit = fi == k
+            sel = np.flatnonzero(hit.any(axis=1))
+            if sel.size == 0:
+                continue
+            _, _, th, at = eng.forces(centres[sel], parts=True)
+            h = hit[sel]
+            thr[sel] += (wr[sel] * h[:, :, None]).sum(axis=1) * th[:, blk.orif_ix]
+            att[sel] += (wabr[sel] * h[:, :, None, None]).sum(axis=1) * at[:, blk.orif_ix][:, :, blk.orif_ix]
+        return thr * (gamma / blk.gamma0) * sub[None], att * a_scale * np.sqrt(np.outer(sub, sub))[None]
+
     def loads(z, scale, rows_=slice(None)):
         """(node loads (r, N, 3), orifice distances (r, n, n), node displacements (r, N, 3)) at coordinates z."""
         x = disp(z)
@@ -251,13 +301,25 @@ def predict(P, blk: GroupBlock, coeffs, effects, w, gamma, alpha, es, lam, grad,
         d = np.linalg.norm(sep, axis=-1)
         np.einsum("rii->ri", d)[:] = 1.0
         # two orifices in contact (d = 0) would give inf * 0 = NaN, which the sums below would spread to every node
-        fb = np.einsum("rij,rijk->rik", A[rows_] / np.maximum(d, 1e-12) ** 3, sep)  # attraction of each i towards j
-        F = own[rows_] + np.einsum("rok,oc->rck", fb, onehot)
+        dc = np.maximum(d, 1e-12)
+        if moves:            # the volumes where the capsules are (coupling through the liquid, as the analysis)
+            th, att = responses(xc, rows_)
+            # orifices in contact (past snap-in) make the coupled response singular: there, the volumes at rest
+            bad = ~(np.isfinite(th).all(axis=1) & np.isfinite(att).all(axis=(1, 2)))
+            if bad.any():
+                th[bad] = thrust[rows_][bad]
+                att[bad] = A[rows_][bad] / dc[bad] ** 2
+            fb = np.einsum("rij,rijk->rik", att / dc, sep)
+            F = np.einsum("ro,ok,oc->rck", th, -blk.normals, onehot) + np.einsum("rok,oc->rck", fb, onehot)
+        else:                # a body alone: nothing moves relative to it that it feels
+            th = thrust[rows_]
+            fb = np.einsum("rij,rijk->rik", A[rows_] / dc**3, sep)                # attraction of each i towards j
+            F = own[rows_] + np.einsum("rok,oc->rck", fb, onehot)
         centres = blk.rest[None] + xc
         xo = centres[:, None, :, :] - p[:, :, None, :]                            # (r, n, C, 3) orifice -> capsule
         dist = np.linalg.norm(xo, axis=-1)
         cos = np.einsum("rock,ok->roc", xo, blk.normals) / np.where(dist > 0, dist, 1.0)
-        drag = jet_drag(thrust[rows_][:, :, None], np.where(dragged, dist, 1.0), cos, blk.outer[None, None, :]) * dragged
+        drag = jet_drag(th[:, :, None], np.where(dragged, dist, 1.0), cos, blk.outer[None, None, :]) * dragged
         F = F + np.einsum("roc,ok->rck", drag, blk.normals)
         Fn = scale[:, None, None] * np.einsum("rck,cn->rnk", F, to_node)
         if c_p > 0:
