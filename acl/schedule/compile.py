@@ -634,9 +634,12 @@ class _Compiler:
             rep.details["band"]["other_latch_ratios_p95"] = band.others_p95
         n = band.samples + band.failed
         if band.below_one:
-            self.notes.append(f"warning: {rep.name}: in {band.below_one} of {n} draws of the declared uncertainty "
-                              f"{fails} (5th percentile of the margin {band.p05:.3g}); calibrate the design "
-                              "(acl fit) or raise the margin")
+            seen = band.below_one - band.failed
+            more = (f"; {band.failed} more did not resolve or their model failed (a drawn value outside its "
+                    "physical range, e.g. a negative coefficient), counted as failing") if band.failed else ""
+            self.notes.append(f"warning: {rep.name}: in {seen} of {n} draws of the declared uncertainty {fails}"
+                              f"{more} (5th percentile of the margin {band.p05:.3g}); narrow the uncertainty "
+                              "(acl fit on data that identify it) or raise the margin")
         for other, r in band.others_p95.items():
             if r >= 1.0:
                 self.notes.append(f"warning: {rep.name}: in the declared uncertainty the drive also {others_what} "
