@@ -16,6 +16,7 @@ EXAMPLES = os.path.join(HERE, "..", "examples")
 FIG3 = os.path.join(EXAMPLES, "fig3_three_orifice.acl")
 FIG6E = os.path.join(EXAMPLES, "fig6e_reversible_latch.acl")
 GROUP = os.path.join(HERE, "data", "fit_group3.acl")
+BODY_PAIR = os.path.join(HERE, "data", "fit_body_pair.acl")
 LATCH = os.path.join(HERE, "data", "fit_latch_state.acl")
 SWEEP3 = Experiment(frequencies=(80e3, 100e3, 125e3, 150e3, 170e3), voltages=tuple(np.linspace(0, 6, 7)))
 
@@ -139,31 +140,35 @@ def test_what_the_fit_model_cannot_follow_is_a_located_E810(tmp_path, capsys):
 # groups of interacting capsules
 # ------------------------------------------------------------------------------------------------
 
-def _group_alone(tmp_path):
-    """tests/data/fit_group3.acl without its calibration capsule (units are taken not to interact; the analysis
-    feels every capsule of the design)."""
-    text = "\n".join(line for line in open(GROUP).read().splitlines() if "cal" not in line)
-    path = tmp_path / "group.acl"
+def _alone(tmp_path, src):
+    """A test design without its calibration capsule (units are taken not to interact; the analysis feels every
+    capsule of the design)."""
+    text = "\n".join(line for line in open(src).read().splitlines() if "cal" not in line)
+    path = tmp_path / os.path.basename(src)
     path.write_text(text + "\n")
     return str(path)
 
 
-def test_group_is_the_analysis_at_rest_and_through_snap_in(tmp_path):
-    """One physics: the group's gaps and tip are acl.analysis.mechanics.equilibrium's with the full force model
-    (coupled volumes where the capsules are, Bjerknes, Schlichting jet drag), 1e-6 relative, at two frequencies; and
-    both snap in at the same voltage (the fit's first contact row vs the analysis' snap-in of its voltage sweep)."""
+@pytest.mark.parametrize("src,obs,gap,sweeps", [
+    (GROUP, ("d_ab", "d_bc", "tip_c"), "d_ab", ((125e3, (0.5, 1.0, 2.0, 3.0)), (115e3, (0.5, 1.0, 2.0)))),
+    # a two-orifice capsule facing a capsule that carries another through a truss (bodies inside a pair)
+    (BODY_PAIR, ("distance", "a_y"), "distance", ((125e3, (0.5, 1.0, 2.0, 3.0)), (175e3, (1.0, 3.0, 6.0, 10.0)))),
+])
+def test_group_is_the_analysis_at_rest_and_through_snap_in(tmp_path, src, obs, gap, sweeps):
+    """One physics: a group's gaps and displacements are acl.analysis.mechanics.equilibrium's with the full force
+    model (coupled volumes where the capsules are, Bjerknes, Schlichting jet drag), 1e-6 relative, at two
+    frequencies; and both snap in at the same voltage (the fit's first contact row vs the analysis' voltage sweep)."""
     from acl.analysis import acoustics as A
     from acl.analysis import mechanics as M
     from acl.design.model import Drive, Tone
     from acl.fit.forward import predict
     from acl.fit.synth import observe_value
 
-    path = _group_alone(tmp_path)
+    path = _alone(tmp_path, src)
     design = acl.load(path)
-    obs = ("d_ab", "d_bc", "tip_c")
-    for f, volts in ((125e3, (0.5, 1.0, 2.0, 3.0)), (115e3, (0.5, 1.0, 2.0))):
+    for f, volts in sweeps:
         _, P = generate(path, Experiment(frequencies=(f,), voltages=volts, observables=obs))
-        got = predict(P, {}, {}).reshape(len(volts), 3)
+        got = predict(P, {}, {}).reshape(len(volts), len(obs))
         for V, row in zip(volts, got):
             st = M.equilibrium(design, Drive(tones=(Tone(frequency=f, amplitude=V),)), A.force_model_for(design))
             assert st.status == "ok"
@@ -173,7 +178,7 @@ def test_group_is_the_analysis_at_rest_and_through_snap_in(tmp_path):
                             A.force_model_for(design))
     assert sweep.status == "snap_in"
     volts = tuple(np.linspace(3.0, 4.0, 101))
-    _, P = generate(path, Experiment(frequencies=(125e3,), voltages=volts, observables=("d_ab",)))
+    _, P = generate(path, Experiment(frequencies=(125e3,), voltages=volts, observables=(gap,)))
     first = volts[int(np.argmax(predict(P, {}, {}) == 0.0))]
     assert abs(first - sweep.snap_voltage) <= 0.01 + 1e-9, (first, sweep.snap_voltage)
 
