@@ -297,3 +297,52 @@ def test_a_replayed_ramp_switches_the_latch_and_it_stays_switched(tmp_path):
     assert states == [("0", "1", "0.5")] * 2 + [("1", "1", "0.5")] * 3
     travel = [float(r[1]) for r in rows if r[0] == "shuttle"]
     assert max(travel[:2]) < 1 and min(travel[2:]) > 60
+
+
+# ------------------------------------------------------------------------------------------------
+# resonance of each orifice of a multi-orifice body (issue 9 item 2)
+# ------------------------------------------------------------------------------------------------
+
+def test_each_orifice_resonance_of_a_multi_orifice_body_is_calibrated(tmp_path):
+    """Fig. 3: `--free f0:m.o2,q:m.o2` is the mode orifice o2 dominates (acl.analysis.acoustics.capsule_modes);
+    a sweep across the three modes recovers its shifted f0 (+5 %) and Q (+30 %) and gamma, each inside its 95 %
+    interval, over three seeds."""
+    from acl.analysis.acoustics import capsule_modes
+
+    ex = Experiment(frequencies=tuple(np.linspace(60e3, 200e3, 15)), voltages=(2.0, 4.0, 6.0))
+    _, P = generate(FIG3, ex)
+    mode = next(m for m in capsule_modes(acl.load(FIG3), "m") if m.dominant_orifice == "o2")
+    assert P.modes0["m.o2"] == (mode.frequency_hz, mode.q) and P.modes0["m.o1"] != P.modes0["m.o2"]
+    truth = {"f0:m.o2": 1.05 * mode.frequency_hz, "q:m.o2": 1.3 * mode.q, "gamma": P.gamma0}
+    coeffs = {"f0@m.o2": truth["f0:m.o2"], "q@m.o2": truth["q:m.o2"]}
+    from acl.fit.problem import load_problem
+    from acl.fit.select import select_effects
+
+    for seed in range(3):
+        data, _ = generate(FIG3, ex, noise=0.05e-6, seed=seed, coeffs=coeffs)
+        path = str(tmp_path / f"f{seed}.csv")
+        write_csv(data, path)
+        f = select_effects(load_problem(FIG3, [path], free=["gamma", "f0:m.o2", "q:m.o2"]), candidates=[],
+                           seed=seed).final
+        for k, c in enumerate(f.coefs):
+            assert f.ci[k][0] <= truth[c.name] <= f.ci[k][1], (seed, c.name, f.values[k], f.ci[k])
+
+
+def test_bubble_shrinkage_moves_every_mode_of_a_multi_orifice_body(tmp_path):
+    """Fig. 3 ramps repeated over time at the three modes: the planted volume rate (0.01/s) is found, each mode's
+    frequency following the capsule's gas volume (acl.physics.effects.capsule_volume_frequency_table)."""
+    from acl.fit.problem import load_problem
+    from acl.fit.select import select_effects
+    from acl.physics.effects import capsule_volume_frequency_table
+
+    lx, lf = capsule_volume_frequency_table(1e-13, (15e-6, 9.5e-6, 7.5e-6), 1.3e5, 1005.0, 0.0725, 101325.0, 1.0)
+    assert lf[np.searchsorted(lx, 0.0)] == 0.0 and np.all(np.diff(lf) <= 0)    # less gas, stiffer: f rises
+    ex = Experiment(frequencies=(80e3, 125e3, 170e3), voltages=(0.0, 3.0, 6.0), repeats=4, interval=2.0)
+    for seed in range(2):
+        data, _ = generate(FIG3, ex, {"bubble_shrinkage": {"shrink_rate": 0.01}}, noise=0.05e-6, seed=seed)
+        path = str(tmp_path / f"s{seed}.csv")
+        write_csv(data, path)
+        sel = select_effects(load_problem(FIG3, [path], free=["gamma"]), seed=seed)
+        assert sel.selected == ["bubble_shrinkage"]
+        k = [c.name for c in sel.final.coefs].index("bubble_shrinkage.shrink_rate")
+        assert sel.final.ci[k][0] <= 0.01 <= sel.final.ci[k][1]
