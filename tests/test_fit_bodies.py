@@ -16,6 +16,7 @@ EXAMPLES = os.path.join(HERE, "..", "examples")
 FIG3 = os.path.join(EXAMPLES, "fig3_three_orifice.acl")
 FIG6E = os.path.join(EXAMPLES, "fig6e_reversible_latch.acl")
 GROUP = os.path.join(HERE, "data", "fit_group3.acl")
+BODY_PAIR = os.path.join(HERE, "data", "fit_body_pair.acl")
 LATCH = os.path.join(HERE, "data", "fit_latch_state.acl")
 SWEEP3 = Experiment(frequencies=(80e3, 100e3, 125e3, 150e3, 170e3), voltages=tuple(np.linspace(0, 6, 7)))
 
@@ -139,31 +140,35 @@ def test_what_the_fit_model_cannot_follow_is_a_located_E810(tmp_path, capsys):
 # groups of interacting capsules
 # ------------------------------------------------------------------------------------------------
 
-def _group_alone(tmp_path):
-    """tests/data/fit_group3.acl without its calibration capsule (units are taken not to interact; the analysis
-    feels every capsule of the design)."""
-    text = "\n".join(line for line in open(GROUP).read().splitlines() if "cal" not in line)
-    path = tmp_path / "group.acl"
+def _alone(tmp_path, src):
+    """A test design without its calibration capsule (units are taken not to interact; the analysis feels every
+    capsule of the design)."""
+    text = "\n".join(line for line in open(src).read().splitlines() if "cal" not in line)
+    path = tmp_path / os.path.basename(src)
     path.write_text(text + "\n")
     return str(path)
 
 
-def test_group_is_the_analysis_at_rest_and_through_snap_in(tmp_path):
-    """One physics: the group's gaps and tip are acl.analysis.mechanics.equilibrium's with the full force model
-    (coupled volumes where the capsules are, Bjerknes, Schlichting jet drag), 1e-6 relative, at two frequencies; and
-    both snap in at the same voltage (the fit's first contact row vs the analysis' snap-in of its voltage sweep)."""
+@pytest.mark.parametrize("src,obs,gap,sweeps", [
+    (GROUP, ("d_ab", "d_bc", "tip_c"), "d_ab", ((125e3, (0.5, 1.0, 2.0, 3.0)), (115e3, (0.5, 1.0, 2.0)))),
+    # a two-orifice capsule facing a capsule that carries another through a truss (bodies inside a pair)
+    (BODY_PAIR, ("distance", "a_y"), "distance", ((125e3, (0.5, 1.0, 2.0, 3.0)), (175e3, (1.0, 3.0, 6.0, 10.0)))),
+])
+def test_group_is_the_analysis_at_rest_and_through_snap_in(tmp_path, src, obs, gap, sweeps):
+    """One physics: a group's gaps and displacements are acl.analysis.mechanics.equilibrium's with the full force
+    model (coupled volumes where the capsules are, Bjerknes, Schlichting jet drag), 1e-6 relative, at two
+    frequencies; and both snap in at the same voltage (the fit's first contact row vs the analysis' voltage sweep)."""
     from acl.analysis import acoustics as A
     from acl.analysis import mechanics as M
     from acl.design.model import Drive, Tone
     from acl.fit.forward import predict
     from acl.fit.synth import observe_value
 
-    path = _group_alone(tmp_path)
+    path = _alone(tmp_path, src)
     design = acl.load(path)
-    obs = ("d_ab", "d_bc", "tip_c")
-    for f, volts in ((125e3, (0.5, 1.0, 2.0, 3.0)), (115e3, (0.5, 1.0, 2.0))):
+    for f, volts in sweeps:
         _, P = generate(path, Experiment(frequencies=(f,), voltages=volts, observables=obs))
-        got = predict(P, {}, {}).reshape(len(volts), 3)
+        got = predict(P, {}, {}).reshape(len(volts), len(obs))
         for V, row in zip(volts, got):
             st = M.equilibrium(design, Drive(tones=(Tone(frequency=f, amplitude=V),)), A.force_model_for(design))
             assert st.status == "ok"
@@ -173,7 +178,7 @@ def test_group_is_the_analysis_at_rest_and_through_snap_in(tmp_path):
                             A.force_model_for(design))
     assert sweep.status == "snap_in"
     volts = tuple(np.linspace(3.0, 4.0, 101))
-    _, P = generate(path, Experiment(frequencies=(125e3,), voltages=volts, observables=("d_ab",)))
+    _, P = generate(path, Experiment(frequencies=(125e3,), voltages=volts, observables=(gap,)))
     first = volts[int(np.argmax(predict(P, {}, {}) == 0.0))]
     assert abs(first - sweep.snap_voltage) <= 0.01 + 1e-9, (first, sweep.snap_voltage)
 
@@ -292,3 +297,52 @@ def test_a_replayed_ramp_switches_the_latch_and_it_stays_switched(tmp_path):
     assert states == [("0", "1", "0.5")] * 2 + [("1", "1", "0.5")] * 3
     travel = [float(r[1]) for r in rows if r[0] == "shuttle"]
     assert max(travel[:2]) < 1 and min(travel[2:]) > 60
+
+
+# ------------------------------------------------------------------------------------------------
+# resonance of each orifice of a multi-orifice body (issue 9 item 2)
+# ------------------------------------------------------------------------------------------------
+
+def test_each_orifice_resonance_of_a_multi_orifice_body_is_calibrated(tmp_path):
+    """Fig. 3: `--free f0:m.o2,q:m.o2` is the mode orifice o2 dominates (acl.analysis.acoustics.capsule_modes);
+    a sweep across the three modes recovers its shifted f0 (+5 %) and Q (+30 %) and gamma, each inside its 95 %
+    interval, over three seeds."""
+    from acl.analysis.acoustics import capsule_modes
+
+    ex = Experiment(frequencies=tuple(np.linspace(60e3, 200e3, 15)), voltages=(2.0, 4.0, 6.0))
+    _, P = generate(FIG3, ex)
+    mode = next(m for m in capsule_modes(acl.load(FIG3), "m") if m.dominant_orifice == "o2")
+    assert P.modes0["m.o2"] == (mode.frequency_hz, mode.q) and P.modes0["m.o1"] != P.modes0["m.o2"]
+    truth = {"f0:m.o2": 1.05 * mode.frequency_hz, "q:m.o2": 1.3 * mode.q, "gamma": P.gamma0}
+    coeffs = {"f0@m.o2": truth["f0:m.o2"], "q@m.o2": truth["q:m.o2"]}
+    from acl.fit.problem import load_problem
+    from acl.fit.select import select_effects
+
+    for seed in range(3):
+        data, _ = generate(FIG3, ex, noise=0.05e-6, seed=seed, coeffs=coeffs)
+        path = str(tmp_path / f"f{seed}.csv")
+        write_csv(data, path)
+        f = select_effects(load_problem(FIG3, [path], free=["gamma", "f0:m.o2", "q:m.o2"]), candidates=[],
+                           seed=seed).final
+        for k, c in enumerate(f.coefs):
+            assert f.ci[k][0] <= truth[c.name] <= f.ci[k][1], (seed, c.name, f.values[k], f.ci[k])
+
+
+def test_bubble_shrinkage_moves_every_mode_of_a_multi_orifice_body(tmp_path):
+    """Fig. 3 ramps repeated over time at the three modes: the planted volume rate (0.01/s) is found, each mode's
+    frequency following the capsule's gas volume (acl.physics.effects.capsule_volume_frequency_table)."""
+    from acl.fit.problem import load_problem
+    from acl.fit.select import select_effects
+    from acl.physics.effects import capsule_volume_frequency_table
+
+    lx, lf = capsule_volume_frequency_table(1e-13, (15e-6, 9.5e-6, 7.5e-6), 1.3e5, 1005.0, 0.0725, 101325.0, 1.0)
+    assert lf[np.searchsorted(lx, 0.0)] == 0.0 and np.all(np.diff(lf) <= 0)    # less gas, stiffer: f rises
+    ex = Experiment(frequencies=(80e3, 125e3, 170e3), voltages=(0.0, 3.0, 6.0), repeats=4, interval=2.0)
+    for seed in range(2):
+        data, _ = generate(FIG3, ex, {"bubble_shrinkage": {"shrink_rate": 0.01}}, noise=0.05e-6, seed=seed)
+        path = str(tmp_path / f"s{seed}.csv")
+        write_csv(data, path)
+        sel = select_effects(load_problem(FIG3, [path], free=["gamma"]), seed=seed)
+        assert sel.selected == ["bubble_shrinkage"]
+        k = [c.name for c in sel.final.coefs].index("bubble_shrinkage.shrink_rate")
+        assert sel.final.ci[k][0] <= 0.01 <= sel.final.ci[k][1]

@@ -71,8 +71,8 @@ class GroupBlock:
     oj: np.ndarray            # (r,) gap: orifice b
     axis: np.ndarray          # (r, 3) displacement axis / position unit vector
     obase: np.ndarray         # (r,) position: rest coordinate
-    engines: list = None      # acl.analysis.acoustics force engines of a 1 V tone at each drive frequency of the rows
-    fidx: np.ndarray = None   # (r, T) index of each tone's engine (-1: no tone)
+    engines: list = None      # [acl.analysis.acoustics force engine of every drive frequency of the rows at 1 V]
+    fidx: np.ndarray = None   # (r, T) index of each tone's frequency in that engine (-1: no tone)
     orif_ix: np.ndarray = None    # (n,) each orifice's interface index in the design (acl.analysis.acoustics layout)
     cap_ix: np.ndarray = None     # (C,) each capsule's index in the design
     all_rest: np.ndarray = None   # (C_all, 3) every capsule centre of the design at rest
@@ -161,12 +161,16 @@ def block(inst, unit, name, rows, f, v, gamma0, alpha_ref, ftable) -> GroupBlock
     from acl.analysis.acoustics import _compute_engine, _layout
     from acl.design.model import Drive, Tone
 
-    engines, fidx = [], np.full((r, T), -1)
-    for fk in np.unique(fr[vr > 0]):
-        key = ("eng", float(fk))
+    freqs = np.unique(fr[vr > 0])
+    fidx = np.full((r, T), -1)
+    for i, fk in enumerate(freqs):
+        fidx[(fr == fk) & (vr > 0)] = i
+    engines = []
+    if freqs.size:                # one force engine of every drive frequency of the rows at 1 V (per-tone responses)
+        key = ("eng", tuple(float(x) for x in freqs))
         if key not in inst._tau:
-            inst._tau[key] = _compute_engine(inst.design, Drive(tones=(Tone(frequency=float(fk), amplitude=1.0),)))
-        fidx[(fr == fk) & (vr > 0)] = len(engines)
+            inst._tau[key] = _compute_engine(inst.design, Drive(tones=tuple(Tone(frequency=float(x), amplitude=1.0)
+                                                                           for x in freqs)))
         engines.append(inst._tau[key])
     lay = _layout(inst.design)
     names = [c.name for c in lay.caps]
@@ -270,26 +274,34 @@ def predict(P, blk: GroupBlock, coeffs, effects, w, gamma, alpha, es, lam, grad,
         wt_all = np.broadcast_to(wt, w.shape + (n,))
         a_scale = alpha / blk.alpha_ref if blk.alpha_ref else 1.0
 
+    if moves:
+        eng = blk.engines[0]
+        k_thr = eng.consts["thrust"][:, blk.orif_ix]                                  # (F, n) thrust per |dV/p|^2
+        k_att = (eng.consts["bjerknes"][np.ix_(blk.orif_ix, blk.orif_ix)][None]
+                 * eng.consts["w2p2"][:, None, None])                                 # (F, n, n)
+        nf = eng.f.size
+
     def responses(xc, rows_):
-        """(thrust (B, n), Bjerknes attraction x distance^2 ... as att (B, n, n)) of the group's orifices with its
-        capsules displaced by xc: the analysis' coupled volumes at that configuration (acl.analysis.acoustics
-        _Engine.forces), each tone weighted by its drive, gain effects and mode factors."""
+        """(thrust (B, n), Bjerknes attraction x distance^2 (B, n, n)) of the group's orifices with its capsules
+        displaced by xc: the analysis' coupled volumes at that configuration (acl.analysis.acoustics _Engine, one
+        linear solve per configuration for every frequency), each tone weighted by its drive, gain effects and mode
+        factors."""
         Bn = xc.shape[0]
         centres = np.repeat(blk.all_rest[None], Bn, axis=0)
         centres[:, blk.cap_ix] += xc
-        thr = np.zeros((Bn, n))
-        att = np.zeros((Bn, n, n))
+        u = eng.response(centres[:, eng.lay.body] + eng.lay.offsets)[:, :, blk.orif_ix]   # (B, F, n) per pascal
         fi = blk.fidx[rows_]
+        W = np.zeros((Bn, nf, n))
+        Wab = np.zeros((Bn, nf, n, n))
         wr, wabr = wt_all[rows_], wab_all[rows_]
-        for k, eng in enumerate(blk.engines):
-            hit = fi == k
-            sel = np.flatnonzero(hit.any(axis=1))
-            if sel.size == 0:
-                continue
-            _, _, th, at = eng.forces(centres[sel], parts=True)
-            h = hit[sel]
-            thr[sel] += (wr[sel] * h[:, :, None]).sum(axis=1) * th[:, blk.orif_ix]
-            att[sel] += (wabr[sel] * h[:, :, None, None]).sum(axis=1) * at[:, blk.orif_ix][:, :, blk.orif_ix]
+        b = np.arange(Bn)
+        for t in range(fi.shape[1]):
+            on = fi[:, t] >= 0
+            np.add.at(W, (b[on], fi[on, t]), wr[on, t])
+            np.add.at(Wab, (b[on], fi[on, t]), wabr[on, t])
+        thr = ((u.real**2 + u.imag**2) * k_thr[None] * W).sum(axis=1)
+        prod = (u[:, :, :, None] * np.conj(u[:, :, None, :])).real
+        att = (prod * k_att[None] * Wab).sum(axis=1)
         return thr * (gamma / blk.gamma0) * sub[None], att * a_scale * np.sqrt(np.outer(sub, sub))[None]
 
     def loads(z, scale, rows_=slice(None)):
@@ -308,8 +320,8 @@ def predict(P, blk: GroupBlock, coeffs, effects, w, gamma, alpha, es, lam, grad,
             bad = ~(np.isfinite(th).all(axis=1) & np.isfinite(att).all(axis=(1, 2)))
             if bad.any():
                 th[bad] = thrust[rows_][bad]
-                att[bad] = A[rows_][bad] / dc[bad] ** 2
-            fb = np.einsum("rij,rijk->rik", att / dc, sep)
+                att[bad] = A[rows_][bad]
+            fb = np.einsum("rij,rijk->rik", att / dc**3, sep)
             F = np.einsum("ro,ok,oc->rck", th, -blk.normals, onehot) + np.einsum("rok,oc->rck", fb, onehot)
         else:                # a body alone: nothing moves relative to it that it feels
             th = thrust[rows_]
