@@ -257,6 +257,7 @@ CONFOUNDED = {
     "latch+state transducer_resonance": _THRESHOLD,
     "latch+state drive_saturation": _THRESHOLD,
     "cantilever transducer_gain": _FLANK,
+    "cantilever large_deflection+transducer_gain": _FLANK,
 }
 
 
