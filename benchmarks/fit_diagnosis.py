@@ -256,6 +256,7 @@ CONFOUNDED = {
     "latch+state transducer_gain": _THRESHOLD,
     "latch+state transducer_resonance": _THRESHOLD,
     "latch+state drive_saturation": _THRESHOLD,
+    "latch+state drive_saturation+offset_drift": _THRESHOLD,
     "cantilever transducer_gain": _FLANK,
     "cantilever large_deflection+transducer_gain": _FLANK,
 }
