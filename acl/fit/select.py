@@ -347,7 +347,8 @@ def _replacements(problem, model, names, selected, current, eid, p_limit, progre
     return reduced, p_keep, limit, tries
 
 
-AMBIGUOUS_CHI2 = 50.0   # an alternative whose clipped -2 ln L is within this of the selected model's is not ruled out
+AMBIGUOUS_CHI2 = 6.0    # an alternative whose clipped -2 ln L is within this of the selected model's is not ruled out:
+#                         a likelihood ratio below e^3 = 20, at most "positive" evidence (Kass & Raftery 1995, 2 ln B < 6)
 CLIP = solve.JUMP ** 2  # a row beyond JUMP sigma (on a fold: a latch switching one voltage step early or late, a pair
 #                         past snap-in) counts this much: the least such a row adds, not its 1e5 (the shuttle model
 #                         switches at the switching force itself while the device scatters from ramp to ramp)
@@ -388,9 +389,8 @@ def ambiguity(final, selected, reps) -> list[dict]:
     """Alternative effect sets that explain the data about as well as the selected one: each selected effect E
     replaced by another effect C (fitted in E's place with the other selected effects, :func:`_replacements`) that
     passes the search's tests against the model without E (F-test, identifiable) and whose clipped -2 ln L
-    (:func:`clipped_chi2`) is within AMBIGUOUS_CHI2 of the selected model's.  The threshold is empirical (docs/fit.md:
-    on one latch seen through its switched state a wrong gain shape or saturation came within 49 of the planted
-    effect, on latches of three angles no wrong effect came within 58).  Best first."""
+    (:func:`clipped_chi2`) is within AMBIGUOUS_CHI2 of the selected model's (a likelihood ratio below 20; the
+    alternative may have more parameters).  Best first."""
     out = []
     ref = clipped_chi2(final)
     for eid, tries in reps.items():
