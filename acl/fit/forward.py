@@ -80,6 +80,7 @@ class Prepared:
     group_row: np.ndarray = None     # (n,) bool: the row belongs to one of them
     state: np.ndarray = None         # (n,) bool: the row observes a latch state (0 a, 1 b), acl.fit.forward.switch_probability
     pearson: tuple = None            # (measured values, row weights) when fitting: state rows predict y + r_P / w
+    ref_orifice: str = ""            # "capsule.orifice" of the reference capsule's first orifice
 
     def volume_shift(self, c, fn, lnx):
         """Natural frequency of side ``c`` after its gas volume changed by a factor exp(lnx) (rows), from the tables."""
@@ -129,7 +130,8 @@ def prepare(data, load_instance, f_ref: float | None = None) -> Prepared:
         if pu is not None:
             pair_ref = (instances[key], pu)
             break
-    alpha_ref = pair_alpha_per_v2(pair_ref[0], *reference_pair(*pair_ref), f_ref) if pair_ref else 0.0
+    ref_pair = reference_pair(*pair_ref) if pair_ref else ()
+    alpha_ref = pair_alpha_per_v2(pair_ref[0], *ref_pair, f_ref) if len(ref_pair) == 2 else 0.0
     arr = {k: np.zeros((2, n)) for k in ("L", "l", "EI", "height", "fn", "q", "cd", "ct", "volume", "radius")}
     arr["L"][:] = 1.0
     arr["EI"][:] = 1.0
@@ -157,10 +159,12 @@ def prepare(data, load_instance, f_ref: float | None = None) -> Prepared:
     state = np.zeros(n, bool)
     gtables: dict = {}
 
-    def gtable(volume, radius, med):
-        key = (volume, radius, *med)
+    def gtable(volume, radii, target_hz, med):
+        """First-mode table of a single-orifice capsule; a multi-orifice capsule's mode nearest ``target_hz``."""
+        key = (volume, radii, target_hz if len(radii) > 1 else 0.0, *med)
         if key not in gtables:
-            gtables[key] = volume_frequency_table(volume, radius, *med)
+            gtables[key] = (volume_frequency_table(volume, radii[0], *med) if len(radii) == 1 else
+                            capsule_volume_frequency_table(volume, radii, target_hz, *med))
         return gtables[key]
 
     by_group: dict = {}
@@ -181,14 +185,21 @@ def prepare(data, load_instance, f_ref: float | None = None) -> Prepared:
             blk = block(inst, unit, name, rows, f, v, gamma0, alpha_ref, gtable)
             groups.append(blk)
             group_row[rows] = True
-            s0_ = unit.sides[blk.oi[0]]
-            law[0, rows], caps[0, rows] = LAW_CODES[s0_.law], s0_.capsule
-            arr["height"][0, rows] = s0_.height
-            arr["fn"][0, rows], arr["q"][0, rows] = s0_.mode
+            oc = blk.orif_cap[blk.oi[0]] if blk.kind[0] == 0 else blk.oi[0]
+            s0_ = unit.sides[blk.cap_node[oc]]
+            law[0, rows], caps[0, rows] = LAW_CODES[s0_.law], blk.caps[oc]
+            o0 = int(np.flatnonzero(blk.orif_cap == oc)[0]) if np.any(blk.orif_cap == oc) else 0
+            arr["height"][0, rows] = blk.cap_height[oc]
+            arr["fn"][0, rows], arr["q"][0, rows] = blk.fn[o0], blk.q[o0]
             arr["L"][0, rows], arr["l"][0, rows], arr["EI"][0, rows] = s0_.L, s0_.l, s0_.EI
+            if s0_.law == "latch":
+                if s0_.latch not in latch_index:
+                    latch_index[s0_.latch] = len(latch_tables)
+                    latch_tables.append(latch_table(s0_.latch))
+                latch_id[rows] = latch_index[s0_.latch]
             rest_gap = np.linalg.norm(blk.points[blk.oj[0]] - blk.points[blk.oi[0]])
             base[rows] = np.where(blk.kind == 0, rest_gap, blk.obase)
-            d0[rows] = rest_gap
+            d0[rows] = rest_gap if blk.kind[0] == 0 else np.nan
             continue
         for c, side in enumerate(unit.sides):
             law[c, rows] = LAW_CODES[side.law]
@@ -256,14 +267,24 @@ def prepare(data, load_instance, f_ref: float | None = None) -> Prepared:
     modes0 = {}
     for inst in instances.values():
         for u in inst.units.values():
+            if u.net is not None:       # a group: every capsule (its first orifice's mode) and every orifice
+                for lab, (fn, q) in zip(u.net.labels, u.net.modes):
+                    modes0.setdefault(lab.split(".")[0], (float(fn), float(q)))
+                    modes0.setdefault(lab, (float(fn), float(q)))
+                continue
             for s in u.sides:
                 modes0.setdefault(s.capsule, s.mode)
+                c = inst.design.capsule(s.capsule)
+                if len(c.orifices) == 1:
+                    modes0.setdefault(f"{s.capsule}.{c.orifices[0].name}", s.mode)
+    rc = ref.design.capsule(ref_cap)
+    ref_orifice = f"{ref_cap}.{rc.orifices[0].name}" if rc.orifices else ""
     return Prepared(n, f, v, tau, arel, pair, arr["L"], arr["l"], arr["EI"], arr["cd"], arr["ct"], arr["height"],
                     proj, d0, base, s0, s1, arr["fn"], arr["q"], t, f_ref, gamma0, alpha0, float(E0),
                     float(max(v.sum(axis=1).max(), 1e-9)), instances, law, caps, arr["volume"], arr["radius"],
                     medium, latch_id, latch_tables, caps == ref_cap, ref_cap, units,
                     exp if exp is not None else np.full(n, "", dtype=object), modes0, {}, side_table, ftables,
-                    vector, tauv, obs_w, one_mode, groups, group_row, state)
+                    vector, tauv, obs_w, one_mode, groups, group_row, state, ref_orifice=ref_orifice)
 
 
 def latch_table(geometry) -> tuple:
@@ -304,8 +325,8 @@ def _alpha0(inst, alpha_ref: float) -> float:
 # ----------------------------------------------------------------------------------------------
 
 # The formulas live in acl.physics.effects (the analysis applies the same ones to declared effects).
-from acl.physics.effects import (drag_load, elastica_blend, gain_tilt, mode_response_ratio,  # noqa: E402,F401
-                                 saturation, shrunk_frequency, substrate_factor, transducer_resonance,
+from acl.physics.effects import (capsule_volume_frequency_table, drag_load, elastica_blend,  # noqa: E402,F401
+                                 gain_tilt, mode_response_ratio, saturation, shrunk_frequency, substrate_factor, transducer_resonance,
                                  volume_frequency_table)
 
 
@@ -472,8 +493,9 @@ def _predict(P: Prepared, coeffs: dict, effects: dict) -> np.ndarray:
 
         grad = effects["stiffness_gradient"]["e_gradient"] if "stiffness_gradient" in effects else 0.0
         for blk in P.groups:
-            change, _ = G.predict(P, blk, coeffs, effects, w[blk.rows], gamma, alpha, es, lam, grad, c_p)
+            change, _, rat = G.predict(P, blk, coeffs, effects, w[blk.rows], gamma, alpha, es, lam, grad, c_p)
             out[blk.rows] = P.base[blk.rows] + change
+            ratio[blk.rows] = np.where(blk.kind == 3, rat, ratio[blk.rows])
     if "offset_drift" in effects:
         e = effects["offset_drift"]
         out = out + e["offset"] + e["drift"] * P.t
