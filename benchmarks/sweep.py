@@ -14,7 +14,7 @@
    stiffness +-10 %): snap-in voltage at 125 kHz, the flexure's extension at 125 kHz @ 10 V and
    `require gap` at the 14 V hold (acl.sweep.mechanism: the branch as the curve V^2(z) of the one
    coordinate; before, these columns were left out).
-6. 10,000 samples of the Fig. 6e latch (benchmarks/designs/sweep_latch.acl: angle +-1 deg, width
+6. 5,000 samples of the Fig. 6e latch (benchmarks/designs/sweep_latch.acl: angle +-1 deg, width
    +-50 nm, thickness +-5 %): the switching voltage (snap-in of the pair on the shuttle at 85 kHz, by
    continuation across the latch's buckling kink) and the margin require at 32 V.
 3. The same sweep (1.) on a dask LocalCluster of 2 worker processes and in one process: the tables
@@ -25,7 +25,7 @@ so the local scheduler runs the chunks one after another in this process. Prints
 the process's CPU time (on a shared machine the CPU time is the steadier figure).
 
     python benchmarks/sweep.py [--samples 1000000] [--pair-samples 100000] [--cluster-samples 200000]
-                               [--drive-samples 5000] [--spring-samples 100000] [--latch-samples 10000]
+                               [--drive-samples 5000] [--spring-samples 100000] [--latch-samples 5000]
                                [--skip-cluster]
 """
 from __future__ import annotations
@@ -141,7 +141,7 @@ def main(argv=None) -> int:
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--drive-samples", type=int, default=5000)
     ap.add_argument("--spring-samples", type=int, default=100_000)
-    ap.add_argument("--latch-samples", type=int, default=10_000)
+    ap.add_argument("--latch-samples", type=int, default=5_000)
     ap.add_argument("--skip-cluster", action="store_true")
     args = ap.parse_args(argv)
     import acl  # noqa: F401  (import time is not part of a sweep)
