@@ -63,12 +63,13 @@ rules, each for its reason:
 * ACL202 (force sign change): the same per-point grid (sweep_frequencies adds each point's modes
   inside the program's range) with the Bjerknes force at every frequency;
 * ACL201 with a `sweep` step: the sweep's tones include each point's modes (same reason);
-* ACL301, ACL302 (latch switch/hold against the switching and release forces): lint compares with the
-  extremes of the landscape's 2001-point grid; the batched latch forces are refined by golden section
-  (up to 2e-3 higher at a kink).  With them ACL301 (a step that may flip a latch: push x factor >=
-  the force needed) would pass points lint flags, an optimistic verdict on a safety check, and
-  ACL302 would differ from `acl lint` near its threshold; the batched margins (``margin_*`` columns,
-  ``require margin``) already give the refined, never optimistic figure of a switch;
+* ACL301, ACL302 (latch switch/hold against the switching and release forces): lint takes them from
+  the scalar landscape (latch.latch_landscape: a 2001-point grid, its extremes refined), the batched
+  columns from a coarser grid refined the same way, higher by up to 2e-3 where the extreme sits at a
+  kink (tests/test_sweep_evaluate.py).  With them ACL301 (a step that may flip a latch: push x
+  factor >= the force needed) could pass points lint flags, an optimistic verdict on a safety check,
+  and ACL302 could differ from `acl lint` near its threshold; the batched margins (``margin_*``
+  columns, ``require margin``) give the switch's figure;
 * ACL401, ACL402 (beam strain, large deflection): the worst load over every program step, a `follow`
   step's excursion included, which comes from the path the compiler plans, not from the design's
   numbers alone;
