@@ -206,6 +206,27 @@ def _physical_effects(design: M.Design) -> list[str]:
     return [e.name for e in design.effects if e.name not in STATIC_EFFECTS]
 
 
+# Declared effects that leave the forces at rest as they are (acl.analysis.acoustics applies them to
+# beams or to displaced capsules only: neighbour_drag's factor is 1 at zero displacement), and those of
+# them that also leave the latch law as it is (mechanics.latch_geometry scales E by stiffness_scale only).
+REST_NEUTRAL_EFFECTS = {"large_deflection", "stiffness_gradient", "stiffness_scale", "neighbour_drag"}
+LATCH_NEUTRAL_EFFECTS = {"large_deflection", "stiffness_gradient", "neighbour_drag"}
+
+
+def _effect_blocks(design: M.Design) -> dict[str, list[str]]:
+    """{'rest': effects that change the forces at rest, 'latch': ... the latch margins, 'motion': ... the
+    equilibria (every physical effect: the batched beams, springs and forces at displaced positions
+    model none of them)}."""
+    eff = _physical_effects(design)
+    return {"rest": [e for e in eff if e not in REST_NEUTRAL_EFFECTS],
+            "latch": [e for e in eff if e not in LATCH_NEUTRAL_EFFECTS],
+            "motion": eff}
+
+
+def _effects_note(names: list[str], what: str) -> str:
+    return f"the design declares effects ({', '.join(names)}) that change {what}, which the batched evaluation does not model"
+
+
 def supported(design: M.Design, at: str | None = None) -> tuple[list[str], dict[str, str]]:
     """(column names the batched evaluation gives for ``design``, {quantity family: why it is not given})."""
     from acl.analysis.report import program_frequencies, step_drives
@@ -213,23 +234,34 @@ def supported(design: M.Design, at: str | None = None) -> tuple[list[str], dict[
     names: list[str] = []
     missing: dict[str, str] = {}
     effects = _physical_effects(design)
+    blocks = _effect_blocks(design)
     for cap in design.capsules:
         for k in range(1, len(cap.orifices) + 1):
             names += [f"resonance_{_ident(cap.name)}_{k}_hz", f"q_{_ident(cap.name)}_{k}"]
-    if effects:
-        why = f"the design declares effects ({', '.join(effects)}) that the batched forces and beams do not model"
-        for fam in ("force_", "attract_", "phase_", "critical_distance_", "snap_in_", "switching_force_",
-                    "release_force_", "bistable_", "margin_", "tip_deflection", "equilibrium_ok"):
-            missing[fam] = why
+    if blocks["rest"]:
+        for fam in ("force_", "attract_", "phase_", "critical_distance_"):
+            missing[fam] = _effects_note(blocks["rest"], "the acoustic forces")
+    if blocks["latch"]:
+        for fam in ("switching_force_", "release_force_", "bistable_", "margin_"):
+            missing[fam] = _effects_note(blocks["latch"], "the forces or the latch law")
+    if blocks["motion"]:
+        for fam in ("snap_in_", "tip_deflection", "deflection_", "equilibrium_ok"):
+            missing[fam] = _effects_note(blocks["motion"], "the equilibria (forces at displaced positions, beams)")
     mech = _mechanism(design)
     moving = [c for c in design.capsules if (design.mount_of(c.name) or M.Fix(capsule="", span=c.span)).kind == "mount"]
     freqs = program_frequencies(design) or []
-    if not effects:
-        pairs = _pairs(design)
+    pairs = _pairs(design)
+    if not blocks["rest"]:
         for f in freqs:
             for a, b in pairs:
                 tag = f"{_ident(a)}_{_ident(b)}_{_fkey(f)}"
                 names += [f"force_{tag}_n", f"attract_{tag}", f"phase_{tag}_deg", f"critical_distance_{tag}_m"]
+    if not blocks["latch"]:
+        for lt in design.latches:
+            names += [f"switching_force_{_ident(lt.name)}_n", f"release_force_{_ident(lt.name)}_n",
+                      f"bistable_{_ident(lt.name)}"]
+            names += [f"margin_{_ident(lt.name)}_{_ident(p.name)}_{i + 1}" for p, i, _st, _d in step_drives(design)]
+    if not effects:
         closed_snap, closed_eq = _closed_form(design)
         general = None if closed_snap and closed_eq else _general(design)
         if pairs and freqs:
@@ -237,10 +269,6 @@ def supported(design: M.Design, at: str | None = None) -> tuple[list[str], dict[
                 names += [f"snap_in_{_ident(a)}_{_ident(b)}_{_fkey(f)}_v" for f in freqs for a, b in pairs]
             else:
                 missing["snap_in_"] = f"batched snap-in does not cover this mechanism: {general}"
-        for lt in design.latches:
-            names += [f"switching_force_{_ident(lt.name)}_n", f"release_force_{_ident(lt.name)}_n",
-                      f"bistable_{_ident(lt.name)}"]
-            names += [f"margin_{_ident(lt.name)}_{_ident(p.name)}_{i + 1}" for p, i, _st, _d in step_drives(design)]
         if at is None:
             if any((design.mount_of(c.name) or M.Fix(capsule="", span=c.span)).kind == "mount" for c in design.capsules):
                 missing["tip_deflection"] = "deflections need a drive: give `at` (like `acl analyze --at`)"
@@ -257,17 +285,23 @@ def supported(design: M.Design, at: str | None = None) -> tuple[list[str], dict[
     for i, r in enumerate(design.requires, 1):
         if _require_supported(design, r, effects):
             names += [f"require_{i}_value", f"require_{i}_pass"]
+        elif r.kind == "margin" and blocks["latch"]:
+            missing[f"require_{i}"] = f"`{r.text}`: " + _effects_note(blocks["latch"], "the forces or the latch law")
+        elif r.kind == "gap" and effects:
+            missing[f"require_{i}"] = f"`{r.text}`: " + _effects_note(effects, "the equilibria")
         else:
             missing[f"require_{i}"] = f"`{r.text}` is not batched for this design"
     if design.requires and all(f"require_{i}_pass" in names for i in range(1, len(design.requires) + 1)):
         names.append("requires_pass")
     sweeps = any(st.kind == "sweep" for p in design.programs for st in p.steps)
     names += [f"lint_{code}_pass" for code in LINT_RULES
-              if (code not in ("acl105", *_PROGRAM_LINT) or not effects) and (code not in _PROGRAM_LINT or not sweeps)]
+              if (code != "acl105" or not blocks["rest"]) and (code not in _PROGRAM_LINT or not effects)
+              and (code not in _PROGRAM_LINT or not sweeps)]
     if "lint_acl603_pass" in names and "requires_pass" not in names and design.requires:
         names.remove("lint_acl603_pass")
+    if blocks["rest"]:
+        missing["lint_acl105"] = "eps/R with declared effects on the drive pressure is not batched"
     if effects:
-        missing["lint_acl105"] = "eps/R with declared effects is not batched"
         for code in _PROGRAM_LINT:
             missing[f"lint_{code}"] = "forces with declared effects are not batched"
     elif sweeps:
@@ -280,10 +314,10 @@ def supported(design: M.Design, at: str | None = None) -> tuple[list[str], dict[
 def _require_supported(design, r, effects) -> bool:
     if r.kind in ("resonance", "separation"):
         return True
+    if r.kind == "margin":
+        return any(lt.name == r.args[0] for lt in design.latches) and not _effect_blocks(design)["latch"]
     if effects:
         return False
-    if r.kind == "margin":
-        return any(lt.name == r.args[0] for lt in design.latches)
     # gap: the equilibrium at every program step: a pair of capsules on two beams, or the general mechanism
     return (_mechanism(design) == "beams" and len(design.capsules) == 2) or _general(design) is None
 
