@@ -162,7 +162,8 @@ def test_no_require_is_E872(tmp_path, capsys):
 
 
 def test_a_require_the_batch_cannot_evaluate_is_E873(tmp_path, capsys):
-    d = _design(tmp_path, requires=REQ + "\nrequire gap(m.o1, m.o2) >= 1 um")
+    # a declared effect on the drive pressure: the batch gives no equilibrium, so no `require gap`
+    d = _design(tmp_path, requires=REQ + "\nrequire gap(m.o1, m.o2) >= 1 um\neffect transducer_gain { gain = 1.1 }")
     _bad(tmp_path, capsys, [d, *FAST], 1, "E873", f"{d.name}:18:1")
 
 
