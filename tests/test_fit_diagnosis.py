@@ -175,3 +175,114 @@ def test_a_selected_effect_that_stood_in_for_a_later_one_is_replaced(tmp_path):
     assert sorted(sel.selected) == sorted(planted)
     res = next(t for t in sel.trials if t.effect == "transducer_resonance" and t.round == 1)
     assert res.status == "rejected" and "replaced on revisit by transducer_gain" in res.reason
+
+
+def _state_problem(tmp_path, kind, planted, seed):
+    """The harness's latch-state data (states drawn with the model's switching probability) as a fit problem."""
+    from acl.fit.problem import load_problem
+    from acl.fit.synth import generate, write_csv
+
+    design, experiment, free, noise, coeffs = FD.kinds()[kind]
+    data, _ = generate(design, experiment, planted, noise=noise, seed=seed, coeffs=coeffs)
+    path = str(tmp_path / f"{kind.replace('/', '_')}-{seed}.csv")
+    write_csv(data, path)
+    return load_problem(design, [path], free=free), path
+
+
+def test_one_latch_cannot_always_tell_saturation_from_a_gain_shape_three_angles_can(tmp_path):
+    """One latch seen through its switched state gives one threshold voltage per frequency: saturation (planted) and a
+    broad transducer resonance fitted in its place explain seed 105 equally well (clipped -2 ln L within 6), and the fit
+    says so (`ambiguous`, with the experiment that separates them).  Latches of three angles switch at several voltages
+    per frequency: the resonance's best fit in saturation's place is far outside the noise there (measured ~380)."""
+    from acl.fit.forward import predict
+    from acl.fit.select import AMBIGUOUS_CHI2, _replacements, clipped_chi2, select_effects
+
+    planted = {"drive_saturation": FD.SAT_STATE}
+    one, _ = _state_problem(tmp_path, "latch+state", planted, 105)
+    sel = select_effects(one, seed=105)
+    sets = [sorted(sel.selected)] + [sorted(a["effects"]) for a in sel.ambiguous]
+    assert ["drive_saturation"] in sets and ["transducer_resonance"] in sets
+    alt = next(a for a in sel.ambiguous if a["by"] in ("transducer_resonance", "drive_saturation"))
+    assert abs(alt["delta_chi2"]) < AMBIGUOUS_CHI2 and "angles" in alt["separate_by"]
+
+    three, _ = _state_problem(tmp_path, "latch+state/angles", planted, 100)
+    sel3 = select_effects(three, seed=100)
+    assert sel3.selected == ["drive_saturation"] and sel3.ambiguous == []
+    P = three.prepared
+    from acl.fit.effects import EFFECTS
+
+    _, _, _, tries = _replacements(three, lambda a, b: predict(P, a, b), list(EFFECTS), sel3.selected, sel3.final,
+                                   "drive_saturation", 0.01, None, True)
+    best = min(clipped_chi2(t["fit"]) for t in tries if t["effect"] in ("transducer_resonance", "transducer_gain"))
+    assert best - clipped_chi2(sel3.final) > 10 * AMBIGUOUS_CHI2
+
+
+def test_the_ambiguity_is_in_the_report_and_the_calibrated_design(tmp_path):
+    """`acl fit --output-format json` lists the alternatives (`ambiguous`); the calibrated design says AMBIGUOUS, names
+    the alternative effect with its values and the separating experiment, and its discrepancy covers the alternative's
+    predictions (larger than the fit's own RMS residual)."""
+    import json as _json
+    import re
+    import shutil
+    import subprocess
+
+    _, path = _state_problem(tmp_path, "latch+state", {"drive_saturation": FD.SAT_STATE}, 105)
+    design = tmp_path / "latch.acl"
+    shutil.copy(FD.LATCH_STATE, design)
+    cal = tmp_path / "latch.calibrated.acl"
+    out = subprocess.run([sys.executable, "-m", "acl", "fit", str(design), path, "--free", "gamma", "--output-format",
+                          "json", "--calibrated", str(cal)], capture_output=True, text=True, cwd=ROOT,
+                         env={**os.environ, "PYTHONPATH": os.path.abspath(ROOT)})
+    assert out.returncode == 0, out.stderr
+    rep = _json.loads(out.stdout)
+    assert rep["ambiguous"] and all(a["delta_chi2"] < a["threshold_chi2"] for a in rep["ambiguous"])
+    assert {a["by"] for a in rep["ambiguous"]} & {"transducer_resonance", "drive_saturation"}
+    text = cal.read_text()
+    assert "# AMBIGUOUS" in text and "to separate" in text
+    disc = float(re.search(r"discrepancy\(position\) = (\S+) m", text).group(1))
+    assert disc > rep["rmse_after"]
+    import acl
+
+    assert acl.load(str(cal)).discrepancy == pytest.approx(disc)
+
+
+def test_latch_state_statistics_are_the_likelihood(tmp_path):
+    """A fit with latch states: its chi-square is -2 ln L (the states' deviance plus the other rows' weighted squares),
+    not the Pearson sum at held variances, and the Fisher step leaves the maximum-likelihood optimum where it is."""
+    from acl.fit import solve
+    from acl.fit.forward import predict
+
+    problem, _ = _state_problem(tmp_path, "latch+state", {"drive_saturation": FD.SAT_STATE, "offset_drift": FD.DRIFT},
+                                102)
+    P = problem.prepared
+    fit = solve.fit(lambda a, b: predict(P, a, b), problem.y, problem.sigma, problem.coefs)
+    st = P.state
+    g = fit.value("gamma")
+    # the switching probability at the fitted gamma, through the forward model with no reweighting held
+    saved, P.pearson = P.pearson, None
+    try:
+        p = predict(P, {"gamma": g}, {})[st]
+        shuttle = predict(P, {"gamma": g}, {})[~st]
+    finally:
+        P.pearson = saved
+    y = problem.y[st]
+    dev = -2.0 * np.sum(np.log(np.maximum(np.where(y > 0.5, p, 1.0 - p), 1e-300)))
+    gauss = float(np.sum(((shuttle - problem.y[~st]) / problem.sigma[~st]) ** 2))
+    assert fit.chi2 == pytest.approx(dev + gauss, rel=1e-9)
+    # the Pearson residuals shown are another quantity: their sum of squares is not what the statistics use
+    assert not np.sum((fit.residual / problem.sigma) ** 2) == pytest.approx(fit.chi2, rel=1e-6)
+
+
+def test_saturation_and_drift_on_latch_states_are_both_found(tmp_path):
+    """Latches of three angles, saturation + drift, seed 102: each effect alone leaves a gross misfit (the drift on the
+    shuttle rows, the thresholds on the state rows) whose reduced chi-square inflated the other's interval, so both
+    were rejected as not identifiable and the fit ended with neither (RMSE 63 x noise).  The search now judges
+    identifiability at the data's sigma, and latch states by their likelihood."""
+    from acl.fit.select import select_effects, withdraw_if_inadequate
+
+    planted = {"drive_saturation": FD.SAT_STATE, "offset_drift": FD.DRIFT}
+    problem, _ = _state_problem(tmp_path, "latch+state/angles", planted, 102)
+    sel = withdraw_if_inadequate(select_effects(problem, seed=102), problem)
+    assert sorted(sel.selected) == sorted(planted) and not sel.ambiguous
+    st = problem.prepared.state
+    assert np.sqrt(np.mean(sel.final.residual[~st] ** 2)) < RMSE_RATIO * 0.2e-6

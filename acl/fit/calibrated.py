@@ -129,6 +129,19 @@ def calibrated_text(problem, selection, out_path: str, data_paths=(), report_dir
     if gain_terms or "transducer_gain" in effects:
         eff = effects.setdefault("transducer_gain", {})
         eff["gain"] = " * ".join(gain_terms) if gain_terms else "1"
+    amb = getattr(selection, "ambiguous", None) or []
+    if amb:
+        lines.append(f"# AMBIGUOUS: these data do not tell the selected effects ({', '.join(selection.selected)}) from "
+                     "the alternatives below, which explain them as well (docs/fit.md, ambiguity); the effects applied "
+                     "here are one choice among them.  The discrepancy below covers the alternatives' predictions at "
+                     "the data; outside the covered range nothing does (acl compile warns there).")
+        for a in amb:
+            vals = ", ".join(f"{c.param} = {_literal(float(v), next((q.unit for q in EFFECTS[c.effect].params if q.name == c.param), c.unit))}"
+                             for c, v in zip(a["fit"].coefs, a["fit"].values) if c.effect == a["by"])
+            lines.append(f"#   {' + '.join(a['effects'])}: -2 ln L {a['delta_chi2']:+.3g}; instead of {a['replaces']}: "
+                         f"effect {a['by']} {{ {vals} }}")
+            lines.append(f"#     to separate {a['replaces']} from {a['by']}: {a['separate_by']}")
+        lines.append("")
     lines += ["# fitted values with their standard errors (+-); correlations below"] + params + [""]
     corr = _correlations(final, names)
     cover = _coverage(problem)
@@ -136,10 +149,17 @@ def calibrated_text(problem, selection, out_path: str, data_paths=(), report_dir
         lines.append("uncertainty {")
         lines += [f"  correlation({a}, {b}) = {r:.6g}" for a, b, r in corr]
         lines += [f"  covered({q}) = {_literal(lo, u)} .. {_literal(hi, u)}" for q, (lo, hi, u) in cover.items()]
-        from acl.fit.report import length_rmse
+        from acl.fit.report import alternative_spread, length_rmse
 
         rmse = length_rmse(problem, final)
-        if math.isfinite(rmse) and rmse > 0:
+        spread = alternative_spread(problem, selection)
+        if spread > 0 and math.isfinite(rmse):
+            # ambiguous: later stages must not inherit the confidence of one arbitrary choice among equal fits
+            total = math.sqrt(rmse * rmse + spread * spread)
+            lines.append(f"  discrepancy(position) = {_literal(total, 'm')}    # RMS residual of the fit "
+                         f"({_literal(rmse, 'm')}) with the largest RMS difference of an equally good alternative "
+                         f"effect set's predictions ({_literal(spread, 'm')}), in quadrature: see AMBIGUOUS above")
+        elif math.isfinite(rmse) and rmse > 0:
             lines.append(f"  discrepancy(position) = {_literal(rmse, 'm')}    # RMS residual of the fit")
         lines += ["}", ""]
     if notes:
