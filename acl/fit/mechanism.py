@@ -13,10 +13,12 @@ Eq. (3): Bjerknes attraction, thrust and the partner's jet drag); every other ca
 Each row belongs to the unit of its observable, so one data set can mix experiments (a pair and an
 isolated calibration cantilever of the same design) that share every coefficient.  Capsules of
 different units are taken not to interact (declare a ``gap`` observe between two capsules to
-couple them).  Groups of three or more interacting capsules, trussed arms, multi-orifice capsules
-and planar (x, y) positioning are diagnostics (E810), not guesses.  Frequency responses come from
-:mod:`acl.analysis.acoustics` (thrust and Bjerknes coefficient per V^2 at each tone frequency, with
-the design's transducer table).
+couple them).  Three or more interacting capsules, bodies (several orifices, trussed capsules) alone
+or interacting, and latches among interacting capsules are *groups* (:class:`Network`, solved by
+:mod:`acl.fit.group` with the analysis' force terms); a body on two supports, a direction a body
+cannot move in, capsules floating on springs are diagnostics (E810), not guesses.  Frequency
+responses come from :mod:`acl.analysis.acoustics` (thrust and Bjerknes coefficient per V^2 at each
+tone frequency, with the design's transducer table).
 """
 from __future__ import annotations
 
