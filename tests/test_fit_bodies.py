@@ -134,6 +134,14 @@ def test_what_the_fit_model_cannot_follow_is_a_located_E810(tmp_path, capsys):
                  "--path", root]) == 2
     err = capsys.readouterr().err
     assert "E-USAGE" in err and "<--free>:1:1" in err and "no orifice `high.nozzle`" in err and "high.jet" in err and "Traceback" not in err
+    # --free f0 of a capsule that no observed unit holds: nothing in the data can tell it
+    lone = _variant(tmp_path, os.path.join(HERE, "data", "fit_cantilever.acl"), "mount act on arm.tip",
+                    "mount act on arm.tip\nbeam far like beams.cantilever50 { clamp = (0 um, 400 um, 0 um) }\n"
+                    "capsule idle like capsules.design1 { }\nmount idle on far.tip", "lone.acl")
+    csv.write_text("observable,value,unit,drive\ndeflection,1,um,125 kHz @ 3 V\n")
+    assert main(["fit", lone, str(csv), "--free", "gamma,f0:idle", "--path", root]) == 2
+    err = capsys.readouterr().err
+    assert "E-USAGE" in err and "<--free>:1:1" in err and "`idle` is in no unit" in err and "Traceback" not in err
 
 
 # ------------------------------------------------------------------------------------------------
