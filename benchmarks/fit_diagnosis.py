@@ -7,7 +7,8 @@ planted, every library effect in every experiment kind that can identify it:
                        or 3 lengths x 3 pedestals x 0..8 V at 125 kHz ("geometry")
 * ``pair``            tests/data/fit_pair.acl, gaps 40..70 um x 5 frequencies x 0..4 V
 * ``pair+cal``        tests/data/fit_pair_cal.acl: the pair, and the isolated calibration beam to 11 V
-* ``spring+cal``      tests/data/fit_spring_cal.acl: paper Fig. 5c spring pair, and the calibration beam
+* ``spring+cal``      tests/data/fit_spring_cal.acl: paper Fig. 5c spring pair at 4 gaps x 5 frequencies x 0..4 V, and
+                       the calibration beam; ``spring+cal/plateau`` the spring ramped to 5 V (into the drag plateau)
 * ``body-pair+cal``   tests/data/fit_body_pair.acl: a two-orifice capsule facing a trussed body (acl.fit.group, the
                        analysis' coupled volumes where the capsules are), gap and sideways tip 0..3 V at 125 and
                        175 kHz (the side orifice's and the rider's mode), and the calibration beam to 11 V
@@ -205,6 +206,10 @@ CASES = [
 _SWITCH = ("the latch shows it only through which voltage step switched (shuttle travel before the switch is below "
            "the noise): not identifiable by least squares on the shuttle displacement")
 LIMITS = {
+    "spring+cal drive_saturation+neighbour_drag":
+        ("at 0.2 um noise the 0..4 V ramps move the spring too little into the drag plateau: the likelihood-ratio "
+         "test of the drag given saturation has power below 0.9 at the search's gate, and no test with the same "
+         "error rate reaches it (power calculation above); the spring ramped to 5 V is counted"),
     "latch transducer_gain": _SWITCH,
     "latch transducer_resonance": _SWITCH,
     "latch drive_saturation": _SWITCH,
@@ -230,7 +235,7 @@ def lrt_power(kind_name, planted, given, seed=0) -> dict:
     from acl.fit.synth import effect_inputs, generate, write_csv
 
     design, experiment, free, noise, coeffs = kinds()[kind_name]
-    data, _ = generate(design, experiment, planted, noise=0.0, seed=seed, coeffs=coeffs)
+    data, prepared = generate(design, experiment, planted, noise=0.0, seed=seed, coeffs=coeffs)
     null, _ = generate(design, experiment, {k: v for k, v in planted.items() if k in given}, noise=0.0, seed=seed,
                        coeffs=coeffs)
     data.sigma = np.full(data.n, noise)
@@ -252,11 +257,41 @@ def lrt_power(kind_name, planted, given, seed=0) -> dict:
     dfd = problem.y.size - fit.p - q
     crit = float(fdist.isf(gate, q, dfd))
     power = float(ncf.sf(crit, q, dfd, fit.chi2))
+    # the same test one-sided (an effect whose null value is a bound of its parameter: under the null the statistic is
+    # 0 half the time, Self & Liang 1987, so the gate doubles) and without any multiplicity adjustment (gate P_LIMIT)
+    one_sided = float(ncf.sf(fdist.isf(2 * gate, q, dfd), q, dfd, fit.chi2))
+    unadjusted = float(ncf.sf(fdist.isf(P_LIMIT, q, dfd), q, dfd, fit.chi2))
     change = data.value - null.value
     moved = np.isin(data.observable, data.observable[change != 0])      # rows of the observables the effects change
-    return {"noncentrality": float(fit.chi2), "gate": gate, "candidates": m, "power": power,
+    return {"noncentrality": float(fit.chi2), "gate": gate, "candidates": m, "critical": crit, "power": power,
+            "power_one_sided": one_sided, "power_unadjusted": unadjusted,
             "p9of10": float(binom.sf(8, 10, power)), "rms_change_m": float(np.sqrt(np.mean(change[moved] ** 2))),
-            "max_change_m": float(np.max(np.abs(change))), "rows": int(problem.y.size)}
+            "max_change_m": float(np.max(np.abs(change))), "rows": int(problem.y.size),
+            "max_travel_m": float(np.max(np.abs(data.value - prepared.base)[moved]))}
+
+
+# Cases where the experiment identifies the planted effect only up to an alternative the fit names (docs/fit.md, "What a
+# given kind of data cannot tell apart"): the bar there is "correct or ambiguous with the truth among the alternatives"
+# in 9 of 10 (the fit must say it cannot decide, never claim a wrong effect); with the reason shown in docs/fit.md.
+_THRESHOLD = ("one latch gives one switching voltage per frequency, along which a drive nonlinearity and a gain shape "
+              "trade: on some data sets the fit cannot tell them apart and says so")
+_FLANK = ("over the swept band (105..145 kHz) a gain tilt and the flank of a broad transducer resonance have the same "
+          "shape: frequencies beyond the band would separate them")
+CONFOUNDED = {
+    "latch+state transducer_gain": _THRESHOLD,
+    "latch+state transducer_resonance": _THRESHOLD,
+    "latch+state drive_saturation": _THRESHOLD,
+    "latch+state drive_saturation+offset_drift": _THRESHOLD,
+    "cantilever transducer_gain": _FLANK,
+    "cantilever large_deflection+transducer_gain": _FLANK,
+}
+
+
+def meets_bar(case: dict, rate: float = 0.9) -> bool:
+    """A case meets the issue-9 bar: correct in ``rate`` of the fits, or, where the experiment identifies the effect
+    only up to a named alternative (CONFOUNDED), correct or ambiguous with the truth among the alternatives."""
+    good = case["correct"] + (case["ambiguous"] if case["case"] in CONFOUNDED else 0)
+    return good >= rate * case["n"]
 
 
 def outside(kind_name, effects, data, rest):
@@ -321,7 +356,7 @@ def summary(rows) -> list[dict]:
     for case, res in out.items():
         outside_ = any(k.startswith("(") for k in res[0]["planted"])
         table.append({"case": case, "kind": res[0]["kind"], "planted": res[0]["planted"], "outside": outside_,
-                      "limit": LIMITS.get(case, ""),
+                      "limit": LIMITS.get(case, ""), "confounded": CONFOUNDED.get(case, ""),
                       "n": len(res), "correct": sum(r["ok"] for r in res),
                       # rows run before the ambiguity report (no `verdict`) said nothing ambiguous: correct or wrong
                       "ambiguous": sum(r.get("verdict") == "ambiguous" for r in res),
@@ -347,6 +382,8 @@ def markdown(rows) -> str:
             note = (note + "; " if note else "") + "structure vs " + ", ".join(c["unexplained"])
         if c["limit"]:
             note = (note + "; " if note else "") + "not counted: " + c["limit"]
+        if c["confounded"]:
+            note = (note + "; " if note else "") + "bar: correct or ambiguous: " + c["confounded"]
         lines.append(f"| {c['kind']} | {planted} | {c['correct']}/{c['n']} | {c['ambiguous'] or ''} | {c['wrong_n'] or ''} | "
                      f"{c['rmse_after_over_noise']:.2f} ({c['rmse_after_over_noise_max']:.2f}) | {note} |")
     return "\n".join(lines)
