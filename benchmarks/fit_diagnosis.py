@@ -10,7 +10,7 @@ planted, every library effect in every experiment kind that can identify it:
 * ``spring+cal``      tests/data/fit_spring_cal.acl: paper Fig. 5c spring pair at 4 gaps x 5 frequencies x 0..4 V, and
                        the calibration beam; ``spring+cal/plateau`` the spring ramped to 5 V (into the drag plateau)
 * ``body-pair+cal``   tests/data/fit_body_pair.acl: a two-orifice capsule facing a trussed body (acl.fit.group, the
-                       analysis' coupled volumes where the capsules are), gap and sideways tip 0..3 V at 115, 125 and
+                       analysis' coupled volumes where the capsules are), gap and sideways tip 0..3 V at 125 and
                        175 kHz (the side orifice's and the rider's mode), and the calibration beam to 11 V
 * ``latch``           examples/fig6_bistable_latch.acl, ramps 0..60 V (through the switch) at 4 frequencies
 * ``latch+state``     tests/data/fit_latch_state.acl (the latch with `observe switched = state(snap)`), ramps
@@ -85,10 +85,11 @@ def kinds():
     # the same spring ramped two steps further, to 5 V: into the drag plateau (below)
     spring_plateau = [Experiment(frequencies=FREQS, voltages=tuple(np.linspace(0, 5, 11)), sets=gaps, observables=("d",),
                                  label="spring", interval=0.5), spring_cal[1]]
-    body_f = (115e3, 125e3, 175e3)
-    body_cal = [Experiment(frequencies=body_f, voltages=tuple(np.linspace(0, 3, 7)), observables=("distance", "a_y"),
+    # (kept small: a group row is an equilibrium of the analysis' coupled forces, ~1 min of CPU per fit here)
+    body_f = (125e3, 175e3)
+    body_cal = [Experiment(frequencies=body_f, voltages=tuple(np.linspace(0, 3, 6)), observables=("distance", "a_y"),
                            label="pair", interval=0.5),
-                Experiment(frequencies=body_f, voltages=tuple(np.linspace(0, 11, 12)), observables=("cal",),
+                Experiment(frequencies=body_f, voltages=tuple(np.linspace(0, 11, 9)), observables=("cal",),
                            label="calibration", interval=0.5)]
     latch = Experiment(frequencies=(115e3, 125e3, 135e3, 145e3), voltages=tuple(np.linspace(0, 60, 13)), repeats=2)
     # the switched state observed too: ramps to the declared vmax = 100 V in 2.5 V steps at 5 frequencies, so the
@@ -269,6 +270,30 @@ def lrt_power(kind_name, planted, given, seed=0) -> dict:
             "max_travel_m": float(np.max(np.abs(data.value - prepared.base)[moved]))}
 
 
+# Cases where the experiment identifies the planted effect only up to an alternative the fit names (docs/fit.md, "What a
+# given kind of data cannot tell apart"): the bar there is "correct or ambiguous with the truth among the alternatives"
+# in 9 of 10 (the fit must say it cannot decide, never claim a wrong effect); with the reason shown in docs/fit.md.
+_THRESHOLD = ("one latch gives one switching voltage per frequency, along which a drive nonlinearity and a gain shape "
+              "trade: on some data sets the fit cannot tell them apart and says so")
+_FLANK = ("over the swept band (105..145 kHz) a gain tilt and the flank of a broad transducer resonance have the same "
+          "shape: frequencies beyond the band would separate them")
+CONFOUNDED = {
+    "latch+state transducer_gain": _THRESHOLD,
+    "latch+state transducer_resonance": _THRESHOLD,
+    "latch+state drive_saturation": _THRESHOLD,
+    "latch+state drive_saturation+offset_drift": _THRESHOLD,
+    "cantilever transducer_gain": _FLANK,
+    "cantilever large_deflection+transducer_gain": _FLANK,
+}
+
+
+def meets_bar(case: dict, rate: float = 0.9) -> bool:
+    """A case meets the issue-9 bar: correct in ``rate`` of the fits, or, where the experiment identifies the effect
+    only up to a named alternative (CONFOUNDED), correct or ambiguous with the truth among the alternatives."""
+    good = case["correct"] + (case["ambiguous"] if case["case"] in CONFOUNDED else 0)
+    return good >= rate * case["n"]
+
+
 def outside(kind_name, effects, data, rest):
     """Apply the hand-planted effects outside the library to noise-free values (see module docstring), on each
     row's displacement from its rest value ``rest`` (a cantilever's deflection, a pair's closing of the gap)."""
@@ -331,7 +356,7 @@ def summary(rows) -> list[dict]:
     for case, res in out.items():
         outside_ = any(k.startswith("(") for k in res[0]["planted"])
         table.append({"case": case, "kind": res[0]["kind"], "planted": res[0]["planted"], "outside": outside_,
-                      "limit": LIMITS.get(case, ""),
+                      "limit": LIMITS.get(case, ""), "confounded": CONFOUNDED.get(case, ""),
                       "n": len(res), "correct": sum(r["ok"] for r in res),
                       # rows run before the ambiguity report (no `verdict`) said nothing ambiguous: correct or wrong
                       "ambiguous": sum(r.get("verdict") == "ambiguous" for r in res),
@@ -357,6 +382,8 @@ def markdown(rows) -> str:
             note = (note + "; " if note else "") + "structure vs " + ", ".join(c["unexplained"])
         if c["limit"]:
             note = (note + "; " if note else "") + "not counted: " + c["limit"]
+        if c["confounded"]:
+            note = (note + "; " if note else "") + "bar: correct or ambiguous: " + c["confounded"]
         lines.append(f"| {c['kind']} | {planted} | {c['correct']}/{c['n']} | {c['ambiguous'] or ''} | {c['wrong_n'] or ''} | "
                      f"{c['rmse_after_over_noise']:.2f} ({c['rmse_after_over_noise_max']:.2f}) | {note} |")
     return "\n".join(lines)

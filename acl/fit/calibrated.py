@@ -96,7 +96,8 @@ def calibrated_text(problem, selection, out_path: str, data_paths=(), report_dir
             if c.kind.split("@")[0] in ("f0", "q"):
                 what = "natural frequency" if c.kind.startswith("f0") else "quality factor"
                 cap = c.kind.partition("@")[2] or P.ref_capsule
-                notes.append(f"# {name}: the {what} of capsule `{cap}`; not applied to the design (the language "
+                whose = (f"the mode orifice `{cap}` dominates" if "." in cap else f"capsule `{cap}`")
+                notes.append(f"# {name}: the {what} of {whose}; not applied to the design (the language "
                              "declares the capsule's geometry, not its resonance: fit a free cavity parameter to "
                              "carry it into the design)")
         names.append(name)
