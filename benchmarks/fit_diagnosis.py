@@ -256,6 +256,30 @@ def lrt_power(kind_name, planted, given, seed=0) -> dict:
             "max_travel_m": float(np.max(np.abs(data.value - prepared.base)[moved]))}
 
 
+# Cases where the experiment identifies the planted effect only up to an alternative the fit names (docs/fit.md, "What a
+# given kind of data cannot tell apart"): the bar there is "correct or ambiguous with the truth among the alternatives"
+# in 9 of 10 (the fit must say it cannot decide, never claim a wrong effect); with the reason shown in docs/fit.md.
+_THRESHOLD = ("one latch gives one switching voltage per frequency, along which a drive nonlinearity and a gain shape "
+              "trade: on some data sets the fit cannot tell them apart and says so")
+_FLANK = ("over the swept band (105..145 kHz) a gain tilt and the flank of a broad transducer resonance have the same "
+          "shape: frequencies beyond the band would separate them")
+CONFOUNDED = {
+    "latch+state transducer_gain": _THRESHOLD,
+    "latch+state transducer_resonance": _THRESHOLD,
+    "latch+state drive_saturation": _THRESHOLD,
+    "latch+state drive_saturation+offset_drift": _THRESHOLD,
+    "cantilever transducer_gain": _FLANK,
+    "cantilever large_deflection+transducer_gain": _FLANK,
+}
+
+
+def meets_bar(case: dict, rate: float = 0.9) -> bool:
+    """A case meets the issue-9 bar: correct in ``rate`` of the fits, or, where the experiment identifies the effect
+    only up to a named alternative (CONFOUNDED), correct or ambiguous with the truth among the alternatives."""
+    good = case["correct"] + (case["ambiguous"] if case["case"] in CONFOUNDED else 0)
+    return good >= rate * case["n"]
+
+
 def outside(kind_name, effects, data, rest):
     """Apply the hand-planted effects outside the library to noise-free values (see module docstring), on each
     row's displacement from its rest value ``rest`` (a cantilever's deflection, a pair's closing of the gap)."""
@@ -318,7 +342,7 @@ def summary(rows) -> list[dict]:
     for case, res in out.items():
         outside_ = any(k.startswith("(") for k in res[0]["planted"])
         table.append({"case": case, "kind": res[0]["kind"], "planted": res[0]["planted"], "outside": outside_,
-                      "limit": LIMITS.get(case, ""),
+                      "limit": LIMITS.get(case, ""), "confounded": CONFOUNDED.get(case, ""),
                       "n": len(res), "correct": sum(r["ok"] for r in res),
                       # rows run before the ambiguity report (no `verdict`) said nothing ambiguous: correct or wrong
                       "ambiguous": sum(r.get("verdict") == "ambiguous" for r in res),
@@ -344,6 +368,8 @@ def markdown(rows) -> str:
             note = (note + "; " if note else "") + "structure vs " + ", ".join(c["unexplained"])
         if c["limit"]:
             note = (note + "; " if note else "") + "not counted: " + c["limit"]
+        if c["confounded"]:
+            note = (note + "; " if note else "") + "bar: correct or ambiguous: " + c["confounded"]
         lines.append(f"| {c['kind']} | {planted} | {c['correct']}/{c['n']} | {c['ambiguous'] or ''} | {c['wrong_n'] or ''} | "
                      f"{c['rmse_after_over_noise']:.2f} ({c['rmse_after_over_noise_max']:.2f}) | {note} |")
     return "\n".join(lines)

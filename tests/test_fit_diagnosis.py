@@ -4,8 +4,10 @@ The full sweep (every library effect in every kind, two-effect truths, clean dat
 10 seeds each) takes about an hour on the shared machine, so it runs in `benchmarks/fit_diagnosis.py`; its run is
 committed as benchmarks/fit_diagnosis.json and rendered into docs/fit.md by tests/docs_sync.py.  Here:
 
-* the committed run meets the bar (>= 9 of 10 per case, nothing claimed on clean data, RMSE after <= 1.3 x noise),
-  with the cases below the bar listed exactly (KNOWN_BELOW), so a regression or an improvement both show;
+* the committed run meets the bar (>= 9 of 10 correct per case; where the experiment identifies the effect only up to a
+  named alternative, FD.CONFOUNDED, >= 9 of 10 correct or ambiguous with the truth among the alternatives; nothing
+  claimed on clean data, RMSE after <= 1.3 x noise), with the cases below the bar listed exactly (KNOWN_BELOW), so a
+  regression or an improvement both show;
 * a representative subset of its runs is repeated (same selection, same RMSE), so the file is what the code gives;
 * the three mechanisms the sweep needed are checked on the seeds that showed the defects.
 """
@@ -27,13 +29,12 @@ import fit_diagnosis as FD  # noqa: E402
 
 RATE = 0.9          # issue 9: diagnosed correctly at least 90 % of the time
 RMSE_RATIO = 1.3    # issue 9: RMSE after within 1.3 x the noise
-# case -> correct runs of 10, for cases below the bar (the Fig. 5c spring with saturation at 6 V and a 4 um drag plateau,
-# ramped to 4 V, is a measured limit: the drag test's power there is 0.82, docs/fit.md; ramped to 5 V it is counted).
-# One latch seen through its switched state gives one threshold voltage per frequency, along which
-# a drive nonlinearity and a gain shape are interchangeable (docs/fit.md); the fit picks one of them instead of saying
-# so (known defect).  Saturation + drift on latch states: each effect alone leaves a gross misfit (the drift on the
-# shuttle rows, the thresholds on the state rows) that inflates the other's intervals, so both are rejected as not
-# identifiable (known search defect).
+# case -> correct runs of 10, for cases below the bar (FD.meets_bar: 9 of 10 correct, or for the FD.CONFOUNDED cases
+# 9 of 10 correct or ambiguous with the truth among the alternatives); the Fig. 5c spring with saturation at 6 V and a
+# 4 um drag plateau, ramped to 4 V, is a measured limit (FD.LIMITS: the drag test's power there is 0.82, docs/fit.md;
+# ramped to 5 V it is counted).  Filled from the committed run, listed exactly.
+# (The latch+state rows below are from the run before the latch-state likelihood and ambiguity changes; latchid reruns
+# them.)
 KNOWN_BELOW: dict[str, int] = {"latch+state transducer_gain": 7,
                                "latch+state transducer_resonance": 6,
                                "latch+state drive_saturation": 4,
@@ -74,8 +75,12 @@ def test_committed_sweep_diagnoses_at_least_nine_in_ten():
     """Cases the experiment cannot identify (FD.LIMITS, with the reason shown in docs/fit.md) are measured but not
     counted; there an effect that was not planted must still not be claimed often (in at most 1 of 10)."""
     summary = _summary()
-    below = {case: c["correct"] for case, c in summary.items() if c["correct"] < RATE * c["n"] and not c["limit"]}
+    below = {case: c["correct"] for case, c in summary.items() if not FD.meets_bar(c, RATE) and not c["limit"]}
     assert below == KNOWN_BELOW
+    for case, reason in FD.CONFOUNDED.items():
+        assert reason and case in summary
+        # where the fit may say "ambiguous", it must not claim a wrong effect often
+        assert summary[case]["wrong_n"] <= (1 - RATE) * summary[case]["n"] or case in KNOWN_BELOW, case
     for case, reason in FD.LIMITS.items():
         assert reason and case in summary
         runs = [r for r in _rows() if r["case"] == case]
@@ -273,7 +278,7 @@ def test_one_latch_cannot_always_tell_saturation_from_a_gain_shape_three_angles_
     """One latch seen through its switched state gives one threshold voltage per frequency: saturation (planted) and a
     broad transducer resonance fitted in its place explain seed 105 equally well (clipped -2 ln L within 6), and the fit
     says so (`ambiguous`, with the experiment that separates them).  Latches of three angles switch at several voltages
-    per frequency: the resonance's best fit in saturation's place is far outside the noise there (measured ~380)."""
+    per frequency: the best gain shape fitted in saturation's place is far outside the noise there."""
     from acl.fit.forward import predict
     from acl.fit.select import AMBIGUOUS_CHI2, _replacements, clipped_chi2, select_effects
 
