@@ -9,6 +9,9 @@ planted, every library effect in every experiment kind that can identify it:
 * ``pair+cal``        tests/data/fit_pair_cal.acl: the pair, and the isolated calibration beam to 11 V
 * ``spring+cal``      tests/data/fit_spring_cal.acl: paper Fig. 5c spring pair at 4 gaps x 5 frequencies x 0..4 V, and
                        the calibration beam; ``spring+cal/plateau`` the spring ramped to 5 V (into the drag plateau)
+* ``body-pair+cal``   tests/data/fit_body_pair.acl: a two-orifice capsule facing a trussed body (acl.fit.group, the
+                       analysis' coupled volumes where the capsules are), gap and sideways tip 0..3 V at 125 and
+                       175 kHz (the side orifice's and the rider's mode), and the calibration beam to 11 V
 * ``latch``           examples/fig6_bistable_latch.acl, ramps 0..60 V (through the switch) at 4 frequencies
 * ``latch+state``     tests/data/fit_latch_state.acl (the latch with `observe switched = state(snap)`), ramps
                        0..100 V in 2.5 V steps at 5 frequencies, twice: shuttle rows (noise) and 0/1 state rows
@@ -56,6 +59,7 @@ CANT = os.path.join(ROOT, "tests", "data", "fit_cantilever.acl")
 PAIR = os.path.join(ROOT, "tests", "data", "fit_pair.acl")
 PAIR_CAL = os.path.join(ROOT, "tests", "data", "fit_pair_cal.acl")
 SPRING_CAL = os.path.join(ROOT, "tests", "data", "fit_spring_cal.acl")
+BODY_PAIR = os.path.join(ROOT, "tests", "data", "fit_body_pair.acl")
 LATCH = os.path.join(ROOT, "examples", "fig6_bistable_latch.acl")
 LATCH_STATE = os.path.join(ROOT, "tests", "data", "fit_latch_state.acl")
 
@@ -81,6 +85,12 @@ def kinds():
     # the same spring ramped two steps further, to 5 V: into the drag plateau (below)
     spring_plateau = [Experiment(frequencies=FREQS, voltages=tuple(np.linspace(0, 5, 11)), sets=gaps, observables=("d",),
                                  label="spring", interval=0.5), spring_cal[1]]
+    # (kept small: a group row is an equilibrium of the analysis' coupled forces, ~1 min of CPU per fit here)
+    body_f = (125e3, 175e3)
+    body_cal = [Experiment(frequencies=body_f, voltages=tuple(np.linspace(0, 3, 6)), observables=("distance", "a_y"),
+                           label="pair", interval=0.5),
+                Experiment(frequencies=body_f, voltages=tuple(np.linspace(0, 11, 9)), observables=("cal",),
+                           label="calibration", interval=0.5)]
     latch = Experiment(frequencies=(115e3, 125e3, 135e3, 145e3), voltages=tuple(np.linspace(0, 60, 13)), repeats=2)
     # the switched state observed too: ramps to the declared vmax = 100 V in 2.5 V steps at 5 frequencies, so the
     # latch switches at 3-5 of them and the threshold voltage is seen per frequency and per repeat (time)
@@ -97,6 +107,7 @@ def kinds():
         "pair+cal": (PAIR_CAL, pair_cal, ["gamma", "alpha"], 0.2e-6, {"alpha": 1.745e-19}),
         "spring+cal": (SPRING_CAL, spring_cal, ["gamma", "alpha"], 0.2e-6, {"alpha": 1.745e-19}),
         "spring+cal/plateau": (SPRING_CAL, spring_plateau, ["gamma", "alpha"], 0.2e-6, {"alpha": 1.745e-19}),
+        "body-pair+cal": (BODY_PAIR, body_cal, ["gamma", "alpha"], 0.2e-6, {}),
         "latch": (LATCH, latch, ["gamma"], 0.2e-6, {}),
         "latch/known-force": (LATCH, latch, [], 0.2e-6, {}),
         "latch+state": (LATCH_STATE, latch_state, ["gamma"], 0.2e-6, {}),
@@ -153,6 +164,9 @@ CASES = [
     # spring ramped to 5 V (two more 0.5 V steps), where the drag changes the gap by 0.24 um RMS (0.13 at 4 V); the LRT's expected
     # non-centrality for the drag given saturation is 57 (17 at 4 V): docs/fit.md
     ("spring+cal/plateau", {"drive_saturation": SAT, "neighbour_drag": {"plateau": 4e-6}}),
+    # bodies inside a pair (acl.fit.group): one effect and clean data, to show the search works there too
+    ("body-pair+cal", {"drive_saturation": SAT_PAIR}),
+    ("body-pair+cal", {}),
     ("latch", {"offset_drift": DRIFT}),
     ("latch", {"transducer_gain": GAIN}),
     ("latch", {"transducer_resonance": RESONANCE}),

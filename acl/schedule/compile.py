@@ -13,6 +13,8 @@ phases are chosen for a low peak (:mod:`acl.schedule.phases`).  Problems become 
 """
 from __future__ import annotations
 
+import dataclasses
+
 import math
 from dataclasses import dataclass, field
 from typing import Callable
@@ -21,6 +23,7 @@ import numpy as np
 
 from acl.design.model import Design, FollowStep, HoldStep, Limits, Program, SwitchStep
 from acl.diagnostics import Diagnostic, DiagnosticError, Severity, Span, error
+from acl.physics.ties import TIE_RTOL, first_max_item
 from acl.schedule.model import GoalReport, Schedule, ScheduledTone, Segment
 from acl.schedule.path import UM, DriveLimits
 
@@ -150,8 +153,8 @@ class _Compiler:
                 if not tones:
                     continue
                 amps = interface_amplitudes(self.design, Drive(tones=tones))
-                k, v = max(amps.items(), key=lambda kv: kv[1], default=("", 0.0))
-                if v > worst:
+                k, v = first_max_item(amps)            # ties: the first declared interface, the first segment
+                if v > worst * (1 + TIE_RTOL):
                     worst, where = v, k
             worst_of[seg.step] = (worst, where)
         for step_index, (worst, where) in sorted(worst_of.items()):   # one finding per step, its worst segment
@@ -313,6 +316,8 @@ class _Compiler:
         plan_slew = None if slew is None else slew * 2.0 * fade / (np.pi * dt) * (1 - 1e-4)
         limits = DriveLimits(max_voltage=vmax, slew_rate=plan_slew)
         rq = self._robust_q(name, step.capsule, choice.frequencies, step.span) if self.opts.robust else None
+        if not self.opts.robust and self._band_planned():     # refuse an absurd spread before planning (each
+            self._robust_q(name, step.capsule, choice.frequencies, step.span, band=True)   # draw can take seconds)
         u_start = None
         if slew is not None:        # slew from what is playing before the goal (silence at the start)
             before = {t.frequency_hz: t.amplitude_v for t in self.segments[-1].tones} if self.segments else {}
@@ -390,20 +395,36 @@ class _Compiler:
         best.targets = np.asarray(points, float)
         return best
 
-    def _robust_q(self, name, capsule, freqs, span):
-        """Q of the declared uncertainty at the chosen tones (None, with a note, when there is none)."""
+    def _band_planned(self) -> bool:
+        """Whether follow goals get an error band from draws of the declared uncertainty (:meth:`_band`)."""
+        return self.opts.band_samples > 0 and not (self.opts.forward_provider is None and self.opts.calibration is not None)
+
+    def _robust_q(self, name, capsule, freqs, span, band: bool = False):
+        """Q of the declared uncertainty at the chosen tones (None, with a note, when there is none).
+
+        A 1-sigma spread beyond MAX_ROBUST_SPREAD x the gains is E-SCHED-UNCERTAINTY, for --robust and
+        (``band``) for the error band of --band-samples, whose draws would all lose the path, each after
+        seconds of re-simulation (a finite but absurd `+- s` made every draw cost ~20 s).
+        """
         from acl.schedule.robust import robust_q
 
         if self.opts.calibration is not None:
-            self.notes.append(f"{name}: --robust ignored: a measured calibration table declares no uncertainty")
+            if not band:
+                self.notes.append(f"{name}: --robust ignored: a measured calibration table declares no uncertainty")
             return None
         provider = self.opts.gain_provider
         if provider is None:
             from acl.schedule.gains import model_gain_table as provider
         with np.errstate(all="ignore"):      # overflow is checked below, as a located error
-            q = robust_q(self.design, lambda d: provider(d, capsule, freqs).gains.T, self.opts.reload)
+            try:
+                q = robust_q(self.design, lambda d: provider(d, capsule, freqs).gains.T, self.opts.reload)
+            except (ValueError, KeyError, DiagnosticError):
+                if not band:
+                    raise
+                return None           # a 1-sigma design that does not resolve: the draws count it as failed
             if q is None:
-                self.notes.append(f"{name}: --robust: the design declares no uncertainty; the plan is the nominal one")
+                if not band:
+                    self.notes.append(f"{name}: --robust: the design declares no uncertainty; the plan is the nominal one")
                 return q
             g0 = np.linalg.norm(np.asarray(provider(self.design, capsule, freqs).gains, float), 2)
             spread = float(np.sqrt(np.max(np.abs(np.linalg.eigvalsh(q))))) if np.all(np.isfinite(q)) else float("inf")
@@ -412,11 +433,14 @@ class _Compiler:
             t = self.design.transducer
             if t is not None and t.gain_uncertainty:
                 what.append(f"`{t.name}.gain_uncertainty = {t.gain_uncertainty:g}`")
-            raise _diag("E-SCHED-UNCERTAINTY", f"{name}: --robust: at 1 sigma the declared uncertainty moves the "
+            option, outcome = (("--band-samples", "an error band over such draws is not computed")
+                               if band else ("--robust", "no plan can be robust to it"))
+            raise _diag("E-SCHED-UNCERTAINTY", f"{name}: {option}: at 1 sigma the declared uncertainty moves the "
                         f"gains by {'more than' if not math.isfinite(spread) else ''} "
                         f"{spread / g0 if math.isfinite(spread) and g0 > 0 else float('inf'):.3g} times their size "
-                        f"(at most {MAX_ROBUST_SPREAD:g}): no plan can be robust to it".replace("by  ", "by "),
-                        span, "check the declared uncertainty: " + (", ".join(what) or "none found"))
+                        f"(at most {MAX_ROBUST_SPREAD:g}): {outcome}".replace("by  ", "by "),
+                        span, "check the declared uncertainty: " + (", ".join(what) or "none found")
+                        + ("; or compile without an error band: --band-samples 0" if band else ""))
         return q
 
     def _gain_table(self, capsule):
@@ -520,10 +544,17 @@ class _Compiler:
         # the margins reported are those of the tones actually emitted
         keep = plan.u > 1e-6 * plan.u.max()
         used = [(f, a) for f, a, k in zip(freqs, plan.amplitudes, keep) if k]
+        sig = 1.0 if step.state == "b" else -1.0
+        thr_t = float(to_b[j] if step.state == "b" else to_a[j])
+        F = np.asarray(forces, float) @ np.where(keep, plan.u, 0.0)            # (L,) N
+        model = "linear force per V^2"
+        if self.opts.latch_provider is None:
+            used, F_full = self._switch_full_model(name, step, used, j, sig, thr_t, vmax)
+            if F_full is not None:
+                F, model = F_full, "force of the whole drive (declared drive saturation)"
+                plan = dataclasses.replace(plan, required_force=step.margin * thr_t)
         self._add(step.duration, [ScheduledTone(f, float(a)) for f, a in used], i, name)
         self.states[step.latch] = step.state
-        F = np.asarray(forces, float) @ np.where(keep, plan.u, 0.0)            # (L,) N
-        sig = 1.0 if step.state == "b" else -1.0
         force = float(sig * F[j])
         others = {}
         for k, n in enumerate(names):
@@ -535,11 +566,106 @@ class _Compiler:
                                                               for r in others.values()):
             raise _diag("E-SCHED-SOLVER", f"{name}: the emitted tones miss the switching margins "
                         "the latch program promised", step.span, "report this design")
-        self.goals.append(GoalReport(name, "switch", i, self.t - step.duration, self.t,
-                                     tuple(f for f, _ in used), model="linear force per V^2",
-                                     details={"force_n": force, "required_n": plan.required_force,
-                                              "margin": force / plan.required_force * step.margin,
-                                              "other_latch_ratios": others}))
+        rep = GoalReport(name, "switch", i, self.t - step.duration, self.t,
+                         tuple(f for f, _ in used), model=model,
+                         details={"force_n": force, "required_n": plan.required_force,
+                                  "margin": force / plan.required_force * step.margin,
+                                  "other_latch_ratios": others})
+        self.goals.append(rep)
+        if self.opts.band_samples > 0 and self.opts.latch_provider is None:
+            self._switch_band(rep, used, step, j, names)
+
+    def _switch_full_model(self, name, step: SwitchStep, used, j, sig, thr_t, vmax):
+        """Re-check a switch with the full force model when forces are not ~V^2 (drive saturation).
+
+        The LP plans with the force per V^2 at 1 V; a declared saturation makes the real force of the
+        planned drive smaller.  The drive is scaled up (bisection: the force grows with the scale)
+        until the latch gets ``margin`` x its switching force, within the limit; (tones, forces (L,)).
+        """
+        from acl.analysis.acoustics import force_model_for
+
+        if force_model_for(self.design).quadratic_in_amplitude or not used:
+            return used, None
+        from acl.schedule.gains import latch_drive_forces
+
+        def at(scale):
+            F = latch_drive_forces(self.design, [(f, a * scale) for f, a in used])
+            return float(sig * F[j] / thr_t), F
+
+        r, F = at(1.0)
+        if r >= step.margin * (1 - 1e-6):
+            return used, F
+        top = vmax / sum(a for _, a in used)
+        r_top, F_top = at(top)
+        if r_top < step.margin:
+            raise _diag("E-SCHED-INFEASIBLE", f"{name}: infeasible: with the declared drive saturation the "
+                        f"drive reaches only {r_top:.3g} x the switching force at the {vmax:g} V limit "
+                        f"(margin {step.margin:g} wanted; the force per V^2 promised it at "
+                        f"{sum(a for _, a in used):.4g} V)", step.span,
+                        f"raise the max voltage above {vmax:g} V; or lower the margin")
+        lo, hi = 1.0, top
+        for _ in range(50):
+            mid = 0.5 * (lo + hi)
+            lo, hi = (lo, mid) if at(mid)[0] >= step.margin else (mid, hi)
+            if hi - lo <= 1e-9 * hi:
+                break
+        F = at(hi)[1]
+        self.notes.append(f"{name}: the declared drive saturation leaves the planned drive at {r:.3g} x the "
+                          f"switching force; amplitudes scaled by {hi:.4g} to reach the margin {step.margin:g}")
+        return [(f, a * hi) for f, a in used], F
+
+    def _switch_band(self, rep: GoalReport, used, step: SwitchStep, j, names):
+        """5th percentile of the switch margin (and 95th of the other latches' ratios) over the uncertainty."""
+        from acl.schedule.bands import margin_band
+        from acl.schedule.gains import latch_drive_forces, latch_forces
+
+        states = dict(self.states)             # after this switch
+        target = names[j]
+        before = "a" if step.state == "b" else "b"
+
+        def margin_for(d):
+            F = latch_drive_forces(d, used)
+            _, to_b, to_a = latch_forces(d, [])
+            thr = to_b[j] if step.state == "b" else to_a[j]
+            m = float((1.0 if step.state == "b" else -1.0) * F[j] / thr)
+            others = {}
+            for k, n in enumerate(names):
+                if n != target:
+                    own = 1.0 if states[n] == "a" else -1.0
+                    others[n] = float(own * F[k] / (to_b[k] if own > 0 else to_a[k]))
+            return m, others
+
+        band = margin_band(self.design, margin_for, samples=self.opts.band_samples, seed=self.opts.band_seed,
+                           reload=self.opts.reload)
+        self._margin_report(rep, band, f"the latch stays in state {before} (the drive does not switch it)",
+                            others_what="switches")
+
+    def _margin_report(self, rep: GoalReport, band, fails: str, others_what: str = ""):
+        """Write a margin band into the goal's details and warn when the goal fails in the uncertainty."""
+        if band is None:
+            self.notes.append(f"{rep.name}: the design declares no uncertainty: no margin band "
+                              "(declare `+- s` on parameters or `gain_uncertainty` on the transducer)")
+            return
+        rep.details["band"] = {"samples": band.samples, "failed": band.failed, "seed": self.opts.band_seed,
+                               "quantile": 5, "margin_p05": band.p05, "draws_below_1": band.below_one,
+                               "parameters": [p.name for p in self.design.uncertain_params()]
+                               if self.opts.reload is not None else [],
+                               "gain_uncertainty": self.design.transducer.gain_uncertainty
+                               if self.design.transducer else None}
+        if band.others_p95:
+            rep.details["band"]["other_latch_ratios_p95"] = band.others_p95
+        n = band.samples + band.failed
+        if band.below_one:
+            seen = band.below_one - band.failed
+            more = (f"; {band.failed} more did not resolve or their model failed (a drawn value outside its "
+                    "physical range, e.g. a negative coefficient), counted as failing") if band.failed else ""
+            self.notes.append(f"warning: {rep.name}: in {seen} of {n} draws of the declared uncertainty {fails}"
+                              f"{more} (5th percentile of the margin {band.p05:.3g}); narrow the uncertainty "
+                              "(acl fit on data that identify it) or raise the margin")
+        for other, r in band.others_p95.items():
+            if r >= 1.0:
+                self.notes.append(f"warning: {rep.name}: in the declared uncertainty the drive also {others_what} "
+                                  f"latch `{other}` (95th percentile of its force over its switching force {r:.3g})")
 
     def _latch_candidates(self):
         from acl.schedule.gains import default_frequencies
@@ -584,12 +710,48 @@ class _Compiler:
                    "critical_voltages_v": [float(v) for v in v_snap], "margin": step.margin}
         if ratio is not None:
             details["resimulated_margin"] = ratio
-        self.goals.append(GoalReport(name, "hold", i, self.t - step.duration, self.t,
-                                     tuple(t.frequency_hz for t in tones),
-                                     model=("snap-in of the whole drive re-simulated (acl.analysis.mechanics)"
-                                            if ratio is not None else
-                                            "snap index sum u/Vcrit^2 (forces add in V^2)"),
-                                     details=details))
+        rep = GoalReport(name, "hold", i, self.t - step.duration, self.t,
+                         tuple(t.frequency_hz for t in tones),
+                         model=("snap-in of the whole drive re-simulated (acl.analysis.mechanics)"
+                                if ratio is not None else
+                                "snap index sum u/Vcrit^2 (forces add in V^2)"),
+                         details=details)
+        self.goals.append(rep)
+        if ratio is not None and self.opts.band_samples > 0:
+            self._hold_band(rep, step, tones, vmax, bound)
+
+    def _hold_band(self, rep: GoalReport, step: HoldStep, tones, vmax, bound):
+        """5th percentile of the re-simulated hold margin over draws of the declared uncertainty.
+
+        ``above``: the factor by which the drive can grow before the pair snaps (or the gap reaches the
+        bound) on the drawn design; ``cross``: the factor by which the drive exceeds snap-in.
+        """
+        from acl.schedule.bands import margin_band
+
+        provider = self.opts.critical_provider
+        if provider is None:
+            from acl.schedule.gains import critical_scale as provider
+        pairs = [(t.frequency_hz, t.amplitude_v) for t in tones]
+        total = sum(a for _, a in pairs)
+        if not pairs or total <= 0:
+            return
+        if step.mode == "above":
+            def margin_for(d):
+                s = provider(d, step.a, step.b, pairs, 1.5 * step.margin, bound)
+                if s is None:
+                    raise ValueError("no snap-in model")
+                return min(float(s), 1.5 * step.margin)     # not searched beyond: a lower bound
+            fails = "the drive snaps the pair in (or closes the gap below its bound)"
+        else:
+            def margin_for(d):
+                s = provider(d, step.a, step.b, pairs, max(vmax / total, 1.0) * 1.5, None)
+                if s is None:
+                    raise ValueError("no snap-in model")
+                return float(1.0 / s) if s > 0 else float("inf")
+            fails = "the drive does not snap the pair in"
+        band = margin_band(self.design, margin_for, samples=self.opts.band_samples, seed=self.opts.band_seed,
+                           reload=self.opts.reload)
+        self._margin_report(rep, band, fails)
 
     def _hold_resimulate(self, name, step: HoldStep, tones, vmax, bound):
         """Re-simulate the drive's snap-in and rescale it so the voltage margin holds; (tones, ratio).
