@@ -134,6 +134,14 @@ def test_what_the_fit_model_cannot_follow_is_a_located_E810(tmp_path, capsys):
                  "--path", root]) == 2
     err = capsys.readouterr().err
     assert "E-USAGE" in err and "<--free>:1:1" in err and "no orifice `high.nozzle`" in err and "high.jet" in err and "Traceback" not in err
+    # --free f0 of a capsule that no observed unit holds: nothing in the data can tell it
+    lone = _variant(tmp_path, os.path.join(HERE, "data", "fit_cantilever.acl"), "mount act on arm.tip",
+                    "mount act on arm.tip\nbeam far like beams.cantilever50 { clamp = (0 um, 400 um, 0 um) }\n"
+                    "capsule idle like capsules.design1 { }\nmount idle on far.tip", "lone.acl")
+    csv.write_text("observable,value,unit,drive\ndeflection,1,um,125 kHz @ 3 V\n")
+    assert main(["fit", lone, str(csv), "--free", "gamma,f0:idle", "--path", root]) == 2
+    err = capsys.readouterr().err
+    assert "E-USAGE" in err and "<--free>:1:1" in err and "`idle` is in no unit" in err and "Traceback" not in err
 
 
 # ------------------------------------------------------------------------------------------------
@@ -346,3 +354,47 @@ def test_bubble_shrinkage_moves_every_mode_of_a_multi_orifice_body(tmp_path):
         assert sel.selected == ["bubble_shrinkage"]
         k = [c.name for c in sel.final.coefs].index("bubble_shrinkage.shrink_rate")
         assert sel.final.ci[k][0] <= 0.01 <= sel.final.ci[k][1]
+
+
+# ------------------------------------------------------------------------------------------------
+# `acl synth` + `acl fit` on the examples (issue 9 item 1: every mechanism the language can declare)
+# ------------------------------------------------------------------------------------------------
+
+FITS = ["fig1f_selective_beams", "fig2_vertical_cantilever", "fig3_three_orifice", "fig4_facing_pair",
+        "fig4h_unequal_pair", "fig5c_linear_spring", "fig6e_reversible_latch", "fig6f_control_module",
+        "figS6_flextensional"]
+
+
+@pytest.mark.parametrize("name", FITS)
+def test_every_example_with_observables_is_synthesized_and_fitted(tmp_path, name):
+    """Synthetic data of the example's own model (every observe, 3 frequencies) fitted with gamma free: exit 0,
+    the calibrated design written, gamma's interval covering the design's value (the truth here)."""
+    import json
+
+    from acl.cli import main
+
+    design = os.path.join(EXAMPLES, f"{name}.acl")
+    csv = str(tmp_path / "d.csv")
+    volts = "0V..25V:6" if "fig6" in name else "0V..3V:4"
+    assert main(["synth", design, "-o", csv, "--noise", "0.05um", "--seed", "1", "--frequencies",
+                 "85kHz,125kHz,170kHz", "--voltages", volts]) == 0
+    rep = tmp_path / "rep"
+    assert main(["fit", design, csv, "--free", "gamma", "--effects", "none", "--report", str(rep),
+                 "--calibrated", str(tmp_path / "cal.acl"), "-q"]) == 0
+    gamma = next(p for p in json.loads((rep / "report.json").read_text())["final"]["parameters"] if p["name"] == "gamma")
+    assert gamma["ci95"][0] <= gamma["initial"] <= gamma["ci95"][1], gamma
+
+
+def test_examples_the_fit_cannot_follow_say_why_where(tmp_path, capsys):
+    """Fig. 3's robust-radii design observes nothing (E810 at its capsule, nothing written); Fig. 5a's trusses hold
+    each arm along the line of its load (the analysis gives zero deflection too): E810 at the observe."""
+    from acl.cli import main
+
+    out = tmp_path / "x.csv"
+    assert main(["synth", os.path.join(EXAMPLES, "fig3_robust_radii.acl"), "-o", str(out)]) == 1
+    err = capsys.readouterr().err
+    assert "E810" in err and "fig3_robust_radii.acl:27:1" in err and "no `observe`" in err and "Traceback" not in err
+    assert not out.exists()
+    assert main(["synth", os.path.join(EXAMPLES, "fig5a_gripper.acl"), "-o", str(out)]) == 1
+    err = capsys.readouterr().err
+    assert "E810" in err and "fig5a_gripper.acl:46:1" in err and "cannot move" in err and not out.exists()

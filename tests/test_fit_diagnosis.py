@@ -59,7 +59,7 @@ def test_committed_sweep_covers_every_case_with_ten_seeds():
     planted = {e for c in summary.values() for e in c["planted"] if not e.startswith("(")}
     assert planted == set(EFFECTS)                   # every library effect is planted somewhere
     assert {c["kind"].split("/")[0] for c in summary.values()} == {"cantilever", "pair", "pair+cal", "spring+cal",
-                                                                   "latch", "latch+state"}
+                                                                   "body-pair+cal", "latch", "latch+state"}
     # the run is one version of the code per case (`code`: its commit); a subset is repeated below with this one
     assert all(len({r["code"] for r in _rows() if r["case"] == case}) == 1 for case in summary)
 
@@ -114,6 +114,7 @@ REPEAT = [
     ("latch+state/angles drive_saturation", 100),
     ("latch+state transducer_resonance", 104),
     ("latch+state clean", 109),
+    ("body-pair+cal clean", 109),          # bodies inside a pair: the group model with the analysis' forces
 ]
 
 

@@ -96,11 +96,17 @@ def calibrated_text(problem, selection, out_path: str, data_paths=(), report_dir
             if c.kind.split("@")[0] in ("f0", "q"):
                 what = "natural frequency" if c.kind.startswith("f0") else "quality factor"
                 cap = c.kind.partition("@")[2] or P.ref_capsule
-                notes.append(f"# {name}: the {what} of capsule `{cap}`; not applied to the design (the language "
+                whose = (f"the mode orifice `{cap}` dominates" if "." in cap else f"capsule `{cap}`")
+                notes.append(f"# {name}: the {what} of {whose}; not applied to the design (the language "
                              "declares the capsule's geometry, not its resonance: fit a free cavity parameter to "
                              "carry it into the design)")
         names.append(name)
         by_kind[c.kind] = name
+        rel_se = se / max(abs(v), 1e-300)
+        if c.kind != "effect" and (not np.isfinite(rel_se) or rel_se > 1.0):     # as solve.fit's warning
+            notes.append(f"# WARNING: {name} is not identifiable from these data (relative standard error "
+                         f"{rel_se:.3g}): its value is where the optimizer stopped, not a measurement; later stages "
+                         "draw it from its +- (acl compile's bands), so they are wide")
         params.append(f"param {name} = {_literal(v, unit)}{_pm(se, unit)}"
                       f"    # 95% interval {_literal(lo, unit)} .. {_literal(hi, unit)}")
     # coefficients that stand for physics the design has no parameter for

@@ -72,10 +72,6 @@ class Prepared:
     cavity: dict = field(default_factory=dict)   # free cavity parameter -> {"value", "dlnv": {capsule: dlnV/dp}}
     side_table: np.ndarray = None    # (2, n) index into ftables (-1: no capsule)
     ftables: list = None             # (ln V/V0, ln f/f0) of each capsule kind (acl.physics.effects.volume_frequency_table)
-    vector: np.ndarray = None        # (n,) bool: the row's unit is a body moving in 1-2 directions (acl.fit.mechanism)
-    tauv: np.ndarray = None          # (n, T, 2) its thrust per V^2 along its basis directions, relative to gamma0
-    obs_w: np.ndarray = None         # (n, 2) the observable's weights on those directions
-    one_mode: np.ndarray = None      # (n,) bool: a vector row's body is one single-orifice capsule
     groups: list = None              # acl.fit.group.GroupBlock of every group of 3+ capsules (their rows)
     group_row: np.ndarray = None     # (n,) bool: the row belongs to one of them
     state: np.ndarray = None         # (n,) bool: the row observes a latch state (0 a, 1 b), acl.fit.forward.switch_probability
@@ -100,7 +96,7 @@ class Prepared:
 def prepare(data, load_instance, f_ref: float | None = None) -> Prepared:
     """Build the row arrays; ``load_instance(key)`` returns the Instance of an override set."""
     from acl.fit.mechanism import (LAW_CODES, alpha_per_v2, pair_alpha_per_v2, reference_pair, reference_unit,
-                                   thrust_per_v2, thrust_vec_per_v2)
+                                   thrust_per_v2)
 
     n = data.n
     T = max(1, max((len(t) for t in data.tones), default=1))
@@ -150,10 +146,6 @@ def prepare(data, load_instance, f_ref: float | None = None) -> Prepared:
     latch_tables: list = []
     latch_index: dict = {}
     units = np.full(n, "", dtype=object)
-    vector = np.zeros(n, bool)
-    tauv = np.zeros((n, T, 2))
-    obs_w = np.zeros((n, 2))
-    one_mode = np.zeros(n, bool)
     groups: list = []
     group_row = np.zeros(n, bool)
     state = np.zeros(n, bool)
@@ -221,21 +213,6 @@ def prepare(data, load_instance, f_ref: float | None = None) -> Prepared:
         pair[rows] = unit.kind == "pair"
         proj[rows] = unit.sides[0].proj
         d0[rows] = unit.d0
-        if unit.vector:
-            side = unit.sides[0]
-            vector[rows] = True
-            one_mode[rows] = len(side.members) == 1 and len(inst.design.capsule(side.capsule).orifices) == 1
-            k = side.basis.shape[1]
-            for fk in np.unique(f[rows][v[rows] > 0]):
-                m = (f[rows] == fk) & (v[rows] > 0)
-                tv = thrust_vec_per_v2(inst, fk)
-                total = sum((tv[c] for c in side.members), np.zeros(3))
-                tauv[rows, :, :k] += m[:, :, None] * (total @ side.basis / gamma0)[None, None, :]
-                tp = thrust_per_v2(inst, fk)
-                tau[0, rows] += m * (tp[side.capsule] / gamma0)
-            b, wts = inst.vector_map(inst.design.observe(name))
-            base[rows], obs_w[rows] = b, wts
-            continue
         for fk in np.unique(f[rows][v[rows] > 0]):
             m = (f[rows] == fk) & (v[rows] > 0)
             tp = thrust_per_v2(inst, fk)
@@ -284,7 +261,7 @@ def prepare(data, load_instance, f_ref: float | None = None) -> Prepared:
                     float(max(v.sum(axis=1).max(), 1e-9)), instances, law, caps, arr["volume"], arr["radius"],
                     medium, latch_id, latch_tables, caps == ref_cap, ref_cap, units,
                     exp if exp is not None else np.full(n, "", dtype=object), modes0, {}, side_table, ftables,
-                    vector, tauv, obs_w, one_mode, groups, group_row, state, ref_orifice=ref_orifice)
+                    groups, group_row, state, ref_orifice=ref_orifice)
 
 
 def latch_table(geometry) -> tuple:
@@ -451,13 +428,9 @@ def _predict(P: Prepared, coeffs: dict, effects: dict) -> np.ndarray:
     d_0 = np.zeros(P.n)
     d_1 = np.zeros(P.n)
     single = ~P.pair
-    vec = single & P.vector if P.vector is not None else np.zeros(P.n, bool)
     grp = P.group_row if P.group_row is not None else np.zeros(P.n, bool)
-    single = single & ~vec & ~grp
-    out_rows = np.zeros(P.n)
+    single = single & ~grp
     ratio = np.zeros(P.n)                    # latch rows: push / switching force
-    if np.any(vec):
-        _body_deflection(P, vec, gamma, w, res, sub, rows, es, out_rows, ratio)
     if np.any(single):
         idx = np.flatnonzero(single)
         latch = P.latch_id[idx] >= 0
@@ -486,8 +459,6 @@ def _predict(P: Prepared, coeffs: dict, effects: dict) -> np.ndarray:
         da, db = _pair_equilibrium(law0, law1, a_rad, push, P.d0[idx], same)
         d_0[idx], d_1[idx] = da, db
     out = P.base + P.s0 * d_0 + P.s1 * d_1
-    if np.any(vec):
-        out = np.where(vec, P.base + out_rows, out)
     if np.any(grp):
         from acl.fit import group as G
 
@@ -554,37 +525,6 @@ def switch_probability(ratio, spread):
     with np.errstate(divide="ignore"):
         z = np.log(np.maximum(ratio, 1e-300)) / max(spread, 1e-9)
     return ndtr(z)
-
-
-def _body_deflection(P, vec, gamma, w, res, sub, rows, es, out, ratio):
-    """Bodies moving in 1-2 directions (multi-orifice capsules, trussed bodies; acl.fit.mechanism): the load is the
-    vector sum of the members' thrusts (tones add in power) projected on the directions the support allows; a beam
-    deflects along the load by paper Eq. (1) (isotropic across it, as acl.analysis.mechanics), a spring by P/k, a
-    latch by its rising branches (a push towards state a leaves it at rest).  Writes the observable's change to
-    ``out``."""
-    idx = np.flatnonzero(vec)
-    # a shifted first mode (free f0 / q, bubble shrinkage) moves a lone single-orifice bubble's thrust; a body of
-    # several orifices or capsules mixes modes the one-mode ratio does not follow: not applied there (docs/fit.md)
-    one = (P.caps[0, idx] != "") & P.one_mode[idx] if P.one_mode is not None else np.zeros(idx.size, bool)
-    wc = w[idx] if res is None else w[idx] * np.where(one[:, None], res[0][idx], 1.0)
-    load = gamma * np.einsum("nt,ntk->nk", wc, P.tauv[idx]) * sub[0, idx][:, None]     # (n, 2)
-    mag = np.sqrt((load * load).sum(axis=1))
-    unit = np.divide(load, mag[:, None], out=np.zeros_like(load), where=mag[:, None] > 0)
-    delta = np.zeros(idx.size)
-    latch = P.latch_id[idx] >= 0
-    if np.any(~latch):                  # a lone body has no neighbour: neighbour_drag acts on pairs and groups only
-        j = idx[~latch]
-        law0, _, _ = rows(j)
-        delta[~latch] = law0(mag[~latch])      # a body of its own has no neighbour: neighbour_drag does not act
-    for tid in np.unique(P.latch_id[idx][latch]):
-        m = P.latch_id[idx] == tid
-        along = load[m, 0]                                  # signed push along the latch axis
-        table = P.latch_tables[tid]
-        push = np.maximum(along, 0.0)
-        ratio[idx[m]] = push / (table[2] * es)
-        delta[m] = latch_travel(push, table, es)
-        unit[m] = np.array([1.0, 0.0])
-    out[idx] = (unit * P.obs_w[idx]).sum(axis=1) * delta
 
 
 def _with_drag(law, c_p, steps=3):

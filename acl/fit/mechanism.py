@@ -13,10 +13,12 @@ Eq. (3): Bjerknes attraction, thrust and the partner's jet drag); every other ca
 Each row belongs to the unit of its observable, so one data set can mix experiments (a pair and an
 isolated calibration cantilever of the same design) that share every coefficient.  Capsules of
 different units are taken not to interact (declare a ``gap`` observe between two capsules to
-couple them).  Groups of three or more interacting capsules, trussed arms, multi-orifice capsules
-and planar (x, y) positioning are diagnostics (E810), not guesses.  Frequency responses come from
-:mod:`acl.analysis.acoustics` (thrust and Bjerknes coefficient per V^2 at each tone frequency, with
-the design's transducer table).
+couple them).  Three or more interacting capsules, bodies (several orifices, trussed capsules) alone
+or interacting, and latches among interacting capsules are *groups* (:class:`Network`, solved by
+:mod:`acl.fit.group` with the analysis' force terms); a body on two supports, a direction a body
+cannot move in, capsules floating on springs are diagnostics (E810), not guesses.  Frequency
+responses come from :mod:`acl.analysis.acoustics` (thrust and Bjerknes coefficient per V^2 at each
+tone frequency, with the design's transducer table).
 """
 from __future__ import annotations
 
@@ -46,8 +48,8 @@ class Side:
     rest: np.ndarray = field(default_factory=lambda: np.zeros(3))
     mode: tuple = (1e5, 10.0)    # natural frequency (Hz) and Q of the first mode
     bubble: tuple = (0.0, 0.0)   # gas volume (m^3), orifice radius (m)
-    members: tuple = ()          # body: every capsule moving with this side (trusses), all thrusts add (vector units)
-    basis: np.ndarray = None     # body: 3 x k directions it can move along (vector units; k = 1 or 2)
+    members: tuple = ()          # group node: every capsule moving with it (trusses)
+    basis: np.ndarray = None     # group node: 3 x k directions it can move along (k = 0, 1 or 2)
 
 
 @dataclass
@@ -55,7 +57,6 @@ class Unit:
     kind: str                    # "single" | "pair"
     sides: tuple                 # 1 or 2 Side
     d0: float = float("nan")     # pair: rest distance between the orifices
-    vector: bool = False         # single: a body moving in 1 or 2 directions under the vector sum of its thrusts
     net: object = None           # group: the Network of its bodies, capsules and orifices
 
     @property
@@ -81,8 +82,6 @@ class Instance:
     def output_map(self, obs) -> tuple[float, float, float]:
         """(base, scale on deflection of side 0, scale on side 1) of observable ``obs``."""
         unit = self.units[obs.name]
-        if unit.vector:
-            raise ValueError("vector unit: use vector_map")
         if obs.kind == "state":              # predicted from the latch's push (acl.fit.forward), not a position
             return 0.0, 0.0, 0.0
         if obs.kind == "gap":
@@ -97,30 +96,6 @@ class Instance:
         comp = "xyz".index(obs.component)
         s[k] = float(side.u[comp])
         return float(side.rest[comp]), s[0], s[1]
-
-
-    def vector_map(self, obs) -> tuple[float, np.ndarray]:
-        """(base, weights on the body's basis directions) of observable ``obs`` of a vector unit."""
-        side = self.units[obs.name].sides[0]
-        w = np.zeros(2)
-        k = side.basis.shape[1]
-        if obs.kind == "state":
-            return 0.0, w
-        if obs.kind == "displacement":
-            axis = np.asarray(obs.axis, float)
-            w[:k] = (axis / np.linalg.norm(axis)) @ side.basis
-        else:
-            comp = "xyz".index(obs.component)
-            w[:k] = side.basis[comp]
-        if not np.any(np.abs(w) > 1e-9):
-            why = ", ".join(j.element for j in self.design.joints if j.kind == "link" and j.element_kind == "truss"
-                            and (j.a in side.members or j.b in side.members))
-            raise _unsupported(obs, f"it measures a direction in which the body of `{side.capsule}` cannot move "
-                               f"(its support{' and the truss ' + why if why else ''} hold it there): the data cannot "
-                               "tell any coefficient", "observe a direction the body moves in")
-        if obs.kind == "displacement":
-            return 0.0, w
-        return float(np.asarray(self.design.capsule(obs.target).center, float)["xyz".index(obs.component)]), w
 
 
 def _unsupported(obs, why, hint=None):
@@ -276,45 +251,6 @@ def _check_direction(design, unit, obs) -> None:
     raise _unsupported(obs, f"it measures a direction in which the body of `{cap}` cannot move (its support"
                        f"{' and the truss ' + why if why else ''} hold it there): the data cannot tell any coefficient",
                        "observe a direction the body moves in")
-
-
-def _body_side(design, cap_name, obs) -> Side:
-    """Side of a rigid body (capsule + what trusses tie to it) on its support, moving in its allowed directions
-    under the vector sum of its members' thrusts (acl.analysis.acoustics.thrust_vectors)."""
-    from acl.analysis.acoustics import capsule_modes
-
-    members, held, basis = rigid_body(design, cap_name)
-    law, element = _carrier(design, held)
-    cap = design.capsule(held)
-    if law is None:
-        raise DiagnosticError([error("E810", f"{element}: the fit model handles bodies on cantilevers, springs and "
-                                     "latches, or fixed (docs/fit.md)", cap.span)])
-    if basis.shape[1] == 0:
-        raise _unsupported(obs, f"the body of `{cap_name}` ({', '.join(members)}) cannot move: it is fixed or held by "
-                           "trusses in every direction its support allows", "observe a body that can move")
-    m = capsule_modes(design, cap)[0] if cap.orifices else None
-    s = Side(held, element, law, height=float(cap.orifices[0].center[2] if cap.orifices else cap.center[2]),
-             rest=np.asarray(cap.center, float), mode=(m.frequency_hz, m.q) if m else (1e5, 10.0),
-             bubble=(float(cap.cavity.volume), float(cap.orifices[0].radius) if cap.orifices else 0.0),
-             members=members, basis=basis, u=basis[:, 0], proj=1.0)
-    if law == "beam":
-        b = design.beam(element)
-        s.L, s.l, s.EI, s.E = b.length, b.rigid_length, b.bending_stiffness, b.youngs_modulus
-    elif law == "spring":
-        s.compliance = 1.0 / design.spring(element).stiffness
-    elif law == "latch":
-        from acl.analysis.mechanics import latch_geometry
-
-        lt = design.latch(element)
-        s.latch = tuple(float(x) for x in latch_geometry(lt))
-        s.E = float(lt.youngs_modulus)
-        if lt.state != "a":
-            raise DiagnosticError([error("E810", f"latch `{lt.name}` rests in state b; the fit model starts latches "
-                                         "in state a (as printed)", lt.span)])
-        a = np.asarray(lt.axis, float) / np.linalg.norm(lt.axis)
-        s.basis = a[:, None]
-        s.u = a
-    return s
 
 
 def build_instance(design) -> Instance:
@@ -578,18 +514,6 @@ def thrust_per_v2(inst: Instance, frequency: float) -> dict:
 
         tv = thrust_vectors(inst.design, Drive(tones=(Tone(frequency=float(frequency), amplitude=1.0),)))
         inst._tau[key] = {c: float(np.linalg.norm(v)) for c, v in tv.items()}
-    return inst._tau[key]
-
-
-def thrust_vec_per_v2(inst: Instance, frequency: float) -> dict:
-    """{capsule: thrust 3-vector (N/V^2)} at ``frequency`` (acl.analysis.acoustics, declared thrust applied)."""
-    key = ("tv", float(frequency))
-    if key not in inst._tau:
-        from acl.analysis.acoustics import thrust_vectors
-        from acl.design.model import Drive, Tone
-
-        tv = thrust_vectors(inst.design, Drive(tones=(Tone(frequency=float(frequency), amplitude=1.0),)))
-        inst._tau[key] = {c: np.asarray(v, float) for c, v in tv.items()}
     return inst._tau[key]
 
 

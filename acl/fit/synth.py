@@ -102,6 +102,11 @@ def generate(design_path, experiment, effects: dict | None = None, noise: float 
                             times.append(t)
                             t += float(ex.interval)
     n = len(rows)
+    if n == 0:
+        where = design.capsules[0].span if design.capsules else Span(file=str(design_path), line=1, column=1)
+        raise DiagnosticError([error("E810", "the design declares no `observe`: there is nothing to synthesize",
+                                     where, "declare what the experiment measures, e.g. "
+                                     "`observe bend = displacement(arm, +x)` (docs/language.md)")])
     from acl.fit.data import parse_quantity
 
     set_arr = {k: np.array([r[1][j] for r in rows], dtype=object) for j, k in enumerate(set_names)}

@@ -89,6 +89,7 @@ from acl.physics import batch as PB
 from acl.physics import constants as C
 from acl.physics.forces import jet_drag, thrust_magnitude
 from acl.physics.transducer import pressure_per_volt_rows
+from acl.physics.ties import TIE_RTOL, first_max
 
 
 class QuantityError(ValueError):
@@ -758,7 +759,7 @@ class _Evaluator:
                 attraction = np.einsum("bk,bk->b", fa, unit)
                 va, vb = u[:, 0, ia], u[:, 0, ib]
                 rows = np.arange(self.n)
-                ja, jb = np.argmax(np.abs(va), axis=1), np.argmax(np.abs(vb), axis=1)
+                ja, jb = first_max(np.abs(va), axis=1), first_max(np.abs(vb), axis=1)   # ties: acoustics.pair_table
                 dphi = np.angle(va[rows, ja] * np.conj(vb[rows, jb]))
                 gap = np.linalg.norm(pts[rows, ib[jb]] - pts[rows, ia[ja]], axis=-1)
                 gamma2 = np.einsum("bk,bk->b", thrust_vec[:, ia_], -unit) + np.einsum("bk,bk->b", thrust_vec[:, ib_], unit)
@@ -1701,13 +1702,13 @@ def _fundamentals(vol: np.ndarray) -> np.ndarray:
     share = np.divide(a, tot, out=np.zeros_like(a), where=tot > 0)                    # (N, P, K)
     net = np.abs(vol.sum(axis=1)) / np.maximum(tot[:, 0], 1e-300)                       # (N, K)
     driven = net > 1e-3
-    top = share >= share.max(axis=1, keepdims=True) * (1 - 1e-9)                        # (N, P, K)
+    top = share >= share.max(axis=1, keepdims=True) * (1 - TIE_RTOL)                        # (N, P, K)
     cand = top & driven[:, None, :]
     has = cand.any(axis=2)
     first = np.argmax(cand, axis=2)                                                     # (N, P)
     # fallback: the largest-share driven mode (or any mode when none is driven)
     pool = np.where(driven.any(axis=1)[:, None, None], driven[:, None, :], True)
-    alt = np.argmax(np.where(pool, share, -1.0), axis=2)
+    alt = first_max(np.where(pool, share, -1.0), axis=2)
     picked = np.where(has, first, alt)
     picked = np.sort(picked, axis=1)
     dup = np.zeros_like(picked, bool)
