@@ -172,3 +172,41 @@ def test_contact_rows_do_not_widen_the_covered_range(tmp_path):
     side = max(abs(float(r["value"])) for r in rows if r["observable"] != "d")
     closed = 40.0 - float(next(r["value"] for r in rows if r["observable"] == "d"))
     assert cover["deflection"].upper * 1e6 == pytest.approx(max(side, closed / 2), rel=1e-6)
+
+
+def test_calibrated_file_flags_coefficients_the_data_cannot_identify(tmp_path):
+    """Fig. 5c spring ramped to 8 V moves 1 um: gamma and alpha are not identifiable (the fit warns) and
+    the optimizer stops with gamma at its bound, 1/1000 of the design's.  The calibrated file applied that
+    value silently (a transducer 30x weaker); it now says so next to it.  A well identified fit says nothing."""
+    from acl.cli import main
+    from acl.fit import run_fit
+
+    tmp = str(tmp_path)
+    shutil.copy(os.path.join(EX, "fig5c_linear_spring.acl"), tmp)
+    ramp = "\n".join(f"  drive 125 kHz @ {v} V for 100 ms" for v in range(1, 9))
+    with open(os.path.join(tmp, "ramp.acl"), "w") as fh:
+        fh.write(f'extends "fig5c_linear_spring.acl"\nprogram ramp {{  # acl: ignore[ACL201] calibration\n{ramp}\n}}\n')
+    with open(os.path.join(tmp, "truth.acl"), "w") as fh:
+        fh.write('extends "ramp.acl"\neffect transducer_gain { gain_slope = 0, f_ref = 125 kHz, gain = 1.15 }\n'
+                 "effect drive_saturation { v_sat = 9 V }\n")
+    out = os.path.join(tmp, "out")
+    assert main(["compile", os.path.join(tmp, "ramp.acl"), "--program", "ramp", "-o", out, "-q",
+                 "--band-samples", "0", "--allow-nonlinear"]) == 0
+    csv = os.path.join(tmp, "run.csv")
+    assert main(["synth", os.path.join(tmp, "truth.acl"), "--schedule", os.path.join(out, "schedule.json"),
+                 "-o", csv, "--noise", "0.2um", "--seed", "1"]) == 0
+    fit = run_fit(os.path.join(tmp, "ramp.acl"), [csv], free=("gamma", "alpha"),
+                  calibrated_path=os.path.join(tmp, "ramp.calibrated.acl"))
+    assert any("gamma is not identifiable" in w for w in fit.selection.final.warnings)
+    assert "# WARNING: fit_gamma is not identifiable" in fit.calibrated
+    # the Fig. 4 ramp of the closing-the-loop study identifies both: no such line
+    shutil.copy(os.path.join(EX, "fig4_facing_pair.acl"), tmp)
+    out4 = os.path.join(tmp, "out4")
+    assert main(["compile", os.path.join(tmp, "fig4_facing_pair.acl"), "--program", "ramp", "-o", out4, "-q",
+                 "--band-samples", "0"]) == 0
+    csv4 = os.path.join(tmp, "run4.csv")
+    assert main(["synth", os.path.join(tmp, "fig4_facing_pair.acl"), "--schedule", os.path.join(out4, "schedule.json"),
+                 "-o", csv4, "--noise", "0.02um", "--seed", "0"]) == 0
+    fit4 = run_fit(os.path.join(tmp, "fig4_facing_pair.acl"), [csv4], free=("gamma", "alpha"),
+                   calibrated_path=os.path.join(tmp, "fig4_facing_pair.calibrated.acl"))
+    assert "not identifiable" not in fit4.calibrated

@@ -30,6 +30,7 @@ from acl.physics.coupling import (BubbleSystem, CoupledModes, build_system, coup
                                   coupled_response as _physics_coupled, prepared_response, uncoupled_blocks)
 from acl.physics.forces import interface_centre_amplitude, jet_drag, thrust_magnitude
 from acl.physics.resonance import BubbleModes, capsule_modes as _physics_modes
+from acl.physics.ties import TIE_RTOL, first_max
 from acl.physics.transducer import pressure_per_volt
 
 
@@ -348,11 +349,11 @@ def _fundamentals(cm: CoupledModes, n_interfaces: int) -> list[int]:
     driven = net > 1e-3
     picked = []
     for o in range(n_interfaces):
-        top = share[o] >= share.max(axis=0) * (1 - 1e-9)
+        top = share[o] >= share.max(axis=0) * (1 - TIE_RTOL)
         cand = np.flatnonzero(top & driven)
         if cand.size == 0:
             cand = np.flatnonzero(driven) if driven.any() else np.arange(share.shape[1])
-            cand = cand[[int(np.argmax(share[o, cand]))]]
+            cand = cand[[first_max(share[o, cand])]]
         picked.append(int(cand[0]))
     return sorted(set(picked))
 
@@ -376,7 +377,7 @@ def _modes_cached(design: Design, idx: tuple[int, ...]) -> tuple[Mode, ...]:
     out = []
     for n in (_fundamentals(cm, len(labels)) if short else range(cm.omega.size)):
         share = cm.share[:, n]
-        k = int(np.argmax(share))
+        k = first_max(share)                  # a symmetric pair's 50/50: the first declared (acl.physics.ties)
         q = cm.quality[n]
         if short and lay.caps[idx[0]].quality_factor is not None:   # a declared Q is the capsule's Q as measured
             q = lay.caps[idx[0]].quality_factor
@@ -397,7 +398,7 @@ def capsule_modes(design: Design, capsule, n_modes: int = C.DEFAULT_MEMBRANE_MOD
         names = [o.name for o in cap.orifices]
         out = []
         for n in range(min(len(names), md.omega.size)):
-            k = int(np.argmax(md.share[:, n]))
+            k = first_max(md.share[:, n])
             out.append(Mode(frequency_hz=float(md.frequency[n]), q=float(md.quality[n]),
                             dominant_orifice=names[k], share=float(md.share[k, n]),
                             shares={nm: float(md.share[i, n]) for i, nm in enumerate(names)},
@@ -547,7 +548,8 @@ class _Engine:
         # drag of each interface's jet on the other capsules (Schlichting laminar round jet)
         x = centres[:, None, :, :] - pts[:, :, None, :]                    # (B, n, C, 3)
         dist = np.sqrt((x * x).sum(axis=-1))
-        cos = (x * lay.normals[None, :, None, :]).sum(axis=-1) / dist
+        with np.errstate(invalid="ignore", divide="ignore"):   # positions a runaway solver step made non-finite:
+            cos = (x * lay.normals[None, :, None, :]).sum(axis=-1) / dist   # NaN forces, which the solver rejects
         mask = k["drag_mask"]
         drag = jet_drag(thr[:, :, None], np.where(mask, dist, 1.0), cos, self.outer[None, None, :]) * mask
         total = total + drag.transpose(0, 2, 1) @ lay.normals
@@ -686,7 +688,8 @@ def pair_table(design: Design, drive: Drive,
     dist = np.linalg.norm(line, axis=-1)
     unit = np.divide(line, dist[:, None], out=np.zeros_like(line), where=dist[:, None] > 0)
     attraction = np.einsum("pk,pk->p", fa, unit)
-    # phase of the dominant interfaces at the strongest tone (first maximum, as numpy's argmax)
+    # phase of the dominant interfaces at the strongest tone (ties: the first declared interface, the first
+    # listed tone; acl.physics.ties)
     dphi = np.zeros(npair)
     gap = dist.copy()
     counts = np.bincount(body, minlength=ncap) if body.size else np.zeros(ncap, int)
@@ -697,10 +700,10 @@ def pair_table(design: Design, drive: Drive,
         peak = np.full((u.shape[0], ncap), -np.inf)
         peak[:, has] = np.maximum.reduceat(mag, starts, axis=1)
         first = np.zeros((u.shape[0], ncap), int)
-        at_peak = np.where(mag == peak[:, body], np.arange(body.size)[None, :], body.size)
+        at_peak = np.where(mag >= peak[:, body] * (1 - TIE_RTOL), np.arange(body.size)[None, :], body.size)
         first[:, has] = np.minimum.reduceat(at_peak, starts, axis=1)
         ok = has[pa] & has[pb]
-        t = np.argmax(peak[:, pa[ok]] * peak[:, pb[ok]], axis=0)
+        t = first_max(peak[:, pa[ok]] * peak[:, pb[ok]], axis=0)
         ja, jb = first[t, pa[ok]], first[t, pb[ok]]
         dphi[ok] = np.angle(u[t, ja] * np.conj(u[t, jb]))
         gap[ok] = np.linalg.norm(pts[jb] - pts[ja], axis=-1)

@@ -13,6 +13,7 @@ import numpy as np
 
 from acl.design import model as M
 from acl.design.drives import describe_drive
+from acl.physics.ties import first_max
 
 CROSSTALK_THRESHOLD = 0.3     # relative response of a non-target capsule flagged as crosstalk
 SELECTIVITY_SWEEP = (20e3, 400e3, 761)   # Hz grid used to find each capsule's thrust peak
@@ -117,7 +118,7 @@ def analyze(design: M.Design, at: M.Drive | None = None, snap_in: bool = True, p
         at_f = AC.selectivity(design, freqs)
         for j, f in enumerate(freqs):
             rel = np.divide(at_f.thrust_per_v2[:, j], peak, out=np.zeros_like(peak), where=peak > 0)
-            best = at_f.capsules[int(np.argmax(rel))]
+            best = at_f.capsules[first_max(rel)]            # ties: the first declared (acl.physics.ties)
             for i, name in enumerate(at_f.capsules):
                 # capsules tuned like the best-responding one (first modes within 2 %) are meant to move together
                 target = _same_tuning(modes.get(name), modes.get(best))

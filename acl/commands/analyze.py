@@ -98,6 +98,8 @@ def print_report(design, rep) -> None:
     from acl._console import make_console
     from rich.table import Table
 
+    from acl.physics.ties import first_max_item
+
     con = make_console(highlight=False)
     for n in rep.notes:
         con.print(f"[yellow]note:[/yellow] {n}")
@@ -143,7 +145,7 @@ def print_report(design, rep) -> None:
     nonlinear = [d for d in rep.drives if not d["linear"]]
     for d in nonlinear:
         where = f"program {d['program']} step {d['step']} (line {d['line']})" if d["program"] else "pair analysis"
-        worst = max(d["interface_amplitude_over_radius"].items(), key=lambda kv: kv[1])
+        worst = first_max_item(d["interface_amplitude_over_radius"])      # ties: the first declared
         con.print(f"[red]warning:[/red] {where}: {d['drive']} drives {worst[0]} to eps/R = {worst[1]:.6g}, beyond the "
                   f"linear bubble model (eps/R <= {d['linear_limit']:g}; docs/physics.md)")
     if rep.pairs:

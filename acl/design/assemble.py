@@ -356,6 +356,7 @@ def _uncertainty(b: Builder, params: tuple[M.Param, ...]):
 
 def _uses(b: Builder):
     medium = transducer = None
+    built: set[int] = set()                 # declarations built above (by identity)
     seen: dict[str, Span] = {}
     for st in b.env.statements:
         if not isinstance(st, A.Use):
@@ -375,6 +376,7 @@ def _uses(b: Builder):
         if not isinstance(v, DeclVal) or v.kind != st.what:
             b.bag.error("E207", f"`use {st.what}` needs a {st.what}, found {what_is(v)}", st.target.span, b.r.kind_hint(st.what, b.env))
             continue
+        built.add(id(v.node))
         if st.what == "medium":
             medium = b.medium(v)
         else:
@@ -386,10 +388,16 @@ def _uses(b: Builder):
         local = [blk for blk in b.env.decls.values() if blk.kind == kind]
         if len(local) == 1:
             dv = DeclVal(kind, local[0].name, local[0], b.env)
+            built.add(id(local[0]))
             if kind == "medium":
                 medium = b.medium(dv)
             else:
                 transducer = b.transducer(dv)
+    # the others declared here are checked the same way (an unused one is ACL601 in lint, but a wrong
+    # value in it is an error now, not when someone first uses it)
+    for blk in list(b.env.decls.values()):
+        if blk.kind in ("medium", "transducer") and id(blk) not in built:
+            (b.medium if blk.kind == "medium" else b.transducer)(DeclVal(blk.kind, blk.name, blk, b.env))
     return medium, transducer
 
 

@@ -295,6 +295,10 @@ class Builder:
             ok = False
         try:
             spec.thrust = self.r.get(keys, "thrust", "capsule", name)
+            if spec.thrust is not None and spec.thrust < 0:      # gamma of paper Eq. (3): a jet pushes, never pulls
+                self._err_key(keys, "thrust", "E401", f"{name}.thrust must not be negative, got {spec.thrust:g} N/V^2",
+                              "the thrust coefficient (gamma of paper Eq. 3) is a magnitude; the orifice's `normal` gives its direction")
+                ok = False
             spec.q = self.r.get(keys, "q", "capsule", name)
             if spec.q is not None and spec.q <= 0:
                 self._err_key(keys, "q", "E401", f"{name}.q must be positive")

@@ -70,6 +70,7 @@ def _spread_of(expr, value: Quantity, name: str, evaluate, report) -> tuple[floa
         frac = _number(expr, evaluate)
         _check_sd(frac, name, expr.span, report, "%")
         sp = Spread(kind="normal", a=0.0, b=frac, relative=True)
+        _check_relative_of_zero(sp, value, name, expr.span, report, example)
         return sp.stddev(value.value), sp
     sd = _quantity(expr, value, name, evaluate, report, example)
     _check_sd(sd, name, expr.span, report, unit)
@@ -148,4 +149,13 @@ def _call(e: A.Call, value: Quantity, name: str, evaluate, report, example: str)
                "the bounds are offsets from the value, e.g. `uniform(-200 nm, 200 nm)`")
         raise SpreadError()
     sp = Spread(kind=e.name, a=a, b=b, relative=relative)
+    _check_relative_of_zero(sp, value, name, e.span, report, example)
     return sp.stddev(value.value), sp
+
+
+def _check_relative_of_zero(sp: Spread, value: Quantity, name: str, span, report, example: str) -> None:
+    """A relative spread (`%`) of a value that is zero is no spread at all: E322, not a silent zero uncertainty."""
+    if value.value == 0 and (sp.a or sp.b):
+        report("E322", f"spread of `{name}`: a relative spread (%) of a zero value is zero: `{name}` would have no "
+               "uncertainty", span, "give an absolute spread in the value's unit: `+- s`")
+        raise SpreadError()

@@ -102,6 +102,11 @@ def calibrated_text(problem, selection, out_path: str, data_paths=(), report_dir
                              "carry it into the design)")
         names.append(name)
         by_kind[c.kind] = name
+        rel_se = se / max(abs(v), 1e-300)
+        if c.kind != "effect" and (not np.isfinite(rel_se) or rel_se > 1.0):     # as solve.fit's warning
+            notes.append(f"# WARNING: {name} is not identifiable from these data (relative standard error "
+                         f"{rel_se:.3g}): its value is where the optimizer stopped, not a measurement; later stages "
+                         "draw it from its +- (acl compile's bands), so they are wide")
         params.append(f"param {name} = {_literal(v, unit)}{_pm(se, unit)}"
                       f"    # 95% interval {_literal(lo, unit)} .. {_literal(hi, unit)}")
     # coefficients that stand for physics the design has no parameter for

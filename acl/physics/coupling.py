@@ -45,7 +45,7 @@ from typing import Sequence
 
 import numpy as np
 
-from acl.physics.resonance import BubbleModes
+from acl.physics.resonance import BubbleModes, symmetric_eigh
 
 
 @dataclass(frozen=True)
@@ -247,15 +247,13 @@ def coupled_modes(system: BubbleSystem, density: float, sound_speed: float,
     thermal, own radiation) + Phi^T (rho w_n^2/(4 pi c)) S Phi with S_ij = sin(k d_ij)/(k d_ij)
     between capsules and R sin(k d'_ij)/(k d'_ij) for the wall images (mutual radiation resistance).
     """
-    from scipy.linalg import eigh
-
     phi, om, dmp = _compact(system)
     if om.size == 0:
         z = np.zeros(0)
         return CoupledModes(omega=z, volume=np.zeros((system.n, 0)), quality=z)
     g0 = green_matrix(system.points, system.radii, system.body, None, wall_reflection)
     mass = np.eye(om.size) + density * phi.T @ g0 @ phi
-    w2, q = eigh(np.diag(om**2), (mass + mass.T) / 2)
+    w2, q = symmetric_eigh(np.diag(om**2), (mass + mass.T) / 2)
     omega = np.sqrt(np.maximum(w2, 0.0))
     vol = phi @ q
     d = _distances(system.points, system.radii, False)

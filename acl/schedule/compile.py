@@ -23,6 +23,7 @@ import numpy as np
 
 from acl.design.model import Design, FollowStep, HoldStep, Limits, Program, SwitchStep
 from acl.diagnostics import Diagnostic, DiagnosticError, Severity, Span, error
+from acl.physics.ties import TIE_RTOL, first_max_item
 from acl.schedule.model import GoalReport, Schedule, ScheduledTone, Segment
 from acl.schedule.path import UM, DriveLimits
 
@@ -152,8 +153,8 @@ class _Compiler:
                 if not tones:
                     continue
                 amps = interface_amplitudes(self.design, Drive(tones=tones))
-                k, v = max(amps.items(), key=lambda kv: kv[1], default=("", 0.0))
-                if v > worst:
+                k, v = first_max_item(amps)            # ties: the first declared interface, the first segment
+                if v > worst * (1 + TIE_RTOL):
                     worst, where = v, k
             worst_of[seg.step] = (worst, where)
         for step_index, (worst, where) in sorted(worst_of.items()):   # one finding per step, its worst segment
@@ -315,6 +316,8 @@ class _Compiler:
         plan_slew = None if slew is None else slew * 2.0 * fade / (np.pi * dt) * (1 - 1e-4)
         limits = DriveLimits(max_voltage=vmax, slew_rate=plan_slew)
         rq = self._robust_q(name, step.capsule, choice.frequencies, step.span) if self.opts.robust else None
+        if not self.opts.robust and self._band_planned():     # refuse an absurd spread before planning (each
+            self._robust_q(name, step.capsule, choice.frequencies, step.span, band=True)   # draw can take seconds)
         u_start = None
         if slew is not None:        # slew from what is playing before the goal (silence at the start)
             before = {t.frequency_hz: t.amplitude_v for t in self.segments[-1].tones} if self.segments else {}
@@ -392,20 +395,36 @@ class _Compiler:
         best.targets = np.asarray(points, float)
         return best
 
-    def _robust_q(self, name, capsule, freqs, span):
-        """Q of the declared uncertainty at the chosen tones (None, with a note, when there is none)."""
+    def _band_planned(self) -> bool:
+        """Whether follow goals get an error band from draws of the declared uncertainty (:meth:`_band`)."""
+        return self.opts.band_samples > 0 and not (self.opts.forward_provider is None and self.opts.calibration is not None)
+
+    def _robust_q(self, name, capsule, freqs, span, band: bool = False):
+        """Q of the declared uncertainty at the chosen tones (None, with a note, when there is none).
+
+        A 1-sigma spread beyond MAX_ROBUST_SPREAD x the gains is E-SCHED-UNCERTAINTY, for --robust and
+        (``band``) for the error band of --band-samples, whose draws would all lose the path, each after
+        seconds of re-simulation (a finite but absurd `+- s` made every draw cost ~20 s).
+        """
         from acl.schedule.robust import robust_q
 
         if self.opts.calibration is not None:
-            self.notes.append(f"{name}: --robust ignored: a measured calibration table declares no uncertainty")
+            if not band:
+                self.notes.append(f"{name}: --robust ignored: a measured calibration table declares no uncertainty")
             return None
         provider = self.opts.gain_provider
         if provider is None:
             from acl.schedule.gains import model_gain_table as provider
         with np.errstate(all="ignore"):      # overflow is checked below, as a located error
-            q = robust_q(self.design, lambda d: provider(d, capsule, freqs).gains.T, self.opts.reload)
+            try:
+                q = robust_q(self.design, lambda d: provider(d, capsule, freqs).gains.T, self.opts.reload)
+            except (ValueError, KeyError, DiagnosticError):
+                if not band:
+                    raise
+                return None           # a 1-sigma design that does not resolve: the draws count it as failed
             if q is None:
-                self.notes.append(f"{name}: --robust: the design declares no uncertainty; the plan is the nominal one")
+                if not band:
+                    self.notes.append(f"{name}: --robust: the design declares no uncertainty; the plan is the nominal one")
                 return q
             g0 = np.linalg.norm(np.asarray(provider(self.design, capsule, freqs).gains, float), 2)
             spread = float(np.sqrt(np.max(np.abs(np.linalg.eigvalsh(q))))) if np.all(np.isfinite(q)) else float("inf")
@@ -414,11 +433,14 @@ class _Compiler:
             t = self.design.transducer
             if t is not None and t.gain_uncertainty:
                 what.append(f"`{t.name}.gain_uncertainty = {t.gain_uncertainty:g}`")
-            raise _diag("E-SCHED-UNCERTAINTY", f"{name}: --robust: at 1 sigma the declared uncertainty moves the "
+            option, outcome = (("--band-samples", "an error band over such draws is not computed")
+                               if band else ("--robust", "no plan can be robust to it"))
+            raise _diag("E-SCHED-UNCERTAINTY", f"{name}: {option}: at 1 sigma the declared uncertainty moves the "
                         f"gains by {'more than' if not math.isfinite(spread) else ''} "
                         f"{spread / g0 if math.isfinite(spread) and g0 > 0 else float('inf'):.3g} times their size "
-                        f"(at most {MAX_ROBUST_SPREAD:g}): no plan can be robust to it".replace("by  ", "by "),
-                        span, "check the declared uncertainty: " + (", ".join(what) or "none found"))
+                        f"(at most {MAX_ROBUST_SPREAD:g}): {outcome}".replace("by  ", "by "),
+                        span, "check the declared uncertainty: " + (", ".join(what) or "none found")
+                        + ("; or compile without an error band: --band-samples 0" if band else ""))
         return q
 
     def _gain_table(self, capsule):

@@ -169,6 +169,9 @@ def plan_path(gains: np.ndarray, targets: np.ndarray, dt: float, limits: DriveLi
         raise PathInfeasible(PathDiagnosis(0, 0.0, tuple(P[0]), ("solver status " + result.status,),
                                            ("check the gains: a zero or non-finite gain vector",),
                                            result.status))
+    if result.status != "optimal":
+        notes.append(f"the solver ({result.solver}) reported an inaccurate optimum (badly scaled gains?); "
+                     "the re-simulated error below is what counts")
     u = np.maximum(np.asarray(X.value), 0.0) * scale["vmax2"]
     for it in range(refine):
         u_new = _refine_total(G, P, dt, limits, tolerance, u_start, lam, slew_model, u, solvers, robust_q)

@@ -4,6 +4,7 @@ cvxpy is imported inside the functions (it is heavy); nothing here runs at impor
 """
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 
 SOLVERS = ("CLARABEL", "OSQP", "SCS")
@@ -59,7 +60,9 @@ def solve(problem, what: str, solvers: tuple[str, ...] = SOLVERS, **kwargs) -> S
             continue
         tried.append(name)
         try:
-            problem.solve(solver=name, **kwargs)
+            with warnings.catch_warnings():      # cvxpy warns "Solution may be inaccurate": the status says so
+                warnings.filterwarnings("ignore", message="Solution may be inaccurate", category=UserWarning)
+                problem.solve(solver=name, **kwargs)
         except (cp.error.SolverError, ValueError, ArithmeticError):   # SCS raises ValueError on a badly scaled problem
             status = "solver error"
             continue

@@ -6,6 +6,7 @@ import numpy as np
 from acl.diagnostics import Severity
 from acl.lint.context import Context, khz
 from acl.lint.registry import rule
+from acl.physics.ties import first_max, first_max_item
 
 
 @rule("ACL101", "resonance-outside-band",
@@ -121,7 +122,7 @@ def _intended(ctx: Context, step, rel: np.ndarray, freqs) -> list[set[str]]:
     for j, f in enumerate(freqs):
         inband = {c.name for c in ctx.design.capsules
                   if any(abs(f - m.frequency_hz) <= m.frequency_hz / (2 * m.q) for m in ctx.modes(c))}
-        out.append(inband or {names[int(np.argmax(rel[:, j]))]})
+        out.append(inband or {names[first_max(rel[:, j])]})
     return out
 
 
@@ -168,14 +169,14 @@ def bubble_beyond_linear(ctx: Context):
         if st.kind == "drive":
             amps = ctx.cached(("eps", tuple((t.frequency, t.amplitude, t.phase) for t in st.drive.tones)),
                               lambda: interface_amplitudes(ctx.design, st.drive))
-            k, v = max(amps.items(), key=lambda kv: kv[1], default=("", 0.0))
+            k, v = first_max_item(amps)                      # ties: the first declared (acl.physics.ties)
             worst, where, at = (v, k, st.drive) if v > 0.0 else (0.0, "", None)
         elif st.kind == "sweep":        # every sampled tone in one coupled solve
             freqs = np.linspace(st.f_start, st.f_stop, n)
             eps = sweep_interface_amplitudes(ctx.design, freqs, st.amplitude)      # (F, interfaces)
             worst, where, at = 0.0, "", None
             if eps.size:
-                j, i = np.unravel_index(int(np.argmax(eps)), eps.shape)        # the first largest, as the loop found it
+                j, i = np.unravel_index(first_max(eps.reshape(-1)), eps.shape)   # the first largest (ties: acl.physics.ties)
                 if eps[j, i] > 0.0:
                     worst, where = float(eps[j, i]), labels[i]
                     at = Drive(tones=(Tone(frequency=float(freqs[j]), amplitude=st.amplitude),))
