@@ -197,3 +197,18 @@ def test_an_empty_header_cell_is_named_as_such(capsys):
     code, out, err = _main(["fit", ROOT / "tests" / "data" / "fit_cantilever.acl",
                             INPUTS / "h3_data_trailing_commas.csv"], capsys)
     assert code == 1 and ":1:34: error[E801]: a column without a name" in err
+
+
+# -- what acl writes passes `acl fmt --check` -------------------------------------------------------------------------
+
+def test_a_written_calibrated_design_is_already_formatted(tmp_path):
+    """The README tour's `acl fit ... --report fit/` wrote examples/*.calibrated.acl, which docs/editor.md's
+    `acl fmt --check examples stdlib` then rejected (comment alignment)."""
+    from acl.fmt import canonical, format_source
+
+    text = ("extends \"d.acl\"\n"
+            "param fit_gamma = 2.4e-11 N/V^2 +- 2.3e-13 N/V^2    # 95% interval\n"
+            "param fit_alpha_long_name = 0.0155 V^-2 +- 0.00037 V^-2    # 95% interval\n")
+    out = canonical(text, "x.acl")
+    assert out != text and format_source(out, "x.acl") == out
+    assert canonical("param = (", "x.acl") == "param = ("           # unparsable: kept as built, never lost
