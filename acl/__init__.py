@@ -19,12 +19,13 @@ from typing import TYPE_CHECKING
 
 __version__ = "0.1.0"
 
-__all__ = ["load", "loads", "analyze", "compile", "lint", "fit", "sweep", "__version__"]
+__all__ = ["load", "loads", "analyze", "compile", "lint", "fit", "sweep", "tune", "__version__"]
 
 if TYPE_CHECKING:  # pragma: no cover
     from acl.design.model import Design
     from acl.notebook import Analysis, Compiled, FitReport, LintResult
     from acl.sweep.table import SweepTable
+    from acl.sweep.tune import Tuned
 
 
 def load(path, overrides=None, search_paths=()) -> "Design":
@@ -205,6 +206,38 @@ def _sweep(design, vary=None, tolerance=None, n=None, seed=0, quantities=None, a
 
     return _run(design, vary=vary, tolerance=tolerance, n=n, seed=seed, quantities=quantities, at=at,
                 scheduler=scheduler, overrides=overrides, search_paths=search_paths)
+
+
+def tune(design, tolerance=None, n=2000, validate=None, seed=0, objective="yield", method="nelder-mead",
+         max_evals=200, scheduler=None, search_paths=()) -> "Tuned":
+    """Choose the design's `free` parameters for yield under its print tolerances (as `acl tune`, writing
+    nothing; docs/tune.md).
+
+    ``design``: a path (or a Design loaded from a file); ``tolerance`` as :func:`sweep`
+    (``{"r1": "normal(0, 150 nm)"}`` or ``["r1=normal(0, 150 nm)"]``), replacing a declared spread;
+    ``n`` samples searched (``--samples``); ``validate`` fresh samples the yield before and after is
+    counted on (default ``n``); ``seed``; ``objective`` "yield" or "margin"; ``method``
+    "nelder-mead", "powell" or "differential-evolution"; ``max_evals`` trials; ``scheduler``:
+    None/"local" or "tcp://HOST:PORT" (dask, `acl[scale]`), the same result on either.  Returns an
+    :class:`acl.sweep.tune.Tuned`: ``.values`` ({name: SI value}), ``.before``/``.after`` (yields
+    with ``.interval``), ``.to_json()`` (as `--output-format json`), ``.write(path)`` (the tuned
+    design).  Raises :class:`acl.diagnostics.DiagnosticError` (E870-E875) when it cannot tune.
+
+    >>> import acl
+    >>> r = acl.tune("examples/fig3_robust_radii.acl", n=300, max_evals=40)   # doctest: +SKIP
+    >>> r.after.value > r.before.value                                         # doctest: +SKIP
+    True
+    """
+    from acl.sweep import tune as T
+
+    if isinstance(tolerance, dict):
+        tolerance = [f"{k}={v}" for k, v in tolerance.items()]
+    elif isinstance(tolerance, str):
+        tolerance = [tolerance]
+    path = str(getattr(design, "file", design))
+    problem = T.prepare(path, tolerance=list(tolerance or ()), samples=n, validate=validate, seed=seed,
+                        search_paths=search_paths)
+    return T.tune(problem, objective=objective, method=method, max_evals=max_evals, scheduler=scheduler)
 
 
 # `acl.lint` and `acl.fit` are also subpackages: once imported they replace these attributes with

@@ -7,7 +7,11 @@ planted, every library effect in every experiment kind that can identify it:
                        or 3 lengths x 3 pedestals x 0..8 V at 125 kHz ("geometry")
 * ``pair``            tests/data/fit_pair.acl, gaps 40..70 um x 5 frequencies x 0..4 V
 * ``pair+cal``        tests/data/fit_pair_cal.acl: the pair, and the isolated calibration beam to 11 V
-* ``spring+cal``      tests/data/fit_spring_cal.acl: paper Fig. 5c spring pair, and the calibration beam
+* ``spring+cal``      tests/data/fit_spring_cal.acl: paper Fig. 5c spring pair at 4 gaps x 5 frequencies x 0..4 V, and
+                       the calibration beam; ``spring+cal/plateau`` the spring ramped to 5 V (into the drag plateau)
+* ``body-pair+cal``   tests/data/fit_body_pair.acl: a two-orifice capsule facing a trussed body (acl.fit.group, the
+                       analysis' coupled volumes where the capsules are), gap and sideways tip 0..3 V at 125 and
+                       175 kHz (the side orifice's and the rider's mode), and the calibration beam to 11 V
 * ``latch``           examples/fig6_bistable_latch.acl, ramps 0..60 V (through the switch) at 4 frequencies
 * ``latch+state``     tests/data/fit_latch_state.acl (the latch with `observe switched = state(snap)`), ramps
                        0..100 V in 2.5 V steps at 5 frequencies, twice: shuttle rows (noise) and 0/1 state rows
@@ -28,7 +32,9 @@ cantilever ramps by hand: viscoelastic creep (deflection x (1 + 0.25 (1 - exp(-t
 out-of-plane tilt (the observed deflection foreshortened by cos(phi), phi = 0.4 delta / 10 um rad);
 for those, "correct" is: no effect selected and structure reported as unexplained with a covariate.
 
-A case is diagnosed correctly when the selected set equals the planted set.  Prints one row per case:
+A case is diagnosed correctly when the selected set equals the planted set and the fit reports no alternative that
+explains the data as well; "ambiguous" when the fit reports alternatives (`acl fit` report `ambiguous`) and the planted
+set is among the selected and alternative sets; "wrong" otherwise.  Prints one row per case:
 rate over seeds, mean RMSE after / noise, and the wrong selections seen; `--json PATH` writes every run (after each
 case; `--merge` keeps the other cases already in the file).  The committed benchmarks/fit_diagnosis.json is the run
 behind the table in docs/fit.md (rendered by tests/docs_sync.py with :func:`markdown`); tests/test_fit_diagnosis.py
@@ -53,6 +59,7 @@ CANT = os.path.join(ROOT, "tests", "data", "fit_cantilever.acl")
 PAIR = os.path.join(ROOT, "tests", "data", "fit_pair.acl")
 PAIR_CAL = os.path.join(ROOT, "tests", "data", "fit_pair_cal.acl")
 SPRING_CAL = os.path.join(ROOT, "tests", "data", "fit_spring_cal.acl")
+BODY_PAIR = os.path.join(ROOT, "tests", "data", "fit_body_pair.acl")
 LATCH = os.path.join(ROOT, "examples", "fig6_bistable_latch.acl")
 LATCH_STATE = os.path.join(ROOT, "tests", "data", "fit_latch_state.acl")
 
@@ -75,6 +82,15 @@ def kinds():
                              label="spring", interval=0.5),
                   Experiment(frequencies=FREQS, voltages=tuple(np.linspace(0, 11, 12)), observables=("cal",),
                              repeats=2, label="calibration", interval=0.5)]
+    # the same spring ramped two steps further, to 5 V: into the drag plateau (below)
+    spring_plateau = [Experiment(frequencies=FREQS, voltages=tuple(np.linspace(0, 5, 11)), sets=gaps, observables=("d",),
+                                 label="spring", interval=0.5), spring_cal[1]]
+    # (kept small: a group row is an equilibrium of the analysis' coupled forces, ~1 min of CPU per fit here)
+    body_f = (125e3, 175e3)
+    body_cal = [Experiment(frequencies=body_f, voltages=tuple(np.linspace(0, 3, 6)), observables=("distance", "a_y"),
+                           label="pair", interval=0.5),
+                Experiment(frequencies=body_f, voltages=tuple(np.linspace(0, 11, 9)), observables=("cal",),
+                           label="calibration", interval=0.5)]
     latch = Experiment(frequencies=(115e3, 125e3, 135e3, 145e3), voltages=tuple(np.linspace(0, 60, 13)), repeats=2)
     # the switched state observed too: ramps to the declared vmax = 100 V in 2.5 V steps at 5 frequencies, so the
     # latch switches at 3-5 of them and the threshold voltage is seen per frequency and per repeat (time)
@@ -90,6 +106,8 @@ def kinds():
         "pair": (PAIR, pair, ["gamma", "alpha"], 0.3e-6, {"alpha": 1.745e-19}),
         "pair+cal": (PAIR_CAL, pair_cal, ["gamma", "alpha"], 0.2e-6, {"alpha": 1.745e-19}),
         "spring+cal": (SPRING_CAL, spring_cal, ["gamma", "alpha"], 0.2e-6, {"alpha": 1.745e-19}),
+        "spring+cal/plateau": (SPRING_CAL, spring_plateau, ["gamma", "alpha"], 0.2e-6, {"alpha": 1.745e-19}),
+        "body-pair+cal": (BODY_PAIR, body_cal, ["gamma", "alpha"], 0.2e-6, {}),
         "latch": (LATCH, latch, ["gamma"], 0.2e-6, {}),
         "latch/known-force": (LATCH, latch, [], 0.2e-6, {}),
         "latch+state": (LATCH_STATE, latch_state, ["gamma"], 0.2e-6, {}),
@@ -142,6 +160,13 @@ CASES = [
     # V_s = 6 V: at 3 V saturation caps the spring pair's force so that the drag changes its gap by 0.04 um RMS
     # (max 0.35 um) at 0.2 um noise: not in the data (measured 0/10, saturation alone found, RMSE/noise 1.01)
     ("spring+cal", {"drive_saturation": SAT, "neighbour_drag": {"plateau": 4e-6}}),
+    # the lab's way to see a plateau (paper Fig. 5b, 5d: the spring actuator is ramped until it snaps): the same
+    # spring ramped to 5 V (two more 0.5 V steps), where the drag changes the gap by 0.24 um RMS (0.13 at 4 V); the LRT's expected
+    # non-centrality for the drag given saturation is 57 (17 at 4 V): docs/fit.md
+    ("spring+cal/plateau", {"drive_saturation": SAT, "neighbour_drag": {"plateau": 4e-6}}),
+    # bodies inside a pair (acl.fit.group): one effect and clean data, to show the search works there too
+    ("body-pair+cal", {"drive_saturation": SAT_PAIR}),
+    ("body-pair+cal", {}),
     ("latch", {"offset_drift": DRIFT}),
     ("latch", {"transducer_gain": GAIN}),
     ("latch", {"transducer_resonance": RESONANCE}),
@@ -159,9 +184,11 @@ CASES = [
     ("latch+state/angles", {"transducer_resonance": RESONANCE}),
     ("latch+state/angles", {"drive_saturation": SAT_STATE}),
     ("latch+state/angles", {"bubble_shrinkage": SHRINK}),
+    ("latch+state/angles", {"offset_drift": DRIFT}),
     ("latch+state/angles", {"drive_saturation": SAT_STATE, "offset_drift": DRIFT}),
     # clean data: nothing may be claimed
-    ("cantilever", {}), ("cantilever/geometry", {}), ("pair", {}), ("pair+cal", {}), ("spring+cal", {}), ("latch", {}),
+    ("cantilever", {}), ("cantilever/geometry", {}), ("pair", {}), ("pair+cal", {}), ("spring+cal", {}), ("spring+cal/plateau", {}),
+    ("latch", {}),
     ("latch+state", {}), ("latch+state/angles", {}),
     # outside the library: reported as unexplained structure with a covariate, no effect claimed
     ("cantilever", {"(creep)": {}}),
@@ -179,12 +206,92 @@ CASES = [
 _SWITCH = ("the latch shows it only through which voltage step switched (shuttle travel before the switch is below "
            "the noise): not identifiable by least squares on the shuttle displacement")
 LIMITS = {
+    "spring+cal drive_saturation+neighbour_drag":
+        ("at 0.2 um noise the 0..4 V ramps move the spring too little into the drag plateau: the likelihood-ratio "
+         "test of the drag given saturation has power below 0.9 at the search's gate, and no test with the same "
+         "error rate reaches it (power calculation above); the spring ramped to 5 V is counted"),
     "latch transducer_gain": _SWITCH,
     "latch transducer_resonance": _SWITCH,
     "latch drive_saturation": _SWITCH,
     "latch bubble_shrinkage": _SWITCH,
     "latch drive_saturation+offset_drift": _SWITCH,
 }
+
+
+def lrt_power(kind_name, planted, given, seed=0) -> dict:
+    """Power of the search's test for the planted effects not in ``given``, given those: the expected non-centrality
+    of the nested-model likelihood-ratio (F) test is the chi-square of the model with ``given`` alone fitted to the
+    noise-free truth (Wald 1943; e.g. Seber & Wild, Nonlinear Regression, sec. 5.9), and the test's power at the
+    search's gate (p < acl.fit.select.P_LIMIT / the candidates of that round) is the noncentral F tail beyond the
+    gate's critical value.  Also: RMS and largest change of the observables by the extra effects (same coefficients),
+    and the chance of at least 9 correct in 10 fits if this test were the only gate (RMS over the rows of the
+    observables the extra effects change)."""
+    from scipy.stats import binom, f as fdist, ncf
+
+    from acl.fit import solve
+    from acl.fit.forward import predict
+    from acl.fit.problem import load_problem
+    from acl.fit.select import P_LIMIT, applicable, effect_coefs
+    from acl.fit.synth import effect_inputs, generate, write_csv
+
+    design, experiment, free, noise, coeffs = kinds()[kind_name]
+    data, prepared = generate(design, experiment, planted, noise=0.0, seed=seed, coeffs=coeffs)
+    null, _ = generate(design, experiment, {k: v for k, v in planted.items() if k in given}, noise=0.0, seed=seed,
+                       coeffs=coeffs)
+    data.sigma = np.full(data.n, noise)
+    with tempfile.TemporaryDirectory() as tmp:
+        path = os.path.join(tmp, "d.csv")
+        write_csv(data, path)
+        problem = load_problem(design, [path], free=free)
+    coefs = list(problem.coefs)
+    for eid in given:
+        coefs += effect_coefs(eid, problem)[0]
+    truth = effect_inputs({k: v for k, v in planted.items() if k in given})
+    start = [c.value for c in problem.coefs] + [truth[c.effect][c.param] for c in coefs[len(problem.coefs):]]
+    fit = solve.fit(lambda a, b: predict(problem.prepared, a, b), problem.y, problem.sigma, coefs, starts=[start])
+    kinds_ = {c.kind for c in coefs}
+    m = sum(1 for e in __import__("acl.fit.effects", fromlist=["EFFECTS"]).EFFECTS
+            if e not in given and not applicable(e, problem, kinds_))
+    gate = P_LIMIT / m
+    q = sum(len(effect_coefs(e, problem)[0]) for e in planted if e not in given)
+    dfd = problem.y.size - fit.p - q
+    crit = float(fdist.isf(gate, q, dfd))
+    power = float(ncf.sf(crit, q, dfd, fit.chi2))
+    # the same test one-sided (an effect whose null value is a bound of its parameter: under the null the statistic is
+    # 0 half the time, Self & Liang 1987, so the gate doubles) and without any multiplicity adjustment (gate P_LIMIT)
+    one_sided = float(ncf.sf(fdist.isf(2 * gate, q, dfd), q, dfd, fit.chi2))
+    unadjusted = float(ncf.sf(fdist.isf(P_LIMIT, q, dfd), q, dfd, fit.chi2))
+    change = data.value - null.value
+    moved = np.isin(data.observable, data.observable[change != 0])      # rows of the observables the effects change
+    return {"noncentrality": float(fit.chi2), "gate": gate, "candidates": m, "critical": crit, "power": power,
+            "power_one_sided": one_sided, "power_unadjusted": unadjusted,
+            "p9of10": float(binom.sf(8, 10, power)), "rms_change_m": float(np.sqrt(np.mean(change[moved] ** 2))),
+            "max_change_m": float(np.max(np.abs(change))), "rows": int(problem.y.size),
+            "max_travel_m": float(np.max(np.abs(data.value - prepared.base)[moved]))}
+
+
+# Cases where the experiment identifies the planted effect only up to an alternative the fit names (docs/fit.md, "What a
+# given kind of data cannot tell apart"): the bar there is "correct or ambiguous with the truth among the alternatives"
+# in 9 of 10 (the fit must say it cannot decide, never claim a wrong effect); with the reason shown in docs/fit.md.
+_THRESHOLD = ("one latch gives one switching voltage per frequency, along which a drive nonlinearity and a gain shape "
+              "trade: on some data sets the fit cannot tell them apart and says so")
+_FLANK = ("over the swept band (105..145 kHz) a gain tilt and the flank of a broad transducer resonance have the same "
+          "shape: frequencies beyond the band would separate them")
+CONFOUNDED = {
+    "latch+state transducer_gain": _THRESHOLD,
+    "latch+state transducer_resonance": _THRESHOLD,
+    "latch+state drive_saturation": _THRESHOLD,
+    "latch+state drive_saturation+offset_drift": _THRESHOLD,
+    "cantilever transducer_gain": _FLANK,
+    "cantilever large_deflection+transducer_gain": _FLANK,
+}
+
+
+def meets_bar(case: dict, rate: float = 0.9) -> bool:
+    """A case meets the issue-9 bar: correct in ``rate`` of the fits, or, where the experiment identifies the effect
+    only up to a named alternative (CONFOUNDED), correct or ambiguous with the truth among the alternatives."""
+    good = case["correct"] + (case["ambiguous"] if case["case"] in CONFOUNDED else 0)
+    return good >= rate * case["n"]
 
 
 def outside(kind_name, effects, data, rest):
@@ -219,11 +326,19 @@ def run_case(kind_name, planted, seed):
         dt = time.perf_counter() - t0
     r = out.report
     selected = list(r["effects_selected"])
+    alternatives = [sorted(a["effects"]) for a in r.get("ambiguous", [])]
     if any(k.startswith("(") for k in planted):
         ok = not selected and bool(r["unexplained"])
+        verdict = "correct" if ok else "wrong"
     else:
-        ok = sorted(selected) == sorted(lib)
+        # correct: exactly the planted set, and nothing else said to explain the data as well; ambiguous: the fit says
+        # it cannot decide, and the planted set is the selected one or one of its alternatives; wrong: anything else
+        exact = sorted(selected) == sorted(lib)
+        ok = exact and not alternatives
+        verdict = ("correct" if ok else
+                   "ambiguous" if alternatives and (exact or sorted(lib) in alternatives) else "wrong")
     return {"case": label(kind_name, planted), "kind": kind_name, "planted": sorted(planted), "seed": seed, "selected": selected, "ok": bool(ok),
+            "verdict": verdict, "alternatives": alternatives,
             "rmse_after_over_noise": r["rmse_after"] / noise, "rmse_before_over_noise": r["rmse_before"] / noise,
             "unexplained": sorted({u["covariate"] for u in r["unexplained"]}), "rows": r["rows"], "seconds": dt}
 
@@ -241,20 +356,25 @@ def summary(rows) -> list[dict]:
     for case, res in out.items():
         outside_ = any(k.startswith("(") for k in res[0]["planted"])
         table.append({"case": case, "kind": res[0]["kind"], "planted": res[0]["planted"], "outside": outside_,
-                      "limit": LIMITS.get(case, ""),
+                      "limit": LIMITS.get(case, ""), "confounded": CONFOUNDED.get(case, ""),
                       "n": len(res), "correct": sum(r["ok"] for r in res),
+                      # rows run before the ambiguity report (no `verdict`) said nothing ambiguous: correct or wrong
+                      "ambiguous": sum(r.get("verdict") == "ambiguous" for r in res),
+                      "wrong_n": sum(r.get("verdict", "correct" if r["ok"] else "wrong") == "wrong" for r in res),
                       "seeds": [r["seed"] for r in res],
                       "rmse_after_over_noise": float(np.mean([r["rmse_after_over_noise"] for r in res])),
                       "rmse_after_over_noise_max": float(np.max([r["rmse_after_over_noise"] for r in res])),
-                      "wrong": sorted({"+".join(r["selected"]) or "none" for r in res if not r["ok"]}),
+                      "wrong": sorted({"+".join(r["selected"]) or "none" for r in res
+                                       if not r["ok"] and r.get("verdict") != "ambiguous"}),
                       "unexplained": sorted({c for r in res for c in r["unexplained"]}) if outside_ else []})
     return table
 
 
 def markdown(rows) -> str:
     """The docs/fit.md table of a run (tests/docs_sync.py renders it from benchmarks/fit_diagnosis.json)."""
-    lines = ["| kind | planted | correct | RMSE/noise mean (max) | wrong choices / structure reported |",
-             "|---|---|---|---|---|"]
+    lines = ["| kind | planted | correct | ambiguous (truth among the alternatives) | wrong | RMSE/noise mean (max) | "
+             "wrong choices / structure reported |",
+             "|---|---|---|---|---|---|---|"]
     for c in summary(rows):
         planted = " + ".join(c["planted"]) or "none (clean)"
         note = ", ".join(c["wrong"])
@@ -262,7 +382,9 @@ def markdown(rows) -> str:
             note = (note + "; " if note else "") + "structure vs " + ", ".join(c["unexplained"])
         if c["limit"]:
             note = (note + "; " if note else "") + "not counted: " + c["limit"]
-        lines.append(f"| {c['kind']} | {planted} | {c['correct']}/{c['n']} | "
+        if c["confounded"]:
+            note = (note + "; " if note else "") + "bar: correct or ambiguous: " + c["confounded"]
+        lines.append(f"| {c['kind']} | {planted} | {c['correct']}/{c['n']} | {c['ambiguous'] or ''} | {c['wrong_n'] or ''} | "
                      f"{c['rmse_after_over_noise']:.2f} ({c['rmse_after_over_noise_max']:.2f}) | {note} |")
     return "\n".join(lines)
 

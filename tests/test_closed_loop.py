@@ -35,3 +35,42 @@ def test_calibration_closes_the_loop(loop):
     # the calibrated compile's 95 % band covers the error the truth really shows
     assert loop.covered
     assert any("calibration data covered" in n for n in loop.notes)      # the program extrapolates: warned
+
+
+def test_fig3_study_seed_repeats(tmp_path):
+    """One truth of the Fig. 3 study (benchmarks/closed_loop.py --kind fig3, docs/fit.md) run again:
+    the figures in benchmarks/closed_loop_fig3.json come from this code (0.5 % tolerance: solver paths)."""
+    import json
+    import sys
+
+    sys.path.insert(0, os.path.join(ROOT, "benchmarks"))
+    from closed_loop import run_seed
+
+    with open(os.path.join(ROOT, "benchmarks", "closed_loop_fig3.json")) as fh:
+        study = json.load(fh)
+    want = study["rows"][0]
+    r, text = run_seed("fig3", want["seed"], str(tmp_path), study["band_samples"])
+    assert text == want["truth"]
+    for key in ("before_rms_m", "after_rms_m", "floor_rms_m", "predicted_rms_m", "band_rms_p95_m", "band_max_p95_m"):
+        assert getattr(r, key) == pytest.approx(want[key], rel=5e-3), key
+    assert r.covered == want["covered"] and sorted(r.effects) == sorted(want["effects"])
+    assert r.after_rms_m <= 3 * r.floor_rms_m
+
+
+def test_pair_hold_study_seed_repeats(tmp_path):
+    """One truth of the pair-hold study (benchmarks/closed_loop.py --kind pair-hold, docs/fit.md): the
+    calibrated hold's margin band covers the margin the truth shows, and the JSON's figures repeat."""
+    import json
+    import sys
+
+    sys.path.insert(0, os.path.join(ROOT, "benchmarks"))
+    from closed_loop import run_hold_seed
+
+    with open(os.path.join(ROOT, "benchmarks", "closed_loop_pair_hold.json")) as fh:
+        study = json.load(fh)
+    want = study["rows"][1]
+    got = run_hold_seed(want["seed"], str(tmp_path), study["band_samples"])
+    assert got["truth"] == want["truth"] and got["rows"] == want["rows"]
+    for key in ("before_margin", "after_margin", "after_v", "margin_p05"):
+        assert got[key] == pytest.approx(want[key], rel=5e-3), key
+    assert got["covered"] and got["margin_p05"] <= got["after_margin"]

@@ -16,6 +16,7 @@ EXAMPLES = os.path.join(HERE, "..", "examples")
 FIG3 = os.path.join(EXAMPLES, "fig3_three_orifice.acl")
 FIG6E = os.path.join(EXAMPLES, "fig6e_reversible_latch.acl")
 GROUP = os.path.join(HERE, "data", "fit_group3.acl")
+BODY_PAIR = os.path.join(HERE, "data", "fit_body_pair.acl")
 LATCH = os.path.join(HERE, "data", "fit_latch_state.acl")
 SWEEP3 = Experiment(frequencies=(80e3, 100e3, 125e3, 150e3, 170e3), voltages=tuple(np.linspace(0, 6, 7)))
 
@@ -55,7 +56,9 @@ def test_a_three_orifice_capsule_moves_in_the_plane_as_the_analysis_says():
 
     design = acl.load(FIG3)
     inst = build_instance(design)
-    assert inst.unit("mx").vector and inst.unit("mx").sides[0].basis.shape == (3, 2)
+    unit = inst.unit("mx")
+    assert unit.kind == "group" and len(unit.sides) == 1 and unit.sides[0].basis.shape == (3, 2)
+    assert unit.net.labels == ("m.o1", "m.o2", "m.o3")            # each orifice its own bubble
     drives = [((85e3, 6.0),), ((125e3, 8.0),), ((170e3, 6.0),), ((85e3, 3.0), (170e3, 4.0))]
     data, _ = generate(FIG3, Experiment(frequencies=(125e3,), voltages=(1.0,) * len(drives)))
     data.tones = [t for t in drives for _ in range(2)]
@@ -89,9 +92,11 @@ def test_a_trussed_body_on_a_latch_adds_its_members_thrusts(tmp_path):
     from acl.fit.mechanism import build_instance
 
     unit = build_instance(acl.load(FIG6E)).unit("s")
-    assert unit.vector and set(unit.sides[0].members) == {"forward", "backward"}
+    assert unit.kind == "group" and len(unit.sides) == 1 and set(unit.sides[0].members) == {"forward", "backward"}
     _, P = generate(FIG6E, Experiment(frequencies=(85e3, 170e3), voltages=(10.0,)))
-    assert P.tauv[0, 0, 0] > 0 > P.tauv[1, 0, 0]
+    blk = P.groups[0]
+    push = np.einsum("rto,ok->rk", blk.tau, -blk.normals)[:, 0]     # along the latch axis (+x), per V^2
+    assert push[0] > 0 > push[1]                  # 85 kHz pushes the shuttle towards b, 170 kHz pulls it back
     ex = Experiment(frequencies=(85e3, 170e3), voltages=tuple(np.linspace(0, 90, 19)))
     truth = {"gamma": 1.2 * P.gamma0}
     for covered, ratio, _ in _recover(FIG6E, ex, truth, ["gamma"], range(2), tmp_path):
@@ -123,76 +128,82 @@ def test_what_the_fit_model_cannot_follow_is_a_located_E810(tmp_path, capsys):
     assert main(["fit", bad, str(csv), "--path", root]) == 1
     err = capsys.readouterr().err
     assert "E810" in err and "another moving support" in err and f"{bad}:" in err and "Traceback" not in err
-    # a multi-orifice capsule inside a pair
-    pair = _variant(tmp_path, os.path.join(HERE, "data", "fit_pair_cal.acl"), "capsule c like capsules.design1",
-                    "capsule c like capsules.prism3", "p.acl")
-    pair = _variant(tmp_path, pair, "observe cal = displacement(calbeam, -x)", "observe cal = gap(c.o1, a.jet)", "p2.acl")
-    csv.write_text("observable,value,unit,drive\ncal,1,um,125 kHz @ 3 V\n")
-    assert main(["fit", pair, str(csv), "--path", root]) == 1
+    # --free f0 of an orifice the design lacks: a usage error at the option (with a suggestion), not a traceback
+    csv.write_text("observable,value,unit,drive\nbend_low,1,um,85 kHz @ 3 V\n")
+    assert main(["fit", os.path.join(EXAMPLES, "fig1f_selective_beams.acl"), str(csv), "--free", "f0:high.nozzle",
+                 "--path", root]) == 2
     err = capsys.readouterr().err
-    assert "E810" in err and "orifices" in err and "Traceback" not in err
+    assert "E-USAGE" in err and "<--free>:1:1" in err and "no orifice `high.nozzle`" in err and "high.jet" in err and "Traceback" not in err
+    # --free f0 of a capsule that no observed unit holds: nothing in the data can tell it
+    lone = _variant(tmp_path, os.path.join(HERE, "data", "fit_cantilever.acl"), "mount act on arm.tip",
+                    "mount act on arm.tip\nbeam far like beams.cantilever50 { clamp = (0 um, 400 um, 0 um) }\n"
+                    "capsule idle like capsules.design1 { }\nmount idle on far.tip", "lone.acl")
+    csv.write_text("observable,value,unit,drive\ndeflection,1,um,125 kHz @ 3 V\n")
+    assert main(["fit", lone, str(csv), "--free", "gamma,f0:idle", "--path", root]) == 2
+    err = capsys.readouterr().err
+    assert "E-USAGE" in err and "<--free>:1:1" in err and "`idle` is in no unit" in err and "Traceback" not in err
 
 
 # ------------------------------------------------------------------------------------------------
-# groups of three or more interacting capsules
+# groups of interacting capsules
 # ------------------------------------------------------------------------------------------------
 
-def test_group_equilibrium_is_the_force_balance_of_an_independent_solver():
-    """acl.analysis.mechanics.equilibrium (its own continuation and beam law) with the group's forces written out
-    here from their statement (thrust, alpha a_ij V^2/d^2 between every two, each jet dragging the capsule it points
-    at with its thrust) finds the gaps acl.fit.group finds."""
+def _alone(tmp_path, src):
+    """A test design without its calibration capsule (units are taken not to interact; the analysis feels every
+    capsule of the design)."""
+    text = "\n".join(line for line in open(src).read().splitlines() if "cal" not in line)
+    path = tmp_path / os.path.basename(src)
+    path.write_text(text + "\n")
+    return str(path)
+
+
+@pytest.mark.parametrize("src,obs,gap,sweeps", [
+    (GROUP, ("d_ab", "d_bc", "tip_c"), "d_ab", ((125e3, (0.5, 1.0, 2.0, 3.0)), (115e3, (0.5, 1.0, 2.0)))),
+    # a two-orifice capsule facing a capsule that carries another through a truss (bodies inside a pair)
+    (BODY_PAIR, ("distance", "a_y"), "distance", ((125e3, (0.5, 1.0, 2.0, 3.0)), (175e3, (1.0, 3.0, 6.0, 10.0)))),
+])
+def test_group_is_the_analysis_at_rest_and_through_snap_in(tmp_path, src, obs, gap, sweeps):
+    """One physics: a group's gaps and displacements are acl.analysis.mechanics.equilibrium's with the full force
+    model (coupled volumes where the capsules are, Bjerknes, Schlichting jet drag), 1e-6 relative, at two
+    frequencies; and both snap in at the same voltage (the fit's first contact row vs the analysis' voltage sweep)."""
+    from acl.analysis import acoustics as A
     from acl.analysis import mechanics as M
     from acl.design.model import Drive, Tone
     from acl.fit.forward import predict
+    from acl.fit.synth import observe_value
 
-    design = acl.load(GROUP)
-    volts = (1.0, 2.0, 3.0)
-    data, P = generate(GROUP, Experiment(frequencies=(125e3,), voltages=volts, observables=("d_ab", "d_bc", "tip_c")))
-    got = predict(P, {}, {}).reshape(len(volts), 3)
-    blk = P.groups[0]
-    caps = blk.caps
-    assert blk.jets.tolist() == [1, 0, 1]          # a and b face each other; c's jet hits b's back
-    tau = blk.tau[0, 0] * P.gamma0                  # thrust per V^2 at 125 kHz
-    alpha = blk.arel[0, 0] * P.alpha0               # (N, N)
-    orifice = {c: np.asarray(design.capsule(c).orifices[0].center, float) - np.asarray(design.capsule(c).center)
-               for c in caps}
-
-    def forces(d, positions, drive):
-        v2 = sum(t.amplitude ** 2 for t in drive.tones)
-        pts = {c: np.asarray(positions[c], float) + orifice[c] for c in caps}
-        out = {c.name: np.zeros(3) for c in d.capsules}
-        for i, a in enumerate(caps):
-            out[a] += -tau[i] * v2 * blk.normals[i]
-            if blk.jets[i] >= 0:
-                out[caps[blk.jets[i]]] += tau[i] * v2 * blk.normals[i]
-            for j, b in enumerate(caps):
-                if j != i:
-                    sep = pts[b] - pts[a]
-                    out[a] += alpha[i, j] * v2 / np.linalg.norm(sep) ** 3 * sep
-        return out
-
-    forces.quadratic_in_amplitude = True
-    for V, row in zip(volts, got):
-        st = M.equilibrium(design, Drive(tones=(Tone(frequency=125e3, amplitude=V),)), forces)
-        assert st.status == "ok"
-        pos = {c: st.positions[c] + orifice[c] for c in caps}
-        want = [np.linalg.norm(pos["b"] - pos["a"]), np.linalg.norm(pos["c"] - pos["b"]), -st.displacements["c"][0]]
-        np.testing.assert_allclose(row, want, rtol=1e-6, atol=1e-12)
+    path = _alone(tmp_path, src)
+    design = acl.load(path)
+    for f, volts in sweeps:
+        _, P = generate(path, Experiment(frequencies=(f,), voltages=volts, observables=obs))
+        got = predict(P, {}, {}).reshape(len(volts), len(obs))
+        for V, row in zip(volts, got):
+            st = M.equilibrium(design, Drive(tones=(Tone(frequency=f, amplitude=V),)), A.force_model_for(design))
+            assert st.status == "ok"
+            want = [observe_value(design, design.observe(o), st) for o in obs]
+            np.testing.assert_allclose(row, want, rtol=1e-6, atol=1e-12)
+    sweep = M.sweep_voltage(design, Drive(tones=(Tone(frequency=125e3, amplitude=1.0),)), 6.0,
+                            A.force_model_for(design))
+    assert sweep.status == "snap_in"
+    volts = tuple(np.linspace(3.0, 4.0, 101))
+    _, P = generate(path, Experiment(frequencies=(125e3,), voltages=volts, observables=(gap,)))
+    first = volts[int(np.argmax(predict(P, {}, {}) == 0.0))]
+    assert abs(first - sweep.snap_voltage) <= 0.01 + 1e-9, (first, sweep.snap_voltage)
 
 
 def test_group_and_calibration_beam_recover_gamma_and_alpha_through_snap_in(tmp_path):
     """Ramps past the a-b snap-in (contact rows) at three frequencies and a calibration cantilever; the truth's
-    gamma and alpha are 1.2x and 0.7x the design's (the start), so the fit must find them."""
+    gamma and alpha are 1.2x and 1.3x the design's (the start), so the fit must find them."""
     ex = [Experiment(frequencies=(115e3, 125e3, 135e3), voltages=tuple(np.linspace(0, 6, 7)),
                      observables=("d_ab", "d_bc", "tip_c"), label="group"),
           Experiment(frequencies=(115e3, 125e3, 135e3), voltages=tuple(np.linspace(0, 8, 9)), observables=("bend",),
                      label="calibration")]
     _, P = generate(GROUP, ex)
-    truth = {"gamma": 1.2 * P.gamma0, "alpha": 0.7 * P.alpha0}
+    truth = {"gamma": 1.2 * P.gamma0, "alpha": 1.3 * P.alpha0}
     clean = generate(GROUP, ex, coeffs=truth)[0]
     assert np.any((clean.observable == "d_ab") & (clean.value == 0.0))          # rows in contact past snap-in
     runs = _recover(GROUP, ex, truth, ["gamma", "alpha"], [0], tmp_path)
-    ex[0].voltages = tuple(np.linspace(0, 3, 7))                                # no snap-in: two more seeds
+    ex[0].voltages = tuple(np.linspace(0, 2, 7))                                # no snap-in: two more seeds
     runs += _recover(GROUP, ex, truth, ["gamma", "alpha"], [1, 2], tmp_path)
     for covered, ratio, _ in runs:
         assert all(covered.values()), ratio
@@ -294,3 +305,96 @@ def test_a_replayed_ramp_switches_the_latch_and_it_stays_switched(tmp_path):
     assert states == [("0", "1", "0.5")] * 2 + [("1", "1", "0.5")] * 3
     travel = [float(r[1]) for r in rows if r[0] == "shuttle"]
     assert max(travel[:2]) < 1 and min(travel[2:]) > 60
+
+
+# ------------------------------------------------------------------------------------------------
+# resonance of each orifice of a multi-orifice body (issue 9 item 2)
+# ------------------------------------------------------------------------------------------------
+
+def test_each_orifice_resonance_of_a_multi_orifice_body_is_calibrated(tmp_path):
+    """Fig. 3: `--free f0:m.o2,q:m.o2` is the mode orifice o2 dominates (acl.analysis.acoustics.capsule_modes);
+    a sweep across the three modes recovers its shifted f0 (+5 %) and Q (+30 %) and gamma, each inside its 95 %
+    interval, over three seeds."""
+    from acl.analysis.acoustics import capsule_modes
+
+    ex = Experiment(frequencies=tuple(np.linspace(60e3, 200e3, 15)), voltages=(2.0, 4.0, 6.0))
+    _, P = generate(FIG3, ex)
+    mode = next(m for m in capsule_modes(acl.load(FIG3), "m") if m.dominant_orifice == "o2")
+    assert P.modes0["m.o2"] == (mode.frequency_hz, mode.q) and P.modes0["m.o1"] != P.modes0["m.o2"]
+    truth = {"f0:m.o2": 1.05 * mode.frequency_hz, "q:m.o2": 1.3 * mode.q, "gamma": P.gamma0}
+    coeffs = {"f0@m.o2": truth["f0:m.o2"], "q@m.o2": truth["q:m.o2"]}
+    from acl.fit.problem import load_problem
+    from acl.fit.select import select_effects
+
+    for seed in range(3):
+        data, _ = generate(FIG3, ex, noise=0.05e-6, seed=seed, coeffs=coeffs)
+        path = str(tmp_path / f"f{seed}.csv")
+        write_csv(data, path)
+        f = select_effects(load_problem(FIG3, [path], free=["gamma", "f0:m.o2", "q:m.o2"]), candidates=[],
+                           seed=seed).final
+        for k, c in enumerate(f.coefs):
+            assert f.ci[k][0] <= truth[c.name] <= f.ci[k][1], (seed, c.name, f.values[k], f.ci[k])
+
+
+def test_bubble_shrinkage_moves_every_mode_of_a_multi_orifice_body(tmp_path):
+    """Fig. 3 ramps repeated over time at the three modes: the planted volume rate (0.01/s) is found, each mode's
+    frequency following the capsule's gas volume (acl.physics.effects.capsule_volume_frequency_table)."""
+    from acl.fit.problem import load_problem
+    from acl.fit.select import select_effects
+    from acl.physics.effects import capsule_volume_frequency_table
+
+    lx, lf = capsule_volume_frequency_table(1e-13, (15e-6, 9.5e-6, 7.5e-6), 1.3e5, 1005.0, 0.0725, 101325.0, 1.0)
+    assert lf[np.searchsorted(lx, 0.0)] == 0.0 and np.all(np.diff(lf) <= 0)    # less gas, stiffer: f rises
+    ex = Experiment(frequencies=(80e3, 125e3, 170e3), voltages=(0.0, 3.0, 6.0), repeats=4, interval=2.0)
+    for seed in range(2):
+        data, _ = generate(FIG3, ex, {"bubble_shrinkage": {"shrink_rate": 0.01}}, noise=0.05e-6, seed=seed)
+        path = str(tmp_path / f"s{seed}.csv")
+        write_csv(data, path)
+        sel = select_effects(load_problem(FIG3, [path], free=["gamma"]), seed=seed)
+        assert sel.selected == ["bubble_shrinkage"]
+        k = [c.name for c in sel.final.coefs].index("bubble_shrinkage.shrink_rate")
+        assert sel.final.ci[k][0] <= 0.01 <= sel.final.ci[k][1]
+
+
+# ------------------------------------------------------------------------------------------------
+# `acl synth` + `acl fit` on the examples (issue 9 item 1: every mechanism the language can declare)
+# ------------------------------------------------------------------------------------------------
+
+FITS = ["fig1f_selective_beams", "fig2_vertical_cantilever", "fig3_three_orifice", "fig4_facing_pair",
+        "fig4h_unequal_pair", "fig5c_linear_spring", "fig6e_reversible_latch", "fig6f_control_module",
+        "figS6_flextensional"]
+
+
+@pytest.mark.parametrize("name", FITS)
+def test_every_example_with_observables_is_synthesized_and_fitted(tmp_path, name):
+    """Synthetic data of the example's own model (every observe, 3 frequencies) fitted with gamma free: exit 0,
+    the calibrated design written, gamma's interval covering the design's value (the truth here)."""
+    import json
+
+    from acl.cli import main
+
+    design = os.path.join(EXAMPLES, f"{name}.acl")
+    csv = str(tmp_path / "d.csv")
+    volts = "0V..25V:6" if "fig6" in name else "0V..3V:4"
+    assert main(["synth", design, "-o", csv, "--noise", "0.05um", "--seed", "1", "--frequencies",
+                 "85kHz,125kHz,170kHz", "--voltages", volts]) == 0
+    rep = tmp_path / "rep"
+    assert main(["fit", design, csv, "--free", "gamma", "--effects", "none", "--report", str(rep),
+                 "--calibrated", str(tmp_path / "cal.acl"), "-q"]) == 0
+    gamma = next(p for p in json.loads((rep / "report.json").read_text())["final"]["parameters"] if p["name"] == "gamma")
+    assert gamma["ci95"][0] <= gamma["initial"] <= gamma["ci95"][1], gamma
+
+
+def test_examples_the_fit_cannot_follow_say_why_where(tmp_path, capsys):
+    """Fig. 3's robust-radii design observes nothing (E810 at its capsule, nothing written); Fig. 5a's trusses hold
+    each arm along the line of its load (the analysis gives zero deflection too): E810 at the observe."""
+    from acl.cli import main
+
+    out = tmp_path / "x.csv"
+    assert main(["synth", os.path.join(EXAMPLES, "fig3_robust_radii.acl"), "-o", str(out)]) == 1
+    err = capsys.readouterr().err
+    assert "E810" in err and "fig3_robust_radii.acl:27:1" in err and "no `observe`" in err and "Traceback" not in err
+    assert not out.exists()
+    assert main(["synth", os.path.join(EXAMPLES, "fig5a_gripper.acl"), "-o", str(out)]) == 1
+    err = capsys.readouterr().err
+    assert "E810" in err and "fig5a_gripper.acl:46:1" in err and "cannot move" in err and not out.exists()

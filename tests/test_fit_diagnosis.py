@@ -4,8 +4,10 @@ The full sweep (every library effect in every kind, two-effect truths, clean dat
 10 seeds each) takes about an hour on the shared machine, so it runs in `benchmarks/fit_diagnosis.py`; its run is
 committed as benchmarks/fit_diagnosis.json and rendered into docs/fit.md by tests/docs_sync.py.  Here:
 
-* the committed run meets the bar (>= 9 of 10 per case, nothing claimed on clean data, RMSE after <= 1.3 x noise),
-  with the cases below the bar listed exactly (KNOWN_BELOW), so a regression or an improvement both show;
+* the committed run meets the bar (>= 9 of 10 correct per case; where the experiment identifies the effect only up to a
+  named alternative, FD.CONFOUNDED, >= 9 of 10 correct or ambiguous with the truth among the alternatives; nothing
+  claimed on clean data, RMSE after <= 1.3 x noise), with the cases below the bar listed exactly (KNOWN_BELOW), so a
+  regression or an improvement both show;
 * a representative subset of its runs is repeated (same selection, same RMSE), so the file is what the code gives;
 * the three mechanisms the sweep needed are checked on the seeds that showed the defects.
 """
@@ -27,23 +29,13 @@ import fit_diagnosis as FD  # noqa: E402
 
 RATE = 0.9          # issue 9: diagnosed correctly at least 90 % of the time
 RMSE_RATIO = 1.3    # issue 9: RMSE after within 1.3 x the noise
-# case -> correct runs of 10, for cases below the bar: on the Fig. 5c spring, with saturation at 6 V, a 4 um drag
-# plateau changes the gap by 0.13 um RMS under 0.2 um noise; 3 of 10 fits find saturation alone (docs/fit.md)
-# (3 fits: drag F-test p = 0.003-0.05 given saturation, above the 0.01/8 Bonferroni gate: the search tries it, the data
-# do not carry it).  One latch seen through its switched state gives one threshold voltage per frequency, along which
-# a drive nonlinearity and a gain shape are interchangeable (docs/fit.md); the fit picks one of them instead of saying
-# so (known defect).  Saturation + drift on latch states: each effect alone leaves a gross misfit (the drift on the
-# shuttle rows, the thresholds on the state rows) that inflates the other's intervals, so both are rejected as not
-# identifiable (known search defect).
-KNOWN_BELOW: dict[str, int] = {"spring+cal drive_saturation+neighbour_drag": 7,
-                               "latch+state transducer_gain": 7,
-                               "latch+state transducer_resonance": 6,
-                               "latch+state drive_saturation": 4,
-                               "latch+state bubble_shrinkage": 8,
-                               "latch+state drive_saturation+offset_drift": 1,
-                               "latch+state/angles drive_saturation+offset_drift": 4}
-# clean data on which something was claimed, listed exactly: one latch's thresholds (seed 109: saturation)
-KNOWN_CLEAN_CLAIMS: dict[str, int] = {"latch+state clean": 1}
+# case -> correct runs of 10, for cases below the bar (FD.meets_bar: 9 of 10 correct, or for the FD.CONFOUNDED cases
+# 9 of 10 correct or ambiguous with the truth among the alternatives); the Fig. 5c spring with saturation at 6 V and a
+# 4 um drag plateau, ramped to 4 V, is a measured limit (FD.LIMITS: the drag test's power there is 0.82, docs/fit.md;
+# ramped to 5 V it is counted).  Filled from the committed run, listed exactly.
+KNOWN_BELOW: dict[str, int] = {}
+# clean data on which something was claimed, listed exactly
+KNOWN_CLEAN_CLAIMS: dict[str, int] = {}
 
 
 def _rows():
@@ -67,7 +59,7 @@ def test_committed_sweep_covers_every_case_with_ten_seeds():
     planted = {e for c in summary.values() for e in c["planted"] if not e.startswith("(")}
     assert planted == set(EFFECTS)                   # every library effect is planted somewhere
     assert {c["kind"].split("/")[0] for c in summary.values()} == {"cantilever", "pair", "pair+cal", "spring+cal",
-                                                                   "latch", "latch+state"}
+                                                                   "body-pair+cal", "latch", "latch+state"}
     # the run is one version of the code per case (`code`: its commit); a subset is repeated below with this one
     assert all(len({r["code"] for r in _rows() if r["case"] == case}) == 1 for case in summary)
 
@@ -76,8 +68,12 @@ def test_committed_sweep_diagnoses_at_least_nine_in_ten():
     """Cases the experiment cannot identify (FD.LIMITS, with the reason shown in docs/fit.md) are measured but not
     counted; there an effect that was not planted must still not be claimed often (in at most 1 of 10)."""
     summary = _summary()
-    below = {case: c["correct"] for case, c in summary.items() if c["correct"] < RATE * c["n"] and not c["limit"]}
+    below = {case: c["correct"] for case, c in summary.items() if not FD.meets_bar(c, RATE) and not c["limit"]}
     assert below == KNOWN_BELOW
+    for case, reason in FD.CONFOUNDED.items():
+        assert reason and case in summary
+        # where the fit may say "ambiguous", it must not claim a wrong effect often
+        assert summary[case]["wrong_n"] <= (1 - RATE) * summary[case]["n"] or case in KNOWN_BELOW, case
     for case, reason in FD.LIMITS.items():
         assert reason and case in summary
         runs = [r for r in _rows() if r["case"] == case]
@@ -118,6 +114,7 @@ REPEAT = [
     ("latch+state/angles drive_saturation", 100),
     ("latch+state transducer_resonance", 104),
     ("latch+state clean", 109),
+    ("body-pair+cal clean", 109),          # bodies inside a pair: the group model with the analysis' forces
 ]
 
 
@@ -175,3 +172,196 @@ def test_a_selected_effect_that_stood_in_for_a_later_one_is_replaced(tmp_path):
     assert sorted(sel.selected) == sorted(planted)
     res = next(t for t in sel.trials if t.effect == "transducer_resonance" and t.round == 1)
     assert res.status == "rejected" and "replaced on revisit by transducer_gain" in res.reason
+
+
+def trap_figures(tmp_path) -> dict:
+    """Pair, planted offset + drift, seed 105 (docs/fit.md shows these): the drift's fit from the base model's values,
+    plain and after :func:`acl.fit.select._untrap`."""
+    from acl.fit import solve
+    from acl.fit.forward import predict
+    from acl.fit.select import _untrap, _with_value, effect_coefs
+
+    problem = _problem(tmp_path, "pair", {"offset_drift": FD.DRIFT}, 105)
+
+    def model(a, b):
+        return predict(problem.prepared, a, b)
+
+    base = solve.fit(model, problem.y, problem.sigma, problem.coefs)
+    coefs = [_with_value(c, v) for c, v in zip(problem.coefs, base.values)] + effect_coefs("offset_drift", problem)[0]
+    trapped = solve.fit(model, problem.y, problem.sigma, coefs)
+    fit = _untrap(model, problem, coefs, [], trapped)
+    return {"rows": problem.y.size, "trapped": trapped.chi2, "untrapped": fit.chi2,
+            "offset": fit.value("offset_drift.offset"), "drift": fit.value("offset_drift.drift")}
+
+
+def test_an_effect_fit_trapped_at_a_snap_in_fold_is_refitted_from_a_robust_start(tmp_path):
+    """Pair, planted offset + drift, seed 105: from the base model's values (no drift: gamma 20 % high) the drift fit
+    stopped far above one chi-square per row with 3 rows beyond 10 sigma, an optimum of the wrong branch; the effect
+    was then rejected (its cross-validation failed) and nothing was claimed.  A soft-l1 start reaches the truth."""
+    f = trap_figures(tmp_path)
+    assert f["trapped"] > 3 * f["rows"]                     # the defect: a plain fit from there stays trapped
+    assert f["untrapped"] < 1.2 * f["rows"]
+    assert f["offset"] == pytest.approx(FD.DRIFT["offset"], rel=0.1)
+    assert f["drift"] == pytest.approx(FD.DRIFT["drift"], rel=0.1)
+
+
+def cv_figures(tmp_path) -> dict:
+    """Pair, planted resonance + shrinkage, seed 105 (docs/fit.md shows these): chi-square and cross-validated error
+    of the resonance-only model and of resonance + shrinkage, each fitted from the truth."""
+    from acl.fit import solve
+    from acl.fit.forward import predict
+    from acl.fit.select import cross_validate, effect_coefs
+    from acl.fit.synth import effect_inputs
+
+    planted = {"transducer_resonance": FD.RESONANCE, "bubble_shrinkage": FD.SHRINK}
+    problem = _problem(tmp_path, "pair", planted, 105)
+    P = problem.prepared
+    truth = effect_inputs(planted)
+
+    def model(a, b):
+        return predict(P, a, b)
+
+    out = {"rows": problem.y.size}
+    for key, effects in (("one", ["transducer_resonance"]), ("two", ["transducer_resonance", "bubble_shrinkage"])):
+        coefs = list(problem.coefs) + [c for e in effects for c in effect_coefs(e, problem)[0]]
+        start = [P.gamma0, FD.kinds()["pair"][4]["alpha"]] + [truth[c.effect][c.param] for c in coefs[2:]]
+        fit = solve.fit(model, problem.y, problem.sigma, coefs, starts=[start])
+        out[key] = fit.chi2
+        out["cv_" + key] = cross_validate(problem, coefs, fit.values, seed=105)
+    return out
+
+
+def test_cross_validation_is_not_swamped_by_a_row_flipped_across_a_snap_in_fold(tmp_path):
+    """Pair, planted resonance + shrinkage, seed 105: given the resonance, the shrinkage fit reaches one chi-square per
+    row, but a fold's fit put a held-out row on the other side of snap-in (tens of um, hundreds of sigma) and its
+    cross-validated error lost to the resonance-only model's: nothing was claimed.  Each held-out row now counts at
+    most 10^2 (fails on the code before)."""
+    f = cv_figures(tmp_path)
+    assert f["two"] < 1.2 * f["rows"] < f["one"]
+    assert f["cv_two"] < 2.0 < f["cv_one"]
+
+
+def test_the_spring_drag_case_is_a_power_limit_that_the_longer_ramp_lifts():
+    """The Fig. 5c spring, saturation at 6 V and a 4 um drag plateau (FD.LIMITS): at 0.2 um noise and 0..4 V the
+    likelihood-ratio test of the drag given saturation cannot reach 90 % power at the search's gate, nor one-sided
+    (its boundary counted); ramped to 5 V (spring+cal/plateau, counted) it can."""
+    drag = {"drive_saturation": FD.SAT, "neighbour_drag": {"plateau": 4e-6}}
+    at4 = FD.lrt_power("spring+cal", drag, ["drive_saturation"])
+    at5 = FD.lrt_power("spring+cal/plateau", drag, ["drive_saturation"])
+    assert "spring+cal drive_saturation+neighbour_drag" in FD.LIMITS
+    assert at4["gate"] == pytest.approx(0.01 / 8)
+    assert at4["power"] < at4["power_one_sided"] < RATE
+    assert at4["p9of10"] < 0.5
+    assert at5["power"] > 0.999 and at5["noncentrality"] > 3 * at4["noncentrality"]
+    assert at5["max_travel_m"] > at4["max_travel_m"]
+
+
+def _state_problem(tmp_path, kind, planted, seed):
+    """The harness's latch-state data (states drawn with the model's switching probability) as a fit problem."""
+    from acl.fit.problem import load_problem
+    from acl.fit.synth import generate, write_csv
+
+    design, experiment, free, noise, coeffs = FD.kinds()[kind]
+    data, _ = generate(design, experiment, planted, noise=noise, seed=seed, coeffs=coeffs)
+    path = str(tmp_path / f"{kind.replace('/', '_')}-{seed}.csv")
+    write_csv(data, path)
+    return load_problem(design, [path], free=free), path
+
+
+def test_one_latch_cannot_always_tell_saturation_from_a_gain_shape_three_angles_can(tmp_path):
+    """One latch seen through its switched state gives one threshold voltage per frequency: saturation (planted) and a
+    broad transducer resonance fitted in its place explain seed 105 equally well (clipped -2 ln L within 6), and the fit
+    says so (`ambiguous`, with the experiment that separates them).  Latches of three angles switch at several voltages
+    per frequency: the best gain shape fitted in saturation's place is far outside the noise there."""
+    from acl.fit.forward import predict
+    from acl.fit.select import AMBIGUOUS_CHI2, _replacements, clipped_chi2, select_effects
+
+    planted = {"drive_saturation": FD.SAT_STATE}
+    one, _ = _state_problem(tmp_path, "latch+state", planted, 105)
+    sel = select_effects(one, seed=105)
+    sets = [sorted(sel.selected)] + [sorted(a["effects"]) for a in sel.ambiguous]
+    assert ["drive_saturation"] in sets and ["transducer_resonance"] in sets
+    alt = next(a for a in sel.ambiguous if a["by"] in ("transducer_resonance", "drive_saturation"))
+    assert abs(alt["delta_chi2"]) < AMBIGUOUS_CHI2 and "angles" in alt["separate_by"]
+
+    three, _ = _state_problem(tmp_path, "latch+state/angles", planted, 100)
+    sel3 = select_effects(three, seed=100)
+    assert sel3.selected == ["drive_saturation"] and sel3.ambiguous == []
+    P = three.prepared
+    from acl.fit.effects import EFFECTS
+
+    _, _, _, tries = _replacements(three, lambda a, b: predict(P, a, b), list(EFFECTS), sel3.selected, sel3.final,
+                                   "drive_saturation", 0.01, None, True)
+    best = min(clipped_chi2(t["fit"]) for t in tries if t["effect"] in ("transducer_resonance", "transducer_gain"))
+    assert best - clipped_chi2(sel3.final) > 10 * AMBIGUOUS_CHI2
+
+
+def test_the_ambiguity_is_in_the_report_and_the_calibrated_design(tmp_path):
+    """`acl fit --output-format json` lists the alternatives (`ambiguous`); the calibrated design says AMBIGUOUS, names
+    the alternative effect with its values and the separating experiment, and its discrepancy covers the alternative's
+    predictions (larger than the fit's own RMS residual)."""
+    import json as _json
+    import re
+    import shutil
+    import subprocess
+
+    _, path = _state_problem(tmp_path, "latch+state", {"drive_saturation": FD.SAT_STATE}, 105)
+    design = tmp_path / "latch.acl"
+    shutil.copy(FD.LATCH_STATE, design)
+    cal = tmp_path / "latch.calibrated.acl"
+    out = subprocess.run([sys.executable, "-m", "acl", "fit", str(design), path, "--free", "gamma", "--output-format",
+                          "json", "--calibrated", str(cal)], capture_output=True, text=True, cwd=ROOT,
+                         env={**os.environ, "PYTHONPATH": os.path.abspath(ROOT)})
+    assert out.returncode == 0, out.stderr
+    rep = _json.loads(out.stdout)
+    assert rep["ambiguous"] and all(a["delta_chi2"] < a["threshold_chi2"] for a in rep["ambiguous"])
+    assert {a["by"] for a in rep["ambiguous"]} & {"transducer_resonance", "drive_saturation"}
+    text = cal.read_text()
+    assert "# AMBIGUOUS" in text and "to separate" in text
+    disc = float(re.search(r"discrepancy\(position\) = (\S+) m", text).group(1))
+    assert disc > rep["rmse_after"]
+    import acl
+
+    assert acl.load(str(cal)).discrepancy == pytest.approx(disc)
+
+
+def test_latch_state_statistics_are_the_likelihood(tmp_path):
+    """A fit with latch states: its chi-square is -2 ln L (the states' deviance plus the other rows' weighted squares),
+    not the Pearson sum at held variances, and the Fisher step leaves the maximum-likelihood optimum where it is."""
+    from acl.fit import solve
+    from acl.fit.forward import predict
+
+    problem, _ = _state_problem(tmp_path, "latch+state", {"drive_saturation": FD.SAT_STATE, "offset_drift": FD.DRIFT},
+                                102)
+    P = problem.prepared
+    fit = solve.fit(lambda a, b: predict(P, a, b), problem.y, problem.sigma, problem.coefs)
+    st = P.state
+    g = fit.value("gamma")
+    # the switching probability at the fitted gamma, through the forward model with no reweighting held
+    saved, P.pearson = P.pearson, None
+    try:
+        p = predict(P, {"gamma": g}, {})[st]
+        shuttle = predict(P, {"gamma": g}, {})[~st]
+    finally:
+        P.pearson = saved
+    y = problem.y[st]
+    dev = -2.0 * np.sum(np.log(np.maximum(np.where(y > 0.5, p, 1.0 - p), 1e-300)))
+    gauss = float(np.sum(((shuttle - problem.y[~st]) / problem.sigma[~st]) ** 2))
+    assert fit.chi2 == pytest.approx(dev + gauss, rel=1e-9)
+    # the Pearson residuals shown are another quantity: their sum of squares is not what the statistics use
+    assert not np.sum((fit.residual / problem.sigma) ** 2) == pytest.approx(fit.chi2, rel=1e-6)
+
+
+def test_saturation_and_drift_on_latch_states_are_both_found(tmp_path):
+    """Latches of three angles, saturation + drift, seed 102: each effect alone leaves a gross misfit (the drift on the
+    shuttle rows, the thresholds on the state rows) whose reduced chi-square inflated the other's interval, so both
+    were rejected as not identifiable and the fit ended with neither (RMSE 63 x noise).  The search now judges
+    identifiability at the data's sigma, and latch states by their likelihood."""
+    from acl.fit.select import select_effects, withdraw_if_inadequate
+
+    planted = {"drive_saturation": FD.SAT_STATE, "offset_drift": FD.DRIFT}
+    problem, _ = _state_problem(tmp_path, "latch+state/angles", planted, 102)
+    sel = withdraw_if_inadequate(select_effects(problem, seed=102), problem)
+    assert sorted(sel.selected) == sorted(planted) and not sel.ambiguous
+    st = problem.prepared.state
+    assert np.sqrt(np.mean(sel.final.residual[~st] ** 2)) < RMSE_RATIO * 0.2e-6

@@ -243,13 +243,14 @@ def test_unknown_and_unsupported_quantities_are_diagnosed():
     with pytest.raises(QuantityError) as exc:
         evaluate(b, ["tip_deflection_arm_m"])          # needs `at`
     assert exc.value.code == "E-SWEEP-Q02" and "at" in str(exc.value)
-    grip = acl.load(str(EX / "fig5a_gripper.acl"))
-    names, missing = supported(grip, "125 kHz @ 5 V")
-    assert not any(n.startswith("tip_deflection") for n in names)
-    assert "tip_deflection" in missing
+    # a latch at rest in state b: its second stable state per point is not batched (acl/sweep/mechanism.py)
+    src = (EX / "fig6_bistable_latch.acl").read_text().replace("state = a", "state = b")
+    held = acl.loads(src, filename=str(EX / "fig6_bistable_latch.acl"))
+    names, missing = supported(held, "125 kHz @ 5 V")
+    assert not any("deflection" in n for n in names)
+    assert "state b" in missing["tip_deflection"] and "state b" in missing["deflection_"]
     with pytest.raises(QuantityError) as exc:
-        evaluate(_batch(grip, {grip.beams[0].name and f"beams.{grip.beams[0].name}.length": [grip.beams[0].length]}),
-                 [f"tip_deflection_{grip.beams[0].name}_m"], "125 kHz @ 5 V")
+        evaluate(_batch(held, {"latches.snap.length": [held.latches[0].length]}), ["deflection_snap_m"], "125 kHz @ 5 V")
     assert exc.value.code == "E-SWEEP-Q02"
 
 
@@ -257,7 +258,8 @@ def test_every_column_family_is_documented():
     import re
 
     pats = [re.compile("^" + re.sub(r"<[^>]+>", ".+", q.pattern) + "$") for q in QUANTITIES]
-    for ex in ("fig2_vertical_cantilever", "fig3_three_orifice", "fig4_facing_pair", "fig6_bistable_latch"):
+    for ex in ("fig2_vertical_cantilever", "fig3_three_orifice", "fig4_facing_pair", "fig6_bistable_latch",
+               "fig5c_linear_spring", "fig6e_reversible_latch", "figS6_flextensional"):
         names, _ = supported(acl.load(str(EX / f"{ex}.acl")), "125 kHz @ 3 V")
         for n in names:
             assert any(p.match(n) for p in pats), n
@@ -348,8 +350,10 @@ def _expected(rep: dict) -> dict:
     eq = rep["equilibrium"]
     if eq is not None:
         out["equilibrium_ok"] = eq["status"] == "ok"
-        for beam, v in eq["deflections_m"].items():
-            out[f"tip_deflection_{beam}_m"] = v if eq["status"] == "ok" else nan
+        beams = set(rep.get("_beams", ()))
+        for name, v in eq["deflections_m"].items():
+            col = "tip_deflection" if name in beams else "deflection"
+            out[f"{col}_{name}_m"] = v if eq["status"] == "ok" else nan
     for i, r in enumerate(rep["requires"], 1):
         out[f"require_{i}_value"] = nan if r["value"] is None else r["value"]
         out[f"require_{i}_pass"] = r["ok"]
@@ -368,7 +372,7 @@ def test_every_example_nominal_equals_analyze(example):
     b = FieldBatch(design=d, n=1, fields={}, valid=np.ones(1, bool), code=np.full(1, ""))
     names, _ = supported(d, at)
     cols = evaluate(b, [n for n in names if not n.startswith("lint_")], at)
-    exp = _expected(analyze(d, at=drive_from_text(at)).as_dict())
+    exp = _expected({**analyze(d, at=drive_from_text(at)).as_dict(), "_beams": [b.name for b in d.beams]})
     checked = 0
     for name, col in cols.items():
         assert name in exp, name
@@ -382,6 +386,12 @@ def test_every_example_nominal_equals_analyze(example):
             if name.startswith("require_") and name.endswith("_value") and d.requires[int(name.split("_")[1]) - 1].kind == "margin":
                 tol = TOL["margin"]
             absolute = 1e-7 if name.startswith("phase_") else 1e-300         # degrees: phases near 0
+            if "deflection_" in name:       # a truss-tied capsule: 0 up to the round-off of each one's null space
+                absolute = 1e-15
+            if name.startswith("snap_in_") and d.latches:
+                tol = 1e-5      # a kink fold of the latch law: tests/test_sweep_mechanism.py (never above the model's fold)
+            elif name.startswith("snap_in_"):
+                assert got <= want * (1 + 1e-12), name             # a smooth fold: never above analyze
             assert got == pytest.approx(want, rel=tol, abs=absolute), name
         checked += 1
     assert checked >= 2

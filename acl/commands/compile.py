@@ -278,6 +278,9 @@ def _summary(console, schedule, result) -> None:
     for g in schedule.goals:
         err = ("-" if g.rms_error_m is None else f"{g.rms_error_m * 1e6:.3g} / {g.max_error_m * 1e6:.3g}")
         band = ("-" if g.rms_error_p95_m is None else f"{g.rms_error_p95_m * 1e6:.3g} / {g.max_error_p95_m * 1e6:.3g}")
+        mb = (g.details or {}).get("band") or {}
+        if g.rms_error_p95_m is None and "margin_p05" in mb:       # a hold or switch: its margin's 5th percentile
+            band = f"margin p05 {mb['margin_p05']:.3g}"
         table.add_row(g.name, f"{g.start_s:.3g}-{g.end_s:.3g}",
                       ", ".join(f"{f / 1e3:g}" for f in g.frequencies_hz), err, band, g.model or "-")
     console.print(table)

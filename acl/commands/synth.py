@@ -353,8 +353,8 @@ def _replay(args, noise) -> int:
         write_csv(data, args.output)
     except OSError as exc:
         return _usage(f"cannot write {args.output!r}: {exc.strerror or exc}", where="<--output>")
-    console.print(f"wrote {data.n} rows ({len(waypoints) - lost} waypoints x {len(names or known)} observables) "
-                  f"to {args.output}")
+    console.print(f"wrote {data.n} rows ({len(waypoints) - lost} waypoints x {len(names or known)} observables"
+                  + (f", {res.contacts} gaps in contact at snap-ins" if res.contacts else "") + f") to {args.output}")
     for goal, t in res.tracking.items():
         console.print(f"{goal}: tracking error on {args.design} RMS {t['rms_m'] * 1e6:.4g} um, "
                       f"max {t['max_m'] * 1e6:.4g} um over {t['n']} waypoints (noise-free)"
@@ -362,5 +362,6 @@ def _replay(args, noise) -> int:
     if chirps:
         console.print(f"note: {chirps} sweep segments skipped (a chirp has no static equilibrium)")
     if lost:
-        console.print(f"warning: {lost} waypoints have no stable equilibrium on this design (snap-in?): no rows")
+        console.print(f"warning: {lost} waypoints have no stable equilibrium on this design (snap-in?): "
+                      + (f"{res.contacts} written as a gap of 0 (contact), no other rows" if res.contacts else "no rows"))
     return 0

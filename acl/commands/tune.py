@@ -29,6 +29,9 @@ def add_parser(p) -> None:
                    help="search: nelder-mead (default, after a Latin hypercube scan), powell, differential-evolution")
     p.add_argument("--max-evals", type=_count, default=200, metavar="N",
                    help="most trial points the search evaluates (default 200)")
+    p.add_argument("--scheduler", metavar="local|tcp://HOST:PORT", default=None,
+                   help="where trials run: this machine (default) or a dask.distributed scheduler (acl[scale]); "
+                        "the tuned values are the same on either")
     p.add_argument("--target", type=_fraction, default=None, metavar="YIELD",
                    help="required yield, e.g. 0.95: unless the validated yield's 95%% interval lies at or above it, "
                         "exit 1 (E876) and write nothing")
@@ -79,6 +82,12 @@ def run(args) -> int:
     if args.output and not args.output.endswith(".acl") and args.output != "-":
         diags.append(error("E-USAGE", f"--output {args.output!r}: a design file ends in .acl",
                            Span(file="<--output>", line=1, column=1), "e.g. -o tuned.acl"))
+    from acl.sweep.run import scheduler_kind
+
+    try:
+        scheduler_kind(args.scheduler)
+    except DiagnosticError as exc:
+        diags += exc.diagnostics
     if diags:
         report(diags, fmt)
         return 2
@@ -147,14 +156,16 @@ def _search(T, problem, args):
 
     console = make_console(stderr=True, highlight=False)
     if args.quiet or not console.is_terminal:
-        return T.tune(problem, objective=args.objective, method=args.method, max_evals=args.max_evals)
+        return T.tune(problem, objective=args.objective, method=args.method, max_evals=args.max_evals,
+                      scheduler=args.scheduler)
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
     with Progress(TextColumn("tuning"), BarColumn(), MofNCompleteColumn(), TextColumn("best yield {task.fields[best]}"),
                   TimeElapsedColumn(), console=console, transient=True) as bar:
         task = bar.add_task("tune", total=args.max_evals, best="-")
         return T.tune(problem, objective=args.objective, method=args.method, max_evals=args.max_evals,
-                      progress=lambda done, total, best: bar.update(task, completed=done, best=f"{best:.3f}"))
+                      progress=lambda done, total, best: bar.update(task, completed=done, best=f"{best:.3f}"),
+                      scheduler=args.scheduler)
 
 
 def _command_line(args) -> str:

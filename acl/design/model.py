@@ -372,6 +372,7 @@ class DriveStep(Frozen):
     kind: Literal["drive"] = "drive"
     drive: Drive
     duration: float
+    limits: Limits = Limits()      # the step's `limit` (its amplitudes add up to at most it)
     span: Span
 
 

@@ -106,7 +106,7 @@ def _step(b, design: M.Design, st):
             b.bag.error("E502", f"drive amplitudes add up to {sum(t.amplitude for t in drive.tones):.3g} V, above its limit {lim.max_voltage:.3g} V",
                         st.span, "lower the amplitudes or raise the limit")
             raise Fail()
-        return M.DriveStep(drive=drive, duration=_dur(b, st.duration, "drive duration"), span=st.span)
+        return M.DriveStep(drive=drive, duration=_dur(b, st.duration, "drive duration"), limits=lim, span=st.span)
     if isinstance(st, A.SweepS):
         _no(b, st.options, ("margin", "using", "slew", "limit"), "sweep")
         f0 = b.r.q(st.f_start, b.env, "Hz", "sweep start")

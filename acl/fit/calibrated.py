@@ -96,11 +96,17 @@ def calibrated_text(problem, selection, out_path: str, data_paths=(), report_dir
             if c.kind.split("@")[0] in ("f0", "q"):
                 what = "natural frequency" if c.kind.startswith("f0") else "quality factor"
                 cap = c.kind.partition("@")[2] or P.ref_capsule
-                notes.append(f"# {name}: the {what} of capsule `{cap}`; not applied to the design (the language "
+                whose = (f"the mode orifice `{cap}` dominates" if "." in cap else f"capsule `{cap}`")
+                notes.append(f"# {name}: the {what} of {whose}; not applied to the design (the language "
                              "declares the capsule's geometry, not its resonance: fit a free cavity parameter to "
                              "carry it into the design)")
         names.append(name)
         by_kind[c.kind] = name
+        rel_se = se / max(abs(v), 1e-300)
+        if c.kind != "effect" and (not np.isfinite(rel_se) or rel_se > 1.0):     # as solve.fit's warning
+            notes.append(f"# WARNING: {name} is not identifiable from these data (relative standard error "
+                         f"{rel_se:.3g}): its value is where the optimizer stopped, not a measurement; later stages "
+                         "draw it from its +- (acl compile's bands), so they are wide")
         params.append(f"param {name} = {_literal(v, unit)}{_pm(se, unit)}"
                       f"    # 95% interval {_literal(lo, unit)} .. {_literal(hi, unit)}")
     # coefficients that stand for physics the design has no parameter for
@@ -129,6 +135,19 @@ def calibrated_text(problem, selection, out_path: str, data_paths=(), report_dir
     if gain_terms or "transducer_gain" in effects:
         eff = effects.setdefault("transducer_gain", {})
         eff["gain"] = " * ".join(gain_terms) if gain_terms else "1"
+    amb = getattr(selection, "ambiguous", None) or []
+    if amb:
+        lines.append(f"# AMBIGUOUS: these data do not tell the selected effects ({', '.join(selection.selected)}) from "
+                     "the alternatives below, which explain them as well (docs/fit.md, ambiguity); the effects applied "
+                     "here are one choice among them.  The discrepancy below covers the alternatives' predictions at "
+                     "the data; outside the covered range nothing does (acl compile warns there).")
+        for a in amb:
+            vals = ", ".join(f"{c.param} = {_literal(float(v), next((q.unit for q in EFFECTS[c.effect].params if q.name == c.param), c.unit))}"
+                             for c, v in zip(a["fit"].coefs, a["fit"].values) if c.effect == a["by"])
+            lines.append(f"#   {' + '.join(a['effects'])}: -2 ln L {a['delta_chi2']:+.3g}; instead of {a['replaces']}: "
+                         f"effect {a['by']} {{ {vals} }}")
+            lines.append(f"#     to separate {a['replaces']} from {a['by']}: {a['separate_by']}")
+        lines.append("")
     lines += ["# fitted values with their standard errors (+-); correlations below"] + params + [""]
     corr = _correlations(final, names)
     cover = _coverage(problem)
@@ -136,10 +155,17 @@ def calibrated_text(problem, selection, out_path: str, data_paths=(), report_dir
         lines.append("uncertainty {")
         lines += [f"  correlation({a}, {b}) = {r:.6g}" for a, b, r in corr]
         lines += [f"  covered({q}) = {_literal(lo, u)} .. {_literal(hi, u)}" for q, (lo, hi, u) in cover.items()]
-        from acl.fit.report import length_rmse
+        from acl.fit.report import alternative_spread, length_rmse
 
         rmse = length_rmse(problem, final)
-        if math.isfinite(rmse) and rmse > 0:
+        spread = alternative_spread(problem, selection)
+        if spread > 0 and math.isfinite(rmse):
+            # ambiguous: later stages must not inherit the confidence of one arbitrary choice among equal fits
+            total = math.sqrt(rmse * rmse + spread * spread)
+            lines.append(f"  discrepancy(position) = {_literal(total, 'm')}    # RMS residual of the fit "
+                         f"({_literal(rmse, 'm')}) with the largest RMS difference of an equally good alternative "
+                         f"effect set's predictions ({_literal(spread, 'm')}), in quadrature: see AMBIGUOUS above")
+        elif math.isfinite(rmse) and rmse > 0:
             lines.append(f"  discrepancy(position) = {_literal(rmse, 'm')}    # RMS residual of the fit")
         lines += ["}", ""]
     if notes:
@@ -192,18 +218,30 @@ def _coverage(problem) -> dict:
     import numpy as np
 
     data, P = problem.data, problem.prepared
-    volts = [sum(v for _, v in t) for t in data.tones]
-    vmax = max((v for t in data.tones for _, v in t), default=0.0)
+    value = np.asarray(data.value, float)
+    n = value.size
+    pair = np.asarray(P.pair, bool) if P.pair is not None else np.zeros(n, bool)
+    gap = pair & (np.asarray(P.s0) != 0) & (np.asarray(P.s1) != 0)   # a pair's gap: both sides move it
+    d0 = np.asarray(P.d0, float) if P.d0 is not None else np.full(n, np.nan)
+    # a gap measured in contact (below 5 % of the rest gap) shows that the pair snapped, not the
+    # force or beam laws there: it widens neither the covered voltage nor the covered deflection
+    contact = gap & (value < 0.05 * np.where(np.isfinite(d0), d0, 0.0))
+    tones = [t for t, c in zip(data.tones, contact) if not c]
+    volts = [sum(v for _, v in t) for t in tones]
+    vmax = max((v for t in tones for _, v in t), default=0.0)
     # a tone counts as calibrated where it was driven at 10 % or more of the largest amplitude
-    freqs = [f for t in data.tones for f, v in t if v > 0 and v >= 0.1 * vmax]
+    freqs = [f for t in tones for f, v in t if v > 0 and v >= 0.1 * vmax]
     out = {}
     if volts:
         out["voltage"] = (0.0, float(max(volts)), "V")
     if freqs:
         out["frequency"] = (float(min(freqs)), float(max(freqs)), "Hz")
-    dev = np.abs(np.asarray(data.value, float) - np.asarray(P.base, float))
+    dev = np.abs(value - np.asarray(P.base, float))
+    dev = np.where(gap, 0.5 * dev, dev)           # the gap closes by both deflections: one side moved >= half
+    keep = ~contact
     if P.state is not None:
-        dev = dev[~P.state]                       # a latch state (0/1) is no deflection
+        keep &= ~P.state                          # a latch state (0/1) is no deflection
+    dev = dev[keep]
     dev = dev[np.isfinite(dev)]
     if dev.size:
         out["deflection"] = (0.0, float(dev.max()), "m")

@@ -72,14 +72,11 @@ class Prepared:
     cavity: dict = field(default_factory=dict)   # free cavity parameter -> {"value", "dlnv": {capsule: dlnV/dp}}
     side_table: np.ndarray = None    # (2, n) index into ftables (-1: no capsule)
     ftables: list = None             # (ln V/V0, ln f/f0) of each capsule kind (acl.physics.effects.volume_frequency_table)
-    vector: np.ndarray = None        # (n,) bool: the row's unit is a body moving in 1-2 directions (acl.fit.mechanism)
-    tauv: np.ndarray = None          # (n, T, 2) its thrust per V^2 along its basis directions, relative to gamma0
-    obs_w: np.ndarray = None         # (n, 2) the observable's weights on those directions
-    one_mode: np.ndarray = None      # (n,) bool: a vector row's body is one single-orifice capsule
     groups: list = None              # acl.fit.group.GroupBlock of every group of 3+ capsules (their rows)
     group_row: np.ndarray = None     # (n,) bool: the row belongs to one of them
     state: np.ndarray = None         # (n,) bool: the row observes a latch state (0 a, 1 b), acl.fit.forward.switch_probability
     pearson: tuple = None            # (measured values, row weights) when fitting: state rows predict y + r_P / w
+    ref_orifice: str = ""            # "capsule.orifice" of the reference capsule's first orifice
 
     def volume_shift(self, c, fn, lnx):
         """Natural frequency of side ``c`` after its gas volume changed by a factor exp(lnx) (rows), from the tables."""
@@ -99,7 +96,7 @@ class Prepared:
 def prepare(data, load_instance, f_ref: float | None = None) -> Prepared:
     """Build the row arrays; ``load_instance(key)`` returns the Instance of an override set."""
     from acl.fit.mechanism import (LAW_CODES, alpha_per_v2, pair_alpha_per_v2, reference_pair, reference_unit,
-                                   thrust_per_v2, thrust_vec_per_v2)
+                                   thrust_per_v2)
 
     n = data.n
     T = max(1, max((len(t) for t in data.tones), default=1))
@@ -129,7 +126,8 @@ def prepare(data, load_instance, f_ref: float | None = None) -> Prepared:
         if pu is not None:
             pair_ref = (instances[key], pu)
             break
-    alpha_ref = pair_alpha_per_v2(pair_ref[0], *reference_pair(*pair_ref), f_ref) if pair_ref else 0.0
+    ref_pair = reference_pair(*pair_ref) if pair_ref else ()
+    alpha_ref = pair_alpha_per_v2(pair_ref[0], *ref_pair, f_ref) if len(ref_pair) == 2 else 0.0
     arr = {k: np.zeros((2, n)) for k in ("L", "l", "EI", "height", "fn", "q", "cd", "ct", "volume", "radius")}
     arr["L"][:] = 1.0
     arr["EI"][:] = 1.0
@@ -148,19 +146,17 @@ def prepare(data, load_instance, f_ref: float | None = None) -> Prepared:
     latch_tables: list = []
     latch_index: dict = {}
     units = np.full(n, "", dtype=object)
-    vector = np.zeros(n, bool)
-    tauv = np.zeros((n, T, 2))
-    obs_w = np.zeros((n, 2))
-    one_mode = np.zeros(n, bool)
     groups: list = []
     group_row = np.zeros(n, bool)
     state = np.zeros(n, bool)
     gtables: dict = {}
 
-    def gtable(volume, radius, med):
-        key = (volume, radius, *med)
+    def gtable(volume, radii, target_hz, med):
+        """First-mode table of a single-orifice capsule; a multi-orifice capsule's mode nearest ``target_hz``."""
+        key = (volume, radii, target_hz if len(radii) > 1 else 0.0, *med)
         if key not in gtables:
-            gtables[key] = volume_frequency_table(volume, radius, *med)
+            gtables[key] = (volume_frequency_table(volume, radii[0], *med) if len(radii) == 1 else
+                            capsule_volume_frequency_table(volume, radii, target_hz, *med))
         return gtables[key]
 
     by_group: dict = {}
@@ -181,14 +177,21 @@ def prepare(data, load_instance, f_ref: float | None = None) -> Prepared:
             blk = block(inst, unit, name, rows, f, v, gamma0, alpha_ref, gtable)
             groups.append(blk)
             group_row[rows] = True
-            s0_ = unit.sides[blk.oi[0]]
-            law[0, rows], caps[0, rows] = LAW_CODES[s0_.law], s0_.capsule
-            arr["height"][0, rows] = s0_.height
-            arr["fn"][0, rows], arr["q"][0, rows] = s0_.mode
+            oc = blk.orif_cap[blk.oi[0]] if blk.kind[0] == 0 else blk.oi[0]
+            s0_ = unit.sides[blk.cap_node[oc]]
+            law[0, rows], caps[0, rows] = LAW_CODES[s0_.law], blk.caps[oc]
+            o0 = int(np.flatnonzero(blk.orif_cap == oc)[0]) if np.any(blk.orif_cap == oc) else 0
+            arr["height"][0, rows] = blk.cap_height[oc]
+            arr["fn"][0, rows], arr["q"][0, rows] = blk.fn[o0], blk.q[o0]
             arr["L"][0, rows], arr["l"][0, rows], arr["EI"][0, rows] = s0_.L, s0_.l, s0_.EI
+            if s0_.law == "latch":
+                if s0_.latch not in latch_index:
+                    latch_index[s0_.latch] = len(latch_tables)
+                    latch_tables.append(latch_table(s0_.latch))
+                latch_id[rows] = latch_index[s0_.latch]
             rest_gap = np.linalg.norm(blk.points[blk.oj[0]] - blk.points[blk.oi[0]])
             base[rows] = np.where(blk.kind == 0, rest_gap, blk.obase)
-            d0[rows] = rest_gap
+            d0[rows] = rest_gap if blk.kind[0] == 0 else np.nan
             continue
         for c, side in enumerate(unit.sides):
             law[c, rows] = LAW_CODES[side.law]
@@ -210,21 +213,6 @@ def prepare(data, load_instance, f_ref: float | None = None) -> Prepared:
         pair[rows] = unit.kind == "pair"
         proj[rows] = unit.sides[0].proj
         d0[rows] = unit.d0
-        if unit.vector:
-            side = unit.sides[0]
-            vector[rows] = True
-            one_mode[rows] = len(side.members) == 1 and len(inst.design.capsule(side.capsule).orifices) == 1
-            k = side.basis.shape[1]
-            for fk in np.unique(f[rows][v[rows] > 0]):
-                m = (f[rows] == fk) & (v[rows] > 0)
-                tv = thrust_vec_per_v2(inst, fk)
-                total = sum((tv[c] for c in side.members), np.zeros(3))
-                tauv[rows, :, :k] += m[:, :, None] * (total @ side.basis / gamma0)[None, None, :]
-                tp = thrust_per_v2(inst, fk)
-                tau[0, rows] += m * (tp[side.capsule] / gamma0)
-            b, wts = inst.vector_map(inst.design.observe(name))
-            base[rows], obs_w[rows] = b, wts
-            continue
         for fk in np.unique(f[rows][v[rows] > 0]):
             m = (f[rows] == fk) & (v[rows] > 0)
             tp = thrust_per_v2(inst, fk)
@@ -256,14 +244,24 @@ def prepare(data, load_instance, f_ref: float | None = None) -> Prepared:
     modes0 = {}
     for inst in instances.values():
         for u in inst.units.values():
+            if u.net is not None:       # a group: every capsule (its first orifice's mode) and every orifice
+                for lab, (fn, q) in zip(u.net.labels, u.net.modes):
+                    modes0.setdefault(lab.split(".")[0], (float(fn), float(q)))
+                    modes0.setdefault(lab, (float(fn), float(q)))
+                continue
             for s in u.sides:
                 modes0.setdefault(s.capsule, s.mode)
+                c = inst.design.capsule(s.capsule)
+                if len(c.orifices) == 1:
+                    modes0.setdefault(f"{s.capsule}.{c.orifices[0].name}", s.mode)
+    rc = ref.design.capsule(ref_cap)
+    ref_orifice = f"{ref_cap}.{rc.orifices[0].name}" if rc.orifices else ""
     return Prepared(n, f, v, tau, arel, pair, arr["L"], arr["l"], arr["EI"], arr["cd"], arr["ct"], arr["height"],
                     proj, d0, base, s0, s1, arr["fn"], arr["q"], t, f_ref, gamma0, alpha0, float(E0),
                     float(max(v.sum(axis=1).max(), 1e-9)), instances, law, caps, arr["volume"], arr["radius"],
                     medium, latch_id, latch_tables, caps == ref_cap, ref_cap, units,
                     exp if exp is not None else np.full(n, "", dtype=object), modes0, {}, side_table, ftables,
-                    vector, tauv, obs_w, one_mode, groups, group_row, state)
+                    groups, group_row, state, ref_orifice=ref_orifice)
 
 
 def latch_table(geometry) -> tuple:
@@ -304,8 +302,8 @@ def _alpha0(inst, alpha_ref: float) -> float:
 # ----------------------------------------------------------------------------------------------
 
 # The formulas live in acl.physics.effects (the analysis applies the same ones to declared effects).
-from acl.physics.effects import (drag_load, elastica_blend, gain_tilt, mode_response_ratio,  # noqa: E402,F401
-                                 saturation, shrunk_frequency, substrate_factor, transducer_resonance,
+from acl.physics.effects import (capsule_volume_frequency_table, drag_load, elastica_blend,  # noqa: E402,F401
+                                 gain_tilt, mode_response_ratio, saturation, shrunk_frequency, substrate_factor, transducer_resonance,
                                  volume_frequency_table)
 
 
@@ -430,13 +428,9 @@ def _predict(P: Prepared, coeffs: dict, effects: dict) -> np.ndarray:
     d_0 = np.zeros(P.n)
     d_1 = np.zeros(P.n)
     single = ~P.pair
-    vec = single & P.vector if P.vector is not None else np.zeros(P.n, bool)
     grp = P.group_row if P.group_row is not None else np.zeros(P.n, bool)
-    single = single & ~vec & ~grp
-    out_rows = np.zeros(P.n)
+    single = single & ~grp
     ratio = np.zeros(P.n)                    # latch rows: push / switching force
-    if np.any(vec):
-        _body_deflection(P, vec, gamma, w, res, sub, rows, es, out_rows, ratio)
     if np.any(single):
         idx = np.flatnonzero(single)
         latch = P.latch_id[idx] >= 0
@@ -465,15 +459,14 @@ def _predict(P: Prepared, coeffs: dict, effects: dict) -> np.ndarray:
         da, db = _pair_equilibrium(law0, law1, a_rad, push, P.d0[idx], same)
         d_0[idx], d_1[idx] = da, db
     out = P.base + P.s0 * d_0 + P.s1 * d_1
-    if np.any(vec):
-        out = np.where(vec, P.base + out_rows, out)
     if np.any(grp):
         from acl.fit import group as G
 
         grad = effects["stiffness_gradient"]["e_gradient"] if "stiffness_gradient" in effects else 0.0
         for blk in P.groups:
-            change, _ = G.predict(P, blk, coeffs, effects, w[blk.rows], gamma, alpha, es, lam, grad, c_p)
+            change, _, rat = G.predict(P, blk, coeffs, effects, w[blk.rows], gamma, alpha, es, lam, grad, c_p)
             out[blk.rows] = P.base[blk.rows] + change
+            ratio[blk.rows] = np.where(blk.kind == 3, rat, ratio[blk.rows])
     if "offset_drift" in effects:
         e = effects["offset_drift"]
         out = out + e["offset"] + e["drift"] * P.t
@@ -532,37 +525,6 @@ def switch_probability(ratio, spread):
     with np.errstate(divide="ignore"):
         z = np.log(np.maximum(ratio, 1e-300)) / max(spread, 1e-9)
     return ndtr(z)
-
-
-def _body_deflection(P, vec, gamma, w, res, sub, rows, es, out, ratio):
-    """Bodies moving in 1-2 directions (multi-orifice capsules, trussed bodies; acl.fit.mechanism): the load is the
-    vector sum of the members' thrusts (tones add in power) projected on the directions the support allows; a beam
-    deflects along the load by paper Eq. (1) (isotropic across it, as acl.analysis.mechanics), a spring by P/k, a
-    latch by its rising branches (a push towards state a leaves it at rest).  Writes the observable's change to
-    ``out``."""
-    idx = np.flatnonzero(vec)
-    # a shifted first mode (free f0 / q, bubble shrinkage) moves a lone single-orifice bubble's thrust; a body of
-    # several orifices or capsules mixes modes the one-mode ratio does not follow: not applied there (docs/fit.md)
-    one = (P.caps[0, idx] != "") & P.one_mode[idx] if P.one_mode is not None else np.zeros(idx.size, bool)
-    wc = w[idx] if res is None else w[idx] * np.where(one[:, None], res[0][idx], 1.0)
-    load = gamma * np.einsum("nt,ntk->nk", wc, P.tauv[idx]) * sub[0, idx][:, None]     # (n, 2)
-    mag = np.sqrt((load * load).sum(axis=1))
-    unit = np.divide(load, mag[:, None], out=np.zeros_like(load), where=mag[:, None] > 0)
-    delta = np.zeros(idx.size)
-    latch = P.latch_id[idx] >= 0
-    if np.any(~latch):                  # a lone body has no neighbour: neighbour_drag acts on pairs and groups only
-        j = idx[~latch]
-        law0, _, _ = rows(j)
-        delta[~latch] = law0(mag[~latch])      # a body of its own has no neighbour: neighbour_drag does not act
-    for tid in np.unique(P.latch_id[idx][latch]):
-        m = P.latch_id[idx] == tid
-        along = load[m, 0]                                  # signed push along the latch axis
-        table = P.latch_tables[tid]
-        push = np.maximum(along, 0.0)
-        ratio[idx[m]] = push / (table[2] * es)
-        delta[m] = latch_travel(push, table, es)
-        unit[m] = np.array([1.0, 0.0])
-    out[idx] = (unit * P.obs_w[idx]).sum(axis=1) * delta
 
 
 def _with_drag(law, c_p, steps=3):

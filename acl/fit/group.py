@@ -1,21 +1,28 @@
-"""Forward model of a group of three or more interacting capsules (acl.fit.mechanism ``Unit("group")``).
+"""Forward model of a group (acl.fit.mechanism ``Unit("group")``): interacting capsules on their own supports, bodies
+of several orifices or of several capsules tied by trusses, latches among them; and a body moving alone.
 
-Each capsule sits on its own support (a cantilever moves across its axis by paper Eq. (1), isotropic in that
-plane as in :mod:`acl.analysis.mechanics`; a spring along its axis by P/k; a fixed capsule not at all).  Per
-row, with tones adding in power:
+Each **node** is a rigid body on one support (acl.fit.mechanism.rigid_body, the rules of acl.analysis.mechanics): a
+cantilever moves across its axis by paper Eq. (1) (isotropic in that plane, less the directions trusses to fixed
+points hold), a spring along its axis by P/k, a latch along its axis by its rising branches from state a
+(acl.physics.latch), a fixed node not at all.  Every **orifice** is its own bubble.  Per row, with tones adding in
+power, the force terms of acl.analysis.acoustics.force_model, with each orifice's volume response held at its value
+at rest (coupled through the liquid, transducer table, declared thrust):
 
-* own thrust gamma tau_i(f) V^2 along -n_i (the orifice's outward normal n_i), as for a lone actuator;
-* every two capsules attract by alpha a_ij(f) V^2 / d_ij^2 along the line of their orifices (paper Eq. (3),
-  a_ij from :func:`acl.analysis.acoustics.pair_forces` relative to the reference pair at f_ref);
-* the jet of capsule i drags the first capsule it points at (within 30 deg of its axis) with a force equal to
-  i's thrust, along n_i: the paper's F_AS = F_d assumption of Eq. (3), which for two facing capsules is the
-  pair model of :mod:`acl.fit.forward` exactly.
+* own thrust gamma tau_o(f) V^2 of orifice o along -n_o (tau_o its share per V^2 relative to the reference capsule);
+* secondary Bjerknes force between every two orifices of different capsules, alpha a_ij(f) V^2 / d_ij^2 along the
+  line of their current centres (paper Eq. (3); a_ij = the analysis' attraction x d^2 at rest, relative to the
+  reference pair);
+* the laminar round jet of every orifice dragging every other capsule (acl.physics.forces.jet_drag, Schlichting),
+  at the current distance and angle, as the analysis does.
 
-The equilibrium z = D(z) (z the supports' coordinates, D the deflection laws applied to the loads at z) is
-followed by continuation in the load from rest (``N_STEPS`` steps, Newton with a finite-difference Jacobian
-at each, vectorized over rows).  A row whose branch folds (Newton fails, the Jacobian of z - D(z) loses its
-positive determinant, or two orifices meet) has snapped in: the pair that closed is in contact (gap 0), the
-rest of the group is taken where it was at the fold.
+Each capsule's load is the sum over its orifices and the terms it feels; a node's load is the sum over its capsules,
+projected on the directions it can move along.  The equilibrium z = D(z) (z the nodes' coordinates, D their
+deflection laws at the loads of z) is solved by Newton with a finite-difference Jacobian, all rows at once, first at
+full load from the last solution found for the row, and where that fails by continuation from rest in ``N_STEPS``
+load steps; a step without a stable equilibrium (no convergence, the Jacobian of z - D(z) loses its positive
+determinant, two orifices of different nodes within 2 % of their rest distance) is a snap-in: the two orifices
+closest to touching meet halfway (all the way when one node is fixed) and the rest of the group is solved around
+them.  A node alone (a body) feels loads that do not depend on where it is: one evaluation, no Newton.
 """
 from __future__ import annotations
 
@@ -25,112 +32,164 @@ import numpy as np
 
 from acl.fit import beam as B
 from acl.physics.effects import drag_load, elastica_blend, mode_response_ratio, substrate_factor
+from acl.physics.forces import jet_drag
 
 N_STEPS = 8
 N_NEWTON = 12
+LAW = {"beam": 0, "spring": 1, "fixed": 2, "latch": 3}
 
 
 @dataclass
 class GroupBlock:
-    """The rows of one group in one override set, with everything row-independent precomputed."""
+    """The rows of one group (or body) in one override set, with everything row-independent precomputed."""
 
     rows: np.ndarray          # (r,) row indices into the data set
-    caps: tuple               # N capsule names
-    law: np.ndarray           # (N,) 0 beam, 1 spring, 2 fixed
+    caps: tuple               # C capsule names
+    law: np.ndarray           # (N,) node law: 0 beam, 1 spring, 2 fixed, 3 latch
     L: np.ndarray             # (N,)
     l: np.ndarray
     EI: np.ndarray
     cd: np.ndarray            # spring: compliance
-    basis: np.ndarray         # (N, 3, 2) directions each support allows (zero-padded)
+    basis: np.ndarray         # (N, 3, 2) directions each node allows (zero-padded)
     k: np.ndarray             # (N,) how many
-    points: np.ndarray        # (N, 3) orifice centres at rest
-    normals: np.ndarray       # (N, 3) outward normals
-    jets: np.ndarray          # (N,) capsule dragged by each jet (-1 none)
-    tau: np.ndarray           # (r, T, N) thrust per V^2 relative to gamma0
-    arel: np.ndarray          # (r, T, N, N) Bjerknes coefficient per V^2 relative to the reference pair at f_ref
-    height: np.ndarray        # (N,)
-    fn: np.ndarray            # (N,) first natural frequency (Hz)
-    q: np.ndarray             # (N,)
-    tables: list              # per capsule (ln V/V0, ln f/f0) (bubble shrinkage)
-    kind: np.ndarray          # (r,) observable kind: 0 gap, 1 displacement, 2 position
-    oi: np.ndarray            # (r,) capsule index of the observable (gap: a)
-    oj: np.ndarray            # (r,) gap: b
+    latch: list               # (N,) latch table of each latch node (acl.fit.forward.latch_table), else None
+    cap_node: np.ndarray      # (C,) node of each capsule
+    rest: np.ndarray          # (C, 3) capsule centres at rest
+    outer: np.ndarray         # (C,) radius a jet drags
+    cap_height: np.ndarray    # (C,) first orifice's height (substrate_proximity, as the analysis)
+    orif_cap: np.ndarray      # (n,) capsule of each orifice
+    offsets: np.ndarray       # (n, 3)
+    normals: np.ndarray       # (n, 3) outward normals (the jets)
+    labels: tuple             # n "capsule.orifice"
+    tau: np.ndarray           # (r, T, n) thrust per V^2 of each orifice relative to gamma0
+    arel: np.ndarray          # (r, T, n, n) Bjerknes coefficient per V^2 relative to the reference pair at f_ref
+    fn: np.ndarray            # (n,) natural frequency of the mode each orifice dominates (Hz)
+    q: np.ndarray             # (n,)
+    tables: list              # per orifice (ln V/V0, ln f/f0) of its mode (bubble shrinkage)
+    kind: np.ndarray          # (r,) observable kind: 0 gap, 1 displacement, 2 position, 3 latch state
+    oi: np.ndarray            # (r,) gap: orifice a; else the capsule observed
+    oj: np.ndarray            # (r,) gap: orifice b
     axis: np.ndarray          # (r, 3) displacement axis / position unit vector
     obase: np.ndarray         # (r,) position: rest coordinate
+    engines: list = None      # [acl.analysis.acoustics force engine of every drive frequency of the rows at 1 V]
+    fidx: np.ndarray = None   # (r, T) index of each tone's frequency in that engine (-1: no tone)
+    orif_ix: np.ndarray = None    # (n,) each orifice's interface index in the design (acl.analysis.acoustics layout)
+    cap_ix: np.ndarray = None     # (C,) each capsule's index in the design
+    all_rest: np.ndarray = None   # (C_all, 3) every capsule centre of the design at rest
+    gamma0: float = 1.0
+    alpha_ref: float = 0.0
     cache: np.ndarray = None  # (r, m) last equilibrium found per row (warm start of the next evaluation)
-    closing: np.ndarray = None    # (r, 2) the pair in contact of each row past snap-in at the last evaluation (-1)
+    closing: np.ndarray = None    # (r, 2) the orifice pair in contact of each row past snap-in at the last evaluation
     fold: tuple = None            # ((r,) last stable continuation step of the rows that snapped, (r, m) configuration)
 
     def contact_rows(self):
         return self.closing[:, 0] >= 0 if self.closing is not None else np.zeros(self.rows.size, bool)
 
+    @property
+    def points(self) -> np.ndarray:
+        """(n, 3) orifice centres at rest."""
+        return self.rest[self.orif_cap] + self.offsets
+
+    @property
+    def orif_node(self) -> np.ndarray:
+        return self.cap_node[self.orif_cap]
+
 
 def block(inst, unit, name, rows, f, v, gamma0, alpha_ref, ftable) -> GroupBlock:
-    """Precompute a group's rows (``name`` the observable, ``ftable(volume, radius, medium)`` the shrinkage table)."""
-    from acl.fit.mechanism import pair_alpha_per_v2, thrust_per_v2
+    """Precompute a group's rows (``name`` the observable; ``ftable(volume, radii, mode, medium)`` the table of the
+    natural frequency of a capsule's mode against its gas volume, for bubble shrinkage)."""
+    from acl.fit.forward import latch_table
+    from acl.fit.mechanism import _target_capsule, orifice_forces_per_v2
 
+    net = unit.net
     sides = unit.sides
     N = len(sides)
     r, T = len(rows), f.shape[1]
     basis = np.zeros((N, 3, 2))
     k = np.zeros(N, int)
-    law = np.array([{"beam": 0, "spring": 1, "fixed": 2}[s.law] for s in sides])
+    law = np.array([LAW[s.law] for s in sides])
     for i, s in enumerate(sides):
-        k[i] = s.basis.shape[1]
-        basis[i, :, :k[i]] = s.basis
+        k[i] = s.basis.shape[1] if s.law != "fixed" else 0
+        basis[i, :, :k[i]] = s.basis[:, :k[i]]
     cd = np.zeros(N)
     for i, s in enumerate(sides):
         if s.law == "beam":
             cd[i] = B.stiffness_integrals(np.array([s.L]), np.array([s.l]), np.array([s.EI]))[0][0]
         elif s.law == "spring":
             cd[i] = s.compliance
-    tau = np.zeros((r, T, N))
-    arel = np.zeros((r, T, N, N))
+    latch = [latch_table(s.latch) if s.law == "latch" else None for s in sides]
+    n = len(net.labels)
+    tau = np.zeros((r, T, n))
+    arel = np.zeros((r, T, n, n))
     fr, vr = f[rows], v[rows]
     for fk in np.unique(fr[vr > 0]):
         m = (fr == fk) & (vr > 0)
-        tp = thrust_per_v2(inst, fk)
-        for i, s in enumerate(sides):
-            tau[:, :, i] += m * (tp[s.capsule] / gamma0)
+        labels, thr, att = orifice_forces_per_v2(inst, fk)
+        ix = np.array([labels.index(lab) for lab in net.labels])
+        tau += m[:, :, None] * (thr[ix] / gamma0)[None, None, :]
         if alpha_ref:
-            for i in range(N):
-                for j in range(i + 1, N):
-                    a = pair_alpha_per_v2(inst, sides[i].capsule, sides[j].capsule, fk) / alpha_ref
-                    arel[:, :, i, j] += m * a
-                    arel[:, :, j, i] += m * a
+            arel += m[:, :, None, None] * (att[np.ix_(ix, ix)] / alpha_ref)[None, None]
     obs = inst.design.observe(name)
-    idx = {s.capsule: i for i, s in enumerate(sides)}
     kind = np.zeros(r, int)
     oi = np.zeros(r, int)
     oj = np.zeros(r, int)
     axis = np.zeros((r, 3))
     obase = np.zeros(r)
     if obs.kind == "gap":
-        oi[:], oj[:] = idx[obs.a.split(".")[0]], idx[obs.b.split(".")[0]]
+        oi[:], oj[:] = net.labels.index(obs.a), net.labels.index(obs.b)
     else:
-        from acl.fit.mechanism import _target_capsule
-
-        oi[:] = idx[_target_capsule(inst.design, obs)]
-        if obs.kind == "displacement":
+        cap = _target_capsule(inst.design, obs)
+        oi[:] = net.caps.index(cap)
+        if obs.kind == "state":
+            kind[:] = 3
+        elif obs.kind == "displacement":
             kind[:] = 1
             axis[:] = np.asarray(obs.axis, float) / np.linalg.norm(obs.axis)
         else:
             kind[:] = 2
             c = "xyz".index(obs.component)
             axis[:, c] = 1.0
-            obase[:] = float(inst.design.capsule(sides[oi[0]].capsule).center[c])
+            obase[:] = float(net.rest[oi[0], c])
     med = inst.medium
-    return GroupBlock(np.asarray(rows), tuple(s.capsule for s in sides), law,
-                      np.array([s.L for s in sides]), np.array([s.l for s in sides]), np.array([s.EI for s in sides]),
-                      cd, basis, k, np.asarray(unit.points, float), np.asarray(unit.normals, float),
-                      np.asarray(unit.jets, int), tau, arel, np.array([s.height for s in sides]),
-                      np.array([s.mode[0] for s in sides]), np.array([s.mode[1] for s in sides]),
-                      [ftable(s.bubble[0], s.bubble[1], med) for s in sides], kind, oi, oj, axis, obase)
+    tables = []
+    for o in range(n):
+        volume, radii, modes = net.bubbles[net.orif_cap[o]]
+        first = int(np.flatnonzero(net.orif_cap == net.orif_cap[o])[0])
+        tables.append(ftable(volume, radii, modes[o - first], med))
+    height = np.array([net.offsets[np.flatnonzero(net.orif_cap == c)[0], 2] + net.rest[c, 2]
+                       if np.any(net.orif_cap == c) else net.rest[c, 2] for c in range(len(net.caps))])
+    from acl.analysis.acoustics import _compute_engine, _layout
+    from acl.design.model import Drive, Tone
+
+    freqs = np.unique(fr[vr > 0])
+    fidx = np.full((r, T), -1)
+    for i, fk in enumerate(freqs):
+        fidx[(fr == fk) & (vr > 0)] = i
+    engines = []
+    if freqs.size:                # one force engine of every drive frequency of the rows at 1 V (per-tone responses)
+        key = ("eng", tuple(float(x) for x in freqs))
+        if key not in inst._tau:
+            inst._tau[key] = _compute_engine(inst.design, Drive(tones=tuple(Tone(frequency=float(x), amplitude=1.0)
+                                                                           for x in freqs)))
+        engines.append(inst._tau[key])
+    lay = _layout(inst.design)
+    names = [c.name for c in lay.caps]
+    extra = dict(engines=engines, fidx=fidx, orif_ix=np.array([lay.labels.index(lab) for lab in net.labels]),
+                 cap_ix=np.array([names.index(c) for c in net.caps]), all_rest=np.asarray(lay.rest, float),
+                 gamma0=float(gamma0), alpha_ref=float(alpha_ref))
+    return GroupBlock(np.asarray(rows), net.caps, law, np.array([s.L for s in sides]), np.array([s.l for s in sides]),
+                      np.array([s.EI for s in sides]), cd, basis, k, latch, np.asarray(net.cap_node, int),
+                      np.asarray(net.rest, float), np.asarray(net.outer, float), height,
+                      np.asarray(net.orif_cap, int), np.asarray(net.offsets, float), np.asarray(net.normals, float),
+                      tuple(net.labels), tau, arel, net.modes[:, 0].copy(), net.modes[:, 1].copy(), tables,
+                      kind, oi, oj, axis, obase, **extra)
 
 
 def _mode_factors(P, blk, coeffs, effects, t):
-    """(r, T, N) factor on each capsule's squared volume amplitude from free f0 / Q and bubble shrinkage (the same
-    one-mode ratio as acl.fit.forward._resonance_factors; the reference capsule's thrust at f_ref keeps gamma)."""
+    """(r, T, n) factor on each orifice's squared volume amplitude from free f0 / Q and bubble shrinkage: the one-mode
+    ratio |H(f; f_n', Q')|^2 / |H(f; f_n, Q)|^2 of the mode the orifice dominates (acl.physics.effects), normalised so
+    that the reference capsule's thrust at f_ref keeps gamma.  ``f0`` / ``q`` scale every mode alike, ``f0@CAP`` every
+    mode of one capsule (by its first mode's ratio), ``f0@CAP.ORIFICE`` one orifice's mode."""
     keys = [k for k in coeffs if k.split("@")[0] in ("f0", "q")]
     rate = effects.get("bubble_shrinkage", {}).get("shrink_rate", 0.0)
     if not keys and not rate:
@@ -139,52 +198,63 @@ def _mode_factors(P, blk, coeffs, effects, t):
     ref = P.ref_capsule
     fr, qr = P.modes0[ref]
     fr1, qr1 = fr, qr
+    caps = np.array([blk.caps[c] for c in blk.orif_cap], dtype=object)
     for key in keys:
-        what, _, cap = key.partition("@")
+        what, _, who = key.partition("@")
         j = 0 if what == "f0" else 1
-        scale = coeffs[key] / P.modes0[cap or ref][j]
-        hit = np.array([c == cap for c in blk.caps]) if cap else np.ones(len(blk.caps), bool)
+        scale = coeffs[key] / P.modes0[who or ref][j]
+        hit = (np.array([lab == who for lab in blk.labels]) if "." in who else caps == who) if who \
+            else np.ones(len(blk.labels), bool)
         if j == 0:
             fn = np.where(hit, fn * scale, fn)
         else:
             q = np.where(hit, q * scale, q)
-        if not cap or cap == ref:
+        if not who or who == ref or who == P.ref_orifice:
             fr1, qr1 = (fr1 * scale, qr1) if j == 0 else (fr1, qr1 * scale)
     norm = float(mode_response_ratio(P.f_ref, fr, qr, fr1, qr1)) if keys else 1.0
-    f = P.f[blk.rows][:, :, None]
-    fc = np.broadcast_to(fn, (blk.rows.size, len(blk.caps))).copy()
+    fc = np.broadcast_to(fn, (blk.rows.size, fn.size)).copy()
     if rate:
-        for i, (lx, lf) in enumerate(blk.tables):
-            fc[:, i] = fn[i] * np.exp(np.interp(-rate * t, lx, lf))
+        for o, (lx, lf) in enumerate(blk.tables):
+            fc[:, o] = fn[o] * np.exp(np.interp(-rate * t, lx, lf))
+    f = P.f[blk.rows][:, :, None]
     out = mode_response_ratio(f, blk.fn[None, None, :], blk.q[None, None, :], fc[:, None, :], q[None, None, :]) / norm
     return np.where(np.isfinite(out), out, 0.0)
 
 
-def predict(P, blk: GroupBlock, coeffs, effects, w, gamma, alpha, es, lam, grad, c_p) -> np.ndarray:
-    """Predicted observable change (m, relative to the row's ``base``) of the group's rows; ``w`` (r, T) the
-    squared drive pressure per V^2 of each tone (gain, its effects), the rest as in acl.fit.forward._predict."""
-    r, N = blk.rows.size, len(blk.caps)
+def predict(P, blk: GroupBlock, coeffs, effects, w, gamma, alpha, es, lam, grad, c_p) -> tuple:
+    """(predicted observable change (m, relative to the row's ``base``), snapped (r,) bool, latch push / switching
+    force (r,)) of the block's rows; ``w`` (r, T) the squared drive pressure per V^2 of each tone (gain, its effects),
+    the rest as in acl.fit.forward._predict."""
+    from acl.fit.forward import latch_travel
+
+    r, N, C, n = blk.rows.size, blk.law.size, len(blk.caps), blk.orif_cap.size
     t = P.t[blk.rows]
     res = _mode_factors(P, blk, coeffs, effects, t)
-    sub = np.ones(N)
+    sub_c = np.ones(C)
     if "substrate_proximity" in effects:
-        sub = substrate_factor(blk.height, effects["substrate_proximity"]["h_substrate"])
+        sub_c = substrate_factor(blk.cap_height, effects["substrate_proximity"]["h_substrate"])
+    sub = sub_c[blk.orif_cap]
     wt = w[:, :, None] if res is None else w[:, :, None] * res
-    thrust = gamma * (blk.tau * wt).sum(axis=1) * sub[None, :]                      # (r, N)
+    thrust = gamma * (blk.tau * wt).sum(axis=1) * sub[None, :]                       # (r, n)
     wab = w[:, :, None, None] if res is None else w[:, :, None, None] * np.sqrt(res[:, :, :, None] * res[:, :, None, :])
-    A = alpha * (blk.arel * wab).sum(axis=1) * np.sqrt(np.outer(sub, sub))[None]   # (r, N, N)
-    const = thrust[:, :, None] * -blk.normals[None]                                # own thrust (r, N, 3)
-    for i, j in enumerate(blk.jets):
-        if j >= 0:
-            const[:, j] += thrust[:, i, None] * blk.normals[i][None]             # i's jet drags j (F_AS = F_d)
+    A = alpha * (blk.arel * wab).sum(axis=1) * np.sqrt(np.outer(sub, sub))[None]    # (r, n, n)
+    onehot = np.zeros((n, C))
+    onehot[np.arange(n), blk.orif_cap] = 1.0
+    to_node = np.zeros((C, N))
+    to_node[np.arange(C), blk.cap_node] = 1.0
+    own = np.einsum("ro,ok,oc->rck", thrust, -blk.normals, onehot)                  # (r, C, 3) own thrust
+    dragged = blk.orif_cap[:, None] != np.arange(C)[None, :]                         # (n, C): a jet drags others
     beam = blk.law == 0
     cd, ct = B.stiffness_integrals(blk.L, blk.l, blk.EI * es, grad)
     cd = np.where(beam, cd, blk.cd)
     ct = np.where(beam, ct, 0.0)
     l_ = np.where(beam, blk.l, 0.0)
-    moving = blk.k > 0
+    moving = np.flatnonzero(blk.k > 0)
     m = int(blk.k.sum())
+    offs = np.concatenate([[0], np.cumsum(blk.k)])
     slots = [(i, c) for i in range(N) for c in range(blk.k[i])]
+    if N == 1:
+        c_p = 0.0                        # a body alone has no neighbour: neighbour_drag does not act
 
     def law(i, load):
         d = B.eq1_deflection(load, l_[i], cd[i], ct[i])
@@ -198,30 +268,98 @@ def predict(P, blk: GroupBlock, coeffs, effects, w, gamma, alpha, es, lam, grad,
             x[:, i] += z[:, s, None] * blk.basis[i, :, c][None]
         return x
 
-    def D(z, scale, rows_=slice(None)):
+    moves = N > 1 and bool(blk.engines)
+    if moves:
+        wab_all = wab if res is not None else np.broadcast_to(wab, w.shape + (1, 1))
+        wt_all = np.broadcast_to(wt, w.shape + (n,))
+        a_scale = alpha / blk.alpha_ref if blk.alpha_ref else 1.0
+
+    if moves:
+        eng = blk.engines[0]
+        k_thr = eng.consts["thrust"][:, blk.orif_ix]                                  # (F, n) thrust per |dV/p|^2
+        k_att = (eng.consts["bjerknes"][np.ix_(blk.orif_ix, blk.orif_ix)][None]
+                 * eng.consts["w2p2"][:, None, None])                                 # (F, n, n)
+        nf = eng.f.size
+
+    def responses(xc, rows_):
+        """(thrust (B, n), Bjerknes attraction x distance^2 (B, n, n)) of the group's orifices with its capsules
+        displaced by xc: the analysis' coupled volumes at that configuration (acl.analysis.acoustics _Engine, one
+        linear solve per configuration for every frequency), each tone weighted by its drive, gain effects and mode
+        factors."""
+        Bn = xc.shape[0]
+        centres = np.repeat(blk.all_rest[None], Bn, axis=0)
+        centres[:, blk.cap_ix] += xc
+        u = eng.response(centres[:, eng.lay.body] + eng.lay.offsets)[:, :, blk.orif_ix]   # (B, F, n) per pascal
+        fi = blk.fidx[rows_]
+        W = np.zeros((Bn, nf, n))
+        Wab = np.zeros((Bn, nf, n, n))
+        wr, wabr = wt_all[rows_], wab_all[rows_]
+        b = np.arange(Bn)
+        for t in range(fi.shape[1]):
+            on = fi[:, t] >= 0
+            np.add.at(W, (b[on], fi[on, t]), wr[on, t])
+            np.add.at(Wab, (b[on], fi[on, t]), wabr[on, t])
+        thr = ((u.real**2 + u.imag**2) * k_thr[None] * W).sum(axis=1)
+        prod = (u[:, :, :, None] * np.conj(u[:, :, None, :])).real
+        att = (prod * k_att[None] * Wab).sum(axis=1)
+        return thr * (gamma / blk.gamma0) * sub[None], att * a_scale * np.sqrt(np.outer(sub, sub))[None]
+
+    def loads(z, scale, rows_=slice(None)):
+        """(node loads (r, N, 3), orifice distances (r, n, n), node displacements (r, N, 3)) at coordinates z."""
         x = disp(z)
-        p = blk.points[None] + x
+        xc = x[:, blk.cap_node]                                                    # (r, C, 3)
+        p = blk.rest[None, blk.orif_cap] + blk.offsets[None] + xc[:, blk.orif_cap]  # (r, n, 3)
         sep = p[:, None, :, :] - p[:, :, None, :]                                 # p_j - p_i (r, i, j, 3)
         d = np.linalg.norm(sep, axis=-1)
         np.einsum("rii->ri", d)[:] = 1.0
-        fb = np.einsum("rij,rijk->rik", A[rows_] / d**3, sep)                     # attraction towards each j
-        F = scale[:, None, None] * (const[rows_] + fb)
+        # two orifices in contact (d = 0) would give inf * 0 = NaN, which the sums below would spread to every node
+        dc = np.maximum(d, 1e-12)
+        if moves:            # the volumes where the capsules are (coupling through the liquid, as the analysis)
+            th, att = responses(xc, rows_)
+            # orifices in contact (past snap-in) make the coupled response singular: there, the volumes at rest
+            bad = ~(np.isfinite(th).all(axis=1) & np.isfinite(att).all(axis=(1, 2)))
+            if bad.any():
+                th[bad] = thrust[rows_][bad]
+                att[bad] = A[rows_][bad]
+            fb = np.einsum("rij,rijk->rik", att / dc**3, sep)
+            F = np.einsum("ro,ok,oc->rck", th, -blk.normals, onehot) + np.einsum("rok,oc->rck", fb, onehot)
+        else:                # a body alone: nothing moves relative to it that it feels
+            th = thrust[rows_]
+            fb = np.einsum("rij,rijk->rik", A[rows_] / dc**3, sep)                # attraction of each i towards j
+            F = own[rows_] + np.einsum("rok,oc->rck", fb, onehot)
+        centres = blk.rest[None] + xc
+        xo = centres[:, None, :, :] - p[:, :, None, :]                            # (r, n, C, 3) orifice -> capsule
+        dist = np.linalg.norm(xo, axis=-1)
+        cos = np.einsum("rock,ok->roc", xo, blk.normals) / np.where(dist > 0, dist, 1.0)
+        drag = jet_drag(th[:, :, None], np.where(dragged, dist, 1.0), cos, blk.outer[None, None, :]) * dragged
+        F = F + np.einsum("roc,ok->rck", drag, blk.normals)
+        Fn = scale[:, None, None] * np.einsum("rck,cn->rnk", F, to_node)
         if c_p > 0:
-            F = drag_load(F, np.linalg.norm(x, axis=-1)[..., None], c_p)
+            Fn = drag_load(Fn, np.linalg.norm(x, axis=-1)[..., None], c_p)
+        return Fn, d, x
+
+    def D(z, scale, rows_=slice(None)):
+        Fn, d, _ = loads(z, scale, rows_)
         out = np.zeros_like(z)
-        for i in np.flatnonzero(moving):
-            Pi = np.einsum("rk,kc->rc", F[:, i], blk.basis[i, :, :blk.k[i]])
+        for i in moving:
+            Pi = np.einsum("rk,kc->rc", Fn[:, i], blk.basis[i, :, :blk.k[i]])
+            o = offs[i]
+            if blk.law[i] == 3:                   # latch: the push along its axis from state a (a pull leaves it)
+                out[:, o] = latch_travel(np.maximum(Pi[:, 0], 0.0), blk.latch[i], es)
+                continue
             mag = np.linalg.norm(Pi, axis=1)
             dl = law(i, mag)
-            o = sum(blk.k[:i])
             out[:, o:o + blk.k[i]] = np.divide(Pi * dl[:, None], mag[:, None], out=np.zeros_like(Pi),
                                                where=mag[:, None] > 0)
         return out, d
 
-    rest_d = np.linalg.norm(blk.points[None, :, :] - blk.points[:, None, :], axis=-1)
-    np.fill_diagonal(rest_d, np.inf)
-    h = 1e-9 * float(np.min(rest_d))
-    tol = 1e-6 * float(np.min(rest_d))
+    pts0 = blk.points
+    rest_d = np.linalg.norm(pts0[None, :, :] - pts0[:, None, :], axis=-1)
+    across = blk.orif_node[:, None] != blk.orif_node[None, :]                     # orifices of different nodes
+    rest_d = np.where(across, rest_d, np.inf)
+    scale_len = float(np.min(rest_d)) if np.isfinite(rest_d).any() else float(np.max(blk.L))
+    h = 1e-9 * scale_len
+    tol = 1e-6 * scale_len
 
     def jac(zl, sl, live, Fz):
         """Finite-difference Jacobian of z - D(z): the m perturbed copies of every row in one evaluation of D."""
@@ -231,7 +369,7 @@ def predict(P, blk: GroupBlock, coeffs, effects, w, gamma, alpha, es, lam, grad,
         return np.transpose(((zp - Dp) - Fz[None]) / h, (1, 2, 0))               # (nl, m rows, m cols)
 
     def solve(z0, sl, live, iters=N_NEWTON):
-        """Newton on z - D(z) = 0 from z0; (z, stable equilibrium found, relative gaps (rows, N, N))."""
+        """Newton on z - D(z) = 0 from z0; (z, stable equilibrium found, relative gaps (rows, n, n))."""
         zl = z0.copy()
         for _ in range(iters):
             Dz, _ = D(zl, sl, live)
@@ -246,15 +384,12 @@ def predict(P, blk: GroupBlock, coeffs, effects, w, gamma, alpha, es, lam, grad,
         Dz, d = D(zl, sl, live)
         Fz = zl - Dz
         det = np.linalg.det(jac(zl, sl, live, Fz))
-        rel = d / rest_d[None]
-        np.einsum("rii->ri", rel)[:] = np.inf
+        rel = np.where(across[None], d / np.where(across, rest_d, 1.0)[None], np.inf)
         good = (np.abs(Fz).max(axis=1) <= tol) & (det > 0) & (rel.reshape(live.size, -1).min(axis=1) > 0.02)
         return zl, good, rel
 
-    offs = np.concatenate([[0], np.cumsum(blk.k)])
-
     def solve_pinned(z0, rows, pinned, iters=N_NEWTON):
-        """Newton on the coordinates not in ``pinned`` (the two capsules in contact stay where they are)."""
+        """Newton on the coordinates not in ``pinned`` (the two nodes in contact stay where they are)."""
         free = np.setdiff1d(np.arange(m), pinned)
         zl = z0.copy()
         sl = np.ones(rows.size)
@@ -270,29 +405,32 @@ def predict(P, blk: GroupBlock, coeffs, effects, w, gamma, alpha, es, lam, grad,
             zl[:, free] += np.where(np.isfinite(dz), dz, 0.0)
         return zl
 
-    def _contact(solver, z, rows, i, j, warm):
-        """Capsules i and j in contact (paper Eq. (3) past snap-in): their orifices meet halfway (all the way when
-        one is fixed), projected on what their supports allow; the rest of the group in equilibrium around them."""
+    def _contact(z, rows, i, j, warm):
+        """Orifices i and j in contact (paper Eq. (3) past snap-in): they meet halfway (all the way when one node is
+        fixed), projected on what their nodes allow; the rest of the group in equilibrium around them."""
         zc = warm.copy()
-        line = blk.points[j] - blk.points[i]
-        share = (0.5, 0.5) if blk.k[i] and blk.k[j] else ((1.0, 0.0) if blk.k[i] else (0.0, 1.0))
+        ni, nj = blk.orif_node[i], blk.orif_node[j]
+        line = pts0[j] - pts0[i]
+        share = (0.5, 0.5) if blk.k[ni] and blk.k[nj] else ((1.0, 0.0) if blk.k[ni] else (0.0, 1.0))
         pinned = []
-        for cap, sgn, sh in ((i, 1.0, share[0]), (j, -1.0, share[1])):
-            o, k = offs[cap], blk.k[cap]
+        for node, sgn, sh in ((ni, 1.0, share[0]), (nj, -1.0, share[1])):
+            o, k = offs[node], blk.k[node]
             if k:
-                zc[:, o:o + k] = (sgn * sh * line) @ blk.basis[cap, :, :k]
+                zc[:, o:o + k] = (sgn * sh * line) @ blk.basis[node, :, :k]
                 pinned.extend(range(o, o + k))
-        return solver(zc, rows, np.array(pinned, int))
+        return solve_pinned(zc, rows, np.array(pinned, int))
 
     snapped = np.zeros(r, bool)
     closing = np.zeros((r, 2), int)
+    everyone = np.arange(r)
     if m == 0:
         z = np.zeros((r, 0))
+    elif N == 1:
+        z = D(np.zeros((r, m)), np.ones(r), everyone)[0]           # a body alone: its load does not depend on z
     else:
         # most rows: Newton at full load from the last solution found for them (warm start across the optimizer's
         # evaluations) or from rest; the rows where that fails are followed from rest by continuation
         start = blk.cache if blk.cache is not None and blk.cache.shape == (r, m) else np.zeros((r, m))
-        everyone = np.arange(r)
         was = blk.contact_rows() if blk.cache is not None and blk.cache.shape == (r, m) else np.zeros(r, bool)
         z = np.zeros((r, m))
         good = np.zeros(r, bool)
@@ -323,11 +461,11 @@ def predict(P, blk: GroupBlock, coeffs, effects, w, gamma, alpha, es, lam, grad,
             last_good[rows_[ok]] = step
             bad = rows_[~ok]
             if bad.size:
-                # no stable equilibrium next to the last one: the branch folded (snap-in); the pair closest to
-                # touching at the last stable configuration closes
+                # no stable equilibrium next to the last one: the branch folded (snap-in); the orifices closest to
+                # touching at the last stable configuration close
                 _, _, rel = solve(z[bad], np.full(bad.size, (step - 1) / N_STEPS), bad, 0)
                 flat = rel.reshape(bad.size, -1).argmin(axis=1)
-                closing[bad] = np.column_stack(np.unravel_index(flat, (N, N)))
+                closing[bad] = np.column_stack(np.unravel_index(flat, (n, n)))
                 snapped[bad] = True
                 last_good[bad] = step - 1
             todo = np.setdiff1d(todo, bad)
@@ -335,16 +473,25 @@ def predict(P, blk: GroupBlock, coeffs, effects, w, gamma, alpha, es, lam, grad,
         for i, j in {(int(a), int(b)) for a, b in closing[snapped]}:
             sel = np.flatnonzero(snapped & (closing[:, 0] == i) & (closing[:, 1] == j))
             warm = start[sel] if blk.cache is not None else z[sel]
-            z[sel] = _contact(solve_pinned, z, sel, i, j, warm)
+            z[sel] = _contact(z, sel, i, j, warm)
         blk.cache = z.copy()
         blk.closing = np.where(snapped[:, None], closing, -1)
-    x = disp(z)
-    p = blk.points[None] + x
+    Fn, _, x = loads(z, np.ones(r), everyone)
+    xc = x[:, blk.cap_node]
+    p = blk.rest[None, blk.orif_cap] + blk.offsets[None] + xc[:, blk.orif_cap]
     rr = np.arange(r)
     gap = np.linalg.norm(p[rr, blk.oj] - p[rr, blk.oi], axis=1)
-    rest_gap = np.linalg.norm(blk.points[blk.oj] - blk.points[blk.oi], axis=1)
+    rest_gap = np.linalg.norm(pts0[blk.oj] - pts0[blk.oi], axis=1)
     contact = snapped & (((closing[:, 0] == blk.oi) & (closing[:, 1] == blk.oj))
                          | ((closing[:, 0] == blk.oj) & (closing[:, 1] == blk.oi)))
     gap = np.where(contact, 0.0, gap)
-    moved = np.einsum("rk,rk->r", x[rr, blk.oi], blk.axis)
-    return np.where(blk.kind == 0, gap - rest_gap, moved), snapped
+    oc = np.where(blk.kind == 0, 0, blk.oi)
+    moved = np.einsum("rk,rk->r", xc[rr, oc], blk.axis)
+    ratio = np.zeros(r)
+    node = blk.cap_node[oc]
+    for i in np.unique(node[blk.kind == 3]):
+        if blk.law[i] == 3:
+            sel = (blk.kind == 3) & (node == i)
+            push = np.einsum("rk,k->r", Fn[sel, i], blk.basis[i, :, 0])
+            ratio[sel] = np.maximum(push, 0.0) / (blk.latch[i][2] * es)
+    return np.where(blk.kind == 0, gap - rest_gap, moved), snapped, ratio

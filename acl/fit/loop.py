@@ -65,7 +65,7 @@ def _play(truth, schedule, noise=0.0, seed=0, observables=()):
 
 def run_loop(nominal: str, truth: str, program: str, workdir: str, *, noise: float = 0.05e-6, seed: int = 0,
              free=("gamma",), observables=(), band_samples: int = 20, nonlinear_passes: int = 3,
-             waypoint_dt: float = 0.01) -> LoopResult:
+             waypoint_dt: float = 0.01, allow_nonlinear: bool = False) -> LoopResult:
     """Run the loop for one follow goal (the first of ``program``); files go to ``workdir``."""
     import acl
     from acl.fit import run_fit
@@ -73,7 +73,8 @@ def run_loop(nominal: str, truth: str, program: str, workdir: str, *, noise: flo
     from acl.schedule.compile import CompileOptions
 
     truth_design = acl.load(truth)
-    base = CompileOptions(waypoint_dt_s=waypoint_dt, nonlinear_passes=nonlinear_passes)
+    base = CompileOptions(waypoint_dt_s=waypoint_dt, nonlinear_passes=nonlinear_passes,
+                          allow_nonlinear=allow_nonlinear)
     s0 = _compile(nominal, program, base)
     first = _play(truth_design, s0, noise=noise, seed=seed, observables=observables)
     data_path = os.path.join(workdir, "run_before.csv")
@@ -89,7 +90,7 @@ def run_loop(nominal: str, truth: str, program: str, workdir: str, *, noise: flo
         return acl.load(cal_path, overrides=ov, search_paths=paths)
 
     opts = CompileOptions(waypoint_dt_s=waypoint_dt, nonlinear_passes=nonlinear_passes,
-                          band_samples=band_samples, band_seed=seed, reload=reload)
+                          band_samples=band_samples, band_seed=seed, reload=reload, allow_nonlinear=allow_nonlinear)
     s1 = _compile(cal_path, program, opts, paths)
     after = _play(truth_design, s1)
     floor = _play(truth_design, _compile(truth, program, base))
@@ -100,12 +101,15 @@ def run_loop(nominal: str, truth: str, program: str, workdir: str, *, noise: flo
                       list(out.selection.selected), cal_path, list(s1.notes))
 
 
-def seeded_truth(nominal_text: str, rng: np.random.Generator, extends: str) -> str:
-    """A truth: the nominal design with a per-tone gain tilt (tones 110-140 kHz differ by up to 30 %),
-    a pressure scale and one undeclared effect (drive saturation), drawn from ``rng``."""
-    slope = rng.uniform(-1.0, 1.0) * np.log(1.3) * 125.0 / 30.0     # |gain(140)/gain(110) - 1| <= 30 %
+def seeded_truth(nominal_text: str, rng: np.random.Generator, extends: str, *,
+                 span_hz: tuple[float, float] = (110e3, 140e3), v_sat: tuple[float, float] = (5.0, 10.0)) -> str:
+    """A truth: the nominal design with a per-tone gain tilt (the tones at the ends of ``span_hz``
+    differ by up to 30 %), a pressure scale 0.85-1.15 and one undeclared effect (drive saturation,
+    V_s uniform in ``v_sat``), drawn from ``rng``."""
+    lo, hi = span_hz
+    slope = rng.uniform(-1.0, 1.0) * np.log(1.3) * 125e3 / (hi - lo)   # |gain(hi)/gain(lo) - 1| <= 30 %
     gain = rng.uniform(0.85, 1.15)
-    v_sat = rng.uniform(5.0, 10.0)
+    vs = rng.uniform(*v_sat)
     return (f'extends "{extends}"\n'
             f"effect transducer_gain {{ gain_slope = {slope:.6g}, f_ref = 125 kHz, gain = {gain:.6g} }}\n"
-            f"effect drive_saturation {{ v_sat = {v_sat:.6g} V }}\n")
+            f"effect drive_saturation {{ v_sat = {vs:.6g} V }}\n")

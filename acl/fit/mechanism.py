@@ -13,10 +13,12 @@ Eq. (3): Bjerknes attraction, thrust and the partner's jet drag); every other ca
 Each row belongs to the unit of its observable, so one data set can mix experiments (a pair and an
 isolated calibration cantilever of the same design) that share every coefficient.  Capsules of
 different units are taken not to interact (declare a ``gap`` observe between two capsules to
-couple them).  Groups of three or more interacting capsules, trussed arms, multi-orifice capsules
-and planar (x, y) positioning are diagnostics (E810), not guesses.  Frequency responses come from
-:mod:`acl.analysis.acoustics` (thrust and Bjerknes coefficient per V^2 at each tone frequency, with
-the design's transducer table).
+couple them).  Three or more interacting capsules, bodies (several orifices, trussed capsules) alone
+or interacting, and latches among interacting capsules are *groups* (:class:`Network`, solved by
+:mod:`acl.fit.group` with the analysis' force terms); a body on two supports, a direction a body
+cannot move in, capsules floating on springs are diagnostics (E810), not guesses.  Frequency
+responses come from :mod:`acl.analysis.acoustics` (thrust and Bjerknes coefficient per V^2 at each
+tone frequency, with the design's transducer table).
 """
 from __future__ import annotations
 
@@ -46,8 +48,8 @@ class Side:
     rest: np.ndarray = field(default_factory=lambda: np.zeros(3))
     mode: tuple = (1e5, 10.0)    # natural frequency (Hz) and Q of the first mode
     bubble: tuple = (0.0, 0.0)   # gas volume (m^3), orifice radius (m)
-    members: tuple = ()          # body: every capsule moving with this side (trusses), all thrusts add (vector units)
-    basis: np.ndarray = None     # body: 3 x k directions it can move along (vector units; k = 1 or 2)
+    members: tuple = ()          # group node: every capsule moving with it (trusses)
+    basis: np.ndarray = None     # group node: 3 x k directions it can move along (k = 0, 1 or 2)
 
 
 @dataclass
@@ -55,10 +57,7 @@ class Unit:
     kind: str                    # "single" | "pair"
     sides: tuple                 # 1 or 2 Side
     d0: float = float("nan")     # pair: rest distance between the orifices
-    vector: bool = False         # single: a body moving in 1 or 2 directions under the vector sum of its thrusts
-    points: np.ndarray = None    # group: (N, 3) orifice centres at rest
-    normals: np.ndarray = None   # group: (N, 3) outward orifice normals (the jets)
-    jets: tuple = ()             # group: index of the capsule each jet drags (-1: none)
+    net: object = None           # group: the Network of its bodies, capsules and orifices
 
     @property
     def capsules(self):
@@ -83,8 +82,6 @@ class Instance:
     def output_map(self, obs) -> tuple[float, float, float]:
         """(base, scale on deflection of side 0, scale on side 1) of observable ``obs``."""
         unit = self.units[obs.name]
-        if unit.vector:
-            raise ValueError("vector unit: use vector_map")
         if obs.kind == "state":              # predicted from the latch's push (acl.fit.forward), not a position
             return 0.0, 0.0, 0.0
         if obs.kind == "gap":
@@ -99,30 +96,6 @@ class Instance:
         comp = "xyz".index(obs.component)
         s[k] = float(side.u[comp])
         return float(side.rest[comp]), s[0], s[1]
-
-
-    def vector_map(self, obs) -> tuple[float, np.ndarray]:
-        """(base, weights on the body's basis directions) of observable ``obs`` of a vector unit."""
-        side = self.units[obs.name].sides[0]
-        w = np.zeros(2)
-        k = side.basis.shape[1]
-        if obs.kind == "state":
-            return 0.0, w
-        if obs.kind == "displacement":
-            axis = np.asarray(obs.axis, float)
-            w[:k] = (axis / np.linalg.norm(axis)) @ side.basis
-        else:
-            comp = "xyz".index(obs.component)
-            w[:k] = side.basis[comp]
-        if not np.any(np.abs(w) > 1e-9):
-            why = ", ".join(j.element for j in self.design.joints if j.kind == "link" and j.element_kind == "truss"
-                            and (j.a in side.members or j.b in side.members))
-            raise _unsupported(obs, f"it measures a direction in which the body of `{side.capsule}` cannot move "
-                               f"(its support{' and the truss ' + why if why else ''} hold it there): the data cannot "
-                               "tell any coefficient", "observe a direction the body moves in")
-        if obs.kind == "displacement":
-            return 0.0, w
-        return float(np.asarray(self.design.capsule(obs.target).center, float)["xyz".index(obs.component)]), w
 
 
 def _unsupported(obs, why, hint=None):
@@ -255,43 +228,29 @@ def _needs_body(design, cap) -> bool:
                                        for j in design.joints)
 
 
-def _body_side(design, cap_name, obs) -> Side:
-    """Side of a rigid body (capsule + what trusses tie to it) on its support, moving in its allowed directions
-    under the vector sum of its members' thrusts (acl.analysis.acoustics.thrust_vectors)."""
-    from acl.analysis.acoustics import capsule_modes
+def _needs_group(design, caps) -> bool:
+    """Capsules a pair (paper Eq. (3), one orifice each on its own support) cannot follow: a body (several orifices,
+    trussed) or a latch among them; they are solved as a group (acl.fit.group)."""
+    return any(_needs_body(design, c) or _carrier(design, c)[0] == "latch" for c in caps)
 
-    members, held, basis = rigid_body(design, cap_name)
-    law, element = _carrier(design, held)
-    cap = design.capsule(held)
-    if law is None:
-        raise DiagnosticError([error("E810", f"{element}: the fit model handles bodies on cantilevers, springs and "
-                                     "latches, or fixed (docs/fit.md)", cap.span)])
-    if basis.shape[1] == 0:
-        raise _unsupported(obs, f"the body of `{cap_name}` ({', '.join(members)}) cannot move: it is fixed or held by "
-                           "trusses in every direction its support allows", "observe a body that can move")
-    m = capsule_modes(design, cap)[0] if cap.orifices else None
-    s = Side(held, element, law, height=float(cap.orifices[0].center[2] if cap.orifices else cap.center[2]),
-             rest=np.asarray(cap.center, float), mode=(m.frequency_hz, m.q) if m else (1e5, 10.0),
-             bubble=(float(cap.cavity.volume), float(cap.orifices[0].radius) if cap.orifices else 0.0),
-             members=members, basis=basis, u=basis[:, 0], proj=1.0)
-    if law == "beam":
-        b = design.beam(element)
-        s.L, s.l, s.EI, s.E = b.length, b.rigid_length, b.bending_stiffness, b.youngs_modulus
-    elif law == "spring":
-        s.compliance = 1.0 / design.spring(element).stiffness
-    elif law == "latch":
-        from acl.analysis.mechanics import latch_geometry
 
-        lt = design.latch(element)
-        s.latch = tuple(float(x) for x in latch_geometry(lt))
-        s.E = float(lt.youngs_modulus)
-        if lt.state != "a":
-            raise DiagnosticError([error("E810", f"latch `{lt.name}` rests in state b; the fit model starts latches "
-                                         "in state a (as printed)", lt.span)])
-        a = np.asarray(lt.axis, float) / np.linalg.norm(lt.axis)
-        s.basis = a[:, None]
-        s.u = a
-    return s
+def _check_direction(design, unit, obs) -> None:
+    """E810 at ``obs`` when it measures a direction in which its capsule's node cannot move (the data cannot tell
+    any coefficient: paper Fig. 5a with the trusses as bars holds each arm along the line of its load)."""
+    if obs.kind not in ("displacement", "position"):
+        return
+    net = unit.net
+    cap = _target_capsule(design, obs)
+    node = unit.sides[int(net.cap_node[net.caps.index(cap)])]
+    axis = (np.asarray(obs.axis, float) / np.linalg.norm(obs.axis) if obs.kind == "displacement"
+            else np.eye(3)["xyz".index(obs.component)])
+    if node.basis.shape[1] and np.any(np.abs(axis @ node.basis) > 1e-9):
+        return
+    why = ", ".join(j.element for j in design.joints if j.kind == "link" and j.element_kind == "truss"
+                    and (j.a in node.members or j.b in node.members))
+    raise _unsupported(obs, f"it measures a direction in which the body of `{cap}` cannot move (its support"
+                       f"{' and the truss ' + why if why else ''} hold it there): the data cannot tell any coefficient",
+                       "observe a direction the body moves in")
 
 
 def build_instance(design) -> Instance:
@@ -332,7 +291,7 @@ def build_instance(design) -> Instance:
         return units_by_caps[caps]
 
     def pair_unit(a, b, obs):
-        if len(comp.get(a, ())) > 2:
+        if len(comp.get(a, ())) > 2 or _needs_group(design, comp.get(a, (a, b))):
             return group_unit(comp[a], obs)
         key = tuple(sorted((a, b)))
         if key not in units_by_caps:
@@ -363,14 +322,22 @@ def build_instance(design) -> Instance:
             units[o.name] = pair_unit(a, b, o)
             continue
         cap = _target_capsule(design, o)
-        if len(comp.get(cap, ())) > 2:
+        if cap not in comp and _needs_body(design, cap):
+            # a member of a trussed body whose other member interacts: that group
+            members = rigid_body(design, cap)[0]
+            cap = next((m for m in members if m in comp), cap)
+        if len(comp.get(cap, ())) > 2 or (cap in comp and _needs_group(design, comp[cap])):
             units[o.name] = group_unit(comp[cap], o)
+            _check_direction(design, units[o.name], o)
             continue
         if cap in partners:
             units[o.name] = pair_unit(cap, next(iter(partners[cap])), o)
             continue
-        if (cap,) not in units_by_caps and _needs_body(design, cap):
-            units_by_caps[(cap,)] = Unit("single", (_body_side(design, cap, o),), vector=True)
+        if _needs_body(design, cap):
+            # a body alone (several orifices, or trussed): a group of one node (acl.fit.group)
+            units[o.name] = group_unit((cap,), o)
+            _check_direction(design, units[o.name], o)
+            continue
         if (cap,) not in units_by_caps:
             c = design.capsule(cap)
             if not c.orifices:
@@ -383,49 +350,147 @@ def build_instance(design) -> Instance:
                     medium=(med.density, med.surface_tension, med.ambient_pressure, med.polytropic_index))
 
 
-def _group(design, caps, obs) -> Unit:
-    """A group of three or more capsules named together in ``gap`` observes: each on its own support (a beam moves
-    across its axis, a spring along it, fixed not at all); every two interact (paper Eq. (3) Bjerknes attraction
-    along the line of their orifices) and each jet drags the first capsule it points at (the paper's F_AS = F_d of
-    Eq. (3), generalised: the drag equals the jet's thrust, along the jet)."""
-    from acl.analysis.acoustics import capsule_modes
-    from acl.analysis.mechanics import _perp_basis
+@dataclass
+class Network:
+    """The capsules and orifices of a group (acl.fit.group): every capsule rides one node (a rigid body on one
+    support, :func:`rigid_body`), every orifice belongs to one capsule; arrays in this order."""
 
-    sides = []
+    caps: tuple                  # C capsule names (design order)
+    cap_node: np.ndarray         # (C,) node (Unit.sides index) carrying each capsule
+    rest: np.ndarray             # (C, 3) capsule centres at rest
+    outer: np.ndarray            # (C,) equal-volume sphere + wall radius (the body a jet drags, acl.analysis.acoustics)
+    labels: tuple                # n orifice labels "capsule.orifice"
+    orif_cap: np.ndarray         # (n,) capsule index of each orifice
+    offsets: np.ndarray          # (n, 3) orifice centre - capsule centre
+    normals: np.ndarray          # (n, 3) outward unit normals (the jets)
+    modes: np.ndarray            # (n, 2) natural frequency (Hz) and Q of the mode each orifice dominates
+    bubbles: tuple               # per capsule: (gas volume, orifice radii, natural frequency of each orifice's mode)
+
+    @property
+    def points(self) -> np.ndarray:
+        """(n, 3) orifice centres at rest."""
+        return self.rest[self.orif_cap] + self.offsets
+
+
+def orifice_modes(design, cap) -> list:
+    """[(f_n, Q, mode index)] of each orifice of ``cap``: the fundamental the orifice dominates
+    (acl.analysis.acoustics.capsule_modes; an orifice dominating none takes the mode it moves most in)."""
+    from acl.analysis.acoustics import capsule_modes
+
+    c = design.capsule(cap)
+    ms = capsule_modes(design, c)
+    out = []
+    for o in c.orifices:
+        k = next((i for i, m in enumerate(ms) if m.dominant_orifice == o.name), None)
+        if k is None:
+            k = int(np.argmax([m.shares.get(o.name, 0.0) for m in ms])) if ms else 0
+        m = ms[k] if ms else None
+        out.append((m.frequency_hz, m.q, k) if m else (1e5, 10.0, 0))
+    return out
+
+
+def _node(design, cap, obs) -> Side:
+    """The node (rigid body on its support) carrying capsule ``cap`` in a group: a beam moves across its axis (less
+    the directions trusses to fixed points hold), a spring along its axis, a latch along its axis from state a, a
+    fixed capsule (or one tied to a fixed point in every direction) not at all."""
+    members, held, basis = rigid_body(design, cap)
+    law, element = _carrier(design, held)
+    hc = design.capsule(held)
+    if law is None:
+        raise DiagnosticError([error("E810", f"{element}: in a group the fit model handles bodies on cantilevers, "
+                                     "springs and latches, or fixed (docs/fit.md)", hc.span)])
+    s = Side(held, element, law, height=float(hc.orifices[0].center[2] if hc.orifices else hc.center[2]),
+             rest=np.asarray(hc.center, float), members=members, basis=basis)
+    if basis.shape[1] == 0:
+        s.law, s.element = "fixed", ""
+    elif law == "beam":
+        b = design.beam(element)
+        s.L, s.l, s.EI, s.E = b.length, b.rigid_length, b.bending_stiffness, b.youngs_modulus
+    elif law == "spring":
+        s.compliance = 1.0 / design.spring(element).stiffness
+    elif law == "latch":
+        from acl.analysis.mechanics import latch_geometry
+
+        lt = design.latch(element)
+        if lt.state != "a":
+            raise DiagnosticError([error("E810", f"latch `{lt.name}` rests in state b; the fit model starts latches "
+                                         "in state a (as printed)", lt.span)])
+        s.latch = tuple(float(x) for x in latch_geometry(lt))
+        s.E = float(lt.youngs_modulus)
+        a = np.asarray(lt.axis, float) / np.linalg.norm(lt.axis)
+        s.basis = a[:, None]
+    s.u = s.basis[:, 0] if s.basis.shape[1] else np.zeros(3)
+    return s
+
+
+def _group(design, caps, obs) -> Unit:
+    """A group: the capsules named together in ``gap`` observes (with every capsule their rigid bodies carry), or a
+    body moving alone; each node on its own support.  Forces per orifice as in acl.analysis.acoustics.force_model:
+    thrust along -n, secondary Bjerknes force between every two orifices of different capsules (paper Eq. (3)),
+    the Schlichting jet of every orifice dragging every other capsule (acl.physics.forces.jet_drag)."""
+    from acl.analysis.acoustics import _outer_radius
+
+    caps = list(caps)
+    for name in caps:        # a truss's other end interacts with the body it holds (paper Fig. 5a bars): include it
+        for j in design.joints:
+            if j.kind == "link" and j.element_kind == "truss" and name in (j.a, j.b):
+                other = j.b if j.a == name else j.a
+                if other not in caps and any(c.name == other for c in design.capsules):
+                    caps.append(other)
+    nodes, node_of = [], {}
     for name in caps:
-        cap = design.capsule(name)
-        law, element = _carrier(design, name)
-        if law is None:
-            raise DiagnosticError([error("E810", f"{element}: in a group the fit model handles capsules on "
-                                         "cantilevers and springs, or fixed (docs/fit.md)", cap.span)])
-        if law == "latch":
-            raise _unsupported(obs, f"capsule `{name}` rides a latch; a latch in a pair or a group is not in the fit "
-                               "model", "observe the latch alone")
-        s = _side(design, name, -np.asarray(cap.orifices[0].normal, float) if len(cap.orifices) == 1 else (1, 0, 0))
-        if law == "beam":
-            s.basis = _perp_basis(design.beam(element).axis)
-        elif law == "spring":
-            ax = np.asarray(design.spring(element).axis, float)
-            s.basis = (ax / np.linalg.norm(ax))[:, None]
-        else:
-            s.basis = np.zeros((3, 0))
-        s.members = (name,)
-        sides.append(s)
-    if all(s.law == "fixed" for s in sides):
+        if name in node_of:
+            continue
+        s = _node(design, name, obs)
+        for m in s.members:
+            node_of[m] = len(nodes)
+        nodes.append(s)
+    if all(s.law == "fixed" for s in nodes):
+        if len(nodes) == 1:
+            raise _unsupported(obs, f"the body of `{caps[0]}` ({', '.join(nodes[0].members)}) cannot move: it is fixed "
+                               "or held by trusses in every direction its support allows", "observe a body that can move")
         raise _unsupported(obs, "every capsule of the group is fixed: nothing moves")
-    pts = np.array([design.capsule(n).orifices[0].center for n in caps], float)
-    nrm = np.array([design.capsule(n).orifices[0].normal for n in caps], float)
-    nrm /= np.linalg.norm(nrm, axis=1, keepdims=True)
-    jets = []
-    for i in range(len(caps)):
-        line = pts - pts[i]
-        dist = np.linalg.norm(line, axis=1)
-        cos = np.where(dist > 0, line @ nrm[i] / np.where(dist > 0, dist, 1.0), -1.0)
-        hit = np.flatnonzero(cos > np.cos(np.radians(30.0)))       # within 30 deg of the jet axis
-        jets.append(int(hit[np.argmin(dist[hit])]) if hit.size else -1)
-    return Unit("group", tuple(sides), float(np.min([np.linalg.norm(pts[i] - pts[j]) for i in range(len(caps))
-                                                    for j in range(i + 1, len(caps))])),
-                points=pts, normals=nrm, jets=tuple(jets))
+    names = tuple(c.name for c in design.capsules if c.name in node_of)
+    labels, orif_cap, offs, nrm, modes, bubbles = [], [], [], [], [], []
+    for ci, name in enumerate(names):
+        c = design.capsule(name)
+        om = orifice_modes(design, name) if c.orifices else []
+        for o, (fn, q, _) in zip(c.orifices, om):
+            labels.append(f"{name}.{o.name}")
+            orif_cap.append(ci)
+            offs.append(np.subtract(o.center, c.center))
+            n = np.asarray(o.normal, float)
+            nrm.append(n / np.linalg.norm(n))
+            modes.append((fn, q))
+        bubbles.append((float(c.cavity.volume), tuple(float(o.radius) for o in c.orifices), tuple(fn for fn, *_ in om)))
+    if not labels:
+        raise _unsupported(obs, "no capsule of the group has an orifice: nothing pushes")
+    net = Network(names, np.array([node_of[n] for n in names]), np.array([design.capsule(n).center for n in names], float),
+                  np.array([_outer_radius(design.capsule(n)) for n in names]), tuple(labels), np.array(orif_cap),
+                  np.array(offs, float).reshape(-1, 3), np.array(nrm, float).reshape(-1, 3), np.array(modes, float),
+                  tuple(bubbles))
+    pts = net.points
+    other = net.cap_node[net.orif_cap][:, None] != net.cap_node[net.orif_cap][None, :]
+    dd = np.linalg.norm(pts[:, None] - pts[None], axis=-1)
+    d0 = float(dd[other].min()) if other.any() else float("nan")
+    return Unit("group", tuple(nodes), d0, net=net)
+
+
+def orifice_forces_per_v2(inst, frequency: float) -> tuple:
+    """(labels, thrust (n,) N/V^2, Bjerknes coefficient att d^2 (n, n) N m^2/V^2) of every orifice of the design at
+    rest under one tone of 1 V at ``frequency``: the analysis' own force terms (acl.analysis.acoustics, coupled
+    volumes, transducer table, declared thrust)."""
+    key = ("o", float(frequency))
+    if key not in inst._tau:
+        from acl.analysis.acoustics import _engine, interface_labels
+        from acl.design.model import Drive, Tone
+
+        eng = _engine(inst.design, Drive(tones=(Tone(frequency=float(frequency), amplitude=1.0),)))
+        _, _, thr, att = eng.rest_forces()
+        pts = eng.lay.points(eng.lay.rest)
+        d2 = ((pts[:, None] - pts[None]) ** 2).sum(axis=-1)
+        inst._tau[key] = (interface_labels(inst.design), np.asarray(thr[0], float), np.asarray(att[0] * d2, float))
+    return inst._tau[key]
 
 
 def _target_capsule(design, obs) -> str:
@@ -449,18 +514,6 @@ def thrust_per_v2(inst: Instance, frequency: float) -> dict:
 
         tv = thrust_vectors(inst.design, Drive(tones=(Tone(frequency=float(frequency), amplitude=1.0),)))
         inst._tau[key] = {c: float(np.linalg.norm(v)) for c, v in tv.items()}
-    return inst._tau[key]
-
-
-def thrust_vec_per_v2(inst: Instance, frequency: float) -> dict:
-    """{capsule: thrust 3-vector (N/V^2)} at ``frequency`` (acl.analysis.acoustics, declared thrust applied)."""
-    key = ("tv", float(frequency))
-    if key not in inst._tau:
-        from acl.analysis.acoustics import thrust_vectors
-        from acl.design.model import Drive, Tone
-
-        tv = thrust_vectors(inst.design, Drive(tones=(Tone(frequency=float(frequency), amplitude=1.0),)))
-        inst._tau[key] = {c: np.asarray(v, float) for c, v in tv.items()}
     return inst._tau[key]
 
 
@@ -495,11 +548,15 @@ def reference_pair(inst: Instance, unit: Unit) -> tuple:
     """The capsules of the reference pair of a pair or group unit: the pair, or the first gap observed in the group."""
     if unit.kind == "pair":
         return unit.capsules
+    caps = unit.net.caps if unit.net is not None else unit.capsules
     for o in inst.design.observes:
         if o.kind == "gap":
             a, b = o.a.split(".")[0], o.b.split(".")[0]
-            if a in unit.capsules and b in unit.capsules:
+            if a in caps and b in caps:
                 return a, b
+    if unit.net is not None:       # the first two capsules on different nodes (a body alone has none: no pair)
+        node = dict(zip(unit.net.caps, unit.net.cap_node))
+        return next(((a, b) for i, a in enumerate(caps) for b in caps[i + 1:] if node[a] != node[b]), ())
     return unit.capsules[:2]
 
 

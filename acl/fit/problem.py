@@ -81,10 +81,17 @@ def load_problem(design_path, data_paths, free=(), search_paths=()):
                 raise DiagnosticError([error("E-USAGE", f"--free {name}: give a capsule after `{what}:`",
                                              Span(file="<--free>", line=1, column=1),
                                              f"e.g. {what}:{sorted(caps)[0]}" if caps else "the design has no capsule")])
-            if cap not in caps:
-                raise DiagnosticError([error("E-USAGE", f"--free {name}: no capsule `{cap}`",
+            orifices = sorted(f"{c.name}.{o.name}" for c in design.capsules for o in c.orifices)
+            if cap not in caps and cap not in orifices:
+                raise DiagnosticError([error("E-USAGE", f"--free {name}: no capsule `{cap}`" if "." not in cap else
+                                             f"--free {name}: no orifice `{cap}`",
                                              Span(file="<--free>", line=1, column=1),
-                                             suggest(cap, sorted(caps)) or f"capsules: {', '.join(sorted(caps))}")])
+                                             suggest(cap, sorted(caps) + orifices)
+                                             or f"capsules: {', '.join(sorted(caps))}")])
+            if cap not in P.modes0:
+                raise DiagnosticError([error("E-USAGE", f"--free {name}: `{cap}` is in no unit the data observe",
+                                             Span(file="<--free>", line=1, column=1),
+                                             f"observed: {', '.join(sorted(k for k in P.modes0 if '.' not in k))}")])
             role = f"{what}@{cap}"
         if role is None:
             cands = list(dict.fromkeys([*COEFFICIENTS, *[p.name for p in design.params]]))

@@ -106,6 +106,35 @@ def outliers(problem, fit, limit: float = solve.JUMP) -> list[dict]:
     return out
 
 
+def alternative_spread(problem, selection) -> float:
+    """Largest RMS difference (m) between the selected model's and an ambiguous alternative's predictions over the
+    rows that observe a length (0 when nothing is ambiguous): what the data cannot decide, added to the calibrated
+    design's discrepancy (acl/fit/calibrated.py)."""
+    st = problem.prepared.state
+    keep = ~st if st is not None else np.ones(problem.data.n, bool)
+    out = 0.0
+    for a in getattr(selection, "ambiguous", []) or []:
+        d = (a["fit"].prediction - selection.final.prediction)[keep]
+        d = d[np.isfinite(d)]
+        if d.size:
+            out = max(out, float(np.sqrt(np.mean(d * d))))
+    return out
+
+
+def ambiguous_entries(selection, problem) -> list[dict]:
+    """report.json `ambiguous`: each alternative effect set that explains the data as well as the selected one."""
+    from acl.fit.select import AMBIGUOUS_CHI2
+
+    out = []
+    for a in getattr(selection, "ambiguous", []) or []:
+        out.append({"effects": list(a["effects"]), "replaces": a["replaces"], "by": a["by"],
+                    "delta_chi2": _n(a["delta_chi2"]), "delta_bic": _n(a["delta_bic"]),
+                    "threshold_chi2": AMBIGUOUS_CHI2, "separate_by": a["separate_by"],
+                    "parameters": [e for e in param_entries(a["fit"], problem) if e["name"].startswith(a["by"] + ".")],
+                    "rmse": _n(length_rmse(problem, a["fit"]))})
+    return out
+
+
 def build_report(problem, selection, tests_before, tests_after, calibrated_name=None) -> dict:
     from acl.fit.residuals import structured
 
@@ -133,6 +162,7 @@ def build_report(problem, selection, tests_before, tests_after, calibrated_name=
         "residual_tests_before": [t.as_dict() for t in tests_before],
         "effects_tried": tried,
         "effects_selected": list(selection.selected),
+        "ambiguous": ambiguous_entries(selection, problem),
         "effects_tentative": list(getattr(selection, "tentative", [])),
         "adequacy": getattr(selection, "adequacy", {}),
         "final": {"parameters": param_entries(final, problem), "effects": selection.effects,
@@ -195,6 +225,11 @@ def render_table(report, console=None) -> None:
     con.print(et)
     sel = report["effects_selected"]
     con.print(f"effects selected: {', '.join(sel) if sel else 'none'}")
+    for a in report.get("ambiguous") or []:
+        con.print(f"[yellow]ambiguous:[/yellow] {', '.join(a['effects'])} explains these data as well "
+                  f"(-2 ln L {a['delta_chi2']:+.3g}, rows beyond {solve.JUMP:g} sigma clipped; within "
+                  f"{a['threshold_chi2']:g}): the data cannot tell {a['replaces']} from {a['by']}; to separate them: "
+                  f"{a['separate_by']}")
     if report.get("effects_tentative"):
         ad = report["adequacy"]
         con.print(f"[yellow]withdrawn (tentative): {', '.join(report['effects_tentative'])}: they improve the fit but "

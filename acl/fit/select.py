@@ -13,6 +13,7 @@ is computed only for candidates that pass (1), (2) and (4) (documented; keeps th
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -53,6 +54,7 @@ class Selection:
     effects: dict = field(default_factory=dict)      # effect id -> {param: value}
     tentative: list = field(default_factory=list)    # effects withdrawn because the final model stayed inadequate
     adequacy: dict = field(default_factory=dict)     # goodness of fit of the final model (sigma given)
+    ambiguous: list = field(default_factory=list)    # alternative effect sets as good as the selected one (ambiguity)
 
 
 def applicable(eid, problem, current_kinds) -> str | None:
@@ -114,7 +116,6 @@ def cross_validate(problem, coefs, x0, k=K_FOLDS, seed=0) -> float:
     P = problem.prepared
     n = problem.y.size
     folds = np.array_split(np.random.default_rng(seed).permutation(n), k)
-    w = 1.0 / np.where(np.isfinite(problem.sigma), problem.sigma, solve.NOMINAL_SIGMA)
     sq = []
     from acl.fit.forward import predict
 
@@ -124,8 +125,28 @@ def cross_validate(problem, coefs, x0, k=K_FOLDS, seed=0) -> float:
         cs = [solve.Coef(c.name, c.kind, v, c.lower, c.upper, c.scale, c.unit, c.effect, c.param, c.design_param)
               for c, v in zip(coefs, start)]
         r = solve.fit(lambda a, b: predict(P, a, b), problem.y, problem.sigma, cs, train=train, max_nfev=60)
-        sq.append(((r.residual[fold]) * w[fold]) ** 2)
+        # a held-out row counts at most JUMP^2: a row near a snap-in fold that the fold's fit, moved by a fraction of
+        # a standard error, predicts on the other branch (in contact, 40 um away) would otherwise outweigh all others;
+        # a latch state by its deviance (held-out log-likelihood)
+        sq.append(np.minimum(r.wresidual[fold] ** 2, solve.JUMP**2))
     return float(np.mean(np.concatenate(sq)))
+
+
+def _beyond_jump(fit, problem) -> int:
+    """Rows of ``fit`` beyond solve.JUMP sigma."""
+    return int(np.sum(~(np.abs(fit.wresidual) <= solve.JUMP)))     # a latch state by its deviance residual
+
+
+def _untrap(model, problem, coefs, starts, fit):
+    """A fit of an effect that stops with rows beyond JUMP sigma may be trapped at a snap-in fold: from the current
+    model's values the optimizer moves gamma and alpha little, rows stay predicted on the wrong branch and give no
+    gradient (pair, planted drift, seed 105: chi-square 1,772 for 360 rows, while the same model reaches 360 from a
+    robust start).  Fit again with a soft-l1 pass first (solve.fit ``robust_start``: the far rows cannot pull the
+    start), from the same starts, and keep the lower chi-square (the final fit is plain least squares either way)."""
+    if not _beyond_jump(fit, problem):
+        return fit
+    again = solve.fit(model, problem.y, problem.sigma, coefs, starts=starts or None, robust_start=True)
+    return again if again.chi2 < fit.chi2 else fit
 
 
 def select_effects(problem, candidates=None, p_limit=P_LIMIT, k_folds=K_FOLDS, seed=0, max_rounds=4,
@@ -133,6 +154,7 @@ def select_effects(problem, candidates=None, p_limit=P_LIMIT, k_folds=K_FOLDS, s
     from acl.fit.forward import predict
 
     P = problem.prepared
+    sigma_given = problem.data.has_sigma
 
     def model(a, b):
         return predict(P, a, b)
@@ -173,6 +195,10 @@ def select_effects(problem, candidates=None, p_limit=P_LIMIT, k_folds=K_FOLDS, s
                     if again.chi2 < trial_fit.chi2:
                         trial_fit = again
                         F, p = solve.f_test(current.chi2, current.p, trial_fit.chi2, trial_fit.p, problem.y.size)
+                again = _untrap(model, problem, coefs, starts, trial_fit)
+                if again is not trial_fit:
+                    trial_fit = again
+                    F, p = solve.f_test(current.chi2, current.p, trial_fit.chi2, trial_fit.p, problem.y.size)
                 if p < limit:
                     # is the gain the effect's, or did the optimizer just find a better point of the current
                     # model (a jump at a snap-in fold, a local minimum)?  Refit the current model from there.
@@ -183,10 +209,10 @@ def select_effects(problem, candidates=None, p_limit=P_LIMIT, k_folds=K_FOLDS, s
                         break
                 t = Trial(eid, rnd, "rejected", "", trial_fit, F, p, trial_fit.bic - current.bic,
                           trial_fit.aicc - current.aicc)
-                loose = _loose(trial_fit)
-                if not trial_fit.identifiable:
-                    t.reason = "not identifiable from these data: " + "; ".join(
-                        w for w in trial_fit.warnings if "identifiable" in w)
+                loose = _loose(trial_fit, sigma_given)
+                unknown = _not_determined(trial_fit, sigma_given)
+                if unknown:
+                    t.reason = "not identifiable from these data: " + "; ".join(unknown)
                 elif not p < limit:
                     t.reason = f"not significant (F-test p = {p:.3g} >= {limit:.3g} = {p_limit}/{len(tried)} candidates)"
                 elif loose:
@@ -229,10 +255,13 @@ def select_effects(problem, candidates=None, p_limit=P_LIMIT, k_folds=K_FOLDS, s
         current = best.fit
         current_coefs = list(best.fit.coefs)
         cv_current = best.cv
+    reps = {}
     if selected:
-        current, selected = _revisit(problem, model, names, selected, current, trials, p_limit, progress)
+        current, selected, reps = _revisit(problem, model, names, selected, current, trials, p_limit, progress)
     effects = solve.split_coefs(current.coefs, current.values)[1]
-    return Selection(base, current, selected, trials, effects)
+    sel = Selection(base, current, selected, trials, effects)
+    sel.ambiguous = ambiguity(current, selected, reps)
+    return sel
 
 
 MAX_SWAPS = 2     # passes of the revisit step
@@ -244,18 +273,20 @@ def _revisit(problem, model, names, selected, current, trials, p_limit, progress
     others: fit the model without E; if E is no longer significant there (nested F-test p >= the round's Bonferroni
     limit), drop it; otherwise try every other applicable effect C in E's place, and swap when C passes the same
     tests as in the search (F-test against the model without E, identifiable) and the model with C has a lower BIC
-    than the model with E (an equal or better fit with no more parameters).  At most MAX_SWAPS passes."""
-    for _pass in range(MAX_SWAPS):
+    than the model with E (an equal or better fit with no more parameters).  At most MAX_SWAPS passes.
+
+    Returns (final fit, selected, replacements): for each selected effect of the final model, every other effect
+    fitted in its place (:func:`_replacements`), from the pass that changed nothing (the material of
+    :func:`ambiguity`)."""
+    sigma_given = problem.data.has_sigma
+    reps: dict = {}
+    for _pass in range(MAX_SWAPS + 1):
         changed = False
+        reps = {}
         for eid in list(selected):
-            rest = [c for c in current.coefs if c.effect != eid]
-            vals = [v for c, v in zip(current.coefs, current.values) if c.effect != eid]
-            reduced = solve.fit(model, problem.y, problem.sigma, [_with_value(c, v) for c, v in zip(rest, vals)])
-            kinds = {c.kind for c in rest}
-            others = [e for e in names if e not in selected and not applicable(e, problem, kinds)]
-            limit = p_limit / max(len(others) + 1, 1)
-            _, p_keep = solve.f_test(reduced.chi2, reduced.p, current.chi2, current.p, problem.y.size)
-            if not p_keep < limit:
+            reduced, p_keep, limit, tries = _replacements(problem, model, names, selected, current, eid, p_limit,
+                                                          progress, sigma_given, drop_check=_pass < MAX_SWAPS)
+            if not p_keep < limit and _pass < MAX_SWAPS:
                 if progress:
                     progress(f"revisit: {eid} is not significant given the others; dropped")
                 given = ", ".join(e for e in selected if e != eid)
@@ -264,20 +295,13 @@ def _revisit(problem, model, names, selected, current, trials, p_limit, progress
                 selected = [e for e in selected if e != eid]
                 current, changed = reduced, True
                 break
+            reps[eid] = tries
             best = None
-            for cid in others:
-                if progress:
-                    progress(f"revisit: {cid} in place of {eid}")
-                ecoefs, estarts = effect_coefs(cid, problem)
-                coefs = [_with_value(c, v) for c, v in zip(rest, reduced.values)] + ecoefs
-                trial = solve.fit(model, problem.y, problem.sigma, coefs,
-                                  starts=[list(reduced.values) + st for st in estarts] or None)
-                F, p = solve.f_test(reduced.chi2, reduced.p, trial.chi2, trial.p, problem.y.size)
-                if (p < limit and trial.identifiable and not _loose(trial) and trial.bic < current.bic
-                        and (best is None or trial.bic < best[1].bic)):
-                    best = (cid, trial, F, p)
-            if best is not None:
-                cid, trial, F, p = best
+            for alt in tries:
+                if alt["explains"] and alt["fit"].bic < current.bic and (best is None or alt["fit"].bic < best["fit"].bic):
+                    best = alt
+            if best is not None and _pass < MAX_SWAPS:
+                cid, trial, F, p = best["effect"], best["fit"], best["f_stat"], best["p_value"]
                 if progress:
                     progress(f"revisit: {cid} replaces {eid}")
                 _retire(trials, eid, f"replaced on revisit by {cid}: with the other selected effects, {cid} gives a "
@@ -292,7 +316,91 @@ def _revisit(problem, model, names, selected, current, trials, p_limit, progress
                 break
         if not changed:
             break
-    return current, selected
+    return current, selected, reps
+
+
+def _replacements(problem, model, names, selected, current, eid, p_limit, progress, sigma_given, drop_check=True):
+    """The model without ``eid`` and every other applicable effect fitted in its place: (reduced fit, F-test p of
+    ``eid`` given the others, the Bonferroni limit, [alternative dicts]).  An alternative ``explains`` the structure
+    ``eid`` explains when it passes the search's tests against the model without ``eid`` (F-test, identifiable)."""
+    rest = [c for c in current.coefs if c.effect != eid]
+    vals = [v for c, v in zip(current.coefs, current.values) if c.effect != eid]
+    reduced = solve.fit(model, problem.y, problem.sigma, [_with_value(c, v) for c, v in zip(rest, vals)])
+    kinds = {c.kind for c in rest}
+    others = [e for e in names if e not in selected and not applicable(e, problem, kinds)]
+    limit = p_limit / max(len(others) + 1, 1)
+    _, p_keep = solve.f_test(reduced.chi2, reduced.p, current.chi2, current.p, problem.y.size)
+    tries = []
+    if drop_check and not p_keep < limit:
+        return reduced, p_keep, limit, tries
+    for cid in others:
+        if progress:
+            progress(f"revisit: {cid} in place of {eid}")
+        ecoefs, estarts = effect_coefs(cid, problem)
+        coefs = [_with_value(c, v) for c, v in zip(rest, reduced.values)] + ecoefs
+        rstarts = [list(reduced.values) + st for st in estarts]
+        trial = _untrap(model, problem, coefs, rstarts,
+                        solve.fit(model, problem.y, problem.sigma, coefs, starts=rstarts or None))
+        F, p = solve.f_test(reduced.chi2, reduced.p, trial.chi2, trial.p, problem.y.size)
+        ok = bool(p < limit and not _not_determined(trial, sigma_given) and not _loose(trial, sigma_given))
+        tries.append({"replaces": eid, "effect": cid, "fit": trial, "f_stat": F, "p_value": p, "explains": ok})
+    return reduced, p_keep, limit, tries
+
+
+AMBIGUOUS_CHI2 = 6.0    # an alternative whose clipped -2 ln L is within this of the selected model's is not ruled out:
+#                         a likelihood ratio below e^3 = 20, at most "positive" evidence (Kass & Raftery 1995, 2 ln B < 6)
+CLIP = solve.JUMP ** 2  # a row beyond JUMP sigma (on a fold: a latch switching one voltage step early or late, a pair
+#                         past snap-in) counts this much: the least such a row adds, not its 1e5 (the shuttle model
+#                         switches at the switching force itself while the device scatters from ramp to ramp)
+
+
+_SEPARATE = {
+    frozenset({"drive_saturation", "transducer_gain"}): "switching or deflection at several voltages per frequency: "
+    "latches of several switching forces (e.g. several angles), or a calibration beam ramped at each frequency",
+    frozenset({"drive_saturation", "transducer_resonance"}): "switching or deflection at several voltages per "
+    "frequency: latches of several switching forces (e.g. several angles), or a calibration beam ramped at each "
+    "frequency",
+    frozenset({"transducer_gain", "transducer_resonance"}): "drive frequencies beyond the swept band (a resonance "
+    "turns over, a tilt does not), or a calibrated hydrophone / calibration beam at each frequency",
+    frozenset({"drive_saturation", "large_deflection"}): "ramps at two or more frequencies (saturation follows the "
+    "voltage, stiffening the deflection)",
+    frozenset({"offset_drift", "bubble_shrinkage"}): "rows at zero voltage spread over the run (an offset/drift is "
+    "present there, shrinkage is not)",
+    frozenset({"stiffness_gradient", "substrate_proximity"}): "actuators on pedestals of several heights",
+}
+
+
+def separating_experiment(a: str, b: str) -> str:
+    """The experiment that would tell effect ``a`` from effect ``b`` (docs/fit.md, "What a given kind of data cannot
+    tell apart")."""
+    known = _SEPARATE.get(frozenset({a, b}))
+    if known:
+        return known
+    return f"data that identify each: {a}: {EFFECTS[a].identified_by}; {b}: {EFFECTS[b].identified_by}"
+
+
+def clipped_chi2(fit) -> float:
+    """-2 ln L + const of a fit with every row's contribution clipped at CLIP (latch states: deviance)."""
+    r2 = np.asarray(fit.wresidual, float)[fit.train] ** 2
+    return float(np.sum(np.minimum(np.where(np.isfinite(r2), r2, CLIP), CLIP)))
+
+
+def ambiguity(final, selected, reps) -> list[dict]:
+    """Alternative effect sets that explain the data about as well as the selected one: each selected effect E
+    replaced by another effect C (fitted in E's place with the other selected effects, :func:`_replacements`) that
+    passes the search's tests against the model without E (F-test, identifiable) and whose clipped -2 ln L
+    (:func:`clipped_chi2`) is within AMBIGUOUS_CHI2 of the selected model's (a likelihood ratio below 20; the
+    alternative may have more parameters).  Best first."""
+    out = []
+    ref = clipped_chi2(final)
+    for eid, tries in reps.items():
+        for a in tries:
+            d = clipped_chi2(a["fit"]) - ref
+            if a["explains"] and d < AMBIGUOUS_CHI2:
+                out.append({"effects": [a["effect"] if e == eid else e for e in selected], "replaces": eid,
+                            "by": a["effect"], "delta_chi2": float(d), "delta_bic": float(a["fit"].bic - final.bic),
+                            "separate_by": separating_experiment(eid, a["effect"]), "fit": a["fit"]})
+    return sorted(out, key=lambda a: a["delta_chi2"])
 
 
 def _retire(trials, eid, reason):
@@ -306,10 +414,39 @@ def _with_value(c, v):
     return solve.Coef(c.name, c.kind, v, c.lower, c.upper, c.scale, c.unit, c.effect, c.param, c.design_param)
 
 
-def _loose(fit) -> list[str]:
-    """Effect parameters whose standard error exceeds their distance from the effect's null value."""
+def search_stderr(fit, sigma_given: bool) -> np.ndarray:
+    """Standard errors that judge whether the data determine a candidate's parameters during the search.
+
+    The reported intervals scale the Fisher covariance by the reduced chi-square (lmfit's default).  During the search
+    that scale is the misfit of effects not yet in the model: with two missing effects acting on different rows
+    (a drift on a latch's shuttle rows, a saturation on its switching thresholds) each one alone leaves a gross misfit
+    that inflated the other's interval, so both were rejected as "not identifiable" and the fit ended with neither.
+    With sigma given the information the data carry about a parameter is (J^T J)^-1 at that sigma, so a reduced
+    chi-square above 1 is not applied here (below 1 it is, as before: never a looser test on a good fit).  Significance
+    stays the F-test's, BIC's and cross-validation's; the final model's intervals keep the scale."""
+    se = np.asarray(fit.stderr, float)
+    if sigma_given and fit.redchi > 1.0:
+        return se / math.sqrt(fit.redchi)
+    return se
+
+
+def _not_determined(fit, sigma_given: bool) -> list[str]:
+    """Why the data do not determine a fit's coordinates (empty: they do): a rank-deficient Jacobian, or a model
+    coefficient (gamma, alpha, ...) whose standard error (:func:`search_stderr`) exceeds its value."""
+    if not fit.full_rank:
+        return [w for w in fit.warnings if "identifiable" in w]
     out = []
-    for c, v, se in zip(fit.coefs, fit.values, fit.stderr):
+    for c, v, se in zip(fit.coefs, fit.values, search_stderr(fit, sigma_given)):
+        rel = se / max(abs(v), 1e-300)
+        if c.kind != "effect" and np.isfinite(rel) and rel > 1.0:
+            out.append(f"{c.name} is not identifiable (relative standard error {rel:.3g})")
+    return out
+
+
+def _loose(fit, sigma_given: bool = False) -> list[str]:
+    """Effect parameters whose standard error (:func:`search_stderr`) exceeds their distance from the null value."""
+    out = []
+    for c, v, se in zip(fit.coefs, fit.values, search_stderr(fit, sigma_given)):
         if c.kind == "effect":
             null = next(p.null for p in EFFECTS[c.effect].params if p.name == c.param)
             if not np.isfinite(null):      # a shape parameter without a null value (e.g. a resonance's Q)
@@ -350,5 +487,6 @@ def withdraw_if_inadequate(selection, problem) -> Selection:
                          f"{dof} dof, p = {p:.2g} < {GOF_P}), so what remains is outside the library")
     selection.selected = []
     selection.effects = {}
+    selection.ambiguous = []
     selection.final = selection.base
     return selection

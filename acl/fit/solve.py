@@ -43,7 +43,7 @@ class FitResult:
     ci: np.ndarray                    # (p, 2) 95 % interval
     corr: np.ndarray
     prediction: np.ndarray            # (n,) SI, all rows
-    residual: np.ndarray              # (n,) prediction - data, SI
+    residual: np.ndarray              # (n,) prediction - data, SI (a latch state: its Pearson residual)
     train: np.ndarray                 # rows used
     n: int
     p: int
@@ -56,6 +56,9 @@ class FitResult:
     message: str
     warnings: list = field(default_factory=list)
     identifiable: bool = True
+    full_rank: bool = True            # the Jacobian has full rank (False: some direction is not determined at all)
+    wresidual: np.ndarray = None      # (n,) weighted residual whose squares sum to -2 ln L + const (a latch state: its
+    #                                   deviance residual); chi2 is its sum of squares over the train rows
 
     @property
     def covariance(self) -> np.ndarray:
@@ -156,7 +159,15 @@ def fit(predict, y, sigma, coefs, train=None, starts=None, max_nfev=200, robust_
         u, J = np.zeros(0), np.zeros((train.size, 0))
     pred = full(u)
     r = pred - y
-    rw = r[train] * w[train]
+    rw_all = r * w
+    if REWEIGHT.seen:
+        # latch states: the residual shown is the Pearson residual (variances held at the optimum), but the statistics
+        # (chi-square, F-tests, information criteria, cross-validation) use the deviance residual, whose sum of
+        # squares is -2 ln L: a row the model contradicts (p ~ 1, no switch) counts by its likelihood, not by a
+        # Pearson residual divided by a variance clamped near zero.  A new generation drops the held variances.
+        REWEIGHT.generation += 1
+        rw_all = (full(u) - y) * w
+    rw = rw_all[train]
     n, p = train.size, len(coefs)
     chi2 = float(rw @ rw)
     dof = max(n - p, 1)
@@ -165,7 +176,7 @@ def fit(predict, y, sigma, coefs, train=None, starts=None, max_nfev=200, robust_
     stderr = np.full(p, np.nan)
     corr = np.eye(p)
     warnings: list[str] = []
-    identifiable = True
+    identifiable = full_rank = True
     if p:
         rn = np.linalg.norm(J, axis=1)
         # the median over rows that carry information (a threshold observable, a latch state, has rows of
@@ -179,14 +190,14 @@ def fit(predict, y, sigma, coefs, train=None, starts=None, max_nfev=200, robust_
                             "snap-in fold); left out of the interval estimate")
         sv = np.linalg.svd(J, compute_uv=False)
         if sv.size == 0 or sv[-1] <= 1e-9 * max(sv[0], 1e-300):
-            identifiable = False
+            identifiable = full_rank = False
             warnings.append("the parameters are not all identifiable from these data (rank-deficient Jacobian)")
         else:
             try:
                 cov_u = np.linalg.inv(J.T @ J) * redchi
             except np.linalg.LinAlgError:
                 cov_u = np.linalg.pinv(J.T @ J) * redchi
-                identifiable = False
+                identifiable = full_rank = False
                 warnings.append("the parameters are not all identifiable from these data (singular J^T J)")
             stderr = np.sqrt(np.clip(np.diag(cov_u), 0, None)) * scale
             d = np.sqrt(np.clip(np.diag(cov_u), 1e-300, None))
@@ -216,26 +227,36 @@ def fit(predict, y, sigma, coefs, train=None, starts=None, max_nfev=200, robust_
     bic = n * math.log(rss_ll / n) + k * math.log(n)
     rmse = float(np.sqrt(np.mean(r[train] ** 2)))
     return FitResult(list(coefs), values, stderr, ci, corr, pred, r, train, n, p, chi2, redchi, rmse, aicc, bic,
-                     success, str(message), warnings, identifiable)
+                     success, str(message), warnings, identifiable, full_rank, rw_all)
 
 
 def _reweighted(best, resid, full, lo, hi, max_nfev, least_squares):
     """Latch states (0/1 rows, acl.fit.forward): the search ran on their deviance residuals (maximum likelihood);
-    hold their binomial variances at its optimum and polish on Pearson residuals, whose Jacobian gives the Fisher
-    information (the optimum does not move: the score is zero there).  Nothing happens without state rows."""
+    hold their binomial variances at its optimum and take the Jacobian of the Pearson residuals there, whose J^T J is
+    the Fisher information (the intervals).  The optimum is *not* moved: a least-squares polish on Pearson residuals
+    with held variances agrees with the likelihood only near a good fit; where the model contradicts outcomes (p ~ 1
+    for a ramp that did not switch, its variance clamped at 1e-10) a Pearson residual of 1e5 would drag the polish to
+    an arbitrary point.  Nothing happens without state rows."""
+    from scipy.optimize import OptimizeResult
+
     from acl.fit.forward import REWEIGHT
 
     if not REWEIGHT.seen:                   # no prediction of this fit had state rows
         return best
     with REWEIGHT:
         full(best.x)
-    span = hi - lo
-    try:
-        return least_squares(resid, np.clip(best.x, lo + 1e-9 * span, hi - 1e-9 * span), bounds=(lo, hi),
-                             method="trf", x_scale="jac", diff_step=DIFF_STEP, max_nfev=max_nfev,
-                             xtol=1e-10, ftol=1e-10, gtol=1e-10)
-    except ValueError:
-        return best
+    x = np.asarray(best.x, float)
+    f0 = resid(x)
+    J = np.empty((f0.size, x.size))
+    for k in range(x.size):                 # forward differences as least_squares' "2-point" with DIFF_STEP
+        h = DIFF_STEP * max(1.0, abs(x[k]))
+        if x[k] + h > hi[k]:
+            h = -h
+        xk = x.copy()
+        xk[k] += h
+        J[:, k] = (resid(xk) - f0) / h
+    return OptimizeResult(x=x, fun=f0, jac=J, cost=0.5 * float(f0 @ f0), status=best.status, message=best.message,
+                          nfev=getattr(best, "nfev", 0), success=best.success)
 
 
 def _escape_jumps(best, resid, train, full, y, w, lo, hi, max_nfev, least_squares):

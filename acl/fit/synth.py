@@ -102,6 +102,11 @@ def generate(design_path, experiment, effects: dict | None = None, noise: float 
                             times.append(t)
                             t += float(ex.interval)
     n = len(rows)
+    if n == 0:
+        where = design.capsules[0].span if design.capsules else Span(file=str(design_path), line=1, column=1)
+        raise DiagnosticError([error("E810", "the design declares no `observe`: there is nothing to synthesize",
+                                     where, "declare what the experiment measures, e.g. "
+                                     "`observe bend = displacement(arm, +x)` (docs/language.md)")])
     from acl.fit.data import parse_quantity
 
     set_arr = {k: np.array([r[1][j] for r in rows], dtype=object) for j, k in enumerate(set_names)}
@@ -436,8 +441,9 @@ def _after_snap(design, drive, fm, flipped, snapped):
 @dataclass
 class Replay:
     data: object                            # Dataset: every observable at every waypoint
-    lost: int                               # waypoints without a stable equilibrium (no rows)
+    lost: int                               # waypoints without a stable equilibrium (no rows but a contact)
     tracking: dict                          # follow goal -> {"rms_m", "max_m", "n", "lost", "errors_m"}
+    contacts: int = 0                       # of those, snap-ins written as a gap of 0 (the pair in contact)
 
 
 def replay(design, waypoints: list[Waypoint], observables=(), noise: float = 0.0, seed: int = 0, progress=None,
@@ -445,8 +451,10 @@ def replay(design, waypoints: list[Waypoint], observables=(), noise: float = 0.0
     """Equilibrium of ``design`` under every waypoint's drive (warm-started in order).
 
     The full nonlinear model of the analysis (acl.analysis.mechanics with the design's declared
-    effects).  ``lost`` counts waypoints with no stable equilibrium (snap-in): no row is written for
-    them.  With ``targets`` (from :func:`read_schedule`), the tracking error of each follow goal:
+    effects).  ``lost`` counts waypoints with no stable equilibrium (snap-in): what a lab sees there
+    is the pair in contact, so the ``gap`` observable that closed (the smallest gap at the snap) is
+    written as 0, as the fit's pair model predicts past snap-in (``contacts``); the other observables
+    of such a waypoint get no row (where the capsules rest in contact is not modelled).  With ``targets`` (from :func:`read_schedule`), the tracking error of each follow goal:
     the distance in the plane between the capsule's displacement and the target (noise-free), a
     lost waypoint counting as missed by the path's extent.
     """
@@ -462,7 +470,7 @@ def replay(design, waypoints: list[Waypoint], observables=(), noise: float = 0.0
     fm = acoustics.force_model_for(design)
     targets = {k: t for k, t in (targets or {}).items() if t.capsule in {c.name for c in design.capsules}}
     errors = {k: np.full(len(t.points), np.nan) for k, t in targets.items()}
-    rows, start, lost = [], None, 0
+    rows, start, lost, contacts = [], None, 0, 0
     flipped = _latch_far_sides(design)
     for i, w in enumerate(waypoints):
         drive = Drive(tones=tuple(Tone(frequency=f, amplitude=v) for f, v in w.tones))
@@ -475,6 +483,10 @@ def replay(design, waypoints: list[Waypoint], observables=(), noise: float = 0.0
         if st.status != "ok":
             lost += 1
             start = None
+            closed = _closed_gap(design, obs, st) if st.status == "snap_in" else None
+            if closed is not None:
+                rows.append((closed, 0.0, w.time, w.tones))
+                contacts += 1
         else:
             start = st.positions
             for o in obs:
@@ -502,4 +514,16 @@ def replay(design, waypoints: list[Waypoint], observables=(), noise: float = 0.0
         e = np.where(missed, float(np.ptp(pts, axis=0).max() + np.abs(pts).max()), e)
         tracking[k] = {"rms_m": float(np.sqrt(np.mean(e ** 2))), "max_m": float(e.max()), "n": int(e.size),
                        "lost": int(missed.sum()), "errors_m": e}
-    return Replay(data, lost, tracking)
+    return Replay(data, lost, tracking, contacts)
+
+
+def _closed_gap(design, obs, state) -> str | None:
+    """The ``gap`` observable (of ``obs``) that closed at a snap-in: the smallest at the snap positions."""
+    gaps = [o for o in obs if o.kind == "gap"]
+    if not gaps:
+        return None
+    try:
+        values = [observe_value(design, o, state) for o in gaps]
+    except (KeyError, ValueError):
+        return None
+    return gaps[min(range(len(gaps)), key=lambda k: values[k])].name

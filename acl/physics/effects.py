@@ -61,6 +61,27 @@ def volume_frequency_table(volume, radius, density, surface_tension, ambient_pre
     return lx, np.log(f / f0)
 
 
+def capsule_volume_frequency_table(volume, radii, target_hz, density, surface_tension, ambient_pressure, polytropic_index,
+                                   n=241, span=8.0):
+    """(ln x, ln f_k(x V0)/f_k(V0)) of the undamped mode k of a multi-orifice capsule nearest ``target_hz`` at V0, vs the
+    gas volume (Rayleigh-Ritz K x = w^2 M x, acl.physics.resonance.capsule_matrices; k kept by its rank), for shrinkage."""
+    from scipy.linalg import eigh
+
+    from acl.physics.resonance import capsule_matrices
+
+    def freqs(v):
+        k, m, _, _ = capsule_matrices(v, radii, density, surface_tension, ambient_pressure, polytropic_index)
+        return np.sqrt(np.abs(eigh(k, m, eigvals_only=True))) / (2 * np.pi)
+
+    mode = int(np.argmin(np.abs(np.log(freqs(volume) / target_hz))))
+    lx = np.linspace(-span, span, n)
+    f = np.empty(n)
+    for i, x in enumerate(lx):
+        f[i] = freqs(volume * np.exp(x))[mode]
+    f0 = np.interp(0.0, lx, f)
+    return lx, np.log(f / f0)
+
+
 def elastica_blend(d_eq1, d_elastica, weight):
     """(1 - w) paper Eq. (1) + w dead-load elastica (Bisshopp & Drucker 1945): w = 1 is the large-deflection beam."""
     return (1.0 - weight) * d_eq1 + weight * d_elastica

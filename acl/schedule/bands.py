@@ -16,6 +16,9 @@ tables, which are not measured, declare 30 %).  This module turns it into
 * :func:`gain_sensitivity` -- the linearised spread of the gain matrix, ``Q = sum_j dG_j^T dG_j``
   (K x K), one ``dG_j`` per independent 1-sigma direction (a table point, a principal direction of
   the parameter covariance), for the robust path program (:mod:`acl.schedule.robust`);
+* :func:`margin_band` -- the 5th percentile over those designs of a goal's re-simulated margin (a
+  hold's snap-in margin, a switch's force over the switching force): a goal without a path has no
+  tracking error, but its margin is as uncertain as the design;
 * :func:`coverage_notes` -- warnings when a schedule drives outside the range the calibration data
   covered (``covered(voltage|frequency|deflection)``).
 
@@ -171,6 +174,46 @@ def error_band(design: Design, forward_for: Callable, u: np.ndarray, targets: np
         return Band(float("nan"), float("nan"), 0, failed, np.array([]), np.array([]))
     rms_a, mx_a = np.array(rms), np.array(mx)
     return Band(_quantile(rms_a, q), _quantile(mx_a, q), len(rms), failed, rms_a, mx_a)
+
+
+@dataclass
+class MarginBand:
+    p05: float                              # 5th percentile of the margin over the draws (inf: never reached)
+    samples: int                            # draws that gave an answer
+    failed: int                             # draws whose design did not resolve or whose model failed
+    below_one: int                          # draws where the margin is below 1 (the goal fails there)
+    values: np.ndarray                      # per draw
+    others_p95: dict                        # {name: 95th percentile} of ratios that must stay below 1
+
+
+def margin_band(design: Design, margin_for: Callable, *, samples: int = 20, seed: int = 0,
+                reload: Reload | None = None) -> MarginBand | None:
+    """5th percentile of ``margin_for(design)`` over designs drawn from the declared uncertainty.
+
+    ``margin_for(d) -> float`` or ``(float, {name: ratio})``: the goal's margin on the drawn design
+    (>= 1: the goal is met there) and, optionally, ratios that must stay below 1 (another latch's
+    force over its own switching force).  A failed draw counts as a margin of 0 (never as met).
+    None when nothing is declared.
+    """
+    if declared(design, with_params=reload is not None).empty or samples <= 0:
+        return None
+    vals, others, failed = [], {}, 0
+    for _, d in sample_designs(design, samples, seed, reload):
+        try:
+            if d is None:
+                raise ValueError("did not resolve")
+            out = margin_for(d)
+        except (ValueError, KeyError, FloatingPointError):
+            failed += 1
+            vals.append(0.0)
+            continue
+        m, extra = out if isinstance(out, tuple) else (out, {})
+        vals.append(float(m) if m is not None and not np.isnan(m) else 0.0)
+        for k, r in extra.items():
+            others.setdefault(k, []).append(float(r))
+    v = np.array(vals)
+    return MarginBand(float(np.percentile(v, 5.0)) if v.size else float("nan"), len(vals) - failed, failed,
+                      int(np.sum(v < 1.0)), v, {k: float(np.percentile(np.array(r), 95.0)) for k, r in others.items()})
 
 
 def _quantile(x: np.ndarray, q: float) -> float:

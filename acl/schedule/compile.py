@@ -13,6 +13,8 @@ phases are chosen for a low peak (:mod:`acl.schedule.phases`).  Problems become 
 """
 from __future__ import annotations
 
+import dataclasses
+
 import math
 from dataclasses import dataclass, field
 from typing import Callable
@@ -542,10 +544,17 @@ class _Compiler:
         # the margins reported are those of the tones actually emitted
         keep = plan.u > 1e-6 * plan.u.max()
         used = [(f, a) for f, a, k in zip(freqs, plan.amplitudes, keep) if k]
+        sig = 1.0 if step.state == "b" else -1.0
+        thr_t = float(to_b[j] if step.state == "b" else to_a[j])
+        F = np.asarray(forces, float) @ np.where(keep, plan.u, 0.0)            # (L,) N
+        model = "linear force per V^2"
+        if self.opts.latch_provider is None:
+            used, F_full = self._switch_full_model(name, step, used, j, sig, thr_t, vmax)
+            if F_full is not None:
+                F, model = F_full, "force of the whole drive (declared drive saturation)"
+                plan = dataclasses.replace(plan, required_force=step.margin * thr_t)
         self._add(step.duration, [ScheduledTone(f, float(a)) for f, a in used], i, name)
         self.states[step.latch] = step.state
-        F = np.asarray(forces, float) @ np.where(keep, plan.u, 0.0)            # (L,) N
-        sig = 1.0 if step.state == "b" else -1.0
         force = float(sig * F[j])
         others = {}
         for k, n in enumerate(names):
@@ -557,11 +566,106 @@ class _Compiler:
                                                               for r in others.values()):
             raise _diag("E-SCHED-SOLVER", f"{name}: the emitted tones miss the switching margins "
                         "the latch program promised", step.span, "report this design")
-        self.goals.append(GoalReport(name, "switch", i, self.t - step.duration, self.t,
-                                     tuple(f for f, _ in used), model="linear force per V^2",
-                                     details={"force_n": force, "required_n": plan.required_force,
-                                              "margin": force / plan.required_force * step.margin,
-                                              "other_latch_ratios": others}))
+        rep = GoalReport(name, "switch", i, self.t - step.duration, self.t,
+                         tuple(f for f, _ in used), model=model,
+                         details={"force_n": force, "required_n": plan.required_force,
+                                  "margin": force / plan.required_force * step.margin,
+                                  "other_latch_ratios": others})
+        self.goals.append(rep)
+        if self.opts.band_samples > 0 and self.opts.latch_provider is None:
+            self._switch_band(rep, used, step, j, names)
+
+    def _switch_full_model(self, name, step: SwitchStep, used, j, sig, thr_t, vmax):
+        """Re-check a switch with the full force model when forces are not ~V^2 (drive saturation).
+
+        The LP plans with the force per V^2 at 1 V; a declared saturation makes the real force of the
+        planned drive smaller.  The drive is scaled up (bisection: the force grows with the scale)
+        until the latch gets ``margin`` x its switching force, within the limit; (tones, forces (L,)).
+        """
+        from acl.analysis.acoustics import force_model_for
+
+        if force_model_for(self.design).quadratic_in_amplitude or not used:
+            return used, None
+        from acl.schedule.gains import latch_drive_forces
+
+        def at(scale):
+            F = latch_drive_forces(self.design, [(f, a * scale) for f, a in used])
+            return float(sig * F[j] / thr_t), F
+
+        r, F = at(1.0)
+        if r >= step.margin * (1 - 1e-6):
+            return used, F
+        top = vmax / sum(a for _, a in used)
+        r_top, F_top = at(top)
+        if r_top < step.margin:
+            raise _diag("E-SCHED-INFEASIBLE", f"{name}: infeasible: with the declared drive saturation the "
+                        f"drive reaches only {r_top:.3g} x the switching force at the {vmax:g} V limit "
+                        f"(margin {step.margin:g} wanted; the force per V^2 promised it at "
+                        f"{sum(a for _, a in used):.4g} V)", step.span,
+                        f"raise the max voltage above {vmax:g} V; or lower the margin")
+        lo, hi = 1.0, top
+        for _ in range(50):
+            mid = 0.5 * (lo + hi)
+            lo, hi = (lo, mid) if at(mid)[0] >= step.margin else (mid, hi)
+            if hi - lo <= 1e-9 * hi:
+                break
+        F = at(hi)[1]
+        self.notes.append(f"{name}: the declared drive saturation leaves the planned drive at {r:.3g} x the "
+                          f"switching force; amplitudes scaled by {hi:.4g} to reach the margin {step.margin:g}")
+        return [(f, a * hi) for f, a in used], F
+
+    def _switch_band(self, rep: GoalReport, used, step: SwitchStep, j, names):
+        """5th percentile of the switch margin (and 95th of the other latches' ratios) over the uncertainty."""
+        from acl.schedule.bands import margin_band
+        from acl.schedule.gains import latch_drive_forces, latch_forces
+
+        states = dict(self.states)             # after this switch
+        target = names[j]
+        before = "a" if step.state == "b" else "b"
+
+        def margin_for(d):
+            F = latch_drive_forces(d, used)
+            _, to_b, to_a = latch_forces(d, [])
+            thr = to_b[j] if step.state == "b" else to_a[j]
+            m = float((1.0 if step.state == "b" else -1.0) * F[j] / thr)
+            others = {}
+            for k, n in enumerate(names):
+                if n != target:
+                    own = 1.0 if states[n] == "a" else -1.0
+                    others[n] = float(own * F[k] / (to_b[k] if own > 0 else to_a[k]))
+            return m, others
+
+        band = margin_band(self.design, margin_for, samples=self.opts.band_samples, seed=self.opts.band_seed,
+                           reload=self.opts.reload)
+        self._margin_report(rep, band, f"the latch stays in state {before} (the drive does not switch it)",
+                            others_what="switches")
+
+    def _margin_report(self, rep: GoalReport, band, fails: str, others_what: str = ""):
+        """Write a margin band into the goal's details and warn when the goal fails in the uncertainty."""
+        if band is None:
+            self.notes.append(f"{rep.name}: the design declares no uncertainty: no margin band "
+                              "(declare `+- s` on parameters or `gain_uncertainty` on the transducer)")
+            return
+        rep.details["band"] = {"samples": band.samples, "failed": band.failed, "seed": self.opts.band_seed,
+                               "quantile": 5, "margin_p05": band.p05, "draws_below_1": band.below_one,
+                               "parameters": [p.name for p in self.design.uncertain_params()]
+                               if self.opts.reload is not None else [],
+                               "gain_uncertainty": self.design.transducer.gain_uncertainty
+                               if self.design.transducer else None}
+        if band.others_p95:
+            rep.details["band"]["other_latch_ratios_p95"] = band.others_p95
+        n = band.samples + band.failed
+        if band.below_one:
+            seen = band.below_one - band.failed
+            more = (f"; {band.failed} more did not resolve or their model failed (a drawn value outside its "
+                    "physical range, e.g. a negative coefficient), counted as failing") if band.failed else ""
+            self.notes.append(f"warning: {rep.name}: in {seen} of {n} draws of the declared uncertainty {fails}"
+                              f"{more} (5th percentile of the margin {band.p05:.3g}); narrow the uncertainty "
+                              "(acl fit on data that identify it) or raise the margin")
+        for other, r in band.others_p95.items():
+            if r >= 1.0:
+                self.notes.append(f"warning: {rep.name}: in the declared uncertainty the drive also {others_what} "
+                                  f"latch `{other}` (95th percentile of its force over its switching force {r:.3g})")
 
     def _latch_candidates(self):
         from acl.schedule.gains import default_frequencies
@@ -606,12 +710,48 @@ class _Compiler:
                    "critical_voltages_v": [float(v) for v in v_snap], "margin": step.margin}
         if ratio is not None:
             details["resimulated_margin"] = ratio
-        self.goals.append(GoalReport(name, "hold", i, self.t - step.duration, self.t,
-                                     tuple(t.frequency_hz for t in tones),
-                                     model=("snap-in of the whole drive re-simulated (acl.analysis.mechanics)"
-                                            if ratio is not None else
-                                            "snap index sum u/Vcrit^2 (forces add in V^2)"),
-                                     details=details))
+        rep = GoalReport(name, "hold", i, self.t - step.duration, self.t,
+                         tuple(t.frequency_hz for t in tones),
+                         model=("snap-in of the whole drive re-simulated (acl.analysis.mechanics)"
+                                if ratio is not None else
+                                "snap index sum u/Vcrit^2 (forces add in V^2)"),
+                         details=details)
+        self.goals.append(rep)
+        if ratio is not None and self.opts.band_samples > 0:
+            self._hold_band(rep, step, tones, vmax, bound)
+
+    def _hold_band(self, rep: GoalReport, step: HoldStep, tones, vmax, bound):
+        """5th percentile of the re-simulated hold margin over draws of the declared uncertainty.
+
+        ``above``: the factor by which the drive can grow before the pair snaps (or the gap reaches the
+        bound) on the drawn design; ``cross``: the factor by which the drive exceeds snap-in.
+        """
+        from acl.schedule.bands import margin_band
+
+        provider = self.opts.critical_provider
+        if provider is None:
+            from acl.schedule.gains import critical_scale as provider
+        pairs = [(t.frequency_hz, t.amplitude_v) for t in tones]
+        total = sum(a for _, a in pairs)
+        if not pairs or total <= 0:
+            return
+        if step.mode == "above":
+            def margin_for(d):
+                s = provider(d, step.a, step.b, pairs, 1.5 * step.margin, bound)
+                if s is None:
+                    raise ValueError("no snap-in model")
+                return min(float(s), 1.5 * step.margin)     # not searched beyond: a lower bound
+            fails = "the drive snaps the pair in (or closes the gap below its bound)"
+        else:
+            def margin_for(d):
+                s = provider(d, step.a, step.b, pairs, max(vmax / total, 1.0) * 1.5, None)
+                if s is None:
+                    raise ValueError("no snap-in model")
+                return float(1.0 / s) if s > 0 else float("inf")
+            fails = "the drive does not snap the pair in"
+        band = margin_band(self.design, margin_for, samples=self.opts.band_samples, seed=self.opts.band_seed,
+                           reload=self.opts.reload)
+        self._margin_report(rep, band, fails)
 
     def _hold_resimulate(self, name, step: HoldStep, tones, vmax, bound):
         """Re-simulate the drive's snap-in and rescale it so the voltage margin holds; (tones, ratio).

@@ -11,6 +11,8 @@ This is the only module of acl.schedule that calls the analysis stage:
 * :func:`latch_forces` -- force per V^2 of each tone along each latch's axis (the full
   :func:`acl.analysis.acoustics.force_model` at rest), and the latches' switching / release forces
   (``acl.physics.latch.latch_landscape``).
+* :func:`latch_drive_forces` -- the force of a whole multi-tone drive along each latch's axis (the
+  full force model: not quadratic in the amplitude when the design declares drive saturation).
 * :func:`snap_in_voltages` -- per-tone snap-in (or gap-bound) voltage from
   ``acl.analysis.mechanics.sweep_voltage``.
 
@@ -160,10 +162,7 @@ def latch_forces(design: Design, frequencies) -> tuple[np.ndarray, np.ndarray, n
     per_tone = [acoustics.force_model(design, rest, Drive(tones=(Tone(frequency=f, amplitude=1.0),)))
                 for f in freqs]
     for i, latch in enumerate(design.latches):
-        axis = np.asarray(latch.axis, float)
-        axis = axis / np.linalg.norm(axis)
-        carried = _rigidly_linked(design, [j.capsule for j in design.joints if j.kind == "mount"
-                                            and j.target_kind == "latch" and j.target == latch.name])
+        axis, carried = _latch_axis_carried(design, latch)
         for k, fm in enumerate(per_tone):
             forces[i, k] = sum(float(np.asarray(fm.get(c, np.zeros(3)), float) @ axis) for c in carried)
         land = latch_landscape(*latch_geometry(latch, design))
@@ -171,6 +170,34 @@ def latch_forces(design: Design, frequencies) -> tuple[np.ndarray, np.ndarray, n
         if land.release_force is not None:
             to_a[i] = land.release_force
     return forces, to_b, to_a
+
+
+def _latch_axis_carried(design: Design, latch):
+    """(unit axis, capsules whose force moves the latch's shuttle)."""
+    axis = np.asarray(latch.axis, float)
+    carried = _rigidly_linked(design, [j.capsule for j in design.joints if j.kind == "mount"
+                                        and j.target_kind == "latch" and j.target == latch.name])
+    return axis / np.linalg.norm(axis), carried
+
+
+def latch_drive_forces(design: Design, tones) -> np.ndarray:
+    """(L,) N: force of the whole drive ``tones`` ((Hz, V) pairs) along each latch's axis, at rest.
+
+    The full force model (:func:`acl.analysis.acoustics.force_model`, tones adding in power, the
+    design's declared effects, drive saturation included: then the force is not V^2 x the force at 1 V).
+    """
+    from acl.analysis import acoustics
+
+    drive = Drive(tones=tuple(Tone(frequency=float(f), amplitude=float(v)) for f, v in tones if v > 0))
+    out = np.zeros(len(design.latches))
+    if not drive.tones:
+        return out
+    rest = {c.name: np.asarray(c.center, float) for c in design.capsules}
+    fm = acoustics.force_model(design, rest, drive)
+    for i, latch in enumerate(design.latches):
+        axis, carried = _latch_axis_carried(design, latch)
+        out[i] = sum(float(np.asarray(fm.get(c, np.zeros(3)), float) @ axis) for c in carried)
+    return out
 
 
 def _rigidly_linked(design: Design, capsules: list[str]) -> list[str]:

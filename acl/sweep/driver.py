@@ -66,13 +66,18 @@ _PROGRAM_FREE = ("resonance_", "q_")
 def _nominal_program_only(design: Design, fmap: FieldMap, cols: list[str], explicit: bool) -> tuple[list[str], dict[str, str]]:
     """Drop (or, when asked for by name, refuse) columns that would silently use the nominal program
     or transducer while a swept parameter moves them."""
-    moving = sorted(p for p in [*fmap.linear, *fmap.exact] if p.startswith(("programs.", "transducer.")))
+    from acl.sweep.validity import drive_fields_vectorised
+
+    # drive amplitudes, limits and the transducer's values are read per point (acl.sweep.evaluate);
+    # a moving tone frequency (it names columns) or follow path is not
+    moving = sorted(p for p in [*fmap.linear, *fmap.exact] if p.startswith(("programs.", "transducer."))
+                    and not drive_fields_vectorised(p))
     if not moving:
         return cols, {}
     keep_requires = {f"require_{i}_{k}" for i, r in enumerate(design.requires, 1) if r.kind in ("resonance", "separation")
                      for k in ("value", "pass")}
     why = (f"a swept parameter moves `{moving[0]}`" + (f" and {len(moving) - 1} more program/transducer field(s)" if len(moving) > 1 else "")
-           + ": the batched forces, margins, gaps and lint rules use the design's nominal programs and transducer")
+           + ": the batched forces, margins, gaps and lint rules take the programs' frequencies from the design")
     if all(f"require_{i}_pass" in keep_requires for i in range(1, len(design.requires) + 1)):
         keep_requires.add("requires_pass")
     bad = [c for c in cols if not (c.startswith(_PROGRAM_FREE) or c in keep_requires)]

@@ -27,21 +27,54 @@ What is batched and how (the scalar code it equals):
 * tip deflection at ``at`` of a capsule on a cantilever (the Eq. (1) deflection under the force at
   the displaced position, a fixed point) or of a pair (the same branches at V = 1, NaN after
   snap-in); ``require gap`` from the equilibrium of every program step;
+* every other mechanism (springs, latches at rest in state a, trusses, three or more moving
+  capsules, mixes of them): snap-in, deflections at ``at`` (``tip_deflection_<beam>_m``,
+  ``deflection_<latch|spring>_m``) and ``require gap`` by :mod:`acl.sweep.mechanism`, the batched
+  mechanics.build_mechanism: one smooth coordinate (a capsule on a spring) as the curve V^2(z) =
+  R(z)/G(z) and its first maximum; otherwise continuation in V with Newton on all coordinates, the
+  fold bracketed from below (at a latch's buckling kink within 1.3e-6 of the model's fold, which
+  analyze's continuation stops up to 4.4e-6 short of: tests/test_sweep_mechanism.py);
 * latch margins per program step (mechanics.latch_margins, latches at rest in state a or b), the
   switching and release forces refined by golden section (acl.physics.batch.latch_switching_force;
   the scalar landscape takes the extremes of a 2001-point grid, lower by up to 2e-3 where they
   sit at a kink of the force law, so its margins are optimistic by as much);
-* every ``require`` (report._require) and the lint rules ACL101, ACL105 (program drive and sweep
-  steps), ACL501, ACL502, ACL503, ACL504, ACL603, before suppressions and with the default thresholds.
+* every ``require`` (report._require) and the lint rules ACL101, ACL102 (gain at each mode against the
+  band's best), ACL103 (overlapping modes of capsules driven separately), ACL105 (program drive and
+  sweep steps), ACL201 (the Eq. 3 criterion under each program drive, lint's default without
+  ``mechanics``; not for designs with a `sweep` step), ACL501, ACL502, ACL503, ACL504, ACL603, before
+  suppressions and with the default thresholds (tests/test_sweep_drives.py: equal to the rules on
+  perturbed points and on every example).
+
+Drives and transducer per point: a swept parameter that moves a drive amplitude, a step's limit, the
+transducer's maximum, band or gain table is read per point (the forces take each point's pressure,
+amplitude times the point's interpolated gain; snap-in is cut at the point's maximum); a parameter
+that moves a tone's frequency is not (the frequency names the columns: acl.sweep.driver leaves the
+program columns out).
 
 Not batched (not offered as quantities, :func:`supported` says why): designs declaring effects that
-change forces or beams (only resonance and Q are offered), snap-in and deflections of mechanisms
-other than one capsule on a beam or a pair of capsules on two beams (latches, springs, trusses,
-three or more moving capsules), ``require gap`` outside those, and the lint
-rules that need a frequency sweep per point (ACL102 gain over the band, ACL103 mode overlap with its
-bandwidth factor, ACL104 crosstalk over the selectivity sweep), the per-step equilibria of whole
-programs with strain and elastica checks (ACL201-202, ACL301-302, ACL401-402), and the rules about
-the source text rather than the numbers (ACL601-602, unused declarations and units).
+change forces or beams (only resonance and Q are offered), snap-in, deflections and ``require gap``
+of a mechanism with a latch at rest in state b (its second stable state per point), and these lint
+rules, each for its reason:
+
+* ACL104 (unintended excitation): each capsule's thrust relative to its own peak over a selectivity
+  grid refined around each point's modes (acl.lint.context.thrust_grid: ~200 + 41 per mode
+  frequencies, deduplicated), so the grid differs per point in values and length, and a chunk would
+  hold ~300 coupled responses per point;
+* ACL202 (force sign change): the same per-point grid (sweep_frequencies adds each point's modes
+  inside the program's range) with the Bjerknes force at every frequency;
+* ACL201 with a `sweep` step: the sweep's tones include each point's modes (same reason);
+* ACL301, ACL302 (latch switch/hold against the switching and release forces): lint takes them from
+  the scalar landscape (latch.latch_landscape: a 2001-point grid, its extremes refined), the batched
+  columns from a coarser grid refined the same way, higher by up to 2e-3 where the extreme sits at a
+  kink (tests/test_sweep_evaluate.py).  With them ACL301 (a step that may flip a latch: push x
+  factor >= the force needed) could pass points lint flags, an optimistic verdict on a safety check,
+  and ACL302 could differ from `acl lint` near its threshold; the batched margins (``margin_*``
+  columns, ``require margin``) give the switch's figure;
+* ACL401, ACL402 (beam strain, large deflection): the worst load over every program step, a `follow`
+  step's excursion included, which comes from the path the compiler plans, not from the design's
+  numbers alone;
+* ACL601, ACL602 (unused declarations, parameters without units): about the source text, the same at
+  every point of a sweep.
 """
 from __future__ import annotations
 
@@ -56,6 +89,7 @@ from acl.design import model as M
 from acl.physics import batch as PB
 from acl.physics import constants as C
 from acl.physics.forces import jet_drag, thrust_magnitude
+from acl.physics.transducer import pressure_per_volt_rows
 from acl.physics.ties import TIE_RTOL, first_max
 
 
@@ -98,6 +132,8 @@ QUANTITIES: tuple[Quantity, ...] = (
              "latches[name].margins[program,step].margin"),
     Quantity("tip_deflection_<beam>_m", "m", "load-point deflection of the beam at the drive `at`",
              "equilibrium.deflections_m[<beam>]"),
+    Quantity("deflection_<element>_m", "m", "latch shuttle travel, spring extension or spring-link extension at the drive `at` (mechanics)",
+             "equilibrium.deflections_m[<element>]"),
     Quantity("equilibrium_ok", "bool", "a stable equilibrium is reached at `at` without snap-in",
              "equilibrium.status == \"ok\""),
     Quantity("require_<i>_value", "(the require's)", "measured value of the i-th require (1-based, file order)",
@@ -109,7 +145,9 @@ QUANTITIES: tuple[Quantity, ...] = (
 )
 
 STATIC_EFFECTS = {"offset_drift", "bubble_shrinkage"}
-LINT_RULES = ("acl101", "acl105", "acl501", "acl502", "acl503", "acl504", "acl603")
+LINT_RULES = ("acl101", "acl102", "acl103", "acl105", "acl201", "acl401", "acl402", "acl501", "acl502", "acl503",
+              "acl504", "acl603")
+_PROGRAM_LINT = ("acl201", "acl401", "acl402")      # rules over each program's drives (lint's step_drives)
 SNAP_GRID = 12            # closure grid of the snap-in search
 SNAP_GOLDEN = 14          # golden-section steps on the fold
 SPLIT_ITER = 5            # secant steps for the split of the closure between the two beams
@@ -150,8 +188,44 @@ def _mechanism(design: M.Design) -> str:
     return "other"
 
 
+def _closed_form(design: M.Design) -> tuple[bool, bool]:
+    """(snap-in, deflections) given by the closed forms: a pair of capsules on beams, one or two capsules on beams."""
+    mech = _mechanism(design)
+    moving = [c for c in design.capsules if (design.mount_of(c.name) or M.Fix(capsule="", span=c.span)).kind == "mount"]
+    return (mech == "beams" and len(design.capsules) == 2 and len(moving) >= 1,
+            mech == "beams" and 1 <= len(design.capsules) <= 2)
+
+
+def _general(design: M.Design) -> str | None:
+    """Why the general batched mechanism (acl.sweep.mechanism) does not cover ``design``; None if it does."""
+    from acl.sweep.mechanism import not_batched
+
+    return not_batched(design)
+
+
 def _physical_effects(design: M.Design) -> list[str]:
     return [e.name for e in design.effects if e.name not in STATIC_EFFECTS]
+
+
+# Declared effects that leave the forces at rest as they are (acl.analysis.acoustics applies them to
+# beams or to displaced capsules only: neighbour_drag's factor is 1 at zero displacement), and those of
+# them that also leave the latch law as it is (mechanics.latch_geometry scales E by stiffness_scale only).
+REST_NEUTRAL_EFFECTS = {"large_deflection", "stiffness_gradient", "stiffness_scale", "neighbour_drag"}
+LATCH_NEUTRAL_EFFECTS = {"large_deflection", "stiffness_gradient", "neighbour_drag"}
+
+
+def _effect_blocks(design: M.Design) -> dict[str, list[str]]:
+    """{'rest': effects that change the forces at rest, 'latch': ... the latch margins, 'motion': ... the
+    equilibria (every physical effect: the batched beams, springs and forces at displaced positions
+    model none of them)}."""
+    eff = _physical_effects(design)
+    return {"rest": [e for e in eff if e not in REST_NEUTRAL_EFFECTS],
+            "latch": [e for e in eff if e not in LATCH_NEUTRAL_EFFECTS],
+            "motion": eff}
+
+
+def _effects_note(names: list[str], what: str) -> str:
+    return f"the design declares effects ({', '.join(names)}) that change {what}, which the batched evaluation does not model"
 
 
 def supported(design: M.Design, at: str | None = None) -> tuple[list[str], dict[str, str]]:
@@ -161,66 +235,107 @@ def supported(design: M.Design, at: str | None = None) -> tuple[list[str], dict[
     names: list[str] = []
     missing: dict[str, str] = {}
     effects = _physical_effects(design)
+    blocks = _effect_blocks(design)
     for cap in design.capsules:
         for k in range(1, len(cap.orifices) + 1):
             names += [f"resonance_{_ident(cap.name)}_{k}_hz", f"q_{_ident(cap.name)}_{k}"]
-    if effects:
-        why = f"the design declares effects ({', '.join(effects)}) that the batched forces and beams do not model"
-        for fam in ("force_", "attract_", "phase_", "critical_distance_", "snap_in_", "switching_force_",
-                    "release_force_", "bistable_", "margin_", "tip_deflection", "equilibrium_ok"):
-            missing[fam] = why
+    if blocks["rest"]:
+        for fam in ("force_", "attract_", "phase_", "critical_distance_"):
+            missing[fam] = _effects_note(blocks["rest"], "the acoustic forces")
+    if blocks["latch"]:
+        for fam in ("switching_force_", "release_force_", "bistable_", "margin_"):
+            missing[fam] = _effects_note(blocks["latch"], "the forces or the latch law")
+    if blocks["motion"]:
+        for fam in ("snap_in_", "tip_deflection", "deflection_", "equilibrium_ok"):
+            missing[fam] = _effects_note(blocks["motion"], "the equilibria (forces at displaced positions, beams)")
     mech = _mechanism(design)
     moving = [c for c in design.capsules if (design.mount_of(c.name) or M.Fix(capsule="", span=c.span)).kind == "mount"]
     freqs = program_frequencies(design) or []
-    if not effects:
-        pairs = _pairs(design)
+    pairs = _pairs(design)
+    if not blocks["rest"]:
         for f in freqs:
             for a, b in pairs:
                 tag = f"{_ident(a)}_{_ident(b)}_{_fkey(f)}"
                 names += [f"force_{tag}_n", f"attract_{tag}", f"phase_{tag}_deg", f"critical_distance_{tag}_m"]
-        if pairs and freqs:
-            if mech == "beams" and len(design.capsules) == 2 and len(moving) >= 1:
-                names += [f"snap_in_{_ident(a)}_{_ident(b)}_{_fkey(f)}_v" for f in freqs for a, b in pairs]
-            else:
-                missing["snap_in_"] = "batched snap-in covers a pair of capsules on beams only"
+    if not blocks["latch"]:
         for lt in design.latches:
             names += [f"switching_force_{_ident(lt.name)}_n", f"release_force_{_ident(lt.name)}_n",
                       f"bistable_{_ident(lt.name)}"]
             names += [f"margin_{_ident(lt.name)}_{_ident(p.name)}_{i + 1}" for p, i, _st, _d in step_drives(design)]
+    if not effects:
+        closed_snap, closed_eq = _closed_form(design)
+        general = None if closed_snap and closed_eq else _general(design)
+        if pairs and freqs:
+            if closed_snap or general is None:
+                names += [f"snap_in_{_ident(a)}_{_ident(b)}_{_fkey(f)}_v" for f in freqs for a, b in pairs]
+            else:
+                missing["snap_in_"] = f"batched snap-in does not cover this mechanism: {general}"
         if at is None:
             if any((design.mount_of(c.name) or M.Fix(capsule="", span=c.span)).kind == "mount" for c in design.capsules):
                 missing["tip_deflection"] = "deflections need a drive: give `at` (like `acl analyze --at`)"
         else:
-            if mech == "beams" and 1 <= len(design.capsules) <= 2:
+            if closed_eq:
                 names += [f"tip_deflection_{_ident(j.target)}_m" for c in design.capsules
                           for j in [design.mount_of(c.name)] if j.kind == "mount"] + ["equilibrium_ok"]
+            elif general is None:
+                names += [f"{'tip_deflection' if kind == 'beam' else 'deflection'}_{_ident(el)}_m"
+                          for el, kind in _elements(design)] + ["equilibrium_ok"]
             else:
-                missing["tip_deflection"] = "batched equilibria cover one capsule on a beam or a pair on two beams"
+                missing["tip_deflection"] = missing["deflection_"] = \
+                    f"batched equilibria do not cover this mechanism: {general}"
     for i, r in enumerate(design.requires, 1):
         if _require_supported(design, r, effects):
             names += [f"require_{i}_value", f"require_{i}_pass"]
+        elif r.kind == "margin" and blocks["latch"]:
+            missing[f"require_{i}"] = f"`{r.text}`: " + _effects_note(blocks["latch"], "the forces or the latch law")
+        elif r.kind == "gap" and effects:
+            missing[f"require_{i}"] = f"`{r.text}`: " + _effects_note(effects, "the equilibria")
         else:
             missing[f"require_{i}"] = f"`{r.text}` is not batched for this design"
     if design.requires and all(f"require_{i}_pass" in names for i in range(1, len(design.requires) + 1)):
         names.append("requires_pass")
+    sweeps = any(st.kind == "sweep" for p in design.programs for st in p.steps)
     names += [f"lint_{code}_pass" for code in LINT_RULES
-              if code != "acl105" or not effects]
+              if (code != "acl105" or not blocks["rest"]) and (code not in _PROGRAM_LINT or not effects)
+              and (code not in _PROGRAM_LINT or not sweeps)]
     if "lint_acl603_pass" in names and "requires_pass" not in names and design.requires:
         names.remove("lint_acl603_pass")
+    if blocks["rest"]:
+        missing["lint_acl105"] = "eps/R with declared effects on the drive pressure is not batched"
     if effects:
-        missing["lint_acl105"] = "eps/R with declared effects is not batched"
+        for code in _PROGRAM_LINT:
+            missing[f"lint_{code}"] = "forces with declared effects are not batched"
+    elif sweeps:
+        for code in _PROGRAM_LINT:
+            missing[f"lint_{code}"] = ("a `sweep` step's tones include each point's own modes "
+                                       "(acl.lint.context.sweep_frequencies): not one set of frequencies for all points")
     return names, missing
 
 
 def _require_supported(design, r, effects) -> bool:
     if r.kind in ("resonance", "separation"):
         return True
+    if r.kind == "margin":
+        return any(lt.name == r.args[0] for lt in design.latches) and not _effect_blocks(design)["latch"]
     if effects:
         return False
-    if r.kind == "margin":
-        return any(lt.name == r.args[0] for lt in design.latches)
-    # gap: the equilibrium at every program step, batched for a pair of capsules on two beams
-    return _mechanism(design) == "beams" and len(design.capsules) == 2
+    # gap: the equilibrium at every program step: a pair of capsules on two beams, or the general mechanism
+    return (_mechanism(design) == "beams" and len(design.capsules) == 2) or _general(design) is None
+
+
+def _elements(design) -> list[tuple[str, str]]:
+    """(name, kind) of the mechanism's deflections, as mechanics._deflections reports them (elements, then spring links)."""
+    from acl.analysis import mechanics as ME
+
+    mech = ME.build_mechanism(design)
+    out = [(el.name, el.kind) for el in mech.elements]
+    out += [(name, "link") for (_k, _n, _a, _b, name) in mech.links if name not in {n for n, _ in out}]
+    return out
+
+
+def _uses_general(design) -> bool:
+    closed_snap, closed_eq = _closed_form(design)
+    return not (closed_snap and closed_eq) and _general(design) is None
 
 
 def _pairs(design):
@@ -288,6 +403,7 @@ class _Rows:
         self.rows = rows
         self.n = int(rows.size)
         self.valid = np.asarray(batch.valid, bool)[rows]
+        self.fields = batch.fields            # which fields vary (membership only; values through get)
         self._batch = batch
 
     def get(self, path: str) -> np.ndarray:
@@ -447,10 +563,117 @@ class _Evaluator:
                     "outer": np.stack([self.capsule(c)["outer"] for c in range(len(self.caps))], axis=1)}
         return self.once("layout", build)
 
+    # -- drives: the programs' amplitudes and the transducer's values per point -----------------------
+    def moving(self, path: str) -> bool:
+        """Whether field ``path`` varies over the points."""
+        return path in self.batch.fields
+
+    def transducer_moves(self) -> bool:
+        return self.design.transducer is not None and any(p.startswith("transducer.") for p in self.batch.fields)
+
     def gain(self, f) -> np.ndarray:
+        """Transducer gain (Pa/V) at the tones ``f`` (T,): (T,) from the design's table, or (N, T) from each
+        point's table when a swept parameter moves the transducer (paper Fig. S1, linear interpolation)."""
         from acl.analysis.acoustics import drive_gain
 
-        return drive_gain(self.design, f)[0]
+        if not self.transducer_moves():
+            return drive_gain(self.design, f)[0]
+        fs, gs = self.gain_table()
+        return pressure_per_volt_rows(np.broadcast_to(np.asarray(f, float), (self.n, np.size(f))), fs, gs)
+
+    def gain_rows(self, f: np.ndarray) -> np.ndarray:
+        """Gain (Pa/V) at one frequency per point ``f`` (N,)."""
+        from acl.analysis.acoustics import drive_gain
+
+        if not self.transducer_moves():
+            return drive_gain(self.design, f)[0]
+        fs, gs = self.gain_table()
+        return pressure_per_volt_rows(np.asarray(f, float)[:, None], fs, gs)[:, 0]
+
+    def gain_table(self) -> tuple[np.ndarray, np.ndarray]:
+        def build():
+            t = self.design.transducer
+            fs = np.stack([self.get(f"transducer.gain_frequencies.{k}") for k in range(len(t.gain_frequencies))], axis=1)
+            gs = np.stack([self.get(f"transducer.gain_pa_per_v.{k}") for k in range(len(t.gain_pa_per_v))], axis=1)
+            return fs, gs
+        return self.once("gain_table", build)
+
+    def volt(self, path: str, nominal: float, divisor: int = 1):
+        """One tone's amplitude: the float ``nominal`` (computed as the scalar code does) when ``path`` does
+        not vary, else a key (path, divisor) that :meth:`volts` reads per point (hashable: cache keys)."""
+        return ("field", path, divisor) if self.moving(path) else nominal
+
+    def volts(self, volts: tuple) -> np.ndarray:
+        """Tone amplitudes (T,) of a drive whose amplitudes are floats, else (N, T) per point."""
+        if all(isinstance(v, (int, float)) for v in volts):
+            return np.asarray(volts, float)
+        return np.stack([self._volt(v) for v in volts], axis=1) if volts else np.zeros((self.n, 0))
+
+    def _volt(self, v) -> np.ndarray:
+        if isinstance(v, (int, float)):
+            return np.full(self.n, float(v))
+        if v[0] == "field":
+            return self.get(v[1]) / v[2] if v[2] != 1 else self.get(v[1]).copy()
+        # ("max", elements): the largest amplitude applied at a frequency, 0 -> the reference (report._amplitude_at)
+        from acl.analysis.report import DEFAULT_V
+
+        best = np.zeros(self.n)
+        for e in v[1]:
+            best = np.maximum(best, self._volt(e))
+        return np.where(best > 0, best, DEFAULT_V)
+
+    def pressure(self, freqs, volts: tuple) -> np.ndarray:
+        """Drive pressure amplitude (Pa) of each tone: (T,), or (N, T) when amplitudes or gains vary per point."""
+        return self.volts(volts) * self.gain(np.asarray(freqs, float))
+
+    def limit_volt(self, p, i: int, st):
+        """The voltage limit of a follow/switch/hold step: its own `limit`, else the transducer's maximum
+        (None: neither; report.step_drives then uses the reference voltage)."""
+        if st.limits.max_voltage is not None:
+            return self.volt(f"programs.{p.name}.steps.{i}.limits.max_voltage", st.limits.max_voltage)
+        if self.design.transducer is not None:
+            return self.volt("transducer.max_voltage", self.design.transducer.max_voltage)
+        return None
+
+    def step_drives(self) -> list:
+        """(program, step index, step, frequencies, amplitudes) of every step with a definite drive
+        (report.step_drives), the amplitudes per point where a swept parameter moves them."""
+        def build():
+            from acl.analysis.report import step_drives
+
+            out = []
+            for p, i, st, drive in step_drives(self.design):
+                freqs = tuple(t.frequency for t in drive.tones)
+                if st.kind == "drive":
+                    volts = tuple(self.volt(f"programs.{p.name}.steps.{i}.drive.tones.{j}.amplitude", t.amplitude)
+                                  for j, t in enumerate(drive.tones))
+                else:
+                    lim = self.limit_volt(p, i, st)
+                    volts = tuple(t.amplitude if not isinstance(lim, tuple) else ("field", lim[1], len(st.tones))
+                                  for t in drive.tones)
+                out.append((p, i, st, freqs, volts))
+            return out
+        return self.once("step_drives", build)
+
+    def amplitude_at(self, f: float):
+        """The largest amplitude the programs apply at f (report._amplitude_at), per point when it moves."""
+        from acl.analysis.report import _amplitude_at
+
+        elems, moving = [], False
+        for p in self.design.programs:
+            for i, st in enumerate(p.steps):
+                if st.kind == "drive":
+                    for j, t in enumerate(st.drive.tones):
+                        if t.frequency == f:
+                            e = self.volt(f"programs.{p.name}.steps.{i}.drive.tones.{j}.amplitude", t.amplitude)
+                            elems.append(e)
+                            moving |= isinstance(e, tuple)
+                elif st.kind in ("follow", "switch", "hold") and f in st.tones:
+                    e = self.limit_volt(p, i, st)
+                    if e is not None:
+                        elems.append(e)
+                        moving |= isinstance(e, tuple)
+        return ("max", tuple(elems)) if moving else _amplitude_at(self.design, f)
 
     def thrust_scale(self) -> np.ndarray:
         """(N, C) declared thrust coefficient / the capsule's own thrust per V^2 at its first reported mode (acoustics._thrust_scale)."""
@@ -467,7 +690,7 @@ class _Evaluator:
                 h0 = PB.uncoupled_response(vol, om, om / q, body, f1[:, None])
                 u = PB.coupled_response(h0, g["points"], g["radii"], body, f1[:, None], self.medium["density"],
                                         self.medium["sound_speed"], C.SUBSTRATE_REFLECTION)[:, 0]
-                u = u * self.gain(f1)[:, None]
+                u = u * self.gain_rows(f1)[:, None]
                 per = thrust_magnitude(u, g["radii"], 2 * np.pi * f1[:, None], self.medium["viscosity"][:, None],
                                        C.STREAMING_CONSTANT)
                 total = np.linalg.norm((per[..., None] * -g["normals"]).sum(axis=1), axis=-1)
@@ -484,18 +707,17 @@ class _Evaluator:
         """Total acoustic force (N, C, 3) at capsule centres (N, C, 3) for tones (freqs, volts) (acoustics._Engine.forces)."""
         lay = self.layout()
         f = np.asarray(freqs, float)
-        v = np.asarray(volts, float)
-        pressure = v * self.gain(f)                                       # (T,)
+        pressure = self.pressure(f, volts)                                # (T,) or (N, T) per point
         pts = centres[:, lay["body"]] + lay["offsets"]                    # (N, n, 3)
         if not parts and f.size == 1 and lay["body"].tolist() == [0, 1]:  # two one-orifice capsules, one tone
             h = self.h0(tuple(freqs))[:, 0]
             return PB.two_bubble_forces(np.stack([h[:, 0, 0], h[:, 1, 1]], axis=1), pts, lay["radii"], lay["normals"],
-                                        centres, lay["outer"], self.thrust_scale(), 2 * np.pi * f[0], pressure[0],
+                                        centres, lay["outer"], self.thrust_scale(), 2 * np.pi * f[0], pressure[..., 0],
                                         self.medium["density"], self.medium["sound_speed"], self.medium["viscosity"],
                                         C.STREAMING_CONSTANT, C.SUBSTRATE_REFLECTION)
         u = PB.coupled_response(self.h0(tuple(freqs)), pts, lay["radii"], lay["body"], f[None, :],
                                 self.medium["density"], self.medium["sound_speed"], C.SUBSTRATE_REFLECTION)
-        u = u * pressure[None, :, None]                                   # (N, T, n)
+        u = u * (pressure[None, :, None] if pressure.ndim == 1 else pressure[:, :, None])   # (N, T, n)
         w = 2 * np.pi * f
         thr = thrust_magnitude(u, lay["radii"][:, None, :], w[None, :, None], self.medium["viscosity"][:, None, None],
                                C.STREAMING_CONSTANT).sum(axis=1) * self.thrust_scale()[:, lay["body"]]   # (N, n)
@@ -519,11 +741,9 @@ class _Evaluator:
 
     # -- pairs at the program frequencies -------------------------------------------------------------
     def pair_quantities(self, f: float) -> dict:
-        from acl.analysis.report import _amplitude_at
-
         def build():
             lay = self.layout()
-            v = _amplitude_at(self.design, f)
+            v = self.amplitude_at(f)
             centres = lay["rest"]
             _, u, thr, att, pts = self.forces(centres, (f,), (v,), parts=True)
             thrust_vec = np.einsum("bn,bnk,nc->bck", thr, -lay["normals"], lay["onehot"])
@@ -890,6 +1110,13 @@ class _Evaluator:
 
     def snap_in(self, f: float) -> np.ndarray:
         vmax = self.design.transducer.max_voltage if self.design.transducer else 20.0
+        if self.design.transducer is not None and self.moving("transducer.max_voltage"):
+            vmax = self.get("transducer.max_voltage")          # each point's amplifier limit
+        if not _closed_form(self.design)[0]:                   # springs, latches, trusses, 3+ capsules
+            def general():
+                with np.errstate(all="ignore"):
+                    return self.mechanism().snap_in((f,), (1.0,), vmax)
+            return self.once(("general_snap", f), general)
         br = self.pair_branch((f,), (1.0,))
         v = np.sqrt(br["v2_fold"])
         out = np.where(v <= vmax, v, np.nan)
@@ -897,7 +1124,7 @@ class _Evaluator:
         rows = np.flatnonzero(~br["closing"] & ~br["opening"] | br["lateral"])
         if rows.size:
             with np.errstate(all="ignore"):
-                out[rows] = self.subset(rows).plane_snap((f,), (1.0,), vmax)
+                out[rows] = self.subset(rows).plane_snap((f,), (1.0,), vmax if np.ndim(vmax) == 0 else vmax[rows])
         return out
 
     def closing_equilibrium(self, freqs, volts, hi):
@@ -930,7 +1157,7 @@ class _Evaluator:
 
     def pair_deflection(self, drive: M.Drive) -> dict:
         """Beam deflections of the pair at drive scale 1 on the stable branch from rest (mechanics.equilibrium): NaN after snap-in."""
-        disp, ok = self.pair_equilibrium(drive)
+        disp, ok = self.pair_equilibrium(tuple(t.frequency for t in drive.tones), tuple(t.amplitude for t in drive.tones))
         out = {"equilibrium_ok": ok}
         for c in range(len(self.caps)):
             bm = self.beam_of(c)
@@ -938,15 +1165,46 @@ class _Evaluator:
                 out[f"tip_deflection_{_ident(bm['name'])}_m"] = np.where(ok, np.linalg.norm(disp[:, c], axis=-1), np.nan)
         return out
 
-    def pair_equilibrium(self, drive: M.Drive):
+    def mechanism(self):
+        """The general batched mechanism (acl.sweep.mechanism) of these points."""
+        from acl.sweep.mechanism import Mechanism, MechanismError
+
+        def build():
+            try:
+                return Mechanism(self)
+            except MechanismError as exc:
+                raise QuantityError("E-SWEEP-Q02", f"the mechanism is not batched for these points: {exc}") from None
+        return self.once("mechanism", build)
+
+    def general_equilibrium(self, freqs: tuple, volts: tuple):
+        """(displacement (N, C, 3), ok, deflections {element: (N,)}) of the general mechanism at a drive (mechanics.equilibrium)."""
+        def build():
+            me = self.mechanism()
+            if not freqs:
+                z, ok = np.zeros((self.n, me.m)), np.ones(self.n, bool)
+            else:
+                with np.errstate(all="ignore"):
+                    z, ok = me.equilibrium(freqs, volts)
+            return me.displacements(z), ok, me.deflections(z)
+        return self.once(("general_eq", freqs, volts), build)
+
+    def general_deflection(self, drive: M.Drive) -> dict:
+        """Deflection columns of the general mechanism at ``drive`` (NaN after snap-in)."""
+        _, ok, defl = self.general_equilibrium(tuple(t.frequency for t in drive.tones),
+                                               tuple(t.amplitude for t in drive.tones))
+        out = {"equilibrium_ok": ok}
+        for name, kind in _elements(self.design):
+            col = "tip_deflection" if kind == "beam" else "deflection"
+            out[f"{col}_{_ident(name)}_m"] = np.where(ok, defl[name], np.nan)
+        return out
+
+    def pair_equilibrium(self, freqs: tuple, volts: tuple):
         """(displacement (N, C, 3), ok) of the pair's capsules at ``drive`` (mechanics.equilibrium from rest); not ok after snap-in.
 
         A pair the drive pulls together along its line: regula falsi on V^2(s) = 1 below the fold of
         the reduced branch; any other (pushed apart, one pushed and one pulled, a lateral force):
         natural continuation in V^2 with Newton on both beams' planes of motion.
         """
-        freqs = tuple(t.frequency for t in drive.tones)
-        volts = tuple(t.amplitude for t in drive.tones)
         return self.once(("pair_eq", freqs, volts), lambda: self._pair_equilibrium(freqs, volts))
 
     def _pair_equilibrium(self, freqs, volts):
@@ -979,8 +1237,6 @@ class _Evaluator:
 
     def gap_over_steps(self, a: str, b: str) -> np.ndarray:
         """require gap: the smallest distance of orifices a, b over rest and the equilibrium of every program step, 0 after snap-in (report._require)."""
-        from acl.analysis.report import step_drives
-
         lay = self.layout()
         (ca, oa), (cb, ob) = a.split("."), b.split(".")
         names = [c.name for c in self.caps]
@@ -993,8 +1249,12 @@ class _Evaluator:
 
         zero = np.zeros((self.n, len(self.caps), 3))
         gap = np.linalg.norm(point(cb, ob, zero) - point(ca, oa, zero), axis=-1)
-        for _p, _i, _st, drive in step_drives(self.design):
-            disp, ok = self.pair_equilibrium(drive)
+        general = _uses_general(self.design) and not (_mechanism(self.design) == "beams" and len(self.caps) == 2)
+        for _p, _i, _st, freqs, volts in self.step_drives():
+            if general:
+                disp, ok, _ = self.general_equilibrium(freqs, volts)
+            else:
+                disp, ok = self.pair_equilibrium(freqs, volts)
             g = np.linalg.norm(point(cb, ob, disp) - point(ca, oa, disp), axis=-1)
             gap = np.minimum(gap, np.where(ok, g, 0.0))
         return gap
@@ -1002,8 +1262,6 @@ class _Evaluator:
     # -- latches ------------------------------------------------------------------------------------
     def latch(self, name: str) -> dict:
         def build():
-            from acl.analysis.report import step_drives
-
             lt = self.design.latch(name)
             base = f"latches.{name}"
             geo = [self.get(f"{base}.{k}") for k in ("angle", "length", "width", "thickness", "youngs_modulus")]
@@ -1018,9 +1276,8 @@ class _Evaluator:
                        if j.kind == "mount" and j.target_kind == "latch" and j.target == name]
             lay = self.layout()
             margins = {}
-            for p, i, _st, drive in step_drives(self.design):
-                F = self.forces(lay["rest"], tuple(t.frequency for t in drive.tones),
-                                tuple(t.amplitude for t in drive.tones))
+            for p, i, _st, freqs, volts in self.step_drives():
+                F = self.forces(lay["rest"], freqs, volts)
                 push = sign * sum((F[:, c] @ axis for c in carried), np.zeros(self.n))
                 margins[(p.name, i)] = np.where(required > 0, push / np.where(required > 0, required, 1.0), np.inf)
             return {"switching": fsw, "release": rel, "bistable": bistable, "margins": margins}
@@ -1078,7 +1335,7 @@ class _Evaluator:
             t = self.design.transducer
             if t is None:
                 return ok
-            lo, hi = t.band
+            lo, hi = (self.get(f"transducer.band.{k}") for k in (0, 1)) if self.transducer_moves() else t.band
             for c in range(len(self.caps)):
                 f = self.modes(c)[0]
                 ok &= np.all(np.isnan(f) | ((f >= lo) & (f <= hi)), axis=1)
@@ -1110,7 +1367,198 @@ class _Evaluator:
             return ok
         if code == "acl105":
             return self.linear_ok(thr["linear_amplitude"], int(thr["sweep_samples"]))
+        if code == "acl201":
+            return self.snap_in_ok(thr["snap_margin"])
+        if code == "acl102":
+            return self.gain_ok(thr["gain_ratio"])
+        if code in ("acl401", "acl402"):
+            return self.beam_lint(thr["strain_limit"], thr["eq1_tolerance"])[code]
+        if code == "acl103":
+            return self.crosstalk_ok(thr["bandwidth_overlap"])
         raise QuantityError("E-SWEEP-Q01", f"lint rule {code} is not batched")
+
+    def lint_drives(self, p) -> list:
+        """(step, frequencies, amplitudes) of each drive lint knows for the steps of program ``p``
+        (acl.lint.context.Context._step_drives): a drive step's tones; each pinned tone of a
+        follow/switch/hold alone at the step's limit (or the transducer's maximum); sweeps excluded."""
+        out = []
+        for i, st in enumerate(p.steps):
+            if st.kind == "drive":
+                out.append((st, tuple(t.frequency for t in st.drive.tones),
+                            tuple(self.volt(f"programs.{p.name}.steps.{i}.drive.tones.{j}.amplitude", t.amplitude)
+                                  for j, t in enumerate(st.drive.tones))))
+            elif st.kind in ("follow", "switch", "hold") and st.tones:
+                v = self.limit_volt(p, i, st)
+                if v is not None:
+                    out += [(st, (f,), (v,)) for f in st.tones]
+        return out
+
+    def snap_in_ok(self, margin: float) -> np.ndarray:
+        """ACL201 (the Eq. 3 criterion; lint's default, without `mechanics`): no pair, outside the pairs a
+        program's `hold`/`cross` governs and not both fixed, is closer than margin x d_c under a drive of
+        the program while each capsule's thrust pushes it away from the other
+        (lint.rules.forces.snap_in; acoustics.pair_table's dominant interfaces at the strongest tone)."""
+        from acl.lint.rules.forces import _managed
+
+        ok = np.ones(self.n, bool)
+        if len(self.caps) < 2:
+            return ok
+        lay = self.layout()
+        names = [c.name for c in self.caps]
+        fixed = {j.capsule for j in self.design.joints if j.kind == "fix"}
+        rows = np.arange(self.n)
+        for p in self.design.programs:
+            crossing = _managed(p)
+            for _st, freqs, volts in self.lint_drives(p):
+                if not freqs:
+                    continue
+                _, u, thr, att, pts = self.forces(lay["rest"], freqs, volts, parts=True)
+                thrust_vec = np.einsum("bn,bnk,nc->bck", thr, -lay["normals"], lay["onehot"])
+                mag = np.abs(u)                                                          # (N, T, n)
+                for a, b in _pairs(self.design):
+                    if tuple(sorted((a, b))) in crossing or (a in fixed and b in fixed):
+                        continue
+                    ca, cb = names.index(a), names.index(b)
+                    ia, ib = np.flatnonzero(lay["body"] == ca), np.flatnonzero(lay["body"] == cb)
+                    if not (ia.size and ib.size):
+                        continue
+                    sep = pts[:, ib][:, None, :, :] - pts[:, ia][:, :, None, :]
+                    dd = np.linalg.norm(sep, axis=-1)
+                    fa = np.einsum("bij,bijk->bk", att[:, ia][:, :, ib] / dd, sep)
+                    line = lay["rest"][:, cb] - lay["rest"][:, ca]
+                    dist = np.linalg.norm(line, axis=-1)
+                    unit = line / np.where(dist > 0, dist, 1.0)[:, None]
+                    attraction = np.einsum("bk,bk->b", fa, unit)
+                    # dominant interfaces at the strongest tone (first maxima, as numpy's argmax)
+                    t = np.argmax(mag[:, :, ia].max(axis=2) * mag[:, :, ib].max(axis=2), axis=1)
+                    ja = ia[np.argmax(mag[rows, t][:, ia], axis=1)]
+                    jb = ib[np.argmax(mag[rows, t][:, ib], axis=1)]
+                    gap = np.linalg.norm(pts[rows, jb] - pts[rows, ja], axis=-1)
+                    gamma2 = (np.einsum("bk,bk->b", thrust_vec[:, ca], -unit)
+                              + np.einsum("bk,bk->b", thrust_vec[:, cb], unit))
+                    alpha = attraction * gap**2
+                    dc = np.where((alpha > 0) & (gamma2 > 0), np.sqrt(np.abs(alpha / np.where(gamma2 != 0, gamma2, 1.0))),
+                                  np.nan)
+                    pushed = (np.einsum("bk,bk->b", thrust_vec[:, ca], -unit) > 0) & \
+                             (np.einsum("bk,bk->b", thrust_vec[:, cb], unit) > 0)
+                    ok &= ~((gap < margin * dc) & pushed)
+        return ok
+
+    def beam_lint(self, strain_limit: float, tolerance: float) -> dict:
+        """ACL401 (clamp strain P (L + l) c / (E I) over the limit) and ACL402 (deflection beyond Eq. (1)'s
+        validity) from each program's worst load on each beam carrying a capsule (lint.rules.beams.beam_loads:
+        the first strongest drive of a step at rest, perpendicular to the beam; a `follow` path's reach)."""
+        def build():
+            from acl.lint.rules.beams import SAFE_RATIO, _linked, _path_extent, eq1_limit_ratio
+            from acl.physics.beams import eq1_deflection
+
+            ok401, ok402 = np.ones(self.n, bool), np.ones(self.n, bool)
+            lay = self.layout()
+            names = [c.name for c in self.caps]
+            for beam in self.design.beams:
+                cap = next((j.capsule for j in self.design.joints if j.kind == "mount" and j.target == beam.name), None)
+                if cap is None or _linked(self, cap):     # linked: lint checks it only with mechanics
+                    continue
+                ci = names.index(cap)
+                bm = self.beam_of(ci)
+                if bm is None:
+                    continue
+                L, l, EI, axis = bm["L"], bm["l"], bm["EI"], bm["axis"]
+                base = f"beams.{beam.name}.section"
+                c = self.get(f"{base}.diameter") / 2 if beam.section.shape == "circle" else \
+                    np.minimum(self.get(f"{base}.width"), self.get(f"{base}.thickness")) / 2
+                for p in self.design.programs:
+                    worst_p = np.full(self.n, np.nan)
+                    worst_d = np.full(self.n, np.nan)
+                    drives = {id(st): [] for st in p.steps}
+                    for st, freqs, volts in self.lint_drives(p):
+                        drives[id(st)].append((freqs, volts))
+                    for st in p.steps:
+                        if st.kind == "follow":
+                            if st.capsule != cap:
+                                continue
+                            ext = _path_extent(st)
+                            if ext is None:
+                                continue
+                            P, defl = PB.eq1_force(np.full(self.n, ext), L, l, EI), np.full(self.n, ext)
+                        elif st.kind == "hold" and st.mode == "cross" and cap in (st.a.split(".")[0], st.b.split(".")[0]):
+                            continue
+                        else:
+                            if not drives[id(st)]:
+                                continue
+                            P = None
+                            for freqs, volts in drives[id(st)]:       # the first strongest drive
+                                F = self.forces(lay["rest"], freqs, volts)[:, ci]
+                                load = np.linalg.norm(F - np.einsum("bk,bk->b", F, axis)[:, None] * axis, axis=-1)
+                                P = load if P is None else np.where(load > P, load, P)
+                            defl = eq1_deflection(P, L, l, EI)
+                        better = np.isnan(worst_p) | (P > worst_p)
+                        worst_p, worst_d = np.where(better, P, worst_p), np.where(better, defl, worst_d)
+                    has = np.isfinite(worst_p)
+                    strain = worst_p * (L + l) * c / EI
+                    ok401 &= ~(has & (strain > strain_limit))
+                    rigid = np.array([round(float(v), 2) for v in (l / L)]) if self.n else np.zeros(0)
+                    ratio = np.ones(self.n)
+                    for r in np.unique(rigid):
+                        ratio[rigid == r] = eq1_limit_ratio(float(r), tolerance)
+                    skip = (tolerance >= 0.05) & (worst_d < SAFE_RATIO * L)
+                    ok402 &= ~(has & ~skip & (worst_d > ratio * L))
+            return {"acl401": ok401, "acl402": ok402}
+        return self.once(("beam_lint", strain_limit, tolerance), build)
+
+    def gain_ok(self, ratio: float) -> np.ndarray:
+        """ACL102: the transducer's gain at every in-band mode is at least ``ratio`` x its best gain over
+        a 400-point grid of the band (lint.rules.acoustics.low_transducer_gain), per point's band and table."""
+        ok = np.ones(self.n, bool)
+        t = self.design.transducer
+        if t is None:
+            return ok
+        moves = self.transducer_moves()
+        if moves:
+            lo, hi = self.get("transducer.band.0"), self.get("transducer.band.1")
+            step = (hi - lo) / 399                            # np.linspace(lo, hi, 400), row by row, same bits
+            grid = np.arange(400)[None, :] * step[:, None] + lo[:, None]
+            grid[:, -1] = hi
+            fs, gs = self.gain_table()
+            best = pressure_per_volt_rows(grid, fs, gs).max(axis=1)
+        else:
+            lo, hi = t.band
+            best = np.full(self.n, float(self.gain(np.linspace(lo, hi, 400)).max()))
+        lo_, hi_ = np.broadcast_to(lo, (self.n,))[:, None], np.broadcast_to(hi, (self.n,))[:, None]
+        for c in range(len(self.caps)):
+            f = self.modes(c)[0]                                          # (N, P), NaN padded
+            if f.shape[1] == 0:
+                continue
+            if moves:
+                g = pressure_per_volt_rows(np.where(np.isfinite(f), f, 0.0), *self.gain_table())
+            else:
+                g = self.gain(np.where(np.isfinite(f), f, 0.0).ravel()).reshape(f.shape)
+            inband = (lo_ <= f) & (f <= hi_)
+            ok &= ~np.any(inband & (g < ratio * best[:, None]) & (best[:, None] > 0), axis=1)
+        return ok
+
+    def crosstalk_ok(self, k: float) -> np.ndarray:
+        """ACL103: no two modes of capsules meant to be driven separately overlap within k x their mean
+        half-bandwidth (lint.rules.acoustics.mode_crosstalk), modes and Q of each point."""
+        from acl.lint.rules.acoustics import _separate_pairs
+
+        class _Steps:                       # what _separate_pairs reads: the design and its program steps
+            design = self.design
+
+            @staticmethod
+            def steps():
+                return ((p, st) for p in self.design.programs for st in p.steps)
+
+        ok = np.ones(self.n, bool)
+        idx = {c.name: i for i, c in enumerate(self.caps)}
+        for (a, b) in _separate_pairs(_Steps()):
+            fa, qa = self.modes(idx[a])
+            fb, qb = self.modes(idx[b])
+            f1, q1 = fa[:, :, None], qa[:, :, None]
+            f2, q2 = fb[:, None, :], qb[:, None, :]
+            half = (f1 / q1 + f2 / q2) / 2
+            ok &= ~np.any(np.abs(f1 - f2) < k * half, axis=(1, 2))
+        return ok
 
     def half_height(self, c: int) -> np.ndarray:
         """Extent of capsule c's outer body below its centre (geometry.half_extent along -z)."""
@@ -1157,23 +1605,26 @@ class _Evaluator:
         lay = self.layout()
         ok = np.ones(self.n, bool)
         for p in self.design.programs:
-            for st in p.steps:
+            for i, st in enumerate(p.steps):
+                base = f"programs.{p.name}.steps.{i}."
                 if st.kind == "drive":
-                    drives = [st.drive]
+                    drives = [(tuple(t.frequency for t in st.drive.tones),
+                               tuple(self.volt(f"{base}drive.tones.{j}.amplitude", t.amplitude)
+                                     for j, t in enumerate(st.drive.tones)))]
                 elif st.kind == "sweep":
-                    drives = [M.Drive(tones=(M.Tone(frequency=float(f), amplitude=st.amplitude),))
-                              for f in np.linspace(st.f_start, st.f_stop, samples)]
+                    amp = self.volt(base + "amplitude", st.amplitude)
+                    drives = [((float(f),), (amp,)) for f in np.linspace(st.f_start, st.f_stop, samples)]
                 else:
                     continue
-                for dr in drives:
-                    f = np.array([t.frequency for t in dr.tones])
-                    v = np.array([t.amplitude for t in dr.tones])
+                for freqs, volts in drives:
+                    f = np.array(freqs)
                     if f.size == 0:
                         continue
                     pts = lay["rest"][:, lay["body"]] + lay["offsets"]
                     u = PB.coupled_response(self.h0(tuple(f)), pts, lay["radii"], lay["body"], f[None, :],
                                             self.medium["density"], self.medium["sound_speed"], C.SUBSTRATE_REFLECTION)
-                    u = u * (v * self.gain(f))[None, :, None]
+                    pr = self.pressure(f, volts)
+                    u = u * (pr[None, :, None] if pr.ndim == 1 else pr[:, :, None])
                     eps = interface_centre_amplitude(np.abs(u).sum(axis=1), lay["radii"])
                     ok &= np.all(eps / lay["radii"] <= limit, axis=1)
         return ok
@@ -1197,13 +1648,16 @@ class _Evaluator:
                 cols = self.pair_quantities(f)
                 if q in cols:
                     return cols[q]
-        m = re.fullmatch(r"tip_deflection_(.+)_m", q)
+        m = re.fullmatch(r"(tip_)?deflection_(.+)_m", q)
         if m or q == "equilibrium_ok":
             from acl.design.drives import drive_from_text
 
             drive = drive_from_text(self.at, "<at>")
-            cols = self.once(("at", self.at), lambda: self.single_deflection(drive) if len(self.caps) == 1
-                             else self.pair_deflection(drive))
+            if not _closed_form(self.design)[1]:
+                cols = self.once(("at", self.at), lambda: self.general_deflection(drive))
+            else:
+                cols = self.once(("at", self.at), lambda: self.single_deflection(drive) if len(self.caps) == 1
+                                 else self.pair_deflection(drive))
             return cols[q]
         for lt in self.design.latches:
             key = _ident(lt.name)

@@ -377,17 +377,25 @@ def field_batch(design: Design, params: dict[str, np.ndarray], fmap: FieldMap | 
     return batch
 
 
-# Fields whose checks (drive amplitudes and frequencies, step limits, the transducer's maximum
-# voltage: E401, E502) acl.sweep.validity does not vectorise: the resolver judges them.
+# Program and transducer fields: drive amplitudes, limits, durations, margins and the transducer's
+# values are checked vectorised (acl.sweep.validity.check_drives); the others (a tone's frequency,
+# a follow path's size) are judged by the resolver.
 _RESOLVER_CHECKED = ("programs.", "transducer.")
 
 
 def _resolver_checks(design, fmap: FieldMap, x: np.ndarray, batch) -> None:
-    """Points whose program or transducer fields move get the resolver's verdict: each unique value
-    of the parameters those fields depend on is loaded once; an error marks its points invalid with
-    the resolver's first error code (as `acl check`), never a valid row for a drive it refuses."""
+    """Points whose program or transducer fields move get the resolver's verdict: vectorised for the
+    fields :func:`acl.sweep.validity.drive_fields_vectorised` names; for any other, each unique value
+    of the parameters those fields depend on is loaded once, and an error marks its points invalid
+    with the resolver's first error code (as `acl check`), never a valid row for a drive it refuses."""
+    from acl.sweep.validity import check_drives, drive_fields_vectorised
+
     moved = [p for p in batch.fields if p.startswith(_RESOLVER_CHECKED)]
     if not moved or not len(x):
+        return
+    check_drives(batch)
+    moved = [p for p in moved if not drive_fields_vectorised(p)]
+    if not moved:
         return
     dep = set()
     for p in moved:

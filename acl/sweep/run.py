@@ -38,10 +38,47 @@ def map_chunks(task: Callable[[int], T], n_chunks: int, scheduler: str | None = 
     """
     if n_chunks < 0:
         raise ValueError("n_chunks must be >= 0")
-    kind = scheduler_kind(scheduler)
-    if kind == "cluster":
-        return _on_cluster(task, n_chunks, scheduler, progress)
-    return _on_this_machine(task, n_chunks, progress)
+    with Executor(scheduler, connect=n_chunks > 0) as ex:
+        return ex.map(task, n_chunks, progress)
+
+
+class Executor:
+    """Where tasks run, kept open across several :meth:`map` calls (``acl tune`` maps one batch of
+    trials after another on the same cluster connection)::
+
+        with Executor("tcp://10.0.0.5:8786") as ex:
+            first = ex.map(task, 8)
+            second = ex.map(other, 4)
+
+    ``scheduler`` as :func:`map_chunks`; a cluster is connected on entering (``connect=False``:
+    only when a map has work), and closed on exit.
+    """
+
+    def __init__(self, scheduler: str | None = None, connect: bool = True):
+        self.kind = scheduler_kind(scheduler)
+        self.address = scheduler
+        self._connect = connect
+        self._client = None
+
+    def __enter__(self) -> "Executor":
+        if self.kind == "cluster" and self._connect:
+            self._client = _client(self.address)
+        return self
+
+    def __exit__(self, *exc) -> None:
+        if self._client is not None:
+            self._client.close()
+            self._client = None
+
+    def map(self, task: Callable[[int], T], n: int, progress: Callable[[int, int], None] | None = None) -> list[T]:
+        """``[task(0), ..., task(n - 1)]`` in order."""
+        if self.kind == "cluster":
+            if n == 0:
+                return []
+            if self._client is None:
+                self._client = _client(self.address)
+            return _on_cluster(self._client, task, n, progress)
+        return _on_this_machine(task, n, progress)
 
 
 def scheduler_kind(scheduler: str | None) -> str:
@@ -114,21 +151,15 @@ def _client(address: str):
                     "and the firewall, or use --scheduler local")]) from None
 
 
-def _on_cluster(task, n_chunks, address, progress) -> list:
-    if n_chunks == 0:
-        return []
-    client = _client(address)
-    try:
-        from distributed import as_completed
+def _on_cluster(client, task, n_chunks, progress) -> list:
+    from distributed import as_completed
 
-        # pure=False: a task is keyed by its chunk, never deduplicated or cached across runs
-        futures = client.map(task, range(n_chunks), pure=False)
-        index = {f.key: k for k, f in enumerate(futures)}
-        results: list = [None] * n_chunks
-        for done_count, f in enumerate(as_completed(futures, loop=client.loop), start=1):
-            results[index[f.key]] = f.result()             # re-raises a task's exception here
-            if progress is not None:
-                progress(done_count, n_chunks)
-        return results
-    finally:
-        client.close()
+    # pure=False: a task is keyed by its chunk, never deduplicated or cached across runs
+    futures = client.map(task, range(n_chunks), pure=False)
+    index = {f.key: k for k, f in enumerate(futures)}
+    results: list = [None] * n_chunks
+    for done_count, f in enumerate(as_completed(futures, loop=client.loop), start=1):
+        results[index[f.key]] = f.result()             # re-raises a task's exception here
+        if progress is not None:
+            progress(done_count, n_chunks)
+    return results

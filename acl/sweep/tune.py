@@ -145,11 +145,16 @@ def rounded(x: np.ndarray, digits: int = DIGITS) -> np.ndarray:
 
 def maximise(evaluate: Callable[[np.ndarray], np.ndarray], free: Sequence[Free], objective: str = "yield",
              method: str = "nelder-mead", max_evals: int = 200, seed: int = 0,
-             progress: Callable[[int, int, float], None] | None = None) -> Search:
+             progress: Callable[[int, int, float], None] | None = None,
+             evaluate_many: Callable[[list], list] | None = None) -> Search:
     """Maximise the objective over the box of ``free``; ``evaluate(x_SI) -> margins (n, R)``.
 
     The margin scales are fixed at the start (so the objective does not move during the search);
     the best trial by exact yield (then by score) is returned, never worse than the start.
+    ``evaluate_many([x, ...]) -> [margins, ...]`` (optional, e.g. on a cluster) evaluates the trials
+    the search knows in advance (the scan, each differential-evolution generation, the first
+    simplex) together; the trials, their order and the result are the same as without it, as
+    long as it returns what ``evaluate`` would.
     """
     from scipy.optimize import differential_evolution, minimize
     from scipy.stats import qmc
@@ -169,6 +174,24 @@ def maximise(evaluate: Callable[[np.ndarray], np.ndarray], free: Sequence[Free],
     history: list = []
     cache: dict[tuple, float] = {}
     budget = max(1, int(max_evals))
+    ahead: dict[tuple, np.ndarray] = {}          # margins evaluated in advance by evaluate_many
+
+    def prefetch(us) -> None:
+        """Evaluate together the trials ``us`` that ``trial`` would evaluate next (within the budget)."""
+        if evaluate_many is None:
+            return
+        xs, seen = [], set()
+        for u in us:
+            x = to_x(np.asarray(u, float))
+            key = tuple(x)
+            if key in cache or key in ahead or key in seen or np.array_equal(x, start_written):
+                continue
+            if len(history) + len(xs) >= budget:
+                break
+            seen.add(key)
+            xs.append(x)
+        for x, m in zip(xs, evaluate_many(xs) if xs else []):
+            ahead[tuple(x)] = m
 
     def trial(u) -> float:
         x = to_x(np.asarray(u, float))
@@ -177,7 +200,9 @@ def maximise(evaluate: Callable[[np.ndarray], np.ndarray], free: Sequence[Free],
             return cache[key]
         if len(history) >= budget:
             return -cache_best()
-        m = m0 if np.array_equal(x, start_written) else evaluate(x)
+        m = m0 if np.array_equal(x, start_written) else ahead.pop(key, None)
+        if m is None:
+            m = evaluate(x)
         s = score(m, scale, objective)
         y = int(passing(m).sum())
         history.append((x, s, y))
@@ -194,10 +219,18 @@ def maximise(evaluate: Callable[[np.ndarray], np.ndarray], free: Sequence[Free],
     trial(u0)
     if method == "differential-evolution":
         pop = max(5, min(15, budget // (4 * d) or 1))
+        def generation(func, population):
+            # a whole generation at once (deferred updating: the same with or without evaluate_many)
+            population = [np.asarray(u, float) for u in population]
+            prefetch(population)
+            return [func(u) for u in population]
+
         differential_evolution(trial, [(0.0, 1.0)] * d, seed=seed, popsize=pop, maxiter=max(1, budget // (pop * d)),
-                               polish=False, init="latinhypercube", x0=u0, tol=0.0, atol=0.0)
+                               polish=False, init="latinhypercube", x0=u0, tol=0.0, atol=0.0,
+                               updating="deferred", workers=generation)
     else:
         scan = qmc.LatinHypercube(d=d, seed=seed).random(max(8, 4 * d)) if budget > 8 * d else np.empty((0, d))
+        prefetch(scan)
         for u in scan:
             trial(u)
         best_u = (to_x_inverse(min(history, key=lambda h: (-h[2], -h[1]))[0], lo, width))
@@ -207,6 +240,7 @@ def maximise(evaluate: Callable[[np.ndarray], np.ndarray], free: Sequence[Free],
             simplex = np.vstack([best_u] + [np.clip(best_u + 0.1 * np.eye(d)[i] * np.where(best_u[i] > 0.9, -1, 1),
                                                      0, 1) for i in range(d)])
             opts["initial_simplex"] = simplex
+            prefetch(simplex)
         minimize(trial, best_u, method="Nelder-Mead" if method == "nelder-mead" else "Powell",
                  bounds=[(0.0, 1.0)] * d, options=opts)
     x, s, _y = max(history, key=lambda h: (h[2], h[1]) if objective == "yield" else (h[1], h[2]))
@@ -301,6 +335,20 @@ class Problem:
         bounds = [(None if r.lower is None else batch.get(f"requires.{j}.lower"),
                    None if r.upper is None else batch.get(f"requires.{j}.upper")) for j, r in enumerate(self.requires)]
         return require_margins(self.requires, [cols[q] for q in wanted], bounds)
+
+
+@dataclass(frozen=True)
+class MarginJobs:
+    """``jobs(k)``: :meth:`Problem.margins` of job k, (free values, block); picklable, so a dask worker
+    can run it (acl.sweep.run.Executor).  Every job is the whole sample of its block, as in one
+    process: a trial's numbers do not depend on where it runs."""
+
+    problem: Problem
+    jobs: tuple
+
+    def __call__(self, k: int) -> np.ndarray:
+        x, block = self.jobs[k]
+        return self.problem.margins(np.asarray(x, float), block)
 
 
 def require_margins(requires, values, bounds=None) -> np.ndarray:
@@ -422,6 +470,26 @@ class Tuned:
     per_require: list                 # [{text, line, before, after (Estimate), worst_before, worst_after}]
     timing_s: dict = field(default_factory=dict)   # stage -> seconds (search, validate)
 
+    @property
+    def values(self) -> dict[str, float]:
+        """{free parameter: chosen SI value, as written}."""
+        return {f.name: float(c) for f, c in zip(self.problem.free, self.chosen)}
+
+    def write(self, path: str | None = None, command: str = "") -> str:
+        """Write the tuned design (it ``extends`` the original; default ``<stem>.tuned.acl`` beside it)
+        atomically; returns the path written."""
+        import os
+
+        from acl.emit.atomic import write_text_atomic
+
+        out = os.path.abspath(path) if path else default_path(self.problem.path)
+        write_text_atomic(out, tuned_text(self, out, command=command))
+        return out
+
+    def __repr__(self) -> str:
+        chosen = ", ".join(f"{f.name}={literal(c, f.unit)}" for f, c in zip(self.problem.free, self.chosen))
+        return f"<Tuned {chosen}: yield before {self.before.text()}, after {self.after.text()}>"
+
     def to_json(self) -> dict:
         def est(e: Estimate) -> dict:
             lo, hi = e.interval
@@ -449,24 +517,40 @@ def _finite(x: float) -> float | None:
 
 
 def tune(problem: Problem, objective: str = "yield", method: str = "nelder-mead", max_evals: int = 200,
-         progress: Callable[[int, int, float], None] | None = None) -> Tuned:
+         progress: Callable[[int, int, float], None] | None = None, scheduler: str | None = None) -> Tuned:
     """Search, then validate the start and the written values on the fresh sample.
+
+    ``scheduler``: where trials run, as ``acl sweep --scheduler``: None/"local" (this machine, a
+    thread per core) or "tcp://HOST:PORT" (a dask.distributed cluster, ``acl[scale]``).  Trials the
+    search knows in advance (its scan, a differential-evolution generation, the first simplex, the
+    validation) run together; each trial evaluates its whole sample in one task, so the result is
+    the same bit for bit on any scheduler.
 
     Raises DiagnosticError E875 when no validation sample passes at the chosen values (infeasible
     within the free ranges, as far as the search looked).
     """
-    from acl.diagnostics import DiagnosticError, error
+    from acl.diagnostics import DiagnosticError, Span, error
+    from acl.sweep.run import Executor
 
     import time
 
+    for what, v, allowed in (("objective", objective, OBJECTIVES), ("method", method, METHODS)):
+        if v not in allowed:
+            raise DiagnosticError([error("E-USAGE", f"--{what} {v!r}: expected one of " + ", ".join(allowed),
+                                         Span(file=f"<--{what}>", line=1, column=1))])
+    if problem.spec is None:
+        problem.setup()
     t0 = time.perf_counter()
     start = np.array([f.start for f in problem.free], float)
-    found = maximise(problem.margins, problem.free, objective=objective, method=method, max_evals=max_evals,
-                     seed=problem.seed, progress=progress)
-    chosen = rounded(found.x)
-    t1 = time.perf_counter()
-    m_before, m_after = problem.margins(start, 1), problem.margins(chosen, 1)
-    s_before, s_after = problem.margins(start, 0), problem.margins(chosen, 0)
+    with Executor(scheduler, connect=False) as ex:
+        def run(jobs: list) -> list:
+            return ex.map(MarginJobs(problem, tuple((tuple(float(v) for v in x), b) for x, b in jobs)), len(jobs))
+
+        found = maximise(lambda x: run([(x, 0)])[0], problem.free, objective=objective, method=method, max_evals=max_evals,
+                         seed=problem.seed, progress=progress, evaluate_many=lambda xs: run([(x, 0) for x in xs]))
+        chosen = rounded(found.x)
+        t1 = time.perf_counter()
+        m_before, m_after, s_before, s_after = run([(start, 1), (chosen, 1), (start, 0), (chosen, 0)])
     n = m_before.shape[0]
     before, after = Estimate(int(passing(m_before).sum()), n), Estimate(int(passing(m_after).sum()), n)
     if after.passed == 0 and before.passed == 0:

@@ -7,6 +7,7 @@ Only fields that can vary are read (directions and shapes are fixed by the nomin
 from __future__ import annotations
 
 import math
+import re
 
 import numpy as np
 
@@ -166,3 +167,145 @@ def check_points(batch) -> None:
 
 def _size(batch, base: str, key: str, cav):
     return batch.get(f"{base}.cavity.{key}") if getattr(cav, key) is not None else None
+
+
+# ------------------------------------------------------------------------------------------------
+# Programs and transducer (acl.design.builders.Builder.transducer, acl.design.programs._step,
+# acl.design.checks.check_programs), per point
+# ------------------------------------------------------------------------------------------------
+
+_STEP = re.compile(r"^programs\.(?P<p>[^.]+)\.steps\.(?P<i>\d+)\.(?P<rest>.+)$")
+# fields of a step whose checks are vectorised below (anything else, e.g. a tone's frequency, which
+# names the batched columns, or a follow path's size, is judged by the resolver per unique value)
+_STEP_FIELDS = re.compile(r"^(drive\.tones\.\d+\.(amplitude|phase)|amplitude|duration|limits\.(max_voltage|slew_rate)"
+                          r"|margin|bound)$")
+_TRANSDUCER_FIELDS = re.compile(r"^transducer\.(max_voltage|band\.[01]|gain_pa_per_v\.\d+|gain_frequencies\.\d+"
+                                r"|gain_uncertainty)$")
+
+
+def drive_fields_vectorised(path: str) -> bool:
+    """A program or transducer field whose checks :func:`check_drives` gives per point."""
+    if path.startswith("transducer."):
+        return bool(_TRANSDUCER_FIELDS.match(path))
+    m = _STEP.match(path)
+    return bool(m and _STEP_FIELDS.match(m.group("rest")))
+
+
+def check_drives(batch) -> None:
+    """The resolver's checks of the transducer and the programs' drives, vectorised over the points of
+    ``batch`` (in place; geometry codes found earlier win, as in :func:`check_points`).
+
+    Per point, as the resolver: the transducer is built first (max_voltage positive E401 and at most
+    MAX_TRANSDUCER_VOLTAGE E502, band from a positive frequency E401, gain table increasing with
+    non-negative gains E413, gain_uncertainty in range E320); then each program step (amplitudes not
+    negative E401, limits and slew positive E401, a drive's amplitudes within its limit E502,
+    durations positive E503, margins in 1 .. MAX_MARGIN E505, hold bounds positive E401); a program
+    with a failed step and a failed transducer are left out of the program-vs-transducer checks
+    (frequency in the band E501, amplitude or limit above the transducer's maximum E502).  Of several
+    errors the one the resolver reports first (sorted by location) is kept.
+    """
+    from acl.design.builders import MAX_GAIN_UNCERTAINTY, MAX_TRANSDUCER_VOLTAGE
+    from acl.design.programs import MAX_MARGIN
+
+    d = batch.design
+    moved = [p for p in batch.fields if p.startswith(("programs.", "transducer."))]
+    if not moved or not batch.n:
+        return
+    g = batch.get
+    n = batch.n
+    found: list[tuple[tuple, np.ndarray, str]] = []       # (location, failing points, code)
+
+    def where(span) -> tuple:
+        return (span.file, span.line, span.column) if span is not None else ("", 0, 0)
+
+    tr = d.transducer
+    tr_ok = np.ones(n, bool)
+    if tr is not None:
+        loc = where(tr.span)
+        base = "transducer."
+        vmax = g(base + "max_voltage")
+        lo_band = g(base + "band.0")
+        fs = np.stack([g(f"{base}gain_frequencies.{k}") for k in range(len(tr.gain_frequencies))], axis=1)
+        gs = np.stack([g(f"{base}gain_pa_per_v.{k}") for k in range(len(tr.gain_pa_per_v))], axis=1)
+        flat = tr.gain_frequencies == (1.0,)             # `gain = 230 Pa/V`: a constant, no table checks
+        stages = [(~((vmax > 0) & np.isfinite(vmax)), "E401"), (vmax > MAX_TRANSDUCER_VOLTAGE, "E502"),
+                  (lo_band <= 0, "E401")]
+        if not flat:
+            stages += [(np.any(np.diff(fs, axis=1) <= 0, axis=1), "E413"),
+                       (np.any((gs < 0) | ~np.isfinite(gs), axis=1) | np.any(fs <= 0, axis=1), "E413")]
+        if tr.gain_uncertainty is not None:
+            u = g(base + "gain_uncertainty")
+            stages.append((~(np.isfinite(u) & (u >= 0) & (u <= MAX_GAIN_UNCERTAINTY)), "E320"))
+        code = np.full(n, "", dtype="<U8")
+        for bad, c in stages:                            # the builder stops at the first failing key
+            code = np.where((code == "") & bad, c, code)
+        tr_ok = code == ""
+        for c in np.unique(code[~tr_ok]):
+            found.append((loc, code == c, str(c)))
+    for p in d.programs:
+        prog_ok = np.ones(n, bool)
+        checks = []                                      # program-vs-transducer checks of this program
+        for i, st in enumerate(p.steps):
+            base = f"programs.{p.name}.steps.{i}."
+            loc = where(st.span)
+            stages = []
+            lim = g(base + "limits.max_voltage") if getattr(getattr(st, "limits", None), "max_voltage", None) is not None else None
+            if st.kind == "drive":
+                amps = np.stack([g(f"{base}drive.tones.{j}.amplitude") for j in range(len(st.drive.tones))], axis=1) \
+                    if st.drive.tones else np.zeros((n, 0))
+                stages.append((np.any(amps < 0, axis=1), "E401"))
+                total = amps.sum(axis=1)
+                if lim is not None:
+                    stages += [(lim <= 0, "E401")]
+                if getattr(st, "limits", None) is not None and st.limits.slew_rate is not None:
+                    stages.append((g(base + "limits.slew_rate") <= 0, "E401"))
+                if lim is not None:
+                    stages.append((total > lim * (1 + 1e-9), "E502"))
+                stages.append((~(g(base + "duration") > 0), "E503"))
+                volts = total
+            elif st.kind == "sweep":
+                amp = g(base + "amplitude")
+                stages += [(amp < 0, "E401"), (~(g(base + "duration") > 0), "E503")]
+                volts = amp
+            else:
+                # the order of acl.design.programs._step: follow (duration, limits), switch (margin,
+                # limits), hold (bound, margin, duration, limits), pause (duration)
+                if st.kind == "hold" and st.bound is not None:
+                    stages.append((g(base + "bound") <= 0, "E401"))
+                if st.kind in ("switch", "hold"):
+                    m = g(base + "margin")
+                    stages += [(m < 1, "E505"), (m > MAX_MARGIN, "E505")]
+                if st.kind != "switch" and getattr(st, "duration", None) is not None:
+                    stages.append((~(g(base + "duration") > 0), "E503"))
+                if lim is not None:
+                    stages.append((lim <= 0, "E401"))
+                if getattr(st, "limits", None) is not None and st.limits.slew_rate is not None:
+                    stages.append((g(base + "limits.slew_rate") <= 0, "E401"))
+                volts = lim
+            code = np.full(n, "", dtype="<U8")
+            for bad, c in stages:
+                code = np.where((code == "") & bad, c, code)
+            for c in np.unique(code[code != ""]):
+                found.append((loc, code == c, str(c)))
+            prog_ok &= code == ""
+            if tr is not None and volts is not None:
+                checks.append((loc, volts, st))
+        # acl.design.checks.check_programs: only for a built transducer and a built program
+        if tr is None:
+            continue
+        live = prog_ok & tr_ok
+        band_lo, band_hi, vmax = g("transducer.band.0"), g("transducer.band.1"), g("transducer.max_voltage")
+        for st in p.steps:
+            freqs, _ = C._step_tones(st)
+            loc = where(st.span)
+            out_band = np.zeros(n, bool)
+            for f in freqs:
+                out_band |= ~((band_lo * (1 - 1e-9) <= f) & (f <= band_hi * (1 + 1e-9)))
+            found.append((loc, live & out_band, "E501"))
+            for _loc, volts, st2 in checks:
+                if st2 is st:
+                    found.append((loc, live & (volts > vmax * (1 + 1e-9)), "E502"))
+    # the resolver sorts its errors by location; builder errors precede check errors at one location
+    order = sorted(range(len(found)), key=lambda k: (found[k][0], k))
+    for k in order:
+        _mark(batch, found[k][1], found[k][2])

@@ -1,0 +1,87 @@
+"""Declared physical effects in a sweep: each column family is given where no declared effect changes it, and
+equals `acl analyze` of the design with its effects; otherwise it is refused with a note naming the effects.
+
+Forces at rest are unchanged by effects on beams (large_deflection, stiffness_gradient, stiffness_scale) and
+by neighbour_drag (its factor is 1 at zero displacement); latch margins also by all but stiffness_scale
+(mechanics.latch_geometry).  Tolerances as tests/test_sweep_evaluate.py: forces 1e-9, latch margins 2e-3 and
+never above analyze.
+"""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import acl
+from acl.analysis.report import analyze
+from acl.sweep.evaluate import QuantityError, evaluate, supported
+from acl.sweep.perturb import FieldBatch, materialize
+
+ROOT = Path(__file__).resolve().parents[1]
+EX = ROOT / "examples"
+
+
+def _design(example: str, effects: str):
+    src = (EX / f"{example}.acl").read_text() + "\n" + effects + "\n"
+    return acl.loads(src, filename=str(EX / f"{example}.acl"))
+
+
+def _batch(design, fields: dict) -> FieldBatch:
+    fields = {k: np.asarray(v, float) for k, v in fields.items()}
+    n = len(next(iter(fields.values())))
+    return FieldBatch(design=design, n=n, fields=fields, valid=np.ones(n, bool), code=np.full(n, ""))
+
+
+def test_pair_forces_with_beam_and_drag_effects_equal_analyze():
+    d = _design("fig4_facing_pair", "effect large_deflection { elastica_weight = 0.5 }\n"
+                                    "effect neighbour_drag { plateau = 20 um }\n"
+                                    "observe g = gap(left.jet, right.jet)")
+    names, missing = supported(d, "125 kHz @ 3 V")
+    tag = "left_right_125khz"
+    assert f"force_{tag}_n" in names and f"critical_distance_{tag}_m" in names and "lint_acl105_pass" in names
+    assert f"snap_in_{tag}_v" not in names and "tip_deflection_left_arm_m" not in names
+    assert "large_deflection" in missing["snap_in_"] and "neighbour_drag" in missing["tip_deflection"]
+    b = _batch(d, {"capsules.left.orifices.jet.radius": [10e-6, 9.7e-6, 10.4e-6]})
+    cols = evaluate(b, [f"force_{tag}_n", f"phase_{tag}_deg", f"critical_distance_{tag}_m"])
+    for i in range(b.n):
+        p = analyze(materialize(b, i), snap_in=False).as_dict()["pairs"][0]
+        assert abs(cols[f"force_{tag}_n"][i] - p["force_n"]) <= 1e-9 * abs(p["force_n"])
+        assert abs(cols[f"phase_{tag}_deg"][i] - p["phase_difference_deg"]) <= 1e-7
+        if p["critical_distance_m"] is None:
+            assert math.isnan(cols[f"critical_distance_{tag}_m"][i])
+        else:
+            assert abs(cols[f"critical_distance_{tag}_m"][i] - p["critical_distance_m"]) <= 1e-9 * p["critical_distance_m"]
+    with pytest.raises(QuantityError) as exc:
+        evaluate(b, [f"snap_in_{tag}_v"])
+    assert exc.value.code == "E-SWEEP-Q02" and "large_deflection" in str(exc.value)
+
+
+def test_latch_margins_with_a_stiffness_gradient_equal_analyze_and_stiffness_scale_is_refused():
+    d = _design("fig6_bistable_latch", "effect stiffness_gradient { e_gradient = 0.2 }")
+    names, missing = supported(d, None)
+    assert "switching_force_snap_n" in names and "require_1_value" in names
+    b = _batch(d, {"latches.snap.angle": np.deg2rad([45.0, 43.0, 48.0])})
+    cols = evaluate(b, ["switching_force_snap_n", "margin_snap_switch_1", "require_1_value", "require_1_pass"])
+    for i in range(b.n):
+        rep = analyze(materialize(b, i), snap_in=False).as_dict()
+        lt = rep["latches"][0]
+        fsw = cols["switching_force_snap_n"][i]
+        assert lt["switching_force_n"] * (1 - 1e-12) <= fsw <= lt["switching_force_n"] * (1 + 2e-3)
+        m = next(x["margin"] for x in lt["margins"] if x["program"] == "switch")
+        assert m * (1 - 2e-3) <= cols["margin_snap_switch_1"][i] <= m * (1 + 1e-12)    # never above analyze
+        assert cols["require_1_pass"][i] == rep["requires"][0]["ok"]
+    scaled = _design("fig6_bistable_latch", "effect stiffness_scale { factor = 0.8 }")
+    names, missing = supported(scaled, None)
+    assert "switching_force_snap_n" not in names and "require_1_value" not in names
+    assert "stiffness_scale" in missing["margin_"] and "stiffness_scale" in missing["require_1"]
+    assert "resonance_act_1_hz" in names
+
+
+def test_pressure_effects_still_refuse_the_forces():
+    d = acl.load(str(EX / "fig2_stroke_truth.acl"))
+    names, missing = supported(d, "125 kHz @ 2 V")
+    assert "lint_acl105_pass" not in names and "tip_deflection_arm_m" not in names
+    assert "transducer_gain" in missing["tip_deflection"] and "drive_saturation" in missing["lint_acl105"] \
+        or "drive pressure" in missing["lint_acl105"]
