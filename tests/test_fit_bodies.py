@@ -398,3 +398,44 @@ def test_examples_the_fit_cannot_follow_say_why_where(tmp_path, capsys):
     assert main(["synth", os.path.join(EXAMPLES, "fig5a_gripper.acl"), "-o", str(out)]) == 1
     err = capsys.readouterr().err
     assert "E810" in err and "fig5a_gripper.acl:46:1" in err and "cannot move" in err and not out.exists()
+
+
+def test_a_calibrated_group_is_what_the_analysis_predicts(tmp_path):
+    """The calibrated design of a fitted body pair (gamma 1.2x, alpha 1.3x planted) analysed by
+    acl.analysis.mechanics.equilibrium at a drive the data never used gives the gap and tip the fit's own model
+    predicts with the fitted values (1e-5 relative: the file prints 9 digits): the fit applies what it reports."""
+    from acl.analysis import acoustics as A
+    from acl.analysis import mechanics as M
+    from acl.design.model import Drive, Tone
+    from acl.fit import run_fit
+    from acl.fit.forward import predict
+    from acl.fit.synth import observe_value
+
+    # gamma here is the model coefficient (every capsule's thrust), not the design's `thrust = gamma` (which the
+    # analysis applies to the capsules declaring it only: not to `rider`)
+    path = _alone(tmp_path, BODY_PAIR)
+    text = "\n".join(line for line in open(path).read().splitlines() if "gamma" not in line)
+    with open(path, "w") as fh:
+        fh.write(text + "\n")
+    ex = Experiment(frequencies=(125e3, 175e3), voltages=tuple(np.linspace(0, 2.5, 6)), observables=("distance", "a_y"))
+    _, P = generate(path, ex)
+    data, _ = generate(path, ex, noise=0.05e-6, seed=3, coeffs={"gamma": 1.2 * P.gamma0, "alpha": 1.3 * P.alpha0})
+    csv = str(tmp_path / "d.csv")
+    write_csv(data, csv)
+    cal = str(tmp_path / "cal.acl")
+    out = run_fit(path, [csv], free=["gamma", "alpha"], candidates=[], calibrated_path=cal)
+    with open(cal, "w") as fh:
+        fh.write(out.calibrated)
+    fit = out.selection.final
+    coeffs = {c.kind: fit.values[k] for k, c in enumerate(fit.coefs)}
+    unseen = Experiment(frequencies=(150e3,), voltages=(2.8,), observables=("distance", "a_y"))
+    _, Pu = generate(path, unseen)
+    Pu.f_ref, Pu.gamma0, Pu.alpha0 = P.f_ref, P.gamma0, P.alpha0
+    for blk in Pu.groups:      # the unseen rows in the units of the fit (gamma0 and alpha at the data's f_ref)
+        blk.gamma0, blk.alpha_ref = P.groups[0].gamma0, P.groups[0].alpha_ref
+    got = predict(Pu, coeffs, {})
+    design = acl.load(cal)
+    st = M.equilibrium(design, Drive(tones=(Tone(frequency=150e3, amplitude=2.8),)), A.force_model_for(design))
+    want = [observe_value(design, design.observe(o), st) for o in ("distance", "a_y")]
+    assert st.status == "ok"
+    np.testing.assert_allclose(got, want, rtol=1e-5, atol=1e-12)

@@ -32,8 +32,10 @@ RMSE_RATIO = 1.3    # issue 9: RMSE after within 1.3 x the noise
 # case -> correct runs of 10, for cases below the bar (FD.meets_bar: 9 of 10 correct, or for the FD.CONFOUNDED cases
 # 9 of 10 correct or ambiguous with the truth among the alternatives); the Fig. 5c spring with saturation at 6 V and a
 # 4 um drag plateau, ramped to 4 V, is a measured limit (FD.LIMITS: the drag test's power there is 0.82, docs/fit.md;
-# ramped to 5 V it is counted).  Filled from the committed run, listed exactly.
-KNOWN_BELOW: dict[str, int] = {}
+# ramped to 5 V it is counted).  One latch with saturation + drift: when round 1 takes a transducer resonance for the
+# saturation, the drift's fit on top stops with a shuttle row on the wrong branch of the switch (no gradient): 4 correct
+# and 1 ambiguous of 10 (a search defect still open; with three latch angles 10/10).  Listed exactly.
+KNOWN_BELOW: dict[str, int] = {"latch+state drive_saturation+offset_drift": 4}
 # clean data on which something was claimed, listed exactly
 KNOWN_CLEAN_CLAIMS: dict[str, int] = {}
 
@@ -73,7 +75,8 @@ def test_committed_sweep_diagnoses_at_least_nine_in_ten():
     for case, reason in FD.CONFOUNDED.items():
         assert reason and case in summary
         # where the fit may say "ambiguous", it must not claim a wrong effect often
-        assert summary[case]["wrong_n"] <= (1 - RATE) * summary[case]["n"] or case in KNOWN_BELOW, case
+        c = summary[case]
+        assert c["n"] - c["wrong_n"] >= RATE * c["n"] or case in KNOWN_BELOW, case
     for case, reason in FD.LIMITS.items():
         assert reason and case in summary
         runs = [r for r in _rows() if r["case"] == case]

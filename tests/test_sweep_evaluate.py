@@ -243,15 +243,14 @@ def test_unknown_and_unsupported_quantities_are_diagnosed():
     with pytest.raises(QuantityError) as exc:
         evaluate(b, ["tip_deflection_arm_m"])          # needs `at`
     assert exc.value.code == "E-SWEEP-Q02" and "at" in str(exc.value)
-    # a latch at rest in state b: its second stable state per point is not batched (acl/sweep/mechanism.py)
-    src = (EX / "fig6_bistable_latch.acl").read_text().replace("state = a", "state = b")
-    held = acl.loads(src, filename=str(EX / "fig6_bistable_latch.acl"))
-    names, missing = supported(held, "125 kHz @ 5 V")
+    # a declared effect on the drive pressure: the equilibria are not batched (tests/test_sweep_effects.py)
+    truth = acl.load(str(EX / "fig2_stroke_truth.acl"))
+    names, missing = supported(truth, "125 kHz @ 5 V")
     assert not any("deflection" in n for n in names)
-    assert "state b" in missing["tip_deflection"] and "state b" in missing["deflection_"]
+    assert "transducer_gain" in missing["tip_deflection"]
     with pytest.raises(QuantityError) as exc:
-        evaluate(_batch(held, {"latches.snap.length": [held.latches[0].length]}), ["deflection_snap_m"], "125 kHz @ 5 V")
-    assert exc.value.code == "E-SWEEP-Q02"
+        evaluate(_batch(truth, {"beams.arm.length": [truth.beams[0].length]}), ["tip_deflection_arm_m"], "125 kHz @ 5 V")
+    assert exc.value.code == "E-SWEEP-Q02" and "transducer_gain" in str(exc.value)
 
 
 def test_every_column_family_is_documented():

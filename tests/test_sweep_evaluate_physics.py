@@ -153,3 +153,24 @@ def test_physics_batch_imports_no_design_sweep_or_cli():
     mods = {n.module for n in ast.walk(tree) if isinstance(n, ast.ImportFrom)} | \
         {a.name for n in ast.walk(tree) if isinstance(n, ast.Import) for a in n.names}
     assert all(m in ("numpy", "functools", "__future__") or m.startswith("acl.physics") for m in mods), mods
+
+
+def test_latch_state_b_equals_the_landscape():
+    """Second stable state per point (batched grid crossing + bisection) vs latch.latch_landscape (Brent): 1e-12 of L."""
+    rng = np.random.default_rng(4)
+    n = 30
+    theta = np.deg2rad(rng.uniform(10, 70, n))
+    L = 50e-6 * (1 + 0.1 * rng.standard_normal(n))
+    w = 1e-6 * (1 + 0.3 * rng.standard_normal(n))
+    t = np.full(n, 1.7e-6)
+    E = np.full(n, 13e6)
+    ub = PB.latch_state_b(theta, L, w, t, E, block=7)
+    mono = 0
+    for i in range(n):
+        land = LT.latch_landscape(float(theta[i]), float(L[i]), float(w[i]), float(t[i]), float(E[i]))
+        if land.bistable:
+            assert abs(ub[i] - land.state_b) <= 1e-12 * L[i]
+        else:
+            mono += 1
+            assert ub[i] == 0.0
+    assert mono < n

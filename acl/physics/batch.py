@@ -348,6 +348,39 @@ def latch_switching_force(theta, L, w, t, E, n_grid: int = 257, iterations: int 
     return switching, release, bistable
 
 
+def latch_state_b(theta, L, w, t, E, n_grid: int = 2001, reach: float = 2.6, iterations: int = 200,
+                  block: int = 4096):
+    """Travel of the latch's second stable state per point, 0 where monostable (latch.latch_landscape: the
+    first - -> + crossing of the holding force after the barrier top on its 2001-point grid, refined by
+    bisection to 1e-14 L where the scalar code uses Brent; von Mises truss, Bazant & Cedolin)."""
+    theta, L, w, t, E = (np.asarray(v, float) for v in (theta, L, w, t, E))
+    n = theta.shape[0]
+    if n > block:
+        return np.concatenate([latch_state_b(theta[i:i + block], L[i:i + block], w[i:i + block], t[i:i + block],
+                                             E[i:i + block], n_grid, reach, iterations, block)
+                               for i in range(0, n, block)])
+    u = np.linspace(0.0, 1.0, n_grid)[None, :] * (reach * L * np.sin(theta))[:, None]
+    args = (theta[:, None], L[:, None], w[:, None], t[:, None], E[:, None])
+    f = latch_force(u, *args)
+    down = (f[:, 1:-1] > 0) & (f[:, 2:] <= 0)
+    has_down = down.any(axis=1)
+    i0 = np.argmax(down, axis=1) + 1
+    idx = np.arange(n_grid - 1)[None, :]
+    up = (idx >= i0[:, None]) & (f[:, :-1] < 0) & (f[:, 1:] >= 0)
+    bistable = has_down & up.any(axis=1)
+    i1 = np.argmax(up, axis=1)
+    rows = np.arange(n)
+    lo, hi = u[rows, i1], u[rows, np.minimum(i1 + 1, n_grid - 1)]
+    one = (theta, L, w, t, E)
+    for _ in range(iterations):
+        mid = 0.5 * (lo + hi)
+        below = latch_force(mid, *one) < 0
+        lo, hi = np.where(below, mid, lo), np.where(below, hi, mid)
+        if not np.any(hi - lo > 1e-14 * L):
+            break
+    return np.where(bistable, 0.5 * (lo + hi), 0.0)
+
+
 # ----------------------------------------------------------------------------------------------
 # Two one-orifice capsules under one tone: the whole force model in closed form
 # ----------------------------------------------------------------------------------------------

@@ -27,13 +27,13 @@ What is batched and how (the scalar code it equals):
 * tip deflection at ``at`` of a capsule on a cantilever (the Eq. (1) deflection under the force at
   the displaced position, a fixed point) or of a pair (the same branches at V = 1, NaN after
   snap-in); ``require gap`` from the equilibrium of every program step;
-* every other mechanism (springs, latches at rest in state a, trusses, three or more moving
+* every other mechanism (springs, latches at rest in state a or b, trusses, three or more moving
   capsules, mixes of them): snap-in, deflections at ``at`` (``tip_deflection_<beam>_m``,
   ``deflection_<latch|spring>_m``) and ``require gap`` by :mod:`acl.sweep.mechanism`, the batched
   mechanics.build_mechanism: one smooth coordinate (a capsule on a spring) as the curve V^2(z) =
   R(z)/G(z) and its first maximum; otherwise continuation in V with Newton on all coordinates, the
   fold bracketed from below (at a latch's buckling kink within 1.3e-6 of the model's fold, which
-  analyze's continuation stops up to 4.4e-6 short of: tests/test_sweep_mechanism.py);
+  analyze's continuation stops up to 9.1e-6 short of: tests/test_sweep_mechanism.py);
 * latch margins per program step (mechanics.latch_margins, latches at rest in state a or b), the
   switching and release forces refined by golden section (acl.physics.batch.latch_switching_force;
   the scalar landscape takes the extremes of a 2001-point grid, lower by up to 2e-3 where they
@@ -52,9 +52,8 @@ that moves a tone's frequency is not (the frequency names the columns: acl.sweep
 program columns out).
 
 Not batched (not offered as quantities, :func:`supported` says why): designs declaring effects that
-change forces or beams (only resonance and Q are offered), snap-in, deflections and ``require gap``
-of a mechanism with a latch at rest in state b (its second stable state per point), and these lint
-rules, each for its reason:
+change the column (per family: forces at rest, latch law, equilibria; :func:`supported` names the
+effects), and these lint rules, each for its reason:
 
 * ACL104 (unintended excitation): each capsule's thrust relative to its own peak over a selectivity
   grid refined around each point's modes (acl.lint.context.thrust_grid: ~200 + 41 per mode

@@ -9,7 +9,7 @@ and spring links); every number that depends on a swept parameter is taken per p
   axis; mechanics._perp_basis), the null space of the truss bars between supported capsules (the
   bar directions follow the capsule centres; mechanics.build_mechanism, SVD per point);
 * restoring forces: paper Eq. (1) in the beam's plane (isotropic, smallest second moment), the von
-  Mises truss latch law (acl.physics.latch, state a), linear springs, spring links (mechanics._restoring);
+  Mises truss latch law (acl.physics.latch; a latch held in state b from its second stable state), linear springs, spring links (mechanics._restoring);
 * the acoustic forces of every capsule at displaced centres (the evaluator's force engine, the
   same model as acoustics.force_batch).
 
@@ -40,8 +40,6 @@ class MechanismError(ValueError):
 
 def not_batched(design) -> str | None:
     """Why the general batched mechanism does not cover ``design`` (None: it does)."""
-    if any(lt.state != "a" for lt in design.latches):
-        return "a latch at rest in state b (its second stable state per point is not batched)"
     from acl.analysis import mechanics as ME
     from acl.diagnostics import DiagnosticError
 
@@ -143,8 +141,10 @@ class Mechanism:
         if el.kind == "latch":
             base = f"latches.{el.name}"
             geo = tuple(ev.get(f"{base}.{k}") for k in ("angle", "length", "width", "thickness", "youngs_modulus"))
+            # held in state b: travel measured from state a, the rest at the second stable state (mechanics._latch_law)
+            u0 = PB.latch_state_b(*geo) if ev.design.latch(el.name).state == "b" else np.zeros(self.n)
             return {"kind": "latch", "name": el.name, "group": el.group, "axis": _unit(ev.vec(f"{base}.axis")),
-                    "geo": geo, "u0": np.zeros(self.n)}
+                    "geo": geo, "u0": u0}
         return {"kind": "spring", "name": el.name, "group": el.group, "axis": _unit(ev.vec(f"springs.{el.name}.axis")),
                 "k": ev.get(f"springs.{el.name}.stiffness")}
 
