@@ -43,16 +43,20 @@ docs: docs/language.md, docs/physics.md, docs/rules.md, docs/data.md
 
 
 def usage_location(message: str) -> str:
-    """Where on the command line an argparse error is: ``<--option>``, ``<PATH>``, ``<argv>``."""
+    """Where on the command line an argparse error is: ``<--option>:1:1``, ``<PATH>:1:1``, ``<argv>:1:1``.
+
+    As every option diagnostic (``<--at>:1:COLUMN``): the option as the file, line 1, the column in
+    its value (argparse rejects a whole argument: column 1).
+    """
     import re
 
     m = (re.match(r"argument ([^:\s]+)", message)
          or re.match(r"unrecognized arguments: (\S+)", message)
          or re.match(r"the following arguments are required: ([^,\s]+)", message))
     if not m:
-        return "<argv>"
+        return "<argv>:1:1"
     where = m.group(1).split("/")[-1] if m.group(1).startswith("-") else m.group(1)
-    return f"<{where}>"
+    return f"<{where}>:1:1"
 
 
 class _Parser(argparse.ArgumentParser):

@@ -68,12 +68,23 @@ class Diagnostic:
         return d
 
 
+MAX_MESSAGE = 600      # characters; a message quoting a 1 MB CSV cell printed all of it
+
+
+def clip(text: str | None, limit: int = MAX_MESSAGE) -> str | None:
+    """``text`` with its middle elided beyond ``limit`` characters (quoted input can be any size)."""
+    if text is None or len(text) <= limit:
+        return text
+    keep = (limit - 40) // 2
+    return f"{text[:keep]} ...[{len(text) - 2 * keep:,} characters]... {text[-keep:]}"
+
+
 def error(code: str, message: str, span: Span | None = None, hint: str | None = None) -> Diagnostic:
-    return Diagnostic(code, Severity.ERROR, message, span, hint)
+    return Diagnostic(code, Severity.ERROR, clip(message), span, clip(hint))
 
 
 def warning(code: str, message: str, span: Span | None = None, hint: str | None = None) -> Diagnostic:
-    return Diagnostic(code, Severity.WARNING, message, span, hint)
+    return Diagnostic(code, Severity.WARNING, clip(message), span, clip(hint))
 
 
 class DiagnosticError(Exception):

@@ -116,6 +116,7 @@ def generated(tmp_path_factory) -> Path:
     w("escape/path_link.acl", 'import stdlib.beams\nprogram p {\n  follow m along csv("passwd.csv") in 1 s\n}\n')
     w("wide.csv", "observable,value,unit,drive," + ",".join(f"set:p{i}" for i in range(20_000)) + "\n"
       + "deflection,1,um,125 kHz @ 1 V," + ",".join("1 um" for _ in range(20_000)) + "\n")
+    w("long_cell.csv", "observable,value,unit,drive,time\ndeflection," + "9" * 1_000_000 + ",um,125 kHz @ 1 V,1\n")
     (g / "data").mkdir()     # {D}: a copy, since `acl fit --report` writes the calibrated design beside it
     for f in DATA.glob("*.acl"):
         (g / "data" / f.name).write_bytes(f.read_bytes())
@@ -280,7 +281,7 @@ def test_usage_errors_name_the_option(argv, where, capsys):
     with pytest.raises(SystemExit) as exc:
         main(argv)
     assert exc.value.code == 2
-    assert capsys.readouterr().err.splitlines()[-1].startswith(f"{where}: error[E-USAGE]: ")
+    assert capsys.readouterr().err.splitlines()[-1].startswith(f"{where}:1:1: error[E-USAGE]: ")
 
 
 def test_an_empty_path_is_still_a_location(capsys):

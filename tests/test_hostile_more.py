@@ -120,3 +120,95 @@ def test_a_set_to_zero_of_a_relative_spread_is_e322_at_the_spread(tmp_path, caps
     f.write_text("param x = 5 um +- 3 %\n")
     code, out, err = _main(["check", f, "--set", "x=0um"], capsys)
     assert code == 1 and "z.acl:1:19: error[E322]" in err
+
+
+# -- command-line option errors are located like every option diagnostic ------------------------------------------
+
+@pytest.mark.parametrize("argv, where", [(["check", "--bogus", "x.acl"], "<--bogus>:1:1"),
+                                         (["tune", "d.acl", "--target", "inf"], "<--target>:1:1"),
+                                         (["sweep", "d.acl", "--samples", "nan"], "<--samples>:1:1"),
+                                         (["fit"], "<DESIGN>:1:1")])
+def test_argparse_errors_have_line_and_column(argv, where, capsys):
+    code, out, err = _main(argv, capsys)
+    assert code == 2 and err.splitlines()[-1].startswith(f"{where}: error[E-USAGE]: ") and not out
+
+
+# -- synth output ------------------------------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("target", ["folder", ""])
+def test_synth_into_a_folder_or_nowhere_leaves_no_temporary_file(target, tmp_path, monkeypatch, capsys):
+    """`acl synth D -o DIR` wrote DIR.tmpPID and left it (and `-o ""` left .tmpPID) after a `<command line>` error."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "folder").mkdir()
+    code, out, err = _main(["synth", ROOT / "tests" / "data" / "fit_cantilever.acl", "-o", target], capsys)
+    assert code == 2 and "<--output>:1:1: error[E-USAGE]: cannot write" in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["folder"] and not any((tmp_path / "folder").iterdir())
+
+
+# -- synth --schedule: a tampered schedule.json -------------------------------------------------------------------------
+
+@pytest.mark.parametrize("name, message", [
+    ("bool_amp", "amplitude_v is true, not a number"),
+    ("chirp_end_nan", "frequency_end_hz is not finite"),
+    ("end_before_start", "end_s 0.1 s is before start_s 0.5 s"),
+    ("overlap", "before the previous segment ends"),
+    ("nan_phase", "phase_rad is not finite"),
+    ("step_neg", "step is -1, not a step index"),
+    ("goal_target_huge", "goals[0].target_um: a target beyond"),
+    ("goal_unknown_capsule", "follows capsule `nosuch`"),
+])
+def test_a_tampered_schedule_is_refused_where_it_is_wrong(name, message, tmp_path, capsys):
+    """Each was replayed with exit 0 (a target of 1e308 um printed numpy overflow warnings and RMS inf)."""
+    path = INPUTS / f"sched_t_{name}.json"
+    code, out, err = _main(["synth", EXAMPLES / "fig2_stroke_truth.acl", "--schedule", path, "-o", tmp_path / "r.csv"],
+                           capsys)
+    assert code in (1, 2) and f"sched_t_{name}.json:" in err and "error[E-SYNTH-SCHEDULE]" in err and message in err
+    assert not (tmp_path / "r.csv").exists()
+
+
+def test_an_intact_short_schedule_still_replays(tmp_path, capsys):
+    code, out, err = _main(["synth", EXAMPLES / "fig2_stroke_truth.acl", "--schedule", INPUTS / "sched_t_ok_goal.json",
+                            "-o", tmp_path / "r.csv"], capsys)
+    assert code == 0 and (tmp_path / "r.csv").read_text().count("\n") == 11
+
+
+# -- messages and hints ---------------------------------------------------------------------------------------------
+
+def test_compile_of_a_design_without_programs_says_so(tmp_path, capsys):
+    """It said "the design has 0 programs; choose one with --program" (help: "programs: none")."""
+    code, out, err = _main(["compile", ROOT / "tests" / "data" / "fit_cantilever.acl", "-o", tmp_path / "o"], capsys)
+    assert code == 1 and "fit_cantilever.acl:1:1: error[E-COMPILE-PROGRAM]" in err and "declares no program" in err
+
+
+def test_a_look_alike_letter_is_named(capsys):
+    code, out, err = _main(["check", INPUTS / "h3_confusable.acl"], capsys)
+    assert code == 1 and "U+0430 CYRILLIC SMALL LETTER A" in err
+
+
+def test_a_huge_cell_is_quoted_clipped(tmp_path, capsys):
+    """A 1 MB number cell was quoted whole in E806 (1 MB of stderr)."""
+    f = tmp_path / "d.csv"
+    f.write_text("observable,value,unit,drive,time\ndeflection," + "9" * 1_000_000 + ",um,125 kHz @ 1 V,1\n")
+    code, out, err = _main(["fit", ROOT / "tests" / "data" / "fit_cantilever.acl", f], capsys)
+    assert code == 1 and "d.csv:2:12: error[E806]" in err and "characters]..." in err and len(err) < 5_000
+
+
+def test_an_empty_header_cell_is_named_as_such(capsys):
+    code, out, err = _main(["fit", ROOT / "tests" / "data" / "fit_cantilever.acl",
+                            INPUTS / "h3_data_trailing_commas.csv"], capsys)
+    assert code == 1 and ":1:34: error[E801]: a column without a name" in err
+
+
+# -- what acl writes passes `acl fmt --check` -------------------------------------------------------------------------
+
+def test_a_written_calibrated_design_is_already_formatted(tmp_path):
+    """The README tour's `acl fit ... --report fit/` wrote examples/*.calibrated.acl, which docs/editor.md's
+    `acl fmt --check examples stdlib` then rejected (comment alignment)."""
+    from acl.fmt import canonical, format_source
+
+    text = ("extends \"d.acl\"\n"
+            "param fit_gamma = 2.4e-11 N/V^2 +- 2.3e-13 N/V^2    # 95% interval\n"
+            "param fit_alpha_long_name = 0.0155 V^-2 +- 0.00037 V^-2    # 95% interval\n")
+    out = canonical(text, "x.acl")
+    assert out != text and format_source(out, "x.acl") == out
+    assert canonical("param = (", "x.acl") == "param = ("           # unparsable: kept as built, never lost

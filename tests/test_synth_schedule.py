@@ -124,7 +124,7 @@ def test_max_segments_sets_the_cap(tmp_path):
 def test_max_segments_out_of_range_is_a_usage_error(tmp_path, value):
     sched = _schedule(tmp_path / "s.json", 3)
     r = _acl("synth", CANTILEVER, "--schedule", sched, "-o", str(tmp_path / "a.csv"), "--max-segments", value)
-    assert r.returncode == 2 and "<--max-segments>: error[E-USAGE]" in r.stderr, r.stderr
+    assert r.returncode == 2 and "<--max-segments>:1:1: error[E-USAGE]" in r.stderr, r.stderr
 
 
 def test_max_segments_without_schedule_is_a_usage_error(tmp_path):

@@ -155,6 +155,13 @@ def run(args) -> int:
     if design is None:
         return code
     names = [p.name for p in design.programs]
+    if not names:                  # "the design has 0 programs; choose one with --program" sent the user nowhere
+        from acl.diagnostics import Span, error
+
+        report([error("E-COMPILE-PROGRAM", f"{design.file} declares no program: nothing to compile",
+                      Span(file=design.file, line=1, column=1),
+                      "add one, e.g. `program ramp { drive 125 kHz @ 2 V for 500 ms }`")], fmt)
+        return 1
     if args.program is None and len(names) != 1:
         report([_usage("E-COMPILE-PROGRAM", f"the design has {len(names)} programs; choose one with --program",
                        "programs: " + (", ".join(names) or "none"), "--program")], fmt)

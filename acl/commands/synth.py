@@ -58,10 +58,16 @@ def _located(code, where, msg, hint=None):
     return 2
 
 
-def _usage(msg, hint=None):
+def _usage(msg, hint=None, where=None):
+    """E-USAGE at the option the message starts with (``--voltages ...`` -> ``<--voltages>:1:1``)."""
+    import re
+
     from acl.diagnostics import Span, error
 
-    report([error("E-USAGE", msg, Span(file="<command line>", line=1, column=1), hint)])
+    if where is None:
+        m = re.match(r"(--[a-z][a-z-]*)", msg)
+        where = f"<{m.group(1)}>" if m else "<command line>"
+    report([error("E-USAGE", msg, Span(file=where, line=1, column=1), hint)])
     return 2
 
 
@@ -248,7 +254,7 @@ def run(args) -> int:
     try:
         write_csv(data, args.output)
     except OSError as exc:
-        return _usage(f"cannot write {args.output}: {exc.strerror or exc}")
+        return _usage(f"cannot write {args.output!r}: {exc.strerror or exc}", where="<--output>")
     if args.output_format == "json":
         import json
         import sys
@@ -307,6 +313,15 @@ def _replay(args, noise) -> int:
     if design is None:
         return code
     bad = _outside_transducer(design, waypoints, args.schedule)
+    caps = {c.name for c in design.capsules}
+    for goal, t in targets.items():
+        if t.capsule not in caps:      # a follow goal of another design (or a tampered file)
+            from acl.diagnostics import Span, error
+
+            bad.append(error("E-SYNTH-SCHEDULE", f"goal `{goal}` follows capsule `{t.capsule}`, which {args.design} "
+                             "does not have", Span(file=args.schedule, line=1, column=1),
+                             "replay a schedule compiled from this design (or its calibrated twin)"))
+            break
     if bad:
         report(bad)
         return 1
@@ -337,7 +352,7 @@ def _replay(args, noise) -> int:
     try:
         write_csv(data, args.output)
     except OSError as exc:
-        return _usage(f"cannot write {args.output}: {exc.strerror or exc}")
+        return _usage(f"cannot write {args.output!r}: {exc.strerror or exc}", where="<--output>")
     console.print(f"wrote {data.n} rows ({len(waypoints) - lost} waypoints x {len(names or known)} observables"
                   + (f", {res.contacts} gaps in contact at snap-ins" if res.contacts else "") + f") to {args.output}")
     for goal, t in res.tracking.items():

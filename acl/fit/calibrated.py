@@ -176,7 +176,9 @@ def calibrated_text(problem, selection, out_path: str, data_paths=(), report_dir
             lines.append(_effect_block(eid, vals, P.f_ref))
     else:
         lines.append("# no effect beyond the base model was found")
-    return "\n".join(lines) + "\n"
+    from acl.fmt import canonical
+
+    return canonical("\n".join(lines) + "\n", out_path)   # `acl fmt --check` flagged every calibrated design
 
 
 def _is_design(final, kind) -> bool:

@@ -163,6 +163,9 @@ def read_data(paths, design) -> Dataset:
                     bag.error("E805", f"`{key}`: the design has no parameter `{pname}`", sp,
                               suggest(pname, param_names) or f"parameters: {', '.join(param_names) or 'none'}")
                 index[key] = j
+            elif not name.strip():
+                bag.error("E801", "a column without a name (a trailing or doubled comma in the header?)", sp,
+                          "remove the empty header cell, and the matching cell of every row")
             else:
                 bag.error("E801", f"unknown column `{name}`", sp,
                           suggest(key, [*REQUIRED, *OPTIONAL]) or "columns: observable, value, unit, drive, time, sigma, set:NAME")

@@ -165,10 +165,12 @@ def write_csv(data, path, unit: str = "um") -> None:
 
         sys.stdout.write("\n".join(lines) + "\n")
         return
-    tmp = f"{path}.tmp{os.getpid()}"
-    with open(tmp, "w", encoding="utf-8") as fh:
-        fh.write("\n".join(lines) + "\n")
-    os.replace(tmp, path)
+    if not path or os.path.isdir(path):
+        raise IsADirectoryError(21, "a folder, not a file" if path else "an empty path", path)
+    from acl.emit.atomic import write_text_atomic
+
+    # one rename; the temporary file is removed when it fails (`-o DIR` left DIR.tmpPID behind)
+    write_text_atomic(path, "\n".join(lines) + "\n")
 
 
 # ------------------------------------------------------------------------------------------------
@@ -242,6 +244,9 @@ def _segment_position(text: str, index: int) -> tuple[int, int]:
         return 1, 1
 
 
+MAX_TARGET_M = 1.0       # a follow goal's target farther than 1 m from rest is not a micro-mechanism's
+
+
 def read_schedule(path: str, max_segments: int = MAX_REPLAY_SEGMENTS) -> tuple[list[Waypoint], int, dict]:
     """The constant-drive segments of a schedule.json, how many chirp segments were skipped, and the
     follow goals' targets {goal name: Target} (schedule 1.1+).
@@ -286,23 +291,47 @@ def read_schedule(path: str, max_segments: int = MAX_REPLAY_SEGMENTS) -> tuple[l
         raise bad("not an acl schedule: JSON nested too deeply", hint="give the schedule.json `acl compile` wrote") from None
     if not isinstance(doc, dict) or not isinstance(doc.get("segments"), list) or not str(doc.get("version", "")).startswith("1."):
         raise bad("not an acl schedule (version 1.x with a list of segments)", hint="give the schedule.json `acl compile` wrote")
+    def num(x, what):
+        """A JSON number (not a boolean, string or null), finite."""
+        if isinstance(x, bool) or not isinstance(x, (int, float)):
+            raise ValueError(f"{what} is {json.dumps(x)[:40]}, not a number")
+        v = float(x)
+        if not math.isfinite(v):
+            raise ValueError(f"{what} is not finite")
+        return v
+
     out, chirps, count = [], 0, {}
+    prev_start, prev_end = -math.inf, -math.inf
     for i, seg in enumerate(doc["segments"]):
         where = f"segments[{i}]"
         try:
-            step = int(seg.get("step", 0))
-            start = float(seg["start_s"])
+            step = seg.get("step", 0)
+            if isinstance(step, bool) or not isinstance(step, int) or not 0 <= step < 2**31:
+                raise ValueError(f"step is {json.dumps(step)[:40]}, not a step index")
+            start = num(seg["start_s"], "start_s")
+            end = num(seg["end_s"], "end_s") if "end_s" in seg else start
+            if end < start:
+                raise ValueError(f"end_s {end:g} s is before start_s {start:g} s")
+            slack = 1e-9 * max(1.0, abs(prev_end))
+            if start < prev_start or start < prev_end - slack:
+                raise ValueError(f"starts at {start:g} s, before the previous segment ends ({prev_end:g} s): "
+                                 "segments follow one another in time")
+            prev_start, prev_end = start, end
             tones = []
             chirp = False
+            if not isinstance(seg.get("tones", []), list):
+                raise ValueError("tones is not a list")
             for t in seg.get("tones", []):
-                f, v = float(t["frequency_hz"]), float(t["amplitude_v"])
-                if not (math.isfinite(f) and f > 0 and math.isfinite(v) and v >= 0):
+                f, v = num(t["frequency_hz"], "frequency_hz"), num(t["amplitude_v"], "amplitude_v")
+                if not (f > 0 and v >= 0):
                     raise ValueError(f"tone {f!r} Hz @ {v!r} V")
+                if t.get("phase_rad") is not None:
+                    num(t["phase_rad"], "phase_rad")
+                if t.get("frequency_end_hz") is not None and not num(t["frequency_end_hz"], "frequency_end_hz") > 0:
+                    raise ValueError("frequency_end_hz is not a positive frequency")
                 chirp = chirp or t.get("frequency_end_hz") is not None
                 if v > 0:
                     tones.append((f, v))
-            if not math.isfinite(start):
-                raise ValueError("start_s is not finite")
         except (KeyError, TypeError, ValueError, OverflowError, AttributeError) as exc:
             raise bad(f"{where}: malformed segment ({exc})", *_segment_position(text, i),
                       hint="each segment has start_s and tones [{frequency_hz, amplitude_v}]") from None
@@ -334,6 +363,9 @@ def read_schedule(path: str, max_segments: int = MAX_REPLAY_SEGMENTS) -> tuple[l
                 pts = np.asarray(g["target_um"], float).reshape(-1, 2) * 1e-6
             except (TypeError, ValueError):
                 raise bad(f"goals[{j}].target_um: expected a list of [x, y] in um") from None
+            if not (np.all(np.isfinite(pts)) and np.all(np.abs(pts) <= MAX_TARGET_M)):
+                raise bad(f"goals[{j}].target_um: a target beyond {MAX_TARGET_M * 1e6:g} um (or not finite)",
+                          hint="give the schedule.json `acl compile` wrote")
             targets[str(g["name"])] = Target(str(g["capsule"]), pts)
     return out, chirps, targets
 

@@ -635,4 +635,6 @@ def tuned_text(result: Tuned, out_path: str, command: str = "") -> str:
         decl = p.design.param(f.name)
         lines.append(f"param {f.name} = {literal(c, f.unit)}{_spread_text(decl)} free in "
                      f"{literal(f.lower, f.unit)} .. {literal(f.upper, f.unit)}    # was {literal(s, f.unit)}")
-    return "\n".join(lines) + "\n"
+    from acl.fmt import canonical
+
+    return canonical("\n".join(lines) + "\n", out_path)

@@ -617,6 +617,11 @@ def _syntax_diagnostic(exc: UnexpectedInput, file: str, lines: list[str], eof_li
             hint = 'strings use double quotes: "EPFL"'
         elif ch == "=" and col > 1 and lines[line - 1][col - 2] in "=!":
             hint = "compare with >=, <=, > or <"
+        elif ch.isalpha() and not ch.isascii():      # `капсула`, `délai`, or a Cyrillic `а` that looks like `a`
+            import unicodedata
+
+            hint = (f"names are ASCII letters, digits and _ ({ch!r} is U+{ord(ch):04X} "
+                    f"{unicodedata.name(ch, 'a non-ASCII letter')})")
         return error("E110", f"unexpected character {ch!r}", span, hint)
     if isinstance(exc, UnexpectedToken):
         tok = exc.token
