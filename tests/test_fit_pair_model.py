@@ -47,18 +47,32 @@ def scenario(tmp_path_factory):
                                    acoustics.force_model_for(d))
         return observe_value(d, d.observe("d"), st)
 
-    return out, cal, abs(gap(cal) - gap(nominal))
+    return out, cal, abs(gap(cal) - gap(nominal)), src, csv
 
 
 def test_calibrated_pair_band_covers_the_truth(scenario):
-    out, cal, miss = scenario
+    out, cal, miss, _, _ = scenario
     assert miss > 10 * out.report["rmse_after"]            # the defect is there: the fit's residual alone is optimistic
     assert miss <= 1.96 * cal.discrepancy                   # the written 95 % band covers the truth at 3 V
 
 
 def test_pair_model_warning_in_report(scenario):
-    out, _, _ = scenario
+    out, *_ = scenario
     chk = out.report["pair_model_check"]
     assert chk["significant"] and chk["max_m"] > chk["factor"] * chk["rmse_m"]
     assert any(w.startswith("W-FIT-PAIR-MODEL") for w in out.report["final"]["warnings"])
     assert "W-FIT-PAIR-MODEL" in out.calibrated
+
+
+def test_pair_model_warning_in_cli_text_and_json(scenario, tmp_path, capsys):
+    import json
+
+    from acl.cli import main
+
+    _, _, _, src, csv = scenario
+    cal = str(tmp_path / "c.acl")
+    assert main(["fit", src, csv, "--free", "gamma,alpha", "--calibrated", cal, "--output-format", "json"]) == 0
+    rep = json.loads(capsys.readouterr().out)
+    assert any(w.startswith("W-FIT-PAIR-MODEL") for w in rep["final"]["warnings"])
+    assert main(["fit", src, csv, "--free", "gamma,alpha", "--calibrated", cal]) == 0
+    assert "W-FIT-PAIR-MODEL" in capsys.readouterr().out

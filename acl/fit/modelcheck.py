@@ -51,7 +51,10 @@ def pair_model_check(problem, fit, text: str, cal_path: str, search_paths=()) ->
             drives.append(key)
         chosen.append(i)
     try:
-        cal = acl.loads(text, filename=cal_path, search_paths=search_paths)
+        from acl.fit.calibrated import needs_path
+
+        extra = needs_path(problem.path, cal_path)         # the original outside the calibrated file's folder tree
+        cal = acl.loads(text, filename=cal_path, search_paths=(*search_paths, *([extra] if extra else [])))
         fm = acoustics.force_model_for(cal)
     except Exception:                      # noqa: BLE001 - a calibrated design that does not load is reported elsewhere
         return None
