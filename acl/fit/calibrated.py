@@ -19,7 +19,10 @@ design -> ``acl analyze`` reproduces the fit's predictions):
   coefficient alpha of a pair is then ``bjerknes_scale { factor = (fit_alpha / alpha0) / (fit_gamma /
   gamma0) }``; a modulus scale E is ``stiffness_scale``; a gain scale multiplies ``transducer_gain``;
 * ``discrepancy(position)`` is the fit's RMS residual: what the calibrated model still misses
-  (model error and measurement noise), which the error bands add per waypoint;
+  (model error and measurement noise), which the error bands add per waypoint; for a pair whose
+  calibrated analysis (full force model) departs from the Eq. 3 fit's predictions at the measured
+  drives by more than 2x that residual, that departure is added in quadrature (W-FIT-PAIR-MODEL,
+  acl/fit/modelcheck.py);
 * ``covered(voltage|frequency|deflection)`` records the range of the data, so a program that drives
   outside it is warned about (``acl compile``), and the transducer's prior table uncertainty
   becomes relative to the gain at the covered frequencies (acl.schedule.bands).
