@@ -65,6 +65,17 @@ def run_fit(design_path, data_paths, free=(), search_paths=(), candidates=None, 
     report["calibrated_needs_path"] = needs_path(design_path, cal_path)
     report["timing_s"] = timing
     text = calibrated_text(problem, selection, cal_path, data_paths, report_dir)
+    t0 = time.perf_counter()
+    from acl.fit.modelcheck import pair_model_check, warning_text
+
+    check = pair_model_check(problem, selection.final, text, cal_path, search_paths)
+    timing["pair_model_check"] = time.perf_counter() - t0
+    if check is not None:
+        report["pair_model_check"] = check
+        if check["significant"]:
+            report["final"]["warnings"] = [*report["final"]["warnings"], warning_text(check)]
+            text = calibrated_text(problem, selection, cal_path, data_paths, report_dir,
+                                   model_discrepancy=check["max_m"])
     return FitOutcome(problem, selection, report, text, cal_path)
 
 

@@ -19,7 +19,10 @@ design -> ``acl analyze`` reproduces the fit's predictions):
   coefficient alpha of a pair is then ``bjerknes_scale { factor = (fit_alpha / alpha0) / (fit_gamma /
   gamma0) }``; a modulus scale E is ``stiffness_scale``; a gain scale multiplies ``transducer_gain``;
 * ``discrepancy(position)`` is the fit's RMS residual: what the calibrated model still misses
-  (model error and measurement noise), which the error bands add per waypoint;
+  (model error and measurement noise), which the error bands add per waypoint; for a pair whose
+  calibrated analysis (full force model) departs from the Eq. 3 fit's predictions at the measured
+  drives by more than 2x that residual, that departure is added in quadrature (W-FIT-PAIR-MODEL,
+  acl/fit/modelcheck.py);
 * ``covered(voltage|frequency|deflection)`` records the range of the data, so a program that drives
   outside it is warned about (``acl compile``), and the transducer's prior table uncertainty
   becomes relative to the gain at the covered frequencies (acl.schedule.bands).
@@ -52,8 +55,12 @@ def needs_path(design_path: str, calibrated_path: str) -> str | None:
 
 
 def calibrated_text(problem, selection, out_path: str, data_paths=(), report_dir: str | None = None,
-                    now: datetime.datetime | None = None) -> str:
-    """The calibrated design's source, to be written at ``out_path``."""
+                    now: datetime.datetime | None = None, model_discrepancy: float = 0.0) -> str:
+    """The calibrated design's source, to be written at ``out_path``.
+
+    ``model_discrepancy`` (m): the largest difference between the calibrated design's analysis and the fit's
+    own predictions at the measured drives checked (acl/fit/modelcheck.py, pairs); added in quadrature to
+    ``discrepancy(position)`` so later stages do not inherit the Eq. 3 fit's residual as their error."""
     import numpy as np
 
     final, P = selection.final, problem.prepared
@@ -159,7 +166,16 @@ def calibrated_text(problem, selection, out_path: str, data_paths=(), report_dir
 
         rmse = length_rmse(problem, final)
         spread = alternative_spread(problem, selection)
-        if spread > 0 and math.isfinite(rmse):
+        md = float(model_discrepancy or 0.0)
+        if md > 0 and math.isfinite(rmse):
+            # the pair's Eq. 3 fit is not the analysis' force model: its residual understates the analysis' error
+            total = math.sqrt(rmse * rmse + spread * spread + md * md)
+            lines.append(f"  discrepancy(position) = {_literal(total, 'm')}    # RMS residual of the fit "
+                         f"({_literal(rmse, 'm')})" + (f", alternatives' spread ({_literal(spread, 'm')})" if spread > 0 else "")
+                         + f" and the largest difference between this design's analysis (full force model) and the "
+                         f"fit's pair model (paper Eq. 3) at the measured drives checked ({_literal(md, 'm')}), in "
+                         "quadrature: W-FIT-PAIR-MODEL, docs/fit.md Limits")
+        elif spread > 0 and math.isfinite(rmse):
             # ambiguous: later stages must not inherit the confidence of one arbitrary choice among equal fits
             total = math.sqrt(rmse * rmse + spread * spread)
             lines.append(f"  discrepancy(position) = {_literal(total, 'm')}    # RMS residual of the fit "
