@@ -76,3 +76,22 @@ def test_pair_model_warning_in_cli_text_and_json(scenario, tmp_path, capsys):
     assert any(w.startswith("W-FIT-PAIR-MODEL") for w in rep["final"]["warnings"])
     assert main(["fit", src, csv, "--free", "gamma,alpha", "--calibrated", cal]) == 0
     assert "W-FIT-PAIR-MODEL" in capsys.readouterr().out
+
+
+def test_a_check_that_cannot_run_is_said_not_silent(scenario, monkeypatch):
+    """When the calibrated design's analysis fails, the fit warns that the pair-model check did not run."""
+    from acl.analysis import mechanics
+    from acl.fit import run_fit
+
+    _, _, _, src, csv = scenario
+
+    def broken(*a, **k):
+        raise RuntimeError("equilibrium did not converge")
+
+    monkeypatch.setattr(mechanics, "equilibrium", broken)
+    out = run_fit(src, [csv], free=("gamma", "alpha"), seed=0,
+                  calibrated_path=os.path.join(os.path.dirname(csv), "cal2.acl"))
+    chk = out.report["pair_model_check"]
+    assert "error" in chk and not chk["significant"]
+    warn = [w for w in out.report["final"]["warnings"] if w.startswith("W-FIT-PAIR-MODEL")]
+    assert warn and "could not run" in warn[0]

@@ -72,7 +72,9 @@ def run_fit(design_path, data_paths, free=(), search_paths=(), candidates=None, 
     timing["pair_model_check"] = time.perf_counter() - t0
     if check is not None:
         report["pair_model_check"] = check
-        if check["significant"]:
+        if "error" in check:
+            report["final"]["warnings"] = [*report["final"]["warnings"], warning_text(check)]
+        elif check["significant"]:
             report["final"]["warnings"] = [*report["final"]["warnings"], warning_text(check)]
             text = calibrated_text(problem, selection, cal_path, data_paths, report_dir,
                                    model_discrepancy=check["max_m"])
