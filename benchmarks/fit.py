@@ -41,12 +41,14 @@ def run(label, design, experiment, effects, noise, free, coeffs=None) -> float:
     with tempfile.TemporaryDirectory() as tmp:
         path = os.path.join(tmp, "bench.csv")
         write_csv(data, path)
-        t1 = time.perf_counter()
+        t1, c1 = time.perf_counter(), time.process_time()
         out = run_fit(design, [path], free=free)
-        t2 = time.perf_counter()
+        t2, c2 = time.perf_counter(), time.process_time()
     r = out.report
     print(f"{label}: {r['rows']} rows; synthesize {t1 - t0:.2f} s; fit (base + {len(r['effects_tried'])} effect "
-          f"trials, CV, residual tests) {t2 - t1:.2f} s")
+          f"trials, CV, residual tests) {t2 - t1:.2f} s wall, {c2 - c1:.2f} s CPU")
+    steps = sorted(r.get("timing_s", {}).items(), key=lambda kv: -kv[1])[:4]
+    print("  slowest steps: " + ", ".join(f"{k} {v:.2f} s" for k, v in steps))
     print(f"  effects selected: {r['effects_selected']}; rmse {r['rmse_before'] * 1e6:.3f} um -> "
           f"{r['rmse_after'] * 1e6:.3f} um (noise {noise * 1e6:.2g} um); outliers {len(r['outliers'])}")
     return t2 - t1
