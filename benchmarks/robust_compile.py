@@ -9,7 +9,7 @@ The Fig. 3 design (examples/fig3_three_orifice.acl) follows its 8 x 6 um rectang
 10 ms per waypoint: 10,000 waypoints, one convex program.  Timed: `compile_program` whole (tone
 choice, path program, re-simulation of 100 waypoints, phases), nominal and ``robust=True`` (the
 declared gain uncertainty: the stdlib table's 30 %, 8 table points, so Q needs 8 extra gain
-evaluations), without error bands (their cost is the same for both:
+evaluations), with ``allow_nonlinear`` (the corners reach eps/R 0.257 at 10 ms waypoints), without error bands (their cost is the same for both:
 ``band_samples`` x the re-simulation).  Best of 3 after a warm-up.  Prints figures; asserts nothing.
 """
 from __future__ import annotations
@@ -33,7 +33,10 @@ def main() -> int:
     prog = Program(name="long", steps=(step.model_copy(update={"duration": 100.0}),), span=step.span)
     times = {}
     for robust in (False, "mean", "worst", False, "mean", "worst"):        # first three are the warm-up
-        opts = CompileOptions(waypoint_dt_s=0.01, robust=bool(robust), robust_mode=robust or "mean")
+        # allow_nonlinear: at 10 ms waypoints the rectangle's corners drive m.o3 to eps/R 0.257, just past the linear
+        # limit 0.25 (E-SCHED-NONLINEAR); this script times the convex programs, so the check is noted, not raised
+        opts = CompileOptions(waypoint_dt_s=0.01, robust=bool(robust), robust_mode=robust or "mean",
+                              allow_nonlinear=True)
         best = float("inf")
         for _ in range(3):
             t0 = time.perf_counter()
