@@ -253,7 +253,26 @@ def test_a_backslash_before_an_empty_line_is_dropped():
 
 
 def test_crlf_and_missing_final_newline_are_normalised():
-    assert format_source("param a = 1\r\nparam b = 2") == "param a = 1\nparam b = 2\n"
+    assert format_source("param a = 1\r\nparam b = 2") == "param a = 1\r\nparam b = 2\r\n"   # all CRLF: kept
+    assert format_source("param a = 1\r\nparam b = 2\nparam c = 3") == "param a = 1\nparam b = 2\nparam c = 3\n"  # mixed: LF
+
+
+def test_a_crlf_file_keeps_crlf_and_passes_check_when_canonical(tmp_path):
+    """Every line in CRLF (a Windows checkout): the layout is canonicalised, the line endings kept, so
+    `acl fmt --check` passes on a canonical CRLF file and is idempotent."""
+    import subprocess
+    import sys
+
+    lf = format_source("param   a = 1\nparam b=2\n")
+    crlf = format_source("param   a = 1\r\nparam b=2\r\n")
+    assert crlf == lf.replace("\n", "\r\n") and format_source(crlf) == crlf
+    f = tmp_path / "w.acl"
+    f.write_bytes(crlf.encode())
+    r = subprocess.run([sys.executable, "-m", "acl", "fmt", "--check", "-q", str(f)], capture_output=True, text=True)
+    assert r.returncode == 0, r.stdout + r.stderr
+    f.write_bytes(b"param   a = 1\r\nparam b=2\r\n")
+    r = subprocess.run([sys.executable, "-m", "acl", "fmt", "-q", str(f)], capture_output=True, text=True)
+    assert r.returncode == 0 and f.read_bytes() == crlf.encode()
 
 
 def test_an_empty_file_stays_empty():

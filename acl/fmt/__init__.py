@@ -32,12 +32,16 @@ def _format(text: str, path: str) -> str:
     from acl.syntax.parser import parse_module, parse_module_tree
 
     source = text.replace("\r\n", "\n").removeprefix("\ufeff")   # the canonical file has no byte-order mark
+    # a file whose every line ends in CRLF (a Windows checkout, git autocrlf) keeps CRLF, so `acl fmt --check`
+    # judges the layout, not the platform's line endings (as black does); mixed endings become LF
+    crlf = "\r\n" in text and text.count("\r\n") == text.count("\n")
     # one parse gives the parser's diagnostics and limits (as `acl check`), the tree and its tokens
     before, tree = parse_module_tree(source, path)
     out = layout(tokenize(source, path, tree))
     del tree
-    if out == text:   # already canonical: nothing to check
-        return out
+    final = out.replace("\n", "\r\n") if crlf else out
+    if final == text:   # already canonical: nothing to check
+        return final
     try:
         after = parse_module(out, path)
     except DiagnosticError as exc:
@@ -48,7 +52,7 @@ def _format(text: str, path: str) -> str:
     if meaning(before) != meaning(after):
         raise DiagnosticError([error("E190", "internal formatter error: formatting would change the design",
                                      Span(file=path, line=1, column=1), "please report it; the file is left as it is")])
-    return out
+    return final
 
 
 def format_file(path: str) -> tuple[str, str]:
