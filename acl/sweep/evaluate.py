@@ -1128,28 +1128,14 @@ class _Evaluator:
 
     def closing_equilibrium(self, freqs, volts, hi):
         """(xa, xb) where V^2(s) = 1 on the ascending branch, s in (0, hi): regula falsi (Illinois), V^2(0) = 0."""
-        lo = np.zeros(self.n)
-        t = np.zeros(self.n)
-        f_lo = -np.ones(self.n)
-        f_hi, t_hi, _ = self.pair_v2(hi, t, freqs, volts)
-        f_hi = f_hi - 1.0
-        side = np.zeros(self.n)
-        s = hi
-        fs = np.full(self.n, np.nan)
-        for _ in range(30):
-            s = np.where(f_hi != f_lo, hi - f_hi * (hi - lo) / np.where(f_hi != f_lo, f_hi - f_lo, 1.0), 0.5 * (lo + hi))
-            s = np.where((s > lo) & (s < hi), s, 0.5 * (lo + hi))
-            v2, t, _ = self.pair_v2(s, t_hi, freqs, volts)
-            fs = v2 - 1.0
-            below = fs < 0
-            lo, f_lo = np.where(below, s, lo), np.where(below, fs, f_lo)
-            hi, f_hi, t_hi = np.where(below, hi, s), np.where(below, f_hi, fs), np.where(below, t_hi, t)
-            # Illinois: halve the stale end's value when the same end is kept twice
-            f_hi = np.where(below & (side == 1), f_hi / 2, f_hi)
-            f_lo = np.where(~below & (side == -1), f_lo / 2, f_lo)
-            side = np.where(below, 1, -1)
-            if not np.any((np.abs(fs) > 1e-12) & (hi - lo > 1e-13 * np.maximum(hi, 1e-300))):
-                break
+        f_hi, t_hi, _ = self.pair_v2(hi, np.zeros(self.n), freqs, volts)
+
+        def f(x, t_warm):
+            v2, t, _ = self.pair_v2(x, t_warm, freqs, volts)
+            return v2 - 1.0, t
+
+        s, fs, t = PB.illinois_ascending(f, np.zeros(self.n), hi, -np.ones(self.n), f_hi - 1.0, 30, 1e-12, 1e-13,
+                                         state=t_hi)
         _, _, _, xa, xb = self.pair_closure(s, t, freqs, volts)
         bad = ~(np.abs(fs) <= 1e-9)                  # no root bracketed (or not converged): not an equilibrium
         return np.where(bad, np.nan, xa), np.where(bad, np.nan, xb)

@@ -507,24 +507,9 @@ class Mechanism:
             m = self if rows.size == self.n else self.sub(rows)
             dd = d[rows]
             hi = np.where(cur["has_fold"][rows], cur["s_fold"][rows], cur["s_max"][rows])
-            lo = np.zeros(rows.size)
-            f_lo = -np.ones(rows.size)
-            f_hi = m._v2(hi, dd, freqs, volts) - 1.0
-            side = np.zeros(rows.size)
-            s = hi
-            fs = np.full(rows.size, np.nan)
-            for _ in range(60):
-                s = np.where(f_hi != f_lo, hi - f_hi * (hi - lo) / np.where(f_hi != f_lo, f_hi - f_lo, 1.0), 0.5 * (lo + hi))
-                s = np.where((s > lo) & (s < hi), s, 0.5 * (lo + hi))
-                fs = m._v2(s, dd, freqs, volts) - 1.0
-                below = fs < 0
-                lo, f_lo = np.where(below, s, lo), np.where(below, fs, f_lo)
-                hi, f_hi = np.where(below, hi, s), np.where(below, f_hi, fs)
-                f_hi = np.where(below & (side == 1), f_hi / 2, f_hi)
-                f_lo = np.where(~below & (side == -1), f_lo / 2, f_lo)
-                side = np.where(below, 1, -1)
-                if not np.any((np.abs(fs) > 1e-13) & (hi - lo > 1e-15 * np.maximum(hi, 1e-300))):
-                    break
+            s, fs, _ = PB.illinois_ascending(lambda x, _st: (m._v2(x, dd, freqs, volts) - 1.0, None),
+                                             np.zeros(rows.size), hi, -np.ones(rows.size),
+                                             m._v2(hi, dd, freqs, volts) - 1.0, 60, 1e-13, 1e-15)
             good = np.abs(fs) <= 1e-9
             z[rows, 0] = np.where(good, dd * s, 0.0)
             ok[rows] = good
