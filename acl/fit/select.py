@@ -354,12 +354,11 @@ CLIP = solve.JUMP ** 2  # a row beyond JUMP sigma (on a fold: a latch switching 
 #                         switches at the switching force itself while the device scatters from ramp to ramp)
 
 
+_BY_VOLTAGE = ("switching or deflection at several voltages per frequency: latches of several switching forces "
+               "(e.g. several angles), or a calibration beam ramped at each frequency")
 _SEPARATE = {
-    frozenset({"drive_saturation", "transducer_gain"}): "switching or deflection at several voltages per frequency: "
-    "latches of several switching forces (e.g. several angles), or a calibration beam ramped at each frequency",
-    frozenset({"drive_saturation", "transducer_resonance"}): "switching or deflection at several voltages per "
-    "frequency: latches of several switching forces (e.g. several angles), or a calibration beam ramped at each "
-    "frequency",
+    frozenset({"drive_saturation", "transducer_gain"}): _BY_VOLTAGE,
+    frozenset({"drive_saturation", "transducer_resonance"}): _BY_VOLTAGE,
     frozenset({"transducer_gain", "transducer_resonance"}): "drive frequencies beyond the swept band (a resonance "
     "turns over, a tilt does not), or a calibrated hydrophone / calibration beam at each frequency",
     frozenset({"drive_saturation", "large_deflection"}): "ramps at two or more frequencies (saturation follows the "
