@@ -143,9 +143,37 @@ def _untrap(model, problem, coefs, starts, fit):
     gradient (pair, planted drift, seed 105: chi-square 1,772 for 360 rows, while the same model reaches 360 from a
     robust start).  Fit again with a soft-l1 pass first (solve.fit ``robust_start``: the far rows cannot pull the
     start), from the same starts, and keep the lower chi-square (the final fit is plain least squares either way)."""
-    if not _beyond_jump(fit, problem):
+    if _beyond_jump(fit, problem):
+        again = solve.fit(model, problem.y, problem.sigma, coefs, starts=starts or None, robust_start=True)
+        fit = again if again.chi2 < fit.chi2 else fit
+    return _cross_switch(model, problem, coefs, fit)
+
+
+LATCH_BLEND = (0.2, 0.1, 0.05, 0.02, 0.01)    # continuation: relative scatter of the switching force, wide to narrow
+
+
+def _cross_switch(model, problem, coefs, fit):
+    """A lone latch's shuttle row predicted on the other side of the switch than measured (switched in the model, not
+    in the data, or the reverse) is off by the whole stroke (~70 um, ~350 sigma) and gives no gradient: the model's
+    travel is a step at the switching force, flat on both branches.  One such row outweighs every other row, and the
+    fit of an effect stops there (one latch with state rows, saturation + drift: the drift fitted on a resonance
+    taken for the saturation stopped with two rows across the switch, chi-square 247,360 for 820 rows; the planted
+    pair reaches 441).  Continue from the trapped point through fits of the same model with the step smoothed into the
+    expected travel of a switching force scattered log-normally by s (acl.fit.forward.latch_travel ``blend``; the
+    probit of the state rows), s from LATCH_BLEND[0] down to LATCH_BLEND[-1], then fit the exact model from there and
+    keep whichever of the two exact fits has the lower chi-square.  The smoothed model only supplies a start: the
+    model, its likelihood and every statistic stay the exact ones."""
+    from acl.fit.forward import lone_latch_rows, predict
+
+    P = problem.prepared
+    if not np.any(lone_latch_rows(P)):
         return fit
-    again = solve.fit(model, problem.y, problem.sigma, coefs, starts=starts or None, robust_start=True)
+    values = list(fit.values)
+    for s in LATCH_BLEND:
+        smooth = solve.fit(lambda a, b, s=s: predict(P, a, b, latch_blend=s), problem.y, problem.sigma,
+                           [_with_value(c, v) for c, v in zip(coefs, values)])
+        values = list(smooth.values)
+    again = solve.fit(model, problem.y, problem.sigma, [_with_value(c, v) for c, v in zip(coefs, values)])
     return again if again.chi2 < fit.chi2 else fit
 
 
