@@ -368,3 +368,66 @@ def test_saturation_and_drift_on_latch_states_are_both_found(tmp_path):
     assert sorted(sel.selected) == sorted(planted) and not sel.ambiguous
     st = problem.prepared.state
     assert np.sqrt(np.mean(sel.final.residual[~st] ** 2)) < RMSE_RATIO * 0.2e-6
+
+
+def test_a_latch_fit_stopped_at_the_switch_is_continued_through_a_smoothed_switch(tmp_path):
+    """One latch with state rows, saturation + drift, seed 102 (the case below the bar): from the base model's values
+    the fit of the planted pair stopped (xtol) with 8 shuttle rows on the other side of the switch than measured, each
+    ~350 sigma off and without gradient (chi-square ~1e6 for 820 rows), so the search never reached the pair and chose
+    a transducer resonance + drift.  :func:`acl.fit.select._cross_switch` continues from there through the same model
+    with the switch smoothed (a scattered switching force, narrowed to the step) and reaches the planted values."""
+    from acl.fit import solve
+    from acl.fit.forward import latch_branch_mismatch, predict
+    from acl.fit.select import _cross_switch, _with_value, effect_coefs
+
+    planted = {"drive_saturation": FD.SAT_STATE, "offset_drift": FD.DRIFT}
+    problem, _ = _state_problem(tmp_path, "latch+state", planted, 102)
+    P = problem.prepared
+
+    def model(a, b):
+        return predict(P, a, b)
+
+    base = solve.fit(model, problem.y, problem.sigma, problem.coefs)
+    coefs = [_with_value(c, v) for c, v in zip(problem.coefs, base.values)]
+    coefs += [c for e in ("offset_drift", "drive_saturation") for c in effect_coefs(e, problem)[0]]
+    trapped = solve.fit(model, problem.y, problem.sigma, coefs)
+    assert np.sum(latch_branch_mismatch(P, problem.y, trapped.prediction)) >= 1    # the defect
+    assert trapped.chi2 > 100 * problem.y.size
+    fit = _cross_switch(model, problem, coefs, trapped)
+    assert not np.any(latch_branch_mismatch(P, problem.y, fit.prediction))
+    assert fit.chi2 < 0.6 * problem.y.size            # 410 shuttle rows at 1 each, 410 states by their deviance
+    assert fit.value("offset_drift.offset") == pytest.approx(FD.DRIFT["offset"], rel=0.1)
+    assert fit.value("offset_drift.drift") == pytest.approx(FD.DRIFT["drift"], rel=0.05)
+    assert fit.value("drive_saturation.inv_vsat2") ** -0.5 == pytest.approx(FD.SAT_STATE["v_sat"], rel=0.1)
+
+
+def test_one_latch_with_states_finds_saturation_and_drift_where_a_resonance_stood_in(tmp_path):
+    """The same data, the whole search: before the continuation it selected transducer_resonance + offset_drift
+    (chi-square 477.0) and named no alternative, because the saturation fitted in the resonance's place stopped at the
+    switch (826.6); the planted pair reaches 440.4 and is selected, nothing else within the ambiguity threshold."""
+    from acl.fit.select import select_effects, withdraw_if_inadequate
+
+    planted = {"drive_saturation": FD.SAT_STATE, "offset_drift": FD.DRIFT}
+    problem, _ = _state_problem(tmp_path, "latch+state", planted, 102)
+    sel = withdraw_if_inadequate(select_effects(problem, seed=102), problem)
+    assert sorted(sel.selected) == sorted(planted) and not sel.ambiguous
+    assert sel.final.chi2 < 0.6 * problem.y.size
+
+
+def test_the_smoothed_switch_is_the_step_in_the_limit_and_smooth_across_it(tmp_path):
+    """acl.fit.forward.latch_travel ``blend`` (a search device only): 0 gives the step; a narrow blend agrees with the
+    step away from the switching force; at it, the travel is the mean of the two branches; every blend is continuous."""
+    from acl.fit.forward import latch_travel
+
+    problem, _ = _state_problem(tmp_path, "latch+state", {}, 100)
+    table = problem.prepared.latch_tables[0]
+    fsw = table[2]
+    x = fsw * np.linspace(0.5, 1.5, 2001)
+    step = latch_travel(x, table)
+    assert np.array_equal(latch_travel(x, table, blend=0.0), step)
+    far = np.abs(x / fsw - 1.0) > 0.01
+    assert np.allclose(latch_travel(x, table, blend=1e-3)[far], step[far], rtol=0, atol=1e-12)
+    mid = latch_travel(np.array([fsw]), table, blend=0.05)[0]
+    assert mid == pytest.approx(0.5 * (latch_travel(np.array([fsw]), table)[0] + np.interp(fsw, table[3], table[4])))
+    assert np.max(np.abs(np.diff(step))) > 0.5 * (table[4][0] - table[1][-1])        # the step jumps by the stroke
+    assert np.max(np.abs(np.diff(latch_travel(x, table, blend=0.05)))) < 0.05 * (table[4][0] - table[1][-1])

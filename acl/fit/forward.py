@@ -513,6 +513,7 @@ def _predict(P: Prepared, coeffs: dict, effects: dict, latch_blend: float = 0.0)
             # The row "predicts" y + r / w.
             y, wt, held = P.pearson
             REWEIGHT.seen = True
+            REWEIGHT.rows = P.state
             if REWEIGHT.active:
                 held["var"], held["gen"] = np.maximum(p * (1.0 - p), 1e-10), REWEIGHT.generation
             if held.get("gen") == REWEIGHT.generation:
@@ -536,6 +537,7 @@ class _Reweight:
         self.active = False
         self.generation = 0
         self.seen = False              # set by a prediction that had state rows to weigh
+        self.rows = None               # (n,) bool: the state rows of that prediction
 
     def __enter__(self):
         self.active = True

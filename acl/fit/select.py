@@ -214,7 +214,7 @@ def select_effects(problem, candidates=None, p_limit=P_LIMIT, k_folds=K_FOLDS, s
                 coefs = [_with_value(c, v) for c, v in zip(current_coefs, current.values)] + ecoefs
                 starts = [list(current.values) + s for s in estarts]
                 trial_fit = solve.fit(model, problem.y, problem.sigma, coefs)
-                F, p = solve.f_test(current.chi2, current.p, trial_fit.chi2, trial_fit.p, problem.y.size)
+                F, p = solve.nested_f_test(current, trial_fit)
                 # the effect may matter, or the fit ended worse than the current model it contains (at the effect's
                 # null value): a failed optimization, e.g. rows thrown past a snap-in fold by the first start.  Look
                 # for a better minimum from the effect's other starts.
@@ -222,11 +222,11 @@ def select_effects(problem, candidates=None, p_limit=P_LIMIT, k_folds=K_FOLDS, s
                     again = solve.fit(model, problem.y, problem.sigma, coefs, starts=[list(trial_fit.values)] + starts)
                     if again.chi2 < trial_fit.chi2:
                         trial_fit = again
-                        F, p = solve.f_test(current.chi2, current.p, trial_fit.chi2, trial_fit.p, problem.y.size)
+                        F, p = solve.nested_f_test(current, trial_fit)
                 again = _untrap(model, problem, coefs, starts, trial_fit)
                 if again is not trial_fit:
                     trial_fit = again
-                    F, p = solve.f_test(current.chi2, current.p, trial_fit.chi2, trial_fit.p, problem.y.size)
+                    F, p = solve.nested_f_test(current, trial_fit)
                 if p < limit:
                     # is the gain the effect's, or did the optimizer just find a better point of the current
                     # model (a jump at a snap-in fold, a local minimum)?  Refit the current model from there.
@@ -357,7 +357,7 @@ def _replacements(problem, model, names, selected, current, eid, p_limit, progre
     kinds = {c.kind for c in rest}
     others = [e for e in names if e not in selected and not applicable(e, problem, kinds)]
     limit = p_limit / max(len(others) + 1, 1)
-    _, p_keep = solve.f_test(reduced.chi2, reduced.p, current.chi2, current.p, problem.y.size)
+    _, p_keep = solve.nested_f_test(reduced, current)
     tries = []
     if drop_check and not p_keep < limit:
         return reduced, p_keep, limit, tries
@@ -369,7 +369,7 @@ def _replacements(problem, model, names, selected, current, eid, p_limit, progre
         rstarts = [list(reduced.values) + st for st in estarts]
         trial = _untrap(model, problem, coefs, rstarts,
                         solve.fit(model, problem.y, problem.sigma, coefs, starts=rstarts or None))
-        F, p = solve.f_test(reduced.chi2, reduced.p, trial.chi2, trial.p, problem.y.size)
+        F, p = solve.nested_f_test(reduced, trial)
         ok = bool(p < limit and not _not_determined(trial, sigma_given) and not _loose(trial, sigma_given))
         tries.append({"replaces": eid, "effect": cid, "fit": trial, "f_stat": F, "p_value": p, "explains": ok})
     return reduced, p_keep, limit, tries
