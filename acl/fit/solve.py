@@ -176,12 +176,16 @@ def fit(predict, y, sigma, coefs, train=None, starts=None, max_nfev=200, robust_
     # latch states (0/1, acl.fit.forward) count by their deviance, which has no scale to estimate: the residual
     # variance (reduced chi-square, the covariance's scale, the F-test's denominator) and the Gaussian part of the
     # likelihood come from the other rows alone (with many states their near-zero deviances halved the reduced
-    # chi-square: intervals too narrow by ~1.4x and F statistics doubled)
+    # chi-square: intervals too narrow by ~1.4x and F statistics doubled); states alone (binary outcomes) have their
+    # dispersion fixed at 1 (McCullagh & Nelder 1989, sec. 4.5)
     states = np.asarray(REWEIGHT.rows, bool)[train] if seen_states else np.zeros(n, bool)
     n_scale = int(n - states.sum())
     chi2_scale = float(rw[~states] @ rw[~states])
-    dof = max(n_scale - p, 1)
-    redchi = chi2_scale / dof
+    if n_scale < n and n_scale - p < 1:
+        dof, redchi = max(n - p, 1), 1.0
+    else:
+        dof = max(n_scale - p, 1)
+        redchi = chi2_scale / dof
     values = u * scale
     stderr = np.full(p, np.nan)
     corr = np.eye(p)
