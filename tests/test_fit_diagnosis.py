@@ -431,3 +431,34 @@ def test_the_smoothed_switch_is_the_step_in_the_limit_and_smooth_across_it(tmp_p
     assert mid == pytest.approx(0.5 * (latch_travel(np.array([fsw]), table)[0] + np.interp(fsw, table[3], table[4])))
     assert np.max(np.abs(np.diff(step))) > 0.5 * (table[4][0] - table[1][-1])        # the step jumps by the stroke
     assert np.max(np.abs(np.diff(latch_travel(x, table, blend=0.05)))) < 0.05 * (table[4][0] - table[1][-1])
+
+
+def test_latch_states_do_not_dilute_the_scale_of_the_f_test(tmp_path):
+    """Three latch angles, clean data, held-out seed 202: 615 shuttle rows carry the noise's scale, 615 state rows only
+    their deviance (near 0 each).  The F-test's variance estimate was the chi-square over all 1,230 rows (half the
+    shuttle rows' reduced chi-square), so F doubled and the noise's trend in time passed as an offset_drift (F-test p
+    0.0004 against the gate 0.0014; the same draw made gain, resonance and shrinkage truths claim a drift too).  With
+    the shuttle rows' scale the drift's p is about 0.02 and nothing is claimed; the reduced chi-square is the shuttle
+    rows'."""
+    from acl.fit import solve
+    from acl.fit.forward import predict
+    from acl.fit.select import _with_value, effect_coefs, select_effects
+
+    problem, _ = _state_problem(tmp_path, "latch+state/angles", {}, 202)
+    P = problem.prepared
+    st = P.state
+
+    def model(a, b):
+        return predict(P, a, b)
+
+    base = solve.fit(model, problem.y, problem.sigma, problem.coefs)
+    coefs = [_with_value(c, v) for c, v in zip(problem.coefs, base.values)] + effect_coefs("offset_drift", problem)[0]
+    drift = solve.fit(model, problem.y, problem.sigma, coefs)
+    assert drift.n_scale == int((~st).sum()) and drift.chi2_scale < drift.chi2
+    assert drift.redchi == pytest.approx(np.sum(drift.wresidual[~st] ** 2) / ((~st).sum() - drift.p))
+    diluted = solve.f_test(base.chi2, base.p, drift.chi2, drift.p, problem.y.size)[1]     # the former test
+    _, p = solve.nested_f_test(base, drift)
+    limit = 0.01 / 7
+    assert diluted < limit < p
+    sel = select_effects(problem, seed=202)
+    assert sel.selected == [] and sel.ambiguous == []
