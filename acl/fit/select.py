@@ -156,18 +156,37 @@ def _cross_switch(model, problem, coefs, fit):
     """A lone latch's shuttle row predicted on the other side of the switch than measured (switched in the model, not
     in the data, or the reverse) is off by the whole stroke (~70 um, ~350 sigma) and gives no gradient: the model's
     travel is a step at the switching force, flat on both branches.  One such row outweighs every other row, and the
-    fit of an effect stops there (one latch with state rows, saturation + drift: the drift fitted on a resonance
-    taken for the saturation stopped with two rows across the switch, chi-square 247,360 for 820 rows; the planted
-    pair reaches 441).  Continue from the trapped point through fits of the same model with the step smoothed into the
-    expected travel of a switching force scattered log-normally by s (acl.fit.forward.latch_travel ``blend``; the
-    probit of the state rows), s from LATCH_BLEND[0] down to LATCH_BLEND[-1], then fit the exact model from there and
-    keep whichever of the two exact fits has the lower chi-square.  The smoothed model only supplies a start: the
-    model, its likelihood and every statistic stay the exact ones."""
-    from acl.fit.forward import lone_latch_rows, predict
+    fit of an effect stops there; and a row predicted at the switching force itself pins the fit at the step's kink
+    (a step of any coordinate that moves it across costs the stroke), so the other coordinates stop too (xtol).  One
+    latch with state rows, saturation + drift, seed 102: the saturation fitted with the drift stopped at chi-square
+    247,207 with two rows across the switch, and from another start at 1,130 pinned at the kink with the offset at a
+    fifth of its value; the planted pair reaches 440.4.
+
+    When some row is across the switch, or the fit fails the goodness of fit of its Gaussian rows (p < GOF_P, sigma
+    given) with a row within reach of the narrowest smoothing (its prediction with LATCH_BLEND[-1] differs from the
+    exact one by more than its sigma), continue from the fit through fits of the same
+    model with the step smoothed into the expected travel of a switching force scattered log-normally by s
+    (acl.fit.forward.latch_travel ``blend``; the probit of the state rows), s from LATCH_BLEND[0] down to
+    LATCH_BLEND[-1]; then fit the exact model from there and keep whichever exact fit has the lower chi-square.  The
+    smoothed model only supplies a start: the model, its likelihood and every statistic stay the exact ones.  A fit
+    that explains its rows to the noise is not trapped and is left alone (a latch whose saturated push stays just
+    below the switching force on every ramp: the smoothing would only pull gamma to its bound, where the drift's fit
+    was then judged not identifiable)."""
+    from acl.fit.forward import latch_branch_mismatch, lone_latch_rows, predict
 
     P = problem.prepared
-    if not np.any(lone_latch_rows(P)):
+    rows = lone_latch_rows(P)
+    if not np.any(rows):
         return fit
+    if not np.any(latch_branch_mismatch(P, problem.y, fit.prediction)):
+        if problem.data.has_sigma:
+            from scipy.stats import chi2
+
+            if chi2.sf(fit.chi2_scale, max(fit.n_scale - fit.p, 1)) >= GOF_P:
+                return fit
+        near = np.abs(predict(P, *fit.as_inputs(), latch_blend=LATCH_BLEND[-1]) - fit.prediction) > problem.sigma
+        if not np.any(near & rows):
+            return fit
     values = list(fit.values)
     for s in LATCH_BLEND:
         smooth = solve.fit(lambda a, b, s=s: predict(P, a, b, latch_blend=s), problem.y, problem.sigma,
