@@ -180,7 +180,7 @@ def fit(predict, y, sigma, coefs, train=None, starts=None, max_nfev=200, robust_
     # dispersion fixed at 1 (McCullagh & Nelder 1989, sec. 4.5)
     states = np.asarray(REWEIGHT.rows, bool)[train] if seen_states else np.zeros(n, bool)
     n_scale = int(n - states.sum())
-    chi2_scale = float(rw[~states] @ rw[~states])
+    chi2_scale = float(rw[~states] @ rw[~states]) if n_scale < n else chi2
     if n_scale < n and n_scale - p < 1:
         dof, redchi = max(n - p, 1), 1.0
     else:
