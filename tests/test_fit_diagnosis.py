@@ -370,12 +370,9 @@ def test_saturation_and_drift_on_latch_states_are_both_found(tmp_path):
     assert np.sqrt(np.mean(sel.final.residual[~st] ** 2)) < RMSE_RATIO * 0.2e-6
 
 
-def test_a_latch_fit_stopped_at_the_switch_is_continued_through_a_smoothed_switch(tmp_path):
-    """One latch with state rows, saturation + drift, seed 102 (the case below the bar): from the base model's values
-    the fit of the planted pair stopped (xtol) with 8 shuttle rows on the other side of the switch than measured, each
-    ~350 sigma off and without gradient (chi-square ~1e6 for 820 rows), so the search never reached the pair and chose
-    a transducer resonance + drift.  :func:`acl.fit.select._cross_switch` continues from there through the same model
-    with the switch smoothed (a scattered switching force, narrowed to the step) and reaches the planted values."""
+def switch_figures(tmp_path) -> dict:
+    """One latch with state rows, saturation + drift, seed 102 (docs/fit.md shows these): the planted pair fitted from
+    the base model's values, plain and continued through the smoothed switch (:func:`acl.fit.select._cross_switch`)."""
     from acl.fit import solve
     from acl.fit.forward import latch_branch_mismatch, predict
     from acl.fit.select import _cross_switch, _with_value, effect_coefs
@@ -391,14 +388,27 @@ def test_a_latch_fit_stopped_at_the_switch_is_continued_through_a_smoothed_switc
     coefs = [_with_value(c, v) for c, v in zip(problem.coefs, base.values)]
     coefs += [c for e in ("offset_drift", "drive_saturation") for c in effect_coefs(e, problem)[0]]
     trapped = solve.fit(model, problem.y, problem.sigma, coefs)
-    assert np.sum(latch_branch_mismatch(P, problem.y, trapped.prediction)) >= 1    # the defect
-    assert trapped.chi2 > 100 * problem.y.size
     fit = _cross_switch(model, problem, coefs, trapped)
-    assert not np.any(latch_branch_mismatch(P, problem.y, fit.prediction))
-    assert fit.chi2 < 0.6 * problem.y.size            # 410 shuttle rows at 1 each, 410 states by their deviance
-    assert fit.value("offset_drift.offset") == pytest.approx(FD.DRIFT["offset"], rel=0.1)
-    assert fit.value("offset_drift.drift") == pytest.approx(FD.DRIFT["drift"], rel=0.05)
-    assert fit.value("drive_saturation.inv_vsat2") ** -0.5 == pytest.approx(FD.SAT_STATE["v_sat"], rel=0.1)
+    return {"rows": problem.y.size, "trapped": trapped.chi2, "continued": fit.chi2,
+            "across": int(np.sum(latch_branch_mismatch(P, problem.y, trapped.prediction))),
+            "across_after": int(np.sum(latch_branch_mismatch(P, problem.y, fit.prediction))),
+            "offset": fit.value("offset_drift.offset"), "drift": fit.value("offset_drift.drift"),
+            "v_sat": fit.value("drive_saturation.inv_vsat2") ** -0.5}
+
+
+def test_a_latch_fit_stopped_at_the_switch_is_continued_through_a_smoothed_switch(tmp_path):
+    """One latch with state rows, saturation + drift, seed 102 (the case below the bar): from the base model's values
+    the fit of the planted pair stopped (xtol) with 8 shuttle rows on the other side of the switch than measured, each
+    ~350 sigma off and without gradient (chi-square ~1e6 for 820 rows), so the search never reached the pair and chose
+    a transducer resonance + drift.  :func:`acl.fit.select._cross_switch` continues from there through the same model
+    with the switch smoothed (a scattered switching force, narrowed to the step) and reaches the planted values."""
+    f = switch_figures(tmp_path)
+    assert f["across"] >= 1 and f["trapped"] > 100 * f["rows"]          # the defect
+    assert f["across_after"] == 0
+    assert f["continued"] < 0.6 * f["rows"]           # 410 shuttle rows at 1 each, 410 states by their deviance
+    assert f["offset"] == pytest.approx(FD.DRIFT["offset"], rel=0.1)
+    assert f["drift"] == pytest.approx(FD.DRIFT["drift"], rel=0.05)
+    assert f["v_sat"] == pytest.approx(FD.SAT_STATE["v_sat"], rel=0.1)
 
 
 def test_one_latch_with_states_finds_saturation_and_drift_where_a_resonance_stood_in(tmp_path):
@@ -433,20 +443,15 @@ def test_the_smoothed_switch_is_the_step_in_the_limit_and_smooth_across_it(tmp_p
     assert np.max(np.abs(np.diff(latch_travel(x, table, blend=0.05)))) < 0.05 * (table[4][0] - table[1][-1])
 
 
-def test_latch_states_do_not_dilute_the_scale_of_the_f_test(tmp_path):
-    """Three latch angles, clean data, held-out seed 202: 615 shuttle rows carry the noise's scale, 615 state rows only
-    their deviance (near 0 each).  The F-test's variance estimate was the chi-square over all 1,230 rows (half the
-    shuttle rows' reduced chi-square), so F doubled and the noise's trend in time passed as an offset_drift (F-test p
-    0.0004 against the gate 0.0014; the same draw made gain, resonance and shrinkage truths claim a drift too).  With
-    the shuttle rows' scale the drift's p is about 0.02 and nothing is claimed; the reduced chi-square is the shuttle
-    rows'."""
+def scale_figures(tmp_path) -> dict:
+    """Three latch angles, clean data, held-out seed 202 (docs/fit.md shows these): the offset_drift's F-test against
+    the base model with the variance of all rows (the former test) and of the shuttle rows (states have no scale)."""
     from acl.fit import solve
     from acl.fit.forward import predict
-    from acl.fit.select import _with_value, effect_coefs, select_effects
+    from acl.fit.select import _with_value, effect_coefs
 
     problem, _ = _state_problem(tmp_path, "latch+state/angles", {}, 202)
     P = problem.prepared
-    st = P.state
 
     def model(a, b):
         return predict(P, a, b)
@@ -454,11 +459,28 @@ def test_latch_states_do_not_dilute_the_scale_of_the_f_test(tmp_path):
     base = solve.fit(model, problem.y, problem.sigma, problem.coefs)
     coefs = [_with_value(c, v) for c, v in zip(problem.coefs, base.values)] + effect_coefs("offset_drift", problem)[0]
     drift = solve.fit(model, problem.y, problem.sigma, coefs)
+    st = P.state
+    return {"problem": problem, "drift": drift, "rows": problem.y.size, "states": int(st.sum()),
+            "redchi_all": drift.chi2 / (problem.y.size - drift.p), "redchi": drift.redchi,
+            "p_diluted": solve.f_test(base.chi2, base.p, drift.chi2, drift.p, problem.y.size)[1],
+            "p": solve.nested_f_test(base, drift)[1], "gate": 0.01 / 7}
+
+
+def test_latch_states_do_not_dilute_the_scale_of_the_f_test(tmp_path):
+    """Three latch angles, clean data, held-out seed 202: 615 shuttle rows carry the noise's scale, 615 state rows only
+    their deviance (near 0 each).  The F-test's variance estimate was the chi-square over all 1,230 rows (half the
+    shuttle rows' reduced chi-square), so F doubled and the noise's trend in time passed as an offset_drift (F-test p
+    0.0004 against the gate 0.0014; the same draw made gain, resonance and shrinkage truths claim a drift too).  With
+    the shuttle rows' scale the drift's p is about 0.02 and nothing is claimed; the reduced chi-square is the shuttle
+    rows'."""
+    from acl.fit.select import select_effects
+
+    f = scale_figures(tmp_path)
+    problem, drift = f["problem"], f["drift"]
+    st = problem.prepared.state
     assert drift.n_scale == int((~st).sum()) and drift.chi2_scale < drift.chi2
     assert drift.redchi == pytest.approx(np.sum(drift.wresidual[~st] ** 2) / ((~st).sum() - drift.p))
-    diluted = solve.f_test(base.chi2, base.p, drift.chi2, drift.p, problem.y.size)[1]     # the former test
-    _, p = solve.nested_f_test(base, drift)
-    limit = 0.01 / 7
-    assert diluted < limit < p
+    assert f["redchi_all"] < 0.6 < 0.9 < f["redchi"]
+    assert f["p_diluted"] < f["gate"] < f["p"]
     sel = select_effects(problem, seed=202)
     assert sel.selected == [] and sel.ambiguous == []
