@@ -55,12 +55,16 @@ def needs_path(design_path: str, calibrated_path: str) -> str | None:
 
 
 def calibrated_text(problem, selection, out_path: str, data_paths=(), report_dir: str | None = None,
-                    now: datetime.datetime | None = None, model_discrepancy: float = 0.0) -> str:
+                    now: datetime.datetime | None = None, model_discrepancy: float = 0.0,
+                    model_scale_sd: float = 0.0) -> str:
     """The calibrated design's source, to be written at ``out_path``.
 
     ``model_discrepancy`` (m): the largest difference between the calibrated design's analysis and the fit's
     own predictions at the measured drives checked (acl/fit/modelcheck.py, pairs); added in quadrature to
-    ``discrepancy(position)`` so later stages do not inherit the Eq. 3 fit's residual as their error."""
+    ``discrepancy(position)`` so later stages do not inherit the Eq. 3 fit's residual as their error.
+    ``model_scale_sd``: the relative mismatch of the drive scale at snap-in between the fit's Eq. 3 model and the
+    calibrated design's analysis (acl.fit.modelcheck.snap_mismatch); declared as ``param fit_pair_model_scale =
+    1 +- model_scale_sd`` multiplying the transducer gain, so compile's hold/cross margin bands draw it."""
     import numpy as np
 
     final, P = selection.final, problem.prepared
@@ -116,6 +120,14 @@ def calibrated_text(problem, selection, out_path: str, data_paths=(), report_dir
                          "draw it from its +- (acl compile's bands), so they are wide")
         params.append(f"param {name} = {_literal(v, unit)}{_pm(se, unit)}"
                       f"    # 95% interval {_literal(lo, unit)} .. {_literal(hi, unit)}")
+    if model_scale_sd > 0:
+        # nominal 1: the analysis is unchanged; its spread is what the Eq. 3 fit cannot tell about snap-in
+        params.append(f"param fit_pair_model_scale = 1 +- {model_scale_sd:.6g}    # drive (pressure) scale: the "
+                      "analysis' and the fit's pair model (paper Eq. 3) snap in at drives this far apart")
+        notes.append("# fit_pair_model_scale: the calibrated analysis (full force model) and this fit's pair model "
+                     "(paper Eq. 3) put the snap-in at drive scales that differ by up to "
+                     f"{model_scale_sd * 100:.3g} % (W-FIT-PAIR-MODEL, docs/fit.md Limits); its +- is drawn by acl "
+                     "compile's margin bands (hold, cross) and error bands, its nominal 1 changes nothing")
     # coefficients that stand for physics the design has no parameter for
     if "e_scale" in by_kind and not _is_design(final, "e_scale"):
         effects.setdefault("stiffness_scale", {})
@@ -123,6 +135,8 @@ def calibrated_text(problem, selection, out_path: str, data_paths=(), report_dir
         effects["stiffness_scale"]["e_scale"] = by_kind["e_scale"] + (f" * {prev}" if prev else "")
     if "gain" in by_kind:
         gain_terms.append(by_kind["gain"])
+    if model_scale_sd > 0:
+        gain_terms.append("fit_pair_model_scale")
     if "gamma" in by_kind and not _is_design(final, "gamma") and P.gamma0 > 0:
         gain_terms.append(f"({by_kind['gamma']} / {_literal(P.gamma0, 'N/V^2')})^0.5")
         notes.append(f"# gamma is the thrust per V^2 at {P.f_ref / 1e3:.6g} kHz; the design's is "
@@ -134,7 +148,9 @@ def calibrated_text(problem, selection, out_path: str, data_paths=(), report_dir
             g = f"{by_kind['gamma']} / {_literal(P.gamma0, 'N/V^2')}" if "gamma" in by_kind and not _is_design(final, "gamma") else "1"
             effects.setdefault("bjerknes_scale", {})["factor"] = \
                 f"({by_kind['alpha']} / {_literal(alpha_phys, 'N*m^2/V^2')}) / ({g})"
-            notes.append(f"# alpha (paper Eq. 3) at {P.f_ref / 1e3:.6g} kHz; the physics gives "
+            what = ("the coupled model's Bjerknes coefficient at rest (acl fit --model coupled)"
+                    if getattr(problem, "model", "eq3") == "coupled" else "paper Eq. 3")
+            notes.append(f"# alpha ({what}) at {P.f_ref / 1e3:.6g} kHz; the physics gives "
                          f"{_literal(alpha_phys, 'N*m^2/V^2')}: bjerknes_scale below applies the ratio beyond the "
                          "pressure scale")
         else:
@@ -239,6 +255,8 @@ def _coverage(problem) -> dict:
     pair = np.asarray(P.pair, bool) if P.pair is not None else np.zeros(n, bool)
     gap = pair & (np.asarray(P.s0) != 0) & (np.asarray(P.s1) != 0)   # a pair's gap: both sides move it
     d0 = np.asarray(P.d0, float) if P.d0 is not None else np.full(n, np.nan)
+    if getattr(P, "group_row", None) is not None:                  # a group's gap rows (d0: their rest gap)
+        gap = gap | (np.asarray(P.group_row, bool) & np.isfinite(d0))
     # a gap measured in contact (below 5 % of the rest gap) shows that the pair snapped, not the
     # force or beam laws there: it widens neither the covered voltage nor the covered deflection
     contact = gap & (value < 0.05 * np.where(np.isfinite(d0), d0, 0.0))

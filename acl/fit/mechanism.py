@@ -253,8 +253,15 @@ def _check_direction(design, unit, obs) -> None:
                        "observe a direction the body moves in")
 
 
-def build_instance(design) -> Instance:
-    """Cut a resolved design into units, one per observable (raises E810 for unsupported mechanisms)."""
+MODELS = ("eq3", "coupled")     # the force model of a simple pair (`acl fit --model`)
+
+
+def build_instance(design, model: str = "eq3") -> Instance:
+    """Cut a resolved design into units, one per observable (raises E810 for unsupported mechanisms).
+
+    ``model``: how a simple pair (two single-orifice capsules on their own supports) is modelled: ``eq3`` paper
+    Eq. (3) (a ``pair`` unit, acl.fit.forward), ``coupled`` the analysis' force model (a ``group`` unit,
+    acl.fit.group: per-orifice thrust, Bjerknes force between the orifices, jet drag, coupled volumes)."""
     from acl.analysis.acoustics import _medium
 
     # the fit's base model is the design without declared effects (the fit adds them itself: a
@@ -291,7 +298,7 @@ def build_instance(design) -> Instance:
         return units_by_caps[caps]
 
     def pair_unit(a, b, obs):
-        if len(comp.get(a, ())) > 2 or _needs_group(design, comp.get(a, (a, b))):
+        if len(comp.get(a, ())) > 2 or _needs_group(design, comp.get(a, (a, b))) or model == "coupled":
             return group_unit(comp[a], obs)
         key = tuple(sorted((a, b)))
         if key not in units_by_caps:
@@ -326,7 +333,7 @@ def build_instance(design) -> Instance:
             # a member of a trussed body whose other member interacts: that group
             members = rigid_body(design, cap)[0]
             cap = next((m for m in members if m in comp), cap)
-        if len(comp.get(cap, ())) > 2 or (cap in comp and _needs_group(design, comp[cap])):
+        if len(comp.get(cap, ())) > 2 or (cap in comp and (_needs_group(design, comp[cap]) or model == "coupled")):
             units[o.name] = group_unit(comp[cap], o)
             _check_direction(design, units[o.name], o)
             continue

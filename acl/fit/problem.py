@@ -40,10 +40,13 @@ class Problem:
     y: np.ndarray
     sigma: np.ndarray
     param_roles: dict          # design param name -> role
+    model: str = "eq3"         # force model of simple pairs: eq3 (paper Eq. 3) or coupled (acl.fit.group)
 
 
-def load_problem(design_path, data_paths, free=(), search_paths=()):
-    """Load design and data, build the rows and the free coefficients; DiagnosticError on any problem."""
+def load_problem(design_path, data_paths, free=(), search_paths=(), model: str = "eq3"):
+    """Load design and data, build the rows and the free coefficients; DiagnosticError on any problem.
+
+    ``model``: the force model of simple pairs (acl.fit.mechanism.build_instance: ``eq3`` or ``coupled``)."""
     import acl
     from acl.fit.data import read_data
     from acl.fit.forward import prepare
@@ -64,7 +67,7 @@ def load_problem(design_path, data_paths, free=(), search_paths=()):
                                              f"{', '.join(f'{k} = {v}' for k, v in key)}: {exc.diagnostics[0].message}",
                                              Span(file=sp.file, line=sp.line, column=1),
                                              f"see {exc.diagnostics[0].location()}")])
-            cache[key] = build_instance(d)
+            cache[key] = build_instance(d, model)
         return cache[key]
 
     P = prepare(data, load_instance)
@@ -128,7 +131,7 @@ def load_problem(design_path, data_paths, free=(), search_paths=()):
         # a state row's weight is its own: the Pearson residual is already in units of its standard deviation
         P.pearson[1][P.state] = 1.0
         data.sigma = np.where(P.state, 1.0, data.sigma)
-    return Problem(design_path, design, data, P, coefs, y, data.sigma, roles)
+    return Problem(design_path, design, data, P, coefs, y, data.sigma, roles, model)
 
 
 def _group_start(P, coefs, y, sigma) -> None:

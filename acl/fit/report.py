@@ -73,7 +73,8 @@ def covariance(fit) -> dict:
 def critical_distance(fit, problem) -> dict | None:
     """d_c = sqrt(alpha/(2 gamma)) (paper Eq. 3) with a delta-method 95 % interval, when both were fitted or known."""
     P = problem.prepared
-    if not np.any(P.pair):
+    coupled = getattr(problem, "model", "eq3") == "coupled" and P.group_row is not None and np.any(P.group_row)
+    if not (np.any(P.pair) or coupled):
         return None
     names = [c.kind for c in fit.coefs]
     a = fit.values[names.index("alpha")] if "alpha" in names else P.alpha0
@@ -87,7 +88,9 @@ def critical_distance(fit, problem) -> dict | None:
     dc = math.sqrt(a / (2 * g))
     rel = 0.5 * math.sqrt(max(va + vg - 2 * cov, 0.0))
     return {"value": _n(dc), "unit": "m", "stderr": _n(dc * rel), "ci95": [_n(dc * (1 - 1.96 * rel)), _n(dc * (1 + 1.96 * rel))],
-            "formula": "sqrt(alpha / (2 gamma)), paper Eq. (3)"}
+            "formula": "sqrt(alpha / (2 gamma)), paper Eq. (3)" + (
+                ", with the coupled model's coefficients at rest (acl analyze reports the analysis' own)" if coupled
+                and not np.any(P.pair) else "")}
 
 
 def outliers(problem, fit, limit: float = solve.JUMP) -> list[dict]:
