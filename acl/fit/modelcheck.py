@@ -51,9 +51,14 @@ def pair_model_check(problem, fit, text: str, cal_path: str, search_paths=()) ->
     if not rows:
         return None
     vtot = {i: sum(v for _, v in problem.data.tones[i]) for i in rows}
+    data = problem.data
+
+    def key_of(i):          # a row's drive and its `set:` overrides (the design it was measured on)
+        return data.override_key(i), tuple(data.tones[i])
+
     drives, chosen = [], []
     for i in sorted(rows, key=lambda i: -vtot[i]):
-        key = tuple(problem.data.tones[i])
+        key = key_of(i)
         if key not in drives:
             if len(drives) == MAX_DRIVES:
                 continue
@@ -63,21 +68,32 @@ def pair_model_check(problem, fit, text: str, cal_path: str, search_paths=()) ->
         from acl.fit.calibrated import needs_path
 
         extra = needs_path(problem.path, cal_path)         # the original outside the calibrated file's folder tree
-        cal = acl.loads(text, filename=cal_path, search_paths=(*search_paths, *([extra] if extra else [])))
-        fm = acoustics.force_model_for(cal)
+        designs = {}
+
+        def cal_for(okey):
+            if okey not in designs:
+                d = acl.loads(text, filename=cal_path, overrides=dict(okey) or None,
+                              search_paths=(*search_paths, *([extra] if extra else [])))
+                designs[okey] = (d, acoustics.force_model_for(d))
+            return designs[okey]
+
         states = {}
         out = []
         for i in chosen:
-            key = tuple(problem.data.tones[i])
+            key = key_of(i)
+            cal, fm = cal_for(key[0])
             if key not in states:
-                drive = Drive(tones=tuple(Tone(frequency=f, amplitude=v) for f, v in key))
+                drive = Drive(tones=tuple(Tone(frequency=f, amplitude=v) for f, v in key[1]))
                 states[key] = mechanics.equilibrium(cal, drive, fm)
             st = states[key]
             # the analysis snapped in where the fit's pair stays open: the whole predicted gap is the discrepancy
             a = 0.0 if getattr(st, "status", "ok") == "snap_in" else observe_value(cal, cal.observe(obs[i]), st)
-            out.append({"row": int(i), "drive": " + ".join(f"{f / 1e3:.6g} kHz @ {v:.6g} V" for f, v in key),
+            out.append({"row": int(i), "drive": " + ".join(f"{f / 1e3:.6g} kHz @ {v:.6g} V" for f, v in key[1]),
                         "fit_m": float(pred[i]), "analysis_m": float(a)})
-        snap = None if coupled else snap_mismatch(problem, fit, cal, [i for i in chosen if P.pair[i]])
+            if key[0]:
+                out[-1]["set"] = {k: v for k, v in key[0]}
+        snap = None if coupled else snap_mismatch(problem, fit, lambda i: cal_for(key_of(i)[0])[0],
+                                                  [i for i in chosen if P.pair[i]])
     except Exception as exc:               # noqa: BLE001 - the check could not run: say so, never stay silent
         return {"significant": False, "error": f"{type(exc).__name__}: {exc}"[:300]}
     diff = max(abs(r["fit_m"] - r["analysis_m"]) for r in out)
@@ -94,12 +110,13 @@ S_MAX = 4.0             # drive scales searched for a snap-in (x the measured dr
 MIN_SCALE_SD = 0.005    # a drive-scale mismatch below 0.5 % is not declared
 
 
-def snap_mismatch(problem, fit, cal, rows) -> dict | None:
+def snap_mismatch(problem, fit, cal_of, rows) -> dict | None:
     """Drive scale at snap-in of the fit's Eq. 3 model and of the calibrated design's analysis, per drive shape.
 
     For each measured drive (tones) of the checked gap rows, up to ``S_MAX`` x that drive: the fit's model
     (acl.fit.forward.predict with every amplitude scaled; contact = gap below 5 % of the rest gap, by bisection)
-    and the analysis (acl.schedule.gains.critical_scale on the calibrated design).  The data bracket the fit's
+    and the analysis (acl.schedule.gains.critical_scale on the calibrated design ``cal_of(row)``, with the row's
+    ``set:`` overrides).  The data bracket the fit's
     snap-in (its rows before and after it), so the fit's model is the evidence; the analysis is what compile's
     `hold`/`cross` margins use.  ``scale_sd`` = exp(max |ln(analysis / fit)|) - 1: the relative standard deviation
     of a drive (pressure) scale the calibrated design declares (``fit_pair_model_scale``, acl/fit/calibrated.py),
@@ -121,7 +138,7 @@ def snap_mismatch(problem, fit, cal, rows) -> dict | None:
         tones = tuple(problem.data.tones[i])
         vtot = sum(v for _, v in tones)
         o = problem.design.observe(obs[i])
-        shape = (o.a, o.b, tuple((f, round(v / vtot, 9)) for f, v in tones))
+        shape = (problem.data.override_key(i), o.a, o.b, tuple((f, round(v / vtot, 9)) for f, v in tones))
         if vtot <= 0 or shape in seen:
             continue
         seen.add(shape)
@@ -137,14 +154,19 @@ def snap_mismatch(problem, fit, cal, rows) -> dict | None:
                 mid = math.sqrt(lo * hi)
                 lo, hi = (lo, mid) if snapped(mid) else (mid, hi)
             fit_s = hi
-        an = critical_scale(cal, o.a, o.b, tones, S_MAX)
+        an = critical_scale(cal_of(i), o.a, o.b, tones, S_MAX)
         an_s = math.inf if an is None else float(an)
         if not (math.isfinite(fit_s) or math.isfinite(an_s)):
             continue
         # one of them does not snap up to S_MAX: S_MAX bounds the mismatch from below
         ratio = min(an_s, S_MAX) / min(fit_s, S_MAX)
         out.append({"drive": " + ".join(f"{f / 1e3:.6g} kHz @ {v:.6g} V" for f, v in tones),
-                    "fit_scale": float(fit_s), "analysis_scale": float(an_s), "log_ratio": float(math.log(ratio))})
+                    # None: no snap-in up to s_max (JSON has no infinity)
+                    "fit_scale": float(fit_s) if math.isfinite(fit_s) else None,
+                    "analysis_scale": float(an_s) if math.isfinite(an_s) else None,
+                    "log_ratio": float(math.log(ratio))})
+        if shape[0]:
+            out[-1]["set"] = {k: v for k, v in shape[0]}
     if not out:
         return None
     worst = max(abs(r["log_ratio"]) for r in out)
@@ -172,6 +194,9 @@ def _snap_text(check: dict) -> str:
     if not snap or snap["scale_sd"] < MIN_SCALE_SD:
         return ""
     r = max(snap["drives"], key=lambda r: abs(r["log_ratio"]))
-    return (f"; at {r['drive']} the analysis snaps the pair in at {r['analysis_scale']:.4g} x that drive, the fit's "
-            f"model at {r['fit_scale']:.4g} x, so the calibrated design declares a drive scale "
+    def at(x):
+        return f"{x:.4g} x" if x is not None else f"no snap-in up to {snap['s_max']:g} x"
+
+    return (f"; at {r['drive']} the analysis snaps the pair in at {at(r['analysis_scale'])} that drive, the fit's "
+            f"model at {at(r['fit_scale'])}, so the calibrated design declares a drive scale "
             f"fit_pair_model_scale = 1 +- {snap['scale_sd']:.3g} that compile's hold/cross margin bands draw")
