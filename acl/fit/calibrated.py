@@ -122,12 +122,12 @@ def calibrated_text(problem, selection, out_path: str, data_paths=(), report_dir
                       f"    # 95% interval {_literal(lo, unit)} .. {_literal(hi, unit)}")
     if model_scale_sd > 0:
         # nominal 1: the analysis is unchanged; its spread is what the Eq. 3 fit cannot tell about snap-in
-        params.append(f"param fit_pair_model_scale = 1 +- {model_scale_sd:.6g}    # drive (pressure) scale: the "
-                      "analysis' and the fit's pair model (paper Eq. 3) snap in at drives this far apart")
+        params.append(f"param fit_pair_model_scale = 1 +- {model_scale_sd:.6g}    # drive (pressure) scale: "
+                      "W-FIT-PAIR-MODEL")
         notes.append("# fit_pair_model_scale: the calibrated analysis (full force model) and this fit's pair model "
-                     "(paper Eq. 3) put the snap-in at drive scales that differ by up to "
-                     f"{model_scale_sd * 100:.3g} % (W-FIT-PAIR-MODEL, docs/fit.md Limits); its +- is drawn by acl "
-                     "compile's margin bands (hold, cross) and error bands, its nominal 1 changes nothing")
+                     "(paper Eq. 3) put the snap-in at different drive scales; its +- is twice that difference "
+                     "(acl/fit/modelcheck.py snap_mismatch, docs/fit.md Limits), drawn by acl compile's margin bands "
+                     "(hold, cross) and error bands; its nominal 1 changes nothing")
     # coefficients that stand for physics the design has no parameter for
     if "e_scale" in by_kind and not _is_design(final, "e_scale"):
         effects.setdefault("stiffness_scale", {})
