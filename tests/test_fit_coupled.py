@@ -125,6 +125,10 @@ def test_coupled_calibrated_design_is_its_fit(fits, ramp):
     assert not any(w.startswith("W-FIT-PAIR-MODEL") for w in res.report["final"]["warnings"])
     assert "fit_pair_model_scale" not in res.calibrated
     assert abs(gap(acl.load(cal)) - truth) < 2 * NOISE
+    # the ramp's 4..6 V rows are in contact: they widen the covered range of a group's gap no more than a pair's
+    # (before, the coupled calibration claimed covered(voltage) up to 6 V)
+    cover = {c.quantity: c for c in acl.load(cal).coverage}
+    assert cover["voltage"].upper == pytest.approx(3.0)
     assert abs(gap(acl.load(fits["eq3"][1])) - truth) > 10 * NOISE
 
 

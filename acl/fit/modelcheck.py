@@ -112,6 +112,9 @@ S_MAX = 4.0             # drive scales searched for a snap-in (x the measured dr
 # noise 0.2 um, data to 3 V: fit 4.7 % from the truth's snap-in with a +-1.5 % interval on alpha and gamma at its
 # bound; with a factor 1 the margin band's p05 (1.07) lay above the truth's margin (1.03); docs/fit.md)
 SNAP_FACTOR = 2.0
+# a declared sd beyond 100 % says only that the two models disagree qualitatively (one snaps, the other pushes the pair
+# apart up to S_MAX: Fig. 4e data at 60 um): draws of 1 +- 1 already go negative (fail) one time in six
+MAX_SCALE_SD = 1.0
 MIN_SCALE_SD = 0.005    # a drive-scale mismatch below 0.5 % is not declared
 
 
@@ -126,7 +129,7 @@ def snap_mismatch(problem, fit, cal_of, rows) -> dict | None:
     `hold`/`cross` margins use.  ``scale_sd`` = exp(SNAP_FACTOR x max |ln(analysis / fit)|) - 1: the relative standard
     deviation of a drive (pressure) scale the calibrated design declares (``fit_pair_model_scale``,
     acl/fit/calibrated.py), so compile's margin band (which draws it) reaches 3.3 x the mismatch at its 5th
-    percentile (SNAP_FACTOR above says why twice the measured mismatch).  None: no rows, or no
+    percentile (SNAP_FACTOR above says why twice the measured mismatch), at most MAX_SCALE_SD.  None: no rows, or no
     snap-in within ``S_MAX`` in either model (nothing to compare).
     """
     import dataclasses
@@ -176,7 +179,7 @@ def snap_mismatch(problem, fit, cal_of, rows) -> dict | None:
     if not out:
         return None
     worst = max(abs(r["log_ratio"]) for r in out)
-    return {"drives": out, "scale_sd": float(math.expm1(SNAP_FACTOR * worst)), "s_max": S_MAX,
+    return {"drives": out, "scale_sd": float(min(math.expm1(SNAP_FACTOR * worst), MAX_SCALE_SD)), "s_max": S_MAX,
             "factor": SNAP_FACTOR}
 
 
