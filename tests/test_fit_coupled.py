@@ -212,6 +212,8 @@ def test_bad_model_in_the_python_api_is_a_diagnostic(ramp):
         run_fit(src, [csv], free=("gamma",), model="eq4")
     d = exc.value.diagnostics[0]
     assert d.code == "E-USAGE" and d.span.file == "<--model>" and (d.span.line, d.span.column) == (1, 1)
+    with pytest.raises(DiagnosticError):
+        acl.fit(src, csv, free=["gamma"], model="coupld")             # the public API says the same
 
 
 def test_cli_model_coupled_json(ramp, tmp_path):
