@@ -122,7 +122,8 @@ def row(seed: int, r, text: str) -> dict:
             "after_rms_m": r.after_rms_m, "after_max_m": r.after_max_m, "floor_rms_m": r.floor_rms_m,
             "floor_max_m": r.floor_max_m, "predicted_rms_m": r.predicted_rms_m,
             "band_rms_p95_m": r.band_rms_p95_m, "band_max_p95_m": r.band_max_p95_m, "covered": r.covered,
-            "effects": r.effects, "warned": any(n.startswith("warning:") and "calibrat" in n for n in r.notes)}
+            "effects": r.effects, "warned": any(n.startswith("warning:") and "calibrat" in n for n in r.notes),
+            "unmeasured_tone": any("did not measure the transducer gain" in n for n in r.notes)}
 
 
 def main() -> int:
@@ -169,7 +170,10 @@ def main() -> int:
     print(f"{len(rows)} truths: before {np.median([r.before_rms_m for r in rows]) * 1e6:.3f} um RMS (median), "
           f"after {np.median([r.after_rms_m for r in rows]) * 1e6:.3f} um, floor "
           f"{np.median([r.floor_rms_m for r in rows]) * 1e6:.3f} um; after/floor max {ratio.max():.2f} "
-          f"(<= 3 in {np.mean(ratio <= 3) * 100:.0f} %); band covers the re-simulated error in {cover * 100:.0f} %")
+          f"(<= 3 in {np.mean(ratio <= 3) * 100:.0f} %); band covers the re-simulated error in {cover * 100:.0f} % "
+          f"({sum(r.covered for r in rows)} of {len(rows)}); band / error (RMS) median "
+          f"{np.median([r.band_rms_p95_m / r.after_rms_m for r in rows]):.2f}, max "
+          f"{np.max([r.band_rms_p95_m / r.after_rms_m for r in rows]):.2f}")
     _write(args, out)
     return 0
 

@@ -75,7 +75,13 @@ def run_fit(design_path, data_paths, free=(), search_paths=(), candidates=None, 
     report = build_report(problem, selection, before, after, calibrated_name=cal_path)
     report["calibrated_needs_path"] = needs_path(design_path, cal_path)
     report["timing_s"] = timing
-    text = calibrated_text(problem, selection, cal_path, data_paths, report_dir)
+    t0 = time.perf_counter()
+    from acl.fit.report import tone_gain_stderr
+
+    tone_se = tone_gain_stderr(problem, selection.final)
+    timing["tone_gain_stderr"] = time.perf_counter() - t0
+    report["tone_gain_stderr"] = [{"frequency_hz": f, "relative_stderr": s} for f, s in tone_se.items()]
+    text = calibrated_text(problem, selection, cal_path, data_paths, report_dir, tone_gain=tone_se)
     t0 = time.perf_counter()
     from acl.fit.modelcheck import MIN_SCALE_SD, pair_model_check, warning_text
 
@@ -91,7 +97,7 @@ def run_fit(design_path, data_paths, free=(), search_paths=(), candidates=None, 
         if check.get("significant") or scale_sd:
             text = calibrated_text(problem, selection, cal_path, data_paths, report_dir,
                                    model_discrepancy=check["max_m"] if check.get("significant") else 0.0,
-                                   model_scale_sd=scale_sd)
+                                   model_scale_sd=scale_sd, tone_gain=tone_se)
     return FitOutcome(problem, selection, report, text, cal_path)
 
 

@@ -56,7 +56,7 @@ def needs_path(design_path: str, calibrated_path: str) -> str | None:
 
 def calibrated_text(problem, selection, out_path: str, data_paths=(), report_dir: str | None = None,
                     now: datetime.datetime | None = None, model_discrepancy: float = 0.0,
-                    model_scale_sd: float = 0.0) -> str:
+                    model_scale_sd: float = 0.0, tone_gain: dict | None = None) -> str:
     """The calibrated design's source, to be written at ``out_path``.
 
     ``model_discrepancy`` (m): the largest difference between the calibrated design's analysis and the fit's
@@ -64,7 +64,9 @@ def calibrated_text(problem, selection, out_path: str, data_paths=(), report_dir
     ``discrepancy(position)`` so later stages do not inherit the Eq. 3 fit's residual as their error.
     ``model_scale_sd``: the relative mismatch of the drive scale at snap-in between the fit's Eq. 3 model and the
     calibrated design's analysis (acl.fit.modelcheck.snap_mismatch); declared as ``param fit_pair_model_scale =
-    1 +- model_scale_sd`` multiplying the transducer gain, so compile's hold/cross margin bands draw it."""
+    1 +- model_scale_sd`` multiplying the transducer gain, so compile's hold/cross margin bands draw it.
+    ``tone_gain``: {tone Hz: relative standard error of a free gain there} (acl.fit.report.tone_gain_stderr),
+    written as ``measured(gain)``."""
     import numpy as np
 
     final, P = selection.final, problem.prepared
@@ -174,10 +176,17 @@ def calibrated_text(problem, selection, out_path: str, data_paths=(), report_dir
     lines += ["# fitted values with their standard errors (+-); correlations below"] + params + [""]
     corr = _correlations(final, names)
     cover = _coverage(problem)
-    if corr or cover:
+    measured = {f: s for f, s in (tone_gain or {}).items() if math.isfinite(s) and 0 <= s <= 1}
+    if corr or cover or measured:
         lines.append("uncertainty {")
         lines += [f"  correlation({a}, {b}) = {r:.6g}" for a, b, r in corr]
         lines += [f"  covered({q}) = {_literal(lo, u)} .. {_literal(hi, u)}" for q, (lo, hi, u) in cover.items()]
+        if measured:
+            # rounded up: a written figure must not be smaller than the one computed
+            lines.append("  measured(gain) = [" + ", ".join(f"({_literal(f, 'Hz')}, {_round_up(100 * s)} %)"
+                                                         for f, s in sorted(measured.items()))
+                         + "]    # relative standard error of a free gain at each tone the data drove (acl.fit.report."
+                         "tone_gain_stderr): compile's bands hold the gain table there to it instead of its prior")
         from acl.fit.report import alternative_spread, length_rmse
 
         rmse = length_rmse(problem, final)
@@ -215,6 +224,14 @@ def calibrated_text(problem, selection, out_path: str, data_paths=(), report_dir
 
 def _is_design(final, kind) -> bool:
     return any(c.kind == kind and c.design_param for c in final.coefs)
+
+
+def _round_up(x: float, digits: int = 3) -> str:
+    """``x`` (>= 0) to ``digits`` significant digits, rounded up."""
+    if x <= 0:
+        return "0"
+    e = math.floor(math.log10(x)) - digits + 1
+    return f"{math.ceil(x / 10 ** e - 1e-9) * 10 ** e:.{digits}g}"
 
 
 def _pm(se: float, unit: str) -> str:
