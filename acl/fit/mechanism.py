@@ -253,8 +253,14 @@ def _check_direction(design, unit, obs) -> None:
                        "observe a direction the body moves in")
 
 
-def build_instance(design) -> Instance:
-    """Cut a resolved design into units, one per observable (raises E810 for unsupported mechanisms)."""
+def build_instance(design, coupled: bool = False) -> Instance:
+    """Cut a resolved design into units, one per observable (raises E810 for unsupported mechanisms).
+
+    When any observable needs the group model (three or more interacting capsules, a body, a latch among
+    interacting capsules), the group is the **whole design**: every capsule of it, so capsules the analysis couples
+    (a calibration beam next to a group) interact in the fit too (the same equilibrium as
+    acl.analysis.mechanics.equilibrium).  ``coupled``: route every design so, lone actuators and pairs included
+    (the analysis' full force model instead of paper Eqs. (1) and (3))."""
     from acl.analysis.acoustics import _medium
 
     # the fit's base model is the design without declared effects (the fit adds them itself: a
@@ -315,7 +321,28 @@ def build_instance(design) -> Instance:
             units_by_caps[key] = Unit("pair", (sa, sb), d0)
         return units_by_caps[key]
 
+    def needs_group(o) -> bool:
+        if o.kind == "gap":
+            a, b = o.a.split(".")[0], o.b.split(".")[0]
+            return a != b and (len(comp.get(a, ())) > 2 or _needs_group(design, comp.get(a, (a, b))))
+        cap = _target_capsule(design, o)
+        if cap not in comp and _needs_body(design, cap):
+            members = rigid_body(design, cap)[0]
+            cap = next((m for m in members if m in comp), cap)
+            if cap not in comp:
+                return True
+        return len(comp.get(cap, ())) > 2 or (cap in comp and _needs_group(design, comp[cap]))
+
     units = {}
+    if coupled or any(needs_group(o) for o in design.observes):
+        # one physics: every capsule of the design in one group (the analysis couples them all through the liquid)
+        whole = tuple(c.name for c in design.capsules)
+        for o in design.observes:
+            units[o.name] = group_unit(whole, o)
+            _check_direction(design, units[o.name], o)
+        med = _medium(design)
+        return Instance(design=design, units=units,
+                        medium=(med.density, med.surface_tension, med.ambient_pressure, med.polytropic_index))
     for o in design.observes:
         if o.kind == "gap":
             a, b = o.a.split(".")[0], o.b.split(".")[0]
