@@ -23,6 +23,8 @@ DESIGNS = [
     ("examples/fig3_three_orifice.acl", True, (0.75, 1.5, 2.25, 3.0), ("gamma",)),
     ("examples/fig4_facing_pair.acl", False, (0.5, 1.0, 1.5, 2.0), ("gamma", "alpha")),
     ("examples/fig4h_unequal_pair.acl", False, (0.75, 1.5, 2.25, 3.0), ("gamma", "alpha")),
+    # alpha and gamma act on the arms' one observed direction with the same V^2: only gamma is fitted (alpha held)
+    ("examples/fig5a_gripper.acl", True, (2.0, 4.0, 6.0, 8.0, 10.0), ("gamma",)),
     ("examples/fig5c_linear_spring.acl", False, (3.0, 6.0, 9.0, 12.0), ("gamma", "alpha")),
     ("examples/fig6e_reversible_latch.acl", True, (5.0, 10.0, 15.0, 20.0, 25.0), ("gamma",)),
     ("examples/fig6f_control_module.acl", True, (5.0, 10.0, 15.0, 20.0, 25.0), ("gamma", "alpha")),

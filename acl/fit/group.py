@@ -72,6 +72,7 @@ class GroupBlock:
     oj: np.ndarray            # (r,) gap: orifice b
     axis: np.ndarray          # (r, 3) displacement axis / position unit vector
     obase: np.ndarray         # (r,) position: rest coordinate
+    springs: list = None      # (N,) per node: ((stiffness, unit axis), ...) of springs tying it to fixed points
     engines: list = None      # [acl.analysis.acoustics force engine of every drive frequency of the rows at 1 V]
     fidx: np.ndarray = None   # (r, T) index of each tone's frequency in that engine (-1: no tone)
     orif_ix: np.ndarray = None    # (n,) each orifice's interface index in the design (acl.analysis.acoustics layout)
@@ -179,7 +180,7 @@ def block(inst, unit, name, rows, f, v, gamma0, alpha_ref, ftable) -> GroupBlock
     names = [c.name for c in lay.caps]
     extra = dict(engines=engines, fidx=fidx, orif_ix=np.array([lay.labels.index(lab) for lab in net.labels]),
                  cap_ix=np.array([names.index(c) for c in net.caps]), all_rest=np.asarray(lay.rest, float),
-                 gamma0=float(gamma0), alpha_ref=float(alpha_ref))
+                 gamma0=float(gamma0), alpha_ref=float(alpha_ref), springs=[tuple(s.springs) for s in sides])
     return GroupBlock(np.asarray(rows), net.caps, law, np.array([s.L for s in sides]), np.array([s.l for s in sides]),
                       np.array([s.EI for s in sides]), cd, basis, k, latch, latch_geo, np.asarray(net.cap_node, int),
                       np.asarray(net.rest, float), np.asarray(net.outer, float), height,
@@ -260,6 +261,7 @@ def predict(P, blk: GroupBlock, coeffs, effects, w, gamma, alpha, es, lam, grad,
     slots = [(i, c) for i in range(N) for c in range(blk.k[i])]
     if N == 1:
         c_p = 0.0                        # a body alone has no neighbour: neighbour_drag does not act
+    tied = [(i, blk.springs[i]) for i in range(N) if blk.springs and blk.springs[i] and blk.k[i]]
 
     def law(i, load):
         d = B.eq1_deflection(load, l_[i], cd[i], ct[i])
@@ -341,6 +343,9 @@ def predict(P, blk: GroupBlock, coeffs, effects, w, gamma, alpha, es, lam, grad,
         Fn = scale[:, None, None] * np.einsum("rck,cn->rnk", F, to_node)
         if c_p > 0:
             Fn = drag_load(Fn, np.linalg.norm(x, axis=-1)[..., None], c_p)
+        for i, ties in tied:             # springs to fixed points pull back along their axes (elastic, not scaled)
+            for ks, ax in ties:
+                Fn[:, i] -= ks * (x[:, i] @ ax)[:, None] * ax[None]
         return Fn, d, x
 
     def D(z, scale, rows_=slice(None)):
@@ -430,7 +435,7 @@ def predict(P, blk: GroupBlock, coeffs, effects, w, gamma, alpha, es, lam, grad,
     everyone = np.arange(r)
     if m == 0:
         z = np.zeros((r, 0))
-    elif N == 1:
+    elif N == 1 and not tied:
         z = D(np.zeros((r, m)), np.ones(r), everyone)[0]           # a body alone: its load does not depend on z
     else:
         # most rows: Newton at full load from the last solution found for them (warm start across the optimizer's

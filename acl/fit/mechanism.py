@@ -50,6 +50,7 @@ class Side:
     bubble: tuple = (0.0, 0.0)   # gas volume (m^3), orifice radius (m)
     members: tuple = ()          # group node: every capsule moving with it (trusses)
     basis: np.ndarray = None     # group node: 3 x k directions it can move along (k = 0, 1 or 2)
+    springs: tuple = ()          # group node: (stiffness, unit axis) of each spring tying it to a fixed point
 
 
 @dataclass
@@ -103,10 +104,11 @@ def _unsupported(obs, why, hint=None):
                                   obs.span, hint)])
 
 
-def _carrier(design, cap):
-    """(law, element) carrying capsule ``cap``: beam / spring / latch mount, fixed, or (None, why)."""
+def _carrier(design, cap, springs_ok=False):
+    """(law, element) carrying capsule ``cap``: beam / spring / latch mount, fixed, or (None, why).  ``springs_ok``:
+    spring links are the group's business (:func:`spring_links`), not a reason to refuse."""
     for j in design.joints:
-        if j.kind == "link" and j.element_kind == "spring" and cap in (j.a, j.b):
+        if j.kind == "link" and j.element_kind == "spring" and cap in (j.a, j.b) and not springs_ok:
             return None, f"capsule `{cap}` is linked by a spring (`{j.element}`)"
     for j in design.joints:
         if j.kind == "mount" and j.capsule == cap:
@@ -222,10 +224,32 @@ def _side(design, cap_name, direction) -> Side:
 
 
 def _needs_body(design, cap) -> bool:
-    """A capsule the 1-D single-actuator law cannot follow: several orifices, or tied by a truss."""
+    """A capsule the 1-D single-actuator law cannot follow: several orifices, or tied by a truss or a spring."""
     c = design.capsule(cap)
-    return len(c.orifices) != 1 or any(j.kind == "link" and j.element_kind == "truss" and cap in (j.a, j.b)
+    return len(c.orifices) != 1 or any(j.kind == "link" and j.element_kind in ("truss", "spring") and cap in (j.a, j.b)
                                        for j in design.joints)
+
+
+def spring_links(design, members) -> tuple:
+    """((stiffness, unit axis), ...) of the springs linking the rigid body ``members`` to a fixed point (a fixed
+    capsule or body, an anchor, ``ground``): each pulls the body back along its axis by k (n . x) n, as
+    acl.analysis.mechanics does.  A spring to another moving body couples two supports (E810)."""
+    names = {c.name for c in design.capsules}
+    out = []
+    for j in design.joints:
+        if not (j.kind == "link" and j.element_kind == "spring") or not ({j.a, j.b} & set(members)):
+            continue
+        other = j.b if j.a in members else j.a
+        if other in members:
+            continue
+        if other in names and rigid_body(design, other)[2].shape[1]:
+            raise DiagnosticError([error("E810", f"the spring `{j.element}` links the body of `{other}` to another "
+                                         "moving support: coupled supports are not in the fit model", j.span,
+                                         "observe bodies whose springs end on fixed points")])
+        sp = design.spring(j.element)
+        a = np.asarray(sp.axis, float)
+        out.append((float(sp.stiffness), a / np.linalg.norm(a)))
+    return tuple(out)
 
 
 def _needs_group(design, caps) -> bool:
@@ -421,13 +445,15 @@ def _node(design, cap, obs) -> Side:
     the directions trusses to fixed points hold), a spring along its axis, a latch along its axis from state a, a
     fixed capsule (or one tied to a fixed point in every direction) not at all."""
     members, held, basis = rigid_body(design, cap)
-    law, element = _carrier(design, held)
+    law, element = _carrier(design, held, springs_ok=True)
     hc = design.capsule(held)
     if law is None:
         raise DiagnosticError([error("E810", f"{element}: in a group the fit model handles bodies on cantilevers, "
                                      "springs and latches, or fixed (docs/fit.md)", hc.span)])
     s = Side(held, element, law, height=float(hc.orifices[0].center[2] if hc.orifices else hc.center[2]),
              rest=np.asarray(hc.center, float), members=members, basis=basis)
+    if basis.shape[1]:
+        s.springs = spring_links(design, members)
     if basis.shape[1] == 0:
         s.law, s.element = "fixed", ""
     elif law == "beam":
