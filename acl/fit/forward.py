@@ -420,6 +420,8 @@ def _predict(P: Prepared, coeffs: dict, effects: dict) -> np.ndarray:
         vtot = P.v.sum(axis=1, keepdims=True)
         g2 = g2 * saturation(vtot, effects["drive_saturation"]["inv_vsat2"]) ** 2
     w = v2 * g2
+    if "tone_weight" in coeffs:     # (n, T) factor on each tone's squared pressure (acl.fit.report.tone_gain_stderr)
+        w = w * coeffs["tone_weight"]
     thrust = np.empty((2, P.n))
     sub = np.ones((2, P.n))
     if "substrate_proximity" in effects:

@@ -277,14 +277,21 @@ def _check_direction(design, unit, obs) -> None:
                        "observe a direction the body moves in")
 
 
-def build_instance(design, coupled: bool = False) -> Instance:
+MODELS = ("eq3", "coupled")     # the force model of a simple pair (`acl fit --model`)
+
+
+def build_instance(design, model: str = "eq3", coupled: bool = False) -> Instance:
     """Cut a resolved design into units, one per observable (raises E810 for unsupported mechanisms).
 
+    ``model``: how a simple pair (two single-orifice capsules on their own supports) is modelled: ``eq3`` paper
+    Eq. (3) (a ``pair`` unit, acl.fit.forward), ``coupled`` the analysis' force model (a ``group`` unit,
+    acl.fit.group: per-orifice thrust, Bjerknes force between the orifices, jet drag, coupled volumes).
+
     When any observable needs the group model (three or more interacting capsules, a body, a latch among
-    interacting capsules), the group is the **whole design**: every capsule of it, so capsules the analysis couples
-    (a calibration beam next to a group) interact in the fit too (the same equilibrium as
-    acl.analysis.mechanics.equilibrium).  ``coupled``: route every design so, lone actuators and pairs included
-    (the analysis' full force model instead of paper Eqs. (1) and (3))."""
+    interacting capsules, a pair under ``model="coupled"``), the group is the **whole design**: every capsule of it,
+    so capsules the analysis couples (a calibration beam next to a group) interact in the fit too (the same
+    equilibrium as acl.analysis.mechanics.equilibrium).  ``coupled``: route every design so, lone actuators
+    included."""
     from acl.analysis.acoustics import _medium
 
     # the fit's base model is the design without declared effects (the fit adds them itself: a
@@ -321,7 +328,7 @@ def build_instance(design, coupled: bool = False) -> Instance:
         return units_by_caps[caps]
 
     def pair_unit(a, b, obs):
-        if len(comp.get(a, ())) > 2 or _needs_group(design, comp.get(a, (a, b))):
+        if len(comp.get(a, ())) > 2 or _needs_group(design, comp.get(a, (a, b))) or model == "coupled":
             return group_unit(comp[a], obs)
         key = tuple(sorted((a, b)))
         if key not in units_by_caps:
@@ -358,7 +365,7 @@ def build_instance(design, coupled: bool = False) -> Instance:
         return len(comp.get(cap, ())) > 2 or (cap in comp and _needs_group(design, comp[cap]))
 
     units = {}
-    if coupled or any(needs_group(o) for o in design.observes):
+    if coupled or any(needs_group(o) for o in design.observes) or (model == "coupled" and partners):
         # one physics: every capsule of the design in one group (the analysis couples them all through the liquid)
         whole = tuple(c.name for c in design.capsules)
         for o in design.observes:
@@ -377,7 +384,7 @@ def build_instance(design, coupled: bool = False) -> Instance:
             # a member of a trussed body whose other member interacts: that group
             members = rigid_body(design, cap)[0]
             cap = next((m for m in members if m in comp), cap)
-        if len(comp.get(cap, ())) > 2 or (cap in comp and _needs_group(design, comp[cap])):
+        if len(comp.get(cap, ())) > 2 or (cap in comp and (_needs_group(design, comp[cap]) or model == "coupled")):
             units[o.name] = group_unit(comp[cap], o)
             _check_direction(design, units[o.name], o)
             continue

@@ -40,12 +40,14 @@ class Problem:
     y: np.ndarray
     sigma: np.ndarray
     param_roles: dict          # design param name -> role
+    model: str = "eq3"         # force model of simple pairs: eq3 (paper Eq. 3) or coupled (acl.fit.group)
 
 
-def load_problem(design_path, data_paths, free=(), search_paths=(), coupled: bool = False):
+def load_problem(design_path, data_paths, free=(), search_paths=(), model: str = "eq3", coupled: bool = False):
     """Load design and data, build the rows and the free coefficients; DiagnosticError on any problem.
 
-    ``coupled``: every design through the group model (acl.fit.mechanism.build_instance)."""
+    ``model``: the force model of simple pairs (acl.fit.mechanism.build_instance: ``eq3`` or ``coupled``);
+    ``coupled``: every design through the group model, lone actuators included."""
     import acl
     from acl.fit.data import read_data
     from acl.fit.forward import prepare
@@ -66,7 +68,7 @@ def load_problem(design_path, data_paths, free=(), search_paths=(), coupled: boo
                                              f"{', '.join(f'{k} = {v}' for k, v in key)}: {exc.diagnostics[0].message}",
                                              Span(file=sp.file, line=sp.line, column=1),
                                              f"see {exc.diagnostics[0].location()}")])
-            cache[key] = build_instance(d, coupled=coupled)
+            cache[key] = build_instance(d, model, coupled=coupled)
         return cache[key]
 
     roles = classify_params(design_path, design, search_paths)
@@ -134,7 +136,7 @@ def load_problem(design_path, data_paths, free=(), search_paths=(), coupled: boo
         # a state row's weight is its own: the Pearson residual is already in units of its standard deviation
         P.pearson[1][P.state] = 1.0
         data.sigma = np.where(P.state, 1.0, data.sigma)
-    return Problem(design_path, design, data, P, coefs, y, data.sigma, roles)
+    return Problem(design_path, design, data, P, coefs, y, data.sigma, roles, "coupled" if coupled else model)
 
 
 def _group_start(P, coefs, y, sigma) -> None:
