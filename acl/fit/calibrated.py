@@ -100,6 +100,15 @@ def calibrated_text(problem, selection, out_path: str, data_paths=(), report_dir
             p = problem.design.param(c.design_param)
             factor = {"gamma": p.value / P.gamma0, "e_scale": p.value}.get(c.kind, 1.0)
             v, se, lo, hi, unit, name = v * factor, se * factor, lo * factor, hi * factor, p.unit, c.design_param
+            if c.kind == "gamma":
+                caps = sorted(getattr(P, "gamma_caps", None) or ())
+                others = sorted({cap.name for cap in problem.design.capsules} - set(caps))
+                if caps:
+                    notes.append(f"# {name}: the fitted thrust coefficient of capsule{'s' if len(caps) > 1 else ''} "
+                                 f"{', '.join(f'`{x}`' for x in caps)} (each declares `thrust = {name}`; the fit scaled "
+                                 "exactly these, the analysis applies it to exactly these)"
+                                 + (f"; {', '.join(f'`{x}`' for x in others)} keep{'s' if len(others) == 1 else ''} "
+                                    "the physics' own thrust" if others else ""))
         else:
             unit = {"gamma": "N/V^2", "alpha": "N*m^2/V^2"}.get(c.kind, c.unit or "")
             name = "fit_" + re.sub(r"\W", "_", c.kind)      # f0@left -> fit_f0_left
@@ -141,7 +150,8 @@ def calibrated_text(problem, selection, out_path: str, data_paths=(), report_dir
         gain_terms.append("fit_pair_model_scale")
     if "gamma" in by_kind and not _is_design(final, "gamma") and P.gamma0 > 0:
         gain_terms.append(f"({by_kind['gamma']} / {_literal(P.gamma0, 'N/V^2')})^0.5")
-        notes.append(f"# gamma is the thrust per V^2 at {P.f_ref / 1e3:.6g} kHz; the design's is "
+        notes.append(f"# gamma is the thrust per V^2 of capsule `{P.ref_capsule}` at {P.f_ref / 1e3:.6g} kHz, every "
+                     "capsule's thrust scaled alike; the design's is "
                      f"{_literal(P.gamma0, 'N/V^2')}: thrust ~ pressure^2, so it scales the drive pressure by "
                      "(gamma/gamma0)^0.5 (transducer_gain below)")
     if pair and "alpha" in by_kind:
@@ -305,7 +315,7 @@ def _alpha_physics(P) -> float:
 
     inst = next(iter(P.instances.values()))
     unit = reference_unit(inst, "pair") or reference_unit(inst, "group")
-    return float(pair_alpha_per_v2(inst, *reference_pair(inst, unit), P.f_ref)) if unit is not None else 0.0
+    return abs(float(pair_alpha_per_v2(inst, *reference_pair(inst, unit), P.f_ref))) if unit is not None else 0.0
 
 
 def _effect_block(eid: str, vals: dict, f_ref: float) -> str:
