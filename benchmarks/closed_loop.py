@@ -1,6 +1,7 @@
 """Closed loop over seeded truths (issue 9, done-when bullet 2): prints the figures docs/fit.md quotes.
 
     python benchmarks/closed_loop.py [--kind stroke|fig3|pair-hold] [--seeds 20] [--band-samples 20] [--json PATH]
+                                     [--model eq3|coupled]
 
 ``--kind stroke`` (default): each seed draws a truth from examples/fig2_stroke.acl (a cantilever along
 one axis; acl.fit.loop.seeded_truth: a per-tone gain tilt so the 110 and 140 kHz tones differ by up to
@@ -17,6 +18,8 @@ as the calibration run (noise 0.2 um), `acl fit --free gamma,alpha`, then `keep_
 above 10 um, margin 1.2) is compiled on the nominal and on the calibrated design; reported: the
 truth's snap-in margin under each drive (acl.schedule.gains.critical_scale) and whether the
 calibrated compile's 5th percentile of the margin (details.band.margin_p05) lies below it (covers).
+``--model coupled`` (pair-hold only) fits the pair with `acl fit --model coupled` (the analysis' own forces)
+instead of paper Eq. (3); each row records the fit's CPU time.
 ``--json PATH`` writes the rows (docs/fit.md renders the fig3 study from benchmarks/closed_loop_fig3.json;
 tests/test_closed_loop.py repeats one of its seeds).
 """
@@ -62,7 +65,7 @@ def run_seed(kind: str, seed: int, tmp: str, band_samples: int = 20):
                     band_samples=band_samples, **loop_kw), text
 
 
-def run_hold_seed(seed: int, tmp: str, band_samples: int = 20) -> dict:
+def run_hold_seed(seed: int, tmp: str, band_samples: int = 20, model: str = "eq3") -> dict:
     """One seeded truth of the pair-hold study (above) in ``tmp``: a row."""
     import acl
     from acl.fit import run_fit
@@ -85,7 +88,9 @@ def run_hold_seed(seed: int, tmp: str, band_samples: int = 20) -> dict:
     data = os.path.join(tmp, f"pair_run{seed}.csv")
     write_csv(run.data, data)
     cal = os.path.join(tmp, f"pair{seed}.calibrated.acl")
-    out = run_fit(nominal, [data], free=("gamma", "alpha"), seed=seed, calibrated_path=cal)
+    t0 = time.process_time()
+    out = run_fit(nominal, [data], free=("gamma", "alpha"), seed=seed, calibrated_path=cal, model=model)
+    fit_cpu = time.process_time() - t0
     with open(cal, "w", encoding="utf-8") as fh:
         fh.write(out.calibrated)
     paths = [tmp]
@@ -108,7 +113,8 @@ def run_hold_seed(seed: int, tmp: str, band_samples: int = 20) -> dict:
             "after_margin": m1, "after_v": v1, "promised": g.details.get("resimulated_margin"),
             "margin_p05": band.get("margin_p05"), "draws_below_1": band.get("draws_below_1"),
             "covered": band.get("margin_p05") is not None and m1 >= band["margin_p05"],
-            "warned": any(n.startswith("warning:") and "snaps the pair in" in n for n in s1.notes)}
+            "warned": any(n.startswith("warning:") and "snaps the pair in" in n for n in s1.notes),
+            "model": model, "fit_cpu_s": fit_cpu}
 
 
 def row(seed: int, r, text: str) -> dict:
@@ -116,7 +122,8 @@ def row(seed: int, r, text: str) -> dict:
             "after_rms_m": r.after_rms_m, "after_max_m": r.after_max_m, "floor_rms_m": r.floor_rms_m,
             "floor_max_m": r.floor_max_m, "predicted_rms_m": r.predicted_rms_m,
             "band_rms_p95_m": r.band_rms_p95_m, "band_max_p95_m": r.band_max_p95_m, "covered": r.covered,
-            "effects": r.effects, "warned": any(n.startswith("warning:") and "calibrat" in n for n in r.notes)}
+            "effects": r.effects, "warned": any(n.startswith("warning:") and "calibrat" in n for n in r.notes),
+            "unmeasured_tone": any("did not measure the transducer gain" in n for n in r.notes)}
 
 
 def main() -> int:
@@ -125,20 +132,23 @@ def main() -> int:
     ap.add_argument("--seeds", type=int, default=20)
     ap.add_argument("--band-samples", type=int, default=20)
     ap.add_argument("--json", help="write the per-seed rows here")
+    ap.add_argument("--model", choices=("eq3", "coupled"), default="eq3",
+                    help="pair-hold: the fit's pair model (acl fit --model; default eq3)")
     args = ap.parse_args()
     rows, out = [], []
     if args.kind == "pair-hold":
         with tempfile.TemporaryDirectory() as tmp:
             for seed in range(args.seeds):
                 t0 = time.perf_counter()
-                r = run_hold_seed(seed, tmp, args.band_samples)
+                r = run_hold_seed(seed, tmp, args.band_samples, args.model)
                 out.append(r)
                 print(f"seed {seed:2d}: {r['rows']} rows ({r['lost']} lost to snap-in), effects {r['effects']}; "
                       f"nominal drive {r['before_v']:.3g} V: truth margin {r['before_margin']:.3g}; calibrated drive "
                       f"{r['after_v']:.3g} V: truth margin {r['after_margin']:.3g} (promised {r['promised']:.3g}, "
                       f"p05 {r['margin_p05']:.3g}, {r['draws_below_1']}/{args.band_samples} draws below 1); "
-                      f"covered {r['covered']}; {time.perf_counter() - t0:.0f} s", flush=True)
-        print(f"{len(out)} truths: nominal drive snaps the truth in {sum(r['before_margin'] < 1 for r in out)}; "
+                      f"covered {r['covered']}; fit {r['fit_cpu_s']:.1f} s CPU; {time.perf_counter() - t0:.0f} s",
+                      flush=True)
+        print(f"{len(out)} truths ({args.model}): nominal drive snaps the truth in {sum(r['before_margin'] < 1 for r in out)}; "
               f"calibrated drive snaps it in {sum(r['after_margin'] < 1 for r in out)}, warned in "
               f"{sum(r['warned'] for r in out)}; the margin band covers the truth's margin in "
               f"{sum(r['covered'] for r in out)} of {len(out)}")
@@ -160,7 +170,10 @@ def main() -> int:
     print(f"{len(rows)} truths: before {np.median([r.before_rms_m for r in rows]) * 1e6:.3f} um RMS (median), "
           f"after {np.median([r.after_rms_m for r in rows]) * 1e6:.3f} um, floor "
           f"{np.median([r.floor_rms_m for r in rows]) * 1e6:.3f} um; after/floor max {ratio.max():.2f} "
-          f"(<= 3 in {np.mean(ratio <= 3) * 100:.0f} %); band covers the re-simulated error in {cover * 100:.0f} %")
+          f"(<= 3 in {np.mean(ratio <= 3) * 100:.0f} %); band covers the re-simulated error in {cover * 100:.0f} % "
+          f"({sum(r.covered for r in rows)} of {len(rows)}); band / error (RMS) median "
+          f"{np.median([r.band_rms_p95_m / r.after_rms_m for r in rows]):.2f}, max "
+          f"{np.max([r.band_rms_p95_m / r.after_rms_m for r in rows]):.2f}")
     _write(args, out)
     return 0
 
@@ -172,7 +185,8 @@ def _write(args, out) -> None:
         commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True,
                                 cwd=os.path.dirname(os.path.abspath(__file__))).stdout.strip()
         with open(args.json, "w") as fh:
-            json.dump({"kind": args.kind, "band_samples": args.band_samples, "code": commit, "rows": out}, fh, indent=1)
+            json.dump({"kind": args.kind, "band_samples": args.band_samples, "code": commit, "rows": out,
+                       **({"model": args.model} if args.kind == "pair-hold" else {})}, fh, indent=1)
 
 
 if __name__ == "__main__":

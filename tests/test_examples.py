@@ -111,10 +111,12 @@ def test_fig5c_spring_has_the_fig_s8_stiffness_and_the_top_capsule_is_fixed():
     assert d.mount_of("bottom").target_kind == "spring"
 
 
-def test_fig5a_moving_capsules_are_tied_by_trusses():
+def test_fig5a_moving_capsules_are_tied_by_elastic_trusses():
+    """Fig. 5a-b: each arm capsule is tied to its anchored partner by an elastic truss (an acl spring along the
+    line of attraction), so the arm bends progressively (a rigid truss would hold it still)."""
     d = _load("fig5a_gripper.acl")
-    links = {(j.a, j.b) for j in d.joints if j.kind == "link"}
-    assert links == {("left", "mid_left"), ("right", "mid_right")}
+    links = {(j.a, j.b, j.element_kind) for j in d.joints if j.kind == "link"}
+    assert links == {("left", "mid_left", "spring"), ("right", "mid_right", "spring")}
 
 
 @pytest.mark.parametrize("theta", [30, 45, 60])

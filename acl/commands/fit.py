@@ -1,4 +1,4 @@
-"""`acl fit DESIGN DATA... [--free NAMES] [--report DIR]`: fit, find missing effects, report before/after."""
+"""`acl fit DESIGN DATA... [--free NAMES] [--model eq3|coupled] [--report DIR]`: fit, find missing effects, report before/after."""
 from __future__ import annotations
 
 import os
@@ -20,9 +20,26 @@ def add_parser(p) -> None:
                         "DESIGN's folder as <stem>.calibrated.acl (loads without --path)")
     p.add_argument("--effects", default=None, metavar="IDS",
                    help="comma-separated effect ids to consider (default: the whole library; `none` for none)")
+    p.add_argument("--model", type=_model, default="eq3", metavar="MODEL",
+                   help="force model of a simple pair (two single-orifice capsules on their own supports): eq3 "
+                        "(paper Eq. 3, default) or coupled (the analysis' own forces: per-orifice thrust, Bjerknes "
+                        "force between the orifices, jet drag; ~10-20x slower; docs/fit.md)")
     p.add_argument("--seed", type=seed, default=0, help="seed of the cross-validation folds (default 0)")
     add_output_format(p, old=("--json",))
     p.add_argument("--path", action="append", default=[], metavar="DIR", help="extra folder imports may read from")
+
+
+def _model(text: str) -> str:
+    """argparse type of --model: eq3 or coupled (acl.fit.mechanism.MODELS; no heavy import)."""
+    import argparse
+    import difflib
+
+    models = ("eq3", "coupled")
+    if text in models:
+        return text
+    near = difflib.get_close_matches(text, models, n=1, cutoff=0.6)
+    hint = f" (did you mean `{near[0]}`?)" if near else ""
+    raise argparse.ArgumentTypeError(f"{text!r} is not a pair model: eq3 or coupled{hint}")
 
 
 def run(args) -> int:
@@ -72,7 +89,8 @@ def run(args) -> int:
             sys.stderr.write(f"[{time.perf_counter() - start:7.2f} s] {msg}\n")
     try:
         out = run_fit(args.design, args.data, free=free, search_paths=args.path, candidates=candidates,
-                      seed=args.seed, progress=progress, calibrated_path=args.calibrated, report_dir=args.report)
+                      seed=args.seed, progress=progress, calibrated_path=args.calibrated, report_dir=args.report,
+                      model=args.model)
     except DiagnosticError as exc:
         report(exc.diagnostics, fmt)
         return exit_code(exc.diagnostics)

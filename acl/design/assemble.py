@@ -22,7 +22,7 @@ TARGET_POINTS = {"beam": "tip", "latch": "shuttle", "spring": "end"}
 def assemble(b: Builder) -> M.Design:
     r, env, bag = b.r, b.env, b.bag
     params = _params(b)
-    correlations, coverage, discrepancy = _uncertainty(b, params)
+    correlations, coverage, discrepancy, measured = _uncertainty(b, params)
     medium, transducer = _uses(b)
 
     # ---- elements
@@ -88,6 +88,7 @@ def assemble(b: Builder) -> M.Design:
     programs = _programs(b, partial)
     design = M.Design(**design_kw, observes=tuple(observes), requires=tuple(requires), programs=tuple(programs),
                       effects=tuple(effects), correlations=correlations, coverage=coverage, discrepancy=discrepancy,
+                      measured_gain=measured,
                       sources=tuple(dict.fromkeys(r.loader.sources)))
     if not _all_finite(design, bag):
         return design
@@ -244,11 +245,13 @@ MAX_DISCREPANCY = 1.0   # m: as data files (acl.fit.data.MAX_LENGTH), nothing of
 
 
 def _uncertainty(b: Builder, params: tuple[M.Param, ...]):
-    """``uncertainty { correlation(a, b) = r, covered(q) = lo .. hi }`` -> (correlations, coverage)."""
+    """``uncertainty { correlation(a, b) = r, covered(q) = lo .. hi, discrepancy(position) = d,
+    measured(gain) = [(f, s), ...] }`` -> (correlations, coverage, discrepancy, measured gains)."""
     sds = {p.name: p.stddev for p in params}
     corr: dict[tuple[str, str], M.Correlation] = {}
     cover: dict[str, M.Coverage] = {}
     discrepancy = discrepancy_line = None
+    measured: list[M.MeasuredGain] | None = None
     for st in b.env.statements:
         if not isinstance(st, A.UncertaintyDecl):
             continue
@@ -334,10 +337,20 @@ def _uncertainty(b: Builder, params: tuple[M.Param, ...]):
                                 key.span, "keep one of them")
                     continue
                 discrepancy, discrepancy_line = float(v.value), ent.span.line
+            elif key.name == "measured":
+                if not (len(key.args) == 1 and isinstance(key.args[0], A.Ref) and key.args[0].dotted == "gain"):
+                    b.bag.error("E325", "write `measured(gain) = [(frequency, relative sd), ...]`", key.span)
+                    continue
+                if measured is not None:
+                    b.bag.error("E325", "measured(gain) is given twice", key.span, "keep one list")
+                    continue
+                got = _measured_gain(b, ent)
+                if got is not None:
+                    measured = got
             else:
                 b.bag.error("E325", f"unknown uncertainty entry `{key.name}`", key.span,
-                            suggest(key.name, ["correlation", "covered", "discrepancy"])
-                            or "entries: correlation(a, b), covered(q), discrepancy(position)")
+                            suggest(key.name, ["correlation", "covered", "discrepancy", "measured"])
+                            or "entries: correlation(a, b), covered(q), discrepancy(position), measured(gain)")
     correlations = tuple(corr.values())
     if correlations:
         import numpy as np
@@ -351,7 +364,36 @@ def _uncertainty(b: Builder, params: tuple[M.Param, ...]):
             b.bag.error("E324", "the correlations are not consistent (the correlation matrix is not positive "
                         "semidefinite)", correlations[0].span, "check the signs and sizes of the correlations")
             correlations = ()
-    return correlations, tuple(cover.values()), discrepancy
+    return correlations, tuple(cover.values()), discrepancy, tuple(measured or ())
+
+
+def _measured_gain(b: Builder, ent) -> list | None:
+    """``measured(gain) = [(f, s), ...]``: positive, distinct frequencies; relative sd finite in 0 .. 1."""
+    from acl.design.values import ListVal, VecVal
+
+    try:
+        v = b.r.eval(ent.value, b.env)
+    except Fail:
+        return None
+    subs = getattr(ent.value, "items", None)
+    if not (isinstance(v, ListVal) and v.items and subs is not None):
+        b.bag.error("E325", "measured(gain): expected a list `[(frequency, relative sd), ...]`", ent.value.span,
+                    "e.g. `measured(gain) = [(72.5 kHz, 0.4 %), (178.5 kHz, 0.6 %)]`")
+        return None
+    out: list[M.MeasuredGain] = []
+    for item, sub in zip(v.items, subs):
+        ok = (isinstance(item, VecVal) and len(item.items) == 2 and all(isinstance(x, Quantity) for x in item.items)
+              and item.items[0].dims == D("Hz") and item.items[1].dims == D(""))
+        f, s = (item.items[0].value, item.items[1].value) if ok else (float("nan"), float("nan"))
+        if not (ok and math.isfinite(f) and f > 0 and math.isfinite(s) and 0 <= s <= 1):
+            b.bag.error("E325", "measured(gain): each entry is `(frequency, relative sd)` with a positive frequency "
+                        "and a relative standard deviation in 0 .. 100 %", sub.span, "e.g. `(72.5 kHz, 0.4 %)`")
+            return None
+        if any(abs(m.frequency - f) <= 1e-9 * f for m in out):
+            b.bag.error("E325", f"measured(gain): {f:g} Hz is given twice", sub.span, "keep one entry per tone")
+            return None
+        out.append(M.MeasuredGain(frequency=float(f), stddev=float(s), span=sub.span))
+    return sorted(out, key=lambda m: m.frequency)
 
 
 def _uses(b: Builder):

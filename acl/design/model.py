@@ -100,6 +100,20 @@ class Coverage(Frozen):
     span: Span
 
 
+class MeasuredGain(Frozen):
+    """``measured(gain) = [(f, s), ...]``: the transducer gain at tone ``f`` (Hz) was measured by a calibration.
+
+    ``stddev`` is the relative standard deviation (log scale) of a free gain at that one tone, all fitted
+    coefficients free: what the data leave unknown there beyond the calibrated model.  The error bands of
+    a compile hold the gain table at such a tone to the calibrated model (times ``exp(stddev z)``) instead of
+    the table's prior ``gain_uncertainty`` (acl.schedule.bands).
+    """
+
+    frequency: float
+    stddev: float
+    span: Span
+
+
 class Medium(Frozen):
     """Liquid around the bubbles and the gas inside them."""
 
@@ -493,6 +507,7 @@ class Design(Frozen):
     correlations: tuple[Correlation, ...] = ()
     coverage: tuple[Coverage, ...] = ()
     discrepancy: float | None = None   # m: RMS difference of the calibrated model from its data (uncertainty block)
+    measured_gain: tuple[MeasuredGain, ...] = ()   # tones whose transducer gain a calibration measured (uncertainty block)
     sources: tuple[str, ...] = ()  # every file read (design, imports, csv), in order
 
     # -- lookups -------------------------------------------------------------------------------

@@ -20,8 +20,11 @@ class FitOutcome:
 
 
 def run_fit(design_path, data_paths, free=(), search_paths=(), candidates=None, seed=0, progress=None,
-            calibrated_path=None, report_dir=None) -> FitOutcome:
-    """Everything `acl fit` does except writing files; raises DiagnosticError on bad input."""
+            calibrated_path=None, report_dir=None, model: str = "eq3") -> FitOutcome:
+    """Everything `acl fit` does except writing files; raises DiagnosticError on bad input.
+
+    ``model``: the force model of simple pairs, ``eq3`` (paper Eq. 3) or ``coupled`` (the analysis' own force
+    model through acl.fit.group; about 10-20x slower, docs/fit.md)."""
     from acl.fit.calibrated import calibrated_text, default_path, needs_path
     from acl.fit.problem import load_problem
     from acl.fit.report import build_report
@@ -35,7 +38,15 @@ def run_fit(design_path, data_paths, free=(), search_paths=(), candidates=None, 
 
     timing = {}
     t0 = time.perf_counter()
-    problem = load_problem(design_path, data_paths, free=free, search_paths=search_paths)
+    from acl.fit.mechanism import MODELS
+
+    if model not in MODELS:
+        from acl.diagnostics import DiagnosticError, Span, error, suggest
+
+        raise DiagnosticError([error("E-USAGE", f"--model {model}: not a pair model",
+                                     Span(file="<--model>", line=1, column=1),
+                                     suggest(str(model), MODELS) or f"models: {', '.join(MODELS)}")])
+    problem = load_problem(design_path, data_paths, free=free, search_paths=search_paths, model=model)
     timing["load"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     selection = withdraw_if_inadequate(select_effects(problem, candidates=candidates, seed=seed, progress=progress),
@@ -64,20 +75,29 @@ def run_fit(design_path, data_paths, free=(), search_paths=(), candidates=None, 
     report = build_report(problem, selection, before, after, calibrated_name=cal_path)
     report["calibrated_needs_path"] = needs_path(design_path, cal_path)
     report["timing_s"] = timing
-    text = calibrated_text(problem, selection, cal_path, data_paths, report_dir)
     t0 = time.perf_counter()
-    from acl.fit.modelcheck import pair_model_check, warning_text
+    from acl.fit.report import tone_gain_stderr
+
+    tone_se = tone_gain_stderr(problem, selection.final)
+    timing["tone_gain_stderr"] = time.perf_counter() - t0
+    report["tone_gain_stderr"] = [{"frequency_hz": f, "relative_stderr": s} for f, s in tone_se.items()]
+    text = calibrated_text(problem, selection, cal_path, data_paths, report_dir, tone_gain=tone_se)
+    t0 = time.perf_counter()
+    from acl.fit.modelcheck import MIN_SCALE_SD, pair_model_check, warning_text
 
     check = pair_model_check(problem, selection.final, text, cal_path, search_paths)
     timing["pair_model_check"] = time.perf_counter() - t0
+    report["model"] = model
     if check is not None:
         report["pair_model_check"] = check
-        if "error" in check:
+        snap = check.get("snap") or {}
+        scale_sd = snap.get("scale_sd", 0.0) if snap.get("scale_sd", 0.0) >= MIN_SCALE_SD else 0.0
+        if "error" in check or check["significant"] or scale_sd:
             report["final"]["warnings"] = [*report["final"]["warnings"], warning_text(check)]
-        elif check["significant"]:
-            report["final"]["warnings"] = [*report["final"]["warnings"], warning_text(check)]
+        if check.get("significant") or scale_sd:
             text = calibrated_text(problem, selection, cal_path, data_paths, report_dir,
-                                   model_discrepancy=check["max_m"])
+                                   model_discrepancy=check["max_m"] if check.get("significant") else 0.0,
+                                   model_scale_sd=scale_sd, tone_gain=tone_se)
     return FitOutcome(problem, selection, report, text, cal_path)
 
 

@@ -55,12 +55,18 @@ def needs_path(design_path: str, calibrated_path: str) -> str | None:
 
 
 def calibrated_text(problem, selection, out_path: str, data_paths=(), report_dir: str | None = None,
-                    now: datetime.datetime | None = None, model_discrepancy: float = 0.0) -> str:
+                    now: datetime.datetime | None = None, model_discrepancy: float = 0.0,
+                    model_scale_sd: float = 0.0, tone_gain: dict | None = None) -> str:
     """The calibrated design's source, to be written at ``out_path``.
 
     ``model_discrepancy`` (m): the largest difference between the calibrated design's analysis and the fit's
     own predictions at the measured drives checked (acl/fit/modelcheck.py, pairs); added in quadrature to
-    ``discrepancy(position)`` so later stages do not inherit the Eq. 3 fit's residual as their error."""
+    ``discrepancy(position)`` so later stages do not inherit the Eq. 3 fit's residual as their error.
+    ``model_scale_sd``: the relative mismatch of the drive scale at snap-in between the fit's Eq. 3 model and the
+    calibrated design's analysis (acl.fit.modelcheck.snap_mismatch); declared as ``param fit_pair_model_scale =
+    1 +- model_scale_sd`` multiplying the transducer gain, so compile's hold/cross margin bands draw it.
+    ``tone_gain``: {tone Hz: relative standard error of a free gain there} (acl.fit.report.tone_gain_stderr),
+    written as ``measured(gain)``."""
     import numpy as np
 
     final, P = selection.final, problem.prepared
@@ -94,6 +100,15 @@ def calibrated_text(problem, selection, out_path: str, data_paths=(), report_dir
             p = problem.design.param(c.design_param)
             factor = {"gamma": p.value / P.gamma0, "e_scale": p.value}.get(c.kind, 1.0)
             v, se, lo, hi, unit, name = v * factor, se * factor, lo * factor, hi * factor, p.unit, c.design_param
+            if c.kind == "gamma":
+                caps = sorted(getattr(P, "gamma_caps", None) or ())
+                others = sorted({cap.name for cap in problem.design.capsules} - set(caps))
+                if caps:
+                    notes.append(f"# {name}: the fitted thrust coefficient of capsule{'s' if len(caps) > 1 else ''} "
+                                 f"{', '.join(f'`{x}`' for x in caps)} (each declares `thrust = {name}`; the fit scaled "
+                                 "exactly these, the analysis applies it to exactly these)"
+                                 + (f"; {', '.join(f'`{x}`' for x in others)} keep{'s' if len(others) == 1 else ''} "
+                                    "the physics' own thrust" if others else ""))
         else:
             unit = {"gamma": "N/V^2", "alpha": "N*m^2/V^2"}.get(c.kind, c.unit or "")
             name = "fit_" + re.sub(r"\W", "_", c.kind)      # f0@left -> fit_f0_left
@@ -116,6 +131,14 @@ def calibrated_text(problem, selection, out_path: str, data_paths=(), report_dir
                          "draw it from its +- (acl compile's bands), so they are wide")
         params.append(f"param {name} = {_literal(v, unit)}{_pm(se, unit)}"
                       f"    # 95% interval {_literal(lo, unit)} .. {_literal(hi, unit)}")
+    if model_scale_sd > 0:
+        # nominal 1: the analysis is unchanged; its spread is what the Eq. 3 fit cannot tell about snap-in
+        params.append(f"param fit_pair_model_scale = 1 +- {model_scale_sd:.6g}    # drive (pressure) scale: "
+                      "W-FIT-PAIR-MODEL")
+        notes.append("# fit_pair_model_scale: the calibrated analysis (full force model) and this fit's pair model "
+                     "(paper Eq. 3) put the snap-in at different drive scales; its +- is twice that difference "
+                     "(acl/fit/modelcheck.py snap_mismatch, docs/fit.md Limits), drawn by acl compile's margin bands "
+                     "(hold, cross) and error bands; its nominal 1 changes nothing")
     # coefficients that stand for physics the design has no parameter for
     if "e_scale" in by_kind and not _is_design(final, "e_scale"):
         effects.setdefault("stiffness_scale", {})
@@ -123,9 +146,12 @@ def calibrated_text(problem, selection, out_path: str, data_paths=(), report_dir
         effects["stiffness_scale"]["e_scale"] = by_kind["e_scale"] + (f" * {prev}" if prev else "")
     if "gain" in by_kind:
         gain_terms.append(by_kind["gain"])
+    if model_scale_sd > 0:
+        gain_terms.append("fit_pair_model_scale")
     if "gamma" in by_kind and not _is_design(final, "gamma") and P.gamma0 > 0:
         gain_terms.append(f"({by_kind['gamma']} / {_literal(P.gamma0, 'N/V^2')})^0.5")
-        notes.append(f"# gamma is the thrust per V^2 at {P.f_ref / 1e3:.6g} kHz; the design's is "
+        notes.append(f"# gamma is the thrust per V^2 of capsule `{P.ref_capsule}` at {P.f_ref / 1e3:.6g} kHz, every "
+                     "capsule's thrust scaled alike; the design's is "
                      f"{_literal(P.gamma0, 'N/V^2')}: thrust ~ pressure^2, so it scales the drive pressure by "
                      "(gamma/gamma0)^0.5 (transducer_gain below)")
     if pair and "alpha" in by_kind:
@@ -134,7 +160,9 @@ def calibrated_text(problem, selection, out_path: str, data_paths=(), report_dir
             g = f"{by_kind['gamma']} / {_literal(P.gamma0, 'N/V^2')}" if "gamma" in by_kind and not _is_design(final, "gamma") else "1"
             effects.setdefault("bjerknes_scale", {})["factor"] = \
                 f"({by_kind['alpha']} / {_literal(alpha_phys, 'N*m^2/V^2')}) / ({g})"
-            notes.append(f"# alpha (paper Eq. 3) at {P.f_ref / 1e3:.6g} kHz; the physics gives "
+            what = ("the coupled model's Bjerknes coefficient at rest (acl fit --model coupled)"
+                    if getattr(problem, "model", "eq3") == "coupled" else "paper Eq. 3")
+            notes.append(f"# alpha ({what}) at {P.f_ref / 1e3:.6g} kHz; the physics gives "
                          f"{_literal(alpha_phys, 'N*m^2/V^2')}: bjerknes_scale below applies the ratio beyond the "
                          "pressure scale")
         else:
@@ -158,10 +186,17 @@ def calibrated_text(problem, selection, out_path: str, data_paths=(), report_dir
     lines += ["# fitted values with their standard errors (+-); correlations below"] + params + [""]
     corr = _correlations(final, names)
     cover = _coverage(problem)
-    if corr or cover:
+    measured = {f: s for f, s in (tone_gain or {}).items() if math.isfinite(s) and 0 <= s <= 1}
+    if corr or cover or measured:
         lines.append("uncertainty {")
         lines += [f"  correlation({a}, {b}) = {r:.6g}" for a, b, r in corr]
         lines += [f"  covered({q}) = {_literal(lo, u)} .. {_literal(hi, u)}" for q, (lo, hi, u) in cover.items()]
+        if measured:
+            # rounded up: a written figure must not be smaller than the one computed
+            lines.append("  measured(gain) = [" + ", ".join(f"({_literal(f, 'Hz')}, {_round_up(100 * s)} %)"
+                                                         for f, s in sorted(measured.items()))
+                         + "]    # relative standard error of a free gain at each tone the data drove (acl.fit.report."
+                         "tone_gain_stderr): compile's bands hold the gain table there to it instead of its prior")
         from acl.fit.report import alternative_spread, length_rmse
 
         rmse = length_rmse(problem, final)
@@ -199,6 +234,14 @@ def calibrated_text(problem, selection, out_path: str, data_paths=(), report_dir
 
 def _is_design(final, kind) -> bool:
     return any(c.kind == kind and c.design_param for c in final.coefs)
+
+
+def _round_up(x: float, digits: int = 3) -> str:
+    """``x`` (>= 0) to ``digits`` significant digits, rounded up."""
+    if x <= 0:
+        return "0"
+    e = math.floor(math.log10(x)) - digits + 1
+    return f"{math.ceil(x / 10 ** e - 1e-9) * 10 ** e:.{digits}g}"
 
 
 def _pm(se: float, unit: str) -> str:
@@ -239,6 +282,8 @@ def _coverage(problem) -> dict:
     pair = np.asarray(P.pair, bool) if P.pair is not None else np.zeros(n, bool)
     gap = pair & (np.asarray(P.s0) != 0) & (np.asarray(P.s1) != 0)   # a pair's gap: both sides move it
     d0 = np.asarray(P.d0, float) if P.d0 is not None else np.full(n, np.nan)
+    if getattr(P, "group_row", None) is not None:                  # a group's gap rows (d0: their rest gap)
+        gap = gap | (np.asarray(P.group_row, bool) & np.isfinite(d0))
     # a gap measured in contact (below 5 % of the rest gap) shows that the pair snapped, not the
     # force or beam laws there: it widens neither the covered voltage nor the covered deflection
     contact = gap & (value < 0.05 * np.where(np.isfinite(d0), d0, 0.0))
@@ -270,7 +315,7 @@ def _alpha_physics(P) -> float:
 
     inst = next(iter(P.instances.values()))
     unit = reference_unit(inst, "pair") or reference_unit(inst, "group")
-    return float(pair_alpha_per_v2(inst, *reference_pair(inst, unit), P.f_ref)) if unit is not None else 0.0
+    return abs(float(pair_alpha_per_v2(inst, *reference_pair(inst, unit), P.f_ref))) if unit is not None else 0.0
 
 
 def _effect_block(eid: str, vals: dict, f_ref: float) -> str:

@@ -77,6 +77,9 @@ class Prepared:
     state: np.ndarray = None         # (n,) bool: the row observes a latch state (0 a, 1 b), acl.fit.forward.switch_probability
     pearson: tuple = None            # (measured values, row weights) when fitting: state rows predict y + r_P / w
     ref_orifice: str = ""            # "capsule.orifice" of the reference capsule's first orifice
+    gamma_caps: frozenset = None     # capsules whose thrust gamma scales (a design parameter declared as their
+                                     # `thrust`); None: every capsule (gamma then stands for the drive pressure)
+    gamma_side: np.ndarray = None    # (2, n) bool: side c's capsule is one of them
 
     def volume_shift(self, c, fn, lnx):
         """Natural frequency of side ``c`` after its gas volume changed by a factor exp(lnx) (rows), from the tables."""
@@ -93,8 +96,10 @@ class Prepared:
         return self.law == 0
 
 
-def prepare(data, load_instance, f_ref: float | None = None) -> Prepared:
-    """Build the row arrays; ``load_instance(key)`` returns the Instance of an override set."""
+def prepare(data, load_instance, f_ref: float | None = None, gamma_caps=None) -> Prepared:
+    """Build the row arrays; ``load_instance(key)`` returns the Instance of an override set.  ``gamma_caps``: the
+    capsules whose thrust the coefficient gamma scales (those declaring a design parameter as their ``thrust``,
+    acl.fit.problem.thrust_capsules; the reference capsule is the first of them); None: every capsule."""
     from acl.fit.mechanism import (LAW_CODES, alpha_per_v2, pair_alpha_per_v2, reference_pair, reference_unit,
                                    thrust_per_v2)
 
@@ -116,8 +121,15 @@ def prepare(data, load_instance, f_ref: float | None = None) -> Prepared:
         instances[key] = load_instance(key)
     ref = instances[keys[0]]
     ref_unit = ref.unit(data.observable[0]) if n else reference_unit(ref)
+    gamma_caps = frozenset(gamma_caps) if gamma_caps else None
+
+    def in_units(name):
+        return any(name in (u.net.caps if u.net is not None else u.capsules) for u in ref.units.values())
+
     ref_cap = next((c.name for c in ref.design.capsules
-                    if any(c.name in u.capsules for u in ref.units.values())), ref_unit.capsules[0])
+                    if in_units(c.name) and (gamma_caps is None or c.name in gamma_caps)), None) or \
+        next((c.name for c in ref.design.capsules if any(c.name in u.capsules for u in ref.units.values())),
+             ref_unit.capsules[0])
     gamma0 = float(thrust_per_v2(ref, f_ref)[ref_cap])
     pair_ref = None
     for key in dict.fromkeys(keys):
@@ -127,7 +139,9 @@ def prepare(data, load_instance, f_ref: float | None = None) -> Prepared:
             pair_ref = (instances[key], pu)
             break
     ref_pair = reference_pair(*pair_ref) if pair_ref else ()
-    alpha_ref = pair_alpha_per_v2(pair_ref[0], *ref_pair, f_ref) if len(ref_pair) == 2 else 0.0
+    # alpha scales the reference pair's Bjerknes coefficient: its magnitude (two bubbles driven above and below their
+    # resonances repel, a negative coefficient; every pair keeps its sign in arel)
+    alpha_ref = abs(pair_alpha_per_v2(pair_ref[0], *ref_pair, f_ref)) if len(ref_pair) == 2 else 0.0
     arr = {k: np.zeros((2, n)) for k in ("L", "l", "EI", "height", "fn", "q", "cd", "ct", "volume", "radius")}
     arr["L"][:] = 1.0
     arr["EI"][:] = 1.0
@@ -175,6 +189,8 @@ def prepare(data, load_instance, f_ref: float | None = None) -> Prepared:
             from acl.fit.group import block
 
             blk = block(inst, unit, name, rows, f, v, gamma0, alpha_ref, gtable)
+            if gamma_caps is not None:
+                blk.gmask = np.array([blk.caps[c] in gamma_caps for c in blk.orif_cap], bool)
             groups.append(blk)
             group_row[rows] = True
             oc = blk.orif_cap[blk.oi[0]] if blk.kind[0] == 0 else blk.oi[0]
@@ -256,12 +272,14 @@ def prepare(data, load_instance, f_ref: float | None = None) -> Prepared:
                     modes0.setdefault(f"{s.capsule}.{c.orifices[0].name}", s.mode)
     rc = ref.design.capsule(ref_cap)
     ref_orifice = f"{ref_cap}.{rc.orifices[0].name}" if rc.orifices else ""
+    gamma_side = (np.ones((2, n), bool) if gamma_caps is None else
+                  np.array([[c in gamma_caps for c in caps[k]] for k in range(2)], bool).reshape(2, n))
     return Prepared(n, f, v, tau, arel, pair, arr["L"], arr["l"], arr["EI"], arr["cd"], arr["ct"], arr["height"],
                     proj, d0, base, s0, s1, arr["fn"], arr["q"], t, f_ref, gamma0, alpha0, float(E0),
                     float(max(v.sum(axis=1).max(), 1e-9)), instances, law, caps, arr["volume"], arr["radius"],
                     medium, latch_id, latch_tables, caps == ref_cap, ref_cap, units,
                     exp if exp is not None else np.full(n, "", dtype=object), modes0, {}, side_table, ftables,
-                    groups, group_row, state, ref_orifice=ref_orifice)
+                    groups, group_row, state, ref_orifice=ref_orifice, gamma_caps=gamma_caps, gamma_side=gamma_side)
 
 
 def latch_table(geometry) -> tuple:
@@ -318,6 +336,29 @@ def latch_branch_mismatch(P, y, prediction) -> np.ndarray:
         pred = (np.asarray(prediction, float)[m] - P.base[m]) / P.s0[m] > mid
         out[np.flatnonzero(m)] = meas != pred
     return out
+
+
+def latch_travel_exact(load, geometry, table, e_scale=1.0, steps=4):
+    """Shuttle travel under ``load`` of either sign from state a, as the analysis solves the latch law: the branch of
+    :func:`latch_travel` (a pull towards state a stretches the beams, u < 0, from the stiffness at rest) polished by
+    Newton on acl.physics.latch.latch_force (von Mises truss), each step kept inside its branch."""
+    from acl.physics.latch import latch_force
+
+    th, L, w, t, E = geometry
+    Fa, ua, fsw, Fb, ub = table
+    x = np.asarray(load, float) / e_scale
+    h = 1e-7 * L
+    k0 = float((latch_force(h, th, L, w, t, E) - latch_force(-h, th, L, w, t, E)) / (2 * h))
+    far = x > fsw
+    lo = np.where(x < 0, -np.inf, np.where(far, ub[0], ua[0]))
+    hi = np.where(x < 0, 0.0, np.where(far, ub[-1], ua[-1]))
+    u = np.where(x < 0, x / k0, latch_travel(np.maximum(x, 0.0), table))
+    for _ in range(steps):
+        F = latch_force(np.stack([u, u + h, u - h]), th, L, w, t, E)
+        slope = (F[1] - F[2]) / (2 * h)
+        step = np.where(slope > 0, (F[0] - x) / np.where(slope > 0, slope, 1.0), 0.0)
+        u = np.clip(u - step, lo, hi)
+    return u
 
 
 def _alpha0(inst, alpha_ref: float) -> float:
@@ -411,6 +452,8 @@ def _predict(P: Prepared, coeffs: dict, effects: dict, latch_blend: float = 0.0)
         vtot = P.v.sum(axis=1, keepdims=True)
         g2 = g2 * saturation(vtot, effects["drive_saturation"]["inv_vsat2"]) ** 2
     w = v2 * g2
+    if "tone_weight" in coeffs:     # (n, T) factor on each tone's squared pressure (acl.fit.report.tone_gain_stderr)
+        w = w * coeffs["tone_weight"]
     thrust = np.empty((2, P.n))
     sub = np.ones((2, P.n))
     if "substrate_proximity" in effects:
@@ -418,7 +461,9 @@ def _predict(P: Prepared, coeffs: dict, effects: dict, latch_blend: float = 0.0)
     res = _resonance_factors(P, coeffs, effects)
     for c in range(2):
         wc = w if res is None else w * res[c]
-        thrust[c] = gamma * (P.tau[c] * wc).sum(axis=1) * sub[c]
+        # gamma scales the capsules declaring it (P.gamma_caps); the others keep the design's thrust
+        g = gamma if P.gamma_side is None else np.where(P.gamma_side[c], gamma, P.gamma0)
+        thrust[c] = g * (P.tau[c] * wc).sum(axis=1) * sub[c]
     es = e_scale * (effects["stiffness_scale"]["e_scale"] if "stiffness_scale" in effects else 1.0)
     beam = P.beam
     rigid = P.l

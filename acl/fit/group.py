@@ -53,6 +53,7 @@ class GroupBlock:
     basis: np.ndarray         # (N, 3, 2) directions each node allows (zero-padded)
     k: np.ndarray             # (N,) how many
     latch: list               # (N,) latch table of each latch node (acl.fit.forward.latch_table), else None
+    latch_geo: list           # (N,) its geometry (angle, length, width, thickness, E), else None
     cap_node: np.ndarray      # (C,) node of each capsule
     rest: np.ndarray          # (C, 3) capsule centres at rest
     outer: np.ndarray         # (C,) radius a jet drags
@@ -71,6 +72,7 @@ class GroupBlock:
     oj: np.ndarray            # (r,) gap: orifice b
     axis: np.ndarray          # (r, 3) displacement axis / position unit vector
     obase: np.ndarray         # (r,) position: rest coordinate
+    springs: list = None      # (N,) per node: ((stiffness, unit axis), ...) of springs tying it to fixed points
     engines: list = None      # [acl.analysis.acoustics force engine of every drive frequency of the rows at 1 V]
     fidx: np.ndarray = None   # (r, T) index of each tone's frequency in that engine (-1: no tone)
     orif_ix: np.ndarray = None    # (n,) each orifice's interface index in the design (acl.analysis.acoustics layout)
@@ -78,6 +80,7 @@ class GroupBlock:
     all_rest: np.ndarray = None   # (C_all, 3) every capsule centre of the design at rest
     gamma0: float = 1.0
     alpha_ref: float = 0.0
+    gmask: np.ndarray = None  # (n,) bool: gamma scales this orifice's thrust (acl.fit.forward.Prepared.gamma_caps)
     cache: np.ndarray = None  # (r, m) last equilibrium found per row (warm start of the next evaluation)
     closing: np.ndarray = None    # (r, 2) the orifice pair in contact of each row past snap-in at the last evaluation
     fold: tuple = None            # ((r,) last stable continuation step of the rows that snapped, (r, m) configuration)
@@ -118,6 +121,7 @@ def block(inst, unit, name, rows, f, v, gamma0, alpha_ref, ftable) -> GroupBlock
         elif s.law == "spring":
             cd[i] = s.compliance
     latch = [latch_table(s.latch) if s.law == "latch" else None for s in sides]
+    latch_geo = [s.latch if s.law == "latch" else None for s in sides]
     n = len(net.labels)
     tau = np.zeros((r, T, n))
     arel = np.zeros((r, T, n, n))
@@ -176,9 +180,9 @@ def block(inst, unit, name, rows, f, v, gamma0, alpha_ref, ftable) -> GroupBlock
     names = [c.name for c in lay.caps]
     extra = dict(engines=engines, fidx=fidx, orif_ix=np.array([lay.labels.index(lab) for lab in net.labels]),
                  cap_ix=np.array([names.index(c) for c in net.caps]), all_rest=np.asarray(lay.rest, float),
-                 gamma0=float(gamma0), alpha_ref=float(alpha_ref))
+                 gamma0=float(gamma0), alpha_ref=float(alpha_ref), springs=[tuple(s.springs) for s in sides])
     return GroupBlock(np.asarray(rows), net.caps, law, np.array([s.L for s in sides]), np.array([s.l for s in sides]),
-                      np.array([s.EI for s in sides]), cd, basis, k, latch, np.asarray(net.cap_node, int),
+                      np.array([s.EI for s in sides]), cd, basis, k, latch, latch_geo, np.asarray(net.cap_node, int),
                       np.asarray(net.rest, float), np.asarray(net.outer, float), height,
                       np.asarray(net.orif_cap, int), np.asarray(net.offsets, float), np.asarray(net.normals, float),
                       tuple(net.labels), tau, arel, net.modes[:, 0].copy(), net.modes[:, 1].copy(), tables,
@@ -225,7 +229,7 @@ def predict(P, blk: GroupBlock, coeffs, effects, w, gamma, alpha, es, lam, grad,
     """(predicted observable change (m, relative to the row's ``base``), snapped (r,) bool, latch push / switching
     force (r,)) of the block's rows; ``w`` (r, T) the squared drive pressure per V^2 of each tone (gain, its effects),
     the rest as in acl.fit.forward._predict."""
-    from acl.fit.forward import latch_travel
+    from acl.fit.forward import latch_travel_exact
 
     r, N, C, n = blk.rows.size, blk.law.size, len(blk.caps), blk.orif_cap.size
     t = P.t[blk.rows]
@@ -235,7 +239,9 @@ def predict(P, blk: GroupBlock, coeffs, effects, w, gamma, alpha, es, lam, grad,
         sub_c = substrate_factor(blk.cap_height, effects["substrate_proximity"]["h_substrate"])
     sub = sub_c[blk.orif_cap]
     wt = w[:, :, None] if res is None else w[:, :, None] * res
-    thrust = gamma * (blk.tau * wt).sum(axis=1) * sub[None, :]                       # (r, n)
+    # gamma scales the thrust of the orifices whose capsules declare it (every orifice when gmask is None)
+    g_o = np.full(n, gamma) if blk.gmask is None else np.where(blk.gmask, gamma, blk.gamma0)
+    thrust = (blk.tau * wt).sum(axis=1) * (g_o * sub)[None, :]                       # (r, n)
     wab = w[:, :, None, None] if res is None else w[:, :, None, None] * np.sqrt(res[:, :, :, None] * res[:, :, None, :])
     A = alpha * (blk.arel * wab).sum(axis=1) * np.sqrt(np.outer(sub, sub))[None]    # (r, n, n)
     onehot = np.zeros((n, C))
@@ -255,6 +261,7 @@ def predict(P, blk: GroupBlock, coeffs, effects, w, gamma, alpha, es, lam, grad,
     slots = [(i, c) for i in range(N) for c in range(blk.k[i])]
     if N == 1:
         c_p = 0.0                        # a body alone has no neighbour: neighbour_drag does not act
+    tied = [(i, blk.springs[i]) for i in range(N) if blk.springs and blk.springs[i] and blk.k[i]]
 
     def law(i, load):
         d = B.eq1_deflection(load, l_[i], cd[i], ct[i])
@@ -302,7 +309,7 @@ def predict(P, blk: GroupBlock, coeffs, effects, w, gamma, alpha, es, lam, grad,
         thr = ((u.real**2 + u.imag**2) * k_thr[None] * W).sum(axis=1)
         prod = (u[:, :, :, None] * np.conj(u[:, :, None, :])).real
         att = (prod * k_att[None] * Wab).sum(axis=1)
-        return thr * (gamma / blk.gamma0) * sub[None], att * a_scale * np.sqrt(np.outer(sub, sub))[None]
+        return thr * (g_o / blk.gamma0 * sub)[None], att * a_scale * np.sqrt(np.outer(sub, sub))[None]
 
     def loads(z, scale, rows_=slice(None)):
         """(node loads (r, N, 3), orifice distances (r, n, n), node displacements (r, N, 3)) at coordinates z."""
@@ -336,6 +343,9 @@ def predict(P, blk: GroupBlock, coeffs, effects, w, gamma, alpha, es, lam, grad,
         Fn = scale[:, None, None] * np.einsum("rck,cn->rnk", F, to_node)
         if c_p > 0:
             Fn = drag_load(Fn, np.linalg.norm(x, axis=-1)[..., None], c_p)
+        for i, ties in tied:             # springs to fixed points pull back along their axes (elastic, not scaled)
+            for ks, ax in ties:
+                Fn[:, i] -= ks * (x[:, i] @ ax)[:, None] * ax[None]
         return Fn, d, x
 
     def D(z, scale, rows_=slice(None)):
@@ -344,8 +354,8 @@ def predict(P, blk: GroupBlock, coeffs, effects, w, gamma, alpha, es, lam, grad,
         for i in moving:
             Pi = np.einsum("rk,kc->rc", Fn[:, i], blk.basis[i, :, :blk.k[i]])
             o = offs[i]
-            if blk.law[i] == 3:                   # latch: the push along its axis from state a (a pull leaves it)
-                out[:, o] = latch_travel(np.maximum(Pi[:, 0], 0.0), blk.latch[i], es)
+            if blk.law[i] == 3:                   # latch: along its axis from state a (a pull stretches its beams)
+                out[:, o] = latch_travel_exact(Pi[:, 0], blk.latch_geo[i], blk.latch[i], es)
                 continue
             mag = np.linalg.norm(Pi, axis=1)
             dl = law(i, mag)
@@ -425,7 +435,7 @@ def predict(P, blk: GroupBlock, coeffs, effects, w, gamma, alpha, es, lam, grad,
     everyone = np.arange(r)
     if m == 0:
         z = np.zeros((r, 0))
-    elif N == 1:
+    elif N == 1 and not tied:
         z = D(np.zeros((r, m)), np.ones(r), everyone)[0]           # a body alone: its load does not depend on z
     else:
         # most rows: Newton at full load from the last solution found for them (warm start across the optimizer's

@@ -50,6 +50,7 @@ class Side:
     bubble: tuple = (0.0, 0.0)   # gas volume (m^3), orifice radius (m)
     members: tuple = ()          # group node: every capsule moving with it (trusses)
     basis: np.ndarray = None     # group node: 3 x k directions it can move along (k = 0, 1 or 2)
+    springs: tuple = ()          # group node: (stiffness, unit axis) of each spring tying it to a fixed point
 
 
 @dataclass
@@ -103,10 +104,11 @@ def _unsupported(obs, why, hint=None):
                                   obs.span, hint)])
 
 
-def _carrier(design, cap):
-    """(law, element) carrying capsule ``cap``: beam / spring / latch mount, fixed, or (None, why)."""
+def _carrier(design, cap, springs_ok=False):
+    """(law, element) carrying capsule ``cap``: beam / spring / latch mount, fixed, or (None, why).  ``springs_ok``:
+    spring links are the group's business (:func:`spring_links`), not a reason to refuse."""
     for j in design.joints:
-        if j.kind == "link" and j.element_kind == "spring" and cap in (j.a, j.b):
+        if j.kind == "link" and j.element_kind == "spring" and cap in (j.a, j.b) and not springs_ok:
             return None, f"capsule `{cap}` is linked by a spring (`{j.element}`)"
     for j in design.joints:
         if j.kind == "mount" and j.capsule == cap:
@@ -222,10 +224,32 @@ def _side(design, cap_name, direction) -> Side:
 
 
 def _needs_body(design, cap) -> bool:
-    """A capsule the 1-D single-actuator law cannot follow: several orifices, or tied by a truss."""
+    """A capsule the 1-D single-actuator law cannot follow: several orifices, or tied by a truss or a spring."""
     c = design.capsule(cap)
-    return len(c.orifices) != 1 or any(j.kind == "link" and j.element_kind == "truss" and cap in (j.a, j.b)
+    return len(c.orifices) != 1 or any(j.kind == "link" and j.element_kind in ("truss", "spring") and cap in (j.a, j.b)
                                        for j in design.joints)
+
+
+def spring_links(design, members) -> tuple:
+    """((stiffness, unit axis), ...) of the springs linking the rigid body ``members`` to a fixed point (a fixed
+    capsule or body, an anchor, ``ground``): each pulls the body back along its axis by k (n . x) n, as
+    acl.analysis.mechanics does.  A spring to another moving body couples two supports (E810)."""
+    names = {c.name for c in design.capsules}
+    out = []
+    for j in design.joints:
+        if not (j.kind == "link" and j.element_kind == "spring") or not ({j.a, j.b} & set(members)):
+            continue
+        other = j.b if j.a in members else j.a
+        if other in members:
+            continue
+        if other in names and rigid_body(design, other)[2].shape[1]:
+            raise DiagnosticError([error("E810", f"the spring `{j.element}` links the body of `{other}` to another "
+                                         "moving support: coupled supports are not in the fit model", j.span,
+                                         "observe bodies whose springs end on fixed points")])
+        sp = design.spring(j.element)
+        a = np.asarray(sp.axis, float)
+        out.append((float(sp.stiffness), a / np.linalg.norm(a)))
+    return tuple(out)
 
 
 def _needs_group(design, caps) -> bool:
@@ -253,8 +277,21 @@ def _check_direction(design, unit, obs) -> None:
                        "observe a direction the body moves in")
 
 
-def build_instance(design) -> Instance:
-    """Cut a resolved design into units, one per observable (raises E810 for unsupported mechanisms)."""
+MODELS = ("eq3", "coupled")     # the force model of a simple pair (`acl fit --model`)
+
+
+def build_instance(design, model: str = "eq3", coupled: bool = False) -> Instance:
+    """Cut a resolved design into units, one per observable (raises E810 for unsupported mechanisms).
+
+    ``model``: how a simple pair (two single-orifice capsules on their own supports) is modelled: ``eq3`` paper
+    Eq. (3) (a ``pair`` unit, acl.fit.forward), ``coupled`` the analysis' force model (a ``group`` unit,
+    acl.fit.group: per-orifice thrust, Bjerknes force between the orifices, jet drag, coupled volumes).
+
+    When any observable needs the group model (three or more interacting capsules, a body, a latch among
+    interacting capsules, a pair under ``model="coupled"``), the group is the **whole design**: every capsule of it,
+    so capsules the analysis couples (a calibration beam next to a group) interact in the fit too (the same
+    equilibrium as acl.analysis.mechanics.equilibrium).  ``coupled``: route every design so, lone actuators
+    included."""
     from acl.analysis.acoustics import _medium
 
     # the fit's base model is the design without declared effects (the fit adds them itself: a
@@ -291,7 +328,7 @@ def build_instance(design) -> Instance:
         return units_by_caps[caps]
 
     def pair_unit(a, b, obs):
-        if len(comp.get(a, ())) > 2 or _needs_group(design, comp.get(a, (a, b))):
+        if len(comp.get(a, ())) > 2 or _needs_group(design, comp.get(a, (a, b))) or model == "coupled":
             return group_unit(comp[a], obs)
         key = tuple(sorted((a, b)))
         if key not in units_by_caps:
@@ -315,7 +352,28 @@ def build_instance(design) -> Instance:
             units_by_caps[key] = Unit("pair", (sa, sb), d0)
         return units_by_caps[key]
 
+    def needs_group(o) -> bool:
+        if o.kind == "gap":
+            a, b = o.a.split(".")[0], o.b.split(".")[0]
+            return a != b and (len(comp.get(a, ())) > 2 or _needs_group(design, comp.get(a, (a, b))))
+        cap = _target_capsule(design, o)
+        if cap not in comp and _needs_body(design, cap):
+            members = rigid_body(design, cap)[0]
+            cap = next((m for m in members if m in comp), cap)
+            if cap not in comp:
+                return True
+        return len(comp.get(cap, ())) > 2 or (cap in comp and _needs_group(design, comp[cap]))
+
     units = {}
+    if coupled or any(needs_group(o) for o in design.observes) or (model == "coupled" and partners):
+        # one physics: every capsule of the design in one group (the analysis couples them all through the liquid)
+        whole = tuple(c.name for c in design.capsules)
+        for o in design.observes:
+            units[o.name] = group_unit(whole, o)
+            _check_direction(design, units[o.name], o)
+        med = _medium(design)
+        return Instance(design=design, units=units,
+                        medium=(med.density, med.surface_tension, med.ambient_pressure, med.polytropic_index))
     for o in design.observes:
         if o.kind == "gap":
             a, b = o.a.split(".")[0], o.b.split(".")[0]
@@ -326,7 +384,7 @@ def build_instance(design) -> Instance:
             # a member of a trussed body whose other member interacts: that group
             members = rigid_body(design, cap)[0]
             cap = next((m for m in members if m in comp), cap)
-        if len(comp.get(cap, ())) > 2 or (cap in comp and _needs_group(design, comp[cap])):
+        if len(comp.get(cap, ())) > 2 or (cap in comp and (_needs_group(design, comp[cap]) or model == "coupled")):
             units[o.name] = group_unit(comp[cap], o)
             _check_direction(design, units[o.name], o)
             continue
@@ -394,13 +452,15 @@ def _node(design, cap, obs) -> Side:
     the directions trusses to fixed points hold), a spring along its axis, a latch along its axis from state a, a
     fixed capsule (or one tied to a fixed point in every direction) not at all."""
     members, held, basis = rigid_body(design, cap)
-    law, element = _carrier(design, held)
+    law, element = _carrier(design, held, springs_ok=True)
     hc = design.capsule(held)
     if law is None:
         raise DiagnosticError([error("E810", f"{element}: in a group the fit model handles bodies on cantilevers, "
                                      "springs and latches, or fixed (docs/fit.md)", hc.span)])
     s = Side(held, element, law, height=float(hc.orifices[0].center[2] if hc.orifices else hc.center[2]),
              rest=np.asarray(hc.center, float), members=members, basis=basis)
+    if basis.shape[1]:
+        s.springs = spring_links(design, members)
     if basis.shape[1] == 0:
         s.law, s.element = "fixed", ""
     elif law == "beam":

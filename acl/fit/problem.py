@@ -40,10 +40,14 @@ class Problem:
     y: np.ndarray
     sigma: np.ndarray
     param_roles: dict          # design param name -> role
+    model: str = "eq3"         # force model of simple pairs: eq3 (paper Eq. 3) or coupled (acl.fit.group)
 
 
-def load_problem(design_path, data_paths, free=(), search_paths=()):
-    """Load design and data, build the rows and the free coefficients; DiagnosticError on any problem."""
+def load_problem(design_path, data_paths, free=(), search_paths=(), model: str = "eq3", coupled: bool = False):
+    """Load design and data, build the rows and the free coefficients; DiagnosticError on any problem.
+
+    ``model``: the force model of simple pairs (acl.fit.mechanism.build_instance: ``eq3`` or ``coupled``);
+    ``coupled``: every design through the group model, lone actuators included."""
     import acl
     from acl.fit.data import read_data
     from acl.fit.forward import prepare
@@ -64,12 +68,16 @@ def load_problem(design_path, data_paths, free=(), search_paths=()):
                                              f"{', '.join(f'{k} = {v}' for k, v in key)}: {exc.diagnostics[0].message}",
                                              Span(file=sp.file, line=sp.line, column=1),
                                              f"see {exc.diagnostics[0].location()}")])
-            cache[key] = build_instance(d)
+            cache[key] = build_instance(d, model, coupled=coupled)
         return cache[key]
 
-    P = prepare(data, load_instance)
     roles = classify_params(design_path, design, search_paths)
     names = [p.name for p in design.params if p.free] + [n for n in free if n]
+    gamma_param = next((n for n in names if (n if n in COEFFICIENTS else roles.get(n)) == "gamma"
+                        and (n not in COEFFICIENTS or _has_param(design, n)) and roles.get(n) == "gamma"), None)
+    # a design parameter declared as some capsules' `thrust`: gamma scales exactly those (as the analysis applies it)
+    P = prepare(data, load_instance, gamma_caps=thrust_capsules(design_path, design, gamma_param, search_paths)
+                if gamma_param else None)
     coefs = []
     seen = set()
     caps = {c.name for c in design.capsules}
@@ -128,7 +136,7 @@ def load_problem(design_path, data_paths, free=(), search_paths=()):
         # a state row's weight is its own: the Pearson residual is already in units of its standard deviation
         P.pearson[1][P.state] = 1.0
         data.sigma = np.where(P.state, 1.0, data.sigma)
-    return Problem(design_path, design, data, P, coefs, y, data.sigma, roles)
+    return Problem(design_path, design, data, P, coefs, y, data.sigma, roles, "coupled" if coupled else model)
 
 
 def _group_start(P, coefs, y, sigma) -> None:
@@ -233,6 +241,22 @@ def _cavity_coef(name, design, P, path, search_paths) -> Coef:
     lo = p.lower if p.lower is not None else 0.3 * p.value
     hi = p.upper if p.upper is not None else 3.0 * p.value
     return Coef(name, f"cavity@{name}", float(p.value), lo, hi, abs(float(p.value)), p.unit, design_param=name)
+
+
+def thrust_capsules(path, design, name, search_paths=()) -> tuple:
+    """The capsules whose declared ``thrust`` changes with design parameter ``name`` (found by perturbing it, as
+    :func:`classify_params`); () when none does."""
+    import acl
+
+    p = design.param(name)
+    if not p.value:
+        return ()
+    try:
+        d = acl.load(path, overrides={name: f"{p.value * 1.01!r} {p.unit}".strip()}, search_paths=search_paths)
+    except DiagnosticError:
+        return ()
+    return tuple(c0.name for c0, c1 in zip(design.capsules, d.capsules)
+                 if c0.thrust_coefficient is not None and c0.thrust_coefficient != c1.thrust_coefficient)
 
 
 def _has_param(design, name):

@@ -60,6 +60,66 @@ def length_rmse(problem, fit) -> float:
     return float(np.sqrt(np.mean(r * r))) if r.size else float("nan")
 
 
+MAX_TONES = 16      # tone_gain_stderr: a data set with more distinct tones (a sweep) is not checked tone by tone
+
+
+def tone_gain_stderr(problem, fit, max_tones: int = MAX_TONES) -> dict:
+    """{tone Hz: relative standard error} of a free transducer gain at each tone the data measured, all fitted
+    coefficients free (linearised least squares, s^2 (J^T J)^-1 as acl.fit.solve, by central differences).
+
+    A tone counts where it was driven at 10 % or more of the largest amplitude (as ``covered(frequency)``).  The
+    calibrated model's gain there holds to this figure whatever the gain table's shape (the tone's own gain is
+    a free coordinate here, not the table times the fitted tilt), so the calibrated design declares it
+    (``measured(gain)``) and the error bands of a compile hold the table at the tone to it instead of the
+    table's prior (acl.schedule.bands).  Nothing (``{}``) for latch states (their rows are not least squares),
+    more than ``max_tones`` tones, or a rank-deficient fit; a tone whose gain the data cannot tell is left out.
+    """
+    from acl.fit.forward import predict
+
+    P = problem.prepared
+    if fit is None or (P.state is not None and np.any(P.state)) or not fit.full_rank:
+        return {}
+    v = np.asarray(P.v, float)
+    live = (v > 0) & (v >= 0.1 * float(v.max(initial=0.0)))
+    tones = np.unique(np.asarray(P.f, float)[live])
+    if tones.size == 0 or tones.size > max_tones or not np.isfinite(fit.redchi):
+        return {}
+    train = np.asarray(fit.train)
+    w = 1.0 / np.where(np.isfinite(problem.sigma), problem.sigma, solve.NOMINAL_SIGMA)
+    vals = np.asarray(fit.values, float)
+
+    def pred(values, tone=None, h=0.0):
+        coeffs, effects = solve.split_coefs(fit.coefs, values)
+        if tone is not None:
+            coeffs["tone_weight"] = np.where((P.f == tone) & (P.v > 0), np.exp(2.0 * h), 1.0)
+        return predict(P, coeffs, effects)[train] * w[train]
+
+    cols = []
+    for i, c in enumerate(fit.coefs):
+        d = 1e-4 * max(abs(vals[i]), abs(c.scale), 1e-300)
+        up, dn = vals.copy(), vals.copy()
+        up[i] = min(vals[i] + d, c.upper) if np.isfinite(c.upper) else vals[i] + d
+        dn[i] = max(vals[i] - d, c.lower) if np.isfinite(c.lower) else vals[i] - d
+        cols.append((pred(up) - pred(dn)) / (up[i] - dn[i]))
+    out = {}
+    for f in tones:
+        jh = (pred(vals, f, 1e-4) - pred(vals, f, -1e-4)) / 2e-4
+        J = np.column_stack(cols + [jh])
+        J = J[np.all(np.isfinite(J), axis=1)]
+        norm = np.linalg.norm(J, axis=0)
+        if J.shape[0] <= J.shape[1] or not np.all(norm > 0):
+            continue
+        Jn = J / norm
+        sv = np.linalg.svd(Jn, compute_uv=False)
+        if sv[-1] <= 1e-9 * sv[0]:
+            continue                                    # the tone's own gain is degenerate with the coefficients
+        cov = np.linalg.inv(Jn.T @ Jn) * fit.redchi
+        se = float(np.sqrt(max(cov[-1, -1], 0.0)) / norm[-1])
+        if np.isfinite(se):
+            out[float(f)] = se
+    return out
+
+
 def covariance(fit) -> dict:
     """Covariance of the fitted coordinates (SI, the order of ``names``): cov = corr x stderr stderr^T (s^2 (J^T J)^-1),
     for later stages (acl/fit/calibrated.py writes it; robust compile samples it)."""
@@ -73,7 +133,8 @@ def covariance(fit) -> dict:
 def critical_distance(fit, problem) -> dict | None:
     """d_c = sqrt(alpha/(2 gamma)) (paper Eq. 3) with a delta-method 95 % interval, when both were fitted or known."""
     P = problem.prepared
-    if not np.any(P.pair):
+    coupled = getattr(problem, "model", "eq3") == "coupled" and P.group_row is not None and np.any(P.group_row)
+    if not (np.any(P.pair) or coupled):
         return None
     names = [c.kind for c in fit.coefs]
     a = fit.values[names.index("alpha")] if "alpha" in names else P.alpha0
@@ -87,7 +148,9 @@ def critical_distance(fit, problem) -> dict | None:
     dc = math.sqrt(a / (2 * g))
     rel = 0.5 * math.sqrt(max(va + vg - 2 * cov, 0.0))
     return {"value": _n(dc), "unit": "m", "stderr": _n(dc * rel), "ci95": [_n(dc * (1 - 1.96 * rel)), _n(dc * (1 + 1.96 * rel))],
-            "formula": "sqrt(alpha / (2 gamma)), paper Eq. (3)"}
+            "formula": "sqrt(alpha / (2 gamma)), paper Eq. (3)" + (
+                ", with the coupled model's coefficients at rest (acl analyze reports the analysis' own)" if coupled
+                and not np.any(P.pair) else "")}
 
 
 def outliers(problem, fit, limit: float = solve.JUMP) -> list[dict]:

@@ -69,8 +69,11 @@ def effect_inputs(spec: dict) -> dict:
 
 
 def generate(design_path, experiment, effects: dict | None = None, noise: float = 0.0,
-             seed: int = 0, coeffs: dict | None = None, search_paths=()):
+             seed: int = 0, coeffs: dict | None = None, search_paths=(), coupled: bool = False):
     """Return (Dataset, Prepared) of synthetic rows (values in SI, sigma = noise).
+
+    ``coupled``: every design through the group model with the analysis' full force model
+    (acl.fit.mechanism.build_instance), lone actuators and pairs included.
 
     ``experiment``: one :class:`Experiment` or a list of them (run one after the other, in one data set,
     rows tagged with each experiment's ``label``: e.g. a pair and its calibration beam)."""
@@ -120,11 +123,17 @@ def generate(design_path, experiment, effects: dict | None = None, noise: float 
     def load_instance(key):
         if key not in cache:
             cache[key] = build_instance(acl.load(design_path, overrides=dict(key), search_paths=search_paths)
-                                        if key else design)
+                                        if key else design, coupled=coupled)
         return cache[key]
 
-    # coefficients in ``coeffs`` (gamma, alpha) refer to f_ref of these rows: the most common frequency
-    P = prepare(data, load_instance)
+    # coefficients in ``coeffs`` (gamma, alpha) refer to f_ref of these rows: the most common frequency; a design
+    # parameter `gamma` declared as some capsules' `thrust` is what gamma scales (as acl fit and the analysis do)
+    gamma_caps = None
+    if coeffs and "gamma" in coeffs and any(p.name == "gamma" for p in design.params):
+        from acl.fit.problem import thrust_capsules
+
+        gamma_caps = thrust_capsules(design_path, design, "gamma", search_paths) or None
+    P = prepare(data, load_instance, gamma_caps=gamma_caps)
     y = predict(P, dict(coeffs or {}), effect_inputs(effects or {}))
     rng = np.random.default_rng(seed)
     data.value = y + rng.normal(0.0, noise, n) if noise > 0 else y

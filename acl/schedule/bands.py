@@ -3,14 +3,16 @@
 A design declares its uncertainty in the language (docs/language.md): ``param x = v +- s`` with
 ``uncertainty { correlation(a, b) = r }`` (the covariance a calibration writes), and a transducer's
 ``gain_uncertainty`` (relative standard deviation of each gain-table value, independent; the stdlib
-tables, which are not measured, declare 30 %).  This module turns it into
+tables, which are not measured, declare 30 %).  A calibration also declares ``measured(gain)``: the
+tones its data drove, each with the standard error of a free gain there; at those tones the table is
+held to the calibrated model (:func:`pinned`), elsewhere it keeps its prior.  This module turns it into
 
 * :func:`sample_designs` -- designs drawn from that distribution: the table values multiplied by
   log-normal factors ``exp(s z)`` (one per table point), the uncertain parameters drawn from
   their multivariate normal and the design resolved again with them (``reload``: overrides ->
   Design, supplied by the caller that knows the source file);
 * :func:`error_band` -- the 95th percentile of a goal's RMS and maximum tracking error over those
-  designs, each re-simulated through the full nonlinear forward model with the schedule's drive,
+  designs (bounded from above by an order statistic of the draws: :func:`_quantile`), each re-simulated through the full nonlinear forward model with the schedule's drive,
   plus, for a calibrated design, its declared ``discrepancy(position)`` (the fit's RMS residual:
   what the calibrated model still misses) as an independent Gaussian error per waypoint and axis;
 * :func:`gain_sensitivity` -- the linearised spread of the gain matrix, ``Q = sum_j dG_j^T dG_j``
@@ -42,11 +44,18 @@ class Uncertainty:
 
     gain_sd: float                          # relative sd of each gain-table value (0: none)
     discrepancy: float                      # m, RMS model discrepancy of a calibration (0: none)
-    n_table: int
+    n_table: int                            # gain factors drawn: the table's points, then the pinned tones
     names: tuple[str, ...]                  # uncertain parameters
     mean: np.ndarray                        # (P,) SI
     cov: np.ndarray                         # (P, P) SI
     units: tuple[str, ...]
+    pinned: tuple = ()                      # ((tone Hz, relative sd), ...): gains a calibration measured (:func:`pinned`)
+
+    @property
+    def gain_sds(self) -> np.ndarray:
+        """(n_table,) log-sd of each drawn gain factor: the table's prior, then each pinned tone's own."""
+        n = self.n_table - len(self.pinned)
+        return np.array([self.gain_sd] * n + [s for _, s in self.pinned], float)
 
     @property
     def empty(self) -> bool:
@@ -58,9 +67,35 @@ def declared(design: Design, with_params: bool = True) -> Uncertainty:
     t = design.transducer
     gain_sd = float(t.gain_uncertainty or 0.0) if t is not None else 0.0
     ps = design.uncertain_params() if with_params else ()
-    return Uncertainty(gain_sd, float(design.discrepancy or 0.0), len(t.gain_pa_per_v) if t is not None else 0, tuple(p.name for p in ps),
+    pin = pinned(design)
+    return Uncertainty(gain_sd, float(design.discrepancy or 0.0),
+                       len(t.gain_pa_per_v) + len(pin) if t is not None else 0, tuple(p.name for p in ps),
                        np.array([p.value for p in ps]), design.covariance([p.name for p in ps]) if ps else np.zeros((0, 0)),
-                       tuple(p.unit for p in ps))
+                       tuple(p.unit for p in ps), pin)
+
+
+def pinned(design: Design) -> tuple:
+    """((tone Hz, relative sd), ...): the tones whose gain a calibration measured better than the table's prior.
+
+    ``measured(gain)`` (acl.fit.report.tone_gain_stderr) gives, per tone the calibration data drove, the relative
+    standard error of a free gain there, all fitted coefficients free: the calibrated model's gain at that tone
+    is known to it, whatever the table's shape.  The draws then hold the table at each such tone to the
+    calibrated value times ``exp(s z)`` (a knot inserted there) and keep the prior on every table point: between
+    and beyond the measured tones the gain stays as uncertain as the table declares.
+    """
+    t = design.transducer
+    sd = float(t.gain_uncertainty or 0.0) if t is not None else 0.0
+    if sd <= 0:
+        return ()
+    return tuple((m.frequency, m.stddev) for m in design.measured_gain if m.stddev < sd)
+
+
+def unmeasured_tones(design: Design, tones) -> list[float]:
+    """The tones (Hz) whose gain no calibration measured (:func:`pinned`): their band keeps the table's prior."""
+    pin = [f for f, _ in pinned(design)]
+    if not pin:
+        return []
+    return [float(f) for f in tones if not any(abs(f - p) <= 1e-6 * p for p in pin)]
 
 
 def _anchor(design: Design, factors: np.ndarray) -> np.ndarray:
@@ -83,10 +118,29 @@ def _anchor(design: Design, factors: np.ndarray) -> np.ndarray:
 
 
 def _with_gain(design: Design, factors: np.ndarray) -> Design:
+    """The design with its gain table's points times ``factors`` (then, for each pinned tone, a knot there
+    at the calibrated gain times its factor: :func:`pinned`)."""
     t = design.transducer
-    factors = _anchor(design, np.asarray(factors, float))
-    gains = tuple(float(g * f) for g, f in zip(t.gain_pa_per_v, factors))
-    return design.model_copy(update={"transducer": t.model_copy(update={"gain_pa_per_v": gains})})
+    factors = np.asarray(factors, float)
+    pin = pinned(design)
+    n = len(t.gain_pa_per_v)
+    if not pin:
+        factors = _anchor(design, factors)
+        gains = tuple(float(g * f) for g, f in zip(t.gain_pa_per_v, factors))
+        return design.model_copy(update={"transducer": t.model_copy(update={"gain_pa_per_v": gains})})
+    from acl.physics.transducer import pressure_per_volt
+
+    fs0, gs0 = np.asarray(t.gain_frequencies, float), np.asarray(t.gain_pa_per_v, float)
+    knots = {float(f): float(g * x) for f, g, x in zip(fs0, gs0, factors[:n])}
+    for (f, _), x in zip(pin, factors[n:n + len(pin)]):
+        g, _ = pressure_per_volt(f, fs0, gs0)        # the calibrated table's value there (before any draw)
+        same = [k for k in knots if abs(k - f) <= 1e-9 * f]
+        for k in same:                                # a table point at the tone: measured, its prior is replaced
+            del knots[k]
+        knots[float(f)] = float(g) * float(x)
+    fs = tuple(sorted(knots))
+    gains = tuple(knots[f] for f in fs)
+    return design.model_copy(update={"transducer": t.model_copy(update={"gain_frequencies": fs, "gain_pa_per_v": gains})})
 
 
 def _literal(value: float, unit: str) -> str:
@@ -122,7 +176,7 @@ def sample_designs(design: Design, n: int, seed: int = 0, reload: Reload | None 
             yield i, None
             continue
         if unc.gain_sd > 0 and d.transducer is not None:
-            d = _with_gain(d, np.exp(unc.gain_sd * z[:len(d.transducer.gain_pa_per_v)]))
+            d = _with_gain(d, np.exp(unc.gain_sds * z))
         yield i, d
 
 
@@ -217,10 +271,24 @@ def margin_band(design: Design, margin_for: Callable, *, samples: int = 20, seed
 
 
 def _quantile(x: np.ndarray, q: float) -> float:
-    """The q-th percentile (linear interpolation); inf when it reaches an unbounded draw."""
-    with np.errstate(invalid="ignore"):
-        v = float(np.percentile(x, q))
-    return float("inf") if np.isnan(v) else v
+    """Upper bound of the q-th percentile from ``n`` draws: the k-th smallest draw, k = ceil(q/100 (n + 1)).
+
+    A draw of the same distribution (the device, when the declared uncertainty is honest) lies below it with
+    probability k/(n + 1) >= q/100, whatever the distribution (order statistics); the plug-in percentile
+    (linear interpolation, about the (0.95 (n - 1) + 1)-th draw) holds only about 19/21 of the time at n = 20.
+    With fewer than 19 draws no draw bounds 95 % so: the largest one (probability n/(n + 1), :func:`level`).
+    inf when it reaches an unbounded draw (lost equilibrium).
+    """
+    x = np.asarray(x, float)
+    if x.size == 0:
+        return float("nan")
+    k = min(int(np.ceil(q / 100.0 * (x.size + 1) - 1e-9)), x.size)
+    return float(np.sort(np.where(np.isnan(x), np.inf, x))[k - 1])
+
+
+def level(n: int, q: float = 95.0) -> float:
+    """Probability that a new draw lies below :func:`_quantile`'s bound from ``n`` draws: k/(n + 1)."""
+    return min(int(np.ceil(q / 100.0 * (n + 1) - 1e-9)), n) / (n + 1) if n > 0 else 0.0
 
 
 def gain_sensitivity(design: Design, gains_for: Callable, reload: Reload | None = None) -> np.ndarray | None:
@@ -237,9 +305,10 @@ def gain_sensitivity(design: Design, gains_for: Callable, reload: Reload | None 
     K = G0.shape[1]
     Q = np.zeros((K, K))
     if unc.gain_sd > 0 and design.transducer is not None:
+        sds = unc.gain_sds
         for j in range(unc.n_table):
             f = np.ones(unc.n_table)
-            f[j] = np.exp(unc.gain_sd)
+            f[j] = np.exp(sds[j])
             dG = np.asarray(gains_for(_with_gain(design, f)), float) - G0
             Q += dG.T @ dG
     if unc.names:

@@ -494,7 +494,7 @@ class _Compiler:
 
     def _band(self, rep: GoalReport, provider, capsule, u, targets):
         """95th percentile of the re-simulated error over draws of the declared uncertainty."""
-        from acl.schedule.bands import error_band
+        from acl.schedule.bands import error_band, level, pinned, unmeasured_tones
 
         band = error_band(self.design, lambda d: provider(d, capsule, rep.frequencies_hz)[0], u, targets,
                           samples=self.opts.band_samples, seed=self.opts.band_seed, reload=self.opts.reload)
@@ -504,10 +504,24 @@ class _Compiler:
             return
         rep.rms_error_p95_m, rep.max_error_p95_m = band.rms_p95_m, band.max_p95_m
         rep.details["band"] = {"samples": band.samples, "failed": band.failed, "seed": self.opts.band_seed,
-                               "quantile": 95, "parameters": [p.name for p in self.design.uncertain_params()]
+                               "quantile": 95, "level": round(level(band.samples), 4), "parameters": [p.name for p in self.design.uncertain_params()]
                                if self.opts.reload is not None else [],
                                "gain_uncertainty": self.design.transducer.gain_uncertainty
                                if self.design.transducer else None}
+        if 0 < band.samples and level(band.samples) < 0.95:
+            self.notes.append(f"{rep.name}: the error band is the largest of {band.samples} draws, which bounds the "
+                              f"95th percentile only with probability {level(band.samples):.0%}: give --band-samples "
+                              "19 or more")
+        pin = pinned(self.design)
+        if pin:
+            rep.details["band"]["measured_gain"] = [{"frequency_hz": f, "stddev": sd} for f, sd in pin]
+            off = unmeasured_tones(self.design, rep.frequencies_hz)
+            rep.details["band"]["unmeasured_tones_hz"] = off
+            if off:
+                self.notes.append(f"{rep.name}: the calibration did not measure the transducer gain at "
+                                  f"{', '.join(f'{f / 1e3:g}' for f in off)} kHz (measured: "
+                                  f"{', '.join(f'{f / 1e3:g}' for f, _ in pin)} kHz): the band keeps the table's "
+                                  f"{self.design.transducer.gain_uncertainty:.0%} prior there")
         if band.failed:
             self.notes.append(f"{rep.name}: {band.failed} of {self.opts.band_samples} uncertainty draws lost the "
                               "equilibrium (snap-in) or did not resolve; they count as missing the path")
