@@ -32,10 +32,11 @@ RMSE_RATIO = 1.3    # issue 9: RMSE after within 1.3 x the noise
 # case -> correct runs of 10, for cases below the bar (FD.meets_bar: 9 of 10 correct, or for the FD.CONFOUNDED cases
 # 9 of 10 correct or ambiguous with the truth among the alternatives); the Fig. 5c spring with saturation at 6 V and a
 # 4 um drag plateau, ramped to 4 V, is a measured limit (FD.LIMITS: the drag test's power there is 0.82, docs/fit.md;
-# ramped to 5 V it is counted).  One latch with saturation + drift: when round 1 takes a transducer resonance for the
-# saturation, the drift's fit on top stops with a shuttle row on the wrong branch of the switch (no gradient): 4 correct
-# and 1 ambiguous of 10 (a search defect still open; with three latch angles 10/10).  Listed exactly.
-KNOWN_BELOW: dict[str, int] = {"latch+state drive_saturation+offset_drift": 4}
+# ramped to 5 V it is counted).  One latch with saturation + drift was below (4 correct, 1 ambiguous: a fit stopped with
+# a shuttle row across the latch's switch, no gradient); with the continuation through a smoothed switch
+# (acl.fit.select._cross_switch) 6 correct, 3 ambiguous, 1 wrong (seed 108: resonance + drift fits 10 better in -2 ln L,
+# as resonance alone does on that seed's saturation-only data).  Listed exactly.
+KNOWN_BELOW: dict[str, int] = {}
 # clean data on which something was claimed, listed exactly
 KNOWN_CLEAN_CLAIMS: dict[str, int] = {}
 
@@ -368,3 +369,119 @@ def test_saturation_and_drift_on_latch_states_are_both_found(tmp_path):
     assert sorted(sel.selected) == sorted(planted) and not sel.ambiguous
     st = problem.prepared.state
     assert np.sqrt(np.mean(sel.final.residual[~st] ** 2)) < RMSE_RATIO * 0.2e-6
+
+
+def switch_figures(tmp_path) -> dict:
+    """One latch with state rows, saturation + drift, seed 102 (docs/fit.md shows these): the planted pair fitted from
+    the base model's values, plain and continued through the smoothed switch (:func:`acl.fit.select._cross_switch`)."""
+    from acl.fit import solve
+    from acl.fit.forward import latch_branch_mismatch, predict
+    from acl.fit.select import _cross_switch, _with_value, effect_coefs
+
+    planted = {"drive_saturation": FD.SAT_STATE, "offset_drift": FD.DRIFT}
+    problem, _ = _state_problem(tmp_path, "latch+state", planted, 102)
+    P = problem.prepared
+
+    def model(a, b):
+        return predict(P, a, b)
+
+    base = solve.fit(model, problem.y, problem.sigma, problem.coefs)
+    coefs = [_with_value(c, v) for c, v in zip(problem.coefs, base.values)]
+    coefs += [c for e in ("offset_drift", "drive_saturation") for c in effect_coefs(e, problem)[0]]
+    trapped = solve.fit(model, problem.y, problem.sigma, coefs)
+    fit = _cross_switch(model, problem, coefs, trapped)
+    return {"rows": problem.y.size, "trapped": trapped.chi2, "continued": fit.chi2,
+            "across": int(np.sum(latch_branch_mismatch(P, problem.y, trapped.prediction))),
+            "across_after": int(np.sum(latch_branch_mismatch(P, problem.y, fit.prediction))),
+            "offset": fit.value("offset_drift.offset"), "drift": fit.value("offset_drift.drift"),
+            "v_sat": fit.value("drive_saturation.inv_vsat2") ** -0.5}
+
+
+def test_a_latch_fit_stopped_at_the_switch_is_continued_through_a_smoothed_switch(tmp_path):
+    """One latch with state rows, saturation + drift, seed 102 (the case below the bar): from the base model's values
+    the fit of the planted pair stopped (xtol) with 8 shuttle rows on the other side of the switch than measured, each
+    ~350 sigma off and without gradient (chi-square ~1e6 for 820 rows), so the search never reached the pair and chose
+    a transducer resonance + drift.  :func:`acl.fit.select._cross_switch` continues from there through the same model
+    with the switch smoothed (a scattered switching force, narrowed to the step) and reaches the planted values."""
+    f = switch_figures(tmp_path)
+    assert f["across"] >= 1 and f["trapped"] > 100 * f["rows"]          # the defect
+    assert f["across_after"] == 0
+    assert f["continued"] < 0.6 * f["rows"]           # 410 shuttle rows at 1 each, 410 states by their deviance
+    assert f["offset"] == pytest.approx(FD.DRIFT["offset"], rel=0.1)
+    assert f["drift"] == pytest.approx(FD.DRIFT["drift"], rel=0.05)
+    assert f["v_sat"] == pytest.approx(FD.SAT_STATE["v_sat"], rel=0.1)
+
+
+def test_one_latch_with_states_finds_saturation_and_drift_where_a_resonance_stood_in(tmp_path):
+    """The same data, the whole search: before the continuation it selected transducer_resonance + offset_drift
+    (chi-square 477.0) and named no alternative, because the saturation fitted in the resonance's place stopped at the
+    switch (826.6); the planted pair reaches 440.4 and is selected, nothing else within the ambiguity threshold."""
+    from acl.fit.select import select_effects, withdraw_if_inadequate
+
+    planted = {"drive_saturation": FD.SAT_STATE, "offset_drift": FD.DRIFT}
+    problem, _ = _state_problem(tmp_path, "latch+state", planted, 102)
+    sel = withdraw_if_inadequate(select_effects(problem, seed=102), problem)
+    assert sorted(sel.selected) == sorted(planted) and not sel.ambiguous
+    assert sel.final.chi2 < 0.6 * problem.y.size
+
+
+def test_the_smoothed_switch_is_the_step_in_the_limit_and_smooth_across_it(tmp_path):
+    """acl.fit.forward.latch_travel ``blend`` (a search device only): 0 gives the step; a narrow blend agrees with the
+    step away from the switching force; at it, the travel is the mean of the two branches; every blend is continuous."""
+    from acl.fit.forward import latch_travel
+
+    problem, _ = _state_problem(tmp_path, "latch+state", {}, 100)
+    table = problem.prepared.latch_tables[0]
+    fsw = table[2]
+    x = fsw * np.linspace(0.5, 1.5, 2001)
+    step = latch_travel(x, table)
+    assert np.array_equal(latch_travel(x, table, blend=0.0), step)
+    far = np.abs(x / fsw - 1.0) > 0.01
+    assert np.allclose(latch_travel(x, table, blend=1e-3)[far], step[far], rtol=0, atol=1e-12)
+    mid = latch_travel(np.array([fsw]), table, blend=0.05)[0]
+    assert mid == pytest.approx(0.5 * (latch_travel(np.array([fsw]), table)[0] + np.interp(fsw, table[3], table[4])))
+    assert np.max(np.abs(np.diff(step))) > 0.5 * (table[4][0] - table[1][-1])        # the step jumps by the stroke
+    assert np.max(np.abs(np.diff(latch_travel(x, table, blend=0.05)))) < 0.05 * (table[4][0] - table[1][-1])
+
+
+def scale_figures(tmp_path) -> dict:
+    """Three latch angles, clean data, held-out seed 202 (docs/fit.md shows these): the offset_drift's F-test against
+    the base model with the variance of all rows (the former test) and of the shuttle rows (states have no scale)."""
+    from acl.fit import solve
+    from acl.fit.forward import predict
+    from acl.fit.select import _with_value, effect_coefs
+
+    problem, _ = _state_problem(tmp_path, "latch+state/angles", {}, 202)
+    P = problem.prepared
+
+    def model(a, b):
+        return predict(P, a, b)
+
+    base = solve.fit(model, problem.y, problem.sigma, problem.coefs)
+    coefs = [_with_value(c, v) for c, v in zip(problem.coefs, base.values)] + effect_coefs("offset_drift", problem)[0]
+    drift = solve.fit(model, problem.y, problem.sigma, coefs)
+    st = P.state
+    return {"problem": problem, "drift": drift, "rows": problem.y.size, "states": int(st.sum()),
+            "redchi_all": drift.chi2 / (problem.y.size - drift.p), "redchi": drift.redchi,
+            "p_diluted": solve.f_test(base.chi2, base.p, drift.chi2, drift.p, problem.y.size)[1],
+            "p": solve.nested_f_test(base, drift)[1], "gate": 0.01 / 7}
+
+
+def test_latch_states_do_not_dilute_the_scale_of_the_f_test(tmp_path):
+    """Three latch angles, clean data, held-out seed 202: 615 shuttle rows carry the noise's scale, 615 state rows only
+    their deviance (near 0 each).  The F-test's variance estimate was the chi-square over all 1,230 rows (half the
+    shuttle rows' reduced chi-square), so F doubled and the noise's trend in time passed as an offset_drift (F-test p
+    0.0004 against the gate 0.0014; the same draw made gain, resonance and shrinkage truths claim a drift too).  With
+    the shuttle rows' scale the drift's p is about 0.02 and nothing is claimed; the reduced chi-square is the shuttle
+    rows'."""
+    from acl.fit.select import select_effects
+
+    f = scale_figures(tmp_path)
+    problem, drift = f["problem"], f["drift"]
+    st = problem.prepared.state
+    assert drift.n_scale == int((~st).sum()) and drift.chi2_scale < drift.chi2
+    assert drift.redchi == pytest.approx(np.sum(drift.wresidual[~st] ** 2) / ((~st).sum() - drift.p))
+    assert f["redchi_all"] < 0.6 < 0.9 < f["redchi"]
+    assert f["p_diluted"] < f["gate"] < f["p"]
+    sel = select_effects(problem, seed=202)
+    assert sel.selected == [] and sel.ambiguous == []

@@ -299,12 +299,43 @@ def latch_table(geometry) -> tuple:
     return Fa, ua, float(Fa[-1]), Fb, ub
 
 
-def latch_travel(load, table, e_scale=1.0):
+def latch_travel(load, table, e_scale=1.0, blend=0.0):
     """Shuttle travel under ``load`` from state a: the first branch below the switching force, the far branch above it
-    (a fresh ramp from state a on every row; latch_force scales with E, acl.physics.latch)."""
+    (a fresh ramp from state a on every row; latch_force scales with E, acl.physics.latch).
+
+    ``blend`` > 0 (a search device, never the model: acl.fit.select._cross_switch): the expected travel when the
+    switching force scatters log-normally by ``blend`` (the probit of :func:`switch_probability`), (1 - p) u_a + p u_b,
+    which is smooth in the load where the step is not."""
     Fa, ua, fsw, Fb, ub = table
     x = np.asarray(load, float) / e_scale
+    if blend > 0:
+        p = switch_probability(x / fsw, blend)
+        return (1.0 - p) * np.interp(x, Fa, ua) + p * np.interp(x, Fb, ub)
     return np.where(x <= fsw, np.interp(x, Fa, ua), np.interp(x, Fb, ub))
+
+
+def lone_latch_rows(P) -> np.ndarray:
+    """(n,) bool: displacement rows of a latch on its own (not in a pair or a group; not a state row)."""
+    if P.latch_id is None:
+        return np.zeros(P.n, bool)
+    grp = P.group_row if P.group_row is not None else np.zeros(P.n, bool)
+    state = P.state if P.state is not None else np.zeros(P.n, bool)
+    return (P.latch_id >= 0) & ~P.pair & ~grp & ~state & (P.s0 != 0)
+
+
+def latch_branch_mismatch(P, y, prediction) -> np.ndarray:
+    """(n,) bool: lone-latch displacement rows whose ``prediction`` lies on the other side of the switch than the
+    measured value ``y`` (each side of the midpoint between the travel at the switching force and state b)."""
+    out = np.zeros(P.n, bool)
+    rows = lone_latch_rows(P)
+    for tid in np.unique(P.latch_id[rows]):
+        m = rows & (P.latch_id == tid)
+        _, ua, _, _, ub = P.latch_tables[tid]
+        mid = 0.5 * (ua[-1] + ub[0])
+        meas = (np.asarray(y, float)[m] - P.base[m]) / P.s0[m] > mid
+        pred = (np.asarray(prediction, float)[m] - P.base[m]) / P.s0[m] > mid
+        out[np.flatnonzero(m)] = meas != pred
+    return out
 
 
 def latch_travel_exact(load, geometry, table, e_scale=1.0, steps=4):
@@ -352,12 +383,13 @@ from acl.physics.effects import (capsule_volume_frequency_table, drag_load, elas
 # Prediction
 # ----------------------------------------------------------------------------------------------
 
-def predict(P: Prepared, coeffs: dict, effects: dict) -> np.ndarray:
+def predict(P: Prepared, coeffs: dict, effects: dict, latch_blend: float = 0.0) -> np.ndarray:
     """Predicted value (SI) of every row.  ``coeffs``: gamma, alpha, e_scale, gain, f0 / q (scales of every
     capsule's natural frequency and Q), ``f0@CAP`` / ``q@CAP`` (one capsule's), absent = design value;
-    ``effects``: effect id -> {param: value} (internal coordinates, acl.fit.effects)."""
+    ``effects``: effect id -> {param: value} (internal coordinates, acl.fit.effects).  ``latch_blend`` > 0: a lone
+    latch's shuttle travel smoothed across its switch (:func:`latch_travel`; a search device, not the model)."""
     with np.errstate(all="ignore"):
-        return _predict(P, coeffs, effects)
+        return _predict(P, coeffs, effects, latch_blend)
 
 
 def _resonance_factors(P: Prepared, coeffs: dict, effects: dict):
@@ -404,7 +436,7 @@ def _resonance_factors(P: Prepared, coeffs: dict, effects: dict):
     return np.where(np.isfinite(out), out, 0.0)
 
 
-def _predict(P: Prepared, coeffs: dict, effects: dict) -> np.ndarray:
+def _predict(P: Prepared, coeffs: dict, effects: dict, latch_blend: float = 0.0) -> np.ndarray:
     gamma = coeffs.get("gamma", P.gamma0)
     alpha = coeffs.get("alpha", P.alpha0)
     e_scale = coeffs.get("e_scale", 1.0)
@@ -489,7 +521,7 @@ def _predict(P: Prepared, coeffs: dict, effects: dict) -> np.ndarray:
             m = P.latch_id[idx] == tid
             table = P.latch_tables[tid]
             ratio[idx[m]] = load[m] / (table[2] * es)
-            d_0[idx[m]] = latch_travel(load[m], table, es)
+            d_0[idx[m]] = latch_travel(load[m], table, es, latch_blend)
     if np.any(P.pair):
         idx = np.flatnonzero(P.pair)
         law0, law1, same = rows(idx)
@@ -526,6 +558,7 @@ def _predict(P: Prepared, coeffs: dict, effects: dict) -> np.ndarray:
             # The row "predicts" y + r / w.
             y, wt, held = P.pearson
             REWEIGHT.seen = True
+            REWEIGHT.rows = P.state
             if REWEIGHT.active:
                 held["var"], held["gen"] = np.maximum(p * (1.0 - p), 1e-10), REWEIGHT.generation
             if held.get("gen") == REWEIGHT.generation:
@@ -549,6 +582,7 @@ class _Reweight:
         self.active = False
         self.generation = 0
         self.seen = False              # set by a prediction that had state rows to weigh
+        self.rows = None               # (n,) bool: the state rows of that prediction
 
     def __enter__(self):
         self.active = True

@@ -143,9 +143,56 @@ def _untrap(model, problem, coefs, starts, fit):
     gradient (pair, planted drift, seed 105: chi-square 1,772 for 360 rows, while the same model reaches 360 from a
     robust start).  Fit again with a soft-l1 pass first (solve.fit ``robust_start``: the far rows cannot pull the
     start), from the same starts, and keep the lower chi-square (the final fit is plain least squares either way)."""
-    if not _beyond_jump(fit, problem):
+    if _beyond_jump(fit, problem):
+        again = solve.fit(model, problem.y, problem.sigma, coefs, starts=starts or None, robust_start=True)
+        fit = again if again.chi2 < fit.chi2 else fit
+    return _cross_switch(model, problem, coefs, fit)
+
+
+LATCH_BLEND = (0.2, 0.1, 0.05, 0.02, 0.01)    # continuation: relative scatter of the switching force, wide to narrow
+
+
+def _cross_switch(model, problem, coefs, fit):
+    """A lone latch's shuttle row predicted on the other side of the switch than measured (switched in the model, not
+    in the data, or the reverse) is off by the whole stroke (~70 um, ~350 sigma) and gives no gradient: the model's
+    travel is a step at the switching force, flat on both branches.  One such row outweighs every other row, and the
+    fit of an effect stops there; and a row predicted at the switching force itself pins the fit at the step's kink
+    (a step of any coordinate that moves it across costs the stroke), so the other coordinates stop too (xtol).  One
+    latch with state rows, saturation + drift, seed 102: the saturation fitted with the drift stopped at chi-square
+    247,207 with two rows across the switch, and from another start at 1,130 pinned at the kink with the offset at a
+    fifth of its value; the planted pair reaches 440.4.
+
+    When some row is across the switch, or the fit fails the goodness of fit of its Gaussian rows (p < GOF_P, sigma
+    given) with a row within reach of the narrowest smoothing (its prediction with LATCH_BLEND[-1] differs from the
+    exact one by more than its sigma), continue from the fit through fits of the same
+    model with the step smoothed into the expected travel of a switching force scattered log-normally by s
+    (acl.fit.forward.latch_travel ``blend``; the probit of the state rows), s from LATCH_BLEND[0] down to
+    LATCH_BLEND[-1]; then fit the exact model from there and keep whichever exact fit has the lower chi-square.  The
+    smoothed model only supplies a start: the model, its likelihood and every statistic stay the exact ones.  A fit
+    that explains its rows to the noise is not trapped and is left alone (a latch whose saturated push stays just
+    below the switching force on every ramp: the smoothing would only pull gamma to its bound, where the drift's fit
+    was then judged not identifiable)."""
+    from acl.fit.forward import latch_branch_mismatch, lone_latch_rows, predict
+
+    P = problem.prepared
+    rows = lone_latch_rows(P)
+    if not np.any(rows):
         return fit
-    again = solve.fit(model, problem.y, problem.sigma, coefs, starts=starts or None, robust_start=True)
+    if not np.any(latch_branch_mismatch(P, problem.y, fit.prediction)):
+        if problem.data.has_sigma:
+            from scipy.stats import chi2
+
+            if chi2.sf(fit.chi2_scale, max(fit.n_scale - fit.p, 1)) >= GOF_P:
+                return fit
+        near = np.abs(predict(P, *fit.as_inputs(), latch_blend=LATCH_BLEND[-1]) - fit.prediction) > problem.sigma
+        if not np.any(near & rows):
+            return fit
+    values = list(fit.values)
+    for s in LATCH_BLEND:
+        smooth = solve.fit(lambda a, b, s=s: predict(P, a, b, latch_blend=s), problem.y, problem.sigma,
+                           [_with_value(c, v) for c, v in zip(coefs, values)])
+        values = list(smooth.values)
+    again = solve.fit(model, problem.y, problem.sigma, [_with_value(c, v) for c, v in zip(coefs, values)])
     return again if again.chi2 < fit.chi2 else fit
 
 
@@ -186,7 +233,7 @@ def select_effects(problem, candidates=None, p_limit=P_LIMIT, k_folds=K_FOLDS, s
                 coefs = [_with_value(c, v) for c, v in zip(current_coefs, current.values)] + ecoefs
                 starts = [list(current.values) + s for s in estarts]
                 trial_fit = solve.fit(model, problem.y, problem.sigma, coefs)
-                F, p = solve.f_test(current.chi2, current.p, trial_fit.chi2, trial_fit.p, problem.y.size)
+                F, p = solve.nested_f_test(current, trial_fit)
                 # the effect may matter, or the fit ended worse than the current model it contains (at the effect's
                 # null value): a failed optimization, e.g. rows thrown past a snap-in fold by the first start.  Look
                 # for a better minimum from the effect's other starts.
@@ -194,11 +241,11 @@ def select_effects(problem, candidates=None, p_limit=P_LIMIT, k_folds=K_FOLDS, s
                     again = solve.fit(model, problem.y, problem.sigma, coefs, starts=[list(trial_fit.values)] + starts)
                     if again.chi2 < trial_fit.chi2:
                         trial_fit = again
-                        F, p = solve.f_test(current.chi2, current.p, trial_fit.chi2, trial_fit.p, problem.y.size)
+                        F, p = solve.nested_f_test(current, trial_fit)
                 again = _untrap(model, problem, coefs, starts, trial_fit)
                 if again is not trial_fit:
                     trial_fit = again
-                    F, p = solve.f_test(current.chi2, current.p, trial_fit.chi2, trial_fit.p, problem.y.size)
+                    F, p = solve.nested_f_test(current, trial_fit)
                 if p < limit:
                     # is the gain the effect's, or did the optimizer just find a better point of the current
                     # model (a jump at a snap-in fold, a local minimum)?  Refit the current model from there.
@@ -329,7 +376,7 @@ def _replacements(problem, model, names, selected, current, eid, p_limit, progre
     kinds = {c.kind for c in rest}
     others = [e for e in names if e not in selected and not applicable(e, problem, kinds)]
     limit = p_limit / max(len(others) + 1, 1)
-    _, p_keep = solve.f_test(reduced.chi2, reduced.p, current.chi2, current.p, problem.y.size)
+    _, p_keep = solve.nested_f_test(reduced, current)
     tries = []
     if drop_check and not p_keep < limit:
         return reduced, p_keep, limit, tries
@@ -341,7 +388,7 @@ def _replacements(problem, model, names, selected, current, eid, p_limit, progre
         rstarts = [list(reduced.values) + st for st in estarts]
         trial = _untrap(model, problem, coefs, rstarts,
                         solve.fit(model, problem.y, problem.sigma, coefs, starts=rstarts or None))
-        F, p = solve.f_test(reduced.chi2, reduced.p, trial.chi2, trial.p, problem.y.size)
+        F, p = solve.nested_f_test(reduced, trial)
         ok = bool(p < limit and not _not_determined(trial, sigma_given) and not _loose(trial, sigma_given))
         tries.append({"replaces": eid, "effect": cid, "fit": trial, "f_stat": F, "p_value": p, "explains": ok})
     return reduced, p_keep, limit, tries

@@ -59,6 +59,8 @@ class FitResult:
     full_rank: bool = True            # the Jacobian has full rank (False: some direction is not determined at all)
     wresidual: np.ndarray = None      # (n,) weighted residual whose squares sum to -2 ln L + const (a latch state: its
     #                                   deviance residual); chi2 is its sum of squares over the train rows
+    n_scale: int = 0                  # train rows whose weighted residual has a scale to estimate (all but latch states)
+    chi2_scale: float = 0.0           # their weighted sum of squares (chi2 without the states' deviance)
 
     @property
     def covariance(self) -> np.ndarray:
@@ -160,6 +162,7 @@ def fit(predict, y, sigma, coefs, train=None, starts=None, max_nfev=200, robust_
     pred = full(u)
     r = pred - y
     rw_all = r * w
+    seen_states = REWEIGHT.seen and REWEIGHT.rows is not None and np.shape(REWEIGHT.rows) == (n_all,)
     if REWEIGHT.seen:
         # latch states: the residual shown is the Pearson residual (variances held at the optimum), but the statistics
         # (chi-square, F-tests, information criteria, cross-validation) use the deviance residual, whose sum of
@@ -170,8 +173,19 @@ def fit(predict, y, sigma, coefs, train=None, starts=None, max_nfev=200, robust_
     rw = rw_all[train]
     n, p = train.size, len(coefs)
     chi2 = float(rw @ rw)
-    dof = max(n - p, 1)
-    redchi = chi2 / dof
+    # latch states (0/1, acl.fit.forward) count by their deviance, which has no scale to estimate: the residual
+    # variance (reduced chi-square, the covariance's scale, the F-test's denominator) and the Gaussian part of the
+    # likelihood come from the other rows alone (with many states their near-zero deviances halved the reduced
+    # chi-square: intervals too narrow by ~1.4x and F statistics doubled); states alone (binary outcomes) have their
+    # dispersion fixed at 1 (McCullagh & Nelder 1989, sec. 4.5)
+    states = np.asarray(REWEIGHT.rows, bool)[train] if seen_states else np.zeros(n, bool)
+    n_scale = int(n - states.sum())
+    chi2_scale = float(rw[~states] @ rw[~states]) if n_scale < n else chi2
+    if n_scale < n and n_scale - p < 1:
+        dof, redchi = max(n - p, 1), 1.0
+    else:
+        dof = max(n_scale - p, 1)
+        redchi = chi2_scale / dof
     values = u * scale
     stderr = np.full(p, np.nan)
     corr = np.eye(p)
@@ -220,14 +234,18 @@ def fit(predict, y, sigma, coefs, train=None, starts=None, max_nfev=200, robust_
         for j in range(i + 1, p):
             if abs(corr[i, j]) > CORR_STRONG:
                 warnings.append(f"strong correlation {coefs[i].name} / {coefs[j].name}: r = {corr[i, j]:+.3f}")
-    rss_ll = max(chi2, 1e-300)
     k = p + 1
-    aic = n * math.log(rss_ll / n) + 2 * k
+    if n_scale < n:
+        # -2 ln L (+ const) with the Gaussian rows' scale profiled out, plus the states' deviance
+        ll2 = n_scale * math.log(max(chi2_scale, 1e-300) / max(n_scale, 1)) + (chi2 - chi2_scale)
+    else:
+        ll2 = n * math.log(max(chi2, 1e-300) / n)
+    aic = ll2 + 2 * k
     aicc = aic + (2 * k * (k + 1)) / max(n - k - 1, 1)
-    bic = n * math.log(rss_ll / n) + k * math.log(n)
+    bic = ll2 + k * math.log(n)
     rmse = float(np.sqrt(np.mean(r[train] ** 2)))
     return FitResult(list(coefs), values, stderr, ci, corr, pred, r, train, n, p, chi2, redchi, rmse, aicc, bic,
-                     success, str(message), warnings, identifiable, full_rank, rw_all)
+                     success, str(message), warnings, identifiable, full_rank, rw_all, n_scale, chi2_scale)
 
 
 def _reweighted(best, resid, full, lo, hi, max_nfev, least_squares):
@@ -331,16 +349,28 @@ def _leave_out_jumps(best, resid, train, full, y, w, lo, hi, max_nfev, least_squ
     return best
 
 
-def f_test(chi2_small, p_small, chi2_big, p_big, n) -> tuple[float, float]:
-    """Nested-model F-test: F = ((RSS0 - RSS1)/(p1 - p0)) / (RSS1/(n - p1)); returns (F, p-value)."""
+def f_test(chi2_small, p_small, chi2_big, p_big, n, scale=None) -> tuple[float, float]:
+    """Nested-model F-test: F = ((RSS0 - RSS1)/(p1 - p0)) / (RSS1/(n - p1)); returns (F, p-value).
+
+    ``scale``: (chi-square, rows) of the bigger model's rows that carry a scale, when some rows do not (latch states
+    count by their deviance): the denominator is then that chi-square over (rows - p1), the residual variance of the
+    Gaussian rows, and the numerator the drop of -2 ln L over all rows (a likelihood-ratio statistic in units of the
+    estimated variance)."""
     from scipy.stats import f as fdist
 
     dp = p_big - p_small
-    dof = n - p_big
-    if dp <= 0 or dof <= 0 or chi2_big <= 0:
+    rss, rows = (chi2_big, n) if scale is None else scale
+    dof = rows - p_big
+    if dp <= 0 or dof <= 0 or rss <= 0:
         return float("nan"), 1.0
-    F = ((chi2_small - chi2_big) / dp) / (chi2_big / dof)
+    F = ((chi2_small - chi2_big) / dp) / (rss / dof)
     return float(F), float(fdist.sf(F, dp, dof)) if F > 0 else 1.0
+
+
+def nested_f_test(small: FitResult, big: FitResult) -> tuple[float, float]:
+    """:func:`f_test` of fit ``big`` against the nested fit ``small`` (the Gaussian rows' scale when there are states)."""
+    scale = (big.chi2_scale, big.n_scale) if big.n_scale < big.n else None
+    return f_test(small.chi2, small.p, big.chi2, big.p, big.n, scale)
 
 
 def _fmt(v):
