@@ -72,6 +72,7 @@ class GroupBlock:
     oj: np.ndarray            # (r,) gap: orifice b
     axis: np.ndarray          # (r, 3) displacement axis / position unit vector
     obase: np.ndarray         # (r,) position: rest coordinate
+    neighboured: np.ndarray = None  # (N,) bool: neighbour_drag acts on the node (acl.fit.mechanism.Network)
     springs: list = None      # (N,) per node: ((stiffness, unit axis), ...) of springs tying it to fixed points
     engines: list = None      # [acl.analysis.acoustics force engine of every drive frequency of the rows at 1 V]
     fidx: np.ndarray = None   # (r, T) index of each tone's frequency in that engine (-1: no tone)
@@ -180,7 +181,8 @@ def block(inst, unit, name, rows, f, v, gamma0, alpha_ref, ftable) -> GroupBlock
     names = [c.name for c in lay.caps]
     extra = dict(engines=engines, fidx=fidx, orif_ix=np.array([lay.labels.index(lab) for lab in net.labels]),
                  cap_ix=np.array([names.index(c) for c in net.caps]), all_rest=np.asarray(lay.rest, float),
-                 gamma0=float(gamma0), alpha_ref=float(alpha_ref), springs=[tuple(s.springs) for s in sides])
+                 gamma0=float(gamma0), alpha_ref=float(alpha_ref), springs=[tuple(s.springs) for s in sides],
+                 neighboured=None if net.neighboured is None else np.asarray(net.neighboured, bool))
     return GroupBlock(np.asarray(rows), net.caps, law, np.array([s.L for s in sides]), np.array([s.l for s in sides]),
                       np.array([s.EI for s in sides]), cd, basis, k, latch, latch_geo, np.asarray(net.cap_node, int),
                       np.asarray(net.rest, float), np.asarray(net.outer, float), height,
@@ -342,7 +344,8 @@ def predict(P, blk: GroupBlock, coeffs, effects, w, gamma, alpha, es, lam, grad,
         F = F + np.einsum("roc,ok->rck", drag, blk.normals)
         Fn = scale[:, None, None] * np.einsum("rck,cn->rnk", F, to_node)
         if c_p > 0:
-            Fn = drag_load(Fn, np.linalg.norm(x, axis=-1)[..., None], c_p)
+            dragged_n = drag_load(Fn, np.linalg.norm(x, axis=-1)[..., None], c_p)
+            Fn = dragged_n if blk.neighboured is None else np.where(blk.neighboured[None, :, None], dragged_n, Fn)
         for i, ties in tied:             # springs to fixed points pull back along their axes (elastic, not scaled)
             for ks, ax in ties:
                 Fn[:, i] -= ks * (x[:, i] @ ax)[:, None] * ax[None]

@@ -371,6 +371,17 @@ def build_instance(design, model: str = "eq3", coupled: bool = False) -> Instanc
         for o in design.observes:
             units[o.name] = group_unit(whole, o)
             _check_direction(design, units[o.name], o)
+        # neighbour_drag (the paper's plateau, Fig. 5b: drag of a close neighbour) acts on the nodes with a neighbour:
+        # capsules named together in a `gap` observe, or tied by a truss or spring to another node; not on a
+        # calibration beam 400 um away (as when it was a lone actuator)
+        net = units[design.observes[0].name].net
+        node = dict(zip(net.caps, net.cap_node))
+        near = set(comp)
+        for j in design.joints:
+            if j.kind == "link" and j.element_kind in ("truss", "spring") and node.get(j.a) != node.get(j.b):
+                near |= {j.a, j.b}
+        net.neighboured = np.array([any(node.get(c) == i and c in near for c in net.caps)
+                                    for i in range(int(net.cap_node.max()) + 1)], bool)
         med = _medium(design)
         return Instance(design=design, units=units,
                         medium=(med.density, med.surface_tension, med.ambient_pressure, med.polytropic_index))
@@ -423,6 +434,7 @@ class Network:
     normals: np.ndarray          # (n, 3) outward unit normals (the jets)
     modes: np.ndarray            # (n, 2) natural frequency (Hz) and Q of the mode each orifice dominates
     bubbles: tuple               # per capsule: (gas volume, orifice radii, natural frequency of each orifice's mode)
+    neighboured: np.ndarray = None   # (N,) bool: the node has a close neighbour (neighbour_drag acts); None: every node
 
     @property
     def points(self) -> np.ndarray:
