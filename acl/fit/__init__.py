@@ -78,7 +78,10 @@ def run_fit(design_path, data_paths, free=(), search_paths=(), candidates=None, 
     t0 = time.perf_counter()
     from acl.fit.report import tone_gain_stderr
 
-    tone_se = tone_gain_stderr(problem, selection.final)
+    try:
+        tone_se = tone_gain_stderr(problem, selection.final)
+    except (ValueError, np.linalg.LinAlgError):      # no figure: the bands keep the table's prior at every tone
+        tone_se = {}
     timing["tone_gain_stderr"] = time.perf_counter() - t0
     report["tone_gain_stderr"] = [{"frequency_hz": f, "relative_stderr": s} for f, s in tone_se.items()]
     text = calibrated_text(problem, selection, cal_path, data_paths, report_dir, tone_gain=tone_se)
