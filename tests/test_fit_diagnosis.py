@@ -144,23 +144,28 @@ def _problem(tmp_path, kind, planted, seed):
     return load_problem(design, [path], free=free)
 
 
+def _base_then_effect(problem, effect):
+    """The base model's fit, then ``effect`` fitted from the base values (as the search's first round does)."""
+    from acl.fit import solve
+    from acl.fit.forward import predict
+    from acl.fit.select import _with_value, effect_coefs
+
+    def model(a, b):
+        return predict(problem.prepared, a, b)
+
+    base = solve.fit(model, problem.y, problem.sigma, problem.coefs)
+    coefs = [_with_value(c, v) for c, v in zip(problem.coefs, base.values)] + effect_coefs(effect, problem)[0]
+    return base, solve.fit(model, problem.y, problem.sigma, coefs)
+
+
 def test_the_fit_leaves_a_snap_in_trap_that_gives_no_gradient(tmp_path):
     """Pair, planted tilt, seed 109: from the base model's values the gain fit stopped with 4 rows predicted in contact
     (past snap-in) while measured 37-48 um apart (chi-square 81,804 for 360 rows); the rows give no gradient, so only a
     probe across the fold finds the minimum near the truth (a neighbour_drag was selected to get there)."""
     from acl.fit import solve
-    from acl.fit.forward import predict
-    from acl.fit.select import _with_value, effect_coefs
 
     problem = _problem(tmp_path, "pair", {"transducer_gain": FD.GAIN}, 109)
-    P = problem.prepared
-
-    def model(a, b):
-        return predict(P, a, b)
-
-    base = solve.fit(model, problem.y, problem.sigma, problem.coefs)
-    coefs = [_with_value(c, v) for c, v in zip(problem.coefs, base.values)] + effect_coefs("transducer_gain", problem)[0]
-    fit = solve.fit(model, problem.y, problem.sigma, coefs)
+    _, fit = _base_then_effect(problem, "transducer_gain")
     assert fit.chi2 < 1.2 * problem.y.size
     assert not np.any(np.abs(fit.residual / problem.sigma) > solve.JUMP)
     assert fit.value("transducer_gain.gain_slope") == pytest.approx(1.5, abs=0.1)
@@ -448,19 +453,10 @@ def scale_figures(tmp_path) -> dict:
     """Three latch angles, clean data, held-out seed 202 (docs/fit.md shows these): the offset_drift's F-test against
     the base model with the variance of all rows (the former test) and of the shuttle rows (states have no scale)."""
     from acl.fit import solve
-    from acl.fit.forward import predict
-    from acl.fit.select import _with_value, effect_coefs
 
     problem, _ = _state_problem(tmp_path, "latch+state/angles", {}, 202)
-    P = problem.prepared
-
-    def model(a, b):
-        return predict(P, a, b)
-
-    base = solve.fit(model, problem.y, problem.sigma, problem.coefs)
-    coefs = [_with_value(c, v) for c, v in zip(problem.coefs, base.values)] + effect_coefs("offset_drift", problem)[0]
-    drift = solve.fit(model, problem.y, problem.sigma, coefs)
-    st = P.state
+    base, drift = _base_then_effect(problem, "offset_drift")
+    st = problem.prepared.state
     return {"problem": problem, "drift": drift, "rows": problem.y.size, "states": int(st.sum()),
             "redchi_all": drift.chi2 / (problem.y.size - drift.p), "redchi": drift.redchi,
             "p_diluted": solve.f_test(base.chi2, base.p, drift.chi2, drift.p, problem.y.size)[1],
