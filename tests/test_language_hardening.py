@@ -165,6 +165,17 @@ def test_overflow_is_e305_where_it_arises(expr):
     assert _codes(f"param g = {expr}\n") == [("E305", 1, 11)]
 
 
+@pytest.mark.parametrize("expr", ["1e-400", "1e-400 um", "2e-310", "1e-305 um", "5e-324 s"])
+def test_underflow_of_a_literal_is_e305_not_a_silent_zero(expr):
+    """`1e-400 um` read as 0 (and `1e-305 um` is 1e-311 m, a subnormal after the unit: precision lost)."""
+    assert _codes(f"param g = {expr}\n") == [("E305", 1, 11)]
+
+
+@pytest.mark.parametrize("expr", ["0", "0 um", "0.0e-999 um", "1e-290 um", "2.3e-308"])
+def test_zero_and_small_normal_literals_are_fine(expr):
+    acl.loads(f"param g = {expr}\n", "t.acl")       # no diagnostic
+
+
 def test_overflow_in_a_value_derived_from_entries_is_e305_at_its_declaration(tmp_path):
     f = tmp_path / "huge.acl"
     f.write_text("import stdlib.media\nimport stdlib.transducers\nuse medium media.pbs\n"

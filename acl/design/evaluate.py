@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import sys
 
 from acl.design.core import D, IDENTS, SCHEMAS, Fail, example, what_is
 from acl.design.modules import Loader, ModuleEnv, stdlib_modules
@@ -75,6 +76,10 @@ class Resolver:
             if not math.isfinite(e.value):
                 self.bag.error("E305", "number is not finite (too large for a 64-bit float)", e.span)
                 raise Fail()
+            if e.underflow:
+                self.bag.error("E305", "number is too small for a 64-bit float (below 2.2e-308: it would read as 0)",
+                               e.span, "write 0 if zero is meant")
+                raise Fail()
             return Quantity(e.value)
         if isinstance(e, A.Qty):
             try:
@@ -85,6 +90,10 @@ class Resolver:
             v = e.value * factor
             if not math.isfinite(v):
                 self.bag.error("E305", "quantity is not finite", e.span)
+                raise Fail()
+            if e.underflow or (e.value != 0 and abs(v) < sys.float_info.min):
+                self.bag.error("E305", "quantity is too small for a 64-bit float in SI units (below 2.2e-308: it would "
+                               "read as 0)", e.span, "write 0 if zero is meant")
                 raise Fail()
             return Quantity(v, dims)
         if isinstance(e, A.Str):

@@ -16,12 +16,14 @@ class Expr:
 @dataclass(frozen=True)
 class Num(Expr):
     value: float
+    underflow: bool = False     # a literal with a nonzero digit that a 64-bit float rounds to 0 or a subnormal
 
 
 @dataclass(frozen=True)
 class Qty(Expr):
     value: float
     unit: str
+    underflow: bool = False     # as Num.underflow, for the number in front of the unit
 
 
 @dataclass(frozen=True)

@@ -5,6 +5,7 @@ import contextlib
 import functools
 import gc
 import re
+import sys
 from importlib import resources
 
 from lark import Lark, Token, Tree
@@ -28,6 +29,13 @@ _TERMINAL_WORDS = {
 # Words from other languages for program steps -> the acl step.
 _STEP_WORDS = {"wait": "pause", "sleep": "pause", "delay": "pause", "idle": "pause", "ramp": "sweep",
                "play": "drive", "tone": "drive", "move": "follow", "trace": "follow", "toggle": "switch"}
+
+
+def _underflows(text: str) -> bool:
+    """True when a literal with a nonzero digit is below the smallest normal 64-bit float (it would read as 0 or
+    lose its precision): `1e-400` is not zero."""
+    v = abs(float(text))
+    return v < sys.float_info.min and re.search(r"[1-9]", re.split(r"[eE]", text)[0]) is not None
 
 
 class _ParenNewlines:
@@ -185,10 +193,10 @@ class _Builder:
     def QUANTITY(self, tok):
         m = re.match(r"(\d+\.\d+|\d+\.(?!\.)|\.\d+|\d+)([eE][+-]?\d+)?", tok.value)
         num = m.group(0)
-        return A.Qty(self._s(tok), float(num), tok.value[len(num):].strip())
+        return A.Qty(self._s(tok), float(num), tok.value[len(num):].strip(), _underflows(num))
 
     def NUMBER(self, tok):
-        return A.Num(self._s(tok), float(tok.value))
+        return A.Num(self._s(tok), float(tok.value), _underflows(tok.value))
 
     def STRING(self, tok):
         return A.Str(self._s(tok), tok.value[1:-1])
