@@ -463,6 +463,26 @@ def scale_figures(tmp_path) -> dict:
             "p": solve.nested_f_test(base, drift)[1], "gate": 0.01 / 7}
 
 
+def test_states_alone_test_an_effect_by_the_likelihood_ratio():
+    """State rows alone carry no scale (dispersion fixed at 1, as solve.fit's reduced chi-square): the F-test had
+    0 - p rows for its variance and returned p = 1, so no effect could ever pass on state rows alone.  The drop of
+    -2 ln L is a chi-square with p1 - p0 degrees of freedom."""
+    from types import SimpleNamespace
+
+    from scipy.stats import chi2
+
+    from acl.fit import solve
+
+    small = SimpleNamespace(chi2=130.0, p=2, n=120, n_scale=0, chi2_scale=0.0)
+    big = SimpleNamespace(chi2=112.0, p=3, n=120, n_scale=0, chi2_scale=0.0)
+    F, p = solve.nested_f_test(small, big)
+    assert F == pytest.approx(18.0) and p == pytest.approx(chi2.sf(18.0, 1)) and p < 1e-4
+    assert solve.nested_f_test(big, small)[1] == 1.0            # not nested that way round
+    # with shuttle rows the scale is theirs (the F-test above), unchanged
+    mixed = SimpleNamespace(chi2=112.0, p=3, n=120, n_scale=60, chi2_scale=57.0)
+    assert solve.nested_f_test(small, mixed) == solve.f_test(130.0, 2, 112.0, 3, 120, (57.0, 60))
+
+
 def test_latch_states_do_not_dilute_the_scale_of_the_f_test(tmp_path):
     """Three latch angles, clean data, held-out seed 202: 615 shuttle rows carry the noise's scale, 615 state rows only
     their deviance (near 0 each).  The F-test's variance estimate was the chi-square over all 1,230 rows (half the

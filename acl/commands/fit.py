@@ -30,16 +30,17 @@ def add_parser(p) -> None:
 
 
 def _model(text: str) -> str:
-    """argparse type of --model: eq3 or coupled (acl.fit.mechanism.MODELS; no heavy import)."""
+    """argparse type of --model: one of acl.fit.mechanism.MODELS (imported only when --model is given)."""
     import argparse
-    import difflib
 
-    models = ("eq3", "coupled")
-    if text in models:
+    from acl.diagnostics import suggest
+    from acl.fit.mechanism import MODELS
+
+    if text in MODELS:
         return text
-    near = difflib.get_close_matches(text, models, n=1, cutoff=0.6)
-    hint = f" (did you mean `{near[0]}`?)" if near else ""
-    raise argparse.ArgumentTypeError(f"{text!r} is not a pair model: eq3 or coupled{hint}")
+    hint = suggest(text, MODELS)
+    raise argparse.ArgumentTypeError(f"{text!r} is not a pair model: {' or '.join(MODELS)}"
+                                     + (f" ({hint})" if hint else ""))
 
 
 def run(args) -> int:

@@ -369,6 +369,15 @@ def f_test(chi2_small, p_small, chi2_big, p_big, n, scale=None) -> tuple[float, 
 
 def nested_f_test(small: FitResult, big: FitResult) -> tuple[float, float]:
     """:func:`f_test` of fit ``big`` against the nested fit ``small`` (the Gaussian rows' scale when there are states)."""
+    if big.n_scale < big.n and big.n_scale - big.p < 1:
+        # states alone (or too few Gaussian rows to estimate a scale): dispersion fixed at 1, as fit() does, so the
+        # drop of -2 ln L is a likelihood-ratio chi-square with p1 - p0 degrees of freedom
+        from scipy.stats import chi2 as chi2dist
+
+        dp, drop = big.p - small.p, small.chi2 - big.chi2
+        if dp <= 0:
+            return float("nan"), 1.0
+        return float(drop / dp), float(chi2dist.sf(drop, dp)) if drop > 0 else 1.0
     scale = (big.chi2_scale, big.n_scale) if big.n_scale < big.n else None
     return f_test(small.chi2, small.p, big.chi2, big.p, big.n, scale)
 

@@ -242,7 +242,8 @@ class MarginBand:
 
 def margin_band(design: Design, margin_for: Callable, *, samples: int = 20, seed: int = 0,
                 reload: Reload | None = None) -> MarginBand | None:
-    """5th percentile of ``margin_for(design)`` over designs drawn from the declared uncertainty.
+    """5th percentile of ``margin_for(design)`` over designs drawn from the declared uncertainty, bounded from below
+    by an order statistic (:func:`_lower_quantile`: the smallest of 20 draws).
 
     ``margin_for(d) -> float`` or ``(float, {name: ratio})``: the goal's margin on the drawn design
     (>= 1: the goal is met there) and, optionally, ratios that must stay below 1 (another latch's
@@ -266,8 +267,9 @@ def margin_band(design: Design, margin_for: Callable, *, samples: int = 20, seed
         for k, r in extra.items():
             others.setdefault(k, []).append(float(r))
     v = np.array(vals)
-    return MarginBand(float(np.percentile(v, 5.0)) if v.size else float("nan"), len(vals) - failed, failed,
-                      int(np.sum(v < 1.0)), v, {k: float(np.percentile(np.array(r), 95.0)) for k, r in others.items()})
+    # bounds by order statistics, as the error bands: the margin's from below, the ratios' from above
+    return MarginBand(_lower_quantile(v, 5.0), len(vals) - failed, failed, int(np.sum(v < 1.0)), v,
+                      {k: _quantile(np.array(r), 95.0) for k, r in others.items()})
 
 
 def _quantile(x: np.ndarray, q: float) -> float:
@@ -284,6 +286,12 @@ def _quantile(x: np.ndarray, q: float) -> float:
         return float("nan")
     k = min(int(np.ceil(q / 100.0 * (x.size + 1) - 1e-9)), x.size)
     return float(np.sort(np.where(np.isnan(x), np.inf, x))[k - 1])
+
+
+def _lower_quantile(x: np.ndarray, q: float) -> float:
+    """Lower bound of the q-th percentile from ``n`` draws (:func:`_quantile` mirrored): a new draw lies below it with
+    probability at most q/100 (the smallest draw when n < 100/q - 1); -inf when it reaches an unbounded draw."""
+    return -_quantile(-np.asarray(x, float), 100.0 - q)
 
 
 def level(n: int, q: float = 95.0) -> float:
