@@ -121,14 +121,61 @@ class _Compiler:
                          max_voltage_v=vmax, full_scale_v=full_scale, ramp_s=self.opts.ramp_s,
                          source=self.design.file, notes=self.notes, full_scale_source=source)
         sched.sample_rate_hz = fs
-        from acl.schedule.bands import coverage_notes
+        from acl.schedule.bands import coverage_warnings
 
-        self.notes.extend(coverage_notes(self.design, sched))
+        for w in coverage_warnings(self.design, sched, [st.span for st in self.program.steps], self._reach):
+            sched.warnings.append(w)
+            self.notes.append(f"warning: {w.message}")
         _choose_all_phases(sched, fs)
         self._check_peaks(sched)
         self._check_slews(sched)
         self._check_linear(sched)
         return sched
+
+    def _reach(self, goal: GoalReport):
+        """(largest deflection from rest, m, the phrase saying where) a hold, cross or switch goal drives to; None if unknown.
+
+        hold above: each capsule of the pair at the equilibrium under the whole drive; cross: the last
+        stable equilibrium before snap-in (the pair passes through it); switch: the shuttle's travel
+        between the latch's two stable states (it ends in the other one).  A follow goal: None (its path).
+        """
+        if goal.kind not in ("hold", "switch"):
+            return None
+        step = self.program.steps[goal.step]
+        tones = tuple((t.frequency_hz, t.amplitude_v) for s in self.segments
+                      if s.step == goal.step and s.goal == goal.name for t in s.tones if t.amplitude_v > 0)
+        try:
+            if goal.kind == "switch":
+                from acl.analysis.mechanics import latch_geometry
+                from acl.physics.latch import latch_landscape
+
+                if not tones:          # already in the state: nothing moves
+                    return None
+                lt = next(l for l in self.design.latches if l.name == step.latch)
+                land = latch_landscape(*latch_geometry(lt, self.design))
+                if land.state_b is None:
+                    return None
+                return abs(float(land.state_b)), f"the shuttle of latch `{lt.name}` travels to state {step.state},"
+            if not tones:
+                return None
+            from acl.analysis import acoustics, mechanics
+            from acl.design.model import Drive, Tone
+
+            shape = Drive(tones=tuple(Tone(frequency=f, amplitude=a) for f, a in tones))
+            sw = mechanics.sweep_voltage(self.design, shape, 1.0, acoustics.force_model_for(self.design))
+            pos = sw.snap_positions if (step.mode == "cross" and sw.snap_positions is not None) else \
+                {k: v[-1] for k, v in sw.positions.items()}
+            best, who = 0.0, ""
+            for name in (step.a.split(".")[0], step.b.split(".")[0]):
+                c = self.design.capsule(name)
+                r = float(np.linalg.norm(np.asarray(pos[name], float) - np.asarray(c.center, float)))
+                if r > best * (1 + TIE_RTOL):     # a symmetric pair: the first capsule named
+                    best, who = r, name
+            if step.mode == "cross":
+                return best, f"the pair passes, before it snaps in, through capsule `{who}` at"
+            return best, f"the drive holds capsule `{who}` at"
+        except (DiagnosticError, KeyError, StopIteration, ValueError, ArithmeticError):
+            return None         # no mechanics model for this design: the deflection is unknown, not covered
 
     def _check_linear(self, sched: Schedule) -> None:
         """Refuse a segment that drives an interface beyond the linear bubble model (eps/R > LINEAR_AMPLITUDE_LIMIT; docs/physics.md).
