@@ -9,6 +9,11 @@ from acl.commands._common import (add_design_options, add_output_format, load_or
                                   plotting_missing, report)
 from acl.diagnostics import DiagnosticError, Span, error
 
+# what a drive that is no program step was analysed for (acl.analysis.report._drive_entry "basis")
+_ANALYSIS_DRIVE = {"pairs": "pair analysis",
+                   "largest_program_amplitude": "the largest amplitude the programs apply at this frequency",
+                   "reference": "the 1 V reference drive (no drive or goal step sets an amplitude at this frequency)"}
+
 
 def add_parser(p) -> None:
     p.add_argument("file", metavar="FILE", help="design file (.acl), or a folder holding one design")
@@ -144,7 +149,8 @@ def print_report(design, rep) -> None:
         con.print(t)
     nonlinear = [d for d in rep.drives if not d["linear"]]
     for d in nonlinear:
-        where = f"program {d['program']} step {d['step']} (line {d['line']})" if d["program"] else "pair analysis"
+        where = (f"program {d['program']} step {d['step']} (line {d['line']})" if d["program"] else
+                 _ANALYSIS_DRIVE.get(d.get("basis"), "analysis drive"))
         worst = first_max_item(d["interface_amplitude_over_radius"])      # ties: the first declared
         con.print(f"[red]warning:[/red] {where}: {d['drive']} drives {worst[0]} to eps/R = {worst[1]:.6g}, beyond the "
                   f"linear bubble model (eps/R <= {d['linear_limit']:g}; docs/physics.md)")

@@ -180,10 +180,11 @@ class _Compiler:
     def _check_linear(self, sched: Schedule) -> None:
         """Refuse a segment that drives an interface beyond the linear bubble model (eps/R > LINEAR_AMPLITUDE_LIMIT; docs/physics.md).
 
-        Tone amplitudes add (the worst-case peak); chirps are sampled at 9 frequencies.  Allowed with
+        Tone amplitudes add (the worst-case peak); a sweep at its worst frequency (sampled with every mode
+        inside, the largest refined: acoustics.sweep_worst_amplitude).  Allowed with
         ``allow_nonlinear`` (then noted): the predicted forces are then not trustworthy.
         """
-        from acl.analysis.acoustics import interface_amplitudes
+        from acl.analysis.acoustics import interface_amplitudes, sweep_worst_amplitude
         from acl.design.model import Drive, Tone
         from acl.physics.constants import LINEAR_AMPLITUDE_LIMIT
 
@@ -193,7 +194,16 @@ class _Compiler:
                 continue
             worst, where = worst_of.get(seg.step, (0.0, ""))
             chirps = [t for t in seg.tones if t.frequency_end_hz]
-            grid = np.linspace(0.0, 1.0, 9) if chirps else np.zeros(1)
+            if len(chirps) == 1 and len(seg.tones) == 1 and chirps[0].amplitude_v > 0:     # a sweep step
+                t = chirps[0]
+                v, _, amps = sweep_worst_amplitude(self.design, t.frequency_hz, t.frequency_end_hz, t.amplitude_v,
+                                                   self._mode_frequencies())
+                k, v = first_max_item(amps)
+                if v > worst * (1 + TIE_RTOL):
+                    worst, where = v, k
+                worst_of[seg.step] = (worst, where)
+                continue
+            grid = np.linspace(0.0, 1.0, 21) if chirps else np.zeros(1)
             for x in grid:
                 tones = tuple(Tone(frequency=t.frequency_hz + x * ((t.frequency_end_hz or t.frequency_hz) - t.frequency_hz),
                                    amplitude=t.amplitude_v) for t in seg.tones if t.amplitude_v > 0)
@@ -215,6 +225,17 @@ class _Compiler:
                 continue
             raise _diag("E-SCHED-NONLINEAR", text, step.span,
                         "lower the voltage, move the tone off resonance, or pass --allow-nonlinear")
+
+    def _mode_frequencies(self) -> np.ndarray:
+        """Every capsule's mode frequencies (Hz) and the coupled modes' (two or more capsules): a chirp's peaks."""
+        if not hasattr(self, "_modes_hz"):
+            from acl.analysis import acoustics as AC
+
+            fs = [m.frequency_hz for c in self.design.capsules for m in AC.capsule_modes(self.design, c)]
+            if len(self.design.capsules) > 1:
+                fs += [m.frequency_hz for m in AC.coupled_modes(self.design)]
+            self._modes_hz = np.array(fs, float)
+        return self._modes_hz
 
     def _check_slews(self, sched: Schedule) -> None:
         """Every step with a slew limit: the emitted amplitude envelope, crossfades included, obeys it.
