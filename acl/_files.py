@@ -113,3 +113,30 @@ def designs_under(folder: str) -> list[str]:
                          "name the folders that hold your designs (a bind mount or a generated tree can nest without end)")
         stack.extend((d, depth + 1) for d in reversed(subdirs))
     return files
+
+
+def input_named(path: str, inputs) -> str | None:
+    """The input among ``inputs`` that the output ``path`` names (the same file, through links too), else None.
+
+    An output written over an input destroys it: `acl fit --calibrated DESIGN` wrote a design that
+    extends itself over the design, `acl synth -o DESIGN` a CSV over it."""
+    if not path:
+        return None
+    real = os.path.realpath(path)
+    for p in inputs:
+        if not p:
+            continue
+        try:
+            if os.path.exists(path) and os.path.exists(p) and os.path.samefile(path, p):
+                return p
+        except OSError:
+            pass
+        if os.path.realpath(p) == real:
+            return p
+    return None
+
+
+def inputs_inside(folder: str, inputs) -> list[str]:
+    """The inputs that lie in ``folder`` or below it (a folder an output replaces as a whole must hold none)."""
+    top = os.path.realpath(folder).rstrip(os.sep) + os.sep
+    return [p for p in inputs if p and os.path.realpath(p).startswith(top)]

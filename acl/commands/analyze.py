@@ -36,6 +36,10 @@ def run(args) -> int:
         except DiagnosticError as exc:
             report(exc.diagnostics, fmt)
             return 2
+    if args.plot is not None and not args.plot.strip():      # "" is no folder, not "no figures"
+        report([error("E-USAGE", f"--plot {args.plot!r}: an empty path", Span(file="<--plot>", line=1, column=1),
+                      "give a folder, or leave the option out")], fmt)
+        return 2
     if args.plot and plotting_missing("--plot", fmt):
         return 2
     design, code = load_or_report(args.file, args, fmt)

@@ -74,8 +74,11 @@ def run(args) -> int:
         from acl.sweep.table import check_output
 
         check_output(args.output)
+        if args.plot is not None and not args.plot.strip():     # "" is no folder, not "no figures"
+            raise DiagnosticError([error("E-USAGE", f"--plot {args.plot!r}: an empty path", Span(file="<--plot>", line=1, column=1),
+                                         "give a folder, or leave the option out")])
         scheduler_kind(args.scheduler)
-        scales = _scales(args.tolerance_scales) if args.tolerance_scales else None
+        scales = _scales(args.tolerance_scales) if args.tolerance_scales is not None else None
         if args.at is not None:
             from acl.design.drives import drive_from_text
 
@@ -88,6 +91,13 @@ def run(args) -> int:
     design, code = load_or_report(args.file, args, fmt)
     if design is None:
         return code
+    from acl._files import input_named
+
+    hit = input_named(args.output, [*design.sources, design.file])
+    if hit:                    # a CSV the design reads (a gain table) would be replaced by the table
+        report([error("E-USAGE", f"--output {args.output}: names the input {hit}; writing would destroy it",
+                      Span(file="<--output>", line=1, column=1), "give another path")], fmt)
+        return 2
     from acl.commands._common import parse_sets
     from acl.sweep.driver import run_sweep, yield_vs_tolerance
     from acl.sweep.spec import build_spec

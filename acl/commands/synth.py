@@ -58,6 +58,18 @@ def _located(code, where, msg, hint=None):
     return 2
 
 
+def _overwrites_input(args, design, *more) -> int:
+    """E-USAGE (exit 2) when -o names an input (the design, a file it reads, the schedule); else 0.
+    Before, `acl synth D.acl -o D.acl` wrote the CSV over the design."""
+    from acl._files import input_named
+
+    hit = input_named(args.output, [*getattr(design, "sources", ()), args.design, *more])
+    if hit:
+        return _usage(f"--output {args.output}: names the input {hit}; writing would destroy it",
+                      "give another path", where="<--output>")
+    return 0
+
+
 def _usage(msg, hint=None, where=None):
     """E-USAGE at the option the message starts with (``--voltages ...`` -> ``<--voltages>:1:1``)."""
     import re
@@ -228,6 +240,9 @@ def run(args) -> int:
     except DiagnosticError as exc:
         report(exc.diagnostics)
         return exit_code(exc.diagnostics)
+    hit = _overwrites_input(args, resolved)
+    if hit:
+        return hit
     n_obs = len([s for s in args.observe.split(",") if s.strip()]) or len(resolved.observes)
     n_rows = args.repeats * len(freqs) * len(volts) * max(1, n_obs) * math.prod(len(v) for v in sets.values())
     if n_rows > MAX_ROWS:
@@ -326,6 +341,9 @@ def _replay(args, noise) -> int:
         report(bad)
         return 1
     names = [s.strip() for s in args.observe.split(",") if s.strip()]
+    hit = _overwrites_input(args, design, args.schedule)
+    if hit:
+        return hit
     known = [o.name for o in design.observes]
     for n in names:
         if n not in known:
