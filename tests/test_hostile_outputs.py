@@ -159,3 +159,24 @@ def test_option_values_that_were_ignored_or_overflowed(tmp_path, capsys, argv, w
     text = "".join(capsys.readouterr())
     assert rc == 2 and f"{where}:1:" in text and "error[E-USAGE]" in text, text
     assert "E-INTERNAL" not in text and not os.listdir(tmp_path)
+
+
+@pytest.mark.parametrize("plot", ["blocker.txt/figs", "blocker.txt"])
+def test_sweep_figures_that_cannot_be_written_leave_no_table(tmp_path, capsys, plot):
+    """The table was written first, then the figures failed: exit 2 with the table left behind.  Now the
+    figures are drawn into a temporary folder first; a failure writes neither."""
+    (tmp_path / "blocker.txt").write_text("a file where a folder is asked for\n")
+    before = _snapshot(tmp_path)
+    rc = main(["sweep", os.path.join(DATA, "sweep_cantilever.acl"), "--vary", "radius=9um..11um:2",
+               "-o", str(tmp_path / "a.csv"), "--plot", str(tmp_path / plot)])
+    text = "".join(capsys.readouterr())
+    assert rc == 2 and "<--plot>:1:1: error[E601]" in text, text
+    assert _snapshot(tmp_path) == before and sorted(os.listdir(tmp_path)) == ["blocker.txt"]
+
+
+def test_sweep_figures_and_table_are_written_together(tmp_path, capsys):
+    rc = main(["sweep", os.path.join(DATA, "sweep_cantilever.acl"), "--vary", "radius=9um..11um:2",
+               "-o", str(tmp_path / "a.csv"), "--plot", str(tmp_path / "figs"), "-q"])
+    assert rc == 0, capsys.readouterr()
+    assert (tmp_path / "a.csv").is_file() and any(n.endswith(".png") for n in os.listdir(tmp_path / "figs"))
+    assert sorted(os.listdir(tmp_path)) == ["a.csv", "figs"]          # no temporary folder left
