@@ -166,7 +166,7 @@ def run(args) -> int:
         report([_usage("E-COMPILE-PROGRAM", f"the design has {len(names)} programs; choose one with --program",
                        "programs: " + (", ".join(names) or "none"), "--program")], fmt)
         return 2
-    program = args.program or names[0]
+    program = args.program if args.program is not None else names[0]     # `--program ""` names no program
     if program not in names:
         report([_usage("E-COMPILE-PROGRAM", f"no program named {program!r}",
                        suggest(program, names) or ("programs: " + (", ".join(names) or "none")),

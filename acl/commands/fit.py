@@ -96,6 +96,13 @@ def run(args) -> int:
             report([error("E601", f"{what}: {path}", Span(file=path, line=1, column=1),
                           "give a CSV file; save a pipe's output to a file first" if os.path.lexists(path) else None)], fmt)
             return 2
+    for j, path in enumerate(args.data):          # the same rows twice would halve every variance (optimistic)
+        earlier = next((q for q in args.data[:j] if os.path.samefile(q, path)), None)
+        if earlier is not None:
+            report([error("E-USAGE", f"data file {path} is given twice (also as {earlier}): its rows would count "
+                          "twice and every interval shrink by sqrt(2)", Span(file=path, line=1, column=1),
+                          "give each data file once")], fmt)
+            return 2
     from acl.fit import run_fit
 
     progress = None
