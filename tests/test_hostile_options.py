@@ -41,8 +41,8 @@ def test_a_single_valued_option_given_twice_is_a_usage_error(tmp_path, capsys, a
 
 def test_repeatable_options_and_flags_may_repeat(tmp_path, capsys):
     """--set and --path append, -q is a flag: repeating them is no conflict."""
-    assert main(["check", "-q", "-q", "--set", "dwell=100ms", "--set", "dwell=200ms", "--path", EX, "--path", EX,
-                 os.path.join(EX, "fig2_stroke.acl")]) == 0, capsys.readouterr()
+    assert main(["check", "-q", "-q", "--set", "dwell=100ms", "--path", EX, "--path", EX,
+                 os.path.join(EX, "fig4_facing_pair.acl"), "--set", "gap=30um"]) == 0, capsys.readouterr()
     from acl.cli import build_parser, repeated_option
 
     parser = build_parser(["compile"])
@@ -79,3 +79,22 @@ def test_the_same_data_file_twice_is_refused(tmp_path, capsys):
     shutil.copy(CSV, tmp_path / "e.csv")
     assert run_fit(d, [str(tmp_path / "d.csv"), str(tmp_path / "e.csv")], free=("gamma",)).problem.y.size == 2 * \
         run_fit(d, [str(tmp_path / "d.csv")], free=("gamma",)).problem.y.size
+
+
+@pytest.mark.parametrize("argv, option, text", [
+    (["check", "--set", "dwell=1s", "--set", "dwell=2s", "{EX}/fig2_stroke.acl"], "--set",
+     "--set dwell given twice ('1 s', then '2 s')"),
+    (["synth", "{D}/fit_cantilever.acl", "-o", "{T}/s.csv", "--voltages", "0V..2V:3",
+      "--effect", "drive_saturation=v_sat:8V", "--effect", "drive_saturation=v_sat:9V"], "--effect",
+     "--effect drive_saturation given twice"),
+    (["synth", "{D}/fit_cantilever.acl", "-o", "{T}/s.csv", "--voltages", "0V..2V:3",
+      "--sweep", "length=40um,50um", "--sweep", "length=60um"], "--sweep", "--sweep length given twice"),
+])
+def test_a_name_given_twice_in_a_repeatable_option_is_a_usage_error(tmp_path, capsys, argv, option, text):
+    """The second value of the same parameter or effect silently replaced the first (sweep --vary/--tolerance
+    already refused it)."""
+    argv = [a.replace("{EX}", EX).replace("{D}", DATA).replace("{T}", str(tmp_path)) for a in argv]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert f"<{option}>:1:1: error[E-USAGE]: {text}" in err, err
+    assert not os.listdir(tmp_path)

@@ -192,12 +192,17 @@ def run(args) -> int:
                     return _usage(f"--effect {item!r}: parameters are NAME:VALUE, e.g. drive_saturation=v_sat:8V")
                 column = len(name) + 2 + found.start() + len(k) + 1 + (len(v) - len(v.lstrip()))
                 params[k.strip()] = _effect_value(name.strip(), k.strip(), v, item, column)
+            if name.strip() in effects:        # the second silently replaced the first
+                return _usage(f"--effect {name.strip()} given twice: give its parameters once, e.g. "
+                              f"{_example(name.strip())}")
             effects[name.strip()] = params
         sets = {}
         for item in args.sweep:
             k, sep, vals = item.partition("=")
             if not sep:
                 return _usage(f"--sweep {item!r}: expected P=V1,V2,...")
+            if k.strip() in sets:              # the second silently replaced the first
+                return _usage(f"--sweep {k.strip()} given twice: list its values once, P=V1,V2,...")
             sets[k.strip()] = [quantity_text(v)
                                for v in vals.split(",") if v.strip()]
             if not k.strip() or not sets[k.strip()]:
