@@ -98,3 +98,17 @@ def test_a_name_given_twice_in_a_repeatable_option_is_a_usage_error(tmp_path, ca
     err = capsys.readouterr().err
     assert f"<{option}>:1:1: error[E-USAGE]: {text}" in err, err
     assert not os.listdir(tmp_path)
+
+
+@pytest.mark.parametrize("extra, option, text", [
+    (["--interval", "1e308s"], "--interval", "beyond the 1e+09 s a data file may hold"),
+    (["--observe", "deflection,deflection"], "--observe", "--observe deflection given twice"),
+])
+def test_synth_refuses_data_acl_fit_would_refuse_or_double_count(tmp_path, capsys, extra, option, text):
+    """`--interval 1e308s` wrote times 1e+308 and inf, which acl fit refuses (E806); `--observe d,d` wrote every
+    row twice, which acl fit counts as two measurements."""
+    rc = main(["synth", os.path.join(DATA, "fit_cantilever.acl"), "-o", str(tmp_path / "s.csv"),
+               "--voltages", "0V..2V:3", *extra])
+    err = capsys.readouterr().err
+    assert rc == 2 and f"<{option}>:1:1: error[E-USAGE]" in err and text in err, err
+    assert not os.listdir(tmp_path)

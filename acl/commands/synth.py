@@ -248,11 +248,21 @@ def run(args) -> int:
     hit = _overwrites_input(args, resolved)
     if hit:
         return hit
-    n_obs = len([s for s in args.observe.split(",") if s.strip()]) or len(resolved.observes)
+    listed = [s.strip() for s in args.observe.split(",") if s.strip()]
+    if len(set(listed)) < len(listed):          # each row written twice: counted as two measurements by acl fit
+        twice = next(n for i, n in enumerate(listed) if n in listed[:i])
+        return _usage(f"--observe {twice} given twice: each observable once", where="<--observe>")
+    n_obs = len(listed) or len(resolved.observes)
     n_rows = args.repeats * len(freqs) * len(volts) * max(1, n_obs) * math.prod(len(v) for v in sets.values())
     if n_rows > MAX_ROWS:
         return _usage(f"the experiment has {n_rows:,} rows; `acl fit` reads at most {MAX_ROWS:,}",
                       "fewer voltages, frequencies, sweep values, repeats or observables")
+    from acl.fit.data import MAX_TIME
+
+    if (n_rows - 1) * interval > MAX_TIME:      # written as 1e+308 and inf: a file acl fit refuses (E806)
+        return _usage(f"--interval {args.interval}: {n_rows:,} rows at this interval reach "
+                      f"{(n_rows - 1) * interval:.3g} s, beyond the {MAX_TIME:g} s a data file may hold",
+                      "a shorter interval, or fewer rows")
     tr = resolved.transducer
     if tr is not None:
         bad_f = [f for f in freqs if not tr.band[0] <= f <= tr.band[1]]
@@ -346,6 +356,9 @@ def _replay(args, noise) -> int:
         report(bad)
         return 1
     names = [s.strip() for s in args.observe.split(",") if s.strip()]
+    if len(set(names)) < len(names):
+        twice = next(n for i, n in enumerate(names) if n in names[:i])
+        return _usage(f"--observe {twice} given twice: each observable once", where="<--observe>")
     hit = _overwrites_input(args, design, args.schedule)
     if hit:
         return hit
