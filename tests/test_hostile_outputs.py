@@ -180,3 +180,17 @@ def test_sweep_figures_and_table_are_written_together(tmp_path, capsys):
     assert rc == 0, capsys.readouterr()
     assert (tmp_path / "a.csv").is_file() and any(n.endswith(".png") for n in os.listdir(tmp_path / "figs"))
     assert sorted(os.listdir(tmp_path)) == ["a.csv", "figs"]          # no temporary folder left
+
+
+def test_analyze_figures_are_all_written_or_none(tmp_path, capsys):
+    """A figure that could not be written (here a folder in its place) failed the command after the first
+    figures were written; now they are drawn into a temporary folder and moved in together."""
+    plots = tmp_path / "plots"
+    (plots / "pair_left_right.png").mkdir(parents=True)
+    rc = main(["analyze", "--no-snap", "-q", "--plot", str(plots), os.path.join(EX, "fig4_facing_pair.acl")])
+    text = "".join(capsys.readouterr())
+    assert rc == 2 and "<--plot>:1:1: error[E601]" in text, text
+    assert sorted(os.listdir(plots)) == ["pair_left_right.png"] and sorted(os.listdir(tmp_path)) == ["plots"]
+    (plots / "pair_left_right.png").rmdir()
+    assert main(["analyze", "--no-snap", "-q", "--plot", str(plots), os.path.join(EX, "fig4_facing_pair.acl")]) == 0
+    assert "modal_response.png" in os.listdir(plots) and sorted(os.listdir(tmp_path)) == ["plots"]

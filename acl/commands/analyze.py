@@ -72,11 +72,13 @@ def run(args) -> int:
     if args.plot:
         from acl.emit.analysis_figures import write_figures
 
-        try:
-            written = write_figures(design, rep, args.plot)
+        from acl._files import write_figures_atomically
+
+        try:                      # all the figures or none (a later one failing left the first ones behind)
+            written = write_figures_atomically(args.plot, lambda tmp: write_figures(design, rep, tmp))
         except OSError as exc:
             report([error("E601", f"cannot write figures to `{args.plot}`: {exc.strerror or exc}",
-                          Span(file=args.plot, line=1, column=1))], fmt)
+                          Span(file="<--plot>", line=1, column=1))], fmt)
             return 2
     if as_json:
         sys.stdout.write(json.dumps(rep.as_dict(), indent=2, default=_json_default) + "\n")
