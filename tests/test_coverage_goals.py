@@ -138,3 +138,14 @@ def test_switch_warns_for_its_shuttle_travel(tmp_path):
     assert f"{travel * 1e6:.3g} um" in w[0].message
     assert w[0].span.line == _line_of(str(tmp_path / "fig6_bistable_latch.acl"), "switch snap to b")
     assert len(s.warnings) == 1                         # voltage and tones inside the covered range
+
+
+def test_json_output_carries_them(calibrated_pair, capsys):
+    tmp, cal = calibrated_pair
+    out = os.path.join(tmp, "o_json")
+    assert main(["compile", cal, "--program", "keep_apart", "-o", out, "--band-samples", "0",
+                 "--output-format", "json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    found = [d for d in doc["diagnostics"] if d["code"] == CODE]
+    assert {d["severity"] for d in found} == {"warning"} and len(found) == 2      # voltage, deflection
+    assert all(d["file"].endswith("fig4_facing_pair.acl") and d["line"] and d["column"] == 3 for d in found)
