@@ -149,3 +149,20 @@ def test_json_output_carries_them(calibrated_pair, capsys):
     found = [d for d in doc["diagnostics"] if d["code"] == CODE]
     assert {d["severity"] for d in found} == {"warning"} and len(found) == 2      # voltage, deflection
     assert all(d["file"].endswith("fig4_facing_pair.acl") and d["line"] and d["column"] == 3 for d in found)
+
+
+def test_a_hold_whose_margin_lies_beyond_the_covered_voltage_warns(calibrated_pair):
+    """A hold driven inside the covered 0..1 V promises no snap-in up to 1.2 x its drive: beyond 1 V that
+    promise rests on the calibrated model where the data never went."""
+    tmp, _ = calibrated_pair
+    path = os.path.join(tmp, "edge.acl")
+    with open(path, "w") as fh:
+        fh.write('extends "pair.calibrated.acl"\n'
+                 "program edge {\n  hold gap(left.jet, right.jet) above 10 um for 1 s, using [125 kHz], limit 0.95 V\n}\n")
+    s = compile_program(acl.load(path), "edge", CompileOptions(band_samples=0))
+    v = max(seg.amplitude_sum() for seg in s.segments)
+    assert v <= 1.0 < 1.2 * v
+    assert not _warnings(s, "drives up to")                      # the drive itself is inside
+    (w,) = _warnings(s, "promises no snap-in up to 1.2 x its drive")
+    assert "the margin is extrapolated" in w.message
+    assert w.span.line == _line_of(path, "hold gap(")

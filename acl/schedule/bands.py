@@ -367,6 +367,13 @@ def coverage_warnings(design: Design, schedule, spans, reach=None) -> list:
             if v > hi * (1 + 1e-6) + tol:
                 warn(g, f"drives up to {v:.3g} V (sum of tone amplitudes) but the calibration data covered "
                         f"{lo:.3g} .. {hi:.3g} V: the calibrated model is extrapolated", "voltage")
+            elif g.kind == "hold" and g.details.get("mode") == "above":
+                # the promise is "no snap-in below margin x this drive": predicted where the data may not reach
+                m = float(g.details.get("margin", 1.0))
+                if v * m > hi * (1 + 1e-6) + tol:
+                    warn(g, f"promises no snap-in up to {m:g} x its drive, {v * m:.3g} V (sum of tone amplitudes), "
+                            f"but the calibration data covered {lo:.3g} .. {hi:.3g} V: the margin is extrapolated",
+                         "voltage")
         if "frequency" in cover and segs:
             fs = [t.frequency_hz for s in segs for t in s.tones if t.amplitude_v > 0]
             lo, hi = cover["frequency"].lower, cover["frequency"].upper

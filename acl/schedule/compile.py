@@ -789,7 +789,7 @@ class _Compiler:
         self._add(step.duration, tones, i, name)
         details = {"snap_index": float(sum(t.amplitude_v ** 2 / v ** 2 for t in tones
                                            for f, v in zip(step.tones, v_snap) if f == t.frequency_hz)),
-                   "critical_voltages_v": [float(v) for v in v_snap], "margin": step.margin}
+                   "critical_voltages_v": [float(v) for v in v_snap], "margin": step.margin, "mode": step.mode}
         if ratio is not None:
             details["resimulated_margin"] = ratio
         rep = GoalReport(name, "hold", i, self.t - step.duration, self.t,
