@@ -178,12 +178,28 @@ def main() -> int:
     return 0
 
 
+def code_version() -> str:
+    """The commit the run's code is (read when the run starts: a commit made while it runs is not its code), with
+    "+changes" when acl/ differs from it."""
+    import subprocess
+
+    here = os.path.dirname(os.path.abspath(__file__))
+    try:
+        commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True,
+                                cwd=here).stdout.strip()
+        dirty = subprocess.run(["git", "status", "--porcelain", "--", "../acl"], capture_output=True, text=True,
+                               cwd=here).stdout.strip()
+    except OSError:
+        return "unknown"
+    return (commit or "unknown") + ("+changes" if dirty else "")
+
+
+CODE = code_version()
+
+
 def _write(args, out) -> None:
     if args.json:
-        import subprocess
-
-        commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True,
-                                cwd=os.path.dirname(os.path.abspath(__file__))).stdout.strip()
+        commit = CODE
         with open(args.json, "w") as fh:
             json.dump({"kind": args.kind, "band_samples": args.band_samples, "code": commit, "rows": out,
                        **({"model": args.model} if args.kind == "pair-hold" else {})}, fh, indent=1)
