@@ -533,7 +533,18 @@ def _predict(P: Prepared, coeffs: dict, effects: dict, latch_blend: float = 0.0)
         wab = w[idx] if res is None else w[idx] * np.sqrt(res[0][idx] * res[1][idx])
         a_rad = alpha * (P.arel[idx] * wab).sum(axis=1) * sub_ab
         push = thrust[0, idx] + thrust[1, idx]
-        da, db = _pair_equilibrium(law0, law1, a_rad, push, P.d0[idx], same)
+
+        def laws(sub):
+            """(law0, law1, same) of the pair rows ``idx[sub]`` (the fallback of the warm start)."""
+            l0, l1, sm = rows(idx[sub])
+            if c_p > 0:
+                l0 = _with_drag(l0, c_p)
+                l1 = l0 if sm else _with_drag(l1, c_p)
+            return l0, l1, sm
+
+        # what fixes the deflection laws of the pair rows besides (a_rad, push): equal -> the same equilibrium
+        law_sig = (lam, c_p, rigid[:, idx], cd[:, idx], ct[:, idx], P.EI[:, idx] * es)
+        da, db = _pair_solve(P, law0, law1, a_rad, push, P.d0[idx], same, law_sig, laws)
         d_0[idx], d_1[idx] = da, db
     out = P.base + P.s0 * d_0 + P.s1 * d_1
     if np.any(grp):
@@ -614,22 +625,25 @@ def _with_drag(law, c_p, steps=3):
         d = lin / (1.0 + c_p * np.abs(lin))
         for _ in range(steps):
             x = drag_load(load, np.abs(d), c_p)
-            r = law(x) - d
+            lx = law(x)
+            r = lx - d
             h = 1e-6 * np.maximum(np.abs(x), 1e-30)
-            slope = (law(x + h) - law(x)) / h                       # d law / d load
+            slope = (law(x + h) - lx) / h                           # d law / d load
             dr = -slope * load * c_p * np.sign(d) * (1.0 - c_p * np.abs(d) > 0) - 1.0   # d r / d delta
             d = np.clip(d - r / np.where(dr != 0, dr, -1.0), np.minimum(lin, 0.0), np.maximum(lin, 0.0))
         return d
     return dragged
 
 
-def _pair_equilibrium(law0, law1, a_rad, push, d0, same=False):
+def _pair_equilibrium(law0, law1, a_rad, push, d0, same=False, tol=None, info=None):
     """Stable gap of a facing pair under P(d) = a/d^2 - b, first root of d0 - d - delta_a - delta_b from d0.
 
     Bracketed on a grid from d0 (towards contact when the pair attracts at rest, outwards up to the
     largest repulsive opening otherwise; the whole grid in one vectorized evaluation), then refined by
     the Illinois variant of regula falsi (superlinear, always inside the bracket).
     Returns (delta_a, delta_b); past snap-in (no root before contact) the pair is in contact, d = 0.
+    ``tol``: on |gap residual| (default 1e-12 of the largest d0); ``info``: a dict, filled with what
+    :func:`_pair_warm` needs to reuse this solve (the bracket cell, its sign margin, the root).
     """
     def both(load):
         da = law0(load)
@@ -653,7 +667,7 @@ def _pair_equilibrium(law0, law1, a_rad, push, d0, same=False):
     a, fa = D[k, cols], G[k, cols]
     b, fb = D[k + 1, cols], G[k + 1, cols]
     exact = G[0] == 0
-    tol = 1e-12 * np.max(d0)
+    tol = 1e-12 * np.max(d0) if tol is None else tol
     for _ in range(N_REFINE):
         den = fb - fa
         c = np.where(den != 0, b - fb * (b - a) / np.where(den != 0, den, 1.0), 0.5 * (a + b))
@@ -666,7 +680,121 @@ def _pair_equilibrium(law0, law1, a_rad, push, d0, same=False):
         if np.all(np.abs(fc[found]) <= tol):
             break
     d = np.where(exact, d0, b)
+    if info is not None:
+        # sign margin: the smallest |G| on the grid points before the bracketing cell (all of them when there is no
+        # crossing), where a perturbation would have to flip a sign to make the search stop at another root
+        j = np.arange(D.shape[0])[:, None]
+        before = np.where(found, j < k, True)
+        absg = np.where(before, np.abs(G), np.inf)
+        jmin = np.argmin(absg, axis=0)
+        info.update(attract=attract, far=far, k=k, found=found, exact=exact, d=d, fb=fb,
+                    conv=~found | exact | (np.abs(fb) <= tol), jmin=jmin, margin=absg[jmin, cols],
+                    Gk=G[k, cols], Gk1=G[np.minimum(k + 1, N_GRID), cols], Gj=G[jmin, cols], rest=ra + rb, tol=tol)
     found = found | exact
     load = a_rad / (d * d) - push
     da, db = both(load)
     return np.where(found, da, 0.5 * d0), np.where(found, db, 0.5 * d0)
+
+
+WARM = True            # finite-difference columns start from the last full pair solve (_pair_solve)
+WARM_SAFETY = 100.0     # a grid sign may move by at most this fraction of its margin (1/100) for the warm start
+WARM_CHANGE = 1e-3      # largest relative change of a_rad, push and the rest opening for which a warm start is tried
+
+
+class _FDColumns:
+    """``with FD_COLUMNS: predict(...)``: the predictions are finite-difference neighbours of the last one made outside
+    (acl.fit.solve.fit's Jacobian), so a pair's equilibrium may start from that solve (:func:`_pair_solve`)."""
+
+    def __init__(self):
+        self.active = False
+
+    def __enter__(self):
+        self.active = True
+        return self
+
+    def __exit__(self, *exc):
+        self.active = False
+        return False
+
+
+FD_COLUMNS = _FDColumns()
+
+
+def _pair_solve(P, law0, law1, a_rad, push, d0, same, law_sig, laws):
+    """:func:`_pair_equilibrium` of the pair rows, reusing the last full solve (kept on ``P``) when it can.
+
+    Inputs (a_rad, push, deflection laws) bitwise those of the last full solve: its result (the solve is
+    deterministic).  Inside ``FD_COLUMNS`` (a Jacobian's finite-difference columns) with every input within
+    WARM_CHANGE of the last full solve: :func:`_pair_warm`, a Newton step from the last root, kept for a row only if the
+    grid search would bracket the root in the same cell and it converges to the same tolerance (else that row is solved
+    from scratch), so a column agrees with the full solve's to the solver tolerance (tests/test_fit_pair_warm.py).
+    Everything else (every step the optimizer takes) is the full solve, which refreshes the cache."""
+    cache = getattr(P, "_eq_cache", None)
+    if cache is not None and cache["d0"].shape == d0.shape and np.array_equal(cache["d0"], d0) \
+            and cache["same"] == same:
+        same_law = (law_sig[0] == cache["law_sig"][0] and law_sig[1] == cache["law_sig"][1]
+                    and all(np.array_equal(a, b) for a, b in zip(law_sig[2:], cache["law_sig"][2:])))
+        if same_law and np.array_equal(a_rad, cache["a_rad"]) and np.array_equal(push, cache["push"]):
+            return cache["da"], cache["db"]
+        if WARM and FD_COLUMNS.active:
+            with np.errstate(all="ignore"):
+                ra = law0(-push)
+                rb = ra if same else law1(-push)
+                rest = ra + rb
+                ok = np.all(np.abs(a_rad - cache["a_rad"]) <= WARM_CHANGE * np.abs(cache["a_rad"])) and \
+                    np.all(np.abs(push - cache["push"]) <= WARM_CHANGE * np.abs(cache["push"])) and \
+                    np.all(np.abs(rest - cache["rest"]) <= WARM_CHANGE * np.abs(cache["rest"]))
+            if ok:
+                return _pair_warm(cache, law0, law1, a_rad, push, d0, same, ra, rb, laws)
+            return _pair_equilibrium(law0, law1, a_rad, push, d0, same)
+    info: dict = {}
+    da, db = _pair_equilibrium(law0, law1, a_rad, push, d0, same, info=info)
+    if not FD_COLUMNS.active:
+        info.update(d0=d0, same=same, law_sig=law_sig, a_rad=a_rad, push=push, da=da, db=db)
+        P._eq_cache = info
+    return da, db
+
+
+def _pair_warm(c, law0, law1, a_rad, push, d0, same, ra, rb, laws):
+    """Pair equilibrium from the cached full solve ``c`` (:func:`_pair_solve`): one Newton step from its root (slope
+    from a step of 1e-8 d0); a row failing a check (bracket cell, sign margin, convergence to the full solve's
+    tolerance) is solved by :func:`_pair_equilibrium` with that tolerance."""
+    def g(d):
+        load = a_rad / (d * d) - push
+        da = law0(load)
+        db = da if same else law1(load)
+        return d0 - d - da - db, da, db
+
+    attract = a_rad / (d0 * d0) - push >= 0
+    far = np.where(attract, 0.02 * d0, d0 - ra - rb + 1e-12)      # the grid of the full solve, bit for bit
+    s = np.linspace(0.0, 1.0, N_GRID + 1)
+    k, jmin, tol, root = c["k"], c["jmin"], c["tol"], c["d"]
+    dk = d0 + s[k] * (far - d0)
+    dk1 = d0 + s[np.minimum(k + 1, N_GRID)] * (far - d0)
+    dj = d0 + s[jmin] * (far - d0)
+    eps = 1e-8 * d0
+    with np.errstate(all="ignore"):
+        (g0, ge, gk, gk1, gj), DA, DB = g(np.stack([root, root + eps, dk, dk1, dj]))
+        change = np.maximum(np.maximum(np.abs(gk - c["Gk"]), np.abs(gj - c["Gj"])), np.abs(g0 - c["fb"]))
+        found = c["found"] & ~c["exact"]
+        # a row at rest (G = 0 at d0: no load) stays there while it has no load
+        good = (attract == c["attract"]) & np.where(
+            c["exact"], g0 == 0, c["conv"] & np.isfinite(change) & (np.sign(gj) == np.sign(c["Gj"]))
+            & (c["margin"] > WARM_SAFETY * change))
+        good &= ~found | ((np.sign(gk) == np.sign(c["Gk"])) & (np.sign(gk1) == np.sign(c["Gk1"])))
+        da, db = DA[0], DB[0]
+        step = found & good & ~(np.abs(g0) <= tol)
+        if np.any(step):
+            d1 = root - g0 * eps / (ge - g0)
+            good &= ~step | ((d1 >= np.minimum(dk, dk1)) & (d1 <= np.maximum(dk, dk1)))
+            f1, da1, db1 = g(d1)
+            good &= ~step | (np.abs(f1) <= tol)
+            da, db = np.where(step, da1, da), np.where(step, db1, db)
+    live = c["found"] | c["exact"]
+    da, db = np.where(live, da, 0.5 * d0), np.where(live, db, 0.5 * d0)
+    bad = ~good
+    if np.any(bad):
+        l0, l1, sm = laws(bad)
+        ra, rb = _pair_equilibrium(l0, l1, a_rad[bad], push[bad], d0[bad], sm, tol=tol)
+        da[bad], db[bad] = ra, rb
+    return da, db
