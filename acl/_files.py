@@ -113,3 +113,58 @@ def designs_under(folder: str) -> list[str]:
                          "name the folders that hold your designs (a bind mount or a generated tree can nest without end)")
         stack.extend((d, depth + 1) for d in reversed(subdirs))
     return files
+
+
+def input_named(path: str, inputs) -> str | None:
+    """The input among ``inputs`` that the output ``path`` names (the same file, through links too), else None.
+
+    An output written over an input destroys it: `acl fit --calibrated DESIGN` wrote a design that
+    extends itself over the design, `acl synth -o DESIGN` a CSV over it."""
+    if not path:
+        return None
+    real = os.path.realpath(path)
+    for p in inputs:
+        if not p:
+            continue
+        try:
+            if os.path.exists(path) and os.path.exists(p) and os.path.samefile(path, p):
+                return p
+        except OSError:
+            pass
+        if os.path.realpath(p) == real:
+            return p
+    return None
+
+
+def inputs_inside(folder: str, inputs) -> list[str]:
+    """The inputs that lie in ``folder`` or below it (a folder an output replaces as a whole must hold none)."""
+    top = os.path.realpath(folder).rstrip(os.sep) + os.sep
+    return [p for p in inputs if p and os.path.realpath(p).startswith(top)]
+
+
+def write_figures_atomically(folder: str, draw) -> list[str]:
+    """``draw(tmp)`` writes files into a temporary folder beside ``folder``; then every one is moved into
+    ``folder`` (created), after checking that none would land on a folder.  Returns the paths in ``folder``.
+
+    A failure (OSError) leaves ``folder`` as it was: before, `acl analyze --plot` wrote the first figures
+    and then failed on a later one (exit 2 with part of the figures written)."""
+    import shutil
+    import tempfile
+
+    if os.path.lexists(folder) and not os.path.isdir(folder):
+        raise NotADirectoryError(20, "exists and is not a folder")
+    tmp = tempfile.mkdtemp(prefix=".acl-figures-", dir=os.path.dirname(os.path.abspath(folder)))
+    try:
+        names = [os.path.basename(p) for p in draw(tmp)]
+        for n in names:
+            target = os.path.join(folder, n)
+            if os.path.isdir(target) and not os.path.islink(target):
+                raise IsADirectoryError(21, f"{target} is a folder")
+        os.makedirs(folder, exist_ok=True)
+        out = []
+        for n in names:
+            os.replace(os.path.join(tmp, n), os.path.join(folder, n))
+            out.append(os.path.join(folder, n))
+        return out
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)

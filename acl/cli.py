@@ -98,12 +98,65 @@ def build_parser(argv: list[str] | None = None) -> argparse.ArgumentParser:
     return parser
 
 
+def repeated_option(parser: argparse.ArgumentParser, tokens: list[str]) -> tuple[str, list[str]] | None:
+    """(option, its values) of the first single-valued option given more than once in ``tokens`` (one
+    subcommand's arguments), else None.  argparse keeps the last value silently: `--program a --program b`
+    compiled b, `-o a.csv -o b.csv` wrote b.csv.  Repeatable options (append), flags and counts are not
+    single-valued."""
+    by_string, longs = {}, []
+    for a in parser._actions:
+        if not a.option_strings:
+            continue
+        for o in a.option_strings:
+            by_string[o] = a
+            if o.startswith("--"):
+                longs.append(o)
+    seen: dict[int, tuple[str, list[str]]] = {}
+    i = 0
+    while i < len(tokens):
+        tok = tokens[i]
+        i += 1
+        if tok == "--":
+            break
+        if not tok.startswith("-") or tok == "-":
+            continue
+        name, attached = (tok.split("=", 1) + [None])[:2] if tok.startswith("--") else (tok[:2], tok[2:] or None)
+        action = by_string.get(name)
+        if action is None and name.startswith("--"):
+            hits = [o for o in longs if o.startswith(name)]          # argparse's abbreviations
+            action = by_string[hits[0]] if len(hits) == 1 else None
+        if action is None:
+            continue
+        takes = action.nargs is None or action.nargs == "?"
+        if not isinstance(action, (argparse._StoreAction, argparse._AppendAction)) or not takes:
+            continue
+        value = attached
+        if value is None and i < len(tokens) and (action.nargs is None or not tokens[i].startswith("-")):
+            value = tokens[i]
+            i += 1
+        if isinstance(action, argparse._AppendAction):
+            continue
+        key = id(action)
+        first = seen.setdefault(key, (action.option_strings[-1], []))
+        first[1].append(value if value is not None else "")
+        if len(first[1]) > 1:
+            return first
+    return None
+
+
 def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
     parser = build_parser(argv)
     args = parser.parse_args(argv)
     if not getattr(args, "command", None) or not hasattr(args, "_module"):
         parser.print_help()
+        return 2
+    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction)).choices[args.command]
+    twice = repeated_option(sub, argv[argv.index(args.command) + 1:])
+    if twice:
+        option, values = twice
+        sys.stderr.write(f"<{option}>:1:1: error[E-USAGE]: {option} given twice ({values[0]!r}, then {values[1]!r}): "
+                         "it takes one value, and the last would silently win\n")
         return 2
     if not getattr(args, "quiet", False):
         for note in getattr(args, "deprecated_options", None) or []:

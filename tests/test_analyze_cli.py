@@ -29,6 +29,12 @@ PAIR = textwrap.dedent("""\
     }
     """)
 
+ONE = PAIR[:PAIR.index("param gap")] + textwrap.dedent("""\
+    beam la like beams.cantilever50 { clamp = (0, 0, 50 um) }
+    capsule left like capsules.design1 { }
+    mount left on la.tip
+    """)
+
 
 def run(*args, cwd=None):
     return subprocess.run([sys.executable, "-m", "acl", *args], capture_output=True, text=True, cwd=cwd, timeout=300)
@@ -106,3 +112,57 @@ def test_plot_writes_pngs(tmp_path):
     pngs = sorted(p.name for p in out.glob("*.png"))
     assert "modal_response.png" in pngs and "pair_left_right.png" in pngs
     assert all((out / p).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" for p in pngs)
+
+
+def test_one_capsule_warning_says_what_its_drive_is(tmp_path):
+    """A design with one capsule has no pair: its eps/R warning for a frequency's largest program drive said
+    "pair analysis" (examples/fig2_vertical_cantilever.acl, 125 kHz @ 8 V).  It now names the drive's basis,
+    also in the JSON (`basis`); a pair's drive keeps "pair analysis"."""
+    import os
+
+    ex = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "examples")
+    r = run("analyze", os.path.join(ex, "fig2_vertical_cantilever.acl"), "--no-snap")
+    assert r.returncode == 0, r.stderr
+    text = r.stdout + r.stderr
+    assert "pair" not in text.lower(), text
+    assert ("warning: the largest amplitude the programs apply at this frequency: 125 kHz @ 8 V drives act.jet"
+            in " ".join(text.split()))
+    j = json.loads(run("analyze", os.path.join(ex, "fig2_vertical_cantilever.acl"), "--no-snap",
+                       "--output-format", "json").stdout)
+    free = {d["drive"]: d["basis"] for d in j["drives"] if d["program"] is None}
+    # 125 kHz: the ramp's 8 V; the sweep's ends (100, 150 kHz): the 1 V reference (the sweep step itself is below)
+    assert free == {"100 kHz @ 1 V": "reference", "125 kHz @ 8 V": "largest_program_amplitude",
+                    "150 kHz @ 1 V": "reference"}
+    assert {d["basis"] for d in j["drives"] if d["program"] is not None} == {"step"}
+    # no program: the capsule's first mode at the 1 V reference
+    (tmp_path / "bare.acl").write_text(ONE)
+    j = json.loads(run("analyze", str(tmp_path / "bare.acl"), "--no-snap", "--output-format", "json").stdout)
+    assert [d["basis"] for d in j["drives"]] == ["reference"] and j["drives"][0]["drive"].endswith("@ 1 V")
+    # a pair's drive at each program frequency is the pair table's
+    r = run("analyze", os.path.join(ex, "fig4_facing_pair.acl"), "--no-snap")
+    assert "warning: pair analysis: 125 kHz @ 15 V" in " ".join((r.stdout + r.stderr).split())
+
+
+SWEEP = ONE + "program scan {\n  sweep 100 kHz to 150 kHz @ V_SWEEP in 2 s\n}\n"
+
+
+def test_a_sweep_step_is_checked_at_its_worst_frequency(tmp_path):
+    """A sweep step had no linear-regime check in `acl analyze` (only drive and goal steps): a sweep through
+    the capsule's resonance at 15 V (eps/R ~ 0.69 there, as `acl lint` ACL105 finds) gave no warning."""
+    from acl.analysis.acoustics import interface_amplitudes
+    from acl.design.model import Drive, Tone
+    import acl
+
+    (tmp_path / "s.acl").write_text(SWEEP.replace("V_SWEEP", "15 V"))
+    j = json.loads(run("analyze", str(tmp_path / "s.acl"), "--no-snap", "--output-format", "json").stdout)
+    (entry,) = [d for d in j["drives"] if d["program"] == "scan"]
+    assert entry["step"] == 1 and entry["line"] == SWEEP.count("\n") - 1 and not entry["linear"]
+    f = float(entry["drive"].split(" kHz")[0]) * 1e3
+    assert 100e3 < f < 150e3
+    d = acl.load(str(tmp_path / "s.acl"))
+    # the worst frequency is a maximum: no point of a fine grid across the sweep beats it
+    grid = [max(interface_amplitudes(d, Drive(tones=(Tone(frequency=x, amplitude=15.0),))).values())
+            for x in __import__("numpy").linspace(100e3, 150e3, 2001)]
+    assert entry["max_amplitude_over_radius"] >= max(grid) * (1 - 1e-9)
+    r = run("analyze", str(tmp_path / "s.acl"), "--no-snap")
+    assert f"program scan step 1 (line {SWEEP.count(chr(10)) - 1})" in " ".join((r.stdout + r.stderr).split())

@@ -279,15 +279,16 @@ def _state_problem(tmp_path, kind, planted, seed):
 
 def test_one_latch_cannot_always_tell_saturation_from_a_gain_shape_three_angles_can(tmp_path):
     """One latch seen through its switched state gives one threshold voltage per frequency: saturation (planted) and a
-    broad transducer resonance fitted in its place explain seed 105 equally well (clipped -2 ln L within 6), and the fit
+    broad transducer resonance fitted in its place explain seed 103 equally well (clipped -2 ln L 2.7 apart, within 6;
+    seed 105, used before, sits at the threshold: 5.x on one machine, 6.8 and rank-deficient on another), and the fit
     says so (`ambiguous`, with the experiment that separates them).  Latches of three angles switch at several voltages
     per frequency: the best gain shape fitted in saturation's place is far outside the noise there."""
     from acl.fit.forward import predict
     from acl.fit.select import AMBIGUOUS_CHI2, _replacements, clipped_chi2, select_effects
 
     planted = {"drive_saturation": FD.SAT_STATE}
-    one, _ = _state_problem(tmp_path, "latch+state", planted, 105)
-    sel = select_effects(one, seed=105)
+    one, _ = _state_problem(tmp_path, "latch+state", planted, 103)
+    sel = select_effects(one, seed=103)
     sets = [sorted(sel.selected)] + [sorted(a["effects"]) for a in sel.ambiguous]
     assert ["drive_saturation"] in sets and ["transducer_resonance"] in sets
     alt = next(a for a in sel.ambiguous if a["by"] in ("transducer_resonance", "drive_saturation"))
@@ -314,7 +315,7 @@ def test_the_ambiguity_is_in_the_report_and_the_calibrated_design(tmp_path):
     import shutil
     import subprocess
 
-    _, path = _state_problem(tmp_path, "latch+state", {"drive_saturation": FD.SAT_STATE}, 105)
+    _, path = _state_problem(tmp_path, "latch+state", {"drive_saturation": FD.SAT_STATE}, 103)
     design = tmp_path / "latch.acl"
     shutil.copy(FD.LATCH_STATE, design)
     cal = tmp_path / "latch.calibrated.acl"

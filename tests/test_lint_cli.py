@@ -139,6 +139,20 @@ def test_explicit_config_wins(tmp_path, capsys):
     assert "ACL502" in out
 
 
+def test_a_configuration_with_a_byte_order_mark_and_crlf_is_read(tmp_path, capsys):
+    """A Windows editor's acl.toml (UTF-8 BOM, CRLF) was `invalid TOML: Invalid statement` at 1:1; .acl and .csv
+    files with a BOM are read, so is the configuration now (found by walking up and given with --config)."""
+    (tmp_path / "acl.toml").write_bytes('\ufeff[lint]\r\nignore = ["ACL502"]\r\n'.encode("utf-8"))
+    rc, out, err = run(capsys, "--format", "concise", write(tmp_path, "a.acl", LOW))
+    assert rc == 0 and "ACL502" not in out and "E-CONFIG" not in err
+    rc, out, err = run(capsys, "--format", "concise", "--config", str(tmp_path / "acl.toml"), write(tmp_path, "b.acl", LOW))
+    assert rc == 0 and "ACL502" not in out and "E-CONFIG" not in err
+    # an error in it is still located at its line
+    (tmp_path / "acl.toml").write_bytes('\ufeff[lint]\r\nignor = ["ACL502"]\r\n'.encode("utf-8"))
+    rc, _, err = run(capsys, "--config", str(tmp_path / "acl.toml"), write(tmp_path, "c.acl", LOW))
+    assert rc == 2 and "acl.toml:2:" in err and "unknown key `ignor`" in err
+
+
 @pytest.mark.parametrize("toml, needle, line", [
     ('[tool.acl.lint]\nselect = ["ACL101"]\nignor = ["ACL102"]\n', "unknown key `ignor`", 3),
     ('[tool.acl.lint]\nselect = ["ACL101", "ACL123"]\n', "unknown rule code `ACL123`", 2),

@@ -64,7 +64,12 @@ def program_frequencies(design: M.Design) -> list[float]:
 
 
 def _amplitude_at(design: M.Design, f: float) -> float:
-    """Largest amplitude the programs apply at frequency f (V), else the reference 1 V."""
+    """Largest amplitude the programs apply at frequency f (V), else the reference 1 V (DEFAULT_V: 0 from _program_amplitude)."""
+    return _program_amplitude(design, f) or DEFAULT_V
+
+
+def _program_amplitude(design: M.Design, f: float) -> float:
+    """Largest amplitude the programs apply at frequency f (V); 0 when none does."""
     best = 0.0
     for p in design.programs:
         for st in p.steps:
@@ -74,7 +79,7 @@ def _amplitude_at(design: M.Design, f: float) -> float:
                 lim = st.limits.max_voltage or (design.transducer.max_voltage if design.transducer else None)
                 if lim:
                     best = max(best, lim)
-    return best or DEFAULT_V
+    return best
 
 
 def step_drives(design: M.Design):
@@ -139,7 +144,10 @@ def analyze(design: M.Design, at: M.Drive | None = None, snap_in: bool = True, p
             sw = ME.sweep_voltage(design, M.Drive(tones=(M.Tone(frequency=f, amplitude=1.0),)), vmax, fm)
             snaps[f] = (sw.snap_voltage, sw.status)
         amps = AC.interface_amplitudes(design, drive)
-        rep.drives.append(_drive_entry(None, None, describe_drive(drive), amps))
+        # what this drive is for: the pair table (two or more capsules), else only the frequency's
+        # largest program amplitude (or the 1 V reference where no program sets one)
+        basis = "pairs" if pfs else ("largest_program_amplitude" if _program_amplitude(design, f) else "reference")
+        rep.drives.append(_drive_entry(None, None, describe_drive(drive), amps, basis=basis))
         for pf in pfs:
             study = _q_study(design, pf, f) if _unequal(modes, pf) else {}
             rep.pairs.append({
@@ -161,6 +169,11 @@ def analyze(design: M.Design, at: M.Drive | None = None, snap_in: bool = True, p
     for p, i, st, drive in step_drives(design):
         rep.drives.append(_drive_entry(p.name, i + 1, describe_drive(drive), AC.interface_amplitudes(design, drive),
                                        st.span.line))
+    mode_fs = np.array([m.frequency_hz for ms in modes.values() for m in ms], float)
+    for p in design.programs:
+        for i, st in enumerate(p.steps):
+            if st.kind == "sweep" and design.capsules:
+                rep.drives.append(_sweep_entry(design, p.name, i, st, mode_fs))
     # ---- latches
     if design.latches:
         per_latch = {lt.name: {"name": lt.name, **_loc(lt.span), "state": lt.state, "margins": []} for lt in design.latches}
@@ -211,12 +224,29 @@ def _eq1_ratios(design: M.Design, deflections: dict) -> dict:
     return out
 
 
-def _drive_entry(program, step, drive_text, amps: dict, line=None) -> dict:
-    """Linear-regime check of one drive: eps/R of every interface against LINEAR_AMPLITUDE_LIMIT."""
+SWEEP_SAMPLES = 21        # log-spaced frequencies across a sweep, plus every mode inside it (as acl lint: sweep_samples)
+
+
+def _sweep_entry(design: M.Design, program: str, i: int, st, mode_fs: np.ndarray) -> dict:
+    """Linear-regime check of a sweep step at its worst frequency (acoustics.sweep_worst_amplitude, every mode inside)."""
+    from acl.analysis import acoustics as AC
+
+    _, f, amps = AC.sweep_worst_amplitude(design, st.f_start, st.f_stop, st.amplitude, mode_fs, SWEEP_SAMPLES)
+    drive = M.Drive(tones=(M.Tone(frequency=f, amplitude=st.amplitude),))
+    return _drive_entry(program, i + 1, describe_drive(drive) + " (the sweep's worst frequency)", amps, st.span.line)
+
+
+def _drive_entry(program, step, drive_text, amps: dict, line=None, basis: str = "step") -> dict:
+    """Linear-regime check of one drive: eps/R of every interface against LINEAR_AMPLITUDE_LIMIT.
+
+    ``basis``: "step" (a program step's drive), "pairs" (the drive of the pair table at one program
+    frequency), "largest_program_amplitude" (a frequency's largest program amplitude, no pair to
+    analyse), "reference" (the 1 V reference at a frequency no program sets an amplitude for).
+    """
     from acl.physics.constants import LINEAR_AMPLITUDE_LIMIT
 
     worst = max(amps.values(), default=0.0)
-    return {"program": program, "step": step, "line": line, "drive": drive_text,
+    return {"program": program, "step": step, "line": line, "drive": drive_text, "basis": basis,
             "interface_amplitude_over_radius": amps, "max_amplitude_over_radius": worst,
             "linear_limit": LINEAR_AMPLITUDE_LIMIT, "linear": bool(worst <= LINEAR_AMPLITUDE_LIMIT)}
 

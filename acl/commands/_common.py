@@ -57,6 +57,11 @@ def parse_sets(items: list[str]) -> tuple[dict[str, str], list[Diagnostic]]:
             diags.append(error("E-USAGE", f"--set {item!r}: expected NAME=VALUE, e.g. --set gap=60um",
                                Span(file="<--set>", line=1, column=1)))
             continue
+        if m.group(1) in out:        # the last value silently won
+            diags.append(error("E-USAGE", f"--set {m.group(1)} given twice ({out[m.group(1)]!r}, then "
+                               f"{quantity_text(m.group(2))!r})", Span(file="<--set>", line=1, column=1),
+                               "give each parameter once"))
+            continue
         out[m.group(1)] = quantity_text(m.group(2))
     return out, diags
 

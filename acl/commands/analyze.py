@@ -9,6 +9,11 @@ from acl.commands._common import (add_design_options, add_output_format, load_or
                                   plotting_missing, report)
 from acl.diagnostics import DiagnosticError, Span, error
 
+# what a drive that is no program step was analysed for (acl.analysis.report._drive_entry "basis")
+_ANALYSIS_DRIVE = {"pairs": "pair analysis",
+                   "largest_program_amplitude": "the largest amplitude the programs apply at this frequency",
+                   "reference": "the 1 V reference drive (no drive or goal step sets an amplitude at this frequency)"}
+
 
 def add_parser(p) -> None:
     p.add_argument("file", metavar="FILE", help="design file (.acl), or a folder holding one design")
@@ -31,6 +36,10 @@ def run(args) -> int:
         except DiagnosticError as exc:
             report(exc.diagnostics, fmt)
             return 2
+    if args.plot is not None and not args.plot.strip():      # "" is no folder, not "no figures"
+        report([error("E-USAGE", f"--plot {args.plot!r}: an empty path", Span(file="<--plot>", line=1, column=1),
+                      "give a folder, or leave the option out")], fmt)
+        return 2
     if args.plot and plotting_missing("--plot", fmt):
         return 2
     design, code = load_or_report(args.file, args, fmt)
@@ -63,11 +72,13 @@ def run(args) -> int:
     if args.plot:
         from acl.emit.analysis_figures import write_figures
 
-        try:
-            written = write_figures(design, rep, args.plot)
+        from acl._files import write_figures_atomically
+
+        try:                      # all the figures or none (a later one failing left the first ones behind)
+            written = write_figures_atomically(args.plot, lambda tmp: write_figures(design, rep, tmp))
         except OSError as exc:
             report([error("E601", f"cannot write figures to `{args.plot}`: {exc.strerror or exc}",
-                          Span(file=args.plot, line=1, column=1))], fmt)
+                          Span(file="<--plot>", line=1, column=1))], fmt)
             return 2
     if as_json:
         sys.stdout.write(json.dumps(rep.as_dict(), indent=2, default=_json_default) + "\n")
@@ -144,7 +155,8 @@ def print_report(design, rep) -> None:
         con.print(t)
     nonlinear = [d for d in rep.drives if not d["linear"]]
     for d in nonlinear:
-        where = f"program {d['program']} step {d['step']} (line {d['line']})" if d["program"] else "pair analysis"
+        where = (f"program {d['program']} step {d['step']} (line {d['line']})" if d["program"] else
+                 _ANALYSIS_DRIVE.get(d.get("basis"), "analysis drive"))
         worst = first_max_item(d["interface_amplitude_over_radius"])      # ties: the first declared
         con.print(f"[red]warning:[/red] {where}: {d['drive']} drives {worst[0]} to eps/R = {worst[1]:.6g}, beyond the "
                   f"linear bubble model (eps/R <= {d['linear_limit']:g}; docs/physics.md)")

@@ -166,7 +166,7 @@ def run(args) -> int:
         report([_usage("E-COMPILE-PROGRAM", f"the design has {len(names)} programs; choose one with --program",
                        "programs: " + (", ".join(names) or "none"), "--program")], fmt)
         return 2
-    program = args.program or names[0]
+    program = args.program if args.program is not None else names[0]     # `--program ""` names no program
     if program not in names:
         report([_usage("E-COMPILE-PROGRAM", f"no program named {program!r}",
                        suggest(program, names) or ("programs: " + (", ".join(names) or "none")),
@@ -254,15 +254,16 @@ def _emit(schedule, args, formats, rate, fmt) -> int:
         report([_usage("E-COMPILE-IO", f"cannot write {args.output!r}: {exc.strerror or exc}",
                        "check the path and free space; nothing was written", "--output")], fmt)
         return 2
+    warnings = list(result.warnings) + list(schedule.warnings)     # the schedule's: located at their goal
     if fmt == "json":
         import json
 
-        sys.stdout.write(json.dumps({"diagnostics": [d.as_dict() for d in result.warnings],
+        sys.stdout.write(json.dumps({"diagnostics": [d.as_dict() for d in warnings],
                                      "output": args.output, "files": result.files,
                                      "removed": result.removed}, indent=2) + "\n")
     else:
-        if result.warnings:
-            report(result.warnings, fmt)
+        if warnings:
+            report(warnings, fmt)
         if not args.quiet:
             _summary(console, schedule, result)
     return 0
@@ -284,8 +285,10 @@ def _summary(console, schedule, result) -> None:
         table.add_row(g.name, f"{g.start_s:.3g}-{g.end_s:.3g}",
                       ", ".join(f"{f / 1e3:g}" for f in g.frequencies_hz), err, band, g.model or "-")
     console.print(table)
+    located = {f"warning: {w.message}" for w in schedule.warnings}     # reported above with their location
     for note in schedule.notes:
-        console.print(note if note.startswith("warning:") else f"note: {note}")
+        if note not in located:
+            console.print(note if note.startswith("warning:") else f"note: {note}")
     s = result.stats
     tones = ", ".join(f"{f / 1e3:g}" for f in schedule.frequencies_hz())
     analog = max((g.peak_v or 0.0 for g in schedule.segments), default=0.0)

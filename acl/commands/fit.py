@@ -66,6 +66,24 @@ def run(args) -> int:
                       "a relative path; the report is a folder)", Span(file=f"<{option}>", line=1, column=1),
                       "give a path")], fmt)
         return 2
+    for option, value in (("--calibrated", args.calibrated), ("--report", args.report)):
+        if value is not None and not value.strip():      # "" is a path that cannot be written, not no option
+            report([error("E-USAGE", f"{option} {value!r}: an empty path", Span(file=f"<{option}>", line=1, column=1),
+                          "give a path, or leave the option out")], fmt)
+            return 2
+    if args.report is not None:
+        from acl.fit.report import report_dir_problem
+
+        why = report_dir_problem(args.report)
+        if why:
+            report([error("E601", why, Span(file="<--report>", line=1, column=1),
+                          "a report folder is new, empty, or holds a previous report and nothing else "
+                          "(acl fit replaces it as a whole)")], fmt)
+            return 2
+    if args.calibrated is not None and os.path.isdir(args.calibrated):
+        report([error("E601", f"--calibrated {args.calibrated}: a folder, not a file",
+                      Span(file="<--calibrated>", line=1, column=1), "give a file path, e.g. design.calibrated.acl")], fmt)
+        return 2
     design = one_design(args.design, fmt)
     if design is None:
         return 2
@@ -77,6 +95,13 @@ def run(args) -> int:
                     "not a regular file (a pipe, device or socket)")
             report([error("E601", f"{what}: {path}", Span(file=path, line=1, column=1),
                           "give a CSV file; save a pipe's output to a file first" if os.path.lexists(path) else None)], fmt)
+            return 2
+    for j, path in enumerate(args.data):          # the same rows twice would halve every variance (optimistic)
+        earlier = next((q for q in args.data[:j] if os.path.samefile(q, path)), None)
+        if earlier is not None:
+            report([error("E-USAGE", f"data file {path} is given twice (also as {earlier}): its rows would count "
+                          "twice and every interval shrink by sqrt(2)", Span(file=path, line=1, column=1),
+                          "give each data file once")], fmt)
             return 2
     from acl.fit import run_fit
 
@@ -95,11 +120,26 @@ def run(args) -> int:
     except DiagnosticError as exc:
         report(exc.diagnostics, fmt)
         return exit_code(exc.diagnostics)
+    if args.report or args.calibrated:         # nothing is written over an input, nor a folder holding one
+        from acl._files import input_named, inputs_inside
+
+        inputs = [*getattr(out.problem.design, "sources", ()), args.design, *args.data]
+        hit = input_named(out.calibrated_path, inputs)
+        inside = inputs_inside(args.report, inputs) if args.report else []
+        if hit or inside:
+            option = "--calibrated" if hit else "--report"
+            report([error("E-USAGE", f"{option} would write over the input {hit or inside[0]}"
+                          + ((" (the calibrated design extends the design)" if hit == args.design else "") if hit
+                             else " (it replaces the folder)"),
+                          Span(file=f"<{option}>", line=1, column=1),
+                          "give another path" if hit else "give a new or empty folder")], fmt)
+            return 2
     if not out.problem.coefs and not args.quiet:
         _nothing_free(args, candidates)
     if args.verbose:
         for stage, secs in out.report["timing_s"].items():
             sys.stderr.write(f"stage {stage}: {secs:.2f} s\n")
+    report_new = bool(args.report) and not os.path.lexists(args.report)
     if args.report:
         from acl.fit.report import dump_json, figures, write_report_dir
 
@@ -116,6 +156,10 @@ def run(args) -> int:
         try:
             _write_atomic(out.calibrated_path, out.calibrated)
         except OSError as exc:
+            if report_new:             # no partial output: the report this run wrote goes too
+                import shutil
+
+                shutil.rmtree(args.report, ignore_errors=True)
             report([error("E601", f"cannot write the calibrated design: {exc.strerror or exc}",
                           Span(file=out.calibrated_path, line=1, column=1))], fmt)
             return 2

@@ -4,6 +4,7 @@ Monte Carlo, one row per point, the yield on the summary line (docs/sweep.md).""
 from __future__ import annotations
 
 import json
+import os
 import sys
 
 from acl.commands._common import add_design_options, add_output_format, load_or_report, plotting_missing, report, seed
@@ -74,8 +75,11 @@ def run(args) -> int:
         from acl.sweep.table import check_output
 
         check_output(args.output)
+        if args.plot is not None and not args.plot.strip():     # "" is no folder, not "no figures"
+            raise DiagnosticError([error("E-USAGE", f"--plot {args.plot!r}: an empty path", Span(file="<--plot>", line=1, column=1),
+                                         "give a folder, or leave the option out")])
         scheduler_kind(args.scheduler)
-        scales = _scales(args.tolerance_scales) if args.tolerance_scales else None
+        scales = _scales(args.tolerance_scales) if args.tolerance_scales is not None else None
         if args.at is not None:
             from acl.design.drives import drive_from_text
 
@@ -88,6 +92,13 @@ def run(args) -> int:
     design, code = load_or_report(args.file, args, fmt)
     if design is None:
         return code
+    from acl._files import input_named
+
+    hit = input_named(args.output, [*design.sources, design.file])
+    if hit:                    # a CSV the design reads (a gain table) would be replaced by the table
+        report([error("E-USAGE", f"--output {args.output}: names the input {hit}; writing would destroy it",
+                      Span(file="<--output>", line=1, column=1), "give another path")], fmt)
+        return 2
     from acl.commands._common import parse_sets
     from acl.sweep.driver import run_sweep, yield_vs_tolerance
     from acl.sweep.spec import build_spec
@@ -110,23 +121,50 @@ def run(args) -> int:
                          f"proportional, {len(fm.derived)} recomputed volume(s), {len(fm.exact)} resolved exactly\n")
     from acl.sweep.table import write_table
 
-    try:
-        write_table(table, args.output)
-    except OSError as exc:
-        report([error("E601", f"cannot write `{args.output}`: {exc.strerror or exc}", Span(file=args.output, line=1, column=1))], fmt)
-        return 2
-    written = []
+    # figures first, into a temporary folder beside --plot: a figure that cannot be written leaves neither
+    # the table nor part of the figures (before, the table was written and then the figures failed: exit 2
+    # with the table left behind)
+    import shutil
+
+    written, tmp = [], None
     if args.plot:
+        import tempfile
+
         from acl.sweep.figures import plot_yield_vs_tolerance, write_figures
 
         try:
-            written = write_figures(table, args.plot)
+            parent = os.path.dirname(os.path.abspath(args.plot))
+            if os.path.lexists(args.plot) and not os.path.isdir(args.plot):
+                raise NotADirectoryError(20, "exists and is not a folder")
+            tmp = tempfile.mkdtemp(prefix=".acl-sweep-plots-", dir=parent)
+            names = [os.path.basename(f) for f in write_figures(table, tmp)]
             if curve:
-                written.append(plot_yield_vs_tolerance(curve, args.plot))
+                names.append(os.path.basename(plot_yield_vs_tolerance(curve, tmp)))
+        except OSError as exc:
+            if tmp:
+                shutil.rmtree(tmp, ignore_errors=True)
+            report([error("E601", f"cannot write figures to `{args.plot}`: {exc.strerror or exc}",
+                          Span(file="<--plot>", line=1, column=1))], fmt)
+            return 2
+    try:
+        write_table(table, args.output)
+    except OSError as exc:
+        if tmp:
+            shutil.rmtree(tmp, ignore_errors=True)
+        report([error("E601", f"cannot write `{args.output}`: {exc.strerror or exc}", Span(file=args.output, line=1, column=1))], fmt)
+        return 2
+    if tmp:
+        try:
+            os.makedirs(args.plot, exist_ok=True)
+            for n in names:
+                os.replace(os.path.join(tmp, n), os.path.join(args.plot, n))
+                written.append(os.path.join(args.plot, n))
         except OSError as exc:
             report([error("E601", f"cannot write figures to `{args.plot}`: {exc.strerror or exc}",
-                          Span(file=args.plot, line=1, column=1))], fmt)
+                          Span(file="<--plot>", line=1, column=1))], fmt)
             return 2
+        finally:
+            shutil.rmtree(tmp, ignore_errors=True)
     if as_json:
         out = {"design": design.file, "output": args.output, "summary": table.summary_line(), **table.summary()}
         if curve:

@@ -58,6 +58,18 @@ def _located(code, where, msg, hint=None):
     return 2
 
 
+def _overwrites_input(args, design, *more) -> int:
+    """E-USAGE (exit 2) when -o names an input (the design, a file it reads, the schedule); else 0.
+    Before, `acl synth D.acl -o D.acl` wrote the CSV over the design."""
+    from acl._files import input_named
+
+    hit = input_named(args.output, [*getattr(design, "sources", ()), args.design, *more])
+    if hit:
+        return _usage(f"--output {args.output}: names the input {hit}; writing would destroy it",
+                      "give another path", where="<--output>")
+    return 0
+
+
 def _usage(msg, hint=None, where=None):
     """E-USAGE at the option the message starts with (``--voltages ...`` -> ``<--voltages>:1:1``)."""
     import re
@@ -180,12 +192,17 @@ def run(args) -> int:
                     return _usage(f"--effect {item!r}: parameters are NAME:VALUE, e.g. drive_saturation=v_sat:8V")
                 column = len(name) + 2 + found.start() + len(k) + 1 + (len(v) - len(v.lstrip()))
                 params[k.strip()] = _effect_value(name.strip(), k.strip(), v, item, column)
+            if name.strip() in effects:        # the second silently replaced the first
+                return _usage(f"--effect {name.strip()} given twice: give its parameters once, e.g. "
+                              f"{_example(name.strip())}")
             effects[name.strip()] = params
         sets = {}
         for item in args.sweep:
             k, sep, vals = item.partition("=")
             if not sep:
                 return _usage(f"--sweep {item!r}: expected P=V1,V2,...")
+            if k.strip() in sets:              # the second silently replaced the first
+                return _usage(f"--sweep {k.strip()} given twice: list its values once, P=V1,V2,...")
             sets[k.strip()] = [quantity_text(v)
                                for v in vals.split(",") if v.strip()]
             if not k.strip() or not sets[k.strip()]:
@@ -228,11 +245,24 @@ def run(args) -> int:
     except DiagnosticError as exc:
         report(exc.diagnostics)
         return exit_code(exc.diagnostics)
-    n_obs = len([s for s in args.observe.split(",") if s.strip()]) or len(resolved.observes)
+    hit = _overwrites_input(args, resolved)
+    if hit:
+        return hit
+    listed = [s.strip() for s in args.observe.split(",") if s.strip()]
+    if len(set(listed)) < len(listed):          # each row written twice: counted as two measurements by acl fit
+        twice = next(n for i, n in enumerate(listed) if n in listed[:i])
+        return _usage(f"--observe {twice} given twice: each observable once", where="<--observe>")
+    n_obs = len(listed) or len(resolved.observes)
     n_rows = args.repeats * len(freqs) * len(volts) * max(1, n_obs) * math.prod(len(v) for v in sets.values())
     if n_rows > MAX_ROWS:
         return _usage(f"the experiment has {n_rows:,} rows; `acl fit` reads at most {MAX_ROWS:,}",
                       "fewer voltages, frequencies, sweep values, repeats or observables")
+    from acl.fit.data import MAX_TIME
+
+    if (n_rows - 1) * interval > MAX_TIME:      # written as 1e+308 and inf: a file acl fit refuses (E806)
+        return _usage(f"--interval {args.interval}: {n_rows:,} rows at this interval reach "
+                      f"{(n_rows - 1) * interval:.3g} s, beyond the {MAX_TIME:g} s a data file may hold",
+                      "a shorter interval, or fewer rows")
     tr = resolved.transducer
     if tr is not None:
         bad_f = [f for f in freqs if not tr.band[0] <= f <= tr.band[1]]
@@ -326,6 +356,12 @@ def _replay(args, noise) -> int:
         report(bad)
         return 1
     names = [s.strip() for s in args.observe.split(",") if s.strip()]
+    if len(set(names)) < len(names):
+        twice = next(n for i, n in enumerate(names) if n in names[:i])
+        return _usage(f"--observe {twice} given twice: each observable once", where="<--observe>")
+    hit = _overwrites_input(args, design, args.schedule)
+    if hit:
+        return hit
     known = [o.name for o in design.observes]
     for n in names:
         if n not in known:

@@ -76,10 +76,16 @@ def run(args) -> int:
     if design is None:
         return 2
     diags = check_paths(args.path)
+    if args.output is not None and not args.output.strip():     # "" is no path, not the default one
+        diags.append(error("E-USAGE", f"--output {args.output!r}: an empty path", Span(file="<--output>", line=1, column=1),
+                           "give a path, or leave the option out (the default is next to DESIGN)"))
+    elif args.output is not None and args.no_write:
+        diags.append(error("E-USAGE", "--output and --no-write contradict each other: --no-write writes nothing",
+                           Span(file="<--output>", line=1, column=1), "drop one of them"))
     if args.output == "-":
         diags.append(error("E-USAGE", "--output -: standard output cannot hold the tuned design (it extends DESIGN by a "
                            "relative path)", Span(file="<--output>", line=1, column=1), "give a path, or --no-write"))
-    if args.output and not args.output.endswith(".acl") and args.output != "-":
+    if args.output and args.output.strip() and not args.output.endswith(".acl") and args.output != "-":
         diags.append(error("E-USAGE", f"--output {args.output!r}: a design file ends in .acl",
                            Span(file="<--output>", line=1, column=1), "e.g. -o tuned.acl"))
     from acl.sweep.run import scheduler_kind
@@ -111,6 +117,14 @@ def run(args) -> int:
         problem = T.prepare(design, tolerance=args.tolerance, samples=args.samples, validate=args.validate,
                             seed=args.seed, search_paths=args.path)
         prepared = time.perf_counter() - t0
+        if not args.no_write:      # the tuned design must not replace a file the design reads (a base it extends)
+            from acl._files import input_named
+
+            hit = input_named(out_path, getattr(problem.design, "sources", ()))
+            if hit:
+                report([error("E-USAGE", f"--output names {hit}, which the design reads; the tuned design would "
+                              "replace it", Span(file="<--output>", line=1, column=1), "give another path")], fmt)
+                return 2
         result = _search(T, problem, args)
     except DiagnosticError as exc:
         report(exc.diagnostics, fmt)

@@ -124,7 +124,16 @@ def read_data(paths, design) -> Dataset:
     n_before = 0
     band = design.transducer.band if design.transducer is not None else None
     vmax = design.transducer.max_voltage if design.transducer is not None else None
+    seen_files: list[str] = []
     for path in paths:
+        import os
+
+        twin = next((q for q in seen_files if os.path.exists(path) and os.path.samefile(q, path)), None)
+        seen_files.append(path)
+        if twin is not None:         # its rows twice would halve every variance: intervals too narrow
+            bag.error("E801", f"data file given twice (also as {twin}): its rows would count twice",
+                      Span(file=path, line=1, column=1), "give each data file once")
+            continue
         text = _read_text(path)
         if isinstance(text, tuple):           # (line, column, byte) of the first byte that is not UTF-8
             line, column, byte = text

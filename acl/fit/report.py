@@ -388,11 +388,39 @@ def figures(problem, selection, outdir) -> list[str]:
     return files
 
 
+REPORT_FILES = frozenset({"report.json", "fit.png", "residuals.png"})
+
+
+def report_dir_problem(target: str) -> str | None:
+    """Why ``target`` cannot take a report (it is replaced as a whole), or None: it must be new, empty,
+    or a previous report (report.json and its figures, nothing else).  Before, `--report FOLDER` renamed
+    any folder away and deleted it, the user's files (the design and data too) with it."""
+    if not os.path.lexists(target):
+        return None
+    if os.path.islink(target) or not os.path.isdir(target):
+        return f"{target} exists and is not a folder"
+    try:
+        entries = os.listdir(target)
+    except OSError as exc:
+        return f"cannot list {target}: {exc.strerror or exc}"
+    foreign = sorted(n for n in entries if n not in REPORT_FILES or os.path.islink(os.path.join(target, n))
+                     or not os.path.isfile(os.path.join(target, n)))
+    if foreign:
+        shown = ", ".join(foreign[:5]) + (f" and {len(foreign) - 5} more" if len(foreign) > 5 else "")
+        return f"report folder {target} holds files acl fit did not write there: {shown}"
+    return None
+
+
 def write_report_dir(target, write) -> None:
-    """Run ``write(tmpdir)`` then move the directory to ``target`` atomically (rename)."""
+    """Run ``write(tmpdir)`` then move the directory to ``target`` atomically (rename).
+
+    ``target`` must pass :func:`report_dir_problem` (new, empty or a previous report): OSError otherwise."""
     import shutil
     import tempfile
 
+    problem = report_dir_problem(target)
+    if problem:
+        raise OSError(problem)
     target = os.path.abspath(target)
     parent = os.path.dirname(target) or "."
     os.makedirs(parent, exist_ok=True)

@@ -97,7 +97,7 @@ def load_config(path: str | None, rules: dict) -> LintConfig:
     try:
         with open(path, "rb") as fh:
             raw = fh.read()
-        text = raw.decode("utf-8")
+        text = raw.decode("utf-8-sig")      # a byte-order mark (Windows editors) as in .acl and .csv files
         data = tomllib.loads(text)
     except FileNotFoundError:
         raise ConfigError([error("E-CONFIG", f"configuration file `{path}` not found", span0)]) from None

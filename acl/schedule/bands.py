@@ -21,8 +21,9 @@ held to the calibrated model (:func:`pinned`), elsewhere it keeps its prior.  Th
 * :func:`margin_band` -- the 5th percentile over those designs of a goal's re-simulated margin (a
   hold's snap-in margin, a switch's force over the switching force): a goal without a path has no
   tracking error, but its margin is as uncertain as the design;
-* :func:`coverage_notes` -- warnings when a schedule drives outside the range the calibration data
-  covered (``covered(voltage|frequency|deflection)``).
+* :func:`coverage_warnings` -- ``W-SCHED-COVERAGE`` at each goal that drives outside the range the
+  calibration data covered (``covered(voltage|frequency|deflection)``): the voltage and tones of
+  every goal, the deflection of a path, a held or crossed pair and a switched latch's shuttle.
 
 Numbers only; the compiler turns them into report fields and notes.
 """
@@ -330,32 +331,65 @@ def gain_sensitivity(design: Design, gains_for: Callable, reload: Reload | None 
     return 0.5 * (Q + Q.T)
 
 
-def coverage_notes(design: Design, schedule) -> list[str]:
-    """Warnings for goals that drive outside the declared ``covered`` ranges of a calibration."""
-    cover = {c.quantity: (c.lower, c.upper) for c in design.coverage}
+COVERAGE_CODE = "W-SCHED-COVERAGE"
+
+
+def coverage_warnings(design: Design, schedule, spans, reach=None) -> list:
+    """``W-SCHED-COVERAGE`` warnings for goals that drive outside the declared ``covered`` ranges of a calibration.
+
+    ``spans[i]`` locates program step ``i`` (the goal's file:line:column).  ``reach(goal)`` gives the
+    largest deflection from rest the goal drives a capsule (or a latch shuttle) to and the phrase that
+    says where, ``(metres, phrase)``, or None when unknown; without it only a follow goal's path
+    (``target_m``) is checked.  Voltage is the sum of tone amplitudes of the goal's segments; a tone
+    counts when driven (amplitude > 0).
+    """
+    from acl.diagnostics import Diagnostic, Severity
+
+    cover = {c.quantity: c for c in design.coverage}
     if not cover:
         return []
     out = []
+
+    def warn(g, text, q):
+        c = cover[q]
+        span = spans[g.step] if 0 <= g.step < len(spans) else None
+        out.append(Diagnostic(COVERAGE_CODE, Severity.WARNING, f"{g.name}: {text}", span,
+                              "calibrate on data that cover it (acl synth/acl fit), or keep the program "
+                              "inside the covered range",
+                              notes=(f"covered({q}) is declared at {c.span}",) if c.span else ()))
+
     tol = 1e-9
     for g in schedule.goals:
         segs = [s for s in schedule.segments if s.step == g.step and s.goal == g.name]
         if "voltage" in cover and segs:
             v = max(s.amplitude_sum() for s in segs)
-            lo, hi = cover["voltage"]
+            lo, hi = cover["voltage"].lower, cover["voltage"].upper
             if v > hi * (1 + 1e-6) + tol:
-                out.append(f"warning: {g.name}: drives up to {v:.3g} V (sum of tone amplitudes) but the "
-                           f"calibration data covered {lo:.3g} .. {hi:.3g} V: the calibrated model is extrapolated")
+                warn(g, f"drives up to {v:.3g} V (sum of tone amplitudes) but the calibration data covered "
+                        f"{lo:.3g} .. {hi:.3g} V: the calibrated model is extrapolated", "voltage")
+            elif g.kind == "hold" and g.details.get("mode") == "above":
+                # the promise is "no snap-in below margin x this drive": predicted where the data may not reach
+                m = float(g.details.get("margin", 1.0))
+                if v * m > hi * (1 + 1e-6) + tol:
+                    warn(g, f"promises no snap-in up to {m:g} x its drive, {v * m:.3g} V (sum of tone amplitudes), "
+                            f"but the calibration data covered {lo:.3g} .. {hi:.3g} V: the margin is extrapolated",
+                         "voltage")
         if "frequency" in cover and segs:
             fs = [t.frequency_hz for s in segs for t in s.tones if t.amplitude_v > 0]
-            lo, hi = cover["frequency"]
+            lo, hi = cover["frequency"].lower, cover["frequency"].upper
             outside = sorted({f for f in fs if f < lo * (1 - 1e-6) or f > hi * (1 + 1e-6)})
             if outside:
-                out.append(f"warning: {g.name}: tones {', '.join(f'{f / 1e3:g}' for f in outside)} kHz lie outside "
-                           f"the calibrated {lo / 1e3:g} .. {hi / 1e3:g} kHz")
-        if "deflection" in cover and g.target_m is not None:
-            r = float(np.max(np.linalg.norm(np.asarray(g.target_m), axis=1)))
-            lo, hi = cover["deflection"]
+                warn(g, f"tones {', '.join(f'{f / 1e3:g}' for f in outside)} kHz lie outside "
+                        f"the calibrated {lo / 1e3:g} .. {hi / 1e3:g} kHz", "frequency")
+        if "deflection" in cover:
+            got = reach(g) if reach is not None else None
+            if got is None and g.target_m is not None:
+                got = (float(np.max(np.linalg.norm(np.asarray(g.target_m), axis=1))), "the path reaches")
+            if got is None or not np.isfinite(got[0]):
+                continue
+            r, phrase = got
+            hi = cover["deflection"].upper
             if r > hi * (1 + 1e-6) + 1e-12:
-                out.append(f"warning: {g.name}: the path reaches {r * 1e6:.3g} um from rest but the calibration "
-                           f"data covered deflections up to {hi * 1e6:.3g} um")
+                warn(g, f"{phrase} {r * 1e6:.3g} um from rest but the calibration "
+                        f"data covered deflections up to {hi * 1e6:.3g} um", "deflection")
     return out

@@ -121,22 +121,70 @@ class _Compiler:
                          max_voltage_v=vmax, full_scale_v=full_scale, ramp_s=self.opts.ramp_s,
                          source=self.design.file, notes=self.notes, full_scale_source=source)
         sched.sample_rate_hz = fs
-        from acl.schedule.bands import coverage_notes
+        from acl.schedule.bands import coverage_warnings
 
-        self.notes.extend(coverage_notes(self.design, sched))
+        for w in coverage_warnings(self.design, sched, [st.span for st in self.program.steps], self._reach):
+            sched.warnings.append(w)
+            self.notes.append(f"warning: {w.message}")
         _choose_all_phases(sched, fs)
         self._check_peaks(sched)
         self._check_slews(sched)
         self._check_linear(sched)
         return sched
 
+    def _reach(self, goal: GoalReport):
+        """(largest deflection from rest, m, the phrase saying where) a hold, cross or switch goal drives to; None if unknown.
+
+        hold above: each capsule of the pair at the equilibrium under the whole drive; cross: the last
+        stable equilibrium before snap-in (the pair passes through it); switch: the shuttle's travel
+        between the latch's two stable states (it ends in the other one).  A follow goal: None (its path).
+        """
+        if goal.kind not in ("hold", "switch"):
+            return None
+        step = self.program.steps[goal.step]
+        tones = tuple((t.frequency_hz, t.amplitude_v) for s in self.segments
+                      if s.step == goal.step and s.goal == goal.name for t in s.tones if t.amplitude_v > 0)
+        try:
+            if goal.kind == "switch":
+                from acl.analysis.mechanics import latch_geometry
+                from acl.physics.latch import latch_landscape
+
+                if not tones:          # already in the state: nothing moves
+                    return None
+                lt = next(l for l in self.design.latches if l.name == step.latch)
+                land = latch_landscape(*latch_geometry(lt, self.design))
+                if land.state_b is None:
+                    return None
+                return abs(float(land.state_b)), f"the shuttle of latch `{lt.name}` travels to state {step.state},"
+            if not tones:
+                return None
+            from acl.analysis import acoustics, mechanics
+            from acl.design.model import Drive, Tone
+
+            shape = Drive(tones=tuple(Tone(frequency=f, amplitude=a) for f, a in tones))
+            sw = mechanics.sweep_voltage(self.design, shape, 1.0, acoustics.force_model_for(self.design))
+            pos = sw.snap_positions if (step.mode == "cross" and sw.snap_positions is not None) else \
+                {k: v[-1] for k, v in sw.positions.items()}
+            best, who = 0.0, ""
+            for name in (step.a.split(".")[0], step.b.split(".")[0]):
+                c = self.design.capsule(name)
+                r = float(np.linalg.norm(np.asarray(pos[name], float) - np.asarray(c.center, float)))
+                if r > best * (1 + TIE_RTOL):     # a symmetric pair: the first capsule named
+                    best, who = r, name
+            if step.mode == "cross":
+                return best, f"the pair passes, before it snaps in, through capsule `{who}` at"
+            return best, f"the drive holds capsule `{who}` at"
+        except (DiagnosticError, KeyError, StopIteration, ValueError, ArithmeticError):
+            return None         # no mechanics model for this design: the deflection is unknown, not covered
+
     def _check_linear(self, sched: Schedule) -> None:
         """Refuse a segment that drives an interface beyond the linear bubble model (eps/R > LINEAR_AMPLITUDE_LIMIT; docs/physics.md).
 
-        Tone amplitudes add (the worst-case peak); chirps are sampled at 9 frequencies.  Allowed with
+        Tone amplitudes add (the worst-case peak); a sweep at its worst frequency (sampled with every mode
+        inside, the largest refined: acoustics.sweep_worst_amplitude).  Allowed with
         ``allow_nonlinear`` (then noted): the predicted forces are then not trustworthy.
         """
-        from acl.analysis.acoustics import interface_amplitudes
+        from acl.analysis.acoustics import interface_amplitudes, sweep_worst_amplitude
         from acl.design.model import Drive, Tone
         from acl.physics.constants import LINEAR_AMPLITUDE_LIMIT
 
@@ -146,7 +194,16 @@ class _Compiler:
                 continue
             worst, where = worst_of.get(seg.step, (0.0, ""))
             chirps = [t for t in seg.tones if t.frequency_end_hz]
-            grid = np.linspace(0.0, 1.0, 9) if chirps else np.zeros(1)
+            if len(chirps) == 1 and len(seg.tones) == 1 and chirps[0].amplitude_v > 0:     # a sweep step
+                t = chirps[0]
+                v, _, amps = sweep_worst_amplitude(self.design, t.frequency_hz, t.frequency_end_hz, t.amplitude_v,
+                                                   self._mode_frequencies())
+                k, v = first_max_item(amps)
+                if v > worst * (1 + TIE_RTOL):
+                    worst, where = v, k
+                worst_of[seg.step] = (worst, where)
+                continue
+            grid = np.linspace(0.0, 1.0, 21) if chirps else np.zeros(1)
             for x in grid:
                 tones = tuple(Tone(frequency=t.frequency_hz + x * ((t.frequency_end_hz or t.frequency_hz) - t.frequency_hz),
                                    amplitude=t.amplitude_v) for t in seg.tones if t.amplitude_v > 0)
@@ -168,6 +225,17 @@ class _Compiler:
                 continue
             raise _diag("E-SCHED-NONLINEAR", text, step.span,
                         "lower the voltage, move the tone off resonance, or pass --allow-nonlinear")
+
+    def _mode_frequencies(self) -> np.ndarray:
+        """Every capsule's mode frequencies (Hz) and the coupled modes' (two or more capsules): a chirp's peaks."""
+        if not hasattr(self, "_modes_hz"):
+            from acl.analysis import acoustics as AC
+
+            fs = [m.frequency_hz for c in self.design.capsules for m in AC.capsule_modes(self.design, c)]
+            if len(self.design.capsules) > 1:
+                fs += [m.frequency_hz for m in AC.coupled_modes(self.design)]
+            self._modes_hz = np.array(fs, float)
+        return self._modes_hz
 
     def _check_slews(self, sched: Schedule) -> None:
         """Every step with a slew limit: the emitted amplitude envelope, crossfades included, obeys it.
@@ -721,7 +789,7 @@ class _Compiler:
         self._add(step.duration, tones, i, name)
         details = {"snap_index": float(sum(t.amplitude_v ** 2 / v ** 2 for t in tones
                                            for f, v in zip(step.tones, v_snap) if f == t.frequency_hz)),
-                   "critical_voltages_v": [float(v) for v in v_snap], "margin": step.margin}
+                   "critical_voltages_v": [float(v) for v in v_snap], "margin": step.margin, "mode": step.mode}
         if ratio is not None:
             details["resimulated_margin"] = ratio
         rep = GoalReport(name, "hold", i, self.t - step.duration, self.t,

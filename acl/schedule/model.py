@@ -105,6 +105,7 @@ class Schedule:
     version: str = SCHEDULE_VERSION
     notes: list[str] = field(default_factory=list)
     full_scale_source: str = ""                # where full_scale_v came from (option, transducer, limit)
+    warnings: list = field(default_factory=list)   # located warnings (acl.diagnostics.Diagnostic), also in notes
 
     @property
     def duration_s(self) -> float:

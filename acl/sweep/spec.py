@@ -181,6 +181,9 @@ def parse_vary(text: str, design: Design, where: str = "<--vary>") -> Axis:
         if n is None or n < 1:
             raise DiagnosticError([error("E-USAGE", f"{where[1:-1]} {name}: the number of points must be an integer >= 1, "
                                          f"found {parts[0].strip()!r}", Span(file=where, line=1, column=col + 1))])
+        if n > MAX_POINTS:     # before the grid is allocated (1e20 points: numpy's "Maximum allowed size exceeded")
+            raise DiagnosticError([error("E-USAGE", f"{where[1:-1]} {name}: {n:.3g} points is more than one sweep holds "
+                                         f"in memory ({MAX_POINTS:.0e})", Span(file=where, line=1, column=col + 1))])
         log = False
         if len(parts) > 1:
             flag = parts[1].strip()
