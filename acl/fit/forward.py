@@ -388,8 +388,34 @@ def predict(P: Prepared, coeffs: dict, effects: dict, latch_blend: float = 0.0) 
     capsule's natural frequency and Q), ``f0@CAP`` / ``q@CAP`` (one capsule's), absent = design value;
     ``effects``: effect id -> {param: value} (internal coordinates, acl.fit.effects).  ``latch_blend`` > 0: a lone
     latch's shuttle travel smoothed across its switch (:func:`latch_travel`; a search device, not the model)."""
+    key = _memo_key(P, coeffs, effects, latch_blend) if MEMO > 0 else None
+    if key is not None:
+        memo = P.__dict__.setdefault("_memo", {})
+        if key in memo:
+            return memo[key].copy()
     with np.errstate(all="ignore"):
-        return _predict(P, coeffs, effects, latch_blend)
+        out = _predict(P, coeffs, effects, latch_blend)
+    if key is not None:
+        if len(memo) >= MEMO:
+            del memo[next(iter(memo))]                 # the oldest
+        memo[key] = out.copy()
+    return out
+
+
+MEMO = 64      # predictions kept per data set (an optimizer revisits points: starts, polishes, the final evaluation)
+
+
+def _memo_key(P, coeffs, effects, latch_blend):
+    """Key of a prediction that depends on its arguments alone (floats only; not with latch states, whose rows depend
+    on the fit's reweighting state), else None."""
+    if P.state is not None and np.any(P.state):
+        return None
+    try:
+        return (tuple(sorted((k, float(v).hex()) for k, v in coeffs.items())),
+                tuple(sorted((e, tuple(sorted((k, float(v).hex()) for k, v in ps.items()))) for e, ps in effects.items())),
+                float(latch_blend).hex())
+    except (TypeError, ValueError):
+        return None
 
 
 def _resonance_factors(P: Prepared, coeffs: dict, effects: dict):
@@ -533,7 +559,18 @@ def _predict(P: Prepared, coeffs: dict, effects: dict, latch_blend: float = 0.0)
         wab = w[idx] if res is None else w[idx] * np.sqrt(res[0][idx] * res[1][idx])
         a_rad = alpha * (P.arel[idx] * wab).sum(axis=1) * sub_ab
         push = thrust[0, idx] + thrust[1, idx]
-        da, db = _pair_equilibrium(law0, law1, a_rad, push, P.d0[idx], same)
+
+        def laws(sub):
+            """(law0, law1, same) of the pair rows ``idx[sub]`` (the fallback of the warm start)."""
+            l0, l1, sm = rows(idx[sub])
+            if c_p > 0:
+                l0 = _with_drag(l0, c_p)
+                l1 = l0 if sm else _with_drag(l1, c_p)
+            return l0, l1, sm
+
+        # what fixes the deflection laws of the pair rows besides (a_rad, push): equal -> the same equilibrium
+        law_sig = (lam, c_p, rigid[:, idx], cd[:, idx], ct[:, idx], P.EI[:, idx] * es)
+        da, db = _pair_solve(P, law0, law1, a_rad, push, P.d0[idx], same, law_sig, laws)
         d_0[idx], d_1[idx] = da, db
     out = P.base + P.s0 * d_0 + P.s1 * d_1
     if np.any(grp):
@@ -611,25 +648,34 @@ def _with_drag(law, c_p, steps=3):
     solved by Newton from the linear-law solution delta_lin / (1 + c_p |delta_lin|)."""
     def dragged(load):
         lin = law(load)
+        lo, hi = np.minimum(lin, 0.0), np.maximum(lin, 0.0)
         d = lin / (1.0 + c_p * np.abs(lin))
         for _ in range(steps):
-            x = drag_load(load, np.abs(d), c_p)
-            r = law(x) - d
+            ad = np.abs(d)
+            x = drag_load(load, ad, c_p)
+            lx = law(x)
+            r = lx - d
             h = 1e-6 * np.maximum(np.abs(x), 1e-30)
-            slope = (law(x + h) - law(x)) / h                       # d law / d load
-            dr = -slope * load * c_p * np.sign(d) * (1.0 - c_p * np.abs(d) > 0) - 1.0   # d r / d delta
-            d = np.clip(d - r / np.where(dr != 0, dr, -1.0), np.minimum(lin, 0.0), np.maximum(lin, 0.0))
+            slope = (law(x + h) - lx) / h                           # d law / d load
+            dr = -slope * load * c_p * np.sign(d) * (1.0 - c_p * ad > 0) - 1.0   # d r / d delta
+            d = np.clip(d - r / np.where(dr != 0, dr, -1.0), lo, hi)
         return d
     return dragged
 
 
-def _pair_equilibrium(law0, law1, a_rad, push, d0, same=False):
+def _pair_equilibrium(law0, law1, a_rad, push, d0, same=False, tol=None, info=None, guess=None, gather=None):
     """Stable gap of a facing pair under P(d) = a/d^2 - b, first root of d0 - d - delta_a - delta_b from d0.
 
     Bracketed on a grid from d0 (towards contact when the pair attracts at rest, outwards up to the
     largest repulsive opening otherwise; the whole grid in one vectorized evaluation), then refined by
     the Illinois variant of regula falsi (superlinear, always inside the bracket).
     Returns (delta_a, delta_b); past snap-in (no root before contact) the pair is in contact, d = 0.
+    ``tol``: on |gap residual| (default 1e-12 of the largest d0); ``info``: a dict, filled with what
+    :func:`_pair_warm` needs to reuse this solve (the bracket cell, its sign margin, the root).
+    ``guess`` (with ``gather(rows) -> (law0, law1, same)`` of those rows, repeats allowed): each row's bracketing cell
+    in an earlier solve; the grid is then read from d0 only up to the end of that cell (and on to the end where it has
+    no crossing there), which gives the same first crossing, the same bracket and the same values bit for bit: the
+    grid is elementwise.
     """
     def both(load):
         da = law0(load)
@@ -642,23 +688,36 @@ def _pair_equilibrium(law0, law1, a_rad, push, d0, same=False):
     attract = a_rad / (d0 * d0) - push >= 0
     ra, rb = both(-push)
     far = np.where(attract, 0.02 * d0, d0 - ra - rb + 1e-12)
-    s = np.linspace(0.0, 1.0, N_GRID + 1)[:, None]
-    D = d0 + s * (far - d0)                       # (N_GRID + 1, n)
-    G = g(D)
-    sg = np.sign(G)
-    cross = sg[1:] != sg[:-1]
-    found = cross.any(axis=0)
-    k = np.argmax(cross, axis=0)
-    cols = np.arange(d0.size)
-    a, fa = D[k, cols], G[k, cols]
-    b, fb = D[k + 1, cols], G[k + 1, cols]
-    exact = G[0] == 0
-    tol = 1e-12 * np.max(d0)
+    m = d0.size
+    cols = np.arange(m)
+    if guess is None or gather is None or np.shape(guess) != (m,):
+        s = np.linspace(0.0, 1.0, N_GRID + 1)[:, None]
+        D = d0 + s * (far - d0)                       # (N_GRID + 1, n)
+        G = g(D)
+        sg = np.sign(G)
+        cross = sg[1:] != sg[:-1]
+        found = cross.any(axis=0)
+        k = np.argmax(cross, axis=0)
+        a, fa = D[k, cols], G[k, cols]
+        b, fb = D[k + 1, cols], G[k + 1, cols]
+        G0 = G[0]
+    else:
+        G = np.full((N_GRID + 1, m), np.nan) if info is not None else None
+        npts = np.minimum(np.asarray(guess, int) + 2, N_GRID + 1)
+        found, k, a, fa, b, fb, G0 = _scan(cols, npts, a_rad, push, d0, far, gather, G)
+        more = ~found & (npts < N_GRID + 1)
+        if np.any(more):                               # no crossing up to the guessed cell: read the rest of the grid
+            r = np.flatnonzero(more)
+            f2, k2, a2, fa2, b2, fb2, _ = _scan(r, np.full(r.size, N_GRID + 1), a_rad, push, d0, far, gather, G)
+            found[r], k[r], a[r], fa[r], b[r], fb[r] = f2, k2, a2, fa2, b2, fb2
+    exact = G0 == 0
+    tol = 1e-12 * np.max(d0) if tol is None else tol
     for _ in range(N_REFINE):
         den = fb - fa
-        c = np.where(den != 0, b - fb * (b - a) / np.where(den != 0, den, 1.0), 0.5 * (a + b))
-        lo, hi = np.minimum(a, b), np.maximum(a, b)
-        c = np.where((c >= lo) & (c <= hi), c, 0.5 * (a + b))
+        nz = den != 0
+        mid = 0.5 * (a + b)
+        c = np.where(nz, b - fb * (b - a) / np.where(nz, den, 1.0), mid)
+        c = np.where((c >= np.minimum(a, b)) & (c <= np.maximum(a, b)), c, mid)
         fc = g(c)
         flip = np.sign(fc) != np.sign(fb)
         a, fa = np.where(flip, b, a), np.where(flip, fb, 0.5 * fa)
@@ -666,7 +725,164 @@ def _pair_equilibrium(law0, law1, a_rad, push, d0, same=False):
         if np.all(np.abs(fc[found]) <= tol):
             break
     d = np.where(exact, d0, b)
+    if info is not None:
+        # sign margin: the smallest |G| on the grid points before the bracketing cell (all of them when there is no
+        # crossing), where a perturbation would have to flip a sign to make the search stop at another root
+        j = np.arange(N_GRID + 1)[:, None]
+        before = np.where(found, j < k, True)
+        absg = np.where(before & np.isfinite(G), np.abs(G), np.inf)
+        jmin = np.argmin(absg, axis=0)
+        info.update(attract=attract, far=far, k=k, found=found, exact=exact, d=d, fb=fb,
+                    conv=~found | exact | (np.abs(fb) <= tol), jmin=jmin, margin=absg[jmin, cols], Gj=G[jmin, cols],
+                    tol=tol)
     found = found | exact
-    load = a_rad / (d * d) - push
-    da, db = both(load)
+    if info is not None:       # the deflections at d and, 1e-8 d0 further, the slope of the gap residual there
+        e = 1e-8 * d0
+        dd = np.stack([d, d + e])
+        da2, db2 = both(a_rad / (dd * dd) - push)
+        da, db = da2[0], db2[0]
+        info["slope"] = ((d0 - dd[1] - da2[1] - db2[1]) - (d0 - d - da - db)) / e
+    else:
+        load = a_rad / (d * d) - push
+        da, db = both(load)
     return np.where(found, da, 0.5 * d0), np.where(found, db, 0.5 * d0)
+
+
+def _scan(rows, npts, a_rad, push, d0, far, gather, G=None):
+    """The grid of :func:`_pair_equilibrium` read on rows ``rows`` from d0 up to ``npts`` points each (one flat
+    evaluation): (found, k, a, fa, b, fb, G at d0) of the first crossing per row; ``G`` (N_GRID + 1, n) receives
+    the values read."""
+    total = int(npts.sum())
+    start = np.cumsum(npts) - npts
+    r = np.repeat(rows, npts)
+    j = np.arange(total) - np.repeat(start, npts)
+    s = np.linspace(0.0, 1.0, N_GRID + 1)
+    d0r, farr = d0[r], far[r]
+    D = d0r + s[j] * (farr - d0r)
+    l0, l1, sm = gather(r)
+    load = a_rad[r] / (D * D) - push[r]
+    da = l0(load)
+    Gv = d0r - D - da - (da if sm else l1(load))
+    if G is not None:
+        G[j, r] = Gv
+    sg = np.sign(Gv)
+    cross = np.zeros(total, bool)
+    cross[1:] = (sg[1:] != sg[:-1]) & (j[1:] > 0)
+    hits = np.flatnonzero(cross)
+    first_row, first = np.unique(r[hits], return_index=True)      # r is sorted by row: the first crossing of each
+    t = hits[first]
+    pos = np.searchsorted(rows, first_row)
+    n = rows.size
+    found = np.zeros(n, bool)
+    k = np.zeros(n, int)
+    a, fa, b, fb = np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n)
+    found[pos] = True
+    k[pos] = j[t] - 1
+    a[pos], fa[pos], b[pos], fb[pos] = D[t - 1], Gv[t - 1], D[t], Gv[t]
+    # rows without a crossing: the full grid's argmax of no crossing is cell 0
+    none = ~found
+    if np.any(none):
+        t0 = start[none]
+        a[none], fa[none] = D[t0], Gv[t0]
+        t1 = np.minimum(t0 + 1, start[none] + npts[none] - 1)
+        b[none], fb[none] = D[t1], Gv[t1]
+    return found, k, a, fa, b, fb, Gv[start]
+
+
+WARM = False           # True: finite-difference columns start from the last full pair solve (_pair_warm; off: see docs/fit.md)
+WARM_SAFETY = 100.0     # a grid sign may move by at most this fraction of its margin (1/100) for the warm start
+WARM_CHANGE = 1e-3      # largest relative change of a_rad, push and the rest opening for which a warm start is tried
+
+
+class _FDColumns:
+    """``with FD_COLUMNS: predict(...)``: the predictions are finite-difference neighbours of the last one made outside
+    (acl.fit.solve.fit's Jacobian), so a pair's equilibrium may start from that solve (:func:`_pair_solve`)."""
+
+    def __init__(self):
+        self.active = False
+
+    def __enter__(self):
+        self.active = True
+        return self
+
+    def __exit__(self, *exc):
+        self.active = False
+        return False
+
+
+FD_COLUMNS = _FDColumns()
+
+
+def _pair_solve(P, law0, law1, a_rad, push, d0, same, law_sig, laws):
+    """:func:`_pair_equilibrium` of the pair rows, using the last full solve (kept on ``P``) where it can.
+
+    Inputs (a_rad, push, deflection laws) bitwise those of the last full solve: its result (the solve is
+    deterministic).  Otherwise the full solve reads the grid only up to each row's last bracketing cell (the same
+    result bit for bit, :func:`_pair_equilibrium` ``guess``), except inside ``FD_COLUMNS`` (a Jacobian's
+    finite-difference columns) with a_rad and push within WARM_CHANGE of the last full solve: :func:`_pair_warm`, a
+    Newton step from the last root, kept for a row only if no grid sign before its cell can have flipped and it
+    converges to the full solve's tolerance (else that row is solved in full), so a column agrees with the full
+    solve's to the solver tolerance (tests/test_fit_pair_warm.py).  Full solves outside FD_COLUMNS refresh the cache."""
+    cache = getattr(P, "_eq_cache", None)
+    guess = None
+    if cache is not None and cache["d0"].shape == d0.shape and np.array_equal(cache["d0"], d0) \
+            and cache["same"] == same:
+        same_law = (law_sig[0] == cache["law_sig"][0] and law_sig[1] == cache["law_sig"][1]
+                    and all(np.array_equal(a, b) for a, b in zip(law_sig[2:], cache["law_sig"][2:])))
+        if same_law and np.array_equal(a_rad, cache["a_rad"]) and np.array_equal(push, cache["push"]):
+            return cache["da"], cache["db"]
+        if law_sig[0] or law_sig[1]:     # an iterated law (elastica blend, drag): read the grid only up to the cell
+            guess = np.where(cache["found"], cache["k"], N_GRID)
+        if WARM and FD_COLUMNS.active:
+            with np.errstate(all="ignore"):
+                ok = np.all(np.abs(a_rad - cache["a_rad"]) <= WARM_CHANGE * np.abs(cache["a_rad"])) and \
+                    np.all(np.abs(push - cache["push"]) <= WARM_CHANGE * np.abs(cache["push"]))
+            if ok:
+                return _pair_warm(cache, law0, law1, a_rad, push, d0, same, laws)
+            return _pair_equilibrium(law0, law1, a_rad, push, d0, same, guess=guess, gather=laws)
+    if FD_COLUMNS.active:
+        return _pair_equilibrium(law0, law1, a_rad, push, d0, same, guess=guess, gather=laws)
+    info: dict = {}
+    da, db = _pair_equilibrium(law0, law1, a_rad, push, d0, same, info=info, guess=guess, gather=laws)
+    info.update(d0=d0, same=same, law_sig=law_sig, a_rad=a_rad, push=push, da=da, db=db)
+    P._eq_cache = info
+    return da, db
+
+
+def _pair_warm(c, law0, law1, a_rad, push, d0, same, laws):
+    """Pair equilibrium from the cached full solve ``c`` (:func:`_pair_solve`): one Newton step from its root with its
+    slope.  A row keeps it if the gap residual changed, at the root and at the grid point of smallest margin before
+    the bracketing cell, by less than 1/WARM_SAFETY of that margin (no grid sign before the root can have flipped:
+    the full solve would stop at the same root) and the step lands within the full solve's tolerance; any other row
+    is solved by :func:`_pair_equilibrium` with that tolerance."""
+    def g(d):
+        load = a_rad / (d * d) - push
+        da = law0(load)
+        db = da if same else law1(load)
+        return d0 - d - da - db, da, db
+
+    root, tol = c["d"], c["tol"]
+    dj = d0 + np.linspace(0.0, 1.0, N_GRID + 1)[c["jmin"]] * (c["far"] - d0)
+    with np.errstate(all="ignore"):
+        attract = a_rad / (d0 * d0) - push >= 0
+        (g0, gj), DA, DB = g(np.stack([root, dj]))
+        change = np.maximum(np.abs(g0 - c["fb"]), np.abs(gj - c["Gj"]))
+        found = c["found"] & ~c["exact"]
+        # a row at rest (G = 0 at d0: no load) stays there while it has no load
+        good = (attract == c["attract"]) & np.where(
+            c["exact"], g0 == 0, c["conv"] & (c["margin"] > WARM_SAFETY * change))
+        da, db = DA[0], DB[0]
+        step = found & good & ~(np.abs(g0) <= tol)
+        if np.any(step):
+            d1 = root - g0 / c["slope"]
+            f1, da1, db1 = g(d1)
+            good &= ~step | (np.abs(f1) <= tol)
+            da, db = np.where(step, da1, da), np.where(step, db1, db)
+    live = c["found"] | c["exact"]
+    da, db = np.where(live, da, 0.5 * d0), np.where(live, db, 0.5 * d0)
+    bad = ~good
+    if np.any(bad):
+        l0, l1, sm = laws(bad)
+        ra, rb = _pair_equilibrium(l0, l1, a_rad[bad], push[bad], d0[bad], sm, tol=tol)
+        da[bad], db[bad] = ra, rb
+    return da, db

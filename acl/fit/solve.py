@@ -97,7 +97,7 @@ def fit(predict, y, sigma, coefs, train=None, starts=None, max_nfev=200, robust_
     huge residuals (e.g. predicted in contact past snap-in while measured before it) do not trap the
     optimizer; the final fit is always the plain weighted least squares.
     """
-    from scipy.optimize import least_squares
+    least_squares = fd_least_squares
 
     n_all = y.size
     train = np.arange(n_all) if train is None else np.asarray(train)
@@ -261,6 +261,32 @@ def fit(predict, y, sigma, coefs, train=None, starts=None, max_nfev=200, robust_
     rmse = float(np.sqrt(np.mean(r[train] ** 2)))
     return FitResult(list(coefs), values, stderr, ci, corr, pred, r, train, n, p, chi2, redchi, rmse, aicc, bic,
                      success, str(message), warnings, identifiable, full_rank, rw_all, n_scale, chi2_scale)
+
+
+def fd_least_squares(fun, x0, *, bounds, diff_step, **kw):
+    """``scipy.optimize.least_squares(fun, x0, bounds=bounds, diff_step=diff_step, **kw)`` with its "2-point" Jacobian
+    made the same way (scipy's approx_derivative, the same steps and bounds) but evaluated inside
+    acl.fit.forward.FD_COLUMNS: the columns are neighbours of the point just evaluated, so a pair's equilibrium starts
+    from that solve (acl.fit.forward._pair_solve).  The optimizer's own steps are evaluated as before."""
+    from scipy.optimize import least_squares
+    from scipy.optimize._numdiff import approx_derivative
+
+    from acl.fit.forward import FD_COLUMNS
+
+    last: dict = {}
+
+    def f(u):
+        r = fun(u)
+        if not FD_COLUMNS.active:
+            last["u"], last["r"] = np.array(u, dtype=float, copy=True), r
+        return r
+
+    def jac(u):
+        f0 = last["r"] if "u" in last and np.array_equal(last["u"], u) else f(u)
+        with FD_COLUMNS:
+            return approx_derivative(f, u, method="2-point", rel_step=diff_step, f0=np.atleast_1d(f0), bounds=bounds)
+
+    return least_squares(f, x0, jac=jac, bounds=bounds, **kw)
 
 
 def _jump_rows(resid, u, J, lo, hi, cand) -> np.ndarray:

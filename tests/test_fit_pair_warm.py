@@ -1,0 +1,152 @@
+"""The shortcuts of the fit's forward model against the plain computation (benchmarks/fit.py case 3, issue 9).
+
+The fast paths (acl.fit.forward: a pair solve reused when its inputs are bitwise the same, the bracket grid read
+only up to each row's last cell, predictions memoized; acl.fit.solve.fd_least_squares: the Jacobian's columns made
+inside FD_COLUMNS) must give the plain solve's numbers bit for bit.  The opt-in warm start (forward.WARM) must give
+finite-difference columns equal to the plain ones to the solver tolerance.  A small pair + calibration beam data
+set, with and without neighbour drag (an iterated deflection law)."""
+from __future__ import annotations
+
+import os
+
+import numpy as np
+import pytest
+
+from acl.fit import forward as F
+from acl.fit import solve
+from acl.fit.synth import Experiment, generate
+
+HERE = os.path.dirname(__file__)
+PAIR_CAL = os.path.join(HERE, "data", "fit_pair_cal.acl")
+EX = [Experiment(frequencies=(120e3, 130e3), voltages=tuple(np.linspace(0, 4, 7)), observables=("distance",),
+                 sets={"gap": ["40 um", "60 um"]}, label="pair"),
+      Experiment(frequencies=(120e3, 130e3), voltages=tuple(np.linspace(0, 11, 4)), observables=("cal",),
+                 label="calibration")]
+DRAG = {"neighbour_drag": {"inv_plateau": 1.0 / 8e-6}}
+
+
+@pytest.fixture(scope="module")
+def pair_cal():
+    data, P = generate(PAIR_CAL, EX, {"neighbour_drag": {"plateau": 8e-6}}, noise=0.2e-6, seed=3)
+    assert np.any(P.pair) and np.any(~P.pair)
+    return data, P
+
+
+def _plain(P, coeffs, effects):
+    """The forward model with every shortcut off: no memo, no reused or guided pair solve."""
+    old = F.MEMO
+    F.MEMO = 0
+    try:
+        P.__dict__.pop("_eq_cache", None)
+        return F.predict(P, coeffs, effects)
+    finally:
+        F.MEMO = old
+
+
+def _columns(P, coeffs, effects, steps, warm=False):
+    """Base prediction, then one prediction per perturbation inside FD_COLUMNS (as the Jacobian makes them)."""
+    P.__dict__.pop("_eq_cache", None)
+    P.__dict__.pop("_memo", None)
+    old = F.WARM
+    F.WARM = warm
+    try:
+        base = F.predict(P, coeffs, effects)
+        out = []
+        for co, ef in steps:
+            with F.FD_COLUMNS:
+                out.append(F.predict(P, co, ef))
+        return base, out
+    finally:
+        F.WARM = old
+
+
+def _steps(P, effects, h=1e-6):
+    co = {"gamma": P.gamma0 * 1.3, "alpha": P.alpha0 * 0.8}
+    steps = [({**co, "gamma": co["gamma"] * (1 + h)}, effects), ({**co, "alpha": co["alpha"] * (1 + h)}, effects)]
+    for e, ps in effects.items():
+        for k, v in ps.items():
+            steps.append((co, {**effects, e: {**ps, k: v * (1 + h)}}))
+    # a parameter that cannot move the pair rows (an offset): the pair solve is reused as it is
+    steps.append((co, {**effects, "offset_drift": {"offset": 1e-9, "drift": 0.0}}))
+    return co, steps
+
+
+@pytest.mark.parametrize("effects", [{}, DRAG], ids=["eq1", "drag"])
+def test_shortcut_columns_are_the_plain_solve_bit_for_bit(pair_cal, effects):
+    _, P = pair_cal
+    co, steps = _steps(P, effects)
+    base, cols = _columns(P, co, effects, steps)
+    np.testing.assert_array_equal(base, _plain(P, co, effects))
+    for (c, e), col in zip(steps, cols):
+        plain = _plain(P, c, e)
+        np.testing.assert_array_equal(col, plain)
+        assert np.any(col[P.pair] != base[P.pair]) or "offset_drift" in e     # the columns do move the pair rows
+
+
+def test_fit_with_shortcuts_equals_the_plain_fit_bit_for_bit(pair_cal, monkeypatch):
+    """solve.fit (fd_least_squares, memo, reused and guided pair solves) against the same fit with all of them off and
+    scipy's own "2-point" Jacobian."""
+    from scipy.optimize import least_squares
+
+    data, P = pair_cal
+    coefs = [solve.Coef("gamma", "gamma", P.gamma0, P.gamma0 / 1e3, P.gamma0 * 1e3, P.gamma0),
+             solve.Coef("alpha", "alpha", P.alpha0, P.alpha0 / 1e3, P.alpha0 * 1e3, P.alpha0),
+             solve.Coef("neighbour_drag.inv_plateau", "effect", 5e4, 0.0, 1e9, 1e5, effect="neighbour_drag",
+                        param="inv_plateau")]
+    P.__dict__.pop("_eq_cache", None)
+    P.__dict__.pop("_memo", None)
+    fast = solve.fit(lambda a, b: F.predict(P, a, b), data.value, data.sigma, coefs)
+
+    def plain_lsq(fun, x0, *, bounds, diff_step, **kw):
+        return least_squares(fun, x0, bounds=bounds, diff_step=diff_step, **kw)
+
+    monkeypatch.setattr(solve, "fd_least_squares", plain_lsq)
+    slow = solve.fit(lambda a, b: _plain(P, a, b), data.value, data.sigma, coefs)
+    np.testing.assert_array_equal(fast.values, slow.values)
+    np.testing.assert_array_equal(fast.prediction, slow.prediction)
+    assert fast.chi2 == slow.chi2 and np.array_equal(fast.stderr, slow.stderr)
+
+
+@pytest.mark.parametrize("effects", [{}, DRAG], ids=["eq1", "drag"])
+def test_warm_start_columns_agree_with_the_plain_solve_to_its_tolerance(pair_cal, effects):
+    """forward.WARM (opt-in): one Newton step from the last root.  The finite difference of each column (prediction
+    minus base, ~1e-6 of the deflection) agrees with the plain solve's to 1e-5 of itself (the solve's tolerance is
+    1e-12 of the gap); a warm start that kept the old root would give no difference on the pair rows at all."""
+    _, P = pair_cal
+    co, steps = _steps(P, effects)
+    base, cols = _columns(P, co, effects, steps, warm=True)
+    plain_base = _plain(P, co, effects)
+    pair = P.pair
+    for (c, e), col in zip(steps, cols):
+        plain = _plain(P, c, e)
+        dw, dp = (col - base)[pair], (plain - plain_base)[pair]
+        scale = np.max(np.abs(dp))
+        if "offset_drift" not in e:
+            assert scale > 0
+        np.testing.assert_allclose(dw, dp, rtol=0, atol=1e-5 * scale + 1e-20)
+
+
+@pytest.mark.parametrize("effects", [{}, DRAG], ids=["eq1", "drag"])
+def test_guided_and_reused_solves_follow_large_steps_bit_for_bit(pair_cal, effects):
+    """Full solves guided by the previous one's bracketing cells (rows whose crossing moved to later cells, and back)
+    and repeated points (memo, reuse) give the plain solve's numbers."""
+    _, P = pair_cal
+    P.__dict__.pop("_eq_cache", None)
+    P.__dict__.pop("_memo", None)
+    seen_more = []
+    orig = F._scan
+
+    def spy(rows, npts, *a):
+        seen_more.append(bool(np.all(npts == F.N_GRID + 1)))
+        return orig(rows, npts, *a)
+
+    F._scan = spy
+    try:
+        for gs, al in [(1.0, 1.0), (1.6, 0.7), (0.5, 1.5), (2.5, 1.0), (1.6, 0.7), (1.0, 1.0)]:
+            co = {"gamma": P.gamma0 * gs, "alpha": P.alpha0 * al}
+            np.testing.assert_array_equal(F.predict(P, co, effects), _plain(P, co, effects))   # (the plain solve leaves
+            # its own cache: the next fast solve is guided by this point's cells)
+    finally:
+        F._scan = orig
+    if effects:            # the iterated law reads the grid from the guess, and past it where the crossing moved on
+        assert seen_more and any(seen_more) and not all(seen_more)
