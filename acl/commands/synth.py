@@ -326,13 +326,12 @@ def _outside_transducer(design, waypoints, path: str) -> list:
 
 
 def _replay(args, noise) -> int:
-    from rich.console import Console
-
+    from acl._console import make_console
     from acl.commands._common import load_or_report
     from acl.diagnostics import DiagnosticError
     from acl.fit.synth import read_schedule, replay, write_csv
 
-    console = Console(stderr=True, highlight=False)
+    console = make_console(stderr=True)
     try:
         waypoints, chirps, targets = read_schedule(args.schedule, **(
             {"max_segments": args.max_segments} if args.max_segments is not None else {}))
