@@ -66,6 +66,25 @@ class _Parser(argparse.ArgumentParser):
         raise SystemExit(2)
 
 
+def unrecognized(parser: argparse.ArgumentParser, args, extra: list[str]) -> None:
+    """Exit 2 on arguments no parser took: the command's usage (not acl's), and for a mistyped
+    option the closest one the command has (`--programm` -> `--program`)."""
+    import difflib
+
+    target = parser
+    if getattr(args, "command", None) and hasattr(args, "_module"):
+        target = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction)).choices[args.command]
+    longs = [o for a in target._actions for o in a.option_strings if o.startswith("--")]
+    first = next((e.split("=", 1)[0] for e in extra if e.startswith("--")), None)
+    close = difflib.get_close_matches(first, longs, n=1, cutoff=0.6) if first else []
+    target.print_usage(sys.stderr)
+    message = "unrecognized arguments: " + " ".join(extra)
+    sys.stderr.write(f"{usage_location(message)}: error[E-USAGE]: {message}\n")
+    if close:
+        sys.stderr.write(f"      = help: did you mean `{close[0]}`?\n")
+    raise SystemExit(2)
+
+
 def build_parser(argv: list[str] | None = None) -> argparse.ArgumentParser:
     """The whole command line; only the command named in ``argv`` (default: sys.argv) is imported."""
     from acl import __version__
@@ -147,7 +166,9 @@ def repeated_option(parser: argparse.ArgumentParser, tokens: list[str]) -> tuple
 def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
     parser = build_parser(argv)
-    args = parser.parse_args(argv)
+    args, extra = parser.parse_known_args(argv)
+    if extra:
+        unrecognized(parser, args, extra)
     if not getattr(args, "command", None) or not hasattr(args, "_module"):
         parser.print_help()
         return 2

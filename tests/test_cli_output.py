@@ -184,6 +184,23 @@ def test_unknown_rule_is_a_usage_error_with_a_suggestion():
     assert r.returncode == 2 and "E-USAGE" in r.stderr and "ACL201" in r.stderr
 
 
+@pytest.mark.parametrize("args, usage, hint", [
+    (["compile", "examples/fig2_stroke.acl", "--programm", "stroke", "-o", "OUT"], "usage: acl compile", "`--program`"),
+    (["synth", "examples/fig2_stroke_truth.acl", "--schedulle", "s.json", "-o", "OUT"], "usage: acl synth", "`--schedule`"),
+    (["fit", "examples/fig2_stroke.acl", "d.csv", "--xyz"], "usage: acl fit", None),
+])
+def test_a_mistyped_option_shows_the_command_s_usage_and_the_closest_option(tmp_path, args, usage, hint):
+    """argparse reported `unrecognized arguments` with acl's own usage line (`acl [-h] ... COMMAND`);
+    now the command's usage, the located E-USAGE, and a did-you-mean for a near miss."""
+    out = tmp_path / "out"
+    args = [str(out) if a == "OUT" else a for a in args]
+    r = run(*args)
+    assert r.returncode == 2 and "Traceback" not in r.stderr and not out.exists()
+    first = next(a for a in args if a.startswith("--") and a not in ("-o",))
+    assert r.stderr.startswith(usage) and f"<{first}>:1:1: error[E-USAGE]: unrecognized arguments: {first}" in r.stderr
+    assert (f"did you mean {hint}?" in r.stderr) if hint else "did you mean" not in r.stderr
+
+
 # -- SARIF: helpUri on every rule, percent-encoded locations, schema-valid ----------------------------
 
 def test_sarif_has_help_uris_and_percent_encoded_locations(tmp_path):

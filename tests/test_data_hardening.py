@@ -123,6 +123,19 @@ def test_effect_value_in_the_wrong_unit_is_a_located_usage_error(tmp_path, capsy
     assert f"<--effect>:1:{column}: error[E-USAGE]" in err and got in err and declared in err
 
 
+@pytest.mark.parametrize("args, option, got, need", [
+    (["--noise", "0.05"], "--noise", "is a plain number", "give a length [m], e.g. 0.05um"),   # was "`0.05` is not in m"
+    (["--noise", "5V"], "--noise", "is a voltage", "give a length"),
+    (["--frequencies", "125,130kHz"], "--frequencies", "`125` is a plain number", "give a frequency"),
+    (["--voltages", "0..2V:3"], "--voltages", "`0` is a plain number", "give a voltage"),
+    (["--interval", "2"], "--interval", "is a plain number", "give a time"),
+])
+def test_quantity_option_without_its_unit_names_the_option_and_an_example(tmp_path, capsys, args, option, got, need):
+    rc, err, out = _synth(capsys, tmp_path, *args)
+    assert rc == 2 and not out.exists()
+    assert f"<{option}>:1:1: error[E-USAGE]: {option} `" in err and got in err and need in err
+
+
 def test_effect_values_in_their_declared_units_are_planted(tmp_path, capsys):
     rc, err, out = _synth(capsys, tmp_path, "--effect", "offset_drift=offset:0.5um,drift:10nm/s",
                           "--effect", "neighbour_drag=plateau:5um", "--effect", "stiffness_scale=e_scale:0.7")

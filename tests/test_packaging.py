@@ -106,4 +106,5 @@ def test_plot_without_matplotlib_is_a_clear_diagnostic(tmp_path, monkeypatch, ca
     assert main([names.get(a, a) for a in argv]) == 2
     err = capsys.readouterr().err
     assert "E-PLOT" in err and "acl[plot]" in err
+    assert ("--calibrated PATH" in err) == (argv[0] == "fit")     # fit names the way without figures
     assert not any((tmp_path / n).exists() for n in ("figs", "out", "rep"))

@@ -62,6 +62,18 @@ def test_replay_on_a_truth_with_an_undeclared_effect_differs(compiled):
     assert va.shape == vb.shape and np.max(np.abs(va - vb)) > 0.1
 
 
+def test_replay_summary_is_not_wrapped_when_piped(compiled):
+    # the tracking-error line runs past 80 columns; piped into a log it must stay one line
+    env = {k: v for k, v in os.environ.items() if k != "COLUMNS"}
+    env["PYTHONPATH"] = ROOT
+    out = subprocess.run([sys.executable, "-m", "acl", "synth", str(compiled / "fig2_stroke_truth.acl"), "--schedule",
+                          str(compiled / "out" / "schedule.json"), "-o", str(compiled / "w.csv"), "--observe", "delta"],
+                         capture_output=True, text=True, env=env)
+    assert out.returncode == 0, out.stderr
+    line = next(x for x in out.stderr.splitlines() if "tracking error on" in x)
+    assert len(line) > 80 and "over" in line and "waypoints" in line
+
+
 @pytest.mark.parametrize("content, line", [
     ("{not json", 1),
     ('{"version": "1.1", "segments": [{"start_s": 0, "tones": [{"frequency_hz": -5, "amplitude_v": 1}]}]}', 1),

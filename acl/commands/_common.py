@@ -129,8 +129,8 @@ def read_stdin(name: str) -> tuple[str | None, list[Diagnostic]]:
         return None, [error("E103", f"cannot read standard input: not UTF-8 text (byte {exc.start})", span)]
 
 
-def plotting_missing(option: str, fmt: str = "text") -> bool:
-    """Report E-PLOT and return True when matplotlib (the `plot` extra) is not installed."""
+def plotting_missing(option: str, fmt: str = "text", instead: str = "") -> bool:
+    """Report E-PLOT and return True when matplotlib (the `plot` extra) is not installed; ``instead``: a way without figures."""
     import importlib.util
 
     try:
@@ -140,7 +140,8 @@ def plotting_missing(option: str, fmt: str = "text") -> bool:
     if not found:
         report([error("E-PLOT", f"{option} draws figures with matplotlib, which is not installed",
                       Span(file=f"<{option}>", line=1, column=1),
-                      "install the plotting extra: pip install 'acl[plot]' (from a checkout: pip install '.[plot]')")], fmt)
+                      "install the plotting extra: pip install 'acl[plot]' (from a checkout: pip install '.[plot]')"
+                      + (f"; {instead}" if instead else ""))], fmt)
     return not found
 
 

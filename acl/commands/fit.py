@@ -14,7 +14,8 @@ def add_parser(p) -> None:
                    help="comma-separated names to fit besides the design's `free` params: gamma, alpha, E, gain, "
                         "f0, q, f0:CAPSULE, q:CAPSULE or design parameters (docs/data.md)")
     p.add_argument("--report", metavar="DIR", help="write report.json, fit.png, residuals.png to DIR (and the "
-                                                     "calibrated design next to DESIGN, see --calibrated)")
+                                                     "calibrated design next to DESIGN, see --calibrated); the "
+                                                     "figures need the plotting extra, acl[plot]")
     p.add_argument("--calibrated", metavar="PATH", default=None,
                    help="write the calibrated design (extends DESIGN) to PATH; default with --report: "
                         "DESIGN's folder as <stem>.calibrated.acl (loads without --path)")
@@ -58,7 +59,8 @@ def run(args) -> int:
                           f"effects: {', '.join(EFFECTS)}")], fmt)
             return 2
         candidates = names
-    if args.report and plotting_missing("--report", fmt):
+    if args.report and plotting_missing("--report", fmt, instead=(
+            "without figures, --calibrated PATH writes the calibrated design alone (the report: --output-format json)")):
         return 2
     if args.calibrated == "-" or args.report == "-":
         option = "--calibrated" if args.calibrated == "-" else "--report"

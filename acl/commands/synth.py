@@ -145,14 +145,18 @@ def _unit_example(unit: str) -> str:
     return {"V": "8V", "m": "5um", "m/s": "10nm/s", "1/s": "0.01Hz", "1/m": "1e5 1/m", "1/V^2": "0.01 1/V^2"}.get(unit, f"1 {unit}")
 
 
-def _qty(text, dims_name):
+def _qty(text, dims_name, option):
+    """``text`` as an SI value of ``dims_name``; a wrong or missing unit names ``option`` and an example."""
     from acl.fit.data import parse_quantity
-    from acl.units import parse_unit_static
+    from acl.units import DIMENSIONLESS, describe, parse_unit_static
 
     text = quantity_text(text)
     value, dims = parse_quantity(text)
-    if dims != parse_unit_static(dims_name):
-        raise ValueError(f"`{text}` is not in {dims_name}")
+    want = parse_unit_static(dims_name)
+    if dims != want:
+        got = "a plain number" if dims == DIMENSIONLESS else f"a {describe(dims)}"
+        example = {"m": "0.05um", "Hz": "125kHz", "V": "2V", "s": "1s"}.get(dims_name, f"1 {dims_name}")
+        raise ValueError(f"{option} `{text}` is {got}: give a {describe(want)}, e.g. {example}")
     return value
 
 
@@ -165,8 +169,8 @@ def run(args) -> int:
     from acl.units import UnitError
 
     try:
-        noise = _qty(args.noise, "m")
-        freqs = tuple(_qty(f, "Hz") for f in args.frequencies.split(",") if f.strip())
+        noise = _qty(args.noise, "m", "--noise")
+        freqs = tuple(_qty(f, "Hz", "--frequencies") for f in args.frequencies.split(",") if f.strip())
         m = re.match(r"^\s*(.+?)\s*\.\.\s*(.+?)\s*:\s*(\d+)\s*$", args.voltages)
         if not m:
             return _usage(f"--voltages {args.voltages!r}: expected LO..HI:N, e.g. 0V..10V:11")
@@ -174,8 +178,8 @@ def run(args) -> int:
         if not 1 <= n_volts <= MAX_ROWS:
             return _usage(f"--voltages {args.voltages!r}: {n_volts} voltages; between 1 and {MAX_ROWS:,} "
                           "(the most rows `acl fit` reads)")
-        volts = tuple(np.linspace(_qty(m.group(1), "V"), _qty(m.group(2), "V"), n_volts))
-        interval = _qty(args.interval, "s")
+        volts = tuple(np.linspace(_qty(m.group(1), "V", "--voltages"), _qty(m.group(2), "V", "--voltages"), n_volts))
+        interval = _qty(args.interval, "s", "--interval")
         effects = {}
         for item in args.effect:
             name, _, rest = item.partition("=")
@@ -326,13 +330,12 @@ def _outside_transducer(design, waypoints, path: str) -> list:
 
 
 def _replay(args, noise) -> int:
-    from rich.console import Console
-
+    from acl._console import make_console
     from acl.commands._common import load_or_report
     from acl.diagnostics import DiagnosticError
     from acl.fit.synth import read_schedule, replay, write_csv
 
-    console = Console(stderr=True, highlight=False)
+    console = make_console(stderr=True)
     try:
         waypoints, chirps, targets = read_schedule(args.schedule, **(
             {"max_segments": args.max_segments} if args.max_segments is not None else {}))

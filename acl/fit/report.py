@@ -274,7 +274,7 @@ def render_table(report, console=None) -> None:
         dc = report["critical_distance"]
         con.print(f"critical distance d_c = sqrt(alpha/(2 gamma)) = {_um(dc['value'])} "
                   f"[{_um(dc['ci95'][0])}, {_um(dc['ci95'][1])}]")
-    et = Table(title="effects tried (full reasons and CV scores in report.json)")
+    et = Table(title="effects tried (full reasons and CV scores: report.json of --report, or --output-format json)")
     et.add_column("#", no_wrap=True)
     et.add_column("effect", no_wrap=True)
     et.add_column("status", no_wrap=True)
