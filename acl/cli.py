@@ -69,19 +69,20 @@ class _Parser(argparse.ArgumentParser):
 def unrecognized(parser: argparse.ArgumentParser, args, extra: list[str]) -> None:
     """Exit 2 on arguments no parser took: the command's usage (not acl's), and for a mistyped
     option the closest one the command has (`--programm` -> `--program`)."""
-    import difflib
+    from acl.diagnostics import suggest
 
     target = parser
     if getattr(args, "command", None) and hasattr(args, "_module"):
         target = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction)).choices[args.command]
     longs = [o for a in target._actions for o in a.option_strings if o.startswith("--")]
     first = next((e.split("=", 1)[0] for e in extra if e.startswith("--")), None)
-    close = difflib.get_close_matches(first, longs, n=1, cutoff=0.6) if first else []
+    # compared without the leading dashes, which every option shares (with them `--bogus` was `--verbose`)
+    hint = suggest(first[2:], {o[2:]: o for o in longs}) if first else None
     target.print_usage(sys.stderr)
     message = "unrecognized arguments: " + " ".join(extra)
     sys.stderr.write(f"{usage_location(message)}: error[E-USAGE]: {message}\n")
-    if close:
-        sys.stderr.write(f"      = help: did you mean `{close[0]}`?\n")
+    if hint:
+        sys.stderr.write(f"      = help: {hint.replace('`', '`--', 1)}\n")
     raise SystemExit(2)
 
 
