@@ -269,7 +269,11 @@ def fd_least_squares(fun, x0, *, bounds, diff_step, **kw):
     acl.fit.forward.FD_COLUMNS: the columns are neighbours of the point just evaluated, so a pair's equilibrium starts
     from that solve (acl.fit.forward._pair_solve).  The optimizer's own steps are evaluated as before."""
     from scipy.optimize import least_squares
-    from scipy.optimize._numdiff import approx_derivative
+
+    try:
+        from scipy.optimize._numdiff import approx_derivative
+    except ImportError:     # a private scipy module: without it, scipy's own 2-point Jacobian (the same steps, no reuse)
+        return least_squares(fun, x0, bounds=bounds, diff_step=diff_step, **kw)
 
     from acl.fit.forward import FD_COLUMNS
 
