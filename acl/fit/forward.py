@@ -611,15 +611,11 @@ def _predict(P: Prepared, coeffs: dict, effects: dict, latch_blend: float = 0.0)
 SPREAD = 0.05     # default relative scatter of a latch's switching force from one ramp to the next
 
 
-class _Reweight:
-    """Latch states (acl.fit.solve.fit): each fit starts a new ``generation`` (deviance residuals, the likelihood);
-    ``with REWEIGHT: predict(...)`` at its optimum holds the binomial variances for the Pearson polish."""
+class _Flag:
+    """A switch that ``with FLAG: ...`` turns on for the block (``active``)."""
 
     def __init__(self):
         self.active = False
-        self.generation = 0
-        self.seen = False              # set by a prediction that had state rows to weigh
-        self.rows = None               # (n,) bool: the state rows of that prediction
 
     def __enter__(self):
         self.active = True
@@ -628,6 +624,17 @@ class _Reweight:
     def __exit__(self, *exc):
         self.active = False
         return False
+
+
+class _Reweight(_Flag):
+    """Latch states (acl.fit.solve.fit): each fit starts a new ``generation`` (deviance residuals, the likelihood);
+    ``with REWEIGHT: predict(...)`` at its optimum holds the binomial variances for the Pearson polish."""
+
+    def __init__(self):
+        super().__init__()
+        self.generation = 0
+        self.seen = False              # set by a prediction that had state rows to weigh
+        self.rows = None               # (n,) bool: the state rows of that prediction
 
 
 REWEIGHT = _Reweight()
@@ -794,20 +801,9 @@ WARM_SAFETY = 100.0     # a grid sign may move by at most this fraction of its m
 WARM_CHANGE = 1e-3      # largest relative change of a_rad, push and the rest opening for which a warm start is tried
 
 
-class _FDColumns:
+class _FDColumns(_Flag):
     """``with FD_COLUMNS: predict(...)``: the predictions are finite-difference neighbours of the last one made outside
     (acl.fit.solve.fit's Jacobian), so a pair's equilibrium may start from that solve (:func:`_pair_solve`)."""
-
-    def __init__(self):
-        self.active = False
-
-    def __enter__(self):
-        self.active = True
-        return self
-
-    def __exit__(self, *exc):
-        self.active = False
-        return False
 
 
 FD_COLUMNS = _FDColumns()
