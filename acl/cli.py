@@ -55,11 +55,23 @@ def usage_location(message: str) -> str:
          or re.match(r"the following arguments are required: ([^,\s]+)", message))
     if not m:
         return "<argv>:1:1"
-    where = m.group(1).split("/")[-1] if m.group(1).startswith("-") else m.group(1)
+    # an option as named (`--prog=x` at `<--prog>`, `-o/--output` at `<--output>`), anything else as given
+    where = m.group(1).split("=", 1)[0].split("/")[-1] if m.group(1).startswith("-") else m.group(1)
     return f"<{where}>:1:1"
 
 
 class _Parser(argparse.ArgumentParser):
+    """acl's parser (the root and every subcommand): no abbreviations, located usage errors.
+
+    argparse takes a unique prefix of an option for the option (`--prog` for `--program`); a script
+    written so breaks the day a new option shares the prefix.  An abbreviation is an unknown option
+    (E-USAGE, exit 2) with a `did you mean` of the full name instead.
+    """
+
+    def __init__(self, *args, **kwargs):
+        kwargs.setdefault("allow_abbrev", False)
+        super().__init__(*args, **kwargs)
+
     def error(self, message: str):  # usage errors: a located diagnostic line and exit 2, no traceback
         self.print_usage(sys.stderr)
         sys.stderr.write(f"{usage_location(message)}: error[E-USAGE]: {message}\n")
@@ -123,14 +135,10 @@ def repeated_option(parser: argparse.ArgumentParser, tokens: list[str]) -> tuple
     subcommand's arguments), else None.  argparse keeps the last value silently: `--program a --program b`
     compiled b, `-o a.csv -o b.csv` wrote b.csv.  Repeatable options (append), flags and counts are not
     single-valued."""
-    by_string, longs = {}, []
+    by_string = {}
     for a in parser._actions:
-        if not a.option_strings:
-            continue
         for o in a.option_strings:
             by_string[o] = a
-            if o.startswith("--"):
-                longs.append(o)
     seen: dict[int, tuple[str, list[str]]] = {}
     i = 0
     while i < len(tokens):
@@ -141,10 +149,7 @@ def repeated_option(parser: argparse.ArgumentParser, tokens: list[str]) -> tuple
         if not tok.startswith("-") or tok == "-":
             continue
         name, attached = (tok.split("=", 1) + [None])[:2] if tok.startswith("--") else (tok[:2], tok[2:] or None)
-        action = by_string.get(name)
-        if action is None and name.startswith("--"):
-            hits = [o for o in longs if o.startswith(name)]          # argparse's abbreviations
-            action = by_string[hits[0]] if len(hits) == 1 else None
+        action = by_string.get(name)        # no abbreviations: the parsers have allow_abbrev=False
         if action is None:
             continue
         takes = action.nargs is None or action.nargs == "?"

@@ -23,7 +23,7 @@ CSV = os.path.join(ROOT, "tests", "hostile", "inputs", "data_ok.csv")
 
 @pytest.mark.parametrize("argv, option", [
     (["compile", "{EX}/fig2_stroke.acl", "--program", "stroke", "--program", "ramp", "-o", "{T}/o"], "--program"),
-    (["compile", "{EX}/fig2_stroke.acl", "--prog", "stroke", "--program=ramp", "-o", "{T}/o"], "--program"),
+    (["compile", "{EX}/fig2_stroke.acl", "--program=stroke", "--program=ramp", "-o", "{T}/o"], "--program"),
     (["synth", "{D}/fit_cantilever.acl", "-o", "{T}/a.csv", "-o{T}/b.csv", "--voltages", "0V..1V:2"], "--output"),
     (["sweep", "{D}/sweep_cantilever.acl", "--vary", "radius=9um..11um:2", "--samples", "5", "--samples", "6",
       "-o", "{T}/a.csv"], "--samples"),
@@ -37,6 +37,45 @@ def test_a_single_valued_option_given_twice_is_a_usage_error(tmp_path, capsys, a
     err = capsys.readouterr().err
     assert f"<{option}>:1:1: error[E-USAGE]: {option} given twice" in err, err
     assert not os.listdir(tmp_path)
+
+
+@pytest.mark.parametrize("argv, full", [
+    (["compile", "{EX}/fig2_stroke.acl", "--prog", "stroke", "-o", "{T}/o"], "--program"),
+    (["compile", "{EX}/fig2_stroke.acl", "--prog=stroke", "-o", "{T}/o"], "--program"),
+    # `check` has no --output: argparse took `--output json` for --output-format json
+    (["check", "{EX}/fig2_stroke.acl", "--output", "json"], "--output-format"),
+    (["fit", "{D}/fit_cantilever.acl", CSV, "--effect", "drift", "--calibrated", "{T}/cal.acl"], "--effects"),
+    (["synth", "{D}/fit_cantilever.acl", "-o", "{T}/a.csv", "--voltages", "0V..1V:2", "--max-seg", "3"],
+     "--max-segments"),
+    (["sweep", "{D}/sweep_cantilever.acl", "--vary", "radius=9um..11um:2", "--sampl", "5", "-o", "{T}/a.csv"],
+     "--samples"),
+    (["--vers"], "--version"),
+])
+def test_an_abbreviated_option_is_an_unknown_option(tmp_path, capsys, argv, full):
+    """argparse took a unique prefix for the option (`--prog` for `--program`): a script written so
+    breaks, or changes meaning, the day a new option shares the prefix.  Now it is E-USAGE, exit 2,
+    with the full name suggested, and nothing is written."""
+    argv = [a.replace("{EX}", EX).replace("{D}", DATA).replace("{T}", str(tmp_path)) for a in argv]
+    with pytest.raises(SystemExit) as exited:
+        main(argv)
+    assert exited.value.code == 2
+    err = capsys.readouterr().err
+    given = next(a for a in argv if a.split("=")[0] != full and full.startswith(a.split("=")[0])).split("=")[0]
+    assert f"<{given}>:1:1: error[E-USAGE]: unrecognized arguments: {given}" in err, err
+    assert f"did you mean `{full}`?" in err, err
+    assert "Traceback" not in err
+    assert not os.listdir(tmp_path)
+
+
+def test_every_parser_refuses_abbreviations():
+    """The root parser and every subcommand's (including placeholders) are built with allow_abbrev=False."""
+    from acl.cli import COMMANDS, build_parser
+
+    for name in COMMANDS:
+        parser = build_parser([name])
+        assert parser.allow_abbrev is False
+        sub = next(a for a in parser._actions if a.__class__.__name__ == "_SubParsersAction")
+        assert all(p.allow_abbrev is False for p in sub.choices.values()), name
 
 
 def test_repeatable_options_and_flags_may_repeat(tmp_path, capsys):
