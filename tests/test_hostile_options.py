@@ -151,3 +151,53 @@ def test_synth_refuses_data_acl_fit_would_refuse_or_double_count(tmp_path, capsy
     err = capsys.readouterr().err
     assert rc == 2 and f"<{option}>:1:1: error[E-USAGE]" in err and text in err, err
     assert not os.listdir(tmp_path)
+
+
+# ------------------------------------------------------------------ one exit code for a bad option value
+# docs/language.md (exit codes): 0 clean, 1 errors in a design, 2 usage or I/O error.  Before, an error in
+# a --set value was exit 1 (it reached the loader, as a design's own errors do) while the same error in
+# --vary, --at or --tolerance was exit 2; synth's --sweep was also reported at <--set>.
+@pytest.mark.parametrize("argv, where, code", [
+    (["check", "{EX}/fig4_facing_pair.acl", "--set", "gapp=20um"], "<--set>:1:1", "E211"),
+    (["check", "{EX}/fig4_facing_pair.acl", "--set", "gap=3V"], "<--set>:1:1", "E301"),
+    (["check", "{EX}/fig4_facing_pair.acl", "--set", "gap=(((("], "<--set>:1:1", "E212"),
+    (["check", "{EX}/fig4_facing_pair.acl", "--set", "gap=abc"], "<--set gap>:1:20", "E201"),
+    (["show", "{EX}/fig4_facing_pair.acl", "--set", "gap=3V"], "<--set>:1:1", "E301"),
+    (["analyze", "{EX}/fig4_facing_pair.acl", "--set", "gap=3V"], "<--set>:1:1", "E301"),
+    (["analyze", "{EX}/fig4_facing_pair.acl", "--at", "85 V @ 5 kHz"], "<--at>:1:1", "E301"),
+    (["lint", "{EX}/fig4_facing_pair.acl", "--set", "gap=3V"], "<--set>:1:1", "E301"),
+    (["compile", "{EX}/fig3_three_orifice.acl", "--program", "rectangle", "--set", "radiuss=3um", "-o", "{T}/o"],
+     "<--set>:1:1", "E211"),
+    (["compile", "{EX}/fig3_three_orifice.acl", "--program", "nope", "-o", "{T}/o"], "<--program>:1:1",
+     "E-COMPILE-PROGRAM"),
+    (["sweep", "{EX}/fig4_facing_pair.acl", "--set", "gap=3V", "--vary", "reach=20um..30um:2", "-o", "{T}/a.csv"],
+     "<--set>:1:1", "E301"),
+    (["sweep", "{EX}/fig4_facing_pair.acl", "--vary", "gap=20V..30V:2", "-o", "{T}/a.csv"], "<--vary>:1:5", "E301"),
+    (["synth", "{EX}/fig4_facing_pair.acl", "-o", "{T}/a.csv", "--sweep", "gapp=20um,30um"], "<--sweep>:1:1", "E211"),
+    (["synth", "{EX}/fig4_facing_pair.acl", "-o", "{T}/a.csv", "--sweep", "gap=20V,30V"], "<--sweep>:1:1", "E301"),
+    (["synth", "{EX}/fig4_facing_pair.acl", "-o", "{T}/a.csv", "--noise", "3V"], "<--noise>:1:1", "E-USAGE"),
+    (["fit", "{D}/fit_cantilever.acl", CSV, "--free", "nosuch"], "<--free>:1:1", "E-USAGE"),
+])
+def test_an_error_in_an_option_value_exits_2_on_every_command(tmp_path, capsys, argv, where, code):
+    argv = [a.replace("{EX}", EX).replace("{D}", DATA).replace("{T}", str(tmp_path)) for a in argv]
+    assert main(argv) == 2
+    out, err = capsys.readouterr()
+    assert f"{where}: error[{code}]" in (out if argv[0] == "lint" else err), (out, err)     # lint: findings on stdout
+    assert not os.listdir(tmp_path)
+
+
+def test_an_override_that_breaks_the_design_is_an_error_in_the_design(capsys):
+    """The contrast: a valid --set value the design cannot take (orifices merge) is located in the design: exit 1."""
+    assert main(["check", os.path.join(EX, "fig4_facing_pair.acl"), "--set", "gap=0um"]) == 1
+    assert "fig4_facing_pair.acl:30:1: error[E403]" in capsys.readouterr().err
+
+
+def test_exit_code_of_an_option_located_error():
+    from acl.commands._common import exit_code
+    from acl.diagnostics import Span, error, warning
+
+    at = lambda f: Span(file=f, line=1, column=1)          # noqa: E731
+    assert exit_code([error("E301", "x", at("<--set>"))]) == 2
+    assert exit_code([error("E201", "x", at("<--set gap>"))]) == 2
+    assert exit_code([error("E301", "x", at("design.acl"))]) == 1
+    assert exit_code([warning("W1", "x", at("<--set>"))]) == 0

@@ -94,8 +94,19 @@ def load_or_report(path: str, args, fmt: str = "text"):
         return None, exit_code(exc.diagnostics)
 
 
+def in_option(d) -> bool:
+    """An error located in a command-line option (``<--set>:1:1``, ``<--set gap>:1:20``, ``<-o>``)."""
+    return d.is_error and d.span is not None and d.span.file.startswith("<-")
+
+
 def exit_code(diags) -> int:
-    if any(d.code in ("E601", "E602", "E-USAGE") for d in diags):
+    """0 clean, 1 errors in a design or its data, 2 usage or I/O errors (cli.py, docs/language.md).
+
+    An error in an option's value is a usage error whatever its code: `--set gap=3V` (E301) exits 2
+    as `--vary gap=3V..4V:2` (E301) and `--at "3 V @ 5 kHz"` do; an override that makes the design
+    itself wrong (`--set gap=1um`: capsules overlap, E403 in the file) is an error in the design, 1.
+    """
+    if any(d.code in ("E601", "E602", "E-USAGE") or in_option(d) for d in diags):
         return 2
     return 1 if any(d.is_error for d in diags) else 0
 

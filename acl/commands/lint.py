@@ -8,7 +8,7 @@ from __future__ import annotations
 import sys
 
 from acl.commands._common import (STDIN, add_design_options, add_output_format, add_stdin_option, add_verbosity,
-                                  parse_sets, read_stdin)
+                                  in_option, parse_sets, read_stdin)
 from acl.diagnostics import Span, error
 
 FORMATS = ("full", "concise", "json", "sarif", "github", "junit", "text")   # text: the same as full
@@ -123,6 +123,6 @@ def run(args) -> int:
             sys.stderr.write(f"{r.path}: {r.seconds * 1e3:.1f} ms\n")
             for n in r.notes:
                 sys.stderr.write(f"  {n}\n")
-    if any(r.unreadable for r in reports):
-        return 2
+    if any(r.unreadable for r in reports) or any(in_option(d) for r in reports for d in r.findings):
+        return 2     # an unreadable file, or a bad --set value (`<--set>:1:1`): usage or I/O, as every command
     return 1 if any(d.is_error for r in reports for d in r.findings) else 0

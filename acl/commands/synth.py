@@ -58,6 +58,18 @@ def _located(code, where, msg, hint=None):
     return 2
 
 
+def _as_sweep(d):
+    """A --sweep value the design refuses is reported by the loader as an override (``<--set>``, ``--set
+    gapp: ...``): the user wrote --sweep, so it is located and worded at ``<--sweep>``."""
+    import dataclasses
+
+    if d.span is None or not d.span.file.startswith("<--set"):
+        return d
+    return dataclasses.replace(d, span=d.span.model_copy(update={"file": "<--sweep" + d.span.file[len("<--set"):]}),
+                               message=d.message.replace("--set ", "--sweep ", 1),
+                               hint=d.hint.replace("--set ", "--sweep ") if d.hint else d.hint)
+
+
 def _overwrites_input(args, design, *more) -> int:
     """E-USAGE (exit 2) when -o names an input (the design, a file it reads, the schedule); else 0.
     Before, `acl synth D.acl -o D.acl` wrote the CSV over the design."""
@@ -281,8 +293,9 @@ def run(args) -> int:
     try:
         data, _ = generate(design, ex, effects, noise=noise, seed=args.seed, search_paths=args.path)
     except DiagnosticError as exc:
-        report(exc.diagnostics)
-        return exit_code(exc.diagnostics)
+        diags = [_as_sweep(d) for d in exc.diagnostics]
+        report(diags)
+        return exit_code(diags)
     except KeyError as exc:
         return _usage(f"--observe: {exc.args[0]}")
     try:
