@@ -92,11 +92,23 @@ def test_shipped_ci_workflow_installs_acl_from_the_checkout():
     ["analyze", "examples/fig4_facing_pair.acl", "--plot", "FIGS"],
     ["compile", "examples/fig3_three_orifice.acl", "--program", "rectangle", "-o", "OUT", "--plot"],
     ["fit", "examples/fig2_vertical_cantilever.acl", "DATA", "--report", "REPORT"],
-], ids=["analyze", "compile", "fit"])
+    ["sweep", "examples/fig4_facing_pair.acl", "--vary", "gap=30um..40um:2", "-o", "OUT.csv", "--plot", "FIGS"],
+], ids=["analyze", "compile", "fit", "sweep"])
 def test_plot_without_matplotlib_is_a_clear_diagnostic(tmp_path, monkeypatch, capsys, argv):
     """matplotlib is the `plot` extra: without it, --plot/--report stop with E-PLOT before any work."""
+    import acl.analysis.report
+    import acl.fit
+    import acl.schedule.compile
+    import acl.sweep.driver
     from acl.cli import main
 
+    def work(*a, **k):
+        raise AssertionError("the work started although the figures cannot be drawn")
+
+    for module, name in ((acl.fit, "run_fit"), (acl.analysis.report, "analyze"),
+                         (acl.schedule.compile, "compile_program"), (acl.sweep.driver, "run_sweep")):
+        if hasattr(module, name):
+            monkeypatch.setattr(module, name, work)
     monkeypatch.setitem(sys.modules, "matplotlib", None)      # as if not installed
     data = tmp_path / "d.csv"
     data.write_text("observable,value,unit,drive\ntip_x,1,um,125 kHz @ 2 V\n")
@@ -107,4 +119,29 @@ def test_plot_without_matplotlib_is_a_clear_diagnostic(tmp_path, monkeypatch, ca
     err = capsys.readouterr().err
     assert "E-PLOT" in err and "acl[plot]" in err
     assert ("--calibrated PATH" in err) == (argv[0] == "fit")     # fit names the way without figures
-    assert not any((tmp_path / n).exists() for n in ("figs", "out", "rep"))
+    assert "E-INTERNAL" not in err and "AssertionError" not in err
+    assert not any((tmp_path / n).exists() for n in ("figs", "out", "rep", "out.csv"))
+
+
+def test_a_broken_matplotlib_stops_fit_report_before_the_fit(tmp_path):
+    """matplotlib found but not importable (a missing shared library): E-PLOT before the (minutes-long) fit,
+    nothing written.  Before, the fit ran to its end, then figure drawing failed: E-INTERNAL."""
+    fake = tmp_path / "site" / "matplotlib"
+    fake.mkdir(parents=True)
+    (fake / "__init__.py").write_text('raise ImportError("libfreetype.so.6: cannot open shared object file")\n')
+    data = ROOT / "tests" / "hostile" / "inputs" / "data_ok.csv"
+    code = ("import sys, acl.fit\n"
+            "def run_fit(*a, **k):\n    print('FIT RAN'); raise SystemExit(99)\n"
+            "acl.fit.run_fit = run_fit\n"
+            "from acl.cli import main\n"
+            f"sys.exit(main(['fit', {str(ROOT / 'tests' / 'data' / 'fit_cantilever.acl')!r}, {str(data)!r}, "
+            f"'--free', 'gamma', '--report', 'rep', '--calibrated', 'cal.acl']))\n")
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(tmp_path / "site"), str(ROOT)])}
+    proc = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, env=env, capture_output=True, text=True,
+                          timeout=120)
+    assert proc.returncode == 2, (proc.stdout, proc.stderr)
+    assert "FIT RAN" not in proc.stdout
+    assert ("<--report>:1:1: error[E-PLOT]: --report draws figures with matplotlib, which cannot be imported "
+            "(ImportError: libfreetype.so.6") in proc.stderr, proc.stderr
+    assert "Traceback" not in proc.stderr and "E-INTERNAL" not in proc.stderr
+    assert sorted(os.listdir(tmp_path)) == ["site"]

@@ -5,7 +5,7 @@ import json
 import re
 import sys
 
-from acl.diagnostics import Diagnostic, DiagnosticError, Span, diagnostics_to_json, error, render
+from acl.diagnostics import Diagnostic, DiagnosticError, Span, clip, diagnostics_to_json, error, render
 
 _SET = re.compile(r"^\s*([A-Za-z_][A-Za-z0-9_]*)\s*=\s*(.+?)\s*$")
 
@@ -141,19 +141,34 @@ def read_stdin(name: str) -> tuple[str | None, list[Diagnostic]]:
 
 
 def plotting_missing(option: str, fmt: str = "text", instead: str = "") -> bool:
-    """Report E-PLOT and return True when matplotlib (the `plot` extra) is not installed; ``instead``: a way without figures."""
-    import importlib.util
+    """Report E-PLOT and return True when matplotlib (the `plot` extra) cannot draw; ``instead``: a way without figures.
 
+    Called before any work (a fit can take minutes): matplotlib is imported here as the figure writers
+    import it (the Agg backend, then pyplot), so an installation that is found but cannot be imported
+    (a missing shared library, a half-removed package) stops the command now, not after the work as
+    an internal error.
+    """
     try:
-        found = importlib.util.find_spec("matplotlib") is not None
-    except (ImportError, ValueError):
-        found = False
-    if not found:
-        report([error("E-PLOT", f"{option} draws figures with matplotlib, which is not installed",
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot  # noqa: F401
+        why = None
+    except ModuleNotFoundError as exc:
+        why = "which is not installed" if (exc.name or "").split(".")[0] == "matplotlib" else \
+            f"which cannot be imported ({exc})"
+    except ImportError as exc:
+        # sys.modules["matplotlib"] = None (blocked) is "not installed" too; anything else is a broken install
+        why = "which is not installed" if "matplotlib" in sys.modules and sys.modules["matplotlib"] is None else \
+            f"which cannot be imported ({type(exc).__name__}: {exc})"
+    except Exception as exc:       # a broken installation fails in many ways; no traceback, and before the work
+        why = f"which cannot be imported ({type(exc).__name__}: {exc})"
+    if why:
+        report([error("E-PLOT", clip(f"{option} draws figures with matplotlib, {why}"),
                       Span(file=f"<{option}>", line=1, column=1),
                       "install the plotting extra: pip install 'acl[plot]' (from a checkout: pip install '.[plot]')"
                       + (f"; {instead}" if instead else ""))], fmt)
-    return not found
+    return why is not None
 
 
 # -- one machine-output option for every command (ruff's `--output-format`) -----------------------
