@@ -272,3 +272,57 @@ def test_every_command_with_machine_output_spells_it_output_format(command):
     sub = next(a for a in parser._actions if a.dest == "command").choices[command]
     action = sub._option_string_actions["--output-format"]
     assert {"text", "json"} <= set(action.choices) or command == "lint" and {"full", "json"} <= set(action.choices)
+
+
+# -- paths are shown as the user wrote them ------------------------------------------------------
+# Diagnostics name the main design as given; a file it extends or imports, the calibrated design's header
+# and `acl fit`'s "written to" lines printed absolute paths (/home/.../lib/base.acl), carrying the
+# machine's folders into messages, docs and shared files.
+
+def test_a_file_the_design_extends_is_named_relative_to_how_the_design_was_named(tmp_path):
+    (tmp_path / "lib").mkdir()
+    base = (ROOT / FIG4).read_text().replace("param reach = ", "param reach = 3 * nosuch + ", 1)
+    (tmp_path / "lib" / "base.acl").write_text(base)
+    line = next(i for i, t in enumerate(base.splitlines(), 1) if "nosuch" in t)
+    (tmp_path / "d.acl").write_text('extends "lib/base.acl"\n')
+    r = run("check", "d.acl", cwd=tmp_path)
+    assert r.returncode == 1
+    assert r.stderr.startswith(f"lib/base.acl:{line}:"), r.stderr
+    r = run("check", "../d.acl", cwd=tmp_path / "lib")
+    assert r.stderr.startswith(f"../lib/base.acl:{line}:"), r.stderr
+    r = run("check", str(tmp_path / "d.acl"), cwd=ROOT)          # given absolute: absolute
+    assert r.stderr.startswith(f"{tmp_path / 'lib' / 'base.acl'}:{line}:"), r.stderr
+    (tmp_path / "lib" / "base.acl").write_text((ROOT / FIG4).read_text())
+    r = run("analyze", "d.acl", "--no-snap", cwd=tmp_path)         # the source column of the tables
+    assert r.returncode == 0, r.stderr
+    assert "lib/base.acl:28" in r.stdout and str(tmp_path) not in r.stdout + r.stderr
+
+
+def test_fit_names_the_files_it_read_and_wrote_as_given(tmp_path):
+    shutil.copy(ROOT / "tests" / "data" / "fit_cantilever.acl", tmp_path / "d.acl")
+    shutil.copy(ROOT / "tests" / "hostile" / "inputs" / "data_ok.csv", tmp_path / "m.csv")
+    (tmp_path / "out").mkdir()
+    r = run("fit", "d.acl", "./m.csv", "--free", "gamma", "--calibrated", "out/c.acl", cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    assert "calibrated design written to out/c.acl (load it with --path .)" in r.stderr, r.stderr
+    text = (tmp_path / "out" / "c.acl").read_text()
+    head = [t for t in text.splitlines() if t.startswith("# ")]
+    assert "# design: d.acl" in head and "# data: m.csv" in head, head
+    assert "# load with `--path .` (the original is outside this file's folder tree)" in head, head
+    assert str(tmp_path) not in text and str(tmp_path) not in r.stderr
+    r = run("check", "--path", ".", "out/c.acl", cwd=tmp_path)       # the note's advice works
+    assert r.returncode == 0, r.stderr
+
+
+def test_fit_report_names_the_default_calibrated_design_as_given(tmp_path):
+    pytest.importorskip("matplotlib")
+    (tmp_path / "designs").mkdir()
+    shutil.copy(ROOT / "tests" / "data" / "fit_cantilever.acl", tmp_path / "designs" / "d.acl")
+    shutil.copy(ROOT / "tests" / "hostile" / "inputs" / "data_ok.csv", tmp_path / "m.csv")
+    r = run("fit", "designs", "m.csv", "--free", "gamma", "--report", "rep", cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    assert "report written to rep/" in r.stderr
+    assert "calibrated design written to designs/d.calibrated.acl\n" in r.stderr, r.stderr
+    text = (tmp_path / "designs" / "d.calibrated.acl").read_text()
+    assert "# design: designs/d.acl\n# data: m.csv\n# report: rep/report.json\n" in text, text[:400]
+    assert str(tmp_path) not in text and str(tmp_path) not in r.stderr

@@ -180,9 +180,12 @@ def run(args) -> int:
         if (args.report or args.calibrated) and not args.quiet:
             from acl._console import make_console
 
+            # paths as the user wrote them (as diagnostics show them); report.json keeps absolute ones
+            shown = os.path.normpath(args.calibrated if args.calibrated else
+                                     os.path.join(os.path.dirname(args.design), os.path.basename(out.calibrated_path)))
             extra = out.report.get("calibrated_needs_path")
-            how = f" (load it with --path {extra})" if extra else ""
-            make_console(stderr=True, highlight=False).print(f"calibrated design written to {out.calibrated_path}{how}")
+            how = f" (load it with --path {os.path.dirname(os.path.normpath(args.design)) or '.'})" if extra else ""
+            make_console(stderr=True, highlight=False).print(f"calibrated design written to {shown}{how}")
     return 0
 
 

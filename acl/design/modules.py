@@ -41,6 +41,7 @@ class Loader:
     def __init__(self, bag: DiagnosticBag, search_paths=(), max_files: int = MAX_FILES):
         self.bag = bag
         self.search_paths = [os.path.realpath(p) for p in search_paths]
+        self.search_given = list(search_paths)       # as the user wrote them: names shown in diagnostics
         self.cache: dict[str, ModuleEnv] = {}
         self.stack: list[str] = []
         self.sources: list[str] = []
@@ -160,7 +161,8 @@ class Loader:
         if not self._room(st, "extends"):
             return None
         text = self._read(cand)
-        return None if text is None else self._load_text(text, cand, real, root=os.path.dirname(real))
+        shown = _shown(cand, real, os.path.join(os.path.dirname(env.file), st.file))
+        return None if text is None else self._load_text(text, shown, real, root=os.path.dirname(real))
 
     def _read(self, path: str) -> str | None:
         """A file's text, or None after recording why it cannot be read."""
@@ -173,8 +175,13 @@ class Loader:
 
     def _import(self, st: A.Import, env: ModuleEnv, root: str):
         here = os.path.dirname(os.path.realpath(env.file)) if os.path.exists(env.file) else root
+        # each candidate with the name diagnostics give it: from the importing file's name and the --path
+        # folders as the user wrote them (`parts/beam.acl`, not /home/.../parts/beam.acl); the stdlib's own
+        mine = os.path.dirname(env.file)
+        guesses: dict[str, str] = {}
         if st.file is not None:
             candidates = [os.path.join(here, st.file)]
+            guesses[candidates[0]] = os.path.join(mine, st.file)
             shown = st.file
             member = None
         else:
@@ -183,17 +190,21 @@ class Loader:
             candidates = []
             member = None
             if parts[0] == "stdlib":
-                base = [stdlib_root()]
+                base = [(stdlib_root(), None)]
                 rel = parts[1:]
             else:
-                base = [here, *self.search_paths]
+                base = [(here, mine), *zip(self.search_paths, self.search_given)]
                 rel = parts
-            for b in base:
+            for b, g in base:
                 candidates.append(os.path.join(b, *rel) + ".acl")
+                if g is not None:
+                    guesses[candidates[-1]] = os.path.join(g, *rel) + ".acl"
             if len(rel) >= 2:  # `import stdlib.media.pbs`: module media, member pbs
                 member = rel[-1]
-                for b in base:
+                for b, g in base:
                     candidates.append((os.path.join(b, *rel[:-1]) + ".acl", member))
+                    if g is not None:
+                        guesses[candidates[-1][0]] = os.path.join(g, *rel[:-1]) + ".acl"
         for cand in candidates:
             mem = None
             if isinstance(cand, tuple):
@@ -216,7 +227,8 @@ class Loader:
                 text = self._read(cand)
                 if text is None:
                     return None
-                target = self._load_text(text, cand, real, root=os.path.dirname(real) if real.startswith(stdlib_root()) else root)
+                target = self._load_text(text, _shown(cand, real, guesses.get(cand)), real,
+                                         root=os.path.dirname(real) if real.startswith(stdlib_root()) else root)
             if mem is not None:
                 if mem not in target.decls and mem not in target.params:
                     continue
@@ -247,6 +259,19 @@ class Loader:
         """Whether a file may be read: under the design's folder, the stdlib or a --path folder."""
         roots = [os.path.realpath(root), os.path.realpath(stdlib_root()), *self.search_paths]
         return any(real == r or real.startswith(r.rstrip(os.sep) + os.sep) for r in roots)
+
+
+def _shown(cand: str, real: str, guess: str | None) -> str:
+    """The name diagnostics give a file a design reads (extends, imports): ``guess``, the path built from the
+    importing file's name as the user gave it (normalised: `sub/../base.acl` is `base.acl`), when it names
+    the same file; else ``cand`` (absolute: the importing file was a link into another folder, or the stdlib)."""
+    if guess is None:
+        return cand
+    guess = os.path.normpath(guess)
+    try:
+        return guess if os.path.realpath(guess) == real else cand
+    except (OSError, ValueError):
+        return cand
 
 
 _PARSED: dict[tuple[str, str], A.Module] = {}

@@ -75,13 +75,15 @@ def calibrated_text(problem, selection, out_path: str, data_paths=(), report_dir
     now = now or datetime.datetime.now(datetime.timezone.utc)
     head = ["# Calibrated by `acl fit`: the original design with every fitted value and effect applied.",
             f"# date: {now.strftime('%Y-%m-%d %H:%M:%S %Z').strip()}",
-            f"# design: {os.path.abspath(problem.path)}"]
-    head += [f"# data: {os.path.abspath(p)}" for p in data_paths]
+            f"# design: {os.path.normpath(problem.path)}"]
+    # the paths as the user gave them (the command line, and diagnostics, name them so), not absolute ones
+    # that would carry the machine's folders into a file meant to be shared
+    head += [f"# data: {os.path.normpath(p)}" for p in data_paths]
     if report_dir:
-        head.append(f"# report: {os.path.abspath(report_dir)}/report.json")
-    extra = needs_path(problem.path, out_path)
-    if extra:
-        head.append(f"# load with `--path {extra}` (the original is outside this file's folder tree)")
+        head.append(f"# report: {os.path.join(os.path.normpath(report_dir), 'report.json')}")
+    if needs_path(problem.path, out_path):
+        head.append(f"# load with `--path {os.path.dirname(os.path.normpath(problem.path)) or '.'}` (the original "
+                    "is outside this file's folder tree)")
     lines = head + ["", f'extends "{rel}"', ""]
     pair = bool(P.pair.any() or (P.group_row is not None and P.group_row.any()))
     names, params = [], []              # parameter name per fitted coordinate; its declaration
