@@ -296,6 +296,8 @@ def test_a_file_the_design_extends_is_named_relative_to_how_the_design_was_named
     r = run("analyze", "d.acl", "--no-snap", cwd=tmp_path)         # the source column of the tables
     assert r.returncode == 0, r.stderr
     assert "lib/base.acl:28" in r.stdout and str(tmp_path) not in r.stdout + r.stderr
+    r = run("check", "tests/bad/csv_non_numeric_cell.acl")       # a CSV file the design reads, at row:column
+    assert r.stderr.startswith("tests/bad/lib/path_bad_cell.csv:3:2: error[E507]"), r.stderr
 
 
 def test_fit_names_the_files_it_read_and_wrote_as_given(tmp_path):
