@@ -270,3 +270,26 @@ def test_a_switch_the_data_never_saw_warns_and_one_it_saw_does_not(latch_fits):
     assert "latch `snap` travels to state b" in w.message and "covered deflections up to 0 um" in w.message
     s = compile_program(acl.load(latch_fits["switched"]), "switch", opts)
     assert not _cov(s, "deflection"), [w.message for w in s.warnings]
+
+
+def test_a_drive_after_a_drive_that_switched_the_latch_is_taken_on_state_b(tmp_path):
+    """A ramp's 60 V step pushes the latch over its switching force (acl.analysis.mechanics.latch_margins): the
+    shuttle stays in state b when the drive falls to 10 V, so that step holds it ~70 um from rest too, beyond the
+    1 um range (before, it was taken from rest: 0.02 um, silent)."""
+    from acl.analysis import acoustics, mechanics
+    from acl.design.model import Drive, Tone
+
+    path = _design(tmp_path, "fig6_bistable_latch.acl", {**WIDE, "deflection": "0 um .. 1 um"},
+                   ["drive 125 kHz @ 10 V for 100 ms", "drive 125 kHz @ 60 V for 100 ms", "pause 100 ms",
+                    "drive 125 kHz @ 10.5 V for 100 ms"])
+    d = acl.load(path)
+    fm = acoustics.force_model_for(d)
+    assert mechanics.latch_margins(d, Drive(tones=(Tone(frequency=125e3, amplitude=60.0),)), fm)["snap"].margin >= 1
+    assert mechanics.latch_margins(d, Drive(tones=(Tone(frequency=125e3, amplitude=10.5),)), fm)["snap"].margin < 1
+    s = compile_program(d, "p", CompileOptions(band_samples=0, allow_nonlinear=True))
+    lines = {w.span.line: w.message for w in _cov(s)}
+    assert _line_of(path, "@ 10 V") not in lines
+    for step in ("@ 60 V", "@ 10.5 V"):
+        text = lines[_line_of(path, step)]
+        assert "the drive moves capsule `act` " in text
+        assert float(text.split("capsule `act` ")[1].split(" um")[0]) > 60      # state b: ~70.7 um

@@ -97,7 +97,7 @@ class _Compiler:
     t: float = 0.0
     states: dict[str, str] = field(default_factory=dict)
     vmax_seen: list[float] = field(default_factory=list)
-    states_at: dict = field(default_factory=dict)       # step -> latch states when a drive or sweep starts (its reach)
+    states_memo: dict = field(default_factory=dict)     # step -> latch states when it starts (:meth:`_states_before`)
     inner_goals: list = field(default_factory=list)     # goal records checked for coverage, not in schedule.json (sweeps)
 
     def run(self) -> Schedule:
@@ -202,9 +202,9 @@ class _Compiler:
         from acl.analysis import acoustics
         from acl.design.model import Drive, Tone
 
-        states = self.states_at.get(goal.step, {})
         try:
             fm = acoustics.force_model_for(self.design)
+            states = self._states_before(goal.step, fm)
             chirp = next((t for t in tones if t.frequency_end_hz), None)
             if chirp is None:
                 r, who, status = self._settle(Drive(tones=tuple(Tone(frequency=t.frequency_hz, amplitude=t.amplitude_v)
@@ -232,6 +232,50 @@ class _Compiler:
             return r, f"at {f / 1e3:.4g} kHz the sweep moves capsule `{seen[f][1]}`"
         except (DiagnosticError, KeyError, StopIteration, ValueError, ArithmeticError, np.linalg.LinAlgError):
             return None         # no mechanics model for this design: the deflection is unknown, not covered
+
+    def _states_before(self, i: int, force_model) -> dict:
+        """Latch states when step ``i`` starts: as the switch steps before it set them, and a drive or sweep before
+        it whose push reaches a latch's switching force (:meth:`_switched_by`): a bistable latch stays switched
+        when the drive stops.  Only latches that rest in state a are followed into state b by a drive."""
+        memo = self.states_memo
+        if 0 not in memo:
+            memo[0] = {l.name: l.state for l in self.design.latches}
+        k = max(j for j in memo if j <= i)
+        cur = dict(memo[k])
+        for j in range(k, i):
+            st = self.program.steps[j]
+            if st.kind == "switch":
+                cur[st.latch] = st.state
+            elif st.kind in ("drive", "sweep"):
+                for name in self._switched_by(j, force_model, cur):
+                    cur[name] = "b"
+            memo[j + 1] = dict(cur)
+        return cur
+
+    def _switched_by(self, j: int, force_model, states: dict) -> list:
+        """Latches in state a (resting there) whose switching force the drive or sweep of step ``j`` reaches
+        (acl.analysis.mechanics.latch_margins at rest, as the switch planner's forces; a sweep at its band's worst
+        frequency, acoustics.band_maximum)."""
+        from acl.analysis import acoustics, mechanics
+        from acl.design.model import Drive, Tone
+
+        names = [lt.name for lt in self.design.latches if lt.state == "a" and states.get(lt.name) == "a"]
+        tones = [t for s in self.segments if s.step == j for t in s.tones if t.amplitude_v > 0]
+        if not names or not tones:
+            return []
+        chirp = next((t for t in tones if t.frequency_end_hz), None)
+        if chirp is None:
+            m = mechanics.latch_margins(self.design, Drive(tones=tuple(Tone(frequency=t.frequency_hz,
+                                                                             amplitude=t.amplitude_v) for t in tones)),
+                                        force_model)
+            return [n for n in names if m[n].margin >= 1.0]
+
+        def margin(n):
+            return lambda f: mechanics.latch_margins(
+                self.design, Drive(tones=(Tone(frequency=float(f), amplitude=chirp.amplitude_v),)), force_model)[n].margin
+
+        return [n for n in names if acoustics.band_maximum(margin(n), chirp.frequency_hz, chirp.frequency_end_hz,
+                                                           self._mode_frequencies(), rtol=1e-6)[0] >= 1.0]
 
     def _settle(self, drive, force_model, states: dict):
         """(largest capsule displacement from rest, m, that capsule, status) at the equilibrium under ``drive``.
@@ -415,7 +459,6 @@ class _Compiler:
         self.t += duration
 
     def _drive(self, i, step):
-        self.states_at[i] = dict(self.states)
         vmax, _ = _limit(self.design, None, self.opts)
         self.vmax_seen.append(vmax)
         tones = [ScheduledTone(t.frequency, t.amplitude, t.phase, phase_fixed=t.phase_given)
@@ -428,7 +471,6 @@ class _Compiler:
         self.vmax_seen.append(_limit(self.design, None, self.opts)[0])
         tone = ScheduledTone(step.f_start, step.amplitude, 0.0, step.f_stop, "log" if step.log else "linear")
         name = f"step {i + 1}: sweep"
-        self.states_at[i] = dict(self.states)
         self._add(step.duration, [tone], i, name)
         # checked against the covered range like every goal, but not a goal of schedule.json (it promises nothing)
         self.inner_goals.append(GoalReport(name, "sweep", i, self.t - step.duration, self.t,
