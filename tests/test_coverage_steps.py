@@ -137,13 +137,19 @@ def test_without_a_mechanics_answer_the_deflection_is_unknown_and_silent(tmp_pat
     assert not _cov(s, "deflection")
 
 
-def test_a_drive_that_snaps_the_pair_in_warns_with_the_last_stable_deflection(tmp_path):
-    """4 V at 125 kHz snaps the Fig. 4 pair in (at about 3.25 V): the reach is the last stable point before (a lower bound)."""
-    path = _design(tmp_path, "fig4_facing_pair.acl", {**WIDE, "deflection": "0 um .. 1 um"},
-                   ["drive 125 kHz @ 4 V for 100 ms"])
+@pytest.mark.parametrize("step, words", [
+    ("drive 125 kHz @ 4 V for 100 ms", "the drive snaps the mechanism in; before it does, capsule `left` already moves"),
+    ("sweep 110 kHz to 135 kHz @ 4 V in 1 s", "kHz the sweep snaps the mechanism in; before it does, capsule `left`")])
+def test_a_step_that_snaps_the_pair_in_warns_whatever_the_covered_deflection(tmp_path, step, words):
+    """4 V at 125 kHz snaps the Fig. 4 pair in (at about 3.25 V): it ends in contact, which the fit counts in no
+    covered range, so it is warned even when the covered deflection (30 um) exceeds the last stable point."""
+    path = _design(tmp_path, "fig4_facing_pair.acl", {**WIDE, "deflection": "0 um .. 30 um"}, [step])
     s = compile_program(acl.load(path), "p", CompileOptions(band_samples=0, allow_nonlinear=True))
     (w,) = _cov(s)
-    assert "the drive snaps the mechanism in; before it does, capsule `left` already moves" in w.message
+    assert words in w.message and "then into contact, which no calibration covers" in w.message
+    r = float(w.message.split("already moves ")[1].split(" um")[0])
+    assert 0 < r < 30
+    assert w.span.line == _line_of(path, step) and w.span.column == 3
 
 
 # ------------------------------------------------------------------------------------------------

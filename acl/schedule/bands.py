@@ -340,7 +340,8 @@ def coverage_warnings(design: Design, schedule, spans, reach=None, extra=()) -> 
 
     ``spans[i]`` locates program step ``i`` (the goal's file:line:column).  ``reach(goal)`` gives the
     largest deflection from rest the goal drives a capsule (or a latch shuttle) to and the phrase that
-    says where, ``(metres, phrase)``, or None when unknown; without it only a follow goal's path
+    says where, ``(metres, phrase)``, or ``(metres, phrase, True)`` when the step then snaps the mechanism
+    into contact (never covered: warned whatever the range), or None when unknown; without it only a follow goal's path
     (``target_m``) is checked.  Voltage is the sum of tone amplitudes of the goal's segments; a tone
     counts when driven (amplitude > 0), a chirp (a sweep) by its whole band.  ``extra``: goal records
     checked as well but not in ``schedule.goals`` (a sweep step's, which schedule.json does not list).
@@ -395,9 +396,12 @@ def coverage_warnings(design: Design, schedule, spans, reach=None, extra=()) -> 
                 got = (float(np.max(np.linalg.norm(np.asarray(g.target_m), axis=1))), "the path reaches")
             if got is None or not np.isfinite(got[0]):
                 continue
-            r, phrase = got
+            r, phrase, contact = (*got, False)[:3]
             hi = cover["deflection"].upper
-            if r > hi * (1 + 1e-6) + 1e-12:
+            if contact:       # the fit counts no row in contact in any covered range (acl.fit.calibrated._coverage)
+                warn(g, f"{phrase} {r * 1e6:.3g} um from rest, then into contact, which no calibration covers "
+                        f"(its data covered deflections up to {hi * 1e6:.3g} um, none in contact)", "deflection")
+            elif r > hi * (1 + 1e-6) + 1e-12:
                 warn(g, f"{phrase} {r * 1e6:.3g} um from rest but the calibration "
                         f"data covered deflections up to {hi * 1e6:.3g} um", "deflection")
     return out

@@ -192,8 +192,8 @@ class _Compiler:
         (a chirp of one tone) is taken at its worst frequency: the largest displacement over the band, sampled
         with every mode inside and refined (acoustics.band_maximum), each frequency held long enough to settle
         (quasi-static: what the analysis predicts everywhere).  A drive that snaps the mechanism in reports the
-        last stable point before it (a lower bound, as a cross goal's); a sweep, at the first frequency found
-        to snap it.
+        last stable point before it (a sweep: at the first frequency found to snap it) and ends in contact, which
+        no calibration covers (the fit counts no contact row): ``(m, phrase, True)``, warned whatever the range.
         """
         tones = [t for s in self.segments if s.step == goal.step and s.goal == goal.name
                  for t in s.tones if t.amplitude_v > 0]
@@ -210,7 +210,7 @@ class _Compiler:
                 r, who, status = self._settle(Drive(tones=tuple(Tone(frequency=t.frequency_hz, amplitude=t.amplitude_v)
                                                                 for t in tones)), fm, states)
                 if status == "snap_in":
-                    return r, f"the drive snaps the mechanism in; before it does, capsule `{who}` already moves"
+                    return r, f"the drive snaps the mechanism in; before it does, capsule `{who}` already moves", True
                 return r, f"the drive moves capsule `{who}`"
             seen = {}
 
@@ -228,7 +228,8 @@ class _Compiler:
             except _Snapped as snap:          # the lowest snapping frequency found: the sweep snaps the mechanism in
                 f = snap.frequency
                 r, who, _ = seen[f]
-                return r, f"at {f / 1e3:.4g} kHz the sweep snaps the mechanism in; before it does, capsule `{who}` already moves"
+                return (r, f"at {f / 1e3:.4g} kHz the sweep snaps the mechanism in; before it does, capsule `{who}` "
+                           "already moves", True)
             return r, f"at {f / 1e3:.4g} kHz the sweep moves capsule `{seen[f][1]}`"
         except (DiagnosticError, KeyError, StopIteration, ValueError, ArithmeticError, np.linalg.LinAlgError):
             return None         # no mechanics model for this design: the deflection is unknown, not covered
