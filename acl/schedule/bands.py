@@ -186,8 +186,8 @@ def sample_designs(design: Design, n: int, seed: int = 0, reload: Reload | None 
 class Band:
     rms_p95_m: float
     max_p95_m: float
-    samples: int                            # draws that gave an answer
-    failed: int                             # draws whose design did not resolve or whose equilibrium was lost
+    samples: int                            # draws in the percentiles (every draw)
+    failed: int                             # of those, draws that did not resolve or lost the equilibrium
     rms_m: np.ndarray                       # per draw (for tests and plots)
     max_m: np.ndarray
 
@@ -199,7 +199,8 @@ def error_band(design: Design, forward_for: Callable, u: np.ndarray, targets: np
     ``forward_for(design) -> forward`` (u (N, K) V^2 -> (N, 2) m); ``u`` (K, M) and ``targets`` (M, 2)
     at the re-simulated waypoints.  A draw whose equilibrium is lost at a waypoint (snap-in) counts
     that waypoint as missed by the path's full size in the RMS (never as on target) and has an
-    unbounded maximum (as the nominal prediction).  None when nothing is declared.
+    unbounded maximum (as the nominal prediction); a draw that does not resolve or whose model fails
+    misses every waypoint so.  None when nothing is declared.
     """
     if declared(design, with_params=reload is not None).empty or samples <= 0:
         return None
@@ -209,13 +210,17 @@ def error_band(design: Design, forward_for: Callable, u: np.ndarray, targets: np
     scale = float(np.max(np.linalg.norm(targets - targets.mean(axis=0), axis=1))) + float(
         np.max(np.linalg.norm(targets, axis=1)))
     for _, d in sample_designs(design, samples, seed, reload):
-        if d is None:
-            failed += 1
-            continue
         try:
+            if d is None:
+                raise ValueError("did not resolve")
             pred = np.asarray(forward_for(d)(u.T), float)
         except (ValueError, KeyError, FloatingPointError):
+            # a draw that does not resolve (a drawn value outside its physical range, e.g. a negative coefficient) or
+            # whose model fails: missing the path, as a lost equilibrium (left out, the band came from the draws
+            # that resolved only, and shrank as more of the declared spread became unphysical)
             failed += 1
+            rms.append(scale)
+            mx.append(float("inf"))
             continue
         if disc > 0:     # what the calibrated model misses, independent per waypoint and axis (conservative)
             pred = pred + noise.normal(0.0, disc, pred.shape)
