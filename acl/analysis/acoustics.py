@@ -465,37 +465,44 @@ def sweep_worst_amplitude(design: Design, f0: float, f1: float, amplitude: float
     golden section between its neighbours: a grid alone misses a resonance peak between its points
     (9 linear points across 100-150 kHz gave 0.672 for a peak of 0.686: optimistic).
     """
-    lo, hi = sorted((float(f0), float(f1)))
-    extra = np.asarray(list(extra), float)
-    fs = np.unique(np.concatenate([np.geomspace(lo, hi, max(samples, 2)) if lo > 0 else np.linspace(lo, hi, samples),
-                                   extra[(extra >= lo) & (extra <= hi)]]))
-
     def at(f):
         amps = interface_amplitudes(design, Drive(tones=(Tone(frequency=float(f), amplitude=amplitude),)))
         return max(amps.values(), default=0.0), amps
 
-    vals = [at(f)[0] for f in fs]
+    best, best_f = band_maximum(lambda f: at(f)[0], f0, f1, extra, samples)
+    return best, best_f, at(best_f)[1]
+
+
+def band_maximum(value, f0: float, f1: float, extra=(), samples: int = 21, rtol: float = 1e-9) -> tuple[float, float]:
+    """(largest ``value(f)``, its frequency Hz) over ``f0 .. f1``: ``samples`` log-spaced frequencies plus the ``extra``
+    ones inside (the modes), the largest refined by golden section between its neighbours down to ``rtol``
+    (:func:`sweep_worst_amplitude`; ties: the first, lowest, frequency)."""
+    lo, hi = sorted((float(f0), float(f1)))
+    extra = np.asarray(list(extra), float)
+    fs = np.unique(np.concatenate([np.geomspace(lo, hi, max(samples, 2)) if lo > 0 else np.linspace(lo, hi, samples),
+                                   extra[(extra >= lo) & (extra <= hi)]]))
+    vals = [value(f) for f in fs]
     k = int(np.argmax(vals))                 # ties: the first (lowest) frequency
     best_f, best = float(fs[k]), vals[k]
     a, b = float(fs[max(k - 1, 0)]), float(fs[min(k + 1, fs.size - 1)])
     g = (np.sqrt(5.0) - 1.0) / 2.0
     c, d = b - g * (b - a), a + g * (b - a)
-    fc, fd = at(c)[0], at(d)[0]
+    fc, fd = value(c), value(d)
     for _ in range(40):
-        if b - a <= 1e-9 * max(b, 1.0):
+        if b - a <= rtol * max(b, 1.0):
             break
         if fc >= fd:
             b, d, fd = d, c, fc
             c = b - g * (b - a)
-            fc = at(c)[0]
+            fc = value(c)
         else:
             a, c, fc = c, d, fd
             d = a + g * (b - a)
-            fd = at(d)[0]
+            fd = value(d)
         for f, v in ((c, fc), (d, fd)):
             if v > best:
                 best_f, best = f, v
-    return best, best_f, at(best_f)[1]
+    return best, best_f
 
 
 # ----------------------------------------------------------------------------------------------

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import json
+import os
 import re
 import sys
 
@@ -37,6 +38,22 @@ def seed(text: str) -> int:
         raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
     if value < 0:
         raise argparse.ArgumentTypeError(f"{text!r}: a seed is a non-negative integer")
+    return value
+
+
+def jobs(text: str) -> int:
+    """argparse type of --jobs: a positive number of worker processes, or ``auto`` (one per core)."""
+    import argparse
+
+    if text.strip() == "auto":
+        return max(os.cpu_count() or 1, 1)
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number of processes (a positive integer, or auto)") \
+            from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"{text!r}: at least one process (or auto: one per core)")
     return value
 
 

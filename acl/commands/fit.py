@@ -4,7 +4,7 @@ from __future__ import annotations
 import os
 import sys
 
-from acl.commands._common import add_output_format, exit_code, one_design, plotting_missing, report, seed
+from acl.commands._common import add_output_format, exit_code, jobs, one_design, plotting_missing, report, seed
 
 
 def add_parser(p) -> None:
@@ -26,6 +26,9 @@ def add_parser(p) -> None:
                         "(paper Eq. 3, default) or coupled (the analysis' own forces: per-orifice thrust, Bjerknes "
                         "force between the orifices, jet drag; ~10-20x slower; docs/fit.md)")
     p.add_argument("--seed", type=seed, default=0, help="seed of the cross-validation folds (default 0)")
+    p.add_argument("--jobs", type=jobs, default=1, metavar="N",
+                   help="worker processes that fit the candidate effects of a round at once (default 1; auto: one "
+                        "per core); the result is the same, bit for bit")
     add_output_format(p, old=("--json",))
     p.add_argument("--path", action="append", default=[], metavar="DIR", help="extra folder imports may read from")
 
@@ -118,7 +121,7 @@ def run(args) -> int:
     try:
         out = run_fit(args.design, args.data, free=free, search_paths=args.path, candidates=candidates,
                       seed=args.seed, progress=progress, calibrated_path=args.calibrated, report_dir=args.report,
-                      model=args.model)
+                      model=args.model, jobs=args.jobs)
     except DiagnosticError as exc:
         report(exc.diagnostics, fmt)
         return exit_code(exc.diagnostics)

@@ -20,11 +20,12 @@ class FitOutcome:
 
 
 def run_fit(design_path, data_paths, free=(), search_paths=(), candidates=None, seed=0, progress=None,
-            calibrated_path=None, report_dir=None, model: str = "eq3") -> FitOutcome:
+            calibrated_path=None, report_dir=None, model: str = "eq3", jobs: int = 1) -> FitOutcome:
     """Everything `acl fit` does except writing files; raises DiagnosticError on bad input.
 
     ``model``: the force model of simple pairs, ``eq3`` (paper Eq. 3) or ``coupled`` (the analysis' own force
-    model through acl.fit.group; about 10-20x slower, docs/fit.md)."""
+    model through acl.fit.group; about 10-20x slower, docs/fit.md).  ``jobs``: worker processes that fit the
+    candidate effects of a round at once (acl.fit.select._each: the same result as one process, in less time)."""
     from acl.fit.calibrated import calibrated_text, default_path, needs_path
     from acl.fit.problem import load_problem
     from acl.fit.report import build_report
@@ -49,7 +50,8 @@ def run_fit(design_path, data_paths, free=(), search_paths=(), candidates=None, 
     problem = load_problem(design_path, data_paths, free=free, search_paths=search_paths, model=model)
     timing["load"] = time.perf_counter() - t0
     t0 = time.perf_counter()
-    selection = withdraw_if_inadequate(select_effects(problem, candidates=candidates, seed=seed, progress=progress),
+    selection = withdraw_if_inadequate(select_effects(problem, candidates=candidates, seed=seed, progress=progress,
+                                                       jobs=jobs),
                                        problem)
     timing["fit_and_effect_search"] = time.perf_counter() - t0
     t0 = time.perf_counter()

@@ -275,7 +275,11 @@ def _correlations(final, names) -> list[tuple[str, str, float]]:
 
 
 def _coverage(problem) -> dict:
-    """The range of the data: voltage (sum of tone amplitudes), frequency, deflection; unit strings for writing."""
+    """The range of the data: voltage (sum of tone amplitudes), frequency, deflection; unit strings for writing.
+
+    Deflection: the largest deviation of an observable from its rest value (half a gap's closing); a latch state
+    row in state b, the shuttle's travel from state a to state b (the latch geometry's, acl.physics.latch), which a
+    ``switch`` goal's reach is checked against; a state row in state a, none (0: the position was not measured)."""
     import numpy as np
 
     data, P = problem.data, problem.prepared
@@ -302,8 +306,19 @@ def _coverage(problem) -> dict:
     dev = np.abs(value - np.asarray(P.base, float))
     dev = np.where(gap, 0.5 * dev, dev)           # the gap closes by both deflections: one side moved >= half
     keep = ~contact
-    if P.state is not None:
-        keep &= ~P.state                          # a latch state (0/1) is no deflection
+    if P.state is not None and np.any(P.state):
+        # a latch state (0/1) is no measured position, but state b (1) shows the shuttle travelled from state a
+        # (where every fitted latch rests, E810) to state b: that travel is covered; state a (0) covers none
+        dev = np.where(P.state, 0.0, dev)
+        geos = P.latch_geometries or []
+        switched = P.state & (value == 1.0) & (np.asarray(P.latch_id) >= 0)
+        if np.any(switched):
+            from acl.physics.latch import latch_landscape
+
+            for tid in np.unique(np.asarray(P.latch_id)[switched]):
+                b = latch_landscape(*geos[tid]).state_b if tid < len(geos) else None
+                rows = switched & (np.asarray(P.latch_id) == tid)
+                dev = np.where(rows, abs(float(b)) if b is not None else np.nan, dev)
     dev = dev[keep]
     dev = dev[np.isfinite(dev)]
     if dev.size:

@@ -80,6 +80,7 @@ class Prepared:
     gamma_caps: frozenset = None     # capsules whose thrust gamma scales (a design parameter declared as their
                                      # `thrust`); None: every capsule (gamma then stands for the drive pressure)
     gamma_side: np.ndarray = None    # (2, n) bool: side c's capsule is one of them
+    latch_geometries: list = None    # the geometry (acl.analysis.mechanics.latch_geometry) of each of latch_tables
 
     def volume_shift(self, c, fn, lnx):
         """Natural frequency of side ``c`` after its gas volume changed by a factor exp(lnx) (rows), from the tables."""
@@ -279,7 +280,8 @@ def prepare(data, load_instance, f_ref: float | None = None, gamma_caps=None) ->
                     float(max(v.sum(axis=1).max(), 1e-9)), instances, law, caps, arr["volume"], arr["radius"],
                     medium, latch_id, latch_tables, caps == ref_cap, ref_cap, units,
                     exp if exp is not None else np.full(n, "", dtype=object), modes0, {}, side_table, ftables,
-                    groups, group_row, state, ref_orifice=ref_orifice, gamma_caps=gamma_caps, gamma_side=gamma_side)
+                    groups, group_row, state, ref_orifice=ref_orifice, gamma_caps=gamma_caps, gamma_side=gamma_side,
+                    latch_geometries=list(latch_index))
 
 
 def latch_table(geometry) -> tuple:

@@ -196,8 +196,87 @@ def _cross_switch(model, problem, coefs, fit):
     return again if again.chi2 < fit.chi2 else fit
 
 
+def _try_effect(problem, model, current, current_coefs, eid, limit):
+    """Fit effect ``eid`` on top of the current model: (coefs, fit, F, p, alt).  ``alt`` is a refit of the current
+    model alone from the effect's solution when that is better than the current model (None otherwise): the gain was
+    then the optimizer's, not the effect's.  Depends only on its arguments, so candidates can be tried in any order
+    or at once (:func:`_each`)."""
+    ecoefs, estarts = effect_coefs(eid, problem)
+    coefs = [_with_value(c, v) for c, v in zip(current_coefs, current.values)] + ecoefs
+    starts = [list(current.values) + s for s in estarts]
+    trial_fit = solve.fit(model, problem.y, problem.sigma, coefs)
+    F, p = solve.nested_f_test(current, trial_fit)
+    # the effect may matter, or the fit ended worse than the current model it contains (at the effect's
+    # null value): a failed optimization, e.g. rows thrown past a snap-in fold by the first start.  Look
+    # for a better minimum from the effect's other starts.
+    if starts and (p < SCREEN_P or trial_fit.chi2 > current.chi2):
+        again = solve.fit(model, problem.y, problem.sigma, coefs, starts=[list(trial_fit.values)] + starts)
+        if again.chi2 < trial_fit.chi2:
+            trial_fit = again
+            F, p = solve.nested_f_test(current, trial_fit)
+    again = _untrap(model, problem, coefs, starts, trial_fit)
+    if again is not trial_fit:
+        trial_fit = again
+        F, p = solve.nested_f_test(current, trial_fit)
+    alt = None
+    if p < limit:
+        # is the gain the effect's, or did the optimizer just find a better point of the current
+        # model (a jump at a snap-in fold, a local minimum)?  Refit the current model from there.
+        refit = solve.fit(model, problem.y, problem.sigma,
+                          [_with_value(c, v) for c, v in zip(current_coefs, trial_fit.values)])
+        if refit.chi2 < current.chi2 - max(ALT_GAIN * current.chi2, 1.0):   # a real jump, not round-off
+            alt = refit
+    return coefs, trial_fit, F, p, alt
+
+
+_JOB = None     # the function a forked worker of :func:`_each` calls (set before the fork: nothing is pickled)
+
+
+def _run_job(i):
+    return _JOB(i)
+
+
+def _each(fn, items, jobs=1):
+    """``fn(item)`` for each item, in order, lazily: one at a time (``jobs`` <= 1), or on ``jobs`` forked worker
+    processes at once, results still yielded in order.  A caller that stops early (a round that starts over) leaves
+    the rest unused.  The workers inherit the prepared data set (fork); only results travel back (pickled).  Every
+    result is a function of its item alone (the prediction memo and the pair-solve cache give bit-identical values,
+    acl.fit.forward), so ``jobs`` changes the time, not one number (tests/test_fit_jobs.py)."""
+    items = list(items)
+    if jobs <= 1 or len(items) <= 1 or not _can_fork():
+        for it in items:
+            yield fn(it)
+        return
+    import multiprocessing
+    import warnings
+    from concurrent.futures import ProcessPoolExecutor
+
+    global _JOB
+    _JOB = lambda i: fn(items[i])       # noqa: E731
+    try:
+        with warnings.catch_warnings():
+            # Python 3.12+ warns that fork() in a process with threads (BLAS) may deadlock; the workers only run
+            # numpy/scipy code and never touch the parent's locks (progress display, logging)
+            warnings.simplefilter("ignore", DeprecationWarning)
+            pool = ProcessPoolExecutor(min(jobs, len(items)), mp_context=multiprocessing.get_context("fork"))
+            futures = [pool.submit(_run_job, i) for i in range(len(items))]
+        try:
+            for f in futures:
+                yield f.result()
+        finally:
+            pool.shutdown(wait=True, cancel_futures=True)
+    finally:
+        _JOB = None
+
+
+def _can_fork() -> bool:
+    import multiprocessing
+
+    return "fork" in multiprocessing.get_all_start_methods()
+
+
 def select_effects(problem, candidates=None, p_limit=P_LIMIT, k_folds=K_FOLDS, seed=0, max_rounds=4,
-                   progress=None) -> Selection:
+                   progress=None, jobs=1) -> Selection:
     from acl.fit.forward import predict
 
     P = problem.prepared
@@ -219,6 +298,7 @@ def select_effects(problem, candidates=None, p_limit=P_LIMIT, k_folds=K_FOLDS, s
             kinds = {c.kind for c in current_coefs}
             tried = [e for e in names if e not in selected and not applicable(e, problem, kinds)]
             limit = p_limit / max(len(tried), 1)          # Bonferroni over the candidates of this round
+            todo = []
             for eid in names:
                 if eid in selected:
                     continue
@@ -227,33 +307,17 @@ def select_effects(problem, candidates=None, p_limit=P_LIMIT, k_folds=K_FOLDS, s
                     if rnd == 1:
                         round_trials.append(Trial(eid, rnd, "not applicable", why))
                     continue
+                todo.append(eid)
+            judged = _each(lambda eid, cur=current, cc=current_coefs, lim=limit: _try_effect(problem, model, cur, cc,
+                                                                                             eid, lim), todo, jobs)
+            for eid, (coefs, trial_fit, F, p, alt) in zip(todo, judged):
                 if progress:
-                    progress(f"round {rnd}: trying {eid}")
-                ecoefs, estarts = effect_coefs(eid, problem)
-                coefs = [_with_value(c, v) for c, v in zip(current_coefs, current.values)] + ecoefs
-                starts = [list(current.values) + s for s in estarts]
-                trial_fit = solve.fit(model, problem.y, problem.sigma, coefs)
-                F, p = solve.nested_f_test(current, trial_fit)
-                # the effect may matter, or the fit ended worse than the current model it contains (at the effect's
-                # null value): a failed optimization, e.g. rows thrown past a snap-in fold by the first start.  Look
-                # for a better minimum from the effect's other starts.
-                if starts and (p < SCREEN_P or trial_fit.chi2 > current.chi2):
-                    again = solve.fit(model, problem.y, problem.sigma, coefs, starts=[list(trial_fit.values)] + starts)
-                    if again.chi2 < trial_fit.chi2:
-                        trial_fit = again
-                        F, p = solve.nested_f_test(current, trial_fit)
-                again = _untrap(model, problem, coefs, starts, trial_fit)
-                if again is not trial_fit:
-                    trial_fit = again
-                    F, p = solve.nested_f_test(current, trial_fit)
-                if p < limit:
-                    # is the gain the effect's, or did the optimizer just find a better point of the current
-                    # model (a jump at a snap-in fold, a local minimum)?  Refit the current model from there.
-                    alt = solve.fit(model, problem.y, problem.sigma,
-                                    [_with_value(c, v) for c, v in zip(current_coefs, trial_fit.values)])
-                    if alt.chi2 < current.chi2 - max(ALT_GAIN * current.chi2, 1.0):   # a real jump, not round-off
-                        improved = alt
-                        break
+                    progress(f"round {rnd}: tried {eid}")
+                if alt is not None:
+                    # the gain was not the effect's: the optimizer found a better point of the current model (a jump
+                    # at a snap-in fold, a local minimum) from the effect's solution
+                    improved = alt
+                    break
                 t = Trial(eid, rnd, "rejected", "", trial_fit, F, p, trial_fit.bic - current.bic,
                           trial_fit.aicc - current.aicc)
                 loose = _loose(trial_fit, sigma_given)
@@ -271,6 +335,8 @@ def select_effects(problem, candidates=None, p_limit=P_LIMIT, k_folds=K_FOLDS, s
                     t.cv_coefs = coefs
                     passing.append(t)
                 round_trials.append(t)
+            judged.close()          # a round that starts over leaves the other candidates' fits unused
+            round_trials.sort(key=lambda t: names.index(t.effect))     # the library's order, as tried one by one
             if improved is None:
                 break
             if progress:
@@ -304,7 +370,7 @@ def select_effects(problem, candidates=None, p_limit=P_LIMIT, k_folds=K_FOLDS, s
         cv_current = best.cv
     reps = {}
     if selected:
-        current, selected, reps = _revisit(problem, model, names, selected, current, trials, p_limit, progress)
+        current, selected, reps = _revisit(problem, model, names, selected, current, trials, p_limit, progress, jobs)
     effects = solve.split_coefs(current.coefs, current.values)[1]
     sel = Selection(base, current, selected, trials, effects)
     sel.ambiguous = ambiguity(current, selected, reps)
@@ -314,7 +380,7 @@ def select_effects(problem, candidates=None, p_limit=P_LIMIT, k_folds=K_FOLDS, s
 MAX_SWAPS = 2     # passes of the revisit step
 
 
-def _revisit(problem, model, names, selected, current, trials, p_limit, progress):
+def _revisit(problem, model, names, selected, current, trials, p_limit, progress, jobs=1):
     """Forward selection can keep an effect that only stood in for one found later (a flexible transducer resonance
     absorbing part of a large deflection before the elastica was tried).  Revisit each selected effect E given the
     others: fit the model without E; if E is no longer significant there (nested F-test p >= the round's Bonferroni
@@ -332,7 +398,8 @@ def _revisit(problem, model, names, selected, current, trials, p_limit, progress
         reps = {}
         for eid in list(selected):
             reduced, p_keep, limit, tries = _replacements(problem, model, names, selected, current, eid, p_limit,
-                                                          progress, sigma_given, drop_check=_pass < MAX_SWAPS)
+                                                          progress, sigma_given, drop_check=_pass < MAX_SWAPS,
+                                                          jobs=jobs)
             if not p_keep < limit and _pass < MAX_SWAPS:
                 if progress:
                     progress(f"revisit: {eid} is not significant given the others; dropped")
@@ -366,7 +433,8 @@ def _revisit(problem, model, names, selected, current, trials, p_limit, progress
     return current, selected, reps
 
 
-def _replacements(problem, model, names, selected, current, eid, p_limit, progress, sigma_given, drop_check=True):
+def _replacements(problem, model, names, selected, current, eid, p_limit, progress, sigma_given, drop_check=True,
+                  jobs=1):
     """The model without ``eid`` and every other applicable effect fitted in its place: (reduced fit, F-test p of
     ``eid`` given the others, the Bonferroni limit, [alternative dicts]).  An alternative ``explains`` the structure
     ``eid`` explains when it passes the search's tests against the model without ``eid`` (F-test, identifiable)."""
@@ -380,14 +448,16 @@ def _replacements(problem, model, names, selected, current, eid, p_limit, progre
     tries = []
     if drop_check and not p_keep < limit:
         return reduced, p_keep, limit, tries
-    for cid in others:
-        if progress:
-            progress(f"revisit: {cid} in place of {eid}")
+    def replace(cid):
         ecoefs, estarts = effect_coefs(cid, problem)
         coefs = [_with_value(c, v) for c, v in zip(rest, reduced.values)] + ecoefs
         rstarts = [list(reduced.values) + st for st in estarts]
-        trial = _untrap(model, problem, coefs, rstarts,
-                        solve.fit(model, problem.y, problem.sigma, coefs, starts=rstarts or None))
+        return _untrap(model, problem, coefs, rstarts,
+                       solve.fit(model, problem.y, problem.sigma, coefs, starts=rstarts or None))
+
+    for cid, trial in zip(others, _each(replace, others, jobs)):
+        if progress:
+            progress(f"revisit: tried {cid} in place of {eid}")
         F, p = solve.nested_f_test(reduced, trial)
         ok = bool(p < limit and not _not_determined(trial, sigma_given) and not _loose(trial, sigma_given))
         tries.append({"replaces": eid, "effect": cid, "fit": trial, "f_stat": F, "p_value": p, "explains": ok})

@@ -22,8 +22,9 @@ held to the calibrated model (:func:`pinned`), elsewhere it keeps its prior.  Th
   hold's snap-in margin, a switch's force over the switching force): a goal without a path has no
   tracking error, but its margin is as uncertain as the design;
 * :func:`coverage_warnings` -- ``W-SCHED-COVERAGE`` at each goal that drives outside the range the
-  calibration data covered (``covered(voltage|frequency|deflection)``): the voltage and tones of
-  every goal, the deflection of a path, a held or crossed pair and a switched latch's shuttle.
+  calibration data covered (``covered(voltage|frequency|deflection)``): the voltage and tones (a sweep's
+  band) of every goal and sweep, the deflection of a path, a held or crossed pair, a switched latch's
+  shuttle, and every capsule under a drive (a sweep: at its worst frequency).
 
 Numbers only; the compiler turns them into report fields and notes.
 """
@@ -185,8 +186,8 @@ def sample_designs(design: Design, n: int, seed: int = 0, reload: Reload | None 
 class Band:
     rms_p95_m: float
     max_p95_m: float
-    samples: int                            # draws that gave an answer
-    failed: int                             # draws whose design did not resolve or whose equilibrium was lost
+    samples: int                            # draws in the percentiles (every draw)
+    failed: int                             # of those, draws that did not resolve or lost the equilibrium
     rms_m: np.ndarray                       # per draw (for tests and plots)
     max_m: np.ndarray
 
@@ -198,7 +199,8 @@ def error_band(design: Design, forward_for: Callable, u: np.ndarray, targets: np
     ``forward_for(design) -> forward`` (u (N, K) V^2 -> (N, 2) m); ``u`` (K, M) and ``targets`` (M, 2)
     at the re-simulated waypoints.  A draw whose equilibrium is lost at a waypoint (snap-in) counts
     that waypoint as missed by the path's full size in the RMS (never as on target) and has an
-    unbounded maximum (as the nominal prediction).  None when nothing is declared.
+    unbounded maximum (as the nominal prediction); a draw that does not resolve or whose model fails
+    misses every waypoint so.  None when nothing is declared.
     """
     if declared(design, with_params=reload is not None).empty or samples <= 0:
         return None
@@ -208,13 +210,17 @@ def error_band(design: Design, forward_for: Callable, u: np.ndarray, targets: np
     scale = float(np.max(np.linalg.norm(targets - targets.mean(axis=0), axis=1))) + float(
         np.max(np.linalg.norm(targets, axis=1)))
     for _, d in sample_designs(design, samples, seed, reload):
-        if d is None:
-            failed += 1
-            continue
         try:
+            if d is None:
+                raise ValueError("did not resolve")
             pred = np.asarray(forward_for(d)(u.T), float)
         except (ValueError, KeyError, FloatingPointError):
+            # a draw that does not resolve (a drawn value outside its physical range, e.g. a negative coefficient) or
+            # whose model fails: missing the path, as a lost equilibrium (left out, the band came from the draws
+            # that resolved only, and shrank as more of the declared spread became unphysical)
             failed += 1
+            rms.append(scale)
+            mx.append(float("inf"))
             continue
         if disc > 0:     # what the calibrated model misses, independent per waypoint and axis (conservative)
             pred = pred + noise.normal(0.0, disc, pred.shape)
@@ -334,14 +340,16 @@ def gain_sensitivity(design: Design, gains_for: Callable, reload: Reload | None 
 COVERAGE_CODE = "W-SCHED-COVERAGE"
 
 
-def coverage_warnings(design: Design, schedule, spans, reach=None) -> list:
+def coverage_warnings(design: Design, schedule, spans, reach=None, extra=()) -> list:
     """``W-SCHED-COVERAGE`` warnings for goals that drive outside the declared ``covered`` ranges of a calibration.
 
     ``spans[i]`` locates program step ``i`` (the goal's file:line:column).  ``reach(goal)`` gives the
     largest deflection from rest the goal drives a capsule (or a latch shuttle) to and the phrase that
-    says where, ``(metres, phrase)``, or None when unknown; without it only a follow goal's path
+    says where, ``(metres, phrase)``, or ``(metres, phrase, True)`` when the step then snaps the mechanism
+    into contact (never covered: warned whatever the range), or None when unknown; without it only a follow goal's path
     (``target_m``) is checked.  Voltage is the sum of tone amplitudes of the goal's segments; a tone
-    counts when driven (amplitude > 0).
+    counts when driven (amplitude > 0), a chirp (a sweep) by its whole band.  ``extra``: goal records
+    checked as well but not in ``schedule.goals`` (a sweep step's, which schedule.json does not list).
     """
     from acl.diagnostics import Diagnostic, Severity
 
@@ -359,7 +367,7 @@ def coverage_warnings(design: Design, schedule, spans, reach=None) -> list:
                               notes=(f"covered({q}) is declared at {c.span}",) if c.span else ()))
 
     tol = 1e-9
-    for g in schedule.goals:
+    for g in sorted([*schedule.goals, *extra], key=lambda g: g.step):      # stable: a step's goals in order
         segs = [s for s in schedule.segments if s.step == g.step and s.goal == g.name]
         if "voltage" in cover and segs:
             v = max(s.amplitude_sum() for s in segs)
@@ -375,21 +383,30 @@ def coverage_warnings(design: Design, schedule, spans, reach=None) -> list:
                             f"but the calibration data covered {lo:.3g} .. {hi:.3g} V: the margin is extrapolated",
                          "voltage")
         if "frequency" in cover and segs:
-            fs = [t.frequency_hz for s in segs for t in s.tones if t.amplitude_v > 0]
             lo, hi = cover["frequency"].lower, cover["frequency"].upper
+            fs = [t.frequency_hz for s in segs for t in s.tones if t.amplitude_v > 0 and not t.frequency_end_hz]
             outside = sorted({f for f in fs if f < lo * (1 - 1e-6) or f > hi * (1 + 1e-6)})
             if outside:
                 warn(g, f"tones {', '.join(f'{f / 1e3:g}' for f in outside)} kHz lie outside "
                         f"the calibrated {lo / 1e3:g} .. {hi / 1e3:g} kHz", "frequency")
+            bands = sorted({tuple(sorted((t.frequency_hz, t.frequency_end_hz))) for s in segs for t in s.tones
+                            if t.amplitude_v > 0 and t.frequency_end_hz})
+            for f0, f1 in bands:          # a chirp plays every frequency between its ends
+                if f0 < lo * (1 - 1e-6) or f1 > hi * (1 + 1e-6):
+                    warn(g, f"sweeps {f0 / 1e3:g} .. {f1 / 1e3:g} kHz, beyond the calibrated "
+                            f"{lo / 1e3:g} .. {hi / 1e3:g} kHz", "frequency")
         if "deflection" in cover:
             got = reach(g) if reach is not None else None
             if got is None and g.target_m is not None:
                 got = (float(np.max(np.linalg.norm(np.asarray(g.target_m), axis=1))), "the path reaches")
             if got is None or not np.isfinite(got[0]):
                 continue
-            r, phrase = got
+            r, phrase, contact = (*got, False)[:3]
             hi = cover["deflection"].upper
-            if r > hi * (1 + 1e-6) + 1e-12:
+            if contact:       # the fit counts no row in contact in any covered range (acl.fit.calibrated._coverage)
+                warn(g, f"{phrase} {r * 1e6:.3g} um from rest, then into contact, which no calibration covers "
+                        f"(its data covered deflections up to {hi * 1e6:.3g} um, none in contact)", "deflection")
+            elif r > hi * (1 + 1e-6) + 1e-12:
                 warn(g, f"{phrase} {r * 1e6:.3g} um from rest but the calibration "
                         f"data covered deflections up to {hi * 1e6:.3g} um", "deflection")
     return out

@@ -97,6 +97,9 @@ class _Compiler:
     t: float = 0.0
     states: dict[str, str] = field(default_factory=dict)
     vmax_seen: list[float] = field(default_factory=list)
+    states_memo: dict = field(default_factory=dict)     # step -> latch states when it starts (:meth:`_states_before`)
+    settled: dict = field(default_factory=dict)         # (tones, latch states) -> :meth:`_settle`'s answer
+    inner_goals: list = field(default_factory=list)     # goal records checked for coverage, not in schedule.json (sweeps)
 
     def run(self) -> Schedule:
         self.states = {l.name: l.state for l in self.design.latches}
@@ -123,7 +126,8 @@ class _Compiler:
         sched.sample_rate_hz = fs
         from acl.schedule.bands import coverage_warnings
 
-        for w in coverage_warnings(self.design, sched, [st.span for st in self.program.steps], self._reach):
+        for w in coverage_warnings(self.design, sched, [st.span for st in self.program.steps], self._reach,
+                                   extra=self.inner_goals):
             sched.warnings.append(w)
             self.notes.append(f"warning: {w.message}")
         _choose_all_phases(sched, fs)
@@ -137,8 +141,12 @@ class _Compiler:
 
         hold above: each capsule of the pair at the equilibrium under the whole drive; cross: the last
         stable equilibrium before snap-in (the pair passes through it); switch: the shuttle's travel
-        between the latch's two stable states (it ends in the other one).  A follow goal: None (its path).
+        between the latch's two stable states (it ends in the other one); drive and sweep: every capsule at
+        the static equilibrium under the drive (a sweep's at its worst frequency: :meth:`_static_reach`).
+        A follow goal: None (its path).
         """
+        if goal.kind in ("drive", "sweep"):
+            return self._static_reach(goal)
         if goal.kind not in ("hold", "switch"):
             return None
         step = self.program.steps[goal.step]
@@ -176,6 +184,138 @@ class _Compiler:
             return best, f"the drive holds capsule `{who}` at"
         except (DiagnosticError, KeyError, StopIteration, ValueError, ArithmeticError):
             return None         # no mechanics model for this design: the deflection is unknown, not covered
+
+    def _static_reach(self, goal: GoalReport):
+        """(largest capsule displacement from rest, m, phrase) under a drive or sweep step; None if unknown.
+
+        The analysis' mechanics (acl.analysis.mechanics.equilibrium: lone actuators, pairs, groups, springs,
+        latches) at the whole drive, from the latch states the step starts in (:meth:`_settle`).  A sweep
+        (a chirp of one tone) is taken at its worst frequency: the largest displacement over the band, sampled
+        with every mode inside and refined (acoustics.band_maximum), each frequency held long enough to settle
+        (quasi-static: what the analysis predicts everywhere).  A drive that snaps the mechanism in reports the
+        last stable point before it (a sweep: at the first frequency found to snap it) and ends in contact, which
+        no calibration covers (the fit counts no contact row): ``(m, phrase, True)``, warned whatever the range.
+        """
+        tones = [t for s in self.segments if s.step == goal.step and s.goal == goal.name
+                 for t in s.tones if t.amplitude_v > 0]
+        if not tones or not self.design.capsules:
+            return None
+        from acl.analysis import acoustics
+        from acl.design.model import Drive, Tone
+
+        try:
+            fm = acoustics.force_model_for(self.design)
+            states = self._states_before(goal.step, fm)
+            chirp = next((t for t in tones if t.frequency_end_hz), None)
+            if chirp is None:
+                r, who, status = self._settle(Drive(tones=tuple(Tone(frequency=t.frequency_hz, amplitude=t.amplitude_v)
+                                                                for t in tones)), fm, states)
+                if status == "snap_in":
+                    return r, f"the drive snaps the mechanism in; before it does, capsule `{who}` already moves", True
+                return r, f"the drive moves capsule `{who}`"
+            seen = {}
+
+            def at(f):
+                if f not in seen:
+                    seen[f] = self._settle(Drive(tones=(Tone(frequency=float(f), amplitude=chirp.amplitude_v),)),
+                                           fm, states)
+                    if seen[f][2] == "snap_in":
+                        raise _Snapped(f)
+                return seen[f][0]
+
+            try:      # the deflection is flat at its peak: refined to 1e-3 of the frequency (Q ~ 20: < 0.1 %)
+                r, f = acoustics.band_maximum(at, chirp.frequency_hz, chirp.frequency_end_hz, self._mode_frequencies(),
+                                              samples=11, rtol=1e-3)
+            except _Snapped as snap:          # the lowest snapping frequency found: the sweep snaps the mechanism in
+                f = snap.frequency
+                r, who, _ = seen[f]
+                return (r, f"at {f / 1e3:.4g} kHz the sweep snaps the mechanism in; before it does, capsule `{who}` "
+                           "already moves", True)
+            return r, f"at {f / 1e3:.4g} kHz the sweep moves capsule `{seen[f][1]}`"
+        except (DiagnosticError, KeyError, StopIteration, ValueError, ArithmeticError, np.linalg.LinAlgError):
+            return None         # no mechanics model for this design: the deflection is unknown, not covered
+
+    def _states_before(self, i: int, force_model) -> dict:
+        """Latch states when step ``i`` starts: as the switch steps before it set them, and a drive or sweep before
+        it whose push reaches a latch's switching force (:meth:`_switched_by`): a bistable latch stays switched
+        when the drive stops.  Only latches that rest in state a are followed into state b by a drive."""
+        memo = self.states_memo
+        if 0 not in memo:
+            memo[0] = {l.name: l.state for l in self.design.latches}
+        k = max(j for j in memo if j <= i)
+        cur = dict(memo[k])
+        for j in range(k, i):
+            st = self.program.steps[j]
+            if st.kind == "switch":
+                cur[st.latch] = st.state
+            elif st.kind in ("drive", "sweep"):
+                for name in self._switched_by(j, force_model, cur):
+                    cur[name] = "b"
+            memo[j + 1] = dict(cur)
+        return cur
+
+    def _switched_by(self, j: int, force_model, states: dict) -> list:
+        """Latches in state a (resting there) whose switching force the drive or sweep of step ``j`` reaches
+        (acl.analysis.mechanics.latch_margins at rest, as the switch planner's forces; a sweep at its band's worst
+        frequency, acoustics.band_maximum)."""
+        from acl.analysis import acoustics, mechanics
+        from acl.design.model import Drive, Tone
+
+        names = [lt.name for lt in self.design.latches if lt.state == "a" and states.get(lt.name) == "a"]
+        tones = [t for s in self.segments if s.step == j for t in s.tones if t.amplitude_v > 0]
+        if not names or not tones:
+            return []
+        chirp = next((t for t in tones if t.frequency_end_hz), None)
+        if chirp is None:
+            m = mechanics.latch_margins(self.design, Drive(tones=tuple(Tone(frequency=t.frequency_hz,
+                                                                             amplitude=t.amplitude_v) for t in tones)),
+                                        force_model)
+            return [n for n in names if m[n].margin >= 1.0]
+
+        def margin(n):
+            return lambda f: mechanics.latch_margins(
+                self.design, Drive(tones=(Tone(frequency=float(f), amplitude=chirp.amplitude_v),)), force_model)[n].margin
+
+        return [n for n in names if acoustics.band_maximum(margin(n), chirp.frequency_hz, chirp.frequency_end_hz,
+                                                           self._mode_frequencies(), rtol=1e-6)[0] >= 1.0]
+
+    def _settle(self, drive, force_model, states: dict):
+        """(largest capsule displacement from rest, m, that capsule, status) at the equilibrium under ``drive``.
+
+        A latch that rests in state a but is in state b when the step starts (an earlier switch), or that the
+        drive itself switches (acl.analysis.mechanics.latch_margins: its push reaches the switching force), is
+        solved from its state b (the shuttle's capsules moved by the travel there): the branch the device is on.
+        ValueError when the mechanics does not converge.
+        """
+        key = (tuple((t.frequency, t.amplitude) for t in drive.tones), tuple(sorted(states.items())))
+        if key in self.settled:             # a ramp repeats its drives
+            return self.settled[key]
+        from acl.analysis import mechanics
+        from acl.physics.latch import latch_landscape
+
+        start, margins = None, None
+        for lt in self.design.latches:
+            if lt.state != "a":
+                continue
+            if states.get(lt.name, lt.state) == "a":
+                margins = margins if margins is not None else mechanics.latch_margins(self.design, drive, force_model)
+                if not margins[lt.name].margin >= 1.0:
+                    continue
+            land = latch_landscape(*mechanics.latch_geometry(lt, self.design))
+            if land.state_b is None:
+                continue
+            axis = np.asarray(lt.axis, float) / np.linalg.norm(lt.axis)
+            start = start or {c.name: np.asarray(c.center, float) for c in self.design.capsules}
+            for j in self.design.joints:
+                if j.kind == "mount" and j.target_kind == "latch" and j.target == lt.name:
+                    start[j.capsule] = np.asarray(self.design.capsule(j.capsule).center, float) + float(land.state_b) * axis
+        st = mechanics.equilibrium(self.design, drive, force_model, start=start)
+        if st.status not in ("ok", "snap_in"):
+            raise ValueError(f"no equilibrium ({st.status})")
+        who, best = first_max_item({c.name: float(np.linalg.norm(np.asarray(st.displacements[c.name], float)))
+                                    for c in self.design.capsules})     # ties: the first capsule declared
+        self.settled[key] = (best, who, st.status)
+        return self.settled[key]
 
     def _check_linear(self, sched: Schedule) -> None:
         """Refuse a segment that drives an interface beyond the linear bubble model (eps/R > LINEAR_AMPLITUDE_LIMIT; docs/physics.md).
@@ -336,7 +476,11 @@ class _Compiler:
     def _sweep(self, i, step):
         self.vmax_seen.append(_limit(self.design, None, self.opts)[0])
         tone = ScheduledTone(step.f_start, step.amplitude, 0.0, step.f_stop, "log" if step.log else "linear")
-        self._add(step.duration, [tone], i, f"step {i + 1}: sweep")
+        name = f"step {i + 1}: sweep"
+        self._add(step.duration, [tone], i, name)
+        # checked against the covered range like every goal, but not a goal of schedule.json (it promises nothing)
+        self.inner_goals.append(GoalReport(name, "sweep", i, self.t - step.duration, self.t,
+                                           (step.f_start, step.f_stop)))
 
     def _pause(self, i, step):
         self._add(step.duration, [], i, f"step {i + 1}: pause")
@@ -883,6 +1027,14 @@ class _Compiler:
                               f"scaled by {f:.4g} to cross by the margin {margin:g}")
             s = s / f
         return tones, float(1.0 / s)
+
+
+class _Snapped(Exception):
+    """A sweep's frequency at which the mechanism snaps in (:meth:`_Compiler._static_reach` stops there)."""
+
+    def __init__(self, frequency: float):
+        super().__init__(frequency)
+        self.frequency = float(frequency)
 
 
 def segment_slews(sched: Schedule) -> np.ndarray:
