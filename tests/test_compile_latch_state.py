@@ -203,3 +203,75 @@ def test_a_cross_goal_is_warned_as_contact_whatever_the_covered_deflection(tmp_p
     r = float(w.message.split(" um from rest")[0].split()[-1])
     assert 0 < r < 30
     assert w.span.line == _line_of(path, "cross gap(")
+
+
+# ------------------------------------------------------------------------------------------------
+# another latch in an uncertain state (two latches, injected forces as tests/test_schedule_compile_steps.py)
+# ------------------------------------------------------------------------------------------------
+
+def _two_latches(*steps):
+    from acl.design import model as M
+    from acl.diagnostics import Span
+
+    def sp(line):
+        return Span(file="prog.acl", line=line, column=3)
+
+    def latch(name):
+        return M.Latch(name=name, angle=np.radians(45), length=60e-6, width=3e-6, thickness=10e-6, material="tpeta",
+                       youngs_modulus=13e6, anchor=(0, 0, 0), axis=(1, 0, 0), state="a", span=sp(2))
+
+    tr = M.Transducer(name="t", max_voltage=20.0, band=(40e3, 200e3), gain_frequencies=(40e3, 200e3),
+                      gain_pa_per_v=(2e3, 2e3), span=sp(1))
+    built = []
+    for k, st in enumerate(steps):
+        if st[0] == "drive":
+            built.append(M.DriveStep(drive=M.Drive(tones=(M.Tone(frequency=st[1], amplitude=st[2]),)), duration=0.01,
+                                     span=sp(11 + k)))
+        else:
+            built.append(M.SwitchStep(latch=st[1], state=st[2], tones=st[3], span=sp(11 + k)))
+    return M.Design(file="prog.acl", transducer=tr, latches=(latch("gate"), latch("other")),
+                    programs=(M.Program(name="p", steps=tuple(built), span=sp(10)),))
+
+
+NN = 1e-9
+
+
+def _provider(table, to_b, to_a):
+    def forces(design, freqs):
+        F = np.array([[table.get(f, (0.0, 0.0))[i] for f in freqs] for i in range(2)]) * NN
+        return F.reshape(2, len(freqs)), np.array(to_b) * NN, np.array(to_a) * NN
+    return forces
+
+
+def test_another_latch_left_uncertain_is_kept_put_in_both_directions():
+    """85 kHz switches `gate` (1 nN/V^2) and pulls `other` towards a (-1 nN/V^2, release force 20 nN); 100 kHz
+    switches `gate` less well (0.8) and leaves `other`.  With `other` certainly in state a the least drive is 85 kHz
+    alone (48 V^2 = 1.2 x 40 nN).  After 125 kHz at 7.3 V pushed `other` to 0.89 x its switching force (60 nN) it may
+    be in b: the 85 kHz power must then stay below 20 nN / 1.2 (16.7 V^2), the rest comes from 100 kHz."""
+    prov = _provider({85e3: (1.0, -1.0), 100e3: (0.8, 0.0), 125e3: (0.0, 1.0)}, [40.0, 60.0], [30.0, 20.0])
+    sure = compile_program(_two_latches(("drive", 125e3, 1.0), ("switch", "gate", "b", (85e3, 100e3))), "p",
+                           CompileOptions(latch_provider=prov))
+    assert [t.frequency_hz for t in _played(sure, 1)] == [85e3]
+    assert _played(sure, 1)[0].amplitude_v ** 2 == pytest.approx(48.0, rel=1e-4)
+    s = compile_program(_two_latches(("drive", 125e3, 7.3), ("switch", "gate", "b", (85e3, 100e3))), "p",
+                        CompileOptions(latch_provider=prov))
+    assert not _latch_warnings(s)
+    u = {t.frequency_hz: t.amplitude_v ** 2 for t in _played(s, 1)}
+    assert u.get(85e3, 0.0) <= 20.0 / 1.2 * (1 + 1e-6)                     # other stays in b if it is there
+    assert u.get(85e3, 0.0) + 0.8 * u[100e3] >= 1.2 * 40.0 * (1 - 1e-6)     # gate switches
+    g = _switch_goal(s, 1)
+    assert g.details["other_latch_ratios"]["other"] <= 1 / 1.2 + 1e-6
+
+
+def test_another_uncertain_latch_that_no_drive_keeps_put_in_both_states_warns():
+    """85 kHz switches `gate` (1 nN/V^2) and pulls `other` towards a (-1 nN/V^2), whose release force is 20 nN: if
+    `other` is in state b (7.3 V at 125 kHz pushed it to 0.89 x its switching force: maybe), the switch (>= 48 V^2)
+    releases it.  Planned for its likelier state a, and W-SCHED-LATCH-STATE at the switch step."""
+    prov = _provider({85e3: (1.0, -1.0), 125e3: (0.0, 1.0)}, [40.0, 60.0], [30.0, 20.0])
+    d = _two_latches(("drive", 125e3, 7.3), ("switch", "gate", "b", (85e3,)))
+    s = compile_program(d, "p", CompileOptions(latch_provider=prov))
+    (w,) = _latch_warnings(s)
+    assert w.span.line == 12 and "latch `other` may be in state a or b" in w.message
+    assert "step 1 (drive) pushed it to 0.888 x its switching force" in w.message
+    assert "keeps it in state a (`other`) only" in w.message
+    assert _played(s, 1)
