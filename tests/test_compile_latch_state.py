@@ -140,7 +140,7 @@ def test_a_release_that_cannot_be_planned_from_an_uncertain_state_warns_at_its_s
     s = compile_program(acl.load(path), "p", OPTS)
     (w,) = _latch_warnings(s)
     assert w.span.line == _line_of(path, "switch snap") and w.span.column == 3
-    assert "may be in state b" in w.message and "step 1 (drive)" in w.message
+    assert "may be in state b" in w.message and w.notes[0].startswith("step 1 (drive) pushed it to 1 x its switching")
     assert _played(s, 1) == []
     assert _switch_goal(s, 1).details["state_before"] == "a or b"
     assert any(n.startswith("warning: step 2: switch snap -> a") for n in s.notes)
@@ -167,12 +167,12 @@ def test_the_declared_uncertainty_makes_a_nominal_switch_uncertain(tmp_path):
     g = _switch_goal(s, 1)
     assert g.details["state_before"] == "a or b" and _played(s, 1)
     assert "margin band" in g.details["state_from"]
-    lo = float(g.details["state_from"].split(" x in the margin band")[0].split(", ")[-1].split(" .. ")[0])
+    lo = float(g.details["state_from"].split(" x in the margin band")[0].split("(")[-1].split(" .. ")[0])
     assert lo < 1.0
     path = _design(tmp_path, "fig6_bistable_latch.acl", ["drive 125 kHz @ 60 V for 100 ms", SWITCH6.format(s="b")])
     s = compile_program(acl.load(path), "p", CompileOptions(band_samples=20, allow_nonlinear=True))
     g = _switch_goal(s, 1)
-    assert g.details["state_before"] == "b" and not _played(s, 1) and "margin band of 20 draws" in g.details["state_from"]
+    assert g.details["state_before"] == "b" and not _played(s, 1) and "20 draws of the declared uncertainty" in g.details["state_from"]
 
 
 def test_cli_prints_the_latch_state_warning_located(tmp_path, capsys):
@@ -272,6 +272,7 @@ def test_another_uncertain_latch_that_no_drive_keeps_put_in_both_states_warns():
     s = compile_program(d, "p", CompileOptions(latch_provider=prov))
     (w,) = _latch_warnings(s)
     assert w.span.line == 12 and "latch `other` may be in state a or b" in w.message
-    assert "step 1 (drive) pushed it to 0.888 x its switching force" in w.message
+    assert w.notes == ("latch `other`: step 1 (drive) pushed it to 0.888 x its switching force: within 1.2 x of it, "
+                       "it may or may not have switched",)
     assert "keeps it in state a (`other`) only" in w.message
     assert _played(s, 1)

@@ -285,17 +285,21 @@ class _Compiler:
         try:
             pushes = self._push_ratios(j)
         except (DiagnosticError, KeyError, StopIteration, ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
+            try:
+                bi = self._bistable()
+            except (DiagnosticError, KeyError, StopIteration, ValueError, ArithmeticError, np.linalg.LinAlgError):
+                bi = set(cur)           # not even the thresholds: any latch may have moved
             return {n: (s, False, f"{step}: its push on the latch could not be computed ({exc})")
-                    for n, (s, _, _) in cur.items() if n in self._bistable()}
+                    for n, (s, _, _) in cur.items() if n in bi}
         M = LATCH_STATE_MARGIN
         out = {}
 
         def text(n, to):
             r, lo, hi, band = pushes[n][to]
             what = "switching" if to == "b" else "release"
-            s = f"{step} pushed it to {r:.3g} x its {what} force (towards state {to})"
+            s = f"{step} pushed it to {r:.3g} x its {what} force"
             if band:
-                s += f", {lo:.3g} .. {hi:.3g} x in the margin band over the declared uncertainty ({band})"
+                s += f" ({lo:.3g} .. {hi:.3g} x in the margin band over {band})"
             return s
 
         def sure(n, to):
@@ -314,9 +318,10 @@ class _Compiler:
                 if sure(n, other):
                     out[n] = (other, True, text(n, other))
                 elif not never(n, other):
-                    out[n] = (other if pushes[n][other][0] >= 1.0 else state, False,
-                              text(n, other) + f": near it (a drive within {M:g} x of it, or whose band straddles it, "
-                                               "may or may not switch the latch)")
+                    r, lo, hi, _ = pushes[n][other]
+                    near = f"within {M:g} x of it" if 1.0 / M < r < M else "the band straddles it"
+                    out[n] = (other if r >= 1.0 else state, False,
+                              text(n, other) + f": {near}, it may or may not have switched")
                 continue
             to = next((t for t in ("b", "a") if sure(n, t)), None)
             if to is not None:          # from either state it ends there
@@ -394,7 +399,8 @@ class _Compiler:
                                reload=self.opts.reload)
             if band is not None:
                 n_all = band.samples + band.failed
-                what = f"margin band of {n_all} draws" + (f", {band.failed} failed: counted as unknown" if band.failed else "")
+                what = f"{n_all} draws of the declared uncertainty" + (
+                    f", {band.failed} failed: counted as unknown" if band.failed else "")
                 for n, v in nominal.items():
                     for to, r in v.items():
                         lo, hi = -band.others_p95.get(f"-{n}>{to}", np.inf), band.others_p95.get(f"+{n}>{to}", np.inf)
@@ -924,11 +930,12 @@ class _Compiler:
             if plan is None:
                 if certain:
                     raise infeasible(exc) from None
-                self._latch_warn(i, step, f"{name}: latch `{step.latch}` may be in state {other} ({why}) and no drive "
-                                 f"within the limits switches it from there ({'; '.join(exc.binding)}): the step plays "
-                                 f"nothing, and the latch may stay in state {other}",
+                self._latch_warn(i, step, f"{name}: latch `{step.latch}` may be in state {other} and no drive within "
+                                 f"the limits switches it from there: the step plays nothing, and the latch may stay "
+                                 f"in state {other}",
                                  f"make the earlier drive decisive (well above or below the latch's switching force), "
-                                 f"or give the switch tones that push the latch to state {step.state}")
+                                 f"or give the switch tones that push the latch to state {step.state}",
+                                 (why, "planned from state " + other + ": binding " + "; ".join(exc.binding)))
                 self._add(step.duration, [], i, name)
                 self.goals.append(GoalReport(name, "switch", i, self.t - step.duration, self.t, (),
                                              model="nothing played: no drive switches the latch from its other state",
@@ -937,12 +944,12 @@ class _Compiler:
                 self.switch_outcome[i] = (state, False, why)
                 return
         if doubt and not kept_both:
-            self._latch_warn(i, step, f"{name}: " + "; ".join(
-                f"latch `{names[k]}` may be in state a or b ({track[names[k]][2]})" for k in doubt)
-                + f": no drive within the limits keeps it put in both; the drive keeps it in state "
+            self._latch_warn(i, step, f"{name}: " + ", ".join(f"latch `{names[k]}`" for k in doubt)
+                + " may be in state a or b: no drive within the limits keeps it put in both; the drive keeps it in state "
                 + ", ".join(f"{track[names[k]][0]} (`{names[k]}`)" for k in doubt) + " only",
                 "make the earlier drive decisive (well above or below the other latch's switching force), "
-                "or switch that latch to a known state first")
+                "or switch that latch to a known state first",
+                tuple(f"latch `{names[k]}`: {track[names[k]][2]}" for k in doubt))
         # interior-point dust: a tone with < 1e-6 of the largest power adds < 1e-6 of the force;
         # the margins reported are those of the tones actually emitted
         keep = plan.u > 1e-6 * plan.u.max()
@@ -987,8 +994,9 @@ class _Compiler:
         if self.opts.band_samples > 0 and self.opts.latch_provider is None:
             self._switch_band(rep, used, step, j, names, after)
 
-    def _latch_warn(self, i, step, message: str, hint: str) -> None:
-        self.latch_warnings.append(Diagnostic(LATCH_STATE_CODE, Severity.WARNING, message, step.span, hint))
+    def _latch_warn(self, i, step, message: str, hint: str, notes=()) -> None:
+        self.latch_warnings.append(Diagnostic(LATCH_STATE_CODE, Severity.WARNING, message, step.span, hint,
+                                              notes=tuple(notes)))
 
     def _switch_full_model(self, name, step: SwitchStep, used, j, sig, thr_t, vmax):
         """Re-check a switch with the full force model when forces are not ~V^2 (drive saturation).

@@ -166,7 +166,7 @@ def _diagnose(Fs, thr, thr_t, sig_t, sigma, target, others, names, margin, cap, 
     r = solve(best, "switch diagnosis")
     reachable = r.ok and r.value * fs >= margin * thr_t * (1 - 1e-9)
     if not reachable:
-        most = (r.value or 0.0) * fs
+        most = max((r.value or 0.0) * fs, 0.0)       # solver dust below zero: no tone pushes that way
         return ((f"amplitude limits: at most {most:.3g} N towards the new state (each tone at "
                  f"the limit, an upper bound), "
                  f"{margin * thr_t:.3g} N needed (margin {margin:g})",),
