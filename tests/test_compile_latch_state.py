@@ -276,3 +276,19 @@ def test_another_uncertain_latch_that_no_drive_keeps_put_in_both_states_warns():
                        "it may or may not have switched",)
     assert "keeps it in state a (`other`) only" in w.message
     assert _played(s, 1)
+
+
+def test_the_coverage_check_takes_an_uncertain_latch_in_either_state(tmp_path):
+    """40 V pushes the Fig. 6 latch to 0.91 x its switching force: likelier still in state a, but maybe in b.  A
+    10.5 V drive then moves the shuttle 0.02 um from state a, ~70 um from state b: the covered 1 um is warned
+    about, from state b (before, taken from state a only: silent)."""
+    path = _design(tmp_path, "fig6_bistable_latch.acl", ["drive 125 kHz @ 40 V for 100 ms",
+                                                         "drive 125 kHz @ 10.5 V for 100 ms"],
+                   extra="uncertainty {\n  covered(voltage) = 0 V .. 100 V\n  covered(deflection) = 0 um .. 1 um\n}\n")
+    d = acl.load(path)
+    assert 1 / LATCH_STATE_MARGIN < _ratio(d, 125e3, 40) < 1.0
+    s = compile_program(d, "p", OPTS)
+    lines = {w.span.line: w.message for w in s.warnings if w.code == "W-SCHED-COVERAGE"}
+    text = lines[_line_of(path, "@ 10.5 V")]
+    assert "the drive moves (latch `snap` in state b, where an earlier drive may have left it) capsule `act`" in text
+    assert float(text.split("capsule `act` ")[1].split(" um")[0]) > 60

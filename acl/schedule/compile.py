@@ -197,7 +197,8 @@ class _Compiler:
         """(largest capsule displacement from rest, m, phrase) under a drive or sweep step; None if unknown.
 
         The analysis' mechanics (acl.analysis.mechanics.equilibrium: lone actuators, pairs, groups, springs,
-        latches) at the whole drive, from the latch states the step starts in (:meth:`_settle`).  A sweep
+        latches) at the whole drive, from the latch states the step starts in (:meth:`_settle`; a latch an earlier
+        drive left in an uncertain state (:meth:`_latch_track`): from either state, the larger reach).  A sweep
         (a chirp of one tone) is taken at its worst frequency: the largest displacement over the band, sampled
         with every mode inside and refined (acoustics.band_maximum), each frequency held long enough to settle
         (quasi-static: what the analysis predicts everywhere).  A drive that snaps the mechanism in reports the
@@ -209,39 +210,60 @@ class _Compiler:
         if not tones or not self.design.capsules:
             return None
         from acl.analysis import acoustics
-        from acl.design.model import Drive, Tone
 
         try:
             fm = acoustics.force_model_for(self.design)
-            states = self._states_before(goal.step, fm)
-            chirp = next((t for t in tones if t.frequency_end_hz), None)
-            if chirp is None:
-                r, who, status = self._settle(Drive(tones=tuple(Tone(frequency=t.frequency_hz, amplitude=t.amplitude_v)
-                                                                for t in tones)), fm, states)
-                if status == "snap_in":
-                    return r, f"the drive snaps the mechanism in; before it does, capsule `{who}` already moves", True
-                return r, f"the drive moves capsule `{who}`"
-            seen = {}
-
-            def at(f):
-                if f not in seen:
-                    seen[f] = self._settle(Drive(tones=(Tone(frequency=float(f), amplitude=chirp.amplitude_v),)),
-                                           fm, states)
-                    if seen[f][2] == "snap_in":
-                        raise _Snapped(f)
-                return seen[f][0]
-
-            try:      # the deflection is flat at its peak: refined to 1e-3 of the frequency (Q ~ 20: < 0.1 %)
-                r, f = acoustics.band_maximum(at, chirp.frequency_hz, chirp.frequency_end_hz, self._mode_frequencies(),
-                                              samples=11, rtol=1e-3)
-            except _Snapped as snap:          # the lowest snapping frequency found: the sweep snaps the mechanism in
-                f = snap.frequency
-                r, who, _ = seen[f]
-                return (r, f"at {f / 1e3:.4g} kHz the sweep snaps the mechanism in; before it does, capsule `{who}` "
-                           "already moves", True)
-            return r, f"at {f / 1e3:.4g} kHz the sweep moves capsule `{seen[f][1]}`"
+            track = self._latch_track(goal.step)
+            states = {n: st for n, (st, _, _) in track.items()}
+            doubt = [n for n, (_, sure, _) in track.items() if not sure][:3]
+            best = None
+            for k in range(2 ** len(doubt)):     # an uncertain latch: either state, the larger reach (contact first)
+                alt = dict(states)
+                for b, n in enumerate(doubt):
+                    if k >> b & 1:
+                        alt[n] = "a" if states[n] == "b" else "b"
+                got = self._static_reach_from(tones, fm, alt)
+                if k and got is not None:
+                    moved = ", ".join(f"`{n}` in state {alt[n]}" for n in doubt if alt[n] != states[n])
+                    got = (got[0], got[1].replace("capsule `", f"(latch {moved}, where an earlier drive may have left "
+                                                  "it) capsule `", 1), *got[2:])
+                if got is not None and (best is None or (len(got) > 2, got[0]) > (len(best) > 2, best[0])):
+                    best = got
+            return best
         except (DiagnosticError, KeyError, StopIteration, ValueError, ArithmeticError, np.linalg.LinAlgError):
             return None         # no mechanics model for this design: the deflection is unknown, not covered
+
+    def _static_reach_from(self, tones, fm, states: dict):
+        """:meth:`_static_reach` from the latch states ``states``."""
+        from acl.analysis import acoustics
+        from acl.design.model import Drive, Tone
+
+        chirp = next((t for t in tones if t.frequency_end_hz), None)
+        if chirp is None:
+            r, who, status = self._settle(Drive(tones=tuple(Tone(frequency=t.frequency_hz, amplitude=t.amplitude_v)
+                                                            for t in tones)), fm, states)
+            if status == "snap_in":
+                return r, f"the drive snaps the mechanism in; before it does, capsule `{who}` already moves", True
+            return r, f"the drive moves capsule `{who}`"
+        seen = {}
+
+        def at(f):
+            if f not in seen:
+                seen[f] = self._settle(Drive(tones=(Tone(frequency=float(f), amplitude=chirp.amplitude_v),)),
+                                       fm, states)
+                if seen[f][2] == "snap_in":
+                    raise _Snapped(f)
+            return seen[f][0]
+
+        try:      # the deflection is flat at its peak: refined to 1e-3 of the frequency (Q ~ 20: < 0.1 %)
+            r, f = acoustics.band_maximum(at, chirp.frequency_hz, chirp.frequency_end_hz, self._mode_frequencies(),
+                                          samples=11, rtol=1e-3)
+        except _Snapped as snap:          # the lowest snapping frequency found: the sweep snaps the mechanism in
+            f = snap.frequency
+            r, who, _ = seen[f]
+            return (r, f"at {f / 1e3:.4g} kHz the sweep snaps the mechanism in; before it does, capsule `{who}` "
+                       "already moves", True)
+        return r, f"at {f / 1e3:.4g} kHz the sweep moves capsule `{seen[f][1]}`"
 
     def _states_before(self, i: int, force_model=None) -> dict:
         """Latch states when step ``i`` starts (the likelier state where it is uncertain: :meth:`_latch_track`)."""
