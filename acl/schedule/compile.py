@@ -1014,7 +1014,7 @@ class _Compiler:
         self.goals.append(rep)
         self.switch_outcome[i] = (step.state, True, f"step {i + 1} (switch)")
         if self.opts.band_samples > 0 and self.opts.latch_provider is None:
-            self._switch_band(rep, used, step, j, names, after)
+            self._switch_band(rep, used, step, j, names, after, [names[k] for k in doubt] if kept_both else [])
 
     def _latch_warn(self, i, step, message: str, hint: str, notes=()) -> None:
         self.latch_warnings.append(Diagnostic(LATCH_STATE_CODE, Severity.WARNING, message, step.span, hint,
@@ -1059,8 +1059,9 @@ class _Compiler:
                           f"switching force; amplitudes scaled by {hi:.4g} to reach the margin {step.margin:g}")
         return [(f, a * hi) for f, a in used], F
 
-    def _switch_band(self, rep: GoalReport, used, step: SwitchStep, j, names, states: dict):
-        """5th percentile of the switch margin (and 95th of the other latches' ratios) over the uncertainty."""
+    def _switch_band(self, rep: GoalReport, used, step: SwitchStep, j, names, states: dict, either=()):
+        """5th percentile of the switch margin (and 95th of the other latches' ratios) over the uncertainty;
+        ``either``: other latches in an uncertain state, whose ratio is the larger of both directions."""
         from acl.schedule.bands import margin_band
         from acl.schedule.gains import latch_drive_forces, latch_forces
 
@@ -1077,6 +1078,8 @@ class _Compiler:
                 if n != target:
                     own = 1.0 if states[n] == "a" else -1.0
                     others[n] = float(own * F[k] / (to_b[k] if own > 0 else to_a[k]))
+                    if n in either:
+                        others[n] = max(others[n], float(-own * F[k] / (to_a[k] if own > 0 else to_b[k])))
             return m, others
 
         band = margin_band(self.design, margin_for, samples=self.opts.band_samples, seed=self.opts.band_seed,
