@@ -99,9 +99,9 @@ class _Compiler:
     notes: list[str] = field(default_factory=list)
     t: float = 0.0
     vmax_seen: list[float] = field(default_factory=list)
-    states_memo: dict = field(default_factory=dict)     # step -> {latch: (state, certain, why)} when it starts (:meth:`_latch_track`)
+    states_memo: dict = field(default_factory=dict)     # step -> {latch: (state, certain, why)} (:meth:`_latch_track`)
     switch_outcome: dict = field(default_factory=dict)  # switch step -> (state, certain, why) of its latch after it
-    push_memo: dict = field(default_factory=dict)       # drive/sweep step -> its push on each latch (:meth:`_push_ratios`)
+    push_memo: dict = field(default_factory=dict)       # drive/sweep step -> its push on each latch (_push_ratios)
     latch_warnings: list = field(default_factory=list)  # W-SCHED-LATCH-STATE diagnostics, located at their switch step
     settled: dict = field(default_factory=dict)         # (tones, latch states) -> :meth:`_settle`'s answer
     inner_goals: list = field(default_factory=list)     # goal records checked for coverage, not in schedule.json (sweeps)
@@ -147,9 +147,10 @@ class _Compiler:
         """(largest deflection from rest, m, the phrase saying where) a hold, cross or switch goal drives to; None if unknown.
 
         hold above: each capsule of the pair at the equilibrium under the whole drive; cross: the last
-        stable equilibrium before snap-in (the pair passes through it), then contact, which no calibration covers:
-        ``(m, phrase, True)`` as a drive that snaps (:meth:`_static_reach`), warned whatever the range; switch: the shuttle's travel
-        between the latch's two stable states (it ends in the other one); drive and sweep: every capsule at
+        stable equilibrium before snap-in (the pair passes through it), then contact, which no calibration
+        covers: ``(m, phrase, True)`` as a drive that snaps (:meth:`_static_reach`), warned whatever the range;
+        switch: the shuttle's travel between the latch's two stable states (it ends in the other one); drive
+        and sweep: every capsule at
         the static equilibrium under the drive (a sweep's at its worst frequency: :meth:`_static_reach`).
         A follow goal: None (its path).
         """
