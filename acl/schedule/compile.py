@@ -33,6 +33,9 @@ MAX_PROGRAM_S = 86_400.0          # a program longer than a day is refused (E-SC
 MAX_WAYPOINTS = 20_000            # per follow goal (E-SCHED-PATH): raise --waypoint-dt
 VOLTAGE_RANGE = (1e-3, 1e4)       # V: a `limit` outside it is refused (E-SCHED-LIMIT)
 SLEW_RANGE = (1e-6, 1e12)         # V/s
+LATCH_STATE_MARGIN = 1.2          # a drive pushing a latch within this factor of the force that switches it leaves its
+                                  # state uncertain: the switch step's default margin (what a switch or a keep promises)
+LATCH_STATE_CODE = "W-SCHED-LATCH-STATE"
 
 
 @dataclass(frozen=True)
@@ -95,14 +98,15 @@ class _Compiler:
     goals: list[GoalReport] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
     t: float = 0.0
-    states: dict[str, str] = field(default_factory=dict)
     vmax_seen: list[float] = field(default_factory=list)
-    states_memo: dict = field(default_factory=dict)     # step -> latch states when it starts (:meth:`_states_before`)
+    states_memo: dict = field(default_factory=dict)     # step -> {latch: (state, certain, why)} (:meth:`_latch_track`)
+    switch_outcome: dict = field(default_factory=dict)  # switch step -> (state, certain, why) of its latch after it
+    push_memo: dict = field(default_factory=dict)       # drive/sweep step -> its push on each latch (_push_ratios)
+    latch_warnings: list = field(default_factory=list)  # W-SCHED-LATCH-STATE diagnostics, located at their switch step
     settled: dict = field(default_factory=dict)         # (tones, latch states) -> :meth:`_settle`'s answer
     inner_goals: list = field(default_factory=list)     # goal records checked for coverage, not in schedule.json (sweeps)
 
     def run(self) -> Schedule:
-        self.states = {l.name: l.state for l in self.design.latches}
         self._check_numbers()
         from acl.schedule.solve import SolverFailure
 
@@ -124,6 +128,9 @@ class _Compiler:
                          max_voltage_v=vmax, full_scale_v=full_scale, ramp_s=self.opts.ramp_s,
                          source=self.design.file, notes=self.notes, full_scale_source=source)
         sched.sample_rate_hz = fs
+        for w in self.latch_warnings:
+            sched.warnings.append(w)
+            self.notes.append(f"warning: {w.message}")
         from acl.schedule.bands import coverage_warnings
 
         for w in coverage_warnings(self.design, sched, [st.span for st in self.program.steps], self._reach,
@@ -140,8 +147,10 @@ class _Compiler:
         """(largest deflection from rest, m, the phrase saying where) a hold, cross or switch goal drives to; None if unknown.
 
         hold above: each capsule of the pair at the equilibrium under the whole drive; cross: the last
-        stable equilibrium before snap-in (the pair passes through it); switch: the shuttle's travel
-        between the latch's two stable states (it ends in the other one); drive and sweep: every capsule at
+        stable equilibrium before snap-in (the pair passes through it), then contact, which no calibration
+        covers: ``(m, phrase, True)`` as a drive that snaps (:meth:`_static_reach`), warned whatever the range;
+        switch: the shuttle's travel between the latch's two stable states (it ends in the other one); drive
+        and sweep: every capsule at
         the static equilibrium under the drive (a sweep's at its worst frequency: :meth:`_static_reach`).
         A follow goal: None (its path).
         """
@@ -179,8 +188,8 @@ class _Compiler:
                 r = float(np.linalg.norm(np.asarray(pos[name], float) - np.asarray(c.center, float)))
                 if r > best * (1 + TIE_RTOL):     # a symmetric pair: the first capsule named
                     best, who = r, name
-            if step.mode == "cross":
-                return best, f"the pair passes, before it snaps in, through capsule `{who}` at"
+            if step.mode == "cross":        # a cross ends in contact by definition: warned whatever the range
+                return best, f"the pair passes, before it snaps in, through capsule `{who}` at", True
             return best, f"the drive holds capsule `{who}` at"
         except (DiagnosticError, KeyError, StopIteration, ValueError, ArithmeticError):
             return None         # no mechanics model for this design: the deflection is unknown, not covered
@@ -189,7 +198,8 @@ class _Compiler:
         """(largest capsule displacement from rest, m, phrase) under a drive or sweep step; None if unknown.
 
         The analysis' mechanics (acl.analysis.mechanics.equilibrium: lone actuators, pairs, groups, springs,
-        latches) at the whole drive, from the latch states the step starts in (:meth:`_settle`).  A sweep
+        latches) at the whole drive, from the latch states the step starts in (:meth:`_settle`; a latch an earlier
+        drive left in an uncertain state (:meth:`_latch_track`): from either state, the larger reach).  A sweep
         (a chirp of one tone) is taken at its worst frequency: the largest displacement over the band, sampled
         with every mode inside and refined (acoustics.band_maximum), each frequency held long enough to settle
         (quasi-static: what the analysis predicts everywhere).  A drive that snaps the mechanism in reports the
@@ -201,83 +211,227 @@ class _Compiler:
         if not tones or not self.design.capsules:
             return None
         from acl.analysis import acoustics
-        from acl.design.model import Drive, Tone
 
         try:
             fm = acoustics.force_model_for(self.design)
-            states = self._states_before(goal.step, fm)
-            chirp = next((t for t in tones if t.frequency_end_hz), None)
-            if chirp is None:
-                r, who, status = self._settle(Drive(tones=tuple(Tone(frequency=t.frequency_hz, amplitude=t.amplitude_v)
-                                                                for t in tones)), fm, states)
-                if status == "snap_in":
-                    return r, f"the drive snaps the mechanism in; before it does, capsule `{who}` already moves", True
-                return r, f"the drive moves capsule `{who}`"
-            seen = {}
-
-            def at(f):
-                if f not in seen:
-                    seen[f] = self._settle(Drive(tones=(Tone(frequency=float(f), amplitude=chirp.amplitude_v),)),
-                                           fm, states)
-                    if seen[f][2] == "snap_in":
-                        raise _Snapped(f)
-                return seen[f][0]
-
-            try:      # the deflection is flat at its peak: refined to 1e-3 of the frequency (Q ~ 20: < 0.1 %)
-                r, f = acoustics.band_maximum(at, chirp.frequency_hz, chirp.frequency_end_hz, self._mode_frequencies(),
-                                              samples=11, rtol=1e-3)
-            except _Snapped as snap:          # the lowest snapping frequency found: the sweep snaps the mechanism in
-                f = snap.frequency
-                r, who, _ = seen[f]
-                return (r, f"at {f / 1e3:.4g} kHz the sweep snaps the mechanism in; before it does, capsule `{who}` "
-                           "already moves", True)
-            return r, f"at {f / 1e3:.4g} kHz the sweep moves capsule `{seen[f][1]}`"
+            track = self._latch_track(goal.step)
+            states = {n: st for n, (st, _, _) in track.items()}
+            doubt = [n for n, (_, sure, _) in track.items() if not sure][:3]
+            best = None
+            for k in range(2 ** len(doubt)):     # an uncertain latch: either state, the larger reach (contact first)
+                alt = dict(states)
+                for b, n in enumerate(doubt):
+                    if k >> b & 1:
+                        alt[n] = "a" if states[n] == "b" else "b"
+                got = self._static_reach_from(tones, fm, alt)
+                if k and got is not None:
+                    moved = ", ".join(f"`{n}` in state {alt[n]}" for n in doubt if alt[n] != states[n])
+                    got = (got[0], got[1].replace("capsule `", f"(latch {moved}, where an earlier drive may have left "
+                                                  "it) capsule `", 1), *got[2:])
+                if got is not None and (best is None or (len(got) > 2, got[0]) > (len(best) > 2, best[0])):
+                    best = got
+            return best
         except (DiagnosticError, KeyError, StopIteration, ValueError, ArithmeticError, np.linalg.LinAlgError):
             return None         # no mechanics model for this design: the deflection is unknown, not covered
 
-    def _states_before(self, i: int, force_model) -> dict:
-        """Latch states when step ``i`` starts: as the switch steps before it set them, and a drive or sweep before
-        it whose push reaches a latch's switching force (:meth:`_switched_by`): a bistable latch stays switched
-        when the drive stops.  Only latches that rest in state a are followed into state b by a drive."""
+    def _static_reach_from(self, tones, fm, states: dict):
+        """:meth:`_static_reach` from the latch states ``states``."""
+        from acl.analysis import acoustics
+        from acl.design.model import Drive, Tone
+
+        chirp = next((t for t in tones if t.frequency_end_hz), None)
+        if chirp is None:
+            r, who, status = self._settle(Drive(tones=tuple(Tone(frequency=t.frequency_hz, amplitude=t.amplitude_v)
+                                                            for t in tones)), fm, states)
+            if status == "snap_in":
+                return r, f"the drive snaps the mechanism in; before it does, capsule `{who}` already moves", True
+            return r, f"the drive moves capsule `{who}`"
+        seen = {}
+
+        def at(f):
+            if f not in seen:
+                seen[f] = self._settle(Drive(tones=(Tone(frequency=float(f), amplitude=chirp.amplitude_v),)),
+                                       fm, states)
+                if seen[f][2] == "snap_in":
+                    raise _Snapped(f)
+            return seen[f][0]
+
+        try:      # the deflection is flat at its peak: refined to 1e-3 of the frequency (Q ~ 20: < 0.1 %)
+            r, f = acoustics.band_maximum(at, chirp.frequency_hz, chirp.frequency_end_hz, self._mode_frequencies(),
+                                          samples=11, rtol=1e-3)
+        except _Snapped as snap:          # the lowest snapping frequency found: the sweep snaps the mechanism in
+            f = snap.frequency
+            r, who, _ = seen[f]
+            return (r, f"at {f / 1e3:.4g} kHz the sweep snaps the mechanism in; before it does, capsule `{who}` "
+                       "already moves", True)
+        return r, f"at {f / 1e3:.4g} kHz the sweep moves capsule `{seen[f][1]}`"
+
+    def _states_before(self, i: int, force_model=None) -> dict:
+        """Latch states when step ``i`` starts (the likelier state where it is uncertain: :meth:`_latch_track`)."""
+        return {n: s for n, (s, _, _) in self._latch_track(i).items()}
+
+    def _latch_track(self, i: int) -> dict:
+        """{latch: (state, certain, why)} when step ``i`` starts.
+
+        As the switch steps before it left them (:attr:`switch_outcome`), and the drives and sweeps before it
+        (:meth:`_switched_by`): a bistable latch stays switched when the drive stops.  ``why`` names the step that
+        set the state (None: the declared state); ``certain`` is False where a drive pushed the latch near the
+        force that switches it, or over it only in part of the declared uncertainty: then ``state`` is the
+        likelier one (the nominal push over the switching force or not).
+        """
         memo = self.states_memo
         if 0 not in memo:
-            memo[0] = {l.name: l.state for l in self.design.latches}
+            memo[0] = {l.name: (l.state, True, None) for l in self.design.latches}
         k = max(j for j in memo if j <= i)
         cur = dict(memo[k])
         for j in range(k, i):
             st = self.program.steps[j]
-            if st.kind == "switch":
-                cur[st.latch] = st.state
+            if st.kind == "switch" and st.latch in cur:
+                cur[st.latch] = self.switch_outcome.get(j, (st.state, True, f"step {j + 1} (switch)"))
             elif st.kind in ("drive", "sweep"):
-                for name in self._switched_by(j, force_model, cur):
-                    cur[name] = "b"
+                cur.update(self._switched_by(j, cur))
             memo[j + 1] = dict(cur)
         return cur
 
-    def _switched_by(self, j: int, force_model, states: dict) -> list:
-        """Latches in state a (resting there) whose switching force the drive or sweep of step ``j`` reaches
-        (acl.analysis.mechanics.latch_margins at rest, as the switch planner's forces; a sweep at its band's worst
-        frequency, acoustics.band_maximum)."""
-        from acl.analysis import acoustics, mechanics
-        from acl.design.model import Drive, Tone
+    def _switched_by(self, j: int, cur: dict) -> dict:
+        """{latch: (state, certain, why)} for the bistable latches whose state the drive or sweep of step ``j`` changes
+        or makes uncertain, from the states ``cur`` it starts in.
 
-        names = [lt.name for lt in self.design.latches if lt.state == "a" and states.get(lt.name) == "a"]
+        The push is the switch planner's own: the force of the whole drive along each latch's axis at rest
+        (acl.schedule.gains.latch_drive_forces, or the injected ``latch_provider``) over the force that switches it
+        to the other state (a->b its switching force, b->a its release force); a sweep's at its band's worst
+        frequency (acoustics.band_maximum).  Switched for sure: push >= LATCH_STATE_MARGIN and, with a margin band
+        (``band_samples``), its 5th percentile over the declared uncertainty >= 1; left for sure: push <=
+        1/LATCH_STATE_MARGIN and the band's 95th percentile < 1.  Anything between: uncertain.
+        """
+        step = f"step {j + 1} ({self.program.steps[j].kind})"
+        try:
+            pushes = self._push_ratios(j)
+        except (DiagnosticError, KeyError, StopIteration, ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
+            try:
+                bi = self._bistable()
+            except (DiagnosticError, KeyError, StopIteration, ValueError, ArithmeticError, np.linalg.LinAlgError):
+                bi = set(cur)           # not even the thresholds: any latch may have moved
+            return {n: (s, False, f"{step}: its push on the latch could not be computed ({exc})")
+                    for n, (s, _, _) in cur.items() if n in bi}
+        M = LATCH_STATE_MARGIN
+        out = {}
+
+        def text(n, to):
+            r, lo, hi, band = pushes[n][to]
+            what = "switching" if to == "b" else "release"
+            s = f"{step} pushed it to {r:.3g} x its {what} force"
+            if band:
+                s += f" ({lo:.3g} .. {hi:.3g} x in the margin band over {band})"
+            return s
+
+        def sure(n, to):
+            r, lo, _, _ = pushes[n][to]
+            return r >= M and lo >= 1.0
+
+        def never(n, to):
+            r, _, hi, _ = pushes[n][to]
+            return r <= 1.0 / M and hi < 1.0
+
+        for n, (state, certain, why) in cur.items():
+            if n not in pushes:
+                continue
+            other = "b" if state == "a" else "a"
+            if certain:
+                if sure(n, other):
+                    out[n] = (other, True, text(n, other))
+                elif not never(n, other):
+                    r, lo, hi, _ = pushes[n][other]
+                    near = f"within {M:g} x of it" if 1.0 / M < r < M else "the band straddles it"
+                    out[n] = (other if r >= 1.0 else state, False,
+                              text(n, other) + f": {near}, it may or may not have switched")
+                continue
+            to = next((t for t in ("b", "a") if sure(n, t)), None)
+            if to is not None:          # from either state it ends there
+                out[n] = (to, True, text(n, to))
+            elif not never(n, other):
+                out[n] = (other if pushes[n][other][0] >= 1.0 else state, False, f"{why}; then {text(n, other)}")
+        return out
+
+    def _bistable(self) -> dict:
+        """{latch: index} of the latches that stay switched when the drive stops (a finite release force)."""
+        _, to_b, to_a = self._latch_thresholds(self.design)
+        return {l.name: k for k, l in enumerate(self.design.latches) if np.isfinite(to_a[k]) and np.isfinite(to_b[k])}
+
+    def _latch_thresholds(self, design):
+        provider = self.opts.latch_provider
+        if provider is None:
+            from acl.schedule.gains import latch_forces as provider
+        return provider(design, [])
+
+    def _latch_push(self, design, tones) -> tuple:
+        """((L,) force N of ``tones`` ((Hz, V)) along each latch axis, to_b, to_a): the switch planner's model."""
+        provider = self.opts.latch_provider
+        if provider is not None:        # an injected model: force per V^2 of each tone (as the switch LP)
+            forces, to_b, to_a = provider(design, tuple(f for f, _ in tones))
+            return np.asarray(forces, float) @ np.array([a * a for _, a in tones], float), to_b, to_a
+        from acl.schedule.gains import latch_drive_forces, latch_forces
+
+        _, to_b, to_a = latch_forces(design, [])
+        return latch_drive_forces(design, tones), to_b, to_a
+
+    def _push_ratios(self, j: int) -> dict:
+        """{bistable latch: {"b": (push, lo, hi, band), "a": ...}} for the drive or sweep of step ``j``: its push towards
+        each state over the force that switches the latch there (:meth:`_switched_by`), and the 5th .. 95th percentile
+        bounds of it over the declared uncertainty (acl.schedule.bands.margin_band; lo = hi = push without a band)."""
+        if j in self.push_memo:
+            return self.push_memo[j]
+        bi = self._bistable()
         tones = [t for s in self.segments if s.step == j for t in s.tones if t.amplitude_v > 0]
-        if not names or not tones:
-            return []
         chirp = next((t for t in tones if t.frequency_end_hz), None)
-        if chirp is None:
-            m = mechanics.latch_margins(self.design, Drive(tones=tuple(Tone(frequency=t.frequency_hz,
-                                                                             amplitude=t.amplitude_v) for t in tones)),
-                                        force_model)
-            return [n for n in names if m[n].margin >= 1.0]
 
-        def margin(n):
-            return lambda f: mechanics.latch_margins(
-                self.design, Drive(tones=(Tone(frequency=float(f), amplitude=chirp.amplitude_v),)), force_model)[n].margin
+        def ratios(d):
+            if not tones:
+                return {n: {"b": 0.0, "a": 0.0} for n in bi}
+            if chirp is None:
+                F, to_b, to_a = self._latch_push(d, [(t.frequency_hz, t.amplitude_v) for t in tones])
+                return {n: {"b": float(F[k] / to_b[k]), "a": float(-F[k] / to_a[k])} for n, k in bi.items()}
+            seen = {}
 
-        return [n for n in names if acoustics.band_maximum(margin(n), chirp.frequency_hz, chirp.frequency_end_hz,
-                                                           self._mode_frequencies(), rtol=1e-6)[0] >= 1.0]
+            def at(f):
+                if f not in seen:
+                    seen[f] = self._latch_push(d, [(float(f), chirp.amplitude_v)])
+                return seen[f]
+
+            out = {}
+            for n, k in bi.items():
+                out[n] = {"b": acoustics.band_maximum(lambda f: float(at(f)[0][k] / at(f)[1][k]), chirp.frequency_hz,
+                                                      chirp.frequency_end_hz, self._mode_frequencies(), rtol=1e-6)[0],
+                          "a": acoustics.band_maximum(lambda f: float(-at(f)[0][k] / at(f)[2][k]), chirp.frequency_hz,
+                                                      chirp.frequency_end_hz, self._mode_frequencies(), rtol=1e-6)[0]}
+            return out
+
+        from acl.analysis import acoustics
+
+        nominal = ratios(self.design)
+        res = {n: {to: (r, r, r, "") for to, r in v.items()} for n, v in nominal.items()}
+        if self.opts.band_samples > 0 and self.opts.latch_provider is None and tones and bi:
+            from acl.schedule.bands import margin_band
+
+            def margin_for(d):
+                r = ratios(d)
+                return 1.0, {f"{s}{n}>{to}": (x if s == "+" else -x) for n, v in r.items() for to, x in v.items()
+                             for s in "+-"}
+
+            band = margin_band(self.design, margin_for, samples=self.opts.band_samples, seed=self.opts.band_seed,
+                               reload=self.opts.reload)
+            if band is not None:
+                n_all = band.samples + band.failed
+                what = f"{n_all} draws of the declared uncertainty" + (
+                    f", {band.failed} failed: counted as unknown" if band.failed else "")
+                for n, v in nominal.items():
+                    for to, r in v.items():
+                        lo, hi = -band.others_p95.get(f"-{n}>{to}", np.inf), band.others_p95.get(f"+{n}>{to}", np.inf)
+                        if band.failed:
+                            lo, hi = -np.inf, np.inf
+                        res[n][to] = (r, min(lo, r), max(hi, r), what)
+        self.push_memo[j] = res
+        return res
 
     def _settle(self, drive, force_model, states: dict):
         """(largest capsule displacement from rest, m, that capsule, status) at the equilibrium under ``drive``.
@@ -740,6 +894,12 @@ class _Compiler:
 
     # -- switch --------------------------------------------------------------------------------
     def _switch(self, i, step: SwitchStep):
+        """Plan a switch from the state the latch is in when the step starts (:meth:`_latch_track`: earlier switches,
+        drives and sweeps).  Already there: nothing played.  Uncertain (a drive pushed it near its switching force):
+        planned from the other state, which also leaves it in the wanted state if it is there already (the drive
+        pushes it further in); when no drive does that within the limits, W-SCHED-LATCH-STATE at the step.  Another
+        latch in an uncertain state is kept put in both directions, or, when no drive does that, in its likelier
+        state with W-SCHED-LATCH-STATE."""
         from acl.schedule.latch import SwitchInfeasible, plan_switch
 
         name = f"step {i + 1}: switch {step.latch} -> {step.state}"
@@ -748,24 +908,71 @@ class _Compiler:
         names = [l.name for l in self.design.latches]
         if step.latch not in names:
             raise _diag("E-SCHED-MODEL", f"{name}: no latch named `{step.latch}`", step.span)
-        if self.states[step.latch] == step.state:
-            self.notes.append(f"{name}: latch already in state {step.state}; nothing to do")
+        track = self._latch_track(i)
+        state, certain, why = track[step.latch]
+        source = why or "its declared state"
+        before = state if certain else "a or b"
+        if certain and state == step.state:
+            self.notes.append(f"{name}: latch already in state {step.state} ({source}); nothing to do")
             self._add(step.duration, [], i, name)
+            self.goals.append(GoalReport(name, "switch", i, self.t - step.duration, self.t, (),
+                                         model="nothing played: the latch is already in that state",
+                                         details={"state_before": state, "state_from": source, "already": True}))
+            self.switch_outcome[i] = (state, True, why)
             return
+        other = "a" if step.state == "b" else "b"
+        doubt = [k for k, n in enumerate(names) if n != step.latch and not track[n][1]]
         freqs = tuple(step.tones) or tuple(self._latch_candidates())
         provider = self.opts.latch_provider
         if provider is None:
             from acl.schedule.gains import latch_forces as provider
         forces, to_b, to_a = provider(self.design, freqs)
         j = names.index(step.latch)
-        try:
-            plan = plan_switch(forces, to_b, to_a, [self.states[n] for n in names], names, j,
-                               step.state, step.margin, DriveLimits(vmax))
-        except SwitchInfeasible as exc:
-            raise DiagnosticError([Diagnostic(
+        states = [track[n][0] for n in names]
+        states[j] = other                # certain: it is there; uncertain: a drive from there works from both
+
+        def infeasible(exc):
+            return DiagnosticError([Diagnostic(
                 "E-SCHED-INFEASIBLE", Severity.ERROR, f"{name}: infeasible: binding "
                 + "; ".join(exc.binding), step.span, "relax: " + "; or ".join(exc.relax),
-                notes=(f"at t = {self.t:.4g} s, {len(freqs)} candidate tones",))])
+                notes=(f"at t = {self.t:.4g} s, {len(freqs)} candidate tones",)
+                + ((f"latch `{step.latch}` is in state {other}: {why}",) if why else ()))])
+
+        kept_both = bool(doubt)
+        try:
+            plan = plan_switch(forces, to_b, to_a, states, names, j, step.state, step.margin, DriveLimits(vmax),
+                               either=doubt)
+        except SwitchInfeasible as exc:
+            plan = None
+            if doubt:
+                try:
+                    plan = plan_switch(forces, to_b, to_a, states, names, j, step.state, step.margin, DriveLimits(vmax))
+                    kept_both = False
+                except SwitchInfeasible as exc2:
+                    exc = exc2
+            if plan is None:
+                if certain:
+                    raise infeasible(exc) from None
+                self._latch_warn(i, step, f"{name}: latch `{step.latch}` may be in state {other} and no drive within "
+                                 f"the limits switches it from there: the step plays nothing, and the latch may stay "
+                                 f"in state {other}",
+                                 f"make the earlier drive decisive (well above or below the latch's switching force), "
+                                 f"or give the switch tones that push the latch to state {step.state}",
+                                 (why, "planned from state " + other + ": binding " + "; ".join(exc.binding)))
+                self._add(step.duration, [], i, name)
+                self.goals.append(GoalReport(name, "switch", i, self.t - step.duration, self.t, (),
+                                             model="nothing played: no drive switches the latch from its other state",
+                                             details={"state_before": before, "state_from": source, "already": False,
+                                                      "state_certain": False}))
+                self.switch_outcome[i] = (state, False, why)
+                return
+        if doubt and not kept_both:
+            self._latch_warn(i, step, f"{name}: " + ", ".join(f"latch `{names[k]}`" for k in doubt)
+                + " may be in state a or b: no drive within the limits keeps it put in both; the drive keeps it in state "
+                + ", ".join(f"{track[names[k]][0]} (`{names[k]}`)" for k in doubt) + " only",
+                "make the earlier drive decisive (well above or below the other latch's switching force), "
+                "or switch that latch to a known state first",
+                tuple(f"latch `{names[k]}`: {track[names[k]][2]}" for k in doubt))
         # interior-point dust: a tone with < 1e-6 of the largest power adds < 1e-6 of the force;
         # the margins reported are those of the tones actually emitted
         keep = plan.u > 1e-6 * plan.u.max()
@@ -780,26 +987,39 @@ class _Compiler:
                 F, model = F_full, "force of the whole drive (declared drive saturation)"
                 plan = dataclasses.replace(plan, required_force=step.margin * thr_t)
         self._add(step.duration, [ScheduledTone(f, float(a)) for f, a in used], i, name)
-        self.states[step.latch] = step.state
+        after = {n: track[n][0] for n in names}
+        after[step.latch] = step.state
         force = float(sig * F[j])
         others = {}
         for k, n in enumerate(names):
             if n != step.latch:       # force along the other latch's own switching direction / threshold
-                own = 1.0 if self.states[n] == "a" else -1.0
+                own = 1.0 if after[n] == "a" else -1.0
                 thr = to_b[k] if own > 0 else to_a[k]
                 others[n] = float(own * F[k] / thr)
+                if kept_both and k in doubt:     # and along the other direction: it stays in either state
+                    thr2 = to_a[k] if own > 0 else to_b[k]
+                    others[n] = max(others[n], float(-own * F[k] / thr2))
         if force < plan.required_force * (1 - 1e-6) or any(r > 1 / step.margin * (1 + 1e-6)
                                                               for r in others.values()):
             raise _diag("E-SCHED-SOLVER", f"{name}: the emitted tones miss the switching margins "
                         "the latch program promised", step.span, "report this design")
+        details = {"force_n": force, "required_n": plan.required_force,
+                   "margin": force / plan.required_force * step.margin, "other_latch_ratios": others,
+                   "state_before": before, "state_from": source, "planned_from": other}
+        if not certain:
+            self.notes.append(f"{name}: latch `{step.latch}` may be in state a or b ({why}): planned from state {other}, "
+                              f"which also leaves it in state {step.state} if it is there already (the drive pushes "
+                              "it further in)")
         rep = GoalReport(name, "switch", i, self.t - step.duration, self.t,
-                         tuple(f for f, _ in used), model=model,
-                         details={"force_n": force, "required_n": plan.required_force,
-                                  "margin": force / plan.required_force * step.margin,
-                                  "other_latch_ratios": others})
+                         tuple(f for f, _ in used), model=model, details=details)
         self.goals.append(rep)
+        self.switch_outcome[i] = (step.state, True, f"step {i + 1} (switch)")
         if self.opts.band_samples > 0 and self.opts.latch_provider is None:
-            self._switch_band(rep, used, step, j, names)
+            self._switch_band(rep, used, step, j, names, after, [names[k] for k in doubt] if kept_both else [])
+
+    def _latch_warn(self, i, step, message: str, hint: str, notes=()) -> None:
+        self.latch_warnings.append(Diagnostic(LATCH_STATE_CODE, Severity.WARNING, message, step.span, hint,
+                                              notes=tuple(notes)))
 
     def _switch_full_model(self, name, step: SwitchStep, used, j, sig, thr_t, vmax):
         """Re-check a switch with the full force model when forces are not ~V^2 (drive saturation).
@@ -840,12 +1060,12 @@ class _Compiler:
                           f"switching force; amplitudes scaled by {hi:.4g} to reach the margin {step.margin:g}")
         return [(f, a * hi) for f, a in used], F
 
-    def _switch_band(self, rep: GoalReport, used, step: SwitchStep, j, names):
-        """5th percentile of the switch margin (and 95th of the other latches' ratios) over the uncertainty."""
+    def _switch_band(self, rep: GoalReport, used, step: SwitchStep, j, names, states: dict, either=()):
+        """5th percentile of the switch margin (and 95th of the other latches' ratios) over the uncertainty;
+        ``either``: other latches in an uncertain state, whose ratio is the larger of both directions."""
         from acl.schedule.bands import margin_band
         from acl.schedule.gains import latch_drive_forces, latch_forces
 
-        states = dict(self.states)             # after this switch
         target = names[j]
         before = "a" if step.state == "b" else "b"
 
@@ -859,6 +1079,8 @@ class _Compiler:
                 if n != target:
                     own = 1.0 if states[n] == "a" else -1.0
                     others[n] = float(own * F[k] / (to_b[k] if own > 0 else to_a[k]))
+                    if n in either:
+                        others[n] = max(others[n], float(-own * F[k] / (to_a[k] if own > 0 else to_b[k])))
             return m, others
 
         band = margin_band(self.design, margin_for, samples=self.opts.band_samples, seed=self.opts.band_seed,

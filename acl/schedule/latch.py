@@ -56,7 +56,13 @@ class SwitchInfeasible(Exception):
 
 def plan_switch(forces: np.ndarray, to_b: np.ndarray, to_a: np.ndarray, states: list[str],
                 names: list[str], target: int, new_state: str, margin: float,
-                limits: DriveLimits, refine: int = 4) -> SwitchPlan:
+                limits: DriveLimits, refine: int = 4, either=()) -> SwitchPlan:
+    """The least drive that switches latch ``target`` to ``new_state`` and keeps the others put.
+
+    ``either``: indices of other latches whose state is uncertain (an earlier drive pushed them near their
+    switching force): each must stay below ``1/margin`` of its switching force in both directions, so
+    that it stays put whichever state it is in.
+    """
     import cvxpy as cp
 
     F = np.asarray(forces, dtype=float)
@@ -73,13 +79,18 @@ def plan_switch(forces: np.ndarray, to_b: np.ndarray, to_a: np.ndarray, states: 
     goal_row, goal_rhs = sig_t * Fs[target], margin * thr_t / fs
     keep_rows = sigma[others, None] * Fs[others] if others else np.zeros((0, K))
     keep_rhs = thr[others] / margin / fs if others else np.zeros(0)
+    both = [i for i in either if i != target and np.isfinite(np.where(sigma > 0, to_a, to_b)[i])]
+    if both:              # the opposite direction too: it stays whichever state it is in
+        opp = np.where(sigma > 0, to_a, to_b)
+        keep_rows = np.vstack([keep_rows, -sigma[both, None] * Fs[both]])
+        keep_rhs = np.concatenate([keep_rhs, opp[both] / margin / fs])
 
     def lp(support, total=None):
         """Least sum x on ``support`` with per-tone caps and an optional plane (a, b): a @ x <= b."""
         idx = np.asarray(support, int)
         x = cp.Variable(idx.size, nonneg=True)
         cons = [x <= cap[idx], goal_row[idx] @ x >= goal_rhs]
-        if others:
+        if keep_rows.shape[0]:
             cons.append(keep_rows[:, idx] @ x <= keep_rhs)
         if total is not None:
             cons.append(total[0] @ x <= total[1])
@@ -155,7 +166,7 @@ def _diagnose(Fs, thr, thr_t, sig_t, sigma, target, others, names, margin, cap, 
     r = solve(best, "switch diagnosis")
     reachable = r.ok and r.value * fs >= margin * thr_t * (1 - 1e-9)
     if not reachable:
-        most = (r.value or 0.0) * fs
+        most = max((r.value or 0.0) * fs, 0.0)       # solver dust below zero: no tone pushes that way
         return ((f"amplitude limits: at most {most:.3g} N towards the new state (each tone at "
                  f"the limit, an upper bound), "
                  f"{margin * thr_t:.3g} N needed (margin {margin:g})",),
