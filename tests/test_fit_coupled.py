@@ -185,7 +185,7 @@ def test_pair_model_scale_is_the_drive_scale(fits):
 
 
 def _cli(*args):
-    return subprocess.run([sys.executable, "-m", "acl", *args], capture_output=True, text=True, timeout=300, cwd=ROOT)
+    return subprocess.run([sys.executable, "-m", "acl", *args], capture_output=True, text=True, timeout=1200, cwd=ROOT)
 
 
 @pytest.mark.parametrize("value", ["eq4", "", "COUPLED", "group"])
