@@ -180,10 +180,10 @@ class Builder:
         if not os.path.isfile(path):
             self.bag.error("E507", f"cannot find `{rel}`", span)
             raise Fail()
-        from acl.design.modules import _shown
+        from acl.design.modules import shown_path
 
         # named in diagnostics (`lib/gain.csv:3:2`) from the design's name as the user gave it, as imports are
-        return _shown(path, path, os.path.join(os.path.dirname(env.file), rel))
+        return shown_path(path, path, os.path.join(os.path.dirname(env.file), rel))
 
     # ------------------------------------------------------------------------------ references to local elements
     def local(self, ref: A.Ref, kinds: tuple[str, ...], what: str):

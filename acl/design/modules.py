@@ -161,7 +161,7 @@ class Loader:
         if not self._room(st, "extends"):
             return None
         text = self._read(cand)
-        shown = _shown(cand, real, os.path.join(os.path.dirname(env.file), st.file))
+        shown = shown_path(cand, real, os.path.join(os.path.dirname(env.file), st.file))
         return None if text is None else self._load_text(text, shown, real, root=os.path.dirname(real))
 
     def _read(self, path: str) -> str | None:
@@ -227,7 +227,7 @@ class Loader:
                 text = self._read(cand)
                 if text is None:
                     return None
-                target = self._load_text(text, _shown(cand, real, guesses.get(cand)), real,
+                target = self._load_text(text, shown_path(cand, real, guesses.get(cand)), real,
                                          root=os.path.dirname(real) if real.startswith(stdlib_root()) else root)
             if mem is not None:
                 if mem not in target.decls and mem not in target.params:
@@ -261,7 +261,7 @@ class Loader:
         return any(real == r or real.startswith(r.rstrip(os.sep) + os.sep) for r in roots)
 
 
-def _shown(cand: str, real: str, guess: str | None) -> str:
+def shown_path(cand: str, real: str, guess: str | None) -> str:
     """The name diagnostics give a file a design reads (extends, imports): ``guess``, the path built from the
     importing file's name as the user gave it (normalised: `sub/../base.acl` is `base.acl`), when it names
     the same file; else ``cand`` (absolute: the importing file was a link into another folder, or the stdlib)."""
