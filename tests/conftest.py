@@ -18,3 +18,17 @@ if os.environ.get("PYTEST_XDIST_WORKER"):
 settings.register_profile("ci", derandomize=True, deadline=None, print_blob=True)
 if os.environ.get("CI"):
     settings.load_profile("ci")
+
+
+# The files that take longest (pytest --durations on two workers, 2026-11-27: docs/fit.md's regeneration 240 s,
+# the committed fit-diagnosis runs, the closed-loop studies, ...) run first: a worker that draws one of them last
+# keeps the run going alone for minutes while the other has finished.  Whole files move (their order inside is
+# kept), so module fixtures are still set up once.
+SLOW_FIRST = ("test_docs_sync.py", "test_fit_diagnosis.py", "test_fit_bodies.py", "test_closed_loop.py",
+              "test_fit_coupled.py", "test_fit_one_physics.py", "test_cli_output.py", "test_fit_mechanisms.py",
+              "test_fit_fig4e.py", "test_sweep_mechanism.py")
+
+
+def pytest_collection_modifyitems(session, config, items):
+    rank = {name: i for i, name in enumerate(SLOW_FIRST)}
+    items.sort(key=lambda item: rank.get(item.path.name, len(SLOW_FIRST)))
