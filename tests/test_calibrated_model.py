@@ -40,6 +40,10 @@ def test_cantilever_calibrated_design_reproduces_the_fit(tmp_path):
                     ["gamma"])
     assert set(out.selection.selected) == {"drive_saturation", "transducer_gain"}
     design = acl.load(cal)
+    # positive coordinates are drawn log-normal by compile's bands; a signed one (gain_slope in -4 .. 4) is not
+    assert "fit_gamma" in design.lognormal and "fit_drive_saturation_inv_vsat2" in design.lognormal
+    assert "fit_transducer_gain_gain_slope" not in design.lognormal
+    assert {p.name for p in design.uncertain_params()} >= set(design.lognormal)
     data, pred = out.problem.data, out.selection.final.prediction
     fm = acoustics.force_model_for(design)
     got = []
@@ -85,5 +89,6 @@ def test_calibrated_file_carries_the_fit_covariance(tmp_path):
     assert cov[0, 1] / math.sqrt(cov[0, 0] * cov[1, 1]) == pytest.approx(fin.corr[ig, isat], abs=1e-5)
     cover = {c.quantity: (c.lower, c.upper) for c in design.coverage}
     assert cover["voltage"][1] == pytest.approx(9.0) and cover["frequency"] == (115e3, 125e3)
+    assert set(design.lognormal) == {"fit_gamma", "fit_drive_saturation_inv_vsat2"}     # both fitted within >= 0
     # the effect coefficients are those parameters: analyze, compile and lint apply them
     assert design.effect("drive_saturation").params["inv_vsat2"] == pytest.approx(ps.value)

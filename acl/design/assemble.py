@@ -22,7 +22,7 @@ TARGET_POINTS = {"beam": "tip", "latch": "shuttle", "spring": "end"}
 def assemble(b: Builder) -> M.Design:
     r, env, bag = b.r, b.env, b.bag
     params = _params(b)
-    correlations, coverage, discrepancy, measured = _uncertainty(b, params)
+    correlations, coverage, discrepancy, measured, lognormal = _uncertainty(b, params)
     medium, transducer = _uses(b)
 
     # ---- elements
@@ -88,6 +88,7 @@ def assemble(b: Builder) -> M.Design:
     programs = _programs(b, partial)
     design = M.Design(**design_kw, observes=tuple(observes), requires=tuple(requires), programs=tuple(programs),
                       effects=tuple(effects), correlations=correlations, coverage=coverage, discrepancy=discrepancy,
+                      lognormal=lognormal,
                       measured_gain=measured,
                       sources=tuple(dict.fromkeys(r.loader.sources)))
     if not _all_finite(design, bag):
@@ -252,11 +253,19 @@ def _uncertainty(b: Builder, params: tuple[M.Param, ...]):
     cover: dict[str, M.Coverage] = {}
     discrepancy = discrepancy_line = None
     measured: list[M.MeasuredGain] | None = None
+    logn: dict[str, Span] = {}
     for st in b.env.statements:
         if not isinstance(st, A.UncertaintyDecl):
             continue
         for ent in st.entries:
             key = ent.key
+            if key.name == "lognormal":
+                _lognormal(b, ent, params, logn)
+                continue
+            if ent.value is None:
+                b.bag.error("E325", f"`{key.name}(...)` needs a value: write `{key.name}(...) = ...`", key.span,
+                            "only `lognormal(a, b, ...)` stands without one")
+                continue
             if key.name == "correlation":
                 names = [a.dotted if isinstance(a, A.Ref) else None for a in key.args]
                 if len(names) != 2 or None in names or key.kwargs:
@@ -349,8 +358,9 @@ def _uncertainty(b: Builder, params: tuple[M.Param, ...]):
                     measured = got
             else:
                 b.bag.error("E325", f"unknown uncertainty entry `{key.name}`", key.span,
-                            suggest(key.name, ["correlation", "covered", "discrepancy", "measured"])
-                            or "entries: correlation(a, b), covered(q), discrepancy(position), measured(gain)")
+                            suggest(key.name, ["correlation", "covered", "discrepancy", "measured", "lognormal"])
+                            or "entries: correlation(a, b), covered(q), discrepancy(position), measured(gain), "
+                               "lognormal(a, ...)")
     correlations = tuple(corr.values())
     if correlations:
         import numpy as np
@@ -364,7 +374,39 @@ def _uncertainty(b: Builder, params: tuple[M.Param, ...]):
             b.bag.error("E324", "the correlations are not consistent (the correlation matrix is not positive "
                         "semidefinite)", correlations[0].span, "check the signs and sizes of the correlations")
             correlations = ()
-    return correlations, tuple(cover.values()), discrepancy, tuple(measured or ())
+    return correlations, tuple(cover.values()), discrepancy, tuple(measured or ()), tuple(logn)
+
+
+def _lognormal(b: Builder, ent, params: tuple[M.Param, ...], seen: dict) -> None:
+    """``lognormal(a, b, ...)``: positive uncertain parameters whose draws are log-normal (acl.schedule.bands)."""
+    key = ent.key
+    if ent.value is not None:
+        b.bag.error("E325", "`lognormal(a, ...)` takes no value", ent.value.span,
+                    "write `lognormal(a, b)`: it names the positive parameters drawn log-normal")
+        return
+    names = [a.dotted if isinstance(a, A.Ref) else None for a in key.args]
+    if not names or None in names or key.kwargs:
+        b.bag.error("E325", "write `lognormal(a, b, ...)` with parameter names", key.span)
+        return
+    by = {p.name: p for p in params}
+    for n, arg in zip(names, key.args):
+        p = by.get(n)
+        if p is None:
+            b.bag.error("E323", f"lognormal: no parameter named `{n}`", arg.span, suggest(n, list(by)))
+        elif not p.stddev:
+            b.bag.error("E323", f"lognormal: `{n}` declares no uncertainty (`+- s`)", arg.span,
+                        f"write `param {n} = value +- s`")
+        elif p.spread is not None:
+            b.bag.error("E325", f"lognormal: `{n}` declares its own distribution (`+- {p.spread.kind}(...)` or "
+                        "`+- %`)", arg.span, "give it `+- s` (the standard deviation) to draw it log-normal")
+        elif not p.value > 0:
+            b.bag.error("E325", f"lognormal: `{n}` = {p.value:g} is not positive; a log-normal value is",
+                        arg.span, "a signed parameter keeps the normal `+- s`")
+        elif n in seen:
+            b.bag.error("E325", f"lognormal: `{n}` is given twice (first at line {seen[n].line})", arg.span,
+                        "name each parameter once")
+        else:
+            seen[n] = arg.span
 
 
 def _measured_gain(b: Builder, ent) -> list | None:

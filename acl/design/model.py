@@ -39,17 +39,18 @@ class Spread(Frozen):
     ``+- normal(mean, sd)``: ``a`` = mean, ``b`` = standard deviation; ``+- uniform(lo, hi)``:
     ``a`` = lo, ``b`` = hi (offsets from the value, lo <= hi).  ``relative``: ``a`` and ``b`` are
     fractions of the value's magnitude (``+- 3 %`` is ``normal(0, 3 %)``); otherwise SI, in the
-    value's unit.
+    value's unit.  ``lognormal`` (a parameter an ``uncertainty { lognormal(p) }`` entry names; not
+    written as a spread): relative, ``b`` = the coefficient of variation, the value its mean.
     """
 
-    kind: Literal["normal", "uniform"]
+    kind: Literal["normal", "uniform", "lognormal"]
     a: float
     b: float
     relative: bool = False
 
     def stddev(self, value: float) -> float:
         """Standard deviation (SI) about a value: sd, or (hi - lo)/sqrt(12) for a uniform spread."""
-        s = self.b if self.kind == "normal" else (self.b - self.a) / math.sqrt(12.0)
+        s = self.b if self.kind in ("normal", "lognormal") else (self.b - self.a) / math.sqrt(12.0)
         return abs(value) * s if self.relative else s
 
 
@@ -508,6 +509,7 @@ class Design(Frozen):
     coverage: tuple[Coverage, ...] = ()
     discrepancy: float | None = None   # m: RMS difference of the calibrated model from its data (uncertainty block)
     measured_gain: tuple[MeasuredGain, ...] = ()   # tones whose transducer gain a calibration measured (uncertainty block)
+    lognormal: tuple[str, ...] = ()    # uncertain parameters drawn log-normal (positive; uncertainty block)
     sources: tuple[str, ...] = ()  # every file read (design, imports, csv), in order
 
     # -- lookups -------------------------------------------------------------------------------

@@ -10,7 +10,10 @@ design -> ``acl analyze`` reproduces the fit's predictions):
 * every fitted coordinate is a parameter with its standard error, ``param fit_X = v +- s`` (a
   fitted design parameter keeps its own name and replaces the original's value), and the fit's
   correlations are an ``uncertainty { correlation(a, b) = r }`` block: the covariance of the fit,
-  in the language, for ``acl compile``'s robust mode and error bands;
+  in the language, for ``acl compile``'s robust mode and error bands; a coordinate fitted within
+  positive bounds (every one but a signed effect coefficient) is named in ``lognormal(...)``, so the
+  bands draw it from the log-normal of the same mean and covariance: a poorly identified gamma and
+  alpha the data tie in ratio are drawn along that ratio, never negative;
 * effects are ``effect ID { coefficient = fit_ID_coefficient }`` (:mod:`acl.fit.effects` names, SI),
   read by :mod:`acl.analysis.effects`;
 * coefficients without a design parameter are written as the physics they stand for: the thrust
@@ -87,6 +90,7 @@ def calibrated_text(problem, selection, out_path: str, data_paths=(), report_dir
     lines = head + ["", f'extends "{rel}"', ""]
     pair = bool(P.pair.any() or (P.group_row is not None and P.group_row.any()))
     names, params = [], []              # parameter name per fitted coordinate; its declaration
+    positive: list[str] = []            # fitted within positive bounds: drawn log-normal (``lognormal(...)``)
     effects: dict[str, dict[str, str]] = {eid: {} for eid in selection.selected}
     gain_terms: list[str] = []          # factors of the transducer_gain `gain` (pressure scale)
     notes: list[str] = []
@@ -131,12 +135,15 @@ def calibrated_text(problem, selection, out_path: str, data_paths=(), report_dir
             notes.append(f"# WARNING: {name} is not identifiable from these data (relative standard error "
                          f"{rel_se:.3g}): its value is where the optimizer stopped, not a measurement; later stages "
                          "draw it from its +- (acl compile's bands), so they are wide")
+        if c.lower >= 0 and v > 0 and _pm(se, unit):
+            positive.append(name)
         params.append(f"param {name} = {_literal(v, unit)}{_pm(se, unit)}"
                       f"    # 95% interval {_literal(lo, unit)} .. {_literal(hi, unit)}")
     if model_scale_sd > 0:
         # nominal 1: the analysis is unchanged; its spread is what the Eq. 3 fit cannot tell about snap-in
         params.append(f"param fit_pair_model_scale = 1 +- {model_scale_sd:.6g}    # drive (pressure) scale: "
                       "W-FIT-PAIR-MODEL")
+        positive.append("fit_pair_model_scale")
         notes.append("# fit_pair_model_scale: the calibrated analysis (full force model) and this fit's pair model "
                      "(paper Eq. 3) put the snap-in at different drive scales; its +- is twice that difference "
                      "(acl/fit/modelcheck.py snap_mismatch, docs/fit.md Limits), drawn by acl compile's margin bands "
@@ -189,9 +196,12 @@ def calibrated_text(problem, selection, out_path: str, data_paths=(), report_dir
     corr = _correlations(final, names)
     cover = _coverage(problem)
     measured = {f: s for f, s in (tone_gain or {}).items() if math.isfinite(s) and 0 <= s <= 1}
-    if corr or cover or measured:
+    if corr or cover or measured or positive:
         lines.append("uncertainty {")
         lines += [f"  correlation({a}, {b}) = {r:.6g}" for a, b, r in corr]
+        if positive:
+            lines.append(f"  lognormal({', '.join(positive)})    # positive: compile's bands draw them log-normal "
+                         "(same mean, +- and correlations), never <= 0")
         lines += [f"  covered({q}) = {_literal(lo, u)} .. {_literal(hi, u)}" for q, (lo, hi, u) in cover.items()]
         if measured:
             # rounded up: a written figure must not be smaller than the one computed

@@ -9,7 +9,9 @@ held to the calibrated model (:func:`pinned`), elsewhere it keeps its prior.  Th
 
 * :func:`sample_designs` -- designs drawn from that distribution: the table values multiplied by
   log-normal factors ``exp(s z)`` (one per table point), the uncertain parameters drawn from
-  their multivariate normal and the design resolved again with them (``reload``: overrides ->
+  their multivariate normal (those a ``lognormal(a, ...)`` entry names: from the multivariate
+  log-normal of the same mean and covariance, :func:`log_moments`, so a positive value never goes
+  negative and a ratio the data tie stays tied) and the design resolved again with them (``reload``: overrides ->
   Design, supplied by the caller that knows the source file);
 * :func:`error_band` -- the 95th percentile of a goal's RMS and maximum tracking error over those
   designs (bounded from above by an order statistic of the draws: :func:`_quantile`), each re-simulated through the full nonlinear forward model with the schedule's drive,
@@ -52,6 +54,7 @@ class Uncertainty:
     cov: np.ndarray                         # (P, P) SI
     units: tuple[str, ...]
     pinned: tuple = ()                      # ((tone Hz, relative sd), ...): gains a calibration measured (:func:`pinned`)
+    log: tuple[bool, ...] = ()              # per parameter: drawn log-normal (``lognormal(a, ...)``), else normal
 
     @property
     def gain_sds(self) -> np.ndarray:
@@ -73,7 +76,7 @@ def declared(design: Design, with_params: bool = True) -> Uncertainty:
     return Uncertainty(gain_sd, float(design.discrepancy or 0.0),
                        len(t.gain_pa_per_v) + len(pin) if t is not None else 0, tuple(p.name for p in ps),
                        np.array([p.value for p in ps]), design.covariance([p.name for p in ps]) if ps else np.zeros((0, 0)),
-                       tuple(p.unit for p in ps), pin)
+                       tuple(p.unit for p in ps), pin, tuple(p.name in design.lognormal for p in ps))
 
 
 def pinned(design: Design) -> tuple:
@@ -162,15 +165,67 @@ def _chol(cov: np.ndarray) -> np.ndarray:
     return V * np.sqrt(np.maximum(w, 0.0))
 
 
+def log_moments(mean: np.ndarray, cov: np.ndarray, log) -> tuple[np.ndarray, np.ndarray]:
+    """Mean and covariance of ``w`` (``log x`` where ``log``, else ``x``) whose image has the declared mean and covariance.
+
+    Moment matching of a multivariate log-normal (Johnson, Kotz & Balakrishnan, *Continuous Multivariate
+    Distributions* (2000), ch. 45): ``cov(ln x_i, ln x_j) = ln(1 + C_ij / (m_i m_j))``, ``E ln x_i = ln m_i -
+    var_i / 2``; a log-normal and a normal coordinate, ``cov(ln x_i, y_j) = C_ij / m_i`` (Stein's lemma).  A pair
+    whose ``1 + C_ij / (m_i m_j)`` is not positive (a strong negative correlation of two very uncertain values: no
+    log-normal has it) is held at the closest one that exists; the variances always match (:func:`_valid_cov`).
+    """
+    log = np.asarray(log, bool)
+    m = np.asarray(mean, float)
+    C = np.asarray(cov, float)
+    if not log.any():
+        return m, C
+    S = C.copy()
+    ml = np.where(log, m, 1.0)
+    both = np.outer(log, log)
+    one = np.outer(log, ~log)
+    with np.errstate(all="ignore"):
+        S = np.where(both, np.log(np.maximum(1.0 + C / np.outer(ml, ml), 1e-12)), S)
+        S = np.where(one, C / ml[:, None], S)
+        S = np.where(one.T, C / ml[None, :], S)
+    mu = np.where(log, np.log(ml) - 0.5 * np.diag(S), m)
+    return mu, _valid_cov(S)
+
+
+def _valid_cov(S: np.ndarray) -> np.ndarray:
+    """``S`` with its variances kept and its correlations moved to the nearest valid ones (clipped to -1 .. 1,
+    negative eigenvalues of the correlation matrix dropped, its diagonal restored: Higham (2002), IMA J.
+    Numer. Anal. 22, 329, one projection step): the matched covariance of two log-normals of very different
+    spreads can ask for a correlation no distribution has."""
+    sd = np.sqrt(np.maximum(np.diag(S), 0.0))
+    if sd.size < 2 or not np.all(sd > 0):
+        return S
+    R = np.clip(S / np.outer(sd, sd), -1.0, 1.0)
+    w, V = np.linalg.eigh(R)
+    if w.min() >= -1e-12:
+        return R * np.outer(sd, sd)
+    R = (V * np.maximum(w, 0.0)) @ V.T
+    d = np.sqrt(np.maximum(np.diag(R), 1e-300))
+    return R / np.outer(d, d) * np.outer(sd, sd)
+
+
+def draw_params(unc: Uncertainty, rng: np.random.Generator, L: np.ndarray, mu: np.ndarray) -> np.ndarray:
+    """One draw of the uncertain parameters: ``mu + L z``, exponentiated where they are log-normal (:func:`log_moments`)."""
+    w = mu + L @ rng.standard_normal(len(unc.names))
+    log = np.asarray(unc.log, bool)
+    return np.where(log, np.exp(np.where(log, w, 0.0)), w)
+
+
 def sample_designs(design: Design, n: int, seed: int = 0, reload: Reload | None = None):
     """Yield (index, Design or None) for ``n`` draws of the declared uncertainty (None: failed to resolve)."""
     from acl.diagnostics import DiagnosticError
 
     unc = declared(design, with_params=reload is not None)
     rng = np.random.default_rng(seed)
-    L = _chol(unc.cov) if unc.names else None
+    if unc.names:
+        mu, S = log_moments(unc.mean, unc.cov, unc.log)
+        L = _chol(S)
     for i in range(n):
-        theta = unc.mean + L @ rng.standard_normal(len(unc.names)) if unc.names else None
+        theta = draw_params(unc, rng, L, mu) if unc.names else None
         z = rng.standard_normal(unc.n_table)
         try:
             d = _with_params(design, unc, theta, reload) if unc.names else design

@@ -8,7 +8,8 @@ cluster, a process pool or one process give identical rows for the same seed and
 Spreads (acl.design.model.Spread) are sampled by one function for the design's declared spreads and
 ``--tolerance`` ones: standard normals z (correlated through the Cholesky factor of the design's
 ``correlation(a, b)`` matrix) become ``value + mean + sd z`` (normal) or
-``value + lo + (hi - lo) Phi(z)`` (uniform, a Gaussian copula so correlations carry over); relative
+``value + lo + (hi - lo) Phi(z)`` (uniform, a Gaussian copula so correlations carry over) or
+``value exp(s z - s^2/2)``, ``s^2 = ln(1 + b^2)`` (log-normal: a parameter ``lognormal(p)`` names); relative
 spreads scale by ``|value|``.
 """
 from __future__ import annotations
@@ -49,6 +50,9 @@ def apply_spread(spread, value: np.ndarray, z: np.ndarray) -> np.ndarray:
     scale = np.abs(value) if spread.relative else 1.0
     if spread.kind == "normal":
         return value + (spread.a + spread.b * z) * scale
+    if spread.kind == "lognormal":
+        s2 = np.log1p(spread.b ** 2)                  # mean ``value``, relative sd ``b`` (acl.schedule.bands.log_moments)
+        return value * np.exp(np.sqrt(s2) * z - 0.5 * s2)
     from scipy.special import ndtr
 
     return value + (spread.a + (spread.b - spread.a) * ndtr(z)) * scale

@@ -352,6 +352,8 @@ def build_spec(design: Design, vary=None, tolerance=None, samples: int | None = 
     if montecarlo:
         for p in design.params:
             sp = p.distribution()
+            if sp is not None and p.name in design.lognormal:     # `lognormal(p)`: the same mean and sd, positive
+                sp = Spread(kind="lognormal", a=0.0, b=p.stddev / p.value, relative=True)
             if sp is None:
                 continue
             if p.name in tols:

@@ -142,10 +142,10 @@ class ParamDecl:
 
 @dataclass(frozen=True)
 class UncertaintyEntry:
-    """One `KEY(args) = value` line of an `uncertainty { ... }` block."""
+    """One `KEY(args) = value` line of an `uncertainty { ... }` block (`lognormal(a, b)` has no value: None)."""
 
     key: Call
-    value: Expr
+    value: Expr | None
     span: Span
 
 
