@@ -234,3 +234,41 @@ def test_design_effect_units_agree_with_the_fit_library():
         for p in eff.params:
             unit, dims = EFFECT_UNITS[eid][p.name]
             assert unit == p.unit and dims == (parse_unit(p.unit)[1] if p.unit else DIMENSIONLESS), (eid, p.name)
+
+
+@pytest.mark.parametrize("decl, where, words", [
+    ("effect drive_saturation { v_sat = -5 V }", "v_sat = ", "must be positive, got -5 V"),
+    ("effect transducer_gain { gain = 0 }", "gain = ", "must be positive, got 0"),
+    ("effect large_deflection { elastica_weight = 1.5 }", "elastica_weight = ", "must be in 0 .. 1"),
+    ("effect stiffness_scale { factor = -1 }", "factor = ", "must be positive"),
+    ("effect neighbour_drag { plateau = 0 um }", "plateau = ", "must be positive"),
+    ("effect bubble_shrinkage { shrink_rate = -0.1 Hz }", "shrink_rate = ", "must be not negative"),
+    ("effect bjerknes_scale { factor = -0.5 }", "factor = ", "must be not negative"),
+])
+def test_declared_effect_coefficient_outside_its_physical_range_is_e401(tmp_path, decl, where, words):
+    """`v_sat = -5 V` was taken as no saturation at all (1/v_sat^2 -> 0 for v_sat <= 0), a negative modulus or
+    Bjerknes scale was applied as written: now E401 at the value."""
+    text = open(CANTILEVER).read() + "\n" + decl + "\n"
+    path = tmp_path / "cant.acl"
+    path.write_text(text)
+    from acl.design.resolve import check_design
+
+    _, diags = check_design(str(path))
+    errors = [d for d in diags if d.is_error]
+    line = text.count("\n", 0, text.index(decl)) + 1
+    column = decl.index(where) + len(where) + 1
+    assert [(d.code, d.span.line, d.span.column) for d in errors] == [("E401", line, column)]
+    assert words in errors[0].message
+
+
+def test_effect_domain_contains_the_fit_library_bounds():
+    """Every coefficient acl fit can write lies in the range the design accepts (acl.design.core.EFFECT_DOMAIN)."""
+    from acl.design.core import EFFECT_DOMAIN
+    from acl.fit.effects import EFFECTS
+
+    for eid, eff in EFFECTS.items():
+        for p in eff.params:
+            dom = EFFECT_DOMAIN.get((eid, p.name))
+            lo = {"positive": 0.0, "nonneg": 0.0, "unit": 0.0}.get(dom, -np.inf)
+            hi = 1.0 if dom == "unit" else np.inf
+            assert (p.lower > lo if dom == "positive" else p.lower >= lo) and p.upper <= hi, (eid, p.name, dom)

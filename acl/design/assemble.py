@@ -9,7 +9,7 @@ from acl.design import geometry as G
 from acl.design import model as M
 from acl.design.builders import Builder
 from acl.design.checks import check_design_geometry, check_programs
-from acl.design.core import D, DECL_KINDS, EFFECT_UNITS, EFFECTS, Fail, what_is
+from acl.design.core import D, DECL_KINDS, EFFECT_DOMAIN, EFFECT_UNITS, EFFECTS, Fail, what_is
 from acl.design.programs import build_program
 from acl.design.values import DeclVal
 from acl.diagnostics import Span, suggest
@@ -175,6 +175,14 @@ def _effect(b: Builder, blk: A.Block) -> M.Effect | None:
             b.bag.error("E301", f"effect {blk.name}.{ent.key}: expected "
                         f"{describe(want[1]) if want[0] else 'a plain number'}, found {describe(v.dims)}",
                         ent.value.span, f"`{ent.key}` is in {want[0]}" if want[0] else f"`{ent.key}` has no unit")
+            return None
+        dom = EFFECT_DOMAIN.get((blk.name, ent.key))
+        bad = {"positive": not v.value > 0, "nonneg": not v.value >= 0, "unit": not 0 <= v.value <= 1}.get(dom, False)
+        if bad:
+            need = {"positive": "positive", "nonneg": "not negative", "unit": "in 0 .. 1"}[dom]
+            b.bag.error("E401", f"effect {blk.name}.{ent.key} must be {need}, got {v.value:g}"
+                        + (f" {si_unit(v.dims)}" if si_unit(v.dims) else ""), ent.value.span,
+                        "its physical range (docs/fit.md, effect library)")
             return None
         params[ent.key] = v.value
         units[ent.key] = si_unit(v.dims)

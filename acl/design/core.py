@@ -51,6 +51,23 @@ EFFECT_UNITS = {
     "bjerknes_scale": {"factor": ("", _ONE)},
 }
 
+# The physical range of effect coefficients (E401 outside it): "positive" (> 0), "nonneg" (>= 0), "unit" (0 .. 1).
+# A pressure scale, a modulus scale, a frequency, a saturation voltage, a plateau length, a quality factor are
+# positive; a rate, an inverse square voltage, a height, a Bjerknes factor may be 0 (the effect vanishes);
+# the elastica weight blends two force laws.  Not listed (gain_slope, e_gradient, offset, drift): any sign.
+EFFECT_DOMAIN = {
+    ("transducer_gain", "gain"): "positive", ("transducer_gain", "f_ref"): "positive",
+    ("transducer_resonance", "inv_f_ratio"): "nonneg", ("transducer_resonance", "gain_q"): "positive",
+    ("transducer_resonance", "f_ref"): "positive",
+    ("drive_saturation", "inv_vsat2"): "nonneg", ("drive_saturation", "v_sat"): "positive",
+    ("large_deflection", "elastica_weight"): "unit",
+    ("stiffness_scale", "e_scale"): "positive", ("stiffness_scale", "factor"): "positive",
+    ("bubble_shrinkage", "shrink_rate"): "nonneg",
+    ("neighbour_drag", "inv_plateau"): "nonneg", ("neighbour_drag", "plateau"): "positive",
+    ("substrate_proximity", "h_substrate"): "nonneg",
+    ("bjerknes_scale", "factor"): "nonneg",
+}
+
 
 # ------------------------------------------------------------------------------------------------
 # Key schemas: key -> (expected kind, dimension unit or None, required, default)
