@@ -92,7 +92,11 @@ def test_a_path_near_the_switching_force_leaves_the_state_uncertain():
     assert "may switch latch `snap`" in w.message and "likelier a" in w.message
     (w2,) = _warnings(s, STATE)
     assert w2.span.line == _line_of(DATA, "switch snap to a") and "may be in state b" in w2.message
-    assert "step 1 (follow) pushed it to 0.974 x its switching force" in w2.notes[0]
+    # the worst waypoint's push with the capsules at the drive's equilibrium, and undeflected (at rest): the
+    # cantilever's 15 um deflection, 500 um away, moves the latch capsule's push by ~0.2 %
+    assert w2.notes[0].startswith("step 1 (follow) pushed it to 0.976 x its switching force at waypoint 134 of 200 "
+                                  "(t = 1.33 s) at its static equilibrium (0.974 x undeflected)")
+    assert f"({_path_push(d, compile_program(d, 'stroke', OPTS)):.3g} x undeflected)" in w2.notes[0]
     g = next(g for g in s.goals if g.kind == "switch")
     assert g.details["state_before"] == "a or b" and _played(s, 1) == []
 

@@ -107,6 +107,7 @@ class _Compiler:
     push_memo: dict = field(default_factory=dict)       # driven step -> its push on each latch (_push_ratios)
     latch_warnings: list = field(default_factory=list)  # W-SCHED-LATCH-STATE (at a switch) and -FLIP (a follow or hold)
     settled: dict = field(default_factory=dict)         # (tones, latch states) -> :meth:`_settle`'s answer
+    branch_memo: dict = field(default_factory=dict)     # (tones, latch states, latch, to) -> :meth:`_branch_pushes`
     inner_goals: list = field(default_factory=list)     # goal records checked for coverage, not in schedule.json (sweeps)
 
     def run(self) -> Schedule:
@@ -318,7 +319,7 @@ class _Compiler:
         """
         step = f"step {j + 1} ({self.program.steps[j].kind})"
         try:
-            pushes = self._push_ratios(j)
+            pushes = self._push_ratios(j, cur)
         except (DiagnosticError, KeyError, StopIteration, ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
             try:
                 bi = self._bistable()
@@ -333,15 +334,15 @@ class _Compiler:
             p = pushes[n][to]
             what = "switching" if to == "b" else "release"
             s = f"{step} pushed it to {p.r:.3g} x its {what} force{p.where}"
-            if p.up > p.r * (1 + 1e-3) and p.up > 1.0 / M:
+            if "waypoint" in p.where and p.up > max(p.r, p.r0) * (1 + 1e-3) and p.up > 1.0 / M:
                 s += f", up to {p.up:.3g} x while crossfading between waypoints"
             if p.band:
                 s += f" ({p.lo:.3g} .. {p.hi:.3g} x in the margin band over {p.band})"
             return s
 
-        def sure(n, to):
+        def sure(n, to):          # at its equilibrium and undeflected (the branch in between is not solved)
             p = pushes[n][to]
-            return p.r >= M and p.lo >= 1.0
+            return min(p.r, p.r0) >= M and p.lo >= 1.0 if np.isfinite(p.r0) else p.r >= M and p.lo >= 1.0
 
         def never(n, to):
             p = pushes[n][to]
@@ -456,17 +457,22 @@ class _Compiler:
         up = np.stack([np.maximum(F[:, :-1], F[:, 1:]), np.maximum(-F[:, :-1], -F[:, 1:])], axis=-1)
         return F, up, np.asarray(to_b, float), np.asarray(to_a, float)
 
-    def _push_ratios(self, j: int) -> dict:
-        """{bistable latch: {"b": _Push, "a": _Push, "seq": {start state: end state}}} for the drive of step ``j``.
+    def _push_ratios(self, j: int, cur: dict | None = None) -> dict:
+        """{bistable latch: {"b": _Push, "a": _Push, "seq": {start state: end state}}} for the drive of step ``j``,
+        from the latch states ``cur`` it starts in ({latch: (state, certain, why)}; None: the declared ones).
 
         Its push towards each state over the force that switches the latch there (:meth:`_switched_by`).  A drive or
         hold plays one drive; a sweep is taken at its band's worst frequency; a follow step plays one drive per
-        waypoint: ``r`` is its most-switching waypoint's push (``where`` names it), ``up`` the largest push also
-        between waypoints (:meth:`_waypoint_pushes`), and ``seq`` the state the nominal pushes leave the latch in,
-        waypoint by waypoint, from each state (a push >= 1 x switches).  ``lo`` .. ``hi``: the 5th percentile of the
-        most-switching waypoint's push and the 95th of the largest one over the declared uncertainty
-        (acl.schedule.bands.margin_band: the percentiles of each draw's extremes over the whole path, so every
-        waypoint's band is inside; lo = hi = push without a band)."""
+        waypoint: its most-switching waypoint's push (``where`` names it), ``up`` the largest push also between
+        waypoints (:meth:`_waypoint_pushes`), and ``seq`` the state the nominal pushes leave the latch in, waypoint by
+        waypoint, from each state (a push >= 1 x switches).  The worst drive (waypoint, frequency) is found with the
+        capsules at rest; its push is then taken with the capsules where they are (:meth:`_branch_pushes`): at the
+        static equilibrium under the drive on the branch the latch leaves (state a for the push towards b, b for the
+        push back), ``r``, and undeflected on that branch, ``r0``; the other latches in their (likelier) states.
+        ``lo`` .. ``hi``: the 5th percentile of the most-switching waypoint's push and the 95th of the largest one over
+        the declared uncertainty (acl.schedule.bands.margin_band, at rest: the percentiles of each draw's extremes
+        over the whole path, so every waypoint's band is inside), moved by the nominal change from rest to
+        the worse of ``r`` and ``r0`` (lo = hi = the push without a band)."""
         if j in self.push_memo:
             return self.push_memo[j]
         bi = self._bistable()
@@ -479,7 +485,8 @@ class _Compiler:
         steps = self.program.steps[j].kind == "follow" and len(segs) > 1
 
         def ratios(d):
-            """{latch: {to: (push at the worst waypoint, its index, largest push incl. crossfades)}}, seq pushes."""
+            """{latch: {to: (push at the worst drive, its waypoint index or frequency, largest push incl. crossfades)}},
+            the waypoint pushes (rb, ra) per latch for the nominal order (None: one drive)."""
             if not tones:
                 return {n: {"b": (0.0, 0, 0.0), "a": (0.0, 0, 0.0)} for n in bi}, None
             if chirp is None:
@@ -503,11 +510,11 @@ class _Compiler:
 
             out = {}
             for n, k in bi.items():
-                rb = acoustics.band_maximum(lambda f: float(at(f)[0][k] / at(f)[1][k]), chirp.frequency_hz,
-                                            chirp.frequency_end_hz, self._mode_frequencies(), rtol=1e-6)[0]
-                ra = acoustics.band_maximum(lambda f: float(-at(f)[0][k] / at(f)[2][k]), chirp.frequency_hz,
-                                            chirp.frequency_end_hz, self._mode_frequencies(), rtol=1e-6)[0]
-                out[n] = {"b": (rb, 0, rb), "a": (ra, 0, ra)}
+                rb, fb = acoustics.band_maximum(lambda f: float(at(f)[0][k] / at(f)[1][k]), chirp.frequency_hz,
+                                                chirp.frequency_end_hz, self._mode_frequencies(), rtol=1e-6)
+                ra, fa = acoustics.band_maximum(lambda f: float(-at(f)[0][k] / at(f)[2][k]), chirp.frequency_hz,
+                                                chirp.frequency_end_hz, self._mode_frequencies(), rtol=1e-6)
+                out[n] = {"b": (rb, float(fb), rb), "a": (ra, float(fa), ra)}
             return out, None
 
         from acl.analysis import acoustics
@@ -518,12 +525,29 @@ class _Compiler:
         def where(w):
             return f" at waypoint {w + 1} of {len(segs)} (t = {times[w]:.4g} s)" if steps else ""
 
-        res = {}
+        def drive_of(w):
+            if chirp is not None:
+                return ((float(w), chirp.amplitude_v),)
+            return tuple((f, float(U[i, w])) for i, f in enumerate(freqs) if U[i, w] > 0)
+
+        states = {n: s for n, (s, _, _) in (cur or {}).items()}
+        res, shift = {}, {}
         for n, v in nominal.items():
-            res[n] = {to: _Push(r, r, up, "", up, where(w)) for to, (r, w, up) in v.items()}
+            res[n] = {}
+            for to, (r_rest, w, up) in v.items():
+                eq = self._branch_pushes(drive_of(w), states, n, to) if tones else None
+                r, r0, note = (r_rest, r_rest, "") if eq is None else eq
+                worse_lo, worse_hi = min(r, r0) - r_rest, max(r, r0) - r_rest
+                shift[n, to] = (min(worse_lo, 0.0), max(worse_hi, 0.0))
+                res[n][to] = _Push(r, r, max(r, r0, up + shift[n, to][1]), "", max(r, r0, up + shift[n, to][1]),
+                                   where(w) + note, r0)
             res[n]["seq"] = {s0: _nominal_end(s0, *seq[n]) if seq else
-                             ("b" if s0 == "a" and v["b"][0] >= 1.0 else "a" if s0 == "b" and v["a"][0] >= 1.0
+                             ("b" if s0 == "a" and res[n]["b"].r >= 1.0 else "a" if s0 == "b" and res[n]["a"].r >= 1.0
                               else s0) for s0 in ("a", "b")}
+        for n, v in res.items():            # r0 below r: the lower end counts for "switched for sure"
+            for to in ("a", "b"):
+                p = v[to]
+                v[to] = dataclasses.replace(p, lo=min(p.r, p.r0))
         if self.opts.band_samples > 0 and self.opts.latch_provider is None and tones and bi:
             from acl.schedule.bands import margin_band
 
@@ -538,14 +562,81 @@ class _Compiler:
                 n_all = band.samples + band.failed
                 what = f"{n_all} draws of the declared uncertainty" + (
                     f", {band.failed} failed: counted as unknown" if band.failed else "")
-                for n, v in nominal.items():
-                    for to, (r, w, up) in v.items():
+                for n in nominal:
+                    for to in ("a", "b"):
+                        p = res[n][to]
                         lo, hi = -band.others_p95.get(f"-{n}>{to}", np.inf), band.others_p95.get(f"+{n}>{to}", np.inf)
                         if band.failed:
                             lo, hi = -np.inf, np.inf
-                        res[n][to] = _Push(r, min(lo, r), max(hi, up), what, up, where(w))
+                        dlo, dhi = shift[n, to]
+                        res[n][to] = dataclasses.replace(p, lo=min(lo + dlo, p.lo), hi=max(hi + dhi, p.hi), band=what)
         self.push_memo[j] = res
         return res
+
+    def _branch_pushes(self, tones, states: dict, latch: str, to: str):
+        """(push ratio at the static equilibrium under ``tones``, push ratio undeflected, note) of latch ``latch``
+        towards state ``to``, on the branch it leaves (the other state); None without the mechanics (an injected
+        latch model, no capsules) or when the forces cannot be evaluated.
+
+        The capsules are placed as the latch states put them (a latch in a state other than its declared one: the
+        capsules it carries moved by the travel between its states; ``latch`` itself in the state it leaves, the
+        others in ``states``, default their declared ones), then the mechanism is solved under the drive from there
+        (acl.analysis.mechanics.equilibrium, warm-started: the branch the device is on), and the drive's force along
+        the latch axis is taken at those positions (acl.schedule.gains.latch_drive_forces): the thrust and the
+        Bjerknes forces of capsules that moved.  A drive that snaps the mechanism in: at the last stable point before
+        (the furthest the branch goes).  When no equilibrium stays on that branch (the solver falls back to the
+        declared one), the undeflected push is used for both, with a note.
+        """
+        if self.opts.latch_provider is not None or not self.design.capsules or not tones:
+            return None
+        key = (tuple(tones), tuple(sorted(states.items())), latch, to)
+        if key in self.branch_memo:
+            return self.branch_memo[key]
+        from acl.analysis import acoustics, mechanics
+        from acl.design.model import Drive, Tone
+        from acl.physics.latch import latch_landscape
+        from acl.schedule.gains import latch_axis_carried, latch_drive_forces, latch_forces
+
+        try:
+            k = next(i for i, l in enumerate(self.design.latches) if l.name == latch)
+            branch = dict(states)
+            branch[latch] = "a" if to == "b" else "b"
+            pos, lands = {c.name: np.asarray(c.center, float) for c in self.design.capsules}, {}
+            moved = False
+            for lt in self.design.latches:
+                land = lands[lt.name] = latch_landscape(*mechanics.latch_geometry(lt, self.design))
+                want = branch.get(lt.name, lt.state)
+                if want == lt.state or land.state_b is None:
+                    continue
+                travel = float(land.state_b) * (1.0 if want == "b" else -1.0)
+                axis, carried = latch_axis_carried(self.design, lt)
+                for c in carried:
+                    pos[c] = pos[c] + travel * axis
+                moved = True
+            _, to_b, to_a = latch_forces(self.design, [])
+            thr = float(to_b[k]) if to == "b" else -float(to_a[k])
+            r0 = float(latch_drive_forces(self.design, tones, pos if moved else None)[k] / thr)
+            drive = Drive(tones=tuple(Tone(frequency=f, amplitude=a) for f, a in tones))
+            st = mechanics.equilibrium(self.design, drive, acoustics.force_model_for(self.design),
+                                       start=pos if moved else None)
+            on_branch = st.status in ("ok", "snap_in")
+            for lt in self.design.latches:
+                land, u = lands[lt.name], st.deflections.get(lt.name)
+                if land.unstable is None or u is None:
+                    continue
+                if (u > land.unstable) != (branch.get(lt.name, lt.state) == "b"):
+                    on_branch = False
+            if not on_branch:
+                out = (r0, r0, " (no equilibrium on that branch under the drive: taken undeflected)")
+            else:
+                r = float(latch_drive_forces(self.design, tones, st.positions)[k] / thr)
+                note = (f" at its static equilibrium ({r0:.3g} x undeflected)" if abs(r - r0) > 1e-3 * max(abs(r0), 1e-12)
+                        else "")
+                out = (r, r0, note)
+        except (DiagnosticError, KeyError, StopIteration, ValueError, ArithmeticError, np.linalg.LinAlgError):
+            out = None
+        self.branch_memo[key] = out
+        return out
 
     def _settle(self, drive, force_model, states: dict):
         """(largest capsule displacement from rest, m, that capsule, status) at the equilibrium under ``drive``.
@@ -1373,8 +1464,9 @@ class _Push:
     lo: float         # 5th percentile over the declared uncertainty (of each draw's largest waypoint push)
     hi: float         # 95th percentile (of each draw's largest push, crossfades included)
     band: str         # what the band was drawn from ("": no band)
-    up: float         # nominal largest push, also while crossfading between waypoints (>= r)
-    where: str        # " at waypoint w of N (t = ...)" for a path, else ""
+    up: float         # nominal largest push, also while crossfading between waypoints (>= r, r0)
+    where: str        # " at waypoint w of N (t = ...)" for a path, else ""; the equilibrium's note
+    r0: float = float("nan")    # the same drive with the capsules undeflected on the branch (lo <= min(r, r0))
 
 
 def _nominal_end(start: str, rb: np.ndarray, ra: np.ndarray) -> str:
