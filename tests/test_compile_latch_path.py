@@ -209,3 +209,44 @@ def test_the_crossfade_between_waypoints_can_push_beyond_both_ends():
                                         {85e3: 1.0, 170e3: -1.0})
     assert (state, certain) == ("a", False)
     assert "up to 1.5 x while crossfading between waypoints" in why
+
+
+# ------------------------------------------------------------------------------------------------
+# the push with the capsules where the drive puts them (static equilibrium), not at rest
+# ------------------------------------------------------------------------------------------------
+
+DEFLECT = os.path.join(ROOT, "tests", "data", "latch_deflect.acl")
+
+
+def test_the_push_at_the_drives_equilibrium_differs_from_the_push_at_rest_in_the_fixture():
+    """tests/data/latch_deflect.acl: 125 kHz at 10 V pushes the shuttle towards a at rest (-0.018 x), but bends the
+    cantilever ~28 um towards `partner` before it snaps in; there the Bjerknes attraction pulls the shuttle towards
+    b with ~1.2 x the switching force (acl.analysis.mechanics.equilibrium, acl.schedule.gains.latch_drive_forces)."""
+    from acl.analysis import acoustics, mechanics
+    from acl.design.model import Drive, Tone
+    from acl.schedule.gains import latch_drive_forces
+
+    d = acl.load(DEFLECT)
+    _, to_b, _ = latch_forces(d, [])
+    rest = float(latch_drive_forces(d, [(125e3, 10.0)])[0] / to_b[0])
+    st = mechanics.equilibrium(d, Drive(tones=(Tone(frequency=125e3, amplitude=10.0),)), acoustics.force_model_for(d))
+    eq = float(latch_drive_forces(d, [(125e3, 10.0)], st.positions)[0] / to_b[0])
+    assert st.status == "snap_in" and -20e-6 > st.displacements["arm_cap"][0] > -40e-6
+    assert rest < 0 < 1 / M12 < eq
+
+
+def test_a_drive_that_pushes_a_latch_only_once_its_neighbour_has_moved_leaves_the_state_uncertain():
+    """Before (the push at rest, -0.018 x): the latch stayed in state a for sure, and `switch ctl to a` played nothing
+    silently.  At the drive's equilibrium the push is ~1.2 x: the state is uncertain, and no 125 kHz drive within
+    10 V releases the latch: W-SCHED-LATCH-STATE at the switch, quoting both pushes."""
+    s = compile_program(acl.load(DEFLECT), "near", CompileOptions(band_samples=0, allow_nonlinear=True))
+    (w,) = _warnings(s, STATE)
+    assert w.span.line == _line_of(DEFLECT, "switch ctl to a")
+    note = w.notes[0]
+    assert note.startswith("step 1 (drive) pushed it to ") and " x its switching force at its static equilibrium (" \
+        in note and "fall on either side of 0.833 .. 1.2 x" in note
+    r = float(note.split("pushed it to ")[1].split(" x")[0])
+    r0 = float(note.split("static equilibrium (")[1].split(" x undeflected")[0])
+    assert r > 1 / M12 and r0 < 0
+    g = next(g for g in s.goals if g.kind == "switch")
+    assert g.details["state_before"] == "a or b"

@@ -365,6 +365,9 @@ class _Compiler:
                 p = pushes[n][other]
                 if sure(n, other):
                     near = "then pushed back: " + text(n, state)
+                elif np.isfinite(p.r0) and (min(p.r, p.r0) < M <= max(p.r, p.r0)
+                                            or min(p.r, p.r0) <= 1.0 / M < max(p.r, p.r0)):
+                    near = f"its deflected and undeflected pushes fall on either side of {1.0 / M:.3g} .. {M:g} x"
                 else:
                     near = f"within {M:g} x of it" if 1.0 / M < max(p.r, p.up) and p.r < M else "the band straddles it"
                 out[n] = (likely, False, text(n, other) + f": {near}, it may or may not have switched")
