@@ -1103,7 +1103,7 @@ class _Compiler:
     # -- switch --------------------------------------------------------------------------------
     def _switch(self, i, step: SwitchStep):
         """Plan a switch from the state the latch is in when the step starts (:meth:`_latch_track`: earlier switches,
-        drives and sweeps).  Already there: nothing played.  Uncertain (a drive pushed it near its switching force):
+        drives, sweeps, paths and holds).  Already there: nothing played.  Uncertain (a drive pushed it near its switching force):
         planned from the other state, which also leaves it in the wanted state if it is there already (the drive
         pushes it further in); when no drive does that within the limits, W-SCHED-LATCH-STATE at the step.  Another
         latch in an uncertain state is kept put in both directions, or, when no drive does that, in its likelier
