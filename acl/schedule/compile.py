@@ -633,8 +633,7 @@ class _Compiler:
                 out = (r0, r0, " (no equilibrium on that branch under the drive: taken undeflected)")
             else:
                 r = float(latch_drive_forces(self.design, tones, st.positions)[k] / thr)
-                note = (f" at its static equilibrium ({r0:.3g} x undeflected)" if abs(r - r0) > 1e-3 * max(abs(r0), 1e-12)
-                        else "")
+                note = f" at its static equilibrium ({r0:.3g} x undeflected)" if f"{r:.3g}" != f"{r0:.3g}" else ""
                 out = (r, r0, note)
         except (DiagnosticError, KeyError, StopIteration, ValueError, ArithmeticError, np.linalg.LinAlgError):
             out = None
