@@ -125,7 +125,7 @@ class _Compiler:
             raise DiagnosticError([error("E-SCHED-EMPTY", f"program `{self.program.name}` has no steps",
                                          self.program.span)])
         flips = [k for k, st in enumerate(self.program.steps) if st.kind in FLIP_KINDS]
-        if flips and self.design.latches:       # follow a path or hold that may switch a latch, to warn (W-SCHED-LATCH-FLIP)
+        if flips and self.design.latches:       # a path or hold that may switch a latch: warned (W-SCHED-LATCH-FLIP)
             self._latch_track(flips[-1] + 1)
         vmax = max(self.vmax_seen) if self.vmax_seen else _limit(self.design, None, self.opts)[0]
         full_scale, source = self._full_scale(vmax)
@@ -307,15 +307,16 @@ class _Compiler:
         """{latch: (state, certain, why)} for the bistable latches whose state the drive of step ``j`` (a drive, sweep,
         follow or hold) changes or makes uncertain, from the states ``cur`` it starts in.
 
-        The push is the switch planner's own: the force of the drive along each latch's axis at rest
-        (acl.schedule.gains.latch_drive_forces, or the injected ``latch_provider``) over the force that switches it
-        to the other state (a->b its switching force, b->a its release force); a sweep's at its band's worst
-        frequency (acoustics.band_maximum); a path's at its most-switching waypoint (:meth:`_push_ratios`).
-        Switched for sure: push >= LATCH_STATE_MARGIN and, with a margin band (``band_samples``), its 5th
-        percentile over the declared uncertainty >= 1, and never pushed back (below); left for sure: the largest
-        push towards the other state (a path's between its waypoints too) <= 1/LATCH_STATE_MARGIN and the band's
-        95th percentile < 1.  Anything between: uncertain, in the state the nominal pushes leave it in, waypoint by
-        waypoint (a push >= 1 x switches).
+        The push is the switch planner's force model: the force of the drive along each latch's axis
+        (acl.schedule.gains.latch_drive_forces, or the injected ``latch_provider``, at rest) over the force that
+        switches it to the other state (a->b its switching force, b->a its release force), with the capsules at the
+        drive's static equilibrium and undeflected (:meth:`_branch_pushes`: both must be on the same side); a sweep's
+        at its band's worst frequency (acoustics.band_maximum); a path's at its most-switching waypoint
+        (:meth:`_push_ratios`).  Switched for sure: push >= LATCH_STATE_MARGIN and, with a margin band
+        (``band_samples``), its 5th percentile over the declared uncertainty >= 1, and never pushed back (below);
+        left for sure: the largest push towards the other state (a path's between its waypoints too) <=
+        1/LATCH_STATE_MARGIN and the band's 95th percentile < 1.  Anything between: uncertain, in the state the
+        nominal pushes leave it in (a path: waypoint by waypoint; a push >= 1 x switches).
         """
         step = f"step {j + 1} ({self.program.steps[j].kind})"
         try:
@@ -544,7 +545,7 @@ class _Compiler:
                 shift[n, to] = (min(worse_lo, 0.0), max(worse_hi, 0.0))
                 res[n][to] = _Push(r, r, max(r, r0, up + shift[n, to][1]), "", max(r, r0, up + shift[n, to][1]),
                                    where(w) + note, r0)
-            res[n]["seq"] = {s0: _nominal_end(s0, *seq[n]) if seq else
+            res[n]["seq"] = {s0: _nominal_end(s0, *seq[n]) if seq and steps else     # a path: at rest, in order
                              ("b" if s0 == "a" and res[n]["b"].r >= 1.0 else "a" if s0 == "b" and res[n]["a"].r >= 1.0
                               else s0) for s0 in ("a", "b")}
         for n, v in res.items():            # r0 below r: the lower end counts for "switched for sure"
@@ -1102,11 +1103,11 @@ class _Compiler:
     # -- switch --------------------------------------------------------------------------------
     def _switch(self, i, step: SwitchStep):
         """Plan a switch from the state the latch is in when the step starts (:meth:`_latch_track`: earlier switches,
-        drives, sweeps, paths and holds).  Already there: nothing played.  Uncertain (a drive pushed it near its switching force):
-        planned from the other state, which also leaves it in the wanted state if it is there already (the drive
-        pushes it further in); when no drive does that within the limits, W-SCHED-LATCH-STATE at the step.  Another
-        latch in an uncertain state is kept put in both directions, or, when no drive does that, in its likelier
-        state with W-SCHED-LATCH-STATE."""
+        drives, sweeps, paths and holds).  Already there: nothing played.  Uncertain (a drive pushed it near its
+        switching force): planned from the other state, which also leaves it in the wanted state if it is there
+        already (the drive pushes it further in); when no drive does that within the limits, W-SCHED-LATCH-STATE at
+        the step.  Another latch in an uncertain state is kept put in both directions, or, when no drive does that,
+        in its likelier state with W-SCHED-LATCH-STATE."""
         from acl.schedule.latch import SwitchInfeasible, plan_switch
 
         name = f"step {i + 1}: switch {step.latch} -> {step.state}"
