@@ -345,9 +345,9 @@ class _Compiler:
             p = pushes[n][to]
             return min(p.r, p.r0) >= M and p.lo >= 1.0 if np.isfinite(p.r0) else p.r >= M and p.lo >= 1.0
 
-        def never(n, to):
+        def never(n, to):         # a branch the drive loses (the mechanism snaps off it) is not left for sure
             p = pushes[n][to]
-            return max(p.r, p.up) <= 1.0 / M and p.hi < 1.0
+            return max(p.r, p.up) <= 1.0 / M and p.hi < 1.0 and not p.lost
 
         def flip(to):
             return "a" if to == "b" else "b"
@@ -366,6 +366,8 @@ class _Compiler:
                 p = pushes[n][other]
                 if sure(n, other):
                     near = "then pushed back: " + text(n, state)
+                elif p.lost:
+                    near = "under the drive no equilibrium stays on that branch: the mechanism snaps off it"
                 elif np.isfinite(p.r0) and (min(p.r, p.r0) < M <= max(p.r, p.r0)
                                             or min(p.r, p.r0) <= 1.0 / M < max(p.r, p.r0)):
                     near = f"its deflected and undeflected pushes fall on either side of {1.0 / M:.3g} .. {M:g} x"
@@ -540,11 +542,11 @@ class _Compiler:
             res[n] = {}
             for to, (r_rest, w, up) in v.items():
                 eq = self._branch_pushes(drive_of(w), states, n, to) if tones else None
-                r, r0, note = (r_rest, r_rest, "") if eq is None else eq
+                r, r0, note, lost = (r_rest, r_rest, "", False) if eq is None else eq
                 worse_lo, worse_hi = min(r, r0) - r_rest, max(r, r0) - r_rest
                 shift[n, to] = (min(worse_lo, 0.0), max(worse_hi, 0.0))
                 res[n][to] = _Push(r, r, max(r, r0, up + shift[n, to][1]), "", max(r, r0, up + shift[n, to][1]),
-                                   where(w) + note, r0)
+                                   where(w) + note, r0, lost)
             res[n]["seq"] = {s0: _nominal_end(s0, *seq[n]) if seq and steps else     # a path: at rest, in order
                              ("b" if s0 == "a" and res[n]["b"].r >= 1.0 else "a" if s0 == "b" and res[n]["a"].r >= 1.0
                               else s0) for s0 in ("a", "b")}
@@ -589,7 +591,8 @@ class _Compiler:
         the latch axis is taken at those positions (acl.schedule.gains.latch_drive_forces): the thrust and the
         Bjerknes forces of capsules that moved.  A drive that snaps the mechanism in: at the last stable point before
         (the furthest the branch goes).  When no equilibrium stays on that branch (the solver falls back to the
-        declared one), the undeflected push is used for both, with a note.
+        declared one), the undeflected push is used for both, with a note, and ``lost`` is True: the mechanism
+        leaves the branch, and the latch may go with it.  (r, r0, note, lost).
         """
         if self.opts.latch_provider is not None or not self.design.capsules or not tones:
             return None
@@ -631,11 +634,11 @@ class _Compiler:
                 if (u > land.unstable) != (branch.get(lt.name, lt.state) == "b"):
                     on_branch = False
             if not on_branch:
-                out = (r0, r0, " (no equilibrium on that branch under the drive: taken undeflected)")
+                out = (r0, r0, " (undeflected)", True)
             else:
                 r = float(latch_drive_forces(self.design, tones, st.positions)[k] / thr)
                 note = f" at its static equilibrium ({r0:.3g} x undeflected)" if f"{r:.3g}" != f"{r0:.3g}" else ""
-                out = (r, r0, note)
+                out = (r, r0, note, False)
         except (DiagnosticError, KeyError, StopIteration, ValueError, ArithmeticError, np.linalg.LinAlgError):
             out = None
         self.branch_memo[key] = out
@@ -1470,6 +1473,7 @@ class _Push:
     up: float         # nominal largest push, also while crossfading between waypoints (>= r, r0)
     where: str        # " at waypoint w of N (t = ...)" for a path, else ""; the equilibrium's note
     r0: float = float("nan")    # the same drive with the capsules undeflected on the branch (lo <= min(r, r0))
+    lost: bool = False          # under the drive no equilibrium stays on the branch: never "left for sure"
 
 
 def _nominal_end(start: str, rb: np.ndarray, ra: np.ndarray) -> str:
