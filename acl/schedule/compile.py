@@ -36,6 +36,9 @@ SLEW_RANGE = (1e-6, 1e12)         # V/s
 LATCH_STATE_MARGIN = 1.2          # a drive pushing a latch within this factor of the force that switches it leaves its
                                   # state uncertain: the switch step's default margin (what a switch or a keep promises)
 LATCH_STATE_CODE = "W-SCHED-LATCH-STATE"
+LATCH_FLIP_CODE = "W-SCHED-LATCH-FLIP"   # a follow or hold step's drive switches a latch (or may): docs/schedule.md
+DRIVEN_KINDS = ("drive", "sweep", "follow", "hold")     # steps whose played drive can push a latch (_latch_track)
+FLIP_KINDS = ("follow", "hold")           # ... whose purpose is not the latch: a switch under them is warned
 
 
 @dataclass(frozen=True)
@@ -101,9 +104,10 @@ class _Compiler:
     vmax_seen: list[float] = field(default_factory=list)
     states_memo: dict = field(default_factory=dict)     # step -> {latch: (state, certain, why)} (:meth:`_latch_track`)
     switch_outcome: dict = field(default_factory=dict)  # switch step -> (state, certain, why) of its latch after it
-    push_memo: dict = field(default_factory=dict)       # drive/sweep step -> its push on each latch (_push_ratios)
-    latch_warnings: list = field(default_factory=list)  # W-SCHED-LATCH-STATE diagnostics, located at their switch step
+    push_memo: dict = field(default_factory=dict)       # driven step -> its push on each latch (_push_ratios)
+    latch_warnings: list = field(default_factory=list)  # W-SCHED-LATCH-STATE (at a switch) and -FLIP (a follow or hold)
     settled: dict = field(default_factory=dict)         # (tones, latch states) -> :meth:`_settle`'s answer
+    branch_memo: dict = field(default_factory=dict)     # (tones, latch states, latch, to) -> :meth:`_branch_pushes`
     inner_goals: list = field(default_factory=list)     # goal records checked for coverage, not in schedule.json (sweeps)
 
     def run(self) -> Schedule:
@@ -120,6 +124,9 @@ class _Compiler:
         if not self.segments:
             raise DiagnosticError([error("E-SCHED-EMPTY", f"program `{self.program.name}` has no steps",
                                          self.program.span)])
+        flips = [k for k, st in enumerate(self.program.steps) if st.kind in FLIP_KINDS]
+        if flips and self.design.latches:       # a path or hold that may switch a latch: warned (W-SCHED-LATCH-FLIP)
+            self._latch_track(flips[-1] + 1)
         vmax = max(self.vmax_seen) if self.vmax_seen else _limit(self.design, None, self.opts)[0]
         full_scale, source = self._full_scale(vmax)
         fs = self.opts.sample_rate_hz or auto_sample_rate(
@@ -266,18 +273,18 @@ class _Compiler:
                        "already moves", True)
         return r, f"at {f / 1e3:.4g} kHz the sweep moves capsule `{seen[f][1]}`"
 
-    def _states_before(self, i: int, force_model=None) -> dict:
+    def _states_before(self, i: int) -> dict:
         """Latch states when step ``i`` starts (the likelier state where it is uncertain: :meth:`_latch_track`)."""
         return {n: s for n, (s, _, _) in self._latch_track(i).items()}
 
     def _latch_track(self, i: int) -> dict:
         """{latch: (state, certain, why)} when step ``i`` starts.
 
-        As the switch steps before it left them (:attr:`switch_outcome`), and the drives and sweeps before it
-        (:meth:`_switched_by`): a bistable latch stays switched when the drive stops.  ``why`` names the step that
-        set the state (None: the declared state); ``certain`` is False where a drive pushed the latch near the
-        force that switches it, or over it only in part of the declared uncertainty: then ``state`` is the
-        likelier one (the nominal push over the switching force or not).
+        As the switch steps before it left them (:attr:`switch_outcome`), and every other step that plays a drive
+        before it -- drive, sweep, follow (each waypoint) and hold (:meth:`_switched_by`): a bistable latch stays
+        switched when the drive stops.  ``why`` names the step that set the state (None: the declared state);
+        ``certain`` is False where a drive pushed the latch near the force that switches it, or over it only in part
+        of the declared uncertainty: then ``state`` is the likelier one (the nominal pushes in the played order).
         """
         memo = self.states_memo
         if 0 not in memo:
@@ -288,25 +295,32 @@ class _Compiler:
             st = self.program.steps[j]
             if st.kind == "switch" and st.latch in cur:
                 cur[st.latch] = self.switch_outcome.get(j, (st.state, True, f"step {j + 1} (switch)"))
-            elif st.kind in ("drive", "sweep"):
-                cur.update(self._switched_by(j, cur))
+            elif st.kind in DRIVEN_KINDS:
+                changed = self._switched_by(j, cur)
+                if st.kind in FLIP_KINDS:
+                    self._flip_warn(j, cur, changed)
+                cur.update(changed)
             memo[j + 1] = dict(cur)
         return cur
 
     def _switched_by(self, j: int, cur: dict) -> dict:
-        """{latch: (state, certain, why)} for the bistable latches whose state the drive or sweep of step ``j`` changes
-        or makes uncertain, from the states ``cur`` it starts in.
+        """{latch: (state, certain, why)} for the bistable latches whose state the drive of step ``j`` (a drive, sweep,
+        follow or hold) changes or makes uncertain, from the states ``cur`` it starts in.
 
-        The push is the switch planner's own: the force of the whole drive along each latch's axis at rest
-        (acl.schedule.gains.latch_drive_forces, or the injected ``latch_provider``) over the force that switches it
-        to the other state (a->b its switching force, b->a its release force); a sweep's at its band's worst
-        frequency (acoustics.band_maximum).  Switched for sure: push >= LATCH_STATE_MARGIN and, with a margin band
-        (``band_samples``), its 5th percentile over the declared uncertainty >= 1; left for sure: push <=
-        1/LATCH_STATE_MARGIN and the band's 95th percentile < 1.  Anything between: uncertain.
+        The push is the switch planner's force model: the force of the drive along each latch's axis
+        (acl.schedule.gains.latch_drive_forces, or the injected ``latch_provider``, at rest) over the force that
+        switches it to the other state (a->b its switching force, b->a its release force), with the capsules at the
+        drive's static equilibrium and undeflected (:meth:`_branch_pushes`: both must be on the same side); a sweep's
+        at its band's worst frequency (acoustics.band_maximum); a path's at its most-switching waypoint
+        (:meth:`_push_ratios`).  Switched for sure: push >= LATCH_STATE_MARGIN and, with a margin band
+        (``band_samples``), its 5th percentile over the declared uncertainty >= 1, and never pushed back (below);
+        left for sure: the largest push towards the other state (a path's between its waypoints too) <=
+        1/LATCH_STATE_MARGIN and the band's 95th percentile < 1.  Anything between: uncertain, in the state the
+        nominal pushes leave it in (a path: waypoint by waypoint; a push >= 1 x switches).
         """
         step = f"step {j + 1} ({self.program.steps[j].kind})"
         try:
-            pushes = self._push_ratios(j)
+            pushes = self._push_ratios(j, cur)
         except (DiagnosticError, KeyError, StopIteration, ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
             try:
                 bi = self._bistable()
@@ -318,40 +332,73 @@ class _Compiler:
         out = {}
 
         def text(n, to):
-            r, lo, hi, band = pushes[n][to]
+            p = pushes[n][to]
             what = "switching" if to == "b" else "release"
-            s = f"{step} pushed it to {r:.3g} x its {what} force"
-            if band:
-                s += f" ({lo:.3g} .. {hi:.3g} x in the margin band over {band})"
+            s = f"{step} pushed it to {p.r:.3g} x its {what} force{p.where}"
+            if "waypoint" in p.where and p.up > max(p.r, p.r0) * (1 + 1e-3) and p.up > 1.0 / M:
+                s += f", up to {p.up:.3g} x while crossfading between waypoints"
+            if p.band:
+                s += f" ({p.lo:.3g} .. {p.hi:.3g} x in the margin band over {p.band})"
             return s
 
-        def sure(n, to):
-            r, lo, _, _ = pushes[n][to]
-            return r >= M and lo >= 1.0
+        def sure(n, to):          # at its equilibrium and undeflected (the branch in between is not solved)
+            p = pushes[n][to]
+            return min(p.r, p.r0) >= M and p.lo >= 1.0 if np.isfinite(p.r0) else p.r >= M and p.lo >= 1.0
 
-        def never(n, to):
-            r, _, hi, _ = pushes[n][to]
-            return r <= 1.0 / M and hi < 1.0
+        def never(n, to):         # a branch the drive loses (the mechanism snaps off it) is not left for sure
+            p = pushes[n][to]
+            return max(p.r, p.up) <= 1.0 / M and p.hi < 1.0 and not p.lost
+
+        def flip(to):
+            return "a" if to == "b" else "b"
 
         for n, (state, certain, why) in cur.items():
             if n not in pushes:
                 continue
-            other = "b" if state == "a" else "a"
+            other = flip(state)
+            likely = pushes[n]["seq"][state]
             if certain:
-                if sure(n, other):
+                if never(n, other):
+                    continue
+                if sure(n, other) and never(n, state):
                     out[n] = (other, True, text(n, other))
-                elif not never(n, other):
-                    r, lo, hi, _ = pushes[n][other]
-                    near = f"within {M:g} x of it" if 1.0 / M < r < M else "the band straddles it"
-                    out[n] = (other if r >= 1.0 else state, False,
-                              text(n, other) + f": {near}, it may or may not have switched")
+                    continue
+                p = pushes[n][other]
+                if sure(n, other):
+                    near = "then pushed back: " + text(n, state)
+                elif p.lost:
+                    near = "under the drive no equilibrium stays on that branch: the mechanism snaps off it"
+                elif np.isfinite(p.r0) and (min(p.r, p.r0) < M <= max(p.r, p.r0)
+                                            or min(p.r, p.r0) <= 1.0 / M < max(p.r, p.r0)):
+                    near = f"its deflected and undeflected pushes fall on either side of {1.0 / M:.3g} .. {M:g} x"
+                else:
+                    near = f"within {M:g} x of it" if 1.0 / M < max(p.r, p.up) and p.r < M else "the band straddles it"
+                out[n] = (likely, False, text(n, other) + f": {near}, it may or may not have switched")
                 continue
-            to = next((t for t in ("b", "a") if sure(n, t)), None)
+            to = next((t for t in ("b", "a") if sure(n, t) and never(n, flip(t))), None)
             if to is not None:          # from either state it ends there
                 out[n] = (to, True, text(n, to))
-            elif not never(n, other):
-                out[n] = (other if pushes[n][other][0] >= 1.0 else state, False, f"{why}; then {text(n, other)}")
+            elif not (never(n, "a") and never(n, "b")):
+                moved = other if not never(n, other) else state
+                out[n] = (likely, False, f"{why}; then {text(n, moved)}")
         return out
+
+    def _flip_warn(self, j: int, cur: dict, changed: dict) -> None:
+        """W-SCHED-LATCH-FLIP at a follow or hold step whose drive switches a latch, or may (:meth:`_switched_by`)."""
+        step = self.program.steps[j]
+        for n, (state, certain, why) in changed.items():
+            was, was_sure, _ = cur[n]
+            if certain and was_sure and state == was:
+                continue
+            what = (f"switches latch `{n}` from state {was} to state {state}; later steps are planned from state "
+                    f"{state}" if certain and state != was else
+                    f"may switch latch `{n}`: it ends in state a or b (likelier {state}); a later `switch` is planned "
+                    "to work from both")
+            goal = "path" if step.kind == "follow" else "hold"
+            self.latch_warnings.append(Diagnostic(
+                LATCH_FLIP_CODE, Severity.WARNING, f"step {j + 1}: {step.kind}: the {goal}'s drive {what}",
+                step.span, "keep the step's drive away from the latch's switching and release forces (other tones, "
+                "a lower limit), or switch the latch back afterwards with a `switch` step", notes=(why,)))
 
     def _bistable(self) -> dict:
         """{latch: index} of the latches that stay switched when the drive stops (a finite release force)."""
@@ -375,22 +422,91 @@ class _Compiler:
         _, to_b, to_a = latch_forces(design, [])
         return latch_drive_forces(design, tones), to_b, to_a
 
-    def _push_ratios(self, j: int) -> dict:
-        """{bistable latch: {"b": (push, lo, hi, band), "a": ...}} for the drive or sweep of step ``j``: its push towards
-        each state over the force that switches the latch there (:meth:`_switched_by`), and the 5th .. 95th percentile
-        bounds of it over the declared uncertainty (acl.schedule.bands.margin_band; lo = hi = push without a band)."""
+    def _waypoint_pushes(self, design, freqs, U) -> tuple:
+        """((L, N) force N of each waypoint drive, (L, N-1, 2) upper bounds of the force towards b / towards a while
+        crossfading from waypoint w to w + 1, to_b, to_a); ``U`` (K, N) amplitudes V of the tones ``freqs``.
+
+        Tones add in power, each quadratic in its amplitude (force_model.quadratic_in_amplitude): the force is
+        G @ U^2 with G the force per V^2 of each tone (acl.schedule.gains.latch_forces, the switch LP's), and while
+        the renderer crossfades two waypoints each tone's power lies between its two ends, so the force towards a
+        state is at most the sum over tones of the larger end.  A drive whose forces are not quadratic (declared
+        drive saturation) is evaluated waypoint by waypoint, without the crossfade bound (its ends only).
+        """
+        U = np.asarray(U, float)
+        provider = self.opts.latch_provider
+        quadratic = provider is not None
+        if provider is None:
+            from acl.analysis.acoustics import force_model_for
+            from acl.schedule.gains import latch_forces as provider
+
+            quadratic = force_model_for(design).quadratic_in_amplitude
+        if quadratic:
+            G, to_b, to_a = provider(design, tuple(float(f) for f in freqs))
+            G = np.asarray(G, float).reshape(len(to_b), len(freqs))
+            P = U * U
+            F = G @ P
+            if U.shape[1] > 1:
+                pos = np.maximum(G[:, :, None] * P[None, :, :-1], G[:, :, None] * P[None, :, 1:]).sum(axis=1)
+                neg = np.maximum(-G[:, :, None] * P[None, :, :-1], -G[:, :, None] * P[None, :, 1:]).sum(axis=1)
+                up = np.stack([pos, neg], axis=-1)
+            else:
+                up = np.zeros((len(to_b), 0, 2))
+            return F, up, np.asarray(to_b, float), np.asarray(to_a, float)
+        seen, cols = {}, []
+        for w in range(U.shape[1]):
+            key = tuple(U[:, w])
+            if key not in seen:
+                seen[key], to_b, to_a = self._latch_push(design, [(float(f), float(a)) for f, a in zip(freqs, key)])
+            cols.append(seen[key])
+        _, to_b, to_a = self._latch_thresholds(design) if not seen else (None, to_b, to_a)
+        F = np.array(cols, float).T.reshape(len(to_b), U.shape[1])
+        up = np.stack([np.maximum(F[:, :-1], F[:, 1:]), np.maximum(-F[:, :-1], -F[:, 1:])], axis=-1)
+        return F, up, np.asarray(to_b, float), np.asarray(to_a, float)
+
+    def _push_ratios(self, j: int, cur: dict | None = None) -> dict:
+        """{bistable latch: {"b": _Push, "a": _Push, "seq": {start state: end state}}} for the drive of step ``j``,
+        from the latch states ``cur`` it starts in ({latch: (state, certain, why)}; None: the declared ones).
+
+        Its push towards each state over the force that switches the latch there (:meth:`_switched_by`).  A drive or
+        hold plays one drive; a sweep is taken at its band's worst frequency; a follow step plays one drive per
+        waypoint: its most-switching waypoint's push (``where`` names it), ``up`` the largest push also between
+        waypoints (:meth:`_waypoint_pushes`), and ``seq`` the state the nominal pushes leave the latch in, waypoint by
+        waypoint, from each state (a push >= 1 x switches).  The worst drive (waypoint, frequency) is found with the
+        capsules at rest; its push is then taken with the capsules where they are (:meth:`_branch_pushes`): at the
+        static equilibrium under the drive on the branch the latch leaves (state a for the push towards b, b for the
+        push back), ``r``, and undeflected on that branch, ``r0``; the other latches in their (likelier) states.
+        ``lo`` .. ``hi``: the 5th percentile of the most-switching waypoint's push and the 95th of the largest one over
+        the declared uncertainty (acl.schedule.bands.margin_band, at rest: the percentiles of each draw's extremes
+        over the whole path, so every waypoint's band is inside), moved by the nominal change from rest to
+        the worse of ``r`` and ``r0`` (lo = hi = the push without a band)."""
         if j in self.push_memo:
             return self.push_memo[j]
         bi = self._bistable()
-        tones = [t for s in self.segments if s.step == j for t in s.tones if t.amplitude_v > 0]
+        segs = [s for s in self.segments if s.step == j]
+        tones = [t for s in segs for t in s.tones if t.amplitude_v > 0]
         chirp = next((t for t in tones if t.frequency_end_hz), None)
+        freqs = sorted({t.frequency_hz for t in tones})
+        U = np.array([[sum(t.amplitude_v for t in s.tones if t.frequency_hz == f and t.amplitude_v > 0)
+                       for s in segs] for f in freqs], float).reshape(len(freqs), len(segs))
+        steps = self.program.steps[j].kind == "follow" and len(segs) > 1
 
         def ratios(d):
+            """{latch: {to: (push at the worst drive, its waypoint index or frequency, largest push incl. crossfades)}},
+            the waypoint pushes (rb, ra) per latch for the nominal order (None: one drive)."""
             if not tones:
-                return {n: {"b": 0.0, "a": 0.0} for n in bi}
+                return {n: {"b": (0.0, 0, 0.0), "a": (0.0, 0, 0.0)} for n in bi}, None
             if chirp is None:
-                F, to_b, to_a = self._latch_push(d, [(t.frequency_hz, t.amplitude_v) for t in tones])
-                return {n: {"b": float(F[k] / to_b[k]), "a": float(-F[k] / to_a[k])} for n, k in bi.items()}
+                F, up, to_b, to_a = self._waypoint_pushes(d, freqs, U)
+                out, seq = {}, {}
+                for n, k in bi.items():
+                    rb, ra = F[k] / to_b[k], -F[k] / to_a[k]
+                    ub = np.max(up[k, :, 0], initial=-np.inf) / to_b[k]
+                    ua = np.max(up[k, :, 1], initial=-np.inf) / to_a[k]
+                    wb, wa = int(np.argmax(rb)), int(np.argmax(ra))
+                    out[n] = {"b": (float(rb[wb]), wb, float(max(rb[wb], ub))),
+                              "a": (float(ra[wa]), wa, float(max(ra[wa], ua)))}
+                    seq[n] = (rb, ra)
+                return out, seq
             seen = {}
 
             def at(f):
@@ -400,23 +516,51 @@ class _Compiler:
 
             out = {}
             for n, k in bi.items():
-                out[n] = {"b": acoustics.band_maximum(lambda f: float(at(f)[0][k] / at(f)[1][k]), chirp.frequency_hz,
-                                                      chirp.frequency_end_hz, self._mode_frequencies(), rtol=1e-6)[0],
-                          "a": acoustics.band_maximum(lambda f: float(-at(f)[0][k] / at(f)[2][k]), chirp.frequency_hz,
-                                                      chirp.frequency_end_hz, self._mode_frequencies(), rtol=1e-6)[0]}
-            return out
+                rb, fb = acoustics.band_maximum(lambda f: float(at(f)[0][k] / at(f)[1][k]), chirp.frequency_hz,
+                                                chirp.frequency_end_hz, self._mode_frequencies(), rtol=1e-6)
+                ra, fa = acoustics.band_maximum(lambda f: float(-at(f)[0][k] / at(f)[2][k]), chirp.frequency_hz,
+                                                chirp.frequency_end_hz, self._mode_frequencies(), rtol=1e-6)
+                out[n] = {"b": (rb, float(fb), rb), "a": (ra, float(fa), ra)}
+            return out, None
 
         from acl.analysis import acoustics
 
-        nominal = ratios(self.design)
-        res = {n: {to: (r, r, r, "") for to, r in v.items()} for n, v in nominal.items()}
+        nominal, seq = ratios(self.design)
+        times = [s.start_s for s in segs]
+
+        def where(w):
+            return f" at waypoint {w + 1} of {len(segs)} (t = {times[w]:.4g} s)" if steps else ""
+
+        def drive_of(w):
+            if chirp is not None:
+                return ((float(w), chirp.amplitude_v),)
+            return tuple((f, float(U[i, w])) for i, f in enumerate(freqs) if U[i, w] > 0)
+
+        states = {n: s for n, (s, _, _) in (cur or {}).items()}
+        res, shift = {}, {}
+        for n, v in nominal.items():
+            res[n] = {}
+            for to, (r_rest, w, up) in v.items():
+                eq = self._branch_pushes(drive_of(w), states, n, to) if tones else None
+                r, r0, note, lost = (r_rest, r_rest, "", False) if eq is None else eq
+                worse_lo, worse_hi = min(r, r0) - r_rest, max(r, r0) - r_rest
+                shift[n, to] = (min(worse_lo, 0.0), max(worse_hi, 0.0))
+                res[n][to] = _Push(r, r, max(r, r0, up + shift[n, to][1]), "", max(r, r0, up + shift[n, to][1]),
+                                   where(w) + note, r0, lost)
+            res[n]["seq"] = {s0: _nominal_end(s0, *seq[n]) if seq and steps else     # a path: at rest, in order
+                             ("b" if s0 == "a" and res[n]["b"].r >= 1.0 else "a" if s0 == "b" and res[n]["a"].r >= 1.0
+                              else s0) for s0 in ("a", "b")}
+        for n, v in res.items():            # r0 below r: the lower end counts for "switched for sure"
+            for to in ("a", "b"):
+                p = v[to]
+                v[to] = dataclasses.replace(p, lo=min(p.r, p.r0))
         if self.opts.band_samples > 0 and self.opts.latch_provider is None and tones and bi:
             from acl.schedule.bands import margin_band
 
             def margin_for(d):
-                r = ratios(d)
-                return 1.0, {f"{s}{n}>{to}": (x if s == "+" else -x) for n, v in r.items() for to, x in v.items()
-                             for s in "+-"}
+                r, _ = ratios(d)
+                return 1.0, {k: x for n, v in r.items() for to, (x0, _, xu) in v.items()
+                             for k, x in ((f"+{n}>{to}", xu), (f"-{n}>{to}", -x0))}
 
             band = margin_band(self.design, margin_for, samples=self.opts.band_samples, seed=self.opts.band_seed,
                                reload=self.opts.reload)
@@ -424,14 +568,81 @@ class _Compiler:
                 n_all = band.samples + band.failed
                 what = f"{n_all} draws of the declared uncertainty" + (
                     f", {band.failed} failed: counted as unknown" if band.failed else "")
-                for n, v in nominal.items():
-                    for to, r in v.items():
+                for n in nominal:
+                    for to in ("a", "b"):
+                        p = res[n][to]
                         lo, hi = -band.others_p95.get(f"-{n}>{to}", np.inf), band.others_p95.get(f"+{n}>{to}", np.inf)
                         if band.failed:
                             lo, hi = -np.inf, np.inf
-                        res[n][to] = (r, min(lo, r), max(hi, r), what)
+                        dlo, dhi = shift[n, to]
+                        res[n][to] = dataclasses.replace(p, lo=min(lo + dlo, p.lo), hi=max(hi + dhi, p.hi), band=what)
         self.push_memo[j] = res
         return res
+
+    def _branch_pushes(self, tones, states: dict, latch: str, to: str):
+        """(push ratio at the static equilibrium under ``tones``, push ratio undeflected, note) of latch ``latch``
+        towards state ``to``, on the branch it leaves (the other state); None without the mechanics (an injected
+        latch model, no capsules) or when the forces cannot be evaluated.
+
+        The capsules are placed as the latch states put them (a latch in a state other than its declared one: the
+        capsules it carries moved by the travel between its states; ``latch`` itself in the state it leaves, the
+        others in ``states``, default their declared ones), then the mechanism is solved under the drive from there
+        (acl.analysis.mechanics.equilibrium, warm-started: the branch the device is on), and the drive's force along
+        the latch axis is taken at those positions (acl.schedule.gains.latch_drive_forces): the thrust and the
+        Bjerknes forces of capsules that moved.  A drive that snaps the mechanism in: at the last stable point before
+        (the furthest the branch goes).  When no equilibrium stays on that branch (the solver falls back to the
+        declared one), the undeflected push is used for both, with a note, and ``lost`` is True: the mechanism
+        leaves the branch, and the latch may go with it.  (r, r0, note, lost).
+        """
+        if self.opts.latch_provider is not None or not self.design.capsules or not tones:
+            return None
+        key = (tuple(tones), tuple(sorted(states.items())), latch, to)
+        if key in self.branch_memo:
+            return self.branch_memo[key]
+        from acl.analysis import acoustics, mechanics
+        from acl.design.model import Drive, Tone
+        from acl.physics.latch import latch_landscape
+        from acl.schedule.gains import latch_axis_carried, latch_drive_forces, latch_forces
+
+        try:
+            k = next(i for i, l in enumerate(self.design.latches) if l.name == latch)
+            branch = dict(states)
+            branch[latch] = "a" if to == "b" else "b"
+            pos, lands = {c.name: np.asarray(c.center, float) for c in self.design.capsules}, {}
+            moved = False
+            for lt in self.design.latches:
+                land = lands[lt.name] = latch_landscape(*mechanics.latch_geometry(lt, self.design))
+                want = branch.get(lt.name, lt.state)
+                if want == lt.state or land.state_b is None:
+                    continue
+                travel = float(land.state_b) * (1.0 if want == "b" else -1.0)
+                axis, carried = latch_axis_carried(self.design, lt)
+                for c in carried:
+                    pos[c] = pos[c] + travel * axis
+                moved = True
+            _, to_b, to_a = latch_forces(self.design, [])
+            thr = float(to_b[k]) if to == "b" else -float(to_a[k])
+            r0 = float(latch_drive_forces(self.design, tones, pos if moved else None)[k] / thr)
+            drive = Drive(tones=tuple(Tone(frequency=f, amplitude=a) for f, a in tones))
+            st = mechanics.equilibrium(self.design, drive, acoustics.force_model_for(self.design),
+                                       start=pos if moved else None)
+            on_branch = st.status in ("ok", "snap_in")
+            for lt in self.design.latches:
+                land, u = lands[lt.name], st.deflections.get(lt.name)
+                if land.unstable is None or u is None:
+                    continue
+                if (u > land.unstable) != (branch.get(lt.name, lt.state) == "b"):
+                    on_branch = False
+            if not on_branch:
+                out = (r0, r0, " (undeflected)", True)
+            else:
+                r = float(latch_drive_forces(self.design, tones, st.positions)[k] / thr)
+                note = f" at its static equilibrium ({r0:.3g} x undeflected)" if f"{r:.3g}" != f"{r0:.3g}" else ""
+                out = (r, r0, note, False)
+        except (DiagnosticError, KeyError, StopIteration, ValueError, ArithmeticError, np.linalg.LinAlgError):
+            out = None
+        self.branch_memo[key] = out
+        return out
 
     def _settle(self, drive, force_model, states: dict):
         """(largest capsule displacement from rest, m, that capsule, status) at the equilibrium under ``drive``.
@@ -895,11 +1106,11 @@ class _Compiler:
     # -- switch --------------------------------------------------------------------------------
     def _switch(self, i, step: SwitchStep):
         """Plan a switch from the state the latch is in when the step starts (:meth:`_latch_track`: earlier switches,
-        drives and sweeps).  Already there: nothing played.  Uncertain (a drive pushed it near its switching force):
-        planned from the other state, which also leaves it in the wanted state if it is there already (the drive
-        pushes it further in); when no drive does that within the limits, W-SCHED-LATCH-STATE at the step.  Another
-        latch in an uncertain state is kept put in both directions, or, when no drive does that, in its likelier
-        state with W-SCHED-LATCH-STATE."""
+        drives, sweeps, paths and holds).  Already there: nothing played.  Uncertain (a drive pushed it near its
+        switching force): planned from the other state, which also leaves it in the wanted state if it is there
+        already (the drive pushes it further in); when no drive does that within the limits, W-SCHED-LATCH-STATE at
+        the step.  Another latch in an uncertain state is kept put in both directions, or, when no drive does that,
+        in its likelier state with W-SCHED-LATCH-STATE."""
         from acl.schedule.latch import SwitchInfeasible, plan_switch
 
         name = f"step {i + 1}: switch {step.latch} -> {step.state}"
@@ -1249,6 +1460,31 @@ class _Compiler:
                               f"scaled by {f:.4g} to cross by the margin {margin:g}")
             s = s / f
         return tones, float(1.0 / s)
+
+
+@dataclass(frozen=True)
+class _Push:
+    """A step's push on a latch towards one state, over the force that switches it there (_Compiler._push_ratios)."""
+
+    r: float          # nominal, at the most-switching waypoint (a drive, hold or sweep: its one drive)
+    lo: float         # 5th percentile over the declared uncertainty (of each draw's largest waypoint push)
+    hi: float         # 95th percentile (of each draw's largest push, crossfades included)
+    band: str         # what the band was drawn from ("": no band)
+    up: float         # nominal largest push, also while crossfading between waypoints (>= r, r0)
+    where: str        # " at waypoint w of N (t = ...)" for a path, else ""; the equilibrium's note
+    r0: float = float("nan")    # the same drive with the capsules undeflected on the branch (lo <= min(r, r0))
+    lost: bool = False          # under the drive no equilibrium stays on the branch: never "left for sure"
+
+
+def _nominal_end(start: str, rb: np.ndarray, ra: np.ndarray) -> str:
+    """The state a latch starting in ``start`` ends in under waypoint pushes ``rb``/``ra`` (ratios; >= 1 switches)."""
+    state = start
+    for b, a in zip(rb, ra):
+        if state == "a" and b >= 1.0:
+            state = "b"
+        elif state == "b" and a >= 1.0:
+            state = "a"
+    return state
 
 
 class _Snapped(Exception):

@@ -162,7 +162,7 @@ def latch_forces(design: Design, frequencies) -> tuple[np.ndarray, np.ndarray, n
     per_tone = [acoustics.force_model(design, rest, Drive(tones=(Tone(frequency=f, amplitude=1.0),)))
                 for f in freqs]
     for i, latch in enumerate(design.latches):
-        axis, carried = _latch_axis_carried(design, latch)
+        axis, carried = latch_axis_carried(design, latch)
         for k, fm in enumerate(per_tone):
             forces[i, k] = sum(float(np.asarray(fm.get(c, np.zeros(3)), float) @ axis) for c in carried)
         land = latch_landscape(*latch_geometry(latch, design))
@@ -172,16 +172,17 @@ def latch_forces(design: Design, frequencies) -> tuple[np.ndarray, np.ndarray, n
     return forces, to_b, to_a
 
 
-def _latch_axis_carried(design: Design, latch):
-    """(unit axis, capsules whose force moves the latch's shuttle)."""
+def latch_axis_carried(design: Design, latch):
+    """(unit axis, capsules whose force moves the latch's shuttle: those mounted on it and those trussed to them)."""
     axis = np.asarray(latch.axis, float)
     carried = _rigidly_linked(design, [j.capsule for j in design.joints if j.kind == "mount"
                                         and j.target_kind == "latch" and j.target == latch.name])
     return axis / np.linalg.norm(axis), carried
 
 
-def latch_drive_forces(design: Design, tones) -> np.ndarray:
-    """(L,) N: force of the whole drive ``tones`` ((Hz, V) pairs) along each latch's axis, at rest.
+def latch_drive_forces(design: Design, tones, positions=None) -> np.ndarray:
+    """(L,) N: force of the whole drive ``tones`` ((Hz, V) pairs) along each latch's axis, at rest or with the
+    capsules at ``positions`` (name -> centre, m; missing names at rest).
 
     The full force model (:func:`acl.analysis.acoustics.force_model`, tones adding in power, the
     design's declared effects, drive saturation included: then the force is not V^2 x the force at 1 V).
@@ -193,9 +194,11 @@ def latch_drive_forces(design: Design, tones) -> np.ndarray:
     if not drive.tones:
         return out
     rest = {c.name: np.asarray(c.center, float) for c in design.capsules}
+    if positions:
+        rest.update({k: np.asarray(v, float) for k, v in positions.items()})
     fm = acoustics.force_model(design, rest, drive)
     for i, latch in enumerate(design.latches):
-        axis, carried = _latch_axis_carried(design, latch)
+        axis, carried = latch_axis_carried(design, latch)
         out[i] = sum(float(np.asarray(fm.get(c, np.zeros(3)), float) @ axis) for c in carried)
     return out
 
