@@ -1,6 +1,6 @@
 """The shortcuts of the fit's forward model against the plain computation (benchmarks/fit.py case 3, issue 9).
 
-The fast paths (acl.fit.forward: a pair solve reused when its inputs are bitwise the same, the bracket grid read
+The fast paths (acl.fit.forward: each distinct row predicted once, a pair solve reused when its inputs are bitwise the same, the bracket grid read
 only up to each row's last cell, predictions memoized; acl.fit.solve.fd_least_squares: the Jacobian's columns made
 inside FD_COLUMNS) must give the plain solve's numbers bit for bit.  The opt-in warm start (forward.WARM) must give
 finite-difference columns equal to the plain ones to the solver tolerance.  A small pair + calibration beam data
@@ -33,14 +33,15 @@ def pair_cal():
 
 
 def _plain(P, coeffs, effects):
-    """The forward model with every shortcut off: no memo, no reused or guided pair solve."""
-    old = F.MEMO
-    F.MEMO = 0
+    """The forward model with every shortcut off: no memo, every row solved (no distinct-row reduction), no reused or
+    guided pair solve."""
+    old = F.MEMO, F.DEDUP
+    F.MEMO, F.DEDUP = 0, False
     try:
         P.__dict__.pop("_eq_cache", None)
         return F.predict(P, coeffs, effects)
     finally:
-        F.MEMO = old
+        F.MEMO, F.DEDUP = old
 
 
 def _columns(P, coeffs, effects, steps, warm=False):
@@ -150,3 +151,29 @@ def test_guided_and_reused_solves_follow_large_steps_bit_for_bit(pair_cal, effec
         F._scan = orig
     if effects:            # the iterated law reads the grid from the guess, and past it where the crossing moved on
         assert seen_more and any(seen_more) and not all(seen_more)
+
+
+REPEATED = [Experiment(frequencies=(120e3, 130e3), voltages=tuple(np.linspace(0, 4, 5)), observables=("distance",),
+                       sets={"gap": ["40 um", "60 um"]}, repeats=3, label="pair"),
+            Experiment(frequencies=(120e3, 130e3), voltages=tuple(np.linspace(0, 11, 4)), observables=("cal",),
+                       repeats=4, label="calibration")]
+
+
+@pytest.mark.parametrize("effects", [
+    {}, DRAG, {"large_deflection": {"elastica_weight": 0.4}, **DRAG},
+    {"drive_saturation": {"inv_vsat2": 0.05}, "offset_drift": {"offset": 2e-7, "drift": -3e-9}},
+    {"bubble_shrinkage": {"shrink_rate": 2e-3}}, {"stiffness_scale": {"e_scale": 1.2}},
+    {"transducer_resonance": {"inv_f_ratio": 0.5, "gain_q": 3.0}}], ids=lambda e: "+".join(e) or "base")
+def test_distinct_rows_give_every_row_bit_for_bit(effects):
+    """Repeated rows (the same drive, gap and design; times apart) are predicted once (forward._distinct): each row's
+    number is the full prediction's, also with an offset drift (added per row after) and bubble shrinkage (which reads
+    the time: every timed row is then its own)."""
+    data, P = generate(PAIR_CAL, REPEATED, {}, noise=0.2e-6, seed=5)
+    red = F._distinct(P, {})
+    assert red is not None and red[0].n < P.n / 2            # the repeats are found (the times are ignored)
+    co = {"gamma": P.gamma0 * 1.2, "alpha": P.alpha0 * 0.9}
+    fast = F.predict(P, co, effects)
+    plain = _plain(P, co, effects)
+    np.testing.assert_array_equal(fast, plain)
+    if "offset_drift" in effects:
+        assert np.unique(fast).size > red[0].n                # the drift makes each timed row its own

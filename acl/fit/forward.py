@@ -396,7 +396,13 @@ def predict(P: Prepared, coeffs: dict, effects: dict, latch_blend: float = 0.0) 
         if key in memo:
             return memo[key].copy()
     with np.errstate(all="ignore"):
-        out = _predict(P, coeffs, effects, latch_blend)
+        red = _distinct(P, effects) if DEDUP else None
+        if red is None:
+            out = _predict(P, coeffs, effects, latch_blend)
+        else:       # each distinct row once (repeats, a calibration beam's rows at every gap): the same numbers
+            Pu, inv = red
+            out = _predict(Pu, coeffs, {k: e for k, e in effects.items() if k != "offset_drift"}, latch_blend)[inv]
+            out = _offset_drift(P, out, effects)
     if key is not None:
         if len(memo) >= MEMO:
             del memo[next(iter(memo))]                 # the oldest
@@ -405,6 +411,73 @@ def predict(P: Prepared, coeffs: dict, effects: dict, latch_blend: float = 0.0) 
 
 
 MEMO = 64      # predictions kept per data set (an optimizer revisits points: starts, polishes, the final evaluation)
+DEDUP = True   # predict each distinct row once (:func:`_distinct`)
+
+# the row-aligned fields of Prepared that _predict reads, with their row axis
+_ROW_FIELDS = {"f": 0, "v": 0, "tau": 1, "arel": 0, "pair": 0, "L": 1, "l": 1, "EI": 1, "cd": 1, "ct": 1, "height": 1,
+               "proj": 0, "d0": 0, "base": 0, "s0": 0, "s1": 0, "fn": 1, "q": 1, "t": 0, "law": 1, "volume": 1,
+               "radius": 1, "medium": 1, "latch_id": 0, "ref_side": 1, "side_table": 1, "gamma_side": 1,
+               "group_row": 0, "state": 0, "caps": 1, "units": 0, "experiment": 0}
+_TIMED = ("bubble_shrinkage",)    # effects whose prediction of a row depends on its time other than by offset_drift
+
+
+def _distinct(P: Prepared, effects: dict):
+    """(Prepared of the distinct rows, index of each row's) when the prediction can be made on the distinct rows only,
+    else None.  Rows are alike when every input of :func:`_predict` is bitwise the same (time left out unless an
+    effect other than offset_drift reads it: offset_drift is added after, :func:`_offset_drift`); _predict is
+    elementwise in the rows, and its few reductions over rows (the pair solve's tolerance from the largest gap, its
+    stop when every row converged, the reference row of a free resonance) see the same set of values, so each row's
+    number is the one the full prediction gives, bit for bit (tests/test_fit_pair_warm.py).  Not with groups (their
+    blocks index rows) nor latch states (their Pearson weights are per row)."""
+    if (P.groups or (P.state is not None and np.any(P.state)) or P.pearson is not None
+            or (P.group_row is not None and np.any(P.group_row))):
+        return None
+    timed = any(e in effects for e in _TIMED)
+    cache = P.__dict__.setdefault("_distinct", {})
+    if timed not in cache:
+        cache[timed] = _reduce_rows(P, with_time=timed)
+    return cache[timed]
+
+
+def _reduce_rows(P: Prepared, with_time: bool):
+    """(Prepared of P's distinct rows in order of first occurrence, inverse index), or None when every row differs."""
+    import dataclasses
+
+    cols = []
+    for name, ax in _ROW_FIELDS.items():
+        a = getattr(P, name)
+        if a is None or (name == "t" and not with_time) or name in ("units", "experiment"):
+            continue
+        a = np.moveaxis(np.asarray(a), ax, 0).reshape(P.n, -1)
+        if a.dtype == object:
+            _, codes = np.unique(a.astype(str), return_inverse=True)
+            a = codes.reshape(P.n, -1)
+        cols.append(np.ascontiguousarray(a).astype(np.float64).view(np.uint64) if a.dtype.kind == "f"
+                    else a.astype(np.int64).view(np.uint64))
+    rows = np.ascontiguousarray(np.hstack(cols))
+    key = rows.view(np.dtype((np.void, rows.dtype.itemsize * rows.shape[1]))).ravel()
+    _, first, inv = np.unique(key, return_index=True, return_inverse=True)
+    if first.size == P.n:
+        return None
+    order = np.argsort(first)                     # distinct rows in order of first occurrence
+    rank = np.empty_like(order)
+    rank[order] = np.arange(order.size)
+    keep = first[order]
+    sub = {}
+    for name, ax in _ROW_FIELDS.items():
+        a = getattr(P, name)
+        if a is not None:
+            sub[name] = np.take(a, keep, axis=ax)
+    Pu = dataclasses.replace(P, n=int(keep.size), **sub)
+    return Pu, rank[inv.ravel()]
+
+
+def _offset_drift(P: Prepared, out, effects):
+    """An offset and a linear drift in time added to every row (effect offset_drift)."""
+    if "offset_drift" in effects:
+        e = effects["offset_drift"]
+        out = out + e["offset"] + e["drift"] * P.t
+    return out
 
 
 def _memo_key(P, coeffs, effects, latch_blend):
@@ -583,9 +656,7 @@ def _predict(P: Prepared, coeffs: dict, effects: dict, latch_blend: float = 0.0)
             change, _, rat = G.predict(P, blk, coeffs, effects, w[blk.rows], gamma, alpha, es, lam, grad, c_p)
             out[blk.rows] = P.base[blk.rows] + change
             ratio[blk.rows] = np.where(blk.kind == 3, rat, ratio[blk.rows])
-    if "offset_drift" in effects:
-        e = effects["offset_drift"]
-        out = out + e["offset"] + e["drift"] * P.t
+    out = _offset_drift(P, out, effects)
     if P.state is not None and np.any(P.state):
         p = switch_probability(ratio, coeffs.get("spread", SPREAD))
         if P.pearson is not None:
