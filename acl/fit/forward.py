@@ -24,6 +24,7 @@ from acl.fit import beam as B
 
 N_GRID = 32
 N_REFINE = 12
+_GRID = np.linspace(0.0, 1.0, N_GRID + 1)     # the bracket grid from the rest gap (0) to the far end (1)
 
 
 @dataclass
@@ -493,8 +494,8 @@ def _distinct(P: Prepared, effects: dict):
     stop when every row converged, the reference row of a free resonance) see the same set of values, so each row's
     number is the one the full prediction gives, bit for bit (tests/test_fit_pair_warm.py).  Not with groups (their
     blocks index rows) nor latch states (their Pearson weights are per row)."""
-    if (P.groups or (P.state is not None and np.any(P.state)) or P.pearson is not None
-            or (P.group_row is not None and np.any(P.group_row))):
+    lay = _layout(P)
+    if P.groups or lay["any_state"] or P.pearson is not None or lay["any_grp"]:
         return None
     timed = any(e in effects for e in _TIMED)
     cache = P.__dict__.setdefault("_distinct", {})
@@ -547,7 +548,7 @@ def _offset_drift(P: Prepared, out, effects):
 def _memo_key(P, coeffs, effects, latch_blend):
     """Key of a prediction that depends on its arguments alone (floats only; not with latch states, whose rows depend
     on the fit's reweighting state), else None."""
-    if P.state is not None and np.any(P.state):
+    if _layout(P)["any_state"]:
         return None
     try:
         return (tuple(sorted((k, float(v).hex()) for k, v in coeffs.items())),
@@ -615,35 +616,39 @@ def _predict_steps(P: Prepared, coeffs: dict, effects: dict, latch_blend: float 
     """The prediction as a generator: it yields its pair equilibrium request (the arguments of :func:`_pair_solve`,
     then the pair rows' law spec, lam and c_p) once, receives (delta_a, delta_b), and returns the prediction: so that
     the pair solves of several predictions can be made at once (:func:`predict_many`)."""
+    lay = _layout(P)
     gamma = coeffs.get("gamma", P.gamma0)
     alpha = coeffs.get("alpha", P.alpha0)
     e_scale = coeffs.get("e_scale", 1.0)
     gain = coeffs.get("gain", 1.0)
-    v2 = P.v * P.v
-    g2 = np.full(P.v.shape, gain * gain)
+    v2 = lay["v2"]
+    g2 = gain * gain            # (a scalar factor: the same products as the full array of it)
     if "transducer_gain" in effects:
         g2 = g2 * gain_tilt(P.f, P.f_ref, effects["transducer_gain"]["gain_slope"]) ** 2
     if "transducer_resonance" in effects:
         e = effects["transducer_resonance"]
         g2 = g2 * transducer_resonance(P.f, P.f_ref, e["inv_f_ratio"], e["gain_q"]) ** 2
     if "drive_saturation" in effects:
-        vtot = P.v.sum(axis=1, keepdims=True)
-        g2 = g2 * saturation(vtot, effects["drive_saturation"]["inv_vsat2"]) ** 2
+        g2 = g2 * saturation(lay["vtot"], effects["drive_saturation"]["inv_vsat2"]) ** 2
     w = v2 * g2
     if "tone_weight" in coeffs:     # (n, T) factor on each tone's squared pressure (acl.fit.report.tone_gain_stderr)
         w = w * coeffs["tone_weight"]
+    if np.ndim(w) < 2:
+        w = np.broadcast_to(w, P.v.shape)
     thrust = np.empty((2, P.n))
-    sub = np.ones((2, P.n))
+    sub = None                  # no substrate factor (a factor 1: the same numbers)
     if "substrate_proximity" in effects:
         sub = substrate_factor(P.height, effects["substrate_proximity"]["h_substrate"])
     res = _resonance_factors(P, coeffs, effects)
     for c in range(2):
         wc = w if res is None else w * res[c]
         # gamma scales the capsules declaring it (P.gamma_caps); the others keep the design's thrust
-        g = gamma if P.gamma_side is None else np.where(P.gamma_side[c], gamma, P.gamma0)
-        thrust[c] = g * (P.tau[c] * wc).sum(axis=1) * sub[c]
+        g = gamma if lay["gamma_all"][c] else np.where(P.gamma_side[c], gamma, P.gamma0)
+        thrust[c] = g * (P.tau[c] * wc).sum(axis=1)
+        if sub is not None:
+            thrust[c] = thrust[c] * sub[c]
     es = e_scale * (effects["stiffness_scale"]["e_scale"] if "stiffness_scale" in effects else 1.0)
-    beam = P.beam
+    beam = lay["beam"]
     cav = [k for k in coeffs if k.startswith("cavity@")]
     grad = effects["stiffness_gradient"]["e_gradient"] if "stiffness_gradient" in effects else None
     lam = effects["large_deflection"]["elastica_weight"] if "large_deflection" in effects else 0.0
@@ -658,8 +663,8 @@ def _predict_steps(P: Prepared, coeffs: dict, effects: dict, latch_blend: float 
         """The deflection law arrays of rows ``idx`` (``kind``: a fixed row set, its arrays kept with the law's)."""
         if kind is not None and kind in arrays:
             return arrays[kind]
-        out = (tuple((rigid[c, idx], cd[c, idx], ct[c, idx], P.L[c, idx], P.EI[c, idx] * es, beam[c, idx])
-                     for c in range(2)), tuple(P.law[c, idx] for c in range(2)))
+        out = _spec(tuple((rigid[c, idx], cd[c, idx], ct[c, idx], P.L[c, idx], P.EI[c, idx] * es, beam[c, idx])
+                          for c in range(2)), tuple(P.law[c, idx] for c in range(2)))
         if kind is not None:
             arrays[kind] = out
         return out
@@ -670,34 +675,32 @@ def _predict_steps(P: Prepared, coeffs: dict, effects: dict, latch_blend: float 
 
     d_0 = np.zeros(P.n)
     d_1 = np.zeros(P.n)
-    single = ~P.pair
-    grp = P.group_row if P.group_row is not None else np.zeros(P.n, bool)
-    single = single & ~grp
+    grp = lay["grp"]
     ratio = np.zeros(P.n)                    # latch rows: push / switching force
-    if np.any(single):
-        idx = np.flatnonzero(single)
-        latch = P.latch_id[idx] >= 0
-        load = thrust[0, idx] * P.proj[idx]
+    if lay["any_single"]:
+        idx = lay["single"]
+        latch = lay["latch"]
+        load = thrust[0, idx] * lay["proj_single"]
         # a lone actuator has no neighbour (units do not interact): neighbour_drag acts on pairs only
-        if np.any(~latch):
-            j = idx[~latch]
+        if lay["any_free"]:
+            j = lay["free"]
             law0, _, _ = rows(j, "single")
             d_0[j] = law0(load[~latch])
-        for tid in np.unique(P.latch_id[idx][latch]):
-            m = P.latch_id[idx] == tid
+        for tid, m in lay["latches"]:
             table = P.latch_tables[tid]
             ratio[idx[m]] = load[m] / (table[2] * es)
             d_0[idx[m]] = latch_travel(load[m], table, es, latch_blend)
-    if np.any(P.pair):
-        idx = np.flatnonzero(P.pair)
+    if lay["any_pair"]:
+        idx = lay["pair"]
         law0, law1, same = rows(idx, "pair")
         if c_p > 0:
             law0 = _with_drag(law0, c_p)
             law1 = law0 if same else _with_drag(law1, c_p)
-        sub_ab = np.sqrt(sub[0, idx] * sub[1, idx])
         # Bjerknes force ~ product of the two volume amplitudes: geometric mean of the per-bubble factors
         wab = w[idx] if res is None else w[idx] * np.sqrt(res[0][idx] * res[1][idx])
-        a_rad = alpha * (P.arel[idx] * wab).sum(axis=1) * sub_ab
+        a_rad = alpha * (lay["arel_pair"] * wab).sum(axis=1)
+        if sub is not None:
+            a_rad = a_rad * np.sqrt(sub[0, idx] * sub[1, idx])
         push = thrust[0, idx] + thrust[1, idx]
 
         def laws(sub):
@@ -711,10 +714,10 @@ def _predict_steps(P: Prepared, coeffs: dict, effects: dict, latch_blend: float 
         # what fixes the deflection laws of the pair rows besides (a_rad, push): equal -> the same equilibrium
         sp = spec(idx, "pair")
         law_sig = (lam, c_p, *sp[0][0], *sp[0][1])
-        da, db = yield (P, law0, law1, a_rad, push, P.d0[idx], same, law_sig, laws, sp, lam, c_p)
+        da, db = yield (P, law0, law1, a_rad, push, lay["d0_pair"], same, law_sig, laws, sp, lam, c_p)
         d_0[idx], d_1[idx] = da, db
     out = P.base + P.s0 * d_0 + P.s1 * d_1
-    if np.any(grp):
+    if lay["any_grp"]:
         from acl.fit import group as G
 
         grad = effects["stiffness_gradient"]["e_gradient"] if "stiffness_gradient" in effects else 0.0
@@ -723,7 +726,7 @@ def _predict_steps(P: Prepared, coeffs: dict, effects: dict, latch_blend: float 
             out[blk.rows] = P.base[blk.rows] + change
             ratio[blk.rows] = np.where(blk.kind == 3, rat, ratio[blk.rows])
     out = _offset_drift(P, out, effects)
-    if P.state is not None and np.any(P.state):
+    if lay["any_state"]:
         p = switch_probability(ratio, coeffs.get("spread", SPREAD))
         if P.pearson is not None:
             # fitting a 0/1 outcome y of probability p: while the optimizer searches, the row enters the weighted
@@ -745,6 +748,26 @@ def _predict_steps(P: Prepared, coeffs: dict, effects: dict, latch_blend: float 
             p = y + r / wt
         out = np.where(P.state, p, out)
     return out
+
+
+def _layout(P: Prepared) -> dict:
+    """What :func:`_predict_steps` reads of the data set alone (row sets, squared drives), made once per data set."""
+    lay = P.__dict__.get("_layout")
+    if lay is not None:
+        return lay
+    grp = P.group_row if P.group_row is not None else np.zeros(P.n, bool)
+    single = np.flatnonzero(~P.pair & ~grp)
+    latch = P.latch_id[single] >= 0
+    pair = np.flatnonzero(P.pair)
+    lay = {"v2": P.v * P.v, "vtot": P.v.sum(axis=1, keepdims=True), "beam": P.law == 0, "grp": grp,
+           "any_grp": bool(grp.any()), "any_state": bool(P.state is not None and np.any(P.state)),
+           "gamma_all": [P.gamma_side is None or bool(np.all(P.gamma_side[c])) for c in range(2)],
+           "any_single": single.size > 0, "single": single, "latch": latch, "proj_single": P.proj[single],
+           "any_free": bool(np.any(~latch)), "free": single[~latch],
+           "latches": [(tid, P.latch_id[single] == tid) for tid in np.unique(P.latch_id[single][latch])],
+           "any_pair": pair.size > 0, "pair": pair, "arel_pair": P.arel[pair], "d0_pair": P.d0[pair]}
+    P.__dict__["_layout"] = lay
+    return lay
 
 
 def _law_arrays(P: Prepared, coeffs: dict, es, cav, grad, key) -> dict:
@@ -774,11 +797,18 @@ def _law_arrays(P: Prepared, coeffs: dict, es, cav, grad, key) -> dict:
 LAW_ARRAYS = 16     # law array sets kept per data set (a fit moves E or a gradient only when they are free)
 
 
+def _spec(arrs, law) -> tuple:
+    """A law spec: per side the arrays (rigid length, c_D, c_T, L, EI, is a beam) and law codes of some rows, with
+    (side 0 fixed, side 1 fixed, both sides alike)."""
+    fixed = tuple(bool(np.all(law[c] == 2)) for c in range(2))
+    return arrs, law, (*fixed, all(np.array_equal(a, b) for a, b in zip(arrs[0], arrs[1])))
+
+
 def _make_laws(spec, lam):
-    """(law of side 0, law of side 1, same) from a law spec (:func:`_predict_steps` ``spec``): paper Eq. (1), blended
-    with the elastica by ``lam`` (large_deflection), zero for a side fixed to the substrate; one law when both sides
-    are alike.  ``lam`` a scalar or per row (rows of several predictions stacked, :func:`predict_many`)."""
-    arrs, law = spec
+    """(law of side 0, law of side 1, same) from a law spec (:func:`_spec`): paper Eq. (1), blended with the elastica
+    by ``lam`` (large_deflection), zero for a side fixed to the substrate; one law when both sides are alike.  ``lam``
+    a scalar or per row (rows of several predictions stacked, :func:`predict_many`)."""
+    arrs, law, (fixed0, fixed1, same) = spec
 
     def make(l_, cd_, ct_, L_, EI_, beam_):
         if _on(lam) and np.any(beam_):
@@ -790,10 +820,8 @@ def _make_laws(spec, lam):
     def still(load):                                     # a side fixed to the substrate does not move
         return np.zeros(np.shape(load))
 
-    fixed = [bool(np.all(law[c] == 2)) for c in range(2)]
-    first = still if fixed[0] else make(*arrs[0])
-    same = all(np.array_equal(a, b) for a, b in zip(arrs[0], arrs[1]))
-    if fixed[1] and not same:
+    first = still if fixed0 else make(*arrs[0])
+    if fixed1 and not same:
         return first, still, False
     return first, (first if same else make(*arrs[1])), same
 
@@ -893,8 +921,7 @@ def _pair_equilibrium(law0, law1, a_rad, push, d0, same=False, tol=None, info=No
     m = d0.size
     cols = np.arange(m)
     if guess is None or gather is None or np.shape(guess) != (m,):
-        s = np.linspace(0.0, 1.0, N_GRID + 1)[:, None]
-        D = d0 + s * (far - d0)                       # (N_GRID + 1, n)
+        D = d0 + _GRID[:, None] * (far - d0)                       # (N_GRID + 1, n)
         G = g(D)
         sg = np.sign(G)
         cross = sg[1:] != sg[:-1]
@@ -958,9 +985,8 @@ def _scan(rows, npts, a_rad, push, d0, far, gather, G=None):
     start = np.cumsum(npts) - npts
     r = np.repeat(rows, npts)
     j = np.arange(total) - np.repeat(start, npts)
-    s = np.linspace(0.0, 1.0, N_GRID + 1)
     d0r, farr = d0[r], far[r]
-    D = d0r + s[j] * (farr - d0r)
+    D = d0r + _GRID[j] * (farr - d0r)
     l0, l1, sm = gather(r)
     load = a_rad[r] / (D * D) - push[r]
     da = l0(load)
@@ -1016,7 +1042,7 @@ def _pair_solve(P, law0, law1, a_rad, push, d0, same, law_sig, laws):
     solve's to the solver tolerance (tests/test_fit_pair_warm.py).  Full solves outside FD_COLUMNS refresh the cache."""
     cache = getattr(P, "_eq_cache", None)
     guess = None
-    if cache is not None and cache["d0"].shape == d0.shape and np.array_equal(cache["d0"], d0) \
+    if cache is not None and (cache["d0"] is d0 or (cache["d0"].shape == d0.shape and np.array_equal(cache["d0"], d0))) \
             and cache["same"] == same:
         same_law = _same_law(law_sig, cache["law_sig"])
         if same_law and np.array_equal(a_rad, cache["a_rad"]) and np.array_equal(push, cache["push"]):
@@ -1055,15 +1081,15 @@ def _pair_solve_many(P, reqs) -> list:
     for j, q in enumerate(reqs):
         _, law0, law1, a_rad, push, d0, same, law_sig, laws, sp, lam, c_p = q
         guess = None
-        if cache is not None and cache["d0"].shape == d0.shape and np.array_equal(cache["d0"], d0) \
-                and cache["same"] == same:
+        if cache is not None and (cache["d0"] is d0 or (cache["d0"].shape == d0.shape
+                                                        and np.array_equal(cache["d0"], d0))) and cache["same"] == same:
             if _same_law(law_sig, cache["law_sig"]) and np.array_equal(a_rad, cache["a_rad"]) \
                     and np.array_equal(push, cache["push"]):
                 out[j] = (cache["da"], cache["db"])
                 continue
             if law_sig[0] or law_sig[1]:
                 guess = np.where(cache["found"], cache["k"], N_GRID)
-        form = (tuple(bool(np.all(law == 2)) for law in sp[1]), same, _on(lam), bool(c_p > 0))
+        form = (sp[2], same, _on(lam), bool(c_p > 0))
         todo.setdefault(form, []).append((j, guess))
     for form, items in todo.items():
         if len(items) == 1:
@@ -1090,8 +1116,8 @@ def _pair_solve_many(P, reqs) -> list:
         def gather(sub, arrs=arrs, law=law, lam=lam, c_p=c_p):
             """(law0, law1, same) of the stacked rows ``sub``."""
             sl = lambda x: x[sub] if np.ndim(x) else x      # noqa: E731
-            l0, l1, sm = _make_laws((tuple(tuple(a[sub] for a in side) for side in arrs),
-                                     tuple(x[sub] for x in law)), sl(lam))
+            l0, l1, sm = _make_laws(_spec(tuple(tuple(a[sub] for a in side) for side in arrs),
+                                          tuple(x[sub] for x in law)), sl(lam))
             if _on(c_p > 0):
                 l0 = _with_drag(l0, sl(c_p))
                 l1 = l0 if sm else _with_drag(l1, sl(c_p))
@@ -1127,8 +1153,7 @@ def _pair_equilibrium_many(law0, law1, a_rad, push, d0, same, nblk, guess, gathe
     per = m // nblk
     cols = np.arange(m)
     if guess is None:                                 # the whole grid for every row, as _pair_equilibrium reads it
-        s = np.linspace(0.0, 1.0, N_GRID + 1)[:, None]
-        D = d0 + s * (far - d0)
+        D = d0 + _GRID[:, None] * (far - d0)
         G = g(D)
         sg = np.sign(G)
         cross = sg[1:] != sg[:-1]
