@@ -412,13 +412,14 @@ def predict(P: Prepared, coeffs: dict, effects: dict, latch_blend: float = 0.0) 
 
 
 def predict_many(P: Prepared, items) -> list:
-    """[:func:`predict` (P, coeffs, effects) for (coeffs, effects) in ``items``], the same numbers bit for bit.  Inside
-    FD_COLUMNS (a Jacobian's columns, acl.fit.solve.fd_least_squares) the pair solves of the predictions are made at
-    once (:func:`_pair_solve_many`: fewer, larger array operations); elsewhere, and with groups or latch states (whose
-    solves keep state from one prediction to the next), one after the other."""
+    """[:func:`predict` (P, coeffs, effects) for (coeffs, effects) in ``items``], the same numbers bit for bit, the pair
+    solves of the predictions made at once (:func:`_pair_solve_many`: fewer, larger array operations; a Jacobian's
+    columns, acl.fit.solve.fd_least_squares, or independent probes).  The last full pair solve kept for reuse
+    (:func:`_pair_solve`) is read, not replaced: it changes which work a solve skips, never its numbers.  With groups
+    or latch states (whose solves keep state from one prediction to the next), or the warm start inside FD_COLUMNS,
+    one after the other."""
     items = list(items)
-    if (len(items) < 2 or not FD_COLUMNS.active or WARM or P.groups or (P.state is not None and np.any(P.state))
-            or not np.any(P.pair)):
+    if len(items) < 2 or (WARM and FD_COLUMNS.active) or P.groups or _layout(P)["any_state"] or not np.any(P.pair):
         return [predict(P, c, e) for c, e in items]
     out: list = [None] * len(items)
     keys = [_memo_key(P, c, e, 0.0) if MEMO > 0 else None for c, e in items]
@@ -931,7 +932,7 @@ def _pair_equilibrium(law0, law1, a_rad, push, d0, same=False, tol=None, info=No
         b, fb = D[k + 1, cols], G[k + 1, cols]
         G0 = G[0]
     else:
-        G = np.full((N_GRID + 1, m), np.nan) if info is not None else None
+        G = np.full((N_GRID + 1, m), np.nan) if info is not None and WARM else None
         npts = np.minimum(np.asarray(guess, int) + 2, N_GRID + 1)
         found, k, a, fa, b, fb, G0 = _scan(cols, npts, a_rad, push, d0, far, gather, G)
         more = ~found & (npts < N_GRID + 1)
@@ -954,6 +955,9 @@ def _pair_equilibrium(law0, law1, a_rad, push, d0, same=False, tol=None, info=No
         if np.all(np.abs(fc[found]) <= tol):
             break
     d = np.where(exact, d0, b)
+    if info is not None and not WARM:       # what a later solve's guess needs (the warm start's extras only with WARM)
+        info.update(k=k, found=found)
+        info = None
     if info is not None:
         # sign margin: the smallest |G| on the grid points before the bracketing cell (all of them when there is no
         # crossing), where a perturbation would have to flip a sign to make the search stop at another root
@@ -1049,7 +1053,7 @@ def _pair_solve(P, law0, law1, a_rad, push, d0, same, law_sig, laws):
             return cache["da"], cache["db"]
         if law_sig[0] or law_sig[1]:     # an iterated law (elastica blend, drag): read the grid only up to the cell
             guess = np.where(cache["found"], cache["k"], N_GRID)
-        if WARM and FD_COLUMNS.active:
+        if WARM and FD_COLUMNS.active and "slope" in cache:
             with np.errstate(all="ignore"):
                 ok = np.all(np.abs(a_rad - cache["a_rad"]) <= WARM_CHANGE * np.abs(cache["a_rad"])) and \
                     np.all(np.abs(push - cache["push"]) <= WARM_CHANGE * np.abs(cache["push"]))
@@ -1072,7 +1076,7 @@ def _same_law(sig, ref) -> bool:
 
 
 def _pair_solve_many(P, reqs) -> list:
-    """[:func:`_pair_solve` of each request] inside FD_COLUMNS (WARM off): the same numbers, with the solves of
+    """[:func:`_pair_solve` of each request] (the warm start off): the same numbers, with the solves of
     requests whose deflection laws have the same form (fixed sides, alike sides, elastica blend and drag on or off)
     made at once on their stacked rows (:func:`_pair_equilibrium_many`)."""
     cache = getattr(P, "_eq_cache", None)

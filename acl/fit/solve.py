@@ -113,15 +113,15 @@ def fit(predict, y, sigma, coefs, train=None, starts=None, max_nfev=200, robust_
         return np.where(np.isfinite(r), r, 1e6)
 
     many = getattr(predict, "many", None)
-
-    def resid_many(us):
-        """[resid(u) for u in us], the predictions made at once (``predict.many``, acl.fit.forward.Model)."""
-        outs = many([split_coefs(coefs, u * scale) for u in us])
-        return [np.where(np.isfinite(r), r, 1e6) for r in ((o[train] - y[train]) * w[train] for o in outs)]
+    if many is not None:
+        # [full(u) for u in us] and [resid(u) for u in us], the predictions made at once (acl.fit.forward.Model)
+        full.many = lambda us: many([split_coefs(coefs, u * scale) for u in us])
+        resid.many = lambda us: [np.where(np.isfinite(r), r, 1e6) for r in
+                                 ((o[train] - y[train]) * w[train] for o in full.many(us))]
 
     def least_squares(fun, x0, **kw):
-        if many is not None and fun is resid:
-            kw["fun_many"] = resid_many
+        if getattr(fun, "many", None) is not None:
+            kw["fun_many"] = fun.many
         return fd_least_squares(fun, x0, **kw)
 
     best, message, success = None, "no free parameters", True
@@ -386,12 +386,15 @@ def _probe_folds(best, resid, lo, hi, max_nfev, least_squares):
     lam, vec = np.linalg.eigh(J.T @ J)
     ok = lam > 1e-12 * max(lam.max(), 1e-300)
     probes = []
+    us = []
     for k in np.flatnonzero(ok):
         step = np.sqrt(s2 / lam[k]) * vec[:, k]
         for m in PROBE_STEPS:
-            u = np.clip(best.x + m * step, lo, hi)
-            rr = resid(u)
-            probes.append((int(np.sum(np.abs(rr) > JUMP)), float(0.5 * rr @ rr), u))
+            us.append(np.clip(best.x + m * step, lo, hi))
+    # the probes are independent evaluations: at once when the model can (resid.many, the same numbers)
+    many = getattr(resid, "many", None)
+    for u, rr in zip(us, many(us) if many is not None and us else map(resid, us)):
+        probes.append((int(np.sum(np.abs(rr) > JUMP)), float(0.5 * rr @ rr), u))
     better = sorted((q for q in probes if q[0] < big.sum()), key=lambda q: (q[0], q[1]))[:PROBE_POLISH]
     span = hi - lo
     for _, _, u in better:
@@ -416,6 +419,10 @@ def _leave_out_jumps(best, resid, train, full, y, w, lo, hi, max_nfev, least_squ
     def sub(u):
         rr = (full(u)[keep] - y[keep]) * w[keep]
         return np.where(np.isfinite(rr), rr, 1e6)
+
+    if getattr(full, "many", None) is not None:      # [sub(u) for u in us] at once (the Jacobian's columns)
+        sub.many = lambda us: [np.where(np.isfinite(rr), rr, 1e6) for rr in
+                               ((o[keep] - y[keep]) * w[keep] for o in full.many(us))]
 
     try:
         alt = least_squares(sub, best.x, bounds=(lo, hi), method="trf", x_scale="jac", diff_step=DIFF_STEP, max_nfev=max_nfev,
