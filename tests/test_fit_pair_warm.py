@@ -177,3 +177,73 @@ def test_distinct_rows_give_every_row_bit_for_bit(effects):
     np.testing.assert_array_equal(fast, plain)
     if "offset_drift" in effects:
         assert np.unique(fast).size > red[0].n                # the drift makes each timed row its own
+
+
+@pytest.mark.parametrize("effects", [{}, DRAG, {"large_deflection": {"elastica_weight": 0.3}, **DRAG},
+                                     {"large_deflection": {"elastica_weight": 0.0}},
+                                     {"offset_drift": {"offset": 1e-7, "drift": 1e-9}},
+                                     {"bubble_shrinkage": {"shrink_rate": 1e-3}}],
+                         ids=["eq1", "drag", "elastica+drag", "elastica-at-null", "offset", "shrinkage"])
+@pytest.mark.parametrize("inside", [True, False], ids=["columns", "probes"])
+def test_predictions_made_at_once_are_the_one_by_one_predictions_bit_for_bit(effects, inside):
+    """forward.predict_many (a Jacobian's columns inside FD_COLUMNS, the fold probes outside it): the pair solves of
+    several predictions stacked, each stopped where its own solve stops, against the predictions one by one; with and
+    without a kept solve to read (guided or whole grids), columns whose laws differ (an elastica weight stepped off
+    its null value: solved apart), a column that leaves the pair rows alone (an offset: the kept solve reused), and
+    repeated rows (REPEATED)."""
+    data, P = generate(PAIR_CAL, REPEATED, {}, noise=0.2e-6, seed=5)
+    rng = np.random.default_rng(4)
+    for trial in range(4):
+        co = {"gamma": P.gamma0 * rng.uniform(0.6, 1.6), "alpha": P.alpha0 * rng.uniform(0.6, 1.6)}
+        for q in (P, *(r[0] for r in P.__dict__.get("_distinct", {}).values() if r)):
+            q.__dict__.pop("_eq_cache", None)
+            q.__dict__.pop("_memo", None)
+        if trial % 2 == 0:
+            F.predict(P, co, effects)       # a kept solve at the base point
+        items = [({**co, k: co[k] * (1 + 1e-6)}, effects) for k in ("gamma", "alpha")]
+        for e, ps in effects.items():
+            for k, v in ps.items():
+                items.append((co, {**effects, e: {**ps, k: v + 1e-6 * max(1.0, abs(v))}}))
+        items.append((co, {**effects, "offset_drift": {"offset": 3e-9, "drift": 0.0}}))
+        old = F.MEMO
+        F.MEMO = 0
+        try:
+            if inside:
+                with F.FD_COLUMNS:
+                    many = F.predict_many(P, items)
+                    one = [F.predict(P, c, e) for c, e in items]
+            else:
+                many = F.predict_many(P, items)
+                one = [_plain(P, c, e) for c, e in items]
+        finally:
+            F.MEMO = old
+        for a, b in zip(many, one):
+            np.testing.assert_array_equal(a, b)
+
+
+def test_the_fit_makes_the_columns_at_once():
+    """solve.fit with a forward.Model evaluates its Jacobians through predict_many (the search's speed, issue 9)."""
+    data, P = generate(PAIR_CAL, REPEATED, {}, noise=0.2e-6, seed=5)
+    calls = []
+    orig = F.predict_many
+
+    def spy(P_, items):
+        calls.append(len(items))
+        return orig(P_, items)
+
+    coefs = [solve.Coef("gamma", "gamma", P.gamma0, P.gamma0 / 1e3, P.gamma0 * 1e3, P.gamma0),
+             solve.Coef("alpha", "alpha", P.alpha0, P.alpha0 / 1e3, P.alpha0 * 1e3, P.alpha0)]
+    F.predict_many = spy
+    try:
+        fast = solve.fit(F.Model(P), data.value, data.sigma, coefs)
+    finally:
+        F.predict_many = orig
+    slow = solve.fit(lambda a, b: _plain(P, a, b), data.value, data.sigma, coefs)
+    import inspect
+
+    from scipy.optimize._numdiff import approx_derivative
+
+    if "workers" in inspect.signature(approx_derivative).parameters:      # scipy >= 1.16
+        assert 2 in calls           # the two columns of a Jacobian
+    np.testing.assert_array_equal(fast.values, slow.values)
+    assert fast.chi2 == slow.chi2 and np.array_equal(fast.stderr, slow.stderr)
