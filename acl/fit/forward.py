@@ -884,10 +884,10 @@ def _with_drag(law, c_p, steps=3):
         for _ in range(steps):
             ad = np.abs(d)
             x = drag_load(load, ad, c_p)
-            lx = law(x)
-            r = lx - d
             h = 1e-6 * np.maximum(np.abs(x), 1e-30)
-            slope = (law(x + h) - lx) / h                           # d law / d load
+            lx, lxh = law(np.stack([x, x + h]))                     # (one call: the law is elementwise)
+            r = lx - d
+            slope = (lxh - lx) / h                                  # d law / d load
             dr = -slope * load * c_p * np.sign(d) * (1.0 - c_p * ad > 0) - 1.0   # d r / d delta
             d = np.clip(d - r / np.where(dr != 0, dr, -1.0), lo, hi)
         return d
@@ -1178,7 +1178,7 @@ def _pair_equilibrium_many(law0, law1, a_rad, push, d0, same, nblk, guess, gathe
     tol = 1e-12 * np.max(d0)
     live = np.ones(nblk, bool)
     for _ in range(N_REFINE):
-        on = np.repeat(live, per)
+        on = None if live.all() else np.repeat(live, per)
         den = fb - fa
         nz = den != 0
         mid = 0.5 * (a + b)
@@ -1186,8 +1186,12 @@ def _pair_equilibrium_many(law0, law1, a_rad, push, d0, same, nblk, guess, gathe
         c = np.where((c >= np.minimum(a, b)) & (c <= np.maximum(a, b)), c, mid)
         fc = g(c)
         flip = np.sign(fc) != np.sign(fb)
-        a, fa = np.where(on & flip, b, a), np.where(on, np.where(flip, fb, 0.5 * fa), fa)
-        b, fb = np.where(on, c, b), np.where(on, fc, fb)
+        if live.all():
+            a, fa = np.where(flip, b, a), np.where(flip, fb, 0.5 * fa)
+            b, fb = c, fc
+        else:
+            a, fa = np.where(on & flip, b, a), np.where(on, np.where(flip, fb, 0.5 * fa), fa)
+            b, fb = np.where(on, c, b), np.where(on, fc, fb)
         live &= ~np.all(((np.abs(fc) <= tol) | ~found).reshape(nblk, per), axis=1)     # as each solve stops
         if not np.any(live):
             break
