@@ -247,3 +247,16 @@ def test_the_fit_makes_the_columns_at_once():
         assert 2 in calls           # the two columns of a Jacobian
     np.testing.assert_array_equal(fast.values, slow.values)
     assert fast.chi2 == slow.chi2 and np.array_equal(fast.stderr, slow.stderr)
+
+
+def test_a_coefficient_given_per_row_is_predicted_on_every_row():
+    """A coefficient given per row (acl.fit.report.tone_gain_stderr's ``tone_weight``, one factor per row and tone)
+    cannot be predicted on the distinct rows only: predict falls back to every row (with the reduction it raised a
+    shape error, which run_fit turned into an empty tone-gain figure)."""
+    data, P = generate(PAIR_CAL, REPEATED, {}, noise=0.2e-6, seed=5)
+    co = {"gamma": P.gamma0 * 1.2, "alpha": P.alpha0 * 0.9,
+          "tone_weight": np.where((P.f == 120e3) & (P.v > 0), np.exp(2e-4), 1.0)}
+    np.testing.assert_array_equal(F.predict(P, co, DRAG), _plain(P, co, DRAG))
+    with F.FD_COLUMNS:
+        many = F.predict_many(P, [(co, DRAG), ({**co, "gamma": co["gamma"] * (1 + 1e-6)}, DRAG)])
+    np.testing.assert_array_equal(many[1], _plain(P, {**co, "gamma": co["gamma"] * (1 + 1e-6)}, DRAG))

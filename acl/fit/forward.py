@@ -397,7 +397,7 @@ def predict(P: Prepared, coeffs: dict, effects: dict, latch_blend: float = 0.0) 
         if key in memo:
             return memo[key].copy()
     with np.errstate(all="ignore"):
-        red = _distinct(P, effects) if DEDUP else None
+        red = _distinct(P, effects, coeffs) if DEDUP else None
         if red is None:
             out = _predict(P, coeffs, effects, latch_blend)
         else:       # each distinct row once (repeats, a calibration beam's rows at every gap): the same numbers
@@ -430,7 +430,7 @@ def predict_many(P: Prepared, items) -> list:
             out[i] = memo[key].copy()
         else:
             todo.append(i)
-    reds = [_distinct(P, items[i][1]) if DEDUP else None for i in todo]
+    reds = [_distinct(P, items[i][1], items[i][0]) if DEDUP else None for i in todo]
     if any(r is not reds[0] for r in reds):          # different row reductions (an effect reads the time)
         for i in todo:
             out[i] = predict(P, *items[i])
@@ -487,16 +487,19 @@ _ROW_FIELDS = {"f": 0, "v": 0, "tau": 1, "arel": 0, "pair": 0, "L": 1, "l": 1, "
 _TIMED = ("bubble_shrinkage",)    # effects whose prediction of a row depends on its time other than by offset_drift
 
 
-def _distinct(P: Prepared, effects: dict):
+def _distinct(P: Prepared, effects: dict, coeffs: dict = None):
     """(Prepared of the distinct rows, index of each row's) when the prediction can be made on the distinct rows only,
     else None.  Rows are alike when every input of :func:`_predict` is bitwise the same (time left out unless an
     effect other than offset_drift reads it: offset_drift is added after, :func:`_offset_drift`); _predict is
     elementwise in the rows, and its few reductions over rows (the pair solve's tolerance from the largest gap, its
     stop when every row converged, the reference row of a free resonance) see the same set of values, so each row's
     number is the one the full prediction gives, bit for bit (tests/test_fit_pair_warm.py).  Not with groups (their
-    blocks index rows) nor latch states (their Pearson weights are per row)."""
+    blocks index rows) nor latch states (their Pearson weights are per row), nor with a coefficient given per row
+    (acl.fit.report's ``tone_weight``)."""
     lay = _layout(P)
     if P.groups or lay["any_state"] or P.pearson is not None or lay["any_grp"]:
+        return None
+    if coeffs and any(np.ndim(v) for v in coeffs.values()):
         return None
     timed = any(e in effects for e in _TIMED)
     cache = P.__dict__.setdefault("_distinct", {})
