@@ -663,19 +663,20 @@ def _predict_steps(P: Prepared, coeffs: dict, effects: dict, latch_blend: float 
     arrays = _law_arrays(P, coeffs, es, cav, grad, law_key)
     rigid, cd, ct = arrays["rigid"], arrays["cd"], arrays["ct"]
 
-    def spec(idx, kind=None):
-        """The deflection law arrays of rows ``idx`` (``kind``: a fixed row set, its arrays kept with the law's)."""
+    def spec(idx, kind=None, parent=None):
+        """The deflection law arrays of rows ``idx`` (``kind``: a fixed row set, its arrays kept with the law's;
+        ``parent``: the flags of a spec of rows including these, :func:`_spec`)."""
         if kind is not None and kind in arrays:
             return arrays[kind]
         out = _spec(tuple((rigid[c, idx], cd[c, idx], ct[c, idx], P.L[c, idx], P.EI[c, idx] * es, beam[c, idx])
-                          for c in range(2)), tuple(P.law[c, idx] for c in range(2)))
+                          for c in range(2)), tuple(P.law[c, idx] for c in range(2)), parent)
         if kind is not None:
             arrays[kind] = out
         return out
 
-    def rows(idx, kind=None):
+    def rows(idx, kind=None, parent=None):
         """Deflection laws of sides 0 and 1 restricted to rows ``idx`` (one law when both sides are alike)."""
-        return _make_laws(spec(idx, kind), lam)
+        return _make_laws(spec(idx, kind, parent), lam)
 
     d_0 = np.zeros(P.n)
     d_1 = np.zeros(P.n)
@@ -709,7 +710,7 @@ def _predict_steps(P: Prepared, coeffs: dict, effects: dict, latch_blend: float 
 
         def laws(sub):
             """(law0, law1, same) of the pair rows ``idx[sub]`` (the fallback of the warm start)."""
-            l0, l1, sm = rows(idx[sub])
+            l0, l1, sm = rows(idx[sub], parent=spec(idx, "pair")[2])
             if c_p > 0:
                 l0 = _with_drag(l0, c_p)
                 l1 = l0 if sm else _with_drag(l1, c_p)
@@ -801,11 +802,13 @@ def _law_arrays(P: Prepared, coeffs: dict, es, cav, grad, key) -> dict:
 LAW_ARRAYS = 16     # law array sets kept per data set (a fit moves E or a gradient only when they are free)
 
 
-def _spec(arrs, law) -> tuple:
+def _spec(arrs, law, parent=None) -> tuple:
     """A law spec: per side the arrays (rigid length, c_D, c_T, L, EI, is a beam) and law codes of some rows, with
-    (side 0 fixed, side 1 fixed, both sides alike)."""
-    fixed = tuple(bool(np.all(law[c] == 2)) for c in range(2))
-    return arrs, law, (*fixed, all(np.array_equal(a, b) for a, b in zip(arrs[0], arrs[1])))
+    (side 0 fixed, side 1 fixed, both sides alike).  ``parent``: the flags of a spec whose rows include these (a
+    side fixed, or sides alike, on all of them is so on any of them: not checked again)."""
+    pf = parent or (False, False, False)
+    fixed = tuple(pf[c] or bool(np.all(law[c] == 2)) for c in range(2))
+    return arrs, law, (*fixed, pf[2] or all(np.array_equal(a, b) for a, b in zip(arrs[0], arrs[1])))
 
 
 def _make_laws(spec, lam):
@@ -1120,11 +1123,11 @@ def _pair_solve_many(P, reqs) -> list:
         lam = per_row([q[10] for q in qs])
         c_p = per_row([q[11] for q in qs])
 
-        def gather(sub, arrs=arrs, law=law, lam=lam, c_p=c_p):
+        def gather(sub, arrs=arrs, law=law, lam=lam, c_p=c_p, parent=_spec(arrs, law)[2]):
             """(law0, law1, same) of the stacked rows ``sub``."""
             sl = lambda x: x[sub] if np.ndim(x) else x      # noqa: E731
             l0, l1, sm = _make_laws(_spec(tuple(tuple(a[sub] for a in side) for side in arrs),
-                                          tuple(x[sub] for x in law)), sl(lam))
+                                          tuple(x[sub] for x in law), parent), sl(lam))
             if _on(c_p > 0):
                 l0 = _with_drag(l0, sl(c_p))
                 l1 = l0 if sm else _with_drag(l1, sl(c_p))
