@@ -1,6 +1,6 @@
 """The shortcuts of the fit's forward model against the plain computation (benchmarks/fit.py case 3, issue 9).
 
-The fast paths (acl.fit.forward: a pair solve reused when its inputs are bitwise the same, the bracket grid read
+The fast paths (acl.fit.forward: each distinct row predicted once, a pair solve reused when its inputs are bitwise the same, the bracket grid read
 only up to each row's last cell, predictions memoized; acl.fit.solve.fd_least_squares: the Jacobian's columns made
 inside FD_COLUMNS) must give the plain solve's numbers bit for bit.  The opt-in warm start (forward.WARM) must give
 finite-difference columns equal to the plain ones to the solver tolerance.  A small pair + calibration beam data
@@ -33,14 +33,15 @@ def pair_cal():
 
 
 def _plain(P, coeffs, effects):
-    """The forward model with every shortcut off: no memo, no reused or guided pair solve."""
-    old = F.MEMO
-    F.MEMO = 0
+    """The forward model with every shortcut off: no memo, every row solved (no distinct-row reduction), no reused or
+    guided pair solve."""
+    old = F.MEMO, F.DEDUP
+    F.MEMO, F.DEDUP = 0, False
     try:
         P.__dict__.pop("_eq_cache", None)
         return F.predict(P, coeffs, effects)
     finally:
-        F.MEMO = old
+        F.MEMO, F.DEDUP = old
 
 
 def _columns(P, coeffs, effects, steps, warm=False):
@@ -150,3 +151,112 @@ def test_guided_and_reused_solves_follow_large_steps_bit_for_bit(pair_cal, effec
         F._scan = orig
     if effects:            # the iterated law reads the grid from the guess, and past it where the crossing moved on
         assert seen_more and any(seen_more) and not all(seen_more)
+
+
+REPEATED = [Experiment(frequencies=(120e3, 130e3), voltages=tuple(np.linspace(0, 4, 5)), observables=("distance",),
+                       sets={"gap": ["40 um", "60 um"]}, repeats=3, label="pair"),
+            Experiment(frequencies=(120e3, 130e3), voltages=tuple(np.linspace(0, 11, 4)), observables=("cal",),
+                       repeats=4, label="calibration")]
+
+
+@pytest.mark.parametrize("effects", [
+    {}, DRAG, {"large_deflection": {"elastica_weight": 0.4}, **DRAG},
+    {"drive_saturation": {"inv_vsat2": 0.05}, "offset_drift": {"offset": 2e-7, "drift": -3e-9}},
+    {"bubble_shrinkage": {"shrink_rate": 2e-3}}, {"stiffness_scale": {"e_scale": 1.2}},
+    {"transducer_resonance": {"inv_f_ratio": 0.5, "gain_q": 3.0}}], ids=lambda e: "+".join(e) or "base")
+def test_distinct_rows_give_every_row_bit_for_bit(effects):
+    """Repeated rows (the same drive, gap and design; times apart) are predicted once (forward._distinct): each row's
+    number is the full prediction's, also with an offset drift (added per row after) and bubble shrinkage (which reads
+    the time: every timed row is then its own)."""
+    data, P = generate(PAIR_CAL, REPEATED, {}, noise=0.2e-6, seed=5)
+    red = F._distinct(P, {})
+    assert red is not None and red[0].n < P.n / 2            # the repeats are found (the times are ignored)
+    co = {"gamma": P.gamma0 * 1.2, "alpha": P.alpha0 * 0.9}
+    fast = F.predict(P, co, effects)
+    plain = _plain(P, co, effects)
+    np.testing.assert_array_equal(fast, plain)
+    if "offset_drift" in effects:
+        assert np.unique(fast).size > red[0].n                # the drift makes each timed row its own
+
+
+@pytest.mark.parametrize("effects", [{}, DRAG, {"large_deflection": {"elastica_weight": 0.3}, **DRAG},
+                                     {"large_deflection": {"elastica_weight": 0.0}},
+                                     {"offset_drift": {"offset": 1e-7, "drift": 1e-9}},
+                                     {"bubble_shrinkage": {"shrink_rate": 1e-3}}],
+                         ids=["eq1", "drag", "elastica+drag", "elastica-at-null", "offset", "shrinkage"])
+@pytest.mark.parametrize("inside", [True, False], ids=["columns", "probes"])
+def test_predictions_made_at_once_are_the_one_by_one_predictions_bit_for_bit(effects, inside):
+    """forward.predict_many (a Jacobian's columns inside FD_COLUMNS, the fold probes outside it): the pair solves of
+    several predictions stacked, each stopped where its own solve stops, against the predictions one by one; with and
+    without a kept solve to read (guided or whole grids), columns whose laws differ (an elastica weight stepped off
+    its null value: solved apart), a column that leaves the pair rows alone (an offset: the kept solve reused), and
+    repeated rows (REPEATED)."""
+    data, P = generate(PAIR_CAL, REPEATED, {}, noise=0.2e-6, seed=5)
+    rng = np.random.default_rng(4)
+    for trial in range(4):
+        co = {"gamma": P.gamma0 * rng.uniform(0.6, 1.6), "alpha": P.alpha0 * rng.uniform(0.6, 1.6)}
+        for q in (P, *(r[0] for r in P.__dict__.get("_distinct", {}).values() if r)):
+            q.__dict__.pop("_eq_cache", None)
+            q.__dict__.pop("_memo", None)
+        if trial % 2 == 0:
+            F.predict(P, co, effects)       # a kept solve at the base point
+        items = [({**co, k: co[k] * (1 + 1e-6)}, effects) for k in ("gamma", "alpha")]
+        for e, ps in effects.items():
+            for k, v in ps.items():
+                items.append((co, {**effects, e: {**ps, k: v + 1e-6 * max(1.0, abs(v))}}))
+        items.append((co, {**effects, "offset_drift": {"offset": 3e-9, "drift": 0.0}}))
+        old = F.MEMO
+        F.MEMO = 0
+        try:
+            if inside:
+                with F.FD_COLUMNS:
+                    many = F.predict_many(P, items)
+                    one = [F.predict(P, c, e) for c, e in items]
+            else:
+                many = F.predict_many(P, items)
+                one = [_plain(P, c, e) for c, e in items]
+        finally:
+            F.MEMO = old
+        for a, b in zip(many, one):
+            np.testing.assert_array_equal(a, b)
+
+
+def test_the_fit_makes_the_columns_at_once():
+    """solve.fit with a forward.Model evaluates its Jacobians through predict_many (the search's speed, issue 9)."""
+    data, P = generate(PAIR_CAL, REPEATED, {}, noise=0.2e-6, seed=5)
+    calls = []
+    orig = F.predict_many
+
+    def spy(P_, items):
+        calls.append(len(items))
+        return orig(P_, items)
+
+    coefs = [solve.Coef("gamma", "gamma", P.gamma0, P.gamma0 / 1e3, P.gamma0 * 1e3, P.gamma0),
+             solve.Coef("alpha", "alpha", P.alpha0, P.alpha0 / 1e3, P.alpha0 * 1e3, P.alpha0)]
+    F.predict_many = spy
+    try:
+        fast = solve.fit(F.Model(P), data.value, data.sigma, coefs)
+    finally:
+        F.predict_many = orig
+    slow = solve.fit(lambda a, b: _plain(P, a, b), data.value, data.sigma, coefs)
+    import inspect
+
+    from scipy.optimize._numdiff import approx_derivative
+
+    if "workers" in inspect.signature(approx_derivative).parameters:      # scipy >= 1.16
+        assert 2 in calls           # the two columns of a Jacobian
+    np.testing.assert_array_equal(fast.values, slow.values)
+    assert fast.chi2 == slow.chi2 and np.array_equal(fast.stderr, slow.stderr)
+
+
+def test_a_coefficient_given_per_row_is_predicted_on_every_row():
+    """A coefficient given per row (acl.fit.report.tone_gain_stderr's ``tone_weight``, one factor per row and tone)
+    cannot be predicted on the distinct rows only: predict falls back to every row (with the reduction it raised a
+    shape error, which run_fit turned into an empty tone-gain figure)."""
+    data, P = generate(PAIR_CAL, REPEATED, {}, noise=0.2e-6, seed=5)
+    co = {"gamma": P.gamma0 * 1.2, "alpha": P.alpha0 * 0.9,
+          "tone_weight": np.where((P.f == 120e3) & (P.v > 0), np.exp(2e-4), 1.0)}
+    np.testing.assert_array_equal(F.predict(P, co, DRAG), _plain(P, co, DRAG))
+    with F.FD_COLUMNS:
+        many = F.predict_many(P, [(co, DRAG), ({**co, "gamma": co["gamma"] * (1 + 1e-6)}, DRAG)])
+    np.testing.assert_array_equal(many[1], _plain(P, {**co, "gamma": co["gamma"] * (1 + 1e-6)}, DRAG))

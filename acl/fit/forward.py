@@ -24,6 +24,7 @@ from acl.fit import beam as B
 
 N_GRID = 32
 N_REFINE = 12
+_GRID = np.linspace(0.0, 1.0, N_GRID + 1)     # the bracket grid from the rest gap (0) to the far end (1)
 
 
 @dataclass
@@ -396,7 +397,13 @@ def predict(P: Prepared, coeffs: dict, effects: dict, latch_blend: float = 0.0) 
         if key in memo:
             return memo[key].copy()
     with np.errstate(all="ignore"):
-        out = _predict(P, coeffs, effects, latch_blend)
+        red = _distinct(P, effects, coeffs) if DEDUP else None
+        if red is None:
+            out = _predict(P, coeffs, effects, latch_blend)
+        else:       # each distinct row once (repeats, a calibration beam's rows at every gap): the same numbers
+            Pu, inv = red
+            out = _predict(Pu, coeffs, {k: e for k, e in effects.items() if k != "offset_drift"}, latch_blend)[inv]
+            out = _offset_drift(P, out, effects)
     if key is not None:
         if len(memo) >= MEMO:
             del memo[next(iter(memo))]                 # the oldest
@@ -404,13 +411,148 @@ def predict(P: Prepared, coeffs: dict, effects: dict, latch_blend: float = 0.0) 
     return out
 
 
+def predict_many(P: Prepared, items) -> list:
+    """[:func:`predict` (P, coeffs, effects) for (coeffs, effects) in ``items``], the same numbers bit for bit, the pair
+    solves of the predictions made at once (:func:`_pair_solve_many`: fewer, larger array operations; a Jacobian's
+    columns, acl.fit.solve.fd_least_squares, or independent probes).  The last full pair solve kept for reuse
+    (:func:`_pair_solve`) is read, not replaced: it changes which work a solve skips, never its numbers.  With groups
+    or latch states (whose solves keep state from one prediction to the next), or the warm start inside FD_COLUMNS,
+    one after the other."""
+    items = list(items)
+    if len(items) < 2 or (WARM and FD_COLUMNS.active) or P.groups or _layout(P)["any_state"] or not np.any(P.pair):
+        return [predict(P, c, e) for c, e in items]
+    out: list = [None] * len(items)
+    keys = [_memo_key(P, c, e, 0.0) if MEMO > 0 else None for c, e in items]
+    memo = P.__dict__.setdefault("_memo", {})
+    todo = []
+    for i, key in enumerate(keys):
+        if key is not None and key in memo:
+            out[i] = memo[key].copy()
+        else:
+            todo.append(i)
+    reds = [_distinct(P, items[i][1], items[i][0]) if DEDUP else None for i in todo]
+    if any(r is not reds[0] for r in reds):          # different row reductions (an effect reads the time)
+        for i in todo:
+            out[i] = predict(P, *items[i])
+        return out
+    red = reds[0] if reds else None
+    Pu = P if red is None else red[0]
+    with np.errstate(all="ignore"):
+        steps = [_predict_steps(Pu, items[i][0], items[i][1] if red is None else
+                                {k: e for k, e in items[i][1].items() if k != "offset_drift"}) for i in todo]
+        reqs, done = [], {}
+        for t, st in enumerate(steps):
+            try:
+                reqs.append((t, next(st)))
+            except StopIteration as stop:
+                done[t] = stop.value
+        for (t, _), ab in zip(reqs, _pair_solve_many(Pu, [q for _, q in reqs])):
+            try:
+                steps[t].send(ab)
+                raise RuntimeError("a prediction makes one pair solve")
+            except StopIteration as stop:
+                done[t] = stop.value
+    for t, i in enumerate(todo):
+        res = done[t] if red is None else _offset_drift(P, done[t][red[1]], items[i][1])
+        if keys[i] is not None:
+            if len(memo) >= MEMO:
+                del memo[next(iter(memo))]
+            memo[keys[i]] = res.copy()
+        out[i] = res
+    return out
+
+
+class Model:
+    """The forward model of a prepared data set as the fit calls it: ``model(coeffs, effects)`` is :func:`predict`,
+    ``model.many([(coeffs, effects), ...])`` :func:`predict_many` (a Jacobian's columns at once)."""
+
+    def __init__(self, P: Prepared):
+        self.P = P
+
+    def __call__(self, coeffs: dict, effects: dict) -> np.ndarray:
+        return predict(self.P, coeffs, effects)
+
+    def many(self, items) -> list:
+        return predict_many(self.P, items)
+
+
 MEMO = 64      # predictions kept per data set (an optimizer revisits points: starts, polishes, the final evaluation)
+DEDUP = True   # predict each distinct row once (:func:`_distinct`)
+
+# the row-aligned fields of Prepared that _predict reads, with their row axis
+_ROW_FIELDS = {"f": 0, "v": 0, "tau": 1, "arel": 0, "pair": 0, "L": 1, "l": 1, "EI": 1, "cd": 1, "ct": 1, "height": 1,
+               "proj": 0, "d0": 0, "base": 0, "s0": 0, "s1": 0, "fn": 1, "q": 1, "t": 0, "law": 1, "volume": 1,
+               "radius": 1, "medium": 1, "latch_id": 0, "ref_side": 1, "side_table": 1, "gamma_side": 1,
+               "group_row": 0, "state": 0, "caps": 1, "units": 0, "experiment": 0}
+_TIMED = ("bubble_shrinkage",)    # effects whose prediction of a row depends on its time other than by offset_drift
+
+
+def _distinct(P: Prepared, effects: dict, coeffs: dict = None):
+    """(Prepared of the distinct rows, index of each row's) when the prediction can be made on the distinct rows only,
+    else None.  Rows are alike when every input of :func:`_predict` is bitwise the same (time left out unless an
+    effect other than offset_drift reads it: offset_drift is added after, :func:`_offset_drift`); _predict is
+    elementwise in the rows, and its few reductions over rows (the pair solve's tolerance from the largest gap, its
+    stop when every row converged, the reference row of a free resonance) see the same set of values, so each row's
+    number is the one the full prediction gives, bit for bit (tests/test_fit_pair_warm.py).  Not with groups (their
+    blocks index rows) nor latch states (their Pearson weights are per row), nor with a coefficient given per row
+    (acl.fit.report's ``tone_weight``)."""
+    lay = _layout(P)
+    if P.groups or lay["any_state"] or P.pearson is not None or lay["any_grp"]:
+        return None
+    if coeffs and any(np.ndim(v) for v in coeffs.values()):
+        return None
+    timed = any(e in effects for e in _TIMED)
+    cache = P.__dict__.setdefault("_distinct", {})
+    if timed not in cache:
+        cache[timed] = _reduce_rows(P, with_time=timed)
+    return cache[timed]
+
+
+def _reduce_rows(P: Prepared, with_time: bool):
+    """(Prepared of P's distinct rows in order of first occurrence, inverse index), or None when every row differs."""
+    import dataclasses
+
+    cols = []
+    for name, ax in _ROW_FIELDS.items():
+        a = getattr(P, name)
+        if a is None or (name == "t" and not with_time) or name in ("units", "experiment"):
+            continue
+        a = np.moveaxis(np.asarray(a), ax, 0).reshape(P.n, -1)
+        if a.dtype == object:
+            _, codes = np.unique(a.astype(str), return_inverse=True)
+            a = codes.reshape(P.n, -1)
+        cols.append(np.ascontiguousarray(a).astype(np.float64).view(np.uint64) if a.dtype.kind == "f"
+                    else a.astype(np.int64).view(np.uint64))
+    rows = np.ascontiguousarray(np.hstack(cols))
+    key = rows.view(np.dtype((np.void, rows.dtype.itemsize * rows.shape[1]))).ravel()
+    _, first, inv = np.unique(key, return_index=True, return_inverse=True)
+    if first.size == P.n:
+        return None
+    order = np.argsort(first)                     # distinct rows in order of first occurrence
+    rank = np.empty_like(order)
+    rank[order] = np.arange(order.size)
+    keep = first[order]
+    sub = {}
+    for name, ax in _ROW_FIELDS.items():
+        a = getattr(P, name)
+        if a is not None:
+            sub[name] = np.take(a, keep, axis=ax)
+    Pu = dataclasses.replace(P, n=int(keep.size), **sub)
+    return Pu, rank[inv.ravel()]
+
+
+def _offset_drift(P: Prepared, out, effects):
+    """An offset and a linear drift in time added to every row (effect offset_drift)."""
+    if "offset_drift" in effects:
+        e = effects["offset_drift"]
+        out = out + e["offset"] + e["drift"] * P.t
+    return out
 
 
 def _memo_key(P, coeffs, effects, latch_blend):
     """Key of a prediction that depends on its arguments alone (floats only; not with latch states, whose rows depend
     on the fit's reweighting state), else None."""
-    if P.state is not None and np.any(P.state):
+    if _layout(P)["any_state"]:
         return None
     try:
         return (tuple(sorted((k, float(v).hex()) for k, v in coeffs.items())),
@@ -465,117 +607,122 @@ def _resonance_factors(P: Prepared, coeffs: dict, effects: dict):
 
 
 def _predict(P: Prepared, coeffs: dict, effects: dict, latch_blend: float = 0.0) -> np.ndarray:
+    steps = _predict_steps(P, coeffs, effects, latch_blend)
+    try:
+        req = next(steps)
+        while True:
+            req = steps.send(_pair_solve(*req[:9]))
+    except StopIteration as stop:
+        return stop.value
+
+
+def _predict_steps(P: Prepared, coeffs: dict, effects: dict, latch_blend: float = 0.0):
+    """The prediction as a generator: it yields its pair equilibrium request (the arguments of :func:`_pair_solve`,
+    then the pair rows' law spec, lam and c_p) once, receives (delta_a, delta_b), and returns the prediction: so that
+    the pair solves of several predictions can be made at once (:func:`predict_many`)."""
+    lay = _layout(P)
     gamma = coeffs.get("gamma", P.gamma0)
     alpha = coeffs.get("alpha", P.alpha0)
     e_scale = coeffs.get("e_scale", 1.0)
     gain = coeffs.get("gain", 1.0)
-    v2 = P.v * P.v
-    g2 = np.full(P.v.shape, gain * gain)
+    v2 = lay["v2"]
+    g2 = gain * gain            # (a scalar factor: the same products as the full array of it)
     if "transducer_gain" in effects:
         g2 = g2 * gain_tilt(P.f, P.f_ref, effects["transducer_gain"]["gain_slope"]) ** 2
     if "transducer_resonance" in effects:
         e = effects["transducer_resonance"]
         g2 = g2 * transducer_resonance(P.f, P.f_ref, e["inv_f_ratio"], e["gain_q"]) ** 2
     if "drive_saturation" in effects:
-        vtot = P.v.sum(axis=1, keepdims=True)
-        g2 = g2 * saturation(vtot, effects["drive_saturation"]["inv_vsat2"]) ** 2
+        g2 = g2 * saturation(lay["vtot"], effects["drive_saturation"]["inv_vsat2"]) ** 2
     w = v2 * g2
     if "tone_weight" in coeffs:     # (n, T) factor on each tone's squared pressure (acl.fit.report.tone_gain_stderr)
         w = w * coeffs["tone_weight"]
+    if np.ndim(w) < 2:
+        w = np.broadcast_to(w, P.v.shape)
     thrust = np.empty((2, P.n))
-    sub = np.ones((2, P.n))
+    sub = None                  # no substrate factor (a factor 1: the same numbers)
     if "substrate_proximity" in effects:
         sub = substrate_factor(P.height, effects["substrate_proximity"]["h_substrate"])
     res = _resonance_factors(P, coeffs, effects)
     for c in range(2):
         wc = w if res is None else w * res[c]
         # gamma scales the capsules declaring it (P.gamma_caps); the others keep the design's thrust
-        g = gamma if P.gamma_side is None else np.where(P.gamma_side[c], gamma, P.gamma0)
-        thrust[c] = g * (P.tau[c] * wc).sum(axis=1) * sub[c]
+        g = gamma if lay["gamma_all"][c] else np.where(P.gamma_side[c], gamma, P.gamma0)
+        thrust[c] = g * (P.tau[c] * wc).sum(axis=1)
+        if sub is not None:
+            thrust[c] = thrust[c] * sub[c]
     es = e_scale * (effects["stiffness_scale"]["e_scale"] if "stiffness_scale" in effects else 1.0)
-    beam = P.beam
-    rigid = P.l
+    beam = lay["beam"]
     cav = [k for k in coeffs if k.startswith("cavity@")]
-    for k in cav:       # a free cavity size also lengthens the actuator (its rigid half-length on the beam)
-        spec = P.cavity[k.partition("@")[2]]
-        for cap, dl in spec.get("dl", {}).items():
-            rigid = np.where(P.caps == cap, rigid + dl * (coeffs[k] - spec["value"]), rigid)
-    if "stiffness_gradient" in effects or cav:
-        grad = effects["stiffness_gradient"]["e_gradient"] if "stiffness_gradient" in effects else 0.0
-        cd, ct = B.stiffness_integrals(P.L, rigid, P.EI * es, grad)
-        cd, ct = np.where(beam, cd, P.cd), np.where(beam, ct, P.ct)
-    else:
-        cd, ct = np.where(beam, P.cd / es, P.cd), np.where(beam, P.ct / es, P.ct)
+    grad = effects["stiffness_gradient"]["e_gradient"] if "stiffness_gradient" in effects else None
     lam = effects["large_deflection"]["elastica_weight"] if "large_deflection" in effects else 0.0
     c_p = effects["neighbour_drag"]["inv_plateau"] if "neighbour_drag" in effects else 0.0
+    # the per-row law arrays (stiffness integrals, rigid lengths) depend on these alone: kept per data set
+    law_key = (float(es).hex(), None if grad is None else float(grad).hex(),
+               tuple((k, float(coeffs[k]).hex()) for k in cav))
+    arrays = _law_arrays(P, coeffs, es, cav, grad, law_key)
+    rigid, cd, ct = arrays["rigid"], arrays["cd"], arrays["ct"]
 
-    def rows(idx):
+    def spec(idx, kind=None, parent=None):
+        """The deflection law arrays of rows ``idx`` (``kind``: a fixed row set, its arrays kept with the law's;
+        ``parent``: the flags of a spec of rows including these, :func:`_spec`)."""
+        if kind is not None and kind in arrays:
+            return arrays[kind]
+        out = _spec(tuple((rigid[c, idx], cd[c, idx], ct[c, idx], P.L[c, idx], P.EI[c, idx] * es, beam[c, idx])
+                          for c in range(2)), tuple(P.law[c, idx] for c in range(2)), parent)
+        if kind is not None:
+            arrays[kind] = out
+        return out
+
+    def rows(idx, kind=None, parent=None):
         """Deflection laws of sides 0 and 1 restricted to rows ``idx`` (one law when both sides are alike)."""
-        arrs = [(rigid[c, idx], cd[c, idx], ct[c, idx], P.L[c, idx], P.EI[c, idx] * es, beam[c, idx]) for c in range(2)]
-
-        def make(l_, cd_, ct_, L_, EI_, beam_):
-            if lam and np.any(beam_):
-                wgt = np.where(beam_, lam, 0.0)
-                return lambda load: elastica_blend(B.eq1_deflection(load, l_, cd_, ct_),
-                                                   np.where(beam_, B.elastica_deflection(load, L_, l_, EI_), 0.0), wgt)
-            return lambda load: B.eq1_deflection(load, l_, cd_, ct_)
-
-        def still(load):                                     # a side fixed to the substrate does not move
-            return np.zeros(np.shape(load))
-
-        fixed = [bool(np.all(P.law[c, idx] == 2)) for c in range(2)]
-        first = still if fixed[0] else make(*arrs[0])
-        same = all(np.array_equal(a, b) for a, b in zip(arrs[0], arrs[1]))
-        if fixed[1] and not same:
-            return first, still, False
-        return first, (first if same else make(*arrs[1])), same
+        return _make_laws(spec(idx, kind, parent), lam)
 
     d_0 = np.zeros(P.n)
     d_1 = np.zeros(P.n)
-    single = ~P.pair
-    grp = P.group_row if P.group_row is not None else np.zeros(P.n, bool)
-    single = single & ~grp
+    grp = lay["grp"]
     ratio = np.zeros(P.n)                    # latch rows: push / switching force
-    if np.any(single):
-        idx = np.flatnonzero(single)
-        latch = P.latch_id[idx] >= 0
-        load = thrust[0, idx] * P.proj[idx]
+    if lay["any_single"]:
+        idx = lay["single"]
+        latch = lay["latch"]
+        load = thrust[0, idx] * lay["proj_single"]
         # a lone actuator has no neighbour (units do not interact): neighbour_drag acts on pairs only
-        if np.any(~latch):
-            j = idx[~latch]
-            law0, _, _ = rows(j)
+        if lay["any_free"]:
+            j = lay["free"]
+            law0, _, _ = rows(j, "single")
             d_0[j] = law0(load[~latch])
-        for tid in np.unique(P.latch_id[idx][latch]):
-            m = P.latch_id[idx] == tid
+        for tid, m in lay["latches"]:
             table = P.latch_tables[tid]
             ratio[idx[m]] = load[m] / (table[2] * es)
             d_0[idx[m]] = latch_travel(load[m], table, es, latch_blend)
-    if np.any(P.pair):
-        idx = np.flatnonzero(P.pair)
-        law0, law1, same = rows(idx)
+    if lay["any_pair"]:
+        idx = lay["pair"]
+        law0, law1, same = rows(idx, "pair")
         if c_p > 0:
             law0 = _with_drag(law0, c_p)
             law1 = law0 if same else _with_drag(law1, c_p)
-        sub_ab = np.sqrt(sub[0, idx] * sub[1, idx])
         # Bjerknes force ~ product of the two volume amplitudes: geometric mean of the per-bubble factors
         wab = w[idx] if res is None else w[idx] * np.sqrt(res[0][idx] * res[1][idx])
-        a_rad = alpha * (P.arel[idx] * wab).sum(axis=1) * sub_ab
+        a_rad = alpha * (lay["arel_pair"] * wab).sum(axis=1)
+        if sub is not None:
+            a_rad = a_rad * np.sqrt(sub[0, idx] * sub[1, idx])
         push = thrust[0, idx] + thrust[1, idx]
 
         def laws(sub):
             """(law0, law1, same) of the pair rows ``idx[sub]`` (the fallback of the warm start)."""
-            l0, l1, sm = rows(idx[sub])
+            l0, l1, sm = rows(idx[sub], parent=spec(idx, "pair")[2])
             if c_p > 0:
                 l0 = _with_drag(l0, c_p)
                 l1 = l0 if sm else _with_drag(l1, c_p)
             return l0, l1, sm
 
         # what fixes the deflection laws of the pair rows besides (a_rad, push): equal -> the same equilibrium
-        law_sig = (lam, c_p, rigid[:, idx], cd[:, idx], ct[:, idx], P.EI[:, idx] * es)
-        da, db = _pair_solve(P, law0, law1, a_rad, push, P.d0[idx], same, law_sig, laws)
+        sp = spec(idx, "pair")
+        law_sig = (lam, c_p, *sp[0][0], *sp[0][1])
+        da, db = yield (P, law0, law1, a_rad, push, lay["d0_pair"], same, law_sig, laws, sp, lam, c_p)
         d_0[idx], d_1[idx] = da, db
     out = P.base + P.s0 * d_0 + P.s1 * d_1
-    if np.any(grp):
+    if lay["any_grp"]:
         from acl.fit import group as G
 
         grad = effects["stiffness_gradient"]["e_gradient"] if "stiffness_gradient" in effects else 0.0
@@ -583,10 +730,8 @@ def _predict(P: Prepared, coeffs: dict, effects: dict, latch_blend: float = 0.0)
             change, _, rat = G.predict(P, blk, coeffs, effects, w[blk.rows], gamma, alpha, es, lam, grad, c_p)
             out[blk.rows] = P.base[blk.rows] + change
             ratio[blk.rows] = np.where(blk.kind == 3, rat, ratio[blk.rows])
-    if "offset_drift" in effects:
-        e = effects["offset_drift"]
-        out = out + e["offset"] + e["drift"] * P.t
-    if P.state is not None and np.any(P.state):
+    out = _offset_drift(P, out, effects)
+    if lay["any_state"]:
         p = switch_probability(ratio, coeffs.get("spread", SPREAD))
         if P.pearson is not None:
             # fitting a 0/1 outcome y of probability p: while the optimizer searches, the row enters the weighted
@@ -608,6 +753,89 @@ def _predict(P: Prepared, coeffs: dict, effects: dict, latch_blend: float = 0.0)
             p = y + r / wt
         out = np.where(P.state, p, out)
     return out
+
+
+def _layout(P: Prepared) -> dict:
+    """What :func:`_predict_steps` reads of the data set alone (row sets, squared drives), made once per data set."""
+    lay = P.__dict__.get("_layout")
+    if lay is not None:
+        return lay
+    grp = P.group_row if P.group_row is not None else np.zeros(P.n, bool)
+    single = np.flatnonzero(~P.pair & ~grp)
+    latch = P.latch_id[single] >= 0
+    pair = np.flatnonzero(P.pair)
+    lay = {"v2": P.v * P.v, "vtot": P.v.sum(axis=1, keepdims=True), "beam": P.law == 0, "grp": grp,
+           "any_grp": bool(grp.any()), "any_state": bool(P.state is not None and np.any(P.state)),
+           "gamma_all": [P.gamma_side is None or bool(np.all(P.gamma_side[c])) for c in range(2)],
+           "any_single": single.size > 0, "single": single, "latch": latch, "proj_single": P.proj[single],
+           "any_free": bool(np.any(~latch)), "free": single[~latch],
+           "latches": [(tid, P.latch_id[single] == tid) for tid in np.unique(P.latch_id[single][latch])],
+           "any_pair": pair.size > 0, "pair": pair, "arel_pair": P.arel[pair], "d0_pair": P.d0[pair]}
+    P.__dict__["_layout"] = lay
+    return lay
+
+
+def _law_arrays(P: Prepared, coeffs: dict, es, cav, grad, key) -> dict:
+    """{"rigid", "cd", "ct"} (2, n) of the deflection laws at E scale ``es``, gradient ``grad`` and the free cavity
+    sizes ``cav`` (their values in ``coeffs``), kept per data set by ``key``; the row sets' law arrays are added to it
+    (:func:`_predict_steps` ``spec``)."""
+    store = P.__dict__.setdefault("_law_arrays", {})
+    if key in store:
+        return store[key]
+    beam = P.beam
+    rigid = P.l
+    for k in cav:       # a free cavity size also lengthens the actuator (its rigid half-length on the beam)
+        spec = P.cavity[k.partition("@")[2]]
+        for cap, dl in spec.get("dl", {}).items():
+            rigid = np.where(P.caps == cap, rigid + dl * (coeffs[k] - spec["value"]), rigid)
+    if grad is not None or cav:
+        cd, ct = B.stiffness_integrals(P.L, rigid, P.EI * es, 0.0 if grad is None else grad)
+        cd, ct = np.where(beam, cd, P.cd), np.where(beam, ct, P.ct)
+    else:
+        cd, ct = np.where(beam, P.cd / es, P.cd), np.where(beam, P.ct / es, P.ct)
+    if len(store) >= LAW_ARRAYS:
+        del store[next(iter(store))]
+    store[key] = {"rigid": rigid, "cd": cd, "ct": ct}
+    return store[key]
+
+
+LAW_ARRAYS = 16     # law array sets kept per data set (a fit moves E or a gradient only when they are free)
+
+
+def _spec(arrs, law, parent=None) -> tuple:
+    """A law spec: per side the arrays (rigid length, c_D, c_T, L, EI, is a beam) and law codes of some rows, with
+    (side 0 fixed, side 1 fixed, both sides alike).  ``parent``: the flags of a spec whose rows include these (a
+    side fixed, or sides alike, on all of them is so on any of them: not checked again)."""
+    pf = parent or (False, False, False)
+    fixed = tuple(pf[c] or bool(np.all(law[c] == 2)) for c in range(2))
+    return arrs, law, (*fixed, pf[2] or all(np.array_equal(a, b) for a, b in zip(arrs[0], arrs[1])))
+
+
+def _make_laws(spec, lam):
+    """(law of side 0, law of side 1, same) from a law spec (:func:`_spec`): paper Eq. (1), blended with the elastica
+    by ``lam`` (large_deflection), zero for a side fixed to the substrate; one law when both sides are alike.  ``lam``
+    a scalar or per row (rows of several predictions stacked, :func:`predict_many`)."""
+    arrs, law, (fixed0, fixed1, same) = spec
+
+    def make(l_, cd_, ct_, L_, EI_, beam_):
+        if _on(lam) and np.any(beam_):
+            wgt = np.where(beam_, lam, 0.0)
+            return lambda load: elastica_blend(B.eq1_deflection(load, l_, cd_, ct_),
+                                               np.where(beam_, B.elastica_deflection(load, L_, l_, EI_), 0.0), wgt)
+        return lambda load: B.eq1_deflection(load, l_, cd_, ct_)
+
+    def still(load):                                     # a side fixed to the substrate does not move
+        return np.zeros(np.shape(load))
+
+    first = still if fixed0 else make(*arrs[0])
+    if fixed1 and not same:
+        return first, still, False
+    return first, (first if same else make(*arrs[1])), same
+
+
+def _on(x) -> bool:
+    """A scalar coefficient is non-zero (per-row coefficients: stacked only when all are, :func:`predict_many`)."""
+    return bool(np.all(x != 0)) if np.ndim(x) else bool(x)
 
 
 SPREAD = 0.05     # default relative scatter of a latch's switching force from one ramp to the next
@@ -662,10 +890,10 @@ def _with_drag(law, c_p, steps=3):
         for _ in range(steps):
             ad = np.abs(d)
             x = drag_load(load, ad, c_p)
-            lx = law(x)
-            r = lx - d
             h = 1e-6 * np.maximum(np.abs(x), 1e-30)
-            slope = (law(x + h) - lx) / h                           # d law / d load
+            lx, lxh = law(np.stack([x, x + h]))                     # (one call: the law is elementwise)
+            r = lx - d
+            slope = (lxh - lx) / h                                  # d law / d load
             dr = -slope * load * c_p * np.sign(d) * (1.0 - c_p * ad > 0) - 1.0   # d r / d delta
             d = np.clip(d - r / np.where(dr != 0, dr, -1.0), lo, hi)
         return d
@@ -700,8 +928,7 @@ def _pair_equilibrium(law0, law1, a_rad, push, d0, same=False, tol=None, info=No
     m = d0.size
     cols = np.arange(m)
     if guess is None or gather is None or np.shape(guess) != (m,):
-        s = np.linspace(0.0, 1.0, N_GRID + 1)[:, None]
-        D = d0 + s * (far - d0)                       # (N_GRID + 1, n)
+        D = d0 + _GRID[:, None] * (far - d0)                       # (N_GRID + 1, n)
         G = g(D)
         sg = np.sign(G)
         cross = sg[1:] != sg[:-1]
@@ -711,7 +938,7 @@ def _pair_equilibrium(law0, law1, a_rad, push, d0, same=False, tol=None, info=No
         b, fb = D[k + 1, cols], G[k + 1, cols]
         G0 = G[0]
     else:
-        G = np.full((N_GRID + 1, m), np.nan) if info is not None else None
+        G = np.full((N_GRID + 1, m), np.nan) if info is not None and WARM else None
         npts = np.minimum(np.asarray(guess, int) + 2, N_GRID + 1)
         found, k, a, fa, b, fb, G0 = _scan(cols, npts, a_rad, push, d0, far, gather, G)
         more = ~found & (npts < N_GRID + 1)
@@ -734,6 +961,9 @@ def _pair_equilibrium(law0, law1, a_rad, push, d0, same=False, tol=None, info=No
         if np.all(np.abs(fc[found]) <= tol):
             break
     d = np.where(exact, d0, b)
+    if info is not None and not WARM:       # what a later solve's guess needs (the warm start's extras only with WARM)
+        info.update(k=k, found=found)
+        info = None
     if info is not None:
         # sign margin: the smallest |G| on the grid points before the bracketing cell (all of them when there is no
         # crossing), where a perturbation would have to flip a sign to make the search stop at another root
@@ -765,9 +995,8 @@ def _scan(rows, npts, a_rad, push, d0, far, gather, G=None):
     start = np.cumsum(npts) - npts
     r = np.repeat(rows, npts)
     j = np.arange(total) - np.repeat(start, npts)
-    s = np.linspace(0.0, 1.0, N_GRID + 1)
     d0r, farr = d0[r], far[r]
-    D = d0r + s[j] * (farr - d0r)
+    D = d0r + _GRID[j] * (farr - d0r)
     l0, l1, sm = gather(r)
     load = a_rad[r] / (D * D) - push[r]
     da = l0(load)
@@ -823,15 +1052,14 @@ def _pair_solve(P, law0, law1, a_rad, push, d0, same, law_sig, laws):
     solve's to the solver tolerance (tests/test_fit_pair_warm.py).  Full solves outside FD_COLUMNS refresh the cache."""
     cache = getattr(P, "_eq_cache", None)
     guess = None
-    if cache is not None and cache["d0"].shape == d0.shape and np.array_equal(cache["d0"], d0) \
+    if cache is not None and (cache["d0"] is d0 or (cache["d0"].shape == d0.shape and np.array_equal(cache["d0"], d0))) \
             and cache["same"] == same:
-        same_law = (law_sig[0] == cache["law_sig"][0] and law_sig[1] == cache["law_sig"][1]
-                    and all(np.array_equal(a, b) for a, b in zip(law_sig[2:], cache["law_sig"][2:])))
+        same_law = _same_law(law_sig, cache["law_sig"])
         if same_law and np.array_equal(a_rad, cache["a_rad"]) and np.array_equal(push, cache["push"]):
             return cache["da"], cache["db"]
         if law_sig[0] or law_sig[1]:     # an iterated law (elastica blend, drag): read the grid only up to the cell
             guess = np.where(cache["found"], cache["k"], N_GRID)
-        if WARM and FD_COLUMNS.active:
+        if WARM and FD_COLUMNS.active and "slope" in cache:
             with np.errstate(all="ignore"):
                 ok = np.all(np.abs(a_rad - cache["a_rad"]) <= WARM_CHANGE * np.abs(cache["a_rad"])) and \
                     np.all(np.abs(push - cache["push"]) <= WARM_CHANGE * np.abs(cache["push"]))
@@ -845,6 +1073,139 @@ def _pair_solve(P, law0, law1, a_rad, push, d0, same, law_sig, laws):
     info.update(d0=d0, same=same, law_sig=law_sig, a_rad=a_rad, push=push, da=da, db=db)
     P._eq_cache = info
     return da, db
+
+
+def _same_law(sig, ref) -> bool:
+    """Two law signatures (lam, c_p, law arrays) are equal (the same deflection laws)."""
+    return (sig[0] == ref[0] and sig[1] == ref[1] and len(sig) == len(ref)
+            and all(a is b or np.array_equal(a, b) for a, b in zip(sig[2:], ref[2:])))
+
+
+def _pair_solve_many(P, reqs) -> list:
+    """[:func:`_pair_solve` of each request] (the warm start off): the same numbers, with the solves of
+    requests whose deflection laws have the same form (fixed sides, alike sides, elastica blend and drag on or off)
+    made at once on their stacked rows (:func:`_pair_equilibrium_many`)."""
+    cache = getattr(P, "_eq_cache", None)
+    out: list = [None] * len(reqs)
+    todo: dict = {}
+    for j, q in enumerate(reqs):
+        _, law0, law1, a_rad, push, d0, same, law_sig, laws, sp, lam, c_p = q
+        guess = None
+        if cache is not None and (cache["d0"] is d0 or (cache["d0"].shape == d0.shape
+                                                        and np.array_equal(cache["d0"], d0))) and cache["same"] == same:
+            if _same_law(law_sig, cache["law_sig"]) and np.array_equal(a_rad, cache["a_rad"]) \
+                    and np.array_equal(push, cache["push"]):
+                out[j] = (cache["da"], cache["db"])
+                continue
+            if law_sig[0] or law_sig[1]:
+                guess = np.where(cache["found"], cache["k"], N_GRID)
+        form = (sp[2], same, _on(lam), bool(c_p > 0))
+        todo.setdefault(form, []).append((j, guess))
+    for form, items in todo.items():
+        if len(items) == 1:
+            (j, guess), = items
+            q = reqs[j]
+            out[j] = _pair_equilibrium(q[1], q[2], q[3], q[4], q[5], q[6], guess=guess, gather=q[8])
+            continue
+        qs = [reqs[j] for j, _ in items]
+        m = qs[0][5].size
+        d0 = np.concatenate([q[5] for q in qs])
+        arrs = tuple(tuple(np.concatenate([q[9][0][c][k] for q in qs]) for k in range(6)) for c in range(2))
+        law = tuple(np.concatenate([q[9][1][c] for q in qs]) for c in range(2))
+
+        def per_row(vals):
+            """One coefficient of the stacked predictions: a scalar when they agree bitwise, else per row."""
+            vals = [float(v) for v in vals]
+            if all(v.hex() == vals[0].hex() for v in vals):
+                return vals[0]
+            return np.repeat(np.array(vals), m)
+
+        lam = per_row([q[10] for q in qs])
+        c_p = per_row([q[11] for q in qs])
+
+        def gather(sub, arrs=arrs, law=law, lam=lam, c_p=c_p, parent=_spec(arrs, law)[2]):
+            """(law0, law1, same) of the stacked rows ``sub``."""
+            sl = lambda x: x[sub] if np.ndim(x) else x      # noqa: E731
+            l0, l1, sm = _make_laws(_spec(tuple(tuple(a[sub] for a in side) for side in arrs),
+                                          tuple(x[sub] for x in law), parent), sl(lam))
+            if _on(c_p > 0):
+                l0 = _with_drag(l0, sl(c_p))
+                l1 = l0 if sm else _with_drag(l1, sl(c_p))
+            return l0, l1, sm
+
+        law0, law1, same = gather(np.arange(d0.size))
+        guess = None if all(g is None for _, g in items) else \
+            np.concatenate([np.full(m, N_GRID) if g is None else g for _, g in items])
+        da, db = _pair_equilibrium_many(law0, law1, np.concatenate([q[3] for q in qs]),
+                                        np.concatenate([q[4] for q in qs]), d0, same, len(qs), guess, gather)
+        for b, (j, _) in enumerate(items):
+            out[j] = (da[b * m:(b + 1) * m], db[b * m:(b + 1) * m])
+    return out
+
+
+def _pair_equilibrium_many(law0, law1, a_rad, push, d0, same, nblk, guess, gather):
+    """:func:`_pair_equilibrium` of ``nblk`` pair solves at once, their rows stacked (blocks of equal size, equal rest
+    gaps): the bracket grid read as with ``guess`` (None: the whole grid for every row; a row of a solve without one
+    reads the whole grid, which gives the same bracket), and each block's refinement stopped where its own solve stops (all its rows converged), so that
+    every block's numbers are its own solve's, bit for bit."""
+    def both(load):
+        da = law0(load)
+        return da, (da if same else law1(load))
+
+    def g(d):
+        da, db = both(a_rad / (d * d) - push)
+        return d0 - d - da - db
+
+    attract = a_rad / (d0 * d0) - push >= 0
+    ra, rb = both(-push)
+    far = np.where(attract, 0.02 * d0, d0 - ra - rb + 1e-12)
+    m = d0.size
+    per = m // nblk
+    cols = np.arange(m)
+    if guess is None:                                 # the whole grid for every row, as _pair_equilibrium reads it
+        D = d0 + _GRID[:, None] * (far - d0)
+        G = g(D)
+        sg = np.sign(G)
+        cross = sg[1:] != sg[:-1]
+        found = cross.any(axis=0)
+        k = np.argmax(cross, axis=0)
+        a, fa = D[k, cols], G[k, cols]
+        b, fb = D[k + 1, cols], G[k + 1, cols]
+        G0 = G[0]
+    else:
+        npts = np.minimum(np.asarray(guess, int) + 2, N_GRID + 1)
+        found, k, a, fa, b, fb, G0 = _scan(cols, npts, a_rad, push, d0, far, gather)
+        more = ~found & (npts < N_GRID + 1)
+        if np.any(more):
+            r = np.flatnonzero(more)
+            f2, k2, a2, fa2, b2, fb2, _ = _scan(r, np.full(r.size, N_GRID + 1), a_rad, push, d0, far, gather)
+            found[r], k[r], a[r], fa[r], b[r], fb[r] = f2, k2, a2, fa2, b2, fb2
+    exact = G0 == 0
+    tol = 1e-12 * np.max(d0)
+    live = np.ones(nblk, bool)
+    for _ in range(N_REFINE):
+        on = None if live.all() else np.repeat(live, per)
+        den = fb - fa
+        nz = den != 0
+        mid = 0.5 * (a + b)
+        c = np.where(nz, b - fb * (b - a) / np.where(nz, den, 1.0), mid)
+        c = np.where((c >= np.minimum(a, b)) & (c <= np.maximum(a, b)), c, mid)
+        fc = g(c)
+        flip = np.sign(fc) != np.sign(fb)
+        if live.all():
+            a, fa = np.where(flip, b, a), np.where(flip, fb, 0.5 * fa)
+            b, fb = c, fc
+        else:
+            a, fa = np.where(on & flip, b, a), np.where(on, np.where(flip, fb, 0.5 * fa), fa)
+            b, fb = np.where(on, c, b), np.where(on, fc, fb)
+        live &= ~np.all(((np.abs(fc) <= tol) | ~found).reshape(nblk, per), axis=1)     # as each solve stops
+        if not np.any(live):
+            break
+    d = np.where(exact, d0, b)
+    found = found | exact
+    load = a_rad / (d * d) - push
+    da, db = both(load)
+    return np.where(found, da, 0.5 * d0), np.where(found, db, 0.5 * d0)
 
 
 def _pair_warm(c, law0, law1, a_rad, push, d0, same, laws):

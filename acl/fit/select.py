@@ -117,14 +117,14 @@ def cross_validate(problem, coefs, x0, k=K_FOLDS, seed=0) -> float:
     n = problem.y.size
     folds = np.array_split(np.random.default_rng(seed).permutation(n), k)
     sq = []
-    from acl.fit.forward import predict
+    from acl.fit.forward import Model
 
     for fold in folds:
         train = np.setdiff1d(np.arange(n), fold)
         start = [dict(zip([c.name for c in coefs], x0))[c.name] for c in coefs]
         cs = [solve.Coef(c.name, c.kind, v, c.lower, c.upper, c.scale, c.unit, c.effect, c.param, c.design_param)
               for c, v in zip(coefs, start)]
-        r = solve.fit(lambda a, b: predict(P, a, b), problem.y, problem.sigma, cs, train=train, max_nfev=60)
+        r = solve.fit(Model(P), problem.y, problem.sigma, cs, train=train, max_nfev=60)
         # a held-out row counts at most JUMP^2: a row near a snap-in fold that the fold's fit, moved by a fraction of
         # a standard error, predicts on the other branch (in contact, 40 um away) would otherwise outweigh all others;
         # a latch state by its deviance (held-out log-likelihood)
@@ -282,9 +282,9 @@ def select_effects(problem, candidates=None, p_limit=P_LIMIT, k_folds=K_FOLDS, s
     P = problem.prepared
     sigma_given = problem.data.has_sigma
 
-    def model(a, b):
-        return predict(P, a, b)
+    from acl.fit.forward import Model
 
+    model = Model(P)
     base = solve.fit(model, problem.y, problem.sigma, problem.coefs)
     current_coefs = list(problem.coefs)
     current = base

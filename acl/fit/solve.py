@@ -97,8 +97,6 @@ def fit(predict, y, sigma, coefs, train=None, starts=None, max_nfev=200, robust_
     huge residuals (e.g. predicted in contact past snap-in while measured before it) do not trap the
     optimizer; the final fit is always the plain weighted least squares.
     """
-    least_squares = fd_least_squares
-
     n_all = y.size
     train = np.arange(n_all) if train is None else np.asarray(train)
     w = 1.0 / np.where(np.isfinite(sigma), sigma, NOMINAL_SIGMA)
@@ -113,6 +111,18 @@ def fit(predict, y, sigma, coefs, train=None, starts=None, max_nfev=200, robust_
     def resid(u):
         r = (full(u)[train] - y[train]) * w[train]
         return np.where(np.isfinite(r), r, 1e6)
+
+    many = getattr(predict, "many", None)
+    if many is not None:
+        # [full(u) for u in us] and [resid(u) for u in us], the predictions made at once (acl.fit.forward.Model)
+        full.many = lambda us: many([split_coefs(coefs, u * scale) for u in us])
+        resid.many = lambda us: [np.where(np.isfinite(r), r, 1e6) for r in
+                                 ((o[train] - y[train]) * w[train] for o in full.many(us))]
+
+    def least_squares(fun, x0, **kw):
+        if getattr(fun, "many", None) is not None:
+            kw["fun_many"] = fun.many
+        return fd_least_squares(fun, x0, **kw)
 
     best, message, success = None, "no free parameters", True
     from acl.fit.forward import REWEIGHT
@@ -263,17 +273,24 @@ def fit(predict, y, sigma, coefs, train=None, starts=None, max_nfev=200, robust_
                      success, str(message), warnings, identifiable, full_rank, rw_all, n_scale, chi2_scale)
 
 
-def fd_least_squares(fun, x0, *, bounds, diff_step, **kw):
+def fd_least_squares(fun, x0, *, bounds, diff_step, fun_many=None, **kw):
     """``scipy.optimize.least_squares(fun, x0, bounds=bounds, diff_step=diff_step, **kw)`` with its "2-point" Jacobian
     made the same way (scipy's approx_derivative, the same steps and bounds) but evaluated inside
     acl.fit.forward.FD_COLUMNS: the columns are neighbours of the point just evaluated, so a pair's equilibrium starts
-    from that solve (acl.fit.forward._pair_solve).  The optimizer's own steps are evaluated as before."""
+    from that solve (acl.fit.forward._pair_solve).  ``fun_many(us) = [fun(u) for u in us]`` (the same numbers), if
+    given, evaluates the columns at once (approx_derivative's ``workers`` map, scipy >= 1.16; acl.fit.forward.predict_many).
+    The optimizer's own steps are evaluated as before."""
+    import inspect
+
     from scipy.optimize import least_squares
 
     try:
         from scipy.optimize._numdiff import approx_derivative
     except ImportError:     # a private scipy module: without it, scipy's own 2-point Jacobian (the same steps, no reuse)
         return least_squares(fun, x0, bounds=bounds, diff_step=diff_step, **kw)
+    extra = {}
+    if fun_many is not None and "workers" in inspect.signature(approx_derivative).parameters:
+        extra["workers"] = lambda _f, xs: fun_many([np.asarray(x, dtype=float) for x in xs])
 
     from acl.fit.forward import FD_COLUMNS
 
@@ -288,7 +305,8 @@ def fd_least_squares(fun, x0, *, bounds, diff_step, **kw):
     def jac(u):
         f0 = last["r"] if "u" in last and np.array_equal(last["u"], u) else f(u)
         with FD_COLUMNS:
-            return approx_derivative(f, u, method="2-point", rel_step=diff_step, f0=np.atleast_1d(f0), bounds=bounds)
+            return approx_derivative(f, u, method="2-point", rel_step=diff_step, f0=np.atleast_1d(f0), bounds=bounds,
+                                     **extra)
 
     return least_squares(f, x0, jac=jac, bounds=bounds, **kw)
 
@@ -368,12 +386,15 @@ def _probe_folds(best, resid, lo, hi, max_nfev, least_squares):
     lam, vec = np.linalg.eigh(J.T @ J)
     ok = lam > 1e-12 * max(lam.max(), 1e-300)
     probes = []
+    us = []
     for k in np.flatnonzero(ok):
         step = np.sqrt(s2 / lam[k]) * vec[:, k]
         for m in PROBE_STEPS:
-            u = np.clip(best.x + m * step, lo, hi)
-            rr = resid(u)
-            probes.append((int(np.sum(np.abs(rr) > JUMP)), float(0.5 * rr @ rr), u))
+            us.append(np.clip(best.x + m * step, lo, hi))
+    # the probes are independent evaluations: at once when the model can (resid.many, the same numbers)
+    many = getattr(resid, "many", None)
+    for u, rr in zip(us, many(us) if many is not None and us else map(resid, us)):
+        probes.append((int(np.sum(np.abs(rr) > JUMP)), float(0.5 * rr @ rr), u))
     better = sorted((q for q in probes if q[0] < big.sum()), key=lambda q: (q[0], q[1]))[:PROBE_POLISH]
     span = hi - lo
     for _, _, u in better:
@@ -398,6 +419,10 @@ def _leave_out_jumps(best, resid, train, full, y, w, lo, hi, max_nfev, least_squ
     def sub(u):
         rr = (full(u)[keep] - y[keep]) * w[keep]
         return np.where(np.isfinite(rr), rr, 1e6)
+
+    if getattr(full, "many", None) is not None:      # [sub(u) for u in us] at once (the Jacobian's columns)
+        sub.many = lambda us: [np.where(np.isfinite(rr), rr, 1e6) for rr in
+                               ((o[keep] - y[keep]) * w[keep] for o in full.many(us))]
 
     try:
         alt = least_squares(sub, best.x, bounds=(lo, hi), method="trf", x_scale="jac", diff_step=DIFF_STEP, max_nfev=max_nfev,
