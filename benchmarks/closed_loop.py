@@ -20,7 +20,7 @@ truth's snap-in margin under each drive (acl.schedule.gains.critical_scale) and 
 calibrated compile's 5th percentile of the margin (details.band.margin_p05) lies below it (covers).
 ``--model coupled`` (pair-hold only) fits the pair with `acl fit --model coupled` (the analysis' own forces)
 instead of paper Eq. (3); each row records the fit's CPU time.
-``--json PATH`` writes the rows (docs/fit.md renders the fig3 study from benchmarks/closed_loop_fig3.json;
+``--json PATH`` writes the rows (docs/fit.md renders the studies from benchmarks/closed_loop_{stroke,fig3,pair_hold}.json;
 tests/test_closed_loop.py repeats one of its seeds).
 """
 from __future__ import annotations
