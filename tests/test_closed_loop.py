@@ -37,23 +37,30 @@ def test_calibration_closes_the_loop(loop):
     assert any("calibration data covered" in n for n in loop.notes)      # the program extrapolates: warned
 
 
-def test_fig3_study_seed_repeats(tmp_path):
-    """One truth of the Fig. 3 study (benchmarks/closed_loop.py --kind fig3, docs/fit.md) run again:
-    the figures in benchmarks/closed_loop_fig3.json come from this code (0.5 % tolerance: solver paths)."""
+def _repeat_seed(kind, index, tmp_path):
+    """Row ``index`` of benchmarks/closed_loop_<kind>.json run again (benchmarks/closed_loop.py run_seed): the same
+    truth, its figures within 0.5 % (solver paths), the same coverage and effects; the LoopResult."""
     import json
     import sys
 
     sys.path.insert(0, os.path.join(ROOT, "benchmarks"))
     from closed_loop import run_seed
 
-    with open(os.path.join(ROOT, "benchmarks", "closed_loop_fig3.json")) as fh:
+    with open(os.path.join(ROOT, "benchmarks", f"closed_loop_{kind}.json")) as fh:
         study = json.load(fh)
-    want = study["rows"][0]
-    r, text = run_seed("fig3", want["seed"], str(tmp_path), study["band_samples"])
+    want = study["rows"][index]
+    r, text = run_seed(kind, want["seed"], str(tmp_path), study["band_samples"])
     assert text == want["truth"]
     for key in ("before_rms_m", "after_rms_m", "floor_rms_m", "predicted_rms_m", "band_rms_p95_m", "band_max_p95_m"):
         assert getattr(r, key) == pytest.approx(want[key], rel=5e-3), key
     assert r.covered == want["covered"] and sorted(r.effects) == sorted(want["effects"])
+    return r
+
+
+def test_fig3_study_seed_repeats(tmp_path):
+    """One truth of the Fig. 3 study (benchmarks/closed_loop.py --kind fig3, docs/fit.md) run again:
+    the figures in benchmarks/closed_loop_fig3.json come from this code (0.5 % tolerance: solver paths)."""
+    r = _repeat_seed("fig3", 0, tmp_path)
     assert r.after_rms_m <= 3 * r.floor_rms_m
     # the calibration measured the gain at the tones it drove: the calibrated design says so, and the band holds the
     # gain table there instead of drawing its 30 % prior again (before: 3.68 um, 28x this error)
@@ -101,20 +108,7 @@ def test_pair_hold_study_seed_repeats(tmp_path):
 def test_stroke_study_seed_repeats(tmp_path):
     """One truth of the 20-truth stroke study (benchmarks/closed_loop.py, docs/fit.md) run again: the figures in
     benchmarks/closed_loop_stroke.json come from this code (0.5 % tolerance: solver paths)."""
-    import json
-    import sys
-
-    sys.path.insert(0, os.path.join(ROOT, "benchmarks"))
-    from closed_loop import run_seed
-
-    with open(os.path.join(ROOT, "benchmarks", "closed_loop_stroke.json")) as fh:
-        study = json.load(fh)
-    want = study["rows"][1]
-    r, text = run_seed("stroke", want["seed"], str(tmp_path), study["band_samples"])
-    assert text == want["truth"]
-    for key in ("before_rms_m", "after_rms_m", "floor_rms_m", "predicted_rms_m", "band_rms_p95_m", "band_max_p95_m"):
-        assert getattr(r, key) == pytest.approx(want[key], rel=5e-3), key
-    assert r.covered == want["covered"] and sorted(r.effects) == sorted(want["effects"])
+    _repeat_seed("stroke", 1, tmp_path)
 
 
 def test_stroke_study_band_is_honest():

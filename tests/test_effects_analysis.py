@@ -201,15 +201,8 @@ def test_calibrated_elsewhere_needs_path_and_says_so(tmp_path, capsys):
     assert d.effect("stiffness_scale").params["e_scale"] == pytest.approx(0.7, rel=0.02)
 
 
-@pytest.mark.parametrize("decl, where, words", [
-    ("effect drive_saturation { v_sat = 8 um }", "v_sat = ", "expected voltage [V], found length [m]"),
-    ("effect offset_drift { offset = 0.5 um, drift = 3 V }", "drift = ", "expected speed"),
-    ("effect large_deflection { elastica_weight = 0.5 um }", "elastica_weight = ", "expected a plain number"),
-    ("effect transducer_gain { gain_slope = 0.5, f_ref = 125 um }", "f_ref = ", "expected frequency"),
-])
-def test_declared_effect_coefficient_in_the_wrong_unit_is_located_e301(tmp_path, decl, where, words):
-    """The design-side twin of `synth --effect v_sat:8um`: a coefficient's unit is checked against the
-    unit acl.fit.effects declares (was accepted: `v_sat = 8 um` became a saturation at 8e-6 "V")."""
+def _assert_one_error_at_value(tmp_path, decl, where, words, code):
+    """``decl`` appended to the cantilever: exactly one error, ``code``, located just after ``where``."""
     text = open(CANTILEVER).read() + "\n" + decl + "\n"
     path = tmp_path / "cant.acl"
     path.write_text(text)
@@ -219,8 +212,20 @@ def test_declared_effect_coefficient_in_the_wrong_unit_is_located_e301(tmp_path,
     errors = [d for d in diags if d.is_error]
     line = text.count("\n", 0, text.index(decl)) + 1
     column = decl.index(where) + len(where) + 1
-    assert [(d.code, d.span.line, d.span.column) for d in errors] == [("E301", line, column)]
+    assert [(d.code, d.span.line, d.span.column) for d in errors] == [(code, line, column)]
     assert words in errors[0].message
+
+
+@pytest.mark.parametrize("decl, where, words", [
+    ("effect drive_saturation { v_sat = 8 um }", "v_sat = ", "expected voltage [V], found length [m]"),
+    ("effect offset_drift { offset = 0.5 um, drift = 3 V }", "drift = ", "expected speed"),
+    ("effect large_deflection { elastica_weight = 0.5 um }", "elastica_weight = ", "expected a plain number"),
+    ("effect transducer_gain { gain_slope = 0.5, f_ref = 125 um }", "f_ref = ", "expected frequency"),
+])
+def test_declared_effect_coefficient_in_the_wrong_unit_is_located_e301(tmp_path, decl, where, words):
+    """The design-side twin of `synth --effect v_sat:8um`: a coefficient's unit is checked against the
+    unit acl.fit.effects declares (was accepted: `v_sat = 8 um` became a saturation at 8e-6 "V")."""
+    _assert_one_error_at_value(tmp_path, decl, where, words, "E301")
 
 
 def test_design_effect_units_agree_with_the_fit_library():
@@ -248,17 +253,7 @@ def test_design_effect_units_agree_with_the_fit_library():
 def test_declared_effect_coefficient_outside_its_physical_range_is_e401(tmp_path, decl, where, words):
     """`v_sat = -5 V` was taken as no saturation at all (1/v_sat^2 -> 0 for v_sat <= 0), a negative modulus or
     Bjerknes scale was applied as written: now E401 at the value."""
-    text = open(CANTILEVER).read() + "\n" + decl + "\n"
-    path = tmp_path / "cant.acl"
-    path.write_text(text)
-    from acl.design.resolve import check_design
-
-    _, diags = check_design(str(path))
-    errors = [d for d in diags if d.is_error]
-    line = text.count("\n", 0, text.index(decl)) + 1
-    column = decl.index(where) + len(where) + 1
-    assert [(d.code, d.span.line, d.span.column) for d in errors] == [("E401", line, column)]
-    assert words in errors[0].message
+    _assert_one_error_at_value(tmp_path, decl, where, words, "E401")
 
 
 def test_effect_domain_contains_the_fit_library_bounds():

@@ -914,48 +914,21 @@ def _pair_equilibrium(law0, law1, a_rad, push, d0, same=False, tol=None, info=No
     no crossing there), which gives the same first crossing, the same bracket and the same values bit for bit: the
     grid is elementwise.
     """
-    def both(load):
-        da = law0(load)
-        return da, (da if same else law1(load))
-
-    def g(d):
-        da, db = both(a_rad / (d * d) - push)
-        return d0 - d - da - db
-
+    both, g = _gap_residual(law0, law1, a_rad, push, d0, same)
     attract = a_rad / (d0 * d0) - push >= 0
     ra, rb = both(-push)
     far = np.where(attract, 0.02 * d0, d0 - ra - rb + 1e-12)
     m = d0.size
     cols = np.arange(m)
     if guess is None or gather is None or np.shape(guess) != (m,):
-        D = d0 + _GRID[:, None] * (far - d0)                       # (N_GRID + 1, n)
-        G = g(D)
-        sg = np.sign(G)
-        cross = sg[1:] != sg[:-1]
-        found = cross.any(axis=0)
-        k = np.argmax(cross, axis=0)
-        a, fa = D[k, cols], G[k, cols]
-        b, fb = D[k + 1, cols], G[k + 1, cols]
-        G0 = G[0]
+        guess, G = None, None
     else:
         G = np.full((N_GRID + 1, m), np.nan) if info is not None and WARM else None
-        npts = np.minimum(np.asarray(guess, int) + 2, N_GRID + 1)
-        found, k, a, fa, b, fb, G0 = _scan(cols, npts, a_rad, push, d0, far, gather, G)
-        more = ~found & (npts < N_GRID + 1)
-        if np.any(more):                               # no crossing up to the guessed cell: read the rest of the grid
-            r = np.flatnonzero(more)
-            f2, k2, a2, fa2, b2, fb2, _ = _scan(r, np.full(r.size, N_GRID + 1), a_rad, push, d0, far, gather, G)
-            found[r], k[r], a[r], fa[r], b[r], fb[r] = f2, k2, a2, fa2, b2, fb2
+    found, k, a, fa, b, fb, G0, G = _bracket(g, a_rad, push, d0, far, guess, gather, G)
     exact = G0 == 0
     tol = 1e-12 * np.max(d0) if tol is None else tol
     for _ in range(N_REFINE):
-        den = fb - fa
-        nz = den != 0
-        mid = 0.5 * (a + b)
-        c = np.where(nz, b - fb * (b - a) / np.where(nz, den, 1.0), mid)
-        c = np.where((c >= np.minimum(a, b)) & (c <= np.maximum(a, b)), c, mid)
-        fc = g(c)
-        flip = np.sign(fc) != np.sign(fb)
+        c, fc, flip = _illinois(g, a, fa, b, fb)
         a, fa = np.where(flip, b, a), np.where(flip, fb, 0.5 * fa)
         b, fb = c, fc
         if np.all(np.abs(fc[found]) <= tol):
@@ -985,6 +958,55 @@ def _pair_equilibrium(law0, law1, a_rad, push, d0, same=False, tol=None, info=No
         load = a_rad / (d * d) - push
         da, db = both(load)
     return np.where(found, da, 0.5 * d0), np.where(found, db, 0.5 * d0)
+
+
+def _gap_residual(law0, law1, a_rad, push, d0, same):
+    """(both, g): the two deflections under a load, and the gap residual g(d) = d0 - d - delta_a - delta_b of a pair
+    at gap d (paper Eq. 3: Bjerknes a_rad / d^2 against the push)."""
+    def both(load):
+        da = law0(load)
+        return da, (da if same else law1(load))
+
+    def g(d):
+        da, db = both(a_rad / (d * d) - push)
+        return d0 - d - da - db
+
+    return both, g
+
+
+def _bracket(g, a_rad, push, d0, far, guess, gather, G=None):
+    """(found, k, a, fa, b, fb, g at d0, G) of the first sign change of ``g`` per row on the grid from d0 to ``far``:
+    the whole grid at once (``guess`` None; G the grid's values), or read with :func:`_scan` from d0 up to each
+    row's guessed cell and on to the end where it has no crossing there (``G``, if given, receives the values)."""
+    m = d0.size
+    cols = np.arange(m)
+    if guess is None:
+        D = d0 + _GRID[:, None] * (far - d0)                       # (N_GRID + 1, n)
+        G = g(D)
+        sg = np.sign(G)
+        cross = sg[1:] != sg[:-1]
+        k = np.argmax(cross, axis=0)
+        return cross.any(axis=0), k, D[k, cols], G[k, cols], D[k + 1, cols], G[k + 1, cols], G[0], G
+    npts = np.minimum(np.asarray(guess, int) + 2, N_GRID + 1)
+    found, k, a, fa, b, fb, G0 = _scan(cols, npts, a_rad, push, d0, far, gather, G)
+    more = ~found & (npts < N_GRID + 1)
+    if np.any(more):                               # no crossing up to the guessed cell: read the rest of the grid
+        r = np.flatnonzero(more)
+        f2, k2, a2, fa2, b2, fb2, _ = _scan(r, np.full(r.size, N_GRID + 1), a_rad, push, d0, far, gather, G)
+        found[r], k[r], a[r], fa[r], b[r], fb[r] = f2, k2, a2, fa2, b2, fb2
+    return found, k, a, fa, b, fb, G0, G
+
+
+def _illinois(g, a, fa, b, fb):
+    """One step of the Illinois variant of regula falsi inside the bracket [a, b] (Dowell & Jarratt 1971, BIT 11,
+    168): (c, g(c), whether the sign flipped against b); the caller keeps or halves fa."""
+    den = fb - fa
+    nz = den != 0
+    mid = 0.5 * (a + b)
+    c = np.where(nz, b - fb * (b - a) / np.where(nz, den, 1.0), mid)
+    c = np.where((c >= np.minimum(a, b)) & (c <= np.maximum(a, b)), c, mid)
+    fc = g(c)
+    return c, fc, np.sign(fc) != np.sign(fb)
 
 
 def _scan(rows, npts, a_rad, push, d0, far, gather, G=None):
@@ -1148,50 +1170,18 @@ def _pair_equilibrium_many(law0, law1, a_rad, push, d0, same, nblk, guess, gathe
     gaps): the bracket grid read as with ``guess`` (None: the whole grid for every row; a row of a solve without one
     reads the whole grid, which gives the same bracket), and each block's refinement stopped where its own solve stops (all its rows converged), so that
     every block's numbers are its own solve's, bit for bit."""
-    def both(load):
-        da = law0(load)
-        return da, (da if same else law1(load))
-
-    def g(d):
-        da, db = both(a_rad / (d * d) - push)
-        return d0 - d - da - db
-
+    both, g = _gap_residual(law0, law1, a_rad, push, d0, same)
     attract = a_rad / (d0 * d0) - push >= 0
     ra, rb = both(-push)
     far = np.where(attract, 0.02 * d0, d0 - ra - rb + 1e-12)
-    m = d0.size
-    per = m // nblk
-    cols = np.arange(m)
-    if guess is None:                                 # the whole grid for every row, as _pair_equilibrium reads it
-        D = d0 + _GRID[:, None] * (far - d0)
-        G = g(D)
-        sg = np.sign(G)
-        cross = sg[1:] != sg[:-1]
-        found = cross.any(axis=0)
-        k = np.argmax(cross, axis=0)
-        a, fa = D[k, cols], G[k, cols]
-        b, fb = D[k + 1, cols], G[k + 1, cols]
-        G0 = G[0]
-    else:
-        npts = np.minimum(np.asarray(guess, int) + 2, N_GRID + 1)
-        found, k, a, fa, b, fb, G0 = _scan(cols, npts, a_rad, push, d0, far, gather)
-        more = ~found & (npts < N_GRID + 1)
-        if np.any(more):
-            r = np.flatnonzero(more)
-            f2, k2, a2, fa2, b2, fb2, _ = _scan(r, np.full(r.size, N_GRID + 1), a_rad, push, d0, far, gather)
-            found[r], k[r], a[r], fa[r], b[r], fb[r] = f2, k2, a2, fa2, b2, fb2
+    per = d0.size // nblk
+    found, _, a, fa, b, fb, G0, _ = _bracket(g, a_rad, push, d0, far, guess, gather)
     exact = G0 == 0
     tol = 1e-12 * np.max(d0)
     live = np.ones(nblk, bool)
     for _ in range(N_REFINE):
         on = None if live.all() else np.repeat(live, per)
-        den = fb - fa
-        nz = den != 0
-        mid = 0.5 * (a + b)
-        c = np.where(nz, b - fb * (b - a) / np.where(nz, den, 1.0), mid)
-        c = np.where((c >= np.minimum(a, b)) & (c <= np.maximum(a, b)), c, mid)
-        fc = g(c)
-        flip = np.sign(fc) != np.sign(fb)
+        c, fc, flip = _illinois(g, a, fa, b, fb)
         if live.all():
             a, fa = np.where(flip, b, a), np.where(flip, fb, 0.5 * fa)
             b, fb = c, fc

@@ -273,10 +273,6 @@ class _Compiler:
                        "already moves", True)
         return r, f"at {f / 1e3:.4g} kHz the sweep moves capsule `{seen[f][1]}`"
 
-    def _states_before(self, i: int) -> dict:
-        """Latch states when step ``i`` starts (the likelier state where it is uncertain: :meth:`_latch_track`)."""
-        return {n: s for n, (s, _, _) in self._latch_track(i).items()}
-
     def _latch_track(self, i: int) -> dict:
         """{latch: (state, certain, why)} when step ``i`` starts.
 
