@@ -214,6 +214,42 @@ def test_an_effect_fit_trapped_at_a_snap_in_fold_is_refitted_from_a_robust_start
     assert f["drift"] == pytest.approx(FD.DRIFT["drift"], rel=0.1)
 
 
+def zoom_figures(tmp_path) -> dict:
+    """Pair + calibration beam, planted neighbour drag, seed 100 (docs/fit.md shows these): the base model fitted from
+    the design's values, after :func:`acl.fit.select._zoom`, and the revisit's model without the drag (fitted from
+    the drag model's values, and as :func:`acl.fit.select._replacements` takes it)."""
+    from acl.fit import solve
+    from acl.fit.forward import Model
+    from acl.fit.select import _beyond_jump, _remember, _replacements, _try_effect, _zoom
+
+    problem = _problem(tmp_path, "pair+cal", {"neighbour_drag": {"plateau": 8e-6}}, 100)
+    model = Model(problem.prepared)
+    base = solve.fit(model, problem.y, problem.sigma, problem.coefs)
+    zoomed = _zoom(model, problem, base)
+    coefs, drag, _, _, _ = _try_effect(problem, model, zoomed, problem.coefs, "neighbour_drag", 0.01)
+    known: dict = {}
+    _remember(known, zoomed)
+    refit, *_ = _replacements(problem, model, [], ["neighbour_drag"], drag, "neighbour_drag", 0.01, None, True)
+    reduced, *_ = _replacements(problem, model, [], ["neighbour_drag"], drag, "neighbour_drag", 0.01, None, True,
+                                known=known)
+    return {"rows": problem.y.size, "base": base.chi2, "base_jumps": _beyond_jump(base, problem),
+            "zoomed": zoomed.chi2, "drag": drag.chi2, "refit": refit.chi2, "reduced": reduced.chi2}
+
+
+def test_a_base_fit_trapped_at_folds_starts_again_from_zoomed_grids(tmp_path):
+    """Pair + calibration beam, neighbour drag planted, not in the model: from the design's values the base fit stops
+    with rows beyond 10 sigma at a snap-in fold; the zoomed grids find a far lower chi-square of the same model (round 1
+    then judges every candidate against it: before, the refits from the candidates' solutions walked the base down
+    over three restarts of the round).  The revisit's model without the drag is that best fit, not a refit from the
+    drag model's values that stops at a fold (judged against it, any effect in the drag's place looked significant)."""
+    f = zoom_figures(tmp_path)
+    assert f["base_jumps"] > 0                        # the trap: rows past snap-in in the model, not in the data
+    assert f["zoomed"] < 0.7 * f["base"]
+    assert f["drag"] < 1.3 * f["rows"]                 # the planted effect explains the data from the zoomed base
+    assert f["refit"] > 1.2 * f["zoomed"]              # the defect the revisit had: refitted from the drag's values
+    assert f["reduced"] == f["zoomed"]
+
+
 def cv_figures(tmp_path) -> dict:
     """Pair, planted resonance + shrinkage, seed 105 (docs/fit.md shows these): chi-square and cross-validated error
     of the resonance-only model and of resonance + shrinkage, each fitted from the truth."""
