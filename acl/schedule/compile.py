@@ -598,30 +598,19 @@ class _Compiler:
         from acl.analysis import acoustics, mechanics
         from acl.design.model import Drive, Tone
         from acl.physics.latch import latch_landscape
-        from acl.schedule.gains import latch_axis_carried, latch_drive_forces, latch_forces
+        from acl.schedule.gains import latch_drive_forces, latch_forces, state_positions
 
         try:
             k = next(i for i, l in enumerate(self.design.latches) if l.name == latch)
             branch = dict(states)
             branch[latch] = "a" if to == "b" else "b"
-            pos, lands = {c.name: np.asarray(c.center, float) for c in self.design.capsules}, {}
-            moved = False
-            for lt in self.design.latches:
-                land = lands[lt.name] = latch_landscape(*mechanics.latch_geometry(lt, self.design))
-                want = branch.get(lt.name, lt.state)
-                if want == lt.state or land.state_b is None:
-                    continue
-                travel = float(land.state_b) * (1.0 if want == "b" else -1.0)
-                axis, carried = latch_axis_carried(self.design, lt)
-                for c in carried:
-                    pos[c] = pos[c] + travel * axis
-                moved = True
+            lands = {lt.name: latch_landscape(*mechanics.latch_geometry(lt, self.design)) for lt in self.design.latches}
+            pos = state_positions(self.design, branch)
             _, to_b, to_a = latch_forces(self.design, [])
             thr = float(to_b[k]) if to == "b" else -float(to_a[k])
-            r0 = float(latch_drive_forces(self.design, tones, pos if moved else None)[k] / thr)
+            r0 = float(latch_drive_forces(self.design, tones, pos)[k] / thr)
             drive = Drive(tones=tuple(Tone(frequency=f, amplitude=a) for f, a in tones))
-            st = mechanics.equilibrium(self.design, drive, acoustics.force_model_for(self.design),
-                                       start=pos if moved else None)
+            st = mechanics.equilibrium(self.design, drive, acoustics.force_model_for(self.design), start=pos)
             on_branch = st.status in ("ok", "snap_in")
             for lt in self.design.latches:
                 land, u = lands[lt.name], st.deflections.get(lt.name)
@@ -1130,13 +1119,20 @@ class _Compiler:
         other = "a" if step.state == "b" else "b"
         doubt = [k for k, n in enumerate(names) if n != step.latch and not track[n][1]]
         freqs = tuple(step.tones) or tuple(self._latch_candidates())
-        provider = self.opts.latch_provider
-        if provider is None:
-            from acl.schedule.gains import latch_forces as provider
-        forces, to_b, to_a = provider(self.design, freqs)
         j = names.index(step.latch)
         states = [track[n][0] for n in names]
         states[j] = other                # certain: it is there; uncertain: a drive from there works from both
+        positions = None
+        if self.opts.latch_provider is None:
+            # the forces where the capsules are: a latch in a state other than its declared one carries its capsules
+            # moved by the travel (Fig. 6f: in state b `partner` faces `arm_cap` 40 um away, whose attraction at
+            # 125 kHz pushes the shuttle further into b, where at rest 125 kHz pushed it back towards a)
+            from acl.schedule.gains import latch_forces, state_positions
+
+            positions = state_positions(self.design, dict(zip(names, states)))
+            forces, to_b, to_a = latch_forces(self.design, freqs, positions)
+        else:
+            forces, to_b, to_a = self.opts.latch_provider(self.design, freqs)
 
         def infeasible(exc):
             return DiagnosticError([Diagnostic(
@@ -1189,7 +1185,7 @@ class _Compiler:
         F = np.asarray(forces, float) @ np.where(keep, plan.u, 0.0)            # (L,) N
         model = "linear force per V^2"
         if self.opts.latch_provider is None:
-            used, F_full = self._switch_full_model(name, step, used, j, sig, thr_t, vmax)
+            used, F_full = self._switch_full_model(name, step, used, j, sig, thr_t, vmax, positions)
             if F_full is not None:
                 F, model = F_full, "force of the whole drive (declared drive saturation)"
                 plan = dataclasses.replace(plan, required_force=step.margin * thr_t)
@@ -1212,7 +1208,11 @@ class _Compiler:
                         "the latch program promised", step.span, "report this design")
         details = {"force_n": force, "required_n": plan.required_force,
                    "margin": force / plan.required_force * step.margin, "other_latch_ratios": others,
-                   "state_before": before, "state_from": source, "planned_from": other}
+                   "state_before": before, "state_from": source, "planned_from": other,
+                   "forces_at": "the declared positions" if positions is None else
+                   "the latch states' positions (" + ", ".join(f"`{n}` in state {s}" for n, s, lt in
+                                                             zip(names, states, self.design.latches)
+                                                             if s != lt.state) + ")"}
         if not certain:
             self.notes.append(f"{name}: latch `{step.latch}` may be in state a or b ({why}): planned from state {other}, "
                               f"which also leaves it in state {step.state} if it is there already (the drive pushes "
@@ -1222,18 +1222,20 @@ class _Compiler:
         self.goals.append(rep)
         self.switch_outcome[i] = (step.state, True, f"step {i + 1} (switch)")
         if self.opts.band_samples > 0 and self.opts.latch_provider is None:
-            self._switch_band(rep, used, step, j, names, after, [names[k] for k in doubt] if kept_both else [])
+            self._switch_band(rep, used, step, j, names, after, [names[k] for k in doubt] if kept_both else [],
+                              dict(zip(names, states)))
 
     def _latch_warn(self, i, step, message: str, hint: str, notes=()) -> None:
         self.latch_warnings.append(Diagnostic(LATCH_STATE_CODE, Severity.WARNING, message, step.span, hint,
                                               notes=tuple(notes)))
 
-    def _switch_full_model(self, name, step: SwitchStep, used, j, sig, thr_t, vmax):
+    def _switch_full_model(self, name, step: SwitchStep, used, j, sig, thr_t, vmax, positions=None):
         """Re-check a switch with the full force model when forces are not ~V^2 (drive saturation).
 
         The LP plans with the force per V^2 at 1 V; a declared saturation makes the real force of the
         planned drive smaller.  The drive is scaled up (bisection: the force grows with the scale)
-        until the latch gets ``margin`` x its switching force, within the limit; (tones, forces (L,)).
+        until the latch gets ``margin`` x its switching force, within the limit; (tones, forces (L,)), the capsules at
+        ``positions`` (the latch states', :func:`acl.schedule.gains.state_positions`; None: at rest).
         """
         from acl.analysis.acoustics import force_model_for
 
@@ -1242,7 +1244,7 @@ class _Compiler:
         from acl.schedule.gains import latch_drive_forces
 
         def at(scale):
-            F = latch_drive_forces(self.design, [(f, a * scale) for f, a in used])
+            F = latch_drive_forces(self.design, [(f, a * scale) for f, a in used], positions)
             return float(sig * F[j] / thr_t), F
 
         r, F = at(1.0)
@@ -1267,17 +1269,19 @@ class _Compiler:
                           f"switching force; amplitudes scaled by {hi:.4g} to reach the margin {step.margin:g}")
         return [(f, a * hi) for f, a in used], F
 
-    def _switch_band(self, rep: GoalReport, used, step: SwitchStep, j, names, states: dict, either=()):
+    def _switch_band(self, rep: GoalReport, used, step: SwitchStep, j, names, states: dict, either=(), start=None):
         """5th percentile of the switch margin (and 95th of the other latches' ratios) over the uncertainty;
-        ``either``: other latches in an uncertain state, whose ratio is the larger of both directions."""
+        ``either``: other latches in an uncertain state, whose ratio is the larger of both directions; ``start``: the
+        latch states the switch starts from ({latch: state}), where each draw's capsules are
+        (acl.schedule.gains.state_positions of the draw: its own travel)."""
         from acl.schedule.bands import margin_band
-        from acl.schedule.gains import latch_drive_forces, latch_forces
+        from acl.schedule.gains import latch_drive_forces, latch_forces, state_positions
 
         target = names[j]
         before = "a" if step.state == "b" else "b"
 
         def margin_for(d):
-            F = latch_drive_forces(d, used)
+            F = latch_drive_forces(d, used, state_positions(d, start or {}))
             _, to_b, to_a = latch_forces(d, [])
             thr = to_b[j] if step.state == "b" else to_a[j]
             m = float((1.0 if step.state == "b" else -1.0) * F[j] / thr)

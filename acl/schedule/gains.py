@@ -11,6 +11,8 @@ This is the only module of acl.schedule that calls the analysis stage:
 * :func:`latch_forces` -- force per V^2 of each tone along each latch's axis (the full
   :func:`acl.analysis.acoustics.force_model` at rest), and the latches' switching / release forces
   (``acl.physics.latch.latch_landscape``).
+* :func:`state_positions` -- where the capsules are with the latches in given states (a latch's shuttle
+  moved by its travel);
 * :func:`latch_drive_forces` -- the force of a whole multi-tone drive along each latch's axis (the
   full force model: not quadratic in the amplitude when the design declares drive saturation).
 * :func:`snap_in_voltages` -- per-tone snap-in (or gap-bound) voltage from
@@ -144,11 +146,12 @@ def model_forward(design: Design, capsule: str, frequencies) -> tuple[Forward, s
     return (lambda u: (u @ per_tone) @ C.T), "linear spring (mechanics module absent)"
 
 
-def latch_forces(design: Design, frequencies) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def latch_forces(design: Design, frequencies, positions=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(forces (L, K) N/V^2 along each latch axis, to_b (L,) N, to_a (L,) N) for the design's latches.
 
-    The force on a latch is that on the capsules mounted on its shuttle and those trussed to them.  Thresholds come from
-    the latch landscape (switching force a->b, release force b->a; a monostable latch gets inf).
+    The force on a latch is that on the capsules mounted on its shuttle and those trussed to them, with the capsules at
+    rest or at ``positions`` (name -> centre, m; missing names at rest; e.g. :func:`state_positions`).  Thresholds come
+    from the latch landscape (switching force a->b, release force b->a; a monostable latch gets inf).
     """
     from acl.analysis import acoustics
     from acl.analysis.mechanics import latch_geometry
@@ -159,6 +162,8 @@ def latch_forces(design: Design, frequencies) -> tuple[np.ndarray, np.ndarray, n
     forces = np.zeros((L, len(freqs)))
     to_b, to_a = np.full(L, np.inf), np.full(L, np.inf)
     rest = {c.name: np.asarray(c.center, float) for c in design.capsules}
+    if positions:
+        rest.update({k: np.asarray(v, float) for k, v in positions.items()})
     per_tone = [acoustics.force_model(design, rest, Drive(tones=(Tone(frequency=f, amplitude=1.0),)))
                 for f in freqs]
     for i, latch in enumerate(design.latches):
@@ -170,6 +175,30 @@ def latch_forces(design: Design, frequencies) -> tuple[np.ndarray, np.ndarray, n
         if land.release_force is not None:
             to_a[i] = land.release_force
     return forces, to_b, to_a
+
+
+def state_positions(design: Design, states: dict) -> dict | None:
+    """Capsule centres (name -> m) with each latch in the state ``states`` gives it ({latch: "a" | "b"}; missing
+    latches in their declared state): the capsules a latch carries (:func:`latch_axis_carried`) moved along its axis by
+    the travel between its states (acl.physics.latch.latch_landscape ``state_b``) where the state is not the declared
+    one.  None when every latch is in its declared state (the capsules at rest)."""
+    from acl.analysis.mechanics import latch_geometry
+    from acl.physics.latch import latch_landscape
+
+    pos = None
+    for lt in design.latches:
+        want = states.get(lt.name, lt.state)
+        if want == lt.state:
+            continue
+        land = latch_landscape(*latch_geometry(lt, design))
+        if land.state_b is None:
+            continue
+        pos = pos or {c.name: np.asarray(c.center, float) for c in design.capsules}
+        travel = float(land.state_b) * (1.0 if want == "b" else -1.0)
+        axis, carried = latch_axis_carried(design, lt)
+        for c in carried:
+            pos[c] = pos[c] + travel * axis
+    return pos
 
 
 def latch_axis_carried(design: Design, latch):

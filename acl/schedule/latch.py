@@ -167,6 +167,12 @@ def _diagnose(Fs, thr, thr_t, sig_t, sigma, target, others, names, margin, cap, 
     reachable = r.ok and r.value * fs >= margin * thr_t * (1 - 1e-9)
     if not reachable:
         most = max((r.value or 0.0) * fs, 0.0)       # solver dust below zero: no tone pushes that way
+        if not np.any(sig_t * Fs[target] > 0):
+            # no voltage helps: every candidate tone pushes the latch away from the new state where it is
+            return (("direction: no candidate tone pushes the latch towards the new state (every one pushes it the "
+                     "other way, or not at all, where its capsules are)",),
+                    ("use a tone that pushes the latch towards the new state (e.g. a capsule on the other side of "
+                     "the shuttle, paper Fig. 6e)", "reset the latch by hand"))
         return ((f"amplitude limits: at most {most:.3g} N towards the new state (each tone at "
                  f"the limit, an upper bound), "
                  f"{margin * thr_t:.3g} N needed (margin {margin:g})",),

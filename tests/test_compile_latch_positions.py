@@ -1,0 +1,97 @@
+"""A `switch` is planned with the forces where the latch states put the capsules, not where the design declares them.
+
+Paper Fig. 6f (examples/fig6f_control_module.acl): switching the control module `ctl` to state b moves its shuttle,
+and the capsules it carries (`trigger`, and `partner` trussed to it), 70.7 um towards the beam, so that `partner` faces
+`arm_cap` 40 um away, inside d_c: at 125 kHz the two attract and pull the shuttle further into state b (the paper
+resets the latch by hand: "the radiation forces beat the thrust").  With the capsules at their declared positions
+(state a, partner 110.7 um away) the 125 kHz force on the shuttle points the other way, towards state a; the switch
+planner used those forces for every switch, so `switch ctl to a using [125 kHz]` after a switch to b compiled to a
+~33 V "release" that in the device pushes the latch further in.  Now the planner (its LP, the full-model re-check and
+the margin band) takes the forces at acl.schedule.gains.state_positions of the states the switch starts from.
+"""
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+import acl
+from acl.diagnostics import DiagnosticError
+from acl.schedule.compile import CompileOptions, compile_program
+from acl.schedule.gains import latch_forces, state_positions
+
+ROOT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..")
+EX = os.path.join(ROOT, "examples")
+OPTS = CompileOptions(band_samples=0, allow_nonlinear=True)
+TO_B = "switch ctl to b, margin 1.2, using [85 kHz], limit 30 V"
+
+
+def _design(tmp_path, base, program):
+    shutil.copy(os.path.join(EX, base), tmp_path)
+    path = tmp_path / "p.acl"
+    path.write_text(f'extends "{base}"\nprogram p {{\n' + "\n".join(f"  {s}" for s in program) + "\n}\n")
+    return str(path)
+
+
+def test_state_positions_move_the_capsules_a_latch_carries_by_its_travel():
+    d = acl.load(os.path.join(EX, "fig6f_control_module.acl"))
+    assert state_positions(d, {}) is None and state_positions(d, {"ctl": "a"}) is None     # declared: at rest
+    pos = state_positions(d, {"ctl": "b"})
+    rest = {c.name: np.asarray(c.center, float) for c in d.capsules}
+    # the latch landscape's state b (acl.physics.latch) along the axis +x; the example's comment quotes the stroke as
+    # 2 L sin(theta) = 70.7 um (45 deg, L = 50 um): the same to 0.1 um
+    for name in ("trigger", "partner"):
+        assert pos[name] - rest[name] == pytest.approx([70.71e-6, 0.0, 0.0], abs=0.1e-6)
+    assert np.array_equal(pos["arm_cap"], rest["arm_cap"])                    # on the beam, not on the latch
+
+
+def test_in_state_b_the_125_khz_force_on_the_shuttle_reverses():
+    """The physics behind the fix: partner 40 um from arm_cap (inside d_c = 50 um) is attracted to it, so at
+    125 kHz (both design-1 cavities) the force along the latch axis points to state b; at rest it pointed to a."""
+    d = acl.load(os.path.join(EX, "fig6f_control_module.acl"))
+    at_rest, _, _ = latch_forces(d, [125e3])
+    in_b, _, _ = latch_forces(d, [125e3], state_positions(d, {"ctl": "b"}))
+    assert at_rest[0, 0] < 0 < in_b[0, 0]
+    # the thrust-only 85 kHz tone (trigger, design 2) is nearly the same in both (the Bjerknes part is small)
+    r85 = latch_forces(d, [85e3], state_positions(d, {"ctl": "b"}))[0][0, 0] / latch_forces(d, [85e3])[0][0, 0]
+    assert r85 == pytest.approx(1.0, abs=0.1)
+
+
+def test_a_release_at_a_tone_that_pushes_the_latch_further_in_is_infeasible(tmp_path):
+    path = _design(tmp_path, "fig6f_control_module.acl",
+                   [TO_B, "pause 500 ms", "switch ctl to a, margin 1.2, using [125 kHz], limit 100 V"])
+    with pytest.raises(DiagnosticError) as exc:
+        compile_program(acl.load(path), "p", OPTS)
+    d = exc.value.diagnostics[0]
+    assert d.code == "E-SCHED-INFEASIBLE" and "step 3" in d.message
+    assert "no candidate tone pushes the latch towards the new state" in d.message
+    assert (d.span.line, d.span.column) == (5, 3)      # the third step of program p (line 2 opens it)
+
+
+def test_the_cli_fails_located_and_writes_nothing(tmp_path):
+    path = _design(tmp_path, "fig6f_control_module.acl",
+                   [TO_B, "pause 500 ms", "switch ctl to a, margin 1.2, using [125 kHz], limit 100 V"])
+    out = tmp_path / "out"
+    r = subprocess.run([sys.executable, "-m", "acl", "compile", path, "--program", "p", "-o", str(out),
+                        "--allow-nonlinear"], capture_output=True, text=True, cwd=ROOT,
+                       env={**os.environ, "COLUMNS": "400"})
+    assert r.returncode != 0 and "Traceback" not in r.stderr
+    assert "p.acl:5:3: error[E-SCHED-INFEASIBLE]" in r.stderr
+    assert not out.exists() or not any(out.iterdir())
+
+
+def test_a_switch_from_a_moved_state_reports_where_its_forces_were_taken(tmp_path):
+    """Fig. 6e: the release tone's capsule is not near another, so the forces are the same in both states and the
+    toggle compiles as before; the goal says the forces are those of latch `l` in state b."""
+    path = _design(tmp_path, "fig6e_reversible_latch.acl",
+                   ["switch l to b, margin 1.2, using [85 kHz], limit 100 V", "pause 100 ms",
+                    "switch l to a, margin 1.2, using [170 kHz], limit 100 V"])
+    sched = compile_program(acl.load(path), "p", OPTS)
+    goals = [g for g in sched.goals if g.kind == "switch"]
+    assert goals[0].details["forces_at"] == "the declared positions"
+    assert goals[1].details["forces_at"] == "the latch states' positions (`l` in state b)"
+    assert goals[1].details["margin"] >= 1.2 * (1 - 1e-6)
