@@ -95,3 +95,37 @@ def test_a_switch_from_a_moved_state_reports_where_its_forces_were_taken(tmp_pat
     assert goals[0].details["forces_at"] == "the declared positions"
     assert goals[1].details["forces_at"] == "the latch states' positions (`l` in state b)"
     assert goals[1].details["margin"] >= 1.2 * (1 - 1e-6)
+
+
+def _repelled(tmp_path, tones):
+    """Fig. 6f with `arm_cap` a design-2 capsule (85 kHz): between the two cavities' resonances (91 kHz) partner and
+    arm_cap oscillate out of phase and repel, which only matters in state b (40 um apart): 91 kHz pushes the shuttle
+    towards b from state a (trigger's thrust) and back towards a from state b.  A drive at 43 V and 85 kHz leaves the
+    latch in doubt (about 1 x its switching force), then `switch ctl to b` is planned."""
+    text = open(os.path.join(EX, "fig6f_control_module.acl")).read()
+    old = "capsule arm_cap like capsules.design1 { orifice jet { radius = 10 um, normal = -x } }"
+    assert old in text
+    text = text.replace(old, "capsule arm_cap like capsules.design2 { orifice jet { radius = 13 um, normal = -x } }")
+    path = tmp_path / "repelled.acl"
+    path.write_text(text + "\nprogram p {\n  drive 85 kHz @ 43 V for 100 ms\n  pause 100 ms\n"
+                    f"  switch ctl to b, margin 1.2, using [{tones}], limit 100 V\n}}\n")
+    return acl.load(str(path))
+
+
+def test_a_switch_from_a_doubtful_state_keeps_the_latch_if_it_is_there_already(tmp_path):
+    d = _repelled(tmp_path, "91 kHz")
+    a, to_b, to_a = latch_forces(d, [91e3])
+    b, _, _ = latch_forces(d, [91e3], state_positions(d, {"ctl": "b"}))
+    assert a[0, 0] > 0 > b[0, 0]                      # the physics of the case: towards b in a, towards a in b
+    sched = compile_program(d, "p", OPTS)
+    warns = [w for w in sched.warnings if "pushes it back towards state a" in w.message]
+    line = [i for i, t in enumerate(open(tmp_path / "repelled.acl"), 1) if "switch ctl to b" in t][-1]   # program p
+    assert len(warns) == 1 and warns[0].code == "W-SCHED-LATCH-STATE" and warns[0].span.line == line
+    goal = next(g for g in sched.goals if g.kind == "switch")
+    assert goal.details["push_back_ratio"] > 1.0       # the 91 kHz switch would release a latch already in b
+    # with 85 kHz available (it pushes towards b in both states) the planner keeps the latch in b if it is there
+    d2 = _repelled(tmp_path, "85 kHz, 91 kHz")
+    sched2 = compile_program(d2, "p", OPTS)
+    assert not [w for w in sched2.warnings if "pushes it back" in w.message]
+    goal2 = next(g for g in sched2.goals if g.kind == "switch")
+    assert "push_back_ratio" not in goal2.details and goal2.frequencies_hz == (85e3,)

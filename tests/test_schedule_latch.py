@@ -54,3 +54,18 @@ def test_crosstalk_names_the_latch_that_would_switch_too():
     with pytest.raises(SwitchInfeasible) as exc:
         switch(["a", "a"], 0, "b", forces=crosstalk)
     assert any("`other`" in b for b in exc.value.binding)
+
+
+def test_an_extra_row_keeps_the_targets_push_back_below_its_limit():
+    """``extra`` (the compiler's push back from the wanted state, where the latch may be already): the cheapest tone
+    for the switch (85 kHz) pushes back from state b at 0.9 nN per V^2 there (its capsule faces a neighbour that
+    repels it in b); with the row its push back must stay below 30 nN / 1.2, and the 125 kHz-like second tone does it."""
+    forces = np.array([[+1.0, 0.5, 0.0]]) * NN
+    extra = [(np.array([0.9, -0.2, 0.0]) * NN, 30.0 * NN)]      # push towards a, per V^2, in state b; release force
+    free = plan_switch(forces, TO_B[:1], TO_A[:1], ["a"], ["gate"], 0, "b", 1.2, DriveLimits(20.0))
+    held = plan_switch(forces, TO_B[:1], TO_A[:1], ["a"], ["gate"], 0, "b", 1.2, DriveLimits(20.0), extra=extra)
+    assert free.amplitudes[0] == max(free.amplitudes)
+    assert float(extra[0][0] @ free.u) > 30 * NN / 1.2            # without it the plan would push back
+    assert float(extra[0][0] @ held.u) <= 30 * NN / 1.2 * (1 + 1e-6)
+    assert held.target_force >= 1.2 * 40 * NN * (1 - 1e-6)
+    assert held.u.sum() > free.u.sum()                             # a dearer drive, the price of staying put

@@ -1142,9 +1142,26 @@ class _Compiler:
                 + ((f"latch `{step.latch}` is in state {other}: {why}",) if why else ()))])
 
         kept_both = bool(doubt)
+        plan = None
+        if not certain and self.opts.latch_provider is None:
+            # planned from the other state, the drive must also leave the latch where it is if it is in the wanted
+            # state already: its push back from there, with the capsules where that state puts them, kept below
+            # 1/margin of the force that switches it back (when no drive does that, planned without it and warned)
+            where = dict(zip(names, states))
+            where[step.latch] = step.state
+            Fw, _, _ = latch_forces(self.design, freqs, state_positions(self.design, where))
+            sig_w = 1.0 if step.state == "b" else -1.0
+            back = (-sig_w * np.asarray(Fw, float)[j], float(to_a[j] if step.state == "b" else to_b[j]))
+            if np.isfinite(back[1]):
+                try:
+                    plan = plan_switch(forces, to_b, to_a, states, names, j, step.state, step.margin,
+                                       DriveLimits(vmax), either=doubt, extra=[back])
+                except SwitchInfeasible:
+                    plan = None
         try:
-            plan = plan_switch(forces, to_b, to_a, states, names, j, step.state, step.margin, DriveLimits(vmax),
-                               either=doubt)
+            if plan is None:
+                plan = plan_switch(forces, to_b, to_a, states, names, j, step.state, step.margin, DriveLimits(vmax),
+                                   either=doubt)
         except SwitchInfeasible as exc:
             plan = None
             if doubt:
@@ -1214,9 +1231,20 @@ class _Compiler:
                                                              zip(names, states, self.design.latches)
                                                              if s != lt.state) + ")"}
         if not certain:
-            self.notes.append(f"{name}: latch `{step.latch}` may be in state a or b ({why}): planned from state {other}, "
-                              f"which also leaves it in state {step.state} if it is there already (the drive pushes "
-                              "it further in)")
+            back = self._push_back(used, names, states, j, step.state) if self.opts.latch_provider is None else None
+            if back is not None and back > 1.0 / step.margin:
+                # where the capsules are in the wanted state the drive may push the other way (a neighbour's attraction
+                # that only acts there): "it pushes it further in" is not so
+                details["push_back_ratio"] = back
+                self._latch_warn(i, step, f"{name}: latch `{step.latch}` may be in state a or b; planned from "
+                                 f"state {other}, but if it is in state {step.state} already the drive pushes it back "
+                                 f"towards state {other} at {back:.3g} x the force that switches it there",
+                                 "make the earlier drive decisive (well above or below the latch's switching force), "
+                                 "or switch the latch to a known state first", (why,))
+            else:
+                self.notes.append(f"{name}: latch `{step.latch}` may be in state a or b ({why}): planned from state "
+                                  f"{other}, which also leaves it in state {step.state} if it is there already (the "
+                                  "drive pushes it further in)")
         rep = GoalReport(name, "switch", i, self.t - step.duration, self.t,
                          tuple(f for f, _ in used), model=model, details=details)
         self.goals.append(rep)
@@ -1224,6 +1252,20 @@ class _Compiler:
         if self.opts.band_samples > 0 and self.opts.latch_provider is None:
             self._switch_band(rep, used, step, j, names, after, [names[k] for k in doubt] if kept_both else [],
                               dict(zip(names, states)))
+
+    def _push_back(self, used, names, states, j, to) -> float | None:
+        """The push of the drive ``used`` on latch ``j`` back from state ``to`` (the other latches in ``states``), with
+        the capsules where that state puts them, over the force that switches it back; None when not computable."""
+        from acl.schedule.gains import latch_drive_forces, latch_forces, state_positions
+
+        where = dict(zip(names, states))
+        where[names[j]] = to
+        try:
+            F = latch_drive_forces(self.design, used, state_positions(self.design, where))
+            _, to_b, to_a = latch_forces(self.design, [])
+        except (DiagnosticError, KeyError, ValueError, ArithmeticError, np.linalg.LinAlgError):
+            return None
+        return float(-F[j] / to_a[j]) if to == "b" else float(F[j] / to_b[j])
 
     def _latch_warn(self, i, step, message: str, hint: str, notes=()) -> None:
         self.latch_warnings.append(Diagnostic(LATCH_STATE_CODE, Severity.WARNING, message, step.span, hint,

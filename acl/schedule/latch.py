@@ -56,12 +56,14 @@ class SwitchInfeasible(Exception):
 
 def plan_switch(forces: np.ndarray, to_b: np.ndarray, to_a: np.ndarray, states: list[str],
                 names: list[str], target: int, new_state: str, margin: float,
-                limits: DriveLimits, refine: int = 4, either=()) -> SwitchPlan:
+                limits: DriveLimits, refine: int = 4, either=(), extra=()) -> SwitchPlan:
     """The least drive that switches latch ``target`` to ``new_state`` and keeps the others put.
 
     ``either``: indices of other latches whose state is uncertain (an earlier drive pushed them near their
     switching force): each must stay below ``1/margin`` of its switching force in both directions, so
     that it stays put whichever state it is in.
+    ``extra``: further (row (K,) N per V^2, limit N) pairs kept below ``1/margin`` of their limit, ``row @ u <= limit /
+    margin`` (the target's push back from the state it is switched to, where it may be already).
     """
     import cvxpy as cp
 
@@ -84,6 +86,9 @@ def plan_switch(forces: np.ndarray, to_b: np.ndarray, to_a: np.ndarray, states: 
         opp = np.where(sigma > 0, to_a, to_b)
         keep_rows = np.vstack([keep_rows, -sigma[both, None] * Fs[both]])
         keep_rhs = np.concatenate([keep_rhs, opp[both] / margin / fs])
+    for row, lim in extra:
+        keep_rows = np.vstack([keep_rows, np.asarray(row, float)[None, :] * vmax2 / fs])
+        keep_rhs = np.concatenate([keep_rhs, [float(lim) / margin / fs]])
 
     def lp(support, total=None):
         """Least sum x on ``support`` with per-tone caps and an optional plane (a, b): a @ x <= b."""
