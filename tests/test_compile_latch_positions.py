@@ -129,3 +129,20 @@ def test_a_switch_from_a_doubtful_state_keeps_the_latch_if_it_is_there_already(t
     assert not [w for w in sched2.warnings if "pushes it back" in w.message]
     goal2 = next(g for g in sched2.goals if g.kind == "switch")
     assert "push_back_ratio" not in goal2.details and goal2.frequencies_hz == (85e3,)
+
+
+def test_a_path_after_a_switch_is_re_simulated_in_the_latch_state_the_switch_left(tmp_path):
+    """Fig. 6f: the same 2 um path of arm_cap, followed with 125 kHz, before and after `switch ctl to b`.  Before,
+    both were re-simulated from the declared state a (partner 110.7 um away) and predicted alike (0.02 um RMS); after
+    the switch partner faces arm_cap inside d_c and their attraction bends the beam the other way (paper Fig. 6f
+    right), which the planner's thrust-only gains do not know: the re-simulation from state b shows the miss."""
+    path = "follow arm_cap along polyline([(0, 0), (2 um, 0), (0, 0)]) in 1 s, using [125 kHz]"
+    before = compile_program(acl.load(_design(tmp_path, "fig6f_control_module.acl", [path])), "p", OPTS)
+    after = compile_program(acl.load(_design(tmp_path, "fig6f_control_module.acl", [TO_B, "pause 100 ms", path])),
+                            "p", OPTS)
+    g0 = next(g for g in before.goals if g.kind == "follow")
+    g1 = next(g for g in after.goals if g.kind == "follow")
+    assert g0.rms_error_m < 0.1e-6                         # the plan holds where partner is far
+    assert g1.rms_error_m > 10 * g0.rms_error_m and g1.rms_error_m > 0.5e-6     # more than the 0.5 um tolerance
+    assert any("re-simulated with latch `ctl` in state b" in n for n in after.notes)
+    assert not any("re-simulated with" in n for n in before.notes)

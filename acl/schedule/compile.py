@@ -903,6 +903,7 @@ class _Compiler:
                    if slew else ()))])
         except SolverFailure as exc:
             raise _diag("E-SCHED-SOLVER", f"{name}: {exc}", step.span, "report this design")
+        self.forward_now = self._forward_for(i, name)
         if self.opts.nonlinear_passes > 0:
             plan = self._correct(name, step.capsule, choice, plan, path.points, dt, limits, rq, u_start)
         amps = plan.amplitudes                                      # (K, N)
@@ -933,9 +934,7 @@ class _Compiler:
         from acl.schedule.path import PathInfeasible, plan_path
         from acl.schedule.solve import SolverFailure
 
-        provider = self.opts.forward_provider
-        if provider is None:
-            from acl.schedule.gains import model_forward as provider
+        provider = self.forward_now
         try:
             forward, _ = provider(self.design, capsule, choice.frequencies)
         except (KeyError, ValueError, ImportError) as exc:
@@ -956,6 +955,32 @@ class _Compiler:
                           + " um over the passes (the best plan kept)")
         best.targets = np.asarray(points, float)
         return best
+
+    def _forward_for(self, i: int, name: str):
+        """The forward provider ((design, capsule, freqs) -> (forward, name)) of the follow goal of step ``i``: the
+        injected one, or acl.schedule.gains.model_forward from where the latch states put the capsules when the step
+        starts (:meth:`_latch_track`; each draw of a band at its own travel).  Fig. 6f: after `switch ctl to b`
+        partner faces arm_cap inside d_c and their attraction bends the beam the other way; re-simulated from the
+        declared state a, a path of arm_cap after the switch was predicted as if partner were 110 um away."""
+        if self.opts.forward_provider is not None:
+            return self.opts.forward_provider
+        from acl.schedule.gains import model_forward, state_positions
+
+        if not self.design.latches:
+            return model_forward
+        track = self._latch_track(i)
+        states = {n: s for n, (s, _, _) in track.items()}
+        moved = [l.name for l in self.design.latches if states.get(l.name, l.state) != l.state]
+        doubt = [n for n, (_, sure, _) in track.items() if not sure]
+        if doubt:
+            self.notes.append(f"{name}: re-simulated with " + ", ".join(f"latch `{n}` in state {states[n]}"
+                                                                       for n in doubt)
+                              + " (its likelier state: an earlier drive left it uncertain)")
+        if not moved:
+            return model_forward
+        self.notes.append(f"{name}: re-simulated with " + ", ".join(f"latch `{n}` in state {states[n]}" for n in moved)
+                          + " (its capsules moved by the latch's travel)")
+        return lambda d, capsule, freqs: model_forward(d, capsule, freqs, start=state_positions(d, states))
 
     def _band_planned(self) -> bool:
         """Whether follow goals get an error band from draws of the declared uncertainty (:meth:`_band`)."""
@@ -1017,8 +1042,8 @@ class _Compiler:
             raise ValueError(f"no gain model for `{capsule}`: {exc}") from None
 
     def _resimulate(self, rep: GoalReport, capsule, u, targets, linear_pred):
-        provider = self.opts.forward_provider
-        if provider is None and self.opts.calibration is not None:
+        provider = self.forward_now
+        if self.opts.forward_provider is None and self.opts.calibration is not None:
             # a calibrated device has no better model than its calibration: report the linear plan
             err = np.linalg.norm(linear_pred - targets, axis=1)
             rep.model = "linear calibration gains"

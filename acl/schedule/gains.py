@@ -101,8 +101,14 @@ def model_gain_table(design: Design, capsule: str, frequencies=None) -> GainTabl
     return GainTable(frequencies=f, gains=gains, source="model (thrust x small-force compliance)")
 
 
-def model_forward(design: Design, capsule: str, frequencies) -> tuple[Forward, str]:
-    """The nonlinear forward model for ``capsule`` under tones at ``frequencies`` and its name."""
+def model_forward(design: Design, capsule: str, frequencies, start=None) -> tuple[Forward, str]:
+    """The nonlinear forward model for ``capsule`` under tones at ``frequencies`` and its name.
+
+    ``start``: capsule centres (name -> m) where the mechanism is when the drive begins (:func:`state_positions`: a
+    latch switched earlier carries its capsules moved by its travel); None: at rest in the declared states.  Each
+    waypoint's equilibrium is continued from the previous one, the first from ``start``; the displacement is the
+    capsule's from its declared centre.
+    """
     freqs = [float(f) for f in frequencies]
     mech = _optional("acl.analysis.mechanics")
     if mech is not None and hasattr(mech, "equilibrium"):
@@ -110,19 +116,19 @@ def model_forward(design: Design, capsule: str, frequencies) -> tuple[Forward, s
 
         def forward(u: np.ndarray) -> np.ndarray:
             out = np.full((u.shape[0], 2), np.nan)
-            start = None
+            prev = start
             for i, row in enumerate(u):
                 drive = Drive(tones=tuple(Tone(frequency=f, amplitude=float(np.sqrt(max(x, 0.0))))
                                           for f, x in zip(freqs, row)))
-                # warm start from the previous waypoint (continuation from rest for the first)
-                eq = mech.equilibrium(design, drive, acoustics.force_model_for(design), start=start)
-                if eq.status != "ok" and start is not None:
-                    eq = mech.equilibrium(design, drive, acoustics.force_model_for(design))
+                # warm start from the previous waypoint (continuation from ``start`` for the first)
+                eq = mech.equilibrium(design, drive, acoustics.force_model_for(design), start=prev)
+                if eq.status != "ok" and prev is not start:
+                    eq = mech.equilibrium(design, drive, acoustics.force_model_for(design), start=start)
                 if eq.status == "ok":
                     out[i] = np.asarray(eq.displacements[capsule], float)[:2]
-                    start = eq.positions
+                    prev = eq.positions
                 else:
-                    start = None                       # snapped or lost: NaN, reported as such
+                    prev = start                       # snapped or lost: NaN, reported as such
             return out
 
         return forward, "nonlinear equilibrium (acl.analysis.mechanics)"
