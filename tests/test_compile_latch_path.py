@@ -183,7 +183,7 @@ def test_a_path_is_taken_at_its_most_switching_waypoint():
     (state, certain, why), c = _tracked({85e3: [2.0, 7.0, 3.0]}, {85e3: 1.0})
     assert (state, certain) == ("b", True)
     assert why == "step 1 (follow) pushed it to 1.23 x its switching force at waypoint 2 of 3 (t = 0.01 s)"
-    (w,) = c.latch_warnings
+    (w,) = c.step_warnings
     assert w.code == FLIP and w.span.line == 11
 
 

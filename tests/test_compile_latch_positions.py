@@ -146,3 +146,7 @@ def test_a_path_after_a_switch_is_re_simulated_in_the_latch_state_the_switch_lef
     assert g1.rms_error_m > 10 * g0.rms_error_m and g1.rms_error_m > 0.5e-6     # more than the 0.5 um tolerance
     assert any("re-simulated with latch `ctl` in state b" in n for n in after.notes)
     assert not any("re-simulated with" in n for n in before.notes)
+    # the miss beyond the tolerance is a located warning, not only a number in the table
+    (w,) = [w for w in after.warnings if w.code == "W-SCHED-TRACKING"]
+    assert "beyond the 0.5 um tolerance" in w.message and w.span.line == 5      # the follow step of program p (line 2 opens it)
+    assert not [w for w in before.warnings if w.code == "W-SCHED-TRACKING"]

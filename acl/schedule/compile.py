@@ -37,6 +37,7 @@ LATCH_STATE_MARGIN = 1.2          # a drive pushing a latch within this factor o
                                   # state uncertain: the switch step's default margin (what a switch or a keep promises)
 LATCH_STATE_CODE = "W-SCHED-LATCH-STATE"
 LATCH_FLIP_CODE = "W-SCHED-LATCH-FLIP"   # a follow or hold step's drive switches a latch (or may): docs/schedule.md
+TRACKING_CODE = "W-SCHED-TRACKING"       # the re-simulated path misses by more than the tolerance: docs/schedule.md
 DRIVEN_KINDS = ("drive", "sweep", "follow", "hold")     # steps whose played drive can push a latch (_latch_track)
 FLIP_KINDS = ("follow", "hold")           # ... whose purpose is not the latch: a switch under them is warned
 
@@ -105,7 +106,8 @@ class _Compiler:
     states_memo: dict = field(default_factory=dict)     # step -> {latch: (state, certain, why)} (:meth:`_latch_track`)
     switch_outcome: dict = field(default_factory=dict)  # switch step -> (state, certain, why) of its latch after it
     push_memo: dict = field(default_factory=dict)       # driven step -> its push on each latch (_push_ratios)
-    latch_warnings: list = field(default_factory=list)  # W-SCHED-LATCH-STATE (at a switch) and -FLIP (a follow or hold)
+    step_warnings: list = field(default_factory=list)  # W-SCHED-LATCH-STATE (at a switch), -FLIP (a follow or hold),
+    #                                                     W-SCHED-TRACKING (a follow's re-simulated miss)
     settled: dict = field(default_factory=dict)         # (tones, latch states) -> :meth:`_settle`'s answer
     branch_memo: dict = field(default_factory=dict)     # (tones, latch states, latch, to) -> :meth:`_branch_pushes`
     inner_goals: list = field(default_factory=list)     # goal records checked for coverage, not in schedule.json (sweeps)
@@ -135,7 +137,7 @@ class _Compiler:
                          max_voltage_v=vmax, full_scale_v=full_scale, ramp_s=self.opts.ramp_s,
                          source=self.design.file, notes=self.notes, full_scale_source=source)
         sched.sample_rate_hz = fs
-        for w in self.latch_warnings:
+        for w in self.step_warnings:
             sched.warnings.append(w)
             self.notes.append(f"warning: {w.message}")
         from acl.schedule.bands import coverage_warnings
@@ -391,7 +393,7 @@ class _Compiler:
                     f"may switch latch `{n}`: it ends in state a or b (likelier {state}); a later `switch` is planned "
                     "to work from both")
             goal = "path" if step.kind == "follow" else "hold"
-            self.latch_warnings.append(Diagnostic(
+            self.step_warnings.append(Diagnostic(
                 LATCH_FLIP_CODE, Severity.WARNING, f"step {j + 1}: {step.kind}: the {goal}'s drive {what}",
                 step.span, "keep the step's drive away from the latch's switching and release forces (other tones, "
                 "a lower limit), or switch the latch back afterwards with a `switch` step", notes=(why,)))
@@ -916,6 +918,17 @@ class _Compiler:
                          amplitudes_v=amps.T.copy(), capsule=step.capsule)
         rep.linear_rms_error_m = float(np.sqrt(np.mean(plan.error ** 2)))
         self._resimulate(rep, step.capsule, plan.u, path.points, plan.predicted)
+        if rep.max_error_m is not None and not rep.max_error_m <= self.opts.tolerance_m * (1 + 1e-6) \
+                and rep.model.startswith("nonlinear"):
+            worst = "without bound (no stable equilibrium at some waypoint)" if not np.isfinite(rep.max_error_m) \
+                else f"{rep.max_error_m * 1e6:.3g} um (RMS {rep.rms_error_m * 1e6:.3g} um)"
+            self.step_warnings.append(Diagnostic(
+                TRACKING_CODE, Severity.WARNING, f"{name}: re-simulated through the nonlinear model the path is missed "
+                f"by up to {worst}, beyond the {self.opts.tolerance_m * 1e6:g} um tolerance the plan meets on its "
+                "linear gains", step.span,
+                "re-plan against the nonlinear model (--nonlinear-passes 3); or move the path or the tones to where "
+                "the linear model holds (the plan's gains are thrust only: a neighbour's Bjerknes force, a large "
+                "deflection, declared effects are not in them)"))
         rep.details.update({
             "tone_margin": choice.margin, "tone_conditioning": choice.conditioning,
             "gains_source": table.source, "waypoints": n, "dt_s": dt, "solver": plan.result.solver,
@@ -1293,7 +1306,7 @@ class _Compiler:
         return float(-F[j] / to_a[j]) if to == "b" else float(F[j] / to_b[j])
 
     def _latch_warn(self, i, step, message: str, hint: str, notes=()) -> None:
-        self.latch_warnings.append(Diagnostic(LATCH_STATE_CODE, Severity.WARNING, message, step.span, hint,
+        self.step_warnings.append(Diagnostic(LATCH_STATE_CODE, Severity.WARNING, message, step.span, hint,
                                               notes=tuple(notes)))
 
     def _switch_full_model(self, name, step: SwitchStep, used, j, sig, thr_t, vmax, positions=None):
