@@ -349,10 +349,9 @@ def _read_text(path):
     try:
         return raw.decode("utf-8-sig")
     except UnicodeDecodeError as exc:
-        start = exc.start
-        line_start = raw.rfind(b"\n", 0, start) + 1
-        column = len(raw[line_start:start].decode("utf-8-sig", errors="replace")) + 1
-        return raw.count(b"\n", 0, start) + 1, column, raw[start]
+        from acl._files import undecodable
+
+        return undecodable(raw, exc)
 
 
 def _drive_in_range(bag, tones, band, vmax, design, span) -> bool:

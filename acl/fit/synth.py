@@ -288,9 +288,10 @@ def read_schedule(path: str, max_segments: int = MAX_REPLAY_SEGMENTS) -> tuple[l
     try:
         text = raw.decode("utf-8-sig")
     except UnicodeDecodeError as exc:
-        line = raw.count(b"\n", 0, exc.start) + 1
-        col = exc.start - (raw.rfind(b"\n", 0, exc.start) + 1) + 1
-        raise bad(f"not UTF-8 text (byte 0x{raw[exc.start]:02x})", line, col,
+        from acl._files import undecodable
+
+        line, col, byte = undecodable(raw, exc)
+        raise bad(f"not UTF-8 text (byte 0x{byte:02x})", line, col,
                   "give the schedule.json `acl compile` wrote") from None
     try:
         doc = json.loads(text)

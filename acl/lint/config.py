@@ -102,12 +102,11 @@ def load_config(path: str | None, rules: dict) -> LintConfig:
     except FileNotFoundError:
         raise ConfigError([error("E-CONFIG", f"configuration file `{path}` not found", span0)]) from None
     except UnicodeDecodeError as exc:          # located at the byte, as data files (acl.fit.data, E807)
-        start = exc.start + (3 if raw.startswith(b"\xef\xbb\xbf") else 0)
-        line_start = raw.rfind(b"\n", 0, start) + 1
-        column = len(raw[line_start:start].decode("utf-8-sig", errors="replace")) + 1
-        raise ConfigError([error("E-CONFIG", f"cannot read `{path}`: not UTF-8 text (byte 0x{raw[start]:02x})",
-                                 Span(file=path, line=raw.count(b"\n", 0, start) + 1, column=column),
-                                 "save the file as UTF-8")]) from None
+        from acl._files import undecodable
+
+        line, column, byte = undecodable(raw, exc)
+        raise ConfigError([error("E-CONFIG", f"cannot read `{path}`: not UTF-8 text (byte 0x{byte:02x})",
+                                 Span(file=path, line=line, column=column), "save the file as UTF-8")]) from None
     except OSError as exc:
         raise ConfigError([error("E-CONFIG", f"cannot read `{path}`: {exc.strerror or exc}", span0)]) from None
     except tomllib.TOMLDecodeError as exc:

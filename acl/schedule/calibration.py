@@ -74,11 +74,11 @@ def _read_lines(path: str) -> list[str]:
     try:
         return raw.decode("utf-8-sig").splitlines()
     except UnicodeDecodeError as exc:
-        start = exc.start
-        line_start = raw.rfind(b"\n", 0, start) + 1
-        column = len(raw[line_start:start].decode("utf-8", errors="replace")) + 1
-        _fail("E-CSV-READ", f"calibration file is not UTF-8 text (byte 0x{raw[start]:02x})", path,
-              raw.count(b"\n", 0, start) + 1, column, "save the file as UTF-8")
+        from acl._files import undecodable
+
+        line, column, byte = undecodable(raw, exc)
+        _fail("E-CSV-READ", f"calibration file is not UTF-8 text (byte 0x{byte:02x})", path, line, column,
+              "save the file as UTF-8")
 
 
 MAX_DISPLACEMENT = 1.0     # m: as data files (acl.fit.data.MAX_LENGTH), no displacement of a micro-device
