@@ -183,3 +183,34 @@ def test_bad_free_names_are_usage_errors_at_the_option(free, message, capsys):
     hint = err.split("help:", 1)[-1]
     names = [n.strip() for n in hint.split("names:", 1)[-1].split(",")] if "names:" in hint else []
     assert len(names) == len(set(names)), f"a name listed twice in the hint: {hint}"
+
+
+# -- a sigma no measurement has: weights of 1e306 overflowed the least-squares sums ---------------------
+
+@pytest.mark.parametrize("sigma, unit", [("1e-300", "um"), ("1e-10", "nm"), ("0.0001", "pm")])
+def test_a_sigma_below_a_femtometre_is_a_located_diagnostic_not_an_overflowing_fit(tmp_path, capsys, sigma, unit):
+    """Was exit 0 with numpy overflow warnings, an interval of `[-, -]` and a calibrated design written."""
+    row = f"deflection,1.2,{unit},125 kHz @ 3 V,0,{sigma},50 um\n".replace(",1.2,", ",1200," if unit == "nm" else ",1.2,")
+    code, err, path = _fit(capsys, tmp_path, HEADER + GOOD + row)
+    column = len(row.split(sigma)[0]) + 1
+    assert code == 1 and f"{path}:3:{column}: error[E806]: sigma {sigma} {unit} is below 1e-15 m" in err, err
+
+
+def test_a_sigma_of_a_femtometre_is_read(tmp_path):
+    import acl
+    from acl.fit.data import read_data
+
+    path = tmp_path / "d.csv"
+    path.write_text(HEADER + GOOD + "deflection,1.2,um,125 kHz @ 3 V,0,1e-9,50 um\n")
+    assert read_data([str(path)], acl.load(CANTILEVER)).n == 2
+
+
+@pytest.mark.parametrize("noise", ["1e-300um", "5m", "1e300um"])
+def test_synth_noise_the_fit_would_refuse_is_a_usage_error_with_a_schedule_too(tmp_path, capsys, noise):
+    """`--noise 5m` with --schedule wrote rows of 5e6 um (E806 in `acl fit`): the limit was checked only without it."""
+    rc, err, out = _synth(capsys, tmp_path, "--noise", noise)
+    assert rc == 2 and "<--noise>:1:1: error[E-USAGE]" in err and not out.exists(), err
+    sched = tmp_path / "s.json"
+    sched.write_text('{"version": "1.1", "segments": [{"start_s": 0, "tones": [{"frequency_hz": 125e3, "amplitude_v": 2}]}]}')
+    rc, err, out = _synth(capsys, tmp_path, "--schedule", str(sched), "--noise", noise)
+    assert rc == 2 and "<--noise>:1:1: error[E-USAGE]" in err and "1e-15 m" in err and not out.exists(), err

@@ -241,6 +241,12 @@ def run(args) -> int:
                           "give a value that differs from the null, e.g. " + _example(eid))
     if noise < 0 or args.repeats < 1 or not freqs:
         return _usage("noise must not be negative, repeats at least 1, and one frequency at least")
+    from acl.fit.data import MIN_SIGMA
+
+    # checked before --schedule too: a replay with `--noise 5m` wrote rows that `acl fit` refuses (E806)
+    if not math.isfinite(noise) or noise > MAX_LENGTH or 0 < noise < MIN_SIGMA:
+        return _usage(f"--noise {args.noise}: the noise is 0 or from {MIN_SIGMA:g} m to {MAX_LENGTH:g} m (the sigma "
+                      "`acl fit` reads)")
     if args.max_segments is not None and args.schedule is None:
         return _usage("--max-segments applies to --schedule only")
     if args.schedule is not None:

@@ -25,6 +25,8 @@ MAX_HEADER_ERRORS = 20                 # bad header columns reported one by one;
 MAX_BYTES = 256 * 2**20                  # a data file larger than this is refused (E601)
 MAX_LENGTH = 1.0                         # m: |value| and sigma beyond this are no measurement of a micro-device
 MAX_TIME = 1e9                           # s: about 30 years
+MIN_SIGMA = 1e-15                        # m: a standard uncertainty below a femtometre is no measurement's (a weight
+                                         # of 1e306 overflowed the least-squares sums: a garbage fit, exit 0)
 _NUM_UNIT = re.compile(r"^\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*(.*?)\s*$")
 
 
@@ -271,6 +273,10 @@ def read_data(paths, design) -> Dataset:
                         bag.error("E806", f"{what} {cell(what)[0]} {unit} is beyond {MAX_LENGTH:g} m: not a "
                                   "displacement of a micro-device", sp(what), "check the unit column")
                         ok = False
+                if math.isfinite(sigma) and sigma * factor < MIN_SIGMA:
+                    bag.error("E806", f"sigma {cell('sigma')[0]} {unit} is below {MIN_SIGMA:g} m: not the uncertainty "
+                              "of a measurement", sp("sigma"), "check the unit column")
+                    ok = False
             if not ok or factor is None:
                 continue
             cols["observable"].append(name)
