@@ -177,3 +177,23 @@ def test_the_documented_replay_limits_are_the_code_s():
     text = open(os.path.join(ROOT, "docs", "fit.md")).read()
     assert f"more than {synth.MAX_REPLAY_SEGMENTS:,} constant-drive segments" in text
     assert f"at most {synth.MAX_REPLAY_LIMIT:,})" in text and f"over {synth.MAX_SCHEDULE_BYTES // 2**20} MB" in text
+
+
+@pytest.mark.parametrize("segment, words", [
+    ('"soon"', 'a segment is an object, not "soon"'),                  # was "'str' object has no attribute 'get'"
+    ('{"start_s": 1}', "no tones"),                                       # was replayed as a pause
+    ('{"tones": []}', "no start_s"),
+    ('{"start_s": 1, "tones": ["x"]}', 'tones[0] is "x", not an object'),  # was "string indices must be integers"
+    ('{"start_s": 1, "tones": [{"frequency_hz": 125e3}]}', "tones[0] has no amplitude_v"),   # was "('amplitude_v')"
+])
+def test_a_malformed_segment_says_what_is_wrong_in_the_schedule_s_terms(tmp_path, capsys, segment, words):
+    from acl.cli import main
+
+    sched = tmp_path / "s.json"
+    good = _SEG % (0, 1.0)
+    sched.write_text('{"version": "1.1",\n "segments": [\n  ' + good + ",\n  " + segment + "\n]}\n")
+    out = tmp_path / "a.csv"
+    assert main(["synth", CANTILEVER, "--schedule", str(sched), "-o", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert f"{sched}:4:3: error[E-SYNTH-SCHEDULE]: segments[1]: malformed segment ({words}" in err, err
+    assert "object has no attribute" not in err and "string indices" not in err and not out.exists()

@@ -315,6 +315,11 @@ def read_schedule(path: str, max_segments: int = MAX_REPLAY_SEGMENTS) -> tuple[l
     for i, seg in enumerate(doc["segments"]):
         where = f"segments[{i}]"
         try:
+            if not isinstance(seg, dict):             # was "'str' object has no attribute 'get'"
+                raise ValueError(f"a segment is an object, not {json.dumps(seg)[:40]}")
+            missing = [k for k in ("start_s", "tones") if k not in seg]
+            if missing:                               # a segment without `tones` was replayed as a pause
+                raise ValueError(f"no {' and no '.join(missing)}")
             step = seg.get("step", 0)
             if isinstance(step, bool) or not isinstance(step, int) or not 0 <= step < 2**31:
                 raise ValueError(f"step is {json.dumps(step)[:40]}, not a step index")
@@ -329,9 +334,14 @@ def read_schedule(path: str, max_segments: int = MAX_REPLAY_SEGMENTS) -> tuple[l
             prev_start, prev_end = start, end
             tones = []
             chirp = False
-            if not isinstance(seg.get("tones", []), list):
+            if not isinstance(seg["tones"], list):
                 raise ValueError("tones is not a list")
-            for t in seg.get("tones", []):
+            for k, t in enumerate(seg["tones"]):
+                if not isinstance(t, dict):               # was "string indices must be integers, not 'str'"
+                    raise ValueError(f"tones[{k}] is {json.dumps(t)[:40]}, not an object")
+                lacking = [key for key in ("frequency_hz", "amplitude_v") if key not in t]
+                if lacking:                               # was "('amplitude_v')", a KeyError's text
+                    raise ValueError(f"tones[{k}] has no {' and no '.join(lacking)}")
                 f, v = num(t["frequency_hz"], "frequency_hz"), num(t["amplitude_v"], "amplitude_v")
                 if not (f > 0 and v >= 0):
                     raise ValueError(f"tone {f!r} Hz @ {v!r} V")
