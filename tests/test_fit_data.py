@@ -163,3 +163,22 @@ def test_a_wrong_name_repeated_on_many_rows_is_reported_once_with_a_count(tmp_pa
     assert err.count("[E803]") == 1 and f"{path}:2:1" in err and "and 17 more rows" in err
     assert err.count("[E804]") == 1 and f"{path}:20:14" in err and "and 2 more rows (lines 21, 22)" in err
     assert err.count("[E806]") == 1 and f"{path}:23:12" in err
+
+
+@pytest.mark.parametrize("rows, free", [
+    ("deflection,1.0,um,125 kHz @ 2 V,1,0.05\n", "gamma"),
+    ("deflection,1.0,um,125 kHz @ 2 V,1,0.05\ndeflection,4.1,um,125 kHz @ 4 V,2,0.05\n", "gamma,E"),
+])
+def test_no_more_rows_than_free_coefficients_is_refused_not_a_zero_wide_interval(tmp_path, capsys, rows, free):
+    """One row, gamma free: exit 0 with the 95 % interval [2.423e-11, 2.423e-11] (chi2 = 0 over dof clamped to 1)."""
+    from acl.cli import main
+
+    data = tmp_path / "d.csv"
+    data.write_text("observable,value,unit,drive,time,sigma\n" + rows)
+    cal = tmp_path / "cal.acl"
+    assert main(["fit", CANTILEVER, str(data), "--free", free,
+                 "--effects", "none", "--calibrated", str(cal)]) == 1
+    err = capsys.readouterr().err
+    n = rows.count("\n")
+    assert f"{data}:{n + 1}:1: error[E801]: {n} row" in err and "free coefficient" in err, err
+    assert not cal.exists()

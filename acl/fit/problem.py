@@ -121,6 +121,16 @@ def load_problem(design_path, data_paths, free=(), search_paths=(), model: str =
             continue
         seen.add(role)
         coefs.append(_coef(role, name, design, P))
+    if coefs and not np.any(P.state) and data.n <= len(coefs):
+        # as many rows as coefficients fit exactly: the residual scale (chi2 / dof) is 0 / 0, and the intervals came
+        # out zero-wide ([2.42e-11, 2.42e-11] from one row): an optimistic answer where the data say nothing
+        sp = data.spans[-1] if data.n else Span(file=str(data_paths[0]), line=1, column=1)
+        raise DiagnosticError([error("E801", f"{data.n} row{'s' if data.n != 1 else ''} for {len(coefs)} free "
+                                     f"coefficient{'s' if len(coefs) != 1 else ''} "
+                                     f"({', '.join(c.name for c in coefs)}): a fit needs more rows than free "
+                                     "coefficients to estimate its errors", sp,
+                                     "measure more rows (other voltages, frequencies or gaps), or free fewer "
+                                     "coefficients")])
     y = data.value
     if P.group_row is not None and np.any(P.group_row):
         _group_start(P, coefs, y, data.sigma)
