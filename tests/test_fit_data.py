@@ -182,3 +182,26 @@ def test_no_more_rows_than_free_coefficients_is_refused_not_a_zero_wide_interval
     n = rows.count("\n")
     assert f"{data}:{n + 1}:1: error[E801]: {n} row" in err and "free coefficient" in err, err
     assert not cal.exists()
+
+
+@pytest.mark.parametrize("value, words", [
+    ("3V", "`set:length` = `3V` is a voltage [V]; parameter `length` is a length [m]"),
+    ("40", "`set:length` = `40` is a plain number; parameter `length` is a length [m]"),
+])
+def test_an_override_of_the_wrong_dimension_is_located_at_its_cell(tmp_path, capsys, value, words):
+    """Was E805 at column 1 with the hint `see <--set>:1:1`, an option acl fit does not have."""
+    path = _csv(tmp_path, GOOD + f"deflection,1.2,um,125 kHz @ 3 V,0,0.2,{value}\n")
+    assert main(["fit", CANTILEVER, path, "--free", "gamma", "--effects", "none"]) == 1
+    err = capsys.readouterr().err
+    assert f"{path}:3:39: error[E805]: {words}" in err and "<--set>" not in err, err
+
+
+def test_every_override_the_design_does_not_resolve_with_is_reported(tmp_path, capsys):
+    """Only the first failing override set was reported (each later one needed another run)."""
+    path = _csv(tmp_path, GOOD + "deflection,1.2,um,125 kHz @ 3 V,0,0.2,3 um\n"
+                + "deflection,1.2,um,125 kHz @ 3 V,0,0.2,-3 um\n" + "deflection,1.2,um,125 kHz @ 3 V,0,0.2,3 um\n")
+    assert main(["fit", CANTILEVER, path, "--free", "gamma", "--effects", "none"]) == 1
+    err = capsys.readouterr().err
+    assert f"{path}:3:1: error[E805]: the design does not resolve with length = 3 um" in err, err
+    assert f"{path}:4:1: error[E805]: the design does not resolve with length = -3 um" in err, err
+    assert err.count("error[E805]") == 2

@@ -120,6 +120,7 @@ def read_data(paths, design) -> Dataset:
     obs_names = [o.name for o in design.observes]
     state_names = {o.name for o in design.observes if o.kind == "state"}
     param_names = [p.name for p in design.params]
+    param_dims = {p.name: _unit_dims(p.unit) for p in design.params}
     cols: dict[str, list] = {k: [] for k in ("observable", "value", "sigma", "time", "tones", "spans", "units",
                                              "experiment")}
     sets: dict[str, list] = {}
@@ -258,10 +259,20 @@ def read_data(paths, design) -> Dataset:
                 text = cell(k)[0]
                 if text:
                     try:
-                        parse_quantity(text)
+                        _, dims = parse_quantity(text)
                     except (ValueError, UnitError) as exc:
                         bag.error("E805", f"`{k}` = `{text}`: {exc}", sp(k), "write a number with a unit, e.g. `40 um`")
                         ok = False
+                    else:      # at the cell, not later as the design's `--set` error (its hint named `<--set>:1:1`)
+                        want = param_dims.get(k[4:])
+                        if want is not None and dims != want:
+                            from acl.design.core import example
+                            from acl.units import describe
+
+                            bag.error("E805", f"`{k}` = `{text}` is {'a plain number' if not any(dims) else 'a ' + describe(dims)}"
+                                      f"; parameter `{k[4:]}` is a {describe(want)}", sp(k),
+                                      f"write it with a unit, e.g. `{example(want)}`")
+                            ok = False
                 row_sets[k[4:]] = text
             if ok and state and value not in (0.0, 1.0):
                 bag.error("E806", f"value {cell('value')[0]}: a latch state is 0 (state a, as printed) or 1 (state b, "
@@ -306,6 +317,16 @@ def read_data(paths, design) -> Dataset:
                    np.array(cols["sigma"], float), np.array(cols["time"], float), cols["tones"], sets_arr,
                    set_si, cols["spans"], np.array(cols["units"], dtype=object), tuple(paths), {},
                    np.array(cols["experiment"], dtype=object))
+
+
+def _unit_dims(unit: str):
+    """The dimensions of a parameter's SI unit string, or None when it cannot be read (no check then)."""
+    from acl.units import UnitError, parse_unit
+
+    try:
+        return parse_unit(unit or "1")[1]
+    except (UnitError, ValueError):
+        return None
 
 
 def _collapse_repeats(diags: list) -> list:

@@ -56,18 +56,31 @@ def load_problem(design_path, data_paths, free=(), search_paths=(), model: str =
     design = acl.load(design_path, search_paths=search_paths)
     data = read_data(data_paths, design)
     cache: dict = {}
+    # every override set the rows name is resolved first, so that each one the design does not resolve with is
+    # reported (at its first row), not only the first
+    designs: dict = {(): design}
+    bad = []
+    for i in range(data.n):
+        key = data.override_key(i)
+        if key in designs:
+            continue
+        try:
+            designs[key] = acl.load(design_path, overrides=dict(key), search_paths=search_paths)
+        except DiagnosticError as exc:
+            designs[key] = None
+            first = exc.diagnostics[0]
+            where = first.location()
+            sp = data.spans[i]
+            bad.append(error("E805", f"the design does not resolve with "
+                             f"{', '.join(f'{k} = {v}' for k, v in key)}: {first.message}",
+                             Span(file=sp.file, line=sp.line, column=1),
+                             None if where.startswith("<") else f"see {where}"))
+    if bad:
+        raise DiagnosticError(bad)
 
     def load_instance(key):
         if key not in cache:
-            try:
-                d = acl.load(design_path, overrides=dict(key), search_paths=search_paths) if key else design
-            except DiagnosticError as exc:
-                row = next(i for i in range(data.n) if data.override_key(i) == key)
-                sp = data.spans[row]
-                raise DiagnosticError([error("E805", f"the design does not resolve with "
-                                             f"{', '.join(f'{k} = {v}' for k, v in key)}: {exc.diagnostics[0].message}",
-                                             Span(file=sp.file, line=sp.line, column=1),
-                                             f"see {exc.diagnostics[0].location()}")])
+            d = designs[key] if key in designs else acl.load(design_path, overrides=dict(key), search_paths=search_paths)
             cache[key] = build_instance(d, model, coupled=coupled)
         return cache[key]
 
