@@ -205,3 +205,20 @@ def test_every_override_the_design_does_not_resolve_with_is_reported(tmp_path, c
     assert f"{path}:3:1: error[E805]: the design does not resolve with length = 3 um" in err, err
     assert f"{path}:4:1: error[E805]: the design does not resolve with length = -3 um" in err, err
     assert err.count("error[E805]") == 2
+
+
+@pytest.mark.parametrize("value", ["1_000", "\u0661\u0662", "0x10", "1e", "--1"])
+def test_a_value_python_reads_but_a_csv_number_is_not_is_refused(tmp_path, capsys, value):
+    """`1_000` was read as 1000 and `١٢` as 12 (Python's float() accepts both)."""
+    path = _csv(tmp_path, GOOD + f"deflection,{value},um,125 kHz @ 3 V,0,0.2,50 um\n")
+    assert main(["fit", CANTILEVER, path, "--free", "gamma", "--effects", "none"]) == 1
+    err = capsys.readouterr().err
+    assert f"{path}:3:12: error[E806]: value `{value}` is not a number" in err, err
+
+
+def test_an_unclosed_quote_is_located_at_the_quote(tmp_path, capsys):
+    """Was `row has 2 cells, the header has 7` at column 1, the quote unnamed."""
+    path = _csv(tmp_path, GOOD + 'deflection,"1.2,um,125 kHz @ 3 V,0,0.2,50 um\n')
+    assert main(["fit", CANTILEVER, path, "--free", "gamma", "--effects", "none"]) == 1
+    err = capsys.readouterr().err
+    assert f"{path}:3:12: error[E801]: a quote opened here is not closed" in err, err

@@ -27,6 +27,7 @@ MAX_LENGTH = 1.0                         # m: |value| and sigma beyond this are 
 MAX_TIME = 1e9                           # s: about 30 years
 MIN_SIGMA = 1e-15                        # m: a standard uncertainty below a femtometre is no measurement's (a weight
                                          # of 1e306 overflowed the least-squares sums: a garbage fit, exit 0)
+_DECIMAL = re.compile(r"^\s*[-+]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][-+]?[0-9]+)?\s*$")   # a number a CSV holds
 _NUM_UNIT = re.compile(r"^\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*(.*?)\s*$")
 
 
@@ -98,6 +99,19 @@ def split_line(line: str) -> list[tuple[str, int]]:
         i += 1
     out.append(("".join(buf).strip(), start))
     return out
+
+
+def _open_quote(line: str) -> int | None:
+    """The 1-based column of a double quote that opens a cell and is not closed on the line, else None."""
+    quoted, at, i = False, None, 0
+    while i < len(line):
+        if line[i] == '"':
+            if quoted and i + 1 < len(line) and line[i + 1] == '"':
+                i += 1
+            else:
+                quoted, at = not quoted, i + 1
+        i += 1
+    return at if quoted else None
 
 
 def parse_quantity(text: str) -> tuple[float, tuple]:
@@ -202,8 +216,14 @@ def read_data(paths, design) -> Dataset:
             cells = split_line(raw)
             line = li + 1
             if len(cells) != len(header):
-                bag.error("E801", f"row has {len(cells)} cells, the header has {len(header)}",
-                          Span(file=path, line=line, column=1))
+                quote = _open_quote(raw)
+                if quote is not None:        # the rest of the row went into one cell: say why
+                    bag.error("E801", "a quote opened here is not closed on this row (the rest of the row became one "
+                              f"cell: {len(cells)} cells, the header has {len(header)})",
+                              Span(file=path, line=line, column=quote), 'close it, or double it (`""`) inside a cell')
+                else:
+                    bag.error("E801", f"row has {len(cells)} cells, the header has {len(header)}",
+                              Span(file=path, line=line, column=1))
                 continue
 
             def cell(key):
@@ -405,6 +425,8 @@ def _number(bag, text, span, what, required, positive=False):
             return None
         return math.nan
     try:
+        if not _DECIMAL.match(text) and text.strip().lower().lstrip("+-") not in ("nan", "inf", "infinity"):
+            raise ValueError(text)          # Python's float() also reads `1_000` and non-ASCII digits (`١٢`)
         x = float(text)
     except ValueError:
         bag.error("E806", f"{what} `{text}` is not a number", span,
