@@ -27,7 +27,6 @@ MAX_LENGTH = 1.0                         # m: |value| and sigma beyond this are 
 MAX_TIME = 1e9                           # s: about 30 years
 MIN_SIGMA = 1e-15                        # m: a standard uncertainty below a femtometre is no measurement's (a weight
                                          # of 1e306 overflowed the least-squares sums: a garbage fit, exit 0)
-_DECIMAL = re.compile(r"^\s*[-+]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][-+]?[0-9]+)?\s*$")   # a number a CSV holds
 _NUM_UNIT = re.compile(r"^\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*(.*?)\s*$")
 
 
@@ -425,9 +424,9 @@ def _number(bag, text, span, what, required, positive=False):
             return None
         return math.nan
     try:
-        if not _DECIMAL.match(text) and text.strip().lower().lstrip("+-") not in ("nan", "inf", "infinity"):
-            raise ValueError(text)          # Python's float() also reads `1_000` and non-ASCII digits (`١٢`)
-        x = float(text)
+        from acl.units import parse_decimal
+
+        x = parse_decimal(text)             # Python's float() also reads `1_000` and non-ASCII digits (`١٢`)
     except ValueError:
         bag.error("E806", f"{what} `{text}` is not a number", span,
                   "write the number alone; its unit goes in the `unit` column" if what in ("value", "sigma") else None)

@@ -160,7 +160,9 @@ def read_sweep_csv(path: str, band: tuple[float, float] | None = None, transduce
             idx, scale = columns[key]
             text, col = fields[idx]
             try:
-                val = float(text)
+                from acl.units import parse_decimal
+
+                val = parse_decimal(text)       # float() also reads `1_000` and non-ASCII digits
             except ValueError:
                 _fail("E-CSV-VALUE", f"{key} is not a number: {text!r}", path, no, col)
             if not (np.isfinite(val) and np.isfinite(val * scale)):
