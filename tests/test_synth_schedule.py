@@ -197,3 +197,36 @@ def test_a_malformed_segment_says_what_is_wrong_in_the_schedule_s_terms(tmp_path
     err = capsys.readouterr().err
     assert f"{sched}:4:3: error[E-SYNTH-SCHEDULE]: segments[1]: malformed segment ({words}" in err, err
     assert "object has no attribute" not in err and "string indices" not in err and not out.exists()
+
+
+def _follow_schedule(path, targets):
+    segs = ",\n  ".join('{"start_s": %d, "end_s": %d, "goal": "g", "tones": [{"frequency_hz": 125e3, "amplitude_v": %d}]}'
+                        % (i, i + 1, 1 + i) for i in range(3))
+    path.write_text('{"version": "1.1",\n "segments": [\n  ' + segs + '\n ],\n "goals": [\n  {"name": "g", "kind": '
+                    '"follow", "capsule": "act", "target_um": ' + json.dumps(targets) + '}\n ]}\n')
+    return str(path)
+
+
+@pytest.mark.parametrize("targets, words", [
+    ([], "0 target points for 3 constant-drive segments"),             # was E-INTERNAL (max of an empty array)
+    ([[-1, 0]], "1 target point for 3 constant-drive segments"),       # was an error over 1 of 3 waypoints, exit 0
+    ([[-1, 0]] * 4, "4 target points for 3 constant-drive segments"),
+])
+def test_follow_targets_that_do_not_match_the_goal_s_waypoints_are_refused(tmp_path, capsys, targets, words):
+    from acl.cli import main
+
+    sched = _follow_schedule(tmp_path / "s.json", targets)
+    out = tmp_path / "a.csv"
+    assert main(["synth", CANTILEVER, "--schedule", sched, "-o", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert f"{sched}:8:3: error[E-SYNTH-SCHEDULE]: goals[0] `g`: {words}" in err, err
+    assert "E-INTERNAL" not in err and not out.exists()
+
+
+def test_follow_targets_one_per_waypoint_are_replayed(tmp_path, capsys):
+    from acl.cli import main
+
+    sched = _follow_schedule(tmp_path / "s.json", [[-0.1, 0], [-0.4, 0], [-1, 0]])
+    assert main(["synth", CANTILEVER, "--schedule", sched, "-o", str(tmp_path / "a.csv")]) == 0
+    err = capsys.readouterr().err
+    assert "g: tracking error on" in err and "over 3 waypoints" in err, err
