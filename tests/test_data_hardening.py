@@ -214,3 +214,15 @@ def test_synth_noise_the_fit_would_refuse_is_a_usage_error_with_a_schedule_too(t
     sched.write_text('{"version": "1.1", "segments": [{"start_s": 0, "tones": [{"frequency_hz": 125e3, "amplitude_v": 2}]}]}')
     rc, err, out = _synth(capsys, tmp_path, "--schedule", str(sched), "--noise", noise)
     assert rc == 2 and "<--noise>:1:1: error[E-USAGE]" in err and "1e-15 m" in err and not out.exists(), err
+
+
+@pytest.mark.parametrize("args, option, words", [
+    (["--interval", "0s"], "--interval", "--interval 0s: a positive, finite time"),       # was at <--noise>
+    (["--interval", "1e999s"], "--interval", "a positive, finite time"),
+    (["--frequencies", ""], "--frequencies", "give one frequency at least"),            # was at <command line>
+    (["--repeats", "0"], "--repeats", "--repeats 0: at least 1"),                         # was at <command line>
+    (["--noise=-1um"], "--noise", "the noise is 0 or from 1e-15 m to 1 m"),
+])
+def test_each_synth_option_is_refused_at_its_own_name(tmp_path, capsys, args, option, words):
+    rc, err, out = _synth(capsys, tmp_path, *args)
+    assert rc == 2 and f"<{option}>:1:1: error[E-USAGE]: " in err and words in err and not out.exists(), err

@@ -239,12 +239,15 @@ def run(args) -> int:
         if eid not in planted:
             return _usage(f"--effect {eid}: every parameter is at the effect's null value, so it plants nothing",
                           "give a value that differs from the null, e.g. " + _example(eid))
-    if noise < 0 or args.repeats < 1 or not freqs:
-        return _usage("noise must not be negative, repeats at least 1, and one frequency at least")
     from acl.fit.data import MIN_SIGMA
 
-    # checked before --schedule too: a replay with `--noise 5m` wrote rows that `acl fit` refuses (E806)
-    if not math.isfinite(noise) or noise > MAX_LENGTH or 0 < noise < MIN_SIGMA:
+    # each option at its own name (they were one message at `<command line>`, or `<--noise>` for a bad --interval);
+    # the noise is checked before --schedule too: a replay with `--noise 5m` wrote rows that `acl fit` refuses (E806)
+    if args.repeats < 1:
+        return _usage(f"--repeats {args.repeats}: at least 1")
+    if not freqs:
+        return _usage(f"--frequencies {args.frequencies!r}: give one frequency at least, e.g. 125kHz")
+    if not math.isfinite(noise) or noise < 0 or noise > MAX_LENGTH or 0 < noise < MIN_SIGMA:
         return _usage(f"--noise {args.noise}: the noise is 0 or from {MIN_SIGMA:g} m to {MAX_LENGTH:g} m (the sigma "
                       "`acl fit` reads)")
     if args.max_segments is not None and args.schedule is None:
@@ -254,9 +257,12 @@ def run(args) -> int:
             return _usage("--schedule plays on the design as declared: declare effects in it (`effect ID { ... }`) "
                           "instead of --effect; --sweep does not apply")
         return _replay(args, noise)
-    if not all(math.isfinite(x) for x in (noise, interval, *freqs, *volts)) or noise > MAX_LENGTH or interval <= 0:
-        return _usage("--noise, --frequencies, --voltages and --interval must be finite; the noise at most "
-                      f"{MAX_LENGTH:g} m and the interval positive")
+    if not all(math.isfinite(x) for x in freqs):
+        return _usage(f"--frequencies {args.frequencies}: every frequency must be finite")
+    if not all(math.isfinite(x) for x in volts):
+        return _usage(f"--voltages {args.voltages}: the voltages must be finite")
+    if not (math.isfinite(interval) and interval > 0):
+        return _usage(f"--interval {args.interval}: a positive, finite time, e.g. 1s")
     design = one_design(args.design)
     if design is None:
         return 2
