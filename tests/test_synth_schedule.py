@@ -230,3 +230,18 @@ def test_follow_targets_one_per_waypoint_are_replayed(tmp_path, capsys):
     assert main(["synth", CANTILEVER, "--schedule", sched, "-o", str(tmp_path / "a.csv")]) == 0
     err = capsys.readouterr().err
     assert "g: tracking error on" in err and "over 3 waypoints" in err, err
+
+
+@pytest.mark.parametrize("field, value", [("capsule", 5), ("capsule", ["act"]), ("name", 7)])
+def test_a_goal_field_of_the_wrong_type_is_malformed_not_another_design(tmp_path, capsys, field, value):
+    """`"capsule": 5` was exit 1 with "follows capsule `5`, which the truth does not have"."""
+    from acl.cli import main
+
+    sched = tmp_path / "s.json"
+    text = open(_follow_schedule(tmp_path / "t.json", [[-1, 0]] * 3)).read()
+    doc = json.loads(text)
+    doc["goals"][0][field] = value
+    sched.write_text(json.dumps(doc))
+    assert main(["synth", CANTILEVER, "--schedule", str(sched), "-o", str(tmp_path / "a.csv")]) == 2
+    err = capsys.readouterr().err
+    assert f"error[E-SYNTH-SCHEDULE]: goals[0].{field} is {json.dumps(value)}, not a string" in err, err

@@ -378,9 +378,13 @@ def read_schedule(path: str, max_segments: int = MAX_REPLAY_SEGMENTS) -> tuple[l
         raise bad("goals: expected a list", hint="give the schedule.json `acl compile` wrote")
     for j, g in enumerate(goals):
         if isinstance(g, dict) and g.get("kind") == "follow" and g.get("capsule") and g.get("target_um") is not None:
-            if not g.get("name"):
-                raise bad(f"goals[{j}]: a follow goal without a name")
             at = _segment_position(text, j, "goals")
+            if not g.get("name"):
+                raise bad(f"goals[{j}]: a follow goal without a name", *at)
+            for key in ("name", "capsule"):     # `"capsule": 5` was exit 1, "the truth has no capsule `5`"
+                if not isinstance(g[key], str):
+                    raise bad(f"goals[{j}].{key} is {json.dumps(g[key])[:40]}, not a string", *at,
+                              hint="give the schedule.json `acl compile` wrote")
             try:
                 pts = np.asarray(g["target_um"], float).reshape(-1, 2) * 1e-6
             except (TypeError, ValueError):
