@@ -222,3 +222,15 @@ def test_an_unclosed_quote_is_located_at_the_quote(tmp_path, capsys):
     assert main(["fit", CANTILEVER, path, "--free", "gamma", "--effects", "none"]) == 1
     err = capsys.readouterr().err
     assert f"{path}:3:12: error[E801]: a quote opened here is not closed" in err, err
+
+
+def test_a_set_column_for_a_fitted_parameter_is_refused(tmp_path, capsys):
+    """`set:gamma` with --free gamma ran (exit 0): rows' designs took the column's values, the fit one fitted value."""
+    body = ("deflection,0.01,um,,0,0.05,\n" + "deflection,1.0,um,125 kHz @ 2 V,1,0.05,0.01 nN/V^2\n"
+            + "deflection,4.0,um,125 kHz @ 4 V,2,0.05,\n")
+    path = _csv(tmp_path, body, header="observable,value,unit,drive,time,sigma,set:gamma\n")
+    assert main(["fit", CANTILEVER, path, "--free", "gamma", "--effects", "none"]) == 1
+    err = capsys.readouterr().err
+    assert f"{path}:3:1: error[E805]: `set:gamma` gives parameter `gamma` per row, but the fit determines it" in err, err
+    assert main(["fit", CANTILEVER, path, "--free", "E", "--effects", "none"]) == 0     # gamma not fitted: a row setting
+    capsys.readouterr()

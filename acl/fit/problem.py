@@ -86,6 +86,23 @@ def load_problem(design_path, data_paths, free=(), search_paths=(), model: str =
 
     roles = classify_params(design_path, design, search_paths)
     names = [p.name for p in design.params if p.free] + [n for n in free if n]
+    # a parameter the fit determines (one value) cannot also be given per row by a `set:` column: the rows' designs
+    # used the column's values while the fit reported and wrote back one fitted value (no diagnostic)
+    fitted = {n for n in names if any(p.name == n for p in design.params)}
+    fitted |= {p for p, r in roles.items() if r in COEFFICIENTS and r in {n if n in COEFFICIENTS else roles.get(n)
+                                                                         for n in names}}
+    clash = []
+    for k in sorted(fitted & set(data.sets)):
+        if roles.get(k) in ("geometry", "unused"):        # refused below as not fittable at all (E812)
+            continue
+        rows = [i for i in range(data.n) if data.sets[k][i]]
+        if rows:
+            sp = data.spans[rows[0]]
+            clash.append(error("E805", f"`set:{k}` gives parameter `{k}` per row, but the fit determines it "
+                               f"({'declared `free`' if design.param(k).free else 'the --free names'})", sp,
+                               f"drop the set:{k} column, or fix `{k}` (leave it out of --free)"))
+    if clash:
+        raise DiagnosticError(clash)
     gamma_param = next((n for n in names if (n if n in COEFFICIENTS else roles.get(n)) == "gamma"
                         and (n not in COEFFICIENTS or _has_param(design, n)) and roles.get(n) == "gamma"), None)
     # a design parameter declared as some capsules' `thrust`: gamma scales exactly those (as the analysis applies it)
