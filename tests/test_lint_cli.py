@@ -283,3 +283,17 @@ def test_lint_package_never_imports_the_parser_or_the_cli():
                 [node.module or ""] if isinstance(node, ast.ImportFrom) else []
             for name in names:
                 assert not name.startswith(("acl.syntax", "acl.cli", "acl.commands")), f"{path.name} imports {name}"
+
+
+@pytest.mark.parametrize("value", ["", " , "])
+def test_an_empty_select_option_is_a_usage_error_not_a_silent_pass(tmp_path, capsys, value):
+    """`--select ""` (an empty CI variable) ran no rule: "All checks passed", exit 0, on a design with an error."""
+    rc, out, err = run(capsys, "--select", value, write(tmp_path, "a.acl", FAILING))
+    assert rc == 2 and "<--select>:1:1: error[E-USAGE]" in err and "no rule would run" in err, (out, err)
+
+
+@pytest.mark.parametrize("toml", ['[lint]\nselect = []\n', '[lint]\nselect = ""\n'])
+def test_an_empty_select_in_the_configuration_is_refused(tmp_path, capsys, toml):
+    cfg = write(tmp_path, "acl.toml", toml)
+    rc, out, err = run(capsys, "--config", cfg, write(tmp_path, "a.acl", FAILING))
+    assert rc == 2 and "acl.toml:2:1: error[E-CONFIG]: `select` is empty" in err, (out, err)

@@ -175,6 +175,8 @@ def _parse(table: dict, text: str, path: str, prefix: str, rules: dict) -> LintC
             cfg.mechanics = table["mechanics"]
     if "select" in table:
         cfg.select = codes(table["select"], "select", "select")
+        if table["select"] in ([], "", [""]):     # selected no rule: every design "passed" with nothing checked
+            bad("`select` is empty: no rule would run", "select", hint="list codes or prefixes, or remove `select`")
     if "ignore" in table:
         cfg.ignore = codes(table["ignore"], "ignore", "ignore", allow_check=True)
     pfi = table.get("per-file-ignores", {})
