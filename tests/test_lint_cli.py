@@ -297,3 +297,9 @@ def test_an_empty_select_in_the_configuration_is_refused(tmp_path, capsys, toml)
     cfg = write(tmp_path, "acl.toml", toml)
     rc, out, err = run(capsys, "--config", cfg, write(tmp_path, "a.acl", FAILING))
     assert rc == 2 and "acl.toml:2:1: error[E-CONFIG]: `select` is empty" in err, (out, err)
+
+
+def test_an_empty_config_path_is_a_usage_error(tmp_path, capsys):
+    """`--config ""` silently used the configuration found by walking up instead."""
+    rc, out, err = run(capsys, "--config", "", write(tmp_path, "a.acl", CLEAN))
+    assert rc == 2 and "<--config>:1:1: error[E-USAGE]: --config '': an empty path" in err, (out, err)

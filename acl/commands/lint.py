@@ -79,6 +79,9 @@ def run(args) -> int:
     overrides, diags = parse_sets(args.set)
     select, d1 = _codes(args.select, "--select", rules)
     ignore, d2 = _codes(args.ignore, "--ignore", rules)
+    if args.config is not None and not args.config.strip():   # "" fell back to the configuration found by search
+        diags.append(error("E-USAGE", f"--config {args.config!r}: an empty path", Span(file="<--config>", line=1, column=1),
+                           "give a path, or leave the option out (the configuration is then found by walking up)"))
     if diags or d1 or d2:
         return _fail(diags + d1 + d2)
     stdin_text = None
