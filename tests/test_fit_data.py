@@ -234,3 +234,16 @@ def test_a_set_column_for_a_fitted_parameter_is_refused(tmp_path, capsys):
     assert f"{path}:3:1: error[E805]: `set:gamma` gives parameter `gamma` per row, but the fit determines it" in err, err
     assert main(["fit", CANTILEVER, path, "--free", "E", "--effects", "none"]) == 0     # gamma not fitted: a row setting
     capsys.readouterr()
+
+
+@pytest.mark.parametrize("column", ["set: length", "SET:length", " set:length "])
+def test_a_set_column_is_read_with_blanks_and_any_case_of_set(tmp_path, column):
+    """`set: length` passed the header check, then every row failed: "the design has no parameter ` length`"."""
+    import acl
+    from acl.fit.data import read_data
+
+    path = _csv(tmp_path, "deflection,1.2,um,125 kHz @ 3 V,0,0.2,60 um\n",
+                header=f"observable,value,unit,drive,time,sigma,{column}\n")
+    data = read_data([path], acl.load(CANTILEVER))
+    assert list(data.sets) == ["length"] and data.sets["length"][0] == "60 um"
+    assert data.set_si["length"][0] == pytest.approx(60e-6)

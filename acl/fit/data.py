@@ -100,6 +100,15 @@ def split_line(line: str) -> list[tuple[str, int]]:
     return out
 
 
+def _column_key(name: str) -> str:
+    """A header cell as a column key: the name in lower case, ``set:NAME`` with NAME as written (parameters are
+    case-sensitive) and without blanks around it (`set: gap` kept the blank: "no parameter ` gap`" on every row)."""
+    text = name.strip()
+    if text.lower().startswith("set:"):
+        return "set:" + text[4:].strip()
+    return text.lower()
+
+
 def _open_quote(line: str) -> int | None:
     """The 1-based column of a double quote that opens a cell and is not closed on the line, else None."""
     quoted, at, i = False, None, 0
@@ -173,11 +182,11 @@ def read_data(paths, design) -> Dataset:
                 bag.error("E801", f"the header has more bad columns from here on (column {j + 1} of {len(header)}); "
                           "only the first ones are reported", sp, "is this an acl data file? (docs/data.md)")
             if header_errors > MAX_HEADER_ERRORS:
-                key = name.strip().lower() if not name.strip().startswith("set:") else name.strip()
+                key = _column_key(name)
                 index.setdefault(key, j)
                 continue
             before = len(bag.items)
-            key = name.strip().lower() if not name.strip().startswith("set:") else name.strip()
+            key = _column_key(name)
             if key in index:
                 bag.error("E801", f"column `{name}` appears twice", sp)
             elif key in REQUIRED or key in OPTIONAL:
