@@ -247,3 +247,11 @@ def test_a_set_column_is_read_with_blanks_and_any_case_of_set(tmp_path, column):
     data = read_data([path], acl.load(CANTILEVER))
     assert list(data.sets) == ["length"] and data.sets["length"][0] == "60 um"
     assert data.set_si["length"][0] == pytest.approx(60e-6)
+
+
+def test_a_drive_listing_one_frequency_twice_is_refused_as_in_a_design(tmp_path, capsys):
+    """`125 kHz @ 2 V + 125 kHz @ 1 V` was read as two tones (a design's drive refuses it, E504)."""
+    path = _csv(tmp_path, GOOD + "deflection,1.2,um,125 kHz @ 2 V + 125 kHz @ 1 V,0,0.2,50 um\n")
+    assert main(["fit", CANTILEVER, path, "--free", "gamma", "--effects", "none"]) == 1
+    err = capsys.readouterr().err
+    assert f"{path}:3:" in err and "error[E802]" in err and "lists the frequency 125 kHz twice" in err, err

@@ -245,3 +245,16 @@ def test_a_goal_field_of_the_wrong_type_is_malformed_not_another_design(tmp_path
     assert main(["synth", CANTILEVER, "--schedule", str(sched), "-o", str(tmp_path / "a.csv")]) == 2
     err = capsys.readouterr().err
     assert f"error[E-SYNTH-SCHEDULE]: goals[0].{field} is {json.dumps(value)}, not a string" in err, err
+
+
+def test_a_segment_repeating_a_frequency_is_malformed(tmp_path, capsys):
+    """Its rows were written as `125 kHz @ 1 V + 125 kHz @ 2 V`, which `acl fit` refuses (E802)."""
+    from acl.cli import main
+
+    sched = tmp_path / "s.json"
+    sched.write_text('{"version": "1.1",\n "segments": [\n  {"start_s": 0, "tones": [{"frequency_hz": 125e3, '
+                     '"amplitude_v": 1}, {"frequency_hz": 125e3, "amplitude_v": 2}]}\n]}\n')
+    assert main(["synth", CANTILEVER, "--schedule", str(sched), "-o", str(tmp_path / "a.csv")]) == 2
+    err = capsys.readouterr().err
+    assert f"{sched}:3:3: error[E-SYNTH-SCHEDULE]: segments[0]: malformed segment (tones[1] repeats frequency_hz 125000)" \
+        in err, err

@@ -352,6 +352,8 @@ def read_schedule(path: str, max_segments: int = MAX_REPLAY_SEGMENTS) -> tuple[l
                     raise ValueError("frequency_end_hz is not a positive frequency")
                 chirp = chirp or t.get("frequency_end_hz") is not None
                 if v > 0:
+                    if any(f == g for g, _ in tones):   # rows `acl fit` refuses (E802), as a design's drive (E504)
+                        raise ValueError(f"tones[{k}] repeats frequency_hz {f:g}")
                     tones.append((f, v))
         except (KeyError, TypeError, ValueError, OverflowError, AttributeError) as exc:
             raise bad(f"{where}: malformed segment ({exc})", *_segment_position(text, i),
