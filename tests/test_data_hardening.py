@@ -226,3 +226,21 @@ def test_synth_noise_the_fit_would_refuse_is_a_usage_error_with_a_schedule_too(t
 def test_each_synth_option_is_refused_at_its_own_name(tmp_path, capsys, args, option, words):
     rc, err, out = _synth(capsys, tmp_path, *args)
     assert rc == 2 and f"<{option}>:1:1: error[E-USAGE]: " in err and words in err and not out.exists(), err
+
+
+def test_an_effect_planting_values_the_fit_refuses_writes_nothing(tmp_path, capsys):
+    """`offset_drift=drift:1e300 um/s` wrote values of 1e300 um, exit 0: rows `acl fit` refuses (E806)."""
+    rc, err, out = _synth(capsys, tmp_path, "--voltages", "0V..8V:3", "--effect", "offset_drift=drift:1e300 um/s")
+    assert rc == 2 and "<--effect>:1:1: error[E-USAGE]" in err and "beyond the 1 m `acl fit` reads" in err, err
+    assert not out.exists()
+
+
+def test_an_effect_parameter_given_twice_is_refused(tmp_path, capsys):
+    rc, err, out = _synth(capsys, tmp_path, "--effect", "drive_saturation=v_sat:8V,v_sat:9V")
+    assert rc == 2 and "<--effect>:1:1: error[E-USAGE]" in err and "`v_sat` given twice" in err and not out.exists()
+
+
+def test_an_effect_value_that_is_no_quantity_is_located_in_the_option(tmp_path, capsys):
+    """`v_sat:inf V` was reported at `<command line>`."""
+    rc, err, out = _synth(capsys, tmp_path, "--effect", "drive_saturation=v_sat:inf V")
+    assert rc == 2 and "<--effect>:1:24: error[E-USAGE]: --effect 'drive_saturation=v_sat:inf V': `v_sat`" in err, err
