@@ -244,3 +244,16 @@ def test_an_effect_value_that_is_no_quantity_is_located_in_the_option(tmp_path, 
     """`v_sat:inf V` was reported at `<command line>`."""
     rc, err, out = _synth(capsys, tmp_path, "--effect", "drive_saturation=v_sat:inf V")
     assert rc == 2 and "<--effect>:1:24: error[E-USAGE]: --effect 'drive_saturation=v_sat:inf V': `v_sat`" in err, err
+
+
+def test_the_rows_acl_fit_refuses_are_found_before_writing():
+    """The guard both synth paths (planted effects, a replayed schedule) apply before writing a CSV."""
+    from types import SimpleNamespace
+
+    import numpy as np
+
+    from acl.commands.synth import _first_unreadable
+
+    assert _first_unreadable(SimpleNamespace(value=np.array([0.0, 1e-6, 1.0]))) is None
+    assert _first_unreadable(SimpleNamespace(value=np.array([0.0, -2.0, np.inf]))) == 1
+    assert _first_unreadable(SimpleNamespace(value=np.array([1e-6, np.nan]))) == 1
