@@ -255,3 +255,13 @@ def test_a_drive_listing_one_frequency_twice_is_refused_as_in_a_design(tmp_path,
     assert main(["fit", CANTILEVER, path, "--free", "gamma", "--effects", "none"]) == 1
     err = capsys.readouterr().err
     assert f"{path}:3:" in err and "error[E802]" in err and "lists the frequency 125 kHz twice" in err, err
+
+
+@pytest.mark.parametrize("sep, words", [(";", "separated by `;`"), ("\t", "separated by tabs")])
+def test_a_semicolon_or_tab_separated_file_is_named_as_such(tmp_path, capsys, sep, words):
+    """A European spreadsheet's `;` CSV (or a TSV) was "unknown column `observable;value;unit;drive`"."""
+    path = _csv(tmp_path, sep.join(["deflection", "1,2", "um", "125 kHz @ 3 V"]) + "\n",
+                header=sep.join(["observable", "value", "unit", "drive"]) + "\n")
+    assert main(["fit", CANTILEVER, path, "--free", "gamma"]) == 1
+    err = capsys.readouterr().err
+    assert f"{path}:1:1: error[E801]: the header is {words}, not commas" in err, err

@@ -201,8 +201,15 @@ def read_data(paths, design) -> Dataset:
                 bag.error("E801", "a column without a name (a trailing or doubled comma in the header?)", sp,
                           "remove the empty header cell, and the matching cell of every row")
             else:
-                bag.error("E801", f"unknown column `{name}`", sp,
-                          suggest(key, [*REQUIRED, *OPTIONAL]) or "columns: observable, value, unit, drive, time, sigma, set:NAME")
+                sep = next((c for c in (";", "\t", "|") if c in name
+                            and any(part.strip().lower() in REQUIRED for part in name.split(c))), None)
+                if sep is not None:     # a spreadsheet's regional setting (`;`) or a TSV: say so, not "unknown column"
+                    shown = {";": "`;`", "\t": "tabs", "|": "`|`"}[sep]
+                    bag.error("E801", f"the header is separated by {shown}, not commas: it reads as one unknown column",
+                              sp, "save the file as comma-separated values (CSV with `,`; decimals with `.`)")
+                else:
+                    bag.error("E801", f"unknown column `{name}`", sp,
+                              suggest(key, [*REQUIRED, *OPTIONAL]) or "columns: observable, value, unit, drive, time, sigma, set:NAME")
             header_errors += len(bag.items) > before
         missing = [k for k in REQUIRED if k not in index]
         if missing:
