@@ -149,3 +149,13 @@ def test_a_number_python_reads_but_a_csv_does_not_hold_is_refused(tmp_path, cell
         read_sweep_csv(str(path))
     d = exc.value.diagnostics[0]
     assert (d.code, d.span.line, d.span.column) == ("E-CSV-VALUE", 3, 1) and "not a number" in d.message
+
+
+def test_a_semicolon_separated_sweep_is_named_as_such(tmp_path):
+    """Was "unknown column 'frequency [kHz];dx [um];dy [um]'"."""
+    path = tmp_path / "c.csv"
+    path.write_text("frequency [kHz];dx [um];dy [um]\n# voltage: 5 V\n110;0,1;0\n")
+    with pytest.raises(DiagnosticError) as exc:
+        read_sweep_csv(str(path))
+    d = exc.value.diagnostics[0]
+    assert (d.code, d.span.line, d.span.column) == ("E-CSV-HEADER", 1, 1) and "separated by `;`" in d.message

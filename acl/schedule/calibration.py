@@ -127,6 +127,10 @@ def read_sweep_csv(path: str, band: tuple[float, float] | None = None, transduce
         m = _HEAD.match(name)
         key = _ALIASES.get(m.group(1).lower()) if m else None
         if key is None:
+            sep = next((c for c in (";", "\t") if c in name and len(name.split(c)) >= 3), None)
+            if sep is not None:      # a spreadsheet's regional CSV (`;`) or a TSV read as one column
+                _fail("E-CSV-HEADER", f"the header is separated by {'`;`' if sep == ';' else 'tabs'}, not commas",
+                      path, hline, col, "save the file as comma-separated values (CSV with `,`; decimals with `.`)")
             _fail("E-CSV-HEADER", f"unknown column {name!r}", path, hline, col,
                   "columns are frequency, dx, dy (and optionally voltage), each with a unit")
         unit = (m.group(2) or m.group(3) or "").strip()
