@@ -23,10 +23,12 @@ def _fit(capsys, tmp_path, body: bytes | str, *extra):
     path.write_bytes(body if isinstance(body, bytes) else body.encode())
     with warnings.catch_warnings():
         warnings.simplefilter("error")          # a numpy RuntimeWarning fails the test
-        code = main(["fit", CANTILEVER, str(path), "--free", "gamma", "--report", str(tmp_path / "rep"), *extra])
+        # --calibrated in tmp_path: a fit that wrongly succeeds must not write next to the design in tests/data
+        code = main(["fit", CANTILEVER, str(path), "--free", "gamma", "--report", str(tmp_path / "rep"),
+                     "--calibrated", str(tmp_path / "cal.acl"), *extra])
     err = capsys.readouterr().err
     assert "E-INTERNAL" not in err and "Traceback" not in err
-    assert not (tmp_path / "rep").exists()
+    assert not (tmp_path / "rep").exists() and not (tmp_path / "cal.acl").exists()
     return code, err, str(path)
 
 
