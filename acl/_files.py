@@ -12,6 +12,16 @@ import os
 import re
 
 
+def undecodable(raw: bytes, exc: UnicodeDecodeError) -> tuple[int, int, int]:
+    """(line, column, byte value) in ``raw`` of the first byte that ``exc`` (raised decoding ``raw``) could not
+    decode; column counts characters.  With ``utf-8-sig`` the codec's offsets start after the byte-order
+    mark: they are shifted back onto ``raw`` (reading them against ``raw`` named the wrong byte, 3 columns early)."""
+    start = exc.start + (len(raw) - len(exc.object))
+    line_start = raw.rfind(b"\n", 0, start) + 1
+    column = len(raw[line_start:start].decode("utf-8-sig", errors="replace")) + 1
+    return raw.count(b"\n", 0, start) + 1, column, raw[start]
+
+
 def umask() -> int:
     """The process umask (read by setting and restoring it)."""
     mask = os.umask(0o022)

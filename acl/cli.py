@@ -30,7 +30,7 @@ examples:
   acl check examples/fig2_vertical_cantilever.acl
   acl show examples/fig3_three_orifice.acl --output-format json
   acl analyze examples/fig4h_unequal_pair.acl --at "85 kHz @ 5 V"
-  acl compile examples/fig3_three_orifice.acl --program rectangle -o out/
+  acl compile examples/fig3_three_orifice.acl --program circle -o out/
   acl lint examples/ --output-format github
   acl rule ACL201
   acl fit design.acl data.csv --report fit/

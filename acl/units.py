@@ -9,6 +9,7 @@ from __future__ import annotations
 import functools
 import math
 import os
+import re
 from dataclasses import dataclass
 
 # Dimension vector order: length, mass, time, current, temperature, amount, luminosity.
@@ -290,3 +291,16 @@ if __name__ == "__main__":  # python -m acl.units --regenerate
         print(f"{regenerate_table()} units written")
     else:
         print("usage: python -m acl.units --regenerate")
+
+
+_DECIMAL = re.compile(r"^\s*[-+]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][-+]?[0-9]+)?\s*$")
+
+
+def parse_decimal(text: str) -> float:
+    """A number as a CSV file holds it (ASCII decimal, optional exponent; ``nan``/``inf`` pass for the caller to
+    refuse as not finite).  Raises ValueError for what Python's float() reads but a data file does not mean:
+    ``1_000``, non-ASCII digits (``١٢``)."""
+    if not _DECIMAL.match(text) and text.strip().lower().lstrip("+-") not in ("nan", "inf", "infinity"):
+        raise ValueError(f"could not convert string to float: {text!r}")
+    return float(text)
+

@@ -23,10 +23,12 @@ def _fit(capsys, tmp_path, body: bytes | str, *extra):
     path.write_bytes(body if isinstance(body, bytes) else body.encode())
     with warnings.catch_warnings():
         warnings.simplefilter("error")          # a numpy RuntimeWarning fails the test
-        code = main(["fit", CANTILEVER, str(path), "--free", "gamma", "--report", str(tmp_path / "rep"), *extra])
+        # --calibrated in tmp_path: a fit that wrongly succeeds must not write next to the design in tests/data
+        code = main(["fit", CANTILEVER, str(path), "--free", "gamma", "--report", str(tmp_path / "rep"),
+                     "--calibrated", str(tmp_path / "cal.acl"), *extra])
     err = capsys.readouterr().err
     assert "E-INTERNAL" not in err and "Traceback" not in err
-    assert not (tmp_path / "rep").exists()
+    assert not (tmp_path / "rep").exists() and not (tmp_path / "cal.acl").exists()
     return code, err, str(path)
 
 
@@ -183,3 +185,77 @@ def test_bad_free_names_are_usage_errors_at_the_option(free, message, capsys):
     hint = err.split("help:", 1)[-1]
     names = [n.strip() for n in hint.split("names:", 1)[-1].split(",")] if "names:" in hint else []
     assert len(names) == len(set(names)), f"a name listed twice in the hint: {hint}"
+
+
+# -- a sigma no measurement has: weights of 1e306 overflowed the least-squares sums ---------------------
+
+@pytest.mark.parametrize("sigma, unit", [("1e-300", "um"), ("1e-10", "nm"), ("0.0001", "pm")])
+def test_a_sigma_below_a_femtometre_is_a_located_diagnostic_not_an_overflowing_fit(tmp_path, capsys, sigma, unit):
+    """Was exit 0 with numpy overflow warnings, an interval of `[-, -]` and a calibrated design written."""
+    row = f"deflection,1.2,{unit},125 kHz @ 3 V,0,{sigma},50 um\n".replace(",1.2,", ",1200," if unit == "nm" else ",1.2,")
+    code, err, path = _fit(capsys, tmp_path, HEADER + GOOD + row)
+    column = len(row.split(sigma)[0]) + 1
+    assert code == 1 and f"{path}:3:{column}: error[E806]: sigma {sigma} {unit} is below 1e-15 m" in err, err
+
+
+def test_a_sigma_of_a_femtometre_is_read(tmp_path):
+    import acl
+    from acl.fit.data import read_data
+
+    path = tmp_path / "d.csv"
+    path.write_text(HEADER + GOOD + "deflection,1.2,um,125 kHz @ 3 V,0,1e-9,50 um\n")
+    assert read_data([str(path)], acl.load(CANTILEVER)).n == 2
+
+
+@pytest.mark.parametrize("noise", ["1e-300um", "5m", "1e300um"])
+def test_synth_noise_the_fit_would_refuse_is_a_usage_error_with_a_schedule_too(tmp_path, capsys, noise):
+    """`--noise 5m` with --schedule wrote rows of 5e6 um (E806 in `acl fit`): the limit was checked only without it."""
+    rc, err, out = _synth(capsys, tmp_path, "--noise", noise)
+    assert rc == 2 and "<--noise>:1:1: error[E-USAGE]" in err and not out.exists(), err
+    sched = tmp_path / "s.json"
+    sched.write_text('{"version": "1.1", "segments": [{"start_s": 0, "tones": [{"frequency_hz": 125e3, "amplitude_v": 2}]}]}')
+    rc, err, out = _synth(capsys, tmp_path, "--schedule", str(sched), "--noise", noise)
+    assert rc == 2 and "<--noise>:1:1: error[E-USAGE]" in err and "1e-15 m" in err and not out.exists(), err
+
+
+@pytest.mark.parametrize("args, option, words", [
+    (["--interval", "0s"], "--interval", "--interval 0s: a positive, finite time"),       # was at <--noise>
+    (["--interval", "1e999s"], "--interval", "a positive, finite time"),
+    (["--frequencies", ""], "--frequencies", "give one frequency at least"),            # was at <command line>
+    (["--repeats", "0"], "--repeats", "--repeats 0: at least 1"),                         # was at <command line>
+    (["--noise=-1um"], "--noise", "the noise is 0 or from 1e-15 m to 1 m"),
+])
+def test_each_synth_option_is_refused_at_its_own_name(tmp_path, capsys, args, option, words):
+    rc, err, out = _synth(capsys, tmp_path, *args)
+    assert rc == 2 and f"<{option}>:1:1: error[E-USAGE]: " in err and words in err and not out.exists(), err
+
+
+def test_an_effect_planting_values_the_fit_refuses_writes_nothing(tmp_path, capsys):
+    """`offset_drift=drift:1e300 um/s` wrote values of 1e300 um, exit 0: rows `acl fit` refuses (E806)."""
+    rc, err, out = _synth(capsys, tmp_path, "--voltages", "0V..8V:3", "--effect", "offset_drift=drift:1e300 um/s")
+    assert rc == 2 and "<--effect>:1:1: error[E-USAGE]" in err and "beyond the 1 m `acl fit` reads" in err, err
+    assert not out.exists()
+
+
+def test_an_effect_parameter_given_twice_is_refused(tmp_path, capsys):
+    rc, err, out = _synth(capsys, tmp_path, "--effect", "drive_saturation=v_sat:8V,v_sat:9V")
+    assert rc == 2 and "<--effect>:1:1: error[E-USAGE]" in err and "`v_sat` given twice" in err and not out.exists()
+
+
+def test_an_effect_value_that_is_no_quantity_is_located_in_the_option(tmp_path, capsys):
+    """`v_sat:inf V` was reported at `<command line>`."""
+    rc, err, out = _synth(capsys, tmp_path, "--effect", "drive_saturation=v_sat:inf V")
+    assert rc == 2 and "<--effect>:1:24: error[E-USAGE]: --effect 'drive_saturation=v_sat:inf V': `v_sat`" in err, err
+
+
+def test_the_rows_acl_fit_refuses_are_found_before_writing():
+    """The guard both synth paths (planted effects, a replayed schedule) apply before writing a CSV."""
+    from types import SimpleNamespace
+
+    import numpy as np
+
+    from acl.commands.synth import _first_unreadable
+
+    assert _first_unreadable(SimpleNamespace(value=np.array([0.0, 1e-6, 1.0]))) is None
+    assert _first_unreadable(SimpleNamespace(value=np.array([0.0, -2.0, np.inf]))) == 1
+    assert _first_unreadable(SimpleNamespace(value=np.array([1e-6, np.nan]))) == 1

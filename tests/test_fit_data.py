@@ -163,3 +163,105 @@ def test_a_wrong_name_repeated_on_many_rows_is_reported_once_with_a_count(tmp_pa
     assert err.count("[E803]") == 1 and f"{path}:2:1" in err and "and 17 more rows" in err
     assert err.count("[E804]") == 1 and f"{path}:20:14" in err and "and 2 more rows (lines 21, 22)" in err
     assert err.count("[E806]") == 1 and f"{path}:23:12" in err
+
+
+@pytest.mark.parametrize("rows, free", [
+    ("deflection,1.0,um,125 kHz @ 2 V,1,0.05\n", "gamma"),
+    ("deflection,1.0,um,125 kHz @ 2 V,1,0.05\ndeflection,4.1,um,125 kHz @ 4 V,2,0.05\n", "gamma,E"),
+])
+def test_no_more_rows_than_free_coefficients_is_refused_not_a_zero_wide_interval(tmp_path, capsys, rows, free):
+    """One row, gamma free: exit 0 with the 95 % interval [2.423e-11, 2.423e-11] (chi2 = 0 over dof clamped to 1)."""
+    from acl.cli import main
+
+    data = tmp_path / "d.csv"
+    data.write_text("observable,value,unit,drive,time,sigma\n" + rows)
+    cal = tmp_path / "cal.acl"
+    assert main(["fit", CANTILEVER, str(data), "--free", free,
+                 "--effects", "none", "--calibrated", str(cal)]) == 1
+    err = capsys.readouterr().err
+    n = rows.count("\n")
+    assert f"{data}:{n + 1}:1: error[E801]: {n} row" in err and "free coefficient" in err, err
+    assert not cal.exists()
+
+
+@pytest.mark.parametrize("value, words", [
+    ("3V", "`set:length` = `3V` is a voltage [V]; parameter `length` is a length [m]"),
+    ("40", "`set:length` = `40` is a plain number; parameter `length` is a length [m]"),
+])
+def test_an_override_of_the_wrong_dimension_is_located_at_its_cell(tmp_path, capsys, value, words):
+    """Was E805 at column 1 with the hint `see <--set>:1:1`, an option acl fit does not have."""
+    path = _csv(tmp_path, GOOD + f"deflection,1.2,um,125 kHz @ 3 V,0,0.2,{value}\n")
+    assert main(["fit", CANTILEVER, path, "--free", "gamma", "--effects", "none"]) == 1
+    err = capsys.readouterr().err
+    assert f"{path}:3:39: error[E805]: {words}" in err and "<--set>" not in err, err
+
+
+def test_every_override_the_design_does_not_resolve_with_is_reported(tmp_path, capsys):
+    """Only the first failing override set was reported (each later one needed another run)."""
+    path = _csv(tmp_path, GOOD + "deflection,1.2,um,125 kHz @ 3 V,0,0.2,3 um\n"
+                + "deflection,1.2,um,125 kHz @ 3 V,0,0.2,-3 um\n" + "deflection,1.2,um,125 kHz @ 3 V,0,0.2,3 um\n")
+    assert main(["fit", CANTILEVER, path, "--free", "gamma", "--effects", "none"]) == 1
+    err = capsys.readouterr().err
+    assert f"{path}:3:1: error[E805]: the design does not resolve with length = 3 um" in err, err
+    assert f"{path}:4:1: error[E805]: the design does not resolve with length = -3 um" in err, err
+    assert err.count("error[E805]") == 2
+
+
+@pytest.mark.parametrize("value", ["1_000", "\u0661\u0662", "0x10", "1e", "--1"])
+def test_a_value_python_reads_but_a_csv_number_is_not_is_refused(tmp_path, capsys, value):
+    """`1_000` was read as 1000 and `١٢` as 12 (Python's float() accepts both)."""
+    path = _csv(tmp_path, GOOD + f"deflection,{value},um,125 kHz @ 3 V,0,0.2,50 um\n")
+    assert main(["fit", CANTILEVER, path, "--free", "gamma", "--effects", "none"]) == 1
+    err = capsys.readouterr().err
+    assert f"{path}:3:12: error[E806]: value `{value}` is not a number" in err, err
+
+
+def test_an_unclosed_quote_is_located_at_the_quote(tmp_path, capsys):
+    """Was `row has 2 cells, the header has 7` at column 1, the quote unnamed."""
+    path = _csv(tmp_path, GOOD + 'deflection,"1.2,um,125 kHz @ 3 V,0,0.2,50 um\n')
+    assert main(["fit", CANTILEVER, path, "--free", "gamma", "--effects", "none"]) == 1
+    err = capsys.readouterr().err
+    assert f"{path}:3:12: error[E801]: a quote opened here is not closed" in err, err
+
+
+def test_a_set_column_for_a_fitted_parameter_is_refused(tmp_path, capsys):
+    """`set:gamma` with --free gamma ran (exit 0): rows' designs took the column's values, the fit one fitted value."""
+    body = ("deflection,0.01,um,,0,0.05,\n" + "deflection,1.0,um,125 kHz @ 2 V,1,0.05,0.01 nN/V^2\n"
+            + "deflection,4.0,um,125 kHz @ 4 V,2,0.05,\n")
+    path = _csv(tmp_path, body, header="observable,value,unit,drive,time,sigma,set:gamma\n")
+    assert main(["fit", CANTILEVER, path, "--free", "gamma", "--effects", "none"]) == 1
+    err = capsys.readouterr().err
+    assert f"{path}:3:1: error[E805]: `set:gamma` gives parameter `gamma` per row, but the fit determines it" in err, err
+    assert main(["fit", CANTILEVER, path, "--free", "E", "--effects", "none"]) == 0     # gamma not fitted: a row setting
+    capsys.readouterr()
+
+
+@pytest.mark.parametrize("column", ["set: length", "SET:length", " set:length "])
+def test_a_set_column_is_read_with_blanks_and_any_case_of_set(tmp_path, column):
+    """`set: length` passed the header check, then every row failed: "the design has no parameter ` length`"."""
+    import acl
+    from acl.fit.data import read_data
+
+    path = _csv(tmp_path, "deflection,1.2,um,125 kHz @ 3 V,0,0.2,60 um\n",
+                header=f"observable,value,unit,drive,time,sigma,{column}\n")
+    data = read_data([path], acl.load(CANTILEVER))
+    assert list(data.sets) == ["length"] and data.sets["length"][0] == "60 um"
+    assert data.set_si["length"][0] == pytest.approx(60e-6)
+
+
+def test_a_drive_listing_one_frequency_twice_is_refused_as_in_a_design(tmp_path, capsys):
+    """`125 kHz @ 2 V + 125 kHz @ 1 V` was read as two tones (a design's drive refuses it, E504)."""
+    path = _csv(tmp_path, GOOD + "deflection,1.2,um,125 kHz @ 2 V + 125 kHz @ 1 V,0,0.2,50 um\n")
+    assert main(["fit", CANTILEVER, path, "--free", "gamma", "--effects", "none"]) == 1
+    err = capsys.readouterr().err
+    assert f"{path}:3:" in err and "error[E802]" in err and "lists the frequency 125 kHz twice" in err, err
+
+
+@pytest.mark.parametrize("sep, words", [(";", "separated by `;`"), ("\t", "separated by tabs")])
+def test_a_semicolon_or_tab_separated_file_is_named_as_such(tmp_path, capsys, sep, words):
+    """A European spreadsheet's `;` CSV (or a TSV) was "unknown column `observable;value;unit;drive`"."""
+    path = _csv(tmp_path, sep.join(["deflection", "1,2", "um", "125 kHz @ 3 V"]) + "\n",
+                header=sep.join(["observable", "value", "unit", "drive"]) + "\n")
+    assert main(["fit", CANTILEVER, path, "--free", "gamma"]) == 1
+    err = capsys.readouterr().err
+    assert f"{path}:1:1: error[E801]: the header is {words}, not commas" in err, err

@@ -358,7 +358,7 @@ def test_fmt_reports_unreadable_inputs(tmp_path):
     (tmp_path / "latin1.acl").write_bytes(b"# caf\xe9\nparam a = 1\n")
     r = acl_fmt("latin1.acl", "missing.acl", cwd=tmp_path)
     assert r.returncode == 2 and "Traceback" not in r.stderr
-    assert "E103" in r.stderr and "latin1.acl:1:1" in r.stderr
+    assert "E103" in r.stderr and "latin1.acl:1:6" in r.stderr
     assert "E601" in r.stderr and "missing.acl:1:1" in r.stderr
 
 

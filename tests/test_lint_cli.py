@@ -167,6 +167,35 @@ def test_bad_configuration_exits_2_pointing_at_the_line(tmp_path, capsys, toml, 
     assert rc == 2 and needle in err and f"pyproject.toml:{line}:" in err and "Traceback" not in err
 
 
+@pytest.mark.parametrize("name, toml, needle", [
+    ("acl.toml", "tool = 1\n", "`tool` must be a table"),
+    ("acl.toml", "[tool]\nacl = 5\n", "`tool.acl` must be a table"),
+    ("pyproject.toml", "[tool]\nacl = 5\n", "`tool.acl` must be a table"),
+    ("pyproject.toml", "tool = []\n", "`tool` must be a table"),
+    ("pyproject.toml", "[tool.acl]\nlint = 3\n", "`tool.acl.lint` must be a table"),
+])
+def test_a_configuration_whose_tool_tables_are_not_tables_is_a_located_error(tmp_path, capsys, name, toml, needle):
+    """`tool = 1` in acl.toml was E-INTERNAL (AttributeError: 'int' object has no attribute 'get')."""
+    cfg = write(tmp_path, name, toml)
+    rc, _, err = run(capsys, "--config", cfg, write(tmp_path, "a.acl", CLEAN))
+    assert rc == 2 and "E-INTERNAL" not in err and needle in err and f"{name}:" in err, err
+    assert "error[E-CONFIG]" in err
+
+
+@pytest.mark.parametrize("bom", [b"", b"\xef\xbb\xbf"], ids=["plain", "bom"])
+def test_a_configuration_that_is_not_utf8_is_located_at_its_byte(tmp_path, capsys, bom):
+    """Was `acl.toml:1:1 ... 'utf-8' codec can't decode byte 0xb5 in position 30` (Python's text, line 1)."""
+    (tmp_path / "acl.toml").write_bytes(bom + b'[lint]\nselect = ["ACL101"] # \xb5m\n')
+    rc, _, err = run(capsys, "--config", str(tmp_path / "acl.toml"), write(tmp_path, "a.acl", CLEAN))
+    assert rc == 2 and "acl.toml:2:23: error[E-CONFIG]" in err and "not UTF-8 text (byte 0xb5)" in err, err
+
+
+def test_an_infinite_threshold_is_refused_as_not_finite(tmp_path, capsys):
+    cfg = write(tmp_path, "acl.toml", '[lint]\nthresholds = {snap_margin = "1e999"}\n')
+    rc, _, err = run(capsys, "--config", cfg, write(tmp_path, "a.acl", CLEAN))
+    assert rc == 2 and "acl.toml:2:" in err and "threshold `snap_margin`: must be positive and finite" in err, err
+
+
 # ---- formats -------------------------------------------------------------------------------------
 
 def test_full_format_shows_the_caret_and_the_physics(tmp_path, capsys):
@@ -254,3 +283,23 @@ def test_lint_package_never_imports_the_parser_or_the_cli():
                 [node.module or ""] if isinstance(node, ast.ImportFrom) else []
             for name in names:
                 assert not name.startswith(("acl.syntax", "acl.cli", "acl.commands")), f"{path.name} imports {name}"
+
+
+@pytest.mark.parametrize("value", ["", " , "])
+def test_an_empty_select_option_is_a_usage_error_not_a_silent_pass(tmp_path, capsys, value):
+    """`--select ""` (an empty CI variable) ran no rule: "All checks passed", exit 0, on a design with an error."""
+    rc, out, err = run(capsys, "--select", value, write(tmp_path, "a.acl", FAILING))
+    assert rc == 2 and "<--select>:1:1: error[E-USAGE]" in err and "no rule would run" in err, (out, err)
+
+
+@pytest.mark.parametrize("toml", ['[lint]\nselect = []\n', '[lint]\nselect = ""\n'])
+def test_an_empty_select_in_the_configuration_is_refused(tmp_path, capsys, toml):
+    cfg = write(tmp_path, "acl.toml", toml)
+    rc, out, err = run(capsys, "--config", cfg, write(tmp_path, "a.acl", FAILING))
+    assert rc == 2 and "acl.toml:2:1: error[E-CONFIG]: `select` is empty" in err, (out, err)
+
+
+def test_an_empty_config_path_is_a_usage_error(tmp_path, capsys):
+    """`--config ""` silently used the configuration found by walking up instead."""
+    rc, out, err = run(capsys, "--config", "", write(tmp_path, "a.acl", CLEAN))
+    assert rc == 2 and "<--config>:1:1: error[E-USAGE]: --config '': an empty path" in err, (out, err)

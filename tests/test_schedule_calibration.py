@@ -138,3 +138,24 @@ def test_compile_with_an_empty_calibration_path_is_an_error(tmp_path):
                         "--program", "stroke", "--calibration", "", "-o", str(tmp_path / "o")],
                        capture_output=True, text=True, env=dict(os.environ, PYTHONPATH=str(root)))
     assert r.returncode == 2 and "E-CSV-READ" in r.stderr and not (tmp_path / "o").exists()
+
+
+@pytest.mark.parametrize("cell", ["1_25", "\u0661\u0662\u0665"])
+def test_a_number_python_reads_but_a_csv_does_not_hold_is_refused(tmp_path, cell):
+    """`1_25` kHz was read as 125 kHz (Python's float() accepts underscores and non-ASCII digits)."""
+    path = tmp_path / "c.csv"
+    path.write_text(f"frequency [kHz],dx [um],dy [um]\n# voltage: 5 V\n{cell},0.1,0\n", encoding="utf-8")
+    with pytest.raises(DiagnosticError) as exc:
+        read_sweep_csv(str(path))
+    d = exc.value.diagnostics[0]
+    assert (d.code, d.span.line, d.span.column) == ("E-CSV-VALUE", 3, 1) and "not a number" in d.message
+
+
+def test_a_semicolon_separated_sweep_is_named_as_such(tmp_path):
+    """Was "unknown column 'frequency [kHz];dx [um];dy [um]'"."""
+    path = tmp_path / "c.csv"
+    path.write_text("frequency [kHz];dx [um];dy [um]\n# voltage: 5 V\n110;0,1;0\n")
+    with pytest.raises(DiagnosticError) as exc:
+        read_sweep_csv(str(path))
+    d = exc.value.diagnostics[0]
+    assert (d.code, d.span.line, d.span.column) == ("E-CSV-HEADER", 1, 1) and "separated by `;`" in d.message

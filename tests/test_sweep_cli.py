@@ -189,3 +189,11 @@ def test_yield_vs_tolerance_lines_round_their_bounds_outwards(tmp_path, capsys):
     lines = [ln.strip() for ln in capsys.readouterr().out.splitlines() if ln.strip().startswith("tolerance x0:")]
     assert lines == [f"tolerance x0: yield {Yield(300, 300, *clopper_pearson(300, 300)).text()}"]
     assert lines[0].endswith("[0.987, 1.000]")           # lower bound 0.9878, never shown as 1.00
+
+
+def test_a_folder_without_suffix_is_named_a_folder(tmp_path, capsys):
+    """`-o results/` (a folder) was "the table is written as .csv or .parquet, not 'a file without suffix'"."""
+    (tmp_path / "results").mkdir()
+    code = main(["sweep", CANTILEVER, "--vary", "radius=9um..11um:3", "-o", str(tmp_path / "results")])
+    err = capsys.readouterr().err
+    assert code == 2 and "<-o>:1:1: error[E601]: cannot write" in err and "it is a folder" in err, err

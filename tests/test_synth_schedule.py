@@ -177,3 +177,84 @@ def test_the_documented_replay_limits_are_the_code_s():
     text = open(os.path.join(ROOT, "docs", "fit.md")).read()
     assert f"more than {synth.MAX_REPLAY_SEGMENTS:,} constant-drive segments" in text
     assert f"at most {synth.MAX_REPLAY_LIMIT:,})" in text and f"over {synth.MAX_SCHEDULE_BYTES // 2**20} MB" in text
+
+
+@pytest.mark.parametrize("segment, words", [
+    ('"soon"', 'a segment is an object, not "soon"'),                  # was "'str' object has no attribute 'get'"
+    ('{"start_s": 1}', "no tones"),                                       # was replayed as a pause
+    ('{"tones": []}', "no start_s"),
+    ('{"start_s": 1, "tones": ["x"]}', 'tones[0] is "x", not an object'),  # was "string indices must be integers"
+    ('{"start_s": 1, "tones": [{"frequency_hz": 125e3}]}', "tones[0] has no amplitude_v"),   # was "('amplitude_v')"
+])
+def test_a_malformed_segment_says_what_is_wrong_in_the_schedule_s_terms(tmp_path, capsys, segment, words):
+    from acl.cli import main
+
+    sched = tmp_path / "s.json"
+    good = _SEG % (0, 1.0)
+    sched.write_text('{"version": "1.1",\n "segments": [\n  ' + good + ",\n  " + segment + "\n]}\n")
+    out = tmp_path / "a.csv"
+    assert main(["synth", CANTILEVER, "--schedule", str(sched), "-o", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert f"{sched}:4:3: error[E-SYNTH-SCHEDULE]: segments[1]: malformed segment ({words}" in err, err
+    assert "object has no attribute" not in err and "string indices" not in err and not out.exists()
+
+
+def _follow_schedule(path, targets):
+    segs = ",\n  ".join('{"start_s": %d, "end_s": %d, "goal": "g", "tones": [{"frequency_hz": 125e3, "amplitude_v": %d}]}'
+                        % (i, i + 1, 1 + i) for i in range(3))
+    path.write_text('{"version": "1.1",\n "segments": [\n  ' + segs + '\n ],\n "goals": [\n  {"name": "g", "kind": '
+                    '"follow", "capsule": "act", "target_um": ' + json.dumps(targets) + '}\n ]}\n')
+    return str(path)
+
+
+@pytest.mark.parametrize("targets, words", [
+    ([], "0 target points for 3 constant-drive segments"),             # was E-INTERNAL (max of an empty array)
+    ([[-1, 0]], "1 target point for 3 constant-drive segments"),       # was an error over 1 of 3 waypoints, exit 0
+    ([[-1, 0]] * 4, "4 target points for 3 constant-drive segments"),
+])
+def test_follow_targets_that_do_not_match_the_goal_s_waypoints_are_refused(tmp_path, capsys, targets, words):
+    from acl.cli import main
+
+    sched = _follow_schedule(tmp_path / "s.json", targets)
+    out = tmp_path / "a.csv"
+    assert main(["synth", CANTILEVER, "--schedule", sched, "-o", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert f"{sched}:8:3: error[E-SYNTH-SCHEDULE]: goals[0] `g`: {words}" in err, err
+    assert "E-INTERNAL" not in err and not out.exists()
+
+
+def test_follow_targets_one_per_waypoint_are_replayed(tmp_path, capsys):
+    from acl.cli import main
+
+    sched = _follow_schedule(tmp_path / "s.json", [[-0.1, 0], [-0.4, 0], [-1, 0]])
+    assert main(["synth", CANTILEVER, "--schedule", sched, "-o", str(tmp_path / "a.csv")]) == 0
+    err = capsys.readouterr().err
+    assert "g: tracking error on" in err and "over 3 waypoints" in err, err
+
+
+@pytest.mark.parametrize("field, value", [("capsule", 5), ("capsule", ["act"]), ("name", 7)])
+def test_a_goal_field_of_the_wrong_type_is_malformed_not_another_design(tmp_path, capsys, field, value):
+    """`"capsule": 5` was exit 1 with "follows capsule `5`, which the truth does not have"."""
+    from acl.cli import main
+
+    sched = tmp_path / "s.json"
+    text = open(_follow_schedule(tmp_path / "t.json", [[-1, 0]] * 3)).read()
+    doc = json.loads(text)
+    doc["goals"][0][field] = value
+    sched.write_text(json.dumps(doc))
+    assert main(["synth", CANTILEVER, "--schedule", str(sched), "-o", str(tmp_path / "a.csv")]) == 2
+    err = capsys.readouterr().err
+    assert f"error[E-SYNTH-SCHEDULE]: goals[0].{field} is {json.dumps(value)}, not a string" in err, err
+
+
+def test_a_segment_repeating_a_frequency_is_malformed(tmp_path, capsys):
+    """Its rows were written as `125 kHz @ 1 V + 125 kHz @ 2 V`, which `acl fit` refuses (E802)."""
+    from acl.cli import main
+
+    sched = tmp_path / "s.json"
+    sched.write_text('{"version": "1.1",\n "segments": [\n  {"start_s": 0, "tones": [{"frequency_hz": 125e3, '
+                     '"amplitude_v": 1}, {"frequency_hz": 125e3, "amplitude_v": 2}]}\n]}\n')
+    assert main(["synth", CANTILEVER, "--schedule", str(sched), "-o", str(tmp_path / "a.csv")]) == 2
+    err = capsys.readouterr().err
+    assert f"{sched}:3:3: error[E-SYNTH-SCHEDULE]: segments[0]: malformed segment (tones[1] repeats frequency_hz 125000)" \
+        in err, err

@@ -154,7 +154,11 @@ def read_stdin(name: str) -> tuple[str | None, list[Diagnostic]]:
     try:
         return raw.decode("utf-8"), []
     except UnicodeDecodeError as exc:
-        return None, [error("E103", f"cannot read standard input: not UTF-8 text (byte {exc.start})", span)]
+        from acl._files import undecodable
+
+        line, column, byte = undecodable(raw, exc)
+        return None, [error("E103", f"cannot read standard input: not UTF-8 text (byte 0x{byte:02x} cannot be decoded)",
+                            Span(file=name, line=line, column=column))]
 
 
 def plotting_missing(option: str, fmt: str = "text", instead: str = "") -> bool:

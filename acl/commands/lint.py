@@ -48,6 +48,11 @@ def _codes(items: list[str], flag: str, rules) -> tuple[tuple[str, ...], list]:
 
     out, diags = [], []
     for item in items:
+        if flag == "--select" and not any(c.strip() for c in item.split(",")):
+            # `--select ""` (an empty CI variable) selected no rule: "All checks passed", exit 0, nothing checked
+            diags.append(error("E-USAGE", f"{flag} {item!r}: no rule codes, so no rule would run",
+                               Span(file=f"<{flag}>", line=1, column=1),
+                               "give codes or prefixes (e.g. ACL1,ACL201), ALL, or leave the option out"))
         for code in filter(None, (c.strip() for c in item.split(","))):
             if flag == "--ignore" and CHECK_CODE.match(code.upper()):
                 out.append(code.upper())
@@ -74,6 +79,9 @@ def run(args) -> int:
     overrides, diags = parse_sets(args.set)
     select, d1 = _codes(args.select, "--select", rules)
     ignore, d2 = _codes(args.ignore, "--ignore", rules)
+    if args.config is not None and not args.config.strip():   # "" fell back to the configuration found by search
+        diags.append(error("E-USAGE", f"--config {args.config!r}: an empty path", Span(file="<--config>", line=1, column=1),
+                           "give a path, or leave the option out (the configuration is then found by walking up)"))
     if diags or d1 or d2:
         return _fail(diags + d1 + d2)
     stdin_text = None

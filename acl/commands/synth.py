@@ -139,7 +139,14 @@ def _effect_value(eid: str, key: str, text: str, item: str, column: int) -> floa
     from acl.fit.synth import param_unit
     from acl.units import DIMENSIONLESS, describe, parse_unit
 
-    value, dims = parse_quantity(quantity_text(text))
+    from acl.units import UnitError
+
+    try:
+        value, dims = parse_quantity(quantity_text(text))
+    except (ValueError, UnitError) as exc:      # was reported at `<command line>`, the option unnamed
+        raise _EffectUnitError(error("E-USAGE", f"--effect {item!r}: `{key}`: {exc}",
+                                     Span(file="<--effect>", line=1, column=column),
+                                     f"e.g. {_example(eid)}")) from None
     unit = param_unit(eid, key)
     if unit is not None:
         want = parse_unit(unit)[1] if unit else DIMENSIONLESS
@@ -207,6 +214,8 @@ def run(args) -> int:
                 if not sep:
                     return _usage(f"--effect {item!r}: parameters are NAME:VALUE, e.g. drive_saturation=v_sat:8V")
                 column = len(name) + 2 + found.start() + len(k) + 1 + (len(v) - len(v.lstrip()))
+                if k.strip() in params:          # `v_sat:8V,v_sat:9V`: the second silently replaced the first
+                    return _usage(f"--effect {item!r}: `{k.strip()}` given twice: give each parameter once")
                 params[k.strip()] = _effect_value(name.strip(), k.strip(), v, item, column)
             if name.strip() in effects:        # the second silently replaced the first
                 return _usage(f"--effect {name.strip()} given twice: give its parameters once, e.g. "
@@ -239,8 +248,17 @@ def run(args) -> int:
         if eid not in planted:
             return _usage(f"--effect {eid}: every parameter is at the effect's null value, so it plants nothing",
                           "give a value that differs from the null, e.g. " + _example(eid))
-    if noise < 0 or args.repeats < 1 or not freqs:
-        return _usage("noise must not be negative, repeats at least 1, and one frequency at least")
+    from acl.fit.data import MIN_SIGMA
+
+    # each option at its own name (they were one message at `<command line>`, or `<--noise>` for a bad --interval);
+    # the noise is checked before --schedule too: a replay with `--noise 5m` wrote rows that `acl fit` refuses (E806)
+    if args.repeats < 1:
+        return _usage(f"--repeats {args.repeats}: at least 1")
+    if not freqs:
+        return _usage(f"--frequencies {args.frequencies!r}: give one frequency at least, e.g. 125kHz")
+    if not math.isfinite(noise) or noise < 0 or noise > MAX_LENGTH or 0 < noise < MIN_SIGMA:
+        return _usage(f"--noise {args.noise}: the noise is 0 or from {MIN_SIGMA:g} m to {MAX_LENGTH:g} m (the sigma "
+                      "`acl fit` reads)")
     if args.max_segments is not None and args.schedule is None:
         return _usage("--max-segments applies to --schedule only")
     if args.schedule is not None:
@@ -248,9 +266,12 @@ def run(args) -> int:
             return _usage("--schedule plays on the design as declared: declare effects in it (`effect ID { ... }`) "
                           "instead of --effect; --sweep does not apply")
         return _replay(args, noise)
-    if not all(math.isfinite(x) for x in (noise, interval, *freqs, *volts)) or noise > MAX_LENGTH or interval <= 0:
-        return _usage("--noise, --frequencies, --voltages and --interval must be finite; the noise at most "
-                      f"{MAX_LENGTH:g} m and the interval positive")
+    if not all(math.isfinite(x) for x in freqs):
+        return _usage(f"--frequencies {args.frequencies}: every frequency must be finite")
+    if not all(math.isfinite(x) for x in volts):
+        return _usage(f"--voltages {args.voltages}: the voltages must be finite")
+    if not (math.isfinite(interval) and interval > 0):
+        return _usage(f"--interval {args.interval}: a positive, finite time, e.g. 1s")
     design = one_design(args.design)
     if design is None:
         return 2
@@ -298,6 +319,11 @@ def run(args) -> int:
         return exit_code(diags)
     except KeyError as exc:
         return _usage(f"--observe: {exc.args[0]}")
+    bad = _first_unreadable(data)
+    if bad is not None:      # `drift:1e300 um/s` wrote values of 1e300 um (exit 0): data `acl fit` refuses (E806)
+        return _usage(f"--effect {', '.join(args.effect) or '(none)'}: row {bad + 2} would hold "
+                      f"{data.value[bad]:.3g} m, beyond the {MAX_LENGTH:g} m `acl fit` reads (E806)",
+                      "give the effect a smaller size", where="<--effect>" if args.effect else "<command line>")
     try:
         write_csv(data, args.output)
     except OSError as exc:
@@ -340,6 +366,16 @@ def _outside_transducer(design, waypoints, path: str) -> list:
                                  f"of transducer `{tr.name}` ({vmax:g} V)", Span(file=path, line=1, column=1),
                                  "was the schedule compiled for this design?"))
     return out
+
+
+def _first_unreadable(data) -> int | None:
+    """The first row whose value `acl fit` would refuse (not finite, or beyond 1 m: acl.fit.data, E806), else None."""
+    import numpy as np
+
+    from acl.fit.data import MAX_LENGTH
+
+    bad = np.flatnonzero(~np.isfinite(data.value) | (np.abs(data.value) > MAX_LENGTH))
+    return int(bad[0]) if bad.size else None
 
 
 def _replay(args, noise) -> int:
@@ -400,6 +436,14 @@ def _replay(args, noise) -> int:
 
         report([error("E-SYNTH-REPLAY", f"no waypoint of {args.schedule} has a stable equilibrium on {args.design}",
                       Span(file=args.schedule, line=1, column=1), "lower the drive or check the design")])
+        return 1
+    bad = _first_unreadable(data)
+    if bad is not None:      # an effect the truth declares drove a value beyond what `acl fit` reads (E806)
+        from acl.diagnostics import Span, error
+
+        report([error("E806", f"the replay on {args.design} reaches {data.value[bad]:.3g} m at t = "
+                      f"{data.time[bad]:g} s, beyond the 1 m `acl fit` reads: nothing written",
+                      Span(file=args.design, line=1, column=1), "check the effects the truth declares")])
         return 1
     try:
         write_csv(data, args.output)

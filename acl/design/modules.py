@@ -355,8 +355,14 @@ def read_source(path: str, limit: int = MAX_BYTES) -> str:
         os.close(fd)
     try:
         return raw.decode("utf-8")
-    except UnicodeDecodeError as exc:
-        raise DiagnosticError([_io_error(path, f"not UTF-8 text (byte {exc.start})", code="E103")]) from None
+    except UnicodeDecodeError as exc:       # located at the byte (was 1:1 with its offset)
+        from acl.diagnostics import error
+        from acl._files import undecodable
+
+        line, column, byte = undecodable(raw, exc)
+        raise DiagnosticError([error("E103", f"cannot read `{path}`: not UTF-8 text (byte 0x{byte:02x} cannot be "
+                                     "decoded)", Span(file=path, line=line, column=column),
+                                     "save the file as UTF-8; units such as `µm` can be written `um`")]) from None
 
 
 _read = read_source

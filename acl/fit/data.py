@@ -25,6 +25,8 @@ MAX_HEADER_ERRORS = 20                 # bad header columns reported one by one;
 MAX_BYTES = 256 * 2**20                  # a data file larger than this is refused (E601)
 MAX_LENGTH = 1.0                         # m: |value| and sigma beyond this are no measurement of a micro-device
 MAX_TIME = 1e9                           # s: about 30 years
+MIN_SIGMA = 1e-15                        # m: a standard uncertainty below a femtometre is no measurement's (a weight
+                                         # of 1e306 overflowed the least-squares sums: a garbage fit, exit 0)
 _NUM_UNIT = re.compile(r"^\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*(.*?)\s*$")
 
 
@@ -98,6 +100,28 @@ def split_line(line: str) -> list[tuple[str, int]]:
     return out
 
 
+def _column_key(name: str) -> str:
+    """A header cell as a column key: the name in lower case, ``set:NAME`` with NAME as written (parameters are
+    case-sensitive) and without blanks around it (`set: gap` kept the blank: "no parameter ` gap`" on every row)."""
+    text = name.strip()
+    if text.lower().startswith("set:"):
+        return "set:" + text[4:].strip()
+    return text.lower()
+
+
+def _open_quote(line: str) -> int | None:
+    """The 1-based column of a double quote that opens a cell and is not closed on the line, else None."""
+    quoted, at, i = False, None, 0
+    while i < len(line):
+        if line[i] == '"':
+            if quoted and i + 1 < len(line) and line[i + 1] == '"':
+                i += 1
+            else:
+                quoted, at = not quoted, i + 1
+        i += 1
+    return at if quoted else None
+
+
 def parse_quantity(text: str) -> tuple[float, tuple]:
     """``'40 um'`` -> (4e-5, length dims).  Raises ValueError / UnitError."""
     from acl.units import parse_unit
@@ -118,6 +142,7 @@ def read_data(paths, design) -> Dataset:
     obs_names = [o.name for o in design.observes]
     state_names = {o.name for o in design.observes if o.kind == "state"}
     param_names = [p.name for p in design.params]
+    param_dims = {p.name: _unit_dims(p.unit) for p in design.params}
     cols: dict[str, list] = {k: [] for k in ("observable", "value", "sigma", "time", "tones", "spans", "units",
                                              "experiment")}
     sets: dict[str, list] = {}
@@ -157,11 +182,11 @@ def read_data(paths, design) -> Dataset:
                 bag.error("E801", f"the header has more bad columns from here on (column {j + 1} of {len(header)}); "
                           "only the first ones are reported", sp, "is this an acl data file? (docs/data.md)")
             if header_errors > MAX_HEADER_ERRORS:
-                key = name.strip().lower() if not name.strip().startswith("set:") else name.strip()
+                key = _column_key(name)
                 index.setdefault(key, j)
                 continue
             before = len(bag.items)
-            key = name.strip().lower() if not name.strip().startswith("set:") else name.strip()
+            key = _column_key(name)
             if key in index:
                 bag.error("E801", f"column `{name}` appears twice", sp)
             elif key in REQUIRED or key in OPTIONAL:
@@ -176,8 +201,15 @@ def read_data(paths, design) -> Dataset:
                 bag.error("E801", "a column without a name (a trailing or doubled comma in the header?)", sp,
                           "remove the empty header cell, and the matching cell of every row")
             else:
-                bag.error("E801", f"unknown column `{name}`", sp,
-                          suggest(key, [*REQUIRED, *OPTIONAL]) or "columns: observable, value, unit, drive, time, sigma, set:NAME")
+                sep = next((c for c in (";", "\t", "|") if c in name
+                            and any(part.strip().lower() in REQUIRED for part in name.split(c))), None)
+                if sep is not None:     # a spreadsheet's regional setting (`;`) or a TSV: say so, not "unknown column"
+                    shown = {";": "`;`", "\t": "tabs", "|": "`|`"}[sep]
+                    bag.error("E801", f"the header is separated by {shown}, not commas: it reads as one unknown column",
+                              sp, "save the file as comma-separated values (CSV with `,`; decimals with `.`)")
+                else:
+                    bag.error("E801", f"unknown column `{name}`", sp,
+                              suggest(key, [*REQUIRED, *OPTIONAL]) or "columns: observable, value, unit, drive, time, sigma, set:NAME")
             header_errors += len(bag.items) > before
         missing = [k for k in REQUIRED if k not in index]
         if missing:
@@ -199,8 +231,14 @@ def read_data(paths, design) -> Dataset:
             cells = split_line(raw)
             line = li + 1
             if len(cells) != len(header):
-                bag.error("E801", f"row has {len(cells)} cells, the header has {len(header)}",
-                          Span(file=path, line=line, column=1))
+                quote = _open_quote(raw)
+                if quote is not None:        # the rest of the row went into one cell: say why
+                    bag.error("E801", "a quote opened here is not closed on this row (the rest of the row became one "
+                              f"cell: {len(cells)} cells, the header has {len(header)})",
+                              Span(file=path, line=line, column=quote), 'close it, or double it (`""`) inside a cell')
+                else:
+                    bag.error("E801", f"row has {len(cells)} cells, the header has {len(header)}",
+                              Span(file=path, line=line, column=1))
                 continue
 
             def cell(key):
@@ -256,10 +294,20 @@ def read_data(paths, design) -> Dataset:
                 text = cell(k)[0]
                 if text:
                     try:
-                        parse_quantity(text)
+                        _, dims = parse_quantity(text)
                     except (ValueError, UnitError) as exc:
                         bag.error("E805", f"`{k}` = `{text}`: {exc}", sp(k), "write a number with a unit, e.g. `40 um`")
                         ok = False
+                    else:      # at the cell, not later as the design's `--set` error (its hint named `<--set>:1:1`)
+                        want = param_dims.get(k[4:])
+                        if want is not None and dims != want:
+                            from acl.design.core import example
+                            from acl.units import describe
+
+                            bag.error("E805", f"`{k}` = `{text}` is {'a plain number' if not any(dims) else 'a ' + describe(dims)}"
+                                      f"; parameter `{k[4:]}` is a {describe(want)}", sp(k),
+                                      f"write it with a unit, e.g. `{example(want)}`")
+                            ok = False
                 row_sets[k[4:]] = text
             if ok and state and value not in (0.0, 1.0):
                 bag.error("E806", f"value {cell('value')[0]}: a latch state is 0 (state a, as printed) or 1 (state b, "
@@ -271,6 +319,10 @@ def read_data(paths, design) -> Dataset:
                         bag.error("E806", f"{what} {cell(what)[0]} {unit} is beyond {MAX_LENGTH:g} m: not a "
                                   "displacement of a micro-device", sp(what), "check the unit column")
                         ok = False
+                if math.isfinite(sigma) and sigma * factor < MIN_SIGMA:
+                    bag.error("E806", f"sigma {cell('sigma')[0]} {unit} is below {MIN_SIGMA:g} m: not the uncertainty "
+                              "of a measurement", sp("sigma"), "check the unit column")
+                    ok = False
             if not ok or factor is None:
                 continue
             cols["observable"].append(name)
@@ -300,6 +352,16 @@ def read_data(paths, design) -> Dataset:
                    np.array(cols["sigma"], float), np.array(cols["time"], float), cols["tones"], sets_arr,
                    set_si, cols["spans"], np.array(cols["units"], dtype=object), tuple(paths), {},
                    np.array(cols["experiment"], dtype=object))
+
+
+def _unit_dims(unit: str):
+    """The dimensions of a parameter's SI unit string, or None when it cannot be read (no check then)."""
+    from acl.units import UnitError, parse_unit
+
+    try:
+        return parse_unit(unit or "1")[1]
+    except (UnitError, ValueError):
+        return None
 
 
 def _collapse_repeats(diags: list) -> list:
@@ -349,10 +411,9 @@ def _read_text(path):
     try:
         return raw.decode("utf-8-sig")
     except UnicodeDecodeError as exc:
-        start = exc.start
-        line_start = raw.rfind(b"\n", 0, start) + 1
-        column = len(raw[line_start:start].decode("utf-8-sig", errors="replace")) + 1
-        return raw.count(b"\n", 0, start) + 1, column, raw[start]
+        from acl._files import undecodable
+
+        return undecodable(raw, exc)
 
 
 def _drive_in_range(bag, tones, band, vmax, design, span) -> bool:
@@ -379,7 +440,9 @@ def _number(bag, text, span, what, required, positive=False):
             return None
         return math.nan
     try:
-        x = float(text)
+        from acl.units import parse_decimal
+
+        x = parse_decimal(text)             # Python's float() also reads `1_000` and non-ASCII digits (`١٢`)
     except ValueError:
         bag.error("E806", f"{what} `{text}` is not a number", span,
                   "write the number alone; its unit goes in the `unit` column" if what in ("value", "sigma") else None)

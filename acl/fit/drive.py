@@ -55,6 +55,10 @@ def parse_drive_cell(text: str, file: str, line: int, column: int) -> tuple[tupl
                                          "a tone is `FREQUENCY @ AMPLITUDE`, e.g. `125 kHz @ 6 V`")])
         if f.value <= 0 or v.value < 0:
             raise DiagnosticError([error("E802", "drive frequency must be positive and amplitude not negative", t.span)])
+        if any(float(f.value) == g for g, _ in out):   # as a design's drive (E504): two tones at one frequency add
+            raise DiagnosticError([error("E802", f"drive `{text.strip()}` lists the frequency {f.value / 1e3:g} kHz "
+                                         "twice (two tones at one frequency add with their phases: one amplitude)",
+                                         t.span, "give each frequency once, with the amplitude measured")])
         out.append((float(f.value), float(v.value)))
     return tuple(out)
 

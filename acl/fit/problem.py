@@ -56,23 +56,53 @@ def load_problem(design_path, data_paths, free=(), search_paths=(), model: str =
     design = acl.load(design_path, search_paths=search_paths)
     data = read_data(data_paths, design)
     cache: dict = {}
+    # every override set the rows name is resolved first, so that each one the design does not resolve with is
+    # reported (at its first row), not only the first
+    designs: dict = {(): design}
+    bad = []
+    for i in range(data.n):
+        key = data.override_key(i)
+        if key in designs:
+            continue
+        try:
+            designs[key] = acl.load(design_path, overrides=dict(key), search_paths=search_paths)
+        except DiagnosticError as exc:
+            designs[key] = None
+            first = exc.diagnostics[0]
+            where = first.location()
+            sp = data.spans[i]
+            bad.append(error("E805", f"the design does not resolve with "
+                             f"{', '.join(f'{k} = {v}' for k, v in key)}: {first.message}",
+                             Span(file=sp.file, line=sp.line, column=1),
+                             None if where.startswith("<") else f"see {where}"))
+    if bad:
+        raise DiagnosticError(bad)
 
     def load_instance(key):
         if key not in cache:
-            try:
-                d = acl.load(design_path, overrides=dict(key), search_paths=search_paths) if key else design
-            except DiagnosticError as exc:
-                row = next(i for i in range(data.n) if data.override_key(i) == key)
-                sp = data.spans[row]
-                raise DiagnosticError([error("E805", f"the design does not resolve with "
-                                             f"{', '.join(f'{k} = {v}' for k, v in key)}: {exc.diagnostics[0].message}",
-                                             Span(file=sp.file, line=sp.line, column=1),
-                                             f"see {exc.diagnostics[0].location()}")])
+            d = designs[key] if key in designs else acl.load(design_path, overrides=dict(key), search_paths=search_paths)
             cache[key] = build_instance(d, model, coupled=coupled)
         return cache[key]
 
     roles = classify_params(design_path, design, search_paths)
     names = [p.name for p in design.params if p.free] + [n for n in free if n]
+    # a parameter the fit determines (one value) cannot also be given per row by a `set:` column: the rows' designs
+    # used the column's values while the fit reported and wrote back one fitted value (no diagnostic)
+    fitted = {n for n in names if any(p.name == n for p in design.params)}
+    fitted |= {p for p, r in roles.items() if r in COEFFICIENTS and r in {n if n in COEFFICIENTS else roles.get(n)
+                                                                         for n in names}}
+    clash = []
+    for k in sorted(fitted & set(data.sets)):
+        if roles.get(k) in ("geometry", "unused"):        # refused below as not fittable at all (E812)
+            continue
+        rows = [i for i in range(data.n) if data.sets[k][i]]
+        if rows:
+            sp = data.spans[rows[0]]
+            clash.append(error("E805", f"`set:{k}` gives parameter `{k}` per row, but the fit determines it "
+                               f"({'declared `free`' if design.param(k).free else 'the --free names'})", sp,
+                               f"drop the set:{k} column, or fix `{k}` (leave it out of --free)"))
+    if clash:
+        raise DiagnosticError(clash)
     gamma_param = next((n for n in names if (n if n in COEFFICIENTS else roles.get(n)) == "gamma"
                         and (n not in COEFFICIENTS or _has_param(design, n)) and roles.get(n) == "gamma"), None)
     # a design parameter declared as some capsules' `thrust`: gamma scales exactly those (as the analysis applies it)
@@ -121,6 +151,16 @@ def load_problem(design_path, data_paths, free=(), search_paths=(), model: str =
             continue
         seen.add(role)
         coefs.append(_coef(role, name, design, P))
+    if coefs and not np.any(P.state) and data.n <= len(coefs):
+        # as many rows as coefficients fit exactly: the residual scale (chi2 / dof) is 0 / 0, and the intervals came
+        # out zero-wide ([2.42e-11, 2.42e-11] from one row): an optimistic answer where the data say nothing
+        sp = data.spans[-1] if data.n else Span(file=str(data_paths[0]), line=1, column=1)
+        raise DiagnosticError([error("E801", f"{data.n} row{'s' if data.n != 1 else ''} for {len(coefs)} free "
+                                     f"coefficient{'s' if len(coefs) != 1 else ''} "
+                                     f"({', '.join(c.name for c in coefs)}): a fit needs more rows than free "
+                                     "coefficients to estimate its errors", sp,
+                                     "measure more rows (other voltages, frequencies or gaps), or free fewer "
+                                     "coefficients")])
     y = data.value
     if P.group_row is not None and np.any(P.group_row):
         _group_start(P, coefs, y, data.sigma)

@@ -210,8 +210,9 @@ MAX_REPLAY_SEGMENTS = 20_000        # constant-drive segments one replay plays (
 MAX_REPLAY_LIMIT = 200_000          # the highest --max-segments (each segment is an equilibrium solve, ~1-10 ms)
 
 
-def _segment_position(text: str, index: int) -> tuple[int, int]:
-    """(line, column) of element ``index`` of the top-level ``segments`` array of a JSON text, or (1, 1).
+def _segment_position(text: str, index: int, key_name: str = "segments") -> tuple[int, int]:
+    """(line, column) of element ``index`` of the top-level ``segments`` array (or ``key_name``'s) of a JSON text,
+    or (1, 1).
 
     Walks the top level with the JSON decoder (only the elements before ``index`` are decoded)."""
     import json
@@ -236,7 +237,7 @@ def _segment_position(text: str, index: int) -> tuple[int, int]:
         while i < len(text) and text[i] != "}":
             key, i = dec.raw_decode(text, i)
             i = skip(skip(i) + 1)             # past the colon
-            if key == "segments" and text[i] == "[":
+            if key == key_name and text[i] == "[":
                 found = i
             _, i = dec.raw_decode(text, i)
             i = skip(i)
@@ -288,9 +289,10 @@ def read_schedule(path: str, max_segments: int = MAX_REPLAY_SEGMENTS) -> tuple[l
     try:
         text = raw.decode("utf-8-sig")
     except UnicodeDecodeError as exc:
-        line = raw.count(b"\n", 0, exc.start) + 1
-        col = exc.start - (raw.rfind(b"\n", 0, exc.start) + 1) + 1
-        raise bad(f"not UTF-8 text (byte 0x{raw[exc.start]:02x})", line, col,
+        from acl._files import undecodable
+
+        line, col, byte = undecodable(raw, exc)
+        raise bad(f"not UTF-8 text (byte 0x{byte:02x})", line, col,
                   "give the schedule.json `acl compile` wrote") from None
     try:
         doc = json.loads(text)
@@ -314,6 +316,11 @@ def read_schedule(path: str, max_segments: int = MAX_REPLAY_SEGMENTS) -> tuple[l
     for i, seg in enumerate(doc["segments"]):
         where = f"segments[{i}]"
         try:
+            if not isinstance(seg, dict):             # was "'str' object has no attribute 'get'"
+                raise ValueError(f"a segment is an object, not {json.dumps(seg)[:40]}")
+            missing = [k for k in ("start_s", "tones") if k not in seg]
+            if missing:                               # a segment without `tones` was replayed as a pause
+                raise ValueError(f"no {' and no '.join(missing)}")
             step = seg.get("step", 0)
             if isinstance(step, bool) or not isinstance(step, int) or not 0 <= step < 2**31:
                 raise ValueError(f"step is {json.dumps(step)[:40]}, not a step index")
@@ -328,9 +335,14 @@ def read_schedule(path: str, max_segments: int = MAX_REPLAY_SEGMENTS) -> tuple[l
             prev_start, prev_end = start, end
             tones = []
             chirp = False
-            if not isinstance(seg.get("tones", []), list):
+            if not isinstance(seg["tones"], list):
                 raise ValueError("tones is not a list")
-            for t in seg.get("tones", []):
+            for k, t in enumerate(seg["tones"]):
+                if not isinstance(t, dict):               # was "string indices must be integers, not 'str'"
+                    raise ValueError(f"tones[{k}] is {json.dumps(t)[:40]}, not an object")
+                lacking = [key for key in ("frequency_hz", "amplitude_v") if key not in t]
+                if lacking:                               # was "('amplitude_v')", a KeyError's text
+                    raise ValueError(f"tones[{k}] has no {' and no '.join(lacking)}")
                 f, v = num(t["frequency_hz"], "frequency_hz"), num(t["amplitude_v"], "amplitude_v")
                 if not (f > 0 and v >= 0):
                     raise ValueError(f"tone {f!r} Hz @ {v!r} V")
@@ -340,6 +352,8 @@ def read_schedule(path: str, max_segments: int = MAX_REPLAY_SEGMENTS) -> tuple[l
                     raise ValueError("frequency_end_hz is not a positive frequency")
                 chirp = chirp or t.get("frequency_end_hz") is not None
                 if v > 0:
+                    if any(f == g for g, _ in tones):   # rows `acl fit` refuses (E802), as a design's drive (E504)
+                        raise ValueError(f"tones[{k}] repeats frequency_hz {f:g}")
                     tones.append((f, v))
         except (KeyError, TypeError, ValueError, OverflowError, AttributeError) as exc:
             raise bad(f"{where}: malformed segment ({exc})", *_segment_position(text, i),
@@ -366,15 +380,27 @@ def read_schedule(path: str, max_segments: int = MAX_REPLAY_SEGMENTS) -> tuple[l
         raise bad("goals: expected a list", hint="give the schedule.json `acl compile` wrote")
     for j, g in enumerate(goals):
         if isinstance(g, dict) and g.get("kind") == "follow" and g.get("capsule") and g.get("target_um") is not None:
+            at = _segment_position(text, j, "goals")
             if not g.get("name"):
-                raise bad(f"goals[{j}]: a follow goal without a name")
+                raise bad(f"goals[{j}]: a follow goal without a name", *at)
+            for key in ("name", "capsule"):     # `"capsule": 5` was exit 1, "the truth has no capsule `5`"
+                if not isinstance(g[key], str):
+                    raise bad(f"goals[{j}].{key} is {json.dumps(g[key])[:40]}, not a string", *at,
+                              hint="give the schedule.json `acl compile` wrote")
             try:
                 pts = np.asarray(g["target_um"], float).reshape(-1, 2) * 1e-6
             except (TypeError, ValueError):
-                raise bad(f"goals[{j}].target_um: expected a list of [x, y] in um") from None
+                raise bad(f"goals[{j}].target_um: expected a list of [x, y] in um", *at) from None
             if not (np.all(np.isfinite(pts)) and np.all(np.abs(pts) <= MAX_TARGET_M)):
-                raise bad(f"goals[{j}].target_um: a target beyond {MAX_TARGET_M * 1e6:g} um (or not finite)",
+                raise bad(f"goals[{j}].target_um: a target beyond {MAX_TARGET_M * 1e6:g} um (or not finite)", *at,
                           hint="give the schedule.json `acl compile` wrote")
+            # one target per waypoint of the goal: with fewer, the tracking error was computed over those alone
+            # (5 of 200 waypoints: RMS 0.04 um for a program 0.67 um off), with none it was E-INTERNAL
+            n_way = count.get(str(g["name"]), 0)
+            if len(pts) != n_way:
+                raise bad(f"goals[{j}] `{g['name']}`: {len(pts)} target point{'s' if len(pts) != 1 else ''} for "
+                          f"{n_way} constant-drive segment{'s' if n_way != 1 else ''} of that goal (one per waypoint)",
+                          *at, hint="give the schedule.json `acl compile` wrote, unedited")
             targets[str(g["name"])] = Target(str(g["capsule"]), pts)
     return out, chirps, targets
 

@@ -101,19 +101,39 @@ def load_config(path: str | None, rules: dict) -> LintConfig:
         data = tomllib.loads(text)
     except FileNotFoundError:
         raise ConfigError([error("E-CONFIG", f"configuration file `{path}` not found", span0)]) from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ConfigError([error("E-CONFIG", f"cannot read `{path}`: {exc}", span0)]) from None
+    except UnicodeDecodeError as exc:          # located at the byte, as data files (acl.fit.data, E807)
+        from acl._files import undecodable
+
+        line, column, byte = undecodable(raw, exc)
+        raise ConfigError([error("E-CONFIG", f"cannot read `{path}`: not UTF-8 text (byte 0x{byte:02x})",
+                                 Span(file=path, line=line, column=column), "save the file as UTF-8")]) from None
+    except OSError as exc:
+        raise ConfigError([error("E-CONFIG", f"cannot read `{path}`: {exc.strerror or exc}", span0)]) from None
     except tomllib.TOMLDecodeError as exc:
         m = re.search(r"line (\d+), column (\d+)", str(exc))
         span = Span(file=path, line=int(m.group(1)), column=int(m.group(2))) if m else span0
         raise ConfigError([error("E-CONFIG", f"invalid TOML: {exc}", span)]) from None
+    # `tool = 1` or `[tool] acl = 5` is a located error, not an AttributeError on .get (was E-INTERNAL)
+    locate = _Locator(text, path)
+    tool = _subtable(data, "tool", "", locate)
+    acl = _subtable(tool, "acl", "tool", locate)
     if os.path.basename(path) == "pyproject.toml":
-        table = data.get("tool", {}).get("acl", {}).get("lint", {})
+        table = acl.get("lint", {})
         prefix = "tool.acl.lint"
     else:
-        table = data.get("lint", data.get("tool", {}).get("acl", {}).get("lint", {}))
+        table = data.get("lint", acl.get("lint", {}))
         prefix = "lint" if "lint" in data else "tool.acl.lint"
     return _parse(table, text, path, prefix, rules)
+
+
+def _subtable(parent: dict, key: str, parent_name: str, locate) -> dict:
+    """``parent[key]`` when it is a table (empty when absent); a ConfigError located at the key otherwise."""
+    value = parent.get(key, {})
+    if isinstance(value, dict):
+        return value
+    name = f"{parent_name}.{key}" if parent_name else key
+    raise ConfigError([error("E-CONFIG", f"`{name}` must be a table", locate(parent_name, key),
+                             "acl reads [tool.acl.lint] (pyproject.toml), or [lint] (acl.toml)")])
 
 
 def _parse(table: dict, text: str, path: str, prefix: str, rules: dict) -> LintConfig:
@@ -155,6 +175,8 @@ def _parse(table: dict, text: str, path: str, prefix: str, rules: dict) -> LintC
             cfg.mechanics = table["mechanics"]
     if "select" in table:
         cfg.select = codes(table["select"], "select", "select")
+        if table["select"] in ([], "", [""]):     # selected no rule: every design "passed" with nothing checked
+            bad("`select` is empty: no rule would run", "select", hint="list codes or prefixes, or remove `select`")
     if "ignore" in table:
         cfg.ignore = codes(table["ignore"], "ignore", "ignore", allow_check=True)
     pfi = table.get("per-file-ignores", {})
@@ -221,8 +243,10 @@ def _threshold_value(value, unit: str) -> float | str:
         v = num * factor
     else:
         return "expected a number"
-    if not (v > 0 and v < float("inf")):
+    if not v > 0:
         return "must be positive"
+    if not v < float("inf"):
+        return "must be positive and finite"
     return v
 
 

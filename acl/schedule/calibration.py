@@ -74,11 +74,11 @@ def _read_lines(path: str) -> list[str]:
     try:
         return raw.decode("utf-8-sig").splitlines()
     except UnicodeDecodeError as exc:
-        start = exc.start
-        line_start = raw.rfind(b"\n", 0, start) + 1
-        column = len(raw[line_start:start].decode("utf-8", errors="replace")) + 1
-        _fail("E-CSV-READ", f"calibration file is not UTF-8 text (byte 0x{raw[start]:02x})", path,
-              raw.count(b"\n", 0, start) + 1, column, "save the file as UTF-8")
+        from acl._files import undecodable
+
+        line, column, byte = undecodable(raw, exc)
+        _fail("E-CSV-READ", f"calibration file is not UTF-8 text (byte 0x{byte:02x})", path, line, column,
+              "save the file as UTF-8")
 
 
 MAX_DISPLACEMENT = 1.0     # m: as data files (acl.fit.data.MAX_LENGTH), no displacement of a micro-device
@@ -127,6 +127,10 @@ def read_sweep_csv(path: str, band: tuple[float, float] | None = None, transduce
         m = _HEAD.match(name)
         key = _ALIASES.get(m.group(1).lower()) if m else None
         if key is None:
+            sep = next((c for c in (";", "\t") if c in name and len(name.split(c)) >= 3), None)
+            if sep is not None:      # a spreadsheet's regional CSV (`;`) or a TSV read as one column
+                _fail("E-CSV-HEADER", f"the header is separated by {'`;`' if sep == ';' else 'tabs'}, not commas",
+                      path, hline, col, "save the file as comma-separated values (CSV with `,`; decimals with `.`)")
             _fail("E-CSV-HEADER", f"unknown column {name!r}", path, hline, col,
                   "columns are frequency, dx, dy (and optionally voltage), each with a unit")
         unit = (m.group(2) or m.group(3) or "").strip()
@@ -160,7 +164,9 @@ def read_sweep_csv(path: str, band: tuple[float, float] | None = None, transduce
             idx, scale = columns[key]
             text, col = fields[idx]
             try:
-                val = float(text)
+                from acl.units import parse_decimal
+
+                val = parse_decimal(text)       # float() also reads `1_000` and non-ASCII digits
             except ValueError:
                 _fail("E-CSV-VALUE", f"{key} is not a number: {text!r}", path, no, col)
             if not (np.isfinite(val) and np.isfinite(val * scale)):

@@ -222,6 +222,9 @@ def check_output(path: str, where: str = "<-o>") -> None:
     """Fail early (before any work) on an output the sweep could not write: E-USAGE/E601, exit 2."""
     span = Span(file=where, line=1, column=1)
     suffix = os.path.splitext(str(path))[1].lower()
+    if os.path.isdir(path):          # before the suffix: a folder was "not 'a file without suffix'"
+        raise DiagnosticError([error("E601", f"cannot write `{path}`: it is a folder", span,
+                                     "give a file, e.g. -o sweep.csv")])
     if suffix not in SUFFIXES:
         raise DiagnosticError([error("E-USAGE", f"-o {path}: the table is written as .csv or .parquet, not {suffix or 'a file without suffix'!r}",
                                      span, "e.g. -o sweep.csv or -o sweep.parquet")])
@@ -232,8 +235,6 @@ def check_output(path: str, where: str = "<-o>") -> None:
             raise DiagnosticError([error("E-USAGE", f"-o {path}: writing Parquet needs pyarrow, which is not installed", span,
                                          "install the scale extra: pip install 'acl[scale]', or write CSV: -o TABLE.csv")])
     folder = os.path.dirname(os.path.abspath(path))
-    if os.path.isdir(path):
-        raise DiagnosticError([error("E601", f"cannot write `{path}`: it is a folder", span)])
     if not os.path.isdir(folder):
         raise DiagnosticError([error("E601", f"cannot write `{path}`: no folder `{folder}`", span)])
     if not os.access(folder, os.W_OK | os.X_OK):
