@@ -111,6 +111,7 @@ class _Compiler:
     settled: dict = field(default_factory=dict)         # (tones, latch states) -> :meth:`_settle`'s answer
     branch_memo: dict = field(default_factory=dict)     # (tones, latch states, latch, to) -> :meth:`_branch_pushes`
     inner_goals: list = field(default_factory=list)     # goal records checked for coverage, not in schedule.json (sweeps)
+    forward_now: Callable | None = None                 # the current follow goal's forward provider (:meth:`_forward_for`)
 
     def run(self) -> Schedule:
         self._check_numbers()
