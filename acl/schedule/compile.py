@@ -921,12 +921,13 @@ class _Compiler:
         self._resimulate(rep, step.capsule, plan.u, path.points, plan.predicted)
         if rep.max_error_m is not None and not rep.max_error_m <= self.opts.tolerance_m * (1 + 1e-6) \
                 and rep.model.startswith("nonlinear"):
-            worst = "without bound (no stable equilibrium at some waypoint)" if not np.isfinite(rep.max_error_m) \
-                else f"{rep.max_error_m * 1e6:.3g} um (RMS {rep.rms_error_m * 1e6:.3g} um)"
+            worst = ("has waypoints without a stable equilibrium (its error is unbounded)"
+                     if not np.isfinite(rep.max_error_m) else
+                     f"is missed by up to {rep.max_error_m * 1e6:.3g} um (RMS {rep.rms_error_m * 1e6:.3g} um)")
             self.step_warnings.append(Diagnostic(
-                TRACKING_CODE, Severity.WARNING, f"{name}: re-simulated through the nonlinear model the path is missed "
-                f"by up to {worst}, beyond the {self.opts.tolerance_m * 1e6:g} um tolerance the plan meets on its "
-                "linear gains", step.span,
+                TRACKING_CODE, Severity.WARNING, f"{name}: re-simulated through the nonlinear model the path {worst}, "
+                f"beyond the {self.opts.tolerance_m * 1e6:g} um tolerance the plan meets on its linear gains",
+                step.span,
                 "re-plan against the nonlinear model (--nonlinear-passes 3); or move the path or the tones to where "
                 "the linear model holds (the plan's gains are thrust only: a neighbour's Bjerknes force, a large "
                 "deflection, declared effects are not in them)"))
