@@ -284,6 +284,9 @@ CONFOUNDED = {
     "latch+state drive_saturation+offset_drift": _THRESHOLD,
     "cantilever transducer_gain": _FLANK,
     "cantilever large_deflection+transducer_gain": _FLANK,
+    "pair transducer_gain": _FLANK,           # the same band (FREQS) on the pair, alone and with the calibration beam,
+    "pair+cal transducer_gain": _FLANK,       # and on the spring with it
+    "spring+cal transducer_gain": _FLANK,
 }
 
 
