@@ -644,9 +644,9 @@ class _Compiler:
         if key in self.settled:             # a ramp repeats its drives
             return self.settled[key]
         from acl.analysis import mechanics
-        from acl.physics.latch import latch_landscape
+        from acl.schedule.gains import state_positions
 
-        start, margins = None, None
+        want, margins = {}, None
         for lt in self.design.latches:
             if lt.state != "a":
                 continue
@@ -654,15 +654,9 @@ class _Compiler:
                 margins = margins if margins is not None else mechanics.latch_margins(self.design, drive, force_model)
                 if not margins[lt.name].margin >= 1.0:
                     continue
-            land = latch_landscape(*mechanics.latch_geometry(lt, self.design))
-            if land.state_b is None:
-                continue
-            axis = np.asarray(lt.axis, float) / np.linalg.norm(lt.axis)
-            start = start or {c.name: np.asarray(c.center, float) for c in self.design.capsules}
-            for j in self.design.joints:
-                if j.kind == "mount" and j.target_kind == "latch" and j.target == lt.name:
-                    start[j.capsule] = np.asarray(self.design.capsule(j.capsule).center, float) + float(land.state_b) * axis
-        st = mechanics.equilibrium(self.design, drive, force_model, start=start)
+            want[lt.name] = "b"
+        # the capsules each such latch carries (mounted and trussed to them) moved by its travel
+        st = mechanics.equilibrium(self.design, drive, force_model, start=state_positions(self.design, want))
         if st.status not in ("ok", "snap_in"):
             raise ValueError(f"no equilibrium ({st.status})")
         who, best = first_max_item({c.name: float(np.linalg.norm(np.asarray(st.displacements[c.name], float)))
