@@ -133,9 +133,17 @@ def model_forward(design: Design, capsule: str, frequencies, start=None) -> tupl
                 drive = Drive(tones=tuple(Tone(frequency=f, amplitude=float(np.sqrt(max(x, 0.0))))
                                           for f, x in zip(freqs, row)))
                 # warm start from the previous waypoint (continuation from ``start`` for the first)
-                eq = mech.equilibrium(design, drive, acoustics.force_model_for(design), start=prev)
+                fm = acoustics.force_model_for(design)
+                eq = mech.equilibrium(design, drive, fm, start=prev)
                 if eq.status != "ok" and prev is not start:
-                    eq = mech.equilibrium(design, drive, acoustics.force_model_for(design), start=start)
+                    eq = mech.equilibrium(design, drive, fm, start=start)
+                for flipped in (_flipped_latches(design, prev, drive) if eq.status != "ok" else ()):
+                    # the branch was lost because a bistable latch snapped through: the device goes on from its
+                    # other state (it stays there when the drive falls: hysteresis)
+                    again = mech.equilibrium(design, drive, fm, start=flipped)
+                    if again.status == "ok" and again.stable and _latch_moved(design, flipped, again.positions):
+                        eq = again
+                        break
                 if eq.status == "ok":
                     out[i] = np.asarray(eq.displacements[capsule], float)[:2]
                     prev = eq.positions
@@ -162,6 +170,62 @@ def model_forward(design: Design, capsule: str, frequencies, start=None) -> tupl
         return forward, "nonlinear beam law, paper Eq. (1) (mechanics module absent)"
     C = compliance_matrix(design, capsule)
     return (lambda u: (u @ per_tone) @ C.T), "linear spring (mechanics module absent)"
+
+
+def _latch_travels(design: Design):
+    """[(latch, unit axis, carried capsules, travel a -> b m)] of the bistable latches (a finite release force)."""
+    from acl.analysis.mechanics import latch_geometry
+    from acl.physics.latch import latch_landscape
+
+    out = []
+    for lt in design.latches:
+        land = latch_landscape(*latch_geometry(lt, design))
+        if land.state_b is None or land.release_force is None:
+            continue
+        axis, carried = latch_axis_carried(design, lt)
+        if carried:
+            out.append((lt, axis, carried, float(land.state_b)))
+    return out
+
+
+def _flipped_latches(design: Design, positions, drive: Drive) -> list[dict]:
+    """Capsule centres with one bistable latch in its other state each (from ``positions``, or rest), for the latches
+    that ``drive`` pushes over the force that switches them there (latch_landscape's switching / release force, the
+    force model at ``positions``): the starts from which an equilibrium lost at a latch's snap-through is found again
+    on its switched branch (a pair's snap-in, with no latch pushed over, gets none)."""
+    from acl.analysis.mechanics import latch_geometry
+    from acl.physics.latch import latch_landscape
+
+    base = {c.name: np.asarray(c.center, float) for c in design.capsules}
+    if positions:
+        base.update({k: np.asarray(v, float) for k, v in positions.items()})
+    declared = {c.name: np.asarray(c.center, float) for c in design.capsules}
+    push = latch_drive_forces(design, [(t.frequency, t.amplitude) for t in drive.tones], base)
+    index = {lt.name: k for k, lt in enumerate(design.latches)}
+    out = []
+    for lt, axis, carried, travel in _latch_travels(design):
+        off = float((base[carried[0]] - declared[carried[0]]) @ axis)
+        in_b = (off > travel / 2) if lt.state == "a" else (off > -travel / 2)
+        land = latch_landscape(*latch_geometry(lt, design))
+        f = float(push[index[lt.name]])
+        if not ((-f >= land.release_force) if in_b else (f >= land.switching_force)):
+            continue
+        move = -travel if in_b else travel
+        pos = dict(base)
+        for c in carried:
+            pos[c] = base[c] + move * axis
+        out.append(pos)
+    return out
+
+
+def _latch_moved(design: Design, start: dict, positions: dict) -> bool:
+    """Whether the equilibrium ``positions`` found from ``start`` kept every bistable latch on the side ``start`` put it
+    (within half its travel), i.e. the solve found the switched branch rather than falling back to rest."""
+    for lt, axis, carried, travel in _latch_travels(design):
+        c = carried[0]
+        if abs(float((np.asarray(positions[c], float) - np.asarray(start[c], float)) @ axis)) > travel / 2:
+            return False
+    return True
 
 
 def latch_forces(design: Design, frequencies, positions=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
