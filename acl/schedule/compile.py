@@ -38,6 +38,7 @@ LATCH_STATE_MARGIN = 1.2          # a drive pushing a latch within this factor o
 LATCH_STATE_CODE = "W-SCHED-LATCH-STATE"
 LATCH_FLIP_CODE = "W-SCHED-LATCH-FLIP"   # a follow or hold step's drive switches a latch (or may): docs/schedule.md
 TRACKING_CODE = "W-SCHED-TRACKING"       # the re-simulated path misses by more than the tolerance: docs/schedule.md
+CONTACT_CODE = "W-SCHED-CONTACT"         # a step starts with a pair an earlier drive snapped in: docs/schedule.md
 DRIVEN_KINDS = ("drive", "sweep", "follow", "hold")     # steps whose played drive can push a latch (_latch_track)
 FLIP_KINDS = ("follow", "hold")           # ... whose purpose is not the latch: a switch under them is warned
 
@@ -120,6 +121,8 @@ class _Compiler:
 
         for i, step in enumerate(self.program.steps):
             try:
+                if step.kind in ("hold", "follow"):
+                    self._contact_check(i, step)
                 getattr(self, f"_{step.kind}")(i, step)
             except SolverFailure as exc:   # every step, not only follow: a located error, never E-INTERNAL
                 raise _diag("E-SCHED-SOLVER", f"step {i + 1}: {exc}", step.span,
@@ -832,6 +835,62 @@ class _Compiler:
 
     def _pause(self, i, step):
         self._add(step.duration, [], i, f"step {i + 1}: pause")
+
+    # -- contact left by an earlier step ---------------------------------------------------------
+    def _contact_check(self, i: int, step) -> None:
+        """W-SCHED-CONTACT at a hold (above) or follow step that may start with a pair in contact.
+
+        The pairs are those the program's hold steps name.  A `hold ... cross` snaps its pair in, and so does a
+        drive, switch or hold (of another pair) whose whole drive reaches the pair's snap-in (gains.critical_scale
+        <= 1, the hold planner's model).  Once in contact the pair is held by the Bjerknes force at contact, far
+        stronger than at the rest gap, for as long as a drive plays: the compiler has no release model, so it takes
+        the contact to last until a `pause` (silence: no acoustic force, the beams pull the capsules apart).  A hold
+        that keeps the pair apart, or a path of one of its capsules, is planned from the pair at rest: that plan does
+        not hold from contact.  (A sweep step is not checked: its worst frequency is not searched here.)"""
+        from acl.schedule.gains import critical_scale
+
+        pairs = {frozenset((st.a.split(".")[0], st.b.split(".")[0])): (st.a, st.b)
+                 for st in self.program.steps if st.kind == "hold"}
+        if step.kind == "hold":
+            if step.mode != "above":
+                return
+            mine = [frozenset((step.a.split(".")[0], step.b.split(".")[0]))]
+        else:
+            mine = [p for p in pairs if step.capsule in p]
+        if not mine:
+            return
+        start = max((j + 1 for j in range(i) if self.program.steps[j].kind == "pause"), default=0)
+        for pair in mine:
+            a, b = pairs.get(pair, (step.a, step.b) if step.kind == "hold" else (None, None))
+            why = None
+            for j in range(start, i):
+                st = self.program.steps[j]
+                if st.kind == "hold" and st.mode == "cross" and frozenset(
+                        (st.a.split(".")[0], st.b.split(".")[0])) == pair:
+                    why = f"step {j + 1} (hold ... cross) snaps it in"
+                elif st.kind in ("drive", "switch", "hold"):
+                    tones = [(t.frequency_hz, t.amplitude_v) for g in self.segments if g.step == j
+                             for t in g.tones if t.amplitude_v > 0 and not t.frequency_end_hz]
+                    if not tones:
+                        continue
+                    try:
+                        scale = critical_scale(self.design, a, b, tones, 1.0)
+                    except (ValueError, KeyError, ArithmeticError, np.linalg.LinAlgError, DiagnosticError):
+                        scale = None
+                    if scale is not None and scale <= 1.0:
+                        why = f"the drive of step {j + 1} ({st.kind}) reaches its snap-in"
+                if why:
+                    break
+            if why is None:
+                continue
+            what = ("the hold keeps it apart from the pair at rest" if step.kind == "hold"
+                    else f"the path of `{step.capsule}` is planned from the pair at rest")
+            self.step_warnings.append(Diagnostic(
+                CONTACT_CODE, Severity.WARNING,
+                f"step {i + 1}: {step.kind}: the pair {' / '.join(sorted(pair))} may be in contact when the step "
+                f"starts: {why} and no pause releases it before this step; {what}", step.span,
+                "insert a `pause` before this step (with no drive the Bjerknes force vanishes and the beams pull the "
+                "capsules apart); the compiler takes a contact to last while any drive plays"))
 
     # -- follow --------------------------------------------------------------------------------
     def _follow(self, i, step: FollowStep):
