@@ -426,11 +426,11 @@ class _Compiler:
         before, after = self.segments[k - 1], self.segments[k]
         if not any(t.amplitude_v > 0 for t in before.tones) or not any(t.amplitude_v > 0 for t in after.tones):
             return          # a drive fading from or into silence is only scaled: no tone mixes
-        freqs, p, q = _boundary_tones(before, after)
+        freqs, p, q, cos = _boundary_tones(before, after)
         found = []
         for check, what in ((self._crossfade_latches, "latches"), (self._crossfade_holds, "held pairs")):
             try:
-                found += check(i, freqs, p, q)
+                found += check(i, freqs, p, q, cos)
             except (DiagnosticError, KeyError, StopIteration, ValueError, ArithmeticError,
                     np.linalg.LinAlgError) as exc:
                 self.notes.append(f"step {i + 1}: the crossfade from step {i} could not be checked for {what} ({exc})")
@@ -462,7 +462,7 @@ class _Compiler:
                           f"{fade.start_s:.4g} s): a direct crossfade would push {text} ({over:.3g} x beyond the "
                           "larger of the safe level and either step alone)")
 
-    def _crossfade_latches(self, i: int, freqs, p, q) -> list:
+    def _crossfade_latches(self, i: int, freqs, p, q, cos) -> list:
         """[(overshoot ratio, phrase)] for the bistable latches the crossfade into step ``i`` pushes towards a state
         they are not in past max(1/LATCH_STATE_MARGIN, either end's push) (:meth:`_crossfade`).
 
@@ -505,10 +505,10 @@ class _Compiler:
                 thr = float(to_b[j] if to == "b" else to_a[j])
                 g = sig * G[j]
                 if quadratic:
-                    peak, x = crossfade_peak(g, p, q)
+                    peak, x = crossfade_peak(g, p, q, cos)
                     r, x = float(peak[0]) / thr, float(x[0])
                     r0, r1 = float(g @ (p * p)) / thr, float(g @ (q * q)) / thr
-                    how = "worst phases"
+                    how = "worst phases" if np.isnan(cos[(p > 0) & (q > 0)]).any() else "the phases as played"
                 else:
                     from acl.schedule.gains import latch_drive_forces
 
@@ -517,7 +517,7 @@ class _Compiler:
                         return sig * float(latch_drive_forces(self.design, tones, pos)[j]) / thr
 
                     r0, r1 = push(p), push(q)
-                    r, x = max((push(crossfade_amplitudes(p, q, x, g)), x) for x in FADE_POINTS)
+                    r, x = max((push(crossfade_amplitudes(p, q, x, g, cos)), x) for x in FADE_POINTS)
                     how = f"sampled at weights {', '.join(f'{w:g}' for w in FADE_POINTS)} (declared drive saturation)"
                 top = max(safe, r0, r1)
                 if r > top * (1 + 1e-6):
@@ -527,7 +527,7 @@ class _Compiler:
                                 f"alone {max(r0, 0.0):.3g} x, step {i + 1}'s {max(r1, 0.0):.3g} x)"))
         return out
 
-    def _crossfade_holds(self, i: int, freqs, p, q) -> list:
+    def _crossfade_holds(self, i: int, freqs, p, q, cos) -> list:
         """[(overshoot ratio, phrase)] for the pair of a `hold ... above` step on either side of the boundary into
         step ``i`` that the mixed drive brings nearer snap-in than min(margin, either end) (:meth:`_crossfade`).
 
@@ -558,7 +558,7 @@ class _Compiler:
             s0, s1 = scale(p), scale(q)
             if s0 is None or s1 is None:
                 continue
-            shared = [kk for kk in range(len(freqs)) if p[kk] > 0 and q[kk] > 0]
+            shared = [kk for kk in range(len(freqs)) if p[kk] > 0 and q[kk] > 0 and np.isnan(cos[kk])]
             combos = ([[(b >> m) & 1 for m in range(len(shared))] for b in range(2 ** len(shared))]
                       if len(shared) <= 2 else [[0] * len(shared), [1] * len(shared)])
             worst = None
@@ -566,7 +566,7 @@ class _Compiler:
                 for bits in combos:
                     signs = np.ones(len(freqs))
                     signs[[kk for kk, b in zip(shared, bits) if b]] = -1.0
-                    s = scale(crossfade_amplitudes(p, q, x, signs))
+                    s = scale(crossfade_amplitudes(p, q, x, signs, cos))
                     if s is not None and (worst is None or s < worst[0]):
                         worst = (s, x)
             floor = min(st.margin, s0, s1)
@@ -1754,21 +1754,29 @@ def _is_fade(seg: Segment) -> bool:
     return not seg.tones and (seg.goal or "").endswith(FADE_GOAL)
 
 
-def _boundary_tones(before: Segment, after: Segment) -> tuple[list[float], np.ndarray, np.ndarray]:
-    """(frequencies Hz, amplitudes V before, after) of the tones the renderer crossfades at the boundary between
-    ``before`` and ``after``: a tone is identified by its frequency there (a chirp by its end frequency before the
-    boundary, its start frequency after it); two tones of one frequency in a segment add (an upper bound)."""
+def _boundary_tones(before: Segment, after: Segment) -> tuple[list[float], np.ndarray, np.ndarray, np.ndarray]:
+    """(frequencies Hz, amplitudes V before, after, cos of the phase difference or NaN) of the tones the renderer
+    crossfades at the boundary between ``before`` and ``after``.
+
+    A tone is identified by its frequency there (a chirp by its end frequency before the boundary, its start
+    frequency after it); two tones of one frequency in a segment add (an upper bound).  The phase difference of a
+    constant tone on both sides is known when neither phase is left to the crest-factor search (_choose_all_phases):
+    a phase the user wrote, or the only tone of its segment; otherwise NaN (the worst phase is taken)."""
     def at(seg, end):
-        out = {}
+        out, ph = {}, {}
+        lone = len(seg.tones) == 1
         for t in seg.tones:
             if t.amplitude_v > 0:
                 f = float(t.frequency_end_hz if (end and t.frequency_end_hz) else t.frequency_hz)
+                ph[f] = t.phase_rad if (f not in out and t.sweep is None and (t.phase_fixed or lone)) else None
                 out[f] = out.get(f, 0.0) + float(t.amplitude_v)
-        return out
+        return out, ph
 
-    a, b = at(before, True), at(after, False)
+    (a, pa), (b, pb) = at(before, True), at(after, False)
     freqs = sorted(set(a) | set(b))
-    return freqs, np.array([a.get(f, 0.0) for f in freqs]), np.array([b.get(f, 0.0) for f in freqs])
+    cos = np.array([np.cos(pb[f] - pa[f]) if pa.get(f) is not None and pb.get(f) is not None else np.nan
+                    for f in freqs])
+    return freqs, np.array([a.get(f, 0.0) for f in freqs]), np.array([b.get(f, 0.0) for f in freqs]), cos
 
 
 def _nominal_end(start: str, rb: np.ndarray, ra: np.ndarray) -> str:
