@@ -264,3 +264,18 @@ def test_a_hold_then_a_drive_at_another_tone_that_would_snap_the_pair_mid_crossf
 def test_a_drive_the_mix_keeps_apart_is_left_alone():
     s = compile_program(_hold_then_drive(0.1), "p", _opts())
     assert len(s.segments) == 2 and not _fades(s)
+
+
+def test_the_fig4_pair_held_at_its_margin_then_driven_at_another_tone_is_left_alone():
+    """Real mechanics: the hold's 125 kHz at its 1.2 margin, then 100 kHz at 2 V.  The mixed drive mid-crossfade,
+    re-simulated independently (mechanics.sweep_voltage through critical_scale), keeps more than the margin, and the
+    schedule is the two steps' segments with nothing between."""
+    from acl.schedule.gains import critical_scale
+
+    d = acl.load(str(ROOT / "tests" / "data" / "crossfade_hold.acl"), search_paths=[str(ROOT / "examples")])
+    s = compile_program(d, "hold_then_drive", CompileOptions(band_samples=0))
+    hold, drive = s.segments
+    assert hold.goal.startswith("step 1: hold") and not _fades(s)
+    mid = [(t.frequency_hz, t.amplitude_v / 2) for t in hold.tones + drive.tones]
+    assert critical_scale(d, "left.jet", "right.jet", mid, 3.0, 10e-6) > 1.2
+    assert not any("fade" in n or "crossfade" in n for n in s.notes)
