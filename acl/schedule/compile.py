@@ -479,20 +479,25 @@ class _Compiler:
             return []
         from acl.schedule.crossfade import FADE_POINTS, crossfade_amplitudes, crossfade_peak
 
+        if self.opts.latch_provider is not None:
+            quadratic = True
+        else:
+            from acl.analysis.acoustics import force_model_for
+
+            quadratic = force_model_for(self.design).quadratic_in_amplitude
+        if quadratic and (not np.any((p > 0) & (q > 0)) or len(freqs) < 2):
+            return []       # no kept tone, or one tone alone: never past the larger end (acl.schedule.crossfade)
         track = self._latch_track(i)
         states = {n: s for n, (s, _, _) in track.items()}
         step = self.program.steps[i]
         pos = None
         if self.opts.latch_provider is not None:
             G, to_b, to_a = self.opts.latch_provider(self.design, tuple(freqs))
-            quadratic = True
         else:
-            from acl.analysis.acoustics import force_model_for
             from acl.schedule.gains import latch_forces, state_positions
 
             pos = state_positions(self.design, states)
             G, to_b, to_a = latch_forces(self.design, freqs, pos)
-            quadratic = force_model_for(self.design).quadratic_in_amplitude
         G = np.asarray(G, float).reshape(len(to_b), len(freqs))
         safe = 1.0 / LATCH_STATE_MARGIN
         out = []

@@ -14,8 +14,9 @@ does not choose) its term is ``g p q cos(theta)`` instead: two identical drives 
 Consequences: without a tone shared by both sides (``c = 0``) the force never exceeds the larger end (or zero,
 when both ends pull the other way); a force
 with ``g >= 0`` for every tone (a snap index ``sum u_k / Vcrit_k^2``) never does either (``c <= sqrt(a b)``,
-Cauchy-Schwarz).  Only a tone kept across the boundary, with a counter-pushing tone that changes, can push
-harder than either side: the kept tone plays throughout while the counter push dips.
+Cauchy-Schwarz), nor does one tone alone (``|(1 - x) P + x Q| <= max(p, q)``).  Only a tone kept across the
+boundary, with a counter-pushing tone that changes, can push harder than either side: the kept tone plays
+throughout while the counter push dips.
 """
 from __future__ import annotations
 
