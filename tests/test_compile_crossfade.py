@@ -279,3 +279,29 @@ def test_the_fig4_pair_held_at_its_margin_then_driven_at_another_tone_is_left_al
     mid = [(t.frequency_hz, t.amplitude_v / 2) for t in hold.tones + drive.tones]
     assert critical_scale(d, "left.jet", "right.jet", mid, 3.0, 10e-6) > 1.2
     assert not any("fade" in n or "crossfade" in n for n in s.notes)
+
+
+def test_with_declared_drive_saturation_the_mixed_drive_is_sampled_and_faded(tmp_path):
+    """The swap program under `drive_saturation { v_sat = 200 V }` (forces no longer ~V^2): each step alone
+    ~0.65 x, the mixed drive mid-crossfade (85 kHz kept at 32 V, 170 and 180 kHz halved), evaluated independently with
+    the full force model, ~0.9 x > 1/1.2; the compiler samples it and fades through silence."""
+    import shutil
+
+    from acl.schedule.gains import latch_drive_forces, latch_forces as lf
+
+    shutil.copy(ROOT / "examples" / "fig6e_reversible_latch.acl", tmp_path)
+    body = DATA.read_text(encoding="utf-8").split("param v85", 1)[1]
+    (tmp_path / "sat.acl").write_text('extends "fig6e_reversible_latch.acl"\n'
+                                      "effect drive_saturation { v_sat = 200 V }\nparam v85" + body, encoding="utf-8")
+    d = acl.load(str(tmp_path / "sat.acl"))
+    _, to_b, _ = lf(d, [])
+
+    def push(tones):
+        return float(latch_drive_forces(d, tones)[0] / to_b[0])
+
+    ends = [push([(85e3, 32.0), (170e3, 48.0)]), push([(85e3, 32.0), (180e3, 65.0)])]
+    mid = push([(85e3, 32.0), (170e3, 24.0), (180e3, 32.5)])
+    assert max(ends) < 1 / LATCH_STATE_MARGIN < mid
+    s = compile_program(d, "swap", OPTS)
+    assert len(_fades(s)) == 1
+    assert any("sampled at weights 0.25, 0.5, 0.75 (declared drive saturation)" in n for n in s.notes)
