@@ -114,7 +114,8 @@ class _Compiler:
     settled: dict = field(default_factory=dict)         # (tones, latch states) -> :meth:`_settle`'s answer
     branch_memo: dict = field(default_factory=dict)     # (tones, latch states, latch, to) -> :meth:`_branch_pushes`
     inner_goals: list = field(default_factory=list)     # goal records checked for coverage, not in schedule.json (sweeps)
-    forward_now: Callable | None = None                 # the current follow goal's forward provider (:meth:`_forward_for`)
+    forward_now: Callable | None = None                 # the current follow goal's forward provider (:meth:`_models_for`)
+    gains_now: Callable | None = None                   # and its gain provider ((design, capsule, freqs) -> GainTable)
 
     def run(self) -> Schedule:
         self._check_numbers()
@@ -1066,6 +1067,7 @@ class _Compiler:
                         "give a duration or a positive speed, and a well-formed path")
         dt = duration / n
         try:
+            self.forward_now, self.gains_now = self._models_for(i, name)
             table = self._gain_table(step.capsule)
             choice = choose_tones(table, path.points, vmax, self.opts.tones_per_path, step.tones)
         except ValueError as exc:
@@ -1102,7 +1104,6 @@ class _Compiler:
                    if slew else ()))])
         except SolverFailure as exc:
             raise _diag("E-SCHED-SOLVER", f"{name}: {exc}", step.span, "report this design")
-        self.forward_now = self._forward_for(i, name)
         if self.opts.nonlinear_passes > 0:
             plan = self._correct(name, step.capsule, choice, plan, path.points, dt, limits, rq, u_start)
         amps = plan.amplitudes                                      # (K, N)
@@ -1125,8 +1126,8 @@ class _Compiler:
                 f"beyond the {self.opts.tolerance_m * 1e6:g} um tolerance the plan meets on its linear gains",
                 step.span,
                 "re-plan against the nonlinear model (--nonlinear-passes 3); or move the path or the tones to where "
-                "the linear model holds (the plan's gains are thrust only: a neighbour's Bjerknes force, a large "
-                "deflection, declared effects are not in them)"))
+                "the linear model holds (the plan's gains are the model linearised at zero drive where the step starts: "
+                "a large deflection and the change of the neighbours' forces as the capsules move are not in them)"))
         rep.details.update({
             "tone_margin": choice.margin, "tone_conditioning": choice.conditioning,
             "gains_source": table.source, "waypoints": n, "dt_s": dt, "solver": plan.result.solver,
@@ -1167,31 +1168,39 @@ class _Compiler:
         best.targets = np.asarray(points, float)
         return best
 
-    def _forward_for(self, i: int, name: str):
-        """The forward provider ((design, capsule, freqs) -> (forward, name)) of the follow goal of step ``i``: the
-        injected one, or acl.schedule.gains.model_forward from where the latch states put the capsules when the step
-        starts (:meth:`_latch_track`; each draw of a band at its own travel).  Fig. 6f: after `switch ctl to b`
-        partner faces arm_cap inside d_c and their attraction bends the beam the other way; re-simulated from the
-        declared state a, a path of arm_cap after the switch was predicted as if partner were 110 um away."""
-        if self.opts.forward_provider is not None:
-            return self.opts.forward_provider
-        from acl.schedule.gains import model_forward, state_positions
+    def _models_for(self, i: int, name: str):
+        """(forward provider (design, capsule, freqs) -> (forward, name), gain provider (design, capsule, freqs=None) ->
+        GainTable) of the follow goal of step ``i``: the injected ones, or acl.schedule.gains.model_forward and
+        model_gain_table from where the latch states put the capsules when the step starts (:meth:`_latch_track`;
+        each draw of a band or of --robust at its own travel).  Fig. 6f: after `switch ctl to b` partner faces arm_cap
+        inside d_c and their attraction bends the beam the other way; planned and re-simulated from the declared
+        state a, a path of arm_cap after the switch was predicted as if partner were 110 um away."""
+        from acl.schedule.gains import model_forward, model_gain_table, state_positions
 
+        forward = self.opts.forward_provider or model_forward
+        given = self.opts.gain_provider
+        gains = (lambda d, capsule, freqs=None: given(d, capsule) if freqs is None else given(d, capsule, freqs)) \
+            if given is not None else model_gain_table
         if not self.design.latches:
-            return model_forward
+            return forward, gains
         track = self._latch_track(i)
         states = {n: s for n, (s, _, _) in track.items()}
         moved = [l.name for l in self.design.latches if states.get(l.name, l.state) != l.state]
         doubt = [n for n, (_, sure, _) in track.items() if not sure]
         if doubt:
-            self.notes.append(f"{name}: re-simulated with " + ", ".join(f"latch `{n}` in state {states[n]}"
-                                                                       for n in doubt)
-                              + " (its likelier state: an earlier drive left it uncertain)")
+            self.notes.append(f"{name}: planned and re-simulated with " + ", ".join(
+                f"latch `{n}` in state {states[n]}" for n in doubt)
+                + " (its likelier state: an earlier drive left it uncertain)")
         if not moved:
-            return model_forward
-        self.notes.append(f"{name}: re-simulated with " + ", ".join(f"latch `{n}` in state {states[n]}" for n in moved)
-                          + " (its capsules moved by the latch's travel)")
-        return lambda d, capsule, freqs: model_forward(d, capsule, freqs, start=state_positions(d, states))
+            return forward, gains
+        self.notes.append(f"{name}: planned and re-simulated with " + ", ".join(
+            f"latch `{n}` in state {states[n]}" for n in moved) + " (its capsules moved by the latch's travel)")
+        if self.opts.forward_provider is None:
+            forward = lambda d, capsule, freqs: model_forward(d, capsule, freqs, start=state_positions(d, states))  # noqa: E731
+        if given is None:
+            gains = lambda d, capsule, freqs=None: model_gain_table(d, capsule, freqs,  # noqa: E731
+                                                                    positions=state_positions(d, states))
+        return forward, gains
 
     def _band_planned(self) -> bool:
         """Whether follow goals get an error band from draws of the declared uncertainty (:meth:`_band`)."""
@@ -1210,9 +1219,7 @@ class _Compiler:
             if not band:
                 self.notes.append(f"{name}: --robust ignored: a measured calibration table declares no uncertainty")
             return None
-        provider = self.opts.gain_provider
-        if provider is None:
-            from acl.schedule.gains import model_gain_table as provider
+        provider = self.gains_now
         with np.errstate(all="ignore"):      # overflow is checked below, as a located error
             try:
                 q = robust_q(self.design, lambda d: provider(d, capsule, freqs).gains.T, self.opts.reload)
@@ -1244,11 +1251,8 @@ class _Compiler:
     def _gain_table(self, capsule):
         if self.opts.calibration is not None:
             return self.opts.calibration
-        provider = self.opts.gain_provider
-        if provider is None:
-            from acl.schedule.gains import model_gain_table as provider
         try:
-            return provider(self.design, capsule)
+            return self.gains_now(self.design, capsule)
         except (KeyError, ValueError) as exc:
             raise ValueError(f"no gain model for `{capsule}`: {exc}") from None
 

@@ -2,9 +2,12 @@
 
 This is the only module of acl.schedule that calls the analysis stage:
 
-* :func:`model_gain_table` -- displacement per V^2 of a capsule vs frequency: thrust per V^2 from
-  :func:`acl.analysis.acoustics.thrust_vectors` (transducer transfer function included) times the
-  small-force compliance of what carries the capsule (beam: paper Eq. 1 as P -> 0; spring).
+* :func:`model_gain_table` -- displacement per V^2 of a capsule vs frequency: the acoustic force per V^2
+  on the body it belongs to (:func:`acl.analysis.acoustics.force_model`: thrust, the neighbours' Bjerknes
+  force and jet drag, transducer transfer function included) where the capsules are when the drive
+  starts, times the small-force compliance of what carries the capsule (beam: paper Eq. 1 as P -> 0;
+  spring).  This is the exact linearisation of the static equilibrium at zero drive: every force is
+  quadratic in the tone amplitudes, so a displacement changes the forces only at second order in V^2.
 * :func:`model_forward` -- the nonlinear forward model used to re-simulate a schedule:
   :func:`acl.analysis.mechanics.equilibrium` (warm-started along the path) when that module
   exists, otherwise the thrust through the nonlinear beam law of paper Eq. (1).
@@ -47,13 +50,18 @@ def default_frequencies(design: Design, step_hz: float = 500.0) -> np.ndarray:
     return np.arange(np.ceil(lo / step_hz) * step_hz, hi + step_hz / 2, step_hz)
 
 
-def _force_per_v2(design: Design, capsule: str, frequencies) -> np.ndarray:
-    """Acoustic force (N per V^2, 3-vector) on ``capsule`` for each frequency, tone alone at 1 V."""
+def _force_per_v2(design: Design, capsule: str, frequencies, positions=None) -> np.ndarray:
+    """Acoustic force (N per V^2, 3-vector) on the body of ``capsule`` (it and the capsules trussed to it) for each
+    tone alone at 1 V: thrust + Bjerknes + jet drag (paper Eqs. 2-3 via acl.analysis.acoustics.force_model), the
+    capsules at rest or at ``positions`` (name -> centre, m; missing names at rest).  The Bjerknes forces inside the
+    body cancel (equal and opposite); a neighbour's do not."""
     from acl.analysis import acoustics
 
+    body = _rigidly_linked(design, [capsule])
     out = np.empty((len(frequencies), 3))
     for i, f in enumerate(frequencies):
-        out[i] = acoustics.thrust_vectors(design, Drive(tones=(Tone(frequency=float(f), amplitude=1.0),)))[capsule]
+        fm = acoustics.force_model(design, positions, Drive(tones=(Tone(frequency=float(f), amplitude=1.0),)))
+        out[i] = np.sum([np.asarray(fm[c], float) for c in body], axis=0)
     return out
 
 
@@ -93,12 +101,16 @@ def compliance_matrix(design: Design, capsule: str) -> np.ndarray:
     return np.outer(a, a)[:2] / k
 
 
-def model_gain_table(design: Design, capsule: str, frequencies=None) -> GainTable:
-    """Planar displacement per V^2 (m/V^2) of ``capsule`` vs frequency, from the model."""
+def model_gain_table(design: Design, capsule: str, frequencies=None, positions=None) -> GainTable:
+    """Planar displacement per V^2 (m/V^2) of ``capsule`` vs frequency: the linearised static equilibrium at zero
+    drive (acoustic force on its body x small-force compliance of its carrier, paper Eq. 1 as P -> 0), with the
+    capsules at rest or at ``positions`` (e.g. :func:`state_positions` after a latch switch)."""
     f = default_frequencies(design) if frequencies is None else np.asarray(frequencies, float)
-    force = _force_per_v2(design, capsule, f)                       # (F, 3)
+    force = _force_per_v2(design, capsule, f, positions)                  # (F, 3)
     gains = force @ compliance_matrix(design, capsule).T              # (F, 2)
-    return GainTable(frequencies=f, gains=gains, source="model (thrust x small-force compliance)")
+    where = "at rest" if not positions else "where the latch states put the capsules"
+    return GainTable(frequencies=f, gains=gains,
+                     source=f"model (thrust + Bjerknes + jet drag {where}, x small-force compliance)")
 
 
 def model_forward(design: Design, capsule: str, frequencies, start=None) -> tuple[Forward, str]:
@@ -121,9 +133,17 @@ def model_forward(design: Design, capsule: str, frequencies, start=None) -> tupl
                 drive = Drive(tones=tuple(Tone(frequency=f, amplitude=float(np.sqrt(max(x, 0.0))))
                                           for f, x in zip(freqs, row)))
                 # warm start from the previous waypoint (continuation from ``start`` for the first)
-                eq = mech.equilibrium(design, drive, acoustics.force_model_for(design), start=prev)
+                fm = acoustics.force_model_for(design)
+                eq = mech.equilibrium(design, drive, fm, start=prev)
                 if eq.status != "ok" and prev is not start:
-                    eq = mech.equilibrium(design, drive, acoustics.force_model_for(design), start=start)
+                    eq = mech.equilibrium(design, drive, fm, start=start)
+                for flipped in (_flipped_latches(design, prev, drive) if eq.status != "ok" else ()):
+                    # the branch was lost because a bistable latch snapped through: the device goes on from its
+                    # other state (it stays there when the drive falls: hysteresis)
+                    again = mech.equilibrium(design, drive, fm, start=flipped)
+                    if again.status == "ok" and again.stable and _latch_moved(design, flipped, again.positions):
+                        eq = again
+                        break
                 if eq.status == "ok":
                     out[i] = np.asarray(eq.displacements[capsule], float)[:2]
                     prev = eq.positions
@@ -133,7 +153,7 @@ def model_forward(design: Design, capsule: str, frequencies, start=None) -> tupl
 
         return forward, "nonlinear equilibrium (acl.analysis.mechanics)"
     kind, el = _carrier(design, capsule)
-    per_tone = _force_per_v2(design, capsule, freqs)                  # (K, 3) N/V^2
+    per_tone = _force_per_v2(design, capsule, freqs, start)           # (K, 3) N/V^2
     if kind == "beam":
         from acl.physics.beams import eq1_deflection
 
@@ -150,6 +170,62 @@ def model_forward(design: Design, capsule: str, frequencies, start=None) -> tupl
         return forward, "nonlinear beam law, paper Eq. (1) (mechanics module absent)"
     C = compliance_matrix(design, capsule)
     return (lambda u: (u @ per_tone) @ C.T), "linear spring (mechanics module absent)"
+
+
+def _latch_travels(design: Design):
+    """[(latch, unit axis, carried capsules, travel a -> b m)] of the bistable latches (a finite release force)."""
+    from acl.analysis.mechanics import latch_geometry
+    from acl.physics.latch import latch_landscape
+
+    out = []
+    for lt in design.latches:
+        land = latch_landscape(*latch_geometry(lt, design))
+        if land.state_b is None or land.release_force is None:
+            continue
+        axis, carried = latch_axis_carried(design, lt)
+        if carried:
+            out.append((lt, axis, carried, float(land.state_b)))
+    return out
+
+
+def _flipped_latches(design: Design, positions, drive: Drive) -> list[dict]:
+    """Capsule centres with one bistable latch in its other state each (from ``positions``, or rest), for the latches
+    that ``drive`` pushes over the force that switches them there (latch_landscape's switching / release force, the
+    force model at ``positions``): the starts from which an equilibrium lost at a latch's snap-through is found again
+    on its switched branch (a pair's snap-in, with no latch pushed over, gets none)."""
+    from acl.analysis.mechanics import latch_geometry
+    from acl.physics.latch import latch_landscape
+
+    base = {c.name: np.asarray(c.center, float) for c in design.capsules}
+    if positions:
+        base.update({k: np.asarray(v, float) for k, v in positions.items()})
+    declared = {c.name: np.asarray(c.center, float) for c in design.capsules}
+    push = latch_drive_forces(design, [(t.frequency, t.amplitude) for t in drive.tones], base)
+    index = {lt.name: k for k, lt in enumerate(design.latches)}
+    out = []
+    for lt, axis, carried, travel in _latch_travels(design):
+        off = float((base[carried[0]] - declared[carried[0]]) @ axis)
+        in_b = (off > travel / 2) if lt.state == "a" else (off > -travel / 2)
+        land = latch_landscape(*latch_geometry(lt, design))
+        f = float(push[index[lt.name]])
+        if not ((-f >= land.release_force) if in_b else (f >= land.switching_force)):
+            continue
+        move = -travel if in_b else travel
+        pos = dict(base)
+        for c in carried:
+            pos[c] = base[c] + move * axis
+        out.append(pos)
+    return out
+
+
+def _latch_moved(design: Design, start: dict, positions: dict) -> bool:
+    """Whether the equilibrium ``positions`` found from ``start`` kept every bistable latch on the side ``start`` put it
+    (within half its travel), i.e. the solve found the switched branch rather than falling back to rest."""
+    for lt, axis, carried, travel in _latch_travels(design):
+        c = carried[0]
+        if abs(float((np.asarray(positions[c], float) - np.asarray(start[c], float)) @ axis)) > travel / 2:
+            return False
+    return True
 
 
 def latch_forces(design: Design, frequencies, positions=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
