@@ -305,3 +305,22 @@ def test_with_declared_drive_saturation_the_mixed_drive_is_sampled_and_faded(tmp
     s = compile_program(d, "swap", OPTS)
     assert len(_fades(s)) == 1
     assert any("sampled at weights 0.25, 0.5, 0.75 (declared drive saturation)" in n for n in s.notes)
+
+
+def test_the_cli_writes_the_faded_schedule_and_says_why(tmp_path, capsys):
+    """`acl compile` end to end on the `swap` program: exit 0, schedule.json carries the silent segment as its own
+    goal between the two drive steps, and the note that explains it."""
+    import json
+
+    from acl.cli import main
+
+    out = tmp_path / "out"
+    rc = main(["compile", str(DATA), "--program", "swap", "-o", str(out), "--path", str(ROOT / "examples"),
+               "--allow-nonlinear", "--band-samples", "0", "-q"])
+    capsys.readouterr()
+    assert rc == 0
+    sched = json.loads((out / "schedule.json").read_text())
+    fades = [g for g in sched["segments"] if not g["tones"] and (g.get("goal") or "").endswith(FADE_GOAL)]
+    assert len(fades) == 1 and fades[0]["goal"].startswith("step 2")
+    (note,) = [n for n in sched["notes"] if n.startswith("step 2: faded through")]
+    assert "of silence after step 1" in note and "latch `l` (in state a)" in note
