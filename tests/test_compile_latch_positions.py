@@ -175,3 +175,25 @@ def test_the_attraction_path_after_a_switch_is_planned_and_corrected_against_the
     g2 = next(g for g in corrected.goals if g.kind == "follow")
     assert g2.max_error_m < 0.5e-6 and g2.rms_error_m < g1.rms_error_m / 3
     assert not [w for w in corrected.warnings if w.code == "W-SCHED-TRACKING"]
+
+
+def test_a_calibration_table_measured_as_declared_is_not_trusted_after_a_switch(tmp_path):
+    """--calibration is a table measured on the device as printed (latches as declared).  After `switch ctl to b`
+    partner's attraction reverses arm_cap's 125 kHz gain, so the table's +x path compiles to a drive that bends the
+    beam the other way: W-SCHED-CALIBRATION-STATE at the follow step with the model's change.  The same path before
+    the switch does not warn."""
+    from acl.schedule.compile import CALIBRATION_STATE_RTOL
+    from acl.schedule.gains import default_frequencies, model_gain_table
+
+    d = acl.load(_design(tmp_path, "fig6f_control_module.acl", [TO_B, "pause 100 ms", _path("")]))
+    table = model_gain_table(d, "arm_cap", default_frequencies(d))        # "measured" at rest: as declared
+    opts = CompileOptions(band_samples=0, allow_nonlinear=True, calibration=table)
+    after = compile_program(d, "p", opts)
+    (w,) = [w for w in after.warnings if w.code == "W-SCHED-CALIBRATION-STATE"]
+    assert w.span.line == 5 and "latch `ctl` in state b" in w.message
+    g0 = model_gain_table(d, "arm_cap", [125e3]).gains
+    g1 = model_gain_table(d, "arm_cap", [125e3], positions=state_positions(d, {"ctl": "b"})).gains
+    change = float(np.linalg.norm(g1 - g0) / np.linalg.norm(g0))
+    assert change > CALIBRATION_STATE_RTOL and f"differ by {change:.0%} of their size" in w.message
+    before = compile_program(acl.load(_design(tmp_path, "fig6f_control_module.acl", [_path("")])), "p", opts)
+    assert not [w for w in before.warnings if w.code == "W-SCHED-CALIBRATION-STATE"]

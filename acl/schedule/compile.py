@@ -38,6 +38,8 @@ LATCH_STATE_MARGIN = 1.2          # a drive pushing a latch within this factor o
 LATCH_STATE_CODE = "W-SCHED-LATCH-STATE"
 LATCH_FLIP_CODE = "W-SCHED-LATCH-FLIP"   # a follow or hold step's drive switches a latch (or may): docs/schedule.md
 TRACKING_CODE = "W-SCHED-TRACKING"       # the re-simulated path misses by more than the tolerance: docs/schedule.md
+CALIBRATION_STATE_CODE = "W-SCHED-CALIBRATION-STATE"   # a measured table used where a latch moved capsules: docs/schedule.md
+CALIBRATION_STATE_RTOL = 0.1              # model gain change (of their size) beyond which that table is not trusted
 CONTACT_CODE = "W-SCHED-CONTACT"         # a step starts with a pair an earlier drive snapped in: docs/schedule.md
 CROSSFADE_CODE = "W-SCHED-CROSSFADE"     # a crossfade between steps pushes a latch or pair past its margin, and no fade
                                          # through silence can replace it (a slew limit): docs/schedule.md
@@ -1132,6 +1134,8 @@ class _Compiler:
         except ValueError as exc:
             raise _diag("E-SCHED-TONES", f"{name}: {exc}", step.span,
                         "pin the tones with `, using [85 kHz, 125 kHz]` on the follow step, or give a calibration sweep (--calibration)")
+        if self.opts.calibration is not None and self.design.latches:
+            self._calibration_state_check(i, name, step, choice.frequencies)
         # the renderer crossfades consecutive waypoints with a raised cosine over min(ramp, dt), whose
         # steepest slope is pi/2 x the mean: the plan's step per waypoint must leave room for it
         fade = min(self.opts.ramp_s, dt)
@@ -1260,6 +1264,42 @@ class _Compiler:
             gains = lambda d, capsule, freqs=None: model_gain_table(d, capsule, freqs,  # noqa: E731
                                                                     positions=state_positions(d, states))
         return forward, gains
+
+    def _calibration_state_check(self, i: int, name: str, step, freqs) -> None:
+        """W-SCHED-CALIBRATION-STATE: a measured gain table (--calibration) is taken with the latches in their declared
+        states (the device as printed); where an earlier step has switched a latch, its capsules have moved and their
+        forces on the path's capsule changed, which the table cannot know.  The model says by how much: the gains at
+        the chosen tones where the latch states put the capsules against those at rest (acl.schedule.gains
+        .model_gain_table); beyond CALIBRATION_STATE_RTOL of their size the step warns, below it a note says so."""
+        from acl.schedule.gains import model_gain_table, state_positions
+
+        track = self._latch_track(i)
+        states = {n: st for n, (st, _, _) in track.items()}
+        moved = [l.name for l in self.design.latches if states.get(l.name, l.state) != l.state]
+        if not moved:
+            return
+        try:
+            g0 = np.asarray(model_gain_table(self.design, step.capsule, freqs).gains, float)
+            g1 = np.asarray(model_gain_table(self.design, step.capsule, freqs,
+                                            positions=state_positions(self.design, states)).gains, float)
+        except (ValueError, KeyError, ArithmeticError):
+            self.notes.append(f"{name}: the calibration table was measured with the latches as declared; "
+                              f"{', '.join(f'`{n}`' for n in moved)} switched since, and no model says what that changes")
+            return
+        size = float(np.linalg.norm(g0))
+        change = float(np.linalg.norm(g1 - g0)) / size if size > 0 else float("inf")
+        which = ", ".join(f"latch `{n}` in state {states[n]}" for n in moved)
+        if change <= CALIBRATION_STATE_RTOL:
+            self.notes.append(f"{name}: the calibration table was measured with the latches as declared; with {which} "
+                              f"the model's gains at the chosen tones change by {change:.2%} (kept)")
+            return
+        self.step_warnings.append(Diagnostic(
+            CALIBRATION_STATE_CODE, Severity.WARNING,
+            f"{name}: planned on the calibration table, measured with the latches as declared, while the step starts "
+            f"with {which}: there the model's gains at the chosen tones differ by {change:.0%} of their size "
+            "(the moved capsules' Bjerknes force and jet drag), so the plan and its predicted error do not hold",
+            step.span, "measure the calibration sweep with the latch in that state, or compile this path on the model "
+            "(without --calibration)"))
 
     def _band_planned(self) -> bool:
         """Whether follow goals get an error band from draws of the declared uncertainty (:meth:`_band`)."""
