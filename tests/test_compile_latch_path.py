@@ -333,10 +333,14 @@ def test_the_re_simulation_follows_the_latch_through_its_snap_through(switched):
 
 def test_a_pair_that_snaps_in_is_not_taken_for_a_latch_flip():
     """A lost equilibrium is continued on a latch's other branch only when the drive pushes that latch over its
-    switching force: Fig. 4's facing pair (no latch) driven past its snap-in stays unconverged (NaN)."""
+    switching force: Fig. 4's facing pair (no latch) driven past its snap-in stays unconverged (NaN), and in contact
+    until a waypoint with no drive."""
     from acl.schedule.gains import model_forward
 
     d = acl.load(os.path.join(ROOT, "examples", "fig4_facing_pair.acl"))
     forward, _ = model_forward(d, d.capsules[0].name, [125e3])
-    x = forward(np.array([[0.0], [1.0], [400.0]]))
+    x = forward(np.array([[0.0], [1.0], [400.0], [1.0], [0.0], [1.0]]))
     assert np.all(np.isfinite(x[:2])) and not np.any(np.isfinite(x[2]))
+    # in contact while a drive plays (1 V^2 alone does not snap it, but does not release it either: no release
+    # model), released by silence
+    assert not np.any(np.isfinite(x[3])) and np.all(np.isfinite(x[4:])) and np.allclose(x[5], x[1])

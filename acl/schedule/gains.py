@@ -119,7 +119,9 @@ def model_forward(design: Design, capsule: str, frequencies, start=None) -> tupl
     ``start``: capsule centres (name -> m) where the mechanism is when the drive begins (:func:`state_positions`: a
     latch switched earlier carries its capsules moved by its travel); None: at rest in the declared states.  Each
     waypoint's equilibrium is continued from the previous one, the first from ``start``; the displacement is the
-    capsule's from its declared centre.
+    capsule's from its declared centre.  A bistable latch pushed over its switching force goes on from its other
+    state; an equilibrium lost otherwise (a pair's snap-in) is NaN, and so is every later waypoint until one with no
+    drive (the contact holds while a drive plays: no release model; silence releases it).
     """
     freqs = [float(f) for f in frequencies]
     mech = _optional("acl.analysis.mechanics")
@@ -128,8 +130,11 @@ def model_forward(design: Design, capsule: str, frequencies, start=None) -> tupl
 
         def forward(u: np.ndarray) -> np.ndarray:
             out = np.full((u.shape[0], 2), np.nan)
-            prev = start
+            prev, contact = start, False
             for i, row in enumerate(u):
+                if contact and np.any(row > 0):
+                    continue               # snapped in: held at contact while any drive plays (no release model)
+                contact = False            # silence releases it (no acoustic force: the beams pull the capsules apart)
                 drive = Drive(tones=tuple(Tone(frequency=f, amplitude=float(np.sqrt(max(x, 0.0))))
                                           for f, x in zip(freqs, row)))
                 # warm start from the previous waypoint (continuation from ``start`` for the first)
@@ -148,7 +153,7 @@ def model_forward(design: Design, capsule: str, frequencies, start=None) -> tupl
                     out[i] = np.asarray(eq.displacements[capsule], float)[:2]
                     prev = eq.positions
                 else:
-                    prev = start                       # snapped or lost: NaN, reported as such
+                    prev, contact = start, True        # snapped in or lost: NaN, reported as such, until silence
             return out
 
         return forward, "nonlinear equilibrium (acl.analysis.mechanics)"
