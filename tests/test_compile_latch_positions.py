@@ -197,3 +197,33 @@ def test_a_calibration_table_measured_as_declared_is_not_trusted_after_a_switch(
     assert change > CALIBRATION_STATE_RTOL and f"differ by {change:.0%} of their size" in w.message
     before = compile_program(acl.load(_design(tmp_path, "fig6f_control_module.acl", [_path("")])), "p", opts)
     assert not [w for w in before.warnings if w.code == "W-SCHED-CALIBRATION-STATE"]
+
+
+def test_a_switch_whose_drive_snaps_the_moved_capsules_in_warns_at_the_switch(tmp_path):
+    """Fig. 6f `arm_control`: once ctl is in state b, partner faces arm_cap 40 um away (inside d_c) and the switch's
+    own 85 kHz drive (below both bubbles' resonance: in phase, attracting) leaves no stable equilibrium there in the
+    model: W-SCHED-CONTACT at the switch.  The premise is checked with the model directly: from state b a tenth of
+    the switch's power settles, the whole of it does not."""
+    from acl.design.model import Drive, Tone
+    from acl.schedule.gains import settle_from
+
+    d = acl.load(os.path.join(EX, "fig6f_control_module.acl"))
+    s = compile_program(d, "arm_control", OPTS)
+    goal = next(g for g in s.goals if g.kind == "switch")
+    (w,) = [w for w in s.warnings if w.code == "W-SCHED-CONTACT"]
+    line = [i for i, t in enumerate(open(os.path.join(EX, "fig6f_control_module.acl")), 1) if "switch ctl to b" in t][0]
+    assert w.span.line == line and "once latch `ctl` is in state b" in w.message
+    assert goal.details["aftermath"].startswith("no stable equilibrium")
+    (v,) = [t.amplitude_v for g in s.segments if g.step == goal.step for t in g.tones if t.amplitude_v > 0]
+    b = state_positions(d, {"ctl": "b"})
+    assert settle_from(d, Drive(tones=(Tone(frequency=85e3, amplitude=float(v) * 0.1 ** 0.5),)), b) is not None
+    assert settle_from(d, Drive(tones=(Tone(frequency=85e3, amplitude=float(v)),)), b) is None
+
+
+def test_a_switch_without_a_neighbour_settles_in_its_new_state():
+    d = acl.load(os.path.join(EX, "fig6e_reversible_latch.acl"))
+    prog = next(p.name for p in d.programs if any(st.kind == "switch" for st in p.steps))
+    s = compile_program(d, prog, OPTS)
+    goals = [g for g in s.goals if g.kind == "switch" and not g.details.get("already")]
+    assert goals and all(g.details["aftermath"].startswith("stable") for g in goals)
+    assert not [w for w in s.warnings if w.code == "W-SCHED-CONTACT"]

@@ -1044,7 +1044,7 @@ class _Compiler:
     def _contact_check(self, i: int, step) -> None:
         """W-SCHED-CONTACT at a hold (above) or follow step that may start with a pair in contact.
 
-        The pairs are those the program's hold steps name.  A `hold ... cross` snaps its pair in, and so does a
+        The pairs are those the program's hold steps and the design's `observe gap(...)` name.  A `hold ... cross` snaps its pair in, and so does a
         drive, switch or hold (of another pair) whose whole drive reaches the pair's snap-in (gains.critical_scale
         <= 1, the hold planner's model).  Once in contact the pair is held by the Bjerknes force at contact, far
         stronger than at the rest gap, for as long as a drive plays: the compiler has no release model, so it takes
@@ -1053,8 +1053,11 @@ class _Compiler:
         not hold from contact.  (A sweep step is not checked: its worst frequency is not searched here.)"""
         from acl.schedule.gains import critical_scale
 
-        pairs = {frozenset((st.a.split(".")[0], st.b.split(".")[0])): (st.a, st.b)
-                 for st in self.program.steps if st.kind == "hold"}
+        pairs = {frozenset((o.a.split(".")[0], o.b.split(".")[0])): (o.a, o.b)
+                 for o in self.design.observes if o.kind == "gap" and o.a and o.b}
+        pairs.update({frozenset((st.a.split(".")[0], st.b.split(".")[0])): (st.a, st.b)
+                      for st in self.program.steps if st.kind == "hold"})
+        pairs = {p: ab for p, ab in pairs.items() if len(p) == 2}
         if step.kind == "hold":
             if step.mode != "above":
                 return
@@ -1079,6 +1082,8 @@ class _Compiler:
                         continue
                     try:
                         scale = critical_scale(self.design, a, b, tones, 1.0)
+                        if scale is not None and scale <= 1.0 and self.design.latches:
+                            scale = scale if self._snaps_from_state(j, a, tones) else None
                     except (ValueError, KeyError, ArithmeticError, np.linalg.LinAlgError, DiagnosticError):
                         scale = None
                     if scale is not None and scale <= 1.0:
@@ -1264,6 +1269,17 @@ class _Compiler:
             gains = lambda d, capsule, freqs=None: model_gain_table(d, capsule, freqs,  # noqa: E731
                                                                     positions=state_positions(d, states))
         return forward, gains
+
+    def _snaps_from_state(self, j: int, a: str, tones) -> bool:
+        """Whether the drive ``tones`` of step ``j`` loses the mechanism's equilibrium from the latch states the step
+        starts in: the fold gains.critical_scale finds may be a bistable latch's snap-through (a `switch`), after which
+        the mechanism goes on from the latch's other state (gains.model_forward) with the pair apart."""
+        from acl.schedule.gains import model_forward, state_positions
+
+        states = {n: st for n, (st, _, _) in self._latch_track(j).items()}
+        freqs = [f for f, _ in tones]
+        forward, _ = model_forward(self.design, a.split(".")[0], freqs, start=state_positions(self.design, states))
+        return not np.all(np.isfinite(forward(np.array([[v * v for _, v in tones]]))))
 
     def _calibration_state_check(self, i: int, name: str, step, freqs) -> None:
         """W-SCHED-CALIBRATION-STATE: a measured gain table (--calibration) is taken with the latches in their declared
@@ -1584,6 +1600,7 @@ class _Compiler:
                 self.notes.append(f"{name}: latch `{step.latch}` may be in state a or b ({why}): planned from state "
                                   f"{other}, which also leaves it in state {step.state} if it is there already (the "
                                   "drive pushes it further in)")
+        self._switch_aftermath(i, step, name, used, after, details)
         rep = GoalReport(name, "switch", i, self.t - step.duration, self.t,
                          tuple(f for f, _ in used), model=model, details=details)
         self.goals.append(rep)
@@ -1591,6 +1608,37 @@ class _Compiler:
         if self.opts.band_samples > 0 and self.opts.latch_provider is None:
             self._switch_band(rep, used, step, j, names, after, [names[k] for k in doubt] if kept_both else [],
                               dict(zip(names, states)))
+
+    def _switch_aftermath(self, i, step, name, used, after: dict, details: dict) -> None:
+        """W-SCHED-CONTACT at a switch whose drive, once the latch is in its new state, leaves the mechanism no stable
+        equilibrium there (gains.settle_from the new states' positions, the drive's power ramped up): the moved
+        capsules now face a neighbour inside its critical distance and the switch's own drive snaps them in (Fig. 6f:
+        after `switch ctl to b` partner faces arm_cap 40 um away, and 85 kHz, below both bubbles' resonance, drives
+        them in phase: they attract).  ``details["aftermath"]`` says what was found."""
+        if self.opts.latch_provider is not None or not used:
+            return
+        from acl.design.model import Drive, Tone
+        from acl.schedule.gains import settle_from, state_positions
+
+        start = state_positions(self.design, after) or {c.name: np.asarray(c.center, float)
+                                                        for c in self.design.capsules}
+        drive = Drive(tones=tuple(Tone(frequency=float(f), amplitude=float(a)) for f, a in used if a > 0))
+        try:
+            eq = settle_from(self.design, drive, start)
+        except (ValueError, KeyError, ArithmeticError, np.linalg.LinAlgError, DiagnosticError) as exc:
+            details["aftermath"] = f"not checked ({exc})"
+            return
+        if eq is not None:
+            details["aftermath"] = "stable in the new state under the switch's drive"
+            return
+        details["aftermath"] = "no stable equilibrium in the new state under the switch's drive (snap-in)"
+        self.step_warnings.append(Diagnostic(
+            CONTACT_CODE, Severity.WARNING,
+            f"{name}: once latch `{step.latch}` is in state {step.state}, the switch's own drive leaves the mechanism no "
+            "stable equilibrium there (acl.analysis.mechanics, the drive ramped up from the new state): capsules the "
+            "latch moved snap in to a neighbour, and stay in contact while a drive plays", step.span,
+            "switch with tones that do not attract the moved capsules to their neighbours, or with a lower limit if "
+            "the latch still switches below the snap-in; a `pause` after the switch releases the contact"))
 
     def _push_back(self, used, names, states, j, to) -> float | None:
         """The push of the drive ``used`` on latch ``j`` back from state ``to`` (the other latches in ``states``), with

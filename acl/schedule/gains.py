@@ -145,8 +145,8 @@ def model_forward(design: Design, capsule: str, frequencies, start=None) -> tupl
                 for flipped in (_flipped_latches(design, prev, drive) if eq.status != "ok" else ()):
                     # the branch was lost because a bistable latch snapped through: the device goes on from its
                     # other state (it stays there when the drive falls: hysteresis)
-                    again = mech.equilibrium(design, drive, fm, start=flipped)
-                    if again.status == "ok" and again.stable and _latch_moved(design, flipped, again.positions):
+                    again = settle_from(design, drive, flipped)
+                    if again is not None:
                         eq = again
                         break
                 if eq.status == "ok":
@@ -175,6 +175,26 @@ def model_forward(design: Design, capsule: str, frequencies, start=None) -> tupl
         return forward, "nonlinear beam law, paper Eq. (1) (mechanics module absent)"
     C = compliance_matrix(design, capsule)
     return (lambda u: (u @ per_tone) @ C.T), "linear spring (mechanics module absent)"
+
+
+def settle_from(design: Design, drive: Drive, start: dict, steps: int = 6):
+    """The stable equilibrium under ``drive`` continued from the configuration ``start`` (capsule -> centre, m): the
+    drive's power ramped in ``steps`` equal steps, each solve warm-started from the last (acl.analysis.mechanics
+    .equilibrium).  None when the branch is lost on the way (a fold: a pair snaps in), or when a solve falls back to
+    another branch (a bistable latch back in the state ``start`` does not put it in) -- the mechanism has no stable
+    equilibrium near ``start`` under that drive."""
+    from acl.analysis import acoustics, mechanics
+
+    fm = acoustics.force_model_for(design)
+    pos, eq = start, None
+    for k in range(1, steps + 1):
+        s = np.sqrt(k / steps)
+        part = Drive(tones=tuple(t.model_copy(update={"amplitude": t.amplitude * s}) for t in drive.tones))
+        eq = mechanics.equilibrium(design, part, fm, start=pos)
+        if eq.status != "ok" or not eq.stable or not _latch_moved(design, start, eq.positions):
+            return None
+        pos = eq.positions
+    return eq
 
 
 def _latch_travels(design: Design):
