@@ -9,7 +9,8 @@ from acl.design import geometry as G
 from acl.design import model as M
 from acl.design.builders import Builder
 from acl.design.checks import check_design_geometry, check_programs
-from acl.design.core import D, DECL_KINDS, EFFECT_DOMAIN, EFFECT_UNITS, EFFECTS, Fail, what_is
+from acl.design.core import (D, DECL_KINDS, EFFECT_DOMAIN, EFFECT_RANGES, EFFECT_UNITS, EFFECTS,
+                             GRADIENT_REFERENCE, MODULUS_DECADES, Fail, what_is)
 from acl.design.programs import build_program
 from acl.design.values import DeclVal
 from acl.diagnostics import Span, suggest
@@ -93,6 +94,7 @@ def assemble(b: Builder) -> M.Design:
                       sources=tuple(dict.fromkeys(r.loader.sources)))
     if not _all_finite(design, bag):
         return design
+    _effect_beam_ranges(b, design)
     check_design_geometry(design, bag, b.capsules)
     check_programs(design, bag)
     return design
@@ -184,9 +186,54 @@ def _effect(b: Builder, blk: A.Block) -> M.Effect | None:
                         + (f" {si_unit(v.dims)}" if si_unit(v.dims) else ""), ent.value.span,
                         "its physical range (docs/fit.md, effect library)")
             return None
+        if not _effect_in_range(b, blk.name, ent.key, v, ent.value.span):
+            return None
         params[ent.key] = v.value
         units[ent.key] = si_unit(v.dims)
+        b.effect_spans[(blk.name, ent.key)] = ent.value.span
     return M.Effect(name=blk.name, params=params, units=units, span=blk.span)
+
+
+def _effect_in_range(b: Builder, effect: str, key: str, v: Quantity, span: Span) -> bool:
+    """Whether ``effect.key = v`` lies in its admissible range (acl.design.core.EFFECT_RANGES): E401 outside it
+    (no physical value; an absurd one made the analyses overflow or divide by zero), W402 outside its plausible range."""
+    rng = EFFECT_RANGES.get((effect, key))
+    if rng is None:
+        return True
+    unit = si_unit(v.dims)
+    show = (lambda x: f"{x:g}" + (f" {unit}" if unit else ""))
+    if not rng.lo <= v.value <= rng.hi:
+        b.bag.error("E401", f"effect {effect}.{key} = {show(v.value)} is outside its physical range "
+                    f"{show(rng.lo)} .. {show(rng.hi)}", span, rng.why)
+        return False
+    if not rng.plausible_lo <= v.value <= rng.plausible_hi:
+        b.bag.warning("W402", f"effect {effect}.{key} = {show(v.value)} is outside its plausible range "
+                      f"{show(rng.plausible_lo)} .. {show(rng.plausible_hi)} (accepted; check the value and its unit)",
+                      span, rng.why)
+    return True
+
+
+def _effect_beam_ranges(b: Builder, design: M.Design) -> None:
+    """stiffness_gradient over each beam's own length: E(s) = E exp(g (s/50um - 1/2)), s in 0 .. L, must stay
+    within MODULUS_DECADES of the declared modulus (E401; a longer beam than the 50 um reference amplifies g) and
+    is implausible beyond three decades (W402)."""
+    eff = design.effect("stiffness_gradient")
+    g = eff.params.get("e_gradient", 0.0) if eff is not None else 0.0
+    if not g:
+        return
+    span = b.effect_spans.get(("stiffness_gradient", "e_gradient"), eff.span)
+    rng = EFFECT_RANGES[("stiffness_gradient", "e_gradient")]
+    for beam in design.beams:
+        ln_ratio = abs(g) * max(0.5, abs(beam.length / GRADIENT_REFERENCE - 0.5))
+        decades = ln_ratio / math.log(10)
+        where = (f"effect stiffness_gradient.e_gradient = {g:g} makes the modulus of beam `{beam.name}` "
+                 f"(L = {beam.length * 1e6:.4g} um) {10 ** decades:.3g}x off the declared one at an end")
+        if decades > MODULUS_DECADES:
+            b.bag.error("E401", f"{where}: outside its physical range ({10 ** MODULUS_DECADES:g}x)", span, rng.why)
+            return
+        if decades > 3.0 and rng.plausible_lo <= g <= rng.plausible_hi:
+            b.bag.warning("W402", f"{where}: outside its plausible range (1000x; accepted)", span, rng.why)
+            return
 
 
 def _put(b: Builder, store: dict, name: str, value) -> None:

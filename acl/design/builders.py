@@ -59,6 +59,7 @@ class Builder:
         self.kinds: dict[str, str] = {}      # local element name -> kind
         self.failed: set[str] = set()        # local elements whose declaration had errors
         self.failed_materials: set[str] = set()
+        self.effect_spans: dict = {}          # (effect, coefficient) -> span of its value (range checks)
 
     # ------------------------------------------------------------------------------ materials
     def material(self, dv: DeclVal) -> M.Material | None:

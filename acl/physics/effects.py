@@ -12,8 +12,14 @@ from acl.physics import cantilever as CB
 
 
 def gain_tilt(f, f_ref, slope):
-    """Pressure gain factor exp(s (f - f_ref)/f_ref): smooth tilt of the transducer transfer function (paper Fig. S1)."""
-    return np.exp(slope * (f - f_ref) / f_ref)
+    """Pressure gain factor exp(s (f - f_ref)/f_ref), held beyond 2 f_ref: smooth tilt of the transducer transfer function (paper Fig. S1)."""
+    # A tilt is a smooth deviation across the transducer's band, narrower than an octave (85 .. 150 kHz in Fig. S1):
+    # beyond f = 2 f_ref it is held (like the table, flat outside it), so exp never overflows at the analysis'
+    # out-of-band frequencies (a 20 .. 400 kHz selectivity sweep, coupled modes in MHz); f >= 0 keeps the
+    # relative offset >= -1 already.
+    with np.errstate(over="ignore", divide="ignore", invalid="ignore"):
+        x = np.minimum(np.asarray(f, float) / f_ref - 1.0, 1.0)
+    return np.exp(slope * x)
 
 
 def saturation(vtot, inv_vsat2):
