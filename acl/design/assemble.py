@@ -214,20 +214,24 @@ def _effect_in_range(b: Builder, effect: str, key: str, v: Quantity, span: Span)
 
 
 def _effect_beam_ranges(b: Builder, design: M.Design) -> None:
-    """stiffness_gradient over each beam's own length: E(s) = E exp(g (s/50um - 1/2)), s in 0 .. L, must stay
-    within MODULUS_DECADES of the declared modulus (E401; a longer beam than the 50 um reference amplifies g) and
-    is implausible beyond three decades (W402)."""
+    """stiffness_gradient (with stiffness_scale) over each beam's own length: E(s) = E e_scale exp(g (s/50um - 1/2)),
+    s in 0 .. L, must stay within MODULUS_DECADES of the declared modulus at both ends (E401; a beam longer than the
+    50 um reference amplifies g) and is implausible beyond three decades (W402)."""
     eff = design.effect("stiffness_gradient")
     g = eff.params.get("e_gradient", 0.0) if eff is not None else 0.0
     if not g:
         return
+    sc = design.effect("stiffness_scale")
+    es = (sc.params.get("e_scale", sc.params.get("factor", 1.0)) if sc is not None else 1.0)
     span = b.effect_spans.get(("stiffness_gradient", "e_gradient"), eff.span)
     rng = EFFECT_RANGES[("stiffness_gradient", "e_gradient")]
     for beam in design.beams:
-        ln_ratio = abs(g) * max(0.5, abs(beam.length / GRADIENT_REFERENCE - 0.5))
-        decades = ln_ratio / math.log(10)
-        where = (f"effect stiffness_gradient.e_gradient = {g:g} makes the modulus of beam `{beam.name}` "
-                 f"(L = {beam.length * 1e6:.4g} um) {10 ** decades:.3g}x off the declared one at an end")
+        ends = (math.log10(es) + g * (0.0 - 0.5) / math.log(10),
+                math.log10(es) + g * (beam.length / GRADIENT_REFERENCE - 0.5) / math.log(10))
+        decades = max(abs(x) for x in ends)
+        where = (f"effect stiffness_gradient.e_gradient = {g:g}" + (f" with stiffness_scale {es:g}" if es != 1.0 else "")
+                 + f" makes the modulus of beam `{beam.name}` (L = {beam.length * 1e6:.4g} um) "
+                 f"{10 ** decades:.3g}x off the declared one at an end")
         if decades > MODULUS_DECADES:
             b.bag.error("E401", f"{where}: outside its physical range ({10 ** MODULUS_DECADES:g}x)", span, rng.why)
             return

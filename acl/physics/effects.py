@@ -137,6 +137,11 @@ def effective_beam_force(delta, L, l, EI, e_scale=1.0, gradient=0.0, weight=0.0)
         if hi - lo <= 1e-13 * hi:
             break
     P = 0.5 * (lo + hi)
-    h = 1e-6 * P
-    kt = 2 * h / (defl(P + h) - defl(P - h)) if P > h else k0
-    return P, kt
+    if not P > 0.0:
+        return P, k0
+    for rel in (1e-6, 1e-4, 1e-2):                 # a saturated law (the full elastica near its reach) is flat in
+        h = rel * P                                # double precision at a small step: widen it, never divide by 0
+        dd = defl(P + h) - defl(P - h)
+        if dd > 0.0:
+            return P, 2 * h / dd
+    return P, max(P / delta, k0)                   # still flat: the secant from the origin (finite, stiff)
