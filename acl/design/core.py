@@ -131,7 +131,7 @@ EFFECT_RANGES = {
     ("stiffness_scale", "factor"): EffectRange(1e-3, 1e3, 0.05, 20.0, "E/E_declared (as e_scale)"),
     ("stiffness_gradient", "e_gradient"): EffectRange(
         -GRADIENT_BOUND, GRADIENT_BOUND, -4.0, 4.0,
-        "E(s) = E exp(g (s/50um - 1/2)): beyond |g| = 27.6 the modulus of the clamp end of the 50 um reference is "
+        "E(s) = E exp(g (s/50um - 1/2)): beyond g = +-27.6 the modulus of the clamp end of the 50 um reference is "
         "off by more than 6 decades, the span of polymer networks (each beam is checked over its own length too); "
         "plausible: the fit's range (-4 .. 4)"),
     ("offset_drift", "offset"): EffectRange(
