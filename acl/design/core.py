@@ -162,6 +162,27 @@ EFFECT_RANGES = {
 }
 
 
+# The physical range of declared properties that were only sign-checked (E412 outside it, at the value): absurd
+# magnitudes (a medium of 1e300 kg/m^3, a surface tension of 1e-300 N/m) made the bubble eigenproblem fail
+# (LinAlgError) or the analyses overflow.  (schema, key) -> (lo, hi, why), SI.
+PROPERTY_RANGES = {
+    ("medium", "density"): (1e-3, 3e4, "from a rarefied gas (1e-3 kg/m^3) to beyond mercury (13.5e3) and osmium (22.6e3)"),
+    ("medium", "viscosity"): (1e-6, 1e3, "from below any gas (hydrogen 8.8 uPa*s) to a polymer melt (1 kPa*s)"),
+    ("medium", "sound_speed"): (50.0, 2e4, "from a heavy gas (SF6 136 m/s) to beyond diamond (18 km/s)"),
+    ("medium", "surface_tension"): (1e-4, 3.0, "from liquid helium (0.37 mN/m) to molten metals (about 2 N/m)"),
+    ("medium", "pressure"): (1e2, 1e8, "from near vacuum (100 Pa) to the deepest ocean floor (about 110 MPa)"),
+    ("medium", "thermal_diffusivity"): (1e-7, 1e-2, "a gas's: air 2.1e-5 m^2/s, helium 1.9e-4; 1e-2 only near vacuum"),
+    ("material", "youngs"): (1e3, 1.2e12, "from the softest printable gel (1 kPa) to diamond (1.2 TPa), the stiffest solid"),
+    ("material", "density"): (1.0, 3e4, "from an aerogel (about 1 kg/m^3) to beyond osmium (22.6e3)"),
+    ("capsule", "q"): (0.1, 1e4, "a bubble mode's quality factor: below 0.1 there is no resonance left, above 1e4 no "
+                                 "liquid-loaded bubble (radiation and viscous damping alone bound Q to tens)"),
+    ("capsule", "thrust"): (0.0, 1e-6, "a micro-bubble's streaming thrust is about 0.03 nN/V^2 (paper Eq. 3, Fig. 2): "
+                                      "1 uN/V^2 is 4e4 times that, 100 N at the 10 kV transducer limit"),
+    ("transducer", "gain"): (0.0, 1e6, "pressure per volt: focused HIFU transducers reach about 1e4 Pa/V; at 1e6 Pa/V "
+                                      "water cavitates at 0.1 V"),
+}
+
+
 # ------------------------------------------------------------------------------------------------
 # Key schemas: key -> (expected kind, dimension unit or None, required, default)
 # ------------------------------------------------------------------------------------------------
