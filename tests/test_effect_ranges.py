@@ -20,7 +20,7 @@ import numpy as np
 import pytest
 
 from acl.cli import main
-from acl.design.core import EFFECT_RANGES, EFFECT_UNITS
+from acl.design.core import EFFECT_RANGES, EFFECT_UNITS, PROPERTY_RANGES
 from acl.design.resolve import check_design
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -272,3 +272,87 @@ def test_docs_list_every_range(tmp_path):
         cells = [c.strip() for c in row.group(1).split("|")]      # unit, physical range, plausible range, why
         nums = [float(x) for x in re.findall(r"-?\d+(?:\.\d+)?(?:e[-+]?\d+)?", cells[1] + " " + cells[2])]
         assert nums[:4] == pytest.approx([rng.lo, rng.hi, rng.plausible_lo, rng.plausible_hi], rel=1e-3), (e, k, nums)
+
+
+# ---- other declared values that were only sign-checked: medium, material, capsule, transducer gain
+
+_PROPS_TEXT = """import stdlib.capsules
+param rho = 1005 kg/m^3
+param mu = 1.02 mPa*s
+param c = 1500 m/s
+param sigma = 0.0725 N/m
+param p0 = 101.325 kPa
+param kappa = 2.1e-5 m^2/s
+param E = 13 MPa
+param rho_s = 1100 kg/m^3
+param g = 230 Pa/V
+param gamma = 0.027 nN/V^2
+param qf = 6
+medium m { density = rho, viscosity = mu, sound_speed = c, surface_tension = sigma, pressure = p0, thermal_diffusivity = kappa }
+material mat { youngs = E, density = rho_s }
+transducer t { max_voltage = 20 V, band = 40 kHz .. 200 kHz, gain = g }
+use medium m
+use transducer t
+beam arm { length = 50 um, section = circle(2 um), material = mat, clamp = (0, 0, 0), axis = +z }
+capsule act like capsules.design1 { thrust = gamma, q = qf }
+mount act on arm.tip
+observe delta = displacement(arm, -x)
+"""
+# parameter -> ((schema, key), unit written, the value's line:column in _PROPS_TEXT)
+_PROP_PARAMS = {"rho": (("medium", "density"), "kg/m^3", "density = rho"),
+                "mu": (("medium", "viscosity"), "Pa*s", "viscosity = mu"),
+                "c": (("medium", "sound_speed"), "m/s", "sound_speed = c"),
+                "sigma": (("medium", "surface_tension"), "N/m", "surface_tension = sigma"),
+                "p0": (("medium", "pressure"), "Pa", "pressure = p0"),
+                "kappa": (("medium", "thermal_diffusivity"), "m^2/s", "thermal_diffusivity = kappa"),
+                "E": (("material", "youngs"), "Pa", "youngs = E"),
+                "rho_s": (("material", "density"), "kg/m^3", "density = rho_s"),
+                "g": (("transducer", "gain"), "Pa/V", "gain = g"),
+                "gamma": (("capsule", "thrust"), "N/V^2", "thrust = gamma"),
+                "qf": (("capsule", "q"), "", "q = qf")}
+PROP_BAD = [(p, v) for p, ((sch, key), _, _) in _PROP_PARAMS.items()
+            for v in ([PROPERTY_RANGES[(sch, key)][1] * 10, 1e300]
+                      + ([PROPERTY_RANGES[(sch, key)][0] / 10, 1e-300]
+                         if PROPERTY_RANGES[(sch, key)][0] > 0 else []))]
+
+
+def _prop_loc(where):
+    line = next(i for i, t in enumerate(_PROPS_TEXT.splitlines(), 1) if where in t)
+    text = _PROPS_TEXT.splitlines()[line - 1]
+    return line, text.index(where) + len(where.split(" = ")[0]) + len(" = ") + 1
+
+
+@pytest.mark.parametrize("param,value", PROP_BAD, ids=[f"{p}={v:g}" for p, v in PROP_BAD])
+def test_declared_property_outside_its_physical_range_is_an_error_at_the_value(tmp_path, param, value):
+    (sch, key), unit, where = _PROP_PARAMS[param]
+    path = tmp_path / "props.acl"
+    path.write_text(_PROPS_TEXT)
+    _, diags = check_design(str(path), overrides={param: f"{value!r} {unit}".strip()})
+    errors = [d for d in diags if d.is_error]
+    code = "E413" if sch == "transducer" else "E412"
+    assert [(d.code, d.span.line, d.span.column) for d in errors] == [(code, *_prop_loc(where))], [d.message for d in diags]
+    assert "physical range" in errors[0].message and errors[0].hint
+    assert PROPERTY_RANGES[(sch, key)][0] <= PROPERTY_RANGES[(sch, key)][1]
+
+
+PROP_EDGES = [(p, v) for p, ((sch, key), _, _) in _PROP_PARAMS.items()
+              for v in {max(PROPERTY_RANGES[(sch, key)][0], 1e-12),
+                        PROPERTY_RANGES[(sch, key)][1]}]
+
+
+@pytest.mark.parametrize("param,value", PROP_EDGES, ids=[f"{p}={v:g}" for p, v in PROP_EDGES])
+def test_declared_property_at_the_edge_of_its_range_analyses_to_finite_numbers(tmp_path, param, value):
+    import warnings
+
+    from acl.analysis.report import analyze
+    from acl.design.model import Drive, Tone
+
+    (_, _), unit, _ = _PROP_PARAMS[param]
+    path = tmp_path / "props.acl"
+    path.write_text(_PROPS_TEXT)
+    design, diags = check_design(str(path), overrides={param: f"{value!r} {unit}".strip()})
+    assert design is not None and not [d for d in diags if d.is_error], [d.message for d in diags]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)
+        rep = analyze(design, at=Drive(tones=(Tone(frequency=125e3, amplitude=8.0),)), snap_in=False)
+    _finite(rep.as_dict())
