@@ -10,7 +10,7 @@ from acl.design import model as M
 from acl.design.builders import Builder
 from acl.design.checks import check_design_geometry, check_programs
 from acl.design.core import (D, DECL_KINDS, EFFECT_DOMAIN, EFFECT_RANGES, EFFECT_UNITS, EFFECTS,
-                             GRADIENT_REFERENCE, MODULUS_DECADES, Fail, what_is)
+                             GRADIENT_REFERENCE, MODULUS_DECADES, PROPERTY_RANGES, Fail, what_is)
 from acl.design.programs import build_program
 from acl.design.values import DeclVal
 from acl.diagnostics import Span, suggest
@@ -214,29 +214,44 @@ def _effect_in_range(b: Builder, effect: str, key: str, v: Quantity, span: Span)
 
 
 def _effect_beam_ranges(b: Builder, design: M.Design) -> None:
-    """stiffness_gradient (with stiffness_scale) over each beam's own length: E(s) = E e_scale exp(g (s/50um - 1/2)),
-    s in 0 .. L, must stay within MODULUS_DECADES of the declared modulus at both ends (E401; a beam longer than the
-    50 um reference amplifies g) and is implausible beyond three decades (W402)."""
+    """stiffness_scale and stiffness_gradient over each beam's own length: E(s) = E e_scale exp(g (s/50um - 1/2)),
+    s in 0 .. L.  At both ends of every beam (and on every latch, scaled only) the modulus must be a solid's
+    (PROPERTY_RANGES' material youngs, 1 kPa .. 1.2 TPa) and within MODULUS_DECADES of the declared one (E401; a beam
+    longer than the 50 um reference amplifies g); beyond three decades it is implausible (W402)."""
     eff = design.effect("stiffness_gradient")
     g = eff.params.get("e_gradient", 0.0) if eff is not None else 0.0
-    if not g:
-        return
     sc = design.effect("stiffness_scale")
     es = (sc.params.get("e_scale", sc.params.get("factor", 1.0)) if sc is not None else 1.0)
-    span = b.effect_spans.get(("stiffness_gradient", "e_gradient"), eff.span)
-    rng = EFFECT_RANGES[("stiffness_gradient", "e_gradient")]
-    for beam in design.beams:
-        ends = (math.log10(es) + g * (0.0 - 0.5) / math.log(10),
-                math.log10(es) + g * (beam.length / GRADIENT_REFERENCE - 0.5) / math.log(10))
+    if not g and es == 1.0:
+        return
+    if g:
+        key, span = ("stiffness_gradient", "e_gradient"), b.effect_spans.get(("stiffness_gradient", "e_gradient"), eff.span)
+    else:
+        name = "e_scale" if "e_scale" in sc.params else "factor"
+        key, span = ("stiffness_scale", name), b.effect_spans.get(("stiffness_scale", name), sc.span)
+    rng = EFFECT_RANGES[key]
+    e_lo, e_hi, e_why = PROPERTY_RANGES[("material", "youngs")]
+    what = (f"effect stiffness_gradient.e_gradient = {g:g}" + (f" with stiffness_scale {es:g}" if es != 1.0 else "")
+            if g else f"effect stiffness_scale.{key[1]} = {es:g}")
+    members = [(f"beam `{x.name}` (L = {x.length * 1e6:.4g} um)", x.youngs_modulus, x.length) for x in design.beams]
+    members += [(f"latch `{x.name}`", x.youngs_modulus, None) for x in design.latches]
+    for label, modulus, length in members:
+        ends = [math.log10(es)]
+        if length is not None and g:
+            ends = [math.log10(es) + g * (s / GRADIENT_REFERENCE - 0.5) / math.log(10) for s in (0.0, length)]
         decades = max(abs(x) for x in ends)
-        where = (f"effect stiffness_gradient.e_gradient = {g:g}" + (f" with stiffness_scale {es:g}" if es != 1.0 else "")
-                 + f" makes the modulus of beam `{beam.name}` (L = {beam.length * 1e6:.4g} um) "
-                 f"{10 ** decades:.3g}x off the declared one at an end")
+        e_min, e_max = modulus * 10 ** min(ends), modulus * 10 ** max(ends)
         if decades > MODULUS_DECADES:
-            b.bag.error("E401", f"{where}: outside its physical range ({10 ** MODULUS_DECADES:g}x)", span, rng.why)
+            b.bag.error("E401", f"{what} makes the modulus of {label} {10 ** decades:.3g}x off the declared one at an "
+                        f"end: outside its physical range ({10 ** MODULUS_DECADES:g}x)", span, rng.why)
             return
-        if decades > 3.0 and rng.plausible_lo <= g <= rng.plausible_hi:
-            b.bag.warning("W402", f"{where}: outside its plausible range (1000x; accepted)", span, rng.why)
+        if not e_lo <= e_min <= e_max <= e_hi:
+            b.bag.error("E401", f"{what} makes the modulus of {label} {e_min if e_min < e_lo else e_max:.3g} Pa: outside "
+                        f"the physical range of a solid's modulus, {e_lo:g} .. {e_hi:g} Pa", span, e_why)
+            return
+        if decades > 3.0 and rng.plausible_lo <= (g if g else es) <= rng.plausible_hi:
+            b.bag.warning("W402", f"{what} makes the modulus of {label} {10 ** decades:.3g}x off the declared one at "
+                          f"an end: outside its plausible range (1000x; accepted)", span, rng.why)
             return
 
 
