@@ -153,6 +153,19 @@ def test_gradient_is_checked_over_each_beams_length(tmp_path):
     assert "beam `arm`" in errors[0].message
 
 
+@pytest.mark.parametrize("decl,words", [
+    ("effect stiffness_scale { e_scale = 0.001 }\neffect stiffness_gradient { e_gradient = -13.8 }", "13.1 Pa"),
+    ("effect stiffness_scale { e_scale = 1000 }\neffect stiffness_gradient { e_gradient = 13.8 }", "1.29e+13 Pa"),
+])
+def test_scaled_and_graded_modulus_must_be_a_solids(tmp_path, decl, words):
+    """Each factor is in its range, but TPETA's 13 MPa scaled and graded reaches 13 Pa (softer than any printable
+    gel) or 13 TPa (stiffer than diamond) at an end of the beam: E401 at the gradient's value."""
+    _, diags = check_design(str(_write(tmp_path, CANTILEVER, decl)))
+    errors = [d for d in diags if d.is_error]
+    assert [(d.code, d.span.line, d.span.column) for d in errors] == [("E401", 3, 42)], [d.message for d in diags]
+    assert words in errors[0].message and "solid's modulus" in errors[0].message
+
+
 def test_fit_library_bounds_lie_inside_the_accepted_ranges():
     """A calibrated design written by `acl fit` is never refused: every fitted coordinate's bounds are accepted."""
     from acl.fit.effects import EFFECTS
@@ -183,15 +196,20 @@ def _edges():
                 out.append((e, f"effect {e} {{ inv_f_ratio = 1, gain_q = {v!r}, f_ref = 125 kHz }}"))
             elif (e, k) == ("transducer_resonance", "inv_f_ratio"):
                 out.append((e, f"effect {e} {{ inv_f_ratio = {v!r}, gain_q = 0.3, f_ref = 125 kHz }}"))
+            elif (e, k) == ("stiffness_gradient", "e_gradient"):
+                # on the cantilever's 50 um TPETA beam (13 MPa) the clamp or tip reaches a solid's 1 kPa first
+                g = math.copysign(0.999 * 2 * math.log(13e6 / PROPERTY_RANGES[("material", "youngs")][0]), v)
+                out.append((e, _decl(e, k, g)))
             elif (e, k) in (("transducer_gain", "f_ref"), ("transducer_resonance", "f_ref")):
                 extra = "gain_slope = 6.9" if e == "transducer_gain" else "inv_f_ratio = 1, gain_q = 30"
                 out.append((e, f"effect {e} {{ {extra}, f_ref = {v!r} Hz }}"))
             else:
                 out.append((e, _decl(e, k, v)))
     # the softest and the stiffest beams the checker accepts, full elastica
-    out.append(("stiffness", "effect stiffness_scale { e_scale = 0.001 }\neffect stiffness_gradient { e_gradient = -13.8 }\n"
+    # (TPETA, 13 MPa: 1.8 kPa at the tip, 1.2 TPa at the clamp, both inside a solid's 1 kPa .. 1.2 TPa)
+    out.append(("stiffness", "effect stiffness_scale { e_scale = 0.001 }\neffect stiffness_gradient { e_gradient = -4 }\n"
                               "effect large_deflection { elastica_weight = 1 }"))
-    out.append(("stiffness", "effect stiffness_scale { e_scale = 1000 }\neffect stiffness_gradient { e_gradient = 13.8 }"))
+    out.append(("stiffness", "effect stiffness_scale { e_scale = 1000 }\neffect stiffness_gradient { e_gradient = 9 }"))
     return out
 
 
