@@ -374,3 +374,14 @@ def test_declared_property_at_the_edge_of_its_range_analyses_to_finite_numbers(t
         warnings.simplefilter("error", RuntimeWarning)
         rep = analyze(design, at=Drive(tones=(Tone(frequency=125e3, amplitude=8.0),)), snap_in=False)
     _finite(rep.as_dict())
+
+
+def test_f_ref_outside_the_transducer_band_is_w402_at_the_value(tmp_path):
+    """12.5 kHz (a unit slip for 125 kHz) is a drive frequency (accepted) but outside contact_piezo's 40 .. 200 kHz."""
+    decl = "effect transducer_gain { gain_slope = 1, f_ref = 12.5 kHz }"
+    design, diags = check_design(str(_write(tmp_path, CANTILEVER, decl)))
+    assert design is not None and not [d for d in diags if d.is_error]
+    w = [(d.code, d.span.line, d.span.column) for d in diags if d.code == "W402"]
+    assert w == [("W402", 2, decl.index("12.5") + 1)], [d.message for d in diags]
+    _, diags = check_design(str(_write(tmp_path, CANTILEVER, decl.replace("12.5 kHz", "125 kHz"))))
+    assert not [d for d in diags if d.code == "W402"]

@@ -95,6 +95,7 @@ def assemble(b: Builder) -> M.Design:
     if not _all_finite(design, bag):
         return design
     _effect_beam_ranges(b, design)
+    _effect_band(b, design)
     check_design_geometry(design, bag, b.capsules)
     check_programs(design, bag)
     return design
@@ -211,6 +212,23 @@ def _effect_in_range(b: Builder, effect: str, key: str, v: Quantity, span: Span)
                       f"{show(rng.plausible_lo)} .. {show(rng.plausible_hi)} (accepted; check the value and its unit)",
                       span, rng.why)
     return True
+
+
+def _effect_band(b: Builder, design: M.Design) -> None:
+    """W402: an effect's f_ref outside the declared transducer's band (the tilt or resonance is referenced to a
+    frequency the transducer never plays: likely a unit slip, `125 Hz` for `125 kHz`)."""
+    tr = design.transducer
+    if tr is None:
+        return
+    lo, hi = tr.band
+    for name in ("transducer_gain", "transducer_resonance"):
+        eff = design.effect(name)
+        f = eff.params.get("f_ref") if eff is not None else None
+        if f is not None and not lo * (1 - 1e-9) <= f <= hi * (1 + 1e-9):
+            b.bag.warning("W402", f"effect {name}.f_ref = {f:g} Hz is outside the band of transducer `{tr.name}` "
+                          f"({lo:g} .. {hi:g} Hz): accepted, but the effect is referenced to a frequency it never plays",
+                          b.effect_spans.get((name, "f_ref"), eff.span), "f_ref is a frequency of the data's sweep, "
+                          "inside the band (check its unit)")
 
 
 def _effect_beam_ranges(b: Builder, design: M.Design) -> None:
