@@ -326,7 +326,6 @@ _PROP_PARAMS = {"rho": (("medium", "density"), "kg/m^3", "density = rho"),
                 "E": (("material", "youngs"), "Pa", "youngs = E"),
                 "rho_s": (("material", "density"), "kg/m^3", "density = rho_s"),
                 "g": (("transducer", "gain"), "Pa/V", "gain = g"),
-                "gamma": (("capsule", "thrust"), "N/V^2", "thrust = gamma"),
                 "qf": (("capsule", "q"), "", "q = qf")}
 PROP_BAD = [(p, v) for p, ((sch, key), _, _) in _PROP_PARAMS.items()
             for v in ([PROPERTY_RANGES[(sch, key)][1] * 10, 1e300]
