@@ -107,13 +107,17 @@ def test_commands_refuse_a_bad_effect_value_without_traceback_or_output(tmp_path
     where = f"{path}:2:"
     runs = [("check", path), ("analyze", path, "--at", "125 kHz @ 6 V"), ("lint", path),
             ("compile", path, "--program", "stroke", "-o", tmp_path / "out"),
-            ("synth", path, "-o", tmp_path / "data.csv")]
+            ("synth", path, "-o", tmp_path / "data.csv"),
+            ("fit", path, tmp_path / "measured.csv", "--effects", "none", "--report", tmp_path / "rep",
+             "--calibrated", tmp_path / "cal.acl")]
+    (tmp_path / "measured.csv").write_text("observable,value,unit,drive\ndelta,1,um,125 kHz @ 4 V\n"
+                                           "delta,2,um,125 kHz @ 6 V\n")
     for args in runs:
         code, out, err = _run(capsys, *args)
         assert code != 0, args
         assert "E401" in out + err and where in out + err, (args, out + err)
         assert "Traceback" not in out + err and "E-INTERNAL" not in out + err, args
-    assert not (tmp_path / "out").exists() and not (tmp_path / "data.csv").exists()
+    assert not [p.name for p in tmp_path.iterdir() if p.name in ("out", "data.csv", "rep", "cal.acl")]
 
 
 def test_bad_value_is_e401_in_json_with_its_location(tmp_path, capsys):
