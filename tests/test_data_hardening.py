@@ -231,8 +231,13 @@ def test_each_synth_option_is_refused_at_its_own_name(tmp_path, capsys, args, op
 
 
 def test_an_effect_planting_values_the_fit_refuses_writes_nothing(tmp_path, capsys):
-    """`offset_drift=drift:1e300 um/s` wrote values of 1e300 um, exit 0: rows `acl fit` refuses (E806)."""
+    """`offset_drift=drift:1e300 um/s` wrote values of 1e300 um, exit 0: rows `acl fit` refuses (E806).  Such a
+    drift is now refused at its value, outside its physical range (acl.design.core.EFFECT_RANGES, as a declared
+    effect); a drift inside it whose rows still pass 1 m over the run is refused as rows `acl fit` cannot read."""
     rc, err, out = _synth(capsys, tmp_path, "--voltages", "0V..8V:3", "--effect", "offset_drift=drift:1e300 um/s")
+    assert rc == 2 and "<--effect>:1:20: error[E-USAGE]" in err and "outside its physical range" in err, err
+    assert not out.exists()
+    rc, err, out = _synth(capsys, tmp_path, "--voltages", "0V..8V:3", "--effect", "offset_drift=offset:1m,drift:1m/s")
     assert rc == 2 and "<--effect>:1:1: error[E-USAGE]" in err and "beyond the 1 m `acl fit` reads" in err, err
     assert not out.exists()
 

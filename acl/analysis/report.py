@@ -199,7 +199,8 @@ def analyze(design: M.Design, at: M.Drive | None = None, snap_in: bool = True, p
         st = ME.equilibrium(design, at, fm)
         rep.equilibrium = {
             "drive": describe_drive(at), "status": st.status, "stable": bool(st.stable),
-            "residual_n": st.residual,
+            # no residual without an equilibrium (snap_in, no_convergence: NaN inside): null, never NaN in JSON
+            "residual_n": float(st.residual) if np.isfinite(st.residual) else None,
             "capsules": [{"name": k, "displacement_m": [float(x) for x in v]} for k, v in st.displacements.items()],
             "deflections_m": {k: float(np.linalg.norm(v)) if np.ndim(v) else float(v) for k, v in st.deflections.items()},
             "deflection_over_eq1_limit": _eq1_ratios(design, st.deflections),

@@ -157,6 +157,16 @@ def _effect_value(eid: str, key: str, text: str, item: str, column: int) -> floa
                 "E-USAGE", f"--effect {item!r}: `{key}` is {got}; effect {eid} declares it as {need}",
                 Span(file="<--effect>", line=1, column=column),
                 f"`{key}` is in {unit}" if unit else f"`{key}` has no unit"))
+    from acl.design.core import EFFECT_RANGES
+
+    rng = EFFECT_RANGES.get((eid, key))      # the range a declared `effect` accepts (E401 there)
+    if rng is not None and not rng.lo <= value <= rng.hi:
+        shown = f"{value:g}" + (f" {unit}" if unit else "")
+        sign = " must be positive:" if rng.lo > 0 and not value > 0 else ""
+        raise _EffectUnitError(error(
+            "E-USAGE", f"--effect {item!r}: `{key}` = {shown}{sign} is outside its physical range "
+            f"{rng.lo:g} .. {rng.hi:g}" + (f" {unit}" if unit else ""),
+            Span(file="<--effect>", line=1, column=column), rng.why))
     return value
 
 

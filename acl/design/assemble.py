@@ -9,7 +9,8 @@ from acl.design import geometry as G
 from acl.design import model as M
 from acl.design.builders import Builder
 from acl.design.checks import check_design_geometry, check_programs
-from acl.design.core import D, DECL_KINDS, EFFECT_DOMAIN, EFFECT_UNITS, EFFECTS, Fail, what_is
+from acl.design.core import (D, DECL_KINDS, EFFECT_DOMAIN, EFFECT_RANGES, EFFECT_UNITS, EFFECTS,
+                             GRADIENT_REFERENCE, MODULUS_DECADES, PROPERTY_RANGES, Fail, what_is)
 from acl.design.programs import build_program
 from acl.design.values import DeclVal
 from acl.diagnostics import Span, suggest
@@ -93,6 +94,8 @@ def assemble(b: Builder) -> M.Design:
                       sources=tuple(dict.fromkeys(r.loader.sources)))
     if not _all_finite(design, bag):
         return design
+    _effect_beam_ranges(b, design)
+    _effect_band(b, design)
     check_design_geometry(design, bag, b.capsules)
     check_programs(design, bag)
     return design
@@ -184,9 +187,90 @@ def _effect(b: Builder, blk: A.Block) -> M.Effect | None:
                         + (f" {si_unit(v.dims)}" if si_unit(v.dims) else ""), ent.value.span,
                         "its physical range (docs/fit.md, effect library)")
             return None
+        if not _effect_in_range(b, blk.name, ent.key, v, ent.value.span):
+            return None
         params[ent.key] = v.value
         units[ent.key] = si_unit(v.dims)
+        b.effect_spans[(blk.name, ent.key)] = ent.value.span
     return M.Effect(name=blk.name, params=params, units=units, span=blk.span)
+
+
+def _effect_in_range(b: Builder, effect: str, key: str, v: Quantity, span: Span) -> bool:
+    """Whether ``effect.key = v`` lies in its admissible range (acl.design.core.EFFECT_RANGES): E401 outside it
+    (no physical value; an absurd one made the analyses overflow or divide by zero), W402 outside its plausible range."""
+    rng = EFFECT_RANGES.get((effect, key))
+    if rng is None:
+        return True
+    unit = si_unit(v.dims)
+    show = (lambda x: f"{x:g}" + (f" {unit}" if unit else ""))
+    if not rng.lo <= v.value <= rng.hi:
+        b.bag.error("E401", f"effect {effect}.{key} = {show(v.value)} is outside its physical range "
+                    f"{show(rng.lo)} .. {show(rng.hi)}", span, rng.why)
+        return False
+    if not rng.plausible_lo <= v.value <= rng.plausible_hi:
+        b.bag.warning("W402", f"effect {effect}.{key} = {show(v.value)} is outside its plausible range "
+                      f"{show(rng.plausible_lo)} .. {show(rng.plausible_hi)} (accepted; check the value and its unit)",
+                      span, rng.why)
+    return True
+
+
+def _effect_band(b: Builder, design: M.Design) -> None:
+    """W402: an effect's f_ref outside the declared transducer's band (the tilt or resonance is referenced to a
+    frequency the transducer never plays: likely a unit slip, `125 Hz` for `125 kHz`)."""
+    tr = design.transducer
+    if tr is None:
+        return
+    lo, hi = tr.band
+    for name in ("transducer_gain", "transducer_resonance"):
+        eff = design.effect(name)
+        f = eff.params.get("f_ref") if eff is not None else None
+        if f is not None and not lo * (1 - 1e-9) <= f <= hi * (1 + 1e-9):
+            b.bag.warning("W402", f"effect {name}.f_ref = {f:g} Hz is outside the band of transducer `{tr.name}` "
+                          f"({lo:g} .. {hi:g} Hz): accepted, but the effect is referenced to a frequency it never plays",
+                          b.effect_spans.get((name, "f_ref"), eff.span), "f_ref is a frequency of the data's sweep, "
+                          "inside the band (check its unit)")
+
+
+def _effect_beam_ranges(b: Builder, design: M.Design) -> None:
+    """stiffness_scale and stiffness_gradient over each beam's own length: E(s) = E e_scale exp(g (s/50um - 1/2)),
+    s in 0 .. L.  At both ends of every beam (and on every latch, scaled only) the modulus must be a solid's
+    (PROPERTY_RANGES' material youngs, 1 kPa .. 1.2 TPa) and within MODULUS_DECADES of the declared one (E401; a beam
+    longer than the 50 um reference amplifies g); beyond three decades it is implausible (W402)."""
+    eff = design.effect("stiffness_gradient")
+    g = eff.params.get("e_gradient", 0.0) if eff is not None else 0.0
+    sc = design.effect("stiffness_scale")
+    es = (sc.params.get("e_scale", sc.params.get("factor", 1.0)) if sc is not None else 1.0)
+    if not g and es == 1.0:
+        return
+    if g:
+        key, span = ("stiffness_gradient", "e_gradient"), b.effect_spans.get(("stiffness_gradient", "e_gradient"), eff.span)
+    else:
+        name = "e_scale" if "e_scale" in sc.params else "factor"
+        key, span = ("stiffness_scale", name), b.effect_spans.get(("stiffness_scale", name), sc.span)
+    rng = EFFECT_RANGES[key]
+    e_lo, e_hi, e_why = PROPERTY_RANGES[("material", "youngs")]
+    what = (f"effect stiffness_gradient.e_gradient = {g:g}" + (f" with stiffness_scale {es:g}" if es != 1.0 else "")
+            if g else f"effect stiffness_scale.{key[1]} = {es:g}")
+    members = [(f"beam `{x.name}` (L = {x.length * 1e6:.4g} um)", x.youngs_modulus, x.length) for x in design.beams]
+    members += [(f"latch `{x.name}`", x.youngs_modulus, None) for x in design.latches]
+    for label, modulus, length in members:
+        ends = [math.log10(es)]
+        if length is not None and g:
+            ends = [math.log10(es) + g * (s / GRADIENT_REFERENCE - 0.5) / math.log(10) for s in (0.0, length)]
+        decades = max(abs(x) for x in ends)
+        e_min, e_max = modulus * 10 ** min(ends), modulus * 10 ** max(ends)
+        if decades > MODULUS_DECADES:
+            b.bag.error("E401", f"{what} makes the modulus of {label} {10 ** decades:.3g}x off the declared one at an "
+                        f"end: outside its physical range ({10 ** MODULUS_DECADES:g}x)", span, rng.why)
+            return
+        if not e_lo <= e_min <= e_max <= e_hi:
+            b.bag.error("E401", f"{what} makes the modulus of {label} {e_min if e_min < e_lo else e_max:.3g} Pa: outside "
+                        f"the physical range of a solid's modulus, {e_lo:g} .. {e_hi:g} Pa", span, e_why)
+            return
+        if decades > 3.0 and rng.plausible_lo <= (g if g else es) <= rng.plausible_hi:
+            b.bag.warning("W402", f"{what} makes the modulus of {label} {10 ** decades:.3g}x off the declared one at "
+                          f"an end: outside its plausible range (1000x; accepted)", span, rng.why)
+            return
 
 
 def _put(b: Builder, store: dict, name: str, value) -> None:

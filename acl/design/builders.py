@@ -7,7 +7,7 @@ from dataclasses import dataclass, field
 
 from acl.design import geometry as G
 from acl.design import model as M
-from acl.design.core import D, SCHEMAS, Fail, what_is
+from acl.design.core import D, PROPERTY_RANGES, SCHEMAS, Fail, what_is
 from acl.design.evaluate import Resolver
 from acl.design.values import CallVal, DeclVal, IdentVal, ListVal, StrVal, VecVal
 from acl.diagnostics import Span, suggest
@@ -59,6 +59,7 @@ class Builder:
         self.kinds: dict[str, str] = {}      # local element name -> kind
         self.failed: set[str] = set()        # local elements whose declaration had errors
         self.failed_materials: set[str] = set()
+        self.effect_spans: dict = {}          # (effect, coefficient) -> span of its value (range checks)
 
     # ------------------------------------------------------------------------------ materials
     def material(self, dv: DeclVal) -> M.Material | None:
@@ -131,7 +132,7 @@ class Builder:
             if v.dims != D("Pa/V"):
                 self.bag.error("E301", f"{dv.name}.gain: expected {describe(D('Pa/V'))}, found {describe(v.dims)}", ent.value.span)
                 raise Fail()
-            return (1.0,), (v.value,)
+            return self._check_table([1.0], [v.value], ent.value.span)
         if isinstance(v, CallVal) and v.name == "csv":
             return self._gain_csv(v, ent, env)
         if isinstance(v, ListVal) and v.items:
@@ -153,6 +154,11 @@ class Builder:
             raise Fail()
         if any(g < 0 or not math.isfinite(g) for g in gs) or any(f <= 0 for f in fs):
             self.bag.error("E413", "gain table needs positive frequencies and non-negative gains", span)
+            raise Fail()
+        lo, hi, why = PROPERTY_RANGES[("transducer", "gain")]
+        if any(g > hi for g in gs):
+            self.bag.error("E413", f"gain table: {max(gs):g} Pa/V is outside its physical range {lo:g} .. {hi:g} Pa/V",
+                           span, why)
             raise Fail()
         return tuple(fs), tuple(gs)
 
@@ -241,7 +247,20 @@ class Builder:
         if not (v > 0 and math.isfinite(v)):
             self._err_key(keys, key, "E401", f"{what}.{key} must be positive, got {Quantity(v, D(SCHEMAS[schema][key].unit)) if SCHEMAS[schema][key].unit is not None else v}")
             raise Fail()
+        if not self._in_range(keys, key, schema, what, v):
+            raise Fail()
         return v
+
+    def _in_range(self, keys, key, schema, what, v) -> bool:
+        """Whether ``v`` lies in the physical range of ``schema.key`` (acl.design.core.PROPERTY_RANGES); E412 if not."""
+        rng = PROPERTY_RANGES.get((schema, key))
+        if rng is None or v is None or rng[0] <= v <= rng[1]:
+            return True
+        unit = SCHEMAS[schema][key].unit if key in SCHEMAS.get(schema, {}) else None
+        shown = (lambda x: str(Quantity(x, D(unit))) if unit else f"{x:g}")
+        self._err_key(keys, key, "E412", f"{what}.{key} = {shown(v)} is outside its physical range "
+                      f"{shown(rng[0])} .. {shown(rng[1])}", rng[2])
+        return False
 
     def _err_key(self, keys, key, code, msg, hint=None):
         ent, _ = keys[key]
@@ -306,6 +325,9 @@ class Builder:
             if spec.q is not None and spec.q <= 0:
                 self._err_key(keys, "q", "E401", f"{name}.q must be positive")
                 ok = False
+            for key in ("thrust", "q"):
+                if ok and not self._in_range(keys, key, "capsule", name, getattr(spec, key)):
+                    ok = False
         except Fail:
             ok = False
         seen = set()
