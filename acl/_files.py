@@ -178,3 +178,81 @@ def write_figures_atomically(folder: str, draw) -> list[str]:
         return out
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
+
+
+# --- Where a finished output goes: renamed into place, or streamed into a device or FIFO -------------------------
+
+def stream_kind(path: str) -> str | None:
+    """What ``path`` (links followed) is when it exists and is neither a regular file nor a folder: ``"device"``
+    (a character device: /dev/null, a terminal), ``"fifo"``, ``"block device"`` or ``"socket"``; else None.
+
+    An output must never be renamed over one of these: `acl synth -o null` (a device node named null)
+    replaced the node with a 133-byte regular file, and as root `-o /dev/null` would replace the system's."""
+    import stat
+
+    try:
+        mode = os.stat(path).st_mode
+    except (OSError, ValueError):
+        return None
+    if stat.S_ISCHR(mode):
+        return "device"
+    if stat.S_ISFIFO(mode):
+        return "fifo"
+    if stat.S_ISBLK(mode):
+        return "block device"
+    if stat.S_ISSOCK(mode):
+        return "socket"
+    return None
+
+
+def streamable_problem(path: str) -> str | None:
+    """Why an output cannot go to ``path`` when it is a special file (a block device or a socket: refused, acl
+    never writes a disk or a socket), else None.  Character devices and FIFOs are written as streams."""
+    kind = stream_kind(path)
+    if kind in ("block device", "socket"):
+        return f"`{path}` is a {kind}: acl writes regular files, character devices and FIFOs only"
+    return None
+
+
+def temp_folder_for(path: str) -> str:
+    """The folder for the temporary file of an output ``path``: beside it (so the final rename is atomic), or
+    the system's temporary folder when ``path`` is a device or FIFO (acl must not create files in /dev)."""
+    import tempfile
+
+    if stream_kind(path):
+        return tempfile.gettempdir()
+    return os.path.dirname(os.path.abspath(path)) or "."
+
+
+def publish_file(tmp: str, path: str) -> None:
+    """Put the finished temporary file ``tmp`` at ``path``: one rename over a regular file (or a new name);
+    into a character device or a FIFO, its bytes written as a stream, then ``tmp`` removed.  A block device
+    or a socket is refused (OSError).  A FIFO with no reader is an error (ENXIO), never a hang."""
+    import shutil
+
+    kind = stream_kind(path)
+    if kind is None:
+        os.replace(tmp, path)
+        return
+    problem = streamable_problem(path)
+    if problem:
+        raise OSError(1, problem, path)
+    flags = os.O_WRONLY | (os.O_NONBLOCK if kind == "fifo" else 0)
+    try:
+        fd = os.open(path, flags)    # no O_CREAT/O_TRUNC: the node stays what it is
+    except OSError as exc:
+        import errno
+
+        if exc.errno == errno.ENXIO and kind == "fifo":
+            raise OSError(exc.errno, "no process reads this FIFO (acl does not wait for one); start the reader first",
+                          path) from None
+        raise
+    try:
+        if kind == "fifo":
+            os.set_blocking(fd, True)
+        with open(tmp, "rb") as src, os.fdopen(fd, "wb", closefd=False) as dst:
+            shutil.copyfileobj(src, dst, 1 << 20)
+    finally:
+        os.close(fd)
+    os.unlink(tmp)
+

@@ -82,8 +82,8 @@ def _overwrites_input(args, design, *more) -> int:
     return 0
 
 
-def _usage(msg, hint=None, where=None):
-    """E-USAGE at the option the message starts with (``--voltages ...`` -> ``<--voltages>:1:1``)."""
+def _usage(msg, hint=None, where=None, code="E-USAGE"):
+    """E-USAGE (or ``code``) at the option the message starts with (``--voltages ...`` -> ``<--voltages>:1:1``)."""
     import re
 
     from acl.diagnostics import Span, error
@@ -91,7 +91,7 @@ def _usage(msg, hint=None, where=None):
     if where is None:
         m = re.match(r"(--[a-z][a-z-]*)", msg)
         where = f"<{m.group(1)}>" if m else "<command line>"
-    report([error("E-USAGE", msg, Span(file=where, line=1, column=1), hint)])
+    report([error(code, msg, Span(file=where, line=1, column=1), hint)])
     return 2
 
 
@@ -337,7 +337,7 @@ def run(args) -> int:
     try:
         write_csv(data, args.output)
     except OSError as exc:
-        return _usage(f"cannot write {args.output!r}: {exc.strerror or exc}", where="<--output>")
+        return _usage(f"cannot write {args.output!r}: {exc.strerror or exc}", where="<--output>", code="E601")
     if args.output_format == "json":
         import json
         import sys
@@ -458,7 +458,7 @@ def _replay(args, noise) -> int:
     try:
         write_csv(data, args.output)
     except OSError as exc:
-        return _usage(f"cannot write {args.output!r}: {exc.strerror or exc}", where="<--output>")
+        return _usage(f"cannot write {args.output!r}: {exc.strerror or exc}", where="<--output>", code="E601")
     console.print(f"wrote {data.n} rows ({len(waypoints) - lost} waypoints x {len(names or known)} observables"
                   + (f", {res.contacts} gaps in contact at snap-ins" if res.contacts else "") + f") to {args.output}")
     for goal, t in res.tracking.items():

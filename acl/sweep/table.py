@@ -220,8 +220,18 @@ def assemble(parts: list[dict[str, np.ndarray]], order: list[str]) -> np.ndarray
 
 def check_output(path: str, where: str = "<-o>") -> None:
     """Fail early (before any work) on an output the sweep could not write: E-USAGE/E601, exit 2."""
+    from acl._files import stream_kind, streamable_problem
+
     span = Span(file=where, line=1, column=1)
     suffix = os.path.splitext(str(path))[1].lower()
+    problem = streamable_problem(path)
+    if problem:
+        raise DiagnosticError([error("E601", f"cannot write: {problem}", span, "give a file, e.g. -o sweep.csv")])
+    if stream_kind(path):            # a device or a FIFO (-o /dev/null, a pipe): the CSV streamed into it
+        if suffix == ".parquet":
+            raise DiagnosticError([error("E601", f"cannot write `{path}`: a Parquet table cannot be streamed into a {stream_kind(path)}",
+                                         span, "write CSV into it, or Parquet to a regular file")])
+        return
     if os.path.isdir(path):          # before the suffix: a folder was "not 'a file without suffix'"
         raise DiagnosticError([error("E601", f"cannot write `{path}`: it is a folder", span,
                                      "give a file, e.g. -o sweep.csv")])
@@ -243,9 +253,10 @@ def check_output(path: str, where: str = "<-o>") -> None:
 
 def write_table(table: SweepTable, path: str) -> None:
     """CSV or Parquet by suffix, atomically: a temporary file beside ``path``, then one rename."""
+    from acl._files import publish_file, temp_folder_for
+
     suffix = os.path.splitext(str(path))[1].lower()
-    folder = os.path.dirname(os.path.abspath(path))
-    fd, tmp = tempfile.mkstemp(prefix=".acl-", suffix=".tmp" + suffix, dir=folder)
+    fd, tmp = tempfile.mkstemp(prefix=".acl-", suffix=".tmp" + suffix, dir=temp_folder_for(path))
     try:
         if suffix == ".parquet":
             os.close(fd)
@@ -258,7 +269,7 @@ def write_table(table: SweepTable, path: str) -> None:
         umask = os.umask(0)
         os.umask(umask)
         os.chmod(tmp, 0o666 & ~umask)
-        os.replace(tmp, path)
+        publish_file(tmp, path)
     except BaseException:
         if os.path.exists(tmp):
             os.unlink(tmp)
