@@ -169,7 +169,62 @@ def repeated_option(parser: argparse.ArgumentParser, tokens: list[str]) -> tuple
     return None
 
 
+class Terminated(KeyboardInterrupt):
+    """SIGTERM or SIGHUP, raised where the program is, so every cleanup that runs on Ctrl-C runs too."""
+
+
+def _terminate(signum, frame):
+    raise Terminated(signum)
+
+
+def _on_termination():
+    """Make SIGTERM and SIGHUP unwind like Ctrl-C (the temporary files and folders of every writer are removed
+    on the way out); returns the handlers to restore.  Before, `timeout` or a batch scheduler's SIGTERM
+    killed a compile at once and left 1-2 GB of half-written waveform in `.acl-compile-*/`."""
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        return {}
+    old = {}
+    for sig in (signal.SIGTERM, getattr(signal, "SIGHUP", None)):
+        if sig is None:
+            continue
+        try:
+            previous = signal.getsignal(sig)
+            if previous is signal.SIG_IGN:      # nohup: a hang-up stays ignored
+                continue
+            old[sig] = signal.signal(sig, _terminate)
+        except (ValueError, OSError):
+            pass
+    return old
+
+
+def _terminated(exc: Terminated) -> int:
+    import signal
+
+    signum = int(exc.args[0]) if exc.args else int(signal.SIGTERM)
+    try:
+        sys.stderr.write(f"acl: terminated ({signal.Signals(signum).name})\n")
+    except (OSError, ValueError, AttributeError):
+        pass
+    return 128 + signum
+
+
 def main(argv: list[str] | None = None) -> int:
+    old = _on_termination()
+    try:
+        return _main(argv)
+    except Terminated as exc:          # before or after the command ran (argument parsing, the last flush)
+        return _terminated(exc)
+    finally:
+        import signal
+
+        for sig, handler in old.items():
+            signal.signal(sig, handler)
+
+
+def _main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
     parser = build_parser(argv)
     args, extra = parser.parse_known_args(argv)
@@ -198,6 +253,8 @@ def main(argv: list[str] | None = None) -> int:
         if getattr(args, "verbose", False):
             sys.stderr.write(f"acl {args.command}: exit {code} after {time.perf_counter() - start:.2f} s\n")
         return code
+    except Terminated as exc:
+        return _terminated(exc)
     except KeyboardInterrupt:
         sys.stderr.write("acl: interrupted\n")
         return 130

@@ -48,6 +48,9 @@ def add_parser(p) -> None:
                    help="re-plan paths N times against the design's nonlinear model (saturation, stiffening, "
                         "declared effects); default 0")
     p.add_argument("--plot", action="store_true", help="write a PNG per path goal")
+    p.add_argument("--max-output-size", default="4GiB", metavar="SIZE",
+                   help="refuse waveform files larger than this, e.g. 500MB, 20GiB (default 4GiB); the free "
+                        "disk space is checked too")
     p.add_argument("--allow-nonlinear", action="store_true",
                    help="plan drives beyond the linear bubble model (interface amplitude eps/R > 0.25; docs/physics.md)")
     add_output_format(p, old=("--diagnostics",))
@@ -138,6 +141,10 @@ def run(args) -> int:
     diags += more
     numbers, more = _numbers(args)
     diags += more
+    try:
+        _size(args.max_output_size)
+    except DiagnosticError as exc:
+        diags += exc.diagnostics
     if args.output == "-":   # it made a folder named `-`
         diags.append(_usage("E-EMIT-OUTPUT", "-o -: standard output cannot hold a compile (schedule.json and "
                             "waveform files)", "give a folder, e.g. -o out/", "--output"))
@@ -200,6 +207,28 @@ def run(args) -> int:
     return _emit(schedule, args, formats, rate, fmt)
 
 
+_SIZE_UNITS = {"": 1, "b": 1, "kb": 1e3, "mb": 1e6, "gb": 1e9, "tb": 1e12,
+               "kib": 2 ** 10, "mib": 2 ** 20, "gib": 2 ** 30, "tib": 2 ** 40}
+
+
+def _size(text: str) -> float:
+    """Bytes of ``--max-output-size`` (``500MB``, ``20GiB``, ``1e9``); E-USAGE otherwise."""
+    import math
+    import re
+
+    m = re.fullmatch(r"\s*([0-9][0-9_.]*(?:[eE][+-]?[0-9]+)?)\s*([A-Za-z]*)\s*", str(text))
+    value = None
+    if m and m.group(2).lower() in _SIZE_UNITS:
+        try:
+            value = float(m.group(1)) * _SIZE_UNITS[m.group(2).lower()]
+        except ValueError:
+            value = None
+    if value is None or not math.isfinite(value) or value <= 0:
+        raise DiagnosticError([_usage("E-USAGE", f"--max-output-size {text!r}: not a size",
+                                      "e.g. 500MB, 4GiB or 1e9 (bytes)", "--max-output-size")])
+    return value
+
+
 def _reloader(args, path):
     """{param: "v unit"} -> the design resolved again with those values (for the uncertainty draws)."""
     from acl.commands._common import parse_sets
@@ -225,10 +254,12 @@ def _emit(schedule, args, formats, rate, fmt) -> int:
     except DiagnosticError as exc:
         report(exc.diagnostics, fmt)
         return 2
-    from acl.emit.output import check_output_dir
+    from acl.emit.output import check_output_dir, check_size
 
     try:
+        max_bytes = _size(args.max_output_size)
         check_output_dir(args.output)
+        check_size(schedule, formats, fs, args.output, max_bytes)
     except DiagnosticError as exc:
         report(exc.diagnostics, fmt)
         return 2
@@ -244,9 +275,9 @@ def _emit(schedule, args, formats, rate, fmt) -> int:
                           console=console, transient=True) as bar:
                 task = bar.add_task("render", total=n)
                 result = emit(schedule, args.output, formats, fs, args.plot,
-                              progress=lambda done, total: bar.update(task, completed=done))
+                              progress=lambda done, total: bar.update(task, completed=done), max_bytes=max_bytes)
         else:
-            result = emit(schedule, args.output, formats, fs, args.plot)
+            result = emit(schedule, args.output, formats, fs, args.plot, max_bytes=max_bytes)
     except DiagnosticError as exc:
         report(exc.diagnostics, fmt)
         return 2

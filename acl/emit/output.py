@@ -31,6 +31,8 @@ from acl.schedule.model import Schedule
 _ACL_NAME = re.compile(r"^(schedule\.json|segments\.csv|waveform(-samples)?\.(wav|npy|csv)|goal-step[0-9]+\.png)$")
 CSV_WARN_BYTES = 100 * 2 ** 20
 MAX_SAMPLES = 1 << 36              # 64 Gi samples: 256 GiB of float32 in any format
+DEFAULT_MAX_OUTPUT_BYTES = 4 * 2 ** 30   # waveform files larger than this need --max-output-size
+_BYTES_PER_SAMPLE = {"wav": 4, "npy": 4}
 
 
 def option_span(option: str) -> Span:
@@ -102,6 +104,48 @@ def check_options(schedule: Schedule, formats, sample_rate: float) -> list[Diagn
     return warns
 
 
+def output_bytes(schedule: Schedule, formats, sample_rate: float) -> int:
+    """Bytes the waveform files of ``formats`` will take (the CSV of samples at its typical row size)."""
+    n = total_samples(schedule, sample_rate)
+    return sum(_BYTES_PER_SAMPLE.get(f, CSV_BYTES_PER_SAMPLE) * n for f in dict.fromkeys(formats))
+
+
+def free_bytes(out_dir: str) -> int | None:
+    """Free space (bytes) of the filesystem that will hold ``out_dir`` (its nearest existing folder), or None."""
+    folder = os.path.abspath(out_dir)
+    while folder and not os.path.isdir(folder):
+        parent = os.path.dirname(folder)
+        if parent == folder:
+            break
+        folder = parent
+    try:
+        return shutil.disk_usage(folder).free
+    except OSError:
+        return None
+
+
+def check_size(schedule: Schedule, formats, sample_rate: float, out_dir: str,
+               max_bytes: float | None = DEFAULT_MAX_OUTPUT_BYTES) -> None:
+    """E-EMIT-SIZE before anything is written: waveform files beyond ``max_bytes`` (a sane default, raised
+    with --max-output-size) or beyond the free space where they go.  A 2,000 s drive with --format npy was
+    accepted as a 10 GB file; interrupted, it left gigabytes of half-written samples."""
+    need = output_bytes(schedule, formats, sample_rate)
+    gib = need / 2 ** 30
+    if max_bytes is not None and need > max_bytes:
+        raise DiagnosticError([error(
+            "E-EMIT-SIZE", f"the waveform files would take {gib:.3g} GiB ({schedule.duration_s:g} s at "
+            f"{sample_rate:g} S/s, {', '.join(dict.fromkeys(formats))}), more than the "
+            f"{max_bytes / 2 ** 30:.3g} GiB limit", option_span("--max-output-size"),
+            "raise the limit (--max-output-size 20GiB) if you mean it; segments.csv lists the same schedule "
+            "as tones in a few kB; or lower the sample rate")])
+    free = free_bytes(out_dir)
+    if free is not None and need + (1 << 20) > free:
+        raise DiagnosticError([error(
+            "E-EMIT-SIZE", f"the waveform files would take {gib:.3g} GiB, and the disk holding {out_dir!r} "
+            f"has {free / 2 ** 30:.3g} GiB free", option_span("--output"),
+            "free some space or write elsewhere; nothing was written")])
+
+
 def previous_compile(out_dir: str) -> set[str] | None:
     """Names a previous acl compile wrote into ``out_dir`` (its schedule.json's ``files``), or None."""
     path = os.path.join(out_dir, "schedule.json")
@@ -147,11 +191,13 @@ def check_output_dir(out_dir: str) -> set[str]:
 
 
 def emit(schedule: Schedule, out_dir: str, formats=("wav",), sample_rate: float | None = None,
-         plot: bool = False, progress: Callable[[int, int], None] | None = None) -> EmitResult:
+         plot: bool = False, progress: Callable[[int, int], None] | None = None,
+         max_bytes: float | None = DEFAULT_MAX_OUTPUT_BYTES) -> EmitResult:
     fs = float(sample_rate or schedule.sample_rate_hz)
     formats = tuple(dict.fromkeys(formats))
     warns = check_options(schedule, formats, fs)
     stale = check_output_dir(out_dir)
+    check_size(schedule, formats, fs, out_dir, max_bytes)
     parent = os.path.dirname(os.path.abspath(out_dir)) or "."
     os.makedirs(parent, exist_ok=True)
     tmp = tempfile.mkdtemp(prefix=".acl-compile-", dir=parent)
