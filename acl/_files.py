@@ -256,3 +256,21 @@ def publish_file(tmp: str, path: str) -> None:
         os.close(fd)
     os.unlink(tmp)
 
+
+
+#: Python refuses to convert integers longer than this (sys.get_int_max_str_digits, CVE-2020-10735)
+MAX_INT_DIGITS = 4300
+_LONG_DIGITS = re.compile(r"[0-9_]{%d,}" % (MAX_INT_DIGITS + 1))
+
+
+def overlong_integer(text: str) -> tuple[int, int] | None:
+    """(line, column) of the first run of more than :data:`MAX_INT_DIGITS` digits in ``text``, else None.
+
+    JSON and TOML parsers turn such a run into a Python int and fail with a bare ValueError (an internal
+    error before): callers refuse it first, located."""
+    m = _LONG_DIGITS.search(text)
+    if m is None:
+        return None
+    start = m.start()
+    line_start = text.rfind("\n", 0, start) + 1
+    return text.count("\n", 0, start) + 1, start - line_start + 1

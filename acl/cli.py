@@ -200,6 +200,86 @@ def _on_termination():
     return old
 
 
+class _ClosedStream:
+    """Standard output when the shell closed it (`acl check x.acl >&-`): writing to it is an error (E601), not
+    silence: a script must not take a missing result for an empty one."""
+
+    encoding = "utf-8"
+    errors = "strict"
+
+    def write(self, text):
+        import errno
+
+        raise OSError(errno.EBADF, "standard output is closed")
+
+    def flush(self):
+        pass
+
+    def isatty(self):
+        return False
+
+    def fileno(self):
+        import io
+
+        raise io.UnsupportedOperation("standard output is closed")
+
+
+_STREAM_ERRNOS = frozenset({5, 9, 27, 28, 122})     # EIO, EBADF, EFBIG, ENOSPC, EDQUOT
+
+
+def _prepare_streams() -> None:
+    """Standard streams acl can always use.
+
+    * A closed descriptor 0, 1 or 2 (`<&-`, `>&-`) is filled with /dev/null, so no file acl opens lands on it
+      (and is then written by a print); a closed standard output raises E601 at the first write.
+    * Text that the stream's encoding cannot carry is replaced, not an internal error: a file name that is not
+      UTF-8 (its surrogate escapes written as ``\\udcff``), the table ellipsis under PYTHONIOENCODING=ascii."""
+    import io
+    import os
+
+    closed = []
+    for fd in (0, 1, 2):
+        try:
+            os.fstat(fd)
+        except OSError:
+            try:
+                new = os.open(os.devnull, os.O_RDWR)
+                if new != fd:
+                    os.dup2(new, fd)
+                    os.close(new)
+                closed.append(fd)
+            except OSError:
+                pass
+    if 1 in closed:
+        sys.stdout = _ClosedStream()
+    if 2 in closed:
+        sys.stderr = open(os.devnull, "w", encoding="utf-8")
+    for stream in (sys.stdout, sys.stderr):
+        enc = (getattr(stream, "encoding", None) or "").lower().replace("-", "").replace("_", "")
+        try:
+            stream.reconfigure(errors="backslashreplace" if enc in ("utf8", "utf8sig") else "replace")
+        except (AttributeError, ValueError, io.UnsupportedOperation):
+            pass
+
+
+def _stream_error(exc: OSError) -> int:
+    """E601 for a standard output that cannot be written (closed, a full disk, /dev/full), exit 2; the stream is
+    pointed at /dev/null so the interpreter's last flush does not fail again."""
+    import os
+
+    try:
+        fd = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(fd, 1)
+        os.close(fd)
+    except OSError:
+        pass
+    try:
+        sys.stderr.write(f"<stdout>:1:1: error[E601]: cannot write standard output: {exc.strerror or exc}\n")
+    except (OSError, ValueError):
+        pass
+    return 2
+
+
 def _terminated(exc: Terminated) -> int:
     import signal
 
@@ -213,8 +293,14 @@ def _terminated(exc: Terminated) -> int:
 
 def main(argv: list[str] | None = None) -> int:
     old = _on_termination()
+    _prepare_streams()
     try:
-        return _main(argv)
+        code = _main(argv)
+        try:
+            sys.stdout.flush()
+        except OSError as exc:
+            return _stream_error(exc)
+        return code
     except Terminated as exc:          # before or after the command ran (argument parsing, the last flush)
         return _terminated(exc)
     finally:
@@ -266,16 +352,25 @@ def _main(argv: list[str] | None = None) -> int:
         return max(exit_code(exc.diagnostics), 1)
     except BrokenPipeError:
         return 0
+    except OSError as exc:
+        if exc.filename is None and exc.errno in _STREAM_ERRNOS:
+            return _stream_error(exc)
+        return _internal(exc)
     except Exception as exc:  # last resort: never a traceback for the user
-        import traceback
-        import os
+        return _internal(exc)
 
-        sys.stderr.write(f"acl: internal error[E-INTERNAL]: {type(exc).__name__}: {exc}\n")
-        if os.environ.get("ACL_DEBUG"):
-            traceback.print_exc()
-        else:
-            sys.stderr.write("acl: set ACL_DEBUG=1 for a traceback, and please report it.\n")
-        return 2
+
+def _internal(exc: Exception) -> int:
+    """The last resort: never a traceback for the user (ACL_DEBUG=1 prints it)."""
+    import os
+    import traceback
+
+    sys.stderr.write(f"acl: internal error[E-INTERNAL]: {type(exc).__name__}: {exc}\n")
+    if os.environ.get("ACL_DEBUG"):
+        traceback.print_exc()
+    else:
+        sys.stderr.write("acl: set ACL_DEBUG=1 for a traceback, and please report it.\n")
+    return 2
 
 
 if __name__ == "__main__":

@@ -55,37 +55,109 @@ def parse_unit(text: str) -> tuple[float, Dims]:
     hit = TABLE.get(text)
     if hit is not None:
         return hit
+    _refuse_before_pint(text)
     cache = _disk_cache()
     if text in cache:
         f, d = cache[text]
         return float(f), tuple(int(x) for x in d)  # type: ignore[return-value]
     result = parse_unit_with_pint(text)
     cache[text] = (result[0], list(result[1]))
-    _save_disk_cache(cache)
+    _cache_changed()
     return result
+
+
+#: the largest exponent of a base unit acl accepts (`m^3`, `s^-2`; `m^99` names no quantity of this domain)
+MAX_EXPONENT = 12
+
+#: the largest exponent of a base dimension (`V^-4` is s^12 in base units)
+MAX_DIMENSION = 48
+
+_EXPONENT = re.compile(r"(?:\^|\*\*)\s*\(?\s*([-+]?)\s*([0-9]+(?:\.[0-9]*)?)")
+
+
+def _refuse_before_pint(text: str) -> None:
+    """Spellings pint would misread, refused with a hint: a bare micro sign (pint's `u`, the atomic mass unit:
+    `1 µ` was 1.66e-27 kg) and exponents beyond :data:`MAX_EXPONENT` (`m^9223372036854775808` was accepted)."""
+    bare = text.strip()
+    if bare in ("µ", "μ", "u"):
+        raise UnitError(f"`{text}` is a prefix without a unit", "micro what? write `um`, `us`, `uN`, `uL` ...")
+    for m in _EXPONENT.finditer(text):
+        digits = m.group(2)
+        if len(digits) > 6 or float(digits) > MAX_EXPONENT:
+            raise UnitError(f"unit `{text}`: the exponent {m.group(1)}{digits[:12]}{'...' if len(digits) > 12 else ''} "
+                            f"is beyond {MAX_EXPONENT}", "a unit of this domain has small exponents: `m^3`, `s^-2`")
 
 
 def _cache_dir() -> str:
     return os.environ.get("ACL_CACHE_DIR") or os.path.join(os.path.expanduser("~"), ".cache", "acl")
 
 
+MAX_CACHE_BYTES = 4 * 2 ** 20     # a units cache larger than this is not read (it is rebuilt)
+
+
+def _cache_entry(key, value):
+    """(factor, dims) of one cached unit, or None when the entry is not one acl could have written."""
+    if not isinstance(key, str) or not isinstance(value, list) or len(value) != 2:
+        return None
+    factor, dims = value
+    if (not isinstance(factor, (int, float)) or isinstance(factor, bool) or not math.isfinite(factor) or factor <= 0
+            or not isinstance(dims, list) or len(dims) != 7
+            or not all(isinstance(x, int) and not isinstance(x, bool) and abs(x) <= MAX_DIMENSION for x in dims)):
+        return None
+    return float(factor), [int(x) for x in dims]
+
+
 @functools.lru_cache(maxsize=1)
 def _disk_cache() -> dict:
+    """The per-user cache of pint's answers.  Anything unreadable or malformed in it is ignored (a corrupt
+    cache broke every later run until deleted); only well-formed entries are used."""
     import json
 
+    path = os.path.join(_cache_dir(), "units.json")
     try:
-        with open(os.path.join(_cache_dir(), "units.json"), encoding="utf-8") as fh:
+        if not os.path.isfile(path) or os.path.getsize(path) > MAX_CACHE_BYTES:
+            return {}
+        with open(path, encoding="utf-8") as fh:
             data = json.load(fh)
-        return {str(k): (float(v[0]), [int(x) for x in v[1]]) for k, v in data.items()
-                if isinstance(v, list) and len(v) == 2 and len(v[1]) == 7}
-    except (OSError, ValueError, TypeError, IndexError):
+    except Exception:            # OSError, ValueError, RecursionError, a 5,000-digit integer...
         return {}
+    if not isinstance(data, dict):
+        return {}
+    out = {}
+    for k, v in data.items():
+        entry = _cache_entry(k, v)
+        if entry is not None:
+            out[k] = entry
+    return out
+
+
+_CACHE_DIRTY = False
+
+
+def _cache_changed() -> None:
+    """Save the cache once, when the process ends: every new unit spelling rewrote the whole file (3,000
+    params with distinct units took 84-120 s)."""
+    global _CACHE_DIRTY
+    if not _CACHE_DIRTY:
+        import atexit
+
+        _CACHE_DIRTY = True
+        atexit.register(flush_unit_cache)
+
+
+def flush_unit_cache() -> None:
+    """Write the units learnt in this process to the per-user cache (atomically; errors ignored)."""
+    global _CACHE_DIRTY
+    if _CACHE_DIRTY:
+        _CACHE_DIRTY = False
+        _save_disk_cache(_disk_cache())
 
 
 def _save_disk_cache(cache: dict) -> None:
     import json
     import tempfile
 
+    tmp = None
     try:
         d = _cache_dir()
         os.makedirs(d, exist_ok=True)
@@ -93,8 +165,12 @@ def _save_disk_cache(cache: dict) -> None:
         with os.fdopen(fd, "w", encoding="utf-8") as fh:
             json.dump(cache, fh)
         os.replace(tmp, os.path.join(d, "units.json"))
-    except OSError:
-        pass  # the cache is an optimisation only
+    except Exception:
+        if tmp and os.path.exists(tmp):
+            try:
+                os.unlink(tmp)
+            except OSError:
+                pass           # the cache is an optimisation only
 
 
 def parse_unit_with_pint(text: str) -> tuple[float, Dims]:
@@ -109,15 +185,27 @@ def parse_unit_with_pint(text: str) -> tuple[float, Dims]:
         reg = registry()
         q = reg.Quantity(1.0, norm)
         base = q.to_base_units()
+        twice = reg.Quantity(2.0, norm).to_base_units().magnitude
+        zero = reg.Quantity(0.0, norm).to_base_units().magnitude
     except Exception as exc:
         word = str(exc).split("'")[1] if "'" in str(exc) else text
         raise UnitError(f"unknown unit `{text}`", _unit_hint(word)) from None
+    one = float(base.magnitude)
+    if not (math.isfinite(one) and one > 0):
+        raise UnitError(f"unit `{text}` is not a finite positive multiple of SI units")
+    if zero != 0.0 or not math.isclose(float(twice), 2.0 * one, rel_tol=1e-9):
+        # degC, degF (offset: `20 degC` was 5483 K), dB, Np, octave (logarithmic: `3 dB` was 3.78)
+        raise UnitError(f"unit `{text}` is not a multiple of an SI unit (an offset or a logarithmic scale)",
+                        "write temperatures in K (20 degC = 293.15 K) and ratios as plain numbers "
+                        "(3 dB of power = 1.995)")
     dims = base.dimensionality
     vec = []
     for b in _BASE:
         e = dims.get(b, 0)
         if e != int(e):
             raise UnitError(f"unit `{text}` has a fractional dimension")
+        if abs(e) > MAX_DIMENSION:
+            raise UnitError(f"unit `{text}`: the dimension {b}^{e:g} is beyond the exponent {MAX_DIMENSION}")
         vec.append(int(e))
     mag = float(base.magnitude)
     # pint's base unit for mass is kg, for angle radian (dimensionless): both as wanted.

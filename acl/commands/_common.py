@@ -147,8 +147,14 @@ def read_stdin(name: str) -> tuple[str | None, list[Diagnostic]]:
     """The design on standard input (`-`): UTF-8 text, at most the design size limit."""
     from acl.design.modules import MAX_BYTES
 
-    raw = sys.stdin.buffer.read(MAX_BYTES + 1)
     span = Span(file=name, line=1, column=1)
+    if sys.stdin is None:          # `acl check - <&-`
+        return None, [error("E601", "cannot read standard input: it is closed", span,
+                            "give the design on standard input (`acl check - < design.acl`) or name the file")]
+    try:
+        raw = sys.stdin.buffer.read(MAX_BYTES + 1)
+    except OSError as exc:
+        return None, [error("E601", f"cannot read standard input: {exc.strerror or exc}", span)]
     if len(raw) > MAX_BYTES:
         return None, [error("E601", f"cannot read standard input: larger than {MAX_BYTES // 1_000_000} MB", span)]
     try:

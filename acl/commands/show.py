@@ -19,7 +19,13 @@ def run(args) -> int:
     if design is None:
         return code
     if fmt == "json":
-        sys.stdout.write(design.model_dump_json(indent=2) + "\n")
+        try:
+            text = design.model_dump_json(indent=2)
+        except ValueError:       # a file name that is not UTF-8 (surrogate escapes): JSON's \u escapes instead
+            import json
+
+            text = json.dumps(design.model_dump(mode="json"), indent=2)
+        sys.stdout.write(text + "\n")
         return 0
     from acl._console import make_console
 

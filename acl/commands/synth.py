@@ -242,6 +242,14 @@ def run(args) -> int:
                                for v in vals.split(",") if v.strip()]
             if not k.strip() or not sets[k.strip()]:
                 return _usage(f"--sweep {item!r}: expected P=V1,V2,... with at least one value")
+            from acl.fit.data import parse_quantity
+
+            for v in sets[k.strip()]:      # `gap=gap*2`, `(50um)`, `50um+1um` were internal errors
+                try:
+                    parse_quantity(v)
+                except (ValueError, UnitError) as exc:
+                    return _usage(f"--sweep {k.strip()}: `{v}` is not a value ({exc})",
+                                  "give numbers with units, e.g. --sweep gap=20um,30um,40um (no expressions)")
     except _EffectUnitError as exc:
         report([exc.diagnostic])
         return 2

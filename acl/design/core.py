@@ -178,6 +178,10 @@ PROPERTY_RANGES = {
     ("material", "density"): (1.0, 3e4, "from an aerogel (about 1 kg/m^3) to beyond osmium (22.6e3)"),
     ("capsule", "q"): (0.1, 1e4, "a bubble mode's quality factor: below 0.1 there is no resonance left, above 1e4 no "
                                  "liquid-loaded bubble (radiation and viscous damping alone bound Q to tens)"),
+    ("latch", "length"): (1e-7, 1e-2, "a printed flexure: from a voxel (about 100 nm) to 10 mm, beyond any "
+                                      "two-photon print field (`width = 1e308 um` overflowed the latch model)"),
+    ("latch", "width"): (1e-7, 1e-2, "a printed flexure: from a voxel (about 100 nm) to 10 mm"),
+    ("latch", "thickness"): (1e-7, 1e-2, "a printed flexure: from a voxel (about 100 nm) to 10 mm"),
     ("transducer", "gain"): (0.0, 1e6, "pressure per volt: focused HIFU transducers reach about 1e4 Pa/V; at 1e6 Pa/V "
                                       "water cavitates at 0.1 V"),
 }

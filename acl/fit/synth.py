@@ -294,6 +294,12 @@ def read_schedule(path: str, max_segments: int = MAX_REPLAY_SEGMENTS) -> tuple[l
         line, col, byte = undecodable(raw, exc)
         raise bad(f"not UTF-8 text (byte 0x{byte:02x})", line, col,
                   "give the schedule.json `acl compile` wrote") from None
+    from acl._files import MAX_INT_DIGITS, overlong_integer
+
+    long_int = overlong_integer(text)
+    if long_int is not None:
+        raise bad(f"a number of more than {MAX_INT_DIGITS} digits", *long_int,
+                  "give the schedule.json `acl compile` wrote")
     try:
         doc = json.loads(text)
     except json.JSONDecodeError as exc:

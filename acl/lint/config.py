@@ -98,6 +98,12 @@ def load_config(path: str | None, rules: dict) -> LintConfig:
         with open(path, "rb") as fh:
             raw = fh.read()
         text = raw.decode("utf-8-sig")      # a byte-order mark (Windows editors) as in .acl and .csv files
+        from acl._files import MAX_INT_DIGITS, overlong_integer
+
+        long_int = overlong_integer(text)
+        if long_int is not None:
+            raise ConfigError([error("E-CONFIG", f"invalid TOML: a number of more than {MAX_INT_DIGITS} digits",
+                                     Span(file=path, line=long_int[0], column=long_int[1]))])
         data = tomllib.loads(text)
     except FileNotFoundError:
         raise ConfigError([error("E-CONFIG", f"configuration file `{path}` not found", span0)]) from None

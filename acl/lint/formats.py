@@ -142,7 +142,6 @@ def help_uri(code: str) -> str:
 def _uri(path: str) -> str:
     """A percent-encoded URI reference (RFC 3986) for a file: relative to the working directory
     when the file is under it, else an absolute ``file:`` URI."""
-    from pathlib import Path
     from urllib.parse import quote
 
     p = path
@@ -153,9 +152,10 @@ def _uri(path: str) -> str:
                 p = rel
         except ValueError:
             pass
+    raw = os.fsencode(p.replace(os.sep, "/"))      # a name that is not UTF-8 keeps its bytes: `a%FFb.acl`
     if os.path.isabs(p):
-        return Path(p).as_uri()
-    return quote(p.replace(os.sep, "/"), safe="/")
+        return "file://" + quote(raw, safe="/")
+    return quote(raw, safe="/")
 
 
 def write_sarif(reports, out: TextIO) -> None:
