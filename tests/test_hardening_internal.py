@@ -224,3 +224,27 @@ def test_ordinary_units_still_convert(tmp_path, capsys, text, si):
     assert main(["show", str(tmp_path / "u.acl"), "--output-format", "json"]) == 0
     doc = json.loads(capsys.readouterr().out)
     assert doc["params"][0]["value"] == pytest.approx(si, rel=1e-12)
+
+
+# ---- cost on small inputs (item 6) ---------------------------------------------------------------------
+
+def test_a_segment_of_many_tones_is_read_and_checked(tmp_path):
+    """A replayed segment's duplicate-frequency check compared every tone with every other: one 50,000-tone
+    segment ran past a minute (1.25e9 comparisons; 0.8 s now, measured in the closing note of issue 29).
+    Here: 20,000 tones are read whole, and a repeated frequency among them is still found."""
+    import acl.fit.synth as S
+    from acl.diagnostics import DiagnosticError
+
+    n = 20_000
+    tones = [{"frequency_hz": 100e3 + i, "amplitude_v": 1e-6, "phase_rad": 0.0} for i in range(n)]
+    doc = {"version": "1.0", "segments": [{"start_s": 0.0, "end_s": 0.01, "goal": "g", "step": 0, "tones": tones}],
+           "goals": []}
+    path = tmp_path / "s.json"
+    path.write_text(json.dumps(doc))
+    points, _, _ = S.read_schedule(str(path))
+    assert len(points[0].tones) == n
+    doc["segments"][0]["tones"] = tones + [dict(tones[n // 2])]
+    path.write_text(json.dumps(doc))
+    with pytest.raises(DiagnosticError) as e:
+        S.read_schedule(str(path))
+    assert f"tones[{n}] repeats frequency_hz" in e.value.diagnostics[0].message
