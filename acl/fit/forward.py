@@ -364,11 +364,29 @@ def latch_travel_exact(load, geometry, table, e_scale=1.0, steps=4):
     return u
 
 
-def _alpha0(inst, alpha_ref: float) -> float:
-    """Design value of alpha: a parameter named `alpha`, else the physics prediction at f_ref."""
-    for p in inst.design.params:
+def eq3_alpha_param(design):
+    """The design's parameter that gives paper Eq. (3)'s alpha: one named `alpha` whose unit is a force times an
+    area per volt squared (N m^2/V^2), else None.  A parameter that is only named alpha (`param alpha = 1`, an
+    angle, a design's own coefficient) is not the fit's alpha: read by name alone, `param alpha = 1` (1 N m^2/V^2 in
+    SI) made `acl synth` snap every pair in at 1 V."""
+    from acl.units import UnitError, parse_unit
+
+    for p in design.params:
         if p.name == "alpha":
-            return float(p.value)
+            try:
+                dims = parse_unit(p.unit)[1] if p.unit else (0,) * 7
+            except UnitError:
+                return None
+            return p if dims == parse_unit("N*m^2/V^2")[1] else None
+    return None
+
+
+def _alpha0(inst, alpha_ref: float) -> float:
+    """Design value of alpha: a parameter `alpha` in N m^2/V^2 (:func:`eq3_alpha_param`), else the physics
+    prediction at f_ref."""
+    p = eq3_alpha_param(inst.design)
+    if p is not None:
+        return float(p.value)
     return float(alpha_ref) if alpha_ref > 0 else 1.745e-19   # paper Eq. (3): 174.5 nN um^2/V^2
 
 

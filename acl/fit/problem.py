@@ -237,11 +237,13 @@ def _coef(role, name, design, P) -> Coef:
     if role == "alpha":
         v = P.alpha0
         lo, hi = v / 1e3, v * 1e3
-        if _has_param(design, "alpha"):
-            p = design.param("alpha")
+        from acl.fit.forward import eq3_alpha_param
+
+        p = eq3_alpha_param(design)
+        if p is not None:
             lo = p.lower if p.lower is not None else lo
             hi = p.upper if p.upper is not None else hi
-        return Coef("alpha", "alpha", v, lo, hi, v, "N*m^2/V^2", design_param="alpha" if _has_param(design, "alpha") else None)
+        return Coef("alpha", "alpha", v, lo, hi, v, "N*m^2/V^2", design_param="alpha" if p is not None else None)
     if role.split("@")[0] in ("f0", "q"):
         what, _, cap = role.partition("@")
         cap = cap or P.ref_capsule
@@ -309,8 +311,11 @@ def classify_params(path, design, search_paths=()) -> dict:
 
     roles = {}
     base = design.model_dump(exclude={"params", "sources", "file"})
+    from acl.fit.forward import eq3_alpha_param
+
+    alpha = eq3_alpha_param(design)
     for p in design.params:
-        if p.name == "alpha":
+        if p is alpha:
             roles[p.name] = "alpha"
             continue
         if not p.value:
@@ -324,7 +329,7 @@ def classify_params(path, design, search_paths=()) -> dict:
         new = d.model_dump(exclude={"params", "sources", "file"})
         changed = set(_diff(base, new))
         if not changed:
-            roles[p.name] = "alpha" if p.name == "alpha" else ("gamma" if p.name == "gamma" else "unused")
+            roles[p.name] = "alpha" if p is alpha else ("gamma" if p.name == "gamma" else "unused")
         elif all(c.endswith("thrust_coefficient") for c in changed):
             roles[p.name] = "gamma"
         elif all(c.endswith("youngs_modulus") for c in changed):
