@@ -345,7 +345,8 @@ def run(args) -> int:
     try:
         write_csv(data, args.output)
     except OSError as exc:
-        return _usage(f"cannot write {args.output!r}: {exc.strerror or exc}", where="<--output>", code="E601")
+        return _usage(f"cannot write {args.output!r}: {exc.strerror or exc}", where="<--output>",
+                      code="E-USAGE" if isinstance(exc, IsADirectoryError) else "E601")
     if args.output_format == "json":
         import json
         import sys
@@ -466,7 +467,8 @@ def _replay(args, noise) -> int:
     try:
         write_csv(data, args.output)
     except OSError as exc:
-        return _usage(f"cannot write {args.output!r}: {exc.strerror or exc}", where="<--output>", code="E601")
+        return _usage(f"cannot write {args.output!r}: {exc.strerror or exc}", where="<--output>",
+                      code="E-USAGE" if isinstance(exc, IsADirectoryError) else "E601")
     console.print(f"wrote {data.n} rows ({len(waypoints) - lost} waypoints x {len(names or known)} observables"
                   + (f", {res.contacts} gaps in contact at snap-ins" if res.contacts else "") + f") to {args.output}")
     for goal, t in res.tracking.items():

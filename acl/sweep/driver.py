@@ -37,6 +37,27 @@ class ChunkTask:
                 "code": batch.code.copy(), **cols}
 
 
+def left_out(design: Design, at: str | None = None) -> list[str]:
+    """One note per kind of column the batched evaluation leaves out for ``design`` (its quantity families and
+    lint rules), each with its reason.  Without it a design with declared effects lost its deflection, snap-in,
+    force and latch columns silently (issue 23): a column that is absent must be named."""
+    from acl.sweep.evaluate import supported
+
+    _, missing = supported(design, at)
+    absent = set()                           # families this design would not have anyway
+    if not design.latches:
+        absent |= {"switching_force_", "release_force_", "bistable_", "margin_"}
+    if len(design.capsules) < 2:
+        absent |= {"force_", "attract_", "phase_", "critical_distance_", "snap_in_"}
+    by_reason: dict[str, list[str]] = {}
+    for key, why in missing.items():
+        if key.startswith("require_") or key in absent:
+            continue                          # requires: reported one by one (unevaluated)
+        name = key.rstrip("_") + ("*" if key.endswith("_") else "")
+        by_reason.setdefault(why, []).append(name)
+    return [f"columns left out: {', '.join(names)}: {why}" for why, names in by_reason.items()]
+
+
 def choose_quantities(design: Design, quantities=None, at: str | None = None) -> tuple[list[str], dict[str, str]]:
     """(columns to compute, {require_i: why not evaluated}); unknown names raise DiagnosticError."""
     from acl.sweep.evaluate import supported
@@ -105,6 +126,8 @@ def run_sweep(design: Design, spec: SweepSpec, quantities=None, at: str | None =
     order = ["point", *spec.names, "valid", "code", *cols]
     units = {n: spec.units[n] for n in spec.names}
     notes = list(spec.notes) + list(fmap.notes)
+    if quantities is None:
+        notes += left_out(design, at)
     if dropped and quantities is None:
         notes.append(f"{len(dropped)} column(s) left out: " + next(iter(dropped.values())))
     notes += [why for why in unevaluated.values()]
