@@ -13,6 +13,7 @@ from acl.sweep.perturb import FieldMap, field_batch, field_map
 from acl.sweep.sample import chunk_points, chunk_range
 from acl.sweep.spec import SweepSpec
 from acl.sweep.table import SweepTable, assemble
+from acl.sweep.validity import mark_outside_free_ranges, without_free_ranges
 
 
 @dataclass(frozen=True)
@@ -31,7 +32,9 @@ class ChunkTask:
         spec = self.spec
         start, stop = chunk_range(spec, k, spec.chunk_size)
         pts = chunk_points(spec, k, spec.chunk_size)
-        batch = field_batch(self.design, pts, self.fmap)
+        # one rule with acl tune: a `free` range bounds the grid's or nominal value, not the print about it
+        batch = field_batch(without_free_ranges(self.design), pts, self.fmap)
+        mark_outside_free_ranges(batch, self.design, chunk_points(spec, k, spec.chunk_size, spread=False))
         cols = evaluate(batch, list(self.quantities), self.at)
         return {"point": np.arange(start, stop, dtype=np.int64), **pts, "valid": batch.valid.copy(),
                 "code": batch.code.copy(), **cols}

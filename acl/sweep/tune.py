@@ -301,8 +301,9 @@ class Problem:
         self.fmap = field_map(self.design, names, box, search_paths=self.search_paths)
         # `free in lo .. hi` bounds where the search may put the drawn value; a printed device deviates
         # from it by its spread, beyond the range too: such samples are devices, not E306 points
-        unbounded = tuple(q.model_copy(update={"lower": None, "upper": None}) if q.free else q for q in self.design.params)
-        self.batch_design = self.design.model_copy(update={"params": unbounded})
+        from acl.sweep.validity import without_free_ranges
+
+        self.batch_design = without_free_ranges(self.design)
 
     def points(self, x: np.ndarray, block: int = 0) -> dict[str, np.ndarray]:
         """{parameter: SI values} of the search (block 0) or validation (block 1) sample about free values ``x``."""
