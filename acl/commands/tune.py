@@ -38,6 +38,8 @@ def add_parser(p) -> None:
     p.add_argument("-o", "--output", metavar="PATH", default=None,
                    help="where to write the tuned design (default: <stem>.tuned.acl next to DESIGN)")
     p.add_argument("--no-write", action="store_true", help="report only; write no tuned design")
+    p.add_argument("--timeout", type=_seconds, default=None, metavar="SECONDS",
+                   help="on a cluster: how long to wait when it has no worker left before giving up (E601; default 60)")
     add_output_format(p)
     p.add_argument("--path", action="append", default=[], metavar="DIR", help="extra folder imports may read from")
 
@@ -169,9 +171,13 @@ def _search(T, problem, args):
     from acl._console import make_console
 
     console = make_console(stderr=True, highlight=False)
+
+    def note(text: str) -> None:
+        console.print(f"[yellow]note:[/yellow] {text}")
+
     if args.quiet or not console.is_terminal:
         return T.tune(problem, objective=args.objective, method=args.method, max_evals=args.max_evals,
-                      scheduler=args.scheduler)
+                      scheduler=args.scheduler, timeout=args.timeout, notify=note)
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
     with Progress(TextColumn("tuning"), BarColumn(), MofNCompleteColumn(), TextColumn("best yield {task.fields[best]}"),
@@ -179,7 +185,7 @@ def _search(T, problem, args):
         task = bar.add_task("tune", total=args.max_evals, best="-")
         return T.tune(problem, objective=args.objective, method=args.method, max_evals=args.max_evals,
                       progress=lambda done, total, best: bar.update(task, completed=done, best=f"{best:.3f}"),
-                      scheduler=args.scheduler)
+                      scheduler=args.scheduler, timeout=args.timeout, notify=lambda text: bar.console.print(f"note: {text}"))
 
 
 def _command_line(args) -> str:
@@ -227,3 +233,16 @@ def _write_atomic(path: str, text: str) -> None:
     from acl.emit.atomic import write_text_atomic
 
     write_text_atomic(path, text)
+
+
+def _seconds(text: str) -> float:
+    import argparse
+    import math
+
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number of seconds") from None
+    if not (math.isfinite(v) and v > 0):
+        raise argparse.ArgumentTypeError(f"{text!r}: give a number of seconds > 0")
+    return v

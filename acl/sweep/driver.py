@@ -114,8 +114,9 @@ def _nominal_program_only(design: Design, fmap: FieldMap, cols: list[str], expli
 
 
 def run_sweep(design: Design, spec: SweepSpec, quantities=None, at: str | None = None, scheduler: str | None = None,
-              progress=None, overrides=None, search_paths=()) -> SweepTable:
-    """Evaluate every point of ``spec`` on ``design`` (loaded from ``design.file`` with ``overrides``)."""
+              progress=None, overrides=None, search_paths=(), timeout: float | None = None, notify=None) -> SweepTable:
+    """Evaluate every point of ``spec`` on ``design`` (loaded from ``design.file`` with ``overrides``);
+    ``timeout``/``notify``: a cluster without workers (acl.sweep.run.map_chunks)."""
     from acl.sweep.run import map_chunks
 
     cols, unevaluated = choose_quantities(design, quantities, at)
@@ -125,7 +126,7 @@ def run_sweep(design: Design, spec: SweepSpec, quantities=None, at: str | None =
         if f"require_{i}_pass" in dropped:
             unevaluated[f"require_{i}"] = f"require_{i} (`{r.text}`): {dropped[f'require_{i}_pass']}"
     task = ChunkTask(design, spec, fmap, tuple(cols), at)
-    parts = map_chunks(task, spec.n_chunks, scheduler, progress)
+    parts = map_chunks(task, spec.n_chunks, scheduler, progress, timeout, notify)
     order = ["point", *spec.names, "valid", "code", *cols]
     units = {n: spec.units[n] for n in spec.names}
     notes = list(spec.notes) + list(fmap.notes)

@@ -518,14 +518,16 @@ def _finite(x: float) -> float | None:
 
 
 def tune(problem: Problem, objective: str = "yield", method: str = "nelder-mead", max_evals: int = 200,
-         progress: Callable[[int, int, float], None] | None = None, scheduler: str | None = None) -> Tuned:
+         progress: Callable[[int, int, float], None] | None = None, scheduler: str | None = None,
+         timeout: float | None = None, notify: Callable[[str], None] | None = None) -> Tuned:
     """Search, then validate the start and the written values on the fresh sample.
 
     ``scheduler``: where trials run, as ``acl sweep --scheduler``: None/"local" (this machine, a
     thread per core) or "tcp://HOST:PORT" (a dask.distributed cluster, ``acl[scale]``).  Trials the
     search knows in advance (its scan, a differential-evolution generation, the first simplex, the
     validation) run together; each trial evaluates its whole sample in one task, so the result is
-    the same bit for bit on any scheduler.
+    the same bit for bit on any scheduler.  ``timeout``/``notify``: a cluster left without workers
+    (acl.sweep.run.map_chunks).
 
     Raises DiagnosticError E875 when no validation sample passes at the chosen values (infeasible
     within the free ranges, as far as the search looked).
@@ -543,7 +545,7 @@ def tune(problem: Problem, objective: str = "yield", method: str = "nelder-mead"
         problem.setup()
     t0 = time.perf_counter()
     start = np.array([f.start for f in problem.free], float)
-    with Executor(scheduler, connect=False) as ex:
+    with Executor(scheduler, connect=False, timeout=timeout, notify=notify) as ex:
         def run(jobs: list) -> list:
             return ex.map(MarginJobs(problem, tuple((tuple(float(v) for v in x), b) for x, b in jobs)), len(jobs))
 
