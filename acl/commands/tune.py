@@ -87,7 +87,9 @@ def run(args) -> int:
     if args.output == "-":
         diags.append(error("E-USAGE", "--output -: standard output cannot hold the tuned design (it extends DESIGN by a "
                            "relative path)", Span(file="<--output>", line=1, column=1), "give a path, or --no-write"))
-    if args.output and args.output.strip() and not args.output.endswith(".acl") and args.output != "-":
+    folder_out = bool(args.output and args.output.strip() and args.output != "-"
+                      and (args.output.endswith(("/", os.sep)) or os.path.isdir(args.output)))
+    if args.output and args.output.strip() and not folder_out and not args.output.endswith(".acl") and args.output != "-":
         diags.append(error("E-USAGE", f"--output {args.output!r}: a design file ends in .acl",
                            Span(file="<--output>", line=1, column=1), "e.g. -o tuned.acl"))
     from acl.sweep.run import scheduler_kind
@@ -102,11 +104,20 @@ def run(args) -> int:
     from acl.sweep import tune as T
 
     out_path = os.path.abspath(args.output) if args.output else T.default_path(design)
+    if folder_out:                  # -o FOLDER/: <stem>.tuned.acl in it
+        out_path = os.path.join(os.path.abspath(args.output), os.path.basename(T.default_path(design)))
     if not args.no_write:
         folder = os.path.dirname(out_path)
         if not os.path.isdir(folder):
             report([error("E601", f"cannot write the tuned design: no such folder {folder}",
                           Span(file="<--output>", line=1, column=1))], fmt)
+            return 2
+        if not _reaches(folder, design, args.path):
+            # `extends` reads only the tuned file's folder and below, and --path folders (E210 otherwise)
+            report([error("E-USAGE", f"--output {args.output}: the tuned design extends {design}, which a design in "
+                          f"{folder} may not read (acl check would refuse it: E210)", Span(file="<--output>", line=1, column=1),
+                          f"write it in {os.path.dirname(os.path.abspath(design)) or '.'} or a folder above it (the default "
+                          "is beside DESIGN), or pass --path with DESIGN's folder here and to acl check/compile")], fmt)
             return 2
         if os.path.abspath(design) == out_path:
             report([error("E-USAGE", "--output names DESIGN itself; the tuned design extends it",
@@ -188,6 +199,13 @@ def _search(T, problem, args):
                       scheduler=args.scheduler, timeout=args.timeout, notify=lambda text: bar.console.print(f"note: {text}"))
 
 
+def _reaches(folder: str, design: str, paths) -> bool:
+    """Whether a design in ``folder`` may extend ``design``: it lies in ``folder`` or below, or in a --path folder."""
+    real = os.path.realpath(design)
+    roots = [os.path.realpath(folder), *(os.path.realpath(p) for p in paths or ())]
+    return any(real.startswith(r.rstrip(os.sep) + os.sep) for r in roots)
+
+
 def _command_line(args) -> str:
     parts = ["acl tune", os.path.basename(args.design)]
     parts += [f"--tolerance '{t}'" for t in args.tolerance]
@@ -205,6 +223,11 @@ def _render(result, written, quiet) -> None:
 
     console = make_console()
     p = result.problem
+    summary = (f"yield before {result.before.text()}, after {result.after.text()} "
+               f"({result.objective}, {result.search.evaluations} trials on {p.samples} samples, seed {p.seed})")
+    if quiet:                       # -q: the one line, as acl sweep -q
+        print(summary)
+        return
     t = Table(title="Free parameters")
     for col in ("parameter", "start", "chosen", "range"):
         t.add_column(col)
@@ -220,9 +243,8 @@ def _render(result, written, quiet) -> None:
         r.add_row(q["text"], str(q["line"]), q["before"].text(), q["after"].text(), shown)
     r.add_row("all together", "", result.before.text(), result.after.text(), "")
     console.print(r)
-    print(f"yield before {result.before.text()}, after {result.after.text()} "
-          f"({result.objective}, {result.search.evaluations} trials on {p.samples} samples, seed {p.seed})")
-    if written and not quiet:
+    print(summary)
+    if written:
         here = os.path.relpath(written)
         shown = here if not here.startswith("..") else written
         make_console(stderr=True, highlight=False).print(f"tuned design written to {shown}")
