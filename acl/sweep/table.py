@@ -144,6 +144,63 @@ class SweepTable:
 
         return pd.DataFrame({c: self.data[c] for c in self.columns})
 
+    # -- notebook display --------------------------------------------------------------------
+    def _repr_html_(self) -> str:
+        """The summary, the yield of each require, the yield per grid point and the first rows."""
+        from acl.notebook import html_table
+
+        y = self.yields()
+        out = html_table(f"Sweep: {len(self)} points", ["yield of", "yield [95% interval]", "points"],
+                         [[k, v.text(), f"{v.passed} of {v.total}"] for k, v in y.items()], self.summary_line())
+        g = self.grid_yield()
+        if g is not None:
+            grid = list(zip(*np.unravel_index(np.arange(g.size), g.shape)))
+            rows = [[*(_short(a.values[i], a.unit) for a, i in zip(self.spec.axes, idx)), f"{g[idx]:.3f}"]
+                    for idx in grid[:200]]
+            out += html_table("Yield per grid point", [a.name for a in self.spec.axes] + ["yield"], rows,
+                              f"first 200 of {g.size}" if g.size > 200 else "")
+        cols = self.columns
+        head = [[_cell(self.data[c][i]) for c in cols] for i in range(min(len(self), 10))]
+        out += html_table("First rows", list(cols), head, f"{len(self)} rows: .data, .to_arrow(), .to_pandas()")
+        return out
+
+    def plot(self, ax=None):
+        """The yield per grid point (one varied parameter: a curve; more: the first axis, others at their
+        first value) or, for a Monte Carlo without a grid, a histogram of the first quantity, passing points
+        apart; returns the matplotlib Axes (acl.notebook.new_axes: a new Figure, never pyplot)."""
+        from acl.notebook import new_axes
+
+        ax = new_axes(ax)
+        g = self.grid_yield()
+        if g is not None:
+            a = self.spec.axes[0]
+            curve = g.reshape(g.shape[0], -1)[:, 0]
+            scale, unit = _display_unit(a.unit)
+            ax.plot(a.values * scale, curve, "o-")
+            ax.set_xlabel(f"{a.name} ({unit})" if unit else a.name)
+            ax.set_ylabel("yield")
+            ax.set_ylim(-0.02, 1.02)
+            ax.set_title("yield per grid point")
+            return ax
+        skip = {"point", "valid", "code", *self.spec.names}
+        col = next((c for c in self.columns if c not in skip and self.data[c].dtype.kind == "f"), None)
+        if col is None:
+            ax.set_title("no quantity to plot")
+            return ax
+        v = self.data[col]
+        ok = self.passed
+        scale, unit = _display_unit(self.column_units().get(col, ""))
+        finite = np.isfinite(v)
+        if ok is None:
+            ax.hist(v[finite] * scale, bins=40)
+        else:
+            ax.hist([v[finite & ok] * scale, v[finite & ~ok] * scale], bins=40, stacked=True, label=["pass", "fail"])
+            ax.legend(fontsize="small")
+        ax.set_xlabel(f"{col} ({unit})" if unit else col)
+        ax.set_ylabel("points")
+        ax.set_title(self.summary_line()[:70])
+        return ax
+
     # -- yields ------------------------------------------------------------------------------
     @property
     def passed(self) -> np.ndarray | None:
@@ -208,6 +265,19 @@ class SweepTable:
             "not_evaluated": self.unevaluated,
             "notes": list(self.notes),
         }
+
+
+def _display_unit(unit: str) -> tuple[float, str]:
+    return {"m": (1e6, "um"), "Hz": (1e-3, "kHz")}.get(unit, (1.0, unit))
+
+
+def _short(v, unit: str) -> str:
+    scale, shown = _display_unit(unit)
+    return f"{float(v) * scale:.4g} {shown}".strip()
+
+
+def _cell(v) -> str:
+    return f"{v:.6g}" if isinstance(v, (float, np.floating)) else str(v)
 
 
 _SUFFIX_UNITS = (("_hz", "Hz"), ("_m", "m"), ("_n", "N"), ("_v", "V"))

@@ -491,6 +491,39 @@ class Tuned:
         chosen = ", ".join(f"{f.name}={literal(c, f.unit)}" for f, c in zip(self.problem.free, self.chosen))
         return f"<Tuned {chosen}: yield before {self.before.text()}, after {self.after.text()}>"
 
+    def _repr_html_(self) -> str:
+        """The free parameters (start, chosen, range) and the yield before and after, per require."""
+        from acl.notebook import html_table
+
+        p = self.problem
+        out = html_table("Free parameters", ["parameter", "start", "chosen", "range"],
+                         [[f.name, literal(s, f.unit), literal(c, f.unit), f"{literal(f.lower, f.unit)} .. {literal(f.upper, f.unit)}"]
+                          for f, s, c in zip(p.free, self.start, self.chosen)])
+        rows = [[q["text"], q["before"].text(), q["after"].text()] for q in self.per_require]
+        rows.append(["all together", self.before.text(), self.after.text()])
+        return out + html_table(f"Yield on {p.validate} fresh samples (95% Clopper-Pearson interval)",
+                                ["requirement", "before", "after"], rows,
+                                f"{self.objective}, {self.search.evaluations} trials on {p.samples} samples, seed {p.seed}")
+
+    def plot(self, ax=None):
+        """The search: each trial's exact yield on the search sample, and the best so far; returns the Axes."""
+        from acl.notebook import new_axes
+
+        ax = new_axes(ax)
+        n = max(self.problem.samples, 1)
+        y = np.array([h[2] for h in self.search.history], float) / n
+        k = np.arange(1, len(y) + 1)
+        ax.plot(k, y, ".", alpha=0.6, label="trial")
+        if len(y):
+            ax.plot(k, np.maximum.accumulate(y), "-", label="best so far")
+        ax.axhline(self.after.value, ls="--", color="0.4", lw=1, label=f"validated after: {self.after.value:.3f}")
+        ax.set_xlabel("trial")
+        ax.set_ylabel("yield (search sample)")
+        ax.set_ylim(-0.02, 1.02)
+        ax.set_title("acl tune: search")
+        ax.legend(fontsize="small")
+        return ax
+
     def to_json(self) -> dict:
         def est(e: Estimate) -> dict:
             lo, hi = e.interval
