@@ -196,6 +196,14 @@ def _lost(address: str, what: str, hint: str) -> DiagnosticError:
     return DiagnosticError([error("E601", f"--scheduler {address}: {what}", _WHERE, hint)])
 
 
+def _scheduler_info(client) -> dict:
+    """The scheduler's identity, with at most one worker's details where dask can limit them."""
+    try:
+        return client.scheduler_info(n_workers=1)
+    except TypeError:                                  # an older distributed: no n_workers
+        return client.scheduler_info()
+
+
 def _on_cluster(client, task, n_chunks, progress, timeout: float = WORKER_TIMEOUT_S, address: str = "",
                 notify: Callable[[str], None] | None = None) -> list:
     """Chunks on the cluster, in order.  The cluster going away is a located E601, never a hang:
@@ -237,7 +245,7 @@ def _on_cluster(client, task, n_chunks, progress, timeout: float = WORKER_TIMEOU
             if client.status != "running":
                 continue                               # reconnecting: the futures are cancelled if it fails
             try:
-                workers = len(client.scheduler_info().get("workers", {}))
+                workers = len(_scheduler_info(client).get("workers", {}))
             except (OSError, TimeoutError, cf.TimeoutError):
                 continue
             if workers:
