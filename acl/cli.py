@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
 
 COMMANDS = {
@@ -177,6 +178,20 @@ def _terminate(signum, frame):
     raise Terminated(signum)
 
 
+def _unraisable(info):
+    """An interrupt that lands in a callback Python cannot raise from (a weakref callback of the import system)
+    is not lost and prints no traceback: the signal is sent again and arrives where it can unwind the command."""
+    import os
+    import signal
+
+    if info.exc_type is not None and issubclass(info.exc_type, KeyboardInterrupt):
+        signum = (int(info.exc_value.args[0]) if isinstance(info.exc_value, Terminated) and info.exc_value.args
+                  else int(signal.SIGINT))
+        os.kill(os.getpid(), signum)
+        return
+    sys.__unraisablehook__(info)
+
+
 def _on_termination():
     """Make SIGTERM and SIGHUP unwind like Ctrl-C (the temporary files and folders of every writer are removed
     on the way out); returns the handlers to restore.  Before, `timeout` or a batch scheduler's SIGTERM
@@ -186,6 +201,7 @@ def _on_termination():
 
     if threading.current_thread() is not threading.main_thread():
         return {}
+    sys.unraisablehook = _unraisable
     old = {}
     for sig in (signal.SIGTERM, getattr(signal, "SIGHUP", None)):
         if sig is None:
@@ -292,10 +308,18 @@ def _terminated(exc: Terminated) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
+    import warnings
+
+    hook = sys.unraisablehook
     old = _on_termination()
     _prepare_streams()
     try:
-        code = _main(argv)
+        with warnings.catch_warnings():
+            if not os.environ.get("ACL_DEBUG"):
+                # a Python warning (numpy's overflow in an extreme design, a library's deprecation) is no
+                # diagnostic: acl reports what it finds as located W codes, or nothing (ACL_DEBUG=1 shows them)
+                warnings.simplefilter("ignore")
+            code = _main(argv)
         try:
             sys.stdout.flush()
         except OSError as exc:
@@ -303,11 +327,18 @@ def main(argv: list[str] | None = None) -> int:
         return code
     except Terminated as exc:          # before or after the command ran (argument parsing, the last flush)
         return _terminated(exc)
+    except KeyboardInterrupt:          # Ctrl-C while the command's modules are imported
+        try:
+            sys.stderr.write("acl: interrupted\n")
+        except (OSError, ValueError):
+            pass
+        return 130
     finally:
         import signal
 
         for sig, handler in old.items():
             signal.signal(sig, handler)
+        sys.unraisablehook = hook
 
 
 def _main(argv: list[str] | None = None) -> int:
