@@ -22,6 +22,7 @@ COMMANDS = {
     "fmt": "Rewrite designs in the one canonical layout (--check for CI, --diff, - for stdin).",
     "sweep": "Sweep parameters over grids and print tolerances (Monte Carlo): a table per point and the yield.",
     "tune": "Choose the free parameters that maximise the yield of every require under print tolerances.",
+    "play": "Play a compiled schedule on a signal generator (SCPI over PyVISA; --dry-run prints it).",
     "lsp": "Start the language server (LSP over stdio) for editors; needs acl[lsp].",
 }
 

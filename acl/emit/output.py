@@ -28,7 +28,7 @@ from acl.emit.writers import CSV_BYTES_PER_SAMPLE, FORMATS, WRITERS
 from acl.schedule.model import Schedule
 
 # names acl writes into an output directory (and only these may ever be removed from one)
-_ACL_NAME = re.compile(r"^(schedule\.json|segments\.csv|waveform(-samples)?\.(wav|npy|csv)|goal-step[0-9]+\.png)$")
+_ACL_NAME = re.compile(r"^(schedule\.json|segments\.csv|sequence\.seq|waveform(-samples)?\.(wav|npy|csv)|goal-step[0-9]+\.png)$")
 CSV_WARN_BYTES = 100 * 2 ** 20
 MAX_SAMPLES = 1 << 36              # 64 Gi samples: 256 GiB of float32 in any format
 
@@ -164,6 +164,8 @@ def emit(schedule: Schedule, out_dir: str, formats=("wav",), sample_rate: float 
         writers = []
         try:
             for f in formats:
+                if f == "seq":          # tones, not samples: written below
+                    continue
                 cls, name = WRITERS[f]
                 writers.append(cls(os.path.join(tmp, name), n, fs, schedule.full_scale_v))
                 result.files[f] = name
@@ -176,6 +178,13 @@ def emit(schedule: Schedule, out_dir: str, formats=("wav",), sample_rate: float 
                 w.close()
         write_segments_csv(os.path.join(tmp, "segments.csv"), schedule)
         result.files["segments"] = "segments.csv"
+        if "seq" in formats:
+            from acl.emit.seq import drives_of_schedule, write_seq
+
+            write_seq(os.path.join(tmp, "sequence.seq"), drives_of_schedule(schedule),
+                      {"program": schedule.program, "source": schedule.source,
+                       "amplitudes": "peak volts at the transducer input"})
+            result.files["seq"] = "sequence.seq"
         if plot:
             from acl.emit.plot import plot_goal
 
