@@ -58,6 +58,7 @@ class Plan:
         out += [f"# note: {n}" for n in self.notes]
         for step in [self.setup, *self.steps, self.stop]:
             if step is self.stop:
+                out.append("SYST:ERR?")          # the player's check of the error queue
                 out.append(f"# t={self.duration_s:.6g} s: stop")
             elif step.at_s is not None:
                 out.append(f"# t={step.at_s:.6g} s")
@@ -65,6 +66,8 @@ class Plan:
                 out.append(s.command)
                 if s.query:
                     out.append(s.query)
+            if step is self.setup:
+                out.append("SYST:ERR?")
         return "\n".join(out) + "\n"
 
 
@@ -102,7 +105,7 @@ class _Dialect:
         return Setting(f"OUTP{c} {'ON' if on else 'OFF'}", f"OUTP{c}?", "ON" if on else "OFF")
 
     def load(self, c):
-        return Setting(f"OUTP{c}:LOAD INF", f"OUTP{c}:LOAD?", 9.9e37, 1e33)
+        return Setting(f"OUTP{c}:LOAD INF", f"OUTP{c}:LOAD?", "INF")
 
 
 def _refuse(meta, i, message, hint=None):
@@ -205,8 +208,8 @@ def _steps(drives, meta, gen: Generator, amp: Amplifier, duration: float) -> Pla
     for c in channels:
         setup.settings.append(dl.output(c, False))
     chan_freq = {c: None for c in channels}
-    for c in used_channels:
-        setup.settings += [dl.func(c, "SIN"), dl.load(c), dl.offset(c)]
+    for c in used_channels:      # a combining Keysight's tone is off as 0 V DC (output 1 carries both)
+        setup.settings += [dl.func(c, "DC" if gen.combine else "SIN"), dl.load(c), dl.offset(c)]
     if gen.combine and len(used_channels) > 1:
         setup.settings.append(Setting("SOUR1:COMB:FEED CH2", "SOUR1:COMB:FEED?", "CH2"))
     steps = []
@@ -228,6 +231,8 @@ def _steps(drives, meta, gen: Generator, amp: Amplifier, duration: float) -> Pla
             elif chan_on[c]:
                 step.settings.append(_on(dl, gen, c, False))
                 chan_on[c] = False
+        if gen.combine and not steps:
+            step.settings.append(dl.output(1, True))
         if step.settings:
             steps.append(step)
     stop = Step(duration, [dl.output(c, False) for c in channels])

@@ -74,6 +74,11 @@ def _agrees(answer: str, s: Setting) -> bool:
         return math.isfinite(value) and abs(value - s.expect) <= s.tol
     a = answer.strip().strip('"').upper()
     e = str(s.expect).upper()
+    if e == "INF":                          # high impedance: INF, or the Keysight's 9.9E+37
+        try:
+            return a == "INF" or float(a) >= 9e37
+        except ValueError:
+            return False
     if e in ("ON", "OFF"):
         return a in ((e, "1") if e == "ON" else (e, "0"))
     return a == e or a.endswith("\\" + e + ".SEQ") or a.endswith("\\" + e + ".ARB")
