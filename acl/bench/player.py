@@ -103,11 +103,17 @@ def _send(inst, s: Setting, result: PlayResult) -> None:
 
 
 def identify(inst) -> str:
+    """The *IDN? answer; E-PLAY-CONNECT when nothing (or nothing readable) answers."""
     try:
-        return inst.query("*IDN?").strip()
+        answer = inst.query("*IDN?").strip()
     except Exception as exc:
-        raise DiagnosticError([error("E-PLAY-IO", f"no answer to *IDN?: {str(exc).splitlines()[0]}", WHERE)]) \
-            from None
+        answer, why = "", str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+    else:
+        why = "an empty answer"
+    if not answer:
+        raise DiagnosticError([error("E-PLAY-CONNECT", f"no instrument answers *IDN? at {inst.resource_name}: {why}",
+                                     WHERE, "check the address (`python -m pyvisa info`) and the cable")])
+    return answer
 
 
 def _errors(inst, result: PlayResult) -> None:
