@@ -200,18 +200,15 @@ def _quantizing_sim(tmp_path):
 
 
 def test_readback_mismatch_stops_with_output_off(tmp_path):
+    """An instrument that holds 0.41 Vpp when sent 0.4123 (it rounds): E-PLAY-READBACK, outputs off."""
     from acl.diagnostics import DiagnosticError
 
     inst = _sim(_quantizing_sim(tmp_path))
-    p = _plan(TWO, "afg2225")
-    p.steps[0].settings[2:2] = []
+    p = _plan(_schedule(tmp_path, [[(125e3, 2.0)], [(125e3, 4.123)]]), "afg2225")
     with pytest.raises(DiagnosticError) as exc:
-        # 0.4 Vpp reads back 4.0E-01: equal; the next, 0.2, too; make one that is not: 0.2501
-        from acl.bench.plan import _num
-
-        p.steps[0].settings[1] = _num("SOUR1:AMP", "SOUR1:AMP?", 0.2501, 4)
         _play(p, inst)
-    assert exc.value.diagnostics[0].code == "E-PLAY-READBACK"
+    d = exc.value.diagnostics[0]
+    assert d.code == "E-PLAY-READBACK" and "'+4.1E-01' after `SOUR1:AMP 0.4123`" in d.message
     assert inst.query("OUTP1?") == "OFF" and inst.query("OUTP2?") == "OFF"
 
 

@@ -32,8 +32,11 @@ class _Stop(Exception):
 
 def check_address(resource: str) -> None:
     """E-PLAY-RESOURCE unless ``resource`` is a VISA resource name (``USB0::...::INSTR``, ``TCPIP::...``)."""
-    from pyvisa import rname
-
+    try:
+        from pyvisa import rname
+    except ImportError:
+        raise DiagnosticError([error("E-PLAY-CONNECT", "talking to an instrument needs PyVISA: "
+                                     "pip install 'acl[bench]' (--dry-run needs nothing)", WHERE)]) from None
     try:
         rname.parse_resource_name(resource)
     except Exception as exc:     # pyvisa raises InvalidResourceName (a ValueError) with its reason
