@@ -23,6 +23,7 @@ COMMANDS = {
     "sweep": "Sweep parameters over grids and print tolerances (Monte Carlo): a table per point and the yield.",
     "tune": "Choose the free parameters that maximise the yield of every require under print tolerances.",
     "play": "Play a compiled schedule on a signal generator (SCPI over PyVISA; --dry-run prints it).",
+    "track": "Track a capsule in a microscope video (AVI, MP4, TIFF stack) into the CSV `acl fit` reads.",
     "lsp": "Start the language server (LSP over stdio) for editors; needs acl[lsp].",
 }
 
