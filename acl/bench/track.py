@@ -282,6 +282,8 @@ def track_video(path: str, roi: tuple[int, int, int, int] | None = None, fps: fl
     if not out:
         _fail("E-TRACK-VIDEO", f"{path!r} holds no frames", path)
     a = np.array(out)
+    if len(a) > 1:      # frame 0 is the template (shift 0, no residual): its noise is in every other frame's sigma
+        a[0, 3], a[0, 4] = np.median(a[1:, 3]), np.median(a[1:, 4])
     return Track(a[:, 0], a[:, 1], a[:, 2], a[:, 3], a[:, 4], roi, float(rate), lost)
 
 
@@ -293,6 +295,7 @@ def csv_text(track: Track, name: str, scale_um: float, source: str) -> str:
              "observable,value,unit,drive,time,sigma"]
     floor = 1e-6            # um: a sigma the fit accepts (it refuses non-positive ones)
     for t, dx, dy, ex, ey in zip(track.time, track.x, track.y, track.sigma_x, track.sigma_y):
+        dx, dy = (0.0 if abs(v) < 1e-9 else v for v in (dx, dy))
         lines.append(f"{name}_x,{dx * scale_um:.6g},um,,{t:.9g},{max(ex * scale_um, floor):.3g}")
         lines.append(f"{name}_y,{dy * scale_um:.6g},um,,{t:.9g},{max(ey * scale_um, floor):.3g}")
     return "\n".join(lines) + "\n"
