@@ -85,8 +85,11 @@ def _limit(design: Design, limits: Limits | None, opts: CompileOptions) -> tuple
     if opts.max_voltage is not None:
         vmax = opts.max_voltage
     else:
+        amp, gen = design.amplifier, design.generator       # the declared drive chain caps the drive too
         cands = [v for v in ((limits.max_voltage if limits else None),
-                             design.transducer.max_voltage if design.transducer else None) if v]
+                             design.transducer.max_voltage if design.transducer else None,
+                             amp.max_voltage if amp else None,
+                             gen.max_voltage * (amp.gain if amp else 1.0) if gen else None) if v]
         vmax = min(cands) if cands else DEFAULT_MAX_VOLTAGE
     return vmax, (limits.slew_rate if limits else None)
 
