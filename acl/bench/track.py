@@ -287,15 +287,34 @@ def track_video(path: str, roi: tuple[int, int, int, int] | None = None, fps: fl
     return Track(a[:, 0], a[:, 1], a[:, 2], a[:, 3], a[:, 4], roi, float(rate), lost)
 
 
-def csv_text(track: Track, name: str, scale_um: float, source: str) -> str:
+def drive_cells(times, drives, sync_s: float) -> list[str]:
+    """The drive playing at each frame (``drive`` cells of docs/data.md): the schedule's segment at
+    ``time - sync_s`` (the schedule starts ``sync_s`` seconds into the video); empty outside it or
+    in a pause."""
+    from acl.fit.drive import format_drive
+
+    starts = np.array([d.start_s for d in drives])
+    ends = starts + np.array([d.duration_s for d in drives])
+    cells = []
+    for t in np.asarray(times) - sync_s:
+        k = int(np.searchsorted(starts, t, side="right")) - 1
+        if k < 0 or t >= ends[k] or not drives[k].tones:
+            cells.append("")
+        else:
+            cells.append(format_drive([(f, a) for f, a, _ in drives[k].tones]))
+    return cells
+
+
+def csv_text(track: Track, name: str, scale_um: float, source: str, drives: list[str] | None = None) -> str:
     """The data format `acl fit` reads (docs/data.md): rows NAME_x and NAME_y per frame, um."""
     x, y, w, h = track.roi
     lines = [f"# acl track {source}: template {w}x{h} px at ({x}, {y}) px, {scale_um:g} um/px, "
              f"{track.fps:g} frames/s; values are displacements since the first frame (x right, y down)",
              "observable,value,unit,drive,time,sigma"]
     floor = 1e-6            # um: a sigma the fit accepts (it refuses non-positive ones)
-    for t, dx, dy, ex, ey in zip(track.time, track.x, track.y, track.sigma_x, track.sigma_y):
+    drives = drives or [""] * len(track.time)
+    for t, dx, dy, ex, ey, dr in zip(track.time, track.x, track.y, track.sigma_x, track.sigma_y, drives):
         dx, dy = (0.0 if abs(v) < 1e-9 else v for v in (dx, dy))
-        lines.append(f"{name}_x,{dx * scale_um:.6g},um,,{t:.9g},{max(ex * scale_um, floor):.3g}")
-        lines.append(f"{name}_y,{dy * scale_um:.6g},um,,{t:.9g},{max(ey * scale_um, floor):.3g}")
+        lines.append(f"{name}_x,{dx * scale_um:.6g},um,{dr},{t:.9g},{max(ex * scale_um, floor):.3g}")
+        lines.append(f"{name}_y,{dy * scale_um:.6g},um,{dr},{t:.9g},{max(ey * scale_um, floor):.3g}")
     return "\n".join(lines) + "\n"

@@ -26,6 +26,10 @@ def add_parser(p) -> None:
     p.add_argument("--name", default="capsule", metavar="NAME",
                    help="observable prefix: rows NAME_x and NAME_y (default capsule)")
     p.add_argument("--fps", metavar="F", help="frames per second, for a TIFF stack that records none")
+    p.add_argument("--schedule", metavar="JSON", help="the schedule.json the video recorded: fills each row's "
+                                                      "`drive` with the drive playing at that frame")
+    p.add_argument("--sync", default="0", metavar="S",
+                   help="with --schedule: the video time (s) at which the schedule starts (default 0)")
 
 
 def _usage(code, option, message, hint=None):
@@ -81,20 +85,32 @@ def run(args) -> int:
     if not _NAME.match(args.name or ""):
         diags.append(_usage("E-USAGE", "--name", f"--name {args.name!r} must be a name (letters, digits, _)"))
     diags += _output_ok(args.output)
+    try:
+        sync = float(args.sync)
+    except ValueError:
+        sync = float("nan")
+    if not (math.isfinite(sync) and abs(sync) < 1e9):
+        diags.append(_usage("E-USAGE", "--sync", f"--sync {args.sync!r} must be a number of seconds"))
     if os.path.abspath(args.output) == os.path.abspath(args.video):
         diags.append(_usage("E-TRACK-OUTPUT", "--output", f"-o {args.output!r} names the video"))
     if diags:
         report(diags)
         return 2
-    from acl.bench.track import csv_text, track_video
+    from acl.bench.track import csv_text, drive_cells, track_video
     from acl.emit.atomic import write_text_atomic
 
     try:
+        drives = None
+        if args.schedule is not None:
+            from acl.bench.schedule import load
+
+            drives, _ = load(args.schedule)
         track = track_video(args.video, roi, fps)
     except DiagnosticError as exc:
         report(exc.diagnostics)
         return 2
-    text = csv_text(track, args.name, scale, os.path.basename(args.video))
+    cells = drive_cells(track.time, drives, sync) if drives is not None else None
+    text = csv_text(track, args.name, scale, os.path.basename(args.video), cells)
     try:
         write_text_atomic(args.output, text)
     except OSError as exc:
