@@ -60,7 +60,7 @@ def render(x, y, width: int, height: int, origin=(0.0, 0.0), radius: float = 12.
         ys = slice(max(0, int(cym) - box - 4), min(height, int(cym) + box + 5))
         xs = slice(max(0, int(cxm) - box - 4), min(width, int(cxm) + box + 5))
         for k in range(motion_substeps):       # exposure: the second half of the motion since the last frame
-            f = 0.5 + 0.5 * (k + 0.5) / motion_substeps
+            f = 0.5 + 0.5 * (k + 0.5) / motion_substeps if motion_substeps > 1 else 1.0    # 1: no motion blur
             cx = origin[0] + x0 + f * (x[i] - x0)
             cy = origin[1] + y0 + f * (y[i] - y0)
             acc[ys, xs] += disc(xx[ys, xs], yy[ys, xs], cx, cy, radius, contrast)
@@ -80,5 +80,5 @@ def blur_centre(x, y, motion_substeps: int = 5):
     y = np.asarray(y, float)
     xp = np.concatenate([[x[0]], x[:-1]])
     yp = np.concatenate([[y[0]], y[:-1]])
-    f = np.mean([0.5 + 0.5 * (k + 0.5) / motion_substeps for k in range(motion_substeps)])
+    f = np.mean([0.5 + 0.5 * (k + 0.5) / motion_substeps for k in range(motion_substeps)]) if motion_substeps > 1 else 1.0
     return xp + f * (x - xp), yp + f * (y - yp)

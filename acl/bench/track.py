@@ -296,7 +296,7 @@ def drive_cells(times, drives, sync_s: float) -> list[str]:
     starts = np.array([d.start_s for d in drives])
     ends = starts + np.array([d.duration_s for d in drives])
     cells = []
-    for t in np.asarray(times) - sync_s:
+    for t in np.asarray(times) - sync_s + 1e-9:      # a frame on a boundary (to 1 ns) shows the new drive
         k = int(np.searchsorted(starts, t, side="right")) - 1
         if k < 0 or t >= ends[k] or not drives[k].tones:
             cells.append("")
