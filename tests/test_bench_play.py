@@ -308,3 +308,33 @@ def test_cli_plays_on_simulated_instrument(which, capsys):
     pytest.importorskip("pyvisa_sim")
     assert main(["play", TWO, "--resource", which[1], "--visa-library", os.path.join(DATA, which[0]) + "@sim"]) == 0
     assert "read back equal" in capsys.readouterr().err
+
+
+def test_the_declared_chain_recorded_by_compile_is_played(tmp_path, capsys):
+    """schedule.json records the design's `use generator`/`use amplifier`; acl play uses them unless
+    --instrument/--amplifier say otherwise: a declared 8 V amplifier refuses a 12 V drive."""
+    path = tmp_path / "s.json"
+    segs = [{"start_s": 0.0, "end_s": 0.01, "tones": [{"frequency_hz": 125e3, "amplitude_v": 12.0}]}]
+    chain = {"generator": {"name": "bench.keysight33522b", "max_voltage": 10.0},
+             "amplifier": {"name": "weak", "gain": 2.0, "max_voltage": 8.0, "bandwidth": 1e6}}
+    path.write_text(json.dumps({"version": "1.1", "segments": segs, "goals": [], "chain": chain}, indent=1))
+    assert main(["play", str(path), "--dry-run"]) == 1
+    err = capsys.readouterr().err
+    assert "E-PLAY-CHAIN" in err and "weak (declared)'s 8 V output" in err
+    assert main(["play", str(path), "--dry-run", "--amplifier", "hva200"]) == 0
+    out = capsys.readouterr().out
+    assert out.startswith("# acl play: Keysight 33522B -> Thorlabs HVA200 (gain 20), form: sequence")
+
+
+def test_compile_records_the_chain(tmp_path):
+    import shutil
+
+    shutil.copy(os.path.join(DATA, "loop.acl"), tmp_path / "loop.acl")
+    assert main(["compile", str(tmp_path / "loop.acl"), "--program", "ramp", "-o", str(tmp_path / "out"), "-q"]) == 0
+    data = json.loads((tmp_path / "out" / "schedule.json").read_text())
+    assert data["chain"]["amplifier"] == {"name": "bench.hva200", "gain": 20.0, "max_voltage": 200.0, "bandwidth": 1e6}
+    assert data["chain"]["generator"]["name"] == "bench.afg2225"
+    jsonschema = pytest.importorskip("jsonschema")
+    from acl.emit.schedule_json import load_schema
+
+    jsonschema.validate(data, load_schema())

@@ -108,6 +108,8 @@ def load(path: str) -> tuple[list[Drive], dict]:
     if not segs:
         _fail(path, "the schedule has no segments: nothing to play", hint=hint)
     meta = {k: data.get(k) for k in ("program", "source", "max_voltage_v", "duration_s", "ramp_s")}
+    chain = data.get("chain")
+    meta["chain"] = chain if isinstance(chain, dict) else {}
     drives = merge(segs)
     first = {}
     for i, (start, *_rest) in enumerate(segs):

@@ -23,13 +23,47 @@ def add_parser(p) -> None:
     p.add_argument("--dry-run", action="store_true", help="print the command stream; no instrument")
     p.add_argument("--instrument", choices=sorted(GENERATORS), default=None,
                    help="the generator (default: from its *IDN? answer; afg2225, the paper's, with --dry-run)")
-    p.add_argument("--amplifier", choices=sorted(AMPLIFIERS), default="hva200",
-                   help="the amplifier between generator and transducer (default hva200, the paper's)")
+    p.add_argument("--amplifier", choices=sorted(AMPLIFIERS), default=None,
+                   help="the amplifier between generator and transducer (default: the design's `use amplifier`, "
+                        "recorded in schedule.json, else hva200, the paper's)")
     p.add_argument("--form", choices=("auto", "sequence", "steps"), default="auto",
                    help="sequence (looped segments, instrument-timed) or steps (one channel per tone, "
                         "host-timed); default: sequence where the generator has it")
     p.add_argument("--visa-library", default="", metavar="LIB",
                    help="PyVISA backend, e.g. @py, or FILE.yaml@sim for a simulated instrument (pyvisa-sim)")
+
+
+def declared_chain(meta: dict, instrument: str | None, amplifier: str | None):
+    """(generator profile key or None, Amplifier) from the options, else the design's declared chain
+    (schedule.json ``chain``): its amplifier as declared, its generator's profile by name, capped at
+    its declared output."""
+    from acl.bench.chain import AMPLIFIERS, Amplifier
+
+    chain = meta.get("chain") or {}
+    amp = AMPLIFIERS[amplifier or "hva200"]
+    a = chain.get("amplifier")
+    if amplifier is None and isinstance(a, dict):
+        try:
+            amp = Amplifier("declared", f"{a.get('name', 'amplifier')} (declared)", gain=float(a["gain"]),
+                            max_output_v=float(a["max_voltage"]),
+                            bandwidth_hz=float(a.get("bandwidth") or float("inf")), max_input_v=float("inf"),
+                            source="the design's `use amplifier`")
+        except (KeyError, TypeError, ValueError):
+            pass
+    g = chain.get("generator") if isinstance(chain.get("generator"), dict) else {}
+    key = instrument
+    if key is None and g:
+        name = str(g.get("name", "")).lower()
+        key = "afg2225" if "afg" in name else "33522b" if ("335" in name or "keysight" in name) else None
+    cap = g.get("max_voltage") if g else None
+    return key, amp, (float(cap) if isinstance(cap, (int, float)) else None)
+
+
+def _cap(gen, cap):
+    """The generator profile with the declared output limit (peak) if that is lower."""
+    import dataclasses
+
+    return gen if cap is None or 2 * cap >= gen.max_vpp else dataclasses.replace(gen, max_vpp=2 * cap)
 
 
 def _which(idn: str) -> str | None:
@@ -43,7 +77,7 @@ def _which(idn: str) -> str | None:
 
 def run(args) -> int:
     from acl.bench import schedule as sched
-    from acl.bench.chain import AMPLIFIERS, GENERATORS
+    from acl.bench.chain import GENERATORS
     from acl.bench.plan import plan
 
     if not args.dry_run and not args.resource:
@@ -55,10 +89,10 @@ def run(args) -> int:
     except DiagnosticError as exc:
         report(exc.diagnostics)
         return 2
-    amp = AMPLIFIERS[args.amplifier]
+    declared_key, amp, cap = declared_chain(meta, args.instrument, args.amplifier)
     form = None if args.form == "auto" else args.form
     if args.dry_run:
-        gen = GENERATORS[args.instrument or "afg2225"]
+        gen = _cap(GENERATORS[declared_key or "afg2225"], cap)
         try:
             p = plan(drives, meta, gen, amp, form)
         except DiagnosticError as exc:
@@ -82,7 +116,7 @@ def run(args) -> int:
                                          + (f", not a {GENERATORS[args.instrument].name}" if args.instrument else
                                             ": not a generator acl knows"), player.WHERE,
                                          "choose --instrument " + " or ".join(sorted(GENERATORS)))])
-        gen = GENERATORS[args.instrument or key]
+        gen = _cap(GENERATORS[args.instrument or key], cap)
         try:
             p = plan(drives, meta, gen, amp, form)
         except DiagnosticError as exc:

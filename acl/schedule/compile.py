@@ -152,6 +152,10 @@ class _Compiler:
                          max_voltage_v=vmax, full_scale_v=full_scale, ramp_s=self.opts.ramp_s,
                          source=self.design.file, notes=self.notes, full_scale_source=source)
         sched.sample_rate_hz = fs
+        gen, amp = self.design.generator, self.design.amplifier
+        if gen is not None or amp is not None:      # the declared drive chain, for `acl play` (docs/bench.md)
+            sched.chain = {k: v.model_dump(exclude={"span"}) for k, v in (("generator", gen), ("amplifier", amp))
+                           if v is not None}
         for w in self.step_warnings:
             sched.warnings.append(w)
             self.notes.append(f"warning: {w.message}")
