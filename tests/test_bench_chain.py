@@ -90,3 +90,17 @@ def test_every_example_accepts_the_papers_bench(example, tmp_path):
     p.write_text(src + "\nimport stdlib.bench\nuse generator bench.afg2225\nuse amplifier bench.hva200\n")
     d = acl.load(str(p))
     assert d.amplifier is not None and d.generator is not None
+
+
+def test_compile_checks_the_generators_rate_and_memory(tmp_path, capsys):
+    """A sample rate above the declared generator's is a located error (E-EMIT-RATE at --sample-rate);
+    a waveform beyond its memory a warning pointing to acl play (W-EMIT-MEMORY)."""
+    path = _write(tmp_path, "use generator bench.afg2225\nuse amplifier bench.hva200\n")
+    assert main(["compile", path, "-o", str(tmp_path / "o1"), "--sample-rate", "200MHz"]) == 2
+    err = capsys.readouterr().err
+    assert "<--sample-rate>:1:1: error[E-EMIT-RATE]: sample rate 2e+08 S/s is above the 1.2e+08 S/s of generator " \
+           "`bench.afg2225`" in err and not (tmp_path / "o1").exists()
+    assert main(["compile", path, "-o", str(tmp_path / "o2"), "-q"]) == 0
+    err = capsys.readouterr().err
+    assert "warning[W-EMIT-MEMORY]: the waveform's 25,000 samples do not fit the 4,096 points of generator " \
+           "`bench.afg2225`" in err

@@ -92,6 +92,16 @@ def check_options(schedule: Schedule, formats, sample_rate: float) -> list[Diagn
                                  f"{size / 2 ** 20:.0f} MiB", option_span("--format"),
                                  "segments.csv (always written) lists the same schedule as tones; "
                                  "use npy for raw samples"))
+    gen = (getattr(schedule, "chain", None) or {}).get("generator") or {}
+    if gen.get("sample_rate") and math.isfinite(sample_rate) and sample_rate > gen["sample_rate"] * (1 + 1e-9):
+        diags.append(error("E-EMIT-RATE", f"sample rate {sample_rate:g} S/s is above the {gen['sample_rate']:g} S/s "
+                           f"of generator `{gen.get('name', '?')}` (use generator)", rate,
+                           f"use at most {gen['sample_rate']:g} S/s"))
+    elif gen.get("memory") and not diags and total_samples(schedule, sample_rate) > gen["memory"]:
+        warns.append(warning("W-EMIT-MEMORY", f"the waveform's {total_samples(schedule, sample_rate):,} samples do "
+                             f"not fit the {gen['memory']:,.0f} points of generator `{gen.get('name', '?')}`",
+                             option_span("--format"), "play schedule.json with `acl play` (one looped segment per "
+                             "constant drive, or steps; docs/bench.md) or load sequence.seq (--format seq)"))
     peak = max((s.peak_v or 0.0 for s in schedule.segments), default=0.0)
     if peak > schedule.full_scale_v * (1 + 1e-9):
         diags.append(error("E-EMIT-FULLSCALE", f"the schedule's peak {peak:.4g} V exceeds the WAV full "
