@@ -50,12 +50,12 @@ def _play(p, inst):
 
 
 def _readbacks_equal(result):
-    from acl.bench.player import _agrees
+    from acl.bench.player import agrees
     from acl.bench.plan import Setting
 
     for q, answer, expect in result.readbacks:
         tol = 0.5e-4 + 1e-9 if isinstance(expect, float) else 0.0
-        assert _agrees(answer, Setting("", q, expect, tol)), (q, answer, expect)
+        assert agrees(answer, Setting("", q, expect, tol)), (q, answer, expect)
         if isinstance(expect, float):
             assert float(answer) == pytest.approx(expect, rel=1e-12, abs=1e-12), (q, answer, expect)
 

@@ -76,7 +76,7 @@ def _fmt(x: float, digits: int) -> str:
     return text.rstrip("0").rstrip(".") if "." in text else text
 
 
-def _num(cmd: str, query: str, value: float, digits: int) -> Setting:
+def number_setting(cmd: str, query: str, value: float, digits: int) -> Setting:
     text = _fmt(value, digits)
     return Setting(f"{cmd} {text}", query, float(text), 0.5 * 10 ** -digits + 1e-12 * abs(float(text)))
 
@@ -91,15 +91,15 @@ class _Dialect:
         return Setting(f"SOUR{c}:FUNC {name}", f"SOUR{c}:FUNC?", name)
 
     def freq(self, c, f):
-        return _num(f"SOUR{c}:FREQ", f"SOUR{c}:FREQ?", f, 3)
+        return number_setting(f"SOUR{c}:FREQ", f"SOUR{c}:FREQ?", f, 3)
 
     def vpp(self, c, v, digits):
         cmd = "AMP" if self.d == "afg2200" else "VOLT"
-        return _num(f"SOUR{c}:{cmd}", f"SOUR{c}:{cmd}?", v, digits)
+        return number_setting(f"SOUR{c}:{cmd}", f"SOUR{c}:{cmd}?", v, digits)
 
     def offset(self, c):
         cmd = "DCO" if self.d == "afg2200" else "VOLT:OFFS"
-        return _num(f"SOUR{c}:{cmd}", f"SOUR{c}:{cmd}?", 0.0, 4)
+        return number_setting(f"SOUR{c}:{cmd}", f"SOUR{c}:{cmd}?", 0.0, 4)
 
     def output(self, c, on):
         return Setting(f"OUTP{c} {'ON' if on else 'OFF'}", f"OUTP{c}?", "ON" if on else "OFF")
@@ -284,7 +284,7 @@ def _sequence(drives, meta, gen: Generator, amp: Amplifier, duration: float) -> 
         name = f"ACL{k + 1}"
         setup.settings.append(Setting(f"SOUR1:DATA:ARB:DAC {name}," + ",".join(map(str, dac)),
                                       f"SOUR1:DATA:ATTR:POIN? {name}", float(points[k]), 0.0))
-    setup.settings.append(Setting(f"SOUR1:DATA:ARB:DAC ACL0," + ",".join(["0"] * silent),
+    setup.settings.append(Setting("SOUR1:DATA:ARB:DAC ACL0," + ",".join(["0"] * silent),
                                   "SOUR1:DATA:ATTR:POIN? ACL0", float(silent), 0.0))
     entries, carry = [], 0.0
     for d in drives:
@@ -304,9 +304,9 @@ def _sequence(drives, meta, gen: Generator, amp: Amplifier, duration: float) -> 
         Setting(f"SOUR1:DATA:SEQ {block}"),
         Setting("SOUR1:FUNC ARB", "SOUR1:FUNC?", "ARB"),
         Setting("SOUR1:FUNC:ARB ACLSEQ", "SOUR1:FUNC:ARB?", "ACLSEQ"),
-        _num("SOUR1:FUNC:ARB:SRAT", "SOUR1:FUNC:ARB:SRAT?", rate, 0),
+        number_setting("SOUR1:FUNC:ARB:SRAT", "SOUR1:FUNC:ARB:SRAT?", rate, 0),
         dl.load(1),
-        _num("SOUR1:VOLT", "SOUR1:VOLT?", 2 * vmax, gen.vpp_digits),
+        number_setting("SOUR1:VOLT", "SOUR1:VOLT?", 2 * vmax, gen.vpp_digits),
         dl.offset(1),
     ]
     start = Step(0.0, [dl.output(1, True)])

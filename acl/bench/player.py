@@ -68,7 +68,7 @@ def open_resource(resource: str, backend: str = ""):
     return inst
 
 
-def _agrees(answer: str, s: Setting) -> bool:
+def agrees(answer: str, s: Setting) -> bool:
     if isinstance(s.expect, float):
         try:
             value = float(answer.strip().strip('"'))
@@ -99,7 +99,7 @@ def _send(inst, s: Setting, result: PlayResult) -> None:
         raise DiagnosticError([error("E-PLAY-IO", f"the instrument did not take `{s.command[:60]}`: "
                                      f"{str(exc).splitlines()[0] if str(exc) else type(exc).__name__}", WHERE,
                                      "the output was switched off")]) from None
-    if s.query and not _agrees(answer, s):
+    if s.query and not agrees(answer, s):
         raise DiagnosticError([error("E-PLAY-READBACK", f"`{s.query}` answered {answer.strip()[:60]!r} after "
                                      f"`{s.command[:60]}`: the instrument does not hold what was set", WHERE,
                                      "the output was switched off; check the instrument model (--instrument)")])
