@@ -29,9 +29,9 @@ def movie():
     return frames, tx - tx[0], ty - ty[0]
 
 
-def _write_video(path, frames, codec, params=()):
+def _write_video(path, frames, codec, params=(), pix="gray"):
     ffmpeg = pytest.importorskip("imageio_ffmpeg")
-    w = ffmpeg.write_frames(str(path), (W, H), pix_fmt_in="gray", pix_fmt_out="gray", codec=codec, fps=FPS,
+    w = ffmpeg.write_frames(str(path), (W, H), pix_fmt_in="gray", pix_fmt_out=pix, codec=codec, fps=FPS,
                             macro_block_size=1, output_params=list(params), quality=None)
     w.send(None)
     for f in frames:
@@ -55,16 +55,20 @@ def _read_csv(path):
         np.array([float(r[5]) for r in xs])
 
 
-@pytest.mark.parametrize("kind", ["avi", "mp4", "tif"])
+@pytest.mark.parametrize("kind", ["avi", "mp4", "mp4-lossy", "tif"])
 def test_tracks_within_0_05_px(movie, tmp_path, kind, capsys):
     """AVI (FFV1, lossless), MP4 (H.264 gray at -qp 0: lossless) and a TIFF stack: RMS error < 0.05 px in x and y
-    (measured: about 0.01 px), time from the frame rate, sigma within a factor 3 of the actual error."""
+    (measured: about 0.01 px), time from the frame rate, sigma within a factor 3 of the actual error.
+    A lossy MP4 (H.264, crf 18, yuv420p) also stays under 0.05 px, but its sigma understates the error
+    (the codec's errors follow the picture, not the noise): not compared."""
     frames, tx, ty = movie
-    video = tmp_path / f"v.{kind}"
+    video = tmp_path / f"v.{kind.split('-')[0]}"
     if kind == "avi":
         _write_video(video, frames, "ffv1")
     elif kind == "mp4":
         _write_video(video, frames, "libx264", ["-qp", "0"])
+    elif kind == "mp4-lossy":
+        _write_video(video, frames, "libx264", ["-crf", "18"], pix="yuv420p")
     else:
         _write_tiff(video, frames, FPS)
     out = tmp_path / "track.csv"
@@ -77,8 +81,9 @@ def test_tracks_within_0_05_px(movie, tmp_path, kind, capsys):
     rms_x, rms_y = np.sqrt(np.mean(ex ** 2)), np.sqrt(np.mean(ey ** 2))
     assert rms_x < 0.05 and rms_y < 0.05, (rms_x, rms_y)
     assert np.ptp(tx) > 5             # the disc really moved (circle 6 px across plus drift)
-    s = np.median(sig) / scale
-    assert s / 3 < max(rms_x, rms_y) < 3 * s * np.sqrt(2), (s, rms_x, rms_y)
+    if kind != "mp4-lossy":
+        s = np.median(sig) / scale
+        assert s / 3 < max(rms_x, rms_y) < 3 * s * np.sqrt(2), (s, rms_x, rms_y)
 
 
 def test_tiff_without_frame_rate_needs_fps(movie, tmp_path, capsys):
