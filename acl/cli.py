@@ -38,9 +38,11 @@ examples:
   acl fit design.acl data.csv --report fit/
   acl fmt examples/ --check
   acl sweep design.acl --vary radius=8um..12um:41 --tolerance "radius=normal(0, 150 nm)" -o sweep.csv
+  acl play out/schedule.json --dry-run
+  acl track run.avi -o data.csv --scale 0.65 --roi 50,42,40,40 --schedule out/schedule.json
 
 exit codes: 0 clean, 1 errors in the design or findings, 2 usage or I/O error.
-docs: docs/language.md, docs/physics.md, docs/rules.md, docs/data.md
+docs: docs/language.md, docs/physics.md, docs/rules.md, docs/data.md, docs/bench.md
 """
 
 
