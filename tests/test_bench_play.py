@@ -127,7 +127,7 @@ def fig3_schedule(tmp_path_factory):
     from acl.schedule.compile import CompileOptions, compile_program
 
     design = acl.load(os.path.join(HERE, "..", "examples", "fig3_three_orifice.acl"))
-    s = compile_program(design, "circle", CompileOptions())
+    s = compile_program(design, "circle", CompileOptions(band_samples=0))
     path = str(tmp_path_factory.mktemp("fig3") / "schedule.json")
     write_schedule_json(path, schedule_dict(s, s.sample_rate_hz))
     return path
