@@ -23,6 +23,8 @@ COMMANDS = {
     "fmt": "Rewrite designs in the one canonical layout (--check for CI, --diff, - for stdin).",
     "sweep": "Sweep parameters over grids and print tolerances (Monte Carlo): a table per point and the yield.",
     "tune": "Choose the free parameters that maximise the yield of every require under print tolerances.",
+    "play": "Play a compiled schedule on a signal generator (SCPI over PyVISA; --dry-run prints it).",
+    "track": "Track a capsule in a microscope video (AVI, MP4, TIFF stack) into the CSV `acl fit` reads.",
     "lsp": "Start the language server (LSP over stdio) for editors; needs acl[lsp].",
 }
 
@@ -37,9 +39,11 @@ examples:
   acl fit design.acl data.csv --report fit/
   acl fmt examples/ --check
   acl sweep design.acl --vary radius=8um..12um:41 --tolerance "radius=normal(0, 150 nm)" -o sweep.csv
+  acl play out/schedule.json --dry-run
+  acl track run.avi -o data.csv --scale 0.65 --roi 50,42,40,40 --schedule out/schedule.json
 
 exit codes: 0 clean, 1 errors in the design or findings, 2 usage or I/O error.
-docs: docs/language.md, docs/physics.md, docs/rules.md, docs/data.md
+docs: docs/language.md, docs/physics.md, docs/rules.md, docs/data.md, docs/bench.md
 """
 
 
