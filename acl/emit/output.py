@@ -210,12 +210,14 @@ def emit(schedule: Schedule, out_dir: str, formats=("wav",), sample_rate: float 
     check_size(schedule, formats, fs, out_dir, max_bytes)
     parent = os.path.dirname(os.path.abspath(out_dir)) or "."
     os.makedirs(parent, exist_ok=True)
-    tmp = tempfile.mkdtemp(prefix=".acl-compile-", dir=parent)
-    from acl._files import as_umask
+    from acl._files import as_umask, deferred_signals
 
-    as_umask(tmp, directory=True)
+    tmp = None
     result = EmitResult(out_dir=out_dir, sample_rate_hz=fs, warnings=warns)
     try:
+        with deferred_signals():
+            tmp = tempfile.mkdtemp(prefix=".acl-compile-", dir=parent)
+        as_umask(tmp, directory=True)
         n = total_samples(schedule, fs)
         writers = []
         try:
@@ -254,7 +256,8 @@ def emit(schedule: Schedule, out_dir: str, formats=("wav",), sample_rate: float 
                             schedule_dict(schedule, fs, result.stats, dict(result.files)))
         result.removed = _publish(tmp, out_dir, stale)
     except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
+        if tmp is not None:
+            shutil.rmtree(tmp, ignore_errors=True)
         raise
     return result
 
