@@ -14,6 +14,12 @@ import tempfile
 def write_text_atomic(path: str, text: str) -> None:
     """Replace ``path`` with ``text`` (UTF-8, newlines as given) in one rename; a symbolic link is
     followed (its target is rewritten, the link stays)."""
+    write_chunks_atomic(path, (text,))
+
+
+def write_chunks_atomic(path: str, chunks) -> None:
+    """:func:`write_text_atomic` of the text that the iterable ``chunks`` yields piece by piece (memory bounded
+    by one piece: `acl synth` writes millions of rows)."""
     from acl._files import deferred_signals, publish_file, stream_kind, streamable_problem, temp_folder_for
 
     path = os.path.realpath(path)
@@ -33,7 +39,8 @@ def write_text_atomic(path: str, text: str) -> None:
         with deferred_signals():
             fd, tmp = tempfile.mkstemp(prefix=".acl-", suffix=".tmp", dir=temp_folder_for(path))
         with os.fdopen(fd, "w", encoding="utf-8", newline="") as fh:
-            fh.write(text)
+            for text in chunks:
+                fh.write(text)
             fh.flush()
             os.fsync(fh.fileno())
         os.chmod(tmp, mode)
