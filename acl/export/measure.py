@@ -1,0 +1,267 @@
+"""Measure an exported mesh against the design the physics used (docs/export.md, "Geometry checks").
+
+Every measurement is taken on the triangle mesh as written (any mesh: the one just built or one
+read back from the file), in micrometres, and compared with the resolved design:
+
+* cavity volume: the convex hull of the mesh vertices lying on the declared cavity surface (within a
+  quarter wall), i.e. the cavity as printed with each orifice opening closed flush with the cavity
+  surface; for a cavity given by its volume only (a sphere) the spherical caps of the openings are
+  added back. Tolerance 0.5 %.
+* orifice radius: rays parallel to the orifice normal, cast inwards from just outside the wall at 64
+  angles; along each angle a bisection finds the largest offset at which a ray still passes through
+  the hole into the cavity; the radius is the root mean square of those offsets (the radius of the
+  circle of the hole's area). Tolerance 0.5 %.
+* beam section: the mesh sliced across the beam at mid-length: the piece around the beam's axis,
+  its area as a circle's diameter, or a rectangle's width and thickness. Tolerance 0.1 um.
+* beam free length: rays parallel to the beam just beside it, from mid-length to the surfaces that
+  end it (the substrate pad, the capsule it carries, or its own tip). Tolerance 0.1 um.
+
+A mismatch is an error diagnostic E-EXPORT-GEOMETRY at the element's declaration.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from acl.design import geometry as G
+from acl.diagnostics import Diagnostic, error
+
+UM = 1e6
+VOLUME_TOL = 0.005        # relative
+RADIUS_TOL = 0.005        # relative
+LENGTH_TOL = 0.1          # um
+ANGLES = 64
+
+
+@dataclass
+class Measurement:
+    element: str
+    quantity: str
+    declared: float
+    measured: float | None
+    unit: str
+    tolerance: str
+    ok: bool
+
+    def as_dict(self) -> dict:
+        return {"element": self.element, "quantity": self.quantity, "declared": self.declared,
+                "measured": self.measured, "unit": self.unit, "tolerance": self.tolerance, "ok": self.ok}
+
+
+def _unit(v) -> np.ndarray:
+    v = np.asarray(v, float)
+    return v / np.linalg.norm(v)
+
+
+def _frame(axis, ref=None):
+    from acl.export.solid import frame
+
+    return frame(axis, ref)
+
+
+class Probe:
+    """Rays and slices on one mesh (um)."""
+
+    def __init__(self, mesh):
+        import trimesh
+
+        self.mesh = mesh
+        self.rays = trimesh.ray.ray_triangle.RayMeshIntersector(mesh)
+        self._manifold = None
+
+    def first_hit(self, origins, direction) -> np.ndarray:
+        """Distance to the first surface along ``direction`` from each origin (inf when none)."""
+        origins = np.atleast_2d(np.asarray(origins, float))
+        dirs = np.tile(_unit(direction), (len(origins), 1))
+        out = np.full(len(origins), np.inf)
+        loc, idx, _ = self.rays.intersects_location(origins, dirs, multiple_hits=True)
+        if len(idx):
+            dist = np.einsum("ij,ij->i", loc - origins[idx], dirs[idx])
+            keep = dist > 1e-9
+            np.minimum.at(out, idx[keep], dist[keep])
+        return out
+
+    def manifold(self):
+        if self._manifold is None:
+            import manifold3d as mf
+
+            mesh = mf.Mesh(vert_properties=np.ascontiguousarray(self.mesh.vertices, np.float32),
+                           tri_verts=np.ascontiguousarray(self.mesh.faces, np.uint32))
+            self._manifold = mf.Manifold(mesh)
+        return self._manifold
+
+
+# ------------------------------------------------------------------------------------------------
+# Capsules
+# ------------------------------------------------------------------------------------------------
+
+def cavity_distance(points, capsule) -> np.ndarray:
+    """Distance (um) of points (um) from the declared cavity surface (exact for cylinder and sphere,
+    the largest face distance outside a prism)."""
+    cv = capsule.cavity
+    c = np.asarray(capsule.center, float) * UM
+    p = np.asarray(points, float) - c
+    if cv.shape == "volume":
+        rs = (3 * cv.volume / (4 * math.pi)) ** (1 / 3) * UM
+        return np.abs(np.linalg.norm(p, axis=1) - rs)
+    ax = _unit(cv.axis)
+    t = p @ ax
+    hh = cv.height * UM / 2
+    if cv.shape == "cylinder":
+        r = cv.radius * UM
+        rho = np.linalg.norm(p - np.outer(t, ax), axis=1)
+        inside = (rho <= r) & (np.abs(t) <= hh)
+        d_in = np.minimum(r - rho, hh - np.abs(t))
+        d_out = np.hypot(np.maximum(rho - r, 0), np.maximum(np.abs(t) - hh, 0))
+        return np.where(inside, d_in, d_out)
+    from acl.export.solid import prism_ref
+
+    ref = prism_ref(capsule)
+    u, v, _ = _frame(ax, ref)
+    ri = G.prism_inradius(cv.side) * UM
+    planes = [np.abs(t) - hh]
+    for k in range(3):
+        n = math.cos(2 * math.pi * k / 3) * u + math.sin(2 * math.pi * k / 3) * v
+        planes.append(p @ n - ri)
+    s = np.max(np.stack(planes), axis=0)
+    return np.abs(s)
+
+
+def cavity_volume(probe: Probe, capsule, orifice_radii: dict[str, float] | None = None) -> float | None:
+    """The printed cavity's volume (um^3): hull of the vertices on the declared cavity surface."""
+    from scipy.spatial import ConvexHull, QhullError
+
+    verts = np.asarray(probe.mesh.vertices, float)
+    near = verts[cavity_distance(verts, capsule) < capsule.cavity.wall * UM / 4]
+    if len(near) < 4:
+        return None
+    try:
+        vol = float(ConvexHull(near).volume)
+    except (QhullError, ValueError):
+        return None
+    if capsule.cavity.shape == "volume":      # the openings' spherical caps, cut off by the hull's flat faces
+        rs = (3 * capsule.cavity.volume / (4 * math.pi)) ** (1 / 3) * UM
+        for o in capsule.orifices:
+            r = (orifice_radii or {}).get(o.name, o.radius * UM)
+            if r < rs:
+                h = rs - math.sqrt(rs * rs - r * r)
+                vol += math.pi * h * h * (3 * rs - h) / 3
+    return vol
+
+
+def orifice_radius(probe: Probe, capsule, orifice) -> float | None:
+    """Radius (um) of the circle of the hole's area, by rays through the hole (None: closed or unbounded)."""
+    n = _unit(orifice.normal)
+    o = np.asarray(orifice.center, float) * UM
+    c = np.asarray(capsule.center, float) * UM
+    w = capsule.cavity.wall * UM
+    u, v, _ = _frame(n)
+    start = o + n * w
+    through_at = w + float(np.dot(o - c, n))          # deeper than the cavity's centre plane: through the hole
+    th = 2 * math.pi * np.arange(ANGLES) / ANGLES
+    dirs = np.outer(np.cos(th), u) + np.outer(np.sin(th), v)
+
+    def through(rho):
+        return probe.first_hit(start + dirs * rho[:, None], -n) > through_at
+
+    r0 = orifice.radius * UM
+    lo, hi = np.zeros(ANGLES), np.full(ANGLES, 1.3 * r0)
+    if not through(lo).all() or through(hi).any():
+        return None
+    for _ in range(18):
+        mid = (lo + hi) / 2
+        ok = through(mid)
+        lo = np.where(ok, mid, lo)
+        hi = np.where(ok, hi, mid)
+    r = (lo + hi) / 2
+    return float(np.sqrt(np.mean(r * r)))
+
+
+# ------------------------------------------------------------------------------------------------
+# Beams
+# ------------------------------------------------------------------------------------------------
+
+def beam_section(probe: Probe, beam) -> tuple[float, ...] | None:
+    """(diameter,) or (width, thickness) in um of the slice across the beam at mid-length."""
+    u, v, w = _frame(beam.axis)
+    clamp = np.asarray(beam.clamp, float) * UM
+    rot = np.vstack([u, v, w])
+    m = np.column_stack([rot, -rot @ clamp])
+    section = probe.manifold().transform(m).slice(beam.length * UM / 2)
+    for piece in section.decompose():
+        x0, y0, x1, y1 = piece.bounds()
+        if x0 <= 0 <= x1 and y0 <= 0 <= y1:
+            if beam.section.shape == "circle":
+                return (2 * math.sqrt(piece.area() / math.pi),)
+            return (x1 - x0, y1 - y0)
+    return None
+
+
+def beam_length(probe: Probe, beam) -> float | None:
+    """Free length (um): from the surface that holds the beam's foot to the one at its tip."""
+    u, v, w = _frame(beam.axis)
+    s = beam.section
+    half = (s.diameter / 2 if s.shape == "circle" else math.hypot(s.width, s.thickness) / 2) * UM
+    mid = (np.asarray(beam.clamp, float) + np.asarray(beam.axis, float) * beam.length / 2) * UM
+    beside = np.array([mid + d * (half + 0.3) for d in (u, -u, v, -v)])
+    up, down = probe.first_hit(beside, w), probe.first_hit(beside, -w)
+    if not np.isfinite(down).any():
+        return None
+    lower = float(np.nanmin(np.where(np.isfinite(down), down, np.nan)))
+    if np.isfinite(up).any():
+        upper = float(np.nanmin(np.where(np.isfinite(up), up, np.nan)))
+    else:                                          # a free tip: its end face, from beyond it
+        tip = np.asarray(beam.tip, float) * UM + w * 1.0
+        back = probe.first_hit(tip[None, :], -w)[0]
+        if not np.isfinite(back):
+            return None
+        upper = beam.length * UM / 2 + 1.0 - back
+    return lower + upper
+
+
+# ------------------------------------------------------------------------------------------------
+# All of them
+# ------------------------------------------------------------------------------------------------
+
+def check(design, mesh) -> tuple[list[Measurement], list[Diagnostic]]:
+    """Measure ``mesh`` (um) against ``design``: the measurements and an error for each mismatch."""
+    probe = Probe(mesh)
+    out: list[Measurement] = []
+    diags: list[Diagnostic] = []
+
+    def record(name, quantity, declared, measured, unit_, tol_text, ok, span, hint=None):
+        out.append(Measurement(name, quantity, declared, measured, unit_, tol_text, ok))
+        if not ok:
+            got = "could not be measured" if measured is None else f"measures {measured:.6g} {unit_}"
+            diags.append(error("E-EXPORT-GEOMETRY", f"{quantity} of `{name}` {got} on the exported mesh, "
+                               f"declared {declared:.6g} {unit_} (tolerance {tol_text})", span,
+                               hint or "the print file would not be the device the physics describes"))
+
+    for c in design.capsules:
+        radii = {}
+        for o in c.orifices:
+            r = orifice_radius(probe, c, o)
+            want = o.radius * UM
+            radii[o.name] = r if r is not None else want
+            record(f"{c.name}.{o.name}", "orifice radius", want, r, "um", "0.5 %",
+                   r is not None and abs(r - want) <= RADIUS_TOL * want, o.span,
+                   "a closed hole or a neighbour within a wall of it" if r is None else None)
+        vol = cavity_volume(probe, c, radii)
+        want = c.cavity.volume * UM ** 3
+        record(c.name, "cavity volume", want, vol, "um^3", "0.5 %",
+               vol is not None and abs(vol - want) <= VOLUME_TOL * want, c.span)
+    for b in design.beams:
+        sec = beam_section(probe, b)
+        s = b.section
+        want = (s.diameter * UM,) if s.shape == "circle" else (s.width * UM, s.thickness * UM)
+        names = ("diameter",) if s.shape == "circle" else ("width", "thickness")
+        for k, nm in enumerate(names):
+            got = None if sec is None else sec[k]
+            record(b.name, f"beam {nm}", want[k], got, "um", "0.1 um",
+                   got is not None and abs(got - want[k]) <= LENGTH_TOL, b.span)
+        length = beam_length(probe, b)
+        record(b.name, "beam free length", b.length * UM, length, "um", "0.1 um",
+               length is not None and abs(length - b.length * UM) <= LENGTH_TOL, b.span)
+    return out, diags
