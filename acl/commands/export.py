@@ -226,6 +226,11 @@ def _export(args, design, variants, fmt) -> int:
     return 0
 
 
+def _small(x: float) -> str:
+    """An error as one significant digit, or `below 0.001` (rounding noise is not a figure)."""
+    return "below 0.001" if x < 1e-3 else f"within {x:.1g}"
+
+
 def _print(results, args, arrangement_file) -> None:
     for r in results:
         ms = r["measurements"]
@@ -237,7 +242,8 @@ def _print(results, args, arrangement_file) -> None:
             err = abs(m["measured"] - m["declared"]) / m["declared"] * 100 if rel else abs(m["measured"] - m["declared"])
             key = m["quantity"].replace("beam diameter", "beam section").replace("beam width", "beam section").replace("beam thickness", "beam section")
             worst[key] = max(worst.get(key, 0.0), err)
-        checks = ", ".join(f"{k} within {v:.2g} {'%' if k in ('cavity volume', 'orifice radius') else 'um'}" for k, v in worst.items())
+        checks = ", ".join(f"{k} {_small(v)} {'%' if k in ('cavity volume', 'orifice radius') else 'um'}"
+                           for k, v in worst.items())
         tris = sum(p["triangles"] for p in r["parts"])
         sys.stdout.write(f"wrote {r['file']}: {len(r['parts'])} part{'s' * (len(r['parts']) != 1)}, {tris:,} triangles, "
                          f"in {args.unit}" + (f"; measured on the file: {checks}" if checks else "") + "\n")
