@@ -227,3 +227,24 @@ def test_the_largest_example_exports_in_under_two_seconds():
     elapsed = time.perf_counter() - start
     assert data and not diags
     assert elapsed < 2.0, elapsed
+
+
+def test_a_floating_part_and_parts_that_touch_are_warned(tmp_path, capsys):
+    floating = tmp_path / "floating.acl"
+    floating.write_text("import stdlib.capsules\ncapsule free like capsules.design1 { center = (0, 0, 60 um) }\n")
+    assert main(["export", str(floating), "-o", str(tmp_path / "f.stl")]) == 0
+    err = capsys.readouterr().err
+    assert "floating.acl:2:1" in err and "W-EXPORT-FLOATING" in err
+    touching = tmp_path / "touching.acl"
+    touching.write_text(
+        "import stdlib.capsules\n"
+        "capsule a like capsules.design1 { center = (0, 0, 30 um), orifice jet { radius = 10 um, normal = -x } }\n"
+        "capsule b like capsules.design1 { center = (54.1 um, 0, 30 um), orifice jet { radius = 10 um, normal = +y } }\n"
+        "fix a\nfix b\n")
+    assert main(["export", str(touching), "-o", str(tmp_path / "t.stl")]) == 0
+    err = capsys.readouterr().err
+    assert "touching.acl:3:1" in err and "W-EXPORT-TOUCH" in err
+    apart = tmp_path / "apart.acl"
+    apart.write_text(touching.read_text().replace("54.1 um", "54.5 um"))
+    assert main(["export", str(apart), "-o", str(tmp_path / "a.stl")]) == 0
+    assert "W-EXPORT" not in capsys.readouterr().err

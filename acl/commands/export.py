@@ -122,7 +122,7 @@ def _export(args, design, variants, fmt) -> int:
     from acl.design.resolve import load_design
     from acl.export import files as F
     from acl.export.arrange import arrangement, equivalent_radius, variant_label
-    from acl.export.measure import check
+    from acl.export.measure import check, part_checks
     from acl.export.solid import build
 
     suffix = os.path.splitext(args.output)[1].lower()
@@ -150,6 +150,7 @@ def _export(args, design, variants, fmt) -> int:
                                    "back as closed, consistently oriented volumes", Span(file=d.file, line=1, column=1)))
             measurements, mdiags = check(d, trimesh.util.concatenate(back_parts))
             diags.extend(mdiags)
+            diags.extend(part_checks(d, b.parts))
             lo = [min(m.bounds[0][k] for m in back_parts) for k in range(2)]
             hi = [max(m.bounds[1][k] for m in back_parts) for k in range(2)]
             results.append({"file": target, "values": {n: v for n, (v, _) in values.items()},

@@ -265,3 +265,39 @@ def check(design, mesh) -> tuple[list[Measurement], list[Diagnostic]]:
         record(b.name, "beam free length", b.length * UM, length, "um", "0.1 um",
                length is not None and abs(length - b.length * UM) <= LENGTH_TOL, b.span)
     return out, diags
+
+
+# ------------------------------------------------------------------------------------------------
+# Printability of the parts themselves
+# ------------------------------------------------------------------------------------------------
+
+def part_checks(design, parts) -> list[Diagnostic]:
+    """Warnings on the exported parts (manifolds, um): a part that does not reach the substrate
+    floats away when the resist is developed (W-EXPORT-FLOATING); two parts closer than the printer's
+    lateral resolution print fused (W-EXPORT-TOUCH, acl.design.checks.PRINT_LATERAL)."""
+    from acl.design.checks import PRINT_LATERAL
+    from acl.diagnostics import warning
+
+    spans = {}
+    for kind in ("capsules", "beams", "latches", "anchors", "springs", "trusses"):
+        for el in getattr(design, kind):
+            spans.setdefault(el.name, el.span)
+
+    def where(part):
+        return next((spans[n] for n in part.elements if n in spans), None)
+
+    out = []
+    for p in parts:
+        if p.solid.bounding_box()[2] > 1e-6:
+            names = ", ".join(f"`{n}`" for n in dict.fromkeys(p.elements))
+            out.append(warning("W-EXPORT-FLOATING", f"printed part {p.name} ({names}) does not reach the substrate: "
+                               "developed, it floats away", where(p),
+                               "hold it: mount its capsule on a beam or a latch, `fix` it, or link it to an anchor"))
+    gap = PRINT_LATERAL * UM
+    for i, a in enumerate(parts):
+        for b in parts[i + 1:]:
+            if a.solid.min_gap(b.solid, gap) < gap:
+                out.append(warning("W-EXPORT-TOUCH", f"printed parts {a.name} and {b.name} come within the printer's lateral "
+                                   f"resolution ({gap:g} um): they print fused", where(b),
+                                   "move them apart, or join them on purpose"))
+    return out

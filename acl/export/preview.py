@@ -42,9 +42,15 @@ def render(meshes, path: str, title: str = "", unit: str = "um") -> None:
             setter(c - half, c + half)
         ax.set_box_aspect((1, 1, 1))
         ax.view_init(elev=elev, azim=azim)
-        ax.set_xlabel(f"x ({unit})", fontsize=7)
-        ax.set_ylabel(f"y ({unit})", fontsize=7)
-        ax.set_zlabel(f"z ({unit})", fontsize=7)
+        labels = [f"x ({unit})", f"y ({unit})", f"z ({unit})"]
+        hidden = {1: 2, 2: 1, 3: 0}.get(k)          # the axis a view looks along: no ticks, no label
+        for i, (set_label, set_ticks) in enumerate(((ax.set_xlabel, ax.set_xticks), (ax.set_ylabel, ax.set_yticks),
+                                                     (ax.set_zlabel, ax.set_zticks))):
+            if i == hidden:
+                set_label("")
+                set_ticks([])
+            else:
+                set_label(labels[i], fontsize=7)
         ax.tick_params(labelsize=6)
         ax.set_title(name, fontsize=9)
     if title:
