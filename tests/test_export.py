@@ -248,3 +248,12 @@ def test_a_floating_part_and_parts_that_touch_are_warned(tmp_path, capsys):
     apart.write_text(touching.read_text().replace("54.1 um", "54.5 um"))
     assert main(["export", str(apart), "-o", str(tmp_path / "a.stl")]) == 0
     assert "W-EXPORT" not in capsys.readouterr().err
+
+
+def test_latch_beams_are_measured_on_the_mesh(tmp_path, capsys):
+    ex = str(ROOT / "examples" / "fig6_bistable_latch.acl")
+    assert main(["export", ex, "-o", str(tmp_path / "l.stl"), "--output-format", "json"]) == 0
+    ms = [m for m in json.loads(capsys.readouterr().out)["files"][0]["measurements"] if m["quantity"].startswith("latch")]
+    assert len(ms) == 6 and all(m["ok"] for m in ms)
+    for m in ms:
+        assert abs(m["measured"] - m["declared"]) <= 0.1

@@ -148,7 +148,7 @@ def _export(args, design, variants, fmt) -> int:
             if bad or len(back_parts) != len(b.parts):
                 diags.append(error("E-EXPORT-SOLID", f"{target}: {len(bad) or 'some'} part(s) of {len(b.parts)} do not read "
                                    "back as closed, consistently oriented volumes", Span(file=d.file, line=1, column=1)))
-            measurements, mdiags = check(d, trimesh.util.concatenate(back_parts))
+            measurements, mdiags = check(d, trimesh.util.concatenate(back_parts), b.latch_beams)
             diags.extend(mdiags)
             diags.extend(part_checks(d, b.parts))
             lo = [min(m.bounds[0][k] for m in back_parts) for k in range(2)]
@@ -241,7 +241,9 @@ def _print(results, args, arrangement_file) -> None:
                 continue
             rel = m["unit"] != "um" or m["quantity"] == "orifice radius"
             err = abs(m["measured"] - m["declared"]) / m["declared"] * 100 if rel else abs(m["measured"] - m["declared"])
-            key = m["quantity"].replace("beam diameter", "beam section").replace("beam width", "beam section").replace("beam thickness", "beam section")
+            key = m["quantity"]
+            for old in ("beam diameter", "beam width", "beam thickness"):
+                key = key.replace(old, "beam section")
             worst[key] = max(worst.get(key, 0.0), err)
         checks = ", ".join(f"{k} {_small(v)} {'%' if k in ('cavity volume', 'orifice radius') else 'um'}"
                            for k, v in worst.items())

@@ -221,12 +221,39 @@ def beam_length(probe: Probe, beam) -> float | None:
     return lower + upper
 
 
+def latch_beam(probe: Probe, start, e, across, length_um: float, width_um: float, thickness_um: float):
+    """(width, thickness, free length) in um of one inclined latch beam laid out from ``start`` (um)
+    along ``e``, its width along ``across``: the slice at mid-length, and rays along it just above and
+    below it (the surfaces that end it: the shuttle's side and the clamp's post)."""
+    w = _unit(e)
+    u = _unit(across)
+    v = np.cross(w, u)
+    start = np.asarray(start, float)
+    rot = np.vstack([u, v, w])
+    section = probe.manifold().transform(np.column_stack([rot, -rot @ start])).slice(length_um / 2)
+    size = None
+    for piece in section.decompose():
+        x0, y0, x1, y1 = piece.bounds()
+        if x0 <= 0 <= x1 and y0 <= 0 <= y1:
+            size = (x1 - x0, y1 - y0)
+    mid = start + w * length_um / 2
+    beside = np.array([mid + v * (thickness_um / 2 + 0.3), mid - v * (thickness_um / 2 + 0.3)])
+    up, down = probe.first_hit(beside, w), probe.first_hit(beside, -w)
+    total = up + down
+    free = float(np.mean(total)) if np.isfinite(total).all() else None
+    return (None, None, free) if size is None else (size[0], size[1], free)
+
+
 # ------------------------------------------------------------------------------------------------
 # All of them
 # ------------------------------------------------------------------------------------------------
 
-def check(design, mesh) -> tuple[list[Measurement], list[Diagnostic]]:
-    """Measure ``mesh`` (um) against ``design``: the measurements and an error for each mismatch."""
+def check(design, mesh, latch_beams=None) -> tuple[list[Measurement], list[Diagnostic]]:
+    """Measure ``mesh`` (um) against ``design``: the measurements and an error for each mismatch.
+
+    ``latch_beams`` (acl.export.solid.Build.latch_beams): where the export laid each latch's inclined
+    beams out (the language places the shuttle, not the beams); their sections and free lengths are
+    measured too."""
     probe = Probe(mesh)
     out: list[Measurement] = []
     diags: list[Diagnostic] = []
@@ -264,6 +291,13 @@ def check(design, mesh) -> tuple[list[Measurement], list[Diagnostic]]:
         length = beam_length(probe, b)
         record(b.name, "beam free length", b.length * UM, length, "um", "0.1 um",
                length is not None and abs(length - b.length * UM) <= LENGTH_TOL, b.span)
+    for l in design.latches:
+        for k, (start, e, across) in enumerate((latch_beams or {}).get(l.name, [])):
+            got = latch_beam(probe, start, e, across, l.length * UM, l.width * UM, l.thickness * UM)
+            for nm, want, val in (("latch beam width", l.width * UM, got[0]), ("latch beam thickness", l.thickness * UM, got[1]),
+                                  ("latch beam free length", l.length * UM, got[2])):
+                record(f"{l.name} beam {k + 1}", nm, want, val, "um", "0.1 um",
+                       val is not None and abs(val - want) <= LENGTH_TOL, l.span)
     return out, diags
 
 

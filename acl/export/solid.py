@@ -155,7 +155,7 @@ class Build:
     parts: list[Part]
     diagnostics: list[Diagnostic] = field(default_factory=list)
     defaults: dict = field(default_factory=dict)
-    beam_ends: dict = field(default_factory=dict)   # beam -> (bottom, top) of the free length along its axis (um)
+    latch_beams: dict = field(default_factory=dict)  # latch -> [(start, direction, width direction)] of its beams (um)
 
 
 class _Builder:
@@ -167,7 +167,7 @@ class _Builder:
         self.add: list = []          # (element name, manifold)
         self.cut: list = []
         self.diags: list[Diagnostic] = []
-        self.beam_ends: dict = {}
+        self.latch_beams: dict = {}
         self.pad_depth = self.k["print_pad_depth"] * UM
 
     # -- capsules ---------------------------------------------------------------------------------
@@ -237,7 +237,6 @@ class _Builder:
             z0 = -side / 4
         embed = (carried.cavity.wall * UM / 2) if carried is not None else 0.0
         self.add.append((b.name, extrude(poly, z0, L + embed, clamp, ax)))
-        self.beam_ends[b.name] = (0.0, L)
 
     # -- latches ----------------------------------------------------------------------------------
     def latch(self, l, carried):
@@ -269,6 +268,7 @@ class _Builder:
                 start[2] = s[2]
             normal_out = np.cross(e, _Z) if abs(e[2]) < 0.99 else p
             self.add.append((l.name, extrude(rectangle(wd, th), -embed, L + post / 2, start, e, normal_out)))
+            self.latch_beams.setdefault(l.name, []).append((start.copy(), e, unit(normal_out)))
             clamp = start + e * L
             eh = e.copy()
             eh[2] = 0.0
@@ -376,7 +376,7 @@ class _Builder:
         for i, piece in enumerate(pieces):
             names = tuple(n for n, m in self.add if _overlaps(piece, m))
             parts.append(Part(name=f"part{i + 1}" + (f"-{names[0]}" if names else ""), solid=piece, elements=names))
-        return Build(parts=parts, diagnostics=self.diags, beam_ends=self.beam_ends)
+        return Build(parts=parts, diagnostics=self.diags, latch_beams=self.latch_beams)
 
 
 def _overlaps(piece, m) -> bool:
