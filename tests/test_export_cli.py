@@ -151,3 +151,23 @@ def test_show_plot_bad_outputs(tmp_path, capsys):
     code, text = _run(["show", EX, "--plot", str(tmp_path / "no" / "d.png")], capsys)
     assert code == 2 and "E601" in text
     _only(tmp_path, "d.png")
+
+
+def test_an_empty_design_and_a_bad_print_default_are_errors_in_the_design(tmp_path, capsys):
+    empty = tmp_path / "empty.acl"
+    empty.write_text("import stdlib.media\nuse medium media.pbs\n")
+    code, text = _run(["export", str(empty), "-o", str(tmp_path / "e.stl")], capsys)
+    assert code == 1 and "E-EXPORT-EMPTY" in text and "empty.acl:1:1" in text
+    seg = tmp_path / "seg.acl"
+    seg.write_text("import stdlib.capsules\nparam print_segments = 5\n"
+                   "capsule c like capsules.design1 { center = (0, 0, 30 um) }\nfix c\n")
+    code, text = _run(["export", str(seg), "-o", str(tmp_path / "s.stl")], capsys)
+    assert code == 1 and "E-EXPORT-PARAM" in text and "seg.acl:2:1" in text
+    _only(tmp_path, "empty.acl", "seg.acl")
+    # the design's own value overrides stdlib/printing.acl's
+    seg.write_text(seg.read_text().replace("= 5", "= 24"))
+    code, text = _run(["export", str(seg), "-o", str(tmp_path / "s.stl"), "--output-format", "json"], capsys)
+    assert code == 0
+    import json
+
+    assert json.loads(text)["files"][0]["parts"][0]["triangles"] < 600

@@ -28,7 +28,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from acl.design import geometry as G
-from acl.diagnostics import Diagnostic, Span, warning
+from acl.diagnostics import Diagnostic, DiagnosticError, Span, error, warning
 
 UM = 1e6          # the solids are built in micrometres (SI m x UM)
 _Z = (0.0, 0.0, 1.0)
@@ -60,6 +60,18 @@ def print_defaults(design=None) -> dict[str, tuple[float, Span]]:
     missing = [n for n in DEFAULT_NAMES if n not in out]
     if missing:
         raise RuntimeError(f"stdlib/printing.acl lacks {', '.join(missing)}")
+    bad = []
+    for name, (value, span) in out.items():
+        if name == "print_segments":
+            ok = value == int(value) and 16 <= value <= 1024
+            want = "a whole number of segments from 16 to 1024"
+        else:
+            ok = 0 < value <= 1e-3 or (name == "print_pad_depth" and value == 0)
+            want = "a length above 0 and at most 1 mm" + (" (0: no pads)" if name == "print_pad_depth" else "")
+        if not ok:
+            bad.append(error("E-EXPORT-PARAM", f"`{name}` = {value:g} (SI): the export needs {want}", span))
+    if bad:
+        raise DiagnosticError(bad)
     return out
 
 
@@ -368,6 +380,9 @@ class _Builder:
 
     def finish(self) -> Build:
         mf = _mf()
+        if not self.add:
+            raise DiagnosticError([error("E-EXPORT-EMPTY", "the design declares nothing to print (no capsule, beam, "
+                                         "latch or anchor)", Span(file=self.d.file, line=1, column=1))])
         solid = mf.Manifold.batch_boolean([m for _, m in self.add], mf.OpType.Add)
         if self.cut:
             solid = mf.Manifold.batch_boolean([solid, *self.cut], mf.OpType.Subtract)
