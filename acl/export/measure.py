@@ -70,6 +70,7 @@ class Probe:
         self.mesh = mesh
         self.rays = trimesh.ray.ray_triangle.RayMeshIntersector(mesh)
         self._manifold = None
+        self._boxes = None
 
     def first_hit(self, origins, direction) -> np.ndarray:
         """Distance to the first surface along ``direction`` from each origin (inf when none)."""
@@ -82,6 +83,25 @@ class Probe:
             keep = dist > 1e-9
             np.minimum.at(out, idx[keep], dist[keep])
         return out
+
+    def near(self, lo, hi) -> "Probe":
+        """A probe on the triangles whose bounding boxes meet the box [lo, hi] (um): rays cast inside
+        the box find the same surfaces, a hundred capsules away cost nothing."""
+        if getattr(self, "_boxes", None) is None:
+            tri = self.mesh.triangles
+            self._boxes = (tri.min(axis=1), tri.max(axis=1))
+        tmin, tmax = self._boxes
+        keep = np.all(tmax >= np.asarray(lo) - 1e-9, axis=1) & np.all(tmin <= np.asarray(hi) + 1e-9, axis=1)
+        if keep.all():
+            return self
+        sub = Probe.__new__(Probe)
+        import trimesh
+
+        sub.mesh = trimesh.Trimesh(self.mesh.vertices, self.mesh.faces[keep], process=False)
+        sub.rays = trimesh.ray.ray_triangle.RayMeshIntersector(sub.mesh)
+        sub._manifold = self.manifold()
+        sub._boxes = None
+        return sub
 
     def manifold(self):
         if self._manifold is None:
@@ -268,8 +288,12 @@ def check(design, mesh, latch_beams=None) -> tuple[list[Measurement], list[Diagn
 
     for c in design.capsules:
         radii = {}
+        cv = c.cavity
+        reach = G.bounding_radius(cv.shape, cv.radius, cv.side, cv.height, cv.volume, 3 * cv.wall) * UM
+        ctr = np.asarray(c.center, float) * UM
+        local = probe.near(ctr - reach, ctr + reach)
         for o in c.orifices:
-            r = orifice_radius(probe, c, o)
+            r = orifice_radius(local, c, o)
             want = o.radius * UM
             radii[o.name] = r if r is not None else want
             record(f"{c.name}.{o.name}", "orifice radius", want, r, "um", "0.5 %",
@@ -288,7 +312,9 @@ def check(design, mesh, latch_beams=None) -> tuple[list[Measurement], list[Diagn
             got = None if sec is None else sec[k]
             record(b.name, f"beam {nm}", want[k], got, "um", "0.1 um",
                    got is not None and abs(got - want[k]) <= LENGTH_TOL, b.span)
-        length = beam_length(probe, b)
+        ends = np.array([b.clamp, b.tip]) * UM
+        margin = b.length * UM / 2 + 10.0
+        length = beam_length(probe.near(ends.min(axis=0) - margin, ends.max(axis=0) + margin), b)
         record(b.name, "beam free length", b.length * UM, length, "um", "0.1 um",
                length is not None and abs(length - b.length * UM) <= LENGTH_TOL, b.span)
     for l in design.latches:

@@ -395,8 +395,10 @@ class _Builder:
 
 
 def _overlaps(piece, m) -> bool:
+    """Whether body ``m`` is part of ``piece``: its box inside the piece's box, and a common volume."""
     a, b = piece.bounding_box(), m.bounding_box()
-    if any(a[i] > b[i + 3] or b[i] > a[i + 3] for i in range(3)):
+    eps = 1e-6 * max(1.0, max(abs(x) for x in a))
+    if any(b[i] < a[i] - eps or b[i + 3] > a[i + 3] + eps for i in range(3)):
         return False
     return (piece ^ m).volume() > 0.0
 
