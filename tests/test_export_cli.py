@@ -171,3 +171,16 @@ def test_an_empty_design_and_a_bad_print_default_are_errors_in_the_design(tmp_pa
     import json
 
     assert json.loads(text)["files"][0]["parts"][0]["triangles"] < 600
+
+
+def test_variants_write_all_or_nothing(tmp_path, capsys):
+    pair = str(ROOT / "examples" / "fig4_facing_pair.acl")
+    fifo = tmp_path / "pair-gap=40um.stl"               # a name a variant makes
+    os.mkfifo(fifo)
+    code, text = _run(["export", pair, "-o", str(tmp_path / "pair.stl"), "--vary", "gap=30um..50um:3"], capsys)
+    assert code == 2 and "FIFO" in text and stat.S_ISFIFO(os.stat(fifo).st_mode)
+    _only(tmp_path, "pair-gap=40um.stl")
+    os.unlink(fifo)
+    code, text = _run(["export", pair, "-o", str(tmp_path / "pair.stl"), "--vary", "gap=40um,-20um"], capsys)
+    assert code == 1 and "E403" in text                 # the second variant's capsules overlap
+    _only(tmp_path)

@@ -163,6 +163,11 @@ def _export(args, design, variants, fmt) -> int:
         if any(x.is_error for x in diags):
             report(diags, fmt)
             return 1
+        if len(results) > 1:          # the names the variants make must be writable as -o is
+            inputs = [*design.sources, design.file]
+            for target in [r["file"] for r in results] + [f"{stem}-array{suffix}"]:
+                F.check_output(target, "--output", SUFFIXES, inputs)
+            F.check_output(f"{stem}-arrangement.json", "--output", (".json",), inputs)
         for r in results:
             staged.append((F.stage(r["file"], r.pop("_data")), r["file"]))
         arr = None
