@@ -166,7 +166,8 @@ def test_obj_and_a_json_report_of_the_measurements(tmp_path, capsys):
     assert main(["export", ex, "-o", str(tmp_path / "m.obj"), "--output-format", "json"]) == 0
     out = json.loads(capsys.readouterr().out)
     ms = out["files"][0]["measurements"]
-    assert {m["quantity"] for m in ms} == {"orifice radius", "cavity volume", "beam diameter", "beam free length"}
+    assert {m["quantity"] for m in ms} == {"orifice radius", "cavity volume", "wall thickness", "beam diameter",
+                                                "beam free length"}
     assert all(m["ok"] for m in ms)
     assert all(p.is_volume for p in _load(tmp_path / "m.obj", "obj"))
 

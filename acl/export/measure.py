@@ -15,6 +15,8 @@ read back from the file), in micrometres, and compared with the resolved design:
   its area as a circle's diameter, or a rectangle's width and thickness. Tolerance 0.1 um.
 * beam free length: rays parallel to the beam just beside it, from mid-length to the surfaces that
   end it (the substrate pad, the capsule it carries, or its own tip). Tolerance 0.1 um.
+* wall thickness: the thinnest wall along the cavity surface's normals from the centre, away from
+  the orifices (what is joined to a wall only thickens it). Tolerance 0.1 um.
 
 A mismatch is an error diagnostic E-EXPORT-GEOMETRY at the element's declaration.
 """
@@ -199,6 +201,43 @@ def orifice_radius(probe: Probe, capsule, orifice) -> float | None:
     return float(np.sqrt(np.mean(r * r)))
 
 
+def wall_thickness(probe: Probe, capsule) -> float | None:
+    """The thinnest wall (um) along the cavity surface's normals from the centre (radial for a cylinder
+    and a sphere, the face normals of a prism, both ends along the axis), away from the orifices: the
+    distance from the cavity surface to the next surface out.  What is joined to the wall (a beam, a
+    latch) only thickens it."""
+    cv = capsule.cavity
+    c = np.asarray(capsule.center, float) * UM
+    ax = _unit(cv.axis)
+    if cv.shape == "volume":
+        dirs = [np.array(d, float) for d in ((1, 0, 0), (-1, 0, 0), (0, 1, 0), (0, -1, 0), (0, 0, 1), (0, 0, -1))]
+        dirs += [_unit(d) for d in ((1, 1, 1), (1, -1, 1), (-1, 1, 1), (-1, -1, 1), (1, 1, -1), (1, -1, -1), (-1, 1, -1), (-1, -1, -1))]
+    else:
+        from acl.export.solid import prism_ref
+
+        u, v, _ = _frame(ax, prism_ref(capsule) if cv.shape == "prism" else None)
+        k = 3 if cv.shape == "prism" else 8
+        dirs = [math.cos(2 * math.pi * i / k) * u + math.sin(2 * math.pi * i / k) * v for i in range(k)] + [ax, -ax]
+    best = None
+    for d in dirs:
+        if any(_cone(d, c, o) for o in capsule.orifices):
+            continue
+        loc, idx, _ = probe.rays.intersects_location(c[None, :], d[None, :], multiple_hits=True)
+        dist = np.sort(np.einsum("ij,j->i", loc - c, d)) if len(loc) else np.array([])
+        dist = dist[dist > 1e-9]
+        if len(dist) >= 2:
+            t = float(dist[1] - dist[0])
+            best = t if best is None else min(best, t)
+    return best
+
+
+def _cone(d, c, o) -> bool:
+    """Whether direction ``d`` from the centre ``c`` (um) passes near orifice ``o``'s opening."""
+    to = np.asarray(o.center, float) * UM - c
+    dist = float(np.linalg.norm(to))
+    return float(np.dot(d, to)) > 0 and math.acos(min(1.0, float(np.dot(d, to)) / dist)) < math.atan2(1.5 * o.radius * UM, dist) + 0.05
+
+
 # ------------------------------------------------------------------------------------------------
 # Beams
 # ------------------------------------------------------------------------------------------------
@@ -299,6 +338,10 @@ def check(design, mesh, latch_beams=None) -> tuple[list[Measurement], list[Diagn
             record(f"{c.name}.{o.name}", "orifice radius", want, r, "um", "0.5 %",
                    r is not None and abs(r - want) <= RADIUS_TOL * want, o.span,
                    "a closed hole or a neighbour within a wall of it" if r is None else None)
+        wall = wall_thickness(local, c)
+        want_w = c.cavity.wall * UM
+        record(c.name, "wall thickness", want_w, wall, "um", "0.1 um",
+               wall is not None and abs(wall - want_w) <= LENGTH_TOL, c.span)
         vol = cavity_volume(probe, c, radii)
         want = c.cavity.volume * UM ** 3
         record(c.name, "cavity volume", want, vol, "um^3", "0.5 %",
