@@ -258,3 +258,43 @@ def test_latch_beams_are_measured_on_the_mesh(tmp_path, capsys):
     assert len(ms) == 6 and all(m["ok"] for m in ms)
     for m in ms:
         assert abs(m["measured"] - m["declared"]) <= 0.1
+
+
+SHAPES = """import stdlib.beams
+capsule s {
+  cavity volume { volume = 6.5e4 um^3, wall = 3 um }
+  orifice jet { radius = 8 um, normal = +x }
+  orifice up { radius = 5 um, normal = (0, 0.6, 0.8) }
+}
+capsule c {
+  center = (150 um, 0, 60 um)
+  cavity cylinder { radius = 20 um, height = 40 um }
+  orifice top { radius = 6 um, face = top }
+  orifice side { radius = 8 um, normal = -y }
+}
+capsule p {
+  center = (0, 150 um, 60 um)
+  cavity prism { side = 50 um, height = 40 um, facing = +y }
+  orifice t { radius = 6 um, face = top }
+  orifice f2 { radius = 8 um, face = 2 }
+}
+beam b like beams.cantilever50 { clamp = (0, 0, 0) }
+beam h like beams.cantilever50 { clamp = (150 um, -80 um, 60 um), axis = +y, length = 50 um, section = rect(3 um, 2 um) }
+mount s on b.tip
+fix c
+fix p
+"""
+
+
+def test_every_cavity_shape_end_orifices_and_rect_beams(tmp_path, capsys):
+    """A cavity given by its volume (a sphere) with an oblique orifice, a cylinder and a prism with
+    orifices on their end faces, a horizontal rectangular beam on a post: all measured within tolerance."""
+    design = tmp_path / "shapes.acl"
+    design.write_text(SHAPES)
+    assert main(["export", str(design), "-o", str(tmp_path / "s.3mf"), "--output-format", "json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    ms = out["files"][0]["measurements"]
+    assert len(ms) == 17 and all(m["ok"] for m in ms), [m for m in ms if not m["ok"]]
+    assert not out["diagnostics"]
+    parts = _load(tmp_path / "s.3mf", "3mf")
+    assert len(parts) == 4 and all(p.is_volume for p in parts)

@@ -48,8 +48,9 @@ class Measurement:
     ok: bool
 
     def as_dict(self) -> dict:
-        return {"element": self.element, "quantity": self.quantity, "declared": self.declared,
-                "measured": self.measured, "unit": self.unit, "tolerance": self.tolerance, "ok": self.ok}
+        return {"element": self.element, "quantity": self.quantity, "declared": float(self.declared),
+                "measured": None if self.measured is None else float(self.measured), "unit": self.unit,
+                "tolerance": self.tolerance, "ok": bool(self.ok)}
 
 
 def _unit(v) -> np.ndarray:
@@ -318,6 +319,7 @@ def check(design, mesh, latch_beams=None) -> tuple[list[Measurement], list[Diagn
     diags: list[Diagnostic] = []
 
     def record(name, quantity, declared, measured, unit_, tol_text, ok, span, hint=None):
+        ok = bool(ok)
         out.append(Measurement(name, quantity, declared, measured, unit_, tol_text, ok))
         if not ok:
             got = "could not be measured" if measured is None else f"measures {measured:.6g} {unit_}"
