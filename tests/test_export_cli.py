@@ -184,3 +184,14 @@ def test_variants_write_all_or_nothing(tmp_path, capsys):
     code, text = _run(["export", pair, "-o", str(tmp_path / "pair.stl"), "--vary", "gap=40um,-20um"], capsys)
     assert code == 1 and "E403" in text                 # the second variant's capsules overlap
     _only(tmp_path)
+
+
+def test_files_respect_the_umask(tmp_path, capsys):
+    old = os.umask(0o027)
+    try:
+        code, _ = _run(["export", EX, "-o", str(tmp_path / "a.3mf"), "--preview", str(tmp_path / "a.png"), "-q"], capsys)
+    finally:
+        os.umask(old)
+    assert code == 0
+    for name in ("a.3mf", "a.png"):
+        assert stat.S_IMODE(os.stat(tmp_path / name).st_mode) == 0o640, name
