@@ -22,6 +22,7 @@ COMMANDS = {
     "rule": "Print the documentation of a rule or diagnostic code (e.g. ACL201, E303).",
     "fmt": "Rewrite designs in the one canonical layout (--check for CI, --diff, - for stdin).",
     "sweep": "Sweep parameters over grids and print tolerances (Monte Carlo): a table per point and the yield.",
+    "export": "Write the printable solid of a design (.stl, .3mf, .obj), checked against the design.",
     "tune": "Choose the free parameters that maximise the yield of every require under print tolerances.",
     "play": "Play a compiled schedule on a signal generator (SCPI over PyVISA; --dry-run prints it).",
     "track": "Track a capsule in a microscope video (AVI, MP4, TIFF stack) into the CSV `acl fit` reads.",
