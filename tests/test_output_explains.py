@@ -72,3 +72,19 @@ def test_a_rejected_candidate_that_passed_its_tests_says_why_it_was_not_kept():
     assert lone.reason.startswith("passed F-test and BIC, but was not kept")
     assert beaten.reason == "passed F-test and BIC, but drift explains more (lower BIC)"
     assert kept.reason == "passes F-test, BIC and cross-validation"
+
+
+def test_an_80_column_terminal_sees_every_number(tmp_path):
+    """The analyze pair table was cut to `lef…`, `125…`, `att…` at 80 columns; now too wide a table is stacked."""
+    import subprocess
+    import sys
+
+    root = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..")
+    env = dict(os.environ, COLUMNS="80", PYTHONPATH=root)
+    r = subprocess.run([sys.executable, "-m", "acl", "analyze", os.path.join(root, "examples", "fig4_facing_pair.acl")],
+                       env=env, capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr
+    assert "…" not in r.stdout
+    block = r.stdout[r.stdout.index("Bubble pairs"):]
+    assert "left-right" in block and "125.0" in block and "3.25" in block and "attract" in block
+    assert max(len(line) for line in r.stdout.splitlines()) <= 80
