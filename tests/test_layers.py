@@ -58,8 +58,6 @@ ALLOWED: dict[str, str] = {
     # only needs syntax and design): either canonical() moves down, or fmt does
     "acl.fit.calibrated -> acl.fmt": "the calibrated design as canonical text",
     "acl.sweep.tune -> acl.fmt": "the tuned design as canonical text",
-    # emit renders schedules: the schedule model is one layer below, fine; but emit's analysis figures are drawn
-    # from the analysis layer directly -- allowed (lower).  The results layer reads emit: fine.
     # --- private names across packages ---------------------------------------------------------------------
     # the fit rebuilds the force engine through private names: to be removed by the engine work (one engine)
     "acl.fit.group -> acl.analysis.acoustics:_compute_engine": "fit rebuilds _Engine; engine work",
@@ -93,11 +91,12 @@ ALLOWED: dict[str, str] = {
 
 
 def place_of(module: str) -> tuple[str, int]:
-    """The entry of LAYERS that ``module`` belongs to (the longest matching prefix) and its layer's index."""
+    """The entry of LAYERS that ``module`` belongs to (the longest matching prefix; ``acl`` matches only itself, so
+    a new top-level module or package must be placed) and its layer's index; ("", -1) if none."""
     best, rank = "", -1
     for i, (_, packages) in enumerate(LAYERS):
         for p in packages:
-            if (module == p or module.startswith(p + ".")) and len(p) > len(best):
+            if (module == p or p != "acl" and module.startswith(p + ".")) and len(p) > len(best):
                 best, rank = p, i
     return best, rank
 
@@ -222,6 +221,7 @@ def test_the_import_reader_sees_imports_inside_functions_and_private_attributes(
     assert owner_of_private("acl.analysis.acoustics._engine") == "acl.analysis"
     assert owner_of_private("acl._files.undecodable") == "acl"          # acl's own helpers serve every package
     assert owner_of_private("acl.commands._common.report") == "acl.commands"
+    assert layer_of("acl.engine") == -1 and layer_of("acl") == layer_of("acl.commands.fit")   # to be placed: a new one
 
 
 def test_the_checker_finds_an_upward_import_and_a_private_attribute(tmp_path, monkeypatch):
