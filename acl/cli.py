@@ -129,7 +129,7 @@ def build_parser(argv: list[str] | None = None) -> argparse.ArgumentParser:
         p = sub.add_parser(name, help=help_text, description=help_text,
                            formatter_class=argparse.RawDescriptionHelpFormatter)
         module.add_parser(p)
-        from acl.commands._common import add_verbosity
+        from acl.commands import add_verbosity
 
         add_verbosity(p)
         p.set_defaults(_module=module)
@@ -381,7 +381,7 @@ def _main(argv: list[str] | None = None) -> int:
         sys.stderr.write("acl: interrupted\n")
         return 130
     except DiagnosticError as exc:     # a stage that stops the whole command (a folder search at its limit: E602)
-        from acl.commands._common import exit_code, report
+        from acl.commands import exit_code, report
 
         fmt = getattr(args, "output_format", "text")
         report(exc.diagnostics, fmt if fmt == "json" else "text")
