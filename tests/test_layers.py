@@ -27,7 +27,9 @@ LAYERS: list[tuple[str, tuple[str, ...]]] = [
     ("design", ("acl.design",)),
     ("analysis", ("acl.analysis",)),
     ("stages", ("acl.lint", "acl.schedule", "acl.fit", "acl.sweep")),
-    ("emit", ("acl.emit",)),
+    # the emitters: schedules to files (emit), designs to print files (export), schedules to instruments and
+    # video to data (bench)
+    ("emit", ("acl.emit", "acl.export", "acl.bench")),
     # the typed results of the Python API (acl.notebook today)
     ("results", ("acl.results", "acl.notebook")),
     # `acl` itself (acl/__init__.py: the Python API) sits with the commands
@@ -52,7 +54,6 @@ ALLOWED: dict[str, str] = {
     "acl.fit.problem -> acl": "acl.load of the Python API; use acl.design.resolve",
     "acl.fit.synth -> acl": "acl.load of the Python API; use acl.design.resolve",
     # a stage writes a file through emit's atomic writer (write_text_atomic belongs with acl._files)
-    "acl.fit.synth -> acl.emit.atomic": "atomic write of the synthesized data; move write_text_atomic below",
     "acl.sweep.tune -> acl.emit.atomic": "atomic write of the tuned design; move write_text_atomic below",
     # a stage prints a design back as canonical text with the formatter (fmt sits on the top layer although it
     # only needs syntax and design): either canonical() moves down, or fmt does

@@ -243,7 +243,7 @@ def write_csv(data, path, unit: str = "um") -> None:
         return
     if not path or os.path.isdir(path):
         raise IsADirectoryError(21, "a folder, not a file" if path else "an empty path", path)
-    from acl.emit.atomic import write_chunks_atomic
+    from acl._files import write_chunks_atomic
 
     # one rename; the temporary file is removed when it fails (`-o DIR` left DIR.tmpPID behind)
     write_chunks_atomic(path, rows())
