@@ -1,0 +1,76 @@
+"""mkdocs hook: the figures a page shows are drawn, at build time, by the commands the page itself runs.
+
+A page links a figure by the path the page's commands write it to, relative to the page, e.g.
+``![...](figs/modal_response.png)`` after ``acl analyze ... --plot figs/``.  For every page that links a
+missing ``.png``, this hook replays the page's ``<!-- doc-run: ... -->``, ``<!-- doc: $ ... -->`` and
+``<!-- doc-py: ... -->`` markers in order, in a scratch folder (``tests/docs_sync.py``'s session: copies of
+``examples/`` and ``tests/data/``), until every linked figure exists, and adds those PNGs to the site
+beside the page.  Nothing is committed or written to the repository: a figure cannot drift from the run
+that draws it, and a figure no command draws is a missing link (an error under ``mkdocs build --strict``).
+"""
+from __future__ import annotations
+
+import logging
+import re
+import sys
+from pathlib import Path, PurePosixPath
+
+from mkdocs.structure.files import File
+
+log = logging.getLogger("mkdocs.hooks.figures")
+ROOT = Path(__file__).resolve().parents[2]
+IMAGE = re.compile(r"!\[[^\]]*\]\((?P<path>[^)\s]+\.png)\)")
+_sessions: list = []
+
+
+def _docs_sync():
+    if str(ROOT / "tests") not in sys.path:
+        sys.path.insert(0, str(ROOT / "tests"))
+    if str(ROOT) not in sys.path:
+        sys.path.insert(0, str(ROOT))
+    import docs_sync
+
+    return docs_sync
+
+
+def _draw(page: str, text: str, wanted: list[str]) -> Path:
+    """Replay the page's commands until every wanted figure exists: the scratch folder."""
+    ds = _docs_sync()
+    session = ds.Session(page)
+    _sessions.append(session)
+    scratch = Path(session.dir)
+    for m in ds.MARK.finditer(text):
+        if all((scratch / w).is_file() for w in wanted):
+            break
+        if m.group("run") is not None:
+            session.acl(*ds._exit(m.group("run")))
+        elif m.group("py") is not None:
+            session.run_py(m.group("py"))
+        elif m.group("key").strip().startswith("$"):
+            session.acl(*ds._exit(m.group("key").strip()[1:]))
+    return scratch
+
+
+def on_files(files, config):
+    existing = {f.src_uri for f in files}
+    for page in [f for f in files if f.src_uri.endswith(".md")]:
+        text = Path(page.abs_src_path).read_text(encoding="utf-8")
+        base = PurePosixPath(page.src_uri).parent
+        wanted = sorted({m.group("path") for m in IMAGE.finditer(text)
+                         if "://" not in m.group("path") and str(base / m.group("path")) not in existing})
+        if not wanted or "<!-- doc" not in text:
+            continue
+        scratch = _draw(str(Path(page.abs_src_path).relative_to(ROOT)), text, wanted)
+        for w in wanted:
+            if not (scratch / w).is_file():
+                continue            # left missing: mkdocs --strict reports the link
+            uri = str(base / w)
+            files.append(File.generated(config, uri, abs_src_path=str(scratch / w)))
+            existing.add(uri)
+            log.info("figure %s drawn by the commands of %s", uri, page.src_uri)
+    return files
+
+
+def on_post_build(config):
+    while _sessions:
+        _sessions.pop().close()
