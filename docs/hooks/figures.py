@@ -7,6 +7,12 @@ missing ``.png``, this hook replays the page's ``<!-- doc-run: ... -->``, ``<!--
 ``examples/`` and ``tests/data/``), until every linked figure exists, and adds those PNGs to the site
 beside the page.  Nothing is committed or written to the repository: a figure cannot drift from the run
 that draws it, and a figure no command draws is a missing link (an error under ``mkdocs build --strict``).
+
+Nav entries for pages that do not exist (yet) are dropped with a note, so the nav can name pages other
+branches add. It also prepares each page's markdown for the site without changing the file: the ``<!-- doc ... -->``
+markers are removed (they are invisible, but their Python expressions look like reference links to
+mkdocs-autorefs), and docs/rules.md's fences ```` ```acl fails ```` / ```` ```acl passes ```` (the
+info string tests/test_lint_docs.py reads) become ```` ```acl title="fails" ````.
 """
 from __future__ import annotations
 
@@ -19,6 +25,8 @@ from mkdocs.structure.files import File
 
 log = logging.getLogger("mkdocs.hooks.figures")
 ROOT = Path(__file__).resolve().parents[2]
+MARKER = re.compile(r"<!-- ?(?:doc|/doc)[\s\S]*?-->")
+FENCE_WORD = re.compile(r"^(\s*```acl) (fails|passes|preamble)[ \t]*$", re.M)
 IMAGE = re.compile(r"!\[[^\]]*\]\((?P<path>[^)\s]+\.png)\)")
 _sessions: list = []
 
@@ -51,6 +59,33 @@ def _draw(page: str, text: str, wanted: list[str]) -> Path:
     return scratch
 
 
+def _prune(nav, docs: Path):
+    out = []
+    for item in nav:
+        if isinstance(item, dict):
+            (title, value), = item.items()
+            if isinstance(value, list):
+                value = _prune(value, docs)
+                if value:
+                    out.append({title: value})
+                continue
+            item_path = value
+        else:
+            item_path = item
+        if isinstance(item_path, str) and item_path.endswith(".md") and "://" not in item_path \
+                and not (docs / item_path).is_file():
+            log.info("nav: %s is not in docs/ (yet): left out", item_path)
+            continue
+        out.append(item)
+    return out
+
+
+def on_config(config):
+    if config["nav"]:
+        config["nav"] = _prune(config["nav"], Path(config["docs_dir"]))
+    return config
+
+
 def on_files(files, config):
     existing = {f.src_uri for f in files}
     for page in [f for f in files if f.src_uri.endswith(".md")]:
@@ -60,15 +95,23 @@ def on_files(files, config):
                          if "://" not in m.group("path") and str(base / m.group("path")) not in existing})
         if not wanted or "<!-- doc" not in text:
             continue
-        scratch = _draw(str(Path(page.abs_src_path).relative_to(ROOT)), text, wanted)
+        src = Path(page.abs_src_path)
+        scratch = _draw(str(src.relative_to(ROOT)) if src.is_relative_to(ROOT) else page.src_uri, text, wanted)
         for w in wanted:
             if not (scratch / w).is_file():
                 continue            # left missing: mkdocs --strict reports the link
             uri = str(base / w)
-            files.append(File.generated(config, uri, abs_src_path=str(scratch / w)))
+            figure = File(uri, src_dir=None, dest_dir=config["site_dir"], use_directory_urls=config["use_directory_urls"])
+            figure.abs_src_path = str(scratch / w)      # as File.generated (mkdocs 1.6), outside a plugin run
+            files.append(figure)
             existing.add(uri)
             log.info("figure %s drawn by the commands of %s", uri, page.src_uri)
     return files
+
+
+def on_page_markdown(markdown, page, config, files):
+    markdown = MARKER.sub("", markdown)
+    return FENCE_WORD.sub(r'\1 title="\2"', markdown)
 
 
 def on_post_build(config):
