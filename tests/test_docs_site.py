@@ -82,7 +82,8 @@ def _target(page: Path, url: str, site: Path) -> tuple[Path, str] | None:
     path = unquote(parts.path)
     if not path:
         return page, parts.fragment
-    target = (page.parent / path).resolve()
+    target = (site / path.lstrip("/")) if path.startswith("/") else (page.parent / path)   # 404.html: from the root
+    target = target.resolve()
     if target.is_dir():
         target = target / "index.html"
     return target, parts.fragment
