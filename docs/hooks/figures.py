@@ -9,9 +9,9 @@ beside the page.  Nothing is committed or written to the repository: a figure ca
 that draws it, and a figure no command draws is a missing link (an error under ``mkdocs build --strict``).
 
 Nav entries for pages that do not exist (yet) are dropped with a note, so the nav can name pages other
-branches add. It also prepares each page's markdown for the site without changing the file: the ``<!-- doc ... -->``
-markers are removed (they are invisible, but their Python expressions look like reference links to
-mkdocs-autorefs), and docs/rules.md's fences ```` ```acl fails ```` / ```` ```acl passes ```` (the
+branches add. It also prepares each page's markdown for the site without changing the file: each ``<!-- doc ... -->``
+marker is replaced by what it generated (markers are invisible, but their Python expressions look like
+reference links to mkdocs-autorefs), and docs/rules.md's fences ```` ```acl fails ```` / ```` ```acl passes ```` (the
 info string tests/test_lint_docs.py reads) become ```` ```acl title="fails" ````.
 """
 from __future__ import annotations
@@ -25,7 +25,6 @@ from mkdocs.structure.files import File
 
 log = logging.getLogger("mkdocs.hooks.figures")
 ROOT = Path(__file__).resolve().parents[2]
-MARKER = re.compile(r"<!-- ?(?:doc|/doc)[\s\S]*?-->")
 FENCE_WORD = re.compile(r"^(\s*```acl) (fails|passes|preamble)[ \t]*$", re.M)
 IMAGE = re.compile(r"!\[[^\]]*\]\((?P<path>[^)\s]+\.png)\)")
 _sessions: list = []
@@ -109,9 +108,14 @@ def on_files(files, config):
     return files
 
 
+def strip_markers(markdown: str) -> str:
+    """The page as a reader sees it: each marker replaced by what it generated (docs_sync.MARK, so a marker
+    quoted in inline code stays)."""
+    return _docs_sync().MARK.sub(lambda m: m.group("body") or "", markdown)
+
+
 def on_page_markdown(markdown, page, config, files):
-    markdown = MARKER.sub("", markdown)
-    return FENCE_WORD.sub(r'\1 title="\2"', markdown)
+    return FENCE_WORD.sub(r'\1 title="\2"', strip_markers(markdown))
 
 
 def on_post_build(config):
