@@ -27,6 +27,7 @@ log = logging.getLogger("mkdocs.hooks.figures")
 ROOT = Path(__file__).resolve().parents[2]
 FENCE_WORD = re.compile(r"^(\s*```acl) (fails|passes|preamble)[ \t]*$", re.M)
 IMAGE = re.compile(r"!\[[^\]]*\]\((?P<path>[^)\s]+\.png)\)")
+CODE = re.compile(r"`[^`\n]*`")             # an image quoted in inline code is text
 _sessions: list = []
 
 
@@ -90,7 +91,7 @@ def on_files(files, config):
     for page in [f for f in files if f.src_uri.endswith(".md")]:
         text = Path(page.abs_src_path).read_text(encoding="utf-8")
         base = PurePosixPath(page.src_uri).parent
-        wanted = sorted({m.group("path") for m in IMAGE.finditer(text)
+        wanted = sorted({m.group("path") for m in IMAGE.finditer(CODE.sub("", text))
                          if "://" not in m.group("path") and str(base / m.group("path")) not in existing})
         if not wanted or "<!-- doc" not in text:
             continue
