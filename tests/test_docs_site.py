@@ -90,11 +90,9 @@ def _target(page: Path, url: str, site: Path) -> tuple[Path, str] | None:
     return target, parts.fragment
 
 
-@pytest.mark.studies
-def test_site_builds_strict_and_every_internal_link_and_anchor_resolves(site):
-    pages = sorted(site.rglob("*.html"))
-    parsed = {p: _parse(p) for p in pages}
-    assert (site / "index.html").is_file() and (site / "reference/api/index.html").is_file()
+def broken_links(site: Path) -> tuple[list[str], dict]:
+    """Every link, script and image of the built pages that points at a missing file or anchor."""
+    parsed = {p: _parse(p) for p in sorted(site.rglob("*.html"))}
     broken = []
     for page, doc in parsed.items():
         for url in doc.links + doc.images:
@@ -108,6 +106,24 @@ def test_site_builds_strict_and_every_internal_link_and_anchor_resolves(site):
                 ids = parsed[target].ids if target in parsed else _parse(target).ids
                 if frag not in ids:
                     broken.append(f"{page.relative_to(site)}: {url} (no anchor #{frag})")
+    return broken, parsed
+
+
+def test_link_check_finds_a_missing_page_a_missing_anchor_and_a_missing_image(tmp_path):
+    (tmp_path / "a").mkdir()
+    (tmp_path / "a" / "index.html").write_text('<h2 id="here">x</h2><a href="#here">ok</a><a href="../b/#gone">b</a>'
+                                               '<a href="../c/">c</a><img src="../f.png"><a href="https://x.org/">ext</a>')
+    (tmp_path / "b").mkdir()
+    (tmp_path / "b" / "index.html").write_text('<h2 id="there">y</h2><a href="/a/#here">root-relative</a>')
+    broken, _ = broken_links(tmp_path)
+    assert sorted(b.split(" (")[0] for b in broken) == ["a/index.html: ../b/#gone", "a/index.html: ../c/",
+                                                          "a/index.html: ../f.png"], broken
+
+
+@pytest.mark.studies
+def test_site_builds_strict_and_every_internal_link_and_anchor_resolves(site):
+    assert (site / "index.html").is_file() and (site / "reference/api/index.html").is_file()
+    broken, parsed = broken_links(site)
     assert not broken, "broken links in the built site:\n" + "\n".join(broken[:50])
     # the API reference is generated from docstrings: each public function has its entry
     api = parsed[site / "reference/api/index.html"].ids
