@@ -122,3 +122,7 @@ def on_page_markdown(markdown, page, config, files):
 def on_post_build(config):
     while _sessions:
         _sessions.pop().close()
+
+
+def on_build_error(error):
+    on_post_build(None)
