@@ -218,7 +218,7 @@ def test_figure_hook_draws_a_linked_figure_from_the_pages_own_command(tmp_path):
         assert "t/figs/modal_response.png" in uris and "t/figs/nothing_draws_this.png" not in uris
         assert Path(uris["t/figs/modal_response.png"].abs_src_path).read_bytes()[:4] == b"\x89PNG"
     finally:
-        figures.on_post_build(config)
+        figures.remove_scratch()
     assert figures.strip_markers("a<!-- doc: = x[0] -->1<!-- /doc -->b<!-- doc-py: y = 1 -->c") == "a1bc"
     quoted = "`<!-- doc: = EXPR -->value<!-- /doc -->` and `<!-- doc-run: acl ARGS -->`"
     assert figures.strip_markers(quoted) == quoted            # docs/contributing.md quotes them

@@ -16,6 +16,7 @@ info string tests/test_lint_docs.py reads) become ```` ```acl title="fails" ````
 """
 from __future__ import annotations
 
+import atexit
 import logging
 import re
 import sys
@@ -28,7 +29,8 @@ ROOT = Path(__file__).resolve().parents[2]
 FENCE_WORD = re.compile(r"^(\s*```acl) (fails|passes|preamble)[ \t]*$", re.M)
 IMAGE = re.compile(r"!\[[^\]]*\]\((?P<path>[^)\s]+\.png)\)")
 CODE = re.compile(r"`[^`\n]*`")             # an image quoted in inline code is text
-_sessions: list = []
+_sessions: dict = {}      # (page, its text) -> the session that drew its figures; kept while mkdocs runs
+                          # (`mkdocs serve` rebuilds without replaying unchanged pages), removed at exit
 
 
 def _docs_sync():
@@ -44,8 +46,11 @@ def _docs_sync():
 def _draw(page: str, text: str, wanted: list[str]) -> Path:
     """Replay the page's commands until every wanted figure exists: the scratch folder."""
     ds = _docs_sync()
-    session = ds.Session(page)
-    _sessions.append(session)
+    if (page, text) in _sessions:
+        return Path(_sessions[page, text].dir)
+    for key in [k for k in _sessions if k[0] == page]:     # the page changed: its old figures go
+        _sessions.pop(key).close()
+    session = _sessions[page, text] = ds.Session(page)
     scratch = Path(session.dir)
     for m in ds.MARK.finditer(text):
         if all((scratch / w).is_file() for w in wanted):
@@ -119,10 +124,7 @@ def on_page_markdown(markdown, page, config, files):
     return FENCE_WORD.sub(r'\1 title="\2"', strip_markers(markdown))
 
 
-def on_post_build(config):
+@atexit.register
+def remove_scratch():
     while _sessions:
-        _sessions.pop().close()
-
-
-def on_build_error(error):
-    on_post_build(None)
+        _sessions.popitem()[1].close()
