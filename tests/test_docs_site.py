@@ -223,3 +223,18 @@ def test_figure_hook_draws_a_linked_figure_from_the_pages_own_command(tmp_path):
     quoted = "`<!-- doc: = EXPR -->value<!-- /doc -->` and `<!-- doc-run: acl ARGS -->`"
     assert figures.strip_markers(quoted) == quoted            # docs/contributing.md quotes them
     assert figures.FENCE_WORD.sub(r'\1 title="\2"', "```acl fails\n") == '```acl title="fails"\n'
+
+
+def test_api_docstrings_render_their_sessions_as_code():
+    """docs/hooks/griffe_docstrings.py: a `>>>` session of a docstring becomes a pycon block on the site
+    (markdown would read `>>>` as nested quotes), Sphinx roles become code."""
+    pytest.importorskip("griffe", reason="the API reference needs mkdocstrings[python]: pip install -e '.[docs]'")
+    sys.path.insert(0, str(ROOT / "docs" / "hooks"))
+    try:
+        import griffe_docstrings as g
+    finally:
+        sys.path.remove(str(ROOT / "docs" / "hooks"))
+    text = "Load it.\n\n>>> import acl\n>>> acl.load(p)\n<Design p>\n\nThen :class:`~acl.notebook.Analysis`."
+    out = g.fence_sessions(g.ROLE.sub(r"`\1`", text))
+    assert out == ("Load it.\n\n```pycon\n>>> import acl\n>>> acl.load(p)\n<Design p>\n```\n\n"
+                   "Then `acl.notebook.Analysis`.")
