@@ -14,7 +14,13 @@ import tempfile
 def write_text_atomic(path: str, text: str) -> None:
     """Replace ``path`` with ``text`` (UTF-8, newlines as given) in one rename; a symbolic link is
     followed (its target is rewritten, the link stays)."""
-    from acl._files import publish_file, stream_kind, streamable_problem, temp_folder_for
+    write_chunks_atomic(path, (text,))
+
+
+def write_chunks_atomic(path: str, chunks) -> None:
+    """:func:`write_text_atomic` of the text that the iterable ``chunks`` yields piece by piece (memory bounded
+    by one piece: `acl synth` writes millions of rows)."""
+    from acl._files import deferred_signals, publish_file, stream_kind, streamable_problem, temp_folder_for
 
     path = os.path.realpath(path)
     problem = streamable_problem(path)
@@ -28,15 +34,18 @@ def write_text_atomic(path: str, text: str) -> None:
         mode = 0o666 & ~umask
     if stream_kind(path):
         mode = 0o600
-    fd, tmp = tempfile.mkstemp(prefix=".acl-", suffix=".tmp", dir=temp_folder_for(path))
+    tmp = None
     try:
+        with deferred_signals():
+            fd, tmp = tempfile.mkstemp(prefix=".acl-", suffix=".tmp", dir=temp_folder_for(path))
         with os.fdopen(fd, "w", encoding="utf-8", newline="") as fh:
-            fh.write(text)
+            for text in chunks:
+                fh.write(text)
             fh.flush()
             os.fsync(fh.fileno())
         os.chmod(tmp, mode)
         publish_file(tmp, path)
     except BaseException:
-        if os.path.exists(tmp):
+        if tmp is not None and os.path.exists(tmp):
             os.unlink(tmp)
         raise
