@@ -448,12 +448,23 @@ def interface_amplitudes(design: Design, drive: Drive, positions=None) -> dict[s
     """Centre amplitude over radius, eps/R, of every interface under ``drive`` (tone amplitudes summed: the peak)."""
     lay = _layout(design)
     f, v = _tones(drive)
+    eps = interface_amplitudes_batch(design, f, v[None], positions)[0]
+    return {lab: float(e) for lab, e in zip(lay.labels, eps)}
+
+
+def interface_amplitudes_batch(design: Design, frequencies, amplitudes, positions=None) -> np.ndarray:
+    """eps/R (B, n) of every interface (``interface_labels`` order) under B drives of the tones ``frequencies`` (Hz),
+    row b with amplitudes ``amplitudes[b]`` (V; summed: the peak; drive saturation at each row's total): the
+    coupled response at rest (or ``positions``) solved once for every row."""
+    lay = _layout(design)
+    f = np.atleast_1d(np.asarray(frequencies, float))
+    v = np.atleast_2d(np.asarray(amplitudes, float)).reshape(-1, f.size)
     if f.size == 0 or not lay.labels:
-        return {lab: 0.0 for lab in lay.labels}
-    gain = effect_pressure_factor(design, f, float(v.sum()))
-    u = coupled_response(design, f, positions) * (v * gain)[:, None]
-    eps = interface_centre_amplitude(np.abs(u).sum(axis=0), lay.radii)
-    return {lab: float(e / r) for lab, e, r in zip(lay.labels, eps, lay.radii)}
+        return np.zeros((v.shape[0], len(lay.labels)))
+    gain = effect_pressure_factor(design, f, v.sum(axis=1, keepdims=True))
+    u = coupled_response(design, f, positions)[None] * (v * gain)[:, :, None]
+    eps = interface_centre_amplitude(np.abs(u).sum(axis=1), lay.radii)
+    return eps / lay.radii
 
 
 def sweep_worst_amplitude(design: Design, f0: float, f1: float, amplitude: float, extra=(),

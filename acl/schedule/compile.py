@@ -23,7 +23,7 @@ import numpy as np
 
 from acl.design.model import Design, FollowStep, HoldStep, Limits, Program, SwitchStep
 from acl.diagnostics import Diagnostic, DiagnosticError, Severity, Span, error
-from acl.physics.ties import TIE_RTOL, first_max_item
+from acl.physics.ties import TIE_RTOL, first_max, first_max_item
 from acl.schedule.model import GoalReport, Schedule, ScheduledTone, Segment
 from acl.schedule.path import UM, DriveLimits
 
@@ -883,6 +883,7 @@ class _Compiler:
         from acl.physics.constants import LINEAR_AMPLITUDE_LIMIT
 
         worst_of: dict[int, tuple[float, str]] = {}     # step -> (worst eps/R over its segments, interface)
+        steady = self._steady_amplitudes(sched)
         for seg in sched.segments:
             if not seg.tones or not self.design.capsules:
                 continue
@@ -903,8 +904,11 @@ class _Compiler:
                                    amplitude=t.amplitude_v) for t in seg.tones if t.amplitude_v > 0)
                 if not tones:
                     continue
-                amps = interface_amplitudes(self.design, Drive(tones=tones))
-                k, v = first_max_item(amps)            # ties: the first declared interface, the first segment
+                if chirps:
+                    amps = interface_amplitudes(self.design, Drive(tones=tones))
+                    k, v = first_max_item(amps)            # ties: the first declared interface, the first segment
+                else:                                      # steady tones: every segment's in one batch (below)
+                    k, v = steady[id(seg)]
                 if v > worst * (1 + TIE_RTOL):
                     worst, where = v, k
             worst_of[seg.step] = (worst, where)
@@ -919,6 +923,32 @@ class _Compiler:
                 continue
             raise _diag("E-SCHED-NONLINEAR", text, step.span,
                         "lower the voltage, move the tone off resonance, or pass --allow-nonlinear")
+
+    def _steady_amplitudes(self, sched: Schedule) -> dict:
+        """{id(segment): (interface, eps/R)} of the largest interface amplitude (ties: the first declared) of every
+        segment of steady tones (no chirp), the segments sharing a set of tones evaluated as one batch
+        (acoustics.interface_amplitudes_batch)."""
+        from acl.analysis.acoustics import interface_amplitudes_batch, interface_labels
+
+        labels = interface_labels(self.design)
+        groups: dict = {}
+        for seg in sched.segments:
+            if not seg.tones or not self.design.capsules or any(t.frequency_end_hz for t in seg.tones):
+                continue
+            live = [t for t in seg.tones if t.amplitude_v > 0]
+            if live:
+                key = tuple(t.frequency_hz for t in live)
+                groups.setdefault(key, []).append((seg, [t.amplitude_v for t in live]))
+        out = {}
+        for freqs, rows in groups.items():
+            eps = interface_amplitudes_batch(self.design, freqs, np.array([a for _, a in rows], float))
+            if not labels:
+                out.update({id(seg): ("", 0.0) for seg, _ in rows})
+                continue
+            top = first_max(eps, axis=1)
+            for (seg, _), k, row in zip(rows, np.atleast_1d(top), eps):
+                out[id(seg)] = (labels[int(k)], float(row[int(k)]))
+        return out
 
     def _mode_frequencies(self) -> np.ndarray:
         """Every capsule's mode frequencies (Hz) and the coupled modes' (two or more capsules): a chirp's peaks."""
