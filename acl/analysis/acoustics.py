@@ -585,16 +585,19 @@ class _Engine:
             self._rest.append(self.forces(self.lay.rest[None], parts=True))
         return self._rest[0]
 
-    def forces(self, centres: np.ndarray, parts: bool = False, consts: dict | None = None):
+    def forces(self, centres: np.ndarray, parts: bool = False, consts: dict | None = None, response=None):
         """Total acoustic force (B, C, 3) on each capsule for centres (B, C, 3): thrust + Bjerknes + jet drag.
 
         ``consts``: per-configuration drive constants (:func:`drive_constants`: each row of the batch under its
         own tone amplitudes, gain table and thrust scale); default the engine's own drive for every row.
+        ``response``: the coupled volume response (B, T, n) per pascal at these centres, when already known.
         """
         k = self.consts if consts is None else {**self.consts, **consts}
         lay = self.lay
         pts = centres[:, lay.body, :] + lay.offsets                        # (B, n, 3) orifice centres
-        if self.f.size == 0 or lay.radii.size == 0:
+        if response is not None:
+            r = response
+        elif self.f.size == 0 or lay.radii.size == 0:
             r = np.zeros((centres.shape[0], self.f.size, lay.radii.size), complex)
         else:
             r = self.response(pts)                                         # (B, T, n) per pascal
@@ -842,6 +845,33 @@ def drive_constants(eng: _Engine, amplitudes: np.ndarray, gain: np.ndarray, scal
     pressure = v * gain * effect_pressure_factor(eng.design, eng.f, v.sum(axis=1, keepdims=True))
     return {"thrust": eng.consts["thrust_unit"][None] * pressure[:, :, None] ** 2 * scale[:, eng.lay.body][:, None, :],
             "w2p2": eng.consts["w2"][None] * pressure**2}
+
+
+def tone_forces(design: Design, frequencies, positions: Mapping[str, Sequence[float]] | None = None,
+                block: int = 64) -> np.ndarray:
+    """Acoustic force (F, C, 3) N on each capsule of each tone alone at 1 V: :func:`force_model` of every single-tone
+    drive (tones add in power), the capsules at rest or at ``positions``, the coupled response solved once."""
+    f = np.atleast_1d(np.asarray(frequencies, float))
+    eng = tone_engine(design, f)
+    lay = eng.lay
+    ncap = len(lay.caps)
+    out = np.zeros((f.size, ncap, 3))
+    if f.size == 0:
+        return out
+    centres = _centres_array(design, positions) if positions else lay.rest
+    r = eng.response((centres[lay.body] + lay.offsets)[None]) if lay.radii.size else np.zeros((1, f.size, 0), complex)
+    gain, scale = drive_factors(design, f)
+    for t0 in range(0, f.size, block):
+        rows = np.arange(t0, min(t0 + block, f.size))
+        b = rows.size
+        amp = np.zeros((b, f.size))
+        amp[np.arange(b), rows] = 1.0
+        resp = np.zeros((b, f.size, r.shape[2]), complex)
+        resp[np.arange(b), rows] = r[0, rows]
+        at = np.broadcast_to(centres, (b, ncap, 3))
+        consts = drive_constants(eng, amp, np.broadcast_to(gain, (b, f.size)), np.broadcast_to(scale, (b, ncap)))
+        out[rows] = _apply_neighbour_drag(design, lay, at, eng.forces(at, consts=consts, response=resp))
+    return out
 
 
 def force_batch_tones(design: Design, centres: np.ndarray, frequencies, amplitudes: np.ndarray,

@@ -450,34 +450,12 @@ def _group_x(mech: _Mechanism, q: np.ndarray, gi) -> np.ndarray:
 
 
 def _restoring(mech: _Mechanism):
-    def restoring(z):
-        f, K = restoring_q(mech.Z @ z)
-        return mech.Z.T @ f, mech.Z.T @ K @ mech.Z
+    """Generalized restoring force and stiffness at one configuration z: :func:`_restoring_rows` at batch size 1."""
+    rows = _restoring_rows(mech)
 
-    def restoring_q(q):
-        f = np.zeros(mech.n)
-        K = np.zeros((mech.n, mech.n))
-        for el in mech.elements:
-            A, o = mech.bases[el.group], mech.offsets[el.group]
-            k = A.shape[1]
-            if k == 0:
-                continue
-            fe, Ke = el.force(A @ q[o:o + k])
-            f[o:o + k] += A.T @ fe
-            K[o:o + k, o:o + k] += A.T @ Ke @ A
-        for (ks, nax, ga, gb, _) in mech.links:
-            ext = nax @ (_group_x(mech, q, ga) - _group_x(mech, q, gb))
-            for g, sgn in ((ga, 1.0), (gb, -1.0)):
-                if g is None or mech.bases[g].shape[1] == 0:
-                    continue
-                A, o = mech.bases[g], mech.offsets[g]
-                f[o:o + A.shape[1]] += sgn * ks * ext * (A.T @ nax)
-            blocks = [(g, s) for g, s in ((ga, 1.0), (gb, -1.0)) if g is not None and mech.bases[g].shape[1]]
-            for g1, s1 in blocks:
-                for g2, s2 in blocks:
-                    A1, o1, A2, o2 = mech.bases[g1], mech.offsets[g1], mech.bases[g2], mech.offsets[g2]
-                    K[o1:o1 + A1.shape[1], o2:o2 + A2.shape[1]] += s1 * s2 * ks * np.outer(A1.T @ nax, A2.T @ nax)
-        return f, K
+    def restoring(z):
+        f, K = rows(np.asarray(z, float)[None])
+        return f[0], K[0]
 
     return restoring
 
@@ -579,6 +557,7 @@ def _admissible(design: Design, mech: _Mechanism):
     def admissible(z):
         return bool(np.all(gap0 + np.asarray(z, float) @ slope > CONTACT_GAP))
 
+    admissible.rows = lambda zs: np.all(gap0 + np.asarray(zs, float) @ slope > CONTACT_GAP, axis=-1)
     return admissible
 
 
@@ -714,7 +693,7 @@ def _newton_rows(mech: _Mechanism, place: np.ndarray, rest: np.ndarray, adm, for
         scale = np.maximum(np.abs(f).max(axis=1), np.abs(fe).max(axis=1))
         return f - fe, K - J, scale
 
-    return EQ.solve_equilibrium_batch(rt, z0, admissible=lambda zs: np.array([adm(z) for z in zs], bool))
+    return EQ.solve_equilibrium_batch(rt, z0, admissible=adm.rows)
 
 
 def equilibria(design: Design, force_rows: ForceRows, starts, *, mode: str = "eq1", h: float = 1e-12) -> RowEquilibria:

@@ -58,11 +58,9 @@ def _force_per_v2(design: Design, capsule: str, frequencies, positions=None) -> 
     from acl.analysis import acoustics
 
     body = _rigidly_linked(design, [capsule])
-    out = np.empty((len(frequencies), 3))
-    for i, f in enumerate(frequencies):
-        fm = acoustics.force_model(design, positions, Drive(tones=(Tone(frequency=float(f), amplitude=1.0),)))
-        out[i] = np.sum([np.asarray(fm[c], float) for c in body], axis=0)
-    return out
+    names = [c.name for c in design.capsules]
+    per_tone = acoustics.tone_forces(design, np.asarray(frequencies, float), positions)      # (F, C, 3), one batch
+    return np.sum([per_tone[:, names.index(c)] for c in body], axis=0).reshape(len(frequencies), 3)
 
 
 def _carrier(design: Design, capsule: str):
@@ -374,12 +372,12 @@ def latch_forces(design: Design, frequencies, positions=None) -> tuple[np.ndarra
     rest = {c.name: np.asarray(c.center, float) for c in design.capsules}
     if positions:
         rest.update({k: np.asarray(v, float) for k, v in positions.items()})
-    per_tone = [acoustics.force_model(design, rest, Drive(tones=(Tone(frequency=f, amplitude=1.0),)))
-                for f in freqs]
+    names = [c.name for c in design.capsules]
+    per_tone = acoustics.tone_forces(design, freqs, rest)                  # (K, C, 3), one batch
     for i, latch in enumerate(design.latches):
         axis, carried = latch_axis_carried(design, latch)
-        for k, fm in enumerate(per_tone):
-            forces[i, k] = sum(float(np.asarray(fm.get(c, np.zeros(3)), float) @ axis) for c in carried)
+        for k in range(len(freqs)):
+            forces[i, k] = sum(float(per_tone[k, names.index(c)] @ axis) for c in carried)
         land = latch_landscape(*latch_geometry(latch, design))
         to_b[i] = land.switching_force
         if land.release_force is not None:
