@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import acl
-from acl.analysis import acoustics, mechanics
+from acl.analysis import acoustics, equilibria, mechanics, tones
 from acl.design.model import Drive, Tone
 from acl.physics.equilibrium import solve_equilibrium_batch
 from acl.schedule import bands, gains
@@ -65,8 +65,8 @@ def test_forces_under_per_row_drives_equal_one_drive_at_a_time(fig3):
     rng = np.random.default_rng(1)
     centres = np.array([c.center for c in fig3.capsules])[None] + rng.normal(0, 2e-6, (len(draws), 1, 3))
     amps = rng.uniform(0, 6, (len(draws), 3))
-    factors = [acoustics.drive_factors(d, FIG3_TONES) for d in draws]
-    got = acoustics.force_batch_tones(fig3, centres, FIG3_TONES, amps, np.array([g for g, _ in factors]),
+    factors = [tones.drive_factors(d, FIG3_TONES) for d in draws]
+    got = tones.force_batch_tones(fig3, centres, FIG3_TONES, amps, np.array([g for g, _ in factors]),
                                       np.array([s for _, s in factors]))
     for b, d in enumerate(draws):
         fm = acoustics.force_model(d, {"m": centres[b, 0]}, _drive(FIG3_TONES, amps[b]))
@@ -77,7 +77,7 @@ def test_forces_under_per_row_drives_equal_one_drive_at_a_time(fig3):
 def test_each_tone_alone_equals_its_single_tone_force_model(name):
     design = acl.load(str(EXAMPLES / f"{name}.acl"))
     freqs = np.array([60e3, 85e3, 125e3, 170e3])
-    got = acoustics.tone_forces(design, freqs)
+    got = tones.tone_forces(design, freqs)
     for k, f in enumerate(freqs):
         fm = acoustics.force_model(design, None, _drive([f], [1.0]))
         want = np.array([fm[c.name] for c in design.capsules])
@@ -118,9 +118,9 @@ def test_equilibria_from_rest_match_the_continuation_and_leave_a_snap_in_to_the_
     volts = np.array([0.3, 0.8, 1.2]) * float(sweep.snap_voltage)
 
     def rows(c, r, s):
-        return acoustics.force_batch_tones(pair, c, [f], (volts[r] * s)[:, None])
+        return tones.force_batch_tones(pair, c, [f], (volts[r] * s)[:, None])
 
-    got = mechanics.equilibria_from_rest(pair, rows, volts.size)
+    got = equilibria.equilibria_from_rest(pair, rows, volts.size)
     assert list(got.found) == [True, True, False]
     for k in range(2):
         eq = mechanics.equilibrium(pair, _drive([f], [volts[k]]), acoustics.force_model_for(pair))
