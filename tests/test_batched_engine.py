@@ -126,3 +126,27 @@ def test_equilibria_from_rest_match_the_continuation_and_leave_a_snap_in_to_the_
         eq = mechanics.equilibrium(pair, _drive([f], [volts[k]]), acoustics.force_model_for(pair))
         for i, c in enumerate(pair.capsules):
             np.testing.assert_allclose(got.displacements[k, i], eq.displacements[c.name], rtol=1e-7, atol=1e-15)
+
+
+def test_band_of_batched_draws_equals_the_band_of_one_draw_at_a_time(fig3):
+    a = np.linspace(0, 2 * np.pi, 5)
+    u = np.column_stack([40 + 25 * np.cos(a), 40 + 25 * np.sin(a), 30 + 10 * np.cos(2 * a)]).T     # (K, M) V^2
+    targets = np.column_stack([np.cos(a), np.sin(a)]) * 2e-6
+
+    def one(d):
+        return gains.model_forward(d, "m", FIG3_TONES)[0]
+
+    loop = bands.error_band(fig3, one, u, targets, samples=4, seed=3)
+    batch = bands.error_band(fig3, one, u, targets, samples=4, seed=3,
+                             forward_many=lambda ds: gains.model_forward_many(ds, "m", FIG3_TONES, u.T))
+    assert batch.samples == loop.samples == 4 and batch.failed == loop.failed == 0
+    np.testing.assert_allclose(batch.rms_m, loop.rms_m, rtol=1e-9)
+    np.testing.assert_allclose(batch.max_m, loop.max_m, rtol=1e-9)
+
+
+def test_a_failing_model_fails_its_own_entry_of_the_batch(fig3):
+    u = np.full((2, 3), 20.0)
+    got = gains.model_forward_many([fig3, fig3], "no_such_capsule", FIG3_TONES, u)
+    assert all(isinstance(g, ValueError) for g in got)
+    with pytest.raises(ValueError):
+        gains.model_forward(fig3, "no_such_capsule", FIG3_TONES)[0](u)

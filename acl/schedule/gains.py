@@ -210,7 +210,10 @@ def model_forward_many(designs, capsule: str, frequencies, u: np.ndarray, starts
         try:
             preds = _forward_rows(base, [designs[i] for i in idx], capsule, freqs, u, [starts[i] for i in idx])
         except (ValueError, KeyError, FloatingPointError) as exc:
-            preds = [exc] * len(idx)
+            if len(idx) == 1:
+                preds = [exc]
+            else:         # which design's model fails: each on its own (a failing draw fails alone, as in a loop)
+                preds = [model_forward_many([designs[i]], capsule, freqs, u, [starts[i]])[0] for i in idx]
         for i, p in zip(idx, preds):
             out[i] = p
     return out
