@@ -238,8 +238,9 @@ def _forward_rows(base: Design, members: list, capsule: str, freqs: list, u: np.
     def as_dict(centres):
         return {nm: centres[k] for k, nm in enumerate(names)}
 
+    rest = {c.name: np.asarray(c.center, float) for c in base.capsules}
+
     def as_array(pos):
-        rest = {c.name: np.asarray(c.center, float) for c in base.capsules}
         return np.array([np.asarray(pos.get(nm, rest[nm]), float) for nm in names])
 
     for i in range(n):
