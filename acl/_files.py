@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import os
 import re
+import tempfile
 
 
 def undecodable(raw: bytes, exc: UnicodeDecodeError) -> tuple[int, int, int]:
@@ -274,3 +275,69 @@ def overlong_integer(text: str) -> tuple[int, int] | None:
     start = m.start()
     line_start = text.rfind("\n", 0, start) + 1
     return text.count("\n", 0, start) + 1, start - line_start + 1
+
+
+class deferred_signals:
+    """``with deferred_signals(): tmp = mkstemp(...)``: SIGINT, SIGTERM and SIGHUP wait until the block ends, so an
+    interrupt cannot land between the creation of a temporary file and the assignment that lets the cleanup find
+    it (a SIGTERM there left `.acl-compile-*/` behind).  Outside the main thread, or where signals cannot be
+    masked, it does nothing."""
+
+    _SIGNALS = ("SIGINT", "SIGTERM", "SIGHUP")
+
+    def __enter__(self):
+        import signal
+        import threading
+
+        self.old = None
+        if threading.current_thread() is threading.main_thread() and hasattr(signal, "pthread_sigmask"):
+            wanted = {getattr(signal, n) for n in self._SIGNALS if hasattr(signal, n)}
+            self.old = signal.pthread_sigmask(signal.SIG_BLOCK, wanted)
+        return self
+
+    def __exit__(self, *exc):
+        import signal
+
+        if self.old is not None:
+            signal.pthread_sigmask(signal.SIG_SETMASK, self.old)
+        return False
+
+
+# --- Atomic replacement of one text file (a temporary file beside it, then one rename) ----------------------
+
+def write_text_atomic(path: str, text: str) -> None:
+    """Replace ``path`` with ``text`` (UTF-8, newlines as given) in one rename; a symbolic link is
+    followed (its target is rewritten, the link stays)."""
+    write_chunks_atomic(path, (text,))
+
+
+def write_chunks_atomic(path: str, chunks) -> None:
+    """:func:`write_text_atomic` of the text that the iterable ``chunks`` yields piece by piece (memory bounded
+    by one piece: `acl synth` writes millions of rows)."""
+    path = os.path.realpath(path)
+    problem = streamable_problem(path)
+    if problem:
+        raise OSError(1, problem, path)
+    try:
+        mode = os.stat(path).st_mode & 0o7777
+    except FileNotFoundError:
+        umask = os.umask(0)
+        os.umask(umask)
+        mode = 0o666 & ~umask
+    if stream_kind(path):
+        mode = 0o600
+    tmp = None
+    try:
+        with deferred_signals():
+            fd, tmp = tempfile.mkstemp(prefix=".acl-", suffix=".tmp", dir=temp_folder_for(path))
+        with os.fdopen(fd, "w", encoding="utf-8", newline="") as fh:
+            for text in chunks:
+                fh.write(text)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.chmod(tmp, mode)
+        publish_file(tmp, path)
+    except BaseException:
+        if tmp is not None and os.path.exists(tmp):
+            os.unlink(tmp)
+        raise

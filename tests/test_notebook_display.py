@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 
-pytest.importorskip("nbconvert", reason="nbconvert is not installed (the test extra installs it)")
+pytest.importorskip("nbconvert", reason="nbconvert is not installed (acl[docs], pulled in by the test extra, installs it)")
 pytest.importorskip("nbformat")
 pytest.importorskip("ipykernel")
 pytest.importorskip("matplotlib")

@@ -448,12 +448,23 @@ def interface_amplitudes(design: Design, drive: Drive, positions=None) -> dict[s
     """Centre amplitude over radius, eps/R, of every interface under ``drive`` (tone amplitudes summed: the peak)."""
     lay = _layout(design)
     f, v = _tones(drive)
+    eps = interface_amplitudes_batch(design, f, v[None], positions)[0]
+    return {lab: float(e) for lab, e in zip(lay.labels, eps)}
+
+
+def interface_amplitudes_batch(design: Design, frequencies, amplitudes, positions=None) -> np.ndarray:
+    """eps/R (B, n) of every interface (``interface_labels`` order) under B drives of the tones ``frequencies`` (Hz),
+    row b with amplitudes ``amplitudes[b]`` (V; summed: the peak; drive saturation at each row's total): the
+    coupled response at rest (or ``positions``) solved once for every row."""
+    lay = _layout(design)
+    f = np.atleast_1d(np.asarray(frequencies, float))
+    v = np.atleast_2d(np.asarray(amplitudes, float)).reshape(-1, f.size)
     if f.size == 0 or not lay.labels:
-        return {lab: 0.0 for lab in lay.labels}
-    gain = effect_pressure_factor(design, f, float(v.sum()))
-    u = coupled_response(design, f, positions) * (v * gain)[:, None]
-    eps = interface_centre_amplitude(np.abs(u).sum(axis=0), lay.radii)
-    return {lab: float(e / r) for lab, e, r in zip(lay.labels, eps, lay.radii)}
+        return np.zeros((v.shape[0], len(lay.labels)))
+    gain = effect_pressure_factor(design, f, v.sum(axis=1, keepdims=True))
+    u = coupled_response(design, f, positions)[None] * (v * gain)[:, :, None]
+    eps = interface_centre_amplitude(np.abs(u).sum(axis=1), lay.radii)
+    return eps / lay.radii
 
 
 def sweep_worst_amplitude(design: Design, f0: float, f1: float, amplitude: float, extra=(),
@@ -574,12 +585,19 @@ class _Engine:
             self._rest.append(self.forces(self.lay.rest[None], parts=True))
         return self._rest[0]
 
-    def forces(self, centres: np.ndarray, parts: bool = False):
-        """Total acoustic force (B, C, 3) on each capsule for centres (B, C, 3): thrust + Bjerknes + jet drag."""
-        k = self.consts
+    def forces(self, centres: np.ndarray, parts: bool = False, consts: dict | None = None, response=None):
+        """Total acoustic force (B, C, 3) on each capsule for centres (B, C, 3): thrust + Bjerknes + jet drag.
+
+        ``consts``: per-configuration drive constants (:func:`drive_constants`: each row of the batch under its
+        own tone amplitudes, gain table and thrust scale); default the engine's own drive for every row.
+        ``response``: the coupled volume response (B, T, n) per pascal at these centres, when already known.
+        """
+        k = self.consts if consts is None else {**self.consts, **consts}
         lay = self.lay
         pts = centres[:, lay.body, :] + lay.offsets                        # (B, n, 3) orifice centres
-        if self.f.size == 0 or lay.radii.size == 0:
+        if response is not None:
+            r = response
+        elif self.f.size == 0 or lay.radii.size == 0:
             r = np.zeros((centres.shape[0], self.f.size, lay.radii.size), complex)
         else:
             r = self.response(pts)                                         # (B, T, n) per pascal
@@ -589,7 +607,7 @@ class _Engine:
         # secondary Bjerknes force (Crum 1975) of every other-capsule pair, along p_j - p_i, tones in power
         sep = pts[:, None, :, :] - pts[:, :, None, :]                      # (B, i, j, 3)
         d = np.where(k["other"], np.sqrt((sep * sep).sum(axis=-1)), 1.0)
-        prod = np.einsum("t,bti,btj->bij", k["w2p2"], r, np.conj(r)).real
+        prod = np.einsum("t,bti,btj->bij" if k["w2p2"].ndim == 1 else "bt,bti,btj->bij", k["w2p2"], r, np.conj(r)).real
         att = k["bjerknes"] * prod / d**2
         c = att / d
         per = per + c @ pts - c.sum(axis=-1)[..., None] * pts             # sum_j c_ij (p_j - p_i)
@@ -607,6 +625,12 @@ class _Engine:
         return total
 
 
+def pressure_terms(unit: np.ndarray, w2: np.ndarray, pressure: np.ndarray, scale: np.ndarray):
+    """(thrust constant (..., T, n), Bjerknes weight (..., T)) of tone pressures (..., T) Pa: C_s 6 pi mu w eps^2 with eps = 2 |p dV/dp| / (pi R^2) (``unit`` (T, n) per Pa^2) times each orifice's thrust scale (..., n), and w^2 p^2 (Crum 1975)."""
+    pressure = np.asarray(pressure, float)
+    return unit * pressure[..., :, None] ** 2 * np.asarray(scale, float)[..., None, :], w2 * pressure**2
+
+
 def _engine_constants(design: Design, lay: _Layout, f: np.ndarray, pressure: np.ndarray, scale: np.ndarray,
                       pair: np.ndarray) -> dict:
     """Everything in :meth:`_Engine.forces` that does not depend on the capsule positions."""
@@ -615,13 +639,15 @@ def _engine_constants(design: Design, lay: _Layout, f: np.ndarray, pressure: np.
     other = lay.body[:, None] != lay.body[None, :]
     ncap = len(lay.caps)
     area = np.pi * lay.radii**2
+    unit = C.STREAMING_CONSTANT * 6 * np.pi * med.viscosity * w[:, None] * 4 / area**2
+    thrust, w2p2 = pressure_terms(unit, w**2, pressure, scale[lay.body])
     return {
-        # C_s 6 pi mu w eps^2 with eps = 2 |p dV/dp| / (pi R^2), times the declared thrust scale
-        "thrust": (C.STREAMING_CONSTANT * 6 * np.pi * med.viscosity * w[:, None] * 4 / area**2
-                   * pressure[:, None] ** 2 * scale[lay.body]),
+        "thrust": thrust,
+        "thrust_unit": unit,          # (T, n) per pascal^2, before the thrust scale (acl.analysis.tones)
         "thrust_dir": -lay.normals,
         "other": other,
-        "w2p2": w**2 * pressure**2,
+        "w2p2": w2p2,
+        "w2": w**2,
         "bjerknes": med.density / (8 * np.pi) * other * pair[lay.body][:, lay.body],
         "drag_mask": lay.body[:, None] != np.arange(ncap)[None, :],
     }

@@ -188,6 +188,7 @@ class _Element:
     measure: Callable[[np.ndarray], float]    # x -> reported deflection
     span: object = None
     beam: object = None
+    force_batch: Callable | None = None       # X (B, 3) -> (f (B, 3), K (B, 3, 3)); None: ``force`` row by row
 
 
 @dataclass
@@ -248,7 +249,26 @@ def _beam_law(beam, mode: str, design: Design | None = None):
     else:
         k0 = B.eq1_small_force_stiffness(L, l, EI)
 
+    def law_batch(X):
+        """Paper Eq. (1) for displacements X (B, 3) at once: restoring force (B, 3) and tangent stiffness (B, 3, 3)."""
+        u = X @ P_perp.T
+        delta = np.linalg.norm(u, axis=1)
+        small = delta < 1e-15 * L
+        d = np.where(small, 1e-3 * L, delta)             # a placeholder in the linear range where delta ~ 0
+        P = np.asarray(B.eq1_force(d, L, l, EI), float)
+        kt = 1.0 / np.asarray(B.eq1_compliance(P, L, l, EI), float)       # = eq1_tangent_stiffness, one inversion
+        n = u / d[:, None]
+        nn = n[:, :, None] * n[:, None, :]
+        K = kt[:, None, None] * nn + (P / d)[:, None, None] * (P_perp[None] - nn)
+        f = P[:, None] * n
+        if small.any():
+            f[small], K[small] = k0 * u[small], k0 * P_perp
+        return f, K
+
     def law(x):
+        if eff is None and mode != "large":
+            f, K = law_batch(np.asarray(x, float)[None])
+            return f[0], K[0]
         u = P_perp @ x
         delta = float(np.linalg.norm(u))
         if delta < 1e-15 * L:
@@ -265,6 +285,7 @@ def _beam_law(beam, mode: str, design: Design | None = None):
         K = kt * np.outer(n, n) + (P / delta) * (P_perp - np.outer(n, n))
         return P * n, K
 
+    law.batch = law_batch if eff is None and mode != "large" else None
     return law, basis, (lambda x: float(np.linalg.norm(P_perp @ x)))
 
 
@@ -282,10 +303,20 @@ def _latch_law(latch, design: Design | None = None):
         land = LT.latch_landscape(*geo)
         u0 = land.state_b if land.bistable else 0.0
 
-    def law(x):
-        f, k = LT.latch_force_and_stiffness(u0 + float(a @ x), *geo)
-        return f * a, k * aa
+    h = 1e-7 * geo[1]
 
+    def law_batch(X):
+        """The latch law for displacements X (B, 3): LT.latch_force_and_stiffness row by row, one evaluation."""
+        u = u0 + np.asarray(X, float) @ a
+        f = LT.latch_force(np.concatenate([u, u + h, u - h]), *geo).reshape(3, -1)
+        k = (f[1] - f[2]) / (2 * h)
+        return f[0][:, None] * a, k[:, None, None] * aa
+
+    def law(x):
+        f, K = law_batch(np.asarray(x, float)[None])
+        return f[0], K[0]
+
+    law.batch = law_batch
     return law, a[:, None], (lambda x: u0 + float(a @ x))
 
 
@@ -346,11 +377,11 @@ def build_mechanism(design: Design, mode: str = "eq1") -> _Mechanism:
                 if joint.target_kind == "beam":
                     beam = design.beam(joint.target)
                     law, basis, measure = _beam_law(beam, mode, design)
-                    elements.append(_Element("beam", beam.name, gi, law, measure, beam.span, beam))
+                    elements.append(_Element("beam", beam.name, gi, law, measure, beam.span, beam, law.batch))
                 elif joint.target_kind == "latch":
                     lt = design.latch(joint.target)
                     law, basis, measure = _latch_law(lt, design)
-                    elements.append(_Element("latch", lt.name, gi, law, measure, lt.span))
+                    elements.append(_Element("latch", lt.name, gi, law, measure, lt.span, None, law.batch))
                 else:
                     sp = design.spring(joint.target)
                     n_ax = _unit(sp.axis)
@@ -358,7 +389,9 @@ def build_mechanism(design: Design, mode: str = "eq1") -> _Mechanism:
                     elements.append(_Element(
                         "spring", sp.name, gi,
                         (lambda x, k=sp.stiffness, n_=n_ax: (k * n_ * (n_ @ x), k * np.outer(n_, n_))),
-                        (lambda x, n_=n_ax: float(n_ @ x)), sp.span))
+                        (lambda x, n_=n_ax: float(n_ @ x)), sp.span, None,
+                        (lambda X, k=sp.stiffness, n_=n_ax: ((k * (X @ n_))[:, None] * n_,
+                                                             np.broadcast_to(k * np.outer(n_, n_), (X.shape[0], 3, 3))))))
             except KeyError as exc:
                 bag.error("E-MECH-003", f"capsule `{cname}` is mounted on a missing element: {exc}",
                           joint.span)
@@ -417,34 +450,12 @@ def _group_x(mech: _Mechanism, q: np.ndarray, gi) -> np.ndarray:
 
 
 def _restoring(mech: _Mechanism):
-    def restoring(z):
-        f, K = restoring_q(mech.Z @ z)
-        return mech.Z.T @ f, mech.Z.T @ K @ mech.Z
+    """Generalized restoring force and stiffness at one configuration z: :func:`_restoring_rows` at batch size 1."""
+    rows = _restoring_rows(mech)
 
-    def restoring_q(q):
-        f = np.zeros(mech.n)
-        K = np.zeros((mech.n, mech.n))
-        for el in mech.elements:
-            A, o = mech.bases[el.group], mech.offsets[el.group]
-            k = A.shape[1]
-            if k == 0:
-                continue
-            fe, Ke = el.force(A @ q[o:o + k])
-            f[o:o + k] += A.T @ fe
-            K[o:o + k, o:o + k] += A.T @ Ke @ A
-        for (ks, nax, ga, gb, _) in mech.links:
-            ext = nax @ (_group_x(mech, q, ga) - _group_x(mech, q, gb))
-            for g, sgn in ((ga, 1.0), (gb, -1.0)):
-                if g is None or mech.bases[g].shape[1] == 0:
-                    continue
-                A, o = mech.bases[g], mech.offsets[g]
-                f[o:o + A.shape[1]] += sgn * ks * ext * (A.T @ nax)
-            blocks = [(g, s) for g, s in ((ga, 1.0), (gb, -1.0)) if g is not None and mech.bases[g].shape[1]]
-            for g1, s1 in blocks:
-                for g2, s2 in blocks:
-                    A1, o1, A2, o2 = mech.bases[g1], mech.offsets[g1], mech.bases[g2], mech.offsets[g2]
-                    K[o1:o1 + A1.shape[1], o2:o2 + A2.shape[1]] += s1 * s2 * ks * np.outer(A1.T @ nax, A2.T @ nax)
-        return f, K
+    def restoring(z):
+        f, K = rows(np.asarray(z, float)[None])
+        return f[0], K[0]
 
     return restoring
 
@@ -467,16 +478,9 @@ def _external(design: Design, mech: _Mechanism, drive: Drive, force_model: Force
 
     batch = getattr(force_model, "batch", None)
     caps = design.capsules
-    rest = np.array([c.center for c in caps], float).reshape(len(caps), 3)
     # capsule displacements are linear in the coordinates: centres = rest + z P, and the generalized
     # force is the transpose map, g = f P^T (P: m x 3C, each group's basis placed at its capsules)
-    place = np.zeros((mech.n, 3 * len(caps)))
-    for i, c in enumerate(caps):
-        gi = mech.member_group[c.name]
-        if gi is not None:
-            A, o = mech.bases[gi], mech.offsets[gi]
-            place[o:o + A.shape[1], 3 * i:3 * i + 3] = A.T
-    place = mech.Z.T @ place
+    rest, place = _placement(design, mech)
 
     def centres_of(zs: np.ndarray) -> np.ndarray:          # (B, m) -> (B, C, 3)
         return rest[None] + (zs @ place).reshape(zs.shape[0], len(caps), 3)
@@ -553,6 +557,7 @@ def _admissible(design: Design, mech: _Mechanism):
     def admissible(z):
         return bool(np.all(gap0 + np.asarray(z, float) @ slope > CONTACT_GAP))
 
+    admissible.rows = lambda zs: np.all(gap0 + np.asarray(zs, float) @ slope > CONTACT_GAP, axis=-1)
     return admissible
 
 
@@ -599,6 +604,61 @@ def _prepared(design: Design, mode: str):
     hit = (mech, _restoring(mech), _admissible(design, mech))
     _PREPARED[:] = ([(design, mode, hit)] + _PREPARED)[:8]
     return hit
+
+
+def _restoring_rows(mech: _Mechanism):
+    """The restoring force of :func:`_restoring` for B configurations at once: z (B, m) -> (f (B, m), K (B, m, m))."""
+    def restoring(z):
+        q = np.atleast_2d(np.asarray(z, float)) @ mech.Z.T
+        nb = q.shape[0]
+        f = np.zeros((nb, mech.n))
+        K = np.zeros((nb, mech.n, mech.n))
+
+        def x_of(g):
+            if g is None or mech.bases[g].shape[1] == 0:
+                return np.zeros((nb, 3))
+            A, o = mech.bases[g], mech.offsets[g]
+            return q[:, o:o + A.shape[1]] @ A.T
+
+        for el in mech.elements:
+            A, o = mech.bases[el.group], mech.offsets[el.group]
+            k = A.shape[1]
+            if k == 0:
+                continue
+            X = x_of(el.group)
+            if el.force_batch is not None:
+                fe, Ke = el.force_batch(X)
+            else:
+                each = [el.force(x) for x in X]
+                fe, Ke = np.array([e[0] for e in each]), np.array([e[1] for e in each])
+            f[:, o:o + k] += fe @ A
+            K[:, o:o + k, o:o + k] += A.T[None] @ Ke @ A[None]
+        for (ks, nax, ga, gb, _) in mech.links:
+            ext = (x_of(ga) - x_of(gb)) @ nax
+            blocks = [(g, s) for g, s in ((ga, 1.0), (gb, -1.0)) if g is not None and mech.bases[g].shape[1]]
+            for g, sgn in blocks:
+                A, o = mech.bases[g], mech.offsets[g]
+                f[:, o:o + A.shape[1]] += sgn * ks * ext[:, None] * (A.T @ nax)[None]
+            for g1, s1 in blocks:
+                for g2, s2 in blocks:
+                    A1, o1, A2, o2 = mech.bases[g1], mech.offsets[g1], mech.bases[g2], mech.offsets[g2]
+                    K[:, o1:o1 + A1.shape[1], o2:o2 + A2.shape[1]] += s1 * s2 * ks * np.outer(A1.T @ nax, A2.T @ nax)
+        return f @ mech.Z, mech.Z.T[None] @ K @ mech.Z[None]
+
+    return restoring
+
+
+def _placement(design: Design, mech: _Mechanism) -> tuple[np.ndarray, np.ndarray]:
+    """(rest centres (C, 3), P (m, 3C)): capsule centres = rest + z P; a generalized force is f P^T."""
+    caps = design.capsules
+    rest = np.array([c.center for c in caps], float).reshape(len(caps), 3)
+    place = np.zeros((mech.n, 3 * len(caps)))
+    for i, c in enumerate(caps):
+        gi = mech.member_group[c.name]
+        if gi is not None:
+            A, o = mech.bases[gi], mech.offsets[gi]
+            place[o:o + A.shape[1], 3 * i:3 * i + 3] = A.T
+    return rest, mech.Z.T @ place
 
 
 # ----------------------------------------------------------------------------------------------

@@ -246,7 +246,7 @@ def build_report(problem, selection, tests_before, tests_after, calibrated_name=
 def render_table(report, console=None) -> None:
     """Rich tables: parameters before/after, per-observable and overall errors, effects tried."""
     from acl._console import make_console
-    from rich.table import Table
+    from acl._console import table as Table
 
     con = console or make_console(highlight=False)
     t = Table(title="fit: before (base model) and after (with selected effects)")
@@ -424,10 +424,12 @@ def write_report_dir(target, write) -> None:
     target = os.path.abspath(target)
     parent = os.path.dirname(target) or "."
     os.makedirs(parent, exist_ok=True)
-    tmp = tempfile.mkdtemp(prefix=".acl-fit-", dir=parent)
-    try:
-        from acl._files import as_umask
+    from acl._files import as_umask, deferred_signals
 
+    tmp = None
+    try:
+        with deferred_signals():
+            tmp = tempfile.mkdtemp(prefix=".acl-fit-", dir=parent)
         as_umask(tmp, directory=True)
         write(tmp)
         if os.path.isdir(target):
@@ -439,7 +441,8 @@ def write_report_dir(target, write) -> None:
         else:
             os.rename(tmp, target)
     except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
+        if tmp is not None:
+            shutil.rmtree(tmp, ignore_errors=True)
         raise
 
 
