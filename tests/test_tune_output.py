@@ -58,3 +58,4 @@ def test_quiet_prints_the_summary_line_alone(lab, capsys):
     out, err = capsys.readouterr()
     assert out.count("\n") == 1 and out.startswith("yield before ") and "after" in out
     assert "Free parameters" not in out and "┃" not in out and err == ""
+

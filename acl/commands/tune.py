@@ -112,7 +112,7 @@ def run(args) -> int:
             report([error("E601", f"cannot write the tuned design: no such folder {folder}",
                           Span(file="<--output>", line=1, column=1))], fmt)
             return 2
-        if not _reaches(folder, design, args.path):
+        if not T.reaches(folder, design, args.path):
             # `extends` reads only the tuned file's folder and below, and --path folders (E210 otherwise)
             report([error("E-USAGE", f"--output {args.output}: the tuned design extends {design}, which a design in "
                           f"{folder} may not read (acl check would refuse it: E210)", Span(file="<--output>", line=1, column=1),
@@ -197,13 +197,6 @@ def _search(T, problem, args):
         return T.tune(problem, objective=args.objective, method=args.method, max_evals=args.max_evals,
                       progress=lambda done, total, best: bar.update(task, completed=done, best=f"{best:.3f}"),
                       scheduler=args.scheduler, timeout=args.timeout, notify=lambda text: bar.console.print(f"note: {text}"))
-
-
-def _reaches(folder: str, design: str, paths) -> bool:
-    """Whether a design in ``folder`` may extend ``design``: it lies in ``folder`` or below, or in a --path folder."""
-    real = os.path.realpath(design)
-    roots = [os.path.realpath(folder), *(os.path.realpath(p) for p in paths or ())]
-    return any(real.startswith(r.rstrip(os.sep) + os.sep) for r in roots)
 
 
 def _command_line(args) -> str:

@@ -478,7 +478,8 @@ class Tuned:
 
     def write(self, path: str | None = None, command: str = "") -> str:
         """Write the tuned design (it ``extends`` the original; default ``<stem>.tuned.acl`` beside it)
-        atomically; returns the path written."""
+        atomically; returns the path written.  Written outside the original's folder tree, it loads
+        only with that folder among the search paths (:func:`reaches`; `acl tune -o` refuses such a folder)."""
         import os
 
         from acl.emit.atomic import write_text_atomic
@@ -614,6 +615,16 @@ def tune(problem: Problem, objective: str = "yield", method: str = "nelder-mead"
 # ------------------------------------------------------------------------------------------------
 # The tuned design: `extends` the original, the free parameters redeclared with the chosen values
 # ------------------------------------------------------------------------------------------------
+
+def reaches(folder: str, design_path: str, search_paths=()) -> bool:
+    """Whether a design in ``folder`` may extend ``design_path`` (`acl check` reads an `extends` only from the
+    design's folder and below, or a --path folder: E210): it lies in ``folder`` or below, or in a search path."""
+    import os
+
+    real = os.path.realpath(design_path)
+    roots = [os.path.realpath(folder), *(os.path.realpath(p) for p in search_paths or ())]
+    return any(real.startswith(r.rstrip(os.sep) + os.sep) for r in roots)
+
 
 def default_path(design_path: str) -> str:
     """``<folder>/<stem>.tuned.acl`` next to the original (its ``extends`` then needs no --path)."""
