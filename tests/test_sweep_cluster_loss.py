@@ -156,3 +156,14 @@ def test_the_shipped_worker_setting_removes_the_nannys_malloc_trim_threshold(sch
     finally:
         _kill(w)
     assert list(seen.values()) == [expected]
+
+
+def test_tune_on_a_cluster_without_workers_times_out_too(scheduler, tmp_path):
+    _, address = scheduler
+    out = tmp_path / "t.acl"
+    r = subprocess.run([sys.executable, "-m", "acl", "tune", str(FIG3), "--samples", "50", "--max-evals", "4",
+                        "--scheduler", address, "--timeout", "2", "-o", str(out), "--path", str(FIG3.parent)],
+                       capture_output=True, text=True, env=ENV, timeout=120)
+    assert r.returncode == 2, r.stderr
+    assert "has no worker: waiting up to 2 s" in r.stderr and "no worker left on the cluster for 2 s" in r.stderr
+    assert "Traceback" not in r.stderr and not out.exists()
