@@ -2,6 +2,7 @@
 table and matplotlib Axes that a notebook shows as their figure.  No heavy import at module level."""
 from __future__ import annotations
 
+
 def new_axes(ax=None, size=(6.0, 3.5)):
     """``ax`` itself, or the Axes of a new Figure made without pyplot (the global backend is untouched)."""
     if ax is not None:
