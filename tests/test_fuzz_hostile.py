@@ -199,3 +199,48 @@ def test_signals_at_random_points(tmp_path_factory, job, sig, delay):
     leftovers = [n for n in os.listdir(folder) if n.startswith(".acl-")]
     if sig != "KILL":                 # SIGKILL cannot be caught: its temporary files stay, never the output
         assert leftovers == [], (job, sig, leftovers)
+
+
+# ---- LSP framing --------------------------------------------------------------------------------------------
+
+def _lsp_messages(out: bytes) -> list[dict]:
+    msgs = []
+    while out:
+        head, sep, rest = out.partition(b"\r\n\r\n")
+        m = re.search(rb"Content-Length: (\d+)", head)
+        if not sep or not m:
+            break
+        n = int(m.group(1))
+        msgs.append(json.loads(rest[:n]))
+        out = rest[n:]
+    return msgs
+
+
+@settings(max_examples=int(os.environ.get("ACL_FUZZ_LSP", "25")), deadline=None, derandomize=True,
+          suppress_health_check=[HealthCheck.too_slow])
+@given(G.broken_frames())
+def test_broken_lsp_framing_never_stops_the_server(frames):
+    """Broken frames (short, overlong, garbage headers, non-JSON, bad UTF-8, 5,000-digit ids, arrays, negative
+    lengths) before a session: the server answers initialize and shutdown after them and exits cleanly.  An
+    overlong Content-Length that swallows the next message can cost that message, never the stream: the session
+    is sent after a pause-free separator of whole messages, so at most the first reply may be lost."""
+    pytest.importorskip("pygls")
+    init = G.frame(json.dumps({"jsonrpc": "2.0", "id": 1, "method": "initialize",
+                               "params": {"processId": None, "rootUri": None, "capabilities": {}}}).encode())
+    session = (G.frame(json.dumps({"jsonrpc": "2.0", "method": "initialized", "params": {}}).encode())
+               + G.frame(json.dumps({"jsonrpc": "2.0", "id": 2, "method": "shutdown"}).encode())
+               + G.frame(json.dumps({"jsonrpc": "2.0", "method": "exit"}).encode()))
+    # a frame whose Content-Length is too long for what follows swallows bytes up to its length: it is sent last
+    # among the broken ones, then padding of whole no-op notifications it can swallow, then the session
+    pad = G.frame(json.dumps({"jsonrpc": "2.0", "method": "$/noop", "params": {}}).encode()) * 4
+    stdin = b"".join(frames) + pad + init + session
+    env = dict(os.environ, PYTHONPATH=ROOT + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    p = subprocess.run([sys.executable, "-m", "acl", "lsp"], input=stdin, capture_output=True, timeout=120, env=env,
+                       cwd=ROOT, preexec_fn=_limited)
+    err = p.stderr.decode(errors="replace")
+    assert "Traceback" not in err and "E-INTERNAL" not in err, err[-2000:]
+    msgs = _lsp_messages(p.stdout)
+    for m in msgs:
+        assert "error" not in m or "Traceback" not in json.dumps(m["error"]), m
+    shut = [m for m in msgs if m.get("id") == 2]
+    assert shut, ("the server stopped answering after broken frames", err[-1500:])
