@@ -448,12 +448,23 @@ def interface_amplitudes(design: Design, drive: Drive, positions=None) -> dict[s
     """Centre amplitude over radius, eps/R, of every interface under ``drive`` (tone amplitudes summed: the peak)."""
     lay = _layout(design)
     f, v = _tones(drive)
+    eps = interface_amplitudes_batch(design, f, v[None], positions)[0]
+    return {lab: float(e) for lab, e in zip(lay.labels, eps)}
+
+
+def interface_amplitudes_batch(design: Design, frequencies, amplitudes, positions=None) -> np.ndarray:
+    """eps/R (B, n) of every interface (``interface_labels`` order) under B drives of the tones ``frequencies`` (Hz),
+    row b with amplitudes ``amplitudes[b]`` (V; summed: the peak; drive saturation at each row's total): the
+    coupled response at rest (or ``positions``) solved once for every row."""
+    lay = _layout(design)
+    f = np.atleast_1d(np.asarray(frequencies, float))
+    v = np.atleast_2d(np.asarray(amplitudes, float)).reshape(-1, f.size)
     if f.size == 0 or not lay.labels:
-        return {lab: 0.0 for lab in lay.labels}
-    gain = effect_pressure_factor(design, f, float(v.sum()))
-    u = coupled_response(design, f, positions) * (v * gain)[:, None]
-    eps = interface_centre_amplitude(np.abs(u).sum(axis=0), lay.radii)
-    return {lab: float(e / r) for lab, e, r in zip(lay.labels, eps, lay.radii)}
+        return np.zeros((v.shape[0], len(lay.labels)))
+    gain = effect_pressure_factor(design, f, v.sum(axis=1, keepdims=True))
+    u = coupled_response(design, f, positions)[None] * (v * gain)[:, :, None]
+    eps = interface_centre_amplitude(np.abs(u).sum(axis=1), lay.radii)
+    return eps / lay.radii
 
 
 def sweep_worst_amplitude(design: Design, f0: float, f1: float, amplitude: float, extra=(),
@@ -574,9 +585,13 @@ class _Engine:
             self._rest.append(self.forces(self.lay.rest[None], parts=True))
         return self._rest[0]
 
-    def forces(self, centres: np.ndarray, parts: bool = False):
-        """Total acoustic force (B, C, 3) on each capsule for centres (B, C, 3): thrust + Bjerknes + jet drag."""
-        k = self.consts
+    def forces(self, centres: np.ndarray, parts: bool = False, consts: dict | None = None):
+        """Total acoustic force (B, C, 3) on each capsule for centres (B, C, 3): thrust + Bjerknes + jet drag.
+
+        ``consts``: per-configuration drive constants (:func:`drive_constants`: each row of the batch under its
+        own tone amplitudes, gain table and thrust scale); default the engine's own drive for every row.
+        """
+        k = self.consts if consts is None else {**self.consts, **consts}
         lay = self.lay
         pts = centres[:, lay.body, :] + lay.offsets                        # (B, n, 3) orifice centres
         if self.f.size == 0 or lay.radii.size == 0:
@@ -589,7 +604,7 @@ class _Engine:
         # secondary Bjerknes force (Crum 1975) of every other-capsule pair, along p_j - p_i, tones in power
         sep = pts[:, None, :, :] - pts[:, :, None, :]                      # (B, i, j, 3)
         d = np.where(k["other"], np.sqrt((sep * sep).sum(axis=-1)), 1.0)
-        prod = np.einsum("t,bti,btj->bij", k["w2p2"], r, np.conj(r)).real
+        prod = np.einsum("t,bti,btj->bij" if k["w2p2"].ndim == 1 else "bt,bti,btj->bij", k["w2p2"], r, np.conj(r)).real
         att = k["bjerknes"] * prod / d**2
         c = att / d
         per = per + c @ pts - c.sum(axis=-1)[..., None] * pts             # sum_j c_ij (p_j - p_i)
@@ -615,13 +630,15 @@ def _engine_constants(design: Design, lay: _Layout, f: np.ndarray, pressure: np.
     other = lay.body[:, None] != lay.body[None, :]
     ncap = len(lay.caps)
     area = np.pi * lay.radii**2
+    unit = C.STREAMING_CONSTANT * 6 * np.pi * med.viscosity * w[:, None] * 4 / area**2
     return {
         # C_s 6 pi mu w eps^2 with eps = 2 |p dV/dp| / (pi R^2), times the declared thrust scale
-        "thrust": (C.STREAMING_CONSTANT * 6 * np.pi * med.viscosity * w[:, None] * 4 / area**2
-                   * pressure[:, None] ** 2 * scale[lay.body]),
+        "thrust": unit * pressure[:, None] ** 2 * scale[lay.body],
+        "thrust_unit": unit,          # (T, n) per pascal^2, before the thrust scale (drive_constants)
         "thrust_dir": -lay.normals,
         "other": other,
         "w2p2": w**2 * pressure**2,
+        "w2": w**2,
         "bjerknes": med.density / (8 * np.pi) * other * pair[lay.body][:, lay.body],
         "drag_mask": lay.body[:, None] != np.arange(ncap)[None, :],
     }
@@ -790,6 +807,57 @@ def force_batch(design: Design, centres: np.ndarray, drive: Drive) -> np.ndarray
     eng = _engine(design, drive)
     centres = np.asarray(centres, float)
     return _apply_neighbour_drag(design, eng.lay, centres, eng.forces(centres))
+
+
+_TONE_ENGINES: list = []   # [(design, frequencies, engine)]: the tone engines of the last designs
+
+
+def tone_engine(design: Design, frequencies) -> _Engine:
+    """The force engine of ``design`` at the tones ``frequencies`` (Hz), each at 1 V (cached per design identity and
+    tones): :meth:`_Engine.forces` with :func:`drive_constants` evaluates any amplitudes of those tones."""
+    f = tuple(float(x) for x in frequencies)
+    for d, ff, eng in _TONE_ENGINES:
+        if d is design and ff == f:
+            return eng
+    eng = _compute_engine(design, Drive(tones=tuple(Tone(frequency=x, amplitude=1.0) for x in f)))
+    _TONE_ENGINES[:] = ([(design, f, eng)] + _TONE_ENGINES)[:8]
+    return eng
+
+
+def drive_factors(design: Design, frequencies) -> tuple[np.ndarray, np.ndarray]:
+    """(gain (T,) Pa/V at the tones, thrust scale (C,)) of ``design``: what a draw of its transducer gain table changes
+    in the force engine (the declared thrust coefficient is matched through the gain, :func:`_thrust_scale`)."""
+    f = np.asarray(frequencies, float)
+    gain, _ = drive_gain(design, f) if f.size else (np.zeros(0), None)
+    lay = _layout(design)
+    sub = np.array([substrate_factor(design, c) for c in lay.caps]) if design.effects else np.ones(len(lay.caps))
+    return np.asarray(gain, float), np.array([_thrust_scale(design, c) for c in lay.caps]) * sub
+
+
+def drive_constants(eng: _Engine, amplitudes: np.ndarray, gain: np.ndarray, scale: np.ndarray) -> dict:
+    """Per-row drive constants of :meth:`_Engine.forces` for tone amplitudes (B, T) V, gains (B, T) Pa/V and thrust
+    scales (B, C) (:func:`drive_factors`): the same pressure (amplitude x gain x effects, drive saturation at each
+    row's total amplitude) and constants as :func:`_compute_engine` builds for one drive."""
+    v = np.asarray(amplitudes, float)
+    pressure = v * gain * effect_pressure_factor(eng.design, eng.f, v.sum(axis=1, keepdims=True))
+    return {"thrust": eng.consts["thrust_unit"][None] * pressure[:, :, None] ** 2 * scale[:, eng.lay.body][:, None, :],
+            "w2p2": eng.consts["w2"][None] * pressure**2}
+
+
+def force_batch_tones(design: Design, centres: np.ndarray, frequencies, amplitudes: np.ndarray,
+                      gain: np.ndarray | None = None, scale: np.ndarray | None = None) -> np.ndarray:
+    """:func:`force_model` for configurations (B, C, 3) each under its own amplitudes (B, T) V of the tones
+    ``frequencies``, and optionally its own gains (B, T) Pa/V and thrust scales (B, C) (:func:`drive_factors` of a
+    draw of the gain table): forces (B, C, 3).  Row b equals force_model at row b's drive."""
+    eng = tone_engine(design, frequencies)
+    centres = np.asarray(centres, float)
+    nb = centres.shape[0]
+    if gain is None or scale is None:
+        g0, s0 = drive_factors(design, eng.f)
+        gain = np.broadcast_to(g0, (nb, eng.f.size)) if gain is None else gain
+        scale = np.broadcast_to(s0, (nb, len(eng.lay.caps))) if scale is None else scale
+    consts = drive_constants(eng, amplitudes, np.asarray(gain, float), np.asarray(scale, float))
+    return _apply_neighbour_drag(design, eng.lay, centres, eng.forces(centres, consts=consts))
 
 
 def force_model(design: Design, positions: Mapping[str, Sequence[float]] | None,

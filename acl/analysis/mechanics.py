@@ -188,6 +188,7 @@ class _Element:
     measure: Callable[[np.ndarray], float]    # x -> reported deflection
     span: object = None
     beam: object = None
+    force_batch: Callable | None = None       # X (B, 3) -> (f (B, 3), K (B, 3, 3)); None: ``force`` row by row
 
 
 @dataclass
@@ -248,7 +249,26 @@ def _beam_law(beam, mode: str, design: Design | None = None):
     else:
         k0 = B.eq1_small_force_stiffness(L, l, EI)
 
+    def law_batch(X):
+        """Paper Eq. (1) for displacements X (B, 3) at once: restoring force (B, 3) and tangent stiffness (B, 3, 3)."""
+        u = X @ P_perp.T
+        delta = np.linalg.norm(u, axis=1)
+        small = delta < 1e-15 * L
+        d = np.where(small, 1.0, delta)
+        P = np.asarray(B.eq1_force(d, L, l, EI), float)
+        kt = 1.0 / np.asarray(B.eq1_compliance(P, L, l, EI), float)       # = eq1_tangent_stiffness, one inversion
+        n = u / d[:, None]
+        nn = n[:, :, None] * n[:, None, :]
+        K = kt[:, None, None] * nn + (P / d)[:, None, None] * (P_perp[None] - nn)
+        f = P[:, None] * n
+        if small.any():
+            f[small], K[small] = k0 * u[small], k0 * P_perp
+        return f, K
+
     def law(x):
+        if eff is None and mode != "large":
+            f, K = law_batch(np.asarray(x, float)[None])
+            return f[0], K[0]
         u = P_perp @ x
         delta = float(np.linalg.norm(u))
         if delta < 1e-15 * L:
@@ -265,6 +285,7 @@ def _beam_law(beam, mode: str, design: Design | None = None):
         K = kt * np.outer(n, n) + (P / delta) * (P_perp - np.outer(n, n))
         return P * n, K
 
+    law.batch = law_batch if eff is None and mode != "large" else None
     return law, basis, (lambda x: float(np.linalg.norm(P_perp @ x)))
 
 
@@ -282,10 +303,20 @@ def _latch_law(latch, design: Design | None = None):
         land = LT.latch_landscape(*geo)
         u0 = land.state_b if land.bistable else 0.0
 
-    def law(x):
-        f, k = LT.latch_force_and_stiffness(u0 + float(a @ x), *geo)
-        return f * a, k * aa
+    h = 1e-7 * geo[1]
 
+    def law_batch(X):
+        """The latch law for displacements X (B, 3): LT.latch_force_and_stiffness row by row, one evaluation."""
+        u = u0 + np.asarray(X, float) @ a
+        f = LT.latch_force(np.concatenate([u, u + h, u - h]), *geo).reshape(3, -1)
+        k = (f[1] - f[2]) / (2 * h)
+        return f[0][:, None] * a, k[:, None, None] * aa
+
+    def law(x):
+        f, K = law_batch(np.asarray(x, float)[None])
+        return f[0], K[0]
+
+    law.batch = law_batch
     return law, a[:, None], (lambda x: u0 + float(a @ x))
 
 
@@ -346,11 +377,11 @@ def build_mechanism(design: Design, mode: str = "eq1") -> _Mechanism:
                 if joint.target_kind == "beam":
                     beam = design.beam(joint.target)
                     law, basis, measure = _beam_law(beam, mode, design)
-                    elements.append(_Element("beam", beam.name, gi, law, measure, beam.span, beam))
+                    elements.append(_Element("beam", beam.name, gi, law, measure, beam.span, beam, law.batch))
                 elif joint.target_kind == "latch":
                     lt = design.latch(joint.target)
                     law, basis, measure = _latch_law(lt, design)
-                    elements.append(_Element("latch", lt.name, gi, law, measure, lt.span))
+                    elements.append(_Element("latch", lt.name, gi, law, measure, lt.span, None, law.batch))
                 else:
                     sp = design.spring(joint.target)
                     n_ax = _unit(sp.axis)
@@ -358,7 +389,9 @@ def build_mechanism(design: Design, mode: str = "eq1") -> _Mechanism:
                     elements.append(_Element(
                         "spring", sp.name, gi,
                         (lambda x, k=sp.stiffness, n_=n_ax: (k * n_ * (n_ @ x), k * np.outer(n_, n_))),
-                        (lambda x, n_=n_ax: float(n_ @ x)), sp.span))
+                        (lambda x, n_=n_ax: float(n_ @ x)), sp.span, None,
+                        (lambda X, k=sp.stiffness, n_=n_ax: ((k * (X @ n_))[:, None] * n_,
+                                                             np.broadcast_to(k * np.outer(n_, n_), (X.shape[0], 3, 3))))))
             except KeyError as exc:
                 bag.error("E-MECH-003", f"capsule `{cname}` is mounted on a missing element: {exc}",
                           joint.span)
@@ -467,16 +500,9 @@ def _external(design: Design, mech: _Mechanism, drive: Drive, force_model: Force
 
     batch = getattr(force_model, "batch", None)
     caps = design.capsules
-    rest = np.array([c.center for c in caps], float).reshape(len(caps), 3)
     # capsule displacements are linear in the coordinates: centres = rest + z P, and the generalized
     # force is the transpose map, g = f P^T (P: m x 3C, each group's basis placed at its capsules)
-    place = np.zeros((mech.n, 3 * len(caps)))
-    for i, c in enumerate(caps):
-        gi = mech.member_group[c.name]
-        if gi is not None:
-            A, o = mech.bases[gi], mech.offsets[gi]
-            place[o:o + A.shape[1], 3 * i:3 * i + 3] = A.T
-    place = mech.Z.T @ place
+    rest, place = _placement(design, mech)
 
     def centres_of(zs: np.ndarray) -> np.ndarray:          # (B, m) -> (B, C, 3)
         return rest[None] + (zs @ place).reshape(zs.shape[0], len(caps), 3)
@@ -599,6 +625,148 @@ def _prepared(design: Design, mode: str):
     hit = (mech, _restoring(mech), _admissible(design, mech))
     _PREPARED[:] = ([(design, mode, hit)] + _PREPARED)[:8]
     return hit
+
+
+def _restoring_rows(mech: _Mechanism):
+    """The restoring force of :func:`_restoring` for B configurations at once: z (B, m) -> (f (B, m), K (B, m, m))."""
+    def restoring(z):
+        q = np.atleast_2d(np.asarray(z, float)) @ mech.Z.T
+        nb = q.shape[0]
+        f = np.zeros((nb, mech.n))
+        K = np.zeros((nb, mech.n, mech.n))
+
+        def x_of(g):
+            if g is None or mech.bases[g].shape[1] == 0:
+                return np.zeros((nb, 3))
+            A, o = mech.bases[g], mech.offsets[g]
+            return q[:, o:o + A.shape[1]] @ A.T
+
+        for el in mech.elements:
+            A, o = mech.bases[el.group], mech.offsets[el.group]
+            k = A.shape[1]
+            if k == 0:
+                continue
+            X = x_of(el.group)
+            if el.force_batch is not None:
+                fe, Ke = el.force_batch(X)
+            else:
+                each = [el.force(x) for x in X]
+                fe, Ke = np.array([e[0] for e in each]), np.array([e[1] for e in each])
+            f[:, o:o + k] += fe @ A
+            K[:, o:o + k, o:o + k] += A.T[None] @ Ke @ A[None]
+        for (ks, nax, ga, gb, _) in mech.links:
+            ext = (x_of(ga) - x_of(gb)) @ nax
+            blocks = [(g, s) for g, s in ((ga, 1.0), (gb, -1.0)) if g is not None and mech.bases[g].shape[1]]
+            for g, sgn in blocks:
+                A, o = mech.bases[g], mech.offsets[g]
+                f[:, o:o + A.shape[1]] += sgn * ks * ext[:, None] * (A.T @ nax)[None]
+            for g1, s1 in blocks:
+                for g2, s2 in blocks:
+                    A1, o1, A2, o2 = mech.bases[g1], mech.offsets[g1], mech.bases[g2], mech.offsets[g2]
+                    K[:, o1:o1 + A1.shape[1], o2:o2 + A2.shape[1]] += s1 * s2 * ks * np.outer(A1.T @ nax, A2.T @ nax)
+        return f @ mech.Z, mech.Z.T[None] @ K @ mech.Z[None]
+
+    return restoring
+
+
+def _placement(design: Design, mech: _Mechanism) -> tuple[np.ndarray, np.ndarray]:
+    """(rest centres (C, 3), P (m, 3C)): capsule centres = rest + z P; a generalized force is f P^T."""
+    caps = design.capsules
+    rest = np.array([c.center for c in caps], float).reshape(len(caps), 3)
+    place = np.zeros((mech.n, 3 * len(caps)))
+    for i, c in enumerate(caps):
+        gi = mech.member_group[c.name]
+        if gi is not None:
+            A, o = mech.bases[gi], mech.offsets[gi]
+            place[o:o + A.shape[1], 3 * i:3 * i + 3] = A.T
+    return rest, mech.Z.T @ place
+
+
+@dataclass(frozen=True)
+class RowEquilibria:
+    """:func:`equilibria`: per row whether a stable equilibrium was found and where the capsules are."""
+
+    found: np.ndarray            # (B,) bool: converged, stable (and for a ramp: every step so)
+    positions: np.ndarray        # (B, C, 3) capsule centres (m), design.capsules order
+    displacements: np.ndarray    # (B, C, 3) from the declared centres (m)
+
+
+ForceRows = Callable[[np.ndarray, np.ndarray, float], np.ndarray]   # (centres (A, C, 3), rows (A,), amplitude scale) -> (A, C, 3)
+
+
+def _newton_rows(mech: _Mechanism, place: np.ndarray, rest: np.ndarray, adm, forces, z0: np.ndarray, h: float):
+    """Newton (EQ.solve_equilibrium_batch) for the rows of ``z0`` (B, m), row b's acoustic forces ``forces(centres (A,
+    C, 3), rows (A,))``: the residual and tangent of mechanics' scalar solve (central differences of step h, the
+    point and its 2m neighbours in one evaluation)."""
+    restoring = _restoring_rows(mech)
+    m = z0.shape[1]
+    e = h * np.eye(m)
+    ncap = rest.shape[0]
+
+    def rt(zs, idx):
+        a = zs.shape[0]
+        f, K = restoring(zs)
+        pts = np.concatenate([zs[:, None], zs[:, None] + e[None], zs[:, None] - e[None]], axis=1).reshape(-1, m)
+        centres = rest[None] + (pts @ place).reshape(pts.shape[0], ncap, 3)
+        fe_all = (forces(centres, np.repeat(idx, 1 + 2 * m)).reshape(pts.shape[0], -1) @ place.T).reshape(a, 1 + 2 * m, m)
+        fe = fe_all[:, 0]
+        J = np.swapaxes(fe_all[:, 1:m + 1] - fe_all[:, m + 1:], 1, 2) / (2 * h)
+        scale = np.maximum(np.abs(f).max(axis=1), np.abs(fe).max(axis=1))
+        return f - fe, K - J, scale
+
+    return EQ.solve_equilibrium_batch(rt, z0, admissible=lambda zs: np.array([adm(z) for z in zs], bool))
+
+
+def equilibria(design: Design, force_rows: ForceRows, starts, *, mode: str = "eq1", h: float = 1e-12) -> RowEquilibria:
+    """Stable equilibria of B copies of the mechanism at once, row b under its own drive (``force_rows(centres, rows,
+    s)``: the acoustic forces on configurations of rows ``rows`` with their drive amplitudes times ``s``), each by
+    Newton from ``starts[b]`` (capsule centres (C, 3)): the warm start of :func:`equilibrium`, the same iteration
+    (:func:`acl.physics.equilibrium.solve_equilibrium_batch`).  Found where it converges to a stable admissible
+    point; rows not found are the caller's to solve one by one (:func:`equilibrium`)."""
+    mech, _, adm = _prepared(design, mode)
+    rest, place = _placement(design, mech)
+    starts = np.asarray(starts, float)
+    nb, ncap = starts.shape[0], rest.shape[0]
+    if mech.m == 0:
+        return RowEquilibria(np.ones(nb, bool), np.broadcast_to(rest, (nb, ncap, 3)).copy(), np.zeros((nb, ncap, 3)))
+    # the start's coordinates as equilibrium() takes them: each group's first capsule's displacement on its basis
+    q0 = np.zeros((nb, mech.n))
+    index = {c.name: i for i, c in enumerate(design.capsules)}
+    for gi, g in enumerate(mech.groups):
+        A, o = mech.bases[gi], mech.offsets[gi]
+        d = starts[:, index[g[0]]] - np.asarray(design.capsule(g[0]).center)
+        q0[:, o:o + A.shape[1]] = d @ A
+    out = _newton_rows(mech, place, rest, adm, lambda c, r: force_rows(c, r, 1.0), q0 @ mech.Z, h)
+    disp = (out.q @ place).reshape(nb, ncap, 3)
+    return RowEquilibria((out.status == "ok") & out.stable, rest[None] + disp, disp)
+
+
+def equilibria_from_rest(design: Design, force_rows: ForceRows, rows: int, *, mode: str = "eq1", steps: int = 4,
+                         h: float = 1e-12) -> RowEquilibria:
+    """:func:`equilibria` of ``rows`` rows from rest: the drive's power raised in ``steps`` equal steps (amplitudes
+    times sqrt(k / steps)), each Newton solve warm-started from the last; found only where every step converges to a
+    stable point whose smallest tangent stiffness stays above half of that at rest (far from any fold, so on the branch
+    the continuation from rest of :func:`equilibrium` follows; other rows are the caller's to solve one by one)."""
+    mech, _, adm = _prepared(design, mode)
+    rest, place = _placement(design, mech)
+    ncap = rest.shape[0]
+    z = np.zeros((rows, mech.m))
+    found = np.ones(rows, bool)
+    if mech.m:
+        _, K0 = _restoring_rows(mech)(np.zeros((1, mech.m)))
+        floor = 0.5 * float(np.min(np.linalg.eigvals(K0[0]).real))
+        for k in range(1, steps + 1):
+            live = np.flatnonzero(found)
+            if live.size == 0 or not floor > 0:
+                found[:] = False
+                break
+            s = float(np.sqrt(k / steps))
+            sub = _newton_rows(mech, place, rest, adm, lambda c, r, s=s, live=live: force_rows(c, live[r], s), z[live], h)
+            good = (sub.status == "ok") & sub.stable & (sub.min_eig >= floor)
+            z[live] = sub.q
+            found[live[~good]] = False
+    disp = (z @ place).reshape(rows, ncap, 3)
+    return RowEquilibria(found, rest[None] + disp, disp)
 
 
 # ----------------------------------------------------------------------------------------------

@@ -143,6 +143,110 @@ def _min_eig(KT: np.ndarray) -> float:
 # One equilibrium
 # ----------------------------------------------------------------------------------------------
 
+@dataclass(frozen=True)
+class Equilibria:
+    """:func:`solve_equilibrium_batch` for B systems: per row what :class:`Equilibrium` holds for one."""
+
+    q: np.ndarray              # (B, n)
+    residual: np.ndarray       # (B,)
+    min_eig: np.ndarray        # (B,)
+    stable: np.ndarray         # (B,) bool
+    status: np.ndarray         # (B,) str
+    iterations: np.ndarray     # (B,) int
+    message: np.ndarray        # (B,) str
+
+
+ResidualTangent = Callable[[np.ndarray, np.ndarray], tuple]   # (q (A, n), rows (A,)) -> (R (A, n), K_T (A, n, n), scale (A,))
+
+
+def _solve_rows(KT: np.ndarray, R: np.ndarray):
+    """Newton steps -K_T^-1 R per row, and the rows whose K_T is singular (LinAlgError of that row alone)."""
+    try:
+        return np.linalg.solve(KT, -R[..., None])[..., 0], np.zeros(R.shape[0], bool)
+    except np.linalg.LinAlgError:
+        out, bad = np.zeros_like(R), np.zeros(R.shape[0], bool)
+        for i in range(R.shape[0]):
+            try:
+                out[i] = np.linalg.solve(KT[i], -R[i])
+            except np.linalg.LinAlgError:
+                bad[i] = True
+        return out, bad
+
+
+def solve_equilibrium_batch(residual_tangent: ResidualTangent, q0, *, admissible=None, rtol: float = 1e-10,
+                            atol: float = 1e-20, max_iter: int = 60) -> Equilibria:
+    """Newton with backtracking on |R| for B independent systems R_b(q_b) = 0 at once (Dennis & Schnabel, Numerical Methods for Unconstrained Optimization, Ch. 6).
+
+    Each row takes exactly the iterations of a lone solve: converged when |R| <= rtol * (force scale) + atol; a
+    step is halved until |R| falls by the Armijo factor (1 - 1e-4 t) at an admissible point (``admissible(q (A, n))
+    -> (A,) bool``), else the row fails; rows that converge or fail leave the batch.  ``residual_tangent(q, rows)``
+    evaluates the rows still solving in one call.  Failure is a status per row (``"no_convergence"``,
+    ``"inadmissible"``), never a silent answer; stability is the sign of the smallest real eigenvalue of K_T.
+    """
+    q = np.array(np.atleast_2d(np.asarray(q0, dtype=float)), dtype=float)
+    nb, n = q.shape
+    ok = admissible or (lambda qs: np.ones(qs.shape[0], bool))
+    rows = np.arange(nb)
+    R, KT, scale = (np.asarray(x, float) for x in residual_tangent(q, rows))
+    norm = np.linalg.norm(R, axis=1)
+    status = np.full(nb, "no_convergence", dtype=object)
+    message = np.full(nb, f"no convergence in {max_iter} Newton steps", dtype=object)
+    iterations = np.full(nb, max_iter, int)
+    live = np.ones(nb, bool)
+    for it in range(1, max_iter + 1):
+        act = np.flatnonzero(live)
+        if act.size == 0:
+            break
+        finite = np.all(np.isfinite(R[act]), axis=1)
+        done = act[~finite]
+        message[done], iterations[done], live[done] = "non-finite force", it, False
+        act = act[finite]
+        conv = norm[act] <= rtol * scale[act] + atol
+        done = act[conv]
+        status[done], iterations[done], live[done] = "ok", it, False
+        act = act[~conv]
+        if act.size == 0:
+            continue
+        step, singular = _solve_rows(KT[act], R[act])
+        done = act[singular]
+        message[done], iterations[done], live[done] = "singular tangent stiffness", it, False
+        step, act = step[~singular], act[~singular]
+        t = np.ones(act.size)
+        pending = np.ones(act.size, bool)
+        while pending.any():
+            idx = np.flatnonzero(pending)
+            trial = q[act[idx]] + t[idx, None] * step[idx]
+            adm = np.asarray(ok(trial), bool)
+            good = np.zeros(idx.size, bool)
+            if adm.any():
+                a = np.flatnonzero(adm)
+                Rt, KTt, st = (np.asarray(x, float) for x in residual_tangent(trial[a], act[idx[a]]))
+                nt = np.linalg.norm(Rt, axis=1)
+                fine = np.all(np.isfinite(Rt), axis=1) & (nt < (1 - 1e-4 * t[idx[a]]) * norm[act[idx[a]]])
+                for j in np.flatnonzero(fine):
+                    r = act[idx[a[j]]]
+                    q[r], R[r], KT[r], scale[r], norm[r] = trial[a[j]], Rt[j], KTt[j], st[j], nt[j]
+                good[a[fine]] = True
+            pending[idx[good]] = False
+            t[idx[~good]] *= 0.5
+            lost = idx[~good][t[idx[~good]] <= 1e-6]
+            pending[lost] = False
+            gone = act[lost]
+            message[gone], iterations[gone], live[gone] = "line search failed (no admissible descent)", it, False
+    last = np.flatnonzero(live)
+    status[last[norm[last] <= rtol * scale[last] + atol]] = "ok"
+    okk = status == "ok"
+    if okk.any():
+        inadm = np.flatnonzero(okk)[~np.asarray(ok(q[okk]), bool)]
+        status[inadm], message[inadm] = "inadmissible", "equilibrium outside the admissible set"
+    message[status == "ok"] = ""
+    mev = np.full(nb, np.nan)
+    fin = np.all(np.isfinite(KT.reshape(nb, -1)), axis=1)
+    if fin.any():
+        mev[fin] = np.min(np.linalg.eigvals(KT[fin]).real, axis=1)
+    return Equilibria(q, norm, mev, mev > 0, status, iterations, message)
+
+
 def solve_equilibrium(restoring: Restoring, external: External, q0, V: float, *,
                       admissible: Admissible = None, rtol: float = 1e-10, atol: float = 1e-20,
                       max_iter: int = 60, h: float = 1e-12) -> Equilibrium:
@@ -150,47 +254,17 @@ def solve_equilibrium(restoring: Restoring, external: External, q0, V: float, *,
 
     Converged when |R| <= rtol * (force scale) + atol; the answer is rejected (``inadmissible``) if
     ``admissible(q)`` is false, and the residual is recomputed at the returned point.
+    :func:`solve_equilibrium_batch` at batch size 1.
     """
-    q = np.atleast_1d(np.asarray(q0, dtype=float)).copy()
-    ok = admissible or (lambda _q: True)
-    R, KT, scale = residual_and_tangent(restoring, external, q, V, h)
-    norm = np.linalg.norm(R)
-    it = 0
-    status, message = "no_convergence", f"no convergence in {max_iter} Newton steps"
-    for it in range(1, max_iter + 1):
-        if not np.all(np.isfinite(R)):
-            message = "non-finite force"
-            break
-        if norm <= rtol * scale + atol:
-            status = "ok"
-            break
-        try:
-            step = np.linalg.solve(KT, -R)
-        except np.linalg.LinAlgError:
-            message = "singular tangent stiffness"
-            break
-        t = 1.0
-        while t > 1e-6:
-            trial = q + t * step
-            if ok(trial):
-                Rt, KTt, st = residual_and_tangent(restoring, external, trial, V, h)
-                if np.all(np.isfinite(Rt)) and np.linalg.norm(Rt) < (1 - 1e-4 * t) * norm:
-                    break
-            t *= 0.5
-        else:
-            message = "line search failed (no admissible descent)"
-            break
-        q, R, KT, scale = trial, Rt, KTt, st
-        norm = np.linalg.norm(R)
-    else:
-        if norm <= rtol * scale + atol:
-            status = "ok"
-    if status == "ok" and not ok(q):
-        status, message = "inadmissible", "equilibrium outside the admissible set"
-    if status == "ok":
-        message = ""
-    mev = _min_eig(KT) if np.all(np.isfinite(KT)) else float("nan")
-    return Equilibrium(q, float(V), float(norm), mev, bool(mev > 0), status, it, message)
+    def rt(qs, _rows):
+        R, KT, sc = residual_and_tangent(restoring, external, qs[0], V, h)
+        return R[None], KT[None], np.array([sc])
+
+    adm = None if admissible is None else (lambda qs: np.array([bool(admissible(x)) for x in qs]))
+    out = solve_equilibrium_batch(rt, np.atleast_1d(np.asarray(q0, dtype=float))[None], admissible=adm,
+                                  rtol=rtol, atol=atol, max_iter=max_iter)
+    return Equilibrium(out.q[0], float(V), float(out.residual[0]), float(out.min_eig[0]), bool(out.stable[0]),
+                       str(out.status[0]), int(out.iterations[0]), str(out.message[0]))
 
 
 # ----------------------------------------------------------------------------------------------

@@ -248,11 +248,14 @@ class Band:
 
 
 def error_band(design: Design, forward_for: Callable, u: np.ndarray, targets: np.ndarray, *,
-               samples: int = 32, seed: int = 0, reload: Reload | None = None, q: float = 95.0) -> Band | None:
+               samples: int = 32, seed: int = 0, reload: Reload | None = None, q: float = 95.0,
+               forward_many: Callable | None = None) -> Band | None:
     """95th percentile of RMS and max tracking error over designs drawn from the declared uncertainty.
 
     ``forward_for(design) -> forward`` (u (N, K) V^2 -> (N, 2) m); ``u`` (K, M) and ``targets`` (M, 2)
-    at the re-simulated waypoints.  A draw whose equilibrium is lost at a waypoint (snap-in) counts
+    at the re-simulated waypoints.  ``forward_many(designs) -> [prediction or exception]``, when given,
+    re-simulates every resolved draw at once instead (acl.schedule.gains.model_forward_many: one batch).
+    A draw whose equilibrium is lost at a waypoint (snap-in) counts
     that waypoint as missed by the path's full size in the RMS (never as on target) and has an
     unbounded maximum (as the nominal prediction); a draw that does not resolve or whose model fails
     misses every waypoint so.  None when nothing is declared.
@@ -264,11 +267,19 @@ def error_band(design: Design, forward_for: Callable, u: np.ndarray, targets: np
     noise = np.random.default_rng([seed, 1])
     scale = float(np.max(np.linalg.norm(targets - targets.mean(axis=0), axis=1))) + float(
         np.max(np.linalg.norm(targets, axis=1)))
-    for _, d in sample_designs(design, samples, seed, reload):
+    draws = [d for _, d in sample_designs(design, samples, seed, reload)]
+    many = {}
+    if forward_many is not None:
+        live = [k for k, d in enumerate(draws) if d is not None]
+        many = dict(zip(live, forward_many([draws[k] for k in live])))
+    for k, d in enumerate(draws):
         try:
             if d is None:
                 raise ValueError("did not resolve")
-            pred = np.asarray(forward_for(d)(u.T), float)
+            got = many[k] if k in many else forward_for(d)(u.T)
+            if isinstance(got, Exception):
+                raise got
+            pred = np.asarray(got, float)
         except (ValueError, KeyError, FloatingPointError):
             # a draw that does not resolve (a drawn value outside its physical range, e.g. a negative coefficient) or
             # whose model fails: missing the path, as a lost equilibrium (left out, the band came from the draws

@@ -23,7 +23,7 @@ import numpy as np
 
 from acl.design.model import Design, FollowStep, HoldStep, Limits, Program, SwitchStep
 from acl.diagnostics import Diagnostic, DiagnosticError, Severity, Span, error
-from acl.physics.ties import TIE_RTOL, first_max_item
+from acl.physics.ties import TIE_RTOL, first_max, first_max_item
 from acl.schedule.model import GoalReport, Schedule, ScheduledTone, Segment
 from acl.schedule.path import UM, DriveLimits
 
@@ -118,6 +118,7 @@ class _Compiler:
     branch_memo: dict = field(default_factory=dict)     # (tones, latch states, latch, to) -> :meth:`_branch_pushes`
     inner_goals: list = field(default_factory=list)     # goal records checked for coverage, not in schedule.json (sweeps)
     forward_now: Callable | None = None                 # the current follow goal's forward provider (:meth:`_models_for`)
+    many_now: Callable | None = None                    # (designs, capsule, freqs, u) -> [prediction]: one batch, or None
     gains_now: Callable | None = None                   # and its gain provider ((design, capsule, freqs) -> GainTable)
 
     def run(self) -> Schedule:
@@ -882,6 +883,7 @@ class _Compiler:
         from acl.physics.constants import LINEAR_AMPLITUDE_LIMIT
 
         worst_of: dict[int, tuple[float, str]] = {}     # step -> (worst eps/R over its segments, interface)
+        steady = self._steady_amplitudes(sched)
         for seg in sched.segments:
             if not seg.tones or not self.design.capsules:
                 continue
@@ -902,8 +904,11 @@ class _Compiler:
                                    amplitude=t.amplitude_v) for t in seg.tones if t.amplitude_v > 0)
                 if not tones:
                     continue
-                amps = interface_amplitudes(self.design, Drive(tones=tones))
-                k, v = first_max_item(amps)            # ties: the first declared interface, the first segment
+                if chirps:
+                    amps = interface_amplitudes(self.design, Drive(tones=tones))
+                    k, v = first_max_item(amps)            # ties: the first declared interface, the first segment
+                else:                                      # steady tones: every segment's in one batch (below)
+                    k, v = steady[id(seg)]
                 if v > worst * (1 + TIE_RTOL):
                     worst, where = v, k
             worst_of[seg.step] = (worst, where)
@@ -918,6 +923,32 @@ class _Compiler:
                 continue
             raise _diag("E-SCHED-NONLINEAR", text, step.span,
                         "lower the voltage, move the tone off resonance, or pass --allow-nonlinear")
+
+    def _steady_amplitudes(self, sched: Schedule) -> dict:
+        """{id(segment): (interface, eps/R)} of the largest interface amplitude (ties: the first declared) of every
+        segment of steady tones (no chirp), the segments sharing a set of tones evaluated as one batch
+        (acoustics.interface_amplitudes_batch)."""
+        from acl.analysis.acoustics import interface_amplitudes_batch, interface_labels
+
+        labels = interface_labels(self.design)
+        groups: dict = {}
+        for seg in sched.segments:
+            if not seg.tones or not self.design.capsules or any(t.frequency_end_hz for t in seg.tones):
+                continue
+            live = [t for t in seg.tones if t.amplitude_v > 0]
+            if live:
+                key = tuple(t.frequency_hz for t in live)
+                groups.setdefault(key, []).append((seg, [t.amplitude_v for t in live]))
+        out = {}
+        for freqs, rows in groups.items():
+            eps = interface_amplitudes_batch(self.design, freqs, np.array([a for _, a in rows], float))
+            if not labels:
+                out.update({id(seg): ("", 0.0) for seg, _ in rows})
+                continue
+            top = first_max(eps, axis=1)
+            for (seg, _), k, row in zip(rows, np.atleast_1d(top), eps):
+                out[id(seg)] = (labels[int(k)], float(row[int(k)]))
+        return out
 
     def _mode_frequencies(self) -> np.ndarray:
         """Every capsule's mode frequencies (Hz) and the coupled modes' (two or more capsules): a chirp's peaks."""
@@ -1243,9 +1274,12 @@ class _Compiler:
         each draw of a band or of --robust at its own travel).  Fig. 6f: after `switch ctl to b` partner faces arm_cap
         inside d_c and their attraction bends the beam the other way; planned and re-simulated from the declared
         state a, a path of arm_cap after the switch was predicted as if partner were 110 um away."""
-        from acl.schedule.gains import model_forward, model_gain_table, state_positions
+        from acl.schedule.gains import model_forward, model_forward_many, model_gain_table, state_positions
 
         forward = self.opts.forward_provider or model_forward
+        # the re-simulation and its band's draws as one batch (gains.model_forward_many) when the model is the default
+        self.many_now = None if self.opts.forward_provider is not None else \
+            (lambda ds, capsule, freqs, u: model_forward_many(ds, capsule, freqs, u))
         given = self.opts.gain_provider
         gains = (lambda d, capsule, freqs=None: given(d, capsule) if freqs is None else given(d, capsule, freqs)) \
             if given is not None else model_gain_table
@@ -1265,6 +1299,8 @@ class _Compiler:
             f"latch `{n}` in state {states[n]}" for n in moved) + " (its capsules moved by the latch's travel)")
         if self.opts.forward_provider is None:
             forward = lambda d, capsule, freqs: model_forward(d, capsule, freqs, start=state_positions(d, states))  # noqa: E731
+            self.many_now = lambda ds, capsule, freqs, u: model_forward_many(  # noqa: E731
+                ds, capsule, freqs, u, [state_positions(d, states) for d in ds])
         if given is None:
             gains = lambda d, capsule, freqs=None: model_gain_table(d, capsule, freqs,  # noqa: E731
                                                                     positions=state_positions(d, states))
@@ -1389,7 +1425,21 @@ class _Compiler:
             return
         n = u.shape[1]
         idx = np.unique(np.linspace(0, n - 1, min(n, self.opts.resim_points)).astype(int))
-        pred = np.asarray(forward(u[:, idx].T), float)
+        band, nominal = None, []
+        if self.opts.band_samples > 0 and self.opts.forward_provider is None and self.many_now is not None:
+            # the nominal design and the band's draws re-simulated as one batch (gains.model_forward_many)
+            many = self.many_now
+
+            def forward_many(ds):
+                got = many([self.design, *ds], capsule, rep.frequencies_hz, u[:, idx].T)
+                nominal.append(got[0])
+                return got[1:]
+
+            band = self._error_band(provider, capsule, rep, u[:, idx], targets[idx], forward_many)
+        got = nominal[0] if nominal else forward(u[:, idx].T)
+        if isinstance(got, Exception):
+            raise got
+        pred = np.asarray(got, float)
         ok = np.all(np.isfinite(pred), axis=1)
         err = np.linalg.norm(pred[ok] - targets[idx][ok], axis=1)
         rep.model = model
@@ -1407,14 +1457,22 @@ class _Compiler:
         rep.predicted_m = full
         rep.details["resimulated_waypoints"] = int(idx.size)
         if self.opts.band_samples > 0:
-            self._band(rep, provider, capsule, u[:, idx], targets[idx])
+            self._band(rep, provider, capsule, u[:, idx], targets[idx], band if nominal else None)
 
-    def _band(self, rep: GoalReport, provider, capsule, u, targets):
-        """95th percentile of the re-simulated error over draws of the declared uncertainty."""
-        from acl.schedule.bands import error_band, level, pinned, unmeasured_tones
+    def _error_band(self, provider, capsule, rep: GoalReport, u, targets, forward_many=None):
+        from acl.schedule.bands import error_band
 
-        band = error_band(self.design, lambda d: provider(d, capsule, rep.frequencies_hz)[0], u, targets,
-                          samples=self.opts.band_samples, seed=self.opts.band_seed, reload=self.opts.reload)
+        return error_band(self.design, lambda d: provider(d, capsule, rep.frequencies_hz)[0], u, targets,
+                          samples=self.opts.band_samples, seed=self.opts.band_seed, reload=self.opts.reload,
+                          forward_many=forward_many)
+
+    def _band(self, rep: GoalReport, provider, capsule, u, targets, band=None):
+        """95th percentile of the re-simulated error over draws of the declared uncertainty (``band``: computed with
+        the nominal re-simulation, :meth:`_resimulate`)."""
+        from acl.schedule.bands import level, pinned, unmeasured_tones
+
+        if band is None:
+            band = self._error_band(provider, capsule, rep, u, targets)
         if band is None:
             self.notes.append(f"{rep.name}: the design declares no uncertainty: no error band "
                               "(declare `+- s` on parameters or `gain_uncertainty` on the transducer)")

@@ -126,35 +126,11 @@ def model_forward(design: Design, capsule: str, frequencies, start=None) -> tupl
     freqs = [float(f) for f in frequencies]
     mech = _optional("acl.analysis.mechanics")
     if mech is not None and hasattr(mech, "equilibrium"):
-        from acl.analysis import acoustics
-
         def forward(u: np.ndarray) -> np.ndarray:
-            out = np.full((u.shape[0], 2), np.nan)
-            prev, contact = start, False
-            for i, row in enumerate(u):
-                if contact and np.any(row > 0):
-                    continue               # snapped in: held at contact while any drive plays (no release model)
-                contact = False            # silence releases it (no acoustic force: the beams pull the capsules apart)
-                drive = Drive(tones=tuple(Tone(frequency=f, amplitude=float(np.sqrt(max(x, 0.0))))
-                                          for f, x in zip(freqs, row)))
-                # warm start from the previous waypoint (continuation from ``start`` for the first)
-                fm = acoustics.force_model_for(design)
-                eq = mech.equilibrium(design, drive, fm, start=prev)
-                if eq.status != "ok" and prev is not start:
-                    eq = mech.equilibrium(design, drive, fm, start=start)
-                for flipped in (_flipped_latches(design, prev, drive) if eq.status != "ok" else ()):
-                    # the branch was lost because a bistable latch snapped through: the device goes on from its
-                    # other state (it stays there when the drive falls: hysteresis)
-                    again = settle_from(design, drive, flipped)
-                    if again is not None:
-                        eq = again
-                        break
-                if eq.status == "ok":
-                    out[i] = np.asarray(eq.displacements[capsule], float)[:2]
-                    prev = eq.positions
-                else:
-                    prev, contact = start, True        # snapped in or lost: NaN, reported as such, until silence
-            return out
+            got = model_forward_many([design], capsule, freqs, u, [start])[0]
+            if isinstance(got, Exception):
+                raise got
+            return got
 
         return forward, "nonlinear equilibrium (acl.analysis.mechanics)"
     kind, el = _carrier(design, capsule)
@@ -175,6 +151,133 @@ def model_forward(design: Design, capsule: str, frequencies, start=None) -> tupl
         return forward, "nonlinear beam law, paper Eq. (1) (mechanics module absent)"
     C = compliance_matrix(design, capsule)
     return (lambda u: (u @ per_tone) @ C.T), "linear spring (mechanics module absent)"
+
+
+def _waypoint(design: Design, drive: Drive, prev, start):
+    """One waypoint of :func:`model_forward` solved alone: the equilibrium under ``drive`` warm-started from ``prev``
+    (continued from rest when it is None or fails), else from ``start``, else on a bistable latch's switched branch."""
+    from acl.analysis import acoustics, mechanics
+
+    fm = acoustics.force_model_for(design)
+    eq = mechanics.equilibrium(design, drive, fm, start=prev)
+    if eq.status != "ok" and prev is not start:
+        eq = mechanics.equilibrium(design, drive, fm, start=start)
+    for flipped in (_flipped_latches(design, prev, drive) if eq.status != "ok" else ()):
+        # the branch was lost because a bistable latch snapped through: the device goes on from its
+        # other state (it stays there when the drive falls: hysteresis)
+        again = settle_from(design, drive, flipped)
+        if again is not None:
+            return again
+    return eq
+
+
+def _gain_variant(base: Design, d: Design) -> bool:
+    """Whether ``d`` is ``base`` with only its transducer gain table changed (a draw of bands.sample_designs without
+    uncertain parameters): every other field the very same object, so the force engine of ``base`` with ``d``'s gains
+    and thrust scales (acoustics.drive_factors) is ``d``'s."""
+    if d is base:
+        return True
+    if type(d) is not type(base):
+        return False
+    for name in type(base).model_fields:
+        if name != "transducer" and getattr(d, name) is not getattr(base, name):
+            return False
+    ta, tb = base.transducer, d.transducer
+    if ta is None or tb is None:
+        return ta is tb
+    return all(getattr(ta, n) is getattr(tb, n) or getattr(ta, n) == getattr(tb, n)
+               for n in type(ta).model_fields if n not in ("gain_frequencies", "gain_pa_per_v"))
+
+
+def model_forward_many(designs, capsule: str, frequencies, u: np.ndarray, starts=None) -> list:
+    """``model_forward(d, capsule, frequencies, start)(u)`` for every design ``d`` (with its ``start``) at once: the
+    designs that differ only in their gain table (draws of a band) are one batch, solved waypoint by waypoint, each row
+    warm-started from its own previous waypoint (acl.analysis.mechanics.equilibria); a row the batch does not settle is
+    solved alone (:func:`_waypoint`), so every row follows the scalar model's branch.  Entries are (N, 2) arrays, or
+    the exception (ValueError, KeyError, FloatingPointError) a design's model raised."""
+    designs = list(designs)
+    starts = [None] * len(designs) if starts is None else list(starts)
+    u = np.asarray(u, float)
+    freqs = [float(f) for f in frequencies]
+    families: list = []
+    for i, d in enumerate(designs):
+        for base, idx in families:
+            if _gain_variant(base, d):
+                idx.append(i)
+                break
+        else:
+            families.append((d, [i]))
+    out: list = [None] * len(designs)
+    for base, idx in families:
+        try:
+            preds = _forward_rows(base, [designs[i] for i in idx], capsule, freqs, u, [starts[i] for i in idx])
+        except (ValueError, KeyError, FloatingPointError) as exc:
+            preds = [exc] * len(idx)
+        for i, p in zip(idx, preds):
+            out[i] = p
+    return out
+
+
+def _forward_rows(base: Design, members: list, capsule: str, freqs: list, u: np.ndarray, starts: list) -> list:
+    """:func:`model_forward_many` of one family of gain-table variants of ``base`` (rows: ``members``)."""
+    from acl.analysis import acoustics, mechanics
+
+    names = [c.name for c in base.capsules]
+    ci = names.index(capsule)
+    nrow, n = len(members), u.shape[0]
+    factors = [acoustics.drive_factors(d, freqs) for d in members]
+    gains = np.array([g for g, _ in factors], float).reshape(nrow, len(freqs))
+    scales = np.array([s for _, s in factors], float).reshape(nrow, len(names))
+    amps = np.sqrt(np.maximum(u, 0.0))
+    out = np.full((nrow, n, 2), np.nan)
+    prev = list(starts)                      # where each row's last waypoint left the capsules (dict), or its start
+    from_start = [True] * nrow               # prev is the row's start (the scalar model's ``prev is start``)
+    contact = np.zeros(nrow, bool)
+
+    def as_dict(centres):
+        return {nm: centres[k] for k, nm in enumerate(names)}
+
+    def as_array(pos):
+        rest = {c.name: np.asarray(c.center, float) for c in base.capsules}
+        return np.array([np.asarray(pos.get(nm, rest[nm]), float) for nm in names])
+
+    for i in range(n):
+        driven = bool(np.any(u[i] > 0))
+        active = [j for j in range(nrow) if not (contact[j] and driven)]
+        contact[active] = False          # silence releases a contact (no acoustic force: the beams pull apart)
+        if not active:
+            continue
+
+        def rows_force(sel, a=amps[i]):
+            sel = np.asarray(sel)
+            return lambda c, r, s: acoustics.force_batch_tones(base, c, freqs, np.broadcast_to(a * s, (r.size, a.size)),
+                                                               gains[sel[r]], scales[sel[r]])
+
+        settled = {}
+        warm = [j for j in active if prev[j] is not None]
+        cold = [j for j in active if prev[j] is None]
+        if warm:
+            res = mechanics.equilibria(base, rows_force(warm), np.array([as_array(prev[j]) for j in warm]))
+            settled.update({j: (res.positions[k], res.displacements[k, ci, :2]) for k, j in enumerate(warm)
+                            if res.found[k]})
+        if cold:
+            res = mechanics.equilibria_from_rest(base, rows_force(cold), len(cold))
+            settled.update({j: (res.positions[k], res.displacements[k, ci, :2]) for k, j in enumerate(cold)
+                            if res.found[k]})
+        for j in active:
+            if j in settled:
+                pos, disp = settled[j]
+                out[j, i] = disp
+                prev[j], from_start[j] = as_dict(pos), False
+                continue
+            drive = Drive(tones=tuple(Tone(frequency=f, amplitude=float(a)) for f, a in zip(freqs, amps[i])))
+            eq = _waypoint(members[j], drive, starts[j] if from_start[j] else prev[j], starts[j])
+            if eq.status == "ok":
+                out[j, i] = np.asarray(eq.displacements[capsule], float)[:2]
+                prev[j], from_start[j] = eq.positions, False
+            else:    # snapped in or lost: NaN, reported as such, until silence (the contact holds while a drive plays)
+                prev[j], from_start[j], contact[j] = starts[j], True, True
+    return [out[j] for j in range(nrow)]
 
 
 def settle_from(design: Design, drive: Drive, start: dict, steps: int = 6):
