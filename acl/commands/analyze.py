@@ -198,6 +198,10 @@ def print_report(design, rep) -> None:
         con.print(t)
         for w in e["warnings"]:
             con.print(f"[yellow]warning:[/yellow] {w}")
+        for v in e.get("validity", ()):       # the limits crossed at this drive (acl.physics.validity), located
+            if v["code"] != "W-MECH-001":      # (W-MECH-001 is printed above with the mechanics' warnings)
+                con.print(f"{v['file']}:{v['line']}:{v['column']}: [yellow]warning[{v['code']}]:[/yellow] {v['message']}",
+                          markup=True)
     if rep.requires:
         t = Table(title="Requirements", title_justify="left")
         for col in ("requirement", "value", "ok", "at"):
