@@ -200,8 +200,10 @@ def print_report(design, rep) -> None:
             con.print(f"[yellow]warning:[/yellow] {w}")
         for v in e.get("validity", ()):       # the limits crossed at this drive (acl.physics.validity), located
             if v["code"] != "W-MECH-001":      # (W-MECH-001 is printed above with the mechanics' warnings)
-                con.print(f"{v['file']}:{v['line']}:{v['column']}: [yellow]warning[{v['code']}]:[/yellow] {v['message']}",
-                          markup=True)
+                from rich.markup import escape
+
+                con.print(f"{escape(v['file'])}:{v['line']}:{v['column']}: [yellow]warning\\[{v['code']}]:[/yellow] "
+                          f"{escape(v['message'])}", soft_wrap=True)
     if rep.requires:
         t = Table(title="Requirements", title_justify="left")
         for col in ("requirement", "value", "ok", "at"):

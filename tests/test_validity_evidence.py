@@ -1,0 +1,78 @@
+"""Issue 24: validity limits that state their evidence, are checked where a drive is evaluated, and widen
+predictions past them (acl.physics.validity; docs/physics.md part A section 11)."""
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import acl
+from acl.analysis.report import analyze
+from acl.design.model import Drive, Tone
+from acl.physics import validity as VA
+
+ROOT = Path(__file__).resolve().parents[1]
+FIG1F = ROOT / "examples" / "fig1f_selective_beams.acl"
+
+
+def test_every_limit_states_its_evidence_and_kind():
+    for lim in VA.LIMITS:
+        assert lim.evidence and lim.code and lim.value > 0
+    assert not VA.AMPLITUDE.hard and VA.AMPLITUDE_MEANING.hard
+    assert "Fig. 2f" in VA.AMPLITUDE.evidence and "Fig. 2c" in VA.STREAMING_REYNOLDS.evidence
+
+
+def test_the_hard_amplitude_limit_is_where_a_pinned_cap_stops_balancing_pressure():
+    # Young-Laplace: p = 4 sigma eps/(R^2 + eps^2) of a pinned spherical cap peaks at eps = R (grid 1e-4 R).
+    x = np.linspace(0.0, 3.0, 30001)
+    p = 4 * x / (1 + x * x)
+    assert x[np.argmax(p)] == pytest.approx(VA.AMPLITUDE_MEANING.value, abs=1e-4)
+
+
+def test_model_form_uncertainty_is_zero_inside_and_grows_past_the_limit():
+    x = np.array([0.1, 0.25, 0.3, 0.5, 0.8, 1.0])
+    u = VA.amplitude_model_form(x, 6.6)
+    assert u[0] == 0.0 and u[1] == 0.0
+    assert np.all(np.diff(u[1:]) > 0) and np.all(u < 1)
+    # |H|^2 of a mode detuned by s = (3/8)(x^2 - 0.25^2) relative to the undetuned peak, Q = 6.6 (1e-12)
+    s = 0.375 * (0.5**2 - 0.25**2)
+    assert VA.amplitude_model_form(0.5, 6.6) == pytest.approx(1 - 1 / (1 + (2 * 6.6 * s) ** 2), rel=1e-12)
+    assert VA.monopole_model_form(40e-6, 20e-6) == pytest.approx(0.25, rel=1e-12)
+
+
+def test_analyze_at_warns_with_a_located_code_beyond_the_amplitude_limit():
+    # The issue's case: fig1f at 85 kHz @ 5 V reaches eps/R 0.32 with no warning before.
+    d = acl.load(str(FIG1F))
+    rep = analyze(d, at=Drive(tones=(Tone(frequency=85e3, amplitude=5.0),)), snap_in=False).as_dict()
+    found = {v["code"]: v for v in rep["equilibrium"]["validity"]}
+    amp = found["W-ACOUSTIC-AMPLITUDE"]
+    assert amp["value"] == pytest.approx(0.32, abs=0.01) and amp["limit"] == 0.25
+    assert amp["file"].endswith("fig1f_selective_beams.acl") and amp["line"] == d.capsule("low").span.line
+    assert 0 < amp["model_form_force_rel"] < 1 and "Fig. 2f" in amp["evidence"]
+    assert found["W-ACOUSTIC-STREAMING"]["value"] > 1
+    # 1 V: inside the amplitude limit (eps/R ~0.065) and inside R_s (about 0.37): no finding
+    rep = analyze(d, at=Drive(tones=(Tone(frequency=85e3, amplitude=1.0),)), snap_in=False).as_dict()
+    assert rep["equilibrium"]["validity"] == []
+
+
+def test_analyze_at_cli_prints_the_located_warning():
+    r = subprocess.run([sys.executable, "-m", "acl", "analyze", str(FIG1F), "--at", "85 kHz @ 5 V", "--no-snap"],
+                       capture_output=True, text=True, cwd=ROOT)
+    assert r.returncode in (0, 1) and "Traceback" not in r.stderr
+    line = acl.load(str(FIG1F)).capsule("low").span.line
+    assert f"fig1f_selective_beams.acl:{line}:1: warning[W-ACOUSTIC-AMPLITUDE]" in r.stdout
+    r = subprocess.run([sys.executable, "-m", "acl", "analyze", str(FIG1F), "--at", "85 kHz @ 5 V", "--no-snap",
+                        "--output-format", "json"], capture_output=True, text=True, cwd=ROOT)
+    codes = {v["code"] for v in json.loads(r.stdout)["equilibrium"]["validity"]}
+    assert {"W-ACOUSTIC-AMPLITUDE", "W-ACOUSTIC-STREAMING"} <= codes
+
+
+def test_analyze_at_warns_when_orifices_are_closer_than_the_monopole_limit():
+    d = acl.load(str(ROOT / "examples" / "fig4_facing_pair.acl"), overrides={"gap": "30 um"})
+    rep = analyze(d, at=Drive(tones=(Tone(frequency=125e3, amplitude=0.5),)), snap_in=False).as_dict()
+    (mono,) = [v for v in rep["equilibrium"]["validity"] if v["code"] == "W-ACOUSTIC-MONOPOLE"]
+    assert mono["value"] < 2 and mono["model_form_force_rel"] == pytest.approx(1 / mono["value"] ** 2, rel=1e-9)
