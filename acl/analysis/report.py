@@ -179,16 +179,23 @@ def analyze(design: M.Design, at: M.Drive | None = None, snap_in: bool = True, p
         per_latch = {lt.name: {"name": lt.name, **_loc(lt.span), "state": lt.state, "margins": []} for lt in design.latches}
         intended = {(p.name, st.latch) for p in design.programs for st in p.steps if st.kind == "switch"}
         first = None
+        states: dict = {}          # the latch states the program's earlier steps leave ({latch: "a" | "b"})
+        program = None
         for p, i, st, drive in step_drives(design):
-            lm = ME.latch_margins(design, drive, fm)
+            if p is not program:
+                program, states = p, {}
+            lm = ME.latch_margins(design, drive, fm, states)
             for name, m in lm.items():
                 first = first or m
                 want = st.kind == "switch" and st.latch == name
                 per_latch[name]["margins"].append({
                     "program": p.name, "step": i + 1, "line": st.span.line, "drive": describe_drive(drive),
-                    "margin": m.margin, "available_force_n": m.available, "switches": bool(m.margin >= 1.0),
+                    "state_before": m.state, "margin": m.margin, "available_force_n": m.available,
+                    "switches": bool(m.margin >= 1.0),
                     "intended": bool(want), "required_margin": st.margin if want else None,
                     "unintended": bool(m.margin >= 1.0 and not want and (p.name, name) not in intended)})
+                if m.margin >= 1.0:
+                    states[name] = "b" if m.state == "a" else "a"
         for lt in design.latches:
             m0 = ME.latch_margins(design, M.Drive(tones=()), fm)[lt.name]
             per_latch[lt.name].update({"bistable": bool(m0.bistable), "switching_force_n": m0.switching_force,
