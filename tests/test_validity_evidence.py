@@ -76,3 +76,54 @@ def test_analyze_at_warns_when_orifices_are_closer_than_the_monopole_limit():
     rep = analyze(d, at=Drive(tones=(Tone(frequency=125e3, amplitude=0.5),)), snap_in=False).as_dict()
     (mono,) = [v for v in rep["equilibrium"]["validity"] if v["code"] == "W-ACOUSTIC-MONOPOLE"]
     assert mono["value"] < 2 and mono["model_form_force_rel"] == pytest.approx(1 / mono["value"] ** 2, rel=1e-9)
+
+
+# ------------------------------------------------------------------------------------------------
+# issue 24, part 5: reported quantities that agree with the force model
+# ------------------------------------------------------------------------------------------------
+
+def test_reported_critical_distance_is_where_the_net_force_changes_sign():
+    # Fig. 4 pair at 125 kHz: the reduced Eq. 3 value sqrt(alpha/2 gamma) (2 gamma = two thrusts) was reported as
+    # d_c (47.9 um) while the force model (jet drag ~0.8 thrust, coupled responses) changes sign near 50.8 um.
+    from acl.analysis.pairs import closing_force
+
+    d = acl.load(str(ROOT / "examples" / "fig4_facing_pair.acl"))
+    rep = analyze(d, snap_in=False).as_dict()
+    (p,) = [p for p in rep["pairs"] if p["frequency_hz"] == 125e3]
+    dc, eq3 = p["critical_distance_m"], p["critical_distance_eq3_m"]
+    assert 45e-6 < eq3 < dc < 55e-6 and dc - eq3 > 1e-6
+    drive = Drive(tones=(Tone(frequency=125e3, amplitude=p["voltage_v"]),))
+    g0 = p["gap_m"]
+    gaps, close = closing_force(d, drive, "left", "right", [dc - g0 - 0.5e-6, dc - g0 + 0.5e-6])
+    assert close[0] > 0 > close[1]                    # attraction inside d_c, repulsion outside (0.5 um)
+    assert gaps == pytest.approx([dc - 0.5e-6, dc + 0.5e-6], abs=1e-9)
+
+
+def test_analyze_and_compile_agree_on_each_switch_of_the_toggle():
+    # Fig. 6e toggle: the backward switch (170 kHz) pushes the shuttle through the capsule trussed to it, from the
+    # state b that step 1 leaves; analyze counted only mounted capsules at the declared state (margin -0.02, "no").
+    from acl.schedule.compile import CompileOptions, compile_program
+
+    d = acl.load(str(ROOT / "examples" / "fig6e_reversible_latch.acl"))
+    rep = analyze(d, snap_in=False).as_dict()
+    (lt,) = rep["latches"]
+    toggle = [m for m in lt["margins"] if m["program"] == "toggle"]
+    assert [m["state_before"] for m in toggle] == ["a", "b", "a"]
+    s = compile_program(d, "toggle", CompileOptions(band_samples=0))
+    planned = {g.step + 1: g for g in s.goals if g.kind == "switch"}
+    for m in toggle:
+        assert m["switches"] is True and m["intended"] and m["step"] in planned      # both say: it switches
+        assert planned[m["step"]].details["state_before"] == m["state_before"]
+
+
+def test_pair_coupling_has_no_kink_at_contact():
+    # Fig. 5c: with the coupling distance floored by max(d, R_a + R_b), snap-in landed at 20.000 um for initial gaps
+    # of 29-31 um.  The smooth floor (d^8 + f^8)^(1/8) is >= max(d, f), within 0.05 % of d from 2 f, C-infinity.
+    from acl.physics.coupling import contact_distance
+
+    d = np.linspace(0.0, 100e-6, 2001)
+    c = contact_distance(d, 20e-6)
+    assert np.all(c >= np.maximum(d, 20e-6) * (1 - 1e-15))
+    assert np.all(np.abs(c[d >= 40e-6] / d[d >= 40e-6] - 1) < 5e-4)
+    slope = np.diff(c) / np.diff(d)
+    assert np.all(np.abs(np.diff(slope)) < 0.02)         # no jump of the slope anywhere (a max() jumps by 1)

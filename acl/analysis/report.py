@@ -97,6 +97,7 @@ def step_drives(design: M.Design):
 def analyze(design: M.Design, at: M.Drive | None = None, snap_in: bool = True, progress=None) -> Report:
     from acl.analysis import acoustics as AC
     from acl.analysis import mechanics as ME
+    from acl.analysis.pairs import net_critical_distance
 
     from acl.analysis.effects import notes as effect_notes
 
@@ -153,7 +154,10 @@ def analyze(design: M.Design, at: M.Drive | None = None, snap_in: bool = True, p
             rep.pairs.append({
                 "a": pf.a, "b": pf.b, "frequency_hz": f, "voltage_v": v, "force_n": pf.attraction,
                 "attract": bool(pf.attract), "phase_difference_deg": math.degrees(pf.phase_difference),
-                "critical_distance_m": pf.critical_distance, "gap_m": pf.distance,
+                # d_c where the full force model's net closing force changes sign (acl.analysis.pairs), and the
+                # reduced paper Eq. 3 value sqrt(alpha / 2 gamma) at rest (2 gamma: the two thrusts)
+                "critical_distance_m": net_critical_distance(design, drive, pf.a, pf.b),
+                "critical_distance_eq3_m": pf.critical_distance, "gap_m": pf.distance,
                 "snap_in_voltage_v": snaps.get(f, (None, ""))[0],
                 "sweep_status": snaps.get(f, (None, "not computed"))[1],
                 "q_predicted": [modes[pf.a][0].q_predicted if modes[pf.a] else None,

@@ -947,6 +947,10 @@ class _Compiler:
             if g.step != step_index:
                 continue
             g.details["model_form_force_rel"] = rel
+            band = g.details.get("band")
+            if isinstance(band, dict) and band.get("margin_p05") is not None:     # a switch: the force may be lower
+                band["margin_p05_model_form"] = float(band["margin_p05"]) * (1.0 - rel)
+                widened.append(g.name)
             pts = g.predicted_m if g.predicted_m is not None else g.target_m
             if pts is None or g.rms_error_p95_m is None:
                 continue

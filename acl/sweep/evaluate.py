@@ -119,7 +119,7 @@ QUANTITIES: tuple[Quantity, ...] = (
     Quantity("phase_<a>_<b>_<f>khz_deg", "deg", "phase difference of the dominant interfaces at f",
              "pairs[a,b,frequency_hz=f].phase_difference_deg"),
     Quantity("critical_distance_<a>_<b>_<f>khz_m", "m", "d_c of paper Eq. 3 (NaN: no attraction or no thrust apart)",
-             "pairs[a,b,frequency_hz=f].critical_distance_m"),
+             "pairs[a,b,frequency_hz=f].critical_distance_eq3_m"),
     Quantity("snap_in_<a>_<b>_<f>khz_v", "V", "snap-in voltage of a 1 V tone at f scaled up to the transducer's max (NaN: none)",
              "pairs[a,b,frequency_hz=f].snap_in_voltage_v"),
     Quantity("switching_force_<latch>_n", "N", "force that switches the latch a -> b (model maximum, refined)",
