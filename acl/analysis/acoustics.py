@@ -585,16 +585,19 @@ class _Engine:
             self._rest.append(self.forces(self.lay.rest[None], parts=True))
         return self._rest[0]
 
-    def forces(self, centres: np.ndarray, parts: bool = False, consts: dict | None = None):
+    def forces(self, centres: np.ndarray, parts: bool = False, consts: dict | None = None, response=None):
         """Total acoustic force (B, C, 3) on each capsule for centres (B, C, 3): thrust + Bjerknes + jet drag.
 
         ``consts``: per-configuration drive constants (:func:`drive_constants`: each row of the batch under its
         own tone amplitudes, gain table and thrust scale); default the engine's own drive for every row.
+        ``response``: the coupled volume response (B, T, n) per pascal at these centres, when already known.
         """
         k = self.consts if consts is None else {**self.consts, **consts}
         lay = self.lay
         pts = centres[:, lay.body, :] + lay.offsets                        # (B, n, 3) orifice centres
-        if self.f.size == 0 or lay.radii.size == 0:
+        if response is not None:
+            r = response
+        elif self.f.size == 0 or lay.radii.size == 0:
             r = np.zeros((centres.shape[0], self.f.size, lay.radii.size), complex)
         else:
             r = self.response(pts)                                         # (B, T, n) per pascal
@@ -807,57 +810,6 @@ def force_batch(design: Design, centres: np.ndarray, drive: Drive) -> np.ndarray
     eng = _engine(design, drive)
     centres = np.asarray(centres, float)
     return _apply_neighbour_drag(design, eng.lay, centres, eng.forces(centres))
-
-
-_TONE_ENGINES: list = []   # [(design, frequencies, engine)]: the tone engines of the last designs
-
-
-def tone_engine(design: Design, frequencies) -> _Engine:
-    """The force engine of ``design`` at the tones ``frequencies`` (Hz), each at 1 V (cached per design identity and
-    tones): :meth:`_Engine.forces` with :func:`drive_constants` evaluates any amplitudes of those tones."""
-    f = tuple(float(x) for x in frequencies)
-    for d, ff, eng in _TONE_ENGINES:
-        if d is design and ff == f:
-            return eng
-    eng = _compute_engine(design, Drive(tones=tuple(Tone(frequency=x, amplitude=1.0) for x in f)))
-    _TONE_ENGINES[:] = ([(design, f, eng)] + _TONE_ENGINES)[:8]
-    return eng
-
-
-def drive_factors(design: Design, frequencies) -> tuple[np.ndarray, np.ndarray]:
-    """(gain (T,) Pa/V at the tones, thrust scale (C,)) of ``design``: what a draw of its transducer gain table changes
-    in the force engine (the declared thrust coefficient is matched through the gain, :func:`_thrust_scale`)."""
-    f = np.asarray(frequencies, float)
-    gain, _ = drive_gain(design, f) if f.size else (np.zeros(0), None)
-    lay = _layout(design)
-    sub = np.array([substrate_factor(design, c) for c in lay.caps]) if design.effects else np.ones(len(lay.caps))
-    return np.asarray(gain, float), np.array([_thrust_scale(design, c) for c in lay.caps]) * sub
-
-
-def drive_constants(eng: _Engine, amplitudes: np.ndarray, gain: np.ndarray, scale: np.ndarray) -> dict:
-    """Per-row drive constants of :meth:`_Engine.forces` for tone amplitudes (B, T) V, gains (B, T) Pa/V and thrust
-    scales (B, C) (:func:`drive_factors`): the same pressure (amplitude x gain x effects, drive saturation at each
-    row's total amplitude) and constants as :func:`_compute_engine` builds for one drive."""
-    v = np.asarray(amplitudes, float)
-    pressure = v * gain * effect_pressure_factor(eng.design, eng.f, v.sum(axis=1, keepdims=True))
-    return {"thrust": eng.consts["thrust_unit"][None] * pressure[:, :, None] ** 2 * scale[:, eng.lay.body][:, None, :],
-            "w2p2": eng.consts["w2"][None] * pressure**2}
-
-
-def force_batch_tones(design: Design, centres: np.ndarray, frequencies, amplitudes: np.ndarray,
-                      gain: np.ndarray | None = None, scale: np.ndarray | None = None) -> np.ndarray:
-    """:func:`force_model` for configurations (B, C, 3) each under its own amplitudes (B, T) V of the tones
-    ``frequencies``, and optionally its own gains (B, T) Pa/V and thrust scales (B, C) (:func:`drive_factors` of a
-    draw of the gain table): forces (B, C, 3).  Row b equals force_model at row b's drive."""
-    eng = tone_engine(design, frequencies)
-    centres = np.asarray(centres, float)
-    nb = centres.shape[0]
-    if gain is None or scale is None:
-        g0, s0 = drive_factors(design, eng.f)
-        gain = np.broadcast_to(g0, (nb, eng.f.size)) if gain is None else gain
-        scale = np.broadcast_to(s0, (nb, len(eng.lay.caps))) if scale is None else scale
-    consts = drive_constants(eng, amplitudes, np.asarray(gain, float), np.asarray(scale, float))
-    return _apply_neighbour_drag(design, eng.lay, centres, eng.forces(centres, consts=consts))
 
 
 def force_model(design: Design, positions: Mapping[str, Sequence[float]] | None,

@@ -55,14 +55,12 @@ def _force_per_v2(design: Design, capsule: str, frequencies, positions=None) -> 
     tone alone at 1 V: thrust + Bjerknes + jet drag (paper Eqs. 2-3 via acl.analysis.acoustics.force_model), the
     capsules at rest or at ``positions`` (name -> centre, m; missing names at rest).  The Bjerknes forces inside the
     body cancel (equal and opposite); a neighbour's do not."""
-    from acl.analysis import acoustics
+    from acl.analysis import tones
 
     body = _rigidly_linked(design, [capsule])
-    out = np.empty((len(frequencies), 3))
-    for i, f in enumerate(frequencies):
-        fm = acoustics.force_model(design, positions, Drive(tones=(Tone(frequency=float(f), amplitude=1.0),)))
-        out[i] = np.sum([np.asarray(fm[c], float) for c in body], axis=0)
-    return out
+    names = [c.name for c in design.capsules]
+    per_tone = tones.tone_forces(design, np.asarray(frequencies, float), positions)      # (F, C, 3), one batch
+    return np.sum([per_tone[:, names.index(c)] for c in body], axis=0).reshape(len(frequencies), 3)
 
 
 def _carrier(design: Design, capsule: str):
@@ -174,7 +172,7 @@ def _waypoint(design: Design, drive: Drive, prev, start):
 def _gain_variant(base: Design, d: Design) -> bool:
     """Whether ``d`` is ``base`` with only its transducer gain table changed (a draw of bands.sample_designs without
     uncertain parameters): every other field the very same object, so the force engine of ``base`` with ``d``'s gains
-    and thrust scales (acoustics.drive_factors) is ``d``'s."""
+    and thrust scales (tones.drive_factors) is ``d``'s."""
     if d is base:
         return True
     if type(d) is not type(base):
@@ -212,7 +210,10 @@ def model_forward_many(designs, capsule: str, frequencies, u: np.ndarray, starts
         try:
             preds = _forward_rows(base, [designs[i] for i in idx], capsule, freqs, u, [starts[i] for i in idx])
         except (ValueError, KeyError, FloatingPointError) as exc:
-            preds = [exc] * len(idx)
+            if len(idx) == 1:
+                preds = [exc]
+            else:         # which design's model fails: each on its own (a failing draw fails alone, as in a loop)
+                preds = [model_forward_many([designs[i]], capsule, freqs, u, [starts[i]])[0] for i in idx]
         for i, p in zip(idx, preds):
             out[i] = p
     return out
@@ -220,12 +221,12 @@ def model_forward_many(designs, capsule: str, frequencies, u: np.ndarray, starts
 
 def _forward_rows(base: Design, members: list, capsule: str, freqs: list, u: np.ndarray, starts: list) -> list:
     """:func:`model_forward_many` of one family of gain-table variants of ``base`` (rows: ``members``)."""
-    from acl.analysis import acoustics, mechanics
+    from acl.analysis import equilibria, tones
 
     names = [c.name for c in base.capsules]
     ci = names.index(capsule)
     nrow, n = len(members), u.shape[0]
-    factors = [acoustics.drive_factors(d, freqs) for d in members]
+    factors = [tones.drive_factors(d, freqs) for d in members]
     gains = np.array([g for g, _ in factors], float).reshape(nrow, len(freqs))
     scales = np.array([s for _, s in factors], float).reshape(nrow, len(names))
     amps = np.sqrt(np.maximum(u, 0.0))
@@ -250,18 +251,18 @@ def _forward_rows(base: Design, members: list, capsule: str, freqs: list, u: np.
 
         def rows_force(sel, a=amps[i]):
             sel = np.asarray(sel)
-            return lambda c, r, s: acoustics.force_batch_tones(base, c, freqs, np.broadcast_to(a * s, (r.size, a.size)),
+            return lambda c, r, s: tones.force_batch_tones(base, c, freqs, np.broadcast_to(a * s, (r.size, a.size)),
                                                                gains[sel[r]], scales[sel[r]])
 
         settled = {}
         warm = [j for j in active if prev[j] is not None]
         cold = [j for j in active if prev[j] is None]
         if warm:
-            res = mechanics.equilibria(base, rows_force(warm), np.array([as_array(prev[j]) for j in warm]))
+            res = equilibria.equilibria(base, rows_force(warm), np.array([as_array(prev[j]) for j in warm]))
             settled.update({j: (res.positions[k], res.displacements[k, ci, :2]) for k, j in enumerate(warm)
                             if res.found[k]})
         if cold:
-            res = mechanics.equilibria_from_rest(base, rows_force(cold), len(cold))
+            res = equilibria.equilibria_from_rest(base, rows_force(cold), len(cold))
             settled.update({j: (res.positions[k], res.displacements[k, ci, :2]) for k, j in enumerate(cold)
                             if res.found[k]})
         for j in active:
@@ -363,7 +364,7 @@ def latch_forces(design: Design, frequencies, positions=None) -> tuple[np.ndarra
     rest or at ``positions`` (name -> centre, m; missing names at rest; e.g. :func:`state_positions`).  Thresholds come
     from the latch landscape (switching force a->b, release force b->a; a monostable latch gets inf).
     """
-    from acl.analysis import acoustics
+    from acl.analysis import tones
     from acl.analysis.mechanics import latch_geometry
     from acl.physics.latch import latch_landscape
 
@@ -374,12 +375,12 @@ def latch_forces(design: Design, frequencies, positions=None) -> tuple[np.ndarra
     rest = {c.name: np.asarray(c.center, float) for c in design.capsules}
     if positions:
         rest.update({k: np.asarray(v, float) for k, v in positions.items()})
-    per_tone = [acoustics.force_model(design, rest, Drive(tones=(Tone(frequency=f, amplitude=1.0),)))
-                for f in freqs]
+    names = [c.name for c in design.capsules]
+    per_tone = tones.tone_forces(design, freqs, rest)                  # (K, C, 3), one batch
     for i, latch in enumerate(design.latches):
         axis, carried = latch_axis_carried(design, latch)
-        for k, fm in enumerate(per_tone):
-            forces[i, k] = sum(float(np.asarray(fm.get(c, np.zeros(3)), float) @ axis) for c in carried)
+        for k in range(len(freqs)):
+            forces[i, k] = sum(float(per_tone[k, names.index(c)] @ axis) for c in carried)
         land = latch_landscape(*latch_geometry(latch, design))
         to_b[i] = land.switching_force
         if land.release_force is not None:
