@@ -274,3 +274,29 @@ def overlong_integer(text: str) -> tuple[int, int] | None:
     start = m.start()
     line_start = text.rfind("\n", 0, start) + 1
     return text.count("\n", 0, start) + 1, start - line_start + 1
+
+
+class deferred_signals:
+    """``with deferred_signals(): tmp = mkstemp(...)``: SIGINT, SIGTERM and SIGHUP wait until the block ends, so an
+    interrupt cannot land between the creation of a temporary file and the assignment that lets the cleanup find
+    it (a SIGTERM there left `.acl-compile-*/` behind).  Outside the main thread, or where signals cannot be
+    masked, it does nothing."""
+
+    _SIGNALS = ("SIGINT", "SIGTERM", "SIGHUP")
+
+    def __enter__(self):
+        import signal
+        import threading
+
+        self.old = None
+        if threading.current_thread() is threading.main_thread() and hasattr(signal, "pthread_sigmask"):
+            wanted = {getattr(signal, n) for n in self._SIGNALS if hasattr(signal, n)}
+            self.old = signal.pthread_sigmask(signal.SIG_BLOCK, wanted)
+        return self
+
+    def __exit__(self, *exc):
+        import signal
+
+        if self.old is not None:
+            signal.pthread_sigmask(signal.SIG_SETMASK, self.old)
+        return False

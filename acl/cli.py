@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
 
 COMMANDS = {
@@ -22,6 +23,8 @@ COMMANDS = {
     "fmt": "Rewrite designs in the one canonical layout (--check for CI, --diff, - for stdin).",
     "sweep": "Sweep parameters over grids and print tolerances (Monte Carlo): a table per point and the yield.",
     "tune": "Choose the free parameters that maximise the yield of every require under print tolerances.",
+    "play": "Play a compiled schedule on a signal generator (SCPI over PyVISA; --dry-run prints it).",
+    "track": "Track a capsule in a microscope video (AVI, MP4, TIFF stack) into the CSV `acl fit` reads.",
     "lsp": "Start the language server (LSP over stdio) for editors; needs acl[lsp].",
 }
 
@@ -36,9 +39,11 @@ examples:
   acl fit design.acl data.csv --report fit/
   acl fmt examples/ --check
   acl sweep design.acl --vary radius=8um..12um:41 --tolerance "radius=normal(0, 150 nm)" -o sweep.csv
+  acl play out/schedule.json --dry-run
+  acl track run.avi -o data.csv --scale 0.65 --roi 50,42,40,40 --schedule out/schedule.json
 
 exit codes: 0 clean, 1 errors in the design or findings, 2 usage or I/O error.
-docs: docs/language.md, docs/physics.md, docs/rules.md, docs/data.md
+docs: docs/language.md, docs/physics.md, docs/rules.md, docs/data.md, docs/bench.md
 """
 
 
@@ -177,6 +182,20 @@ def _terminate(signum, frame):
     raise Terminated(signum)
 
 
+def _unraisable(info):
+    """An interrupt that lands in a callback Python cannot raise from (a weakref callback of the import system)
+    is not lost and prints no traceback: the signal is sent again and arrives where it can unwind the command."""
+    import os
+    import signal
+
+    if info.exc_type is not None and issubclass(info.exc_type, KeyboardInterrupt):
+        signum = (int(info.exc_value.args[0]) if isinstance(info.exc_value, Terminated) and info.exc_value.args
+                  else int(signal.SIGINT))
+        os.kill(os.getpid(), signum)
+        return
+    sys.__unraisablehook__(info)
+
+
 def _on_termination():
     """Make SIGTERM and SIGHUP unwind like Ctrl-C (the temporary files and folders of every writer are removed
     on the way out); returns the handlers to restore.  Before, `timeout` or a batch scheduler's SIGTERM
@@ -186,6 +205,7 @@ def _on_termination():
 
     if threading.current_thread() is not threading.main_thread():
         return {}
+    sys.unraisablehook = _unraisable
     old = {}
     for sig in (signal.SIGTERM, getattr(signal, "SIGHUP", None)):
         if sig is None:
@@ -292,10 +312,18 @@ def _terminated(exc: Terminated) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
+    import warnings
+
+    hook = sys.unraisablehook
     old = _on_termination()
     _prepare_streams()
     try:
-        code = _main(argv)
+        with warnings.catch_warnings():
+            if not os.environ.get("ACL_DEBUG"):
+                # a Python warning (numpy's overflow in an extreme design, a library's deprecation) is no
+                # diagnostic: acl reports what it finds as located W codes, or nothing (ACL_DEBUG=1 shows them)
+                warnings.simplefilter("ignore")
+            code = _main(argv)
         try:
             sys.stdout.flush()
         except OSError as exc:
@@ -303,11 +331,18 @@ def main(argv: list[str] | None = None) -> int:
         return code
     except Terminated as exc:          # before or after the command ran (argument parsing, the last flush)
         return _terminated(exc)
+    except KeyboardInterrupt:          # Ctrl-C while the command's modules are imported
+        try:
+            sys.stderr.write("acl: interrupted\n")
+        except (OSError, ValueError):
+            pass
+        return 130
     finally:
         import signal
 
         for sig, handler in old.items():
             signal.signal(sig, handler)
+        sys.unraisablehook = hook
 
 
 def _main(argv: list[str] | None = None) -> int:

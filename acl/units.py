@@ -92,6 +92,9 @@ def _cache_dir() -> str:
     return os.environ.get("ACL_CACHE_DIR") or os.path.join(os.path.expanduser("~"), ".cache", "acl")
 
 
+#: the cache's name carries the rules it was written under: units.json of earlier versions held pint's answers
+#: for offset and logarithmic units (`dB` as 3.78) that this version refuses, and must not be read
+CACHE_FILE = "units-v2.json"
 MAX_CACHE_BYTES = 4 * 2 ** 20     # a units cache larger than this is not read (it is rebuilt)
 
 
@@ -113,7 +116,7 @@ def _disk_cache() -> dict:
     cache broke every later run until deleted); only well-formed entries are used."""
     import json
 
-    path = os.path.join(_cache_dir(), "units.json")
+    path = os.path.join(_cache_dir(), CACHE_FILE)
     try:
         if not os.path.isfile(path) or os.path.getsize(path) > MAX_CACHE_BYTES:
             return {}
@@ -164,7 +167,7 @@ def _save_disk_cache(cache: dict) -> None:
         fd, tmp = tempfile.mkstemp(dir=d, prefix=".units-", suffix=".json")
         with os.fdopen(fd, "w", encoding="utf-8") as fh:
             json.dump(cache, fh)
-        os.replace(tmp, os.path.join(d, "units.json"))
+        os.replace(tmp, os.path.join(d, CACHE_FILE))
     except Exception:
         if tmp and os.path.exists(tmp):
             try:

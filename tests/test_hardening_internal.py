@@ -174,7 +174,7 @@ def test_an_ascii_terminal_gets_the_tables():
 def test_a_corrupt_units_cache_is_ignored(tmp_path, content):
     cache = tmp_path / "cache"
     cache.mkdir()
-    (cache / "units.json").write_text(content)
+    (cache / "units-v2.json").write_text(content)
     (tmp_path / "u.acl").write_text("param x = 2 furlong\n")
     env = {"ACL_CACHE_DIR": str(cache)}
     for _ in range(2):                       # the run that meets it, and every later one
@@ -248,3 +248,13 @@ def test_a_segment_of_many_tones_is_read_and_checked(tmp_path):
     with pytest.raises(DiagnosticError) as e:
         S.read_schedule(str(path))
     assert f"tones[{n}] repeats frequency_hz" in e.value.diagnostics[0].message
+
+
+def test_an_older_versions_units_cache_is_not_read(tmp_path):
+    """units.json of earlier versions cached pint's answer for `dB` (3.78): it must not bring it back."""
+    cache = tmp_path / "cache"
+    cache.mkdir()
+    (cache / "units.json").write_text('{"dB": [1.2589254117941673, [0, 0, 0, 0, 0, 0, 0]]}')
+    (tmp_path / "u.acl").write_text("param x = 3 dB\n")
+    r = _acl("check", "u.acl", cwd=tmp_path, env={"ACL_CACHE_DIR": str(cache)})
+    assert r.returncode == 1 and "error[E302]" in r.stderr and "logarithmic" in r.stderr, r.stderr

@@ -23,9 +23,9 @@ def test_rare_unit_goes_through_pint_and_is_cached(tmp_path, monkeypatch):
     assert "furlong/fortnight" not in TABLE
     f, d = parse_unit("furlong/fortnight")
     assert d == (1, 0, -1, 0, 0, 0, 0) and f == pytest.approx(201.168 / 1209600, rel=1e-5)
-    assert not (tmp_path / "units.json").exists()        # saved once, when the process ends
+    assert not (tmp_path / "units-v2.json").exists()        # saved once, when the process ends
     U.flush_unit_cache()
-    assert (tmp_path / "units.json").exists()
+    assert (tmp_path / "units-v2.json").exists()
     U._disk_cache.cache_clear()
     assert "furlong/fortnight" in U._disk_cache()
     U._disk_cache.cache_clear()
@@ -42,7 +42,7 @@ def test_corrupt_cache_is_ignored(tmp_path, monkeypatch):
     import acl.units as U
 
     monkeypatch.setenv("ACL_CACHE_DIR", str(tmp_path))
-    (tmp_path / "units.json").write_text("{not json")
+    (tmp_path / "units-v2.json").write_text("{not json")
     U._disk_cache.cache_clear()
     assert U._disk_cache() == {}
     U._disk_cache.cache_clear()

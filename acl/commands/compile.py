@@ -25,7 +25,8 @@ def add_parser(p) -> None:
     p.add_argument("--program", metavar="NAME", help="program to compile (default: the only one)")
     p.add_argument("--format", action="append", default=[], metavar="FMT",
                    help="waveform formats, comma separated: wav, npy, csv (raw samples, "
-                        "waveform-samples.csv; large) (default wav)")
+                        "waveform-samples.csv; large), seq (sequence.seq: one looped segment per "
+                        "constant drive, docs/bench.md) (default wav)")
     p.add_argument("--sample-rate", metavar="HZ",
                    help="samples per second, e.g. 2e6 or 2MHz (default: >= 10x the highest tone)")
     p.add_argument("--full-scale", metavar="V",

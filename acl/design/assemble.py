@@ -79,7 +79,7 @@ def assemble(b: Builder) -> M.Design:
 
     design_kw = dict(
         file=env.file, params=params, medium=medium, transducer=transducer,
-        materials=tuple(b.materials.values()), capsules=tuple(capsules), beams=tuple(beams),
+        generator=b.chain[0], amplifier=b.chain[1], materials=tuple(b.materials.values()), capsules=tuple(capsules), beams=tuple(beams),
         springs=tuple(b.springs.values()), trusses=tuple(b.trusses.values()), latches=tuple(b.latches.values()),
         anchors=tuple(b.anchors.values()), joints=tuple(joints),
     )
@@ -530,16 +530,21 @@ def _measured_gain(b: Builder, ent) -> list | None:
     return sorted(out, key=lambda m: m.frequency)
 
 
+_USED = ("medium", "transducer", "generator", "amplifier")
+
+
 def _uses(b: Builder):
-    medium = transducer = None
+    """The used medium and transducer (returned) and drive chain (stored in ``b.chain``)."""
+    used: dict[str, object] = {k: None for k in _USED}
+    build = {"medium": b.medium, "transducer": b.transducer, "generator": b.generator, "amplifier": b.amplifier}
     built: set[int] = set()                 # declarations built above (by identity)
     seen: dict[str, Span] = {}
     for st in b.env.statements:
         if not isinstance(st, A.Use):
             continue
-        if st.what not in ("medium", "transducer"):
-            b.bag.error("E213", f"`use {st.what}`: only a medium or a transducer is used", st.span,
-                        suggest(st.what, ["medium", "transducer"]))
+        if st.what not in _USED:
+            b.bag.error("E213", f"`use {st.what}`: only a medium, a transducer, a generator or an amplifier is used",
+                        st.span, suggest(st.what, list(_USED)))
             continue
         if st.what in seen:
             b.bag.error("E206", f"`use {st.what}` given twice (first at line {seen[st.what].line})", st.span)
@@ -553,28 +558,23 @@ def _uses(b: Builder):
             b.bag.error("E207", f"`use {st.what}` needs a {st.what}, found {what_is(v)}", st.target.span, b.r.kind_hint(st.what, b.env))
             continue
         built.add(id(v.node))
-        if st.what == "medium":
-            medium = b.medium(v)
-        else:
-            transducer = b.transducer(v)
-    # a single local medium/transducer is used without saying so
-    for kind in ("medium", "transducer"):
+        used[st.what] = build[st.what](v)
+    # a single local medium/transducer/generator/amplifier is used without saying so
+    for kind in _USED:
         if kind in seen:
             continue
         local = [blk for blk in b.env.decls.values() if blk.kind == kind]
         if len(local) == 1:
             dv = DeclVal(kind, local[0].name, local[0], b.env)
             built.add(id(local[0]))
-            if kind == "medium":
-                medium = b.medium(dv)
-            else:
-                transducer = b.transducer(dv)
+            used[kind] = build[kind](dv)
     # the others declared here are checked the same way (an unused one is ACL601 in lint, but a wrong
     # value in it is an error now, not when someone first uses it)
     for blk in list(b.env.decls.values()):
-        if blk.kind in ("medium", "transducer") and id(blk) not in built:
-            (b.medium if blk.kind == "medium" else b.transducer)(DeclVal(blk.kind, blk.name, blk, b.env))
-    return medium, transducer
+        if blk.kind in _USED and id(blk) not in built:
+            build[blk.kind](DeclVal(blk.kind, blk.name, blk, b.env))
+    b.chain = (used["generator"], used["amplifier"])
+    return used["medium"], used["transducer"]
 
 
 # ------------------------------------------------------------------------------------------------

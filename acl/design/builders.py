@@ -57,6 +57,7 @@ class Builder:
         self.media: dict[str, M.Medium] = {}
         self.transducers: dict[str, M.Transducer] = {}
         self.kinds: dict[str, str] = {}      # local element name -> kind
+        self.chain: tuple = (None, None)     # the used generator and amplifier (assemble._uses)
         self.failed: set[str] = set()        # local elements whose declaration had errors
         self.failed_materials: set[str] = set()
         self.effect_spans: dict = {}          # (effect, coefficient) -> span of its value (range checks)
@@ -120,6 +121,31 @@ class Builder:
                 return None
             return M.Transducer(name=dv.name, max_voltage=vmax, band=band, gain_frequencies=fs,
                                 gain_pa_per_v=gs, gain_uncertainty=unc, span=dv.node.span)
+        except Fail:
+            return None
+
+    def generator(self, dv: DeclVal) -> M.Generator | None:
+        try:
+            keys = self.r.assigns(dv.node, dv.env, "generator")
+            vmax = self._pos(keys, "max_voltage", "generator", dv.name)
+            opt = {k: self._pos(keys, k, "generator", dv.name) if k in keys else None
+                   for k in ("sample_rate", "memory", "channels", "max_frequency")}
+            channels = opt["channels"] or 1.0
+            if channels != int(channels):
+                self._err_key(keys, "channels", "E401", f"{dv.name}.channels must be a whole number, got {channels:g}")
+                return None
+            return M.Generator(name=dv.name, max_voltage=vmax, sample_rate=opt["sample_rate"], memory=opt["memory"],
+                               channels=int(channels), max_frequency=opt["max_frequency"], span=dv.node.span)
+        except Fail:
+            return None
+
+    def amplifier(self, dv: DeclVal) -> M.Amplifier | None:
+        try:
+            keys = self.r.assigns(dv.node, dv.env, "amplifier")
+            gain = self._pos(keys, "gain", "amplifier", dv.name)
+            vmax = self._pos(keys, "max_voltage", "amplifier", dv.name)
+            bw = self._pos(keys, "bandwidth", "amplifier", dv.name) if "bandwidth" in keys else None
+            return M.Amplifier(name=dv.name, gain=gain, max_voltage=vmax, bandwidth=bw, span=dv.node.span)
         except Fail:
             return None
 

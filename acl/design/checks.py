@@ -184,6 +184,32 @@ def check_programs(design: M.Design, bag: DiagnosticBag) -> None:
                 if volts is not None and volts > tr.max_voltage * (1 + 1e-9):
                     bag.error("E502", f"{volts:.3g} V exceeds the maximum {tr.max_voltage:.3g} V of transducer `{tr.name}`",
                               st.span, "lower the amplitude or its limit")
+            _check_chain(design, st, freqs, volts, bag)
+
+
+def _check_chain(design: M.Design, st, freqs, volts, bag: DiagnosticBag) -> None:
+    """A step the declared generator and amplifier cannot deliver: E502 (a peak beyond the amplifier's
+    output, or beyond what the generator can feed it), E501 (a tone beyond their bandwidth)."""
+    gen, amp = design.generator, design.amplifier
+    gain = amp.gain if amp is not None else 1.0
+    if amp is not None and volts is not None and volts > amp.max_voltage * (1 + 1e-9):
+        bag.error("E502", f"{volts:.3g} V exceeds the {amp.max_voltage:.3g} V output of amplifier `{amp.name}`",
+                  st.span, "lower the amplitude or its limit, or declare a stronger amplifier")
+    elif gen is not None and volts is not None and volts / gain > gen.max_voltage * (1 + 1e-9):
+        via = f" through amplifier `{amp.name}` (gain {gain:g})" if amp is not None else ""
+        bag.error("E502", f"{volts:.3g} V needs {volts / gain:.3g} V from generator `{gen.name}`{via}: beyond its "
+                  f"{gen.max_voltage:.3g} V output", st.span, "lower the amplitude, or declare an amplifier of more gain")
+    limits = [(amp.bandwidth, f"the {amp.bandwidth / 1e3:.4g} kHz bandwidth of amplifier `{amp.name}`")
+              if amp is not None and amp.bandwidth else None,
+              (gen.max_frequency, f"the {gen.max_frequency / 1e3:.4g} kHz of generator `{gen.name}`")
+              if gen is not None and gen.max_frequency else None]
+    for lim in limits:
+        if lim is None:
+            continue
+        f = max(freqs, default=0.0)
+        if f > lim[0] * (1 + 1e-9):
+            bag.error("E501", f"{f / 1e3:.4g} kHz is beyond {lim[1]}", st.span, "choose a lower frequency")
+            break
 
 
 def _step_tones(st) -> tuple[list[float], float | None]:

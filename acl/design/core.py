@@ -25,7 +25,8 @@ class Fail(Exception):
     """Evaluation of one expression failed; the diagnostic is already recorded."""
 
 
-DECL_KINDS = ("medium", "material", "transducer", "capsule", "beam", "spring", "truss", "latch", "anchor", "effect")
+DECL_KINDS = ("medium", "material", "transducer", "generator", "amplifier", "capsule", "beam", "spring", "truss", "latch",
+              "anchor", "effect")
 
 # Effects of the model library (docs/fit.md); `effect NAME { coefficient = quantity, ... }`.
 EFFECTS = ("transducer_gain", "transducer_resonance", "drive_saturation", "large_deflection", "stiffness_scale", "stiffness_gradient",
@@ -214,6 +215,16 @@ SCHEMAS: dict[str, dict[str, Key]] = {
     "transducer": {
         "max_voltage": Key("q", "V", True), "band": Key("range", "Hz", True),
         "gain": Key("table", None, True), "gain_uncertainty": Key("q", "", False, None),
+    },
+    # the drive chain between a schedule and the transducer (docs/bench.md): used with `use generator`,
+    # `use amplifier`; compile checks every step against it (E501, E502)
+    "generator": {
+        "max_voltage": Key("q", "V", True), "sample_rate": Key("q", "Hz", False, None),
+        "memory": Key("q", "", False, None), "channels": Key("q", "", False, 1.0),
+        "max_frequency": Key("q", "Hz", False, None),
+    },
+    "amplifier": {
+        "gain": Key("q", "", True), "max_voltage": Key("q", "V", True), "bandwidth": Key("q", "Hz", False, None),
     },
     "capsule": {
         "center": Key("vec", "m"), "thrust": Key("q", "N/V^2"), "q": Key("q", ""),

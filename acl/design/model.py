@@ -149,6 +149,29 @@ class Transducer(Frozen):
     span: Span
 
 
+class Generator(Frozen):
+    """The signal generator of the drive chain (datasheet values): its largest peak output voltage,
+    and optionally its arbitrary-waveform sample rate and memory, channels and highest frequency."""
+
+    name: str
+    max_voltage: float                     # V peak (into the amplifier's input)
+    sample_rate: float | None = None       # S/s
+    memory: float | None = None            # points
+    channels: int = 1
+    max_frequency: float | None = None     # Hz
+    span: Span
+
+
+class Amplifier(Frozen):
+    """The amplifier between generator and transducer: voltage gain, largest peak output, bandwidth."""
+
+    name: str
+    gain: float                            # V/V
+    max_voltage: float                     # V peak at its output
+    bandwidth: float | None = None         # Hz
+    span: Span
+
+
 # ----------------------------------------------------------------------------------------------
 # Capsules (bubble actuators)
 # ----------------------------------------------------------------------------------------------
@@ -493,6 +516,8 @@ class Design(Frozen):
     params: tuple[Param, ...] = ()
     medium: Medium | None = None
     transducer: Transducer | None = None
+    generator: Generator | None = None
+    amplifier: Amplifier | None = None
     materials: tuple[Material, ...] = ()
     capsules: tuple[Capsule, ...] = ()
     beams: tuple[Beam, ...] = ()

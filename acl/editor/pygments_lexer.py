@@ -19,8 +19,8 @@ from pygments.token import Comment, Keyword, Name, Number, Operator, Punctuation
 __all__ = ["AclLexer"]
 
 # Declaration kinds (acl.design.resolve.DECL_KINDS) and the blocks nested in them.
-KINDS = ("medium", "material", "transducer", "capsule", "beam", "spring", "truss", "latch", "anchor", "effect",
-         "cavity", "orifice")
+KINDS = ("medium", "material", "transducer", "generator", "amplifier", "capsule", "beam", "spring", "truss", "latch",
+         "anchor", "effect", "cavity", "orifice")
 # Every keyword of the grammar: statements, program steps and the words that join their parts.
 KEYWORDS = ("param", "use", "mount", "fix", "link", "observe", "require", "program", "drive", "sweep", "pause",
             "follow", "switch", "hold", "cross", "on", "to", "with", "for", "in", "at", "along", "above", "phase",

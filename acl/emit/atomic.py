@@ -14,7 +14,7 @@ import tempfile
 def write_text_atomic(path: str, text: str) -> None:
     """Replace ``path`` with ``text`` (UTF-8, newlines as given) in one rename; a symbolic link is
     followed (its target is rewritten, the link stays)."""
-    from acl._files import publish_file, stream_kind, streamable_problem, temp_folder_for
+    from acl._files import deferred_signals, publish_file, stream_kind, streamable_problem, temp_folder_for
 
     path = os.path.realpath(path)
     problem = streamable_problem(path)
@@ -28,8 +28,10 @@ def write_text_atomic(path: str, text: str) -> None:
         mode = 0o666 & ~umask
     if stream_kind(path):
         mode = 0o600
-    fd, tmp = tempfile.mkstemp(prefix=".acl-", suffix=".tmp", dir=temp_folder_for(path))
+    tmp = None
     try:
+        with deferred_signals():
+            fd, tmp = tempfile.mkstemp(prefix=".acl-", suffix=".tmp", dir=temp_folder_for(path))
         with os.fdopen(fd, "w", encoding="utf-8", newline="") as fh:
             fh.write(text)
             fh.flush()
@@ -37,6 +39,6 @@ def write_text_atomic(path: str, text: str) -> None:
         os.chmod(tmp, mode)
         publish_file(tmp, path)
     except BaseException:
-        if os.path.exists(tmp):
+        if tmp is not None and os.path.exists(tmp):
             os.unlink(tmp)
         raise

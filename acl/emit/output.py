@@ -28,7 +28,7 @@ from acl.emit.writers import CSV_BYTES_PER_SAMPLE, FORMATS, WRITERS
 from acl.schedule.model import Schedule
 
 # names acl writes into an output directory (and only these may ever be removed from one)
-_ACL_NAME = re.compile(r"^(schedule\.json|segments\.csv|waveform(-samples)?\.(wav|npy|csv)|goal-step[0-9]+\.png)$")
+_ACL_NAME = re.compile(r"^(schedule\.json|segments\.csv|sequence\.seq|waveform(-samples)?\.(wav|npy|csv)|goal-step[0-9]+\.png)$")
 CSV_WARN_BYTES = 100 * 2 ** 20
 MAX_SAMPLES = 1 << 36              # 64 Gi samples: 256 GiB of float32 in any format
 DEFAULT_MAX_OUTPUT_BYTES = 4 * 2 ** 30   # waveform files larger than this need --max-output-size
@@ -94,6 +94,16 @@ def check_options(schedule: Schedule, formats, sample_rate: float) -> list[Diagn
                                  f"{size / 2 ** 20:.0f} MiB", option_span("--format"),
                                  "segments.csv (always written) lists the same schedule as tones; "
                                  "use npy for raw samples"))
+    gen = (getattr(schedule, "chain", None) or {}).get("generator") or {}
+    if gen.get("sample_rate") and math.isfinite(sample_rate) and sample_rate > gen["sample_rate"] * (1 + 1e-9):
+        diags.append(error("E-EMIT-RATE", f"sample rate {sample_rate:g} S/s is above the {gen['sample_rate']:g} S/s "
+                           f"of generator `{gen.get('name', '?')}` (use generator)", rate,
+                           f"use at most {gen['sample_rate']:g} S/s"))
+    elif gen.get("memory") and not diags and total_samples(schedule, sample_rate) > gen["memory"]:
+        warns.append(warning("W-EMIT-MEMORY", f"the waveform's {total_samples(schedule, sample_rate):,} samples do "
+                             f"not fit the {gen['memory']:,.0f} points of generator `{gen.get('name', '?')}`",
+                             option_span("--format"), "play schedule.json with `acl play` (one looped segment per "
+                             "constant drive, or steps; docs/bench.md) or load sequence.seq (--format seq)"))
     peak = max((s.peak_v or 0.0 for s in schedule.segments), default=0.0)
     if peak > schedule.full_scale_v * (1 + 1e-9):
         diags.append(error("E-EMIT-FULLSCALE", f"the schedule's peak {peak:.4g} V exceeds the WAV full "
@@ -200,16 +210,20 @@ def emit(schedule: Schedule, out_dir: str, formats=("wav",), sample_rate: float 
     check_size(schedule, formats, fs, out_dir, max_bytes)
     parent = os.path.dirname(os.path.abspath(out_dir)) or "."
     os.makedirs(parent, exist_ok=True)
-    tmp = tempfile.mkdtemp(prefix=".acl-compile-", dir=parent)
-    from acl._files import as_umask
+    from acl._files import as_umask, deferred_signals
 
-    as_umask(tmp, directory=True)
+    tmp = None
     result = EmitResult(out_dir=out_dir, sample_rate_hz=fs, warnings=warns)
     try:
+        with deferred_signals():
+            tmp = tempfile.mkdtemp(prefix=".acl-compile-", dir=parent)
+        as_umask(tmp, directory=True)
         n = total_samples(schedule, fs)
         writers = []
         try:
             for f in formats:
+                if f == "seq":          # tones, not samples: written below
+                    continue
                 cls, name = WRITERS[f]
                 writers.append(cls(os.path.join(tmp, name), n, fs, schedule.full_scale_v))
                 result.files[f] = name
@@ -222,6 +236,13 @@ def emit(schedule: Schedule, out_dir: str, formats=("wav",), sample_rate: float 
                 w.close()
         write_segments_csv(os.path.join(tmp, "segments.csv"), schedule)
         result.files["segments"] = "segments.csv"
+        if "seq" in formats:
+            from acl.emit.seq import drives_of_schedule, write_seq
+
+            write_seq(os.path.join(tmp, "sequence.seq"), drives_of_schedule(schedule),
+                      {"program": schedule.program, "source": schedule.source,
+                       "amplitudes": "peak volts at the transducer input"})
+            result.files["seq"] = "sequence.seq"
         if plot:
             from acl.emit.plot import plot_goal
 
@@ -235,7 +256,8 @@ def emit(schedule: Schedule, out_dir: str, formats=("wav",), sample_rate: float 
                             schedule_dict(schedule, fs, result.stats, dict(result.files)))
         result.removed = _publish(tmp, out_dir, stale)
     except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
+        if tmp is not None:
+            shutil.rmtree(tmp, ignore_errors=True)
         raise
     return result
 

@@ -62,6 +62,8 @@ def schedule_dict(schedule: Schedule, sample_rate: float, stats=None, files: dic
         "goals": [g.as_dict() for g in schedule.goals],
         "notes": list(schedule.notes),
     }
+    if getattr(schedule, "chain", None):
+        out["chain"] = schedule.chain
     if stats is not None:
         out["waveform"] = {"samples": stats.samples, "peak_v": stats.peak_v, "rms_v": stats.rms_v,
                            "max_sample_jump_v": stats.max_jump_v,

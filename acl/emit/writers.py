@@ -14,7 +14,7 @@ import struct
 
 import numpy as np
 
-FORMATS = ("wav", "csv", "npy")
+FORMATS = ("wav", "csv", "npy", "seq")     # seq: no samples, acl/emit/seq.py
 
 
 class WavWriter:

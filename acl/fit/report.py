@@ -424,10 +424,12 @@ def write_report_dir(target, write) -> None:
     target = os.path.abspath(target)
     parent = os.path.dirname(target) or "."
     os.makedirs(parent, exist_ok=True)
-    tmp = tempfile.mkdtemp(prefix=".acl-fit-", dir=parent)
-    try:
-        from acl._files import as_umask
+    from acl._files import as_umask, deferred_signals
 
+    tmp = None
+    try:
+        with deferred_signals():
+            tmp = tempfile.mkdtemp(prefix=".acl-fit-", dir=parent)
         as_umask(tmp, directory=True)
         write(tmp)
         if os.path.isdir(target):
@@ -439,7 +441,8 @@ def write_report_dir(target, write) -> None:
         else:
             os.rename(tmp, target)
     except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
+        if tmp is not None:
+            shutil.rmtree(tmp, ignore_errors=True)
         raise
 
 

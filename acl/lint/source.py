@@ -21,7 +21,8 @@ QUANTITY = re.compile(
     r"[A-Za-z\u00b5\u03bc\u00b0\u2126%][A-Za-z0-9\u00b5\u03bc\u00b0\u2126%]*(\^-?\d+)?"
     r"([*/\u00b7][A-Za-z\u00b5\u03bc\u00b0\u2126%][A-Za-z0-9\u00b5\u03bc\u00b0\u2126%]*(\^-?\d+)?)*")
 NUMBER_ONLY = re.compile(r"^\s*[-+]?(\d+\.\d*|\.\d+|\d+)([eE][+-]?\d+)?\s*$")
-DECL_KINDS = ("medium", "material", "transducer", "capsule", "beam", "spring", "truss", "latch", "anchor")
+DECL_KINDS = ("medium", "material", "transducer", "generator", "amplifier", "capsule", "beam", "spring", "truss",
+              "latch", "anchor")
 
 
 @dataclass(frozen=True)

@@ -85,8 +85,11 @@ def _limit(design: Design, limits: Limits | None, opts: CompileOptions) -> tuple
     if opts.max_voltage is not None:
         vmax = opts.max_voltage
     else:
+        amp, gen = design.amplifier, design.generator       # the declared drive chain caps the drive too
         cands = [v for v in ((limits.max_voltage if limits else None),
-                             design.transducer.max_voltage if design.transducer else None) if v]
+                             design.transducer.max_voltage if design.transducer else None,
+                             amp.max_voltage if amp else None,
+                             gen.max_voltage * (amp.gain if amp else 1.0) if gen else None) if v]
         vmax = min(cands) if cands else DEFAULT_MAX_VOLTAGE
     return vmax, (limits.slew_rate if limits else None)
 
@@ -150,6 +153,10 @@ class _Compiler:
                          max_voltage_v=vmax, full_scale_v=full_scale, ramp_s=self.opts.ramp_s,
                          source=self.design.file, notes=self.notes, full_scale_source=source)
         sched.sample_rate_hz = fs
+        gen, amp = self.design.generator, self.design.amplifier
+        if gen is not None or amp is not None:      # the declared drive chain, for `acl play` (docs/bench.md)
+            sched.chain = {k: v.model_dump(exclude={"span"}) for k, v in (("generator", gen), ("amplifier", amp))
+                           if v is not None}
         for w in self.step_warnings:
             sched.warnings.append(w)
             self.notes.append(f"warning: {w.message}")

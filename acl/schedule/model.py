@@ -106,6 +106,7 @@ class Schedule:
     notes: list[str] = field(default_factory=list)
     full_scale_source: str = ""                # where full_scale_v came from (option, transducer, limit)
     warnings: list = field(default_factory=list)   # located warnings (acl.diagnostics.Diagnostic), also in notes
+    chain: dict | None = None                  # the design's generator and amplifier (schedule.json "chain"; acl play)
 
     @property
     def duration_s(self) -> float:

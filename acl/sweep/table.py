@@ -253,11 +253,13 @@ def check_output(path: str, where: str = "<-o>") -> None:
 
 def write_table(table: SweepTable, path: str) -> None:
     """CSV or Parquet by suffix, atomically: a temporary file beside ``path``, then one rename."""
-    from acl._files import publish_file, temp_folder_for
+    from acl._files import deferred_signals, publish_file, temp_folder_for
 
     suffix = os.path.splitext(str(path))[1].lower()
-    fd, tmp = tempfile.mkstemp(prefix=".acl-", suffix=".tmp" + suffix, dir=temp_folder_for(path))
+    tmp = None
     try:
+        with deferred_signals():
+            fd, tmp = tempfile.mkstemp(prefix=".acl-", suffix=".tmp" + suffix, dir=temp_folder_for(path))
         if suffix == ".parquet":
             os.close(fd)
             import pyarrow.parquet as pq
@@ -271,7 +273,7 @@ def write_table(table: SweepTable, path: str) -> None:
         os.chmod(tmp, 0o666 & ~umask)
         publish_file(tmp, path)
     except BaseException:
-        if os.path.exists(tmp):
+        if tmp is not None and os.path.exists(tmp):
             os.unlink(tmp)
         raise
 

@@ -541,7 +541,7 @@ def _check_limits(source: str, file: str) -> None:
 
 #: a top-level keyword at column 0: while brackets are open it starts a new statement (missing brace)
 TOP_KEYWORD = re.compile(r"(import|extends|param|uncertainty|program|mount|fix|link|observe|require|use|capsule|"
-                         r"beam|medium|material|transducer|latch|spring|truss|anchor|effect)\b")
+                         r"beam|medium|material|transducer|generator|amplifier|latch|spring|truss|anchor|effect)\b")
 
 
 def statement_chunks(lines: list[str], delta=None):
