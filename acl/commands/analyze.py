@@ -158,8 +158,10 @@ def print_report(design, rep) -> None:
         where = (f"program {d['program']} step {d['step']} (line {d['line']})" if d["program"] else
                  _ANALYSIS_DRIVE.get(d.get("basis"), "analysis drive"))
         worst = first_max_item(d["interface_amplitude_over_radius"])      # ties: the first declared
-        con.print(f"[red]warning:[/red] {where}: {d['drive']} drives {worst[0]} to eps/R = {worst[1]:.6g}, beyond the "
-                  f"linear bubble model (eps/R <= {d['linear_limit']:g}; docs/physics.md)")
+        past = (" and past the hemisphere (eps/R = 1), where the bubble model has no meaning and `acl compile` refuses"
+                if worst[1] > 1.0 else "")
+        con.print(f"[red]warning\\[W-ACOUSTIC-AMPLITUDE]:[/red] {where}: {d['drive']} drives {worst[0]} to eps/R = "
+                  f"{worst[1]:.6g}, beyond the linear bubble model (eps/R <= {d['linear_limit']:g}; docs/physics.md){past}")
     if rep.pairs:
         t = Table(title="Bubble pairs (Bjerknes force at rest, attraction positive)", title_justify="left")
         for col in ("pair", "f (kHz)", "V", "force (nN)", "", "phase diff (deg)", "gap (um)", "d_c (um)", "snap-in V",
