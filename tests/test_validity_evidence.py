@@ -127,3 +127,25 @@ def test_pair_coupling_has_no_kink_at_contact():
     assert np.all(np.abs(c[d >= 40e-6] / d[d >= 40e-6] - 1) < 5e-4)
     slope = np.diff(c) / np.diff(d)
     assert np.all(np.abs(np.diff(slope)) < 0.02)         # no jump of the slope anywhere (a max() jumps by 1)
+
+
+def test_compile_widens_a_follow_band_by_the_model_form_uncertainty(monkeypatch):
+    # A follow step whose planned drive passes eps/R 0.25: the 95 % band grows to hypot(band, sigma x the largest
+    # predicted displacement), sigma = validity.amplitude_model_form (1e-9 rel.); with sigma forced to 0 it is the
+    # declared-uncertainty band alone (same seed, same draws).
+    from acl.schedule.compile import CompileOptions, compile_program
+
+    src = (ROOT / "examples" / "fig2_vertical_cantilever.acl").read_text()
+    head = src[:src.index("\nprogram ") + 1]
+    d = acl.loads(head + "program p {\n  follow act along polyline([(0, 0), (-12 um, 0)]) in 1 s, using [125 kHz]\n}\n",
+                  filename=str(ROOT / "examples" / "f.acl"))
+    opts = CompileOptions(band_samples=3)
+    g = compile_program(d, "p", opts).goals[0]
+    rel = g.details["model_form_force_rel"]
+    assert 0.005 < rel < 0.2
+    size = float(np.nanmax(np.linalg.norm(g.predicted_m, axis=-1)))
+    monkeypatch.setattr(VA, "amplitude_model_form", lambda x, q, limit=0.25: 0.0)
+    base = compile_program(d, "p", opts).goals[0]
+    assert np.isfinite(base.rms_error_p95_m)
+    assert g.rms_error_p95_m == pytest.approx(float(np.hypot(base.rms_error_p95_m, rel * size)), rel=1e-9)
+    assert g.rms_error_p95_m > base.rms_error_p95_m

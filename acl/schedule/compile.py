@@ -961,7 +961,7 @@ class _Compiler:
             pts = g.predicted_m if g.predicted_m is not None else g.target_m
             if pts is None or g.rms_error_p95_m is None:
                 continue
-            extra = rel * float(np.max(np.linalg.norm(np.asarray(pts, float), axis=-1)))
+            extra = rel * float(np.nanmax(np.linalg.norm(np.asarray(pts, float), axis=-1)))
             g.rms_error_p95_m = float(np.hypot(g.rms_error_p95_m, extra))
             if g.max_error_p95_m is not None:
                 g.max_error_p95_m = float(np.hypot(g.max_error_p95_m, extra))
