@@ -172,7 +172,7 @@ def print_report(design, rep) -> None:
             sv = f"{p['snap_in_voltage_v']:.2f}" if p["snap_in_voltage_v"] else ("none" if p["sweep_status"] == "ok" else p["sweep_status"])
             t.add_row(f"{p['a']}-{p['b']}", _k(p["frequency_hz"]), f"{p['voltage_v']:g}", f"{p['force_n'] * 1e9:.3g}",
                       "[green]attract[/green]" if p["attract"] else "[magenta]repel[/magenta]",
-                      f"{p['phase_difference_deg']:.1f}", f"{p['gap_m'] * 1e6:.1f}", dc, sv,
+                      f"{round(p['phase_difference_deg'], 1) + 0.0:.1f}", f"{p['gap_m'] * 1e6:.1f}", dc, sv,
                       {True: "attract", False: "repel", None: "-"}[p.get("attract_with_predicted_q")],
                       f"{p['repel_from_q']:g}" if p.get("repel_from_q") else "-")
         con.print(t)
