@@ -6,7 +6,9 @@ streaming a long waveform to WAV.  Prints figures; asserts nothing.
 
 Targets (issue 4): 10,000 waypoints as one program < 1.5 s and >= 40x faster than per-waypoint
 problems (timed on 200 waypoints and extrapolated, as printed); 10 s of three tones at 2 MS/s to
-WAV < 1.5 s and < 100 MB peak memory (measured in a fresh subprocess).
+WAV < 1.5 s and < 100 MB peak memory (measured in a fresh subprocess).  Issue 23: `compile_program` of the
+10,000-waypoint Fig. 3 path with its 95 % band (20 draws) at most 3 s of CPU, the band (CPU with it minus
+without) at most the plan's: `python benchmarks/compile.py compile` prints both.
 """
 from __future__ import annotations
 

@@ -625,6 +625,12 @@ class _Engine:
         return total
 
 
+def pressure_terms(unit: np.ndarray, w2: np.ndarray, pressure: np.ndarray, scale: np.ndarray):
+    """(thrust constant (..., T, n), Bjerknes weight (..., T)) of tone pressures (..., T) Pa: C_s 6 pi mu w eps^2 with eps = 2 |p dV/dp| / (pi R^2) (``unit`` (T, n) per Pa^2) times each orifice's thrust scale (..., n), and w^2 p^2 (Crum 1975)."""
+    pressure = np.asarray(pressure, float)
+    return unit * pressure[..., :, None] ** 2 * np.asarray(scale, float)[..., None, :], w2 * pressure**2
+
+
 def _engine_constants(design: Design, lay: _Layout, f: np.ndarray, pressure: np.ndarray, scale: np.ndarray,
                       pair: np.ndarray) -> dict:
     """Everything in :meth:`_Engine.forces` that does not depend on the capsule positions."""
@@ -634,13 +640,13 @@ def _engine_constants(design: Design, lay: _Layout, f: np.ndarray, pressure: np.
     ncap = len(lay.caps)
     area = np.pi * lay.radii**2
     unit = C.STREAMING_CONSTANT * 6 * np.pi * med.viscosity * w[:, None] * 4 / area**2
+    thrust, w2p2 = pressure_terms(unit, w**2, pressure, scale[lay.body])
     return {
-        # C_s 6 pi mu w eps^2 with eps = 2 |p dV/dp| / (pi R^2), times the declared thrust scale
-        "thrust": unit * pressure[:, None] ** 2 * scale[lay.body],
-        "thrust_unit": unit,          # (T, n) per pascal^2, before the thrust scale (drive_constants)
+        "thrust": thrust,
+        "thrust_unit": unit,          # (T, n) per pascal^2, before the thrust scale (acl.analysis.tones)
         "thrust_dir": -lay.normals,
         "other": other,
-        "w2p2": w**2 * pressure**2,
+        "w2p2": w2p2,
         "w2": w**2,
         "bjerknes": med.density / (8 * np.pi) * other * pair[lay.body][:, lay.body],
         "drag_mask": lay.body[:, None] != np.arange(ncap)[None, :],

@@ -254,7 +254,7 @@ def _beam_law(beam, mode: str, design: Design | None = None):
         u = X @ P_perp.T
         delta = np.linalg.norm(u, axis=1)
         small = delta < 1e-15 * L
-        d = np.where(small, 1.0, delta)
+        d = np.where(small, 1e-3 * L, delta)             # a placeholder in the linear range where delta ~ 0
         P = np.asarray(B.eq1_force(d, L, l, EI), float)
         kt = 1.0 / np.asarray(B.eq1_compliance(P, L, l, EI), float)       # = eq1_tangent_stiffness, one inversion
         n = u / d[:, None]

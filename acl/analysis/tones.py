@@ -18,7 +18,8 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from acl.analysis.acoustics import (_apply_neighbour_drag, _centres_array, _compute_engine, _Engine, _layout,
-                                    _thrust_scale, drive_gain, effect_pressure_factor, substrate_factor)
+                                    _thrust_scale, drive_gain, effect_pressure_factor, pressure_terms,
+                                    substrate_factor)
 from acl.design.model import Design, Drive, Tone
 
 _TONE_ENGINES: list = []   # [(design, frequencies, engine)]: the tone engines of the last designs
@@ -52,8 +53,8 @@ def drive_constants(eng: _Engine, amplitudes: np.ndarray, gain: np.ndarray, scal
     row's total amplitude) and constants as :func:`_compute_engine` builds for one drive."""
     v = np.asarray(amplitudes, float)
     pressure = v * gain * effect_pressure_factor(eng.design, eng.f, v.sum(axis=1, keepdims=True))
-    return {"thrust": eng.consts["thrust_unit"][None] * pressure[:, :, None] ** 2 * scale[:, eng.lay.body][:, None, :],
-            "w2p2": eng.consts["w2"][None] * pressure**2}
+    thrust, w2p2 = pressure_terms(eng.consts["thrust_unit"], eng.consts["w2"], pressure, scale[:, eng.lay.body])
+    return {"thrust": thrust, "w2p2": w2p2}
 
 
 def tone_forces(design: Design, frequencies, positions: Mapping[str, Sequence[float]] | None = None,

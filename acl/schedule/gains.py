@@ -10,7 +10,9 @@ This is the only module of acl.schedule that calls the analysis stage:
   quadratic in the tone amplitudes, so a displacement changes the forces only at second order in V^2.
 * :func:`model_forward` -- the nonlinear forward model used to re-simulate a schedule:
   :func:`acl.analysis.mechanics.equilibrium` (warm-started along the path) when that module
-  exists, otherwise the thrust through the nonlinear beam law of paper Eq. (1).
+  exists, otherwise the thrust through the nonlinear beam law of paper Eq. (1);
+  :func:`model_forward_many` -- the same for many designs at once (the nominal design and its band's draws: one
+  batched solve per waypoint, :mod:`acl.analysis.equilibria`).
 * :func:`latch_forces` -- force per V^2 of each tone along each latch's axis (the full
   :func:`acl.analysis.acoustics.force_model` at rest), and the latches' switching / release forces
   (``acl.physics.latch.latch_landscape``).
@@ -238,8 +240,9 @@ def _forward_rows(base: Design, members: list, capsule: str, freqs: list, u: np.
     def as_dict(centres):
         return {nm: centres[k] for k, nm in enumerate(names)}
 
+    rest = {c.name: np.asarray(c.center, float) for c in base.capsules}
+
     def as_array(pos):
-        rest = {c.name: np.asarray(c.center, float) for c in base.capsules}
         return np.array([np.asarray(pos.get(nm, rest[nm]), float) for nm in names])
 
     for i in range(n):
