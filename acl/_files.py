@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import os
 import re
+import tempfile
 
 
 def undecodable(raw: bytes, exc: UnicodeDecodeError) -> tuple[int, int, int]:
@@ -300,3 +301,43 @@ class deferred_signals:
         if self.old is not None:
             signal.pthread_sigmask(signal.SIG_SETMASK, self.old)
         return False
+
+
+# --- Atomic replacement of one text file (a temporary file beside it, then one rename) ----------------------
+
+def write_text_atomic(path: str, text: str) -> None:
+    """Replace ``path`` with ``text`` (UTF-8, newlines as given) in one rename; a symbolic link is
+    followed (its target is rewritten, the link stays)."""
+    write_chunks_atomic(path, (text,))
+
+
+def write_chunks_atomic(path: str, chunks) -> None:
+    """:func:`write_text_atomic` of the text that the iterable ``chunks`` yields piece by piece (memory bounded
+    by one piece: `acl synth` writes millions of rows)."""
+    path = os.path.realpath(path)
+    problem = streamable_problem(path)
+    if problem:
+        raise OSError(1, problem, path)
+    try:
+        mode = os.stat(path).st_mode & 0o7777
+    except FileNotFoundError:
+        umask = os.umask(0)
+        os.umask(umask)
+        mode = 0o666 & ~umask
+    if stream_kind(path):
+        mode = 0o600
+    tmp = None
+    try:
+        with deferred_signals():
+            fd, tmp = tempfile.mkstemp(prefix=".acl-", suffix=".tmp", dir=temp_folder_for(path))
+        with os.fdopen(fd, "w", encoding="utf-8", newline="") as fh:
+            for text in chunks:
+                fh.write(text)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.chmod(tmp, mode)
+        publish_file(tmp, path)
+    except BaseException:
+        if tmp is not None and os.path.exists(tmp):
+            os.unlink(tmp)
+        raise

@@ -1,7 +1,7 @@
 """Files shipped with acl: the standard library (``stdlib/``) and the documentation (``docs/``).
 
 In a source checkout they are the repository's top-level folders; an installed wheel carries them
-inside the package (``acl/stdlib``, ``acl/docs``, mapped by setup.py).  Each folder is recognised
+inside the package (``acl/stdlib``, ``acl/docs``, mapped by pyproject.toml).  Each folder is recognised
 by a file it must hold, so an unrelated folder of the same name is never picked up.
 """
 from __future__ import annotations

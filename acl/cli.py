@@ -22,6 +22,7 @@ COMMANDS = {
     "rule": "Print the documentation of a rule or diagnostic code (e.g. ACL201, E303).",
     "fmt": "Rewrite designs in the one canonical layout (--check for CI, --diff, - for stdin).",
     "sweep": "Sweep parameters over grids and print tolerances (Monte Carlo): a table per point and the yield.",
+    "export": "Write the printable solid of a design (.stl, .3mf, .obj), checked against the design.",
     "tune": "Choose the free parameters that maximise the yield of every require under print tolerances.",
     "play": "Play a compiled schedule on a signal generator (SCPI over PyVISA; --dry-run prints it).",
     "track": "Track a capsule in a microscope video (AVI, MP4, TIFF stack) into the CSV `acl fit` reads.",
@@ -128,7 +129,7 @@ def build_parser(argv: list[str] | None = None) -> argparse.ArgumentParser:
         p = sub.add_parser(name, help=help_text, description=help_text,
                            formatter_class=argparse.RawDescriptionHelpFormatter)
         module.add_parser(p)
-        from acl.commands._common import add_verbosity
+        from acl.commands import add_verbosity
 
         add_verbosity(p)
         p.set_defaults(_module=module)
@@ -380,7 +381,7 @@ def _main(argv: list[str] | None = None) -> int:
         sys.stderr.write("acl: interrupted\n")
         return 130
     except DiagnosticError as exc:     # a stage that stops the whole command (a folder search at its limit: E602)
-        from acl.commands._common import exit_code, report
+        from acl.commands import exit_code, report
 
         fmt = getattr(args, "output_format", "text")
         report(exc.diagnostics, fmt if fmt == "json" else "text")

@@ -20,13 +20,16 @@ if os.environ.get("CI"):
     settings.load_profile("ci")
 
 
-# The files that take longest (pytest --durations on two workers, 2026-11-27: docs/fit.md's regeneration 240 s,
-# the committed fit-diagnosis runs, the closed-loop studies, ...) run first: a worker that draws one of them last
-# keeps the run going alone for minutes while the other has finished.  Whole files move (their order inside is
-# kept), so module fixtures are still set up once.
-SLOW_FIRST = ("test_docs_sync.py", "test_fit_diagnosis.py", "test_fit_bodies.py", "test_closed_loop.py",
-              "test_fit_coupled.py", "test_fit_one_physics.py", "test_cli_output.py", "test_fit_mechanisms.py",
-              "test_fit_fig4e.py", "test_sweep_mechanism.py")
+# The files that take longest run first: a worker that draws one of them last keeps the run going alone while the
+# other has finished.  Whole files move (their order inside is kept), so module fixtures are still set up once.
+# pytest --durations on two workers, 2026-11-27: the studies (`-m studies`: docs/fit.md's regeneration 137 s, a
+# body-pair fit-diagnosis run 95 s, the group recovery through snap-in 103 s, the coupled pair fits 130 s, the Fig. 3
+# closed loop 55 s, ...) and, in the default run, the edge-of-range end-to-end run 27 s, the body-pair thrust fit
+# 17 s, the stroke closed loop 14 s, the umask run 14 s, the two-worker fit search 12 s.
+SLOW_FIRST = ("test_docs_sync.py", "test_fit_bodies.py", "test_fit_diagnosis.py", "test_fit_coupled.py",
+              "test_closed_loop.py", "test_fit_one_physics.py", "test_effect_ranges.py", "test_cli_output.py",
+              "test_fit_jobs.py", "test_fit_fig4e.py", "test_sweep_mechanism.py", "test_hostile_corpus.py",
+              "test_lsp.py", "test_fmt.py")
 
 
 def pytest_collection_modifyitems(session, config, items):

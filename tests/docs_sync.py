@@ -1,4 +1,4 @@
-"""Numbers in README.md and docs/*.md come from runs that a test repeats (tests/test_docs_sync.py).
+"""Numbers in README.md and docs/**/*.md come from runs that a test repeats (tests/test_docs_sync.py).
 
 Generated parts of a page are marked with HTML comments (invisible once rendered):
 
@@ -45,7 +45,7 @@ import tempfile
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-PAGES = ["README.md", *sorted(str(p.relative_to(ROOT)) for p in (ROOT / "docs").glob("*.md"))]
+PAGES = ["README.md", *sorted(str(p.relative_to(ROOT)) for p in (ROOT / "docs").rglob("*.md"))]   # with tutorials/, how-to/, ...
 # a marker quoted in inline code (after a backtick) is text, not a marker
 MARK = re.compile(r"(?<!`)<!-- doc-run: (?P<run>.*?) -->|(?<!`)<!-- doc-py:(?P<py>.*?)-->|"
                   r"(?<!`)<!-- doc: (?P<key>.*?) -->(?P<body>.*?)<!-- /doc -->", re.S)

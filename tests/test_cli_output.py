@@ -240,7 +240,7 @@ def _modes(root: Path) -> dict[str, int]:
     return out
 
 
-@pytest.mark.parametrize("mask", [0o022, 0o027])
+@pytest.mark.parametrize("mask", [0o022, pytest.param(0o027, marks=pytest.mark.studies)])
 def test_outputs_respect_the_umask(tmp_path, mask):
     env = {k: v for k, v in os.environ.items() if k != "COLUMNS"}
     env["PYTHONPATH"] = str(ROOT)

@@ -57,6 +57,7 @@ def _repeat_seed(kind, index, tmp_path):
     return r
 
 
+@pytest.mark.studies
 def test_fig3_study_seed_repeats(tmp_path):
     """One truth of the Fig. 3 study (benchmarks/closed_loop.py --kind fig3, docs/fit.md) run again:
     the figures in benchmarks/closed_loop_fig3.json come from this code (0.5 % tolerance: solver paths)."""
@@ -105,6 +106,7 @@ def test_pair_hold_study_seed_repeats(tmp_path):
     assert got["covered"] and got["margin_p05"] <= got["after_margin"]
 
 
+@pytest.mark.studies
 def test_stroke_study_seed_repeats(tmp_path):
     """One truth of the 20-truth stroke study (benchmarks/closed_loop.py, docs/fit.md) run again: the figures in
     benchmarks/closed_loop_stroke.json come from this code (0.5 % tolerance: solver paths)."""

@@ -199,6 +199,7 @@ def test_group_is_the_analysis_at_rest_and_through_snap_in(tmp_path, src, obs, g
     assert abs(first - sweep.snap_voltage) <= 0.01 + 1e-9, (first, sweep.snap_voltage)
 
 
+@pytest.mark.studies
 def test_group_and_calibration_beam_recover_gamma_and_alpha_through_snap_in(tmp_path):
     """Ramps past the a-b snap-in (contact rows) at three frequencies and a calibration cantilever; the truth's
     gamma and alpha are 1.2x and 1.3x the design's (the start), so the fit must find them."""

@@ -122,7 +122,15 @@ REPEAT = [
 ]
 
 
-@pytest.mark.parametrize("case,seed", REPEAT, ids=[f"{c}-{s}" for c, s in REPEAT])
+# the repeats that take 4-100 s each are studies (pytest -m studies); their kinds are fitted in the default run by the
+# faster repeats above and by test_held_out_latch_angle_seeds_meet_the_bar_and_a_run_is_repeated, test_fit_mechanisms.py
+# (pair + calibration beam) and test_fit_one_physics.py (the body pair)
+STUDY_REPEATS = {"pair+cal neighbour_drag", "latch+state/angles drive_saturation", "latch+state transducer_resonance",
+                 "body-pair+cal clean"}
+
+
+@pytest.mark.parametrize("case,seed", [pytest.param(c, s, id=f"{c}-{s}", marks=pytest.mark.studies if c in STUDY_REPEATS
+                                                   else ()) for c, s in REPEAT])
 def test_a_committed_run_is_repeated(case, seed):
     row = next(r for r in _rows() if r["case"] == case and r["seed"] == seed)
     kind, planted = next((k, p) for k, p in FD.CASES if FD.label(k, p) == case)
@@ -313,6 +321,7 @@ def _state_problem(tmp_path, kind, planted, seed):
     return load_problem(design, [path], free=free), path
 
 
+@pytest.mark.studies
 def test_one_latch_cannot_always_tell_saturation_from_a_gain_shape_three_angles_can(tmp_path):
     """One latch seen through its switched state gives one threshold voltage per frequency: saturation (planted) and a
     broad transducer resonance fitted in its place explain seed 103 equally well (clipped -2 ln L 2.7 apart, within 6;

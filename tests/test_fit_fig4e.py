@@ -6,6 +6,7 @@ import math
 import os
 
 import numpy as np
+import pytest
 
 from acl.cli import main
 from acl.fit import run_fit
@@ -68,6 +69,7 @@ def test_fit_command_writes_report_figures_and_a_loadable_calibrated_design(tmp_
     assert abs(t / fitted["value"] - 1) < 1e-4
 
 
+@pytest.mark.studies
 def test_saturation_planted_in_pair_data_is_found_despite_snap_in_jumps(tmp_path):
     # snap-in makes the prediction jump; the search must not credit an effect with an optimizer gain
     ex = Experiment(frequencies=(120e3, 130e3), voltages=tuple(np.linspace(0, 4, 13)),

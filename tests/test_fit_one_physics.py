@@ -79,7 +79,8 @@ def test_a_group_is_the_whole_design():
 SEEDS = (1, 2, 3)
 
 
-@pytest.mark.parametrize("rel,grouped,volts,free", DESIGNS, ids=IDS)
+@pytest.mark.parametrize("rel,grouped,volts,free", [pytest.param(*d, id=i, marks=pytest.mark.studies if i in (
+    "fit_body_pair", "fig6f_control_module", "figS6_flextensional") else ()) for d, i in zip(DESIGNS, IDS)])
 def test_planted_coefficients_come_back_inside_their_intervals(tmp_path, rel, grouped, volts, free):
     """Truth: the design with gamma 1.2x (and alpha 1.3x where a pair can tell it), noise 0.1 um, every observable
     at 85/125/170 kHz below every snap-in; `acl fit` with those coefficients free and no effect search, seeds 1-3:

@@ -127,3 +127,27 @@ def test_bad_measured_gain_is_E325_at_its_place(tmp_path, entry, where):
     assert d.code == "E325" and line.find(where) + 1 == d.span.column
     r = subprocess.run([sys.executable, "-m", "acl", "check", path], capture_output=True, text=True, cwd=ROOT)
     assert r.returncode == 1 and "E325" in r.stdout + r.stderr and "Traceback" not in r.stderr
+
+
+def test_a_fit_writes_the_tones_its_data_drove_as_measured_gain(tmp_path):
+    """The fast version of tests/test_closed_loop.py::test_fig3_study_seed_repeats (a study): `acl fit` with a free gain
+    on data at three tones writes measured(gain) at exactly those tones, each its relative standard error rounded up
+    (0.05 um noise: 1.5-3 %), and the calibrated design's bands pin them."""
+    from acl.fit import run_fit
+    from acl.fit.synth import Experiment, generate, write_csv
+
+    shutil.copy(os.path.join(EX, "fig3_three_orifice.acl"), tmp_path)
+    design = str(tmp_path / "fig3_three_orifice.acl")
+    tones = (85e3, 125e3, 170e3)
+    data, _ = generate(design, Experiment(frequencies=tones, voltages=tuple(np.linspace(0.5, 3.0, 6))),
+                       noise=0.05e-6, seed=1)
+    csv = str(tmp_path / "d.csv")
+    write_csv(data, csv)
+    cal = tmp_path / "cal.acl"
+    out = run_fit(design, [csv], free=["gain"], candidates=[], calibrated_path=str(cal))
+    cal.write_text(out.calibrated)
+    se = {r["frequency_hz"]: r["relative_stderr"] for r in out.report["tone_gain_stderr"]}
+    got = pinned(acl.load(str(cal)))
+    assert [f for f, _ in got] == list(tones) == sorted(se)
+    for f, s in got:
+        assert 0.005 < s < 0.05 and se[f] <= s <= se[f] + 1e-4, (f, s, se[f])

@@ -20,7 +20,7 @@ OFFLINE = re.compile(r"No matching distribution|Could not find a version|Failed 
 def wheel(tmp_path_factory) -> zipfile.ZipFile:
     """Build the wheel from a copy of the checkout (a build must not leave build/ in the repository)."""
     src = tmp_path_factory.mktemp("src")
-    for name in ("pyproject.toml", "setup.py", "README.md"):
+    for name in ("pyproject.toml", "README.md"):
         shutil.copy2(ROOT / name, src / name)
     for name in ("acl", "stdlib", "docs"):
         shutil.copytree(ROOT / name, src / name, ignore=shutil.ignore_patterns("__pycache__", "*.pyc"))
@@ -145,3 +145,16 @@ def test_a_broken_matplotlib_stops_fit_report_before_the_fit(tmp_path):
             "(ImportError: libfreetype.so.6") in proc.stderr, proc.stderr
     assert "Traceback" not in proc.stderr and "E-INTERNAL" not in proc.stderr
     assert sorted(os.listdir(tmp_path)) == ["site"]
+
+
+def test_pyproject_lists_every_package_of_acl():
+    """pyproject.toml names the packages (a mapped folder cannot be found by `packages.find`): a new folder of
+    acl/ with an __init__.py must be listed there, or the wheel silently leaves it out."""
+    import tomllib
+
+    config = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]
+    found = {".".join(p.parent.relative_to(ROOT).parts) for p in (ROOT / "acl").rglob("__init__.py")
+             if "__pycache__" not in p.parts}
+    assert set(config["packages"]) == found | {"acl.stdlib", "acl.docs"}
+    assert config["package-dir"] == {"acl.stdlib": "stdlib", "acl.docs": "docs"}
+    assert not (ROOT / "setup.py").exists()

@@ -143,6 +143,7 @@ def test_latch_snap_in_equals_analyze_and_never_exceeds_the_model_fold(latch):
     assert len({round(_snap(r, 85e3), 2) for r in reps}) == b.n
 
 
+@pytest.mark.studies
 def test_latch_beside_a_beam_and_four_capsules_nominal_equal_analyze():
     """Fig. 6f (latch + beam, 3 coordinates, a kink fold at 85 kHz) and Fig. S6 (four beams, 8 coordinates)."""
     for name, kink in (("fig6f_control_module", True), ("figS6_flextensional", False)):

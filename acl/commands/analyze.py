@@ -107,7 +107,8 @@ def _k(hz):
 
 def print_report(design, rep) -> None:
     from acl._console import make_console
-    from rich.table import Table
+    from acl._console import print_table
+    from acl._console import table as Table
 
     from acl.physics.ties import first_max_item
 
@@ -124,7 +125,7 @@ def print_report(design, rep) -> None:
                 qtxt += f" (declared; predicted {m['q_predicted']:.1f})" if m.get("q_predicted") else " (declared)"
             t.add_row(c["name"] if i == 0 else "", str(i + 1), _k(m["frequency_hz"]), qtxt, m["dominant_orifice"],
                       f"{m['share']:.0%}", f"{c['file']}:{c['line']}" if i == 0 else "")
-    con.print(t)
+    print_table(con, t)
     if rep.selectivity:
         caps = [c["name"] for c in rep.capsules]
         t = Table(title=f"Selectivity: response relative to each capsule's peak (crosstalk >= {30}% flagged)", title_justify="left")
@@ -142,7 +143,7 @@ def print_report(design, rep) -> None:
                     txt = f"[bold red]{txt} crosstalk[/bold red]"
                 row.append(txt)
             t.add_row(*row)
-        con.print(t)
+        print_table(con, t)
     if rep.coupled_modes:
         t = Table(title="Coupled modes (all bubbles as one system: mutual radiation mass, substrate images)",
                   title_justify="left")
@@ -152,7 +153,7 @@ def print_report(design, rep) -> None:
             parts = ", ".join(f"{k} {v:.0%}" + (" (anti)" if m["phases_deg"].get(k) else "")
                               for k, v in m["shares"].items() if v >= 0.05)
             t.add_row(str(i + 1), _k(m["frequency_hz"]), f"{m['q']:.1f}", f"{m['q_predicted']:.1f}", parts)
-        con.print(t)
+        print_table(con, t)
     nonlinear = [d for d in rep.drives if not d["linear"]]
     for d in nonlinear:
         where = (f"program {d['program']} step {d['step']} (line {d['line']})" if d["program"] else
@@ -175,7 +176,7 @@ def print_report(design, rep) -> None:
                       f"{round(p['phase_difference_deg'], 1) + 0.0:.1f}", f"{p['gap_m'] * 1e6:.1f}", dc, sv,
                       {True: "attract", False: "repel", None: "-"}[p.get("attract_with_predicted_q")],
                       f"{p['repel_from_q']:g}" if p.get("repel_from_q") else "-")
-        con.print(t)
+        print_table(con, t)
     for lt in rep.latches:
         t = Table(title=f"Latch {lt['name']} ({lt['file']}:{lt['line']}): "
                         f"{'bistable' if lt['bistable'] else 'MONOSTABLE'}, switching force {lt['switching_force_n'] * 1e9:.3g} nN, "
@@ -187,7 +188,7 @@ def print_report(design, rep) -> None:
             short = m["intended"] and m["required_margin"] and m["margin"] < m["required_margin"]
             t.add_row(m["program"], f"{m['step']} (line {m['line']})", m["drive"],
                       f"[red]{m['margin']:.2f}[/red]" if short else f"{m['margin']:.2f}", "yes" if m["switches"] else "no", flag)
-        con.print(t)
+        print_table(con, t)
     if rep.equilibrium:
         e = rep.equilibrium
         t = Table(title=f"Equilibrium at {e['drive']}: {e['status']}", title_justify="left")
@@ -197,7 +198,7 @@ def print_report(design, rep) -> None:
             t.add_row(c["name"], "(" + ", ".join(f"{x * 1e6:.3f}" for x in c["displacement_m"]) + ")")
         for g in e["gaps"]:
             t.add_row(f"gap {g['a']}-{g['b']}", f"{g['gap_m'] * 1e6:.2f}")
-        con.print(t)
+        print_table(con, t)
         for w in e["warnings"]:
             con.print(f"[yellow]warning:[/yellow] {w}")
         for v in e.get("validity", ()):       # the limits crossed at this drive (acl.physics.validity), located
@@ -221,4 +222,4 @@ def print_report(design, rep) -> None:
             else:
                 vs = f"{v:.3g}"
             t.add_row(r["text"], vs, "[green]ok[/green]" if r["ok"] else "[red]FAILED[/red]", f"{r['file']}:{r['line']}")
-        con.print(t)
+        print_table(con, t)

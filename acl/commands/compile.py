@@ -302,7 +302,7 @@ def _emit(schedule, args, formats, rate, fmt) -> int:
 
 
 def _summary(console, schedule, result) -> None:
-    from rich.table import Table
+    from acl._console import table as Table
 
     table = Table(title=f"acl compile: program `{schedule.program}` -> {result.out_dir}", title_justify="left")
     for col in ("goal", "time (s)", "tones (kHz)", "predicted error RMS / max (um)",

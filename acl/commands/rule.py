@@ -1,6 +1,6 @@
 """`acl rule CODE`: print a rule's page (docs/rules.md) or a diagnostic code's entry (docs/*.md tables).
 
-The documentation ships inside the wheel (acl/docs, see setup.py), so this works on an installed
+The documentation ships inside the wheel (acl/docs, see pyproject.toml), so this works on an installed
 acl as in a checkout.  Reads text only: never imports the lint rules or the physics.
 """
 from __future__ import annotations

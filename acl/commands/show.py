@@ -4,20 +4,38 @@ from __future__ import annotations
 import json
 import sys
 
-from acl.commands._common import add_design_options, add_output_format, load_or_report
+from acl.commands._common import add_design_options, add_output_format, load_or_report, report
 
 
 def add_parser(p) -> None:
     p.add_argument("file", metavar="FILE", help="design file (.acl), or a folder holding one design")
     add_output_format(p, old=("--json",))
+    p.add_argument("--plot", metavar="PNG", help="also draw the design (isometric and three orthographic views) "
+                   "into this PNG (needs acl[plot])")
     add_design_options(p)
 
 
 def run(args) -> int:
     fmt = args.output_format
+    if args.plot is not None:
+        from acl.commands._common import plotting_missing
+        from acl.diagnostics import DiagnosticError
+        from acl.export.files import check_output
+
+        try:
+            check_output(args.plot, "--plot", (".png",), [args.file])
+        except DiagnosticError as exc:
+            report(exc.diagnostics, fmt)
+            return 2
+        if plotting_missing("--plot", fmt):
+            return 2
     design, code = load_or_report(args.file, args, fmt)
     if design is None:
         return code
+    if args.plot is not None:
+        code = _plot(design, args.plot, fmt)
+        if code:
+            return code
     if fmt == "json":
         try:
             text = design.model_dump_json(indent=2)
@@ -30,6 +48,35 @@ def run(args) -> int:
     from acl._console import make_console
 
     make_console(highlight=False).print(design_tree(design))
+    return 0
+
+
+def _plot(design, path: str, fmt: str) -> int:
+    """The design's figure (acl.emit.design_figure) into ``path``, atomically; 0, or 2 on an error."""
+    import os
+    import tempfile
+
+    from acl._files import as_umask, input_named
+    from acl.diagnostics import Span, error
+    from acl.emit.design_figure import plot_design
+
+    hit = input_named(path, [*design.sources, design.file])
+    if hit:
+        report([error("E-USAGE", f"--plot {path}: names the input {hit}; writing would destroy it",
+                      Span(file="<--plot>", line=1, column=1), "give another path")], fmt)
+        return 2
+    fd, tmp = tempfile.mkstemp(prefix=".acl-show-", suffix=".tmp", dir=os.path.dirname(os.path.abspath(path)))
+    os.close(fd)
+    try:
+        plot_design(design, tmp)
+        as_umask(tmp, directory=False)
+        os.replace(tmp, path)
+    except OSError as exc:
+        report([error("E601", f"cannot write `{path}`: {exc.strerror or exc}", Span(file="<--plot>", line=1, column=1))], fmt)
+        return 2
+    finally:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
     return 0
 
 

@@ -357,9 +357,13 @@ def run(args) -> int:
         from acl._console import make_console
 
         con = make_console(stderr=True, highlight=False)
+        from acl.design.core import EFFECT_UNITS
+
         for eid in planted:
-            given = ", ".join(f"{k} = {v:g}" for k, v in effects[eid].items())
-            con.print(f"planted {eid}: {given} (SI units)")
+            units = EFFECT_UNITS.get(eid, {})
+            given = ", ".join(f"{k} = {v:g}" + (f" {units[k][0]}" if units.get(k, ("",))[0] else "")
+                              for k, v in effects[eid].items())
+            con.print(f"planted {eid}: {given}")
         con.print(f"wrote {data.n} rows to {args.output}")
     return 0
 

@@ -624,7 +624,9 @@ def _joints(b: Builder, beams_raw):
                 continue
             key = (tkind, tgt_name)
             if key in target_used:
-                b.bag.error("E405", f"`{tgt_name}.{point}` already carries a capsule (line {target_used[key].line})", st.span)
+                b.bag.error("E405", f"`{tgt_name}.{point}` already carries a capsule (line {target_used[key].line})", st.span,
+                            f"to carry a second capsule on `{tgt_name}`, link it to the first: "
+                            "`link SECOND to FIRST with TRUSS` (a truss declared with `truss NAME { }`)")
                 continue
             if not claim_capsule(cap[1], st.span):
                 continue

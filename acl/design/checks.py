@@ -32,7 +32,8 @@ def check_design_geometry(design: M.Design, bag: DiagnosticBag, specs: dict) -> 
     for c in design.capsules:
         if design.mount_of(c.name) is None and not any(j.kind == "link" and c.name in (j.a, j.b) for j in design.joints):
             bag.warning("W401", f"capsule `{c.name}` is not attached to anything (mount, fix or link)", c.span,
-                        f"e.g. `mount {c.name} on BEAM.tip` or `fix {c.name}`")
+                        f"e.g. `mount {c.name} on BEAM.tip`, `fix {c.name}`, or `link {c.name} to OTHER with TRUSS` "
+                        "to carry it with a capsule that is attached")
 
 
 def _feature(bag, size: float, axial: bool, what: str, span) -> None:

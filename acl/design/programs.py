@@ -129,8 +129,14 @@ def _step(b, design: M.Design, st):
             raise Fail()
         mount = design.mount_of(k[1])
         if mount is None or mount.kind != "mount" or mount.target_kind != "beam":
+            carriers = [j.b if j.a == k[1] else j.a for j in design.joints
+                        if j.kind == "link" and j.element_kind == "truss" and k[1] in (j.a, j.b)]
+            carried = [n for n in carriers if (design.mount_of(n) is not None and design.mount_of(n).kind == "mount"
+                                               and design.mount_of(n).target_kind == "beam")]
+            hint = (f"`{k[1]}` moves with `{carried[0]}`, which its truss links it to: follow `{carried[0]}` instead"
+                    if carried and mount is None else f"mount it: `mount {k[1]} on BEAM.tip`")
             b.bag.error("E509", f"follow: capsule `{k[1]}` is not on a beam tip, so it has no planar motion to program",
-                        st.capsule.span, f"mount it: `mount {k[1]} on BEAM.tip`")
+                        st.capsule.span, hint)
             raise Fail()
         path = _path(b, st.path)
         dur = _dur(b, st.duration, "follow duration") if st.duration is not None else None

@@ -246,7 +246,7 @@ def build_report(problem, selection, tests_before, tests_after, calibrated_name=
 def render_table(report, console=None) -> None:
     """Rich tables: parameters before/after, per-observable and overall errors, effects tried."""
     from acl._console import make_console
-    from rich.table import Table
+    from acl._console import table as Table
 
     con = console or make_console(highlight=False)
     t = Table(title="fit: before (base model) and after (with selected effects)")

@@ -400,6 +400,7 @@ def select_effects(problem, candidates=None, p_limit=P_LIMIT, k_folds=K_FOLDS, s
     if selected:
         current, selected, reps = _revisit(problem, model, names, selected, current, trials, p_limit, progress, jobs,
                                            known)
+    _explain_rejections(trials)
     effects = solve.split_coefs(current.coefs, current.values)[1]
     sel = Selection(base, current, selected, trials, effects)
     sel.ambiguous = ambiguity(current, selected, reps)
@@ -567,6 +568,16 @@ def ambiguity(final, selected, reps) -> list[dict]:
                             "by": a["effect"], "delta_chi2": float(d), "delta_bic": float(a["fit"].bic - final.bic),
                             "separate_by": separating_experiment(eid, a["effect"]), "fit": a["fit"]})
     return sorted(out, key=lambda a: a["delta_chi2"])
+
+
+def _explain_rejections(trials) -> None:
+    """A rejected candidate whose reason starts with the tests it passed says why it was still not kept: the report
+    showed "rejected" beside "passes F-test and BIC" and nothing else."""
+    for t in trials:
+        if t.status == "rejected" and t.reason.startswith("passes "):
+            passed, _, why = t.reason.partition("; ")
+            t.reason = ("passed " + passed[len("passes "):] + ", but "
+                        + (why or "was not kept: another candidate of its round explained the data better"))
 
 
 def _retire(trials, eid, reason):

@@ -7,7 +7,9 @@ apart in that order; every declared observable (or the chosen ones) is measured 
 """
 from __future__ import annotations
 
+import functools
 import itertools
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -113,11 +115,13 @@ def generate(design_path, experiment, effects: dict | None = None, noise: float 
     from acl.fit.data import parse_quantity
 
     set_arr = {k: np.array([r[1][j] for r in rows], dtype=object) for j, k in enumerate(set_names)}
-    set_si = {k: np.array([parse_quantity(x)[0] if x else np.nan for x in set_arr[k]], float) for k in set_names}
+    quantity = functools.lru_cache(maxsize=4096)(lambda x: parse_quantity(x)[0] if x else np.nan)
+    set_si = {k: np.array([quantity(x) for x in set_arr[k]], float) for k in set_names}
     data = Dataset(np.array([r[0] for r in rows], dtype=object), np.zeros(n), np.full(n, float(noise) or np.nan),
                    np.array(times, float), [r[2] for r in rows], set_arr, set_si,
-                   [Span(file="<synth>", line=i + 2, column=1) for i in range(n)], np.array(["um"] * n, dtype=object),
+                   RowSpans(n), np.full(n, "um", dtype=object),
                    experiment=np.array([r[3] for r in rows], dtype=object))
+    del rows, times
     cache: dict = {}
 
     def load_instance(key):
@@ -133,8 +137,7 @@ def generate(design_path, experiment, effects: dict | None = None, noise: float 
         from acl.fit.problem import thrust_capsules
 
         gamma_caps = thrust_capsules(design_path, design, "gamma", search_paths) or None
-    P = prepare(data, load_instance, gamma_caps=gamma_caps)
-    y = predict(P, dict(coeffs or {}), effect_inputs(effects or {}))
+    y, P = _predict_in_chunks(data, load_instance, gamma_caps, dict(coeffs or {}), effect_inputs(effects or {}))
     rng = np.random.default_rng(seed)
     data.value = y + rng.normal(0.0, noise, n) if noise > 0 else y
     if np.any(P.state):
@@ -145,6 +148,57 @@ def generate(design_path, experiment, effects: dict | None = None, noise: float 
         data.sigma = np.where(st, 0.5 if noise > 0 else np.nan, data.sigma)
         data.units = np.where(st, "1", data.units).astype(object)
     return data, P
+
+
+#: rows predicted at once: the model's intermediates take about 2 kB a row (2,000,000 rows peaked at 6.4 GB)
+CHUNK_ROWS = 20_000
+
+
+class RowSpans(Sequence):
+    """The spans of generated rows (``<synth>``, line i + 2), made when asked for: a list of two million
+    Span objects took about 600 MB."""
+
+    def __init__(self, n: int):
+        self.n = n
+
+    def __len__(self) -> int:
+        return self.n
+
+    def __getitem__(self, i):
+        if isinstance(i, slice):
+            return [self[k] for k in range(*i.indices(self.n))]
+        i = int(i)
+        if i < 0:
+            i += self.n
+        if not 0 <= i < self.n:
+            raise IndexError(i)
+        return Span(file="<synth>", line=i + 2, column=1)
+
+
+def _predict_in_chunks(data, load_instance, gamma_caps, coeffs, effects):
+    """(the model's value of every row, the Prepared rows of the last chunk with ``state`` for all rows): the rows
+    in chunks of :data:`CHUNK_ROWS`, each prepared and predicted alone (a row's prediction depends on that row
+    only), so memory stays bounded whatever the row count."""
+    from acl.fit.forward import predict, prepare
+
+    if data.n <= CHUNK_ROWS:
+        P = prepare(data, load_instance, gamma_caps=gamma_caps)
+        return predict(P, coeffs, effects), P
+    y = np.empty(data.n)
+    state = np.zeros(data.n, bool)
+    for start in range(0, data.n, CHUNK_ROWS):
+        idx = np.arange(start, min(data.n, start + CHUNK_ROWS))
+        P = prepare(data.subset(idx), load_instance, gamma_caps=gamma_caps)
+        y[idx] = predict(P, coeffs, effects)
+        state[idx] = P.state
+    return y, _Rows(state)
+
+
+@dataclass(frozen=True)
+class _Rows:
+    """What :func:`generate`'s callers read of the Prepared rows when they were predicted in chunks."""
+
+    state: np.ndarray
 
 
 def write_csv(data, path, unit: str = "um") -> None:
@@ -160,26 +214,39 @@ def write_csv(data, path, unit: str = "um") -> None:
     with_exp = bool(np.any(data.experiment != ""))
     head = ["observable", "value", "unit", "drive", "time", *(["sigma"] if with_sigma else []),
             *(["experiment"] if with_exp else []), *[f"set:{k}" for k in set_names]]
-    lines = [",".join(head)]
-    for i in range(data.n):
+
+    def rows():
+        yield ",".join(head) + "\n"
+        block = []
+        for i in range(data.n):
+            block.append(row(i))
+            if len(block) >= 10_000:
+                yield "\n".join(block) + "\n"
+                block = []
+        if block:
+            yield "\n".join(block) + "\n"
+
+    def row(i):
         dimensionless = data.units[i] == "1"          # a latch state (0/1) is a pure number
         f_i, u_i = (1.0, "1") if dimensionless else (factor, unit)
         cells = [data.observable[i], f"{data.value[i] / f_i:.6g}", u_i, format_drive(data.tones[i]),
                  f"{data.time[i]:.6g}", *([f"{data.sigma[i] / f_i:.6g}"] if with_sigma else []),
                  *([data.experiment[i]] if with_exp else []),
                  *[data.sets[k][i] for k in set_names]]
-        lines.append(",".join(cells))
+        return ",".join(cells)
+
     if path == "-":   # `-o -`: standard output, as everywhere (it wrote a file named `-`)
         import sys
 
-        sys.stdout.write("\n".join(lines) + "\n")
+        for text in rows():
+            sys.stdout.write(text)
         return
     if not path or os.path.isdir(path):
         raise IsADirectoryError(21, "a folder, not a file" if path else "an empty path", path)
-    from acl.emit.atomic import write_text_atomic
+    from acl._files import write_chunks_atomic
 
     # one rename; the temporary file is removed when it fails (`-o DIR` left DIR.tmpPID behind)
-    write_text_atomic(path, "\n".join(lines) + "\n")
+    write_chunks_atomic(path, rows())
 
 
 # ------------------------------------------------------------------------------------------------
