@@ -43,7 +43,7 @@ def net_critical_distance(design: Design, drive: Drive, a: str, b: str, far: flo
     """Gap (m) between the closest orifices of ``a`` and ``b`` where the net closing force changes from attraction
     to repulsion as ``b`` moves away along the centre line (the first such change from near contact out to ``far``
     beyond the rest gap); None if it never does (always attracting or always repelling there)."""
-    from scipy.optimize import brentq
+    from acl.physics.roots import brentq          # analyze imports no scipy (tests/test_analyze_ties.py)
 
     ca, cb = design.capsule(a), design.capsule(b)
     touch = min(x.radius for x in ca.orifices) + min(y.radius for y in cb.orifices)
@@ -58,6 +58,5 @@ def net_critical_distance(design: Design, drive: Drive, a: str, b: str, far: flo
     if idx.size == 0:
         return None
     k = int(idx[0])
-    s = brentq(lambda x: float(closing_force(design, drive, a, b, [x])[1][0]), grid[k], grid[k + 1],
-               xtol=1e-12, rtol=1e-10)
+    s = brentq(lambda x: float(closing_force(design, drive, a, b, [x])[1][0]), grid[k], grid[k + 1], xtol=1e-12)
     return float(closing_force(design, drive, a, b, [s])[0][0])
