@@ -311,9 +311,14 @@ def write_text_atomic(path: str, text: str) -> None:
     write_chunks_atomic(path, (text,))
 
 
-def write_chunks_atomic(path: str, chunks) -> None:
-    """:func:`write_text_atomic` of the text that the iterable ``chunks`` yields piece by piece (memory bounded
-    by one piece: `acl synth` writes millions of rows)."""
+def write_bytes_atomic(path: str, data: bytes, prefix: str = ".acl-") -> None:
+    """:func:`write_text_atomic` of bytes (print files, figures)."""
+    write_chunks_atomic(path, (data,), binary=True, prefix=prefix)
+
+
+def write_chunks_atomic(path: str, chunks, binary: bool = False, prefix: str = ".acl-") -> None:
+    """:func:`write_text_atomic` of the text (or, ``binary``, the bytes) that the iterable ``chunks`` yields piece
+    by piece (memory bounded by one piece: `acl synth` writes millions of rows)."""
     path = os.path.realpath(path)
     problem = streamable_problem(path)
     if problem:
@@ -329,8 +334,8 @@ def write_chunks_atomic(path: str, chunks) -> None:
     tmp = None
     try:
         with deferred_signals():
-            fd, tmp = tempfile.mkstemp(prefix=".acl-", suffix=".tmp", dir=temp_folder_for(path))
-        with os.fdopen(fd, "w", encoding="utf-8", newline="") as fh:
+            fd, tmp = tempfile.mkstemp(prefix=prefix, suffix=".tmp", dir=temp_folder_for(path))
+        with (os.fdopen(fd, "wb") if binary else os.fdopen(fd, "w", encoding="utf-8", newline="")) as fh:
             for text in chunks:
                 fh.write(text)
             fh.flush()

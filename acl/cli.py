@@ -329,6 +329,8 @@ def main(argv: list[str] | None = None) -> int:
             sys.stdout.flush()
         except OSError as exc:
             return _stream_error(exc)
+        except ValueError:             # the command closed standard output itself (the language server)
+            pass
         return code
     except Terminated as exc:          # before or after the command ran (argument parsing, the last flush)
         return _terminated(exc)

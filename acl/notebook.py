@@ -25,7 +25,29 @@ def new_axes(ax=None, size=(6.0, 3.5)):
     from matplotlib.figure import Figure
 
     fig = Figure(figsize=size, layout="constrained")
-    return fig.add_subplot()
+    ax = fig.add_subplot()
+    shown(ax)
+    return ax
+
+
+def shown(ax):
+    """``ax``, displayed in a notebook as its figure: a Figure made without pyplot is not shown by the
+    inline backend, so `x.plot()` as a cell's last line showed `<Axes: ...>` (issue 28); the Axes
+    carries ``_repr_png_`` (IPython's display hook looks it up on the object) rendering its figure."""
+    def _repr_png_():
+        import io
+
+        from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+        fig = ax.figure
+        if not isinstance(fig.canvas, FigureCanvasAgg):
+            FigureCanvasAgg(fig)
+        buf = io.BytesIO()
+        fig.savefig(buf, format="png", dpi=100)
+        return buf.getvalue()
+
+    ax._repr_png_ = _repr_png_
+    return ax
 
 
 def html_table(title: str, header: list[str], rows: list[list[Any]], note: str = "") -> str:
@@ -40,6 +62,10 @@ def html_table(title: str, header: list[str], rows: list[list[Any]], note: str =
 
 def _khz(hz: float | None) -> str:
     return "-" if hz is None else f"{hz / 1e3:.1f}"
+
+
+def _num(v, fmt: str, scale: float = 1.0) -> str:
+    return "-" if v is None else fmt.format(v * scale)
 
 
 # ------------------------------------------------------------------------------------------------
@@ -171,6 +197,28 @@ class Analysis:
         rows = [[c.name, i + 1, _khz(m.frequency_hz), f"{m.q:.1f}", f"{m.dominant_orifice} ({m.share:.0%})"]
                 for c in self.capsules for i, m in enumerate(c.modes)]
         out = html_table(f"Capsule modes ({self.file})", ["capsule", "mode", "f (kHz)", "Q", "dominant orifice"], rows)
+        if self.selectivity:
+            out += html_table("Selectivity (response relative to each capsule's peak)",
+                              ["f (kHz)", "capsule", "response", "target", "crosstalk"],
+                              [[_khz(r["frequency_hz"]), r["capsule"], f"{r['relative_response']:.3f}",
+                                "yes" if r.get("target") else "", "CROSSTALK" if r.get("crosstalk") else ""]
+                               for r in self.selectivity])
+        if self.pairs:
+            out += html_table("Pairs (secondary Bjerknes force)",
+                              ["pair", "f (kHz)", "V", "force (N)", "", "critical distance (um)", "gap (um)", "snap-in (V)"],
+                              [[f"{p['a']}-{p['b']}", _khz(p.get("frequency_hz")), _num(p.get("voltage_v"), "{:g}"),
+                                _num(p.get("force_n"), "{:.3g}"), "attract" if p.get("attract") else "repel",
+                                _num(p.get("critical_distance_m"), "{:.1f}", 1e6), _num(p.get("gap_m"), "{:.1f}", 1e6),
+                                _num(p.get("snap_in_voltage_v"), "{:.3g}")] for p in self.pairs])
+        eq = self.equilibrium
+        if eq:
+            rows = [[f"capsule {c['name']}", "displacement (um)", ", ".join(f"{v * 1e6:.3g}" for v in c["displacement_m"])]
+                    for c in eq.get("capsules", [])]
+            rows += [[f"beam {k}", "tip deflection (um)", f"{v * 1e6:.3g}"] for k, v in (eq.get("deflections_m") or {}).items()]
+            rows += [[f"gap {g['a']}-{g['b']}", "gap (um)", f"{g['gap_m'] * 1e6:.3g}"] for g in eq.get("gaps", [])]
+            note = "; ".join(eq.get("warnings") or [])
+            out += html_table(f"Equilibrium at {eq.get('drive', '')}: {eq.get('status', '')}"
+                              + ("" if eq.get("stable", True) else " (unstable)"), ["", "quantity", "value"], rows, note)
         if self.requires:
             out += html_table("Requirements", ["requirement", "ok"], [[r["text"], "ok" if r["ok"] else "FAILED"]
                                                                     for r in self.requires])

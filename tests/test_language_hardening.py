@@ -107,11 +107,22 @@ def test_a_thousand_long_parameter_cycle_is_one_e214_naming_its_ends():
 
 
 @pytest.mark.parametrize("text, col", [
-    ("param s = " + " + ".join(["1 um"] * 500) + "\n", 11),
     ("param n = " + "-" * 1000 + "1 um\n", 209),
 ])
 def test_too_deep_expression_is_a_located_e104(text, col):
     assert _codes(text) == [("E104", 1, col)]
+
+
+def test_a_flat_chain_of_a_thousand_terms_is_not_nested():
+    """Issue 28: `a + b + ...` of 1,000 terms was E104 "nested deeper than 200 levels"; a chain is one list."""
+    d = _load("param s = " + " + ".join(["1 um"] * 1000) + "\n"
+              "param m = 2000 um - " + " - ".join(["1 um"] * 999) + "\n"
+              "param p = " + " * ".join(["1.001"] * 1000) + "\n"
+              "param q = 1 / " + " / ".join(["0.999"] * 999) + "\n")
+    assert _param(d, "s").value == pytest.approx(1000e-6, rel=1e-12)
+    assert _param(d, "m").value == pytest.approx(1001e-6, rel=1e-12)
+    assert _param(d, "p").value == pytest.approx(1.001 ** 1000, rel=1e-12)
+    assert _param(d, "q").value == pytest.approx(1 / 0.999 ** 999, rel=1e-12)
 
 
 def test_long_sum_within_the_limit_is_evaluated():

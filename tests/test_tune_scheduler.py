@@ -141,6 +141,8 @@ def test_the_command_refuses_a_bad_or_unreachable_scheduler_with_exit_2(capsys, 
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
         port = s.getsockname()[1]
-    assert main(["tune", str(FIG3), "--samples", "50", "--scheduler", f"tcp://127.0.0.1:{port}", "-o", str(out)]) == 2
+    # --path: a tuned design in tmp_path may extend FIG3 (else E-USAGE before the scheduler is tried)
+    assert main(["tune", str(FIG3), "--samples", "50", "--scheduler", f"tcp://127.0.0.1:{port}", "-o", str(out),
+                 "--path", str(FIG3.parent)]) == 2
     err = capsys.readouterr().err
     assert "E601" in err and "<--scheduler>" in err and not out.exists()

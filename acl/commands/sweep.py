@@ -44,6 +44,8 @@ def add_parser(p) -> None:
     p.add_argument("--plot", metavar="DIR", help="write PNG figures into DIR (histograms, yield, pass/fail map)")
     p.add_argument("--tolerance-scales", metavar="S1,S2,...",
                    help="also the yield with every spread scaled by each factor (yield vs tolerance; e.g. 0.5,1,2)")
+    p.add_argument("--timeout", type=_seconds, default=None, metavar="SECONDS",
+                   help="on a cluster: how long to wait when it has no worker left before giving up (E601; default 60)")
     add_output_format(p)
     add_design_options(p)
 
@@ -177,10 +179,20 @@ def run(args) -> int:
     return 0
 
 
+def _note(text: str, console=None) -> None:
+    """A note on stderr while the sweep runs (through the progress bar's console when there is one)."""
+    if console is not None:
+        console.print(f"[yellow]note:[/yellow] {text}")
+    else:
+        sys.stderr.write(f"acl sweep: note: {text}\n")
+        sys.stderr.flush()
+
+
 def _run(run_sweep, design, spec, args, overrides, quiet):
-    kw = dict(quantities=args.quantity, at=args.at, scheduler=args.scheduler, overrides=overrides, search_paths=args.path)
+    kw = dict(quantities=args.quantity, at=args.at, scheduler=args.scheduler, overrides=overrides, search_paths=args.path,
+              timeout=args.timeout)
     if quiet or spec.n_chunks < 2:
-        return run_sweep(design, spec, **kw)
+        return run_sweep(design, spec, notify=_note, **kw)
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 
     from acl._console import make_console
@@ -188,7 +200,8 @@ def _run(run_sweep, design, spec, args, overrides, quiet):
     with Progress(TextColumn("sweep"), BarColumn(), MofNCompleteColumn(), TextColumn("chunks"), TimeElapsedColumn(),
                   TimeRemainingColumn(), console=make_console(stderr=True), transient=True) as prog:
         bar = prog.add_task("sweep", total=spec.n_chunks)
-        return run_sweep(design, spec, progress=lambda done, total: prog.update(bar, completed=done), **kw)
+        return run_sweep(design, spec, progress=lambda done, total: prog.update(bar, completed=done),
+                         notify=lambda text: _note(text, prog.console), **kw)
 
 
 def _print(table, args, curve, written, design) -> None:
@@ -216,3 +229,16 @@ def _print(table, args, curve, written, design) -> None:
             con.print(f"  tolerance x{r['scale']:g}: yield {y.text()}")
     if written:
         con.print(f"wrote {len(written)} figure(s) to {args.plot}")
+
+
+def _seconds(text: str) -> float:
+    import argparse
+    import math
+
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number of seconds") from None
+    if not (math.isfinite(v) and v > 0):
+        raise argparse.ArgumentTypeError(f"{text!r}: give a number of seconds > 0")
+    return v

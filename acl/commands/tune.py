@@ -38,6 +38,8 @@ def add_parser(p) -> None:
     p.add_argument("-o", "--output", metavar="PATH", default=None,
                    help="where to write the tuned design (default: <stem>.tuned.acl next to DESIGN)")
     p.add_argument("--no-write", action="store_true", help="report only; write no tuned design")
+    p.add_argument("--timeout", type=_seconds, default=None, metavar="SECONDS",
+                   help="on a cluster: how long to wait when it has no worker left before giving up (E601; default 60)")
     add_output_format(p)
     p.add_argument("--path", action="append", default=[], metavar="DIR", help="extra folder imports may read from")
 
@@ -85,7 +87,9 @@ def run(args) -> int:
     if args.output == "-":
         diags.append(error("E-USAGE", "--output -: standard output cannot hold the tuned design (it extends DESIGN by a "
                            "relative path)", Span(file="<--output>", line=1, column=1), "give a path, or --no-write"))
-    if args.output and args.output.strip() and not args.output.endswith(".acl") and args.output != "-":
+    folder_out = bool(args.output and args.output.strip() and args.output != "-"
+                      and (args.output.endswith(("/", os.sep)) or os.path.isdir(args.output)))
+    if args.output and args.output.strip() and not folder_out and not args.output.endswith(".acl") and args.output != "-":
         diags.append(error("E-USAGE", f"--output {args.output!r}: a design file ends in .acl",
                            Span(file="<--output>", line=1, column=1), "e.g. -o tuned.acl"))
     from acl.sweep.run import scheduler_kind
@@ -100,11 +104,20 @@ def run(args) -> int:
     from acl.sweep import tune as T
 
     out_path = os.path.abspath(args.output) if args.output else T.default_path(design)
+    if folder_out:                  # -o FOLDER/: <stem>.tuned.acl in it
+        out_path = os.path.join(os.path.abspath(args.output), os.path.basename(T.default_path(design)))
     if not args.no_write:
         folder = os.path.dirname(out_path)
         if not os.path.isdir(folder):
             report([error("E601", f"cannot write the tuned design: no such folder {folder}",
                           Span(file="<--output>", line=1, column=1))], fmt)
+            return 2
+        if not T.reaches(folder, design, args.path):
+            # `extends` reads only the tuned file's folder and below, and --path folders (E210 otherwise)
+            report([error("E-USAGE", f"--output {args.output}: the tuned design extends {design}, which a design in "
+                          f"{folder} may not read (acl check would refuse it: E210)", Span(file="<--output>", line=1, column=1),
+                          f"write it in {os.path.dirname(os.path.abspath(design)) or '.'} or a folder above it (the default "
+                          "is beside DESIGN), or pass --path with DESIGN's folder here and to acl check/compile")], fmt)
             return 2
         if os.path.abspath(design) == out_path:
             report([error("E-USAGE", "--output names DESIGN itself; the tuned design extends it",
@@ -169,9 +182,13 @@ def _search(T, problem, args):
     from acl._console import make_console
 
     console = make_console(stderr=True, highlight=False)
+
+    def note(text: str) -> None:
+        console.print(f"[yellow]note:[/yellow] {text}")
+
     if args.quiet or not console.is_terminal:
         return T.tune(problem, objective=args.objective, method=args.method, max_evals=args.max_evals,
-                      scheduler=args.scheduler)
+                      scheduler=args.scheduler, timeout=args.timeout, notify=note)
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
     with Progress(TextColumn("tuning"), BarColumn(), MofNCompleteColumn(), TextColumn("best yield {task.fields[best]}"),
@@ -179,7 +196,7 @@ def _search(T, problem, args):
         task = bar.add_task("tune", total=args.max_evals, best="-")
         return T.tune(problem, objective=args.objective, method=args.method, max_evals=args.max_evals,
                       progress=lambda done, total, best: bar.update(task, completed=done, best=f"{best:.3f}"),
-                      scheduler=args.scheduler)
+                      scheduler=args.scheduler, timeout=args.timeout, notify=lambda text: bar.console.print(f"note: {text}"))
 
 
 def _command_line(args) -> str:
@@ -199,6 +216,11 @@ def _render(result, written, quiet) -> None:
 
     console = make_console()
     p = result.problem
+    summary = (f"yield before {result.before.text()}, after {result.after.text()} "
+               f"({result.objective}, {result.search.evaluations} trials on {p.samples} samples, seed {p.seed})")
+    if quiet:                       # -q: the one line, as acl sweep -q
+        print(summary)
+        return
     t = Table(title="Free parameters")
     for col in ("parameter", "start", "chosen", "range"):
         t.add_column(col)
@@ -214,9 +236,8 @@ def _render(result, written, quiet) -> None:
         r.add_row(q["text"], str(q["line"]), q["before"].text(), q["after"].text(), shown)
     r.add_row("all together", "", result.before.text(), result.after.text(), "")
     console.print(r)
-    print(f"yield before {result.before.text()}, after {result.after.text()} "
-          f"({result.objective}, {result.search.evaluations} trials on {p.samples} samples, seed {p.seed})")
-    if written and not quiet:
+    print(summary)
+    if written:
         here = os.path.relpath(written)
         shown = here if not here.startswith("..") else written
         make_console(stderr=True, highlight=False).print(f"tuned design written to {shown}")
@@ -227,3 +248,16 @@ def _write_atomic(path: str, text: str) -> None:
     from acl.emit.atomic import write_text_atomic
 
     write_text_atomic(path, text)
+
+
+def _seconds(text: str) -> float:
+    import argparse
+    import math
+
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number of seconds") from None
+    if not (math.isfinite(v) and v > 0):
+        raise argparse.ArgumentTypeError(f"{text!r}: give a number of seconds > 0")
+    return v

@@ -180,7 +180,7 @@ PROPERTY_RANGES = {
     ("capsule", "q"): (0.1, 1e4, "a bubble mode's quality factor: below 0.1 there is no resonance left, above 1e4 no "
                                  "liquid-loaded bubble (radiation and viscous damping alone bound Q to tens)"),
     ("latch", "length"): (1e-7, 1e-2, "a printed flexure: from a voxel (about 100 nm) to 10 mm, beyond any "
-                                      "two-photon print field (`width = 1e308 um` overflowed the latch model)"),
+                                      "two-photon print field"),
     ("latch", "width"): (1e-7, 1e-2, "a printed flexure: from a voxel (about 100 nm) to 10 mm"),
     ("latch", "thickness"): (1e-7, 1e-2, "a printed flexure: from a voxel (about 100 nm) to 10 mm"),
     ("transducer", "gain"): (0.0, 1e6, "pressure per volt: focused HIFU transducers reach about 1e4 Pa/V; at 1e6 Pa/V "

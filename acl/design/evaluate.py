@@ -129,26 +129,37 @@ class Resolver:
                 return DirVal(tuple(-c for c in v.vector))
             return -self._num(v, e.operand)
         if isinstance(e, A.BinOp):
-            left = self._eval(e.left, env)
-            right = self._eval(e.right, env)
-            try:
-                out = self._binop(e, left, right)
-                if not _finite(out):
-                    self.bag.error("E305", f"result of `{e.op}` is not finite (overflow)", e.span,
-                                   "check the magnitudes and units of both sides")
-                    raise Fail()
-                return out
-            except DimensionError as exc:
-                self.bag.error("E303", str(exc), e.span)
-            except ZeroDivisionError:
-                self.bag.error("E305", "division by zero", e.span)
-            except OverflowError:
+            # a chain `a + b + ... ` is left-nested: walk its left operands iteratively (a flat sum of 1,000
+            # terms is 1,000 BinOps deep), evaluating in the order the recursion did: left, right, operator
+            spine = []
+            while isinstance(e, A.BinOp):
+                spine.append(e)
+                e = e.left
+            acc = self._eval(e, env)
+            for node in reversed(spine):
+                acc = self._apply(node, acc, self._eval(node.right, env))
+            return acc
+        self.bag.error("E304", "unsupported expression", e.span)
+        raise Fail()
+
+    def _apply(self, e: A.BinOp, left, right):
+        """``left e.op right``, or a located E303/E305 and Fail."""
+        try:
+            out = self._binop(e, left, right)
+            if not _finite(out):
                 self.bag.error("E305", f"result of `{e.op}` is not finite (overflow)", e.span,
                                "check the magnitudes and units of both sides")
-            except ValueError as exc:
-                self.bag.error("E305", str(exc), e.span)
-            raise Fail()
-        self.bag.error("E304", "unsupported expression", e.span)
+                raise Fail()
+            return out
+        except DimensionError as exc:
+            self.bag.error("E303", str(exc), e.span)
+        except ZeroDivisionError:
+            self.bag.error("E305", "division by zero", e.span)
+        except OverflowError:
+            self.bag.error("E305", f"result of `{e.op}` is not finite (overflow)", e.span,
+                           "check the magnitudes and units of both sides")
+        except ValueError as exc:
+            self.bag.error("E305", str(exc), e.span)
         raise Fail()
 
     def _binop(self, e: A.BinOp, left, right):

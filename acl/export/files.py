@@ -113,22 +113,10 @@ def _threemf_unit(data: bytes, unit: str) -> bytes:
 
 
 def write_atomic(path: str, data: bytes) -> None:
-    """``data`` into ``path`` through a temporary file beside it and one rename."""
-    from acl._files import as_umask
+    """``data`` into ``path`` through a temporary file beside it and one rename (acl._files.write_bytes_atomic)."""
+    from acl._files import write_bytes_atomic
 
-    folder = os.path.dirname(os.path.abspath(path))
-    fd, tmp = tempfile.mkstemp(prefix=".acl-export-", suffix=".tmp", dir=folder)
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
-            fh.flush()
-            os.fsync(fh.fileno())
-        as_umask(tmp, directory=False)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+    write_bytes_atomic(path, data, prefix=".acl-export-")
 
 
 def stage(path: str, data: bytes) -> str:

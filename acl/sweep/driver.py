@@ -13,6 +13,7 @@ from acl.sweep.perturb import FieldMap, field_batch, field_map
 from acl.sweep.sample import chunk_points, chunk_range
 from acl.sweep.spec import SweepSpec
 from acl.sweep.table import SweepTable, assemble
+from acl.sweep.validity import mark_outside_free_ranges, without_free_ranges
 
 
 @dataclass(frozen=True)
@@ -31,7 +32,9 @@ class ChunkTask:
         spec = self.spec
         start, stop = chunk_range(spec, k, spec.chunk_size)
         pts = chunk_points(spec, k, spec.chunk_size)
-        batch = field_batch(self.design, pts, self.fmap)
+        # one rule with acl tune: a `free` range bounds the grid's or nominal value, not the print about it
+        batch = field_batch(without_free_ranges(self.design), pts, self.fmap)
+        mark_outside_free_ranges(batch, self.design, chunk_points(spec, k, spec.chunk_size, spread=False))
         cols = evaluate(batch, list(self.quantities), self.at)
         return {"point": np.arange(start, stop, dtype=np.int64), **pts, "valid": batch.valid.copy(),
                 "code": batch.code.copy(), **cols}
@@ -111,8 +114,9 @@ def _nominal_program_only(design: Design, fmap: FieldMap, cols: list[str], expli
 
 
 def run_sweep(design: Design, spec: SweepSpec, quantities=None, at: str | None = None, scheduler: str | None = None,
-              progress=None, overrides=None, search_paths=()) -> SweepTable:
-    """Evaluate every point of ``spec`` on ``design`` (loaded from ``design.file`` with ``overrides``)."""
+              progress=None, overrides=None, search_paths=(), timeout: float | None = None, notify=None) -> SweepTable:
+    """Evaluate every point of ``spec`` on ``design`` (loaded from ``design.file`` with ``overrides``);
+    ``timeout``/``notify``: a cluster without workers (acl.sweep.run.map_chunks)."""
     from acl.sweep.run import map_chunks
 
     cols, unevaluated = choose_quantities(design, quantities, at)
@@ -122,7 +126,7 @@ def run_sweep(design: Design, spec: SweepSpec, quantities=None, at: str | None =
         if f"require_{i}_pass" in dropped:
             unevaluated[f"require_{i}"] = f"require_{i} (`{r.text}`): {dropped[f'require_{i}_pass']}"
     task = ChunkTask(design, spec, fmap, tuple(cols), at)
-    parts = map_chunks(task, spec.n_chunks, scheduler, progress)
+    parts = map_chunks(task, spec.n_chunks, scheduler, progress, timeout, notify)
     order = ["point", *spec.names, "valid", "code", *cols]
     units = {n: spec.units[n] for n in spec.names}
     notes = list(spec.notes) + list(fmap.notes)

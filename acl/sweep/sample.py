@@ -25,8 +25,11 @@ def chunk_range(spec: SweepSpec, chunk: int, chunk_size: int) -> tuple[int, int]
     return start, min(start + chunk_size, spec.n_points)
 
 
-def chunk_points(spec: SweepSpec, chunk: int, chunk_size: int) -> dict[str, np.ndarray]:
-    """{parameter: SI values} of the points of ``chunk``; deterministic per (seed, chunk)."""
+def chunk_points(spec: SweepSpec, chunk: int, chunk_size: int, spread: bool = True) -> dict[str, np.ndarray]:
+    """{parameter: SI values} of the points of ``chunk``; deterministic per (seed, chunk).
+
+    ``spread=False``: the values the points are drawn about (the grid's or the nominal), before the
+    tolerances move them: what a `free` range bounds (acl.sweep.validity.mark_outside_free_ranges)."""
     start, stop = chunk_range(spec, chunk, chunk_size)
     k = np.arange(start, stop, dtype=np.int64)
     g = k // spec.samples
@@ -35,7 +38,7 @@ def chunk_points(spec: SweepSpec, chunk: int, chunk_size: int) -> dict[str, np.n
         idx = np.unravel_index(g, spec.grid_shape)
         for a, i in zip(spec.axes, idx):
             out[a.name] = a.values[i].astype(float)
-    if spec.montecarlo and spec.tolerances:
+    if spread and spec.montecarlo and spec.tolerances:
         rng = np.random.Generator(np.random.PCG64(np.random.SeedSequence([spec.seed, chunk])))
         z = rng.standard_normal((k.size, len(spec.tolerances)))
         if spec.correlation is not None:

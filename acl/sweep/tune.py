@@ -301,8 +301,9 @@ class Problem:
         self.fmap = field_map(self.design, names, box, search_paths=self.search_paths)
         # `free in lo .. hi` bounds where the search may put the drawn value; a printed device deviates
         # from it by its spread, beyond the range too: such samples are devices, not E306 points
-        unbounded = tuple(q.model_copy(update={"lower": None, "upper": None}) if q.free else q for q in self.design.params)
-        self.batch_design = self.design.model_copy(update={"params": unbounded})
+        from acl.sweep.validity import without_free_ranges
+
+        self.batch_design = without_free_ranges(self.design)
 
     def points(self, x: np.ndarray, block: int = 0) -> dict[str, np.ndarray]:
         """{parameter: SI values} of the search (block 0) or validation (block 1) sample about free values ``x``."""
@@ -477,7 +478,8 @@ class Tuned:
 
     def write(self, path: str | None = None, command: str = "") -> str:
         """Write the tuned design (it ``extends`` the original; default ``<stem>.tuned.acl`` beside it)
-        atomically; returns the path written."""
+        atomically; returns the path written.  Written outside the original's folder tree, it loads
+        only with that folder among the search paths (:func:`reaches`; `acl tune -o` refuses such a folder)."""
         import os
 
         from acl.emit.atomic import write_text_atomic
@@ -489,6 +491,39 @@ class Tuned:
     def __repr__(self) -> str:
         chosen = ", ".join(f"{f.name}={literal(c, f.unit)}" for f, c in zip(self.problem.free, self.chosen))
         return f"<Tuned {chosen}: yield before {self.before.text()}, after {self.after.text()}>"
+
+    def _repr_html_(self) -> str:
+        """The free parameters (start, chosen, range) and the yield before and after, per require."""
+        from acl.notebook import html_table
+
+        p = self.problem
+        out = html_table("Free parameters", ["parameter", "start", "chosen", "range"],
+                         [[f.name, literal(s, f.unit), literal(c, f.unit), f"{literal(f.lower, f.unit)} .. {literal(f.upper, f.unit)}"]
+                          for f, s, c in zip(p.free, self.start, self.chosen)])
+        rows = [[q["text"], q["before"].text(), q["after"].text()] for q in self.per_require]
+        rows.append(["all together", self.before.text(), self.after.text()])
+        return out + html_table(f"Yield on {p.validate} fresh samples (95% Clopper-Pearson interval)",
+                                ["requirement", "before", "after"], rows,
+                                f"{self.objective}, {self.search.evaluations} trials on {p.samples} samples, seed {p.seed}")
+
+    def plot(self, ax=None):
+        """The search: each trial's exact yield on the search sample, and the best so far; returns the Axes."""
+        from acl.notebook import new_axes
+
+        ax = new_axes(ax)
+        n = max(self.problem.samples, 1)
+        y = np.array([h[2] for h in self.search.history], float) / n
+        k = np.arange(1, len(y) + 1)
+        ax.plot(k, y, ".", alpha=0.6, label="trial")
+        if len(y):
+            ax.plot(k, np.maximum.accumulate(y), "-", label="best so far")
+        ax.axhline(self.after.value, ls="--", color="0.4", lw=1, label=f"validated after: {self.after.value:.3f}")
+        ax.set_xlabel("trial")
+        ax.set_ylabel("yield (search sample)")
+        ax.set_ylim(-0.02, 1.02)
+        ax.set_title("acl tune: search")
+        ax.legend(fontsize="small")
+        return ax
 
     def to_json(self) -> dict:
         def est(e: Estimate) -> dict:
@@ -517,14 +552,16 @@ def _finite(x: float) -> float | None:
 
 
 def tune(problem: Problem, objective: str = "yield", method: str = "nelder-mead", max_evals: int = 200,
-         progress: Callable[[int, int, float], None] | None = None, scheduler: str | None = None) -> Tuned:
+         progress: Callable[[int, int, float], None] | None = None, scheduler: str | None = None,
+         timeout: float | None = None, notify: Callable[[str], None] | None = None) -> Tuned:
     """Search, then validate the start and the written values on the fresh sample.
 
     ``scheduler``: where trials run, as ``acl sweep --scheduler``: None/"local" (this machine, a
     thread per core) or "tcp://HOST:PORT" (a dask.distributed cluster, ``acl[scale]``).  Trials the
     search knows in advance (its scan, a differential-evolution generation, the first simplex, the
     validation) run together; each trial evaluates its whole sample in one task, so the result is
-    the same bit for bit on any scheduler.
+    the same bit for bit on any scheduler.  ``timeout``/``notify``: a cluster left without workers
+    (acl.sweep.run.map_chunks).
 
     Raises DiagnosticError E875 when no validation sample passes at the chosen values (infeasible
     within the free ranges, as far as the search looked).
@@ -542,7 +579,7 @@ def tune(problem: Problem, objective: str = "yield", method: str = "nelder-mead"
         problem.setup()
     t0 = time.perf_counter()
     start = np.array([f.start for f in problem.free], float)
-    with Executor(scheduler, connect=False) as ex:
+    with Executor(scheduler, connect=False, timeout=timeout, notify=notify) as ex:
         def run(jobs: list) -> list:
             return ex.map(MarginJobs(problem, tuple((tuple(float(v) for v in x), b) for x, b in jobs)), len(jobs))
 
@@ -578,6 +615,16 @@ def tune(problem: Problem, objective: str = "yield", method: str = "nelder-mead"
 # ------------------------------------------------------------------------------------------------
 # The tuned design: `extends` the original, the free parameters redeclared with the chosen values
 # ------------------------------------------------------------------------------------------------
+
+def reaches(folder: str, design_path: str, search_paths=()) -> bool:
+    """Whether a design in ``folder`` may extend ``design_path`` (`acl check` reads an `extends` only from the
+    design's folder and below, or a --path folder: E210): it lies in ``folder`` or below, or in a search path."""
+    import os
+
+    real = os.path.realpath(design_path)
+    roots = [os.path.realpath(folder), *(os.path.realpath(p) for p in search_paths or ())]
+    return any(real.startswith(r.rstrip(os.sep) + os.sep) for r in roots)
+
 
 def default_path(design_path: str) -> str:
     """``<folder>/<stem>.tuned.acl`` next to the original (its ``extends`` then needs no --path)."""

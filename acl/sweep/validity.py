@@ -1,6 +1,7 @@
 """The resolver's geometry and printability checks (acl.design.builders, acl.design.checks), per point.
 
-Vectorised over a :class:`~acl.sweep.perturb.FieldBatch` (plus E306, a `free` parameter outside its bounds): each check marks the points it fails with
+Vectorised over a :class:`~acl.sweep.perturb.FieldBatch` (plus E306, a `free` parameter outside its bounds; a sweep and
+``acl tune`` check that on the chosen values instead, :func:`without_free_ranges`): each check marks the points it fails with
 the diagnostic code the resolver would give the same design, the first failing check winning.
 Only fields that can vary are read (directions and shapes are fixed by the nominal design).
 """
@@ -32,6 +33,31 @@ def _extent_cols(shape: str, u: np.ndarray, axis, radius, side, height, volume, 
         across = radius if shape == "cylinder" else side / math.sqrt(3)
         return ca * height / 2 + across * np.sqrt(np.maximum(0.0, 1 - ca * ca)) + wall
     return (3 * volume / (4 * math.pi)) ** (1 / 3) + wall
+
+
+def without_free_ranges(design):
+    """``design`` with its `free` ranges dropped: the batch a sweep or tune evaluates (the one rule of both).
+
+    `free in lo .. hi` bounds the value a designer may choose (a grid's, the nominal, the tuner's
+    trial), not the printed device: a device drawn about a value at its bound deviates beyond it by
+    its spread, and is a device to evaluate, not an E306 point (issue 28: a tuned design, its values
+    on the bounds, swept to yield 0.25 where acl tune had validated 1.0)."""
+    params = tuple(q.model_copy(update={"lower": None, "upper": None}) if q.free and q.lower is not None else q
+                   for q in design.params)
+    return design.model_copy(update={"params": params})
+
+
+def mark_outside_free_ranges(batch, design, chosen: dict) -> None:
+    """E306 at the points whose chosen value (``chosen``: {parameter: SI values before the spreads move
+    them}) lies outside its `free` range in ``design``; it wins over any code found before."""
+    for p in design.params:
+        arr = chosen.get(p.name)
+        if arr is None or not p.free or p.lower is None or p.upper is None:
+            continue
+        bad = (np.asarray(arr) < p.lower) | (np.asarray(arr) > p.upper)
+        if bad.any():
+            batch.code[bad] = "E306"
+            batch.valid[bad] = False
 
 
 def check_points(batch) -> None:

@@ -1,6 +1,7 @@
 """Source text -> syntax tree with spans (lark LALR), with per-statement error recovery."""
 from __future__ import annotations
 
+import bisect
 import contextlib
 import functools
 import gc
@@ -132,6 +133,9 @@ def _span(file: str, meta_or_tok) -> Span:
     return Span(file=file, line=m.line, column=m.column, end_line=m.end_line, end_column=m.end_column)
 
 
+_TOKEN_NODES = (A.Qty, A.Num, A.Str, A.Dir)     # nodes built from one token (no tree of their own)
+
+
 class _Builder:
     """lark tree -> acl.syntax.ast nodes.
 
@@ -185,6 +189,7 @@ class _Builder:
         self.file = file
         self.source = source
         self._lines: list[str] | None = None   # split once, on first need
+        self._starts: list[int] | None = None  # offset of each line's start (chains with parentheses)
 
     def _s(self, x) -> Span:
         return _span(self.file, x)
@@ -233,11 +238,80 @@ class _Builder:
             return A.BinOp(self._s(meta), op, children[0], children[1])
         return f
 
-    add = _bin("+")
-    sub = _bin("-")
-    mul = _bin("*")
-    div = _bin("/")
     pow = _bin("^")
+
+    def _chain(self, meta, children):
+        """``t0 op1 t1 op2 t2 ...`` (a flat chain: one tree level however long, so a sum of 1,000 terms is
+        not "nested") -> BinOp nodes folded left to right, with the spans a left-nested parse gave them:
+        each from the chain's first token to its right operand's last, a closing parenthesis included."""
+        out = children[0]
+        whole = self._s(meta)
+        last = len(children) - 2
+        for i in range(1, len(children), 2):
+            right = children[i + 1]
+            if i == last:
+                end_line, end_column = whole.end_line, whole.end_column
+            elif type(right) in _TOKEN_NODES:        # `(4)`: a token's parentheses never counted (lark's inlining)
+                end_line, end_column = right.span.end_line, right.span.end_column
+            else:
+                end_line, end_column = self._group_end(right.span, children[i + 2])
+            span = Span(file=whole.file, line=whole.line, column=whole.column, end_line=end_line, end_column=end_column)
+            out = A.BinOp(span, str(children[i]), out, right)
+        return out
+
+    def _group_end(self, span: Span, op: Token) -> tuple[int, int]:
+        """End (line, column) of a chain's term as lark's positions counted it: its span's end, after the
+        parentheses that wrap the whole term (they close between it and the next operator ``op``)."""
+        if self._starts is None:
+            self._starts = [0] + [m.end() for m in re.finditer("\n", self.source)]
+        starts, src = self._starts, self.source
+        begin = starts[span.line - 1] + span.column - 1
+        finish = starts[span.end_line - 1] + span.end_column - 1
+        opened = 0                       # `(` between the previous operator and the term's first token
+        i = begin - 1
+        while i >= 0:
+            if src[i] in "( \t\f\r\n\\":
+                opened += src[i] == "("
+                i -= 1
+                continue
+            hash_ = src.find("#", starts[bisect.bisect_right(starts, i) - 1], i + 1)
+            if hash_ < 0:                # the previous operator (a comment on the line is skipped)
+                break
+            i = hash_ - 1
+        balance = low = 0                # `)` inside the term closing a `(` opened before it
+        i = begin
+        while i < finish:
+            c = src[i]
+            if c == "#":
+                i = src.find("\n", i, finish) if "\n" in src[i:finish] else finish
+                continue
+            if c == '"':
+                q = src.find('"', i + 1, finish)
+                i = finish if q < 0 else q + 1
+                continue
+            balance += (c == "(") - (c == ")")
+            low = min(low, balance)
+            i += 1
+        # parens wrap the whole term when some opened before it stay open through it; the gap after it
+        # closes first those opened inside it and left open (`(1 + (4))`: the span ends at `4`), then those
+        wraps = opened + balance if opened + low > 0 else 0
+        line, col = span.end_line, span.end_column
+        i = finish
+        while wraps > 0 and i < op.start_pos:
+            c = src[i]
+            if c == "#":
+                nl = src.find("\n", i, op.start_pos)
+                i = op.start_pos if nl < 0 else nl
+                continue
+            if c == ")":
+                wraps -= 1
+                line = bisect.bisect_right(starts, i)
+                col = i - starts[line - 1] + 2
+            i += 1
+        return line, col
+
+    sum = _chain
+    product = _chain
 
     def range(self, meta, children):
         return A.Range(self._s(meta), children[0], children[2])
