@@ -149,3 +149,33 @@ def test_compile_widens_a_follow_band_by_the_model_form_uncertainty(monkeypatch)
     assert np.isfinite(base.rms_error_p95_m)
     assert g.rms_error_p95_m == pytest.approx(float(np.hypot(base.rms_error_p95_m, rel * size)), rel=1e-9)
     assert g.rms_error_p95_m > base.rms_error_p95_m
+
+
+def test_table_s2_calibrated_latch_material_switches_at_the_measured_force():
+    # CALIBRATION (Table S2, experimental column, 45 deg: 8.95 nN): stdlib materials.tpeta_latch45_measured is the
+    # modulus at which acl's latch model (L 50 um, w 1 um, t 1.7 um) switches at that force; 1e-3 relative.
+    # The same modulus at 30 and 60 deg is a prediction, documented (docs/physics.md, "Paper vs acl"), not asserted:
+    # 6.3 and 11.5 nN against the measured 1.09 and 16.92 nN.
+    from acl.physics.latch import latch_landscape
+
+    d = acl.loads("import stdlib.materials\nmaterial m like materials.tpeta_latch45_measured { }\n",
+                  filename=str(ROOT / "examples" / "m.acl"))
+    (mat,) = [m for m in d.materials if m.name == "m"]
+    f45 = latch_landscape(np.radians(45), 50e-6, 1.0e-6, 1.7e-6, mat.youngs_modulus).switching_force
+    assert f45 == pytest.approx(8.95e-9, rel=1e-3)
+    for name in ("fig6_bistable_latch", "fig6e_reversible_latch", "fig6f_control_module"):
+        lt = acl.load(str(ROOT / "examples" / f"{name}.acl")).latches[0]
+        assert lt.youngs_modulus == pytest.approx(mat.youngs_modulus, rel=1e-12)       # the examples use it
+
+
+@pytest.mark.studies
+@pytest.mark.parametrize("name", sorted(p.stem for p in (ROOT / "examples").glob("fig*.acl")))
+def test_every_example_program_compiles_without_allow_nonlinear(tmp_path, name):
+    # Issue 24: twelve shipped programs stopped with E-SCHED-NONLINEAR (eps/R > 0.25); now each compiles, warned
+    # (W-ACOUSTIC-AMPLITUDE) and with its band widened where it passes 0.25.  About 100 s for all (band 0).
+    from acl.schedule.compile import CompileOptions, compile_program
+
+    d = acl.load(str(ROOT / "examples" / f"{name}.acl"))
+    for p in d.programs:
+        s = compile_program(d, p.name, CompileOptions(band_samples=0))
+        assert s.segments
