@@ -76,6 +76,10 @@ def test_analyze_at_warns_when_orifices_are_closer_than_the_monopole_limit():
     rep = analyze(d, at=Drive(tones=(Tone(frequency=125e3, amplitude=0.5),)), snap_in=False).as_dict()
     (mono,) = [v for v in rep["equilibrium"]["validity"] if v["code"] == "W-ACOUSTIC-MONOPOLE"]
     assert mono["value"] < 2 and mono["model_form_force_rel"] == pytest.approx(1 / mono["value"] ** 2, rel=1e-9)
+    # the pair table states the same limit at rest: 30 um between 10 um orifices is 1.5 x (R_a + R_b)
+    (pair,) = [p for p in rep["pairs"] if p["frequency_hz"] == 125e3]
+    assert pair["monopole_distance_ratio"] == pytest.approx(1.5, rel=1e-6)
+    assert pair["monopole_model_form_rel"] == pytest.approx(1 / 1.5**2, rel=1e-6)
 
 
 # ------------------------------------------------------------------------------------------------

@@ -158,6 +158,8 @@ def analyze(design: M.Design, at: M.Drive | None = None, snap_in: bool = True, p
                 # reduced paper Eq. 3 value sqrt(alpha / 2 gamma) at rest (2 gamma: the two thrusts)
                 "critical_distance_m": net_critical_distance(design, drive, pf.a, pf.b),
                 "critical_distance_eq3_m": pf.critical_distance, "gap_m": pf.distance,
+                # point-monopole validity at rest (acl.physics.validity.MONOPOLE_DISTANCE): gap / (R_a + R_b)
+                **_monopole(design, pf),
                 "snap_in_voltage_v": snaps.get(f, (None, ""))[0],
                 "sweep_status": snaps.get(f, (None, "not computed"))[1],
                 "q_predicted": [modes[pf.a][0].q_predicted if modes[pf.a] else None,
@@ -222,6 +224,17 @@ def analyze(design: M.Design, at: M.Drive | None = None, snap_in: bool = True, p
         rep.equilibrium["validity"] = validity_at(design, at, st, modes)
     rep.requires = [_require(design, r, modes, rep) for r in design.requires]
     return rep
+
+
+def _monopole(design: M.Design, pf) -> dict:
+    """``monopole_distance_ratio`` gap / (R_a + R_b) of a pair at rest (largest orifice of each capsule) and the
+    ``monopole_model_form_rel`` ((R_a + R_b)/gap)^2 its forces carry below the limit (0 above; acl.physics.validity)."""
+    from acl.physics import validity as VA
+
+    rsum = max(o.radius for o in design.capsule(pf.a).orifices) + max(o.radius for o in design.capsule(pf.b).orifices)
+    ratio = pf.distance / rsum
+    rel = float(VA.monopole_model_form(pf.distance, rsum)) if ratio < VA.MONOPOLE_DISTANCE.value else 0.0
+    return {"monopole_distance_ratio": float(ratio), "monopole_model_form_rel": rel}
 
 
 def validity_at(design: M.Design, drive: M.Drive, st, modes: dict) -> list[dict]:
