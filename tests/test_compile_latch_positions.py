@@ -240,3 +240,18 @@ def test_a_switch_without_a_neighbour_settles_in_its_new_state():
     goals = [g for g in s.goals if g.kind == "switch" and not g.details.get("already")]
     assert goals and all(g.details["aftermath"].startswith("stable") for g in goals)
     assert not [w for w in s.warnings if w.code == "W-SCHED-CONTACT"]
+
+
+def test_the_tracking_help_does_not_recommend_the_passes_already_given(tmp_path):
+    """Issue 28: W-SCHED-TRACKING said "re-plan ... (--nonlinear-passes 3)" to a compile given --nonlinear-passes 3.
+    A tolerance no plan can meet keeps the warning after three passes: it now says they were not enough."""
+    src = _design(tmp_path, "fig6f_control_module.acl", [TO_B, "pause 100 ms", _path("-")])
+    tight = dict(band_samples=0, allow_nonlinear=True, tolerance_m=0.021e-6)   # just above the sampling miss
+    for passes in (0, 3):
+        s = compile_program(acl.load(src), "p", CompileOptions(nonlinear_passes=passes, **tight))
+        hints = [w.hint for w in s.warnings if w.code == "W-SCHED-TRACKING"]
+        assert hints, passes
+        if passes == 0:
+            assert all("--nonlinear-passes 3" in h for h in hints)
+        else:
+            assert all("3 nonlinear passes were not enough" in h and "--nonlinear-passes" not in h for h in hints)

@@ -88,3 +88,19 @@ def test_an_80_column_terminal_sees_every_number(tmp_path):
     block = r.stdout[r.stdout.index("Bubble pairs"):]
     assert "left-right" in block and "125.0" in block and "3.25" in block and "attract" in block
     assert max(len(line) for line in r.stdout.splitlines()) <= 80
+
+
+def test_acl_rule_examples_can_be_pasted_as_they_stand(tmp_path, capsys):
+    """`acl rule ACL201` printed examples without their imports: pasted into a file they were E201."""
+    import re
+
+    assert main(["rule", "ACL201"]) == 0
+    page = capsys.readouterr().out
+    blocks = dict(re.findall(r"```acl (fails|passes)\n(.*?)```", page, re.S))
+    for kind, body in blocks.items():
+        f = tmp_path / f"{kind}.acl"
+        f.write_text(body)
+        code = main(["lint", str(f), "--output-format", "json"])
+        out = capsys.readouterr().out
+        assert '"E201"' not in out and "E2" not in out.split('"code"')[0], out[:300]
+        assert ('"ACL201"' in out) == (kind == "fails"), (kind, code, out[:500])

@@ -34,4 +34,4 @@ def test_the_note_reaches_the_table(tmp_path, capsys):
                "-o", str(tmp_path / "t.csv")])
     out = capsys.readouterr()
     assert rc == 0, out.err
-    assert "columns left out: tip_deflection" in " ".join((out.out + out.err).split())
+    assert "columns not computed: tip_deflection" in " ".join((out.out + out.err).split())

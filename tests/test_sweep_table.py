@@ -170,8 +170,8 @@ def test_parameter_moving_a_drive_amplitude_keeps_the_program_columns_per_point(
     assert "resonance_low_1_hz" in t.columns and "force_low_high_85khz_n" in t.columns
     # no program column left out (a deflection without `at` is, and says so: acl.sweep.driver.left_out)
     assert not any("left out" in n and "a swept parameter moves" in n for n in t.notes), t.notes
-    assert [n for n in t.notes if "left out" in n] == [
-        "columns left out: tip_deflection: deflections need a drive: give `at` (like `acl analyze --at`)"]
+    assert [n for n in t.notes if "not computed" in n] == [
+        "columns not computed: tip_deflection: deflections need a drive: give `at` (like `acl analyze --at`)"]
     f = t["force_low_high_85khz_n"]
     assert f[1] / f[0] == pytest.approx(4, rel=1e-12) and f[2] / f[0] == pytest.approx(9, rel=1e-12)   # F ~ V^2
     moved = acl.sweep(path, vary={"spacing": "80um..120um:3"})      # geometry only: forces are batched

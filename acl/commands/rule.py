@@ -66,6 +66,19 @@ def code_entries() -> dict[str, dict]:
     return out
 
 
+_EXAMPLE = re.compile(r"```acl (fails|passes)\n")
+
+
+def with_preamble(text: str) -> str:
+    """A rule page whose examples hold the imports docs/rules.md declares once (its ```acl preamble``` block), so
+    each example can be pasted into a file as it stands (without them, `use transducer transducers...` was E201)."""
+    m = re.search(r"```acl preamble\n(.*?)```", _read("rules.md"), re.S)
+    if not m:
+        return text
+    head = m.group(1)
+    return _EXAMPLE.sub(lambda e: e.group(0) + head, text)
+
+
 def mention(code: str) -> dict | None:
     """A code documented in prose only: the first paragraph of docs/*.md that names it in backticks."""
     for name in sorted(os.listdir(_docs()), key=lambda n: (n != "language.md", n)):
@@ -104,7 +117,7 @@ def run(args) -> int:
         sys.stdout.write(json.dumps(entry, indent=2) + "\n")
     elif code.startswith("ACL"):
         sys.stdout.write(f"{code} {entry['name']} (default severity {entry['severity']}, family {entry['family']})\n\n")
-        sys.stdout.write(entry["text"])
+        sys.stdout.write(with_preamble(entry["text"]))
     else:
         sys.stdout.write(f"{code} ({entry['severity']}): {entry['text']}\nsee {entry['source']}\n")
     return 0

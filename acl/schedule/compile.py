@@ -1274,7 +1274,10 @@ class _Compiler:
                 TRACKING_CODE, Severity.WARNING, f"{name}: re-simulated through the nonlinear model the path {worst}, "
                 f"beyond the {self.opts.tolerance_m * 1e6:g} um tolerance the plan meets on its linear gains",
                 step.span,
-                "re-plan against the nonlinear model (--nonlinear-passes 3); or move the path or the tones to where "
+                (f"re-plan against the nonlinear model (--nonlinear-passes {max(3, 2 * self.opts.nonlinear_passes)}); or "
+                 if self.opts.nonlinear_passes < 3 else
+                 f"{self.opts.nonlinear_passes} nonlinear passes were not enough: ")
+                + "move the path or the tones to where "
                 "the linear model holds (the plan's gains are the model linearised at zero drive where the step starts: "
                 "a large deflection and the change of the neighbours' forces as the capsules move are not in them)"))
         rep.details.update({

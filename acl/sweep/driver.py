@@ -58,7 +58,7 @@ def left_out(design: Design, at: str | None = None) -> list[str]:
             continue                          # requires: reported one by one (unevaluated)
         name = key.rstrip("_") + ("*" if key.endswith("_") else "")
         by_reason.setdefault(why, []).append(name)
-    return [f"columns left out: {', '.join(names)}: {why}" for why, names in by_reason.items()]
+    return [f"columns not computed: {', '.join(names)}: {why}" for why, names in by_reason.items()]
 
 
 def choose_quantities(design: Design, quantities=None, at: str | None = None) -> tuple[list[str], dict[str, str]]:
