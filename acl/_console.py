@@ -64,3 +64,4 @@ def print_table(console, tbl) -> None:
             lines.append(Text(f"  {headers[i]:<{width}}  {text}"))
         lines.append(Text(""))
     console.print(Group(*lines))
+

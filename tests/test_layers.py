@@ -23,7 +23,7 @@ LAYERS: list[tuple[str, tuple[str, ...]]] = [
     ("physics", ("acl.physics",)),
     # the front end and the modules everything above it shares: units, diagnostics, console, files read
     ("syntax", ("acl.syntax", "acl.units", "acl._unit_table", "acl.diagnostics", "acl._console", "acl._files",
-                "acl._resources", "acl._callable")),
+                "acl._resources", "acl._callable", "acl._display")),
     ("design", ("acl.design",)),
     ("analysis", ("acl.analysis",)),
     ("stages", ("acl.lint", "acl.schedule", "acl.fit", "acl.sweep")),

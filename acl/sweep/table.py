@@ -147,7 +147,7 @@ class SweepTable:
     # -- notebook display --------------------------------------------------------------------
     def _repr_html_(self) -> str:
         """The summary, the yield of each require, the yield per grid point and the first rows."""
-        from acl.notebook import html_table
+        from acl._display import html_table
 
         y = self.yields()
         out = html_table(f"Sweep: {len(self)} points", ["yield of", "yield [95% interval]", "points"],
@@ -168,7 +168,7 @@ class SweepTable:
         """The yield per grid point (one varied parameter: a curve; more: the first axis, others at their
         first value) or, for a Monte Carlo without a grid, a histogram of the first quantity, passing points
         apart; returns the matplotlib Axes (acl.notebook.new_axes: a new Figure, never pyplot)."""
-        from acl.notebook import new_axes
+        from acl._display import new_axes
 
         ax = new_axes(ax)
         g = self.grid_yield()

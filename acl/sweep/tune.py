@@ -494,7 +494,7 @@ class Tuned:
 
     def _repr_html_(self) -> str:
         """The free parameters (start, chosen, range) and the yield before and after, per require."""
-        from acl.notebook import html_table
+        from acl._display import html_table
 
         p = self.problem
         out = html_table("Free parameters", ["parameter", "start", "chosen", "range"],
@@ -508,7 +508,7 @@ class Tuned:
 
     def plot(self, ax=None):
         """The search: each trial's exact yield on the search sample, and the best so far; returns the Axes."""
-        from acl.notebook import new_axes
+        from acl._display import new_axes
 
         ax = new_axes(ax)
         n = max(self.problem.samples, 1)
