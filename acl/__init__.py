@@ -93,12 +93,12 @@ def compile(design, program=None, sample_rate_hz=None, ramp_s=1e-3, tolerance_m=
     """Compile a program of ``design`` into a drive schedule (as `acl compile`, without writing files).
 
     ``program`` may be omitted when the design has one.  ``calibration``: path of a measured sweep
-    CSV (like ``--calibration``).  ``allow_nonlinear`` plans drives beyond the linear bubble model
+    CSV (like ``--calibration``).  ``allow_nonlinear`` plans drives past the hemisphere (eps/R > 1)
     (like ``--allow-nonlinear``; docs/physics.md).  Raises :class:`acl.diagnostics.DiagnosticError`
     when the program cannot be compiled.  Returns an :class:`acl.notebook.Compiled`.
 
     >>> import acl
-    >>> s = acl.compile("examples/fig2_vertical_cantilever.acl", "ramp", allow_nonlinear=True)  # the paper's 8 V
+    >>> s = acl.compile("examples/fig2_vertical_cantilever.acl", "ramp")  # the paper's 8 V: warned (W-ACOUSTIC-AMPLITUDE), not refused
     >>> round(s.duration_s, 3), len(s.segments)
     (3.4, 9)
     """

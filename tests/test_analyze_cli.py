@@ -125,7 +125,7 @@ def test_one_capsule_warning_says_what_its_drive_is(tmp_path):
     assert r.returncode == 0, r.stderr
     text = r.stdout + r.stderr
     assert "pair" not in text.lower(), text
-    assert ("warning: the largest amplitude the programs apply at this frequency: 125 kHz @ 8 V drives act.jet"
+    assert ("warning[W-ACOUSTIC-AMPLITUDE]: the largest amplitude the programs apply at this frequency: 125 kHz @ 8 V drives act.jet"
             in " ".join(text.split()))
     j = json.loads(run("analyze", os.path.join(ex, "fig2_vertical_cantilever.acl"), "--no-snap",
                        "--output-format", "json").stdout)
@@ -140,7 +140,7 @@ def test_one_capsule_warning_says_what_its_drive_is(tmp_path):
     assert [d["basis"] for d in j["drives"]] == ["reference"] and j["drives"][0]["drive"].endswith("@ 1 V")
     # a pair's drive at each program frequency is the pair table's
     r = run("analyze", os.path.join(ex, "fig4_facing_pair.acl"), "--no-snap")
-    assert "warning: pair analysis: 125 kHz @ 15 V" in " ".join((r.stdout + r.stderr).split())
+    assert "warning[W-ACOUSTIC-AMPLITUDE]: pair analysis: 125 kHz @ 15 V" in " ".join((r.stdout + r.stderr).split())
 
 
 SWEEP = ONE + "program scan {\n  sweep 100 kHz to 150 kHz @ V_SWEEP in 2 s\n}\n"

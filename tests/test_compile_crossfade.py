@@ -292,7 +292,7 @@ def test_with_declared_drive_saturation_the_mixed_drive_is_sampled_and_faded(tmp
     shutil.copy(ROOT / "examples" / "fig6e_reversible_latch.acl", tmp_path)
     body = DATA.read_text(encoding="utf-8").split("param v85", 1)[1]
     (tmp_path / "sat.acl").write_text('extends "fig6e_reversible_latch.acl"\n'
-                                      "effect drive_saturation { v_sat = 200 V }\nparam v85" + body, encoding="utf-8")
+                                      "effect drive_saturation { v_sat = 200 V }\nparam latch_youngs = 13 MPa\nparam v85" + body, encoding="utf-8")
     d = acl.load(str(tmp_path / "sat.acl"))
     _, to_b, _ = lf(d, [])
 

@@ -128,7 +128,8 @@ def test_switch_warns_for_its_shuttle_travel(tmp_path):
 
     shutil.copy(os.path.join(EX, "fig6_bistable_latch.acl"), tmp_path)
     path = tmp_path / "cov.acl"
-    path.write_text('extends "fig6_bistable_latch.acl"\nuncertainty {\n  covered(voltage) = 0 V .. 100 V\n'
+    path.write_text('extends "fig6_bistable_latch.acl"\nparam latch_youngs = 13 MPa\nparam vmax = 100 V\n'   # the latch it was written for
+                    'uncertainty {\n  covered(voltage) = 0 V .. 100 V\n'
                     "  covered(frequency) = 100 kHz .. 150 kHz\n  covered(deflection) = 0 um .. 2 um\n}\n")
     d = acl.load(str(path))
     s = compile_program(d, "switch", CompileOptions(band_samples=0, allow_nonlinear=True))

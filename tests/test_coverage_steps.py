@@ -50,8 +50,10 @@ def _reach(design, tones, start=None):
                                acoustics.force_model_for(design), start=start)
     assert st.status == "ok"
     r = {c: float(np.linalg.norm(v)) for c, v in st.displacements.items()}
-    who = max(r, key=r.get)
-    return r[who], who
+    from acl.physics.ties import first_max_item
+
+    who, best = first_max_item(r)      # ties (a symmetric pair, equal to round-off): the first declared, as compile
+    return best, who
 
 
 def _cov(sched, words=""):

@@ -168,7 +168,7 @@ def _alone(tmp_path, src):
 @pytest.mark.parametrize("src,obs,gap,sweeps", [
     (GROUP, ("d_ab", "d_bc", "tip_c"), "d_ab", ((125e3, (0.5, 1.0, 2.0, 3.0)), (115e3, (0.5, 1.0, 2.0)))),
     # a two-orifice capsule facing a capsule that carries another through a truss (bodies inside a pair)
-    (BODY_PAIR, ("distance", "a_y"), "distance", ((125e3, (0.5, 1.0, 2.0, 3.0)), (175e3, (1.0, 3.0, 6.0, 10.0)))),
+    (BODY_PAIR, ("distance", "a_y"), "distance", ((125e3, (0.5, 1.0, 2.0, 3.0)), (175e3, (1.0, 3.0, 6.0, 9.5)))),  # 175 kHz snaps at 9.996 V (smooth contact floor, issue 24; 10.05 V before)
 ])
 def test_group_is_the_analysis_at_rest_and_through_snap_in(tmp_path, src, obs, gap, sweeps):
     """One physics: a group's gaps and displacements are acl.analysis.mechanics.equilibrium's with the full force

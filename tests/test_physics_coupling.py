@@ -27,12 +27,15 @@ def pair(d, n_modes=1, z=1.0, q=None):
 def test_two_identical_bubbles_have_the_two_oscillator_in_phase_and_anti_phase_modes(d):
     # Two identical one-mode oscillators (mass m, stiffness k per volume^2, paraboloid interface)
     # with mutual mass m_c = rho/(4 pi d) (Kinsler et al., mutual radiation impedance of two small
-    # sources): w_in^2 = k/(m + m_c) (in phase), w_anti^2 = k/(m - m_c).  Tolerance 1e-6 relative.
+    # sources): w_in^2 = k/(m + m_c) (in phase), w_anti^2 = k/(m - m_c).  Tolerance 1e-6 relative.  d is the
+    # model's distance law, smoothly floored at contact (acl.physics.coupling.contact_distance; 20 um touches).
+    from acl.physics.coupling import contact_distance
+
     sysm, _ = pair(d)
     cm = coupled_modes(sysm, RHO, C)
     m = 1024 * RHO / (315 * math.pi**2 * R1)
     k = P0 / V1 + 8 * SIGMA / (math.pi * R1**4)
-    mc = RHO / (4 * math.pi * d)
+    mc = RHO / (4 * math.pi * float(contact_distance(d, 2 * R1)))
     f_in = math.sqrt(k / (m + mc)) / (2 * math.pi)
     f_anti = math.sqrt(k / (m - mc)) / (2 * math.pi)
     np.testing.assert_allclose(cm.frequency, [f_in, f_anti], rtol=1e-6)
@@ -50,7 +53,10 @@ def test_coupled_response_of_an_identical_pair_is_the_scalar_two_oscillator_resp
     u = coupled_response(sysm, f, RHO, C)
     h = volume_response(m, f)[:, 0]
     w = 2 * math.pi * f
-    expect = h / (1 - w**2 * RHO * h * np.exp(-1j * w / C * d) / (4 * math.pi * d))
+    from acl.physics.coupling import contact_distance
+
+    dd = float(contact_distance(d, 2 * R1))     # the model's distance law (smooth contact floor; 40 um: +0.05 %)
+    expect = h / (1 - w**2 * RHO * h * np.exp(-1j * w / C * dd) / (4 * math.pi * dd))
     np.testing.assert_allclose(u[:, 0], expect, rtol=1e-10)
     np.testing.assert_allclose(u[:, 1], expect, rtol=1e-10)
 
@@ -92,7 +98,10 @@ def test_force_between_identical_pair_changes_with_distance_as_coupling_predicts
         u = coupled_response(sysm, f, RHO, C)[0]
         h = volume_response(m, f)[0, 0]
         w = 2 * math.pi * f[0]
-        g = np.exp(-1j * w / C * d) / (4 * math.pi * d)
+        from acl.physics.coupling import contact_distance
+
+        dd = float(contact_distance(d, 2 * R1))    # the model's distance law (smooth contact floor)
+        g = np.exp(-1j * w / C * dd) / (4 * math.pi * dd)
         ratio = abs(u[0]) ** 2 / abs(h) ** 2
         assert ratio == pytest.approx(abs(1 / (1 - w**2 * RHO * h * g)) ** 2, rel=1e-10)
         ratios[d] = ratio

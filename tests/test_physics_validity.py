@@ -47,24 +47,38 @@ def test_interface_amplitude_is_linear_in_voltage_and_reported_per_drive():
     assert entry["linear"] is (a2 <= LINEAR_AMPLITUDE_LIMIT)
 
 
-def test_compile_refuses_a_drive_beyond_the_linear_regime_unless_allowed():
-    d = design("10 V")            # ~0.46 eps/R at design 1's resonance: beyond 0.2
+HIGH = ONE.replace("use transducer transducers.contact_piezo",
+                   "transducer amp like transducers.contact_piezo { max_voltage = 100 V }\nuse transducer amp")
+
+
+def test_compile_warns_past_the_linear_limit_and_refuses_past_the_hemisphere_unless_allowed():
+    # Issue 24: eps/R 0.25..1 is planned with W-ACOUSTIC-AMPLITUDE at the step (the paper's Fig. 2c/2f show its
+    # bubbles linear at its drives); past the hemisphere (eps/R > 1) the model has no meaning: E-SCHED-NONLINEAR.
+    d = design("10 V")            # ~0.46 eps/R at design 1's resonance
+    s = compile_program(d, "p")
+    (w,) = [w for w in s.warnings if w.code == "W-ACOUSTIC-AMPLITUDE"]
+    assert w.span.line == 9 and "model-form uncertainty" in w.message and w.notes and "Fig. 2f" in w.notes[0]
+    (goal,) = s.goals
+    assert 0 < goal.details["model_form_force_rel"] < 1
+    hot = acl.loads(HIGH.replace("VOLTS", "30 V"), filename=str(ROOT / "examples" / "v.acl"))
+    assert max(A.interface_amplitudes(hot, Drive(tones=(Tone(frequency=123e3, amplitude=30.0),))).values()) > 1.0
     with pytest.raises(DiagnosticError) as exc:
-        compile_program(d, "p")
+        compile_program(hot, "p")
     (diag,) = exc.value.diagnostics
-    assert diag.code == "E-SCHED-NONLINEAR" and diag.span.line == 9
-    s = compile_program(d, "p", CompileOptions(allow_nonlinear=True))
+    assert diag.code == "E-SCHED-NONLINEAR" and diag.span.line == 10 and "hemisphere" in diag.message
+    s = compile_program(hot, "p", CompileOptions(allow_nonlinear=True))
     assert any("allowed by --allow-nonlinear" in n for n in s.notes)
-    compile_program(design("2 V"), "p")          # inside the linear regime: planned
+    compile_program(design("2 V"), "p")          # inside the linear regime: planned, no warning
+    assert not [w for w in compile_program(design("2 V"), "p").warnings if w.code == "W-ACOUSTIC-AMPLITUDE"]
 
 
 def test_compile_cli_refuses_without_writing_and_accepts_allow_nonlinear(tmp_path):
     src = tmp_path / "v.acl"
-    src.write_text(ONE.replace("VOLTS", "10 V"))
+    src.write_text(HIGH.replace("VOLTS", "30 V"))
     out = tmp_path / "out"
     run = [sys.executable, "-m", "acl", "compile", str(src), "-o", str(out)]
     r = subprocess.run(run, capture_output=True, text=True, cwd=ROOT)
-    assert r.returncode == 1 and "E-SCHED-NONLINEAR" in (r.stdout + r.stderr) and "v.acl:9:" in (r.stdout + r.stderr)
+    assert r.returncode == 1 and "E-SCHED-NONLINEAR" in (r.stdout + r.stderr) and "v.acl:10:" in (r.stdout + r.stderr)
     assert not out.exists()
     r = subprocess.run(run + ["--allow-nonlinear"], capture_output=True, text=True, cwd=ROOT)
     assert r.returncode == 0, r.stderr

@@ -49,10 +49,10 @@ def test_pair_forces_with_beam_and_drag_effects_equal_analyze():
         p = analyze(materialize(b, i), snap_in=False).as_dict()["pairs"][0]
         assert abs(cols[f"force_{tag}_n"][i] - p["force_n"]) <= 1e-9 * abs(p["force_n"])
         assert abs(cols[f"phase_{tag}_deg"][i] - p["phase_difference_deg"]) <= 1e-7
-        if p["critical_distance_m"] is None:
+        if p["critical_distance_eq3_m"] is None:
             assert math.isnan(cols[f"critical_distance_{tag}_m"][i])
         else:
-            assert abs(cols[f"critical_distance_{tag}_m"][i] - p["critical_distance_m"]) <= 1e-9 * p["critical_distance_m"]
+            assert abs(cols[f"critical_distance_{tag}_m"][i] - p["critical_distance_eq3_m"]) <= 1e-9 * p["critical_distance_eq3_m"]
     with pytest.raises(QuantityError) as exc:
         evaluate(b, [f"snap_in_{tag}_v"])
     assert exc.value.code == "E-SWEEP-Q02" and "large_deflection" in str(exc.value)

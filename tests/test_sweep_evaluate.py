@@ -107,10 +107,10 @@ def test_pair_forces_and_snap_in_equal_analyze(pair):
         assert _rel(cols[f"force_{tag}_n"][i], p["force_n"]) < 1e-9
         assert cols[f"attract_{tag}"][i] == p["attract"]
         assert abs(cols[f"phase_{tag}_deg"][i] - p["phase_difference_deg"]) < 1e-9 * 180
-        if p["critical_distance_m"] is None:
+        if p["critical_distance_eq3_m"] is None:
             assert math.isnan(cols[f"critical_distance_{tag}_m"][i])
         else:
-            assert _rel(cols[f"critical_distance_{tag}_m"][i], p["critical_distance_m"]) < 1e-9
+            assert _rel(cols[f"critical_distance_{tag}_m"][i], p["critical_distance_eq3_m"]) < 1e-9
         if p["snap_in_voltage_v"] is None:
             assert math.isnan(cols[f"snap_in_{tag}_v"][i]), (i, p["sweep_status"])
         else:
@@ -338,7 +338,7 @@ def _expected(rep: dict) -> dict:
         out[f"force_{tag}_n"] = p["force_n"]
         out[f"attract_{tag}"] = p["attract"]
         out[f"phase_{tag}_deg"] = p["phase_difference_deg"]
-        out[f"critical_distance_{tag}_m"] = nan if p["critical_distance_m"] is None else p["critical_distance_m"]
+        out[f"critical_distance_{tag}_m"] = nan if p["critical_distance_eq3_m"] is None else p["critical_distance_eq3_m"]
         out[f"snap_in_{tag}_v"] = nan if p["snap_in_voltage_v"] is None else p["snap_in_voltage_v"]
     for lt in rep["latches"]:
         out[f"switching_force_{lt['name']}_n"] = lt["switching_force_n"]

@@ -729,26 +729,54 @@ def sweep_voltage(design: Design, drive_shape: Drive, v_max: float, force_model:
     return VoltageSweep(br.voltage, positions, br.status, snap_v, snap_pos, br.message, checks)
 
 
-def latch_margins(design: Design, drive: Drive, force_model: ForceModel) -> dict[str, LatchMargin]:
+def latch_carried(design: Design, latch) -> list[str]:
+    """Capsules whose force moves ``latch``'s shuttle: those mounted on it and every capsule trussed to them (one rigid group)."""
+    names = {c.name for c in design.capsules}
+    group = {j.capsule for j in design.joints if j.kind == "mount" and j.target_kind == "latch" and j.target == latch.name}
+    frontier = list(group)
+    while frontier:
+        c = frontier.pop()
+        for j in design.joints:
+            if j.kind == "link" and j.element_kind == "truss" and c in (j.a, j.b):
+                other = j.b if j.a == c else j.a
+                if other not in group and other in names:
+                    group.add(other)
+                    frontier.append(other)
+    return sorted(group)
+
+
+def latch_margins(design: Design, drive: Drive, force_model: ForceModel,
+                  states: dict | None = None) -> dict[str, LatchMargin]:
     """For every latch: drive force on its shuttle's capsules along the switching direction / force required to switch.
 
-    A latch at rest in state a must be pushed along +axis by more than its switching force; one in
-    state b along -axis by more than its release force.  Forces are evaluated at rest positions.
+    A latch in state a must be pushed along +axis by more than its switching force; one in state b along
+    -axis by more than its release force.  The shuttle's capsules are those mounted on it and those trussed
+    to them (:func:`latch_carried`).  ``states`` ({latch: "a" | "b"}, e.g. what earlier program steps left)
+    overrides the declared rest state; a latch in its other state has its capsules moved by the travel between
+    the states (acl.physics.latch.latch_landscape ``state_b``).  Forces are evaluated at those positions.
     """
+    states = states or {}
     positions = {c.name: np.asarray(c.center, float) for c in design.capsules}
+    lands = {lt.name: LT.latch_landscape(*latch_geometry(lt, design)) for lt in design.latches}
+    for lt in design.latches:
+        now = states.get(lt.name, lt.state)
+        travel = lands[lt.name].state_b
+        if now != lt.state and travel is not None:
+            shift = float(travel) * (1.0 if now == "b" else -1.0) * _unit(lt.axis)
+            for c in latch_carried(design, lt):
+                positions[c] = positions[c] + shift
     forces = force_model(design, positions, drive)
     out = {}
     for lt in design.latches:
-        land = LT.latch_landscape(*latch_geometry(lt, design))
+        land = lands[lt.name]
         a = _unit(lt.axis)
-        carried = [j.capsule for j in design.joints
-                   if j.kind == "mount" and j.target_kind == "latch" and j.target == lt.name]
-        push = float(sum((np.asarray(forces.get(c, np.zeros(3)), float) @ a for c in carried), 0.0))
-        if lt.state == "a":
+        push = float(sum((np.asarray(forces.get(c, np.zeros(3)), float) @ a for c in latch_carried(design, lt)), 0.0))
+        now = states.get(lt.name, lt.state)
+        if now == "a":
             required, available = land.switching_force, push
         else:
             required, available = (land.release_force if land.bistable else 0.0), -push
         margin = available / required if required > 0 else float("inf")
-        out[lt.name] = LatchMargin(lt.name, lt.state, land.bistable, float(required), available, margin,
+        out[lt.name] = LatchMargin(lt.name, now, land.bistable, float(required), available, margin,
                                    land.switching_force, land.release_force, land.barrier)
     return out

@@ -97,6 +97,7 @@ def step_drives(design: M.Design):
 def analyze(design: M.Design, at: M.Drive | None = None, snap_in: bool = True, progress=None) -> Report:
     from acl.analysis import acoustics as AC
     from acl.analysis import mechanics as ME
+    from acl.analysis.pairs import net_critical_distance
 
     from acl.analysis.effects import notes as effect_notes
 
@@ -153,7 +154,12 @@ def analyze(design: M.Design, at: M.Drive | None = None, snap_in: bool = True, p
             rep.pairs.append({
                 "a": pf.a, "b": pf.b, "frequency_hz": f, "voltage_v": v, "force_n": pf.attraction,
                 "attract": bool(pf.attract), "phase_difference_deg": math.degrees(pf.phase_difference),
-                "critical_distance_m": pf.critical_distance, "gap_m": pf.distance,
+                # d_c where the full force model's net closing force changes sign (acl.analysis.pairs), and the
+                # reduced paper Eq. 3 value sqrt(alpha / 2 gamma) at rest (2 gamma: the two thrusts)
+                "critical_distance_m": net_critical_distance(design, drive, pf.a, pf.b),
+                "critical_distance_eq3_m": pf.critical_distance, "gap_m": pf.distance,
+                # point-monopole validity at rest (acl.physics.validity.MONOPOLE_DISTANCE): gap / (R_a + R_b)
+                **_monopole(design, pf),
                 "snap_in_voltage_v": snaps.get(f, (None, ""))[0],
                 "sweep_status": snaps.get(f, (None, "not computed"))[1],
                 "q_predicted": [modes[pf.a][0].q_predicted if modes[pf.a] else None,
@@ -179,16 +185,23 @@ def analyze(design: M.Design, at: M.Drive | None = None, snap_in: bool = True, p
         per_latch = {lt.name: {"name": lt.name, **_loc(lt.span), "state": lt.state, "margins": []} for lt in design.latches}
         intended = {(p.name, st.latch) for p in design.programs for st in p.steps if st.kind == "switch"}
         first = None
+        states: dict = {}          # the latch states the program's earlier steps leave ({latch: "a" | "b"})
+        program = None
         for p, i, st, drive in step_drives(design):
-            lm = ME.latch_margins(design, drive, fm)
+            if p is not program:
+                program, states = p, {}
+            lm = ME.latch_margins(design, drive, fm, states)
             for name, m in lm.items():
                 first = first or m
                 want = st.kind == "switch" and st.latch == name
                 per_latch[name]["margins"].append({
                     "program": p.name, "step": i + 1, "line": st.span.line, "drive": describe_drive(drive),
-                    "margin": m.margin, "available_force_n": m.available, "switches": bool(m.margin >= 1.0),
+                    "state_before": m.state, "margin": m.margin, "available_force_n": m.available,
+                    "switches": bool(m.margin >= 1.0),
                     "intended": bool(want), "required_margin": st.margin if want else None,
                     "unintended": bool(m.margin >= 1.0 and not want and (p.name, name) not in intended)})
+                if m.margin >= 1.0:
+                    states[name] = "b" if m.state == "a" else "a"
         for lt in design.latches:
             m0 = ME.latch_margins(design, M.Drive(tones=()), fm)[lt.name]
             per_latch[lt.name].update({"bistable": bool(m0.bistable), "switching_force_n": m0.switching_force,
@@ -208,8 +221,80 @@ def analyze(design: M.Design, at: M.Drive | None = None, snap_in: bool = True, p
             "gaps": [_gap(design, a, b, st.positions) for a, b in _pairs(design)],
             "warnings": [d.message for d in st.diagnostics],
         }
+        rep.equilibrium["validity"] = validity_at(design, at, st, modes)
     rep.requires = [_require(design, r, modes, rep) for r in design.requires]
     return rep
+
+
+def _monopole(design: M.Design, pf) -> dict:
+    """``monopole_distance_ratio`` gap / (R_a + R_b) of a pair at rest (largest orifice of each capsule) and the
+    ``monopole_model_form_rel`` ((R_a + R_b)/gap)^2 its forces carry below the limit (0 above; acl.physics.validity)."""
+    from acl.physics import validity as VA
+
+    rsum = max(o.radius for o in design.capsule(pf.a).orifices) + max(o.radius for o in design.capsule(pf.b).orifices)
+    ratio = pf.distance / rsum
+    rel = float(VA.monopole_model_form(pf.distance, rsum)) if ratio < VA.MONOPOLE_DISTANCE.value else 0.0
+    return {"monopole_distance_ratio": float(ratio), "monopole_model_form_rel": rel}
+
+
+def validity_at(design: M.Design, drive: M.Drive, st, modes: dict) -> list[dict]:
+    """Located findings at an equilibrium ``st`` under ``drive``, one per limit crossed (acl.physics.validity):
+    interface amplitude (soft 0.25, hard: the hemisphere), streaming Reynolds number, point-monopole distance, and
+    paper Eq. (1)'s deflection range (W-MECH-001 of the mechanics).  Each: code, severity, message, evidence,
+    file/line/column, the value and the limit, and (amplitude) the model-form force uncertainty."""
+    from acl.analysis import acoustics as AC
+    from acl.physics import validity as VA
+
+    out = []
+    from acl.physics.constants import WATER_20C
+    from acl.physics.forces import streaming_reynolds
+
+    med = design.medium or WATER_20C        # the same default as the acoustics (acl.physics.constants)
+    amps = AC.interface_amplitudes(design, drive, st.positions)
+    w_top = 2 * np.pi * max(t.frequency for t in drive.tones)
+    for key, x in amps.items():
+        cap, ori = key.split(".")
+        c = design.capsule(cap)
+        if x > VA.AMPLITUDE.value:
+            q = max((m.q for m in modes.get(cap, ())), default=10.0)
+            rel = float(VA.amplitude_model_form(x, q))
+            hard = x > VA.AMPLITUDE_MEANING.value
+            msg = (f"interface `{key}` reaches eps/R = {x:.3g}, " +
+                   (f"past the hemisphere (eps/R = {VA.AMPLITUDE_MEANING.value:g}): the bubble model has no meaning there"
+                    if hard else f"beyond the linear bubble model (eps/R <= {VA.AMPLITUDE.value:g}): forces carry a "
+                    f"model-form uncertainty of {rel:.0%} (Q {q:.3g})"))
+            out.append({"code": VA.AMPLITUDE.code, "severity": "warning", "message": msg, **_loc(c.span),
+                        "value": x, "limit": VA.AMPLITUDE_MEANING.value if hard else VA.AMPLITUDE.value,
+                        "model_form_force_rel": 1.0 if hard else rel,
+                        "evidence": (VA.AMPLITUDE_MEANING if hard else VA.AMPLITUDE).evidence})
+        r = c.orifice(ori).radius
+        rs = float(streaming_reynolds(x * r, w_top, med.density, med.viscosity))
+        if rs > VA.STREAMING_REYNOLDS.value:
+            out.append({"code": VA.STREAMING_REYNOLDS.code, "severity": "warning", **_loc(c.span),
+                        "message": f"interface `{key}` reaches streaming Reynolds number {rs:.3g}, beyond the thrust "
+                                   f"law's Stokes outer flow (R_s <= {VA.STREAMING_REYNOLDS.value:g})",
+                        "value": rs, "limit": VA.STREAMING_REYNOLDS.value,
+                        "evidence": VA.STREAMING_REYNOLDS.evidence})
+    for a, b in _pairs(design):
+        g = _gap(design, a, b, st.positions)
+        ra = design.capsule(a).orifice(g["a"].split(".")[1]).radius
+        rb = design.capsule(b).orifice(g["b"].split(".")[1]).radius
+        ratio = g["gap_m"] / (ra + rb)
+        if ratio < VA.MONOPOLE_DISTANCE.value:
+            rel = float(VA.monopole_model_form(g["gap_m"], ra + rb))
+            out.append({"code": VA.MONOPOLE_DISTANCE.code, "severity": "warning", **_loc(design.capsule(a).span),
+                        "message": f"orifices `{g['a']}` and `{g['b']}` are {g['gap_m'] * 1e6:.3g} um apart, "
+                                   f"{ratio:.3g} x the sum of their radii (point monopoles need >= "
+                                   f"{VA.MONOPOLE_DISTANCE.value:g}): pair forces carry a model-form uncertainty of {rel:.0%}",
+                        "value": ratio, "limit": VA.MONOPOLE_DISTANCE.value, "model_form_force_rel": rel,
+                        "evidence": VA.MONOPOLE_DISTANCE.evidence})
+    for d in st.diagnostics:
+        if d.code == "W-MECH-001":
+            out.append({"code": d.code, "severity": "warning", "message": d.message,
+                        **(_loc(d.span) if d.span else {"file": design.file, "line": 1, "column": 1}),
+                        "evidence": "paper Eq. (1) vs the dead-load elastica (Bisshopp & Drucker 1945): 5 % apart at the "
+                                    "limit (docs/physics.md part B section 2)"})
+    return out
 
 
 def _eq1_ratios(design: M.Design, deflections: dict) -> dict:

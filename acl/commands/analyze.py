@@ -159,8 +159,10 @@ def print_report(design, rep) -> None:
         where = (f"program {d['program']} step {d['step']} (line {d['line']})" if d["program"] else
                  _ANALYSIS_DRIVE.get(d.get("basis"), "analysis drive"))
         worst = first_max_item(d["interface_amplitude_over_radius"])      # ties: the first declared
-        con.print(f"[red]warning:[/red] {where}: {d['drive']} drives {worst[0]} to eps/R = {worst[1]:.6g}, beyond the "
-                  f"linear bubble model (eps/R <= {d['linear_limit']:g}; docs/physics.md)")
+        past = (" and past the hemisphere (eps/R = 1), where the bubble model has no meaning and `acl compile` refuses"
+                if worst[1] > 1.0 else "")
+        con.print(f"[red]warning\\[W-ACOUSTIC-AMPLITUDE]:[/red] {where}: {d['drive']} drives {worst[0]} to eps/R = "
+                  f"{worst[1]:.6g}, beyond the linear bubble model (eps/R <= {d['linear_limit']:g}; docs/physics.md){past}")
     if rep.pairs:
         t = Table(title="Bubble pairs (Bjerknes force at rest, attraction positive)", title_justify="left")
         for col in ("pair", "f (kHz)", "V", "force (nN)", "", "phase diff (deg)", "gap (um)", "d_c (um)", "snap-in V",
@@ -171,7 +173,7 @@ def print_report(design, rep) -> None:
             sv = f"{p['snap_in_voltage_v']:.2f}" if p["snap_in_voltage_v"] else ("none" if p["sweep_status"] == "ok" else p["sweep_status"])
             t.add_row(f"{p['a']}-{p['b']}", _k(p["frequency_hz"]), f"{p['voltage_v']:g}", f"{p['force_n'] * 1e9:.3g}",
                       "[green]attract[/green]" if p["attract"] else "[magenta]repel[/magenta]",
-                      f"{p['phase_difference_deg']:.1f}", f"{p['gap_m'] * 1e6:.1f}", dc, sv,
+                      f"{round(p['phase_difference_deg'], 1) + 0.0:.1f}", f"{p['gap_m'] * 1e6:.1f}", dc, sv,
                       {True: "attract", False: "repel", None: "-"}[p.get("attract_with_predicted_q")],
                       f"{p['repel_from_q']:g}" if p.get("repel_from_q") else "-")
         print_table(con, t)
@@ -199,6 +201,12 @@ def print_report(design, rep) -> None:
         print_table(con, t)
         for w in e["warnings"]:
             con.print(f"[yellow]warning:[/yellow] {w}")
+        for v in e.get("validity", ()):       # the limits crossed at this drive (acl.physics.validity), located
+            if v["code"] != "W-MECH-001":      # (W-MECH-001 is printed above with the mechanics' warnings)
+                from rich.markup import escape
+
+                con.print(f"{escape(v['file'])}:{v['line']}:{v['column']}: [yellow]warning\\[{v['code']}]:[/yellow] "
+                          f"{escape(v['message'])}", soft_wrap=True)
     if rep.requires:
         t = Table(title="Requirements", title_justify="left")
         for col in ("requirement", "value", "ok", "at"):

@@ -53,7 +53,8 @@ def add_parser(p) -> None:
                    help="refuse waveform files larger than this, e.g. 500MB, 20GiB (default 4GiB); the free "
                         "disk space is checked too")
     p.add_argument("--allow-nonlinear", action="store_true",
-                   help="plan drives beyond the linear bubble model (interface amplitude eps/R > 0.25; docs/physics.md)")
+                   help="plan drives past the hemisphere, where the bubble model has no meaning (interface amplitude "
+                        "eps/R > 1; between 0.25 and 1 compile warns and widens its bands; docs/physics.md)")
     add_output_format(p, old=("--diagnostics",))
     add_design_options(p)
 

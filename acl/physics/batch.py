@@ -23,7 +23,7 @@ import numpy as np
 
 # coupling's own distances and Green matrix broadcast over a leading axis of points: (N, n, n),
 # or (N, F, n, n) with wavenumbers (N, F)
-from acl.physics.coupling import _distances as distances, green_matrix
+from acl.physics.coupling import _distances as distances, contact_distance, green_matrix
 from acl.physics.resonance import shape_matrices, thermal_polytropic
 
 
@@ -172,7 +172,7 @@ def lowest_single_interface_mode(phi, omega, damping, point, radius, density, so
     n, m = phi.shape
     rho, c = _col(density, n), _col(sound_speed, n)
     zz = np.abs(2 * point[:, 2])
-    d_img = np.maximum(zz, 2 * radius)                               # distance to its own image, floored at 2R
+    d_img = contact_distance(zz, 2 * radius)                         # distance to its own image, floored at 2R
     cc = rho * wall_reflection / (4 * np.pi * d_img)
     om2 = omega**2
     v2 = phi**2
@@ -403,7 +403,7 @@ def two_bubble_forces(h, pts, radii, normals, centres, outer, scale, w, pressure
     ra, rb = radii[:, 0], radii[:, 1]
     sep = pb - pa
     dist = np.sqrt(np.einsum("bk,bk->b", sep, sep))
-    d = np.maximum(dist, ra + rb)
+    d = contact_distance(dist, ra + rb)
 
     def green(x):
         kx = k * x
@@ -413,14 +413,14 @@ def two_bubble_forces(h, pts, radii, normals, centres, outer, scale, w, pressure
         dz = p[:, 2] + q[:, 2]
         dx = p[:, 0] - q[:, 0]
         dy = p[:, 1] - q[:, 1]
-        return np.maximum(np.sqrt(dx * dx + dy * dy + dz * dz), floor)
+        return contact_distance(np.sqrt(dx * dx + dy * dy + dz * dz), floor)
 
     g_ab = green(d)
     g_aa = g_bb = 0.0
     if wall_reflection:
         g_ab = g_ab + wall_reflection * green(mirror_dist(pa, pb, ra + rb))
-        g_aa = wall_reflection * green(np.maximum(np.abs(2 * pa[:, 2]), 2 * ra))
-        g_bb = wall_reflection * green(np.maximum(np.abs(2 * pb[:, 2]), 2 * rb))
+        g_aa = wall_reflection * green(contact_distance(np.abs(2 * pa[:, 2]), 2 * ra))
+        g_bb = wall_reflection * green(contact_distance(np.abs(2 * pb[:, 2]), 2 * rb))
     kap = w * w * rho
     ha, hb = h[:, 0], h[:, 1]
     a11, a22 = 1 - kap * ha * g_aa, 1 - kap * hb * g_bb

@@ -922,14 +922,57 @@ class _Compiler:
         for step_index, (worst, where) in sorted(worst_of.items()):   # one finding per step, its worst segment
             if worst <= LINEAR_AMPLITUDE_LIMIT:
                 continue
-            step = self.program.steps[step_index]
-            text = (f"step {step_index + 1} drives interface `{where}` to eps/R = {worst:.6g}, beyond the linear "
-                    f"bubble model (eps/R <= {LINEAR_AMPLITUDE_LIMIT:g}; docs/physics.md)")
+            self._nonlinear_step(sched, step_index, worst, where)
+
+    def _nonlinear_step(self, sched: Schedule, step_index: int, worst: float, where: str) -> None:
+        """A step past the amplitude limits (acl.physics.validity): past the hemisphere (no meaning) E-SCHED-NONLINEAR
+        unless ``allow_nonlinear``; past the soft limit W-ACOUSTIC-AMPLITUDE at the step, and the step's error bands
+        widened by the model-form force uncertainty (:func:`acl.physics.validity.amplitude_model_form`) times the
+        goal's largest predicted displacement, added in quadrature."""
+        from acl.physics import validity as VA
+
+        step = self.program.steps[step_index]
+        text = (f"step {step_index + 1} drives interface `{where}` to eps/R = {worst:.6g}, beyond the linear "
+                f"bubble model (eps/R <= {VA.AMPLITUDE.value:g}; docs/physics.md)")
+        if worst > VA.AMPLITUDE_MEANING.value:
+            text = (f"step {step_index + 1} drives interface `{where}` to eps/R = {worst:.6g}, past the hemisphere "
+                    f"(eps/R = {VA.AMPLITUDE_MEANING.value:g}), where the interface leaves the orifice and the bubble "
+                    "model has no meaning (docs/physics.md)")
             if self.opts.allow_nonlinear:
                 self.notes.append(text + ": allowed by --allow-nonlinear; forces there are not trustworthy")
-                continue
+                return
             raise _diag("E-SCHED-NONLINEAR", text, step.span,
                         "lower the voltage, move the tone off resonance, or pass --allow-nonlinear")
+        from acl.analysis.acoustics import capsule_modes
+
+        cap = where.split(".")[0]
+        qs = [m.q for m in capsule_modes(self.design, cap)] if cap in {c.name for c in self.design.capsules} else []
+        q = max(qs, default=10.0)
+        rel = float(VA.amplitude_model_form(worst, q))
+        widened = []
+        for g in self.goals:
+            if g.step != step_index:
+                continue
+            g.details["model_form_force_rel"] = rel
+            band = g.details.get("band")
+            if isinstance(band, dict) and band.get("margin_p05") is not None:     # a switch: the force may be lower
+                band["margin_p05_model_form"] = float(band["margin_p05"]) * (1.0 - rel)
+                widened.append(g.name)
+            pts = g.predicted_m if g.predicted_m is not None else g.target_m
+            if pts is None or g.rms_error_p95_m is None:
+                continue
+            extra = rel * float(np.nanmax(np.linalg.norm(np.asarray(pts, float), axis=-1)))
+            g.rms_error_p95_m = float(np.hypot(g.rms_error_p95_m, extra))
+            if g.max_error_p95_m is not None:
+                g.max_error_p95_m = float(np.hypot(g.max_error_p95_m, extra))
+            widened.append(g.name)
+        msg = (f"{text}: forces carry a model-form uncertainty of {rel:.0%} (Q {q:.3g}; acl.physics.validity)"
+               + (f", added to the error band of {', '.join(widened)}" if widened else ""))
+        w = Diagnostic(VA.AMPLITUDE.code, Severity.WARNING, msg, step.span,
+                       "lower the voltage or move the tone off resonance to stay inside the validated linear model",
+                       notes=(VA.AMPLITUDE.evidence,))
+        sched.warnings.append(w)
+        self.notes.append(f"warning: {msg}")
 
     def _steady_amplitudes(self, sched: Schedule) -> dict:
         """{id(segment): (interface, eps/R)} of the largest interface amplitude (ties: the first declared) of every

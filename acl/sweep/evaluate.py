@@ -119,7 +119,7 @@ QUANTITIES: tuple[Quantity, ...] = (
     Quantity("phase_<a>_<b>_<f>khz_deg", "deg", "phase difference of the dominant interfaces at f",
              "pairs[a,b,frequency_hz=f].phase_difference_deg"),
     Quantity("critical_distance_<a>_<b>_<f>khz_m", "m", "d_c of paper Eq. 3 (NaN: no attraction or no thrust apart)",
-             "pairs[a,b,frequency_hz=f].critical_distance_m"),
+             "pairs[a,b,frequency_hz=f].critical_distance_eq3_m"),
     Quantity("snap_in_<a>_<b>_<f>khz_v", "V", "snap-in voltage of a 1 V tone at f scaled up to the transducer's max (NaN: none)",
              "pairs[a,b,frequency_hz=f].snap_in_voltage_v"),
     Quantity("switching_force_<latch>_n", "N", "force that switches the latch a -> b (model maximum, refined)",
@@ -1246,27 +1246,57 @@ class _Evaluator:
 
     # -- latches ------------------------------------------------------------------------------------
     def latch(self, name: str) -> dict:
+        """Switching and release forces of latch ``name`` per point and its margin at every program step
+        (mechanics.latch_margins as analyze calls it: the shuttle's capsules and those trussed to them, every latch in
+        the state the program's earlier steps leave it, per point)."""
+        return self.latches_all()[name]
+
+    def latches_all(self) -> dict:
         def build():
-            lt = self.design.latch(name)
-            base = f"latches.{name}"
-            geo = [self.get(f"{base}.{k}") for k in ("angle", "length", "width", "thickness", "youngs_modulus")]
-            fsw, rel, bistable = PB.latch_switching_force(*geo)
-            if lt.state == "a":
-                required, sign = fsw, 1.0
-            else:                           # held in b: pulled back by more than the release force (0: monostable)
-                required, sign = np.where(bistable, rel, 0.0), -1.0
-            axis = np.asarray(lt.axis, float)
-            axis = axis / np.linalg.norm(axis)
-            carried = [self.caps.index(self.design.capsule(j.capsule)) for j in self.design.joints
-                       if j.kind == "mount" and j.target_kind == "latch" and j.target == name]
+            from acl.analysis.mechanics import latch_carried
+            from acl.physics.latch import latch_landscape
+
+            lats = {}
+            for lt in self.design.latches:
+                base = f"latches.{lt.name}"
+                geo = [self.get(f"{base}.{k}") for k in ("angle", "length", "width", "thickness", "youngs_modulus")]
+                fsw, rel, bistable = PB.latch_switching_force(*geo)
+                axis = np.asarray(lt.axis, float)
+                lats[lt.name] = {"switching": fsw, "release": rel, "bistable": bistable, "margins": {},
+                                 "geo": [np.broadcast_to(np.asarray(g, float), (self.n,)) for g in geo],
+                                 "axis": axis / np.linalg.norm(axis), "travel": None,
+                                 "carried": [self.caps.index(self.design.capsule(c)) for c in latch_carried(self.design, lt)]}
             lay = self.layout()
-            margins = {}
+            program, flipped = None, {}
             for p, i, _st, freqs, volts in self.step_drives():
-                F = self.forces(lay["rest"], freqs, volts)
-                push = sign * sum((F[:, c] @ axis for c in carried), np.zeros(self.n))
-                margins[(p.name, i)] = np.where(required > 0, push / np.where(required > 0, required, 1.0), np.inf)
-            return {"switching": fsw, "release": rel, "bistable": bistable, "margins": margins}
-        return self.once(("latch", name), build)
+                if p is not program:           # each program starts from the declared states
+                    program, flipped = p, {lt.name: np.zeros(self.n, bool) for lt in self.design.latches}
+                pos = lay["rest"]
+                for lt in self.design.latches:
+                    lat = lats[lt.name]
+                    if not flipped[lt.name].any():
+                        continue
+                    if lat["travel"] is None:   # state b travel per point (latch_landscape, as analyze)
+                        tr = [latch_landscape(*(float(g[k]) for g in lat["geo"])).state_b for k in range(self.n)]
+                        lat["travel"] = np.array([np.nan if x is None else x for x in tr], float)
+                    shift = np.where(flipped[lt.name] & np.isfinite(lat["travel"]), np.nan_to_num(lat["travel"]), 0.0)
+                    shift = shift * (1.0 if lt.state == "a" else -1.0)
+                    pos = np.array(pos, float, copy=True)
+                    for c in lat["carried"]:
+                        pos[:, c] = pos[:, c] + shift[:, None] * lat["axis"]
+                F = self.forces(pos, freqs, volts)
+                for lt in self.design.latches:
+                    lat = lats[lt.name]
+                    push = sum((F[:, c] @ lat["axis"] for c in lat["carried"]), np.zeros(self.n))
+                    in_a = (lt.state == "a") != flipped[lt.name]
+                    required = np.where(in_a, lat["switching"],
+                                        np.where(lat["bistable"], np.nan_to_num(lat["release"]), 0.0))
+                    avail = np.where(in_a, push, -push)
+                    m = np.where(required > 0, avail / np.where(required > 0, required, 1.0), np.inf)
+                    lat["margins"][(p.name, i)] = m
+                    flipped[lt.name] = flipped[lt.name] ^ (m >= 1.0)
+            return lats
+        return self.once(("latches",), build)
 
     # -- requires and lint ------------------------------------------------------------------------------
     def require(self, i: int) -> tuple[np.ndarray, np.ndarray]:

@@ -189,4 +189,4 @@ def bubble_beyond_linear(ctx: Context):
                 f"linear bubble model", st.span, notes=[
                     f"threshold linear_amplitude = {limit:g} (centre amplitude / orifice radius; docs/physics.md)",
                     "amplitude per volt from the coupled bubble model and the transducer gain table"],
-                hint="lower the voltage or move the tone off resonance (`acl compile` refuses it without --allow-nonlinear)")
+                hint="lower the voltage or move the tone off resonance (`acl compile` warns and widens its band; past the hemisphere, eps/R > 1, it refuses without --allow-nonlinear)")
