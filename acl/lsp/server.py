@@ -26,7 +26,10 @@ _SEVERITY = {Severity.ERROR: T.DiagnosticSeverity.Error, Severity.WARNING: T.Dia
 
 class AclLanguageServer(LanguageServer):
     def __init__(self) -> None:
-        super().__init__("acl", __version__, text_document_sync_kind=T.TextDocumentSyncKind.Incremental)
+        from acl.lsp.protocol import AclProtocol
+
+        super().__init__("acl", __version__, text_document_sync_kind=T.TextDocumentSyncKind.Incremental,
+                         protocol_cls=AclProtocol)
         self.debounce = 0.05
         self.lint_enabled = True
         self.lint_delay = 0.3
@@ -43,16 +46,39 @@ class AclLanguageServer(LanguageServer):
     def path_of(self, uri: str) -> str:
         return to_fs_path(uri) or uri
 
+    def document(self, uri: str):
+        """The open document ``uri``; RequestFailed when the client has not opened it.
+
+        Only documents the client opened are served (their text is the client's): a URI never opened
+        is never read from disk (it could name a FIFO, /dev/zero or a file outside the workspace).
+        Files a design imports are read by the loader under the rules of `acl check` (regular files
+        under the design's folder, the stdlib or a search path, size-limited)."""
+        from urllib.parse import unquote
+
+        from acl.lsp.protocol import RequestFailed
+
+        doc = self.workspace.text_documents.get(unquote(uri)) if isinstance(uri, str) else None
+        if doc is None:
+            shown = uri if len(uri) <= 200 else uri[:200] + "…"
+            raise RequestFailed(f"E-LSP-DOCUMENT: `{shown}` is not open: the server answers only on documents "
+                                "the editor opened (textDocument/didOpen)")
+        return doc
+
+    def is_open(self, uri: str) -> bool:
+        from urllib.parse import unquote
+
+        return unquote(uri) in self.workspace.text_documents
+
     def snapshot(self, uri: str) -> Snapshot:
         """The checked state of the document's current text (checked now if out of date)."""
-        doc = self.workspace.get_text_document(uri)
+        doc = self.document(uri)
         snap = self.snapshots.get(uri)
         if snap is None or snap.text != doc.source:
             snap = self._check(uri)
         return snap
 
     def _check(self, uri: str) -> Snapshot:
-        doc = self.workspace.get_text_document(uri)
+        doc = self.document(uri)
         from acl.lsp.incremental import IncrementalParser
 
         parser = self._parsers.setdefault(uri, IncrementalParser())
@@ -73,13 +99,24 @@ class AclLanguageServer(LanguageServer):
         if delay > 0:
             await asyncio.sleep(delay)
         self._pending.pop(uri, None)
+        if not self.is_open(uri):          # closed meanwhile
+            return
         try:
             snap = self._check(uri)
-        except KeyError:          # closed meanwhile
+            self.publish(uri, snap, snap.diagnostics)
+        except Exception as exc:       # a bug must cost this document's diagnostics, not the server
+            logging.getLogger("pygls").error("checking %s failed: %s: %s", uri, type(exc).__name__, exc)
             return
-        self.publish(uri, snap, snap.diagnostics)
         if self.lint_enabled:
             self.schedule_lint(uri)
+
+    def report_server_error(self, error: Exception, source) -> None:
+        """Errors outside a request's reply: one line on stderr (no pop-up in the editor); a failed
+        request's reply says why, and pygls has logged it already."""
+        from pygls.exceptions import FeatureRequestError
+
+        if source is not FeatureRequestError:
+            logging.getLogger("pygls").error("%s: %s", type(error).__name__, error)
 
     def publish(self, uri: str, snap: Snapshot, diags: list[Diagnostic]) -> None:
         self.text_document_publish_diagnostics(T.PublishDiagnosticsParams(
@@ -224,9 +261,9 @@ _ENCODING = "utf-16"
 def _units(text: str) -> int:
     if _ENCODING == "utf-32" or text.isascii():
         return len(text)
-    if _ENCODING == "utf-8":
-        return len(text.encode("utf-8"))
-    return len(text.encode("utf-16-le")) // 2
+    if _ENCODING == "utf-8":      # lone surrogates (JSON allows `\ud800`) count as the 3 bytes WTF-8 gives them
+        return len(text.encode("utf-8", "surrogatepass"))
+    return len(text.encode("utf-16-le", "surrogatepass")) // 2
 
 
 def col_out(lines, line: int, col: int) -> int:
@@ -246,6 +283,16 @@ def col_in(lines, line: int, units: int) -> int:
             return i
         n += _units(ch)
     return len(text)
+
+
+def at(snap: Snapshot, pos: T.Position) -> tuple[int, int]:
+    """A client position as (line, code-point column), clamped into the document (a position past
+    the end, line 2147483647 say, means its end, as the protocol says)."""
+    lines = snap.lines or [""]
+    line = min(max(pos.line, 0), len(lines) - 1)
+    if pos.line >= len(lines):
+        return line, len(lines[line])
+    return line, min(col_in(lines, line, max(pos.character, 0)), len(lines[line]))
 
 
 def _range(t, lines=None) -> T.Range:
@@ -268,16 +315,50 @@ _COMPLETION_KIND = {"keyword": T.CompletionItemKind.Keyword, "key": T.Completion
                     "function": T.CompletionItemKind.Function}
 
 
+#: initializationOptions: name -> (check, what it must be)
+_OPTIONS = {
+    "debounce": (lambda v: _seconds(v), "a number of seconds from 0 to 10"),
+    "lint": (lambda v: isinstance(v, bool), "true or false"),
+    "lint_delay": (lambda v: _seconds(v), "a number of seconds from 0 to 10"),
+}
+
+
+def _seconds(v) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool) and 0 <= v <= 10
+
+
+def read_options(opts) -> tuple[dict, list[str]]:
+    """The valid ``initializationOptions`` and a warning for each one ignored (never an error:
+    a bad option must not fail ``initialize``)."""
+    if opts is None:
+        return {}, []
+    if not isinstance(opts, dict):
+        return {}, [f"initializationOptions must be an object, not {type(opts).__name__}: ignored"]
+    good, warnings = {}, []
+    for k, v in opts.items():
+        rule = _OPTIONS.get(k)
+        if rule is None:
+            warnings.append(f"initializationOptions: unknown option `{k}` ignored (known: {', '.join(_OPTIONS)})")
+        elif not rule[0](v):
+            shown = repr(v) if len(repr(v)) <= 40 else repr(v)[:40] + "…"
+            warnings.append(f"initializationOptions: `{k}` must be {rule[1]}, not {shown}: the default is used")
+        else:
+            good[k] = v
+    return good, warnings
+
+
 @server.feature(T.INITIALIZE)
 def _initialize(ls: AclLanguageServer, params: T.InitializeParams) -> None:
     global _ENCODING
     enc = ls.workspace.position_encoding
     _ENCODING = str(getattr(enc, "value", enc) or "utf-16").lower()
-    opts = params.initialization_options or {}
-    if isinstance(opts, dict):
-        ls.debounce = float(opts.get("debounce", ls.debounce))
-        ls.lint_enabled = bool(opts.get("lint", ls.lint_enabled))
-        ls.lint_delay = float(opts.get("lint_delay", ls.lint_delay))
+    opts, warnings = read_options(params.initialization_options)
+    ls.debounce = float(opts.get("debounce", ls.debounce))
+    ls.lint_enabled = bool(opts.get("lint", ls.lint_enabled))
+    ls.lint_delay = float(opts.get("lint_delay", ls.lint_delay))
+    for w in warnings:
+        logging.getLogger("pygls").warning("%s", w)
+        ls.window_log_message(T.LogMessageParams(type=T.MessageType.Warning, message=f"acl lsp: {w}"))
 
 
 @server.feature(T.SHUTDOWN)
@@ -320,7 +401,7 @@ def _hover(ls: AclLanguageServer, params: T.HoverParams) -> T.Hover | None:
     if _no_names(snap):
         snap = ls.resolved.get(params.text_document.uri, snap)
     pos = params.position
-    got = hover(snap, pos.line, col_in(snap.lines, pos.line, pos.character))
+    got = hover(snap, *at(snap, pos))
     if got is None:
         return None
     text, (ln, a, b) = got
@@ -336,7 +417,7 @@ def _definition(ls: AclLanguageServer, params: T.DefinitionParams) -> T.Location
     if _no_names(snap):
         snap = ls.resolved.get(params.text_document.uri, snap)
     pos = params.position
-    got = definition(snap, pos.line, col_in(snap.lines, pos.line, pos.character))
+    got = definition(snap, *at(snap, pos))
     if got is None:
         return None
     path, rng, lines = got
@@ -351,7 +432,7 @@ def _completion(ls: AclLanguageServer, params: T.CompletionParams) -> T.Completi
     snap = ls.snapshot(uri)
     names = snap if not _no_names(snap) else ls.resolved.get(uri)
     pos = params.position
-    items = complete(snap, names, pos.line, col_in(snap.lines, pos.line, pos.character))
+    items = complete(snap, names, *at(snap, pos))
     return T.CompletionList(is_incomplete=False, items=[
         T.CompletionItem(label=label, kind=_COMPLETION_KIND[kind], detail=detail,
                          insert_text=f"{label} = " if kind == "key" else None) for label, kind, detail in items])
@@ -381,13 +462,20 @@ def _code_action(ls: AclLanguageServer, params: T.CodeActionParams) -> list[T.Co
     uri = params.text_document.uri
     snap = ls.snapshot(uri)
     wanted = params.range
-    candidates = list(params.context.diagnostics or [])
-    seen = {(d.code, d.range.start.line, d.range.start.character) for d in candidates}
-    for d in ls.all_diagnostics(uri, snap):       # the client may not send them back: use our own
+    # Only the server's own diagnostics are fixed, never a range the client sends back: a client may
+    # count columns in another unit (Neovim 0.7 sent bytes) and a fix built on it corrupts the text.
+    # The client's diagnostics, matched to ours by code and range, only select among them.
+    sent = {(str(d.code), _key(d.range)) for d in (params.context.diagnostics or [])}
+    own, seen = [], set()
+    for d in ls.all_diagnostics(uri, snap):
         ld = to_lsp(d, snap)
-        if (ld.code, ld.range.start.line, ld.range.start.character) not in seen and \
-                ld.range.start.line <= wanted.end.line and ld.range.end.line >= wanted.start.line:
-            candidates.append(ld)
+        k = (str(ld.code), _key(ld.range))
+        if k in seen:
+            continue
+        seen.add(k)
+        if k in sent or _overlaps(ld.range, wanted):
+            own.append(ld)
+    candidates = own
     actions = []
     for d in candidates:
         hint = d.data.get("hint") if isinstance(d.data, dict) else None
@@ -406,6 +494,15 @@ def _code_action(ls: AclLanguageServer, params: T.CodeActionParams) -> list[T.Co
                                     kind=T.CodeActionKind.QuickFix, diagnostics=[d], is_preferred=True,
                                     edit=T.WorkspaceEdit(changes={uri: [edit]})))
     return actions
+
+
+def _key(r: T.Range) -> tuple[int, int, int, int]:
+    return r.start.line, r.start.character, r.end.line, r.end.character
+
+
+def _overlaps(a: T.Range, b: T.Range) -> bool:
+    """Whether ranges ``a`` and ``b`` share a line (a quick fix is offered anywhere on its line)."""
+    return a.start.line <= b.end.line and b.start.line <= a.end.line
 
 
 @server.feature(T.TEXT_DOCUMENT_FORMATTING)
@@ -456,10 +553,11 @@ def serve(verbose: bool = False) -> None:
 
     out = LockedOutput(sys.stdout.buffer)
     stream = FramedInput(sys.stdin.buffer, reply=out.send)
-    if not verbose:
-        log = logging.getLogger("pygls")
-        log.handlers[:] = [_OneLine(stream)]
-        log.propagate = False
+    if not verbose:      # pygls, asyncio and futures log tracebacks: one coded line each instead
+        for name in ("pygls", "asyncio", "concurrent.futures"):
+            log = logging.getLogger(name)
+            log.handlers[:] = [_OneLine(stream)]
+            log.propagate = False
     try:
         server.start_io(stream, out)
     finally:
