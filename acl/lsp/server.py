@@ -562,3 +562,5 @@ def serve(verbose: bool = False) -> None:
         server.start_io(stream, out)
     finally:
         server.close()
+
+from acl.lsp import features as _features  # noqa: E402,F401  (registers the requests of issue 27)
