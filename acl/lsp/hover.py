@@ -42,8 +42,17 @@ def _quantity_re() -> re.Pattern:
     raise RuntimeError("grammar has no QUANTITY terminal")  # pragma: no cover
 
 
-def hover(snap: Snapshot, line: int, character: int) -> tuple[str, tuple[int, int, int]] | None:
-    """Markdown text and (line, start, end) of the hovered word, or None."""
+#: capsules in a design up to which a capsule's hover computes its phases and coupled modes at once;
+#: beyond, the server asks its background worker (coupled modes of 393 capsules: 13 s)
+INLINE_CAPSULES = 24
+
+
+def hover(snap: Snapshot, line: int, character: int, quick: bool = False) -> tuple[str, tuple[int, int, int]] | None:
+    """Markdown text and (line, start, end) of the hovered word, or None.
+
+    ``quick``: leave out what takes long on a large design (a capsule's phases and coupled modes
+    with more than :data:`INLINE_CAPSULES` capsules); the text then ends with
+    :data:`acl.lsp.background.PENDING_NOTE`."""
     text = snap.line(line)
     code = code_part(text)
     if character >= len(code):          # in a comment: only rule codes mean something
@@ -65,7 +74,7 @@ def hover(snap: Snapshot, line: int, character: int) -> tuple[str, tuple[int, in
             return f"**{parts[0]}**: {KIND_DOCS[parts[0]]}", (line, start, end)
         key = _key_doc(snap, line, start, parts[0]) if upto == 1 else None
         return (key, (line, start, end)) if key else None
-    return _target_text(snap, target), (line, start, start + len(".".join(parts[:upto])))
+    return _target_text(snap, target, quick), (line, start, start + len(".".join(parts[:upto])))
 
 
 # ------------------------------------------------------------------------------------------------
@@ -118,7 +127,7 @@ def _where(target: Target) -> str:
     return f"{os.path.basename(f)}:{line}"
 
 
-def _target_text(snap: Snapshot, target: Target) -> str:
+def _target_text(snap: Snapshot, target: Target, quick: bool = False) -> str:
     if target.what == "module":
         decls = ", ".join(list(target.env.decls)[:12]) or "nothing"
         return f"**module** `{target.name}` ({target.env.file})\n\ndeclares: {decls}"
@@ -130,7 +139,7 @@ def _target_text(snap: Snapshot, target: Target) -> str:
         extra = ""
         try:
             if node.kind == "capsule":
-                extra = _capsule_text(snap, target)
+                extra = _capsule_text(snap, target, quick)
             elif node.kind == "beam":
                 extra = _beam_text(snap, target)
         except Exception as exc:  # a prediction that fails must not break hover
@@ -189,7 +198,7 @@ def _reference(env, target: Target) -> str | None:
     return None
 
 
-def _capsule_text(snap: Snapshot, target: Target) -> str:
+def _capsule_text(snap: Snapshot, target: Target, quick: bool = False) -> str:
     from acl.analysis import acoustics as AC
     from acl.analysis.report import program_frequencies
 
@@ -204,6 +213,10 @@ def _capsule_text(snap: Snapshot, target: Target) -> str:
         q = f"{m.q:.1f}" + (" (declared)" if m.q_declared else "")
         rows.append(f"| {i + 1} | {m.frequency_hz / 1e3:.1f} | {q} | {m.dominant_orifice} ({m.share:.0%}) |")
     out = f"**predicted modes**{alone} (as `acl analyze`):\n\n" + "\n".join(rows)
+    if quick and len(design.capsules) > INLINE_CAPSULES:
+        from acl.lsp.background import PENDING_NOTE
+
+        return out + "\n\nphases and coupled modes: " + PENDING_NOTE
     freqs = program_frequencies(snap.design) if snap.design is not None else []
     if freqs:
         import numpy as np

@@ -41,6 +41,9 @@ class AclLanguageServer(LanguageServer):
         self._executor = None
         self._parsers: dict[str, object] = {}
         self._lint_running: set[str] = set()
+        from acl.lsp.background import Worker
+
+        self.worker = Worker()            # long analyses (a large design's capsule hover), cancellable
 
     # ---------------------------------------------------------------------------------- state
     def path_of(self, uri: str) -> str:
@@ -104,11 +107,29 @@ class AclLanguageServer(LanguageServer):
         try:
             snap = self._check(uri)
             self.publish(uri, snap, snap.diagnostics)
+            self._warm_worker(snap)
         except Exception as exc:       # a bug must cost this document's diagnostics, not the server
             logging.getLogger("pygls").error("checking %s failed: %s: %s", uri, type(exc).__name__, exc)
             return
         if self.lint_enabled:
             self.schedule_lint(uri)
+
+    def _warm_worker(self, snap: Snapshot) -> None:
+        """Start the background worker (0.3 s to spawn, more to import) before the first hover
+        that needs it: when a design is large enough to need it."""
+        from acl.lsp.hover import INLINE_CAPSULES
+
+        if snap.design is None or len(getattr(snap.design, "capsules", ())) <= INLINE_CAPSULES:
+            return
+        import threading
+
+        from acl.lsp.background import warm_up
+
+        def warm() -> None:
+            warm_up()                                  # this process's imports (the quick hover's)
+            self.worker.get(("warm",), warm_up)        # and the worker's
+
+        threading.Thread(target=warm, daemon=True).start()
 
     def report_server_error(self, error: Exception, source) -> None:
         """Errors outside a request's reply: one line on stderr (no pop-up in the editor); a failed
@@ -168,6 +189,7 @@ class AclLanguageServer(LanguageServer):
         return self._executor
 
     def close(self) -> None:
+        self.worker.stop()
         for t in list(self._pending.values()) + list(self._lint_tasks.values()):
             t.cancel()
         if self._executor is not None:
@@ -373,7 +395,12 @@ async def _did_open(ls: AclLanguageServer, params: T.DidOpenTextDocumentParams) 
 
 @server.feature(T.TEXT_DOCUMENT_DID_CHANGE)
 async def _did_change(ls: AclLanguageServer, params: T.DidChangeTextDocumentParams) -> None:
-    ls.schedule(params.text_document.uri, ls.debounce)
+    from acl.lsp.background import text_key
+
+    uri = params.text_document.uri
+    if ls.is_open(uri):        # a newer text: older background work is cancelled
+        ls.worker.forget(uri, keep=text_key(ls.document(uri).source))
+    ls.schedule(uri, ls.debounce)
 
 
 @server.feature(T.TEXT_DOCUMENT_DID_SAVE)
@@ -384,6 +411,7 @@ async def _did_save(ls: AclLanguageServer, params: T.DidSaveTextDocumentParams) 
 @server.feature(T.TEXT_DOCUMENT_DID_CLOSE)
 def _did_close(ls: AclLanguageServer, params: T.DidCloseTextDocumentParams) -> None:
     uri = params.text_document.uri
+    ls.worker.forget(uri)
     for store in (ls.snapshots, ls.resolved, ls.lint_findings, ls._parsers):
         store.pop(uri, None)
     for tasks in (ls._pending, ls._lint_tasks):
@@ -401,10 +429,18 @@ def _hover(ls: AclLanguageServer, params: T.HoverParams) -> T.Hover | None:
     if _no_names(snap):
         snap = ls.resolved.get(params.text_document.uri, snap)
     pos = params.position
-    got = hover(snap, *at(snap, pos))
+    line, col = at(snap, pos)
+    got = hover(snap, line, col, quick=True)
     if got is None:
         return None
     text, (ln, a, b) = got
+    from acl.lsp.background import PENDING_NOTE, hover_text, text_key
+
+    if text.endswith(PENDING_NOTE):    # the rest comes from the worker; answer now with what is quick
+        full = ls.worker.get((params.text_document.uri, text_key(snap.text), "hover", ln, a),
+                             hover_text, snap.path, snap.text, line, col)
+        if full is not None:
+            text = full
     return T.Hover(contents=T.MarkupContent(kind=T.MarkupKind.Markdown, value=text),
                    range=_range((ln, a, ln, b), snap.lines))
 
@@ -564,3 +600,4 @@ def serve(verbose: bool = False) -> None:
         server.close()
 
 from acl.lsp import features as _features  # noqa: E402,F401  (registers the requests of issue 27)
+from acl.lsp import lenses as _lenses  # noqa: E402,F401  (code lenses and commands)
