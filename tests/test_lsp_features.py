@@ -351,3 +351,72 @@ def test_a_command_on_a_document_not_open_is_an_error(ws, tmp_path):
     c, _, _ = ws
     with pytest.raises(RuntimeError, match="not open"):
         c.request("workspace/executeCommand", {"command": "acl.analyze", "arguments": [uri(tmp_path / "x.acl")]})
+
+
+# ------------------------------------------------------------------------------------------------
+# Hover and completion
+# ------------------------------------------------------------------------------------------------
+
+def test_hover_on_functions_directions_and_imports(ws):
+    c, root, u = ws
+    ln = _ln("observe tip")
+    hv = c.at("textDocument/hover", u, ln, L[ln].index("displacement") + 3)["contents"]["value"]
+    assert "displacement(element, direction)" in hv
+    hv = c.at("textDocument/hover", u, ln, L[ln].index("+x") + 1)
+    assert "(1, 0, 0)" in hv["contents"]["value"] and hv["range"]["start"]["character"] == L[ln].index("+x")
+    hv = c.at("textDocument/hover", u, _ln("import stdlib.media"), 10)["contents"]["value"]
+    assert "media.acl" in hv and "`pbs`" in hv
+    hv = c.at("textDocument/hover", u, _ln('import "lib.acl"'), 3)["contents"]["value"]
+    assert str(root / "lib.acl") in hv and "`gap`" in hv and "`tpl`" in hv
+
+
+def test_completion_items_carry_a_text_edit_and_documentation(ws):
+    c, _, u = ws
+    text = MAIN + "param extra = 12um\n"
+    c.change(u, 10, text)
+    c.wait_for("textDocument/publishDiagnostics", lambda p: p["uri"] == u and p.get("version") == 10)
+    ln = len(L) - 1
+    line = text.split("\n")[ln]
+    got = c.at("textDocument/completion", u, ln, len(line))           # right after `12um`, no space
+    items = {i["label"]: i for i in got["items"]}
+    assert "um" in items and items["um"]["kind"] == 11
+    e = items["um"]["textEdit"]
+    assert e["range"]["start"] == {"line": ln, "character": line.index("um")} and e["newText"] == "um"
+    doc = c.request("completionItem/resolve", items["um"])["documentation"]["value"]
+    assert "1e-06 m" in doc
+    # a key replaces what was typed with `key = `
+    text2 = MAIN.replace("  center = (0, 0, 100 um)", "  center = (0, 0, 100 um),\n  cav")
+    c.change(u, 11, text2)
+    c.wait_for("textDocument/publishDiagnostics", lambda p: p["uri"] == u and p.get("version") == 11)
+    lines2 = text2.split("\n")
+    ln2 = next(i for i, x in enumerate(lines2) if x == "  cav")
+    got = {i["label"]: i for i in c.at("textDocument/completion", u, ln2, 5)["items"]}
+    assert got["cavity"]["textEdit"]["range"]["start"]["character"] == 2
+    kinds = c.request("completionItem/resolve", got["cavity"]).get("documentation")
+    assert kinds is None or "cavity" in kinds["value"]
+    ln3 = _ln("param w")
+    names = {i["label"]: i for i in c.at("textDocument/completion", u, ln3, len("param w = "))["items"]}
+    doc = c.request("completionItem/resolve", names["dwell"])["documentation"]["value"]
+    assert "param dwell = 300 ms" in doc
+    doc = c.request("completionItem/resolve", names["displacement"])["documentation"]["value"]
+    assert "displacement(element, direction)" in doc
+    c.change(u, 12, MAIN)
+    c.wait_for("textDocument/publishDiagnostics", lambda p: p["uri"] == u and p.get("version") == 12)
+
+
+def test_organize_imports_sorts_them_as_acl_fmt(ws):
+    c, _, u = ws
+    rng = {"start": {"line": 0, "character": 0}, "end": {"line": 0, "character": 0}}
+    acts = c.request("textDocument/codeAction", {**_doc(u), "range": rng,
+                                                 "context": {"diagnostics": [], "only": ["source.organizeImports"]}})
+    assert [a["kind"] for a in acts] == ["source.organizeImports"]
+    lines = MAIN.split("\n")
+    for e in sorted(acts[0]["edit"]["changes"][u], key=lambda e: e["range"]["start"]["line"], reverse=True):
+        s, t = e["range"]["start"]["line"], e["range"]["end"]["line"]
+        lines[s:t] = e["new_text" if "new_text" in e else "newText"].split("\n")[:-1]
+    assert lines[:5] == ["import stdlib.beams", "import stdlib.capsules", "import stdlib.media",
+                         "import stdlib.transducers", 'import "lib.acl" as lib']
+    assert lines[5:] == MAIN.split("\n")[5:]
+    only_fix = c.request("textDocument/codeAction", {**_doc(u), "range": rng,
+                                                     "context": {"diagnostics": [], "only": ["quickfix"]}})
+    assert only_fix == []

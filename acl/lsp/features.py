@@ -290,19 +290,24 @@ def _semantic(ls: AclLanguageServer, params: T.SemanticTokensParams) -> T.Semant
 
 @server.feature(T.TEXT_DOCUMENT_RANGE_FORMATTING)
 def _range_formatting(ls: AclLanguageServer, params: T.DocumentRangeFormattingParams) -> list[T.TextEdit] | None:
-    """The edits of `acl fmt` whose lines fall inside the range (whole statements it touches)."""
+    snap = ls.snapshot(params.text_document.uri)
+    return format_lines(snap, params.range.start.line, params.range.end.line)
+
+
+def format_lines(snap, first: int, last: int) -> list[T.TextEdit] | None:
+    """The edits of `acl fmt` that touch lines ``first``..``last`` (None: the text does not parse).
+    Changed lines are replaced one by one where `acl fmt` keeps their number, so a range takes
+    only its own lines; a hunk that adds or removes lines is taken whole when it touches the range."""
     import difflib
 
     from acl.diagnostics import DiagnosticError
     from acl.fmt import format_source
 
-    snap = ls.snapshot(params.text_document.uri)
     try:
         new = format_source(snap.text, snap.path)
     except DiagnosticError:
         return None
     old_lines, new_lines = snap.text.split("\n"), new.split("\n")
-    first, last = params.range.start.line, params.range.end.line
     edits = []
     sm = difflib.SequenceMatcher(None, old_lines, new_lines, autojunk=False)
     hunks = []
@@ -322,6 +327,22 @@ def _range_formatting(ls: AclLanguageServer, params: T.DocumentRangeFormattingPa
             text = "".join(x + "\n" for x in new_lines[j1:j2])
         edits.append(T.TextEdit(range=_range((i1, 0, *end), old_lines), new_text=text))
     return edits
+
+
+def organize_imports(snap, uri: str) -> T.CodeAction | None:
+    """`source.organizeImports`: the import lines in the order `acl fmt` gives them."""
+    from acl.syntax import ast as A
+
+    if snap.env is None:
+        return None
+    lines = [st.span.line - 1 for st in snap.env.module.statements if isinstance(st, A.Import)]
+    if not lines:
+        return None
+    edits = format_lines(snap, min(lines), max(lines))
+    if not edits:
+        return None
+    return T.CodeAction(title="Organize imports (as acl fmt)", kind=T.CodeActionKind.SourceOrganizeImports,
+                        edit=T.WorkspaceEdit(changes={uri: edits}))
 
 
 @server.feature(T.TEXT_DOCUMENT_INLAY_HINT)

@@ -61,10 +61,22 @@ def hover(snap: Snapshot, line: int, character: int, quick: bool = False) -> tup
     q = word_at(code, character, _quantity_re())
     if q is not None:
         return _quantity_text(q[0]), (line, q[1], q[2])
+    d = word_at(code, character, _DIRECTION)
+    if d is not None and (d[1] == 0 or not (code[d[1] - 1].isalnum() or code[d[1] - 1] in "_)]")):
+        return _direction_text(d[0]), (line, d[1], d[2])
+    imp = _import_text(snap, line)
+    if imp is not None:
+        return imp, (line, 0, len(code.rstrip()))
     w = word_at(code, character)
     if w is None:
         return None
     dotted, start, end = w
+    if "." not in dotted and code[end:].lstrip().startswith("("):
+        from acl.lsp.structure import SIGNATURES
+
+        if dotted in SIGNATURES:
+            params, doc = SIGNATURES[dotted]
+            return f"```acl\n{dotted}({', '.join(params)})\n```\n\n{doc}", (line, start, end)
     parts = dotted.split(".")
     upto = part_at(dotted, start, character) + 1
     env = snap.env
@@ -78,6 +90,37 @@ def hover(snap: Snapshot, line: int, character: int, quick: bool = False) -> tup
 
 
 # ------------------------------------------------------------------------------------------------
+
+_DIRECTION = re.compile(r"[+-][xyz]\b")
+
+
+def _direction_text(word: str) -> str:
+    axis = "xyz".index(word[1])
+    vec = ["0", "0", "0"]
+    vec[axis] = "1" if word[0] == "+" else "-1"
+    return (f"**direction** `{word}`: the unit vector ({', '.join(vec)}) "
+            f"({'along' if word[0] == '+' else 'against'} the {word[1]} axis of the substrate frame)")
+
+
+def _import_text(snap: Snapshot, line: int) -> str | None:
+    """On an `import` line: the module (or declaration) it brings in, its file and what it declares."""
+    env = snap.env
+    if env is None:
+        return None
+    for st in env.module.statements:
+        if isinstance(st, A.Import) and st.span.line - 1 <= line <= (st.span.end_line or st.span.line) - 1:
+            alias = st.alias or (st.module[-1] if st.module else None)
+            tgt = env.imports.get(alias) if alias else None
+            if tgt is None:
+                return None
+            if isinstance(tgt, tuple):
+                t = resolve_name(env, [alias])
+                return _target_text(snap, t, True) if t is not None else None
+            names = list(tgt.decls) + list(tgt.params) + list(tgt.programs)
+            shown = ", ".join(f"`{n}`" for n in names[:20]) + (f" (+{len(names) - 20} more)" if len(names) > 20 else "")
+            return (f"**import** as `{alias}`: `{tgt.file}`\n\n{len(names)} declaration(s): {shown or 'none'}")
+    return None
+
 
 def _quantity_text(literal: str) -> str:
     from acl.units import UnitError, describe, format_quantity, parse_unit

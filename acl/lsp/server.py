@@ -460,18 +460,47 @@ def _definition(ls: AclLanguageServer, params: T.DefinitionParams) -> T.Location
     return T.Location(uri=from_fs_path(path) or path, range=_range(rng, lines))
 
 
-@server.feature(T.TEXT_DOCUMENT_COMPLETION, T.CompletionOptions(trigger_characters=["."]))
+@server.feature(T.TEXT_DOCUMENT_COMPLETION, T.CompletionOptions(trigger_characters=["."], resolve_provider=True))
 def _completion(ls: AclLanguageServer, params: T.CompletionParams) -> T.CompletionList:
+    import re
+
     from acl.lsp.completion import complete
 
     uri = params.text_document.uri
     snap = ls.snapshot(uri)
     names = snap if not _no_names(snap) else ls.resolved.get(uri)
-    pos = params.position
-    items = complete(snap, names, *at(snap, pos))
-    return T.CompletionList(is_incomplete=False, items=[
-        T.CompletionItem(label=label, kind=_COMPLETION_KIND[kind], detail=detail,
-                         insert_text=f"{label} = " if kind == "key" else None) for label, kind, detail in items])
+    line, col = at(snap, params.position)
+    items = complete(snap, names, line, col)
+    # each item replaces the word being typed (a unit's letters, a name after the last `.`)
+    typed = re.search(r"[A-Za-z_\u00b5][\w\u00b5]*$", snap.line(line)[:col])
+    start = typed.start() if typed else col
+    rng = _range((line, start, line, col), snap.lines)
+    out = []
+    for label, kind, detail in items:
+        new = f"{label} = " if kind == "key" else label
+        out.append(T.CompletionItem(label=label, kind=_COMPLETION_KIND[kind], detail=detail,
+                                    text_edit=T.TextEdit(range=rng, new_text=new),
+                                    data={"uri": uri, "kind": kind, "label": label}))
+    return T.CompletionList(is_incomplete=False, items=out)
+
+
+@server.feature(T.COMPLETION_ITEM_RESOLVE)
+def _completion_resolve(ls: AclLanguageServer, item: T.CompletionItem) -> T.CompletionItem:
+    """The item's documentation, computed when the editor shows it (a unit's SI factor and
+    dimension, a kind's role, a function's signature, a name's declaration)."""
+    from acl.lsp.completion import documentation
+
+    data = item.data if isinstance(item.data, dict) else {}
+    uri = data.get("uri")
+    snap = None
+    if isinstance(uri, str) and ls.is_open(uri):
+        snap = ls.snapshot(uri)
+        if _no_names(snap):
+            snap = ls.resolved.get(uri, snap)
+    text = documentation(snap, str(data.get("kind", "")), str(data.get("label", item.label)))
+    if text:
+        item.documentation = T.MarkupContent(kind=T.MarkupKind.Markdown, value=text)
+    return item
 
 
 @server.feature(T.TEXT_DOCUMENT_DOCUMENT_SYMBOL)
@@ -491,7 +520,8 @@ def _symbols(ls: AclLanguageServer, params: T.DocumentSymbolParams) -> list[T.Do
     return [conv(s) for s in outline(snap)]
 
 
-@server.feature(T.TEXT_DOCUMENT_CODE_ACTION, T.CodeActionOptions(code_action_kinds=[T.CodeActionKind.QuickFix]))
+@server.feature(T.TEXT_DOCUMENT_CODE_ACTION, T.CodeActionOptions(
+    code_action_kinds=[T.CodeActionKind.QuickFix, T.CodeActionKind.SourceOrganizeImports]))
 def _code_action(ls: AclLanguageServer, params: T.CodeActionParams) -> list[T.CodeAction]:
     from acl.lsp.actions import fix
 
@@ -512,7 +542,11 @@ def _code_action(ls: AclLanguageServer, params: T.CodeActionParams) -> list[T.Co
         if k in sent or _overlaps(ld.range, wanted):
             own.append(ld)
     candidates = own
+    only = params.context.only
+    wants = (lambda kind: not only or any(kind == k or kind.startswith(k + ".") for k in only))
     actions = []
+    if not wants(T.CodeActionKind.QuickFix):
+        candidates = []
     for d in candidates:
         hint = d.data.get("hint") if isinstance(d.data, dict) else None
         if hint is None and "\nhelp: " in d.message:
@@ -529,6 +563,12 @@ def _code_action(ls: AclLanguageServer, params: T.CodeActionParams) -> list[T.Co
         actions.append(T.CodeAction(title=f"Replace `{snap.line(r.start.line)[a:b]}` with `{new}` ({d.code})",
                                     kind=T.CodeActionKind.QuickFix, diagnostics=[d], is_preferred=True,
                                     edit=T.WorkspaceEdit(changes={uri: [edit]})))
+    if wants(T.CodeActionKind.SourceOrganizeImports):
+        from acl.lsp.features import organize_imports
+
+        got = organize_imports(snap, uri)
+        if got is not None:
+            actions.append(got)
     return actions
 
 
