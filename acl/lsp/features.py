@@ -289,9 +289,11 @@ def _semantic(ls: AclLanguageServer, params: T.SemanticTokensParams) -> T.Semant
 
 
 @server.feature(T.TEXT_DOCUMENT_RANGE_FORMATTING)
-def _range_formatting(ls: AclLanguageServer, params: T.DocumentRangeFormattingParams) -> list[T.TextEdit] | None:
+async def _range_formatting(ls: AclLanguageServer, params: T.DocumentRangeFormattingParams) -> list[T.TextEdit] | None:
+    import asyncio
+
     snap = ls.snapshot(params.text_document.uri)
-    return format_lines(snap, params.range.start.line, params.range.end.line)
+    return await asyncio.to_thread(format_lines, snap, params.range.start.line, params.range.end.line)
 
 
 def format_lines(snap, first: int, last: int) -> list[T.TextEdit] | None:
@@ -300,12 +302,10 @@ def format_lines(snap, first: int, last: int) -> list[T.TextEdit] | None:
     only its own lines; a hunk that adds or removes lines is taken whole when it touches the range."""
     import difflib
 
-    from acl.diagnostics import DiagnosticError
-    from acl.fmt import format_source
+    from acl.lsp.formatting import formatted
 
-    try:
-        new = format_source(snap.text, snap.path)
-    except DiagnosticError:
+    new = formatted(snap.text, snap.path)
+    if new is None:
         return None
     old_lines, new_lines = snap.text.split("\n"), new.split("\n")
     edits = []
