@@ -90,3 +90,20 @@ def test_vsce_packages_a_small_bundled_vsix_without_a_prompt(tmp_path):
     names = zipfile.ZipFile(vsix[0]).namelist()
     assert "extension/dist/extension.js" in names and not any("node_modules" in n for n in names)
     assert len(names) <= 10, names
+
+
+def test_the_documented_lsp_limits_are_the_code_s():
+    from acl.lsp import features, hover, structure
+
+    text = (ROOT / "docs" / "lsp.md").read_text(encoding="utf-8")
+    assert f"on a design of more than {hover.INLINE_CAPSULES} capsules" in text
+    assert f"for the first {structure.MAX_RESONANCE_HINTS} capsules of the visible range" in text
+    assert f"at most {features.MAX_WORKSPACE_FILES} designs" in text
+    for path in ("editors/neovim/acl.lua", "editors/neovim/acl-nvim07.lua"):
+        assert path in text and (ROOT / path).is_file()
+    nvim10 = (ROOT / "editors" / "neovim" / "acl.lua").read_text(encoding="utf-8")
+    for call in ("vim.lsp.start(", "vim.fs.root(", "vim.filetype.add("):
+        assert call in nvim10 and call in text
+    nvim07 = "\n".join(x for x in (ROOT / "editors" / "neovim" / "acl-nvim07.lua").read_text(encoding="utf-8")
+                       .split("\n") if not x.lstrip().startswith("--"))           # the code, not its comments
+    assert "vim.lsp.start(" not in nvim07 and "vim.fs." not in nvim07 and "vim.lsp.start_client(" in nvim07
