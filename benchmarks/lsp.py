@@ -116,6 +116,13 @@ def bench(n_lines: int, runs: int, warmup: int, lint: bool) -> dict:
             for name, fn in requests.items():
                 fn()                                       # warm-up (imports, caches)
                 results[name] = _ms(fn, runs)
+            fresh = []                                     # acl fmt on a text it has not seen (no cache)
+            for i in range(runs):
+                v += 1
+                client.change(u, v, text + f"# fresh {i}\n")
+                client.wait_for("textDocument/publishDiagnostics", lambda p, v=v: p["uri"] == u and p.get("version") == v)
+                fresh += _ms(requests["formatting"], 1)
+            results["formatting (a new text: acl fmt runs)"] = fresh
             _ = whole
 
             # a hover while the worker runs `acl analyze` on the whole design

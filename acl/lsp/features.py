@@ -300,22 +300,13 @@ def format_lines(snap, first: int, last: int) -> list[T.TextEdit] | None:
     """The edits of `acl fmt` that touch lines ``first``..``last`` (None: the text does not parse).
     Changed lines are replaced one by one where `acl fmt` keeps their number, so a range takes
     only its own lines; a hunk that adds or removes lines is taken whole when it touches the range."""
-    import difflib
+    from acl.lsp.formatting import hunks_of
 
-    from acl.lsp.formatting import formatted
-
-    new = formatted(snap.text, snap.path)
-    if new is None:
+    got = hunks_of(snap.text, snap.path)
+    if got is None:
         return None
-    old_lines, new_lines = snap.text.split("\n"), new.split("\n")
+    old_lines, new_lines, hunks = got
     edits = []
-    sm = difflib.SequenceMatcher(None, old_lines, new_lines, autojunk=False)
-    hunks = []
-    for op, i1, i2, j1, j2 in sm.get_opcodes():
-        if op == "replace" and i2 - i1 == j2 - j1:        # line by line: a range takes only its own lines
-            hunks.extend((i1 + k, i1 + k + 1, j1 + k, j1 + k + 1) for k in range(i2 - i1))
-        elif op != "equal":
-            hunks.append((i1, i2, j1, j2))
     for i1, i2, j1, j2 in hunks:
         if not (i1 <= last and max(i1, i2 - 1) >= first):     # a hunk that touches the range
             continue

@@ -38,6 +38,37 @@ def formatted(text: str, path: str) -> str | None:
     return new
 
 
+_HUNKS: "OrderedDict[tuple[str, str], tuple]" = OrderedDict()
+
+
+def hunks_of(text: str, path: str):
+    """(old lines, new lines, hunks) of `acl fmt` on ``text`` (None when it does not parse); each hunk
+    (i1, i2, j1, j2) replaces old lines i1..i2 by new lines j1..j2. Changed lines are split one by
+    one where `acl fmt` keeps their number, so a range takes only its own lines. Kept per text."""
+    import difflib
+
+    key = (path, text)
+    with _LOCK:
+        if key in _HUNKS:
+            return _HUNKS[key]
+    new = formatted(text, path)
+    if new is None:
+        return None
+    old_lines, new_lines = text.split("\n"), new.split("\n")
+    hunks = []
+    for op, i1, i2, j1, j2 in difflib.SequenceMatcher(None, old_lines, new_lines).get_opcodes():
+        if op == "replace" and i2 - i1 == j2 - j1:
+            hunks.extend((i1 + k, i1 + k + 1, j1 + k, j1 + k + 1) for k in range(i2 - i1))
+        elif op != "equal":
+            hunks.append((i1, i2, j1, j2))
+    got = (old_lines, new_lines, hunks)
+    with _LOCK:
+        _HUNKS[key] = got
+        while len(_HUNKS) > _KEEP:
+            _HUNKS.popitem(last=False)
+    return got
+
+
 def format_edits(snap: Snapshot) -> list[tuple[tuple[int, int, int, int], str]] | None:
     """[(range, new text)] replacing the document with its canonical layout; [] if already formatted."""
     new = formatted(snap.text, snap.path)

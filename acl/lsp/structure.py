@@ -3,6 +3,7 @@ signature help, semantic tokens and inlay hints. Pure functions of a :class:`Sna
 code points, 0-based (the server converts them to the client's units)."""
 from __future__ import annotations
 
+import functools
 import os
 import re
 
@@ -233,6 +234,7 @@ def semantic_tokens(snap: Snapshot) -> list[tuple[int, int, int, int, int]]:
     env = snap.env
     out = []
     known_units: dict[str, bool] = {}
+    resolved: dict[tuple[str, ...], tuple[int, int]] = {}      # a name resolves once per request
     for ln, text in enumerate(snap.lines):
         for m in _LEX.finditer(text):
             kind = m.lastgroup if m.lastgroup != "unit" else "number"
@@ -258,13 +260,13 @@ def semantic_tokens(snap: Snapshot) -> list[tuple[int, int, int, int, int]]:
                         out.append((ln, m.start("unit") + (len(m.group("unit")) - len(m.group("unit").lstrip())),
                                     len(unit), _T["type"], 0))
             elif m.group("name") is not None:
-                out.extend(_name_tokens(env, ln, a, m.group(0), text, m.end(), keywords))
+                out.extend(_name_tokens(env, ln, a, m.group(0), text, m.end(), keywords, resolved))
             elif kind == "op":
                 out.append((ln, a, len(m.group(0)), _T["operator"], 0))
     return out
 
 
-def _name_tokens(env, ln, start, dotted, text, end, keywords):
+def _name_tokens(env, ln, start, dotted, text, end, keywords, resolved):
     parts = dotted.split(".")
     if len(parts) == 1 and dotted in keywords:
         return [(ln, start, len(dotted), _T["keyword"], 0)]
@@ -275,27 +277,40 @@ def _name_tokens(env, ln, start, dotted, text, end, keywords):
         return [(ln, start, len(dotted), _T["property"], 0)]
     out, offset = [], start
     for k, p in enumerate(parts):
-        t = resolve_name(env, parts[:k + 1]) if env is not None else None
-        if t is None:
-            typ, mods = (_T["property"], 0) if k else (_T["variable"], 0)
-        elif t.what == "module":
-            typ, mods = _T["namespace"], 0
-        elif t.what == "param":
-            typ, mods = _T["variable"], 2
-        elif t.what == "program":
-            typ, mods = _T["function"], 0
-        elif t.what == "point":
-            typ, mods = _T["property"], 0
-        else:
-            typ, mods = _T["class"], 0
-        if t is not None and t.env is not env:
-            from acl.design.modules import stdlib_root
-
-            if os.path.realpath(t.env.file).startswith(os.path.realpath(stdlib_root())):
-                mods |= 4
+        key = tuple(parts[:k + 1])
+        if key not in resolved:
+            resolved[key] = _classify(env, list(key), k)
+        typ, mods = resolved[key]
         out.append((ln, offset, len(p), typ, mods))
         offset += len(p) + 1
     return out
+
+
+def _classify(env, parts: list[str], k: int) -> tuple[int, int]:
+    """(token type, modifiers) of the name ``parts`` (its last part)."""
+    t = resolve_name(env, parts) if env is not None else None
+    if t is None:
+        return (_T["property"], 0) if k else (_T["variable"], 0)
+    if t.what == "module":
+        typ, mods = _T["namespace"], 0
+    elif t.what == "param":
+        typ, mods = _T["variable"], 2
+    elif t.what == "program":
+        typ, mods = _T["function"], 0
+    elif t.what == "point":
+        typ, mods = _T["property"], 0
+    else:
+        typ, mods = _T["class"], 0
+    if t.env is not env and _in_stdlib(t.env.file):
+        mods |= 4
+    return typ, mods
+
+
+@functools.lru_cache(maxsize=256)
+def _in_stdlib(path: str) -> bool:
+    from acl.design.modules import stdlib_root
+
+    return os.path.realpath(path).startswith(os.path.realpath(stdlib_root()) + os.sep)
 
 
 # ------------------------------------------------------------------------------------------------
