@@ -10,6 +10,12 @@ Spawns `python -m acl lsp` and speaks the protocol (tests/lsp_client.py), opens 
 2. Every other request, each at a typical position, answered in (median of --runs). Target: <= 200 ms.
 3. A hover while a long analysis runs (`acl.analyze` on the whole design, in the server's worker
    process): the hover's time. Target: at once (<= 200 ms).
+
+Measured 2026-11-28 on 2 shared CPUs (load 1.8-2.8), medians of 5 runs, 1,000 / 5,000 lines:
+didChange -> diagnostics 77 / 155 ms (of the 300 ms check of a 5,000-line edit, 260 ms is design
+assembly, acl/design); documentSymbol 22 / 464 ms (2,000 symbols, 1 MB of JSON); semantic tokens
+19 / 130 ms; formatting a text acl fmt has not seen 167 / 795 ms (then cached: 1-2 ms); every
+other request <= 33 ms; a hover while acl.analyze runs in the worker 1.2 / 2.0 ms.
 """
 from __future__ import annotations
 
