@@ -91,3 +91,25 @@ def test_a_capsule_hover_on_a_large_design_answers_at_once_and_completes_later(t
         assert "computing" not in value and "phase of `jet` volume vs drive" in value
     finally:
         c.close()
+
+
+def test_a_job_stopped_by_an_edit_leaves_no_result_behind():
+    """Undoing the edit brings the old text back: its work must run again, not answer
+    `(unavailable: BrokenProcessPool)` from the job the edit stopped."""
+    from acl.lsp.background import Worker
+
+    w = Worker()
+    try:
+        w.get(("doc", "old", "slow"), time.sleep, 60)
+        fut = w.future(("doc", "old", "slow"))
+        deadline = time.monotonic() + 30
+        while not fut.running() and time.monotonic() < deadline:
+            time.sleep(0.05)
+        w.forget("doc", keep="new")
+        deadline = time.monotonic() + 30
+        while not fut.done() and time.monotonic() < deadline:
+            time.sleep(0.05)
+        time.sleep(0.2)
+        assert w.peek(("doc", "old", "slow")) is None
+    finally:
+        w.stop()

@@ -13,6 +13,7 @@ from __future__ import annotations
 import hashlib
 import threading
 from concurrent.futures import Future
+from concurrent.futures.process import BrokenProcessPool
 
 PENDING_NOTE = "*computing in the background (a large design): hover again in a moment*"
 
@@ -26,7 +27,7 @@ class Worker:
 
     def __init__(self, max_results: int = 256) -> None:
         self._pool = None
-        self._lock = threading.Lock()
+        self._lock = threading.RLock()
         self._jobs: dict[tuple, Future] = {}
         self._results: dict[tuple, object] = {}
         self._max = max_results
@@ -72,7 +73,9 @@ class Worker:
                 return
             try:
                 result = fut.result()
-            except Exception as exc:      # a worker that died (stopped by a newer edit) or a bug
+            except BrokenProcessPool:     # stopped by a newer edit: nothing to keep (asked again, it reruns)
+                return
+            except Exception as exc:      # a bug in the analysis: said once, not retried for this text
                 result = f"(unavailable: {type(exc).__name__}: {exc})"
             self._results[key] = result
             while len(self._results) > self._max:
@@ -81,16 +84,17 @@ class Worker:
     def forget(self, uri: str, keep: str | None = None) -> None:
         """Drop work and results of ``uri`` whose text key is not ``keep``; stop the worker if it is
         running such work."""
-        busy = False
         with self._lock:
             for k in [k for k in self._results if k[0] == uri and k[1] != keep]:
                 del self._results[k]
-            for k, f in list(self._jobs.items()):
-                if k[0] == uri and k[1] != keep:
-                    self.cancelled += 1
-                    if not f.cancel():
-                        busy = True
-                    self._jobs.pop(k, None)
+            old = [(k, f) for k, f in self._jobs.items() if k[0] == uri and k[1] != keep]
+            for k, _ in old:
+                self._jobs.pop(k, None)
+            self.cancelled += len(old)
+        busy = False
+        for _, f in old:           # outside the lock: cancel() runs the done callbacks in this thread
+            if not f.cancel():
+                busy = True
         if busy:
             self.stop()
             self.restarts += 1
@@ -105,9 +109,10 @@ class Worker:
             if w.is_alive():
                 w.terminate()
         with self._lock:
-            for k, f in list(self._jobs.items()):
-                f.cancel()
+            left = list(self._jobs.values())
             self._jobs.clear()
+        for f in left:
+            f.cancel()
 
 
 def hover_text(path: str, text: str, line: int, character: int) -> str | None:
