@@ -1,12 +1,21 @@
-"""Benchmark of `acl lsp`: time from didChange to publishDiagnostics on a 1,000-line design.
+"""Benchmark of `acl lsp` through the protocol, on generated designs of 1,000 and 5,000 lines.
 
-    python benchmarks/lsp.py [--lines 1000] [--runs 10] [--lint]
+    python benchmarks/lsp.py [--lines 1000 5000] [--runs 10] [--lint]
 
 Spawns `python -m acl lsp` and speaks the protocol (tests/lsp_client.py), opens a generated design
-(benchmarks/check.py's generator), warms up, then changes one line per run and measures from
-sending didChange to receiving the publishDiagnostics of that version (the check-stage
-diagnostics; lint findings follow later from a worker process).  The server's debounce (the pause
-it waits for before checking, 50 ms by default) is included.  Target: median < 150 ms.
+(benchmarks/check.py's generator), warms up, then measures:
+
+1. didChange -> publishDiagnostics: one line changed per run, from sending didChange to receiving
+   the diagnostics of that version (the server's 50 ms debounce included). Target: median <= 150 ms.
+2. Every other request, each at a typical position, answered in (median of --runs). Target: <= 200 ms.
+3. A hover while a long analysis runs (`acl.analyze` on the whole design, in the server's worker
+   process): the hover's time. Target: at once (<= 200 ms).
+
+Measured 2026-11-28 on 2 shared CPUs (load 1.8-2.8), medians of 5 runs, 1,000 / 5,000 lines:
+didChange -> diagnostics 77 / 155 ms (of the 300 ms check of a 5,000-line edit, 260 ms is design
+assembly, acl/design); documentSymbol 22 / 464 ms (2,000 symbols, 1 MB of JSON); semantic tokens
+19 / 130 ms; formatting a text acl fmt has not seen 167 / 795 ms (then cached: 1-2 ms); every
+other request <= 33 ms; a hover while acl.analyze runs in the worker 1.2 / 2.0 ms.
 """
 from __future__ import annotations
 
@@ -14,6 +23,7 @@ import argparse
 import statistics
 import sys
 import tempfile
+import threading
 import time
 from pathlib import Path
 
@@ -24,34 +34,39 @@ sys.path.insert(0, str(ROOT / "benchmarks"))
 from check import generate  # noqa: E402
 from lsp_client import LspClient  # noqa: E402
 
-TARGET_MS = 150.0
+TARGET_CHANGE_MS = 150.0
+TARGET_REQUEST_MS = 200.0
 
 
-def main() -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--lines", type=int, default=1000)
-    ap.add_argument("--runs", type=int, default=10)
-    ap.add_argument("--warmup", type=int, default=3)
-    ap.add_argument("--lint", action="store_true", help="also run lint in the server's worker (competes for CPU)")
-    args = ap.parse_args()
-    text = generate(args.lines)
-    n_lines = text.count("\n")
+def _ms(fn, runs: int) -> list[float]:
+    out = []
+    for _ in range(runs):
+        t0 = time.perf_counter()
+        fn()
+        out.append((time.perf_counter() - t0) * 1e3)
+    return out
+
+
+def bench(n_lines: int, runs: int, warmup: int, lint: bool) -> dict:
+    text = generate(n_lines)
+    lines = text.split("\n")
+    results: dict[str, list[float]] = {}
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "big.acl"
         path.write_text(text, encoding="utf-8")
-        client = LspClient({"lint": args.lint})
+        client = LspClient({"lint": lint}, root=Path(tmp),
+                           capabilities={"textDocument": {"rename": {"prepareSupport": True}}})
         try:
             u = client.open(path, text, 1)
             client.wait_for("textDocument/publishDiagnostics", lambda p: p["uri"] == u and p.get("version") == 1)
-            lines = text.split("\n")
             mid = next(i for i in range(len(lines) // 2, len(lines)) if lines[i].startswith("param x"))
-            results = {}
             v = 1
-            for case in ("edit a line in the middle", "append a line at the end"):
+            for case in ("didChange -> diagnostics: edit a line in the middle",
+                         "didChange -> diagnostics: append a line"):
                 times = []
-                for i in range(args.warmup + args.runs):
+                for i in range(warmup + runs):
                     v += 1
-                    if case.startswith("edit"):
+                    if "middle" in case:
                         new = lines[:mid] + [lines[mid].replace("* pitch", f"* pitch + {i + 1} um")] + lines[mid + 1:]
                         body = "\n".join(new)
                     else:
@@ -60,24 +75,115 @@ def main() -> int:
                     client.change(u, v, body)
                     pub = client.wait_for("textDocument/publishDiagnostics",
                                           lambda p, v=v: p["uri"] == u and p.get("version") == v)
-                    assert pub["diagnostics"] == [], pub["diagnostics"][:3]
-                    if i >= args.warmup:
+                    if i >= warmup:
                         times.append((pub["_t"] - t0) * 1e3)
                     time.sleep(0.1)
                 results[case] = times
-            debounce = 50.0
+            v += 1
+            client.change(u, v, text)
+            client.wait_for("textDocument/publishDiagnostics", lambda p: p["uri"] == u and p.get("version") == v)
+            time.sleep(2.0)                    # the worker process starts (a large design warms it up)
+
+            cap = next(i for i, x in enumerate(lines) if x.startswith("capsule cap"))
+            par = next(i for i, x in enumerate(lines) if x.startswith("param x"))
+            use = next(i for i, x in enumerate(lines) if "clamp = (x" in x)
+            obs = next(i for i, x in enumerate(lines) if x.startswith("observe"))
+            doc = {"textDocument": {"uri": u}}
+            whole = {"start": {"line": 0, "character": 0}, "end": {"line": len(lines), "character": 0}}
+            screen = {"start": {"line": mid, "character": 0}, "end": {"line": mid + 60, "character": 0}}
+            requests = {
+                "hover (param)": lambda: client.at("textDocument/hover", u, par, 7),
+                "hover (capsule)": lambda: client.at("textDocument/hover", u, cap, 9),
+                "definition": lambda: client.at("textDocument/definition", u, use, lines[use].index("(x") + 2),
+                "completion": lambda: client.at("textDocument/completion", u, use, lines[use].index("(x") + 2),
+                "references": lambda: client.at("textDocument/references", u, par, 7,
+                                                context={"includeDeclaration": True}),
+                "prepareRename": lambda: client.at("textDocument/prepareRename", u, par, 7),
+                "rename": lambda: client.at("textDocument/rename", u, par, 7, newName="xx0"),
+                "documentHighlight": lambda: client.at("textDocument/documentHighlight", u, par, 7),
+                "signatureHelp": lambda: client.at("textDocument/signatureHelp", u, obs, lines[obs].index("+x")),
+                "documentSymbol": lambda: client.request("textDocument/documentSymbol", doc),
+                "documentLink": lambda: client.request("textDocument/documentLink", doc),
+                "foldingRange": lambda: client.request("textDocument/foldingRange", doc),
+                "selectionRange": lambda: client.request("textDocument/selectionRange",
+                                                         {**doc, "positions": [{"line": use, "character": 4}]}),
+                "semanticTokens/full": lambda: client.request("textDocument/semanticTokens/full", doc),
+                "inlayHint (60 lines)": lambda: client.request("textDocument/inlayHint", {**doc, "range": screen}),
+                "codeLens": lambda: client.request("textDocument/codeLens", doc),
+                "codeAction": lambda: client.request("textDocument/codeAction", {**doc, "range": screen,
+                                                                                  "context": {"diagnostics": []}}),
+                "formatting": lambda: client.request("textDocument/formatting",
+                                                     {**doc, "options": {"tabSize": 2, "insertSpaces": True}}),
+                "rangeFormatting": lambda: client.request("textDocument/rangeFormatting", {
+                    **doc, "range": screen, "options": {"tabSize": 2, "insertSpaces": True}}),
+                "diagnostic (pull)": lambda: client.request("textDocument/diagnostic", doc),
+                "workspace/symbol": lambda: client.request("workspace/symbol", {"query": "cap1"}),
+            }
+            for name, fn in requests.items():
+                fn()                                       # warm-up (imports, caches)
+                results[name] = _ms(fn, runs)
+            fresh = []                                     # acl fmt on a text it has not seen (no cache)
+            for i in range(runs):
+                v += 1
+                client.change(u, v, text + f"# fresh {i}\n")
+                client.wait_for("textDocument/publishDiagnostics", lambda p, v=v: p["uri"] == u and p.get("version") == v)
+                fresh += _ms(requests["formatting"], 1)
+            results["formatting (a new text: acl fmt runs)"] = fresh
+            _ = whole
+
+            # a hover while the worker runs `acl analyze` on the whole design
+            done = threading.Event()
+            took: list[float] = []
+
+            def analyze():
+                t0 = time.perf_counter()
+                try:
+                    client.request("workspace/executeCommand", {"command": "acl.analyze", "arguments": [u]},
+                                   timeout=600)
+                except (TimeoutError, RuntimeError):
+                    return
+                took.append((time.perf_counter() - t0) * 1e3)
+                done.set()
+
+            v += 1
+            client.change(u, v, text + "# analyze me\n")     # a text the worker has not seen
+            client.wait_for("textDocument/publishDiagnostics", lambda p: p["uri"] == u and p.get("version") == v)
+            threading.Thread(target=analyze, daemon=True).start()
+            time.sleep(0.5)
+            during = []
+            while not done.is_set() and len(during) < runs:
+                during += _ms(lambda: client.at("textDocument/hover", u, par, 7), 1)
+                time.sleep(0.2)
+            results["hover during acl.analyze"] = during
+            done.wait(60)
+            results["(acl.analyze itself, if done within 60 s more)"] = took
         finally:
             client.close()
+    return {"lines": text.count("\n"), "results": results}
+
+
+def main() -> int:
     import os
 
-    load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
-    print(f"acl lsp: didChange -> publishDiagnostics on a {n_lines}-line design ({args.runs} runs after "
-          f"{args.warmup} warm-up, debounce {debounce:.0f} ms included{', lint worker on' if args.lint else ''}; "
-          f"load average {load:.1f} on {os.cpu_count()} CPUs):")
-    for case, times in results.items():
-        med = statistics.median(times)
-        print(f"  {case}: median {med:.1f} ms, min {min(times):.1f} ms, max {max(times):.1f} ms "
-              f"(target < {TARGET_MS:.0f} ms: {'met' if med < TARGET_MS else 'NOT met'})")
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--lines", type=int, nargs="+", default=[1000, 5000])
+    ap.add_argument("--runs", type=int, default=10)
+    ap.add_argument("--warmup", type=int, default=3)
+    ap.add_argument("--lint", action="store_true", help="also run lint in the server's worker (competes for CPU)")
+    args = ap.parse_args()
+    for n in args.lines:
+        got = bench(n, args.runs, args.warmup, args.lint)
+        load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
+        print(f"acl lsp on a {got['lines']}-line design ({args.runs} runs; load average {load:.1f} on "
+              f"{os.cpu_count()} CPUs{', lint worker on' if args.lint else ''}):")
+        for name, times in got["results"].items():
+            if not times:
+                print(f"  {name:52s} (no sample: the analysis ended first)")
+                continue
+            med = statistics.median(times)
+            target = TARGET_CHANGE_MS if name.startswith("didChange") else TARGET_REQUEST_MS
+            verdict = "" if name.startswith("(") else f"  target <= {target:.0f} ms: {'met' if med <= target else 'NOT met'}"
+            print(f"  {name:52s} median {med:8.1f} ms  max {max(times):8.1f} ms{verdict}")
     return 0
 
 

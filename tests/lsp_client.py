@@ -19,7 +19,8 @@ def uri(path) -> str:
 
 
 class LspClient:
-    def __init__(self, init_options: dict | None = None, cwd=None):
+    def __init__(self, init_options: dict | None = None, cwd=None, capabilities: dict | None = None,
+                 root: Path | None = None):
         env = dict(os.environ)
         env["PYTHONPATH"] = str(ROOT) + os.pathsep + env.get("PYTHONPATH", "")
         self.proc = subprocess.Popen([sys.executable, "-m", "acl", "lsp"], stdin=subprocess.PIPE,
@@ -32,8 +33,9 @@ class LspClient:
         self._reader.start()
         self.stderr_lines: list[str] = []
         threading.Thread(target=self._drain_stderr, daemon=True).start()
-        self.init_result = self.request("initialize", {"processId": os.getpid(), "rootUri": uri(ROOT),
-                                                       "capabilities": {}, "initializationOptions": init_options or {}})
+        self.init_result = self.request("initialize", {"processId": os.getpid(), "rootUri": uri(root or ROOT),
+                                                       "capabilities": capabilities or {},
+                                                       "initializationOptions": init_options or {}})
         self.notify("initialized", {})
 
     # ------------------------------------------------------------------------------ transport

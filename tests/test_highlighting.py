@@ -307,10 +307,12 @@ def test_vscode_manifest_contributes_the_language_grammar_and_server():
     assert grammar["scopeName"] == "source.acl" == GRAMMAR["scopeName"] and grammar["language"] == "acl"
     assert (VSCODE / grammar["path"]).resolve() == (VSCODE / "syntaxes" / "acl.tmLanguage.json").resolve()
     assert "onLanguage:acl" in manifest["activationEvents"]
-    assert "vscode-languageclient" in manifest["dependencies"]
+    # the client is bundled into manifest["main"] (dist/, built before packaging) from extension.js
+    assert "vscode-languageclient" in manifest["devDependencies"]
+    assert manifest["main"] == "./dist/extension.js" and "./extension.js" in manifest["scripts"]["bundle"]
     command = manifest["contributes"]["configuration"]["properties"]["acl.server.command"]["default"]
     assert command == ["acl", "lsp"]
-    main = (VSCODE / manifest["main"]).read_text(encoding="utf-8")
+    main = (VSCODE / "extension.js").read_text(encoding="utf-8")
     assert "acl.server.command" in main and "LanguageClient" in main
 
 

@@ -97,7 +97,7 @@ def complete(snap: Snapshot, names_snap: Snapshot | None, line: int, character: 
     if m and not re.search(r"(?<![\w.])\d+\.\w*$", before):       # `12.` is a number, `c1.` a name
         return _members(env, m.group(1).split("."))
     # a unit after a number: of the key's dimension when the key is known
-    m = re.search(r"(?:^|[^\w.])(\d+\.?\d*(?:[eE][+-]?\d+)?)\s+([A-Za-z\u00b5]*)$", before)
+    m = re.search(r"(?:^|[^\w.])(\d+\.?\d*(?:[eE][+-]?\d+)?)\s*([A-Za-z\u00b5]*)$", before)
     if m:
         unit = None
         km = re.match(r"^\s*(?:[^=]*[,{]\s*)?(\w+)\s*=", before)
@@ -179,3 +179,32 @@ def _orifices(env, blk, depth: int = 0) -> list[str]:
         if b.kind == "orifice" and b.name and b.name not in names:
             names.append(b.name)
     return names
+
+
+def documentation(snap: Snapshot | None, kind: str, label: str) -> str | None:
+    """Markdown shown beside a completion item (see the server's ``completionItem/resolve``)."""
+    from acl.lsp.hover import KIND_DOCS
+
+    if kind == "unit":
+        from acl.lsp.hover import _quantity_text
+
+        return _quantity_text(f"1 {label}")
+    if kind == "function":
+        from acl.lsp.structure import SIGNATURES
+
+        if label in SIGNATURES:
+            params, doc = SIGNATURES[label]
+            return f"```acl\n{label}({', '.join(params)})\n```\n\n{doc}"
+    if kind == "keyword" and label in KIND_DOCS:
+        return f"**{label}**: {KIND_DOCS[label]}"
+    if kind in ("name", "module", "member") and snap is not None and snap.env is not None:
+        from acl.lsp.document import declaration_text, resolve_name
+
+        t = resolve_name(snap.env, label.split("."))
+        if t is not None and t.node is not None:
+            return f"```acl\n{declaration_text(t.env, t.node)}\n```"
+        if t is not None and t.what == "module":
+            return f"module `{t.env.file}`"
+    if kind == "key" and snap is not None:
+        return None
+    return None

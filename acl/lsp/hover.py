@@ -42,8 +42,17 @@ def _quantity_re() -> re.Pattern:
     raise RuntimeError("grammar has no QUANTITY terminal")  # pragma: no cover
 
 
-def hover(snap: Snapshot, line: int, character: int) -> tuple[str, tuple[int, int, int]] | None:
-    """Markdown text and (line, start, end) of the hovered word, or None."""
+#: capsules in a design up to which a capsule's hover computes its phases and coupled modes at once;
+#: beyond, the server asks its background worker (coupled modes of 393 capsules: 13 s)
+INLINE_CAPSULES = 24
+
+
+def hover(snap: Snapshot, line: int, character: int, quick: bool = False) -> tuple[str, tuple[int, int, int]] | None:
+    """Markdown text and (line, start, end) of the hovered word, or None.
+
+    ``quick``: leave out what takes long on a large design (a capsule's phases and coupled modes
+    with more than :data:`INLINE_CAPSULES` capsules); the text then ends with
+    :data:`acl.lsp.background.PENDING_NOTE`."""
     text = snap.line(line)
     code = code_part(text)
     if character >= len(code):          # in a comment: only rule codes mean something
@@ -52,10 +61,22 @@ def hover(snap: Snapshot, line: int, character: int) -> tuple[str, tuple[int, in
     q = word_at(code, character, _quantity_re())
     if q is not None:
         return _quantity_text(q[0]), (line, q[1], q[2])
+    d = word_at(code, character, _DIRECTION)
+    if d is not None and (d[1] == 0 or not (code[d[1] - 1].isalnum() or code[d[1] - 1] in "_)]")):
+        return _direction_text(d[0]), (line, d[1], d[2])
+    imp = _import_text(snap, line)
+    if imp is not None:
+        return imp, (line, 0, len(code.rstrip()))
     w = word_at(code, character)
     if w is None:
         return None
     dotted, start, end = w
+    if "." not in dotted and code[end:].lstrip().startswith("("):
+        from acl.lsp.structure import SIGNATURES
+
+        if dotted in SIGNATURES:
+            params, doc = SIGNATURES[dotted]
+            return f"```acl\n{dotted}({', '.join(params)})\n```\n\n{doc}", (line, start, end)
     parts = dotted.split(".")
     upto = part_at(dotted, start, character) + 1
     env = snap.env
@@ -65,10 +86,41 @@ def hover(snap: Snapshot, line: int, character: int) -> tuple[str, tuple[int, in
             return f"**{parts[0]}**: {KIND_DOCS[parts[0]]}", (line, start, end)
         key = _key_doc(snap, line, start, parts[0]) if upto == 1 else None
         return (key, (line, start, end)) if key else None
-    return _target_text(snap, target), (line, start, start + len(".".join(parts[:upto])))
+    return _target_text(snap, target, quick), (line, start, start + len(".".join(parts[:upto])))
 
 
 # ------------------------------------------------------------------------------------------------
+
+_DIRECTION = re.compile(r"[+-][xyz]\b")
+
+
+def _direction_text(word: str) -> str:
+    axis = "xyz".index(word[1])
+    vec = ["0", "0", "0"]
+    vec[axis] = "1" if word[0] == "+" else "-1"
+    return (f"**direction** `{word}`: the unit vector ({', '.join(vec)}) "
+            f"({'along' if word[0] == '+' else 'against'} the {word[1]} axis of the substrate frame)")
+
+
+def _import_text(snap: Snapshot, line: int) -> str | None:
+    """On an `import` line: the module (or declaration) it brings in, its file and what it declares."""
+    env = snap.env
+    if env is None:
+        return None
+    for st in env.module.statements:
+        if isinstance(st, A.Import) and st.span.line - 1 <= line <= (st.span.end_line or st.span.line) - 1:
+            alias = st.alias or (st.module[-1] if st.module else None)
+            tgt = env.imports.get(alias) if alias else None
+            if tgt is None:
+                return None
+            if isinstance(tgt, tuple):
+                t = resolve_name(env, [alias])
+                return _target_text(snap, t, True) if t is not None else None
+            names = list(tgt.decls) + list(tgt.params) + list(tgt.programs)
+            shown = ", ".join(f"`{n}`" for n in names[:20]) + (f" (+{len(names) - 20} more)" if len(names) > 20 else "")
+            return (f"**import** as `{alias}`: `{tgt.file}`\n\n{len(names)} declaration(s): {shown or 'none'}")
+    return None
+
 
 def _quantity_text(literal: str) -> str:
     from acl.units import UnitError, describe, format_quantity, parse_unit
@@ -118,7 +170,7 @@ def _where(target: Target) -> str:
     return f"{os.path.basename(f)}:{line}"
 
 
-def _target_text(snap: Snapshot, target: Target) -> str:
+def _target_text(snap: Snapshot, target: Target, quick: bool = False) -> str:
     if target.what == "module":
         decls = ", ".join(list(target.env.decls)[:12]) or "nothing"
         return f"**module** `{target.name}` ({target.env.file})\n\ndeclares: {decls}"
@@ -130,7 +182,7 @@ def _target_text(snap: Snapshot, target: Target) -> str:
         extra = ""
         try:
             if node.kind == "capsule":
-                extra = _capsule_text(snap, target)
+                extra = _capsule_text(snap, target, quick)
             elif node.kind == "beam":
                 extra = _beam_text(snap, target)
         except Exception as exc:  # a prediction that fails must not break hover
@@ -189,7 +241,7 @@ def _reference(env, target: Target) -> str | None:
     return None
 
 
-def _capsule_text(snap: Snapshot, target: Target) -> str:
+def _capsule_text(snap: Snapshot, target: Target, quick: bool = False) -> str:
     from acl.analysis import acoustics as AC
     from acl.analysis.report import program_frequencies
 
@@ -204,6 +256,10 @@ def _capsule_text(snap: Snapshot, target: Target) -> str:
         q = f"{m.q:.1f}" + (" (declared)" if m.q_declared else "")
         rows.append(f"| {i + 1} | {m.frequency_hz / 1e3:.1f} | {q} | {m.dominant_orifice} ({m.share:.0%}) |")
     out = f"**predicted modes**{alone} (as `acl analyze`):\n\n" + "\n".join(rows)
+    if quick and len(design.capsules) > INLINE_CAPSULES:
+        from acl.lsp.background import PENDING_NOTE
+
+        return out + "\n\nphases and coupled modes: " + PENDING_NOTE
     freqs = program_frequencies(snap.design) if snap.design is not None else []
     if freqs:
         import numpy as np

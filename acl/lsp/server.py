@@ -26,7 +26,10 @@ _SEVERITY = {Severity.ERROR: T.DiagnosticSeverity.Error, Severity.WARNING: T.Dia
 
 class AclLanguageServer(LanguageServer):
     def __init__(self) -> None:
-        super().__init__("acl", __version__, text_document_sync_kind=T.TextDocumentSyncKind.Incremental)
+        from acl.lsp.protocol import AclProtocol
+
+        super().__init__("acl", __version__, text_document_sync_kind=T.TextDocumentSyncKind.Incremental,
+                         protocol_cls=AclProtocol)
         self.debounce = 0.05
         self.lint_enabled = True
         self.lint_delay = 0.3
@@ -38,21 +41,47 @@ class AclLanguageServer(LanguageServer):
         self._executor = None
         self._parsers: dict[str, object] = {}
         self._lint_running: set[str] = set()
+        from acl.lsp.background import Worker
+
+        self.worker = Worker()            # long analyses (a large design's capsule hover), cancellable
 
     # ---------------------------------------------------------------------------------- state
     def path_of(self, uri: str) -> str:
         return to_fs_path(uri) or uri
 
+    def document(self, uri: str):
+        """The open document ``uri``; RequestFailed when the client has not opened it.
+
+        Only documents the client opened are served (their text is the client's): a URI never opened
+        is never read from disk (it could name a FIFO, /dev/zero or a file outside the workspace).
+        Files a design imports are read by the loader under the rules of `acl check` (regular files
+        under the design's folder, the stdlib or a search path, size-limited)."""
+        from urllib.parse import unquote
+
+        from acl.lsp.protocol import RequestFailed
+
+        doc = self.workspace.text_documents.get(unquote(uri)) if isinstance(uri, str) else None
+        if doc is None:
+            shown = uri if len(uri) <= 200 else uri[:200] + "…"
+            raise RequestFailed(f"E-LSP-DOCUMENT: `{shown}` is not open: the server answers only on documents "
+                                "the editor opened (textDocument/didOpen)")
+        return doc
+
+    def is_open(self, uri: str) -> bool:
+        from urllib.parse import unquote
+
+        return unquote(uri) in self.workspace.text_documents
+
     def snapshot(self, uri: str) -> Snapshot:
         """The checked state of the document's current text (checked now if out of date)."""
-        doc = self.workspace.get_text_document(uri)
+        doc = self.document(uri)
         snap = self.snapshots.get(uri)
         if snap is None or snap.text != doc.source:
             snap = self._check(uri)
         return snap
 
     def _check(self, uri: str) -> Snapshot:
-        doc = self.workspace.get_text_document(uri)
+        doc = self.document(uri)
         from acl.lsp.incremental import IncrementalParser
 
         parser = self._parsers.setdefault(uri, IncrementalParser())
@@ -73,13 +102,42 @@ class AclLanguageServer(LanguageServer):
         if delay > 0:
             await asyncio.sleep(delay)
         self._pending.pop(uri, None)
+        if not self.is_open(uri):          # closed meanwhile
+            return
         try:
             snap = self._check(uri)
-        except KeyError:          # closed meanwhile
+            self.publish(uri, snap, snap.diagnostics)
+            self._warm_worker(snap)
+        except Exception as exc:       # a bug must cost this document's diagnostics, not the server
+            logging.getLogger("pygls").error("checking %s failed: %s: %s", uri, type(exc).__name__, exc)
             return
-        self.publish(uri, snap, snap.diagnostics)
         if self.lint_enabled:
             self.schedule_lint(uri)
+
+    def _warm_worker(self, snap: Snapshot) -> None:
+        """Start the background worker (0.3 s to spawn, more to import) before the first hover
+        that needs it: when a design is large enough to need it."""
+        from acl.lsp.hover import INLINE_CAPSULES
+
+        if snap.design is None or len(getattr(snap.design, "capsules", ())) <= INLINE_CAPSULES:
+            return
+        import threading
+
+        from acl.lsp.background import warm_up
+
+        def warm() -> None:
+            warm_up()                                  # this process's imports (the quick hover's)
+            self.worker.get(("warm",), warm_up)        # and the worker's
+
+        threading.Thread(target=warm, daemon=True).start()
+
+    def report_server_error(self, error: Exception, source) -> None:
+        """Errors outside a request's reply: one line on stderr (no pop-up in the editor); a failed
+        request's reply says why, and pygls has logged it already."""
+        from pygls.exceptions import FeatureRequestError
+
+        if source is not FeatureRequestError:
+            logging.getLogger("pygls").error("%s: %s", type(error).__name__, error)
 
     def publish(self, uri: str, snap: Snapshot, diags: list[Diagnostic]) -> None:
         self.text_document_publish_diagnostics(T.PublishDiagnosticsParams(
@@ -131,6 +189,7 @@ class AclLanguageServer(LanguageServer):
         return self._executor
 
     def close(self) -> None:
+        self.worker.stop()
         for t in list(self._pending.values()) + list(self._lint_tasks.values()):
             t.cancel()
         if self._executor is not None:
@@ -224,9 +283,9 @@ _ENCODING = "utf-16"
 def _units(text: str) -> int:
     if _ENCODING == "utf-32" or text.isascii():
         return len(text)
-    if _ENCODING == "utf-8":
-        return len(text.encode("utf-8"))
-    return len(text.encode("utf-16-le")) // 2
+    if _ENCODING == "utf-8":      # lone surrogates (JSON allows `\ud800`) count as the 3 bytes WTF-8 gives them
+        return len(text.encode("utf-8", "surrogatepass"))
+    return len(text.encode("utf-16-le", "surrogatepass")) // 2
 
 
 def col_out(lines, line: int, col: int) -> int:
@@ -246,6 +305,16 @@ def col_in(lines, line: int, units: int) -> int:
             return i
         n += _units(ch)
     return len(text)
+
+
+def at(snap: Snapshot, pos: T.Position) -> tuple[int, int]:
+    """A client position as (line, code-point column), clamped into the document (a position past
+    the end, line 2147483647 say, means its end, as the protocol says)."""
+    lines = snap.lines or [""]
+    line = min(max(pos.line, 0), len(lines) - 1)
+    if pos.line >= len(lines):
+        return line, len(lines[line])
+    return line, min(col_in(lines, line, max(pos.character, 0)), len(lines[line]))
 
 
 def _range(t, lines=None) -> T.Range:
@@ -268,16 +337,50 @@ _COMPLETION_KIND = {"keyword": T.CompletionItemKind.Keyword, "key": T.Completion
                     "function": T.CompletionItemKind.Function}
 
 
+#: initializationOptions: name -> (check, what it must be)
+_OPTIONS = {
+    "debounce": (lambda v: _seconds(v), "a number of seconds from 0 to 10"),
+    "lint": (lambda v: isinstance(v, bool), "true or false"),
+    "lint_delay": (lambda v: _seconds(v), "a number of seconds from 0 to 10"),
+}
+
+
+def _seconds(v) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool) and 0 <= v <= 10
+
+
+def read_options(opts) -> tuple[dict, list[str]]:
+    """The valid ``initializationOptions`` and a warning for each one ignored (never an error:
+    a bad option must not fail ``initialize``)."""
+    if opts is None:
+        return {}, []
+    if not isinstance(opts, dict):
+        return {}, [f"initializationOptions must be an object, not {type(opts).__name__}: ignored"]
+    good, warnings = {}, []
+    for k, v in opts.items():
+        rule = _OPTIONS.get(k)
+        if rule is None:
+            warnings.append(f"initializationOptions: unknown option `{k}` ignored (known: {', '.join(_OPTIONS)})")
+        elif not rule[0](v):
+            shown = repr(v) if len(repr(v)) <= 40 else repr(v)[:40] + "…"
+            warnings.append(f"initializationOptions: `{k}` must be {rule[1]}, not {shown}: the default is used")
+        else:
+            good[k] = v
+    return good, warnings
+
+
 @server.feature(T.INITIALIZE)
 def _initialize(ls: AclLanguageServer, params: T.InitializeParams) -> None:
     global _ENCODING
     enc = ls.workspace.position_encoding
     _ENCODING = str(getattr(enc, "value", enc) or "utf-16").lower()
-    opts = params.initialization_options or {}
-    if isinstance(opts, dict):
-        ls.debounce = float(opts.get("debounce", ls.debounce))
-        ls.lint_enabled = bool(opts.get("lint", ls.lint_enabled))
-        ls.lint_delay = float(opts.get("lint_delay", ls.lint_delay))
+    opts, warnings = read_options(params.initialization_options)
+    ls.debounce = float(opts.get("debounce", ls.debounce))
+    ls.lint_enabled = bool(opts.get("lint", ls.lint_enabled))
+    ls.lint_delay = float(opts.get("lint_delay", ls.lint_delay))
+    for w in warnings:
+        logging.getLogger("pygls").warning("%s", w)
+        ls.window_log_message(T.LogMessageParams(type=T.MessageType.Warning, message=f"acl lsp: {w}"))
 
 
 @server.feature(T.SHUTDOWN)
@@ -292,7 +395,12 @@ async def _did_open(ls: AclLanguageServer, params: T.DidOpenTextDocumentParams) 
 
 @server.feature(T.TEXT_DOCUMENT_DID_CHANGE)
 async def _did_change(ls: AclLanguageServer, params: T.DidChangeTextDocumentParams) -> None:
-    ls.schedule(params.text_document.uri, ls.debounce)
+    from acl.lsp.background import text_key
+
+    uri = params.text_document.uri
+    if ls.is_open(uri):        # a newer text: older background work is cancelled
+        ls.worker.forget(uri, keep=text_key(ls.document(uri).source))
+    ls.schedule(uri, ls.debounce)
 
 
 @server.feature(T.TEXT_DOCUMENT_DID_SAVE)
@@ -303,6 +411,7 @@ async def _did_save(ls: AclLanguageServer, params: T.DidSaveTextDocumentParams) 
 @server.feature(T.TEXT_DOCUMENT_DID_CLOSE)
 def _did_close(ls: AclLanguageServer, params: T.DidCloseTextDocumentParams) -> None:
     uri = params.text_document.uri
+    ls.worker.forget(uri)
     for store in (ls.snapshots, ls.resolved, ls.lint_findings, ls._parsers):
         store.pop(uri, None)
     for tasks in (ls._pending, ls._lint_tasks):
@@ -320,10 +429,18 @@ def _hover(ls: AclLanguageServer, params: T.HoverParams) -> T.Hover | None:
     if _no_names(snap):
         snap = ls.resolved.get(params.text_document.uri, snap)
     pos = params.position
-    got = hover(snap, pos.line, col_in(snap.lines, pos.line, pos.character))
+    line, col = at(snap, pos)
+    got = hover(snap, line, col, quick=True)
     if got is None:
         return None
     text, (ln, a, b) = got
+    from acl.lsp.background import PENDING_NOTE, hover_text, text_key
+
+    if text.endswith(PENDING_NOTE):    # the rest comes from the worker; answer now with what is quick
+        full = ls.worker.get((params.text_document.uri, text_key(snap.text), "hover", ln, a),
+                             hover_text, snap.path, snap.text, line, col)
+        if full is not None:
+            text = full
     return T.Hover(contents=T.MarkupContent(kind=T.MarkupKind.Markdown, value=text),
                    range=_range((ln, a, ln, b), snap.lines))
 
@@ -336,25 +453,54 @@ def _definition(ls: AclLanguageServer, params: T.DefinitionParams) -> T.Location
     if _no_names(snap):
         snap = ls.resolved.get(params.text_document.uri, snap)
     pos = params.position
-    got = definition(snap, pos.line, col_in(snap.lines, pos.line, pos.character))
+    got = definition(snap, *at(snap, pos))
     if got is None:
         return None
     path, rng, lines = got
     return T.Location(uri=from_fs_path(path) or path, range=_range(rng, lines))
 
 
-@server.feature(T.TEXT_DOCUMENT_COMPLETION, T.CompletionOptions(trigger_characters=["."]))
+@server.feature(T.TEXT_DOCUMENT_COMPLETION, T.CompletionOptions(trigger_characters=["."], resolve_provider=True))
 def _completion(ls: AclLanguageServer, params: T.CompletionParams) -> T.CompletionList:
+    import re
+
     from acl.lsp.completion import complete
 
     uri = params.text_document.uri
     snap = ls.snapshot(uri)
     names = snap if not _no_names(snap) else ls.resolved.get(uri)
-    pos = params.position
-    items = complete(snap, names, pos.line, col_in(snap.lines, pos.line, pos.character))
-    return T.CompletionList(is_incomplete=False, items=[
-        T.CompletionItem(label=label, kind=_COMPLETION_KIND[kind], detail=detail,
-                         insert_text=f"{label} = " if kind == "key" else None) for label, kind, detail in items])
+    line, col = at(snap, params.position)
+    items = complete(snap, names, line, col)
+    # each item replaces the word being typed (a unit's letters, a name after the last `.`)
+    typed = re.search(r"[A-Za-z_\u00b5][\w\u00b5]*$", snap.line(line)[:col])
+    start = typed.start() if typed else col
+    rng = _range((line, start, line, col), snap.lines)
+    out = []
+    for label, kind, detail in items:
+        new = f"{label} = " if kind == "key" else label
+        out.append(T.CompletionItem(label=label, kind=_COMPLETION_KIND[kind], detail=detail,
+                                    text_edit=T.TextEdit(range=rng, new_text=new),
+                                    data={"uri": uri, "kind": kind, "label": label}))
+    return T.CompletionList(is_incomplete=False, items=out)
+
+
+@server.feature(T.COMPLETION_ITEM_RESOLVE)
+def _completion_resolve(ls: AclLanguageServer, item: T.CompletionItem) -> T.CompletionItem:
+    """The item's documentation, computed when the editor shows it (a unit's SI factor and
+    dimension, a kind's role, a function's signature, a name's declaration)."""
+    from acl.lsp.completion import documentation
+
+    data = item.data if isinstance(item.data, dict) else {}
+    uri = data.get("uri")
+    snap = None
+    if isinstance(uri, str) and ls.is_open(uri):
+        snap = ls.snapshot(uri)
+        if _no_names(snap):
+            snap = ls.resolved.get(uri, snap)
+    text = documentation(snap, str(data.get("kind", "")), str(data.get("label", item.label)))
+    if text:
+        item.documentation = T.MarkupContent(kind=T.MarkupKind.Markdown, value=text)
+    return item
 
 
 @server.feature(T.TEXT_DOCUMENT_DOCUMENT_SYMBOL)
@@ -374,21 +520,34 @@ def _symbols(ls: AclLanguageServer, params: T.DocumentSymbolParams) -> list[T.Do
     return [conv(s) for s in outline(snap)]
 
 
-@server.feature(T.TEXT_DOCUMENT_CODE_ACTION, T.CodeActionOptions(code_action_kinds=[T.CodeActionKind.QuickFix]))
+@server.feature(T.TEXT_DOCUMENT_CODE_ACTION, T.CodeActionOptions(
+    code_action_kinds=[T.CodeActionKind.QuickFix, T.CodeActionKind.SourceOrganizeImports]))
 def _code_action(ls: AclLanguageServer, params: T.CodeActionParams) -> list[T.CodeAction]:
     from acl.lsp.actions import fix
+    from acl.syntax import ast as A
 
     uri = params.text_document.uri
     snap = ls.snapshot(uri)
     wanted = params.range
-    candidates = list(params.context.diagnostics or [])
-    seen = {(d.code, d.range.start.line, d.range.start.character) for d in candidates}
-    for d in ls.all_diagnostics(uri, snap):       # the client may not send them back: use our own
+    # Only the server's own diagnostics are fixed, never a range the client sends back: a client may
+    # count columns in another unit (Neovim 0.7 sent bytes) and a fix built on it corrupts the text.
+    # The client's diagnostics, matched to ours by code and range, only select among them.
+    sent = {(str(d.code), _key(d.range)) for d in (params.context.diagnostics or [])}
+    own, seen = [], set()
+    for d in ls.all_diagnostics(uri, snap):
         ld = to_lsp(d, snap)
-        if (ld.code, ld.range.start.line, ld.range.start.character) not in seen and \
-                ld.range.start.line <= wanted.end.line and ld.range.end.line >= wanted.start.line:
-            candidates.append(ld)
+        k = (str(ld.code), _key(ld.range))
+        if k in seen:
+            continue
+        seen.add(k)
+        if k in sent or _overlaps(ld.range, wanted):
+            own.append(ld)
+    candidates = own
+    only = params.context.only
+    wants = (lambda kind: not only or any(kind == k or kind.startswith(k + ".") for k in only))
     actions = []
+    if not wants(T.CodeActionKind.QuickFix):
+        candidates = []
     for d in candidates:
         hint = d.data.get("hint") if isinstance(d.data, dict) else None
         if hint is None and "\nhelp: " in d.message:
@@ -405,15 +564,35 @@ def _code_action(ls: AclLanguageServer, params: T.CodeActionParams) -> list[T.Co
         actions.append(T.CodeAction(title=f"Replace `{snap.line(r.start.line)[a:b]}` with `{new}` ({d.code})",
                                     kind=T.CodeActionKind.QuickFix, diagnostics=[d], is_preferred=True,
                                     edit=T.WorkspaceEdit(changes={uri: [edit]})))
+    # organize imports formats the file (0.6 s on 1,000 lines): only when asked for source actions
+    # or when the range touches an import (the lightbulb asks on every cursor move)
+    on_import = snap.env is not None and any(
+        isinstance(st, A.Import) and wanted.start.line <= st.span.line - 1 <= wanted.end.line
+        for st in snap.env.module.statements)
+    if wants(T.CodeActionKind.SourceOrganizeImports) and (only or on_import):
+        from acl.lsp.features import organize_imports
+
+        got = organize_imports(snap, uri)
+        if got is not None:
+            actions.append(got)
     return actions
 
 
+def _key(r: T.Range) -> tuple[int, int, int, int]:
+    return r.start.line, r.start.character, r.end.line, r.end.character
+
+
+def _overlaps(a: T.Range, b: T.Range) -> bool:
+    """Whether ranges ``a`` and ``b`` share a line (a quick fix is offered anywhere on its line)."""
+    return a.start.line <= b.end.line and b.start.line <= a.end.line
+
+
 @server.feature(T.TEXT_DOCUMENT_FORMATTING)
-def _formatting(ls: AclLanguageServer, params: T.DocumentFormattingParams) -> list[T.TextEdit] | None:
+async def _formatting(ls: AclLanguageServer, params: T.DocumentFormattingParams) -> list[T.TextEdit] | None:
     from acl.lsp.formatting import format_edits
 
     snap = ls.snapshot(params.text_document.uri)
-    got = format_edits(snap)
+    got = await asyncio.to_thread(format_edits, snap)    # acl fmt: 0.6 s on 1,000 lines; other requests go on
     if got is None:
         return None
     return [T.TextEdit(range=_range(r, snap.lines), new_text=t) for r, t in got]
@@ -456,11 +635,15 @@ def serve(verbose: bool = False) -> None:
 
     out = LockedOutput(sys.stdout.buffer)
     stream = FramedInput(sys.stdin.buffer, reply=out.send)
-    if not verbose:
-        log = logging.getLogger("pygls")
-        log.handlers[:] = [_OneLine(stream)]
-        log.propagate = False
+    if not verbose:      # pygls, asyncio and futures log tracebacks: one coded line each instead
+        for name in ("pygls", "asyncio", "concurrent.futures"):
+            log = logging.getLogger(name)
+            log.handlers[:] = [_OneLine(stream)]
+            log.propagate = False
     try:
         server.start_io(stream, out)
     finally:
         server.close()
+
+from acl.lsp import features as _features  # noqa: E402,F401  (registers the requests of issue 27)
+from acl.lsp import lenses as _lenses  # noqa: E402,F401  (code lenses and commands)

@@ -14,6 +14,7 @@ Only messages that pass reach pygls, re-framed with a canonical ``Content-Length
 from __future__ import annotations
 
 import json
+import re
 import sys
 import threading
 from collections import deque
@@ -28,6 +29,7 @@ _CHUNK = 1 << 20                 # bytes read at a time when skipping a refused 
 
 PARSE_ERROR = -32700             # JSON-RPC 2.0 error codes
 INVALID_REQUEST = -32600
+INVALID_PARAMS = -32602
 
 STDIN = "<stdin>"
 
@@ -80,6 +82,7 @@ class FramedInput:
         self._line = 1            # line of the input stream the next byte is on
         self._queue: deque[bytes] = deque()
         self._body = b""
+        self._back = b""          # bytes read too far (a Content-Length that overran its message), read again first
         self.messages = 0         # messages seen (refused ones included)
         self.refused = 0
         self.body_line = 1        # where the body of the latest message passed on starts
@@ -99,14 +102,32 @@ class FramedInput:
         return body
 
     # ------------------------------------------------------------------ framing
-    def _refuse(self, code: str, message: str, line: int, column: int = 1, rpc: int = INVALID_REQUEST) -> None:
+    def _refuse(self, code: str, message: str, line: int, column: int = 1, rpc: int = INVALID_REQUEST,
+                id_=None) -> None:
         self.refused += 1
         self._log(error(code, message, Span(file=STDIN, line=line, column=column)))
         if self._reply is not None and rpc:
-            self._reply({"jsonrpc": "2.0", "id": None, "error": {"code": rpc, "message": f"{code}: {message}"}})
+            self._reply({"jsonrpc": "2.0", "id": id_, "error": {"code": rpc, "message": f"{code}: {message}"}})
+
+    def _raw_readline(self, limit: int) -> bytes:
+        if self._back:
+            cut = self._back.find(b"\n", 0, limit)
+            n = limit if cut < 0 else cut + 1
+            if cut < 0 and len(self._back) < limit:      # the rest of the line is still on the stream
+                head, self._back = self._back, b""
+                return head + self._raw.readline(limit - len(head))
+            head, self._back = self._back[:n], self._back[n:]
+            return head
+        return self._raw.readline(limit)
+
+    def _raw_read(self, n: int) -> bytes:
+        if self._back:
+            head, self._back = self._back[:n], self._back[n:]
+            return head
+        return self._raw.read(n)
 
     def _readline(self) -> bytes:
-        line = self._raw.readline(MAX_HEADER_LINE + 1)
+        line = self._raw_readline(MAX_HEADER_LINE + 1)
         self._line += line.count(b"\n")
         return line
 
@@ -115,9 +136,9 @@ class FramedInput:
         got = 0
         while n is None or got < n:
             if n is None:
-                chunk = self._raw.readline(_CHUNK)
+                chunk = self._raw_readline(_CHUNK)
             else:
-                chunk = self._raw.read(min(_CHUNK, n - got))
+                chunk = self._raw_read(min(_CHUNK, n - got))
             if not chunk:
                 break
             got += len(chunk)
@@ -129,7 +150,7 @@ class FramedInput:
     def _read_body(self, n: int) -> bytes:
         parts, got = [], 0
         while got < n:
-            chunk = self._raw.read(n - got)
+            chunk = self._raw_read(n - got)
             if not chunk:
                 break
             parts.append(chunk)
@@ -163,6 +184,13 @@ class FramedInput:
                         break
                     start = self._line           # blank lines between messages are tolerated
                     continue
+                if not count:
+                    at = _HEADER_START.search(line)
+                    if at is not None and at.start() > 0:
+                        # the rest of a message whose Content-Length fell short: resynchronise on the header
+                        self._refuse("E-LSP-FRAME", f"{at.start()} bytes before the header of message "
+                                     f"{self.messages + 1} are not part of any message; they are skipped", here)
+                        line = line[at.start():]
                 count += 1
                 if count > MAX_HEADER_LINES:
                     bad = bad or (f"it has more than {MAX_HEADER_LINES} header lines", here)
@@ -200,10 +228,24 @@ class FramedInput:
                              body_line, rpc=0)
                 return False
             problem = _check_body(body)
+            cut = _overrun(body) if problem is not None and problem[2] == PARSE_ERROR else None
+            if cut is not None:
+                # the announced length ran into the next message: read that one again from its header
+                self._back = body[cut:] + self._back
+                self._line -= body.count(b"\n", cut)
+                self.refused += 1
+                self._log(error("E-LSP-FRAME", f"message {k} announces Content-Length {length} bytes but ends after "
+                                f"{cut}: the next message begins inside it; the message is skipped and the next "
+                                f"one read from its header", Span(file=STDIN, line=start, column=1)))
+                if self._reply is not None:
+                    self._reply({"jsonrpc": "2.0", "id": _request_id(body[:cut]), "error": {
+                        "code": INVALID_REQUEST, "message": f"E-LSP-FRAME: Content-Length {length} is longer than "
+                                                            f"the message ({cut} bytes)"}})
+                continue
             if problem is not None:
                 what, (dl, dc), rpc = problem
                 self._refuse("E-LSP-JSON", f"message {k} {what}; the message is skipped",
-                             body_line + dl - 1, dc, rpc=rpc)
+                             body_line + dl - 1, dc, rpc=rpc, id_=_request_id(body) if rpc != PARSE_ERROR else None)
                 continue
             self._queue.extend((b"Content-Length: %d\r\n" % length, b"\r\n"))
             self._body = body
@@ -224,6 +266,62 @@ def _position(body: bytes, offset: int) -> tuple[int, int]:
     return line, len(last.decode("utf-8", "replace")) + 1
 
 
+_HEADER_START = re.compile(rb"content-length[ \t]*:", re.IGNORECASE)
+MAX_INT_DIGITS = 4000            # digits of one JSON integer (Python refuses to convert over 4,300)
+
+
+class _HugeInt:
+    """Stands for a JSON integer over :data:`MAX_INT_DIGITS` digits (never converted)."""
+
+
+def _parse_int(text: str):
+    return _HugeInt() if len(text) > MAX_INT_DIGITS else int(text)
+
+
+def _loads(text: str):
+    return json.loads(text, parse_int=_parse_int)
+
+
+def _huge(value, depth: int = 0) -> bool:
+    if isinstance(value, _HugeInt):
+        return True
+    if depth > 200:
+        return False
+    if isinstance(value, dict):
+        return any(_huge(v, depth + 1) for v in value.values())
+    if isinstance(value, list):
+        return any(_huge(v, depth + 1) for v in value)
+    return False
+
+
+def _valid_id(value) -> bool:
+    return isinstance(value, str) or (isinstance(value, int) and not isinstance(value, bool))
+
+
+def _request_id(body: bytes):
+    """The id of the request at the start of ``body`` when it can be read (else None)."""
+    try:
+        value, _ = json.JSONDecoder(parse_int=_parse_int).raw_decode(body.decode("utf-8", "replace").lstrip())
+    except (ValueError, RecursionError):
+        return None
+    got = value.get("id") if isinstance(value, dict) else None
+    return got if _valid_id(got) else None
+
+
+def _overrun(body: bytes) -> int | None:
+    """Where the next message's header starts inside ``body`` (a Content-Length that was too long), or None."""
+    start = 0
+    try:
+        text = body.decode("utf-8", "replace")
+        stripped = text.lstrip()
+        _, end = json.JSONDecoder(parse_int=_parse_int).raw_decode(stripped)
+        start = len(text[:len(text) - len(stripped) + end].encode("utf-8", "surrogatepass"))
+    except (ValueError, RecursionError):
+        pass
+    at = _HEADER_START.search(body, start)
+    return at.start() if at is not None and at.start() > 0 else None
+
+
 def _check_body(body: bytes) -> tuple[str, tuple[int, int], int] | None:
     """Why ``body`` is no JSON-RPC message (text, (line, column) in the body, JSON-RPC code), or None."""
     try:
@@ -231,12 +329,23 @@ def _check_body(body: bytes) -> tuple[str, tuple[int, int], int] | None:
     except UnicodeDecodeError as exc:
         return "is not UTF-8", _position(body, exc.start), PARSE_ERROR
     try:
-        value = json.loads(text)
+        value = _loads(text)
     except json.JSONDecodeError as exc:
         return f"is not JSON ({exc.msg})", (exc.lineno, exc.colno), PARSE_ERROR
     except RecursionError:
         return "is JSON nested too deeply to read", (1, 1), PARSE_ERROR
+    except ValueError as exc:       # a number Python will not convert
+        return f"holds a number that cannot be read ({exc})", (1, 1), INVALID_REQUEST
     if not isinstance(value, dict):
         kind = {list: "an array", str: "a string", bool: "a boolean", type(None): "null"}.get(type(value), "a number")
         return f"is {kind}, not a JSON-RPC message (an object)", (1, 1), INVALID_REQUEST
+    if _huge(value):
+        return f"holds an integer of more than {MAX_INT_DIGITS:,} digits", (1, 1), INVALID_REQUEST
+    if "method" in value:
+        if not isinstance(value["method"], str):
+            return "has a `method` that is not a string", (1, 1), INVALID_REQUEST
+        if "id" in value and not _valid_id(value["id"]):
+            return "has an `id` that is neither an integer nor a string", (1, 1), INVALID_REQUEST
+        if "params" in value and not isinstance(value["params"], (dict, list, type(None))):
+            return "has `params` that are neither an object nor an array", (1, 1), INVALID_PARAMS
     return None

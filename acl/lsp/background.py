@@ -1,0 +1,145 @@
+"""Long analyses off the server's event loop, in one worker process, cancelled by newer edits.
+
+A capsule's hover on a large design (its coupled modes with every other capsule: 13 s for 393
+capsules) and code lenses' requirement values run here.  The worker receives the document's text
+(never reads a document from disk; imports are read by the loader under the rules of `acl check`)
+and returns plain text or data.  Work is keyed by (document URI, text); an edit that changes the
+text cancels queued work for the older text and stops the worker if it is busy with it (a process
+can be stopped, a thread cannot), so the editor never waits for a result it no longer needs.
+Meanwhile requests answer at once with what is quick and say the rest is being computed.
+"""
+from __future__ import annotations
+
+import hashlib
+import threading
+from concurrent.futures import Future
+from concurrent.futures.process import BrokenProcessPool
+
+PENDING_NOTE = "*computing in the background (a large design): hover again in a moment*"
+
+
+def text_key(text: str) -> str:
+    return hashlib.sha1(text.encode("utf-8", "surrogatepass")).hexdigest()
+
+
+class Worker:
+    """One spawned process; results cached per (uri, text key, what)."""
+
+    def __init__(self, max_results: int = 256) -> None:
+        self._pool = None
+        self._lock = threading.RLock()
+        self._jobs: dict[tuple, Future] = {}
+        self._results: dict[tuple, object] = {}
+        self._max = max_results
+        self.cancelled = 0            # jobs cancelled by newer edits (queued or running)
+        self.restarts = 0
+
+    def _executor(self):
+        if self._pool is None:
+            import multiprocessing
+            from concurrent.futures import ProcessPoolExecutor
+
+            from acl.lsp.lint import lower_priority
+
+            self._pool = ProcessPoolExecutor(max_workers=1, mp_context=multiprocessing.get_context("spawn"),
+                                             initializer=lower_priority)
+        return self._pool
+
+    def get(self, key: tuple, fn, *args):
+        """The result for ``key`` if ready; else start ``fn(*args)`` (once) and return None."""
+        with self._lock:
+            if key in self._results:
+                return self._results[key]
+            if key in self._jobs:
+                return None
+            fut = self._executor().submit(fn, *args)
+            self._jobs[key] = fut
+        fut.add_done_callback(lambda f, key=key: self._done(key, f))
+        return None
+
+    def peek(self, key: tuple):
+        """The result for ``key`` if ready (None otherwise); starts nothing."""
+        with self._lock:
+            return self._results.get(key)
+
+    def future(self, key: tuple) -> Future | None:
+        with self._lock:
+            return self._jobs.get(key)
+
+    def _done(self, key: tuple, fut: Future) -> None:
+        with self._lock:
+            self._jobs.pop(key, None)
+            if fut.cancelled():
+                return
+            try:
+                result = fut.result()
+            except BrokenProcessPool:     # stopped by a newer edit: nothing to keep (asked again, it reruns)
+                return
+            except Exception as exc:      # a bug in the analysis: said once, not retried for this text
+                result = f"(unavailable: {type(exc).__name__}: {exc})"
+            self._results[key] = result
+            while len(self._results) > self._max:
+                self._results.pop(next(iter(self._results)))
+
+    def forget(self, uri: str, keep: str | None = None) -> None:
+        """Drop work and results of ``uri`` whose text key is not ``keep``; stop the worker if it is
+        running such work."""
+        with self._lock:
+            for k in [k for k in self._results if k[0] == uri and k[1] != keep]:
+                del self._results[k]
+            old = [(k, f) for k, f in self._jobs.items() if k[0] == uri and k[1] != keep]
+            for k, _ in old:
+                self._jobs.pop(k, None)
+            self.cancelled += len(old)
+        busy = False
+        for _, f in old:           # outside the lock: cancel() runs the done callbacks in this thread
+            if not f.cancel():
+                busy = True
+        if busy:
+            self.stop()
+            self.restarts += 1
+
+    def stop(self) -> None:
+        pool, self._pool = self._pool, None
+        if pool is None:
+            return
+        workers = list(getattr(pool, "_processes", {}).values())
+        pool.shutdown(wait=False, cancel_futures=True)
+        for w in workers:
+            if w.is_alive():
+                w.terminate()
+        with self._lock:
+            left = list(self._jobs.values())
+            self._jobs.clear()
+        for f in left:
+            f.cancel()
+
+
+def hover_text(path: str, text: str, line: int, character: int) -> str | None:
+    """The full hover at (line, character) of ``text`` (run in the worker)."""
+    from acl.lsp.document import check_text
+    from acl.lsp.hover import hover
+
+    got = hover(check_text(text, path), line, character)
+    return None if got is None else got[0]
+
+
+def requirement_values(path: str, text: str) -> list[dict]:
+    """Each `require` of the design: its line, pass or fail, value and unit (run in the worker)."""
+    from acl.analysis.report import analyze
+    from acl.lsp.document import check_text
+
+    snap = check_text(text, path)
+    if snap.design is None or not getattr(snap.design, "requires", None):
+        return []
+    rep = analyze(snap.design)
+    return [{"line": r.get("line"), "ok": r["ok"], "value": r["value"], "unit": r["unit"], "text": r["text"],
+             "detail": r["detail"]} for r in rep.requires]
+
+
+def warm_up() -> bool:
+    """Import the analyses in the worker before the first real request."""
+    import acl.analysis.acoustics  # noqa: F401
+    import acl.lsp.hover  # noqa: F401
+
+    return True

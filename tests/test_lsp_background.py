@@ -1,0 +1,115 @@
+"""Long work off the language server's event loop (issue 27): the background worker runs it in a
+process a newer edit can stop, and requests answer at once meanwhile."""
+from __future__ import annotations
+
+import time
+
+import pytest
+
+pytest.importorskip("pygls", reason="acl lsp needs the optional extra acl[lsp] (pygls)")
+
+from lsp_client import LspClient  # noqa: E402
+
+
+def test_a_newer_text_stops_the_worker_busy_with_an_older_one():
+    from acl.lsp.background import Worker
+
+    w = Worker()
+    try:
+        assert w.get(("doc", "old", "slow"), time.sleep, 60) is None
+        fut = w.future(("doc", "old", "slow"))
+        deadline = time.monotonic() + 30
+        while not fut.running() and time.monotonic() < deadline:      # the process spawned and took it
+            time.sleep(0.05)
+        assert fut.running()
+        procs = list(w._pool._processes.values())
+        t0 = time.perf_counter()
+        w.forget("doc", keep="new")
+        for p in procs:
+            p.join(10)
+        assert all(not p.is_alive() for p in procs), "the worker still runs the old text's job"
+        assert time.perf_counter() - t0 < 10 and w.cancelled == 1 and w.restarts == 1
+        assert w.get(("doc", "new", "quick"), abs, -3) is None          # a fresh worker serves the new text
+        deadline = time.monotonic() + 60
+        while w.peek(("doc", "new", "quick")) is None and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert w.peek(("doc", "new", "quick")) == 3
+    finally:
+        w.stop()
+
+
+def test_queued_work_for_an_older_text_is_cancelled_and_other_documents_keep_theirs():
+    from acl.lsp.background import Worker
+
+    w = Worker()
+    try:
+        w.get(("doc", "a", "first"), time.sleep, 60)
+        w.get(("doc", "a", "second"), time.sleep, 60)                   # queued behind the first
+        w.get(("other", "x", "mine"), abs, -1)
+        queued = w.future(("doc", "a", "second"))
+        w.forget("other", keep="x")                                     # its own text: nothing to cancel
+        assert w.cancelled == 0 and w.future(("doc", "a", "second")) is queued
+        w.forget("doc", keep="b")
+        assert w.cancelled == 2 and queued.cancelled()
+        assert w.future(("doc", "a", "first")) is None and w.future(("doc", "a", "second")) is None
+    finally:
+        w.stop()
+
+
+def _design(n: int) -> str:
+    head = ("import stdlib.media\nimport stdlib.capsules\nimport stdlib.beams\nimport stdlib.transducers\n"
+            "use medium media.pbs\nuse transducer transducers.contact_piezo\n")
+    body = "".join(f"beam arm{i} like beams.cantilever50 {{ clamp = ({i} mm, 0, 0) }}\n"
+                   f"capsule cap{i} like capsules.design{1 + i % 3} {{ }}\nmount cap{i} on arm{i}.tip\n"
+                   for i in range(n))
+    return head + body + "program p {\n  drive 125 kHz @ 2 V for 10 ms\n}\n"
+
+
+def test_a_capsule_hover_on_a_large_design_answers_at_once_and_completes_later(tmp_path):
+    from acl.lsp.hover import INLINE_CAPSULES
+
+    text = _design(INLINE_CAPSULES + 6)
+    path = tmp_path / "large.acl"
+    path.write_text(text, encoding="utf-8")
+    c = LspClient({"lint": False, "debounce": 0.02})
+    try:
+        u = c.open(path, text)
+        pub = c.wait_for("textDocument/publishDiagnostics", lambda p: p["uri"] == u)
+        assert not [d for d in pub["diagnostics"] if d["severity"] == 1], pub["diagnostics"][:3]
+        ln = text.split("\n").index("capsule cap0 like capsules.design1 { }")
+        t0 = time.perf_counter()
+        first = c.at("textDocument/hover", u, ln, 9)["contents"]["value"]
+        took = time.perf_counter() - t0
+        assert "predicted modes" in first and "computing in the background" in first
+        assert took < 2.0, f"the first hover took {took:.2f} s"
+        deadline = time.monotonic() + 120
+        while True:
+            value = c.at("textDocument/hover", u, ln, 9)["contents"]["value"]
+            if "computing" not in value or time.monotonic() > deadline:
+                break
+            time.sleep(0.3)
+        assert "computing" not in value and "phase of `jet` volume vs drive" in value
+    finally:
+        c.close()
+
+
+def test_a_job_stopped_by_an_edit_leaves_no_result_behind():
+    """Undoing the edit brings the old text back: its work must run again, not answer
+    `(unavailable: BrokenProcessPool)` from the job the edit stopped."""
+    from acl.lsp.background import Worker
+
+    w = Worker()
+    try:
+        w.get(("doc", "old", "slow"), time.sleep, 60)
+        fut = w.future(("doc", "old", "slow"))
+        deadline = time.monotonic() + 30
+        while not fut.running() and time.monotonic() < deadline:
+            time.sleep(0.05)
+        w.forget("doc", keep="new")
+        deadline = time.monotonic() + 30
+        while not fut.done() and time.monotonic() < deadline:
+            time.sleep(0.05)
+        time.sleep(0.2)
+        assert w.peek(("doc", "old", "slow")) is None
+    finally:
+        w.stop()
