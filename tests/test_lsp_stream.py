@@ -180,3 +180,16 @@ def test_the_documented_limits_are_the_code_s():
     assert f"over {stream.MAX_MESSAGE_BYTES // 2**20} MiB ({stream.MAX_MESSAGE_BYTES:,} bytes)" in text
     assert f"over {stream.MAX_HEADER_LINE:,} bytes" in text and f"more than {stream.MAX_HEADER_LINES} lines" in text
     assert f"in {stream._CHUNK // 2**20} MiB chunks" in text
+
+
+def test_a_content_length_longer_than_the_rest_of_the_input_still_serves_what_it_swallowed():
+    """A length longer than everything after it ran the input out inside its body, and the server stopped there
+    (found by tests/test_fuzz_hostile.py): the messages it swallowed are read again from their headers."""
+    body = b'{"jsonrpc": "2.0", "id": 99, "method": "shutdown"}'
+    rest = INITIALIZE + SHUTDOWN_EXIT
+    lying = b"Content-Length: %d\r\n\r\n" % (len(body) + len(rest) + 1) + body
+    rc, msgs, err = serve(lying + rest)
+    assert rc == 0 and "Traceback" not in err
+    assert "E-LSP-FRAME" in err
+    assert replies(msgs, 1) and "capabilities" in replies(msgs, 1)[0]["result"]
+    assert replies(msgs, 2), "the swallowed session was not served"

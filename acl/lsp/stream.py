@@ -223,12 +223,15 @@ class FramedInput:
                     return False
                 continue
             body = self._read_body(length)
-            if len(body) < length:
+            short = len(body) < length
+            if short and _overrun(body) is None:
                 self._refuse("E-LSP-FRAME", f"the input ended after {len(body)} of the {length} bytes of message {k}",
                              body_line, rpc=0)
                 return False
             problem = _check_body(body)
-            cut = _overrun(body) if problem is not None and problem[2] == PARSE_ERROR else None
+            # a Content-Length too long swallowed the messages after it (up to the end of the input, when it was
+            # longer than all that followed): they are read again from the header found inside the body
+            cut = _overrun(body) if short or (problem is not None and problem[2] == PARSE_ERROR) else None
             if cut is not None:
                 # the announced length ran into the next message: read that one again from its header
                 self._back = body[cut:] + self._back
