@@ -12,7 +12,7 @@ planted, every library effect in every experiment kind that can identify it:
 * ``body-pair+cal``   tests/data/fit_body_pair.acl: a two-orifice capsule facing a trussed body (acl.fit.group, the
                        analysis' coupled volumes where the capsules are), gap and sideways tip 0..3 V at 125 and
                        175 kHz (the side orifice's and the rider's mode), and the calibration beam to 11 V
-* ``latch``           examples/fig6_bistable_latch.acl, ramps 0..60 V (through the switch) at 4 frequencies
+* ``latch``           benchmarks/designs/fig6_latch_simulated_modulus.acl (Fig. 6a-d at 13 MPa), ramps 0..60 V (through the switch) at 4 frequencies
 * ``latch+state``     tests/data/fit_latch_state.acl (the latch with `observe switched = state(snap)`), ramps
                        0..100 V in 2.5 V steps at 5 frequencies, twice: shuttle rows (noise) and 0/1 state rows
                        (drawn with the model's switching probability)
@@ -60,7 +60,7 @@ PAIR = os.path.join(ROOT, "tests", "data", "fit_pair.acl")
 PAIR_CAL = os.path.join(ROOT, "tests", "data", "fit_pair_cal.acl")
 SPRING_CAL = os.path.join(ROOT, "tests", "data", "fit_spring_cal.acl")
 BODY_PAIR = os.path.join(ROOT, "tests", "data", "fit_body_pair.acl")
-LATCH = os.path.join(ROOT, "examples", "fig6_bistable_latch.acl")
+LATCH = os.path.join(ROOT, "benchmarks", "designs", "fig6_latch_simulated_modulus.acl")   # the design of the committed runs
 LATCH_STATE = os.path.join(ROOT, "tests", "data", "fit_latch_state.acl")
 
 FREQS = (105e3, 115e3, 125e3, 135e3, 145e3)
