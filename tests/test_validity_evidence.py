@@ -122,7 +122,7 @@ def test_analyze_and_compile_agree_on_each_switch_of_the_toggle():
 
 def test_pair_coupling_has_no_kink_at_contact():
     # Fig. 5c: with the coupling distance floored by max(d, R_a + R_b), snap-in landed at 20.000 um for initial gaps
-    # of 29-31 um.  The smooth floor (d^8 + f^8)^(1/8) is >= max(d, f), within 0.05 % of d from 2 f, C-infinity.
+    # of 29-31 um.  The smooth floor (d^32 + f^32)^(1/32) is >= max(d, f), within 1e-10 of d from 2 f, C-infinity.
     from acl.physics.coupling import contact_distance
 
     d = np.linspace(0.0, 100e-6, 2001)
