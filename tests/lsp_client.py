@@ -14,6 +14,25 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 
 
+def serve(stdin: bytes, timeout: float = 60) -> tuple[int, list[dict], str, bytes]:
+    """Run `acl lsp` on the raw bytes ``stdin``: (exit code, the messages it wrote, its stderr, its raw stdout)."""
+    import re
+
+    env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    p = subprocess.run([sys.executable, "-m", "acl", "lsp"], input=stdin, capture_output=True, timeout=timeout,
+                       env=env, cwd=ROOT)
+    out, msgs = p.stdout, []
+    while out:
+        head, _, rest = out.partition(b"\r\n\r\n")
+        m = re.search(rb"Content-Length: (\d+)", head)
+        if m is None:
+            break
+        n = int(m.group(1))
+        msgs.append(json.loads(rest[:n]))
+        out = rest[n:]
+    return p.returncode, msgs, p.stderr.decode("utf-8", "replace"), p.stdout
+
+
 def uri(path) -> str:
     return Path(path).resolve().as_uri()
 

@@ -8,8 +8,6 @@ from __future__ import annotations
 import json
 import os
 import re
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
@@ -59,17 +57,7 @@ def at(method: str, u: str, line: int, character: int, id_: int, **extra) -> byt
     return rpc(method, {"textDocument": {"uri": u}, "position": {"line": line, "character": character}, **extra}, id_)
 
 
-def serve(stdin: bytes, timeout: float = 60) -> tuple[int, list[dict], str, bytes]:
-    env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
-    p = subprocess.run([sys.executable, "-m", "acl", "lsp"], input=stdin, capture_output=True, timeout=timeout,
-                       env=env, cwd=ROOT)
-    out, msgs = p.stdout, []
-    while out:
-        head, _, rest = out.partition(b"\r\n\r\n")
-        n = int(re.search(rb"Content-Length: (\d+)", head).group(1))
-        msgs.append(json.loads(rest[:n]))
-        out = rest[n:]
-    return p.returncode, msgs, p.stderr.decode("utf-8", "replace"), p.stdout
+from lsp_client import serve  # noqa: E402
 
 
 def reply(msgs, id_) -> dict:

@@ -5,10 +5,7 @@ from __future__ import annotations
 
 import io
 import json
-import os
 import re
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
@@ -39,16 +36,9 @@ SHUTDOWN_EXIT = rpc("shutdown", None, id_=2) + rpc("exit", None)
 
 
 def serve(stdin: bytes, timeout: float = 60) -> tuple[int, list[dict], str]:
-    env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
-    p = subprocess.run([sys.executable, "-m", "acl", "lsp"], input=stdin, capture_output=True, timeout=timeout,
-                       env=env, cwd=ROOT)
-    out, msgs = p.stdout, []
-    while out:
-        head, _, rest = out.partition(b"\r\n\r\n")
-        n = int(re.search(rb"Content-Length: (\d+)", head).group(1))
-        msgs.append(json.loads(rest[:n]))
-        out = rest[n:]
-    return p.returncode, msgs, p.stderr.decode("utf-8", "replace")
+    from lsp_client import serve as serve_raw
+
+    return serve_raw(stdin, timeout)[:3]
 
 
 def replies(msgs, id_):

@@ -276,3 +276,17 @@ def one_design(path: str, fmt: str = "text") -> str | None:
                   "this command works on one", Span(file=path, line=1, column=1),
                   f"name one: {found}" if files else "give a .acl file")], fmt)
     return None
+
+
+def seconds(text: str) -> float:
+    """An option's value as a positive, finite number of seconds (argparse type; `--timeout`)."""
+    import argparse
+    import math
+
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number of seconds") from None
+    if not (math.isfinite(v) and v > 0):
+        raise argparse.ArgumentTypeError(f"{text!r}: give a number of seconds > 0")
+    return v

@@ -7,7 +7,8 @@ import json
 import os
 import sys
 
-from acl.commands._common import add_design_options, add_output_format, load_or_report, plotting_missing, report, seed
+from acl.commands._common import (add_design_options, add_output_format, load_or_report, plotting_missing, report, seconds,
+                                  seed)
 from acl.diagnostics import DiagnosticError, Span, error
 
 
@@ -44,7 +45,7 @@ def add_parser(p) -> None:
     p.add_argument("--plot", metavar="DIR", help="write PNG figures into DIR (histograms, yield, pass/fail map)")
     p.add_argument("--tolerance-scales", metavar="S1,S2,...",
                    help="also the yield with every spread scaled by each factor (yield vs tolerance; e.g. 0.5,1,2)")
-    p.add_argument("--timeout", type=_seconds, default=None, metavar="SECONDS",
+    p.add_argument("--timeout", type=seconds, default=None, metavar="SECONDS",
                    help="on a cluster: how long to wait when it has no worker left before giving up (E601; default 60)")
     add_output_format(p)
     add_design_options(p)
@@ -230,15 +231,3 @@ def _print(table, args, curve, written, design) -> None:
     if written:
         con.print(f"wrote {len(written)} figure(s) to {args.plot}")
 
-
-def _seconds(text: str) -> float:
-    import argparse
-    import math
-
-    try:
-        v = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a number of seconds") from None
-    if not (math.isfinite(v) and v > 0):
-        raise argparse.ArgumentTypeError(f"{text!r}: give a number of seconds > 0")
-    return v

@@ -6,7 +6,7 @@ from __future__ import annotations
 import os
 import sys
 
-from acl.commands._common import add_output_format, exit_code, one_design, report, seed
+from acl.commands._common import add_output_format, exit_code, one_design, report, seconds, seed
 
 
 def add_parser(p) -> None:
@@ -38,7 +38,7 @@ def add_parser(p) -> None:
     p.add_argument("-o", "--output", metavar="PATH", default=None,
                    help="where to write the tuned design (default: <stem>.tuned.acl next to DESIGN)")
     p.add_argument("--no-write", action="store_true", help="report only; write no tuned design")
-    p.add_argument("--timeout", type=_seconds, default=None, metavar="SECONDS",
+    p.add_argument("--timeout", type=seconds, default=None, metavar="SECONDS",
                    help="on a cluster: how long to wait when it has no worker left before giving up (E601; default 60)")
     add_output_format(p)
     p.add_argument("--path", action="append", default=[], metavar="DIR", help="extra folder imports may read from")
@@ -249,15 +249,3 @@ def _write_atomic(path: str, text: str) -> None:
 
     write_text_atomic(path, text)
 
-
-def _seconds(text: str) -> float:
-    import argparse
-    import math
-
-    try:
-        v = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a number of seconds") from None
-    if not (math.isfinite(v) and v > 0):
-        raise argparse.ArgumentTypeError(f"{text!r}: give a number of seconds > 0")
-    return v
