@@ -7,6 +7,7 @@ Exit codes: 0 clean, 1 errors in the design / findings / infeasible, 2 usage or 
 from __future__ import annotations
 
 import argparse
+import errno
 import importlib
 import os
 import sys
@@ -245,7 +246,7 @@ class _ClosedStream:
         raise io.UnsupportedOperation("standard output is closed")
 
 
-_STREAM_ERRNOS = frozenset({5, 9, 27, 28, 122})     # EIO, EBADF, EFBIG, ENOSPC, EDQUOT
+_STREAM_ERRNOS = frozenset(getattr(errno, n) for n in ("EIO", "EBADF", "EFBIG", "ENOSPC", "EDQUOT") if hasattr(errno, n))
 
 
 def _prepare_streams() -> None:
