@@ -248,19 +248,11 @@ def _rule_doc(code: str) -> T.CodeDescription | None:
 
 def _import_range(snap: Snapshot, file: str | None) -> T.Range:
     """The range of the document's import (or extends) that leads to ``file``; else line 1."""
-    from acl.syntax import ast as A
+    from acl.lsp.structure import import_targets
 
-    env = snap.env
-    if env is not None and file is not None:
-        for st in env.module.statements:
-            target = None
-            if isinstance(st, A.Import):
-                alias = st.alias or (st.module[-1] if st.module else None)
-                tgt = env.imports.get(alias) if alias else None
-                target = tgt[0] if isinstance(tgt, tuple) else tgt
-            elif isinstance(st, A.Extends):
-                target = env.base
-            if target is not None and _same_file(target.file, file):
+    if file is not None:
+        for st, target, _ in import_targets(snap):
+            if _same_file(target.file, file):
                 ln = st.span.line - 1
                 return _range((ln, st.span.column - 1, ln, len(snap.line(ln).rstrip())), snap.lines)
     return T.Range(start=T.Position(line=0, character=0), end=T.Position(line=0, character=0))

@@ -117,14 +117,13 @@ def declared_names(env, lines: list[str]) -> list[tuple[str, str, tuple[int, int
 # Document links
 # ------------------------------------------------------------------------------------------------
 
-def links(snap: Snapshot) -> list[tuple[tuple[int, int, int, int], str]]:
-    """(range of the module name or quoted file, path) of each import and `extends` that resolved."""
+def import_targets(snap: Snapshot):
+    """(statement, the module it resolved to, the text naming it) of each import and `extends` of the document
+    whose target resolved."""
     env = snap.env
     if env is None:
-        return []
-    out = []
+        return
     for st in env.module.statements:
-        target = None
         if isinstance(st, A.Import):
             alias = st.alias or (st.module[-1] if st.module else None)
             tgt = env.imports.get(alias) if alias else None
@@ -134,7 +133,15 @@ def links(snap: Snapshot) -> list[tuple[tuple[int, int, int, int], str]]:
             target, shown = env.base, f'"{st.file}"'
         else:
             continue
-        if target is None or target.file.startswith("<"):
+        if target is not None:
+            yield st, target, shown
+
+
+def links(snap: Snapshot) -> list[tuple[tuple[int, int, int, int], str]]:
+    """(range of the module name or quoted file, path) of each import and `extends` that resolved."""
+    out = []
+    for st, target, shown in import_targets(snap):
+        if target.file.startswith("<"):
             continue
         ln = st.span.line - 1
         text = snap.line(ln)
