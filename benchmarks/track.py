@@ -31,10 +31,9 @@ def main() -> int:
     ap.add_argument("--snr", type=float, default=30.0)
     a = ap.parse_args()
 
-    import imageio_ffmpeg
     import tifffile
 
-    from acl.bench.render import blur_centre, render, trajectory
+    from acl.bench.render import blur_centre, render, trajectory, write_video
     from acl.bench.track import track_video
 
     n, fps, size = a.frames, 100.0, 512
@@ -47,12 +46,7 @@ def main() -> int:
     roi = (int(origin[0]) - half, int(origin[1]) - half, a.roi, a.roi)
     with tempfile.TemporaryDirectory() as tmp:
         avi = os.path.join(tmp, "v.avi")
-        w = imageio_ffmpeg.write_frames(avi, (size, size), pix_fmt_in="gray", pix_fmt_out="gray", codec="ffv1",
-                                        fps=fps, macro_block_size=1, quality=None)
-        w.send(None)
-        for f in frames:
-            w.send(np.ascontiguousarray(f))
-        w.close()
+        write_video(avi, frames, fps)
         tif = os.path.join(tmp, "v.tif")
         tifffile.imwrite(tif, frames, imagej=True, metadata={"axes": "TYX", "finterval": 1 / fps})
         print(f"acl track: {n} frames of {size}x{size}, template {a.roi}x{a.roi} px, SNR {a.snr:g} dB")

@@ -23,19 +23,12 @@ def video_of_waypoints(csv_path: str, name: str, out_path: str, fps: float, fram
                        size: int = 128, origin=(70.3, 62.6), snr_db: float = 30.0, seed: int = 1):
     """Write a lossless AVI (FFV1) of the capsule at the waypoints' displacements (image axes: x right,
     y down; ``scale_um`` um per pixel); returns the true displacements (px) of each frame."""
-    import imageio_ffmpeg
-
-    from acl.bench.render import render
+    from acl.bench.render import render, write_video
 
     wt, wx, wy = read_waypoints(csv_path, name)
     t = np.arange(frames) / fps
     k = np.clip(np.searchsorted(wt, t + 1e-9, side="right") - 1, 0, len(wt) - 1)
     x, y = wx[k] / scale_um, wy[k] / scale_um
     video = render(x, y, size, size, origin=origin, snr_db=snr_db, motion_substeps=1, seed=seed)
-    w = imageio_ffmpeg.write_frames(out_path, (size, size), pix_fmt_in="gray", pix_fmt_out="gray", codec="ffv1",
-                                    fps=fps, macro_block_size=1, quality=None)
-    w.send(None)
-    for f in video:
-        w.send(np.ascontiguousarray(f))
-    w.close()
+    write_video(out_path, video, fps)
     return x - x[0], y - y[0]

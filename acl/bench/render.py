@@ -82,3 +82,17 @@ def blur_centre(x, y, motion_substeps: int = 5):
     yp = np.concatenate([[y[0]], y[:-1]])
     f = np.mean([0.5 + 0.5 * (k + 0.5) / motion_substeps for k in range(motion_substeps)]) if motion_substeps > 1 else 1.0
     return xp + f * (x - xp), yp + f * (y - yp)
+
+
+def write_video(path: str, frames, fps: float) -> None:
+    """Grey frames (N, H, W) as a lossless FFV1 AVI through imageio-ffmpeg (the synthetic videos of the tests,
+    the bench loop and benchmarks/track.py)."""
+    import imageio_ffmpeg
+
+    h, w = frames[0].shape
+    writer = imageio_ffmpeg.write_frames(path, (w, h), pix_fmt_in="gray", pix_fmt_out="gray", codec="ffv1",
+                                         fps=fps, macro_block_size=1, quality=None)
+    writer.send(None)
+    for f in frames:
+        writer.send(np.ascontiguousarray(f))
+    writer.close()
