@@ -29,6 +29,7 @@ from acl.physics import effects as PE
 from acl.physics.coupling import (BubbleSystem, CoupledModes, build_system, coupled_modes as _physics_coupled_modes,
                                   coupled_response as _physics_coupled, prepared_response, uncoupled_blocks)
 from acl.physics.forces import interface_centre_amplitude, jet_drag, thrust_magnitude
+from acl.physics.roots import grid_max
 from acl.physics.resonance import BubbleModes, capsule_modes as _physics_modes
 from acl.physics.ties import TIE_RTOL, first_max
 from acl.physics.transducer import pressure_per_volt
@@ -493,27 +494,8 @@ def band_maximum(value, f0: float, f1: float, extra=(), samples: int = 21, rtol:
     fs = np.unique(np.concatenate([np.geomspace(lo, hi, max(samples, 2)) if lo > 0 else np.linspace(lo, hi, samples),
                                    extra[(extra >= lo) & (extra <= hi)]]))
     vals = [value(f) for f in fs]
-    k = int(np.argmax(vals))                 # ties: the first (lowest) frequency
-    best_f, best = float(fs[k]), vals[k]
-    a, b = float(fs[max(k - 1, 0)]), float(fs[min(k + 1, fs.size - 1)])
-    g = (np.sqrt(5.0) - 1.0) / 2.0
-    c, d = b - g * (b - a), a + g * (b - a)
-    fc, fd = value(c), value(d)
-    for _ in range(40):
-        if b - a <= rtol * max(b, 1.0):
-            break
-        if fc >= fd:
-            b, d, fd = d, c, fc
-            c = b - g * (b - a)
-            fc = value(c)
-        else:
-            a, c, fc = c, d, fd
-            d = a + g * (b - a)
-            fd = value(d)
-        for f, v in ((c, fc), (d, fd)):
-            if v > best:
-                best_f, best = f, v
-    return best, best_f
+    best, best_f = grid_max(value, fs, vals, iterations=40, rtol=rtol)   # ties: the first (lowest) frequency
+    return best, float(best_f)
 
 
 # ----------------------------------------------------------------------------------------------
