@@ -28,7 +28,9 @@ from acl.physics import constants as C
 from acl.physics import effects as PE
 from acl.physics.coupling import (BubbleSystem, CoupledModes, build_system, coupled_modes as _physics_coupled_modes,
                                   coupled_response as _physics_coupled, prepared_response, uncoupled_blocks)
-from acl.physics.forces import interface_centre_amplitude, jet_drag, thrust_magnitude
+from acl.physics.forces import (capsule_forces, capsule_pair_forces, critical_distance,  # noqa: F401
+                                dominant_pair_phase, force_constants, interface_centre_amplitude, neighbour_drag,
+                                pressure_terms, thrust_magnitude)
 from acl.physics.roots import grid_max
 from acl.physics.resonance import BubbleModes, capsule_modes as _physics_modes
 from acl.physics.ties import TIE_RTOL, first_max
@@ -576,63 +578,24 @@ class _Engine:
         """
         k = self.consts if consts is None else {**self.consts, **consts}
         lay = self.lay
-        pts = centres[:, lay.body, :] + lay.offsets                        # (B, n, 3) orifice centres
         if response is not None:
             r = response
         elif self.f.size == 0 or lay.radii.size == 0:
             r = np.zeros((centres.shape[0], self.f.size, lay.radii.size), complex)
         else:
-            r = self.response(pts)                                         # (B, T, n) per pascal
-        # streaming thrust per orifice (acl.physics.forces.thrust_magnitude), tones added; eps = 2|dV|/(pi R^2)
-        thr = ((r.real**2 + r.imag**2) * k["thrust"]).sum(axis=1)          # (B, n)
-        per = thr[:, :, None] * k["thrust_dir"]                           # (B, n, 3) along -n
-        # secondary Bjerknes force (Crum 1975) of every other-capsule pair, along p_j - p_i, tones in power
-        sep = pts[:, None, :, :] - pts[:, :, None, :]                      # (B, i, j, 3)
-        d = np.where(k["other"], np.sqrt((sep * sep).sum(axis=-1)), 1.0)
-        prod = np.einsum("t,bti,btj->bij" if k["w2p2"].ndim == 1 else "bt,bti,btj->bij", k["w2p2"], r, np.conj(r)).real
-        att = k["bjerknes"] * prod / d**2
-        c = att / d
-        per = per + c @ pts - c.sum(axis=-1)[..., None] * pts             # sum_j c_ij (p_j - p_i)
-        total = lay.onehot.T @ per                                          # (B, C, 3)
-        # drag of each interface's jet on the other capsules (Schlichting laminar round jet)
-        x = centres[:, None, :, :] - pts[:, :, None, :]                    # (B, n, C, 3)
-        dist = np.sqrt((x * x).sum(axis=-1))
-        with np.errstate(invalid="ignore", divide="ignore"):   # positions a runaway solver step made non-finite:
-            cos = (x * lay.normals[None, :, None, :]).sum(axis=-1) / dist   # NaN forces, which the solver rejects
-        mask = k["drag_mask"]
-        drag = jet_drag(thr[:, :, None], np.where(mask, dist, 1.0), cos, self.outer[None, None, :]) * mask
-        total = total + drag.transpose(0, 2, 1) @ lay.normals
+            r = self.response(centres[:, lay.body, :] + lay.offsets)       # (B, T, n) per pascal
+        total, _, thr, att = capsule_forces(centres, lay.body, lay.offsets, lay.normals, lay.onehot, self.outer, r, k)
         if parts:
             return total, r * self.pressure[None, :, None], thr, att
         return total
 
 
-def pressure_terms(unit: np.ndarray, w2: np.ndarray, pressure: np.ndarray, scale: np.ndarray):
-    """(thrust constant (..., T, n), Bjerknes weight (..., T)) of tone pressures (..., T) Pa: C_s 6 pi mu w eps^2 with eps = 2 |p dV/dp| / (pi R^2) (``unit`` (T, n) per Pa^2) times each orifice's thrust scale (..., n), and w^2 p^2 (Crum 1975)."""
-    pressure = np.asarray(pressure, float)
-    return unit * pressure[..., :, None] ** 2 * np.asarray(scale, float)[..., None, :], w2 * pressure**2
-
-
 def _engine_constants(design: Design, lay: _Layout, f: np.ndarray, pressure: np.ndarray, scale: np.ndarray,
                       pair: np.ndarray) -> dict:
-    """Everything in :meth:`_Engine.forces` that does not depend on the capsule positions."""
+    """Everything in :meth:`_Engine.forces` that does not depend on the capsule positions (acl.physics.forces.force_constants)."""
     med = _medium(design)
-    w = 2 * np.pi * f
-    other = lay.body[:, None] != lay.body[None, :]
-    ncap = len(lay.caps)
-    area = np.pi * lay.radii**2
-    unit = C.STREAMING_CONSTANT * 6 * np.pi * med.viscosity * w[:, None] * 4 / area**2
-    thrust, w2p2 = pressure_terms(unit, w**2, pressure, scale[lay.body])
-    return {
-        "thrust": thrust,
-        "thrust_unit": unit,          # (T, n) per pascal^2, before the thrust scale (acl.analysis.tones)
-        "thrust_dir": -lay.normals,
-        "other": other,
-        "w2p2": w2p2,
-        "w2": w**2,
-        "bjerknes": med.density / (8 * np.pi) * other * pair[lay.body][:, lay.body],
-        "drag_mask": lay.body[:, None] != np.arange(ncap)[None, :],
-    }
+    return force_constants(2 * np.pi * f, lay.radii, lay.body, len(lay.caps), med.viscosity, med.density,
+                           C.STREAMING_CONSTANT, pressure, scale, pair)
 
 
 def _compute_engine(design: Design, drive: Drive) -> _Engine:
@@ -725,51 +688,18 @@ def pair_table(design: Design, drive: Drive,
     thrust_vec = np.einsum("n,nk,nc->ck", thr, -lay.normals, lay.onehot)
     ncap = len(lay.caps)
     pa, pb = np.triu_indices(ncap, 1)                 # the nested loops' order: a, then b > a
-    npair = pa.size
-    body = lay.body
-
-    def pair_index(a, b):
-        return a * ncap - a * (a + 1) // 2 + (b - a - 1)
-
-    # Bjerknes vector on a: sum over orifice pairs (i of a, j of b) of att_ij / d_ij * (p_j - p_i)
-    oi, oj = np.nonzero(body[:, None] < body[None, :])
-    fa = np.zeros((npair, 3))
-    if oi.size:
-        sep = pts[oj] - pts[oi]
-        dd = np.linalg.norm(sep, axis=-1)
-        contrib = (att[oi, oj] / dd)[:, None] * sep
-        k = pair_index(body[oi], body[oj])
-        for axis in range(3):
-            fa[:, axis] = np.bincount(k, weights=contrib[:, axis], minlength=npair)
+    fa = capsule_pair_forces(pts, att, lay.body, ncap)
     line = centres[pb] - centres[pa]
     dist = np.linalg.norm(line, axis=-1)
     unit = np.divide(line, dist[:, None], out=np.zeros_like(line), where=dist[:, None] > 0)
     attraction = np.einsum("pk,pk->p", fa, unit)
-    # phase of the dominant interfaces at the strongest tone (ties: the first declared interface, the first
-    # listed tone; acl.physics.ties)
-    dphi = np.zeros(npair)
-    gap = dist.copy()
-    counts = np.bincount(body, minlength=ncap) if body.size else np.zeros(ncap, int)
-    has = counts > 0
-    if eng.f.size and body.size:
-        mag = np.abs(u)                                               # (F, n)
-        starts = np.concatenate([[0], np.cumsum(counts)[:-1]])[has]   # orifices are grouped by capsule
-        peak = np.full((u.shape[0], ncap), -np.inf)
-        peak[:, has] = np.maximum.reduceat(mag, starts, axis=1)
-        first = np.zeros((u.shape[0], ncap), int)
-        at_peak = np.where(mag >= peak[:, body] * (1 - TIE_RTOL), np.arange(body.size)[None, :], body.size)
-        first[:, has] = np.minimum.reduceat(at_peak, starts, axis=1)
-        ok = has[pa] & has[pb]
-        t = first_max(peak[:, pa[ok]] * peak[:, pb[ok]], axis=0)
-        ja, jb = first[t, pa[ok]], first[t, pb[ok]]
-        dphi[ok] = np.angle(u[t, ja] * np.conj(u[t, jb]))
-        gap[ok] = np.linalg.norm(pts[jb] - pts[ja], axis=-1)
+    dphi, gap = dominant_pair_phase(u, pts, lay.body, ncap, dist)
     # reduced law (paper Eq. 3): alpha = attraction d^2, 2 gamma = thrusts pushing apart
     gamma2 = np.einsum("pk,pk->p", thrust_vec[pa], -unit) + np.einsum("pk,pk->p", thrust_vec[pb], unit)
     alpha = attraction * gap**2
     live = (alpha > 0) & (gamma2 > 0)
-    dc = np.full(npair, np.nan)
-    dc[live] = np.sqrt(alpha[live] / gamma2[live])
+    dc = np.full(pa.size, np.nan)
+    dc[live] = critical_distance(alpha[live], gamma2[live] / 2)
     return PairTable(names=tuple(c.name for c in lay.caps), a=pa, b=pb, force_on_a=fa, attraction=attraction,
                      phase_difference=dphi, distance=gap, critical_distance=dc, notes=defaults_used(design))
 
@@ -782,14 +712,11 @@ def pair_forces(design: Design, drive: Drive,
 
 
 def _apply_neighbour_drag(design: Design, lay: _Layout, centres: np.ndarray, total: np.ndarray) -> np.ndarray:
+    """A declared neighbour_drag (acl.physics.forces.neighbour_drag) on capsules with a neighbour (acl.analysis.effects.neighbour_capsules; the fit's pairs)."""
     nd = EF.coefficients(design, "neighbour_drag") if design.effects else None
     if nd and nd["inv_plateau"] > 0:
-        # P (1 - delta/delta_p) with delta the capsule's displacement from rest (acl.physics.effects.drag_load),
-        # on capsules with a neighbour only (acl.analysis.effects.neighbour_capsules; the fit's pairs)
-        delta = np.linalg.norm(centres - lay.rest[None], axis=-1)
         near = EF.neighbour_capsules(design)
-        delta = delta * np.array([c.name in near for c in lay.caps], float)
-        total = PE.drag_load(total, delta[..., None], nd["inv_plateau"])
+        return neighbour_drag(total, centres, lay.rest, [c.name in near for c in lay.caps], nd["inv_plateau"])
     return total
 
 
