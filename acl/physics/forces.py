@@ -76,7 +76,7 @@ def bjerknes_from_rates(rate_product, distance, density):
 
 
 def bjerknes_vectors(omega, volume_a, position_a, volume_b, position_b, density):
-    """Bjerknes force vectors (on a, on b) between two point volume sources (Crum, JASA 57, 1363 (1975)); equal and opposite."""
+    """Bjerknes force vectors (on a, on b) between two point volume sources: :func:`bjerknes_attraction` along the line of centres, equal and opposite."""
     pa = np.asarray(position_a, float)
     pb = np.asarray(position_b, float)
     sep = pb - pa
