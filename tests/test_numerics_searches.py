@@ -2,7 +2,6 @@
 import math
 
 import numpy as np
-import pytest
 
 from acl.physics.roots import (first_sign_change, golden_max, grid_max, illinois, illinois_ascending,
                                illinois_step)

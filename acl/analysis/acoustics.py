@@ -28,9 +28,9 @@ from acl.physics import constants as C
 from acl.physics import effects as PE
 from acl.physics.coupling import (BubbleSystem, CoupledModes, build_system, coupled_modes as _physics_coupled_modes,
                                   coupled_response as _physics_coupled, prepared_response, uncoupled_blocks)
-from acl.physics.forces import (capsule_forces, capsule_pair_forces, critical_distance,  # noqa: F401
-                                dominant_pair_phase, force_constants, interface_centre_amplitude, neighbour_drag,
-                                pressure_terms, thrust_magnitude)
+from acl.physics.forces import (capsule_forces, capsule_pair_forces, critical_distance, dominant_pair_phase,
+                                force_constants, interface_centre_amplitude, neighbour_drag, thrust_magnitude)
+from acl.physics.forces import pressure_terms  # noqa: F401  (public here since before; acl.analysis.tones)
 from acl.physics.roots import grid_max
 from acl.physics.resonance import BubbleModes, capsule_modes as _physics_modes
 from acl.physics.ties import TIE_RTOL, first_max
