@@ -233,6 +233,20 @@ class SweepTable:
             return None
         return p.reshape(self.spec.n_grid, self.spec.samples).mean(axis=1).reshape(self.spec.grid_shape)
 
+    def grid_yields(self) -> list[tuple[str, Yield]]:
+        """One ``(label, Yield)`` per grid point of a Monte Carlo grid sweep, axes in order (label
+        ``radius=10 um, gap=20 um``); empty without a grid, without samples or with a require unevaluated."""
+        p = self.passed
+        if p is None or not self.spec.axes or not self.spec.montecarlo:
+            return []
+        per = p.reshape(self.spec.n_grid, self.spec.samples)
+        out = []
+        for g in range(self.spec.n_grid):
+            idx = np.unravel_index(g, self.spec.grid_shape)
+            label = ", ".join(f"{a.name}={_short(a.values[i], a.unit)}" for a, i in zip(self.spec.axes, idx))
+            out.append((label, binomial_yield(per[g])))
+        return out
+
     def summary_line(self) -> str:
         """``yield 0.93 [0.91, 0.95] (930 of 1000 points; ...)`` or, for a grid, ``pass 12 of 41 points``."""
         y = self.yields()
