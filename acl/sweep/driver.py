@@ -135,6 +135,12 @@ def run_sweep(design: Design, spec: SweepSpec, quantities=None, at: str | None =
     if dropped and quantities is None:
         notes.append(f"{len(dropped)} column(s) left out: " + next(iter(dropped.values())))
     notes += [why for why in unevaluated.values()]
+    from acl.sweep.evaluate import per_point_names
+
+    slow = [c for c in cols if c in per_point_names(design, at)]
+    if slow:
+        notes.append(f"{len(slow)} column(s) computed point by point by `acl analyze`'s engine, with the declared "
+                     f"effects applied ({', '.join(slow[:4])}{', ...' if len(slow) > 4 else ''}): about 0.1 s per point")
     return SweepTable(assemble(parts, order), spec, units=units, notes=notes, unevaluated=unevaluated,
                       n_requires=len(design.requires), field_map=fmap)
 

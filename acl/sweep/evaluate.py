@@ -238,15 +238,12 @@ def supported(design: M.Design, at: str | None = None) -> tuple[list[str], dict[
     for cap in design.capsules:
         for k in range(1, len(cap.orifices) + 1):
             names += [f"resonance_{_ident(cap.name)}_{k}_hz", f"q_{_ident(cap.name)}_{k}"]
-    if blocks["rest"]:
-        for fam in ("force_", "attract_", "phase_", "critical_distance_"):
-            missing[fam] = _effects_note(blocks["rest"], "the acoustic forces")
-    if blocks["latch"]:
-        for fam in ("switching_force_", "release_force_", "bistable_", "margin_"):
-            missing[fam] = _effects_note(blocks["latch"], "the forces or the latch law")
-    if blocks["motion"]:
-        for fam in ("snap_in_", "tip_deflection", "deflection_", "equilibrium_ok"):
-            missing[fam] = _effects_note(blocks["motion"], "the equilibria (forces at displaced positions, beams)")
+    # families that declared effects change: given point by point by analyze's engine (acl.sweep.points)
+    for cols in per_point_columns(design, at).values():
+        names += cols
+    if blocks["motion"] and at is None and any((design.mount_of(c.name) or M.Fix(capsule="", span=c.span)).kind == "mount"
+                                               for c in design.capsules):
+        missing["tip_deflection"] = "deflections need a drive: give `at` (like `acl analyze --at`)"
     mech = _mechanism(design)
     moving = [c for c in design.capsules if (design.mount_of(c.name) or M.Fix(capsule="", span=c.span)).kind == "mount"]
     freqs = program_frequencies(design) or []
@@ -283,12 +280,8 @@ def supported(design: M.Design, at: str | None = None) -> tuple[list[str], dict[
                 missing["tip_deflection"] = missing["deflection_"] = \
                     f"batched equilibria do not cover this mechanism: {general}"
     for i, r in enumerate(design.requires, 1):
-        if _require_supported(design, r, effects):
+        if _require_supported(design, r, effects) or _require_per_point(design, r, blocks):
             names += [f"require_{i}_value", f"require_{i}_pass"]
-        elif r.kind == "margin" and blocks["latch"]:
-            missing[f"require_{i}"] = f"`{r.text}`: " + _effects_note(blocks["latch"], "the forces or the latch law")
-        elif r.kind == "gap" and effects:
-            missing[f"require_{i}"] = f"`{r.text}`: " + _effects_note(effects, "the equilibria")
         else:
             missing[f"require_{i}"] = f"`{r.text}` is not batched for this design"
     if design.requires and all(f"require_{i}_pass" in names for i in range(1, len(design.requires) + 1)):
@@ -300,15 +293,41 @@ def supported(design: M.Design, at: str | None = None) -> tuple[list[str], dict[
     if "lint_acl603_pass" in names and "requires_pass" not in names and design.requires:
         names.remove("lint_acl603_pass")
     if blocks["rest"]:
-        missing["lint_acl105"] = "eps/R with declared effects on the drive pressure is not batched"
+        missing["lint_acl105"] = f"eps/R with declared effects on the drive pressure ({', '.join(blocks['rest'])}) is not batched"
     if effects:
         for code in _PROGRAM_LINT:
-            missing[f"lint_{code}"] = "forces with declared effects are not batched"
+            missing[f"lint_{code}"] = (f"the rule's forces with declared effects ({', '.join(effects)}) are not batched "
+                                       "(run `acl lint` on a point)")
     elif sweeps:
         for code in _PROGRAM_LINT:
             missing[f"lint_{code}"] = ("a `sweep` step's tones include each point's own modes "
                                        "(acl.lint.context.sweep_frequencies): not one set of frequencies for all points")
     return names, missing
+
+
+def per_point_columns(design: M.Design, at: str | None = None) -> dict[str, list[str]]:
+    """{family: columns} that declared effects take from the batched evaluation and that
+    :mod:`acl.sweep.points` gives point by point (the `require`s among them: :func:`per_point_names`)."""
+    from acl.sweep.points import columns
+
+    return columns(design, _effect_blocks(design), at)
+
+
+def _require_per_point(design, r, blocks) -> bool:
+    """A `require margin` under effects on the latch law, or a `require gap` under effects on the equilibria."""
+    if r.kind == "margin":
+        return bool(blocks["latch"]) and any(lt.name == r.args[0] for lt in design.latches)
+    return r.kind == "gap" and bool(blocks["motion"])
+
+
+def per_point_names(design: M.Design, at: str | None = None) -> set[str]:
+    """Every column :mod:`acl.sweep.points` gives for ``design`` (families and `require`s)."""
+    blocks = _effect_blocks(design)
+    out = {c for cols in per_point_columns(design, at).values() for c in cols}
+    for i, r in enumerate(design.requires, 1):
+        if not _require_supported(design, r, _physical_effects(design)) and _require_per_point(design, r, blocks):
+            out |= {f"require_{i}_value", f"require_{i}_pass"}
+    return out
 
 
 def _require_supported(design, r, effects) -> bool:
@@ -370,8 +389,29 @@ def evaluate(batch, quantities: Sequence[str] | None = None, at: str | None = No
                                     f"(available: {', '.join(names) or 'none'})")
     ev = _Evaluator(batch, at)
     out = {}
+    slow = per_point_names(design, at)
+    combined = {"requires_pass", "lint_acl603_pass"} if slow & {f"require_{i}_pass" for i in range(1, len(design.requires) + 1)} else set()
+    need = [q for q in wanted if q in slow]
+    if combined & set(wanted):
+        need += [f"require_{i}_pass" for i in range(1, len(design.requires) + 1)
+                 if f"require_{i}_pass" in slow and f"require_{i}_pass" not in need]
+    if need:
+        from acl.sweep.points import evaluate_points
+
+        with np.errstate(all="ignore"):
+            pp = evaluate_points(batch, need, at)
     with np.errstate(all="ignore"):
         for q in wanted:
+            if q in slow:
+                out[q] = pp[q]
+                continue
+            if q in combined:        # every require, batched or point by point (lint ACL603 is the same test)
+                col = np.ones(batch.n, bool)
+                for i in range(1, len(design.requires) + 1):
+                    c = f"require_{i}_pass"
+                    col &= pp[c] if c in slow else np.broadcast_to(np.asarray(ev.column(c)), (batch.n,))
+                out[q] = col & ev.valid
+                continue
             col = np.asarray(ev.column(q))
             col = np.broadcast_to(col, (batch.n,)).copy()
             if col.dtype == bool:
