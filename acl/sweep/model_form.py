@@ -4,7 +4,9 @@ Past a soft limit the model still has a meaning, but its forces carry a relative
 distance past the limit: the interface amplitude eps/R beyond 0.25 (:func:`acl.physics.validity.amplitude_model_form`
 of the point's eps/R and Q, as `acl analyze`'s validity findings) and the pair distance below twice the sum of the
 orifice radii (:func:`acl.physics.validity.monopole_model_form`).  The streaming Reynolds number has no such figure
-(the paper's measurements keep the V^2 law past it: only a warning), so it adds nothing here.
+(the paper's measurements keep the V^2 law past it: only a warning), so it adds nothing here.  A `sweep` step
+(a frequency sweep) is not included: its worst frequency depends on each point's modes (analyze's
+sweep_worst_amplitude); lint's ACL105 column checks it against the limit.
 
 Per point:
 
