@@ -62,3 +62,9 @@ def test_the_yield_interval_widens_by_the_points_whose_verdict_could_flip():
     assert y.upper == clopper_pearson(y.passed + int(flip.sum()) - up, y.total)[1] >= plain[1]
     assert "interval widened by" in t.summary_line()
     assert any("past a soft validity limit" in n for n in t.notes)
+
+
+def test_naming_the_columns_without_it_says_the_interval_is_not_widened():
+    t = acl.sweep(SPRING, n=20, seed=2, quantities=["requires_pass"])
+    assert "model_form_uncertain" not in t.columns and t.yields()["all"].widened == 0
+    assert any("not widened by the model-form uncertainty" in n for n in t.notes)

@@ -143,6 +143,10 @@ def run_sweep(design: Design, spec: SweepSpec, quantities=None, at: str | None =
                      f"effects applied ({', '.join(slow[:4])}{', ...' if len(slow) > 4 else ''}): about 0.1 s per point")
     data = assemble(parts, order)
     notes += model_form_notes(data)
+    if quantities is not None and any(r.kind in ("margin", "gap") for r in design.requires) and "model_form_uncertain" not in cols \
+            and "model_form_uncertain" in choose_quantities(design, None, at)[0]:
+        notes.append("the yield's interval is not widened by the model-form uncertainty past the validity limits: "
+                     "add --quantity model_form_uncertain (acl.sweep.model_form)")
     return SweepTable(data, spec, units=units, notes=notes, unevaluated=unevaluated,
                       n_requires=len(design.requires), field_map=fmap)
 
