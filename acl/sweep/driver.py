@@ -161,10 +161,10 @@ def model_form_notes(data) -> list[str]:
         return []
     unc = (int(np.count_nonzero(data["valid"] & data["model_form_uncertain"]))
            if "model_form_uncertain" in data.dtype.names else 0)
-    return [f"{past} of {len(data)} points are past a soft validity limit (interface amplitude eps/R > 0.25 or pair "
+    return [(f"{past} of {len(data)} points are past a soft validity limit (interface amplitude eps/R > 0.25 or pair "
             f"distance < 2 x the orifice radii: acl.physics.validity): their forces carry a model-form uncertainty up "
             f"to {float(rel.max()):.0%} (column model_form_rel); {unc} of them have a margin or gap verdict it could "
-            "flip, and the yield's interval counts them both ways (model_form_uncertain)"]
+            "flip, and the yield's interval counts them both ways (model_form_uncertain)")]
 
 
 def sweep(design, vary=None, tolerance=None, n=None, seed=0, quantities=None, at=None, scheduler=None,
