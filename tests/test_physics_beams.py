@@ -115,3 +115,27 @@ def test_springs_combine_in_series_and_parallel():
     assert springs.in_series(2.0, 2.0) == pytest.approx(1.0)
     assert springs.in_parallel(2.0, 3.0) == pytest.approx(5.0)
     assert springs.spring_force(0.7563e-3, 2e-6) == pytest.approx(-1.5126e-9)
+
+
+def test_elastica_tip_batched_equals_one_load_at_a_time():
+    # One shooting solver for every batch shape: a (3, 4) grid of (P L^2/EI, l/L) against one call per entry; 1e-9.
+    p, lam = np.array([[0.4], [2.0], [5.0]]), np.array([0.0, 0.2, 0.7, 1.5])
+    for mode in ("dead", "follower"):
+        grid = beams.elastica_tip(p, lam, mode)
+        assert grid[0].shape == (3, 4) and grid[3].all()
+        for i in range(3):
+            for j in range(4):
+                one = beams.elastica_tip(p[i, 0], lam[j], mode)
+                assert grid[0][i, j] == pytest.approx(float(one[0]), rel=1e-9)
+                assert grid[2][i, j] == pytest.approx(float(one[2]), rel=1e-9)
+
+
+def test_elastica_table_of_the_fit_is_the_elastica_at_its_nodes():
+    # acl.physics.cantilever (the fit's names) reads the one solver's table: exact at the grid nodes (1e-9).
+    from acl.physics import cantilever
+
+    p_grid, lam_grid, table = cantilever.elastica_table()
+    for i, j in ((6, 0), (30, 9), (60, 20)):
+        d = beams.elastica(p_grid[i], 1.0, lam_grid[j], 1.0).deflection[0]
+        assert table[i, j] == pytest.approx(d, rel=1e-8)
+        assert cantilever.elastica_deflection(p_grid[i], 1.0, lam_grid[j], 1.0) == pytest.approx(d, rel=1e-8)
