@@ -27,9 +27,12 @@ EXCEPTIONS: dict[str, tuple[frozenset, str]] = {
                    "modal superposition: coupling.uncoupled_blocks is the per-capsule block of the resonance's "
                    "volume response; batch.uncoupled_response its per-point twin (sweep work)"),
     "paper Eq. 1": (frozenset({"acl.physics.batch.eq1_force", "acl.physics.beams.eq1_profile_deflection",
-                               "acl.physics.beams.eq1_compliance", "acl.physics.effects.elastica_blend"}),
-                    "beams.eq1_compliance is the closed-form derivative of eq1_profile_deflection's uniform case "
-                    "(tests/test_physics_beams.py checks it against eq1_deflection); batch.eq1_force a per-point twin "
+                               "acl.physics.beams.eq1_compliance", "acl.physics.beams.eq1_small_force_stiffness",
+                               "acl.physics.effects.elastica_blend"}),
+                    "beams.eq1_compliance / eq1_small_force_stiffness are the closed-form derivative of "
+                    "eq1_profile_deflection's uniform case and its P -> 0 limit (tests/test_physics_beams.py checks "
+                    "them against eq1_deflection; as 1/eq1_compliance(0) the limit rounds differently and moves the "
+                    "README compile's plan by 3e-12); batch.eq1_force a per-point twin "
                     "of beams.eq1_force (sweep work); effects.elastica_blend blends deflections it is given"),
     "Timoshenko & Gere": (frozenset({"acl.physics.batch.axial_force", "acl.physics.latch.axial_force"}),
                           "batch.axial_force is latch.axial_force per point (sweep work)"),

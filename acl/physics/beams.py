@@ -83,7 +83,7 @@ def eq1_compliance(P, L: float, l: float, EI: float):
 
 def eq1_small_force_stiffness(L: float, l: float, EI: float) -> float:
     """Load-point stiffness of paper Eq. (1) as P -> 0 (its first-order term): 6EI / [L (L(3l + 2L) + 3l(2l + L))]."""
-    return 1.0 / eq1_compliance(0.0, L, l, EI)
+    return 6 * EI / (L * (L * (3 * l + 2 * L) + 3 * l * (2 * l + L)))
 
 
 def flexible_part_stiffness(L: float, l: float, EI: float) -> float:
