@@ -22,10 +22,9 @@ EXCEPTIONS: dict[str, tuple[frozenset, str]] = {
                                   "acl.physics.effects.transducer_resonance"}),
                        "coupling: modes and forced response are two laws of one textbook, the transducer resonance a "
                        "third; batch.py's twins of coupling are being replaced by the sweep work (helper sweep)"),
-    "Meirovitch": (frozenset({"acl.physics.batch.uncoupled_response", "acl.physics.coupling.uncoupled_blocks",
-                              "acl.physics.resonance.volume_response"}),
-                   "modal superposition: coupling.uncoupled_blocks is the per-capsule block of the resonance's "
-                   "volume response; batch.uncoupled_response its per-point twin (sweep work)"),
+    "Meirovitch": (frozenset({"acl.physics.batch.uncoupled_response", "acl.physics.resonance.modal_dynamic_stiffness"}),
+                   "modal superposition: batch.uncoupled_response is the per-point twin of coupling.uncoupled_blocks "
+                   "(sweep work)"),
     "paper Eq. 1": (frozenset({"acl.physics.batch.eq1_force", "acl.physics.beams.eq1_profile_deflection",
                                "acl.physics.beams.eq1_compliance", "acl.physics.beams.eq1_small_force_stiffness",
                                "acl.physics.effects.elastica_blend"}),

@@ -45,7 +45,7 @@ from typing import Sequence
 
 import numpy as np
 
-from acl.physics.resonance import BubbleModes, symmetric_eigh
+from acl.physics.resonance import BubbleModes, modal_dynamic_stiffness, symmetric_eigh
 
 
 @dataclass(frozen=True)
@@ -172,7 +172,7 @@ def _einsum(subscripts: str, *operands) -> np.ndarray:
 def uncoupled_blocks(system: BubbleSystem, omega) -> np.ndarray:
     """Per-capsule inward volume response per pascal, H0 (F, C, P, P) = Phi diag(1/(w_m^2 - w^2 + i w w_m/Q_m)) Phi^T (Meirovitch ch. 7)."""
     w = np.atleast_1d(np.asarray(omega, float))[:, None, None]
-    den = system.omega[None] ** 2 - w**2 + 1j * w * system.damping[None]
+    den = modal_dynamic_stiffness(system.omega[None], system.damping[None], w)
     return _einsum("cpm,fcm,cqm->fcpq", system.phi, 1.0 / den, system.phi)
 
 

@@ -234,6 +234,14 @@ def capsule_modes(volume, radii, density, surface_tension, ambient_pressure, pol
     return BubbleModes(omega=omega, quality=q, orifice_volume=vol)
 
 
+def modal_dynamic_stiffness(natural, damping, omega):
+    """Dynamic stiffness w_n^2 - w^2 + i w c_n of mass-normalized modes, c_n = w_n/Q_n (Meirovitch, Elements of Vibration Analysis, ch. 7); its inverse is the modal receptance.
+
+    ``natural`` w_n and ``damping`` c_n (rad/s, any batch of modes) broadcast against the drive ``omega`` (rad/s).
+    """
+    return natural**2 - omega**2 + 1j * omega * damping
+
+
 def volume_response(modes: BubbleModes, frequency) -> np.ndarray:
     """Inward volume displacement (m^3/Pa) per interface: modal superposition sum_n phi phi^T/(w_n^2 - w^2 + i w w_n/Q_n) (Meirovitch, Elements of Vibration Analysis, ch. 7).
 
@@ -243,5 +251,5 @@ def volume_response(modes: BubbleModes, frequency) -> np.ndarray:
     w = 2 * np.pi * np.atleast_1d(np.asarray(frequency, float))
     phi = modes.orifice_volume                         # (n_or, n)
     force = phi.sum(axis=0)                            # modal force per Pa of compression
-    den = (modes.omega**2)[None, :] - (w**2)[:, None] + 1j * w[:, None] * (modes.omega / modes.quality)[None, :]
+    den = modal_dynamic_stiffness(modes.omega[None, :], (modes.omega / modes.quality)[None, :], w[:, None])
     return (force[None, :] / den) @ phi.T
