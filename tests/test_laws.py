@@ -18,10 +18,12 @@ import laws as L  # noqa: E402
 # functions no longer all implement the source fails test_no_stale_exception.
 EXCEPTIONS: dict[str, tuple[frozenset, str]] = {
     "Kinsler et al.": (frozenset({"acl.physics.batch.coupled_modes", "acl.physics.batch.coupled_response",
-                                  "acl.physics.coupling.coupled_response", "acl.physics.coupling.coupled_modes",
+                                  "acl.physics.coupling.coupled_response", "acl.physics.resonance.radiation_resistance",
                                   "acl.physics.effects.transducer_resonance"}),
-                       "coupling: modes and forced response are two laws of one textbook, the transducer resonance a "
-                       "third; batch.py's twins of coupling are being replaced by the sweep work (helper sweep)"),
+                       "three laws of one textbook: the mutual radiation impedance (coupled response), a monopole's "
+                       "radiation resistance (used by the capsule's and the coupled modes' Q) and the transducer's "
+                       "driven oscillator; batch.py's twins of coupling are being replaced by the sweep work (helper "
+                       "sweep)"),
     "Meirovitch": (frozenset({"acl.physics.batch.uncoupled_response", "acl.physics.resonance.modal_dynamic_stiffness"}),
                    "modal superposition: batch.uncoupled_response is the per-point twin of coupling.uncoupled_blocks "
                    "(sweep work)"),

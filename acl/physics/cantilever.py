@@ -4,6 +4,11 @@
 :func:`acl.physics.beams.eq1_profile_deflection`; ``elastica_deflection`` the table of the one elastica
 solver, :func:`acl.physics.beams.elastica_tip`.
 """
-from acl.physics.beams import (L_REF, P_MAX, elastica_deflection, elastica_table,  # noqa: F401
-                               stiffness_integrals)
+from acl.physics.beams import (  # noqa: F401
+                               L_REF,
+                               P_MAX,
+                               elastica_deflection,
+                               elastica_table,
+                               stiffness_integrals,
+)
 from acl.physics.beams import eq1_profile_deflection as eq1_deflection  # noqa: F401

@@ -45,7 +45,7 @@ from typing import Sequence
 
 import numpy as np
 
-from acl.physics.resonance import BubbleModes, modal_dynamic_stiffness, symmetric_eigh
+from acl.physics.resonance import BubbleModes, modal_dynamic_stiffness, radiation_resistance, symmetric_eigh
 
 
 @dataclass(frozen=True)
@@ -282,7 +282,7 @@ def coupled_modes(system: BubbleSystem, density: float, sound_speed: float,
         s = np.where(other, np.sinc(k * d / np.pi), 0.0)
         if di is not None:
             s = s + wall_reflection * np.sinc(k * di / np.pi)
-        c_n = (dmp * q[:, n_] ** 2).sum() + density * w**2 / (4 * np.pi * sound_speed) * (vol[:, n_] @ s @ vol[:, n_])
+        c_n = (dmp * q[:, n_] ** 2).sum() + radiation_resistance(w, density, sound_speed) * (vol[:, n_] @ s @ vol[:, n_])
         quality[n_] = w / c_n if c_n > 0 else np.inf
     for arr in (omega, vol, quality):
         arr.setflags(write=False)
