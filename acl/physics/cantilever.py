@@ -5,10 +5,10 @@
 solver, :func:`acl.physics.beams.elastica_tip`.
 """
 from acl.physics.beams import (  # noqa: F401
-                               L_REF,
-                               P_MAX,
-                               elastica_deflection,
-                               elastica_table,
-                               stiffness_integrals,
+    L_REF,
+    P_MAX,
+    elastica_deflection,
+    elastica_table,
+    stiffness_integrals,
 )
 from acl.physics.beams import eq1_profile_deflection as eq1_deflection  # noqa: F401
