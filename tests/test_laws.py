@@ -27,14 +27,12 @@ EXCEPTIONS: dict[str, tuple[frozenset, str]] = {
     "Meirovitch": (frozenset({"acl.physics.batch.uncoupled_response", "acl.physics.resonance.modal_dynamic_stiffness"}),
                    "modal superposition: batch.uncoupled_response is the per-point twin of coupling.uncoupled_blocks "
                    "(sweep work)"),
-    "paper Eq. 1": (frozenset({"acl.physics.batch.eq1_force", "acl.physics.beams.eq1_profile_deflection",
-                               "acl.physics.beams.eq1_compliance", "acl.physics.beams.eq1_small_force_stiffness",
-                               "acl.physics.effects.elastica_blend"}),
+    "paper Eq. 1": (frozenset({"acl.physics.beams.eq1_profile_deflection", "acl.physics.beams.eq1_compliance",
+                               "acl.physics.beams.eq1_small_force_stiffness", "acl.physics.effects.elastica_blend"}),
                     "beams.eq1_compliance / eq1_small_force_stiffness are the closed-form derivative of "
                     "eq1_profile_deflection's uniform case and its P -> 0 limit (tests/test_physics_beams.py checks "
                     "them against eq1_deflection; as 1/eq1_compliance(0) the limit rounds differently and moves the "
-                    "README compile's plan by 3e-12); batch.eq1_force a per-point twin "
-                    "of beams.eq1_force (sweep work); effects.elastica_blend blends deflections it is given"),
+                    "README compile's plan by 3e-12); effects.elastica_blend blends deflections it is given"),
     "Timoshenko & Gere": (frozenset({"acl.physics.batch.axial_force", "acl.physics.latch.axial_force"}),
                           "batch.axial_force is latch.axial_force per point (sweep work)"),
     "Suppl. Eq. 2.5": (frozenset({"acl.physics.beams.eq1_slope", "acl.physics.beams.flexible_part_stiffness"}),
@@ -84,6 +82,18 @@ def test_the_force_engine_laws_are_found_and_implemented_once():
     assert implementers == {"Stuart 1966": ["acl.physics.forces.thrust_magnitude"],
                             "Crum 1975": ["acl.physics.forces.bjerknes_from_rates"],
                             "Schlichting": ["acl.physics.forces.jet_drag"]}
+
+
+def test_the_elastica_and_eq1_are_implemented_once():
+    # issue 23 item 1: one elastica solver and one Eq. (1); every other cantilever function uses them (an import
+    # alias, ``from acl.physics.beams import eq1_force as _eq1_force``, counts as a use).
+    laws = {x.qualname: x for x in L.collect()}
+    assert [q for q, x in laws.items() if x.source == "Bisshopp & Drucker 1945" and x.uses is None] == \
+        ["acl.physics.beams.elastica_tip"]
+    for fn in ("elastica", "elastica_force", "elastica_table", "elastica_deflection", "eq1_validity_limit"):
+        assert laws[f"acl.physics.beams.{fn}"].uses is not None, fn
+    assert laws["acl.physics.beams.eq1_deflection"].uses == "acl.physics.beams.eq1_profile_deflection"
+    assert laws["acl.physics.batch.eq1_force"].uses == "acl.physics.beams.eq1_force"
 
 
 def test_no_law_is_implemented_twice():
