@@ -343,13 +343,13 @@ def eq1_departure(P, L: float, l: float, EI: float):
 def _eq1_limit_ratio(lam: float, tolerance: float) -> float:
     from acl.physics.roots import brentq
 
-    solved: list = []      # (p, shooting state): each new load starts from the nearest solved one
+    solved: list = []      # (p, shooting state): each new load starts from the two nearest solved ones
 
     def deflection(p):
         """delta/L of the dead-load elastica (Bisshopp & Drucker) at p = P L^2/EI, as :func:`elastica`."""
-        near = min(solved, key=lambda s: abs(s[0] - p), default=None)
-        delta, _, _, ok, state = elastica_tip(np.array([p]), lam, start=None if near is None else [near])
-        if not ok[0] and near is not None:
+        near = sorted(solved, key=lambda s: abs(float(s[0][0]) - p))[:2][::-1]      # the nearest last
+        delta, _, _, ok, state = elastica_tip(np.array([p]), lam, start=near or None)
+        if not ok[0] and near:
             delta, _, _, ok, state = elastica_tip(np.array([p]), lam)                  # from rest, as elastica does
         if ok[0]:
             solved.append(state)
