@@ -43,8 +43,9 @@ def thrust_magnitude(volume_amplitude, radius, omega, viscosity, streaming_const
     :func:`streaming_constant_from_critical_distance`).  Quadratic in eps, so thrust = gamma V^2
     (paper Eq. 3).
     """
-    eps = interface_centre_amplitude(volume_amplitude, radius)
-    return (streaming_constant * 6 * np.pi * np.asarray(viscosity, float) * np.asarray(omega, float) * eps**2)
+    area = np.pi * np.asarray(radius, float) ** 2               # eps^2 = 4 |dV|^2 / (pi R^2)^2
+    return (streaming_constant * 6 * np.pi * np.asarray(viscosity, float) * np.asarray(omega, float) * 4
+            * np.abs(volume_amplitude) ** 2 / area**2)
 
 
 def law_critical_distance(radius, omega, density, viscosity, streaming_constant):
