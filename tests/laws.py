@@ -63,24 +63,30 @@ class Law:
         return f"{self.module}.{self.name}"
 
 
-def _calls(fn: ast.FunctionDef) -> set[str]:
+def _aliases(tree: ast.AST) -> dict[str, str]:
+    """Local name -> imported name of every ``from ... import name as local`` in a module (at any depth)."""
+    return {a.asname: a.name for node in ast.walk(tree) if isinstance(node, ast.ImportFrom)
+            for a in node.names if a.asname}
+
+
+def _calls(fn: ast.FunctionDef, aliases: dict[str, str] | None = None) -> set[str]:
     out = set()
     for node in ast.walk(fn):
         if isinstance(node, ast.Call):
             f = node.func
             if isinstance(f, ast.Name):
-                out.add(f.id)
+                out.add((aliases or {}).get(f.id, f.id))
             elif isinstance(f, ast.Attribute):
                 out.add(f.attr)
     return out
 
 
-def _reach(node: ast.FunctionDef, private: dict[str, ast.FunctionDef]) -> set[str]:
-    """Names called by ``node`` and, through them, by the module's private functions it calls."""
+def _reach(node: ast.FunctionDef, private: dict[str, ast.FunctionDef], aliases: dict[str, str] | None = None) -> set[str]:
+    """Names called by ``node`` and, through them, by the module's private functions it calls (import aliases resolved)."""
     seen, todo, out = set(), [node], set()
     while todo:
         fn = todo.pop()
-        for name in _calls(fn):
+        for name in _calls(fn, aliases):
             out.add(name)
             if name in private and name not in seen:
                 seen.add(name)
@@ -96,13 +102,14 @@ def collect() -> list[Law]:
             continue
         tree = ast.parse(path.read_text())
         private = {n.name: n for n in tree.body if isinstance(n, ast.FunctionDef) and n.name.startswith("_")}
+        aliases = _aliases(tree)
         for node in tree.body:
             if isinstance(node, ast.FunctionDef) and not node.name.startswith("_"):
                 doc = (ast.get_docstring(node) or "").strip().splitlines()
                 first = doc[0] if doc else ""
                 src = primary_source(first)
                 if src:
-                    funcs.append((f"acl.physics.{path.stem}", node, src, first, _reach(node, private)))
+                    funcs.append((f"acl.physics.{path.stem}", node, src, first, _reach(node, private, aliases)))
     by_name: dict[str, list] = {}
     for mod, node, src, _, _ in funcs:
         by_name.setdefault(node.name, []).append((mod, src))

@@ -18,21 +18,21 @@ import laws as L  # noqa: E402
 # functions no longer all implement the source fails test_no_stale_exception.
 EXCEPTIONS: dict[str, tuple[frozenset, str]] = {
     "Kinsler et al.": (frozenset({"acl.physics.batch.coupled_modes", "acl.physics.batch.coupled_response",
-                                  "acl.physics.coupling.coupled_response", "acl.physics.coupling.coupled_modes",
+                                  "acl.physics.coupling.coupled_response", "acl.physics.resonance.radiation_resistance",
                                   "acl.physics.effects.transducer_resonance"}),
-                       "coupling: modes and forced response are two laws of one textbook, the transducer resonance a "
-                       "third; batch.py's twins of coupling are being replaced by the sweep work (helper sweep)"),
-    "Meirovitch": (frozenset({"acl.physics.batch.uncoupled_response", "acl.physics.coupling.uncoupled_blocks",
-                              "acl.physics.resonance.volume_response"}),
-                   "modal superposition: coupling.uncoupled_blocks is the per-capsule block of the resonance's "
-                   "volume response; batch.uncoupled_response its per-point twin (sweep work)"),
-    "paper Eq. 1": (frozenset({"acl.physics.batch.eq1_force", "acl.physics.beams.eq1_deflection",
-                               "acl.physics.beams.eq1_compliance", "acl.physics.beams.eq1_small_force_stiffness",
-                               "acl.physics.cantilever.eq1_deflection", "acl.physics.effects.elastica_blend"}),
-                    "beams.eq1_compliance / eq1_small_force_stiffness are the closed-form derivative and its P -> 0 "
-                    "limit (tests/test_physics_beams.py checks them against eq1_deflection); cantilever.eq1_deflection "
-                    "is Eq. 1 with a stiffness profile (Suppl. Note 2) and batch.eq1_force a per-point twin: one "
-                    "cantilever law is to come (engine work); effects.elastica_blend blends deflections it is given"),
+                       "three laws of one textbook: the mutual radiation impedance (coupled response), a monopole's "
+                       "radiation resistance (used by the capsule's and the coupled modes' Q) and the transducer's "
+                       "driven oscillator; batch.py's twins of coupling are being replaced by the sweep work (helper "
+                       "sweep)"),
+    "Meirovitch": (frozenset({"acl.physics.batch.uncoupled_response", "acl.physics.resonance.modal_dynamic_stiffness"}),
+                   "modal superposition: batch.uncoupled_response is the per-point twin of coupling.uncoupled_blocks "
+                   "(sweep work)"),
+    "paper Eq. 1": (frozenset({"acl.physics.beams.eq1_profile_deflection", "acl.physics.beams.eq1_compliance",
+                               "acl.physics.beams.eq1_small_force_stiffness", "acl.physics.effects.elastica_blend"}),
+                    "beams.eq1_compliance / eq1_small_force_stiffness are the closed-form derivative of "
+                    "eq1_profile_deflection's uniform case and its P -> 0 limit (tests/test_physics_beams.py checks "
+                    "them against eq1_deflection; as 1/eq1_compliance(0) the limit rounds differently and moves the "
+                    "README compile's plan by 3e-12); effects.elastica_blend blends deflections it is given"),
     "Timoshenko & Gere": (frozenset({"acl.physics.batch.axial_force", "acl.physics.latch.axial_force"}),
                           "batch.axial_force is latch.axial_force per point (sweep work)"),
     "Suppl. Eq. 2.5": (frozenset({"acl.physics.beams.eq1_slope", "acl.physics.beams.flexible_part_stiffness"}),
@@ -82,6 +82,18 @@ def test_the_force_engine_laws_are_found_and_implemented_once():
     assert implementers == {"Stuart 1966": ["acl.physics.forces.thrust_magnitude"],
                             "Crum 1975": ["acl.physics.forces.bjerknes_from_rates"],
                             "Schlichting": ["acl.physics.forces.jet_drag"]}
+
+
+def test_the_elastica_and_eq1_are_implemented_once():
+    # issue 23 item 1: one elastica solver and one Eq. (1); every other cantilever function uses them (an import
+    # alias, ``from acl.physics.beams import eq1_force as _eq1_force``, counts as a use).
+    laws = {x.qualname: x for x in L.collect()}
+    assert [q for q, x in laws.items() if x.source == "Bisshopp & Drucker 1945" and x.uses is None] == \
+        ["acl.physics.beams.elastica_tip"]
+    for fn in ("elastica", "elastica_force", "elastica_table", "elastica_deflection", "eq1_validity_limit"):
+        assert laws[f"acl.physics.beams.{fn}"].uses is not None, fn
+    assert laws["acl.physics.beams.eq1_deflection"].uses == "acl.physics.beams.eq1_profile_deflection"
+    assert laws["acl.physics.batch.eq1_force"].uses == "acl.physics.beams.eq1_force"
 
 
 def test_no_law_is_implemented_twice():

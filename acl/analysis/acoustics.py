@@ -578,13 +578,15 @@ class _Engine:
         """
         k = self.consts if consts is None else {**self.consts, **consts}
         lay = self.lay
+        pts = centres[:, lay.body, :] + lay.offsets                        # (B, n, 3) orifice centres
         if response is not None:
             r = response
         elif self.f.size == 0 or lay.radii.size == 0:
             r = np.zeros((centres.shape[0], self.f.size, lay.radii.size), complex)
         else:
-            r = self.response(centres[:, lay.body, :] + lay.offsets)       # (B, T, n) per pascal
-        total, _, thr, att = capsule_forces(centres, lay.body, lay.offsets, lay.normals, lay.onehot, self.outer, r, k)
+            r = self.response(pts)                                         # (B, T, n) per pascal
+        total, _, thr, att = capsule_forces(centres, lay.body, lay.offsets, lay.normals, lay.onehot, self.outer, r, k,
+                                            points=pts)
         if parts:
             return total, r * self.pressure[None, :, None], thr, att
         return total

@@ -45,7 +45,7 @@ from typing import Sequence
 
 import numpy as np
 
-from acl.physics.resonance import BubbleModes, symmetric_eigh
+from acl.physics.resonance import BubbleModes, modal_dynamic_stiffness, radiation_resistance, symmetric_eigh
 
 
 @dataclass(frozen=True)
@@ -172,7 +172,7 @@ def _einsum(subscripts: str, *operands) -> np.ndarray:
 def uncoupled_blocks(system: BubbleSystem, omega) -> np.ndarray:
     """Per-capsule inward volume response per pascal, H0 (F, C, P, P) = Phi diag(1/(w_m^2 - w^2 + i w w_m/Q_m)) Phi^T (Meirovitch ch. 7)."""
     w = np.atleast_1d(np.asarray(omega, float))[:, None, None]
-    den = system.omega[None] ** 2 - w**2 + 1j * w * system.damping[None]
+    den = modal_dynamic_stiffness(system.omega[None], system.damping[None], w)
     return _einsum("cpm,fcm,cqm->fcpq", system.phi, 1.0 / den, system.phi)
 
 
@@ -282,7 +282,7 @@ def coupled_modes(system: BubbleSystem, density: float, sound_speed: float,
         s = np.where(other, np.sinc(k * d / np.pi), 0.0)
         if di is not None:
             s = s + wall_reflection * np.sinc(k * di / np.pi)
-        c_n = (dmp * q[:, n_] ** 2).sum() + density * w**2 / (4 * np.pi * sound_speed) * (vol[:, n_] @ s @ vol[:, n_])
+        c_n = (dmp * q[:, n_] ** 2).sum() + radiation_resistance(w, density, sound_speed) * (vol[:, n_] @ s @ vol[:, n_])
         quality[n_] = w / c_n if c_n > 0 else np.inf
     for arr in (omega, vol, quality):
         arr.setflags(write=False)

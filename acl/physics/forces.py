@@ -43,8 +43,9 @@ def thrust_magnitude(volume_amplitude, radius, omega, viscosity, streaming_const
     :func:`streaming_constant_from_critical_distance`).  Quadratic in eps, so thrust = gamma V^2
     (paper Eq. 3).
     """
-    eps = interface_centre_amplitude(volume_amplitude, radius)
-    return (streaming_constant * 6 * np.pi * np.asarray(viscosity, float) * np.asarray(omega, float) * eps**2)
+    area = np.pi * np.asarray(radius, float) ** 2               # eps^2 = 4 |dV|^2 / (pi R^2)^2
+    return (streaming_constant * 6 * np.pi * np.asarray(viscosity, float) * np.asarray(omega, float) * 4
+            * np.abs(volume_amplitude) ** 2 / area**2)
 
 
 def law_critical_distance(radius, omega, density, viscosity, streaming_constant):
@@ -168,19 +169,19 @@ def jet_drag_on_capsules(thrust, points, normals, centres, outer, mask):
     return drag.transpose(0, 2, 1) @ normals
 
 
-def capsule_forces(centres, body, offsets, normals, onehot, outer, response, consts: dict):
+def capsule_forces(centres, body, offsets, normals, onehot, outer, response, consts: dict, points=None):
     """Total acoustic force (B, C, 3) on each capsule at centres (B, C, 3): streaming thrust (:func:`thrust_magnitude`) + :func:`bjerknes_pair_sum` + :func:`jet_drag_on_capsules`.
 
     Interfaces (n): ``body`` (n,) capsule index, ``offsets`` (n, 3) from the capsule centre, ``normals``
     (n, 3) outward, ``onehot`` (n, C); ``outer`` (C,) the radius a jet drags; ``response`` (B, T, n) the
-    coupled volumes per pascal at these centres; ``consts`` :func:`force_constants` (or rows of them).
+    coupled volumes per pascal at these centres; ``consts`` :func:`force_constants` (or rows of them);
+    ``points`` the interface centres (B, n, 3) when the caller already has them.
     Returns (total, points (B, n, 3), thrust per interface (B, n), attraction (B, n, n)).
     """
-    pts = centres[:, body, :] + offsets                                  # (B, n, 3) orifice centres
+    pts = centres[:, body, :] + offsets if points is None else points     # (B, n, 3) orifice centres
     thr = ((response.real**2 + response.imag**2) * consts["thrust"]).sum(axis=1)     # (B, n), tones added
-    per = thr[:, :, None] * -normals                                     # pushed against the jet (module doc)
     bj, att = bjerknes_pair_sum(pts, response, consts["w2p2"], consts["bjerknes"], consts["other"])
-    total = onehot.T @ (per + bj)                                        # (B, C, 3)
+    total = onehot.T @ (bj - thr[:, :, None] * normals)                 # (B, C, 3); thrust against the jet (module doc)
     total = total + jet_drag_on_capsules(thr, pts, normals, centres, outer, consts["drag_mask"])
     return total, pts, thr, att
 

@@ -27,6 +27,7 @@ import functools
 import numpy as np
 
 from acl.physics.roots import grid_max
+from acl.physics.springs import rect_second_moment
 
 
 def complete_elliptic(m):
@@ -92,7 +93,7 @@ def _geometry(u, theta):
 
 
 def _scale(L: float, w: float, t: float, E: float) -> float:
-    return E * t * w**3 / 12.0 / L**2           # E I / L^2, N
+    return E * rect_second_moment(w, t) / L**2   # E I / L^2, N
 
 
 def latch_force(u, theta: float, L: float, w: float, t: float, E: float):
