@@ -161,7 +161,14 @@ def hunks_of(text: str, path: str, wait: float | None = WAIT_SECONDS):
         if op == "replace" and i2 - i1 == j2 - j1:
             hunks.extend((i1 + k, i1 + k + 1, j1 + k, j1 + k + 1) for k in range(i2 - i1))
         elif op != "equal":
-            hunks.append((i1, i2, j1, j2))
+            prev = hunks[-1] if hunks else None
+            # a deletion and an insertion at most one unchanged line apart are one change (a moved or
+            # rewritten line): one hunk, so a range that touches either takes both
+            if prev is not None and i1 - prev[1] <= 1 and ((prev[2] == prev[3]) != (j1 == j2)) and \
+                    (prev[0] == prev[1]) != (i1 == i2):
+                hunks[-1] = (prev[0], i2, prev[2], j2)
+            else:
+                hunks.append((i1, i2, j1, j2))
     got = (old_lines, new_lines, hunks)
     with _LOCK:
         _HUNKS[key] = got
