@@ -11,7 +11,8 @@ design is assembled (0.1-0.3 s at 5,000 lines).  Each request for a text returns
   checking thread.
 
 Requests read :meth:`Checks.snapshot`: it waits for the current text's check at most ``wait``
-seconds, then answers from the last text checked, or says that the server is still checking.
+seconds on a large document (:data:`SMALL_WAIT_SECONDS` on one of at most :data:`SMALL_LINES`
+lines), then answers from the last text checked, or says that the server is still checking.
 """
 from __future__ import annotations
 
@@ -21,8 +22,12 @@ from concurrent.futures import TimeoutError as FutureTimeout
 
 from acl.lsp.document import Snapshot, check_text
 
-#: how long a request waits for the check of the current text before answering without it
+#: how long a request waits for the check of the current text of a large document before
+#: answering without it; a document of at most SMALL_LINES lines (checked in tens of ms, or
+#: longer only while the server is still importing) is waited for up to SMALL_WAIT_SECONDS
 WAIT_SECONDS = 0.15
+SMALL_LINES = 1500
+SMALL_WAIT_SECONDS = 5.0
 
 BUSY = ("E-LSP-BUSY: still checking the latest edit of this document (a large design): "
         "ask again in a moment")
@@ -85,8 +90,9 @@ class Checks:
         """The snapshot of ``text``, waiting at most ``wait`` seconds; else the last one checked
         (unless ``fresh``); else RequestFailed (:data:`BUSY`)."""
         fut = self.start(uri, text, version)
+        wait = self.wait if text.count("\n") > SMALL_LINES else max(self.wait, SMALL_WAIT_SECONDS)
         try:
-            snap = fut.result(timeout=self.wait)
+            snap = fut.result(timeout=wait)
         except FutureTimeout:
             snap = None
         if snap is not None:

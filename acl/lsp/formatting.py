@@ -73,7 +73,8 @@ def _threads():
 
 def warm_up() -> None:
     """Start the formatting process (and its imports) before the first request of a large design."""
-    _executor().submit(format_text, "", "<warm-up>")
+    if _POOL is None:
+        _executor().submit(format_text, "", "<warm-up>")
 
 
 def start(text: str, path: str) -> Future:
