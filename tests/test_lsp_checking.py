@@ -80,3 +80,21 @@ def test_the_documented_waits_are_the_code_s():
     assert f"at most {checking.WAIT_SECONDS * 1e3:.0f} ms on a design of more than {checking.SMALL_LINES:,} lines" in text
     assert f"for up to {formatting.PROCESS_LINES:,} lines" in text
     assert f"at most {formatting.WAIT_SECONDS * 1e3:.0f} ms, then fails" in text
+
+
+def test_full_garbage_collections_wait_for_a_pause_in_the_edits():
+    import asyncio
+
+    from acl.lsp.server import AclLanguageServer
+
+    ls = AclLanguageServer()
+
+    async def edits():
+        for _ in range(4):                    # a check ends every 20 ms: no collection meanwhile
+            ls.collect_when_idle(0.08)
+            await asyncio.sleep(0.02)
+        assert ls.collections == 0
+        await asyncio.sleep(0.2)              # then a pause: one
+        assert ls.collections == 1
+
+    asyncio.run(edits())
