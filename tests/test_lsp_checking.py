@@ -80,6 +80,9 @@ def test_the_documented_waits_are_the_code_s():
     assert f"at most {checking.WAIT_SECONDS * 1e3:.0f} ms on a design of more than {checking.SMALL_LINES:,} lines" in text
     assert f"for up to {formatting.PROCESS_LINES:,} lines" in text
     assert f"at most {formatting.WAIT_SECONDS * 1e3:.0f} ms, then fails" in text
+    from acl.lsp import server
+
+    assert f"({server.IDLE_COLLECT_SECONDS:g} s after the last check)" in text
 
 
 def test_full_garbage_collections_wait_for_a_pause_in_the_edits():
