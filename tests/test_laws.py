@@ -47,7 +47,7 @@ EXCEPTIONS: dict[str, tuple[frozenset, str]] = {
 }
 
 # Golden-section loops outside acl.physics.roots (the constant (sqrt 5 - 1)/2 written out), by file: the list only
-# shrinks.  fit/ and sweep/ are being moved onto acl.physics.roots by their own work (helpers fit, sweep).
+# shrinks.  The copies in sweep/ and physics/batch.py are still to move onto acl.physics.roots.golden_max.
 GOLDEN_COPIES = {"acl/physics/batch.py", "acl/sweep/mechanism.py", "acl/sweep/pair_mechanics.py"}
 _GOLDEN = re.compile(r"sqrt\(5(\.0?)?\)\s*-\s*1")
 
