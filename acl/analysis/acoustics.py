@@ -308,6 +308,32 @@ def _centres_array(design: Design, positions) -> np.ndarray:
     return out
 
 
+_REST: list = []   # [(design, {frequency: (n,) complex response per pascal at rest})]: the last few designs
+
+
+def rest_response(design: Design, frequencies) -> np.ndarray:
+    """Inward volume displacement per pascal (F, n) of every interface at rest (:func:`acl.physics.coupling.coupled_response`).
+
+    Each frequency is solved once per design: the missing ones of a call in one batched solve, the
+    rest from the cache (kept for the last four designs, by identity), so that lint rules, hovers and
+    analyses asking for the same tones share one coupled solve.
+    """
+    f = np.atleast_1d(np.asarray(frequencies, float))
+    store = next((s for d, s in _REST if d is design), None)
+    if store is None:
+        store = {}
+        _REST[:] = ([(design, store)] + _REST)[:4]
+    missing = np.unique(f[[x not in store for x in f.tolist()]]) if f.size else f
+    if missing.size:
+        med = _medium(design)
+        u = _physics_coupled(_system(design), missing, med.density, med.sound_speed, C.SUBSTRATE_REFLECTION)
+        for x, row in zip(missing.tolist(), u):
+            row.setflags(write=False)
+            store[x] = row
+    n = _layout(design).radii.size
+    return np.array([store[x] for x in f.tolist()], complex).reshape(f.size, n)
+
+
 def coupled_response(design: Design, frequencies, positions=None) -> np.ndarray:
     """Inward volume amplitude (m^3 per V peak) of every interface of the design, (F, n) in :func:`interface_labels` order.
 
@@ -316,13 +342,13 @@ def coupled_response(design: Design, frequencies, positions=None) -> np.ndarray:
     """
     f = np.atleast_1d(np.asarray(frequencies, float))
     lay = _layout(design)
-    med = _medium(design)
-    sysm = _system(design)
     if positions:
+        med = _medium(design)
         pts = lay.points(_centres_array(design, positions))
-        u = _physics_coupled(sysm, f, med.density, med.sound_speed, C.SUBSTRATE_REFLECTION, points=pts[None])[0]
+        u = _physics_coupled(_system(design), f, med.density, med.sound_speed, C.SUBSTRATE_REFLECTION,
+                             points=pts[None])[0]
     else:
-        u = _physics_coupled(sysm, f, med.density, med.sound_speed, C.SUBSTRATE_REFLECTION)
+        u = rest_response(design, f)
     gain, _ = drive_gain(design, f)
     return u * gain[:, None]
 
@@ -582,7 +608,8 @@ class _Engine:
     def rest_forces(self):
         """:meth:`forces` of the capsules at rest, with parts (total, u, thr, att), each (1, ...); computed once."""
         if not self._rest:
-            self._rest.append(self.forces(self.lay.rest[None], parts=True))
+            r = rest_response(self.design, self.f)[None] if self.f.size and self.lay.radii.size else None
+            self._rest.append(self.forces(self.lay.rest[None], parts=True, response=r))
         return self._rest[0]
 
     def forces(self, centres: np.ndarray, parts: bool = False, consts: dict | None = None, response=None):

@@ -176,6 +176,11 @@ def uncoupled_blocks(system: BubbleSystem, omega) -> np.ndarray:
     return _einsum("cpm,fcm,cqm->fcpq", system.phi, 1.0 / den, system.phi)
 
 
+#: Complex entries (F x B x N x N) of one chunk of :func:`coupled_response` (32 MB): a design of
+#: hundreds of interfaces solves a few frequencies at a time instead of holding 64 dense systems.
+CHUNK_ELEMENTS = 2**21
+
+
 def coupled_response(system: BubbleSystem, frequency, density: float, sound_speed: float,
                      wall_reflection: float = 0.0, points=None, h0=None, chunk: int = 64) -> np.ndarray:
     """Inward volume displacement U (m^3 per Pa incident) of every interface, solving (I - w^2 rho H0 g) U = H0 1 (module doc; Kinsler et al. mutual radiation impedance).
@@ -183,7 +188,8 @@ def coupled_response(system: BubbleSystem, frequency, density: float, sound_spee
     ``frequency`` (F,) Hz -> complex (F, n) in the order of ``system.points``; uniform incident
     pressure (the design is small against the wavelength).  ``points`` (B, n, 3) evaluates B
     displaced configurations at once -> (B, F, n); ``h0`` reuses :func:`uncoupled_blocks` at these
-    frequencies.  Vectorised over frequencies in chunks of ``chunk``.
+    frequencies.  Vectorised over frequencies in chunks of ``chunk`` (fewer when
+    a chunk would exceed :data:`CHUNK_ELEMENTS`).
     """
     f = np.atleast_1d(np.asarray(frequency, float))
     n = system.n
@@ -208,6 +214,7 @@ def coupled_response(system: BubbleSystem, frequency, density: float, sound_spee
         pad_rad[system.slot] = system.radii
     pad_body = np.repeat(np.arange(ncap), p)
     eye = np.eye(npad)
+    chunk = max(1, min(chunk, CHUNK_ELEMENTS // (nb * npad * npad)))   # bounded memory for large designs
     for s in range(0, f.size, chunk):
         w = 2 * np.pi * f[s:s + chunk]
         blk = uncoupled_blocks(system, w) if h0 is None else h0[s:s + chunk]      # (F, C, P, P)

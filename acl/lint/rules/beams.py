@@ -56,8 +56,7 @@ def beam_loads(ctx: Context, beam):
                      "free-cantilever load does not apply; not checked without --mechanics")
             return out
         L, l, EI = beam.length, beam.rigid_length, beam.bending_stiffness
-        axis = np.asarray(beam.axis, float)
-        ci = [c.name for c in ctx.design.capsules].index(cap)
+        bi = _free_beams(ctx)[0].index(beam.name)
         for p in ctx.design.programs:
             worst = None
             for st in p.steps:
@@ -80,14 +79,13 @@ def beam_loads(ctx: Context, beam):
                     if cand is None:
                         continue
                 else:
-                    drives, forces = ctx.step_forces(st)       # (D, C, 3), all drives of the step at once
-                    if not drives:
+                    loads = _step_loads(ctx, st)               # every beam's strongest drive of the step
+                    if loads is None:
                         continue
-                    F = forces[:, ci]
-                    loads = np.linalg.norm(F - (F @ axis)[:, None] * axis, axis=1)
-                    k = int(np.argmax(loads))                  # the first strongest drive
-                    P = float(loads[k])
-                    cand = (float(eq1_deflection(P, L, l, EI)), P, st, f"drive {_tones(drives[k])}")
+                    k, P = loads[0][bi], loads[1][bi]
+                    if worst is not None and not P > worst[1]:
+                        continue                               # not the new worst: no need to describe it
+                    cand = (float(eq1_deflection(P, L, l, EI)), P, st, f"drive {_tones(loads[2][k])}")
                 if worst is None or cand[1] > worst[1]:
                     worst = cand
             if worst is not None:
@@ -96,6 +94,33 @@ def beam_loads(ctx: Context, beam):
                 out[p.name] = (defl, strain, P, st, how)
         return out
     return ctx.cached(("beam", beam.name), compute)
+
+
+def _free_beams(ctx: Context):
+    """(beam names, carried capsule index (B,), unit axes (B, 3)) of every beam that carries a capsule."""
+    def compute():
+        index = {c.name: i for i, c in enumerate(ctx.design.capsules)}
+        rows = [(b.name, index[cap], np.asarray(b.axis, float)) for b in ctx.design.beams
+                if (cap := _carried(ctx, b)) is not None]
+        return ([r[0] for r in rows], np.array([r[1] for r in rows], int),
+                np.array([r[2] for r in rows], float).reshape(-1, 3))
+    return ctx.cached("free_beams", compute)
+
+
+def _step_loads(ctx: Context, step):
+    """For every beam of :func:`_free_beams`: (index of the first strongest drive (B,), its load
+    perpendicular to the beam (B,) N, the drives), over the drives of ``step`` at rest; None without drives."""
+    def compute():
+        drives, forces = ctx.step_forces(step)           # (D, C, 3), all drives of the step at once
+        if not drives:
+            return None
+        _, ci, axes = _free_beams(ctx)
+        F = forces[:, ci]                                 # (D, B, 3)
+        along = np.einsum("dbk,bk->db", F, axes)
+        loads = np.linalg.norm(F - along[..., None] * axes, axis=-1)
+        k = np.argmax(loads, axis=0)                      # the first strongest drive
+        return k.tolist(), loads[k, np.arange(k.size)].tolist(), drives
+    return ctx.cached(("step_loads", id(step)), compute)
 
 
 def _tones(drive) -> str:

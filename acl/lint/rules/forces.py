@@ -107,8 +107,6 @@ def program_range(ctx: Context, program) -> tuple[float, float] | None:
 def force_sign_change(ctx: Context):
     if len(ctx.design.capsules) < 2:
         return
-    from acl.analysis.acoustics import selectivity
-
     significance = ctx.threshold("force_significance")
     names = [c.name for c in ctx.design.capsules]
     for p in ctx.design.programs:
@@ -116,7 +114,7 @@ def force_sign_change(ctx: Context):
         if rng is None:
             continue
         freqs = ctx.sweep_frequencies(*rng)
-        thrust = selectivity(ctx.design, freqs).thrust_per_v2          # (capsules, F), N at 1 V
+        thrust = ctx.analysis.thrust_per_v2(freqs)                     # (capsules, F), N at 1 V
         tabs = [ctx.pair_table(Drive(tones=(Tone(frequency=float(f), amplitude=1.0),))) for f in freqs]
         if not tabs or tabs[0].a.size == 0:
             continue
