@@ -115,11 +115,25 @@ class DesignAnalysis:
             hit = self._drive[key] = compute()
         return hit
 
+    def _at_rest(self, drive: Drive) -> None:
+        """:meth:`forces`, :meth:`pair_table` and :meth:`thrust_array` under ``drive`` together: the three
+        share one force-engine evaluation at rest (the engine is kept for the drive last asked)."""
+        from acl.analysis.acoustics import force_model, pair_table, thrust_vectors
+
+        key = _drive_key(drive)
+        if ("forces", key) in self._drive:
+            return
+        self._drive[("forces", key)] = force_model(self.design, None, drive)
+        if len(self.names) > 1:
+            self._drive[("pairs", key)] = pair_table(self.design, drive)
+        tkey = ("thrust", tuple((t.frequency, t.amplitude) for t in drive.tones))
+        if tkey not in self._drive:
+            self._drive[tkey] = np.array(list(thrust_vectors(self.design, drive).values()), float).reshape(-1, 3)
+
     def forces(self, drive: Drive) -> dict:
         """:func:`acl.analysis.acoustics.force_model` at rest: total acoustic force on each capsule."""
-        from acl.analysis.acoustics import force_model
-
-        return self._per(("forces", _drive_key(drive)), lambda: force_model(self.design, None, drive))
+        self._at_rest(drive)
+        return self._drive[("forces", _drive_key(drive))]
 
     def force_array(self, drive: Drive) -> np.ndarray:
         """:meth:`forces` as an array (C, 3) in ``design.capsules`` order."""
@@ -130,12 +144,14 @@ class DesignAnalysis:
         """:func:`acl.analysis.acoustics.pair_table` at rest: every capsule pair's Bjerknes interaction."""
         from acl.analysis.acoustics import pair_table
 
+        self._at_rest(drive)
         return self._per(("pairs", _drive_key(drive)), lambda: pair_table(self.design, drive))
 
     def thrust_array(self, drive: Drive) -> np.ndarray:
         """Streaming thrust vector (N) of every capsule at rest, (C, 3) (:func:`acl.analysis.acoustics.thrust_vectors`)."""
         from acl.analysis.acoustics import thrust_vectors
 
+        self._at_rest(drive)
         key = ("thrust", tuple((t.frequency, t.amplitude) for t in drive.tones))
         return self._per(key, lambda: np.array(
             [v for v in thrust_vectors(self.design, drive).values()], float).reshape(-1, 3))

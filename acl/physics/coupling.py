@@ -215,16 +215,35 @@ def coupled_response(system: BubbleSystem, frequency, density: float, sound_spee
     pad_body = np.repeat(np.arange(ncap), p)
     eye = np.eye(npad)
     chunk = max(1, min(chunk, CHUNK_ELEMENTS // (nb * npad * npad)))   # bounded memory for large designs
+    # green_matrix's frequency-independent parts, once: 1/(4 pi d) off the diagonal, the retarded distance
+    # (between capsules only), the wall images' R/(4 pi d')
+    d = _distances(pad_pts, pad_rad, False)[:, None]                                # (B, 1, N, N)
+    other = (pad_body[:, None] != pad_body[None, :])
+    inv = np.where(~np.eye(npad, dtype=bool), 1 / (4 * np.pi * d), 0.0)
+    retarded = np.where(other, d, 0.0)
+    if wall_reflection:
+        di = _distances(pad_pts, pad_rad, True)[:, None]
+        inv_image = wall_reflection / (4 * np.pi * di)
     for s in range(0, f.size, chunk):
         w = 2 * np.pi * f[s:s + chunk]
         blk = uncoupled_blocks(system, w) if h0 is None else h0[s:s + chunk]      # (F, C, P, P)
-        g = green_matrix(pad_pts, pad_rad, pad_body, w / sound_speed, wall_reflection)  # (B, F, N, N)
-        g = g.reshape(nb, w.size, ncap, p, npad)
+        k = (w / sound_speed)[None, :, None, None]
+        g = np.empty((nb, w.size, npad, npad), complex)                           # green_matrix, exp(-ikd) as cos, sin
+        kd = k * retarded
+        np.multiply(np.cos(kd), inv, out=g.real)
+        np.multiply(np.sin(kd), -inv, out=g.imag)
+        if wall_reflection:
+            kd = k * di
+            g.real += np.cos(kd) * inv_image
+            g.imag -= np.sin(kd) * inv_image
+        del kd
+        coef = (w**2 * density)[None, :, None, None]
         if p == 1:
-            hg = blk[None, :, :, 0, 0, None, None] * g
+            g *= -coef * blk[None, :, :, 0, 0, None]
+            a = g
         else:
-            hg = _einsum("fcpq,bfcqn->bfcpn", blk, g)
-        a = eye - (w**2 * density)[None, :, None, None] * hg.reshape(nb, w.size, npad, npad)
+            a = -coef * _einsum("fcpq,bfcqn->bfcpn", blk, g.reshape(nb, w.size, ncap, p, npad)).reshape(g.shape)
+        a += eye                                                                   # I - w^2 rho H0 g
         rhs = np.broadcast_to(blk.sum(axis=-1).reshape(1, w.size, npad), (nb, w.size, npad))
         u = np.linalg.solve(a, rhs[..., None])[..., 0]
         out[:, s:s + chunk] = u[..., system.slot]

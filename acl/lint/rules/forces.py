@@ -37,15 +37,8 @@ def snap_in(ctx: Context):
         for st in p.steps:
             for drive in ctx.step_drives(st):
                 amp = sum(t.amplitude for t in drive.tones)
-                tab = ctx.pair_table(drive)
-                # closer than margin x d_c (NaN compares False: no d_c, no snap-in), not both fixed
-                close = np.flatnonzero((tab.distance < margin * tab.critical_distance) & ~ctx.fixed_pairs(tab))
-                if close.size == 0:
-                    continue
-                close = close[_pushed_apart(ctx, drive, tab.a[close], tab.b[close])]
-                for k in close:
-                    a, b = tab.names[tab.a[k]], tab.names[tab.b[k]]
-                    key = tuple(sorted((a, b)))
+                tab, close = _snap_candidates(ctx, drive, margin)
+                for k, key in close:
                     if key in crossing:
                         continue
                     if key not in flagged or amp > flagged[key][0]:
@@ -68,6 +61,20 @@ def snap_in(ctx: Context):
                         "snaps in (acl.analysis.mechanics)" if verdict else
                         "not computed (set `mechanics = true` in the configuration or pass --mechanics)")],
                 hint="increase the gap, or use `cross gap(a, b)` if the program means to bring them together")
+
+
+def _snap_candidates(ctx: Context, drive, margin: float):
+    """(pair table, [(row, sorted pair names)]) of the pairs under ``drive`` closer than ``margin`` x d_c
+    (NaN compares False: no d_c, no snap-in), not both fixed, each pushed away from the other by its own
+    thrust (Eq. 3's premise); cached per drive."""
+    def compute():
+        tab = ctx.pair_table(drive)
+        close = np.flatnonzero((tab.distance < margin * tab.critical_distance) & ~ctx.fixed_pairs(tab))
+        if close.size:
+            close = close[_pushed_apart(ctx, drive, tab.a[close], tab.b[close])]
+        return tab, [(int(k), tuple(sorted((tab.names[tab.a[k]], tab.names[tab.b[k]])))) for k in close]
+    key = ("snap", tuple((t.frequency, t.amplitude, t.phase) for t in drive.tones), margin)
+    return ctx.cached(key, compute)
 
 
 def _mechanics_verdict(ctx: Context, drive, pf) -> bool | None:
