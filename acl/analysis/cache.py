@@ -16,6 +16,7 @@ from acl.design.model import Design, Drive
 
 _LIVE: list = []        # [(design, DesignAnalysis)], newest first
 KEEP = 4                # designs kept (an editor alternates between a few open files)
+PAIR_TABLES = 4         # pair tables kept per design
 
 
 def analysis_for(design: Design) -> "DesignAnalysis":
@@ -43,6 +44,7 @@ class DesignAnalysis:
         self._thrust: dict = {}        # frequency -> (C,) thrust per V^2 (selectivity column)
         self._drive: dict = {}         # (kind, drive key) -> value
         self._mode_table = None
+        self._pairs: dict = {}         # drive key -> PairTable, the last few
 
     # -- modes ---------------------------------------------------------------------------------
     def modes(self, capsule) -> list:
@@ -116,16 +118,14 @@ class DesignAnalysis:
         return hit
 
     def _at_rest(self, drive: Drive) -> None:
-        """:meth:`forces`, :meth:`pair_table` and :meth:`thrust_array` under ``drive`` together: the three
-        share one force-engine evaluation at rest (the engine is kept for the drive last asked)."""
-        from acl.analysis.acoustics import force_model, pair_table, thrust_vectors
+        """:meth:`forces` and :meth:`thrust_array` under ``drive`` together: they share one force-engine
+        evaluation at rest (the engine is kept for the drive last asked)."""
+        from acl.analysis.acoustics import force_model, thrust_vectors
 
         key = _drive_key(drive)
         if ("forces", key) in self._drive:
             return
         self._drive[("forces", key)] = force_model(self.design, None, drive)
-        if len(self.names) > 1:
-            self._drive[("pairs", key)] = pair_table(self.design, drive)
         tkey = ("thrust", tuple((t.frequency, t.amplitude) for t in drive.tones))
         if tkey not in self._drive:
             self._drive[tkey] = np.array(list(thrust_vectors(self.design, drive).values()), float).reshape(-1, 3)
@@ -144,8 +144,20 @@ class DesignAnalysis:
         """:func:`acl.analysis.acoustics.pair_table` at rest: every capsule pair's Bjerknes interaction."""
         from acl.analysis.acoustics import pair_table
 
-        self._at_rest(drive)
-        return self._per(("pairs", _drive_key(drive)), lambda: pair_table(self.design, drive))
+        key = _drive_key(drive)
+        hit = self._pairs.get(key)
+        if hit is None:
+            hit = self._keep_pairs(key, pair_table(self.design, drive))
+        return hit
+
+    def _keep_pairs(self, key, tab):
+        """Keep the pair tables of the last :data:`PAIR_TABLES` drives (a table of a design of hundreds of
+        capsules holds every pair: megabytes each)."""
+        self._pairs.pop(key, None)
+        self._pairs[key] = tab
+        while len(self._pairs) > PAIR_TABLES:
+            self._pairs.pop(next(iter(self._pairs)))
+        return tab
 
     def thrust_array(self, drive: Drive) -> np.ndarray:
         """Streaming thrust vector (N) of every capsule at rest, (C, 3) (:func:`acl.analysis.acoustics.thrust_vectors`)."""

@@ -156,14 +156,13 @@ class Context:
 
     def step_forces(self, step) -> tuple[list[Drive], np.ndarray]:
         """The drives of ``step`` and the total acoustic force on every capsule at rest under each:
-        (drives, array (D, C, 3) in ``design.capsules`` order); cached per step."""
-        def compute():
-            drives = self.step_drives(step)
-            forces = np.zeros((len(drives), len(self.design.capsules), 3))
-            for k, drive in enumerate(drives):
-                forces[k] = self.analysis.force_array(drive)
-            return drives, forces
-        return self.cached(("step_forces", id(step)), compute)
+        (drives, array (D, C, 3) in ``design.capsules`` order); the forces of each drive are cached, the
+        array is not (a design's steps x drives x capsules would not fit)."""
+        drives = self.step_drives(step)
+        forces = np.zeros((len(drives), len(self.design.capsules), 3))
+        for k, drive in enumerate(drives):
+            forces[k] = self.analysis.force_array(drive)
+        return drives, forces
 
     def _step_drives(self, step) -> list[Drive]:
         """The drives a step applies, as the worst cases lint can know before compiling.

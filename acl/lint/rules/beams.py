@@ -135,7 +135,7 @@ def _program_loads(ctx: Context, program):
             loads = _step_loads(ctx, st)
             if loads is None:
                 continue
-            P = np.array(loads[1], float)
+            P = np.array(loads[1], float)          # a copy: the cross mask below
             if st.kind == "hold" and st.mode == "cross":
                 ends = (st.a.split(".")[0], st.b.split(".")[0])
                 P[[c in ends for c in caps]] = -np.inf
@@ -154,17 +154,20 @@ def _program_loads(ctx: Context, program):
 def _step_loads(ctx: Context, step):
     """For every beam of :func:`_free_beams`: (index of the first strongest drive (B,), its load
     perpendicular to the beam (B,) N, the drives), over the drives of ``step`` at rest; None without drives."""
-    def compute():
-        drives, forces = ctx.step_forces(step)           # (D, C, 3), all drives of the step at once
-        if not drives:
-            return None
+    drives = ctx.step_drives(step)
+    if not drives:
+        return None
+
+    def compute():          # per set of drives (steps with the same tones share it); forces not kept
         _, ci, axes = _free_beams(ctx)
-        F = forces[:, ci]                                 # (D, B, 3)
+        F = np.array([ctx.analysis.force_array(d)[ci] for d in drives]).reshape(len(drives), ci.size, 3)
         along = np.einsum("dbk,bk->db", F, axes)
         loads = np.linalg.norm(F - along[..., None] * axes, axis=-1)
         k = np.argmax(loads, axis=0)                      # the first strongest drive
-        return k.tolist(), loads[k, np.arange(k.size)].tolist(), drives
-    return ctx.cached(("step_loads", id(step)), compute)
+        return k, loads[k, np.arange(k.size)]
+    key = tuple(tuple((t.frequency, t.amplitude, t.phase) for t in d.tones) for d in drives)
+    k, loads = ctx.cached(("step_loads", key), compute)
+    return k, loads, drives
 
 
 def _tones(drive) -> str:

@@ -37,12 +37,11 @@ def snap_in(ctx: Context):
         for st in p.steps:
             for drive in ctx.step_drives(st):
                 amp = sum(t.amplitude for t in drive.tones)
-                tab, close = _snap_candidates(ctx, drive, margin)
-                for k, key in close:
+                for key, row in _snap_candidates(ctx, drive, margin):
                     if key in crossing:
                         continue
                     if key not in flagged or amp > flagged[key][0]:
-                        flagged[key] = (amp, st, drive, tab.row(k))
+                        flagged[key] = (amp, st, drive, row)
         for key, (amp, st, drive, pf) in sorted(flagged.items()):
             verdict = _mechanics_verdict(ctx, drive, pf)
             if verdict is False:
@@ -64,15 +63,15 @@ def snap_in(ctx: Context):
 
 
 def _snap_candidates(ctx: Context, drive, margin: float):
-    """(pair table, [(row, sorted pair names)]) of the pairs under ``drive`` closer than ``margin`` x d_c
+    """[(sorted pair names, :class:`PairForce`)] of the pairs under ``drive`` closer than ``margin`` x d_c
     (NaN compares False: no d_c, no snap-in), not both fixed, each pushed away from the other by its own
-    thrust (Eq. 3's premise); cached per drive."""
+    thrust (Eq. 3's premise); cached per drive (the rows only: a design's pair tables are not kept)."""
     def compute():
         tab = ctx.pair_table(drive)
         close = np.flatnonzero((tab.distance < margin * tab.critical_distance) & ~ctx.fixed_pairs(tab))
         if close.size:
             close = close[_pushed_apart(ctx, drive, tab.a[close], tab.b[close])]
-        return tab, [(int(k), tuple(sorted((tab.names[tab.a[k]], tab.names[tab.b[k]])))) for k in close]
+        return [(tuple(sorted((tab.names[tab.a[k]], tab.names[tab.b[k]]))), tab.row(k)) for k in close.tolist()]
     key = ("snap", tuple((t.frequency, t.amplitude, t.phase) for t in drive.tones), margin)
     return ctx.cached(key, compute)
 
@@ -100,6 +99,12 @@ def _mechanics_verdict(ctx: Context, drive, pf) -> bool | None:
     return True if state.status == "snap_in" else None
 
 
+def _attraction_1v(ctx: Context, frequency: float) -> np.ndarray:
+    """Bjerknes attraction (P,) of every capsule pair under a 1 V tone at ``frequency``; cached."""
+    return ctx.cached(("attraction_1v", frequency), lambda: ctx.pair_table(
+        Drive(tones=(Tone(frequency=frequency, amplitude=1.0),))).attraction)
+
+
 def program_range(ctx: Context, program) -> tuple[float, float] | None:
     fs = [f for st in program.steps for f in ctx.step_frequencies(st)]
     if not fs or max(fs) <= min(fs) * (1 + 1e-9):
@@ -122,17 +127,17 @@ def force_sign_change(ctx: Context):
             continue
         freqs = ctx.sweep_frequencies(*rng)
         thrust = ctx.analysis.thrust_per_v2(freqs)                     # (capsules, F), N at 1 V
-        tabs = [ctx.pair_table(Drive(tones=(Tone(frequency=float(f), amplitude=1.0),))) for f in freqs]
-        if not tabs or tabs[0].a.size == 0:
+        if not freqs.size:
             continue
-        ia, ib = tabs[0].a, tabs[0].b
-        vals_all = np.array([t.attraction for t in tabs])                            # (F, P)
+        ia, ib = np.triu_indices(len(names), 1)                     # acl.analysis.acoustics.pair_table's rows
+        vals_all = np.array([_attraction_1v(ctx, float(f)) for f in freqs])          # (F, P)
         push_all = np.maximum(thrust[ia, :], thrust[ib, :]).T                       # (F, P)
         # a sign only counts where the Bjerknes force matters next to the pair's own thrust
         strong_all = np.abs(vals_all) >= significance * push_all
         pos_all = strong_all & (vals_all > 0)
         neg_all = strong_all & (vals_all < 0)
-        candidates = pos_all.any(axis=0) & neg_all.any(axis=0) & ~ctx.fixed_pairs(tabs[0])
+        fixed = ctx.analysis.fixed()
+        candidates = pos_all.any(axis=0) & neg_all.any(axis=0) & ~(fixed[ia] & fixed[ib])
         for k in np.flatnonzero(candidates):
             a, b = names[ia[k]], names[ib[k]]
             vals = vals_all[:, k]
