@@ -308,7 +308,17 @@ def _centres_array(design: Design, positions) -> np.ndarray:
     return out
 
 
-_REST: list = []   # [(design, {frequency: (n,) complex response per pascal at rest})]: the last few designs
+_REST: list = []          # [(design, {frequency: (n,) complex response per pascal at rest})]: the last few designs
+_ENGINE_REST: list = []   # [(design, {tone frequencies: (1, T, n) the force engine's response at rest})]
+
+
+def _per_design_store(stores: list, design: Design) -> dict:
+    """The cache dict of ``design`` in ``stores`` (kept for the last four designs, by identity)."""
+    store = next((s for d, s in stores if d is design), None)
+    if store is None:
+        store = {}
+        stores[:] = ([(design, store)] + stores)[:4]
+    return store
 
 
 def rest_response(design: Design, frequencies) -> np.ndarray:
@@ -319,10 +329,7 @@ def rest_response(design: Design, frequencies) -> np.ndarray:
     analyses asking for the same tones share one coupled solve.
     """
     f = np.atleast_1d(np.asarray(frequencies, float))
-    store = next((s for d, s in _REST if d is design), None)
-    if store is None:
-        store = {}
-        _REST[:] = ([(design, store)] + _REST)[:4]
+    store = _per_design_store(_REST, design)
     missing = np.unique(f[[x not in store for x in f.tolist()]]) if f.size else f
     if missing.size:
         med = _medium(design)
@@ -608,7 +615,13 @@ class _Engine:
     def rest_forces(self):
         """:meth:`forces` of the capsules at rest, with parts (total, u, thr, att), each (1, ...); computed once."""
         if not self._rest:
-            r = rest_response(self.design, self.f)[None] if self.f.size and self.lay.radii.size else None
+            r = None
+            if self.f.size and self.lay.radii.size:     # drives with the same tones share the coupled solve
+                store = _per_design_store(_ENGINE_REST, self.design)
+                key = tuple(self.f.tolist())
+                r = store.get(key)
+                if r is None:
+                    r = store[key] = self.response(self.lay.rest[None][:, self.lay.body, :] + self.lay.offsets)
             self._rest.append(self.forces(self.lay.rest[None], parts=True, response=r))
         return self._rest[0]
 
