@@ -174,9 +174,10 @@ class Context:
         kind = step.kind
         if kind == "drive":
             return [step.drive]
-        if kind == "sweep":
-            return [Drive(tones=(Tone(frequency=float(f), amplitude=step.amplitude),))
-                    for f in self.sweep_frequencies(step.f_start, step.f_stop)]
+        if kind == "sweep":          # steps sweeping the same range at the same amplitude share the drives
+            return self.cached(("sweep_drives", step.f_start, step.f_stop, step.amplitude), lambda: [
+                Drive(tones=(Tone(frequency=float(f), amplitude=step.amplitude),))
+                for f in self.sweep_frequencies(step.f_start, step.f_stop)])
         if kind in ("follow", "switch", "hold") and step.tones:
             v = self.max_voltage(step)
             if v is None:

@@ -176,9 +176,9 @@ def uncoupled_blocks(system: BubbleSystem, omega) -> np.ndarray:
     return _einsum("cpm,fcm,cqm->fcpq", system.phi, 1.0 / den, system.phi)
 
 
-#: Complex entries (F x B x N x N) of one chunk of :func:`coupled_response` (32 MB): a design of
+#: Complex entries (F x B x N x N) of one chunk of :func:`coupled_response` (16 MB): a design of
 #: hundreds of interfaces solves a few frequencies at a time instead of holding 64 dense systems.
-CHUNK_ELEMENTS = 2**21
+CHUNK_ELEMENTS = 2**20
 
 
 def coupled_response(system: BubbleSystem, frequency, density: float, sound_speed: float,

@@ -99,10 +99,32 @@ def _mechanics_verdict(ctx: Context, drive, pf) -> bool | None:
     return True if state.status == "snap_in" else None
 
 
-def _attraction_1v(ctx: Context, frequency: float) -> np.ndarray:
-    """Bjerknes attraction (P,) of every capsule pair under a 1 V tone at ``frequency``; cached."""
-    return ctx.cached(("attraction_1v", frequency), lambda: ctx.pair_table(
-        Drive(tones=(Tone(frequency=frequency, amplitude=1.0),))).attraction)
+def _sign_changes(ctx: Context, freqs: np.ndarray, significance: float) -> list:
+    """[(a, b, peak |force| per V^2, attracting frequencies, repelling frequencies)] of the pairs whose
+    Bjerknes force under 1 V single tones at ``freqs`` changes sign where it matters next to the pair's own
+    thrust (|Bjerknes| >= significance x the larger thrust); pairs of fixed capsules left out.  Cached per
+    frequency set; one frequency's pair table at a time (a design's (F, pairs) masks are not built)."""
+    def compute():
+        names = [c.name for c in ctx.design.capsules]
+        thrust = ctx.analysis.thrust_per_v2(freqs)                     # (capsules, F), N at 1 V
+        ia, ib = np.triu_indices(len(names), 1)                        # acl.analysis.acoustics.pair_table's rows
+        vals_all = np.empty((freqs.size, ia.size))
+        pos_any = np.zeros(ia.size, bool)
+        neg_any = np.zeros(ia.size, bool)
+        for j, f in enumerate(freqs.tolist()):
+            vals = vals_all[j] = ctx.pair_table(Drive(tones=(Tone(frequency=f, amplitude=1.0),))).attraction
+            strong = np.abs(vals) >= significance * np.maximum(thrust[ia, j], thrust[ib, j])
+            pos_any |= strong & (vals > 0)
+            neg_any |= strong & (vals < 0)
+        fixed = ctx.analysis.fixed()
+        cand = np.flatnonzero(pos_any & neg_any & ~(fixed[ia] & fixed[ib]))
+        vals_c = vals_all[:, cand]                                      # (F, K)
+        strong_c = np.abs(vals_c) >= significance * np.maximum(thrust[ia[cand], :], thrust[ib[cand], :]).T
+        pos_c, neg_c = strong_c & (vals_c > 0), strong_c & (vals_c < 0)
+        return [(names[ia[k]], names[ib[k]], np.abs(vals_c[:, i]).max(),
+                 [float(f) for f in freqs[pos_c[:, i]]], [float(f) for f in freqs[neg_c[:, i]]])
+                for i, k in enumerate(cand.tolist())]
+    return ctx.cached(("sign_changes", tuple(freqs.tolist()), significance), compute)
 
 
 def program_range(ctx: Context, program) -> tuple[float, float] | None:
@@ -120,30 +142,14 @@ def force_sign_change(ctx: Context):
     if len(ctx.design.capsules) < 2:
         return
     significance = ctx.threshold("force_significance")
-    names = [c.name for c in ctx.design.capsules]
     for p in ctx.design.programs:
         rng = program_range(ctx, p)
         if rng is None:
             continue
         freqs = ctx.sweep_frequencies(*rng)
-        thrust = ctx.analysis.thrust_per_v2(freqs)                     # (capsules, F), N at 1 V
         if not freqs.size:
             continue
-        ia, ib = np.triu_indices(len(names), 1)                     # acl.analysis.acoustics.pair_table's rows
-        vals_all = np.array([_attraction_1v(ctx, float(f)) for f in freqs])          # (F, P)
-        push_all = np.maximum(thrust[ia, :], thrust[ib, :]).T                       # (F, P)
-        # a sign only counts where the Bjerknes force matters next to the pair's own thrust
-        strong_all = np.abs(vals_all) >= significance * push_all
-        pos_all = strong_all & (vals_all > 0)
-        neg_all = strong_all & (vals_all < 0)
-        fixed = ctx.analysis.fixed()
-        candidates = pos_all.any(axis=0) & neg_all.any(axis=0) & ~(fixed[ia] & fixed[ib])
-        for k in np.flatnonzero(candidates):
-            a, b = names[ia[k]], names[ib[k]]
-            vals = vals_all[:, k]
-            scale = np.abs(vals).max()
-            pos = [float(f) for f in freqs[pos_all[:, k]]]
-            neg = [float(f) for f in freqs[neg_all[:, k]]]
+        for a, b, scale, pos, neg in _sign_changes(ctx, freqs, significance):
             if pos and neg:
                 yield ctx.finding("ACL202",
                     f"`{a}` and `{b}` attract and repel within the {khz(rng[0])} .. {khz(rng[1])} range of program `{p.name}`",
