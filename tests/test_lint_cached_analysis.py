@@ -14,8 +14,8 @@ import pytest
 import acl
 from acl.analysis import acoustics as AC
 from acl.analysis.cache import analysis_for
-from acl.physics import coupling as PC
 from acl.physics import constants as C
+from acl.physics import coupling as PC
 
 ROOT = Path(__file__).resolve().parents[1]
 

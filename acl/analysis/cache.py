@@ -19,7 +19,7 @@ KEEP = 4                # designs kept (an editor alternates between a few open 
 PAIR_TABLES = 4         # pair tables kept per design
 
 
-def analysis_for(design: Design) -> "DesignAnalysis":
+def analysis_for(design: Design) -> DesignAnalysis:
     """The shared :class:`DesignAnalysis` of ``design`` (created on first use)."""
     for d, a in _LIVE:
         if d is design:
