@@ -311,6 +311,39 @@ def _centres_array(design: Design, positions) -> np.ndarray:
     return out
 
 
+_REST: list = []          # [(design, {frequency: (n,) complex response per pascal at rest})]: the last few designs
+_ENGINE_REST: list = []   # [(design, {tone frequencies: (1, T, n) the force engine's response at rest})]
+
+
+def _per_design_store(stores: list, design: Design) -> dict:
+    """The cache dict of ``design`` in ``stores`` (kept for the last four designs, by identity)."""
+    store = next((s for d, s in stores if d is design), None)
+    if store is None:
+        store = {}
+        stores[:] = ([(design, store)] + stores)[:4]
+    return store
+
+
+def rest_response(design: Design, frequencies) -> np.ndarray:
+    """Inward volume displacement per pascal (F, n) of every interface at rest (:func:`acl.physics.coupling.coupled_response`).
+
+    Each frequency is solved once per design: the missing ones of a call in one batched solve, the
+    rest from the cache (kept for the last four designs, by identity), so that lint rules, hovers and
+    analyses asking for the same tones share one coupled solve.
+    """
+    f = np.atleast_1d(np.asarray(frequencies, float))
+    store = _per_design_store(_REST, design)
+    missing = np.unique(f[[x not in store for x in f.tolist()]]) if f.size else f
+    if missing.size:
+        med = _medium(design)
+        u = _physics_coupled(_system(design), missing, med.density, med.sound_speed, C.SUBSTRATE_REFLECTION)
+        for x, row in zip(missing.tolist(), u):
+            row.setflags(write=False)
+            store[x] = row
+    n = _layout(design).radii.size
+    return np.array([store[x] for x in f.tolist()], complex).reshape(f.size, n)
+
+
 def coupled_response(design: Design, frequencies, positions=None) -> np.ndarray:
     """Inward volume amplitude (m^3 per V peak) of every interface of the design, (F, n) in :func:`interface_labels` order.
 
@@ -319,13 +352,13 @@ def coupled_response(design: Design, frequencies, positions=None) -> np.ndarray:
     """
     f = np.atleast_1d(np.asarray(frequencies, float))
     lay = _layout(design)
-    med = _medium(design)
-    sysm = _system(design)
     if positions:
+        med = _medium(design)
         pts = lay.points(_centres_array(design, positions))
-        u = _physics_coupled(sysm, f, med.density, med.sound_speed, C.SUBSTRATE_REFLECTION, points=pts[None])[0]
+        u = _physics_coupled(_system(design), f, med.density, med.sound_speed, C.SUBSTRATE_REFLECTION,
+                             points=pts[None])[0]
     else:
-        u = _physics_coupled(sysm, f, med.density, med.sound_speed, C.SUBSTRATE_REFLECTION)
+        u = rest_response(design, f)
     gain, _ = drive_gain(design, f)
     return u * gain[:, None]
 
@@ -566,7 +599,14 @@ class _Engine:
     def rest_forces(self):
         """:meth:`forces` of the capsules at rest, with parts (total, u, thr, att), each (1, ...); computed once."""
         if not self._rest:
-            self._rest.append(self.forces(self.lay.rest[None], parts=True))
+            r = None
+            if self.f.size and self.lay.radii.size:     # drives with the same tones share the coupled solve
+                store = _per_design_store(_ENGINE_REST, self.design)
+                key = tuple(self.f.tolist())
+                r = store.get(key)
+                if r is None:
+                    r = store[key] = self.response(self.lay.rest[None][:, self.lay.body, :] + self.lay.offsets)
+            self._rest.append(self.forces(self.lay.rest[None], parts=True, response=r))
         return self._rest[0]
 
     def forces(self, centres: np.ndarray, parts: bool = False, consts: dict | None = None, response=None):

@@ -176,6 +176,11 @@ def uncoupled_blocks(system: BubbleSystem, omega) -> np.ndarray:
     return _einsum("cpm,fcm,cqm->fcpq", system.phi, 1.0 / den, system.phi)
 
 
+#: Complex entries (F x B x N x N) of one chunk of :func:`coupled_response` (16 MB): a design of
+#: hundreds of interfaces solves a few frequencies at a time instead of holding 64 dense systems.
+CHUNK_ELEMENTS = 2**20
+
+
 def coupled_response(system: BubbleSystem, frequency, density: float, sound_speed: float,
                      wall_reflection: float = 0.0, points=None, h0=None, chunk: int = 64) -> np.ndarray:
     """Inward volume displacement U (m^3 per Pa incident) of every interface, solving (I - w^2 rho H0 g) U = H0 1 (module doc; Kinsler et al. mutual radiation impedance).
@@ -183,7 +188,8 @@ def coupled_response(system: BubbleSystem, frequency, density: float, sound_spee
     ``frequency`` (F,) Hz -> complex (F, n) in the order of ``system.points``; uniform incident
     pressure (the design is small against the wavelength).  ``points`` (B, n, 3) evaluates B
     displaced configurations at once -> (B, F, n); ``h0`` reuses :func:`uncoupled_blocks` at these
-    frequencies.  Vectorised over frequencies in chunks of ``chunk``.
+    frequencies.  Vectorised over frequencies in chunks of ``chunk`` (fewer when
+    a chunk would exceed :data:`CHUNK_ELEMENTS`).
     """
     f = np.atleast_1d(np.asarray(frequency, float))
     n = system.n
@@ -208,16 +214,36 @@ def coupled_response(system: BubbleSystem, frequency, density: float, sound_spee
         pad_rad[system.slot] = system.radii
     pad_body = np.repeat(np.arange(ncap), p)
     eye = np.eye(npad)
+    chunk = max(1, min(chunk, CHUNK_ELEMENTS // (nb * npad * npad)))   # bounded memory for large designs
+    # green_matrix's frequency-independent parts, once: 1/(4 pi d) off the diagonal, the retarded distance
+    # (between capsules only), the wall images' R/(4 pi d')
+    d = _distances(pad_pts, pad_rad, False)[:, None]                                # (B, 1, N, N)
+    other = (pad_body[:, None] != pad_body[None, :])
+    inv = np.where(~np.eye(npad, dtype=bool), 1 / (4 * np.pi * d), 0.0)
+    retarded = np.where(other, d, 0.0)
+    if wall_reflection:
+        di = _distances(pad_pts, pad_rad, True)[:, None]
+        inv_image = wall_reflection / (4 * np.pi * di)
     for s in range(0, f.size, chunk):
         w = 2 * np.pi * f[s:s + chunk]
         blk = uncoupled_blocks(system, w) if h0 is None else h0[s:s + chunk]      # (F, C, P, P)
-        g = green_matrix(pad_pts, pad_rad, pad_body, w / sound_speed, wall_reflection)  # (B, F, N, N)
-        g = g.reshape(nb, w.size, ncap, p, npad)
+        k = (w / sound_speed)[None, :, None, None]
+        g = np.empty((nb, w.size, npad, npad), complex)                           # green_matrix, exp(-ikd) as cos, sin
+        kd = k * retarded
+        np.multiply(np.cos(kd), inv, out=g.real)
+        np.multiply(np.sin(kd), -inv, out=g.imag)
+        if wall_reflection:
+            kd = k * di
+            g.real += np.cos(kd) * inv_image
+            g.imag -= np.sin(kd) * inv_image
+        del kd
+        coef = (w**2 * density)[None, :, None, None]
         if p == 1:
-            hg = blk[None, :, :, 0, 0, None, None] * g
+            g *= -coef * blk[None, :, :, 0, 0, None]
+            a = g
         else:
-            hg = _einsum("fcpq,bfcqn->bfcpn", blk, g)
-        a = eye - (w**2 * density)[None, :, None, None] * hg.reshape(nb, w.size, npad, npad)
+            a = -coef * _einsum("fcpq,bfcqn->bfcpn", blk, g.reshape(nb, w.size, ncap, p, npad)).reshape(g.shape)
+        a += eye                                                                   # I - w^2 rho H0 g
         rhs = np.broadcast_to(blk.sum(axis=-1).reshape(1, w.size, npad), (nb, w.size, npad))
         u = np.linalg.solve(a, rhs[..., None])[..., 0]
         out[:, s:s + chunk] = u[..., system.slot]
