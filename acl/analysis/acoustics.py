@@ -609,6 +609,8 @@ class _Engine:
         d = np.where(k["other"], np.sqrt((sep * sep).sum(axis=-1)), 1.0)
         prod = np.einsum("t,bti,btj->bij" if k["w2p2"].ndim == 1 else "bt,bti,btj->bij", k["w2p2"], r, np.conj(r)).real
         att = k["bjerknes"] * prod / d**2
+        if k["gap_exponent"]:   # declared bjerknes_scale shape (acl.physics.effects.bjerknes_gap_factor)
+            att = att * PE.bjerknes_gap_factor(d, k["gap_ref"], k["gap_exponent"])
         c = att / d
         per = per + c @ pts - c.sum(axis=-1)[..., None] * pts             # sum_j c_ij (p_j - p_i)
         total = lay.onehot.T @ per                                          # (B, C, 3)
@@ -632,7 +634,7 @@ def pressure_terms(unit: np.ndarray, w2: np.ndarray, pressure: np.ndarray, scale
 
 
 def _engine_constants(design: Design, lay: _Layout, f: np.ndarray, pressure: np.ndarray, scale: np.ndarray,
-                      pair: np.ndarray) -> dict:
+                      pair: np.ndarray, shape: tuple = (0.0, 1.0)) -> dict:
     """Everything in :meth:`_Engine.forces` that does not depend on the capsule positions."""
     med = _medium(design)
     w = 2 * np.pi * f
@@ -650,6 +652,8 @@ def _engine_constants(design: Design, lay: _Layout, f: np.ndarray, pressure: np.
         "w2": w**2,
         "bjerknes": med.density / (8 * np.pi) * other * pair[lay.body][:, lay.body],
         "drag_mask": lay.body[:, None] != np.arange(ncap)[None, :],
+        "gap_exponent": shape[0],     # bjerknes_scale's gap shape (gap_ref/d)^n; 0: the physics' d^-2 law
+        "gap_ref": shape[1],
     }
 
 
@@ -669,13 +673,15 @@ def _compute_engine(design: Design, drive: Drive) -> _Engine:
     scale = np.array([_thrust_scale(design, c) for c in lay.caps]) * sub
     pair = np.sqrt(np.outer(sub, sub)) if design.effects else np.ones((ncap, ncap))
     bs = EF.coefficients(design, "bjerknes_scale") if design.effects else None
-    if bs is not None:   # a fitted Bjerknes coefficient (paper Eq. 3 alpha) relative to the physics
+    shape = (0.0, 1.0)
+    if bs is not None:   # a fitted Bjerknes coefficient (paper Eq. 3 alpha) relative to the physics, and its shape
         pair = pair * bs["factor"]
+        shape = EF.bjerknes_shape(bs)
     outer = np.array([_outer_radius(c) for c in lay.caps])
     response = (prepared_response(sysm, f, med.density, med.sound_speed, C.SUBSTRATE_REFLECTION, h0=h0)
                 if f.size else None)
     return _Engine(design, lay, sysm, f, pressure, h0, scale, pair, outer, med.density, med.sound_speed, response,
-                   _engine_constants(design, lay, f, pressure, scale, pair))
+                   _engine_constants(design, lay, f, pressure, scale, pair, shape))
 
 
 _LAST_ENGINE: list = []   # [(design, drive, engine)]: identity cache for solver inner loops

@@ -24,7 +24,7 @@ NULLS = {
     "bubble_shrinkage": {"shrink_rate": 0.0},
     "neighbour_drag": {"inv_plateau": 0.0},
     "substrate_proximity": {"h_substrate": 0.0},
-    "bjerknes_scale": {"factor": 1.0},
+    "bjerknes_scale": {"factor": 1.0, "gap_exponent": 0.0, "gap_ref": math.nan},
 }
 ALIASES = {
     ("drive_saturation", "v_sat"): ("inv_vsat2", lambda v: 1.0 / (v * v) if v > 0 else 0.0),
@@ -62,6 +62,12 @@ def coefficients(design: Design, name: str) -> dict | None:
     return out
 
 
+def bjerknes_shape(coefs: dict) -> tuple[float, float]:
+    """(gap exponent n, reference distance m) of a declared bjerknes_scale; (0, 1) (no shape) without a finite gap_ref."""
+    n, ref = float(coefs.get("gap_exponent", 0.0)), float(coefs.get("gap_ref", math.nan))
+    return (n, ref) if n and math.isfinite(ref) and ref > 0 else (0.0, 1.0)
+
+
 def unused_coefficients(design: Design) -> list[str]:
     """``effect.coefficient`` names the analysis does not know (reported as notes)."""
     bad = []
@@ -83,6 +89,9 @@ def notes(design: Design) -> list[str]:
     tg = coefficients(design, "transducer_gain")
     if tg and tg["gain_slope"] and not math.isfinite(tg["f_ref"]):
         out.append("effect transducer_gain has a gain_slope but no f_ref: the tilt is ignored (declare `f_ref = 125 kHz`)")
+    bs = coefficients(design, "bjerknes_scale")
+    if bs and bs["gap_exponent"] and not math.isfinite(bs["gap_ref"]):
+        out.append("effect bjerknes_scale has a gap_exponent but no gap_ref: the shape is ignored (declare `gap_ref = 40 um`)")
     for name in unused_coefficients(design):
         out.append(f"effect coefficient {name} is not used by the analysis")
     return out

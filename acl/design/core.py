@@ -50,7 +50,7 @@ EFFECT_UNITS = {
     "bubble_shrinkage": {"shrink_rate": ("1/s", FREQ)},
     "neighbour_drag": {"inv_plateau": ("1/m", tuple(-x for x in LENGTH)), "plateau": ("m", LENGTH)},
     "substrate_proximity": {"h_substrate": ("m", LENGTH)},
-    "bjerknes_scale": {"factor": ("", _ONE)},
+    "bjerknes_scale": {"factor": ("", _ONE), "gap_exponent": ("", _ONE), "gap_ref": ("m", LENGTH)},
 }
 
 # The physical range of effect coefficients (E401 outside it): "positive" (> 0), "nonneg" (>= 0), "unit" (0 .. 1).
@@ -67,7 +67,7 @@ EFFECT_DOMAIN = {
     ("bubble_shrinkage", "shrink_rate"): "nonneg",
     ("neighbour_drag", "inv_plateau"): "nonneg", ("neighbour_drag", "plateau"): "positive",
     ("substrate_proximity", "h_substrate"): "nonneg",
-    ("bjerknes_scale", "factor"): "nonneg",
+    ("bjerknes_scale", "factor"): "nonneg", ("bjerknes_scale", "gap_ref"): "positive",
 }
 
 
@@ -160,6 +160,13 @@ EFFECT_RANGES = {
         0.0, 1e3, 0.1, 10.0,
         "the secondary Bjerknes force relative to the coupled-bubble model (paper Eq. 3's alpha): a model wrong by "
         "1000x on a force (30x on each volume amplitude) is no model; plausible: within 10x"),
+    ("bjerknes_scale", "gap_exponent"): EffectRange(
+        -6.0, 6.0, -2.0, 2.0,
+        "the shape (gap_ref/d)^n on the monopole d^-2 law: beyond |n| = 6 the force falls off faster than a "
+        "quadrupole's or grows with distance, no pair of bubbles; plausible: within a dipole's correction (|n| <= 2)"),
+    ("bjerknes_scale", "gap_ref"): EffectRange(
+        1e-9, 1.0, 1e-6, 1e-3,
+        "the distance where the shape is 1: between a nm and any print volume; plausible: bubble sizes (1 um .. 1 mm)"),
 }
 
 
