@@ -51,7 +51,7 @@ SRC = (ROOT / "examples" / "fig4_facing_pair.acl").read_text()
 
 
 def _attraction(gap_um, effect=""):
-    text = re.sub(r"(?m)^effect bjerknes_scale.*$", "", SRC).replace("import stdlib.transducers",
+    text = re.sub(r"(?ms)^effect bjerknes_scale \{.*?^\}\n", "", SRC).replace("import stdlib.transducers",
                                                                       "import stdlib.transducers\n" + effect)
     d = acl.loads(text, filename=str(ROOT / "examples" / "x.acl"), overrides={"gap": f"{gap_um} um"})
     return [p for p in acl.analyze(d, snap_in=False).as_dict()["pairs"] if p["frequency_hz"] == 125e3][0]["force_n"]
