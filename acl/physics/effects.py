@@ -335,6 +335,6 @@ EFFECT_TABLE: dict[str, EffectSpec] = {e.name: e for e in [
             1e-9, 1.0, 1e-6, 1e-3,
             "the distance where the shape is 1: between a nm and any print volume; plausible: bubble sizes "
             "(1 um .. 1 mm)"))),
-        "secondary Bjerknes force between capsules, x factor (gap_ref/d)^gap_exponent (acoustics; a measured "
-        "pair's alpha and shape, paper Eq. 3, Fig. S5)"),
+        "secondary Bjerknes force between capsules, x factor (gap_ref/d)^gap_exponent (acoustics): a calibration "
+        "of the pair law on measured pairs (paper Eq. 3, Fig. S5; stdlib calibrations), not first principles"),
 ]}
