@@ -11,7 +11,7 @@ from __future__ import annotations
 import math
 
 from acl.design.model import Design
-from acl.physics.effects import EFFECT_TABLE
+from acl.physics.effect_table import EFFECT_TABLE
 
 # All read from the one table of effects (acl.physics.effects.EFFECT_TABLE):
 # effect -> {coefficient: value at which the effect vanishes} (acl.fit.effects internal coordinates)

@@ -96,7 +96,7 @@ def _usage(msg, hint=None, where=None, code="E-USAGE"):
 
 
 def _example(eid: str) -> str:
-    from acl.physics.effects import EFFECT_TABLE     # the one table of effects
+    from acl.physics.effect_table import EFFECT_TABLE     # the one table of effects
 
     spec = EFFECT_TABLE.get(eid)
     return f"{eid}={(spec.example if spec and spec.example else 'PARAM:VALUE')}"

@@ -30,7 +30,7 @@ DECL_KINDS = ("medium", "material", "transducer", "generator", "amplifier", "cap
 
 # Effects of the model library (docs/fit.md); `effect NAME { coefficient = quantity, ... }`: the one table is
 # acl.physics.effects.EFFECT_TABLE; the names, units, domains and ranges below are read from it.
-from acl.physics.effects import (EFFECT_TABLE, F_REF_RANGE, GAIN_BOUND, GRADIENT_BOUND,  # noqa: E402,F401
+from acl.physics.effect_table import (EFFECT_TABLE, F_REF_RANGE, GAIN_BOUND, GRADIENT_BOUND,  # noqa: E402,F401
                                  GRADIENT_REFERENCE, MODULUS_DECADES, TILT_BOUND, EffectRange)
 
 EFFECTS = tuple(EFFECT_TABLE)

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from acl.diagnostics import DiagnosticError, Span, error, suggest
-from acl.physics.effects import EFFECT_TABLE
+from acl.physics.effect_table import EFFECT_TABLE
 
 # user-facing effect parameters and the fitted coordinate each sets (the one table, acl.physics.effects)
 ALIASES = {c.name: (c.alias_of, c.to_internal) for e in EFFECT_TABLE.values() for c in e.coefficients if c.alias_of}

@@ -87,7 +87,7 @@ import numpy as np
 from acl.design import model as M
 from acl.physics import batch as PB
 from acl.physics import constants as C
-from acl.physics.effects import EFFECT_TABLE
+from acl.physics.effect_table import EFFECT_TABLE
 from acl.physics.forces import jet_drag, thrust_magnitude
 from acl.physics.transducer import pressure_per_volt_rows
 from acl.physics.ties import TIE_RTOL, first_max
