@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 
 import acl
+from example_designs import first_principles_text
 from acl.analysis.report import analyze
 from acl.sweep.evaluate import QuantityError, evaluate, supported
 from acl.sweep.perturb import FieldBatch, materialize
@@ -24,7 +25,7 @@ EX = ROOT / "examples"
 
 
 def _design(example: str, effects: str):
-    src = (EX / f"{example}.acl").read_text() + "\n" + effects + "\n"
+    src = first_principles_text(example) + "\n" + effects + "\n"   # the model's own pair law (no stdlib calibration)
     return acl.loads(src, filename=str(EX / f"{example}.acl"))
 
 

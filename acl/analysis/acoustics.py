@@ -633,11 +633,11 @@ class _Engine:
 
 
 def _engine_constants(design: Design, lay: _Layout, f: np.ndarray, pressure: np.ndarray, scale: np.ndarray,
-                      pair: np.ndarray) -> dict:
+                      pair: np.ndarray, shape: tuple = (0.0, 1.0)) -> dict:
     """Everything in :meth:`_Engine.forces` that does not depend on the capsule positions (acl.physics.forces.force_constants)."""
     med = _medium(design)
     return force_constants(2 * np.pi * f, lay.radii, lay.body, len(lay.caps), med.viscosity, med.density,
-                           C.STREAMING_CONSTANT, pressure, scale, pair)
+                           C.STREAMING_CONSTANT, pressure, scale, pair, gap_shape=shape)
 
 
 def _compute_engine(design: Design, drive: Drive) -> _Engine:
@@ -656,13 +656,15 @@ def _compute_engine(design: Design, drive: Drive) -> _Engine:
     scale = np.array([_thrust_scale(design, c) for c in lay.caps]) * sub
     pair = np.sqrt(np.outer(sub, sub)) if design.effects else np.ones((ncap, ncap))
     bs = EF.coefficients(design, "bjerknes_scale") if design.effects else None
-    if bs is not None:   # a fitted Bjerknes coefficient (paper Eq. 3 alpha) relative to the physics
+    shape = (0.0, 1.0)
+    if bs is not None:   # a fitted Bjerknes coefficient (paper Eq. 3 alpha) relative to the physics, and its shape
         pair = pair * bs["factor"]
+        shape = EF.bjerknes_shape(bs)
     outer = np.array([_outer_radius(c) for c in lay.caps])
     response = (prepared_response(sysm, f, med.density, med.sound_speed, C.SUBSTRATE_REFLECTION, h0=h0)
                 if f.size else None)
     return _Engine(design, lay, sysm, f, pressure, h0, scale, pair, outer, med.density, med.sound_speed, response,
-                   _engine_constants(design, lay, f, pressure, scale, pair))
+                   _engine_constants(design, lay, f, pressure, scale, pair, shape))
 
 
 _LAST_ENGINE: list = []   # [(design, drive, engine)]: identity cache for solver inner loops

@@ -225,7 +225,7 @@ class _UnionFind:
 
 def _beam_effects(design: Design | None) -> tuple[float, float, float] | None:
     """(E scale, E gradient, elastica weight) of declared stiffness_scale / stiffness_gradient / large_deflection, None if none."""
-    if design is None or not any(design.effect(n) for n in ("stiffness_scale", "stiffness_gradient", "large_deflection")):
+    if design is None or not any(PE.EFFECT_TABLE[e.name].beam_law for e in design.effects):   # the one table
         return None
     es = (EF.coefficients(design, "stiffness_scale") or {"e_scale": 1.0})["e_scale"]
     g = (EF.coefficients(design, "stiffness_gradient") or {"e_gradient": 0.0})["e_gradient"]

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from acl.physics.effects import drag_load
+from acl.physics.effects import bjerknes_gap_factor, drag_load
 from acl.physics.ties import TIE_RTOL, first_max
 
 
@@ -124,8 +124,8 @@ def pressure_terms(unit, w2, pressure, scale):
 
 
 def force_constants(omega, radii, body, n_capsules: int, viscosity: float, density: float, streaming_constant: float,
-                    pressure, scale, pair) -> dict:
-    """The position-independent factors of :func:`capsule_forces`: :func:`thrust_magnitude` per unit volume, :func:`pressure_terms`, :func:`bjerknes_from_rates` per unit rate and distance (other-capsule pairs, times ``pair`` (C, C)), the jet-drag mask (:func:`jet_drag`)."""
+                    pressure, scale, pair, gap_shape=(0.0, 1.0)) -> dict:
+    """The position-independent factors of :func:`capsule_forces`: :func:`thrust_magnitude` per unit volume, :func:`pressure_terms`, :func:`bjerknes_from_rates` per unit rate and distance (other-capsule pairs, times ``pair`` (C, C)), the jet-drag mask (:func:`jet_drag`); ``gap_shape`` (n, d_ref) of :func:`acl.physics.effects.bjerknes_gap_factor`."""
     w = np.asarray(omega, float)
     body = np.asarray(body, int)
     other = body[:, None] != body[None, :]
@@ -139,15 +139,18 @@ def force_constants(omega, radii, body, n_capsules: int, viscosity: float, densi
         "w2": w**2,
         "bjerknes": bjerknes_from_rates(1.0, 1.0, density * other * np.asarray(pair, float)[body][:, body]),
         "drag_mask": body[:, None] != np.arange(n_capsules)[None, :],
+        "gap_exponent": float(gap_shape[0]),   # a declared bjerknes_scale shape (d_ref/d)^n; 0: the d^-2 law
+        "gap_ref": float(gap_shape[1]),
     }
 
 
-def bjerknes_pair_sum(points, response, w2p2, coefficient, other):
+def bjerknes_pair_sum(points, response, w2p2, coefficient, other, gap_exponent: float = 0.0, gap_ref: float = 1.0):
     """Secondary Bjerknes force (B, n, 3) on every interface from every other capsule's, and the attraction (B, n, n): :func:`bjerknes_from_rates` of each pair along p_j - p_i, tones in power.
 
     ``points`` (B, n, 3), ``response`` (B, T, n) volumes per pascal, ``w2p2`` (T,) or (B, T) rate weights,
     ``coefficient`` (n, n) :func:`bjerknes_from_rates` at unit rate and distance (0 within a capsule),
-    ``other`` (n, n) the pairs of different capsules.
+    ``other`` (n, n) the pairs of different capsules; ``gap_exponent``, ``gap_ref``: a declared shape
+    (:func:`acl.physics.effects.bjerknes_gap_factor`; exponent 0 is the monopole law).
     """
     sep = points[:, None, :, :] - points[:, :, None, :]                   # (B, i, j, 3)
     d = np.where(other, np.sqrt((sep * sep).sum(axis=-1)), 1.0)
@@ -155,6 +158,8 @@ def bjerknes_pair_sum(points, response, w2p2, coefficient, other):
     prod = np.einsum("t,bti,btj->bij" if w2p2.ndim == 1 else "bt,bti,btj->bij", w2p2, response,
                      np.conj(response)).real
     att = coefficient * prod / d**2
+    if gap_exponent:
+        att = att * bjerknes_gap_factor(d, gap_ref, gap_exponent)
     c = att / d
     return c @ points - c.sum(axis=-1)[..., None] * points, att          # sum_j c_ij (p_j - p_i)
 
@@ -180,7 +185,8 @@ def capsule_forces(centres, body, offsets, normals, onehot, outer, response, con
     """
     pts = centres[:, body, :] + offsets if points is None else points     # (B, n, 3) orifice centres
     thr = ((response.real**2 + response.imag**2) * consts["thrust"]).sum(axis=1)     # (B, n), tones added
-    bj, att = bjerknes_pair_sum(pts, response, consts["w2p2"], consts["bjerknes"], consts["other"])
+    bj, att = bjerknes_pair_sum(pts, response, consts["w2p2"], consts["bjerknes"], consts["other"],
+                                consts.get("gap_exponent", 0.0), consts.get("gap_ref", 1.0))
     total = onehot.T @ (bj - thr[:, :, None] * normals)                 # (B, C, 3); thrust against the jet (module doc)
     total = total + jet_drag_on_capsules(thr, pts, normals, centres, outer, consts["drag_mask"])
     return total, pts, thr, att

@@ -6,6 +6,7 @@ import re
 from dataclasses import dataclass
 
 from acl.design import model as M
+from acl.physics.effect_table import EFFECT_TABLE
 
 
 class QuantityError(ValueError):
@@ -64,7 +65,7 @@ QUANTITIES: tuple[Quantity, ...] = (
              "`acl lint` finding of <rule> absent"),
 )
 
-STATIC_EFFECTS = {"offset_drift", "bubble_shrinkage"}
+STATIC_EFFECTS = {e.name for e in EFFECT_TABLE.values() if e.static_note}   # the one table (acl.physics.effect_table)
 LINT_RULES = ("acl101", "acl102", "acl103", "acl105", "acl201", "acl401", "acl402", "acl501", "acl502", "acl503",
               "acl504", "acl603")
 _PROGRAM_LINT = ("acl201", "acl401", "acl402")      # rules over each program's drives (lint's step_drives)
@@ -130,8 +131,8 @@ def _physical_effects(design: M.Design) -> list[str]:
 # Declared effects that leave the forces at rest as they are (acl.analysis.acoustics applies them to
 # beams or to displaced capsules only: neighbour_drag's factor is 1 at zero displacement), and those of
 # them that also leave the latch law as it is (mechanics.latch_geometry scales E by stiffness_scale only).
-REST_NEUTRAL_EFFECTS = {"large_deflection", "stiffness_gradient", "stiffness_scale", "neighbour_drag"}
-LATCH_NEUTRAL_EFFECTS = {"large_deflection", "stiffness_gradient", "neighbour_drag"}
+REST_NEUTRAL_EFFECTS = {e.name for e in EFFECT_TABLE.values() if e.rest_neutral and not e.static_note}
+LATCH_NEUTRAL_EFFECTS = {e.name for e in EFFECT_TABLE.values() if e.latch_neutral and not e.static_note}
 
 
 def _effect_blocks(design: M.Design) -> dict[str, list[str]]:
