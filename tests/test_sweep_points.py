@@ -11,6 +11,7 @@ import numpy as np
 
 import acl
 from acl.design.resolve import load_design
+from example_designs import first_principles_path
 
 DATA = os.path.join(os.path.dirname(os.path.abspath(__file__)), "data")
 RTOL = 1e-6
@@ -42,9 +43,8 @@ def test_a_pair_with_effects_has_its_forces_snap_in_and_deflections():
         assert a.equilibrium["status"] == "ok" and row["equilibrium_ok"]
         for beam, v in a.equilibrium["deflections_m"].items():
             assert _close(row[f"tip_deflection_{beam}_m"], v)
-    # the effects act: 1.3 x Bjerknes and a softer beam snap in lower than the plain example
-    plain = acl.analyze(load_design(os.path.join(DATA, "..", "..", "examples", "fig4_facing_pair.acl"),
-                                    overrides={"gap": "36 um"}))
+    # the effects act: 1.3 x Bjerknes and a softer beam snap in lower than the example without its calibration
+    plain = acl.analyze(load_design(str(first_principles_path("fig4_facing_pair")), overrides={"gap": "36 um"}))
     assert t.data["snap_in_left_right_125khz_v"][0] < plain.pairs[0]["snap_in_voltage_v"]
 
 

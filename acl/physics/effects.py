@@ -99,7 +99,7 @@ def drag_load(load, delta, inv_plateau):
 
 
 def bjerknes_gap_factor(d, d_ref, n):
-    """Factor (d_ref/d)^n on the secondary Bjerknes force at centre distance d: with n = 0 the monopole d^-2 law (Crum 1975); a measured pair's shape (paper Eq. 3, Fig. S5; calibration)."""
+    """Calibrated gap shape (d_ref/d)^n on the secondary Bjerknes force at centre distance d (paper Fig. S5; n = 0 keeps the monopole law)."""
     with np.errstate(divide="ignore", over="ignore", invalid="ignore"):
         return (d_ref / np.asarray(d, float)) ** n
 
