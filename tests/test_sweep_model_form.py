@@ -11,9 +11,10 @@ import acl
 from acl.design.resolve import load_design
 from acl.physics import validity as VA
 from acl.sweep.table import clopper_pearson
+from example_designs import first_principles_path
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-PAIR = os.path.join(ROOT, "examples", "fig4_facing_pair.acl")
+PAIR = str(first_principles_path("fig4_facing_pair"))   # without its calibration: the effects path has no model_form
 SPRING = os.path.join(ROOT, "benchmarks", "designs", "sweep_spring.acl")
 
 
