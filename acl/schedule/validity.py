@@ -21,6 +21,7 @@ def check_linear(comp: CompileState, sched: Schedule) -> None:
     from acl.physics.constants import LINEAR_AMPLITUDE_LIMIT
 
     worst_of: dict[int, tuple[float, str]] = {}     # step -> (worst eps/R over its segments, interface)
+    stream_of: dict[int, tuple[float, str]] = {}    # step -> (largest streaming Reynolds number, interface)
     steady = _steady_amplitudes(comp, sched)
     for seg in sched.segments:
         if not seg.tones or not comp.design.capsules:
@@ -29,8 +30,9 @@ def check_linear(comp: CompileState, sched: Schedule) -> None:
         chirps = [t for t in seg.tones if t.frequency_end_hz]
         if len(chirps) == 1 and len(seg.tones) == 1 and chirps[0].amplitude_v > 0:     # a sweep step
             t = chirps[0]
-            v, _, amps = sweep_worst_amplitude(comp.design, t.frequency_hz, t.frequency_end_hz, t.amplitude_v,
+            v, f_worst, amps = sweep_worst_amplitude(comp.design, t.frequency_hz, t.frequency_end_hz, t.amplitude_v,
                                                mode_frequencies(comp))
+            _streaming(comp, stream_of, seg.step, amps, f_worst)
             k, v = first_max_item(amps)
             if v > worst * (1 + TIE_RTOL):
                 worst, where = v, k
@@ -46,21 +48,31 @@ def check_linear(comp: CompileState, sched: Schedule) -> None:
                 amps = interface_amplitudes(comp.design, Drive(tones=tones))
                 k, v = first_max_item(amps)            # ties: the first declared interface, the first segment
             else:                                      # steady tones: every segment's in one batch (below)
-                k, v = steady[id(seg)]
+                k, v, amps = steady[id(seg)]
+            _streaming(comp, stream_of, seg.step, amps, max(t.frequency for t in tones))
             if v > worst * (1 + TIE_RTOL):
                 worst, where = v, k
         worst_of[seg.step] = (worst, where)
-    for step_index, (worst, where) in sorted(worst_of.items()):   # one finding per step, its worst segment
-        if worst <= LINEAR_AMPLITUDE_LIMIT:
-            continue
-        _nonlinear_step(comp, sched, step_index, worst, where)
+    near = _monopole_distances(comp, sched)
+    for step_index in sorted(set(worst_of) | set(stream_of) | set(near)):   # one finding per limit and step
+        worst, where = worst_of.get(step_index, (0.0, ""))
+        found = []             # (limit, relative model-form force uncertainty, message, hint)
+        if worst > LINEAR_AMPLITUDE_LIMIT:
+            got = _nonlinear_step(comp, step_index, worst, where)
+            if got is None:
+                continue           # past the hemisphere, allowed by --allow-nonlinear: noted, no band has a meaning
+            found.append(got)
+        found += _streaming_finding(step_index, stream_of.get(step_index))
+        found += _monopole_finding(step_index, near.get(step_index))
+        if found:
+            _widen(comp, sched, step_index, found)
 
 
-def _nonlinear_step(comp: CompileState, sched: Schedule, step_index: int, worst: float, where: str) -> None:
+def _nonlinear_step(comp: CompileState, step_index: int, worst: float, where: str):
     """A step past the amplitude limits (acl.physics.validity): past the hemisphere (no meaning) E-SCHED-NONLINEAR
-    unless ``allow_nonlinear``; past the soft limit W-ACOUSTIC-AMPLITUDE at the step, and the step's error bands
-    widened by the model-form force uncertainty (:func:`acl.physics.validity.amplitude_model_form`) times the
-    goal's largest predicted displacement, added in quadrature."""
+    unless ``allow_nonlinear`` (then noted, None); past the soft limit (W-ACOUSTIC-AMPLITUDE) its finding
+    (limit, the model-form force uncertainty :func:`acl.physics.validity.amplitude_model_form`, message, hint)
+    for :func:`_widen`."""
     from acl.physics import validity as VA
 
     step = comp.program.steps[step_index]
@@ -81,11 +93,111 @@ def _nonlinear_step(comp: CompileState, sched: Schedule, step_index: int, worst:
     qs = [m.q for m in capsule_modes(comp.design, cap)] if cap in {c.name for c in comp.design.capsules} else []
     q = max(qs, default=10.0)
     rel = float(VA.amplitude_model_form(worst, q))
+    return (VA.AMPLITUDE, rel, f"{text}: forces carry a model-form uncertainty of {rel:.0%} (Q {q:.3g}; "
+            "acl.physics.validity)", "lower the voltage or move the tone off resonance to stay inside the validated "
+            "linear model")
+
+
+def _streaming(comp: CompileState, stream_of: dict, step: int, amps: dict, top_hz: float) -> None:
+    """Record in ``stream_of`` the largest streaming Reynolds number omega eps^2/nu (acl.physics.forces) of the
+    interfaces ``amps`` ({interface: eps/R}) at the drive's highest frequency ``top_hz`` (as analyze does)."""
+    from acl.physics.constants import WATER_20C
+    from acl.physics.forces import streaming_reynolds
+
+    med = comp.design.medium or WATER_20C
+    best, where = stream_of.get(step, (0.0, ""))
+    for key, x in amps.items():
+        cap, ori = key.split(".")
+        r = comp.design.capsule(cap).orifice(ori).radius
+        rs = float(streaming_reynolds(x * r, 2 * np.pi * top_hz, med.density, med.viscosity))
+        if rs > best * (1 + TIE_RTOL):
+            best, where = rs, key
+    stream_of[step] = (best, where)
+
+
+def _streaming_finding(step_index: int, got) -> list:
+    """[(limit, rel, message, hint)] for a step past the streaming Reynolds limit (none inside it)."""
+    from acl.physics import validity as VA
+
+    if got is None or got[0] <= VA.STREAMING_REYNOLDS.value:
+        return []
+    rs, where = got
+    rel = float(VA.streaming_model_form(rs, VA.STREAMING_REYNOLDS.value))
+    return [(VA.STREAMING_REYNOLDS, rel,
+             f"step {step_index + 1} drives interface `{where}` to streaming Reynolds number R_s = {rs:.4g}, beyond "
+             f"the thrust law's Stokes outer flow (R_s <= {VA.STREAMING_REYNOLDS.value:g}; docs/physics.md): forces "
+             f"carry a model-form uncertainty of {rel:.0%} (Oseen's correction past the limit; acl.physics.validity)",
+             "lower the voltage to keep the streaming flow viscous, or calibrate the thrust at this drive (acl fit)")]
+
+
+def _monopole_distances(comp: CompileState, sched: Schedule) -> dict:
+    """{step: (smallest d/(R_a + R_b), orifice, orifice, d m)} over the pairs of orifices of two capsules, for every
+    step that plays a drive: the capsules at rest, a follow goal's capsule also at each predicted waypoint (its
+    displacement from rest; acl.analysis.report.orifice_gap)."""
+    from acl.analysis.report import orifice_gap
+
+    caps = comp.design.capsules
+    if len(caps) < 2:
+        return {}
+    rest = {c.name: np.asarray(c.center, float) for c in caps}
+    pairs = [(f"{a.name}.{x.name}", f"{b.name}.{y.name}", x.radius + y.radius)
+             for i, a in enumerate(caps) for b in caps[i + 1:] for x in a.orifices for y in b.orifices]
+
+    def smallest(positions, got):
+        for oa, ob, rsum in pairs:
+            d = orifice_gap(comp.design, oa, ob, positions)
+            if got is None or d / rsum < got[0] * (1 - TIE_RTOL):
+                got = (d / rsum, oa, ob, d)
+        return got
+
+    driven = sorted({s.step for s in sched.segments if any(t.amplitude_v > 0 for t in s.tones)})
+    at_rest = smallest(rest, None)
+    out = {}
+    for step in driven:
+        got = at_rest
+        for g in comp.goals:
+            pts = g.predicted_m if g.predicted_m is not None else g.target_m
+            if g.step != step or g.kind != "follow" or g.capsule not in rest or pts is None:
+                continue
+            c0 = rest[g.capsule]
+            for p in np.asarray(pts, float).reshape(-1, np.shape(pts)[-1]):
+                if np.all(np.isfinite(p)):
+                    moved = dict(rest)
+                    moved[g.capsule] = c0 + np.pad(p, (0, max(0, c0.size - p.size)))[:c0.size]
+                    got = smallest(moved, got)
+        out[step] = got
+    return out
+
+
+def _monopole_finding(step_index: int, got) -> list:
+    """[(limit, rel, message, hint)] for a step whose closest orifices of two capsules are nearer than the
+    point-monopole limit (none beyond it)."""
+    from acl.physics import validity as VA
+
+    if got is None or got[0] >= VA.MONOPOLE_DISTANCE.value:
+        return []
+    ratio, oa, ob, d = got
+    rel = float(VA.monopole_model_form(d, d / ratio))
+    return [(VA.MONOPOLE_DISTANCE, rel,
+             f"step {step_index + 1} drives orifices `{oa}` and `{ob}` {d * 1e6:.4g} um apart, {ratio:.3g} x the "
+             f"sum of their radii (point monopoles need >= {VA.MONOPOLE_DISTANCE.value:g} x; docs/physics.md): pair "
+             f"forces carry a model-form uncertainty of {rel:.0%} (acl.physics.validity)",
+             "keep the capsules further apart under this drive, or calibrate the pair force at this gap (acl fit)")]
+
+
+def _widen(comp: CompileState, sched: Schedule, step_index: int, found: list) -> None:
+    """Widen the error bands of the step's goals by the model-form force uncertainty of every limit it is past
+    (``found``), added in quadrature (independent corrections), times the goal's largest predicted displacement
+    (a switch: its margin's 5th percentile times 1 - rel); then one located warning per limit at the step."""
+    step = comp.program.steps[step_index]
+    rel = min(1.0, float(np.sqrt(sum(r * r for _, r, _, _ in found))))
     widened = []
     for g in comp.goals:
         if g.step != step_index:
             continue
         g.details["model_form_force_rel"] = rel
+        if [lim.code for lim, _, _, _ in found] != ["W-ACOUSTIC-AMPLITUDE"]:
+            g.details["model_form_force_rel_by_limit"] = {lim.code: r for lim, r, _, _ in found}
         band = g.details.get("band")
         if isinstance(band, dict) and band.get("margin_p05") is not None:     # a switch: the force may be lower
             band["margin_p05_model_form"] = float(band["margin_p05"]) * (1.0 - rel)
@@ -98,13 +210,13 @@ def _nonlinear_step(comp: CompileState, sched: Schedule, step_index: int, worst:
         if g.max_error_p95_m is not None:
             g.max_error_p95_m = float(np.hypot(g.max_error_p95_m, extra))
         widened.append(g.name)
-    msg = (f"{text}: forces carry a model-form uncertainty of {rel:.0%} (Q {q:.3g}; acl.physics.validity)"
-           + (f", added to the error band of {', '.join(widened)}" if widened else ""))
-    w = Diagnostic(VA.AMPLITUDE.code, Severity.WARNING, msg, step.span,
-                   "lower the voltage or move the tone off resonance to stay inside the validated linear model",
-                   notes=(VA.AMPLITUDE.evidence,))
-    sched.warnings.append(w)
-    comp.notes.append(f"warning: {msg}")
+    for lim, r, text, hint in found:
+        msg = text + (f", added to the error band of {', '.join(widened)}" if widened else "")
+        if len(found) > 1:
+            msg += f" (in quadrature with the step's other limits: {rel:.0%})"
+        w = Diagnostic(lim.code, Severity.WARNING, msg, step.span, hint, notes=(lim.evidence,))
+        sched.warnings.append(w)
+        comp.notes.append(f"warning: {msg}")
 
 
 def _steady_amplitudes(comp: CompileState, sched: Schedule) -> dict:
@@ -126,9 +238,9 @@ def _steady_amplitudes(comp: CompileState, sched: Schedule) -> dict:
     for freqs, rows in groups.items():
         eps = interface_amplitudes_batch(comp.design, freqs, np.array([a for _, a in rows], float))
         if not labels:
-            out.update({id(seg): ("", 0.0) for seg, _ in rows})
+            out.update({id(seg): ("", 0.0, {}) for seg, _ in rows})
             continue
         top = first_max(eps, axis=1)
         for (seg, _), k, row in zip(rows, np.atleast_1d(top), eps):
-            out[id(seg)] = (labels[int(k)], float(row[int(k)]))
+            out[id(seg)] = (labels[int(k)], float(row[int(k)]), dict(zip(labels, map(float, row))))
     return out
