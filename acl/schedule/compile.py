@@ -8,7 +8,7 @@ Entry point: :func:`compile_program`.  Steps map as follows (see docs/schedule.m
 * hold   -> one segment from the snap-in LP (:mod:`acl.schedule.hold`)
 
 After solving, each follow goal is re-simulated through a forward model (injected, default
-:func:`acl.schedule.gains.model_forward`) and its predicted tracking error is reported.  Multi-tone
+:func:`gains.model_forward`) and its predicted tracking error is reported.  Multi-tone
 phases are chosen for a low peak (:mod:`acl.schedule.phases`).  Problems become diagnostics.
 
 The compiler is a list of passes (:data:`PASSES`) run in order over one :class:`CompileState`; each pass
@@ -26,6 +26,7 @@ lives in its own module and only reads and writes that state (data flows one way
 from __future__ import annotations
 
 import functools
+from types import MappingProxyType
 
 from acl.design.model import Design, Program
 from acl.diagnostics import DiagnosticError, error
@@ -66,8 +67,8 @@ from acl.schedule.state import (  # noqa: F401  (re-exported: the compiler's pub
 
 _choose_all_phases = choose_all_phases   # the name tests/test_emit_fft.py uses
 
-STEP_PASSES = {"drive": ST.drive, "sweep": ST.sweep, "pause": ST.pause, "follow": ST.follow, "hold": ST.hold,
-               "switch": SW.switch}
+STEP_PASSES = MappingProxyType({"drive": ST.drive, "sweep": ST.sweep, "pause": ST.pause, "follow": ST.follow,
+                                "hold": ST.hold, "switch": SW.switch})   # step kind -> its pass (read only)
 
 
 def compile_program(design: Design, program: str | Program, options: CompileOptions | None = None) -> Schedule:
@@ -101,7 +102,7 @@ def plan_steps(comp: CompileState) -> None:
 
 
 def track_flips(comp: CompileState) -> None:
-    """A path or hold that may switch a latch: warned (W-SCHED-LATCH-FLIP; :func:`acl.schedule.latch_state.latch_track`)."""
+    """A path or hold that may switch a latch: warned (W-SCHED-LATCH-FLIP; :func:`latch_state.latch_track`)."""
     flips = [k for k, st in enumerate(comp.program.steps) if st.kind in FLIP_KINDS]
     if flips and comp.design.latches:
         LS.latch_track(comp, flips[-1] + 1)

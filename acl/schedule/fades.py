@@ -20,7 +20,7 @@ def crossfade(comp: CompileState, i: int, k: int) -> None:
     tone kept across the boundary with a counter-pushing tone that changes can push a latch over the force that
     switches it, or bring a held pair nearer snap-in, while each step alone is within its margin
     (acl.schedule.crossfade).  Checked: every bistable latch towards the state it is not in when step i starts
-    (:func:`acl.schedule.latch_state.latch_track`; an uncertain one both ways), unless step i is a switch of it to that state
+    (:func:`latch_state.latch_track`; an uncertain one both ways), unless step i is a switch of it to that state
     (:func:`_crossfade_latches`); the pair of a `hold ... above` on either side (:func:`_crossfade_holds`).
     Where the crossfade goes past the larger of the safe level (1/LATCH_STATE_MARGIN of the switching force, the
     hold's margin) and what either step alone does, a silent segment of ``ramp_s`` is inserted before step i:
@@ -35,7 +35,8 @@ def crossfade(comp: CompileState, i: int, k: int) -> None:
         return          # a drive fading from or into silence is only scaled: no tone mixes
     freqs, p, q, cos = _boundary_tones(before, after)
     found = []
-    for check, what in ((functools.partial(_crossfade_latches, comp), "latches"), (functools.partial(_crossfade_holds, comp), "held pairs")):
+    for check, what in ((functools.partial(_crossfade_latches, comp), "latches"),
+                        (functools.partial(_crossfade_holds, comp), "held pairs")):
         try:
             found += check(i, freqs, p, q, cos)
         except (DiagnosticError, KeyError, StopIteration, ValueError, ArithmeticError,

@@ -66,8 +66,8 @@ def _static_reach(comp: CompileState, goal: GoalReport):
     """(largest capsule displacement from rest, m, phrase) under a drive or sweep step; None if unknown.
 
     The analysis' mechanics (acl.analysis.mechanics.equilibrium: lone actuators, pairs, groups, springs,
-    latches) at the whole drive, from the latch states the step starts in (:func:`acl.schedule.latch_state.settle`; a latch an earlier
-    drive left in an uncertain state (:func:`acl.schedule.latch_state.latch_track`): from either state, the larger reach).  A sweep
+    latches) at the whole drive, from the latch states the step starts in (:func:`latch_state.settle`; a latch an earlier
+    drive left in an uncertain state (:func:`latch_state.latch_track`): from either state, the larger reach).  A sweep
     (a chirp of one tone) is taken at its worst frequency: the largest displacement over the band, sampled
     with every mode inside and refined (acoustics.band_maximum), each frequency held long enough to settle
     (quasi-static: what the analysis predicts everywhere).  A drive that snaps the mechanism in reports the

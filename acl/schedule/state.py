@@ -74,15 +74,15 @@ class CompileState:
     notes: list[str] = field(default_factory=list)
     t: float = 0.0
     vmax_seen: list[float] = field(default_factory=list)
-    states_memo: dict = field(default_factory=dict)     # step -> {latch: (state, certain, why)} (:func:`acl.schedule.latch_state.latch_track`)
+    states_memo: dict = field(default_factory=dict)     # step -> {latch: (state, certain, why)} (:func:`latch_state.latch_track`)
     switch_outcome: dict = field(default_factory=dict)  # switch step -> (state, certain, why) of its latch after it
     push_memo: dict = field(default_factory=dict)       # driven step -> its push on each latch (_push_ratios)
     step_warnings: list = field(default_factory=list)  # W-SCHED-LATCH-STATE (at a switch), -FLIP (a follow or hold),
     #                                                     W-SCHED-TRACKING (a follow's re-simulated miss)
-    settled: dict = field(default_factory=dict)         # (tones, latch states) -> :func:`acl.schedule.latch_state.settle`'s answer
-    branch_memo: dict = field(default_factory=dict)     # (tones, latch states, latch, to) -> :func:`acl.schedule.latch_state._branch_pushes`
+    settled: dict = field(default_factory=dict)         # (tones, latch states) -> :func:`latch_state.settle`'s answer
+    branch_memo: dict = field(default_factory=dict)     # (tones, latch states, latch, to) -> :func:`latch_state._branch_pushes`
     inner_goals: list = field(default_factory=list)     # goal records checked for coverage, not in schedule.json (sweeps)
-    forward_now: Callable | None = None                 # the current follow goal's forward provider (:func:`acl.schedule.steps._models_for`)
+    forward_now: Callable | None = None                 # the current follow goal's forward provider (:func:`steps._models_for`)
     many_now: Callable | None = None                    # (designs, capsule, freqs, u) -> [prediction]: one batch, or None
     gains_now: Callable | None = None                   # and its gain provider ((design, capsule, freqs) -> GainTable)
 
@@ -125,7 +125,7 @@ def drive_limit(design: Design, limits: Limits | None, opts: CompileOptions) -> 
 
 
 def is_fade(seg: Segment) -> bool:
-    """Whether ``seg`` is a silent segment inserted between two steps (:func:`acl.schedule.fades.crossfade`)."""
+    """Whether ``seg`` is a silent segment inserted between two steps (:func:`fades.crossfade`)."""
     return not seg.tones and (seg.goal or "").endswith(FADE_GOAL)
 
 

@@ -179,7 +179,7 @@ def _correct(comp: CompileState, name, capsule, choice, plan, points, dt, limits
 def _models_for(comp: CompileState, i: int, name: str):
     """(forward provider (design, capsule, freqs) -> (forward, name), gain provider (design, capsule, freqs=None) ->
     GainTable) of the follow goal of step ``i``: the injected ones, or acl.schedule.gains.model_forward and
-    model_gain_table from where the latch states put the capsules when the step starts (:func:`acl.schedule.latch_state.latch_track`;
+    model_gain_table from where the latch states put the capsules when the step starts (:func:`latch_state.latch_track`;
     each draw of a band or of --robust at its own travel).  Fig. 6f: after `switch ctl to b` partner faces arm_cap
     inside d_c and their attraction bends the beam the other way; planned and re-simulated from the declared
     state a, a path of arm_cap after the switch was predicted as if partner were 110 um away."""

@@ -15,7 +15,7 @@ from acl.schedule.state import CONTACT_CODE, LATCH_STATE_CODE, CompileState, add
 
 
 def switch(comp: CompileState, i, step: SwitchStep):
-    """Plan a switch from the state the latch is in when the step starts (:func:`acl.schedule.latch_state.latch_track`: earlier switches,
+    """Plan a switch from the state the latch is in when the step starts (:func:`latch_state.latch_track`: earlier switches,
     drives, sweeps, paths and holds).  Already there: nothing played.  Uncertain (a drive pushed it near its
     switching force): planned from the other state, which also leaves it in the wanted state if it is there
     already (the drive pushes it further in); when no drive does that within the limits, W-SCHED-LATCH-STATE at
@@ -238,7 +238,7 @@ def _switch_full_model(comp: CompileState, name, step: SwitchStep, used, j, sig,
     The LP plans with the force per V^2 at 1 V; a declared saturation makes the real force of the
     planned drive smaller.  The drive is scaled up (bisection: the force grows with the scale)
     until the latch gets ``margin`` x its switching force, within the limit; (tones, forces (L,)), the capsules at
-    ``positions`` (the latch states', :func:`acl.schedule.gains.state_positions`; None: at rest).
+    ``positions`` (the latch states', :func:`gains.state_positions`; None: at rest).
     """
     from acl.analysis.acoustics import force_model_for
 
