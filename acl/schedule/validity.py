@@ -47,9 +47,11 @@ def check_linear(comp: CompileState, sched: Schedule) -> None:
             if chirps:
                 amps = interface_amplitudes(comp.design, Drive(tones=tones))
                 k, v = first_max_item(amps)            # ties: the first declared interface, the first segment
+                _streaming(comp, stream_of, seg.step, amps, max(t.frequency for t in tones))
             else:                                      # steady tones: every segment's in one batch (below)
-                k, v, amps = steady[id(seg)]
-            _streaming(comp, stream_of, seg.step, amps, max(t.frequency for t in tones))
+                k, v, (rs, hot) = steady[id(seg)]
+                if rs > stream_of.get(seg.step, (0.0, ""))[0] * (1 + TIE_RTOL):
+                    stream_of[seg.step] = (rs, hot)
             if v > worst * (1 + TIE_RTOL):
                 worst, where = v, k
         worst_of[seg.step] = (worst, where)
@@ -98,6 +100,18 @@ def _nonlinear_step(comp: CompileState, step_index: int, worst: float, where: st
             "linear model")
 
 
+def _reynolds(comp: CompileState, labels, eps: np.ndarray, top_hz: float) -> np.ndarray:
+    """Streaming Reynolds numbers omega eps^2/nu (acl.physics.forces) (B, n) of eps/R ``eps`` (B, n) of the
+    interfaces ``labels`` at the drive's highest frequency ``top_hz`` (as analyze does)."""
+    from acl.physics.constants import WATER_20C
+    from acl.physics.forces import streaming_reynolds
+
+    med = comp.design.medium or WATER_20C
+    r = np.array([comp.design.capsule(k.split(".")[0]).orifice(k.split(".")[1]).radius for k in labels], float)
+    return np.atleast_2d(streaming_reynolds(np.asarray(eps, float) * r, 2 * np.pi * top_hz, med.density,
+                                            med.viscosity))
+
+
 def _streaming(comp: CompileState, stream_of: dict, step: int, amps: dict, top_hz: float) -> None:
     """Record in ``stream_of`` the largest streaming Reynolds number omega eps^2/nu (acl.physics.forces) of the
     interfaces ``amps`` ({interface: eps/R}) at the drive's highest frequency ``top_hz`` (as analyze does)."""
@@ -132,39 +146,32 @@ def _streaming_finding(step_index: int, got) -> list:
 
 def _monopole_distances(comp: CompileState, sched: Schedule) -> dict:
     """{step: (smallest d/(R_a + R_b), orifice, orifice, d m)} over the pairs of orifices of two capsules, for every
-    step that plays a drive: the capsules at rest, a follow goal's capsule also at each predicted waypoint (its
-    displacement from rest; acl.analysis.report.orifice_gap)."""
-    from acl.analysis.report import orifice_gap
-
+    step that plays a drive: the capsules at rest (each orifice at its declared centre), a follow goal's capsule also
+    displaced to each predicted waypoint (ties: the first pair declared)."""
     caps = comp.design.capsules
     if len(caps) < 2:
         return {}
-    rest = {c.name: np.asarray(c.center, float) for c in caps}
-    pairs = [(f"{a.name}.{x.name}", f"{b.name}.{y.name}", x.radius + y.radius)
+    pairs = [(a.name, b.name, f"{a.name}.{x.name}", f"{b.name}.{y.name}", x.radius + y.radius,
+              np.asarray(y.center, float) - np.asarray(x.center, float))
              for i, a in enumerate(caps) for b in caps[i + 1:] for x in a.orifices for y in b.orifices]
-
-    def smallest(positions, got):
-        for oa, ob, rsum in pairs:
-            d = orifice_gap(comp.design, oa, ob, positions)
-            if got is None or d / rsum < got[0] * (1 - TIE_RTOL):
-                got = (d / rsum, oa, ob, d)
-        return got
-
     driven = sorted({s.step for s in sched.segments if any(t.amplitude_v > 0 for t in s.tones)})
-    at_rest = smallest(rest, None)
     out = {}
     for step in driven:
-        got = at_rest
+        moves = []          # (capsule, (N, 3) displacements) of the step's follow goals
         for g in comp.goals:
             pts = g.predicted_m if g.predicted_m is not None else g.target_m
-            if g.step != step or g.kind != "follow" or g.capsule not in rest or pts is None:
-                continue
-            c0 = rest[g.capsule]
-            for p in np.asarray(pts, float).reshape(-1, np.shape(pts)[-1]):
-                if np.all(np.isfinite(p)):
-                    moved = dict(rest)
-                    moved[g.capsule] = c0 + np.pad(p, (0, max(0, c0.size - p.size)))[:c0.size]
-                    got = smallest(moved, got)
+            if g.step == step and g.kind == "follow" and g.capsule and pts is not None:
+                p = np.asarray(pts, float).reshape(-1, np.shape(pts)[-1])
+                p = p[np.all(np.isfinite(p), axis=1)]
+                moves.append((g.capsule, np.pad(p, ((0, 0), (0, max(0, 3 - p.shape[1]))))[:, :3]))
+        got = None
+        for ca, cb, oa, ob, rsum, v0 in pairs:
+            d = float(np.linalg.norm(v0))
+            for cap, disp in moves:
+                if len(disp) and cap in (ca, cb):       # b - a: a moved by u gives v0 - u, b moved gives v0 + u
+                    d = min(d, float(np.min(np.linalg.norm(v0 + (disp if cap == cb else -disp), axis=1))))
+            if got is None or d / rsum < got[0] * (1 - TIE_RTOL):
+                got = (d / rsum, oa, ob, d)
         out[step] = got
     return out
 
@@ -238,9 +245,11 @@ def _steady_amplitudes(comp: CompileState, sched: Schedule) -> dict:
     for freqs, rows in groups.items():
         eps = interface_amplitudes_batch(comp.design, freqs, np.array([a for _, a in rows], float))
         if not labels:
-            out.update({id(seg): ("", 0.0, {}) for seg, _ in rows})
+            out.update({id(seg): ("", 0.0, (0.0, "")) for seg, _ in rows})
             continue
         top = first_max(eps, axis=1)
-        for (seg, _), k, row in zip(rows, np.atleast_1d(top), eps):
-            out[id(seg)] = (labels[int(k)], float(row[int(k)]), dict(zip(labels, map(float, row))))
+        rs = _reynolds(comp, labels, eps, max(freqs))
+        hot = first_max(rs, axis=1)
+        for (seg, _), k, row, h, rrow in zip(rows, np.atleast_1d(top), eps, np.atleast_1d(hot), rs):
+            out[id(seg)] = (labels[int(k)], float(row[int(k)]), (float(rrow[int(h)]), labels[int(h)]))
     return out
