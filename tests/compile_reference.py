@@ -70,7 +70,7 @@ def close(a: float, b: float, rel: float = 1e-12) -> bool:
 def cmp_text(a: str, b: str) -> str | None:
     if a == b:
         return None
-    la, lb = a.splitlines(), b.splitlines()
+    la, lb = [x.rstrip() for x in a.splitlines()], [x.rstrip() for x in b.splitlines()]   # padding: path length
     if len(la) != len(lb):
         return f"{len(la)} vs {len(lb)} lines"
     for x, y in zip(la, lb):
