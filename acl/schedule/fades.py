@@ -33,7 +33,7 @@ def crossfade(comp: CompileState, i: int, k: int) -> None:
     before, after = comp.segments[k - 1], comp.segments[k]
     if not any(t.amplitude_v > 0 for t in before.tones) or not any(t.amplitude_v > 0 for t in after.tones):
         return          # a drive fading from or into silence is only scaled: no tone mixes
-    freqs, p, q, cos = _boundary_tones(before, after)
+    freqs, p, q, cos = boundary_tones(before, after)
     found = []
     for check, what in ((functools.partial(_crossfade_latches, comp), "latches"),
                         (functools.partial(_crossfade_holds, comp), "held pairs")):
@@ -211,7 +211,7 @@ def _fade_slew(comp: CompileState, before: Segment, after: Segment) -> str | Non
     return None
 
 
-def _boundary_tones(before: Segment, after: Segment) -> tuple[list[float], np.ndarray, np.ndarray, np.ndarray]:
+def boundary_tones(before: Segment, after: Segment) -> tuple[list[float], np.ndarray, np.ndarray, np.ndarray]:
     """(frequencies Hz, amplitudes V before, after, cos of the phase difference or NaN) of the tones the renderer
     crossfades at the boundary between ``before`` and ``after``.
 
