@@ -117,3 +117,18 @@ def test_only_a_meaningless_drive_is_refused(tmp_path):
     assert e.code == "E-SCHED-NONLINEAR" and e.span.line == d.program("p").steps[1].span.line
     s = compile_program(d, "p", CompileOptions(max_voltage=100.0, allow_nonlinear=True))
     assert any("allowed by --allow-nonlinear" in n for n in s.notes)
+
+
+@pytest.mark.parametrize("upper, widened", [("5 V", False), ("2 V", True)])
+def test_inside_the_range_a_calibration_covered_the_streaming_limit_adds_no_uncertainty(upper, widened):
+    # the thrust constant of a calibrated design was fitted on data taken there (acl fit writes `covered(...)`): the
+    # warning stays, the model-form uncertainty is 0; a drive beyond the covered voltage is extrapolated: widened
+    src = CANTILEVER.read_text()
+    head = src[:src.index("\nprogram ") + 1]
+    d = acl.loads(head + f"uncertainty {{\n  covered(voltage) = 0 V .. {upper}\n}}\n"
+                  "program p {\n  drive 125 kHz @ 3 V for 10 ms\n}\n", filename=str(ROOT / "examples" / "c.acl"))
+    s = compile_program(d, "p")
+    (w,) = [w for w in s.warnings if w.code == "W-ACOUSTIC-STREAMING"]
+    rel = s.goals[0].details["model_form_force_rel"]
+    assert (rel > 0.01) == widened
+    assert ("inside the range the design's calibration covered" in w.message) != widened

@@ -64,7 +64,7 @@ def check_linear(comp: CompileState, sched: Schedule) -> None:
             if got is None:
                 continue           # past the hemisphere, allowed by --allow-nonlinear: noted, no band has a meaning
             found.append(got)
-        found += _streaming_finding(step_index, stream_of.get(step_index))
+        found += _streaming_finding(step_index, stream_of.get(step_index), _calibrated_at(comp, sched, step_index))
         found += _monopole_finding(step_index, near.get(step_index))
         if found:
             _widen(comp, sched, step_index, found)
@@ -129,19 +129,45 @@ def _streaming(comp: CompileState, stream_of: dict, step: int, amps: dict, top_h
     stream_of[step] = (best, where)
 
 
-def _streaming_finding(step_index: int, got) -> list:
-    """[(limit, rel, message, hint)] for a step past the streaming Reynolds limit (none inside it)."""
+def _calibrated_at(comp: CompileState, sched: Schedule, step_index: int) -> str | None:
+    """The covered ranges of the design's calibration (``uncertainty { covered(...) }``, acl fit) when the step's drive
+    lies inside them (voltage: the sum of its segments' amplitudes; frequency: every tone, a chirp's whole band), else
+    None: the thrust constant was then fitted on data taken at that drive, so its regime is measured, not extrapolated."""
+    cover = {c.quantity: c for c in comp.design.coverage}
+    segs = [g for g in sched.segments if g.step == step_index and g.tones]
+    if "voltage" not in cover or not segs:
+        return None
+    tol = 1e-9
+    v = max(g.amplitude_sum() for g in segs)
+    if not cover["voltage"].lower * (1 - tol) <= v <= cover["voltage"].upper * (1 + tol):
+        return None
+    if "frequency" in cover:
+        lo, hi = cover["frequency"].lower, cover["frequency"].upper
+        fs = [f for g in segs for t in g.tones if t.amplitude_v > 0 for f in (t.frequency_hz, t.frequency_end_hz or t.frequency_hz)]
+        if any(not lo * (1 - tol) <= f <= hi * (1 + tol) for f in fs):
+            return None
+    return ", ".join(f"covered({q}) at {c.span.line}" if c.span else f"covered({q})" for q, c in cover.items()
+                     if q in ("voltage", "frequency"))
+
+
+def _streaming_finding(step_index: int, got, calibrated: str | None = None) -> list:
+    """[(limit, rel, message, hint)] for a step past the streaming Reynolds limit (none inside it); inside the covered
+    range of the design's calibration (``calibrated``) warned with no model-form uncertainty (the data are the
+    evidence)."""
     from acl.physics import validity as VA
 
     if got is None or got[0] <= VA.STREAMING_REYNOLDS.value:
         return []
     rs, where = got
+    text = (f"step {step_index + 1} drives interface `{where}` to streaming Reynolds number R_s = {rs:.4g}, beyond "
+            f"the thrust law's Stokes outer flow (R_s <= {VA.STREAMING_REYNOLDS.value:g}; docs/physics.md)")
+    hint = "lower the voltage to keep the streaming flow viscous, or calibrate the thrust at this drive (acl fit)"
+    if calibrated:
+        return [(VA.STREAMING_REYNOLDS, 0.0, f"{text}: inside the range the design's calibration covered ({calibrated}),"
+                 " so its thrust was fitted there and no model-form uncertainty is added", hint)]
     rel = float(VA.streaming_model_form(rs, VA.STREAMING_REYNOLDS.value))
-    return [(VA.STREAMING_REYNOLDS, rel,
-             f"step {step_index + 1} drives interface `{where}` to streaming Reynolds number R_s = {rs:.4g}, beyond "
-             f"the thrust law's Stokes outer flow (R_s <= {VA.STREAMING_REYNOLDS.value:g}; docs/physics.md): forces "
-             f"carry a model-form uncertainty of {rel:.0%} (Oseen's correction past the limit; acl.physics.validity)",
-             "lower the voltage to keep the streaming flow viscous, or calibrate the thrust at this drive (acl fit)")]
+    return [(VA.STREAMING_REYNOLDS, rel, f"{text}: forces carry a model-form uncertainty of {rel:.0%} (Oseen's "
+             "correction past the limit; acl.physics.validity)", hint)]
 
 
 def _monopole_distances(comp: CompileState, sched: Schedule) -> dict:
@@ -218,8 +244,8 @@ def _widen(comp: CompileState, sched: Schedule, step_index: int, found: list) ->
             g.max_error_p95_m = float(np.hypot(g.max_error_p95_m, extra))
         widened.append(g.name)
     for lim, r, text, hint in found:
-        msg = text + (f", added to the error band of {', '.join(widened)}" if widened else "")
-        if len(found) > 1:
+        msg = text + (f", added to the error band of {', '.join(widened)}" if widened and r > 0 else "")
+        if len(found) > 1 and r > 0:
             msg += f" (in quadrature with the step's other limits: {rel:.0%})"
         w = Diagnostic(lim.code, Severity.WARNING, msg, step.span, hint, notes=(lim.evidence,))
         sched.warnings.append(w)
