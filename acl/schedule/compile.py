@@ -1550,6 +1550,13 @@ class _Compiler:
                                   f"{', '.join(f'{f / 1e3:g}' for f in off)} kHz (measured: "
                                   f"{', '.join(f'{f / 1e3:g}' for f, _ in pin)} kHz): the band keeps the table's "
                                   f"{self.design.transducer.gain_uncertainty:.0%} prior there")
+        from acl.schedule import experiment     # the band's cause and the reading that narrows it (band's hook)
+        ex = experiment.explain(self.design, lambda ds, f, uu: self.many_now(ds, capsule, f, uu) if self.many_now else
+                                [provider(d, capsule, f)[0](uu) for d in ds], capsule, rep.frequencies_hz, u, targets,
+                                reload=self.opts.reload, band=band, seed=self.opts.band_seed)
+        if ex is not None:
+            rep.details["band"]["cause"] = ex
+            self.notes.append(experiment.summary(rep.name, ex))
         if band.failed:
             self.notes.append(f"{rep.name}: {band.failed} of {self.opts.band_samples} uncertainty draws lost the "
                               "equilibrium (snap-in) or did not resolve; they count as missing the path")
