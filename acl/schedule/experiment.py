@@ -134,7 +134,8 @@ def _score(J2: np.ndarray, S: np.ndarray) -> float:
 
 def candidates(design: Design, tones, u: np.ndarray) -> list[tuple[float, float]]:
     """[(tone Hz, volts)]: each goal tone and each gain-table frequency inside the transducer's band, at the largest
-    single-tone amplitude the goal plays and at half of it (a range the plan already drives)."""
+    single-tone amplitude the goal plays, at half and at a quarter of it (a range the plan already drives; :func:`explain`
+    keeps those that move the capsule at most twice as far as the path reaches)."""
     t = design.transducer
     fs = {float(f) for f in tones}
     if t is not None:
@@ -143,7 +144,7 @@ def candidates(design: Design, tones, u: np.ndarray) -> list[tuple[float, float]
     v = float(np.sqrt(np.max(u))) if u.size else 0.0
     if v <= 0:
         return []
-    return [(f, x) for f in sorted(fs) for x in (v / 2, v)]
+    return [(f, x) for f in sorted(fs) for x in (v / 4, v / 2, v)]
 
 
 def explain(design: Design, many: Many, capsule: str, tones, u: np.ndarray, targets: np.ndarray, *,
@@ -178,6 +179,7 @@ def explain(design: Design, many: Many, capsule: str, tones, u: np.ndarray, targ
            "monte_carlo_rms_p95_m": None if band is None else float(band.rms_p95_m)}
     # the experiment: readings chosen greedily to minimise the expected squared tracking error
     cands = candidates(design, tones, u)
+    reach = float(np.max(np.linalg.norm(tg, axis=1)))      # the path's farthest point from rest
     H = {}
     by_tone: dict = {}
     for f, x in cands:
@@ -188,7 +190,7 @@ def explain(design: Design, many: Many, capsule: str, tones, u: np.ndarray, targ
         except (ValueError, KeyError, FloatingPointError):
             continue
         for r, x in enumerate(vs):
-            if np.all(np.isfinite(y0[r])):
+            if np.all(np.isfinite(y0[r])) and np.linalg.norm(y0[r]) <= 2 * reach:
                 H[(f, x)] = (Hf[r], y0[r])
     J2 = J.reshape(-1, J.shape[-1]) / np.sqrt(J.shape[0])
     S, chosen, best = R.copy(), [], _score(J2, R)
@@ -232,3 +234,60 @@ def summary(name: str, ex: dict) -> str:
               f"per axis): expected band after recompiling with the measured values "
               f"{m['expected_rms_p95_m'] * 1e6:.3g} um RMS / {m['expected_max_p95_m'] * 1e6:.3g} um max")
     return s
+
+
+def moved(design: Design, z, reload=None) -> Design:
+    """The design with every source of :func:`directions` moved by ``z`` sds at once (a truth drawn from the prior, or
+    the estimate a measurement gives)."""
+    unc = bands.declared(design, with_params=reload is not None)
+    dirs, _ = directions(design, reload)
+    z = np.asarray(z, float)
+    ng = sum(1 for d in dirs if d[1] == "gain")
+    d = design
+    if len(dirs) > ng:
+        theta = unc.mean.copy()
+        sd = np.sqrt(np.maximum(np.diag(unc.cov), 0.0))
+        live = [i for i in range(len(unc.names)) if sd[i] > 0]
+        theta[live] = theta[live] + z[ng:] * sd[live]
+        d = bands._with_params(design, unc, theta, reload)
+    if ng:
+        d = bands._with_gain(d, np.exp(unc.gain_sds * z[:ng]))
+    return d
+
+
+def estimate(R: np.ndarray, readings) -> tuple[np.ndarray, np.ndarray]:
+    """(posterior mean, covariance) of the sources (in sds) from ``readings`` [(H (2, D), observed - nominal (2,) m,
+    noise m)]: the linear Gaussian update of the prior N(0, R), one reading after the other."""
+    m, S = np.zeros(R.shape[0]), R.copy()
+    for H, r, noise in readings:
+        G = H @ S @ H.T + noise ** 2 * np.eye(H.shape[0])
+        K = S @ H.T @ np.linalg.inv(G)
+        m = m + K @ (np.asarray(r, float) - H @ m)
+        S = S - K @ H @ S
+    return m, S
+
+
+def fit_readings(design: Design, many: Many, readings, observed, noise: float, reload=None,
+                 iterations: int = 6) -> np.ndarray:
+    """The sources (in sds) that readings ``[(tone Hz, volts)]`` with ``observed`` displacements ((2,) m each) point to:
+    the maximum a posteriori estimate under the prior N(0, R), by Gauss-Newton with the Jacobian taken again at each
+    estimate (a reading's displacement grows as the gain squared, so the nominal slope alone over- or undershoots)."""
+    dirs, R = directions(design, reload)
+    D = len(dirs)
+    z = np.zeros(D)
+    y = np.concatenate([np.asarray(o, float) for o in observed])
+    for _ in range(iterations):
+        rows, hs = [], []
+        for f, v in readings:
+            zs = [z] + [z + s * STEP * e for e in np.eye(D) for s in (1, -1)]
+            got = many([moved(design, x, reload) for x in zs], [f], np.array([[v * v]]))
+            got = [np.asarray(g, float)[0] for g in got]
+            hs.append(got[0])
+            rows.append(np.stack([(got[1 + 2 * j] - got[2 + 2 * j]) / (2 * STEP) for j in range(D)], axis=1))
+        H, h = np.concatenate(rows), np.concatenate(hs)
+        G = H @ R @ H.T + noise ** 2 * np.eye(len(y))
+        new = R @ H.T @ np.linalg.solve(G, y - h + H @ z)
+        if np.max(np.abs(new - z)) < 1e-4:
+            return new
+        z = new
+    return z
