@@ -129,3 +129,39 @@ def test_compile_cli_prints_and_writes_the_cause(tmp_path):
     cause = data["goals"][0]["details"]["band"]["cause"]
     assert cause["measurement"]["readings"] and cause["sources"][0]["share"] > 0
     assert any("dominant cause" in n for n in data["notes"])
+
+
+def test_plot_draws_the_band_around_the_path(circle, tmp_path):
+    pytest.importorskip("matplotlib")
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from matplotlib.patches import Ellipse
+
+    from acl.emit import plot
+
+    g = circle.goals[0]
+    seen = {}
+    import matplotlib.figure
+
+    orig = matplotlib.figure.Figure.savefig
+
+    def grab(fig, *a, **k):
+        seen["fig"] = fig
+        return orig(fig, *a, **k)
+
+    matplotlib.figure.Figure.savefig = grab
+    try:
+        plot.plot_goal(g, str(tmp_path / "g.png"))
+    finally:
+        matplotlib.figure.Figure.savefig = orig
+    ax = seen["fig"].axes[0]
+    ells = [p for p in ax.patches if isinstance(p, Ellipse)]
+    n = len(g.details["band"]["cause"]["waypoints_m"])
+    assert len(ells) == 2 * n          # the band and the band after the proposed readings
+    labels = ax.get_legend_handles_labels()[1]
+    assert any(lb.startswith("95 % band (declared") for lb in labels)
+    assert any("after the proposed readings" in lb for lb in labels)
+    # the prior band is wider than the path's own error and contains each predicted waypoint
+    assert max(e.width for e in ells[:n]) > 1.0          # um
+    assert (tmp_path / "g.png").stat().st_size > 10_000

@@ -132,6 +132,12 @@ def _score(J2: np.ndarray, S: np.ndarray) -> float:
     return float(np.trace(J2 @ S @ J2.T))
 
 
+def _covs(J: np.ndarray, S: np.ndarray) -> list:
+    """[[xx, xy, yy]] m^2 per waypoint: ``J_i S J_i^T``."""
+    C = np.einsum("nad,de,nbe->nab", J, S, J)
+    return [[float(c[0, 0]), float(c[0, 1]), float(c[1, 1])] for c in C]
+
+
 def candidates(design: Design, tones, u: np.ndarray) -> list[tuple[float, float]]:
     """[(tone Hz, volts)]: each goal tone and each gain-table frequency inside the transducer's band, at the largest
     single-tone amplitude the goal plays, at half and at a quarter of it (a range the plan already drives; :func:`explain`
@@ -176,7 +182,10 @@ def explain(design: Design, many: Many, capsule: str, tones, u: np.ndarray, targ
     gain_share = float(sum(shares[j] for j in range(len(dirs)) if dirs[j][1] == "gain"))
     out = {"sources": sources, "gain_table_share": round(gain_share, 4),
            "linearised_rms_p95_m": rms0, "linearised_max_p95_m": max0,
-           "monte_carlo_rms_p95_m": None if band is None else float(band.rms_p95_m)}
+           "monte_carlo_rms_p95_m": None if band is None else float(band.rms_p95_m),
+           # per re-simulated waypoint: predicted position and the 2x2 covariance the sources give it (the plot's band)
+           "waypoints_m": [[float(a), float(b)] for a, b in p0],
+           "cov_m2": _covs(J, R)}
     # the experiment: readings chosen greedily to minimise the expected squared tracking error
     cands = candidates(design, tones, u)
     reach = float(np.max(np.linalg.norm(tg, axis=1)))      # the path's farthest point from rest
@@ -212,6 +221,7 @@ def explain(design: Design, many: Many, capsule: str, tones, u: np.ndarray, targ
             "readings": [{"frequency_hz": f, "voltage_v": round(x, 4),
                           "expected_displacement_m": [float(a) for a in H[(f, x)][1]]} for f, x in chosen],
             "expected_rms_p95_m": rms1, "expected_max_p95_m": max1,
+            "cov_after_m2": _covs(J, S),
             "posterior_sd": [{"source": dirs[j][0], "prior": 1.0, "after": round(float(post_sd[j]), 4)}
                              for j in order[:3]],
         }
