@@ -1,0 +1,82 @@
+"""Figures that explain themselves (issue 28): modal_response over the transducer's band and smooth, residual axes
+in one unit per kind, fit.png titles inside the figure, phases written in [0, 2 pi)."""
+from __future__ import annotations
+
+import math
+import os
+
+import numpy as np
+import pytest
+
+import acl
+from acl.emit.schedule_json import wrapped_phase
+
+ROOT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..")
+FIG3 = os.path.join(ROOT, "examples", "fig3_three_orifice.acl")
+
+
+def test_phases_are_written_in_zero_to_two_pi():
+    assert wrapped_phase(2 * math.pi) == 0.0
+    assert wrapped_phase(2 * math.pi - 1e-12) == 0.0
+    assert wrapped_phase(-0.5) == pytest.approx(2 * math.pi - 0.5)
+    assert wrapped_phase(7.0) == pytest.approx(7.0 - 2 * math.pi)
+    assert wrapped_phase(1.25) == 1.25
+
+
+def test_segments_csv_has_no_phase_of_two_pi(tmp_path):
+    from acl.cli import main
+
+    out = tmp_path / "o"
+    assert main(["compile", FIG3, "--program", "circle", "-o", str(out), "--band-samples", "0", "-q"]) == 0
+    rows = (out / "segments.csv").read_text().splitlines()[1:]
+    phases = [float(r.split(",")[5]) for r in rows if r.split(",")[5]]
+    assert phases and all(0 <= p < 2 * math.pi - 1e-9 for p in phases)
+
+
+def test_residual_axes_use_one_unit_per_kind():
+    from acl.fit.report import covariate_axis
+
+    x, label = covariate_axis("frequency", np.array([72.5e3]))
+    assert label == "frequency (kHz)" and x[0] == pytest.approx(72.5)
+    x, label = covariate_axis("predicted deflection", np.array([3e-6]))
+    assert label.endswith("(um)") and x[0] == pytest.approx(3.0)
+    assert covariate_axis("height", np.array([1e-4]))[1] == "height (um)"
+    assert covariate_axis("voltage", np.array([2.0]))[1] == "voltage (V)"
+
+
+def test_modal_response_is_limited_to_the_band_and_smooth(tmp_path, monkeypatch):
+    pytest.importorskip("matplotlib")
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.figure
+
+    from acl.emit import analysis_figures
+
+    design = acl.load(FIG3)
+    figs = []
+    orig = matplotlib.figure.Figure.savefig
+    monkeypatch.setattr(matplotlib.figure.Figure, "savefig", lambda fig, *a, **k: (figs.append(fig), orig(fig, *a, **k))[1])
+    from acl.analysis.report import analyze
+
+    analysis_figures.write_figures(design, analyze(design, None, snap_in=False), str(tmp_path))
+    fig = next(f for f in figs if f.axes and "Modal response" in f.axes[0].get_title())
+    ax = fig.axes[0]
+    lo, hi = (b / 1e3 for b in design.transducer.band)
+    assert ax.get_xlim() == pytest.approx((lo, hi))
+    assert "per pascal" in ax.get_ylabel()
+    for line in ax.get_lines():
+        x, y = line.get_data()
+        if len(x) < 10:
+            continue                       # a mode marker
+        assert x.min() >= lo - 1e-9 and x.max() <= hi + 1e-9
+        # no kink at the gain table's points: the slope of log y changes smoothly there
+        t = design.transducer
+        ly = np.log(np.asarray(y, float))
+        d2 = np.abs(np.diff(ly, 2))
+        for ft in t.gain_frequencies:
+            k = int(np.argmin(np.abs(np.asarray(x) - ft / 1e3)))
+            if 5 <= k < len(d2) - 5:      # a kink: a spike of the second difference at one sample, not its neighbours'
+                near = d2[k - 2:k + 1].max()
+                around = max(d2[k - 5], d2[k + 4])
+                assert near <= 3 * around + 1e-9, (ft, near, around)
