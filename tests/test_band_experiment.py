@@ -44,7 +44,7 @@ def test_each_band_names_its_dominant_cause_and_a_measurement(circle):
     for g in circle.goals:
         ex = g.details["band"]["cause"]
         shares = [s["share"] for s in ex["sources"]]
-        assert abs(sum(shares) - 1) < 1e-3 and shares == sorted(shares, reverse=True)
+        assert abs(sum(shares) + ex["other_sources_share"] - 1) < 1e-3 and shares == sorted(shares, reverse=True)
         # the stdlib table declares 30 % and fig3 no uncertain parameter: the gain table is the whole cause
         assert ex["gain_table_share"] == pytest.approx(1.0, abs=1e-3)
         assert ex["sources"][0]["kind"] == "gain"
@@ -157,7 +157,8 @@ def test_plot_draws_the_band_around_the_path(circle, tmp_path):
         matplotlib.figure.Figure.savefig = orig
     ax = seen["fig"].axes[0]
     ells = [p for p in ax.patches if isinstance(p, Ellipse)]
-    n = len(g.details["band"]["cause"]["waypoints_m"])
+    n = len(g.band_plot["waypoints_m"])
+    assert "plot" not in g.details["band"]["cause"]          # kept off schedule.json
     assert len(ells) == 2 * n          # the band and the band after the proposed readings
     labels = ax.get_legend_handles_labels()[1]
     assert any(lb.startswith("95 % band (declared") for lb in labels)

@@ -80,3 +80,28 @@ def test_modal_response_is_limited_to_the_band_and_smooth(tmp_path, monkeypatch)
                 near = d2[k - 2:k + 1].max()
                 around = max(d2[k - 5], d2[k + 4])
                 assert near <= 3 * around + 1e-9, (ft, near, around)
+
+
+def test_steps_are_counted_from_one_everywhere(tmp_path):
+    """Issue 28, Counting: schedule.json (segments and goals), the notebook, segments.csv and the CLI's goal names
+    all count program steps from 1."""
+    import json
+
+    from acl.cli import main
+
+    out = tmp_path / "o"
+    assert main(["compile", FIG3, "--program", "circle", "-o", str(out), "--band-samples", "0", "-q"]) == 0
+    doc = json.loads((out / "schedule.json").read_text())
+    assert doc["version"] == "1.2"
+    assert sorted({s["step"] for s in doc["segments"]}) == [1, 2]
+    assert [g["step"] for g in doc["goals"]] == [1, 2]
+    for g in doc["goals"]:
+        assert g["name"].startswith(f"step {g['step']}:")
+    csv_steps = {int(r.split(",")[0]) for r in (out / "segments.csv").read_text().splitlines()[1:]}
+    assert csv_steps == {1, 2}
+    from acl.notebook import Compiled
+    from acl.schedule.compile import CompileOptions, compile_program
+
+    c = Compiled.from_schedule(compile_program(acl.load(FIG3), "circle", CompileOptions(band_samples=0)))
+    assert sorted({s.step for s in c.segments}) == [1, 2] and [g["step"] for g in c.goals] == [1, 2]
+    assert c.as_dict()["segments"][0]["step"] == 1

@@ -43,12 +43,13 @@ def plot_goal(goal: GoalReport, path: str) -> None:
         ok = np.all(np.isfinite(pred), axis=1)
         ax1.plot(pred[ok, 0], pred[ok, 1], "b.", ms=2.5, label=f"predicted ({goal.model})", zorder=3)
     cause = ((goal.details or {}).get("band") or {}).get("cause") or {}
-    _band(ax1, cause.get("waypoints_m"), cause.get("cov_m2"), "tab:orange",
+    bp = goal.band_plot or {}
+    _band(ax1, bp.get("waypoints_m"), bp.get("cov_m2"), "tab:orange",
           f"95 % band (declared uncertainty; RMS p95 {goal.rms_error_p95_m * 1e6:.3g} um)"
           if goal.rms_error_p95_m is not None else "95 % band (declared uncertainty)")
     after = cause.get("measurement") or {}
-    if after.get("cov_after_m2"):
-        _band(ax1, cause["waypoints_m"], after["cov_after_m2"], "tab:green",
+    if after and bp.get("cov_after_m2"):
+        _band(ax1, bp["waypoints_m"], bp["cov_after_m2"], "tab:green",
               f"95 % band after the proposed readings ({after['expected_rms_p95_m'] * 1e6:.3g} um)")
     ax1.plot([0], [0], "k+", ms=8, label="rest")
     ax1.set_aspect("equal", adjustable="datalim")

@@ -43,7 +43,7 @@ def schedule_dict(schedule: Schedule, sample_rate: float, stats=None, files: dic
                 d["frequency_end_hz"] = t.frequency_end_hz
                 d["sweep"] = t.sweep
             tones.append(d)
-        segs.append({"start_s": s.start_s, "end_s": s.end_s, "step": s.step, "goal": s.goal,
+        segs.append({"start_s": s.start_s, "end_s": s.end_s, "step": s.step + 1, "goal": s.goal,
                      "peak_v": s.peak_v, "tones": tones})
     out = {
         "version": schedule.version,

@@ -1555,6 +1555,7 @@ class _Compiler:
                                 [provider(d, capsule, f)[0](uu) for d in ds], capsule, rep.frequencies_hz, u, targets,
                                 reload=self.opts.reload, band=band, seed=self.opts.band_seed)
         if ex is not None:
+            rep.band_plot = ex.pop("plot", None)
             rep.details["band"]["cause"] = ex
             self.notes.append(experiment.summary(rep.name, ex))
         if band.failed:

@@ -34,6 +34,7 @@ READING_NOISE_M = 0.1e-6
 STEP = 0.5                 # finite-difference step, in sds (central differences)
 MAX_READINGS = 4           # at most this many readings proposed
 DRAWS = 4000               # draws of the linearised band
+TOP = 3                    # sources listed (largest shares first)
 
 
 Many = Callable[[list, list, np.ndarray], list]     # (designs, tones Hz, u (N, K) V^2) -> [(N, 2) m or exception]
@@ -178,14 +179,15 @@ def explain(design: Design, many: Many, capsule: str, tones, u: np.ndarray, targ
     shares = v / total if total > 0 else np.zeros_like(v)
     order = np.argsort(-shares)
     sources = [{"source": dirs[j][0], "kind": dirs[j][1], "frequency_hz": dirs[j][2], "sd": dirs[j][3],
-                "share": round(float(shares[j]), 4)} for j in order]
+                "share": round(float(shares[j]), 4)} for j in order[:TOP]]
     gain_share = float(sum(shares[j] for j in range(len(dirs)) if dirs[j][1] == "gain"))
     out = {"sources": sources, "gain_table_share": round(gain_share, 4),
+           "other_sources_share": round(float(shares[order[TOP:]].sum()), 4),
            "linearised_rms_p95_m": rms0, "linearised_max_p95_m": max0,
            "monte_carlo_rms_p95_m": None if band is None else float(band.rms_p95_m),
-           # per re-simulated waypoint: predicted position and the 2x2 covariance the sources give it (the plot's band)
-           "waypoints_m": [[float(a), float(b)] for a, b in p0],
-           "cov_m2": _covs(J, R)}
+           # per re-simulated waypoint: predicted position and the 2x2 covariance the sources give it (the plot's band;
+           # the compiler keeps it off schedule.json)
+           "plot": {"waypoints_m": [[float(a), float(b)] for a, b in p0], "cov_m2": _covs(J, R)}}
     # the experiment: readings chosen greedily to minimise the expected squared tracking error
     cands = candidates(design, tones, u)
     reach = float(np.max(np.linalg.norm(tg, axis=1)))      # the path's farthest point from rest
@@ -214,6 +216,7 @@ def explain(design: Design, many: Many, capsule: str, tones, u: np.ndarray, targ
         S, best = update(S, H[c][0], noise), trial[c]
     if chosen:
         rms1, max1 = linear_band(e0, J, S, disc, seed)
+        out["plot"]["cov_after_m2"] = _covs(J, S)
         post_sd = np.sqrt(np.maximum(np.diag(S), 0.0))
         out["measurement"] = {
             "observable": f"static displacement (x, y) of capsule `{capsule}` under one tone",
@@ -221,7 +224,6 @@ def explain(design: Design, many: Many, capsule: str, tones, u: np.ndarray, targ
             "readings": [{"frequency_hz": f, "voltage_v": round(x, 4),
                           "expected_displacement_m": [float(a) for a in H[(f, x)][1]]} for f, x in chosen],
             "expected_rms_p95_m": rms1, "expected_max_p95_m": max1,
-            "cov_after_m2": _covs(J, S),
             "posterior_sd": [{"source": dirs[j][0], "prior": 1.0, "after": round(float(post_sd[j]), 4)}
                              for j in order[:3]],
         }
