@@ -105,3 +105,49 @@ def test_steps_are_counted_from_one_everywhere(tmp_path):
     c = Compiled.from_schedule(compile_program(acl.load(FIG3), "circle", CompileOptions(band_samples=0)))
     assert sorted({s.step for s in c.segments}) == [1, 2] and [g["step"] for g in c.goals] == [1, 2]
     assert c.as_dict()["segments"][0]["step"] == 1
+
+
+def test_fit_png_titles_lie_inside_the_figure_and_residual_axes_carry_units(tmp_path, monkeypatch):
+    pytest.importorskip("matplotlib")
+
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.figure
+
+    from acl.cli import main
+    from acl.fit.synth import Experiment, generate, write_csv
+
+    pair = os.path.join(ROOT, "tests", "data", "fit_pair.acl")
+    text = open(pair, encoding="utf-8").read().replace("observe distance =", "observe orifice_distance_between_jets =")
+    (tmp_path / "fit_pair.acl").write_text(text, encoding="utf-8")
+    ex = Experiment(frequencies=(125e3,), voltages=tuple(np.linspace(0, 4, 9)), sets={"gap": ["30 um", "50 um"]})
+    data, _ = generate(str(tmp_path / "fit_pair.acl"), ex, noise=0.3e-6, seed=2, coeffs={"alpha": 174.5e-21, "gamma": 0.027e-9})
+    write_csv(data, str(tmp_path / "d.csv"))
+    figs = {}
+    orig = matplotlib.figure.Figure.savefig
+
+    def grab(fig, path, *a, **k):
+        out = orig(fig, path, *a, **k)
+        figs[os.path.basename(str(path))] = fig
+        return out
+
+    monkeypatch.setattr(matplotlib.figure.Figure, "savefig", grab)
+    assert main(["fit", str(tmp_path / "fit_pair.acl"), str(tmp_path / "d.csv"), "--free", "alpha",
+                 "--report", str(tmp_path / "rep"), "--effects", "none"]) == 0
+    fig = figs["fit.png"]
+    fig.canvas.draw()
+    box = fig.bbox
+    titled = [ax for ax in fig.axes if ax.get_title()]
+    assert len(titled) >= 2                      # before and after
+    for ax in titled:         # a long observable name (above): each title within its own panel
+        assert ax.title.get_window_extent().width <= ax.get_window_extent().width + 0.5, ax.get_title()
+    ext = sorted((ax.title.get_window_extent() for ax in titled), key=lambda t: t.x0)
+    for t in ext:
+        assert box.x0 - 0.5 <= t.x0 and t.x1 <= box.x1 + 0.5, (t, box)         # not cut at the figure's edge
+    for a, b in zip(ext, ext[1:]):
+        assert a.x1 <= b.x0 or a.y1 <= b.y0 or b.y1 <= a.y0, (a, b)           # nor run into the next panel's
+    res = figs["residuals.png"]
+    labels = [ax.get_xlabel() for ax in res.axes]
+    assert "frequency (kHz)" in labels and "voltage (V)" in labels
+    assert all(lb.endswith(")") for lb in labels)

@@ -367,6 +367,7 @@ def figures(problem, selection, outdir) -> list[str]:
             axr.set_xlabel("voltage (V)")
             axr.set_ylabel(f"residual {label} ({'Pearson' if state else 'um'})")
     fig.tight_layout()
+    _fit_titles(fig)
     path = os.path.join(outdir, "fit.png")
     fig.savefig(path, dpi=90)
     plt.close(fig)
@@ -482,3 +483,16 @@ def covariate_axis(name: str, x):
     scale, unit = _AXIS_UNITS.get(name, (1e6, "um") if name.startswith("predicted") or name == "prediction"
                                   else (1.0, "SI"))
     return np.asarray(x, float) * scale, f"{name} ({unit})"
+
+
+def _fit_titles(fig) -> None:
+    """Shrink each panel title until it is no wider than its panel (a long observable name ran into the next panel
+    and past the figure's edge)."""
+    fig.canvas.draw()
+    for ax in fig.axes:
+        t = ax.title
+        if not t.get_text():
+            continue
+        width = ax.get_window_extent().width
+        while t.get_window_extent().width > width and t.get_fontsize() > 5:
+            t.set_fontsize(t.get_fontsize() - 0.5)
