@@ -160,6 +160,14 @@ def _band(comp: CompileState, rep: GoalReport, provider, capsule, u, targets, ba
                               f"{', '.join(f'{f / 1e3:g}' for f in off)} kHz (measured: "
                               f"{', '.join(f'{f / 1e3:g}' for f, _ in pin)} kHz): the band keeps the table's "
                               f"{comp.design.transducer.gain_uncertainty:.0%} prior there")
+    from acl.schedule import experiment     # the band's cause and the reading that narrows it
+    ex = experiment.explain(comp.design, lambda ds, f, uu: comp.many_now(ds, capsule, f, uu) if comp.many_now else
+                            [provider(d, capsule, f)[0](uu) for d in ds], capsule, rep.frequencies_hz, u, targets,
+                            reload=comp.opts.reload, band=band, seed=comp.opts.band_seed)
+    if ex is not None:
+        rep.band_plot = ex.pop("plot", None)
+        rep.details["band"]["cause"] = ex
+        comp.notes.append(experiment.summary(rep.name, ex))
     if band.failed:
         comp.notes.append(f"{rep.name}: {band.failed} of {comp.opts.band_samples} uncertainty draws lost the "
                           "equilibrium (snap-in) or did not resolve; they count as missing the path")
