@@ -30,7 +30,7 @@ from acl.schedule.gains import critical_scale, latch_drive_forces, latch_forces
 ROOT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..")
 EX = os.path.join(ROOT, "examples")
 # the Fig. 4 pair before its stdlib calibration, with the 1-6 V ramp these loop tests were built on
-FIG4 = os.path.join(ROOT, "tests", "data", "fig4_facing_pair_first_principles.acl")
+FIG4 = os.path.join(EX, "first_principles", "fig4_facing_pair.acl")
 
 
 # written for the uncalibrated Fig. 6 latch (13 MPa, Table S2's simulation column) at up to 100 V; the example
