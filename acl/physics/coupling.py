@@ -227,11 +227,13 @@ def coupled_response(system: BubbleSystem, frequency, density: float, sound_spee
 @dataclass(frozen=True)
 class CoupledModes:
     """Undamped modes of the coupled system: ``omega`` (K,) rad/s ascending, ``volume`` (n, K)
-    outward volume of each interface per mass-normalized coordinate, ``quality`` (K,)."""
+    outward volume of each interface per mass-normalized coordinate, ``quality`` (K,);
+    ``also_quality`` the Q of the same modes for each of :func:`coupled_modes`' ``also_damping``."""
 
     omega: np.ndarray
     volume: np.ndarray
     quality: np.ndarray
+    also_quality: tuple = ()
 
     @property
     def frequency(self) -> np.ndarray:
@@ -245,48 +247,61 @@ class CoupledModes:
         return np.divide(a, s, out=np.zeros_like(a), where=s > 0)
 
 
-def _compact(system: BubbleSystem):
-    """Dense Phi (n, m) over the real modes, their omega and damping."""
+def _compact(system: BubbleSystem, damping=None):
+    """Dense Phi (n, m) over the real modes, their omega and damping (``damping`` (C, Mx) instead of the system's)."""
     ncap, p, mx = system.phi.shape
     keep = np.abs(system.phi).sum(axis=1) > 0                     # (C, Mx) real modes
     cols = np.flatnonzero(keep.reshape(-1))
     big = np.zeros((system.n, ncap * mx))
     for i, (c, sl) in enumerate(zip(system.body, system.slot)):
         big[i, c * mx:(c + 1) * mx] = system.phi[c, sl - c * p]
-    return big[:, cols], system.omega.reshape(-1)[cols], system.damping.reshape(-1)[cols]
+    dmp = system.damping if damping is None else np.asarray(damping, float)
+    return big[:, cols], system.omega.reshape(-1)[cols], dmp.reshape(-1)[cols]
 
 
 def coupled_modes(system: BubbleSystem, density: float, sound_speed: float,
-                  wall_reflection: float = 0.0) -> CoupledModes:
+                  wall_reflection: float = 0.0, max_omega: float | None = None,
+                  also_damping: Sequence = ()) -> CoupledModes:
     """Undamped modes Omega^2 q = w^2 (I + rho Phi^T g0 Phi) q and their Q (mutual radiation mass and resistance; Kinsler et al. ch. 7/8).
 
     Q_n = w_n / (q_n^T D q_n), q_n mass-normalized, D = diag(w_m/Q_m) of the capsules (viscous,
     thermal, own radiation) + Phi^T (rho w_n^2/(4 pi c)) S Phi with S_ij = sin(k d_ij)/(k d_ij)
     between capsules and R sin(k d'_ij)/(k d'_ij) for the wall images (mutual radiation resistance).
+    ``max_omega`` keeps only the modes up to it (the others' Q, n^2 terms each, is not computed).
+    ``also_damping``: other (C, Mx) modal dampings of the same system (e.g. without a declared Q);
+    their Q come in ``also_quality`` from the same eigensolution and radiation terms.
     """
     phi, om, dmp = _compact(system)
     if om.size == 0:
         z = np.zeros(0)
-        return CoupledModes(omega=z, volume=np.zeros((system.n, 0)), quality=z)
+        return CoupledModes(omega=z, volume=np.zeros((system.n, 0)), quality=z,
+                            also_quality=tuple(z for _ in also_damping))
     g0 = green_matrix(system.points, system.radii, system.body, None, wall_reflection)
     mass = np.eye(om.size) + density * phi.T @ g0 @ phi
     w2, q = symmetric_eigh(np.diag(om**2), (mass + mass.T) / 2)
     omega = np.sqrt(np.maximum(w2, 0.0))
+    if max_omega is not None:
+        kept = int(np.count_nonzero(omega <= max_omega))       # ascending
+        omega, q = omega[:kept], q[:, :kept]
     vol = phi @ q
     d = _distances(system.points, system.radii, False)
     other = system.body[:, None] != system.body[None, :]
     di = _distances(system.points, system.radii, True) if wall_reflection else None
-    quality = np.empty_like(omega)
+    radiated = np.empty_like(omega)
     for n_, w in enumerate(omega):
         k = w / sound_speed
         s = np.where(other, np.sinc(k * d / np.pi), 0.0)
         if di is not None:
             s = s + wall_reflection * np.sinc(k * di / np.pi)
-        c_n = (dmp * q[:, n_] ** 2).sum() + radiation_resistance(w, density, sound_speed) * (vol[:, n_] @ s @ vol[:, n_])
-        quality[n_] = w / c_n if c_n > 0 else np.inf
-    for arr in (omega, vol, quality):
+        radiated[n_] = radiation_resistance(w, density, sound_speed) * (vol[:, n_] @ s @ vol[:, n_])
+    qualities = []
+    for damping in (dmp, *(_compact(system, a)[2] for a in also_damping)):
+        c_n = (damping[:, None] * q**2).sum(axis=0) + radiated
+        with np.errstate(divide="ignore"):
+            qualities.append(np.where(c_n > 0, omega / np.where(c_n > 0, c_n, 1.0), np.inf))
+    for arr in (omega, vol, *qualities):
         arr.setflags(write=False)
-    return CoupledModes(omega=omega, volume=vol, quality=quality)
+    return CoupledModes(omega=omega, volume=vol, quality=qualities[0], also_quality=tuple(qualities[1:]))
 
 
 def prepared_response(system: BubbleSystem, frequency, density: float, sound_speed: float,
