@@ -16,7 +16,7 @@ surfaces, paper Eq. 3).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import lru_cache
 from typing import Mapping, Sequence
 
@@ -395,14 +395,18 @@ def _fundamentals(cm: CoupledModes, n_interfaces: int) -> list[int]:
 
 
 @_per_design
-def _modes_cached(design: Design, idx: tuple[int, ...]) -> tuple[Mode, ...]:
+def _modes_cached(design: Design, idx: tuple[int, ...], max_hz: float | None = None) -> tuple[Mode, ...]:
+    """Modes of the capsules ``idx`` as one system (a single capsule: its fundamentals), up to ``max_hz`` if given."""
     med = _medium(design)
     lay = _layout(design)
     sel = np.isin(lay.body, list(idx))
     labels = [lab for lab, s in zip(lay.labels, sel) if s]
-    cm = _physics_coupled_modes(_system(design, idx), med.density, med.sound_speed, C.SUBSTRATE_REFLECTION)
-    cp = _physics_coupled_modes(_system(design, idx, predicted=True), med.density, med.sound_speed,
-                                C.SUBSTRATE_REFLECTION)
+    # one eigensolution for both dampings: a declared Q changes the modal damping only
+    predicted = _system(design, idx, predicted=True)
+    top = None if max_hz is None else 2 * math.pi * max_hz * (1 + 1e-9)     # the caller filters exactly
+    cm = _physics_coupled_modes(_system(design, idx), med.density, med.sound_speed, C.SUBSTRATE_REFLECTION,
+                                max_omega=top, also_damping=(predicted.damping,))
+    cp = replace(cm, quality=cm.also_quality[0]) if cm.also_quality else cm
     declared = any(lay.caps[c].quality_factor is not None for c in idx)
     notes = defaults_used(design)
     short = len(idx) == 1
@@ -453,7 +457,7 @@ def coupled_modes(design: Design) -> list[Mode]:
     if not lay.caps:
         return []
     top = max((m.frequency_hz for c in lay.caps for m in capsule_modes(design, c)), default=0.0)
-    ms = _modes_cached(design, tuple(range(len(lay.caps))))
+    ms = _modes_cached(design, tuple(range(len(lay.caps))), 1.5 * top if len(lay.caps) > 1 else None)
     return [m for m in ms if m.frequency_hz <= 1.5 * top]
 
 
