@@ -52,7 +52,14 @@ def test_each_band_names_its_dominant_cause_and_a_measurement(circle):
         assert m["noise_m"] == experiment.READING_NOISE_M and 1 <= len(m["readings"]) <= experiment.MAX_READINGS
         lim = circle.max_voltage_v
         assert all(0 < r["voltage_v"] <= lim for r in m["readings"])
-        assert m["expected_rms_p95_m"] < 0.25 * g.rms_error_p95_m
+        # the readings narrow the declared uncertainties' part; the model-form term of the limits a step is past
+        # (compile's validity pass) stays in the expected band, which is never below it
+        mf = m.get("model_form_m", 0.0)
+        assert m["expected_rms_p95_m"] >= mf
+        assert np.sqrt(m["expected_rms_p95_m"] ** 2 - mf**2) < 0.25 * g.rms_error_p95_m
+        if mf:
+            assert "which these readings do not remove" in next(n for n in circle.notes
+                                                                 if n.startswith(f"{g.name}: the 95 % band"))
         note = next(n for n in circle.notes if n.startswith(f"{g.name}: the 95 % band's dominant cause"))
         assert "kHz at" in note and "expected band after" in note
 

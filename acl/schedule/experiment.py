@@ -245,6 +245,9 @@ def summary(name: str, ex: dict) -> str:
         s += (f"; to narrow it, measure the {m['observable']} at {reads} (assumed noise {m['noise_m'] * 1e6:.3g} um "
               f"per axis): expected band after recompiling with the measured values "
               f"{m['expected_rms_p95_m'] * 1e6:.3g} um RMS / {m['expected_max_p95_m'] * 1e6:.3g} um max")
+        if m.get("model_form_m"):
+            s += (f", of which {m['model_form_m'] * 1e6:.3g} um is the model-form term of the validity limits the "
+                  "step is past, which these readings do not remove")
     return s
 
 

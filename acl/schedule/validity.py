@@ -242,6 +242,7 @@ def _widen(comp: CompileState, sched: Schedule, step_index: int, found: list) ->
         g.rms_error_p95_m = float(np.hypot(g.rms_error_p95_m, extra))
         if g.max_error_p95_m is not None:
             g.max_error_p95_m = float(np.hypot(g.max_error_p95_m, extra))
+        _widen_expected(comp, g, extra)
         widened.append(g.name)
     for lim, r, text, hint in found:
         msg = text + (f", added to the error band of {', '.join(widened)}" if widened and r > 0 else "")
@@ -250,6 +251,25 @@ def _widen(comp: CompileState, sched: Schedule, step_index: int, found: list) ->
         w = Diagnostic(lim.code, Severity.WARNING, msg, step.span, hint, notes=(lim.evidence,))
         sched.warnings.append(w)
         comp.notes.append(f"warning: {msg}")
+
+
+def _widen_expected(comp: CompileState, goal, extra: float) -> None:
+    """The band the proposed readings are expected to leave (acl.schedule.experiment) keeps the model-form term
+    ``extra`` m: the readings calibrate the declared uncertainties, not the limit the step is past; the goal's note
+    is rewritten with the widened figures."""
+    from acl.schedule import experiment
+
+    band = goal.details.get("band")
+    cause = band.get("cause") if isinstance(band, dict) else None
+    m = cause.get("measurement") if isinstance(cause, dict) else None
+    if not m or extra <= 0:
+        return
+    old = experiment.summary(goal.name, cause)
+    m["model_form_m"] = float(np.hypot(m.get("model_form_m", 0.0), extra))
+    m["expected_rms_p95_m"] = float(np.hypot(m["expected_rms_p95_m"], extra))
+    m["expected_max_p95_m"] = float(np.hypot(m["expected_max_p95_m"], extra))
+    new = experiment.summary(goal.name, cause)
+    comp.notes[:] = [new if n == old else n for n in comp.notes]
 
 
 def _steady_amplitudes(comp: CompileState, sched: Schedule) -> dict:
