@@ -78,9 +78,3 @@ def monopole_model_form(distance, radius_sum):
 def exceeded(limit: Limit, value) -> np.ndarray:
     """True where ``value`` is beyond ``limit``."""
     return np.asarray(value, float) > limit.value
-
-
-def streaming_model_form(reynolds, limit: float = 1.0):
-    """Relative model-form uncertainty a/(1 + a), a = (3/16)(R_s - limit) floored at 0, of a Stokes-flow force past the streaming limit (Oseen's drag correction 1 + 3 Re/16, Oseen 1910)."""
-    a = 0.1875 * np.clip(np.asarray(reynolds, float) - limit, 0.0, None)
-    return a / (1.0 + a)
