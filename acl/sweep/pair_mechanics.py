@@ -6,6 +6,7 @@ import numpy as np
 
 from acl.design import model as M
 from acl.physics import batch as PB
+from acl.physics.roots import illinois_ascending
 from acl.sweep.acoustic_state import PointAcoustics, _Rows
 from acl.sweep.columns import (
     SNAP_GOLDEN,
@@ -335,7 +336,7 @@ class PairMechanics(PointAcoustics):
             v2, t, _ = self.pair_v2(x, t_warm, freqs, volts)
             return v2 - 1.0, t
 
-        s, fs, t = PB.illinois_ascending(f, np.zeros(self.n), hi, -np.ones(self.n), f_hi - 1.0, 30, 1e-12, 1e-13,
+        s, fs, t = illinois_ascending(f, np.zeros(self.n), hi, -np.ones(self.n), f_hi - 1.0, 30, 1e-12, 1e-13,
                                          state=t_hi)
         _, _, _, xa, xb = self.pair_closure(s, t, freqs, volts)
         bad = ~(np.abs(fs) <= 1e-9)                  # no root bracketed (or not converged): not an equilibrium
