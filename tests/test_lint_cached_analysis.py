@@ -13,6 +13,7 @@ import pytest
 
 import acl
 from acl.analysis import acoustics as AC
+from acl.analysis.selectivity import selectivity
 from acl.analysis.cache import analysis_for
 from acl.physics import constants as C
 from acl.physics import coupling as PC
@@ -70,7 +71,7 @@ def test_thrust_per_frequency_equals_each_frequency_alone(generated):
     batch = analysis_for(design).thrust_per_v2(freqs)
     assert batch.shape == (len(design.capsules), freqs.size)
     for j, f in enumerate(freqs):
-        alone = AC.selectivity(fresh, [f]).thrust_per_v2[:, 0]
+        alone = selectivity(fresh, [f]).thrust_per_v2[:, 0]
         assert np.allclose(batch[:, j], alone, rtol=1e-12, atol=0)
     assert analysis_for(design) is analysis_for(design)
 

@@ -82,12 +82,12 @@ class DesignAnalysis:
         rest_response(self.design, np.atleast_1d(np.asarray(frequencies, float)))
 
     def thrust_per_v2(self, frequencies) -> np.ndarray:
-        """Thrust magnitude per V^2 of every capsule (C, F) (:func:`acl.analysis.acoustics.selectivity`), each
+        """Thrust magnitude per V^2 of every capsule (C, F) (:func:`acl.analysis.selectivity.selectivity`), each
         frequency computed once."""
         f = np.atleast_1d(np.asarray(frequencies, float))
         missing = [x for x in dict.fromkeys(f.tolist()) if x not in self._thrust]
         if missing:
-            from acl.analysis.acoustics import selectivity
+            from acl.analysis.selectivity import selectivity
 
             t = selectivity(self.design, np.array(missing)).thrust_per_v2
             for j, x in enumerate(missing):
