@@ -756,11 +756,11 @@ def _apply_neighbour_drag(design: Design, lay: _Layout, centres: np.ndarray, tot
     return total
 
 
-def force_batch(design: Design, centres: np.ndarray, drive: Drive) -> np.ndarray:
-    """:func:`force_model` for many configurations at once: capsule centres (B, C, 3) in ``design.capsules`` order -> forces (B, C, 3)."""
+def force_batch(design: Design, centres: np.ndarray, drive: Drive, consts: dict | None = None) -> np.ndarray:
+    """:func:`force_model` for many configurations at once: capsule centres (B, C, 3) in ``design.capsules`` order -> forces (B, C, 3); ``consts`` overrides :meth:`_Engine.forces`' constants (e.g. ``jet_drag_fraction``)."""
     eng = _engine(design, drive)
     centres = np.asarray(centres, float)
-    return _apply_neighbour_drag(design, eng.lay, centres, eng.forces(centres))
+    return _apply_neighbour_drag(design, eng.lay, centres, eng.forces(centres, consts=consts))
 
 
 def force_model(design: Design, positions: Mapping[str, Sequence[float]] | None,

@@ -98,7 +98,8 @@ def analyze(design: M.Design, at: M.Drive | None = None, snap_in: bool = True, p
     from acl.analysis import acoustics as AC
     from acl.analysis import mechanics as ME
     from acl.analysis.selectivity import selectivity
-    from acl.analysis.pairs import net_critical_distance
+    from acl.analysis.pairs import net_critical_distance, pair_notes
+    from acl.physics.forces import PAPER_DRAG_FRACTION
 
     from acl.analysis.effects import notes as effect_notes
 
@@ -158,6 +159,8 @@ def analyze(design: M.Design, at: M.Drive | None = None, snap_in: bool = True, p
                 # d_c where the full force model's net closing force changes sign (acl.analysis.pairs), and the
                 # reduced paper Eq. 3 value sqrt(alpha / 2 gamma) at rest (2 gamma: the two thrusts)
                 "critical_distance_m": net_critical_distance(design, drive, pf.a, pf.b),
+                "critical_distance_paper_drag_m": net_critical_distance(design, drive, pf.a, pf.b,
+                                                                        drag_fraction=PAPER_DRAG_FRACTION),
                 "critical_distance_eq3_m": pf.critical_distance, "gap_m": pf.distance,
                 # point-monopole validity at rest (acl.physics.validity.MONOPOLE_DISTANCE): gap / (R_a + R_b)
                 **_monopole(design, pf),
@@ -173,6 +176,7 @@ def analyze(design: M.Design, at: M.Drive | None = None, snap_in: bool = True, p
                 "interface_amplitude_over_radius": {k: v for k, v in amps.items()
                                                     if k.split(".")[0] in (pf.a, pf.b)},
             })
+            rep.pairs[-1]["notes"] = pair_notes(design, rep.pairs[-1])
     for p, i, st, drive in step_drives(design):
         rep.drives.append(_drive_entry(p.name, i + 1, describe_drive(drive), AC.interface_amplitudes(design, drive),
                                        st.span.line))

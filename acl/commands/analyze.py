@@ -177,6 +177,12 @@ def print_report(design, rep) -> None:
                       {True: "attract", False: "repel", None: "-"}[p.get("attract_with_predicted_q")],
                       f"{p['repel_from_q']:g}" if p.get("repel_from_q") else "-")
         print_table(con, t)
+        from rich.markup import escape
+
+        for p in rep.pairs:           # located notes: d_c's drag-law interval, signs resting on an implausible Q
+            for n in p.get("notes", ()):
+                con.print(f"{escape(n['file'])}:{n['line']}:{n['column']}: [yellow]note\\[{n['code']}]:[/yellow] "
+                          f"{escape(n['message'])}", soft_wrap=True)
     for lt in rep.latches:
         t = Table(title=f"Latch {lt['name']} ({lt['file']}:{lt['line']}): "
                         f"{'bistable' if lt['bistable'] else 'MONOSTABLE'}, switching force {lt['switching_force_n'] * 1e9:.3g} nN, "
