@@ -33,7 +33,10 @@ Terms of g (``green_matrix``):
 
 Both are free-field monopole terms: a capsule is small against the wavelength, so beyond a few
 orifice radii its interface radiates as a point source.  Between two orifices on the same flat face
-(a baffle) the true mutual mass is up to 2x larger (rho/(2 pi d)); that is not modelled.
+(a baffle) the true mutual mass is up to 2x larger (rho/(2 pi d)); that is not modelled.  This is an
+assumption, not an oversight: each capsule's *own* added mass is baffled (:mod:`acl.physics.resonance`),
+the mutual terms are free-field; docs/physics.md (Part A section 11, "The baffle assumption, stated")
+gives the evidence for keeping them and where the factor is carried as model-form uncertainty.
 Distances are smoothly floored at the sum of the two orifice radii (touching interfaces; :func:`contact_distance`).
 
 Pure numpy on SI floats; no acl.design import.

@@ -72,6 +72,10 @@ def bjerknes_from_rates(rate_product, distance, density):
 
     Tones at different frequencies add in power (their cross terms average to zero), so ``rate_product``
     is the sum of each tone's.  ``density`` may be an array (e.g. rho times a pair's factor).
+    Assumption: free-field monopoles, although each capsule's own added mass is baffled
+    (acl.physics.resonance); two orifices on one large rigid wall would feel up to 2x (half-space
+    source).  The factor is absorbed by the streaming constant's calibration on d_c and carried as
+    model-form uncertainty (docs/physics.md, Part A section 11, "The baffle assumption, stated").
     """
     return np.asarray(density, float) / (8 * np.pi) * rate_product / np.asarray(distance, float) ** 2
 
