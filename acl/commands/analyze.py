@@ -21,6 +21,9 @@ def add_parser(p) -> None:
     add_output_format(p, old=("--json",))
     p.add_argument("--plot", metavar="DIR", help="write PNG figures into DIR")
     p.add_argument("--no-snap", action="store_true", help="skip the snap-in voltage sweeps (faster)")
+    p.add_argument("--sign-draws", metavar="N", type=int, default=None,
+                   help="draws of the declared uncertainty for each pair's P(other sign) (default 200 when the design "
+                        "declares any; 0: none)")
     add_design_options(p)
 
 
@@ -69,6 +72,21 @@ def run(args) -> int:
         con = make_console(stderr=True)
         with con.status("analyzing...") as status:
             rep = analyze(design, at, snap_in=not args.no_snap, progress=lambda m: status.update(m))
+    draws = args.sign_draws
+    if draws is not None and draws < 0:
+        report([error("E-USAGE", f"--sign-draws {draws}: a negative number of draws",
+                      Span(file="<--sign-draws>", line=1, column=1), "give 0 (none) or more")], fmt)
+        return 2
+    if rep.pairs:
+        from acl.sweep.signs import DRAWS, attract_fractions, declares_uncertainty
+
+        n = DRAWS if draws is None else draws
+        frac = (attract_fractions(design, [(p["a"], p["b"], p["frequency_hz"]) for p in rep.pairs], n)
+                if n and declares_uncertainty(design) else {})
+        for p in rep.pairs:           # P(other sign) under the declared uncertainty (acl.sweep.signs), None: not drawn
+            f = frac.get((p["a"], p["b"], p["frequency_hz"]))
+            p["p_other_sign"] = None if f is None else (1.0 - f if p["attract"] else f)
+            p["sign_draws"] = n if f is not None else 0
     if args.plot:
         from acl.emit.analysis_figures import write_figures
 
@@ -166,7 +184,7 @@ def print_report(design, rep) -> None:
     if rep.pairs:
         t = Table(title="Bubble pairs (Bjerknes force at rest, attraction positive)", title_justify="left")
         for col in ("pair", "f (kHz)", "V", "force (nN)", "", "phase diff (deg)", "gap (um)", "d_c (um)", "snap-in V",
-                    "with predicted Q", "repels from Q"):
+                    "with predicted Q", "repels from Q", "P(other sign)"):
             t.add_column(col)
         for p in rep.pairs:
             dc = f"{p['critical_distance_m'] * 1e6:.1f}" if p["critical_distance_m"] else "-"
@@ -175,7 +193,8 @@ def print_report(design, rep) -> None:
                       "[green]attract[/green]" if p["attract"] else "[magenta]repel[/magenta]",
                       f"{round(p['phase_difference_deg'], 1) + 0.0:.1f}", f"{p['gap_m'] * 1e6:.1f}", dc, sv,
                       {True: "attract", False: "repel", None: "-"}[p.get("attract_with_predicted_q")],
-                      f"{p['repel_from_q']:g}" if p.get("repel_from_q") else "-")
+                      f"{p['repel_from_q']:g}" if p.get("repel_from_q") else "-",
+                      f"{p['p_other_sign']:.2f}" if p.get("p_other_sign") is not None else "-")
         print_table(con, t)
         from rich.markup import escape
 

@@ -1,0 +1,40 @@
+"""The probability of each bubble pair's other sign under the design's declared uncertainty (issue 24).
+
+A pair's Bjerknes sign (paper Fig. 4f-h, Fig. S6) does not depend on the drive amplitude, but it does depend on the
+damping, the orifice radii and the gap.  Where a design declares uncertainty on its parameters (``+- ...``,
+``uncertainty { ... }``), ``acl sweep``'s draws of it give, per pair and frequency, the fraction of draws that
+attract; the probability of the other sign is the smaller of that fraction and its complement.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from acl.design.model import Design
+
+DRAWS = 200     # draws per design: P(other sign) to about +-0.03 at 0.2 (binomial standard error)
+
+
+def declares_uncertainty(design: Design) -> bool:
+    """True when any parameter of ``design`` declares a spread (``+- ...``)."""
+    return bool(design.uncertain_params())
+
+
+def _fkey(f: float) -> str:
+    return f"{f / 1e3:g}khz".replace(".", "p")          # as acl.sweep.columns' frequency tags
+
+
+def attract_fractions(design: Design, pairs, n: int = DRAWS, seed: int = 0) -> dict:
+    """{(a, b, frequency_hz): fraction of ``n`` draws of the declared uncertainty in which the pair attracts} for
+    ``pairs`` (a, b, frequency_hz); draws the evaluation rejects (``valid`` False) are left out."""
+    from acl.sweep.driver import sweep
+
+    cols = {f"attract_{a}_{b}_{_fkey(f)}": (a, b, f) for a, b, f in pairs}
+    if not cols:
+        return {}
+    tab = sweep(design, n=n, seed=seed, quantities=list(cols))
+    ok = np.asarray(tab["valid"], bool) if "valid" in tab.columns else np.ones(len(tab), bool)
+    out = {}
+    for c, key in cols.items():
+        if c in tab.columns and ok.any():
+            out[key] = float(np.mean(np.asarray(tab[c], float)[ok]))
+    return out
