@@ -246,7 +246,11 @@ PLAUSIBLE_Q_FACTOR = 2.0
 
 
 def plausible_quality_bound(quality_viscous_radiation):
-    """Largest plausible Q = 2 Q_vr, Q_vr the mode's Q with viscous (Lamb §329) and radiation loss only: the irrotational viscous loss is a lower bound of a pinned interface's (rim and wall boundary layers only add; Lamb §329, §351), x PLAUSIBLE_Q_FACTOR for that law's form."""
+    """Largest plausible Q = 2 Q_vr (Batchelor 1967, 5.14: boundary layers on walls add to the irrotational dissipation), Q_vr the mode's Q with viscous and radiation loss only.
+
+    The irrotational viscous loss of :func:`capsule_modes` is then a lower bound of a pinned interface's
+    (its rim and the wall around it add boundary layers); PLAUSIBLE_Q_FACTOR allows for that law's form.
+    """
     return PLAUSIBLE_Q_FACTOR * np.asarray(quality_viscous_radiation, float)
 
 
