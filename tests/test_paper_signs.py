@@ -104,8 +104,9 @@ def test_fig4_calibrated_dc_interval_and_note():
     assert lo > 1.10 * 50e-6 and hi < 1.35 * 50e-6
     note = next(n for n in p["notes"] if n["code"] == "N-PAIR-DC")
     assert f"{hi * 1e6:.1f} um" in note["message"] and f"{lo * 1e6:.1f} um" in note["message"]
-    lines = (ROOT / FIG4).read_text().splitlines()
-    assert lines[note["line"] - 1].startswith("capsule right")
+    text = (ROOT / FIG4).read_text()
+    assert text.splitlines()[note["line"] - 1].startswith("capsule right")
+    assert f"{hi * 1e6:.1f} um" in text and f"{lo * 1e6:.1f} um" in text      # the example's comment says the same
 
 
 def test_fig4_dc_of_50um_needs_drag_beyond_the_jets_momentum_flux():
