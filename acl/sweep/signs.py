@@ -25,13 +25,20 @@ def _fkey(f: float) -> str:
 
 def attract_fractions(design: Design, pairs, n: int = DRAWS, seed: int = 0) -> dict:
     """{(a, b, frequency_hz): fraction of ``n`` draws of the declared uncertainty in which the pair attracts} for
-    ``pairs`` (a, b, frequency_hz); draws the evaluation rejects (``valid`` False) are left out."""
+    ``pairs`` (a, b, frequency_hz); draws the evaluation rejects (``valid`` False) are left out, and pairs the
+    batched evaluation has no sign column for are missing (not drawn)."""
+    from acl.diagnostics import DiagnosticError
     from acl.sweep.driver import sweep
+    from acl.sweep.evaluate import supported
 
-    cols = {f"attract_{a}_{b}_{_fkey(f)}": (a, b, f) for a, b, f in pairs}
+    names = set(supported(design, None)[0])
+    cols = {c: (a, b, f) for a, b, f in pairs if (c := f"attract_{a}_{b}_{_fkey(f)}") in names}
     if not cols:
+        return {}                     # the batched evaluation has no sign column for this design: not drawn
+    try:
+        tab = sweep(design, n=n, seed=seed, quantities=list(cols))
+    except DiagnosticError:           # a design the sweep cannot draw (its own diagnostics say why): not drawn
         return {}
-    tab = sweep(design, n=n, seed=seed, quantities=list(cols))
     ok = np.asarray(tab["valid"], bool) if "valid" in tab.columns else np.ones(len(tab), bool)
     out = {}
     for c, key in cols.items():
