@@ -151,3 +151,22 @@ def test_sign_draws_negative_is_a_located_usage_error():
     r = run("analyze", H4, "--no-snap", "--sign-draws", "-1")
     assert r.returncode == 2 and "E-USAGE" in (r.stdout + r.stderr) and "<--sign-draws>" in (r.stdout + r.stderr)
     assert "Traceback" not in r.stderr
+
+
+def test_baffled_mutual_mass_would_steepen_the_gap_dependence():
+    """docs/physics.md part A section 11 (4): a b = 2 mutual mass lowers the coupled / uncoupled force of an identical
+    pair (h / (1 - w^2 rho h b g), tests/test_physics_coupling.py) more at 20 um than at 80 um, so the paper's alpha /
+    acl ratio (largest at 20 um, Fig. 4e) would grow steeper: the evidence against making that term half-space."""
+    from acl.physics.constants import WATER_20C as W
+    from acl.physics.resonance import capsule_modes, volume_response
+
+    m = capsule_modes(6.51e-14, np.array([10e-6]), W.density, W.surface_tension, W.ambient_pressure,
+                      W.polytropic_index, W.viscosity, W.sound_speed, 7e-6)
+    f = 125e3
+    w, h = 2 * np.pi * f, volume_response(m, [f])[0, 0]
+
+    def ratio(d, b):
+        return abs(1 / (1 - b * w**2 * W.density * h / (4 * np.pi * d))) ** 2
+
+    loss_20, loss_80 = ratio(20e-6, 1) / ratio(20e-6, 2), ratio(80e-6, 1) / ratio(80e-6, 2)
+    assert loss_20 > 1.5 * loss_80 > 1.5

@@ -188,6 +188,9 @@ def print_report(design, rep) -> None:
             t.add_column(col)
         for p in rep.pairs:
             dc = f"{p['critical_distance_m'] * 1e6:.1f}" if p["critical_distance_m"] else "-"
+            d1 = p.get("critical_distance_paper_drag_m")       # the other end of the drag law's model form
+            if p["critical_distance_m"] and d1 and f"{d1 * 1e6:.1f}" != dc:
+                dc += f" ({d1 * 1e6:.1f})"
             sv = f"{p['snap_in_voltage_v']:.2f}" if p["snap_in_voltage_v"] else ("none" if p["sweep_status"] == "ok" else p["sweep_status"])
             t.add_row(f"{p['a']}-{p['b']}", _k(p["frequency_hz"]), f"{p['voltage_v']:g}", f"{p['force_n'] * 1e9:.3g}",
                       "[green]attract[/green]" if p["attract"] else "[magenta]repel[/magenta]",
