@@ -25,6 +25,7 @@ import numpy as np
 # or (N, F, n, n) with wavenumbers (N, F)
 from acl.physics.coupling import _distances as distances, contact_distance, green_matrix
 from acl.physics.resonance import shape_matrices, thermal_polytropic
+from acl.physics.roots import golden_max
 
 
 # ----------------------------------------------------------------------------------------------
@@ -290,23 +291,6 @@ def latch_force(u, theta, L, w, t, E):
     return 2.0 * per_beam * (E * t * w**3 / 12.0 / L**2)
 
 
-def _golden_max(fn, lo, hi, iterations: int):
-    """Maximum of a unimodal ``fn`` on [lo, hi] per element by golden section (Kiefer 1953); a kink is allowed."""
-    g = (np.sqrt(5.0) - 1) / 2
-    x1, x2 = hi - g * (hi - lo), lo + g * (hi - lo)
-    f1, f2 = fn(x1), fn(x2)
-    for _ in range(iterations):
-        left = f1 >= f2
-        hi = np.where(left, x2, hi)
-        lo = np.where(left, lo, x1)
-        x1n = np.where(left, hi - g * (hi - lo), x2)
-        x2n = np.where(left, x1, lo + g * (hi - lo))
-        new_f = fn(np.where(left, x1n, x2n))
-        f1, f2 = np.where(left, new_f, f2), np.where(left, f1, new_f)
-        x1, x2 = x1n, x2n
-    return np.maximum(f1, f2)
-
-
 def latch_switching_force(theta, L, w, t, E, n_grid: int = 257, iterations: int = 60, block: int = 4096):
     """Switching force a -> b (largest holding force between state a and the barrier top) and release force b -> a (largest pull back between state b and the top) per point (latch.latch_landscape, its 2001-point grid extrema refined by golden section).
 
@@ -339,7 +323,7 @@ def latch_switching_force(theta, L, w, t, E, n_grid: int = 257, iterations: int 
     def refine(values, k, sign):
         lo = np.maximum(grid[rows, k] - h, 0.0)
         hi = np.minimum(grid[rows, k] + h, reach)
-        return np.maximum(values[rows, k], _golden_max(lambda x: sign * latch_force(x, *a1), lo, hi, iterations))
+        return np.maximum(values[rows, k], golden_max(lambda x: sign * latch_force(x, *a1), lo, hi, iterations)[0])
 
     masked = np.where(idx <= i0[:, None], f, -np.inf)
     switching = refine(masked, np.argmax(masked, axis=1), 1.0)

@@ -28,7 +28,7 @@ from __future__ import annotations
 import numpy as np
 
 from acl.physics import batch as PB
-from acl.physics.roots import illinois_ascending
+from acl.physics.roots import golden_max, illinois_ascending
 from acl.physics.beams import eq1_small_force_stiffness
 
 STEP_REACH = 2.5e-6       # m; largest accepted move of the coordinates in one continuation step
@@ -479,19 +479,9 @@ class Mechanism:
         rows = np.arange(self.n)
         lo = np.where(k > 0, fr[np.maximum(k - 1, 0)], 0.0) * span
         hi = fr[np.minimum(k + 1, grid - 1)] * span
-        g = (np.sqrt(5.0) - 1) / 2
-        x1, x2 = hi - g * (hi - lo), lo + g * (hi - lo)
-        f1, f2 = self._v2(x1, d, freqs, volts), self._v2(x2, d, freqs, volts)
-        for _ in range(golden):
-            left = f1 >= f2
-            hi = np.where(left, x2, hi)
-            lo = np.where(left, lo, x1)
-            nx = np.where(left, hi - g * (hi - lo), lo + g * (hi - lo))
-            nf = self._v2(nx, d, freqs, volts)
-            x2, f2, x1, f1 = (np.where(left, x1, nx), np.where(left, f1, nf), np.where(left, nx, x2),
-                              np.where(left, nf, f2))
-        best = np.maximum(np.maximum(f1, f2), pos[rows, k])
-        s_best = np.where(pos[rows, k] >= np.maximum(f1, f2), fr[k] * span, np.where(f1 >= f2, x1, x2))
+        fbest, xbest = golden_max(lambda x: self._v2(x, d, freqs, volts), lo, hi, golden)
+        best = np.maximum(fbest, pos[rows, k])
+        s_best = np.where(pos[rows, k] >= fbest, fr[k] * span, xbest)
         out = {"v2_fold": np.where(has, best, np.nan), "s_fold": s_best, "has_fold": has, "dir": d,
                "s_max": span, "open": open_, "still": still}
         self.ev.cache[key] = out

@@ -6,7 +6,7 @@ import numpy as np
 
 from acl.design import model as M
 from acl.physics import batch as PB
-from acl.physics.roots import illinois_ascending
+from acl.physics.roots import golden_max, illinois_ascending
 from acl.sweep.acoustic_state import PointAcoustics, _Rows
 from acl.sweep.columns import (
     SNAP_GOLDEN,
@@ -276,20 +276,17 @@ class PairMechanics(PointAcoustics):
         lo = np.where(k > 0, grid[np.maximum(k - 1, 0)], 0.0) * gap * 0.999
         hi = grid[np.minimum(k + 1, grid.size - 1)] * gap * 0.999
         tguess = ts[rows, k]
-        g = (np.sqrt(5.0) - 1) / 2
-        x1, x2 = hi - g * (hi - lo), lo + g * (hi - lo)
-        f1, t1, sl1 = self.pair_v2(x1, tguess, freqs, volts, slope)
-        f2, t2, _ = self.pair_v2(x2, tguess, freqs, volts, sl1)
-        for _ in range(SNAP_GOLDEN):
-            left = f1 >= f2
-            hi = np.where(left, x2, hi)
-            lo = np.where(left, lo, x1)
-            nx = np.where(left, hi - g * (hi - lo), lo + g * (hi - lo))
-            nf, nt, _ = self.pair_v2(nx, np.where(left, t1, t2), freqs, volts, sl1)
-            x2, f2, t2, x1, f1, t1 = (np.where(left, x1, nx), np.where(left, f1, nf), np.where(left, t1, nt),
-                                      np.where(left, nx, x2), np.where(left, nf, f2), np.where(left, nt, t2))
-        best = np.maximum(np.maximum(f1, f2), pos[rows, k])
-        return {"v2": best, "s": np.where(f1 >= f2, x1, x2), "has": has}
+        slopes = [slope]       # the first probe's slope is handed to every later one
+
+        def v2(x, t):
+            f, t_new, sl = self.pair_v2(x, t, freqs, volts, slopes[-1])
+            if len(slopes) == 1:
+                slopes.append(sl)
+            return f, t_new
+
+        fbest, sbest, _ = golden_max(v2, lo, hi, SNAP_GOLDEN, state=tguess)
+        best = np.maximum(fbest, pos[rows, k])
+        return {"v2": best, "s": sbest, "has": has}
 
     def pair_branch(self, freqs: tuple, volts: tuple) -> dict:
         """The fold (snap-in) of the pair's stable branch in the drive scale, searched only where the drive closes the pair."""
