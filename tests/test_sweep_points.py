@@ -96,3 +96,63 @@ def test_left_out_names_only_what_is_still_left_out():
     notes = " ".join(left_out(load_design(os.path.join(DATA, "sweep_effects_pair.acl")), "125 kHz @ 2 V"))
     assert "snap_in" not in notes and "tip_deflection" not in notes and "force" not in notes.split("lint")[0]
     assert "lint_acl201" in notes                       # still left out, with its reason
+
+
+def _no_point_loop(monkeypatch):
+    """Fail if any column is computed point by point (acl.sweep.points): the declared effects must be batched."""
+    import acl.sweep.points as SP
+
+    def boom(*_a, **_k):
+        raise AssertionError("a column was computed point by point")
+
+    monkeypatch.setattr(SP, "evaluate_points", boom)
+
+
+def test_the_calibrated_fig4_pair_is_batched_and_equals_analyze(monkeypatch):
+    """The shipped Fig. 4 pair declares the calibration `bjerknes_scale { factor, gap_exponent, gap_ref }`: every
+    force, snap-in and deflection column comes from the batched engine (no point-by-point analysis) and equals a
+    loop of `acl.analyze` to 1e-6."""
+    path = os.path.join(os.path.dirname(DATA), "..", "examples", "fig4_facing_pair.acl")
+    at = "125 kHz @ 2 V"
+    _no_point_loop(monkeypatch)
+    t = acl.sweep(path, vary={"gap": "30um,40um,52um"}, at=at)
+    assert not any("point by point" in n for n in t.notes), t.notes
+    loop = _loop(path, "gap", [30e-6, 40e-6, 52e-6], at)
+    for row, a in zip(t.data, loop):
+        pf = a.pairs[0]
+        assert _close(row["force_left_right_125khz_n"], pf["force_n"])
+        assert _close(row["snap_in_left_right_125khz_v"], pf["snap_in_voltage_v"])
+        assert _close(row["critical_distance_left_right_125khz_m"], pf["critical_distance_eq3_m"])
+        ok = a.equilibrium["status"] == "ok"          # 30 and 40 um snap in below 2 V: NaN deflections then
+        assert bool(row["equilibrium_ok"]) == ok
+        for beam, v in a.equilibrium["deflections_m"].items():
+            assert _close(row[f"tip_deflection_{beam}_m"], v if ok else float("nan"))
+    assert [bool(r["equilibrium_ok"]) for r in t.data] == [False, False, True]
+    # the calibration acts: the first-principles pair snaps in higher
+    plain = acl.analyze(load_design(str(first_principles_path("fig4_facing_pair")), overrides={"gap": "40 um"}))
+    assert t.data["snap_in_left_right_125khz_v"][1] < plain.pairs[0]["snap_in_voltage_v"]
+
+
+def test_a_swept_effect_coefficient_is_read_per_point(monkeypatch, tmp_path):
+    """An effect coefficient set by a swept parameter (bjerknes_scale's factor, stiffness_scale's e_scale) varies
+    per point in the batched engine, as in a loop of `acl.analyze` with the parameter overridden (1e-6)."""
+    src = open(os.path.join(DATA, "sweep_effects_pair.acl")).read()
+    src = src.replace("effect stiffness_scale { e_scale = 0.9 }", "param soft = 0.9\neffect stiffness_scale { e_scale = soft }")
+    src = src.replace("effect bjerknes_scale { factor = 1.3 }", "param k = 1.3\neffect bjerknes_scale { factor = k }")
+    path = tmp_path / "pair.acl"
+    path.write_text(src)
+    at = "125 kHz @ 2 V"
+    _no_point_loop(monkeypatch)
+    t = acl.sweep(str(path), vary={"k": "1.0,1.6", "soft": "0.8,1.1"}, at=at)
+    snaps = []
+    for row in t.data:
+        a = acl.analyze(load_design(str(path), overrides={"k": repr(float(row["k"])), "soft": repr(float(row["soft"]))}),
+                        at=at)
+        assert _close(row["force_left_right_125khz_n"], a.pairs[0]["force_n"])
+        assert _close(row["snap_in_left_right_125khz_v"], a.pairs[0]["snap_in_voltage_v"])
+        ok = a.equilibrium["status"] == "ok"
+        assert bool(row["equilibrium_ok"]) == ok
+        for beam, v in a.equilibrium["deflections_m"].items():
+            assert _close(row[f"tip_deflection_{beam}_m"], v if ok else float("nan"))
+        snaps.append(float(row["snap_in_left_right_125khz_v"]))
+    assert len(set(snaps)) == len(snaps) == 4          # each point its own coefficients

@@ -25,6 +25,7 @@ import numpy as np
 # or (N, F, n, n) with wavenumbers (N, F)
 from acl.physics.coupling import _distances as distances, contact_distance, green_matrix
 from acl.physics.resonance import shape_matrices, thermal_polytropic
+from acl.physics.effects import bjerknes_gap_factor
 from acl.physics.roots import golden_max
 
 
@@ -371,7 +372,7 @@ def latch_state_b(theta, L, w, t, E, n_grid: int = 2001, reach: float = 2.6, ite
 
 
 def two_bubble_forces(h, pts, radii, normals, centres, outer, scale, w, pressure, density, sound_speed, viscosity,
-                      streaming_constant, wall_reflection: float = 0.0):
+                      streaming_constant, wall_reflection: float = 0.0, pair_law=None):
     """Forces (N, 2, 3) on two capsules with one interface each under one tone: coupled volumes, thrust, Bjerknes, jet drag (the acoustics force engine for n = 2, closed form).
 
     Coupled volumes solve the 2 x 2 system (I - w^2 rho H0 g) U = H0 1 by Cramer's rule (Kinsler et
@@ -379,7 +380,8 @@ def two_bubble_forces(h, pts, radii, normals, centres, outer, scale, w, pressure
     Bjerknes rho w^2 Re(Ua Ub*)/(8 pi d^2) (Crum 1975); drag of each jet on the other capsule
     (Schlichting laminar round jet).  ``h`` (N, 2) uncoupled inward response per Pa, ``pts``,
     ``normals``, ``centres`` (N, 2, 3), ``radii``, ``outer``, ``scale`` (N, 2); ``w`` rad/s and
-    ``pressure`` Pa scalars.
+    ``pressure`` Pa scalars; ``pair_law`` (factor, gap exponent, gap reference), each (N,), of a declared
+    bjerknes_scale (:func:`acl.physics.effects.bjerknes_gap_factor`), None for the physics' own law.
     """
     rho = np.asarray(density, float)
     k = w / np.asarray(sound_speed, float)
@@ -419,6 +421,11 @@ def two_bubble_forces(h, pts, radii, normals, centres, outer, scale, w, pressure
     thr_b = c0 * eps_b**2 * scale[:, 1]
     na, nb = normals[:, 0], normals[:, 1]
     att = rho * w * w * (ua * np.conj(ub)).real / (8 * np.pi * dist**2)
+    if pair_law is not None:
+        factor, n, ref = pair_law
+        att = att * factor
+        if np.any(n):
+            att = att * bjerknes_gap_factor(dist, ref, n)
     f_bj = (att / dist)[:, None] * sep                                  # on a, along p_b - p_a
     out = np.empty(pts.shape)
     out[:, 0] = -thr_a[:, None] * na + f_bj

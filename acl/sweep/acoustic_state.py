@@ -9,7 +9,7 @@ import numpy as np
 from acl.design import model as M
 from acl.physics import batch as PB
 from acl.physics import constants as C
-from acl.physics.forces import jet_drag, thrust_magnitude
+from acl.physics.forces import bjerknes_from_rates, bjerknes_pair_sum, jet_drag, thrust_magnitude
 from acl.physics.ties import TIE_RTOL, first_max
 from acl.physics.transducer import pressure_per_volt_rows
 from acl.sweep.columns import _fkey, _ident, _pairs
@@ -80,6 +80,45 @@ class PointAcoustics:
 
     def vec(self, path: str) -> np.ndarray:
         return np.stack([self.get(f"{path}.{k}") for k in range(3)], axis=-1)
+
+    # -- declared effects the batched evaluation models (acl.sweep.columns.BATCHED_EFFECTS) -----------
+    def coefficients(self, name: str) -> dict | None:
+        """{coefficient: (N,) array} of the declared effect ``name`` in internal SI coordinates, nulls filled in
+        (acl.analysis.effects.coefficients per point: a swept coefficient varies); None when not declared."""
+        from acl.analysis import effects as EF
+
+        def build():
+            nominal = EF.coefficients(self.design, name)
+            if nominal is None:
+                return None
+            out = {k: np.full(self.n, float(v)) for k, v in nominal.items()}
+            for key in self.design.effect(name).params:
+                path = f"effects.{name}.params.{key}"
+                if path not in self.batch.fields:
+                    continue
+                values = self.get(path)
+                if (name, key) in EF.ALIASES:
+                    key, conv = EF.ALIASES[(name, key)]
+                    values = np.array([conv(float(v)) for v in values], float)
+                out[key] = np.asarray(values, float)
+            return out
+        return self.once(("effect", name), build)
+
+    def e_scale(self) -> np.ndarray | float:
+        """A declared stiffness_scale's E factor per point (acl.analysis.mechanics._e_scale), 1.0 without one."""
+        sc = self.coefficients("stiffness_scale")
+        return 1.0 if sc is None else sc["e_scale"]
+
+    def pair_law(self):
+        """(factor (N,), gap exponent (N,), gap reference (N,)) of a declared bjerknes_scale (acl.analysis.effects.bjerknes_shape
+        per point: no shape, exponent 0, without a finite positive gap_ref); None without one."""
+        bs = self.coefficients("bjerknes_scale")
+        if bs is None:
+            return None
+        n = bs.get("gap_exponent", np.zeros(self.n))
+        ref = bs.get("gap_ref", np.full(self.n, np.nan))
+        shaped = (n != 0) & np.isfinite(ref) & (ref > 0)
+        return bs["factor"], np.where(shaped, n, 0.0), np.where(shaped, ref, 1.0)
 
     def once(self, key, fn):
         if key not in self.cache:
@@ -342,7 +381,7 @@ class PointAcoustics:
             return PB.two_bubble_forces(np.stack([h[:, 0, 0], h[:, 1, 1]], axis=1), pts, lay["radii"], lay["normals"],
                                         centres, lay["outer"], self.thrust_scale(), 2 * np.pi * f[0], pressure[..., 0],
                                         self.medium["density"], self.medium["sound_speed"], self.medium["viscosity"],
-                                        C.STREAMING_CONSTANT, C.SUBSTRATE_REFLECTION)
+                                        C.STREAMING_CONSTANT, C.SUBSTRATE_REFLECTION, pair_law=self.pair_law())
         u = PB.coupled_response(self.h0(tuple(freqs)), pts, lay["radii"], lay["body"], f[None, :],
                                 self.medium["density"], self.medium["sound_speed"], C.SUBSTRATE_REFLECTION)
         u = u * (pressure[None, :, None] if pressure.ndim == 1 else pressure[:, :, None])   # (N, T, n)
@@ -350,12 +389,15 @@ class PointAcoustics:
         thr = thrust_magnitude(u, lay["radii"][:, None, :], w[None, :, None], self.medium["viscosity"][:, None, None],
                                C.STREAMING_CONSTANT).sum(axis=1) * self.thrust_scale()[:, lay["body"]]   # (N, n)
         f_thr = np.einsum("bn,bnk,nc->bck", thr, -lay["normals"], lay["onehot"])
-        sep = pts[:, None, :, :] - pts[:, :, None, :]                     # p_j - p_i
         other = lay["body"][:, None] != lay["body"][None, :]
-        d = np.where(other, np.linalg.norm(sep, axis=-1), 1.0)
-        prod = np.einsum("t,bti,btj->bij", w**2, u, np.conj(u)).real
-        att = self.medium["density"][:, None, None] * prod / (8 * np.pi * d**2) * other
-        f_bj = np.einsum("bij,bijk,ic->bck", att / d, sep, lay["onehot"])
+        coef = bjerknes_from_rates(1.0, 1.0, self.medium["density"][:, None, None] * other)      # (N, n, n)
+        law = self.pair_law()
+        shape = (0.0, 1.0)
+        if law is not None:                 # a declared bjerknes_scale, per point (acoustics._compute_engine)
+            coef = coef * law[0][:, None, None]
+            shape = (law[1][:, None, None], law[2][:, None, None])
+        bj, att = bjerknes_pair_sum(pts, u, w**2, coef, other, *shape)
+        f_bj = np.einsum("bnk,nc->bck", bj, lay["onehot"])
         x = centres[:, None, :, :] - pts[:, :, None, :]                    # (N, n, C, 3)
         dist = np.linalg.norm(x, axis=-1)
         cos = np.einsum("bnck,bnk->bnc", x, lay["normals"]) / dist
@@ -419,7 +461,7 @@ class PointAcoustics:
         axis = self.vec(f"{base}.axis")
         axis = axis / np.linalg.norm(axis, axis=-1, keepdims=True)
         return {"name": beam.name, "L": self.get(f"{base}.length"), "l": self.get(f"{base}.rigid_length"),
-                "EI": self.get(f"{base}.youngs_modulus") * i2, "axis": axis}
+                "EI": self.get(f"{base}.youngs_modulus") * self.e_scale() * i2, "axis": axis}
 
     def single_deflection(self, drive: M.Drive) -> dict:
         """Load-point deflection of every beam carrying a lone capsule under ``drive`` (fixed point of Eq. (1) under the force at the displaced position)."""

@@ -35,6 +35,7 @@ class Checks(PairMechanics):
             for lt in self.design.latches:
                 base = f"latches.{lt.name}"
                 geo = [self.get(f"{base}.{k}") for k in ("angle", "length", "width", "thickness", "youngs_modulus")]
+                geo[4] = geo[4] * self.e_scale()      # a declared stiffness_scale (mechanics.latch_geometry)
                 fsw, rel, bistable = PB.latch_switching_force(*geo)
                 axis = np.asarray(lt.axis, float)
                 lats[lt.name] = {"switching": fsw, "release": rel, "bistable": bistable, "margins": {},

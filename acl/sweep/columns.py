@@ -128,6 +128,18 @@ def _physical_effects(design: M.Design) -> list[str]:
     return [e.name for e in design.effects if e.name not in STATIC_EFFECTS]
 
 
+# Declared effects the batched evaluation applies itself, point by point in its arrays, as analyze does
+# (acl.sweep.acoustic_state.PointAcoustics): bjerknes_scale's factor and gap shape on every Bjerknes force
+# (acl.physics.forces.bjerknes_pair_sum), stiffness_scale's E x e_scale on beams and latches
+# (acl.analysis.mechanics.latch_geometry, _beam_law).  No family is given point by point for them.
+BATCHED_EFFECTS = frozenset({"bjerknes_scale", "stiffness_scale"})
+
+
+def _unbatched_effects(design: M.Design) -> list[str]:
+    """The physical effects of ``design`` the batched evaluation does not model (their families: acl.sweep.points)."""
+    return [e for e in _physical_effects(design) if e not in BATCHED_EFFECTS]
+
+
 # Declared effects that leave the forces at rest as they are (acl.analysis.acoustics applies them to
 # beams or to displaced capsules only: neighbour_drag's factor is 1 at zero displacement), and those of
 # them that also leave the latch law as it is (mechanics.latch_geometry scales E by stiffness_scale only).
@@ -137,9 +149,9 @@ LATCH_NEUTRAL_EFFECTS = {e.name for e in EFFECT_TABLE.values() if e.latch_neutra
 
 def _effect_blocks(design: M.Design) -> dict[str, list[str]]:
     """{'rest': effects that change the forces at rest, 'latch': ... the latch margins, 'motion': ... the
-    equilibria (every physical effect: the batched beams, springs and forces at displaced positions
-    model none of them)}."""
-    eff = _physical_effects(design)
+    equilibria (every physical effect but :data:`BATCHED_EFFECTS`: the batched beams, springs and forces at
+    displaced positions model none of the others)}."""
+    eff = _unbatched_effects(design)
     return {"rest": [e for e in eff if e not in REST_NEUTRAL_EFFECTS],
             "latch": [e for e in eff if e not in LATCH_NEUTRAL_EFFECTS],
             "motion": eff}
@@ -178,7 +190,7 @@ def supported(design: M.Design, at: str | None = None) -> tuple[list[str], dict[
             names += [f"switching_force_{_ident(lt.name)}_n", f"release_force_{_ident(lt.name)}_n",
                       f"bistable_{_ident(lt.name)}"]
             names += [f"margin_{_ident(lt.name)}_{_ident(p.name)}_{i + 1}" for p, i, _st, _d in step_drives(design)]
-    if not effects:
+    if not blocks["motion"]:
         closed_snap, closed_eq = _closed_form(design)
         general = None if closed_snap and closed_eq else _general(design)
         if pairs and freqs:
@@ -200,7 +212,7 @@ def supported(design: M.Design, at: str | None = None) -> tuple[list[str], dict[
                 missing["tip_deflection"] = missing["deflection_"] = \
                     f"batched equilibria do not cover this mechanism: {general}"
     for i, r in enumerate(design.requires, 1):
-        if _require_supported(design, r, effects) or _require_per_point(design, r, blocks):
+        if _require_supported(design, r, blocks["motion"]) or _require_per_point(design, r, blocks):
             names += [f"require_{i}_value", f"require_{i}_pass"]
         else:
             missing[f"require_{i}"] = f"`{r.text}` is not batched for this design"
@@ -250,7 +262,7 @@ def per_point_names(design: M.Design, at: str | None = None) -> set[str]:
     blocks = _effect_blocks(design)
     out = {c for cols in per_point_columns(design, at).values() for c in cols}
     for i, r in enumerate(design.requires, 1):
-        if not _require_supported(design, r, _physical_effects(design)) and _require_per_point(design, r, blocks):
+        if not _require_supported(design, r, blocks["motion"]) and _require_per_point(design, r, blocks):
             out |= {f"require_{i}_value", f"require_{i}_pass"}
     return out
 

@@ -141,7 +141,8 @@ class Mechanism:
                     "EI": bm["EI"], "k0": eq1_small_force_stiffness(bm["L"], bm["l"], bm["EI"])}
         if el.kind == "latch":
             base = f"latches.{el.name}"
-            geo = tuple(ev.get(f"{base}.{k}") for k in ("angle", "length", "width", "thickness", "youngs_modulus"))
+            geo = tuple(ev.get(f"{base}.{k}") for k in ("angle", "length", "width", "thickness"))
+            geo += (ev.get(f"{base}.youngs_modulus") * ev.e_scale(),)     # stiffness_scale (mechanics.latch_geometry)
             # held in state b: travel measured from state a, the rest at the second stable state (mechanics._latch_law)
             u0 = PB.latch_state_b(*geo) if ev.design.latch(el.name).state == "b" else np.zeros(self.n)
             return {"kind": "latch", "name": el.name, "group": el.group, "axis": _unit(ev.vec(f"{base}.axis")),

@@ -1,5 +1,7 @@
 """Columns of a sweep that the analysis engine gives point by point: the families that declared effects
-change (forces at rest, the latch law, the equilibria and snap-in), for the designs that declare them.
+change (forces at rest, the latch law, the equilibria and snap-in), for the designs that declare effects the
+batched evaluation does not model (all but acl.sweep.columns.BATCHED_EFFECTS: bjerknes_scale and
+stiffness_scale are batched).
 
 Before, :func:`acl.sweep.evaluate.supported` left these columns out of the table of a design with declared
 effects (a calibrated design from `acl fit --calibrated` lost its deflection and snap-in columns, issue 23).
