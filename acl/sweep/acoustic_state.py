@@ -9,7 +9,7 @@ import numpy as np
 from acl.design import model as M
 from acl.physics import batch as PB
 from acl.physics import constants as C
-from acl.physics.forces import bjerknes_from_rates, bjerknes_pair_sum, jet_drag, thrust_magnitude
+from acl.physics.forces import bjerknes_from_rates, bjerknes_pair_sum, critical_distance, jet_drag, thrust_magnitude
 from acl.physics.ties import TIE_RTOL, first_max
 from acl.physics.transducer import pressure_per_volt_rows
 from acl.sweep.columns import _fkey, _ident, _pairs
@@ -435,7 +435,8 @@ class PointAcoustics:
                 gap = np.linalg.norm(pts[rows, ib[jb]] - pts[rows, ia[ja]], axis=-1)
                 gamma2 = np.einsum("bk,bk->b", thrust_vec[:, ia_], -unit) + np.einsum("bk,bk->b", thrust_vec[:, ib_], unit)
                 alpha = attraction * gap**2
-                dc = np.where((alpha > 0) & (gamma2 > 0), np.sqrt(np.abs(alpha / np.where(gamma2 != 0, gamma2, 1.0))), np.nan)
+                live = (alpha > 0) & (gamma2 > 0)       # paper Eq. 3's d_c (acoustics.pair_table), gamma2 = 2 gamma
+                dc = np.where(live, critical_distance(np.where(live, alpha, 1.0), np.where(live, gamma2, 2.0) / 2), np.nan)
                 tag = f"{_ident(a)}_{_ident(b)}_{_fkey(f)}"
                 out[f"force_{tag}_n"] = attraction
                 out[f"attract_{tag}"] = attraction > 0
