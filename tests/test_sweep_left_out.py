@@ -39,3 +39,62 @@ def test_the_note_reaches_the_table(tmp_path, capsys):
     out = capsys.readouterr()
     assert rc == 0, out.err
     assert "columns not computed: tip_deflection" in " ".join((out.out + out.err).split())
+
+
+ROOT = os.path.dirname(DATA)
+
+
+def _designs():
+    import glob
+
+    ex = os.path.join(ROOT, "..", "examples")
+    return sorted(glob.glob(os.path.join(ex, "*.acl")) + glob.glob(os.path.join(ex, "*", "*.acl"))
+                  + glob.glob(os.path.join(DATA, "sweep_*.acl")) + glob.glob(os.path.join(DATA, "fit_*.acl"))
+                  + [os.path.join(DATA, n) for n in ("gripper_rigid_truss.acl", "latch_deflect.acl", "latch_path.acl")])
+
+
+def _could_have(d) -> list[str]:
+    """Every column the sweep's families name for design ``d`` at a drive (acl.sweep.columns.QUANTITIES), built
+    from the design alone: modes, pairs at the program tones, latches, each mechanism element's deflection,
+    requires, model form, lint rules."""
+    from acl.analysis.report import program_frequencies, step_drives
+    from acl.design import model as M
+    from acl.sweep.columns import LINT_RULES, _elements, _fkey, _ident, _pairs
+
+    out = [f"{k}_{_ident(c.name)}_{i}" + ("_hz" if k == "resonance" else "") for c in d.capsules
+           for i in range(1, len(c.orifices) + 1) for k in ("resonance", "q")]
+    for f in program_frequencies(d) or []:
+        for a, b in _pairs(d):
+            t = f"{_ident(a)}_{_ident(b)}_{_fkey(f)}"
+            out += [f"force_{t}_n", f"attract_{t}", f"phase_{t}_deg", f"critical_distance_{t}_m", f"snap_in_{t}_v"]
+    for lt in d.latches:
+        k = _ident(lt.name)
+        out += [f"switching_force_{k}_n", f"release_force_{k}_n", f"bistable_{k}"]
+        out += [f"margin_{k}_{_ident(p.name)}_{i + 1}" for p, i, _s, _d in step_drives(d)]
+    if any((d.mount_of(c.name) or M.Fix(capsule="", span=c.span)).kind == "mount" for c in d.capsules):
+        out += [f"{'tip_deflection' if kind == 'beam' else 'deflection'}_{_ident(n)}_m" for n, kind in _elements(d)]
+        out.append("equilibrium_ok")
+    out += [f"require_{i}_{k}" for i in range(1, len(d.requires) + 1) for k in ("value", "pass")]
+    out += ["requires_pass"] * bool(d.requires) + ["model_form_rel", "model_form_uncertain"]
+    return out + [f"lint_{c}_pass" for c in LINT_RULES]
+
+
+def test_every_column_is_given_or_named_with_its_reason():
+    """Issue 23 item 2 on every example and test design (springs, trusses, latches, groups, effects): each column
+    the design could have is in the table or left out under a named reason."""
+    from acl.design.resolve import load_design
+    from acl.sweep.columns import supported
+
+    designs = _designs()
+    assert len(designs) >= 30
+    kinds = set()
+    for path in designs:
+        d = load_design(path)
+        kinds |= {k for k, v in (("spring", d.springs), ("truss", d.trusses), ("latch", d.latches),
+                                 ("effects", d.effects), ("group", len(d.capsules) >= 3)) if v}
+        names, missing = supported(d, "125 kHz @ 2 V")
+        unnamed = [q for q in _could_have(d) if q not in names and not any(
+            q.startswith(k) and (k.endswith("_") or q[len(k):len(k) + 1] in ("", "_")) for k in missing)]
+        assert not unnamed, f"{os.path.basename(path)}: columns absent without a reason: {unnamed}"
+        assert all(len(why) > 20 for why in missing.values())
+    assert kinds == {"spring", "truss", "latch", "effects", "group"}
