@@ -156,3 +156,41 @@ def test_a_swept_effect_coefficient_is_read_per_point(monkeypatch, tmp_path):
             assert _close(row[f"tip_deflection_{beam}_m"], v if ok else float("nan"))
         snaps.append(float(row["snap_in_left_right_125khz_v"]))
     assert len(set(snaps)) == len(snaps) == 4          # each point its own coefficients
+
+
+PRESSURE_AND_WALL = ("effect transducer_gain { gain_slope = 0.6, f_ref = 120 kHz, gain = 1.15 }\n"
+                     "effect transducer_resonance { inv_f_ratio = 0.8, gain_q = 3, f_ref = 120 kHz }\n"
+                     "effect substrate_proximity { h_substrate = 20 um }\n"
+                     "effect bjerknes_scale { factor = 1.2 }\n")
+
+
+def test_pressure_and_substrate_effects_are_batched_and_equal_analyze(monkeypatch, tmp_path):
+    """transducer_gain, transducer_resonance and substrate_proximity act on the drive pressure, the thrust and the
+    pairs inside the batched engine: the Fig. 4 pair's forces, snap-in and deflections and the three-capsule Fig. 5a
+    gripper's forces and snap-in equal a loop of `acl.analyze` to 1e-6, with no point-by-point analysis."""
+    from example_designs import first_principles_text
+
+    _no_point_loop(monkeypatch)
+    at = "125 kHz @ 2 V"
+    for example, name, values in (("fig4_facing_pair", "gap", ("45um", "60um")),
+                                  ("fig5a_gripper", "gap", ("28um", "34um"))):
+        path = tmp_path / f"{example}.acl"
+        path.write_text(first_principles_text(example) + "\n" + PRESSURE_AND_WALL)
+        t = acl.sweep(str(path), vary={name: ",".join(values)}, at=at)
+        snap = [c for c in t.columns if c.startswith("snap_in_")]
+        force = [c for c in t.columns if c.startswith("force_")]
+        assert snap and force and not any("point by point" in n for n in t.notes), (t.columns, t.notes)
+        for row, v in zip(t.data, values):
+            a = acl.analyze(load_design(str(path), overrides={name: v.replace("um", " um")}), at=at)
+            for pf in a.pairs:
+                tag = f"{pf['a']}_{pf['b']}_125khz"
+                assert _close(row[f"force_{tag}_n"], pf["force_n"]), (example, tag)
+                assert _close(row[f"snap_in_{tag}_v"], pf["snap_in_voltage_v"]), (example, tag)
+            ok = a.equilibrium["status"] == "ok"
+            assert bool(row["equilibrium_ok"]) == ok
+            for el, x in a.equilibrium["deflections_m"].items():
+                col = next(c for c in t.columns if c.endswith(f"deflection_{el}_m"))
+                assert _close(row[col], x if ok else float("nan")), (example, el)
+            # the effects act: the design without them has other forces
+            plain = acl.analyze(load_design(str(first_principles_path(example)), overrides={name: v.replace("um", " um")}))
+            assert abs(plain.pairs[0]["force_n"] / a.pairs[0]["force_n"] - 1) > 0.05

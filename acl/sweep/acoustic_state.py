@@ -109,12 +109,24 @@ class PointAcoustics:
         sc = self.coefficients("stiffness_scale")
         return 1.0 if sc is None else sc["e_scale"]
 
-    def pair_law(self):
+    def force_scale(self) -> np.ndarray:
+        """(N, C) thrust scale of each capsule: a declared thrust coefficient's (:meth:`thrust_scale`) x a declared
+        substrate_proximity's factor (acoustics._compute_engine)."""
+        sub = self.substrate()
+        return self.thrust_scale() if sub is None else self.thrust_scale() * sub
+
+    def pair_law(self, two: bool = False):
         """(factor (N,), gap exponent (N,), gap reference (N,)) of a declared bjerknes_scale (acl.analysis.effects.bjerknes_shape
-        per point: no shape, exponent 0, without a finite positive gap_ref); None without one."""
+        per point: no shape, exponent 0, without a finite positive gap_ref); None without one.  ``two``: the pair
+        of a two-capsule design, its factor times a declared substrate_proximity's sqrt(s_a s_b)."""
         bs = self.coefficients("bjerknes_scale")
-        if bs is None:
+        sub = self.substrate() if two else None
+        if bs is None and sub is None:
             return None
+        if bs is None:                      # two capsules: the substrate's sqrt(s_a s_b) on their pair
+            return np.sqrt(sub[:, 0] * sub[:, 1]), np.zeros(self.n), np.ones(self.n)
+        if sub is not None:
+            bs = {**bs, "factor": np.sqrt(sub[:, 0] * sub[:, 1]) * bs["factor"]}
         n = bs.get("gap_exponent", np.zeros(self.n))
         ref = bs.get("gap_ref", np.full(self.n, np.nan))
         shaped = (n != 0) & np.isfinite(ref) & (ref > 0)
@@ -290,8 +302,56 @@ class PointAcoustics:
         return np.where(best > 0, best, DEFAULT_V)
 
     def pressure(self, freqs, volts: tuple) -> np.ndarray:
-        """Drive pressure amplitude (Pa) of each tone: (T,), or (N, T) when amplitudes or gains vary per point."""
-        return self.volts(volts) * self.gain(np.asarray(freqs, float))
+        """Drive pressure amplitude (Pa) of each tone: (T,), or (N, T) when amplitudes, gains or declared pressure
+        effects vary per point (acoustics._compute_engine: amplitude x gain x acoustics.effect_pressure_factor)."""
+        f = np.asarray(freqs, float)
+        p = self.volts(volts) * self.gain(f)
+        factor = self.pressure_factor(f)
+        return p if factor is None else p * factor
+
+    def pressure_factor(self, f: np.ndarray):
+        """(N, T) factor of declared transducer_gain (gain, tilt) and transducer_resonance on the drive pressure
+        at tones ``f`` (acl.analysis.acoustics.effect_pressure_factor without drive_saturation, which is not
+        batched); None without them."""
+        from acl.physics import effects as PE
+
+        tg, tr = self.coefficients("transducer_gain"), self.coefficients("transducer_resonance")
+        if tg is None and tr is None:
+            return None
+        out = np.ones((self.n, f.size))
+        if tg is not None:
+            out = out * tg["gain"][:, None]
+            tilt = (tg["gain_slope"] != 0) & np.isfinite(tg["f_ref"])
+            if tilt.any():
+                ref = np.where(tilt, tg["f_ref"], 1.0)[:, None]
+                out = out * np.where(tilt[:, None], PE.gain_tilt(f[None, :], ref, tg["gain_slope"][:, None]), 1.0)
+        if tr is not None:
+            res = (tr["inv_f_ratio"] != 0) & np.isfinite(tr["f_ref"])
+            if res.any():
+                ref = np.where(res, tr["f_ref"], 1.0)[:, None]
+                out = out * np.where(res[:, None], PE.transducer_resonance(f[None, :], ref, tr["inv_f_ratio"][:, None],
+                                                                           tr["gain_q"][:, None]), 1.0)
+        return out
+
+    def substrate(self):
+        """(N, C) force factor of a declared substrate_proximity at each capsule's first orifice height at rest
+        (acl.analysis.acoustics.substrate_factor; the capsule centre without an orifice); None without one."""
+        from acl.physics import effects as PE
+
+        sp = self.coefficients("substrate_proximity")
+        if sp is None:
+            return None
+
+        def build():
+            lay = self.layout()
+            z = lay["rest"][:, :, 2].copy()
+            for c in range(len(self.caps)):
+                first = np.flatnonzero(lay["body"] == c)
+                if first.size:
+                    z[:, c] = lay["rest"][:, c, 2] + lay["offsets"][:, first[0], 2]
+            h = sp["h_substrate"][:, None]
+            return np.where(h > 0, PE.substrate_factor(z, np.where(h > 0, h, 1.0)), 1.0)
+        return self.once("substrate", build)
 
     def limit_volt(self, p, i: int, st):
         """The voltage limit of a follow/switch/hold step: its own `limit`, else the transducer's maximum
@@ -379,18 +439,22 @@ class PointAcoustics:
         if not parts and f.size == 1 and lay["body"].tolist() == [0, 1]:  # two one-orifice capsules, one tone
             h = self.h0(tuple(freqs))[:, 0]
             return PB.two_bubble_forces(np.stack([h[:, 0, 0], h[:, 1, 1]], axis=1), pts, lay["radii"], lay["normals"],
-                                        centres, lay["outer"], self.thrust_scale(), 2 * np.pi * f[0], pressure[..., 0],
+                                        centres, lay["outer"], self.force_scale(), 2 * np.pi * f[0], pressure[..., 0],
                                         self.medium["density"], self.medium["sound_speed"], self.medium["viscosity"],
-                                        C.STREAMING_CONSTANT, C.SUBSTRATE_REFLECTION, pair_law=self.pair_law())
+                                        C.STREAMING_CONSTANT, C.SUBSTRATE_REFLECTION, pair_law=self.pair_law(two=True))
         u = PB.coupled_response(self.h0(tuple(freqs)), pts, lay["radii"], lay["body"], f[None, :],
                                 self.medium["density"], self.medium["sound_speed"], C.SUBSTRATE_REFLECTION)
         u = u * (pressure[None, :, None] if pressure.ndim == 1 else pressure[:, :, None])   # (N, T, n)
         w = 2 * np.pi * f
         thr = thrust_magnitude(u, lay["radii"][:, None, :], w[None, :, None], self.medium["viscosity"][:, None, None],
-                               C.STREAMING_CONSTANT).sum(axis=1) * self.thrust_scale()[:, lay["body"]]   # (N, n)
+                               C.STREAMING_CONSTANT).sum(axis=1) * self.force_scale()[:, lay["body"]]   # (N, n)
         f_thr = np.einsum("bn,bnk,nc->bck", thr, -lay["normals"], lay["onehot"])
         other = lay["body"][:, None] != lay["body"][None, :]
         coef = bjerknes_from_rates(1.0, 1.0, self.medium["density"][:, None, None] * other)      # (N, n, n)
+        sub = self.substrate()
+        if sub is not None:                 # a declared substrate_proximity (acoustics._compute_engine)
+            pair = np.sqrt(sub[:, :, None] * sub[:, None, :])[:, lay["body"]][:, :, lay["body"]]
+            coef = coef * pair
         law = self.pair_law()
         shape = (0.0, 1.0)
         if law is not None:                 # a declared bjerknes_scale, per point (acoustics._compute_engine)

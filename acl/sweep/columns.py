@@ -131,8 +131,14 @@ def _physical_effects(design: M.Design) -> list[str]:
 # Declared effects the batched evaluation applies itself, point by point in its arrays, as analyze does
 # (acl.sweep.acoustic_state.PointAcoustics): bjerknes_scale's factor and gap shape on every Bjerknes force
 # (acl.physics.forces.bjerknes_pair_sum), stiffness_scale's E x e_scale on beams and latches
-# (acl.analysis.mechanics.latch_geometry, _beam_law).  No family is given point by point for them.
-BATCHED_EFFECTS = frozenset({"bjerknes_scale", "stiffness_scale"})
+# (acl.analysis.mechanics.latch_geometry, _beam_law), transducer_gain's and transducer_resonance's factor on the
+# drive pressure (acoustics.effect_pressure_factor), substrate_proximity's factor on thrust and pairs
+# (acoustics.substrate_factor).  No family is given point by point for them.  Not batched: drive_saturation
+# (forces no longer V^2, which the snap-in curves assume), the beam laws large_deflection and stiffness_gradient
+# (the elastica blend, a graded modulus) and neighbour_drag (forces at displaced positions).
+BATCHED_EFFECTS = frozenset({"bjerknes_scale", "stiffness_scale", "transducer_gain", "transducer_resonance",
+                             "substrate_proximity"})
+PRESSURE_EFFECTS = frozenset({"transducer_gain", "transducer_resonance", "drive_saturation"})
 
 
 def _unbatched_effects(design: M.Design) -> list[str]:
@@ -169,6 +175,7 @@ def supported(design: M.Design, at: str | None = None) -> tuple[list[str], dict[
     missing: dict[str, str] = {}
     effects = _physical_effects(design)
     blocks = _effect_blocks(design)
+    pressure = [e for e in effects if e in PRESSURE_EFFECTS]    # lint's eps/R (ACL105) is without them
     for cap in design.capsules:
         for k in range(1, len(cap.orifices) + 1):
             names += [f"resonance_{_ident(cap.name)}_{k}_hz", f"q_{_ident(cap.name)}_{k}"]
@@ -225,12 +232,13 @@ def supported(design: M.Design, at: str | None = None) -> tuple[list[str], dict[
                                   f"({', '.join(effects)}) is not batched: `acl analyze --at` gives it at a drive")
     sweeps = any(st.kind == "sweep" for p in design.programs for st in p.steps)
     names += [f"lint_{code}_pass" for code in LINT_RULES
-              if (code != "acl105" or not blocks["rest"]) and (code not in _PROGRAM_LINT or not effects)
+              if (code != "acl105" or not (blocks["rest"] or pressure)) and (code not in _PROGRAM_LINT or not effects)
               and (code not in _PROGRAM_LINT or not sweeps)]
     if "lint_acl603_pass" in names and "requires_pass" not in names and design.requires:
         names.remove("lint_acl603_pass")
-    if blocks["rest"]:
-        missing["lint_acl105"] = f"eps/R with declared effects on the drive pressure ({', '.join(blocks['rest'])}) is not batched"
+    if blocks["rest"] or pressure:
+        on = sorted(set(blocks["rest"]) | set(pressure))
+        missing["lint_acl105"] = f"eps/R with declared effects on the drive pressure ({', '.join(on)}) is not batched"
     if effects:
         for code in _PROGRAM_LINT:
             missing[f"lint_{code}"] = (f"the rule's forces with declared effects ({', '.join(effects)}) are not batched "

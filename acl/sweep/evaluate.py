@@ -57,8 +57,9 @@ amplitude times the point's interpolated gain; snap-in is cut at the point's max
 that moves a tone's frequency is not (the frequency names the columns: acl.sweep.driver leaves the
 program columns out).
 
-Declared effects: ``bjerknes_scale`` (factor and gap shape on every Bjerknes force) and ``stiffness_scale`` (E of
-beams and latches) are applied in the batched arrays, per point when a parameter moves a coefficient
+Declared effects: ``bjerknes_scale`` (factor and gap shape on every Bjerknes force), ``stiffness_scale`` (E of
+beams and latches), ``transducer_gain`` and ``transducer_resonance`` (drive pressure) and ``substrate_proximity``
+(thrust and pairs) are applied in the batched arrays, per point when a parameter moves a coefficient
 (acl.sweep.columns.BATCHED_EFFECTS; the calibrated designs of `acl fit --calibrated` and stdlib calibrations).
 Designs declaring other effects that change a family (forces at rest, latch law, equilibria): that family
 comes point by point from `acl analyze`'s engine (:mod:`acl.sweep.points`, with every effect applied).
