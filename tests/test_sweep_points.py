@@ -166,16 +166,19 @@ PRESSURE_AND_WALL = ("effect transducer_gain { gain_slope = 0.6, f_ref = 120 kHz
 
 def test_pressure_and_substrate_effects_are_batched_and_equal_analyze(monkeypatch, tmp_path):
     """transducer_gain, transducer_resonance and substrate_proximity act on the drive pressure, the thrust and the
-    pairs inside the batched engine: the Fig. 4 pair's forces, snap-in and deflections and the three-capsule Fig. 5a
-    gripper's forces and snap-in equal a loop of `acl.analyze` to 1e-6, with no point-by-point analysis."""
+    pairs inside the batched engine, neighbour_drag on the forces at displaced positions: the Fig. 4 pair's forces,
+    snap-in and deflections (with and without neighbour_drag) and the three-capsule Fig. 5a gripper's forces and
+    snap-in equal a loop of `acl.analyze` to 1e-6, with no point-by-point analysis."""
     from example_designs import first_principles_text
 
     _no_point_loop(monkeypatch)
     at = "125 kHz @ 2 V"
-    for example, name, values in (("fig4_facing_pair", "gap", ("45um", "60um")),
-                                  ("fig5a_gripper", "gap", ("28um", "34um"))):
+    for example, name, values, extra in (("fig4_facing_pair", "gap", ("45um", "60um"), ""),
+                                         ("fig4_facing_pair", "gap", ("40um", "55um"),
+                                          "effect neighbour_drag { plateau = 8 um }\n"),
+                                         ("fig5a_gripper", "gap", ("28um", "34um"), "")):
         path = tmp_path / f"{example}.acl"
-        path.write_text(first_principles_text(example) + "\n" + PRESSURE_AND_WALL)
+        path.write_text(first_principles_text(example) + "\n" + PRESSURE_AND_WALL + extra)
         t = acl.sweep(str(path), vary={name: ",".join(values)}, at=at)
         snap = [c for c in t.columns if c.startswith("snap_in_")]
         force = [c for c in t.columns if c.startswith("force_")]

@@ -438,10 +438,10 @@ class PointAcoustics:
         pts = centres[:, lay["body"]] + lay["offsets"]                    # (N, n, 3)
         if not parts and f.size == 1 and lay["body"].tolist() == [0, 1]:  # two one-orifice capsules, one tone
             h = self.h0(tuple(freqs))[:, 0]
-            return PB.two_bubble_forces(np.stack([h[:, 0, 0], h[:, 1, 1]], axis=1), pts, lay["radii"], lay["normals"],
+            return self.neighbour_drag(centres, PB.two_bubble_forces(np.stack([h[:, 0, 0], h[:, 1, 1]], axis=1), pts, lay["radii"], lay["normals"],
                                         centres, lay["outer"], self.force_scale(), 2 * np.pi * f[0], pressure[..., 0],
                                         self.medium["density"], self.medium["sound_speed"], self.medium["viscosity"],
-                                        C.STREAMING_CONSTANT, C.SUBSTRATE_REFLECTION, pair_law=self.pair_law(two=True))
+                                        C.STREAMING_CONSTANT, C.SUBSTRATE_REFLECTION, pair_law=self.pair_law(two=True)))
         u = PB.coupled_response(self.h0(tuple(freqs)), pts, lay["radii"], lay["body"], f[None, :],
                                 self.medium["density"], self.medium["sound_speed"], C.SUBSTRATE_REFLECTION)
         u = u * (pressure[None, :, None] if pressure.ndim == 1 else pressure[:, :, None])   # (N, T, n)
@@ -468,10 +468,25 @@ class PointAcoustics:
         mask = lay["body"][:, None] != np.arange(len(self.caps))[None, :]
         drag = jet_drag(thr[:, :, None], np.where(mask, dist, 1.0), cos, lay["outer"][:, None, :]) * mask
         f_dr = np.einsum("bnc,bnk->bck", drag, lay["normals"])
-        total = f_thr + f_bj + f_dr
+        total = self.neighbour_drag(centres, f_thr + f_bj + f_dr)
         if parts:
             return total, u, thr, att, pts
         return total
+
+    def neighbour_drag(self, centres, total):
+        """A declared neighbour_drag on the forces (N, C, 3) of capsules with a neighbour, weakening with each one's
+        displacement from rest (acl.analysis.acoustics._apply_neighbour_drag, :func:`acl.physics.effects.drag_load`;
+        1 at rest)."""
+        from acl.analysis.effects import neighbour_capsules
+        from acl.physics.effects import drag_load
+
+        nd = self.coefficients("neighbour_drag")
+        if nd is None or not np.any(nd["inv_plateau"] > 0):
+            return total
+        near = np.array([c.name in neighbour_capsules(self.design) for c in self.caps], float)
+        delta = np.linalg.norm(centres - self.layout()["rest"], axis=-1) * near
+        inv = nd["inv_plateau"][:, None, None]
+        return np.where(inv > 0, drag_load(total, delta[..., None], inv), total)
 
     # -- pairs at the program frequencies -------------------------------------------------------------
     def pair_quantities(self, f: float) -> dict:

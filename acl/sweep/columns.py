@@ -133,11 +133,12 @@ def _physical_effects(design: M.Design) -> list[str]:
 # (acl.physics.forces.bjerknes_pair_sum), stiffness_scale's E x e_scale on beams and latches
 # (acl.analysis.mechanics.latch_geometry, _beam_law), transducer_gain's and transducer_resonance's factor on the
 # drive pressure (acoustics.effect_pressure_factor), substrate_proximity's factor on thrust and pairs
-# (acoustics.substrate_factor).  No family is given point by point for them.  Not batched: drive_saturation
-# (forces no longer V^2, which the snap-in curves assume), the beam laws large_deflection and stiffness_gradient
-# (the elastica blend, a graded modulus) and neighbour_drag (forces at displaced positions).
+# (acoustics.substrate_factor), neighbour_drag's weakening with displacement (acoustics._apply_neighbour_drag).
+# No family is given point by point for them.  Not batched: drive_saturation (forces no longer V^2, which the
+# snap-in curves assume) and the beam laws large_deflection and stiffness_gradient (the elastica blend, a graded
+# modulus).
 BATCHED_EFFECTS = frozenset({"bjerknes_scale", "stiffness_scale", "transducer_gain", "transducer_resonance",
-                             "substrate_proximity"})
+                             "substrate_proximity", "neighbour_drag"})
 PRESSURE_EFFECTS = frozenset({"transducer_gain", "transducer_resonance", "drive_saturation"})
 
 

@@ -58,8 +58,8 @@ that moves a tone's frequency is not (the frequency names the columns: acl.sweep
 program columns out).
 
 Declared effects: ``bjerknes_scale`` (factor and gap shape on every Bjerknes force), ``stiffness_scale`` (E of
-beams and latches), ``transducer_gain`` and ``transducer_resonance`` (drive pressure) and ``substrate_proximity``
-(thrust and pairs) are applied in the batched arrays, per point when a parameter moves a coefficient
+beams and latches), ``transducer_gain`` and ``transducer_resonance`` (drive pressure), ``substrate_proximity``
+(thrust and pairs) and ``neighbour_drag`` (forces at displaced positions) are applied in the batched arrays, per point when a parameter moves a coefficient
 (acl.sweep.columns.BATCHED_EFFECTS; the calibrated designs of `acl fit --calibrated` and stdlib calibrations).
 Designs declaring other effects that change a family (forces at rest, latch law, equilibria): that family
 comes point by point from `acl analyze`'s engine (:mod:`acl.sweep.points`, with every effect applied).
