@@ -1,5 +1,7 @@
 """Declared physical effects in a sweep: each column family is given where no declared effect changes it, and
-equals `acl analyze` of the design with its effects; otherwise it is given point by point by analyze's engine (acl.sweep.points) and equals analyze exactly.
+equals `acl analyze` of the design with its effects.  The effects acl.sweep.columns.BATCHED_EFFECTS names are applied
+in the batched engine (tests/test_sweep_points.py); the others' families are given point by point by analyze's
+engine (acl.sweep.points) and equal analyze exactly.
 
 Forces at rest are unchanged by effects on beams (large_deflection, stiffness_gradient, stiffness_scale) and
 by neighbour_drag (its factor is 1 at zero displacement); latch margins also by all but stiffness_scale
@@ -64,7 +66,7 @@ def test_pair_forces_with_beam_and_drag_effects_equal_analyze():
     assert exc.value.code == "E-SWEEP-Q01"
 
 
-def test_latch_margins_with_a_stiffness_gradient_equal_analyze_and_stiffness_scale_is_refused():
+def test_latch_margins_with_a_stiffness_gradient_equal_analyze_and_stiffness_scale_is_batched():
     d = _design("fig6_bistable_latch", "effect stiffness_gradient { e_gradient = 0.2 }")
     names, missing = supported(d, None)
     assert "switching_force_snap_n" in names and "require_1_value" in names
@@ -78,7 +80,7 @@ def test_latch_margins_with_a_stiffness_gradient_equal_analyze_and_stiffness_sca
         m = next(x["margin"] for x in lt["margins"] if x["program"] == "switch")
         assert m * (1 - 2e-3) <= cols["margin_snap_switch_1"][i] <= m * (1 + 1e-12)    # never above analyze
         assert cols["require_1_pass"][i] == rep["requires"][0]["ok"]
-    # stiffness_scale changes the latch law: point by point by analyze's engine, equal to analyze
+    # stiffness_scale changes the latch law: E x e_scale in the batched engine (acl.sweep.columns.BATCHED_EFFECTS)
     scaled = _design("fig6_bistable_latch", "effect stiffness_scale { e_scale = 0.8 }")
     names, missing = supported(scaled, None)
     assert "switching_force_snap_n" in names and "require_1_value" in names and "margin_" not in missing

@@ -164,11 +164,17 @@ PRESSURE_AND_WALL = ("effect transducer_gain { gain_slope = 0.6, f_ref = 120 kHz
                      "effect bjerknes_scale { factor = 1.2 }\n")
 
 
+BEAM_LAWS = ("effect stiffness_gradient { e_gradient = 0.7 }\n"
+             "effect large_deflection { elastica_weight = 0.5 }\n"
+             "effect stiffness_scale { e_scale = 0.8 }\n")
+
+
 def test_pressure_and_substrate_effects_are_batched_and_equal_analyze(monkeypatch, tmp_path):
     """transducer_gain, transducer_resonance and substrate_proximity act on the drive pressure, the thrust and the
-    pairs inside the batched engine, neighbour_drag on the forces at displaced positions: the Fig. 4 pair's forces,
-    snap-in and deflections (with and without neighbour_drag) and the three-capsule Fig. 5a gripper's forces and
-    snap-in equal a loop of `acl.analyze` to 1e-6, with no point-by-point analysis."""
+    pairs inside the batched engine, neighbour_drag on the forces at displaced positions, stiffness_gradient and
+    large_deflection on the beams (paper Eq. (1) blended with the elastica, inverted per point): the Fig. 4 pair's
+    forces, snap-in and deflections (with and without neighbour_drag, with and without the beam laws) and the
+    three-capsule Fig. 5a gripper's equal a loop of `acl.analyze` to 1e-6, with no point-by-point analysis."""
     from example_designs import first_principles_text
 
     _no_point_loop(monkeypatch)
@@ -176,7 +182,9 @@ def test_pressure_and_substrate_effects_are_batched_and_equal_analyze(monkeypatc
     for example, name, values, extra in (("fig4_facing_pair", "gap", ("45um", "60um"), ""),
                                          ("fig4_facing_pair", "gap", ("40um", "55um"),
                                           "effect neighbour_drag { plateau = 8 um }\n"),
-                                         ("fig5a_gripper", "gap", ("28um", "34um"), "")):
+                                         ("fig5a_gripper", "gap", ("28um", "34um"), ""),
+                                         ("fig4_facing_pair", "gap", ("42um", "58um"), BEAM_LAWS),
+                                         ("fig5a_gripper", "gap", ("28um", "34um"), BEAM_LAWS)):
         path = tmp_path / f"{example}.acl"
         path.write_text(first_principles_text(example) + "\n" + PRESSURE_AND_WALL + extra)
         t = acl.sweep(str(path), vary={name: ",".join(values)}, at=at)

@@ -246,6 +246,48 @@ def eq1_force(delta, L, l, EI, rtol: float = 1e-13):
 # ----------------------------------------------------------------------------------------------
 
 
+def effective_beam_force(delta, L, l, EI, e_scale, gradient, weight, iterations: int = 100):
+    """Load P (N,) giving load-point deflection ``delta`` (N,) under paper Eq. 1 with declared beam effects: the inverse of acl.physics.effects.effective_beam_deflection per row (bracket doubled from the small-load stiffness, then regula falsi, Illinois; acl.physics.effects.effective_beam_force's root to 1e-13).
+
+    A law that saturates before ``delta`` (the elastica near its reach) gives a wall k0 delta 2^200, as the
+    scalar inverse does.
+    """
+    from acl.physics.effects import effective_beam_deflection
+    from acl.physics.roots import illinois
+
+    delta, L, l, EI, e_scale, gradient, weight = np.broadcast_arrays(
+        *(np.asarray(v, float) for v in (delta, L, l, EI, e_scale, gradient, weight)))
+    sign, target = np.sign(delta), np.abs(delta)
+
+    def defl(p):
+        return effective_beam_deflection(p, L, l, EI, e_scale, gradient, weight)
+
+    k0 = 1e-30 / defl(np.full(delta.shape, 1e-30))
+    lo, hi = np.zeros(delta.shape), k0 * target
+    d_hi, d_prev = defl(hi), np.full(delta.shape, -np.inf)
+    wall = np.zeros(delta.shape, bool)
+    for _ in range(200):                                 # Eq. (1) and the elastica stiffen: expand the bracket
+        short = (d_hi < target) & ~wall
+        if not short.any():
+            break
+        wall |= short & (d_hi <= d_prev * (1.0 + 1e-12))
+        short &= ~wall
+        lo, d_prev = np.where(short, hi, lo), np.where(short, d_hi, d_prev)
+        hi = np.where(short, 2.0 * hi, hi)
+        d_hi = np.where(short, defl(hi), d_hi)
+    live = (target > 0) & ~wall & (d_hi >= target)
+    scale = np.where(target > 0, target, 1.0)
+    P = hi
+    if live.any():
+        def g(p):
+            return defl(p) / scale - 1.0
+        root, _ = illinois(g, lo, np.where(live, g(lo), -1.0), hi, np.where(live, d_hi / scale - 1.0, 1.0),
+                           iterations=iterations, ftol=1e-15)
+        P = np.where(live, root, hi)
+    P = np.where(wall, k0 * target * 2.0 ** 200, np.where(target > 0, P, 0.0))
+    return sign * P, k0
+
+
 def axial_force(compression, slenderness):
     """N L^2/(E I) vs compression/L of one beam, per-point slenderness: linear E A/L, then the buckled elastica (latch.axial_force; Timoshenko & Gere 2.7)."""
     c = np.asarray(compression, float)

@@ -540,8 +540,24 @@ class PointAcoustics:
             i2 = hi * lo**3 / 12
         axis = self.vec(f"{base}.axis")
         axis = axis / np.linalg.norm(axis, axis=-1, keepdims=True)
-        return {"name": beam.name, "L": self.get(f"{base}.length"), "l": self.get(f"{base}.rigid_length"),
-                "EI": self.get(f"{base}.youngs_modulus") * self.e_scale() * i2, "axis": axis}
+        out = {"name": beam.name, "L": self.get(f"{base}.length"), "l": self.get(f"{base}.rigid_length"),
+               "EI": self.get(f"{base}.youngs_modulus") * self.e_scale() * i2, "axis": axis, "law": None}
+        law = self.beam_law()
+        if law is not None:       # declared stiffness_gradient / large_deflection: effects.effective_beam_deflection
+            out["EI"] = self.get(f"{base}.youngs_modulus") * i2
+            out["law"] = law
+        return out
+
+    def beam_law(self):
+        """(e_scale, gradient, elastica weight) per point of declared stiffness_gradient / large_deflection (with
+        stiffness_scale: acl.analysis.mechanics._beam_effects), None without either (paper Eq. (1) with E x e_scale)."""
+        gr, ld = self.coefficients("stiffness_gradient"), self.coefficients("large_deflection")
+        if gr is None and ld is None:
+            return None
+        es = self.e_scale()
+        return (np.broadcast_to(np.asarray(es, float), (self.n,)),
+                gr["e_gradient"] if gr is not None else np.zeros(self.n),
+                ld["elastica_weight"] if ld is not None else np.zeros(self.n))
 
     def single_deflection(self, drive: M.Drive) -> dict:
         """Load-point deflection of every beam carrying a lone capsule under ``drive`` (fixed point of Eq. (1) under the force at the displaced position)."""
@@ -575,10 +591,33 @@ class PointAcoustics:
 
 
 def PB_eq1_deflection(P, bm) -> np.ndarray:
-    """Paper Eq. (1) load-point deflection with per-point beam geometry."""
+    """Paper Eq. (1) load-point deflection with per-point beam geometry (and declared beam effects: :func:`beam_force`)."""
     from acl.physics.beams import eq1_deflection
 
+    if bm.get("law") is not None:
+        from acl.physics.effects import effective_beam_deflection
+
+        return effective_beam_deflection(P, bm["L"], bm["l"], bm["EI"], *bm["law"])
     return eq1_deflection(P, bm["L"], bm["l"], bm["EI"])
+
+
+def beam_force(delta, bm, rows=None) -> np.ndarray:
+    """Load (N,) at load-point deflection ``delta`` (N,) of a beam ``bm`` (:meth:`PointAcoustics.beam_of`): paper
+    Eq. (1) inverted (physics.batch.eq1_force), or with declared beam effects physics.batch.effective_beam_force
+    (acl.analysis.mechanics._beam_law); ``rows`` selects the beam's rows when ``delta`` covers only some points."""
+    if bm.get("law") is None:
+        return PB.eq1_force(delta, bm["L"], bm["l"], bm["EI"])
+    return PB.effective_beam_force(delta, bm["L"], bm["l"], bm["EI"], *bm["law"])[0]
+
+
+def beam_k0(bm) -> np.ndarray:
+    """Small-load stiffness (N,) of a beam: paper Eq. (1)'s, or 1e-30 / the effective deflection at 1e-30 N
+    (acl.analysis.mechanics._beam_law)."""
+    from acl.physics.beams import eq1_small_force_stiffness
+
+    if bm.get("law") is None:
+        return eq1_small_force_stiffness(bm["L"], bm["l"], bm["EI"])
+    return 1e-30 / PB_eq1_deflection(np.full(np.shape(bm["L"]), 1e-30), bm)
 
 
 def _fundamentals(vol: np.ndarray) -> np.ndarray:

@@ -133,12 +133,12 @@ def _physical_effects(design: M.Design) -> list[str]:
 # (acl.physics.forces.bjerknes_pair_sum), stiffness_scale's E x e_scale on beams and latches
 # (acl.analysis.mechanics.latch_geometry, _beam_law), transducer_gain's and transducer_resonance's factor on the
 # drive pressure (acoustics.effect_pressure_factor), substrate_proximity's factor on thrust and pairs
-# (acoustics.substrate_factor), neighbour_drag's weakening with displacement (acoustics._apply_neighbour_drag).
-# No family is given point by point for them.  Not batched: drive_saturation (forces no longer V^2, which the
-# snap-in curves assume) and the beam laws large_deflection and stiffness_gradient (the elastica blend, a graded
-# modulus).
+# (acoustics.substrate_factor), neighbour_drag's weakening with displacement (acoustics._apply_neighbour_drag),
+# stiffness_gradient's and large_deflection's beam law (effects.effective_beam_deflection, inverted per point:
+# physics.batch.effective_beam_force).  No family is given point by point for them.  Not batched:
+# drive_saturation (forces no longer V^2, which the snap-in curves assume).
 BATCHED_EFFECTS = frozenset({"bjerknes_scale", "stiffness_scale", "transducer_gain", "transducer_resonance",
-                             "substrate_proximity", "neighbour_drag"})
+                             "substrate_proximity", "neighbour_drag", "stiffness_gradient", "large_deflection"})
 PRESSURE_EFFECTS = frozenset({"transducer_gain", "transducer_resonance", "drive_saturation"})
 
 

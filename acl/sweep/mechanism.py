@@ -29,7 +29,7 @@ import numpy as np
 
 from acl.physics import batch as PB
 from acl.physics.roots import golden_max, illinois_ascending
-from acl.physics.beams import eq1_small_force_stiffness
+from acl.sweep.acoustic_state import beam_force, beam_k0
 
 STEP_REACH = 2.5e-6       # m; largest accepted move of the coordinates in one continuation step
 AXIS_TOL = 1e-12          # relative; a group with two elements needs their axes fixed to this
@@ -138,7 +138,7 @@ class Mechanism:
             bm = ev.beam_of(c)
             basis = _perp_basis(bm["axis"])
             return {"kind": "beam", "name": el.name, "group": el.group, "basis": basis, "L": bm["L"], "l": bm["l"],
-                    "EI": bm["EI"], "k0": eq1_small_force_stiffness(bm["L"], bm["l"], bm["EI"])}
+                    "EI": bm["EI"], "law": bm["law"], "k0": beam_k0(bm)}
         if el.kind == "latch":
             base = f"latches.{el.name}"
             geo = tuple(ev.get(f"{base}.{k}") for k in ("angle", "length", "width", "thickness"))
@@ -234,7 +234,7 @@ class Mechanism:
                 B = el["basis"]
                 u = np.einsum("nij,nj->ni", B, np.einsum("nij,ni->nj", B, x))
                 delta = np.linalg.norm(u, axis=-1)
-                P = PB.eq1_force(delta, el["L"], el["l"], el["EI"])
+                P = beam_force(delta, el)
                 ratio = np.where(delta < 1e-15 * el["L"], el["k0"], P / np.where(delta > 0, delta, 1.0))
                 fe = ratio[:, None] * u
             elif el["kind"] == "latch":

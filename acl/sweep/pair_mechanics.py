@@ -7,7 +7,7 @@ import numpy as np
 from acl.design import model as M
 from acl.physics import batch as PB
 from acl.physics.roots import golden_max, illinois_ascending
-from acl.sweep.acoustic_state import PointAcoustics, _Rows
+from acl.sweep.acoustic_state import PointAcoustics, _Rows, beam_force, beam_k0
 from acl.sweep.columns import (
     SNAP_GOLDEN,
     SNAP_GRID,
@@ -67,7 +67,7 @@ class PairMechanics(PointAcoustics):
         for k, x in ((0, xa), (1, xb)):
             bm = ps["beams"][k]
             out.append(np.einsum("bk,bk->b", F[:, k], ps["dirs"][k]))
-            out.append(PB.eq1_force(x, bm["L"], bm["l"], bm["EI"]) if bm is not None else np.zeros_like(x))
+            out.append(beam_force(x, bm) if bm is not None else np.zeros_like(x))
         return out
 
     def pair_closure(self, s, t, freqs, volts):
@@ -117,10 +117,8 @@ class PairMechanics(PointAcoustics):
         for j, (c, bm, basis) in enumerate(moving):
             qj = q[:, 2 * j:2 * j + 2]
             delta = np.linalg.norm(qj, axis=-1)
-            P = PB.eq1_force(delta, bm["L"], bm["l"], bm["EI"])
-            from acl.physics.beams import eq1_small_force_stiffness
-
-            k0 = eq1_small_force_stiffness(bm["L"], bm["l"], bm["EI"])
+            P = beam_force(delta, bm)
+            k0 = beam_k0(bm)
             ratio = np.where(delta > 1e-15 * bm["L"], P / np.where(delta > 0, delta, 1.0), k0)
             res[:, 2 * j:2 * j + 2] = ratio[:, None] * qj - lam[:, None] * np.einsum("bkj,bk->bj", basis, F[:, c])
         return res
