@@ -93,8 +93,8 @@ def test_latch_margins_with_a_stiffness_gradient_equal_analyze_and_stiffness_sca
         assert abs(cols["require_1_value"][i] / rep["requires"][0]["value"] - 1) <= 1e-12
 
 
-def test_pressure_effects_still_refuse_the_forces():
+def test_pressure_effects_still_refuse_lint_acl105():
     d = acl.load(str(EX / "fig2_stroke_truth.acl"))
     names, missing = supported(d, "125 kHz @ 2 V")
-    assert "lint_acl105_pass" not in names and "tip_deflection_arm_m" in names      # the latter point by point
+    assert "lint_acl105_pass" not in names and "tip_deflection_arm_m" in names      # the latter batched
     assert "drive_saturation" in missing["lint_acl105"] or "transducer_gain" in missing["lint_acl105"]

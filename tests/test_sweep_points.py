@@ -169,12 +169,16 @@ BEAM_LAWS = ("effect stiffness_gradient { e_gradient = 0.7 }\n"
              "effect stiffness_scale { e_scale = 0.8 }\n")
 
 
+SATURATION = "effect drive_saturation { v_sat = 3 V }\n"
+
+
 def test_pressure_and_substrate_effects_are_batched_and_equal_analyze(monkeypatch, tmp_path):
     """transducer_gain, transducer_resonance and substrate_proximity act on the drive pressure, the thrust and the
     pairs inside the batched engine, neighbour_drag on the forces at displaced positions, stiffness_gradient and
-    large_deflection on the beams (paper Eq. (1) blended with the elastica, inverted per point): the Fig. 4 pair's
-    forces, snap-in and deflections (with and without neighbour_drag, with and without the beam laws) and the
-    three-capsule Fig. 5a gripper's equal a loop of `acl.analyze` to 1e-6, with no point-by-point analysis."""
+    large_deflection on the beams (paper Eq. (1) blended with the elastica, inverted per point), drive_saturation
+    (snap-in searched in V^2 sat(V)^2): the Fig. 4 pair's forces, snap-in and deflections (with and without
+    neighbour_drag, the beam laws, the saturation) and the three-capsule Fig. 5a gripper's equal a loop of
+    `acl.analyze` to 1e-6, with no point-by-point analysis."""
     from example_designs import first_principles_text
 
     _no_point_loop(monkeypatch)
@@ -184,7 +188,9 @@ def test_pressure_and_substrate_effects_are_batched_and_equal_analyze(monkeypatc
                                           "effect neighbour_drag { plateau = 8 um }\n"),
                                          ("fig5a_gripper", "gap", ("28um", "34um"), ""),
                                          ("fig4_facing_pair", "gap", ("42um", "58um"), BEAM_LAWS),
-                                         ("fig5a_gripper", "gap", ("28um", "34um"), BEAM_LAWS)):
+                                         ("fig5a_gripper", "gap", ("28um", "34um"), BEAM_LAWS),
+                                         ("fig4_facing_pair", "gap", ("42um", "58um"), SATURATION),
+                                         ("fig5a_gripper", "gap", ("28um", "34um"), SATURATION)):
         path = tmp_path / f"{example}.acl"
         path.write_text(first_principles_text(example) + "\n" + PRESSURE_AND_WALL + extra)
         t = acl.sweep(str(path), vary={name: ",".join(values)}, at=at)
@@ -205,3 +211,26 @@ def test_pressure_and_substrate_effects_are_batched_and_equal_analyze(monkeypatc
             # the effects act: the design without them has other forces
             plain = acl.analyze(load_design(str(first_principles_path(example)), overrides={name: v.replace("um", " um")}))
             assert abs(plain.pairs[0]["force_n"] / a.pairs[0]["force_n"] - 1) > 0.05
+
+
+def test_the_point_by_point_fallback_equals_the_batched_engine(monkeypatch):
+    """An effect the batched engine would not model takes its families from analyze point by point
+    (acl.sweep.points, the fallback for an effect added to the table later): on the Fig. 5c spring with
+    bjerknes_scale taken out of BATCHED_EFFECTS, every column equals the batched one to 1e-6."""
+    from acl.sweep import columns
+
+    path = os.path.join(DATA, "sweep_effects_spring.acl")
+    at = "125 kHz @ 10 V"
+    batched = acl.sweep(path, vary={"gap": "39um,41um"}, at=at)
+    monkeypatch.setattr(columns, "BATCHED_EFFECTS", columns.BATCHED_EFFECTS - {"bjerknes_scale"})
+    slow = acl.sweep(path, vary={"gap": "39um,41um"}, at=at)
+    assert any("point by point" in n for n in slow.notes) and not any("point by point" in n for n in batched.notes)
+    assert set(slow.columns) <= set(batched.columns)
+    for col in slow.columns:
+        for a, b in zip(slow.data[col], batched.data[col]):
+            if isinstance(a, (bool, np.bool_, str, np.str_)):      # pass/fail, a point's diagnostic code
+                assert a == b, col
+            elif col.startswith("phase_"):                          # in phase: round-off about 0 deg
+                assert abs(float(a) - float(b)) <= 1e-9, col
+            else:
+                assert _close(b, float(a)), col

@@ -291,6 +291,8 @@ class PointAcoustics:
     def _volt(self, v) -> np.ndarray:
         if isinstance(v, (int, float)):
             return np.full(self.n, float(v))
+        if v[0] == "shape":             # a drive shape scaled by V: no saturation at it (:meth:`pressure`)
+            return np.full(self.n, float(v[1]))
         if v[0] == "field":
             return self.get(v[1]) / v[2] if v[2] != 1 else self.get(v[1]).copy()
         # ("max", elements): the largest amplitude applied at a frequency, 0 -> the reference (report._amplitude_at)
@@ -303,10 +305,19 @@ class PointAcoustics:
 
     def pressure(self, freqs, volts: tuple) -> np.ndarray:
         """Drive pressure amplitude (Pa) of each tone: (T,), or (N, T) when amplitudes, gains or declared pressure
-        effects vary per point (acoustics._compute_engine: amplitude x gain x acoustics.effect_pressure_factor)."""
+        effects vary per point (acoustics._compute_engine: amplitude x gain x acoustics.effect_pressure_factor, a
+        declared drive_saturation at the tones' total amplitude, except for a drive shape ("shape", V))."""
         f = np.asarray(freqs, float)
-        p = self.volts(volts) * self.gain(f)
+        vs = self.volts(volts)
+        p = vs * self.gain(f)
         factor = self.pressure_factor(f)
+        sat = self.coefficients("drive_saturation")
+        if sat is not None and not any(isinstance(v, tuple) and v[0] == "shape" for v in volts):
+            from acl.physics.effects import saturation
+
+            # at the drive's total amplitude (acoustics._compute_engine); a drive shape (snap-in) is scaled later
+            s = saturation(np.broadcast_to(vs.sum(axis=-1), (self.n,)), sat["inv_vsat2"])[:, None]
+            factor = np.ones((self.n, f.size)) * s if factor is None else factor * s
         return p if factor is None else p * factor
 
     def pressure_factor(self, f: np.ndarray):

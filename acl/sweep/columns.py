@@ -135,10 +135,12 @@ def _physical_effects(design: M.Design) -> list[str]:
 # drive pressure (acoustics.effect_pressure_factor), substrate_proximity's factor on thrust and pairs
 # (acoustics.substrate_factor), neighbour_drag's weakening with displacement (acoustics._apply_neighbour_drag),
 # stiffness_gradient's and large_deflection's beam law (effects.effective_beam_deflection, inverted per point:
-# physics.batch.effective_beam_force).  No family is given point by point for them.  Not batched:
-# drive_saturation (forces no longer V^2, which the snap-in curves assume).
+# physics.batch.effective_beam_force), drive_saturation's factor at each drive's total amplitude (snap-in: in
+# X = V^2 sat(V)^2, acl.sweep.pair_mechanics.PairMechanics.snap_in).  No family is given point by point for
+# them; an effect outside this list would be (acl.sweep.points).
 BATCHED_EFFECTS = frozenset({"bjerknes_scale", "stiffness_scale", "transducer_gain", "transducer_resonance",
-                             "substrate_proximity", "neighbour_drag", "stiffness_gradient", "large_deflection"})
+                             "substrate_proximity", "neighbour_drag", "stiffness_gradient", "large_deflection",
+                             "drive_saturation"})
 PRESSURE_EFFECTS = frozenset({"transducer_gain", "transducer_resonance", "drive_saturation"})
 
 

@@ -57,12 +57,11 @@ amplitude times the point's interpolated gain; snap-in is cut at the point's max
 that moves a tone's frequency is not (the frequency names the columns: acl.sweep.driver leaves the
 program columns out).
 
-Declared effects: ``bjerknes_scale`` (factor and gap shape on every Bjerknes force), ``stiffness_scale`` (E of
-beams and latches), ``transducer_gain`` and ``transducer_resonance`` (drive pressure), ``substrate_proximity``
-(thrust and pairs) and ``neighbour_drag`` (forces at displaced positions) are applied in the batched arrays, per point when a parameter moves a coefficient
-(acl.sweep.columns.BATCHED_EFFECTS; the calibrated designs of `acl fit --calibrated` and stdlib calibrations).
-Designs declaring other effects that change a family (forces at rest, latch law, equilibria): that family
-comes point by point from `acl analyze`'s engine (:mod:`acl.sweep.points`, with every effect applied).
+Declared effects: every effect of the table (acl.sweep.columns.BATCHED_EFFECTS) is applied in the batched
+arrays, per point when a parameter moves a coefficient (acl.sweep.acoustic_state.PointAcoustics: coefficients,
+pressure, substrate, pair_law, neighbour_drag, beam_law; snap-in under drive_saturation:
+acl.sweep.pair_mechanics.PairMechanics.snap_in).  An effect outside that list would have the families it
+changes given point by point by `acl analyze`'s engine (:mod:`acl.sweep.points`, with every effect applied).
 
 Not batched (not offered as quantities, :func:`supported` says why): the lint rules ACL105, ACL201, ACL401
 and ACL402 of a design with declared effects, and these lint rules, each for its reason:

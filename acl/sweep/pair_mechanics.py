@@ -305,22 +305,41 @@ class PairMechanics(PointAcoustics):
         return self.once(("branch", freqs, volts), build)
 
     def snap_in(self, f: float) -> np.ndarray:
+        """Snap-in voltage of a tone at ``f`` up to the transducer's maximum (NaN: none).
+
+        Forces scale as V^2 x sat(V)^2 under a declared drive_saturation (acoustics.effect_pressure_factor): the
+        fold is searched in X = V^2 sat(V)^2, increasing in V, with the unsaturated 1 V shape and the bound
+        X(v_max), and V = sqrt(X / (1 - X / V_s^2)) there (the same equilibria, so the same fold as analyze's
+        continuation in V with the saturating force model)."""
         vmax = self.design.transducer.max_voltage if self.design.transducer else 20.0
         if self.design.transducer is not None and self.moving("transducer.max_voltage"):
             vmax = self.get("transducer.max_voltage")          # each point's amplifier limit
+        sat = self.coefficients("drive_saturation")
+        shape = (1.0,)
+        if sat is not None:
+            inv = sat["inv_vsat2"]
+            shape = (("shape", 1.0),)
+            vmax = np.sqrt(vmax * vmax / (1.0 + inv * vmax * vmax))
+        out = self._snap_in_shape(f, shape, vmax)
+        if sat is not None:
+            x = out * out
+            out = np.sqrt(x / (1.0 - inv * x))
+        return out
+
+    def _snap_in_shape(self, f: float, shape: tuple, vmax) -> np.ndarray:
         if not _closed_form(self.design)[0]:                   # springs, latches, trusses, 3+ capsules
             def general():
                 with np.errstate(all="ignore"):
-                    return self.mechanism().snap_in((f,), (1.0,), vmax)
+                    return self.mechanism().snap_in((f,), shape, vmax)
             return self.once(("general_snap", f), general)
-        br = self.pair_branch((f,), (1.0,))
+        br = self.pair_branch((f,), shape)
         v = np.sqrt(br["v2_fold"])
         out = np.where(v <= vmax, v, np.nan)
         # one pulled and one pushed, or a lateral force: both planes of motion, continuation in V
         rows = np.flatnonzero(~br["closing"] & ~br["opening"] | br["lateral"])
         if rows.size:
             with np.errstate(all="ignore"):
-                out[rows] = self.subset(rows).plane_snap((f,), (1.0,), vmax if np.ndim(vmax) == 0 else vmax[rows])
+                out[rows] = self.subset(rows).plane_snap((f,), shape, vmax if np.ndim(vmax) == 0 else vmax[rows])
         return out
 
     def closing_equilibrium(self, freqs, volts, hi):
