@@ -98,3 +98,38 @@ def test_pressure_effects_still_refuse_lint_acl105():
     names, missing = supported(d, "125 kHz @ 2 V")
     assert "lint_acl105_pass" not in names and "tip_deflection_arm_m" in names      # the latter batched
     assert "drive_saturation" in missing["lint_acl105"] or "transducer_gain" in missing["lint_acl105"]
+
+
+ALL_EFFECTS = ("effect bjerknes_scale { factor = 1.4 }\n"
+               "effect stiffness_scale { e_scale = 0.8 }\n"
+               "effect large_deflection { elastica_weight = 0.5 }\n"
+               "effect transducer_gain { gain = 1.2 }\n"
+               "effect drive_saturation { v_sat = 20 V }\n")
+
+
+def test_lint_acl201_acl401_acl402_columns_under_effects_equal_the_rules():
+    """Under declared effects the program lint columns come from the batched forces with every effect (lint's own
+    beam law: paper Eq. (1) with the declared modulus): the Fig. 4 pair with five effects, beams made softer and
+    the gap moved across d_c, each point's verdicts equal the rules on its design, both outcomes of each hit."""
+    from acl.lint.rules import beams, forces
+    from test_sweep_drives import _rule_verdicts
+
+    d = _design("fig4_facing_pair", ALL_EFFECTS)
+    names, missing = supported(d)
+    assert {"lint_acl201_pass", "lint_acl401_pass", "lint_acl402_pass"} <= set(names)
+    assert "lint_acl105" in missing                      # eps/R under pressure effects: still named
+    scale = np.array([1.0, 0.1, 0.01, 0.0033, 1.0, 1.0])
+    x = d.capsule("right").center[0] + np.array([0.0, 0.0, 0.0, 0.0, -25e-6, 20e-6])
+    ox = d.capsule("right").orifices[0].center[0] + (x - d.capsule("right").center[0])
+    fields = {f"beams.{bm.name}.youngs_modulus": bm.youngs_modulus * scale for bm in d.beams}
+    fields |= {"capsules.right.center.0": x, "capsules.right.orifices.jet.center.0": ox}
+    b = _batch(d, fields)
+    cols = evaluate(b, ["lint_acl201_pass", "lint_acl401_pass", "lint_acl402_pass"])
+    seen = set()
+    for i in range(b.n):
+        want = _rule_verdicts(materialize(b, i), {"acl201": forces.snap_in, "acl401": beams.beam_strain,
+                                                  "acl402": beams.beam_large_deflection})
+        for code, ok in want.items():
+            assert cols[f"lint_{code}_pass"][i] == ok, (i, code)
+            seen.add((code, ok))
+    assert {("acl201", True), ("acl201", False), ("acl402", True), ("acl402", False)} <= seen, seen

@@ -17,11 +17,11 @@ def test_a_design_with_effects_names_the_columns_it_lacks():
     notes = left_out(load(os.path.join(DATA, "fit_cantilever.calibrated.acl")))
     text = "\n".join(notes)
     assert "stiffness_scale" in text
-    assert "lint_acl201" in text
-    # the deflection is given point by point (acl.sweep.points) once a drive is named; without one, it says so
+    assert "model_form" in text and "lint_acl201" not in text      # the lint columns are batched with the effects
+    # the deflection is given (batched, with the effect) once a drive is named; without one, it says so
     assert "tip_deflection: deflections need a drive" in text
     with_at = "\n".join(left_out(load(os.path.join(DATA, "fit_cantilever.calibrated.acl")), "125 kHz @ 2 V"))
-    assert "deflection" not in with_at and "lint_acl201" in with_at
+    assert "deflection" not in with_at and "model_form" in with_at
     assert "switching_force" not in text          # no latch: nothing of a latch to leave out
     assert "snap_in" not in text                  # one capsule: no pair
 

@@ -552,7 +552,8 @@ class PointAcoustics:
         axis = self.vec(f"{base}.axis")
         axis = axis / np.linalg.norm(axis, axis=-1, keepdims=True)
         out = {"name": beam.name, "L": self.get(f"{base}.length"), "l": self.get(f"{base}.rigid_length"),
-               "EI": self.get(f"{base}.youngs_modulus") * self.e_scale() * i2, "axis": axis, "law": None}
+               "EI": self.get(f"{base}.youngs_modulus") * self.e_scale() * i2, "axis": axis, "law": None,
+               "EI_declared": self.get(f"{base}.youngs_modulus") * i2}      # lint's ACL401/402 (without effects)
         law = self.beam_law()
         if law is not None:       # declared stiffness_gradient / large_deflection: effects.effective_beam_deflection
             out["EI"] = self.get(f"{base}.youngs_modulus") * i2

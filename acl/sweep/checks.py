@@ -257,7 +257,9 @@ class Checks(PairMechanics):
                 bm = self.beam_of(ci)
                 if bm is None:
                     continue
-                L, l, EI, axis = bm["L"], bm["l"], bm["EI"], bm["axis"]
+                # lint.rules.beams.beam_loads: paper Eq. (1) with the declared modulus (no beam effects), the loads
+                # from the force model with every effect
+                L, l, EI, axis = bm["L"], bm["l"], bm["EI_declared"], bm["axis"]
                 base = f"beams.{beam.name}.section"
                 c = self.get(f"{base}.diameter") / 2 if beam.section.shape == "circle" else \
                     np.minimum(self.get(f"{base}.width"), self.get(f"{base}.thickness")) / 2

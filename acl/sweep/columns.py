@@ -235,17 +235,17 @@ def supported(design: M.Design, at: str | None = None) -> tuple[list[str], dict[
                                   f"({', '.join(effects)}) is not batched: `acl analyze --at` gives it at a drive")
     sweeps = any(st.kind == "sweep" for p in design.programs for st in p.steps)
     names += [f"lint_{code}_pass" for code in LINT_RULES
-              if (code != "acl105" or not (blocks["rest"] or pressure)) and (code not in _PROGRAM_LINT or not effects)
+              if (code != "acl105" or not (blocks["rest"] or pressure)) and (code not in _PROGRAM_LINT or not blocks["motion"])
               and (code not in _PROGRAM_LINT or not sweeps)]
     if "lint_acl603_pass" in names and "requires_pass" not in names and design.requires:
         names.remove("lint_acl603_pass")
     if blocks["rest"] or pressure:
         on = sorted(set(blocks["rest"]) | set(pressure))
         missing["lint_acl105"] = f"eps/R with declared effects on the drive pressure ({', '.join(on)}) is not batched"
-    if effects:
+    if blocks["motion"]:
         for code in _PROGRAM_LINT:
-            missing[f"lint_{code}"] = (f"the rule's forces with declared effects ({', '.join(effects)}) are not batched "
-                                       "(run `acl lint` on a point)")
+            missing[f"lint_{code}"] = (f"the rule's forces with declared effects ({', '.join(blocks['motion'])}) are "
+                                       "not batched (run `acl lint` on a point)")
     elif sweeps:
         for code in _PROGRAM_LINT:
             missing[f"lint_{code}"] = ("a `sweep` step's tones include each point's own modes "
