@@ -93,11 +93,28 @@ def test_latch_margins_with_a_stiffness_gradient_equal_analyze_and_stiffness_sca
         assert abs(cols["require_1_value"][i] / rep["requires"][0]["value"] - 1) <= 1e-12
 
 
-def test_pressure_effects_still_refuse_lint_acl105():
+def test_lint_acl105_under_pressure_effects_equals_the_rule():
+    """ACL105 (eps/R past the linear limit) with transducer_gain and drive_saturation (the factor at each drive's
+    total amplitude, acoustics.interface_amplitudes_batch): the Fig. 2 stroke example's sweep-step drive and a
+    drive step, voltages spread across the limit; each point's verdict equals the rule on its design."""
+    from acl.lint.rules import acoustics
+    from acl.sweep.perturb import field_value, flatten
+    from test_sweep_drives import _rule_verdicts
+
     d = acl.load(str(EX / "fig2_stroke_truth.acl"))
     names, missing = supported(d, "125 kHz @ 2 V")
-    assert "lint_acl105_pass" not in names and "tip_deflection_arm_m" in names      # the latter batched
-    assert "drive_saturation" in missing["lint_acl105"] or "transducer_gain" in missing["lint_acl105"]
+    assert "lint_acl105_pass" in names and "tip_deflection_arm_m" in names and "lint_acl105" not in missing
+    paths = [k for k in flatten(d) if k.startswith("programs.") and k.endswith("amplitude")]
+    assert paths
+    scale = np.array([0.2, 0.5, 1.0, 2.0, 4.0, 8.0])
+    b = _batch(d, {k: field_value(d, k) * scale for k in paths})
+    cols = evaluate(b, ["lint_acl105_pass"])
+    seen = set()
+    for i in range(b.n):
+        ok = _rule_verdicts(materialize(b, i), {"acl105": acoustics.bubble_beyond_linear})["acl105"]
+        assert cols["lint_acl105_pass"][i] == ok, i
+        seen.add(ok)
+    assert seen == {True, False}
 
 
 ALL_EFFECTS = ("effect bjerknes_scale { factor = 1.4 }\n"
@@ -117,7 +134,7 @@ def test_lint_acl201_acl401_acl402_columns_under_effects_equal_the_rules():
     d = _design("fig4_facing_pair", ALL_EFFECTS)
     names, missing = supported(d)
     assert {"lint_acl201_pass", "lint_acl401_pass", "lint_acl402_pass"} <= set(names)
-    assert "lint_acl105" in missing                      # eps/R under pressure effects: still named
+    assert "lint_acl105_pass" in names and set(missing) == {"tip_deflection", "model_form_"}
     scale = np.array([1.0, 0.1, 0.01, 0.0033, 1.0, 1.0])
     x = d.capsule("right").center[0] + np.array([0.0, 0.0, 0.0, 0.0, -25e-6, 20e-6])
     ox = d.capsule("right").orifices[0].center[0] + (x - d.capsule("right").center[0])

@@ -141,7 +141,6 @@ def _physical_effects(design: M.Design) -> list[str]:
 BATCHED_EFFECTS = frozenset({"bjerknes_scale", "stiffness_scale", "transducer_gain", "transducer_resonance",
                              "substrate_proximity", "neighbour_drag", "stiffness_gradient", "large_deflection",
                              "drive_saturation"})
-PRESSURE_EFFECTS = frozenset({"transducer_gain", "transducer_resonance", "drive_saturation"})
 
 
 def _unbatched_effects(design: M.Design) -> list[str]:
@@ -178,7 +177,6 @@ def supported(design: M.Design, at: str | None = None) -> tuple[list[str], dict[
     missing: dict[str, str] = {}
     effects = _physical_effects(design)
     blocks = _effect_blocks(design)
-    pressure = [e for e in effects if e in PRESSURE_EFFECTS]    # lint's eps/R (ACL105) is without them
     for cap in design.capsules:
         for k in range(1, len(cap.orifices) + 1):
             names += [f"resonance_{_ident(cap.name)}_{k}_hz", f"q_{_ident(cap.name)}_{k}"]
@@ -235,13 +233,12 @@ def supported(design: M.Design, at: str | None = None) -> tuple[list[str], dict[
                                   f"({', '.join(effects)}) is not batched: `acl analyze --at` gives it at a drive")
     sweeps = any(st.kind == "sweep" for p in design.programs for st in p.steps)
     names += [f"lint_{code}_pass" for code in LINT_RULES
-              if (code != "acl105" or not (blocks["rest"] or pressure)) and (code not in _PROGRAM_LINT or not blocks["motion"])
+              if (code != "acl105" or not blocks["rest"]) and (code not in _PROGRAM_LINT or not blocks["motion"])
               and (code not in _PROGRAM_LINT or not sweeps)]
     if "lint_acl603_pass" in names and "requires_pass" not in names and design.requires:
         names.remove("lint_acl603_pass")
-    if blocks["rest"] or pressure:
-        on = sorted(set(blocks["rest"]) | set(pressure))
-        missing["lint_acl105"] = f"eps/R with declared effects on the drive pressure ({', '.join(on)}) is not batched"
+    if blocks["rest"]:
+        missing["lint_acl105"] = f"eps/R with declared effects on the drive pressure ({', '.join(blocks['rest'])}) is not batched"
     if blocks["motion"]:
         for code in _PROGRAM_LINT:
             missing[f"lint_{code}"] = (f"the rule's forces with declared effects ({', '.join(blocks['motion'])}) are "
