@@ -95,7 +95,7 @@ def test_left_out_names_only_what_is_still_left_out():
 
     notes = " ".join(left_out(load_design(os.path.join(DATA, "sweep_effects_pair.acl")), "125 kHz @ 2 V"))
     assert "snap_in" not in notes and "tip_deflection" not in notes and "force" not in notes.split("lint")[0]
-    assert "model_form" in notes and "lint_acl201" not in notes   # still left out, with its reason; batched
+    assert notes == ""                                  # every effect batched: nothing left out at a drive
 
 
 def _no_point_loop(monkeypatch):

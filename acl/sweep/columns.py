@@ -226,7 +226,7 @@ def supported(design: M.Design, at: str | None = None) -> tuple[list[str], dict[
             missing[f"require_{i}"] = f"`{r.text}` is not batched for this design"
     if design.requires and all(f"require_{i}_pass" in names for i in range(1, len(design.requires) + 1)):
         names.append("requires_pass")
-    if design.capsules and not effects:
+    if design.capsules and not blocks["motion"]:     # eps/R at the drive pressure with every effect
         names += ["model_form_rel", "model_form_uncertain"]
     elif design.capsules:
         missing["model_form_"] = ("the model-form uncertainty past the validity limits with declared effects "
