@@ -108,3 +108,19 @@ def test_every_column_is_given_or_named_with_its_reason():
         assert not unnamed, f"{os.path.basename(path)}: columns absent without a reason: {unnamed}"
         assert all(len(why) > 20 for why in missing.values())
     assert kinds == {"spring", "truss", "latch", "effects", "group"}
+
+
+def test_every_physical_effect_of_the_table_has_its_place_in_the_batched_sweep():
+    """The one table of effects (acl.physics.effect_table) names where the batched sweep applies each effect; every
+    effect that changes a static prediction has one (the two static ones, offset_drift and bubble_shrinkage, do not
+    need one)."""
+    from acl.physics.effect_table import EFFECT_TABLE
+    from acl.sweep import acoustic_state
+    from acl.sweep.columns import BATCHED_EFFECTS
+
+    physical = {e.name for e in EFFECT_TABLE.values() if not e.static_note}
+    assert BATCHED_EFFECTS == physical and len(physical) == 9
+    for e in EFFECT_TABLE.values():
+        if e.sweep:
+            method = e.sweep.split()[0].rstrip(";").split(".")[1]
+            assert hasattr(acoustic_state.PointAcoustics, method), (e.name, e.sweep)

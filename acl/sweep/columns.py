@@ -128,19 +128,11 @@ def _physical_effects(design: M.Design) -> list[str]:
     return [e.name for e in design.effects if e.name not in STATIC_EFFECTS]
 
 
-# Declared effects the batched evaluation applies itself, point by point in its arrays, as analyze does
-# (acl.sweep.acoustic_state.PointAcoustics): bjerknes_scale's factor and gap shape on every Bjerknes force
-# (acl.physics.forces.bjerknes_pair_sum), stiffness_scale's E x e_scale on beams and latches
-# (acl.analysis.mechanics.latch_geometry, _beam_law), transducer_gain's and transducer_resonance's factor on the
-# drive pressure (acoustics.effect_pressure_factor), substrate_proximity's factor on thrust and pairs
-# (acoustics.substrate_factor), neighbour_drag's weakening with displacement (acoustics._apply_neighbour_drag),
-# stiffness_gradient's and large_deflection's beam law (effects.effective_beam_deflection, inverted per point:
-# physics.batch.effective_beam_force), drive_saturation's factor at each drive's total amplitude (snap-in: in
-# X = V^2 sat(V)^2, acl.sweep.pair_mechanics.PairMechanics.snap_in).  No family is given point by point for
-# them; an effect outside this list would be (acl.sweep.points).
-BATCHED_EFFECTS = frozenset({"bjerknes_scale", "stiffness_scale", "transducer_gain", "transducer_resonance",
-                             "substrate_proximity", "neighbour_drag", "stiffness_gradient", "large_deflection",
-                             "drive_saturation"})
+# Declared effects the batched evaluation applies itself, point by point in its arrays, as analyze does: those the
+# one table (acl.physics.effect_table) gives a ``sweep`` place (acl.sweep.acoustic_state.PointAcoustics: the
+# pair law, E and the beams' law, the drive pressure and its saturation, the substrate, the neighbour drag).  No
+# family is given point by point for them; an effect without one (added later) takes them from acl.sweep.points.
+BATCHED_EFFECTS = frozenset(e.name for e in EFFECT_TABLE.values() if e.sweep)
 
 
 def _unbatched_effects(design: M.Design) -> list[str]:
