@@ -222,7 +222,7 @@ def supported(design: M.Design, at: str | None = None) -> tuple[list[str], dict[
         names += ["model_form_rel", "model_form_uncertain"]
     elif design.capsules:
         missing["model_form_"] = ("the model-form uncertainty past the validity limits with declared effects "
-                                  f"({', '.join(effects)}) is not batched: `acl analyze --at` gives it at a drive")
+                                  f"({', '.join(blocks['motion'])}) is not batched: `acl analyze --at` gives it at a drive")
     sweeps = any(st.kind == "sweep" for p in design.programs for st in p.steps)
     names += [f"lint_{code}_pass" for code in LINT_RULES
               if (code != "acl105" or not blocks["rest"]) and (code not in _PROGRAM_LINT or not blocks["motion"])
