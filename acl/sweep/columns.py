@@ -167,7 +167,6 @@ def supported(design: M.Design, at: str | None = None) -> tuple[list[str], dict[
 
     names: list[str] = []
     missing: dict[str, str] = {}
-    effects = _physical_effects(design)
     blocks = _effect_blocks(design)
     for cap in design.capsules:
         for k in range(1, len(cap.orifices) + 1):
