@@ -46,9 +46,9 @@ EXCEPTIONS: dict[str, tuple[frozenset, str]] = {
                     "a linear spring's force and the two rules that combine springs"),
 }
 
-# Golden-section loops outside acl.physics.roots (the constant (sqrt 5 - 1)/2 written out), by file: the list only
-# shrinks.  The copies in sweep/ and physics/batch.py are still to move onto acl.physics.roots.golden_max.
-GOLDEN_COPIES = {"acl/physics/batch.py", "acl/sweep/mechanism.py", "acl/sweep/pair_mechanics.py"}
+# Golden-section loops outside acl.physics.roots (the constant (sqrt 5 - 1)/2 written out), by file: none left (the
+# sweep's and physics/batch.py's call acl.physics.roots.golden_max); a new one fails the test below.
+GOLDEN_COPIES: set[str] = set()
 _GOLDEN = re.compile(r"sqrt\(5(\.0?)?\)\s*-\s*1")
 
 

@@ -170,7 +170,7 @@ def bjerknes_pair_sum(points, response, w2p2, coefficient, other, gap_exponent: 
     prod = np.einsum("t,bti,btj->bij" if w2p2.ndim == 1 else "bt,bti,btj->bij", w2p2, response,
                      np.conj(response)).real
     att = coefficient * prod / d**2
-    if gap_exponent:
+    if np.any(gap_exponent):          # a float, or per configuration (B, 1, 1)
         att = att * bjerknes_gap_factor(d, gap_ref, gap_exponent)
     c = att / d
     return c @ points - c.sum(axis=-1)[..., None] * points, att          # sum_j c_ij (p_j - p_i)
