@@ -22,19 +22,30 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from acl.design.model import Capsule, Cavity, Design, Drive, Tone
+from acl.design.model import Capsule, Cavity, Design, Drive
 from acl.analysis import effects as EF
 from acl.physics import constants as C
 from acl.physics import effects as PE
 from acl.physics.coupling import (BubbleSystem, CoupledModes, build_system, coupled_modes as _physics_coupled_modes,
                                   coupled_response as _physics_coupled, prepared_response, uncoupled_blocks)
 from acl.physics.forces import (capsule_forces, capsule_pair_forces, critical_distance, dominant_pair_phase,
-                                force_constants, interface_centre_amplitude, neighbour_drag, thrust_magnitude)
+                                force_constants, neighbour_drag, thrust_magnitude)
 from acl.physics.forces import pressure_terms  # noqa: F401  (public here since before; acl.analysis.tones)
-from acl.physics.roots import grid_max
 from acl.physics.resonance import BubbleModes, capsule_modes as _physics_modes
 from acl.physics.ties import TIE_RTOL, first_max
 from acl.physics.transducer import pressure_per_volt
+
+# interface amplitudes (eps/R) and the band maximum live in acl.analysis.interfaces; public here since before
+_MOVED = ("sweep_interface_amplitudes", "interface_amplitudes", "interface_amplitudes_batch", "sweep_worst_amplitude",
+          "band_maximum")
+
+
+def __getattr__(name: str):
+    if name in _MOVED:
+        from acl.analysis import interfaces
+
+        return getattr(interfaces, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 # ----------------------------------------------------------------------------------------------
@@ -458,71 +469,6 @@ def orifice_response(design: Design, capsule, frequencies) -> np.ndarray:
     """
     c = _capsule_index(design, capsule)
     return coupled_response(design, frequencies)[:, _layout(design).body == c]
-
-
-def sweep_interface_amplitudes(design: Design, frequencies, amplitude: float) -> np.ndarray:
-    """eps/R (F, n) of every interface under a single tone of ``amplitude`` at each of ``frequencies``:
-    :func:`interface_amplitudes` of each tone alone, in one coupled solve."""
-    lay = _layout(design)
-    f = np.atleast_1d(np.asarray(frequencies, float))
-    if f.size == 0 or not lay.labels:
-        return np.zeros((f.size, len(lay.labels)))
-    gain = effect_pressure_factor(design, f, float(amplitude))
-    u = coupled_response(design, f) * (amplitude * gain)[:, None]
-    return interface_centre_amplitude(np.abs(u), lay.radii) / lay.radii
-
-
-def interface_amplitudes(design: Design, drive: Drive, positions=None) -> dict[str, float]:
-    """Centre amplitude over radius, eps/R, of every interface under ``drive`` (tone amplitudes summed: the peak)."""
-    lay = _layout(design)
-    f, v = _tones(drive)
-    eps = interface_amplitudes_batch(design, f, v[None], positions)[0]
-    return {lab: float(e) for lab, e in zip(lay.labels, eps)}
-
-
-def interface_amplitudes_batch(design: Design, frequencies, amplitudes, positions=None) -> np.ndarray:
-    """eps/R (B, n) of every interface (``interface_labels`` order) under B drives of the tones ``frequencies`` (Hz),
-    row b with amplitudes ``amplitudes[b]`` (V; summed: the peak; drive saturation at each row's total): the
-    coupled response at rest (or ``positions``) solved once for every row."""
-    lay = _layout(design)
-    f = np.atleast_1d(np.asarray(frequencies, float))
-    v = np.atleast_2d(np.asarray(amplitudes, float)).reshape(-1, f.size)
-    if f.size == 0 or not lay.labels:
-        return np.zeros((v.shape[0], len(lay.labels)))
-    gain = effect_pressure_factor(design, f, v.sum(axis=1, keepdims=True))
-    u = coupled_response(design, f, positions)[None] * (v * gain)[:, :, None]
-    eps = interface_centre_amplitude(np.abs(u).sum(axis=1), lay.radii)
-    return eps / lay.radii
-
-
-def sweep_worst_amplitude(design: Design, f0: float, f1: float, amplitude: float, extra=(),
-                          samples: int = 21) -> tuple[float, float, dict[str, float]]:
-    """Largest eps/R a single tone of ``amplitude`` V reaches anywhere in ``f0 .. f1`` (a sweep):
-    (eps/R, frequency Hz, every interface's eps/R there).
-
-    ``samples`` log-spaced frequencies plus ``extra`` (e.g. the modes inside), the largest refined by
-    golden section between its neighbours: a grid alone misses a resonance peak between its points
-    (9 linear points across 100-150 kHz gave 0.672 for a peak of 0.686: optimistic).
-    """
-    def at(f):
-        amps = interface_amplitudes(design, Drive(tones=(Tone(frequency=float(f), amplitude=amplitude),)))
-        return max(amps.values(), default=0.0), amps
-
-    best, best_f = band_maximum(lambda f: at(f)[0], f0, f1, extra, samples)
-    return best, best_f, at(best_f)[1]
-
-
-def band_maximum(value, f0: float, f1: float, extra=(), samples: int = 21, rtol: float = 1e-9) -> tuple[float, float]:
-    """(largest ``value(f)``, its frequency Hz) over ``f0 .. f1``: ``samples`` log-spaced frequencies plus the ``extra``
-    ones inside (the modes), the largest refined by golden section between its neighbours down to ``rtol``
-    (:func:`sweep_worst_amplitude`; ties: the first, lowest, frequency)."""
-    lo, hi = sorted((float(f0), float(f1)))
-    extra = np.asarray(list(extra), float)
-    fs = np.unique(np.concatenate([np.geomspace(lo, hi, max(samples, 2)) if lo > 0 else np.linspace(lo, hi, samples),
-                                   extra[(extra >= lo) & (extra <= hi)]]))
-    vals = [value(f) for f in fs]
-    best, best_f = grid_max(value, fs, vals, iterations=40, rtol=rtol)   # ties: the first (lowest) frequency
-    return best, float(best_f)
 
 
 # ----------------------------------------------------------------------------------------------
