@@ -185,12 +185,15 @@ def render_chunks(schedule: Schedule, sample_rate: float, chunk: int = CHUNK,
             # (a step's weight is 1 on the support: a weight computed in seconds could drop a
             # sample that rounding put on the other side)
             if (fade_in and s0 / fs < S.a1[i]) or (fade_out and (s1 - 1) / fs > S.b0[i]):
+                # (the raised cosine is exactly 1 outside its fade: evaluated only on the samples inside one)
                 t = np.arange(s0, s1, dtype=np.int64) / fs
                 w = np.ones(t.size)
                 if fade_in:
-                    w *= _rc((t - S.a0[i]) / (S.a1[i] - S.a0[i]))
+                    k = int(np.searchsorted(t, S.a1[i], side="left"))          # t[:k] < a1
+                    w[:k] *= _rc((t[:k] - S.a0[i]) / (S.a1[i] - S.a0[i]))
                 if fade_out:
-                    w *= 1.0 - _rc((t - S.b0[i]) / (S.b1[i] - S.b0[i]))
+                    k = int(np.searchsorted(t, S.b0[i], side="right"))         # t[k:] > b0
+                    w[k:] *= 1.0 - _rc((t[k:] - S.b0[i]) / (S.b1[i] - S.b0[i]))
                 x = w * x
             out[s0 - n0:s1 - n0] += x
         if progress is not None:
