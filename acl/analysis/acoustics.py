@@ -28,8 +28,8 @@ from acl.physics import constants as C
 from acl.physics import effects as PE
 from acl.physics.coupling import (BubbleSystem, CoupledModes, build_system, coupled_modes as _physics_coupled_modes,
                                   coupled_response as _physics_coupled, prepared_response, uncoupled_blocks)
-from acl.physics.forces import (capsule_forces, capsule_pair_forces, critical_distance, dominant_pair_phase,
-                                force_constants, neighbour_drag, thrust_magnitude)
+from acl.physics.forces import (bjerknes_pair_sum, capsule_forces, capsule_pair_forces, critical_distance,
+                                dominant_pair_phase, force_constants, neighbour_drag, thrust_magnitude)
 from acl.physics.forces import pressure_terms  # noqa: F401  (public here since before; acl.analysis.tones)
 from acl.physics.resonance import BubbleModes, capsule_modes as _physics_modes
 from acl.physics.ties import TIE_RTOL, first_max
@@ -312,6 +312,7 @@ def _centres_array(design: Design, positions) -> np.ndarray:
 
 _REST: list = []          # [(design, {frequency: (n,) complex response per pascal at rest})]: the last few designs
 _ENGINE_REST: list = []   # [(design, {tone frequencies: (1, T, n) the force engine's response at rest})]
+_REST_THRUST: list = []   # [(design, {(tone frequencies, pressures): (1, n) thrust per interface at rest})]
 
 
 def _per_design_store(stores: list, design: Design) -> dict:
@@ -534,18 +535,42 @@ class _Engine:
     consts: dict = field(default_factory=dict)   # position-independent factors of forces()
     _rest: list = field(default_factory=list, compare=False, repr=False)
 
+    def _rest_response(self):
+        """The coupled response per pascal at rest (1, T, n), shared by the drives with the same tones; None without any."""
+        if not (self.f.size and self.lay.radii.size):
+            return None
+        store = _per_design_store(_ENGINE_REST, self.design)
+        key = tuple(self.f.tolist())
+        r = store.get(key)
+        if r is None:
+            r = store[key] = self.response(self.lay.rest[None][:, self.lay.body, :] + self.lay.offsets)
+        return r
+
+    def _drive_key(self) -> tuple:
+        return tuple(self.f.tolist()), self.pressure.tobytes()
+
     def rest_forces(self):
         """:meth:`forces` of the capsules at rest, with parts (total, u, thr, att), each (1, ...); computed once."""
         if not self._rest:
-            r = None
-            if self.f.size and self.lay.radii.size:     # drives with the same tones share the coupled solve
-                store = _per_design_store(_ENGINE_REST, self.design)
-                key = tuple(self.f.tolist())
-                r = store.get(key)
-                if r is None:
-                    r = store[key] = self.response(self.lay.rest[None][:, self.lay.body, :] + self.lay.offsets)
-            self._rest.append(self.forces(self.lay.rest[None], parts=True, response=r))
+            self._rest.append(self.forces(self.lay.rest[None], parts=True, response=self._rest_response()))
+            # the thrust per interface (n floats) outlives the engine: :meth:`rest_pairs` of a later engine of the
+            # same drive needs it (the last engine only is kept, and lint asks its drives in turn)
+            _per_design_store(_REST_THRUST, self.design)[self._drive_key()] = self._rest[0][2]
         return self._rest[0]
+
+    def rest_pairs(self):
+        """(u, thr, att) of :meth:`rest_forces`, for the pair table: when an earlier engine of this drive computed the
+        rest forces, only the Bjerknes pair sum is evaluated again (the same call, so the same numbers)."""
+        thr = None if self._rest else _per_design_store(_REST_THRUST, self.design).get(self._drive_key())
+        r = None if thr is None else self._rest_response()
+        if r is None:
+            _, u, thr, att = self.rest_forces()
+            return u, thr, att
+        k = self.consts
+        pts = self.lay.rest[None][:, self.lay.body, :] + self.lay.offsets
+        _, att = bjerknes_pair_sum(pts, r, k["w2p2"], k["bjerknes"], k["other"], k.get("gap_exponent", 0.0),
+                                   k.get("gap_ref", 1.0))
+        return r * self.pressure[None, :, None], thr, att
 
     def forces(self, centres: np.ndarray, parts: bool = False, consts: dict | None = None, response=None):
         """Total acoustic force (B, C, 3) on each capsule for centres (B, C, 3): thrust + Bjerknes + jet drag.
@@ -664,7 +689,7 @@ def pair_table(design: Design, drive: Drive,
     eng = _engine(design, drive)
     lay = eng.lay
     centres = _centres_array(design, positions)
-    _, u, thr, att = eng.rest_forces() if not positions else eng.forces(centres[None], parts=True)
+    u, thr, att = eng.rest_pairs() if not positions else eng.forces(centres[None], parts=True)[1:]
     u, thr, att = u[0], thr[0], att[0]
     pts = lay.points(centres)
     thrust_vec = np.einsum("n,nk,nc->ck", thr, -lay.normals, lay.onehot)
