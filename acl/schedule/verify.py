@@ -95,7 +95,10 @@ def resimulate(comp: CompileState, rep: GoalReport, capsule, u, targets, linear_
             # the designs of the band's cause (experiment.explain: the path's sensitivity) join the same batch
             from acl.schedule import experiment
 
-            extra = [m for m in experiment.prepared(comp.design, comp.opts.reload)[2] if m is not None]
+            try:
+                extra = [m for m in experiment.prepared(comp.design, comp.opts.reload)[2] if m is not None]
+            except (ValueError, KeyError):      # explain meets the same failure later, where it always did
+                extra = []
             uu = u[:, idx].T
             got = many([comp.design, *ds, *extra], capsule, rep.frequencies_hz, uu)
             nominal.append(got[0])
