@@ -137,8 +137,10 @@ class DesignAnalysis:
 
     def force_array(self, drive: Drive) -> np.ndarray:
         """:meth:`forces` as an array (C, 3) in ``design.capsules`` order."""
-        return self._per(("force_array", _drive_key(drive)), lambda: np.array(
-            [self.forces(drive)[n] for n in self.names], float).reshape(-1, 3))
+        def compute():
+            f = self.forces(drive)
+            return np.array([f[n] for n in self.names], float).reshape(-1, 3)
+        return self._per(("force_array", _drive_key(drive)), compute)
 
     def pair_table(self, drive: Drive):
         """:func:`acl.analysis.acoustics.pair_table` at rest: every capsule pair's Bjerknes interaction."""
