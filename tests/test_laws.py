@@ -33,8 +33,6 @@ EXCEPTIONS: dict[str, tuple[frozenset, str]] = {
                     "eq1_profile_deflection's uniform case and its P -> 0 limit (tests/test_physics_beams.py checks "
                     "them against eq1_deflection; as 1/eq1_compliance(0) the limit rounds differently and moves the "
                     "README compile's plan by 3e-12); effects.elastica_blend blends deflections it is given"),
-    "Timoshenko & Gere": (frozenset({"acl.physics.batch.axial_force", "acl.physics.latch.axial_force"}),
-                          "batch.axial_force is latch.axial_force per point (sweep work)"),
     "Suppl. Eq. 2.5": (frozenset({"acl.physics.beams.eq1_slope", "acl.physics.beams.flexible_part_stiffness"}),
                        "two quantities of one equation: the rigid segment's rotation and the flexible part's stiffness"),
     "paper Fig. 2e": (frozenset({"acl.physics.effects.saturation", "acl.physics.transducer.drive_pressure"}),

@@ -124,7 +124,7 @@ def test_latch_forces_and_switching_force_equal_scalar():
     u = np.linspace(0, 60e-6, 300)
     c = np.linspace(0, 0.2, 500)
     for i in range(n):
-        np.testing.assert_allclose(PB.axial_force(c, w[i] / L[i]), LT.axial_force(c, w[i] / L[i]), rtol=1e-12, atol=1e-12)
+        np.testing.assert_allclose(LT.axial_force(c, np.full(c.shape, w[i] / L[i])), LT.axial_force(c, w[i] / L[i]), rtol=1e-12, atol=1e-12)
         np.testing.assert_allclose(PB.latch_force(u, theta[i], L[i], w[i], t[i], E[i]),
                                    LT.latch_force(u, theta[i], L[i], w[i], t[i], E[i]), rtol=1e-10, atol=1e-22)
     fs, rel, bi = PB.latch_switching_force(theta, L, w, t, E)
