@@ -24,9 +24,6 @@ EXCEPTIONS: dict[str, tuple[frozenset, str]] = {
                        "radiation resistance (used by the capsule's and the coupled modes' Q) and the transducer's "
                        "driven oscillator; batch.py's twins of coupling are being replaced by the sweep work (helper "
                        "sweep)"),
-    "Meirovitch": (frozenset({"acl.physics.batch.uncoupled_response", "acl.physics.resonance.modal_dynamic_stiffness"}),
-                   "modal superposition: batch.uncoupled_response is the per-point twin of coupling.uncoupled_blocks "
-                   "(sweep work)"),
     "paper Eq. 1": (frozenset({"acl.physics.beams.eq1_profile_deflection", "acl.physics.beams.eq1_compliance",
                                "acl.physics.beams.eq1_small_force_stiffness", "acl.physics.effects.elastica_blend"}),
                     "beams.eq1_compliance / eq1_small_force_stiffness are the closed-form derivative of "

@@ -76,7 +76,7 @@ def test_coupled_modes_and_response_equal_scalar():
     dmp = np.concatenate([bare[0][0] / bare[0][1], bare[1][0] / bare[1][1]], axis=1)
     w, vv, qq = PB.coupled_modes(phi, om, dmp, pts, radii, body, W.density, W.sound_speed, 1.0)
     f = np.array([100e3, 125e3])
-    h0 = PB.uncoupled_response(phi, om, dmp, body, f[None, :])
+    h0 = CP.uncoupled_response(phi, om, dmp, 2 * np.pi * f[None, :], body)
     u = PB.coupled_response(h0, pts, radii, body, f[None, :], W.density, W.sound_speed, 1.0)
     for i in range(n):
         ms = [R.BubbleModes(omega=bare[c][0][i], quality=bare[c][1][i], orifice_volume=bare[c][2][i]) for c in range(2)]

@@ -203,20 +203,6 @@ def lowest_single_interface_mode(phi, omega, damping, point, radius, density, so
     return w, vol, quality
 
 
-def uncoupled_response(phi, omega, damping, body, frequency):
-    """Per-capsule inward volume response per pascal H0 (N, F, n, n), zero between capsules (coupling.uncoupled_blocks batched; Meirovitch ch. 7).
-
-    ``phi`` (N, n, M) with each interface's own capsule's modes (other capsules' modes zero-padded
-    or simply of its own body: only same-body entries are kept).
-    """
-    w = 2 * np.pi * np.asarray(frequency, float)                       # (N, F) or (F,)
-    w = np.broadcast_to(w, (phi.shape[0],) + w.shape[-1:])
-    den = omega[:, None] ** 2 - w[..., None] ** 2 + 1j * w[..., None] * damping[:, None]    # (N, F, M)
-    h = np.einsum("nim,nfm,njm->nfij", phi, 1.0 / den, phi)
-    same = body[:, None] == body[None, :]
-    return h * same
-
-
 def coupled_response(h0, points, radii, body, frequency, density, sound_speed, wall_reflection: float = 0.0):
     """Inward volume U (N, F, n) per pascal solving (I - w^2 rho H0 g) U = H0 1 per point (coupling.coupled_response batched; Kinsler et al.)."""
     nn, nf, n, _ = h0.shape
