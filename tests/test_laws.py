@@ -22,8 +22,8 @@ EXCEPTIONS: dict[str, tuple[frozenset, str]] = {
                                   "acl.physics.effects.transducer_resonance"}),
                        "three laws of one textbook: the mutual radiation impedance (coupled response), a monopole's "
                        "radiation resistance (used by the capsule's and the coupled modes' Q) and the transducer's "
-                       "driven oscillator; batch.py's twins of coupling are being replaced by the sweep work (helper "
-                       "sweep)"),
+                       "driven oscillator; batch.coupled_modes / batch.coupled_response are still the per-point twins "
+                       "of coupling's (per-point modes, drive and medium; issue 23, not folded yet)"),
     "paper Eq. 1": (frozenset({"acl.physics.beams.eq1_profile_deflection", "acl.physics.beams.eq1_compliance",
                                "acl.physics.beams.eq1_small_force_stiffness", "acl.physics.effects.elastica_blend"}),
                     "beams.eq1_compliance / eq1_small_force_stiffness are the closed-form derivative of "
