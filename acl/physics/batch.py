@@ -26,6 +26,7 @@ import numpy as np
 from acl.physics.coupling import _distances as distances, contact_distance, green_matrix
 from acl.physics.resonance import shape_matrices, thermal_polytropic
 from acl.physics.effects import bjerknes_gap_factor
+from acl.physics.latch import axial_force
 from acl.physics.roots import golden_max
 
 
@@ -202,20 +203,6 @@ def lowest_single_interface_mode(phi, omega, damping, point, radius, density, so
     return w, vol, quality
 
 
-def uncoupled_response(phi, omega, damping, body, frequency):
-    """Per-capsule inward volume response per pascal H0 (N, F, n, n), zero between capsules (coupling.uncoupled_blocks batched; Meirovitch ch. 7).
-
-    ``phi`` (N, n, M) with each interface's own capsule's modes (other capsules' modes zero-padded
-    or simply of its own body: only same-body entries are kept).
-    """
-    w = 2 * np.pi * np.asarray(frequency, float)                       # (N, F) or (F,)
-    w = np.broadcast_to(w, (phi.shape[0],) + w.shape[-1:])
-    den = omega[:, None] ** 2 - w[..., None] ** 2 + 1j * w[..., None] * damping[:, None]    # (N, F, M)
-    h = np.einsum("nim,nfm,njm->nfij", phi, 1.0 / den, phi)
-    same = body[:, None] == body[None, :]
-    return h * same
-
-
 def coupled_response(h0, points, radii, body, frequency, density, sound_speed, wall_reflection: float = 0.0):
     """Inward volume U (N, F, n) per pascal solving (I - w^2 rho H0 g) U = H0 1 per point (coupling.coupled_response batched; Kinsler et al.)."""
     nn, nf, n, _ = h0.shape
@@ -286,41 +273,6 @@ def effective_beam_force(delta, L, l, EI, e_scale, gradient, weight, iterations:
         P = np.where(live, root, hi)
     P = np.where(wall, k0 * target * 2.0 ** 200, np.where(target > 0, P, 0.0))
     return sign * P, k0
-
-
-def axial_force(compression, slenderness):
-    """N L^2/(E I) vs compression/L of one beam, per-point slenderness: linear E A/L, then the buckled elastica (latch.axial_force; Timoshenko & Gere 2.7)."""
-    c = np.asarray(compression, float)
-    k_axial = np.broadcast_to(12.0 / np.asarray(slenderness, float) ** 2, c.shape)
-    p_cr = 4.0 * np.pi**2
-    out = k_axial * c
-    buckled = c * k_axial > p_cr
-    if buckled.any():
-        out[buckled] = _buckled_force(c[buckled], p_cr / k_axial[buckled])
-    return out
-
-
-def _buckled_force(c, a):
-    """N L^2/(E I) on the buckled branch: np.interp(c, a load + short, p_cr load) with a = p_cr/k differing per element (latch.axial_force)."""
-    from acl.physics.latch import _buckled_column_table
-
-    p_cr = 4.0 * np.pi**2
-    short, load = _buckled_column_table()
-    # a vectorised binary search on the (monotone) table, then the same linear interpolation
-    lo = np.zeros(c.shape, int)
-    hi = np.full(c.shape, short.size - 1)
-    while True:
-        mid = (lo + hi) // 2
-        if not np.any(hi - lo > 1):
-            break
-        below = a * load[mid] + short[mid] <= c
-        lo = np.where(below, mid, lo)
-        hi = np.where(below, hi, mid)
-    t0 = a * load[lo] + short[lo]
-    t1 = a * load[hi] + short[hi]
-    frac = np.clip((c - t0) / np.where(t1 > t0, t1 - t0, 1.0), 0.0, 1.0)
-    buckled = p_cr * (load[lo] + frac * (load[hi] - load[lo]))
-    return np.where(c >= a * load[-1] + short[-1], p_cr * load[-1], buckled)
 
 
 def latch_force(u, theta, L, w, t, E):

@@ -172,11 +172,26 @@ def _einsum(subscripts: str, *operands) -> np.ndarray:
     return np.einsum(subscripts, *operands, optimize=path)
 
 
+def uncoupled_response(phi, omega, damping, w, body=None) -> np.ndarray:
+    """Inward volume response per pascal H0 (..., F, P, P) = Phi diag(1/(w_m^2 - w^2 + i w w_m/Q_m)) Phi^T over any leading batch axes (Meirovitch ch. 7).
+
+    ``phi`` (..., P, M) outward volume of P interfaces per modal coordinate, ``omega``/``damping`` (..., M),
+    drive ``w`` (F,) or (..., F) rad/s.  ``body`` (P,) capsule of each interface: entries between capsules
+    are zeroed (each interface's own capsule's modes only).
+    """
+    w = np.asarray(w, float)
+    den = modal_dynamic_stiffness(omega[..., None, :], damping[..., None, :], w[..., None])
+    h = _einsum("...im,...fm,...jm->...fij", phi, 1.0 / den, phi)
+    if body is not None:
+        body = np.asarray(body)
+        h = h * (body[:, None] == body[None, :])
+    return h
+
+
 def uncoupled_blocks(system: BubbleSystem, omega) -> np.ndarray:
-    """Per-capsule inward volume response per pascal, H0 (F, C, P, P) = Phi diag(1/(w_m^2 - w^2 + i w w_m/Q_m)) Phi^T (Meirovitch ch. 7)."""
-    w = np.atleast_1d(np.asarray(omega, float))[:, None, None]
-    den = modal_dynamic_stiffness(system.omega[None], system.damping[None], w)
-    return _einsum("cpm,fcm,cqm->fcpq", system.phi, 1.0 / den, system.phi)
+    """Per-capsule H0 (F, C, P, P) of a system at drives ``omega`` (F,) rad/s (:func:`uncoupled_response`, the capsule as batch axis)."""
+    w = np.atleast_1d(np.asarray(omega, float))
+    return np.moveaxis(uncoupled_response(system.phi, system.omega, system.damping, w), -3, 0)
 
 
 #: Complex entries (F x B x N x N) of one chunk of :func:`coupled_response` (16 MB): a design of

@@ -8,6 +8,7 @@ import numpy as np
 
 from acl.design import model as M
 from acl.physics import batch as PB
+from acl.physics.coupling import uncoupled_response
 from acl.physics import constants as C
 from acl.physics.forces import bjerknes_from_rates, bjerknes_pair_sum, critical_distance, jet_drag, thrust_magnitude
 from acl.physics.ties import TIE_RTOL, first_max
@@ -425,7 +426,7 @@ class PointAcoustics:
                 f1 = self.modes(c)[0][:, 0]
                 p = g["radii"].shape[1]
                 body = np.zeros(p, int)
-                h0 = PB.uncoupled_response(vol, om, om / q, body, f1[:, None])
+                h0 = uncoupled_response(vol, om, om / q, 2 * np.pi * f1[:, None], body)
                 u = PB.coupled_response(h0, g["points"], g["radii"], body, f1[:, None], self.medium["density"],
                                         self.medium["sound_speed"], C.SUBSTRATE_REFLECTION)[:, 0]
                 u = u * self.gain_rows(f1)[:, None]
@@ -438,8 +439,8 @@ class PointAcoustics:
 
     def h0(self, freqs: tuple) -> np.ndarray:
         lay = self.layout()
-        return self.once(("h0", freqs), lambda: PB.uncoupled_response(
-            lay["phi"], lay["omega"], lay["damping"], lay["body"], np.asarray(freqs, float)[None, :]))
+        return self.once(("h0", freqs), lambda: uncoupled_response(
+            lay["phi"], lay["omega"], lay["damping"], 2 * np.pi * np.asarray(freqs, float)[None, :], lay["body"]))
 
     def forces(self, centres, freqs: tuple, volts, parts: bool = False):
         """Total acoustic force (N, C, 3) at capsule centres (N, C, 3) for tones (freqs, volts) (acoustics._Engine.forces)."""
