@@ -265,8 +265,10 @@ def summary(name: str, ex: dict) -> str:
     if m:
         reads = ", ".join(f"{r['frequency_hz'] / 1e3:g} kHz at {r['voltage_v']:.3g} V" for r in m["readings"])
         s += (f"; to narrow it, measure the {m['observable']} at {reads} (assumed noise {m['noise_m'] * 1e6:.3g} um "
-              f"per axis): expected band after recompiling with the measured values "
-              f"{m['expected_rms_p95_m'] * 1e6:.3g} um RMS / {m['expected_max_p95_m'] * 1e6:.3g} um max")
+              f"per axis): expected band after recompiling with the gain measured at each of these tones "
+              f"{m['expected_rms_p95_m'] * 1e6:.3g} um RMS / {m['expected_max_p95_m'] * 1e6:.3g} um max "
+              f"(acl fit calibrates one gain scale, not the gain at each tone: where the table's shape is off, "
+              f"the calibrated design's measured(gain) and its band stay wider than this)")
         if m.get("model_form_m"):
             s += (f", of which {m['model_form_m'] * 1e6:.3g} um is the model-form term of the validity limits the "
                   "step is past, which these readings do not remove")
