@@ -12,6 +12,29 @@ from acl.fit.effects import EFFECTS
 
 REPORT_VERSION = 1
 
+# Conventional units a parameter's SI unit string is shown in (`m^-4*kg^-2*s^6*A^2` -> `1/V^2`, `m^2*kg*s^-3` -> `W`);
+# lengths are shown in um.  The first whose dimension matches wins.
+CONVENTIONAL = ("Pa", "N", "V", "J", "W", "Hz", "N/m", "Pa*s", "N/V^2", "N*m^2/V^2", "Pa/V", "N/V", "1/V^2", "1/V",
+                "V^2", "V/s", "m/s", "m^2/s", "kg/m^3", "kg/s", "1/m", "1/s^2", "A", "ohm", "F", "C")
+
+
+def conventional_unit(unit: str) -> str:
+    """The conventional spelling of an SI unit string (itself when none in :data:`CONVENTIONAL` matches)."""
+    from acl.units import UnitError, parse_unit
+
+    if not unit or unit in CONVENTIONAL:
+        return unit or ""
+    try:
+        dims = parse_unit(unit)[1]
+        return next((u for u in CONVENTIONAL if parse_unit(u)[1] == dims), unit)
+    except (UnitError, ValueError):
+        return unit
+
+
+def shown(unit: str) -> tuple[float, str]:
+    """(scale, unit) a value in SI ``unit`` is printed with: um for lengths, else :func:`conventional_unit`."""
+    return (1e6, "um") if unit == "m" else (1.0, conventional_unit(unit))
+
 
 def param_entries(fit, problem) -> list[dict]:
     """Each fitted coordinate with value, 95 % interval and the user-facing form (E in Pa, v_sat in V, ...)."""
@@ -265,10 +288,14 @@ def render_table(report, console=None) -> None:
         pt.add_column(col, no_wrap=True)
     before = {p["name"]: p for p in report["base"]["parameters"]}
     for p in report["final"]["parameters"]:
-        shown = p.get("reported")
-        pt.add_row(p["name"], _g(before[p["name"]]["value"]) if p["name"] in before else "-", _g(p["value"]),
-                   f"[{_g(p['ci95'][0])}, {_g(p['ci95'][1])}]",
-                   p["unit"] + (f"  ({shown['name']} = {_g(shown['value'])} {shown['unit']})" if shown else ""))
+        rep = p.get("reported")
+        k, unit = shown(p["unit"])
+
+        def g(x):
+            return _g(x * k if isinstance(x, (int, float)) else x)
+        pt.add_row(p["name"], g(before[p["name"]]["value"]) if p["name"] in before else "-", g(p["value"]),
+                   f"[{g(p['ci95'][0])}, {g(p['ci95'][1])}]",
+                   unit + (f"  ({rep['name']} = {_g(rep['value'])} {conventional_unit(rep['unit'])})" if rep else ""))
     con.print(pt)
     if report.get("critical_distance"):
         dc = report["critical_distance"]
