@@ -1,11 +1,11 @@
 """A calibrated parameter is printed in a conventional unit (issue 28), not in SI base units: `acl fit`'s table and
-the calibrated design file (acl.fit.report.conventional_unit)."""
+the calibrated design file and the band cause compile prints (acl.units.conventional_unit)."""
 from __future__ import annotations
 
 import io
 
-from acl.fit.report import conventional_unit, render_table, shown
-from acl.units import parse_unit, si_unit
+from acl.fit.report import render_table, shown
+from acl.units import conventional_unit, parse_unit, si_unit
 
 
 def test_si_base_strings_get_their_conventional_name():

@@ -12,27 +12,11 @@ from acl.fit.effects import EFFECTS
 
 REPORT_VERSION = 1
 
-# Conventional units a parameter's SI unit string is shown in (`m^-4*kg^-2*s^6*A^2` -> `1/V^2`, `m^2*kg*s^-3` -> `W`);
-# lengths are shown in um.  The first whose dimension matches wins.
-CONVENTIONAL = ("Pa", "N", "V", "J", "W", "Hz", "N/m", "Pa*s", "N/V^2", "N*m^2/V^2", "Pa/V", "N/V", "1/V^2", "1/V",
-                "V^2", "V/s", "m/s", "m^2/s", "kg/m^3", "kg/s", "1/m", "1/s^2", "A", "ohm", "F", "C")
-
-
-def conventional_unit(unit: str) -> str:
-    """The conventional spelling of an SI unit string (itself when none in :data:`CONVENTIONAL` matches)."""
-    from acl.units import UnitError, parse_unit
-
-    if not unit or unit in CONVENTIONAL:
-        return unit or ""
-    try:
-        dims = parse_unit(unit)[1]
-        return next((u for u in CONVENTIONAL if parse_unit(u)[1] == dims), unit)
-    except (UnitError, ValueError):
-        return unit
-
 
 def shown(unit: str) -> tuple[float, str]:
     """(scale, unit) a value in SI ``unit`` is printed with: um for lengths, else :func:`conventional_unit`."""
+    from acl.units import conventional_unit
+
     return (1e6, "um") if unit == "m" else (1.0, conventional_unit(unit))
 
 
@@ -270,6 +254,7 @@ def render_table(report, console=None) -> None:
     """Rich tables: parameters before/after, per-observable and overall errors, effects tried."""
     from acl._console import make_console
     from acl._console import table as Table
+    from acl.units import conventional_unit
 
     con = console or make_console(highlight=False)
     t = Table(title="fit: before (base model) and after (with selected effects)")
