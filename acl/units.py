@@ -411,3 +411,13 @@ def conventional_unit(unit: str) -> str:
         return next((u for u in CONVENTIONAL if parse_unit(u)[1] == dims), unit)
     except (UnitError, ValueError):
         return unit
+
+
+# lengths and speeds of a micro-mechanism print in um (SI inside, units at edges)
+_MICRO = {"m": (1e6, "um"), "m/s": (1e6, "um/s")}
+
+
+def shown_unit(unit: str) -> tuple[float, str]:
+    """(scale, unit) a value in SI ``unit`` is printed with: um and um/s for lengths and speeds, else
+    :func:`conventional_unit`."""
+    return _MICRO.get(unit) or (1.0, conventional_unit(unit))

@@ -11,7 +11,7 @@ from acl.units import conventional_unit, parse_unit, si_unit
 def test_si_base_strings_get_their_conventional_name():
     for u in ("1/V^2", "W", "Pa", "N/V^2", "N*m^2/V^2", "kg/s"):
         assert conventional_unit(si_unit(parse_unit(u)[1])) == u
-    assert shown("m") == (1e6, "um")
+    assert shown("m") == (1e6, "um") and shown("m/s") == (1e6, "um/s")
     assert conventional_unit("m^5") == "m^5"            # no conventional name: left as it is
 
 
@@ -49,3 +49,19 @@ def test_calibrated_literal_uses_the_conventional_unit(tmp_path):
     assert lit == "0.028 V^-2"
     (tmp_path / "d.acl").write_text(f"param k = {lit}\n")
     assert acl.load(str(tmp_path / "d.acl")).params[0].value == 0.028
+
+
+def test_synth_prints_planted_effects_in_their_units(tmp_path):
+    import os
+    import subprocess
+    import sys
+
+    root = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..")
+    r = subprocess.run([sys.executable, "-m", "acl", "synth", "tests/data/fit_cantilever.acl", "-o",
+                        str(tmp_path / "d.csv"), "--effect", "offset_drift=offset:0.5um,drift:0.01um/s",
+                        "--effect", "drive_saturation=v_sat:6V", "--voltages", "0V..4V:3"],
+                       capture_output=True, text=True, cwd=root, env={**os.environ, "PYTHONPATH": root})
+    assert r.returncode == 0, r.stderr
+    text = r.stdout + r.stderr
+    assert "offset = 0.5 um, drift = 0.01 um/s" in text and "v_sat = 6 V" in text
+    assert "SI" not in text and "e-07 m" not in text

@@ -14,10 +14,10 @@ REPORT_VERSION = 1
 
 
 def shown(unit: str) -> tuple[float, str]:
-    """(scale, unit) a value in SI ``unit`` is printed with: um for lengths, else :func:`conventional_unit`."""
-    from acl.units import conventional_unit
+    """(scale, unit) a value in SI ``unit`` is printed with (acl.units.shown_unit: um for lengths, 1/V^2 ...)."""
+    from acl.units import shown_unit
 
-    return (1e6, "um") if unit == "m" else (1.0, conventional_unit(unit))
+    return shown_unit(unit)
 
 
 def param_entries(fit, problem) -> list[dict]:

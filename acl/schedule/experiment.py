@@ -26,7 +26,7 @@ import numpy as np
 
 from acl.design.model import Design
 from acl.schedule import bands
-from acl.units import conventional_unit
+from acl.units import shown_unit
 
 # Assumed noise of one reading (m, per axis): a capsule's position tracked in a video over a held tone, averaged
 # over about 30 frames (acl track's synthetic error is 0.01 px RMS per frame; 0.1 um leaves room for drift and
@@ -71,7 +71,7 @@ def directions(design: Design, reload=None) -> tuple[list, np.ndarray]:
             theta = unc.mean.copy()
             theta[i] = theta[i] + x * sd[i]
             return bands._with_params(design, unc, theta, reload)
-        k, unit = (1e6, "um") if unc.units[i] == "m" else (1.0, conventional_unit(unc.units[i]))
+        k, unit = shown_unit(unc.units[i])
         out.append((f"parameter {name} (+- {sd[i] * k:.3g} {unit})".replace("  ", " "), "parameter", None,
                     float(sd[i]), make))
     D = len(out)
