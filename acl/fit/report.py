@@ -13,6 +13,13 @@ from acl.fit.effects import EFFECTS
 REPORT_VERSION = 1
 
 
+def shown(unit: str) -> tuple[float, str]:
+    """(scale, unit) a value in SI ``unit`` is printed with (acl.units.shown_unit: um for lengths, 1/V^2 ...)."""
+    from acl.units import shown_unit
+
+    return shown_unit(unit)
+
+
 def param_entries(fit, problem) -> list[dict]:
     """Each fitted coordinate with value, 95 % interval and the user-facing form (E in Pa, v_sat in V, ...)."""
     P = problem.prepared
@@ -258,6 +265,7 @@ def render_table(report, console=None) -> None:
     """Rich tables: parameters before/after, per-observable and overall errors, effects tried."""
     from acl._console import make_console
     from acl._console import table as Table
+    from acl.units import conventional_unit
 
     con = console or make_console(highlight=False)
     t = Table(title="fit: before (base model) and after (with selected effects)")
@@ -276,10 +284,14 @@ def render_table(report, console=None) -> None:
         pt.add_column(col, no_wrap=True)
     before = {p["name"]: p for p in report["base"]["parameters"]}
     for p in report["final"]["parameters"]:
-        shown = p.get("reported")
-        pt.add_row(p["name"], _g(before[p["name"]]["value"]) if p["name"] in before else "-", _g(p["value"]),
-                   f"[{_g(p['ci95'][0])}, {_g(p['ci95'][1])}]",
-                   p["unit"] + (f"  ({shown['name']} = {_g(shown['value'])} {shown['unit']})" if shown else ""))
+        rep = p.get("reported")
+        k, unit = shown(p["unit"])
+
+        def g(x):
+            return _g(x * k if isinstance(x, (int, float)) else x)
+        pt.add_row(p["name"], g(before[p["name"]]["value"]) if p["name"] in before else "-", g(p["value"]),
+                   f"[{g(p['ci95'][0])}, {g(p['ci95'][1])}]",
+                   unit + (f"  ({rep['name']} = {_g(rep['value'])} {conventional_unit(rep['unit'])})" if rep else ""))
     con.print(pt)
     if report.get("critical_distance"):
         dc = report["critical_distance"]

@@ -26,10 +26,11 @@ import numpy as np
 
 from acl.design.model import Design
 from acl.schedule import bands
+from acl.units import shown_unit
 
 # Assumed noise of one reading (m, per axis): a capsule's position tracked in a video over a held tone, averaged
 # over about 30 frames (acl track's synthetic error is 0.01 px RMS per frame; 0.1 um leaves room for drift and
-# the pixel scale).  Stated with every proposal.
+# the pixel scale).  Stated with every proposal; `acl compile --reading-noise` sets another.
 READING_NOISE_M = 0.1e-6
 STEP = 0.5                 # finite-difference step, in sds (central differences)
 MAX_READINGS = 4           # at most this many readings proposed
@@ -70,7 +71,8 @@ def directions(design: Design, reload=None) -> tuple[list, np.ndarray]:
             theta = unc.mean.copy()
             theta[i] = theta[i] + x * sd[i]
             return bands._with_params(design, unc, theta, reload)
-        out.append((f"parameter {name} (+- {sd[i]:.3g} {unc.units[i]})".replace("  ", " "), "parameter", None,
+        k, unit = shown_unit(unc.units[i])
+        out.append((f"parameter {name} (+- {sd[i] * k:.3g} {unit})".replace("  ", " "), "parameter", None,
                     float(sd[i]), make))
     D = len(out)
     R = np.eye(D)
@@ -203,7 +205,7 @@ def explain(design: Design, many: Many, capsule: str, tones, u: np.ndarray, targ
     sources = [{"source": dirs[j][0], "kind": dirs[j][1], "frequency_hz": dirs[j][2], "sd": dirs[j][3],
                 "share": round(float(shares[j]), 4)} for j in order[:TOP]]
     gain_share = float(sum(shares[j] for j in range(len(dirs)) if dirs[j][1] == "gain"))
-    out = {"sources": sources, "gain_table_share": round(gain_share, 4),
+    out = {"sources": sources, "gain_table_share": round(gain_share, 4), "reading_noise_m": noise,
            "other_sources_share": round(float(shares[order[TOP:]].sum()), 4),
            "linearised_rms_p95_m": rms0, "linearised_max_p95_m": max0,
            "monte_carlo_rms_p95_m": None if band is None else float(band.rms_p95_m),

@@ -197,7 +197,8 @@ def _band(comp: CompileState, rep: GoalReport, provider, capsule, u, targets, ba
     many = _reusing(lambda ds, f, uu: comp.many_now(ds, capsule, f, uu) if comp.many_now else
                     [provider(d, capsule, f)[0](uu) for d in ds], solved or {})
     ex = experiment.explain(comp.design, many, capsule, rep.frequencies_hz, u, targets,
-                            reload=comp.opts.reload, band=band, seed=comp.opts.band_seed)
+                            reload=comp.opts.reload, band=band, seed=comp.opts.band_seed,
+                            noise=comp.opts.reading_noise_m or experiment.READING_NOISE_M)
     if ex is not None:
         rep.band_plot = ex.pop("plot", None)
         rep.details["band"]["cause"] = ex
