@@ -204,7 +204,7 @@ def print_report(design, rep) -> None:
         for p in rep.pairs:           # located notes: d_c's drag-law interval, signs resting on an implausible Q
             for n in p.get("notes", ()):
                 con.print(f"{escape(n['file'])}:{n['line']}:{n['column']}: [yellow]note\\[{n['code']}]:[/yellow] "
-                          f"{escape(n['message'])}", soft_wrap=True)
+                          f"{escape(n['message'])}")      # wrapped at the terminal's width, location first
     for lt in rep.latches:
         t = Table(title=f"Latch {lt['name']} ({lt['file']}:{lt['line']}): "
                         f"{'bistable' if lt['bistable'] else 'MONOSTABLE'}, switching force {lt['switching_force_n'] * 1e9:.3g} nN, "
