@@ -77,16 +77,9 @@ def run(args) -> int:
         report([error("E-USAGE", f"--sign-draws {draws}: a negative number of draws",
                       Span(file="<--sign-draws>", line=1, column=1), "give 0 (none) or more")], fmt)
         return 2
-    if rep.pairs:
-        from acl.sweep.signs import DRAWS, attract_fractions, declares_uncertainty
+    from acl.sweep.signs import annotate_pairs
 
-        n = DRAWS if draws is None else draws
-        frac = (attract_fractions(design, [(p["a"], p["b"], p["frequency_hz"]) for p in rep.pairs], n)
-                if n and declares_uncertainty(design) else {})
-        for p in rep.pairs:           # P(other sign) under the declared uncertainty (acl.sweep.signs), None: not drawn
-            f = frac.get((p["a"], p["b"], p["frequency_hz"]))
-            p["p_other_sign"] = None if f is None else (1.0 - f if p["attract"] else f)
-            p["sign_draws"] = n if f is not None else 0
+    annotate_pairs(design, rep.pairs, draws)    # P(other sign) under the declared uncertainty (acl.sweep.signs)
     if args.plot:
         from acl.emit.analysis_figures import write_figures
 

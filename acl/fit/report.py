@@ -131,7 +131,7 @@ def tone_gain_stderr(problem, fit, max_tones: int = MAX_TONES) -> dict:
         # the tone's gain that the data ask for (one Gauss-Newton step with every coefficient free): the calibrated
         # design does not carry it, so its offset from the calibrated model's gain is part of the gain's error there
         h = float(np.linalg.lstsq(Jn, r, rcond=None)[0][-1] / norm[-1])
-        offset = math.expm1(h) if np.isfinite(h) else math.inf
+        offset = math.expm1(h) if np.isfinite(h) and h < 700.0 else math.inf     # exp(700) ~ 1e304
         sd = math.hypot(se, offset)
         if np.isfinite(sd):
             out[float(f)] = sd

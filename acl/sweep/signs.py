@@ -45,3 +45,18 @@ def attract_fractions(design: Design, pairs, n: int = DRAWS, seed: int = 0) -> d
         if c in tab.columns and ok.any():
             out[key] = float(np.mean(np.asarray(tab[c], float)[ok]))
     return out
+
+
+def annotate_pairs(design: Design, pairs: list, n: int | None = None) -> None:
+    """Set ``p_other_sign`` (None: not drawn) and ``sign_draws`` on each of an analysis' ``pairs`` (dicts of
+    acl.analysis.report.Report.pairs) from ``n`` draws (default :data:`DRAWS`; 0: none) of the design's declared
+    uncertainty; what `acl analyze` and ``acl.analyze`` both report."""
+    if not pairs:
+        return
+    n = DRAWS if n is None else n
+    frac = (attract_fractions(design, [(p["a"], p["b"], p["frequency_hz"]) for p in pairs], n)
+            if n and declares_uncertainty(design) else {})
+    for p in pairs:
+        f = frac.get((p["a"], p["b"], p["frequency_hz"]))
+        p["p_other_sign"] = None if f is None else (1.0 - f if p["attract"] else f)
+        p["sign_draws"] = n if f is not None else 0
