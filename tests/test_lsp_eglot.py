@@ -52,7 +52,7 @@ DRIVE = r"""
       (acl-put "mode" (symbol-name major-mode))
       (let ((contact (eglot--guess-contact)))
         (acl-put "contact" (nth 3 contact))
-        (apply #'eglot contact))
+        (acl-step "connect" (apply #'eglot contact) t))
       (acl-put "connected" (if (acl-wait #'eglot-current-server 30) t :false))
       ;; diagnostics of the untouched example (it carries one `acl: ignore')
       (flymake-start)
@@ -132,8 +132,9 @@ def test_eglot_drives_acl_lsp(tmp_path):
     run = subprocess.run([emacs, "--batch", "-l", str(ROOT / "editors" / "emacs" / "acl-mode.el"),
                           "-l", str(tmp_path / "drive.el")], cwd=tmp_path, env=env, capture_output=True,
                          stdin=subprocess.DEVNULL, timeout=120)
-    assert out.exists(), run.stderr.decode(errors="replace")[-3000:]
+    assert out.exists(), run.stderr.decode(errors="replace")[:1500]
     got = dict(json.loads(out.read_text(encoding="utf-8")))
+    assert got.get("connect") is True, got.get("connect")
     for name, value in got.items():
         assert not (isinstance(value, dict) and "error" in value), (name, value)
     assert got["mode"] == "acl-mode"
