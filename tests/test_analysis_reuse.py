@@ -20,16 +20,6 @@ def fig3():
     return acl.load(FIG3)
 
 
-def test_interface_amplitudes_live_in_their_module_and_stay_importable_from_acoustics():
-    from acl.analysis import acoustics, interfaces
-
-    for name in acoustics._MOVED:
-        assert getattr(acoustics, name) is getattr(interfaces, name)
-    from acl.analysis.acoustics import interface_amplitudes     # noqa: F401  (the old import keeps working)
-    with pytest.raises(AttributeError):
-        acoustics.no_such_function   # noqa: B018
-
-
 def test_a_pair_table_after_the_engine_moved_on_equals_a_fresh_one():
     """pair_table at rest, once from the engine's own rest forces and once after another drive replaced the engine
     (only the Bjerknes pair sum evaluated again): identical arrays."""

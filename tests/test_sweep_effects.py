@@ -95,7 +95,7 @@ def test_latch_margins_with_a_stiffness_gradient_equal_analyze_and_stiffness_sca
 
 def test_lint_acl105_under_pressure_effects_equals_the_rule():
     """ACL105 (eps/R past the linear limit) with transducer_gain and drive_saturation (the factor at each drive's
-    total amplitude, acoustics.interface_amplitudes_batch): the Fig. 2 stroke example's sweep-step drive and a
+    total amplitude, interfaces.interface_amplitudes_batch): the Fig. 2 stroke example's sweep-step drive and a
     drive step, voltages spread across the limit; each point's verdict equals the rule on its design."""
     from acl.lint.rules import acoustics
     from acl.sweep.perturb import field_value, flatten

@@ -35,18 +35,6 @@ from acl.physics.resonance import BubbleModes, capsule_modes as _physics_modes
 from acl.physics.ties import TIE_RTOL, first_max
 from acl.physics.transducer import pressure_per_volt
 
-# interface amplitudes (eps/R) and the band maximum live in acl.analysis.interfaces; public here since before
-_MOVED = ("sweep_interface_amplitudes", "interface_amplitudes", "interface_amplitudes_batch", "sweep_worst_amplitude",
-          "band_maximum")
-
-
-def __getattr__(name: str):
-    if name in _MOVED:
-        from acl.analysis import interfaces
-
-        return getattr(interfaces, name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-
 
 # ----------------------------------------------------------------------------------------------
 # Results

@@ -13,7 +13,7 @@ def check_linear(comp: CompileState, sched: Schedule) -> None:
     """Refuse a segment that drives an interface beyond the linear bubble model (eps/R > LINEAR_AMPLITUDE_LIMIT; docs/physics.md).
 
     Tone amplitudes add (the worst-case peak); a sweep at its worst frequency (sampled with every mode
-    inside, the largest refined: acoustics.sweep_worst_amplitude).  Allowed with
+    inside, the largest refined: interfaces.sweep_worst_amplitude).  Allowed with
     ``allow_nonlinear`` (then noted): the predicted forces are then not trustworthy.
     """
     from acl.analysis.interfaces import interface_amplitudes, sweep_worst_amplitude

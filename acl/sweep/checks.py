@@ -394,7 +394,7 @@ class Checks(PairMechanics):
         return ok
 
     def linear_ok(self, limit: float, samples: int) -> np.ndarray:
-        """ACL105: eps/R of every interface at every drive step and sampled sweep frequency within the limit (acoustics.interface_amplitudes)."""
+        """ACL105: eps/R of every interface at every drive step and sampled sweep frequency within the limit (interfaces.interface_amplitudes)."""
         from acl.physics.forces import interface_centre_amplitude
 
         lay = self.layout()
