@@ -180,7 +180,7 @@ def analyze(design: M.Design, at: M.Drive | None = None, snap_in: bool = True, p
             rep.pairs[-1]["notes"] = pair_notes(design, rep.pairs[-1])
     for p, i, st, drive in step_drives(design):
         rep.drives.append(_drive_entry(p.name, i + 1, describe_drive(drive), IF.interface_amplitudes(design, drive),
-                                       st.span.line))
+                                       st.span.line, file=st.span.file))
     mode_fs = np.array([m.frequency_hz for ms in modes.values() for m in ms], float)
     for p in design.programs:
         for i, st in enumerate(p.steps):
@@ -325,10 +325,11 @@ def _sweep_entry(design: M.Design, program: str, i: int, st, mode_fs: np.ndarray
 
     _, f, amps = IF.sweep_worst_amplitude(design, st.f_start, st.f_stop, st.amplitude, mode_fs, SWEEP_SAMPLES)
     drive = M.Drive(tones=(M.Tone(frequency=f, amplitude=st.amplitude),))
-    return _drive_entry(program, i + 1, describe_drive(drive) + " (the sweep's worst frequency)", amps, st.span.line)
+    return _drive_entry(program, i + 1, describe_drive(drive) + " (the sweep's worst frequency)", amps, st.span.line,
+                        file=st.span.file)
 
 
-def _drive_entry(program, step, drive_text, amps: dict, line=None, basis: str = "step") -> dict:
+def _drive_entry(program, step, drive_text, amps: dict, line=None, basis: str = "step", file=None) -> dict:
     """Linear-regime check of one drive: eps/R of every interface against LINEAR_AMPLITUDE_LIMIT.
 
     ``basis``: "step" (a program step's drive), "pairs" (the drive of the pair table at one program
@@ -338,7 +339,7 @@ def _drive_entry(program, step, drive_text, amps: dict, line=None, basis: str = 
     from acl.physics.constants import LINEAR_AMPLITUDE_LIMIT
 
     worst = max(amps.values(), default=0.0)
-    return {"program": program, "step": step, "line": line, "drive": drive_text, "basis": basis,
+    return {"program": program, "step": step, "file": file, "line": line, "drive": drive_text, "basis": basis,
             "interface_amplitude_over_radius": amps, "max_amplitude_over_radius": worst,
             "linear_limit": LINEAR_AMPLITUDE_LIMIT, "linear": bool(worst <= LINEAR_AMPLITUDE_LIMIT)}
 

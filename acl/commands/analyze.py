@@ -120,6 +120,7 @@ def print_report(design, rep) -> None:
     from acl._console import make_console
     from acl._console import print_table
     from acl._console import table as Table
+    from rich.markup import escape
 
     from acl.physics.ties import first_max_item
 
@@ -172,7 +173,8 @@ def print_report(design, rep) -> None:
         worst = first_max_item(d["interface_amplitude_over_radius"])      # ties: the first declared
         past = (" and past the hemisphere (eps/R = 1), where the bubble model has no meaning and `acl compile` refuses"
                 if worst[1] > 1.0 else "")
-        con.print(f"[red]warning\\[W-ACOUSTIC-AMPLITUDE]:[/red] {where}: {d['drive']} drives {worst[0]} to eps/R = "
+        loc = f"{escape(d['file'])}:{d['line']}:1: " if d.get("file") and d.get("line") else ""   # a step: located
+        con.print(f"{loc}[red]warning\\[W-ACOUSTIC-AMPLITUDE]:[/red] {where}: {d['drive']} drives {worst[0]} to eps/R = "
                   f"{worst[1]:.6g}, beyond the linear bubble model (eps/R <= {d['linear_limit']:g}; docs/physics.md){past}")
     if rep.pairs:
         t = Table(title="Bubble pairs (Bjerknes force at rest, attraction positive)", title_justify="left")
@@ -192,8 +194,6 @@ def print_report(design, rep) -> None:
                       f"{p['repel_from_q']:g}" if p.get("repel_from_q") else "-",
                       f"{p['p_other_sign']:.2f}" if p.get("p_other_sign") is not None else "-")
         print_table(con, t)
-        from rich.markup import escape
-
         for p in rep.pairs:           # located notes: d_c's drag-law interval, signs resting on an implausible Q
             for n in p.get("notes", ()):
                 con.print(f"{escape(n['file'])}:{n['line']}:{n['column']}: [yellow]note\\[{n['code']}]:[/yellow] "
@@ -220,14 +220,13 @@ def print_report(design, rep) -> None:
         for g in e["gaps"]:
             t.add_row(f"gap {g['a']}-{g['b']}", f"{g['gap_m'] * 1e6:.2f}")
         print_table(con, t)
+        located = {v["message"] for v in e.get("validity", ())}
         for w in e["warnings"]:
-            con.print(f"[yellow]warning:[/yellow] {w}")
+            if w not in located:                # printed below with its code and location
+                con.print(f"[yellow]warning:[/yellow] {escape(w)}")
         for v in e.get("validity", ()):       # the limits crossed at this drive (acl.physics.validity), located
-            if v["code"] != "W-MECH-001":      # (W-MECH-001 is printed above with the mechanics' warnings)
-                from rich.markup import escape
-
-                con.print(f"{escape(v['file'])}:{v['line']}:{v['column']}: [yellow]warning\\[{v['code']}]:[/yellow] "
-                          f"{escape(v['message'])}", soft_wrap=True)
+            con.print(f"{escape(v['file'])}:{v['line']}:{v['column']}: [yellow]warning\\[{v['code']}]:[/yellow] "
+                      f"{escape(v['message'])}", soft_wrap=True)
     if rep.requires:
         t = Table(title="Requirements", title_justify="left")
         for col in ("requirement", "value", "ok", "at"):
