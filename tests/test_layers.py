@@ -79,7 +79,6 @@ ALLOWED: dict[str, str] = {
     "acl.fmt.tokens -> acl.syntax.parser:_lark": "the formatter lexes with the parser's Lark; make it public",
     "acl.lsp.hover -> acl.syntax.parser:_lark": "hover's keyword list from the parser's Lark; make it public",
     "acl.lsp.completion -> acl.design.modules:_stdlib_modules": "completion lists the stdlib; make it public",
-    "acl.lsp.document -> acl.design.resolve:_finish": "the LSP resolves a partly parsed module; make it public",
     # the incremental parser re-runs the parser's private steps on the edited part and reuses the module cache
     "acl.lsp.incremental -> acl.syntax.parser:_build": "incremental parse; make the parser's steps public",
     "acl.lsp.incremental -> acl.syntax.parser:_check_limits": "incremental parse; make the parser's steps public",
