@@ -64,17 +64,13 @@ ALLOWED: dict[str, str] = {
     "acl.fit.group -> acl.analysis.acoustics:_compute_engine": "fit rebuilds _Engine; engine work",
     "acl.fit.group -> acl.analysis.acoustics:_layout": "fit rebuilds _Engine; engine work",
     "acl.fit.mechanism -> acl.analysis.acoustics:_engine": "fit reaches into _Engine; engine work",
-    "acl.fit.mechanism -> acl.analysis.acoustics:_medium": "fit reaches into _Engine; engine work",
     "acl.fit.mechanism -> acl.analysis.acoustics:_outer_radius": "fit reaches into _Engine; engine work",
     # sweep's evaluator re-implements lint rules and analysis steps through their private helpers: to be removed
     # by the engine work (the lint rules and the sweep call one batched engine)
-    "acl.sweep.acoustic_state -> acl.analysis.acoustics:_medium": "sweep's copy of the model; engine work",
-    "acl.sweep.acoustic_state -> acl.analysis.report:_amplitude_at": "sweep's copy of the model; engine work",
     "acl.sweep.checks -> acl.lint.rules.acoustics:_separate_pairs": "sweep's copy of a lint rule; engine work",
     "acl.sweep.checks -> acl.lint.rules.beams:_linked": "sweep's copy of a lint rule; engine work",
     "acl.sweep.checks -> acl.lint.rules.beams:_path_extent": "sweep's copy of a lint rule; engine work",
     "acl.sweep.checks -> acl.lint.rules.forces:_managed": "sweep's copy of a lint rule; engine work",
-    "acl.sweep.spec -> acl.design.core:_EXAMPLES": "the sweep's examples of a value; make it public",
     # the formatter and the language server use the parser's private Lark instance (tokens, keyword list)
     "acl.fmt.tokens -> acl.syntax.parser:_lark": "the formatter lexes with the parser's Lark; make it public",
     "acl.lsp.hover -> acl.syntax.parser:_lark": "hover's keyword list from the parser's Lark; make it public",
@@ -86,7 +82,6 @@ ALLOWED: dict[str, str] = {
     "acl.lsp.incremental -> acl.syntax.parser:_lark": "incremental parse; make the parser's steps public",
     "acl.lsp.incremental -> acl.design.modules:_PARSED": "incremental parse reuses the module cache; make public",
     # sweep's validity checks repeat the design checks' tone list: to be removed by the engine work
-    "acl.sweep.validity -> acl.design.checks:_step_tones": "sweep's copy of a design check; engine work",
 }
 
 

@@ -72,11 +72,11 @@ def net_critical_distance(design: Design, drive: Drive, a: str, b: str, far: flo
 def quality_bound(design: Design, name: str) -> float:
     """Largest plausible Q of capsule ``name``'s first mode (acl.physics.resonance.plausible_quality_bound: twice
     the Q of its viscous and radiation losses alone, thermal loss left out)."""
-    from acl.analysis.acoustics import _medium, thermal_radius
+    from acl.analysis.acoustics import medium_constants, thermal_radius
     from acl.physics.resonance import capsule_modes, plausible_quality_bound
 
     cap = design.capsule(name)
-    rho, mu, c, sigma, p0, kappa, diff, gamma = _medium(design).as_tuple()
+    rho, mu, c, sigma, p0, kappa, diff, gamma = medium_constants(design).as_tuple()
     m = capsule_modes(cap.cavity.volume, np.array([o.radius for o in cap.orifices]), rho, sigma, p0, kappa, mu, c,
                       thermal_radius(cap.cavity), heat_capacity_ratio=gamma, thermal_diffusivity=diff, thermal=False)
     return float(plausible_quality_bound(m.quality[0])) if m.quality.size else float("inf")

@@ -63,7 +63,7 @@ def program_frequencies(design: M.Design) -> list[float]:
     return sorted(fs)
 
 
-def _amplitude_at(design: M.Design, f: float) -> float:
+def amplitude_at(design: M.Design, f: float) -> float:
     """Largest amplitude the programs apply at frequency f (V), else the reference 1 V (DEFAULT_V: 0 from _program_amplitude)."""
     return _program_amplitude(design, f) or DEFAULT_V
 
@@ -139,7 +139,7 @@ def analyze(design: M.Design, at: M.Drive | None = None, snap_in: bool = True, p
     snaps: dict[float, tuple[float | None, str]] = {}
     vmax = design.transducer.max_voltage if design.transducer else 20.0
     for j, f in enumerate(freqs):
-        v = _amplitude_at(design, f)
+        v = amplitude_at(design, f)
         drive = M.Drive(tones=(M.Tone(frequency=f, amplitude=v),))
         pfs = AC.pair_forces(design, drive)
         if snap_in and pfs:

@@ -292,7 +292,7 @@ def build_instance(design, model: str = "eq3", coupled: bool = False) -> Instanc
     so capsules the analysis couples (a calibration beam next to a group) interact in the fit too (the same
     equilibrium as acl.analysis.mechanics.equilibrium).  ``coupled``: route every design so, lone actuators
     included."""
-    from acl.analysis.acoustics import _medium
+    from acl.analysis.acoustics import medium_constants
 
     # the fit's base model is the design without declared effects (the fit adds them itself: a
     # calibrated design fitted again must not apply them twice)
@@ -382,7 +382,7 @@ def build_instance(design, model: str = "eq3", coupled: bool = False) -> Instanc
                 near |= {j.a, j.b}
         net.neighboured = np.array([any(node.get(c) == i and c in near for c in net.caps)
                                     for i in range(int(net.cap_node.max()) + 1)], bool)
-        med = _medium(design)
+        med = medium_constants(design)
         return Instance(design=design, units=units,
                         medium=(med.density, med.surface_tension, med.ambient_pressure, med.polytropic_index))
     for o in design.observes:
@@ -414,7 +414,7 @@ def build_instance(design, model: str = "eq3", coupled: bool = False) -> Instanc
             t = -np.asarray(c.orifices[0].normal, float)
             units_by_caps[(cap,)] = Unit("single", (_side(design, cap, t / np.linalg.norm(t)),))
         units[o.name] = units_by_caps[(cap,)]
-    med = _medium(design)
+    med = medium_constants(design)
     return Instance(design=design, units=units,
                     medium=(med.density, med.surface_tension, med.ambient_pressure, med.polytropic_index))
 
