@@ -53,8 +53,6 @@ ALLOWED: dict[str, str] = {
     "acl.fit.modelcheck -> acl": "acl.loads of the Python API; use acl.design.resolve",
     "acl.fit.problem -> acl": "acl.load of the Python API; use acl.design.resolve",
     "acl.fit.synth -> acl": "acl.load of the Python API; use acl.design.resolve",
-    # a stage writes a file through emit's atomic writer (write_text_atomic belongs with acl._files)
-    "acl.sweep.tune -> acl.emit.atomic": "atomic write of the tuned design; move write_text_atomic below",
     # a stage prints a design back as canonical text with the formatter (fmt sits on the top layer although it
     # only needs syntax and design): either canonical() moves down, or fmt does
     "acl.fit.calibrated -> acl.fmt": "the calibrated design as canonical text",
