@@ -32,6 +32,7 @@ from acl.physics.roots import golden_max, illinois_ascending
 from acl.sweep.acoustic_state import beam_force, beam_k0
 
 STEP_REACH = 2.5e-6       # m; largest accepted distance of a step's equilibrium from its tangent prediction
+FOLD_STEP = 1e-4          # relative to v_max; a failed step this short brackets a fold (bisection below it)
 STEP_MOVE = 50e-6         # m; largest predicted move of the coordinates in one continuation step
 AXIS_TOL = 1e-12          # relative; a group with two elements needs their axes fixed to this
 
@@ -376,7 +377,7 @@ class Mechanism:
         _, _, J, G = self.solve(z, np.zeros(self.n), freqs, volts, np.zeros(self.n, bool))     # tangent at rest
         st = {"z": z, "J": J, "t": _direction(J, G), "v": np.zeros(self.n), "dv": v_max / steps, "v_max": v_max,
               "done": np.zeros(self.n, bool), "reached": np.zeros(self.n, bool), "failed": np.zeros(self.n, bool),
-              "pending": np.zeros(self.n, bool)}
+              "pending": np.zeros(self.n, bool), "v_fail": np.full(self.n, np.inf)}
         self._march(st, freqs, volts, steps, rtol, budget * steps)
         return st["v"], st["z"], st["reached"]
 
@@ -392,7 +393,7 @@ class Mechanism:
         is halved after a failure, so a fold is bracketed from below by bisection.
         """
         z, J, t, v, dv, v_max = st["z"], st["J"], st["t"], st["v"], st["dv"], st["v_max"]
-        done, reached, failed, pending = st["done"], st["reached"], st["failed"], st["pending"]
+        done, reached, failed, pending, v_fail = st["done"], st["reached"], st["failed"], st["pending"], st["v_fail"]
         while left > 0:
             going = ~done
             if not going.any():
@@ -409,7 +410,7 @@ class Mechanism:
                 self._over_the_fold(st, freqs, volts, rtol)
                 continue
             left -= 1
-            v_try = np.minimum(v + dv, v_max)
+            v_try = np.minimum(np.minimum(v + dv, v_max), np.where(np.isfinite(v_fail), 0.5 * (v + v_fail), np.inf))
             dlam = v_try * v_try - v * v
             move = np.linalg.norm(t, axis=-1) * dlam
             big = live & (move > STEP_MOVE)
@@ -430,12 +431,15 @@ class Mechanism:
                 grow = np.clip(np.sqrt(0.25 * STEP_REACH / off), 0.5, 2.0)
             dv[...] = np.where(good, np.where(failed, dv, np.minimum(dv * grow, v_max / steps)),
                                np.where(live, dv / 2, dv))
+            # a step of at most FOLD_STEP x v_max that fails brackets the fold from above: bisection from there
+            small = live & ~good & (v_try - v <= FOLD_STEP * v_max)
+            v_fail[...] = np.where(small, np.minimum(v_fail, v_try), v_fail)
             failed[...] = live & ~good
             hit = good & (v >= v_max)
             reached |= hit
             done |= hit
             # bracketed to rtol: probed just above, together with the other rows that fold (one batch)
-            pending |= live & ~good & (dv < rtol * v_max)
+            pending |= live & ~hit & ((~good & (dv < rtol * v_max)) | (v_fail - v < rtol * v_max))
         if pending.any():
             self._over_the_fold(st, freqs, volts, rtol)
             done |= pending
@@ -443,9 +447,15 @@ class Mechanism:
     def _over_the_fold(self, st: dict, freqs, volts, rtol: float) -> None:
         """The rows ``pending`` at a limit point, or at a kink of the force law (a latch buckling) that Newton's
         steps cannot cross: a patient solve just above it, kept only when it stays next to the branch
-        (acl.physics.equilibrium._equilibrium_just_above); those continue, the others are done (snapped)."""
+        (acl.physics.equilibrium._equilibrium_just_above); those continue, the others are done (snapped).
+
+        A snapped row reports its last stable voltage less the width of its bracket (at most 2 rtol x v_max):
+        Newton's residual test (1e-10 of the force scale) accepts a point up to that far past a kink, and
+        the bracket's width is larger, so the reported snap-in stays below the fold.
+        """
         z, J, t, v, dv, v_max = st["z"], st["J"], st["t"], st["v"], st["dv"], st["v_max"]
         folded = st["pending"].copy()
+        margin = np.minimum(st["v_fail"] - v, 2 * dv)
         for rel in (1e-6, 1e-4):
             v_up = np.minimum(v * (1 + rel) + rel, v_max)
             zn, conv, Jn, Gn = self.solve(z, v_up * v_up, freqs, volts, folded, iterations=30, patient=True)
@@ -457,10 +467,12 @@ class Mechanism:
             v[...] = np.where(over, v_up, v)
             dv[...] = np.where(over, 4 * rtol * v_max, dv)
             st["failed"][...] = np.where(over, False, st["failed"])
+            st["v_fail"][...] = np.where(over, np.inf, st["v_fail"])
             hit = over & (v >= v_max)
             st["reached"][...] |= hit
             st["done"][...] |= hit
             folded &= ~over
+        v[...] = np.where(folded, np.maximum(v - margin, 0.0), v)
         st["done"][...] |= folded
         st["pending"][...] = False
 
