@@ -16,12 +16,15 @@ and spring links); every number that depends on a swept parameter is taken per p
 Equilibria: Newton on the generalized coordinates with a forward-difference Jacobian (one force
 evaluation per coordinate), stable while the Jacobian's eigenvalues have positive real parts
 (Bazant & Cedolin, Stability of Structures, Ch. 4).  Continuation in the drive scale V (natural
-parameter): a step is accepted only when Newton converges to a stable, admissible (no contact:
-mechanics._admissible) equilibrium within ``STEP_REACH`` of the last one (analyze's pseudo-arclength
-steps move at most half its 5 um length scale); after a failed step the step is halved, so the fold
-(snap-in) is bracketed from below: the reported snap-in voltage is the last stable voltage, below the
-fold by at most ``rtol`` x V_max, never above it.  No Python loop over points: a loop over
-continuation steps and Newton iterations, each vectorised over the points.
+parameter) with a tangent predictor (Euler in V^2 along K_T^-1 G, Keller 1977) and an adaptive
+step: a step is accepted only when Newton converges to a stable, admissible (no contact:
+mechanics._admissible) equilibrium within ``STEP_REACH`` of the prediction (analyze's
+pseudo-arclength steps move at most half its 5 um length scale), and no prediction moves more than
+``STEP_MOVE``; the step grows while the corrections stay small.  A failed short step brackets the
+fold (snap-in) from above and the bracket is bisected from below: the reported snap-in voltage is
+the last stable voltage less the bracket's width, below the fold by at most 4 ``rtol`` x V_max, never
+above it.  No Python loop over points: a loop over continuation steps and Newton iterations, each
+vectorised over the points.
 """
 from __future__ import annotations
 
