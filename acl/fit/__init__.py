@@ -78,15 +78,17 @@ def run_fit(design_path, data_paths, free=(), search_paths=(), candidates=None, 
     report["calibrated_needs_path"] = needs_path(design_path, cal_path)
     report["timing_s"] = timing
     t0 = time.perf_counter()
-    from acl.fit.report import tone_gain_stderr
+    from acl.fit.report import tone_gain_entries, tone_gains
 
     try:
-        tone_se = tone_gain_stderr(problem, selection.final)
+        tones = tone_gains(problem, selection.final)
     except (ValueError, np.linalg.LinAlgError):      # no figure: the bands keep the table's prior at every tone
-        tone_se = {}
-    timing["tone_gain_stderr"] = time.perf_counter() - t0
-    report["tone_gain_stderr"] = [{"frequency_hz": f, "relative_stderr": s} for f, s in tone_se.items()]
-    text = calibrated_text(problem, selection, cal_path, data_paths, report_dir, tone_gain=tone_se)
+        tones = None
+    timing["tone_gains"] = time.perf_counter() - t0
+    report["tone_gains"] = tone_gain_entries(tones, problem)
+    report["tone_gain_stderr"] = [{"frequency_hz": e["frequency_hz"], "relative_stderr": e["relative_stderr"]}
+                                  for e in report["tone_gains"]]
+    text = calibrated_text(problem, selection, cal_path, data_paths, report_dir, tone_gain=tones)
     t0 = time.perf_counter()
     from acl.fit.modelcheck import MIN_SCALE_SD, pair_model_check, warning_text
 
@@ -102,7 +104,7 @@ def run_fit(design_path, data_paths, free=(), search_paths=(), candidates=None, 
         if check.get("significant") or scale_sd:
             text = calibrated_text(problem, selection, cal_path, data_paths, report_dir,
                                    model_discrepancy=check["max_m"] if check.get("significant") else 0.0,
-                                   model_scale_sd=scale_sd, tone_gain=tone_se)
+                                   model_scale_sd=scale_sd, tone_gain=tones)
     return FitOutcome(problem, selection, report, text, cal_path)
 
 

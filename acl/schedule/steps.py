@@ -41,6 +41,7 @@ def follow(comp: CompileState, i, step: FollowStep):
     from acl.design.paths import PathError, path_length, sample_path
     from acl.schedule.path import PathInfeasible, plan_path
     from acl.schedule.solve import SolverFailure
+    from acl.schedule.bands import pinned
     from acl.schedule.tones import choose_tones
 
     name = f"step {i + 1}: follow {step.capsule}"
@@ -70,7 +71,8 @@ def follow(comp: CompileState, i, step: FollowStep):
     try:
         comp.forward_now, comp.gains_now = _models_for(comp, i, name)
         table = VF.gain_table(comp, step.capsule)
-        choice = choose_tones(table, path.points, vmax, comp.opts.tones_per_path, step.tones)
+        choice = choose_tones(table, path.points, vmax, comp.opts.tones_per_path, step.tones,
+                              tuple(f for f, _ in pinned(comp.design)))
     except ValueError as exc:
         raise diag("E-SCHED-TONES", f"{name}: {exc}", step.span,
                     "pin the tones with `, using [85 kHz, 125 kHz]` on the follow step, or give a calibration sweep (--calibration)")

@@ -113,8 +113,12 @@ def candidate_indices(table: GainTable, max_candidates: int = 36) -> np.ndarray:
 
 
 def choose_tones(table: GainTable, targets: np.ndarray, max_voltage: float, k: int = 3,
-                 pinned: tuple[float, ...] = ()) -> ToneChoice:
-    """The k tones of ``table`` with the best score for ``targets`` (N, 2) m; pinned tones are kept as given."""
+                 pinned: tuple[float, ...] = (), measured: tuple[float, ...] = ()) -> ToneChoice:
+    """The k tones of ``table`` with the best score for ``targets`` (N, 2) m; pinned tones are kept as given.
+
+    ``measured``: tones whose gain a calibration measured (``measured(gain)``, acl.schedule.bands.pinned).  When k
+    of them reach every waypoint (margin >= 1), the best k of them are chosen: elsewhere the table keeps its prior,
+    and a tone the model merely prefers there would trade the measured gain for a guessed one."""
     budget = max_voltage ** 2 / max(k, len(pinned) or k)
     targets = np.asarray(targets, dtype=float).reshape(-1, 2)
     if pinned:
@@ -122,6 +126,16 @@ def choose_tones(table: GainTable, targets: np.ndarray, max_voltage: float, k: i
         margin, cond = score_sets(g.T[None], targets, budget)
         return ToneChoice(tuple(float(f) for f in pinned), g, float(margin[0]), float(cond[0]),
                           float(_score(margin, cond)[0]))
+    if len(measured) >= k:
+        fs = np.array(sorted(float(f) for f in measured))
+        triples = np.array(list(combinations(range(fs.size), k)))
+        vectors = np.transpose(table.at(fs), (1, 0))[triples]          # (M, k, 2)
+        margin, cond = score_sets(vectors, targets, budget)
+        score = _score(margin, cond)
+        best = int(np.argmax(score))
+        if margin[best] >= 1.0:
+            return ToneChoice(tuple(float(f) for f in fs[triples[best]]), vectors[best].T, float(margin[best]),
+                              float(cond[best]), float(score[best]))
     cand = candidate_indices(table)
     if cand.size < k:
         raise ValueError(f"the gain table has {cand.size} usable frequencies; {k} tones are needed")
