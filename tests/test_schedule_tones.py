@@ -46,3 +46,21 @@ def test_reach_is_the_hull_boundary_and_zero_outside_the_cone():
     assert r[0] == pytest.approx(1.0)
     assert r[1] == pytest.approx(np.sqrt(0.5))
     assert r[2] == 0.0
+
+
+def test_measured_tones_that_reach_the_path_are_chosen_over_stronger_guessed_ones():
+    """A calibrated design measured the gain at some tones (measured(gain)): when k of them reach every waypoint, the
+    compile plays them, not a tone the table's prior merely rates stronger (issue 28: a recompile moved from the
+    measured 128.5 kHz to the table point 125 kHz, whose gain keeps its 30 % prior)."""
+    a = np.linspace(0, 2 * np.pi, 50)
+    path = np.column_stack([np.cos(a), np.sin(a)]) * 0.3 * UM
+    measured = (61e3, 94e3, 141e3, 150e3)                 # near the resonances, weaker than their peaks
+    choice = choose_tones(fake_sweep(), path, max_voltage=20.0, measured=measured)
+    assert sorted(choice.frequencies) == [61e3, 94e3, 141e3] and choice.margin >= 1
+    free = choose_tones(fake_sweep(), path, max_voltage=20.0)
+    assert free.score > choice.score                      # unmeasured, the peaks would have won
+    # measured tones that cannot reach the path (all pushing one way) leave the choice to the whole table
+    assert sorted(choose_tones(fake_sweep(), path, 20.0, measured=(58e3, 60e3, 62e3)).frequencies) == [60e3, 95e3, 140e3]
+    # pinned tones (`using [...]`) still win over measured ones
+    assert choose_tones(fake_sweep(), path, 20.0, pinned=(60e3, 95e3, 140e3), measured=measured).frequencies == \
+        (60e3, 95e3, 140e3)

@@ -78,10 +78,11 @@ def run_fit(design_path, data_paths, free=(), search_paths=(), candidates=None, 
     report["calibrated_needs_path"] = needs_path(design_path, cal_path)
     report["timing_s"] = timing
     t0 = time.perf_counter()
-    from acl.fit.report import tone_gain_entries, tone_gains
+    from acl.fit.report import tone_gain_entries, tone_gain_stderr, tone_gains
 
     try:
-        tones = tone_gains(problem, selection.final)
+        # the gain at each tone when it adds what the coefficients do not fit; else the gain model's error there
+        tones = tone_gains(problem, selection.final) or tone_gain_stderr(problem, selection.final) or None
     except (ValueError, np.linalg.LinAlgError):      # no figure: the bands keep the table's prior at every tone
         tones = None
     timing["tone_gains"] = time.perf_counter() - t0

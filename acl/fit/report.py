@@ -68,7 +68,8 @@ def length_rmse(problem, fit) -> float:
     return float(np.sqrt(np.mean(r * r))) if r.size else float("nan")
 
 
-MAX_TONES = 16      # tone_gains: a data set with more distinct tones (a sweep) keeps the gain model (scale, tilt)
+MAX_TONES = 16      # tone_gains, tone_gain_stderr: a data set with more distinct tones (a sweep) keeps the gain model
+TONE_P = 0.01       # tone_gains: the per-tone gains are kept when they beat the gain model at this p-value
 IDENTIFIABLE = 1e-6  # smallest singular value, relative to the largest, of the normalised columns a direction keeps
 
 
@@ -80,6 +81,8 @@ class ToneGains:
     stderr: dict          # {tone Hz: relative standard error of that gain (log scale)}
     residual: np.ndarray  # (n,) residual (m) of the calibrated model with these gains, every row
     dof: int              # train rows minus identified directions
+    spanned: tuple = ()   # fitted coefficients (names) the per-tone gains alone span: their error is the tones'
+    p_value: float = 0.0  # of the test that the per-tone gains explain the data better than the gain model
 
 
 def tone_gains(problem, fit, max_tones: int = MAX_TONES) -> ToneGains | None:
@@ -93,15 +96,23 @@ def tone_gains(problem, fit, max_tones: int = MAX_TONES) -> ToneGains | None:
     table's shape times the fitted scale, which left a drawn table's gains 20-33 % off (tests/test_band_cure_cli.py).
 
     Standard errors (linearised least squares, s^2 (J^T J)^-1 as acl.fit.solve, central differences): every tone's
-    gain free together with every fitted coefficient the per-tone gains do not already span (a gain scale, a tilt
-    or a thrust coefficient is a combination of them and is left at its value: identifiability).  s^2 is the
+    gain free together with every fitted coefficient the per-tone gains and the coefficients before it do not
+    already span (a gain scale, a tilt, a single capsule's thrust coefficient is a combination of the tones' gains
+    and is left at its value: identifiability; ``spanned`` names those the tones' gains alone span, which the
+    calibrated design then declares exact).  s^2 is the
     reduced chi-square of the per-tone model, at least 1 when the data state their sigma; without a sigma column
     it is an estimate from ``dof`` degrees of freedom, and the error is widened by t(0.975, dof) / 1.96.
 
-    None (the gain model is kept at every tone) for latch states (their rows are not least squares), more than
-    ``max_tones`` tones (a sweep: its tilt and resonance effects are the model), a rank-deficient fit, or no degree
-    of freedom left to estimate the noise; a tone whose gain the data cannot tell apart from the others' is left
-    out.
+    The per-tone gains are a model choice, made as the fit's effects are: kept when they explain the data better
+    than the gain model at p < TONE_P (the drop of chi-square, scaled by s^2, against chi-square with the number
+    of directions they add when the data state their sigma; an F-test otherwise).  A gain model that fits (a
+    tilt-shaped transducer) keeps its coefficients and their covariance.
+
+    None (the gain model is kept at every tone; :func:`tone_gain_stderr` gives its error there) when the per-tone
+    gains add no direction the fitted coefficients do not span (one tone and a free gain or thrust: the calibrated
+    model already fits it) or do not fit significantly better, for latch states (their rows are not least squares), more than ``max_tones`` tones (a
+    sweep: its tilt and resonance effects are the model), a rank-deficient fit, or no degree of freedom left to
+    estimate the noise; a tone whose gain the data cannot tell apart from the others' is left out.
     """
     from scipy.stats import t as student
 
@@ -176,6 +187,9 @@ def tone_gains(problem, fit, max_tones: int = MAX_TONES) -> ToneGains | None:
         up[i] = min(vals[i] + d, c.upper) if np.isfinite(c.upper) else vals[i] + d
         dn[i] = max(vals[i] - d, c.lower) if np.isfinite(c.lower) else vals[i] - d
         cc.append((pred(h, up) - pred(h, dn)) / (up[i] - dn[i]))
+    added = len(_independent(hc, cc))
+    if not added:
+        return None             # the coefficients already fit each tone's gain: nothing to carry (tone_gain_stderr)
     coef_keep = _independent(cc, hc)
     J = np.column_stack(hc + [cc[i] for i in coef_keep])
     r = yw - pred(h)
@@ -192,6 +206,18 @@ def tone_gains(problem, fit, max_tones: int = MAX_TONES) -> ToneGains | None:
         s2 = max(s2, 1.0)                               # the stated noise is a floor: few rows can scatter less
     else:
         widen = float(student.ppf(0.975, dof)) / 1.959963984540054
+    # the per-tone gains are a model choice, made as the fit's effects are: kept only where they explain the data
+    # significantly better than the gain model (chi-square of the drop at the stated noise, else an F-test)
+    from scipy.stats import chi2 as chi2_dist
+    from scipy.stats import f as f_dist
+
+    drop = max(_sumsq((yw - pred(np.zeros_like(h)))[ok]) - _sumsq(r), 0.0)
+    if problem.data.has_sigma:
+        p_value = float(chi2_dist.sf(drop / s2, added))
+    else:
+        p_value = float(f_dist.sf(drop / added / s2, added, dof))
+    if not p_value < TONE_P:
+        return None
     cov = np.linalg.inv(Jn.T @ Jn) * s2
     se = np.sqrt(np.clip(np.diag(cov)[:sel.size], 0.0, None)) / norm[:sel.size] * widen
     resid = y - full(h)
@@ -200,16 +226,20 @@ def tone_gains(problem, fit, max_tones: int = MAX_TONES) -> ToneGains | None:
         if np.isfinite(h[k]) and abs(h[k]) < 700.0 and np.isfinite(s):
             factor[float(tones[k])] = float(np.exp(h[k]))
             stderr[float(tones[k])] = float(s)
-    return ToneGains(factor, stderr, resid, dof) if factor else None
+    spanned = tuple(c.name for i, c in enumerate(fit.coefs) if not _independent([cc[i]], hc))
+    return ToneGains(factor, stderr, resid, dof, spanned, p_value) if factor else None
 
 
-def tone_gains_table(tones: ToneGains | None, problem) -> dict:
+def tone_gains_table(tones, problem) -> dict:
     """{tone Hz: (gain-table value Pa/V measured there, relative standard error)}: the design's table at the tone
-    (acl.physics.transducer.pressure_per_volt) times the fitted factor; the value None without a transducer."""
+    (acl.physics.transducer.pressure_per_volt) times the fitted factor (:func:`tone_gains`); the value None without a
+    transducer, or for {tone Hz: relative error} of :func:`tone_gain_stderr` (the gain model kept there)."""
     from acl.physics.transducer import pressure_per_volt
 
     if tones is None:
         return {}
+    if isinstance(tones, dict):
+        return {f: (None, s) for f, s in tones.items()}
     t = problem.design.transducer
     out = {}
     for f, x in tones.factor.items():
@@ -218,11 +248,79 @@ def tone_gains_table(tones: ToneGains | None, problem) -> dict:
     return out
 
 
-def tone_gain_entries(tones: ToneGains | None, problem) -> list[dict]:
+def tone_gain_entries(tones, problem) -> list[dict]:
     """report.json ``tone_gains``: per tone, the fitted factor over the calibrated model, the gain-table value and
-    its relative standard error (:func:`tone_gains`)."""
-    return [{"frequency_hz": f, "factor": _n(tones.factor[f]), "gain_pa_per_v": _n(g), "relative_stderr": _n(s)}
-            for f, (g, s) in tone_gains_table(tones, problem).items()]
+    its relative standard error (:func:`tone_gains`); factor and value None where the gain model is kept."""
+    return [{"frequency_hz": f, "factor": None if g is None else _n(tones.factor[f]), "gain_pa_per_v": _n(g),
+             "relative_stderr": _n(s)} for f, (g, s) in tone_gains_table(tones, problem).items()]
+
+
+def tone_gain_stderr(problem, fit, max_tones: int = MAX_TONES) -> dict:
+    """{tone Hz: relative error} of the calibrated model's transducer gain at each tone the data measured: the
+    standard error of a free gain there, all fitted coefficients free (linearised least squares, s^2 (J^T J)^-1 as
+    acl.fit.solve, by central differences), combined in quadrature with how far the data put that free gain from the
+    calibrated model's (one Gauss-Newton step), since the calibrated design carries the fitted coefficients, not
+    the tone's own gain.
+
+    A tone counts where it was driven at 10 % or more of the largest amplitude (as ``covered(frequency)``).  The
+    calibrated model's gain there holds to this figure whatever the gain table's shape (the tone's own gain is
+    a free coordinate here, not the table times the fitted tilt), so the calibrated design declares it
+    (``measured(gain)``) and the error bands of a compile hold the table at the tone to it instead of the
+    table's prior (acl.schedule.bands).  Nothing (``{}``) for latch states (their rows are not least squares),
+    more than ``max_tones`` tones, or a rank-deficient fit; a tone whose gain the data cannot tell is left out.
+    """
+    from acl.fit.forward import predict
+
+    P = problem.prepared
+    if fit is None or (P.state is not None and np.any(P.state)) or not fit.full_rank:
+        return {}
+    v = np.asarray(P.v, float)
+    live = (v > 0) & (v >= 0.1 * float(v.max(initial=0.0)))
+    tones = np.unique(np.asarray(P.f, float)[live])
+    if tones.size == 0 or tones.size > max_tones or not np.isfinite(fit.redchi):
+        return {}
+    train = np.asarray(fit.train)
+    w = 1.0 / np.where(np.isfinite(problem.sigma), problem.sigma, solve.NOMINAL_SIGMA)
+    vals = np.asarray(fit.values, float)
+
+    def pred(values, tone=None, h=0.0):
+        coeffs, effects = solve.split_coefs(fit.coefs, values)
+        if tone is not None:
+            coeffs["tone_weight"] = np.where((P.f == tone) & (P.v > 0), np.exp(2.0 * h), 1.0)
+        return predict(P, coeffs, effects)[train] * w[train]
+
+    cols = []
+    for i, c in enumerate(fit.coefs):
+        d = 1e-4 * max(abs(vals[i]), abs(c.scale), 1e-300)
+        up, dn = vals.copy(), vals.copy()
+        up[i] = min(vals[i] + d, c.upper) if np.isfinite(c.upper) else vals[i] + d
+        dn[i] = max(vals[i] - d, c.lower) if np.isfinite(c.lower) else vals[i] - d
+        cols.append((pred(up) - pred(dn)) / (up[i] - dn[i]))
+    base = pred(vals)
+    resid = np.asarray(problem.y, float)[train] * w[train] - base       # weighted residual of the fitted model
+    out = {}
+    for f in tones:
+        jh = (pred(vals, f, 1e-4) - pred(vals, f, -1e-4)) / 2e-4
+        J = np.column_stack(cols + [jh])
+        ok = np.all(np.isfinite(J), axis=1) & np.isfinite(resid)
+        J, r = J[ok], resid[ok]
+        norm = np.linalg.norm(J, axis=0)
+        if J.shape[0] <= J.shape[1] or not np.all(norm > 0):
+            continue
+        Jn = J / norm
+        sv = np.linalg.svd(Jn, compute_uv=False)
+        if sv[-1] <= 1e-9 * sv[0]:
+            continue                                    # the tone's own gain is degenerate with the coefficients
+        cov = np.linalg.inv(Jn.T @ Jn) * fit.redchi
+        se = float(np.sqrt(max(cov[-1, -1], 0.0)) / norm[-1])
+        # the tone's gain that the data ask for (one Gauss-Newton step with every coefficient free): the calibrated
+        # design does not carry it, so its offset from the calibrated model's gain is part of the gain's error there
+        h = float(np.linalg.lstsq(Jn, r, rcond=None)[0][-1] / norm[-1])
+        offset = math.expm1(h) if np.isfinite(h) and h < 700.0 else math.inf     # exp(700) ~ 1e304
+        sd = math.hypot(se, offset)
+        if np.isfinite(sd):
+            out[float(f)] = sd
+    return out
 
 
 def _independent(cols, base) -> list[int]:
