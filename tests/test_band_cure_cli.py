@@ -31,6 +31,7 @@ ROOT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..")
 FIG3 = os.path.join(ROOT, "examples", "fig3_three_orifice.acl")
 TRUTHS = 2          # truths drawn from the prior (each loop about 15 s of CPU)
 TOLERANCE = 1.5     # achieved RMS at most 1.5 x the expected band's 95th percentile (as the engine-level study)
+BAND_OVER_PROMISE = 2.5     # the recompiled band at most this x the promised one (measured: 1.3-1.9x)
 
 
 def _acl(*args, cwd):
@@ -89,31 +90,49 @@ def loop(tmp_path_factory):
         _acl("fit", "examples/fig3_three_orifice.acl", *data, "--free", "gain",
              "--calibrated", f"examples/cal{k}.acl", cwd=tmp_path)
         _acl("compile", f"examples/cal{k}.acl", "--program", "circle", "-o", f"out{k + 1}", cwd=tmp_path)
-        band = [g["rms_error_p95_um"] for g in
-                json.loads((tmp_path / f"out{k + 1}" / "schedule.json").read_text())["goals"]]
+        goals = json.loads((tmp_path / f"out{k + 1}" / "schedule.json").read_text())["goals"]
+        band = [g["rms_error_p95_um"] for g in goals]
+        import acl
+
+        cal = acl.load(str(work / f"cal{k}.acl"))
+        carried = {m.frequency: (m.gain, m.stddev) for m in cal.measured_gain}
+        plays = [(g["frequencies_hz"], g["details"]["band"].get("unmeasured_tones_hz")) for g in goals]
         played = _tracking(_acl("synth", "examples/truth.acl", "--schedule", f"out{k + 1}/schedule.json",
                                 "-o", f"play{k}.csv", "--observe", "mx,my", cwd=tmp_path))
         before = _tracking(_acl("synth", "examples/truth.acl", "--schedule", "out0/schedule.json",
                                 "-o", f"before{k}.csv", "--observe", "mx,my", cwd=tmp_path))
-        rows.append((before, played, band))
-    return expected_um, rows
+        rows.append((before, played, band, carried, plays))
+    return expected_um, rows, [r["frequency_hz"] for r in m["readings"]]
 
 
 @pytest.mark.studies
 def test_the_recompiled_band_covers_the_error_the_lab_sees(loop):
-    _, rows = loop
-    for _, achieved, band in rows:
+    _, rows, _ = loop
+    for _, achieved, band, _, _ in rows:
         assert len(achieved) == len(band) == 2, rows
         for a, b in zip(achieved, band):
             assert a <= b, rows
 
 
 @pytest.mark.studies
-@pytest.mark.xfail(strict=True, reason="acl fit does not carry a measured gain per tone into the calibrated design "
-                                       "(module docstring)")
 def test_proposed_readings_through_synth_fit_compile_leave_the_expected_band(loop):
-    expected_um, rows = loop
-    for _, achieved, _ in rows:
+    expected_um, rows, _ = loop
+    for _, achieved, _, _, _ in rows:
         assert len(achieved) == len(expected_um) == 2, rows
         for a, e in zip(achieved, expected_um):
             assert a <= TOLERANCE * e, (expected_um, rows)
+
+
+@pytest.mark.studies
+def test_the_calibrated_design_carries_the_gain_at_each_read_tone_and_compile_plays_them(loop):
+    """The cure's mechanism: `acl fit` wrote the gain it fitted at each read tone (a table point in Pa/V with its
+    standard error), the recompile plays exactly those tones, and its band, now the measured errors, is close to
+    the promised one (at most BAND_OVER_PROMISE x; it adds the fit's residual as discrepancy(position))."""
+    expected_um, rows, tones = loop
+    for _, _, band, carried, plays in rows:
+        assert sorted(carried) == sorted(tones), carried
+        assert all(g is not None and g > 0 and 0 < sd < 0.05 for g, sd in carried.values()), carried
+        for freqs, unmeasured in plays:
+            assert sorted(freqs) == sorted(tones) and not unmeasured, plays
+        for b, e in zip(band, expected_um):
+            assert b <= BAND_OVER_PROMISE * e, (band, expected_um)
