@@ -505,6 +505,11 @@ def render_table(report, console=None) -> None:
         dc = report["critical_distance"]
         con.print(f"critical distance d_c = sqrt(alpha/(2 gamma)) = {_um(dc['value'])} "
                   f"[{_um(dc['ci95'][0])}, {_um(dc['ci95'][1])}]")
+    carried = [e for e in report.get("tone_gains") or [] if e.get("factor") is not None]
+    if carried:
+        con.print("gain at each tone, fitted one per tone (the calibrated design's measured(gain)): "
+                  + ", ".join(f"{e['frequency_hz'] / 1e3:g} kHz {_g(e['gain_pa_per_v'])} Pa/V (x{e['factor']:.3g} the "
+                              f"gain model) +- {100 * e['relative_stderr']:.2g} %" for e in carried))
     et = Table(title="effects tried (full reasons and CV scores: report.json of --report, or --output-format json)")
     et.add_column("#", no_wrap=True)
     et.add_column("effect", no_wrap=True)
