@@ -87,6 +87,11 @@ def run_fit(design_path, data_paths, free=(), search_paths=(), candidates=None, 
         tones = None
     timing["tone_gains"] = time.perf_counter() - t0
     report["tone_gains"] = tone_gain_entries(tones, problem)
+    if getattr(tones, "residual", None) is not None:
+        r = np.asarray(tones.residual, float)
+        r = r[np.isfinite(r)]
+        report["tone_gains_rmse"] = float(np.sqrt(np.mean(r * r))) if r.size else None
+        report["tone_gains_p_value"] = tones.p_value
     report["tone_gain_stderr"] = [{"frequency_hz": e["frequency_hz"], "relative_stderr": e["relative_stderr"]}
                                   for e in report["tone_gains"]]
     text = calibrated_text(problem, selection, cal_path, data_paths, report_dir, tone_gain=tones)

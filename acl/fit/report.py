@@ -509,7 +509,11 @@ def render_table(report, console=None) -> None:
     if carried:
         con.print("gain at each tone, fitted one per tone (the calibrated design's measured(gain)): "
                   + ", ".join(f"{e['frequency_hz'] / 1e3:g} kHz {_g(e['gain_pa_per_v'])} Pa/V (x{e['factor']:.3g} the "
-                              f"gain model) +- {100 * e['relative_stderr']:.2g} %" for e in carried))
+                              f"gain model) +- {100 * e['relative_stderr']:.2g} %" for e in carried)
+                  + (f"; with them the residual is {_um(report.get('tone_gains_rmse'))} RMS (the gain model's: "
+                     f"{_um(report['rmse_after'])}, p = {report.get('tone_gains_p_value', 0.0):.2g}), and the notes below "
+                     "on the gain model's residual do not apply to the calibrated design" if report.get("tone_gains_rmse")
+                     is not None else ""))
     et = Table(title="effects tried (full reasons and CV scores: report.json of --report, or --output-format json)")
     et.add_column("#", no_wrap=True)
     et.add_column("effect", no_wrap=True)
