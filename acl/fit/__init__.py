@@ -80,11 +80,15 @@ def run_fit(design_path, data_paths, free=(), search_paths=(), candidates=None, 
     t0 = time.perf_counter()
     from acl.fit.report import tone_gain_entries, tone_gain_stderr, tone_gains
 
-    try:
-        # the gain at each tone when it adds what the coefficients do not fit; else the gain model's error there
-        tones = tone_gains(problem, selection.final) or tone_gain_stderr(problem, selection.final) or None
-    except (ValueError, np.linalg.LinAlgError):      # no figure: the bands keep the table's prior at every tone
-        tones = None
+    # the gain at each tone when it adds what the coefficients do not fit; else the gain model's error there
+    tones = None
+    for figure in (tone_gains, tone_gain_stderr):
+        try:
+            tones = figure(problem, selection.final) or None
+        except (ValueError, np.linalg.LinAlgError):  # no figure: the bands keep the table's prior at every tone
+            tones = None
+        if tones is not None:
+            break
     timing["tone_gains"] = time.perf_counter() - t0
     report["tone_gains"] = tone_gain_entries(tones, problem)
     if getattr(tones, "residual", None) is not None:
