@@ -18,12 +18,12 @@ Three claims, three tests:
 * the cure's mechanism: the calibrated design carries a gain at each read tone, the recompile plays exactly those
   tones, and its band (the measured errors, plus the fit's residual as discrepancy(position)) is close to the
   promised one: truth 1 0.213 / 0.323, truth 2 0.238 / 0.335 um (1.3-1.9x the promise).
-Over 20 truths (benchmarks/band_cure.py: the same loop, 20 truths; about 20 min on a loaded 2-core machine): every recompile played the read
-tones, the recompiled band covered the achieved error on all 40 goals (median band / error 3.3 and 2.9); goal 1's
-achieved error has median 0.067, 90th percentile 0.173 and maximum 0.222 um against the promised 0.160 (17 of 20
-within it, all within 1.5x); goal 2's (its promise assumes the readings proposed for step 2, at higher voltages
-than the step-1 readings made here) median 0.120, maximum 0.340 against 0.174.  Before the readings: median 1.61 /
-2.54 um.
+Over 20 truths (benchmarks/band_cure.py: the same loop; about 20 min on a loaded 2-core machine): every recompile
+played the read tones, the recompiled band covered the achieved error on all 40 goals (median band / error 3.3 and
+2.9); goal 1's achieved error has median 0.067, 90th percentile 0.173 and maximum 0.222 um against the promised
+0.160 (17 of 20 within it, all within 1.5x); goal 2's (its promise assumes the readings proposed for step 2, at
+higher voltages than the step-1 readings made here) median 0.120, maximum 0.340 against 0.174.  Before the readings:
+median 1.61 / 2.54 um.
 """
 from __future__ import annotations
 

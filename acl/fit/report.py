@@ -110,9 +110,10 @@ def tone_gains(problem, fit, max_tones: int = MAX_TONES) -> ToneGains | None:
 
     None (the gain model is kept at every tone; :func:`tone_gain_stderr` gives its error there) when the per-tone
     gains add no direction the fitted coefficients do not span (one tone and a free gain or thrust: the calibrated
-    model already fits it) or do not fit significantly better, for latch states (their rows are not least squares), more than ``max_tones`` tones (a
-    sweep: its tilt and resonance effects are the model), a rank-deficient fit, or no degree of freedom left to
-    estimate the noise; a tone whose gain the data cannot tell apart from the others' is left out.
+    model already fits it) or do not fit significantly better, for latch states (their rows are not least
+    squares), more than ``max_tones`` tones (a sweep: its tilt and resonance effects are the model), a rank-deficient
+    fit, or no degree of freedom left to estimate the noise; a tone whose gain the data cannot tell apart from the
+    others' is left out.
     """
     from scipy.stats import t as student
 
@@ -511,9 +512,9 @@ def render_table(report, console=None) -> None:
                   + ", ".join(f"{e['frequency_hz'] / 1e3:g} kHz {_g(e['gain_pa_per_v'])} Pa/V (x{e['factor']:.3g} the "
                               f"gain model) +- {100 * e['relative_stderr']:.2g} %" for e in carried)
                   + (f"; with them the residual is {_um(report.get('tone_gains_rmse'))} RMS (the gain model's: "
-                     f"{_um(report['rmse_after'])}, p = {report.get('tone_gains_p_value', 0.0):.2g}), and the notes below "
-                     "on the gain model's residual do not apply to the calibrated design" if report.get("tone_gains_rmse")
-                     is not None else ""))
+                     f"{_um(report['rmse_after'])}, p = {report.get('tone_gains_p_value', 0.0):.2g}), and the notes "
+                     "below on the gain model's residual do not apply to the calibrated design"
+                     if report.get("tone_gains_rmse") is not None else ""))
     et = Table(title="effects tried (full reasons and CV scores: report.json of --report, or --output-format json)")
     et.add_column("#", no_wrap=True)
     et.add_column("effect", no_wrap=True)
