@@ -84,7 +84,8 @@ def run_fit(design_path, data_paths, free=(), search_paths=(), candidates=None, 
     tones = None
     for figure in (tone_gains, tone_gain_stderr):
         try:
-            tones = figure(problem, selection.final) or None
+            with np.errstate(all="ignore"):          # a wild step is judged by its cost, not warned about
+                tones = figure(problem, selection.final) or None
         except (ValueError, np.linalg.LinAlgError):  # no figure: the bands keep the table's prior at every tone
             tones = None
         if tones is not None:

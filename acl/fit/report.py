@@ -200,6 +200,8 @@ def tone_gains(problem, fit, max_tones: int = MAX_TONES) -> ToneGains | None:
     if dof < (0 if problem.data.has_sigma else 1):
         return None
     norm = np.linalg.norm(J, axis=0)
+    if not np.all(norm > 0):
+        return None             # a direction the usable rows do not see
     Jn = J / norm
     s2 = _sumsq(r) / max(dof, 1)
     widen = 1.0
