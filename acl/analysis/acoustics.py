@@ -530,8 +530,8 @@ class _Engine:
         store = _per_design_store(_ENGINE_REST, self.design)
         key = tuple(self.f.tolist())
         r = store.get(key)
-        if r is None:
-            r = store[key] = self.response(self.lay.rest[None][:, self.lay.body, :] + self.lay.offsets)
+        if r is None:       # the same system at rest as rest_response's: its per-frequency cache (lint prefetches)
+            r = store[key] = rest_response(self.design, self.f)[None]
         return r
 
     def _drive_key(self) -> tuple:
@@ -670,6 +670,34 @@ class PairTable:
                          critical_distance=None if math.isnan(dc) else dc, notes=self.notes)
 
 
+def _pair_lines(centres: np.ndarray) -> tuple:
+    """(a, b, distance, unit vector a -> b) of every capsule pair a < b (the nested loops' order: a, then b > a)."""
+    pa, pb = np.triu_indices(centres.shape[0], 1)
+    line = centres[pb] - centres[pa]
+    dist = np.linalg.norm(line, axis=-1)
+    unit = np.divide(line, dist[:, None], out=np.zeros_like(line), where=dist[:, None] > 0)
+    return pa, pb, dist, unit
+
+
+@_per_design
+def _rest_pair_lines(design: Design) -> tuple:
+    """:func:`_pair_lines` at rest, once per design (read-only)."""
+    out = _pair_lines(_centres_array(design, None))
+    for a in out:
+        a.setflags(write=False)
+    return out
+
+
+def pair_attraction(design: Design, drive: Drive) -> np.ndarray:
+    """:func:`pair_table`'s ``attraction`` column (P,) at rest alone (the same numbers; no phases, no critical distances)."""
+    eng = _engine(design, drive)
+    lay = eng.lay
+    _, _, att = eng.rest_pairs()
+    _, _, _, unit = _rest_pair_lines(design)
+    fa = capsule_pair_forces(lay.points(_centres_array(design, None)), att[0], lay.body, len(lay.caps))
+    return np.einsum("pk,pk->p", fa, unit)
+
+
 def pair_table(design: Design, drive: Drive,
                positions: Mapping[str, Sequence[float]] | None = None) -> PairTable:
     """Secondary Bjerknes force of every capsule pair (coupled volumes; sum over tones and orifice
@@ -682,11 +710,8 @@ def pair_table(design: Design, drive: Drive,
     pts = lay.points(centres)
     thrust_vec = np.einsum("n,nk,nc->ck", thr, -lay.normals, lay.onehot)
     ncap = len(lay.caps)
-    pa, pb = np.triu_indices(ncap, 1)                 # the nested loops' order: a, then b > a
+    pa, pb, dist, unit = _rest_pair_lines(design) if not positions else _pair_lines(centres)
     fa = capsule_pair_forces(pts, att, lay.body, ncap)
-    line = centres[pb] - centres[pa]
-    dist = np.linalg.norm(line, axis=-1)
-    unit = np.divide(line, dist[:, None], out=np.zeros_like(line), where=dist[:, None] > 0)
     attraction = np.einsum("pk,pk->p", fa, unit)
     dphi, gap = dominant_pair_phase(u, pts, lay.body, ncap, dist)
     # reduced law (paper Eq. 3): alpha = attraction d^2, 2 gamma = thrusts pushing apart

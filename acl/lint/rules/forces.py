@@ -112,7 +112,7 @@ def _sign_changes(ctx: Context, freqs: np.ndarray, significance: float) -> list:
         pos_any = np.zeros(ia.size, bool)
         neg_any = np.zeros(ia.size, bool)
         for j, f in enumerate(freqs.tolist()):
-            vals = vals_all[j] = ctx.pair_table(Drive(tones=(Tone(frequency=f, amplitude=1.0),))).attraction
+            vals = vals_all[j] = ctx.pair_attraction(Drive(tones=(Tone(frequency=f, amplitude=1.0),)))
             strong = np.abs(vals) >= significance * np.maximum(thrust[ia, j], thrust[ib, j])
             pos_any |= strong & (vals > 0)
             neg_any |= strong & (vals < 0)
