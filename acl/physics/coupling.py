@@ -241,30 +241,39 @@ def coupled_volumes(blocks, slot, points, radii, frequency, density, sound_speed
     pad_rad = np.full((rad.shape[0], npad), 1e-9)
     pad_rad[:, slot] = rad
     pad_body = np.repeat(np.arange(ncap), p)
-    eye = np.eye(npad)
     chunk = max(1, min(chunk, CHUNK_ELEMENTS // (nb * npad * npad)))   # bounded memory for large designs
     # green_matrix's frequency-independent parts, once: 1/(4 pi d) off the diagonal, the retarded distance
     # (between capsules only), the wall images' R/(4 pi d')
     d = _distances(pad_pts, pad_rad, False)[:, None]                                # (Bd, 1, N, N)
     inv = np.where(~np.eye(npad, dtype=bool), 1 / (4 * np.pi * d), 0.0)
     retarded = np.where(pad_body[:, None] != pad_body[None, :], d, 0.0)
+    # g is symmetric (d_ij = d_ji and d'_ij = d'_ji exactly): the cosines and sines of the upper triangle, mirrored
+    iu, ju = np.triu_indices(npad)
+    upper, lower = iu * npad + ju, ju * npad + iu
+    tri = [np.ascontiguousarray(x.reshape(x.shape[:-2] + (npad * npad,))[..., upper]) for x in (retarded, inv)]
     if wall_reflection:
         di = _distances(pad_pts, pad_rad, True)[:, None]
-        inv_image = wall_reflection / (4 * np.pi * di)
+        tri += [np.ascontiguousarray(x.reshape(x.shape[:-2] + (npad * npad,))[..., upper])
+                for x in (di, wall_reflection / (4 * np.pi * di))]
     for s in range(0, nf, chunk):
         w = 2 * np.pi * f[:, s:s + chunk]                                           # (Bf, Fc)
         h = blk[:, s:s + chunk]
         fc = h.shape[1]
-        k = (w / c[:, None])[..., None, None]
-        g = np.empty((nb, fc, npad, npad), complex)                                 # green_matrix, exp(-ikd) as cos, sin
-        kd = k * retarded
-        np.multiply(np.cos(kd), inv, out=g.real)
-        np.multiply(np.sin(kd), -inv, out=g.imag)
+        k = (w / c[:, None])[..., None]
+        gu = np.empty((nb, fc, upper.size), complex)                                # green_matrix, exp(-ikd) as cos, sin
+        kd = k * tri[0]
+        np.multiply(np.cos(kd), tri[1], out=gu.real)
+        np.multiply(np.sin(kd), -tri[1], out=gu.imag)
         if wall_reflection:
-            kd = k * di
-            g.real += np.cos(kd) * inv_image
-            g.imag -= np.sin(kd) * inv_image
+            kd = k * tri[2]
+            gu.real += np.cos(kd) * tri[3]
+            gu.imag -= np.sin(kd) * tri[3]
         del kd
+        g = np.empty((nb, fc, npad * npad), complex)
+        g[..., upper] = gu
+        g[..., lower] = gu
+        g = g.reshape(nb, fc, npad, npad)
+        del gu
         coef = (w**2 * rho[:, None])[..., None, None]
         if p == 1:
             g *= -coef * h[:, :, :, 0, 0, None]
@@ -274,7 +283,7 @@ def coupled_volumes(blocks, slot, points, radii, frequency, density, sound_speed
         else:
             a = -coef * _einsum("bfcpq,bfcqn->bfcpn", np.broadcast_to(h, (nb,) + h.shape[1:]),
                                 g.reshape(nb, fc, ncap, p, npad)).reshape(g.shape)
-        a += eye                                                                   # I - w^2 rho H0 g
+        a.reshape(nb, fc, npad * npad)[..., ::npad + 1] += 1.0                    # I - w^2 rho H0 g
         rhs = np.broadcast_to(h.sum(axis=-1).reshape(h.shape[0], fc, npad), (nb, fc, npad))
         u = np.linalg.solve(a, rhs[..., None])[..., 0]
         out[:, s:s + fc] = u[..., slot]
