@@ -54,7 +54,7 @@ def snap_in(ctx: Context):
                 f"{um(pf.critical_distance)}: program `{p.name}` snaps them together", st.span, notes=[
                     f"strongest drive {tones}",
                     f"Bjerknes attraction {pf.attraction * 1e9:.3g} nN at rest, phase difference "
-                    f"{np.degrees(pf.phase_difference):.0f} deg",
+                    f"{round(float(np.degrees(pf.phase_difference)))} deg",   # round(): never "-0"
                     f"d_c = sqrt(alpha / 2 gamma) (paper Eq. 3); threshold snap_margin = {margin:g}",
                     "quasi-static equilibrium at this drive: " + (
                         "snaps in (acl.analysis.mechanics)" if verdict else
