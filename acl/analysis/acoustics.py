@@ -29,7 +29,8 @@ from acl.physics import effects as PE
 from acl.physics.coupling import (BubbleSystem, CoupledModes, build_system, coupled_modes as _physics_coupled_modes,
                                   coupled_response as _physics_coupled, prepared_response, uncoupled_blocks)
 from acl.physics.forces import (bjerknes_pair_sum, capsule_forces, capsule_pair_forces, critical_distance,
-                                dominant_pair_phase, force_constants, neighbour_drag, thrust_magnitude)
+                                dominant_pair_phase, force_constants, interface_distances, neighbour_drag,
+                                thrust_magnitude)
 from acl.physics.forces import pressure_terms  # noqa: F401  (public here since before; acl.analysis.tones)
 from acl.physics.resonance import BubbleModes, capsule_modes as _physics_modes
 from acl.physics.ties import TIE_RTOL, first_max
@@ -540,7 +541,7 @@ class _Engine:
     def rest_forces(self):
         """:meth:`forces` of the capsules at rest, with parts (total, u, thr, att), each (1, ...); computed once."""
         if not self._rest:
-            self._rest.append(self.forces(self.lay.rest[None], parts=True, response=self._rest_response()))
+            self._rest.append(self.forces(self.lay.rest[None], parts=True, response=self._rest_response(), rest=True))
             # the thrust per interface (n floats) outlives the engine: :meth:`rest_pairs` of a later engine of the
             # same drive needs it (the last engine only is kept, and lint asks its drives in turn)
             _per_design_store(_REST_THRUST, self.design)[self._drive_key()] = self._rest[0][2]
@@ -555,21 +556,23 @@ class _Engine:
             _, u, thr, att = self.rest_forces()
             return u, thr, att
         k = self.consts
-        pts = self.lay.rest[None][:, self.lay.body, :] + self.lay.offsets
+        pts, dist = _rest_interfaces(self.design)
         _, att = bjerknes_pair_sum(pts, r, k["w2p2"], k["bjerknes"], k["other"], k.get("gap_exponent", 0.0),
-                                   k.get("gap_ref", 1.0))
+                                   k.get("gap_ref", 1.0), dist)
         return r * self.pressure[None, :, None], thr, att
 
-    def forces(self, centres: np.ndarray, parts: bool = False, consts: dict | None = None, response=None):
+    def forces(self, centres: np.ndarray, parts: bool = False, consts: dict | None = None, response=None,
+               rest: bool = False):
         """Total acoustic force (B, C, 3) on each capsule for centres (B, C, 3): thrust + Bjerknes + jet drag.
 
         ``consts``: per-configuration drive constants (:func:`drive_constants`: each row of the batch under its
         own tone amplitudes, gain table and thrust scale); default the engine's own drive for every row.
-        ``response``: the coupled volume response (B, T, n) per pascal at these centres, when already known.
+        ``response``: the coupled volume response (B, T, n) per pascal at these centres, when already known;
+        ``rest``: the centres are the design's rest positions (B = 1; their distances are kept per design).
         """
         k = self.consts if consts is None else {**self.consts, **consts}
         lay = self.lay
-        pts = centres[:, lay.body, :] + lay.offsets                        # (B, n, 3) orifice centres
+        pts, dist = _rest_interfaces(self.design) if rest else (centres[:, lay.body, :] + lay.offsets, None)
         if response is not None:
             r = response
         elif self.f.size == 0 or lay.radii.size == 0:
@@ -577,10 +580,21 @@ class _Engine:
         else:
             r = self.response(pts)                                         # (B, T, n) per pascal
         total, _, thr, att = capsule_forces(centres, lay.body, lay.offsets, lay.normals, lay.onehot, self.outer, r, k,
-                                            points=pts)
+                                            points=pts, distance=dist)
         if parts:
             return total, r * self.pressure[None, :, None], thr, att
         return total
+
+
+@_per_design
+def _rest_interfaces(design: Design) -> tuple:
+    """Interface centres at rest (1, n, 3) and their :func:`acl.physics.forces.interface_distances`, once per design (read-only)."""
+    lay = _layout(design)
+    pts = lay.rest[None][:, lay.body, :] + lay.offsets
+    dist = interface_distances(pts, lay.body[:, None] != lay.body[None, :])
+    for a in (pts, dist):
+        a.setflags(write=False)
+    return pts, dist
 
 
 def _engine_constants(design: Design, lay: _Layout, f: np.ndarray, pressure: np.ndarray, scale: np.ndarray,
