@@ -249,6 +249,7 @@ def coupled_volumes(blocks, slot, points, radii, frequency, density, sound_speed
     retarded = np.where(pad_body[:, None] != pad_body[None, :], d, 0.0)
     # g is symmetric (d_ij = d_ji and d'_ij = d'_ji exactly): the cosines and sines of the upper triangle, mirrored
     iu, ju = np.triu_indices(npad)
+    diag = np.arange(npad)
     upper, lower = iu * npad + ju, ju * npad + iu
     tri = [np.ascontiguousarray(x.reshape(x.shape[:-2] + (npad * npad,))[..., upper]) for x in (retarded, inv)]
     if wall_reflection:
@@ -283,7 +284,7 @@ def coupled_volumes(blocks, slot, points, radii, frequency, density, sound_speed
         else:
             a = -coef * _einsum("bfcpq,bfcqn->bfcpn", np.broadcast_to(h, (nb,) + h.shape[1:]),
                                 g.reshape(nb, fc, ncap, p, npad)).reshape(g.shape)
-        a.reshape(nb, fc, npad * npad)[..., ::npad + 1] += 1.0                    # I - w^2 rho H0 g
+        a[..., diag, diag] += 1.0                                                  # I - w^2 rho H0 g (any memory layout)
         rhs = np.broadcast_to(h.sum(axis=-1).reshape(h.shape[0], fc, npad), (nb, fc, npad))
         u = np.linalg.solve(a, rhs[..., None])[..., 0]
         out[:, s:s + fc] = u[..., slot]
