@@ -3,6 +3,8 @@ then one large design (the generator of benchmarks/check.py) of each size, each 
 
     python benchmarks/lint.py [N] [--large=1000,2500,5000]     (default 200 small designs)
 
+Each large design's CPU time is also given as a ratio to a fresh `python -c "import cvxpy"` run next to it.
+
 Designs are variations (seeded) of four shapes: one cantilever, a facing pair, a frequency-
 selective pair and a latch, each with programs, so that every rule family runs.  The first design
 pays the start-up (imports, grammar, stdlib); the figure that matters is the time per design after
@@ -152,12 +154,26 @@ def large(sizes: list[int]) -> None:
     import os
     import subprocess
 
+    import resource
+
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]).rstrip(os.pathsep)}
+
+    def import_cvxpy() -> float:
+        """CPU seconds of a fresh `python -c "import cvxpy"` (the reference the issue's ratios use)."""
+        before = resource.getrusage(resource.RUSAGE_CHILDREN)
+        subprocess.run([sys.executable, "-c", "import cvxpy"], env=env, check=True)
+        after = resource.getrusage(resource.RUSAGE_CHILDREN)
+        return after.ru_utime - before.ru_utime + after.ru_stime - before.ru_stime
+
     for n in sizes:
+        ref = import_cvxpy()          # interleaved with each lint, so that the ratio shares the load
         r = subprocess.run([sys.executable, __file__, f"--one={n}"], capture_output=True, text=True, env=env, check=False)
         if r.returncode != 0:
             raise SystemExit(f"large design of {n} lines failed:\n{r.stderr}")
-        print(r.stdout.rstrip())
+        ref = min(ref, import_cvxpy())
+        line = r.stdout.rstrip()
+        cpu = float(line.split(" s CPU")[0].rsplit(" ", 1)[-1])
+        print(f"{line}\n    = {cpu / ref:.2f}x `python -c \"import cvxpy\"` ({ref:.2f} s CPU, the lesser of two runs around it)")
 
 
 def one(lines: int) -> None:
