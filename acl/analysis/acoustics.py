@@ -29,8 +29,8 @@ from acl.physics import effects as PE
 from acl.physics.coupling import (BubbleSystem, CoupledModes, build_system, coupled_modes as _physics_coupled_modes,
                                   coupled_response as _physics_coupled, prepared_response, uncoupled_blocks)
 from acl.physics.forces import (bjerknes_pair_sum, capsule_forces, capsule_pair_forces, critical_distance,
-                                dominant_pair_phase, force_constants, interface_distances, neighbour_drag,
-                                thrust_magnitude)
+                                dominant_pair_phase, force_constants, interface_distances, jet_lines,
+                                neighbour_drag, thrust_magnitude)
 from acl.physics.forces import pressure_terms  # noqa: F401  (public here since before; acl.analysis.tones)
 from acl.physics.resonance import BubbleModes, capsule_modes as _physics_modes
 from acl.physics.ties import TIE_RTOL, first_max
@@ -556,7 +556,7 @@ class _Engine:
             _, u, thr, att = self.rest_forces()
             return u, thr, att
         k = self.consts
-        pts, dist = _rest_interfaces(self.design)
+        pts, dist, _ = _rest_interfaces(self.design)
         _, att = bjerknes_pair_sum(pts, r, k["w2p2"], k["bjerknes"], k["other"], k.get("gap_exponent", 0.0),
                                    k.get("gap_ref", 1.0), dist)
         return r * self.pressure[None, :, None], thr, att
@@ -572,7 +572,7 @@ class _Engine:
         """
         k = self.consts if consts is None else {**self.consts, **consts}
         lay = self.lay
-        pts, dist = _rest_interfaces(self.design) if rest else (centres[:, lay.body, :] + lay.offsets, None)
+        pts, dist, lines = _rest_interfaces(self.design) if rest else (centres[:, lay.body, :] + lay.offsets, None, None)
         if response is not None:
             r = response
         elif self.f.size == 0 or lay.radii.size == 0:
@@ -580,7 +580,7 @@ class _Engine:
         else:
             r = self.response(pts)                                         # (B, T, n) per pascal
         total, _, thr, att = capsule_forces(centres, lay.body, lay.offsets, lay.normals, lay.onehot, self.outer, r, k,
-                                            points=pts, distance=dist)
+                                            points=pts, distance=dist, lines=lines)
         if parts:
             return total, r * self.pressure[None, :, None], thr, att
         return total
@@ -588,13 +588,15 @@ class _Engine:
 
 @_per_design
 def _rest_interfaces(design: Design) -> tuple:
-    """Interface centres at rest (1, n, 3) and their :func:`acl.physics.forces.interface_distances`, once per design (read-only)."""
+    """Interface centres at rest (1, n, 3), their :func:`acl.physics.forces.interface_distances` and
+    :func:`acl.physics.forces.jet_lines` to the capsule centres, once per design (read-only)."""
     lay = _layout(design)
     pts = lay.rest[None][:, lay.body, :] + lay.offsets
     dist = interface_distances(pts, lay.body[:, None] != lay.body[None, :])
-    for a in (pts, dist):
+    lines = jet_lines(pts, lay.normals, lay.rest[None], lay.body[:, None] != np.arange(len(lay.caps))[None, :])
+    for a in (pts, dist, *lines):
         a.setflags(write=False)
-    return pts, dist
+    return pts, dist, lines
 
 
 def _engine_constants(design: Design, lay: _Layout, f: np.ndarray, pressure: np.ndarray, scale: np.ndarray,

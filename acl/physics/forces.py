@@ -183,24 +183,34 @@ def bjerknes_pair_sum(points, response, w2p2, coefficient, other, gap_exponent: 
     return c @ points - c.sum(axis=-1)[..., None] * points, att          # sum_j c_ij (p_j - p_i)
 
 
-def jet_drag_on_capsules(thrust, points, normals, centres, outer, mask, fraction=None):
-    """Drag (B, C, 3) of every interface's jet on the other capsules: :func:`jet_drag` of each jet (momentum flux = its thrust (B, n)) on each capsule centre (B, C, 3) along the jet's normal (n, 3); ``fraction`` as :func:`jet_drag`'s."""
+def jet_lines(points, normals, centres, mask) -> tuple:
+    """(distance (B, n, C), 1 where ``mask`` is False; cosine to the jet's normal (B, n, C)) from every interface to every capsule centre (:func:`jet_drag_on_capsules`' geometry)."""
     x = centres[:, None, :, :] - points[:, :, None, :]                    # (B, n, C, 3)
     dist = np.sqrt((x * x).sum(axis=-1))
     with np.errstate(invalid="ignore", divide="ignore"):   # positions a runaway solver step made non-finite:
         cos = (x * normals[None, :, None, :]).sum(axis=-1) / dist         # NaN forces, which the solver rejects
-    drag = jet_drag(thrust[:, :, None], np.where(mask, dist, 1.0), cos, outer[None, None, :], fraction) * mask
+    return np.where(mask, dist, 1.0), cos
+
+
+def jet_drag_on_capsules(thrust, points, normals, centres, outer, mask, fraction=None, lines=None):
+    """Drag (B, C, 3) of every interface's jet on the other capsules: :func:`jet_drag` of each jet (momentum flux = its thrust (B, n)) on each capsule centre (B, C, 3) along the jet's normal (n, 3); ``fraction`` as :func:`jet_drag`'s.
+
+    ``lines``: the :func:`jet_lines` of these positions when the caller keeps them.
+    """
+    dist, cos = jet_lines(points, normals, centres, mask) if lines is None else lines
+    drag = jet_drag(thrust[:, :, None], dist, cos, outer[None, None, :], fraction) * mask
     return drag.transpose(0, 2, 1) @ normals
 
 
-def capsule_forces(centres, body, offsets, normals, onehot, outer, response, consts: dict, points=None, distance=None):
+def capsule_forces(centres, body, offsets, normals, onehot, outer, response, consts: dict, points=None, distance=None,
+                   lines=None):
     """Total acoustic force (B, C, 3) on each capsule at centres (B, C, 3): streaming thrust (:func:`thrust_magnitude`) + :func:`bjerknes_pair_sum` + :func:`jet_drag_on_capsules`.
 
     Interfaces (n): ``body`` (n,) capsule index, ``offsets`` (n, 3) from the capsule centre, ``normals``
     (n, 3) outward, ``onehot`` (n, C); ``outer`` (C,) the radius a jet drags; ``response`` (B, T, n) the
     coupled volumes per pascal at these centres; ``consts`` :func:`force_constants` (or rows of them);
     ``points`` the interface centres (B, n, 3) when the caller already has them, ``distance`` their
-    :func:`interface_distances`; ``consts["jet_drag_fraction"]``
+    :func:`interface_distances` and ``lines`` their :func:`jet_lines`; ``consts["jet_drag_fraction"]``
     (optional) a constant drag fraction (:func:`jet_drag`).
     Returns (total, points (B, n, 3), thrust per interface (B, n), attraction (B, n, n)).
     """
@@ -210,7 +220,7 @@ def capsule_forces(centres, body, offsets, normals, onehot, outer, response, con
                                 consts.get("gap_exponent", 0.0), consts.get("gap_ref", 1.0), distance)
     total = onehot.T @ (bj - thr[:, :, None] * normals)                 # (B, C, 3); thrust against the jet (module doc)
     total = total + jet_drag_on_capsules(thr, pts, normals, centres, outer, consts["drag_mask"],
-                                         consts.get("jet_drag_fraction"))
+                                         consts.get("jet_drag_fraction"), lines)
     return total, pts, thr, att
 
 
