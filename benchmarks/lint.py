@@ -12,10 +12,10 @@ it (target < 50 ms).  The large designs show how lint scales with the size of on
 5,000 lines in at most 5 s and 300 MB peak; it took 57 s and 1 GB).  Wall time depends on the machine's
 load (printed); CPU time is what the lint costs.
 
-Issue 23, branch engine4 (one interleaved run, load average 11 on 2 cores; `python -c "import cvxpy"` 0.78-0.82 s
-CPU): 5,000 lines on abf535b 9.51 / 9.75 s CPU = 12x cvxpy's import, 200 MB; after 7.10 / 6.93 s CPU = 8.5-9.1x,
-185 MB (0.73x).  Still above the 5 s target: the coupled response at rest (363 frequencies x 393 interfaces, one
-dense complex solve each) is about 3 s of it, parse and resolve 1.5 s.
+Issue 23, branch engine4 (one interleaved run, two rounds, load average 8-10 on 2 cores; `python -c "import cvxpy"`
+0.79 / 0.74 s CPU): 5,000 lines on abf535b 9.33 / 9.42 s CPU = 11.8x / 12.7x cvxpy's import, 200 MB peak; on
+engine4 6.00 / 6.43 s CPU = 7.6x / 8.7x, 188 MB (0.64x / 0.68x of abf535b).  Still above the 5 s target: the
+coupled response at rest (363 frequencies x 393 interfaces, one dense complex solve each) is about 2.8 s of it.
 """
 from __future__ import annotations
 
