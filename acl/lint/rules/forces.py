@@ -54,7 +54,7 @@ def snap_in(ctx: Context):
                 f"{um(pf.critical_distance)}: program `{p.name}` snaps them together", st.span, notes=[
                     f"strongest drive {tones}",
                     f"Bjerknes attraction {pf.attraction * 1e9:.3g} nN at rest, phase difference "
-                    f"{np.degrees(pf.phase_difference):.0f} deg",
+                    f"{round(float(np.degrees(pf.phase_difference)))} deg",   # round(): never "-0"
                     f"d_c = sqrt(alpha / 2 gamma) (paper Eq. 3); threshold snap_margin = {margin:g}",
                     "quasi-static equilibrium at this drive: " + (
                         "snaps in (acl.analysis.mechanics)" if verdict else
@@ -112,7 +112,7 @@ def _sign_changes(ctx: Context, freqs: np.ndarray, significance: float) -> list:
         pos_any = np.zeros(ia.size, bool)
         neg_any = np.zeros(ia.size, bool)
         for j, f in enumerate(freqs.tolist()):
-            vals = vals_all[j] = ctx.pair_table(Drive(tones=(Tone(frequency=f, amplitude=1.0),))).attraction
+            vals = vals_all[j] = ctx.pair_attraction(Drive(tones=(Tone(frequency=f, amplitude=1.0),)))
             strong = np.abs(vals) >= significance * np.maximum(thrust[ia, j], thrust[ib, j])
             pos_any |= strong & (vals > 0)
             neg_any |= strong & (vals < 0)
