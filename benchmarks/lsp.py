@@ -1,6 +1,6 @@
 """Benchmark of `acl lsp` through the protocol, on generated designs of 1,000 and 5,000 lines.
 
-    python benchmarks/lsp.py [--lines 1000 5000] [--runs 10] [--lint]
+    python benchmarks/lsp.py [--lines 1000 5000] [--runs 10] [--lint] [--changes-only]
 
 Spawns `python -m acl lsp` and speaks the protocol (tests/lsp_client.py), opens a generated design
 (benchmarks/check.py's generator), warms up, then measures:
@@ -91,7 +91,7 @@ def _ms(fn, runs: int) -> list[float]:
     return out
 
 
-def bench(n_lines: int, runs: int, warmup: int, lint: bool) -> dict:
+def bench(n_lines: int, runs: int, warmup: int, lint: bool, changes_only: bool = False) -> dict:
     text = generate(n_lines)
     lines = text.split("\n")
     results: dict[str, list[float]] = {}
@@ -123,6 +123,8 @@ def bench(n_lines: int, runs: int, warmup: int, lint: bool) -> dict:
                         times.append((pub["_t"] - t0) * 1e3)
                     time.sleep(0.1)
                 results[case] = times
+            if changes_only:
+                return {"lines": text.count("\n"), "results": results}
             v += 1
             client.change(u, v, text)
             client.wait_for("textDocument/publishDiagnostics", lambda p: p["uri"] == u and p.get("version") == v)
@@ -258,9 +260,11 @@ def main() -> int:
     ap.add_argument("--runs", type=int, default=10)
     ap.add_argument("--warmup", type=int, default=3)
     ap.add_argument("--lint", action="store_true", help="also run lint in the server's worker (competes for CPU)")
+    ap.add_argument("--changes-only", action="store_true",
+                    help="only didChange -> diagnostics (quick: to compare two checkouts in one run)")
     args = ap.parse_args()
     for n in args.lines:
-        got = bench(n, args.runs, args.warmup, args.lint)
+        got = bench(n, args.runs, args.warmup, args.lint, args.changes_only)
         load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
         print(f"acl lsp on a {got['lines']}-line design ({args.runs} runs; load average {load:.1f} on "
               f"{os.cpu_count()} CPUs{', lint worker on' if args.lint else ''}):")

@@ -172,3 +172,31 @@ def test_the_fast_finiteness_walk_agrees_with_the_located_one_on_planted_values(
             assert AS._all_finite(design, bag) is False and [d.code for d in bag.items] == ["E305"]
         finally:
             model.__dict__[k] = old
+
+
+def test_a_paused_collector_runs_again_after_the_check(monkeypatch, tmp_path):
+    """`acl lsp` (serve) puts collections off during a check until its diagnostics are out: the check
+    runs with the collector off, and resume_gc() turns it on; without pause_gc nothing changes."""
+    import gc
+
+    seen = []
+    real = checking.check_text
+
+    def check(text, path, version=None, parser=None):
+        seen.append(gc.isenabled())
+        return real(text, path, version, parser=parser)
+
+    monkeypatch.setattr(checking, "check_text", check)
+    assert gc.isenabled()
+    try:
+        c = checking.Checks(lambda u: str(tmp_path / "a.acl"), pause_gc=True)
+        assert c.start("u", TEXT, 1).result(10).design is not None
+        assert seen == [False] and not gc.isenabled()
+        c.resume_gc()
+        assert gc.isenabled()
+        c2 = checking.Checks(lambda u: str(tmp_path / "a.acl"))
+        c2.start("u", TEXT + "param x = 1 um\n", 1).result(10)
+        assert seen == [False, True] and gc.isenabled()
+        c.stop(), c2.stop()
+    finally:
+        gc.enable()
