@@ -7,6 +7,8 @@ Spawns `python -m acl lsp` and speaks the protocol (tests/lsp_client.py), opens 
 
 1. didChange -> publishDiagnostics: one line changed per run, from sending didChange to receiving
    the diagnostics of that version (checked on the server's checking thread). Target: median <= 150 ms.
+   Beside it, the server's CPU time per change (mean over the runs, all its work between them: what
+   the machine's load does not inflate; from /proc on Linux).
 2. Every other request, each at a typical position, answered in (median of --runs). Target: <= 200 ms.
    A reply saying the server is still working (E-LSP-BUSY: acl fmt on a new 5,000-line text) counts
    as an answer; the time until the real answer is printed beside it.
@@ -82,6 +84,18 @@ def _until_answered(fn, timeout: float = 120.0) -> tuple[float, float, int]:
         return (first if first is not None else done), done, busy
 
 
+def _server_cpu_ms(client) -> float | None:
+    """CPU time (user + system, all threads) the server process has used, in ms (Linux /proc)."""
+    import os
+
+    try:
+        with open(f"/proc/{client.proc.pid}/stat", encoding="ascii") as f:
+            fields = f.read().rsplit(")", 1)[1].split()
+        return (int(fields[11]) + int(fields[12])) * 1e3 / os.sysconf("SC_CLK_TCK")
+    except (OSError, ValueError, IndexError, AttributeError):
+        return None
+
+
 def _ms(fn, runs: int) -> list[float]:
     out = []
     for _ in range(runs):
@@ -108,7 +122,10 @@ def bench(n_lines: int, runs: int, warmup: int, lint: bool, changes_only: bool =
             for case in ("didChange -> diagnostics: edit a line in the middle",
                          "didChange -> diagnostics: append a line"):
                 times = []
+                cpu0 = None
                 for i in range(warmup + runs):
+                    if i == warmup:
+                        cpu0 = _server_cpu_ms(client)
                     v += 1
                     if "middle" in case:
                         new = lines[:mid] + [lines[mid].replace("* pitch", f"* pitch + {i + 1} um")] + lines[mid + 1:]
@@ -123,6 +140,9 @@ def bench(n_lines: int, runs: int, warmup: int, lint: bool, changes_only: bool =
                         times.append((pub["_t"] - t0) * 1e3)
                     time.sleep(0.1)
                 results[case] = times
+                cpu1 = _server_cpu_ms(client)
+                if cpu0 is not None and cpu1 is not None:      # what load does not inflate
+                    results[f"(server CPU per change: {case.split(': ')[1]})"] = [(cpu1 - cpu0) / runs]
             if changes_only:
                 return {"lines": text.count("\n"), "results": results}
             v += 1
