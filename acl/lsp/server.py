@@ -126,6 +126,8 @@ class AclLanguageServer(LanguageServer):
         except Exception as exc:       # a bug must cost this document's diagnostics, not the server
             logging.getLogger("pygls").error("checking %s failed: %s: %s", uri, type(exc).__name__, exc)
             return
+        finally:
+            self.checks.resume_gc()    # the check's collections, now that its diagnostics are out
         if self.lint_enabled:
             self.schedule_lint(uri)
 
@@ -147,6 +149,7 @@ class AclLanguageServer(LanguageServer):
 
         await asyncio.sleep(delay)
         self._collect_task = None
+        self.checks.resume_gc()          # in case a check ran with no publish waiting for it
         gc.collect()
         self.collections += 1
 
@@ -730,6 +733,7 @@ def serve(verbose: bool = False) -> None:
     gc.freeze()                          # the imported modules: never scanned again
     th = gc.get_threshold()
     gc.set_threshold(th[0], th[1], 1 << 30)   # full collections only in pauses (collect_when_idle)
+    server.checks.pause_gc = True        # and none inside a check: after its diagnostics are published
     try:
         server.start_io(stream, out)
     finally:
