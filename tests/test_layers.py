@@ -63,23 +63,6 @@ ALLOWED: dict[str, str] = {
     "acl.fit.group -> acl.analysis.acoustics:_layout": "fit rebuilds _Engine; engine work",
     "acl.fit.mechanism -> acl.analysis.acoustics:_engine": "fit reaches into _Engine; engine work",
     "acl.fit.mechanism -> acl.analysis.acoustics:_outer_radius": "fit reaches into _Engine; engine work",
-    # sweep's evaluator re-implements lint rules and analysis steps through their private helpers: to be removed
-    # by the engine work (the lint rules and the sweep call one batched engine)
-    "acl.sweep.checks -> acl.lint.rules.acoustics:_separate_pairs": "sweep's copy of a lint rule; engine work",
-    "acl.sweep.checks -> acl.lint.rules.beams:_linked": "sweep's copy of a lint rule; engine work",
-    "acl.sweep.checks -> acl.lint.rules.beams:_path_extent": "sweep's copy of a lint rule; engine work",
-    "acl.sweep.checks -> acl.lint.rules.forces:_managed": "sweep's copy of a lint rule; engine work",
-    # the formatter and the language server use the parser's private Lark instance (tokens, keyword list)
-    "acl.fmt.tokens -> acl.syntax.parser:_lark": "the formatter lexes with the parser's Lark; make it public",
-    "acl.lsp.hover -> acl.syntax.parser:_lark": "hover's keyword list from the parser's Lark; make it public",
-    "acl.lsp.completion -> acl.design.modules:_stdlib_modules": "completion lists the stdlib; make it public",
-    # the incremental parser re-runs the parser's private steps on the edited part and reuses the module cache
-    "acl.lsp.incremental -> acl.syntax.parser:_build": "incremental parse; make the parser's steps public",
-    "acl.lsp.incremental -> acl.syntax.parser:_check_limits": "incremental parse; make the parser's steps public",
-    "acl.lsp.incremental -> acl.syntax.parser:_depth_delta": "incremental parse; make the parser's steps public",
-    "acl.lsp.incremental -> acl.syntax.parser:_lark": "incremental parse; make the parser's steps public",
-    "acl.lsp.incremental -> acl.design.modules:_PARSED": "incremental parse reuses the module cache; make public",
-    # sweep's validity checks repeat the design checks' tone list: to be removed by the engine work
 }
 
 

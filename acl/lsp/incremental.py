@@ -16,7 +16,7 @@ from acl.syntax import ast as A
 class IncrementalParser:
     def __init__(self) -> None:
         self._cache: dict[tuple[int, str], tuple] = {}
-        self._deltas: dict[str, int] = {}        # line text -> bracket depth change (parser._depth_delta)
+        self._deltas: dict[str, int] = {}        # line text -> bracket depth change (parser.depth_delta)
         # the last text that parsed whole: its lines and its chunks [(start, end, key, statements)]
         self._last: tuple[list[str], list[tuple]] | None = None
 
@@ -32,7 +32,7 @@ class IncrementalParser:
         def delta(line: str) -> int:
             d = deltas.get(line)
             if d is None:
-                d = deltas[line] = P._depth_delta(line)
+                d = deltas[line] = P.depth_delta(line)
             return d
 
         yield from P.statement_chunks(lines, delta)
@@ -55,7 +55,7 @@ class IncrementalParser:
 
             from acl.syntax import parser as P
 
-            # the parser's limits (:func:`acl.syntax.parser._check_limits`): size and NUL on the whole
+            # the parser's limits (:func:`acl.syntax.parser.check_limits`): size and NUL on the whole
             # text; nesting per statement chunk, when it is parsed (a chunk that parses has balanced
             # brackets, so each starts at depth 0 as in the whole-file scan, which took 18 ms on
             # 5,000 lines at every edit). Over a limit: the whole-file parse reports it.
@@ -85,9 +85,9 @@ class IncrementalParser:
                 hit = self._cache.get(key)
                 if hit is None:
                     try:
-                        P._check_limits(chunk, file)
-                        tree = P._lark().parse("\n" * start + chunk + "\n", start="start")
-                        hit = P._build(tree, file, text)
+                        P.check_limits(chunk, file)
+                        tree = P.lark_parser().parse("\n" * start + chunk + "\n", start="start")
+                        hit = P.build_module(tree, file, text)
                     except (UnexpectedInput, DiagnosticError):
                         if not partial:
                             raise
@@ -163,9 +163,9 @@ def prime(module: A.Module, text: str, file: str) -> None:
     """Hand a parsed module to the loader's parse cache (:func:`acl.design.modules._parse_cached`)."""
     from acl.design import modules
 
-    if len(modules._PARSED) > 512:
-        modules._PARSED.clear()
-    modules._PARSED[(file, text)] = module
+    if len(modules.PARSED_MODULES) > 512:
+        modules.PARSED_MODULES.clear()
+    modules.PARSED_MODULES[(file, text)] = module
 
 
 def partial_env(parser: IncrementalParser, text: str, file: str, search_paths=()):

@@ -18,7 +18,7 @@ def _pushed_apart(ctx: Context, drive, a: np.ndarray, b: np.ndarray) -> np.ndarr
     return (np.einsum("pk,pk->p", thrust[a], -u) > 0) & (np.einsum("pk,pk->p", thrust[b], u) > 0)
 
 
-def _managed(program) -> set[tuple[str, str]]:
+def managed_pairs(program) -> set[tuple[str, str]]:
     """Pairs whose gap a program governs itself: `hold gap(a, b) above ...` or `cross gap(a, b)`."""
     return {tuple(sorted((st.a.split(".")[0], st.b.split(".")[0])))
             for st in program.steps if st.kind == "hold"}
@@ -32,7 +32,7 @@ def snap_in(ctx: Context):
         return
     margin = ctx.threshold("snap_margin")
     for p in ctx.design.programs:
-        crossing = _managed(p)
+        crossing = managed_pairs(p)
         flagged: dict[tuple[str, str], tuple] = {}      # pair -> (amplitude, step, drive, pair force)
         for st in p.steps:
             for drive in ctx.step_drives(st):
