@@ -128,14 +128,17 @@ def bench(n_lines: int, runs: int, warmup: int, lint: bool, changes_only: bool =
             mid = next(i for i in range(len(lines) // 2, len(lines)) if lines[i].startswith("param x"))
             v = 1
             for case in ("didChange -> diagnostics: edit a line in the middle",
-                         "didChange -> diagnostics: append a line"):
+                         "didChange -> diagnostics: append a line",
+                         "didChange -> diagnostics: insert a line in the middle (Enter)"):
                 times = []
                 cpu0 = None
                 for i in range(warmup + runs):
                     if i == warmup:
                         cpu0 = _server_cpu_ms(client)
                     v += 1
-                    if "middle" in case:
+                    if "Enter" in case:      # every line after it moves down: the most common edit
+                        body = "\n".join(lines[:mid] + [""] * (i % 2 + 1) + lines[mid:])
+                    elif "middle" in case:
                         new = lines[:mid] + [lines[mid].replace("* pitch", f"* pitch + {i + 1} um")] + lines[mid + 1:]
                         body = "\n".join(new)
                     else:
