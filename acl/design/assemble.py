@@ -174,18 +174,15 @@ def _finite_walk(stack: list) -> bool:
         if t is float:
             if not isfinite(v):
                 return False
-        elif t is tuple or t is list:
-            for x in v:
-                tx = type(x)
-                if tx is float:
-                    if not isfinite(x):
-                        return False
-                elif tx not in skip:
-                    stack.append(x)
+            continue
+        if t is tuple or t is list:
+            items = v
         elif isinstance(v, BaseModel):
-            for k, x in v.__dict__.items():
-                if k == "span":
-                    continue
+            items = [x for k, x in v.__dict__.items() if k != "span"]
+        else:
+            items = None
+        if items is not None:
+            for x in items:
                 tx = type(x)
                 if tx is float:
                     if not isfinite(x):
