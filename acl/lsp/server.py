@@ -29,6 +29,9 @@ _SEVERITY = {Severity.ERROR: T.DiagnosticSeverity.Error, Severity.WARNING: T.Dia
              Severity.INFO: T.DiagnosticSeverity.Information}
 
 
+SHUTDOWN_WAIT_S = 10.0    # longest a `shutdown` waits for the diagnostics already asked for
+
+
 class AclLanguageServer(LanguageServer):
     def __init__(self) -> None:
         from acl.lsp.protocol import AclProtocol
@@ -41,6 +44,7 @@ class AclLanguageServer(LanguageServer):
         self.resolved: dict[str, Snapshot] = {}       # last snapshot whose text parsed (names for completion)
         self.lint_findings: dict[str, tuple[str, list[Diagnostic]]] = {}
         self._pending: dict[str, asyncio.Task] = {}
+        self._diagnosing: set[asyncio.Task] = set()    # every check not yet published (shutdown lets them finish)
         self._lint_tasks: dict[str, asyncio.Task] = {}
         self._executor = None
         from acl.lsp.checking import Checks
@@ -107,7 +111,16 @@ class AclLanguageServer(LanguageServer):
         old = self._pending.pop(uri, None)
         if old is not None:
             old.cancel()
-        self._pending[uri] = asyncio.get_running_loop().create_task(self._diagnose(uri, delay))
+        task = self._pending[uri] = asyncio.get_running_loop().create_task(self._diagnose(uri, delay))
+        self._diagnosing.add(task)
+        task.add_done_callback(self._diagnosing.discard)
+
+    async def finish_checks(self, timeout: float = SHUTDOWN_WAIT_S) -> None:
+        """Let the checks already asked for publish their diagnostics (at most ``timeout`` seconds): a document
+        opened just before `shutdown` is still answered, as the client asked."""
+        waiting = [t for t in self._diagnosing if not t.done()]
+        if waiting:
+            await asyncio.wait(waiting, timeout=timeout)
 
     async def _diagnose(self, uri: str, delay: float) -> None:
         if delay > 0:
@@ -467,7 +480,8 @@ def _initialize(ls: AclLanguageServer, params: T.InitializeParams) -> None:
 
 
 @server.feature(T.SHUTDOWN)
-def _shutdown(ls: AclLanguageServer, *args) -> None:
+async def _shutdown(ls: AclLanguageServer, *args) -> None:
+    await ls.finish_checks()
     ls.close()
 
 
