@@ -141,7 +141,7 @@ def test_the_fast_finiteness_walk_agrees_with_the_located_one_on_planted_values(
     from pathlib import Path
 
     import acl
-    from acl.design import assemble as AS
+    from acl.design import finite as FIN
     from acl.diagnostics import DiagnosticBag
 
     path = Path(__file__).resolve().parents[1] / "examples" / "fig4h_unequal_pair.acl"
@@ -152,14 +152,14 @@ def test_the_fast_finiteness_walk_agrees_with_the_located_one_on_planted_values(
                             design.springs, design.latches, design.anchors, design.effects) if x is not None]
 
     def located() -> bool:
-        real, AS._finite_walk = AS._finite_walk, lambda stack: False     # the located walk alone
+        real, FIN.finite_walk = FIN.finite_walk, lambda stack: False     # the located walk alone
         try:
             bag = DiagnosticBag()
-            return AS._all_finite(design, bag) and not bag.items
+            return FIN.all_finite(design, bag) and not bag.items
         finally:
-            AS._finite_walk = real
+            FIN.finite_walk = real
 
-    assert AS._finite_walk(parts()) is True and located() is True and AS._all_finite(design, DiagnosticBag())
+    assert FIN.finite_walk(parts()) is True and located() is True and FIN.all_finite(design, DiagnosticBag())
     slots = []
     _float_slots(parts(), slots, set())
     assert len(slots) > 30
@@ -168,8 +168,8 @@ def test_the_fast_finiteness_walk_agrees_with_the_located_one_on_planted_values(
         model.__dict__[k] = bad if i is None else old[:i] + (bad,) + old[i + 1:]
         try:
             bag = DiagnosticBag()
-            assert AS._finite_walk(parts()) is False and located() is False, (model, k, i)
-            assert AS._all_finite(design, bag) is False and [d.code for d in bag.items] == ["E305"]
+            assert FIN.finite_walk(parts()) is False and located() is False, (model, k, i)
+            assert FIN.all_finite(design, bag) is False and [d.code for d in bag.items] == ["E305"]
         finally:
             model.__dict__[k] = old
 
