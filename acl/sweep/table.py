@@ -222,7 +222,8 @@ class SweepTable:
 
     @property
     def uncertain(self) -> np.ndarray | None:
-        """Valid points whose verdict the model-form uncertainty past a validity limit could flip (None: not computed)."""
+        """Valid points whose verdict the model-form uncertainty past a validity limit, or of a first-principles pair
+        force (acl.sweep.model_form), could flip (None: not computed)."""
         if "model_form_uncertain" not in self.columns:
             return None
         return self.data["valid"] & self.data["model_form_uncertain"]
@@ -274,8 +275,9 @@ class SweepTable:
         a = y["all"]
         what = "every require" if self.n_requires else "no require: valid points"
         if a.widened:
+            pair = "model_form_pair_uncertain" in self.columns and bool(np.any(self.data["model_form_pair_uncertain"]))
             extra += (f"; interval widened by {a.widened} point(s) whose verdict the model-form uncertainty past a "
-                      "validity limit could flip")
+                      "validity limit" + (" or of the first-principles pair force" if pair else "") + " could flip")
         if self.spec.montecarlo:
             return f"yield {a.text()} ({a.passed} of {a.total} points pass {what}{extra})"
         return f"pass {a.passed} of {a.total} points ({what}{extra})"
