@@ -92,9 +92,9 @@ DEFAULT_MEMBRANE_MODES = 3
 #: calibrations.gripper_pair_factor).  stdlib/calibrations.acl lists the same rows; tests/test_pair_scale_spread.py
 #: recomputes each ratio from acl's analysis (within 1 %) and keeps the stdlib's rows and figures equal to these.
 PAIR_SCALE_ROWS = (
-    ("Fig. 4e pair at 20 um (paper Eq. 3 alpha / acl's)", 3.25),
-    ("Fig. 4e pair at 80 um (paper Eq. 3 alpha / acl's)", 1.86),
-    ("Fig. 5b gripper (paper beta / acl's)", 14.985),
+    ("Fig. 4e pair, 20 um", 3.25),        # paper Eq. (3) alpha / acl's first-principles alpha at a 20 um gap
+    ("Fig. 4e pair, 80 um", 1.86),        # the same at 80 um
+    ("Fig. 5b gripper", 14.985),          # paper beta (Supplementary Note 3) / acl's first-principles beta
 )
 
 
