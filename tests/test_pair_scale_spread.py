@@ -135,7 +135,7 @@ def test_a_calibrated_pair_draws_nothing_new():
 
 def test_the_sweep_counts_verdicts_the_spread_flips_both_ways(tmp_path):
     """model_form_pair_uncertain equals the verdict changes of the same sweep with the scale declared in the language
-    at the spread's 2.5 and 97.5 % quantiles (an independent path), requires_pass_median_pair_scale the verdict at its
+    at the spread's 2.5 and 97.5 % quantiles (an independent path), model_form_pair_median_pass the verdict at its
     median; the interval counts them both ways, a note names the source, and a declared scale has neither column."""
     def run(extra=""):
         p = tmp_path / f"s{len(list(tmp_path.iterdir()))}.acl"
@@ -151,11 +151,11 @@ def test_the_sweep_counts_verdicts_the_spread_flips_both_ways(tmp_path):
     for e in ends:
         want |= e.data["require_1_pass"] != t.data["require_1_pass"]
     assert np.array_equal(t.data["model_form_pair_uncertain"], want & valid) and want.any()
-    assert np.array_equal(t.data["requires_pass_median_pair_scale"], med.data["requires_pass"] & valid)
+    assert np.array_equal(t.data["model_form_pair_median_pass"], med.data["require_1_pass"] & valid)
     assert np.all(t.data["model_form_uncertain"][want & valid])
     y = t.yields()["all"]
     assert y.widened >= int((want & valid).sum())
-    assert any("first-principles" in n and "requires_pass_median_pair_scale" in n for n in t.notes)
+    assert any("first-principles" in n and "model_form_pair_median_pass" in n for n in t.notes)
     assert "first-principles pair force" in t.summary_line()
     for e in (*ends, med):
-        assert "model_form_pair_uncertain" not in e.columns and "requires_pass_median_pair_scale" not in e.columns
+        assert "model_form_pair_uncertain" not in e.columns and "model_form_pair_median_pass" not in e.columns

@@ -64,7 +64,7 @@ QUANTITIES: tuple[Quantity, ...] = (
     Quantity("model_form_pair_uncertain", "bool", "a margin or gap require's verdict differs at the 2.5 or 97.5 % "
              "quantile of the first-principles pair-scale spread, where no bjerknes_scale calibrates the pair forces "
              "(acl.sweep.model_form)", "(none: the sweep's)"),
-    Quantity("requires_pass_median_pair_scale", "bool", "every require holds with the Bjerknes force at the median of "
+    Quantity("model_form_pair_median_pass", "bool", "every margin and gap require holds with the Bjerknes force at the median of "
              "the first-principles pair-scale spread (4.49x), where no bjerknes_scale calibrates the pair forces",
              "(none: the sweep's; analyze's pairs[].snap_in_voltage_median_pair_scale_v)"),
     Quantity("lint_<rule>_pass", "bool", "the lint rule finds nothing (rule's own test, before suppressions)",
@@ -228,8 +228,8 @@ def supported(design: M.Design, at: str | None = None) -> tuple[list[str], dict[
         names += ["model_form_rel", "model_form_uncertain"]
         if first_principles_pairs(design):          # the pair-scale spread's share of it (acl.sweep.model_form)
             names.append("model_form_pair_uncertain")
-            if "requires_pass" in names and any(r.kind in ("margin", "gap") for r in design.requires):
-                names.append("requires_pass_median_pair_scale")
+            if any(r.kind in ("margin", "gap") for r in design.requires):
+                names.append("model_form_pair_median_pass")
     elif design.capsules:
         missing["model_form_"] = ("the model-form uncertainty past the validity limits with declared effects "
                                   f"({', '.join(blocks['motion'])}) is not batched: `acl analyze --at` gives it at a drive")

@@ -168,10 +168,10 @@ def model_form_notes(data) -> list[str]:
                    f"differs at its 2.5 or 97.5 % quantile ({C.pair_scale_quantile(0.025):.2g}x or "
                    f"{C.pair_scale_quantile(0.975):.3g}x), and the yield's interval counts them both ways "
                    "(model_form_pair_uncertain); calibrate the pair force on measured pairs (acl fit) to narrow it")
-        if "requires_pass_median_pair_scale" in data.dtype.names:
-            m = int(np.count_nonzero(data["valid"] & data["requires_pass_median_pair_scale"]))
+        if "model_form_pair_median_pass" in data.dtype.names:
+            m = int(np.count_nonzero(data["valid"] & data["model_form_pair_median_pass"]))
             out[-1] += (f"; at its median {C.FIRST_PRINCIPLES_PAIR_SCALE_MEDIAN:.3g}x, {m} of {len(data)} points pass "
-                        "every require (requires_pass_median_pair_scale)")
+                        "every margin and gap require (model_form_pair_median_pass)")
     rel = np.where(data["valid"], data["model_form_rel"], 0.0)
     past = int(np.count_nonzero(rel > 0))
     if not past:

@@ -226,7 +226,7 @@ class _Evaluator(ModelForm):
             return ok
         if q in ("model_form_rel", "model_form_uncertain"):
             return self.model_form()[q]
-        if q in ("model_form_pair_uncertain", "requires_pass_median_pair_scale"):
+        if q in ("model_form_pair_uncertain", "model_form_pair_median_pass"):
             return self.pair_scale_columns()[q]
         m = re.fullmatch(r"lint_(acl\d+)_pass", q)
         if m:

@@ -22,8 +22,8 @@ Per point:
   percentile) from its verdict with the first-principles force; the verdict is taken as monotone in the scale
   between the two ends.  The scale is one unknown of the model, the same for every point (not a tolerance drawn per
   point), so it widens the interval instead of entering the yield; ``model_form_uncertain`` includes these points;
-* ``requires_pass_median_pair_scale``: every require holds with the Bjerknes force at the spread's median (4.49x),
-  the yield a calibration would most likely find (the note gives it beside the first-principles yield).
+* ``model_form_pair_median_pass``: every margin and gap require holds with the Bjerknes force at the spread's median
+  (4.49x), the verdict a calibration would most likely find (the note counts it beside the first-principles yield).
 
 The table (acl.sweep.table) widens the yield's interval by these points: the lower bound counts the uncertain
 passes as failures, the upper bound the uncertain failures as passes.
@@ -105,22 +105,17 @@ class ModelForm(Checks):
         return self.pair_scale_columns()["model_form_pair_uncertain"]
 
     def pair_scale_columns(self) -> dict:
-        """``model_form_pair_uncertain`` (:meth:`pair_flip`) and ``requires_pass_median_pair_scale``: every require holds
-        with the Bjerknes force at the spread's median (4.49x; the force-dependent ones evaluated there, the others as
-        they are), as analyze's N-PAIR-SCALE snap-in."""
+        """``model_form_pair_uncertain`` (:meth:`pair_flip`) and ``model_form_pair_median_pass``: every margin and gap
+        require holds with the Bjerknes force at the spread's median (4.49x), as analyze's N-PAIR-SCALE snap-in."""
         def build():
             from dataclasses import replace
 
             from acl.analysis.effects import first_principles_pairs, with_pair_scale
 
+            force = [i for i, r in enumerate(self.design.requires, 1) if r.kind in FORCE_REQUIRES]
+            nominal = {i: np.asarray(self.once(("require", i), lambda i=i: self.require(i))[1], bool) for i in force}
             flip = np.zeros(self.n, bool)
             ok_median = np.ones(self.n, bool)
-            force = [i for i, r in enumerate(self.design.requires, 1) if r.kind in FORCE_REQUIRES]
-            nominal = {i: np.asarray(self.once(("require", i), lambda i=i: self.require(i))[1], bool)
-                       for i in range(1, len(self.design.requires) + 1)}
-            for i, ok in nominal.items():
-                if i not in force:
-                    ok_median &= ok
             if force and first_principles_pairs(self.design):
                 for p in (*PAIR_QUANTILES, 0.5):
                     d = with_pair_scale(self.design, C.pair_scale_quantile(p))
@@ -134,7 +129,7 @@ class ModelForm(Checks):
             else:
                 for i in force:
                     ok_median &= nominal[i]
-            return {"model_form_pair_uncertain": flip & self.valid, "requires_pass_median_pair_scale": ok_median & self.valid}
+            return {"model_form_pair_uncertain": flip & self.valid, "model_form_pair_median_pass": ok_median & self.valid}
         return self.once("pair_scale", build)
 
     def monopole_rel(self) -> np.ndarray:
