@@ -160,3 +160,20 @@ def test_the_sweep_counts_verdicts_the_spread_flips_both_ways(tmp_path):
     assert "first-principles pair force" in t.summary_line()
     for e in (*ends, med):
         assert "model_form_pair_uncertain" not in e.columns and "model_form_pair_median_pass" not in e.columns
+
+
+def test_the_robust_program_sees_the_pair_direction():
+    """--robust's Q gains the term dG^T dG of the Bjerknes force moved by the scale's root-mean-square log distance
+    from first principles, sqrt(mu^2 + s^2) (computed here from the constants, the move through the language)."""
+    from acl.schedule.gains import model_gain_table
+
+    freqs = (110e3, 125e3, 140e3)
+    gains = lambda d: model_gain_table(d, "act", freqs).gains.T       # noqa: E731
+    fp = acl.load(str(FOLLOW))
+    cal = acl.loads(FOLLOW.read_text() + AT_ONE, filename=str(FOLLOW))
+    r = math.hypot(C.PAIR_SCALE_LOG_MEAN, C.PAIR_SCALE_LOG_SD)
+    moved = acl.loads(FOLLOW.read_text() + f"\neffect bjerknes_scale {{ factor = {math.exp(r)!r} }}\n", filename=str(FOLLOW))
+    dG = gains(moved) - gains(cal)
+    assert np.abs(dG).max() > 0
+    np.testing.assert_allclose(bands.gain_sensitivity(fp, gains) - bands.gain_sensitivity(cal, gains), dG.T @ dG,
+                               rtol=1e-9, atol=1e-12 * np.abs(dG.T @ dG).max())
