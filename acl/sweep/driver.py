@@ -148,7 +148,8 @@ def run_sweep(design: Design, spec: SweepSpec, quantities=None, at: str | None =
         notes.append("the yield's interval is not widened by the model-form uncertainty past the validity limits: "
                      "add --quantity model_form_uncertain (acl.sweep.model_form)")
     return SweepTable(data, spec, units=units, notes=notes, unevaluated=unevaluated,
-                      n_requires=len(design.requires), field_map=fmap)
+                      n_requires=len(design.requires), field_map=fmap,
+                      force_requires=tuple(i for i, r in enumerate(design.requires, 1) if r.kind in ("margin", "gap")))
 
 
 def model_form_notes(data) -> list[str]:

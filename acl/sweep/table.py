@@ -95,6 +95,7 @@ class SweepTable:
     notes: list[str] = field(default_factory=list)
     unevaluated: dict[str, str] = field(default_factory=dict)   # requires the batched evaluation cannot give -> why
     n_requires: int = 0
+    force_requires: tuple = ()                     # 1-based indices of the margin and gap requires (model-form widened)
     field_map: object = None                       # acl.sweep.perturb.FieldMap used (how fields followed the parameters)
 
     # -- table access ------------------------------------------------------------------------
@@ -238,7 +239,10 @@ class SweepTable:
         for i in range(1, self.n_requires + 1):
             c = f"require_{i}_pass"
             if c in self.columns:
-                out[f"require_{i}"] = binomial_yield(self.data["valid"] & self.data[c])
+                # a margin or gap require: widened by the points whose force-dependent verdicts could flip (conservative:
+                # the column marks any such require's flip)
+                out[f"require_{i}"] = binomial_yield(self.data["valid"] & self.data[c],
+                                                     self.uncertain if i in self.force_requires else None)
         out["valid"] = binomial_yield(self.data["valid"])
         return out
 
