@@ -177,3 +177,12 @@ def test_the_robust_program_sees_the_pair_direction():
     assert np.abs(dG).max() > 0
     np.testing.assert_allclose(bands.gain_sensitivity(fp, gains) - bands.gain_sensitivity(cal, gains), dG.T @ dG,
                                rtol=1e-9, atol=1e-12 * np.abs(dG.T @ dG).max())
+
+
+def test_the_share_is_one_for_a_spread_the_scale_makes_and_small_for_one_it_does_not():
+    fp = acl.load(str(FOLLOW))
+    s = bands.pair_scales(200, seed=7)
+    assert bands.pair_details(fp, 3.0 / np.sqrt(s), seed=7)["variance_share"] == 1.0          # monotone in the scale
+    noise = np.random.default_rng(11).standard_normal(200)
+    assert bands.pair_details(fp, noise, seed=7)["variance_share"] < 0.05
+    assert bands.pair_details(acl.load(str(ROOT / "examples" / "fig4_facing_pair.acl")), noise) is None

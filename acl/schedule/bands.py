@@ -119,7 +119,7 @@ def pair_move(design: Design, t: float) -> Design:
 def pair_details(design: Design, values: np.ndarray, seed: int = 0) -> dict | None:
     """What a band says of the first-principles pair force it drew (None when the design's pairs are calibrated):
     the distribution with its source rows, and its share of the band's spread: the squared rank correlation of the
-    draws' ``values`` (RMS error or margin; a failed draw ranks as the worst) with their drawn scale (Spearman; for
+    draws' ``values`` (RMS error or margin; a failed draw ranks as its value says) with their drawn scale (Spearman; for
     independent sources the first-order share of the variance, up to monotone transforms)."""
     from acl.analysis.effects import first_principles_pairs
     from acl.physics import constants as C
@@ -131,8 +131,10 @@ def pair_details(design: Design, values: np.ndarray, seed: int = 0) -> dict | No
            "log_sd": C.PAIR_SCALE_LOG_SD, "rows": [{"source": s, "ratio": r} for s, r in C.PAIR_SCALE_ROWS],
            "variance_share": None}
     if v.size >= 3:
-        x = np.argsort(np.argsort(np.log(pair_scales(v.size, seed)))).astype(float)
-        y = np.argsort(np.argsort(np.where(np.isnan(v), np.inf, v), kind="stable"), kind="stable").astype(float)
+        from scipy.stats import rankdata
+
+        x = rankdata(pair_scales(v.size, seed))
+        y = rankdata(np.where(np.isnan(v), np.inf, v))        # ties (failed draws) share their mean rank
         if np.std(x) > 0 and np.std(y) > 0:
             out["variance_share"] = round(float(np.corrcoef(x, y)[0, 1] ** 2), 4)
     return out
