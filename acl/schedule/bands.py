@@ -5,12 +5,13 @@ A design declares its uncertainty in the language (docs/language.md): ``param x 
 ``gain_uncertainty`` (relative standard deviation of each gain-table value, independent; the stdlib
 tables, which are not measured, declare 30 %).  A calibration also declares ``measured(gain)``: the
 tones its data drove, each with the standard error of a free gain there; at those tones the table is
-held to the calibrated model (:func:`pinned`), elsewhere it keeps its prior.  This module turns it into
+held to the calibrated model (:func:`pinned`), elsewhere it keeps its prior.  A design whose pair (secondary
+Bjerknes) forces no ``bjerknes_scale`` calibrates (:func:`acl.analysis.effects.first_principles_pairs`) adds one more
+source that it does not declare: its Bjerknes force drawn times a log-normal scale, the spread of the measured /
+first-principles ratio over the paper's pairs (``acl.physics.constants.PAIR_SCALE_ROWS``: median 4.49, log sd 1.08;
+:func:`pair_scales`), from a random stream of its own so the other draws stay those of the same design with its
+force declared.  This module turns it into
 
-* the first-principles pair force: a design whose pair (secondary Bjerknes) forces no ``bjerknes_scale`` calibrates
-  (:func:`acl.analysis.effects.first_principles_pairs`) has its Bjerknes force drawn times a log-normal scale, the
-  spread of the measured / first-principles ratio over the paper's pairs (``acl.physics.constants.PAIR_SCALE_ROWS``:
-  median 4.49, log sd 1.08), from a random stream of its own so the other draws stay those of a calibrated design;
 * :func:`sample_designs` -- designs drawn from that distribution: the table values multiplied by
   log-normal factors ``exp(s z)`` (one per table point), the uncertain parameters drawn from
   their multivariate normal (those a ``lognormal(a, ...)`` entry names: from the multivariate
@@ -278,9 +279,8 @@ def draw_params(unc: Uncertainty, rng: np.random.Generator, L: np.ndarray, mu: n
 
 def sample_designs(design: Design, n: int, seed: int = 0, reload: Reload | None = None):
     """Yield (index, Design or None) for ``n`` draws of the declared uncertainty (None: failed to resolve)."""
-    from acl.diagnostics import DiagnosticError
-
     from acl.analysis.effects import with_pair_scale
+    from acl.diagnostics import DiagnosticError
 
     unc = declared(design, with_params=reload is not None)
     rng = np.random.default_rng(seed)

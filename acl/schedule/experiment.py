@@ -82,8 +82,12 @@ def directions(design: Design, reload=None) -> tuple[list, np.ndarray]:
         s = sd[keep]
         R[D - len(keep):, D - len(keep):] = C / np.outer(s, s)
     if unc.pair:        # a first-principles pair force, independent of the rest (acl.schedule.bands.pair_move)
-        out.append((f"{bands.PAIR_SOURCE} (no bjerknes_scale: measured pairs 1.86-15x, x{np.exp(bands.pair_rms_log()):.3g} "
-                    "at 1 sd)", "pair", None, bands.pair_rms_log(), lambda x: bands.pair_move(design, x)))
+        from acl.physics.constants import PAIR_SCALE_ROWS
+
+        lo, hi = min(r for _, r in PAIR_SCALE_ROWS), max(r for _, r in PAIR_SCALE_ROWS)
+        out.append((f"{bands.PAIR_SOURCE} (no bjerknes_scale: measured pairs {lo:.3g}-{hi:.3g}x, "
+                    f"x{np.exp(bands.pair_rms_log()):.3g} at 1 sd)", "pair", None, bands.pair_rms_log(),
+                    lambda x: bands.pair_move(design, x)))
         R = np.pad(R, ((0, 1), (0, 1)))
         R[-1, -1] = 1.0
     return out, R
