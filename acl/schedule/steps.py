@@ -78,8 +78,8 @@ def follow(comp: CompileState, i, step: FollowStep):
         more = None if step.tones or not measured else measured_choice(
             table, path.points, vmax, comp.opts.tones_per_path, measured, measured_count(choice, measured) + 1)
     except ValueError as exc:
-        raise diag("E-SCHED-TONES", f"{name}: {exc}", step.span,
-                    "pin the tones with `, using [85 kHz, 125 kHz]` on the follow step, or give a calibration sweep (--calibration)")
+        raise diag("E-SCHED-TONES", f"{name}: {exc}", step.span, getattr(exc, "help", None) or
+                   "pin the tones with `, using [85 kHz, 125 kHz]` on the follow step, or give a calibration sweep (--calibration)")
     if comp.opts.calibration is not None and comp.design.latches:
         SF.calibration_state_check(comp, i, name, step, choice.frequencies)
     # the renderer crossfades consecutive waypoints with a raised cosine over min(ramp, dt), whose
