@@ -17,18 +17,20 @@ ROOT = Path(__file__).resolve().parent.parent
 
 
 def _compile_codes() -> set[str]:
-    """Every E-/W- code of the compile pipeline raised in acl/schedule, acl/emit and acl/commands/compile.py."""
+    """Every E-/W- code of the compile pipeline (and its --calibration CSV) raised in acl/schedule, acl/emit and
+    acl/commands/compile.py."""
     files = [*(ROOT / "acl" / "schedule").glob("*.py"), *(ROOT / "acl" / "emit").glob("*.py"),
              ROOT / "acl" / "commands" / "compile.py"]
     found = set()
     for f in files:
-        found |= set(re.findall(r'"((?:E|W)-(?:SCHED|EMIT|COMPILE)-[A-Z-]+)"', f.read_text(encoding="utf-8")))
+        found |= set(re.findall(r'"((?:E|W)-(?:SCHED|EMIT|COMPILE|CSV)-[A-Z-]+)"', f.read_text(encoding="utf-8")))
     return found
 
 
 def test_the_scan_finds_the_compile_codes():
     codes = _compile_codes()
-    assert {"E-SCHED-TONES", "E-SCHED-INFEASIBLE", "E-EMIT-OUTPUT", "E-COMPILE-PROGRAM", "W-SCHED-TRACKING"} <= codes
+    assert {"E-SCHED-TONES", "E-SCHED-INFEASIBLE", "E-EMIT-OUTPUT", "E-COMPILE-PROGRAM", "W-SCHED-TRACKING",
+            "E-CSV-HEADER"} <= codes
 
 
 @pytest.mark.parametrize("code", sorted(_compile_codes()))
