@@ -18,9 +18,12 @@ BY_NAME = re.compile(r"""pip install (?:-\S+ )*['"]?acl(?:\[[a-z,]+\])?['"]?(?![
 def _pages():
     yield ROOT / "README.md"
     yield from sorted((ROOT / "docs").rglob("*.md"))
+    # the editor packages' own texts: the VS Code extension's message and setting, the Emacs and Neovim headers
+    yield from sorted(p for p in (ROOT / "editors").rglob("*")
+                      if p.is_file() and p.suffix in (".md", ".js", ".json", ".el", ".lua") and "node_modules" not in p.parts)
 
 
-def test_readme_and_docs_install_from_the_clone_not_by_name():
+def test_readme_docs_and_editors_install_from_the_clone_not_by_name():
     found = [f"{p.relative_to(ROOT)}:{n}: {line.strip()}" for p in _pages()
              for n, line in enumerate(p.read_text(encoding="utf-8").splitlines(), 1) if BY_NAME.search(line)]
     assert not found, "install from the clone (pip install '.[EXTRA]'), acl is not on PyPI:\n" + "\n".join(found)
