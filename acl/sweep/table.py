@@ -382,7 +382,7 @@ def check_output(path: str, where: str = "<-o>") -> None:
 
         if importlib.util.find_spec("pyarrow") is None:
             raise DiagnosticError([error("E-USAGE", f"-o {path}: writing Parquet needs pyarrow, which is not installed", span,
-                                         "install the scale extra: pip install 'acl[scale]', or write CSV: -o TABLE.csv")])
+                                         "install the scale extra: pip install 'acl[scale]' (from a checkout: pip install '.[scale]'), or write CSV: -o TABLE.csv")])
     folder = os.path.dirname(os.path.abspath(path))
     if not os.path.isdir(folder):
         raise DiagnosticError([error("E601", f"cannot write `{path}`: no folder `{folder}`", span)])
