@@ -20,7 +20,7 @@ class FitOutcome:
 
 
 def run_fit(design_path, data_paths, free=(), search_paths=(), candidates=None, seed=0, progress=None,
-            calibrated_path=None, report_dir=None, model: str = "eq3", jobs: int = 1) -> FitOutcome:
+            calibrated_path=None, report_dir=None, model: str = "coupled", jobs: int = 1) -> FitOutcome:
     """Everything `acl fit` does except writing files; raises DiagnosticError on bad input.
 
     ``model``: the force model of simple pairs, ``eq3`` (paper Eq. 3) or ``coupled`` (the analysis' own force

@@ -112,6 +112,13 @@ EFFECTS: dict[str, Effect] = {e.id: e for e in [
            "F -> F (1 - exp(-z/h))",
            "actuators at several heights above the substrate (set:pedestal or set:length)",
            requires=("heights",), starts=((0.15,), (1.0,))),
+    Effect("bjerknes_scale",
+           (EffectParam("factor", "", 0.05, 20.0, 1.0, 1.0, report=lambda v: ("Bjerknes force / predicted", v, "")),),
+           "the secondary Bjerknes force between capsules differs from the monopole prediction by a constant factor "
+           "(the same declared effect as the analysis, acl.analysis.effects; paper Eq. 3's fitted alpha against the "
+           "physics)",
+           "pairs (or groups) at several gaps ramped in voltage; with alpha free it is the same freedom",
+           requires=("neighbour",), starts=((0.6,), (1.6,))),
 ]}
 
 

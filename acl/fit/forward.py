@@ -640,7 +640,7 @@ def _predict_steps(P: Prepared, coeffs: dict, effects: dict, latch_blend: float 
     the pair solves of several predictions can be made at once (:func:`predict_many`)."""
     lay = _layout(P)
     gamma = coeffs.get("gamma", P.gamma0)
-    alpha = coeffs.get("alpha", P.alpha0)
+    alpha = coeffs.get("alpha", P.alpha0) * (effects["bjerknes_scale"]["factor"] if "bjerknes_scale" in effects else 1.0)
     e_scale = coeffs.get("e_scale", 1.0)
     gain = coeffs.get("gain", 1.0)
     v2 = lay["v2"]

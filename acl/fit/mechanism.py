@@ -277,10 +277,11 @@ def _check_direction(design, unit, obs) -> None:
                        "observe a direction the body moves in")
 
 
-MODELS = ("eq3", "coupled")     # the force model of a simple pair (`acl fit --model`)
+MODELS = ("coupled", "eq3")     # the force model of a simple pair (`acl fit --model`): the analysis' own
+                                # (default) or paper Eq. (3), a declared reduced model
 
 
-def build_instance(design, model: str = "eq3", coupled: bool = False) -> Instance:
+def build_instance(design, model: str = "coupled", coupled: bool = False) -> Instance:
     """Cut a resolved design into units, one per observable (raises E810 for unsupported mechanisms).
 
     ``model``: how a simple pair (two single-orifice capsules on their own supports) is modelled: ``eq3`` paper

@@ -78,6 +78,8 @@ def applicable(eid, problem, current_kinds) -> str | None:
             return "every row has the actuator at the same height"
     if eid == "stiffness_scale" and "e_scale" in current_kinds:
         return "E is already free"
+    if eid == "bjerknes_scale" and "alpha" in current_kinds:
+        return "alpha is already free (the same freedom)"
     return None
 
 
