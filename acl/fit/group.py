@@ -163,7 +163,7 @@ def block(inst, unit, name, rows, f, v, gamma0, alpha_ref, ftable) -> GroupBlock
         tables.append(ftable(volume, radii, modes[o - first], med))
     height = np.array([net.offsets[np.flatnonzero(net.orif_cap == c)[0], 2] + net.rest[c, 2]
                        if np.any(net.orif_cap == c) else net.rest[c, 2] for c in range(len(net.caps))])
-    from acl.analysis.acoustics import _compute_engine, _layout
+    from acl.analysis.rows import force_engine, layout
     from acl.design.model import Drive, Tone
 
     freqs = np.unique(fr[vr > 0])
@@ -174,10 +174,10 @@ def block(inst, unit, name, rows, f, v, gamma0, alpha_ref, ftable) -> GroupBlock
     if freqs.size:                # one force engine of every drive frequency of the rows at 1 V (per-tone responses)
         key = ("eng", tuple(float(x) for x in freqs))
         if key not in inst._tau:
-            inst._tau[key] = _compute_engine(inst.design, Drive(tones=tuple(Tone(frequency=float(x), amplitude=1.0)
-                                                                           for x in freqs)))
+            inst._tau[key] = force_engine(inst.design, Drive(tones=tuple(Tone(frequency=float(x), amplitude=1.0)
+                                                                           for x in freqs)), cached=False)
         engines.append(inst._tau[key])
-    lay = _layout(inst.design)
+    lay = layout(inst.design)
     names = [c.name for c in lay.caps]
     extra = dict(engines=engines, fidx=fidx, orif_ix=np.array([lay.labels.index(lab) for lab in net.labels]),
                  cap_ix=np.array([names.index(c) for c in net.caps]), all_rest=np.asarray(lay.rest, float),

@@ -293,7 +293,7 @@ def build_instance(design, model: str = "coupled", coupled: bool = False) -> Ins
     so capsules the analysis couples (a calibration beam next to a group) interact in the fit too (the same
     equilibrium as acl.analysis.mechanics.equilibrium).  ``coupled``: route every design so, lone actuators
     included."""
-    from acl.analysis.acoustics import _medium
+    from acl.analysis.rows import medium as medium_of
 
     # the fit's base model is the design without declared effects (the fit adds them itself: a
     # calibrated design fitted again must not apply them twice)
@@ -383,7 +383,7 @@ def build_instance(design, model: str = "coupled", coupled: bool = False) -> Ins
                 near |= {j.a, j.b}
         net.neighboured = np.array([any(node.get(c) == i and c in near for c in net.caps)
                                     for i in range(int(net.cap_node.max()) + 1)], bool)
-        med = _medium(design)
+        med = medium_of(design)
         return Instance(design=design, units=units,
                         medium=(med.density, med.surface_tension, med.ambient_pressure, med.polytropic_index))
     for o in design.observes:
@@ -415,7 +415,7 @@ def build_instance(design, model: str = "coupled", coupled: bool = False) -> Ins
             t = -np.asarray(c.orifices[0].normal, float)
             units_by_caps[(cap,)] = Unit("single", (_side(design, cap, t / np.linalg.norm(t)),))
         units[o.name] = units_by_caps[(cap,)]
-    med = _medium(design)
+    med = medium_of(design)
     return Instance(design=design, units=units,
                     medium=(med.density, med.surface_tension, med.ambient_pressure, med.polytropic_index))
 
@@ -501,7 +501,7 @@ def _group(design, caps, obs) -> Unit:
     body moving alone; each node on its own support.  Forces per orifice as in acl.analysis.acoustics.force_model:
     thrust along -n, secondary Bjerknes force between every two orifices of different capsules (paper Eq. (3)),
     the Schlichting jet of every orifice dragging every other capsule (acl.physics.forces.jet_drag)."""
-    from acl.analysis.acoustics import _outer_radius
+    from acl.analysis.rows import outer_radius
 
     caps = list(caps)
     for name in caps:        # a truss's other end interacts with the body it holds (paper Fig. 5a bars): include it
@@ -539,7 +539,7 @@ def _group(design, caps, obs) -> Unit:
     if not labels:
         raise _unsupported(obs, "no capsule of the group has an orifice: nothing pushes")
     net = Network(names, np.array([node_of[n] for n in names]), np.array([design.capsule(n).center for n in names], float),
-                  np.array([_outer_radius(design.capsule(n)) for n in names]), tuple(labels), np.array(orif_cap),
+                  np.array([outer_radius(design.capsule(n)) for n in names]), tuple(labels), np.array(orif_cap),
                   np.array(offs, float).reshape(-1, 3), np.array(nrm, float).reshape(-1, 3), np.array(modes, float),
                   tuple(bubbles))
     pts = net.points
@@ -555,10 +555,11 @@ def orifice_forces_per_v2(inst, frequency: float) -> tuple:
     volumes, transducer table, declared thrust)."""
     key = ("o", float(frequency))
     if key not in inst._tau:
-        from acl.analysis.acoustics import _engine, interface_labels
+        from acl.analysis.acoustics import interface_labels
+        from acl.analysis.rows import force_engine
         from acl.design.model import Drive, Tone
 
-        eng = _engine(inst.design, Drive(tones=(Tone(frequency=float(frequency), amplitude=1.0),)))
+        eng = force_engine(inst.design, Drive(tones=(Tone(frequency=float(frequency), amplitude=1.0),)))
         _, _, thr, att = eng.rest_forces()
         pts = eng.lay.points(eng.lay.rest)
         d2 = ((pts[:, None] - pts[None]) ** 2).sum(axis=-1)
