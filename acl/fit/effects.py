@@ -31,6 +31,7 @@ class Effect:
     identified_by: str
     requires: tuple[str, ...] = ()       # "time", "frequencies", "frequencies3", "neighbour", "heights", "lengths"
     starts: tuple[tuple[float, ...], ...] = field(default=())   # extra starting points (in scale units)
+    search: bool = True     # tried by the default search; False: fitted only when named (`--effects ID`)
 
 
 def _inv_sqrt(name, unit):
@@ -118,8 +119,10 @@ EFFECTS: dict[str, Effect] = {e.id: e for e in [
            "(the same declared effect as the analysis, acl.analysis.effects; paper Eq. 3's fitted alpha against the "
            "physics)",
            "pairs (or groups) at several gaps ramped in voltage; with alpha free it is the same freedom",
-           requires=("neighbour",), starts=((0.6,), (1.6,))),
+           requires=("neighbour",), starts=((0.6,), (1.6,)), search=False),
 ]}
+
+SEARCHED = tuple(k for k, e in EFFECTS.items() if e.search)   # the default search (`acl fit` without --effects)
 
 
 def effect(name: str) -> Effect:

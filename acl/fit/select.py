@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from acl.fit import solve
-from acl.fit.effects import EFFECTS
+from acl.fit.effects import EFFECTS, SEARCHED
 
 P_LIMIT = 0.01
 K_FOLDS = 5
@@ -318,7 +318,7 @@ def select_effects(problem, candidates=None, p_limit=P_LIMIT, k_folds=K_FOLDS, s
     selected: list[str] = []
     trials: list[Trial] = []
     cv_current = None
-    names = list(candidates) if candidates is not None else list(EFFECTS)
+    names = list(candidates) if candidates is not None else list(SEARCHED)
     for rnd in range(1, max_rounds + 1):
         for _restart in range(MAX_RESTARTS + 1):
             passing, round_trials, improved = [], [], None
