@@ -428,7 +428,8 @@ def switch_figures(tmp_path) -> dict:
     """One latch with state rows, saturation + drift, seed 102 (docs/fit.md shows these): the planted pair fitted from
     the base model's values, plain and continued through the smoothed switch (:func:`acl.fit.select._cross_switch`)."""
     from acl.fit import solve
-    from acl.fit.forward import latch_branch_mismatch, predict
+    from acl.fit.forward import predict
+    from acl.fit.latch import latch_branch_mismatch
     from acl.fit.select import _cross_switch, _with_value, effect_coefs
 
     planted = {"drive_saturation": FD.SAT_STATE, "offset_drift": FD.DRIFT}
@@ -479,9 +480,9 @@ def test_one_latch_with_states_finds_saturation_and_drift_where_a_resonance_stoo
 
 
 def test_the_smoothed_switch_is_the_step_in_the_limit_and_smooth_across_it(tmp_path):
-    """acl.fit.forward.latch_travel ``blend`` (a search device only): 0 gives the step; a narrow blend agrees with the
+    """acl.fit.latch.latch_travel ``blend`` (a search device only): 0 gives the step; a narrow blend agrees with the
     step away from the switching force; at it, the travel is the mean of the two branches; every blend is continuous."""
-    from acl.fit.forward import latch_travel
+    from acl.fit.latch import latch_travel
 
     problem, _ = _state_problem(tmp_path, "latch+state", {}, 100)
     table = problem.prepared.latch_tables[0]

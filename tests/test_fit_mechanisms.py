@@ -54,7 +54,7 @@ def test_spring_pair_solves_eq3_with_a_linear_flexure_and_a_fixed_partner(tmp_pa
 
 def test_latch_travel_follows_the_latch_force_and_switches_past_its_peak():
     from acl.analysis.mechanics import latch_geometry
-    from acl.fit.forward import latch_table, latch_travel
+    from acl.fit.latch import latch_table, latch_travel
     from acl.physics.latch import latch_force, latch_landscape
 
     geo = latch_geometry(acl.load(LATCH).latch("snap"))

@@ -159,5 +159,5 @@ def test_thrust_declared_on_some_capsules_is_fitted_and_applied_on_exactly_those
     Pu.groups[0].gmask = None
     for blk in Pu.groups:
         blk.gmask, blk.cache, blk.fold = None, None, None
-    Pu.__dict__.pop("_memo", None)        # predictions are memoised per data set (acl.fit.forward.MEMO): Pu was changed
+    Pu.__dict__.pop("_memo", None)        # predictions are memoised per data set (ForwardOptions.memo): Pu was changed
     assert not np.allclose(predict(Pu, coeffs, {}), want, rtol=1e-5, atol=1e-12)

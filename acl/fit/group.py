@@ -52,7 +52,7 @@ class GroupBlock:
     cd: np.ndarray            # spring: compliance
     basis: np.ndarray         # (N, 3, 2) directions each node allows (zero-padded)
     k: np.ndarray             # (N,) how many
-    latch: list               # (N,) latch table of each latch node (acl.fit.forward.latch_table), else None
+    latch: list               # (N,) latch table of each latch node (acl.fit.latch.latch_table), else None
     latch_geo: list           # (N,) its geometry (angle, length, width, thickness, E), else None
     cap_node: np.ndarray      # (C,) node of each capsule
     rest: np.ndarray          # (C, 3) capsule centres at rest
@@ -102,7 +102,7 @@ class GroupBlock:
 def block(inst, unit, name, rows, f, v, gamma0, alpha_ref, ftable) -> GroupBlock:
     """Precompute a group's rows (``name`` the observable; ``ftable(volume, radii, mode, medium)`` the table of the
     natural frequency of a capsule's mode against its gas volume, for bubble shrinkage)."""
-    from acl.fit.forward import latch_table
+    from acl.fit.latch import latch_table
     from acl.fit.mechanism import _target_capsule, orifice_forces_per_v2
 
     net = unit.net
@@ -231,7 +231,7 @@ def predict(P, blk: GroupBlock, coeffs, effects, w, gamma, alpha, es, lam, grad,
     """(predicted observable change (m, relative to the row's ``base``), snapped (r,) bool, latch push / switching
     force (r,)) of the block's rows; ``w`` (r, T) the squared drive pressure per V^2 of each tone (gain, its effects),
     the rest as in acl.fit.forward._predict."""
-    from acl.fit.forward import latch_travel_exact
+    from acl.fit.latch import latch_travel_exact
 
     r, N, C, n = blk.rows.size, blk.law.size, len(blk.caps), blk.orif_cap.size
     t = P.t[blk.rows]

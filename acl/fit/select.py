@@ -168,13 +168,14 @@ def _cross_switch(model, problem, coefs, fit):
     given) with a row within reach of the narrowest smoothing (its prediction with LATCH_BLEND[-1] differs from the
     exact one by more than its sigma), continue from the fit through fits of the same
     model with the step smoothed into the expected travel of a switching force scattered log-normally by s
-    (acl.fit.forward.latch_travel ``blend``; the probit of the state rows), s from LATCH_BLEND[0] down to
+    (acl.fit.latch.latch_travel ``blend``; the probit of the state rows), s from LATCH_BLEND[0] down to
     LATCH_BLEND[-1]; then fit the exact model from there and keep whichever exact fit has the lower chi-square.  The
     smoothed model only supplies a start: the model, its likelihood and every statistic stay the exact ones.  A fit
     that explains its rows to the noise is not trapped and is left alone (a latch whose saturated push stays just
     below the switching force on every ramp: the smoothing would only pull gamma to its bound, where the drift's fit
     was then judged not identifiable)."""
-    from acl.fit.forward import latch_branch_mismatch, lone_latch_rows, predict
+    from acl.fit.forward import predict
+    from acl.fit.latch import latch_branch_mismatch, lone_latch_rows
 
     P = problem.prepared
     rows = lone_latch_rows(P)
