@@ -233,6 +233,13 @@ def calibrated_text(problem, selection, out_path: str, data_paths=(), report_dir
         lines += ["}", ""]
     if notes:
         lines += notes + [""]
+    if "bjerknes_shape" in effects:     # the analysis' bjerknes_scale carries the shape (gap_exponent, gap_ref)
+        from acl.fit.effects import GAP_REF
+
+        shape = effects.pop("bjerknes_shape")
+        bs = effects.setdefault("bjerknes_scale", {})
+        bs["gap_exponent"] = shape["gap_exponent"]
+        bs["gap_ref"] = _literal(GAP_REF, "m")
     if effects:
         lines.append("# effects (acl.fit.effects; coefficients in SI), applied by analyze, compile and lint")
         for eid, vals in effects.items():

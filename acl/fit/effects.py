@@ -120,7 +120,17 @@ EFFECTS: dict[str, Effect] = {e.id: e for e in [
            "physics)",
            "pairs (or groups) at several gaps ramped in voltage; with alpha free it is the same freedom",
            requires=("neighbour",), starts=((0.6,), (1.6,)), search=False),
+    Effect("bjerknes_shape",
+           (EffectParam("gap_exponent", "", -3.0, 3.0, 0.0, 0.0,
+                        report=lambda v: ("Bjerknes force x (40 um / d)^n, n", v, "")),),
+           "the secondary Bjerknes force falls off with the orifices' distance d other than the monopole d^-2: "
+           "x (d_ref/d)^n, d_ref = 40 um (the analysis' bjerknes_scale gap_exponent / gap_ref; paper Eq. 3 and "
+           "Fig. S5 need a free scale and shape)",
+           "pairs at several gaps ramped in voltage (with bjerknes_scale, or alpha free, for the scale)",
+           requires=("neighbour", "coupled"), starts=((0.5,), (-0.5,)), search=False),
 ]}
+
+GAP_REF = 40e-6     # m: d_ref of bjerknes_shape, where its factor is 1 (written as the analysis' gap_ref)
 
 SEARCHED = tuple(k for k, e in EFFECTS.items() if e.search)   # the default search (`acl fit` without --effects)
 

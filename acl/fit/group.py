@@ -31,6 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from acl.fit import beam as B
+from acl.fit.effects import GAP_REF
 from acl.physics.effects import drag_load, elastica_blend, mode_response_ratio, substrate_factor
 from acl.physics.forces import jet_drag
 
@@ -313,6 +314,12 @@ def predict(P, blk: GroupBlock, coeffs, effects, w, gamma, alpha, es, lam, grad,
         att = (prod * k_att[None] * Wab).sum(axis=1)
         return thr * (g_o / blk.gamma0 * sub)[None], att * a_scale * np.sqrt(np.outer(sub, sub))[None]
 
+    n_gap = effects["bjerknes_shape"]["gap_exponent"] if "bjerknes_shape" in effects else 0.0
+
+    def gap_shape(dc):
+        """bjerknes_shape: (d_ref/d)^n on the Bjerknes force at the orifices' distance (1 without it)."""
+        return (GAP_REF / dc) ** n_gap if n_gap else 1.0
+
     def loads(z, scale, rows_=slice(None)):
         """(node loads (r, N, 3), orifice distances (r, n, n), node displacements (r, N, 3)) at coordinates z."""
         x = disp(z)
@@ -330,11 +337,11 @@ def predict(P, blk: GroupBlock, coeffs, effects, w, gamma, alpha, es, lam, grad,
             if bad.any():
                 th[bad] = thrust[rows_][bad]
                 att[bad] = A[rows_][bad]
-            fb = np.einsum("rij,rijk->rik", att / dc**3, sep)
+            fb = np.einsum("rij,rijk->rik", att * gap_shape(dc) / dc**3, sep)
             F = np.einsum("ro,ok,oc->rck", th, -blk.normals, onehot) + np.einsum("rok,oc->rck", fb, onehot)
         else:                # a body alone: nothing moves relative to it that it feels
             th = thrust[rows_]
-            fb = np.einsum("rij,rijk->rik", A[rows_] / dc**3, sep)                # attraction of each i towards j
+            fb = np.einsum("rij,rijk->rik", A[rows_] * gap_shape(dc) / dc**3, sep)                # attraction of each i towards j
             F = own[rows_] + np.einsum("rok,oc->rck", fb, onehot)
         centres = blk.rest[None] + xc
         xo = centres[:, None, :, :] - p[:, :, None, :]                            # (r, n, C, 3) orifice -> capsule

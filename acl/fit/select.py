@@ -63,6 +63,8 @@ def applicable(eid, problem, current_kinds) -> str | None:
     eff = EFFECTS[eid]
     active = P.v.sum(axis=1) > 0
     for req in eff.requires:
+        if req == "coupled" and not (P.group_row is not None and np.any(P.group_row)):
+            return "the pairs are on the reduced Eq. (3) model (--model eq3), whose Bjerknes law is alpha/d^2"
         if req == "time" and not data.has_time:
             return "the data have no time column"
         if req == "frequencies" and np.unique(P.f[P.v > 0]).size < 2:
