@@ -7,10 +7,10 @@ numpy (no per-row Python).  Base model, per row:
 * thrust of actuator i: gamma tau_i(f) V^2 summed over tones (tones add in power), tau_i the thrust
   per V^2 of :mod:`acl.analysis.acoustics` relative to the reference actuator at ``f_ref``;
 * single actuator: load P = thrust x (share perpendicular to the beam); deflection by paper Eq. (1);
-* facing pair: paper Eq. (3) with attraction positive, P(d) = alpha a(f) V^2/d^2 - (thrust_a + thrust_b)
-  (own thrust plus the drag of the partner's jet, F_AS = F_d as the paper assumes), each beam
-  deflecting by Eq. (1); the stable equilibrium d = d0 - delta_a - delta_b reached from the rest gap,
-  or contact (d = 0) past snap-in.  Solved by a vectorized bracket search and bisection.
+* interacting capsules (pairs by default, groups, bodies): the analysis' force model (acl.fit.group: per-orifice
+  thrust, Bjerknes force, jet drag, coupled volumes where the capsules are), the one `acl analyze` and `acl compile`
+  use;
+* facing pair under the declared reduced model (``--model eq3`` only): paper Eq. (3), acl.fit.eq3.
 
 Effects (acl.fit.effects) modify these steps; each modifier below cites its source.
 """
