@@ -254,7 +254,7 @@ def lrt_power(kind_name, planted, given, seed=0) -> dict:
     start = [c.value for c in problem.coefs] + [truth[c.effect][c.param] for c in coefs[len(problem.coefs):]]
     fit = solve.fit(lambda a, b: predict(problem.prepared, a, b), problem.y, problem.sigma, coefs, starts=[start])
     kinds_ = {c.kind for c in coefs}
-    m = sum(1 for e in __import__("acl.fit.effects", fromlist=["EFFECTS"]).EFFECTS
+    m = sum(1 for e in __import__("acl.fit.effects", fromlist=["SEARCHED"]).SEARCHED
             if e not in given and not applicable(e, problem, kinds_))
     gate = P_LIMIT / m
     q = sum(len(effect_coefs(e, problem)[0]) for e in planted if e not in given)

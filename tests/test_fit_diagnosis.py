@@ -345,9 +345,9 @@ def test_one_latch_cannot_always_tell_saturation_from_a_gain_shape_three_angles_
     sel3 = select_effects(three, seed=100)
     assert sel3.selected == ["drive_saturation"] and sel3.ambiguous == []
     P = three.prepared
-    from acl.fit.effects import EFFECTS
+    from acl.fit.effects import SEARCHED
 
-    _, _, _, tries = _replacements(three, lambda a, b: predict(P, a, b), list(EFFECTS), sel3.selected, sel3.final,
+    _, _, _, tries = _replacements(three, lambda a, b: predict(P, a, b), list(SEARCHED), sel3.selected, sel3.final,
                                    "drive_saturation", 0.01, None, True)
     best = min(clipped_chi2(t["fit"]) for t in tries if t["effect"] in ("transducer_resonance", "transducer_gain"))
     assert best - clipped_chi2(sel3.final) > 10 * AMBIGUOUS_CHI2

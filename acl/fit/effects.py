@@ -132,6 +132,9 @@ EFFECTS: dict[str, Effect] = {e.id: e for e in [
 
 GAP_REF = 40e-6     # m: d_ref of bjerknes_shape, where its factor is 1 (written as the analysis' gap_ref)
 
+# fitted coordinates the calibrated design writes under another effect's coefficient of the analysis
+ANALYSIS_NAME = {("bjerknes_shape", "gap_exponent"): ("bjerknes_scale", "gap_exponent")}
+
 SEARCHED = tuple(k for k, e in EFFECTS.items() if e.search)   # the default search (`acl fit` without --effects)
 
 
