@@ -10,7 +10,7 @@ import os
 import numpy as np
 import pytest
 
-from acl.fit.effects import EFFECTS, SEARCHED
+from acl.fit.effects import SEARCHED
 from acl.fit.problem import load_problem
 from acl.fit.select import select_effects
 from acl.fit.synth import Experiment, generate, write_csv
