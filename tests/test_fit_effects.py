@@ -54,10 +54,14 @@ CASES = [
 
 
 def _fit(tmp_path, experiment, effects, free, seed, design=CANTILEVER, coeffs=None):
-    data, _ = generate(design, experiment, effects, noise=NOISE, seed=seed, coeffs=coeffs)
+    # the pair + calibration case keeps the reduced Eq. (3) pair model its figures (docs/fit.md) were recorded with:
+    # its effect search on the analysis' coupled model costs over 20x the CPU (benchmarks/fit.py case 2), too slow for
+    # the default set; neighbour drag on the coupled model (groups) is identified in tests/test_fit_bodies.py
+    model = "eq3" if design == PAIR_CAL else "coupled"
+    data, _ = generate(design, experiment, effects, noise=NOISE, seed=seed, coeffs=coeffs, model=model)
     path = tmp_path / "data.csv"
     write_csv(data, str(path))
-    problem = load_problem(design, [str(path)], free=free)
+    problem = load_problem(design, [str(path)], free=free, model=model)
     return select_effects(problem)
 
 
