@@ -56,7 +56,7 @@ CASES = [
 def _fit(tmp_path, experiment, effects, free, seed, design=CANTILEVER, coeffs=None):
     # the pair + calibration case keeps the reduced Eq. (3) pair model its figures (docs/fit.md) were recorded with:
     # its effect search on the analysis' coupled model costs over 20x the CPU (benchmarks/fit.py case 2), too slow for
-    # the default set; neighbour drag on the coupled model (groups) is identified in tests/test_fit_bodies.py
+    # the default set (neighbour drag on the coupled model has no identification test yet)
     model = "eq3" if design == PAIR_CAL else "coupled"
     data, _ = generate(design, experiment, effects, noise=NOISE, seed=seed, coeffs=coeffs, model=model)
     path = tmp_path / "data.csv"
