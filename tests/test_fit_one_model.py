@@ -133,13 +133,13 @@ def test_multi_orifice_and_trussed_groups_are_fitted(case, tmp_path):
 
 
 @pytest.mark.studies
-@pytest.mark.skip(reason="not yet verified (issue 24 item 3): on the shared machine the scale + shape fit did not finish "
-                         "in the session; the base fit (gamma free, no effect) misses these data by 13.3 um RMS")
-def test_paper_eq3_data_fit_within_the_noise_with_a_free_scale_and_shape(tmp_path):
+def test_paper_eq3_data_fit_within_the_noise_with_a_free_bjerknes_scale(tmp_path):
     """Issue 24 item 3: data made with paper Eq. (3) and the paper's constants (Fig. 4e: alpha 174.5 nN um^2/V^2,
     gamma 0.027 nN/V^2; gaps 20-80 um, 0-4 V at 125 kHz; noise 0.3 um) are fitted with the one force model, gamma
-    free, the Bjerknes force's scale (bjerknes_scale) and shape (bjerknes_shape, (40 um/d)^n): to within the noise
-    (RMS residual at most 1.15x the noise; the first-principles pair law alone misses by more)."""
+    free: without an effect the fit misses them by 13.3 um RMS (measured; gamma collapses), with the Bjerknes force's
+    scale free (bjerknes_scale; measured factor 3.91, gamma 1.39x the paper's) to 1.14x the noise (RMS 0.343 um,
+    reduced chi-square 1.33).  The shape (bjerknes_shape) is not yet part of this check (its fit did not finish in the
+    session that added it)."""
     from acl.fit import run_fit
     from acl.fit.synth import Experiment, generate, write_csv
 
@@ -151,11 +151,10 @@ def test_paper_eq3_data_fit_within_the_noise_with_a_free_scale_and_shape(tmp_pat
     csv = str(tmp_path / "eq3.csv")
     write_csv(data, csv)
     base = run_fit(src, [csv], free=("gamma",), candidates=[], seed=0)
-    out = run_fit(src, [csv], free=("gamma",), candidates=["bjerknes_scale", "bjerknes_shape"], seed=0)
-    assert base.report["rmse_after"] > 2 * noise
-    assert set(out.report["final"]["effects"]) == {"bjerknes_scale", "bjerknes_shape"}
-    assert out.report["rmse_after"] <= 1.15 * noise
-    assert "gap_exponent = fit_bjerknes_shape_gap_exponent" in out.calibrated
+    out = run_fit(src, [csv], free=("gamma",), candidates=["bjerknes_scale"], seed=0)
+    assert base.report["rmse_after"] > 10 * noise
+    assert list(out.report["final"]["effects"]) == ["bjerknes_scale"]
+    assert out.report["rmse_after"] <= 1.2 * noise
 
 
 def test_synth_model_option(tmp_path, capsys):
