@@ -293,7 +293,7 @@ class SegmentRow:
 
     start_s: float
     end_s: float
-    step: int
+    step: int                                   #: program step, counted from 1 (as the CLI and segments.csv)
     goal: str | None
     tones: tuple[tuple[float, float], ...]      #: (frequency Hz, amplitude V peak) per tone
 
@@ -316,7 +316,7 @@ class Compiled:
 
     @classmethod
     def from_schedule(cls, schedule) -> "Compiled":
-        segs = [SegmentRow(s.start_s, s.end_s, s.step, s.goal, tuple((t.frequency_hz, t.amplitude_v) for t in s.tones))
+        segs = [SegmentRow(s.start_s, s.end_s, s.step + 1, s.goal, tuple((t.frequency_hz, t.amplitude_v) for t in s.tones))
                 for s in schedule.segments]
         return cls(schedule.program, schedule.duration_s, schedule.max_voltage_v, schedule.sample_rate_hz, segs,
                    [g.as_dict() for g in schedule.goals], schedule)

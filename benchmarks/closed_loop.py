@@ -74,7 +74,9 @@ def run_hold_seed(seed: int, tmp: str, band_samples: int = 20, model: str = "eq3
     from acl.schedule.compile import CompileOptions
     from acl.schedule.gains import critical_scale
 
-    shutil.copy(os.path.join(HERE, "fig4_facing_pair.acl"), tmp)
+    # the Fig. 4 pair before its stdlib calibration (the first-principles pair law this study was recorded with)
+    shutil.copy(os.path.join(HERE, "first_principles", "fig4_facing_pair.acl"),
+                os.path.join(tmp, "fig4_facing_pair.acl"))
     nominal = os.path.join(tmp, "fig4_facing_pair.acl")
     rng = np.random.default_rng(2000 + seed)
     text = (f'extends "fig4_facing_pair.acl"\n'

@@ -1,13 +1,14 @@
 """Benchmark `acl lint`: lint N generated designs in one process and print the time per design;
-then one large design (the generator of benchmarks/check.py) of 500 and 1,000 lines.
+then one large design (the generator of benchmarks/check.py) of each size, each in its own process.
 
-    python benchmarks/lint.py [N] [--large=1000]     (default 200 small designs)
+    python benchmarks/lint.py [N] [--large=1000,2500,5000]     (default 200 small designs)
 
 Designs are variations (seeded) of four shapes: one cantilever, a facing pair, a frequency-
 selective pair and a latch, each with programs, so that every rule family runs.  The first design
 pays the start-up (imports, grammar, stdlib); the figure that matters is the time per design after
-it (target < 50 ms).  The large design shows how lint scales with the size of one design (issue 11:
-1,000 lines took ~44 s; the pair, step and beam work was quadratic to cubic in the design's size).
+it (target < 50 ms).  The large designs show how lint scales with the size of one design (issue 23:
+5,000 lines in at most 5 s and 300 MB peak; it took 57 s and 1 GB).  Wall time depends on the machine's
+load (printed); CPU time is what the lint costs.
 """
 from __future__ import annotations
 
@@ -116,11 +117,12 @@ def main(n: int = 200) -> None:
             p.write_text(SHAPES[i % len(SHAPES)](rng))
             paths.append(str(p))
         cfg = LintConfig()
-        times, checks, findings = [], [], 0
+        times, cpus, checks, findings = [], [], [], 0
         for p in paths:
-            t = time.perf_counter()
+            t, c = time.perf_counter(), time.process_time()
             report = lint_file(p, cfg)
             times.append(time.perf_counter() - t)
+            cpus.append(time.process_time() - c)
             checks.append(report.check_seconds)
             findings += len(report.findings)
             if not report.resolved:
@@ -131,6 +133,8 @@ def main(n: int = 200) -> None:
     print(f"  first design (start-up):   {first * 1e3:8.1f} ms")
     print(f"  per design after start-up: mean {statistics.mean(rest) * 1e3:.1f} ms, "
           f"median {statistics.median(rest) * 1e3:.1f} ms, max {max(rest) * 1e3:.1f} ms")
+    print(f"    in CPU time:             mean {statistics.mean(cpus[1:]) * 1e3:.1f} ms, "
+          f"median {statistics.median(cpus[1:]) * 1e3:.1f} ms (load average {__import__('os').getloadavg()[0]:.1f})")
     rules = [t - c for t, c in zip(rest, checks[1:])]
     print(f"    of which check stage:    mean {statistics.mean(checks[1:]) * 1e3:.1f} ms (parse + resolve + checks)")
     print(f"    of which lint rules:     mean {statistics.mean(rules) * 1e3:.1f} ms, max {max(rules) * 1e3:.1f} ms")
@@ -141,30 +145,54 @@ def main(n: int = 200) -> None:
     print(f"  heavy modules imported:    {', '.join(heavy) or 'none'}")
 
 
-def large(lines: int) -> None:
-    """Lint one generated design of ``lines`` lines and of half as many: wall and CPU time."""
+def large(sizes: list[int]) -> None:
+    """Lint one generated design (benchmarks/check.py's generator) of each of ``sizes`` lines, each in a fresh
+    process: wall and CPU time of `lint_file` and the process's peak memory (targets, issue 23: 5,000 lines
+    in at most 5 s and 300 MB)."""
+    import os
+    import subprocess
+
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]).rstrip(os.pathsep)}
+    for n in sizes:
+        r = subprocess.run([sys.executable, __file__, f"--one={n}"], capture_output=True, text=True, env=env, check=False)
+        if r.returncode != 0:
+            raise SystemExit(f"large design of {n} lines failed:\n{r.stderr}")
+        print(r.stdout.rstrip())
+
+
+def one(lines: int) -> None:
+    """The child of :func:`large`: generate, lint once, print one line."""
     import importlib.util
     import os
+    import resource
 
     from acl.lint import LintConfig, lint_file
 
-    spec = importlib.util.spec_from_file_location("acl_benchmark_check", Path(__file__).with_name("check.py"))
+    spec = importlib.util.spec_from_file_location("acl_benchmark_check", ROOT / "benchmarks" / "check.py")
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
     with tempfile.TemporaryDirectory() as tmp:
-        for n in (lines // 2, lines):
-            p = Path(tmp) / f"large_{n}.acl"
-            text = mod.generate(n)
-            p.write_text(text)
-            t, c = time.perf_counter(), time.process_time()
-            report = lint_file(str(p), LintConfig())
-            wall, cpu = time.perf_counter() - t, time.process_time() - c
-            print(f"  one design of {text.count(chr(10)):,} lines: {wall:.2f} s wall, {cpu:.2f} s CPU, "
-                  f"{len(report.findings)} findings (load average {os.getloadavg()[0]:.1f})")
+        p = Path(tmp) / f"large_{lines}.acl"
+        text = mod.generate(lines)
+        p.write_text(text)
+        before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+        t, c = time.perf_counter(), time.process_time()
+        report = lint_file(str(p), LintConfig())
+        wall, cpu = time.perf_counter() - t, time.process_time() - c
+        peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024      # kB on Linux
+    print(f"  one design of {text.count(chr(10)):,} lines ({text.count('capsule ')} capsules): {wall:.2f} s wall, "
+          f"{cpu:.2f} s CPU (check stage {report.check_seconds:.2f} s), peak memory {peak:.0f} MB "
+          f"({before:.0f} MB before linting), {len(report.findings)} findings (load average {os.getloadavg()[0]:.1f})")
 
+
+ROOT = Path(__file__).resolve().parents[1]
 
 if __name__ == "__main__":
+    single = next((int(a.split("=", 1)[1]) for a in sys.argv[1:] if a.startswith("--one=")), None)
+    if single is not None:
+        one(single)
+        raise SystemExit(0)
     args = [a for a in sys.argv[1:] if not a.startswith("--large")]
-    size = next((int(a.split("=", 1)[1]) for a in sys.argv[1:] if a.startswith("--large=")), 1000)
+    spec = next((a.split("=", 1)[1] for a in sys.argv[1:] if a.startswith("--large=")), "1000,2500,5000")
     main(int(args[0]) if args else 200)
-    large(size)
+    large([int(x) for x in spec.split(",") if x])

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from acl.analysis import acoustics as A
+from acl.analysis.selectivity import selectivity
 from acl.design.model import (
     Capsule, Cavity, Design, Drive, Medium, Orifice, Tone, Transducer,
 )
@@ -155,7 +156,7 @@ def test_selectivity_follows_fig_1f_two_orifice_sizes():
         by_volume("d2", 1.12e5 * UM**3, 13 * UM, center=(0, 0, 0)),
         by_volume("d3", 1.13e5 * UM**3, 7.75 * UM, center=(0, 200 * UM, 0)),
     ))
-    s = A.selectivity(d, [85e3, 170e3])
+    s = selectivity(d, [85e3, 170e3])
     assert s.capsules == ("d2", "d3")
     assert s.share[0, 0] > 0.8 and s.share[1, 1] > 0.8
 

@@ -1,4 +1,4 @@
-"""Follow (path) and hold steps move the tracked latch state too (acl.schedule.compile._latch_track).
+"""Follow (path) and hold steps move the tracked latch state too (acl.schedule.latch_state.latch_track).
 
 A path's waypoints, or a hold's drive, can push a latch's shuttle capsule past its switching force as any drive
 does: the latch then stays switched.  Before, only drive and sweep steps were followed, so a later `switch` was
@@ -172,15 +172,16 @@ def test_a_hold_that_switches_a_latch_is_followed_and_warned():
 def _tracked(amps, table, kinds=("follow",)):
     """Latch state after a follow step whose waypoints play ``amps`` ({Hz: [V per waypoint]}), from the compiler's
     tracking alone (segments set by hand: the path planner is not what is tested here)."""
-    from acl.schedule.compile import _Compiler
+    from acl.schedule.latch_state import latch_track
+    from acl.schedule.state import CompileState
 
     step = M.FollowStep(capsule="m", path=M.PathSpec(shape="circle", radius=1e-6), duration=0.1, span=sp(11))
     d = _design(step, M.PauseStep(duration=0.1, span=sp(12)))
-    c = _Compiler(d, d.programs[0], CompileOptions(latch_provider=_provider(table)))
+    c = CompileState(d, d.programs[0], CompileOptions(latch_provider=_provider(table)))
     n = len(next(iter(amps.values())))
     c.segments = [Segment(0.01 * w, 0.01 * (w + 1), tuple(ScheduledTone(f, float(v[w])) for f, v in amps.items()), 0,
                           "step 1: follow m") for w in range(n)]
-    return c._latch_track(1)["gate"], c
+    return latch_track(c, 1)["gate"], c
 
 
 def test_a_path_is_taken_at_its_most_switching_waypoint():
@@ -263,12 +264,13 @@ def test_a_paths_margin_band_takes_each_draws_most_switching_waypoint(switched):
     smallest) of each draw's largest waypoint push, recomputed here draw by draw (acl.schedule.bands.sample_designs;
     the same seed).  The path is planned once without the band (its own error band is not what is tested)."""
     from acl.schedule.bands import sample_designs
-    from acl.schedule.compile import _Compiler
+    from acl.schedule.latch_state import latch_track
+    from acl.schedule.state import CompileState
 
     d, s = switched
-    c = _Compiler(d, d.program("stroke"), CompileOptions(band_samples=20, allow_nonlinear=True))
+    c = CompileState(d, d.program("stroke"), CompileOptions(band_samples=20, allow_nonlinear=True))
     c.segments = list(s.segments)
-    state, certain, why = c._latch_track(1)["snap"]
+    state, certain, why = latch_track(c, 1)["snap"]
     assert (state, certain) == ("b", False)
     lo = float(why.split("(")[-1].split(" .. ")[0])
     g = next(g for g in s.goals if g.kind == "follow")

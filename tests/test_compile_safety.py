@@ -315,7 +315,8 @@ def test_low_sample_rate_and_large_sample_csv_are_warned(hostile, tmp_path, caps
     assert cli(hostile, "-o", str(out), "--program", "tones", "--sample-rate", "300k",
                "--format", "wav,csv", "--diagnostics", "json") == 0
     codes = {d["code"] for d in _json_diags(capsys)}
-    assert codes == {"W-EMIT-RATE", "W-EMIT-SIZE"}
+    # the model's validity warnings (W-ACOUSTIC-*, tests/test_compile_validity.py) are not what is tested here
+    assert {c for c in codes if not c.startswith("W-ACOUSTIC-")} == {"W-EMIT-RATE", "W-EMIT-SIZE"}
     assert (out / "waveform-samples.csv").exists()
 
 

@@ -30,7 +30,7 @@ def test_schedule_json_is_valid_against_the_published_schema(tmp_path):
     emit(schedule(), str(tmp_path / "out"), ("wav",))
     data = json.loads((tmp_path / "out" / "schedule.json").read_text())
     jsonschema.validate(data, load_schema())
-    assert data["version"] == "1.1"
+    assert data["version"] == "1.2"          # 1.2: steps counted from 1
     assert data["full_scale_v"] == 10.0 and data["sample_rate_hz"] == 1.25e6
     assert data["goals"][0]["rms_error_um"] == pytest.approx(1e-3)
 

@@ -49,7 +49,7 @@ def ramp(tmp_path_factory):
 
     tmp = str(tmp_path_factory.mktemp("coupled"))
     src = os.path.join(tmp, "fig4_facing_pair.acl")
-    with open(os.path.join(EX, "fig4_facing_pair.acl")) as fh:
+    with open(os.path.join(EX, "first_principles", "fig4_facing_pair.acl")) as fh:
         text = _measured_transducer(fh.read())
     with open(src, "w") as fh:
         fh.write(text)

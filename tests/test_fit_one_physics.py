@@ -22,10 +22,10 @@ DESIGNS = [
     ("examples/fig1f_selective_beams.acl", False, (0.75, 1.5, 2.25, 3.0), ("gamma",)),
     ("examples/fig2_vertical_cantilever.acl", False, (0.75, 1.5, 2.25, 3.0), ("gamma",)),
     ("examples/fig3_three_orifice.acl", True, (0.75, 1.5, 2.25, 3.0), ("gamma",)),
-    ("examples/fig4_facing_pair.acl", True, (0.5, 1.0, 1.5, 2.0), ("gamma", "alpha")),
+    ("examples/first_principles/fig4_facing_pair.acl", True, (0.5, 1.0, 1.5, 2.0), ("gamma", "alpha")),
     ("examples/fig4h_unequal_pair.acl", True, (0.75, 1.5, 2.25, 3.0), ("gamma", "alpha")),
     # alpha and gamma act on the arms' one observed direction with the same V^2: only gamma is fitted (alpha held)
-    ("examples/fig5a_gripper.acl", True, (2.0, 4.0, 6.0, 8.0, 10.0), ("gamma",)),
+    ("examples/first_principles/fig5a_gripper.acl", True, (2.0, 4.0, 6.0, 8.0, 10.0), ("gamma",)),
     ("examples/fig5c_linear_spring.acl", True, (3.0, 6.0, 9.0, 12.0), ("gamma", "alpha")),
     ("examples/fig6e_reversible_latch.acl", True, (2.0, 4.0, 6.0, 8.0, 10.0), ("gamma",)),   # 85 kHz switches at ~12.7 V
     # below the 12.2 V at which 85 kHz switches the Table S2 calibrated latch (docs/physics.md, issue 24)

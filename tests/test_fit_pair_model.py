@@ -12,7 +12,7 @@ has no such mismatch: tests/test_fit_one_model.py), so every fit here names it.
 from __future__ import annotations
 
 import os
-import shutil
+import re
 
 import pytest
 
@@ -34,7 +34,12 @@ def scenario(tmp_path_factory):
 
     tmp = str(tmp_path_factory.mktemp("pairmodel"))
     src = os.path.join(tmp, "fig4_facing_pair.acl")
-    shutil.copy(os.path.join(EX, "fig4_facing_pair.acl"), src)
+    # the example without its stdlib pair calibration (bjerknes_scale): the first-principles pair law
+    with open(os.path.join(EX, "fig4_facing_pair.acl")) as fh:
+        text = re.sub(r"(?ms)^effect bjerknes_scale \{.*?^\}\n", "", fh.read())
+    assert "effect bjerknes_scale" not in text
+    with open(src, "w") as fh:
+        fh.write(text)
     nominal = acl.load(src)
     run = _play(nominal, _compile(src, "ramp", CompileOptions()), noise=0.02e-6, seed=0)
     csv = os.path.join(tmp, "run.csv")

@@ -62,12 +62,12 @@ ALLOWED: dict[str, str] = {
     # --- private names across packages ---------------------------------------------------------------------
     # sweep's evaluator re-implements lint rules and analysis steps through their private helpers: to be removed
     # by the engine work (the lint rules and the sweep call one batched engine)
-    "acl.sweep.evaluate -> acl.analysis.acoustics:_medium": "sweep's copy of the model; engine work",
-    "acl.sweep.evaluate -> acl.analysis.report:_amplitude_at": "sweep's copy of the model; engine work",
-    "acl.sweep.evaluate -> acl.lint.rules.acoustics:_separate_pairs": "sweep's copy of a lint rule; engine work",
-    "acl.sweep.evaluate -> acl.lint.rules.beams:_linked": "sweep's copy of a lint rule; engine work",
-    "acl.sweep.evaluate -> acl.lint.rules.beams:_path_extent": "sweep's copy of a lint rule; engine work",
-    "acl.sweep.evaluate -> acl.lint.rules.forces:_managed": "sweep's copy of a lint rule; engine work",
+    "acl.sweep.acoustic_state -> acl.analysis.acoustics:_medium": "sweep's copy of the model; engine work",
+    "acl.sweep.acoustic_state -> acl.analysis.report:_amplitude_at": "sweep's copy of the model; engine work",
+    "acl.sweep.checks -> acl.lint.rules.acoustics:_separate_pairs": "sweep's copy of a lint rule; engine work",
+    "acl.sweep.checks -> acl.lint.rules.beams:_linked": "sweep's copy of a lint rule; engine work",
+    "acl.sweep.checks -> acl.lint.rules.beams:_path_extent": "sweep's copy of a lint rule; engine work",
+    "acl.sweep.checks -> acl.lint.rules.forces:_managed": "sweep's copy of a lint rule; engine work",
     "acl.sweep.spec -> acl.design.core:_EXAMPLES": "the sweep's examples of a value; make it public",
     # the formatter and the language server use the parser's private Lark instance (tokens, keyword list)
     "acl.fmt.tokens -> acl.syntax.parser:_lark": "the formatter lexes with the parser's Lark; make it public",

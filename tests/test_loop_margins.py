@@ -29,6 +29,8 @@ from acl.schedule.gains import critical_scale, latch_drive_forces, latch_forces
 
 ROOT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..")
 EX = os.path.join(ROOT, "examples")
+# the Fig. 4 pair before its stdlib calibration, with the 1-6 V ramp these loop tests were built on
+FIG4 = os.path.join(EX, "first_principles", "fig4_facing_pair.acl")
 
 
 # written for the uncalibrated Fig. 6 latch (13 MPa, Table S2's simulation column) at up to 100 V; the example
@@ -39,7 +41,7 @@ UNCAL = {"latch_youngs": "13 MPa", "vmax": "100 V"}
 def _design(tmp, base, extra, name="variant.acl"):
     if base.startswith("fig6_"):
         extra = "param latch_youngs = 13 MPa\nparam vmax = 100 V\n" + extra
-    shutil.copy(os.path.join(EX, base), tmp)
+    shutil.copy(FIG4 if base == "fig4_facing_pair.acl" else os.path.join(EX, base), os.path.join(tmp, base))
     path = os.path.join(tmp, name)
     with open(path, "w") as fh:
         fh.write(f'extends "{base}"\n{extra}\n')
@@ -77,7 +79,7 @@ def test_switch_beyond_reach_under_saturation_is_infeasible(tmp_path):
 
 
 def test_hold_margin_band_is_reported_and_warns(tmp_path):
-    d = acl.load(os.path.join(EX, "fig4_facing_pair.acl"))
+    d = acl.load(FIG4)
     s = compile_program(d, "keep_apart", CompileOptions(band_samples=20))
     g = s.goals[0]
     band = g.details["band"]
@@ -110,7 +112,7 @@ def test_margin_band_in_schedule_json_and_table(tmp_path):
     from acl.cli import main
 
     out = tmp_path / "out"
-    assert main(["compile", os.path.join(EX, "fig4_facing_pair.acl"), "--program", "keep_apart",
+    assert main(["compile", FIG4, "--program", "keep_apart",
                  "-o", str(out), "-q"]) == 0
     goal = json.loads((out / "schedule.json").read_text())["goals"][0]
     assert goal["rms_error_p95_um"] is None                 # the format is kept: a hold has no path
@@ -128,7 +130,7 @@ def test_synth_writes_contact_at_snap_in(tmp_path):
     _design(tmp, "fig4_facing_pair.acl", "effect transducer_gain { gain_slope = 0, f_ref = 125 kHz, gain = 1.3 }",
             "truth.acl")
     out = os.path.join(tmp, "out")
-    assert main(["compile", os.path.join(EX, "fig4_facing_pair.acl"), "--program", "ramp", "-o", out, "-q",
+    assert main(["compile", FIG4, "--program", "ramp", "-o", out, "-q",
                  "--band-samples", "0"]) == 0
     csv = os.path.join(tmp, "run.csv")
     assert main(["synth", os.path.join(tmp, "truth.acl"), "--schedule", os.path.join(out, "schedule.json"),
@@ -155,7 +157,7 @@ def test_contact_rows_do_not_widen_the_covered_range(tmp_path):
     from acl.cli import main
 
     tmp = str(tmp_path)
-    shutil.copy(os.path.join(EX, "fig4_facing_pair.acl"), tmp)
+    shutil.copy(FIG4, os.path.join(tmp, "fig4_facing_pair.acl"))
     _design(tmp, "fig4_facing_pair.acl", "effect transducer_gain { gain_slope = 0, f_ref = 125 kHz, gain = 1.3 }",
             "truth.acl")
     out = os.path.join(tmp, "out")
@@ -207,7 +209,7 @@ def test_calibrated_file_flags_coefficients_the_data_cannot_identify(tmp_path):
     assert any("gamma is not identifiable" in w for w in fit.selection.final.warnings)
     assert "# WARNING: fit_gamma is not identifiable" in fit.calibrated
     # the Fig. 4 ramp of the closing-the-loop study identifies both: no such line
-    shutil.copy(os.path.join(EX, "fig4_facing_pair.acl"), tmp)
+    shutil.copy(FIG4, os.path.join(tmp, "fig4_facing_pair.acl"))
     out4 = os.path.join(tmp, "out4")
     assert main(["compile", os.path.join(tmp, "fig4_facing_pair.acl"), "--program", "ramp", "-o", out4, "-q",
                  "--band-samples", "0"]) == 0

@@ -339,6 +339,17 @@ def test_incremental_parse_equals_whole_file_parse():
         text = text.replace(old, new)
         assert p.parse(text, "d.acl") == parse_module(text, "d.acl"), (old, new)
     assert p.parse(text, "other.acl") == parse_module(text, "other.acl")     # another file name: no stale spans
+    # the parser's limits hold on the incremental path too (nesting checked per statement): over
+    # one, parse() refuses, and the whole-file parse reports it (E104, E103)
+    from acl.syntax.parser import MAX_NESTING
+
+    deep = text + "param deep = " + "(" * (MAX_NESTING + 1) + "1 um" + ")" * (MAX_NESTING + 1) + "\n"
+    assert p.parse(deep, "other.acl") is None
+    with pytest.raises(DiagnosticError, match="nesting"):
+        parse_module(deep, "other.acl")
+    ok = text + "param deep = " + "(" * MAX_NESTING + "1 um" + ")" * MAX_NESTING + "\n"
+    assert p.parse(ok, "other.acl") == parse_module(ok, "other.acl")
+    assert p.parse(text + "# a NUL: \x00\n", "other.acl") is None
 
 
 def _apply(text: str, edits: list[dict]) -> str:

@@ -113,3 +113,16 @@ def test_a_job_stopped_by_an_edit_leaves_no_result_behind():
         assert w.peek(("doc", "old", "slow")) is None
     finally:
         w.stop()
+
+
+def test_the_worker_checks_a_text_once_for_every_job_on_it(tmp_path):
+    """One design object per text, so the analyses' per-design caches serve the next capsule's hover."""
+    from acl.lsp.background import checked
+
+    path = str(tmp_path / "a.acl")
+    a = checked(path, "param a = 1 um\n")
+    assert checked(path, "param a = 1 um\n") is a and a.design is not None
+    b = checked(path, "param a = 2 um\n")
+    assert b is not a and checked(path, "param a = 2 um\n") is b
+    checked(path, "param a = 3 um\n")
+    assert checked(path, "param a = 1 um\n") is not a          # only the last two texts are kept

@@ -115,3 +115,60 @@ def test_springs_combine_in_series_and_parallel():
     assert springs.in_series(2.0, 2.0) == pytest.approx(1.0)
     assert springs.in_parallel(2.0, 3.0) == pytest.approx(5.0)
     assert springs.spring_force(0.7563e-3, 2e-6) == pytest.approx(-1.5126e-9)
+
+
+def test_elastica_tip_batched_equals_one_load_at_a_time():
+    # One shooting solver for every batch shape: a (3, 4) grid of (P L^2/EI, l/L) against one call per entry; 1e-9.
+    p, lam = np.array([[0.4], [2.0], [5.0]]), np.array([0.0, 0.2, 0.7, 1.5])
+    for mode in ("dead", "follower"):
+        grid = beams.elastica_tip(p, lam, mode)
+        assert grid[0].shape == (3, 4) and grid[3].all()
+        for i in range(3):
+            for j in range(4):
+                one = beams.elastica_tip(p[i, 0], lam[j], mode)
+                assert grid[0][i, j] == pytest.approx(float(one[0]), rel=1e-9)
+                assert grid[2][i, j] == pytest.approx(float(one[2]), rel=1e-9)
+
+
+def test_elastica_table_of_the_fit_is_the_elastica_at_its_nodes():
+    # acl.physics.cantilever (the fit's names) reads the one solver's table: exact at the grid nodes (1e-9).
+    from acl.physics import cantilever
+
+    p_grid, lam_grid, table = cantilever.elastica_table()
+    for i, j in ((6, 0), (30, 9), (60, 20)):
+        d = beams.elastica(p_grid[i], 1.0, lam_grid[j], 1.0).deflection[0]
+        assert table[i, j] == pytest.approx(d, rel=1e-8)
+        assert cantilever.elastica_deflection(p_grid[i], 1.0, lam_grid[j], 1.0) == pytest.approx(d, rel=1e-8)
+
+
+def _bvp_reference(p, lam, mode):
+    """(delta/L, tip angle) of the elastica by scipy's solve_bvp (tol 1e-10, continuation in p): an independent check."""
+    from scipy.integrate import solve_bvp
+
+    s = np.linspace(0.0, 1.0, 21)
+    y = np.zeros((4, s.size))
+    y[2] = s
+    sol = None
+    for pp in np.linspace(0.0, p, int(np.ceil(p / 0.5)) + 1)[1:]:
+        def rhs(_, y, par, pp=pp):
+            return np.vstack([y[1], -pp * np.cos(y[0] - (par[0] if mode == "follower" else 0.0)),
+                              np.cos(y[0]), np.sin(y[0])])
+
+        def bc(ya, yb, par, pp=pp):
+            moment = pp * lam * (1.0 if mode == "follower" else np.cos(par[0]))
+            return np.array([ya[0], ya[2], ya[3], yb[0] - par[0], yb[1] - moment])
+
+        sol = solve_bvp(rhs, bc, s if sol is None else sol.x, y if sol is None else sol.y,
+                        p=[0.0] if sol is None else sol.p, tol=1e-10, max_nodes=20000)
+        assert sol.status == 0
+    return sol.y[3, -1] + lam * np.sin(sol.p[0]), sol.p[0]
+
+
+@pytest.mark.parametrize("mode", ["dead", "follower"])
+def test_elastica_tip_agrees_with_an_independent_bvp_solve(mode):
+    # docs/physics.md part B section 2: the one shooting solver vs solve_bvp (tol 1e-10), p <= 6: deflection to
+    # 1e-8 L (the follower's deflection at p = 6, l = L is small: 2e-8 relative), tip angle 1e-9 relative.
+    for p, lam in ((0.5, 0.0), (2.0, 0.36), (6.0, 1.0)):
+        ref_d, ref_a = _bvp_reference(p, lam, mode)
+        d, _, a, ok, _ = beams.elastica_tip(p, lam, mode)
+        assert ok and d == pytest.approx(ref_d, rel=0, abs=1e-8) and a == pytest.approx(ref_a, rel=1e-9)

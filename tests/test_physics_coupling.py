@@ -138,3 +138,22 @@ def test_prepared_response_equals_coupled_response(wall):
     one = build_system([single(), single()], [[[0.0, 0.0, 40e-6]], [[40e-6, 0.0, 40e-6]]], [[R1], [R1]])
     np.testing.assert_allclose(prepared_response(one, f, RHO, C, wall)(one.points[None])[0],
                                coupled_response(one, f, RHO, C, wall), rtol=1e-12)
+
+
+def test_modes_up_to_a_frequency_and_a_second_damping_match_the_full_separate_solutions():
+    """``max_omega`` keeps a prefix of the full solution and ``also_damping`` gives the Q of a system with
+    that damping (a declared Q: same omega and volumes); both to 1e-12 relative."""
+    a, b = single(q=12.0), single(volume=1.12e-13, radius=13e-6, q=30.0)
+    pts = [[[0.0, 0.0, 40e-6]], [[90e-6, 0.0, 40e-6]], [[0.0, 70e-6, 40e-6]]]
+    declared = build_system([a, b, a], pts, [[R1], [13e-6], [R1]])
+    bare = build_system([single(), single(volume=1.12e-13, radius=13e-6), single()], pts, [[R1], [13e-6], [R1]])
+    full = coupled_modes(declared, RHO, C, 1.0)
+    free = coupled_modes(bare, RHO, C, 1.0)
+    top = float(np.sort(full.omega)[2]) * 1.01
+    part = coupled_modes(declared, RHO, C, 1.0, max_omega=top, also_damping=(bare.damping,))
+    assert part.omega.size == 3 < full.omega.size
+    np.testing.assert_allclose(part.omega, full.omega[:3], rtol=1e-12)
+    np.testing.assert_allclose(part.volume, full.volume[:, :3], rtol=1e-12, atol=1e-12 * np.abs(full.volume).max())
+    np.testing.assert_allclose(part.quality, full.quality[:3], rtol=1e-12)
+    np.testing.assert_allclose(part.also_quality[0], free.quality[:3], rtol=1e-12)
+    assert not np.allclose(part.quality, part.also_quality[0])          # the declared Q does matter

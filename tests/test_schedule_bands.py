@@ -137,7 +137,9 @@ def test_coverage_warnings(tmp_path):
     assert any("deflections up to 2 um" in w for w in warn)
     plain = compile_program(acl.load(os.path.join(EX, "fig2_stroke.acl")), "stroke",
                             CompileOptions(waypoint_dt_s=0.05, resim_points=5))
-    assert not [n for n in plain.notes if n.startswith("warning:")]
+    # no coverage warning without covered ranges; the model's validity warnings (tests/test_compile_validity.py) stay
+    assert {w.code for w in plain.warnings} <= {"W-ACOUSTIC-AMPLITUDE", "W-ACOUSTIC-STREAMING", "W-ACOUSTIC-MONOPOLE"}
+    assert len(plain.warnings) == len([n for n in plain.notes if n.startswith("warning:")])
 
 
 def test_nonlinear_correction_tracks_a_saturating_design():

@@ -18,6 +18,7 @@ import numpy as np
 import pytest
 
 import acl
+from example_designs import first_principles_path, load_first_principles
 from acl.analysis.report import analyze
 from acl.diagnostics import DiagnosticError
 
@@ -212,7 +213,7 @@ def test_lint_acl201_column_equals_the_rule_across_the_critical_distance():
     with its thrust coefficient spread; verdicts equal lint.rules.forces.snap_in on each point's design."""
     from acl.lint.rules import forces
 
-    path = EX / "fig4_facing_pair.acl"
+    path = first_principles_path("fig4_facing_pair")      # batched forces: the model's own pair law (no calibration)
     t = acl.sweep(str(path), vary={"gap": "20um..80um:7"}, tolerance={"gamma": "30 %"}, n=3, seed=4,
                   quantities=["lint_acl201_pass"])
     seen = set()
@@ -259,7 +260,7 @@ def test_lint_acl401_and_acl402_columns_equal_the_rules_on_softer_and_thinner_be
     from acl.sweep.evaluate import evaluate
     from acl.sweep.perturb import FieldBatch, materialize
 
-    d = acl.load(str(EX / f"{example}.acl"))
+    d = load_first_principles(example)                   # batched forces: the model's own pair law
     scale = np.array([1.0, 0.3, 0.1, 0.03, 0.01, 0.0033])
     fields = {f"beams.{b.name}.youngs_modulus": b.youngs_modulus * scale for b in d.beams}
     b = FieldBatch(design=d, n=scale.size, fields=fields, valid=np.ones(scale.size, bool), code=np.full(scale.size, ""))

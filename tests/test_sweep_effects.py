@@ -1,5 +1,5 @@
 """Declared physical effects in a sweep: each column family is given where no declared effect changes it, and
-equals `acl analyze` of the design with its effects; otherwise it is refused with a note naming the effects.
+equals `acl analyze` of the design with its effects; otherwise it is given point by point by analyze's engine (acl.sweep.points) and equals analyze exactly.
 
 Forces at rest are unchanged by effects on beams (large_deflection, stiffness_gradient, stiffness_scale) and
 by neighbour_drag (its factor is 1 at zero displacement); latch margins also by all but stiffness_scale
@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 
 import acl
+from example_designs import first_principles_text
 from acl.analysis.report import analyze
 from acl.sweep.evaluate import QuantityError, evaluate, supported
 from acl.sweep.perturb import FieldBatch, materialize
@@ -24,7 +25,7 @@ EX = ROOT / "examples"
 
 
 def _design(example: str, effects: str):
-    src = (EX / f"{example}.acl").read_text() + "\n" + effects + "\n"
+    src = first_principles_text(example) + "\n" + effects + "\n"   # the model's own pair law (no stdlib calibration)
     return acl.loads(src, filename=str(EX / f"{example}.acl"))
 
 
@@ -41,8 +42,9 @@ def test_pair_forces_with_beam_and_drag_effects_equal_analyze():
     names, missing = supported(d, "125 kHz @ 3 V")
     tag = "left_right_125khz"
     assert f"force_{tag}_n" in names and f"critical_distance_{tag}_m" in names and "lint_acl105_pass" in names
-    assert f"snap_in_{tag}_v" not in names and "tip_deflection_left_arm_m" not in names
-    assert "large_deflection" in missing["snap_in_"] and "neighbour_drag" in missing["tip_deflection"]
+    # changed by these effects: given point by point by analyze's engine (acl.sweep.points), not left out
+    assert f"snap_in_{tag}_v" in names and "tip_deflection_left_arm_m" in names
+    assert "snap_in_" not in missing and "tip_deflection" not in missing
     b = _batch(d, {"capsules.left.orifices.jet.radius": [10e-6, 9.7e-6, 10.4e-6]})
     cols = evaluate(b, [f"force_{tag}_n", f"phase_{tag}_deg", f"critical_distance_{tag}_m"])
     for i in range(b.n):
@@ -53,9 +55,13 @@ def test_pair_forces_with_beam_and_drag_effects_equal_analyze():
             assert math.isnan(cols[f"critical_distance_{tag}_m"][i])
         else:
             assert abs(cols[f"critical_distance_{tag}_m"][i] - p["critical_distance_eq3_m"]) <= 1e-9 * p["critical_distance_eq3_m"]
+    snap = evaluate(b, [f"snap_in_{tag}_v"])[f"snap_in_{tag}_v"]
+    for i in range(b.n):
+        v = analyze(materialize(b, i)).as_dict()["pairs"][0]["snap_in_voltage_v"]
+        assert abs(snap[i] - v) <= 1e-6 * v
     with pytest.raises(QuantityError) as exc:
-        evaluate(b, [f"snap_in_{tag}_v"])
-    assert exc.value.code == "E-SWEEP-Q02" and "large_deflection" in str(exc.value)
+        evaluate(b, ["snap_in_nobody_125khz_v"])
+    assert exc.value.code == "E-SWEEP-Q01"
 
 
 def test_latch_margins_with_a_stiffness_gradient_equal_analyze_and_stiffness_scale_is_refused():
@@ -72,16 +78,21 @@ def test_latch_margins_with_a_stiffness_gradient_equal_analyze_and_stiffness_sca
         m = next(x["margin"] for x in lt["margins"] if x["program"] == "switch")
         assert m * (1 - 2e-3) <= cols["margin_snap_switch_1"][i] <= m * (1 + 1e-12)    # never above analyze
         assert cols["require_1_pass"][i] == rep["requires"][0]["ok"]
-    scaled = _design("fig6_bistable_latch", "effect stiffness_scale { factor = 0.8 }")
+    # stiffness_scale changes the latch law: point by point by analyze's engine, equal to analyze
+    scaled = _design("fig6_bistable_latch", "effect stiffness_scale { e_scale = 0.8 }")
     names, missing = supported(scaled, None)
-    assert "switching_force_snap_n" not in names and "require_1_value" not in names
-    assert "stiffness_scale" in missing["margin_"] and "stiffness_scale" in missing["require_1"]
+    assert "switching_force_snap_n" in names and "require_1_value" in names and "margin_" not in missing
     assert "resonance_act_1_hz" in names
+    b = _batch(scaled, {"latches.snap.angle": np.deg2rad([45.0, 48.0])})
+    cols = evaluate(b, ["switching_force_snap_n", "require_1_value"])
+    for i in range(b.n):
+        rep = analyze(materialize(b, i), snap_in=False).as_dict()
+        assert abs(cols["switching_force_snap_n"][i] / rep["latches"][0]["switching_force_n"] - 1) <= 1e-12
+        assert abs(cols["require_1_value"][i] / rep["requires"][0]["value"] - 1) <= 1e-12
 
 
 def test_pressure_effects_still_refuse_the_forces():
     d = acl.load(str(EX / "fig2_stroke_truth.acl"))
     names, missing = supported(d, "125 kHz @ 2 V")
-    assert "lint_acl105_pass" not in names and "tip_deflection_arm_m" not in names
-    assert "transducer_gain" in missing["tip_deflection"] and "drive_saturation" in missing["lint_acl105"] \
-        or "drive pressure" in missing["lint_acl105"]
+    assert "lint_acl105_pass" not in names and "tip_deflection_arm_m" in names      # the latter point by point
+    assert "drive_saturation" in missing["lint_acl105"] or "transducer_gain" in missing["lint_acl105"]

@@ -16,8 +16,12 @@ DATA = os.path.join(os.path.dirname(os.path.abspath(__file__)), "data")
 def test_a_design_with_effects_names_the_columns_it_lacks():
     notes = left_out(load(os.path.join(DATA, "fit_cantilever.calibrated.acl")))
     text = "\n".join(notes)
-    assert "deflection" in text and "stiffness_scale" in text
+    assert "stiffness_scale" in text
     assert "lint_acl201" in text
+    # the deflection is given point by point (acl.sweep.points) once a drive is named; without one, it says so
+    assert "tip_deflection: deflections need a drive" in text
+    with_at = "\n".join(left_out(load(os.path.join(DATA, "fit_cantilever.calibrated.acl")), "125 kHz @ 2 V"))
+    assert "deflection" not in with_at and "lint_acl201" in with_at
     assert "switching_force" not in text          # no latch: nothing of a latch to leave out
     assert "snap_in" not in text                  # one capsule: no pair
 

@@ -16,7 +16,7 @@ surfaces, paper Eq. 3).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import lru_cache
 from typing import Mapping, Sequence
 
@@ -28,7 +28,10 @@ from acl.physics import constants as C
 from acl.physics import effects as PE
 from acl.physics.coupling import (BubbleSystem, CoupledModes, build_system, coupled_modes as _physics_coupled_modes,
                                   coupled_response as _physics_coupled, prepared_response, uncoupled_blocks)
-from acl.physics.forces import interface_centre_amplitude, jet_drag, thrust_magnitude
+from acl.physics.forces import (capsule_forces, capsule_pair_forces, critical_distance, dominant_pair_phase,
+                                force_constants, interface_centre_amplitude, neighbour_drag, thrust_magnitude)
+from acl.physics.forces import pressure_terms  # noqa: F401  (public here since before; acl.analysis.tones)
+from acl.physics.roots import grid_max
 from acl.physics.resonance import BubbleModes, capsule_modes as _physics_modes
 from acl.physics.ties import TIE_RTOL, first_max
 from acl.physics.transducer import pressure_per_volt
@@ -74,18 +77,6 @@ class PairForce:
     phase_difference: float
     distance: float
     critical_distance: float | None
-    notes: tuple[str, ...] = ()
-
-
-@dataclass(frozen=True)
-class Selectivity:
-    """Thrust per V^2 of each capsule vs frequency and its share of the total at each frequency."""
-
-    frequencies: np.ndarray
-    capsules: tuple[str, ...]
-    thrust_per_v2: np.ndarray      # (n_capsules, F) N/V^2
-    share: np.ndarray              # (n_capsules, F)
-    outside_table: np.ndarray      # (F,) bool: transducer gain extrapolated
     notes: tuple[str, ...] = ()
 
 
@@ -308,6 +299,39 @@ def _centres_array(design: Design, positions) -> np.ndarray:
     return out
 
 
+_REST: list = []          # [(design, {frequency: (n,) complex response per pascal at rest})]: the last few designs
+_ENGINE_REST: list = []   # [(design, {tone frequencies: (1, T, n) the force engine's response at rest})]
+
+
+def _per_design_store(stores: list, design: Design) -> dict:
+    """The cache dict of ``design`` in ``stores`` (kept for the last four designs, by identity)."""
+    store = next((s for d, s in stores if d is design), None)
+    if store is None:
+        store = {}
+        stores[:] = ([(design, store)] + stores)[:4]
+    return store
+
+
+def rest_response(design: Design, frequencies) -> np.ndarray:
+    """Inward volume displacement per pascal (F, n) of every interface at rest (:func:`acl.physics.coupling.coupled_response`).
+
+    Each frequency is solved once per design: the missing ones of a call in one batched solve, the
+    rest from the cache (kept for the last four designs, by identity), so that lint rules, hovers and
+    analyses asking for the same tones share one coupled solve.
+    """
+    f = np.atleast_1d(np.asarray(frequencies, float))
+    store = _per_design_store(_REST, design)
+    missing = np.unique(f[[x not in store for x in f.tolist()]]) if f.size else f
+    if missing.size:
+        med = _medium(design)
+        u = _physics_coupled(_system(design), missing, med.density, med.sound_speed, C.SUBSTRATE_REFLECTION)
+        for x, row in zip(missing.tolist(), u):
+            row.setflags(write=False)
+            store[x] = row
+    n = _layout(design).radii.size
+    return np.array([store[x] for x in f.tolist()], complex).reshape(f.size, n)
+
+
 def coupled_response(design: Design, frequencies, positions=None) -> np.ndarray:
     """Inward volume amplitude (m^3 per V peak) of every interface of the design, (F, n) in :func:`interface_labels` order.
 
@@ -316,13 +340,13 @@ def coupled_response(design: Design, frequencies, positions=None) -> np.ndarray:
     """
     f = np.atleast_1d(np.asarray(frequencies, float))
     lay = _layout(design)
-    med = _medium(design)
-    sysm = _system(design)
     if positions:
+        med = _medium(design)
         pts = lay.points(_centres_array(design, positions))
-        u = _physics_coupled(sysm, f, med.density, med.sound_speed, C.SUBSTRATE_REFLECTION, points=pts[None])[0]
+        u = _physics_coupled(_system(design), f, med.density, med.sound_speed, C.SUBSTRATE_REFLECTION,
+                             points=pts[None])[0]
     else:
-        u = _physics_coupled(sysm, f, med.density, med.sound_speed, C.SUBSTRATE_REFLECTION)
+        u = rest_response(design, f)
     gain, _ = drive_gain(design, f)
     return u * gain[:, None]
 
@@ -359,14 +383,18 @@ def _fundamentals(cm: CoupledModes, n_interfaces: int) -> list[int]:
 
 
 @_per_design
-def _modes_cached(design: Design, idx: tuple[int, ...]) -> tuple[Mode, ...]:
+def _modes_cached(design: Design, idx: tuple[int, ...], max_hz: float | None = None) -> tuple[Mode, ...]:
+    """Modes of the capsules ``idx`` as one system (a single capsule: its fundamentals), up to ``max_hz`` if given."""
     med = _medium(design)
     lay = _layout(design)
     sel = np.isin(lay.body, list(idx))
     labels = [lab for lab, s in zip(lay.labels, sel) if s]
-    cm = _physics_coupled_modes(_system(design, idx), med.density, med.sound_speed, C.SUBSTRATE_REFLECTION)
-    cp = _physics_coupled_modes(_system(design, idx, predicted=True), med.density, med.sound_speed,
-                                C.SUBSTRATE_REFLECTION)
+    # one eigensolution for both dampings: a declared Q changes the modal damping only
+    predicted = _system(design, idx, predicted=True)
+    top = None if max_hz is None else 2 * math.pi * max_hz * (1 + 1e-9)     # the caller filters exactly
+    cm = _physics_coupled_modes(_system(design, idx), med.density, med.sound_speed, C.SUBSTRATE_REFLECTION,
+                                max_omega=top, also_damping=(predicted.damping,))
+    cp = replace(cm, quality=cm.also_quality[0]) if cm.also_quality else cm
     declared = any(lay.caps[c].quality_factor is not None for c in idx)
     notes = defaults_used(design)
     short = len(idx) == 1
@@ -417,7 +445,7 @@ def coupled_modes(design: Design) -> list[Mode]:
     if not lay.caps:
         return []
     top = max((m.frequency_hz for c in lay.caps for m in capsule_modes(design, c)), default=0.0)
-    ms = _modes_cached(design, tuple(range(len(lay.caps))))
+    ms = _modes_cached(design, tuple(range(len(lay.caps))), 1.5 * top if len(lay.caps) > 1 else None)
     return [m for m in ms if m.frequency_hz <= 1.5 * top]
 
 
@@ -493,27 +521,8 @@ def band_maximum(value, f0: float, f1: float, extra=(), samples: int = 21, rtol:
     fs = np.unique(np.concatenate([np.geomspace(lo, hi, max(samples, 2)) if lo > 0 else np.linspace(lo, hi, samples),
                                    extra[(extra >= lo) & (extra <= hi)]]))
     vals = [value(f) for f in fs]
-    k = int(np.argmax(vals))                 # ties: the first (lowest) frequency
-    best_f, best = float(fs[k]), vals[k]
-    a, b = float(fs[max(k - 1, 0)]), float(fs[min(k + 1, fs.size - 1)])
-    g = (np.sqrt(5.0) - 1.0) / 2.0
-    c, d = b - g * (b - a), a + g * (b - a)
-    fc, fd = value(c), value(d)
-    for _ in range(40):
-        if b - a <= rtol * max(b, 1.0):
-            break
-        if fc >= fd:
-            b, d, fd = d, c, fc
-            c = b - g * (b - a)
-            fc = value(c)
-        else:
-            a, c, fc = c, d, fd
-            d = a + g * (b - a)
-            fd = value(d)
-        for f, v in ((c, fc), (d, fd)):
-            if v > best:
-                best_f, best = f, v
-    return best, best_f
+    best, best_f = grid_max(value, fs, vals, iterations=40, rtol=rtol)   # ties: the first (lowest) frequency
+    return best, float(best_f)
 
 
 # ----------------------------------------------------------------------------------------------
@@ -582,7 +591,14 @@ class _Engine:
     def rest_forces(self):
         """:meth:`forces` of the capsules at rest, with parts (total, u, thr, att), each (1, ...); computed once."""
         if not self._rest:
-            self._rest.append(self.forces(self.lay.rest[None], parts=True))
+            r = None
+            if self.f.size and self.lay.radii.size:     # drives with the same tones share the coupled solve
+                store = _per_design_store(_ENGINE_REST, self.design)
+                key = tuple(self.f.tolist())
+                r = store.get(key)
+                if r is None:
+                    r = store[key] = self.response(self.lay.rest[None][:, self.lay.body, :] + self.lay.offsets)
+            self._rest.append(self.forces(self.lay.rest[None], parts=True, response=r))
         return self._rest[0]
 
     def forces(self, centres: np.ndarray, parts: bool = False, consts: dict | None = None, response=None):
@@ -601,56 +617,19 @@ class _Engine:
             r = np.zeros((centres.shape[0], self.f.size, lay.radii.size), complex)
         else:
             r = self.response(pts)                                         # (B, T, n) per pascal
-        # streaming thrust per orifice (acl.physics.forces.thrust_magnitude), tones added; eps = 2|dV|/(pi R^2)
-        thr = ((r.real**2 + r.imag**2) * k["thrust"]).sum(axis=1)          # (B, n)
-        per = thr[:, :, None] * k["thrust_dir"]                           # (B, n, 3) along -n
-        # secondary Bjerknes force (Crum 1975) of every other-capsule pair, along p_j - p_i, tones in power
-        sep = pts[:, None, :, :] - pts[:, :, None, :]                      # (B, i, j, 3)
-        d = np.where(k["other"], np.sqrt((sep * sep).sum(axis=-1)), 1.0)
-        prod = np.einsum("t,bti,btj->bij" if k["w2p2"].ndim == 1 else "bt,bti,btj->bij", k["w2p2"], r, np.conj(r)).real
-        att = k["bjerknes"] * prod / d**2
-        c = att / d
-        per = per + c @ pts - c.sum(axis=-1)[..., None] * pts             # sum_j c_ij (p_j - p_i)
-        total = lay.onehot.T @ per                                          # (B, C, 3)
-        # drag of each interface's jet on the other capsules (Schlichting laminar round jet)
-        x = centres[:, None, :, :] - pts[:, :, None, :]                    # (B, n, C, 3)
-        dist = np.sqrt((x * x).sum(axis=-1))
-        with np.errstate(invalid="ignore", divide="ignore"):   # positions a runaway solver step made non-finite:
-            cos = (x * lay.normals[None, :, None, :]).sum(axis=-1) / dist   # NaN forces, which the solver rejects
-        mask = k["drag_mask"]
-        drag = jet_drag(thr[:, :, None], np.where(mask, dist, 1.0), cos, self.outer[None, None, :]) * mask
-        total = total + drag.transpose(0, 2, 1) @ lay.normals
+        total, _, thr, att = capsule_forces(centres, lay.body, lay.offsets, lay.normals, lay.onehot, self.outer, r, k,
+                                            points=pts)
         if parts:
             return total, r * self.pressure[None, :, None], thr, att
         return total
 
 
-def pressure_terms(unit: np.ndarray, w2: np.ndarray, pressure: np.ndarray, scale: np.ndarray):
-    """(thrust constant (..., T, n), Bjerknes weight (..., T)) of tone pressures (..., T) Pa: C_s 6 pi mu w eps^2 with eps = 2 |p dV/dp| / (pi R^2) (``unit`` (T, n) per Pa^2) times each orifice's thrust scale (..., n), and w^2 p^2 (Crum 1975)."""
-    pressure = np.asarray(pressure, float)
-    return unit * pressure[..., :, None] ** 2 * np.asarray(scale, float)[..., None, :], w2 * pressure**2
-
-
 def _engine_constants(design: Design, lay: _Layout, f: np.ndarray, pressure: np.ndarray, scale: np.ndarray,
-                      pair: np.ndarray) -> dict:
-    """Everything in :meth:`_Engine.forces` that does not depend on the capsule positions."""
+                      pair: np.ndarray, shape: tuple = (0.0, 1.0)) -> dict:
+    """Everything in :meth:`_Engine.forces` that does not depend on the capsule positions (acl.physics.forces.force_constants)."""
     med = _medium(design)
-    w = 2 * np.pi * f
-    other = lay.body[:, None] != lay.body[None, :]
-    ncap = len(lay.caps)
-    area = np.pi * lay.radii**2
-    unit = C.STREAMING_CONSTANT * 6 * np.pi * med.viscosity * w[:, None] * 4 / area**2
-    thrust, w2p2 = pressure_terms(unit, w**2, pressure, scale[lay.body])
-    return {
-        "thrust": thrust,
-        "thrust_unit": unit,          # (T, n) per pascal^2, before the thrust scale (acl.analysis.tones)
-        "thrust_dir": -lay.normals,
-        "other": other,
-        "w2p2": w2p2,
-        "w2": w**2,
-        "bjerknes": med.density / (8 * np.pi) * other * pair[lay.body][:, lay.body],
-        "drag_mask": lay.body[:, None] != np.arange(ncap)[None, :],
-    }
+    return force_constants(2 * np.pi * f, lay.radii, lay.body, len(lay.caps), med.viscosity, med.density,
+                           C.STREAMING_CONSTANT, pressure, scale, pair, gap_shape=shape)
 
 
 def _compute_engine(design: Design, drive: Drive) -> _Engine:
@@ -669,13 +648,15 @@ def _compute_engine(design: Design, drive: Drive) -> _Engine:
     scale = np.array([_thrust_scale(design, c) for c in lay.caps]) * sub
     pair = np.sqrt(np.outer(sub, sub)) if design.effects else np.ones((ncap, ncap))
     bs = EF.coefficients(design, "bjerknes_scale") if design.effects else None
-    if bs is not None:   # a fitted Bjerknes coefficient (paper Eq. 3 alpha) relative to the physics
+    shape = (0.0, 1.0)
+    if bs is not None:   # a fitted Bjerknes coefficient (paper Eq. 3 alpha) relative to the physics, and its shape
         pair = pair * bs["factor"]
+        shape = EF.bjerknes_shape(bs)
     outer = np.array([_outer_radius(c) for c in lay.caps])
     response = (prepared_response(sysm, f, med.density, med.sound_speed, C.SUBSTRATE_REFLECTION, h0=h0)
                 if f.size else None)
     return _Engine(design, lay, sysm, f, pressure, h0, scale, pair, outer, med.density, med.sound_speed, response,
-                   _engine_constants(design, lay, f, pressure, scale, pair))
+                   _engine_constants(design, lay, f, pressure, scale, pair, shape))
 
 
 _LAST_ENGINE: list = []   # [(design, drive, engine)]: identity cache for solver inner loops
@@ -743,51 +724,18 @@ def pair_table(design: Design, drive: Drive,
     thrust_vec = np.einsum("n,nk,nc->ck", thr, -lay.normals, lay.onehot)
     ncap = len(lay.caps)
     pa, pb = np.triu_indices(ncap, 1)                 # the nested loops' order: a, then b > a
-    npair = pa.size
-    body = lay.body
-
-    def pair_index(a, b):
-        return a * ncap - a * (a + 1) // 2 + (b - a - 1)
-
-    # Bjerknes vector on a: sum over orifice pairs (i of a, j of b) of att_ij / d_ij * (p_j - p_i)
-    oi, oj = np.nonzero(body[:, None] < body[None, :])
-    fa = np.zeros((npair, 3))
-    if oi.size:
-        sep = pts[oj] - pts[oi]
-        dd = np.linalg.norm(sep, axis=-1)
-        contrib = (att[oi, oj] / dd)[:, None] * sep
-        k = pair_index(body[oi], body[oj])
-        for axis in range(3):
-            fa[:, axis] = np.bincount(k, weights=contrib[:, axis], minlength=npair)
+    fa = capsule_pair_forces(pts, att, lay.body, ncap)
     line = centres[pb] - centres[pa]
     dist = np.linalg.norm(line, axis=-1)
     unit = np.divide(line, dist[:, None], out=np.zeros_like(line), where=dist[:, None] > 0)
     attraction = np.einsum("pk,pk->p", fa, unit)
-    # phase of the dominant interfaces at the strongest tone (ties: the first declared interface, the first
-    # listed tone; acl.physics.ties)
-    dphi = np.zeros(npair)
-    gap = dist.copy()
-    counts = np.bincount(body, minlength=ncap) if body.size else np.zeros(ncap, int)
-    has = counts > 0
-    if eng.f.size and body.size:
-        mag = np.abs(u)                                               # (F, n)
-        starts = np.concatenate([[0], np.cumsum(counts)[:-1]])[has]   # orifices are grouped by capsule
-        peak = np.full((u.shape[0], ncap), -np.inf)
-        peak[:, has] = np.maximum.reduceat(mag, starts, axis=1)
-        first = np.zeros((u.shape[0], ncap), int)
-        at_peak = np.where(mag >= peak[:, body] * (1 - TIE_RTOL), np.arange(body.size)[None, :], body.size)
-        first[:, has] = np.minimum.reduceat(at_peak, starts, axis=1)
-        ok = has[pa] & has[pb]
-        t = first_max(peak[:, pa[ok]] * peak[:, pb[ok]], axis=0)
-        ja, jb = first[t, pa[ok]], first[t, pb[ok]]
-        dphi[ok] = np.angle(u[t, ja] * np.conj(u[t, jb]))
-        gap[ok] = np.linalg.norm(pts[jb] - pts[ja], axis=-1)
+    dphi, gap = dominant_pair_phase(u, pts, lay.body, ncap, dist)
     # reduced law (paper Eq. 3): alpha = attraction d^2, 2 gamma = thrusts pushing apart
     gamma2 = np.einsum("pk,pk->p", thrust_vec[pa], -unit) + np.einsum("pk,pk->p", thrust_vec[pb], unit)
     alpha = attraction * gap**2
     live = (alpha > 0) & (gamma2 > 0)
-    dc = np.full(npair, np.nan)
-    dc[live] = np.sqrt(alpha[live] / gamma2[live])
+    dc = np.full(pa.size, np.nan)
+    dc[live] = critical_distance(alpha[live], gamma2[live] / 2)
     return PairTable(names=tuple(c.name for c in lay.caps), a=pa, b=pb, force_on_a=fa, attraction=attraction,
                      phase_difference=dphi, distance=gap, critical_distance=dc, notes=defaults_used(design))
 
@@ -800,14 +748,11 @@ def pair_forces(design: Design, drive: Drive,
 
 
 def _apply_neighbour_drag(design: Design, lay: _Layout, centres: np.ndarray, total: np.ndarray) -> np.ndarray:
+    """A declared neighbour_drag (acl.physics.forces.neighbour_drag) on capsules with a neighbour (acl.analysis.effects.neighbour_capsules; the fit's pairs)."""
     nd = EF.coefficients(design, "neighbour_drag") if design.effects else None
     if nd and nd["inv_plateau"] > 0:
-        # P (1 - delta/delta_p) with delta the capsule's displacement from rest (acl.physics.effects.drag_load),
-        # on capsules with a neighbour only (acl.analysis.effects.neighbour_capsules; the fit's pairs)
-        delta = np.linalg.norm(centres - lay.rest[None], axis=-1)
         near = EF.neighbour_capsules(design)
-        delta = delta * np.array([c.name in near for c in lay.caps], float)
-        total = PE.drag_load(total, delta[..., None], nd["inv_plateau"])
+        return neighbour_drag(total, centres, lay.rest, [c.name in near for c in lay.caps], nd["inv_plateau"])
     return total
 
 
@@ -856,23 +801,3 @@ def force_model_for(design: Design):
     unless the design declares drive_saturation, whose pressure factor depends on V.
     """
     return _saturating_force_model if design.effect("drive_saturation") is not None else force_model
-
-
-def selectivity(design: Design, frequencies) -> Selectivity:
-    """Thrust magnitude per V^2 of every capsule over ``frequencies`` (coupled responses at rest) and its share per frequency."""
-    f = np.atleast_1d(np.asarray(frequencies, float))
-    lay = _layout(design)
-    u = coupled_response(design, f) * effect_pressure_factor(design, f)[:, None]
-    thr = _thrust_from_volumes(design, lay.radii, f, u)                      # (F, n)
-    rows = []
-    for c, cap in enumerate(lay.caps):
-        sel = lay.body == c
-        per = thr[:, sel] * _thrust_scale(design, cap) * substrate_factor(design, cap)
-        rows.append(np.linalg.norm((per[:, :, None] * -lay.normals[sel][None]).sum(axis=1), axis=-1))
-    t = np.array(rows).reshape(len(lay.caps), f.size)
-    tot = t.sum(axis=0, keepdims=True)
-    share = np.divide(t, tot, out=np.zeros_like(t), where=tot > 0)
-    _, outside = drive_gain(design, f)
-    return Selectivity(frequencies=f, capsules=tuple(c.name for c in design.capsules),
-                       thrust_per_v2=t, share=share, outside_table=outside,
-                       notes=defaults_used(design))

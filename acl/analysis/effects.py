@@ -11,41 +11,16 @@ from __future__ import annotations
 import math
 
 from acl.design.model import Design
+from acl.physics.effect_table import EFFECT_TABLE
 
+# All read from the one table of effects (acl.physics.effects.EFFECT_TABLE):
 # effect -> {coefficient: value at which the effect vanishes} (acl.fit.effects internal coordinates)
-NULLS = {
-    "transducer_gain": {"gain_slope": 0.0, "f_ref": math.nan, "gain": 1.0},
-    "transducer_resonance": {"inv_f_ratio": 0.0, "gain_q": 1.0, "f_ref": math.nan},
-    "drive_saturation": {"inv_vsat2": 0.0},
-    "large_deflection": {"elastica_weight": 0.0},
-    "stiffness_scale": {"e_scale": 1.0},
-    "stiffness_gradient": {"e_gradient": 0.0},
-    "offset_drift": {"offset": 0.0, "drift": 0.0},
-    "bubble_shrinkage": {"shrink_rate": 0.0},
-    "neighbour_drag": {"inv_plateau": 0.0},
-    "substrate_proximity": {"h_substrate": 0.0},
-    "bjerknes_scale": {"factor": 1.0},
-}
-ALIASES = {
-    ("drive_saturation", "v_sat"): ("inv_vsat2", lambda v: 1.0 / (v * v) if v > 0 else 0.0),
-    ("neighbour_drag", "plateau"): ("inv_plateau", lambda v: 1.0 / v if v > 0 else 0.0),
-    ("stiffness_scale", "factor"): ("e_scale", lambda v: v),
-}
-STATIC_NOTES = {
-    "offset_drift": "a measurement artefact (offset and drift of the observation), not a property of the device",
-    "bubble_shrinkage": "time-dependent (the bubble loses gas after filling); the analysis is at t = 0",
-}
-WHERE = {
-    "transducer_gain": "drive pressure (acoustics)",
-    "transducer_resonance": "drive pressure vs frequency (acoustics)",
-    "drive_saturation": "drive pressure (acoustics; forces no longer scale as V^2)",
-    "large_deflection": "beam force law (mechanics)",
-    "stiffness_scale": "Young's modulus of beams and latches (mechanics)",
-    "stiffness_gradient": "beam force law (mechanics)",
-    "neighbour_drag": "force on each capsule with a neighbour (named with it in a gap observe) vs its displacement (acoustics)",
-    "substrate_proximity": "thrust, jet drag and Bjerknes forces vs height (acoustics)",
-    "bjerknes_scale": "secondary Bjerknes force between capsules (acoustics; a pair's fitted alpha, paper Eq. 3)",
-}
+NULLS = {e.name: {c.name: c.null for c in e.internal()} for e in EFFECT_TABLE.values()}
+# (effect, user-facing coefficient) -> (internal coefficient, conversion)
+ALIASES = {(e.name, c.name): (c.alias_of, c.to_internal) for e in EFFECT_TABLE.values() for c in e.coefficients
+           if c.alias_of}
+STATIC_NOTES = {e.name: e.static_note for e in EFFECT_TABLE.values() if e.static_note}
+WHERE = {e.name: e.acts_on for e in EFFECT_TABLE.values() if not e.static_note}
 
 
 def coefficients(design: Design, name: str) -> dict | None:
@@ -60,6 +35,12 @@ def coefficients(design: Design, name: str) -> dict | None:
             value = conv(value)
         out[key] = float(value)
     return out
+
+
+def bjerknes_shape(coefs: dict) -> tuple[float, float]:
+    """(gap exponent n, reference distance m) of a declared bjerknes_scale; (0, 1) (no shape) without a finite gap_ref."""
+    n, ref = float(coefs.get("gap_exponent", 0.0)), float(coefs.get("gap_ref", math.nan))
+    return (n, ref) if n and math.isfinite(ref) and ref > 0 else (0.0, 1.0)
 
 
 def unused_coefficients(design: Design) -> list[str]:
@@ -83,6 +64,9 @@ def notes(design: Design) -> list[str]:
     tg = coefficients(design, "transducer_gain")
     if tg and tg["gain_slope"] and not math.isfinite(tg["f_ref"]):
         out.append("effect transducer_gain has a gain_slope but no f_ref: the tilt is ignored (declare `f_ref = 125 kHz`)")
+    bs = coefficients(design, "bjerknes_scale")
+    if bs and bs["gap_exponent"] and not math.isfinite(bs["gap_ref"]):
+        out.append("effect bjerknes_scale has a gap_exponent but no gap_ref: the shape is ignored (declare `gap_ref = 40 um`)")
     for name in unused_coefficients(design):
         out.append(f"effect coefficient {name} is not used by the analysis")
     return out

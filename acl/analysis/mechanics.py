@@ -34,6 +34,8 @@ from acl.physics import beams as B
 from acl.physics import effects as PE
 from acl.physics import equilibrium as EQ
 from acl.physics import latch as LT
+from acl.physics.forces import pair_law_force
+from acl.physics.springs import spring_force
 
 ForceModel = Callable[[Design, Mapping[str, np.ndarray], Drive], Mapping[str, np.ndarray]]
 
@@ -130,7 +132,7 @@ def reduced_eq3_force_model(alpha: float, gamma: float) -> ForceModel:
                 pb = np.asarray(ob) + np.asarray(positions[cb.name]) - np.asarray(cb.center)
                 r = pb - pa
                 d = float(np.linalg.norm(r))
-                f = (alpha / d**2 - 2 * gamma) * V2 * r / d
+                f = pair_law_force(alpha, gamma, d, 1.0) * V2 * r / d
                 out[ca.name] = out[ca.name] + f
                 out[cb.name] = out[cb.name] - f
         return out
@@ -223,7 +225,7 @@ class _UnionFind:
 
 def _beam_effects(design: Design | None) -> tuple[float, float, float] | None:
     """(E scale, E gradient, elastica weight) of declared stiffness_scale / stiffness_gradient / large_deflection, None if none."""
-    if design is None or not any(design.effect(n) for n in ("stiffness_scale", "stiffness_gradient", "large_deflection")):
+    if design is None or not any(PE.EFFECT_TABLE[e.name].beam_law for e in design.effects):   # the one table
         return None
     es = (EF.coefficients(design, "stiffness_scale") or {"e_scale": 1.0})["e_scale"]
     g = (EF.coefficients(design, "stiffness_gradient") or {"e_gradient": 0.0})["e_gradient"]
@@ -386,11 +388,11 @@ def build_mechanism(design: Design, mode: str = "eq1") -> _Mechanism:
                     sp = design.spring(joint.target)
                     n_ax = _unit(sp.axis)
                     basis = n_ax[:, None]
-                    elements.append(_Element(
+                    elements.append(_Element(      # restoring force k x along the axis (= -spring_force)
                         "spring", sp.name, gi,
-                        (lambda x, k=sp.stiffness, n_=n_ax: (k * n_ * (n_ @ x), k * np.outer(n_, n_))),
+                        (lambda x, k=sp.stiffness, n_=n_ax: (-spring_force(k, n_ @ x) * n_, k * np.outer(n_, n_))),
                         (lambda x, n_=n_ax: float(n_ @ x)), sp.span, None,
-                        (lambda X, k=sp.stiffness, n_=n_ax: ((k * (X @ n_))[:, None] * n_,
+                        (lambda X, k=sp.stiffness, n_=n_ax: (-spring_force(k, X @ n_)[:, None] * n_,
                                                              np.broadcast_to(k * np.outer(n_, n_), (X.shape[0], 3, 3))))))
             except KeyError as exc:
                 bag.error("E-MECH-003", f"capsule `{cname}` is mounted on a missing element: {exc}",
@@ -634,11 +636,11 @@ def _restoring_rows(mech: _Mechanism):
             f[:, o:o + k] += fe @ A
             K[:, o:o + k, o:o + k] += A.T[None] @ Ke @ A[None]
         for (ks, nax, ga, gb, _) in mech.links:
-            ext = (x_of(ga) - x_of(gb)) @ nax
+            pull = -spring_force(ks, (x_of(ga) - x_of(gb)) @ nax)        # restoring k x of the link's extension
             blocks = [(g, s) for g, s in ((ga, 1.0), (gb, -1.0)) if g is not None and mech.bases[g].shape[1]]
             for g, sgn in blocks:
                 A, o = mech.bases[g], mech.offsets[g]
-                f[:, o:o + A.shape[1]] += sgn * ks * ext[:, None] * (A.T @ nax)[None]
+                f[:, o:o + A.shape[1]] += sgn * pull[:, None] * (A.T @ nax)[None]
             for g1, s1 in blocks:
                 for g2, s2 in blocks:
                     A1, o1, A2, o2 = mech.bases[g1], mech.offsets[g1], mech.bases[g2], mech.offsets[g2]

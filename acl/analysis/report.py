@@ -97,6 +97,7 @@ def step_drives(design: M.Design):
 def analyze(design: M.Design, at: M.Drive | None = None, snap_in: bool = True, progress=None) -> Report:
     from acl.analysis import acoustics as AC
     from acl.analysis import mechanics as ME
+    from acl.analysis.selectivity import selectivity
     from acl.analysis.pairs import net_critical_distance
 
     from acl.analysis.effects import notes as effect_notes
@@ -119,9 +120,9 @@ def analyze(design: M.Design, at: M.Drive | None = None, snap_in: bool = True, p
     rep.frequencies_hz = freqs
     if design.capsules and freqs:
         grid = np.linspace(*SELECTIVITY_SWEEP)
-        sweep = AC.selectivity(design, grid)
+        sweep = selectivity(design, grid)
         peak = sweep.thrust_per_v2.max(axis=1)
-        at_f = AC.selectivity(design, freqs)
+        at_f = selectivity(design, freqs)
         for j, f in enumerate(freqs):
             rel = np.divide(at_f.thrust_per_v2[:, j], peak, out=np.zeros_like(peak), where=peak > 0)
             best = at_f.capsules[first_max(rel)]            # ties: the first declared (acl.physics.ties)

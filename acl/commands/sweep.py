@@ -205,6 +205,9 @@ def _run(run_sweep, design, spec, args, overrides, quiet):
                          notify=lambda text: _note(text, prog.console), **kw)
 
 
+GRID_ROWS = 50          # grid points listed one per line; the rest are in the JSON summary and the table
+
+
 def _print(table, args, curve, written, design) -> None:
     from acl._console import make_console
 
@@ -223,6 +226,14 @@ def _print(table, args, curve, written, design) -> None:
             i = int(key.split("_")[1])
             verdict = v.text() if table.spec.montecarlo else f"{v.passed} of {v.total} points"
             con.print(f"  {key} `{design.requires[i - 1].text}`: {verdict}")
+    rows = table.grid_yields()
+    if rows:
+        # the pooled yield hides the grid (issue 28: 0.60 over radii whose yields are 0.02 ... 0.09)
+        con.print(f"  yield per grid point ({table.spec.samples} samples each):")
+        for label, v in rows[:GRID_ROWS]:
+            con.print(f"    {label}: {v.text()}")
+        if len(rows) > GRID_ROWS:
+            con.print(f"    ... {len(rows) - GRID_ROWS} more grid points: --output-format json (grid_yield) or -o table")
     if curve:
         for r in curve:
             # the same text as every other yield: bounds rounded outwards (was to nearest: 0.467 shown as 0.47)

@@ -100,14 +100,11 @@ def _usage(msg, hint=None, where=None, code="E-USAGE"):
     return 2
 
 
-_EXAMPLES = {"drive_saturation": "v_sat:8V", "offset_drift": "offset:0.5um,drift:10nm/s",
-             "transducer_gain": "gain_slope:0.5", "large_deflection": "elastica_weight:1",
-             "stiffness_scale": "e_scale:0.7", "stiffness_gradient": "e_gradient:0.7",
-             "bubble_shrinkage": "shrink_rate:0.01Hz", "neighbour_drag": "plateau:5um", "substrate_proximity": "h_substrate:20um"}
-
-
 def _example(eid: str) -> str:
-    return f"{eid}={_EXAMPLES.get(eid, 'PARAM:VALUE')}"
+    from acl.physics.effect_table import EFFECT_TABLE     # the one table of effects
+
+    spec = EFFECT_TABLE.get(eid)
+    return f"{eid}={(spec.example if spec and spec.example else 'PARAM:VALUE')}"
 
 
 def _param_names(eid: str) -> str:

@@ -28,139 +28,37 @@ class Fail(Exception):
 DECL_KINDS = ("medium", "material", "transducer", "generator", "amplifier", "capsule", "beam", "spring", "truss", "latch",
               "anchor", "effect")
 
-# Effects of the model library (docs/fit.md); `effect NAME { coefficient = quantity, ... }`.
-EFFECTS = ("transducer_gain", "transducer_resonance", "drive_saturation", "large_deflection", "stiffness_scale", "stiffness_gradient",
-           "offset_drift", "bubble_shrinkage", "neighbour_drag", "substrate_proximity", "bjerknes_scale")
+# Effects of the model library (docs/fit.md); `effect NAME { coefficient = quantity, ... }`: the one table is
+# acl.physics.effects.EFFECT_TABLE; the names, units, domains and ranges below are read from it.
+from acl.physics.effect_table import (EFFECT_TABLE, F_REF_RANGE, GAIN_BOUND, GRADIENT_BOUND,  # noqa: E402,F401
+                                 GRADIENT_REFERENCE, MODULUS_DECADES, TILT_BOUND, EffectRange)
+
+EFFECTS = tuple(EFFECT_TABLE)
 
 D = parse_unit_static
 LENGTH, FREQ, VOLT, TIME = D("m"), D("Hz"), D("V"), D("s")
 _ONE = D("")
 
-# The unit of each known effect coefficient (acl/fit/effects.py's SI units, plus the user-facing
-# aliases v_sat, plateau and factor, and transducer_gain's f_ref and gain): another dimension is E301
-# (`v_sat = 8 um` is not a saturation voltage).  Coefficients not listed are left to the analysis' note.
-EFFECT_UNITS = {
-    "transducer_gain": {"gain_slope": ("", _ONE), "f_ref": ("Hz", FREQ), "gain": ("", _ONE)},
-    "transducer_resonance": {"inv_f_ratio": ("", _ONE), "gain_q": ("", _ONE), "f_ref": ("Hz", FREQ)},
-    "drive_saturation": {"inv_vsat2": ("1/V^2", tuple(-2 * x for x in VOLT)), "v_sat": ("V", VOLT)},
-    "large_deflection": {"elastica_weight": ("", _ONE)},
-    "stiffness_scale": {"e_scale": ("", _ONE), "factor": ("", _ONE)},
-    "stiffness_gradient": {"e_gradient": ("", _ONE)},
-    "offset_drift": {"offset": ("m", LENGTH), "drift": ("m/s", D("m/s"))},
-    "bubble_shrinkage": {"shrink_rate": ("1/s", FREQ)},
-    "neighbour_drag": {"inv_plateau": ("1/m", tuple(-x for x in LENGTH)), "plateau": ("m", LENGTH)},
-    "substrate_proximity": {"h_substrate": ("m", LENGTH)},
-    "bjerknes_scale": {"factor": ("", _ONE)},
-}
-
-# The physical range of effect coefficients (E401 outside it): "positive" (> 0), "nonneg" (>= 0), "unit" (0 .. 1).
-# A pressure scale, a modulus scale, a frequency, a saturation voltage, a plateau length, a quality factor are
-# positive; a rate, an inverse square voltage, a height, a Bjerknes factor may be 0 (the effect vanishes);
-# the elastica weight blends two force laws.  Not listed (gain_slope, e_gradient, offset, drift): any sign.
-EFFECT_DOMAIN = {
-    ("transducer_gain", "gain"): "positive", ("transducer_gain", "f_ref"): "positive",
-    ("transducer_resonance", "inv_f_ratio"): "nonneg", ("transducer_resonance", "gain_q"): "positive",
-    ("transducer_resonance", "f_ref"): "positive",
-    ("drive_saturation", "inv_vsat2"): "nonneg", ("drive_saturation", "v_sat"): "positive",
-    ("large_deflection", "elastica_weight"): "unit",
-    ("stiffness_scale", "e_scale"): "positive", ("stiffness_scale", "factor"): "positive",
-    ("bubble_shrinkage", "shrink_rate"): "nonneg",
-    ("neighbour_drag", "inv_plateau"): "nonneg", ("neighbour_drag", "plateau"): "positive",
-    ("substrate_proximity", "h_substrate"): "nonneg",
-    ("bjerknes_scale", "factor"): "nonneg",
-}
+# The unit of each known effect coefficient (SI, aliases included): another dimension is E301 (`v_sat = 8 um` is
+# not a saturation voltage).  Coefficients not listed are left to the analysis' note.
+def _unit_dims(unit: str):
+    """Dimensions of a table unit: a static unit, its reciprocal ``1/u`` or a power ``u^n``."""
+    if unit.startswith("1/"):
+        return tuple(-x for x in _unit_dims(unit[2:]))
+    base, _, power = unit.partition("^")
+    return tuple(int(power) * x for x in D(base)) if power else D(unit)
 
 
+EFFECT_UNITS = {e.name: {c.name: (c.unit, _unit_dims(c.unit)) for c in e.coefficients}
+                for e in EFFECT_TABLE.values()}
 
-@dataclass(frozen=True)
-class EffectRange:
-    """The admissible range of one effect coefficient (SI): outside [lo, hi] it is no physical value (E401);
-    outside [plausible_lo, plausible_hi] it is finite and analysable but not plausible (W402).  ``why`` says why."""
-    lo: float
-    hi: float
-    plausible_lo: float
-    plausible_hi: float
-    why: str
-
-
-# Bounds shared by several coefficients (each justified where it is used below).
-GAIN_BOUND = 1e3          # a transducer pressure factor beyond 1e3 (60 dB) either way is not the declared transducer
-TILT_BOUND = math.log(GAIN_BOUND)   # |gain_slope|: the tilt is held beyond 2 f_ref (acl.physics.effects.gain_tilt)
-MODULUS_DECADES = 6.0     # a polymer network's modulus spans at most ~6 decades (a gel's kPa to a glass's GPa)
-GRADIENT_BOUND = 2.0 * MODULUS_DECADES * math.log(10)   # |e_gradient|: the modulus at the 50 um reference's clamp end
-GRADIENT_REFERENCE = 50e-6   # m: stiffness_gradient's length scale (acl.physics.cantilever.L_REF)
-F_REF_RANGE = (1e3, 1e8)  # Hz: the drive frequencies of micro-bubble actuators (Minnaert resonances of 1 mm .. 0.1 um)
+# The sign domain of effect coefficients (E401 outside it): "positive" (> 0), "nonneg" (>= 0), "unit" (0 .. 1).
+EFFECT_DOMAIN = {(e.name, c.name): c.domain for e in EFFECT_TABLE.values() for c in e.coefficients if c.domain}
 
 # The admissible range of every known effect coefficient (checked by acl.design.assemble._effect; the fit's
 # bounds in acl/fit/effects.py lie inside every hard range, so a calibrated design written by `acl fit`
 # is accepted; tests/test_effect_ranges.py).  A coefficient at its null value always lies inside.
-EFFECT_RANGES = {
-    ("transducer_gain", "gain"): EffectRange(
-        1.0 / GAIN_BOUND, GAIN_BOUND, 0.1, 10.0,
-        "a scale on the declared table's pressure per volt: beyond 1000x (60 dB) either way the table is not the "
-        "transducer's (declare its own table); forces scale with its square. Plausible: within 20 dB of the table"),
-    ("transducer_gain", "gain_slope"): EffectRange(
-        -TILT_BOUND, TILT_BOUND, -4.0, 4.0,
-        "the tilt exp(s (f - f_ref)/f_ref), held beyond 2 f_ref, stays within 1/1000 .. 1000 of the table; "
-        "plausible: the fit's range (acl/fit/effects.py, -4 .. 4)"),
-    ("transducer_gain", "f_ref"): EffectRange(
-        *F_REF_RANGE, *F_REF_RANGE,
-        "a frequency of the drive: micro-bubble actuators resonate between kHz (mm bubbles) and 100 MHz"),
-    ("transducer_resonance", "inv_f_ratio"): EffectRange(
-        0.0, 100.0, 0.0, 5.0,
-        "f_ref/f_t: a transducer resonance more than 100x below f_ref leaves the band on its 1/f^2 tail (no resonance "
-        "left to model); plausible: the fit's range (0 .. 5)"),
-    ("transducer_resonance", "gain_q"): EffectRange(
-        1e-3, 1e4, 0.3, 30.0,
-        "the transducer's quality factor: no piezoceramic reaches 1e4 (hard PZT ~2000 unloaded, far less in water); "
-        "below 1e-3 the response is the damping alone; plausible: the fit's range (0.3 .. 30, a water-loaded transducer)"),
-    ("transducer_resonance", "f_ref"): EffectRange(
-        *F_REF_RANGE, *F_REF_RANGE, "a frequency of the drive (as transducer_gain's f_ref)"),
-    ("drive_saturation", "v_sat"): EffectRange(
-        1e-3, 1e5, 0.1, 1e4,
-        "the voltage where the drive saturates: below 1 mV no drive is linear at all (the table would be wrong, not "
-        "saturated); above 100 kV, 10x any transducer's maximum (E502), there is no saturation; plausible: the "
-        "fit's range (>= 0.1 V) up to the 10 kV transducer limit"),
-    ("drive_saturation", "inv_vsat2"): EffectRange(
-        0.0, 1e6, 0.0, 100.0, "1/V_s^2 with V_s >= 1 mV (as v_sat); plausible: the fit's range (<= 100 V^-2, V_s >= 0.1 V)"),
-    ("large_deflection", "elastica_weight"): EffectRange(
-        0.0, 1.0, 0.0, 1.0, "it blends paper Eq. (1) (0) with the elastica (1)"),
-    ("stiffness_scale", "e_scale"): EffectRange(
-        1e-3, 1e3, 0.05, 20.0,
-        "E/E_declared: a printed polymer's modulus moves by about two decades with its degree of cure; three "
-        "decades either way is another material (declare it); plausible: the fit's range (0.05 .. 20)"),
-    ("stiffness_scale", "factor"): EffectRange(1e-3, 1e3, 0.05, 20.0, "E/E_declared (as e_scale)"),
-    ("stiffness_gradient", "e_gradient"): EffectRange(
-        -GRADIENT_BOUND, GRADIENT_BOUND, -4.0, 4.0,
-        "E(s) = E exp(g (s/50um - 1/2)): beyond g = +-27.6 the modulus of the clamp end of the 50 um reference is "
-        "off by more than 6 decades, the span of polymer networks (each beam is checked over its own length too); "
-        "plausible: the fit's range (-4 .. 4)"),
-    ("offset_drift", "offset"): EffectRange(
-        -1.0, 1.0, -1e-3, 1e-3,
-        "an offset of the observation beyond 1 m is outside any print volume (E414); plausible: a field of view (1 mm)"),
-    ("offset_drift", "drift"): EffectRange(
-        -1.0, 1.0, -1e-5, 1e-5,
-        "an observation drifting 1 m/s leaves any microscope field of view (< 1 mm) within 1 ms: no measurement; "
-        "plausible: stage and focus drift are nm/s .. 100 nm/s, 10 um/s crosses a 50 um device in 5 s"),
-    ("bubble_shrinkage", "shrink_rate"): EffectRange(
-        0.0, 100.0, 0.0, 1.0,
-        "the gas volume's rate: a free 10 um air bubble dissolves in about 1 s (Epstein & Plesset 1950), a trapped "
-        "one slower; at 100/s the bubble is gone within a ramp's first step; plausible: <= 1/s"),
-    ("neighbour_drag", "plateau"): EffectRange(
-        1e-9, 1.0, 0.2e-6, 1e-3,
-        "the displacement where the drag stops the actuator: below 1 nm it is blocked (declare an anchor), beyond "
-        "1 m it is outside any print volume; plausible: the printable resolution (0.2 um) to a field of view (1 mm)"),
-    ("neighbour_drag", "inv_plateau"): EffectRange(
-        0.0, 1e9, 0.0, 5e6, "1/plateau with plateau >= 1 nm (as plateau; the fit's range 0 .. 1e9 /m)"),
-    ("substrate_proximity", "h_substrate"): EffectRange(
-        0.0, 1.0, 0.0, 1e-3,
-        "the decay length of the wall's weakening: beyond 1 m (any print volume) every force vanishes; plausible: "
-        "the fit's range (<= 1 mm, about bubble sizes)"),
-    ("bjerknes_scale", "factor"): EffectRange(
-        0.0, 1e3, 0.1, 10.0,
-        "the secondary Bjerknes force relative to the coupled-bubble model (paper Eq. 3's alpha): a model wrong by "
-        "1000x on a force (30x on each volume amplitude) is no model; plausible: within 10x"),
-}
+EFFECT_RANGES = {(e.name, c.name): c.range for e in EFFECT_TABLE.values() for c in e.coefficients if c.range}
 
 
 # The physical range of declared properties that were only sign-checked (E412 outside it, at the value): absurd

@@ -40,15 +40,25 @@ def write_figures(design, rep, outdir: str) -> list[str]:
     f = np.linspace(20e3, 250e3, 600)
     # 1. modal response of each capsule (paper Fig. 3b)
     if design.capsules:
+        # the capsule's own response per pascal, over the transducer's band: per volt it carried the kinks of the
+        # gain table's linear interpolation (acoustics.drive_gain) and ran beyond the band
+        t = design.transducer
+        fm = np.linspace(*t.band, 600) if t is not None else f
+        per_pa = t is not None and len(t.gain_frequencies) > 0
+        g = np.asarray(AC.drive_gain(design, fm)[0], float)
         fig, ax = plt.subplots(figsize=(7, 4))
         for c in design.capsules:
-            h = np.abs(AC.orifice_response(design, c, f))
+            h = np.abs(AC.orifice_response(design, c, fm))
+            if per_pa:
+                h = h / np.maximum(g, 1e-300)[:, None]
             for k, o in enumerate(c.orifices):
-                ax.semilogy(f / 1e3, h[:, k] * 1e18, label=f"{c.name}.{o.name}")
+                ax.semilogy(fm / 1e3, h[:, k] * 1e18, label=f"{c.name}.{o.name}")
             for m in AC.capsule_modes(design, c):
-                ax.axvline(m.frequency_hz / 1e3, ls="--", lw=0.6, color="grey")
+                if fm[0] <= m.frequency_hz <= fm[-1]:
+                    ax.axvline(m.frequency_hz / 1e3, ls="--", lw=0.6, color="grey")
+        ax.set_xlim(fm[0] / 1e3, fm[-1] / 1e3)
         ax.set_xlabel("frequency (kHz)")
-        ax.set_ylabel("volume amplitude per volt (um^3/V)")
+        ax.set_ylabel("volume amplitude per pascal (um^3/Pa)" if per_pa else "volume amplitude per volt (um^3/V)")
         ax.set_title("Modal response (cf. paper Fig. 3b)")
         ax.legend(fontsize=7)
         written.append(_save(fig, os.path.join(outdir, "modal_response.png")))

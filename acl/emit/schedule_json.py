@@ -38,12 +38,12 @@ def schedule_dict(schedule: Schedule, sample_rate: float, stats=None, files: dic
     for s in schedule.segments:
         tones = []
         for t in s.tones:
-            d = {"frequency_hz": t.frequency_hz, "amplitude_v": t.amplitude_v, "phase_rad": t.phase_rad}
+            d = {"frequency_hz": t.frequency_hz, "amplitude_v": t.amplitude_v, "phase_rad": wrapped_phase(t.phase_rad)}
             if t.sweep:
                 d["frequency_end_hz"] = t.frequency_end_hz
                 d["sweep"] = t.sweep
             tones.append(d)
-        segs.append({"start_s": s.start_s, "end_s": s.end_s, "step": s.step, "goal": s.goal,
+        segs.append({"start_s": s.start_s, "end_s": s.end_s, "step": s.step + 1, "goal": s.goal,
                      "peak_v": s.peak_v, "tones": tones})
     out = {
         "version": schedule.version,
@@ -106,7 +106,18 @@ def write_segments_csv(path: str, schedule: Schedule) -> int:
             for t in s.tones:
                 fe = "" if t.frequency_end_hz is None else f"{t.frequency_end_hz:.9g}"
                 fh.write(f"{s.step + 1},{s.start_s:.9g},{dur:.9g},{t.frequency_hz:.9g},"
-                         f"{t.amplitude_v:.9g},{t.phase_rad:.9g},{fe},{t.sweep or ''}\n")
+                         f"{t.amplitude_v:.9g},{wrapped_phase(t.phase_rad):.9g},{fe},{t.sweep or ''}\n")
                 rows += 1
             i = j + 1
     return rows
+
+
+def wrapped_phase(phase: float) -> float:
+    """A tone's phase in [0, 2 pi) rad, with a value within 1e-9 rad below 2 pi written as 0 (the same tone: the
+    phase optimiser may leave 2 pi, which segments.csv showed as 6.28318531)."""
+    import math
+
+    p = math.fmod(float(phase), 2 * math.pi)
+    if p < 0:
+        p += 2 * math.pi
+    return 0.0 if 2 * math.pi - p < 1e-9 or p < 1e-12 else p

@@ -12,6 +12,7 @@ import numpy as np
 
 from acl.fit import beam as B
 from acl.physics.effects import drag_load, elastica_blend
+from acl.physics.roots import illinois_step
 
 N_GRID = 32
 N_REFINE = 12
@@ -118,7 +119,7 @@ def _pair_equilibrium(law0, law1, a_rad, push, d0, same=False, tol=None, info=No
     exact = G0 == 0
     tol = 1e-12 * np.max(d0) if tol is None else tol
     for _ in range(N_REFINE):
-        c, fc, flip = _illinois(g, a, fa, b, fb)
+        c, fc, flip = illinois_step(g, a, fa, b, fb)
         a, fa = np.where(flip, b, a), np.where(flip, fb, 0.5 * fa)
         b, fb = c, fc
         if np.all(np.abs(fc[found]) <= tol):
@@ -185,18 +186,6 @@ def _bracket(g, a_rad, push, d0, far, guess, gather, G=None):
         f2, k2, a2, fa2, b2, fb2, _ = _scan(r, np.full(r.size, N_GRID + 1), a_rad, push, d0, far, gather, G)
         found[r], k[r], a[r], fa[r], b[r], fb[r] = f2, k2, a2, fa2, b2, fb2
     return found, k, a, fa, b, fb, G0, G
-
-
-def _illinois(g, a, fa, b, fb):
-    """One step of the Illinois variant of regula falsi inside the bracket [a, b] (Dowell & Jarratt 1971, BIT 11,
-    168): (c, g(c), whether the sign flipped against b); the caller keeps or halves fa."""
-    den = fb - fa
-    nz = den != 0
-    mid = 0.5 * (a + b)
-    c = np.where(nz, b - fb * (b - a) / np.where(nz, den, 1.0), mid)
-    c = np.where((c >= np.minimum(a, b)) & (c <= np.maximum(a, b)), c, mid)
-    fc = g(c)
-    return c, fc, np.sign(fc) != np.sign(fb)
 
 
 def _scan(rows, npts, a_rad, push, d0, far, gather, G=None):
@@ -371,7 +360,7 @@ def _pair_equilibrium_many(law0, law1, a_rad, push, d0, same, nblk, guess, gathe
     live = np.ones(nblk, bool)
     for _ in range(N_REFINE):
         on = None if live.all() else np.repeat(live, per)
-        c, fc, flip = _illinois(g, a, fa, b, fb)
+        c, fc, flip = illinois_step(g, a, fa, b, fb)
         if live.all():
             a, fa = np.where(flip, b, a), np.where(flip, fb, 0.5 * fa)
             b, fb = c, fc

@@ -358,7 +358,7 @@ def figures(problem, selection, outdir) -> list[str]:
                         label=f"{freq / 1e3:g} kHz {key}" if len(groups) <= 10 else None)
                 ax.plot(volts[sel][order], model[sel][order] * scale, "-", lw=0.8, color=colour)
                 axr.plot(volts[sel], fit.residual[sel] * scale, ".", ms=3, color=colour)
-            ax.set_title(f"{name}: {label} (dots data, lines model)")
+            ax.set_title(f"{name}: {label}\n(dots data, lines model)", fontsize=9, wrap=True)
             ax.set_xlabel("voltage (V)")
             ax.set_ylabel(unit)
             if groups and len(groups) <= 10:
@@ -367,6 +367,7 @@ def figures(problem, selection, outdir) -> list[str]:
             axr.set_xlabel("voltage (V)")
             axr.set_ylabel(f"residual {label} ({'Pearson' if state else 'um'})")
     fig.tight_layout()
+    _fit_titles(fig)
     path = os.path.join(outdir, "fit.png")
     fig.savefig(path, dpi=90)
     plt.close(fig)
@@ -377,9 +378,10 @@ def figures(problem, selection, outdir) -> list[str]:
     for j, (k, x) in enumerate(usable):
         for i, (label, fit) in enumerate((("before", selection.base), ("after", selection.final))):
             ax = axes[i, j]
-            ax.plot(x, fit.residual * 1e6, ".", ms=2)
+            xs, xlabel = covariate_axis(k, x)
+            ax.plot(xs, fit.residual * 1e6, ".", ms=2)
             ax.axhline(0, color="k", lw=0.5)
-            ax.set_xlabel(k)
+            ax.set_xlabel(xlabel)
             ax.set_ylabel(f"residual {label} (um)")
     fig.tight_layout()
     fig.savefig(os.path.join(outdir, "residuals.png"), dpi=90)
@@ -469,3 +471,28 @@ def _g3(x):
 
 def _um(x):
     return "-" if x is None else f"{x * 1e6:.4g} um"
+
+
+# one unit per axis kind: lengths in um, frequencies in kHz, voltages in V, times in s (SI inside, units at edges)
+_AXIS_UNITS = {"voltage": (1.0, "V"), "frequency": (1e-3, "kHz"), "time": (1.0, "s"), "height": (1e6, "um")}
+
+
+def covariate_axis(name: str, x):
+    """(values, axis label with its unit) of a residual covariate (acl.fit.residuals.covariates): the predicted value
+    and the height in um like the residuals, frequency in kHz; a set: column keeps its SI value."""
+    scale, unit = _AXIS_UNITS.get(name, (1e6, "um") if name.startswith("predicted") or name == "prediction"
+                                  else (1.0, "SI"))
+    return np.asarray(x, float) * scale, f"{name} ({unit})"
+
+
+def _fit_titles(fig) -> None:
+    """Shrink each panel title until it is no wider than its panel (a long observable name ran into the next panel
+    and past the figure's edge)."""
+    fig.canvas.draw()
+    for ax in fig.axes:
+        t = ax.title
+        if not t.get_text():
+            continue
+        width = ax.get_window_extent().width
+        while t.get_window_extent().width > width and t.get_fontsize() > 5:
+            t.set_fontsize(t.get_fontsize() - 0.5)

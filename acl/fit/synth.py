@@ -15,10 +15,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from acl.diagnostics import DiagnosticError, Span, error, suggest
+from acl.physics.effect_table import EFFECT_TABLE
 
-# user-facing effect parameters that are the inverse of the fitted coordinate
-ALIASES = {"v_sat": ("inv_vsat2", lambda v: 1.0 / v**2), "plateau": ("inv_plateau", lambda v: 1.0 / v)}
-ALIAS_UNITS = {"v_sat": "V", "plateau": "m"}      # SI unit of each user-facing alias
+# user-facing effect parameters and the fitted coordinate each sets (the one table, acl.physics.effects)
+ALIASES = {c.name: (c.alias_of, c.to_internal) for e in EFFECT_TABLE.values() for c in e.coefficients if c.alias_of}
+ALIAS_UNITS = {c.name: c.unit for e in EFFECT_TABLE.values() for c in e.coefficients if c.alias_of}   # SI unit of each
 
 
 def param_unit(eid: str, name: str) -> str | None:

@@ -1,8 +1,8 @@
 """What a rule sees: the resolved design, thresholds, the raw source, and cached analyses.
 
-Analyses that several rules need (capsule modes, peak thrust, the drives of each program step)
-are computed once per design here; the acoustic analysis also caches modal data per geometry
-across designs (:func:`acl.analysis.acoustics.modal_data`).
+Analyses that several rules need (capsule modes, thrust over frequency, forces and pair tables
+under each drive) come from the design's shared :class:`acl.analysis.cache.DesignAnalysis` (the
+language server's hovers use the same object); the drives of each program step are built here.
 """
 from __future__ import annotations
 
@@ -47,11 +47,19 @@ class Context:
             self._cache[key] = compute()
         return self._cache[key]
 
-    # -- acoustics -----------------------------------------------------------------------------
-    def modes(self, capsule) -> list:
-        from acl.analysis.acoustics import capsule_modes
+    # -- acoustics (the design's shared analysis: acl.analysis.cache) -------------------------
+    @property
+    def analysis(self):
+        """The design's :class:`acl.analysis.cache.DesignAnalysis` (shared with the language server)."""
+        an = self._cache.get("analysis")
+        if an is None:
+            from acl.analysis.cache import analysis_for
 
-        return self.cached(("modes", capsule.name), lambda: capsule_modes(self.design, capsule))
+            an = self._cache["analysis"] = analysis_for(self.design)
+        return an
+
+    def modes(self, capsule) -> list:
+        return self.analysis.modes(capsule)
 
     def gain(self, frequencies) -> np.ndarray:
         from acl.analysis.acoustics import drive_gain
@@ -63,31 +71,40 @@ class Context:
         t = self.design.transducer
         if t is not None:
             return t.band
-        fs = [m.frequency_hz for c in self.design.capsules for m in self.modes(c)]
-        return (min(fs) / 2, max(fs) * 2) if fs else (1e3, 1e6)
+        fs = self.mode_frequencies()
+        return (float(fs.min()) / 2, float(fs.max()) * 2) if fs.size else (1e3, 1e6)
 
     def thrust_grid(self) -> tuple[np.ndarray, np.ndarray]:
-        """(frequencies, thrust per V^2 of each capsule) on a grid fine around every mode; cached."""
-        def compute():
-            from acl.analysis.acoustics import selectivity
+        """(frequencies, thrust per V^2 of each capsule) on a grid fine around every mode; cached.
 
+        The first call solves the coupled system at the grid and at every program frequency in one batch.
+        """
+        def compute():
             lo, hi = self.band()
+            fm, q, _ = self.analysis.mode_table()
             parts = [np.geomspace(lo, hi, 200)]
-            for c in self.design.capsules:
-                for m in self.modes(c):
-                    parts.append(m.frequency_hz * (1 + np.linspace(-2, 2, 41) / max(m.q, 0.5)))
+            parts.extend(f * (1 + np.linspace(-2, 2, 41) / max(qq, 0.5)) for f, qq in zip(fm.tolist(), q.tolist()))
             f = np.unique(np.concatenate(parts))
             f = f[f > 0]
-            return f, selectivity(self.design, f).thrust_per_v2
+            self.analysis.prefetch(np.concatenate([f, self.program_frequencies()]))
+            return f, self.analysis.thrust_per_v2(f)
         return self.cached("thrust_grid", compute)
+
+    def program_frequencies(self) -> np.ndarray:
+        """Every frequency a program step names or samples (its drives), for one batched solve."""
+        fs = [t.frequency for _, st in self.steps() for d in self.step_drives(st) for t in d.tones]
+        fs += [f for _, st in self.steps() for f in self.step_frequencies(st)]
+        n = int(self.threshold("sweep_samples"))
+        for _, st in self.steps():
+            if st.kind == "sweep":          # ACL105 samples sweeps evenly
+                fs.extend(np.linspace(st.f_start, st.f_stop, n).tolist())
+        return np.unique(np.array(fs, float))
 
     def relative_thrust(self, frequencies) -> np.ndarray:
         """Thrust of each capsule at ``frequencies`` / its own peak thrust: shape (n_capsules, F)."""
-        from acl.analysis.acoustics import selectivity
-
         _, grid = self.thrust_grid()
-        peak = grid.max(axis=1, keepdims=True)
-        t = selectivity(self.design, np.atleast_1d(frequencies)).thrust_per_v2
+        peak = self.cached("thrust_peak", lambda: grid.max(axis=1, keepdims=True))
+        t = self.analysis.thrust_per_v2(frequencies)
         return np.divide(t, peak, out=np.zeros_like(t), where=peak > 0)
 
     # -- structure -----------------------------------------------------------------------------
@@ -122,8 +139,7 @@ class Context:
 
     def mode_frequencies(self) -> np.ndarray:
         """Every capsule's mode frequencies (Hz), in capsule order; cached."""
-        return self.cached("mode_frequencies", lambda: np.array(
-            [m.frequency_hz for c in self.design.capsules for m in self.modes(c)], float))
+        return self.analysis.mode_table()[0]
 
     def sweep_frequencies(self, f0: float, f1: float) -> np.ndarray:
         lo, hi = sorted((f0, f1))
@@ -140,16 +156,13 @@ class Context:
 
     def step_forces(self, step) -> tuple[list[Drive], np.ndarray]:
         """The drives of ``step`` and the total acoustic force on every capsule at rest under each:
-        (drives, array (D, C, 3) in ``design.capsules`` order); cached per step."""
-        def compute():
-            drives = self.step_drives(step)
-            names = [c.name for c in self.design.capsules]
-            forces = np.zeros((len(drives), len(names), 3))
-            for k, drive in enumerate(drives):
-                f = self.forces(drive)
-                forces[k] = [f[n] for n in names]
-            return drives, forces
-        return self.cached(("step_forces", id(step)), compute)
+        (drives, array (D, C, 3) in ``design.capsules`` order); the forces of each drive are cached, the
+        array is not (a design's steps x drives x capsules would not fit)."""
+        drives = self.step_drives(step)
+        forces = np.zeros((len(drives), len(self.design.capsules), 3))
+        for k, drive in enumerate(drives):
+            forces[k] = self.analysis.force_array(drive)
+        return drives, forces
 
     def _step_drives(self, step) -> list[Drive]:
         """The drives a step applies, as the worst cases lint can know before compiling.
@@ -161,9 +174,10 @@ class Context:
         kind = step.kind
         if kind == "drive":
             return [step.drive]
-        if kind == "sweep":
-            return [Drive(tones=(Tone(frequency=float(f), amplitude=step.amplitude),))
-                    for f in self.sweep_frequencies(step.f_start, step.f_stop)]
+        if kind == "sweep":          # steps sweeping the same range at the same amplitude share the drives
+            return self.cached(("sweep_drives", step.f_start, step.f_stop, step.amplitude), lambda: [
+                Drive(tones=(Tone(frequency=float(f), amplitude=step.amplitude),))
+                for f in self.sweep_frequencies(step.f_start, step.f_stop)])
         if kind in ("follow", "switch", "hold") and step.tones:
             v = self.max_voltage(step)
             if v is None:
@@ -180,18 +194,12 @@ class Context:
 
     def forces(self, drive: Drive) -> dict:
         """Total acoustic force on each capsule at rest under ``drive`` (cached per drive)."""
-        from acl.analysis.acoustics import force_model
-
-        key = ("forces", tuple((t.frequency, t.amplitude, t.phase) for t in drive.tones))
-        return self.cached(key, lambda: force_model(self.design, None, drive))
+        return self.analysis.forces(drive)
 
     def pair_table(self, drive: Drive):
         """Every capsule pair's Bjerknes interaction under ``drive`` as arrays (cached per drive):
         :class:`acl.analysis.acoustics.PairTable`."""
-        from acl.analysis.acoustics import pair_table
-
-        key = ("pairs", tuple((t.frequency, t.amplitude, t.phase) for t in drive.tones))
-        return self.cached(key, lambda: pair_table(self.design, drive))
+        return self.analysis.pair_table(drive)
 
     def pair_forces(self, drive: Drive) -> list:
         tab = self.pair_table(drive)
@@ -199,18 +207,14 @@ class Context:
 
     def thrust_array(self, drive: Drive) -> np.ndarray:
         """Streaming thrust vector (N) of every capsule at rest under ``drive``, (C, 3); cached per drive."""
-        from acl.analysis.acoustics import thrust_vectors
-
-        key = ("thrust", tuple((t.frequency, t.amplitude) for t in drive.tones))
-        thrust = self.cached(key, lambda: thrust_vectors(self.design, drive))
-        return self.cached(("thrust_array",) + key[1:], lambda: np.array(
-            [thrust[c.name] for c in self.design.capsules], float).reshape(-1, 3))
+        return self.analysis.thrust_array(drive)
 
     def fixed_pairs(self, tab) -> np.ndarray:
         """(P,) True where both capsules of a pair of ``tab`` are fixed (`fix` joints)."""
-        fixed = {j.capsule for j in self.design.joints if j.kind == "fix"}
-        is_fixed = np.array([n in fixed for n in tab.names], bool)
-        return is_fixed[tab.a] & is_fixed[tab.b]
+        def compute():
+            is_fixed = self.analysis.fixed()
+            return is_fixed[tab.a] & is_fixed[tab.b]
+        return self.cached(("fixed_pairs", tab.a.size), compute)
 
 
 def khz(f: float) -> str:

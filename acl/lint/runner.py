@@ -5,6 +5,7 @@ Input: a path, a :class:`~acl.lint.config.LintConfig`; output: the findings as
 """
 from __future__ import annotations
 
+import contextlib
 import os
 import time
 from dataclasses import dataclass, field, replace
@@ -73,23 +74,43 @@ def lint_design(path: str, design, check_diags: list[Diagnostic], source: Source
         notes.append("design does not resolve: rules not run")
     else:
         ctx = Context(design, config, source)
-        for code, r in rules.items():
-            if r.check is None or not config.enabled(code):
-                continue
-            t = time.perf_counter()
-            try:
-                findings.extend(r.check(ctx) or ())
-            except Unavailable as exc:
-                ctx.note(code, f"not run: {exc}")
-            except Exception as exc:  # a rule bug must not hide the other rules' findings
-                findings.append(Diagnostic("ACL999", Severity.ERROR, f"rule {code} ({r.name}) failed: "
-                                           f"{type(exc).__name__}: {exc}", Span(file=path, line=1, column=1)))
-            if verbose:
-                notes.append(f"{code} {r.name}: {(time.perf_counter() - t) * 1e3:.1f} ms")
+        with _one_blas_thread():
+            _run_rules(path, rules, ctx, config, findings, notes, verbose)
         notes.extend(ctx.notes)
     findings = _apply(findings, source, config, path, design is not None)
     findings.sort(key=_order)
     return FileReport(path, findings, notes, design is not None, time.perf_counter() - t0, t_check)
+
+
+def _one_blas_thread():
+    """Limit BLAS to one thread while the rules run (threadpoolctl, the `scale` extra; else no limit).
+
+    The rules solve many small dense systems (one per frequency, a few hundred unknowns): OpenBLAS's
+    threads gain nothing there, and on a busy machine they spin (benchmarks/lint.py: 2,500 lines took
+    15 s of CPU with two threads, 2.8 s with one)."""
+    try:
+        from threadpoolctl import threadpool_limits
+    except ImportError:
+        return contextlib.nullcontext()
+    return threadpool_limits(limits=1, user_api="blas")
+
+
+def _run_rules(path: str, rules: dict, ctx: Context, config: LintConfig, findings: list, notes: list,
+               verbose: bool) -> None:
+    """Each enabled rule over ``ctx``: findings, the time each took (verbose), a failing rule as ACL999."""
+    for code, r in rules.items():
+        if r.check is None or not config.enabled(code):
+            continue
+        t = time.perf_counter()
+        try:
+            findings.extend(r.check(ctx) or ())
+        except Unavailable as exc:
+            ctx.note(code, f"not run: {exc}")
+        except Exception as exc:  # a rule bug must not hide the other rules' findings
+            findings.append(Diagnostic("ACL999", Severity.ERROR, f"rule {code} ({r.name}) failed: "
+                                       f"{type(exc).__name__}: {exc}", Span(file=path, line=1, column=1)))
+        if verbose:
+            notes.append(f"{code} {r.name}: {(time.perf_counter() - t) * 1e3:.1f} ms")
 
 
 def _read_source(path: str, text: str | None = None) -> SourceFile | None:

@@ -115,21 +115,38 @@ class Worker:
             f.cancel()
 
 
+_CHECKED: dict[tuple[str, str], object] = {}     # (path, text key) -> Snapshot, in the worker
+
+
+def checked(path: str, text: str):
+    """The worker's snapshot of ``text`` (kept for the last two texts): every job on one text uses
+    one design object, so the analyses' per-design caches (acl.analysis.acoustics) serve the
+    second capsule's hover from the first one's work (the coupled modes of all capsules)."""
+    from acl.lsp.document import check_text
+
+    key = (path, text_key(text))
+    snap = _CHECKED.get(key)
+    if snap is None:
+        snap = check_text(text, path)
+        while len(_CHECKED) >= 2:
+            _CHECKED.pop(next(iter(_CHECKED)))
+        _CHECKED[key] = snap
+    return snap
+
+
 def hover_text(path: str, text: str, line: int, character: int) -> str | None:
     """The full hover at (line, character) of ``text`` (run in the worker)."""
-    from acl.lsp.document import check_text
     from acl.lsp.hover import hover
 
-    got = hover(check_text(text, path), line, character)
+    got = hover(checked(path, text), line, character)
     return None if got is None else got[0]
 
 
 def requirement_values(path: str, text: str) -> list[dict]:
     """Each `require` of the design: its line, pass or fail, value and unit (run in the worker)."""
     from acl.analysis.report import analyze
-    from acl.lsp.document import check_text
 
-    snap = check_text(text, path)
+    snap = checked(path, text)
     if snap.design is None or not getattr(snap.design, "requires", None):
         return []
     rep = analyze(snap.design)

@@ -113,10 +113,27 @@ def name_position(lines: list[str], span: Span, name: str | None) -> tuple[int, 
     text = lines[ln] if 0 <= ln < len(lines) else ""
     col = span.column - 1
     if name:
-        m = re.compile(r"\b" + re.escape(name) + r"\b").search(text, col)
-        if m:
-            return ln, m.start(), m.end()
+        at = find_word(text, name, col)
+        if at >= 0:
+            return ln, at, at + len(name)
     return ln, col, col + max(1, len(name or ""))
+
+
+def _word_char(ch: str) -> bool:
+    return ch.isalnum() or ch == "_"
+
+
+def find_word(text: str, word: str, start: int = 0) -> int:
+    """Index of the first whole-word ``word`` in ``text`` from ``start`` (as ``\\bword\\b``), or -1.
+    A string search: a regular expression per name cost 0.1 s on the outline of 2,000 names."""
+    i = text.find(word, start)
+    while i >= 0:
+        j = i + len(word)
+        if (i == 0 or not _word_char(text[i - 1]) or not _word_char(word[0])) and \
+                (j >= len(text) or not _word_char(text[j]) or not _word_char(word[-1])):
+            return i
+        i = text.find(word, i + 1)
+    return -1
 
 
 def statement_name(st) -> str | None:

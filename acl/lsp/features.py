@@ -18,8 +18,8 @@ from acl.lsp.server import AclLanguageServer, _no_names, _range, at, server, to_
 MAX_WORKSPACE_FILES = 500        # designs under the workspace folder searched by references and symbols
 
 
-def _names_snap(ls: AclLanguageServer, uri: str):
-    snap = ls.snapshot(uri)
+def _names_snap(ls: AclLanguageServer, uri: str, fresh: bool = False):
+    snap = ls.snapshot(uri, fresh=fresh)
     if _no_names(snap):
         snap = ls.resolved.get(uri, snap)
     return snap
@@ -73,7 +73,7 @@ def _file_env(path: str):
     return env, text.split("\n")
 
 
-def _documents(ls: AclLanguageServer, name: str, extra_envs=()):
+def _documents(ls: AclLanguageServer, name: str, extra_envs=(), fresh: bool = False):
     """(uri, env, lines) of every open document, the designs of the workspace that mention ``name``,
     and ``extra_envs`` (declaring files outside the workspace)."""
     from acl.design.modules import read_source
@@ -81,7 +81,7 @@ def _documents(ls: AclLanguageServer, name: str, extra_envs=()):
 
     out, seen = [], set()
     for uri in list(ls.workspace.text_documents):
-        snap = _names_snap(ls, uri)
+        snap = _names_snap(ls, uri, fresh)
         out.append((uri, snap.env, snap.lines))
         seen.add(os.path.realpath(snap.path))
     for path in _workspace_files(ls):
@@ -107,20 +107,22 @@ def _documents(ls: AclLanguageServer, name: str, extra_envs=()):
     return out
 
 
-def _target(ls: AclLanguageServer, params):
+def _target(ls: AclLanguageServer, params, fresh: bool = False):
     from acl.lsp.references import target_at
 
-    snap = _names_snap(ls, params.text_document.uri)
+    snap = _names_snap(ls, params.text_document.uri, fresh)
     line, col = at(snap, params.position)
     return snap, target_at(snap.env, snap.lines, line, col)
 
 
-def _all_references(ls, t) -> dict[str, list[tuple[int, int, int, list[str]]]]:
+def _all_references(ls, t, fresh: bool = False) -> dict[str, list[tuple[int, int, int, list[str]]]]:
+    """Every occurrence of ``t`` in the open documents and the workspace (``fresh``: each open
+    document's current text, as edits need; else its last checked text may answer)."""
     from acl.lsp.references import key, occurrences
 
     want = key(t)
     found: dict[str, list] = {}
-    for uri, env, lines in _documents(ls, want[2], extra_envs=(t.env,)):
+    for uri, env, lines in _documents(ls, want[2], extra_envs=(t.env,), fresh=fresh):
         if env is None:
             continue
         for ln, a, b in occurrences(env, lines, want):
@@ -167,7 +169,7 @@ def _renameable(t) -> str | None:
 
 @server.feature(T.TEXT_DOCUMENT_PREPARE_RENAME)
 def _prepare_rename(ls: AclLanguageServer, params: T.PrepareRenameParams):
-    snap, got = _target(ls, params)
+    snap, got = _target(ls, params, fresh=True)
     if got is None:
         return None
     t, (ln, a, b) = got
@@ -182,7 +184,7 @@ def _rename(ls: AclLanguageServer, params: T.RenameParams) -> T.WorkspaceEdit | 
     from acl.lsp.document import top_level_names
     from acl.lsp.references import valid_new_name
 
-    snap, got = _target(ls, params)
+    snap, got = _target(ls, params, fresh=True)
     if got is None:
         return None
     t = got[0]
@@ -192,7 +194,7 @@ def _rename(ls: AclLanguageServer, params: T.RenameParams) -> T.WorkspaceEdit | 
     if why is not None:
         raise RequestFailed(why)
     changes = {}
-    for uri, spots in _all_references(ls, t).items():
+    for uri, spots in _all_references(ls, t, fresh=True).items():
         changes[uri] = [T.TextEdit(range=_range((ln, a, ln, b), lines), new_text=params.new_name)
                         for ln, a, b, lines in spots]
     return T.WorkspaceEdit(changes=changes)
@@ -292,17 +294,32 @@ def _semantic(ls: AclLanguageServer, params: T.SemanticTokensParams) -> T.Semant
 async def _range_formatting(ls: AclLanguageServer, params: T.DocumentRangeFormattingParams) -> list[T.TextEdit] | None:
     import asyncio
 
-    snap = ls.snapshot(params.text_document.uri)
+    snap = ls.snapshot(params.text_document.uri, fresh=True)
+    await formatted_soon(snap)
     return await asyncio.to_thread(format_lines, snap, params.range.start.line, params.range.end.line)
 
 
-def format_lines(snap, first: int, last: int) -> list[T.TextEdit] | None:
+async def formatted_soon(snap) -> None:
+    """Wait for `acl fmt` on the snapshot's text (in the formatting process) at most
+    :data:`acl.lsp.formatting.WAIT_SECONDS`; RequestFailed saying it is still running after that
+    (it goes on: asked again, the request answers from its result)."""
+    import asyncio
+
+    from acl.lsp.formatting import BUSY, WAIT_SECONDS, start
+
+    try:
+        await asyncio.wait_for(asyncio.shield(asyncio.wrap_future(start(snap.text, snap.path))), WAIT_SECONDS)
+    except asyncio.TimeoutError:
+        raise RequestFailed(BUSY) from None
+
+
+def format_lines(snap, first: int, last: int, wait: float | None = None) -> list[T.TextEdit] | None:
     """The edits of `acl fmt` that touch lines ``first``..``last`` (None: the text does not parse).
     Changed lines are replaced one by one where `acl fmt` keeps their number, so a range takes
     only its own lines; a hunk that adds or removes lines is taken whole when it touches the range."""
     from acl.lsp.formatting import hunks_of
 
-    got = hunks_of(snap.text, snap.path)
+    got = hunks_of(snap.text, snap.path, wait)
     if got is None:
         return None
     old_lines, new_lines, hunks = got
@@ -321,7 +338,9 @@ def format_lines(snap, first: int, last: int) -> list[T.TextEdit] | None:
 
 
 def organize_imports(snap, uri: str) -> T.CodeAction | None:
-    """`source.organizeImports`: the import lines in the order `acl fmt` gives them."""
+    """`source.organizeImports`: the import lines in the order `acl fmt` gives them (none while
+    `acl fmt` is still running on a large design: asked again, it is there)."""
+    from acl.lsp.formatting import WAIT_SECONDS, StillFormatting
     from acl.syntax import ast as A
 
     if snap.env is None:
@@ -329,7 +348,10 @@ def organize_imports(snap, uri: str) -> T.CodeAction | None:
     lines = [st.span.line - 1 for st in snap.env.module.statements if isinstance(st, A.Import)]
     if not lines:
         return None
-    edits = format_lines(snap, min(lines), max(lines))
+    try:
+        edits = format_lines(snap, min(lines), max(lines), WAIT_SECONDS)
+    except StillFormatting:
+        return None
     if not edits:
         return None
     return T.CodeAction(title="Organize imports (as acl fmt)", kind=T.CodeActionKind.SourceOrganizeImports,

@@ -83,9 +83,9 @@ def _resolve_lens(ls: AclLanguageServer, lens: T.CodeLens) -> T.CodeLens:
 def analyze_summary(path: str, text: str) -> str:
     """`acl analyze` in a few lines: each capsule's first mode, the requirements."""
     from acl.analysis.report import analyze
-    from acl.lsp.document import check_text
+    from acl.lsp.background import checked
 
-    snap = check_text(text, path)
+    snap = checked(path, text)
     if snap.design is None:
         errors = [d for d in snap.diagnostics if d.severity.value == "error"]
         return f"acl analyze: the design has {len(errors)} error(s); fix them first"
@@ -100,10 +100,10 @@ def analyze_summary(path: str, text: str) -> str:
 def compile_summary(path: str, text: str, program: str | None) -> str:
     """`acl compile` without writing files: segments, duration, peak voltage, goals."""
     from acl.diagnostics import DiagnosticError
-    from acl.lsp.document import check_text
+    from acl.lsp.background import checked
     from acl.schedule.compile import compile_program
 
-    snap = check_text(text, path)
+    snap = checked(path, text)
     if snap.design is None:
         return "acl compile: the design has errors; fix them first"
     names = [p.name for p in snap.design.programs]

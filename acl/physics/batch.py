@@ -446,30 +446,3 @@ def two_bubble_forces(h, pts, radii, normals, centres, outer, scale, w, pressure
         drag = thr * np.minimum(1.0, 9 * outer[:, dst] / (4 * r)) * np.clip(cos, 0.0, None) ** 2
         out[:, dst] += drag[:, None] * nrm
     return out
-
-
-def illinois_ascending(fun, lo, hi, f_lo, f_hi, iters, ftol, xrel, state=None):
-    """Root per point of f rising through 0 on (lo, hi), f(lo) < 0 <= f(hi): regula falsi, Illinois variant (Dowell & Jarratt, BIT 11, 168 (1971)).
-
-    ``fun(s, state_hi) -> (f(s), state)`` may carry a warm-start state (kept at the ``hi`` end) or return
-    ``(f, None)``.  Stops after ``iters`` steps or when every point has |f| <= ftol or a bracket narrower
-    than ``xrel`` x hi.  Returns (s, f(s), state at s) of the last evaluation.
-    """
-    side = np.zeros(np.shape(lo))
-    s, fs, st = hi, np.full(np.shape(lo), np.nan), state
-    for _ in range(iters):
-        s = np.where(f_hi != f_lo, hi - f_hi * (hi - lo) / np.where(f_hi != f_lo, f_hi - f_lo, 1.0), 0.5 * (lo + hi))
-        s = np.where((s > lo) & (s < hi), s, 0.5 * (lo + hi))
-        fs, st = fun(s, state)
-        below = fs < 0
-        lo, f_lo = np.where(below, s, lo), np.where(below, fs, f_lo)
-        hi, f_hi = np.where(below, hi, s), np.where(below, f_hi, fs)
-        if st is not None:
-            state = np.where(below, state, st)
-        # Illinois: halve the stale end's value when the same end is kept twice
-        f_hi = np.where(below & (side == 1), f_hi / 2, f_hi)
-        f_lo = np.where(~below & (side == -1), f_lo / 2, f_lo)
-        side = np.where(below, 1, -1)
-        if not np.any((np.abs(fs) > ftol) & (hi - lo > xrel * np.maximum(hi, 1e-300))):
-            break
-    return s, fs, st

@@ -45,7 +45,7 @@ from typing import Sequence
 
 import numpy as np
 
-from acl.physics.resonance import BubbleModes, symmetric_eigh
+from acl.physics.resonance import BubbleModes, modal_dynamic_stiffness, radiation_resistance
 
 
 @dataclass(frozen=True)
@@ -172,8 +172,13 @@ def _einsum(subscripts: str, *operands) -> np.ndarray:
 def uncoupled_blocks(system: BubbleSystem, omega) -> np.ndarray:
     """Per-capsule inward volume response per pascal, H0 (F, C, P, P) = Phi diag(1/(w_m^2 - w^2 + i w w_m/Q_m)) Phi^T (Meirovitch ch. 7)."""
     w = np.atleast_1d(np.asarray(omega, float))[:, None, None]
-    den = system.omega[None] ** 2 - w**2 + 1j * w * system.damping[None]
+    den = modal_dynamic_stiffness(system.omega[None], system.damping[None], w)
     return _einsum("cpm,fcm,cqm->fcpq", system.phi, 1.0 / den, system.phi)
+
+
+#: Complex entries (F x B x N x N) of one chunk of :func:`coupled_response` (16 MB): a design of
+#: hundreds of interfaces solves a few frequencies at a time instead of holding 64 dense systems.
+CHUNK_ELEMENTS = 2**20
 
 
 def coupled_response(system: BubbleSystem, frequency, density: float, sound_speed: float,
@@ -183,7 +188,8 @@ def coupled_response(system: BubbleSystem, frequency, density: float, sound_spee
     ``frequency`` (F,) Hz -> complex (F, n) in the order of ``system.points``; uniform incident
     pressure (the design is small against the wavelength).  ``points`` (B, n, 3) evaluates B
     displaced configurations at once -> (B, F, n); ``h0`` reuses :func:`uncoupled_blocks` at these
-    frequencies.  Vectorised over frequencies in chunks of ``chunk``.
+    frequencies.  Vectorised over frequencies in chunks of ``chunk`` (fewer when
+    a chunk would exceed :data:`CHUNK_ELEMENTS`).
     """
     f = np.atleast_1d(np.asarray(frequency, float))
     n = system.n
@@ -208,16 +214,36 @@ def coupled_response(system: BubbleSystem, frequency, density: float, sound_spee
         pad_rad[system.slot] = system.radii
     pad_body = np.repeat(np.arange(ncap), p)
     eye = np.eye(npad)
+    chunk = max(1, min(chunk, CHUNK_ELEMENTS // (nb * npad * npad)))   # bounded memory for large designs
+    # green_matrix's frequency-independent parts, once: 1/(4 pi d) off the diagonal, the retarded distance
+    # (between capsules only), the wall images' R/(4 pi d')
+    d = _distances(pad_pts, pad_rad, False)[:, None]                                # (B, 1, N, N)
+    other = (pad_body[:, None] != pad_body[None, :])
+    inv = np.where(~np.eye(npad, dtype=bool), 1 / (4 * np.pi * d), 0.0)
+    retarded = np.where(other, d, 0.0)
+    if wall_reflection:
+        di = _distances(pad_pts, pad_rad, True)[:, None]
+        inv_image = wall_reflection / (4 * np.pi * di)
     for s in range(0, f.size, chunk):
         w = 2 * np.pi * f[s:s + chunk]
         blk = uncoupled_blocks(system, w) if h0 is None else h0[s:s + chunk]      # (F, C, P, P)
-        g = green_matrix(pad_pts, pad_rad, pad_body, w / sound_speed, wall_reflection)  # (B, F, N, N)
-        g = g.reshape(nb, w.size, ncap, p, npad)
+        k = (w / sound_speed)[None, :, None, None]
+        g = np.empty((nb, w.size, npad, npad), complex)                           # green_matrix, exp(-ikd) as cos, sin
+        kd = k * retarded
+        np.multiply(np.cos(kd), inv, out=g.real)
+        np.multiply(np.sin(kd), -inv, out=g.imag)
+        if wall_reflection:
+            kd = k * di
+            g.real += np.cos(kd) * inv_image
+            g.imag -= np.sin(kd) * inv_image
+        del kd
+        coef = (w**2 * density)[None, :, None, None]
         if p == 1:
-            hg = blk[None, :, :, 0, 0, None, None] * g
+            g *= -coef * blk[None, :, :, 0, 0, None]
+            a = g
         else:
-            hg = _einsum("fcpq,bfcqn->bfcpn", blk, g)
-        a = eye - (w**2 * density)[None, :, None, None] * hg.reshape(nb, w.size, npad, npad)
+            a = -coef * _einsum("fcpq,bfcqn->bfcpn", blk, g.reshape(nb, w.size, ncap, p, npad)).reshape(g.shape)
+        a += eye                                                                   # I - w^2 rho H0 g
         rhs = np.broadcast_to(blk.sum(axis=-1).reshape(1, w.size, npad), (nb, w.size, npad))
         u = np.linalg.solve(a, rhs[..., None])[..., 0]
         out[:, s:s + chunk] = u[..., system.slot]
@@ -227,11 +253,13 @@ def coupled_response(system: BubbleSystem, frequency, density: float, sound_spee
 @dataclass(frozen=True)
 class CoupledModes:
     """Undamped modes of the coupled system: ``omega`` (K,) rad/s ascending, ``volume`` (n, K)
-    outward volume of each interface per mass-normalized coordinate, ``quality`` (K,)."""
+    outward volume of each interface per mass-normalized coordinate, ``quality`` (K,);
+    ``also_quality`` the Q of the same modes for each of :func:`coupled_modes`' ``also_damping``."""
 
     omega: np.ndarray
     volume: np.ndarray
     quality: np.ndarray
+    also_quality: tuple = ()
 
     @property
     def frequency(self) -> np.ndarray:
@@ -245,48 +273,98 @@ class CoupledModes:
         return np.divide(a, s, out=np.zeros_like(a), where=s > 0)
 
 
-def _compact(system: BubbleSystem):
-    """Dense Phi (n, m) over the real modes, their omega and damping."""
+def _compact(system: BubbleSystem, damping=None):
+    """Dense Phi (n, m) over the real modes, their omega and damping (``damping`` (C, Mx) instead of the system's)."""
     ncap, p, mx = system.phi.shape
     keep = np.abs(system.phi).sum(axis=1) > 0                     # (C, Mx) real modes
     cols = np.flatnonzero(keep.reshape(-1))
     big = np.zeros((system.n, ncap * mx))
     for i, (c, sl) in enumerate(zip(system.body, system.slot)):
         big[i, c * mx:(c + 1) * mx] = system.phi[c, sl - c * p]
-    return big[:, cols], system.omega.reshape(-1)[cols], system.damping.reshape(-1)[cols]
+    dmp = system.damping if damping is None else np.asarray(damping, float)
+    return big[:, cols], system.omega.reshape(-1)[cols], dmp.reshape(-1)[cols]
+
+
+def _diagonal_eigh(omega, mass):
+    """Eigenpairs of diag(omega^2) q = w^2 M q by Cholesky reduction (Golub & Van Loan, Matrix Computations, 4th ed., 8.7.2): ascending w, q^T M q = I.
+
+    :func:`resonance.symmetric_eigh` with the product by the diagonal stiffness done elementwise
+    (the same numbers; one n^3 matrix product fewer).
+    """
+    li = np.linalg.inv(np.linalg.cholesky((mass + mass.T) / 2))
+    a = (li * omega**2) @ li.T
+    w2, y = np.linalg.eigh((a + a.T) / 2)
+    return np.sqrt(np.maximum(w2, 0.0)), li.T @ y
+
+
+def _mutual_resistance(system: BubbleSystem, vol, k, wall_reflection: float, chunk: int = 16) -> np.ndarray:
+    """v_n^T S(k_n) v_n for each mode n, S_ij = sin(k d_ij)/(k d_ij) between capsules + R sin(k d'_ij)/(k d'_ij) to the images (Kinsler et al. ch. 7/8, mutual radiation resistance).
+
+    Over the pairs i < j (S is symmetric) and the images' diagonal, for ``chunk`` modes at a time.
+    """
+    n = system.n
+    if k.size == 0 or n == 0:
+        return np.zeros(k.size)
+    iu, ju = np.triu_indices(n, 1)
+    d = _distances(system.points, system.radii, False)[iu, ju]
+    other = system.body[iu] != system.body[ju]
+    i, j, dist, weight = [iu[other]], [ju[other]], [d[other]], [np.full(int(other.sum()), 2.0)]
+    if wall_reflection:
+        di = _distances(system.points, system.radii, True)
+        diag = np.arange(n)
+        i += [iu, diag]
+        j += [ju, diag]
+        dist += [di[iu, ju], di[diag, diag]]
+        weight += [np.full(iu.size, 2.0 * wall_reflection), np.full(n, float(wall_reflection))]
+    i, j, dist, weight = (np.concatenate(a) for a in (i, j, dist, weight))
+    out = np.empty(k.size)
+    vt = np.ascontiguousarray(vol.T)                                               # (K, n)
+    for s in range(0, k.size, chunk):
+        x = k[s:s + chunk, None] * dist[None, :]                                   # (chunk, pairs)
+        if np.all(x > 0):
+            sinc, scale = np.sin(x, out=x) / dist, 1.0 / k[s:s + chunk]              # sin(kd)/d, then / k
+        else:
+            sinc, scale = np.sinc(x / np.pi), 1.0
+        sinc *= vt[s:s + chunk, i]
+        sinc *= vt[s:s + chunk, j]
+        out[s:s + chunk] = (sinc @ weight) * scale
+    return out
 
 
 def coupled_modes(system: BubbleSystem, density: float, sound_speed: float,
-                  wall_reflection: float = 0.0) -> CoupledModes:
+                  wall_reflection: float = 0.0, max_omega: float | None = None,
+                  also_damping: Sequence = ()) -> CoupledModes:
     """Undamped modes Omega^2 q = w^2 (I + rho Phi^T g0 Phi) q and their Q (mutual radiation mass and resistance; Kinsler et al. ch. 7/8).
 
     Q_n = w_n / (q_n^T D q_n), q_n mass-normalized, D = diag(w_m/Q_m) of the capsules (viscous,
     thermal, own radiation) + Phi^T (rho w_n^2/(4 pi c)) S Phi with S_ij = sin(k d_ij)/(k d_ij)
     between capsules and R sin(k d'_ij)/(k d'_ij) for the wall images (mutual radiation resistance).
+    ``max_omega`` keeps only the modes up to it (the others' Q, n^2 terms each, is not computed).
+    ``also_damping``: other (C, Mx) modal dampings of the same system (e.g. without a declared Q);
+    their Q come in ``also_quality`` from the same eigensolution and radiation terms.
     """
     phi, om, dmp = _compact(system)
     if om.size == 0:
         z = np.zeros(0)
-        return CoupledModes(omega=z, volume=np.zeros((system.n, 0)), quality=z)
+        return CoupledModes(omega=z, volume=np.zeros((system.n, 0)), quality=z,
+                            also_quality=tuple(z for _ in also_damping))
     g0 = green_matrix(system.points, system.radii, system.body, None, wall_reflection)
     mass = np.eye(om.size) + density * phi.T @ g0 @ phi
-    w2, q = symmetric_eigh(np.diag(om**2), (mass + mass.T) / 2)
-    omega = np.sqrt(np.maximum(w2, 0.0))
+    omega, q = _diagonal_eigh(om, mass)
+    if max_omega is not None:
+        kept = int(np.count_nonzero(omega <= max_omega))       # ascending
+        omega, q = omega[:kept], q[:, :kept]
     vol = phi @ q
-    d = _distances(system.points, system.radii, False)
-    other = system.body[:, None] != system.body[None, :]
-    di = _distances(system.points, system.radii, True) if wall_reflection else None
-    quality = np.empty_like(omega)
-    for n_, w in enumerate(omega):
-        k = w / sound_speed
-        s = np.where(other, np.sinc(k * d / np.pi), 0.0)
-        if di is not None:
-            s = s + wall_reflection * np.sinc(k * di / np.pi)
-        c_n = (dmp * q[:, n_] ** 2).sum() + density * w**2 / (4 * np.pi * sound_speed) * (vol[:, n_] @ s @ vol[:, n_])
-        quality[n_] = w / c_n if c_n > 0 else np.inf
-    for arr in (omega, vol, quality):
+    radiated = radiation_resistance(omega, density, sound_speed) * _mutual_resistance(system, vol, omega / sound_speed,
+                                                                                     wall_reflection)
+    qualities = []
+    for damping in (dmp, *(_compact(system, a)[2] for a in also_damping)):
+        c_n = (damping[:, None] * q**2).sum(axis=0) + radiated
+        with np.errstate(divide="ignore"):
+            qualities.append(np.where(c_n > 0, omega / np.where(c_n > 0, c_n, 1.0), np.inf))
+    for arr in (omega, vol, *qualities):
         arr.setflags(write=False)
-    return CoupledModes(omega=omega, volume=vol, quality=quality)
+    return CoupledModes(omega=omega, volume=vol, quality=qualities[0], also_quality=tuple(qualities[1:]))
 
 
 def prepared_response(system: BubbleSystem, frequency, density: float, sound_speed: float,

@@ -98,6 +98,12 @@ def drag_load(load, delta, inv_plateau):
     return load * np.clip(1.0 - inv_plateau * delta, 0.0, None)
 
 
+def bjerknes_gap_factor(d, d_ref, n):
+    """Calibrated gap shape (d_ref/d)^n on the secondary Bjerknes force at centre distance d (paper Fig. S5; n = 0 keeps the monopole law)."""
+    with np.errstate(divide="ignore", over="ignore", invalid="ignore"):
+        return (d_ref / np.asarray(d, float)) ** n
+
+
 def substrate_factor(z, h):
     """Force factor 1 - exp(-z/h) near a rigid wall (image-source weakening, Leighton, The Acoustic Bubble, ch. 4; phenomenological)."""
     with np.errstate(divide="ignore", over="ignore"):
@@ -149,3 +155,7 @@ def effective_beam_force(delta, L, l, EI, e_scale=1.0, gradient=0.0, weight=0.0)
         if dd > 0.0:
             return P, 2 * h / dd
     return P, max(P / delta, k0)                   # still flat: the secant from the origin (finite, stiff)
+
+
+# The one table of declared effects lives in acl.physics.effect_table (no numpy: `acl check` reads it).
+from acl.physics.effect_table import EFFECT_TABLE  # noqa: E402,F401

@@ -16,6 +16,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from acl.physics.effects import bjerknes_gap_factor, drag_load
+from acl.physics.ties import TIE_RTOL, first_max
+
 
 def interface_centre_amplitude(volume_amplitude, radius):
     """Centre displacement eps = 2 |dV| / (pi R^2) of a paraboloidal pinned interface (cap volume pi R^2 eps / 2)."""
@@ -40,8 +43,9 @@ def thrust_magnitude(volume_amplitude, radius, omega, viscosity, streaming_const
     :func:`streaming_constant_from_critical_distance`).  Quadratic in eps, so thrust = gamma V^2
     (paper Eq. 3).
     """
-    eps = interface_centre_amplitude(volume_amplitude, radius)
-    return (streaming_constant * 6 * np.pi * np.asarray(viscosity, float) * np.asarray(omega, float) * eps**2)
+    area = np.pi * np.asarray(radius, float) ** 2               # eps^2 = 4 |dV|^2 / (pi R^2)^2
+    return (streaming_constant * 6 * np.pi * np.asarray(viscosity, float) * np.asarray(omega, float) * 4
+            * np.abs(volume_amplitude) ** 2 / area**2)
 
 
 def law_critical_distance(radius, omega, density, viscosity, streaming_constant):
@@ -57,14 +61,23 @@ def streaming_constant_from_critical_distance(d_c, radius, omega, density, visco
 
 
 def bjerknes_attraction(omega, volume_a, volume_b, distance, density):
-    """Attraction-positive secondary Bjerknes force rho w^2 Re(Va conj Vb) / (8 pi d^2) = -rho <dVa/dt dVb/dt>/(4 pi d^2) (Crum, J. Acoust. Soc. Am. 57, 1363 (1975); Leighton, The Acoustic Bubble, ch. 4)."""
+    """Secondary Bjerknes force of one tone: :func:`bjerknes_from_rates` of the rate product w^2 Re(Va conj Vb) (attraction positive)."""
     omega = np.asarray(omega, float)
     prod = np.real(np.asarray(volume_a) * np.conj(np.asarray(volume_b)))
-    return density * omega**2 * prod / (8 * np.pi * np.asarray(distance, float) ** 2)
+    return bjerknes_from_rates(omega**2 * prod, distance, density)
+
+
+def bjerknes_from_rates(rate_product, distance, density):
+    """Attraction-positive secondary Bjerknes force rho P / (8 pi d^2), P = sum over tones of w^2 Re(Va conj Vb) = 2 <dVa/dt dVb/dt> (Crum, J. Acoust. Soc. Am. 57, 1363 (1975); Leighton, The Acoustic Bubble, ch. 4).
+
+    Tones at different frequencies add in power (their cross terms average to zero), so ``rate_product``
+    is the sum of each tone's.  ``density`` may be an array (e.g. rho times a pair's factor).
+    """
+    return np.asarray(density, float) / (8 * np.pi) * rate_product / np.asarray(distance, float) ** 2
 
 
 def bjerknes_vectors(omega, volume_a, position_a, volume_b, position_b, density):
-    """Bjerknes force vectors (on a, on b) between two point volume sources (Crum, JASA 57, 1363 (1975)); equal and opposite."""
+    """Bjerknes force vectors (on a, on b) between two point volume sources: :func:`bjerknes_attraction` along the line of centres, equal and opposite."""
     pa = np.asarray(position_a, float)
     pb = np.asarray(position_b, float)
     sep = pb - pa
@@ -97,3 +110,129 @@ def jet_drag(momentum_flux, distance, cos_angle, target_radius):
     c = np.clip(np.asarray(cos_angle, float), 0.0, None)
     frac = np.minimum(1.0, 9 * np.asarray(target_radius, float) / (4 * x))
     return np.asarray(momentum_flux, float) * frac * c**2
+
+
+# ----------------------------------------------------------------------------------------------
+# The force model of many capsules at many configurations (leading batch axis B)
+# ----------------------------------------------------------------------------------------------
+
+
+def pressure_terms(unit, w2, pressure, scale):
+    """(thrust constant (..., T, n), Bjerknes weight (..., T)) of tone pressures (..., T) Pa: :func:`thrust_magnitude` per unit volume amplitude ``unit`` (T, n) x p^2 x each orifice's thrust scale (..., n), and the rate weight w^2 p^2 of :func:`bjerknes_from_rates` (volumes linear in p)."""
+    pressure = np.asarray(pressure, float)
+    return unit * pressure[..., :, None] ** 2 * np.asarray(scale, float)[..., None, :], w2 * pressure**2
+
+
+def force_constants(omega, radii, body, n_capsules: int, viscosity: float, density: float, streaming_constant: float,
+                    pressure, scale, pair, gap_shape=(0.0, 1.0)) -> dict:
+    """The position-independent factors of :func:`capsule_forces`: :func:`thrust_magnitude` per unit volume, :func:`pressure_terms`, :func:`bjerknes_from_rates` per unit rate and distance (other-capsule pairs, times ``pair`` (C, C)), the jet-drag mask (:func:`jet_drag`); ``gap_shape`` (n, d_ref) of :func:`acl.physics.effects.bjerknes_gap_factor`."""
+    w = np.asarray(omega, float)
+    body = np.asarray(body, int)
+    other = body[:, None] != body[None, :]
+    unit = thrust_magnitude(1.0, radii, w[:, None], viscosity, streaming_constant)
+    thrust, w2p2 = pressure_terms(unit, w**2, pressure, np.asarray(scale, float)[body])
+    return {
+        "thrust": thrust,             # (T, n) N per |dV/p|^2
+        "thrust_unit": unit,          # (T, n) per unit volume amplitude, before pressure and thrust scale
+        "other": other,
+        "w2p2": w2p2,
+        "w2": w**2,
+        "bjerknes": bjerknes_from_rates(1.0, 1.0, density * other * np.asarray(pair, float)[body][:, body]),
+        "drag_mask": body[:, None] != np.arange(n_capsules)[None, :],
+        "gap_exponent": float(gap_shape[0]),   # a declared bjerknes_scale shape (d_ref/d)^n; 0: the d^-2 law
+        "gap_ref": float(gap_shape[1]),
+    }
+
+
+def bjerknes_pair_sum(points, response, w2p2, coefficient, other, gap_exponent: float = 0.0, gap_ref: float = 1.0):
+    """Secondary Bjerknes force (B, n, 3) on every interface from every other capsule's, and the attraction (B, n, n): :func:`bjerknes_from_rates` of each pair along p_j - p_i, tones in power.
+
+    ``points`` (B, n, 3), ``response`` (B, T, n) volumes per pascal, ``w2p2`` (T,) or (B, T) rate weights,
+    ``coefficient`` (n, n) :func:`bjerknes_from_rates` at unit rate and distance (0 within a capsule),
+    ``other`` (n, n) the pairs of different capsules; ``gap_exponent``, ``gap_ref``: a declared shape
+    (:func:`acl.physics.effects.bjerknes_gap_factor`; exponent 0 is the monopole law).
+    """
+    sep = points[:, None, :, :] - points[:, :, None, :]                   # (B, i, j, 3)
+    d = np.where(other, np.sqrt((sep * sep).sum(axis=-1)), 1.0)
+    w2p2 = np.asarray(w2p2, float)
+    prod = np.einsum("t,bti,btj->bij" if w2p2.ndim == 1 else "bt,bti,btj->bij", w2p2, response,
+                     np.conj(response)).real
+    att = coefficient * prod / d**2
+    if gap_exponent:
+        att = att * bjerknes_gap_factor(d, gap_ref, gap_exponent)
+    c = att / d
+    return c @ points - c.sum(axis=-1)[..., None] * points, att          # sum_j c_ij (p_j - p_i)
+
+
+def jet_drag_on_capsules(thrust, points, normals, centres, outer, mask):
+    """Drag (B, C, 3) of every interface's jet on the other capsules: :func:`jet_drag` of each jet (momentum flux = its thrust (B, n)) on each capsule centre (B, C, 3) along the jet's normal (n, 3)."""
+    x = centres[:, None, :, :] - points[:, :, None, :]                    # (B, n, C, 3)
+    dist = np.sqrt((x * x).sum(axis=-1))
+    with np.errstate(invalid="ignore", divide="ignore"):   # positions a runaway solver step made non-finite:
+        cos = (x * normals[None, :, None, :]).sum(axis=-1) / dist         # NaN forces, which the solver rejects
+    drag = jet_drag(thrust[:, :, None], np.where(mask, dist, 1.0), cos, outer[None, None, :]) * mask
+    return drag.transpose(0, 2, 1) @ normals
+
+
+def capsule_forces(centres, body, offsets, normals, onehot, outer, response, consts: dict, points=None):
+    """Total acoustic force (B, C, 3) on each capsule at centres (B, C, 3): streaming thrust (:func:`thrust_magnitude`) + :func:`bjerknes_pair_sum` + :func:`jet_drag_on_capsules`.
+
+    Interfaces (n): ``body`` (n,) capsule index, ``offsets`` (n, 3) from the capsule centre, ``normals``
+    (n, 3) outward, ``onehot`` (n, C); ``outer`` (C,) the radius a jet drags; ``response`` (B, T, n) the
+    coupled volumes per pascal at these centres; ``consts`` :func:`force_constants` (or rows of them);
+    ``points`` the interface centres (B, n, 3) when the caller already has them.
+    Returns (total, points (B, n, 3), thrust per interface (B, n), attraction (B, n, n)).
+    """
+    pts = centres[:, body, :] + offsets if points is None else points     # (B, n, 3) orifice centres
+    thr = ((response.real**2 + response.imag**2) * consts["thrust"]).sum(axis=1)     # (B, n), tones added
+    bj, att = bjerknes_pair_sum(pts, response, consts["w2p2"], consts["bjerknes"], consts["other"],
+                                consts.get("gap_exponent", 0.0), consts.get("gap_ref", 1.0))
+    total = onehot.T @ (bj - thr[:, :, None] * normals)                 # (B, C, 3); thrust against the jet (module doc)
+    total = total + jet_drag_on_capsules(thr, pts, normals, centres, outer, consts["drag_mask"])
+    return total, pts, thr, att
+
+
+def neighbour_drag(total, centres, rest, near, inv_plateau):
+    """Forces (B, C, 3) with a neighbour's jet drag weakening as the capsule moves in: :func:`acl.physics.effects.drag_load` of each displacement from rest (capsules with ``near`` (C,) True only)."""
+    delta = np.linalg.norm(centres - rest[None], axis=-1) * np.asarray(near, float)
+    return drag_load(total, delta[..., None], inv_plateau)
+
+
+def capsule_pair_forces(points, attraction, body, n_capsules: int):
+    """Bjerknes vector (P, 3) on capsule a of every capsule pair a < b (``np.triu_indices`` order): the sum over interface pairs (i of a, j of b) of :func:`bjerknes_pair_sum`'s attraction along p_j - p_i."""
+    pa, pb = np.triu_indices(n_capsules, 1)
+    fa = np.zeros((pa.size, 3))
+    body = np.asarray(body, int)
+    oi, oj = np.nonzero(body[:, None] < body[None, :])
+    if oi.size:
+        sep = points[oj] - points[oi]
+        contrib = (attraction[oi, oj] / np.linalg.norm(sep, axis=-1))[:, None] * sep
+        a, b = body[oi], body[oj]
+        k = a * n_capsules - a * (a + 1) // 2 + (b - a - 1)
+        for axis in range(3):
+            fa[:, axis] = np.bincount(k, weights=contrib[:, axis], minlength=pa.size)
+    return fa
+
+
+def dominant_pair_phase(volumes, points, body, n_capsules: int, distance):
+    """(phase difference (P,) rad, distance (P,) m) of every capsule pair a < b between their dominant interfaces at the strongest tone of ``volumes`` (T, n); ties: the first declared interface, the first tone (acl.physics.ties); ``distance`` (P,) where a capsule has no interface."""
+    pa, pb = np.triu_indices(n_capsules, 1)
+    body = np.asarray(body, int)
+    dphi = np.zeros(pa.size)
+    gap = np.array(distance, float)
+    counts = np.bincount(body, minlength=n_capsules) if body.size else np.zeros(n_capsules, int)
+    has = counts > 0
+    if volumes.shape[0] and body.size:
+        mag = np.abs(volumes)                                         # (T, n)
+        starts = np.concatenate([[0], np.cumsum(counts)[:-1]])[has]   # interfaces are grouped by capsule
+        peak = np.full((volumes.shape[0], n_capsules), -np.inf)
+        peak[:, has] = np.maximum.reduceat(mag, starts, axis=1)
+        first = np.zeros((volumes.shape[0], n_capsules), int)
+        at_peak = np.where(mag >= peak[:, body] * (1 - TIE_RTOL), np.arange(body.size)[None, :], body.size)
+        first[:, has] = np.minimum.reduceat(at_peak, starts, axis=1)
+        ok = has[pa] & has[pb]
+        t = first_max(peak[:, pa[ok]] * peak[:, pb[ok]], axis=0)
+        ja, jb = first[t, pa[ok]], first[t, pb[ok]]
+        dphi[ok] = np.angle(volumes[t, ja] * np.conj(volumes[t, jb]))
+        gap[ok] = np.linalg.norm(points[jb] - points[ja], axis=-1)
+    return dphi, gap

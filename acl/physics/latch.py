@@ -26,6 +26,9 @@ import functools
 
 import numpy as np
 
+from acl.physics.roots import grid_max
+from acl.physics.springs import rect_second_moment
+
 
 def complete_elliptic(m):
     """Complete elliptic integrals K(m), E(m), 0 <= m < 1, by the arithmetic-geometric mean (Abramowitz & Stegun 17.6.1-17.6.4).
@@ -90,7 +93,7 @@ def _geometry(u, theta):
 
 
 def _scale(L: float, w: float, t: float, E: float) -> float:
-    return E * t * w**3 / 12.0 / L**2           # E I / L^2, N
+    return E * rect_second_moment(w, t) / L**2   # E I / L^2, N
 
 
 def latch_force(u, theta: float, L: float, w: float, t: float, E: float):
@@ -171,26 +174,10 @@ def latch_landscape(theta: float, L: float, w: float, t: float, E: float,
 
 
 def _refined_max(fn, u: np.ndarray, values: np.ndarray, lo: int, hi: int, iterations: int = 60) -> float:
-    """Largest ``fn`` on u[lo:hi]: the grid maximum refined by golden section (Kiefer 1953) between its neighbours.
+    """Largest ``fn`` on u[lo:hi]: the grid maximum refined by golden section (acl.physics.roots.grid_max).
 
     The extreme often sits at the buckling kink, between grid points: the grid alone underestimates
     the switching force (up to 5e-4 relative) and the release force (2e-3), so the margin it gives
     would be optimistic.  Never below the grid value.
     """
-    k = lo + int(np.argmax(values[lo:hi]))
-    a, b = u[max(k - 1, 0)], u[min(k + 1, u.size - 1)]
-    g = (np.sqrt(5.0) - 1.0) / 2.0
-    c, d = b - g * (b - a), a + g * (b - a)
-    fc, fd = float(fn(c)), float(fn(d))
-    best = max(float(values[k]), fc, fd)
-    for _ in range(iterations):
-        if fc >= fd:
-            b, d, fd = d, c, fc
-            c = b - g * (b - a)
-            fc = float(fn(c))
-        else:
-            a, c, fc = c, d, fd
-            d = a + g * (b - a)
-            fd = float(fn(d))
-        best = max(best, fc, fd)
-    return best
+    return float(grid_max(lambda x: float(fn(x)), u, values, lo, hi, iterations)[0])

@@ -199,6 +199,11 @@ def symmetric_eigh(k, m):
     return w2, li.T @ y
 
 
+def radiation_resistance(omega, density, sound_speed):
+    """Radiation resistance rho w^2/(4 pi c) of a compact monopole per unit volume velocity squared (Kinsler et al., Fundamentals of Acoustics, simple source; Leighton, The Acoustic Bubble, 3.4)."""
+    return density * omega**2 / (4 * np.pi * sound_speed)
+
+
 def capsule_modes(volume, radii, density, surface_tension, ambient_pressure, polytropic_index,
                   viscosity, sound_speed, thermal_radius, heat_capacity_ratio=1.4,
                   thermal_diffusivity=2.1e-5, quality_override=None,
@@ -223,7 +228,7 @@ def capsule_modes(volume, radii, density, surface_tension, ambient_pressure, pol
     vol = b @ x                                  # (n_orifices, keep)
     vtot = vol.sum(axis=0)
     c_v = np.einsum("in,ij,jn->n", x, c_visc, x)
-    c_rad = density * omega**2 / (4 * np.pi * sound_speed) * vtot**2
+    c_rad = radiation_resistance(omega, density, sound_speed) * vtot**2
     phi = thermal_polytropic(omega, thermal_radius, heat_capacity_ratio, thermal_diffusivity)
     c_th = np.abs(phi.imag) * ambient_pressure / (volume * omega) * vtot**2
     q = omega / (c_v + c_rad + c_th)
@@ -232,6 +237,14 @@ def capsule_modes(volume, radii, density, surface_tension, ambient_pressure, pol
     for arr in (omega, q, vol):
         arr.setflags(write=False)
     return BubbleModes(omega=omega, quality=q, orifice_volume=vol)
+
+
+def modal_dynamic_stiffness(natural, damping, omega):
+    """Dynamic stiffness w_n^2 - w^2 + i w c_n of mass-normalized modes, c_n = w_n/Q_n (Meirovitch, Elements of Vibration Analysis, ch. 7); its inverse is the modal receptance.
+
+    ``natural`` w_n and ``damping`` c_n (rad/s, any batch of modes) broadcast against the drive ``omega`` (rad/s).
+    """
+    return natural**2 - omega**2 + 1j * omega * damping
 
 
 def volume_response(modes: BubbleModes, frequency) -> np.ndarray:
@@ -243,5 +256,5 @@ def volume_response(modes: BubbleModes, frequency) -> np.ndarray:
     w = 2 * np.pi * np.atleast_1d(np.asarray(frequency, float))
     phi = modes.orifice_volume                         # (n_or, n)
     force = phi.sum(axis=0)                            # modal force per Pa of compression
-    den = (modes.omega**2)[None, :] - (w**2)[:, None] + 1j * w[:, None] * (modes.omega / modes.quality)[None, :]
+    den = modal_dynamic_stiffness(modes.omega[None, :], (modes.omega / modes.quality)[None, :], w[:, None])
     return (force[None, :] / den) @ phi.T

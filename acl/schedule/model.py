@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-SCHEDULE_VERSION = "1.1"
+SCHEDULE_VERSION = "1.2"           # 1.2: steps counted from 1 (1.1 and earlier: from 0)
 
 
 @dataclass(frozen=True)
@@ -70,10 +70,12 @@ class GoalReport:
     target_m: np.ndarray | None = None
     predicted_m: np.ndarray | None = None
     amplitudes_v: np.ndarray | None = None
+    band_plot: dict | None = None              # the band around the path (acl.schedule.experiment.explain's "plot")
 
     def as_dict(self) -> dict:
         d = {
-            "name": self.name, "kind": self.kind, "step": self.step,
+            # steps counted from 1 in every output, as the CLI, segments.csv and analyze count them (self.step: index)
+            "name": self.name, "kind": self.kind, "step": self.step + 1,
             "start_s": self.start_s, "end_s": self.end_s,
             "frequencies_hz": list(self.frequencies_hz), "model": self.model,
             "rms_error_um": None if self.rms_error_m is None else self.rms_error_m * 1e6,

@@ -20,6 +20,8 @@ from fractions import Fraction
 
 import numpy as np
 
+from acl.schedule.model import Schedule, ScheduledTone, Segment
+
 
 def common_period_samples(frequencies, sample_rate: float, max_samples: int = 1 << 20) -> int | None:
     """Smallest M with f_k * M / fs integer for every tone (frequencies to 1 mHz), or None."""
@@ -171,3 +173,35 @@ def group_peaks(frequencies, phases, amplitudes: np.ndarray, sample_rate: float 
                 window: int = 4096, chunk: int = 512) -> np.ndarray:
     """Analog peak bound (V) of each row of ``amplitudes`` (N, K) with shared tones and phases."""
     return analog_peaks(frequencies, phases, amplitudes)
+
+
+def choose_all_phases(sched: Schedule, fs: float) -> None:
+    """Pick low-peak phases per group of consecutive segments sharing the same frequencies (phases
+    the user gave are kept), and record each segment's analog peak bound."""
+    segs = sched.segments
+    i = 0
+    while i < len(segs):
+        key = tuple(t.frequency_hz for t in segs[i].tones)
+        j = i
+        while j + 1 < len(segs) and tuple(t.frequency_hz for t in segs[j + 1].tones) == key \
+                and segs[j + 1].goal == segs[i].goal:
+            j += 1
+        group = segs[i:j + 1]
+        amps = np.array([[t.amplitude_v for t in s.tones] for s in group]).reshape(len(group), -1)
+        tones0 = group[0].tones
+        phases = np.array([t.phase_rad for t in tones0])
+        if any(t.sweep for t in tones0):
+            peaks = np.abs(amps).sum(axis=1)
+        else:
+            if len(key) > 1:
+                worst = amps[int(np.argmax(amps.sum(axis=1)))]
+                phases, _ = choose_phases(key, worst, fs, fixed=[t.phase_fixed for t in tones0],
+                                          start=phases)
+            peaks = group_peaks(key, phases, amps, fs)
+        for m in range(i, j + 1):
+            s = segs[m]
+            segs[m] = Segment(s.start_s, s.end_s, tuple(
+                ScheduledTone(t.frequency_hz, t.amplitude_v, float(p), t.frequency_end_hz, t.sweep,
+                              t.phase_fixed)
+                for t, p in zip(s.tones, phases)), s.step, s.goal, float(peaks[m - i]))
+        i = j + 1

@@ -135,8 +135,36 @@ def run_sweep(design: Design, spec: SweepSpec, quantities=None, at: str | None =
     if dropped and quantities is None:
         notes.append(f"{len(dropped)} column(s) left out: " + next(iter(dropped.values())))
     notes += [why for why in unevaluated.values()]
-    return SweepTable(assemble(parts, order), spec, units=units, notes=notes, unevaluated=unevaluated,
+    from acl.sweep.evaluate import per_point_names
+
+    slow = [c for c in cols if c in per_point_names(design, at)]
+    if slow:
+        notes.append(f"{len(slow)} column(s) computed point by point by `acl analyze`'s engine, with the declared "
+                     f"effects applied ({', '.join(slow[:4])}{', ...' if len(slow) > 4 else ''}): about 0.1 s per point")
+    data = assemble(parts, order)
+    notes += model_form_notes(data)
+    if quantities is not None and any(r.kind in ("margin", "gap") for r in design.requires) and "model_form_uncertain" not in cols \
+            and "model_form_uncertain" in choose_quantities(design, None, at)[0]:
+        notes.append("the yield's interval is not widened by the model-form uncertainty past the validity limits: "
+                     "add --quantity model_form_uncertain (acl.sweep.model_form)")
+    return SweepTable(data, spec, units=units, notes=notes, unevaluated=unevaluated,
                       n_requires=len(design.requires), field_map=fmap)
+
+
+def model_form_notes(data) -> list[str]:
+    """A note on the points past a soft validity limit (acl.sweep.model_form), when there are any."""
+    if data.dtype.names is None or "model_form_rel" not in data.dtype.names:
+        return []
+    rel = np.where(data["valid"], data["model_form_rel"], 0.0)
+    past = int(np.count_nonzero(rel > 0))
+    if not past:
+        return []
+    unc = (int(np.count_nonzero(data["valid"] & data["model_form_uncertain"]))
+           if "model_form_uncertain" in data.dtype.names else 0)
+    return [(f"{past} of {len(data)} points are past a soft validity limit (interface amplitude eps/R > 0.25 or pair "
+            f"distance < 2 x the orifice radii: acl.physics.validity): their forces carry a model-form uncertainty up "
+            f"to {float(rel.max()):.0%} (column model_form_rel); {unc} of them have a margin or gap verdict it could "
+            "flip, and the yield's interval counts them both ways (model_form_uncertain)")]
 
 
 def sweep(design, vary=None, tolerance=None, n=None, seed=0, quantities=None, at=None, scheduler=None,

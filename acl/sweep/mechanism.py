@@ -28,6 +28,7 @@ from __future__ import annotations
 import numpy as np
 
 from acl.physics import batch as PB
+from acl.physics.roots import illinois_ascending
 from acl.physics.beams import eq1_small_force_stiffness
 
 STEP_REACH = 2.5e-6       # m; largest accepted move of the coordinates in one continuation step
@@ -507,7 +508,7 @@ class Mechanism:
             m = self if rows.size == self.n else self.sub(rows)
             dd = d[rows]
             hi = np.where(cur["has_fold"][rows], cur["s_fold"][rows], cur["s_max"][rows])
-            s, fs, _ = PB.illinois_ascending(lambda x, _st: (m._v2(x, dd, freqs, volts) - 1.0, None),
+            s, fs, _ = illinois_ascending(lambda x, _st: (m._v2(x, dd, freqs, volts) - 1.0, None),
                                              np.zeros(rows.size), hi, -np.ones(rows.size),
                                              m._v2(hi, dd, freqs, volts) - 1.0, 60, 1e-13, 1e-15)
             good = np.abs(fs) <= 1e-9

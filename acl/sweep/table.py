@@ -32,6 +32,7 @@ class Yield:
     total: int
     lower: float
     upper: float
+    widened: int = 0          # points whose verdict a model-form uncertainty could flip (the interval counts them both ways)
 
     @property
     def value(self) -> float:
@@ -56,7 +57,7 @@ class Yield:
 
     def as_dict(self) -> dict:
         return {"yield": self.value, "lower": self.lower, "upper": self.upper, "passed": self.passed, "total": self.total,
-                "confidence": CONFIDENCE, "interval": "clopper-pearson"}
+                "confidence": CONFIDENCE, "interval": "clopper-pearson", "model_form_points": self.widened}
 
 
 def clopper_pearson(k: int, n: int, confidence: float = CONFIDENCE) -> tuple[float, float]:
@@ -71,10 +72,17 @@ def clopper_pearson(k: int, n: int, confidence: float = CONFIDENCE) -> tuple[flo
     return lo, hi
 
 
-def binomial_yield(passed: np.ndarray) -> Yield:
+def binomial_yield(passed: np.ndarray, uncertain: np.ndarray | None = None) -> Yield:
+    """k of n pass with the Clopper-Pearson interval; ``uncertain`` points (a verdict that the model-form uncertainty
+    past a validity limit could flip: acl.sweep.model_form) widen it: the lower bound counts the uncertain passes as
+    failures, the upper bound the uncertain failures as passes (issue 24)."""
     k, n = int(np.count_nonzero(passed)), int(passed.size)
-    lo, hi = clopper_pearson(k, n)
-    return Yield(k, n, lo, hi)
+    if uncertain is None or not np.any(uncertain):
+        lo, hi = clopper_pearson(k, n)
+        return Yield(k, n, lo, hi)
+    up = int(np.count_nonzero(passed & uncertain))
+    down = int(np.count_nonzero(~passed & uncertain))
+    return Yield(k, n, clopper_pearson(k - up, n)[0], clopper_pearson(k + down, n)[1], up + down)
 
 
 @dataclass
@@ -212,13 +220,20 @@ class SweepTable:
             ok &= self.data[f"require_{i}_pass"]
         return ok
 
+    @property
+    def uncertain(self) -> np.ndarray | None:
+        """Valid points whose verdict the model-form uncertainty past a validity limit could flip (None: not computed)."""
+        if "model_form_uncertain" not in self.columns:
+            return None
+        return self.data["valid"] & self.data["model_form_uncertain"]
+
     def yields(self) -> dict[str, Yield]:
         """``{"all": ..., "require_1": ..., "valid": ...}``: the yield of every require that was evaluated
         (a point counts when it is valid and passes it), of all of them together, and of validity."""
         out = {}
         p = self.passed
         if p is not None:
-            out["all"] = binomial_yield(p)
+            out["all"] = binomial_yield(p, self.uncertain)
         for i in range(1, self.n_requires + 1):
             c = f"require_{i}_pass"
             if c in self.columns:
@@ -233,6 +248,22 @@ class SweepTable:
             return None
         return p.reshape(self.spec.n_grid, self.spec.samples).mean(axis=1).reshape(self.spec.grid_shape)
 
+    def grid_yields(self) -> list[tuple[str, Yield]]:
+        """One ``(label, Yield)`` per grid point of a Monte Carlo grid sweep, axes in order (label
+        ``radius=10 um, gap=20 um``); empty without a grid, without samples or with a require unevaluated."""
+        p = self.passed
+        if p is None or not self.spec.axes or not self.spec.montecarlo:
+            return []
+        per = p.reshape(self.spec.n_grid, self.spec.samples)
+        unc = self.uncertain
+        unc = None if unc is None else unc.reshape(self.spec.n_grid, self.spec.samples)
+        out = []
+        for g in range(self.spec.n_grid):
+            idx = np.unravel_index(g, self.spec.grid_shape)
+            label = ", ".join(f"{a.name}={_short(a.values[i], a.unit)}" for a, i in zip(self.spec.axes, idx))
+            out.append((label, binomial_yield(per[g], None if unc is None else unc[g])))
+        return out
+
     def summary_line(self) -> str:
         """``yield 0.93 [0.91, 0.95] (930 of 1000 points; ...)`` or, for a grid, ``pass 12 of 41 points``."""
         y = self.yields()
@@ -242,6 +273,9 @@ class SweepTable:
             return f"yield not computed: {'; '.join(self.unevaluated.values())} ({len(self)} points{extra})"
         a = y["all"]
         what = "every require" if self.n_requires else "no require: valid points"
+        if a.widened:
+            extra += (f"; interval widened by {a.widened} point(s) whose verdict the model-form uncertainty past a "
+                      "validity limit could flip")
         if self.spec.montecarlo:
             return f"yield {a.text()} ({a.passed} of {a.total} points pass {what}{extra})"
         return f"pass {a.passed} of {a.total} points ({what}{extra})"

@@ -392,7 +392,7 @@ def prepare(path: str, tolerance: Sequence[str] = (), samples: int = 2000, valid
     """
     from acl.design.resolve import load_design
     from acl.diagnostics import DiagnosticError, Span, error
-    from acl.sweep.evaluate import supported
+    from acl.sweep.evaluate import per_point_names, supported
 
     diags = []
     validate = samples if validate is None else validate
@@ -424,8 +424,16 @@ def prepare(path: str, tolerance: Sequence[str] = (), samples: int = 2000, valid
                            "state what must hold, e.g. `require separation(m) >= 30 kHz` (docs/language.md)"))
     else:
         names, missing = supported(design)
+        slow = per_point_names(design)
         for i, r in enumerate(design.requires, start=1):
-            if f"require_{i}_value" not in names:
+            if f"require_{i}_value" in slow:
+                # acl sweep gives it point by point (acl.sweep.points, ~0.1 s a point): too slow for a search
+                # that evaluates --samples points at each of --max-evals candidates
+                diags.append(error("E873", f"`{r.text}` cannot be evaluated batched, so acl tune cannot use it: the "
+                                   "design declares effects that change it, which only `acl analyze`'s engine point by "
+                                   "point gives (acl sweep does)", r.span,
+                                   "remove it or state it another way; docs/tune.md lists what acl tune evaluates"))
+            elif f"require_{i}_value" not in names:
                 why = next((v for k, v in missing.items() if k.split("_")[:2] == ["require", str(i)]), None)
                 diags.append(error("E873", f"`{r.text}` cannot be evaluated batched, so acl tune cannot use it"
                                    + (f": {why}" if why else ""), r.span,

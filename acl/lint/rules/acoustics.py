@@ -120,8 +120,7 @@ def _intended(ctx: Context, step, rel: np.ndarray, freqs) -> list[set[str]]:
         return [on for _ in freqs]
     out = []
     for j, f in enumerate(freqs):
-        inband = {c.name for c in ctx.design.capsules
-                  if any(abs(f - m.frequency_hz) <= m.frequency_hz / (2 * m.q) for m in ctx.modes(c))}
+        inband = ctx.analysis.in_band(f)
         out.append(inband or {names[first_max(rel[:, j])]})
     return out
 
@@ -134,6 +133,7 @@ def unintended_excitation(ctx: Context):
         return
     ratio = ctx.threshold("crosstalk_ratio")
     names = [c.name for c in ctx.design.capsules]
+    index = {n: i for i, n in enumerate(names)}
     for p, st in ctx.steps():
         if st.kind not in ("drive", "follow", "hold", "switch"):
             continue                              # a sweep excites everything on purpose
@@ -143,23 +143,29 @@ def unintended_excitation(ctx: Context):
         rel = ctx.relative_thrust(freqs)
         intended = _intended(ctx, st, rel, freqs)
         for j, f in enumerate(freqs):
-            for i, name in enumerate(names):
-                if name in intended[j] or rel[i, j] <= ratio:
+            for i in np.flatnonzero(rel[:, j] > ratio).tolist():     # capsule order, as the message list
+                name = names[i]
+                if name in intended[j]:
                     continue
+                shown = sorted(index[n] for n in intended[j] | {name} if n in index)
                 yield ctx.finding("ACL104",
                     f"the {khz(f)} tone of program `{p.name}` drives `{name}` at {rel[i, j]:.0%} of its peak thrust "
                     f"(meant for {', '.join(f'`{n}`' for n in sorted(intended[j]))})", st.span, notes=[
                         f"threshold crosstalk_ratio = {ratio:g} (thrust relative to the capsule's own peak)",
-                        *(f"`{c.name}` modes: " + ", ".join(f"{khz(m.frequency_hz)} (Q {m.q:.3g})" for m in ctx.modes(c))
-                          for c in ctx.design.capsules if c.name in intended[j] | {name})],
+                        *(_modes_note(ctx, names[c]) for c in shown)],
                     hint="move the tone or the capsule's resonance apart, or accept it with a justified suppression")
+
+
+def _modes_note(ctx: Context, name: str) -> str:
+    return ctx.cached(("modes_note", name), lambda: f"`{name}` modes: " + ", ".join(
+        f"{khz(m.frequency_hz)} (Q {m.q:.3g})" for m in ctx.modes(name)))
 
 
 @rule("ACL105", "bubble-beyond-linear",
       "a drive that moves an interface beyond the linear regime makes every predicted force untrustworthy",
       Severity.WARNING, "acoustics", ("linear_amplitude", "sweep_samples"))
 def bubble_beyond_linear(ctx: Context):
-    from acl.analysis.acoustics import interface_amplitudes, interface_labels, sweep_interface_amplitudes
+    from acl.analysis.acoustics import interface_labels
     from acl.design.model import Drive, Tone
 
     limit = ctx.threshold("linear_amplitude")
@@ -167,13 +173,12 @@ def bubble_beyond_linear(ctx: Context):
     labels = interface_labels(ctx.design)
     for p, st in ctx.steps():
         if st.kind == "drive":
-            amps = ctx.cached(("eps", tuple((t.frequency, t.amplitude, t.phase) for t in st.drive.tones)),
-                              lambda: interface_amplitudes(ctx.design, st.drive))
+            amps = ctx.analysis.interface_amplitudes(st.drive)
             k, v = first_max_item(amps)                      # ties: the first declared (acl.physics.ties)
             worst, where, at = (v, k, st.drive) if v > 0.0 else (0.0, "", None)
         elif st.kind == "sweep":        # every sampled tone in one coupled solve
             freqs = np.linspace(st.f_start, st.f_stop, n)
-            eps = sweep_interface_amplitudes(ctx.design, freqs, st.amplitude)      # (F, interfaces)
+            eps = ctx.analysis.sweep_interface_amplitudes(freqs, st.amplitude)    # (F, interfaces)
             worst, where, at = 0.0, "", None
             if eps.size:
                 j, i = np.unravel_index(first_max(eps.reshape(-1)), eps.shape)   # the first largest (ties: acl.physics.ties)

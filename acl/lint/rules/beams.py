@@ -56,11 +56,19 @@ def beam_loads(ctx: Context, beam):
                      "free-cantilever load does not apply; not checked without --mechanics")
             return out
         L, l, EI = beam.length, beam.rigid_length, beam.bending_stiffness
-        axis = np.asarray(beam.axis, float)
-        ci = [c.name for c in ctx.design.capsules].index(cap)
         for p in ctx.design.programs:
             worst = None
-            for st in p.steps:
+            if linked:
+                steps = list(enumerate(p.steps))
+            else:         # the strongest drive step, over every free beam at once; then the `follow` paths
+                steps = _program_follows(ctx, p).get(cap, [])
+                top = _program_loads(ctx, p)
+                bi = _free_beams(ctx)[0].index(beam.name)
+                if top is not None and top[0][bi] > -np.inf:
+                    P, i, k = float(top[0][bi]), int(top[1][bi]), int(top[2][bi])
+                    st = p.steps[i]
+                    worst = (float(eq1_deflection(P, L, l, EI)), P, st, f"drive {_tones(ctx.step_drives(st)[k])}", i)
+            for i, st in steps:
                 if st.kind == "follow":
                     if st.capsule != cap:
                         continue
@@ -68,34 +76,98 @@ def beam_loads(ctx: Context, beam):
                     if ext is None:
                         continue
                     P = float(eq1_force(ext, L, l, EI))
-                    cand = (ext, P, st, f"path of `follow` reaches {um(ext)} from rest")
+                    cand = (ext, P, st, f"path of `follow` reaches {um(ext)} from rest", i)
                 elif st.kind == "hold" and st.mode == "cross" and cap in (st.a.split(".")[0], st.b.split(".")[0]):
                     continue          # the pair ends in contact: the load at rest geometry does not apply
-                elif linked:   # the mechanism's equilibrium (mechanics enabled)
+                else:          # linked: the mechanism's equilibrium (mechanics enabled)
                     cand = None
                     for drive in ctx.step_drives(st):
                         defl, P = _equilibrium_load(ctx, beam, cap, drive)
                         if cand is None or P > cand[1]:
-                            cand = (defl, P, st, f"drive {_tones(drive)} (equilibrium of the linked mechanism)")
+                            cand = (defl, P, st, f"drive {_tones(drive)} (equilibrium of the linked mechanism)", i)
                     if cand is None:
                         continue
-                else:
-                    drives, forces = ctx.step_forces(st)       # (D, C, 3), all drives of the step at once
-                    if not drives:
-                        continue
-                    F = forces[:, ci]
-                    loads = np.linalg.norm(F - (F @ axis)[:, None] * axis, axis=1)
-                    k = int(np.argmax(loads))                  # the first strongest drive
-                    P = float(loads[k])
-                    cand = (float(eq1_deflection(P, L, l, EI)), P, st, f"drive {_tones(drives[k])}")
-                if worst is None or cand[1] > worst[1]:
+                # the first strongest step (in program order)
+                if worst is None or cand[1] > worst[1] or (cand[1] == worst[1] and cand[4] < worst[4]):
                     worst = cand
             if worst is not None:
-                defl, P, st, how = worst
+                defl, P, st, how, _ = worst
                 strain = P * (L + l) * _half_depth(beam) / EI
                 out[p.name] = (defl, strain, P, st, how)
         return out
     return ctx.cached(("beam", beam.name), compute)
+
+
+def _free_beams(ctx: Context):
+    """(beam names, carried capsule index (B,), unit axes (B, 3)) of every beam that carries a capsule."""
+    def compute():
+        index = {c.name: i for i, c in enumerate(ctx.design.capsules)}
+        rows = [(b.name, index[cap], np.asarray(b.axis, float)) for b in ctx.design.beams
+                if (cap := _carried(ctx, b)) is not None]
+        return ([r[0] for r in rows], np.array([r[1] for r in rows], int),
+                np.array([r[2] for r in rows], float).reshape(-1, 3))
+    return ctx.cached("free_beams", compute)
+
+
+def _program_follows(ctx: Context, program) -> dict[str, list]:
+    """{capsule: [(step index, step)]} of the `follow` steps of ``program``."""
+    def compute():
+        out: dict[str, list] = {}
+        for i, st in enumerate(program.steps):
+            if st.kind == "follow":
+                out.setdefault(st.capsule, []).append((i, st))
+        return out
+    return ctx.cached(("follows", id(program)), compute)
+
+
+def _program_loads(ctx: Context, program):
+    """For every beam of :func:`_free_beams`, its strongest load at rest over the drive steps of ``program``
+    (the first strongest step, and in it the first strongest drive): (load (B,) N or -inf, step index (B,),
+    drive index (B,)); None when the program applies no drive.  A `cross` of a pair does not load its
+    capsules' beams (the pair ends in contact)."""
+    def compute():
+        names, ci, _ = _free_beams(ctx)
+        caps = [ctx.design.capsules[i].name for i in ci.tolist()]
+        rows, where, ks = [], [], []
+        for i, st in enumerate(program.steps):
+            if st.kind == "follow":
+                continue
+            loads = _step_loads(ctx, st)
+            if loads is None:
+                continue
+            P = np.array(loads[1], float)          # a copy: the cross mask below
+            if st.kind == "hold" and st.mode == "cross":
+                ends = (st.a.split(".")[0], st.b.split(".")[0])
+                P[[c in ends for c in caps]] = -np.inf
+            rows.append(P)
+            where.append(i)
+            ks.append(loads[0])
+        if not rows:
+            return None
+        M = np.array(rows).reshape(len(rows), len(names))
+        best = np.argmax(M, axis=0)                       # the first strongest step
+        cols = np.arange(len(names))
+        return M[best, cols], np.array(where)[best], np.array(ks).reshape(M.shape)[best, cols]
+    return ctx.cached(("program_loads", id(program)), compute)
+
+
+def _step_loads(ctx: Context, step):
+    """For every beam of :func:`_free_beams`: (index of the first strongest drive (B,), its load
+    perpendicular to the beam (B,) N, the drives), over the drives of ``step`` at rest; None without drives."""
+    drives = ctx.step_drives(step)
+    if not drives:
+        return None
+
+    def compute():          # per set of drives (steps with the same tones share it); forces not kept
+        _, ci, axes = _free_beams(ctx)
+        F = np.array([ctx.analysis.force_array(d)[ci] for d in drives]).reshape(len(drives), ci.size, 3)
+        along = np.einsum("dbk,bk->db", F, axes)
+        loads = np.linalg.norm(F - along[..., None] * axes, axis=-1)
+        k = np.argmax(loads, axis=0)                      # the first strongest drive
+        return k, loads[k, np.arange(k.size)]
+    key = tuple(tuple((t.frequency, t.amplitude, t.phase) for t in d.tones) for d in drives)
+    k, loads = ctx.cached(("step_loads", key), compute)
+    return k, loads, drives
 
 
 def _tones(drive) -> str:

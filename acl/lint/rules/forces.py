@@ -37,19 +37,11 @@ def snap_in(ctx: Context):
         for st in p.steps:
             for drive in ctx.step_drives(st):
                 amp = sum(t.amplitude for t in drive.tones)
-                tab = ctx.pair_table(drive)
-                # closer than margin x d_c (NaN compares False: no d_c, no snap-in), not both fixed
-                close = np.flatnonzero((tab.distance < margin * tab.critical_distance) & ~ctx.fixed_pairs(tab))
-                if close.size == 0:
-                    continue
-                close = close[_pushed_apart(ctx, drive, tab.a[close], tab.b[close])]
-                for k in close:
-                    a, b = tab.names[tab.a[k]], tab.names[tab.b[k]]
-                    key = tuple(sorted((a, b)))
+                for key, row in _snap_candidates(ctx, drive, margin):
                     if key in crossing:
                         continue
                     if key not in flagged or amp > flagged[key][0]:
-                        flagged[key] = (amp, st, drive, tab.row(k))
+                        flagged[key] = (amp, st, drive, row)
         for key, (amp, st, drive, pf) in sorted(flagged.items()):
             verdict = _mechanics_verdict(ctx, drive, pf)
             if verdict is False:
@@ -68,6 +60,20 @@ def snap_in(ctx: Context):
                         "snaps in (acl.analysis.mechanics)" if verdict else
                         "not computed (set `mechanics = true` in the configuration or pass --mechanics)")],
                 hint="increase the gap, or use `cross gap(a, b)` if the program means to bring them together")
+
+
+def _snap_candidates(ctx: Context, drive, margin: float):
+    """[(sorted pair names, :class:`PairForce`)] of the pairs under ``drive`` closer than ``margin`` x d_c
+    (NaN compares False: no d_c, no snap-in), not both fixed, each pushed away from the other by its own
+    thrust (Eq. 3's premise); cached per drive (the rows only: a design's pair tables are not kept)."""
+    def compute():
+        tab = ctx.pair_table(drive)
+        close = np.flatnonzero((tab.distance < margin * tab.critical_distance) & ~ctx.fixed_pairs(tab))
+        if close.size:
+            close = close[_pushed_apart(ctx, drive, tab.a[close], tab.b[close])]
+        return [(tuple(sorted((tab.names[tab.a[k]], tab.names[tab.b[k]]))), tab.row(k)) for k in close.tolist()]
+    key = ("snap", tuple((t.frequency, t.amplitude, t.phase) for t in drive.tones), margin)
+    return ctx.cached(key, compute)
 
 
 def _mechanics_verdict(ctx: Context, drive, pf) -> bool | None:
@@ -93,6 +99,34 @@ def _mechanics_verdict(ctx: Context, drive, pf) -> bool | None:
     return True if state.status == "snap_in" else None
 
 
+def _sign_changes(ctx: Context, freqs: np.ndarray, significance: float) -> list:
+    """[(a, b, peak |force| per V^2, attracting frequencies, repelling frequencies)] of the pairs whose
+    Bjerknes force under 1 V single tones at ``freqs`` changes sign where it matters next to the pair's own
+    thrust (|Bjerknes| >= significance x the larger thrust); pairs of fixed capsules left out.  Cached per
+    frequency set; one frequency's pair table at a time (a design's (F, pairs) masks are not built)."""
+    def compute():
+        names = [c.name for c in ctx.design.capsules]
+        thrust = ctx.analysis.thrust_per_v2(freqs)                     # (capsules, F), N at 1 V
+        ia, ib = np.triu_indices(len(names), 1)                        # acl.analysis.acoustics.pair_table's rows
+        vals_all = np.empty((freqs.size, ia.size))
+        pos_any = np.zeros(ia.size, bool)
+        neg_any = np.zeros(ia.size, bool)
+        for j, f in enumerate(freqs.tolist()):
+            vals = vals_all[j] = ctx.pair_table(Drive(tones=(Tone(frequency=f, amplitude=1.0),))).attraction
+            strong = np.abs(vals) >= significance * np.maximum(thrust[ia, j], thrust[ib, j])
+            pos_any |= strong & (vals > 0)
+            neg_any |= strong & (vals < 0)
+        fixed = ctx.analysis.fixed()
+        cand = np.flatnonzero(pos_any & neg_any & ~(fixed[ia] & fixed[ib]))
+        vals_c = vals_all[:, cand]                                      # (F, K)
+        strong_c = np.abs(vals_c) >= significance * np.maximum(thrust[ia[cand], :], thrust[ib[cand], :]).T
+        pos_c, neg_c = strong_c & (vals_c > 0), strong_c & (vals_c < 0)
+        return [(names[ia[k]], names[ib[k]], np.abs(vals_c[:, i]).max(),
+                 [float(f) for f in freqs[pos_c[:, i]]], [float(f) for f in freqs[neg_c[:, i]]])
+                for i, k in enumerate(cand.tolist())]
+    return ctx.cached(("sign_changes", tuple(freqs.tolist()), significance), compute)
+
+
 def program_range(ctx: Context, program) -> tuple[float, float] | None:
     fs = [f for st in program.steps for f in ctx.step_frequencies(st)]
     if not fs or max(fs) <= min(fs) * (1 + 1e-9):
@@ -107,33 +141,15 @@ def program_range(ctx: Context, program) -> tuple[float, float] | None:
 def force_sign_change(ctx: Context):
     if len(ctx.design.capsules) < 2:
         return
-    from acl.analysis.acoustics import selectivity
-
     significance = ctx.threshold("force_significance")
-    names = [c.name for c in ctx.design.capsules]
     for p in ctx.design.programs:
         rng = program_range(ctx, p)
         if rng is None:
             continue
         freqs = ctx.sweep_frequencies(*rng)
-        thrust = selectivity(ctx.design, freqs).thrust_per_v2          # (capsules, F), N at 1 V
-        tabs = [ctx.pair_table(Drive(tones=(Tone(frequency=float(f), amplitude=1.0),))) for f in freqs]
-        if not tabs or tabs[0].a.size == 0:
+        if not freqs.size:
             continue
-        ia, ib = tabs[0].a, tabs[0].b
-        vals_all = np.array([t.attraction for t in tabs])                            # (F, P)
-        push_all = np.maximum(thrust[ia, :], thrust[ib, :]).T                       # (F, P)
-        # a sign only counts where the Bjerknes force matters next to the pair's own thrust
-        strong_all = np.abs(vals_all) >= significance * push_all
-        pos_all = strong_all & (vals_all > 0)
-        neg_all = strong_all & (vals_all < 0)
-        candidates = pos_all.any(axis=0) & neg_all.any(axis=0) & ~ctx.fixed_pairs(tabs[0])
-        for k in np.flatnonzero(candidates):
-            a, b = names[ia[k]], names[ib[k]]
-            vals = vals_all[:, k]
-            scale = np.abs(vals).max()
-            pos = [float(f) for f in freqs[pos_all[:, k]]]
-            neg = [float(f) for f in freqs[neg_all[:, k]]]
+        for a, b, scale, pos, neg in _sign_changes(ctx, freqs, significance):
             if pos and neg:
                 yield ctx.finding("ACL202",
                     f"`{a}` and `{b}` attract and repel within the {khz(rng[0])} .. {khz(rng[1])} range of program `{p.name}`",

@@ -1,0 +1,308 @@
+"""The 95 % band's cause and cure: which declared uncertainty dominates it, and which bench measurement narrows it.
+
+A follow goal's band (:func:`acl.schedule.bands.error_band`) comes from draws of the declared uncertainty.  This
+module linearises the same forward model around the nominal design, one direction per independent source (each
+transducer gain-table point, log-normal with the declared relative sd; each uncertain parameter, 1 sd), so that
+
+* :func:`explain` attributes the band's variance to the sources (first-order variance decomposition: each source's
+  share of the expected squared tracking error, ``sum_i |J_ij|^2 / sum_ij |J_ij|^2`` with ``J`` the path's
+  sensitivity per 1 sd; correlations between parameters are left out of the shares, not of the bands), checks the
+  linearised band against the Monte Carlo one, and
+* designs the experiment that narrows it: candidate readings are the capsule's static displacement (x, y) under one
+  tone at one voltage, read with an assumed noise (:data:`READING_NOISE_M` per axis); each reading's Fisher
+  information ``H^T H / sigma^2`` (``H``: its sensitivity per 1 sd) updates the prior covariance (Kalman form,
+  ``S' = S - S H^T (H S H^T + sigma^2 I)^-1 H S``), and readings are chosen greedily to minimise the expected squared
+  tracking error ``tr(J S' J^T)`` (A-optimal for the path; Atkinson, Donev & Tobias, *Optimum Experimental
+  Designs*, 2007, ch. 10).  The expected band is the 95th percentile of the linearised RMS error under ``S'``: what
+  a recompile with the measured values would leave.
+
+Numbers only; the compiler stores them in the goal's ``details["band"]`` and a note.
+"""
+from __future__ import annotations
+
+from typing import Callable
+
+import numpy as np
+
+from acl.design.model import Design
+from acl.schedule import bands
+
+# Assumed noise of one reading (m, per axis): a capsule's position tracked in a video over a held tone, averaged
+# over about 30 frames (acl track's synthetic error is 0.01 px RMS per frame; 0.1 um leaves room for drift and
+# the pixel scale).  Stated with every proposal.
+READING_NOISE_M = 0.1e-6
+STEP = 0.5                 # finite-difference step, in sds (central differences)
+MAX_READINGS = 4           # at most this many readings proposed
+DRAWS = 4000               # draws of the linearised band
+TOP = 3                    # sources listed (largest shares first)
+
+
+Many = Callable[[list, list, np.ndarray], list]     # (designs, tones Hz, u (N, K) V^2) -> [(N, 2) m or exception]
+
+
+def directions(design: Design, reload=None) -> tuple[list, np.ndarray]:
+    """([(label, kind, frequency Hz or None, sd, make(t) -> Design)], prior correlation (D, D)) of the declared sources.
+
+    ``make(t)``: the design moved by ``t`` sds along the source (a gain-table point times ``exp(s t)``; a parameter by
+    ``t`` sd).  The prior of the moves is N(0, R): independent gain points, the parameters' declared correlation."""
+    unc = bands.declared(design, with_params=reload is not None)
+    out = []
+    if unc.gain_sd > 0 and design.transducer is not None:
+        sds = unc.gain_sds
+        t = design.transducer
+        fs = list(t.gain_frequencies) + [f for f, _ in unc.pinned]
+        for j in range(unc.n_table):
+            def make(x, j=j):
+                f = np.ones(unc.n_table)
+                f[j] = np.exp(sds[j] * x)
+                return bands._with_gain(design, f)
+            measured = j >= len(t.gain_frequencies)
+            label = (f"transducer gain at {fs[j] / 1e3:g} kHz ("
+                     + ("measured" if measured else "table point") + f", {sds[j]:.0%})")
+            out.append((label, "gain", float(fs[j]), float(sds[j]), make))
+    P = len(unc.names)
+    sd = np.sqrt(np.maximum(np.diag(unc.cov), 0.0)) if P else np.zeros(0)
+    for i, name in enumerate(unc.names):
+        if sd[i] <= 0:
+            continue
+
+        def make(x, i=i):
+            theta = unc.mean.copy()
+            theta[i] = theta[i] + x * sd[i]
+            return bands._with_params(design, unc, theta, reload)
+        out.append((f"parameter {name} (+- {sd[i]:.3g} {unc.units[i]})".replace("  ", " "), "parameter", None,
+                    float(sd[i]), make))
+    D = len(out)
+    R = np.eye(D)
+    keep = [i for i in range(P) if sd[i] > 0]
+    if keep:
+        C = unc.cov[np.ix_(keep, keep)]
+        s = sd[keep]
+        R[D - len(keep):, D - len(keep):] = C / np.outer(s, s)
+    return out, R
+
+
+def sensitivity(design: Design, dirs, many: Many, tones, u_rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(nominal (N, 2), J (N, 2, D)): the prediction and its derivative per 1 sd of each source (central differences
+    of ``STEP`` sd; a move whose model fails counts as no sensitivity there)."""
+    moved = []
+    for _, _, _, _, make in dirs:
+        for x in (STEP, -STEP):
+            try:
+                moved.append(make(x))
+            except (ValueError, KeyError):
+                moved.append(None)
+    live = [k for k, d in enumerate(moved) if d is not None]
+    got = many([design, *[moved[k] for k in live]], list(tones), u_rows)
+    nominal = got[0]
+    if isinstance(nominal, Exception):
+        raise nominal
+    nominal = np.asarray(nominal, float)
+    preds: list = [None] * len(moved)
+    for k, g in zip(live, got[1:]):
+        preds[k] = None if isinstance(g, Exception) else np.asarray(g, float)
+    J = np.zeros((*nominal.shape, len(dirs)))
+    for j in range(len(dirs)):
+        a, b = preds[2 * j], preds[2 * j + 1]
+        if a is not None and b is not None:
+            J[..., j] = np.nan_to_num((a - b) / (2 * STEP))
+    return nominal, J
+
+
+def linear_band(e0: np.ndarray, J: np.ndarray, S: np.ndarray, disc: float = 0.0, seed: int = 0) -> tuple[float, float]:
+    """(RMS, max) 95th percentiles of the tracking error ``e0 + J z``, ``z ~ N(0, S)`` (plus ``disc`` per axis)."""
+    rng = np.random.default_rng([seed, 28])
+    w, V = np.linalg.eigh(0.5 * (S + S.T))
+    L = V * np.sqrt(np.maximum(w, 0.0))
+    z = rng.standard_normal((DRAWS, S.shape[0])) @ L.T                     # (DRAWS, D)
+    err = e0[None] + np.einsum("nad,sd->sna", J, z)
+    if disc > 0:
+        err = err + rng.normal(0.0, disc, err.shape)
+    r = np.linalg.norm(err, axis=2)
+    return float(np.percentile(np.sqrt(np.mean(r ** 2, axis=1)), 95)), float(np.percentile(r.max(axis=1), 95))
+
+
+def update(S: np.ndarray, H: np.ndarray, noise: float) -> np.ndarray:
+    """Posterior covariance after a reading ``y = H z + e``, ``e ~ N(0, noise^2 I)`` (Kalman form)."""
+    G = H @ S @ H.T + noise ** 2 * np.eye(H.shape[0])
+    K = S @ H.T @ np.linalg.solve(G, np.eye(H.shape[0]))
+    return S - K @ H @ S
+
+
+def _score(J2: np.ndarray, S: np.ndarray) -> float:
+    return float(np.trace(J2 @ S @ J2.T))
+
+
+def _covs(J: np.ndarray, S: np.ndarray) -> list:
+    """[[xx, xy, yy]] m^2 per waypoint: ``J_i S J_i^T``."""
+    C = np.einsum("nad,de,nbe->nab", J, S, J)
+    return [[float(c[0, 0]), float(c[0, 1]), float(c[1, 1])] for c in C]
+
+
+def candidates(design: Design, tones, u: np.ndarray) -> list[tuple[float, float]]:
+    """[(tone Hz, volts)]: each goal tone and each gain-table frequency inside the transducer's band, at the largest
+    single-tone amplitude the goal plays, at half and at a quarter of it (a range the plan already drives; :func:`explain`
+    keeps those that move the capsule at most twice as far as the path reaches)."""
+    t = design.transducer
+    fs = {float(f) for f in tones}
+    if t is not None:
+        lo, hi = (t.band if getattr(t, "band", None) else (min(t.gain_frequencies), max(t.gain_frequencies)))
+        fs |= {float(f) for f in t.gain_frequencies if lo <= f <= hi}
+    v = float(np.sqrt(np.max(u))) if u.size else 0.0
+    if v <= 0:
+        return []
+    return [(f, x) for f in sorted(fs) for x in (v / 4, v / 2, v)]
+
+
+def explain(design: Design, many: Many, capsule: str, tones, u: np.ndarray, targets: np.ndarray, *,
+            reload=None, band=None, noise: float = READING_NOISE_M, seed: int = 0) -> dict | None:
+    """The band's cause and cure for a follow goal (module docstring); None when nothing is declared or the model fails.
+
+    ``u`` (K, M) V^2 and ``targets`` (M, 2) m at the re-simulated waypoints; ``band`` the Monte Carlo one
+    (:class:`acl.schedule.bands.Band`) for the check."""
+    dirs, R = directions(design, reload)
+    if not dirs:
+        return None
+    try:
+        p0, J = sensitivity(design, dirs, many, tones, u.T)
+    except (ValueError, KeyError, FloatingPointError):
+        return None
+    ok = np.all(np.isfinite(p0), axis=1)
+    if not ok.any():
+        return None
+    p0, J, tg = p0[ok], J[ok], np.asarray(targets, float)[ok]
+    e0 = p0 - tg
+    disc = float(design.discrepancy or 0.0)
+    rms0, max0 = linear_band(e0, J, R, disc, seed)
+    v = np.mean(np.sum(J ** 2, axis=1), axis=0)                               # (D,) mean squared error per 1 sd
+    total = float(v.sum())
+    shares = v / total if total > 0 else np.zeros_like(v)
+    order = np.argsort(-shares)
+    sources = [{"source": dirs[j][0], "kind": dirs[j][1], "frequency_hz": dirs[j][2], "sd": dirs[j][3],
+                "share": round(float(shares[j]), 4)} for j in order[:TOP]]
+    gain_share = float(sum(shares[j] for j in range(len(dirs)) if dirs[j][1] == "gain"))
+    out = {"sources": sources, "gain_table_share": round(gain_share, 4),
+           "other_sources_share": round(float(shares[order[TOP:]].sum()), 4),
+           "linearised_rms_p95_m": rms0, "linearised_max_p95_m": max0,
+           "monte_carlo_rms_p95_m": None if band is None else float(band.rms_p95_m),
+           # per re-simulated waypoint: predicted position and the 2x2 covariance the sources give it (the plot's band;
+           # the compiler keeps it off schedule.json)
+           "plot": {"waypoints_m": [[float(a), float(b)] for a, b in p0], "cov_m2": _covs(J, R)}}
+    # the experiment: readings chosen greedily to minimise the expected squared tracking error
+    cands = candidates(design, tones, u)
+    reach = float(np.max(np.linalg.norm(tg, axis=1)))      # the path's farthest point from rest
+    H = {}
+    by_tone: dict = {}
+    for f, x in cands:
+        by_tone.setdefault(f, []).append(x)
+    for f, vs in by_tone.items():
+        try:
+            y0, Hf = sensitivity(design, dirs, many, [f], np.array([[x * x] for x in vs]))
+        except (ValueError, KeyError, FloatingPointError):
+            continue
+        for r, x in enumerate(vs):
+            if np.all(np.isfinite(y0[r])) and np.linalg.norm(y0[r]) <= 2 * reach:
+                H[(f, x)] = (Hf[r], y0[r])
+    J2 = J.reshape(-1, J.shape[-1]) / np.sqrt(J.shape[0])
+    S, chosen, best = R.copy(), [], _score(J2, R)
+    for _ in range(MAX_READINGS):
+        trial = {c: _score(J2, update(S, h, noise)) for c, (h, _) in H.items() if c not in chosen}
+        if not trial:
+            break
+        c = min(trial, key=trial.get)
+        if trial[c] > best * 0.9:        # less than 10 % more of the squared error removed: stop
+            break
+        chosen.append(c)
+        S, best = update(S, H[c][0], noise), trial[c]
+    if chosen:
+        rms1, max1 = linear_band(e0, J, S, disc, seed)
+        out["plot"]["cov_after_m2"] = _covs(J, S)
+        post_sd = np.sqrt(np.maximum(np.diag(S), 0.0))
+        out["measurement"] = {
+            "observable": f"static displacement (x, y) of capsule `{capsule}` under one tone",
+            "noise_m": noise,
+            "readings": [{"frequency_hz": f, "voltage_v": round(x, 4),
+                          "expected_displacement_m": [float(a) for a in H[(f, x)][1]]} for f, x in chosen],
+            "expected_rms_p95_m": rms1, "expected_max_p95_m": max1,
+            "posterior_sd": [{"source": dirs[j][0], "prior": 1.0, "after": round(float(post_sd[j]), 4)}
+                             for j in order[:3]],
+        }
+    return out
+
+
+def summary(name: str, ex: dict) -> str:
+    """One note for the CLI and schedule.json: the dominant source with its share, the proposed readings, the band after."""
+    top = ex["sources"][0]
+    s = (f"{name}: the 95 % band's dominant cause is the {top['source']}, {top['share']:.0%} of its variance "
+         f"(all gain-table points together: {ex['gain_table_share']:.0%}; linearised band "
+         f"{ex['linearised_rms_p95_m'] * 1e6:.3g} um RMS")
+    if ex.get("monte_carlo_rms_p95_m") is not None:
+        s += f" against {ex['monte_carlo_rms_p95_m'] * 1e6:.3g} um from the draws"
+    s += ")"
+    m = ex.get("measurement")
+    if m:
+        reads = ", ".join(f"{r['frequency_hz'] / 1e3:g} kHz at {r['voltage_v']:.3g} V" for r in m["readings"])
+        s += (f"; to narrow it, measure the {m['observable']} at {reads} (assumed noise {m['noise_m'] * 1e6:.3g} um "
+              f"per axis): expected band after recompiling with the measured values "
+              f"{m['expected_rms_p95_m'] * 1e6:.3g} um RMS / {m['expected_max_p95_m'] * 1e6:.3g} um max")
+        if m.get("model_form_m"):
+            s += (f", of which {m['model_form_m'] * 1e6:.3g} um is the model-form term of the validity limits the "
+                  "step is past, which these readings do not remove")
+    return s
+
+
+def moved(design: Design, z, reload=None) -> Design:
+    """The design with every source of :func:`directions` moved by ``z`` sds at once (a truth drawn from the prior, or
+    the estimate a measurement gives)."""
+    unc = bands.declared(design, with_params=reload is not None)
+    dirs, _ = directions(design, reload)
+    z = np.asarray(z, float)
+    ng = sum(1 for d in dirs if d[1] == "gain")
+    d = design
+    if len(dirs) > ng:
+        theta = unc.mean.copy()
+        sd = np.sqrt(np.maximum(np.diag(unc.cov), 0.0))
+        live = [i for i in range(len(unc.names)) if sd[i] > 0]
+        theta[live] = theta[live] + z[ng:] * sd[live]
+        d = bands._with_params(design, unc, theta, reload)
+    if ng:
+        d = bands._with_gain(d, np.exp(unc.gain_sds * z[:ng]))
+    return d
+
+
+def estimate(R: np.ndarray, readings) -> tuple[np.ndarray, np.ndarray]:
+    """(posterior mean, covariance) of the sources (in sds) from ``readings`` [(H (2, D), observed - nominal (2,) m,
+    noise m)]: the linear Gaussian update of the prior N(0, R), one reading after the other."""
+    m, S = np.zeros(R.shape[0]), R.copy()
+    for H, r, noise in readings:
+        G = H @ S @ H.T + noise ** 2 * np.eye(H.shape[0])
+        K = S @ H.T @ np.linalg.inv(G)
+        m = m + K @ (np.asarray(r, float) - H @ m)
+        S = S - K @ H @ S
+    return m, S
+
+
+def fit_readings(design: Design, many: Many, readings, observed, noise: float, reload=None,
+                 iterations: int = 6) -> np.ndarray:
+    """The sources (in sds) that readings ``[(tone Hz, volts)]`` with ``observed`` displacements ((2,) m each) point to:
+    the maximum a posteriori estimate under the prior N(0, R), by Gauss-Newton with the Jacobian taken again at each
+    estimate (a reading's displacement grows as the gain squared, so the nominal slope alone over- or undershoots)."""
+    dirs, R = directions(design, reload)
+    D = len(dirs)
+    z = np.zeros(D)
+    y = np.concatenate([np.asarray(o, float) for o in observed])
+    for _ in range(iterations):
+        rows, hs = [], []
+        for f, v in readings:
+            zs = [z] + [z + s * STEP * e for e in np.eye(D) for s in (1, -1)]
+            got = many([moved(design, x, reload) for x in zs], [f], np.array([[v * v]]))
+            got = [np.asarray(g, float)[0] for g in got]
+            hs.append(got[0])
+            rows.append(np.stack([(got[1 + 2 * j] - got[2 + 2 * j]) / (2 * STEP) for j in range(D)], axis=1))
+        H, h = np.concatenate(rows), np.concatenate(hs)
+        G = H @ R @ H.T + noise ** 2 * np.eye(len(y))
+        new = R @ H.T @ np.linalg.solve(G, y - h + H @ z)
+        if np.max(np.abs(new - z)) < 1e-4:
+            return new
+        z = new
+    return z
