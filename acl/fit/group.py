@@ -192,6 +192,24 @@ def block(inst, unit, name, rows, f, v, gamma0, alpha_ref, ftable) -> GroupBlock
                       kind, oi, oj, axis, obase, **extra)
 
 
+SNAP_KEEP = 0.04      # relative change of a snapped row's loads at rest (and of its laws) that keeps it snapped
+
+
+def _still_snapped(blk: GroupBlock, was, sig) -> np.ndarray:
+    """(r,) bool: rows in contact at the last evaluation whose branch folded at a continuation step below the last
+    (the fold at most (N_STEPS - 1)/N_STEPS of the full load) and whose thrust and Bjerknes sums at rest changed by at
+    most SNAP_KEEP relative since they were last followed, the stiffness, elastica weight, gradient, gap exponent and
+    neighbour drag by at most SNAP_KEEP: the fold cannot have moved past full load (it would take a change of
+    1/N_STEPS = 12.5 %), so the row is still in contact without being followed again."""
+    prev = blk.__dict__.get("verified")
+    if prev is None or prev.shape != sig.shape or blk.fold is None or blk.fold[0].shape != was.shape:
+        return np.zeros(was.shape, bool)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        rel = np.abs(sig[:, :2] / prev[:, :2] - 1.0)
+    near = (rel <= SNAP_KEEP).all(axis=1) & (np.abs(sig[:, 2:] - prev[:, 2:]) <= SNAP_KEEP).all(axis=1)
+    return was & near & (blk.fold[0] <= N_STEPS - 2)
+
+
 def _mode_factors(P, blk, coeffs, effects, t):
     """(r, T, n) factor on each orifice's squared volume amplitude from free f0 / Q and bubble shrinkage: the one-mode
     ratio |H(f; f_n', Q')|^2 / |H(f; f_n, Q)|^2 of the mode the orifice dominates (acl.physics.effects), normalised so
@@ -228,10 +246,44 @@ def _mode_factors(P, blk, coeffs, effects, t):
     return np.where(np.isfinite(out), out, 0.0)
 
 
+def _distinct_rows(P, blk: GroupBlock):
+    """(block of the distinct rows, index of each row's) when rows repeat (repeated ramps: every input of a row's
+    prediction, its tones, time and observable, bitwise the same), else None; made once per block."""
+    if "distinct" not in blk.__dict__:
+        import dataclasses
+
+        r = blk.rows
+        key = np.column_stack([P.f[r], P.v[r], P.t[r], blk.kind, blk.oi, blk.oj, blk.axis, blk.obase, blk.fidx])
+        _, first, inv = np.unique(np.ascontiguousarray(key).view(np.uint64), axis=0, return_index=True,
+                                  return_inverse=True)
+        red = None
+        if first.size < r.size:
+            order = np.argsort(first)
+            rank = np.empty_like(order)
+            rank[order] = np.arange(order.size)
+            keep = first[order]
+            per_row = {k: getattr(blk, k)[keep] for k in ("rows", "tau", "arel", "kind", "oi", "oj", "axis", "obase",
+                                                         "fidx")}
+            red = (dataclasses.replace(blk, cache=None, closing=None, fold=None, **per_row), keep, rank[inv.ravel()])
+        blk.__dict__["distinct"] = red
+    return blk.__dict__["distinct"]
+
+
 def predict(P, blk: GroupBlock, coeffs, effects, w, gamma, alpha, es, lam, grad, c_p) -> tuple:
     """(predicted observable change (m, relative to the row's ``base``), snapped (r,) bool, latch push / switching
     force (r,)) of the block's rows; ``w`` (r, T) the squared drive pressure per V^2 of each tone (gain, its effects),
-    the rest as in acl.fit.forward._predict."""
+    the rest as in acl.fit.forward._predict.  Repeated rows are solved once (:func:`_distinct_rows`; each row's
+    inputs are the same, so is its number), unless a coefficient is given per row."""
+    red = None if "tone_weight" in coeffs else _distinct_rows(P, blk)
+    if red is not None:
+        sub, keep, inv = red
+        ch, sn, ra = _predict_block(P, sub, coeffs, effects, w[keep], gamma, alpha, es, lam, grad, c_p)
+        return ch[inv], sn[inv], ra[inv]
+    return _predict_block(P, blk, coeffs, effects, w, gamma, alpha, es, lam, grad, c_p)
+
+
+def _predict_block(P, blk: GroupBlock, coeffs, effects, w, gamma, alpha, es, lam, grad, c_p) -> tuple:
+    """:func:`predict` of every row of ``blk``."""
     from acl.fit.latch import latch_travel_exact
 
     r, N, C, n = blk.rows.size, blk.law.size, len(blk.caps), blk.orif_cap.size
@@ -454,10 +506,19 @@ def predict(P, blk: GroupBlock, coeffs, effects, w, gamma, alpha, es, lam, grad,
         was = blk.contact_rows() if blk.cache is not None and blk.cache.shape == (r, m) else np.zeros(r, bool)
         z = np.zeros((r, m))
         good = np.zeros(r, bool)
-        tried = everyone[~was]                      # rows in contact last time go straight to their continuation
+        # rows that snapped last time with their fold at least one continuation step (1/N_STEPS of the load) below full
+        # load, whose loads at rest and laws have changed since by far less than that step: still past their fold
+        sig = np.column_stack([thrust.sum(axis=1), np.abs(A).sum(axis=(1, 2)),
+                               np.broadcast_to([np.log(es), lam, grad or 0.0, n_gap, c_p * scale_len], (r, 5))])
+        kept = _still_snapped(blk, was, sig)
+        if kept.any():
+            snapped[kept] = True
+            closing[kept] = blk.closing[kept]
+            was = was & ~kept
+        tried = everyone[~was & ~kept]               # rows in contact last time go straight to their continuation
         if tried.size:
             z[tried], good[tried], _ = solve(start[tried], np.ones(tried.size), tried, 8)
-        todo = everyone[~good]
+        todo = everyone[~good & ~kept]
         first = np.ones(r, int)                       # first continuation step of each row
         if todo.size:
             z[todo] = 0.0
@@ -469,7 +530,7 @@ def predict(P, blk: GroupBlock, coeffs, effects, w, gamma, alpha, es, lam, grad,
                     zl, ok, _ = solve(z_prev[again], k_prev[again] / N_STEPS, again)
                     z[again[ok]] = zl[ok]
                     first[again[ok]] = k_prev[again[ok]] + 1
-        last_good = np.zeros(r, int)
+        last_good = np.where(kept, blk.fold[0] if kept.any() else 0, 0)
         for step in range(1, N_STEPS + 1):
             rows_ = todo[first[todo] <= step]
             if todo.size == 0:
@@ -489,7 +550,9 @@ def predict(P, blk: GroupBlock, coeffs, effects, w, gamma, alpha, es, lam, grad,
                 snapped[bad] = True
                 last_good[bad] = step - 1
             todo = np.setdiff1d(todo, bad)
-        blk.fold = (np.where(snapped, last_good, 0), z.copy())
+        blk.fold = (np.where(snapped, last_good, 0), np.where(kept[:, None], blk.fold[1], z) if kept.any() else z.copy())
+        prev = blk.__dict__.get("verified")
+        blk.__dict__["verified"] = np.where(kept[:, None], prev, sig) if kept.any() else sig
         for i, j in {(int(a), int(b)) for a, b in closing[snapped]}:
             sel = np.flatnonzero(snapped & (closing[:, 0] == i) & (closing[:, 1] == j))
             warm = start[sel] if blk.cache is not None else z[sel]
