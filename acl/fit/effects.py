@@ -140,3 +140,26 @@ SEARCHED = tuple(k for k, e in EFFECTS.items() if e.search)   # the default sear
 
 def effect(name: str) -> Effect:
     return EFFECTS[name]
+
+
+def declared_effects(design) -> dict:
+    """The effects ``design`` declares (``effect ID { ... }``) as the fit's effects dict (effect id -> {parameter:
+    value}, internal coordinates, acl.analysis.effects.coefficients): the base model the fit starts from.  A declared
+    ``bjerknes_scale`` with a shape (gap_exponent n at gap_ref) is the fit's bjerknes_scale and bjerknes_shape, the
+    factor taken to the fit's reference distance: factor (gap_ref/d)^n = factor (gap_ref/GAP_REF)^n (GAP_REF/d)^n.
+    Effects the fit does not model are left out (the analysis notes them)."""
+    from acl.analysis.effects import bjerknes_shape, coefficients
+
+    out: dict = {}
+    for eff in getattr(design, "effects", ()) or ():
+        if eff.name not in EFFECTS:
+            continue
+        c = coefficients(design, eff.name)
+        if eff.name == "bjerknes_scale":
+            n, ref = bjerknes_shape(c)
+            out["bjerknes_scale"] = {"factor": float(c["factor"]) * ((ref / GAP_REF) ** n if n else 1.0)}
+            if n:
+                out["bjerknes_shape"] = {"gap_exponent": float(n)}
+            continue
+        out[eff.name] = {p.name: float(c[p.name]) for p in EFFECTS[eff.name].params if p.name in c}
+    return out

@@ -93,6 +93,7 @@ class Prepared:
     gamma_side: np.ndarray = None    # (2, n) bool: side c's capsule is one of them
     latch_geometries: list = None    # the geometry (acl.analysis.mechanics.latch_geometry) of each of latch_tables
     options: ForwardOptions = field(default_factory=ForwardOptions)
+    declared: dict = field(default_factory=dict)     # the design's declared effects (fixed in the base model)
 
     def volume_shift(self, c, fn, lnx):
         """Natural frequency of side ``c`` after its gas volume changed by a factor exp(lnx) (rows), from the tables."""
@@ -293,7 +294,7 @@ def prepare(data, load_instance, f_ref: float | None = None, gamma_caps=None) ->
                     medium, latch_id, latch_tables, caps == ref_cap, ref_cap, units,
                     exp if exp is not None else np.full(n, "", dtype=object), modes0, {}, side_table, ftables,
                     groups, group_row, state, ref_orifice=ref_orifice, gamma_caps=gamma_caps, gamma_side=gamma_side,
-                    latch_geometries=list(latch_index))
+                    latch_geometries=list(latch_index), declared=dict(ref.declared))
 
 
 def eq3_alpha_param(design):
@@ -341,6 +342,7 @@ def predict(P: Prepared, coeffs: dict, effects: dict, latch_blend: float = 0.0) 
     capsule's natural frequency and Q), ``f0@CAP`` / ``q@CAP`` (one capsule's), absent = design value;
     ``effects``: effect id -> {param: value} (internal coordinates, acl.fit.effects).  ``latch_blend`` > 0: a lone
     latch's shuttle travel smoothed across its switch (:func:`latch_travel`; a search device, not the model)."""
+    effects = _with_declared(P, effects)
     key = _memo_key(P, coeffs, effects, latch_blend) if P.options.memo > 0 else None
     if key is not None:
         memo = P.__dict__.setdefault("_memo", {})
@@ -368,7 +370,7 @@ def predict_many(P: Prepared, items) -> list:
     (:func:`_pair_solve`) is read, not replaced: it changes which work a solve skips, never its numbers.  With groups
     or latch states (whose solves keep state from one prediction to the next), or the warm start inside FD_COLUMNS,
     one after the other."""
-    items = list(items)
+    items = [(c, _with_declared(P, e)) for c, e in items]
     if len(items) < 2 or (P.options.warm and FD_COLUMNS.active) or P.groups or _layout(P)["any_state"] or not np.any(P.pair):
         return [predict(P, c, e) for c, e in items]
     out: list = [None] * len(items)
@@ -410,6 +412,12 @@ def predict_many(P: Prepared, items) -> list:
             memo[keys[i]] = res.copy()
         out[i] = res
     return out
+
+
+def _with_declared(P: Prepared, effects: dict) -> dict:
+    """``effects`` over the design's declared ones (P.declared, acl.fit.effects.declared_effects): a fitted effect
+    replaces the declared effect of the same id."""
+    return {**P.declared, **effects} if P.declared else effects
 
 
 class Model:

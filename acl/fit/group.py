@@ -33,7 +33,7 @@ import numpy as np
 from acl.fit import beam as B
 from acl.fit.effects import GAP_REF
 from acl.physics.effects import drag_load, elastica_blend, mode_response_ratio, substrate_factor
-from acl.physics.forces import jet_drag
+from acl.physics.forces import capsule_forces
 
 N_STEPS = 8
 N_NEWTON = 12
@@ -299,12 +299,6 @@ def _predict_block(P, blk: GroupBlock, coeffs, effects, w, gamma, alpha, es, lam
     thrust = (blk.tau * wt).sum(axis=1) * (g_o * sub)[None, :]                       # (r, n)
     wab = w[:, :, None, None] if res is None else w[:, :, None, None] * np.sqrt(res[:, :, :, None] * res[:, :, None, :])
     A = alpha * (blk.arel * wab).sum(axis=1) * np.sqrt(np.outer(sub, sub))[None]    # (r, n, n)
-    onehot = np.zeros((n, C))
-    onehot[np.arange(n), blk.orif_cap] = 1.0
-    to_node = np.zeros((C, N))
-    to_node[np.arange(C), blk.cap_node] = 1.0
-    own = np.einsum("ro,ok,oc->rck", thrust, -blk.normals, onehot)                  # (r, C, 3) own thrust
-    dragged = blk.orif_cap[:, None] != np.arange(C)[None, :]                         # (n, C): a jet drags others
     beam = blk.law == 0
     cd, ct = B.stiffness_integrals(blk.L, blk.l, blk.EI * es, grad)
     cd = np.where(beam, cd, blk.cd)
@@ -331,76 +325,59 @@ def _predict_block(P, blk: GroupBlock, coeffs, effects, w, gamma, alpha, es, lam
         return x
 
     moves = N > 1 and bool(blk.engines)
-    if moves:
-        wab_all = wab if res is not None else np.broadcast_to(wab, w.shape + (1, 1))
-        wt_all = np.broadcast_to(wt, w.shape + (n,))
-        a_scale = alpha / blk.alpha_ref if blk.alpha_ref else 1.0
-
-    if moves:
-        eng = blk.engines[0]
-        k_thr = eng.consts["thrust"][:, blk.orif_ix]                                  # (F, n) thrust per |dV/p|^2
-        k_att = (eng.consts["bjerknes"][np.ix_(blk.orif_ix, blk.orif_ix)][None]
-                 * eng.consts["w2p2"][:, None, None])                                 # (F, n, n)
-        nf = eng.f.size
-
-    def responses(xc, rows_):
-        """(thrust (B, n), Bjerknes attraction x distance^2 (B, n, n)) of the group's orifices with its capsules
-        displaced by xc: the analysis' coupled volumes at that configuration (acl.analysis.acoustics _Engine, one
-        linear solve per configuration for every frequency), each tone weighted by its drive, gain effects and mode
-        factors."""
-        Bn = xc.shape[0]
-        centres = np.repeat(blk.all_rest[None], Bn, axis=0)
-        centres[:, blk.cap_ix] += xc
-        u = eng.response(centres[:, eng.lay.body] + eng.lay.offsets)[:, :, blk.orif_ix]   # (B, F, n) per pascal
-        fi = blk.fidx[rows_]
-        W = np.zeros((Bn, nf, n))
-        Wab = np.zeros((Bn, nf, n, n))
-        wr, wabr = wt_all[rows_], wab_all[rows_]
-        b = np.arange(Bn)
-        for t in range(fi.shape[1]):
-            on = fi[:, t] >= 0
-            np.add.at(W, (b[on], fi[on, t]), wr[on, t])
-            np.add.at(Wab, (b[on], fi[on, t]), wabr[on, t])
-        thr = ((u.real**2 + u.imag**2) * k_thr[None] * W).sum(axis=1)
-        prod = (u[:, :, :, None] * np.conj(u[:, :, None, :])).real
-        att = (prod * k_att[None] * Wab).sum(axis=1)
-        return thr * (g_o / blk.gamma0 * sub)[None], att * a_scale * np.sqrt(np.outer(sub, sub))[None]
-
     n_gap = effects["bjerknes_shape"]["gap_exponent"] if "bjerknes_shape" in effects else 0.0
-
-    def gap_shape(dc):
-        """bjerknes_shape: (d_ref/d)^n on the Bjerknes force at the orifices' distance (1 without it)."""
-        return (GAP_REF / dc) ** n_gap if n_gap else 1.0
+    if blk.engines:
+        # the analysis' force engine of the rows' frequencies (at 1 V): its constants restricted to the group's
+        # orifices, with what the fit adds (gamma on the orifices it scales, alpha relative to the reference pair,
+        # the substrate factor, a Bjerknes gap shape); each row's drive (tones, gain effects, mode factors) weights
+        # its volumes per frequency and orifice, so that acl.physics.forces.capsule_forces gives the row's forces
+        eng = blk.engines[0]
+        ix = blk.orif_ix
+        a_scale = alpha / blk.alpha_ref if blk.alpha_ref else 1.0
+        consts = {"thrust": eng.consts["thrust"][:, ix] * (g_o / blk.gamma0 * sub)[None],
+                  "w2p2": eng.consts["w2p2"], "other": eng.consts["other"][np.ix_(ix, ix)],
+                  "bjerknes": eng.consts["bjerknes"][np.ix_(ix, ix)] * a_scale * np.sqrt(np.outer(sub, sub)),
+                  "drag_mask": blk.orif_cap[:, None] != np.arange(C)[None, :],
+                  "gap_exponent": float(n_gap), "gap_ref": GAP_REF}
+        wt_all = np.broadcast_to(wt, w.shape + (n,))
+        Wf = np.zeros((r, eng.f.size, n))
+        for k_t in range(blk.fidx.shape[1]):
+            on = blk.fidx[:, k_t] >= 0
+            np.add.at(Wf, (np.flatnonzero(on), blk.fidx[on, k_t]), wt_all[on, k_t])
+        Wf = np.sqrt(Wf)
+        if "u_rest" not in blk.__dict__:      # the coupled volumes with every capsule at rest (per pascal)
+            blk.__dict__["u_rest"] = eng.response(blk.all_rest[None][:, eng.lay.body]
+                                                  + eng.lay.offsets)[:, :, ix]
+        u_rest = blk.__dict__["u_rest"]
+    onehot = np.zeros((n, C))
+    onehot[np.arange(n), blk.orif_cap] = 1.0
+    to_node = np.zeros((C, N))
+    to_node[np.arange(C), blk.cap_node] = 1.0
 
     def loads(z, scale, rows_=slice(None)):
-        """(node loads (r, N, 3), orifice distances (r, n, n), node displacements (r, N, 3)) at coordinates z."""
+        """(node loads (r, N, 3), orifice distances (r, n, n), node displacements (r, N, 3)) at coordinates z: the
+        analysis' force model (acl.physics.forces.capsule_forces) of the group's capsules at their positions, the
+        coupled volumes where the capsules are (a body alone: at rest, nothing moves relative to it)."""
         x = disp(z)
         xc = x[:, blk.cap_node]                                                    # (r, C, 3)
-        p = blk.rest[None, blk.orif_cap] + blk.offsets[None] + xc[:, blk.orif_cap]  # (r, n, 3)
-        sep = p[:, None, :, :] - p[:, :, None, :]                                 # p_j - p_i (r, i, j, 3)
-        d = np.linalg.norm(sep, axis=-1)
-        np.einsum("rii->ri", d)[:] = 1.0
-        # two orifices in contact (d = 0) would give inf * 0 = NaN, which the sums below would spread to every node
-        dc = np.maximum(d, 1e-12)
-        if moves:            # the volumes where the capsules are (coupling through the liquid, as the analysis)
-            th, att = responses(xc, rows_)
-            # orifices in contact (past snap-in) make the coupled response singular: there, the volumes at rest
-            bad = ~(np.isfinite(th).all(axis=1) & np.isfinite(att).all(axis=(1, 2)))
-            if bad.any():
-                th[bad] = thrust[rows_][bad]
-                att[bad] = A[rows_][bad]
-            fb = np.einsum("rij,rijk->rik", att * gap_shape(dc) / dc**3, sep)
-            F = np.einsum("ro,ok,oc->rck", th, -blk.normals, onehot) + np.einsum("rok,oc->rck", fb, onehot)
-        else:                # a body alone: nothing moves relative to it that it feels
-            th = thrust[rows_]
-            fb = np.einsum("rij,rijk->rik", A[rows_] * gap_shape(dc) / dc**3, sep)                # attraction of each i towards j
-            F = own[rows_] + np.einsum("rok,oc->rck", fb, onehot)
         centres = blk.rest[None] + xc
-        xo = centres[:, None, :, :] - p[:, :, None, :]                            # (r, n, C, 3) orifice -> capsule
-        dist = np.linalg.norm(xo, axis=-1)
-        cos = np.einsum("rock,ok->roc", xo, blk.normals) / np.where(dist > 0, dist, 1.0)
-        drag = jet_drag(th[:, :, None], np.where(dragged, dist, 1.0), cos, blk.outer[None, None, :]) * dragged
-        F = F + np.einsum("roc,ok->rck", drag, blk.normals)
+        p = centres[:, blk.orif_cap] + blk.offsets[None]                           # (r, n, 3)
+        d = np.linalg.norm(p[:, None, :, :] - p[:, :, None, :], axis=-1)
+        if blk.engines:
+            if moves:
+                allc = np.repeat(blk.all_rest[None], z.shape[0], axis=0)
+                allc[:, blk.cap_ix] = centres
+                u = eng.response(allc[:, eng.lay.body] + eng.lay.offsets)[:, :, blk.orif_ix]   # (B, F, n) per Pa
+                # orifices in contact (past snap-in) make the coupled response singular: there, the volumes at rest
+                bad = ~np.isfinite(u).all(axis=(1, 2))
+                if bad.any():
+                    u[bad] = u_rest[0]
+            else:
+                u = np.broadcast_to(u_rest, (z.shape[0],) + u_rest.shape[1:])
+            F = capsule_forces(centres, blk.orif_cap, blk.offsets, blk.normals, onehot, blk.outer,
+                               u * Wf[rows_], consts, points=p)[0]
+        else:                                                                      # no tone: no acoustic force
+            F = np.zeros((z.shape[0], C, 3))
         Fn = scale[:, None, None] * np.einsum("rck,cn->rnk", F, to_node)
         if c_p > 0:
             dragged_n = drag_load(Fn, np.linalg.norm(x, axis=-1)[..., None], c_p)

@@ -71,6 +71,7 @@ class Instance:
     units: dict                            # observable name -> Unit
     medium: tuple                          # (density, surface tension, ambient pressure, polytropic index)
     _tau: dict = field(default_factory=dict)
+    declared: dict = field(default_factory=dict)   # the design's declared effects in the fit's coordinates
 
     @property
     def kind(self):
@@ -295,8 +296,12 @@ def build_instance(design, model: str = "coupled", coupled: bool = False) -> Ins
     included."""
     from acl.analysis.rows import medium as medium_of
 
-    # the fit's base model is the design without declared effects (the fit adds them itself: a
-    # calibrated design fitted again must not apply them twice)
+    # the design's declared effects (a calibration, a calibrated design fitted again) act in the fit's base model as
+    # fixed effects of the fit (acl.fit.effects.declared_effects; a fitted effect of the same id replaces them), so
+    # they are taken off the design here (applied once, by the fit)
+    from acl.fit.effects import declared_effects
+
+    declared = declared_effects(design)
     design = design.model_copy(update={"effects": ()}) if design.effects else design
     if not design.observes:
         raise DiagnosticError([error("E810", "the design declares no `observe`: nothing to fit",
@@ -384,7 +389,7 @@ def build_instance(design, model: str = "coupled", coupled: bool = False) -> Ins
         net.neighboured = np.array([any(node.get(c) == i and c in near for c in net.caps)
                                     for i in range(int(net.cap_node.max()) + 1)], bool)
         med = medium_of(design)
-        return Instance(design=design, units=units,
+        return Instance(design=design, declared=declared, units=units,
                         medium=(med.density, med.surface_tension, med.ambient_pressure, med.polytropic_index))
     for o in design.observes:
         if o.kind == "gap":
@@ -416,7 +421,7 @@ def build_instance(design, model: str = "coupled", coupled: bool = False) -> Ins
             units_by_caps[(cap,)] = Unit("single", (_side(design, cap, t / np.linalg.norm(t)),))
         units[o.name] = units_by_caps[(cap,)]
     med = medium_of(design)
-    return Instance(design=design, units=units,
+    return Instance(design=design, declared=declared, units=units,
                     medium=(med.density, med.surface_tension, med.ambient_pressure, med.polytropic_index))
 
 

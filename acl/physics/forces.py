@@ -153,7 +153,8 @@ def bjerknes_pair_sum(points, response, w2p2, coefficient, other, gap_exponent: 
     (:func:`acl.physics.effects.bjerknes_gap_factor`; exponent 0 is the monopole law).
     """
     sep = points[:, None, :, :] - points[:, :, None, :]                   # (B, i, j, 3)
-    d = np.where(other, np.sqrt((sep * sep).sum(axis=-1)), 1.0)
+    # two interfaces in contact (d = 0, a solver's contact configuration) pull with no direction: no force, not NaN
+    d = np.where(other, np.maximum(np.sqrt((sep * sep).sum(axis=-1)), 1e-12), 1.0)
     w2p2 = np.asarray(w2p2, float)
     prod = np.einsum("t,bti,btj->bij" if w2p2.ndim == 1 else "bt,bti,btj->bij", w2p2, response,
                      np.conj(response)).real
