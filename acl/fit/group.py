@@ -420,16 +420,23 @@ def _predict_block(P, blk: GroupBlock, coeffs, effects, w, gamma, alpha, es, lam
     def solve(z0, sl, live, iters=N_NEWTON):
         """Newton on z - D(z) = 0 from z0; (z, stable equilibrium found, relative gaps (rows, n, n))."""
         zl = z0.copy()
-        for _ in range(iters):
-            Dz, _ = D(zl, sl, live)
-            Fz = zl - Dz
-            if np.abs(Fz).max() <= 1e-3 * tol:
+        act = np.arange(live.size)          # rows still iterating: a row stops once converged, or once it has left
+        for _ in range(iters):              # the branch (non-finite, or two orifices within 2 % of contact)
+            if act.size == 0:
+                break
+            Dz, dd = D(zl[act], sl[act], live[act])
+            Fz = zl[act] - Dz
+            near = np.where(across[None], dd / np.where(across, rest_d, 1.0)[None], np.inf)
+            stop = (np.abs(Fz).max(axis=1) <= 1e-3 * tol) | ~np.isfinite(Fz).all(axis=1) \
+                | (near.reshape(act.size, -1).min(axis=1) <= 0.02)
+            act, Fz = act[~stop], Fz[~stop]
+            if act.size == 0:
                 break
             try:
-                dz = np.linalg.solve(jac(zl, sl, live, Fz), -Fz[:, :, None])[:, :, 0]
+                dz = np.linalg.solve(jac(zl[act], sl[act], live[act], Fz), -Fz[:, :, None])[:, :, 0]
             except np.linalg.LinAlgError:
                 break
-            zl = zl + np.where(np.isfinite(dz), dz, 0.0)
+            zl[act] = zl[act] + np.where(np.isfinite(dz), dz, 0.0)
         Dz, d = D(zl, sl, live)
         Fz = zl - Dz
         det = np.linalg.det(jac(zl, sl, live, Fz))
