@@ -5,6 +5,8 @@ Targets: 30 s for cases 1 and 2; 10 s for case 3 (issue 9: 1,000 rows of a pair 
 1. Fig. 2 cantilever (tests/data/fit_cantilever.acl): three beam lengths x three pedestal heights x
    three frequencies x 11 voltages, repeated 4 times over time (1,188 rows), drive saturation planted,
    noise 0.2 um.
+4. Case 2 twice in one run, data and fit on paper Eq. (3) (`--model eq3`) and on the analysis' coupled force model
+   (the default): CPU seconds and their ratio (issue 23: at most 3x).
 2. Fig. 4e facing pair (tests/data/fit_pair.acl): 11 initial gaps x three frequencies x 21 voltages,
    twice (1,386 rows, the pair equilibrium solved for every row), drive saturation planted, noise 0.3 um.
 3. Pair + calibration beam (tests/data/fit_pair_cal.acl): the pair at 4 gaps x 4 frequencies x 17 voltages,
@@ -36,19 +38,19 @@ PAIR_CAL = os.path.join(HERE, "..", "tests", "data", "fit_pair_cal.acl")
 CASES: set = {1, 2, 3}     # the cases to run (--case)
 
 
-def run(case, label, design, experiment, effects, noise, free, coeffs=None, jobs=1, keep=None) -> float:
+def run(case, label, design, experiment, effects, noise, free, coeffs=None, jobs=1, keep=None, model="coupled") -> float:
     if case not in CASES or (os.environ.get("BENCH_ONLY") and os.environ["BENCH_ONLY"] not in label):
         return 0.0
     from acl.fit import run_fit
     from acl.fit.synth import generate, write_csv
 
     t0 = time.perf_counter()
-    data, _ = generate(design, experiment, effects, noise=noise, seed=7, coeffs=coeffs)
+    data, _ = generate(design, experiment, effects, noise=noise, seed=7, coeffs=coeffs, model=model)
     with tempfile.TemporaryDirectory() as tmp:
         path = os.path.join(tmp, "bench.csv")
         write_csv(data, path)
         t1, c1 = time.perf_counter(), time.process_time()
-        out = run_fit(design, [path], free=free, jobs=jobs)
+        out = run_fit(design, [path], free=free, jobs=jobs, model=model)
         t2, c2 = time.perf_counter(), time.process_time()
     if keep is not None:
         keep.append(out)
@@ -60,7 +62,7 @@ def run(case, label, design, experiment, effects, noise, free, coeffs=None, jobs
     print("  slowest steps: " + ", ".join(f"{k} {v:.2f} s" for k, v in steps))
     print(f"  effects selected: {r['effects_selected']}; rmse {r['rmse_before'] * 1e6:.3f} um -> "
           f"{r['rmse_after'] * 1e6:.3f} um (noise {noise * 1e6:.2g} um); outliers {len(r['outliers'])}")
-    return t2 - t1
+    return c2 - c1 if model != "coupled" or case == 4 else t2 - t1
 
 
 def main(argv=None) -> int:
@@ -69,10 +71,10 @@ def main(argv=None) -> int:
     from acl.fit.synth import Experiment
 
     ap = argparse.ArgumentParser(description="acl fit benchmark (issue 9 targets)")
-    ap.add_argument("--case", type=int, action="append", choices=(1, 2, 3),
-                    help="run only this case (repeatable); default: all three")
+    ap.add_argument("--case", type=int, action="append", choices=(1, 2, 3, 4),
+                    help="run only this case (repeatable); default: all four")
     CASES.clear()
-    CASES.update(ap.parse_args(argv).case or (1, 2, 3))
+    CASES.update(ap.parse_args(argv).case or (1, 2, 3, 4))
 
     single = Experiment(frequencies=(110e3, 125e3, 140e3), voltages=tuple(np.linspace(0, 10, 11)),
                         sets={"length": ["40 um", "50 um", "60 um"], "pedestal": ["0 um", "30 um", "60 um"]},
@@ -82,6 +84,13 @@ def main(argv=None) -> int:
     times = [run(1, "cantilever (Fig. 2)", DESIGN, single, {"drive_saturation": {"v_sat": 7.0}}, 0.2e-6, ["gamma"]),
              run(2, "facing pair (Fig. 4e)", PAIR, pair, {"drive_saturation": {"v_sat": 3.0}}, 0.3e-6, ["alpha"],
                  coeffs={"alpha": 1.745e-19})]
+    if 4 in CASES:      # the same pair on the analysis' coupled force model against paper Eq. (3), one run (CPU)
+        c_eq3 = run(4, "facing pair (Fig. 4e), --model eq3", PAIR, pair, {"drive_saturation": {"v_sat": 3.0}}, 0.3e-6,
+                    ["alpha"], coeffs={"alpha": 1.745e-19}, model="eq3")
+        c_cpl = run(4, "facing pair (Fig. 4e), --model coupled", PAIR, pair, {"drive_saturation": {"v_sat": 3.0}},
+                    0.3e-6, ["alpha"], coeffs={"alpha": 1.745e-19})
+        if c_eq3 and c_cpl:
+            print(f"  coupled / eq3 CPU: {c_cpl / c_eq3:.1f}x (target 3x)")
     freqs = (115e3, 120e3, 125e3, 130e3)
     pair_cal = [Experiment(frequencies=freqs, voltages=tuple(np.linspace(0, 4, 17)), observables=("distance",),
                            sets={"gap": ["40 um", "50 um", "60 um", "70 um"]}, repeats=2, label="pair"),

@@ -1,8 +1,8 @@
 """`acl fit` calibrates the force model `acl analyze` and `acl compile` use (issue 23, one model engine).
 
-Data that `acl synth` makes from the Fig. 4e pair (examples/fig4_facing_pair.acl), from a pair of Fig. 3
+Data that `acl synth` makes from the Fig. 4e pair (examples/first_principles/fig4_facing_pair.acl, the first-principles pair: the shipped example declares the paper's calibration), from a pair of Fig. 3
 three-orifice capsules (tests/data/fit_pair_prism3.acl) and from the Fig. 5a gripper (capsules on cantilevers tied
-by elastic trusses to anchored ones, examples/fig5a_gripper.acl), each with a planted ``bjerknes_scale`` factor, are fitted with that effect: the factor comes back within its 95 % interval, with no
+by elastic trusses to anchored ones, examples/first_principles/fig5a_gripper.acl), each with a planted ``bjerknes_scale`` factor, are fitted with that effect: the factor comes back within its 95 % interval, with no
 W-FIT-PAIR-MODEL and no ``fit_pair_model_scale`` (those belong to the paper's Eq. (3), now only the reduced model a
 user asks for with ``--model eq3``), and the calibrated design, analyzed row by row with acl.analysis.mechanics (a
 brute-force loop of the analysis, independent of the fit's batched rows), reproduces the noise-free data.
@@ -30,7 +30,7 @@ def fitted(tmp_path_factory):
 
     tmp = str(tmp_path_factory.mktemp("onemodel"))
     src = os.path.join(tmp, "fig4_facing_pair.acl")
-    shutil.copy(os.path.join(EX, "fig4_facing_pair.acl"), src)
+    shutil.copy(os.path.join(EX, "first_principles", "fig4_facing_pair.acl"), src)
     ex = Experiment(frequencies=[125e3], voltages=list(np.linspace(0.0, 3.0, 7)), sets={"gap": ["20 um", "40 um", "60 um"]},
                     observables=["d"])
     clean, _ = generate(src, ex, effects={"bjerknes_scale": {"factor": PLANTED}})
@@ -90,7 +90,7 @@ CASES = {   # design, experiment, noise (m): a pair of three-orifice capsules (E
     "prism3_pair": (os.path.join(ROOT, "tests", "data", "fit_pair_prism3.acl"),
                     dict(frequencies=[72e3, 130e3], voltages=[0.0, 0.5, 1.0, 1.5], sets={"gap": ["40 um", "60 um"]}),
                     0.02e-6),
-    "fig5a_gripper": (os.path.join(EX, "fig5a_gripper.acl"),
+    "fig5a_gripper": (os.path.join(EX, "first_principles", "fig5a_gripper.acl"),
                       dict(frequencies=[125e3], voltages=[0.0, 2.0, 4.0, 6.0, 8.0]), 0.02e-6),
 }
 
@@ -132,29 +132,33 @@ def test_multi_orifice_and_trussed_groups_are_fitted(case, tmp_path):
     assert worst < 4 * noise
 
 
+EQ3_NOISE = 0.3e-6
+
+
 @pytest.mark.studies
-def test_paper_eq3_data_fit_within_the_noise_with_a_free_bjerknes_scale(tmp_path):
-    """Issue 24 item 3: data made with paper Eq. (3) and the paper's constants (Fig. 4e: alpha 174.5 nN um^2/V^2,
-    gamma 0.027 nN/V^2; gaps 20-80 um, 0-4 V at 125 kHz; noise 0.3 um) are fitted with the one force model, gamma
-    free: without an effect the fit misses them by 13.3 um RMS (measured; gamma collapses), with the Bjerknes force's
-    scale free (bjerknes_scale; measured factor 3.91, gamma 1.39x the paper's) to 1.14x the noise (RMS 0.343 um,
-    reduced chi-square 1.33).  The shape (bjerknes_shape) is not yet part of this check (its fit did not finish in the
-    session that added it)."""
+def test_paper_eq3_data_fit_within_the_noise_with_the_calibrated_pair_model(tmp_path):
+    """Issue 24 item 3.  Source: paper Fig. 4e / Eq. (3) with the paper's constants (alpha 174.5 nN um^2/V^2, gamma
+    0.027 nN/V^2), made on the first-principles Fig. 4 pair's beams (examples/first_principles), gaps 20-80 um, 0-4 V
+    at 125 kHz, noise 0.3 um.  Fitted with the calibrated pair model (examples/fig4_facing_pair.acl: the one force
+    model with the paper's calibration declared), gamma free, with the Bjerknes force's scale (bjerknes_scale) and
+    shape (bjerknes_shape, the gap exponent) free.  Tolerance: RMS residual at most 1.2x the noise (a fit within the
+    noise; 119 rows, so a correct model's RMS is within about 7 % of the noise)."""
     from acl.fit import run_fit
     from acl.fit.synth import Experiment, generate, write_csv
 
-    src = os.path.join(EX, "fig4_facing_pair.acl")
     ex = Experiment(frequencies=[125e3], voltages=list(np.linspace(0.0, 4.0, 17)),
                     sets={"gap": [f"{g} um" for g in (20, 30, 40, 50, 60, 70, 80)]}, observables=["d"])
-    noise = 0.3e-6
-    data, _ = generate(src, ex, {}, noise=noise, seed=3, model="eq3", coeffs={"alpha": 1.745e-19, "gamma": 2.7e-11})
+    first = os.path.join(EX, "first_principles", "fig4_facing_pair.acl")
+    data, _ = generate(first, ex, {}, noise=EQ3_NOISE, seed=3, model="eq3",
+                       coeffs={"alpha": 1.745e-19, "gamma": 2.7e-11})
     csv = str(tmp_path / "eq3.csv")
     write_csv(data, csv)
-    base = run_fit(src, [csv], free=("gamma",), candidates=[], seed=0)
-    out = run_fit(src, [csv], free=("gamma",), candidates=["bjerknes_scale"], seed=0)
-    assert base.report["rmse_after"] > 10 * noise
-    assert list(out.report["final"]["effects"]) == ["bjerknes_scale"]
-    assert out.report["rmse_after"] <= 1.2 * noise
+    out = run_fit(os.path.join(EX, "fig4_facing_pair.acl"), [csv], free=("gamma",),
+                  candidates=["bjerknes_scale", "bjerknes_shape"], seed=0)
+    rms = out.report["rmse_after"]
+    print(f"Eq. (3) data, calibrated pair model: RMS {rms * 1e6:.3f} um = {rms / EQ3_NOISE:.2f}x the noise; "
+          f"effects {out.report['effects_selected']}")
+    assert rms <= 1.2 * EQ3_NOISE
 
 
 def test_synth_model_option(tmp_path, capsys):
@@ -164,7 +168,7 @@ def test_synth_model_option(tmp_path, capsys):
 
     from acl.cli import main
 
-    src = os.path.join(EX, "fig4_facing_pair.acl")
+    src = os.path.join(EX, "first_principles", "fig4_facing_pair.acl")
     gaps = {}
     for model in (None, "coupled", "eq3"):
         out = tmp_path / f"{model}.csv"
