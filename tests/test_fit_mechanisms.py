@@ -43,7 +43,7 @@ def test_spring_pair_solves_eq3_with_a_linear_flexure_and_a_fixed_partner(tmp_pa
     from acl.fit.forward import predict
 
     ex = Experiment(frequencies=(125e3,), voltages=(0.5, 1.0, 2.0, 3.0), observables=("d",), sets={"gap": ["40 um"]})
-    data, P = generate(SPRING_CAL, ex, {})
+    data, P = generate(SPRING_CAL, ex, {}, model="eq3")
     d = predict(P, {}, {})
     k = acl.load(SPRING_CAL).spring("flexure").stiffness
     v2 = np.array([t[0][1] ** 2 for t in data.tones])
