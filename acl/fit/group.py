@@ -410,38 +410,53 @@ def _predict_block(P, blk: GroupBlock, coeffs, effects, w, gamma, alpha, es, lam
     h = 1e-9 * scale_len
     tol = 1e-6 * scale_len
 
-    def jac(zl, sl, live, Fz):
-        """Finite-difference Jacobian of z - D(z): the m perturbed copies of every row in one evaluation of D."""
+    def DJ(zl, sl, live):
+        """(D(z), orifice distances, finite-difference Jacobian of z - D(z)) of every row: the row and its m perturbed
+        copies in one evaluation of D (per-call overhead dominates, so each Newton iteration is one call)."""
         nl = live.size
-        zp = np.repeat(zl[None], m, axis=0) + h * np.eye(m)[:, None, :]          # (m, nl, m)
-        Dp = D(zp.reshape(m * nl, m), np.tile(sl, m), np.tile(live, m))[0].reshape(m, nl, m)
-        return np.transpose(((zp - Dp) - Fz[None]) / h, (1, 2, 0))               # (nl, m rows, m cols)
+        zp = np.concatenate([zl[None], zl[None] + h * np.eye(m)[:, None, :]])    # (m + 1, nl, m)
+        Dp, dd = D(zp.reshape((m + 1) * nl, m), np.tile(sl, m + 1), np.tile(live, m + 1))
+        Dp = Dp.reshape(m + 1, nl, m)
+        Fz = zl - Dp[0]
+        J = np.transpose(((zp[1:] - Dp[1:]) - Fz[None]) / h, (1, 2, 0))         # (nl, m rows, m cols)
+        return Dp[0], dd[:nl], J
 
     def solve(z0, sl, live, iters=N_NEWTON):
-        """Newton on z - D(z) = 0 from z0; (z, stable equilibrium found, relative gaps (rows, n, n))."""
+        """Newton on z - D(z) = 0 from z0; (z, stable equilibrium found, relative gaps (rows, n, n)).  A row's residual,
+        Jacobian and distances at the z it stops at are those of its last iteration (no second evaluation)."""
         zl = z0.copy()
-        act = np.arange(live.size)          # rows still iterating: a row stops once converged, or once it has left
+        nl = live.size
+        Fz_all = np.zeros_like(zl)
+        d_all = np.zeros((nl, n, n))
+        J_all = np.zeros((nl, m, m))
+        fresh = np.zeros(nl, bool)          # rows whose stored evaluation is at their current zl
+        act = np.arange(nl)                 # rows still iterating: a row stops once converged, or once it has left
         for _ in range(iters):              # the branch (non-finite, or two orifices within 2 % of contact)
             if act.size == 0:
                 break
-            Dz, dd = D(zl[act], sl[act], live[act])
+            Dz, dd, J = DJ(zl[act], sl[act], live[act])
             Fz = zl[act] - Dz
+            Fz_all[act], d_all[act], J_all[act] = Fz, dd, J
+            fresh[act] = True
             near = np.where(across[None], dd / np.where(across, rest_d, 1.0)[None], np.inf)
             stop = (np.abs(Fz).max(axis=1) <= 1e-3 * tol) | ~np.isfinite(Fz).all(axis=1) \
                 | (near.reshape(act.size, -1).min(axis=1) <= 0.02)
-            act, Fz = act[~stop], Fz[~stop]
+            act, Fz, J = act[~stop], Fz[~stop], J[~stop]
             if act.size == 0:
                 break
             try:
-                dz = np.linalg.solve(jac(zl[act], sl[act], live[act], Fz), -Fz[:, :, None])[:, :, 0]
+                dz = np.linalg.solve(J, -Fz[:, :, None])[:, :, 0]
             except np.linalg.LinAlgError:
                 break
             zl[act] = zl[act] + np.where(np.isfinite(dz), dz, 0.0)
-        Dz, d = D(zl, sl, live)
-        Fz = zl - Dz
-        det = np.linalg.det(jac(zl, sl, live, Fz))
-        rel = np.where(across[None], d / np.where(across, rest_d, 1.0)[None], np.inf)
-        good = (np.abs(Fz).max(axis=1) <= tol) & (det > 0) & (rel.reshape(live.size, -1).min(axis=1) > 0.02)
+            fresh[act] = False
+        stale = np.flatnonzero(~fresh)
+        if stale.size:
+            Dz, dd, J = DJ(zl[stale], sl[stale], live[stale])
+            Fz_all[stale], d_all[stale], J_all[stale] = zl[stale] - Dz, dd, J
+        det = np.linalg.det(J_all)
+        rel = np.where(across[None], d_all / np.where(across, rest_d, 1.0)[None], np.inf)
+        good = (np.abs(Fz_all).max(axis=1) <= tol) & (det > 0) & (rel.reshape(nl, -1).min(axis=1) > 0.02)
         return zl, good, rel
 
     def solve_pinned(z0, rows, pinned, iters=N_NEWTON):
@@ -450,10 +465,13 @@ def _predict_block(P, blk: GroupBlock, coeffs, effects, w, gamma, alpha, es, lam
         zl = z0.copy()
         sl = np.ones(rows.size)
         for _ in range(iters):
-            Fz = zl - D(zl, sl, rows)[0]
-            if free.size == 0 or np.abs(Fz[:, free]).max() <= 1e-3 * tol:
+            if free.size == 0:
                 break
-            J = jac(zl, sl, rows, Fz)[:, free][:, :, free]
+            Dz, _, J = DJ(zl, sl, rows)
+            Fz = zl - Dz
+            if np.abs(Fz[:, free]).max() <= 1e-3 * tol:
+                break
+            J = J[:, free][:, :, free]
             try:
                 dz = np.linalg.solve(J, -Fz[:, free, None])[:, :, 0]
             except np.linalg.LinAlgError:
