@@ -354,15 +354,21 @@ def _predict_block(P, blk: GroupBlock, coeffs, effects, w, gamma, alpha, es, lam
     to_node = np.zeros((C, N))
     to_node[np.arange(C), blk.cap_node] = 1.0
 
-    def loads(z, scale, rows_=slice(None)):
-        """(node loads (r, N, 3), orifice distances (r, n, n), node displacements (r, N, 3)) at coordinates z: the
-        analysis' force model (acl.physics.forces.capsule_forces) of the group's capsules at their positions, the
-        coupled volumes where the capsules are (a body alone: at rest, nothing moves relative to it)."""
+    def geometry(z):
+        """(node displacements (r, N, 3), capsule centres (r, C, 3), orifice centres (r, n, 3), their distances
+        (r, n, n)) at coordinates z."""
         x = disp(z)
         xc = x[:, blk.cap_node]                                                    # (r, C, 3)
         centres = blk.rest[None] + xc
         p = centres[:, blk.orif_cap] + blk.offsets[None]                           # (r, n, 3)
         d = np.linalg.norm(p[:, None, :, :] - p[:, :, None, :], axis=-1)
+        return x, centres, p, d
+
+    def loads(z, scale, rows_=slice(None)):
+        """(node loads (r, N, 3), orifice distances (r, n, n), node displacements (r, N, 3)) at coordinates z: the
+        analysis' force model (acl.physics.forces.capsule_forces) of the group's capsules at their positions, the
+        coupled volumes where the capsules are (a body alone: at rest, nothing moves relative to it)."""
+        x, centres, p, d = geometry(z)
         if blk.engines:
             if moves:
                 allc = np.repeat(blk.all_rest[None], z.shape[0], axis=0)
@@ -546,7 +552,8 @@ def _predict_block(P, blk: GroupBlock, coeffs, effects, w, gamma, alpha, es, lam
             if bad.size:
                 # no stable equilibrium next to the last one: the branch folded (snap-in); the orifices closest to
                 # touching at the last stable configuration close
-                _, _, rel = solve(z[bad], np.full(bad.size, (step - 1) / N_STEPS), bad, 0)
+                d_bad = geometry(z[bad])[3]            # distances only (no loads): as solve(..., iters=0) gives them
+                rel = np.where(across[None], d_bad / np.where(across, rest_d, 1.0)[None], np.inf)
                 flat = rel.reshape(bad.size, -1).argmin(axis=1)
                 closing[bad] = np.column_stack(np.unravel_index(flat, (n, n)))
                 snapped[bad] = True
@@ -561,7 +568,10 @@ def _predict_block(P, blk: GroupBlock, coeffs, effects, w, gamma, alpha, es, lam
             z[sel] = _contact(z, sel, i, j, warm)
         blk.cache = z.copy()
         blk.closing = np.where(snapped[:, None], closing, -1)
-    Fn, _, x = loads(z, np.ones(r), everyone)
+    if np.any(blk.kind == 3):             # a latch state reads the loads; every other observable the geometry
+        Fn, _, x = loads(z, np.ones(r), everyone)
+    else:
+        x = disp(z)
     xc = x[:, blk.cap_node]
     p = blk.rest[None, blk.orif_cap] + blk.offsets[None] + xc[:, blk.orif_cap]
     rr = np.arange(r)
