@@ -85,7 +85,11 @@ def analyze(design, at=None, snap_in=True) -> "Analysis":
         from acl.design.drives import drive_from_text
 
         drive = drive_from_text(at, "<at>") if isinstance(at, str) else at
-    return Analysis.from_report(_analyze(d, drive, snap_in=snap_in))
+    from acl.sweep.signs import annotate_pairs
+
+    rep = _analyze(d, drive, snap_in=snap_in)
+    annotate_pairs(d, rep.pairs)          # P(other sign) of each pair, as `acl analyze`
+    return Analysis.from_report(rep)
 
 
 def compile(design, program=None, sample_rate_hz=None, ramp_s=1e-3, tolerance_m=0.5e-6, calibration=None,  # noqa: A001

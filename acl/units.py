@@ -395,3 +395,29 @@ def parse_decimal(text: str) -> float:
         raise ValueError(f"could not convert string to float: {text!r}")
     return float(text)
 
+
+# Conventional units a parameter's SI unit string is shown in (`m^-4*kg^-2*s^6*A^2` -> `1/V^2`, `m^2*kg*s^-3` -> `W`);
+# lengths are shown in um.  The first whose dimension matches wins.
+CONVENTIONAL = ("Pa", "N", "V", "J", "W", "Hz", "N/m", "Pa*s", "N/V^2", "N*m^2/V^2", "Pa/V", "N/V", "1/V^2", "1/V",
+                "V^2", "V/s", "m/s", "m^2/s", "kg/m^3", "kg/s", "1/m", "1/s^2", "A", "ohm", "F", "C")
+
+
+def conventional_unit(unit: str) -> str:
+    """The conventional spelling of an SI unit string (itself when none in :data:`CONVENTIONAL` matches)."""
+    if not unit or unit in CONVENTIONAL:
+        return unit or ""
+    try:
+        dims = parse_unit(unit)[1]
+        return next((u for u in CONVENTIONAL if parse_unit(u)[1] == dims), unit)
+    except (UnitError, ValueError):
+        return unit
+
+
+# lengths and speeds of a micro-mechanism print in um (SI inside, units at edges)
+_MICRO = {"m": (1e6, "um"), "m/s": (1e6, "um/s")}
+
+
+def shown_unit(unit: str) -> tuple[float, str]:
+    """(scale, unit) a value in SI ``unit`` is printed with: um and um/s for lengths and speeds, else
+    :func:`conventional_unit`."""
+    return _MICRO.get(unit) or (1.0, conventional_unit(unit))

@@ -8,7 +8,9 @@ Targets (issue 4): 10,000 waypoints as one program < 1.5 s and >= 40x faster tha
 problems (timed on 200 waypoints and extrapolated, as printed); 10 s of three tones at 2 MS/s to
 WAV < 1.5 s and < 100 MB peak memory (measured in a fresh subprocess).  Issue 23: `compile_program` of the
 10,000-waypoint Fig. 3 path with its 95 % band (20 draws) at most 3 s of CPU, the band (CPU with it minus
-without) at most the plan's: `python benchmarks/compile.py compile` prints both.
+without) at most the plan's: `python benchmarks/compile.py compile` prints both.  The main job (`acl compile
+examples/fig3_three_orifice.acl --program circle`, at most 3 s CPU and 3x `python -c "import cvxpy"`):
+`python benchmarks/compile.py job [OTHER_CHECKOUT ...]` (each checkout's job in the same run: ratios).
 """
 from __future__ import annotations
 
@@ -180,10 +182,62 @@ def bench_render_cold(tmp):
           f"tracemalloc peak {int(peak_py) / 1e6:.1f} MB")
 
 
+def _child_cpu(cmd, cwd, root, bytecode=False) -> float:
+    """CPU seconds (user + system) of one child process (``bytecode``: with Python's bytecode cache, as an installed
+    acl runs; else as the environment says, e.g. PYTHONDONTWRITEBYTECODE, which compiles every module each run)."""
+    import resource
+
+    env = {**os.environ, "PYTHONPATH": root}
+    if bytecode:
+        env.pop("PYTHONDONTWRITEBYTECODE", None)
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    r = subprocess.run(cmd, cwd=cwd, capture_output=True, text=True, env=env)
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    if r.returncode:
+        raise SystemExit(f"{' '.join(cmd)} failed in {cwd}:\n{r.stderr[-2000:]}")
+    return after.ru_utime - before.ru_utime + after.ru_stime - before.ru_stime
+
+
+def bench_job(roots, repeats=3, bytecode=False):
+    """The README's main job, `acl compile examples/fig3_three_orifice.acl --program circle` with its 95 % band, in a
+    fresh process per run, against `python -c "import cvxpy"` (issue 23: at most 3 s CPU and at most 3x that import),
+    for each checkout in ``roots`` (the first is this one), interleaved in one run so that the ratios share the load."""
+    import statistics
+    import tempfile
+
+    cpu = {r: [] for r in roots}
+    imp = []
+    job = [sys.executable, "-m", "acl", "compile", "examples/fig3_three_orifice.acl", "--program", "circle", "-o"]
+    with tempfile.TemporaryDirectory() as tmp:
+        if bytecode:                   # a first run writes the bytecode cache
+            _child_cpu([sys.executable, "-c", "import cvxpy"], tmp, "", True)
+            for r in roots:
+                _child_cpu(job + [os.path.join(tmp, "warm")], r, r, True)
+        for k in range(repeats):
+            imp.append(_child_cpu([sys.executable, "-c", "import cvxpy"], tmp, "", bytecode))
+            for r in roots:
+                cpu[r].append(_child_cpu(job + [os.path.join(tmp, f"out{k}")], r, r, bytecode))
+    ci = statistics.median(imp)
+    print(("with the bytecode cache" if bytecode else "as the environment runs Python "
+           f"(PYTHONDONTWRITEBYTECODE={os.environ.get('PYTHONDONTWRITEBYTECODE', '')!r})") + ":")
+    print(f"python -c 'import cvxpy': median {ci:.3f} s CPU over {repeats} runs")
+    first = statistics.median(cpu[roots[0]])
+    for r in roots:
+        m = statistics.median(cpu[r])
+        print(f"main job ({r}): median {m:.3f} s CPU (runs {', '.join(f'{x:.2f}' for x in cpu[r])}), "
+              f"{m / ci:.2f}x import cvxpy (targets: at most 3 s and 3x)"
+              + ("" if r == roots[0] else f"; this checkout / it: {first / m:.2f}"))
+
+
 def main(argv):
     import shutil
     import tempfile
 
+    if argv[1:2] == ["job"]:     # python benchmarks/compile.py job [OTHER_CHECKOUT ...]
+        here = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+        for bytecode in (False, True):
+            bench_job([here, *[os.path.abspath(a) for a in argv[2:]]], bytecode=bytecode)
+        return
     what = argv[1:] or ["path", "render"]
     print(f"load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} CPUs (wall times grow with load)")
     if "render" in what:

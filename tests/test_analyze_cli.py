@@ -149,7 +149,7 @@ SWEEP = ONE + "program scan {\n  sweep 100 kHz to 150 kHz @ V_SWEEP in 2 s\n}\n"
 def test_a_sweep_step_is_checked_at_its_worst_frequency(tmp_path):
     """A sweep step had no linear-regime check in `acl analyze` (only drive and goal steps): a sweep through
     the capsule's resonance at 15 V (eps/R ~ 0.69 there, as `acl lint` ACL105 finds) gave no warning."""
-    from acl.analysis.acoustics import interface_amplitudes
+    from acl.analysis.interfaces import interface_amplitudes
     from acl.design.model import Drive, Tone
     import acl
 

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import acl
-from acl.analysis import acoustics, equilibria, mechanics, tones
+from acl.analysis import acoustics, equilibria, interfaces, mechanics, tones
 from acl.design.model import Drive, Tone
 from acl.physics.equilibrium import solve_equilibrium_batch
 from acl.schedule import bands, gains
@@ -154,10 +154,10 @@ def test_a_failing_model_fails_its_own_entry_of_the_batch(fig3):
 
 def test_interface_amplitudes_of_many_drives_equal_one_drive_at_a_time(fig3):
     amps = np.array([[0.0, 1.0, 2.0], [5.0, 0.5, 0.0], [3.0, 3.0, 3.0]])
-    got = acoustics.interface_amplitudes_batch(fig3, FIG3_TONES, amps)
+    got = interfaces.interface_amplitudes_batch(fig3, FIG3_TONES, amps)
     labels = acoustics.interface_labels(fig3)
     for row, a in zip(got, amps):
-        one = acoustics.interface_amplitudes(fig3, _drive(FIG3_TONES, a))
+        one = interfaces.interface_amplitudes(fig3, _drive(FIG3_TONES, a))
         np.testing.assert_allclose(row, [one[k] for k in labels], rtol=1e-13)
     # eps/R is linear in the summed tone amplitudes (linear acoustics, no saturation declared)
-    np.testing.assert_allclose(acoustics.interface_amplitudes_batch(fig3, FIG3_TONES, 2 * amps), 2 * got, rtol=1e-13)
+    np.testing.assert_allclose(interfaces.interface_amplitudes_batch(fig3, FIG3_TONES, 2 * amps), 2 * got, rtol=1e-13)

@@ -439,7 +439,7 @@ def test_a_sweep_just_beyond_the_hemisphere_is_refused(tmp_path, capsys):
     for a resonance peak of 0.686 x V/15 V, so a sweep just over a limit compiled.  The sweep is checked at its
     worst frequency (every mode inside, refined): just past the hemisphere (eps/R 1, issue 24) E-SCHED-NONLINEAR
     at the step; just past the soft limit 0.25 a located W-ACOUSTIC-AMPLITUDE (the paper's Fig. 2f)."""
-    from acl.analysis.acoustics import interface_amplitudes
+    from acl.analysis.interfaces import interface_amplitudes
     from acl.cli import main
     from acl.design.model import Drive, Tone
 

@@ -33,7 +33,7 @@ def test_a_drive_past_the_streaming_limit_is_warned_at_its_step_with_the_reynold
     # R_s = omega (eps/R x R)^2 rho/mu at the drive's tone, eps/R from the analysis' interface amplitudes (an
     # independent call), water; 1e-9 relative.  3 V at 125 kHz: below eps/R 0.25, past R_s 1 (Design 1 passes 1 at
     # about 2.6 V, docs/physics.md).  1 V: inside every limit, no warning.
-    from acl.analysis.acoustics import interface_amplitudes
+    from acl.analysis.interfaces import interface_amplitudes
     from acl.design.model import Drive, Tone
 
     d = _cantilever("program p {\n  drive 125 kHz @ 1 V for 10 ms\n  drive 125 kHz @ 3 V for 10 ms\n}\n")

@@ -126,3 +126,64 @@ def test_the_worker_checks_a_text_once_for_every_job_on_it(tmp_path):
     assert b is not a and checked(path, "param a = 2 um\n") is b
     checked(path, "param a = 3 um\n")
     assert checked(path, "param a = 1 um\n") is not a          # only the last two texts are kept
+
+
+def _progress(c: LspClient, kind: str, timeout: float = 60.0) -> dict:
+    return c.wait_for("$/progress", lambda p: p["value"].get("kind") == kind, timeout=timeout)
+
+
+def test_the_first_capsule_hover_says_computing_reports_progress_and_the_next_hover_is_full(tmp_path):
+    """Issue 27: a hover never waits for the coupled modes. The first one answers with the single
+    bubble's modes and says the coupled modes are being computed; the work shows as $/progress
+    (begin, end) to a client that supports it; a later hover gives the full answer. Its time is
+    compared with a documentSymbol on the same text (a ratio, not an absolute bound)."""
+    from acl.lsp.hover import INLINE_CAPSULES
+
+    text = _design(INLINE_CAPSULES + 6)
+    path = tmp_path / "large.acl"
+    path.write_text(text, encoding="utf-8")
+    c = LspClient({"lint": False}, capabilities={"window": {"workDoneProgress": True}})
+    try:
+        u = c.open(path, text)
+        c.wait_for("textDocument/publishDiagnostics", lambda p: p["uri"] == u)
+        t0 = time.perf_counter()
+        c.request("textDocument/documentSymbol", {"textDocument": {"uri": u}})
+        symbols = time.perf_counter() - t0
+        ln = text.split("\n").index("capsule cap3 like capsules.design1 { }")
+        t0 = time.perf_counter()
+        first = c.at("textDocument/hover", u, ln, 9)["contents"]["value"]
+        took = time.perf_counter() - t0
+        assert "predicted modes" in first and "coupled modes: *computing in the background" in first
+        assert took < max(20 * symbols, 2.0), f"first hover {took:.2f} s, documentSymbol {symbols:.2f} s"
+        begin = _progress(c, "begin")
+        assert begin["value"]["title"] == "acl: coupled modes"
+        end = _progress(c, "end", timeout=180)
+        assert end["token"] == begin["token"] and end["value"]["message"] == "done"
+        full = c.at("textDocument/hover", u, ln, 9)["contents"]["value"]
+        assert "computing" not in full and "with its neighbours" in full
+    finally:
+        c.close()
+
+
+def test_a_newer_edit_cancels_the_hover_work_and_ends_its_progress(tmp_path):
+    from acl.lsp.hover import INLINE_CAPSULES
+
+    text = _design(4 * INLINE_CAPSULES)
+    path = tmp_path / "large.acl"
+    path.write_text(text, encoding="utf-8")
+    c = LspClient({"lint": False}, capabilities={"window": {"workDoneProgress": True}})
+    try:
+        u = c.open(path, text)
+        c.wait_for("textDocument/publishDiagnostics", lambda p: p["uri"] == u)
+        ln = text.split("\n").index("capsule cap5 like capsules.design3 { }")
+        assert "computing" in c.at("textDocument/hover", u, ln, 9)["contents"]["value"]
+        begin = _progress(c, "begin")
+        c.change(u, 2, text + "param late = 1 um\n")                    # a newer text: the old work stops
+        end = _progress(c, "end", timeout=30)
+        assert end["token"] == begin["token"] and end["value"]["message"].startswith("cancelled")
+        c.wait_for("textDocument/publishDiagnostics", lambda p: p["uri"] == u and p.get("version") == 2)
+        again = c.at("textDocument/hover", u, ln, 9)["contents"]["value"]
+        assert "computing" in again                                     # the new text's work starts afresh
+        assert _progress(c, "begin")["token"] != begin["token"]
+    finally:
+        c.close()

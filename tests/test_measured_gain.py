@@ -131,8 +131,9 @@ def test_bad_measured_gain_is_E325_at_its_place(tmp_path, entry, where):
 
 def test_a_fit_writes_the_tones_its_data_drove_as_measured_gain(tmp_path):
     """The fast version of tests/test_closed_loop.py::test_fig3_study_seed_repeats (a study): `acl fit` with a free gain
-    on data at three tones writes measured(gain) at exactly those tones, each its relative standard error rounded up
-    (0.05 um noise: 1.5-3 %), and the calibrated design's bands pin them."""
+    on data at three tones writes measured(gain) at exactly those tones, each the relative error of the calibrated
+    gain there rounded up (the standard error, 1.5-3 % at 0.05 um noise, in quadrature with the noise-driven offset
+    of the tone's own gain from the calibrated one: up to 6 % here), and the calibrated design's bands pin them."""
     from acl.fit import run_fit
     from acl.fit.synth import Experiment, generate, write_csv
 
@@ -150,4 +151,4 @@ def test_a_fit_writes_the_tones_its_data_drove_as_measured_gain(tmp_path):
     got = pinned(acl.load(str(cal)))
     assert [f for f, _ in got] == list(tones) == sorted(se)
     for f, s in got:
-        assert 0.005 < s < 0.05 and se[f] <= s <= se[f] + 1e-4, (f, s, se[f])
+        assert 0.005 < s < 0.1 and se[f] <= s <= se[f] + 1e-4, (f, s, se[f])

@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 
 import acl
-from acl.analysis import acoustics as A
+from acl.analysis import acoustics as A, interfaces
 from acl.analysis.report import analyze
 from acl.design.model import Drive, Tone
 from acl.diagnostics import DiagnosticError
@@ -38,8 +38,8 @@ def design(volts: str):
 def test_interface_amplitude_is_linear_in_voltage_and_reported_per_drive():
     # Linear model: eps/R doubles with the voltage (1e-12 rel.); analyze reports it per drive and orifice.
     d = design("2 V")
-    a1 = A.interface_amplitudes(d, Drive(tones=(Tone(frequency=123e3, amplitude=1.0),)))["a.jet"]
-    a2 = A.interface_amplitudes(d, Drive(tones=(Tone(frequency=123e3, amplitude=2.0),)))["a.jet"]
+    a1 = interfaces.interface_amplitudes(d, Drive(tones=(Tone(frequency=123e3, amplitude=1.0),)))["a.jet"]
+    a2 = interfaces.interface_amplitudes(d, Drive(tones=(Tone(frequency=123e3, amplitude=2.0),)))["a.jet"]
     assert a2 == pytest.approx(2 * a1, rel=1e-12)
     rep = analyze(d, snap_in=False).as_dict()
     (entry,) = [x for x in rep["drives"] if x["program"] == "p"]
@@ -61,7 +61,7 @@ def test_compile_warns_past_the_linear_limit_and_refuses_past_the_hemisphere_unl
     (goal,) = s.goals
     assert 0 < goal.details["model_form_force_rel"] < 1
     hot = acl.loads(HIGH.replace("VOLTS", "30 V"), filename=str(ROOT / "examples" / "v.acl"))
-    assert max(A.interface_amplitudes(hot, Drive(tones=(Tone(frequency=123e3, amplitude=30.0),))).values()) > 1.0
+    assert max(interfaces.interface_amplitudes(hot, Drive(tones=(Tone(frequency=123e3, amplitude=30.0),))).values()) > 1.0
     with pytest.raises(DiagnosticError) as exc:
         compile_program(hot, "p")
     (diag,) = exc.value.diagnostics

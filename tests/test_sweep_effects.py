@@ -1,5 +1,7 @@
 """Declared physical effects in a sweep: each column family is given where no declared effect changes it, and
-equals `acl analyze` of the design with its effects; otherwise it is given point by point by analyze's engine (acl.sweep.points) and equals analyze exactly.
+equals `acl analyze` of the design with its effects.  The effects acl.sweep.columns.BATCHED_EFFECTS names are applied
+in the batched engine (tests/test_sweep_points.py); the others' families are given point by point by analyze's
+engine (acl.sweep.points) and equal analyze exactly.
 
 Forces at rest are unchanged by effects on beams (large_deflection, stiffness_gradient, stiffness_scale) and
 by neighbour_drag (its factor is 1 at zero displacement); latch margins also by all but stiffness_scale
@@ -64,7 +66,7 @@ def test_pair_forces_with_beam_and_drag_effects_equal_analyze():
     assert exc.value.code == "E-SWEEP-Q01"
 
 
-def test_latch_margins_with_a_stiffness_gradient_equal_analyze_and_stiffness_scale_is_refused():
+def test_latch_margins_with_a_stiffness_gradient_equal_analyze_and_stiffness_scale_is_batched():
     d = _design("fig6_bistable_latch", "effect stiffness_gradient { e_gradient = 0.2 }")
     names, missing = supported(d, None)
     assert "switching_force_snap_n" in names and "require_1_value" in names
@@ -78,7 +80,7 @@ def test_latch_margins_with_a_stiffness_gradient_equal_analyze_and_stiffness_sca
         m = next(x["margin"] for x in lt["margins"] if x["program"] == "switch")
         assert m * (1 - 2e-3) <= cols["margin_snap_switch_1"][i] <= m * (1 + 1e-12)    # never above analyze
         assert cols["require_1_pass"][i] == rep["requires"][0]["ok"]
-    # stiffness_scale changes the latch law: point by point by analyze's engine, equal to analyze
+    # stiffness_scale changes the latch law: E x e_scale in the batched engine (acl.sweep.columns.BATCHED_EFFECTS)
     scaled = _design("fig6_bistable_latch", "effect stiffness_scale { e_scale = 0.8 }")
     names, missing = supported(scaled, None)
     assert "switching_force_snap_n" in names and "require_1_value" in names and "margin_" not in missing
@@ -91,8 +93,60 @@ def test_latch_margins_with_a_stiffness_gradient_equal_analyze_and_stiffness_sca
         assert abs(cols["require_1_value"][i] / rep["requires"][0]["value"] - 1) <= 1e-12
 
 
-def test_pressure_effects_still_refuse_the_forces():
+def test_lint_acl105_under_pressure_effects_equals_the_rule():
+    """ACL105 (eps/R past the linear limit) with transducer_gain and drive_saturation (the factor at each drive's
+    total amplitude, interfaces.interface_amplitudes_batch): the Fig. 2 stroke example's sweep-step drive and a
+    drive step, voltages spread across the limit; each point's verdict equals the rule on its design."""
+    from acl.lint.rules import acoustics
+    from acl.sweep.perturb import field_value, flatten
+    from test_sweep_drives import _rule_verdicts
+
     d = acl.load(str(EX / "fig2_stroke_truth.acl"))
     names, missing = supported(d, "125 kHz @ 2 V")
-    assert "lint_acl105_pass" not in names and "tip_deflection_arm_m" in names      # the latter point by point
-    assert "drive_saturation" in missing["lint_acl105"] or "transducer_gain" in missing["lint_acl105"]
+    assert "lint_acl105_pass" in names and "tip_deflection_arm_m" in names and "lint_acl105" not in missing
+    paths = [k for k in flatten(d) if k.startswith("programs.") and k.endswith("amplitude")]
+    assert paths
+    scale = np.array([0.2, 0.5, 1.0, 2.0, 4.0, 8.0])
+    b = _batch(d, {k: field_value(d, k) * scale for k in paths})
+    cols = evaluate(b, ["lint_acl105_pass"])
+    seen = set()
+    for i in range(b.n):
+        ok = _rule_verdicts(materialize(b, i), {"acl105": acoustics.bubble_beyond_linear})["acl105"]
+        assert cols["lint_acl105_pass"][i] == ok, i
+        seen.add(ok)
+    assert seen == {True, False}
+
+
+ALL_EFFECTS = ("effect bjerknes_scale { factor = 1.4 }\n"
+               "effect stiffness_scale { e_scale = 0.8 }\n"
+               "effect large_deflection { elastica_weight = 0.5 }\n"
+               "effect transducer_gain { gain = 1.2 }\n"
+               "effect drive_saturation { v_sat = 20 V }\n")
+
+
+def test_lint_acl201_acl401_acl402_columns_under_effects_equal_the_rules():
+    """Under declared effects the program lint columns come from the batched forces with every effect (lint's own
+    beam law: paper Eq. (1) with the declared modulus): the Fig. 4 pair with five effects, beams made softer and
+    the gap moved across d_c, each point's verdicts equal the rules on its design, both outcomes of each hit."""
+    from acl.lint.rules import beams, forces
+    from test_sweep_drives import _rule_verdicts
+
+    d = _design("fig4_facing_pair", ALL_EFFECTS)
+    names, missing = supported(d)
+    assert {"lint_acl201_pass", "lint_acl401_pass", "lint_acl402_pass"} <= set(names)
+    assert "lint_acl105_pass" in names and set(missing) == {"tip_deflection"}      # needs a drive: nothing else
+    scale = np.array([1.0, 0.1, 0.01, 0.0033, 1.0, 1.0])
+    x = d.capsule("right").center[0] + np.array([0.0, 0.0, 0.0, 0.0, -25e-6, 20e-6])
+    ox = d.capsule("right").orifices[0].center[0] + (x - d.capsule("right").center[0])
+    fields = {f"beams.{bm.name}.youngs_modulus": bm.youngs_modulus * scale for bm in d.beams}
+    fields |= {"capsules.right.center.0": x, "capsules.right.orifices.jet.center.0": ox}
+    b = _batch(d, fields)
+    cols = evaluate(b, ["lint_acl201_pass", "lint_acl401_pass", "lint_acl402_pass"])
+    seen = set()
+    for i in range(b.n):
+        want = _rule_verdicts(materialize(b, i), {"acl201": forces.snap_in, "acl401": beams.beam_strain,
+                                                  "acl402": beams.beam_large_deflection})
+        for code, ok in want.items():
+            assert cols[f"lint_{code}_pass"][i] == ok, (i, code)
+            seen.add((code, ok))
+    assert {("acl201", True), ("acl201", False), ("acl402", True), ("acl402", False)} <= seen, seen

@@ -14,7 +14,7 @@ from acl.sweep.table import clopper_pearson
 from example_designs import first_principles_path
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-PAIR = str(first_principles_path("fig4_facing_pair"))   # without its calibration: the effects path has no model_form
+PAIR = str(first_principles_path("fig4_facing_pair"))   # without its calibration (with it: the last test)
 SPRING = os.path.join(ROOT, "benchmarks", "designs", "sweep_spring.acl")
 
 
@@ -69,3 +69,18 @@ def test_naming_the_columns_without_it_says_the_interval_is_not_widened():
     t = acl.sweep(SPRING, n=20, seed=2, quantities=["requires_pass"])
     assert "model_form_uncertain" not in t.columns and t.yields()["all"].widened == 0
     assert any("not widened by the model-form uncertainty" in n for n in t.notes)
+
+
+def test_model_form_rel_under_declared_effects_equals_analyze(tmp_path):
+    """With declared effects on the drive pressure (transducer_gain, drive_saturation) and the pair law (the
+    calibration), eps/R takes the effects' pressure, as analyze's: model_form_rel equals analyze (1e-6)."""
+    path = tmp_path / "pair.acl"
+    path.write_text(open(PAIR).read() + "\neffect transducer_gain { gain = 1.3 }\neffect drive_saturation { v_sat = 12 V }\n"
+                    "effect bjerknes_scale { factor = 1.5 }\n")
+    t = acl.sweep(str(path), vary={"gap": "24um,40um,60um"}, quantities=["model_form_rel"])
+    plain = acl.sweep(PAIR, vary={"gap": "24um,40um,60um"}, quantities=["model_form_rel"])
+    for row, gap in zip(t.data, ("24 um", "40 um", "60 um")):
+        want = _expected(acl.analyze(load_design(str(path), overrides={"gap": gap}), snap_in=False))
+        assert want > 0.0
+        assert abs(row["model_form_rel"] - want) <= 1e-6 * want, (gap, row["model_form_rel"], want)
+    assert not np.allclose(t.data["model_form_rel"][1:], plain.data["model_form_rel"][1:])   # the effects act

@@ -71,6 +71,25 @@ def test_analyze_at_cli_prints_the_located_warning():
     assert {"W-ACOUSTIC-AMPLITUDE", "W-ACOUSTIC-STREAMING"} <= codes
 
 
+def test_every_limit_analyze_at_crosses_is_printed_with_its_code_and_location():
+    # Fig. 2 cantilever at 20 V: eps/R, streaming Reynolds and Eq. (1) deflection are all past their limits;
+    # each warning carries file:line:column and its W code (the Eq. (1) one was printed as a bare "warning:")
+    fig2 = ROOT / "examples" / "fig2_vertical_cantilever.acl"
+    r = subprocess.run([sys.executable, "-m", "acl", "analyze", str(fig2), "--at", "125 kHz @ 20 V", "--no-snap"],
+                       capture_output=True, text=True, cwd=ROOT)
+    assert r.returncode in (0, 1) and "Traceback" not in r.stderr
+    d = acl.load(str(fig2))
+    out = " ".join(r.stdout.split())
+    for code, line in (("W-ACOUSTIC-AMPLITUDE", d.capsule("act").span.line),
+                       ("W-ACOUSTIC-STREAMING", d.capsule("act").span.line),
+                       ("W-MECH-001", d.beams[0].span.line)):
+        assert f"fig2_vertical_cantilever.acl:{line}:1: warning[{code}]" in out, code
+    assert "warning: beam" not in out            # no unlocated, uncoded copy
+    # program steps past the linear limit are located at their own line
+    ramp = next(p for p in d.programs if p.name == "ramp")
+    assert f"fig2_vertical_cantilever.acl:{ramp.steps[7].span.line}:1: warning[W-ACOUSTIC-AMPLITUDE]: program ramp step 8" in out
+
+
 def test_analyze_at_warns_when_orifices_are_closer_than_the_monopole_limit():
     d = acl.load(str(ROOT / "examples" / "fig4_facing_pair.acl"), overrides={"gap": "30 um"})
     rep = analyze(d, at=Drive(tones=(Tone(frequency=125e3, amplitude=0.5),)), snap_in=False).as_dict()

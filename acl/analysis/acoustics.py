@@ -22,16 +22,15 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from acl.design.model import Capsule, Cavity, Design, Drive, Tone
+from acl.design.model import Capsule, Cavity, Design, Drive
 from acl.analysis import effects as EF
 from acl.physics import constants as C
 from acl.physics import effects as PE
 from acl.physics.coupling import (BubbleSystem, CoupledModes, build_system, coupled_modes as _physics_coupled_modes,
                                   coupled_response as _physics_coupled, prepared_response, uncoupled_blocks)
-from acl.physics.forces import (capsule_forces, capsule_pair_forces, critical_distance, dominant_pair_phase,
-                                force_constants, interface_centre_amplitude, neighbour_drag, thrust_magnitude)
+from acl.physics.forces import (bjerknes_pair_sum, capsule_forces, capsule_pair_forces, critical_distance,
+                                dominant_pair_phase, force_constants, neighbour_drag, thrust_magnitude)
 from acl.physics.forces import pressure_terms  # noqa: F401  (public here since before; acl.analysis.tones)
-from acl.physics.roots import grid_max
 from acl.physics.resonance import BubbleModes, capsule_modes as _physics_modes
 from acl.physics.ties import TIE_RTOL, first_max
 from acl.physics.transducer import pressure_per_volt
@@ -301,6 +300,7 @@ def _centres_array(design: Design, positions) -> np.ndarray:
 
 _REST: list = []          # [(design, {frequency: (n,) complex response per pascal at rest})]: the last few designs
 _ENGINE_REST: list = []   # [(design, {tone frequencies: (1, T, n) the force engine's response at rest})]
+_REST_THRUST: list = []   # [(design, {(tone frequencies, pressures): (1, n) thrust per interface at rest})]
 
 
 def _per_design_store(stores: list, design: Design) -> dict:
@@ -460,71 +460,6 @@ def orifice_response(design: Design, capsule, frequencies) -> np.ndarray:
     return coupled_response(design, frequencies)[:, _layout(design).body == c]
 
 
-def sweep_interface_amplitudes(design: Design, frequencies, amplitude: float) -> np.ndarray:
-    """eps/R (F, n) of every interface under a single tone of ``amplitude`` at each of ``frequencies``:
-    :func:`interface_amplitudes` of each tone alone, in one coupled solve."""
-    lay = _layout(design)
-    f = np.atleast_1d(np.asarray(frequencies, float))
-    if f.size == 0 or not lay.labels:
-        return np.zeros((f.size, len(lay.labels)))
-    gain = effect_pressure_factor(design, f, float(amplitude))
-    u = coupled_response(design, f) * (amplitude * gain)[:, None]
-    return interface_centre_amplitude(np.abs(u), lay.radii) / lay.radii
-
-
-def interface_amplitudes(design: Design, drive: Drive, positions=None) -> dict[str, float]:
-    """Centre amplitude over radius, eps/R, of every interface under ``drive`` (tone amplitudes summed: the peak)."""
-    lay = _layout(design)
-    f, v = _tones(drive)
-    eps = interface_amplitudes_batch(design, f, v[None], positions)[0]
-    return {lab: float(e) for lab, e in zip(lay.labels, eps)}
-
-
-def interface_amplitudes_batch(design: Design, frequencies, amplitudes, positions=None) -> np.ndarray:
-    """eps/R (B, n) of every interface (``interface_labels`` order) under B drives of the tones ``frequencies`` (Hz),
-    row b with amplitudes ``amplitudes[b]`` (V; summed: the peak; drive saturation at each row's total): the
-    coupled response at rest (or ``positions``) solved once for every row."""
-    lay = _layout(design)
-    f = np.atleast_1d(np.asarray(frequencies, float))
-    v = np.atleast_2d(np.asarray(amplitudes, float)).reshape(-1, f.size)
-    if f.size == 0 or not lay.labels:
-        return np.zeros((v.shape[0], len(lay.labels)))
-    gain = effect_pressure_factor(design, f, v.sum(axis=1, keepdims=True))
-    u = coupled_response(design, f, positions)[None] * (v * gain)[:, :, None]
-    eps = interface_centre_amplitude(np.abs(u).sum(axis=1), lay.radii)
-    return eps / lay.radii
-
-
-def sweep_worst_amplitude(design: Design, f0: float, f1: float, amplitude: float, extra=(),
-                          samples: int = 21) -> tuple[float, float, dict[str, float]]:
-    """Largest eps/R a single tone of ``amplitude`` V reaches anywhere in ``f0 .. f1`` (a sweep):
-    (eps/R, frequency Hz, every interface's eps/R there).
-
-    ``samples`` log-spaced frequencies plus ``extra`` (e.g. the modes inside), the largest refined by
-    golden section between its neighbours: a grid alone misses a resonance peak between its points
-    (9 linear points across 100-150 kHz gave 0.672 for a peak of 0.686: optimistic).
-    """
-    def at(f):
-        amps = interface_amplitudes(design, Drive(tones=(Tone(frequency=float(f), amplitude=amplitude),)))
-        return max(amps.values(), default=0.0), amps
-
-    best, best_f = band_maximum(lambda f: at(f)[0], f0, f1, extra, samples)
-    return best, best_f, at(best_f)[1]
-
-
-def band_maximum(value, f0: float, f1: float, extra=(), samples: int = 21, rtol: float = 1e-9) -> tuple[float, float]:
-    """(largest ``value(f)``, its frequency Hz) over ``f0 .. f1``: ``samples`` log-spaced frequencies plus the ``extra``
-    ones inside (the modes), the largest refined by golden section between its neighbours down to ``rtol``
-    (:func:`sweep_worst_amplitude`; ties: the first, lowest, frequency)."""
-    lo, hi = sorted((float(f0), float(f1)))
-    extra = np.asarray(list(extra), float)
-    fs = np.unique(np.concatenate([np.geomspace(lo, hi, max(samples, 2)) if lo > 0 else np.linspace(lo, hi, samples),
-                                   extra[(extra >= lo) & (extra <= hi)]]))
-    vals = [value(f) for f in fs]
-    best, best_f = grid_max(value, fs, vals, iterations=40, rtol=rtol)   # ties: the first (lowest) frequency
-    return best, float(best_f)
-
-
 # ----------------------------------------------------------------------------------------------
 # Forces
 # ----------------------------------------------------------------------------------------------
@@ -588,18 +523,42 @@ class _Engine:
     consts: dict = field(default_factory=dict)   # position-independent factors of forces()
     _rest: list = field(default_factory=list, compare=False, repr=False)
 
+    def _rest_response(self):
+        """The coupled response per pascal at rest (1, T, n), shared by the drives with the same tones; None without any."""
+        if not (self.f.size and self.lay.radii.size):
+            return None
+        store = _per_design_store(_ENGINE_REST, self.design)
+        key = tuple(self.f.tolist())
+        r = store.get(key)
+        if r is None:
+            r = store[key] = self.response(self.lay.rest[None][:, self.lay.body, :] + self.lay.offsets)
+        return r
+
+    def _drive_key(self) -> tuple:
+        return tuple(self.f.tolist()), self.pressure.tobytes()
+
     def rest_forces(self):
         """:meth:`forces` of the capsules at rest, with parts (total, u, thr, att), each (1, ...); computed once."""
         if not self._rest:
-            r = None
-            if self.f.size and self.lay.radii.size:     # drives with the same tones share the coupled solve
-                store = _per_design_store(_ENGINE_REST, self.design)
-                key = tuple(self.f.tolist())
-                r = store.get(key)
-                if r is None:
-                    r = store[key] = self.response(self.lay.rest[None][:, self.lay.body, :] + self.lay.offsets)
-            self._rest.append(self.forces(self.lay.rest[None], parts=True, response=r))
+            self._rest.append(self.forces(self.lay.rest[None], parts=True, response=self._rest_response()))
+            # the thrust per interface (n floats) outlives the engine: :meth:`rest_pairs` of a later engine of the
+            # same drive needs it (the last engine only is kept, and lint asks its drives in turn)
+            _per_design_store(_REST_THRUST, self.design)[self._drive_key()] = self._rest[0][2]
         return self._rest[0]
+
+    def rest_pairs(self):
+        """(u, thr, att) of :meth:`rest_forces`, for the pair table: when an earlier engine of this drive computed the
+        rest forces, only the Bjerknes pair sum is evaluated again (the same call, so the same numbers)."""
+        thr = None if self._rest else _per_design_store(_REST_THRUST, self.design).get(self._drive_key())
+        r = None if thr is None else self._rest_response()
+        if r is None:
+            _, u, thr, att = self.rest_forces()
+            return u, thr, att
+        k = self.consts
+        pts = self.lay.rest[None][:, self.lay.body, :] + self.lay.offsets
+        _, att = bjerknes_pair_sum(pts, r, k["w2p2"], k["bjerknes"], k["other"], k.get("gap_exponent", 0.0),
+                                   k.get("gap_ref", 1.0))
+        return r * self.pressure[None, :, None], thr, att
 
     def forces(self, centres: np.ndarray, parts: bool = False, consts: dict | None = None, response=None):
         """Total acoustic force (B, C, 3) on each capsule for centres (B, C, 3): thrust + Bjerknes + jet drag.
@@ -718,7 +677,7 @@ def pair_table(design: Design, drive: Drive,
     eng = _engine(design, drive)
     lay = eng.lay
     centres = _centres_array(design, positions)
-    _, u, thr, att = eng.rest_forces() if not positions else eng.forces(centres[None], parts=True)
+    u, thr, att = eng.rest_pairs() if not positions else eng.forces(centres[None], parts=True)[1:]
     u, thr, att = u[0], thr[0], att[0]
     pts = lay.points(centres)
     thrust_vec = np.einsum("n,nk,nc->ck", thr, -lay.normals, lay.onehot)
@@ -756,11 +715,11 @@ def _apply_neighbour_drag(design: Design, lay: _Layout, centres: np.ndarray, tot
     return total
 
 
-def force_batch(design: Design, centres: np.ndarray, drive: Drive) -> np.ndarray:
-    """:func:`force_model` for many configurations at once: capsule centres (B, C, 3) in ``design.capsules`` order -> forces (B, C, 3)."""
+def force_batch(design: Design, centres: np.ndarray, drive: Drive, consts: dict | None = None) -> np.ndarray:
+    """:func:`force_model` for many configurations at once: capsule centres (B, C, 3) in ``design.capsules`` order -> forces (B, C, 3); ``consts`` overrides :meth:`_Engine.forces`' constants (e.g. ``jet_drag_fraction``)."""
     eng = _engine(design, drive)
     centres = np.asarray(centres, float)
-    return _apply_neighbour_drag(design, eng.lay, centres, eng.forces(centres))
+    return _apply_neighbour_drag(design, eng.lay, centres, eng.forces(centres, consts=consts))
 
 
 def force_model(design: Design, positions: Mapping[str, Sequence[float]] | None,

@@ -103,8 +103,8 @@ class DesignAnalysis:
         return orifice_response(self.design, capsule, frequencies)
 
     def sweep_interface_amplitudes(self, frequencies, amplitude: float) -> np.ndarray:
-        """:func:`acl.analysis.acoustics.sweep_interface_amplitudes`: eps/R (F, interfaces)."""
-        from acl.analysis.acoustics import sweep_interface_amplitudes
+        """:func:`acl.analysis.interfaces.sweep_interface_amplitudes`: eps/R (F, interfaces)."""
+        from acl.analysis.interfaces import sweep_interface_amplitudes
 
         f = np.atleast_1d(np.asarray(frequencies, float))
         return self._per(("sweep_eps", tuple(f.tolist()), amplitude),
@@ -137,8 +137,10 @@ class DesignAnalysis:
 
     def force_array(self, drive: Drive) -> np.ndarray:
         """:meth:`forces` as an array (C, 3) in ``design.capsules`` order."""
-        return self._per(("force_array", _drive_key(drive)), lambda: np.array(
-            [self.forces(drive)[n] for n in self.names], float).reshape(-1, 3))
+        def compute():
+            f = self.forces(drive)
+            return np.array([f[n] for n in self.names], float).reshape(-1, 3)
+        return self._per(("force_array", _drive_key(drive)), compute)
 
     def pair_table(self, drive: Drive):
         """:func:`acl.analysis.acoustics.pair_table` at rest: every capsule pair's Bjerknes interaction."""
@@ -169,8 +171,8 @@ class DesignAnalysis:
             [v for v in thrust_vectors(self.design, drive).values()], float).reshape(-1, 3))
 
     def interface_amplitudes(self, drive: Drive) -> dict[str, float]:
-        """:func:`acl.analysis.acoustics.interface_amplitudes` at rest: eps/R of every interface."""
-        from acl.analysis.acoustics import interface_amplitudes
+        """:func:`acl.analysis.interfaces.interface_amplitudes` at rest: eps/R of every interface."""
+        from acl.analysis.interfaces import interface_amplitudes
 
         return self._per(("eps", _drive_key(drive)), lambda: interface_amplitudes(self.design, drive))
 

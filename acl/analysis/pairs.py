@@ -6,7 +6,9 @@ force model differs: the coupled responses change with the gap and the jet drag 
 of one thrust at the Fig. 4 geometry).  Here the second capsule is moved along the line between the capsule
 centres, every other capsule at rest, and the gap between the two closest orifices where the closing force
 (attraction positive, the mean of the two capsules' forces along the line) changes sign from attraction to
-repulsion is returned: the d_c a user sees.
+repulsion is returned: the d_c a user sees.  ``drag_fraction`` 1 gives the same with paper Eq. 3's neighbour drag
+(F_d = F_AS at every distance, acl.physics.forces.PAPER_DRAG_FRACTION): the other end of the drag law's model form,
+so the two bracket d_c.
 """
 from __future__ import annotations
 
@@ -17,7 +19,8 @@ from acl.design.model import Design, Drive
 GRID = 80             # gaps sampled between contact and the far end, geometric
 
 
-def closing_force(design: Design, drive: Drive, a: str, b: str, shifts) -> tuple[np.ndarray, np.ndarray]:
+def closing_force(design: Design, drive: Drive, a: str, b: str, shifts,
+                  drag_fraction: float | None = None) -> tuple[np.ndarray, np.ndarray]:
     """(gap between the closest orifices (S,) m, closing force (S,) N, attraction positive) with capsule ``b`` moved
     by ``shifts`` (S,) m along the line from ``a``'s centre to ``b``'s (acoustics.force_batch: the full force model)."""
     from acl.analysis.acoustics import force_batch
@@ -30,7 +33,8 @@ def closing_force(design: Design, drive: Drive, a: str, b: str, shifts) -> tuple
     s = np.atleast_1d(np.asarray(shifts, float))
     centres = np.repeat(rest[None], s.size, axis=0)
     centres[:, ib] = centres[:, ib] + s[:, None] * unit
-    f = force_batch(design, centres, drive)
+    f = force_batch(design, centres, drive,
+                    None if drag_fraction is None else {"jet_drag_fraction": float(drag_fraction)})
     close = 0.5 * ((f[:, ia] - f[:, ib]) @ unit)
     ca, cb = design.capsule(a), design.capsule(b)
     oa = np.array([o.center for o in ca.orifices], float) - np.asarray(ca.center, float) + rest[ia]
@@ -39,24 +43,92 @@ def closing_force(design: Design, drive: Drive, a: str, b: str, shifts) -> tuple
     return gaps, close
 
 
-def net_critical_distance(design: Design, drive: Drive, a: str, b: str, far: float = 400e-6) -> float | None:
+def net_critical_distance(design: Design, drive: Drive, a: str, b: str, far: float = 400e-6,
+                          drag_fraction: float | None = None) -> float | None:
     """Gap (m) between the closest orifices of ``a`` and ``b`` where the net closing force changes from attraction
     to repulsion as ``b`` moves away along the centre line (the first such change from near contact out to ``far``
-    beyond the rest gap); None if it never does (always attracting or always repelling there)."""
+    beyond the rest gap); None if it never does (always attracting or always repelling there).  ``drag_fraction``:
+    :func:`closing_force`'s (None: the force model's own jet-drag law)."""
     from acl.physics.roots import brentq          # analyze imports no scipy (tests/test_analyze_ties.py)
 
     ca, cb = design.capsule(a), design.capsule(b)
     touch = min(x.radius for x in ca.orifices) + min(y.radius for y in cb.orifices)
-    g0, _ = closing_force(design, drive, a, b, [0.0])
+    g0, _ = closing_force(design, drive, a, b, [0.0], drag_fraction)
     near = 1.05 * touch - float(g0[0])                  # a shift that brings the orifices close to touching
     grid = np.concatenate([np.linspace(near, 0.0, GRID // 2, endpoint=False),
                            np.geomspace(1e-7, far, GRID // 2)])
     grid.sort()
-    gaps, close = closing_force(design, drive, a, b, grid)
+    gaps, close = closing_force(design, drive, a, b, grid, drag_fraction)
     ok = np.isfinite(close) & (gaps >= touch)
     idx = np.flatnonzero(ok[:-1] & ok[1:] & (close[:-1] > 0) & (close[1:] <= 0))
     if idx.size == 0:
         return None
     k = int(idx[0])
-    s = brentq(lambda x: float(closing_force(design, drive, a, b, [x])[1][0]), grid[k], grid[k + 1], xtol=1e-12)
-    return float(closing_force(design, drive, a, b, [s])[0][0])
+    s = brentq(lambda x: float(closing_force(design, drive, a, b, [x], drag_fraction)[1][0]), grid[k], grid[k + 1],
+               xtol=1e-12)
+    return float(closing_force(design, drive, a, b, [s], drag_fraction)[0][0])
+
+
+def quality_bound(design: Design, name: str) -> float:
+    """Largest plausible Q of capsule ``name``'s first mode (acl.physics.resonance.plausible_quality_bound: twice
+    the Q of its viscous and radiation losses alone, thermal loss left out)."""
+    from acl.analysis.acoustics import _medium, thermal_radius
+    from acl.physics.resonance import capsule_modes, plausible_quality_bound
+
+    cap = design.capsule(name)
+    rho, mu, c, sigma, p0, kappa, diff, gamma = _medium(design).as_tuple()
+    m = capsule_modes(cap.cavity.volume, np.array([o.radius for o in cap.orifices]), rho, sigma, p0, kappa, mu, c,
+                      thermal_radius(cap.cavity), heat_capacity_ratio=gamma, thermal_diffusivity=diff, thermal=False)
+    return float(plausible_quality_bound(m.quality[0])) if m.quality.size else float("inf")
+
+
+def _note(design: Design, name: str, code: str, message: str) -> dict:
+    span = design.capsule(name).span
+    return {"code": code, "file": span.file, "line": span.line, "column": span.column, "message": message}
+
+
+def uncoupled_phase_difference(design: Design, a: str, b: str, frequency: float) -> float:
+    """|phase difference| (deg, 0..180) of the total volume responses of capsules ``a`` and ``b`` each alone at
+    ``frequency`` (acl.physics.resonance.volume_response; the single-bubble picture of paper Fig. 4f: above 90 deg
+    the pair repels)."""
+    from acl.analysis.acoustics import modal_data
+    from acl.physics.resonance import volume_response
+
+    va, vb = (volume_response(modal_data(design, n), [frequency])[0].sum() for n in (a, b))
+    return abs(float(np.degrees(np.angle(va * np.conj(vb)))))
+
+
+def pair_notes(design: Design, pair: dict) -> list[dict]:
+    """Located notes (code, file, line, column, message) on one analysed pair entry of ``acl analyze``.
+
+    N-PAIR-DC where d_c moves with the neighbour-drag law by more than 5 % and the pair rests within 2x of it
+    (``critical_distance_paper_drag_m``: the other end of that law); N-PAIR-SIGN where the sign rests on a declared
+    Q beyond the plausible bound (:func:`quality_bound`), or where the single-bubble phases (paper Fig. 4f) say
+    repel, the coupled bubbles attract, and repulsion needs a Q beyond that bound."""
+    out = []
+    a, b, f = pair["a"], pair["b"], pair["frequency_hz"] / 1e3
+    dc, dc1, gap = pair.get("critical_distance_m"), pair.get("critical_distance_paper_drag_m"), pair["gap_m"]
+    if dc and dc1 and abs(dc / dc1 - 1) > 0.05 and gap < 2 * max(dc, dc1):
+        out.append(_note(design, b, "N-PAIR-DC", (
+            f"{a}-{b} at {f:g} kHz: d_c {dc * 1e6:.1f} um with the laminar-jet drag of the neighbour, "
+            f"{dc1 * 1e6:.1f} um with paper Eq. (3)'s F_d = F_AS (one thrust); the interval is d_c's model-form "
+            "uncertainty (docs/physics.md, Paper vs acl)")))
+    if pair.get("phase_difference_predicted_q_deg") is None:
+        return out                                  # an identical pair: no sign study
+    qmax = min(quality_bound(design, a), quality_bound(design, b))
+    rq = pair.get("repel_from_q")
+    declared = [c.quality_factor for c in design.capsules if c.name in (a, b) and c.quality_factor]
+    where = f"{a}-{b} at {f:g} kHz"
+    if pair["attract"] and (rq is None or rq > qmax):
+        alone = uncoupled_phase_difference(design, a, b, pair["frequency_hz"])
+        if alone > 90.0:
+            need = f"Q >= {rq:g}" if rq else "a Q above 1000"
+            out.append(_note(design, a, "N-PAIR-SIGN", (
+                f"{where}: each alone, the bubbles are {alone:.0f} deg apart (repel, paper Fig. 4f); coupled at this "
+                f"gap they attract, and repulsion needs {need} on both capsules, above the plausible Q <= {qmax:.1f} "
+                "(acl.physics.resonance.plausible_quality_bound)")))
+    elif not pair["attract"] and declared and max(declared) > qmax and pair["attract_with_predicted_q"]:
+        out.append(_note(design, a, "N-PAIR-SIGN", (
+            f"{where} repels only with the declared Q = {max(declared):g} (from Q {rq:g}), above the plausible "
+            f"Q <= {qmax:.1f} (acl.physics.resonance.plausible_quality_bound); with the predicted Q it attracts")))
+    return out

@@ -96,9 +96,11 @@ def step_drives(design: M.Design):
 
 def analyze(design: M.Design, at: M.Drive | None = None, snap_in: bool = True, progress=None) -> Report:
     from acl.analysis import acoustics as AC
+    from acl.analysis import interfaces as IF
     from acl.analysis import mechanics as ME
     from acl.analysis.selectivity import selectivity
-    from acl.analysis.pairs import net_critical_distance
+    from acl.analysis.pairs import net_critical_distance, pair_notes
+    from acl.physics.forces import PAPER_DRAG_FRACTION
 
     from acl.analysis.effects import notes as effect_notes
 
@@ -145,7 +147,7 @@ def analyze(design: M.Design, at: M.Drive | None = None, snap_in: bool = True, p
                 progress(f"snap-in sweep at {f / 1e3:g} kHz")
             sw = ME.sweep_voltage(design, M.Drive(tones=(M.Tone(frequency=f, amplitude=1.0),)), vmax, fm)
             snaps[f] = (sw.snap_voltage, sw.status)
-        amps = AC.interface_amplitudes(design, drive)
+        amps = IF.interface_amplitudes(design, drive)
         # what this drive is for: the pair table (two or more capsules), else only the frequency's
         # largest program amplitude (or the 1 V reference where no program sets one)
         basis = "pairs" if pfs else ("largest_program_amplitude" if _program_amplitude(design, f) else "reference")
@@ -158,6 +160,8 @@ def analyze(design: M.Design, at: M.Drive | None = None, snap_in: bool = True, p
                 # d_c where the full force model's net closing force changes sign (acl.analysis.pairs), and the
                 # reduced paper Eq. 3 value sqrt(alpha / 2 gamma) at rest (2 gamma: the two thrusts)
                 "critical_distance_m": net_critical_distance(design, drive, pf.a, pf.b),
+                "critical_distance_paper_drag_m": net_critical_distance(design, drive, pf.a, pf.b,
+                                                                        drag_fraction=PAPER_DRAG_FRACTION),
                 "critical_distance_eq3_m": pf.critical_distance, "gap_m": pf.distance,
                 # point-monopole validity at rest (acl.physics.validity.MONOPOLE_DISTANCE): gap / (R_a + R_b)
                 **_monopole(design, pf),
@@ -173,9 +177,10 @@ def analyze(design: M.Design, at: M.Drive | None = None, snap_in: bool = True, p
                 "interface_amplitude_over_radius": {k: v for k, v in amps.items()
                                                     if k.split(".")[0] in (pf.a, pf.b)},
             })
+            rep.pairs[-1]["notes"] = pair_notes(design, rep.pairs[-1])
     for p, i, st, drive in step_drives(design):
-        rep.drives.append(_drive_entry(p.name, i + 1, describe_drive(drive), AC.interface_amplitudes(design, drive),
-                                       st.span.line))
+        rep.drives.append(_drive_entry(p.name, i + 1, describe_drive(drive), IF.interface_amplitudes(design, drive),
+                                       st.span.line, file=st.span.file))
     mode_fs = np.array([m.frequency_hz for ms in modes.values() for m in ms], float)
     for p in design.programs:
         for i, st in enumerate(p.steps):
@@ -218,7 +223,7 @@ def analyze(design: M.Design, at: M.Drive | None = None, snap_in: bool = True, p
             "capsules": [{"name": k, "displacement_m": [float(x) for x in v]} for k, v in st.displacements.items()],
             "deflections_m": {k: float(np.linalg.norm(v)) if np.ndim(v) else float(v) for k, v in st.deflections.items()},
             "deflection_over_eq1_limit": _eq1_ratios(design, st.deflections),
-            "interface_amplitude_over_radius": AC.interface_amplitudes(design, at, st.positions),
+            "interface_amplitude_over_radius": IF.interface_amplitudes(design, at, st.positions),
             "gaps": [_gap(design, a, b, st.positions) for a, b in _pairs(design)],
             "warnings": [d.message for d in st.diagnostics],
         }
@@ -243,7 +248,7 @@ def validity_at(design: M.Design, drive: M.Drive, st, modes: dict) -> list[dict]
     interface amplitude (soft 0.25, hard: the hemisphere), streaming Reynolds number, point-monopole distance, and
     paper Eq. (1)'s deflection range (W-MECH-001 of the mechanics).  Each: code, severity, message, evidence,
     file/line/column, the value and the limit, and (amplitude) the model-form force uncertainty."""
-    from acl.analysis import acoustics as AC
+    from acl.analysis import interfaces as IF
     from acl.physics import validity as VA
 
     out = []
@@ -251,7 +256,7 @@ def validity_at(design: M.Design, drive: M.Drive, st, modes: dict) -> list[dict]
     from acl.physics.forces import streaming_reynolds
 
     med = design.medium or WATER_20C        # the same default as the acoustics (acl.physics.constants)
-    amps = AC.interface_amplitudes(design, drive, st.positions)
+    amps = IF.interface_amplitudes(design, drive, st.positions)
     w_top = 2 * np.pi * max(t.frequency for t in drive.tones)
     for key, x in amps.items():
         cap, ori = key.split(".")
@@ -315,15 +320,16 @@ SWEEP_SAMPLES = 21        # log-spaced frequencies across a sweep, plus every mo
 
 
 def _sweep_entry(design: M.Design, program: str, i: int, st, mode_fs: np.ndarray) -> dict:
-    """Linear-regime check of a sweep step at its worst frequency (acoustics.sweep_worst_amplitude, every mode inside)."""
-    from acl.analysis import acoustics as AC
+    """Linear-regime check of a sweep step at its worst frequency (interfaces.sweep_worst_amplitude, every mode inside)."""
+    from acl.analysis import interfaces as IF
 
-    _, f, amps = AC.sweep_worst_amplitude(design, st.f_start, st.f_stop, st.amplitude, mode_fs, SWEEP_SAMPLES)
+    _, f, amps = IF.sweep_worst_amplitude(design, st.f_start, st.f_stop, st.amplitude, mode_fs, SWEEP_SAMPLES)
     drive = M.Drive(tones=(M.Tone(frequency=f, amplitude=st.amplitude),))
-    return _drive_entry(program, i + 1, describe_drive(drive) + " (the sweep's worst frequency)", amps, st.span.line)
+    return _drive_entry(program, i + 1, describe_drive(drive) + " (the sweep's worst frequency)", amps, st.span.line,
+                        file=st.span.file)
 
 
-def _drive_entry(program, step, drive_text, amps: dict, line=None, basis: str = "step") -> dict:
+def _drive_entry(program, step, drive_text, amps: dict, line=None, basis: str = "step", file=None) -> dict:
     """Linear-regime check of one drive: eps/R of every interface against LINEAR_AMPLITUDE_LIMIT.
 
     ``basis``: "step" (a program step's drive), "pairs" (the drive of the pair table at one program
@@ -333,7 +339,7 @@ def _drive_entry(program, step, drive_text, amps: dict, line=None, basis: str = 
     from acl.physics.constants import LINEAR_AMPLITUDE_LIMIT
 
     worst = max(amps.values(), default=0.0)
-    return {"program": program, "step": step, "line": line, "drive": drive_text, "basis": basis,
+    return {"program": program, "step": step, "file": file, "line": line, "drive": drive_text, "basis": basis,
             "interface_amplitude_over_radius": amps, "max_amplitude_over_radius": worst,
             "linear_limit": LINEAR_AMPLITUDE_LIMIT, "linear": bool(worst <= LINEAR_AMPLITUDE_LIMIT)}
 

@@ -21,6 +21,9 @@ def add_parser(p) -> None:
     add_output_format(p, old=("--json",))
     p.add_argument("--plot", metavar="DIR", help="write PNG figures into DIR")
     p.add_argument("--no-snap", action="store_true", help="skip the snap-in voltage sweeps (faster)")
+    p.add_argument("--sign-draws", metavar="N", type=int, default=None,
+                   help="draws of the declared uncertainty for each pair's P(other sign) (default 200 when the design "
+                        "declares any; 0: none)")
     add_design_options(p)
 
 
@@ -69,6 +72,14 @@ def run(args) -> int:
         con = make_console(stderr=True)
         with con.status("analyzing...") as status:
             rep = analyze(design, at, snap_in=not args.no_snap, progress=lambda m: status.update(m))
+    draws = args.sign_draws
+    if draws is not None and draws < 0:
+        report([error("E-USAGE", f"--sign-draws {draws}: a negative number of draws",
+                      Span(file="<--sign-draws>", line=1, column=1), "give 0 (none) or more")], fmt)
+        return 2
+    from acl.sweep.signs import annotate_pairs
+
+    annotate_pairs(design, rep.pairs, draws)    # P(other sign) under the declared uncertainty (acl.sweep.signs)
     if args.plot:
         from acl.emit.analysis_figures import write_figures
 
@@ -109,6 +120,7 @@ def print_report(design, rep) -> None:
     from acl._console import make_console
     from acl._console import print_table
     from acl._console import table as Table
+    from rich.markup import escape
 
     from acl.physics.ties import first_max_item
 
@@ -161,22 +173,31 @@ def print_report(design, rep) -> None:
         worst = first_max_item(d["interface_amplitude_over_radius"])      # ties: the first declared
         past = (" and past the hemisphere (eps/R = 1), where the bubble model has no meaning and `acl compile` refuses"
                 if worst[1] > 1.0 else "")
-        con.print(f"[red]warning\\[W-ACOUSTIC-AMPLITUDE]:[/red] {where}: {d['drive']} drives {worst[0]} to eps/R = "
+        loc = f"{escape(d['file'])}:{d['line']}:1: " if d.get("file") and d.get("line") else ""   # a step: located
+        con.print(f"{loc}[red]warning\\[W-ACOUSTIC-AMPLITUDE]:[/red] {where}: {d['drive']} drives {worst[0]} to eps/R = "
                   f"{worst[1]:.6g}, beyond the linear bubble model (eps/R <= {d['linear_limit']:g}; docs/physics.md){past}")
     if rep.pairs:
         t = Table(title="Bubble pairs (Bjerknes force at rest, attraction positive)", title_justify="left")
         for col in ("pair", "f (kHz)", "V", "force (nN)", "", "phase diff (deg)", "gap (um)", "d_c (um)", "snap-in V",
-                    "with predicted Q", "repels from Q"):
+                    "with predicted Q", "repels from Q", "P(other sign)"):
             t.add_column(col)
         for p in rep.pairs:
             dc = f"{p['critical_distance_m'] * 1e6:.1f}" if p["critical_distance_m"] else "-"
+            d1 = p.get("critical_distance_paper_drag_m")       # the other end of the drag law's model form
+            if p["critical_distance_m"] and d1 and f"{d1 * 1e6:.1f}" != dc:
+                dc += f" ({d1 * 1e6:.1f})"
             sv = f"{p['snap_in_voltage_v']:.2f}" if p["snap_in_voltage_v"] else ("none" if p["sweep_status"] == "ok" else p["sweep_status"])
             t.add_row(f"{p['a']}-{p['b']}", _k(p["frequency_hz"]), f"{p['voltage_v']:g}", f"{p['force_n'] * 1e9:.3g}",
                       "[green]attract[/green]" if p["attract"] else "[magenta]repel[/magenta]",
                       f"{round(p['phase_difference_deg'], 1) + 0.0:.1f}", f"{p['gap_m'] * 1e6:.1f}", dc, sv,
                       {True: "attract", False: "repel", None: "-"}[p.get("attract_with_predicted_q")],
-                      f"{p['repel_from_q']:g}" if p.get("repel_from_q") else "-")
+                      f"{p['repel_from_q']:g}" if p.get("repel_from_q") else "-",
+                      f"{p['p_other_sign']:.2f}" if p.get("p_other_sign") is not None else "-")
         print_table(con, t)
+        for p in rep.pairs:           # located notes: d_c's drag-law interval, signs resting on an implausible Q
+            for n in p.get("notes", ()):
+                con.print(f"{escape(n['file'])}:{n['line']}:{n['column']}: [yellow]note\\[{n['code']}]:[/yellow] "
+                          f"{escape(n['message'])}")      # wrapped at the terminal's width, location first
     for lt in rep.latches:
         t = Table(title=f"Latch {lt['name']} ({lt['file']}:{lt['line']}): "
                         f"{'bistable' if lt['bistable'] else 'MONOSTABLE'}, switching force {lt['switching_force_n'] * 1e9:.3g} nN, "
@@ -199,14 +220,13 @@ def print_report(design, rep) -> None:
         for g in e["gaps"]:
             t.add_row(f"gap {g['a']}-{g['b']}", f"{g['gap_m'] * 1e6:.2f}")
         print_table(con, t)
+        located = {v["message"] for v in e.get("validity", ())}
         for w in e["warnings"]:
-            con.print(f"[yellow]warning:[/yellow] {w}")
+            if w not in located:                # printed below with its code and location
+                con.print(f"[yellow]warning:[/yellow] {escape(w)}")
         for v in e.get("validity", ()):       # the limits crossed at this drive (acl.physics.validity), located
-            if v["code"] != "W-MECH-001":      # (W-MECH-001 is printed above with the mechanics' warnings)
-                from rich.markup import escape
-
-                con.print(f"{escape(v['file'])}:{v['line']}:{v['column']}: [yellow]warning\\[{v['code']}]:[/yellow] "
-                          f"{escape(v['message'])}", soft_wrap=True)
+            con.print(f"{escape(v['file'])}:{v['line']}:{v['column']}: [yellow]warning\\[{v['code']}]:[/yellow] "
+                      f"{escape(v['message'])}", soft_wrap=True)
     if rep.requires:
         t = Table(title="Requirements", title_justify="left")
         for col in ("requirement", "value", "ok", "at"):

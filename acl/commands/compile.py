@@ -45,6 +45,9 @@ def add_parser(p) -> None:
     p.add_argument("--band-samples", type=int, default=20, metavar="N",
                    help="draws of the declared uncertainty for each goal's 95 %% error band (default 20; 0: none)")
     p.add_argument("--band-seed", type=seed, default=0, metavar="N", help="seed of those draws (default 0)")
+    p.add_argument("--reading-noise", default="0.1um", metavar="SIGMA",
+                   help="noise of one bench reading the band's cure proposes (a length per axis, e.g. 0.5um; "
+                        "default 0.1um): it sets the band expected after those readings")
     p.add_argument("--nonlinear-passes", type=int, default=0, metavar="N",
                    help="re-plan paths N times against the design's nonlinear model (saturation, stiffening, "
                         "declared effects); default 0")
@@ -134,6 +137,27 @@ def _numbers(args):
     return out, diags
 
 
+def _reading_noise(text: str):
+    """``--reading-noise`` in metres: a positive, finite length."""
+    from acl.commands._common import quantity_text
+    from acl.fit.data import parse_quantity
+    from acl.units import DIMENSIONLESS, UnitError, describe, parse_unit_static
+
+    bad = [_usage("E-COMPILE-OPTION", f"--reading-noise {text!r} must be a positive length",
+                  "e.g. --reading-noise 0.1um", "--reading-noise")]
+    try:
+        value, dims = parse_quantity(quantity_text(str(text)))
+    except (ValueError, UnitError):
+        return None, bad
+    if dims != parse_unit_static("m"):
+        got = "a plain number" if dims == DIMENSIONLESS else f"a {describe(dims)}"
+        return None, [_usage("E-COMPILE-OPTION", f"--reading-noise {text!r} is {got}, not a length",
+                             "e.g. --reading-noise 0.1um", "--reading-noise")]
+    if not (math.isfinite(value) and value > 0):
+        return None, bad
+    return value, []
+
+
 def run(args) -> int:
     fmt = args.output_format
     formats, diags = _formats(args.format)
@@ -142,6 +166,8 @@ def run(args) -> int:
     full_scale, more = _full_scale(args.full_scale)
     diags += more
     numbers, more = _numbers(args)
+    diags += more
+    reading_noise, more = _reading_noise(args.reading_noise)
     diags += more
     try:
         _size(args.max_output_size)
@@ -200,7 +226,8 @@ def run(args) -> int:
                           robust=args.robust is not None, robust_mode=args.robust or "mean",
                           band_samples=args.band_samples, band_seed=args.band_seed,
                           nonlinear_passes=args.nonlinear_passes, reload=_reloader(args, design.file),
-                          allow_nonlinear=bool(getattr(args, "allow_nonlinear", False)))
+                          allow_nonlinear=bool(getattr(args, "allow_nonlinear", False)),
+                          reading_noise_m=reading_noise)
     try:
         schedule = compile_program(design, program, opts)
     except DiagnosticError as exc:

@@ -361,11 +361,15 @@ def run(args) -> int:
 
         con = make_console(stderr=True, highlight=False)
         from acl.design.core import EFFECT_UNITS
+        from acl.units import shown_unit
+
+        def text(v, unit):
+            k, unit = shown_unit(unit)
+            return f"{v * k:g} {unit}".strip()
 
         for eid in planted:
             units = EFFECT_UNITS.get(eid, {})
-            given = ", ".join(f"{k} = {v:g}" + (f" {units[k][0]}" if units.get(k, ("",))[0] else "")
-                              for k, v in effects[eid].items())
+            given = ", ".join(f"{k} = {text(v, units.get(k, ('',))[0])}" for k, v in effects[eid].items())
             con.print(f"planted {eid}: {given}")
         con.print(f"wrote {data.n} rows to {args.output}")
     return 0

@@ -91,6 +91,7 @@ class _Segments:
         self.support_end = np.maximum.accumulate(self.b1)
         self._templates: dict[int, np.ndarray | None] = {}
         self._tiled: dict[int, np.ndarray] = {}
+        self._units: dict[tuple, np.ndarray] = {}
 
     def overlapping(self, t0: float, t1: float) -> range:
         lo = int(np.searchsorted(self.support_end, t0, side="right"))
@@ -105,12 +106,31 @@ class _Segments:
                 m = common_period_samples([t.frequency_hz for t in seg.tones], self.fs,
                                           max_samples=1 << 16)
                 if m is not None:
-                    tpl = _tones_at(seg, np.arange(m, dtype=np.int64), self.fs)
+                    tpl = self._template_of(seg, m)
             if len(self._templates) > 64:
                 self._templates.clear()
             self._templates[i] = tpl
         return self._templates[i]
 
+
+    def _template_of(self, seg: Segment, m: int) -> np.ndarray:
+        """:func:`_tones_at` of ``seg`` over samples 0 .. m-1 (the same arithmetic, tone by tone), each tone's unit
+        sine kept by (frequency, phase, m): a schedule's segments replay a few tones at new amplitudes."""
+        if any(t.sweep is not None for t in seg.tones):
+            return _tones_at(seg, np.arange(m, dtype=np.int64), self.fs)
+        out = np.zeros(m)
+        for tone in seg.tones:
+            if tone.amplitude_v == 0:
+                continue
+            key = (tone.frequency_hz, tone.phase_rad, m)
+            unit = self._units.get(key)
+            if unit is None:
+                if len(self._units) >= 16:
+                    self._units.clear()
+                cyc = np.mod(tone.frequency_hz * np.arange(m, dtype=np.int64).astype(np.float64), self.fs) / self.fs
+                unit = self._units[key] = np.sin(2 * np.pi * cyc + tone.phase_rad)
+            out += tone.amplitude_v * unit
+        return out
 
     def tiled(self, i: int, tpl: np.ndarray, length: int) -> np.ndarray:
         """The template repeated to cover ``length + period`` samples (long segments: a slice is a copy)."""
@@ -185,12 +205,15 @@ def render_chunks(schedule: Schedule, sample_rate: float, chunk: int = CHUNK,
             # (a step's weight is 1 on the support: a weight computed in seconds could drop a
             # sample that rounding put on the other side)
             if (fade_in and s0 / fs < S.a1[i]) or (fade_out and (s1 - 1) / fs > S.b0[i]):
+                # (the raised cosine is exactly 1 outside its fade: evaluated only on the samples inside one)
                 t = np.arange(s0, s1, dtype=np.int64) / fs
                 w = np.ones(t.size)
                 if fade_in:
-                    w *= _rc((t - S.a0[i]) / (S.a1[i] - S.a0[i]))
+                    k = int(np.searchsorted(t, S.a1[i], side="left"))          # t[:k] < a1
+                    w[:k] *= _rc((t[:k] - S.a0[i]) / (S.a1[i] - S.a0[i]))
                 if fade_out:
-                    w *= 1.0 - _rc((t - S.b0[i]) / (S.b1[i] - S.b0[i]))
+                    k = int(np.searchsorted(t, S.b0[i], side="right"))         # t[k:] > b0
+                    w[k:] *= 1.0 - _rc((t[k:] - S.b0[i]) / (S.b1[i] - S.b0[i]))
                 x = w * x
             out[s0 - n0:s1 - n0] += x
         if progress is not None:

@@ -379,7 +379,9 @@ def _literal(value, unit):
     """An acl literal: `2.7e-11 N/V^2`, `8.2 V`, `0.5` (SI units, no spaces inside the unit; 9 digits)."""
     if not math.isfinite(value):
         return "inf"
-    unit = (unit or "").replace(" ", "")
+    from acl.units import conventional_unit
+
+    unit = conventional_unit((unit or "").replace(" ", ""))
     if unit.startswith("1/"):                      # the language writes 1/V^2 as V^-2
         base, _, power = unit[2:].partition("^")
         unit = f"{base}^-{power or 1}"

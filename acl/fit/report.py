@@ -13,6 +13,13 @@ from acl.fit.effects import EFFECTS
 REPORT_VERSION = 1
 
 
+def shown(unit: str) -> tuple[float, str]:
+    """(scale, unit) a value in SI ``unit`` is printed with (acl.units.shown_unit: um for lengths, 1/V^2 ...)."""
+    from acl.units import shown_unit
+
+    return shown_unit(unit)
+
+
 def param_entries(fit, problem) -> list[dict]:
     """Each fitted coordinate with value, 95 % interval and the user-facing form (E in Pa, v_sat in V, ...)."""
     P = problem.prepared
@@ -64,8 +71,11 @@ MAX_TONES = 16      # tone_gain_stderr: a data set with more distinct tones (a s
 
 
 def tone_gain_stderr(problem, fit, max_tones: int = MAX_TONES) -> dict:
-    """{tone Hz: relative standard error} of a free transducer gain at each tone the data measured, all fitted
-    coefficients free (linearised least squares, s^2 (J^T J)^-1 as acl.fit.solve, by central differences).
+    """{tone Hz: relative error} of the calibrated model's transducer gain at each tone the data measured: the
+    standard error of a free gain there, all fitted coefficients free (linearised least squares, s^2 (J^T J)^-1 as
+    acl.fit.solve, by central differences), combined in quadrature with how far the data put that free gain from the
+    calibrated model's (one Gauss-Newton step), since the calibrated design carries the fitted coefficients, not
+    the tone's own gain.
 
     A tone counts where it was driven at 10 % or more of the largest amplitude (as ``covered(frequency)``).  The
     calibrated model's gain there holds to this figure whatever the gain table's shape (the tone's own gain is
@@ -101,11 +111,14 @@ def tone_gain_stderr(problem, fit, max_tones: int = MAX_TONES) -> dict:
         up[i] = min(vals[i] + d, c.upper) if np.isfinite(c.upper) else vals[i] + d
         dn[i] = max(vals[i] - d, c.lower) if np.isfinite(c.lower) else vals[i] - d
         cols.append((pred(up) - pred(dn)) / (up[i] - dn[i]))
+    base = pred(vals)
+    resid = np.asarray(problem.y, float)[train] * w[train] - base       # weighted residual of the fitted model
     out = {}
     for f in tones:
         jh = (pred(vals, f, 1e-4) - pred(vals, f, -1e-4)) / 2e-4
         J = np.column_stack(cols + [jh])
-        J = J[np.all(np.isfinite(J), axis=1)]
+        ok = np.all(np.isfinite(J), axis=1) & np.isfinite(resid)
+        J, r = J[ok], resid[ok]
         norm = np.linalg.norm(J, axis=0)
         if J.shape[0] <= J.shape[1] or not np.all(norm > 0):
             continue
@@ -115,8 +128,13 @@ def tone_gain_stderr(problem, fit, max_tones: int = MAX_TONES) -> dict:
             continue                                    # the tone's own gain is degenerate with the coefficients
         cov = np.linalg.inv(Jn.T @ Jn) * fit.redchi
         se = float(np.sqrt(max(cov[-1, -1], 0.0)) / norm[-1])
-        if np.isfinite(se):
-            out[float(f)] = se
+        # the tone's gain that the data ask for (one Gauss-Newton step with every coefficient free): the calibrated
+        # design does not carry it, so its offset from the calibrated model's gain is part of the gain's error there
+        h = float(np.linalg.lstsq(Jn, r, rcond=None)[0][-1] / norm[-1])
+        offset = math.expm1(h) if np.isfinite(h) and h < 700.0 else math.inf     # exp(700) ~ 1e304
+        sd = math.hypot(se, offset)
+        if np.isfinite(sd):
+            out[float(f)] = sd
     return out
 
 
@@ -247,6 +265,7 @@ def render_table(report, console=None) -> None:
     """Rich tables: parameters before/after, per-observable and overall errors, effects tried."""
     from acl._console import make_console
     from acl._console import table as Table
+    from acl.units import conventional_unit
 
     con = console or make_console(highlight=False)
     t = Table(title="fit: before (base model) and after (with selected effects)")
@@ -265,10 +284,14 @@ def render_table(report, console=None) -> None:
         pt.add_column(col, no_wrap=True)
     before = {p["name"]: p for p in report["base"]["parameters"]}
     for p in report["final"]["parameters"]:
-        shown = p.get("reported")
-        pt.add_row(p["name"], _g(before[p["name"]]["value"]) if p["name"] in before else "-", _g(p["value"]),
-                   f"[{_g(p['ci95'][0])}, {_g(p['ci95'][1])}]",
-                   p["unit"] + (f"  ({shown['name']} = {_g(shown['value'])} {shown['unit']})" if shown else ""))
+        rep = p.get("reported")
+        k, unit = shown(p["unit"])
+
+        def g(x):
+            return _g(x * k if isinstance(x, (int, float)) else x)
+        pt.add_row(p["name"], g(before[p["name"]]["value"]) if p["name"] in before else "-", g(p["value"]),
+                   f"[{g(p['ci95'][0])}, {g(p['ci95'][1])}]",
+                   unit + (f"  ({rep['name']} = {_g(rep['value'])} {conventional_unit(rep['unit'])})" if rep else ""))
     con.print(pt)
     if report.get("critical_distance"):
         dc = report["critical_distance"]

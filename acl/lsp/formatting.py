@@ -22,7 +22,7 @@ _LOCK = threading.Lock()
 _KEEP = 8
 
 #: how long a request waits for `acl fmt` before answering that it is still running
-WAIT_SECONDS = 0.17
+WAIT_SECONDS = 0.12
 BUSY = ("E-LSP-BUSY: acl fmt is still formatting this document (a large design: about 1 s for "
         "5,000 lines); ask again in a moment")
 

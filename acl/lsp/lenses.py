@@ -32,7 +32,8 @@ def _code_lens(ls: AclLanguageServer, params: T.CodeLensParams) -> list[T.CodeLe
     out = []
     reqs = None
     if snap.design is not None and any(isinstance(st, A.RequireDecl) for st in snap.env.module.statements):
-        reqs = ls.worker.get((uri, text_key(snap.text), "requires"), requirement_values, snap.path, snap.text)
+        reqs = ls.in_background((uri, text_key(snap.text), "requires"), "acl: requirements", requirement_values,
+                                snap.path, snap.text)
     by_line = {r["line"]: r for r in reqs or [] if isinstance(reqs, list)}
     for st in snap.env.module.statements:
         ln = st.span.line - 1

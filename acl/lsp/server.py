@@ -53,6 +53,8 @@ class AclLanguageServer(LanguageServer):
         from acl.lsp.background import Worker
 
         self.worker = Worker()            # long analyses (a large design's capsule hover), cancellable
+        self._progress_seq = 0
+        self.progress_started = 0         # background jobs shown as $/progress
 
     # ---------------------------------------------------------------------------------- state
     def path_of(self, uri: str) -> str:
@@ -167,6 +169,49 @@ class AclLanguageServer(LanguageServer):
             self.worker.get(("warm",), warm_up)        # and the worker's
 
         threading.Thread(target=warm, daemon=True).start()
+
+    def in_background(self, key: tuple, title: str, fn, *args):
+        """``fn(*args)``'s result for ``key`` from the background worker if ready, else None, having
+        started it (once). A job started here is shown as ``$/progress`` (begin, then end when it
+        finishes or a newer edit cancels it) when the client supports ``window.workDoneProgress``."""
+        worker = self.worker
+        new = worker.future(key) is None and worker.peek(key) is None
+        got = worker.get(key, fn, *args)
+        fut = worker.future(key) if got is None and new else None
+        if fut is None or not self._progress_supported():
+            return got
+        self._progress_seq += 1
+        token = f"acl-background-{self._progress_seq}"
+        loop = asyncio.get_running_loop()
+        state = {"begun": False, "ended": None}
+
+        def begin(*_args) -> None:           # the client accepted the token
+            if state["ended"] is not None:   # finished (or cancelled) before the client answered
+                return
+            state["begun"] = True
+            self.work_done_progress.begin(token, T.WorkDoneProgressBegin(title=title, message=args[0] if args else None,
+                                                                         cancellable=False))
+
+        def end(f) -> None:
+            from concurrent.futures.process import BrokenProcessPool
+
+            exc = None if f.cancelled() else f.exception()
+            stopped = f.cancelled() or isinstance(exc, BrokenProcessPool)      # a newer edit stopped the worker
+            state["ended"] = "cancelled (the document changed)" if stopped else "failed" if exc else "done"
+            if state["begun"]:
+                self.work_done_progress.end(token, T.WorkDoneProgressEnd(message=state["ended"]))
+
+        try:
+            self.work_done_progress.create(token, callback=begin)
+        except Exception:                    # a client that cannot take it: the work goes on without
+            return got
+        fut.add_done_callback(lambda f: loop.call_soon_threadsafe(end, f))
+        self.progress_started += 1
+        return got
+
+    def _progress_supported(self) -> bool:
+        caps = getattr(self.client_capabilities, "window", None)
+        return bool(caps is not None and getattr(caps, "work_done_progress", False))
 
     def report_server_error(self, error: Exception, source) -> None:
         """Errors outside a request's reply: one line on stderr (no pop-up in the editor); a failed
@@ -473,8 +518,8 @@ def _hover(ls: AclLanguageServer, params: T.HoverParams) -> T.Hover | None:
     from acl.lsp.background import PENDING_NOTE, hover_text, text_key
 
     if text.endswith(PENDING_NOTE):    # the rest comes from the worker; answer now with what is quick
-        full = ls.worker.get((params.text_document.uri, text_key(snap.text), "hover", ln, a),
-                             hover_text, snap.path, snap.text, line, col)
+        full = ls.in_background((params.text_document.uri, text_key(snap.text), "hover", ln, a),
+                                "acl: coupled modes", hover_text, snap.path, snap.text, line, col)
         if full is not None:
             text = full
     return T.Hover(contents=T.MarkupContent(kind=T.MarkupKind.Markdown, value=text),

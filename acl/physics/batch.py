@@ -25,6 +25,9 @@ import numpy as np
 # or (N, F, n, n) with wavenumbers (N, F)
 from acl.physics.coupling import _distances as distances, contact_distance, green_matrix
 from acl.physics.resonance import shape_matrices, thermal_polytropic
+from acl.physics.effects import bjerknes_gap_factor
+from acl.physics.latch import axial_force
+from acl.physics.roots import golden_max
 
 
 # ----------------------------------------------------------------------------------------------
@@ -200,20 +203,6 @@ def lowest_single_interface_mode(phi, omega, damping, point, radius, density, so
     return w, vol, quality
 
 
-def uncoupled_response(phi, omega, damping, body, frequency):
-    """Per-capsule inward volume response per pascal H0 (N, F, n, n), zero between capsules (coupling.uncoupled_blocks batched; Meirovitch ch. 7).
-
-    ``phi`` (N, n, M) with each interface's own capsule's modes (other capsules' modes zero-padded
-    or simply of its own body: only same-body entries are kept).
-    """
-    w = 2 * np.pi * np.asarray(frequency, float)                       # (N, F) or (F,)
-    w = np.broadcast_to(w, (phi.shape[0],) + w.shape[-1:])
-    den = omega[:, None] ** 2 - w[..., None] ** 2 + 1j * w[..., None] * damping[:, None]    # (N, F, M)
-    h = np.einsum("nim,nfm,njm->nfij", phi, 1.0 / den, phi)
-    same = body[:, None] == body[None, :]
-    return h * same
-
-
 def coupled_response(h0, points, radii, body, frequency, density, sound_speed, wall_reflection: float = 0.0):
     """Inward volume U (N, F, n) per pascal solving (I - w^2 rho H0 g) U = H0 1 per point (coupling.coupled_response batched; Kinsler et al.)."""
     nn, nf, n, _ = h0.shape
@@ -244,39 +233,46 @@ def eq1_force(delta, L, l, EI, rtol: float = 1e-13):
 # ----------------------------------------------------------------------------------------------
 
 
-def axial_force(compression, slenderness):
-    """N L^2/(E I) vs compression/L of one beam, per-point slenderness: linear E A/L, then the buckled elastica (latch.axial_force; Timoshenko & Gere 2.7)."""
-    c = np.asarray(compression, float)
-    k_axial = np.broadcast_to(12.0 / np.asarray(slenderness, float) ** 2, c.shape)
-    p_cr = 4.0 * np.pi**2
-    out = k_axial * c
-    buckled = c * k_axial > p_cr
-    if buckled.any():
-        out[buckled] = _buckled_force(c[buckled], p_cr / k_axial[buckled])
-    return out
+def effective_beam_force(delta, L, l, EI, e_scale, gradient, weight, iterations: int = 100):
+    """Load P (N,) giving load-point deflection ``delta`` (N,) under paper Eq. 1 with declared beam effects: the inverse of acl.physics.effects.effective_beam_deflection per row (bracket doubled from the small-load stiffness, then regula falsi, Illinois; acl.physics.effects.effective_beam_force's root to 1e-13).
 
+    A law that saturates before ``delta`` (the elastica near its reach) gives a wall k0 delta 2^200, as the
+    scalar inverse does.
+    """
+    from acl.physics.effects import effective_beam_deflection
+    from acl.physics.roots import illinois
 
-def _buckled_force(c, a):
-    """N L^2/(E I) on the buckled branch: np.interp(c, a load + short, p_cr load) with a = p_cr/k differing per element (latch.axial_force)."""
-    from acl.physics.latch import _buckled_column_table
+    delta, L, l, EI, e_scale, gradient, weight = np.broadcast_arrays(
+        *(np.asarray(v, float) for v in (delta, L, l, EI, e_scale, gradient, weight)))
+    sign, target = np.sign(delta), np.abs(delta)
 
-    p_cr = 4.0 * np.pi**2
-    short, load = _buckled_column_table()
-    # a vectorised binary search on the (monotone) table, then the same linear interpolation
-    lo = np.zeros(c.shape, int)
-    hi = np.full(c.shape, short.size - 1)
-    while True:
-        mid = (lo + hi) // 2
-        if not np.any(hi - lo > 1):
+    def defl(p):
+        return effective_beam_deflection(p, L, l, EI, e_scale, gradient, weight)
+
+    k0 = 1e-30 / defl(np.full(delta.shape, 1e-30))
+    lo, hi = np.zeros(delta.shape), k0 * target
+    d_hi, d_prev = defl(hi), np.full(delta.shape, -np.inf)
+    wall = np.zeros(delta.shape, bool)
+    for _ in range(200):                                 # Eq. (1) and the elastica stiffen: expand the bracket
+        short = (d_hi < target) & ~wall
+        if not short.any():
             break
-        below = a * load[mid] + short[mid] <= c
-        lo = np.where(below, mid, lo)
-        hi = np.where(below, hi, mid)
-    t0 = a * load[lo] + short[lo]
-    t1 = a * load[hi] + short[hi]
-    frac = np.clip((c - t0) / np.where(t1 > t0, t1 - t0, 1.0), 0.0, 1.0)
-    buckled = p_cr * (load[lo] + frac * (load[hi] - load[lo]))
-    return np.where(c >= a * load[-1] + short[-1], p_cr * load[-1], buckled)
+        wall |= short & (d_hi <= d_prev * (1.0 + 1e-12))
+        short &= ~wall
+        lo, d_prev = np.where(short, hi, lo), np.where(short, d_hi, d_prev)
+        hi = np.where(short, 2.0 * hi, hi)
+        d_hi = np.where(short, defl(hi), d_hi)
+    live = (target > 0) & ~wall & (d_hi >= target)
+    scale = np.where(target > 0, target, 1.0)
+    P = hi
+    if live.any():
+        def g(p):
+            return defl(p) / scale - 1.0
+        root, _ = illinois(g, lo, np.where(live, g(lo), -1.0), hi, np.where(live, d_hi / scale - 1.0, 1.0),
+                           iterations=iterations, ftol=1e-15)
+        P = np.where(live, root, hi)
+    P = np.where(wall, k0 * target * 2.0 ** 200, np.where(target > 0, P, 0.0))
+    return sign * P, k0
 
 
 def latch_force(u, theta, L, w, t, E):
@@ -288,23 +284,6 @@ def latch_force(u, theta, L, w, t, E):
     n = axial_force(1.0 - chord, np.broadcast_to(w / L, chord.shape))
     per_beam = n * np.sin(phi) + 12.0 * (theta - phi) * c / chord**2
     return 2.0 * per_beam * (E * t * w**3 / 12.0 / L**2)
-
-
-def _golden_max(fn, lo, hi, iterations: int):
-    """Maximum of a unimodal ``fn`` on [lo, hi] per element by golden section (Kiefer 1953); a kink is allowed."""
-    g = (np.sqrt(5.0) - 1) / 2
-    x1, x2 = hi - g * (hi - lo), lo + g * (hi - lo)
-    f1, f2 = fn(x1), fn(x2)
-    for _ in range(iterations):
-        left = f1 >= f2
-        hi = np.where(left, x2, hi)
-        lo = np.where(left, lo, x1)
-        x1n = np.where(left, hi - g * (hi - lo), x2)
-        x2n = np.where(left, x1, lo + g * (hi - lo))
-        new_f = fn(np.where(left, x1n, x2n))
-        f1, f2 = np.where(left, new_f, f2), np.where(left, f1, new_f)
-        x1, x2 = x1n, x2n
-    return np.maximum(f1, f2)
 
 
 def latch_switching_force(theta, L, w, t, E, n_grid: int = 257, iterations: int = 60, block: int = 4096):
@@ -339,7 +318,7 @@ def latch_switching_force(theta, L, w, t, E, n_grid: int = 257, iterations: int 
     def refine(values, k, sign):
         lo = np.maximum(grid[rows, k] - h, 0.0)
         hi = np.minimum(grid[rows, k] + h, reach)
-        return np.maximum(values[rows, k], _golden_max(lambda x: sign * latch_force(x, *a1), lo, hi, iterations))
+        return np.maximum(values[rows, k], golden_max(lambda x: sign * latch_force(x, *a1), lo, hi, iterations)[0])
 
     masked = np.where(idx <= i0[:, None], f, -np.inf)
     switching = refine(masked, np.argmax(masked, axis=1), 1.0)
@@ -387,7 +366,7 @@ def latch_state_b(theta, L, w, t, E, n_grid: int = 2001, reach: float = 2.6, ite
 
 
 def two_bubble_forces(h, pts, radii, normals, centres, outer, scale, w, pressure, density, sound_speed, viscosity,
-                      streaming_constant, wall_reflection: float = 0.0):
+                      streaming_constant, wall_reflection: float = 0.0, pair_law=None):
     """Forces (N, 2, 3) on two capsules with one interface each under one tone: coupled volumes, thrust, Bjerknes, jet drag (the acoustics force engine for n = 2, closed form).
 
     Coupled volumes solve the 2 x 2 system (I - w^2 rho H0 g) U = H0 1 by Cramer's rule (Kinsler et
@@ -395,7 +374,8 @@ def two_bubble_forces(h, pts, radii, normals, centres, outer, scale, w, pressure
     Bjerknes rho w^2 Re(Ua Ub*)/(8 pi d^2) (Crum 1975); drag of each jet on the other capsule
     (Schlichting laminar round jet).  ``h`` (N, 2) uncoupled inward response per Pa, ``pts``,
     ``normals``, ``centres`` (N, 2, 3), ``radii``, ``outer``, ``scale`` (N, 2); ``w`` rad/s and
-    ``pressure`` Pa scalars.
+    ``pressure`` Pa scalars; ``pair_law`` (factor, gap exponent, gap reference), each (N,), of a declared
+    bjerknes_scale (:func:`acl.physics.effects.bjerknes_gap_factor`), None for the physics' own law.
     """
     rho = np.asarray(density, float)
     k = w / np.asarray(sound_speed, float)
@@ -435,6 +415,11 @@ def two_bubble_forces(h, pts, radii, normals, centres, outer, scale, w, pressure
     thr_b = c0 * eps_b**2 * scale[:, 1]
     na, nb = normals[:, 0], normals[:, 1]
     att = rho * w * w * (ua * np.conj(ub)).real / (8 * np.pi * dist**2)
+    if pair_law is not None:
+        factor, n, ref = pair_law
+        att = att * factor
+        if np.any(n):
+            att = att * bjerknes_gap_factor(dist, ref, n)
     f_bj = (att / dist)[:, None] * sep                                  # on a, along p_b - p_a
     out = np.empty(pts.shape)
     out[:, 0] = -thr_a[:, None] * na + f_bj

@@ -33,7 +33,10 @@ Terms of g (``green_matrix``):
 
 Both are free-field monopole terms: a capsule is small against the wavelength, so beyond a few
 orifice radii its interface radiates as a point source.  Between two orifices on the same flat face
-(a baffle) the true mutual mass is up to 2x larger (rho/(2 pi d)); that is not modelled.
+(a baffle) the true mutual mass is up to 2x larger (rho/(2 pi d)); that is not modelled.  This is an
+assumption, not an oversight: each capsule's *own* added mass is baffled (:mod:`acl.physics.resonance`),
+the mutual terms are free-field; docs/physics.md (Part A section 11, "The baffle assumption, stated")
+gives the evidence for keeping them and where the factor is carried as model-form uncertainty.
 Distances are smoothly floored at the sum of the two orifice radii (touching interfaces; :func:`contact_distance`).
 
 Pure numpy on SI floats; no acl.design import.
@@ -169,11 +172,26 @@ def _einsum(subscripts: str, *operands) -> np.ndarray:
     return np.einsum(subscripts, *operands, optimize=path)
 
 
+def uncoupled_response(phi, omega, damping, w, body=None) -> np.ndarray:
+    """Inward volume response per pascal H0 (..., F, P, P) = Phi diag(1/(w_m^2 - w^2 + i w w_m/Q_m)) Phi^T over any leading batch axes (Meirovitch ch. 7).
+
+    ``phi`` (..., P, M) outward volume of P interfaces per modal coordinate, ``omega``/``damping`` (..., M),
+    drive ``w`` (F,) or (..., F) rad/s.  ``body`` (P,) capsule of each interface: entries between capsules
+    are zeroed (each interface's own capsule's modes only).
+    """
+    w = np.asarray(w, float)
+    den = modal_dynamic_stiffness(omega[..., None, :], damping[..., None, :], w[..., None])
+    h = _einsum("...im,...fm,...jm->...fij", phi, 1.0 / den, phi)
+    if body is not None:
+        body = np.asarray(body)
+        h = h * (body[:, None] == body[None, :])
+    return h
+
+
 def uncoupled_blocks(system: BubbleSystem, omega) -> np.ndarray:
-    """Per-capsule inward volume response per pascal, H0 (F, C, P, P) = Phi diag(1/(w_m^2 - w^2 + i w w_m/Q_m)) Phi^T (Meirovitch ch. 7)."""
-    w = np.atleast_1d(np.asarray(omega, float))[:, None, None]
-    den = modal_dynamic_stiffness(system.omega[None], system.damping[None], w)
-    return _einsum("cpm,fcm,cqm->fcpq", system.phi, 1.0 / den, system.phi)
+    """Per-capsule H0 (F, C, P, P) of a system at drives ``omega`` (F,) rad/s (:func:`uncoupled_response`, the capsule as batch axis)."""
+    w = np.atleast_1d(np.asarray(omega, float))
+    return np.moveaxis(uncoupled_response(system.phi, system.omega, system.damping, w), -3, 0)
 
 
 #: Complex entries (F x B x N x N) of one chunk of :func:`coupled_response` (16 MB): a design of

@@ -2,8 +2,9 @@
 
 Pure Python (no numpy), so the design stage and `acl check` load it without the numerics: the design stage
 takes names, units, sign domains and admissible ranges from it (acl.design.core), the analysis the nulls,
-aliases and where each effect acts (acl.analysis.effects), sweep which effects leave the forces at rest or the
-latch law unchanged (acl.sweep.evaluate), fit and synth the aliases and examples.  The formulas are in
+aliases and where each effect acts (acl.analysis.effects), sweep where its batched evaluation applies each
+effect and which leave the forces at rest or the latch law unchanged (acl.sweep.columns), fit and synth the
+aliases and examples.  The formulas are in
 :mod:`acl.physics.effects`; the fit's search library (acl.fit.effects: bounds, starts, the data that identify
 an effect) covers the effects the fit can search, each named here.
 """
@@ -50,6 +51,7 @@ class EffectSpec:
     latch_neutral: bool = False           # leaves the latch law unchanged
     beam_law: bool = False                # changes the beams' force law (acl.analysis.mechanics)
     example: str = ""                     # a planted value for `acl synth --effect` (its help)
+    sweep: str = ""                       # where the batched sweep applies it (acl.sweep.acoustic_state); "": point by point
 
     def internal(self) -> tuple:
         return tuple(c for c in self.coefficients if c.alias_of is None)
@@ -89,7 +91,8 @@ EFFECT_TABLE: dict[str, EffectSpec] = {e.name: e for e in [
             1.0 / GAIN_BOUND, GAIN_BOUND, 0.1, 10.0,
             "a scale on the declared table's pressure per volt: beyond 1000x (60 dB) either way the table is not the "
             "transducer's (declare its own table); forces scale with its square. Plausible: within 20 dB of the table"))),
-        "drive pressure (acoustics)", example="gain_slope:0.5"),
+        "drive pressure (acoustics)", example="gain_slope:0.5",
+        sweep="PointAcoustics.pressure_factor"),
     EffectSpec("transducer_resonance", (
         Coefficient("inv_f_ratio", "", 0.0, "nonneg", EffectRange(
             0.0, 100.0, 0.0, 5.0,
@@ -102,7 +105,8 @@ EFFECT_TABLE: dict[str, EffectSpec] = {e.name: e for e in [
             "transducer)")),
         Coefficient("f_ref", "Hz", math.nan, "positive", EffectRange(
             *F_REF_RANGE, *F_REF_RANGE, "a frequency of the drive (as transducer_gain's f_ref)"))),
-        "drive pressure vs frequency (acoustics)"),
+        "drive pressure vs frequency (acoustics)",
+        sweep="PointAcoustics.pressure_factor"),
     EffectSpec("drive_saturation", (
         Coefficient("inv_vsat2", "1/V^2", 0.0, "nonneg", EffectRange(
             0.0, 1e6, 0.0, 100.0,
@@ -112,23 +116,27 @@ EFFECT_TABLE: dict[str, EffectSpec] = {e.name: e for e in [
             "the voltage where the drive saturates: below 1 mV no drive is linear at all (the table would be wrong, "
             "not saturated); above 100 kV, 10x any transducer's maximum (E502), there is no saturation; plausible: "
             "the fit's range (>= 0.1 V) up to the 10 kV transducer limit"), alias_of="inv_vsat2", to_internal=_inv2)),
-        "drive pressure (acoustics; forces no longer scale as V^2)", example="v_sat:8V"),
+        "drive pressure (acoustics; forces no longer scale as V^2)", example="v_sat:8V",
+        sweep="PointAcoustics.pressure; snap-in in V^2 sat(V)^2 (PairMechanics.snap_in)"),
     EffectSpec("large_deflection", (
         Coefficient("elastica_weight", "", 0.0, "unit", EffectRange(
             0.0, 1.0, 0.0, 1.0, "it blends paper Eq. (1) (0) with the elastica (1)")),),
-        "beam force law (mechanics)", rest_neutral=True, latch_neutral=True, example="elastica_weight:1", beam_law=True),
+        "beam force law (mechanics)", rest_neutral=True, latch_neutral=True, example="elastica_weight:1", beam_law=True,
+        sweep="PointAcoustics.beam_law (physics.batch.effective_beam_force)"),
     EffectSpec("stiffness_scale", (
         Coefficient("e_scale", "", 1.0, "positive", _E_SCALE),
         Coefficient("factor", "", math.nan, "positive", EffectRange(1e-3, 1e3, 0.05, 20.0, "E/E_declared (as e_scale)"),
                     alias_of="e_scale", to_internal=float)),
-        "Young's modulus of beams and latches (mechanics)", rest_neutral=True, example="e_scale:0.7", beam_law=True),
+        "Young's modulus of beams and latches (mechanics)", rest_neutral=True, example="e_scale:0.7", beam_law=True,
+        sweep="PointAcoustics.e_scale (beams and latches)"),
     EffectSpec("stiffness_gradient", (
         Coefficient("e_gradient", "", 0.0, None, EffectRange(
             -GRADIENT_BOUND, GRADIENT_BOUND, -4.0, 4.0,
             "E(s) = E exp(g (s/50um - 1/2)): beyond g = +-27.6 the modulus of the clamp end of the 50 um reference is "
             "off by more than 6 decades, the span of polymer networks (each beam is checked over its own length too); "
             "plausible: the fit's range (-4 .. 4)")),),
-        "beam force law (mechanics)", rest_neutral=True, latch_neutral=True, example="e_gradient:0.7", beam_law=True),
+        "beam force law (mechanics)", rest_neutral=True, latch_neutral=True, example="e_gradient:0.7", beam_law=True,
+        sweep="PointAcoustics.beam_law (physics.batch.effective_beam_force)"),
     EffectSpec("offset_drift", (
         Coefficient("offset", "m", 0.0, None, EffectRange(
             -1.0, 1.0, -1e-3, 1e-3,
@@ -158,13 +166,15 @@ EFFECT_TABLE: dict[str, EffectSpec] = {e.name: e for e in [
             "1 m it is outside any print volume; plausible: the printable resolution (0.2 um) to a field of view "
             "(1 mm)"), alias_of="inv_plateau", to_internal=_inv)),
         "force on each capsule with a neighbour (named with it in a gap observe) vs its displacement (acoustics)",
-        rest_neutral=True, latch_neutral=True, example="plateau:5um"),
+        rest_neutral=True, latch_neutral=True, example="plateau:5um",
+        sweep="PointAcoustics.neighbour_drag"),
     EffectSpec("substrate_proximity", (
         Coefficient("h_substrate", "m", 0.0, "nonneg", EffectRange(
             0.0, 1.0, 0.0, 1e-3,
             "the decay length of the wall's weakening: beyond 1 m (any print volume) every force vanishes; plausible: "
             "the fit's range (<= 1 mm, about bubble sizes)")),),
-        "thrust, jet drag and Bjerknes forces vs height (acoustics)", example="h_substrate:20um"),
+        "thrust, jet drag and Bjerknes forces vs height (acoustics)", example="h_substrate:20um",
+        sweep="PointAcoustics.substrate"),
     EffectSpec("bjerknes_scale", (
         Coefficient("factor", "", 1.0, "nonneg", EffectRange(
             0.0, 1e3, 0.1, 10.0,
@@ -180,5 +190,6 @@ EFFECT_TABLE: dict[str, EffectSpec] = {e.name: e for e in [
             "the distance where the shape is 1: between a nm and any print volume; plausible: bubble sizes "
             "(1 um .. 1 mm)"))),
         "secondary Bjerknes force between capsules, x factor (gap_ref/d)^gap_exponent (acoustics): a calibration "
-        "of the pair law on measured pairs (paper Eq. 3, Fig. S5; stdlib calibrations), not first principles"),
+        "of the pair law on measured pairs (paper Eq. 3, Fig. S5; stdlib calibrations), not first principles",
+        sweep="PointAcoustics.pair_law"),
 ]}

@@ -115,7 +115,7 @@ def effective_beam_deflection(P, L, l, EI, e_scale=1.0, gradient=0.0, weight=0.0
     ei = EI * e_scale
     c_d, c_t = CB.stiffness_integrals(L, l, ei, gradient)
     d = CB.eq1_deflection(P, l, c_d, c_t)
-    if weight:
+    if np.any(weight):                   # a float, or one per row of a batch
         d = elastica_blend(d, CB.elastica_deflection(P, L, l, ei), weight)
     return d
 

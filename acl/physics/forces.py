@@ -72,6 +72,10 @@ def bjerknes_from_rates(rate_product, distance, density):
 
     Tones at different frequencies add in power (their cross terms average to zero), so ``rate_product``
     is the sum of each tone's.  ``density`` may be an array (e.g. rho times a pair's factor).
+    Assumption: free-field monopoles, although each capsule's own added mass is baffled
+    (acl.physics.resonance); two orifices on one large rigid wall would feel up to 2x (half-space
+    source).  The factor is absorbed by the streaming constant's calibration on d_c and carried as
+    model-form uncertainty (docs/physics.md, Part A section 11, "The baffle assumption, stated").
     """
     return np.asarray(density, float) / (8 * np.pi) * rate_product / np.asarray(distance, float) ** 2
 
@@ -99,17 +103,25 @@ def critical_distance(alpha, gamma):
     return np.sqrt(np.asarray(alpha, float) / (2 * np.asarray(gamma, float)))
 
 
-def jet_drag(momentum_flux, distance, cos_angle, target_radius):
+def jet_drag(momentum_flux, distance, cos_angle, target_radius, fraction=None):
     """Drag of a neighbour's jet: J min(1, 9a/(4x)) max(cos, 0)^2 (laminar round jet u = 3J/(8 pi rho nu x), Schlichting, Boundary-Layer Theory, laminar round jet; Stokes drag 6 pi mu a u).
 
     ``momentum_flux`` J (N) of the jet, ``distance`` x from the orifice to the target's centre,
     ``cos_angle`` between the jet axis and that line, ``target_radius`` a.  The factor is capped
     at 1 (a body cannot take more than the jet's momentum flux); the cos^2 weight is a crude cone.
+    ``fraction`` replaces min(1, 9a/(4x)) by a constant: 1 is paper Eq. (3)'s assumption F_d = F_AS
+    at every distance (:data:`PAPER_DRAG_FRACTION`), the other end of this law's model-form range.
     """
     x = np.asarray(distance, float)
     c = np.clip(np.asarray(cos_angle, float), 0.0, None)
-    frac = np.minimum(1.0, 9 * np.asarray(target_radius, float) / (4 * x))
+    frac = (np.minimum(1.0, 9 * np.asarray(target_radius, float) / (4 * x)) if fraction is None
+            else np.full_like(x, float(fraction)))
     return np.asarray(momentum_flux, float) * frac * c**2
+
+
+#: Paper Eq. (3)'s neighbour drag: F_d = F_AS, one thrust at every distance (text before Eq. 3), the
+#: upper end of :func:`jet_drag`'s fraction (a body cannot take more than the jet's momentum flux).
+PAPER_DRAG_FRACTION = 1.0
 
 
 # ----------------------------------------------------------------------------------------------
@@ -159,19 +171,19 @@ def bjerknes_pair_sum(points, response, w2p2, coefficient, other, gap_exponent: 
     prod = np.einsum("t,bti,btj->bij" if w2p2.ndim == 1 else "bt,bti,btj->bij", w2p2, response,
                      np.conj(response)).real
     att = coefficient * prod / d**2
-    if gap_exponent:
+    if np.any(gap_exponent):          # a float, or per configuration (B, 1, 1)
         att = att * bjerknes_gap_factor(d, gap_ref, gap_exponent)
     c = att / d
     return c @ points - c.sum(axis=-1)[..., None] * points, att          # sum_j c_ij (p_j - p_i)
 
 
-def jet_drag_on_capsules(thrust, points, normals, centres, outer, mask):
-    """Drag (B, C, 3) of every interface's jet on the other capsules: :func:`jet_drag` of each jet (momentum flux = its thrust (B, n)) on each capsule centre (B, C, 3) along the jet's normal (n, 3)."""
+def jet_drag_on_capsules(thrust, points, normals, centres, outer, mask, fraction=None):
+    """Drag (B, C, 3) of every interface's jet on the other capsules: :func:`jet_drag` of each jet (momentum flux = its thrust (B, n)) on each capsule centre (B, C, 3) along the jet's normal (n, 3); ``fraction`` as :func:`jet_drag`'s."""
     x = centres[:, None, :, :] - points[:, :, None, :]                    # (B, n, C, 3)
     dist = np.sqrt((x * x).sum(axis=-1))
     with np.errstate(invalid="ignore", divide="ignore"):   # positions a runaway solver step made non-finite:
         cos = (x * normals[None, :, None, :]).sum(axis=-1) / dist         # NaN forces, which the solver rejects
-    drag = jet_drag(thrust[:, :, None], np.where(mask, dist, 1.0), cos, outer[None, None, :]) * mask
+    drag = jet_drag(thrust[:, :, None], np.where(mask, dist, 1.0), cos, outer[None, None, :], fraction) * mask
     return drag.transpose(0, 2, 1) @ normals
 
 
@@ -181,7 +193,8 @@ def capsule_forces(centres, body, offsets, normals, onehot, outer, response, con
     Interfaces (n): ``body`` (n,) capsule index, ``offsets`` (n, 3) from the capsule centre, ``normals``
     (n, 3) outward, ``onehot`` (n, C); ``outer`` (C,) the radius a jet drags; ``response`` (B, T, n) the
     coupled volumes per pascal at these centres; ``consts`` :func:`force_constants` (or rows of them);
-    ``points`` the interface centres (B, n, 3) when the caller already has them.
+    ``points`` the interface centres (B, n, 3) when the caller already has them; ``consts["jet_drag_fraction"]``
+    (optional) a constant drag fraction (:func:`jet_drag`).
     Returns (total, points (B, n, 3), thrust per interface (B, n), attraction (B, n, n)).
     """
     pts = centres[:, body, :] + offsets if points is None else points     # (B, n, 3) orifice centres
@@ -189,7 +202,8 @@ def capsule_forces(centres, body, offsets, normals, onehot, outer, response, con
     bj, att = bjerknes_pair_sum(pts, response, consts["w2p2"], consts["bjerknes"], consts["other"],
                                 consts.get("gap_exponent", 0.0), consts.get("gap_ref", 1.0))
     total = onehot.T @ (bj - thr[:, :, None] * normals)                 # (B, C, 3); thrust against the jet (module doc)
-    total = total + jet_drag_on_capsules(thr, pts, normals, centres, outer, consts["drag_mask"])
+    total = total + jet_drag_on_capsules(thr, pts, normals, centres, outer, consts["drag_mask"],
+                                         consts.get("jet_drag_fraction"))
     return total, pts, thr, att
 
 

@@ -61,15 +61,47 @@ def _buckled_column_table(n: int = 4000):
     return shortening, load
 
 
-def axial_force(compression, slenderness: float):
-    """Nondimensional compressive force N L^2/(E I) of one beam vs compression/L: linear E A / L, then buckled elastica (Timoshenko & Gere Sec. 2.7)."""
+def axial_force(compression, slenderness):
+    """Nondimensional compressive force N L^2/(E I) of one beam vs compression/L: linear E A / L, then buckled elastica (Timoshenko & Gere Sec. 2.7).
+
+    ``slenderness`` w/L a scalar, or an array broadcasting against ``compression`` (one per design point).
+    """
     c = np.asarray(compression, dtype=float)
-    k_axial = 12.0 / slenderness**2            # E A L / (E I) for a rectangle of width w: 12 (L/w)^2
+    s = np.asarray(slenderness, dtype=float)
+    k_axial = 12.0 / s**2                      # E A L / (E I) for a rectangle of width w: 12 (L/w)^2
     p_cr = 4.0 * np.pi**2
     short, load = _buckled_column_table()
-    total = p_cr * load / k_axial + short     # elastic shortening at that load + geometric shortening
-    buckled = np.interp(c, total, p_cr * load)
-    return np.where(c * k_axial <= p_cr, k_axial * c, buckled)
+    if s.ndim == 0:
+        total = p_cr * load / k_axial + short     # elastic shortening at that load + geometric shortening
+        buckled = np.interp(c, total, p_cr * load)
+        return np.where(c * k_axial <= p_cr, k_axial * c, buckled)
+    k = np.broadcast_to(k_axial, c.shape)
+    out = k * c
+    buckled = c * k > p_cr
+    if buckled.any():
+        out[buckled] = _buckled_per_element(c[buckled], p_cr / k[buckled])
+    return out
+
+
+def _buckled_per_element(c, a):
+    """N L^2/(E I) on the buckled branch: np.interp(c, a load + short, p_cr load) with a = p_cr/k differing per element."""
+    p_cr = 4.0 * np.pi**2
+    short, load = _buckled_column_table()
+    # a vectorised binary search on the (monotone) table, then the same linear interpolation
+    lo = np.zeros(c.shape, int)
+    hi = np.full(c.shape, short.size - 1)
+    while True:
+        mid = (lo + hi) // 2
+        if not np.any(hi - lo > 1):
+            break
+        below = a * load[mid] + short[mid] <= c
+        lo = np.where(below, mid, lo)
+        hi = np.where(below, hi, mid)
+    t0 = a * load[lo] + short[lo]
+    t1 = a * load[hi] + short[hi]
+    frac = np.clip((c - t0) / np.where(t1 > t0, t1 - t0, 1.0), 0.0, 1.0)
+    buckled = p_cr * (load[lo] + frac * (load[hi] - load[lo]))
+    return np.where(c >= a * load[-1] + short[-1], p_cr * load[-1], buckled)
 
 
 def _axial_energy(compression, slenderness: float):

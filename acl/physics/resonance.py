@@ -207,7 +207,7 @@ def radiation_resistance(omega, density, sound_speed):
 def capsule_modes(volume, radii, density, surface_tension, ambient_pressure, polytropic_index,
                   viscosity, sound_speed, thermal_radius, heat_capacity_ratio=1.4,
                   thermal_diffusivity=2.1e-5, quality_override=None,
-                  n_modes: int = 3) -> BubbleModes:
+                  n_modes: int = 3, thermal: bool = True) -> BubbleModes:
     """Natural modes of a capsule, K x = w^2 M x, and their Q (Lamb §329; Leighton ch. 3; Prosperetti 1977).
 
     Damping per mode, Q = omega_n / (x^T C(omega_n) x) for mass-normalized x, with C the sum of
@@ -216,7 +216,8 @@ def capsule_modes(volume, radii, density, surface_tension, ambient_pressure, pol
     velocity (Leighton, The Acoustic Bubble, 3.4), (iii) thermal loss of the gas,
     Im(Phi/3) p0 / (V omega) on the total volume (Prosperetti 1977).  ``quality_override`` replaces
     every mode's Q (declared Capsule.quality_factor).  Only axisymmetric (volume-changing) modes are
-    modelled; they are the ones a uniform pressure excites.
+    modelled; they are the ones a uniform pressure excites.  ``thermal`` False leaves (iii) out
+    (:func:`plausible_quality_bound`).
     """
     if np.asarray(radii).size == 0:          # no interface: nothing oscillates
         empty = np.zeros(0)
@@ -230,13 +231,27 @@ def capsule_modes(volume, radii, density, surface_tension, ambient_pressure, pol
     c_v = np.einsum("in,ij,jn->n", x, c_visc, x)
     c_rad = radiation_resistance(omega, density, sound_speed) * vtot**2
     phi = thermal_polytropic(omega, thermal_radius, heat_capacity_ratio, thermal_diffusivity)
-    c_th = np.abs(phi.imag) * ambient_pressure / (volume * omega) * vtot**2
+    c_th = np.abs(phi.imag) * ambient_pressure / (volume * omega) * vtot**2 * float(thermal)
     q = omega / (c_v + c_rad + c_th)
     if quality_override is not None:
         q = np.full_like(omega, float(quality_override))
     for arr in (omega, q, vol):
         arr.setflags(write=False)
     return BubbleModes(omega=omega, quality=q, orifice_volume=vol)
+
+
+#: How far above the Q of the irrotational viscous and radiation losses alone a capsule mode's Q may plausibly be
+#: (:func:`plausible_quality_bound`): 2, the model-form allowance on Lamb's irrotational viscous law.
+PLAUSIBLE_Q_FACTOR = 2.0
+
+
+def plausible_quality_bound(quality_viscous_radiation):
+    """Largest plausible Q = 2 Q_vr (Batchelor 1967, 5.14: boundary layers on walls add to the irrotational dissipation), Q_vr the mode's Q with viscous and radiation loss only.
+
+    The irrotational viscous loss of :func:`capsule_modes` is then a lower bound of a pinned interface's
+    (its rim and the wall around it add boundary layers); PLAUSIBLE_Q_FACTOR allows for that law's form.
+    """
+    return PLAUSIBLE_Q_FACTOR * np.asarray(quality_viscous_radiation, float)
 
 
 def modal_dynamic_stiffness(natural, damping, omega):

@@ -26,10 +26,11 @@ import numpy as np
 
 from acl.design.model import Design
 from acl.schedule import bands
+from acl.units import shown_unit
 
 # Assumed noise of one reading (m, per axis): a capsule's position tracked in a video over a held tone, averaged
 # over about 30 frames (acl track's synthetic error is 0.01 px RMS per frame; 0.1 um leaves room for drift and
-# the pixel scale).  Stated with every proposal.
+# the pixel scale).  Stated with every proposal; `acl compile --reading-noise` sets another.
 READING_NOISE_M = 0.1e-6
 STEP = 0.5                 # finite-difference step, in sds (central differences)
 MAX_READINGS = 4           # at most this many readings proposed
@@ -70,7 +71,8 @@ def directions(design: Design, reload=None) -> tuple[list, np.ndarray]:
             theta = unc.mean.copy()
             theta[i] = theta[i] + x * sd[i]
             return bands._with_params(design, unc, theta, reload)
-        out.append((f"parameter {name} (+- {sd[i]:.3g} {unc.units[i]})".replace("  ", " "), "parameter", None,
+        k, unit = shown_unit(unc.units[i])
+        out.append((f"parameter {name} (+- {sd[i] * k:.3g} {unit})".replace("  ", " "), "parameter", None,
                     float(sd[i]), make))
     D = len(out)
     R = np.eye(D)
@@ -82,9 +84,23 @@ def directions(design: Design, reload=None) -> tuple[list, np.ndarray]:
     return out, R
 
 
-def sensitivity(design: Design, dirs, many: Many, tones, u_rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(nominal (N, 2), J (N, 2, D)): the prediction and its derivative per 1 sd of each source (central differences
-    of ``STEP`` sd; a move whose model fails counts as no sensitivity there)."""
+_PREPARED: list = []     # [(design, reload, (dirs, R, moved))], newest first: the last few designs
+
+
+def prepared(design: Design, reload=None) -> tuple[list, np.ndarray, list]:
+    """(dirs, R) of :func:`directions` and the designs the central differences of :func:`sensitivity` move to (``+STEP``,
+    ``-STEP`` per source; None where the move fails), made once per design (by identity): the compiler re-simulates
+    them with the band's draws in one batch, and :func:`explain` reuses them for every candidate reading."""
+    for d, r, hit in _PREPARED:
+        if d is design and r is reload:
+            return hit
+    dirs, R = directions(design, reload)
+    hit = (dirs, R, _moves(dirs))
+    _PREPARED[:] = ([(design, reload, hit)] + _PREPARED)[:2]
+    return hit
+
+
+def _moves(dirs) -> list:
     moved = []
     for _, _, _, _, make in dirs:
         for x in (STEP, -STEP):
@@ -92,6 +108,14 @@ def sensitivity(design: Design, dirs, many: Many, tones, u_rows: np.ndarray) -> 
                 moved.append(make(x))
             except (ValueError, KeyError):
                 moved.append(None)
+    return moved
+
+
+def sensitivity(design: Design, dirs, many: Many, tones, u_rows: np.ndarray, moved=None) -> tuple[np.ndarray, np.ndarray]:
+    """(nominal (N, 2), J (N, 2, D)): the prediction and its derivative per 1 sd of each source (central differences
+    of ``STEP`` sd; a move whose model fails counts as no sensitivity there).  ``moved``: the moved designs
+    (:func:`prepared`), made here when not given."""
+    moved = _moves(dirs) if moved is None else moved
     live = [k for k, d in enumerate(moved) if d is not None]
     got = many([design, *[moved[k] for k in live]], list(tones), u_rows)
     nominal = got[0]
@@ -160,11 +184,11 @@ def explain(design: Design, many: Many, capsule: str, tones, u: np.ndarray, targ
 
     ``u`` (K, M) V^2 and ``targets`` (M, 2) m at the re-simulated waypoints; ``band`` the Monte Carlo one
     (:class:`acl.schedule.bands.Band`) for the check."""
-    dirs, R = directions(design, reload)
+    dirs, R, moves = prepared(design, reload)
     if not dirs:
         return None
     try:
-        p0, J = sensitivity(design, dirs, many, tones, u.T)
+        p0, J = sensitivity(design, dirs, many, tones, u.T, moves)
     except (ValueError, KeyError, FloatingPointError):
         return None
     ok = np.all(np.isfinite(p0), axis=1)
@@ -181,7 +205,7 @@ def explain(design: Design, many: Many, capsule: str, tones, u: np.ndarray, targ
     sources = [{"source": dirs[j][0], "kind": dirs[j][1], "frequency_hz": dirs[j][2], "sd": dirs[j][3],
                 "share": round(float(shares[j]), 4)} for j in order[:TOP]]
     gain_share = float(sum(shares[j] for j in range(len(dirs)) if dirs[j][1] == "gain"))
-    out = {"sources": sources, "gain_table_share": round(gain_share, 4),
+    out = {"sources": sources, "gain_table_share": round(gain_share, 4), "reading_noise_m": noise,
            "other_sources_share": round(float(shares[order[TOP:]].sum()), 4),
            "linearised_rms_p95_m": rms0, "linearised_max_p95_m": max0,
            "monte_carlo_rms_p95_m": None if band is None else float(band.rms_p95_m),
@@ -197,7 +221,7 @@ def explain(design: Design, many: Many, capsule: str, tones, u: np.ndarray, targ
         by_tone.setdefault(f, []).append(x)
     for f, vs in by_tone.items():
         try:
-            y0, Hf = sensitivity(design, dirs, many, [f], np.array([[x * x] for x in vs]))
+            y0, Hf = sensitivity(design, dirs, many, [f], np.array([[x * x] for x in vs]), moves)
         except (ValueError, KeyError, FloatingPointError):
             continue
         for r, x in enumerate(vs):
@@ -243,8 +267,10 @@ def summary(name: str, ex: dict) -> str:
     if m:
         reads = ", ".join(f"{r['frequency_hz'] / 1e3:g} kHz at {r['voltage_v']:.3g} V" for r in m["readings"])
         s += (f"; to narrow it, measure the {m['observable']} at {reads} (assumed noise {m['noise_m'] * 1e6:.3g} um "
-              f"per axis): expected band after recompiling with the measured values "
-              f"{m['expected_rms_p95_m'] * 1e6:.3g} um RMS / {m['expected_max_p95_m'] * 1e6:.3g} um max")
+              f"per axis): expected band after recompiling with the gain measured at each of these tones "
+              f"{m['expected_rms_p95_m'] * 1e6:.3g} um RMS / {m['expected_max_p95_m'] * 1e6:.3g} um max "
+              f"(acl fit calibrates one gain scale, not the gain at each tone: where the table's shape is off, "
+              f"the calibrated design's measured(gain) and its band stay wider than this)")
         if m.get("model_form_m"):
             s += (f", of which {m['model_form_m'] * 1e6:.3g} um is the model-form term of the validity limits the "
                   "step is past, which these readings do not remove")

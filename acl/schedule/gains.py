@@ -231,6 +231,15 @@ def _forward_rows(base: Design, members: list, capsule: str, freqs: list, u: np.
     factors = [tones.drive_factors(d, freqs) for d in members]
     gains = np.array([g for g, _ in factors], float).reshape(nrow, len(freqs))
     scales = np.array([s for _, s in factors], float).reshape(nrow, len(names))
+    # rows with the same drive factors and the same start are the same computation (a gain-table point that no tone
+    # interpolates from moves nothing): each solved once
+    owner = {}
+    first = [owner.setdefault((gains[j].tobytes(), scales[j].tobytes(), id(starts[j])), j) for j in range(nrow)]
+    if len(owner) < nrow:
+        uniq = sorted(owner.values())
+        sub = dict(zip(uniq, _forward_rows(base, [members[j] for j in uniq], capsule, freqs, u,
+                                           [starts[j] for j in uniq])))
+        return [sub[first[j]].copy() for j in range(nrow)]
     amps = np.sqrt(np.maximum(u, 0.0))
     out = np.full((nrow, n, 2), np.nan)
     prev = list(starts)                      # where each row's last waypoint left the capsules (dict), or its start

@@ -54,7 +54,7 @@ def _switched_by(comp: CompileState, j: int, cur: dict) -> dict:
     (acl.schedule.gains.latch_drive_forces, or the injected ``latch_provider``, at rest) over the force that
     switches it to the other state (a->b its switching force, b->a its release force), with the capsules at the
     drive's static equilibrium and undeflected (:func:`_branch_pushes`: both must be on the same side); a sweep's
-    at its band's worst frequency (acoustics.band_maximum); a path's at its most-switching waypoint
+    at its band's worst frequency (interfaces.band_maximum); a path's at its most-switching waypoint
     (:func:`_push_ratios`).  Switched for sure: push >= LATCH_STATE_MARGIN and, with a margin band
     (``band_samples``), its 5th percentile over the declared uncertainty >= 1, and never pushed back (below);
     left for sure: the largest push towards the other state (a path's between its waypoints too) <=
@@ -265,14 +265,14 @@ def _push_ratios(comp: CompileState, j: int, cur: dict | None = None) -> dict:
 
         out = {}
         for n, k in bi.items():
-            rb, fb = acoustics.band_maximum(lambda f: float(at(f)[0][k] / at(f)[1][k]), chirp.frequency_hz,
-                                            chirp.frequency_end_hz, mode_frequencies(comp), rtol=1e-6)
-            ra, fa = acoustics.band_maximum(lambda f: float(-at(f)[0][k] / at(f)[2][k]), chirp.frequency_hz,
-                                            chirp.frequency_end_hz, mode_frequencies(comp), rtol=1e-6)
+            rb, fb = interfaces.band_maximum(lambda f: float(at(f)[0][k] / at(f)[1][k]), chirp.frequency_hz,
+                                             chirp.frequency_end_hz, mode_frequencies(comp), rtol=1e-6)
+            ra, fa = interfaces.band_maximum(lambda f: float(-at(f)[0][k] / at(f)[2][k]), chirp.frequency_hz,
+                                             chirp.frequency_end_hz, mode_frequencies(comp), rtol=1e-6)
             out[n] = {"b": (rb, float(fb), rb), "a": (ra, float(fa), ra)}
         return out, None
 
-    from acl.analysis import acoustics
+    from acl.analysis import interfaces
 
     nominal, seq = ratios(comp.design)
     times = [s.start_s for s in segs]

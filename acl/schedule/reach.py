@@ -69,7 +69,7 @@ def _static_reach(comp: CompileState, goal: GoalReport):
     latches) at the whole drive, from the latch states the step starts in (:func:`latch_state.settle`; a latch an earlier
     drive left in an uncertain state (:func:`latch_state.latch_track`): from either state, the larger reach).  A sweep
     (a chirp of one tone) is taken at its worst frequency: the largest displacement over the band, sampled
-    with every mode inside and refined (acoustics.band_maximum), each frequency held long enough to settle
+    with every mode inside and refined (interfaces.band_maximum), each frequency held long enough to settle
     (quasi-static: what the analysis predicts everywhere).  A drive that snaps the mechanism in reports the
     last stable point before it (a sweep: at the first frequency found to snap it) and ends in contact, which
     no calibration covers (the fit counts no contact row): ``(m, phrase, True)``, warned whatever the range.
@@ -105,7 +105,7 @@ def _static_reach(comp: CompileState, goal: GoalReport):
 
 def _static_reach_from(comp: CompileState, tones, fm, states: dict):
     """:func:`_static_reach` from the latch states ``states``."""
-    from acl.analysis import acoustics
+    from acl.analysis import interfaces
     from acl.design.model import Drive, Tone
 
     chirp = next((t for t in tones if t.frequency_end_hz), None)
@@ -126,8 +126,8 @@ def _static_reach_from(comp: CompileState, tones, fm, states: dict):
         return seen[f][0]
 
     try:      # the deflection is flat at its peak: refined to 1e-3 of the frequency (Q ~ 20: < 0.1 %)
-        r, f = acoustics.band_maximum(at, chirp.frequency_hz, chirp.frequency_end_hz, mode_frequencies(comp),
-                                      samples=11, rtol=1e-3)
+        r, f = interfaces.band_maximum(at, chirp.frequency_hz, chirp.frequency_end_hz, mode_frequencies(comp),
+                                       samples=11, rtol=1e-3)
     except _Snapped as snap:          # the lowest snapping frequency found: the sweep snaps the mechanism in
         f = snap.frequency
         r, who, _ = seen[f]

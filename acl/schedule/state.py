@@ -59,6 +59,8 @@ class CompileOptions:
     reload: Callable | None = None               # {param: "v unit"} -> Design, to sample uncertain params
     nonlinear_passes: int = 0                    # re-plan against the nonlinear model (acl.schedule.correct)
     allow_nonlinear: bool = False                # plan drives beyond the linear bubble model (eps/R > limit)
+    reading_noise_m: float | None = None         # noise of one proposed bench reading (m, per axis; None:
+                                                 # acl.schedule.experiment.READING_NOISE_M)
 
 
 

@@ -13,10 +13,10 @@ def check_linear(comp: CompileState, sched: Schedule) -> None:
     """Refuse a segment that drives an interface beyond the linear bubble model (eps/R > LINEAR_AMPLITUDE_LIMIT; docs/physics.md).
 
     Tone amplitudes add (the worst-case peak); a sweep at its worst frequency (sampled with every mode
-    inside, the largest refined: acoustics.sweep_worst_amplitude).  Allowed with
+    inside, the largest refined: interfaces.sweep_worst_amplitude).  Allowed with
     ``allow_nonlinear`` (then noted): the predicted forces are then not trustworthy.
     """
-    from acl.analysis.acoustics import interface_amplitudes, sweep_worst_amplitude
+    from acl.analysis.interfaces import interface_amplitudes, sweep_worst_amplitude
     from acl.design.model import Drive, Tone
     from acl.physics.constants import LINEAR_AMPLITUDE_LIMIT
 
@@ -277,7 +277,8 @@ def _steady_amplitudes(comp: CompileState, sched: Schedule) -> dict:
     """{id(segment): (interface, eps/R)} of the largest interface amplitude (ties: the first declared) of every
     segment of steady tones (no chirp), the segments sharing a set of tones evaluated as one batch
     (acoustics.interface_amplitudes_batch)."""
-    from acl.analysis.acoustics import interface_amplitudes_batch, interface_labels
+    from acl.analysis.acoustics import interface_labels
+    from acl.analysis.interfaces import interface_amplitudes_batch
 
     labels = interface_labels(comp.design)
     groups: dict = {}

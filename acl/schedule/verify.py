@@ -86,15 +86,25 @@ def resimulate(comp: CompileState, rep: GoalReport, capsule, u, targets, linear_
         return
     n = u.shape[1]
     idx = np.unique(np.linspace(0, n - 1, min(n, comp.opts.resim_points)).astype(int))
-    band, nominal = None, []
+    band, nominal, solved = None, [], {}
     if comp.opts.band_samples > 0 and comp.opts.forward_provider is None and comp.many_now is not None:
         # the nominal design and the band's draws re-simulated as one batch (gains.model_forward_many)
         many = comp.many_now
 
         def forward_many(ds):
-            got = many([comp.design, *ds], capsule, rep.frequencies_hz, u[:, idx].T)
+            # the designs of the band's cause (experiment.explain: the path's sensitivity) join the same batch
+            from acl.schedule import experiment
+
+            try:
+                extra = [m for m in experiment.prepared(comp.design, comp.opts.reload)[2] if m is not None]
+            except (ValueError, KeyError):      # explain meets the same failure later, where it always did
+                extra = []
+            uu = u[:, idx].T
+            got = many([comp.design, *ds, *extra], capsule, rep.frequencies_hz, uu)
             nominal.append(got[0])
-            return got[1:]
+            solved[_memo_key(rep.frequencies_hz, uu)] = [(d, g) for d, g in zip([comp.design, *extra],
+                                                                                  [got[0], *got[1 + len(ds):]])]
+            return got[1:1 + len(ds)]
 
         band = _error_band(comp, provider, capsule, rep, u[:, idx], targets[idx], forward_many)
     got = nominal[0] if nominal else forward(u[:, idx].T)
@@ -118,7 +128,30 @@ def resimulate(comp: CompileState, rep: GoalReport, capsule, u, targets, linear_
     rep.predicted_m = full
     rep.details["resimulated_waypoints"] = int(idx.size)
     if comp.opts.band_samples > 0:
-        _band(comp, rep, provider, capsule, u[:, idx], targets[idx], band if nominal else None)
+        _band(comp, rep, provider, capsule, u[:, idx], targets[idx], band if nominal else None, solved)
+
+
+def _memo_key(freqs, uu) -> tuple:
+    uu = np.ascontiguousarray(uu, float)
+    return tuple(float(f) for f in freqs), uu.shape, uu.tobytes()
+
+
+def _reusing(many, solved: dict):
+    """``many`` answering from ``solved`` ({key: [(design, prediction)]}, by design identity) when every design asked
+    was re-simulated already with the same tones and drive (the band's batch)."""
+    def call(ds, f, uu):
+        hit = solved.get(_memo_key(f, uu))
+        if hit is not None:
+            out = []
+            for d in ds:
+                got = next((g for e, g in hit if e is d), None)
+                if got is None:
+                    break
+                out.append(got)
+            else:
+                return out
+        return many(ds, f, uu)
+    return call
 
 
 def _error_band(comp: CompileState, provider, capsule, rep: GoalReport, u, targets, forward_many=None):
@@ -129,9 +162,9 @@ def _error_band(comp: CompileState, provider, capsule, rep: GoalReport, u, targe
                       forward_many=forward_many)
 
 
-def _band(comp: CompileState, rep: GoalReport, provider, capsule, u, targets, band=None):
+def _band(comp: CompileState, rep: GoalReport, provider, capsule, u, targets, band=None, solved=None):
     """95th percentile of the re-simulated error over draws of the declared uncertainty (``band``: computed with
-    the nominal re-simulation, :func:`resimulate`)."""
+    the nominal re-simulation, :func:`resimulate`; ``solved``: the predictions that batch made, reused)."""
     from acl.schedule.bands import level, pinned, unmeasured_tones
 
     if band is None:
@@ -161,9 +194,11 @@ def _band(comp: CompileState, rep: GoalReport, provider, capsule, u, targets, ba
                               f"{', '.join(f'{f / 1e3:g}' for f, _ in pin)} kHz): the band keeps the table's "
                               f"{comp.design.transducer.gain_uncertainty:.0%} prior there")
     from acl.schedule import experiment     # the band's cause and the reading that narrows it
-    ex = experiment.explain(comp.design, lambda ds, f, uu: comp.many_now(ds, capsule, f, uu) if comp.many_now else
-                            [provider(d, capsule, f)[0](uu) for d in ds], capsule, rep.frequencies_hz, u, targets,
-                            reload=comp.opts.reload, band=band, seed=comp.opts.band_seed)
+    many = _reusing(lambda ds, f, uu: comp.many_now(ds, capsule, f, uu) if comp.many_now else
+                    [provider(d, capsule, f)[0](uu) for d in ds], solved or {})
+    ex = experiment.explain(comp.design, many, capsule, rep.frequencies_hz, u, targets,
+                            reload=comp.opts.reload, band=band, seed=comp.opts.band_seed,
+                            noise=comp.opts.reading_noise_m or experiment.READING_NOISE_M)
     if ex is not None:
         rep.band_plot = ex.pop("plot", None)
         rep.details["band"]["cause"] = ex

@@ -8,8 +8,9 @@ import numpy as np
 
 from acl.design import model as M
 from acl.physics import batch as PB
+from acl.physics.coupling import uncoupled_response
 from acl.physics import constants as C
-from acl.physics.forces import jet_drag, thrust_magnitude
+from acl.physics.forces import bjerknes_from_rates, bjerknes_pair_sum, critical_distance, jet_drag, thrust_magnitude
 from acl.physics.ties import TIE_RTOL, first_max
 from acl.physics.transducer import pressure_per_volt_rows
 from acl.sweep.columns import _fkey, _ident, _pairs
@@ -80,6 +81,57 @@ class PointAcoustics:
 
     def vec(self, path: str) -> np.ndarray:
         return np.stack([self.get(f"{path}.{k}") for k in range(3)], axis=-1)
+
+    # -- declared effects the batched evaluation models (acl.sweep.columns.BATCHED_EFFECTS) -----------
+    def coefficients(self, name: str) -> dict | None:
+        """{coefficient: (N,) array} of the declared effect ``name`` in internal SI coordinates, nulls filled in
+        (acl.analysis.effects.coefficients per point: a swept coefficient varies); None when not declared."""
+        from acl.analysis import effects as EF
+
+        def build():
+            nominal = EF.coefficients(self.design, name)
+            if nominal is None:
+                return None
+            out = {k: np.full(self.n, float(v)) for k, v in nominal.items()}
+            for key in self.design.effect(name).params:
+                path = f"effects.{name}.params.{key}"
+                if path not in self.batch.fields:
+                    continue
+                values = self.get(path)
+                if (name, key) in EF.ALIASES:
+                    key, conv = EF.ALIASES[(name, key)]
+                    values = np.array([conv(float(v)) for v in values], float)
+                out[key] = np.asarray(values, float)
+            return out
+        return self.once(("effect", name), build)
+
+    def e_scale(self) -> np.ndarray | float:
+        """A declared stiffness_scale's E factor per point (acl.analysis.mechanics._e_scale), 1.0 without one."""
+        sc = self.coefficients("stiffness_scale")
+        return 1.0 if sc is None else sc["e_scale"]
+
+    def force_scale(self) -> np.ndarray:
+        """(N, C) thrust scale of each capsule: a declared thrust coefficient's (:meth:`thrust_scale`) x a declared
+        substrate_proximity's factor (acoustics._compute_engine)."""
+        sub = self.substrate()
+        return self.thrust_scale() if sub is None else self.thrust_scale() * sub
+
+    def pair_law(self, two: bool = False):
+        """(factor (N,), gap exponent (N,), gap reference (N,)) of a declared bjerknes_scale (acl.analysis.effects.bjerknes_shape
+        per point: no shape, exponent 0, without a finite positive gap_ref); None without one.  ``two``: the pair
+        of a two-capsule design, its factor times a declared substrate_proximity's sqrt(s_a s_b)."""
+        bs = self.coefficients("bjerknes_scale")
+        sub = self.substrate() if two else None
+        if bs is None and sub is None:
+            return None
+        if bs is None:                      # two capsules: the substrate's sqrt(s_a s_b) on their pair
+            return np.sqrt(sub[:, 0] * sub[:, 1]), np.zeros(self.n), np.ones(self.n)
+        if sub is not None:
+            bs = {**bs, "factor": np.sqrt(sub[:, 0] * sub[:, 1]) * bs["factor"]}
+        n = bs.get("gap_exponent", np.zeros(self.n))
+        ref = bs.get("gap_ref", np.full(self.n, np.nan))
+        shaped = (n != 0) & np.isfinite(ref) & (ref > 0)
+        return bs["factor"], np.where(shaped, n, 0.0), np.where(shaped, ref, 1.0)
 
     def once(self, key, fn):
         if key not in self.cache:
@@ -240,6 +292,8 @@ class PointAcoustics:
     def _volt(self, v) -> np.ndarray:
         if isinstance(v, (int, float)):
             return np.full(self.n, float(v))
+        if v[0] == "shape":             # a drive shape scaled by V: no saturation at it (:meth:`pressure`)
+            return np.full(self.n, float(v[1]))
         if v[0] == "field":
             return self.get(v[1]) / v[2] if v[2] != 1 else self.get(v[1]).copy()
         # ("max", elements): the largest amplitude applied at a frequency, 0 -> the reference (report._amplitude_at)
@@ -251,8 +305,65 @@ class PointAcoustics:
         return np.where(best > 0, best, DEFAULT_V)
 
     def pressure(self, freqs, volts: tuple) -> np.ndarray:
-        """Drive pressure amplitude (Pa) of each tone: (T,), or (N, T) when amplitudes or gains vary per point."""
-        return self.volts(volts) * self.gain(np.asarray(freqs, float))
+        """Drive pressure amplitude (Pa) of each tone: (T,), or (N, T) when amplitudes, gains or declared pressure
+        effects vary per point (acoustics._compute_engine: amplitude x gain x acoustics.effect_pressure_factor, a
+        declared drive_saturation at the tones' total amplitude, except for a drive shape ("shape", V))."""
+        f = np.asarray(freqs, float)
+        vs = self.volts(volts)
+        p = vs * self.gain(f)
+        factor = self.pressure_factor(f)
+        sat = self.coefficients("drive_saturation")
+        if sat is not None and not any(isinstance(v, tuple) and v[0] == "shape" for v in volts):
+            from acl.physics.effects import saturation
+
+            # at the drive's total amplitude (acoustics._compute_engine); a drive shape (snap-in) is scaled later
+            s = saturation(np.broadcast_to(vs.sum(axis=-1), (self.n,)), sat["inv_vsat2"])[:, None]
+            factor = np.ones((self.n, f.size)) * s if factor is None else factor * s
+        return p if factor is None else p * factor
+
+    def pressure_factor(self, f: np.ndarray):
+        """(N, T) factor of declared transducer_gain (gain, tilt) and transducer_resonance on the drive pressure
+        at tones ``f`` (acl.analysis.acoustics.effect_pressure_factor without drive_saturation, which is not
+        batched); None without them."""
+        from acl.physics import effects as PE
+
+        tg, tr = self.coefficients("transducer_gain"), self.coefficients("transducer_resonance")
+        if tg is None and tr is None:
+            return None
+        out = np.ones((self.n, f.size))
+        if tg is not None:
+            out = out * tg["gain"][:, None]
+            tilt = (tg["gain_slope"] != 0) & np.isfinite(tg["f_ref"])
+            if tilt.any():
+                ref = np.where(tilt, tg["f_ref"], 1.0)[:, None]
+                out = out * np.where(tilt[:, None], PE.gain_tilt(f[None, :], ref, tg["gain_slope"][:, None]), 1.0)
+        if tr is not None:
+            res = (tr["inv_f_ratio"] != 0) & np.isfinite(tr["f_ref"])
+            if res.any():
+                ref = np.where(res, tr["f_ref"], 1.0)[:, None]
+                out = out * np.where(res[:, None], PE.transducer_resonance(f[None, :], ref, tr["inv_f_ratio"][:, None],
+                                                                           tr["gain_q"][:, None]), 1.0)
+        return out
+
+    def substrate(self):
+        """(N, C) force factor of a declared substrate_proximity at each capsule's first orifice height at rest
+        (acl.analysis.acoustics.substrate_factor; the capsule centre without an orifice); None without one."""
+        from acl.physics import effects as PE
+
+        sp = self.coefficients("substrate_proximity")
+        if sp is None:
+            return None
+
+        def build():
+            lay = self.layout()
+            z = lay["rest"][:, :, 2].copy()
+            for c in range(len(self.caps)):
+                first = np.flatnonzero(lay["body"] == c)
+                if first.size:
+                    z[:, c] = lay["rest"][:, c, 2] + lay["offsets"][:, first[0], 2]
+            h = sp["h_substrate"][:, None]
+            return np.where(h > 0, PE.substrate_factor(z, np.where(h > 0, h, 1.0)), 1.0)
+        return self.once("substrate", build)
 
     def limit_volt(self, p, i: int, st):
         """The voltage limit of a follow/switch/hold step: its own `limit`, else the transducer's maximum
@@ -315,7 +426,7 @@ class PointAcoustics:
                 f1 = self.modes(c)[0][:, 0]
                 p = g["radii"].shape[1]
                 body = np.zeros(p, int)
-                h0 = PB.uncoupled_response(vol, om, om / q, body, f1[:, None])
+                h0 = uncoupled_response(vol, om, om / q, 2 * np.pi * f1[:, None], body)
                 u = PB.coupled_response(h0, g["points"], g["radii"], body, f1[:, None], self.medium["density"],
                                         self.medium["sound_speed"], C.SUBSTRATE_REFLECTION)[:, 0]
                 u = u * self.gain_rows(f1)[:, None]
@@ -328,8 +439,8 @@ class PointAcoustics:
 
     def h0(self, freqs: tuple) -> np.ndarray:
         lay = self.layout()
-        return self.once(("h0", freqs), lambda: PB.uncoupled_response(
-            lay["phi"], lay["omega"], lay["damping"], lay["body"], np.asarray(freqs, float)[None, :]))
+        return self.once(("h0", freqs), lambda: uncoupled_response(
+            lay["phi"], lay["omega"], lay["damping"], 2 * np.pi * np.asarray(freqs, float)[None, :], lay["body"]))
 
     def forces(self, centres, freqs: tuple, volts, parts: bool = False):
         """Total acoustic force (N, C, 3) at capsule centres (N, C, 3) for tones (freqs, volts) (acoustics._Engine.forces)."""
@@ -339,33 +450,55 @@ class PointAcoustics:
         pts = centres[:, lay["body"]] + lay["offsets"]                    # (N, n, 3)
         if not parts and f.size == 1 and lay["body"].tolist() == [0, 1]:  # two one-orifice capsules, one tone
             h = self.h0(tuple(freqs))[:, 0]
-            return PB.two_bubble_forces(np.stack([h[:, 0, 0], h[:, 1, 1]], axis=1), pts, lay["radii"], lay["normals"],
-                                        centres, lay["outer"], self.thrust_scale(), 2 * np.pi * f[0], pressure[..., 0],
+            return self.neighbour_drag(centres, PB.two_bubble_forces(np.stack([h[:, 0, 0], h[:, 1, 1]], axis=1), pts, lay["radii"], lay["normals"],
+                                        centres, lay["outer"], self.force_scale(), 2 * np.pi * f[0], pressure[..., 0],
                                         self.medium["density"], self.medium["sound_speed"], self.medium["viscosity"],
-                                        C.STREAMING_CONSTANT, C.SUBSTRATE_REFLECTION)
+                                        C.STREAMING_CONSTANT, C.SUBSTRATE_REFLECTION, pair_law=self.pair_law(two=True)))
         u = PB.coupled_response(self.h0(tuple(freqs)), pts, lay["radii"], lay["body"], f[None, :],
                                 self.medium["density"], self.medium["sound_speed"], C.SUBSTRATE_REFLECTION)
         u = u * (pressure[None, :, None] if pressure.ndim == 1 else pressure[:, :, None])   # (N, T, n)
         w = 2 * np.pi * f
         thr = thrust_magnitude(u, lay["radii"][:, None, :], w[None, :, None], self.medium["viscosity"][:, None, None],
-                               C.STREAMING_CONSTANT).sum(axis=1) * self.thrust_scale()[:, lay["body"]]   # (N, n)
+                               C.STREAMING_CONSTANT).sum(axis=1) * self.force_scale()[:, lay["body"]]   # (N, n)
         f_thr = np.einsum("bn,bnk,nc->bck", thr, -lay["normals"], lay["onehot"])
-        sep = pts[:, None, :, :] - pts[:, :, None, :]                     # p_j - p_i
         other = lay["body"][:, None] != lay["body"][None, :]
-        d = np.where(other, np.linalg.norm(sep, axis=-1), 1.0)
-        prod = np.einsum("t,bti,btj->bij", w**2, u, np.conj(u)).real
-        att = self.medium["density"][:, None, None] * prod / (8 * np.pi * d**2) * other
-        f_bj = np.einsum("bij,bijk,ic->bck", att / d, sep, lay["onehot"])
+        coef = bjerknes_from_rates(1.0, 1.0, self.medium["density"][:, None, None] * other)      # (N, n, n)
+        sub = self.substrate()
+        if sub is not None:                 # a declared substrate_proximity (acoustics._compute_engine)
+            pair = np.sqrt(sub[:, :, None] * sub[:, None, :])[:, lay["body"]][:, :, lay["body"]]
+            coef = coef * pair
+        law = self.pair_law()
+        shape = (0.0, 1.0)
+        if law is not None:                 # a declared bjerknes_scale, per point (acoustics._compute_engine)
+            coef = coef * law[0][:, None, None]
+            shape = (law[1][:, None, None], law[2][:, None, None])
+        bj, att = bjerknes_pair_sum(pts, u, w**2, coef, other, *shape)
+        f_bj = np.einsum("bnk,nc->bck", bj, lay["onehot"])
         x = centres[:, None, :, :] - pts[:, :, None, :]                    # (N, n, C, 3)
         dist = np.linalg.norm(x, axis=-1)
         cos = np.einsum("bnck,bnk->bnc", x, lay["normals"]) / dist
         mask = lay["body"][:, None] != np.arange(len(self.caps))[None, :]
         drag = jet_drag(thr[:, :, None], np.where(mask, dist, 1.0), cos, lay["outer"][:, None, :]) * mask
         f_dr = np.einsum("bnc,bnk->bck", drag, lay["normals"])
-        total = f_thr + f_bj + f_dr
+        total = self.neighbour_drag(centres, f_thr + f_bj + f_dr)
         if parts:
             return total, u, thr, att, pts
         return total
+
+    def neighbour_drag(self, centres, total):
+        """A declared neighbour_drag on the forces (N, C, 3) of capsules with a neighbour, weakening with each one's
+        displacement from rest (acl.analysis.acoustics._apply_neighbour_drag, :func:`acl.physics.effects.drag_load`;
+        1 at rest)."""
+        from acl.analysis.effects import neighbour_capsules
+        from acl.physics.effects import drag_load
+
+        nd = self.coefficients("neighbour_drag")
+        if nd is None or not np.any(nd["inv_plateau"] > 0):
+            return total
+        near = np.array([c.name in neighbour_capsules(self.design) for c in self.caps], float)
+        delta = np.linalg.norm(centres - self.layout()["rest"], axis=-1) * near
+        inv = nd["inv_plateau"][:, None, None]
+        return np.where(inv > 0, drag_load(total, delta[..., None], inv), total)
 
     # -- pairs at the program frequencies -------------------------------------------------------------
     def pair_quantities(self, f: float) -> dict:
@@ -393,7 +526,8 @@ class PointAcoustics:
                 gap = np.linalg.norm(pts[rows, ib[jb]] - pts[rows, ia[ja]], axis=-1)
                 gamma2 = np.einsum("bk,bk->b", thrust_vec[:, ia_], -unit) + np.einsum("bk,bk->b", thrust_vec[:, ib_], unit)
                 alpha = attraction * gap**2
-                dc = np.where((alpha > 0) & (gamma2 > 0), np.sqrt(np.abs(alpha / np.where(gamma2 != 0, gamma2, 1.0))), np.nan)
+                live = (alpha > 0) & (gamma2 > 0)       # paper Eq. 3's d_c (acoustics.pair_table), gamma2 = 2 gamma
+                dc = np.where(live, critical_distance(np.where(live, alpha, 1.0), np.where(live, gamma2, 2.0) / 2), np.nan)
                 tag = f"{_ident(a)}_{_ident(b)}_{_fkey(f)}"
                 out[f"force_{tag}_n"] = attraction
                 out[f"attract_{tag}"] = attraction > 0
@@ -418,8 +552,25 @@ class PointAcoustics:
             i2 = hi * lo**3 / 12
         axis = self.vec(f"{base}.axis")
         axis = axis / np.linalg.norm(axis, axis=-1, keepdims=True)
-        return {"name": beam.name, "L": self.get(f"{base}.length"), "l": self.get(f"{base}.rigid_length"),
-                "EI": self.get(f"{base}.youngs_modulus") * i2, "axis": axis}
+        out = {"name": beam.name, "L": self.get(f"{base}.length"), "l": self.get(f"{base}.rigid_length"),
+               "EI": self.get(f"{base}.youngs_modulus") * self.e_scale() * i2, "axis": axis, "law": None,
+               "EI_declared": self.get(f"{base}.youngs_modulus") * i2}      # lint's ACL401/402 (without effects)
+        law = self.beam_law()
+        if law is not None:       # declared stiffness_gradient / large_deflection: effects.effective_beam_deflection
+            out["EI"] = self.get(f"{base}.youngs_modulus") * i2
+            out["law"] = law
+        return out
+
+    def beam_law(self):
+        """(e_scale, gradient, elastica weight) per point of declared stiffness_gradient / large_deflection (with
+        stiffness_scale: acl.analysis.mechanics._beam_effects), None without either (paper Eq. (1) with E x e_scale)."""
+        gr, ld = self.coefficients("stiffness_gradient"), self.coefficients("large_deflection")
+        if gr is None and ld is None:
+            return None
+        es = self.e_scale()
+        return (np.broadcast_to(np.asarray(es, float), (self.n,)),
+                gr["e_gradient"] if gr is not None else np.zeros(self.n),
+                ld["elastica_weight"] if ld is not None else np.zeros(self.n))
 
     def single_deflection(self, drive: M.Drive) -> dict:
         """Load-point deflection of every beam carrying a lone capsule under ``drive`` (fixed point of Eq. (1) under the force at the displaced position)."""
@@ -453,10 +604,33 @@ class PointAcoustics:
 
 
 def PB_eq1_deflection(P, bm) -> np.ndarray:
-    """Paper Eq. (1) load-point deflection with per-point beam geometry."""
+    """Paper Eq. (1) load-point deflection with per-point beam geometry (and declared beam effects: :func:`beam_force`)."""
     from acl.physics.beams import eq1_deflection
 
+    if bm.get("law") is not None:
+        from acl.physics.effects import effective_beam_deflection
+
+        return effective_beam_deflection(P, bm["L"], bm["l"], bm["EI"], *bm["law"])
     return eq1_deflection(P, bm["L"], bm["l"], bm["EI"])
+
+
+def beam_force(delta, bm, rows=None) -> np.ndarray:
+    """Load (N,) at load-point deflection ``delta`` (N,) of a beam ``bm`` (:meth:`PointAcoustics.beam_of`): paper
+    Eq. (1) inverted (physics.batch.eq1_force), or with declared beam effects physics.batch.effective_beam_force
+    (acl.analysis.mechanics._beam_law); ``rows`` selects the beam's rows when ``delta`` covers only some points."""
+    if bm.get("law") is None:
+        return PB.eq1_force(delta, bm["L"], bm["l"], bm["EI"])
+    return PB.effective_beam_force(delta, bm["L"], bm["l"], bm["EI"], *bm["law"])[0]
+
+
+def beam_k0(bm) -> np.ndarray:
+    """Small-load stiffness (N,) of a beam: paper Eq. (1)'s, or 1e-30 / the effective deflection at 1e-30 N
+    (acl.analysis.mechanics._beam_law)."""
+    from acl.physics.beams import eq1_small_force_stiffness
+
+    if bm.get("law") is None:
+        return eq1_small_force_stiffness(bm["L"], bm["l"], bm["EI"])
+    return 1e-30 / PB_eq1_deflection(np.full(np.shape(bm["L"]), 1e-30), bm)
 
 
 def _fundamentals(vol: np.ndarray) -> np.ndarray:

@@ -12,6 +12,8 @@ import numpy as np
 
 from acl.physics import batch as PB
 from acl.physics import constants as C
+from acl.physics.forces import critical_distance
+from acl.physics.limits import clamp_strain, eq1_limit_ratio, interface_cap_volume, modes_overlap
 from acl.physics.transducer import pressure_per_volt_rows
 from acl.sweep.columns import QuantityError, _pairs
 from acl.sweep.pair_mechanics import PairMechanics
@@ -35,6 +37,7 @@ class Checks(PairMechanics):
             for lt in self.design.latches:
                 base = f"latches.{lt.name}"
                 geo = [self.get(f"{base}.{k}") for k in ("angle", "length", "width", "thickness", "youngs_modulus")]
+                geo[4] = geo[4] * self.e_scale()      # a declared stiffness_scale (mechanics.latch_geometry)
                 fsw, rel, bistable = PB.latch_switching_force(*geo)
                 axis = np.asarray(lt.axis, float)
                 lats[lt.name] = {"switching": fsw, "release": rel, "bistable": bistable, "margins": {},
@@ -148,7 +151,7 @@ class Checks(PairMechanics):
         if code == "acl504":
             for c in range(len(self.caps)):
                 g = self.capsule(c)
-                caps = (2 / 3 * np.pi * g["radii"] ** 3).sum(axis=1)
+                caps = interface_cap_volume(g["radii"]).sum(axis=1)
                 ok &= ~((caps > 0) & (g["volume"] < thr["cap_volume_ratio"] * caps))
             return ok
         if code == "acl603":
@@ -227,8 +230,9 @@ class Checks(PairMechanics):
                     gamma2 = (np.einsum("bk,bk->b", thrust_vec[:, ca], -unit)
                               + np.einsum("bk,bk->b", thrust_vec[:, cb], unit))
                     alpha = attraction * gap**2
-                    dc = np.where((alpha > 0) & (gamma2 > 0), np.sqrt(np.abs(alpha / np.where(gamma2 != 0, gamma2, 1.0))),
-                                  np.nan)
+                    live = (alpha > 0) & (gamma2 > 0)
+                    dc = np.where(live, critical_distance(np.where(live, alpha, 1.0), np.where(live, gamma2, 2.0) / 2),
+                                  np.nan)             # paper Eq. 3, gamma2 = 2 gamma
                     pushed = (np.einsum("bk,bk->b", thrust_vec[:, ca], -unit) > 0) & \
                              (np.einsum("bk,bk->b", thrust_vec[:, cb], unit) > 0)
                     ok &= ~((gap < margin * dc) & pushed)
@@ -239,12 +243,7 @@ class Checks(PairMechanics):
         validity) from each program's worst load on each beam carrying a capsule (lint.rules.beams.beam_loads:
         the first strongest drive of a step at rest, perpendicular to the beam; a `follow` path's reach)."""
         def build():
-            from acl.lint.rules.beams import (
-                SAFE_RATIO,
-                _linked,
-                _path_extent,
-                eq1_limit_ratio,
-            )
+            from acl.lint.rules.beams import SAFE_RATIO, _linked, _path_extent
             from acl.physics.beams import eq1_deflection
 
             ok401, ok402 = np.ones(self.n, bool), np.ones(self.n, bool)
@@ -258,7 +257,9 @@ class Checks(PairMechanics):
                 bm = self.beam_of(ci)
                 if bm is None:
                     continue
-                L, l, EI, axis = bm["L"], bm["l"], bm["EI"], bm["axis"]
+                # lint.rules.beams.beam_loads: paper Eq. (1) with the declared modulus (no beam effects), the loads
+                # from the force model with every effect
+                L, l, EI, axis = bm["L"], bm["l"], bm["EI_declared"], bm["axis"]
                 base = f"beams.{beam.name}.section"
                 c = self.get(f"{base}.diameter") / 2 if beam.section.shape == "circle" else \
                     np.minimum(self.get(f"{base}.width"), self.get(f"{base}.thickness")) / 2
@@ -290,7 +291,7 @@ class Checks(PairMechanics):
                         better = np.isnan(worst_p) | (P > worst_p)
                         worst_p, worst_d = np.where(better, P, worst_p), np.where(better, defl, worst_d)
                     has = np.isfinite(worst_p)
-                    strain = worst_p * (L + l) * c / EI
+                    strain = clamp_strain(worst_p, L, l, c, EI)
                     ok401 &= ~(has & (strain > strain_limit))
                     rigid = np.array([round(float(v), 2) for v in (l / L)]) if self.n else np.zeros(0)
                     ratio = np.ones(self.n)
@@ -351,8 +352,7 @@ class Checks(PairMechanics):
             fb, qb = self.modes(idx[b])
             f1, q1 = fa[:, :, None], qa[:, :, None]
             f2, q2 = fb[:, None, :], qb[:, None, :]
-            half = (f1 / q1 + f2 / q2) / 2
-            ok &= ~np.any(np.abs(f1 - f2) < k * half, axis=(1, 2))
+            ok &= ~np.any(modes_overlap(f1, q1, f2, q2, k)[0], axis=(1, 2))
         return ok
 
     def half_height(self, c: int) -> np.ndarray:
@@ -394,7 +394,7 @@ class Checks(PairMechanics):
         return ok
 
     def linear_ok(self, limit: float, samples: int) -> np.ndarray:
-        """ACL105: eps/R of every interface at every drive step and sampled sweep frequency within the limit (acoustics.interface_amplitudes)."""
+        """ACL105: eps/R of every interface at every drive step and sampled sweep frequency within the limit (interfaces.interface_amplitudes)."""
         from acl.physics.forces import interface_centre_amplitude
 
         lay = self.layout()

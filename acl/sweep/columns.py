@@ -128,6 +128,18 @@ def _physical_effects(design: M.Design) -> list[str]:
     return [e.name for e in design.effects if e.name not in STATIC_EFFECTS]
 
 
+# Declared effects the batched evaluation applies itself, point by point in its arrays, as analyze does: those the
+# one table (acl.physics.effect_table) gives a ``sweep`` place (acl.sweep.acoustic_state.PointAcoustics: the
+# pair law, E and the beams' law, the drive pressure and its saturation, the substrate, the neighbour drag).  No
+# family is given point by point for them; an effect without one (added later) takes them from acl.sweep.points.
+BATCHED_EFFECTS = frozenset(e.name for e in EFFECT_TABLE.values() if e.sweep)
+
+
+def _unbatched_effects(design: M.Design) -> list[str]:
+    """The physical effects of ``design`` the batched evaluation does not model (their families: acl.sweep.points)."""
+    return [e for e in _physical_effects(design) if e not in BATCHED_EFFECTS]
+
+
 # Declared effects that leave the forces at rest as they are (acl.analysis.acoustics applies them to
 # beams or to displaced capsules only: neighbour_drag's factor is 1 at zero displacement), and those of
 # them that also leave the latch law as it is (mechanics.latch_geometry scales E by stiffness_scale only).
@@ -137,9 +149,9 @@ LATCH_NEUTRAL_EFFECTS = {e.name for e in EFFECT_TABLE.values() if e.latch_neutra
 
 def _effect_blocks(design: M.Design) -> dict[str, list[str]]:
     """{'rest': effects that change the forces at rest, 'latch': ... the latch margins, 'motion': ... the
-    equilibria (every physical effect: the batched beams, springs and forces at displaced positions
-    model none of them)}."""
-    eff = _physical_effects(design)
+    equilibria (every physical effect but :data:`BATCHED_EFFECTS`: the batched beams, springs and forces at
+    displaced positions model none of the others)}."""
+    eff = _unbatched_effects(design)
     return {"rest": [e for e in eff if e not in REST_NEUTRAL_EFFECTS],
             "latch": [e for e in eff if e not in LATCH_NEUTRAL_EFFECTS],
             "motion": eff}
@@ -155,7 +167,6 @@ def supported(design: M.Design, at: str | None = None) -> tuple[list[str], dict[
 
     names: list[str] = []
     missing: dict[str, str] = {}
-    effects = _physical_effects(design)
     blocks = _effect_blocks(design)
     for cap in design.capsules:
         for k in range(1, len(cap.orifices) + 1):
@@ -178,7 +189,7 @@ def supported(design: M.Design, at: str | None = None) -> tuple[list[str], dict[
             names += [f"switching_force_{_ident(lt.name)}_n", f"release_force_{_ident(lt.name)}_n",
                       f"bistable_{_ident(lt.name)}"]
             names += [f"margin_{_ident(lt.name)}_{_ident(p.name)}_{i + 1}" for p, i, _st, _d in step_drives(design)]
-    if not effects:
+    if not blocks["motion"]:
         closed_snap, closed_eq = _closed_form(design)
         general = None if closed_snap and closed_eq else _general(design)
         if pairs and freqs:
@@ -200,29 +211,29 @@ def supported(design: M.Design, at: str | None = None) -> tuple[list[str], dict[
                 missing["tip_deflection"] = missing["deflection_"] = \
                     f"batched equilibria do not cover this mechanism: {general}"
     for i, r in enumerate(design.requires, 1):
-        if _require_supported(design, r, effects) or _require_per_point(design, r, blocks):
+        if _require_supported(design, r, blocks["motion"]) or _require_per_point(design, r, blocks):
             names += [f"require_{i}_value", f"require_{i}_pass"]
         else:
             missing[f"require_{i}"] = f"`{r.text}` is not batched for this design"
     if design.requires and all(f"require_{i}_pass" in names for i in range(1, len(design.requires) + 1)):
         names.append("requires_pass")
-    if design.capsules and not effects:
+    if design.capsules and not blocks["motion"]:     # eps/R at the drive pressure with every effect
         names += ["model_form_rel", "model_form_uncertain"]
     elif design.capsules:
         missing["model_form_"] = ("the model-form uncertainty past the validity limits with declared effects "
-                                  f"({', '.join(effects)}) is not batched: `acl analyze --at` gives it at a drive")
+                                  f"({', '.join(blocks['motion'])}) is not batched: `acl analyze --at` gives it at a drive")
     sweeps = any(st.kind == "sweep" for p in design.programs for st in p.steps)
     names += [f"lint_{code}_pass" for code in LINT_RULES
-              if (code != "acl105" or not blocks["rest"]) and (code not in _PROGRAM_LINT or not effects)
+              if (code != "acl105" or not blocks["rest"]) and (code not in _PROGRAM_LINT or not blocks["motion"])
               and (code not in _PROGRAM_LINT or not sweeps)]
     if "lint_acl603_pass" in names and "requires_pass" not in names and design.requires:
         names.remove("lint_acl603_pass")
     if blocks["rest"]:
         missing["lint_acl105"] = f"eps/R with declared effects on the drive pressure ({', '.join(blocks['rest'])}) is not batched"
-    if effects:
+    if blocks["motion"]:
         for code in _PROGRAM_LINT:
-            missing[f"lint_{code}"] = (f"the rule's forces with declared effects ({', '.join(effects)}) are not batched "
-                                       "(run `acl lint` on a point)")
+            missing[f"lint_{code}"] = (f"the rule's forces with declared effects ({', '.join(blocks['motion'])}) are "
+                                       "not batched (run `acl lint` on a point)")
     elif sweeps:
         for code in _PROGRAM_LINT:
             missing[f"lint_{code}"] = ("a `sweep` step's tones include each point's own modes "
@@ -250,7 +261,7 @@ def per_point_names(design: M.Design, at: str | None = None) -> set[str]:
     blocks = _effect_blocks(design)
     out = {c for cols in per_point_columns(design, at).values() for c in cols}
     for i, r in enumerate(design.requires, 1):
-        if not _require_supported(design, r, _physical_effects(design)) and _require_per_point(design, r, blocks):
+        if not _require_supported(design, r, blocks["motion"]) and _require_per_point(design, r, blocks):
             out |= {f"require_{i}_value", f"require_{i}_pass"}
     return out
 

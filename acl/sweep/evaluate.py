@@ -57,11 +57,15 @@ amplitude times the point's interpolated gain; snap-in is cut at the point's max
 that moves a tone's frequency is not (the frequency names the columns: acl.sweep.driver leaves the
 program columns out).
 
-Designs declaring effects that change a family (forces at rest, latch law, equilibria): that family
-comes point by point from `acl analyze`'s engine (:mod:`acl.sweep.points`, with every effect applied).
+Declared effects: every effect of the table (acl.sweep.columns.BATCHED_EFFECTS) is applied in the batched
+arrays, per point when a parameter moves a coefficient (acl.sweep.acoustic_state.PointAcoustics: coefficients,
+pressure, substrate, pair_law, neighbour_drag, beam_law; snap-in under drive_saturation:
+acl.sweep.pair_mechanics.PairMechanics.snap_in).  An effect outside that list would have the families it
+changes given point by point by `acl analyze`'s engine (:mod:`acl.sweep.points`, with every effect applied).
 
-Not batched (not offered as quantities, :func:`supported` says why): the lint rules ACL105, ACL201, ACL401
-and ACL402 of a design with declared effects, and these lint rules, each for its reason:
+Not batched (not offered as quantities, :func:`supported` says why): under an effect the batch would not model,
+the lint rules ACL105, ACL201, ACL401 and ACL402 and the model-form columns; and these lint rules, each for its
+reason:
 
 * ACL104 (unintended excitation): each capsule's thrust relative to its own peak over a selectivity
   grid refined around each point's modes (acl.lint.context.thrust_grid: ~200 + 41 per mode

@@ -28,8 +28,8 @@ from __future__ import annotations
 import numpy as np
 
 from acl.physics import batch as PB
-from acl.physics.roots import illinois_ascending
-from acl.physics.beams import eq1_small_force_stiffness
+from acl.physics.roots import golden_max, illinois_ascending
+from acl.sweep.acoustic_state import beam_force, beam_k0
 
 STEP_REACH = 2.5e-6       # m; largest accepted move of the coordinates in one continuation step
 AXIS_TOL = 1e-12          # relative; a group with two elements needs their axes fixed to this
@@ -138,10 +138,11 @@ class Mechanism:
             bm = ev.beam_of(c)
             basis = _perp_basis(bm["axis"])
             return {"kind": "beam", "name": el.name, "group": el.group, "basis": basis, "L": bm["L"], "l": bm["l"],
-                    "EI": bm["EI"], "k0": eq1_small_force_stiffness(bm["L"], bm["l"], bm["EI"])}
+                    "EI": bm["EI"], "law": bm["law"], "k0": beam_k0(bm)}
         if el.kind == "latch":
             base = f"latches.{el.name}"
-            geo = tuple(ev.get(f"{base}.{k}") for k in ("angle", "length", "width", "thickness", "youngs_modulus"))
+            geo = tuple(ev.get(f"{base}.{k}") for k in ("angle", "length", "width", "thickness"))
+            geo += (ev.get(f"{base}.youngs_modulus") * ev.e_scale(),)     # stiffness_scale (mechanics.latch_geometry)
             # held in state b: travel measured from state a, the rest at the second stable state (mechanics._latch_law)
             u0 = PB.latch_state_b(*geo) if ev.design.latch(el.name).state == "b" else np.zeros(self.n)
             return {"kind": "latch", "name": el.name, "group": el.group, "axis": _unit(ev.vec(f"{base}.axis")),
@@ -233,7 +234,7 @@ class Mechanism:
                 B = el["basis"]
                 u = np.einsum("nij,nj->ni", B, np.einsum("nij,ni->nj", B, x))
                 delta = np.linalg.norm(u, axis=-1)
-                P = PB.eq1_force(delta, el["L"], el["l"], el["EI"])
+                P = beam_force(delta, el)
                 ratio = np.where(delta < 1e-15 * el["L"], el["k0"], P / np.where(delta > 0, delta, 1.0))
                 fe = ratio[:, None] * u
             elif el["kind"] == "latch":
@@ -479,19 +480,9 @@ class Mechanism:
         rows = np.arange(self.n)
         lo = np.where(k > 0, fr[np.maximum(k - 1, 0)], 0.0) * span
         hi = fr[np.minimum(k + 1, grid - 1)] * span
-        g = (np.sqrt(5.0) - 1) / 2
-        x1, x2 = hi - g * (hi - lo), lo + g * (hi - lo)
-        f1, f2 = self._v2(x1, d, freqs, volts), self._v2(x2, d, freqs, volts)
-        for _ in range(golden):
-            left = f1 >= f2
-            hi = np.where(left, x2, hi)
-            lo = np.where(left, lo, x1)
-            nx = np.where(left, hi - g * (hi - lo), lo + g * (hi - lo))
-            nf = self._v2(nx, d, freqs, volts)
-            x2, f2, x1, f1 = (np.where(left, x1, nx), np.where(left, f1, nf), np.where(left, nx, x2),
-                              np.where(left, nf, f2))
-        best = np.maximum(np.maximum(f1, f2), pos[rows, k])
-        s_best = np.where(pos[rows, k] >= np.maximum(f1, f2), fr[k] * span, np.where(f1 >= f2, x1, x2))
+        fbest, xbest = golden_max(lambda x: self._v2(x, d, freqs, volts), lo, hi, golden)
+        best = np.maximum(fbest, pos[rows, k])
+        s_best = np.where(pos[rows, k] >= fbest, fr[k] * span, xbest)
         out = {"v2_fold": np.where(has, best, np.nan), "s_fold": s_best, "has_fold": has, "dir": d,
                "s_max": span, "open": open_, "still": still}
         self.ev.cache[key] = out

@@ -43,7 +43,7 @@ class ModelForm(Checks):
         return np.where(np.isfinite(q), q, 10.0)
 
     def step_eps(self, freqs: tuple, volts: tuple) -> np.ndarray:
-        """(N, I) eps/R of every interface under a drive at rest (acoustics.interface_amplitudes)."""
+        """(N, I) eps/R of every interface under a drive at rest (interfaces.interface_amplitudes)."""
         from acl.physics.forces import interface_centre_amplitude
 
         lay = self.layout()

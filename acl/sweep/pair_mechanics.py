@@ -6,8 +6,8 @@ import numpy as np
 
 from acl.design import model as M
 from acl.physics import batch as PB
-from acl.physics.roots import illinois_ascending
-from acl.sweep.acoustic_state import PointAcoustics, _Rows
+from acl.physics.roots import golden_max, illinois_ascending
+from acl.sweep.acoustic_state import PointAcoustics, _Rows, beam_force, beam_k0
 from acl.sweep.columns import (
     SNAP_GOLDEN,
     SNAP_GRID,
@@ -67,7 +67,7 @@ class PairMechanics(PointAcoustics):
         for k, x in ((0, xa), (1, xb)):
             bm = ps["beams"][k]
             out.append(np.einsum("bk,bk->b", F[:, k], ps["dirs"][k]))
-            out.append(PB.eq1_force(x, bm["L"], bm["l"], bm["EI"]) if bm is not None else np.zeros_like(x))
+            out.append(beam_force(x, bm) if bm is not None else np.zeros_like(x))
         return out
 
     def pair_closure(self, s, t, freqs, volts):
@@ -117,10 +117,8 @@ class PairMechanics(PointAcoustics):
         for j, (c, bm, basis) in enumerate(moving):
             qj = q[:, 2 * j:2 * j + 2]
             delta = np.linalg.norm(qj, axis=-1)
-            P = PB.eq1_force(delta, bm["L"], bm["l"], bm["EI"])
-            from acl.physics.beams import eq1_small_force_stiffness
-
-            k0 = eq1_small_force_stiffness(bm["L"], bm["l"], bm["EI"])
+            P = beam_force(delta, bm)
+            k0 = beam_k0(bm)
             ratio = np.where(delta > 1e-15 * bm["L"], P / np.where(delta > 0, delta, 1.0), k0)
             res[:, 2 * j:2 * j + 2] = ratio[:, None] * qj - lam[:, None] * np.einsum("bkj,bk->bj", basis, F[:, c])
         return res
@@ -276,20 +274,17 @@ class PairMechanics(PointAcoustics):
         lo = np.where(k > 0, grid[np.maximum(k - 1, 0)], 0.0) * gap * 0.999
         hi = grid[np.minimum(k + 1, grid.size - 1)] * gap * 0.999
         tguess = ts[rows, k]
-        g = (np.sqrt(5.0) - 1) / 2
-        x1, x2 = hi - g * (hi - lo), lo + g * (hi - lo)
-        f1, t1, sl1 = self.pair_v2(x1, tguess, freqs, volts, slope)
-        f2, t2, _ = self.pair_v2(x2, tguess, freqs, volts, sl1)
-        for _ in range(SNAP_GOLDEN):
-            left = f1 >= f2
-            hi = np.where(left, x2, hi)
-            lo = np.where(left, lo, x1)
-            nx = np.where(left, hi - g * (hi - lo), lo + g * (hi - lo))
-            nf, nt, _ = self.pair_v2(nx, np.where(left, t1, t2), freqs, volts, sl1)
-            x2, f2, t2, x1, f1, t1 = (np.where(left, x1, nx), np.where(left, f1, nf), np.where(left, t1, nt),
-                                      np.where(left, nx, x2), np.where(left, nf, f2), np.where(left, nt, t2))
-        best = np.maximum(np.maximum(f1, f2), pos[rows, k])
-        return {"v2": best, "s": np.where(f1 >= f2, x1, x2), "has": has}
+        slopes = [slope]       # the first probe's slope is handed to every later one
+
+        def v2(x, t):
+            f, t_new, sl = self.pair_v2(x, t, freqs, volts, slopes[-1])
+            if len(slopes) == 1:
+                slopes.append(sl)
+            return f, t_new
+
+        fbest, sbest, _ = golden_max(v2, lo, hi, SNAP_GOLDEN, state=tguess)
+        best = np.maximum(fbest, pos[rows, k])
+        return {"v2": best, "s": sbest, "has": has}
 
     def pair_branch(self, freqs: tuple, volts: tuple) -> dict:
         """The fold (snap-in) of the pair's stable branch in the drive scale, searched only where the drive closes the pair."""
@@ -310,22 +305,41 @@ class PairMechanics(PointAcoustics):
         return self.once(("branch", freqs, volts), build)
 
     def snap_in(self, f: float) -> np.ndarray:
+        """Snap-in voltage of a tone at ``f`` up to the transducer's maximum (NaN: none).
+
+        Forces scale as V^2 x sat(V)^2 under a declared drive_saturation (acoustics.effect_pressure_factor): the
+        fold is searched in X = V^2 sat(V)^2, increasing in V, with the unsaturated 1 V shape and the bound
+        X(v_max), and V = sqrt(X / (1 - X / V_s^2)) there (the same equilibria, so the same fold as analyze's
+        continuation in V with the saturating force model)."""
         vmax = self.design.transducer.max_voltage if self.design.transducer else 20.0
         if self.design.transducer is not None and self.moving("transducer.max_voltage"):
             vmax = self.get("transducer.max_voltage")          # each point's amplifier limit
+        sat = self.coefficients("drive_saturation")
+        shape = (1.0,)
+        if sat is not None:
+            inv = sat["inv_vsat2"]
+            shape = (("shape", 1.0),)
+            vmax = np.sqrt(vmax * vmax / (1.0 + inv * vmax * vmax))
+        out = self._snap_in_shape(f, shape, vmax)
+        if sat is not None:
+            x = out * out
+            out = np.sqrt(x / (1.0 - inv * x))
+        return out
+
+    def _snap_in_shape(self, f: float, shape: tuple, vmax) -> np.ndarray:
         if not _closed_form(self.design)[0]:                   # springs, latches, trusses, 3+ capsules
             def general():
                 with np.errstate(all="ignore"):
-                    return self.mechanism().snap_in((f,), (1.0,), vmax)
+                    return self.mechanism().snap_in((f,), shape, vmax)
             return self.once(("general_snap", f), general)
-        br = self.pair_branch((f,), (1.0,))
+        br = self.pair_branch((f,), shape)
         v = np.sqrt(br["v2_fold"])
         out = np.where(v <= vmax, v, np.nan)
         # one pulled and one pushed, or a lateral force: both planes of motion, continuation in V
         rows = np.flatnonzero(~br["closing"] & ~br["opening"] | br["lateral"])
         if rows.size:
             with np.errstate(all="ignore"):
-                out[rows] = self.subset(rows).plane_snap((f,), (1.0,), vmax if np.ndim(vmax) == 0 else vmax[rows])
+                out[rows] = self.subset(rows).plane_snap((f,), shape, vmax if np.ndim(vmax) == 0 else vmax[rows])
         return out
 
     def closing_equilibrium(self, freqs, volts, hi):

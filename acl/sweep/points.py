@@ -1,5 +1,8 @@
 """Columns of a sweep that the analysis engine gives point by point: the families that declared effects
-change (forces at rest, the latch law, the equilibria and snap-in), for the designs that declare them.
+change (forces at rest, the latch law, the equilibria and snap-in), for the designs that declare effects the
+batched evaluation does not model (one without a ``sweep`` place in acl.physics.effect_table: every effect of
+the table has one today, so this is the fallback for an effect added later; tests/test_sweep_points.py checks it
+against the batched engine).
 
 Before, :func:`acl.sweep.evaluate.supported` left these columns out of the table of a design with declared
 effects (a calibrated design from `acl fit --calibrated` lost its deflection and snap-in columns, issue 23).

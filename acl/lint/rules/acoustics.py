@@ -6,6 +6,7 @@ import numpy as np
 from acl.diagnostics import Severity
 from acl.lint.context import Context, khz
 from acl.lint.registry import rule
+from acl.physics.limits import modes_overlap
 from acl.physics.ties import first_max, first_max_item
 
 
@@ -97,12 +98,12 @@ def mode_crosstalk(ctx: Context):
         for ma in ctx.modes(ca):
             for mb in ctx.modes(cb):
                 f1, f2 = ma.frequency_hz, mb.frequency_hz
-                half = (f1 / ma.q + f2 / mb.q) / 2
-                if abs(f1 - f2) < k * half:
+                overlap, limit = modes_overlap(f1, ma.q, f2, mb.q, k)
+                if overlap:
                     yield ctx.finding("ACL103",
                         f"modes of `{a}.{ma.dominant_orifice}` ({khz(f1)}) and `{b}.{mb.dominant_orifice}` "
                         f"({khz(f2)}) overlap within their bandwidths", cb.span, notes=[
-                            f"|f1 - f2| = {khz(abs(f1 - f2))} < {k:g} x (f1/Q1 + f2/Q2)/2 = {khz(k * half)}"
+                            f"|f1 - f2| = {khz(abs(f1 - f2))} < {k:g} x (f1/Q1 + f2/Q2)/2 = {khz(float(limit))}"
                             f" (Q1 = {ma.q:.3g}, Q2 = {mb.q:.3g})",
                             f"driven separately because {why}"],
                         hint="separate the resonances: change one capsule's volume or orifice radius")

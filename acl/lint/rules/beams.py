@@ -7,13 +7,12 @@ P (L + l) c / (E I), with c the half-thickness in the bending plane (its largest
 """
 from __future__ import annotations
 
-from functools import lru_cache
-
 import numpy as np
 
 from acl.diagnostics import Severity
 from acl.lint.context import Context, khz, um
 from acl.lint.registry import rule
+from acl.physics.limits import clamp_strain, eq1_limit_ratio  # the laws, shared with the sweep (acl.sweep.checks)
 
 
 def _carried(ctx: Context, beam) -> str | None:
@@ -92,7 +91,7 @@ def beam_loads(ctx: Context, beam):
                     worst = cand
             if worst is not None:
                 defl, P, st, how, _ = worst
-                strain = P * (L + l) * _half_depth(beam) / EI
+                strain = clamp_strain(P, L, l, _half_depth(beam), EI)
                 out[p.name] = (defl, strain, P, st, how)
         return out
     return ctx.cached(("beam", beam.name), compute)
@@ -205,12 +204,6 @@ def beam_strain(ctx: Context):
                     hint="lower the drive, or use a longer or thinner beam")
 
 
-@lru_cache(maxsize=512)
-def eq1_limit_ratio(rigid_ratio: float, tolerance: float) -> float:
-    """Deflection / L where Eq. (1) departs from the elastica by ``tolerance`` (l/L rounded to 0.01)."""
-    from acl.physics.beams import eq1_validity_limit
-
-    return eq1_validity_limit(1.0, rigid_ratio, tolerance)
 
 
 # Eq. (1) holds to 5 % up to 0.21 L without a rigid part and further with one (acl.physics.beams):

@@ -5,13 +5,12 @@ rejects features below it (E407); lint warns on features within ``print_margin``
 """
 from __future__ import annotations
 
-import math
-
 from acl.design.checks import PRINT_AXIAL, PRINT_LATERAL
 from acl.design.geometry import half_extent
 from acl.diagnostics import Severity
 from acl.lint.context import Context, um
 from acl.lint.registry import rule
+from acl.physics.limits import interface_cap_volume
 
 
 def _features(design):
@@ -89,7 +88,7 @@ def orifice_too_small(ctx: Context):
 def orifice_too_large(ctx: Context):
     k = ctx.threshold("cap_volume_ratio")
     for c in ctx.design.capsules:
-        caps = sum(2 / 3 * math.pi * o.radius**3 for o in c.orifices)
+        caps = sum(float(interface_cap_volume(o.radius)) for o in c.orifices)
         if caps > 0 and c.cavity.volume < k * caps:
             biggest = max(c.orifices, key=lambda o: o.radius)
             yield ctx.finding("ACL504",

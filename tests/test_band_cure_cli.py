@@ -1,0 +1,119 @@
+"""The band's cure closed through the commands a lab runs (issue 28): `acl compile` proposes bench readings for the
+README's main job (examples/fig3_three_orifice.acl, program circle) and prints the band it expects after them; a
+truth drawn from the declared prior stands in for the device; `acl synth` makes the readings on it with the stated
+noise, `acl fit` fits them, `acl compile` recompiles on the calibrated design, and `acl synth --schedule` plays the
+new program on the truth.
+
+Two claims, two tests:
+* the recompiled design's own 95 % band must cover the error the lab then sees (a band narrower than the error is a
+  safety defect).  Before acl.fit.report.tone_gain_stderr added the offset of each tone's gain from the calibrated
+  model, the calibrated design declared measured(gain) of 1.5-3 % at the three tones while its gain there was off by
+  20-33 %, and the recompiled band was far narrower than the achieved error;
+* the band compile promises after the readings (0.160 / 0.174 um) is what a fit of the gain at each tone would give
+  (the engine-level study tests/test_band_experiment.py estimates the gain-table points themselves).  `acl fit`
+  calibrates one gain scale, so three single-tone readings leave the per-tone gains the prior drew unexplained.
+  Measured (rng seed 28, two truths; goal 1 / goal 2 RMS in um): truth 1: nominal program 0.613 / 0.992, recompiled
+  0.629 / 0.985; truth 2: nominal 4.11 / 5.88, recompiled 1.39 / 2.10.  That test is strict-xfail with these figures
+  until `acl fit` carries a measured gain per tone into the calibrated design; compile's note says so.
+"""
+from __future__ import annotations
+
+import json
+import os
+import re
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+ROOT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..")
+FIG3 = os.path.join(ROOT, "examples", "fig3_three_orifice.acl")
+TRUTHS = 2          # truths drawn from the prior (each loop about 15 s of CPU)
+TOLERANCE = 1.5     # achieved RMS at most 1.5 x the expected band's 95th percentile (as the engine-level study)
+
+
+def _acl(*args, cwd):
+    r = subprocess.run([sys.executable, "-m", "acl", *args], capture_output=True, text=True, cwd=cwd,
+                       env={**os.environ, "PYTHONPATH": ROOT, "COLUMNS": "200"}, timeout=300)
+    assert r.returncode == 0, (args, r.stdout[-2000:], r.stderr[-2000:])
+    return r.stdout + r.stderr
+
+
+def _truth_text(z) -> str:
+    """fig3 with its transducer replaced by one whose gain-table points are the stdlib table's times exp(sd z_j)
+    (the prior compile's bands draw: log-normal, independent per point, sd the declared gain_uncertainty)."""
+    import acl
+
+    t = acl.load(FIG3).transducer
+    table = ", ".join(f"({f / 1e3:g} kHz, {g * np.exp(t.gain_uncertainty * zj):.6g} Pa/V)"
+                      for f, g, zj in zip(t.gain_frequencies, t.gain_pa_per_v, z))
+    lo, hi = t.band
+    src = open(FIG3).read()
+    use = "use transducer transducers.contact_piezo\n"
+    assert use in src
+    return src.replace(use, f"transducer truth_piezo {{\n  max_voltage = {t.max_voltage:g} V\n"
+                            f"  band = {lo / 1e3:g} kHz .. {hi / 1e3:g} kHz\n  gain = [{table}]\n}}\n"
+                            "use transducer truth_piezo\n")
+
+
+def _tracking(text: str) -> list[float]:
+    """RMS tracking errors (um) per goal from `acl synth --schedule`'s summary lines."""
+    return [float(x) for x in re.findall(r"tracking error on \S+ RMS ([0-9.eE+-]+) um", text)]
+
+
+@pytest.fixture(scope="module")
+def loop(tmp_path_factory):
+    """(expected band after the readings per goal, [(before, achieved, recompiled band) per truth]), RMS in um."""
+    tmp_path = tmp_path_factory.mktemp("cure")
+    work = tmp_path / "examples"
+    work.mkdir()
+    (work / "fig3_three_orifice.acl").write_text(open(FIG3).read())
+    _acl("compile", "examples/fig3_three_orifice.acl", "--program", "circle", "-o", "out0", cwd=tmp_path)
+    goals0 = json.loads((tmp_path / "out0" / "schedule.json").read_text())["goals"]
+    m = goals0[0]["details"]["band"]["cause"]["measurement"]
+    noise_um = m["noise_m"] * 1e6
+    expected_um = [g["details"]["band"]["cause"]["measurement"]["expected_rms_p95_m"] * 1e6 for g in goals0]
+    rng = np.random.default_rng(28)
+    rows = []
+    for k in range(TRUTHS):
+        (work / "truth.acl").write_text(_truth_text(rng.standard_normal(8)))
+        data = []
+        for i, r in enumerate(m["readings"]):            # one tone at one voltage each, as compile proposed
+            csv = f"reading{k}_{i}.csv"
+            v = f"{r['voltage_v']:g}V"
+            _acl("synth", "examples/truth.acl", "-o", csv, "--frequencies", f"{r['frequency_hz'] / 1e3:g}kHz",
+                 "--voltages", f"{v}..{v}:1", "--noise", f"{noise_um:g}um", "--observe", "mx,my",
+                 "--seed", str(100 * k + i), cwd=tmp_path)
+            data.append(csv)
+        _acl("fit", "examples/fig3_three_orifice.acl", *data, "--free", "gain",
+             "--calibrated", f"examples/cal{k}.acl", cwd=tmp_path)
+        _acl("compile", f"examples/cal{k}.acl", "--program", "circle", "-o", f"out{k + 1}", cwd=tmp_path)
+        band = [g["rms_error_p95_um"] for g in
+                json.loads((tmp_path / f"out{k + 1}" / "schedule.json").read_text())["goals"]]
+        played = _tracking(_acl("synth", "examples/truth.acl", "--schedule", f"out{k + 1}/schedule.json",
+                                "-o", f"play{k}.csv", "--observe", "mx,my", cwd=tmp_path))
+        before = _tracking(_acl("synth", "examples/truth.acl", "--schedule", "out0/schedule.json",
+                                "-o", f"before{k}.csv", "--observe", "mx,my", cwd=tmp_path))
+        rows.append((before, played, band))
+    return expected_um, rows
+
+
+@pytest.mark.studies
+def test_the_recompiled_band_covers_the_error_the_lab_sees(loop):
+    _, rows = loop
+    for _, achieved, band in rows:
+        assert len(achieved) == len(band) == 2, rows
+        for a, b in zip(achieved, band):
+            assert a <= b, rows
+
+
+@pytest.mark.studies
+@pytest.mark.xfail(strict=True, reason="acl fit does not carry a measured gain per tone into the calibrated design "
+                                       "(module docstring)")
+def test_proposed_readings_through_synth_fit_compile_leave_the_expected_band(loop):
+    expected_um, rows = loop
+    for _, achieved, _ in rows:
+        assert len(achieved) == len(expected_um) == 2, rows
+        for a, e in zip(achieved, expected_um):
+            assert a <= TOLERANCE * e, (expected_um, rows)
