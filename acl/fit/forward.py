@@ -286,6 +286,10 @@ def prepare(data, load_instance, f_ref: float | None = None, gamma_caps=None) ->
                     modes0.setdefault(f"{s.capsule}.{c.orifices[0].name}", s.mode)
     rc = ref.design.capsule(ref_cap)
     ref_orifice = f"{ref_cap}.{rc.orifices[0].name}" if rc.orifices else ""
+    if len(groups) > 1:                 # one topology at several rest geometries: one batched solve (acl.fit.group.stack)
+        from acl.fit.group import stack
+
+        groups = stack(groups)
     gamma_side = (np.ones((2, n), bool) if gamma_caps is None else
                   np.array([[c in gamma_caps for c in caps[k]] for k in range(2)], bool).reshape(2, n))
     return Prepared(n, f, v, tau, arel, pair, arr["L"], arr["l"], arr["EI"], arr["cd"], arr["ct"], arr["height"],

@@ -86,14 +86,16 @@ class GroupBlock:
     cache: np.ndarray = None  # (r, m) last equilibrium found per row (warm start of the next evaluation)
     closing: np.ndarray = None    # (r, 2) the orifice pair in contact of each row past snap-in at the last evaluation
     fold: tuple = None            # ((r,) last stable continuation step of the rows that snapped, (r, m) configuration)
+    member: np.ndarray = None     # (r,) stacked blocks (:func:`stack`): the override set of each row, indexing the
+    eoff: np.ndarray = None       # leading axis of rest, offsets, all_rest and eoff (M, ., 3); None: one set
 
     def contact_rows(self):
         return self.closing[:, 0] >= 0 if self.closing is not None else np.zeros(self.rows.size, bool)
 
     @property
     def points(self) -> np.ndarray:
-        """(n, 3) orifice centres at rest."""
-        return self.rest[self.orif_cap] + self.offsets
+        """(n, 3) orifice centres at rest ((M, n, 3) of a stack)."""
+        return self.rest[..., self.orif_cap, :] + self.offsets
 
     @property
     def orif_node(self) -> np.ndarray:
@@ -192,6 +194,79 @@ def block(inst, unit, name, rows, f, v, gamma0, alpha_ref, ftable) -> GroupBlock
                       kind, oi, oj, axis, obase, **extra)
 
 
+# what must be equal for two blocks to share one batched solve (the rest geometry may differ)
+_SHARED = ("caps", "law", "L", "l", "EI", "cd", "basis", "k", "cap_node", "outer", "cap_height", "orif_cap", "normals",
+           "labels", "fn", "q", "neighboured", "orif_ix", "cap_ix", "gamma0", "alpha_ref", "gmask")
+
+
+def _same(a, b) -> bool:
+    if a is None or b is None:
+        return a is b
+    if isinstance(a, np.ndarray) or isinstance(b, np.ndarray):
+        return np.shape(a) == np.shape(b) and bool(np.array_equal(a, b))
+    return a == b
+
+
+def _shares_engine(a: GroupBlock, b: GroupBlock) -> bool:
+    """The two blocks' force engines give the same forces at the same positions (same capsules, tones, constants)."""
+    if len(a.engines) != len(b.engines):
+        return False
+    for ea, eb in zip(a.engines, b.engines):
+        if ea is eb:
+            continue
+        if not (_same(ea.f, eb.f) and _same(ea.lay.body, eb.lay.body) and _same(ea.lay.radii, eb.lay.radii)
+                and _same(ea.h0, eb.h0) and _same(ea.pressure, eb.pressure) and ea.rho == eb.rho and ea.c == eb.c
+                and ea.consts.keys() == eb.consts.keys()
+                and all(_same(np.asarray(ea.consts[k]), np.asarray(eb.consts[k])) for k in ea.consts)
+                and _same(np.asarray(ea.system.radii), np.asarray(eb.system.radii))):
+            return False
+    return True
+
+
+def _stackable(a: GroupBlock, b: GroupBlock) -> bool:
+    if a.member is not None or b.member is not None or np.any(a.law == LAW["latch"]) or np.any(b.law == LAW["latch"]):
+        return False
+    if a.rest.shape != b.rest.shape or a.offsets.shape != b.offsets.shape or a.all_rest.shape != b.all_rest.shape:
+        return False
+    if not all(_same(getattr(a, f), getattr(b, f)) for f in _SHARED):
+        return False
+    if tuple(map(tuple, a.springs or ())) != tuple(map(tuple, b.springs or ())) or len(a.tables) != len(b.tables):
+        return False
+    if any(not (_same(ta[0], tb[0]) and _same(ta[1], tb[1])) for ta, tb in zip(a.tables, b.tables)):
+        return False
+    return a.tau.shape[1:] == b.tau.shape[1:] and _shares_engine(a, b)
+
+
+def stack(blocks: list) -> list:
+    """The blocks with one topology (same capsules, supports, laws, tones and force engine; rest geometry free: the
+    gaps of a pair, the sets of an experiment) joined into one block whose rows are solved in one batched Newton
+    solve; each row keeps its override set's rest geometry (``member``).  Latches are not stacked."""
+    import dataclasses
+
+    out: list = []
+    runs: list = []
+    for blk in blocks:
+        for run in runs:
+            if _stackable(run[0], blk):
+                run.append(blk)
+                break
+        else:
+            runs.append([blk])
+    for run in runs:
+        if len(run) == 1:
+            out.append(run[0])
+            continue
+        per_row = {k: np.concatenate([getattr(b, k) for b in run]) for k in
+                   ("rows", "tau", "arel", "kind", "oi", "oj", "axis", "obase", "fidx")}
+        member = np.concatenate([np.full(b.rows.size, i) for i, b in enumerate(run)])
+        eoff = np.stack([np.asarray(b.engines[0].lay.offsets, float) if b.engines else np.zeros((0, 3)) for b in run])
+        out.append(dataclasses.replace(run[0], rest=np.stack([b.rest for b in run]),
+                                       offsets=np.stack([b.offsets for b in run]),
+                                       all_rest=np.stack([b.all_rest for b in run]), member=member, eoff=eoff,
+                                       cache=None, closing=None, fold=None, **per_row))
+    return out
+
+
 SNAP_KEEP = 0.04      # relative change of a snapped row's loads at rest (and of its laws) that keeps it snapped
 
 
@@ -253,7 +328,9 @@ def _distinct_rows(P, blk: GroupBlock):
         import dataclasses
 
         r = blk.rows
-        key = np.column_stack([P.f[r], P.v[r], P.t[r], blk.kind, blk.oi, blk.oj, blk.axis, blk.obase, blk.fidx])
+        mem = blk.member if blk.member is not None else np.zeros(r.size)
+        key = np.column_stack([P.f[r], P.v[r], P.t[r], blk.kind, blk.oi, blk.oj, blk.axis, blk.obase, blk.fidx,
+                               mem.astype(float)])
         _, first, inv = np.unique(np.ascontiguousarray(key).view(np.uint64), axis=0, return_index=True,
                                   return_inverse=True)
         red = None
@@ -263,7 +340,7 @@ def _distinct_rows(P, blk: GroupBlock):
             rank[order] = np.arange(order.size)
             keep = first[order]
             per_row = {k: getattr(blk, k)[keep] for k in ("rows", "tau", "arel", "kind", "oi", "oj", "axis", "obase",
-                                                         "fidx")}
+                                                         "fidx", "member") if getattr(blk, k) is not None}
             red = (dataclasses.replace(blk, cache=None, closing=None, fold=None, **per_row), keep, rank[inv.ravel()])
         blk.__dict__["distinct"] = red
     return blk.__dict__["distinct"]
@@ -288,6 +365,11 @@ def _predict_block(P, blk: GroupBlock, coeffs, effects, w, gamma, alpha, es, lam
 
     r, N, C, n = blk.rows.size, blk.law.size, len(blk.caps), blk.orif_cap.size
     t = P.t[blk.rows]
+    # rest geometry of each row's override set (a stack of blocks, :func:`stack`, holds several; else one)
+    mem = blk.member if blk.member is not None else np.zeros(r, int)
+    REST = blk.rest if blk.rest.ndim == 3 else blk.rest[None]                     # (M, C, 3)
+    OFFS = blk.offsets if blk.offsets.ndim == 3 else blk.offsets[None]            # (M, n, 3)
+    ALL_REST = blk.all_rest if blk.all_rest.ndim == 3 else blk.all_rest[None]     # (M, C_all, 3)
     res = _mode_factors(P, blk, coeffs, effects, t)
     sub_c = np.ones(C)
     if "substrate_proximity" in effects:
@@ -345,22 +427,23 @@ def _predict_block(P, blk: GroupBlock, coeffs, effects, w, gamma, alpha, es, lam
             on = blk.fidx[:, k_t] >= 0
             np.add.at(Wf, (np.flatnonzero(on), blk.fidx[on, k_t]), wt_all[on, k_t])
         Wf = np.sqrt(Wf)
-        if "u_rest" not in blk.__dict__:      # the coupled volumes with every capsule at rest (per pascal)
-            blk.__dict__["u_rest"] = eng.response(blk.all_rest[None][:, eng.lay.body]
-                                                  + eng.lay.offsets)[:, :, ix]
+        EOFF = blk.eoff if blk.eoff is not None else np.asarray(eng.lay.offsets, float)[None]   # (M, n_all, 3)
+        if "u_rest" not in blk.__dict__:      # the coupled volumes with every capsule at rest (per pascal, (M, F, n))
+            blk.__dict__["u_rest"] = eng.response(ALL_REST[:, eng.lay.body] + EOFF)[:, :, ix]
         u_rest = blk.__dict__["u_rest"]
     onehot = np.zeros((n, C))
     onehot[np.arange(n), blk.orif_cap] = 1.0
     to_node = np.zeros((C, N))
     to_node[np.arange(C), blk.cap_node] = 1.0
 
-    def geometry(z):
+    def geometry(z, rows_=slice(None)):
         """(node displacements (r, N, 3), capsule centres (r, C, 3), orifice centres (r, n, 3), their distances
-        (r, n, n)) at coordinates z."""
+        (r, n, n)) at coordinates z of the rows ``rows_``."""
         x = disp(z)
         xc = x[:, blk.cap_node]                                                    # (r, C, 3)
-        centres = blk.rest[None] + xc
-        p = centres[:, blk.orif_cap] + blk.offsets[None]                           # (r, n, 3)
+        mr = mem[rows_]
+        centres = REST[mr] + xc
+        p = centres[:, blk.orif_cap] + OFFS[mr]                                    # (r, n, 3)
         d = np.linalg.norm(p[:, None, :, :] - p[:, :, None, :], axis=-1)
         return x, centres, p, d
 
@@ -368,19 +451,20 @@ def _predict_block(P, blk: GroupBlock, coeffs, effects, w, gamma, alpha, es, lam
         """(node loads (r, N, 3), orifice distances (r, n, n), node displacements (r, N, 3)) at coordinates z: the
         analysis' force model (acl.physics.forces.capsule_forces) of the group's capsules at their positions, the
         coupled volumes where the capsules are (a body alone: at rest, nothing moves relative to it)."""
-        x, centres, p, d = geometry(z)
+        x, centres, p, d = geometry(z, rows_)
         if blk.engines:
+            mr = mem[rows_]
             if moves:
-                allc = np.repeat(blk.all_rest[None], z.shape[0], axis=0)
+                allc = ALL_REST[mr]
                 allc[:, blk.cap_ix] = centres
-                u = eng.response(allc[:, eng.lay.body] + eng.lay.offsets)[:, :, blk.orif_ix]   # (B, F, n) per Pa
+                u = eng.response(allc[:, eng.lay.body] + EOFF[mr])[:, :, blk.orif_ix]     # (B, F, n) per Pa
                 # orifices in contact (past snap-in) make the coupled response singular: there, the volumes at rest
                 bad = ~np.isfinite(u).all(axis=(1, 2))
                 if bad.any():
-                    u[bad] = u_rest[0]
+                    u[bad] = u_rest[mr[bad]]
             else:
-                u = np.broadcast_to(u_rest, (z.shape[0],) + u_rest.shape[1:])
-            F = capsule_forces(centres, blk.orif_cap, blk.offsets, blk.normals, onehot, blk.outer,
+                u = u_rest[mr]
+            F = capsule_forces(centres, blk.orif_cap, OFFS[0], blk.normals, onehot, blk.outer,
                                u * Wf[rows_], consts, points=p)[0]
         else:                                                                      # no tone: no acoustic force
             F = np.zeros((z.shape[0], C, 3))
@@ -408,23 +492,26 @@ def _predict_block(P, blk: GroupBlock, coeffs, effects, w, gamma, alpha, es, lam
                                                where=mag[:, None] > 0)
         return out, d
 
-    pts0 = blk.points
-    rest_d = np.linalg.norm(pts0[None, :, :] - pts0[:, None, :], axis=-1)
+    PTS0 = REST[:, blk.orif_cap] + OFFS                                           # (M, n, 3) orifices at rest
     across = blk.orif_node[:, None] != blk.orif_node[None, :]                     # orifices of different nodes
-    rest_d = np.where(across, rest_d, np.inf)
-    scale_len = float(np.min(rest_d)) if np.isfinite(rest_d).any() else float(np.max(blk.L))
-    h = 1e-9 * scale_len
-    tol = 1e-6 * scale_len
+    REST_D = np.where(across[None], np.linalg.norm(PTS0[:, None, :, :] - PTS0[:, :, None, :], axis=-1), np.inf)
+    # per override set: the length scale of the finite-difference step and the tolerance (its smallest rest distance)
+    SCALE = np.array([float(np.min(rd)) if np.isfinite(rd).any() else float(np.max(blk.L)) for rd in REST_D])
+    H = (1e-9 * SCALE)[mem]                                                       # (r,)
+    TOL = (1e-6 * SCALE)[mem]
+    DEN = np.where(across[None], REST_D, 1.0)[mem]                                # (r, n, n) rest distances
+    scale_len = float(SCALE.min())
 
     def DJ(zl, sl, live):
         """(D(z), orifice distances, finite-difference Jacobian of z - D(z)) of every row: the row and its m perturbed
         copies in one evaluation of D (per-call overhead dominates, so each Newton iteration is one call)."""
         nl = live.size
-        zp = np.concatenate([zl[None], zl[None] + h * np.eye(m)[:, None, :]])    # (m + 1, nl, m)
+        h = H[live]
+        zp = np.concatenate([zl[None], zl[None] + h[None, :, None] * np.eye(m)[:, None, :]])    # (m + 1, nl, m)
         Dp, dd = D(zp.reshape((m + 1) * nl, m), np.tile(sl, m + 1), np.tile(live, m + 1))
         Dp = Dp.reshape(m + 1, nl, m)
         Fz = zl - Dp[0]
-        J = np.transpose(((zp[1:] - Dp[1:]) - Fz[None]) / h, (1, 2, 0))         # (nl, m rows, m cols)
+        J = np.transpose(((zp[1:] - Dp[1:]) - Fz[None]) / h[None, :, None], (1, 2, 0))   # (nl, m rows, m cols)
         return Dp[0], dd[:nl], J
 
     def solve(z0, sl, live, iters=N_NEWTON):
@@ -444,8 +531,8 @@ def _predict_block(P, blk: GroupBlock, coeffs, effects, w, gamma, alpha, es, lam
             Fz = zl[act] - Dz
             Fz_all[act], d_all[act], J_all[act] = Fz, dd, J
             fresh[act] = True
-            near = np.where(across[None], dd / np.where(across, rest_d, 1.0)[None], np.inf)
-            stop = (np.abs(Fz).max(axis=1) <= 1e-3 * tol) | ~np.isfinite(Fz).all(axis=1) \
+            near = np.where(across[None], dd / DEN[live[act]], np.inf)
+            stop = (np.abs(Fz).max(axis=1) <= 1e-3 * TOL[live[act]]) | ~np.isfinite(Fz).all(axis=1) \
                 | (near.reshape(act.size, -1).min(axis=1) <= 0.02)
             act, Fz, J = act[~stop], Fz[~stop], J[~stop]
             if act.size == 0:
@@ -461,8 +548,8 @@ def _predict_block(P, blk: GroupBlock, coeffs, effects, w, gamma, alpha, es, lam
             Dz, dd, J = DJ(zl[stale], sl[stale], live[stale])
             Fz_all[stale], d_all[stale], J_all[stale] = zl[stale] - Dz, dd, J
         det = np.linalg.det(J_all)
-        rel = np.where(across[None], d_all / np.where(across, rest_d, 1.0)[None], np.inf)
-        good = (np.abs(Fz_all).max(axis=1) <= tol) & (det > 0) & (rel.reshape(nl, -1).min(axis=1) > 0.02)
+        rel = np.where(across[None], d_all / DEN[live], np.inf)
+        good = (np.abs(Fz_all).max(axis=1) <= TOL[live]) & (det > 0) & (rel.reshape(nl, -1).min(axis=1) > 0.02)
         return zl, good, rel
 
     def solve_pinned(z0, rows, pinned, iters=N_NEWTON):
@@ -475,7 +562,7 @@ def _predict_block(P, blk: GroupBlock, coeffs, effects, w, gamma, alpha, es, lam
                 break
             Dz, _, J = DJ(zl, sl, rows)
             Fz = zl - Dz
-            if np.abs(Fz[:, free]).max() <= 1e-3 * tol:
+            if np.all(np.abs(Fz[:, free]).max(axis=1) <= 1e-3 * TOL[rows]):
                 break
             J = J[:, free][:, :, free]
             try:
@@ -490,7 +577,7 @@ def _predict_block(P, blk: GroupBlock, coeffs, effects, w, gamma, alpha, es, lam
         fixed), projected on what their nodes allow; the rest of the group in equilibrium around them."""
         zc = warm.copy()
         ni, nj = blk.orif_node[i], blk.orif_node[j]
-        line = pts0[j] - pts0[i]
+        line = PTS0[mem[rows], j] - PTS0[mem[rows], i]                            # (rows, 3)
         share = (0.5, 0.5) if blk.k[ni] and blk.k[nj] else ((1.0, 0.0) if blk.k[ni] else (0.0, 1.0))
         pinned = []
         for node, sgn, sh in ((ni, 1.0, share[0]), (nj, -1.0, share[1])):
@@ -552,8 +639,8 @@ def _predict_block(P, blk: GroupBlock, coeffs, effects, w, gamma, alpha, es, lam
             if bad.size:
                 # no stable equilibrium next to the last one: the branch folded (snap-in); the orifices closest to
                 # touching at the last stable configuration close
-                d_bad = geometry(z[bad])[3]            # distances only (no loads): as solve(..., iters=0) gives them
-                rel = np.where(across[None], d_bad / np.where(across, rest_d, 1.0)[None], np.inf)
+                d_bad = geometry(z[bad], bad)[3]       # distances only (no loads): as solve(..., iters=0) gives them
+                rel = np.where(across[None], d_bad / DEN[bad], np.inf)
                 flat = rel.reshape(bad.size, -1).argmin(axis=1)
                 closing[bad] = np.column_stack(np.unravel_index(flat, (n, n)))
                 snapped[bad] = True
@@ -573,10 +660,10 @@ def _predict_block(P, blk: GroupBlock, coeffs, effects, w, gamma, alpha, es, lam
     else:
         x = disp(z)
     xc = x[:, blk.cap_node]
-    p = blk.rest[None, blk.orif_cap] + blk.offsets[None] + xc[:, blk.orif_cap]
+    p = PTS0[mem] + xc[:, blk.orif_cap]
     rr = np.arange(r)
     gap = np.linalg.norm(p[rr, blk.oj] - p[rr, blk.oi], axis=1)
-    rest_gap = np.linalg.norm(pts0[blk.oj] - pts0[blk.oi], axis=1)
+    rest_gap = np.linalg.norm(PTS0[mem, blk.oj] - PTS0[mem, blk.oi], axis=1)
     contact = snapped & (((closing[:, 0] == blk.oi) & (closing[:, 1] == blk.oj))
                          | ((closing[:, 0] == blk.oj) & (closing[:, 1] == blk.oi)))
     gap = np.where(contact, 0.0, gap)
