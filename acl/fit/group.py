@@ -431,6 +431,27 @@ def _predict_block(P, blk: GroupBlock, coeffs, effects, w, gamma, alpha, es, lam
         if "u_rest" not in blk.__dict__:      # the coupled volumes with every capsule at rest (per pascal, (M, F, n))
             blk.__dict__["u_rest"] = eng.response(ALL_REST[:, eng.lay.body] + EOFF)[:, :, ix]
         u_rest = blk.__dict__["u_rest"]
+        # rows of one tone need the coupled response at their frequency only: one response per frequency, each over
+        # its rows (the same equations at fewer frequencies, acl.physics.coupling.prepared_response)
+        single = moves and eng.f.size > 1 and bool(np.all(blk.fidx[:, 1:] < 0)) and bool(np.all(blk.fidx[:, 0] >= 0))
+        if single and "per_f" not in blk.__dict__:
+            from acl.physics import constants as PC
+            from acl.physics.coupling import prepared_response
+
+            blk.__dict__["per_f"] = [prepared_response(eng.system, eng.f[k:k + 1], eng.rho, eng.c,
+                                                       PC.SUBSTRATE_REFLECTION,
+                                                       h0=None if eng.h0 is None else eng.h0[k:k + 1])
+                                     for k in range(eng.f.size)]
+
+        def response(pos, rows_):
+            if not single:
+                return eng.response(pos)
+            fk = blk.fidx[rows_, 0]
+            u = np.zeros((pos.shape[0], eng.f.size, pos.shape[1]), complex)
+            for k in np.unique(fk):
+                sel = fk == k
+                u[sel, k] = blk.__dict__["per_f"][k](pos[sel])[:, 0]
+            return u
     onehot = np.zeros((n, C))
     onehot[np.arange(n), blk.orif_cap] = 1.0
     to_node = np.zeros((C, N))
@@ -457,7 +478,7 @@ def _predict_block(P, blk: GroupBlock, coeffs, effects, w, gamma, alpha, es, lam
             if moves:
                 allc = ALL_REST[mr]
                 allc[:, blk.cap_ix] = centres
-                u = eng.response(allc[:, eng.lay.body] + EOFF[mr])[:, :, blk.orif_ix]     # (B, F, n) per Pa
+                u = response(allc[:, eng.lay.body] + EOFF[mr], rows_)[:, :, blk.orif_ix]  # (B, F, n) per Pa
                 # orifices in contact (past snap-in) make the coupled response singular: there, the volumes at rest
                 bad = ~np.isfinite(u).all(axis=(1, 2))
                 if bad.any():
