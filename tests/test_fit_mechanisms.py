@@ -29,11 +29,18 @@ def _data(design, experiment, effects=None, noise=0.2e-6, seed=1, coeffs=None, t
 def test_designs_are_cut_into_pairs_and_lone_actuators_on_their_supports():
     from acl.fit.mechanism import build_instance
 
-    inst = build_instance(acl.load(SPRING_CAL))
+    # paper Eq. (3), the reduced model a user asks for (`--model eq3`): the design is cut into a pair and a lone beam
+    inst = build_instance(acl.load(SPRING_CAL), model="eq3")
     d, travel, cal = inst.unit("d"), inst.unit("travel"), inst.unit("cal")
     assert d is travel and d.kind == "pair" and [s.law for s in d.sides] == ["fixed", "spring"]
     assert d.d0 == pytest.approx(40e-6)
     assert cal.kind == "single" and cal.sides[0].law == "beam"
+    # the default, the analysis' coupled force model: one group of every capsule (the calibration beam is coupled to
+    # the pair through the liquid, as acl analyze couples it), one node per support
+    inst = build_instance(acl.load(SPRING_CAL))
+    d, travel, cal = inst.unit("d"), inst.unit("travel"), inst.unit("cal")
+    assert d is travel is cal and d.kind == "group" and set(d.net.caps) == {"top", "bottom", "c"}
+    assert sorted(s.law for s in d.sides) == ["beam", "fixed", "spring"]
     inst = build_instance(acl.load(LATCH))
     assert inst.unit("shuttle").sides[0].law == "latch"
 
