@@ -37,6 +37,7 @@ from acl.physics.forces import capsule_forces
 
 N_STEPS = 8
 N_NEWTON = 12
+STALL = 3          # Newton iterations without halving a row's residual after which it has no equilibrium near its start
 LAW = {"beam": 0, "spring": 1, "fixed": 2, "latch": 3}
 
 
@@ -545,7 +546,9 @@ def _predict_block(P, blk: GroupBlock, coeffs, effects, w, gamma, alpha, es, lam
         J_all = np.zeros((nl, m, m))
         fresh = np.zeros(nl, bool)          # rows whose stored evaluation is at their current zl
         act = np.arange(nl)                 # rows still iterating: a row stops once converged, or once it has left
-        for _ in range(iters):              # the branch (non-finite, or two orifices within 2 % of contact)
+        best = np.full(nl, np.inf)          # the branch (non-finite, or two orifices within 2 % of contact), or once
+        stalled = np.zeros(nl, int)         # STALL iterations in a row did not halve its smallest residual so far
+        for _ in range(iters):
             if act.size == 0:
                 break
             Dz, dd, J = DJ(zl[act], sl[act], live[act])
@@ -553,8 +556,11 @@ def _predict_block(P, blk: GroupBlock, coeffs, effects, w, gamma, alpha, es, lam
             Fz_all[act], d_all[act], J_all[act] = Fz, dd, J
             fresh[act] = True
             near = np.where(across[None], dd / DEN[live[act]], np.inf)
-            stop = (np.abs(Fz).max(axis=1) <= 1e-3 * TOL[live[act]]) | ~np.isfinite(Fz).all(axis=1) \
-                | (near.reshape(act.size, -1).min(axis=1) <= 0.02)
+            res = np.abs(Fz).max(axis=1)
+            stalled[act] = np.where(res <= 0.5 * best[act], 0, stalled[act] + 1)
+            best[act] = np.minimum(best[act], res)
+            stop = (res <= 1e-3 * TOL[live[act]]) | ~np.isfinite(Fz).all(axis=1) \
+                | (near.reshape(act.size, -1).min(axis=1) <= 0.02) | (stalled[act] >= STALL)
             act, Fz, J = act[~stop], Fz[~stop], J[~stop]
             if act.size == 0:
                 break
