@@ -322,16 +322,18 @@ def _mode_factors(P, blk, coeffs, effects, t):
     return np.where(np.isfinite(out), out, 0.0)
 
 
-def _distinct_rows(P, blk: GroupBlock):
+def _distinct_rows(P, blk: GroupBlock, timed: bool = True):
     """(block of the distinct rows, index of each row's) when rows repeat (repeated ramps: every input of a row's
-    prediction, its tones, time and observable, bitwise the same), else None; made once per block."""
-    if "distinct" not in blk.__dict__:
+    prediction, its tones, observable and, when ``timed`` (bubble shrinkage acts: the only input of a group's
+    prediction that reads the time), its time, bitwise the same), else None; made once per block and ``timed``."""
+    tag = ("distinct", bool(timed))
+    if tag not in blk.__dict__:
         import dataclasses
 
         r = blk.rows
         mem = blk.member if blk.member is not None else np.zeros(r.size)
-        key = np.column_stack([P.f[r], P.v[r], P.t[r], blk.kind, blk.oi, blk.oj, blk.axis, blk.obase, blk.fidx,
-                               mem.astype(float)])
+        key = np.column_stack([P.f[r], P.v[r]] + ([P.t[r]] if timed else [])
+                              + [blk.kind, blk.oi, blk.oj, blk.axis, blk.obase, blk.fidx, mem.astype(float)])
         _, first, inv = np.unique(np.ascontiguousarray(key).view(np.uint64), axis=0, return_index=True,
                                   return_inverse=True)
         red = None
@@ -343,8 +345,8 @@ def _distinct_rows(P, blk: GroupBlock):
             per_row = {k: getattr(blk, k)[keep] for k in ("rows", "tau", "arel", "kind", "oi", "oj", "axis", "obase",
                                                          "fidx", "member") if getattr(blk, k) is not None}
             red = (dataclasses.replace(blk, cache=None, closing=None, fold=None, **per_row), keep, rank[inv.ravel()])
-        blk.__dict__["distinct"] = red
-    return blk.__dict__["distinct"]
+        blk.__dict__[tag] = red
+    return blk.__dict__[tag]
 
 
 def predict(P, blk: GroupBlock, coeffs, effects, w, gamma, alpha, es, lam, grad, c_p) -> tuple:
@@ -352,7 +354,8 @@ def predict(P, blk: GroupBlock, coeffs, effects, w, gamma, alpha, es, lam, grad,
     force (r,)) of the block's rows; ``w`` (r, T) the squared drive pressure per V^2 of each tone (gain, its effects),
     the rest as in acl.fit.forward._predict.  Repeated rows are solved once (:func:`_distinct_rows`; each row's
     inputs are the same, so is its number), unless a coefficient is given per row."""
-    red = None if "tone_weight" in coeffs else _distinct_rows(P, blk)
+    timed = "bubble_shrinkage" in effects        # the only input of a group row that reads its time (_mode_factors)
+    red = None if "tone_weight" in coeffs else _distinct_rows(P, blk, timed)
     if red is not None:
         sub, keep, inv = red
         ch, sn, ra = _predict_block(P, sub, coeffs, effects, w[keep], gamma, alpha, es, lam, grad, c_p)
