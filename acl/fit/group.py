@@ -37,6 +37,7 @@ from acl.physics.forces import capsule_forces
 
 N_STEPS = 8
 N_NEWTON = 12
+N_CHORD = 6           # chord steps at most (each must halve the residual) before Newton takes over
 STALL = 3          # Newton iterations without halving a row's residual after which it has no equilibrium near its start
 LAW = {"beam": 0, "spring": 1, "fixed": 2, "latch": 3}
 
@@ -527,21 +528,65 @@ def _predict_block(P, blk: GroupBlock, coeffs, effects, w, gamma, alpha, es, lam
     DEN = np.where(across[None], REST_D, 1.0)[mem]                                # (r, n, n) rest distances
     scale_len = float(SCALE.min())
 
-    def DJ(zl, sl, live):
+    def DJ(zl, sl, live, at=None):
         """(D(z), orifice distances, finite-difference Jacobian of z - D(z)) of every row: the row and its m perturbed
-        copies in one evaluation of D (per-call overhead dominates, so each Newton iteration is one call)."""
+        copies in one evaluation of D (per-call overhead dominates, so each Newton iteration is one call); ``at``:
+        (D(z), distances) already evaluated at zl (only the m copies are)."""
         nl = live.size
         h = H[live]
         zp = np.concatenate([zl[None], zl[None] + h[None, :, None] * np.eye(m)[:, None, :]])    # (m + 1, nl, m)
-        Dp, dd = D(zp.reshape((m + 1) * nl, m), np.tile(sl, m + 1), np.tile(live, m + 1))
-        Dp = Dp.reshape(m + 1, nl, m)
+        if at is None:
+            Dp, dd = D(zp.reshape((m + 1) * nl, m), np.tile(sl, m + 1), np.tile(live, m + 1))
+            Dp = Dp.reshape(m + 1, nl, m)
+        else:
+            Dq, _ = D(zp[1:].reshape(m * nl, m), np.tile(sl, m), np.tile(live, m))
+            Dp, dd = np.concatenate([at[0][None], Dq.reshape(m, nl, m)]), at[1]
         Fz = zl - Dp[0]
         J = np.transpose(((zp[1:] - Dp[1:]) - Fz[None]) / h[None, :, None], (1, 2, 0))   # (nl, m rows, m cols)
         return Dp[0], dd[:nl], J
 
-    def solve(z0, sl, live, iters=N_NEWTON):
+    def chord(zl, sl, live, J0, Fz_all, d_all, J_all, fresh):
+        """Chord steps with each row's Jacobian of the last evaluation ``J0`` (warm start: the optimizer's previous
+        iterate), one evaluation of D per step; a row stops when converged (then its Jacobian is taken afresh at the
+        z it stopped at: stability is judged exactly as Newton judges it), when its residual fails to halve (it goes
+        on by Newton), or when it leaves the branch (Newton finds that too).  Fills the rows converged; returns the
+        indices of the rest."""
+        act = np.flatnonzero(np.isfinite(J0).all(axis=(1, 2)))
+        rest = np.setdiff1d(np.arange(live.size), act)
+        done = []
+        prev = np.full(act.size, np.inf)
+        for _ in range(N_CHORD):
+            if act.size == 0:
+                break
+            Dz, dd = D(zl[act], sl[act], live[act])
+            Fz = zl[act] - Dz
+            res = np.abs(Fz).max(axis=1)
+            near = np.where(across[None], dd / DEN[live[act]], np.inf).reshape(act.size, -1).min(axis=1)
+            conv = res <= 1e-3 * TOL[live[act]]
+            off = ~np.isfinite(Fz).all(axis=1) | (near <= 0.02) | (res > 0.5 * prev)
+            if conv.any():
+                c = act[conv]
+                _, _, Jc = DJ(zl[c], sl[c], live[c], at=(Dz[conv], dd[conv]))
+                Fz_all[c], d_all[c], J_all[c], fresh[c] = Fz[conv], dd[conv], Jc, True
+                done.append(c)
+            rest = np.concatenate([rest, act[off & ~conv]])
+            go = ~conv & ~off
+            act, Fz, prev = act[go], Fz[go], res[go]
+            if act.size:
+                try:
+                    dz = np.linalg.solve(J0[act], -Fz[:, :, None])[:, :, 0]
+                except np.linalg.LinAlgError:
+                    break
+                zl[act] = zl[act] + np.where(np.isfinite(dz), dz, 0.0)
+        return np.sort(np.concatenate([rest, act]).astype(int))
+
+    last: dict = {}
+
+    def solve(z0, sl, live, iters=N_NEWTON, J0=None):
         """Newton on z - D(z) = 0 from z0; (z, stable equilibrium found, relative gaps (rows, n, n)).  A row's residual,
-        Jacobian and distances at the z it stops at are those of its last iteration (no second evaluation)."""
+        Jacobian and distances at the z it stops at are those of its last iteration (no second evaluation).  ``J0``
+        (rows, m, m; NaN: none): the rows' Jacobians of the last evaluation, for :func:`chord` steps first.  The
+        Jacobian of every row at the z it stops at is left in ``last["J"]``."""
         zl = z0.copy()
         nl = live.size
         Fz_all = np.zeros_like(zl)
@@ -549,6 +594,8 @@ def _predict_block(P, blk: GroupBlock, coeffs, effects, w, gamma, alpha, es, lam
         J_all = np.zeros((nl, m, m))
         fresh = np.zeros(nl, bool)          # rows whose stored evaluation is at their current zl
         act = np.arange(nl)                 # rows still iterating: a row stops once converged, or once it has left
+        if J0 is not None:
+            act = chord(zl, sl, live, J0, Fz_all, d_all, J_all, fresh)
         best = np.full(nl, np.inf)          # the branch (non-finite, or two orifices within 2 % of contact), or once
         stalled = np.zeros(nl, int)         # STALL iterations in a row did not halve its smallest residual so far
         for _ in range(iters):
@@ -578,6 +625,7 @@ def _predict_block(P, blk: GroupBlock, coeffs, effects, w, gamma, alpha, es, lam
             Dz, dd, J = DJ(zl[stale], sl[stale], live[stale])
             Fz_all[stale], d_all[stale], J_all[stale] = zl[stale] - Dz, dd, J
         det = np.linalg.det(J_all)
+        last["J"] = J_all
         rel = np.where(across[None], d_all / DEN[live], np.inf)
         good = (np.abs(Fz_all).max(axis=1) <= TOL[live]) & (det > 0) & (rel.reshape(nl, -1).min(axis=1) > 0.02)
         return zl, good, rel
@@ -631,6 +679,7 @@ def _predict_block(P, blk: GroupBlock, coeffs, effects, w, gamma, alpha, es, lam
         was = blk.contact_rows() if blk.cache is not None and blk.cache.shape == (r, m) else np.zeros(r, bool)
         z = np.zeros((r, m))
         good = np.zeros(r, bool)
+        jnew = np.full((r, m, m), np.nan)             # Jacobian at each row's equilibrium at full load (next warm start)
         # rows that snapped last time with their fold at least one continuation step (1/N_STEPS of the load) below full
         # load, whose loads at rest and laws have changed since by far less than that step: still past their fold
         sig = np.column_stack([thrust.sum(axis=1), np.abs(A).sum(axis=(1, 2)),
@@ -641,20 +690,30 @@ def _predict_block(P, blk: GroupBlock, coeffs, effects, w, gamma, alpha, es, lam
             closing[kept] = blk.closing[kept]
             was = was & ~kept
         tried = everyone[~was & ~kept]               # rows in contact last time go straight to their continuation
+        J0 = None
         if tried.size:
-            z[tried], good[tried], _ = solve(start[tried], np.ones(tried.size), tried, 8)
+            jc = blk.__dict__.get("jcache")
+            J0 = jc[tried] if jc is not None and jc.shape == (r, m, m) and blk.cache is not None else None
+            z[tried], good[tried], _ = solve(start[tried], np.ones(tried.size), tried, 8, J0=J0)
+            jnew[tried[good[tried]]] = last["J"][good[tried]]
         todo = everyone[~good & ~kept]
         first = np.ones(r, int)                       # first continuation step of each row
         if todo.size:
             z[todo] = 0.0
             if blk.fold is not None and blk.fold[0].shape == (r,):
-                # rows that folded at the last evaluation: restart from their last stable step (not from rest)
+                # rows that folded at the last evaluation: restart from their last stable step (not from rest); rows
+                # in equilibrium at full load at the last evaluation (a Jacobian kept) that are no longer: from that
+                # equilibrium at the step below full load.  One solve; a row that fails there starts from rest.
                 k_prev, z_prev = blk.fold
-                again = todo[k_prev[todo] > 0]
+                had = np.isfinite(J0).all(axis=(1, 2)) if J0 is not None else np.zeros(tried.size, bool)
+                held = np.zeros(r, bool)
+                held[tried[had]] = True
+                again = todo[(k_prev[todo] > 0) | held[todo]]
                 if again.size:
-                    zl, ok, _ = solve(z_prev[again], k_prev[again] / N_STEPS, again)
+                    k0 = np.where(held[again], N_STEPS - 1, k_prev[again])
+                    zl, ok, _ = solve(np.where(held[again][:, None], start[again], z_prev[again]), k0 / N_STEPS, again)
                     z[again[ok]] = zl[ok]
-                    first[again[ok]] = k_prev[again[ok]] + 1
+                    first[again[ok]] = k0[ok] + 1
         last_good = np.where(kept, blk.fold[0] if kept.any() else 0, 0)
         for step in range(1, N_STEPS + 1):
             rows_ = todo[first[todo] <= step]
@@ -664,6 +723,8 @@ def _predict_block(P, blk: GroupBlock, coeffs, effects, w, gamma, alpha, es, lam
                 continue
             zl, ok, rel = solve(z[rows_], np.full(rows_.size, step / N_STEPS), rows_)
             z[rows_[ok]] = zl[ok]
+            if step == N_STEPS:
+                jnew[rows_[ok]] = last["J"][ok]
             last_good[rows_[ok]] = step
             bad = rows_[~ok]
             if bad.size:
@@ -684,6 +745,7 @@ def _predict_block(P, blk: GroupBlock, coeffs, effects, w, gamma, alpha, es, lam
             warm = start[sel] if blk.cache is not None else z[sel]
             z[sel] = _contact(z, sel, i, j, warm)
         blk.cache = z.copy()
+        blk.__dict__["jcache"] = jnew
         blk.closing = np.where(snapped[:, None], closing, -1)
     if np.any(blk.kind == 3):             # a latch state reads the loads; every other observable the geometry
         Fn, _, x = loads(z, np.ones(r), everyone)
