@@ -405,11 +405,12 @@ def _predict_block(P, blk: GroupBlock, coeffs, effects, w, gamma, alpha, es, lam
             d = elastica_blend(d, B.elastica_deflection(load, blk.L[i], blk.l[i], blk.EI[i] * es), lam)
         return d
 
+    SLOT = np.zeros((len(slots), N * 3))                                           # coordinate -> node displacement
+    for s_, (i_, c_) in enumerate(slots):
+        SLOT[s_, 3 * i_:3 * i_ + 3] = blk.basis[i_, :, c_]
+
     def disp(z):                                                                   # (r, m) -> (r, N, 3)
-        x = np.zeros((z.shape[0], N, 3))
-        for s, (i, c) in enumerate(slots):
-            x[:, i] += z[:, s, None] * blk.basis[i, :, c][None]
-        return x
+        return (z @ SLOT).reshape(z.shape[0], N, 3)
 
     moves = N > 1 and bool(blk.engines)
     n_gap = effects["bjerknes_shape"]["gap_exponent"] if "bjerknes_shape" in effects else 0.0
