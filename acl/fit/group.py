@@ -566,9 +566,19 @@ def _predict_block(P, blk: GroupBlock, coeffs, effects, w, gamma, alpha, es, lam
             conv = res <= 1e-3 * TOL[live[act]]
             off = ~np.isfinite(Fz).all(axis=1) | (near <= 0.02) | (res > 0.5 * prev)
             if conv.any():
+                # chord converges linearly: the row is within the tolerance, not at machine precision as Newton's
+                # quadratic steps leave it (a Jacobian column of the fit, a 1e-6 step, reads differences far below
+                # the tolerance); one Newton step with the Jacobian taken afresh there polishes it, and its residual
+                # and distances are those at the polished z (the Jacobian, one tolerance away, judges stability)
                 c = act[conv]
                 _, _, Jc = DJ(zl[c], sl[c], live[c], at=(Dz[conv], dd[conv]))
-                Fz_all[c], d_all[c], J_all[c], fresh[c] = Fz[conv], dd[conv], Jc, True
+                try:
+                    dz = np.linalg.solve(Jc, -Fz[conv][:, :, None])[:, :, 0]
+                except np.linalg.LinAlgError:
+                    dz = np.zeros_like(Fz[conv])
+                zl[c] = zl[c] + np.where(np.isfinite(dz), dz, 0.0)
+                Dc, dc = D(zl[c], sl[c], live[c])
+                Fz_all[c], d_all[c], J_all[c], fresh[c] = zl[c] - Dc, dc, Jc, True
                 done.append(c)
             rest = np.concatenate([rest, act[off & ~conv]])
             go = ~conv & ~off
