@@ -223,6 +223,18 @@ def _unit_hint(word: str) -> str | None:
     return "units are written without spaces (`nN/um`, `kg/m^3`); multiply by a parameter with spaces: `40 um * gap`"
 
 
+@functools.lru_cache(maxsize=4096)
+def _dims_product(a: Dims, b: Dims) -> Dims:
+    """Dimension vector of a product (memoised: a design multiplies the same few dimensions thousands of times)."""
+    return tuple(x + y for x, y in zip(a, b))  # type: ignore[return-value]
+
+
+@functools.lru_cache(maxsize=4096)
+def _dims_quotient(a: Dims, b: Dims) -> Dims:
+    """Dimension vector of a quotient (memoised as the product)."""
+    return tuple(x - y for x, y in zip(a, b))  # type: ignore[return-value]
+
+
 @dataclass(frozen=True, slots=True)
 class Quantity:
     """An SI value with a dimension vector."""
@@ -245,12 +257,12 @@ class Quantity:
         return Quantity(self.value - other.value, self.dims)
 
     def __mul__(self, other: "Quantity") -> "Quantity":
-        return Quantity(self.value * other.value, tuple(a + b for a, b in zip(self.dims, other.dims)))  # type: ignore[arg-type]
+        return Quantity(self.value * other.value, _dims_product(self.dims, other.dims))
 
     def __truediv__(self, other: "Quantity") -> "Quantity":
         if other.value == 0:
             raise ZeroDivisionError("division by zero")
-        return Quantity(self.value / other.value, tuple(a - b for a, b in zip(self.dims, other.dims)))  # type: ignore[arg-type]
+        return Quantity(self.value / other.value, _dims_quotient(self.dims, other.dims))
 
     def __neg__(self) -> "Quantity":
         return Quantity(-self.value, self.dims)

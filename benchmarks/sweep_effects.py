@@ -16,26 +16,13 @@ machine is shared), points per CPU second and the ratio.
 from __future__ import annotations
 
 import os
+import sys
+import time
 
-for _v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
-    os.environ.setdefault(_v, "1")
-
-import argparse  # noqa: E402
-import sys  # noqa: E402
-import time  # noqa: E402
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from sweep_setup import ROOT, field_batch as _batch, options  # noqa: E402
 
 import numpy as np  # noqa: E402
-
-ROOT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..")
-if "ACL_BENCH_NO_PATH" not in os.environ:       # set to time another checkout (its acl on PYTHONPATH)
-    sys.path.insert(0, ROOT)
-
-
-def _batch(design, fields):
-    from acl.sweep.perturb import FieldBatch
-
-    n = len(next(iter(fields.values())))
-    return FieldBatch(design=design, n=n, fields=fields, valid=np.ones(n, bool), code=np.full(n, ""))
 
 
 def _compare(label, batch, quantities, at, loop_n):
@@ -59,15 +46,7 @@ def _compare(label, batch, quantities, at, loop_n):
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser()
-    ap.add_argument("--n", type=int, default=2000)
-    ap.add_argument("--loop", type=int, default=20)
-    ap.add_argument("--latch-n", type=int, default=200)
-    args = ap.parse_args(argv)
-    try:
-        os.sched_setaffinity(0, {min(os.sched_getaffinity(0))})
-    except (AttributeError, OSError):
-        pass
+    args = options(argv, n=2000, loop=20, latch_n=200)
     from acl.design.resolve import load_design
     from acl.sweep.perturb import flatten
 

@@ -12,25 +12,13 @@ Prints CPU seconds (process time; the machine is shared) and points per CPU seco
 from __future__ import annotations
 
 import os
+import sys
+import time
 
-for _v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
-    os.environ.setdefault(_v, "1")
-
-import argparse  # noqa: E402
-import sys  # noqa: E402
-import time  # noqa: E402
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from sweep_setup import ROOT, field_batch as _batch, options  # noqa: E402
 
 import numpy as np  # noqa: E402
-
-ROOT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..")
-sys.path.insert(0, ROOT)
-
-
-def _batch(design, fields):
-    from acl.sweep.perturb import FieldBatch
-
-    n = len(next(iter(fields.values())))
-    return FieldBatch(design=design, n=n, fields=fields, valid=np.ones(n, bool), code=np.full(n, ""))
 
 
 def timed(batch, quantities, at=None):
@@ -42,15 +30,7 @@ def timed(batch, quantities, at=None):
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser()
-    ap.add_argument("--n", type=int, default=100_000)
-    ap.add_argument("--pair-n", type=int, default=20_000)
-    ap.add_argument("--latch-n", type=int, default=20_000)
-    args = ap.parse_args(argv)
-    try:
-        os.sched_setaffinity(0, {min(os.sched_getaffinity(0))})
-    except (AttributeError, OSError):
-        pass
+    args = options(argv, n=100_000, pair_n=20_000, latch_n=20_000)
     import acl
     from acl.sweep.perturb import cavity_volume
 

@@ -4,17 +4,26 @@ truth drawn from the declared prior stands in for the device; `acl synth` makes 
 noise, `acl fit` fits them, `acl compile` recompiles on the calibrated design, and `acl synth --schedule` plays the
 new program on the truth.
 
-Two claims, two tests:
+Three claims, three tests:
 * the recompiled design's own 95 % band must cover the error the lab then sees (a band narrower than the error is a
   safety defect).  Before acl.fit.report.tone_gain_stderr added the offset of each tone's gain from the calibrated
   model, the calibrated design declared measured(gain) of 1.5-3 % at the three tones while its gain there was off by
   20-33 %, and the recompiled band was far narrower than the achieved error;
-* the band compile promises after the readings (0.160 / 0.174 um) is what a fit of the gain at each tone would give
-  (the engine-level study tests/test_band_experiment.py estimates the gain-table points themselves).  `acl fit`
-  calibrates one gain scale, so three single-tone readings leave the per-tone gains the prior drew unexplained.
-  Measured (rng seed 28, two truths; goal 1 / goal 2 RMS in um): truth 1: nominal program 0.613 / 0.992, recompiled
-  0.629 / 0.985; truth 2: nominal 4.11 / 5.88, recompiled 1.39 / 2.10.  That test is strict-xfail with these figures
-  until `acl fit` carries a measured gain per tone into the calibrated design; compile's note says so.
+* the error after the readings is the band compile promised for them (0.160 / 0.174 um RMS, 95 %), within
+  TOLERANCE.  It was not while `acl fit` calibrated one gain scale (plus tilt): three single-tone readings left the
+  per-tone gains the prior drew unexplained (rng seed 28, goal 1 / goal 2 RMS in um: truth 1 0.629 / 0.985, truth 2
+  1.39 / 2.10; a strict xfail held them).  Now acl.fit.report.tone_gains fits the gain at each read tone (kept when
+  it beats the gain model, p < 0.01), the calibrated design carries it as `measured(gain) = [(tone, Pa/V, sd)]`, and
+  compile plays the measured tones: truth 1 0.0177 / 0.0287, truth 2 0.0469 / 0.0839;
+* the cure's mechanism: the calibrated design carries a gain at each read tone, the recompile plays exactly those
+  tones, and its band (the measured errors, plus the fit's residual as discrepancy(position)) is close to the
+  promised one: truth 1 0.213 / 0.323, truth 2 0.238 / 0.335 um (1.3-1.9x the promise).
+Over 20 truths (benchmarks/band_cure.py: the same loop; about 20 min on a loaded 2-core machine): every recompile
+played the read tones, the recompiled band covered the achieved error on all 40 goals (median band / error 3.3 and
+2.9); goal 1's achieved error has median 0.067, 90th percentile 0.173 and maximum 0.222 um against the promised
+0.160 (17 of 20 within it, all within 1.5x); goal 2's (its promise assumes the readings proposed for step 2, at
+higher voltages than the step-1 readings made here) median 0.120, maximum 0.340 against 0.174.  Before the readings:
+median 1.61 / 2.54 um.
 """
 from __future__ import annotations
 
@@ -31,6 +40,7 @@ ROOT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..")
 FIG3 = os.path.join(ROOT, "examples", "fig3_three_orifice.acl")
 TRUTHS = 2          # truths drawn from the prior (each loop about 15 s of CPU)
 TOLERANCE = 1.5     # achieved RMS at most 1.5 x the expected band's 95th percentile (as the engine-level study)
+BAND_OVER_PROMISE = 2.5     # the recompiled band at most this x the promised one (measured: 1.3-1.9x)
 
 
 def _acl(*args, cwd):
@@ -89,31 +99,49 @@ def loop(tmp_path_factory):
         _acl("fit", "examples/fig3_three_orifice.acl", *data, "--free", "gain",
              "--calibrated", f"examples/cal{k}.acl", cwd=tmp_path)
         _acl("compile", f"examples/cal{k}.acl", "--program", "circle", "-o", f"out{k + 1}", cwd=tmp_path)
-        band = [g["rms_error_p95_um"] for g in
-                json.loads((tmp_path / f"out{k + 1}" / "schedule.json").read_text())["goals"]]
+        goals = json.loads((tmp_path / f"out{k + 1}" / "schedule.json").read_text())["goals"]
+        band = [g["rms_error_p95_um"] for g in goals]
+        import acl
+
+        cal = acl.load(str(work / f"cal{k}.acl"))
+        carried = {m.frequency: (m.gain, m.stddev) for m in cal.measured_gain}
+        plays = [(g["frequencies_hz"], g["details"]["band"].get("unmeasured_tones_hz")) for g in goals]
         played = _tracking(_acl("synth", "examples/truth.acl", "--schedule", f"out{k + 1}/schedule.json",
                                 "-o", f"play{k}.csv", "--observe", "mx,my", cwd=tmp_path))
         before = _tracking(_acl("synth", "examples/truth.acl", "--schedule", "out0/schedule.json",
                                 "-o", f"before{k}.csv", "--observe", "mx,my", cwd=tmp_path))
-        rows.append((before, played, band))
-    return expected_um, rows
+        rows.append((before, played, band, carried, plays))
+    return expected_um, rows, [r["frequency_hz"] for r in m["readings"]]
 
 
 @pytest.mark.studies
 def test_the_recompiled_band_covers_the_error_the_lab_sees(loop):
-    _, rows = loop
-    for _, achieved, band in rows:
+    _, rows, _ = loop
+    for _, achieved, band, _, _ in rows:
         assert len(achieved) == len(band) == 2, rows
         for a, b in zip(achieved, band):
             assert a <= b, rows
 
 
 @pytest.mark.studies
-@pytest.mark.xfail(strict=True, reason="acl fit does not carry a measured gain per tone into the calibrated design "
-                                       "(module docstring)")
 def test_proposed_readings_through_synth_fit_compile_leave_the_expected_band(loop):
-    expected_um, rows = loop
-    for _, achieved, _ in rows:
+    expected_um, rows, _ = loop
+    for _, achieved, _, _, _ in rows:
         assert len(achieved) == len(expected_um) == 2, rows
         for a, e in zip(achieved, expected_um):
             assert a <= TOLERANCE * e, (expected_um, rows)
+
+
+@pytest.mark.studies
+def test_the_calibrated_design_carries_the_gain_at_each_read_tone_and_compile_plays_them(loop):
+    """The cure's mechanism: `acl fit` wrote the gain it fitted at each read tone (a table point in Pa/V with its
+    standard error), the recompile plays exactly those tones, and its band, now the measured errors, is close to
+    the promised one (at most BAND_OVER_PROMISE x; it adds the fit's residual as discrepancy(position))."""
+    expected_um, rows, tones = loop
+    for _, _, band, carried, plays in rows:
+        assert sorted(carried) == sorted(tones), carried
+        assert all(g is not None and g > 0 and 0 < sd < 0.05 for g, sd in carried.values()), carried
+        for freqs, unmeasured in plays:
+            assert sorted(freqs) == sorted(tones) and not unmeasured, plays
+        for b, e in zip(band, expected_um):
+            assert b <= BAND_OVER_PROMISE * e, (band, expected_um)

@@ -53,8 +53,6 @@ ALLOWED: dict[str, str] = {
     "acl.fit.modelcheck -> acl": "acl.loads of the Python API; use acl.design.resolve",
     "acl.fit.problem -> acl": "acl.load of the Python API; use acl.design.resolve",
     "acl.fit.synth -> acl": "acl.load of the Python API; use acl.design.resolve",
-    # a stage writes a file through emit's atomic writer (write_text_atomic belongs with acl._files)
-    "acl.sweep.tune -> acl.emit.atomic": "atomic write of the tuned design; move write_text_atomic below",
     # a stage prints a design back as canonical text with the formatter (fmt sits on the top layer although it
     # only needs syntax and design): either canonical() moves down, or fmt does
     "acl.fit.calibrated -> acl.fmt": "the calibrated design as canonical text",
@@ -62,18 +60,14 @@ ALLOWED: dict[str, str] = {
     # --- private names across packages ---------------------------------------------------------------------
     # sweep's evaluator re-implements lint rules and analysis steps through their private helpers: to be removed
     # by the engine work (the lint rules and the sweep call one batched engine)
-    "acl.sweep.acoustic_state -> acl.analysis.acoustics:_medium": "sweep's copy of the model; engine work",
-    "acl.sweep.acoustic_state -> acl.analysis.report:_amplitude_at": "sweep's copy of the model; engine work",
     "acl.sweep.checks -> acl.lint.rules.acoustics:_separate_pairs": "sweep's copy of a lint rule; engine work",
     "acl.sweep.checks -> acl.lint.rules.beams:_linked": "sweep's copy of a lint rule; engine work",
     "acl.sweep.checks -> acl.lint.rules.beams:_path_extent": "sweep's copy of a lint rule; engine work",
     "acl.sweep.checks -> acl.lint.rules.forces:_managed": "sweep's copy of a lint rule; engine work",
-    "acl.sweep.spec -> acl.design.core:_EXAMPLES": "the sweep's examples of a value; make it public",
     # the formatter and the language server use the parser's private Lark instance (tokens, keyword list)
     "acl.fmt.tokens -> acl.syntax.parser:_lark": "the formatter lexes with the parser's Lark; make it public",
     "acl.lsp.hover -> acl.syntax.parser:_lark": "hover's keyword list from the parser's Lark; make it public",
     "acl.lsp.completion -> acl.design.modules:_stdlib_modules": "completion lists the stdlib; make it public",
-    "acl.lsp.document -> acl.design.resolve:_finish": "the LSP resolves a partly parsed module; make it public",
     # the incremental parser re-runs the parser's private steps on the edited part and reuses the module cache
     "acl.lsp.incremental -> acl.syntax.parser:_build": "incremental parse; make the parser's steps public",
     "acl.lsp.incremental -> acl.syntax.parser:_check_limits": "incremental parse; make the parser's steps public",
@@ -81,7 +75,6 @@ ALLOWED: dict[str, str] = {
     "acl.lsp.incremental -> acl.syntax.parser:_lark": "incremental parse; make the parser's steps public",
     "acl.lsp.incremental -> acl.design.modules:_PARSED": "incremental parse reuses the module cache; make public",
     # sweep's validity checks repeat the design checks' tone list: to be removed by the engine work
-    "acl.sweep.validity -> acl.design.checks:_step_tones": "sweep's copy of a design check; engine work",
 }
 
 

@@ -38,7 +38,7 @@ def generated(tmp_path_factory):
 def _direct_response(design, f: float) -> np.ndarray:
     """(I - w^2 rho H0 g) U = H0 1 with g from green_matrix (exp(-ikd)), one frequency, numpy.linalg.solve."""
     sysm = AC._system(design)
-    med = AC._medium(design)
+    med = AC.medium_constants(design)
     w = 2 * np.pi * f
     ncap, p, _ = sysm.phi.shape
     assert p * ncap == sysm.n            # the generated capsules: one orifice each, no padding

@@ -6,6 +6,7 @@ Issue 9, done-when bullet 2 (the band covers the re-simulated error in >= 90 % o
 """
 from __future__ import annotations
 
+import math
 import os
 import shutil
 import subprocess
@@ -132,8 +133,8 @@ def test_bad_measured_gain_is_E325_at_its_place(tmp_path, entry, where):
 def test_a_fit_writes_the_tones_its_data_drove_as_measured_gain(tmp_path):
     """The fast version of tests/test_closed_loop.py::test_fig3_study_seed_repeats (a study): `acl fit` with a free gain
     on data at three tones writes measured(gain) at exactly those tones, each the relative error of the calibrated
-    gain there rounded up (the standard error, 1.5-3 % at 0.05 um noise, in quadrature with the noise-driven offset
-    of the tone's own gain from the calibrated one: up to 6 % here), and the calibrated design's bands pin them."""
+    gain there rounded up (the gain model fits these data, generated from the design's own table, so it is kept:
+    acl.fit.report.tone_gain_stderr), and the calibrated design's bands pin them."""
     from acl.fit import run_fit
     from acl.fit.synth import Experiment, generate, write_csv
 
@@ -152,3 +153,88 @@ def test_a_fit_writes_the_tones_its_data_drove_as_measured_gain(tmp_path):
     assert [f for f, _ in got] == list(tones) == sorted(se)
     for f, s in got:
         assert 0.005 < s < 0.1 and se[f] <= s <= se[f] + 1e-4, (f, s, se[f])
+    assert out.report["tone_gains"] and all(e["factor"] is None for e in out.report["tone_gains"])
+
+
+def test_a_measured_gain_is_a_table_point_of_the_resolved_transducer(tmp_path):
+    """`(frequency, gain, relative sd)`: the resolved transducer's table carries the measured gain at the tone (a table
+    point already there is replaced), so analyze, compile and sweep use it; the bands hold it to its sd there."""
+    base = acl.load(os.path.join(EX, "fig3_three_orifice.acl")).transducer
+    cal = acl.load(_calibrated(tmp_path, "measured(gain) = [(72.5 kHz, 212 Pa/V, 1 %), (125 kHz, 0.5 %), "
+                                         "(170 kHz, 300 Pa/V, 2 %)]"))
+    t = cal.transducer
+    assert 72.5e3 in t.gain_frequencies and t.gain_frequencies.count(170e3) == 1
+    table = dict(zip(t.gain_frequencies, t.gain_pa_per_v))
+    assert table[72.5e3] == 212.0 and table[170e3] == 300.0
+    assert table[125e3] == dict(zip(base.gain_frequencies, base.gain_pa_per_v))[125e3]    # no gain given: kept
+    assert len(t.gain_frequencies) == len(base.gain_frequencies) + 1
+    assert [m.gain for m in cal.measured_gain] == [212.0, None, 300.0]
+    assert pinned(cal) == ((72.5e3, 0.01), (125e3, 0.005), (170e3, 0.02))
+    g, _ = pressure_per_volt([72.5e3, 170e3], t.gain_frequencies, t.gain_pa_per_v)
+    assert list(g) == [212.0, 300.0]
+    sd = _log_gain_spread(cal, np.array([72.5e3, 170e3]))
+    assert sd == pytest.approx([0.01, 0.02], rel=0.2)       # held to the measured sd, not the 30 % prior
+
+
+@pytest.mark.parametrize("entry, where", [
+    ("measured(gain) = [(110 kHz, 2 V, 1 %)]", "(110 kHz, 2 V, 1 %)"),
+    ("measured(gain) = [(110 kHz, -5 Pa/V, 1 %)]", "(110 kHz, -5 Pa/V, 1 %)"),
+    ("measured(gain) = [(110 kHz, 0 Pa/V, 1 %)]", "(110 kHz, 0 Pa/V, 1 %)"),
+    ("measured(gain) = [(110 kHz, 100 Pa/V, 1 %, 2 %)]", "(110 kHz, 100 Pa/V, 1 %, 2 %)"),
+    ("measured(gain) = [(110 kHz, 1 %, 100 Pa/V)]", "(110 kHz, 1 %, 100 Pa/V)"),
+])
+def test_bad_measured_gain_value_is_E325_at_its_place(tmp_path, entry, where):
+    test_bad_measured_gain_is_E325_at_its_place(tmp_path, entry, where)
+
+
+def test_a_measured_gain_without_a_transducer_is_E325(tmp_path):
+    src = open(os.path.join(EX, "fig3_three_orifice.acl")).read()
+    use = "use transducer transducers.contact_piezo\n"
+    assert use in src
+    path = tmp_path / "no_transducer.acl"
+    path.write_text(src.replace(use, "") + "\nuncertainty {\n  measured(gain) = [(110 kHz, 100 Pa/V, 1 %)]\n}\n")
+    with pytest.raises(DiagnosticError) as exc:
+        acl.load(str(path))
+    d = next(x for x in exc.value.diagnostics if x.code == "E325")
+    assert "uses no transducer" in d.message and d.span.line == len(path.read_text().splitlines()) - 1
+
+
+def test_a_fit_on_a_table_of_another_shape_carries_the_gain_at_each_tone(tmp_path):
+    """Issue 28: readings at three tones of a device whose gain table differs point by point from the declared one
+    (+25 %, -20 %, +15 % at 72.5, 128.5, 178.5 kHz: no gain scale or tilt fits them).  `acl fit --free gain` fits the
+    gain at each tone (acl.fit.report.tone_gains, chi-square test p < 0.01), writes it as `(tone, Pa/V, sd)`, and the
+    calibrated design's total gain there (table point x fitted scale) is the device's within 3 standard errors; the
+    scale, which those gains span, is declared exact (its error is the tones')."""
+    from acl.fit import run_fit
+    from acl.fit.synth import Experiment, generate, write_csv
+
+    src = open(os.path.join(EX, "fig3_three_orifice.acl")).read()
+    use = "use transducer transducers.contact_piezo\n"
+    t = acl.load(os.path.join(EX, "fig3_three_orifice.acl")).transducer
+    tones, off = (72.5e3, 128.5e3, 178.5e3), (1.25, 0.8, 1.15)
+    g0, _ = pressure_per_volt(tones, t.gain_frequencies, t.gain_pa_per_v)
+    truth_gain = {f: float(g) * x for f, g, x in zip(tones, g0, off)}
+    table = ", ".join(f"({f / 1e3:g} kHz, {g:.9g} Pa/V)" for f, g in sorted(truth_gain.items()))
+    (tmp_path / "truth.acl").write_text(src.replace(use, "transducer truth_piezo {\n  max_voltage = 20 V\n"
+                                                         "  band = 40 kHz .. 200 kHz\n"
+                                                         f"  gain = [{table}]\n}}\nuse transducer truth_piezo\n"))
+    shutil.copy(os.path.join(EX, "fig3_three_orifice.acl"), tmp_path)
+    data, _ = generate(str(tmp_path / "truth.acl"), Experiment(frequencies=tones, voltages=(2.0, 4.0, 6.0)),
+                       noise=0.05e-6, seed=2)
+    csv = str(tmp_path / "d.csv")
+    write_csv(data, csv)
+    cal = tmp_path / "cal.acl"
+    out = run_fit(str(tmp_path / "fig3_three_orifice.acl"), [csv], free=["gain"], candidates=[],
+                  calibrated_path=str(cal))
+    cal.write_text(out.calibrated)
+    rows = {e["frequency_hz"]: e for e in out.report["tone_gains"]}
+    assert sorted(rows) == list(tones) and all(e["factor"] is not None for e in rows.values())
+    d = acl.load(str(cal))
+    scale = d.param("fit_gain")
+    assert not scale.stddev                                  # spanned by the tones' gains: declared exact
+    for m in d.measured_gain:
+        assert m.gain == pytest.approx(rows[m.frequency]["gain_pa_per_v"], rel=1e-5)
+        total = m.gain * scale.value
+        assert abs(math.log(total / truth_gain[m.frequency])) < 3 * m.stddev, (m, total, truth_gain[m.frequency])
+        assert 0 < m.stddev < 0.05
+    assert [f for f, _ in pinned(d)] == list(tones)

@@ -84,7 +84,7 @@ class PairForce:
 # ----------------------------------------------------------------------------------------------
 
 
-def _medium(design: Design) -> C.MediumConstants:
+def medium_constants(design: Design) -> C.MediumConstants:
     m = design.medium
     if m is None:
         return C.WATER_20C
@@ -190,7 +190,7 @@ def modal_data(design: Design, capsule, n_modes: int = C.DEFAULT_MEMBRANE_MODES,
     radii = tuple(o.radius for o in cap.orifices)
     q = None if predicted else cap.quality_factor
     return _modes_for(cap.cavity.volume, radii, thermal_radius(cap.cavity),
-                      _medium(design).as_tuple(), q, n_modes)
+                      medium_constants(design).as_tuple(), q, n_modes)
 
 
 # ----------------------------------------------------------------------------------------------
@@ -323,7 +323,7 @@ def rest_response(design: Design, frequencies) -> np.ndarray:
     store = _per_design_store(_REST, design)
     missing = np.unique(f[[x not in store for x in f.tolist()]]) if f.size else f
     if missing.size:
-        med = _medium(design)
+        med = medium_constants(design)
         u = _physics_coupled(_system(design), missing, med.density, med.sound_speed, C.SUBSTRATE_REFLECTION)
         for x, row in zip(missing.tolist(), u):
             row.setflags(write=False)
@@ -341,7 +341,7 @@ def coupled_response(design: Design, frequencies, positions=None) -> np.ndarray:
     f = np.atleast_1d(np.asarray(frequencies, float))
     lay = _layout(design)
     if positions:
-        med = _medium(design)
+        med = medium_constants(design)
         pts = lay.points(_centres_array(design, positions))
         u = _physics_coupled(_system(design), f, med.density, med.sound_speed, C.SUBSTRATE_REFLECTION,
                              points=pts[None])[0]
@@ -385,7 +385,7 @@ def _fundamentals(cm: CoupledModes, n_interfaces: int) -> list[int]:
 @_per_design
 def _modes_cached(design: Design, idx: tuple[int, ...], max_hz: float | None = None) -> tuple[Mode, ...]:
     """Modes of the capsules ``idx`` as one system (a single capsule: its fundamentals), up to ``max_hz`` if given."""
-    med = _medium(design)
+    med = medium_constants(design)
     lay = _layout(design)
     sel = np.isin(lay.body, list(idx))
     labels = [lab for lab, s in zip(lay.labels, sel) if s]
@@ -478,13 +478,13 @@ def _normals(cap: Capsule) -> np.ndarray:
 
 def _thrust_from_volumes(design: Design, radii: np.ndarray, f: np.ndarray, dv: np.ndarray) -> np.ndarray:
     """Thrust magnitude (N) per tone and orifice from volume amplitudes (..., T, n) (acl.physics.forces.thrust_magnitude)."""
-    return thrust_magnitude(dv, radii, 2 * np.pi * f[:, None], _medium(design).viscosity, C.STREAMING_CONSTANT)
+    return thrust_magnitude(dv, radii, 2 * np.pi * f[:, None], medium_constants(design).viscosity, C.STREAMING_CONSTANT)
 
 
 @_per_design
 def _isolated_thrust_per_v2(design: Design, c: int) -> float:
     lay = _layout(design)
-    med = _medium(design)
+    med = medium_constants(design)
     ms = capsule_modes(design, lay.caps[c])
     if not ms:
         return 0.0
@@ -586,14 +586,14 @@ class _Engine:
 def _engine_constants(design: Design, lay: _Layout, f: np.ndarray, pressure: np.ndarray, scale: np.ndarray,
                       pair: np.ndarray, shape: tuple = (0.0, 1.0)) -> dict:
     """Everything in :meth:`_Engine.forces` that does not depend on the capsule positions (acl.physics.forces.force_constants)."""
-    med = _medium(design)
+    med = medium_constants(design)
     return force_constants(2 * np.pi * f, lay.radii, lay.body, len(lay.caps), med.viscosity, med.density,
                            C.STREAMING_CONSTANT, pressure, scale, pair, gap_shape=shape)
 
 
 def _compute_engine(design: Design, drive: Drive) -> _Engine:
     lay = _layout(design)
-    med = _medium(design)
+    med = medium_constants(design)
     f, v = _tones(drive)
     sysm = _system(design)
     if f.size:

@@ -72,11 +72,11 @@ def net_critical_distance(design: Design, drive: Drive, a: str, b: str, far: flo
 def quality_bound(design: Design, name: str) -> float:
     """Largest plausible Q of capsule ``name``'s first mode (acl.physics.resonance.plausible_quality_bound: twice
     the Q of its viscous and radiation losses alone, thermal loss left out)."""
-    from acl.analysis.acoustics import _medium, thermal_radius
+    from acl.analysis.acoustics import medium_constants, thermal_radius
     from acl.physics.resonance import capsule_modes, plausible_quality_bound
 
     cap = design.capsule(name)
-    rho, mu, c, sigma, p0, kappa, diff, gamma = _medium(design).as_tuple()
+    rho, mu, c, sigma, p0, kappa, diff, gamma = medium_constants(design).as_tuple()
     m = capsule_modes(cap.cavity.volume, np.array([o.radius for o in cap.orifices]), rho, sigma, p0, kappa, mu, c,
                       thermal_radius(cap.cavity), heat_capacity_ratio=gamma, thermal_diffusivity=diff, thermal=False)
     return float(plausible_quality_bound(m.quality[0])) if m.quality.size else float("inf")
@@ -132,3 +132,20 @@ def pair_notes(design: Design, pair: dict) -> list[dict]:
             f"{where} repels only with the declared Q = {max(declared):g} (from Q {rq:g}), above the plausible "
             f"Q <= {qmax:.1f} (acl.physics.resonance.plausible_quality_bound); with the predicted Q it attracts")))
     return out
+
+
+def scale_note(design: Design, pair: dict) -> list[dict]:
+    """N-PAIR-SCALE, once per frequency on its first attracting pair: the design's pair forces are acl's first-principles
+    values, and its snap-in voltage at the median measured / first-principles ratio of the paper's pairs is lower."""
+    from acl.physics.constants import FIRST_PRINCIPLES_PAIR_SCALE_MEDIAN as S
+
+    if "snap_in_voltage_median_pair_scale_v" not in pair or not pair["attract"]:
+        return []
+    v0, v1 = pair.get("snap_in_voltage_v"), pair["snap_in_voltage_median_pair_scale_v"]
+    if v1 is None or (v0 is not None and v1 >= v0):
+        return []
+    here = f"snaps in at {v0:.3g} V" if v0 is not None else "does not snap in up to the transducer's maximum voltage"
+    return [_note(design, pair["b"], "N-PAIR-SCALE", (
+        f"at {pair['frequency_hz'] / 1e3:g} kHz the design {here} with acl's first-principles pair forces; the "
+        f"paper's measured pairs attract 1.86-15x harder (median {S:g}), and at the median it snaps in at {v1:.3g} V. "
+        "Declare that spread or a calibration (stdlib/calibrations.acl) so compile and sweep carry it"))]

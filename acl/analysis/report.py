@@ -63,7 +63,7 @@ def program_frequencies(design: M.Design) -> list[float]:
     return sorted(fs)
 
 
-def _amplitude_at(design: M.Design, f: float) -> float:
+def amplitude_at(design: M.Design, f: float) -> float:
     """Largest amplitude the programs apply at frequency f (V), else the reference 1 V (DEFAULT_V: 0 from _program_amplitude)."""
     return _program_amplitude(design, f) or DEFAULT_V
 
@@ -99,7 +99,7 @@ def analyze(design: M.Design, at: M.Drive | None = None, snap_in: bool = True, p
     from acl.analysis import interfaces as IF
     from acl.analysis import mechanics as ME
     from acl.analysis.selectivity import selectivity
-    from acl.analysis.pairs import net_critical_distance, pair_notes
+    from acl.analysis.pairs import net_critical_distance, pair_notes, scale_note
     from acl.physics.forces import PAPER_DRAG_FRACTION
 
     from acl.analysis.effects import notes as effect_notes
@@ -137,9 +137,11 @@ def analyze(design: M.Design, at: M.Drive | None = None, snap_in: bool = True, p
     # ---- pairs at each program frequency
     fm = AC.force_model_for(design)
     snaps: dict[float, tuple[float | None, str]] = {}
+    snaps_scaled: dict[float, float | None] = {}
+    scaled = _median_pair_scale(design) if snap_in else None
     vmax = design.transducer.max_voltage if design.transducer else 20.0
     for j, f in enumerate(freqs):
-        v = _amplitude_at(design, f)
+        v = amplitude_at(design, f)
         drive = M.Drive(tones=(M.Tone(frequency=f, amplitude=v),))
         pfs = AC.pair_forces(design, drive)
         if snap_in and pfs:
@@ -147,6 +149,9 @@ def analyze(design: M.Design, at: M.Drive | None = None, snap_in: bool = True, p
                 progress(f"snap-in sweep at {f / 1e3:g} kHz")
             sw = ME.sweep_voltage(design, M.Drive(tones=(M.Tone(frequency=f, amplitude=1.0),)), vmax, fm)
             snaps[f] = (sw.snap_voltage, sw.status)
+            if scaled is not None:      # the same sweep with the pair force the paper's measured pairs have
+                sw = ME.sweep_voltage(scaled, M.Drive(tones=(M.Tone(frequency=f, amplitude=1.0),)), vmax, fm)
+                snaps_scaled[f] = sw.snap_voltage
         amps = IF.interface_amplitudes(design, drive)
         # what this drive is for: the pair table (two or more capsules), else only the frequency's
         # largest program amplitude (or the 1 V reference where no program sets one)
@@ -167,6 +172,9 @@ def analyze(design: M.Design, at: M.Drive | None = None, snap_in: bool = True, p
                 **_monopole(design, pf),
                 "snap_in_voltage_v": snaps.get(f, (None, ""))[0],
                 "sweep_status": snaps.get(f, (None, "not computed"))[1],
+                # an uncalibrated pair force (no bjerknes_scale): the snap-in with the force the paper's measured
+                # pairs have at the median of their ratio to first principles (note N-PAIR-SCALE)
+                **({"snap_in_voltage_median_pair_scale_v": snaps_scaled.get(f)} if f in snaps_scaled else {}),
                 "q_predicted": [modes[pf.a][0].q_predicted if modes[pf.a] else None,
                                 modes[pf.b][0].q_predicted if modes[pf.b] else None],
                 "attract_with_predicted_q": study.get("attract_with_predicted_q", bool(pf.attract)
@@ -178,6 +186,9 @@ def analyze(design: M.Design, at: M.Drive | None = None, snap_in: bool = True, p
                                                     if k.split(".")[0] in (pf.a, pf.b)},
             })
             rep.pairs[-1]["notes"] = pair_notes(design, rep.pairs[-1])
+        first = next((p for p in rep.pairs if p["frequency_hz"] == f and p["attract"]), None)
+        if first is not None:       # the design's snap-in at the paper's pair-force scale: once per frequency
+            first["notes"] += scale_note(design, first)
     for p, i, st, drive in step_drives(design):
         rep.drives.append(_drive_entry(p.name, i + 1, describe_drive(drive), IF.interface_amplitudes(design, drive),
                                        st.span.line, file=st.span.file))
@@ -327,6 +338,19 @@ def _sweep_entry(design: M.Design, program: str, i: int, st, mode_fs: np.ndarray
     drive = M.Drive(tones=(M.Tone(frequency=f, amplitude=st.amplitude),))
     return _drive_entry(program, i + 1, describe_drive(drive) + " (the sweep's worst frequency)", amps, st.span.line,
                         file=st.span.file)
+
+
+def _median_pair_scale(design: M.Design) -> M.Design | None:
+    """``design`` with its Bjerknes force at the median measured / first-principles ratio of the paper's pairs
+    (acl.physics.constants.FIRST_PRINCIPLES_PAIR_SCALE_MEDIAN), or None where a bjerknes_scale is declared (a
+    calibration or a declared spread) or there is no pair."""
+    from acl.physics.constants import FIRST_PRINCIPLES_PAIR_SCALE_MEDIAN
+
+    if len(design.capsules) < 2 or design.effect("bjerknes_scale") is not None:
+        return None
+    eff = M.Effect(name="bjerknes_scale", params={"factor": FIRST_PRINCIPLES_PAIR_SCALE_MEDIAN},
+                   units={"factor": ""}, span=design.capsules[0].span)
+    return design.model_copy(update={"effects": tuple(design.effects) + (eff,)})
 
 
 def _drive_entry(program, step, drive_text, amps: dict, line=None, basis: str = "step", file=None) -> dict:

@@ -24,7 +24,7 @@ def layout(design: Design):
 
 def medium(design: Design):
     """The medium constants (density, sound speed, viscosity, ...) the analysis uses for ``design``."""
-    return _ac._medium(design)
+    return _ac.medium_constants(design)
 
 
 def outer_radius(capsule: Capsule) -> float:

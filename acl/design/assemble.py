@@ -25,6 +25,10 @@ def assemble(b: Builder) -> M.Design:
     params = _params(b)
     correlations, coverage, discrepancy, measured, lognormal = _uncertainty(b, params)
     medium, transducer = _uses(b)
+    if transducer is None and any(m.gain is not None for m in measured):
+        bag.error("E325", "measured(gain) gives a gain but the design uses no transducer",
+                  next(m.span for m in measured if m.gain is not None), "add `use transducer NAME`")
+    transducer = M.with_measured_gain(transducer, measured)
 
     # ---- elements
     beams_raw: dict[str, dict] = {}
@@ -440,7 +444,8 @@ def _uncertainty(b: Builder, params: tuple[M.Param, ...]):
                 discrepancy, discrepancy_line = float(v.value), ent.span.line
             elif key.name == "measured":
                 if not (len(key.args) == 1 and isinstance(key.args[0], A.Ref) and key.args[0].dotted == "gain"):
-                    b.bag.error("E325", "write `measured(gain) = [(frequency, relative sd), ...]`", key.span)
+                    b.bag.error("E325", "write `measured(gain) = [(frequency, relative sd), ...]` (or `(frequency, "
+                                "gain, relative sd)` entries)", key.span)
                     continue
                 if measured is not None:
                     b.bag.error("E325", "measured(gain) is given twice", key.span, "keep one list")
@@ -502,7 +507,8 @@ def _lognormal(b: Builder, ent, params: tuple[M.Param, ...], seen: dict) -> None
 
 
 def _measured_gain(b: Builder, ent) -> list | None:
-    """``measured(gain) = [(f, s), ...]``: positive, distinct frequencies; relative sd finite in 0 .. 1."""
+    """``measured(gain) = [(f, s), ...]`` or ``[(f, g, s), ...]``: positive, distinct frequencies; the gain ``g``
+    (pressure per volt, positive, finite) measured there, optional; relative sd finite in 0 .. 1."""
     from acl.design.values import ListVal, VecVal
 
     try:
@@ -511,22 +517,29 @@ def _measured_gain(b: Builder, ent) -> list | None:
         return None
     subs = getattr(ent.value, "items", None)
     if not (isinstance(v, ListVal) and v.items and subs is not None):
-        b.bag.error("E325", "measured(gain): expected a list `[(frequency, relative sd), ...]`", ent.value.span,
-                    "e.g. `measured(gain) = [(72.5 kHz, 0.4 %), (178.5 kHz, 0.6 %)]`")
+        b.bag.error("E325", "measured(gain): expected a list `[(frequency, relative sd), ...]` or "
+                    "`[(frequency, gain, relative sd), ...]`", ent.value.span,
+                    "e.g. `measured(gain) = [(72.5 kHz, 0.4 %), (178.5 kHz, 212 Pa/V, 0.6 %)]`")
         return None
     out: list[M.MeasuredGain] = []
     for item, sub in zip(v.items, subs):
-        ok = (isinstance(item, VecVal) and len(item.items) == 2 and all(isinstance(x, Quantity) for x in item.items)
-              and item.items[0].dims == D("Hz") and item.items[1].dims == D(""))
-        f, s = (item.items[0].value, item.items[1].value) if ok else (float("nan"), float("nan"))
-        if not (ok and math.isfinite(f) and f > 0 and math.isfinite(s) and 0 <= s <= 1):
-            b.bag.error("E325", "measured(gain): each entry is `(frequency, relative sd)` with a positive frequency "
-                        "and a relative standard deviation in 0 .. 100 %", sub.span, "e.g. `(72.5 kHz, 0.4 %)`")
+        n = len(item.items) if isinstance(item, VecVal) else 0
+        ok = (n in (2, 3) and all(isinstance(x, Quantity) for x in item.items) and item.items[0].dims == D("Hz")
+              and item.items[-1].dims == D("") and (n == 2 or item.items[1].dims == D("Pa/V")))
+        f, s = (item.items[0].value, item.items[-1].value) if ok else (float("nan"), float("nan"))
+        g = item.items[1].value if ok and n == 3 else None
+        if not (ok and math.isfinite(f) and f > 0 and math.isfinite(s) and 0 <= s <= 1
+                and (g is None or (math.isfinite(g) and g > 0))):
+            b.bag.error("E325", "measured(gain): each entry is `(frequency, relative sd)` or `(frequency, gain, "
+                        "relative sd)` with a positive frequency, a positive finite gain (pressure per volt) and a "
+                        "relative standard deviation in 0 .. 100 %", sub.span,
+                        "e.g. `(72.5 kHz, 0.4 %)` or `(72.5 kHz, 212 Pa/V, 0.4 %)`")
             return None
         if any(abs(m.frequency - f) <= 1e-9 * f for m in out):
             b.bag.error("E325", f"measured(gain): {f:g} Hz is given twice", sub.span, "keep one entry per tone")
             return None
-        out.append(M.MeasuredGain(frequency=float(f), stddev=float(s), span=sub.span))
+        out.append(M.MeasuredGain(frequency=float(f), gain=None if g is None else float(g), stddev=float(s),
+                                  span=sub.span))
     return sorted(out, key=lambda m: m.frequency)
 
 

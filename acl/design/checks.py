@@ -174,7 +174,7 @@ def check_programs(design: M.Design, bag: DiagnosticBag) -> None:
     tr = design.transducer
     for p in design.programs:
         for st in p.steps:
-            freqs, volts = _step_tones(st)
+            freqs, volts = step_tones(st)
             if tr is not None:
                 lo, hi = tr.band
                 for f in freqs:
@@ -213,7 +213,7 @@ def _check_chain(design: M.Design, st, freqs, volts, bag: DiagnosticBag) -> None
             break
 
 
-def _step_tones(st) -> tuple[list[float], float | None]:
+def step_tones(st) -> tuple[list[float], float | None]:
     if st.kind == "drive":
         return [t.frequency for t in st.drive.tones], sum(t.amplitude for t in st.drive.tones)
     if st.kind == "sweep":

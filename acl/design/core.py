@@ -178,11 +178,11 @@ def what_is(v) -> str:
     return type(v).__name__
 
 
-_EXAMPLES = {"m": "40 um", "Hz": "85 kHz", "V": "8 V", "s": "200 ms", "Pa": "13 MPa", "N/m": "0.072 N/m",
+UNIT_EXAMPLES = {"m": "40 um", "Hz": "85 kHz", "V": "8 V", "s": "200 ms", "Pa": "13 MPa", "N/m": "0.072 N/m",
              "kg/m^3": "1000 kg/m^3", "Pa*s": "1 mPa*s", "m/s": "1480 m/s", "m^3": "1.12e5 um^3",
              "N/V^2": "0.027 nN/V^2", "N*m^2/V^2": "174.5 nN*um^2/V^2", "Pa/V": "2 kPa/V", "": "1.5",
              "N": "30 nN", "V/s": "100 V/s", "m^2/s": "2.1e-5 m^2/s"}
 
 
 def example(dims) -> str:
-    return _EXAMPLES.get(si_unit(dims), f"1 {si_unit(dims)}")
+    return UNIT_EXAMPLES.get(si_unit(dims), f"1 {si_unit(dims)}")

@@ -102,16 +102,19 @@ class Coverage(Frozen):
 
 
 class MeasuredGain(Frozen):
-    """``measured(gain) = [(f, s), ...]``: the transducer gain at tone ``f`` (Hz) was measured by a calibration.
+    """``measured(gain) = [(f, s), ...]`` or ``[(f, g, s), ...]``: the transducer gain at tone ``f`` (Hz) was measured.
 
-    ``stddev`` is the relative standard deviation (log scale) of a free gain at that one tone, all fitted
-    coefficients free: what the data leave unknown there beyond the calibrated model.  The error bands of
-    a compile hold the gain table at such a tone to the calibrated model (times ``exp(stddev z)``) instead of
-    the table's prior ``gain_uncertainty`` (acl.schedule.bands).
+    ``gain`` (Pa/V, optional) is the gain-table value measured at the tone: the resolved transducer's table
+    carries it as a point there (:func:`with_measured_gain`), so the analysis, compile and sweep use it; ``acl
+    fit`` writes the gain its data ask for at each tone they drove.  ``stddev`` is its relative standard deviation
+    (log scale), all fitted coefficients free: what the data leave unknown there.  The error bands of a compile
+    hold the gain table at such a tone to that value (times ``exp(stddev z)``) instead of the table's prior
+    ``gain_uncertainty`` (acl.schedule.bands).
     """
 
     frequency: float
     stddev: float
+    gain: float | None = None      # Pa/V: a table point measured at the tone (None: the table's value is kept)
     span: Span
 
 
@@ -147,6 +150,21 @@ class Transducer(Frozen):
     gain_pa_per_v: tuple[float, ...]       # Pa/V (pressure amplitude per volt amplitude)
     gain_uncertainty: float | None = None  # relative standard deviation of each table value (independent)
     span: Span
+
+
+def with_measured_gain(transducer: Transducer | None, measured) -> Transducer | None:
+    """The transducer with a table point at each tone a ``measured(gain)`` entry gives a gain for (a table point
+    already at that tone is replaced): the measured value wins over the declared table there."""
+    knots = [(m.frequency, m.gain) for m in measured if m.gain is not None]
+    if transducer is None or not knots:
+        return transducer
+    table = dict(zip(transducer.gain_frequencies, transducer.gain_pa_per_v))
+    for f, g in knots:
+        for k in [k for k in table if abs(k - f) <= 1e-9 * f]:
+            del table[k]
+        table[f] = g
+    fs = tuple(sorted(table))
+    return transducer.model_copy(update={"gain_frequencies": fs, "gain_pa_per_v": tuple(table[f] for f in fs)})
 
 
 class Generator(Frozen):

@@ -63,6 +63,12 @@ def _check_design(path: str, overrides=None, search_paths=(), text=None) -> tupl
         return None, exc.diagnostics
 
 
+def finish_design(env: ModuleEnv, loader: Loader, bag: DiagnosticBag, overrides: dict[str, str]) -> M.Design:
+    """Resolve and assemble a loaded module (the stages after parsing), the collector paused as in `load_design`."""
+    with _no_gc():       # the collector's passes over the growing design doubled an LSP check every other edit
+        return _finish(env, loader, bag, overrides)
+
+
 def _finish(env: ModuleEnv, loader: Loader, bag: DiagnosticBag, overrides: dict[str, str]) -> M.Design:
     r = Resolver(env, loader, bag, overrides)
     design = assemble(Builder(r))

@@ -78,15 +78,28 @@ def run_fit(design_path, data_paths, free=(), search_paths=(), candidates=None, 
     report["calibrated_needs_path"] = needs_path(design_path, cal_path)
     report["timing_s"] = timing
     t0 = time.perf_counter()
-    from acl.fit.report import tone_gain_stderr
+    from acl.fit.report import tone_gain_entries, tone_gain_stderr, tone_gains
 
-    try:
-        tone_se = tone_gain_stderr(problem, selection.final)
-    except (ValueError, np.linalg.LinAlgError):      # no figure: the bands keep the table's prior at every tone
-        tone_se = {}
-    timing["tone_gain_stderr"] = time.perf_counter() - t0
-    report["tone_gain_stderr"] = [{"frequency_hz": f, "relative_stderr": s} for f, s in tone_se.items()]
-    text = calibrated_text(problem, selection, cal_path, data_paths, report_dir, tone_gain=tone_se)
+    # the gain at each tone when it adds what the coefficients do not fit; else the gain model's error there
+    tones = None
+    for figure in (tone_gains, tone_gain_stderr):
+        try:
+            with np.errstate(all="ignore"):          # a wild step is judged by its cost, not warned about
+                tones = figure(problem, selection.final) or None
+        except (ValueError, np.linalg.LinAlgError):  # no figure: the bands keep the table's prior at every tone
+            tones = None
+        if tones is not None:
+            break
+    timing["tone_gains"] = time.perf_counter() - t0
+    report["tone_gains"] = tone_gain_entries(tones, problem)
+    if getattr(tones, "residual", None) is not None:
+        r = np.asarray(tones.residual, float)
+        r = r[np.isfinite(r)]
+        report["tone_gains_rmse"] = float(np.sqrt(np.mean(r * r))) if r.size else None
+        report["tone_gains_p_value"] = tones.p_value
+    report["tone_gain_stderr"] = [{"frequency_hz": e["frequency_hz"], "relative_stderr": e["relative_stderr"]}
+                                  for e in report["tone_gains"]]
+    text = calibrated_text(problem, selection, cal_path, data_paths, report_dir, tone_gain=tones)
     t0 = time.perf_counter()
     from acl.fit.modelcheck import MIN_SCALE_SD, pair_model_check, warning_text
 
@@ -102,7 +115,7 @@ def run_fit(design_path, data_paths, free=(), search_paths=(), candidates=None, 
         if check.get("significant") or scale_sd:
             text = calibrated_text(problem, selection, cal_path, data_paths, report_dir,
                                    model_discrepancy=check["max_m"] if check.get("significant") else 0.0,
-                                   model_scale_sd=scale_sd, tone_gain=tone_se)
+                                   model_scale_sd=scale_sd, tone_gain=tones)
     return FitOutcome(problem, selection, report, text, cal_path)
 
 

@@ -68,8 +68,9 @@ def calibrated_text(problem, selection, out_path: str, data_paths=(), report_dir
     ``model_scale_sd``: the relative mismatch of the drive scale at snap-in between the fit's Eq. 3 model and the
     calibrated design's analysis (acl.fit.modelcheck.snap_mismatch); declared as ``param fit_pair_model_scale =
     1 +- model_scale_sd`` multiplying the transducer gain, so compile's hold/cross margin bands draw it.
-    ``tone_gain``: {tone Hz: relative standard error of a free gain there} (acl.fit.report.tone_gain_stderr),
-    written as ``measured(gain)``."""
+    ``tone_gain``: the gain at each tone the data drove and its relative standard error (acl.fit.report.tone_gains),
+    written as ``measured(gain)`` entries ``(tone, table value there, relative sd)``: the calibrated design's table
+    carries the tone's own gain; ``discrepancy(position)`` is then the residual of the model with those gains."""
     import numpy as np
 
     final, P = selection.final, problem.prepared
@@ -95,6 +96,9 @@ def calibrated_text(problem, selection, out_path: str, data_paths=(), report_dir
     gain_terms: list[str] = []          # factors of the transducer_gain `gain` (pressure scale)
     notes: list[str] = []
     by_kind: dict[str, str] = {}
+    # coefficients the gain measured at each tone spans (a gain scale, a tilt, a thrust coefficient): at those tones
+    # their error is the measured(gain) figures, so they are declared exact (drawn again they would count it twice)
+    spanned = set(getattr(tone_gain, "spanned", ()))
     for k, (c, v) in enumerate(zip(final.coefs, final.values)):
         se = float(final.stderr[k]) if np.isfinite(final.stderr[k]) else float("nan")
         lo, hi = (float(x) for x in final.ci[k])
@@ -135,6 +139,10 @@ def calibrated_text(problem, selection, out_path: str, data_paths=(), report_dir
             notes.append(f"# WARNING: {name} is not identifiable from these data (relative standard error "
                          f"{rel_se:.3g}): its value is where the optimizer stopped, not a measurement; later stages "
                          "draw it from its +- (acl compile's bands), so they are wide")
+        if c.name in spanned:
+            params.append(f"param {name} = {_literal(v, unit)}    # fitted +- {_literal(se, unit)}; spanned by the "
+                          "gain measured at each tone (measured(gain) below), which carries its error")
+            continue
         if c.lower >= 0 and v > 0 and _pm(se, unit):
             positive.append(name)
         params.append(f"param {name} = {_literal(v, unit)}{_pm(se, unit)}"
@@ -193,9 +201,12 @@ def calibrated_text(problem, selection, out_path: str, data_paths=(), report_dir
             lines.append(f"#     to separate {a['replaces']} from {a['by']}: {a['separate_by']}")
         lines.append("")
     lines += ["# fitted values with their standard errors (+-); correlations below"] + params + [""]
-    corr = _correlations(final, names)
+    corr = _correlations(final, names, skip={names[k] for k, c in enumerate(final.coefs) if c.name in spanned})
     cover = _coverage(problem)
-    measured = {f: s for f, s in (tone_gain or {}).items() if math.isfinite(s) and 0 <= s <= 1}
+    from acl.fit.report import alternative_spread, length_rmse, tone_gains_table
+
+    measured = {f: (g, s) for f, (g, s) in tone_gains_table(tone_gain, problem).items()
+                if math.isfinite(s) and 0 <= s <= 1 and (g is None or (math.isfinite(g) and g > 0))}
     if corr or cover or measured or positive:
         lines.append("uncertainty {")
         lines += [f"  correlation({a}, {b}) = {r:.6g}" for a, b, r in corr]
@@ -205,13 +216,20 @@ def calibrated_text(problem, selection, out_path: str, data_paths=(), report_dir
         lines += [f"  covered({q}) = {_literal(lo, u)} .. {_literal(hi, u)}" for q, (lo, hi, u) in cover.items()]
         if measured:
             # rounded up: a written figure must not be smaller than the one computed
-            lines.append("  measured(gain) = [" + ", ".join(f"({_literal(f, 'Hz')}, {_round_up(100 * s)} %)"
-                                                         for f, s in sorted(measured.items()))
-                         + "]    # relative standard error of a free gain at each tone the data drove (acl.fit.report."
-                         "tone_gain_stderr): compile's bands hold the gain table there to it instead of its prior")
-        from acl.fit.report import alternative_spread, length_rmse
-
+            lines.append("  measured(gain) = [" + ", ".join(
+                f"({_literal(f, 'Hz')}, " + (f"{g:.6g} Pa/V, " if g is not None else "") + f"{_round_up(100 * s)} %)"
+                for f, (g, s) in sorted(measured.items()))
+                + ("]    # the gain-table value each tone the data drove asks for, with its relative standard error "
+                   "(acl.fit.report.tone_gains): the table carries it there (the transducer_gain effect below "
+                   "multiplies it as the rest of the table), and compile's bands hold it to that error instead of the "
+                   "prior" if any(g is not None for g, _ in measured.values()) else
+                   "]    # relative error of the calibrated gain at each tone the data drove (acl.fit.report."
+                   "tone_gain_stderr): compile's bands hold the gain table there to it instead of its prior"))
         rmse = length_rmse(problem, final)
+        if getattr(tone_gain, "residual", None) is not None and measured:
+            r = np.asarray(tone_gain.residual, float)
+            r = r[np.isfinite(r)]
+            rmse = float(np.sqrt(np.mean(r * r))) if r.size else rmse
         spread = alternative_spread(problem, selection)
         md = float(model_discrepancy or 0.0)
         if md > 0 and math.isfinite(rmse):
@@ -280,11 +298,13 @@ def _pm(se: float, unit: str) -> str:
     return f" +- {_literal(se, unit)}"
 
 
-def _correlations(final, names) -> list[tuple[str, str, float]]:
-    """Pairs (a, b, r) of the fit's correlation matrix, rounded but still positive semidefinite."""
+def _correlations(final, names, skip=frozenset()) -> list[tuple[str, str, float]]:
+    """Pairs (a, b, r) of the fit's correlation matrix, rounded but still positive semidefinite (``skip``: names
+    declared without an uncertainty)."""
     import numpy as np
 
-    ok = [i for i in range(len(names)) if np.isfinite(final.stderr[i]) and final.stderr[i] > 0]
+    ok = [i for i in range(len(names)) if np.isfinite(final.stderr[i]) and final.stderr[i] > 0
+          and names[i] not in skip]
     if len(ok) < 2:
         return []
     C = np.array([[float(final.corr[i, j]) for j in ok] for i in ok])

@@ -294,7 +294,7 @@ def build_instance(design, model: str = "coupled", coupled: bool = False) -> Ins
     so capsules the analysis couples (a calibration beam next to a group) interact in the fit too (the same
     equilibrium as acl.analysis.mechanics.equilibrium).  ``coupled``: route every design so, lone actuators
     included."""
-    from acl.analysis.rows import medium as medium_of
+    from acl.analysis.acoustics import medium_constants
 
     # the design's declared effects (a calibration, a calibrated design fitted again) act in the fit's base model as
     # fixed effects of the fit (acl.fit.effects.declared_effects; a fitted effect of the same id replaces them), so
@@ -388,7 +388,7 @@ def build_instance(design, model: str = "coupled", coupled: bool = False) -> Ins
                 near |= {j.a, j.b}
         net.neighboured = np.array([any(node.get(c) == i and c in near for c in net.caps)
                                     for i in range(int(net.cap_node.max()) + 1)], bool)
-        med = medium_of(design)
+        med = medium_constants(design)
         return Instance(design=design, declared=declared, units=units,
                         medium=(med.density, med.surface_tension, med.ambient_pressure, med.polytropic_index))
     for o in design.observes:
@@ -420,7 +420,7 @@ def build_instance(design, model: str = "coupled", coupled: bool = False) -> Ins
             t = -np.asarray(c.orifices[0].normal, float)
             units_by_caps[(cap,)] = Unit("single", (_side(design, cap, t / np.linalg.norm(t)),))
         units[o.name] = units_by_caps[(cap,)]
-    med = medium_of(design)
+    med = medium_constants(design)
     return Instance(design=design, declared=declared, units=units,
                     medium=(med.density, med.surface_tension, med.ambient_pressure, med.polytropic_index))
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 import json
 import math
 import os
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -67,7 +68,194 @@ def length_rmse(problem, fit) -> float:
     return float(np.sqrt(np.mean(r * r))) if r.size else float("nan")
 
 
-MAX_TONES = 16      # tone_gain_stderr: a data set with more distinct tones (a sweep) is not checked tone by tone
+MAX_TONES = 16      # tone_gains, tone_gain_stderr: a data set with more distinct tones (a sweep) keeps the gain model
+TONE_P = 0.01       # tone_gains: the per-tone gains are kept when they beat the gain model at this p-value
+IDENTIFIABLE = 1e-6  # smallest singular value, relative to the largest, of the normalised columns a direction keeps
+
+
+@dataclass
+class ToneGains:
+    """The transducer gain at each tone the data drove (:func:`tone_gains`)."""
+
+    factor: dict          # {tone Hz: gain the data ask for there / the calibrated model's (its gain scale and tilt)}
+    stderr: dict          # {tone Hz: relative standard error of that gain (log scale)}
+    residual: np.ndarray  # (n,) residual (m) of the calibrated model with these gains, every row
+    dof: int              # train rows minus identified directions
+    spanned: tuple = ()   # fitted coefficients (names) the per-tone gains alone span: their error is the tones'
+    p_value: float = 0.0  # of the test that the per-tone gains explain the data better than the gain model
+
+
+def tone_gains(problem, fit, max_tones: int = MAX_TONES) -> ToneGains | None:
+    """The transducer gain at each tone the data drove, fitted one per tone, and its relative standard error.
+
+    A tone counts where it was driven at 10 % or more of the largest amplitude (as ``covered(frequency)``).  Each
+    tone's gain is a factor exp(h) on its pressure (the squared pressure of every row driven at that tone by
+    exp(2 h)), over the calibrated model (its gain scale and tilt, every fitted coefficient at its value): Gauss-
+    Newton on the weighted residual.  The calibrated design carries the result as a gain-table point at the tone
+    (``measured(gain)``, acl/fit/calibrated.py), so the analysis and compile use the tone's own gain, not the
+    table's shape times the fitted scale, which left a drawn table's gains 20-33 % off (tests/test_band_cure_cli.py).
+
+    Standard errors (linearised least squares, s^2 (J^T J)^-1 as acl.fit.solve, central differences): every tone's
+    gain free together with every fitted coefficient the per-tone gains and the coefficients before it do not
+    already span (a gain scale, a tilt, a single capsule's thrust coefficient is a combination of the tones' gains
+    and is left at its value: identifiability; ``spanned`` names those the tones' gains alone span, which the
+    calibrated design then declares exact).  s^2 is the
+    reduced chi-square of the per-tone model, at least 1 when the data state their sigma; without a sigma column
+    it is an estimate from ``dof`` degrees of freedom, and the error is widened by t(0.975, dof) / 1.96.
+
+    The per-tone gains are a model choice, made as the fit's effects are: kept when they explain the data better
+    than the gain model at p < TONE_P (the drop of chi-square, scaled by s^2, against chi-square with the number
+    of directions they add when the data state their sigma; an F-test otherwise).  A gain model that fits (a
+    tilt-shaped transducer) keeps its coefficients and their covariance.
+
+    None (the gain model is kept at every tone; :func:`tone_gain_stderr` gives its error there) when the per-tone
+    gains add no direction the fitted coefficients do not span (one tone and a free gain or thrust: the calibrated
+    model already fits it) or do not fit significantly better, for latch states (their rows are not least
+    squares), more than ``max_tones`` tones (a sweep: its tilt and resonance effects are the model), a rank-deficient
+    fit, or no degree of freedom left to estimate the noise; a tone whose gain the data cannot tell apart from the
+    others' is left out.
+    """
+    from scipy.stats import t as student
+
+    from acl.fit.forward import predict
+
+    P = problem.prepared
+    if fit is None or (P.state is not None and np.any(P.state)) or not fit.full_rank:
+        return None
+    v = np.asarray(P.v, float)
+    live = (v > 0) & (v >= 0.1 * float(v.max(initial=0.0)))
+    tones = np.unique(np.asarray(P.f, float)[live])
+    if tones.size == 0 or tones.size > max_tones or not np.isfinite(fit.redchi):
+        return None
+    train = np.asarray(fit.train)
+    w = 1.0 / np.where(np.isfinite(problem.sigma), problem.sigma, solve.NOMINAL_SIGMA)
+    y = np.asarray(problem.y, float)
+    vals = np.asarray(fit.values, float)
+    masks = [(np.asarray(P.f) == f) & (v > 0) for f in tones]
+
+    def full(h, values=vals):
+        coeffs, effects = solve.split_coefs(fit.coefs, values)
+        weight = np.ones(v.shape)
+        for m, hf in zip(masks, h):
+            weight = np.where(m, np.exp(2.0 * hf), weight)
+        coeffs["tone_weight"] = weight
+        return predict(P, coeffs, effects)
+
+    def pred(h, values=vals):
+        return full(h, values)[train] * w[train]
+
+    def cols_h(h, which):
+        out = []
+        for k in which:
+            up, dn = h.copy(), h.copy()
+            up[k] += 1e-4
+            dn[k] -= 1e-4
+            out.append((pred(up) - pred(dn)) / 2e-4)
+        return out
+
+    yw = y[train] * w[train]
+    h = np.zeros(tones.size)
+    keep = _independent(cols_h(h, range(tones.size)), [])
+    if not keep:
+        return None
+    sel = np.array(keep)
+    cost = _sumsq(yw - pred(h))
+    for _ in range(8):                                  # Gauss-Newton with step halving
+        r = yw - pred(h)
+        J = np.column_stack(cols_h(h, sel))
+        ok = np.all(np.isfinite(J), axis=1) & np.isfinite(r)
+        if ok.sum() < sel.size:
+            return None
+        step = np.linalg.lstsq(J[ok], r[ok], rcond=None)[0]
+        for _ in range(20):
+            trial = h.copy()
+            trial[sel] += step
+            c = _sumsq(yw - pred(trial))
+            if c <= cost:
+                break
+            step = 0.5 * step
+        else:
+            break
+        h, cost = trial, c
+        if np.max(np.abs(step)) < 1e-7:
+            break
+    # standard errors at the fitted gains: every tone free, with the coefficients they do not span
+    hc = cols_h(h, sel)
+    cc = []
+    for i, c in enumerate(fit.coefs):
+        d = 1e-4 * max(abs(vals[i]), abs(c.scale), 1e-300)
+        up, dn = vals.copy(), vals.copy()
+        up[i] = min(vals[i] + d, c.upper) if np.isfinite(c.upper) else vals[i] + d
+        dn[i] = max(vals[i] - d, c.lower) if np.isfinite(c.lower) else vals[i] - d
+        cc.append((pred(h, up) - pred(h, dn)) / (up[i] - dn[i]))
+    added = len(_independent(hc, cc))
+    if not added:
+        return None             # the coefficients already fit each tone's gain: nothing to carry (tone_gain_stderr)
+    coef_keep = _independent(cc, hc)
+    J = np.column_stack(hc + [cc[i] for i in coef_keep])
+    r = yw - pred(h)
+    ok = np.all(np.isfinite(J), axis=1) & np.isfinite(r)
+    J, r = J[ok], r[ok]
+    dof = int(J.shape[0] - J.shape[1])
+    if dof < (0 if problem.data.has_sigma else 1):
+        return None
+    norm = np.linalg.norm(J, axis=0)
+    if not np.all(norm > 0):
+        return None             # a direction the usable rows do not see
+    Jn = J / norm
+    s2 = _sumsq(r) / max(dof, 1)
+    widen = 1.0
+    if problem.data.has_sigma:
+        s2 = max(s2, 1.0)                               # the stated noise is a floor: few rows can scatter less
+    else:
+        widen = float(student.ppf(0.975, dof)) / 1.959963984540054
+    # the per-tone gains are a model choice, made as the fit's effects are: kept only where they explain the data
+    # significantly better than the gain model (chi-square of the drop at the stated noise, else an F-test)
+    from scipy.stats import chi2 as chi2_dist
+    from scipy.stats import f as f_dist
+
+    drop = max(_sumsq((yw - pred(np.zeros_like(h)))[ok]) - _sumsq(r), 0.0)
+    if problem.data.has_sigma:
+        p_value = float(chi2_dist.sf(drop / s2, added))
+    else:
+        p_value = float(f_dist.sf(drop / added / s2, added, dof))
+    if not p_value < TONE_P:
+        return None
+    cov = np.linalg.inv(Jn.T @ Jn) * s2
+    se = np.sqrt(np.clip(np.diag(cov)[:sel.size], 0.0, None)) / norm[:sel.size] * widen
+    resid = y - full(h)
+    factor, stderr = {}, {}
+    for k, s in zip(sel, se):
+        if np.isfinite(h[k]) and abs(h[k]) < 700.0 and np.isfinite(s):
+            factor[float(tones[k])] = float(np.exp(h[k]))
+            stderr[float(tones[k])] = float(s)
+    spanned = tuple(c.name for i, c in enumerate(fit.coefs) if not _independent([cc[i]], hc))
+    return ToneGains(factor, stderr, resid, dof, spanned, p_value) if factor else None
+
+
+def tone_gains_table(tones, problem) -> dict:
+    """{tone Hz: (gain-table value Pa/V measured there, relative standard error)}: the design's table at the tone
+    (acl.physics.transducer.pressure_per_volt) times the fitted factor (:func:`tone_gains`); the value None without a
+    transducer, or for {tone Hz: relative error} of :func:`tone_gain_stderr` (the gain model kept there)."""
+    from acl.physics.transducer import pressure_per_volt
+
+    if tones is None:
+        return {}
+    if isinstance(tones, dict):
+        return {f: (None, s) for f, s in tones.items()}
+    t = problem.design.transducer
+    out = {}
+    for f, x in tones.factor.items():
+        g = float(pressure_per_volt(f, t.gain_frequencies, t.gain_pa_per_v)[0]) * x if t is not None else None
+        out[f] = (g, tones.stderr[f])
+    return out
+
+
+def tone_gain_entries(tones, problem) -> list[dict]:
+    """report.json ``tone_gains``: per tone, the fitted factor over the calibrated model, the gain-table value and
+    its relative standard error (:func:`tone_gains`); factor and value None where the gain model is kept."""
+    return [{"frequency_hz": f, "factor": None if g is None else _n(tones.factor[f]), "gain_pa_per_v": _n(g),
+             "relative_stderr": _n(s)} for f, (g, s) in tone_gains_table(tones, problem).items()]
 
 
 def tone_gain_stderr(problem, fit, max_tones: int = MAX_TONES) -> dict:
@@ -136,6 +324,29 @@ def tone_gain_stderr(problem, fit, max_tones: int = MAX_TONES) -> dict:
         if np.isfinite(sd):
             out[float(f)] = sd
     return out
+
+
+def _independent(cols, base) -> list[int]:
+    """Indices of ``cols`` kept, in order, each adding a direction the kept ones (after ``base``) do not span
+    (normalised columns, smallest singular value above IDENTIFIABLE x the largest)."""
+    kept, acc = [], [c / n for c in base if (n := np.linalg.norm(c)) > 0 and np.all(np.isfinite(c))]
+    for i, c in enumerate(cols):
+        n = np.linalg.norm(c)
+        if not (np.isfinite(n) and n > 0):
+            continue
+        trial = np.column_stack(acc + [c / n])
+        if trial.shape[0] < trial.shape[1]:
+            continue
+        sv = np.linalg.svd(trial, compute_uv=False)
+        if sv[-1] > IDENTIFIABLE * sv[0]:
+            acc.append(c / n)
+            kept.append(i)
+    return kept
+
+
+def _sumsq(r) -> float:
+    r = np.asarray(r, float)
+    return float(r @ r) if np.all(np.isfinite(r)) else math.inf
 
 
 def covariance(fit) -> dict:
@@ -297,6 +508,15 @@ def render_table(report, console=None) -> None:
         dc = report["critical_distance"]
         con.print(f"critical distance d_c = sqrt(alpha/(2 gamma)) = {_um(dc['value'])} "
                   f"[{_um(dc['ci95'][0])}, {_um(dc['ci95'][1])}]")
+    carried = [e for e in report.get("tone_gains") or [] if e.get("factor") is not None]
+    if carried:
+        con.print("gain at each tone, fitted one per tone (the calibrated design's measured(gain)): "
+                  + ", ".join(f"{e['frequency_hz'] / 1e3:g} kHz {_g(e['gain_pa_per_v'])} Pa/V (x{e['factor']:.3g} the "
+                              f"gain model) +- {100 * e['relative_stderr']:.2g} %" for e in carried)
+                  + (f"; with them the residual is {_um(report.get('tone_gains_rmse'))} RMS (the gain model's: "
+                     f"{_um(report['rmse_after'])}, p = {report.get('tone_gains_p_value', 0.0):.2g}), and the notes "
+                     "below on the gain model's residual do not apply to the calibrated design"
+                     if report.get("tone_gains_rmse") is not None else ""))
     et = Table(title="effects tried (full reasons and CV scores: report.json of --report, or --output-format json)")
     et.add_column("#", no_wrap=True)
     et.add_column("effect", no_wrap=True)

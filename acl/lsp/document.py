@@ -42,7 +42,7 @@ def check_text(text: str, path: str, version: int | None = None, search_paths=()
     re-parses only the statements it touched (the tree is the same as a whole-file parse).
     """
     from acl.design.modules import Loader
-    from acl.design.resolve import _finish
+    from acl.design.resolve import finish_design
 
     if parser is not None:
         from acl.lsp.incremental import prime
@@ -57,7 +57,7 @@ def check_text(text: str, path: str, version: int | None = None, search_paths=()
     design = None
     try:
         env = loader.load_text(text, path)
-        design = _finish(env, loader, bag, {})
+        design = finish_design(env, loader, bag, {})
         diags = list(bag.items)
     except DiagnosticError as exc:
         diags = list(exc.diagnostics)

@@ -373,9 +373,15 @@ def continuation(restoring: Restoring, external: External, q0, v_max: float, *, 
         q_new, V_new = y_new[:-1] * qs, y_new[-1] * vs
         det_new = _det(restoring, external, q_new, V_new, h)
         if np.sign(det_new) != np.sign(det_prev) or y_new[-1] < y[-1]:
-            snap = _refine_fold(restoring, external, correct, y, t, step, qs, vs, h)
-            if snap is not None:
+            snap, sigma = _refine_fold(restoring, external, correct, y, t, step, qs, vs, h)
+            if snap is not None and snap.voltage <= v_max:
                 return _branch(pts, "snap_in", snap=snap)
+            if snap is not None:
+                # the fold lies past v_max: the stable branch reaches v_max first (between y and the fold)
+                eq = _land_before_fold(restoring, external, correct, y, t, sigma, v_max, qs, vs, h, admissible)
+                if eq is not None and np.sign(_det(restoring, external, eq.q, v_max, h)) == np.sign(det_prev):
+                    pts.append(eq)
+                    return _branch(pts, "ok")
             step *= 0.5
             if step < ds_min:
                 return _branch(pts, "no_convergence", message="fold refinement failed")
@@ -460,8 +466,8 @@ def _tangent(restoring, external, q, V, qs, vs, h, t_prev):
     return t
 
 
-def _refine_fold(restoring, external, correct, y, t, step, qs, vs, h) -> Optional[SnapIn]:
-    """Brent's method on the arclength for det K_T = 0 between the last stable point and the trial step."""
+def _refine_fold(restoring, external, correct, y, t, step, qs, vs, h) -> tuple[Optional[SnapIn], float]:
+    """Brent's method on the arclength for det K_T = 0 between the last stable point and the trial step: (fold, its arclength)."""
     from acl.physics.roots import brentq
 
     def det_at(sigma):
@@ -475,12 +481,38 @@ def _refine_fold(restoring, external, correct, y, t, step, qs, vs, h) -> Optiona
         hi = step
         d1 = det_at(hi)
         if np.sign(d1) == np.sign(d0):
-            return None
+            return None, float("nan")
         sigma = brentq(det_at, 0.0, hi, xtol=1e-13, rtol=1e-12)
         yy = correct(y, t, sigma)
     except ValueError:
+        return None, float("nan")
+    if yy is None:
+        return None, float("nan")
+    return SnapIn(float(yy[-1] * vs), yy[:-1] * qs), float(sigma)
+
+
+def _land_before_fold(restoring, external, correct, y, t, sigma_fold, v_max, qs, vs, h,
+                      admissible) -> Optional[Equilibrium]:
+    """The stable equilibrium at ``v_max`` between the last stable point y (below v_max) and a fold past v_max at
+    arclength ``sigma_fold``: Brent's method on the arclength for V = v_max (V increases up to the fold), then
+    Newton at v_max; None if it is not found stable."""
+    from acl.physics.roots import brentq
+
+    def v_at(sigma):
+        yy = correct(y, t, sigma)
+        if yy is None:
+            raise ValueError("corrector failed")
+        return yy[-1] * vs - v_max
+
+    try:
+        sigma = brentq(v_at, 0.0, sigma_fold, xtol=1e-15, rtol=1e-13)
+        yy = correct(y, t, sigma)
+    except ValueError:
         return None
-    return SnapIn(float(yy[-1] * vs), yy[:-1] * qs)
+    if yy is None:
+        return None
+    eq = solve_equilibrium(restoring, external, yy[:-1] * qs, v_max, admissible=admissible, h=h)   # polished at v_max
+    return eq if eq.status == "ok" and eq.stable else None
 
 
 def _branch(pts, status, snap=None, message="") -> Branch:

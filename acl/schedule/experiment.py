@@ -269,8 +269,8 @@ def summary(name: str, ex: dict) -> str:
         s += (f"; to narrow it, measure the {m['observable']} at {reads} (assumed noise {m['noise_m'] * 1e6:.3g} um "
               f"per axis): expected band after recompiling with the gain measured at each of these tones "
               f"{m['expected_rms_p95_m'] * 1e6:.3g} um RMS / {m['expected_max_p95_m'] * 1e6:.3g} um max "
-              f"(acl fit calibrates one gain scale, not the gain at each tone: where the table's shape is off, "
-              f"the calibrated design's measured(gain) and its band stay wider than this)")
+              f"(acl fit with `--free gain` on these readings fits the gain at each of these tones, one per tone "
+              f"where a gain scale cannot follow them, and a compile on its calibrated design plays them)")
         if m.get("model_form_m"):
             s += (f", of which {m['model_form_m'] * 1e6:.3g} um is the model-form term of the validity limits the "
                   "step is past, which these readings do not remove")

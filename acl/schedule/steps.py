@@ -39,9 +39,10 @@ def pause(comp: CompileState, i, step):
 
 def follow(comp: CompileState, i, step: FollowStep):
     from acl.design.paths import PathError, path_length, sample_path
+    from acl.schedule.bands import pinned
     from acl.schedule.path import PathInfeasible, plan_path
     from acl.schedule.solve import SolverFailure
-    from acl.schedule.tones import choose_tones
+    from acl.schedule.tones import choose_tones, measured_choice, measured_count
 
     name = f"step {i + 1}: follow {step.capsule}"
     vmax, slew = drive_limit(comp.design, step.limits, comp.opts)
@@ -70,7 +71,12 @@ def follow(comp: CompileState, i, step: FollowStep):
     try:
         comp.forward_now, comp.gains_now = _models_for(comp, i, name)
         table = VF.gain_table(comp, step.capsule)
-        choice = choose_tones(table, path.points, vmax, comp.opts.tones_per_path, step.tones)
+        measured = tuple(f for f, _ in pinned(comp.design))
+        choice = choose_tones(table, path.points, vmax, comp.opts.tones_per_path, step.tones, measured)
+        # more measured tones than the conservative reach allows may still be feasible: planned first, the choice
+        # above if not (a recompile on a calibration plays the tones the readings measured wherever it can)
+        more = None if step.tones or not measured else measured_choice(
+            table, path.points, vmax, comp.opts.tones_per_path, measured, measured_count(choice, measured) + 1)
     except ValueError as exc:
         raise diag("E-SCHED-TONES", f"{name}: {exc}", step.span,
                     "pin the tones with `, using [85 kHz, 125 kHz]` on the follow step, or give a calibration sweep (--calibration)")
@@ -81,17 +87,25 @@ def follow(comp: CompileState, i, step: FollowStep):
     fade = min(comp.opts.ramp_s, dt)
     plan_slew = None if slew is None else slew * 2.0 * fade / (np.pi * dt) * (1 - 1e-4)
     limits = DriveLimits(max_voltage=vmax, slew_rate=plan_slew)
-    rq = VF.robust_q(comp, name, step.capsule, choice.frequencies, step.span) if comp.opts.robust else None
-    if not comp.opts.robust and VF.band_planned(comp):     # refuse an absurd spread before planning (each
-        VF.robust_q(comp, name, step.capsule, choice.frequencies, step.span, band=True)   # draw can take seconds)
-    u_start = None
-    if slew is not None:        # slew from what is playing before the goal (silence at the start)
-        before = {t.frequency_hz: t.amplitude_v for t in comp.segments[-1].tones} if comp.segments else {}
-        u_start = np.array([before.get(f, 0.0) ** 2 for f in choice.frequencies])
     try:
-        plan = plan_path(choice.gains, path.points, dt, limits, tolerance=comp.opts.tolerance_m,
-                         u_start=u_start, lam=comp.opts.lam, slew_model=comp.opts.slew_model,
-                         refine=comp.opts.refine, robust_q=rq, robust_mode=comp.opts.robust_mode)
+        for attempt in ([more] if more is not None else []) + [choice]:
+            rq = VF.robust_q(comp, name, step.capsule, attempt.frequencies, step.span) if comp.opts.robust else None
+            if not comp.opts.robust and VF.band_planned(comp):     # refuse an absurd spread before planning (each
+                VF.robust_q(comp, name, step.capsule, attempt.frequencies, step.span, band=True)   # draw: seconds)
+            u_start = None
+            if slew is not None:        # slew from what is playing before the goal (silence at the start)
+                before = {t.frequency_hz: t.amplitude_v for t in comp.segments[-1].tones} if comp.segments else {}
+                u_start = np.array([before.get(f, 0.0) ** 2 for f in attempt.frequencies])
+            try:
+                plan = plan_path(attempt.gains, path.points, dt, limits, tolerance=comp.opts.tolerance_m,
+                                 u_start=u_start, lam=comp.opts.lam, slew_model=comp.opts.slew_model,
+                                 refine=comp.opts.refine, robust_q=rq, robust_mode=comp.opts.robust_mode)
+            except PathInfeasible:
+                if attempt is choice:
+                    raise
+                continue                # more measured tones cannot follow it: the conservative choice
+            choice = attempt
+            break
     except PathInfeasible as exc:
         d = exc.diagnosis
         raise DiagnosticError([Diagnostic(

@@ -113,8 +113,13 @@ def candidate_indices(table: GainTable, max_candidates: int = 36) -> np.ndarray:
 
 
 def choose_tones(table: GainTable, targets: np.ndarray, max_voltage: float, k: int = 3,
-                 pinned: tuple[float, ...] = ()) -> ToneChoice:
-    """The k tones of ``table`` with the best score for ``targets`` (N, 2) m; pinned tones are kept as given."""
+                 pinned: tuple[float, ...] = (), measured: tuple[float, ...] = ()) -> ToneChoice:
+    """The k tones of ``table`` with the best score for ``targets`` (N, 2) m; pinned tones are kept as given.
+
+    ``measured``: tones whose gain a calibration measured (``measured(gain)``, acl.schedule.bands.pinned).  The set
+    with the most measured tones that reaches every waypoint (margin >= 1) is chosen, the best score among those:
+    elsewhere the table keeps its prior, and a tone the model merely prefers there would trade a measured gain for
+    a guessed one.  When no set with a measured tone reaches, the whole table decides."""
     budget = max_voltage ** 2 / max(k, len(pinned) or k)
     targets = np.asarray(targets, dtype=float).reshape(-1, 2)
     if pinned:
@@ -122,6 +127,10 @@ def choose_tones(table: GainTable, targets: np.ndarray, max_voltage: float, k: i
         margin, cond = score_sets(g.T[None], targets, budget)
         return ToneChoice(tuple(float(f) for f in pinned), g, float(margin[0]), float(cond[0]),
                           float(_score(margin, cond)[0]))
+    if measured:
+        got = _with_measured(table, targets, budget, k, measured)
+        if got is not None:
+            return got
     cand = candidate_indices(table)
     if cand.size < k:
         raise ValueError(f"the gain table has {cand.size} usable frequencies; {k} tones are needed")
@@ -133,6 +142,44 @@ def choose_tones(table: GainTable, targets: np.ndarray, max_voltage: float, k: i
     freqs = tuple(float(table.frequencies[i]) for i in triples[best])
     return ToneChoice(freqs, table.gains[triples[best]].T, float(margin[best]), float(cond[best]),
                       float(score[best]))
+
+
+def measured_choice(table: GainTable, targets: np.ndarray, max_voltage: float, k: int, measured,
+                    at_least: int = 1) -> ToneChoice | None:
+    """The best-scoring set of k tones with as many ``measured`` tones (at least ``at_least``) as can reach every
+    waypoint by the outer bound of the drive's reach (``conv{0, g_i Vmax^2}``: any drive whose summed amplitude is
+    at most Vmax lies inside, so a set outside it is infeasible), the rest from the table's candidates; None when
+    none can.  Its ``margin`` is that outer one: the path plan decides (acl.schedule.steps.follow tries it first and
+    falls back to :func:`choose_tones` when it is infeasible)."""
+    return _with_measured(table, np.asarray(targets, float).reshape(-1, 2), max_voltage ** 2, k, measured, at_least)
+
+
+def measured_count(choice: ToneChoice, measured) -> int:
+    """How many of ``choice``'s tones are ``measured`` (relative 1e-6)."""
+    return sum(any(abs(f - m) <= 1e-6 * m for m in measured) for f in choice.frequencies)
+
+
+def _with_measured(table: GainTable, targets: np.ndarray, budget: float, k: int, measured,
+                   at_least: int = 1) -> ToneChoice | None:
+    """The best-scoring set of k tones with as many ``measured`` tones as reach every waypoint (margin >= 1 at
+    ``budget``), the rest from the table's candidates; None when no set with ``at_least`` measured tones reaches."""
+    fs = np.array(sorted({float(f) for f in measured}))
+    others = [float(table.frequencies[i]) for i in candidate_indices(table)
+              if not np.any(np.abs(fs - table.frequencies[i]) <= 1e-6 * table.frequencies[i])]
+    for m in range(min(k, fs.size), max(at_least, 1) - 1, -1):
+        sets = [tuple(fs[list(a)]) + b for a in combinations(range(fs.size), m) for b in combinations(others, k - m)]
+        if not sets:
+            continue
+        freqs = np.array(sets)                                       # (M, k)
+        vectors = np.transpose(table.at(freqs.ravel()), (1, 0)).reshape(len(sets), k, 2)
+        margin, cond = score_sets(vectors, targets, budget)
+        score = np.where(margin >= 1.0, _score(margin, cond), -np.inf)
+        best = int(np.argmax(score))
+        if np.isfinite(score[best]):
+            order = np.argsort(freqs[best])
+            return ToneChoice(tuple(float(f) for f in freqs[best][order]), vectors[best][order].T,
+                              float(margin[best]), float(cond[best]), float(score[best]))
+    return None
 
 
 def _score(margin: np.ndarray, cond: np.ndarray) -> np.ndarray:

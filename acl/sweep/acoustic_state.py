@@ -41,7 +41,7 @@ class PointAcoustics:
     """Lazily computed groups of columns over the points of a FieldBatch (capsules, drives, forces at rest)."""
 
     def __init__(self, batch, at: str | None):
-        from acl.analysis.acoustics import _medium
+        from acl.analysis.acoustics import medium_constants
 
         self.batch = batch
         self.design = batch.design
@@ -49,7 +49,7 @@ class PointAcoustics:
         self.valid = np.asarray(batch.valid, bool)
         self.at = at
         self.cache: dict = {}
-        med = _medium(self.design)
+        med = medium_constants(self.design)
         self.heat_ratio = med.gas_heat_capacity_ratio
         if self.design.medium is None:
             self.medium = {k: np.full(self.n, getattr(med, k)) for k in
@@ -296,7 +296,7 @@ class PointAcoustics:
             return np.full(self.n, float(v[1]))
         if v[0] == "field":
             return self.get(v[1]) / v[2] if v[2] != 1 else self.get(v[1]).copy()
-        # ("max", elements): the largest amplitude applied at a frequency, 0 -> the reference (report._amplitude_at)
+        # ("max", elements): the largest amplitude applied at a frequency, 0 -> the reference (report.amplitude_at)
         from acl.analysis.report import DEFAULT_V
 
         best = np.zeros(self.n)
@@ -395,8 +395,8 @@ class PointAcoustics:
         return self.once("step_drives", build)
 
     def amplitude_at(self, f: float):
-        """The largest amplitude the programs apply at f (report._amplitude_at), per point when it moves."""
-        from acl.analysis.report import _amplitude_at
+        """The largest amplitude the programs apply at f (report.amplitude_at), per point when it moves."""
+        from acl.analysis.report import amplitude_at
 
         elems, moving = [], False
         for p in self.design.programs:
@@ -412,7 +412,7 @@ class PointAcoustics:
                     if e is not None:
                         elems.append(e)
                         moving |= isinstance(e, tuple)
-        return ("max", tuple(elems)) if moving else _amplitude_at(self.design, f)
+        return ("max", tuple(elems)) if moving else amplitude_at(self.design, f)
 
     def thrust_scale(self) -> np.ndarray:
         """(N, C) declared thrust coefficient / the capsule's own thrust per V^2 at its first reported mode (acoustics._thrust_scale)."""

@@ -16,12 +16,15 @@ and spring links); every number that depends on a swept parameter is taken per p
 Equilibria: Newton on the generalized coordinates with a forward-difference Jacobian (one force
 evaluation per coordinate), stable while the Jacobian's eigenvalues have positive real parts
 (Bazant & Cedolin, Stability of Structures, Ch. 4).  Continuation in the drive scale V (natural
-parameter): a step is accepted only when Newton converges to a stable, admissible (no contact:
-mechanics._admissible) equilibrium within ``STEP_REACH`` of the last one (analyze's pseudo-arclength
-steps move at most half its 5 um length scale); after a failed step the step is halved, so the fold
-(snap-in) is bracketed from below: the reported snap-in voltage is the last stable voltage, below the
-fold by at most ``rtol`` x V_max, never above it.  No Python loop over points: a loop over
-continuation steps and Newton iterations, each vectorised over the points.
+parameter) with a tangent predictor (Euler in V^2 along K_T^-1 G, Keller 1977) and an adaptive
+step: a step is accepted only when Newton converges to a stable, admissible (no contact:
+mechanics._admissible) equilibrium within ``STEP_REACH`` of the prediction (analyze's
+pseudo-arclength steps move at most half its 5 um length scale), and no prediction moves more than
+``STEP_MOVE``; the step grows while the corrections stay small.  A failed short step brackets the
+fold (snap-in) from above and the bracket is bisected from below: the reported snap-in voltage is
+the last stable voltage less the bracket's width, below the fold by at most 4 ``rtol`` x V_max, never
+above it.  No Python loop over points: a loop over continuation steps and Newton iterations, each
+vectorised over the points.
 """
 from __future__ import annotations
 
@@ -31,7 +34,9 @@ from acl.physics import batch as PB
 from acl.physics.roots import golden_max, illinois_ascending
 from acl.sweep.acoustic_state import beam_force, beam_k0
 
-STEP_REACH = 2.5e-6       # m; largest accepted move of the coordinates in one continuation step
+STEP_REACH = 2.5e-6       # m; largest accepted distance of a step's equilibrium from its tangent prediction
+FOLD_STEP = 1e-4          # relative to v_max; a failed step this short brackets a fold (bisection below it)
+STEP_MOVE = 50e-6         # m; largest predicted move of the coordinates in one continuation step
 AXIS_TOL = 1e-12          # relative; a group with two elements needs their axes fixed to this
 
 
@@ -49,6 +54,14 @@ def not_batched(design) -> str | None:
     except DiagnosticError:
         return "the mechanism's joints do not resolve (acl check reports them)"
     return None
+
+
+def _direction(J, G) -> np.ndarray:
+    """Branch tangent dz/d(V^2) = K_T^-1 G at an equilibrium of R(z) = V^2 G(z) (Keller 1977); 0 where K_T is singular."""
+    ok = np.isfinite(J).all(axis=(1, 2)) & np.isfinite(G).all(axis=1)
+    ok &= np.abs(np.linalg.det(np.where(ok[:, None, None], J, 0.0))) > 0
+    t = np.linalg.solve(np.where(ok[:, None, None], J, np.eye(J.shape[-1])), np.where(ok[:, None], G, 0.0)[..., None])
+    return np.where(ok[:, None], t[..., 0], 0.0)
 
 
 def _unit(v):
@@ -292,7 +305,8 @@ class Mechanism:
     # -- solvers -------------------------------------------------------------------------------------
     def solve(self, z, lam, freqs, volts, live, iterations: int = 12, h: float = 1e-12, patient: bool = False,
               jacobian=None):
-        """Newton from z at drive scale lam (rows ``live``): (z, converged to a stable admissible equilibrium, tangent there).
+        """Newton from z at drive scale lam (rows ``live``): (z, converged to a stable admissible equilibrium, tangent
+        stiffness there, generalized acoustic force there).
 
         ``jacobian`` (the tangent stiffness at the last equilibrium) starts chord iterations (Keller
         1977), refreshed by a forward-difference Jacobian when they stop contracting.  Converged when
@@ -346,76 +360,124 @@ class Mechanism:
                 lost |= active & ~conv & ~(size < 0.5 * prev)
             prev = np.where(active, size, prev)
         # stability at the converged point
-        r = self.residual(z, lam, freqs, volts)
+        G = self.external(z, freqs, volts)
+        r = self.restoring(z) - lam[:, None] * G
         J = tangent(z, r)
         mev = np.linalg.eigvals(J).real.min(axis=1)
         good = conv & ~lost & (mev > 0) & np.isfinite(z).all(axis=1) & self.admissible(z)
-        return z, good, J
+        return z, good, J, G
 
     def continuation(self, freqs, volts, v_max, steps: int = 12, rtol: float = 1e-9, budget: int = 300):
         """Stable branch from rest as the drive is scaled by V from 0 to v_max: (V reached, z there, reached v_max).
 
-        Rows whose branch is still moving after ``budget`` x ``steps`` steps (millimetres of travel in
-        STEP_REACH steps) stop there, not reached: their snap-in is the last stable voltage, a lower bound.
+        Rows whose branch is still moving after ``budget`` x ``steps`` steps stop there, not reached: their
+        snap-in is the last stable voltage, a lower bound.
         """
         v_max = np.broadcast_to(np.asarray(v_max, float), (self.n,)).copy()
         z = np.zeros((self.n, self.m))
         if self.m == 0:
             return v_max, z, np.ones(self.n, bool)
-        _, _, J = self.solve(z, np.zeros(self.n), freqs, volts, np.zeros(self.n, bool))     # tangent at rest
-        st = {"z": z, "J": J, "v": np.zeros(self.n), "dv": v_max / steps, "v_max": v_max,
-              "done": np.zeros(self.n, bool), "reached": np.zeros(self.n, bool), "failed": np.zeros(self.n, bool)}
+        _, _, J, G = self.solve(z, np.zeros(self.n), freqs, volts, np.zeros(self.n, bool))     # tangent at rest
+        st = {"z": z, "J": J, "t": _direction(J, G), "v": np.zeros(self.n), "dv": v_max / steps, "v_max": v_max,
+              "done": np.zeros(self.n, bool), "reached": np.zeros(self.n, bool), "failed": np.zeros(self.n, bool),
+              "pending": np.zeros(self.n, bool), "v_fail": np.full(self.n, np.inf)}
         self._march(st, freqs, volts, steps, rtol, budget * steps)
         return st["v"], st["z"], st["reached"]
 
     def _march(self, st: dict, freqs, volts, steps: int, rtol: float, left: int) -> None:
         """Continuation steps on the state ``st`` (arrays over the points, updated in place); when fewer than half
-        the points are still going, the rest continue on a mechanism of those points only."""
-        z, J, v, dv, v_max = st["z"], st["J"], st["v"], st["dv"], st["v_max"]
-        done, reached, failed = st["done"], st["reached"], st["failed"]
+        the points are still going, the rest continue on a mechanism of those points only.
+
+        Each step predicts along the branch's tangent (Euler in V^2, exact where the response is linear in
+        the drive's power), shortened so that the prediction moves at most ``STEP_MOVE``, and corrects by
+        Newton; it is accepted when the corrected equilibrium is stable, admissible and within
+        ``STEP_REACH`` of the prediction.  The step grows while the corrections stay small (by up to 2x,
+        sqrt of STEP_REACH / 4 over the correction: the predictor's error is quadratic in the step) and
+        is halved after a failure, so a fold is bracketed from below by bisection.
+        """
+        z, J, t, v, dv, v_max = st["z"], st["J"], st["t"], st["v"], st["dv"], st["v_max"]
+        done, reached, failed, pending, v_fail = st["done"], st["reached"], st["failed"], st["pending"], st["v_fail"]
         while left > 0:
-            live = ~done
-            if not live.any():
+            going = ~done
+            if not going.any():
                 break
-            if self.n >= 16 and live.sum() <= self.n // 2:
-                rows = np.flatnonzero(live)
+            if self.n >= 16 and going.sum() <= self.n // 2:
+                rows = np.flatnonzero(going)
                 sub = {k: a[rows].copy() for k, a in st.items()}
                 self.sub(rows)._march(sub, freqs, volts, steps, rtol, left)
                 for k, a in st.items():
                     a[rows] = sub[k]
                 return
+            live = going & ~pending
+            if not live.any():
+                self._over_the_fold(st, freqs, volts, rtol)
+                continue
             left -= 1
-            v_try = np.minimum(v + dv, v_max)
-            zn, conv, Jn = self.solve(z, v_try * v_try, freqs, volts, live, jacobian=J)
-            near = np.linalg.norm(zn - z, axis=-1) <= STEP_REACH
-            good = conv & near & live
+            v_try = np.minimum(np.minimum(v + dv, v_max), np.where(np.isfinite(v_fail), 0.5 * (v + v_fail), np.inf))
+            dlam = v_try * v_try - v * v
+            move = np.linalg.norm(t, axis=-1) * dlam
+            big = live & (move > STEP_MOVE)
+            if big.any():           # shorten the step to a predicted move of STEP_MOVE
+                v_try = np.where(big, np.sqrt(v * v + dlam * STEP_MOVE / np.where(big, move, 1.0)), v_try)
+                dv[...] = np.where(big, v_try - v, dv)
+                dlam = v_try * v_try - v * v
+            pred = z + t * dlam[:, None]
+            zn, conv, Jn, Gn = self.solve(pred, v_try * v_try, freqs, volts, live, jacobian=J)
+            off = np.linalg.norm(zn - pred, axis=-1)
+            good = conv & (off <= STEP_REACH) & live
             z[...] = np.where(good[:, None], zn, z)
             J[...] = np.where(good[:, None, None], Jn, J)
+            t[...] = np.where(good[:, None], _direction(Jn, Gn), t)
             v[...] = np.where(good, v_try, v)
             # grow after two successes in a row, halve after a failure: near the fold, a bisection from below
-            dv[...] = np.where(good, np.where(failed, dv, np.minimum(dv * 1.5, v_max / steps)),
+            with np.errstate(divide="ignore"):
+                grow = np.clip(np.sqrt(0.25 * STEP_REACH / off), 0.5, 2.0)
+            dv[...] = np.where(good, np.where(failed, dv, np.minimum(dv * grow, v_max / steps)),
                                np.where(live, dv / 2, dv))
+            # a step of at most FOLD_STEP x v_max that fails brackets the fold from above: bisection from there
+            small = live & ~good & (v_try - v <= FOLD_STEP * v_max)
+            v_fail[...] = np.where(small, np.minimum(v_fail, v_try), v_fail)
             failed[...] = live & ~good
             hit = good & (v >= v_max)
-            folded = live & ~good & (dv < rtol * v_max)
-            if folded.any():
-                # a limit point, or a kink of the force law (a latch buckling) that Newton's steps cannot
-                # cross: a patient solve just above it, kept only when it stays next to the branch
-                # (acl.physics.equilibrium._equilibrium_just_above)
-                for rel in (1e-6, 1e-4):
-                    v_up = np.minimum(v * (1 + rel) + rel, v_max)
-                    zn, conv, Jn = self.solve(z, v_up * v_up, freqs, volts, folded, iterations=30, patient=True)
-                    near = np.linalg.norm(zn - z, axis=-1) <= 1e-2 * np.maximum(np.linalg.norm(z, axis=-1), 1e-300)
-                    over = folded & conv & near
-                    z[...] = np.where(over[:, None], zn, z)
-                    J[...] = np.where(over[:, None, None], Jn, J)
-                    v[...] = np.where(over, v_up, v)
-                    dv[...] = np.where(over, 4 * rtol * v_max, dv)
-                    failed[...] = np.where(over, False, failed)
-                    hit |= over & (v >= v_max)
-                    folded &= ~over
             reached |= hit
-            done |= hit | folded
+            done |= hit
+            # bracketed to rtol: probed just above, together with the other rows that fold (one batch)
+            pending |= live & ~hit & ((~good & (dv < rtol * v_max)) | (v_fail - v < rtol * v_max))
+        if pending.any():
+            self._over_the_fold(st, freqs, volts, rtol)
+            done |= pending
+
+    def _over_the_fold(self, st: dict, freqs, volts, rtol: float) -> None:
+        """The rows ``pending`` at a limit point, or at a kink of the force law (a latch buckling) that Newton's
+        steps cannot cross: a patient solve just above it, kept only when it stays next to the branch
+        (acl.physics.equilibrium._equilibrium_just_above); those continue, the others are done (snapped).
+
+        A snapped row reports its last stable voltage less the width of its bracket (at most 2 rtol x v_max):
+        Newton's residual test (1e-10 of the force scale) accepts a point up to that far past a kink, and
+        the bracket's width is larger, so the reported snap-in stays below the fold.
+        """
+        z, J, t, v, dv, v_max = st["z"], st["J"], st["t"], st["v"], st["dv"], st["v_max"]
+        folded = st["pending"].copy()
+        margin = np.minimum(st["v_fail"] - v, 2 * dv)
+        for rel in (1e-6, 1e-4):
+            v_up = np.minimum(v * (1 + rel) + rel, v_max)
+            zn, conv, Jn, Gn = self.solve(z, v_up * v_up, freqs, volts, folded, iterations=30, patient=True)
+            near = np.linalg.norm(zn - z, axis=-1) <= 1e-2 * np.maximum(np.linalg.norm(z, axis=-1), 1e-300)
+            over = folded & conv & near
+            z[...] = np.where(over[:, None], zn, z)
+            J[...] = np.where(over[:, None, None], Jn, J)
+            t[...] = np.where(over[:, None], _direction(Jn, Gn), t)
+            v[...] = np.where(over, v_up, v)
+            dv[...] = np.where(over, 4 * rtol * v_max, dv)
+            st["failed"][...] = np.where(over, False, st["failed"])
+            st["v_fail"][...] = np.where(over, np.inf, st["v_fail"])
+            hit = over & (v >= v_max)
+            st["reached"][...] |= hit
+            st["done"][...] |= hit
+            folded &= ~over
+        v[...] = np.where(folded, np.maximum(v - margin, 0.0), v)
+        st["done"][...] |= folded
+        st["pending"][...] = False
 
     def smooth_one(self) -> bool:
         """One coordinate and smooth restoring laws (no latch): the branch is the curve V^2(z) = R(z)/G(z)."""

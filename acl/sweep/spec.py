@@ -131,9 +131,9 @@ def _quantity(text: str, col: int, where: str, name: str, unit: str) -> float:
 
 
 def _example(unit: str) -> str:
-    from acl.design.core import _EXAMPLES
+    from acl.design.core import UNIT_EXAMPLES
 
-    return _EXAMPLES.get(unit, f"1 {unit}".strip()).replace(" ", "")
+    return UNIT_EXAMPLES.get(unit, f"1 {unit}".strip()).replace(" ", "")
 
 
 def _split_name(text: str, where: str, design: Design, what: str) -> tuple[str, int]:

@@ -490,7 +490,7 @@ class Tuned:
         only with that folder among the search paths (:func:`reaches`; `acl tune -o` refuses such a folder)."""
         import os
 
-        from acl.emit.atomic import write_text_atomic
+        from acl._files import write_text_atomic
 
         out = os.path.abspath(path) if path else default_path(self.problem.path)
         write_text_atomic(out, tuned_text(self, out, command=command))

@@ -322,7 +322,7 @@ def check_drives(batch) -> None:
         live = prog_ok & tr_ok
         band_lo, band_hi, vmax = g("transducer.band.0"), g("transducer.band.1"), g("transducer.max_voltage")
         for st in p.steps:
-            freqs, _ = C._step_tones(st)
+            freqs, _ = C.step_tones(st)
             loc = where(st.span)
             out_band = np.zeros(n, bool)
             for f in freqs:
