@@ -371,11 +371,13 @@ def predict_many(P: Prepared, items) -> list:
     """[:func:`predict` (P, coeffs, effects) for (coeffs, effects) in ``items``], the same numbers bit for bit, the pair
     solves of the predictions made at once (:func:`_pair_solve_many`: fewer, larger array operations; a Jacobian's
     columns, acl.fit.solve.fd_least_squares, or independent probes).  The last full pair solve kept for reuse
-    (:func:`_pair_solve`) is read, not replaced: it changes which work a solve skips, never its numbers.  With groups
-    or latch states (whose solves keep state from one prediction to the next), or the warm start inside FD_COLUMNS,
-    one after the other."""
+    (:func:`_pair_solve`) is read, not replaced: it changes which work a solve skips, never its numbers.  Groups:
+    each block's rows of every prediction in one batched solve from the block's last state, read, not replaced
+    (acl.fit.group.predict_many: the same numbers to the solver's tolerance).  With latch states (whose rows keep
+    state from one prediction to the next), or the warm start inside FD_COLUMNS, one after the other."""
     items = [(c, _with_declared(P, e)) for c, e in items]
-    if len(items) < 2 or (P.options.warm and FD_COLUMNS.active) or P.groups or _layout(P)["any_state"] or not np.any(P.pair):
+    if len(items) < 2 or (P.options.warm and FD_COLUMNS.active) or _layout(P)["any_state"] or \
+            not (np.any(P.pair) or P.groups):
         return [predict(P, c, e) for c, e in items]
     out: list = [None] * len(items)
     keys = [_memo_key(P, c, e, 0.0) if P.options.memo > 0 else None for c, e in items]
@@ -396,18 +398,16 @@ def predict_many(P: Prepared, items) -> list:
     with np.errstate(all="ignore"):
         steps = [_predict_steps(Pu, items[i][0], items[i][1] if red is None else
                                 {k: e for k, e in items[i][1].items() if k != "offset_drift"}) for i in todo]
-        reqs, done = [], {}
-        for t, st in enumerate(steps):
-            try:
-                reqs.append((t, next(st)))
-            except StopIteration as stop:
-                done[t] = stop.value
-        for (t, _), ab in zip(reqs, _pair_solve_many(Pu, [q for _, q in reqs])):
-            try:
-                steps[t].send(ab)
-                raise RuntimeError("a prediction makes one pair solve")
-            except StopIteration as stop:
-                done[t] = stop.value
+        done: dict = {}
+        pending = {t: None for t in range(len(steps))}
+        while pending:           # every prediction asks for its pair solve, then its groups: each asked at once
+            reqs = {}
+            for t, ans in pending.items():
+                try:
+                    reqs[t] = next(steps[t]) if ans is None else steps[t].send(ans)
+                except StopIteration as stop:
+                    done[t] = stop.value
+            pending = _answer_many(Pu, reqs)
     for t, i in enumerate(todo):
         res = done[t] if red is None else _offset_drift(P, done[t][red[1]], items[i][1])
         if keys[i] is not None:
@@ -415,6 +415,25 @@ def predict_many(P: Prepared, items) -> list:
                 del memo[next(iter(memo))]
             memo[keys[i]] = res.copy()
         out[i] = res
+    return out
+
+
+def _answer_many(P: Prepared, reqs: dict) -> dict:
+    """{t: answer} of the requests {t: request} of several predictions (:func:`_predict_steps`): their pair solves in
+    one :func:`_pair_solve_many`, each group's rows of every prediction in one acl.fit.group.predict_many."""
+    out: dict = {}
+    pair = [t for t, q in reqs.items() if not isinstance(q, GroupRequest)]
+    for t, ab in zip(pair, _pair_solve_many(P, [reqs[t] for t in pair])):
+        out[t] = ab
+    grp = [t for t, q in reqs.items() if isinstance(q, GroupRequest)]
+    if grp:
+        from acl.fit import group as G
+
+        for t in grp:
+            out[t] = []
+        for b, blk in enumerate(P.groups):
+            for t, ans in zip(grp, G.predict_many(P, blk, [reqs[t].args[b] for t in grp])):
+                out[t].append(ans)
     return out
 
 
@@ -568,12 +587,25 @@ def _resonance_factors(P: Prepared, coeffs: dict, effects: dict):
     return np.where(np.isfinite(out), out, 0.0)
 
 
+class GroupRequest:
+    """What a prediction asks of its groups (acl.fit.group): the arguments of acl.fit.group.predict of each block of
+    P.groups; answered by [(change, snapped, ratio) of each block]."""
+
+    def __init__(self, P: Prepared, args: list):
+        self.P, self.args = P, args
+
+    def answer(self) -> list:
+        from acl.fit import group as G
+
+        return [G.predict(self.P, blk, *a) for blk, a in zip(self.P.groups, self.args)]
+
+
 def _predict(P: Prepared, coeffs: dict, effects: dict, latch_blend: float = 0.0) -> np.ndarray:
     steps = _predict_steps(P, coeffs, effects, latch_blend)
     try:
         req = next(steps)
         while True:
-            req = steps.send(_pair_solve(*req[:9]))
+            req = steps.send(req.answer() if isinstance(req, GroupRequest) else _pair_solve(*req[:9]))
     except StopIteration as stop:
         return stop.value
 
@@ -685,11 +717,10 @@ def _predict_steps(P: Prepared, coeffs: dict, effects: dict, latch_blend: float 
         d_0[idx], d_1[idx] = da, db
     out = P.base + P.s0 * d_0 + P.s1 * d_1
     if lay["any_grp"]:
-        from acl.fit import group as G
-
         grad = effects["stiffness_gradient"]["e_gradient"] if "stiffness_gradient" in effects else 0.0
-        for blk in P.groups:
-            change, _, rat = G.predict(P, blk, coeffs, effects, w[blk.rows], gamma, alpha, es, lam, grad, c_p)
+        got = yield GroupRequest(P, [(coeffs, effects, w[blk.rows], gamma, alpha, es, lam, grad, c_p)
+                                     for blk in P.groups])
+        for blk, (change, _, rat) in zip(P.groups, got):
             out[blk.rows] = P.base[blk.rows] + change
             ratio[blk.rows] = np.where(blk.kind == 3, rat, ratio[blk.rows])
     out = _offset_drift(P, out, effects)

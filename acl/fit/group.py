@@ -26,12 +26,11 @@ them.  A node alone (a body) feels loads that do not depend on where it is: one 
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
 from acl.fit import beam as B
 from acl.fit.effects import GAP_REF
+from acl.fit.group_block import LAW, GroupBlock, block, stack  # noqa: F401  (re-exported)
 from acl.physics.effects import drag_load, elastica_blend, mode_response_ratio, substrate_factor
 from acl.physics.forces import capsule_forces
 
@@ -39,235 +38,6 @@ N_STEPS = 8
 N_NEWTON = 12
 N_CHORD = 6           # chord steps at most (each must halve the residual) before Newton takes over
 STALL = 3          # Newton iterations without halving a row's residual after which it has no equilibrium near its start
-LAW = {"beam": 0, "spring": 1, "fixed": 2, "latch": 3}
-
-
-@dataclass
-class GroupBlock:
-    """The rows of one group (or body) in one override set, with everything row-independent precomputed."""
-
-    rows: np.ndarray          # (r,) row indices into the data set
-    caps: tuple               # C capsule names
-    law: np.ndarray           # (N,) node law: 0 beam, 1 spring, 2 fixed, 3 latch
-    L: np.ndarray             # (N,)
-    l: np.ndarray
-    EI: np.ndarray
-    cd: np.ndarray            # spring: compliance
-    basis: np.ndarray         # (N, 3, 2) directions each node allows (zero-padded)
-    k: np.ndarray             # (N,) how many
-    latch: list               # (N,) latch table of each latch node (acl.fit.latch.latch_table), else None
-    latch_geo: list           # (N,) its geometry (angle, length, width, thickness, E), else None
-    cap_node: np.ndarray      # (C,) node of each capsule
-    rest: np.ndarray          # (C, 3) capsule centres at rest
-    outer: np.ndarray         # (C,) radius a jet drags
-    cap_height: np.ndarray    # (C,) first orifice's height (substrate_proximity, as the analysis)
-    orif_cap: np.ndarray      # (n,) capsule of each orifice
-    offsets: np.ndarray       # (n, 3)
-    normals: np.ndarray       # (n, 3) outward normals (the jets)
-    labels: tuple             # n "capsule.orifice"
-    tau: np.ndarray           # (r, T, n) thrust per V^2 of each orifice relative to gamma0
-    arel: np.ndarray          # (r, T, n, n) Bjerknes coefficient per V^2 relative to the reference pair at f_ref
-    fn: np.ndarray            # (n,) natural frequency of the mode each orifice dominates (Hz)
-    q: np.ndarray             # (n,)
-    tables: list              # per orifice (ln V/V0, ln f/f0) of its mode (bubble shrinkage)
-    kind: np.ndarray          # (r,) observable kind: 0 gap, 1 displacement, 2 position, 3 latch state
-    oi: np.ndarray            # (r,) gap: orifice a; else the capsule observed
-    oj: np.ndarray            # (r,) gap: orifice b
-    axis: np.ndarray          # (r, 3) displacement axis / position unit vector
-    obase: np.ndarray         # (r,) position: rest coordinate
-    neighboured: np.ndarray = None  # (N,) bool: neighbour_drag acts on the node (acl.fit.mechanism.Network)
-    springs: list = None      # (N,) per node: ((stiffness, unit axis), ...) of springs tying it to fixed points
-    engines: list = None      # [acl.analysis.acoustics force engine of every drive frequency of the rows at 1 V]
-    fidx: np.ndarray = None   # (r, T) index of each tone's frequency in that engine (-1: no tone)
-    orif_ix: np.ndarray = None    # (n,) each orifice's interface index in the design (acl.analysis.acoustics layout)
-    cap_ix: np.ndarray = None     # (C,) each capsule's index in the design
-    all_rest: np.ndarray = None   # (C_all, 3) every capsule centre of the design at rest
-    gamma0: float = 1.0
-    alpha_ref: float = 0.0
-    gmask: np.ndarray = None  # (n,) bool: gamma scales this orifice's thrust (acl.fit.forward.Prepared.gamma_caps)
-    cache: np.ndarray = None  # (r, m) last equilibrium found per row (warm start of the next evaluation)
-    closing: np.ndarray = None    # (r, 2) the orifice pair in contact of each row past snap-in at the last evaluation
-    fold: tuple = None            # ((r,) last stable continuation step of the rows that snapped, (r, m) configuration)
-    member: np.ndarray = None     # (r,) stacked blocks (:func:`stack`): the override set of each row, indexing the
-    eoff: np.ndarray = None       # leading axis of rest, offsets, all_rest and eoff (M, ., 3); None: one set
-
-    def contact_rows(self):
-        return self.closing[:, 0] >= 0 if self.closing is not None else np.zeros(self.rows.size, bool)
-
-    @property
-    def points(self) -> np.ndarray:
-        """(n, 3) orifice centres at rest ((M, n, 3) of a stack)."""
-        return self.rest[..., self.orif_cap, :] + self.offsets
-
-    @property
-    def orif_node(self) -> np.ndarray:
-        return self.cap_node[self.orif_cap]
-
-
-def block(inst, unit, name, rows, f, v, gamma0, alpha_ref, ftable) -> GroupBlock:
-    """Precompute a group's rows (``name`` the observable; ``ftable(volume, radii, mode, medium)`` the table of the
-    natural frequency of a capsule's mode against its gas volume, for bubble shrinkage)."""
-    from acl.fit.latch import latch_table
-    from acl.fit.mechanism import _target_capsule, orifice_forces_per_v2
-
-    net = unit.net
-    sides = unit.sides
-    N = len(sides)
-    r, T = len(rows), f.shape[1]
-    basis = np.zeros((N, 3, 2))
-    k = np.zeros(N, int)
-    law = np.array([LAW[s.law] for s in sides])
-    for i, s in enumerate(sides):
-        k[i] = s.basis.shape[1] if s.law != "fixed" else 0
-        basis[i, :, :k[i]] = s.basis[:, :k[i]]
-    cd = np.zeros(N)
-    for i, s in enumerate(sides):
-        if s.law == "beam":
-            cd[i] = B.stiffness_integrals(np.array([s.L]), np.array([s.l]), np.array([s.EI]))[0][0]
-        elif s.law == "spring":
-            cd[i] = s.compliance
-    latch = [latch_table(s.latch) if s.law == "latch" else None for s in sides]
-    latch_geo = [s.latch if s.law == "latch" else None for s in sides]
-    n = len(net.labels)
-    tau = np.zeros((r, T, n))
-    arel = np.zeros((r, T, n, n))
-    fr, vr = f[rows], v[rows]
-    for fk in np.unique(fr[vr > 0]):
-        m = (fr == fk) & (vr > 0)
-        labels, thr, att = orifice_forces_per_v2(inst, fk)
-        ix = np.array([labels.index(lab) for lab in net.labels])
-        tau += m[:, :, None] * (thr[ix] / gamma0)[None, None, :]
-        if alpha_ref:
-            arel += m[:, :, None, None] * (att[np.ix_(ix, ix)] / alpha_ref)[None, None]
-    obs = inst.design.observe(name)
-    kind = np.zeros(r, int)
-    oi = np.zeros(r, int)
-    oj = np.zeros(r, int)
-    axis = np.zeros((r, 3))
-    obase = np.zeros(r)
-    if obs.kind == "gap":
-        oi[:], oj[:] = net.labels.index(obs.a), net.labels.index(obs.b)
-    else:
-        cap = _target_capsule(inst.design, obs)
-        oi[:] = net.caps.index(cap)
-        if obs.kind == "state":
-            kind[:] = 3
-        elif obs.kind == "displacement":
-            kind[:] = 1
-            axis[:] = np.asarray(obs.axis, float) / np.linalg.norm(obs.axis)
-        else:
-            kind[:] = 2
-            c = "xyz".index(obs.component)
-            axis[:, c] = 1.0
-            obase[:] = float(net.rest[oi[0], c])
-    med = inst.medium
-    tables = []
-    for o in range(n):
-        volume, radii, modes = net.bubbles[net.orif_cap[o]]
-        first = int(np.flatnonzero(net.orif_cap == net.orif_cap[o])[0])
-        tables.append(ftable(volume, radii, modes[o - first], med))
-    height = np.array([net.offsets[np.flatnonzero(net.orif_cap == c)[0], 2] + net.rest[c, 2]
-                       if np.any(net.orif_cap == c) else net.rest[c, 2] for c in range(len(net.caps))])
-    from acl.analysis.rows import force_engine, layout
-    from acl.design.model import Drive, Tone
-
-    freqs = np.unique(fr[vr > 0])
-    fidx = np.full((r, T), -1)
-    for i, fk in enumerate(freqs):
-        fidx[(fr == fk) & (vr > 0)] = i
-    engines = []
-    if freqs.size:                # one force engine of every drive frequency of the rows at 1 V (per-tone responses)
-        key = ("eng", tuple(float(x) for x in freqs))
-        if key not in inst._tau:
-            inst._tau[key] = force_engine(inst.design, Drive(tones=tuple(Tone(frequency=float(x), amplitude=1.0)
-                                                                           for x in freqs)), cached=False)
-        engines.append(inst._tau[key])
-    lay = layout(inst.design)
-    names = [c.name for c in lay.caps]
-    extra = dict(engines=engines, fidx=fidx, orif_ix=np.array([lay.labels.index(lab) for lab in net.labels]),
-                 cap_ix=np.array([names.index(c) for c in net.caps]), all_rest=np.asarray(lay.rest, float),
-                 gamma0=float(gamma0), alpha_ref=float(alpha_ref), springs=[tuple(s.springs) for s in sides],
-                 neighboured=None if net.neighboured is None else np.asarray(net.neighboured, bool))
-    return GroupBlock(np.asarray(rows), net.caps, law, np.array([s.L for s in sides]), np.array([s.l for s in sides]),
-                      np.array([s.EI for s in sides]), cd, basis, k, latch, latch_geo, np.asarray(net.cap_node, int),
-                      np.asarray(net.rest, float), np.asarray(net.outer, float), height,
-                      np.asarray(net.orif_cap, int), np.asarray(net.offsets, float), np.asarray(net.normals, float),
-                      tuple(net.labels), tau, arel, net.modes[:, 0].copy(), net.modes[:, 1].copy(), tables,
-                      kind, oi, oj, axis, obase, **extra)
-
-
-# what must be equal for two blocks to share one batched solve (the rest geometry may differ)
-_SHARED = ("caps", "law", "L", "l", "EI", "cd", "basis", "k", "cap_node", "outer", "cap_height", "orif_cap", "normals",
-           "labels", "fn", "q", "neighboured", "orif_ix", "cap_ix", "gamma0", "alpha_ref", "gmask")
-
-
-def _same(a, b) -> bool:
-    if a is None or b is None:
-        return a is b
-    if isinstance(a, np.ndarray) or isinstance(b, np.ndarray):
-        return np.shape(a) == np.shape(b) and bool(np.array_equal(a, b))
-    return a == b
-
-
-def _shares_engine(a: GroupBlock, b: GroupBlock) -> bool:
-    """The two blocks' force engines give the same forces at the same positions (same capsules, tones, constants)."""
-    if len(a.engines) != len(b.engines):
-        return False
-    for ea, eb in zip(a.engines, b.engines):
-        if ea is eb:
-            continue
-        if not (_same(ea.f, eb.f) and _same(ea.lay.body, eb.lay.body) and _same(ea.lay.radii, eb.lay.radii)
-                and _same(ea.h0, eb.h0) and _same(ea.pressure, eb.pressure) and ea.rho == eb.rho and ea.c == eb.c
-                and ea.consts.keys() == eb.consts.keys()
-                and all(_same(np.asarray(ea.consts[k]), np.asarray(eb.consts[k])) for k in ea.consts)
-                and _same(np.asarray(ea.system.radii), np.asarray(eb.system.radii))):
-            return False
-    return True
-
-
-def _stackable(a: GroupBlock, b: GroupBlock) -> bool:
-    if a.member is not None or b.member is not None or np.any(a.law == LAW["latch"]) or np.any(b.law == LAW["latch"]):
-        return False
-    if a.rest.shape != b.rest.shape or a.offsets.shape != b.offsets.shape or a.all_rest.shape != b.all_rest.shape:
-        return False
-    if not all(_same(getattr(a, f), getattr(b, f)) for f in _SHARED):
-        return False
-    if tuple(map(tuple, a.springs or ())) != tuple(map(tuple, b.springs or ())) or len(a.tables) != len(b.tables):
-        return False
-    if any(not (_same(ta[0], tb[0]) and _same(ta[1], tb[1])) for ta, tb in zip(a.tables, b.tables)):
-        return False
-    return a.tau.shape[1:] == b.tau.shape[1:] and _shares_engine(a, b)
-
-
-def stack(blocks: list) -> list:
-    """The blocks with one topology (same capsules, supports, laws, tones and force engine; rest geometry free: the
-    gaps of a pair, the sets of an experiment) joined into one block whose rows are solved in one batched Newton
-    solve; each row keeps its override set's rest geometry (``member``).  Latches are not stacked."""
-    import dataclasses
-
-    out: list = []
-    runs: list = []
-    for blk in blocks:
-        for run in runs:
-            if _stackable(run[0], blk):
-                run.append(blk)
-                break
-        else:
-            runs.append([blk])
-    for run in runs:
-        if len(run) == 1:
-            out.append(run[0])
-            continue
-        per_row = {k: np.concatenate([getattr(b, k) for b in run]) for k in
-                   ("rows", "tau", "arel", "kind", "oi", "oj", "axis", "obase", "fidx")}
-        member = np.concatenate([np.full(b.rows.size, i) for i, b in enumerate(run)])
-        eoff = np.stack([np.asarray(b.engines[0].lay.offsets, float) if b.engines else np.zeros((0, 3)) for b in run])
-        out.append(dataclasses.replace(run[0], rest=np.stack([b.rest for b in run]),
-                                       offsets=np.stack([b.offsets for b in run]),
-                                       all_rest=np.stack([b.all_rest for b in run]), member=member, eoff=eoff,
-                                       cache=None, closing=None, fold=None, **per_row))
-    return out
-
 
 SNAP_KEEP = 0.04      # relative change of a snapped row's loads at rest (and of its laws) that keeps it snapped
 
@@ -355,39 +125,101 @@ def predict(P, blk: GroupBlock, coeffs, effects, w, gamma, alpha, es, lam, grad,
     force (r,)) of the block's rows; ``w`` (r, T) the squared drive pressure per V^2 of each tone (gain, its effects),
     the rest as in acl.fit.forward._predict.  Repeated rows are solved once (:func:`_distinct_rows`; each row's
     inputs are the same, so is its number), unless a coefficient is given per row."""
-    timed = "bubble_shrinkage" in effects        # the only input of a group row that reads its time (_mode_factors)
-    red = None if "tone_weight" in coeffs else _distinct_rows(P, blk, timed)
+    return predict_many(P, blk, [(coeffs, effects, w, gamma, alpha, es, lam, grad, c_p)])[0]
+
+
+def predict_many(P, blk: GroupBlock, items) -> list:
+    """[:func:`predict` (P, blk, *item) for item in ``items``] with the rows of every item stacked into one batched
+    solve (a Jacobian's columns, a grid's points: the fixed cost of each call of the force model is paid once per
+    Newton iteration, not once per item).  Every item starts from the block's state of the last evaluation (warm
+    start, snapped rows, Jacobians), which is read, not replaced: the numbers agree with one prediction after the
+    other to the solver's tolerance (each row converges to 1e-9 of the group's smallest rest distance), not bit for
+    bit.  Latch blocks, per-row coefficients (``tone_weight``) or items that reduce their rows differently: one after
+    the other."""
+    K = len(items)
+    timed = ["bubble_shrinkage" in it[1] for it in items]
+    per_row = any("tone_weight" in it[0] for it in items)
+    if K > 1 and (per_row or len(set(timed)) > 1 or np.any(blk.law == LAW["latch"]) or np.any(blk.kind == 3)):
+        return [predict_many(P, blk, [it])[0] for it in items]
+    red = None if per_row else _distinct_rows(P, blk, timed[0])
     if red is not None:
         sub, keep, inv = red
-        ch, sn, ra = _predict_block(P, sub, coeffs, effects, w[keep], gamma, alpha, es, lam, grad, c_p)
-        return ch[inv], sn[inv], ra[inv]
-    return _predict_block(P, blk, coeffs, effects, w, gamma, alpha, es, lam, grad, c_p)
+        outs = _predict_block(P, sub, [it[:2] + (it[2][keep],) + it[3:] for it in items])
+        return [(ch[inv], sn[inv], ra[inv]) for ch, sn, ra in outs]
+    return _predict_block(P, blk, items)
 
 
-def _predict_block(P, blk: GroupBlock, coeffs, effects, w, gamma, alpha, es, lam, grad, c_p) -> tuple:
-    """:func:`predict` of every row of ``blk``."""
+_ROW_STATE = ("rows", "tau", "arel", "kind", "oi", "oj", "axis", "obase", "fidx", "member", "cache", "closing")
+
+
+def _tiled(blk: GroupBlock, K: int) -> GroupBlock:
+    """``blk`` with its rows and its state of the last evaluation repeated K times (one copy per stacked item), the
+    row-independent caches (coupled volumes at rest, per-frequency responses) shared."""
+    import dataclasses
+
+    def rep(a):
+        return None if a is None else np.concatenate([a] * K)
+
+    fields = {k: rep(getattr(blk, k)) for k in _ROW_STATE}
+    if blk.member is None:
+        fields["member"] = None
+    fold = None if blk.fold is None else (rep(blk.fold[0]), rep(blk.fold[1]))
+    out = dataclasses.replace(blk, fold=fold, **fields)
+    for k in ("jcache", "verified"):
+        if blk.__dict__.get(k) is not None:
+            out.__dict__[k] = rep(blk.__dict__[k])
+    for k in ("u_rest", "per_f"):
+        if k in blk.__dict__:
+            out.__dict__[k] = blk.__dict__[k]
+    return out
+
+
+def _predict_block(P, blk: GroupBlock, items) -> list:
+    """:func:`predict_many` of every row of ``blk``: K items (coeffs, effects, w (r, T), gamma, alpha, es, lam, grad,
+    c_p), their rows stacked item after item; each coefficient enters as its item's value on its rows."""
     from acl.fit.latch import latch_travel_exact
 
+    K = len(items)
+    r0 = blk.rows.size
+    base = blk
+    if K > 1:
+        blk = _tiled(blk, K)
     r, N, C, n = blk.rows.size, blk.law.size, len(blk.caps), blk.orif_cap.size
-    t = P.t[blk.rows]
+    kid = np.repeat(np.arange(K), r0)                                              # (r,) item of each row
     # rest geometry of each row's override set (a stack of blocks, :func:`stack`, holds several; else one)
     mem = blk.member if blk.member is not None else np.zeros(r, int)
     REST = blk.rest if blk.rest.ndim == 3 else blk.rest[None]                     # (M, C, 3)
     OFFS = blk.offsets if blk.offsets.ndim == 3 else blk.offsets[None]            # (M, n, 3)
     ALL_REST = blk.all_rest if blk.all_rest.ndim == 3 else blk.all_rest[None]     # (M, C_all, 3)
-    res = _mode_factors(P, blk, coeffs, effects, t)
-    sub_c = np.ones(C)
-    if "substrate_proximity" in effects:
-        sub_c = substrate_factor(blk.cap_height, effects["substrate_proximity"]["h_substrate"])
-    sub = sub_c[blk.orif_cap]
+    t0 = P.t[base.rows]
+    res_k = [_mode_factors(P, base, it[0], it[1], t0) for it in items]
+    res = None if all(x is None for x in res_k) else \
+        np.concatenate([np.ones(base.tau.shape) if x is None else x for x in res_k])
+    w = np.concatenate([it[2] for it in items])
+    gamma = np.array([it[3] for it in items], float)
+    alpha = np.array([it[4] for it in items], float)
+    es = np.array([it[5] for it in items], float)
+    lam = np.array([it[6] for it in items], float)
+    grad_k = [it[7] for it in items]
+    c_p = np.array([it[8] for it in items], float)
+    sub_c = np.ones((K, C))
+    for k_, it in enumerate(items):
+        if "substrate_proximity" in it[1]:
+            sub_c[k_] = substrate_factor(blk.cap_height, it[1]["substrate_proximity"]["h_substrate"])
+    sub = sub_c[:, blk.orif_cap]                                                   # (K, n)
     wt = w[:, :, None] if res is None else w[:, :, None] * res
     # gamma scales the thrust of the orifices whose capsules declare it (every orifice when gmask is None)
-    g_o = np.full(n, gamma) if blk.gmask is None else np.where(blk.gmask, gamma, blk.gamma0)
-    thrust = (blk.tau * wt).sum(axis=1) * (g_o * sub)[None, :]                       # (r, n)
+    g_o = np.repeat(gamma[:, None], n, axis=1) if blk.gmask is None else np.where(blk.gmask[None], gamma[:, None],
+                                                                                   blk.gamma0)
+    thrust = (blk.tau * wt).sum(axis=1) * (g_o * sub)[kid]                         # (r, n)
     wab = w[:, :, None, None] if res is None else w[:, :, None, None] * np.sqrt(res[:, :, :, None] * res[:, :, None, :])
-    A = alpha * (blk.arel * wab).sum(axis=1) * np.sqrt(np.outer(sub, sub))[None]    # (r, n, n)
+    root_sub = np.sqrt(sub[:, :, None] * sub[:, None, :])                         # (K, n, n)
+    A = alpha[kid][:, None, None] * (blk.arel * wab).sum(axis=1) * root_sub[kid]  # (r, n, n)
     beam = blk.law == 0
-    cd, ct = B.stiffness_integrals(blk.L, blk.l, blk.EI * es, grad)
+    cd = np.zeros((K, N))
+    ct = np.zeros((K, N))
+    for k_ in range(K):
+        cd[k_], ct[k_] = B.stiffness_integrals(blk.L, blk.l, blk.EI * es[k_], grad_k[k_])
     cd = np.where(beam, cd, blk.cd)
     ct = np.where(beam, ct, 0.0)
     l_ = np.where(beam, blk.l, 0.0)
@@ -396,13 +228,19 @@ def _predict_block(P, blk: GroupBlock, coeffs, effects, w, gamma, alpha, es, lam
     offs = np.concatenate([[0], np.cumsum(blk.k)])
     slots = [(i, c) for i in range(N) for c in range(blk.k[i])]
     if N == 1:
-        c_p = 0.0                        # a body alone has no neighbour: neighbour_drag does not act
+        c_p = np.zeros(K)                # a body alone has no neighbour: neighbour_drag does not act
     tied = [(i, blk.springs[i]) for i in range(N) if blk.springs and blk.springs[i] and blk.k[i]]
+    n_gap = np.array([it[1]["bjerknes_shape"]["gap_exponent"] if "bjerknes_shape" in it[1] else 0.0 for it in items])
 
-    def law(i, load):
-        d = B.eq1_deflection(load, l_[i], cd[i], ct[i])
-        if lam and beam[i]:
-            d = elastica_blend(d, B.elastica_deflection(load, blk.L[i], blk.l[i], blk.EI[i] * es), lam)
+    def item(a, rows_):
+        """Per-item values (K, ...) on the rows ``rows_`` (one item: its value, broadcast)."""
+        return a[0] if K == 1 else a[kid[rows_]]
+
+    def law(i, load, rows_):
+        d = B.eq1_deflection(load, l_[i], item(cd[:, i], rows_), item(ct[:, i], rows_))
+        if lam.any() and beam[i]:
+            d = elastica_blend(d, B.elastica_deflection(load, blk.L[i], blk.l[i], blk.EI[i] * item(es, rows_)),
+                               item(lam, rows_))
         return d
 
     SLOT = np.zeros((len(slots), N * 3))                                           # coordinate -> node displacement
@@ -413,7 +251,6 @@ def _predict_block(P, blk: GroupBlock, coeffs, effects, w, gamma, alpha, es, lam
         return (z @ SLOT).reshape(z.shape[0], N, 3)
 
     moves = N > 1 and bool(blk.engines)
-    n_gap = effects["bjerknes_shape"]["gap_exponent"] if "bjerknes_shape" in effects else 0.0
     if blk.engines:
         # the analysis' force engine of the rows' frequencies (at 1 V): its constants restricted to the group's
         # orifices, with what the fit adds (gamma on the orifices it scales, alpha relative to the reference pair,
@@ -421,12 +258,17 @@ def _predict_block(P, blk: GroupBlock, coeffs, effects, w, gamma, alpha, es, lam
         # its volumes per frequency and orifice, so that acl.physics.forces.capsule_forces gives the row's forces
         eng = blk.engines[0]
         ix = blk.orif_ix
-        a_scale = alpha / blk.alpha_ref if blk.alpha_ref else 1.0
-        consts = {"thrust": eng.consts["thrust"][:, ix] * (g_o / blk.gamma0 * sub)[None],
-                  "w2p2": eng.consts["w2p2"], "other": eng.consts["other"][np.ix_(ix, ix)],
-                  "bjerknes": eng.consts["bjerknes"][np.ix_(ix, ix)] * a_scale * np.sqrt(np.outer(sub, sub)),
-                  "drag_mask": blk.orif_cap[:, None] != np.arange(C)[None, :],
-                  "gap_exponent": float(n_gap), "gap_ref": GAP_REF}
+        a_scale = alpha / blk.alpha_ref if blk.alpha_ref else np.ones(K)
+        c_thrust = eng.consts["thrust"][:, ix][None] * (g_o / blk.gamma0 * sub)[:, None, :]           # (K, F, n)
+        c_bjerknes = eng.consts["bjerknes"][np.ix_(ix, ix)][None] * a_scale[:, None, None] * root_sub   # (K, n, n)
+        consts = {"w2p2": eng.consts["w2p2"], "other": eng.consts["other"][np.ix_(ix, ix)],
+                  "drag_mask": blk.orif_cap[:, None] != np.arange(C)[None, :], "gap_ref": GAP_REF}
+
+        def consts_of(rows_):
+            """The force constants of the rows ``rows_`` (one item: its own, broadcast over the rows)."""
+            gap = float(n_gap[0]) if K == 1 else n_gap[kid[rows_]][:, None, None]
+            return {**consts, "thrust": item(c_thrust, rows_), "bjerknes": item(c_bjerknes, rows_),
+                    "gap_exponent": gap}
         wt_all = np.broadcast_to(wt, w.shape + (n,))
         Wf = np.zeros((r, eng.f.size, n))
         for k_t in range(blk.fidx.shape[1]):
@@ -436,7 +278,7 @@ def _predict_block(P, blk: GroupBlock, coeffs, effects, w, gamma, alpha, es, lam
         EOFF = blk.eoff if blk.eoff is not None else np.asarray(eng.lay.offsets, float)[None]   # (M, n_all, 3)
         if "u_rest" not in blk.__dict__:      # the coupled volumes with every capsule at rest (per pascal, (M, F, n))
             blk.__dict__["u_rest"] = eng.response(ALL_REST[:, eng.lay.body] + EOFF)[:, :, ix]
-        u_rest = blk.__dict__["u_rest"]
+        u_rest = base.__dict__["u_rest"] = blk.__dict__["u_rest"]
         # rows of one tone need the coupled response at their frequency only: one response per frequency, each over
         # its rows (the same equations at fewer frequencies, acl.physics.coupling.prepared_response)
         single = moves and eng.f.size > 1 and bool(np.all(blk.fidx[:, 1:] < 0)) and bool(np.all(blk.fidx[:, 0] >= 0))
@@ -448,6 +290,7 @@ def _predict_block(P, blk: GroupBlock, coeffs, effects, w, gamma, alpha, es, lam
                                                        PC.SUBSTRATE_REFLECTION,
                                                        h0=None if eng.h0 is None else eng.h0[k:k + 1])
                                      for k in range(eng.f.size)]
+            base.__dict__["per_f"] = blk.__dict__["per_f"]
 
         def response(pos, rows_):
             if not single:
@@ -492,12 +335,13 @@ def _predict_block(P, blk: GroupBlock, coeffs, effects, w, gamma, alpha, es, lam
             else:
                 u = u_rest[mr]
             F = capsule_forces(centres, blk.orif_cap, OFFS[0], blk.normals, onehot, blk.outer,
-                               u * Wf[rows_], consts, points=p)[0]
+                               u * Wf[rows_], consts_of(rows_), points=p)[0]
         else:                                                                      # no tone: no acoustic force
             F = np.zeros((z.shape[0], C, 3))
         Fn = scale[:, None, None] * np.einsum("rck,cn->rnk", F, to_node)
-        if c_p > 0:
-            dragged_n = drag_load(Fn, np.linalg.norm(x, axis=-1)[..., None], c_p)
+        if c_p.any():
+            cp = item(c_p, rows_)
+            dragged_n = drag_load(Fn, np.linalg.norm(x, axis=-1)[..., None], cp if K == 1 else cp[:, None, None])
             Fn = dragged_n if blk.neighboured is None else np.where(blk.neighboured[None, :, None], dragged_n, Fn)
         for i, ties in tied:             # springs to fixed points pull back along their axes (elastic, not scaled)
             for ks, ax in ties:
@@ -511,10 +355,10 @@ def _predict_block(P, blk: GroupBlock, coeffs, effects, w, gamma, alpha, es, lam
             Pi = np.einsum("rk,kc->rc", Fn[:, i], blk.basis[i, :, :blk.k[i]])
             o = offs[i]
             if blk.law[i] == 3:                   # latch: along its axis from state a (a pull stretches its beams)
-                out[:, o] = latch_travel_exact(Pi[:, 0], blk.latch_geo[i], blk.latch[i], es)
+                out[:, o] = latch_travel_exact(Pi[:, 0], blk.latch_geo[i], blk.latch[i], item(es, rows_))
                 continue
             mag = np.linalg.norm(Pi, axis=1)
-            dl = law(i, mag)
+            dl = law(i, mag, rows_)
             out[:, o:o + blk.k[i]] = np.divide(Pi * dl[:, None], mag[:, None], out=np.zeros_like(Pi),
                                                where=mag[:, None] > 0)
         return out, d
@@ -694,7 +538,8 @@ def _predict_block(P, blk: GroupBlock, coeffs, effects, w, gamma, alpha, es, lam
         # rows that snapped last time with their fold at least one continuation step (1/N_STEPS of the load) below full
         # load, whose loads at rest and laws have changed since by far less than that step: still past their fold
         sig = np.column_stack([thrust.sum(axis=1), np.abs(A).sum(axis=(1, 2)),
-                               np.broadcast_to([np.log(es), lam, grad or 0.0, n_gap, c_p * scale_len], (r, 5))])
+                               np.column_stack([np.log(es), lam, [g or 0.0 for g in grad_k], n_gap,
+                                                c_p * scale_len])[kid]])
         kept = _still_snapped(blk, was, sig)
         if kept.any():
             snapped[kept] = True
@@ -778,5 +623,7 @@ def _predict_block(P, blk: GroupBlock, coeffs, effects, w, gamma, alpha, es, lam
         if blk.law[i] == 3:
             sel = (blk.kind == 3) & (node == i)
             push = np.einsum("rk,k->r", Fn[sel, i], blk.basis[i, :, 0])
-            ratio[sel] = np.maximum(push, 0.0) / (blk.latch[i][2] * es)
-    return np.where(blk.kind == 0, gap - rest_gap, moved), snapped, ratio
+            ratio[sel] = np.maximum(push, 0.0) / (blk.latch[i][2] * item(es, np.flatnonzero(sel)))
+    change = np.where(blk.kind == 0, gap - rest_gap, moved)
+    return [(change[k_ * r0:(k_ + 1) * r0], snapped[k_ * r0:(k_ + 1) * r0], ratio[k_ * r0:(k_ + 1) * r0])
+            for k_ in range(K)]
