@@ -38,6 +38,7 @@ N_STEPS = 8
 N_NEWTON = 12
 N_CHORD = 6           # chord steps at most (each must halve the residual) before Newton takes over
 STALL = 3          # Newton iterations without halving a row's residual after which it has no equilibrium near its start
+GROW = 2.0         # a Newton iterate whose residual is this many times the row's smallest so far: no equilibrium near
 
 SNAP_KEEP = 0.04      # relative change of a snapped row's loads at rest (and of its laws) that keeps it snapped
 
@@ -463,9 +464,10 @@ def _predict_block(P, blk: GroupBlock, items) -> list:
             near = np.where(across[None], dd / DEN[live[act]], np.inf)
             res = np.abs(Fz).max(axis=1)
             stalled[act] = np.where(res <= 0.5 * best[act], 0, stalled[act] + 1)
+            grew = res > GROW * best[act]     # a Newton step that multiplied the residual: no equilibrium near
             best[act] = np.minimum(best[act], res)
             stop = (res <= 1e-3 * TOL[live[act]]) | ~np.isfinite(Fz).all(axis=1) \
-                | (near.reshape(act.size, -1).min(axis=1) <= 0.02) | (stalled[act] >= STALL)
+                | (near.reshape(act.size, -1).min(axis=1) <= 0.02) | (stalled[act] >= STALL) | grew
             act, Fz, J = act[~stop], Fz[~stop], J[~stop]
             if act.size == 0:
                 break
@@ -520,6 +522,16 @@ def _predict_block(P, blk: GroupBlock, items) -> list:
                 pinned.extend(range(o, o + k))
         return solve_pinned(zc, rows, np.array(pinned, int))
 
+    def fold_rows(bad, step, closing, snapped, last_good, z):
+        """No stable equilibrium at load ``step`` next to the last one (z): the branch folded (snap-in); the orifices
+        closest to touching at that last stable configuration close."""
+        d_bad = geometry(z[bad], bad)[3]       # distances only (no loads): as solve(..., iters=0) gives them
+        rel = np.where(across[None], d_bad / DEN[bad], np.inf)
+        flat = rel.reshape(bad.size, -1).argmin(axis=1)
+        closing[bad] = np.column_stack(np.unravel_index(flat, (n, n)))
+        snapped[bad] = True
+        last_good[bad] = step - 1
+
     snapped = np.zeros(r, bool)
     closing = np.zeros((r, 2), int)
     everyone = np.arange(r)
@@ -554,6 +566,7 @@ def _predict_block(P, blk: GroupBlock, items) -> list:
             jnew[tried[good[tried]]] = last["J"][good[tried]]
         todo = everyone[~good & ~kept]
         first = np.ones(r, int)                       # first continuation step of each row
+        fold_at = np.zeros(r, int)                    # rows whose restart failed: the step it failed at
         if todo.size:
             z[todo] = 0.0
             if blk.fold is not None and blk.fold[0].shape == (r,):
@@ -567,10 +580,20 @@ def _predict_block(P, blk: GroupBlock, items) -> list:
                 again = todo[(k_prev[todo] > 0) | held[todo]]
                 if again.size:
                     k0 = np.where(held[again], N_STEPS - 1, k_prev[again])
-                    zl, ok, _ = solve(np.where(held[again][:, None], start[again], z_prev[again]), k0 / N_STEPS, again)
+                    z0 = np.where(held[again][:, None], start[again], z_prev[again])
+                    zl, ok, _ = solve(z0, k0 / N_STEPS, again)
                     z[again[ok]] = zl[ok]
                     first[again[ok]] = k0[ok] + 1
+                    # no stable equilibrium at step k0 next to the last one found there: the fold is below k0, as
+                    # a continuation from rest would find it (each of its steps starts as far from its solution)
+                    lost = again[~ok]
+                    z[lost] = z0[~ok]
+                    fold_at[lost] = k0[~ok]
         last_good = np.where(kept, blk.fold[0] if kept.any() else 0, 0)
+        lost = np.flatnonzero(fold_at)
+        if lost.size:
+            fold_rows(lost, fold_at[lost], closing, snapped, last_good, z)
+            todo = np.setdiff1d(todo, lost)
         for step in range(1, N_STEPS + 1):
             rows_ = todo[first[todo] <= step]
             if todo.size == 0:
@@ -584,19 +607,12 @@ def _predict_block(P, blk: GroupBlock, items) -> list:
             last_good[rows_[ok]] = step
             bad = rows_[~ok]
             if bad.size:
-                # no stable equilibrium next to the last one: the branch folded (snap-in); the orifices closest to
-                # touching at the last stable configuration close
-                d_bad = geometry(z[bad], bad)[3]       # distances only (no loads): as solve(..., iters=0) gives them
-                rel = np.where(across[None], d_bad / DEN[bad], np.inf)
-                flat = rel.reshape(bad.size, -1).argmin(axis=1)
-                closing[bad] = np.column_stack(np.unravel_index(flat, (n, n)))
-                snapped[bad] = True
-                last_good[bad] = step - 1
+                fold_rows(bad, np.full(bad.size, step), closing, snapped, last_good, z)
             todo = np.setdiff1d(todo, bad)
         blk.fold = (np.where(snapped, last_good, 0), np.where(kept[:, None], blk.fold[1], z) if kept.any() else z.copy())
         prev = blk.__dict__.get("verified")
         blk.__dict__["verified"] = np.where(kept[:, None], prev, sig) if kept.any() else sig
-        for i, j in {(int(a), int(b)) for a, b in closing[snapped]}:
+        for i, j in (np.unique(closing[snapped], axis=0) if snapped.any() else ()):
             sel = np.flatnonzero(snapped & (closing[:, 0] == i) & (closing[:, 1] == j))
             warm = start[sel] if blk.cache is not None else z[sel]
             z[sel] = _contact(z, sel, i, j, warm)

@@ -440,7 +440,14 @@ def prepared_response(system: BubbleSystem, frequency, density: float, sound_spe
             hg = diag * g
         else:
             hg = _einsum("fcpq,bfcqn->bfcpn", blk, g.reshape(nb, f.size, ncap, p, npad)).reshape(nb, f.size, npad, npad)
-        u = np.linalg.solve(eye - coef * hg, np.broadcast_to(rhs, (nb, f.size, npad, 1)))[..., 0]
+        a = eye - coef * hg
+        if npad == 2:              # two interfaces: Cramer's rule (a batched LAPACK call costs more than the 2x2 itself)
+            r0, r1 = rhs[..., 0, 0], rhs[..., 1, 0]
+            det = a[..., 0, 0] * a[..., 1, 1] - a[..., 0, 1] * a[..., 1, 0]
+            u = np.stack([(a[..., 1, 1] * r0 - a[..., 0, 1] * r1) / det,
+                          (a[..., 0, 0] * r1 - a[..., 1, 0] * r0) / det], axis=-1)
+        else:
+            u = np.linalg.solve(a, np.broadcast_to(rhs, (nb, f.size, npad, 1)))[..., 0]
         return u[..., system.slot]
 
     return response
