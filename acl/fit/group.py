@@ -282,7 +282,8 @@ def _predict_block(P, blk: GroupBlock, items) -> list:
         u_rest = base.__dict__["u_rest"] = blk.__dict__["u_rest"]
         # rows of one tone need the coupled response at their frequency only: one response per frequency, each over
         # its rows (the same equations at fewer frequencies, acl.physics.coupling.prepared_response)
-        single = moves and eng.f.size > 1 and bool(np.all(blk.fidx[:, 1:] < 0)) and bool(np.all(blk.fidx[:, 0] >= 0))
+        # its rows; a row with no tone (0 V) feels no force whatever its volumes per pascal: none computed
+        single = moves and eng.f.size > 1 and bool(np.all(blk.fidx[:, 1:] < 0))
         if single and "per_f" not in blk.__dict__:
             from acl.physics import constants as PC
             from acl.physics.coupling import prepared_response
@@ -298,7 +299,7 @@ def _predict_block(P, blk: GroupBlock, items) -> list:
                 return eng.response(pos)
             fk = blk.fidx[rows_, 0]
             u = np.zeros((pos.shape[0], eng.f.size, pos.shape[1]), complex)
-            for k in np.unique(fk):
+            for k in np.unique(fk[fk >= 0]):
                 sel = fk == k
                 u[sel, k] = blk.__dict__["per_f"][k](pos[sel])[:, 0]
             return u
