@@ -69,7 +69,7 @@ def run(case, label, design, experiment, effects, noise, free, coeffs=None, jobs
 
 def per_prediction(pair) -> float:
     """Case 5: CPU per prediction of the 1,386-row pair data set, paper Eq. (3) against the coupled model."""
-    from acl.fit.forward import predict
+    from acl.fit.forward import predict, predict_many
     from acl.fit.problem import load_problem
     from acl.fit.synth import generate, write_csv
 
@@ -89,6 +89,27 @@ def per_prediction(pair) -> float:
             for k in range(20):
                 predict(P, {"alpha": 1.745e-19 * (1 + step * (k + 1))}, eff)
             res[(model, label)] = (time.process_time() - c0) / 20
+        # a Jacobian of three columns (alpha, gamma, the effect's coefficient) after each of 10 optimizer steps: one
+        # prediction after the other, and at once (predict_many: a group's columns in one batched solve)
+        for how in ("one after the other", "at once"):
+            spent = 0.0
+            for k in range(10):
+                a = 1.745e-19 * (1 + 0.01 * (k + 1))
+                predict(P, {"alpha": a}, eff)
+                sat = {"drive_saturation": {"inv_vsat2": eff["drive_saturation"]["inv_vsat2"] * (1 + 1e-6)}}
+                cols = [({"alpha": a * (1 + 1e-6)}, eff), ({"alpha": a, "gamma": P.gamma0 * (1 + 1e-6)}, eff),
+                        ({"alpha": a}, sat)]
+                c0 = time.process_time()
+                if how == "at once":
+                    predict_many(P, cols)
+                else:
+                    for c, e in cols:
+                        predict(P, c, e)
+                spent += time.process_time() - c0
+            res[(model, how)] = spent / 10
+    for how in ("one after the other", "at once"):
+        print(f"three Jacobian columns {how}: eq3 {res[('eq3', how)] * 1e3:.2f} ms, "
+              f"coupled {res[('coupled', how)] * 1e3:.1f} ms CPU")
     for label, _ in labels:
         e, c = res[("eq3", label)], res[("coupled", label)]
         print(f"per prediction, {label}: eq3 {e * 1e3:.2f} ms, coupled {c * 1e3:.1f} ms CPU: {c / e:.0f}x")

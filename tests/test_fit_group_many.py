@@ -1,5 +1,5 @@
-"""Several predictions of a group's rows in one batched solve (acl.fit.forward.predict_many, acl.fit.group.predict_many):
-a Jacobian's columns, a grid's points, the fold probes.
+"""Several predictions of a group's rows in one batched solve (acl.fit.forward.predict_many and
+acl.fit.group.predict_many): a Jacobian's columns, a grid's points, the fold probes.
 
 Each stacked prediction must give the numbers that the same prediction made alone gives, to the solver's tolerance
 (its rows converge to 1e-9 of the group's smallest rest distance: far below 1e-9 m), the same rows snapped (contact,
@@ -35,7 +35,8 @@ def pair(tmp_path_factory):
     from acl.fit.synth import Experiment
 
     # 25 um gap: rows past snap-in at the top voltages; 45 um: rows on the branch
-    ex = Experiment(frequencies=(120e3, 125e3), voltages=(0.0, 1.0, 2.0, 2.5, 3.0, 3.5), sets={"gap": ["25 um", "45 um"]})
+    ex = Experiment(frequencies=(120e3, 125e3), voltages=(0.0, 1.0, 2.0, 2.5, 3.0, 3.5),
+                    sets={"gap": ["25 um", "45 um"]})
     return _prepared(PAIR, ex, str(tmp_path_factory.mktemp("many")), "pair")[1]
 
 

@@ -441,7 +441,7 @@ def prepared_response(system: BubbleSystem, frequency, density: float, sound_spe
         else:
             hg = _einsum("fcpq,bfcqn->bfcpn", blk, g.reshape(nb, f.size, ncap, p, npad)).reshape(nb, f.size, npad, npad)
         a = eye - coef * hg
-        if npad == 2:              # two interfaces: Cramer's rule (a batched LAPACK call costs more than the 2x2 itself)
+        if npad == 2:              # two interfaces: Cramer's rule (a batched LAPACK call costs more)
             r0, r1 = rhs[..., 0, 0], rhs[..., 1, 0]
             det = a[..., 0, 0] * a[..., 1, 1] - a[..., 0, 1] * a[..., 1, 0]
             u = np.stack([(a[..., 1, 1] * r0 - a[..., 0, 1] * r1) / det,
