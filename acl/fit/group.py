@@ -38,7 +38,6 @@ N_STEPS = 8
 N_NEWTON = 12
 N_CHORD = 6           # chord steps at most (each must halve the residual) before Newton takes over
 STALL = 3          # Newton iterations without halving a row's residual after which it has no equilibrium near its start
-GROW = 2.0         # a Newton iterate whose residual is this many times the row's smallest so far: no equilibrium near
 
 SNAP_KEEP = 0.04      # relative change of a snapped row's loads at rest (and of its laws) that keeps it snapped
 
@@ -49,13 +48,20 @@ def _still_snapped(blk: GroupBlock, was, sig) -> np.ndarray:
     most SNAP_KEEP relative since they were last followed, the stiffness, elastica weight, gradient, gap exponent and
     neighbour drag by at most SNAP_KEEP: the fold cannot have moved past full load (it would take a change of
     1/N_STEPS = 12.5 %), so the row is still in contact without being followed again."""
-    prev = blk.__dict__.get("verified")
-    if prev is None or prev.shape != sig.shape or blk.fold is None or blk.fold[0].shape != was.shape:
+    if blk.fold is None or blk.fold[0].shape != was.shape:
         return np.zeros(was.shape, bool)
+    return was & _unchanged(blk, sig) & (blk.fold[0] <= N_STEPS - 2)
+
+
+def _unchanged(blk: GroupBlock, sig) -> np.ndarray:
+    """(r,) bool: rows whose loads at rest and laws (``sig``) changed by at most SNAP_KEEP since they were last
+    followed (:func:`_still_snapped`)."""
+    prev = blk.__dict__.get("verified")
+    if prev is None or prev.shape != sig.shape:
+        return np.zeros(sig.shape[0], bool)
     with np.errstate(divide="ignore", invalid="ignore"):
         rel = np.abs(sig[:, :2] / prev[:, :2] - 1.0)
-    near = (rel <= SNAP_KEEP).all(axis=1) & (np.abs(sig[:, 2:] - prev[:, 2:]) <= SNAP_KEEP).all(axis=1)
-    return was & near & (blk.fold[0] <= N_STEPS - 2)
+    return (rel <= SNAP_KEEP).all(axis=1) & (np.abs(sig[:, 2:] - prev[:, 2:]) <= SNAP_KEEP).all(axis=1)
 
 
 def _mode_factors(P, blk, coeffs, effects, t):
@@ -465,10 +471,9 @@ def _predict_block(P, blk: GroupBlock, items) -> list:
             near = np.where(across[None], dd / DEN[live[act]], np.inf)
             res = np.abs(Fz).max(axis=1)
             stalled[act] = np.where(res <= 0.5 * best[act], 0, stalled[act] + 1)
-            grew = res > GROW * best[act]     # a Newton step that multiplied the residual: no equilibrium near
             best[act] = np.minimum(best[act], res)
             stop = (res <= 1e-3 * TOL[live[act]]) | ~np.isfinite(Fz).all(axis=1) \
-                | (near.reshape(act.size, -1).min(axis=1) <= 0.02) | (stalled[act] >= STALL) | grew
+                | (near.reshape(act.size, -1).min(axis=1) <= 0.02) | (stalled[act] >= STALL)
             act, Fz, J = act[~stop], Fz[~stop], J[~stop]
             if act.size == 0:
                 break
@@ -585,11 +590,12 @@ def _predict_block(P, blk: GroupBlock, items) -> list:
                     zl, ok, _ = solve(z0, k0 / N_STEPS, again)
                     z[again[ok]] = zl[ok]
                     first[again[ok]] = k0[ok] + 1
-                    # no stable equilibrium at step k0 next to the last one found there: the fold is below k0, as
-                    # a continuation from rest would find it (each of its steps starts as far from its solution)
-                    lost = again[~ok]
-                    z[lost] = z0[~ok]
-                    fold_at[lost] = k0[~ok]
+                    # no stable equilibrium at step k0 next to the last one found there, the loads at rest and the
+                    # laws within SNAP_KEEP of those it was found at (a start closer than a continuation step's, of
+                    # 1/N_STEPS): the fold is below k0, as a continuation from rest would find it; else from rest
+                    lost = ~ok & _unchanged(blk, sig)[again]
+                    z[again[lost]] = z0[lost]
+                    fold_at[again[lost]] = k0[lost]
         last_good = np.where(kept, blk.fold[0] if kept.any() else 0, 0)
         lost = np.flatnonzero(fold_at)
         if lost.size:
