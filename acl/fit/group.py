@@ -167,9 +167,7 @@ def _tiled(blk: GroupBlock, K: int) -> GroupBlock:
     def rep(a):
         return None if a is None else np.concatenate([a] * K)
 
-    fields = {k: rep(getattr(blk, k)) for k in _ROW_STATE}
-    if blk.member is None:
-        fields["member"] = None
+    fields = {k: rep(getattr(blk, k)) for k in _ROW_STATE}      # (member None: one override set, as before)
     fold = None if blk.fold is None else (rep(blk.fold[0]), rep(blk.fold[1]))
     out = dataclasses.replace(blk, fold=fold, **fields)
     for k in ("jcache", "verified"):
