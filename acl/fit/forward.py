@@ -23,6 +23,7 @@ import numpy as np
 from acl.fit import beam as B
 from acl.fit.latch import latch_table, latch_travel, switch_probability
 from acl.fit.eq3 import FD_COLUMNS, _Flag, _make_laws, _pair_solve, _pair_solve_many, _spec, _with_drag
+from acl.fit.group import Request as GroupRequest
 
 
 @dataclass(frozen=True)
@@ -426,14 +427,7 @@ def _answer_many(P: Prepared, reqs: dict) -> dict:
     for t, ab in zip(pair, _pair_solve_many(P, [reqs[t] for t in pair])):
         out[t] = ab
     grp = [t for t, q in reqs.items() if isinstance(q, GroupRequest)]
-    if grp:
-        from acl.fit import group as G
-
-        for t in grp:
-            out[t] = []
-        for b, blk in enumerate(P.groups):
-            for t, ans in zip(grp, G.predict_many(P, blk, [reqs[t].args[b] for t in grp])):
-                out[t].append(ans)
+    out.update(zip(grp, GroupRequest.answer_many([reqs[t] for t in grp])))
     return out
 
 
@@ -585,19 +579,6 @@ def _resonance_factors(P: Prepared, coeffs: dict, effects: dict):
             fc = P.volume_shift(c, fc, -rate * P.t)
         out[c] = mode_response_ratio(P.f, P.fn[c][:, None], P.q[c][:, None], fc[:, None], q[c][:, None]) / norm
     return np.where(np.isfinite(out), out, 0.0)
-
-
-class GroupRequest:
-    """What a prediction asks of its groups (acl.fit.group): the arguments of acl.fit.group.predict of each block of
-    P.groups; answered by [(change, snapped, ratio) of each block]."""
-
-    def __init__(self, P: Prepared, args: list):
-        self.P, self.args = P, args
-
-    def answer(self) -> list:
-        from acl.fit import group as G
-
-        return [G.predict(self.P, blk, *a) for blk, a in zip(self.P.groups, self.args)]
 
 
 def _predict(P: Prepared, coeffs: dict, effects: dict, latch_blend: float = 0.0) -> np.ndarray:

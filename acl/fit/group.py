@@ -127,6 +127,30 @@ def _distinct_rows(P, blk: GroupBlock, timed: bool = True):
     return blk.__dict__[tag]
 
 
+class Request:
+    """What a prediction (acl.fit.forward._predict_steps) asks of its groups: the arguments of :func:`predict` of each
+    block of P.groups; answered by [(change, snapped, ratio) of each block]."""
+
+    def __init__(self, P, args: list):
+        self.P, self.args = P, args
+
+    def answer(self) -> list:
+        return [predict(self.P, blk, *a) for blk, a in zip(self.P.groups, self.args)]
+
+    @staticmethod
+    def answer_many(requests: list) -> list:
+        """[r.answer() for r in requests] (requests of one data set), each block's rows of every request in one
+        :func:`predict_many`."""
+        if not requests:
+            return []
+        P = requests[0].P
+        out: list = [[] for _ in requests]
+        for b, blk in enumerate(P.groups):
+            for t, ans in enumerate(predict_many(P, blk, [q.args[b] for q in requests])):
+                out[t].append(ans)
+        return out
+
+
 def predict(P, blk: GroupBlock, coeffs, effects, w, gamma, alpha, es, lam, grad, c_p) -> tuple:
     """(predicted observable change (m, relative to the row's ``base``), snapped (r,) bool, latch push / switching
     force (r,)) of the block's rows; ``w`` (r, T) the squared drive pressure per V^2 of each tone (gain, its effects),
