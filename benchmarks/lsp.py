@@ -1,12 +1,14 @@
 """Benchmark of `acl lsp` through the protocol, on generated designs of 1,000 and 5,000 lines.
 
-    python benchmarks/lsp.py [--lines 1000 5000] [--runs 10] [--lint]
+    python benchmarks/lsp.py [--lines 1000 5000] [--runs 10] [--lint] [--changes-only]
 
 Spawns `python -m acl lsp` and speaks the protocol (tests/lsp_client.py), opens a generated design
 (benchmarks/check.py's generator), warms up, then measures:
 
 1. didChange -> publishDiagnostics: one line changed per run, from sending didChange to receiving
    the diagnostics of that version (checked on the server's checking thread). Target: median <= 150 ms.
+   Beside it, the server's CPU time per change (mean over the runs, all its work between them: what
+   the machine's load does not inflate; from /proc on Linux).
 2. Every other request, each at a typical position, answered in (median of --runs). Target: <= 200 ms.
    A reply saying the server is still working (E-LSP-BUSY: acl fmt on a new 5,000-line text) counts
    as an answer; the time until the real answer is printed beside it.
@@ -38,6 +40,14 @@ codeLens 18 ms, its resolve (a capsule's modes) 10 ms; formatting a new text E-L
 end within the 60 s the benchmark waits). A third run at load 4.4 (commit after a489564, 3 runs):
 the session's first full capsule hover (cold worker) 6.0 s; on a later new text, first reply
 13 ms, full answer 9.5 s; didChange -> diagnostics 158 ms in the middle, 127 ms appending.
+Issue 27's third session (branch lsp5), 5,000 lines, the code before (abf535b) and after it run
+alternately with --changes-only at load 10-13 (2 rounds): the server's CPU per change 108-111 ->
+83-84 ms in the middle, 116-117 -> 89-93 ms appending (wall medians 302-765 -> 335-632 ms and
+613-825 -> 600-657 ms: the load's). The whole benchmark after it at load 5.4 (5 runs): didChange ->
+diagnostics 111 ms in the middle, 124 ms appending (CPU 70, 72 ms); documentSymbol 116 ms, semantic
+tokens 135 ms, formatting a new text E-LSP-BUSY after 132 ms, every other request <= 21 ms; capsule
+hover on a new text: first reply 14 ms, the full answer 5.4 s, another capsule 54 ms; the session's
+first full capsule hover 17.9 s (cold worker); during acl.analyze a hover 1-2 ms.
 """
 from __future__ import annotations
 
@@ -82,6 +92,18 @@ def _until_answered(fn, timeout: float = 120.0) -> tuple[float, float, int]:
         return (first if first is not None else done), done, busy
 
 
+def _server_cpu_ms(client) -> float | None:
+    """CPU time (user + system, all threads) the server process has used, in ms (Linux /proc)."""
+    import os
+
+    try:
+        with open(f"/proc/{client.proc.pid}/stat", encoding="ascii") as f:
+            fields = f.read().rsplit(")", 1)[1].split()
+        return (int(fields[11]) + int(fields[12])) * 1e3 / os.sysconf("SC_CLK_TCK")
+    except (OSError, ValueError, IndexError, AttributeError):
+        return None
+
+
 def _ms(fn, runs: int) -> list[float]:
     out = []
     for _ in range(runs):
@@ -91,7 +113,7 @@ def _ms(fn, runs: int) -> list[float]:
     return out
 
 
-def bench(n_lines: int, runs: int, warmup: int, lint: bool) -> dict:
+def bench(n_lines: int, runs: int, warmup: int, lint: bool, changes_only: bool = False) -> dict:
     text = generate(n_lines)
     lines = text.split("\n")
     results: dict[str, list[float]] = {}
@@ -106,11 +128,17 @@ def bench(n_lines: int, runs: int, warmup: int, lint: bool) -> dict:
             mid = next(i for i in range(len(lines) // 2, len(lines)) if lines[i].startswith("param x"))
             v = 1
             for case in ("didChange -> diagnostics: edit a line in the middle",
-                         "didChange -> diagnostics: append a line"):
+                         "didChange -> diagnostics: append a line",
+                         "didChange -> diagnostics: insert a line in the middle (Enter)"):
                 times = []
+                cpu0 = None
                 for i in range(warmup + runs):
+                    if i == warmup:
+                        cpu0 = _server_cpu_ms(client)
                     v += 1
-                    if "middle" in case:
+                    if "Enter" in case:      # every line after it moves down: the most common edit
+                        body = "\n".join(lines[:mid] + [""] * (i % 2 + 1) + lines[mid:])
+                    elif "middle" in case:
                         new = lines[:mid] + [lines[mid].replace("* pitch", f"* pitch + {i + 1} um")] + lines[mid + 1:]
                         body = "\n".join(new)
                     else:
@@ -123,6 +151,11 @@ def bench(n_lines: int, runs: int, warmup: int, lint: bool) -> dict:
                         times.append((pub["_t"] - t0) * 1e3)
                     time.sleep(0.1)
                 results[case] = times
+                cpu1 = _server_cpu_ms(client)
+                if cpu0 is not None and cpu1 is not None:      # what load does not inflate
+                    results[f"(server CPU per change: {case.split(': ')[1]})"] = [(cpu1 - cpu0) / runs]
+            if changes_only:
+                return {"lines": text.count("\n"), "results": results}
             v += 1
             client.change(u, v, text)
             client.wait_for("textDocument/publishDiagnostics", lambda p: p["uri"] == u and p.get("version") == v)
@@ -258,9 +291,11 @@ def main() -> int:
     ap.add_argument("--runs", type=int, default=10)
     ap.add_argument("--warmup", type=int, default=3)
     ap.add_argument("--lint", action="store_true", help="also run lint in the server's worker (competes for CPU)")
+    ap.add_argument("--changes-only", action="store_true",
+                    help="only didChange -> diagnostics (quick: to compare two checkouts in one run)")
     args = ap.parse_args()
     for n in args.lines:
-        got = bench(n, args.runs, args.warmup, args.lint)
+        got = bench(n, args.runs, args.warmup, args.lint, args.changes_only)
         load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
         print(f"acl lsp on a {got['lines']}-line design ({args.runs} runs; load average {load:.1f} on "
               f"{os.cpu_count()} CPUs{', lint worker on' if args.lint else ''}):")

@@ -66,9 +66,9 @@ class CountingLark:
 
 @pytest.fixture
 def counting(monkeypatch):
-    real = P._lark()
+    real = P.lark_parser()
     counter = CountingLark(real)
-    monkeypatch.setattr(P, "_lark", lambda: counter)
+    monkeypatch.setattr(P, "lark_parser", lambda: counter)
     return counter
 
 

@@ -210,7 +210,7 @@ def test_recovery_after_an_unclosed_brace_parses_each_line_a_bounded_number_of_t
 
     body = "".join(f"param p{i} = {i} um\nmaterial m{i} {{ youngs = 1 MPa }}\n" for i in range(2000))
     text = "beam broken {\n  length = 1 um\n" + body
-    real = P._lark()
+    real = P.lark_parser()
     fed = []
 
     class Counting:
@@ -218,7 +218,7 @@ def test_recovery_after_an_unclosed_brace_parses_each_line_a_bounded_number_of_t
             fed.append(len(chunk))
             return real.parse(chunk, start=start)
 
-    monkeypatch.setattr(P, "_lark", lambda: Counting())
+    monkeypatch.setattr(P, "lark_parser", lambda: Counting())
     with pytest.raises(DiagnosticError) as info:
         P.parse_module(text, "big.acl")
     assert [(d.code, d.span.line, d.span.column) for d in info.value.diagnostics] == [("E112", 1, 13)]

@@ -17,13 +17,12 @@ import laws as L  # noqa: E402
 # source -> (the functions allowed to implement it side by side, why).  The list only shrinks: an entry whose
 # functions no longer all implement the source fails test_no_stale_exception.
 EXCEPTIONS: dict[str, tuple[frozenset, str]] = {
-    "Kinsler et al.": (frozenset({"acl.physics.batch.coupled_modes", "acl.physics.batch.coupled_response",
-                                  "acl.physics.coupling.coupled_response", "acl.physics.resonance.radiation_resistance",
+    "Kinsler et al.": (frozenset({"acl.physics.coupling.coupled_volumes", "acl.physics.coupling.mutual_resistance",
+                                  "acl.physics.resonance.radiation_resistance",
                                   "acl.physics.effects.transducer_resonance"}),
-                       "three laws of one textbook: the mutual radiation impedance (coupled response), a monopole's "
-                       "radiation resistance (used by the capsule's and the coupled modes' Q) and the transducer's "
-                       "driven oscillator; batch.coupled_modes / batch.coupled_response are still the per-point twins "
-                       "of coupling's (per-point modes, drive and medium; issue 23, not folded yet)"),
+                       "four laws of one textbook: the mutual radiation impedance (coupled response), the mutual "
+                       "radiation resistance of interface pairs (the coupled modes' Q), a monopole's radiation "
+                       "resistance (the capsule's Q) and the transducer's driven oscillator"),
     "paper Eq. 1": (frozenset({"acl.physics.beams.eq1_profile_deflection", "acl.physics.beams.eq1_compliance",
                                "acl.physics.beams.eq1_small_force_stiffness", "acl.physics.effects.elastica_blend"}),
                     "beams.eq1_compliance / eq1_small_force_stiffness are the closed-form derivative of "

@@ -58,23 +58,7 @@ ALLOWED: dict[str, str] = {
     "acl.fit.calibrated -> acl.fmt": "the calibrated design as canonical text",
     "acl.sweep.tune -> acl.fmt": "the tuned design as canonical text",
     # --- private names across packages ---------------------------------------------------------------------
-    # sweep's evaluator re-implements lint rules and analysis steps through their private helpers: to be removed
-    # by the engine work (the lint rules and the sweep call one batched engine)
-    "acl.sweep.checks -> acl.lint.rules.acoustics:_separate_pairs": "sweep's copy of a lint rule; engine work",
-    "acl.sweep.checks -> acl.lint.rules.beams:_linked": "sweep's copy of a lint rule; engine work",
-    "acl.sweep.checks -> acl.lint.rules.beams:_path_extent": "sweep's copy of a lint rule; engine work",
-    "acl.sweep.checks -> acl.lint.rules.forces:_managed": "sweep's copy of a lint rule; engine work",
-    # the formatter and the language server use the parser's private Lark instance (tokens, keyword list)
-    "acl.fmt.tokens -> acl.syntax.parser:_lark": "the formatter lexes with the parser's Lark; make it public",
-    "acl.lsp.hover -> acl.syntax.parser:_lark": "hover's keyword list from the parser's Lark; make it public",
-    "acl.lsp.completion -> acl.design.modules:_stdlib_modules": "completion lists the stdlib; make it public",
-    # the incremental parser re-runs the parser's private steps on the edited part and reuses the module cache
-    "acl.lsp.incremental -> acl.syntax.parser:_build": "incremental parse; make the parser's steps public",
-    "acl.lsp.incremental -> acl.syntax.parser:_check_limits": "incremental parse; make the parser's steps public",
-    "acl.lsp.incremental -> acl.syntax.parser:_depth_delta": "incremental parse; make the parser's steps public",
-    "acl.lsp.incremental -> acl.syntax.parser:_lark": "incremental parse; make the parser's steps public",
-    "acl.lsp.incremental -> acl.design.modules:_PARSED": "incremental parse reuses the module cache; make public",
-    # sweep's validity checks repeat the design checks' tone list: to be removed by the engine work
+    # (none left: the fit reaches the force engine through public names, acl.analysis.rows)
 }
 
 

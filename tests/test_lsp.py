@@ -352,6 +352,55 @@ def test_incremental_parse_equals_whole_file_parse():
     assert p.parse(text + "# a NUL: \x00\n", "other.acl") is None
 
 
+
+@pytest.mark.parametrize("seed", range(3))
+def test_incremental_parse_equals_whole_file_parse_over_random_edits(seed):
+    """One parser through 60 random line edits of an example (a line changed, broken, inserted,
+    deleted, duplicated; edits near the start and end; runs of edits that do not parse): after each,
+    parse() gives exactly the whole-file tree, or None where the whole-file parse fails. This holds
+    the reuse of unchanged chunks before and after an edit (IncrementalParser._unchanged)."""
+    import random
+
+    from acl.diagnostics import DiagnosticError
+    from acl.lsp.incremental import IncrementalParser
+    from acl.syntax.parser import parse_module
+
+    rng = random.Random(seed)
+    lines = (ROOT / "examples" / "fig4h_unequal_pair.acl").read_text(encoding="utf-8").split("\n")
+    p = IncrementalParser()
+    reused = 0
+    for step in range(60):
+        i = rng.choice([0, 1, len(lines) - 2, len(lines) - 1, rng.randrange(len(lines))])
+        op = rng.choice(["value", "value", "break", "insert", "delete", "dup", "comment"])
+        before = list(lines)
+        if op == "value":
+            lines[i] = lines[i].replace(" um", f" um + {step} um", 1) if " um" in lines[i] else lines[i] + "  # x"
+        elif op == "break":                # broken for this step only (then the line is as it was)
+            broken = lines[:i] + [lines[i] + " ("] + lines[i + 1:]
+            assert p.parse("\n".join(broken), "r.acl") is None or "#" in lines[i]
+            continue
+        elif op == "insert":
+            lines.insert(i, f"param extra{step} = {step} um")
+        elif op == "delete" and len(lines) > 3:
+            del lines[i]
+        elif op == "dup":
+            lines.insert(i, lines[i])
+        else:
+            lines[i] = "# " + lines[i]
+        text = "\n".join(lines)
+        head, tail, _ = p._unchanged((text + "\n").split("\n"))
+        got = p.parse(text, "r.acl")
+        try:
+            want = parse_module(text, "r.acl")
+        except DiagnosticError:
+            assert got is None, (step, op, i)
+            lines = before                 # an edit that broke the text is undone (as a user would)
+            continue
+        assert got == want, (step, op, i)
+        reused += bool(head) + bool(tail and tail.chunks)
+    assert reused > 20         # the reuse paths were taken
+
+
 def _apply(text: str, edits: list[dict]) -> str:
     lines = text.split("\n")
     offsets = [0]

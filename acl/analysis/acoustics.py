@@ -29,7 +29,8 @@ from acl.physics import effects as PE
 from acl.physics.coupling import (BubbleSystem, CoupledModes, build_system, coupled_modes as _physics_coupled_modes,
                                   coupled_response as _physics_coupled, prepared_response, uncoupled_blocks)
 from acl.physics.forces import (bjerknes_pair_sum, capsule_forces, capsule_pair_forces, critical_distance,
-                                dominant_pair_phase, force_constants, neighbour_drag, thrust_magnitude)
+                                dominant_pair_phase, force_constants, interface_distances, jet_lines,
+                                neighbour_drag, thrust_magnitude)
 from acl.physics.forces import pressure_terms  # noqa: F401  (public here since before; acl.analysis.tones)
 from acl.physics.resonance import BubbleModes, capsule_modes as _physics_modes
 from acl.physics.ties import TIE_RTOL, first_max
@@ -530,8 +531,8 @@ class _Engine:
         store = _per_design_store(_ENGINE_REST, self.design)
         key = tuple(self.f.tolist())
         r = store.get(key)
-        if r is None:
-            r = store[key] = self.response(self.lay.rest[None][:, self.lay.body, :] + self.lay.offsets)
+        if r is None:       # the same system at rest as rest_response's: its per-frequency cache (lint prefetches)
+            r = store[key] = rest_response(self.design, self.f)[None]
         return r
 
     def _drive_key(self) -> tuple:
@@ -540,7 +541,7 @@ class _Engine:
     def rest_forces(self):
         """:meth:`forces` of the capsules at rest, with parts (total, u, thr, att), each (1, ...); computed once."""
         if not self._rest:
-            self._rest.append(self.forces(self.lay.rest[None], parts=True, response=self._rest_response()))
+            self._rest.append(self.forces(self.lay.rest[None], parts=True, response=self._rest_response(), rest=True))
             # the thrust per interface (n floats) outlives the engine: :meth:`rest_pairs` of a later engine of the
             # same drive needs it (the last engine only is kept, and lint asks its drives in turn)
             _per_design_store(_REST_THRUST, self.design)[self._drive_key()] = self._rest[0][2]
@@ -555,21 +556,23 @@ class _Engine:
             _, u, thr, att = self.rest_forces()
             return u, thr, att
         k = self.consts
-        pts = self.lay.rest[None][:, self.lay.body, :] + self.lay.offsets
+        pts, dist, _ = _rest_interfaces(self.design)
         _, att = bjerknes_pair_sum(pts, r, k["w2p2"], k["bjerknes"], k["other"], k.get("gap_exponent", 0.0),
-                                   k.get("gap_ref", 1.0))
+                                   k.get("gap_ref", 1.0), dist)
         return r * self.pressure[None, :, None], thr, att
 
-    def forces(self, centres: np.ndarray, parts: bool = False, consts: dict | None = None, response=None):
+    def forces(self, centres: np.ndarray, parts: bool = False, consts: dict | None = None, response=None,
+               rest: bool = False):
         """Total acoustic force (B, C, 3) on each capsule for centres (B, C, 3): thrust + Bjerknes + jet drag.
 
         ``consts``: per-configuration drive constants (:func:`drive_constants`: each row of the batch under its
         own tone amplitudes, gain table and thrust scale); default the engine's own drive for every row.
-        ``response``: the coupled volume response (B, T, n) per pascal at these centres, when already known.
+        ``response``: the coupled volume response (B, T, n) per pascal at these centres, when already known;
+        ``rest``: the centres are the design's rest positions (B = 1; their distances are kept per design).
         """
         k = self.consts if consts is None else {**self.consts, **consts}
         lay = self.lay
-        pts = centres[:, lay.body, :] + lay.offsets                        # (B, n, 3) orifice centres
+        pts, dist, lines = _rest_interfaces(self.design) if rest else (centres[:, lay.body, :] + lay.offsets, None, None)
         if response is not None:
             r = response
         elif self.f.size == 0 or lay.radii.size == 0:
@@ -577,10 +580,23 @@ class _Engine:
         else:
             r = self.response(pts)                                         # (B, T, n) per pascal
         total, _, thr, att = capsule_forces(centres, lay.body, lay.offsets, lay.normals, lay.onehot, self.outer, r, k,
-                                            points=pts)
+                                            points=pts, distance=dist, lines=lines)
         if parts:
             return total, r * self.pressure[None, :, None], thr, att
         return total
+
+
+@_per_design
+def _rest_interfaces(design: Design) -> tuple:
+    """Interface centres at rest (1, n, 3), their :func:`acl.physics.forces.interface_distances` and
+    :func:`acl.physics.forces.jet_lines` to the capsule centres, once per design (read-only)."""
+    lay = _layout(design)
+    pts = lay.rest[None][:, lay.body, :] + lay.offsets
+    dist = interface_distances(pts, lay.body[:, None] != lay.body[None, :])
+    lines = jet_lines(pts, lay.normals, lay.rest[None], lay.body[:, None] != np.arange(len(lay.caps))[None, :])
+    for a in (pts, dist, *lines):
+        a.setflags(write=False)
+    return pts, dist, lines
 
 
 def _engine_constants(design: Design, lay: _Layout, f: np.ndarray, pressure: np.ndarray, scale: np.ndarray,
@@ -670,6 +686,34 @@ class PairTable:
                          critical_distance=None if math.isnan(dc) else dc, notes=self.notes)
 
 
+def _pair_lines(centres: np.ndarray) -> tuple:
+    """(a, b, distance, unit vector a -> b) of every capsule pair a < b (the nested loops' order: a, then b > a)."""
+    pa, pb = np.triu_indices(centres.shape[0], 1)
+    line = centres[pb] - centres[pa]
+    dist = np.linalg.norm(line, axis=-1)
+    unit = np.divide(line, dist[:, None], out=np.zeros_like(line), where=dist[:, None] > 0)
+    return pa, pb, dist, unit
+
+
+@_per_design
+def _rest_pair_lines(design: Design) -> tuple:
+    """:func:`_pair_lines` at rest, once per design (read-only)."""
+    out = _pair_lines(_centres_array(design, None))
+    for a in out:
+        a.setflags(write=False)
+    return out
+
+
+def pair_attraction(design: Design, drive: Drive) -> np.ndarray:
+    """:func:`pair_table`'s ``attraction`` column (P,) at rest alone (the same numbers; no phases, no critical distances)."""
+    eng = _engine(design, drive)
+    lay = eng.lay
+    _, _, att = eng.rest_pairs()
+    _, _, _, unit = _rest_pair_lines(design)
+    fa = capsule_pair_forces(lay.points(_centres_array(design, None)), att[0], lay.body, len(lay.caps))
+    return np.einsum("pk,pk->p", fa, unit)
+
+
 def pair_table(design: Design, drive: Drive,
                positions: Mapping[str, Sequence[float]] | None = None) -> PairTable:
     """Secondary Bjerknes force of every capsule pair (coupled volumes; sum over tones and orifice
@@ -682,11 +726,8 @@ def pair_table(design: Design, drive: Drive,
     pts = lay.points(centres)
     thrust_vec = np.einsum("n,nk,nc->ck", thr, -lay.normals, lay.onehot)
     ncap = len(lay.caps)
-    pa, pb = np.triu_indices(ncap, 1)                 # the nested loops' order: a, then b > a
+    pa, pb, dist, unit = _rest_pair_lines(design) if not positions else _pair_lines(centres)
     fa = capsule_pair_forces(pts, att, lay.body, ncap)
-    line = centres[pb] - centres[pa]
-    dist = np.linalg.norm(line, axis=-1)
-    unit = np.divide(line, dist[:, None], out=np.zeros_like(line), where=dist[:, None] > 0)
     attraction = np.einsum("pk,pk->p", fa, unit)
     dphi, gap = dominant_pair_phase(u, pts, lay.body, ncap, dist)
     # reduced law (paper Eq. 3): alpha = attraction d^2, 2 gamma = thrusts pushing apart

@@ -152,6 +152,16 @@ class DesignAnalysis:
             hit = self._keep_pairs(key, pair_table(self.design, drive))
         return hit
 
+    def pair_attraction(self, drive: Drive) -> np.ndarray:
+        """The ``attraction`` column of :meth:`pair_table` (:func:`acl.analysis.acoustics.pair_attraction`: the same
+        numbers, without the rest of the table)."""
+        hit = self._pairs.get(_drive_key(drive))
+        if hit is not None:
+            return hit.attraction
+        from acl.analysis.acoustics import pair_attraction
+
+        return pair_attraction(self.design, drive)
+
     def _keep_pairs(self, key, tab):
         """Keep the pair tables of the last :data:`PAIR_TABLES` drives (a table of a design of hundreds of
         capsules holds every pair: megabytes each)."""

@@ -3,7 +3,6 @@ from __future__ import annotations
 
 import math
 
-from pydantic import BaseModel
 
 from acl.design import geometry as G
 from acl.design import model as M
@@ -11,6 +10,7 @@ from acl.design.builders import Builder
 from acl.design.checks import check_design_geometry, check_programs
 from acl.design.core import (D, DECL_KINDS, EFFECT_DOMAIN, EFFECT_RANGES, EFFECT_UNITS, EFFECTS,
                              GRADIENT_REFERENCE, MODULUS_DECADES, PROPERTY_RANGES, Fail, what_is)
+from acl.design.finite import all_finite
 from acl.design.programs import build_program
 from acl.design.values import DeclVal
 from acl.diagnostics import Span, suggest
@@ -96,7 +96,7 @@ def assemble(b: Builder) -> M.Design:
                       lognormal=lognormal,
                       measured_gain=measured,
                       sources=tuple(dict.fromkeys(r.loader.sources)))
-    if not _all_finite(design, bag):
+    if not all_finite(design, bag):
         return design
     _effect_beam_ranges(b, design)
     _effect_band(b, design)
@@ -126,38 +126,6 @@ def _element(b: Builder, name: str, blk: A.Block, beams_raw: dict, effects: list
         if eff is not None:
             effects.append(eff)
     # a medium or transducer is built when used (`use`); one declared but not used is lint's concern
-
-
-def _all_finite(design: M.Design, bag) -> bool:
-    """Every number of the resolved design is finite (E305 at the declaration holding one that is not).
-
-    Expressions are checked as they are evaluated; this catches values derived from them (a volume
-    from a huge radius), so no NaN or infinity reaches the analyses. An iterative walk over the models.
-    """
-    ok = True
-    # the elements: their derived values (volumes, tips, stiffnesses, orifice centres) are computed
-    # by the builders; parameters, observations and program steps hold evaluated expressions only
-    stack = [(x, None, "design") for x in (design.medium, design.transducer, design.materials, design.capsules,
-                                           design.beams, design.springs, design.latches, design.anchors,
-                                           design.effects) if x is not None]
-    while stack:
-        v, span, where = stack.pop()
-        if isinstance(v, float):
-            if not math.isfinite(v):
-                bag.error("E305", f"{where} is not finite ({v}): a value overflowed", span,
-                          "check the magnitudes and units of the values it is computed from")
-                ok = False
-        elif isinstance(v, BaseModel):
-            span = getattr(v, "span", None) or span
-            name = getattr(v, "name", None)
-            for k, x in v.__dict__.items():
-                if k != "span" and not isinstance(x, (str, int)):
-                    stack.append((x, span, f"{name}.{k}" if isinstance(name, str) else k))
-        elif isinstance(v, (tuple, list)):
-            stack.extend((x, span, where) for x in v if not isinstance(x, (str, bool)))
-        elif isinstance(v, dict):
-            stack.extend((x, span, f"{where}.{k}") for k, x in v.items())
-    return ok
 
 
 def _effect(b: Builder, blk: A.Block) -> M.Effect | None:

@@ -274,7 +274,7 @@ def shown_path(cand: str, real: str, guess: str | None) -> str:
         return cand
 
 
-_PARSED: dict[tuple[str, str], A.Module] = {}
+PARSED_MODULES: dict[tuple[str, str], A.Module] = {}
 
 
 def _parse_cached(text: str, display: str) -> A.Module:
@@ -283,12 +283,12 @@ def _parse_cached(text: str, display: str) -> A.Module:
     Syntax trees are immutable, so sharing them is safe; files with errors are not cached.
     """
     key = (display, text)
-    hit = _PARSED.get(key)
+    hit = PARSED_MODULES.get(key)
     if hit is None:
         hit = parse_module(text, display)
-        if len(_PARSED) > 512:
-            _PARSED.clear()
-        _PARSED[key] = hit
+        if len(PARSED_MODULES) > 512:
+            PARSED_MODULES.clear()
+        PARSED_MODULES[key] = hit
     return hit
 
 

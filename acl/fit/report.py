@@ -181,13 +181,7 @@ def tone_gains(problem, fit, max_tones: int = MAX_TONES) -> ToneGains | None:
             break
     # standard errors at the fitted gains: every tone free, with the coefficients they do not span
     hc = cols_h(h, sel)
-    cc = []
-    for i, c in enumerate(fit.coefs):
-        d = 1e-4 * max(abs(vals[i]), abs(c.scale), 1e-300)
-        up, dn = vals.copy(), vals.copy()
-        up[i] = min(vals[i] + d, c.upper) if np.isfinite(c.upper) else vals[i] + d
-        dn[i] = max(vals[i] - d, c.lower) if np.isfinite(c.lower) else vals[i] - d
-        cc.append((pred(h, up) - pred(h, dn)) / (up[i] - dn[i]))
+    cc = _coefficient_columns(fit.coefs, vals, lambda values: pred(h, values))
     added = len(_independent(hc, cc))
     if not added:
         return None             # the coefficients already fit each tone's gain: nothing to carry (tone_gain_stderr)
@@ -258,6 +252,18 @@ def tone_gain_entries(tones, problem) -> list[dict]:
              "relative_stderr": _n(s)} for f, (g, s) in tone_gains_table(tones, problem).items()]
 
 
+def _coefficient_columns(coefs, vals, pred) -> list:
+    """d pred / d value of each fitted coefficient by central differences (1e-4 relative steps, kept within bounds)."""
+    cols = []
+    for i, c in enumerate(coefs):
+        d = 1e-4 * max(abs(vals[i]), abs(c.scale), 1e-300)
+        up, dn = vals.copy(), vals.copy()
+        up[i] = min(vals[i] + d, c.upper) if np.isfinite(c.upper) else vals[i] + d
+        dn[i] = max(vals[i] - d, c.lower) if np.isfinite(c.lower) else vals[i] - d
+        cols.append((pred(up) - pred(dn)) / (up[i] - dn[i]))
+    return cols
+
+
 def tone_gain_stderr(problem, fit, max_tones: int = MAX_TONES) -> dict:
     """{tone Hz: relative error} of the calibrated model's transducer gain at each tone the data measured: the
     standard error of a free gain there, all fitted coefficients free (linearised least squares, s^2 (J^T J)^-1 as
@@ -292,13 +298,7 @@ def tone_gain_stderr(problem, fit, max_tones: int = MAX_TONES) -> dict:
             coeffs["tone_weight"] = np.where((P.f == tone) & (P.v > 0), np.exp(2.0 * h), 1.0)
         return predict(P, coeffs, effects)[train] * w[train]
 
-    cols = []
-    for i, c in enumerate(fit.coefs):
-        d = 1e-4 * max(abs(vals[i]), abs(c.scale), 1e-300)
-        up, dn = vals.copy(), vals.copy()
-        up[i] = min(vals[i] + d, c.upper) if np.isfinite(c.upper) else vals[i] + d
-        dn[i] = max(vals[i] - d, c.lower) if np.isfinite(c.lower) else vals[i] - d
-        cols.append((pred(up) - pred(dn)) / (up[i] - dn[i]))
+    cols = _coefficient_columns(fit.coefs, vals, pred)
     base = pred(vals)
     resid = np.asarray(problem.y, float)[train] * w[train] - base       # weighted residual of the fitted model
     out = {}

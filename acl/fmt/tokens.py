@@ -46,12 +46,12 @@ def tokenize(source: str, file: str = "<stdin>", tree=None) -> list[Tok]:
     from lark import Token, Tree
     from lark.exceptions import UnexpectedInput
 
-    from acl.syntax.parser import _lark, parse_module
+    from acl.syntax.parser import lark_parser, parse_module
 
     text = source if source.endswith("\n") else source + "\n"
     if tree is None:
         try:
-            tree = _lark().parse(text, start="start")
+            tree = lark_parser().parse(text, start="start")
         except UnexpectedInput:
             parse_module(source, file)   # raises the located diagnostics
             raise DiagnosticError([error("E190", "internal formatter error: the parser and the formatter disagree",

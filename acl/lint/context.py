@@ -201,6 +201,10 @@ class Context:
         :class:`acl.analysis.acoustics.PairTable`."""
         return self.analysis.pair_table(drive)
 
+    def pair_attraction(self, drive: Drive) -> np.ndarray:
+        """The ``attraction`` column (P,) of :meth:`pair_table` alone (the same numbers)."""
+        return self.analysis.pair_attraction(drive)
+
     def pair_forces(self, drive: Drive) -> list:
         tab = self.pair_table(drive)
         return [tab.row(k) for k in range(tab.a.size)]

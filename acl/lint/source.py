@@ -124,6 +124,7 @@ _IMPORT = re.compile(r"^\s*import\s+(?:([\w.]+)|\"[^\"]*\")(?:\s+as\s+([A-Za-z_]
 _DECL = re.compile(r"^\s*([A-Za-z_]\w*)\s+([A-Za-z_]\w*)\s*(?:like\s+[\w.]+\s*)?\{")
 _PROGRAM = re.compile(r"^\s*program\s+([A-Za-z_]\w*)\s*\{")
 _KEY = re.compile(r"([A-Za-z_]\w*)\s*=(?!=)")
+_BRACE = re.compile(r"[{}]")
 
 
 def _names(src: SourceFile) -> None:
@@ -161,13 +162,14 @@ def _names(src: SourceFile) -> None:
                 pm = _PARAM.match(code)
                 stmt_name = pm.group(1) if pm else None
         masked = QUANTITY.sub(lambda m: " " * len(m.group(0)), code)
-        pos = 0
+        braces = [b.start() for b in _BRACE.finditer(masked)]      # only braces change the block context
+        nb = 0
         for m in NAME.finditer(masked):
             start = m.start()
             # braces before this name change the block context
-            for j in range(pos, start):
-                depth = _brace(masked, j, depth, kinds)
-            pos = start
+            while nb < len(braces) and braces[nb] < start:
+                depth = _brace(masked, braces[nb], depth, kinds)
+                nb += 1
             if start in skip:
                 continue
             before = masked[:start].rstrip()
@@ -181,7 +183,7 @@ def _names(src: SourceFile) -> None:
             keys = list(_KEY.finditer(masked[:start]))
             src.uses.append(Use(m.group(0), i, start + 1, kinds[-1] if kinds else None,
                                 keys[-1].group(1) if keys else None, statement, stmt_name, masked[:start]))
-        for j in range(pos, len(masked)):
+        for j in braces[nb:]:
             depth = _brace(masked, j, depth, kinds)
 
 

@@ -34,8 +34,12 @@ BUSY = ("E-LSP-BUSY: still checking the latest edit of this document (a large de
 
 
 class Checks:
-    def __init__(self, path_of, on_checked=None, wait: float = WAIT_SECONDS) -> None:
+    def __init__(self, path_of, on_checked=None, wait: float = WAIT_SECONDS, pause_gc: bool = False) -> None:
         self.path_of = path_of
+        # pause_gc: the young-object collections that land inside a check (10 ms of the 90 ms CPU of
+        # a 5,000-line design's check) are put off until the caller has published its diagnostics
+        # and calls resume_gc(); the server does so after each publish and in each idle collection
+        self.pause_gc = pause_gc
         self.on_checked = on_checked            # (uri, snapshot), called on the checking thread
         self.wait = wait
         self.snapshots: dict[str, Snapshot] = {}
@@ -71,6 +75,10 @@ class Checks:
                 self.skipped += 1
                 return None
             parser = self._parsers.setdefault(uri, IncrementalParser())
+        if self.pause_gc:
+            import gc
+
+            gc.disable()
         snap = check_text(text, self.path_of(uri), version, parser=parser)
         with self._lock:
             job = self._jobs.get(uri)
@@ -103,6 +111,13 @@ class Checks:
         from acl.lsp.protocol import RequestFailed
 
         raise RequestFailed(BUSY)
+
+    @staticmethod
+    def resume_gc() -> None:
+        """Collections on again after a check (see ``pause_gc``)."""
+        import gc
+
+        gc.enable()
 
     def forget(self, uri: str) -> None:
         with self._lock:

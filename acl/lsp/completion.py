@@ -63,9 +63,9 @@ def _units_of(unit: str | None) -> list[str]:
 
 
 def _module_names() -> list[str]:
-    from acl.design.modules import _stdlib_modules
+    from acl.design.modules import stdlib_modules
 
-    return sorted("stdlib." + m for m in _stdlib_modules())
+    return sorted("stdlib." + m for m in stdlib_modules())
 
 
 def complete(snap: Snapshot, names_snap: Snapshot | None, line: int, character: int) -> list[tuple[str, str, str]]:

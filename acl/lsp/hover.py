@@ -34,9 +34,9 @@ KIND_DOCS = {
 
 @functools.lru_cache(maxsize=1)
 def _quantity_re() -> re.Pattern:
-    from acl.syntax.parser import _lark
+    from acl.syntax.parser import lark_parser
 
-    for t in _lark().terminals:
+    for t in lark_parser().terminals:
         if t.name == "QUANTITY":
             return re.compile(t.pattern.to_regexp())
     raise RuntimeError("grammar has no QUANTITY terminal")  # pragma: no cover

@@ -29,6 +29,9 @@ _SEVERITY = {Severity.ERROR: T.DiagnosticSeverity.Error, Severity.WARNING: T.Dia
              Severity.INFO: T.DiagnosticSeverity.Information}
 
 
+SHUTDOWN_WAIT_S = 10.0    # longest a `shutdown` waits for the diagnostics already asked for
+
+
 class AclLanguageServer(LanguageServer):
     def __init__(self) -> None:
         from acl.lsp.protocol import AclProtocol
@@ -41,6 +44,7 @@ class AclLanguageServer(LanguageServer):
         self.resolved: dict[str, Snapshot] = {}       # last snapshot whose text parsed (names for completion)
         self.lint_findings: dict[str, tuple[str, list[Diagnostic]]] = {}
         self._pending: dict[str, asyncio.Task] = {}
+        self._diagnosing: set[asyncio.Task] = set()    # every check not yet published (shutdown lets them finish)
         self._lint_tasks: dict[str, asyncio.Task] = {}
         self._executor = None
         from acl.lsp.checking import Checks
@@ -107,7 +111,16 @@ class AclLanguageServer(LanguageServer):
         old = self._pending.pop(uri, None)
         if old is not None:
             old.cancel()
-        self._pending[uri] = asyncio.get_running_loop().create_task(self._diagnose(uri, delay))
+        task = self._pending[uri] = asyncio.get_running_loop().create_task(self._diagnose(uri, delay))
+        self._diagnosing.add(task)
+        task.add_done_callback(self._diagnosing.discard)
+
+    async def finish_checks(self, timeout: float = SHUTDOWN_WAIT_S) -> None:
+        """Let the checks already asked for publish their diagnostics (at most ``timeout`` seconds): a document
+        opened just before `shutdown` is still answered, as the client asked."""
+        waiting = [t for t in self._diagnosing if not t.done()]
+        if waiting:
+            await asyncio.wait(waiting, timeout=timeout)
 
     async def _diagnose(self, uri: str, delay: float) -> None:
         if delay > 0:
@@ -126,6 +139,8 @@ class AclLanguageServer(LanguageServer):
         except Exception as exc:       # a bug must cost this document's diagnostics, not the server
             logging.getLogger("pygls").error("checking %s failed: %s: %s", uri, type(exc).__name__, exc)
             return
+        finally:
+            self.checks.resume_gc()    # the check's collections, now that its diagnostics are out
         if self.lint_enabled:
             self.schedule_lint(uri)
 
@@ -147,6 +162,7 @@ class AclLanguageServer(LanguageServer):
 
         await asyncio.sleep(delay)
         self._collect_task = None
+        self.checks.resume_gc()          # in case a check ran with no publish waiting for it
         gc.collect()
         self.collections += 1
 
@@ -464,7 +480,8 @@ def _initialize(ls: AclLanguageServer, params: T.InitializeParams) -> None:
 
 
 @server.feature(T.SHUTDOWN)
-def _shutdown(ls: AclLanguageServer, *args) -> None:
+async def _shutdown(ls: AclLanguageServer, *args) -> None:
+    await ls.finish_checks()
     ls.close()
 
 
@@ -730,6 +747,7 @@ def serve(verbose: bool = False) -> None:
     gc.freeze()                          # the imported modules: never scanned again
     th = gc.get_threshold()
     gc.set_threshold(th[0], th[1], 1 << 30)   # full collections only in pauses (collect_when_idle)
+    server.checks.pause_gc = True        # and none inside a check: after its diagnostics are published
     try:
         server.start_io(stream, out)
     finally:

@@ -6,10 +6,10 @@ so that a sweep evaluates 10^5..10^6 perturbed designs without a Python loop ove
 
 * :func:`capsule_modes` -- :func:`acl.physics.resonance.capsule_modes` (Rayleigh-Ritz bare modes and Q;
   one-orifice capsules by the closed-form eigenpairs of a rank-one update, others by LAPACK);
-* :func:`coupled_modes` -- :func:`acl.physics.coupling.coupled_modes` (mutual radiation mass and resistance);
+* :func:`coupled_modes` -- :func:`acl.physics.coupling.coupled_mode_batch` over the point axis (mutual radiation mass and resistance);
   :func:`lowest_single_interface_mode` its lowest mode for one interface and its wall image (secular equation);
 * :func:`two_bubble_forces` -- the force engine of acl.analysis.acoustics for two one-orifice capsules, closed form;
-* :func:`coupled_response` -- :func:`acl.physics.coupling.coupled_response` at displaced configurations;
+* :func:`coupled_response` -- :func:`acl.physics.coupling.coupled_volumes` from a dense uncoupled response;
 * :func:`latch_force`, :func:`latch_switching_force` -- :mod:`acl.physics.latch` (von Mises truss);
 * :func:`eq1_force` -- the inverse of paper Eq. (1) (:func:`acl.physics.beams.eq1_force`) with per-point geometry.
 
@@ -21,9 +21,8 @@ from functools import lru_cache
 
 import numpy as np
 
-# coupling's own distances and Green matrix broadcast over a leading axis of points: (N, n, n),
-# or (N, F, n, n) with wavenumbers (N, F)
-from acl.physics.coupling import _distances as distances, contact_distance, green_matrix
+# coupling's laws over a leading axis of points
+from acl.physics.coupling import contact_distance, coupled_mode_batch, coupled_volumes
 from acl.physics.resonance import shape_matrices, thermal_polytropic
 from acl.physics.effects import bjerknes_gap_factor
 from acl.physics.latch import axial_force
@@ -134,33 +133,13 @@ def capsule_modes(volume, radii, density, surface_tension, ambient_pressure, pol
 
 
 def coupled_modes(phi, omega, damping, points, radii, body, density, sound_speed, wall_reflection: float = 0.0):
-    """Undamped modes Omega^2 q = w^2 (I + rho Phi^T g0 Phi) q and their Q, per point (coupling.coupled_modes batched; Kinsler et al. ch. 7/8).
+    """Undamped coupled modes per point: :func:`acl.physics.coupling.coupled_mode_batch` (Kinsler et al. ch. 7/8) over the point axis.
 
     ``phi`` (N, n, M) outward volume of each interface per bare modal coordinate, ``omega`` and
     ``damping`` (N, M) (omega_m/Q_m).  Returns (omega (N, K), volume (N, n, K), quality (N, K)).
     """
-    nn, _, m = phi.shape
-    rho, c = _col(density, nn), _col(sound_speed, nn)
-    g0 = green_matrix(points, radii, body, None, wall_reflection)
-    mass = np.eye(m)[None] + rho[:, None, None] * np.einsum("nim,nij,njk->nmk", phi, g0, phi)
-    mass = (mass + np.swapaxes(mass, 1, 2)) / 2
-    li = np.linalg.inv(np.linalg.cholesky(mass))
-    a = li * (omega**2)[:, None, :] @ np.swapaxes(li, 1, 2)
-    w2, y = np.linalg.eigh((a + np.swapaxes(a, 1, 2)) / 2)
-    q = np.swapaxes(li, 1, 2) @ y
-    om = np.sqrt(np.maximum(w2, 0.0))
-    vol = phi @ q                                                       # (N, n, K)
-    other = body[:, None] != body[None, :]
-    d = distances(points, radii, False)
-    k = om / c[:, None]                                                 # (N, K)
-    s = np.where(other, np.sinc(k[:, :, None, None] * d[:, None] / np.pi), 0.0)
-    if wall_reflection:
-        di = distances(points, radii, True)
-        s = s + wall_reflection * np.sinc(k[:, :, None, None] * di[:, None] / np.pi)
-    c_n = np.einsum("nm,nmk->nk", damping, q**2) + (rho / (4 * np.pi * c))[:, None] * om**2 * \
-        np.einsum("nik,nkij,njk->nk", vol, s, vol)
-    with np.errstate(divide="ignore"):
-        quality = np.where(c_n > 0, om / c_n, np.inf)
+    om, vol, quality, _ = coupled_mode_batch(phi, omega, damping, points, radii, body, density, sound_speed,
+                                             wall_reflection)
     return om, vol, quality
 
 
@@ -204,16 +183,20 @@ def lowest_single_interface_mode(phi, omega, damping, point, radius, density, so
 
 
 def coupled_response(h0, points, radii, body, frequency, density, sound_speed, wall_reflection: float = 0.0):
-    """Inward volume U (N, F, n) per pascal solving (I - w^2 rho H0 g) U = H0 1 per point (coupling.coupled_response batched; Kinsler et al.)."""
-    nn, nf, n, _ = h0.shape
-    w = np.broadcast_to(2 * np.pi * np.asarray(frequency, float), (nn, nf))
-    rho, c = _col(density, nn), _col(sound_speed, nn)
-    g = green_matrix(points, radii, body, w / c[:, None], wall_reflection)
-    a = np.eye(n) - (w**2 * rho[:, None])[..., None, None] * (h0 @ g)
-    rhs = h0.sum(axis=-1)
-    if n == 1:
-        return rhs / a[..., 0]
-    return np.linalg.solve(a, rhs[..., None])[..., 0]
+    """Inward volume U (N, F, n) per pascal per point from the dense uncoupled response ``h0`` (N, F, n, n): :func:`acl.physics.coupling.coupled_volumes` (Kinsler et al.) on its capsule blocks."""
+    body = np.asarray(body, int)
+    n = body.size
+    if n == 0:
+        return np.zeros(h0.shape[:-1], complex)
+    counts = np.bincount(body)
+    p = int(counts.max())
+    rank = np.zeros(n, int)                                              # position of each interface in its capsule
+    for c in range(counts.size):
+        rank[body == c] = np.arange(counts[c])
+    blocks = np.zeros(h0.shape[:-2] + (counts.size, p, p), h0.dtype)
+    ii, jj = np.nonzero(body[:, None] == body[None, :])                  # entries within a capsule
+    blocks[..., body[ii], rank[ii], rank[jj]] = h0[..., ii, jj]
+    return coupled_volumes(blocks, body * p + rank, points, radii, frequency, density, sound_speed, wall_reflection)
 
 
 # ----------------------------------------------------------------------------------------------

@@ -138,24 +138,33 @@ def _shoot(p, lam, follower: bool, k0, phi, steps: int):
     Integrates (theta, kappa, x, y) and the sensitivities of (theta, kappa) to kappa(0) and (follower) to phi.
     """
     h = 1.0 / steps
-    zero = np.zeros(np.broadcast(p, lam, k0).shape)
-    state = [zero, zero + k0, zero, zero, zero, zero + 1.0] + ([zero, zero] if follower else [])
+    shape = np.broadcast(p, lam, k0, phi).shape if follower else np.broadcast(p, lam, k0).shape
+    state = np.zeros((8 if follower else 6,) + shape)       # one array: four numpy calls per RK4 stage fewer
+    state[1] += k0
+    state[5] = 1.0
 
-    def f(st):
+    def f(st, out):
         th, ka = st[0], st[1]
         a = th - phi if follower else th
         ps = p * np.sin(a)
-        out = [ka, -p * np.cos(a), np.cos(th), np.sin(th), st[5], ps * st[4]]
+        out[0] = ka
+        out[1] = -p * np.cos(a)
+        out[2] = np.cos(th)
+        out[3] = np.sin(th)
+        out[4] = st[5]
+        out[5] = ps * st[4]
         if follower:
-            out += [st[7], ps * (st[6] - 1.0)]
+            out[6] = st[7]
+            out[7] = ps * (st[6] - 1.0)
         return out
 
+    a, b, c, d = (np.empty_like(state) for _ in range(4))
     for _ in range(steps):
-        a = f(state)
-        b = f([s + 0.5 * h * d for s, d in zip(state, a)])
-        c = f([s + 0.5 * h * d for s, d in zip(state, b)])
-        d = f([s + h * e for s, e in zip(state, c)])
-        state = [s + h / 6 * (w + 2 * x + 2 * y + z) for s, w, x, y, z in zip(state, a, b, c, d)]
+        f(state, a)
+        f(state + 0.5 * h * a, b)
+        f(state + 0.5 * h * b, c)
+        f(state + h * c, d)
+        state = state + h / 6 * (a + 2 * b + 2 * c + d)
     return state
 
 

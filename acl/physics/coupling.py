@@ -194,78 +194,125 @@ def uncoupled_blocks(system: BubbleSystem, omega) -> np.ndarray:
     return np.moveaxis(uncoupled_response(system.phi, system.omega, system.damping, w), -3, 0)
 
 
-#: Complex entries (F x B x N x N) of one chunk of :func:`coupled_response` (16 MB): a design of
+#: Complex entries (F x B x N x N) of one chunk of :func:`coupled_volumes` (16 MB): a design of
 #: hundreds of interfaces solves a few frequencies at a time instead of holding 64 dense systems.
 CHUNK_ELEMENTS = 2**20
 
 
+def _batched(x, batch: tuple, tail: int) -> np.ndarray:
+    """``x`` (..., *tail dims) as (1, ...) when it has no batch, else broadcast to ``batch`` and flattened to (B, ...)."""
+    x = np.asarray(x)
+    core = x.shape[x.ndim - tail:] if tail else ()
+    if int(np.prod(x.shape[:x.ndim - tail], dtype=int)) == 1:
+        return x.reshape((1,) + core)
+    return np.broadcast_to(x, batch + core).reshape((-1,) + core)
+
+
+def coupled_volumes(blocks, slot, points, radii, frequency, density, sound_speed, wall_reflection: float = 0.0,
+                    chunk: int = 64) -> np.ndarray:
+    """Inward volume U (..., F, n) per pascal incident solving (I - w^2 rho H0 g) U = H0 1 over leading batch axes (module doc; Kinsler et al. mutual radiation impedance, Pierce 4.3/5.1 wall images).
+
+    ``blocks`` (..., F, C, P, P) each capsule's uncoupled inward response per pascal (:func:`uncoupled_response`),
+    ``slot`` (n,) each interface's index in the flattened C*P layout, ``points`` (..., n, 3), ``radii`` (n,) or
+    (..., n), ``frequency`` (F,) or (..., F) Hz, ``density`` / ``sound_speed`` scalars or (...).  The batch axes
+    (design points, displaced configurations) broadcast.  Uniform incident pressure (the design is small against
+    the wavelength).  Frequencies are solved ``chunk`` at a time (fewer when a chunk would exceed
+    :data:`CHUNK_ELEMENTS`).
+    """
+    blocks = np.asarray(blocks)
+    slot = np.asarray(slot, int)
+    points, radii, f = (np.asarray(a, float) for a in (points, radii, frequency))
+    f = np.atleast_1d(f)
+    n, nf = slot.size, f.shape[-1]
+    ncap, p = blocks.shape[-3], blocks.shape[-1]
+    npad = ncap * p
+    batch = np.broadcast_shapes(blocks.shape[:-4], points.shape[:-2], radii.shape[:-1], f.shape[:-1],
+                                np.shape(density), np.shape(sound_speed))
+    nb = int(np.prod(batch, dtype=int))
+    out = np.zeros((nb, nf, n), complex)
+    if n == 0 or nf == 0:
+        return out.reshape(batch + (nf, n))
+    blk = _batched(blocks, batch, 4)                                                # (Bh, F, C, P, P)
+    pts, rad, f = _batched(points, batch, 2), _batched(radii, batch, 1), _batched(f, batch, 1)
+    rho, c = _batched(density, batch, 0), _batched(sound_speed, batch, 0)
+    # the padded layout (C*P slots); an empty slot has no interface (zero H0 row -> zero response), far from the others
+    pad_pts = np.broadcast_to(1.0 + np.arange(npad)[None, :, None], (pts.shape[0], npad, 3)).copy()
+    pad_pts[:, slot] = pts
+    pad_rad = np.full((rad.shape[0], npad), 1e-9)
+    pad_rad[:, slot] = rad
+    pad_body = np.repeat(np.arange(ncap), p)
+    chunk = max(1, min(chunk, CHUNK_ELEMENTS // (nb * npad * npad)))   # bounded memory for large designs
+    # green_matrix's frequency-independent parts, once: 1/(4 pi d) off the diagonal, the retarded distance
+    # (between capsules only), the wall images' R/(4 pi d')
+    d = _distances(pad_pts, pad_rad, False)[:, None]                                # (Bd, 1, N, N)
+    inv = np.where(~np.eye(npad, dtype=bool), 1 / (4 * np.pi * d), 0.0)
+    retarded = np.where(pad_body[:, None] != pad_body[None, :], d, 0.0)
+    # g is symmetric (d_ij = d_ji and d'_ij = d'_ji exactly): the cosines and sines of the upper triangle, mirrored
+    iu, ju = np.triu_indices(npad)
+    diag = np.arange(npad)
+    upper, lower = iu * npad + ju, ju * npad + iu
+    tri = [np.ascontiguousarray(x.reshape(x.shape[:-2] + (npad * npad,))[..., upper]) for x in (retarded, inv)]
+    if wall_reflection:
+        di = _distances(pad_pts, pad_rad, True)[:, None]
+        tri += [np.ascontiguousarray(x.reshape(x.shape[:-2] + (npad * npad,))[..., upper])
+                for x in (di, wall_reflection / (4 * np.pi * di))]
+    for s in range(0, nf, chunk):
+        w = 2 * np.pi * f[:, s:s + chunk]                                           # (Bf, Fc)
+        h = blk[:, s:s + chunk]
+        fc = h.shape[1]
+        k = (w / c[:, None])[..., None]
+        gu = np.empty((nb, fc, upper.size), complex)                                # green_matrix, exp(-ikd) as cos, sin
+        kd = k * tri[0]
+        np.multiply(np.cos(kd), tri[1], out=gu.real)
+        np.multiply(np.sin(kd), -tri[1], out=gu.imag)
+        if wall_reflection:
+            kd = k * tri[2]
+            gu.real += np.cos(kd) * tri[3]
+            gu.imag -= np.sin(kd) * tri[3]
+        del kd
+        g = np.empty((nb, fc, npad * npad), complex)
+        g[..., upper] = gu
+        g[..., lower] = gu
+        g = g.reshape(nb, fc, npad, npad)
+        del gu
+        coef = (w**2 * rho[:, None])[..., None, None]
+        if p == 1:
+            g *= -coef * h[:, :, :, 0, 0, None]
+            a = g
+        elif h.shape[0] == 1:
+            a = -coef * _einsum("fcpq,bfcqn->bfcpn", h[0], g.reshape(nb, fc, ncap, p, npad)).reshape(g.shape)
+        else:
+            a = -coef * _einsum("bfcpq,bfcqn->bfcpn", np.broadcast_to(h, (nb,) + h.shape[1:]),
+                                g.reshape(nb, fc, ncap, p, npad)).reshape(g.shape)
+        a[..., diag, diag] += 1.0                                                  # I - w^2 rho H0 g (any memory layout)
+        rhs = np.broadcast_to(h.sum(axis=-1).reshape(h.shape[0], fc, npad), (nb, fc, npad))
+        if npad == 2:              # two interfaces: Cramer's rule (a batched LAPACK call costs more)
+            det = a[..., 0, 0] * a[..., 1, 1] - a[..., 0, 1] * a[..., 1, 0]
+            u = np.stack([(a[..., 1, 1] * rhs[..., 0] - a[..., 0, 1] * rhs[..., 1]) / det,
+                          (a[..., 0, 0] * rhs[..., 1] - a[..., 1, 0] * rhs[..., 0]) / det], axis=-1)
+        else:
+            u = np.linalg.solve(a, rhs[..., None])[..., 0]
+        out[:, s:s + fc] = u[..., slot]
+    return out.reshape(batch + (nf, n))
+
+
 def coupled_response(system: BubbleSystem, frequency, density: float, sound_speed: float,
                      wall_reflection: float = 0.0, points=None, h0=None, chunk: int = 64) -> np.ndarray:
-    """Inward volume displacement U (m^3 per Pa incident) of every interface, solving (I - w^2 rho H0 g) U = H0 1 (module doc; Kinsler et al. mutual radiation impedance).
+    """Inward volume displacement U (m^3 per Pa incident) of every interface of a system: :func:`coupled_volumes` (Kinsler et al. mutual radiation impedance) with its own blocks.
 
-    ``frequency`` (F,) Hz -> complex (F, n) in the order of ``system.points``; uniform incident
-    pressure (the design is small against the wavelength).  ``points`` (B, n, 3) evaluates B
-    displaced configurations at once -> (B, F, n); ``h0`` reuses :func:`uncoupled_blocks` at these
-    frequencies.  Vectorised over frequencies in chunks of ``chunk`` (fewer when
-    a chunk would exceed :data:`CHUNK_ELEMENTS`).
+    ``frequency`` (F,) Hz -> complex (F, n) in the order of ``system.points``.  ``points`` (B, n, 3)
+    evaluates B displaced configurations at once -> (B, F, n); ``h0`` reuses :func:`uncoupled_blocks` at these
+    frequencies.
     """
     f = np.atleast_1d(np.asarray(frequency, float))
     n = system.n
     batch = points is not None
-    pts = np.asarray(points if batch else system.points, float).reshape(-1, n, 3)
-    nb = pts.shape[0]
-    out = np.zeros((nb, f.size, n), complex)
+    pts = np.asarray(points, float).reshape(-1, n, 3) if batch else system.points
     if n == 0 or f.size == 0:
+        out = np.zeros((pts.shape[0] if batch else 1, f.size, n), complex)
         return out if batch else out[0]
-    ncap, p, _ = system.phi.shape
-    npad = ncap * p
-    # padded layout (C*P slots); empty slots have no interface (zero H0 row -> zero response)
-    if npad == n:
-        pad_pts = pts[:, np.argsort(system.slot)] if np.any(np.diff(system.slot) < 0) else pts
-        pad_rad = np.empty(npad)
-        pad_rad[system.slot] = system.radii
-    else:
-        pad_pts = np.zeros((nb, npad, 3))
-        pad_pts[:, :] = 1.0 + np.arange(npad)[None, :, None]          # far apart, unused
-        pad_pts[:, system.slot] = pts
-        pad_rad = np.full(npad, 1e-9)
-        pad_rad[system.slot] = system.radii
-    pad_body = np.repeat(np.arange(ncap), p)
-    eye = np.eye(npad)
-    chunk = max(1, min(chunk, CHUNK_ELEMENTS // (nb * npad * npad)))   # bounded memory for large designs
-    # green_matrix's frequency-independent parts, once: 1/(4 pi d) off the diagonal, the retarded distance
-    # (between capsules only), the wall images' R/(4 pi d')
-    d = _distances(pad_pts, pad_rad, False)[:, None]                                # (B, 1, N, N)
-    other = (pad_body[:, None] != pad_body[None, :])
-    inv = np.where(~np.eye(npad, dtype=bool), 1 / (4 * np.pi * d), 0.0)
-    retarded = np.where(other, d, 0.0)
-    if wall_reflection:
-        di = _distances(pad_pts, pad_rad, True)[:, None]
-        inv_image = wall_reflection / (4 * np.pi * di)
-    for s in range(0, f.size, chunk):
-        w = 2 * np.pi * f[s:s + chunk]
-        blk = uncoupled_blocks(system, w) if h0 is None else h0[s:s + chunk]      # (F, C, P, P)
-        k = (w / sound_speed)[None, :, None, None]
-        g = np.empty((nb, w.size, npad, npad), complex)                           # green_matrix, exp(-ikd) as cos, sin
-        kd = k * retarded
-        np.multiply(np.cos(kd), inv, out=g.real)
-        np.multiply(np.sin(kd), -inv, out=g.imag)
-        if wall_reflection:
-            kd = k * di
-            g.real += np.cos(kd) * inv_image
-            g.imag -= np.sin(kd) * inv_image
-        del kd
-        coef = (w**2 * density)[None, :, None, None]
-        if p == 1:
-            g *= -coef * blk[None, :, :, 0, 0, None]
-            a = g
-        else:
-            a = -coef * _einsum("fcpq,bfcqn->bfcpn", blk, g.reshape(nb, w.size, ncap, p, npad)).reshape(g.shape)
-        a += eye                                                                   # I - w^2 rho H0 g
-        rhs = np.broadcast_to(blk.sum(axis=-1).reshape(1, w.size, npad), (nb, w.size, npad))
-        u = np.linalg.solve(a, rhs[..., None])[..., 0]
-        out[:, s:s + chunk] = u[..., system.slot]
-    return out if batch else out[0]
+    blocks = uncoupled_blocks(system, 2 * np.pi * f) if h0 is None else np.asarray(h0)
+    return coupled_volumes(blocks, system.slot, pts, system.radii, f, density, sound_speed, wall_reflection, chunk)
 
 
 @dataclass(frozen=True)
@@ -304,150 +351,134 @@ def _compact(system: BubbleSystem, damping=None):
 
 
 def _diagonal_eigh(omega, mass):
-    """Eigenpairs of diag(omega^2) q = w^2 M q by Cholesky reduction (Golub & Van Loan, Matrix Computations, 4th ed., 8.7.2): ascending w, q^T M q = I.
+    """Eigenpairs of diag(omega^2) q = w^2 M q by Cholesky reduction over leading batch axes (Golub & Van Loan, Matrix Computations, 4th ed., 8.7.2): ascending w, q^T M q = I.
 
     :func:`resonance.symmetric_eigh` with the product by the diagonal stiffness done elementwise
     (the same numbers; one n^3 matrix product fewer).
     """
-    li = np.linalg.inv(np.linalg.cholesky((mass + mass.T) / 2))
-    a = (li * omega**2) @ li.T
-    w2, y = np.linalg.eigh((a + a.T) / 2)
-    return np.sqrt(np.maximum(w2, 0.0)), li.T @ y
+    li = np.linalg.inv(np.linalg.cholesky((mass + np.swapaxes(mass, -1, -2)) / 2))
+    lt = np.swapaxes(li, -1, -2)
+    a = (li * omega[..., None, :] ** 2) @ lt
+    w2, y = np.linalg.eigh((a + np.swapaxes(a, -1, -2)) / 2)
+    return np.sqrt(np.maximum(w2, 0.0)), lt @ y
 
 
-def _mutual_resistance(system: BubbleSystem, vol, k, wall_reflection: float, chunk: int = 16) -> np.ndarray:
-    """v_n^T S(k_n) v_n for each mode n, S_ij = sin(k d_ij)/(k d_ij) between capsules + R sin(k d'_ij)/(k d'_ij) to the images (Kinsler et al. ch. 7/8, mutual radiation resistance).
+#: Entries (B x modes x pairs) of one chunk of :func:`mutual_resistance`'s pair sums (16 MB of float64).
+PAIR_CHUNK_ELEMENTS = 2**21
 
-    Over the pairs i < j (S is symmetric) and the images' diagonal, for ``chunk`` modes at a time.
+
+def mutual_resistance(volume, points, radii, body, wavenumber, wall_reflection: float = 0.0) -> np.ndarray:
+    """v_n^T S(k_n) v_n (..., K) of each mode n over leading batch axes, S_ij = sin(k d_ij)/(k d_ij) between capsules + R sin(k d'_ij)/(k d'_ij) to the wall images (Kinsler et al. ch. 7/8, mutual radiation resistance).
+
+    ``volume`` (..., n, K) outward volume of each interface per modal coordinate, ``points`` (..., n, 3), ``radii``
+    (n,) or (..., n), ``body`` (n,), ``wavenumber`` (..., K).  Summed over the pairs i < j (S is symmetric) and the
+    images' diagonal, a few modes at a time (:data:`PAIR_CHUNK_ELEMENTS`).
     """
-    n = system.n
-    if k.size == 0 or n == 0:
-        return np.zeros(k.size)
+    volume, points, radii, k = (np.asarray(a, float) for a in (volume, points, radii, wavenumber))
+    body = np.asarray(body)
+    n, nk = volume.shape[-2], volume.shape[-1]
+    batch = np.broadcast_shapes(volume.shape[:-2], points.shape[:-2], radii.shape[:-1], k.shape[:-1])
+    nb = int(np.prod(batch, dtype=int))
+    if nk == 0 or n == 0:
+        return np.zeros(batch + (nk,))
     iu, ju = np.triu_indices(n, 1)
-    d = _distances(system.points, system.radii, False)[iu, ju]
-    other = system.body[iu] != system.body[ju]
-    i, j, dist, weight = [iu[other]], [ju[other]], [d[other]], [np.full(int(other.sum()), 2.0)]
+    d = _distances(points, radii, False)[..., iu, ju]
+    other = body[iu] != body[ju]
+    i, j, dist, weight = [iu[other]], [ju[other]], [d[..., other]], [np.full(int(other.sum()), 2.0)]
     if wall_reflection:
-        di = _distances(system.points, system.radii, True)
+        di = _distances(points, radii, True)
         diag = np.arange(n)
         i += [iu, diag]
         j += [ju, diag]
-        dist += [di[iu, ju], di[diag, diag]]
+        dist += [di[..., iu, ju], di[..., diag, diag]]
         weight += [np.full(iu.size, 2.0 * wall_reflection), np.full(n, float(wall_reflection))]
-    i, j, dist, weight = (np.concatenate(a) for a in (i, j, dist, weight))
-    out = np.empty(k.size)
-    vt = np.ascontiguousarray(vol.T)                                               # (K, n)
-    for s in range(0, k.size, chunk):
-        x = k[s:s + chunk, None] * dist[None, :]                                   # (chunk, pairs)
+    i, j, weight = (np.concatenate(a) for a in (i, j, weight))
+    dist = np.concatenate(dist, axis=-1)
+    dist = np.broadcast_to(dist, batch + dist.shape[-1:]).reshape(nb, 1, -1)        # (B, 1, pairs)
+    vt = np.ascontiguousarray(np.swapaxes(np.broadcast_to(volume, batch + (n, nk)), -1, -2)).reshape(nb, nk, n)
+    k = np.broadcast_to(k, batch + (nk,)).reshape(nb, nk)
+    out = np.empty((nb, nk))
+    chunk = max(1, PAIR_CHUNK_ELEMENTS // (nb * max(i.size, 1)))
+    for s in range(0, nk, chunk):
+        ks = k[:, s:s + chunk]
+        x = ks[..., None] * dist                                                   # (B, chunk, pairs)
         if np.all(x > 0):
-            sinc, scale = np.sin(x, out=x) / dist, 1.0 / k[s:s + chunk]              # sin(kd)/d, then / k
+            sinc, scale = np.sin(x, out=x) / dist, 1.0 / ks                        # sin(kd)/d, then / k
         else:
             sinc, scale = np.sinc(x / np.pi), 1.0
-        sinc *= vt[s:s + chunk, i]
-        sinc *= vt[s:s + chunk, j]
-        out[s:s + chunk] = (sinc @ weight) * scale
-    return out
+        sinc *= vt[:, s:s + chunk, i]
+        sinc *= vt[:, s:s + chunk, j]
+        out[:, s:s + chunk] = (sinc @ weight) * scale
+    return out.reshape(batch + (nk,))
+
+
+def coupled_mode_batch(phi, omega, damping, points, radii, body, density, sound_speed, wall_reflection: float = 0.0,
+                       max_omega: float | None = None, also_damping: Sequence = ()) -> tuple:
+    """Undamped modes Omega^2 q = w^2 (I + rho Phi^T g0 Phi) q and their Q over leading batch axes (mutual radiation mass and resistance; Kinsler et al. ch. 7/8).
+
+    ``phi`` (..., n, M) outward volume of each interface per bare modal coordinate, ``omega`` / ``damping``
+    (..., M) (damping omega_m/Q_m), ``points`` (..., n, 3), ``radii`` (n,) or (..., n), ``body`` (n,) capsule of
+    each interface; ``density`` / ``sound_speed`` scalars or (...).  Q_n = w_n / (q_n^T D q_n), q_n
+    mass-normalized, D = diag(damping) + Phi^T (rho w_n^2/(4 pi c)) S Phi (:func:`mutual_resistance`).
+    ``max_omega`` keeps the modes up to it (the most any batch row keeps; the others' Q is not computed).
+    ``also_damping``: other (..., M) modal dampings; their Q from the same eigensolution and radiation terms.
+    Returns (omega (..., K) ascending, volume (..., n, K), quality (..., K), tuple of the other qualities).
+    """
+    phi, omega, damping = (np.asarray(a, float) for a in (phi, omega, damping))
+    density, sound_speed = np.asarray(density, float), np.asarray(sound_speed, float)
+    g0 = green_matrix(points, radii, body, None, wall_reflection)
+    mass = np.eye(omega.shape[-1]) + density[..., None, None] * (np.swapaxes(phi, -1, -2) @ g0 @ phi)
+    om, q = _diagonal_eigh(omega, mass)
+    if max_omega is not None:
+        kept = int(np.max(np.count_nonzero(om <= max_omega, axis=-1), initial=0))       # ascending
+        om, q = om[..., :kept], q[..., :kept]
+    vol = phi @ q
+    radiated = radiation_resistance(om, density[..., None], sound_speed[..., None]) * \
+        mutual_resistance(vol, points, radii, body, om / sound_speed[..., None], wall_reflection)
+    qualities = []
+    for dmp in (damping, *(np.asarray(a, float) for a in also_damping)):
+        c_n = (dmp[..., :, None] * q**2).sum(axis=-2) + radiated
+        with np.errstate(divide="ignore"):
+            qualities.append(np.where(c_n > 0, om / np.where(c_n > 0, c_n, 1.0), np.inf))
+    return om, vol, qualities[0], tuple(qualities[1:])
 
 
 def coupled_modes(system: BubbleSystem, density: float, sound_speed: float,
                   wall_reflection: float = 0.0, max_omega: float | None = None,
                   also_damping: Sequence = ()) -> CoupledModes:
-    """Undamped modes Omega^2 q = w^2 (I + rho Phi^T g0 Phi) q and their Q (mutual radiation mass and resistance; Kinsler et al. ch. 7/8).
+    """Coupled modes of a system: :func:`coupled_mode_batch` at batch size 1 over its real modes (Kinsler et al. ch. 7/8).
 
-    Q_n = w_n / (q_n^T D q_n), q_n mass-normalized, D = diag(w_m/Q_m) of the capsules (viscous,
-    thermal, own radiation) + Phi^T (rho w_n^2/(4 pi c)) S Phi with S_ij = sin(k d_ij)/(k d_ij)
-    between capsules and R sin(k d'_ij)/(k d'_ij) for the wall images (mutual radiation resistance).
     ``max_omega`` keeps only the modes up to it (the others' Q, n^2 terms each, is not computed).
     ``also_damping``: other (C, Mx) modal dampings of the same system (e.g. without a declared Q);
-    their Q come in ``also_quality`` from the same eigensolution and radiation terms.
+    their Q come in ``also_quality``.
     """
     phi, om, dmp = _compact(system)
     if om.size == 0:
         z = np.zeros(0)
         return CoupledModes(omega=z, volume=np.zeros((system.n, 0)), quality=z,
                             also_quality=tuple(z for _ in also_damping))
-    g0 = green_matrix(system.points, system.radii, system.body, None, wall_reflection)
-    mass = np.eye(om.size) + density * phi.T @ g0 @ phi
-    omega, q = _diagonal_eigh(om, mass)
-    if max_omega is not None:
-        kept = int(np.count_nonzero(omega <= max_omega))       # ascending
-        omega, q = omega[:kept], q[:, :kept]
-    vol = phi @ q
-    radiated = radiation_resistance(omega, density, sound_speed) * _mutual_resistance(system, vol, omega / sound_speed,
-                                                                                     wall_reflection)
-    qualities = []
-    for damping in (dmp, *(_compact(system, a)[2] for a in also_damping)):
-        c_n = (damping[:, None] * q**2).sum(axis=0) + radiated
-        with np.errstate(divide="ignore"):
-            qualities.append(np.where(c_n > 0, omega / np.where(c_n > 0, c_n, 1.0), np.inf))
-    for arr in (omega, vol, *qualities):
+    omega, vol, quality, also = coupled_mode_batch(phi, om, dmp, system.points, system.radii, system.body, density,
+                                                   sound_speed, wall_reflection, max_omega,
+                                                   [_compact(system, a)[2] for a in also_damping])
+    for arr in (omega, vol, quality, *also):
         arr.setflags(write=False)
-    return CoupledModes(omega=omega, volume=vol, quality=qualities[0], also_quality=tuple(qualities[1:]))
+    return CoupledModes(omega=omega, volume=vol, quality=quality, also_quality=also)
 
 
 def prepared_response(system: BubbleSystem, frequency, density: float, sound_speed: float,
                       wall_reflection: float = 0.0, h0=None):
     """:func:`coupled_response` at fixed frequencies for many sets of interface positions: returns ``response(points (B, n, 3)) -> (B, F, n)``.
 
-    The same equations (module doc; Kinsler et al. mutual radiation impedance, Pierce 4.3/5.1 wall
-    images); everything that does not depend on the positions (uncoupled blocks, wavenumbers,
-    distance floors, masks) is computed once, for solvers that evaluate one design many times.
+    :func:`coupled_volumes` with the uncoupled blocks computed once, for solvers that evaluate one design many times.
     """
     f = np.atleast_1d(np.asarray(frequency, float))
     n = system.n
-    ncap, p, _ = system.phi.shape
-    npad = ncap * p
-    w = 2 * np.pi * f
-    blk = uncoupled_blocks(system, w) if h0 is None else np.asarray(h0)           # (F, C, P, P)
-    pad_rad = np.full(npad, 1e-9)
-    pad_rad[system.slot] = system.radii
-    pad_body = np.repeat(np.arange(ncap), p)
-    floor = pad_rad[:, None] + pad_rad[None, :]
-    other = pad_body[:, None] != pad_body[None, :]
-    direct = ~np.eye(npad, dtype=bool)
-    k = (w / sound_speed)[:, None, None]                                           # (F, 1, 1)
-    k_direct = k * other                                                           # retarded between capsules only
-    coef = (w**2 * density)[None, :, None, None]
-    eye = np.eye(npad)
-    rhs = blk.sum(axis=-1).reshape(1, f.size, npad, 1)
-    diag = blk[:, :, 0, 0][None, :, :, None] if p == 1 else None                   # (1, F, C, 1)
-    identity_order = npad == n and not np.any(np.diff(system.slot) < 0)
-    order = np.argsort(system.slot) if npad == n else None
-    filler = 1.0 + np.arange(npad)[None, :, None]                                  # unused slots: far apart
-    four_pi = 4 * np.pi
+    blocks = uncoupled_blocks(system, 2 * np.pi * f) if h0 is None else np.asarray(h0)      # (F, C, P, P)
 
     def response(points) -> np.ndarray:
         pts = np.asarray(points, float).reshape(-1, n, 3)
-        nb = pts.shape[0]
         if n == 0 or f.size == 0:
-            return np.zeros((nb, f.size, n), complex)
-        if identity_order:
-            pad = pts
-        elif npad == n:
-            pad = pts[:, order]
-        else:
-            pad = np.broadcast_to(filler, (nb, npad, 3)).copy()
-            pad[:, system.slot] = pts
-        diff = pad[:, :, None, :] - pad[:, None, :, :]                             # (B, N, N, 3)
-        dxy2 = diff[..., 0] ** 2 + diff[..., 1] ** 2
-        d = contact_distance(np.sqrt(dxy2 + diff[..., 2] ** 2), floor)[:, None]    # (B, 1, N, N)
-        g = np.exp(-1j * k_direct * d) / (four_pi * d) * direct
-        if wall_reflection:
-            zs = pad[:, :, None, 2] + pad[:, None, :, 2]
-            di = contact_distance(np.sqrt(dxy2 + zs**2), floor)[:, None]
-            g = g + wall_reflection * np.exp(-1j * k * di) / (four_pi * di)
-        if p == 1:
-            hg = diag * g
-        else:
-            hg = _einsum("fcpq,bfcqn->bfcpn", blk, g.reshape(nb, f.size, ncap, p, npad)).reshape(nb, f.size, npad, npad)
-        a = eye - coef * hg
-        if npad == 2:              # two interfaces: Cramer's rule (a batched LAPACK call costs more)
-            r0, r1 = rhs[..., 0, 0], rhs[..., 1, 0]
-            det = a[..., 0, 0] * a[..., 1, 1] - a[..., 0, 1] * a[..., 1, 0]
-            u = np.stack([(a[..., 1, 1] * r0 - a[..., 0, 1] * r1) / det,
-                          (a[..., 0, 0] * r1 - a[..., 1, 0] * r0) / det], axis=-1)
-        else:
-            u = np.linalg.solve(a, np.broadcast_to(rhs, (nb, f.size, npad, 1)))[..., 0]
-        return u[..., system.slot]
+            return np.zeros((pts.shape[0], f.size, n), complex)
+        return coupled_volumes(blocks, system.slot, pts, system.radii, f, density, sound_speed, wall_reflection)
 
     return response

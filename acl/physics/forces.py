@@ -156,17 +156,24 @@ def force_constants(omega, radii, body, n_capsules: int, viscosity: float, densi
     }
 
 
-def bjerknes_pair_sum(points, response, w2p2, coefficient, other, gap_exponent: float = 0.0, gap_ref: float = 1.0):
+def interface_distances(points, other) -> np.ndarray:
+    """|p_j - p_i| (B, n, n) of the interface pairs of different capsules (``other`` (n, n)), 1 elsewhere (:func:`bjerknes_pair_sum`'s distances)."""
+    sep = points[:, None, :, :] - points[:, :, None, :]                   # (B, i, j, 3)
+    # two interfaces in contact (d = 0, a solver's contact configuration) pull with no direction: no force, not NaN
+    return np.where(other, np.maximum(np.sqrt((sep * sep).sum(axis=-1)), 1e-12), 1.0)
+
+
+def bjerknes_pair_sum(points, response, w2p2, coefficient, other, gap_exponent: float = 0.0, gap_ref: float = 1.0,
+                      distance=None):
     """Secondary Bjerknes force (B, n, 3) on every interface from every other capsule's, and the attraction (B, n, n): :func:`bjerknes_from_rates` of each pair along p_j - p_i, tones in power.
 
     ``points`` (B, n, 3), ``response`` (B, T, n) volumes per pascal, ``w2p2`` (T,) or (B, T) rate weights,
     ``coefficient`` (n, n) :func:`bjerknes_from_rates` at unit rate and distance (0 within a capsule),
     ``other`` (n, n) the pairs of different capsules; ``gap_exponent``, ``gap_ref``: a declared shape
-    (:func:`acl.physics.effects.bjerknes_gap_factor`; exponent 0 is the monopole law).
+    (:func:`acl.physics.effects.bjerknes_gap_factor`; exponent 0 is the monopole law); ``distance`` the
+    :func:`interface_distances` of these points when the caller keeps them.
     """
-    sep = points[:, None, :, :] - points[:, :, None, :]                   # (B, i, j, 3)
-    # two interfaces in contact (d = 0, a solver's contact configuration) pull with no direction: no force, not NaN
-    d = np.where(other, np.maximum(np.sqrt((sep * sep).sum(axis=-1)), 1e-12), 1.0)
+    d = interface_distances(points, other) if distance is None else distance
     w2p2 = np.asarray(w2p2, float)
     prod = np.einsum("t,bti,btj->bij" if w2p2.ndim == 1 else "bt,bti,btj->bij", w2p2, response,
                      np.conj(response)).real
@@ -177,33 +184,44 @@ def bjerknes_pair_sum(points, response, w2p2, coefficient, other, gap_exponent: 
     return c @ points - c.sum(axis=-1)[..., None] * points, att          # sum_j c_ij (p_j - p_i)
 
 
-def jet_drag_on_capsules(thrust, points, normals, centres, outer, mask, fraction=None):
-    """Drag (B, C, 3) of every interface's jet on the other capsules: :func:`jet_drag` of each jet (momentum flux = its thrust (B, n)) on each capsule centre (B, C, 3) along the jet's normal (n, 3); ``fraction`` as :func:`jet_drag`'s."""
+def jet_lines(points, normals, centres, mask) -> tuple:
+    """(distance (B, n, C), 1 where ``mask`` is False; cosine to the jet's normal (B, n, C)) from every interface to every capsule centre (:func:`jet_drag_on_capsules`' geometry)."""
     x = centres[:, None, :, :] - points[:, :, None, :]                    # (B, n, C, 3)
     dist = np.sqrt((x * x).sum(axis=-1))
     with np.errstate(invalid="ignore", divide="ignore"):   # positions a runaway solver step made non-finite:
         cos = (x * normals[None, :, None, :]).sum(axis=-1) / dist         # NaN forces, which the solver rejects
-    drag = jet_drag(thrust[:, :, None], np.where(mask, dist, 1.0), cos, outer[None, None, :], fraction) * mask
+    return np.where(mask, dist, 1.0), cos
+
+
+def jet_drag_on_capsules(thrust, points, normals, centres, outer, mask, fraction=None, lines=None):
+    """Drag (B, C, 3) of every interface's jet on the other capsules: :func:`jet_drag` of each jet (momentum flux = its thrust (B, n)) on each capsule centre (B, C, 3) along the jet's normal (n, 3); ``fraction`` as :func:`jet_drag`'s.
+
+    ``lines``: the :func:`jet_lines` of these positions when the caller keeps them.
+    """
+    dist, cos = jet_lines(points, normals, centres, mask) if lines is None else lines
+    drag = jet_drag(thrust[:, :, None], dist, cos, outer[None, None, :], fraction) * mask
     return drag.transpose(0, 2, 1) @ normals
 
 
-def capsule_forces(centres, body, offsets, normals, onehot, outer, response, consts: dict, points=None):
+def capsule_forces(centres, body, offsets, normals, onehot, outer, response, consts: dict, points=None, distance=None,
+                   lines=None):
     """Total acoustic force (B, C, 3) on each capsule at centres (B, C, 3): streaming thrust (:func:`thrust_magnitude`) + :func:`bjerknes_pair_sum` + :func:`jet_drag_on_capsules`.
 
     Interfaces (n): ``body`` (n,) capsule index, ``offsets`` (n, 3) from the capsule centre, ``normals``
     (n, 3) outward, ``onehot`` (n, C); ``outer`` (C,) the radius a jet drags; ``response`` (B, T, n) the
     coupled volumes per pascal at these centres; ``consts`` :func:`force_constants` (or rows of them);
-    ``points`` the interface centres (B, n, 3) when the caller already has them; ``consts["jet_drag_fraction"]``
+    ``points`` the interface centres (B, n, 3) when the caller already has them, ``distance`` their
+    :func:`interface_distances` and ``lines`` their :func:`jet_lines`; ``consts["jet_drag_fraction"]``
     (optional) a constant drag fraction (:func:`jet_drag`).
     Returns (total, points (B, n, 3), thrust per interface (B, n), attraction (B, n, n)).
     """
     pts = centres[:, body, :] + offsets if points is None else points     # (B, n, 3) orifice centres
     thr = ((response.real**2 + response.imag**2) * consts["thrust"]).sum(axis=1)     # (B, n), tones added
     bj, att = bjerknes_pair_sum(pts, response, consts["w2p2"], consts["bjerknes"], consts["other"],
-                                consts.get("gap_exponent", 0.0), consts.get("gap_ref", 1.0))
+                                consts.get("gap_exponent", 0.0), consts.get("gap_ref", 1.0), distance)
     total = onehot.T @ (bj - thr[:, :, None] * normals)                 # (B, C, 3); thrust against the jet (module doc)
     total = total + jet_drag_on_capsules(thr, pts, normals, centres, outer, consts["drag_mask"],
-                                         consts.get("jet_drag_fraction"))
+                                         consts.get("jet_drag_fraction"), lines)
     return total, pts, thr, att
 
 

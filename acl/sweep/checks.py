@@ -191,7 +191,7 @@ class Checks(PairMechanics):
         program's `hold`/`cross` governs and not both fixed, is closer than margin x d_c under a drive of
         the program while each capsule's thrust pushes it away from the other
         (lint.rules.forces.snap_in; acoustics.pair_table's dominant interfaces at the strongest tone)."""
-        from acl.lint.rules.forces import _managed
+        from acl.lint.rules.forces import managed_pairs
 
         ok = np.ones(self.n, bool)
         if len(self.caps) < 2:
@@ -201,7 +201,7 @@ class Checks(PairMechanics):
         fixed = {j.capsule for j in self.design.joints if j.kind == "fix"}
         rows = np.arange(self.n)
         for p in self.design.programs:
-            crossing = _managed(p)
+            crossing = managed_pairs(p)
             for _st, freqs, volts in self.lint_drives(p):
                 if not freqs:
                     continue
@@ -243,7 +243,7 @@ class Checks(PairMechanics):
         validity) from each program's worst load on each beam carrying a capsule (lint.rules.beams.beam_loads:
         the first strongest drive of a step at rest, perpendicular to the beam; a `follow` path's reach)."""
         def build():
-            from acl.lint.rules.beams import SAFE_RATIO, _linked, _path_extent
+            from acl.lint.rules.beams import SAFE_RATIO, capsule_linked, path_extent
             from acl.physics.beams import eq1_deflection
 
             ok401, ok402 = np.ones(self.n, bool), np.ones(self.n, bool)
@@ -251,7 +251,7 @@ class Checks(PairMechanics):
             names = [c.name for c in self.caps]
             for beam in self.design.beams:
                 cap = next((j.capsule for j in self.design.joints if j.kind == "mount" and j.target == beam.name), None)
-                if cap is None or _linked(self, cap):     # linked: lint checks it only with mechanics
+                if cap is None or capsule_linked(self, cap):     # linked: lint checks it only with mechanics
                     continue
                 ci = names.index(cap)
                 bm = self.beam_of(ci)
@@ -273,7 +273,7 @@ class Checks(PairMechanics):
                         if st.kind == "follow":
                             if st.capsule != cap:
                                 continue
-                            ext = _path_extent(st)
+                            ext = path_extent(st)
                             if ext is None:
                                 continue
                             P, defl = PB.eq1_force(np.full(self.n, ext), L, l, EI), np.full(self.n, ext)
@@ -336,9 +336,9 @@ class Checks(PairMechanics):
     def crosstalk_ok(self, k: float) -> np.ndarray:
         """ACL103: no two modes of capsules meant to be driven separately overlap within k x their mean
         half-bandwidth (lint.rules.acoustics.mode_crosstalk), modes and Q of each point."""
-        from acl.lint.rules.acoustics import _separate_pairs
+        from acl.lint.rules.acoustics import separate_pairs
 
-        class _Steps:                       # what _separate_pairs reads: the design and its program steps
+        class _Steps:                       # what separate_pairs reads: the design and its program steps
             design = self.design
 
             @staticmethod
@@ -347,7 +347,7 @@ class Checks(PairMechanics):
 
         ok = np.ones(self.n, bool)
         idx = {c.name: i for i, c in enumerate(self.caps)}
-        for (a, b) in _separate_pairs(_Steps()):
+        for (a, b) in separate_pairs(_Steps()):
             fa, qa = self.modes(idx[a])
             fb, qb = self.modes(idx[b])
             f1, q1 = fa[:, :, None], qa[:, :, None]

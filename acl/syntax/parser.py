@@ -58,7 +58,7 @@ class _ParenNewlines:
 
 
 @functools.lru_cache(maxsize=1)
-def _lark() -> Lark:
+def lark_parser() -> Lark:
     text = resources.files("acl.syntax").joinpath("grammar.lark").read_text(encoding="utf-8")
     return Lark(text, parser="lalr", start=["start", "drive_only"], propagate_positions=True,
                 maybe_placeholders=True, postlex=_ParenNewlines(), cache=_cache_path(text))
@@ -115,7 +115,7 @@ def _terminal_word(name: str) -> str:
     if name in _TERMINAL_WORDS:
         return _TERMINAL_WORDS[name]
     try:
-        for t in _lark().terminals:
+        for t in lark_parser().terminals:
             if t.name == name and t.pattern.type == "str":
                 return f"`{t.pattern.value}`"
     except Exception:  # pragma: no cover
@@ -511,11 +511,11 @@ def parse_module_tree(source: str, file: str = "<string>") -> tuple[A.Module, Tr
 
 
 def _parse_module(source: str, file: str, keep_tree: bool = False):
-    _check_limits(source, file)
+    check_limits(source, file)
     text = source if source.endswith("\n") else source + "\n"
     try:
-        tree = _lark().parse(text, start="start")
-        stmts = _build(tree, file, source)
+        tree = lark_parser().parse(text, start="start")
+        stmts = build_module(tree, file, source)
         module = A.Module(file, stmts, source)
         return (module, tree) if keep_tree else module
     except UnexpectedInput:
@@ -528,7 +528,7 @@ def _parse_module(source: str, file: str, keep_tree: bool = False):
         # the error's line is shifted back by `start` below
         chunk = "\n".join(lines[start:end]) + "\n"
         try:
-            _lark().parse(chunk, start="start")
+            lark_parser().parse(chunk, start="start")
         except UnexpectedInput as exc:
             d = _syntax_diagnostic(exc, file, lines, eof_line=_last_line(lines, start, end), line_offset=start)
             opened = _unclosed_brace(lines, start, end) if _at_end(exc) else None
@@ -539,7 +539,7 @@ def _parse_module(source: str, file: str, keep_tree: bool = False):
             diags.append(d)
     if not diags:  # the chunker disagreed with the parser; report the whole-file error
         try:
-            _lark().parse(text, start="start")
+            lark_parser().parse(text, start="start")
         except UnexpectedInput as exc:
             diags.append(_syntax_diagnostic(exc, file, lines))
     raise DiagnosticError(diags)
@@ -550,7 +550,7 @@ def parse_drive(text: str, file: str = "<drive>", line: int = 1, column: int = 1
     if len(text) > 10_000:
         raise DiagnosticError([error("E101", "drive expression too long", Span(file=file, line=line, column=column))])
     try:
-        tree = _lark().parse(text, start="drive_only")
+        tree = lark_parser().parse(text, start="drive_only")
     except UnexpectedInput as exc:
         d = _syntax_diagnostic(exc, file, text.split("\n"))
         span = Span(file=file, line=line, column=column + (d.span.column - 1 if d.span else 0))
@@ -571,14 +571,14 @@ def _shift_tone(t: A.ToneExpr, line: int, column: int) -> A.ToneExpr:
     return A.ToneExpr(t.frequency, t.amplitude, t.phase, s)
 
 
-def _build(tree, file: str, source: str) -> tuple:
+def build_module(tree, file: str, source: str) -> tuple:
     try:
         return _Builder(file, source).transform(tree)
     except VisitError as exc:  # pragma: no cover - a builder bug must still not leak a traceback
         raise DiagnosticError([error("E100", f"internal parser error: {exc.orig_exc}", Span(file=file, line=1, column=1))])
 
 
-def _check_limits(source: str, file: str) -> None:
+def check_limits(source: str, file: str) -> None:
     if len(source.encode("utf-8", errors="replace")) > MAX_SOURCE_BYTES:
         raise DiagnosticError([error("E102", f"file larger than {MAX_SOURCE_BYTES // 1_000_000} MB",
                                      Span(file=file, line=1, column=1), "split the design into imported files")])
@@ -621,10 +621,10 @@ TOP_KEYWORD = re.compile(r"(import|extends|param|uncertainty|program|mount|fix|l
 def statement_chunks(lines: list[str], delta=None):
     """Yield (start, end) line ranges of top-level statements, tracking bracket depth.
 
-    ``delta`` (default :func:`_depth_delta`) gives a line's change of bracket depth; the editor
+    ``delta`` (default :func:`depth_delta`) gives a line's change of bracket depth; the editor
     passes a memoised one.  Used by error recovery here and by the language server's incremental parse.
     """
-    delta = delta or _depth_delta
+    delta = delta or depth_delta
     i, n = 0, len(lines)
     while i < n:
         stripped = lines[i].strip()
@@ -656,7 +656,7 @@ def _code_chars(line: str):
             yield j, ch
 
 
-def _depth_delta(line: str) -> int:
+def depth_delta(line: str) -> int:
     return sum((ch in "([{") - (ch in ")]}") for _, ch in _code_chars(line))
 
 

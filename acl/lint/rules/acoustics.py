@@ -64,7 +64,7 @@ def low_transducer_gain(ctx: Context):
                     hint="tune the capsule to a stronger part of the transducer response")
 
 
-def _separate_pairs(ctx: Context) -> dict[tuple[str, str], str]:
+def separate_pairs(ctx: Context) -> dict[tuple[str, str], str]:
     """Pairs of capsules meant to be driven separately, with the reason.
 
     A pair is meant to be driven separately when a `require separation(a, b)` names it, or when
@@ -93,7 +93,7 @@ def _separate_pairs(ctx: Context) -> dict[tuple[str, str], str]:
       Severity.WARNING, "acoustics", ("bandwidth_overlap",))
 def mode_crosstalk(ctx: Context):
     k = ctx.threshold("bandwidth_overlap")
-    for (a, b), why in sorted(_separate_pairs(ctx).items()):
+    for (a, b), why in sorted(separate_pairs(ctx).items()):
         ca, cb = ctx.design.capsule(a), ctx.design.capsule(b)
         for ma in ctx.modes(ca):
             for mb in ctx.modes(cb):

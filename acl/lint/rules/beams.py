@@ -24,7 +24,7 @@ def _half_depth(beam) -> float:
     return s.diameter / 2 if s.shape == "circle" else min(s.width, s.thickness) / 2
 
 
-def _linked(ctx: Context, capsule: str) -> bool:
+def capsule_linked(ctx: Context, capsule: str) -> bool:
     return any(j.kind == "link" and capsule in (j.a, j.b) for j in ctx.design.joints)
 
 
@@ -49,7 +49,7 @@ def beam_loads(ctx: Context, beam):
         out = {}
         if cap is None:
             return out
-        linked = _linked(ctx, cap)
+        linked = capsule_linked(ctx, cap)
         if linked and not ctx.config.mechanics:
             ctx.note("ACL401", f"beam `{beam.name}`: capsule `{cap}` is linked by a truss or spring, so the "
                      "free-cantilever load does not apply; not checked without --mechanics")
@@ -71,7 +71,7 @@ def beam_loads(ctx: Context, beam):
                 if st.kind == "follow":
                     if st.capsule != cap:
                         continue
-                    ext = _path_extent(st)
+                    ext = path_extent(st)
                     if ext is None:
                         continue
                     P = float(eq1_force(ext, L, l, EI))
@@ -173,7 +173,7 @@ def _tones(drive) -> str:
     return " + ".join(f"{khz(t.frequency)} @ {t.amplitude:.3g} V" for t in drive.tones)
 
 
-def _path_extent(step) -> float | None:
+def path_extent(step) -> float | None:
     try:
         from acl.design.paths import sample_path
 

@@ -18,7 +18,7 @@ def _pushed_apart(ctx: Context, drive, a: np.ndarray, b: np.ndarray) -> np.ndarr
     return (np.einsum("pk,pk->p", thrust[a], -u) > 0) & (np.einsum("pk,pk->p", thrust[b], u) > 0)
 
 
-def _managed(program) -> set[tuple[str, str]]:
+def managed_pairs(program) -> set[tuple[str, str]]:
     """Pairs whose gap a program governs itself: `hold gap(a, b) above ...` or `cross gap(a, b)`."""
     return {tuple(sorted((st.a.split(".")[0], st.b.split(".")[0])))
             for st in program.steps if st.kind == "hold"}
@@ -32,7 +32,7 @@ def snap_in(ctx: Context):
         return
     margin = ctx.threshold("snap_margin")
     for p in ctx.design.programs:
-        crossing = _managed(p)
+        crossing = managed_pairs(p)
         flagged: dict[tuple[str, str], tuple] = {}      # pair -> (amplitude, step, drive, pair force)
         for st in p.steps:
             for drive in ctx.step_drives(st):
@@ -54,7 +54,7 @@ def snap_in(ctx: Context):
                 f"{um(pf.critical_distance)}: program `{p.name}` snaps them together", st.span, notes=[
                     f"strongest drive {tones}",
                     f"Bjerknes attraction {pf.attraction * 1e9:.3g} nN at rest, phase difference "
-                    f"{np.degrees(pf.phase_difference):.0f} deg",
+                    f"{round(float(np.degrees(pf.phase_difference)))} deg",   # round(): never "-0"
                     f"d_c = sqrt(alpha / 2 gamma) (paper Eq. 3); threshold snap_margin = {margin:g}",
                     "quasi-static equilibrium at this drive: " + (
                         "snaps in (acl.analysis.mechanics)" if verdict else
@@ -112,7 +112,7 @@ def _sign_changes(ctx: Context, freqs: np.ndarray, significance: float) -> list:
         pos_any = np.zeros(ia.size, bool)
         neg_any = np.zeros(ia.size, bool)
         for j, f in enumerate(freqs.tolist()):
-            vals = vals_all[j] = ctx.pair_table(Drive(tones=(Tone(frequency=f, amplitude=1.0),))).attraction
+            vals = vals_all[j] = ctx.pair_attraction(Drive(tones=(Tone(frequency=f, amplitude=1.0),)))
             strong = np.abs(vals) >= significance * np.maximum(thrust[ia, j], thrust[ib, j])
             pos_any |= strong & (vals > 0)
             neg_any |= strong & (vals < 0)
