@@ -87,6 +87,11 @@ def test_hold_and_cross_warn_at_their_step(calibrated_pair, program, what):
     seg = next(g for g in s.segments if g.goal == s.goals[0].name)
     assert seg.amplitude_sum() > cover["voltage"].upper
     assert not _warnings(s, "lie outside")             # 125 kHz was covered
+    # the help says what to measure on the bench (the step's tones, up to its drive), not which command to run
+    v = seg.amplitude_sum()
+    assert "on the bench, measure the displacement under this step's tones (125 kHz)" in volts[0].hint
+    assert f"up to {v:.3g} V" in volts[0].hint or "margin" in volts[0].message
+    assert "acl synth" not in volts[0].hint and "on the bench, measure" in bent[0].hint
 
 
 def test_hold_outside_the_covered_tones_warns(calibrated_pair):
@@ -94,6 +99,7 @@ def test_hold_outside_the_covered_tones_warns(calibrated_pair):
     s = compile_program(acl.load(cal), "low_tone", CompileOptions(band_samples=0))
     w = _warnings(s, "tones 118 kHz lie outside the calibrated 125 .. 125 kHz")
     assert len(w) == 1 and w[0].span.line == _line_of(os.path.join(calibrated_pair[0], "pair.acl"), "using [118 kHz]")
+    assert "on the bench, measure the response at 118 kHz" in w[0].hint
 
 
 def test_inside_the_covered_range_no_warning(calibrated_pair):

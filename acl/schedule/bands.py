@@ -496,13 +496,17 @@ def coverage_warnings(design: Design, schedule, spans, reach=None, extra=()) -> 
         return []
     out = []
 
-    def warn(g, text, q):
+    def warn(g, text, q, bench):
         c = cover[q]
         span = spans[g.step] if 0 <= g.step < len(spans) else None
         out.append(Diagnostic(COVERAGE_CODE, Severity.WARNING, f"{g.name}: {text}", span,
-                              "calibrate on data that cover it (acl synth/acl fit), or keep the program "
-                              "inside the covered range",
+                              f"on the bench, measure {bench}, add those rows to the calibration data and refit "
+                              "(acl fit --calibrated); or keep the program inside the covered range",
                               notes=(f"covered({q}) is declared at {c.span}",) if c.span else ()))
+
+    def played(segs):
+        fs = sorted({t.frequency_hz for s in segs for t in s.tones if t.amplitude_v > 0})
+        return ", ".join(f"{f / 1e3:g}" for f in fs[:6]) + (" ..." if len(fs) > 6 else "") + " kHz"
 
     tol = 1e-9
     for g in sorted([*schedule.goals, *extra], key=lambda g: g.step):      # stable: a step's goals in order
@@ -512,27 +516,31 @@ def coverage_warnings(design: Design, schedule, spans, reach=None, extra=()) -> 
             lo, hi = cover["voltage"].lower, cover["voltage"].upper
             if v > hi * (1 + 1e-6) + tol:
                 warn(g, f"drives up to {v:.3g} V (sum of tone amplitudes) but the calibration data covered "
-                        f"{lo:.3g} .. {hi:.3g} V: the calibrated model is extrapolated", "voltage")
+                        f"{lo:.3g} .. {hi:.3g} V: the calibrated model is extrapolated", "voltage",
+                     f"the displacement under this step's tones ({played(segs)}) up to {v:.3g} V")
             elif g.kind == "hold" and g.details.get("mode") == "above":
                 # the promise is "no snap-in below margin x this drive": predicted where the data may not reach
                 m = float(g.details.get("margin", 1.0))
                 if v * m > hi * (1 + 1e-6) + tol:
                     warn(g, f"promises no snap-in up to {m:g} x its drive, {v * m:.3g} V (sum of tone amplitudes), "
                             f"but the calibration data covered {lo:.3g} .. {hi:.3g} V: the margin is extrapolated",
-                         "voltage")
+                         "voltage", f"the displacement under this step's tones ({played(segs)}) up to {v * m:.3g} V")
         if "frequency" in cover and segs:
             lo, hi = cover["frequency"].lower, cover["frequency"].upper
             fs = [t.frequency_hz for s in segs for t in s.tones if t.amplitude_v > 0 and not t.frequency_end_hz]
             outside = sorted({f for f in fs if f < lo * (1 - 1e-6) or f > hi * (1 + 1e-6)})
             if outside:
                 warn(g, f"tones {', '.join(f'{f / 1e3:g}' for f in outside)} kHz lie outside "
-                        f"the calibrated {lo / 1e3:g} .. {hi / 1e3:g} kHz", "frequency")
+                        f"the calibrated {lo / 1e3:g} .. {hi / 1e3:g} kHz", "frequency",
+                     f"the response at {', '.join(f'{f / 1e3:g}' for f in outside)} kHz (a frequency sweep through "
+                     "them at a low voltage)")
             bands = sorted({tuple(sorted((t.frequency_hz, t.frequency_end_hz))) for s in segs for t in s.tones
                             if t.amplitude_v > 0 and t.frequency_end_hz})
             for f0, f1 in bands:          # a chirp plays every frequency between its ends
                 if f0 < lo * (1 - 1e-6) or f1 > hi * (1 + 1e-6):
                     warn(g, f"sweeps {f0 / 1e3:g} .. {f1 / 1e3:g} kHz, beyond the calibrated "
-                            f"{lo / 1e3:g} .. {hi / 1e3:g} kHz", "frequency")
+                            f"{lo / 1e3:g} .. {hi / 1e3:g} kHz", "frequency",
+                         f"the response from {f0 / 1e3:g} to {f1 / 1e3:g} kHz (a frequency sweep at a low voltage)")
         if "deflection" in cover:
             got = reach(g) if reach is not None else None
             if got is None and g.target_m is not None:
@@ -543,8 +551,10 @@ def coverage_warnings(design: Design, schedule, spans, reach=None, extra=()) -> 
             hi = cover["deflection"].upper
             if contact:       # the fit counts no row in contact in any covered range (acl.fit.calibrated._coverage)
                 warn(g, f"{phrase} {r * 1e6:.3g} um from rest, then into contact, which no calibration covers "
-                        f"(its data covered deflections up to {hi * 1e6:.3g} um, none in contact)", "deflection")
+                        f"(its data covered deflections up to {hi * 1e6:.3g} um, none in contact)", "deflection",
+                     "the snap-in: the voltage at which it closes, and the deflection just before")
             elif r > hi * (1 + 1e-6) + 1e-12:
                 warn(g, f"{phrase} {r * 1e6:.3g} um from rest but the calibration "
-                        f"data covered deflections up to {hi * 1e6:.3g} um", "deflection")
+                        f"data covered deflections up to {hi * 1e6:.3g} um", "deflection",
+                     f"static deflections up to {r * 1e6:.3g} um (raise the voltage of the covered tones)")
     return out
