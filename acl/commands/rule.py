@@ -14,7 +14,7 @@ from acl.commands._common import add_output_format, report
 from acl.diagnostics import Span, error, suggest
 
 _TABLE_ROW = re.compile(r"^\|\s*\[?(ACL\d{3})\]?(?:\(#\w+\))?\s*\|\s*([\w-]+)\s*\|\s*(\w+)\s*\|\s*(\w+)\s*\|\s*$", re.M)
-_CODE_ROW = re.compile(r"^\|\s*`?([EW](?:\d{3}|-[A-Z-]+))`?\s*\|\s*(.+?)\s*\|\s*$", re.M)
+_CODE_ROW = re.compile(r"^\|\s*`?([EWN](?:\d{3}|-[A-Z][A-Z0-9-]*))`?\s*\|\s*(.+?)\s*\|\s*$", re.M)
 
 
 def add_parser(p) -> None:
@@ -49,19 +49,23 @@ def rule_pages() -> dict[str, dict]:
     return out
 
 
+def _severity(code: str) -> str:
+    return {"W": "warning", "N": "note"}.get(code[0], "error")
+
+
 def code_entries() -> dict[str, dict]:
     """E/W codes -> {code, text, source} from the code tables of docs/*.md (first definition wins)."""
     out: dict[str, dict] = {}
     for name in sorted(os.listdir(_docs()), key=lambda n: (n != "language.md", n)):
-        if not name.endswith(".md") or name == "rules.md":
+        if not name.endswith(".md"):
             continue
-        for m in _CODE_ROW.finditer(_read(name)):
+        for m in _CODE_ROW.finditer(_read(name)):          # docs/rules.md: its lint configuration's code (E-CONFIG)
             code, meaning = m.group(1), m.group(2)
             if code in out:
                 if meaning not in out[code]["text"]:
                     out[code]["text"] += f"\n{meaning} (docs/{name})"
                 continue
-            out[code] = {"code": code, "name": "", "severity": "warning" if code.startswith("W") else "error",
+            out[code] = {"code": code, "name": "", "severity": _severity(code),
                          "family": "check", "text": meaning, "source": f"docs/{name}"}
     return out
 
@@ -86,7 +90,7 @@ def mention(code: str) -> dict | None:
             continue
         for para in re.split(r"\n\s*\n", _read(name)):
             if f"`{code}`" in para:
-                return {"code": code, "name": "", "severity": "warning" if code.startswith("W") else "error",
+                return {"code": code, "name": "", "severity": _severity(code),
                         "family": "", "text": para.strip(), "source": f"docs/{name}"}
     return None
 
@@ -108,7 +112,7 @@ def run(args) -> int:
                       Span(file="<command line>", line=1, column=1))], fmt)
         return 2
     code = args.code.strip().upper()
-    entry = entries.get(code) or (mention(code) if re.fullmatch(r"[EW][-A-Z0-9]+", code) else None)
+    entry = entries.get(code) or (mention(code) if re.fullmatch(r"[EWN][-A-Z0-9]+", code) else None)
     if entry is None:
         report([error("E-USAGE", f"unknown rule or diagnostic code `{args.code}`", Span(file="<command line>", line=1, column=1),
                       suggest(code, entries) or "list them with `acl rule --all`")], fmt)
