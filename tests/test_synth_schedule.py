@@ -258,3 +258,14 @@ def test_a_segment_repeating_a_frequency_is_malformed(tmp_path, capsys):
     err = capsys.readouterr().err
     assert f"{sched}:3:3: error[E-SYNTH-SCHEDULE]: segments[0]: malformed segment (tones[1] repeats frequency_hz 125000)" \
         in err, err
+
+
+def test_quiet_replay_prints_nothing_but_writes_the_rows(compiled):
+    """`-q` is diagnostics only: the replay printed "wrote N rows" and the tracking errors anyway (newcomer
+    review); the CSV is the same as without it."""
+    sched = str(compiled / "out" / "schedule.json")
+    loud = _acl("synth", str(compiled / "fig2_stroke.acl"), "--schedule", sched, "-o", str(compiled / "l.csv"))
+    quiet = _acl("synth", str(compiled / "fig2_stroke.acl"), "--schedule", sched, "-o", str(compiled / "q.csv"), "-q")
+    assert loud.returncode == quiet.returncode == 0, loud.stderr + quiet.stderr
+    assert "wrote" in loud.stderr and quiet.stderr == "" and quiet.stdout == ""
+    assert (compiled / "l.csv").read_text() == (compiled / "q.csv").read_text()

@@ -480,14 +480,15 @@ def _replay(args, noise) -> int:
     except OSError as exc:
         return _usage(f"cannot write {args.output!r}: {exc.strerror or exc}", where="<--output>",
                       code="E-USAGE" if isinstance(exc, IsADirectoryError) else "E601")
-    console.print(f"wrote {data.n} rows ({len(waypoints) - lost} waypoints x {len(names or known)} observables"
-                  + (f", {res.contacts} gaps in contact at snap-ins" if res.contacts else "") + f") to {args.output}")
-    for goal, t in res.tracking.items():
-        console.print(f"{goal}: tracking error on {args.design} RMS {t['rms_m'] * 1e6:.4g} um, "
-                      f"max {t['max_m'] * 1e6:.4g} um over {t['n']} waypoints (noise-free)"
-                      + (f", {t['lost']} lost" if t["lost"] else ""))
-    if chirps:
-        console.print(f"note: {chirps} sweep segments skipped (a chirp has no static equilibrium)")
+    if not getattr(args, "quiet", False):      # -q: warnings only (the CSV is the result)
+        console.print(f"wrote {data.n} rows ({len(waypoints) - lost} waypoints x {len(names or known)} observables"
+                      + (f", {res.contacts} gaps in contact at snap-ins" if res.contacts else "") + f") to {args.output}")
+        for goal, t in res.tracking.items():
+            console.print(f"{goal}: tracking error on {args.design} RMS {t['rms_m'] * 1e6:.4g} um, "
+                          f"max {t['max_m'] * 1e6:.4g} um over {t['n']} waypoints (noise-free)"
+                          + (f", {t['lost']} lost" if t["lost"] else ""))
+        if chirps:
+            console.print(f"note: {chirps} sweep segments skipped (a chirp has no static equilibrium)")
     if lost:
         console.print(f"warning: {lost} waypoints have no stable equilibrium on this design (snap-in?): "
                       + (f"{res.contacts} written as a gap of 0 (contact), no other rows" if res.contacts else "no rows"))
