@@ -29,7 +29,7 @@ from acl.physics import effects as PE
 from acl.physics.coupling import (BubbleSystem, CoupledModes, build_system, coupled_modes as _physics_coupled_modes,
                                   coupled_response as _physics_coupled, prepared_response, uncoupled_blocks)
 from acl.physics.forces import (bjerknes_pair_sum, capsule_forces, capsule_pair_forces, critical_distance,
-                                dominant_pair_phase, force_constants, interface_distances, jet_lines,
+                                dominant_pair_phase, force_constants, interface_distances, interface_pairs, jet_lines,
                                 neighbour_drag, thrust_magnitude)
 from acl.physics.forces import pressure_terms  # noqa: F401  (public here since before; acl.analysis.tones)
 from acl.physics.resonance import BubbleModes, capsule_modes as _physics_modes
@@ -697,11 +697,14 @@ def _pair_lines(centres: np.ndarray) -> tuple:
 
 @_per_design
 def _rest_pair_lines(design: Design) -> tuple:
-    """:func:`_pair_lines` at rest, once per design (read-only)."""
+    """:func:`_pair_lines` at rest and the :func:`acl.physics.forces.interface_pairs` of the interfaces at rest, once
+    per design (read-only)."""
+    lay = _layout(design)
     out = _pair_lines(_centres_array(design, None))
-    for a in out:
+    pairs = interface_pairs(lay.points(_centres_array(design, None)), lay.body, len(lay.caps))
+    for a in out + pairs[:5]:
         a.setflags(write=False)
-    return out
+    return out + (pairs,)
 
 
 def pair_attraction(design: Design, drive: Drive) -> np.ndarray:
@@ -709,8 +712,8 @@ def pair_attraction(design: Design, drive: Drive) -> np.ndarray:
     eng = _engine(design, drive)
     lay = eng.lay
     _, _, att = eng.rest_pairs()
-    _, _, _, unit = _rest_pair_lines(design)
-    fa = capsule_pair_forces(lay.points(_centres_array(design, None)), att[0], lay.body, len(lay.caps))
+    _, _, _, unit, pairs = _rest_pair_lines(design)
+    fa = capsule_pair_forces(lay.points(_centres_array(design, None)), att[0], lay.body, len(lay.caps), pairs)
     return np.einsum("pk,pk->p", fa, unit)
 
 
@@ -726,10 +729,10 @@ def pair_table(design: Design, drive: Drive,
     pts = lay.points(centres)
     thrust_vec = np.einsum("n,nk,nc->ck", thr, -lay.normals, lay.onehot)
     ncap = len(lay.caps)
-    pa, pb, dist, unit = _rest_pair_lines(design) if not positions else _pair_lines(centres)
-    fa = capsule_pair_forces(pts, att, lay.body, ncap)
+    pa, pb, dist, unit, pairs = _rest_pair_lines(design) if not positions else _pair_lines(centres) + (None,)
+    fa = capsule_pair_forces(pts, att, lay.body, ncap, pairs)
     attraction = np.einsum("pk,pk->p", fa, unit)
-    dphi, gap = dominant_pair_phase(u, pts, lay.body, ncap, dist)
+    dphi, gap = dominant_pair_phase(u, pts, lay.body, ncap, dist, pairs)
     # reduced law (paper Eq. 3): alpha = attraction d^2, 2 gamma = thrusts pushing apart
     gamma2 = np.einsum("pk,pk->p", thrust_vec[pa], -unit) + np.einsum("pk,pk->p", thrust_vec[pb], unit)
     alpha = attraction * gap**2
