@@ -359,10 +359,19 @@ def interface_labels(design: Design) -> tuple[str, ...]:
 
 def _capsule_index(design: Design, capsule) -> int:
     cap = _capsule(design, capsule)
+    i = _capsule_indices(design).get(cap.name)
+    if i is None:
+        raise KeyError(cap.name)
+    return i
+
+
+@_per_design
+def _capsule_indices(design: Design) -> dict:
+    """{capsule name: index in the layout} (the first of a name)."""
+    out: dict = {}
     for i, c in enumerate(_layout(design).caps):
-        if c.name == cap.name:
-            return i
-    raise KeyError(cap.name)
+        out.setdefault(c.name, i)
+    return out
 
 
 def _fundamentals(cm: CoupledModes, n_interfaces: int) -> list[int]:
@@ -383,9 +392,33 @@ def _fundamentals(cm: CoupledModes, n_interfaces: int) -> list[int]:
     return sorted(set(picked))
 
 
-@_per_design
+_SAME_CAPSULES: list = []     # [(design, {capsule geometry key: modes})]: capsules alike in all the modes depend on
+
+
 def _modes_cached(design: Design, idx: tuple[int, ...], max_hz: float | None = None) -> tuple[Mode, ...]:
-    """Modes of the capsules ``idx`` as one system (a single capsule: its fundamentals), up to ``max_hz`` if given."""
+    """Modes of the capsules ``idx`` as one system (a single capsule: its fundamentals), up to ``max_hz`` if given.
+
+    A capsule's own modes depend on its cavity, orifices and the distances between its orifices and their wall images:
+    capsules alike in these (an array of one capsule at one height) share one computation, keyed on the exact numbers
+    the distances are computed from (the same results, bit for bit)."""
+    if len(idx) != 1:
+        return _system_modes(design, idx, max_hz)
+    lay = _layout(design)
+    cap = lay.caps[idx[0]]
+    pts = lay.points(lay.rest)[lay.body == idx[0]]
+    key = (cap.cavity.volume, thermal_radius(cap.cavity), cap.quality_factor, max_hz,
+           tuple((o.name, o.radius) for o in cap.orifices),
+           (pts[:, None, :2] - pts[None, :, :2]).tobytes(), pts[:, 2].tobytes())
+    store = _per_design_store(_SAME_CAPSULES, design)
+    hit = store.get(key)
+    if hit is None:
+        hit = store[key] = _system_modes(design, idx, max_hz)
+    return hit
+
+
+@_per_design
+def _system_modes(design: Design, idx: tuple[int, ...], max_hz: float | None = None) -> tuple[Mode, ...]:
+    """:func:`_modes_cached` computed."""
     med = medium_constants(design)
     lay = _layout(design)
     sel = np.isin(lay.body, list(idx))
@@ -607,6 +640,26 @@ def _engine_constants(design: Design, lay: _Layout, f: np.ndarray, pressure: np.
                            C.STREAMING_CONSTANT, pressure, scale, pair, gap_shape=shape)
 
 
+@_per_design
+def _capsule_factors(design: Design) -> tuple:
+    """The drive-independent factors of :func:`_compute_engine`, once per design (read-only): thrust scale x substrate
+    effect (C,), the Bjerknes factor (C, C) and its declared shape, each capsule's jet-drag radius (C,)."""
+    lay = _layout(design)
+    ncap = len(lay.caps)
+    sub = np.array([substrate_factor(design, c) for c in lay.caps]) if design.effects else np.ones(ncap)
+    scale = np.array([_thrust_scale(design, c) for c in lay.caps]) * sub
+    pair = np.sqrt(np.outer(sub, sub)) if design.effects else np.ones((ncap, ncap))
+    bs = EF.coefficients(design, "bjerknes_scale") if design.effects else None
+    shape = (0.0, 1.0)
+    if bs is not None:   # a fitted Bjerknes coefficient (paper Eq. 3 alpha) relative to the physics, and its shape
+        pair = pair * bs["factor"]
+        shape = EF.bjerknes_shape(bs)
+    outer = np.array([_outer_radius(c) for c in lay.caps])
+    for a in (scale, pair, outer):
+        a.setflags(write=False)
+    return scale, pair, shape, outer
+
+
 def _compute_engine(design: Design, drive: Drive) -> _Engine:
     lay = _layout(design)
     med = medium_constants(design)
@@ -618,16 +671,7 @@ def _compute_engine(design: Design, drive: Drive) -> _Engine:
         h0 = uncoupled_blocks(sysm, 2 * np.pi * f)
     else:
         pressure, h0 = np.zeros(0), None
-    ncap = len(lay.caps)
-    sub = np.array([substrate_factor(design, c) for c in lay.caps]) if design.effects else np.ones(ncap)
-    scale = np.array([_thrust_scale(design, c) for c in lay.caps]) * sub
-    pair = np.sqrt(np.outer(sub, sub)) if design.effects else np.ones((ncap, ncap))
-    bs = EF.coefficients(design, "bjerknes_scale") if design.effects else None
-    shape = (0.0, 1.0)
-    if bs is not None:   # a fitted Bjerknes coefficient (paper Eq. 3 alpha) relative to the physics, and its shape
-        pair = pair * bs["factor"]
-        shape = EF.bjerknes_shape(bs)
-    outer = np.array([_outer_radius(c) for c in lay.caps])
+    scale, pair, shape, outer = _capsule_factors(design)
     response = (prepared_response(sysm, f, med.density, med.sound_speed, C.SUBSTRATE_REFLECTION, h0=h0)
                 if f.size else None)
     return _Engine(design, lay, sysm, f, pressure, h0, scale, pair, outer, med.density, med.sound_speed, response,
