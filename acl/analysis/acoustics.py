@@ -1,9 +1,10 @@
 """Acoustic analysis of a design: capsule modes, orifice responses, thrust, pair forces, selectivity.
 
-Turns :mod:`acl.design.model` objects into calls of :mod:`acl.physics.resonance`,
-:mod:`acl.physics.transducer` and :mod:`acl.physics.forces`.  Per-capsule modal data are cached on
-a hashable key (geometry + medium), so the equilibrium solver and the fitter can call
-:func:`force_model` in inner loops.
+Turns :mod:`acl.design.model` objects into calls of :mod:`acl.physics.coupling` and
+:mod:`acl.physics.forces`.  The medium, the transducer and the declared factors on the drive are
+:mod:`acl.analysis.environment`; each capsule's bare modes, cached on a hashable key (geometry +
+medium), are :mod:`acl.analysis.modal` (both re-exported here), so the equilibrium solver and the
+fitter can call :func:`force_model` in inner loops.
 
 Defaults: a design without ``medium`` uses :data:`acl.physics.constants.WATER_20C`; without
 ``transducer`` a flat :data:`acl.physics.constants.DEFAULT_GAIN_PA_PER_V`.  :func:`defaults_used`
@@ -17,24 +18,23 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, replace
-from functools import lru_cache
 from typing import Mapping, Sequence
 
 import numpy as np
 
-from acl.design.model import Capsule, Cavity, Design, Drive
+from acl.design.model import Capsule, Design, Drive
 from acl.analysis import effects as EF
+from acl.analysis.environment import (_capsule, defaults_used, drive_gain, effect_pressure_factor,  # noqa: F401
+                                      medium_constants, substrate_factor)
+from acl.analysis.modal import modal_data, thermal_radius  # noqa: F401  (public here since before)
 from acl.physics import constants as C
-from acl.physics import effects as PE
 from acl.physics.coupling import (BubbleSystem, CoupledModes, build_system, coupled_modes as _physics_coupled_modes,
                                   coupled_response as _physics_coupled, prepared_response, uncoupled_blocks)
 from acl.physics.forces import (bjerknes_pair_sum, capsule_forces, capsule_pair_forces, critical_distance,
                                 dominant_pair_phase, force_constants, interface_distances, interface_pairs, jet_lines,
                                 neighbour_drag, thrust_magnitude)
 from acl.physics.forces import pressure_terms  # noqa: F401  (public here since before; acl.analysis.tones)
-from acl.physics.resonance import BubbleModes, capsule_modes as _physics_modes
 from acl.physics.ties import TIE_RTOL, first_max
-from acl.physics.transducer import pressure_per_volt
 
 
 # ----------------------------------------------------------------------------------------------
@@ -80,118 +80,9 @@ class PairForce:
     notes: tuple[str, ...] = ()
 
 
-# ----------------------------------------------------------------------------------------------
-# Environment (medium, transducer) with documented fallbacks
-# ----------------------------------------------------------------------------------------------
-
-
-def medium_constants(design: Design) -> C.MediumConstants:
-    m = design.medium
-    if m is None:
-        return C.WATER_20C
-    return C.MediumConstants(
-        density=m.density, viscosity=m.viscosity, sound_speed=m.sound_speed,
-        surface_tension=m.surface_tension, ambient_pressure=m.ambient_pressure,
-        polytropic_index=m.polytropic_index, gas_thermal_diffusivity=m.gas_thermal_diffusivity,
-    )
-
-
-def defaults_used(design: Design) -> tuple[str, ...]:
-    """Notes naming every documented default the acoustic analysis of ``design`` relies on."""
-    notes = []
-    if design.medium is None:
-        notes.append("no medium declared: water at 20 C assumed (acl.physics.constants.WATER_20C)")
-    if design.transducer is None:
-        notes.append(f"no transducer declared: flat {C.DEFAULT_GAIN_PA_PER_V:g} Pa/V assumed")
-    return tuple(notes)
-
-
-def drive_gain(design: Design, frequencies) -> tuple[np.ndarray, np.ndarray]:
-    """Transducer gain (Pa/V) at ``frequencies`` and the mask of frequencies outside its table."""
-    f = np.asarray(frequencies, float)
-    t = design.transducer
-    if t is None:
-        return np.full(f.shape, C.DEFAULT_GAIN_PA_PER_V), np.zeros(f.shape, bool)
-    return pressure_per_volt(f, t.gain_frequencies, t.gain_pa_per_v)
-
-
-def effect_pressure_factor(design: Design, f, vtot: float | None = None) -> np.ndarray:
-    """Factor on the drive pressure from declared transducer_gain (gain, tilt) and drive_saturation (at total amplitude ``vtot``).
-
-    Formulas of :mod:`acl.physics.effects` (the fit's forward model uses the same); 1 without effects.
-    """
-    f = np.asarray(f, float)
-    out = np.ones(f.shape)
-    tg = EF.coefficients(design, "transducer_gain")
-    if tg:
-        out = out * tg["gain"]
-        if tg["gain_slope"] and math.isfinite(tg["f_ref"]):
-            out = out * PE.gain_tilt(f, tg["f_ref"], tg["gain_slope"])
-    tr = EF.coefficients(design, "transducer_resonance")
-    if tr and tr["inv_f_ratio"] and math.isfinite(tr["f_ref"]):
-        out = out * PE.transducer_resonance(f, tr["f_ref"], tr["inv_f_ratio"], tr["gain_q"])
-    sat = EF.coefficients(design, "drive_saturation")
-    if sat and vtot is not None:
-        out = out * PE.saturation(vtot, sat["inv_vsat2"])
-    return out
-
-
-def substrate_factor(design: Design, capsule) -> float:
-    """Force factor of a declared substrate_proximity at the capsule's (first) orifice height at rest; 1 without it."""
-    sp = EF.coefficients(design, "substrate_proximity")
-    if not sp or sp["h_substrate"] <= 0:
-        return 1.0
-    cap = _capsule(design, capsule)
-    z = cap.orifices[0].center[2] if cap.orifices else cap.center[2]
-    return float(PE.substrate_factor(np.asarray(z, float), np.asarray(sp["h_substrate"], float)))
-
-
-# ----------------------------------------------------------------------------------------------
-# Capsule modal data (cached)
-# ----------------------------------------------------------------------------------------------
-
-
-def thermal_radius(cavity: Cavity) -> float:
-    """Length for the thermal model: 3 V / S (sphere-equivalent) of the gas, or the equal-volume sphere radius."""
-    v = cavity.volume
-    if cavity.shape == "cylinder" and cavity.radius and cavity.height:
-        s = 2 * math.pi * cavity.radius**2 + 2 * math.pi * cavity.radius * cavity.height
-        return 3 * v / s
-    if cavity.shape == "prism" and cavity.side and cavity.height:
-        s = math.sqrt(3) / 2 * cavity.side**2 + 3 * cavity.side * cavity.height
-        return 3 * v / s
-    return (3 * v / (4 * math.pi)) ** (1 / 3)
-
-
 def _outer_radius(capsule: Capsule) -> float:
     """Equal-volume sphere radius of the cavity plus its wall: the body the jets of others drag."""
     return (3 * capsule.cavity.volume / (4 * math.pi)) ** (1 / 3) + capsule.cavity.wall
-
-
-@lru_cache(maxsize=4096)
-def _modes_for(volume: float, radii: tuple[float, ...], r_th: float, medium: tuple,
-               q_override: float | None, n_modes: int) -> BubbleModes:
-    rho, mu, c, sigma, p0, kappa, diff, gamma = medium
-    return _physics_modes(volume, np.asarray(radii), rho, sigma, p0, kappa, mu, c, r_th,
-                          heat_capacity_ratio=gamma, thermal_diffusivity=diff,
-                          quality_override=q_override, n_modes=n_modes)
-
-
-def _capsule(design: Design, capsule) -> Capsule:
-    return capsule if isinstance(capsule, Capsule) else design.capsule(capsule)
-
-
-def modal_data(design: Design, capsule, n_modes: int = C.DEFAULT_MEMBRANE_MODES,
-               predicted: bool = False) -> BubbleModes:
-    """The physics-level modes of ``capsule`` alone (bare: no liquid coupling, no wall), cached per geometry and medium.
-
-    ``predicted`` ignores a declared ``quality_factor`` (the physics' own damping).
-    """
-    cap = _capsule(design, capsule)
-    radii = tuple(o.radius for o in cap.orifices)
-    q = None if predicted else cap.quality_factor
-    return _modes_for(cap.cavity.volume, radii, thermal_radius(cap.cavity),
-                      medium_constants(design).as_tuple(), q, n_modes)
 
 
 # ----------------------------------------------------------------------------------------------
