@@ -229,3 +229,28 @@ def test_coupled_volumes_of_an_array_gather_the_same_green_matrix_bit_for_bit(mo
         g = _green(sysm.points, sysm.radii, body, wf / C, WALL)
         u = np.linalg.solve(np.eye(sysm.n) - wf**2 * RHO * h0 @ g, h0 @ np.ones(sysm.n))
         np.testing.assert_allclose(table[fi], u, rtol=1e-9)
+
+
+def test_mutual_resistance_of_an_array_is_the_pair_by_pair_sum_bit_for_bit(monkeypatch):
+    """sin(kd)/d once per distinct distance (DISTINCT_PAIRS) gives exactly the pair-by-pair sums, and both the
+    double sum over interfaces and images of the module doc (1e-9)."""
+    import acl.physics.coupling as CP
+
+    modes, sysm = _array_of_capsules()
+    phi, om, dmp, body = _dense_phi(modes)
+    vol = phi @ np.random.default_rng(5).normal(size=(om.size, 6))             # six collective shapes
+    k = np.linspace(200.0, 900.0, 6)                                          # rad/m
+    table = CP.mutual_resistance(vol, sysm.points, sysm.radii, body, k, WALL)
+    monkeypatch.setattr(CP, "DISTINCT_PAIRS", 0.0)
+    assert np.array_equal(table, CP.mutual_resistance(vol, sysm.points, sysm.radii, body, k, WALL))
+    for n_ in range(k.size):
+        s = 0.0
+        for i in range(sysm.n):
+            for j in range(sysm.n):
+                floor = sysm.radii[i] + sysm.radii[j]
+                if body[i] != body[j]:
+                    d = float(contact_distance(np.linalg.norm(sysm.points[i] - sysm.points[j]), floor))
+                    s += vol[i, n_] * vol[j, n_] * math.sin(k[n_] * d) / (k[n_] * d)
+                di = float(contact_distance(np.linalg.norm(sysm.points[i] - sysm.points[j] * [1.0, 1.0, -1.0]), floor))
+                s += WALL * vol[i, n_] * vol[j, n_] * math.sin(k[n_] * di) / (k[n_] * di)
+        assert table[n_] == pytest.approx(s, rel=1e-9)

@@ -327,19 +327,21 @@ def _system_modes(design: Design, idx: tuple[int, ...], max_hz: float | None = N
     def name(s):
         return s.split(".", 1)[1] if short else s
 
+    names = [name(lab) for lab in labels]
+    shares = cm.share
     out = []
     for n in (_fundamentals(cm, len(labels)) if short else range(cm.omega.size)):
-        share = cm.share[:, n]
+        share = shares[:, n]
         k = first_max(share)                  # a symmetric pair's 50/50: the first declared (acl.physics.ties)
         q = cm.quality[n]
         if short and lay.caps[idx[0]].quality_factor is not None:   # a declared Q is the capsule's Q as measured
             q = lay.caps[idx[0]].quality_factor
+        same = np.where(cm.volume[:, n] * cm.volume[k, n] >= 0, 0.0, 180.0)     # in phase with the dominant one
         out.append(Mode(frequency_hz=float(cm.frequency[n]), q=float(q),
-                        dominant_orifice=name(labels[k]), share=float(share[k]),
-                        shares={name(lab): float(share[i]) for i, lab in enumerate(labels)},
+                        dominant_orifice=names[k], share=float(share[k]),
+                        shares=dict(zip(names, share.tolist())),
                         q_declared=declared, notes=notes, q_predicted=float(cp.quality[n]),
-                        phases={name(lab): (0.0 if cm.volume[i, n] * cm.volume[k, n] >= 0 else 180.0)
-                                for i, lab in enumerate(labels)}))
+                        phases=dict(zip(names, same.tolist()))))
     return tuple(out)
 
 

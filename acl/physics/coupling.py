@@ -418,6 +418,13 @@ def mutual_resistance(volume, points, radii, body, wavenumber, wall_reflection: 
         weight += [np.full(iu.size, 2.0 * wall_reflection), np.full(n, float(wall_reflection))]
     i, j, weight = (np.concatenate(a) for a in (i, j, weight))
     dist = np.concatenate(dist, axis=-1)
+    # one configuration: sin(kd)/d once per distinct distance (an array of capsules repeats them; DISTINCT_PAIRS),
+    # gathered to the pairs: the same operations on the same numbers as pair by pair
+    uniq = index = None
+    if dist.size == dist.shape[-1] and dist.size > 64:
+        uniq, index = np.unique(dist.reshape(-1), return_inverse=True)
+        if uniq.size > DISTINCT_PAIRS * dist.size:
+            uniq = index = None
     dist = np.broadcast_to(dist, batch + dist.shape[-1:]).reshape(nb, 1, -1)        # (B, 1, pairs)
     vt = np.ascontiguousarray(np.swapaxes(np.broadcast_to(volume, batch + (n, nk)), -1, -2)).reshape(nb, nk, n)
     k = np.broadcast_to(k, batch + (nk,)).reshape(nb, nk)
@@ -425,11 +432,14 @@ def mutual_resistance(volume, points, radii, body, wavenumber, wall_reflection: 
     chunk = max(1, PAIR_CHUNK_ELEMENTS // (nb * max(i.size, 1)))
     for s in range(0, nk, chunk):
         ks = k[:, s:s + chunk]
-        x = ks[..., None] * dist                                                   # (B, chunk, pairs)
+        d = dist if uniq is None else uniq[None, None]
+        x = ks[..., None] * d                                                      # (B, chunk, pairs or distinct)
         if np.all(x > 0):
-            sinc, scale = np.sin(x, out=x) / dist, 1.0 / ks                        # sin(kd)/d, then / k
+            sinc, scale = np.sin(x, out=x) / d, 1.0 / ks                           # sin(kd)/d, then / k
         else:
             sinc, scale = np.sinc(x / np.pi), 1.0
+        if uniq is not None:
+            sinc = np.take(sinc, index.reshape(-1), axis=-1)
         sinc *= vt[:, s:s + chunk, i]
         sinc *= vt[:, s:s + chunk, j]
         out[:, s:s + chunk] = (sinc @ weight) * scale
