@@ -440,8 +440,8 @@ def mutual_resistance(volume, points, radii, body, wavenumber, wall_reflection: 
             sinc, scale = np.sinc(x / np.pi), 1.0
         if uniq is not None:
             sinc = np.take(sinc, index.reshape(-1), axis=-1)
-        sinc *= vt[:, s:s + chunk, i]
-        sinc *= vt[:, s:s + chunk, j]
+        sinc *= np.take(vt[:, s:s + chunk], i, axis=-1)                            # (a gather: faster than [..., i])
+        sinc *= np.take(vt[:, s:s + chunk], j, axis=-1)
         out[:, s:s + chunk] = (sinc @ weight) * scale
     return out.reshape(batch + (nk,))
 
