@@ -254,3 +254,20 @@ def test_mutual_resistance_of_an_array_is_the_pair_by_pair_sum_bit_for_bit(monke
                 di = float(contact_distance(np.linalg.norm(sysm.points[i] - sysm.points[j] * [1.0, 1.0, -1.0]), floor))
                 s += WALL * vol[i, n_] * vol[j, n_] * math.sin(k[n_] * di) / (k[n_] * di)
         assert table[n_] == pytest.approx(s, rel=1e-9)
+
+
+def test_coupled_volumes_of_an_array_with_batched_blocks_equal_each_row():
+    """The gathered Green matrix broadcast over a batch of uncoupled responses (one configuration): each row as
+    solved alone, bit for bit."""
+    modes, sysm = _array_of_capsules()
+    f = np.linspace(80e3, 200e3, 4)
+    w = 2 * math.pi * f
+    from acl.physics.coupling import uncoupled_response
+
+    blocks = np.stack([np.moveaxis(uncoupled_response(sysm.phi, sysm.omega, s * sysm.damping, w), -3, 0)
+                       for s in (1.0, 1.7)])                                              # (2, F, C, P, P)
+    both = coupled_volumes(blocks, sysm.slot, sysm.points, sysm.radii, f, RHO, C, WALL)
+    assert both.shape == (2, f.size, sysm.n)
+    for b in range(2):
+        assert np.array_equal(both[b], coupled_volumes(blocks[b], sysm.slot, sysm.points, sysm.radii, f, RHO, C, WALL))
+    assert not np.allclose(both[0], both[1], rtol=1e-3, atol=0.0)                     # the rows differ
