@@ -206,7 +206,7 @@ def test_coupled_volumes_of_an_array_gather_the_same_green_matrix_bit_for_bit(mo
 
     modes, sysm = _array_of_capsules()
     phi, om, dmp, body = _dense_phi(modes)
-    f = np.linspace(60e3, 240e3, 5)
+    f = np.linspace(60e3, 240e3, CP.TABLE_MIN_EVALUATIONS)
     blocks = uncoupled_blocks(sysm, 2 * math.pi * f)
     args = (blocks, sysm.slot, sysm.points, sysm.radii, f, RHO, C, WALL)
     terms = []
@@ -238,9 +238,14 @@ def test_mutual_resistance_of_an_array_is_the_pair_by_pair_sum_bit_for_bit(monke
 
     modes, sysm = _array_of_capsules()
     phi, om, dmp, body = _dense_phi(modes)
-    vol = phi @ np.random.default_rng(5).normal(size=(om.size, 6))             # six collective shapes
-    k = np.linspace(200.0, 900.0, 6)                                          # rad/m
+    vol = phi @ np.random.default_rng(5).normal(size=(om.size, 8))             # eight collective shapes
+    k = np.linspace(200.0, 900.0, 8)                                          # rad/m
+    distinct = []
+    unique = np.unique
+    monkeypatch.setattr(CP.np, "unique", lambda *a, **kw: distinct.append(unique(*a, **kw)) or distinct[-1])
     table = CP.mutual_resistance(vol, sysm.points, sysm.radii, body, k, WALL)
+    monkeypatch.setattr(CP.np, "unique", unique)
+    assert distinct and distinct[-1][0].size < np.size(distinct[-1][1]) / 4     # the table path ran
     monkeypatch.setattr(CP, "DISTINCT_PAIRS", 0.0)
     assert np.array_equal(table, CP.mutual_resistance(vol, sysm.points, sysm.radii, body, k, WALL))
     for n_ in range(k.size):
@@ -256,13 +261,18 @@ def test_mutual_resistance_of_an_array_is_the_pair_by_pair_sum_bit_for_bit(monke
         assert table[n_] == pytest.approx(s, rel=1e-9)
 
 
-def test_coupled_volumes_of_an_array_with_batched_blocks_equal_each_row():
+def test_coupled_volumes_of_an_array_with_batched_blocks_equal_each_row(monkeypatch):
     """The gathered Green matrix broadcast over a batch of uncoupled responses (one configuration): each row as
     solved alone, bit for bit."""
-    modes, sysm = _array_of_capsules()
-    f = np.linspace(80e3, 200e3, 4)
-    w = 2 * math.pi * f
+    import acl.physics.coupling as CP
     from acl.physics.coupling import uncoupled_response
+
+    modes, sysm = _array_of_capsules()
+    f = np.linspace(80e3, 200e3, CP.TABLE_MIN_EVALUATIONS)
+    w = 2 * math.pi * f
+    terms = []
+    green = CP._green_terms
+    monkeypatch.setattr(CP, "_green_terms", lambda k, t, r: terms.append(t[0].shape[-1]) or green(k, t, r))
 
     blocks = np.stack([np.moveaxis(uncoupled_response(sysm.phi, sysm.omega, s * sysm.damping, w), -3, 0)
                        for s in (1.0, 1.7)])                                              # (2, F, C, P, P)
@@ -271,3 +281,4 @@ def test_coupled_volumes_of_an_array_with_batched_blocks_equal_each_row():
     for b in range(2):
         assert np.array_equal(both[b], coupled_volumes(blocks[b], sysm.slot, sysm.points, sysm.radii, f, RHO, C, WALL))
     assert not np.allclose(both[0], both[1], rtol=1e-3, atol=0.0)                     # the rows differ
+    assert terms and max(terms) < sysm.n * (sysm.n + 1) // 8                           # the table path ran

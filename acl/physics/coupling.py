@@ -203,6 +203,10 @@ CHUNK_ELEMENTS = 2**20
 #: when these are at most this share of the pairs (an array of identical capsules on a pitch: 5,647 distinct of
 #: 77,421 pairs in benchmarks/check.py's 5,000-line design), and gathers the matrix from them; else pair by pair.
 DISTINCT_PAIRS = 0.5
+#: ... and when it evaluates the Green function at this many frequencies at least (:func:`mutual_resistance`: half as
+#: many modes): finding the distinct pairs costs about as much as 15 frequencies pair by pair (45-75 ms for 77,421
+#: pairs), which a solver evaluating one configuration at a few tones would pay on every call.
+TABLE_MIN_EVALUATIONS = 16
 
 
 def _batched(x, batch: tuple, tail: int) -> np.ndarray:
@@ -279,7 +283,7 @@ def coupled_volumes(blocks, slot, points, radii, frequency, density, sound_speed
     # each distinct pair once, then gathered into the full matrix (the same operations on the same numbers as
     # computing every pair: bit for bit the same g)
     table = None
-    if tri[0].shape[0] == 1 and upper.size > 64:
+    if tri[0].shape[0] == 1 and upper.size > 64 and nf >= TABLE_MIN_EVALUATIONS:
         cols, index = np.unique(np.stack([t[0, 0] for t in tri]), axis=1, return_inverse=True)
         if cols.shape[1] <= DISTINCT_PAIRS * upper.size:
             table = [np.ascontiguousarray(x)[None, None] for x in cols]
@@ -426,7 +430,7 @@ def mutual_resistance(volume, points, radii, body, wavenumber, wall_reflection: 
     # one configuration: sin(kd)/d once per distinct distance (an array of capsules repeats them; DISTINCT_PAIRS),
     # gathered to the pairs: the same operations on the same numbers as pair by pair
     uniq = index = None
-    if dist.size == dist.shape[-1] and dist.size > 64:
+    if dist.size == dist.shape[-1] and dist.size > 64 and nk >= TABLE_MIN_EVALUATIONS // 2:
         uniq, index = np.unique(dist.reshape(-1), return_inverse=True)
         if uniq.size > DISTINCT_PAIRS * dist.size:
             uniq = index = None
