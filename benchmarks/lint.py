@@ -16,6 +16,14 @@ Issue 23, branch engine4 (one interleaved run, two rounds, load average 8-10 on 
 0.79 / 0.74 s CPU): 5,000 lines on abf535b 9.33 / 9.42 s CPU = 11.8x / 12.7x cvxpy's import, 200 MB peak; on
 engine4 6.00 / 6.43 s CPU = 7.6x / 8.7x, 188 MB (0.64x / 0.68x of abf535b).  Still above the 5 s target: the
 coupled response at rest (363 frequencies x 393 interfaces, one dense complex solve each) is about 2.8 s of it.
+
+Issue 23, branch lint6 (one interleaved run, two rounds, load average 12 on 2 cores; `python -c "import cvxpy"`
+0.95-1.01 s CPU): 5,000 lines on ab4c61b 7.01 / 6.95 s CPU (7.4x / 7.0x cvxpy's import), 188 MB peak; on lint6
+4.79 / 4.87 s CPU (5.0x / 4.9x), 187-190 MB (0.68x / 0.70x of ab4c61b; the parse + resolve stage, 1.4-1.8 s of it, is
+unchanged).  How: the Green matrix from the distinct pair geometries of the array (5,647 of 77,421; the coupled solve
+2.95 -> 1.85 s, the LU solves themselves, 1.35 s, are what is left of it), the pair table's interface-pair geometry
+kept per design, alike capsules' modes and the engine's drive-independent factors computed once.  The findings are
+identical (benchmarks/lint_compare.py: 0 differences over 50 files and 26,159 findings).
 """
 from __future__ import annotations
 

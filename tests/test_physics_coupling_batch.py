@@ -184,3 +184,101 @@ def test_three_orifice_capsules_equal_a_brute_force_loop(batched, capsules):
             g = _green(points[b], sysm.radii, body, wf / C, WALL)
             u = np.linalg.solve(np.eye(sysm.n) - wf**2 * RHO * h0 @ g, h0 @ np.ones(sysm.n))
             np.testing.assert_allclose(got[b, fi], u, rtol=1e-9)
+
+
+
+def _array_of_capsules(rows: int = 3, cols: int = 5, pitch: float = 100e-6):
+    """A regular array of one-orifice capsules of two kinds, as large designs are laid out."""
+    kinds = [capsule_modes(6.51e-14, [r], RHO, SIGMA, P0, 1.0, MU, C, 7e-6, n_modes=2) for r in (10e-6, 12e-6)]
+    modes, pts, radii = [], [], []
+    for r in range(rows):
+        for q in range(cols):
+            modes.append(kinds[(r + q) % 2])
+            pts.append([[q * pitch, r * pitch, 60e-6]])
+            radii.append([(10e-6, 12e-6)[(r + q) % 2]])
+    return modes, build_system(modes, pts, radii)
+
+
+def test_coupled_volumes_of_an_array_gather_the_same_green_matrix_bit_for_bit(monkeypatch):
+    """The distinct-pair table (DISTINCT_PAIRS) gives exactly the numbers of the pair-by-pair Green matrix, and both
+    the brute-force loop's to 1e-9."""
+    import acl.physics.coupling as CP
+
+    modes, sysm = _array_of_capsules()
+    phi, om, dmp, body = _dense_phi(modes)
+    f = np.linspace(60e3, 240e3, CP.TABLE_MIN_EVALUATIONS)
+    blocks = uncoupled_blocks(sysm, 2 * math.pi * f)
+    args = (blocks, sysm.slot, sysm.points, sysm.radii, f, RHO, C, WALL)
+    terms = []
+    green = CP._green_terms
+    monkeypatch.setattr(CP, "_green_terms", lambda k, t, r: terms.append(t[0].shape[-1]) or green(k, t, r))
+    table = coupled_volumes(*args)
+    pairs = sysm.n * (sysm.n + 1) // 2
+    assert terms and max(terms) < pairs / 4                 # the array repeats its distances: the table path ran
+    monkeypatch.setattr(CP, "DISTINCT_PAIRS", 0.0)          # pair by pair
+    terms.clear()
+    pairwise = coupled_volumes(*args)
+    assert terms and min(terms) == pairs
+    assert np.array_equal(table, pairwise)
+    for fi, wf in enumerate(2 * math.pi * f):
+        h0 = np.zeros((sysm.n, sysm.n), complex)
+        for i in range(sysm.n):
+            for j in range(sysm.n):
+                if body[i] == body[j]:
+                    h0[i, j] = sum(phi[i, m] * phi[j, m] / (om[m]**2 - wf**2 + 1j * wf * dmp[m]) for m in range(om.size))
+        g = _green(sysm.points, sysm.radii, body, wf / C, WALL)
+        u = np.linalg.solve(np.eye(sysm.n) - wf**2 * RHO * h0 @ g, h0 @ np.ones(sysm.n))
+        np.testing.assert_allclose(table[fi], u, rtol=1e-9)
+
+
+def test_mutual_resistance_of_an_array_is_the_pair_by_pair_sum_bit_for_bit(monkeypatch):
+    """sin(kd)/d once per distinct distance (DISTINCT_PAIRS) gives exactly the pair-by-pair sums, and both the
+    double sum over interfaces and images of the module doc (1e-9)."""
+    import acl.physics.coupling as CP
+
+    modes, sysm = _array_of_capsules()
+    phi, om, dmp, body = _dense_phi(modes)
+    vol = phi @ np.random.default_rng(5).normal(size=(om.size, 8))             # eight collective shapes
+    k = np.linspace(200.0, 900.0, 8)                                          # rad/m
+    distinct = []
+    unique = np.unique
+    monkeypatch.setattr(CP.np, "unique", lambda *a, **kw: distinct.append(unique(*a, **kw)) or distinct[-1])
+    table = CP.mutual_resistance(vol, sysm.points, sysm.radii, body, k, WALL)
+    monkeypatch.setattr(CP.np, "unique", unique)
+    assert distinct and distinct[-1][0].size < np.size(distinct[-1][1]) / 4     # the table path ran
+    monkeypatch.setattr(CP, "DISTINCT_PAIRS", 0.0)
+    assert np.array_equal(table, CP.mutual_resistance(vol, sysm.points, sysm.radii, body, k, WALL))
+    for n_ in range(k.size):
+        s = 0.0
+        for i in range(sysm.n):
+            for j in range(sysm.n):
+                floor = sysm.radii[i] + sysm.radii[j]
+                if body[i] != body[j]:
+                    d = float(contact_distance(np.linalg.norm(sysm.points[i] - sysm.points[j]), floor))
+                    s += vol[i, n_] * vol[j, n_] * math.sin(k[n_] * d) / (k[n_] * d)
+                di = float(contact_distance(np.linalg.norm(sysm.points[i] - sysm.points[j] * [1.0, 1.0, -1.0]), floor))
+                s += WALL * vol[i, n_] * vol[j, n_] * math.sin(k[n_] * di) / (k[n_] * di)
+        assert table[n_] == pytest.approx(s, rel=1e-9)
+
+
+def test_coupled_volumes_of_an_array_with_batched_blocks_equal_each_row(monkeypatch):
+    """The gathered Green matrix broadcast over a batch of uncoupled responses (one configuration): each row as
+    solved alone, bit for bit."""
+    import acl.physics.coupling as CP
+    from acl.physics.coupling import uncoupled_response
+
+    modes, sysm = _array_of_capsules()
+    f = np.linspace(80e3, 200e3, CP.TABLE_MIN_EVALUATIONS)
+    w = 2 * math.pi * f
+    terms = []
+    green = CP._green_terms
+    monkeypatch.setattr(CP, "_green_terms", lambda k, t, r: terms.append(t[0].shape[-1]) or green(k, t, r))
+
+    blocks = np.stack([np.moveaxis(uncoupled_response(sysm.phi, sysm.omega, s * sysm.damping, w), -3, 0)
+                       for s in (1.0, 1.7)])                                              # (2, F, C, P, P)
+    both = coupled_volumes(blocks, sysm.slot, sysm.points, sysm.radii, f, RHO, C, WALL)
+    assert both.shape == (2, f.size, sysm.n)
+    for b in range(2):
+        assert np.array_equal(both[b], coupled_volumes(blocks[b], sysm.slot, sysm.points, sysm.radii, f, RHO, C, WALL))
+    assert not np.allclose(both[0], both[1], rtol=1e-3, atol=0.0)                     # the rows differ
+    assert terms and max(terms) < sysm.n * (sysm.n + 1) // 8                           # the table path ran

@@ -1,9 +1,10 @@
 """Acoustic analysis of a design: capsule modes, orifice responses, thrust, pair forces, selectivity.
 
-Turns :mod:`acl.design.model` objects into calls of :mod:`acl.physics.resonance`,
-:mod:`acl.physics.transducer` and :mod:`acl.physics.forces`.  Per-capsule modal data are cached on
-a hashable key (geometry + medium), so the equilibrium solver and the fitter can call
-:func:`force_model` in inner loops.
+Turns :mod:`acl.design.model` objects into calls of :mod:`acl.physics.coupling` and
+:mod:`acl.physics.forces`.  The medium, the transducer and the declared factors on the drive are
+:mod:`acl.analysis.environment`; each capsule's bare modes, cached on a hashable key (geometry +
+medium), are :mod:`acl.analysis.modal` (both re-exported here), so the equilibrium solver and the
+fitter can call :func:`force_model` in inner loops.
 
 Defaults: a design without ``medium`` uses :data:`acl.physics.constants.WATER_20C`; without
 ``transducer`` a flat :data:`acl.physics.constants.DEFAULT_GAIN_PA_PER_V`.  :func:`defaults_used`
@@ -17,24 +18,23 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, replace
-from functools import lru_cache
 from typing import Mapping, Sequence
 
 import numpy as np
 
-from acl.design.model import Capsule, Cavity, Design, Drive
+from acl.design.model import Capsule, Design, Drive
 from acl.analysis import effects as EF
+from acl.analysis.environment import (_capsule, defaults_used, drive_gain, effect_pressure_factor,  # noqa: F401
+                                      medium_constants, substrate_factor)
+from acl.analysis.modal import modal_data, thermal_radius  # noqa: F401  (public here since before)
 from acl.physics import constants as C
-from acl.physics import effects as PE
 from acl.physics.coupling import (BubbleSystem, CoupledModes, build_system, coupled_modes as _physics_coupled_modes,
                                   coupled_response as _physics_coupled, prepared_response, uncoupled_blocks)
 from acl.physics.forces import (bjerknes_pair_sum, capsule_forces, capsule_pair_forces, critical_distance,
-                                dominant_pair_phase, force_constants, interface_distances, jet_lines,
+                                dominant_pair_phase, force_constants, interface_distances, interface_pairs, jet_lines,
                                 neighbour_drag, thrust_magnitude)
 from acl.physics.forces import pressure_terms  # noqa: F401  (public here since before; acl.analysis.tones)
-from acl.physics.resonance import BubbleModes, capsule_modes as _physics_modes
 from acl.physics.ties import TIE_RTOL, first_max
-from acl.physics.transducer import pressure_per_volt
 
 
 # ----------------------------------------------------------------------------------------------
@@ -80,118 +80,9 @@ class PairForce:
     notes: tuple[str, ...] = ()
 
 
-# ----------------------------------------------------------------------------------------------
-# Environment (medium, transducer) with documented fallbacks
-# ----------------------------------------------------------------------------------------------
-
-
-def medium_constants(design: Design) -> C.MediumConstants:
-    m = design.medium
-    if m is None:
-        return C.WATER_20C
-    return C.MediumConstants(
-        density=m.density, viscosity=m.viscosity, sound_speed=m.sound_speed,
-        surface_tension=m.surface_tension, ambient_pressure=m.ambient_pressure,
-        polytropic_index=m.polytropic_index, gas_thermal_diffusivity=m.gas_thermal_diffusivity,
-    )
-
-
-def defaults_used(design: Design) -> tuple[str, ...]:
-    """Notes naming every documented default the acoustic analysis of ``design`` relies on."""
-    notes = []
-    if design.medium is None:
-        notes.append("no medium declared: water at 20 C assumed (acl.physics.constants.WATER_20C)")
-    if design.transducer is None:
-        notes.append(f"no transducer declared: flat {C.DEFAULT_GAIN_PA_PER_V:g} Pa/V assumed")
-    return tuple(notes)
-
-
-def drive_gain(design: Design, frequencies) -> tuple[np.ndarray, np.ndarray]:
-    """Transducer gain (Pa/V) at ``frequencies`` and the mask of frequencies outside its table."""
-    f = np.asarray(frequencies, float)
-    t = design.transducer
-    if t is None:
-        return np.full(f.shape, C.DEFAULT_GAIN_PA_PER_V), np.zeros(f.shape, bool)
-    return pressure_per_volt(f, t.gain_frequencies, t.gain_pa_per_v)
-
-
-def effect_pressure_factor(design: Design, f, vtot: float | None = None) -> np.ndarray:
-    """Factor on the drive pressure from declared transducer_gain (gain, tilt) and drive_saturation (at total amplitude ``vtot``).
-
-    Formulas of :mod:`acl.physics.effects` (the fit's forward model uses the same); 1 without effects.
-    """
-    f = np.asarray(f, float)
-    out = np.ones(f.shape)
-    tg = EF.coefficients(design, "transducer_gain")
-    if tg:
-        out = out * tg["gain"]
-        if tg["gain_slope"] and math.isfinite(tg["f_ref"]):
-            out = out * PE.gain_tilt(f, tg["f_ref"], tg["gain_slope"])
-    tr = EF.coefficients(design, "transducer_resonance")
-    if tr and tr["inv_f_ratio"] and math.isfinite(tr["f_ref"]):
-        out = out * PE.transducer_resonance(f, tr["f_ref"], tr["inv_f_ratio"], tr["gain_q"])
-    sat = EF.coefficients(design, "drive_saturation")
-    if sat and vtot is not None:
-        out = out * PE.saturation(vtot, sat["inv_vsat2"])
-    return out
-
-
-def substrate_factor(design: Design, capsule) -> float:
-    """Force factor of a declared substrate_proximity at the capsule's (first) orifice height at rest; 1 without it."""
-    sp = EF.coefficients(design, "substrate_proximity")
-    if not sp or sp["h_substrate"] <= 0:
-        return 1.0
-    cap = _capsule(design, capsule)
-    z = cap.orifices[0].center[2] if cap.orifices else cap.center[2]
-    return float(PE.substrate_factor(np.asarray(z, float), np.asarray(sp["h_substrate"], float)))
-
-
-# ----------------------------------------------------------------------------------------------
-# Capsule modal data (cached)
-# ----------------------------------------------------------------------------------------------
-
-
-def thermal_radius(cavity: Cavity) -> float:
-    """Length for the thermal model: 3 V / S (sphere-equivalent) of the gas, or the equal-volume sphere radius."""
-    v = cavity.volume
-    if cavity.shape == "cylinder" and cavity.radius and cavity.height:
-        s = 2 * math.pi * cavity.radius**2 + 2 * math.pi * cavity.radius * cavity.height
-        return 3 * v / s
-    if cavity.shape == "prism" and cavity.side and cavity.height:
-        s = math.sqrt(3) / 2 * cavity.side**2 + 3 * cavity.side * cavity.height
-        return 3 * v / s
-    return (3 * v / (4 * math.pi)) ** (1 / 3)
-
-
 def _outer_radius(capsule: Capsule) -> float:
     """Equal-volume sphere radius of the cavity plus its wall: the body the jets of others drag."""
     return (3 * capsule.cavity.volume / (4 * math.pi)) ** (1 / 3) + capsule.cavity.wall
-
-
-@lru_cache(maxsize=4096)
-def _modes_for(volume: float, radii: tuple[float, ...], r_th: float, medium: tuple,
-               q_override: float | None, n_modes: int) -> BubbleModes:
-    rho, mu, c, sigma, p0, kappa, diff, gamma = medium
-    return _physics_modes(volume, np.asarray(radii), rho, sigma, p0, kappa, mu, c, r_th,
-                          heat_capacity_ratio=gamma, thermal_diffusivity=diff,
-                          quality_override=q_override, n_modes=n_modes)
-
-
-def _capsule(design: Design, capsule) -> Capsule:
-    return capsule if isinstance(capsule, Capsule) else design.capsule(capsule)
-
-
-def modal_data(design: Design, capsule, n_modes: int = C.DEFAULT_MEMBRANE_MODES,
-               predicted: bool = False) -> BubbleModes:
-    """The physics-level modes of ``capsule`` alone (bare: no liquid coupling, no wall), cached per geometry and medium.
-
-    ``predicted`` ignores a declared ``quality_factor`` (the physics' own damping).
-    """
-    cap = _capsule(design, capsule)
-    radii = tuple(o.radius for o in cap.orifices)
-    q = None if predicted else cap.quality_factor
-    return _modes_for(cap.cavity.volume, radii, thermal_radius(cap.cavity),
-                      medium_constants(design).as_tuple(), q, n_modes)
 
 
 # ----------------------------------------------------------------------------------------------
@@ -359,10 +250,19 @@ def interface_labels(design: Design) -> tuple[str, ...]:
 
 def _capsule_index(design: Design, capsule) -> int:
     cap = _capsule(design, capsule)
+    i = _capsule_indices(design).get(cap.name)
+    if i is None:
+        raise KeyError(cap.name)
+    return i
+
+
+@_per_design
+def _capsule_indices(design: Design) -> dict:
+    """{capsule name: index in the layout} (the first of a name)."""
+    out: dict = {}
     for i, c in enumerate(_layout(design).caps):
-        if c.name == cap.name:
-            return i
-    raise KeyError(cap.name)
+        out.setdefault(c.name, i)
+    return out
 
 
 def _fundamentals(cm: CoupledModes, n_interfaces: int) -> list[int]:
@@ -383,9 +283,33 @@ def _fundamentals(cm: CoupledModes, n_interfaces: int) -> list[int]:
     return sorted(set(picked))
 
 
-@_per_design
+_SAME_CAPSULES: list = []     # [(design, {capsule geometry key: modes})]: capsules alike in all the modes depend on
+
+
 def _modes_cached(design: Design, idx: tuple[int, ...], max_hz: float | None = None) -> tuple[Mode, ...]:
-    """Modes of the capsules ``idx`` as one system (a single capsule: its fundamentals), up to ``max_hz`` if given."""
+    """Modes of the capsules ``idx`` as one system (a single capsule: its fundamentals), up to ``max_hz`` if given.
+
+    A capsule's own modes depend on its cavity, orifices and the distances between its orifices and their wall images:
+    capsules alike in these (an array of one capsule at one height) share one computation, keyed on the exact numbers
+    the distances are computed from (the same results, bit for bit)."""
+    if len(idx) != 1:
+        return _system_modes(design, idx, max_hz)
+    lay = _layout(design)
+    cap = lay.caps[idx[0]]
+    pts = lay.points(lay.rest)[lay.body == idx[0]]
+    key = (cap.cavity.volume, thermal_radius(cap.cavity), cap.quality_factor, max_hz,
+           tuple((o.name, o.radius) for o in cap.orifices),
+           (pts[:, None, :2] - pts[None, :, :2]).tobytes(), pts[:, 2].tobytes())
+    store = _per_design_store(_SAME_CAPSULES, design)
+    hit = store.get(key)
+    if hit is None:
+        hit = store[key] = _system_modes(design, idx, max_hz)
+    return hit
+
+
+@_per_design
+def _system_modes(design: Design, idx: tuple[int, ...], max_hz: float | None = None) -> tuple[Mode, ...]:
+    """:func:`_modes_cached` computed."""
     med = medium_constants(design)
     lay = _layout(design)
     sel = np.isin(lay.body, list(idx))
@@ -403,19 +327,21 @@ def _modes_cached(design: Design, idx: tuple[int, ...], max_hz: float | None = N
     def name(s):
         return s.split(".", 1)[1] if short else s
 
+    names = [name(lab) for lab in labels]
+    shares = cm.share
     out = []
     for n in (_fundamentals(cm, len(labels)) if short else range(cm.omega.size)):
-        share = cm.share[:, n]
+        share = shares[:, n]
         k = first_max(share)                  # a symmetric pair's 50/50: the first declared (acl.physics.ties)
         q = cm.quality[n]
         if short and lay.caps[idx[0]].quality_factor is not None:   # a declared Q is the capsule's Q as measured
             q = lay.caps[idx[0]].quality_factor
+        same = np.where(cm.volume[:, n] * cm.volume[k, n] >= 0, 0.0, 180.0)     # in phase with the dominant one
         out.append(Mode(frequency_hz=float(cm.frequency[n]), q=float(q),
-                        dominant_orifice=name(labels[k]), share=float(share[k]),
-                        shares={name(lab): float(share[i]) for i, lab in enumerate(labels)},
+                        dominant_orifice=names[k], share=float(share[k]),
+                        shares=dict(zip(names, share.tolist())),
                         q_declared=declared, notes=notes, q_predicted=float(cp.quality[n]),
-                        phases={name(lab): (0.0 if cm.volume[i, n] * cm.volume[k, n] >= 0 else 180.0)
-                                for i, lab in enumerate(labels)}))
+                        phases=dict(zip(names, same.tolist()))))
     return tuple(out)
 
 
@@ -607,6 +533,26 @@ def _engine_constants(design: Design, lay: _Layout, f: np.ndarray, pressure: np.
                            C.STREAMING_CONSTANT, pressure, scale, pair, gap_shape=shape)
 
 
+@_per_design
+def _capsule_factors(design: Design) -> tuple:
+    """The drive-independent factors of :func:`_compute_engine`, once per design (read-only): thrust scale x substrate
+    effect (C,), the Bjerknes factor (C, C) and its declared shape, each capsule's jet-drag radius (C,)."""
+    lay = _layout(design)
+    ncap = len(lay.caps)
+    sub = np.array([substrate_factor(design, c) for c in lay.caps]) if design.effects else np.ones(ncap)
+    scale = np.array([_thrust_scale(design, c) for c in lay.caps]) * sub
+    pair = np.sqrt(np.outer(sub, sub)) if design.effects else np.ones((ncap, ncap))
+    bs = EF.coefficients(design, "bjerknes_scale") if design.effects else None
+    shape = (0.0, 1.0)
+    if bs is not None:   # a fitted Bjerknes coefficient (paper Eq. 3 alpha) relative to the physics, and its shape
+        pair = pair * bs["factor"]
+        shape = EF.bjerknes_shape(bs)
+    outer = np.array([_outer_radius(c) for c in lay.caps])
+    for a in (scale, pair, outer):
+        a.setflags(write=False)
+    return scale, pair, shape, outer
+
+
 def _compute_engine(design: Design, drive: Drive) -> _Engine:
     lay = _layout(design)
     med = medium_constants(design)
@@ -618,16 +564,7 @@ def _compute_engine(design: Design, drive: Drive) -> _Engine:
         h0 = uncoupled_blocks(sysm, 2 * np.pi * f)
     else:
         pressure, h0 = np.zeros(0), None
-    ncap = len(lay.caps)
-    sub = np.array([substrate_factor(design, c) for c in lay.caps]) if design.effects else np.ones(ncap)
-    scale = np.array([_thrust_scale(design, c) for c in lay.caps]) * sub
-    pair = np.sqrt(np.outer(sub, sub)) if design.effects else np.ones((ncap, ncap))
-    bs = EF.coefficients(design, "bjerknes_scale") if design.effects else None
-    shape = (0.0, 1.0)
-    if bs is not None:   # a fitted Bjerknes coefficient (paper Eq. 3 alpha) relative to the physics, and its shape
-        pair = pair * bs["factor"]
-        shape = EF.bjerknes_shape(bs)
-    outer = np.array([_outer_radius(c) for c in lay.caps])
+    scale, pair, shape, outer = _capsule_factors(design)
     response = (prepared_response(sysm, f, med.density, med.sound_speed, C.SUBSTRATE_REFLECTION, h0=h0)
                 if f.size else None)
     return _Engine(design, lay, sysm, f, pressure, h0, scale, pair, outer, med.density, med.sound_speed, response,
@@ -697,11 +634,14 @@ def _pair_lines(centres: np.ndarray) -> tuple:
 
 @_per_design
 def _rest_pair_lines(design: Design) -> tuple:
-    """:func:`_pair_lines` at rest, once per design (read-only)."""
+    """:func:`_pair_lines` at rest and the :func:`acl.physics.forces.interface_pairs` of the interfaces at rest, once
+    per design (read-only)."""
+    lay = _layout(design)
     out = _pair_lines(_centres_array(design, None))
-    for a in out:
+    pairs = interface_pairs(lay.points(_centres_array(design, None)), lay.body, len(lay.caps))
+    for a in out + pairs[:5]:
         a.setflags(write=False)
-    return out
+    return out + (pairs,)
 
 
 def pair_attraction(design: Design, drive: Drive) -> np.ndarray:
@@ -709,8 +649,8 @@ def pair_attraction(design: Design, drive: Drive) -> np.ndarray:
     eng = _engine(design, drive)
     lay = eng.lay
     _, _, att = eng.rest_pairs()
-    _, _, _, unit = _rest_pair_lines(design)
-    fa = capsule_pair_forces(lay.points(_centres_array(design, None)), att[0], lay.body, len(lay.caps))
+    _, _, _, unit, pairs = _rest_pair_lines(design)
+    fa = capsule_pair_forces(lay.points(_centres_array(design, None)), att[0], lay.body, len(lay.caps), pairs)
     return np.einsum("pk,pk->p", fa, unit)
 
 
@@ -726,10 +666,10 @@ def pair_table(design: Design, drive: Drive,
     pts = lay.points(centres)
     thrust_vec = np.einsum("n,nk,nc->ck", thr, -lay.normals, lay.onehot)
     ncap = len(lay.caps)
-    pa, pb, dist, unit = _rest_pair_lines(design) if not positions else _pair_lines(centres)
-    fa = capsule_pair_forces(pts, att, lay.body, ncap)
+    pa, pb, dist, unit, pairs = _rest_pair_lines(design) if not positions else _pair_lines(centres) + (None,)
+    fa = capsule_pair_forces(pts, att, lay.body, ncap, pairs)
     attraction = np.einsum("pk,pk->p", fa, unit)
-    dphi, gap = dominant_pair_phase(u, pts, lay.body, ncap, dist)
+    dphi, gap = dominant_pair_phase(u, pts, lay.body, ncap, dist, pairs)
     # reduced law (paper Eq. 3): alpha = attraction d^2, 2 gamma = thrusts pushing apart
     gamma2 = np.einsum("pk,pk->p", thrust_vec[pa], -unit) + np.einsum("pk,pk->p", thrust_vec[pb], unit)
     alpha = attraction * gap**2

@@ -7,6 +7,7 @@ language server's hovers use the same object); the drives of each program step a
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import lru_cache
 from typing import Iterator
 
 import numpy as np
@@ -221,7 +222,9 @@ class Context:
         return self.cached(("fixed_pairs", tab.a.size), compute)
 
 
+@lru_cache(maxsize=4096)
 def khz(f: float) -> str:
+    """``f`` Hz as kHz text (cached: a large design's findings name the same few frequencies tens of thousands of times)."""
     return f"{f / 1e3:.4g} kHz"
 
 

@@ -90,6 +90,9 @@ def scan(path: str, text: str) -> SourceFile:
 
 def _split(line: str) -> tuple[str, str | None, int]:
     """(code with string contents blanked, comment text or None, comment column)."""
+    if '"' not in line:                 # no string: the code ends at the first '#'
+        j = line.find("#")
+        return (line, None, 0) if j < 0 else (line[:j], line[j + 1:], j + 1)
     out = []
     in_str = False
     for j, ch in enumerate(line):

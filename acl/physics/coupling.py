@@ -199,6 +199,16 @@ def uncoupled_blocks(system: BubbleSystem, omega) -> np.ndarray:
 CHUNK_ELEMENTS = 2**20
 
 
+#: :func:`coupled_volumes` evaluates the Green function once per distinct pair geometry (d, d', same capsule or not)
+#: when these are at most this share of the pairs (an array of identical capsules on a pitch: 5,647 distinct of
+#: 77,421 pairs in benchmarks/check.py's 5,000-line design), and gathers the matrix from them; else pair by pair.
+DISTINCT_PAIRS = 0.5
+#: ... and when it evaluates the Green function at this many frequencies at least (:func:`mutual_resistance`: half as
+#: many modes): finding the distinct pairs costs about as much as 15 frequencies pair by pair (45-75 ms for 77,421
+#: pairs), which a solver evaluating one configuration at a few tones would pay on every call.
+TABLE_MIN_EVALUATIONS = 16
+
+
 def _batched(x, batch: tuple, tail: int) -> np.ndarray:
     """``x`` (..., *tail dims) as (1, ...) when it has no batch, else broadcast to ``batch`` and flattened to (B, ...)."""
     x = np.asarray(x)
@@ -206,6 +216,19 @@ def _batched(x, batch: tuple, tail: int) -> np.ndarray:
     if int(np.prod(x.shape[:x.ndim - tail], dtype=int)) == 1:
         return x.reshape((1,) + core)
     return np.broadcast_to(x, batch + core).reshape((-1,) + core)
+
+
+def _green_terms(k, terms, wall_reflection: float) -> np.ndarray:
+    """green_matrix's exp(-ikd)/(4 pi d) + R exp(-ikd')/(4 pi d') (Pierce, Acoustics 4.3/5.1) from its frequency-independent parts: ``k`` (B, F, 1), ``terms`` [retarded d, 1/(4 pi d), d', R/(4 pi d')] (each (B, 1, m)) -> (B, F, m)."""
+    kd = k * terms[0]
+    out = np.empty(np.broadcast_shapes(kd.shape, terms[1].shape), complex)
+    np.multiply(np.cos(kd), terms[1], out=out.real)
+    np.multiply(np.sin(kd), -terms[1], out=out.imag)
+    if wall_reflection:
+        kd = k * terms[2]
+        out.real += np.cos(kd) * terms[3]
+        out.imag -= np.sin(kd) * terms[3]
+    return out
 
 
 def coupled_volumes(blocks, slot, points, radii, frequency, density, sound_speed, wall_reflection: float = 0.0,
@@ -256,25 +279,35 @@ def coupled_volumes(blocks, slot, points, radii, frequency, density, sound_speed
         di = _distances(pad_pts, pad_rad, True)[:, None]
         tri += [np.ascontiguousarray(x.reshape(x.shape[:-2] + (npad * npad,))[..., upper])
                 for x in (di, wall_reflection / (4 * np.pi * di))]
+    # one configuration (Bd = 1): the pairs share few distinct (d, d') in an array of capsules; the Green function of
+    # each distinct pair once, then gathered into the full matrix (the same operations on the same numbers as
+    # computing every pair: bit for bit the same g)
+    table = None
+    if tri[0].shape[0] == 1 and upper.size > 64 and nf >= TABLE_MIN_EVALUATIONS:
+        cols, index = np.unique(np.stack([t[0, 0] for t in tri]), axis=1, return_inverse=True)
+        if cols.shape[1] <= DISTINCT_PAIRS * upper.size:
+            table = [np.ascontiguousarray(x)[None, None] for x in cols]
+            full = np.empty(npad * npad, np.intp)
+            full[upper] = index.reshape(-1)
+            full[lower] = index.reshape(-1)
     for s in range(0, nf, chunk):
         w = 2 * np.pi * f[:, s:s + chunk]                                           # (Bf, Fc)
         h = blk[:, s:s + chunk]
         fc = h.shape[1]
         k = (w / c[:, None])[..., None]
-        gu = np.empty((nb, fc, upper.size), complex)                                # green_matrix, exp(-ikd) as cos, sin
-        kd = k * tri[0]
-        np.multiply(np.cos(kd), tri[1], out=gu.real)
-        np.multiply(np.sin(kd), -tri[1], out=gu.imag)
-        if wall_reflection:
-            kd = k * tri[2]
-            gu.real += np.cos(kd) * tri[3]
-            gu.imag -= np.sin(kd) * tri[3]
-        del kd
         g = np.empty((nb, fc, npad * npad), complex)
-        g[..., upper] = gu
-        g[..., lower] = gu
+        if table is not None:
+            t = _green_terms(k, table, wall_reflection)
+            if t.shape[0] == nb:
+                np.take(t, full, axis=-1, out=g)
+            else:
+                g[...] = np.take(t, full, axis=-1)
+        else:
+            gu = _green_terms(k, tri, wall_reflection)
+            g[..., upper] = gu
+            g[..., lower] = gu
+            del gu
         g = g.reshape(nb, fc, npad, npad)
-        del gu
         coef = (w**2 * rho[:, None])[..., None, None]
         if p == 1:
             g *= -coef * h[:, :, :, 0, 0, None]
@@ -394,6 +427,13 @@ def mutual_resistance(volume, points, radii, body, wavenumber, wall_reflection: 
         weight += [np.full(iu.size, 2.0 * wall_reflection), np.full(n, float(wall_reflection))]
     i, j, weight = (np.concatenate(a) for a in (i, j, weight))
     dist = np.concatenate(dist, axis=-1)
+    # one configuration: sin(kd)/d once per distinct distance (an array of capsules repeats them; DISTINCT_PAIRS),
+    # gathered to the pairs: the same operations on the same numbers as pair by pair
+    uniq = index = None
+    if dist.size == dist.shape[-1] and dist.size > 64 and nk >= TABLE_MIN_EVALUATIONS // 2:
+        uniq, index = np.unique(dist.reshape(-1), return_inverse=True)
+        if uniq.size > DISTINCT_PAIRS * dist.size:
+            uniq = index = None
     dist = np.broadcast_to(dist, batch + dist.shape[-1:]).reshape(nb, 1, -1)        # (B, 1, pairs)
     vt = np.ascontiguousarray(np.swapaxes(np.broadcast_to(volume, batch + (n, nk)), -1, -2)).reshape(nb, nk, n)
     k = np.broadcast_to(k, batch + (nk,)).reshape(nb, nk)
@@ -401,13 +441,16 @@ def mutual_resistance(volume, points, radii, body, wavenumber, wall_reflection: 
     chunk = max(1, PAIR_CHUNK_ELEMENTS // (nb * max(i.size, 1)))
     for s in range(0, nk, chunk):
         ks = k[:, s:s + chunk]
-        x = ks[..., None] * dist                                                   # (B, chunk, pairs)
+        d = dist if uniq is None else uniq[None, None]
+        x = ks[..., None] * d                                                      # (B, chunk, pairs or distinct)
         if np.all(x > 0):
-            sinc, scale = np.sin(x, out=x) / dist, 1.0 / ks                        # sin(kd)/d, then / k
+            sinc, scale = np.sin(x, out=x) / d, 1.0 / ks                           # sin(kd)/d, then / k
         else:
             sinc, scale = np.sinc(x / np.pi), 1.0
-        sinc *= vt[:, s:s + chunk, i]
-        sinc *= vt[:, s:s + chunk, j]
+        if uniq is not None:
+            sinc = np.take(sinc, index.reshape(-1), axis=-1)
+        sinc *= np.take(vt[:, s:s + chunk], i, axis=-1)                            # (a gather: faster than [..., i])
+        sinc *= np.take(vt[:, s:s + chunk], j, axis=-1)
         out[:, s:s + chunk] = (sinc @ weight) * scale
     return out.reshape(batch + (nk,))
 

@@ -231,26 +231,51 @@ def neighbour_drag(total, centres, rest, near, inv_plateau):
     return drag_load(total, delta[..., None], inv_plateau)
 
 
-def capsule_pair_forces(points, attraction, body, n_capsules: int):
-    """Bjerknes vector (P, 3) on capsule a of every capsule pair a < b (``np.triu_indices`` order): the sum over interface pairs (i of a, j of b) of :func:`bjerknes_pair_sum`'s attraction along p_j - p_i."""
-    pa, pb = np.triu_indices(n_capsules, 1)
-    fa = np.zeros((pa.size, 3))
+def interface_pairs(points, body, n_capsules: int) -> tuple:
+    """The interface pairs (i of a, j of b) of every capsule pair a < b at ``points`` (n, 3): (i, j, pair row, p_j - p_i, |p_j - p_i|, one interface per capsule) (:func:`capsule_pair_forces`' geometry; not physics, no equation).
+
+    A caller that evaluates many drives at one configuration computes it once and passes it as ``pairs``.
+    """
     body = np.asarray(body, int)
     oi, oj = np.nonzero(body[:, None] < body[None, :])
+    sep = points[oj] - points[oi]
+    a, b = body[oi], body[oj]
+    k = a * n_capsules - a * (a + 1) // 2 + (b - a - 1)
+    single = body.size == n_capsules and np.array_equal(body, np.arange(n_capsules))
+    return oi, oj, k, sep, np.linalg.norm(sep, axis=-1), single
+
+
+def capsule_pair_forces(points, attraction, body, n_capsules: int, pairs=None):
+    """Bjerknes vector (P, 3) on capsule a of every capsule pair a < b (``np.triu_indices`` order): the sum over interface pairs (i of a, j of b) of :func:`bjerknes_pair_sum`'s attraction along p_j - p_i.
+
+    ``pairs``: the :func:`interface_pairs` of these points when the caller keeps them.
+    """
+    pa, pb = np.triu_indices(n_capsules, 1)
+    fa = np.zeros((pa.size, 3))
+    oi, oj, k, sep, norm, single = interface_pairs(points, body, n_capsules) if pairs is None else pairs
     if oi.size:
-        sep = points[oj] - points[oi]
-        contrib = (attraction[oi, oj] / np.linalg.norm(sep, axis=-1))[:, None] * sep
-        a, b = body[oi], body[oj]
-        k = a * n_capsules - a * (a + 1) // 2 + (b - a - 1)
+        contrib = (attraction[oi, oj] / norm)[:, None] * sep
+        if single:                    # one interface per capsule: row k is pair k (the sum of one term, + 0.0)
+            return np.add(contrib, 0.0, out=fa)
         for axis in range(3):
             fa[:, axis] = np.bincount(k, weights=contrib[:, axis], minlength=pa.size)
     return fa
 
 
-def dominant_pair_phase(volumes, points, body, n_capsules: int, distance):
-    """(phase difference (P,) rad, distance (P,) m) of every capsule pair a < b between their dominant interfaces at the strongest tone of ``volumes`` (T, n); ties: the first declared interface, the first tone (acl.physics.ties); ``distance`` (P,) where a capsule has no interface."""
+def dominant_pair_phase(volumes, points, body, n_capsules: int, distance, pairs=None):
+    """(phase difference (P,) rad, distance (P,) m) of every capsule pair a < b between their dominant interfaces at the strongest tone of ``volumes`` (T, n); ties: the first declared interface, the first tone (acl.physics.ties); ``distance`` (P,) where a capsule has no interface.
+
+    ``pairs``: the :func:`interface_pairs` of these points when the caller keeps them.
+    """
     pa, pb = np.triu_indices(n_capsules, 1)
     body = np.asarray(body, int)
+    if pairs is not None and pairs[5] and volumes.shape[0]:     # one interface per capsule: it is the dominant one
+        if volumes.shape[0] == 1:
+            t = np.zeros(pa.size, np.intp)
+        else:
+            mag = np.abs(volumes)
+            t = first_max(mag[:, pa] * mag[:, pb], axis=0)
+        return np.angle(volumes[t, pa] * np.conj(volumes[t, pb])), np.array(pairs[4], float)
     dphi = np.zeros(pa.size)
     gap = np.array(distance, float)
     counts = np.bincount(body, minlength=n_capsules) if body.size else np.zeros(n_capsules, int)

@@ -25,7 +25,11 @@ def _half_depth(beam) -> float:
 
 
 def capsule_linked(ctx: Context, capsule: str) -> bool:
-    return any(j.kind == "link" and capsule in (j.a, j.b) for j in ctx.design.joints)
+    """Whether a link (truss, spring) joins ``capsule``; a lint context keeps the set of linked capsules."""
+    if not isinstance(ctx, Context):              # acl.sweep.checks asks with its own object
+        return any(j.kind == "link" and capsule in (j.a, j.b) for j in ctx.design.joints)
+    return capsule in ctx.cached("linked_capsules", lambda: {
+        x for j in ctx.design.joints if j.kind == "link" for x in (j.a, j.b)})
 
 
 def _equilibrium_load(ctx: Context, beam, cap: str, drive):
