@@ -14,7 +14,9 @@ Spawns `python -m acl lsp` and speaks the protocol (tests/lsp_client.py), opens 
    as an answer; the time until the real answer is printed beside it.
 3. A capsule's hover on a text the worker has not seen: the first reply (the capsule's own modes
    and "computing in the background"; target <= 200 ms), then the full answer (its coupled modes,
-   computed in the worker; asked every 50 ms), then a hover on another capsule of the same text.
+   computed in the worker; asked every 50 ms) after an edit that moves a row of capsules, then a
+   hover on another capsule of the same text, then the full answer after a comment is added (the
+   same physics: the worker reuses the earlier design's analyses).
 4. A hover (on a param, on a capsule) while a long analysis runs (`acl.analyze` on the whole
    design, in the server's worker process). Target: at once (<= 200 ms).
 
@@ -239,16 +241,26 @@ def bench(n_lines: int, runs: int, warmup: int, lint: bool, changes_only: bool =
                 return (time.perf_counter() - t0) * 1e3
 
             caps = [j for j, x in enumerate(lines) if x.startswith("capsule cap")]
-            full, other = [], []
+            # a new text whose physics changed (a capsule row moved by a parameter: every coupled
+            # mode computed anew), and one whose physics did not (a comment: the worker's analyses
+            # of the earlier design with the same content serve it, acl.lsp.background.physics_twin)
+            x1 = next(j for j, x in enumerate(lines) if x.startswith("param x1 "))
+            full, other, same = [], [], []
             for i in range(min(runs, 3)):
                 v += 1
-                client.change(u, v, text + f"# hover {i}\n")
+                moved = lines[:x1] + [lines[x1].replace("* pitch", f"* pitch + {i + 1} um")] + lines[x1 + 1:]
+                client.change(u, v, "\n".join(moved))
                 client.wait_for("textDocument/publishDiagnostics", lambda p, v=v: p["uri"] == u and p.get("version") == v)
                 full.append(full_hover(caps[(2 * i + 1) * len(caps) // 7], first=True))
                 other.append(full_hover(caps[(2 * i + 2) * len(caps) // 7]))     # another capsule, same text
+                v += 1
+                client.change(u, v, "\n".join(moved) + f"# hover {i}\n")
+                client.wait_for("textDocument/publishDiagnostics", lambda p, v=v: p["uri"] == u and p.get("version") == v)
+                same.append(full_hover(caps[(2 * i + 3) * len(caps) // 7], first=True))
             results["hover on a capsule of a new text: first reply"] = firsts
-            results["(hover on a capsule: the full answer, asked every 50 ms)"] = full
+            results["(hover on a capsule: the full answer, a capsule moved)"] = full
             results["(then on another capsule of the same text)"] = other
+            results["(the full answer after a comment edit: same physics)"] = same
 
             # a hover while the worker runs `acl analyze` on the whole design
             done = threading.Event()
