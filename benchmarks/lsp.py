@@ -256,7 +256,7 @@ def bench(n_lines: int, runs: int, warmup: int, lint: bool, changes_only: bool =
                 v += 1
                 client.change(u, v, "\n".join(moved) + f"# hover {i}\n")
                 client.wait_for("textDocument/publishDiagnostics", lambda p, v=v: p["uri"] == u and p.get("version") == v)
-                same.append(full_hover(caps[(2 * i + 3) * len(caps) // 7], first=True))
+                same.append(full_hover(caps[(2 * i + 3) * len(caps) // 8], first=True))
             results["hover on a capsule of a new text: first reply"] = firsts
             results["(hover on a capsule: the full answer, a capsule moved)"] = full
             results["(then on another capsule of the same text)"] = other
