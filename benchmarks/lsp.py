@@ -5,7 +5,8 @@
 Spawns `python -m acl lsp` and speaks the protocol (tests/lsp_client.py), opens a generated design
 (benchmarks/check.py's generator), warms up, then measures:
 
-1. didChange -> publishDiagnostics: one line changed per run, from sending didChange to receiving
+1. didChange -> publishDiagnostics: one line changed, or one or two empty lines inserted (Enter),
+   or 10 new lines pasted (and the next run undone), in the middle, per run, from sending didChange to receiving
    the diagnostics of that version (checked on the server's checking thread). Target: median <= 150 ms.
    Beside it, the server's CPU time per change (mean over the runs, all its work between them: what
    the machine's load does not inflate; from /proc on Linux).
@@ -131,7 +132,8 @@ def bench(n_lines: int, runs: int, warmup: int, lint: bool, changes_only: bool =
             v = 1
             for case in ("didChange -> diagnostics: edit a line in the middle",
                          "didChange -> diagnostics: append a line",
-                         "didChange -> diagnostics: insert a line in the middle (Enter)"):
+                         "didChange -> diagnostics: insert a line in the middle (Enter)",
+                         "didChange -> diagnostics: paste 10 lines in the middle, undo it"):
                 times = []
                 cpu0 = None
                 for i in range(warmup + runs):
@@ -140,6 +142,9 @@ def bench(n_lines: int, runs: int, warmup: int, lint: bool, changes_only: bool =
                     v += 1
                     if "Enter" in case:      # every line after it moves down: the most common edit
                         body = "\n".join(lines[:mid] + [""] * (i % 2 + 1) + lines[mid:])
+                    elif "paste" in case:    # 10 new statements, then undone: the lines after them move
+                        pasted = [f"param pasted{i}_{k} = {k + 1} um" for k in range(10)] if i % 2 == 0 else []
+                        body = "\n".join(lines[:mid] + pasted + lines[mid:])
                     elif "middle" in case:
                         new = lines[:mid] + [lines[mid].replace("* pitch", f"* pitch + {i + 1} um")] + lines[mid + 1:]
                         body = "\n".join(new)

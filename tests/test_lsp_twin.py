@@ -86,3 +86,17 @@ def test_a_hover_after_enter_reuses_the_earlier_design_and_equals_a_fresh_one(tm
     assert B.physics_twin(B.checked(path, moved).design) is not design0
     assert got == _fresh_hover(path, moved, line)
     assert got != _fresh_hover(path, entered, line)          # the coupled modes changed with the gap
+
+
+def test_every_example_has_a_content_key_that_ignores_moved_lines():
+    """No example's design holds a value content_key cannot key (it would lose the reuse), and two
+    empty lines above its text leave the key as it was."""
+    count = 0
+    for f in sorted((ROOT / "examples").glob("*.acl")):
+        text = f.read_text(encoding="utf-8")
+        design = check_text(text, str(f)).design
+        if design is None:
+            continue
+        assert B.content_key(check_text("\n\n" + text, str(f)).design) == B.content_key(design), f.name
+        count += 1
+    assert count >= 10
