@@ -240,3 +240,24 @@ def test_editor_features_after_shifted_edits_equal_a_fresh_check(name, tmp_path)
     if name == "fig6f":                      # the located design error moved with its line
         assert any(d.code.startswith("E") and d.span.line == t.split("\n").index(BAD_TAIL.strip()) + 1
                    for d in inc.diagnostics)
+
+
+def test_lint_findings_after_shifted_edits_equal_a_fresh_lint(tmp_path):
+    """The lint worker parses through one incremental parser too: its findings after lines are
+    inserted above them are those of a fresh lint, at their new lines."""
+    from acl.lsp import lint as L
+
+    path = str(tmp_path / "fig5a.acl")
+    text = (ROOT / "examples" / "fig5a_gripper.acl").read_text(encoding="utf-8")
+    L._PARSERS.clear()
+    first = L.lint_text(path, text)
+    assert any(d.code == "W402" and d.span.line > 5 for d in first)     # the effect's implausible factor
+    lines = text.split("\n")
+    moved = "\n".join(lines[:5] + ["", "# pasted", "param pasted = 2 um"] + lines[5:])
+    got = L.lint_text(path, moved)
+    L._PARSERS.clear()
+    fresh = L.lint_text(path, moved)
+    assert got == fresh
+    assert sorted(d.span.line for d in got if d.span.line > 8) == \
+        sorted(d.span.line + 3 for d in first if d.span.line > 5)          # past the 3 pasted lines
+    L._PARSERS.clear()

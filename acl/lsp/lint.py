@@ -10,15 +10,25 @@ from __future__ import annotations
 from acl.diagnostics import Diagnostic
 
 
+_PARSERS: dict[str, object] = {}      # path -> IncrementalParser, in the worker
+
+
 def lint_text(path: str, text: str) -> list[Diagnostic]:
-    """Every finding `acl lint PATH` would report if PATH held ``text`` (check-stage ones included)."""
+    """Every finding `acl lint PATH` would report if PATH held ``text`` (check-stage ones included).
+
+    The texts of one path go through one incremental parser in the worker (the same tree as a
+    whole-file parse; the statements an edit did not touch are not parsed again)."""
     from acl.lint.config import ConfigError, find_config, load_config
     from acl.lint.registry import load_rules
     from acl.lint.runner import lint_design
     from acl.lint.source import scan
     from acl.lsp.document import check_text
+    from acl.lsp.incremental import IncrementalParser
 
-    snap = check_text(text, path)
+    if path not in _PARSERS:
+        _PARSERS.clear()                   # the document linted last only
+        _PARSERS[path] = IncrementalParser()
+    snap = check_text(text, path, parser=_PARSERS[path])
     rules = load_rules()
     try:
         cfg = load_config(find_config(path), rules)
