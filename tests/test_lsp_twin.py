@@ -100,3 +100,35 @@ def test_every_example_has_a_content_key_that_ignores_moved_lines():
         assert B.content_key(check_text("\n\n" + text, str(f)).design) == B.content_key(design), f.name
         count += 1
     assert count >= 10
+
+
+def _blas_threads():
+    import os
+
+    import numpy  # noqa: F401
+
+    try:
+        from threadpoolctl import threadpool_info
+    except ImportError:
+        return os.environ.get("OPENBLAS_NUM_THREADS"), None
+    return os.environ.get("OPENBLAS_NUM_THREADS"), \
+        sorted({i["num_threads"] for i in threadpool_info() if i.get("user_api") == "blas"})
+
+
+def test_the_background_worker_runs_one_blas_thread(monkeypatch):
+    """The worker's dense solves run on one BLAS thread (two spin on a busy machine: 3-4x the
+    wall time of a capsule's full hover at load 8), unless the user set the thread count."""
+    import time
+
+    monkeypatch.delenv("OPENBLAS_NUM_THREADS", raising=False)
+    w = B.Worker()
+    try:
+        assert w.get(("doc", "t", "blas"), _blas_threads) is None
+        deadline = time.monotonic() + 120
+        while w.peek(("doc", "t", "blas")) is None and time.monotonic() < deadline:
+            time.sleep(0.05)
+        env, threads = w.peek(("doc", "t", "blas"))
+        assert env == "1"
+        assert threads in (None, [1])
+    finally:
+        w.stop()
