@@ -39,10 +39,10 @@ program ramp {
 
 @pytest.fixture(autouse=True)
 def _fresh_worker_state():
-    for store in (B._CHECKED, B._PARSERS, B._TWINS):
+    for store in (B._CHECKED, B._PARSERS, B._TWINS, B._TWIN_OF):
         store.clear()
     yield
-    for store in (B._CHECKED, B._PARSERS, B._TWINS):
+    for store in (B._CHECKED, B._PARSERS, B._TWINS, B._TWIN_OF):
         store.clear()
 
 
@@ -69,7 +69,7 @@ def test_content_key_leaves_out_locations_only():
         B.content_key({1: object()})
 
 
-def test_a_hover_after_enter_reuses_the_earlier_design_and_equals_a_fresh_one(tmp_path):
+def test_a_hover_after_enter_reuses_the_earlier_design_and_equals_a_fresh_one(tmp_path, monkeypatch):
     path = str(tmp_path / "twin.acl")
     first = B.hover_text(path, DESIGN, _line(DESIGN, "capsule c2"), 9)
     assert "with its neighbours" in first                    # the coupled modes are part of it
@@ -80,6 +80,12 @@ def test_a_hover_after_enter_reuses_the_earlier_design_and_equals_a_fresh_one(tm
     assert B.physics_twin(B.checked(path, entered).design) is design0    # served by the earlier design
     assert got == _fresh_hover(path, entered, line)
     assert f"twin.acl:{line + 1}" in got                     # its own location, not the earlier text's
+    calls = []                                               # another hover on that text: no new key
+    real = B.content_key
+    monkeypatch.setattr(B, "content_key", lambda v: calls.append(1) or real(v))
+    B.hover_text(path, entered, _line(entered, "capsule c1"), 9)
+    assert calls == []
+    monkeypatch.undo()
     # a physics edit (c3 moved): computed anew, and again what a fresh check gives
     moved = entered.replace("param gap = 300 um", "param gap = 250 um")
     got = B.hover_text(path, moved, line, 9)
