@@ -58,8 +58,11 @@ edit in the middle 82 -> 88 ms, append 85 -> 88 ms, Enter in the middle 412 -> 1
 lines then its undo 477 -> 142 ms (wall medians 1,260 -> 428 ms and 1,281 -> 390 ms: the load's).
 The whole benchmark before and after at load 10.3 / 10.2 (5 runs): Enter 794 -> 465 ms wall
 (CPU 518 -> 128 ms); the full capsule hover on a text whose physics did not change (a comment
-added) 19.3 s -> 0.96 s; on a text where a row of capsules moved, 21.0 s (the coupled modes of
-all 393 capsules computed anew: acl.analysis).
+added) 19.3 s -> 0.96 s. Again with this file's cases, before at load 6.3, after at load 8.7
+(with one BLAS thread in the workers): Enter 593 -> 264 ms wall (CPU 368 -> 128 ms; edit in
+place 82 / 82), paste and undo 645 -> 244 ms (CPU 474 -> 140 ms); the session's first full
+capsule hover 9.9 -> 4.7 s; the full hover after a row of capsules moved 11.2 -> 7.3 s (all 393
+capsules' coupled modes computed anew: acl.analysis), after a comment edit 8.3 s -> 0.52 s.
 """
 from __future__ import annotations
 
