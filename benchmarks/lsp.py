@@ -5,7 +5,8 @@
 Spawns `python -m acl lsp` and speaks the protocol (tests/lsp_client.py), opens a generated design
 (benchmarks/check.py's generator), warms up, then measures:
 
-1. didChange -> publishDiagnostics: one line changed per run, from sending didChange to receiving
+1. didChange -> publishDiagnostics: one line changed, or one or two empty lines inserted (Enter),
+   or 10 new lines pasted (and the next run undone), in the middle, per run, from sending didChange to receiving
    the diagnostics of that version (checked on the server's checking thread). Target: median <= 150 ms.
    Beside it, the server's CPU time per change (mean over the runs, all its work between them: what
    the machine's load does not inflate; from /proc on Linux).
@@ -14,7 +15,9 @@ Spawns `python -m acl lsp` and speaks the protocol (tests/lsp_client.py), opens 
    as an answer; the time until the real answer is printed beside it.
 3. A capsule's hover on a text the worker has not seen: the first reply (the capsule's own modes
    and "computing in the background"; target <= 200 ms), then the full answer (its coupled modes,
-   computed in the worker; asked every 50 ms), then a hover on another capsule of the same text.
+   computed in the worker; asked every 50 ms) after an edit that moves a row of capsules, then a
+   hover on another capsule of the same text, then the full answer after a comment is added (the
+   same physics: the worker reuses the earlier design's analyses).
 4. A hover (on a param, on a capsule) while a long analysis runs (`acl.analyze` on the whole
    design, in the server's worker process). Target: at once (<= 200 ms).
 
@@ -48,6 +51,18 @@ diagnostics 111 ms in the middle, 124 ms appending (CPU 70, 72 ms); documentSymb
 tokens 135 ms, formatting a new text E-LSP-BUSY after 132 ms, every other request <= 21 ms; capsule
 hover on a new text: first reply 14 ms, the full answer 5.4 s, another capsule 54 ms; the session's
 first full capsule hover 17.9 s (cold worker); during acl.analyze a hover 1-2 ms.
+Issue 27's fourth session (branch lsp6: statements after an inserted line shifted, not parsed;
+the hover worker's incremental parse and physics twin), 5,000 lines, the code before (ab4c61b) and
+after it run alternately with --changes-only at load 11.4-11.9 (6 runs), server CPU per change:
+edit in the middle 82 -> 88 ms, append 85 -> 88 ms, Enter in the middle 412 -> 137 ms, paste of 10
+lines then its undo 477 -> 142 ms (wall medians 1,260 -> 428 ms and 1,281 -> 390 ms: the load's).
+The whole benchmark before and after at load 10.3 / 10.2 (5 runs): Enter 794 -> 465 ms wall
+(CPU 518 -> 128 ms); the full capsule hover on a text whose physics did not change (a comment
+added) 19.3 s -> 0.96 s. Again with this file's cases, before at load 6.3, after at load 8.7
+(with one BLAS thread in the workers): Enter 593 -> 264 ms wall (CPU 368 -> 128 ms; edit in
+place 82 / 82), paste and undo 645 -> 244 ms (CPU 474 -> 140 ms); the session's first full
+capsule hover 9.9 -> 4.7 s; the full hover after a row of capsules moved 11.2 -> 7.3 s (all 393
+capsules' coupled modes computed anew: acl.analysis), after a comment edit 8.3 s -> 0.52 s.
 """
 from __future__ import annotations
 
@@ -129,7 +144,8 @@ def bench(n_lines: int, runs: int, warmup: int, lint: bool, changes_only: bool =
             v = 1
             for case in ("didChange -> diagnostics: edit a line in the middle",
                          "didChange -> diagnostics: append a line",
-                         "didChange -> diagnostics: insert a line in the middle (Enter)"):
+                         "didChange -> diagnostics: insert a line in the middle (Enter)",
+                         "didChange -> diagnostics: paste 10 lines in the middle, undo it"):
                 times = []
                 cpu0 = None
                 for i in range(warmup + runs):
@@ -138,6 +154,9 @@ def bench(n_lines: int, runs: int, warmup: int, lint: bool, changes_only: bool =
                     v += 1
                     if "Enter" in case:      # every line after it moves down: the most common edit
                         body = "\n".join(lines[:mid] + [""] * (i % 2 + 1) + lines[mid:])
+                    elif "paste" in case:    # 10 new statements, then undone: the lines after them move
+                        pasted = [f"param pasted{i}_{k} = {k + 1} um" for k in range(10)] if i % 2 == 0 else []
+                        body = "\n".join(lines[:mid] + pasted + lines[mid:])
                     elif "middle" in case:
                         new = lines[:mid] + [lines[mid].replace("* pitch", f"* pitch + {i + 1} um")] + lines[mid + 1:]
                         body = "\n".join(new)
@@ -156,9 +175,10 @@ def bench(n_lines: int, runs: int, warmup: int, lint: bool, changes_only: bool =
                     results[f"(server CPU per change: {case.split(': ')[1]})"] = [(cpu1 - cpu0) / runs]
             if changes_only:
                 return {"lines": text.count("\n"), "results": results}
-            v += 1
-            client.change(u, v, text)
-            client.wait_for("textDocument/publishDiagnostics", lambda p: p["uri"] == u and p.get("version") == v)
+            if body != text:                   # (the server publishes nothing for a text it has)
+                v += 1
+                client.change(u, v, text)
+                client.wait_for("textDocument/publishDiagnostics", lambda p: p["uri"] == u and p.get("version") == v)
             time.sleep(2.0)                    # the worker process starts (a large design warms it up)
 
             cap = next(i for i, x in enumerate(lines) if x.startswith("capsule cap"))
@@ -239,16 +259,26 @@ def bench(n_lines: int, runs: int, warmup: int, lint: bool, changes_only: bool =
                 return (time.perf_counter() - t0) * 1e3
 
             caps = [j for j, x in enumerate(lines) if x.startswith("capsule cap")]
-            full, other = [], []
+            # a new text whose physics changed (a capsule row moved by a parameter: every coupled
+            # mode computed anew), and one whose physics did not (a comment: the worker's analyses
+            # of the earlier design with the same content serve it, acl.lsp.background.physics_twin)
+            x1 = next(j for j, x in enumerate(lines) if x.startswith("param x1 "))
+            full, other, same = [], [], []
             for i in range(min(runs, 3)):
                 v += 1
-                client.change(u, v, text + f"# hover {i}\n")
+                moved = lines[:x1] + [lines[x1].replace("* pitch", f"* pitch + {i + 1} um")] + lines[x1 + 1:]
+                client.change(u, v, "\n".join(moved))
                 client.wait_for("textDocument/publishDiagnostics", lambda p, v=v: p["uri"] == u and p.get("version") == v)
                 full.append(full_hover(caps[(2 * i + 1) * len(caps) // 7], first=True))
                 other.append(full_hover(caps[(2 * i + 2) * len(caps) // 7]))     # another capsule, same text
+                v += 1
+                client.change(u, v, "\n".join(moved) + f"# hover {i}\n")
+                client.wait_for("textDocument/publishDiagnostics", lambda p, v=v: p["uri"] == u and p.get("version") == v)
+                same.append(full_hover(caps[(2 * i + 3) * len(caps) // 8], first=True))
             results["hover on a capsule of a new text: first reply"] = firsts
-            results["(hover on a capsule: the full answer, asked every 50 ms)"] = full
+            results["(hover on a capsule: the full answer, a capsule moved)"] = full
             results["(then on another capsule of the same text)"] = other
+            results["(the full answer after a comment edit: same physics)"] = same
 
             # a hover while the worker runs `acl analyze` on the whole design
             done = threading.Event()
