@@ -34,8 +34,12 @@ from acl.units import shown_unit
 READING_NOISE_M = 0.1e-6
 STEP = 0.5                 # finite-difference step, in sds (central differences)
 MAX_READINGS = 4           # at most this many readings proposed
-DRAWS = 4000               # draws of the linearised band
+DRAWS = 4000               # draws of the linearised band (and of the truths behind the promise, :func:`promise`)
 TOP = 3                    # sources listed (largest shares first)
+# the truth's log gain over the nominal at a read tone, where a reading's information is evaluated (:func:`promise`):
+# +-1.5 is 5 sd of a 30 % table point; a truth beyond it is read as at its end
+GAIN_GRID = np.linspace(-1.5, 1.5, 16)
+SLOPE_STEP = 0.02          # central differences of a reading in log gain
 
 
 Many = Callable[[list, list, np.ndarray], list]     # (designs, tones Hz, u (N, K) V^2) -> [(N, 2) m or exception]
@@ -153,6 +157,142 @@ def update(S: np.ndarray, H: np.ndarray, noise: float) -> np.ndarray:
     return S - K @ H @ S
 
 
+def gain_map(design: Design, freqs, reload=None) -> tuple[np.ndarray, np.ndarray]:
+    """(g0 (F,) Pa/V, A (F, G)): the transducer gain at each of ``freqs`` as ``g0 + A (exp(s z) - 1)`` for moves ``z`` of
+    the gain sources of :func:`directions` (table points, then measured tones; linear interpolation of the table, paper
+    Fig. S1: exact, except where a calibration anchors the table to its fitted gain, bands._anchor: linearised)."""
+    from acl.physics.transducer import pressure_per_volt
+
+    n = bands.declared(design, with_params=reload is not None).n_table
+    f = np.asarray(freqs, float)
+
+    def at(factors):
+        t = bands._with_gain(design, factors).transducer
+        return np.asarray(pressure_per_volt(f, t.gain_frequencies, t.gain_pa_per_v)[0], float)
+
+    g0 = at(np.ones(n))
+    return g0, (np.column_stack([at(1.0 + e) - g0 for e in np.eye(n)]) if n else np.zeros((f.size, 0)))
+
+
+def _scaled(design: Design, c: float) -> Design:
+    """The design with its whole gain table times ``c`` (a truth whose gain is ``c`` x the nominal at every tone)."""
+    t = design.transducer
+    return design.model_copy(update={"transducer": t.model_copy(
+        update={"gain_pa_per_v": tuple(float(g * c) for g in t.gain_pa_per_v)})})
+
+
+_READ_MEMO: list = []     # [(design, {(tone Hz, volts): (X,) |dy/dlog g|^2 m^2 on GAIN_GRID})], newest first
+
+
+def reading_slopes(design: Design, many: Many, readings) -> dict:
+    """{(tone Hz, volts): (X,) squared length of the reading's derivative per log gain, ``|dy/dlog g|^2`` m^2, on a
+    truth whose gain is ``exp(x)`` x the nominal there (x on GAIN_GRID)}: one batch of gain-scaled designs per tone
+    (their gain table times exp(x): the static displacement's slope at the drive the truth feels).  A grid point
+    without an equilibrium gives no information (0)."""
+    memo = next((m for d, m in _READ_MEMO if d is design), None)
+    if memo is None:
+        memo = {}
+        _READ_MEMO[:] = ([(design, memo)] + _READ_MEMO)[:2]
+    want = [(float(f), float(v)) for f, v in readings if (float(f), float(v)) not in memo]
+    by_tone: dict = {}
+    for f, v in want:
+        by_tone.setdefault(f, []).append(v)
+    for f, vs in by_tone.items():
+        xs = np.concatenate([GAIN_GRID - SLOPE_STEP, GAIN_GRID + SLOPE_STEP])
+        try:
+            got = many([_scaled(design, float(np.exp(x))) for x in xs], [f], np.array([[v * v] for v in vs]))
+        except (ValueError, KeyError, FloatingPointError):
+            got = [None] * xs.size
+        Y = np.stack([np.full((len(vs), 2), np.nan) if g is None or isinstance(g, Exception) else np.asarray(g, float)
+                      for g in got]).reshape(2, GAIN_GRID.size, len(vs), 2)   # (-/+, X, R, 2)
+        with np.errstate(invalid="ignore"):
+            slope = np.nan_to_num(np.sum(((Y[1] - Y[0]) / (2 * SLOPE_STEP)) ** 2, axis=2))     # (X, R)
+        for r, v in enumerate(vs):
+            memo[(f, v)] = slope[:, r]
+    return {(float(f), float(v)): memo[(float(f), float(v))] for f, v in readings}
+
+
+def promise(design: Design, many: Many, e0: np.ndarray, J: np.ndarray, R: np.ndarray, dirs, tones, readings,
+            noise: float, *, reload=None, disc: float = 0.0, seed: int = 0) -> dict | None:
+    """The band a recompile on ``readings`` [(tone Hz, volts)] is expected to leave, as the lab's loop makes it.
+
+    ``acl fit --free gain`` fits the gain at each read tone (acl.fit.report.tone_gains), with no prior: its log
+    error is Gaussian with variance ``noise^2 / sum_r |dy_r/dlog g|^2`` (the readings' Fisher information) at the
+    gain of the device read, which is the truth's, not the nominal: a device with a lower gain at a tone moves less
+    under the proposed voltage, and its gain there is measured worse.  A played tone not read (or read with less
+    information than the table's prior) keeps the table's gain, off by the truth's own offset; uncertain parameters
+    keep their prior (``--free gain`` does not fit them).  Propagated to the path with its derivative per log gain
+    at each played tone (``J``'s gain columns through the tones' gains, ``d log g / d z``; the recompile plans the
+    same path on the calibrated gains, so this derivative is taken as the nominal plan's), over DRAWS truths drawn
+    from the declared prior, each with its own estimation error.  95th percentiles of RMS and maximum error over
+    them: ``rms_p95_m``, ``max_p95_m``; ``nominal_rms_p95_m`` the same at the nominal truth only (the Fisher
+    information of the nominal design: the promise before issue 28's fix); ``tone_gain_sd`` the log-gain sd each
+    read tone is fitted to at the nominal truth.  None when the tones' gains cannot be told apart in ``J`` (more
+    played tones than gain sources) or nothing is read."""
+    gi = [j for j, d in enumerate(dirs) if d[1] == "gain"]
+    pi = [j for j, d in enumerate(dirs) if d[1] != "gain"]
+    tones = [float(f) for f in tones]
+    K = len(tones)
+    if not gi or not readings or K == 0 or K > len(gi):
+        return None
+    g0, A = gain_map(design, tones, reload)
+    if not np.all(g0 > 0):
+        return None
+    sds = np.array([dirs[j][3] for j in gi])
+    W0 = A[:K] * sds / g0[:K, None]                                  # (K, G): d log g at the played tones / d z
+    if np.linalg.matrix_rank(W0) < K:
+        return None
+    Jt = J[..., gi] @ np.linalg.pinv(W0)                             # (N, 2, K): per log gain at each played tone
+    var0 = np.sum(W0 ** 2, axis=1)                                   # the tones' prior log-gain variance
+    slopes = reading_slopes(design, many, readings)
+    rng = np.random.default_rng([seed, 28, 1])
+    Z = rng.standard_normal((DRAWS, len(gi)))
+    c = np.log(np.maximum(g0 + (np.exp(Z * sds) - 1.0) @ A.T, 1e-300) / g0)       # (S, K): the truth's log offset
+
+    def errors(offset):
+        """Errors over the truths ``c``, the readings' information taken at ``offset`` (``c``, or 0: nominal)."""
+        delta = c[:, :K].copy()               # not measured: the calibrated gain is the table's, off by the truth's
+        sd_nominal = {}
+        for k, f in enumerate(tones):
+            info = sum(np.interp(offset[:, k], GAIN_GRID, s) for (fr, _), s in slopes.items()
+                       if abs(fr - f) <= 1e-9 * f) / noise ** 2
+            if np.isscalar(info):
+                continue
+            with np.errstate(divide="ignore"):
+                sd = 1.0 / np.sqrt(info)
+            use = info * var0[k] > 1.0                        # the reading says more than the prior
+            delta[use, k] = sd[use] * rng.standard_normal(int(use.sum()))
+            info0 = sum(np.interp(0.0, GAIN_GRID, s) for (fr, _), s in slopes.items() if abs(fr - f) <= 1e-9 * f)
+            if info0 * var0[k] > noise ** 2:
+                sd_nominal[f] = float(noise / np.sqrt(info0))
+        err = e0[None] + np.einsum("nak,sk->sna", Jt, delta)
+        if pi:
+            w, V = np.linalg.eigh(0.5 * (R[np.ix_(pi, pi)] + R[np.ix_(pi, pi)].T))
+            theta = rng.standard_normal((c.shape[0], len(pi))) @ (V * np.sqrt(np.maximum(w, 0.0))).T
+            err = err + np.einsum("nap,sp->sna", J[..., pi], theta)
+        if disc > 0:
+            err = err + rng.normal(0.0, disc, err.shape)
+        r = np.linalg.norm(err, axis=2)
+        rms = np.sqrt(np.mean(r ** 2, axis=1))
+        return float(np.percentile(rms, 95)), float(np.percentile(r.max(axis=1), 95)), sd_nominal
+
+    rms, mx, _ = errors(c)
+    rms0, max0, sd0 = errors(np.zeros_like(c))
+    return {"rms_p95_m": rms, "max_p95_m": mx, "nominal_rms_p95_m": rms0, "nominal_max_p95_m": max0,
+            "tone_gain_sd": [{"frequency_hz": f, "log_sd": s} for f, s in sd0.items()],
+            "cov_m2": _tone_covs(Jt, sd0, tones, J[..., pi], R[np.ix_(pi, pi)], var0)}
+
+
+def _tone_covs(Jt, sd0: dict, tones, Jp, Rp, var0) -> list:
+    """[[xx, xy, yy]] m^2 per waypoint after the readings at the nominal truth: the read tones at their fitted sd,
+    the others at their prior, the parameters at theirs."""
+    v = np.array([sd0[f] ** 2 if f in sd0 else var0[k] for k, f in enumerate(tones)])
+    C = np.einsum("nak,k,nbk->nab", Jt, v, Jt)
+    if Jp.shape[-1]:
+        C = C + np.einsum("nad,de,nbe->nab", Jp, Rp, Jp)
+    return [[float(x[0, 0]), float(x[0, 1]), float(x[1, 1])] for x in C]
+
+
 def _score(J2: np.ndarray, S: np.ndarray) -> float:
     return float(np.trace(J2 @ S @ J2.T))
 
@@ -179,11 +319,14 @@ def candidates(design: Design, tones, u: np.ndarray) -> list[tuple[float, float]
 
 
 def explain(design: Design, many: Many, capsule: str, tones, u: np.ndarray, targets: np.ndarray, *,
-            reload=None, band=None, noise: float = READING_NOISE_M, seed: int = 0) -> dict | None:
+            reload=None, band=None, noise: float = READING_NOISE_M, seed: int = 0, name: str = "",
+            earlier=None) -> dict | None:
     """The band's cause and cure for a follow goal (module docstring); None when nothing is declared or the model fails.
 
     ``u`` (K, M) V^2 and ``targets`` (M, 2) m at the re-simulated waypoints; ``band`` the Monte Carlo one
-    (:class:`acl.schedule.bands.Band`) for the check."""
+    (:class:`acl.schedule.bands.Band`) for the check; ``name`` the goal's; ``earlier`` (goal name, [(tone Hz,
+    volts)]): another goal's proposed readings, under which the band expected after them is promised too (a lab
+    that takes only those)."""
     dirs, R, moves = prepared(design, reload)
     if not dirs:
         return None
@@ -239,18 +382,35 @@ def explain(design: Design, many: Many, capsule: str, tones, u: np.ndarray, targ
         chosen.append(c)
         S, best = update(S, H[c][0], noise), trial[c]
     if chosen:
+        reads = [(f, round(x, 4)) for f, x in chosen]          # as written: the voltages the lab sets
         rms1, max1 = linear_band(e0, J, S, disc, seed)
-        out["plot"]["cov_after_m2"] = _covs(J, S)
+        pr = promise(design, many, e0, J, R, dirs, tones, reads, noise, reload=reload, disc=disc, seed=seed)
+        out["plot"]["cov_after_m2"] = _covs(J, S) if pr is None else pr["cov_m2"]
         post_sd = np.sqrt(np.maximum(np.diag(S), 0.0))
         out["measurement"] = {
             "observable": f"static displacement (x, y) of capsule `{capsule}` under one tone",
             "noise_m": noise,
-            "readings": [{"frequency_hz": f, "voltage_v": round(x, 4),
-                          "expected_displacement_m": [float(a) for a in H[(f, x)][1]]} for f, x in chosen],
-            "expected_rms_p95_m": rms1, "expected_max_p95_m": max1,
+            "readings": [{"frequency_hz": f, "voltage_v": x,
+                          "expected_displacement_m": [float(a) for a in H[(f, c)][1]]} for (f, x), (_, c) in
+                         zip(reads, chosen)],
+            "readings_of": name,
+            "expected_rms_p95_m": rms1 if pr is None else pr["rms_p95_m"],
+            "expected_max_p95_m": max1 if pr is None else pr["max_p95_m"],
+            # how the promise is made: over truths drawn from the prior, the fitted gains' error at each truth's own
+            # gain (promise); or, where the tones' gains cannot be told apart, the posterior at the nominal design
+            "promise": "over truths" if pr is not None else "at the nominal design",
+            "nominal_rms_p95_m": rms1 if pr is None else pr["nominal_rms_p95_m"],
             "posterior_sd": [{"source": dirs[j][0], "prior": 1.0, "after": round(float(post_sd[j]), 4)}
                              for j in order[:3]],
         }
+        if pr is not None:
+            out["measurement"]["tone_gain_sd"] = pr["tone_gain_sd"]
+        if earlier and earlier[0] != name and sorted(earlier[1]) != sorted(reads):
+            alt = promise(design, many, e0, J, R, dirs, tones, earlier[1], noise, reload=reload, disc=disc, seed=seed)
+            if alt is not None:
+                out["measurement"]["with_readings_of"] = {
+                    "goal": earlier[0], "readings": [{"frequency_hz": f, "voltage_v": x} for f, x in earlier[1]],
+                    "expected_rms_p95_m": alt["rms_p95_m"], "expected_max_p95_m": alt["max_p95_m"]}
     return out
 
 
@@ -266,14 +426,23 @@ def summary(name: str, ex: dict) -> str:
     m = ex.get("measurement")
     if m:
         reads = ", ".join(f"{r['frequency_hz'] / 1e3:g} kHz at {r['voltage_v']:.3g} V" for r in m["readings"])
+        whose = f" ({m['readings_of']}'s)" if m.get("readings_of") else ""
         s += (f"; to narrow it, measure the {m['observable']} at {reads} (assumed noise {m['noise_m'] * 1e6:.3g} um "
-              f"per axis): expected band after recompiling with the gain measured at each of these tones "
-              f"{m['expected_rms_p95_m'] * 1e6:.3g} um RMS / {m['expected_max_p95_m'] * 1e6:.3g} um max "
-              f"(acl fit with `--free gain` on these readings fits the gain at each of these tones, one per tone "
-              f"where a gain scale cannot follow them, and a compile on its calibrated design plays them)")
+              f"per axis): expected band after recompiling on these readings{whose} "
+              f"{m['expected_rms_p95_m'] * 1e6:.3g} um RMS / {m['expected_max_p95_m'] * 1e6:.3g} um max")
+        if m.get("promise") == "over truths":
+            s += (f" (95 % over devices drawn from the declared uncertainty, each read with that noise and fitted: "
+                  f"a device with a lower gain moves less under these voltages and is measured worse; at the nominal "
+                  f"design alone {m['nominal_rms_p95_m'] * 1e6:.3g} um)")
+        s += (" (acl fit with `--free gain` on these readings fits the gain at each of these tones, one per tone "
+              "where a gain scale cannot follow them, and a compile on its calibrated design plays them)")
         if m.get("model_form_m"):
             s += (f", of which {m['model_form_m'] * 1e6:.3g} um is the model-form term of the validity limits the "
                   "step is past, which these readings do not remove")
+        w = m.get("with_readings_of")
+        if w:
+            s += (f"; on {w['goal']}'s readings alone (the same as a lab that takes only those) it is "
+                  f"{w['expected_rms_p95_m'] * 1e6:.3g} um RMS / {w['expected_max_p95_m'] * 1e6:.3g} um max")
     return s
 
 
