@@ -120,7 +120,7 @@ def _promised_on(goal, first: str) -> float:
     promise for the first goal; for a later one, its promise on the first goal's readings (``with_readings_of``),
     or its own where it proposed the same readings."""
     m = goal["details"]["band"]["cause"]["measurement"]
-    if m["readings_of"] == first:
+    if first in (m["readings_of"], m.get("same_readings_as")):
         return m["expected_rms_p95_m"]
     w = m["with_readings_of"]
     assert w["goal"] == first, m

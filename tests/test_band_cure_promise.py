@@ -46,8 +46,8 @@ def _fit_tone_gain(design, f, v, y, iterations=8):
     Gauss-Newton in the log gain, as acl.fit.report.tone_gains (no prior), with its standard error per unit noise."""
     h = 0.0
     for _ in range(iterations):
-        p, a, b = (np.asarray(g, float)[0] for g in _many(
-            [experiment._scaled(design, float(np.exp(x))) for x in (h, h + 1e-3, h - 1e-3)], [f], np.array([[v * v]])))
+        moved = [experiment.gain_scaled(design, float(np.exp(x))) for x in (h, h + 1e-3, h - 1e-3)]
+        p, a, b = (np.asarray(g, float)[0] for g in _many(moved, [f], np.array([[v * v]])))
         d = (a - b) / 2e-3
         step = float(d @ (y - p) / (d @ d))
         h += step
@@ -104,7 +104,8 @@ def _promised(circle) -> list[float]:
     out = []
     for g in circle.goals:
         m = g.details["band"]["cause"]["measurement"]
-        out.append(m["expected_rms_p95_m"] if m["readings_of"] == first else m["with_readings_of"]["expected_rms_p95_m"])
+        own = first in (m["readings_of"], m.get("same_readings_as"))
+        out.append(m["expected_rms_p95_m"] if own else m["with_readings_of"]["expected_rms_p95_m"])
     return out
 
 
@@ -127,8 +128,8 @@ def test_each_goal_states_the_readings_its_promise_assumes(circle):
     g1, g2 = circle.goals
     m1 = g1.details["band"]["cause"]["measurement"]
     m2 = g2.details["band"]["cause"]["measurement"]
-    assert m1["readings_of"] == g1.name and "with_readings_of" not in m1
-    assert m2["readings_of"] == g2.name
+    assert m1["readings_of"] == g1.name and "with_readings_of" not in m1 and "same_readings_as" not in m1
+    assert m2["readings_of"] == g2.name and "same_readings_as" not in m2
     w = m2["with_readings_of"]
     assert w["goal"] == g1.name
     assert [(r["frequency_hz"], r["voltage_v"]) for r in w["readings"]] == \
@@ -155,7 +156,8 @@ def test_the_promise_counts_devices_that_move_less(circle):
 def test_fitted_gain_sd_is_the_reading_noise_over_the_readings_slope(fig3, circle):
     """The log sd each read tone's gain is fitted to at the nominal design is the noise over the reading's slope per
     log gain, |dy/dlog g|: about 2 |y| where the displacement is quadratic in the pressure (tolerance 15 %: the beam
-    stiffens), and within 3 % of a Gauss-Newton fit's standard error of that reading (independent finite differences)."""
+    stiffens), and within 3 % of a Gauss-Newton fit's standard error of that reading (independent finite
+    differences)."""
     m = circle.goals[0].details["band"]["cause"]["measurement"]
     sd = {e["frequency_hz"]: e["log_sd"] for e in m["tone_gain_sd"]}
     assert sorted(sd) == sorted(r["frequency_hz"] for r in m["readings"])
@@ -165,3 +167,16 @@ def test_fitted_gain_sd_is_the_reading_noise_over_the_readings_slope(fig3, circl
         assert sd[f] == pytest.approx(m["noise_m"] / (2 * np.linalg.norm(y)), rel=0.15)
         h, se = _fit_tone_gain(fig3, f, v, y)
         assert abs(h) < 1e-3 and sd[f] == pytest.approx(se * m["noise_m"], rel=0.03)
+
+
+def test_a_goal_proposing_the_first_goals_readings_says_so(fig3):
+    """The rectangle's two steps propose the same readings: the second says they are the first's, and needs no
+    second promise."""
+    s = compile_program(fig3, "rectangle", CompileOptions(band_samples=2, resim_points=20, allow_nonlinear=True))
+    g1, g2 = s.goals
+    m1 = g1.details["band"]["cause"]["measurement"]
+    m2 = g2.details["band"]["cause"]["measurement"]
+    assert m1["readings"] == m2["readings"]
+    assert m2["same_readings_as"] == g1.name and "with_readings_of" not in m2
+    note = next(n for n in s.notes if n.startswith(f"{g2.name}: the 95 % band"))
+    assert f"({g2.name}'s, the same as {g1.name}'s)" in note

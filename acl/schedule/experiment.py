@@ -13,8 +13,12 @@ transducer gain-table point, log-normal with the declared relative sd; each unce
   information ``H^T H / sigma^2`` (``H``: its sensitivity per 1 sd) updates the prior covariance (Kalman form,
   ``S' = S - S H^T (H S H^T + sigma^2 I)^-1 H S``), and readings are chosen greedily to minimise the expected squared
   tracking error ``tr(J S' J^T)`` (A-optimal for the path; Atkinson, Donev & Tobias, *Optimum Experimental
-  Designs*, 2007, ch. 10).  The expected band is the 95th percentile of the linearised RMS error under ``S'``: what
-  a recompile with the measured values would leave.
+  Designs*, 2007, ch. 10).  The band promised after the chosen readings (:func:`promise`) is the 95th percentile of
+  the error a recompile with the measured values leaves, over devices drawn from the prior, each read with the
+  stated noise and fitted as ``acl fit --free gain`` fits it (the gain at each read tone): the Fisher information of
+  a reading is taken at the drawn device's own gain, since a device with a lower gain moves less under the proposed
+  voltage and is measured worse (``tr(J S' J^T)`` at the nominal design alone, kept as ``nominal_rms_p95_m``, left
+  the lab's loop outside the promise more often than one in twenty; issue 28).
 
 Numbers only; the compiler stores them in the goal's ``details["band"]`` and a note.
 """
@@ -157,9 +161,10 @@ def update(S: np.ndarray, H: np.ndarray, noise: float) -> np.ndarray:
 
 
 def gain_map(design: Design, freqs, reload=None) -> tuple[np.ndarray, np.ndarray]:
-    """(g0 (F,) Pa/V, A (F, G)): the transducer gain at each of ``freqs`` as ``g0 + A (exp(s z) - 1)`` for moves ``z`` of
-    the gain sources of :func:`directions` (table points, then measured tones; linear interpolation of the table, paper
-    Fig. S1: exact, except where a calibration anchors the table to its fitted gain, bands._anchor: linearised)."""
+    """(g0 (F,) Pa/V, A (F, G)): the transducer gain at each of ``freqs`` as ``g0 + A (exp(s z) - 1)`` for moves
+    ``z`` of the gain sources of :func:`directions` (table points, then measured tones; linear interpolation of the
+    table, paper Fig. S1: exact, except where a calibration anchors the table to its fitted gain, bands._anchor:
+    linearised)."""
     from acl.physics.transducer import pressure_per_volt
 
     n = bands.declared(design, with_params=reload is not None).n_table
@@ -173,7 +178,7 @@ def gain_map(design: Design, freqs, reload=None) -> tuple[np.ndarray, np.ndarray
     return g0, (np.column_stack([at(1.0 + e) - g0 for e in np.eye(n)]) if n else np.zeros((f.size, 0)))
 
 
-def _scaled(design: Design, c: float) -> Design:
+def gain_scaled(design: Design, c: float) -> Design:
     """The design with its whole gain table times ``c`` (a truth whose gain is ``c`` x the nominal at every tone)."""
     t = design.transducer
     return design.model_copy(update={"transducer": t.model_copy(
@@ -200,7 +205,7 @@ def reading_slopes(design: Design, many: Many, readings) -> dict:
         by_tone.setdefault(f, []).append(v)
     for f, vs in by_tone.items():
         try:
-            got = many([_scaled(design, float(np.exp(x))) for x in GAIN_GRID], [f], np.array([[v * v] for v in vs]))
+            got = many([gain_scaled(design, float(np.exp(x))) for x in GAIN_GRID], [f], np.array([[v * v] for v in vs]))
         except (ValueError, KeyError, FloatingPointError):
             got = [None] * GAIN_GRID.size
         Y = np.stack([np.full((len(vs), 2), np.nan) if g is None or isinstance(g, Exception) else np.asarray(g, float)
@@ -232,8 +237,8 @@ def promise(design: Design, many: Many, e0: np.ndarray, J: np.ndarray, R: np.nda
     same path on the calibrated gains, so this derivative is taken as the nominal plan's), over DRAWS truths drawn
     from the declared prior, each with its own estimation error.  95th percentiles of RMS and maximum error over
     them: ``rms_p95_m``, ``max_p95_m``; ``tone_gain_sd`` the log-gain sd each read tone is fitted to at the nominal
-    design; ``cov_m2`` the path's covariance there (the plot's band after the readings).  None when the tones' gains cannot be told apart in ``J`` (more
-    played tones than gain sources) or nothing is read."""
+    design; ``cov_m2`` the path's covariance there (the plot's band after the readings).  None when the tones' gains
+    cannot be told apart in ``J`` (more played tones than gain sources) or nothing is read."""
     gi = [j for j, d in enumerate(dirs) if d[1] == "gain"]
     pi = [j for j, d in enumerate(dirs) if d[1] != "gain"]
     tones = [float(f) for f in tones]
@@ -410,7 +415,9 @@ def explain(design: Design, many: Many, capsule: str, tones, u: np.ndarray, targ
         }
         if pr is not None:
             out["measurement"]["tone_gain_sd"] = pr["tone_gain_sd"]
-        if earlier and earlier[0] != name and sorted(earlier[1]) != sorted(reads):
+        if earlier and earlier[0] != name and sorted(earlier[1]) == sorted(reads):
+            out["measurement"]["same_readings_as"] = earlier[0]
+        elif earlier and earlier[0] != name:
             alt = promise(design, many, e0, J, R, dirs, tones, earlier[1], noise, reload=reload, disc=disc, seed=seed)
             if alt is not None:
                 out["measurement"]["with_readings_of"] = {
@@ -432,6 +439,8 @@ def summary(name: str, ex: dict) -> str:
     if m:
         reads = ", ".join(f"{r['frequency_hz'] / 1e3:g} kHz at {r['voltage_v']:.3g} V" for r in m["readings"])
         whose = f" ({m['readings_of']}'s)" if m.get("readings_of") else ""
+        if m.get("same_readings_as"):
+            whose = f" ({m['readings_of']}'s, the same as {m['same_readings_as']}'s)"
         s += (f"; to narrow it, measure the {m['observable']} at {reads} (assumed noise {m['noise_m'] * 1e6:.3g} um "
               f"per axis): expected band after recompiling on these readings{whose} "
               f"{m['expected_rms_p95_m'] * 1e6:.3g} um RMS / {m['expected_max_p95_m'] * 1e6:.3g} um max")
