@@ -190,8 +190,8 @@ _READ_MEMO: list = []     # [(design, {(tone Hz, volts): (X,) |dy/dlog g|^2 m^2 
 
 def reading_slopes(design: Design, many: Many, readings) -> dict:
     """{(tone Hz, volts): (X,) squared length of the reading's derivative per log gain, ``|dy/dlog g|^2`` m^2, on a
-    truth whose gain is ``exp(x)`` x the nominal there (x on GAIN_GRID)}: one batch of gain-scaled designs per tone
-    (their gain table times exp(x): the static displacement's slope at the drive the truth feels).  A grid point
+    truth whose gain is ``exp(x)`` x the nominal there (x on GAIN_GRID)}: one batch of gain-scaled designs (their gain
+    table times exp(x): the static displacement's slope at the drive the truth feels).  A grid point
     without an equilibrium gives no information (0)."""
     from scipy.interpolate import CubicSpline
 
@@ -199,27 +199,24 @@ def reading_slopes(design: Design, many: Many, readings) -> dict:
     if memo is None:
         memo = {}
         _READ_MEMO[:] = ([(design, memo)] + _READ_MEMO)[:2]
-    want = [(float(f), float(v)) for f, v in readings if (float(f), float(v)) not in memo]
-    by_tone: dict = {}
-    for f, v in want:
-        by_tone.setdefault(f, []).append(v)
-    for f, vs in by_tone.items():
+    want = sorted({(float(f), float(v)) for f, v in readings if (float(f), float(v)) not in memo})
+    if want:
+        # one batch: every reading a row that drives its own tone alone (the others at zero amplitude)
+        fs = sorted({f for f, _ in want})
+        u = np.array([[v * v if g == f else 0.0 for g in fs] for f, v in want])
         try:
-            got = many([gain_scaled(design, float(np.exp(x))) for x in GAIN_GRID], [f], np.array([[v * v] for v in vs]))
+            got = many([gain_scaled(design, float(np.exp(x))) for x in GAIN_GRID], fs, u)
         except (ValueError, KeyError, FloatingPointError):
             got = [None] * GAIN_GRID.size
-        Y = np.stack([np.full((len(vs), 2), np.nan) if g is None or isinstance(g, Exception) else np.asarray(g, float)
+        Y = np.stack([np.full((len(want), 2), np.nan) if g is None or isinstance(g, Exception) else np.asarray(g, float)
                       for g in got])                                          # (X, R, 2)
-        slope = np.zeros((GAIN_GRID.size, len(vs)))
-        for r in range(len(vs)):
+        for r, key in enumerate(want):
             ok = np.all(np.isfinite(Y[:, r]), axis=1)
             if ok.all():          # the cubic spline's derivative (a gap: no equilibrium there, no information)
-                slope[:, r] = np.sum(CubicSpline(GAIN_GRID, Y[:, r], axis=0)(GAIN_GRID, 1) ** 2, axis=1)
+                memo[key] = np.sum(CubicSpline(GAIN_GRID, Y[:, r], axis=0)(GAIN_GRID, 1) ** 2, axis=1)
             else:
                 with np.errstate(invalid="ignore"):
-                    slope[:, r] = np.nan_to_num(np.sum(np.gradient(Y[:, r], GAIN_GRID, axis=0) ** 2, axis=1))
-        for r, v in enumerate(vs):
-            memo[(f, v)] = slope[:, r]
+                    memo[key] = np.nan_to_num(np.sum(np.gradient(Y[:, r], GAIN_GRID, axis=0) ** 2, axis=1))
     return {(float(f), float(v)): memo[(float(f), float(v))] for f, v in readings}
 
 
@@ -288,8 +285,8 @@ def promise(design: Design, many: Many, e0: np.ndarray, J: np.ndarray, R: np.nda
 def _at(x: np.ndarray, slope: np.ndarray) -> np.ndarray:
     """A reading's squared slope (:func:`reading_slopes`) at log gains ``x``: interpolated in its logarithm (it grows
     as exp(4 x) where the displacement is quadratic in the pressure), 0 where a grid point has none."""
-    with np.errstate(divide="ignore"):
-        return np.exp(np.interp(x, GAIN_GRID, np.log(slope)))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.nan_to_num(np.exp(np.interp(x, GAIN_GRID, np.log(slope))), nan=0.0, posinf=0.0)
 
 
 def _tone_covs(Jt, sd0: dict, tones, Jp, Rp, var0) -> list:
