@@ -221,18 +221,20 @@ def reading_slopes(design: Design, many: Many, readings) -> dict:
 
 
 def promise(design: Design, many: Many, e0: np.ndarray, J: np.ndarray, R: np.ndarray, dirs, tones, readings,
-            noise: float, *, reload=None, disc: float = 0.0, seed: int = 0) -> dict | None:
+            noise: float, *, reload=None, disc: float = 0.0, seed: int = 0, moves=None) -> dict | None:
     """The band a recompile on ``readings`` [(tone Hz, volts)] is expected to leave, as the lab's loop makes it.
 
     ``acl fit --free gain`` fits the gain at each read tone (acl.fit.report.tone_gains), with no prior: its log
     error is Gaussian with variance ``noise^2 / sum_r |dy_r/dlog g|^2`` (the readings' Fisher information) at the
     gain of the device read, which is the truth's, not the nominal: a device with a lower gain at a tone moves less
     under the proposed voltage, and its gain there is measured worse.  A played tone not read (or read with less
-    information than the table's prior) keeps the table's gain, off by the truth's own offset; uncertain parameters
-    keep their prior (``--free gain`` does not fit them).  Propagated to the path with its derivative per log gain
-    at each played tone (``J``'s gain columns through the tones' gains, ``d log g / d z``; the recompile plans the
-    same path on the calibrated gains, so this derivative is taken as the nominal plan's), over DRAWS truths drawn
-    from the declared prior, each with its own estimation error.  95th percentiles of RMS and maximum error over
+    information than the table's prior) keeps the table's gain, off by the truth's own offset.  ``--free gain`` does
+    not fit the uncertain parameters: they keep their prior, but what a parameter does to a reading the gain fitted at
+    its tone absorbs (:func:`_absorbed`: a gain scale entirely, a stiffness as far as it scales the reading).
+    Propagated to the path with its derivative per log gain at each played tone (``J``'s gain columns through the
+    tones' gains, ``d log g / d z``; the recompile plans the same path on the calibrated gains, so this derivative
+    is taken as the nominal plan's), over DRAWS truths drawn from the declared prior, each with its own estimation
+    error.  95th percentiles of RMS and maximum error over
     them: ``rms_p95_m``, ``max_p95_m``; ``tone_gain_sd`` the log-gain sd each read tone is fitted to at the nominal
     design; ``cov_m2`` the path's covariance there (the plot's band after the readings).  None when the tones' gains
     cannot be told apart in ``J`` (more played tones than gain sources) or nothing is read."""
@@ -252,6 +254,7 @@ def promise(design: Design, many: Many, e0: np.ndarray, J: np.ndarray, R: np.nda
     Jt = J[..., gi] @ np.linalg.pinv(W0)                             # (N, 2, K): per log gain at each played tone
     var0 = np.sum(W0 ** 2, axis=1)                                   # the tones' prior log-gain variance
     slopes = reading_slopes(design, many, readings)
+    Jp = J[..., pi] - Jt @ _absorbed(design, many, dirs, moves, gi, pi, W0, tones, readings) if pi else J[..., pi]
     rng = np.random.default_rng([seed, 28, 1])
     Z = rng.standard_normal((DRAWS, len(gi)))
     c = np.log(np.maximum(g0 + (np.exp(Z * sds) - 1.0) @ A.T, 1e-300) / g0)       # (S, K): the truth's log offset
@@ -272,14 +275,41 @@ def promise(design: Design, many: Many, e0: np.ndarray, J: np.ndarray, R: np.nda
     if pi:
         w, V = np.linalg.eigh(0.5 * (R[np.ix_(pi, pi)] + R[np.ix_(pi, pi)].T))
         theta = rng.standard_normal((DRAWS, len(pi))) @ (V * np.sqrt(np.maximum(w, 0.0))).T
-        err = err + (theta @ J[..., pi].reshape(-1, len(pi)).T).reshape(err.shape)
+        err = err + (theta @ Jp.reshape(-1, len(pi)).T).reshape(err.shape)
     if disc > 0:
         err = err + rng.normal(0.0, disc, err.shape)
     r2 = np.sum(err * err, axis=2)
     return {"rms_p95_m": float(np.percentile(np.sqrt(np.mean(r2, axis=1)), 95)),
             "max_p95_m": float(np.percentile(np.sqrt(r2.max(axis=1)), 95)),
             "tone_gain_sd": [{"frequency_hz": f, "log_sd": v} for f, v in sd0.items()],
-            "cov_m2": _tone_covs(Jt, sd0, tones, J[..., pi], R[np.ix_(pi, pi)], var0)}
+            "cov_m2": _tone_covs(Jt, sd0, tones, Jp, R[np.ix_(pi, pi)], var0)}
+
+
+def _absorbed(design: Design, many: Many, dirs, moves, gi, pi, W0, tones, readings) -> np.ndarray:
+    """(K, P): the log gain each played tone's fit takes up per 1 sd of each uncertain parameter, at the nominal design.
+
+    A parameter moves a reading at tone k by ``H_p`` (its column of the reading's sensitivity); ``acl fit --free gain``
+    explains that with the gain there, least squares along the reading's slope per log gain ``h``: ``h . H_p / |h|^2``
+    (summed over the tone's readings).  The calibrated design carries that gain, so the path's error from the
+    parameter is ``J_p - J_t A`` (``J_t`` per log gain at each played tone); a tone not read takes up nothing."""
+    out = np.zeros((len(tones), len(pi)))
+    by_tone: dict = {}
+    for f, v in readings:
+        by_tone.setdefault(float(f), []).append(float(v))
+    for k, f in enumerate(tones):
+        vs = next((x for g, x in by_tone.items() if abs(g - f) <= 1e-9 * f), None)
+        if not vs:
+            continue
+        try:
+            _, H = sensitivity(design, dirs, many, [f], np.array([[v * v] for v in vs]), moves)
+        except (ValueError, KeyError, FloatingPointError):
+            continue
+        w = W0[k]
+        h = H[..., gi] @ w / float(w @ w)                      # (R, 2): each reading's slope per log gain at tone k
+        den = float(np.sum(h * h))
+        if den > 0:
+            out[k] = np.einsum("ra,rap->p", h, H[..., pi]) / den
+    return out
 
 
 def _at(x: np.ndarray, slope: np.ndarray) -> np.ndarray:
@@ -390,7 +420,8 @@ def explain(design: Design, many: Many, capsule: str, tones, u: np.ndarray, targ
     if chosen:
         reads = [(f, round(x, 4)) for f, x in chosen]          # as written: the voltages the lab sets
         rms1, max1 = linear_band(e0, J, S, disc, seed)
-        pr = promise(design, many, e0, J, R, dirs, tones, reads, noise, reload=reload, disc=disc, seed=seed)
+        pr = promise(design, many, e0, J, R, dirs, tones, reads, noise, reload=reload, disc=disc, seed=seed,
+                     moves=moves)
         out["plot"]["cov_after_m2"] = _covs(J, S) if pr is None else pr["cov_m2"]
         post_sd = np.sqrt(np.maximum(np.diag(S), 0.0))
         out["measurement"] = {
@@ -415,7 +446,8 @@ def explain(design: Design, many: Many, capsule: str, tones, u: np.ndarray, targ
         if earlier and earlier[0] != name and sorted(earlier[1]) == sorted(reads):
             out["measurement"]["same_readings_as"] = earlier[0]
         elif earlier and earlier[0] != name:
-            alt = promise(design, many, e0, J, R, dirs, tones, earlier[1], noise, reload=reload, disc=disc, seed=seed)
+            alt = promise(design, many, e0, J, R, dirs, tones, earlier[1], noise, reload=reload, disc=disc, seed=seed,
+                          moves=moves)
             if alt is not None:
                 out["measurement"]["with_readings_of"] = {
                     "goal": earlier[0], "readings": [{"frequency_hz": f, "voltage_v": x} for f, x in earlier[1]],
