@@ -180,8 +180,23 @@ class Terminated(KeyboardInterrupt):
     """SIGTERM or SIGHUP, raised where the program is, so every cleanup that runs on Ctrl-C runs too."""
 
 
+#: The signal that asked acl to stop (0: none yet).  An interrupt that lands inside a compiled extension's import
+#: (pydantic_core's import of `datetime`) comes back as that extension's own error (pyo3's PanicException, a
+#: BaseException), not as KeyboardInterrupt; knowing a signal came lets main() report it as the interrupt it is.
+_SIGNALLED = 0
+
+
 def _terminate(signum, frame):
+    global _SIGNALLED
+    _SIGNALLED = signum
     raise Terminated(signum)
+
+
+def _interrupt(signum, frame):
+    """Ctrl-C as Python's default handler does it (KeyboardInterrupt), remembered for main()."""
+    global _SIGNALLED
+    _SIGNALLED = signum
+    raise KeyboardInterrupt
 
 
 def _unraisable(info):
@@ -209,14 +224,15 @@ def _on_termination():
         return {}
     sys.unraisablehook = _unraisable
     old = {}
-    for sig in (signal.SIGTERM, getattr(signal, "SIGHUP", None)):
+    for sig, handler in ((signal.SIGTERM, _terminate), (getattr(signal, "SIGHUP", None), _terminate),
+                         (signal.SIGINT, _interrupt)):
         if sig is None:
             continue
         try:
             previous = signal.getsignal(sig)
-            if previous is signal.SIG_IGN:      # nohup: a hang-up stays ignored
-                continue
-            old[sig] = signal.signal(sig, _terminate)
+            if previous is signal.SIG_IGN or (sig == signal.SIGINT and previous is not signal.default_int_handler):
+                continue                        # nohup: a hang-up stays ignored; a host's own Ctrl-C handler stays
+            old[sig] = signal.signal(sig, handler)
         except (ValueError, OSError):
             pass
     return old
@@ -316,6 +332,8 @@ def _terminated(exc: Terminated) -> int:
 def main(argv: list[str] | None = None) -> int:
     import warnings
 
+    global _SIGNALLED
+    _SIGNALLED = 0
     hook = sys.unraisablehook
     old = _on_termination()
     _prepare_streams()
@@ -341,6 +359,20 @@ def main(argv: list[str] | None = None) -> int:
         except (OSError, ValueError):
             pass
         return 130
+    except SystemExit:
+        raise
+    except BaseException:              # a signal that surfaced as an extension's error during an import
+        if not _SIGNALLED:
+            raise
+        import signal
+
+        if _SIGNALLED == signal.SIGINT:
+            try:
+                sys.stderr.write("acl: interrupted\n")
+            except (OSError, ValueError):
+                pass
+            return 130
+        return _terminated(Terminated(_SIGNALLED))
     finally:
         import signal
 

@@ -278,6 +278,11 @@ class LintResult:
         ax.barh(codes, [counts[c] for c in codes])
         if not codes:
             ax.text(0.5, 0.5, "no findings", ha="center", va="center", transform=ax.transAxes)
+            ax.set_yticks([])                   # no code to list: no -0.04 .. 0.04 ticks on an empty panel
+            ax.set_xlim(0, 1)
+        from matplotlib.ticker import MaxNLocator
+
+        ax.xaxis.set_major_locator(MaxNLocator(integer=True))      # findings are counted
         ax.set_xlabel("findings")
         ax.set_title(f"acl lint {self.path}")
         return ax
@@ -393,7 +398,7 @@ class FitReport:
     rmse_after: float | None     #: RMSE with the selected effects
     effects_selected: list[str]  #: effects the selection kept
     parameters: list[FitParameter]   #: fitted parameters after selection, with 95 % intervals
-    per_observable: dict         #: observable -> {n, rmse_before, rmse_after}
+    per_observable: dict         #: observable -> {n, rmse_before, rmse_after, unit}: "m", or "Pearson" (a latch state)
     calibrated_source: str = field(repr=False, default="")   #: text of the calibrated design
     _raw: dict = field(repr=False, default_factory=dict)
 
@@ -402,7 +407,8 @@ class FitReport:
         r = out.report
         params = [FitParameter(p["name"], p["value"], p.get("unit", ""), *(tuple(p.get("ci95") or (None, None))[:2]))
                   for p in r["final"]["parameters"]]
-        per = {k: {"n": v["n"], "rmse_before": r["base"]["per_observable"][k]["rmse"], "rmse_after": v["rmse"]}
+        per = {k: {"n": v["n"], "rmse_before": r["base"]["per_observable"][k]["rmse"], "rmse_after": v["rmse"],
+                   "unit": v.get("unit", "m")}
                for k, v in r["final"]["per_observable"].items()}
         return cls(r["design"], r["rows"], r["rmse_before"], r["rmse_after"], list(r["effects_selected"]), params,
                    per, out.calibrated, r)
@@ -414,24 +420,27 @@ class FitReport:
     def _repr_html_(self) -> str:
         rows = [[p.name, f"{p.value:.4g}", p.unit, "-" if p.low is None else f"{p.low:.4g} .. {p.high:.4g}"]
                 for p in self.parameters]
-        note = (f"RMSE {self.rmse_before:.3g} -> {self.rmse_after:.3g} (SI); effects: "
+        note = (f"RMSE {_num(self.rmse_before, '{:.3g}', 1e6)} -> {_num(self.rmse_after, '{:.3g}', 1e6)} um; effects: "
                 f"{', '.join(self.effects_selected) or 'none'}") if self.rmse_before is not None else ""
         return html_table(f"acl fit {self.design}: {self.rows} rows", ["parameter", "value", "unit", "95 % interval"],
                           rows, note)
 
     def plot(self, ax=None):
-        """RMSE per observable before and after the fit (grouped bars)."""
+        """RMSE per observable before and after the fit (grouped bars): um for lengths, as `acl fit` prints them; a
+        latch state's Pearson residual as it is."""
         import numpy as np
 
         ax = new_axes(ax)
         names = sorted(self.per_observable)
         x = np.arange(len(names))
-        before = [self.per_observable[n]["rmse_before"] or 0.0 for n in names]
-        after = [self.per_observable[n]["rmse_after"] or 0.0 for n in names]
+        pearson = [self.per_observable[n].get("unit") == "Pearson" for n in names]
+        scale = [1.0 if p else 1e6 for p in pearson]
+        before = [(self.per_observable[n]["rmse_before"] or 0.0) * k for n, k in zip(names, scale)]
+        after = [(self.per_observable[n]["rmse_after"] or 0.0) * k for n, k in zip(names, scale)]
         ax.bar(x - 0.2, before, 0.4, label="before")
         ax.bar(x + 0.2, after, 0.4, label="after")
-        ax.set_xticks(x, names)
-        ax.set_ylabel("RMSE (SI)")
+        ax.set_xticks(x, [f"{n} (Pearson)" if p else n for n, p in zip(names, pearson)])
+        ax.set_ylabel("RMSE (um; latch states: Pearson residual)" if any(pearson) else "RMSE (um)")
         ax.set_title("fit: error per observable")
         ax.legend(fontsize="small")
         return ax

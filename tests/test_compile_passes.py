@@ -35,7 +35,7 @@ def test_the_driver_runs_its_passes_in_order():
     from acl.schedule import compile as C
 
     assert [name for name, _ in C.PASSES] == ["numbers", "steps", "latch flips", "assemble", "coverage", "phases",
-                                              "peaks", "slews", "validity"]
+                                              "peaks", "slews", "validity", "pair scale"]
     assert set(C.STEP_PASSES) == {"drive", "sweep", "pause", "follow", "hold", "switch"}
 
 

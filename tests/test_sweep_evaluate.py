@@ -386,7 +386,8 @@ def test_every_example_nominal_equals_analyze(example):
     at = "125 kHz @ 2 V"
     b = FieldBatch(design=d, n=1, fields={}, valid=np.ones(1, bool), code=np.full(1, ""))
     names, _ = supported(d, at)
-    cols = evaluate(b, [n for n in names if not n.startswith("lint_") and n != "model_form_uncertain"], at)
+    cols = evaluate(b, [n for n in names if not n.startswith("lint_") and n != "model_form_uncertain"
+                        and not n.startswith("model_form_pair_")], at)   # the sweep's own (tests/test_pair_scale_spread.py)
     exp = _expected({**analyze(d, at=drive_from_text(at)).as_dict(), "_beams": [b.name for b in d.beams]})
     checked = 0
     for name, col in cols.items():

@@ -86,6 +86,9 @@ def _could_have(d) -> list[str]:
         out.append("equilibrium_ok")
     out += [f"require_{i}_{k}" for i in range(1, len(d.requires) + 1) for k in ("value", "pass")]
     out += ["requires_pass"] * bool(d.requires) + ["model_form_rel", "model_form_uncertain"]
+    if len(d.capsules) >= 2 and d.effect("bjerknes_scale") is None:     # a first-principles pair force's spread
+        out += ["model_form_pair_uncertain"] + ["model_form_pair_median_pass"] * any(
+            r.kind in ("margin", "gap") for r in d.requires)
     return out + [f"lint_{c}_pass" for c in LINT_RULES]
 
 

@@ -46,8 +46,16 @@ def test_model_form_rel_equals_analyze_past_the_amplitude_and_monopole_limits():
     assert abs(t.data["model_form_rel"][0] - (20 / 24) ** 2) <= 1e-9
 
 
-def test_the_yield_interval_widens_by_the_points_whose_verdict_could_flip():
-    t = acl.sweep(SPRING, n=120, seed=2)
+def _declared_pair(tmp_path) -> str:
+    """SPRING with its first-principles pair force declared as such (`bjerknes_scale { factor = 1 }`): the same
+    forces, without the pair-scale spread a first-principles pair adds to the interval (tests/test_pair_scale_spread.py)."""
+    path = tmp_path / "sweep_spring_declared.acl"
+    path.write_text(open(SPRING).read() + "\neffect bjerknes_scale { factor = 1 }\n")
+    return str(path)
+
+
+def test_the_yield_interval_widens_by_the_points_whose_verdict_could_flip(tmp_path):
+    t = acl.sweep(_declared_pair(tmp_path), n=120, seed=2, search_paths=(ROOT,))
     y = t.yields()["all"]
     rel = t.data["model_form_rel"]
     assert np.all(rel[t.data["valid"]] > 0)
@@ -65,8 +73,8 @@ def test_the_yield_interval_widens_by_the_points_whose_verdict_could_flip():
     assert any("past a soft validity limit" in n for n in t.notes)
 
 
-def test_naming_the_columns_without_it_says_the_interval_is_not_widened():
-    t = acl.sweep(SPRING, n=20, seed=2, quantities=["requires_pass"])
+def test_naming_the_columns_without_it_says_the_interval_is_not_widened(tmp_path):
+    t = acl.sweep(_declared_pair(tmp_path), n=20, seed=2, quantities=["requires_pass"], search_paths=(ROOT,))
     assert "model_form_uncertain" not in t.columns and t.yields()["all"].widened == 0
     assert any("not widened by the model-form uncertainty" in n for n in t.notes)
 

@@ -84,3 +84,18 @@ def neighbour_capsules(design: Design) -> frozenset[str]:
             if a != b:
                 out.update((a, b))
     return frozenset(out)
+
+
+def first_principles_pairs(design: Design) -> bool:
+    """Whether ``design``'s pair (secondary Bjerknes) forces are acl's first-principles values: two or more capsules
+    and no declared ``bjerknes_scale`` (a calibration on measured pairs, or a declared spread)."""
+    return len(design.capsules) >= 2 and design.effect("bjerknes_scale") is None
+
+
+def with_pair_scale(design: Design, factor: float) -> Design:
+    """``design`` with its Bjerknes force times ``factor`` (an effect ``bjerknes_scale { factor }`` added, located at the
+    first capsule): a draw of the first-principles pair-scale spread (acl.physics.constants.PAIR_SCALE_ROWS)."""
+    from acl.design.model import Effect
+
+    eff = Effect(name="bjerknes_scale", params={"factor": float(factor)}, units={"factor": ""}, span=design.capsules[0].span)
+    return design.model_copy(update={"effects": tuple(design.effects) + (eff,)})

@@ -147,5 +147,6 @@ def scale_note(design: Design, pair: dict) -> list[dict]:
     here = f"snaps in at {v0:.3g} V" if v0 is not None else "does not snap in up to the transducer's maximum voltage"
     return [_note(design, pair["b"], "N-PAIR-SCALE", (
         f"at {pair['frequency_hz'] / 1e3:g} kHz the design {here} with acl's first-principles pair forces; the "
-        f"paper's measured pairs attract 1.86-15x harder (median {S:g}), and at the median it snaps in at {v1:.3g} V. "
-        "Declare that spread or a calibration (stdlib/calibrations.acl) so compile and sweep carry it"))]
+        f"paper's measured pairs attract 1.86-15x harder (median {S:.3g}), and at the median it snaps in at {v1:.3g} V. "
+        "acl compile's bands and acl sweep's yield interval draw that spread; a calibration on measured pairs "
+        "(stdlib/calibrations.acl, acl fit) replaces it"))]

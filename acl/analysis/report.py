@@ -344,13 +344,12 @@ def _median_pair_scale(design: M.Design) -> M.Design | None:
     """``design`` with its Bjerknes force at the median measured / first-principles ratio of the paper's pairs
     (acl.physics.constants.FIRST_PRINCIPLES_PAIR_SCALE_MEDIAN), or None where a bjerknes_scale is declared (a
     calibration or a declared spread) or there is no pair."""
+    from acl.analysis.effects import first_principles_pairs, with_pair_scale
     from acl.physics.constants import FIRST_PRINCIPLES_PAIR_SCALE_MEDIAN
 
-    if len(design.capsules) < 2 or design.effect("bjerknes_scale") is not None:
+    if not first_principles_pairs(design):
         return None
-    eff = M.Effect(name="bjerknes_scale", params={"factor": FIRST_PRINCIPLES_PAIR_SCALE_MEDIAN},
-                   units={"factor": ""}, span=design.capsules[0].span)
-    return design.model_copy(update={"effects": tuple(design.effects) + (eff,)})
+    return with_pair_scale(design, FIRST_PRINCIPLES_PAIR_SCALE_MEDIAN)
 
 
 def _drive_entry(program, step, drive_text, amps: dict, line=None, basis: str = "step", file=None) -> dict:

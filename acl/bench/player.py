@@ -36,7 +36,7 @@ def check_address(resource: str) -> None:
         from pyvisa import rname
     except ImportError:
         raise DiagnosticError([error("E-PLAY-CONNECT", "talking to an instrument needs PyVISA: "
-                                     "pip install 'acl[bench]' (--dry-run needs nothing)", WHERE)]) from None
+                                     "pip install 'acl[bench]' (from a checkout: pip install '.[bench]'; --dry-run needs nothing)", WHERE)]) from None
     try:
         rname.parse_resource_name(resource)
     except Exception as exc:     # pyvisa raises InvalidResourceName (a ValueError) with its reason

@@ -60,7 +60,7 @@ def _open_tiff(path: str) -> Video:
     try:
         import tifffile
     except ImportError:
-        _fail("E-TRACK-VIDEO", "reading TIFF stacks needs tifffile: pip install 'acl[bench]'", path)
+        _fail("E-TRACK-VIDEO", "reading TIFF stacks needs tifffile: pip install 'acl[bench]' (from a checkout: pip install '.[bench]')", path)
     try:
         tif = tifffile.TiffFile(path)
         pages = tif.pages
@@ -114,7 +114,7 @@ def _open_ffmpeg(path: str) -> Video:
     try:
         import imageio_ffmpeg
     except ImportError:
-        _fail("E-TRACK-VIDEO", "reading AVI/MP4 needs imageio-ffmpeg: pip install 'acl[bench]'", path)
+        _fail("E-TRACK-VIDEO", "reading AVI/MP4 needs imageio-ffmpeg: pip install 'acl[bench]' (from a checkout: pip install '.[bench]')", path)
     try:
         gen = imageio_ffmpeg.read_frames(path, pix_fmt="gray", bits_per_pixel=8)
         meta = next(gen)

@@ -15,7 +15,7 @@ def run(args) -> int:
         import pygls  # noqa: F401
     except ImportError as exc:
         report([error("E-DEPENDENCY", f"`acl lsp` needs the optional packages pygls and lsprotocol ({exc.name} is missing)",
-                      Span(file="<acl lsp>", line=1, column=1), "install them with: pip install 'acl[lsp]'")])
+                      Span(file="<acl lsp>", line=1, column=1), "install them with: pip install 'acl[lsp]' (from a checkout: pip install '.[lsp]')")])
         return 2
     if getattr(args, "verbose", False):       # the protocol traffic and server events, on stderr
         import logging

@@ -10,28 +10,42 @@ from acl.commands._common import add_design_options, add_output_format, load_or_
 def add_parser(p) -> None:
     p.add_argument("file", metavar="FILE", help="design file (.acl), or a folder holding one design")
     add_output_format(p, old=("--json",))
-    p.add_argument("--plot", metavar="PNG", help="also draw the design (isometric and three orthographic views) "
-                   "into this PNG (needs acl[plot])")
+    p.add_argument("--plot", metavar="PNG|DIR/", help="also draw the design (isometric and three orthographic views) "
+                   "into this PNG, or as DIR/<design>.png into a folder (as analyze and compile --plot DIR; "
+                   "needs acl[plot])")
     add_design_options(p)
 
 
 def run(args) -> int:
+    import os
+
     fmt = args.output_format
+    # a folder (an existing one, or a path ending in /) takes DESIGN.png, as `analyze --plot DIR` takes its figures
+    folder = args.plot if args.plot is not None and (args.plot.endswith(("/", os.sep)) or os.path.isdir(args.plot)) \
+        else None
     if args.plot is not None:
         from acl.commands._common import plotting_missing
-        from acl.diagnostics import DiagnosticError
-        from acl.export.files import check_output
 
-        try:
-            check_output(args.plot, "--plot", (".png",), [args.file])
-        except DiagnosticError as exc:
-            report(exc.diagnostics, fmt)
+        if folder is None and not _output_ok(args.plot, args.file, fmt):
             return 2
         if plotting_missing("--plot", fmt):
             return 2
     design, code = load_or_report(args.file, args, fmt)
     if design is None:
         return code
+    if folder is not None:
+        from acl.diagnostics import Span, error
+
+        try:
+            os.makedirs(folder, exist_ok=True)
+        except OSError as exc:
+            why = "a file of that name exists" if os.path.isfile(folder.rstrip("/" + os.sep)) else exc.strerror or exc
+            report([error("E601", f"--plot {folder}: cannot make the folder: {why}",
+                          Span(file="<--plot>", line=1, column=1), "give a folder or a .png path")], fmt)
+            return 2
+        args.plot = os.path.join(folder, os.path.splitext(os.path.basename(design.file))[0] + ".png")
+        if not _output_ok(args.plot, args.file, fmt):
+            return 2
     if args.plot is not None:
         code = _plot(design, args.plot, fmt)
         if code:
@@ -49,6 +63,19 @@ def run(args) -> int:
 
     make_console(highlight=False).print(design_tree(design))
     return 0
+
+
+def _output_ok(path: str, source: str, fmt: str) -> bool:
+    """``path`` may take the PNG (acl.export.files.check_output); reported otherwise."""
+    from acl.diagnostics import DiagnosticError
+    from acl.export.files import check_output
+
+    try:
+        check_output(path, "--plot", (".png",), [source])
+    except DiagnosticError as exc:
+        report(exc.diagnostics, fmt)
+        return False
+    return True
 
 
 def _plot(design, path: str, fmt: str) -> int:

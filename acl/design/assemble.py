@@ -622,6 +622,12 @@ def _joints(b: Builder, beams_raw):
             a = b.local(st.a, ("capsule", "anchor", "ground"), "link")
             c = b.local(st.b, ("capsule", "anchor", "ground"), "link")
             el = b.local(st.element, ("truss", "spring"), "link ... with")
+            # a failed end or element (reported where it failed) leaves the capsule it carries unplaced: no W401
+            # "not attached" and no later report of it
+            if any(r.parts[0] in b.failed for r in (st.a, st.b, st.element)):
+                unplaced(a if a and a[0] == "capsule" else None)
+                unplaced(c if c and c[0] == "capsule" else None)
+                continue
             if a and c and a == c:
                 b.bag.error("E207", "link: both ends are the same point", st.span)
                 continue

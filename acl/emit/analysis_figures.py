@@ -37,15 +37,15 @@ def write_figures(design, rep, outdir: str) -> list[str]:
 
     os.makedirs(outdir, exist_ok=True)
     written = []
-    f = np.linspace(20e3, 250e3, 600)
+    # the responses per pascal, over the transducer's band: per volt they carried the kinks of the gain table's
+    # linear interpolation (acoustics.drive_gain) and ran beyond the band (modal response and pair figures alike)
+    t = design.transducer
+    fm = np.linspace(*t.band, 600) if t is not None else np.linspace(20e3, 250e3, 600)
+    per_pa = t is not None and len(t.gain_frequencies) > 0
+    g = np.asarray(AC.drive_gain(design, fm)[0], float) if design.capsules else np.ones_like(fm)
+    unit = "per pascal (um^3/Pa)" if per_pa else "per volt (um^3/V)"
     # 1. modal response of each capsule (paper Fig. 3b)
     if design.capsules:
-        # the capsule's own response per pascal, over the transducer's band: per volt it carried the kinks of the
-        # gain table's linear interpolation (acoustics.drive_gain) and ran beyond the band
-        t = design.transducer
-        fm = np.linspace(*t.band, 600) if t is not None else f
-        per_pa = t is not None and len(t.gain_frequencies) > 0
-        g = np.asarray(AC.drive_gain(design, fm)[0], float)
         fig, ax = plt.subplots(figsize=(7, 4))
         for c in design.capsules:
             h = np.abs(AC.orifice_response(design, c, fm))
@@ -58,7 +58,7 @@ def write_figures(design, rep, outdir: str) -> list[str]:
                     ax.axvline(m.frequency_hz / 1e3, ls="--", lw=0.6, color="grey")
         ax.set_xlim(fm[0] / 1e3, fm[-1] / 1e3)
         ax.set_xlabel("frequency (kHz)")
-        ax.set_ylabel("volume amplitude per pascal (um^3/Pa)" if per_pa else "volume amplitude per volt (um^3/V)")
+        ax.set_ylabel(f"volume amplitude {unit}")
         ax.set_title("Modal response (cf. paper Fig. 3b)")
         ax.legend(fontsize=7)
         written.append(_save(fig, os.path.join(outdir, "modal_response.png")))
@@ -67,16 +67,19 @@ def write_figures(design, rep, outdir: str) -> list[str]:
     caps = list(design.capsules)
     for i, a in enumerate(caps):
         for b in caps[i + 1:]:
+            f = fm
             ha = AC.orifice_response(design, a, f)[:, 0]
             hb = AC.orifice_response(design, b, f)[:, 0]
             dphi = np.degrees(np.angle(ha * np.conj(hb)))
             fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(7, 5), sharex=True)
-            ax1.semilogy(f / 1e3, np.abs(ha) * 1e18, label=a.name)
-            ax1.semilogy(f / 1e3, np.abs(hb) * 1e18, label=b.name)
-            ax1.set_ylabel("|dV| per volt (um^3/V)")
+            scale = 1e18 / (np.maximum(g, 1e-300) if per_pa else 1.0)
+            ax1.semilogy(f / 1e3, np.abs(ha) * scale, label=a.name)
+            ax1.semilogy(f / 1e3, np.abs(hb) * scale, ls="--", label=b.name)     # dashed: an equal pair shows both
+            ax1.set_ylabel(f"|dV| {unit}")
+            ax1.set_xlim(f[0] / 1e3, f[-1] / 1e3)
             ax1.legend(fontsize=7)
             ax2.plot(f / 1e3, np.degrees(np.angle(ha)), label=f"phase {a.name}")
-            ax2.plot(f / 1e3, np.degrees(np.angle(hb)), label=f"phase {b.name}")
+            ax2.plot(f / 1e3, np.degrees(np.angle(hb)), ls="--", label=f"phase {b.name}")
             ax2.plot(f / 1e3, dphi, label="difference", color="k")
             rep_band = np.abs(dphi) > 90
             ax2.fill_between(f / 1e3, -180, 180, where=rep_band, color="grey", alpha=0.3, label="repel")

@@ -5,7 +5,12 @@ A design declares its uncertainty in the language (docs/language.md): ``param x 
 ``gain_uncertainty`` (relative standard deviation of each gain-table value, independent; the stdlib
 tables, which are not measured, declare 30 %).  A calibration also declares ``measured(gain)``: the
 tones its data drove, each with the standard error of a free gain there; at those tones the table is
-held to the calibrated model (:func:`pinned`), elsewhere it keeps its prior.  This module turns it into
+held to the calibrated model (:func:`pinned`), elsewhere it keeps its prior.  A design whose pair (secondary
+Bjerknes) forces no ``bjerknes_scale`` calibrates (:func:`acl.analysis.effects.first_principles_pairs`) adds one more
+source that it does not declare: its Bjerknes force drawn times a log-normal scale, the spread of the measured /
+first-principles ratio over the paper's pairs (``acl.physics.constants.PAIR_SCALE_ROWS``: median 4.49, log sd 1.08;
+:func:`pair_scales`), from a random stream of its own so the other draws stay those of the same design with its
+force declared.  This module turns it into
 
 * :func:`sample_designs` -- designs drawn from that distribution: the table values multiplied by
   log-normal factors ``exp(s z)`` (one per table point), the uncertain parameters drawn from
@@ -55,6 +60,7 @@ class Uncertainty:
     units: tuple[str, ...]
     pinned: tuple = ()                      # ((tone Hz, relative sd), ...): gains a calibration measured (:func:`pinned`)
     log: tuple[bool, ...] = ()              # per parameter: drawn log-normal (``lognormal(a, ...)``), else normal
+    pair: bool = False                      # first-principles pair forces: their scale is drawn (:func:`pair_scales`)
 
     @property
     def gain_sds(self) -> np.ndarray:
@@ -64,11 +70,14 @@ class Uncertainty:
 
     @property
     def empty(self) -> bool:
-        return self.gain_sd <= 0 and not self.names and self.discrepancy <= 0
+        return self.gain_sd <= 0 and not self.names and self.discrepancy <= 0 and not self.pair
 
 
 def declared(design: Design, with_params: bool = True) -> Uncertainty:
-    """The uncertainty a design declares (params only when they can be re-resolved: ``with_params``)."""
+    """The uncertainty a design declares (params only when they can be re-resolved: ``with_params``), and the spread of
+    a first-principles pair force (:func:`pair_scales`)."""
+    from acl.analysis.effects import first_principles_pairs
+
     t = design.transducer
     gain_sd = float(t.gain_uncertainty or 0.0) if t is not None else 0.0
     ps = design.uncertain_params() if with_params else ()
@@ -76,7 +85,60 @@ def declared(design: Design, with_params: bool = True) -> Uncertainty:
     return Uncertainty(gain_sd, float(design.discrepancy or 0.0),
                        len(t.gain_pa_per_v) + len(pin) if t is not None else 0, tuple(p.name for p in ps),
                        np.array([p.value for p in ps]), design.covariance([p.name for p in ps]) if ps else np.zeros((0, 0)),
-                       tuple(p.unit for p in ps), pin, tuple(p.name in design.lognormal for p in ps))
+                       tuple(p.unit for p in ps), pin, tuple(p.name in design.lognormal for p in ps),
+                       first_principles_pairs(design))
+
+
+PAIR_SOURCE = "first-principles pair force"
+
+
+def pair_scales(n: int, seed: int = 0) -> np.ndarray:
+    """(n,) the Bjerknes-force scales of :func:`sample_designs`' draws on a first-principles pair: the log-normal of
+    acl.physics.constants (PAIR_SCALE_LOG_MEAN, PAIR_SCALE_LOG_SD) from its own stream ``[seed, 2]``."""
+    from acl.physics.constants import PAIR_SCALE_LOG_MEAN, PAIR_SCALE_LOG_SD
+
+    return np.exp(PAIR_SCALE_LOG_MEAN + PAIR_SCALE_LOG_SD * np.random.default_rng([seed, 2]).standard_normal(n))
+
+
+def pair_rms_log() -> float:
+    """sqrt(E (ln s)^2) of the pair scale s (acl.physics.constants): its root-mean-square log distance from the
+    first-principles force, about which the compiler's linearised sources move it (:func:`pair_move`)."""
+    from acl.physics.constants import PAIR_SCALE_LOG_MEAN, PAIR_SCALE_LOG_SD
+
+    return float(np.hypot(PAIR_SCALE_LOG_MEAN, PAIR_SCALE_LOG_SD))
+
+
+def pair_move(design: Design, t: float) -> Design:
+    """``design`` with its first-principles pair force moved by ``t`` of :func:`pair_rms_log` in log scale: a linearised
+    source (the robust program's Q, the band's cause) whose variance is the pair scale's second moment about first
+    principles (its median 4.49 is itself 1.5 log units away)."""
+    from acl.analysis.effects import with_pair_scale
+
+    return with_pair_scale(design, float(np.exp(pair_rms_log() * t)))
+
+
+def pair_details(design: Design, values: np.ndarray, seed: int = 0) -> dict | None:
+    """What a band says of the first-principles pair force it drew (None when the design's pairs are calibrated):
+    the distribution with its source rows, and its share of the band's spread: the squared rank correlation of the
+    draws' ``values`` (RMS error or margin; a failed draw ranks as its value says) with their drawn scale (Spearman; for
+    independent sources the first-order share of the variance, up to monotone transforms)."""
+    from acl.analysis.effects import first_principles_pairs
+    from acl.physics import constants as C
+
+    if not first_principles_pairs(design):
+        return None
+    v = np.asarray(values, float)
+    out = {"source": PAIR_SOURCE, "distribution": "log-normal", "median": C.FIRST_PRINCIPLES_PAIR_SCALE_MEDIAN,
+           "log_sd": C.PAIR_SCALE_LOG_SD, "rows": [{"source": s, "ratio": r} for s, r in C.PAIR_SCALE_ROWS],
+           "variance_share": None}
+    if v.size >= 3:
+        from scipy.stats import rankdata
+
+        x = rankdata(pair_scales(v.size, seed))
+        y = rankdata(np.where(np.isnan(v), np.inf, v))        # ties (failed draws) share their mean rank
+        if np.std(x) > 0 and np.std(y) > 0:
+            out["variance_share"] = round(float(np.corrcoef(x, y)[0, 1] ** 2), 4)
+    return out
 
 
 def pinned(design: Design) -> tuple:
@@ -217,6 +279,7 @@ def draw_params(unc: Uncertainty, rng: np.random.Generator, L: np.ndarray, mu: n
 
 def sample_designs(design: Design, n: int, seed: int = 0, reload: Reload | None = None):
     """Yield (index, Design or None) for ``n`` draws of the declared uncertainty (None: failed to resolve)."""
+    from acl.analysis.effects import with_pair_scale
     from acl.diagnostics import DiagnosticError
 
     unc = declared(design, with_params=reload is not None)
@@ -224,6 +287,7 @@ def sample_designs(design: Design, n: int, seed: int = 0, reload: Reload | None 
     if unc.names:
         mu, S = log_moments(unc.mean, unc.cov, unc.log)
         L = _chol(S)
+    scales = pair_scales(n, seed) if unc.pair else None
     for i in range(n):
         theta = draw_params(unc, rng, L, mu) if unc.names else None
         z = rng.standard_normal(unc.n_table)
@@ -234,6 +298,8 @@ def sample_designs(design: Design, n: int, seed: int = 0, reload: Reload | None 
             continue
         if unc.gain_sd > 0 and d.transducer is not None:
             d = _with_gain(d, np.exp(unc.gain_sds * z))
+        if scales is not None:
+            d = with_pair_scale(d, scales[i])
         yield i, d
 
 
@@ -245,6 +311,7 @@ class Band:
     failed: int                             # of those, draws that did not resolve or lost the equilibrium
     rms_m: np.ndarray                       # per draw (for tests and plots)
     max_m: np.ndarray
+    pair: dict | None = None                # the first-principles pair force drawn (:func:`pair_details`)
 
 
 def error_band(design: Design, forward_for: Callable, u: np.ndarray, targets: np.ndarray, *,
@@ -300,7 +367,7 @@ def error_band(design: Design, forward_for: Callable, u: np.ndarray, targets: np
     if not rms:
         return Band(float("nan"), float("nan"), 0, failed, np.array([]), np.array([]))
     rms_a, mx_a = np.array(rms), np.array(mx)
-    return Band(_quantile(rms_a, q), _quantile(mx_a, q), len(rms), failed, rms_a, mx_a)
+    return Band(_quantile(rms_a, q), _quantile(mx_a, q), len(rms), failed, rms_a, mx_a, pair_details(design, rms_a, seed))
 
 
 @dataclass
@@ -311,6 +378,7 @@ class MarginBand:
     below_one: int                          # draws where the margin is below 1 (the goal fails there)
     values: np.ndarray                      # per draw
     others_p95: dict                        # {name: 95th percentile} of ratios that must stay below 1
+    pair: dict | None = None                # the first-principles pair force drawn (:func:`pair_details`)
 
 
 def margin_band(design: Design, margin_for: Callable, *, samples: int = 20, seed: int = 0,
@@ -342,7 +410,7 @@ def margin_band(design: Design, margin_for: Callable, *, samples: int = 20, seed
     v = np.array(vals)
     # bounds by order statistics, as the error bands: the margin's from below, the ratios' from above
     return MarginBand(_lower_quantile(v, 5.0), len(vals) - failed, failed, int(np.sum(v < 1.0)), v,
-                      {k: _quantile(np.array(r), 95.0) for k, r in others.items()})
+                      {k: _quantile(np.array(r), 95.0) for k, r in others.items()}, pair_details(design, v, seed))
 
 
 def _quantile(x: np.ndarray, q: float) -> float:
@@ -376,7 +444,8 @@ def gain_sensitivity(design: Design, gains_for: Callable, reload: Reload | None 
     """Q (K, K) = sum_j dG_j^T dG_j over independent 1-sigma directions of the declared uncertainty.
 
     ``gains_for(design) -> (2, K)`` gain matrix at the goal's tones.  Finite differences: a table point
-    scaled by ``exp(s)``; a parameter moved along one principal axis of its covariance by 1 sigma.
+    scaled by ``exp(s)``; a parameter moved along one principal axis of its covariance by 1 sigma; a
+    first-principles pair force by its scale's root-mean-square log distance (:func:`pair_move`).
     ``sum_t u_t^T Q u_t`` is the expected squared error the uncertainty adds to the linear plan.
     """
     unc = declared(design, with_params=reload is not None)
@@ -400,6 +469,9 @@ def gain_sensitivity(design: Design, gains_for: Callable, reload: Reload | None 
             d = _with_params(design, unc, unc.mean + L[:, i], reload)
             dG = np.asarray(gains_for(d), float) - G0
             Q += dG.T @ dG
+    if unc.pair:
+        dG = np.asarray(gains_for(pair_move(design, 1.0)), float) - G0
+        Q += dG.T @ dG
     return 0.5 * (Q + Q.T)
 
 

@@ -139,6 +139,35 @@ def coverage(comp: CompileState) -> None:
         comp.notes.append(f"warning: {w.message}")
 
 
+PAIR_SCALE_CODE = "N-PAIR-SCALE"
+
+
+def pair_scale_notes(comp: CompileState) -> None:
+    """A located note (N-PAIR-SCALE) at each step whose band drew the first-principles pair force's spread
+    (acl.schedule.bands.pair_details): the design's pair forces are acl's first-principles values, every measured
+    pair of the paper attracted harder, and the band says how much of its spread that is."""
+    from acl.diagnostics import Diagnostic, Severity
+
+    for g in comp.goals:
+        band = (g.details or {}).get("band")
+        pair = band.get("pair_scale") if isinstance(band, dict) else None
+        if not pair or not 0 <= g.step < len(comp.program.steps):
+            continue
+        cause = band.get("cause") if isinstance(band.get("cause"), dict) else {}
+        share = cause.get("pair_force_share", pair.get("variance_share"))
+        how = "of its variance (linearised)" if "pair_force_share" in cause else "(squared rank correlation over the draws)"
+        rows = "; ".join(f"{r['source']}: {r['ratio']:.3g}" for r in pair["rows"])
+        what = ("band" if g.rms_error_p95_m is not None else "margin band")
+        msg = (f"{g.name}: the {what} draws the {pair['source']}: no bjerknes_scale calibrates this design's pair forces, "
+               f"and the paper's measured pairs attracted {min(r['ratio'] for r in pair['rows']):.3g}-"
+               f"{max(r['ratio'] for r in pair['rows']):.3g}x harder ({rows}); drawn log-normal, median "
+               f"{pair['median']:.3g}, log sd {pair['log_sd']:.3g}"
+               + (f"; its share of the spread {share:.0%} {how}" if share is not None else ""))
+        comp.schedule.warnings.append(Diagnostic(
+            PAIR_SCALE_CODE, Severity.INFO, msg, comp.program.steps[g.step].span,
+            "calibrate the pair force on measured pairs (acl fit; effect bjerknes_scale, stdlib/calibrations.acl)"))
+
+
 PASSES = (
     ("numbers", SF.check_numbers),
     ("steps", plan_steps),
@@ -149,4 +178,5 @@ PASSES = (
     ("peaks", lambda comp: SF.check_peaks(comp, comp.schedule)),
     ("slews", lambda comp: SF.check_slews(comp, comp.schedule)),
     ("validity", lambda comp: VD.check_linear(comp, comp.schedule)),
+    ("pair scale", pair_scale_notes),
 )

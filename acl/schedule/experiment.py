@@ -88,6 +88,15 @@ def directions(design: Design, reload=None) -> tuple[list, np.ndarray]:
         C = unc.cov[np.ix_(keep, keep)]
         s = sd[keep]
         R[D - len(keep):, D - len(keep):] = C / np.outer(s, s)
+    if unc.pair:        # a first-principles pair force, independent of the rest (acl.schedule.bands.pair_move)
+        from acl.physics.constants import PAIR_SCALE_ROWS
+
+        lo, hi = min(r for _, r in PAIR_SCALE_ROWS), max(r for _, r in PAIR_SCALE_ROWS)
+        out.append((f"{bands.PAIR_SOURCE} (no bjerknes_scale: measured pairs {lo:.3g}-{hi:.3g}x, "
+                    f"x{np.exp(bands.pair_rms_log()):.3g} at 1 sd)", "pair", None, bands.pair_rms_log(),
+                    lambda x: bands.pair_move(design, x)))
+        R = np.pad(R, ((0, 1), (0, 1)))
+        R[-1, -1] = 1.0
     return out, R
 
 
@@ -384,6 +393,7 @@ def explain(design: Design, many: Many, capsule: str, tones, u: np.ndarray, targ
     sources = [{"source": dirs[j][0], "kind": dirs[j][1], "frequency_hz": dirs[j][2], "sd": dirs[j][3],
                 "share": round(float(shares[j]), 4)} for j in order[:TOP]]
     gain_share = float(sum(shares[j] for j in range(len(dirs)) if dirs[j][1] == "gain"))
+    pair_share = [float(shares[j]) for j in range(len(dirs)) if dirs[j][1] == "pair"]
     out = {"sources": sources, "gain_table_share": round(gain_share, 4), "reading_noise_m": noise,
            "other_sources_share": round(float(shares[order[TOP:]].sum()), 4),
            "linearised_rms_p95_m": rms0, "linearised_max_p95_m": max0,
@@ -391,6 +401,8 @@ def explain(design: Design, many: Many, capsule: str, tones, u: np.ndarray, targ
            # per re-simulated waypoint: predicted position and the 2x2 covariance the sources give it (the plot's band;
            # the compiler keeps it off schedule.json)
            "plot": {"waypoints_m": [[float(a), float(b)] for a, b in p0], "cov_m2": _covs(J, R)}}
+    if pair_share:
+        out["pair_force_share"] = round(pair_share[0], 4)
     # the experiment: readings chosen greedily to minimise the expected squared tracking error
     cands = candidates(design, tones, u)
     reach = float(np.max(np.linalg.norm(tg, axis=1)))      # the path's farthest point from rest
@@ -405,7 +417,8 @@ def explain(design: Design, many: Many, capsule: str, tones, u: np.ndarray, targ
             continue
         for r, x in enumerate(vs):
             if np.all(np.isfinite(y0[r])) and np.linalg.norm(y0[r]) <= 2 * reach:
-                H[(f, x)] = (Hf[r], y0[r])
+                # the readings calibrate the gain (acl fit --free gain), not a pair force's scale: it stays as drawn
+                H[(f, x)] = (np.where([k == "pair" for _, k, *_ in dirs], 0.0, Hf[r]), y0[r])
     J2 = J.reshape(-1, J.shape[-1]) / np.sqrt(J.shape[0])
     S, chosen, best = R.copy(), [], _score(J2, R)
     for _ in range(MAX_READINGS):
@@ -496,15 +509,18 @@ def moved(design: Design, z, reload=None) -> Design:
     dirs, _ = directions(design, reload)
     z = np.asarray(z, float)
     ng = sum(1 for d in dirs if d[1] == "gain")
+    npar = sum(1 for d in dirs if d[1] == "parameter")
     d = design
-    if len(dirs) > ng:
+    if npar:
         theta = unc.mean.copy()
         sd = np.sqrt(np.maximum(np.diag(unc.cov), 0.0))
         live = [i for i in range(len(unc.names)) if sd[i] > 0]
-        theta[live] = theta[live] + z[ng:] * sd[live]
+        theta[live] = theta[live] + z[ng:ng + npar] * sd[live]
         d = bands._with_params(design, unc, theta, reload)
     if ng:
         d = bands._with_gain(d, np.exp(unc.gain_sds * z[:ng]))
+    if unc.pair:
+        d = bands.pair_move(d, z[ng + npar])
     return d
 
 

@@ -2,7 +2,9 @@
 
 The gain matrix is uncertain: ``G = G0 + sum_j z_j dG_j`` with independent standard normal ``z_j``,
 one ``dG_j`` per 1-sigma direction of the declared uncertainty (a transducer table point, a
-principal axis of the parameter covariance; :func:`acl.schedule.bands.gain_sensitivity`).  For a
+principal axis of the parameter covariance; :func:`acl.schedule.bands.gain_sensitivity`), and, where a pair
+force is first principles (no ``bjerknes_scale``), its scale moved by the root-mean-square log distance of the
+paper's measured / first-principles ratios from 1 (:func:`acl.schedule.bands.pair_move`).  For a
 plan ``u_t`` the tracking error is ``e_t + sum_j z_j dG_j u_t`` with ``e_t = G0 u_t - p_t``, so
 
     E |error_t|^2 = |e_t|^2 + u_t^T Q u_t,          Q = sum_j dG_j^T dG_j,

@@ -78,8 +78,8 @@ def follow(comp: CompileState, i, step: FollowStep):
         more = None if step.tones or not measured else measured_choice(
             table, path.points, vmax, comp.opts.tones_per_path, measured, measured_count(choice, measured) + 1)
     except ValueError as exc:
-        raise diag("E-SCHED-TONES", f"{name}: {exc}", step.span,
-                    "pin the tones with `, using [85 kHz, 125 kHz]` on the follow step, or give a calibration sweep (--calibration)")
+        raise diag("E-SCHED-TONES", f"{name}: {exc}", step.span, getattr(exc, "help", None) or
+                   "pin the tones with `, using [85 kHz, 125 kHz]` on the follow step, or give a calibration sweep (--calibration)")
     if comp.opts.calibration is not None and comp.design.latches:
         SF.calibration_state_check(comp, i, name, step, choice.frequencies)
     # the renderer crossfades consecutive waypoints with a raised cosine over min(ramp, dt), whose
@@ -121,8 +121,9 @@ def follow(comp: CompileState, i, step: FollowStep):
                if slew else ()))])
     except SolverFailure as exc:
         raise diag("E-SCHED-SOLVER", f"{name}: {exc}", step.span, "report this design")
+    history = []                    # RMS error (m) before and after each nonlinear pass
     if comp.opts.nonlinear_passes > 0:
-        plan = _correct(comp, name, step.capsule, choice, plan, path.points, dt, limits, rq, u_start)
+        plan, history = _correct(comp, name, step.capsule, choice, plan, path.points, dt, limits, rq, u_start)
     amps = plan.amplitudes                                      # (K, N)
     start = comp.t
     for w in range(n):
@@ -138,13 +139,19 @@ def follow(comp: CompileState, i, step: FollowStep):
         worst = ("has waypoints without a stable equilibrium (its error is unbounded)"
                  if not np.isfinite(rep.max_error_m) else
                  f"is missed by up to {rep.max_error_m * 1e6:.3g} um (RMS {rep.rms_error_m * 1e6:.3g} um)")
+        passes = comp.opts.nonlinear_passes
+        # every pass ran and the last one still lowered the error: more passes are the cure before a new path
+        falling = passes > 0 and len(history) == passes + 1 and history[-1] < history[-2]
         comp.step_warnings.append(Diagnostic(
             TRACKING_CODE, Severity.WARNING, f"{name}: re-simulated through the nonlinear model the path {worst}, "
             f"beyond the {comp.opts.tolerance_m * 1e6:g} um tolerance the plan meets on its linear gains",
             step.span,
-            (f"re-plan against the nonlinear model (--nonlinear-passes {max(3, 2 * comp.opts.nonlinear_passes)}); or "
-             if comp.opts.nonlinear_passes < 3 else
-             f"{comp.opts.nonlinear_passes} nonlinear passes were not enough: ")
+            (f"re-plan against the nonlinear model (--nonlinear-passes {max(3, 2 * passes)}); or "
+             if passes < 3 else
+             f"the error was still falling after {passes} nonlinear passes (RMS {history[-2] * 1e6:.3g} -> "
+             f"{history[-1] * 1e6:.3g} um at the last): re-plan with more (--nonlinear-passes {2 * passes}); or "
+             if falling else
+             f"{passes} nonlinear passes were not enough (the error stopped falling): ")
             + "move the path or the tones to where "
             "the linear model holds (the plan's gains are the model linearised at zero drive where the step starts: "
             "a large deflection and the change of the neighbours' forces as the capsules move are not in them)"))
@@ -162,7 +169,8 @@ def follow(comp: CompileState, i, step: FollowStep):
 
 
 def _correct(comp: CompileState, name, capsule, choice, plan, points, dt, limits, rq, u_start=None):
-    """Re-plan against the nonlinear forward model (acl.schedule.correct); the first plan if unavailable."""
+    """(plan, RMS error per pass) re-planned against the nonlinear forward model (acl.schedule.correct); the first
+    plan and no history if unavailable."""
     from acl.schedule.correct import correct_plan
     from acl.schedule.path import PathInfeasible, plan_path
     from acl.schedule.solve import SolverFailure
@@ -172,7 +180,7 @@ def _correct(comp: CompileState, name, capsule, choice, plan, points, dt, limits
         forward, _ = provider(comp.design, capsule, choice.frequencies)
     except (KeyError, ValueError, ImportError) as exc:
         comp.notes.append(f"{name}: no nonlinear correction ({exc})")
-        return plan
+        return plan, []
 
     def plan_for(p):
         return plan_path(choice.gains, p, dt, limits, tolerance=comp.opts.tolerance_m, u_start=u_start,
@@ -183,11 +191,11 @@ def _correct(comp: CompileState, name, capsule, choice, plan, points, dt, limits
         best, history = correct_plan(plan_for, forward, points, plan, comp.opts.nonlinear_passes)
     except (PathInfeasible, SolverFailure):
         comp.notes.append(f"{name}: a nonlinear correction pass was infeasible; kept the linear plan")
-        return plan
+        return plan, []
     best.notes.append("nonlinear correction: RMS error " + " -> ".join(f"{h * 1e6:.3g}" for h in history)
                       + " um over the passes (the best plan kept)")
     best.targets = np.asarray(points, float)
-    return best
+    return best, history
 
 
 def _models_for(comp: CompileState, i: int, name: str):

@@ -35,6 +35,46 @@ class GainTable:
         return np.vstack([gx, gy])
 
 
+class ToneError(ValueError):
+    """No tone set can be chosen; ``help`` says what to change (acl.schedule.steps reports it as E-SCHED-TONES)."""
+
+    def __init__(self, message: str, help: str | None = None):
+        super().__init__(message)
+        self.help = help
+
+
+def one_line(table: GainTable, rel: float = 1e-6) -> np.ndarray | None:
+    """The unit direction every gain of ``table`` points along (the way most of them push), or None when the gains
+    span the plane."""
+    g = np.asarray(table.gains, dtype=float)
+    if not g.size or not np.all(np.isfinite(g)):
+        return None
+    _, s, vt = np.linalg.svd(g, full_matrices=False)
+    if not (s[0] > 0 and (s.size < 2 or s[1] <= rel * s[0])):
+        return None
+    return -vt[0] if np.sum(g @ vt[0]) < 0 else vt[0]
+
+
+def _too_few(table: GainTable, targets: np.ndarray, n: int, k: int) -> ToneError:
+    """Why fewer than k candidate tones are left: a capsule that moves along one line, told to leave it, is said so."""
+    u = one_line(table)
+    if u is not None:
+        off = float(np.max(np.abs(targets @ np.array([-u[1], u[0]])), initial=0.0))
+        ux, uy = np.round(u, 3) + 0.0                          # + 0.0: no "-0"
+        along = f"({ux:.3g}, {uy:.3g})"
+        if off > 1e-9:
+            return ToneError(f"the capsule moves along one line only: at every frequency its drive pushes it along "
+                             f"{along} (x, y), and the path leaves that line by up to {off * 1e6:.3g} um, which no "
+                             f"drive can follow",
+                             "follow a path on that line (as `polyline([(0, 0), (-5 um, 0)])` for a capsule pushed "
+                             "along -x), or give the capsule orifices facing different ways (as the three-orifice "
+                             "module of paper Fig. 3) to move it in the plane")
+        return ToneError(f"the gain table has {n} usable frequenc{'y' if n == 1 else 'ies'} (the capsule moves along "
+                         f"{along} only, so every tone pushes the same way); {k} tones are needed",
+                         "pin the tones with `, using [110 kHz, 125 kHz, 140 kHz]` on the follow step")
+    return ToneError(f"the gain table has {n} usable frequenc{'y' if n == 1 else 'ies'}; {k} tones are needed")
+
+
 @dataclass(frozen=True)
 class ToneChoice:
     frequencies: tuple[float, ...]
@@ -133,7 +173,7 @@ def choose_tones(table: GainTable, targets: np.ndarray, max_voltage: float, k: i
             return got
     cand = candidate_indices(table)
     if cand.size < k:
-        raise ValueError(f"the gain table has {cand.size} usable frequencies; {k} tones are needed")
+        raise _too_few(table, targets, int(cand.size), k)
     triples = np.array(list(combinations(cand, k)))
     vectors = table.gains[triples]                              # (M, k, 2)
     margin, cond = score_sets(vectors, targets, budget)

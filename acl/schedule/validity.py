@@ -95,7 +95,7 @@ def _nonlinear_step(comp: CompileState, step_index: int, worst: float, where: st
     qs = [m.q for m in capsule_modes(comp.design, cap)] if cap in {c.name for c in comp.design.capsules} else []
     q = max(qs, default=10.0)
     rel = float(VA.amplitude_model_form(worst, q))
-    return (VA.AMPLITUDE, rel, f"{text}: forces carry a model-form uncertainty of {rel:.0%} (Q {q:.3g}; "
+    return (VA.AMPLITUDE, rel, f"{text}: forces carry a model-form uncertainty of {100 * rel:.2g} % (Q {q:.3g}; "
             "acl.physics.validity)", "lower the voltage or move the tone off resonance to stay inside the validated "
             "linear model")
 
@@ -248,7 +248,7 @@ def _widen(comp: CompileState, sched: Schedule, step_index: int, found: list) ->
     for lim, r, text, hint in found:
         msg = text + (f", added to the error band of {', '.join(widened)}" if widened and r > 0 else "")
         if len(found) > 1 and r > 0:
-            msg += f" (in quadrature with the step's other limits: {rel:.0%})"
+            msg += f" (in quadrature with the step's other limits: {100 * rel:.2g} %)"
         w = Diagnostic(lim.code, Severity.WARNING, msg, step.span, hint, notes=(lim.evidence,))
         sched.warnings.append(w)
         comp.notes.append(f"warning: {msg}")

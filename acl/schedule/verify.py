@@ -179,6 +179,8 @@ def _band(comp: CompileState, rep: GoalReport, provider, capsule, u, targets, ba
                            if comp.opts.reload is not None else [],
                            "gain_uncertainty": comp.design.transducer.gain_uncertainty
                            if comp.design.transducer else None}
+    if band.pair:                            # a first-principles pair force drawn (acl.schedule.bands.pair_details)
+        rep.details["band"]["pair_scale"] = band.pair
     if 0 < band.samples and level(band.samples) < 0.95:
         comp.notes.append(f"{rep.name}: the error band is the largest of {band.samples} draws, which bounds the "
                           f"95th percentile only with probability {level(band.samples):.0%}: give --band-samples "
@@ -257,6 +259,8 @@ def _margin_report(comp: CompileState, rep: GoalReport, band, fails: str, others
                            if comp.design.transducer else None}
     if band.others_p95:
         rep.details["band"]["other_latch_ratios_p95"] = band.others_p95
+    if band.pair:
+        rep.details["band"]["pair_scale"] = band.pair
     n = band.samples + band.failed
     if band.below_one:
         seen = band.below_one - band.failed

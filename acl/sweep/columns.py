@@ -60,7 +60,13 @@ QUANTITIES: tuple[Quantity, ...] = (
              "monopole distance) over the program's drive steps at rest (acl.sweep.model_form)",
              "max(validity[].model_form_force_rel, pairs[].monopole_model_form_rel)"),
     Quantity("model_form_uncertain", "bool", "a margin or gap require's verdict could flip within model_form_rel "
-             "(widens the yield's interval)", "(none: the sweep's)"),
+             "or within the first-principles pair-scale spread (widens the yield's interval)", "(none: the sweep's)"),
+    Quantity("model_form_pair_uncertain", "bool", "a margin or gap require's verdict differs at the 2.5 or 97.5 % "
+             "quantile of the first-principles pair-scale spread, where no bjerknes_scale calibrates the pair forces "
+             "(acl.sweep.model_form)", "(none: the sweep's)"),
+    Quantity("model_form_pair_median_pass", "bool", "every margin and gap require holds with the Bjerknes force at the median of "
+             "the first-principles pair-scale spread (4.49x), where no bjerknes_scale calibrates the pair forces",
+             "(none: the sweep's; analyze's pairs[].snap_in_voltage_median_pair_scale_v)"),
     Quantity("lint_<rule>_pass", "bool", "the lint rule finds nothing (rule's own test, before suppressions)",
              "`acl lint` finding of <rule> absent"),
 )
@@ -163,6 +169,7 @@ def _effects_note(names: list[str], what: str) -> str:
 
 def supported(design: M.Design, at: str | None = None) -> tuple[list[str], dict[str, str]]:
     """(column names the batched evaluation gives for ``design``, {quantity family: why it is not given})."""
+    from acl.analysis.effects import first_principles_pairs
     from acl.analysis.report import program_frequencies, step_drives
 
     names: list[str] = []
@@ -219,6 +226,10 @@ def supported(design: M.Design, at: str | None = None) -> tuple[list[str], dict[
         names.append("requires_pass")
     if design.capsules and not blocks["motion"]:     # eps/R at the drive pressure with every effect
         names += ["model_form_rel", "model_form_uncertain"]
+        if first_principles_pairs(design):          # the pair-scale spread's share of it (acl.sweep.model_form)
+            names.append("model_form_pair_uncertain")
+            if any(r.kind in ("margin", "gap") for r in design.requires):
+                names.append("model_form_pair_median_pass")
     elif design.capsules:
         missing["model_form_"] = ("the model-form uncertainty past the validity limits with declared effects "
                                   f"({', '.join(blocks['motion'])}) is not batched: `acl analyze --at` gives it at a drive")

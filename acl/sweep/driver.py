@@ -148,20 +148,38 @@ def run_sweep(design: Design, spec: SweepSpec, quantities=None, at: str | None =
         notes.append("the yield's interval is not widened by the model-form uncertainty past the validity limits: "
                      "add --quantity model_form_uncertain (acl.sweep.model_form)")
     return SweepTable(data, spec, units=units, notes=notes, unevaluated=unevaluated,
-                      n_requires=len(design.requires), field_map=fmap)
+                      n_requires=len(design.requires), field_map=fmap,
+                      force_requires=tuple(i for i, r in enumerate(design.requires, 1) if r.kind in ("margin", "gap")))
 
 
 def model_form_notes(data) -> list[str]:
-    """A note on the points past a soft validity limit (acl.sweep.model_form), when there are any."""
+    """A note on the points past a soft validity limit (acl.sweep.model_form), when there are any, and one on the
+    first-principles pair force's spread where the table has its column."""
     if data.dtype.names is None or "model_form_rel" not in data.dtype.names:
         return []
+    out = []
+    if "model_form_pair_uncertain" in data.dtype.names:
+        from acl.physics import constants as C
+
+        k = int(np.count_nonzero(data["valid"] & data["model_form_pair_uncertain"]))
+        out.append(f"the design's pair forces are acl's first-principles values (no bjerknes_scale): the paper's measured "
+                   f"pairs attracted {min(r for _, r in C.PAIR_SCALE_ROWS):.3g}-{max(r for _, r in C.PAIR_SCALE_ROWS):.3g}x "
+                   f"harder (log-normal, median {C.FIRST_PRINCIPLES_PAIR_SCALE_MEDIAN:.3g}, log sd {C.PAIR_SCALE_LOG_SD:.3g}; "
+                   f"acl.physics.constants.PAIR_SCALE_ROWS); {k} of {len(data)} points have a margin or gap verdict that "
+                   f"differs at its 2.5 or 97.5 % quantile ({C.pair_scale_quantile(0.025):.2g}x or "
+                   f"{C.pair_scale_quantile(0.975):.3g}x), and the yield's interval counts them both ways "
+                   "(model_form_pair_uncertain); calibrate the pair force on measured pairs (acl fit) to narrow it")
+        if "model_form_pair_median_pass" in data.dtype.names:
+            m = int(np.count_nonzero(data["valid"] & data["model_form_pair_median_pass"]))
+            out[-1] += (f"; at its median {C.FIRST_PRINCIPLES_PAIR_SCALE_MEDIAN:.3g}x, {m} of {len(data)} points pass "
+                        "every margin and gap require (model_form_pair_median_pass)")
     rel = np.where(data["valid"], data["model_form_rel"], 0.0)
     past = int(np.count_nonzero(rel > 0))
     if not past:
-        return []
+        return out
     unc = (int(np.count_nonzero(data["valid"] & data["model_form_uncertain"]))
            if "model_form_uncertain" in data.dtype.names else 0)
-    return [(f"{past} of {len(data)} points are past a soft validity limit (interface amplitude eps/R > 0.25 or pair "
+    return out + [(f"{past} of {len(data)} points are past a soft validity limit (interface amplitude eps/R > 0.25 or pair "
             f"distance < 2 x the orifice radii: acl.physics.validity): their forces carry a model-form uncertainty up "
             f"to {float(rel.max()):.0%} (column model_form_rel); {unc} of them have a margin or gap verdict it could "
             "flip, and the yield's interval counts them both ways (model_form_uncertain)")]

@@ -226,6 +226,8 @@ class _Evaluator(ModelForm):
             return ok
         if q in ("model_form_rel", "model_form_uncertain"):
             return self.model_form()[q]
+        if q in ("model_form_pair_uncertain", "model_form_pair_median_pass"):
+            return self.pair_scale_columns()[q]
         m = re.fullmatch(r"lint_(acl\d+)_pass", q)
         if m:
             return self.once(("lint", m.group(1)), lambda: self.lint(m.group(1)))

@@ -491,8 +491,9 @@ class Mechanism:
             v = np.sqrt(cur["v2_fold"])
             out = np.where(cur["has_fold"] & (v <= v_max), v, np.nan)
             rows = np.flatnonzero(cur["open"])          # no contact bound: the continuation decides
-            if rows.size:
-                out[rows] = self.sub(rows).snap_in(freqs, volts, v_max[rows])
+            if rows.size:      # (not the subset's snap_in: its curve is open again, and it recursed without end)
+                v, _, reached = self.sub(rows).continuation(freqs, volts, v_max[rows])
+                out[rows] = np.where(reached, np.nan, v)
             return out
         v, _, reached = self.continuation(freqs, volts, v_max)
         return np.where(reached, np.nan, v)

@@ -15,6 +15,16 @@ Per point:
 * ``model_form_uncertain``: a force-dependent ``require`` (margin, gap) whose verdict could flip within it: the
   value scaled by ``1 -+ model_form_rel`` crosses a bound (for a gap the whole value is scaled: conservative).
 
+* ``model_form_pair_uncertain``: on a design whose pair (secondary Bjerknes) forces no ``bjerknes_scale``
+  calibrates (acl.analysis.effects.first_principles_pairs), a force-dependent require whose verdict differs with
+  the Bjerknes force at the 2.5 or the 97.5 % quantile of the first-principles pair-scale spread (the log-normal of
+  acl.physics.constants.PAIR_SCALE_ROWS: 0.54x .. 37x, which holds the first-principles force, 1x, at its 8th
+  percentile) from its verdict with the first-principles force; the verdict is taken as monotone in the scale
+  between the two ends.  The scale is one unknown of the model, the same for every point (not a tolerance drawn per
+  point), so it widens the interval instead of entering the yield; ``model_form_uncertain`` includes these points;
+* ``model_form_pair_median_pass``: every margin and gap require holds with the Bjerknes force at the spread's median
+  (4.49x), the verdict a calibration would most likely find (the note counts it beside the first-principles yield).
+
 The table (acl.sweep.table) widens the yield's interval by these points: the lower bound counts the uncertain
 passes as failures, the upper bound the uncertain failures as passes.
 """
@@ -28,6 +38,7 @@ from acl.physics import validity as VA
 from acl.sweep.checks import Checks
 
 FORCE_REQUIRES = ("margin", "gap")
+PAIR_QUANTILES = (0.025, 0.975)      # the ends of the first-principles pair-scale spread a verdict is checked at
 
 
 class ModelForm(Checks):
@@ -83,9 +94,43 @@ class ModelForm(Checks):
                     b = self.get(f"requires.{i - 1}.upper")
                     flip |= np.where(ok, hi_v > b, lo_v <= b)
                 unc |= flip & (rel > 0) & np.isfinite(value)
-            out["model_form_uncertain"] = unc
+            out["model_form_uncertain"] = unc | self.pair_flip()
             return out
         return self.once("model_form", build)
+
+    def pair_flip(self) -> np.ndarray:
+        """(N,) a force-dependent require whose verdict differs at either end of the first-principles pair-scale
+        spread (PAIR_QUANTILES) from its verdict with the first-principles force; all False where the design's
+        pairs are calibrated (a declared bjerknes_scale) or no such require is declared."""
+        return self.pair_scale_columns()["model_form_pair_uncertain"]
+
+    def pair_scale_columns(self) -> dict:
+        """``model_form_pair_uncertain`` (:meth:`pair_flip`) and ``model_form_pair_median_pass``: every margin and gap
+        require holds with the Bjerknes force at the spread's median (4.49x), as analyze's N-PAIR-SCALE snap-in."""
+        def build():
+            from dataclasses import replace
+
+            from acl.analysis.effects import first_principles_pairs, with_pair_scale
+
+            force = [i for i, r in enumerate(self.design.requires, 1) if r.kind in FORCE_REQUIRES]
+            nominal = {i: np.asarray(self.once(("require", i), lambda i=i: self.require(i))[1], bool) for i in force}
+            flip = np.zeros(self.n, bool)
+            ok_median = np.ones(self.n, bool)
+            if force and first_principles_pairs(self.design):
+                for p in (*PAIR_QUANTILES, 0.5):
+                    d = with_pair_scale(self.design, C.pair_scale_quantile(p))
+                    ev = type(self)(replace(self.batch, design=d), self.at)
+                    for i in force:
+                        ok_p = np.asarray(ev.require(i)[1], bool)
+                        if p == 0.5:
+                            ok_median &= ok_p
+                        else:
+                            flip |= nominal[i] != ok_p
+            else:
+                for i in force:
+                    ok_median &= nominal[i]
+            return {"model_form_pair_uncertain": flip & self.valid, "model_form_pair_median_pass": ok_median & self.valid}
+        return self.once("pair_scale", build)
 
     def monopole_rel(self) -> np.ndarray:
         """((R_a + R_b)/d)^2 of the closest interfaces of every pair at rest below the monopole limit, else 0

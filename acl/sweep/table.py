@@ -95,6 +95,7 @@ class SweepTable:
     notes: list[str] = field(default_factory=list)
     unevaluated: dict[str, str] = field(default_factory=dict)   # requires the batched evaluation cannot give -> why
     n_requires: int = 0
+    force_requires: tuple = ()                     # 1-based indices of the margin and gap requires (model-form widened)
     field_map: object = None                       # acl.sweep.perturb.FieldMap used (how fields followed the parameters)
 
     # -- table access ------------------------------------------------------------------------
@@ -222,7 +223,8 @@ class SweepTable:
 
     @property
     def uncertain(self) -> np.ndarray | None:
-        """Valid points whose verdict the model-form uncertainty past a validity limit could flip (None: not computed)."""
+        """Valid points whose verdict the model-form uncertainty past a validity limit, or of a first-principles pair
+        force (acl.sweep.model_form), could flip (None: not computed)."""
         if "model_form_uncertain" not in self.columns:
             return None
         return self.data["valid"] & self.data["model_form_uncertain"]
@@ -237,7 +239,10 @@ class SweepTable:
         for i in range(1, self.n_requires + 1):
             c = f"require_{i}_pass"
             if c in self.columns:
-                out[f"require_{i}"] = binomial_yield(self.data["valid"] & self.data[c])
+                # a margin or gap require: widened by the points whose force-dependent verdicts could flip (conservative:
+                # the column marks any such require's flip)
+                out[f"require_{i}"] = binomial_yield(self.data["valid"] & self.data[c],
+                                                     self.uncertain if i in self.force_requires else None)
         out["valid"] = binomial_yield(self.data["valid"])
         return out
 
@@ -274,8 +279,9 @@ class SweepTable:
         a = y["all"]
         what = "every require" if self.n_requires else "no require: valid points"
         if a.widened:
+            pair = "model_form_pair_uncertain" in self.columns and bool(np.any(self.data["model_form_pair_uncertain"]))
             extra += (f"; interval widened by {a.widened} point(s) whose verdict the model-form uncertainty past a "
-                      "validity limit could flip")
+                      "validity limit" + (" or of the first-principles pair force" if pair else "") + " could flip")
         if self.spec.montecarlo:
             return f"yield {a.text()} ({a.passed} of {a.total} points pass {what}{extra})"
         return f"pass {a.passed} of {a.total} points ({what}{extra})"
@@ -376,7 +382,7 @@ def check_output(path: str, where: str = "<-o>") -> None:
 
         if importlib.util.find_spec("pyarrow") is None:
             raise DiagnosticError([error("E-USAGE", f"-o {path}: writing Parquet needs pyarrow, which is not installed", span,
-                                         "install the scale extra: pip install 'acl[scale]', or write CSV: -o TABLE.csv")])
+                                         "install the scale extra: pip install 'acl[scale]' (from a checkout: pip install '.[scale]'), or write CSV: -o TABLE.csv")])
     folder = os.path.dirname(os.path.abspath(path))
     if not os.path.isdir(folder):
         raise DiagnosticError([error("E601", f"cannot write `{path}`: no folder `{folder}`", span)])

@@ -1,7 +1,7 @@
 ;;; acl-mode.el --- Major mode for acl design files, with eglot -*- lexical-binding: t -*-
 
 ;; Load it from init.el:  (load "/path/to/acl/editors/emacs/acl-mode.el")
-;; Needs `acl' on PATH (pip install 'acl[lsp]').  eglot is built into Emacs 29+; on Emacs 26-28
+;; Needs `acl' on PATH (pip install '.[lsp]' in a clone of acl).  eglot is built into Emacs 29+; on Emacs 26-28
 ;; install it from GNU ELPA (M-x package-install RET eglot) or Debian's elpa-eglot.
 ;; Then M-x eglot in an .acl buffer, or (add-hook 'acl-mode-hook #'eglot-ensure).
 ;; tests/test_lsp_eglot.py loads this file in `emacs --batch' and drives `acl lsp' through eglot.

@@ -1,7 +1,7 @@
 -- acl in Neovim 0.7 to 0.9 (put in init.lua, or `:luafile` it). Neovim 0.10+: see acl.lua.
 -- 0.7 has no vim.lsp.start (0.8) nor vim.fs.root (0.10): one client per project root, started
 -- with vim.lsp.start_client and attached to each .acl buffer. The root is the nearest folder
--- holding acl.toml, else the file's folder. `acl` must be on PATH (pip install 'acl[lsp]').
+-- holding acl.toml, else the file's folder. `acl` must be on PATH (pip install '.[lsp]' in a clone of acl).
 vim.api.nvim_create_autocmd({ "BufRead", "BufNewFile" }, { pattern = "*.acl", command = "setfiletype acl" })
 vim.api.nvim_create_autocmd("FileType", {
   pattern = "acl",

@@ -25,7 +25,7 @@ function activate(context) {
   client.start().catch((err) => {
     vscode.window.showWarningMessage(
       `acl: could not start the language server (${command} ${args.join(" ")}): ${err.message}. ` +
-        "Install it with `pip install acl[lsp]` or set acl.server.command."
+        "Install it with `pip install '.[lsp]'` in a clone of acl, or set acl.server.command."
     );
   });
   context.subscriptions.push({ dispose: () => client && client.stop() });
