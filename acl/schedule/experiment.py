@@ -243,10 +243,10 @@ def promise(design: Design, many: Many, e0: np.ndarray, J: np.ndarray, R: np.nda
     Propagated to the path with its derivative per log gain at each played tone (``J``'s gain columns through the
     tones' gains, ``d log g / d z``; the recompile plans the same path on the calibrated gains, so this derivative
     is taken as the nominal plan's), over DRAWS truths drawn from the declared prior, each with its own estimation
-    error.  95th percentiles of RMS and maximum error over
-    them: ``rms_p95_m``, ``max_p95_m``; ``tone_gain_sd`` the log-gain sd each read tone is fitted to at the nominal
-    design; ``cov_m2`` the path's covariance there (the plot's band after the readings).  None when the tones' gains
-    cannot be told apart in ``J`` (more played tones than gain sources) or nothing is read."""
+    error.  95th percentiles of RMS and maximum error over them: ``rms_p95_m``, ``max_p95_m``; ``tone_gain_sd`` the
+    log-gain sd each read tone is fitted to at the nominal design; ``cov_m2`` the path's covariance there (the plot's
+    band after the readings).  None when the tones' gains cannot be told apart in ``J`` (more played tones than gain
+    sources) or nothing is read."""
     gi = [j for j, d in enumerate(dirs) if d[1] == "gain"]
     pi = [j for j, d in enumerate(dirs) if d[1] != "gain"]
     tones = [float(f) for f in tones]
