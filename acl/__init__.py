@@ -166,13 +166,13 @@ def _lint(path, select=None, ignore=None, config=None) -> "LintResult":
     return LintResult(path, findings, list(rep.notes), json.loads(buf.getvalue()))
 
 
-def _fit(design, data, free=(), effects=None, seed=0, search_paths=(), model="eq3") -> "FitReport":
+def _fit(design, data, free=(), effects=None, seed=0, search_paths=(), model="coupled") -> "FitReport":
     """Fit the model to measured data and search for missing effects (as `acl fit --output-format json`).
 
     ``design``: path of the design; ``data``: a CSV path or a list of them (docs/data.md);
     ``free``: names to fit besides the design's `free` params (gamma, alpha, E, gain, params);
     ``effects``: effect ids to consider (None: the whole library); ``model``: a simple pair's force
-    model, "eq3" (paper Eq. 3) or "coupled" (the analysis' forces, as `--model`).  Writes nothing; the calibrated
+    model, "coupled" (the analysis' forces, the default) or "eq3" (paper Eq. 3, as `--model`).  Writes nothing; the calibrated
     design's text is ``result.calibrated_source``.  Returns an :class:`acl.notebook.FitReport`.
 
     >>> import acl

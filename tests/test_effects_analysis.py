@@ -231,13 +231,14 @@ def test_declared_effect_coefficient_in_the_wrong_unit_is_located_e301(tmp_path,
 def test_design_effect_units_agree_with_the_fit_library():
     """acl.design.core.EFFECT_UNITS (checked at load) names every coefficient of acl.fit.effects in its unit."""
     from acl.design.core import EFFECT_UNITS, EFFECTS as DESIGN_EFFECTS
-    from acl.fit.effects import EFFECTS
+    from acl.fit.effects import ANALYSIS_NAME, EFFECTS
     from acl.units import DIMENSIONLESS, parse_unit
 
     assert set(EFFECT_UNITS) == set(DESIGN_EFFECTS)
     for eid, eff in EFFECTS.items():
-        for p in eff.params:
-            unit, dims = EFFECT_UNITS[eid][p.name]
+        for p in eff.params:      # (bjerknes_shape's gap_exponent is written as bjerknes_scale's: ANALYSIS_NAME)
+            e, k = ANALYSIS_NAME.get((eid, p.name), (eid, p.name))
+            unit, dims = EFFECT_UNITS[e][k]
             assert unit == p.unit and dims == (parse_unit(p.unit)[1] if p.unit else DIMENSIONLESS), (eid, p.name)
 
 

@@ -58,9 +58,11 @@ def test_committed_sweep_covers_every_case_with_ten_seeds():
     summary = _summary()
     assert set(summary) == {FD.label(k, p) for k, p in FD.CASES} - NOT_RUN
     assert all(c["n"] == 10 for c in summary.values())
-    from acl.fit.effects import EFFECTS
+    from acl.fit.effects import SEARCHED
     planted = {e for c in summary.values() for e in c["planted"] if not e.startswith("(")}
-    assert planted == set(EFFECTS)                   # every library effect is planted somewhere
+    # every effect of the default search is planted somewhere (bjerknes_scale, fitted when named, is the freedom of
+    # alpha: tests/test_fit_one_model.py recovers it)
+    assert planted == set(SEARCHED)
     assert {c["kind"].split("/")[0] for c in summary.values()} == {"cantilever", "pair", "pair+cal", "spring+cal",
                                                                    "body-pair+cal", "latch", "latch+state"}
     # the run is one version of the code per case (`code`: its commit); a subset is repeated below with this one
@@ -144,12 +146,12 @@ def _problem(tmp_path, kind, planted, seed):
     from acl.fit.synth import generate, write_csv
 
     design, experiment, free, noise, coeffs = FD.kinds()[kind]
-    data, _ = generate(design, experiment, planted, noise=0.0, seed=seed, coeffs=coeffs)
+    data, _ = generate(design, experiment, planted, noise=0.0, seed=seed, coeffs=coeffs, model=FD.MODEL)
     data.value = data.value + np.random.default_rng(seed).normal(0, noise, data.n)
     data.sigma = np.full(data.n, noise)
     path = str(tmp_path / "d.csv")
     write_csv(data, path)
-    return load_problem(design, [path], free=free)
+    return load_problem(design, [path], free=free, model=FD.MODEL)
 
 
 def _base_then_effect(problem, effect):
@@ -315,10 +317,10 @@ def _state_problem(tmp_path, kind, planted, seed):
     from acl.fit.synth import generate, write_csv
 
     design, experiment, free, noise, coeffs = FD.kinds()[kind]
-    data, _ = generate(design, experiment, planted, noise=noise, seed=seed, coeffs=coeffs)
+    data, _ = generate(design, experiment, planted, noise=noise, seed=seed, coeffs=coeffs, model=FD.MODEL)
     path = str(tmp_path / f"{kind.replace('/', '_')}-{seed}.csv")
     write_csv(data, path)
-    return load_problem(design, [path], free=free), path
+    return load_problem(design, [path], free=free, model=FD.MODEL), path
 
 
 @pytest.mark.studies
@@ -343,9 +345,9 @@ def test_one_latch_cannot_always_tell_saturation_from_a_gain_shape_three_angles_
     sel3 = select_effects(three, seed=100)
     assert sel3.selected == ["drive_saturation"] and sel3.ambiguous == []
     P = three.prepared
-    from acl.fit.effects import EFFECTS
+    from acl.fit.effects import SEARCHED
 
-    _, _, _, tries = _replacements(three, lambda a, b: predict(P, a, b), list(EFFECTS), sel3.selected, sel3.final,
+    _, _, _, tries = _replacements(three, lambda a, b: predict(P, a, b), list(SEARCHED), sel3.selected, sel3.final,
                                    "drive_saturation", 0.01, None, True)
     best = min(clipped_chi2(t["fit"]) for t in tries if t["effect"] in ("transducer_resonance", "transducer_gain"))
     assert best - clipped_chi2(sel3.final) > 10 * AMBIGUOUS_CHI2
@@ -426,7 +428,8 @@ def switch_figures(tmp_path) -> dict:
     """One latch with state rows, saturation + drift, seed 102 (docs/fit.md shows these): the planted pair fitted from
     the base model's values, plain and continued through the smoothed switch (:func:`acl.fit.select._cross_switch`)."""
     from acl.fit import solve
-    from acl.fit.forward import latch_branch_mismatch, predict
+    from acl.fit.forward import predict
+    from acl.fit.latch import latch_branch_mismatch
     from acl.fit.select import _cross_switch, _with_value, effect_coefs
 
     planted = {"drive_saturation": FD.SAT_STATE, "offset_drift": FD.DRIFT}
@@ -477,9 +480,9 @@ def test_one_latch_with_states_finds_saturation_and_drift_where_a_resonance_stoo
 
 
 def test_the_smoothed_switch_is_the_step_in_the_limit_and_smooth_across_it(tmp_path):
-    """acl.fit.forward.latch_travel ``blend`` (a search device only): 0 gives the step; a narrow blend agrees with the
+    """acl.fit.latch.latch_travel ``blend`` (a search device only): 0 gives the step; a narrow blend agrees with the
     step away from the switching force; at it, the travel is the mean of the two branches; every blend is continuous."""
-    from acl.fit.forward import latch_travel
+    from acl.fit.latch import latch_travel
 
     problem, _ = _state_problem(tmp_path, "latch+state", {}, 100)
     table = problem.prepared.latch_tables[0]

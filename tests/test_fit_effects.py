@@ -10,7 +10,7 @@ import os
 import numpy as np
 import pytest
 
-from acl.fit.effects import EFFECTS
+from acl.fit.effects import SEARCHED
 from acl.fit.problem import load_problem
 from acl.fit.select import select_effects
 from acl.fit.synth import Experiment, generate, write_csv
@@ -54,15 +54,19 @@ CASES = [
 
 
 def _fit(tmp_path, experiment, effects, free, seed, design=CANTILEVER, coeffs=None):
-    data, _ = generate(design, experiment, effects, noise=NOISE, seed=seed, coeffs=coeffs)
+    # the pair + calibration case keeps the reduced Eq. (3) pair model its figures (docs/fit.md) were recorded with:
+    # its effect search on the analysis' coupled model costs over 20x the CPU (benchmarks/fit.py case 2), too slow for
+    # the default set (neighbour drag on the coupled model has no identification test yet)
+    model = "eq3" if design == PAIR_CAL else "coupled"
+    data, _ = generate(design, experiment, effects, noise=NOISE, seed=seed, coeffs=coeffs, model=model)
     path = tmp_path / "data.csv"
     write_csv(data, str(path))
-    problem = load_problem(design, [str(path)], free=free)
+    problem = load_problem(design, [str(path)], free=free, model=model)
     return select_effects(problem)
 
 
 def test_every_library_effect_has_an_identification_case():
-    assert {c[0] for c in CASES} == set(EFFECTS)
+    assert {c[0] for c in CASES} == set(SEARCHED)     # bjerknes_scale / _shape: tests/test_fit_one_model.py
 
 
 @pytest.mark.parametrize("effect,params,experiment,free,design,coeffs",

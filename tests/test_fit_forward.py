@@ -29,7 +29,7 @@ def test_elastica_table_matches_the_physics_bvp(lam, p):
 
 
 def test_pair_equilibrium_balances_eq3_against_eq1():
-    from acl.fit.forward import _pair_equilibrium
+    from acl.fit.eq3 import _pair_equilibrium
 
     L, l, EI = 50e-6, 18.6e-6, 1.02e-17
     cd, ct = B.stiffness_integrals(L, l, EI)
@@ -65,7 +65,7 @@ def test_vectorized_pair_agrees_with_the_mechanics_analysis_layer():
     data = Dataset(np.array(["distance"] * n, dtype=object), np.zeros(n), np.full(n, np.nan), np.full(n, np.nan),
                    [((125e3, v),) for _, v in cases], {"gap": np.array([g for g, _ in cases], dtype=object)}, {},
                    [None] * n, np.array(["um"] * n, dtype=object))
-    P = prepare(data, lambda key: build_instance(acl.load(path, overrides=dict(key))))
+    P = prepare(data, lambda key: build_instance(acl.load(path, overrides=dict(key)), "eq3"))
     ours = predict(P, {"alpha": alpha, "gamma": gamma}, {})
     for i, ((gap, v), mine) in enumerate(zip(cases, ours)):
         design = acl.load(path, overrides={"gap": gap})

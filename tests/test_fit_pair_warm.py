@@ -2,9 +2,10 @@
 
 The fast paths (acl.fit.forward: each distinct row predicted once, a pair solve reused when its inputs are bitwise the same, the bracket grid read
 only up to each row's last cell, predictions memoized; acl.fit.solve.fd_least_squares: the Jacobian's columns made
-inside FD_COLUMNS) must give the plain solve's numbers bit for bit.  The opt-in warm start (forward.WARM) must give
+inside FD_COLUMNS) must give the plain solve's numbers bit for bit.  The opt-in warm start (ForwardOptions.warm) must give
 finite-difference columns equal to the plain ones to the solver tolerance.  A small pair + calibration beam data
-set, with and without neighbour drag (an iterated deflection law)."""
+set, with and without neighbour drag (an iterated deflection law).  These shortcuts belong to the paper's Eq. (3)
+pair solve (acl.fit.eq3), the reduced model a user asks for (``model="eq3"``): the data sets are made with it."""
 from __future__ import annotations
 
 import os
@@ -12,6 +13,7 @@ import os
 import numpy as np
 import pytest
 
+from acl.fit import eq3 as E3
 from acl.fit import forward as F
 from acl.fit import solve
 from acl.fit.synth import Experiment, generate
@@ -27,7 +29,7 @@ DRAG = {"neighbour_drag": {"inv_plateau": 1.0 / 8e-6}}
 
 @pytest.fixture(scope="module")
 def pair_cal():
-    data, P = generate(PAIR_CAL, EX, {"neighbour_drag": {"plateau": 8e-6}}, noise=0.2e-6, seed=3)
+    data, P = generate(PAIR_CAL, EX, {"neighbour_drag": {"plateau": 8e-6}}, noise=0.2e-6, seed=3, model="eq3")
     assert np.any(P.pair) and np.any(~P.pair)
     return data, P
 
@@ -35,30 +37,30 @@ def pair_cal():
 def _plain(P, coeffs, effects):
     """The forward model with every shortcut off: no memo, every row solved (no distinct-row reduction), no reused or
     guided pair solve."""
-    old = F.MEMO, F.DEDUP
-    F.MEMO, F.DEDUP = 0, False
+    old = P.options
+    P.options = F.ForwardOptions(memo=0, dedup=False, warm=old.warm)
     try:
         P.__dict__.pop("_eq_cache", None)
         return F.predict(P, coeffs, effects)
     finally:
-        F.MEMO, F.DEDUP = old
+        P.options = old
 
 
 def _columns(P, coeffs, effects, steps, warm=False):
     """Base prediction, then one prediction per perturbation inside FD_COLUMNS (as the Jacobian makes them)."""
     P.__dict__.pop("_eq_cache", None)
     P.__dict__.pop("_memo", None)
-    old = F.WARM
-    F.WARM = warm
+    old = P.options
+    P.options = F.ForwardOptions(memo=old.memo, dedup=old.dedup, warm=warm)
     try:
         base = F.predict(P, coeffs, effects)
         out = []
         for co, ef in steps:
-            with F.FD_COLUMNS:
+            with E3.FD_COLUMNS:
                 out.append(F.predict(P, co, ef))
         return base, out
     finally:
-        F.WARM = old
+        P.options = old
 
 
 def _steps(P, effects, h=1e-6):
@@ -110,7 +112,7 @@ def test_fit_with_shortcuts_equals_the_plain_fit_bit_for_bit(pair_cal, monkeypat
 
 @pytest.mark.parametrize("effects", [{}, DRAG], ids=["eq1", "drag"])
 def test_warm_start_columns_agree_with_the_plain_solve_to_its_tolerance(pair_cal, effects):
-    """forward.WARM (opt-in): one Newton step from the last root.  The finite difference of each column (prediction
+    """ForwardOptions.warm (opt-in): one Newton step from the last root.  The finite difference of each column (prediction
     minus base, ~1e-6 of the deflection) agrees with the plain solve's to 1e-5 of itself (the solve's tolerance is
     1e-12 of the gap); a warm start that kept the old root would give no difference on the pair rows at all."""
     _, P = pair_cal
@@ -135,20 +137,20 @@ def test_guided_and_reused_solves_follow_large_steps_bit_for_bit(pair_cal, effec
     P.__dict__.pop("_eq_cache", None)
     P.__dict__.pop("_memo", None)
     seen_more = []
-    orig = F._scan
+    orig = E3._scan
 
     def spy(rows, npts, *a):
-        seen_more.append(bool(np.all(npts == F.N_GRID + 1)))
+        seen_more.append(bool(np.all(npts == E3.N_GRID + 1)))
         return orig(rows, npts, *a)
 
-    F._scan = spy
+    E3._scan = spy
     try:
         for gs, al in [(1.0, 1.0), (1.6, 0.7), (0.5, 1.5), (2.5, 1.0), (1.6, 0.7), (1.0, 1.0)]:
             co = {"gamma": P.gamma0 * gs, "alpha": P.alpha0 * al}
             np.testing.assert_array_equal(F.predict(P, co, effects), _plain(P, co, effects))   # (the plain solve leaves
             # its own cache: the next fast solve is guided by this point's cells)
     finally:
-        F._scan = orig
+        E3._scan = orig
     if effects:            # the iterated law reads the grid from the guess, and past it where the crossing moved on
         assert seen_more and any(seen_more) and not all(seen_more)
 
@@ -168,7 +170,7 @@ def test_distinct_rows_give_every_row_bit_for_bit(effects):
     """Repeated rows (the same drive, gap and design; times apart) are predicted once (forward._distinct): each row's
     number is the full prediction's, also with an offset drift (added per row after) and bubble shrinkage (which reads
     the time: every timed row is then its own)."""
-    data, P = generate(PAIR_CAL, REPEATED, {}, noise=0.2e-6, seed=5)
+    data, P = generate(PAIR_CAL, REPEATED, {}, noise=0.2e-6, seed=5, model="eq3")
     red = F._distinct(P, {})
     assert red is not None and red[0].n < P.n / 2            # the repeats are found (the times are ignored)
     co = {"gamma": P.gamma0 * 1.2, "alpha": P.alpha0 * 0.9}
@@ -191,7 +193,7 @@ def test_predictions_made_at_once_are_the_one_by_one_predictions_bit_for_bit(eff
     without a kept solve to read (guided or whole grids), columns whose laws differ (an elastica weight stepped off
     its null value: solved apart), a column that leaves the pair rows alone (an offset: the kept solve reused), and
     repeated rows (REPEATED)."""
-    data, P = generate(PAIR_CAL, REPEATED, {}, noise=0.2e-6, seed=5)
+    data, P = generate(PAIR_CAL, REPEATED, {}, noise=0.2e-6, seed=5, model="eq3")
     rng = np.random.default_rng(4)
     for trial in range(4):
         co = {"gamma": P.gamma0 * rng.uniform(0.6, 1.6), "alpha": P.alpha0 * rng.uniform(0.6, 1.6)}
@@ -205,25 +207,25 @@ def test_predictions_made_at_once_are_the_one_by_one_predictions_bit_for_bit(eff
             for k, v in ps.items():
                 items.append((co, {**effects, e: {**ps, k: v + 1e-6 * max(1.0, abs(v))}}))
         items.append((co, {**effects, "offset_drift": {"offset": 3e-9, "drift": 0.0}}))
-        old = F.MEMO
-        F.MEMO = 0
+        old = P.options
+        P.options = F.ForwardOptions(memo=0, dedup=old.dedup, warm=old.warm)
         try:
             if inside:
-                with F.FD_COLUMNS:
+                with E3.FD_COLUMNS:
                     many = F.predict_many(P, items)
                     one = [F.predict(P, c, e) for c, e in items]
             else:
                 many = F.predict_many(P, items)
                 one = [_plain(P, c, e) for c, e in items]
         finally:
-            F.MEMO = old
+            P.options = old
         for a, b in zip(many, one):
             np.testing.assert_array_equal(a, b)
 
 
 def test_the_fit_makes_the_columns_at_once():
     """solve.fit with a forward.Model evaluates its Jacobians through predict_many (the search's speed, issue 9)."""
-    data, P = generate(PAIR_CAL, REPEATED, {}, noise=0.2e-6, seed=5)
+    data, P = generate(PAIR_CAL, REPEATED, {}, noise=0.2e-6, seed=5, model="eq3")
     calls = []
     orig = F.predict_many
 
@@ -253,10 +255,10 @@ def test_a_coefficient_given_per_row_is_predicted_on_every_row():
     """A coefficient given per row (acl.fit.report.tone_gain_stderr's ``tone_weight``, one factor per row and tone)
     cannot be predicted on the distinct rows only: predict falls back to every row (with the reduction it raised a
     shape error, which run_fit turned into an empty tone-gain figure)."""
-    data, P = generate(PAIR_CAL, REPEATED, {}, noise=0.2e-6, seed=5)
+    data, P = generate(PAIR_CAL, REPEATED, {}, noise=0.2e-6, seed=5, model="eq3")
     co = {"gamma": P.gamma0 * 1.2, "alpha": P.alpha0 * 0.9,
           "tone_weight": np.where((P.f == 120e3) & (P.v > 0), np.exp(2e-4), 1.0)}
     np.testing.assert_array_equal(F.predict(P, co, DRAG), _plain(P, co, DRAG))
-    with F.FD_COLUMNS:
+    with E3.FD_COLUMNS:
         many = F.predict_many(P, [(co, DRAG), ({**co, "gamma": co["gamma"] * (1 + 1e-6)}, DRAG)])
     np.testing.assert_array_equal(many[1], _plain(P, {**co, "gamma": co["gamma"] * (1 + 1e-6)}, DRAG))

@@ -58,11 +58,7 @@ ALLOWED: dict[str, str] = {
     "acl.fit.calibrated -> acl.fmt": "the calibrated design as canonical text",
     "acl.sweep.tune -> acl.fmt": "the tuned design as canonical text",
     # --- private names across packages ---------------------------------------------------------------------
-    # the fit rebuilds the force engine through private names: to be removed by the engine work (one engine)
-    "acl.fit.group -> acl.analysis.acoustics:_compute_engine": "fit rebuilds _Engine; engine work",
-    "acl.fit.group -> acl.analysis.acoustics:_layout": "fit rebuilds _Engine; engine work",
-    "acl.fit.mechanism -> acl.analysis.acoustics:_engine": "fit reaches into _Engine; engine work",
-    "acl.fit.mechanism -> acl.analysis.acoustics:_outer_radius": "fit reaches into _Engine; engine work",
+    # (none left: the fit reaches the force engine through public names, acl.analysis.rows)
 }
 
 

@@ -140,6 +140,22 @@ def test_prepared_response_equals_coupled_response(wall):
                                coupled_response(one, f, RHO, C, wall), rtol=1e-12)
 
 
+@pytest.mark.parametrize("wall", [0.0, 1.0])
+def test_prepared_response_of_two_interfaces_closed_form(wall):
+    # Two interfaces (a pair of one-orifice capsules) are solved by Cramer's rule: the same volumes as the general
+    # solve (coupled_response) to 1e-12 relative, over many configurations from far apart to touching.
+    pair = build_system([single(), single(volume=1.12e-13, radius=13e-6)], [[[0.0, 0.0, 40e-6]], [[60e-6, 0.0, 40e-6]]],
+                        [[R1], [13e-6]])
+    rng = np.random.default_rng(5)
+    moved = pair.points[None] + rng.normal(scale=15e-6, size=(64, pair.n, 3))
+    moved[:4, 1] = moved[:4, 0] + np.array([[1.0, 0.0, 0.0]]) * np.array([[0.0], [10e-6], [R1 + 13e-6], [30e-6]])
+    f = np.array([60e3, 125e3, 240e3])
+    expect = coupled_response(pair, f, RHO, C, wall, points=moved)
+    got = prepared_response(pair, f, RHO, C, wall)(moved)
+    assert np.isfinite(got).all()
+    np.testing.assert_allclose(got, expect, rtol=1e-12, atol=1e-12 * np.abs(expect).max())
+
+
 def test_modes_up_to_a_frequency_and_a_second_damping_match_the_full_separate_solutions():
     """``max_omega`` keeps a prefix of the full solution and ``also_damping`` gives the Q of a system with
     that damping (a declared Q: same omega and volumes); both to 1e-12 relative."""

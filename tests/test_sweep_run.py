@@ -73,7 +73,7 @@ def test_local_needs_no_dask(monkeypatch):
     assert all(np.array_equal(a, _chunk(k)) for k, a in enumerate(out))
 
 
-def test_unreachable_scheduler_is_E601_after_the_timeout(monkeypatch):
+def test_unreachable_scheduler_is_E_CLUSTER_after_the_timeout(monkeypatch):
     pytest.importorskip("distributed")
     import acl.sweep.run as R
 
@@ -84,7 +84,7 @@ def test_unreachable_scheduler_is_E601_after_the_timeout(monkeypatch):
     with pytest.raises(DiagnosticError) as exc:
         map_chunks(_chunk, 2, f"tcp://127.0.0.1:{port}")
     d = exc.value.diagnostics[0]
-    assert d.code == "E601" and "cannot reach" in d.message and d.span.file == "<--scheduler>"
+    assert d.code == "E-CLUSTER" and "cannot reach" in d.message and d.span.file == "<--scheduler>"
 
 
 @pytest.fixture(scope="module")

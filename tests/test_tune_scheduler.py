@@ -145,4 +145,4 @@ def test_the_command_refuses_a_bad_or_unreachable_scheduler_with_exit_2(capsys, 
     assert main(["tune", str(FIG3), "--samples", "50", "--scheduler", f"tcp://127.0.0.1:{port}", "-o", str(out),
                  "--path", str(FIG3.parent)]) == 2
     err = capsys.readouterr().err
-    assert "E601" in err and "<--scheduler>" in err and not out.exists()
+    assert "E-CLUSTER" in err and "<--scheduler>" in err and not out.exists()

@@ -21,10 +21,11 @@ def add_parser(p) -> None:
                         "DESIGN's folder as <stem>.calibrated.acl (loads without --path)")
     p.add_argument("--effects", default=None, metavar="IDS",
                    help="comma-separated effect ids to consider (default: the whole library; `none` for none)")
-    p.add_argument("--model", type=_model, default="eq3", metavar="MODEL",
-                   help="force model of a simple pair (two single-orifice capsules on their own supports): eq3 "
-                        "(paper Eq. 3, default) or coupled (the analysis' own forces: per-orifice thrust, Bjerknes "
-                        "force between the orifices, jet drag; ~10-20x slower; docs/fit.md)")
+    p.add_argument("--model", type=_model, default="coupled", metavar="MODEL",
+                   help="force model of a simple pair (two single-orifice capsules on their own supports): coupled "
+                        "(default: the force model of acl analyze and acl compile, per-orifice thrust, Bjerknes "
+                        "force between the orifices, jet drag) or eq3 (paper Eq. 3, a declared reduced model with "
+                        "F_AS = F_d; faster; docs/fit.md)")
     p.add_argument("--seed", type=seed, default=0, help="seed of the cross-validation folds (default 0)")
     p.add_argument("--jobs", type=jobs, default=1, metavar="N",
                    help="worker processes that fit the candidate effects of a round at once (default 1; auto: one "

@@ -46,7 +46,7 @@ def add_parser(p) -> None:
     p.add_argument("--tolerance-scales", metavar="S1,S2,...",
                    help="also the yield with every spread scaled by each factor (yield vs tolerance; e.g. 0.5,1,2)")
     p.add_argument("--timeout", type=seconds, default=None, metavar="SECONDS",
-                   help="on a cluster: how long to wait when it has no worker left before giving up (E601; default 60)")
+                   help="on a cluster: how long to wait when it has no worker left before giving up (E-CLUSTER; default 60)")
     add_output_format(p)
     add_design_options(p)
 

@@ -26,6 +26,11 @@ def add_parser(p) -> None:
     p.add_argument("--repeats", type=int, default=1, help="repeat the whole experiment N times (default 1)")
     p.add_argument("--interval", default="1 s", help="time between rows (default 1 s)")
     p.add_argument("--seed", type=seed, default=0, help="noise seed (default 0)")
+    from acl.commands.fit import _model
+
+    p.add_argument("--model", type=_model, default="coupled", metavar="MODEL",
+                   help="force model of a simple pair: coupled (default: the force model of acl analyze) or eq3 "
+                        "(paper Eq. 3, the reduced model `acl fit --model eq3` fits; docs/fit.md)")
     p.add_argument("--observe", default="", metavar="NAMES", help="observables to write (default: all declared)")
     p.add_argument("--schedule", metavar="JSON",
                    help="play this compiled schedule (schedule.json of `acl compile`) on DESIGN and write every "
@@ -327,7 +332,8 @@ def run(args) -> int:
     ex = Experiment(frequencies=freqs, voltages=volts, sets=sets, repeats=args.repeats, interval=interval,
                     observables=tuple(s.strip() for s in args.observe.split(",") if s.strip()))
     try:
-        data, _ = generate(design, ex, effects, noise=noise, seed=args.seed, search_paths=args.path)
+        data, _ = generate(design, ex, effects, noise=noise, seed=args.seed, search_paths=args.path,
+                           model=args.model)
     except DiagnosticError as exc:
         diags = [_as_sweep(d) for d in exc.diagnostics]
         report(diags)

@@ -39,7 +39,7 @@ def add_parser(p) -> None:
                    help="where to write the tuned design (default: <stem>.tuned.acl next to DESIGN)")
     p.add_argument("--no-write", action="store_true", help="report only; write no tuned design")
     p.add_argument("--timeout", type=seconds, default=None, metavar="SECONDS",
-                   help="on a cluster: how long to wait when it has no worker left before giving up (E601; default 60)")
+                   help="on a cluster: how long to wait when it has no worker left before giving up (E-CLUSTER; default 60)")
     add_output_format(p)
     p.add_argument("--path", action="append", default=[], metavar="DIR", help="extra folder imports may read from")
 

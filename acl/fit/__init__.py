@@ -20,11 +20,11 @@ class FitOutcome:
 
 
 def run_fit(design_path, data_paths, free=(), search_paths=(), candidates=None, seed=0, progress=None,
-            calibrated_path=None, report_dir=None, model: str = "eq3", jobs: int = 1) -> FitOutcome:
+            calibrated_path=None, report_dir=None, model: str = "coupled", jobs: int = 1) -> FitOutcome:
     """Everything `acl fit` does except writing files; raises DiagnosticError on bad input.
 
     ``model``: the force model of simple pairs, ``eq3`` (paper Eq. 3) or ``coupled`` (the analysis' own force
-    model through acl.fit.group; about 10-20x slower, docs/fit.md).  ``jobs``: worker processes that fit the
+    model through acl.fit.group; far slower on large data sets: benchmarks/fit.py cases 4 and 5).  ``jobs``: worker processes that fit the
     candidate effects of a round at once (acl.fit.select._each: the same result as one process, in less time)."""
     from acl.fit.calibrated import calibrated_text, default_path, needs_path
     from acl.fit.problem import load_problem

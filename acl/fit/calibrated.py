@@ -251,6 +251,23 @@ def calibrated_text(problem, selection, out_path: str, data_paths=(), report_dir
         lines += ["}", ""]
     if notes:
         lines += notes + [""]
+    # an effect written here replaces the one the original declares: its declared coefficients the fit held fixed
+    # (P.declared, acl.fit.effects.declared_effects) are written with it, so none is lost (a calibration's shape)
+    declared = dict(getattr(P, "declared", None) or {})
+    if "bjerknes_scale" in effects or "bjerknes_shape" in effects:
+        for eid in ("bjerknes_scale", "bjerknes_shape"):
+            if eid in declared:
+                effects.setdefault(eid, {})
+    for eid in list(effects):
+        for k, v in declared.get(eid, {}).items():
+            effects[eid].setdefault(k, _literal(v, next((q.unit for q in EFFECTS[eid].params if q.name == k), "")))
+    if "bjerknes_shape" in effects:     # the analysis' bjerknes_scale carries the shape (gap_exponent, gap_ref)
+        from acl.fit.effects import GAP_REF
+
+        shape = effects.pop("bjerknes_shape")
+        bs = effects.setdefault("bjerknes_scale", {})
+        bs["gap_exponent"] = shape["gap_exponent"]
+        bs["gap_ref"] = _literal(GAP_REF, "m")
     if effects:
         lines.append("# effects (acl.fit.effects; coefficients in SI), applied by analyze, compile and lint")
         for eid, vals in effects.items():

@@ -31,6 +31,7 @@ class Effect:
     identified_by: str
     requires: tuple[str, ...] = ()       # "time", "frequencies", "frequencies3", "neighbour", "heights", "lengths"
     starts: tuple[tuple[float, ...], ...] = field(default=())   # extra starting points (in scale units)
+    search: bool = True     # tried by the default search; False: fitted only when named (`--effects ID`)
 
 
 def _inv_sqrt(name, unit):
@@ -112,8 +113,53 @@ EFFECTS: dict[str, Effect] = {e.id: e for e in [
            "F -> F (1 - exp(-z/h))",
            "actuators at several heights above the substrate (set:pedestal or set:length)",
            requires=("heights",), starts=((0.15,), (1.0,))),
+    Effect("bjerknes_scale",
+           (EffectParam("factor", "", 0.05, 20.0, 1.0, 1.0, report=lambda v: ("Bjerknes force / predicted", v, "")),),
+           "the secondary Bjerknes force between capsules differs from the monopole prediction by a constant factor "
+           "(the same declared effect as the analysis, acl.analysis.effects; paper Eq. 3's fitted alpha against the "
+           "physics)",
+           "pairs (or groups) at several gaps ramped in voltage; with alpha free it is the same freedom",
+           requires=("neighbour",), starts=((0.6,), (1.6,)), search=False),
+    Effect("bjerknes_shape",
+           (EffectParam("gap_exponent", "", -3.0, 3.0, 0.0, 0.0,
+                        report=lambda v: ("Bjerknes force x (40 um / d)^n, n", v, "")),),
+           "the secondary Bjerknes force falls off with the orifices' distance d other than the monopole d^-2: "
+           "x (d_ref/d)^n, d_ref = 40 um (the analysis' bjerknes_scale gap_exponent / gap_ref; paper Eq. 3 and "
+           "Fig. S5 need a free scale and shape)",
+           "pairs at several gaps ramped in voltage (with bjerknes_scale, or alpha free, for the scale)",
+           requires=("neighbour", "coupled"), starts=((0.5,), (-0.5,)), search=False),
 ]}
+
+GAP_REF = 40e-6     # m: d_ref of bjerknes_shape, where its factor is 1 (written as the analysis' gap_ref)
+
+# fitted coordinates the calibrated design writes under another effect's coefficient of the analysis
+ANALYSIS_NAME = {("bjerknes_shape", "gap_exponent"): ("bjerknes_scale", "gap_exponent")}
+
+SEARCHED = tuple(k for k, e in EFFECTS.items() if e.search)   # the default search (`acl fit` without --effects)
 
 
 def effect(name: str) -> Effect:
     return EFFECTS[name]
+
+
+def declared_effects(design) -> dict:
+    """The effects ``design`` declares (``effect ID { ... }``) as the fit's effects dict (effect id -> {parameter:
+    value}, internal coordinates, acl.analysis.effects.coefficients): the base model the fit starts from.  A declared
+    ``bjerknes_scale`` with a shape (gap_exponent n at gap_ref) is the fit's bjerknes_scale and bjerknes_shape, the
+    factor taken to the fit's reference distance: factor (gap_ref/d)^n = factor (gap_ref/GAP_REF)^n (GAP_REF/d)^n.
+    Effects the fit does not model are left out (the analysis notes them)."""
+    from acl.analysis.effects import bjerknes_shape, coefficients
+
+    out: dict = {}
+    for eff in getattr(design, "effects", ()) or ():
+        if eff.name not in EFFECTS:
+            continue
+        c = coefficients(design, eff.name)
+        if eff.name == "bjerknes_scale":
+            n, ref = bjerknes_shape(c)
+            out["bjerknes_scale"] = {"factor": float(c["factor"]) * ((ref / GAP_REF) ** n if n else 1.0)}
+            if n:
+                out["bjerknes_shape"] = {"gap_exponent": float(n)}
+            continue
+        out[eff.name] = {p.name: float(c[p.name]) for p in EFFECTS[eff.name].params if p.name in c}
+    return out

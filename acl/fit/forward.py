@@ -7,10 +7,10 @@ numpy (no per-row Python).  Base model, per row:
 * thrust of actuator i: gamma tau_i(f) V^2 summed over tones (tones add in power), tau_i the thrust
   per V^2 of :mod:`acl.analysis.acoustics` relative to the reference actuator at ``f_ref``;
 * single actuator: load P = thrust x (share perpendicular to the beam); deflection by paper Eq. (1);
-* facing pair: paper Eq. (3) with attraction positive, P(d) = alpha a(f) V^2/d^2 - (thrust_a + thrust_b)
-  (own thrust plus the drag of the partner's jet, F_AS = F_d as the paper assumes), each beam
-  deflecting by Eq. (1); the stable equilibrium d = d0 - delta_a - delta_b reached from the rest gap,
-  or contact (d = 0) past snap-in.  Solved by a vectorized bracket search and bisection.
+* interacting capsules (pairs by default, groups, bodies): the analysis' force model (acl.fit.group: per-orifice
+  thrust, Bjerknes force, jet drag, coupled volumes where the capsules are), the one `acl analyze` and `acl compile`
+  use;
+* facing pair under the declared reduced model (``--model eq3`` only): paper Eq. (3), acl.fit.eq3.
 
 Effects (acl.fit.effects) modify these steps; each modifier below cites its source.
 """
@@ -21,11 +21,21 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from acl.fit import beam as B
-from acl.physics.roots import illinois_step
+from acl.fit.latch import latch_table, latch_travel, switch_probability
+from acl.fit.eq3 import FD_COLUMNS, _Flag, _make_laws, _pair_solve, _pair_solve_many, _spec, _with_drag
+from acl.fit.group import Request as GroupRequest
 
-N_GRID = 32
-N_REFINE = 12
-_GRID = np.linspace(0.0, 1.0, N_GRID + 1)     # the bracket grid from the rest gap (0) to the far end (1)
+
+@dataclass(frozen=True)
+class ForwardOptions:
+    """How the forward model of one data set evaluates (never what it predicts; explicit per data set, not
+    process-wide): ``memo`` predictions kept (an optimizer revisits points: starts, polishes, the final evaluation);
+    ``dedup`` each distinct row predicted once (:func:`_distinct`); ``warm`` (paper Eq. 3 pairs only, opt-in) a
+    Jacobian's finite-difference columns start from the last full pair solve (acl.fit.eq3._pair_warm)."""
+
+    memo: int = 64
+    dedup: bool = True
+    warm: bool = False
 
 
 @dataclass
@@ -76,13 +86,15 @@ class Prepared:
     ftables: list = None             # (ln V/V0, ln f/f0) of each capsule kind (acl.physics.effects.volume_frequency_table)
     groups: list = None              # acl.fit.group.GroupBlock of every group of 3+ capsules (their rows)
     group_row: np.ndarray = None     # (n,) bool: the row belongs to one of them
-    state: np.ndarray = None         # (n,) bool: the row observes a latch state (0 a, 1 b), acl.fit.forward.switch_probability
+    state: np.ndarray = None         # (n,) bool: the row observes a latch state (0 a, 1 b), acl.fit.latch.switch_probability
     pearson: tuple = None            # (measured values, row weights) when fitting: state rows predict y + r_P / w
     ref_orifice: str = ""            # "capsule.orifice" of the reference capsule's first orifice
     gamma_caps: frozenset = None     # capsules whose thrust gamma scales (a design parameter declared as their
                                      # `thrust`); None: every capsule (gamma then stands for the drive pressure)
     gamma_side: np.ndarray = None    # (2, n) bool: side c's capsule is one of them
     latch_geometries: list = None    # the geometry (acl.analysis.mechanics.latch_geometry) of each of latch_tables
+    options: ForwardOptions = field(default_factory=ForwardOptions)
+    declared: dict = field(default_factory=dict)     # the design's declared effects (fixed in the base model)
 
     def volume_shift(self, c, fn, lnx):
         """Natural frequency of side ``c`` after its gas volume changed by a factor exp(lnx) (rows), from the tables."""
@@ -275,6 +287,10 @@ def prepare(data, load_instance, f_ref: float | None = None, gamma_caps=None) ->
                     modes0.setdefault(f"{s.capsule}.{c.orifices[0].name}", s.mode)
     rc = ref.design.capsule(ref_cap)
     ref_orifice = f"{ref_cap}.{rc.orifices[0].name}" if rc.orifices else ""
+    if len(groups) > 1:                 # one topology at several rest geometries: one batched solve (acl.fit.group.stack)
+        from acl.fit.group import stack
+
+        groups = stack(groups)
     gamma_side = (np.ones((2, n), bool) if gamma_caps is None else
                   np.array([[c in gamma_caps for c in caps[k]] for k in range(2)], bool).reshape(2, n))
     return Prepared(n, f, v, tau, arel, pair, arr["L"], arr["l"], arr["EI"], arr["cd"], arr["ct"], arr["height"],
@@ -283,86 +299,7 @@ def prepare(data, load_instance, f_ref: float | None = None, gamma_caps=None) ->
                     medium, latch_id, latch_tables, caps == ref_cap, ref_cap, units,
                     exp if exp is not None else np.full(n, "", dtype=object), modes0, {}, side_table, ftables,
                     groups, group_row, state, ref_orifice=ref_orifice, gamma_caps=gamma_caps, gamma_side=gamma_side,
-                    latch_geometries=list(latch_index))
-
-
-def latch_table(geometry) -> tuple:
-    """(F_a, u_a, F_switch, F_b, u_b): rising branches of the latch holding force (acl.physics.latch), from state a
-    up to the switching force and beyond state b, for a vectorized inverse (load -> shuttle travel)."""
-    from acl.physics.latch import latch_landscape
-
-    land = latch_landscape(*geometry)
-    u, F = np.asarray(land.u), np.asarray(land.force)
-    i_peak = int(np.argmax(F[: np.searchsorted(u, land.unstable)] if land.bistable else F))
-    Fa, ua = np.maximum.accumulate(F[: i_peak + 1]), u[: i_peak + 1]
-    if land.bistable:
-        ib = int(np.searchsorted(u, land.state_b))
-        Fb, ub = np.maximum.accumulate(F[ib:]), u[ib:]
-    else:
-        Fb, ub = Fa[-1:], ua[-1:]
-    return Fa, ua, float(Fa[-1]), Fb, ub
-
-
-def latch_travel(load, table, e_scale=1.0, blend=0.0):
-    """Shuttle travel under ``load`` from state a: the first branch below the switching force, the far branch above it
-    (a fresh ramp from state a on every row; latch_force scales with E, acl.physics.latch).
-
-    ``blend`` > 0 (a search device, never the model: acl.fit.select._cross_switch): the expected travel when the
-    switching force scatters log-normally by ``blend`` (the probit of :func:`switch_probability`), (1 - p) u_a + p u_b,
-    which is smooth in the load where the step is not."""
-    Fa, ua, fsw, Fb, ub = table
-    x = np.asarray(load, float) / e_scale
-    if blend > 0:
-        p = switch_probability(x / fsw, blend)
-        return (1.0 - p) * np.interp(x, Fa, ua) + p * np.interp(x, Fb, ub)
-    return np.where(x <= fsw, np.interp(x, Fa, ua), np.interp(x, Fb, ub))
-
-
-def lone_latch_rows(P) -> np.ndarray:
-    """(n,) bool: displacement rows of a latch on its own (not in a pair or a group; not a state row)."""
-    if P.latch_id is None:
-        return np.zeros(P.n, bool)
-    grp = P.group_row if P.group_row is not None else np.zeros(P.n, bool)
-    state = P.state if P.state is not None else np.zeros(P.n, bool)
-    return (P.latch_id >= 0) & ~P.pair & ~grp & ~state & (P.s0 != 0)
-
-
-def latch_branch_mismatch(P, y, prediction) -> np.ndarray:
-    """(n,) bool: lone-latch displacement rows whose ``prediction`` lies on the other side of the switch than the
-    measured value ``y`` (each side of the midpoint between the travel at the switching force and state b)."""
-    out = np.zeros(P.n, bool)
-    rows = lone_latch_rows(P)
-    for tid in np.unique(P.latch_id[rows]):
-        m = rows & (P.latch_id == tid)
-        _, ua, _, _, ub = P.latch_tables[tid]
-        mid = 0.5 * (ua[-1] + ub[0])
-        meas = (np.asarray(y, float)[m] - P.base[m]) / P.s0[m] > mid
-        pred = (np.asarray(prediction, float)[m] - P.base[m]) / P.s0[m] > mid
-        out[np.flatnonzero(m)] = meas != pred
-    return out
-
-
-def latch_travel_exact(load, geometry, table, e_scale=1.0, steps=4):
-    """Shuttle travel under ``load`` of either sign from state a, as the analysis solves the latch law: the branch of
-    :func:`latch_travel` (a pull towards state a stretches the beams, u < 0, from the stiffness at rest) polished by
-    Newton on acl.physics.latch.latch_force (von Mises truss), each step kept inside its branch."""
-    from acl.physics.latch import latch_force
-
-    th, L, w, t, E = geometry
-    Fa, ua, fsw, Fb, ub = table
-    x = np.asarray(load, float) / e_scale
-    h = 1e-7 * L
-    k0 = float((latch_force(h, th, L, w, t, E) - latch_force(-h, th, L, w, t, E)) / (2 * h))
-    far = x > fsw
-    lo = np.where(x < 0, -np.inf, np.where(far, ub[0], ua[0]))
-    hi = np.where(x < 0, 0.0, np.where(far, ub[-1], ua[-1]))
-    u = np.where(x < 0, x / k0, latch_travel(np.maximum(x, 0.0), table))
-    for _ in range(steps):
-        F = latch_force(np.stack([u, u + h, u - h]), th, L, w, t, E)
-        slope = (F[1] - F[2]) / (2 * h)
-        step = np.where(slope > 0, (F[0] - x) / np.where(slope > 0, slope, 1.0), 0.0)
-        u = np.clip(u - step, lo, hi)
-    return u
+                    latch_geometries=list(latch_index), declared=dict(ref.declared))
 
 
 def eq3_alpha_param(design):
@@ -410,13 +347,14 @@ def predict(P: Prepared, coeffs: dict, effects: dict, latch_blend: float = 0.0) 
     capsule's natural frequency and Q), ``f0@CAP`` / ``q@CAP`` (one capsule's), absent = design value;
     ``effects``: effect id -> {param: value} (internal coordinates, acl.fit.effects).  ``latch_blend`` > 0: a lone
     latch's shuttle travel smoothed across its switch (:func:`latch_travel`; a search device, not the model)."""
-    key = _memo_key(P, coeffs, effects, latch_blend) if MEMO > 0 else None
+    effects = _with_declared(P, effects)
+    key = _memo_key(P, coeffs, effects, latch_blend) if P.options.memo > 0 else None
     if key is not None:
         memo = P.__dict__.setdefault("_memo", {})
         if key in memo:
             return memo[key].copy()
     with np.errstate(all="ignore"):
-        red = _distinct(P, effects, coeffs) if DEDUP else None
+        red = _distinct(P, effects, coeffs) if P.options.dedup else None
         if red is None:
             out = _predict(P, coeffs, effects, latch_blend)
         else:       # each distinct row once (repeats, a calibration beam's rows at every gap): the same numbers
@@ -424,7 +362,7 @@ def predict(P: Prepared, coeffs: dict, effects: dict, latch_blend: float = 0.0) 
             out = _predict(Pu, coeffs, {k: e for k, e in effects.items() if k != "offset_drift"}, latch_blend)[inv]
             out = _offset_drift(P, out, effects)
     if key is not None:
-        if len(memo) >= MEMO:
+        if len(memo) >= P.options.memo:
             del memo[next(iter(memo))]                 # the oldest
         memo[key] = out.copy()
     return out
@@ -434,14 +372,16 @@ def predict_many(P: Prepared, items) -> list:
     """[:func:`predict` (P, coeffs, effects) for (coeffs, effects) in ``items``], the same numbers bit for bit, the pair
     solves of the predictions made at once (:func:`_pair_solve_many`: fewer, larger array operations; a Jacobian's
     columns, acl.fit.solve.fd_least_squares, or independent probes).  The last full pair solve kept for reuse
-    (:func:`_pair_solve`) is read, not replaced: it changes which work a solve skips, never its numbers.  With groups
-    or latch states (whose solves keep state from one prediction to the next), or the warm start inside FD_COLUMNS,
-    one after the other."""
-    items = list(items)
-    if len(items) < 2 or (WARM and FD_COLUMNS.active) or P.groups or _layout(P)["any_state"] or not np.any(P.pair):
+    (:func:`_pair_solve`) is read, not replaced: it changes which work a solve skips, never its numbers.  Groups:
+    each block's rows of every prediction in one batched solve from the block's last state, read, not replaced
+    (acl.fit.group.predict_many: the same numbers to the solver's tolerance).  With latch states (whose rows keep
+    state from one prediction to the next), or the warm start inside FD_COLUMNS, one after the other."""
+    items = [(c, _with_declared(P, e)) for c, e in items]
+    if len(items) < 2 or (P.options.warm and FD_COLUMNS.active) or _layout(P)["any_state"] or \
+            not (np.any(P.pair) or P.groups):
         return [predict(P, c, e) for c, e in items]
     out: list = [None] * len(items)
-    keys = [_memo_key(P, c, e, 0.0) if MEMO > 0 else None for c, e in items]
+    keys = [_memo_key(P, c, e, 0.0) if P.options.memo > 0 else None for c, e in items]
     memo = P.__dict__.setdefault("_memo", {})
     todo = []
     for i, key in enumerate(keys):
@@ -449,7 +389,7 @@ def predict_many(P: Prepared, items) -> list:
             out[i] = memo[key].copy()
         else:
             todo.append(i)
-    reds = [_distinct(P, items[i][1], items[i][0]) if DEDUP else None for i in todo]
+    reds = [_distinct(P, items[i][1], items[i][0]) if P.options.dedup else None for i in todo]
     if any(r is not reds[0] for r in reds):          # different row reductions (an effect reads the time)
         for i in todo:
             out[i] = predict(P, *items[i])
@@ -459,26 +399,42 @@ def predict_many(P: Prepared, items) -> list:
     with np.errstate(all="ignore"):
         steps = [_predict_steps(Pu, items[i][0], items[i][1] if red is None else
                                 {k: e for k, e in items[i][1].items() if k != "offset_drift"}) for i in todo]
-        reqs, done = [], {}
-        for t, st in enumerate(steps):
-            try:
-                reqs.append((t, next(st)))
-            except StopIteration as stop:
-                done[t] = stop.value
-        for (t, _), ab in zip(reqs, _pair_solve_many(Pu, [q for _, q in reqs])):
-            try:
-                steps[t].send(ab)
-                raise RuntimeError("a prediction makes one pair solve")
-            except StopIteration as stop:
-                done[t] = stop.value
+        done: dict = {}
+        pending = {t: None for t in range(len(steps))}
+        while pending:           # every prediction asks for its pair solve, then its groups: each asked at once
+            reqs = {}
+            for t, ans in pending.items():
+                try:
+                    reqs[t] = next(steps[t]) if ans is None else steps[t].send(ans)
+                except StopIteration as stop:
+                    done[t] = stop.value
+            pending = _answer_many(Pu, reqs)
     for t, i in enumerate(todo):
         res = done[t] if red is None else _offset_drift(P, done[t][red[1]], items[i][1])
         if keys[i] is not None:
-            if len(memo) >= MEMO:
+            if len(memo) >= P.options.memo:
                 del memo[next(iter(memo))]
             memo[keys[i]] = res.copy()
         out[i] = res
     return out
+
+
+def _answer_many(P: Prepared, reqs: dict) -> dict:
+    """{t: answer} of the requests {t: request} of several predictions (:func:`_predict_steps`): their pair solves in
+    one :func:`_pair_solve_many`, each group's rows of every prediction in one acl.fit.group.predict_many."""
+    out: dict = {}
+    pair = [t for t, q in reqs.items() if not isinstance(q, GroupRequest)]
+    for t, ab in zip(pair, _pair_solve_many(P, [reqs[t] for t in pair])):
+        out[t] = ab
+    grp = [t for t, q in reqs.items() if isinstance(q, GroupRequest)]
+    out.update(zip(grp, GroupRequest.answer_many([reqs[t] for t in grp])))
+    return out
+
+
+def _with_declared(P: Prepared, effects: dict) -> dict:
+    """``effects`` over the design's declared ones (P.declared, acl.fit.effects.declared_effects): a fitted effect
+    replaces the declared effect of the same id."""
+    return {**P.declared, **effects} if P.declared else effects
 
 
 class Model:
@@ -495,8 +451,6 @@ class Model:
         return predict_many(self.P, items)
 
 
-MEMO = 64      # predictions kept per data set (an optimizer revisits points: starts, polishes, the final evaluation)
-DEDUP = True   # predict each distinct row once (:func:`_distinct`)
 
 # the row-aligned fields of Prepared that _predict reads, with their row axis
 _ROW_FIELDS = {"f": 0, "v": 0, "tau": 1, "arel": 0, "pair": 0, "L": 1, "l": 1, "EI": 1, "cd": 1, "ct": 1, "height": 1,
@@ -524,6 +478,8 @@ def _distinct(P: Prepared, effects: dict, coeffs: dict = None):
     cache = P.__dict__.setdefault("_distinct", {})
     if timed not in cache:
         cache[timed] = _reduce_rows(P, with_time=timed)
+    if cache[timed] is not None:
+        cache[timed][0].options = P.options          # the data set's options, as they are now
     return cache[timed]
 
 
@@ -630,7 +586,7 @@ def _predict(P: Prepared, coeffs: dict, effects: dict, latch_blend: float = 0.0)
     try:
         req = next(steps)
         while True:
-            req = steps.send(_pair_solve(*req[:9]))
+            req = steps.send(req.answer() if isinstance(req, GroupRequest) else _pair_solve(*req[:9]))
     except StopIteration as stop:
         return stop.value
 
@@ -641,7 +597,7 @@ def _predict_steps(P: Prepared, coeffs: dict, effects: dict, latch_blend: float 
     the pair solves of several predictions can be made at once (:func:`predict_many`)."""
     lay = _layout(P)
     gamma = coeffs.get("gamma", P.gamma0)
-    alpha = coeffs.get("alpha", P.alpha0)
+    alpha = coeffs.get("alpha", P.alpha0) * (effects["bjerknes_scale"]["factor"] if "bjerknes_scale" in effects else 1.0)
     e_scale = coeffs.get("e_scale", 1.0)
     gain = coeffs.get("gain", 1.0)
     v2 = lay["v2"]
@@ -742,11 +698,10 @@ def _predict_steps(P: Prepared, coeffs: dict, effects: dict, latch_blend: float 
         d_0[idx], d_1[idx] = da, db
     out = P.base + P.s0 * d_0 + P.s1 * d_1
     if lay["any_grp"]:
-        from acl.fit import group as G
-
         grad = effects["stiffness_gradient"]["e_gradient"] if "stiffness_gradient" in effects else 0.0
-        for blk in P.groups:
-            change, _, rat = G.predict(P, blk, coeffs, effects, w[blk.rows], gamma, alpha, es, lam, grad, c_p)
+        got = yield GroupRequest(P, [(coeffs, effects, w[blk.rows], gamma, alpha, es, lam, grad, c_p)
+                                     for blk in P.groups])
+        for blk, (change, _, rat) in zip(P.groups, got):
             out[blk.rows] = P.base[blk.rows] + change
             ratio[blk.rows] = np.where(blk.kind == 3, rat, ratio[blk.rows])
     out = _offset_drift(P, out, effects)
@@ -821,58 +776,7 @@ def _law_arrays(P: Prepared, coeffs: dict, es, cav, grad, key) -> dict:
 LAW_ARRAYS = 16     # law array sets kept per data set (a fit moves E or a gradient only when they are free)
 
 
-def _spec(arrs, law, parent=None) -> tuple:
-    """A law spec: per side the arrays (rigid length, c_D, c_T, L, EI, is a beam) and law codes of some rows, with
-    (side 0 fixed, side 1 fixed, both sides alike).  ``parent``: the flags of a spec whose rows include these (a
-    side fixed, or sides alike, on all of them is so on any of them: not checked again)."""
-    pf = parent or (False, False, False)
-    fixed = tuple(pf[c] or bool(np.all(law[c] == 2)) for c in range(2))
-    return arrs, law, (*fixed, pf[2] or all(np.array_equal(a, b) for a, b in zip(arrs[0], arrs[1])))
-
-
-def _make_laws(spec, lam):
-    """(law of side 0, law of side 1, same) from a law spec (:func:`_spec`): paper Eq. (1), blended with the elastica
-    by ``lam`` (large_deflection), zero for a side fixed to the substrate; one law when both sides are alike.  ``lam``
-    a scalar or per row (rows of several predictions stacked, :func:`predict_many`)."""
-    arrs, law, (fixed0, fixed1, same) = spec
-
-    def make(l_, cd_, ct_, L_, EI_, beam_):
-        if _on(lam) and np.any(beam_):
-            wgt = np.where(beam_, lam, 0.0)
-            return lambda load: elastica_blend(B.eq1_deflection(load, l_, cd_, ct_),
-                                               np.where(beam_, B.elastica_deflection(load, L_, l_, EI_), 0.0), wgt)
-        return lambda load: B.eq1_deflection(load, l_, cd_, ct_)
-
-    def still(load):                                     # a side fixed to the substrate does not move
-        return np.zeros(np.shape(load))
-
-    first = still if fixed0 else make(*arrs[0])
-    if fixed1 and not same:
-        return first, still, False
-    return first, (first if same else make(*arrs[1])), same
-
-
-def _on(x) -> bool:
-    """A scalar coefficient is non-zero (per-row coefficients: stacked only when all are, :func:`predict_many`)."""
-    return bool(np.all(x != 0)) if np.ndim(x) else bool(x)
-
-
 SPREAD = 0.05     # default relative scatter of a latch's switching force from one ramp to the next
-
-
-class _Flag:
-    """A switch that ``with FLAG: ...`` turns on for the block (``active``)."""
-
-    def __init__(self):
-        self.active = False
-
-    def __enter__(self):
-        self.active = True
-        return self
-
-    def __exit__(self, *exc):
-        self.active = False
-        return False
 
 
 class _Reweight(_Flag):
@@ -888,357 +792,3 @@ class _Reweight(_Flag):
 
 REWEIGHT = _Reweight()
 
-
-def switch_probability(ratio, spread):
-    """Probability that a ramp from state a ends in state b: Phi(ln(push / F_switch) / s), the switching force
-    log-normally scattered by s from ramp to ramp (a probit threshold model; F_switch of acl.physics.latch)."""
-    from scipy.special import ndtr
-
-    with np.errstate(divide="ignore"):
-        z = np.log(np.maximum(ratio, 1e-300)) / max(spread, 1e-9)
-    return ndtr(z)
-
-
-def _with_drag(law, c_p, steps=3):
-    """Deflection law under a neighbour's jet drag, delta = law(P (1 - c_p |delta|)) (acl.physics.effects.drag_load),
-    solved by Newton from the linear-law solution delta_lin / (1 + c_p |delta_lin|)."""
-    def dragged(load):
-        lin = law(load)
-        lo, hi = np.minimum(lin, 0.0), np.maximum(lin, 0.0)
-        d = lin / (1.0 + c_p * np.abs(lin))
-        for _ in range(steps):
-            ad = np.abs(d)
-            x = drag_load(load, ad, c_p)
-            h = 1e-6 * np.maximum(np.abs(x), 1e-30)
-            lx, lxh = law(np.stack([x, x + h]))                     # (one call: the law is elementwise)
-            r = lx - d
-            slope = (lxh - lx) / h                                  # d law / d load
-            dr = -slope * load * c_p * np.sign(d) * (1.0 - c_p * ad > 0) - 1.0   # d r / d delta
-            d = np.clip(d - r / np.where(dr != 0, dr, -1.0), lo, hi)
-        return d
-    return dragged
-
-
-def _pair_equilibrium(law0, law1, a_rad, push, d0, same=False, tol=None, info=None, guess=None, gather=None):
-    """Stable gap of a facing pair under P(d) = a/d^2 - b, first root of d0 - d - delta_a - delta_b from d0.
-
-    Bracketed on a grid from d0 (towards contact when the pair attracts at rest, outwards up to the
-    largest repulsive opening otherwise; the whole grid in one vectorized evaluation), then refined by
-    the Illinois variant of regula falsi (superlinear, always inside the bracket).
-    Returns (delta_a, delta_b); past snap-in (no root before contact) the pair is in contact, d = 0.
-    ``tol``: on |gap residual| (default 1e-12 of the largest d0); ``info``: a dict, filled with what
-    :func:`_pair_warm` needs to reuse this solve (the bracket cell, its sign margin, the root).
-    ``guess`` (with ``gather(rows) -> (law0, law1, same)`` of those rows, repeats allowed): each row's bracketing cell
-    in an earlier solve; the grid is then read from d0 only up to the end of that cell (and on to the end where it has
-    no crossing there), which gives the same first crossing, the same bracket and the same values bit for bit: the
-    grid is elementwise.
-    """
-    both, g = _gap_residual(law0, law1, a_rad, push, d0, same)
-    attract = a_rad / (d0 * d0) - push >= 0
-    ra, rb = both(-push)
-    far = np.where(attract, 0.02 * d0, d0 - ra - rb + 1e-12)
-    m = d0.size
-    cols = np.arange(m)
-    if guess is None or gather is None or np.shape(guess) != (m,):
-        guess, G = None, None
-    else:
-        G = np.full((N_GRID + 1, m), np.nan) if info is not None and WARM else None
-    found, k, a, fa, b, fb, G0, G = _bracket(g, a_rad, push, d0, far, guess, gather, G)
-    exact = G0 == 0
-    tol = 1e-12 * np.max(d0) if tol is None else tol
-    for _ in range(N_REFINE):
-        c, fc, flip = illinois_step(g, a, fa, b, fb)
-        a, fa = np.where(flip, b, a), np.where(flip, fb, 0.5 * fa)
-        b, fb = c, fc
-        if np.all(np.abs(fc[found]) <= tol):
-            break
-    d = np.where(exact, d0, b)
-    if info is not None and not WARM:       # what a later solve's guess needs (the warm start's extras only with WARM)
-        info.update(k=k, found=found)
-        info = None
-    if info is not None:
-        # sign margin: the smallest |G| on the grid points before the bracketing cell (all of them when there is no
-        # crossing), where a perturbation would have to flip a sign to make the search stop at another root
-        j = np.arange(N_GRID + 1)[:, None]
-        before = np.where(found, j < k, True)
-        absg = np.where(before & np.isfinite(G), np.abs(G), np.inf)
-        jmin = np.argmin(absg, axis=0)
-        info.update(attract=attract, far=far, k=k, found=found, exact=exact, d=d, fb=fb,
-                    conv=~found | exact | (np.abs(fb) <= tol), jmin=jmin, margin=absg[jmin, cols], Gj=G[jmin, cols],
-                    tol=tol)
-    found = found | exact
-    if info is not None:       # the deflections at d and, 1e-8 d0 further, the slope of the gap residual there
-        e = 1e-8 * d0
-        dd = np.stack([d, d + e])
-        da2, db2 = both(a_rad / (dd * dd) - push)
-        da, db = da2[0], db2[0]
-        info["slope"] = ((d0 - dd[1] - da2[1] - db2[1]) - (d0 - d - da - db)) / e
-    else:
-        load = a_rad / (d * d) - push
-        da, db = both(load)
-    return np.where(found, da, 0.5 * d0), np.where(found, db, 0.5 * d0)
-
-
-def _gap_residual(law0, law1, a_rad, push, d0, same):
-    """(both, g): the two deflections under a load, and the gap residual g(d) = d0 - d - delta_a - delta_b of a pair
-    at gap d (paper Eq. 3: Bjerknes a_rad / d^2 against the push)."""
-    def both(load):
-        da = law0(load)
-        return da, (da if same else law1(load))
-
-    def g(d):
-        da, db = both(a_rad / (d * d) - push)
-        return d0 - d - da - db
-
-    return both, g
-
-
-def _bracket(g, a_rad, push, d0, far, guess, gather, G=None):
-    """(found, k, a, fa, b, fb, g at d0, G) of the first sign change of ``g`` per row on the grid from d0 to ``far``:
-    the whole grid at once (``guess`` None; G the grid's values), or read with :func:`_scan` from d0 up to each
-    row's guessed cell and on to the end where it has no crossing there (``G``, if given, receives the values)."""
-    m = d0.size
-    cols = np.arange(m)
-    if guess is None:
-        D = d0 + _GRID[:, None] * (far - d0)                       # (N_GRID + 1, n)
-        G = g(D)
-        sg = np.sign(G)
-        cross = sg[1:] != sg[:-1]
-        k = np.argmax(cross, axis=0)
-        return cross.any(axis=0), k, D[k, cols], G[k, cols], D[k + 1, cols], G[k + 1, cols], G[0], G
-    npts = np.minimum(np.asarray(guess, int) + 2, N_GRID + 1)
-    found, k, a, fa, b, fb, G0 = _scan(cols, npts, a_rad, push, d0, far, gather, G)
-    more = ~found & (npts < N_GRID + 1)
-    if np.any(more):                               # no crossing up to the guessed cell: read the rest of the grid
-        r = np.flatnonzero(more)
-        f2, k2, a2, fa2, b2, fb2, _ = _scan(r, np.full(r.size, N_GRID + 1), a_rad, push, d0, far, gather, G)
-        found[r], k[r], a[r], fa[r], b[r], fb[r] = f2, k2, a2, fa2, b2, fb2
-    return found, k, a, fa, b, fb, G0, G
-
-
-def _scan(rows, npts, a_rad, push, d0, far, gather, G=None):
-    """The grid of :func:`_pair_equilibrium` read on rows ``rows`` from d0 up to ``npts`` points each (one flat
-    evaluation): (found, k, a, fa, b, fb, G at d0) of the first crossing per row; ``G`` (N_GRID + 1, n) receives
-    the values read."""
-    total = int(npts.sum())
-    start = np.cumsum(npts) - npts
-    r = np.repeat(rows, npts)
-    j = np.arange(total) - np.repeat(start, npts)
-    d0r, farr = d0[r], far[r]
-    D = d0r + _GRID[j] * (farr - d0r)
-    l0, l1, sm = gather(r)
-    load = a_rad[r] / (D * D) - push[r]
-    da = l0(load)
-    Gv = d0r - D - da - (da if sm else l1(load))
-    if G is not None:
-        G[j, r] = Gv
-    sg = np.sign(Gv)
-    cross = np.zeros(total, bool)
-    cross[1:] = (sg[1:] != sg[:-1]) & (j[1:] > 0)
-    hits = np.flatnonzero(cross)
-    first_row, first = np.unique(r[hits], return_index=True)      # r is sorted by row: the first crossing of each
-    t = hits[first]
-    pos = np.searchsorted(rows, first_row)
-    n = rows.size
-    found = np.zeros(n, bool)
-    k = np.zeros(n, int)
-    a, fa, b, fb = np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n)
-    found[pos] = True
-    k[pos] = j[t] - 1
-    a[pos], fa[pos], b[pos], fb[pos] = D[t - 1], Gv[t - 1], D[t], Gv[t]
-    # rows without a crossing: the full grid's argmax of no crossing is cell 0
-    none = ~found
-    if np.any(none):
-        t0 = start[none]
-        a[none], fa[none] = D[t0], Gv[t0]
-        t1 = np.minimum(t0 + 1, start[none] + npts[none] - 1)
-        b[none], fb[none] = D[t1], Gv[t1]
-    return found, k, a, fa, b, fb, Gv[start]
-
-
-WARM = False           # True: finite-difference columns start from the last full pair solve (_pair_warm; off: see docs/fit.md)
-WARM_SAFETY = 100.0     # a grid sign may move by at most this fraction of its margin (1/100) for the warm start
-WARM_CHANGE = 1e-3      # largest relative change of a_rad, push and the rest opening for which a warm start is tried
-
-
-class _FDColumns(_Flag):
-    """``with FD_COLUMNS: predict(...)``: the predictions are finite-difference neighbours of the last one made outside
-    (acl.fit.solve.fit's Jacobian), so a pair's equilibrium may start from that solve (:func:`_pair_solve`)."""
-
-
-FD_COLUMNS = _FDColumns()
-
-
-def _pair_solve(P, law0, law1, a_rad, push, d0, same, law_sig, laws):
-    """:func:`_pair_equilibrium` of the pair rows, using the last full solve (kept on ``P``) where it can.
-
-    Inputs (a_rad, push, deflection laws) bitwise those of the last full solve: its result (the solve is
-    deterministic).  Otherwise the full solve reads the grid only up to each row's last bracketing cell (the same
-    result bit for bit, :func:`_pair_equilibrium` ``guess``), except inside ``FD_COLUMNS`` (a Jacobian's
-    finite-difference columns) with a_rad and push within WARM_CHANGE of the last full solve: :func:`_pair_warm`, a
-    Newton step from the last root, kept for a row only if no grid sign before its cell can have flipped and it
-    converges to the full solve's tolerance (else that row is solved in full), so a column agrees with the full
-    solve's to the solver tolerance (tests/test_fit_pair_warm.py).  Full solves outside FD_COLUMNS refresh the cache."""
-    cache = getattr(P, "_eq_cache", None)
-    guess = None
-    if cache is not None and (cache["d0"] is d0 or (cache["d0"].shape == d0.shape and np.array_equal(cache["d0"], d0))) \
-            and cache["same"] == same:
-        same_law = _same_law(law_sig, cache["law_sig"])
-        if same_law and np.array_equal(a_rad, cache["a_rad"]) and np.array_equal(push, cache["push"]):
-            return cache["da"], cache["db"]
-        if law_sig[0] or law_sig[1]:     # an iterated law (elastica blend, drag): read the grid only up to the cell
-            guess = np.where(cache["found"], cache["k"], N_GRID)
-        if WARM and FD_COLUMNS.active and "slope" in cache:
-            with np.errstate(all="ignore"):
-                ok = np.all(np.abs(a_rad - cache["a_rad"]) <= WARM_CHANGE * np.abs(cache["a_rad"])) and \
-                    np.all(np.abs(push - cache["push"]) <= WARM_CHANGE * np.abs(cache["push"]))
-            if ok:
-                return _pair_warm(cache, law0, law1, a_rad, push, d0, same, laws)
-            return _pair_equilibrium(law0, law1, a_rad, push, d0, same, guess=guess, gather=laws)
-    if FD_COLUMNS.active:
-        return _pair_equilibrium(law0, law1, a_rad, push, d0, same, guess=guess, gather=laws)
-    info: dict = {}
-    da, db = _pair_equilibrium(law0, law1, a_rad, push, d0, same, info=info, guess=guess, gather=laws)
-    info.update(d0=d0, same=same, law_sig=law_sig, a_rad=a_rad, push=push, da=da, db=db)
-    P._eq_cache = info
-    return da, db
-
-
-def _same_law(sig, ref) -> bool:
-    """Two law signatures (lam, c_p, law arrays) are equal (the same deflection laws)."""
-    return (sig[0] == ref[0] and sig[1] == ref[1] and len(sig) == len(ref)
-            and all(a is b or np.array_equal(a, b) for a, b in zip(sig[2:], ref[2:])))
-
-
-def _pair_solve_many(P, reqs) -> list:
-    """[:func:`_pair_solve` of each request] (the warm start off): the same numbers, with the solves of
-    requests whose deflection laws have the same form (fixed sides, alike sides, elastica blend and drag on or off)
-    made at once on their stacked rows (:func:`_pair_equilibrium_many`)."""
-    cache = getattr(P, "_eq_cache", None)
-    out: list = [None] * len(reqs)
-    todo: dict = {}
-    for j, q in enumerate(reqs):
-        _, law0, law1, a_rad, push, d0, same, law_sig, laws, sp, lam, c_p = q
-        guess = None
-        if cache is not None and (cache["d0"] is d0 or (cache["d0"].shape == d0.shape
-                                                        and np.array_equal(cache["d0"], d0))) and cache["same"] == same:
-            if _same_law(law_sig, cache["law_sig"]) and np.array_equal(a_rad, cache["a_rad"]) \
-                    and np.array_equal(push, cache["push"]):
-                out[j] = (cache["da"], cache["db"])
-                continue
-            if law_sig[0] or law_sig[1]:
-                guess = np.where(cache["found"], cache["k"], N_GRID)
-        form = (sp[2], same, _on(lam), bool(c_p > 0))
-        todo.setdefault(form, []).append((j, guess))
-    for form, items in todo.items():
-        if len(items) == 1:
-            (j, guess), = items
-            q = reqs[j]
-            out[j] = _pair_equilibrium(q[1], q[2], q[3], q[4], q[5], q[6], guess=guess, gather=q[8])
-            continue
-        qs = [reqs[j] for j, _ in items]
-        m = qs[0][5].size
-        d0 = np.concatenate([q[5] for q in qs])
-        arrs = tuple(tuple(np.concatenate([q[9][0][c][k] for q in qs]) for k in range(6)) for c in range(2))
-        law = tuple(np.concatenate([q[9][1][c] for q in qs]) for c in range(2))
-
-        def per_row(vals):
-            """One coefficient of the stacked predictions: a scalar when they agree bitwise, else per row."""
-            vals = [float(v) for v in vals]
-            if all(v.hex() == vals[0].hex() for v in vals):
-                return vals[0]
-            return np.repeat(np.array(vals), m)
-
-        lam = per_row([q[10] for q in qs])
-        c_p = per_row([q[11] for q in qs])
-
-        def gather(sub, arrs=arrs, law=law, lam=lam, c_p=c_p, parent=_spec(arrs, law)[2]):
-            """(law0, law1, same) of the stacked rows ``sub``."""
-            sl = lambda x: x[sub] if np.ndim(x) else x      # noqa: E731
-            l0, l1, sm = _make_laws(_spec(tuple(tuple(a[sub] for a in side) for side in arrs),
-                                          tuple(x[sub] for x in law), parent), sl(lam))
-            if _on(c_p > 0):
-                l0 = _with_drag(l0, sl(c_p))
-                l1 = l0 if sm else _with_drag(l1, sl(c_p))
-            return l0, l1, sm
-
-        law0, law1, same = gather(np.arange(d0.size))
-        guess = None if all(g is None for _, g in items) else \
-            np.concatenate([np.full(m, N_GRID) if g is None else g for _, g in items])
-        da, db = _pair_equilibrium_many(law0, law1, np.concatenate([q[3] for q in qs]),
-                                        np.concatenate([q[4] for q in qs]), d0, same, len(qs), guess, gather)
-        for b, (j, _) in enumerate(items):
-            out[j] = (da[b * m:(b + 1) * m], db[b * m:(b + 1) * m])
-    return out
-
-
-def _pair_equilibrium_many(law0, law1, a_rad, push, d0, same, nblk, guess, gather):
-    """:func:`_pair_equilibrium` of ``nblk`` pair solves at once, their rows stacked (blocks of equal size, equal rest
-    gaps): the bracket grid read as with ``guess`` (None: the whole grid for every row; a row of a solve without one
-    reads the whole grid, which gives the same bracket), and each block's refinement stopped where its own solve stops (all its rows converged), so that
-    every block's numbers are its own solve's, bit for bit."""
-    both, g = _gap_residual(law0, law1, a_rad, push, d0, same)
-    attract = a_rad / (d0 * d0) - push >= 0
-    ra, rb = both(-push)
-    far = np.where(attract, 0.02 * d0, d0 - ra - rb + 1e-12)
-    per = d0.size // nblk
-    found, _, a, fa, b, fb, G0, _ = _bracket(g, a_rad, push, d0, far, guess, gather)
-    exact = G0 == 0
-    tol = 1e-12 * np.max(d0)
-    live = np.ones(nblk, bool)
-    for _ in range(N_REFINE):
-        on = None if live.all() else np.repeat(live, per)
-        c, fc, flip = illinois_step(g, a, fa, b, fb)
-        if live.all():
-            a, fa = np.where(flip, b, a), np.where(flip, fb, 0.5 * fa)
-            b, fb = c, fc
-        else:
-            a, fa = np.where(on & flip, b, a), np.where(on, np.where(flip, fb, 0.5 * fa), fa)
-            b, fb = np.where(on, c, b), np.where(on, fc, fb)
-        live &= ~np.all(((np.abs(fc) <= tol) | ~found).reshape(nblk, per), axis=1)     # as each solve stops
-        if not np.any(live):
-            break
-    d = np.where(exact, d0, b)
-    found = found | exact
-    load = a_rad / (d * d) - push
-    da, db = both(load)
-    return np.where(found, da, 0.5 * d0), np.where(found, db, 0.5 * d0)
-
-
-def _pair_warm(c, law0, law1, a_rad, push, d0, same, laws):
-    """Pair equilibrium from the cached full solve ``c`` (:func:`_pair_solve`): one Newton step from its root with its
-    slope.  A row keeps it if the gap residual changed, at the root and at the grid point of smallest margin before
-    the bracketing cell, by less than 1/WARM_SAFETY of that margin (no grid sign before the root can have flipped:
-    the full solve would stop at the same root) and the step lands within the full solve's tolerance; any other row
-    is solved by :func:`_pair_equilibrium` with that tolerance."""
-    def g(d):
-        load = a_rad / (d * d) - push
-        da = law0(load)
-        db = da if same else law1(load)
-        return d0 - d - da - db, da, db
-
-    root, tol = c["d"], c["tol"]
-    dj = d0 + np.linspace(0.0, 1.0, N_GRID + 1)[c["jmin"]] * (c["far"] - d0)
-    with np.errstate(all="ignore"):
-        attract = a_rad / (d0 * d0) - push >= 0
-        (g0, gj), DA, DB = g(np.stack([root, dj]))
-        change = np.maximum(np.abs(g0 - c["fb"]), np.abs(gj - c["Gj"]))
-        found = c["found"] & ~c["exact"]
-        # a row at rest (G = 0 at d0: no load) stays there while it has no load
-        good = (attract == c["attract"]) & np.where(
-            c["exact"], g0 == 0, c["conv"] & (c["margin"] > WARM_SAFETY * change))
-        da, db = DA[0], DB[0]
-        step = found & good & ~(np.abs(g0) <= tol)
-        if np.any(step):
-            d1 = root - g0 / c["slope"]
-            f1, da1, db1 = g(d1)
-            good &= ~step | (np.abs(f1) <= tol)
-            da, db = np.where(step, da1, da), np.where(step, db1, db)
-    live = c["found"] | c["exact"]
-    da, db = np.where(live, da, 0.5 * d0), np.where(live, db, 0.5 * d0)
-    bad = ~good
-    if np.any(bad):
-        l0, l1, sm = laws(bad)
-        ra, rb = _pair_equilibrium(l0, l1, a_rad[bad], push[bad], d0[bad], sm, tol=tol)
-        da[bad], db[bad] = ra, rb
-    return da, db

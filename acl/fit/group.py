@@ -26,169 +26,42 @@ them.  A node alone (a body) feels loads that do not depend on where it is: one 
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
 from acl.fit import beam as B
+from acl.fit.effects import GAP_REF
+from acl.fit.group_block import LAW, GroupBlock, block, stack  # noqa: F401  (re-exported)
 from acl.physics.effects import drag_load, elastica_blend, mode_response_ratio, substrate_factor
-from acl.physics.forces import jet_drag
+from acl.physics.forces import capsule_forces
 
 N_STEPS = 8
 N_NEWTON = 12
-LAW = {"beam": 0, "spring": 1, "fixed": 2, "latch": 3}
+N_CHORD = 6           # chord steps at most (each must halve the residual) before Newton takes over
+STALL = 3          # Newton iterations without halving a row's residual after which it has no equilibrium near its start
+
+SNAP_KEEP = 0.04      # relative change of a snapped row's loads at rest (and of its laws) that keeps it snapped
 
 
-@dataclass
-class GroupBlock:
-    """The rows of one group (or body) in one override set, with everything row-independent precomputed."""
-
-    rows: np.ndarray          # (r,) row indices into the data set
-    caps: tuple               # C capsule names
-    law: np.ndarray           # (N,) node law: 0 beam, 1 spring, 2 fixed, 3 latch
-    L: np.ndarray             # (N,)
-    l: np.ndarray
-    EI: np.ndarray
-    cd: np.ndarray            # spring: compliance
-    basis: np.ndarray         # (N, 3, 2) directions each node allows (zero-padded)
-    k: np.ndarray             # (N,) how many
-    latch: list               # (N,) latch table of each latch node (acl.fit.forward.latch_table), else None
-    latch_geo: list           # (N,) its geometry (angle, length, width, thickness, E), else None
-    cap_node: np.ndarray      # (C,) node of each capsule
-    rest: np.ndarray          # (C, 3) capsule centres at rest
-    outer: np.ndarray         # (C,) radius a jet drags
-    cap_height: np.ndarray    # (C,) first orifice's height (substrate_proximity, as the analysis)
-    orif_cap: np.ndarray      # (n,) capsule of each orifice
-    offsets: np.ndarray       # (n, 3)
-    normals: np.ndarray       # (n, 3) outward normals (the jets)
-    labels: tuple             # n "capsule.orifice"
-    tau: np.ndarray           # (r, T, n) thrust per V^2 of each orifice relative to gamma0
-    arel: np.ndarray          # (r, T, n, n) Bjerknes coefficient per V^2 relative to the reference pair at f_ref
-    fn: np.ndarray            # (n,) natural frequency of the mode each orifice dominates (Hz)
-    q: np.ndarray             # (n,)
-    tables: list              # per orifice (ln V/V0, ln f/f0) of its mode (bubble shrinkage)
-    kind: np.ndarray          # (r,) observable kind: 0 gap, 1 displacement, 2 position, 3 latch state
-    oi: np.ndarray            # (r,) gap: orifice a; else the capsule observed
-    oj: np.ndarray            # (r,) gap: orifice b
-    axis: np.ndarray          # (r, 3) displacement axis / position unit vector
-    obase: np.ndarray         # (r,) position: rest coordinate
-    neighboured: np.ndarray = None  # (N,) bool: neighbour_drag acts on the node (acl.fit.mechanism.Network)
-    springs: list = None      # (N,) per node: ((stiffness, unit axis), ...) of springs tying it to fixed points
-    engines: list = None      # [acl.analysis.acoustics force engine of every drive frequency of the rows at 1 V]
-    fidx: np.ndarray = None   # (r, T) index of each tone's frequency in that engine (-1: no tone)
-    orif_ix: np.ndarray = None    # (n,) each orifice's interface index in the design (acl.analysis.acoustics layout)
-    cap_ix: np.ndarray = None     # (C,) each capsule's index in the design
-    all_rest: np.ndarray = None   # (C_all, 3) every capsule centre of the design at rest
-    gamma0: float = 1.0
-    alpha_ref: float = 0.0
-    gmask: np.ndarray = None  # (n,) bool: gamma scales this orifice's thrust (acl.fit.forward.Prepared.gamma_caps)
-    cache: np.ndarray = None  # (r, m) last equilibrium found per row (warm start of the next evaluation)
-    closing: np.ndarray = None    # (r, 2) the orifice pair in contact of each row past snap-in at the last evaluation
-    fold: tuple = None            # ((r,) last stable continuation step of the rows that snapped, (r, m) configuration)
-
-    def contact_rows(self):
-        return self.closing[:, 0] >= 0 if self.closing is not None else np.zeros(self.rows.size, bool)
-
-    @property
-    def points(self) -> np.ndarray:
-        """(n, 3) orifice centres at rest."""
-        return self.rest[self.orif_cap] + self.offsets
-
-    @property
-    def orif_node(self) -> np.ndarray:
-        return self.cap_node[self.orif_cap]
+def _still_snapped(blk: GroupBlock, was, sig) -> np.ndarray:
+    """(r,) bool: rows in contact at the last evaluation whose branch folded at a continuation step below the last
+    (the fold at most (N_STEPS - 1)/N_STEPS of the full load) and whose thrust and Bjerknes sums at rest changed by at
+    most SNAP_KEEP relative since they were last followed, the stiffness, elastica weight, gradient, gap exponent and
+    neighbour drag by at most SNAP_KEEP: the fold cannot have moved past full load (it would take a change of
+    1/N_STEPS = 12.5 %), so the row is still in contact without being followed again."""
+    if blk.fold is None or blk.fold[0].shape != was.shape:
+        return np.zeros(was.shape, bool)
+    return was & _unchanged(blk, sig) & (blk.fold[0] <= N_STEPS - 2)
 
 
-def block(inst, unit, name, rows, f, v, gamma0, alpha_ref, ftable) -> GroupBlock:
-    """Precompute a group's rows (``name`` the observable; ``ftable(volume, radii, mode, medium)`` the table of the
-    natural frequency of a capsule's mode against its gas volume, for bubble shrinkage)."""
-    from acl.fit.forward import latch_table
-    from acl.fit.mechanism import _target_capsule, orifice_forces_per_v2
-
-    net = unit.net
-    sides = unit.sides
-    N = len(sides)
-    r, T = len(rows), f.shape[1]
-    basis = np.zeros((N, 3, 2))
-    k = np.zeros(N, int)
-    law = np.array([LAW[s.law] for s in sides])
-    for i, s in enumerate(sides):
-        k[i] = s.basis.shape[1] if s.law != "fixed" else 0
-        basis[i, :, :k[i]] = s.basis[:, :k[i]]
-    cd = np.zeros(N)
-    for i, s in enumerate(sides):
-        if s.law == "beam":
-            cd[i] = B.stiffness_integrals(np.array([s.L]), np.array([s.l]), np.array([s.EI]))[0][0]
-        elif s.law == "spring":
-            cd[i] = s.compliance
-    latch = [latch_table(s.latch) if s.law == "latch" else None for s in sides]
-    latch_geo = [s.latch if s.law == "latch" else None for s in sides]
-    n = len(net.labels)
-    tau = np.zeros((r, T, n))
-    arel = np.zeros((r, T, n, n))
-    fr, vr = f[rows], v[rows]
-    for fk in np.unique(fr[vr > 0]):
-        m = (fr == fk) & (vr > 0)
-        labels, thr, att = orifice_forces_per_v2(inst, fk)
-        ix = np.array([labels.index(lab) for lab in net.labels])
-        tau += m[:, :, None] * (thr[ix] / gamma0)[None, None, :]
-        if alpha_ref:
-            arel += m[:, :, None, None] * (att[np.ix_(ix, ix)] / alpha_ref)[None, None]
-    obs = inst.design.observe(name)
-    kind = np.zeros(r, int)
-    oi = np.zeros(r, int)
-    oj = np.zeros(r, int)
-    axis = np.zeros((r, 3))
-    obase = np.zeros(r)
-    if obs.kind == "gap":
-        oi[:], oj[:] = net.labels.index(obs.a), net.labels.index(obs.b)
-    else:
-        cap = _target_capsule(inst.design, obs)
-        oi[:] = net.caps.index(cap)
-        if obs.kind == "state":
-            kind[:] = 3
-        elif obs.kind == "displacement":
-            kind[:] = 1
-            axis[:] = np.asarray(obs.axis, float) / np.linalg.norm(obs.axis)
-        else:
-            kind[:] = 2
-            c = "xyz".index(obs.component)
-            axis[:, c] = 1.0
-            obase[:] = float(net.rest[oi[0], c])
-    med = inst.medium
-    tables = []
-    for o in range(n):
-        volume, radii, modes = net.bubbles[net.orif_cap[o]]
-        first = int(np.flatnonzero(net.orif_cap == net.orif_cap[o])[0])
-        tables.append(ftable(volume, radii, modes[o - first], med))
-    height = np.array([net.offsets[np.flatnonzero(net.orif_cap == c)[0], 2] + net.rest[c, 2]
-                       if np.any(net.orif_cap == c) else net.rest[c, 2] for c in range(len(net.caps))])
-    from acl.analysis.acoustics import _compute_engine, _layout
-    from acl.design.model import Drive, Tone
-
-    freqs = np.unique(fr[vr > 0])
-    fidx = np.full((r, T), -1)
-    for i, fk in enumerate(freqs):
-        fidx[(fr == fk) & (vr > 0)] = i
-    engines = []
-    if freqs.size:                # one force engine of every drive frequency of the rows at 1 V (per-tone responses)
-        key = ("eng", tuple(float(x) for x in freqs))
-        if key not in inst._tau:
-            inst._tau[key] = _compute_engine(inst.design, Drive(tones=tuple(Tone(frequency=float(x), amplitude=1.0)
-                                                                           for x in freqs)))
-        engines.append(inst._tau[key])
-    lay = _layout(inst.design)
-    names = [c.name for c in lay.caps]
-    extra = dict(engines=engines, fidx=fidx, orif_ix=np.array([lay.labels.index(lab) for lab in net.labels]),
-                 cap_ix=np.array([names.index(c) for c in net.caps]), all_rest=np.asarray(lay.rest, float),
-                 gamma0=float(gamma0), alpha_ref=float(alpha_ref), springs=[tuple(s.springs) for s in sides],
-                 neighboured=None if net.neighboured is None else np.asarray(net.neighboured, bool))
-    return GroupBlock(np.asarray(rows), net.caps, law, np.array([s.L for s in sides]), np.array([s.l for s in sides]),
-                      np.array([s.EI for s in sides]), cd, basis, k, latch, latch_geo, np.asarray(net.cap_node, int),
-                      np.asarray(net.rest, float), np.asarray(net.outer, float), height,
-                      np.asarray(net.orif_cap, int), np.asarray(net.offsets, float), np.asarray(net.normals, float),
-                      tuple(net.labels), tau, arel, net.modes[:, 0].copy(), net.modes[:, 1].copy(), tables,
-                      kind, oi, oj, axis, obase, **extra)
+def _unchanged(blk: GroupBlock, sig) -> np.ndarray:
+    """(r,) bool: rows whose loads at rest and laws (``sig``) changed by at most SNAP_KEEP since they were last
+    followed (:func:`_still_snapped`)."""
+    prev = blk.__dict__.get("verified")
+    if prev is None or prev.shape != sig.shape:
+        return np.zeros(sig.shape[0], bool)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        rel = np.abs(sig[:, :2] / prev[:, :2] - 1.0)
+    return (rel <= SNAP_KEEP).all(axis=1) & (np.abs(sig[:, 2:] - prev[:, 2:]) <= SNAP_KEEP).all(axis=1)
 
 
 def _mode_factors(P, blk, coeffs, effects, t):
@@ -227,33 +100,155 @@ def _mode_factors(P, blk, coeffs, effects, t):
     return np.where(np.isfinite(out), out, 0.0)
 
 
+def _distinct_rows(P, blk: GroupBlock, timed: bool = True):
+    """(block of the distinct rows, index of each row's) when rows repeat (repeated ramps: every input of a row's
+    prediction, its tones, observable and, when ``timed`` (bubble shrinkage acts: the only input of a group's
+    prediction that reads the time), its time, bitwise the same), else None; made once per block and ``timed``."""
+    tag = ("distinct", bool(timed))
+    if tag not in blk.__dict__:
+        import dataclasses
+
+        r = blk.rows
+        mem = blk.member if blk.member is not None else np.zeros(r.size)
+        key = np.column_stack([P.f[r], P.v[r]] + ([P.t[r]] if timed else [])
+                              + [blk.kind, blk.oi, blk.oj, blk.axis, blk.obase, blk.fidx, mem.astype(float)])
+        _, first, inv = np.unique(np.ascontiguousarray(key).view(np.uint64), axis=0, return_index=True,
+                                  return_inverse=True)
+        red = None
+        if first.size < r.size:
+            order = np.argsort(first)
+            rank = np.empty_like(order)
+            rank[order] = np.arange(order.size)
+            keep = first[order]
+            per_row = {k: getattr(blk, k)[keep] for k in ("rows", "tau", "arel", "kind", "oi", "oj", "axis", "obase",
+                                                         "fidx", "member") if getattr(blk, k) is not None}
+            red = (dataclasses.replace(blk, cache=None, closing=None, fold=None, **per_row), keep, rank[inv.ravel()])
+        blk.__dict__[tag] = red
+    return blk.__dict__[tag]
+
+
+class Request:
+    """What a prediction (acl.fit.forward._predict_steps) asks of its groups: the arguments of :func:`predict` of each
+    block of P.groups; answered by [(change, snapped, ratio) of each block]."""
+
+    def __init__(self, P, args: list):
+        self.P, self.args = P, args
+
+    def answer(self) -> list:
+        return [predict(self.P, blk, *a) for blk, a in zip(self.P.groups, self.args)]
+
+    @staticmethod
+    def answer_many(requests: list) -> list:
+        """[r.answer() for r in requests] (requests of one data set), each block's rows of every request in one
+        :func:`predict_many`."""
+        if not requests:
+            return []
+        P = requests[0].P
+        out: list = [[] for _ in requests]
+        for b, blk in enumerate(P.groups):
+            for t, ans in enumerate(predict_many(P, blk, [q.args[b] for q in requests])):
+                out[t].append(ans)
+        return out
+
+
 def predict(P, blk: GroupBlock, coeffs, effects, w, gamma, alpha, es, lam, grad, c_p) -> tuple:
     """(predicted observable change (m, relative to the row's ``base``), snapped (r,) bool, latch push / switching
     force (r,)) of the block's rows; ``w`` (r, T) the squared drive pressure per V^2 of each tone (gain, its effects),
-    the rest as in acl.fit.forward._predict."""
-    from acl.fit.forward import latch_travel_exact
+    the rest as in acl.fit.forward._predict.  Repeated rows are solved once (:func:`_distinct_rows`; each row's
+    inputs are the same, so is its number), unless a coefficient is given per row."""
+    return predict_many(P, blk, [(coeffs, effects, w, gamma, alpha, es, lam, grad, c_p)])[0]
 
+
+def predict_many(P, blk: GroupBlock, items) -> list:
+    """[:func:`predict` (P, blk, *item) for item in ``items``] with the rows of every item stacked into one batched
+    solve (a Jacobian's columns, a grid's points: the fixed cost of each call of the force model is paid once per
+    Newton iteration, not once per item).  Every item starts from the block's state of the last evaluation (warm
+    start, snapped rows, Jacobians), which is read, not replaced: the numbers agree with one prediction after the
+    other to the solver's tolerance (each row converges to 1e-9 of the group's smallest rest distance), not bit for
+    bit.  Latch blocks, per-row coefficients (``tone_weight``) or items that reduce their rows differently: one after
+    the other."""
+    K = len(items)
+    timed = ["bubble_shrinkage" in it[1] for it in items]
+    per_row = any("tone_weight" in it[0] for it in items)
+    if K > 1 and (per_row or len(set(timed)) > 1 or np.any(blk.law == LAW["latch"]) or np.any(blk.kind == 3)):
+        return [predict_many(P, blk, [it])[0] for it in items]
+    red = None if per_row else _distinct_rows(P, blk, timed[0])
+    if red is not None:
+        sub, keep, inv = red
+        outs = _predict_block(P, sub, [it[:2] + (it[2][keep],) + it[3:] for it in items])
+        return [(ch[inv], sn[inv], ra[inv]) for ch, sn, ra in outs]
+    return _predict_block(P, blk, items)
+
+
+_ROW_STATE = ("rows", "tau", "arel", "kind", "oi", "oj", "axis", "obase", "fidx", "member", "cache", "closing")
+
+
+def _tiled(blk: GroupBlock, K: int) -> GroupBlock:
+    """``blk`` with its rows and its state of the last evaluation repeated K times (one copy per stacked item), the
+    row-independent caches (coupled volumes at rest, per-frequency responses) shared."""
+    import dataclasses
+
+    def rep(a):
+        return None if a is None else np.concatenate([a] * K)
+
+    fields = {k: rep(getattr(blk, k)) for k in _ROW_STATE}      # (member None: one override set, as before)
+    fold = None if blk.fold is None else (rep(blk.fold[0]), rep(blk.fold[1]))
+    out = dataclasses.replace(blk, fold=fold, **fields)
+    for k in ("jcache", "verified"):
+        if blk.__dict__.get(k) is not None:
+            out.__dict__[k] = rep(blk.__dict__[k])
+    for k in ("u_rest", "per_f"):
+        if k in blk.__dict__:
+            out.__dict__[k] = blk.__dict__[k]
+    return out
+
+
+def _predict_block(P, blk: GroupBlock, items) -> list:
+    """:func:`predict_many` of every row of ``blk``: K items (coeffs, effects, w (r, T), gamma, alpha, es, lam, grad,
+    c_p), their rows stacked item after item; each coefficient enters as its item's value on its rows."""
+    from acl.fit.latch import latch_travel_exact
+
+    K = len(items)
+    r0 = blk.rows.size
+    base = blk
+    if K > 1:
+        blk = _tiled(blk, K)
     r, N, C, n = blk.rows.size, blk.law.size, len(blk.caps), blk.orif_cap.size
-    t = P.t[blk.rows]
-    res = _mode_factors(P, blk, coeffs, effects, t)
-    sub_c = np.ones(C)
-    if "substrate_proximity" in effects:
-        sub_c = substrate_factor(blk.cap_height, effects["substrate_proximity"]["h_substrate"])
-    sub = sub_c[blk.orif_cap]
+    kid = np.repeat(np.arange(K), r0)                                              # (r,) item of each row
+    # rest geometry of each row's override set (a stack of blocks, :func:`stack`, holds several; else one)
+    mem = blk.member if blk.member is not None else np.zeros(r, int)
+    REST = blk.rest if blk.rest.ndim == 3 else blk.rest[None]                     # (M, C, 3)
+    OFFS = blk.offsets if blk.offsets.ndim == 3 else blk.offsets[None]            # (M, n, 3)
+    ALL_REST = blk.all_rest if blk.all_rest.ndim == 3 else blk.all_rest[None]     # (M, C_all, 3)
+    t0 = P.t[base.rows]
+    res_k = [_mode_factors(P, base, it[0], it[1], t0) for it in items]
+    res = None if all(x is None for x in res_k) else \
+        np.concatenate([np.ones(base.tau.shape) if x is None else x for x in res_k])
+    w = np.concatenate([it[2] for it in items])
+    gamma = np.array([it[3] for it in items], float)
+    alpha = np.array([it[4] for it in items], float)
+    es = np.array([it[5] for it in items], float)
+    lam = np.array([it[6] for it in items], float)
+    grad_k = [it[7] for it in items]
+    c_p = np.array([it[8] for it in items], float)
+    sub_c = np.ones((K, C))
+    for k_, it in enumerate(items):
+        if "substrate_proximity" in it[1]:
+            sub_c[k_] = substrate_factor(blk.cap_height, it[1]["substrate_proximity"]["h_substrate"])
+    sub = sub_c[:, blk.orif_cap]                                                   # (K, n)
     wt = w[:, :, None] if res is None else w[:, :, None] * res
     # gamma scales the thrust of the orifices whose capsules declare it (every orifice when gmask is None)
-    g_o = np.full(n, gamma) if blk.gmask is None else np.where(blk.gmask, gamma, blk.gamma0)
-    thrust = (blk.tau * wt).sum(axis=1) * (g_o * sub)[None, :]                       # (r, n)
+    g_o = np.repeat(gamma[:, None], n, axis=1) if blk.gmask is None else np.where(blk.gmask[None], gamma[:, None],
+                                                                                   blk.gamma0)
+    thrust = (blk.tau * wt).sum(axis=1) * (g_o * sub)[kid]                         # (r, n)
     wab = w[:, :, None, None] if res is None else w[:, :, None, None] * np.sqrt(res[:, :, :, None] * res[:, :, None, :])
-    A = alpha * (blk.arel * wab).sum(axis=1) * np.sqrt(np.outer(sub, sub))[None]    # (r, n, n)
-    onehot = np.zeros((n, C))
-    onehot[np.arange(n), blk.orif_cap] = 1.0
-    to_node = np.zeros((C, N))
-    to_node[np.arange(C), blk.cap_node] = 1.0
-    own = np.einsum("ro,ok,oc->rck", thrust, -blk.normals, onehot)                  # (r, C, 3) own thrust
-    dragged = blk.orif_cap[:, None] != np.arange(C)[None, :]                         # (n, C): a jet drags others
+    root_sub = np.sqrt(sub[:, :, None] * sub[:, None, :])                         # (K, n, n)
+    A = alpha[kid][:, None, None] * (blk.arel * wab).sum(axis=1) * root_sub[kid]  # (r, n, n)
     beam = blk.law == 0
-    cd, ct = B.stiffness_integrals(blk.L, blk.l, blk.EI * es, grad)
+    cd = np.zeros((K, N))
+    ct = np.zeros((K, N))
+    for k_ in range(K):
+        cd[k_], ct[k_] = B.stiffness_integrals(blk.L, blk.l, blk.EI * es[k_], grad_k[k_])
     cd = np.where(beam, cd, blk.cd)
     ct = np.where(beam, ct, 0.0)
     l_ = np.where(beam, blk.l, 0.0)
@@ -262,89 +257,121 @@ def predict(P, blk: GroupBlock, coeffs, effects, w, gamma, alpha, es, lam, grad,
     offs = np.concatenate([[0], np.cumsum(blk.k)])
     slots = [(i, c) for i in range(N) for c in range(blk.k[i])]
     if N == 1:
-        c_p = 0.0                        # a body alone has no neighbour: neighbour_drag does not act
+        c_p = np.zeros(K)                # a body alone has no neighbour: neighbour_drag does not act
     tied = [(i, blk.springs[i]) for i in range(N) if blk.springs and blk.springs[i] and blk.k[i]]
+    n_gap = np.array([it[1]["bjerknes_shape"]["gap_exponent"] if "bjerknes_shape" in it[1] else 0.0 for it in items])
 
-    def law(i, load):
-        d = B.eq1_deflection(load, l_[i], cd[i], ct[i])
-        if lam and beam[i]:
-            d = elastica_blend(d, B.elastica_deflection(load, blk.L[i], blk.l[i], blk.EI[i] * es), lam)
+    def item(a, rows_):
+        """Per-item values (K, ...) on the rows ``rows_`` (one item: its value, broadcast)."""
+        return a[0] if K == 1 else a[kid[rows_]]
+
+    def law(i, load, rows_):
+        d = B.eq1_deflection(load, l_[i], item(cd[:, i], rows_), item(ct[:, i], rows_))
+        if lam.any() and beam[i]:
+            d = elastica_blend(d, B.elastica_deflection(load, blk.L[i], blk.l[i], blk.EI[i] * item(es, rows_)),
+                               item(lam, rows_))
         return d
 
+    SLOT = np.zeros((len(slots), N * 3))                                           # coordinate -> node displacement
+    for s_, (i_, c_) in enumerate(slots):
+        SLOT[s_, 3 * i_:3 * i_ + 3] = blk.basis[i_, :, c_]
+
     def disp(z):                                                                   # (r, m) -> (r, N, 3)
-        x = np.zeros((z.shape[0], N, 3))
-        for s, (i, c) in enumerate(slots):
-            x[:, i] += z[:, s, None] * blk.basis[i, :, c][None]
-        return x
+        return (z @ SLOT).reshape(z.shape[0], N, 3)
 
     moves = N > 1 and bool(blk.engines)
-    if moves:
-        wab_all = wab if res is not None else np.broadcast_to(wab, w.shape + (1, 1))
-        wt_all = np.broadcast_to(wt, w.shape + (n,))
-        a_scale = alpha / blk.alpha_ref if blk.alpha_ref else 1.0
-
-    if moves:
+    if blk.engines:
+        # the analysis' force engine of the rows' frequencies (at 1 V): its constants restricted to the group's
+        # orifices, with what the fit adds (gamma on the orifices it scales, alpha relative to the reference pair,
+        # the substrate factor, a Bjerknes gap shape); each row's drive (tones, gain effects, mode factors) weights
+        # its volumes per frequency and orifice, so that acl.physics.forces.capsule_forces gives the row's forces
         eng = blk.engines[0]
-        k_thr = eng.consts["thrust"][:, blk.orif_ix]                                  # (F, n) thrust per |dV/p|^2
-        k_att = (eng.consts["bjerknes"][np.ix_(blk.orif_ix, blk.orif_ix)][None]
-                 * eng.consts["w2p2"][:, None, None])                                 # (F, n, n)
-        nf = eng.f.size
+        ix = blk.orif_ix
+        a_scale = alpha / blk.alpha_ref if blk.alpha_ref else np.ones(K)
+        c_thrust = eng.consts["thrust"][:, ix][None] * (g_o / blk.gamma0 * sub)[:, None, :]           # (K, F, n)
+        c_bjerknes = eng.consts["bjerknes"][np.ix_(ix, ix)][None] * a_scale[:, None, None] * root_sub   # (K, n, n)
+        consts = {"w2p2": eng.consts["w2p2"], "other": eng.consts["other"][np.ix_(ix, ix)],
+                  "drag_mask": blk.orif_cap[:, None] != np.arange(C)[None, :], "gap_ref": GAP_REF}
 
-    def responses(xc, rows_):
-        """(thrust (B, n), Bjerknes attraction x distance^2 (B, n, n)) of the group's orifices with its capsules
-        displaced by xc: the analysis' coupled volumes at that configuration (acl.analysis.acoustics _Engine, one
-        linear solve per configuration for every frequency), each tone weighted by its drive, gain effects and mode
-        factors."""
-        Bn = xc.shape[0]
-        centres = np.repeat(blk.all_rest[None], Bn, axis=0)
-        centres[:, blk.cap_ix] += xc
-        u = eng.response(centres[:, eng.lay.body] + eng.lay.offsets)[:, :, blk.orif_ix]   # (B, F, n) per pascal
-        fi = blk.fidx[rows_]
-        W = np.zeros((Bn, nf, n))
-        Wab = np.zeros((Bn, nf, n, n))
-        wr, wabr = wt_all[rows_], wab_all[rows_]
-        b = np.arange(Bn)
-        for t in range(fi.shape[1]):
-            on = fi[:, t] >= 0
-            np.add.at(W, (b[on], fi[on, t]), wr[on, t])
-            np.add.at(Wab, (b[on], fi[on, t]), wabr[on, t])
-        thr = ((u.real**2 + u.imag**2) * k_thr[None] * W).sum(axis=1)
-        prod = (u[:, :, :, None] * np.conj(u[:, :, None, :])).real
-        att = (prod * k_att[None] * Wab).sum(axis=1)
-        return thr * (g_o / blk.gamma0 * sub)[None], att * a_scale * np.sqrt(np.outer(sub, sub))[None]
+        def consts_of(rows_):
+            """The force constants of the rows ``rows_`` (one item: its own, broadcast over the rows)."""
+            gap = float(n_gap[0]) if K == 1 else n_gap[kid[rows_]][:, None, None]
+            return {**consts, "thrust": item(c_thrust, rows_), "bjerknes": item(c_bjerknes, rows_),
+                    "gap_exponent": gap}
+        wt_all = np.broadcast_to(wt, w.shape + (n,))
+        Wf = np.zeros((r, eng.f.size, n))
+        for k_t in range(blk.fidx.shape[1]):
+            on = blk.fidx[:, k_t] >= 0
+            np.add.at(Wf, (np.flatnonzero(on), blk.fidx[on, k_t]), wt_all[on, k_t])
+        Wf = np.sqrt(Wf)
+        EOFF = blk.eoff if blk.eoff is not None else np.asarray(eng.lay.offsets, float)[None]   # (M, n_all, 3)
+        if "u_rest" not in blk.__dict__:      # the coupled volumes with every capsule at rest (per pascal, (M, F, n))
+            blk.__dict__["u_rest"] = eng.response(ALL_REST[:, eng.lay.body] + EOFF)[:, :, ix]
+        u_rest = base.__dict__["u_rest"] = blk.__dict__["u_rest"]
+        # rows of one tone need the coupled response at their frequency only: one response per frequency, each over
+        # its rows (the same equations at fewer frequencies, acl.physics.coupling.prepared_response)
+        # its rows; a row with no tone (0 V) feels no force whatever its volumes per pascal: none computed
+        single = moves and eng.f.size > 1 and bool(np.all(blk.fidx[:, 1:] < 0))
+        if single and "per_f" not in blk.__dict__:
+            from acl.physics import constants as PC
+            from acl.physics.coupling import prepared_response
 
-    def loads(z, scale, rows_=slice(None)):
-        """(node loads (r, N, 3), orifice distances (r, n, n), node displacements (r, N, 3)) at coordinates z."""
+            blk.__dict__["per_f"] = [prepared_response(eng.system, eng.f[k:k + 1], eng.rho, eng.c,
+                                                       PC.SUBSTRATE_REFLECTION,
+                                                       h0=None if eng.h0 is None else eng.h0[k:k + 1])
+                                     for k in range(eng.f.size)]
+            base.__dict__["per_f"] = blk.__dict__["per_f"]
+
+        def response(pos, rows_):
+            if not single:
+                return eng.response(pos)
+            fk = blk.fidx[rows_, 0]
+            u = np.zeros((pos.shape[0], eng.f.size, pos.shape[1]), complex)
+            for k in np.unique(fk[fk >= 0]):
+                sel = fk == k
+                u[sel, k] = blk.__dict__["per_f"][k](pos[sel])[:, 0]
+            return u
+    onehot = np.zeros((n, C))
+    onehot[np.arange(n), blk.orif_cap] = 1.0
+    to_node = np.zeros((C, N))
+    to_node[np.arange(C), blk.cap_node] = 1.0
+
+    def geometry(z, rows_=slice(None)):
+        """(node displacements (r, N, 3), capsule centres (r, C, 3), orifice centres (r, n, 3), their distances
+        (r, n, n)) at coordinates z of the rows ``rows_``."""
         x = disp(z)
         xc = x[:, blk.cap_node]                                                    # (r, C, 3)
-        p = blk.rest[None, blk.orif_cap] + blk.offsets[None] + xc[:, blk.orif_cap]  # (r, n, 3)
-        sep = p[:, None, :, :] - p[:, :, None, :]                                 # p_j - p_i (r, i, j, 3)
-        d = np.linalg.norm(sep, axis=-1)
-        np.einsum("rii->ri", d)[:] = 1.0
-        # two orifices in contact (d = 0) would give inf * 0 = NaN, which the sums below would spread to every node
-        dc = np.maximum(d, 1e-12)
-        if moves:            # the volumes where the capsules are (coupling through the liquid, as the analysis)
-            th, att = responses(xc, rows_)
-            # orifices in contact (past snap-in) make the coupled response singular: there, the volumes at rest
-            bad = ~(np.isfinite(th).all(axis=1) & np.isfinite(att).all(axis=(1, 2)))
-            if bad.any():
-                th[bad] = thrust[rows_][bad]
-                att[bad] = A[rows_][bad]
-            fb = np.einsum("rij,rijk->rik", att / dc**3, sep)
-            F = np.einsum("ro,ok,oc->rck", th, -blk.normals, onehot) + np.einsum("rok,oc->rck", fb, onehot)
-        else:                # a body alone: nothing moves relative to it that it feels
-            th = thrust[rows_]
-            fb = np.einsum("rij,rijk->rik", A[rows_] / dc**3, sep)                # attraction of each i towards j
-            F = own[rows_] + np.einsum("rok,oc->rck", fb, onehot)
-        centres = blk.rest[None] + xc
-        xo = centres[:, None, :, :] - p[:, :, None, :]                            # (r, n, C, 3) orifice -> capsule
-        dist = np.linalg.norm(xo, axis=-1)
-        cos = np.einsum("rock,ok->roc", xo, blk.normals) / np.where(dist > 0, dist, 1.0)
-        drag = jet_drag(th[:, :, None], np.where(dragged, dist, 1.0), cos, blk.outer[None, None, :]) * dragged
-        F = F + np.einsum("roc,ok->rck", drag, blk.normals)
+        mr = mem[rows_]
+        centres = REST[mr] + xc
+        p = centres[:, blk.orif_cap] + OFFS[mr]                                    # (r, n, 3)
+        d = np.linalg.norm(p[:, None, :, :] - p[:, :, None, :], axis=-1)
+        return x, centres, p, d
+
+    def loads(z, scale, rows_=slice(None)):
+        """(node loads (r, N, 3), orifice distances (r, n, n), node displacements (r, N, 3)) at coordinates z: the
+        analysis' force model (acl.physics.forces.capsule_forces) of the group's capsules at their positions, the
+        coupled volumes where the capsules are (a body alone: at rest, nothing moves relative to it)."""
+        x, centres, p, d = geometry(z, rows_)
+        if blk.engines:
+            mr = mem[rows_]
+            if moves:
+                allc = ALL_REST[mr]
+                allc[:, blk.cap_ix] = centres
+                u = response(allc[:, eng.lay.body] + EOFF[mr], rows_)[:, :, blk.orif_ix]  # (B, F, n) per Pa
+                # orifices in contact (past snap-in) make the coupled response singular: there, the volumes at rest
+                bad = ~np.isfinite(u).all(axis=(1, 2))
+                if bad.any():
+                    u[bad] = u_rest[mr[bad]]
+            else:
+                u = u_rest[mr]
+            F = capsule_forces(centres, blk.orif_cap, OFFS[0], blk.normals, onehot, blk.outer,
+                               u * Wf[rows_], consts_of(rows_), points=p)[0]
+        else:                                                                      # no tone: no acoustic force
+            F = np.zeros((z.shape[0], C, 3))
         Fn = scale[:, None, None] * np.einsum("rck,cn->rnk", F, to_node)
-        if c_p > 0:
-            dragged_n = drag_load(Fn, np.linalg.norm(x, axis=-1)[..., None], c_p)
+        if c_p.any():
+            cp = item(c_p, rows_)
+            dragged_n = drag_load(Fn, np.linalg.norm(x, axis=-1)[..., None], cp if K == 1 else cp[:, None, None])
             Fn = dragged_n if blk.neighboured is None else np.where(blk.neighboured[None, :, None], dragged_n, Fn)
         for i, ties in tied:             # springs to fixed points pull back along their axes (elastic, not scaled)
             for ks, ax in ties:
@@ -358,47 +385,134 @@ def predict(P, blk: GroupBlock, coeffs, effects, w, gamma, alpha, es, lam, grad,
             Pi = np.einsum("rk,kc->rc", Fn[:, i], blk.basis[i, :, :blk.k[i]])
             o = offs[i]
             if blk.law[i] == 3:                   # latch: along its axis from state a (a pull stretches its beams)
-                out[:, o] = latch_travel_exact(Pi[:, 0], blk.latch_geo[i], blk.latch[i], es)
+                out[:, o] = latch_travel_exact(Pi[:, 0], blk.latch_geo[i], blk.latch[i], item(es, rows_))
                 continue
             mag = np.linalg.norm(Pi, axis=1)
-            dl = law(i, mag)
+            dl = law(i, mag, rows_)
             out[:, o:o + blk.k[i]] = np.divide(Pi * dl[:, None], mag[:, None], out=np.zeros_like(Pi),
                                                where=mag[:, None] > 0)
         return out, d
 
-    pts0 = blk.points
-    rest_d = np.linalg.norm(pts0[None, :, :] - pts0[:, None, :], axis=-1)
+    PTS0 = REST[:, blk.orif_cap] + OFFS                                           # (M, n, 3) orifices at rest
     across = blk.orif_node[:, None] != blk.orif_node[None, :]                     # orifices of different nodes
-    rest_d = np.where(across, rest_d, np.inf)
-    scale_len = float(np.min(rest_d)) if np.isfinite(rest_d).any() else float(np.max(blk.L))
-    h = 1e-9 * scale_len
-    tol = 1e-6 * scale_len
+    REST_D = np.where(across[None], np.linalg.norm(PTS0[:, None, :, :] - PTS0[:, :, None, :], axis=-1), np.inf)
+    # per override set: the length scale of the finite-difference step and the tolerance (its smallest rest distance)
+    SCALE = np.array([float(np.min(rd)) if np.isfinite(rd).any() else float(np.max(blk.L)) for rd in REST_D])
+    H = (1e-9 * SCALE)[mem]                                                       # (r,)
+    TOL = (1e-6 * SCALE)[mem]
+    DEN = np.where(across[None], REST_D, 1.0)[mem]                                # (r, n, n) rest distances
+    scale_len = float(SCALE.min())
 
-    def jac(zl, sl, live, Fz):
-        """Finite-difference Jacobian of z - D(z): the m perturbed copies of every row in one evaluation of D."""
+    def DJ(zl, sl, live, at=None):
+        """(D(z), orifice distances, finite-difference Jacobian of z - D(z)) of every row: the row and its m perturbed
+        copies in one evaluation of D (per-call overhead dominates, so each Newton iteration is one call); ``at``:
+        (D(z), distances) already evaluated at zl (only the m copies are)."""
         nl = live.size
-        zp = np.repeat(zl[None], m, axis=0) + h * np.eye(m)[:, None, :]          # (m, nl, m)
-        Dp = D(zp.reshape(m * nl, m), np.tile(sl, m), np.tile(live, m))[0].reshape(m, nl, m)
-        return np.transpose(((zp - Dp) - Fz[None]) / h, (1, 2, 0))               # (nl, m rows, m cols)
+        h = H[live]
+        zp = np.concatenate([zl[None], zl[None] + h[None, :, None] * np.eye(m)[:, None, :]])    # (m + 1, nl, m)
+        if at is None:
+            Dp, dd = D(zp.reshape((m + 1) * nl, m), np.tile(sl, m + 1), np.tile(live, m + 1))
+            Dp = Dp.reshape(m + 1, nl, m)
+        else:
+            Dq, _ = D(zp[1:].reshape(m * nl, m), np.tile(sl, m), np.tile(live, m))
+            Dp, dd = np.concatenate([at[0][None], Dq.reshape(m, nl, m)]), at[1]
+        Fz = zl - Dp[0]
+        J = np.transpose(((zp[1:] - Dp[1:]) - Fz[None]) / h[None, :, None], (1, 2, 0))   # (nl, m rows, m cols)
+        return Dp[0], dd[:nl], J
 
-    def solve(z0, sl, live, iters=N_NEWTON):
-        """Newton on z - D(z) = 0 from z0; (z, stable equilibrium found, relative gaps (rows, n, n))."""
+    def chord(zl, sl, live, J0, Fz_all, d_all, J_all, fresh):
+        """Chord steps with each row's Jacobian of the last evaluation ``J0`` (warm start: the optimizer's previous
+        iterate), one evaluation of D per step; a row stops when converged (then its Jacobian is taken afresh at the
+        z it stopped at: stability is judged exactly as Newton judges it), when its residual fails to halve (it goes
+        on by Newton), or when it leaves the branch (Newton finds that too).  Fills the rows converged; returns the
+        indices of the rest."""
+        act = np.flatnonzero(np.isfinite(J0).all(axis=(1, 2)))
+        rest = np.setdiff1d(np.arange(live.size), act)
+        done = []
+        prev = np.full(act.size, np.inf)
+        for _ in range(N_CHORD):
+            if act.size == 0:
+                break
+            Dz, dd = D(zl[act], sl[act], live[act])
+            Fz = zl[act] - Dz
+            res = np.abs(Fz).max(axis=1)
+            near = np.where(across[None], dd / DEN[live[act]], np.inf).reshape(act.size, -1).min(axis=1)
+            conv = res <= 1e-3 * TOL[live[act]]
+            off = ~np.isfinite(Fz).all(axis=1) | (near <= 0.02) | (res > 0.5 * prev)
+            if conv.any():
+                # chord converges linearly: the row is within the tolerance, not at machine precision as Newton's
+                # quadratic steps leave it (a Jacobian column of the fit, a 1e-6 step, reads differences far below
+                # the tolerance); one Newton step with the Jacobian taken afresh there polishes it, and its residual
+                # and distances are those at the polished z (the Jacobian, one tolerance away, judges stability)
+                c = act[conv]
+                _, _, Jc = DJ(zl[c], sl[c], live[c], at=(Dz[conv], dd[conv]))
+                try:
+                    dz = np.linalg.solve(Jc, -Fz[conv][:, :, None])[:, :, 0]
+                except np.linalg.LinAlgError:
+                    dz = np.zeros_like(Fz[conv])
+                zl[c] = zl[c] + np.where(np.isfinite(dz), dz, 0.0)
+                Dc, dc = D(zl[c], sl[c], live[c])
+                Fz_all[c], d_all[c], J_all[c], fresh[c] = zl[c] - Dc, dc, Jc, True
+                done.append(c)
+            rest = np.concatenate([rest, act[off & ~conv]])
+            go = ~conv & ~off
+            act, Fz, prev = act[go], Fz[go], res[go]
+            if act.size:
+                try:
+                    dz = np.linalg.solve(J0[act], -Fz[:, :, None])[:, :, 0]
+                except np.linalg.LinAlgError:
+                    break
+                zl[act] = zl[act] + np.where(np.isfinite(dz), dz, 0.0)
+        return np.sort(np.concatenate([rest, act]).astype(int))
+
+    last: dict = {}
+
+    def solve(z0, sl, live, iters=N_NEWTON, J0=None):
+        """Newton on z - D(z) = 0 from z0; (z, stable equilibrium found, relative gaps (rows, n, n)).  A row's residual,
+        Jacobian and distances at the z it stops at are those of its last iteration (no second evaluation).  ``J0``
+        (rows, m, m; NaN: none): the rows' Jacobians of the last evaluation, for :func:`chord` steps first.  The
+        Jacobian of every row at the z it stops at is left in ``last["J"]``."""
         zl = z0.copy()
+        nl = live.size
+        Fz_all = np.zeros_like(zl)
+        d_all = np.zeros((nl, n, n))
+        J_all = np.zeros((nl, m, m))
+        fresh = np.zeros(nl, bool)          # rows whose stored evaluation is at their current zl
+        act = np.arange(nl)                 # rows still iterating: a row stops once converged, or once it has left
+        if J0 is not None:
+            act = chord(zl, sl, live, J0, Fz_all, d_all, J_all, fresh)
+        best = np.full(nl, np.inf)          # the branch (non-finite, or two orifices within 2 % of contact), or once
+        stalled = np.zeros(nl, int)         # STALL iterations in a row did not halve its smallest residual so far
         for _ in range(iters):
-            Dz, _ = D(zl, sl, live)
-            Fz = zl - Dz
-            if np.abs(Fz).max() <= 1e-3 * tol:
+            if act.size == 0:
+                break
+            Dz, dd, J = DJ(zl[act], sl[act], live[act])
+            Fz = zl[act] - Dz
+            Fz_all[act], d_all[act], J_all[act] = Fz, dd, J
+            fresh[act] = True
+            near = np.where(across[None], dd / DEN[live[act]], np.inf)
+            res = np.abs(Fz).max(axis=1)
+            stalled[act] = np.where(res <= 0.5 * best[act], 0, stalled[act] + 1)
+            best[act] = np.minimum(best[act], res)
+            stop = (res <= 1e-3 * TOL[live[act]]) | ~np.isfinite(Fz).all(axis=1) \
+                | (near.reshape(act.size, -1).min(axis=1) <= 0.02) | (stalled[act] >= STALL)
+            act, Fz, J = act[~stop], Fz[~stop], J[~stop]
+            if act.size == 0:
                 break
             try:
-                dz = np.linalg.solve(jac(zl, sl, live, Fz), -Fz[:, :, None])[:, :, 0]
+                dz = np.linalg.solve(J, -Fz[:, :, None])[:, :, 0]
             except np.linalg.LinAlgError:
                 break
-            zl = zl + np.where(np.isfinite(dz), dz, 0.0)
-        Dz, d = D(zl, sl, live)
-        Fz = zl - Dz
-        det = np.linalg.det(jac(zl, sl, live, Fz))
-        rel = np.where(across[None], d / np.where(across, rest_d, 1.0)[None], np.inf)
-        good = (np.abs(Fz).max(axis=1) <= tol) & (det > 0) & (rel.reshape(live.size, -1).min(axis=1) > 0.02)
+            zl[act] = zl[act] + np.where(np.isfinite(dz), dz, 0.0)
+            fresh[act] = False
+        stale = np.flatnonzero(~fresh)
+        if stale.size:
+            Dz, dd, J = DJ(zl[stale], sl[stale], live[stale])
+            Fz_all[stale], d_all[stale], J_all[stale] = zl[stale] - Dz, dd, J
+        det = np.linalg.det(J_all)
+        last["J"] = J_all
+        rel = np.where(across[None], d_all / DEN[live], np.inf)
+        good = (np.abs(Fz_all).max(axis=1) <= TOL[live]) & (det > 0) & (rel.reshape(nl, -1).min(axis=1) > 0.02)
         return zl, good, rel
 
     def solve_pinned(z0, rows, pinned, iters=N_NEWTON):
@@ -407,10 +521,13 @@ def predict(P, blk: GroupBlock, coeffs, effects, w, gamma, alpha, es, lam, grad,
         zl = z0.copy()
         sl = np.ones(rows.size)
         for _ in range(iters):
-            Fz = zl - D(zl, sl, rows)[0]
-            if free.size == 0 or np.abs(Fz[:, free]).max() <= 1e-3 * tol:
+            if free.size == 0:
                 break
-            J = jac(zl, sl, rows, Fz)[:, free][:, :, free]
+            Dz, _, J = DJ(zl, sl, rows)
+            Fz = zl - Dz
+            if np.all(np.abs(Fz[:, free]).max(axis=1) <= 1e-3 * TOL[rows]):
+                break
+            J = J[:, free][:, :, free]
             try:
                 dz = np.linalg.solve(J, -Fz[:, free, None])[:, :, 0]
             except np.linalg.LinAlgError:
@@ -423,7 +540,7 @@ def predict(P, blk: GroupBlock, coeffs, effects, w, gamma, alpha, es, lam, grad,
         fixed), projected on what their nodes allow; the rest of the group in equilibrium around them."""
         zc = warm.copy()
         ni, nj = blk.orif_node[i], blk.orif_node[j]
-        line = pts0[j] - pts0[i]
+        line = PTS0[mem[rows], j] - PTS0[mem[rows], i]                            # (rows, 3)
         share = (0.5, 0.5) if blk.k[ni] and blk.k[nj] else ((1.0, 0.0) if blk.k[ni] else (0.0, 1.0))
         pinned = []
         for node, sgn, sh in ((ni, 1.0, share[0]), (nj, -1.0, share[1])):
@@ -432,6 +549,16 @@ def predict(P, blk: GroupBlock, coeffs, effects, w, gamma, alpha, es, lam, grad,
                 zc[:, o:o + k] = (sgn * sh * line) @ blk.basis[node, :, :k]
                 pinned.extend(range(o, o + k))
         return solve_pinned(zc, rows, np.array(pinned, int))
+
+    def fold_rows(bad, step, closing, snapped, last_good, z):
+        """No stable equilibrium at load ``step`` next to the last one (z): the branch folded (snap-in); the orifices
+        closest to touching at that last stable configuration close."""
+        d_bad = geometry(z[bad], bad)[3]       # distances only (no loads): as solve(..., iters=0) gives them
+        rel = np.where(across[None], d_bad / DEN[bad], np.inf)
+        flat = rel.reshape(bad.size, -1).argmin(axis=1)
+        closing[bad] = np.column_stack(np.unravel_index(flat, (n, n)))
+        snapped[bad] = True
+        last_good[bad] = step - 1
 
     snapped = np.zeros(r, bool)
     closing = np.zeros((r, 2), int)
@@ -447,22 +574,55 @@ def predict(P, blk: GroupBlock, coeffs, effects, w, gamma, alpha, es, lam, grad,
         was = blk.contact_rows() if blk.cache is not None and blk.cache.shape == (r, m) else np.zeros(r, bool)
         z = np.zeros((r, m))
         good = np.zeros(r, bool)
-        tried = everyone[~was]                      # rows in contact last time go straight to their continuation
+        jnew = np.full((r, m, m), np.nan)             # Jacobian at each row's equilibrium at full load (next warm start)
+        # rows that snapped last time with their fold at least one continuation step (1/N_STEPS of the load) below full
+        # load, whose loads at rest and laws have changed since by far less than that step: still past their fold
+        sig = np.column_stack([thrust.sum(axis=1), np.abs(A).sum(axis=(1, 2)),
+                               np.column_stack([np.log(es), lam, [g or 0.0 for g in grad_k], n_gap,
+                                                c_p * scale_len])[kid]])
+        kept = _still_snapped(blk, was, sig)
+        if kept.any():
+            snapped[kept] = True
+            closing[kept] = blk.closing[kept]
+            was = was & ~kept
+        tried = everyone[~was & ~kept]               # rows in contact last time go straight to their continuation
+        J0 = None
         if tried.size:
-            z[tried], good[tried], _ = solve(start[tried], np.ones(tried.size), tried, 8)
-        todo = everyone[~good]
+            jc = blk.__dict__.get("jcache")
+            J0 = jc[tried] if jc is not None and jc.shape == (r, m, m) and blk.cache is not None else None
+            z[tried], good[tried], _ = solve(start[tried], np.ones(tried.size), tried, 8, J0=J0)
+            jnew[tried[good[tried]]] = last["J"][good[tried]]
+        todo = everyone[~good & ~kept]
         first = np.ones(r, int)                       # first continuation step of each row
+        fold_at = np.zeros(r, int)                    # rows whose restart failed: the step it failed at
         if todo.size:
             z[todo] = 0.0
             if blk.fold is not None and blk.fold[0].shape == (r,):
-                # rows that folded at the last evaluation: restart from their last stable step (not from rest)
+                # rows that folded at the last evaluation: restart from their last stable step (not from rest); rows
+                # in equilibrium at full load at the last evaluation (a Jacobian kept) that are no longer: from that
+                # equilibrium at the step below full load.  One solve; a row that fails there starts from rest.
                 k_prev, z_prev = blk.fold
-                again = todo[k_prev[todo] > 0]
+                had = np.isfinite(J0).all(axis=(1, 2)) if J0 is not None else np.zeros(tried.size, bool)
+                held = np.zeros(r, bool)
+                held[tried[had]] = True
+                again = todo[(k_prev[todo] > 0) | held[todo]]
                 if again.size:
-                    zl, ok, _ = solve(z_prev[again], k_prev[again] / N_STEPS, again)
+                    k0 = np.where(held[again], N_STEPS - 1, k_prev[again])
+                    z0 = np.where(held[again][:, None], start[again], z_prev[again])
+                    zl, ok, _ = solve(z0, k0 / N_STEPS, again)
                     z[again[ok]] = zl[ok]
-                    first[again[ok]] = k_prev[again[ok]] + 1
-        last_good = np.zeros(r, int)
+                    first[again[ok]] = k0[ok] + 1
+                    # no stable equilibrium at step k0 next to the last one found there, the loads at rest and the
+                    # laws within SNAP_KEEP of those it was found at (a start closer than a continuation step's, of
+                    # 1/N_STEPS): the fold is below k0, as a continuation from rest would find it; else from rest
+                    lost = ~ok & _unchanged(blk, sig)[again]
+                    z[again[lost]] = z0[lost]
+                    fold_at[again[lost]] = k0[lost]
+        last_good = np.where(kept, blk.fold[0] if kept.any() else 0, 0)
+        lost = np.flatnonzero(fold_at)
+        if lost.size:
+            fold_rows(lost, fold_at[lost], closing, snapped, last_good, z)
+            todo = np.setdiff1d(todo, lost)
         for step in range(1, N_STEPS + 1):
             rows_ = todo[first[todo] <= step]
             if todo.size == 0:
@@ -471,30 +631,32 @@ def predict(P, blk: GroupBlock, coeffs, effects, w, gamma, alpha, es, lam, grad,
                 continue
             zl, ok, rel = solve(z[rows_], np.full(rows_.size, step / N_STEPS), rows_)
             z[rows_[ok]] = zl[ok]
+            if step == N_STEPS:
+                jnew[rows_[ok]] = last["J"][ok]
             last_good[rows_[ok]] = step
             bad = rows_[~ok]
             if bad.size:
-                # no stable equilibrium next to the last one: the branch folded (snap-in); the orifices closest to
-                # touching at the last stable configuration close
-                _, _, rel = solve(z[bad], np.full(bad.size, (step - 1) / N_STEPS), bad, 0)
-                flat = rel.reshape(bad.size, -1).argmin(axis=1)
-                closing[bad] = np.column_stack(np.unravel_index(flat, (n, n)))
-                snapped[bad] = True
-                last_good[bad] = step - 1
+                fold_rows(bad, np.full(bad.size, step), closing, snapped, last_good, z)
             todo = np.setdiff1d(todo, bad)
-        blk.fold = (np.where(snapped, last_good, 0), z.copy())
-        for i, j in {(int(a), int(b)) for a, b in closing[snapped]}:
+        blk.fold = (np.where(snapped, last_good, 0), np.where(kept[:, None], blk.fold[1], z) if kept.any() else z.copy())
+        prev = blk.__dict__.get("verified")
+        blk.__dict__["verified"] = np.where(kept[:, None], prev, sig) if kept.any() else sig
+        for i, j in (np.unique(closing[snapped], axis=0) if snapped.any() else ()):
             sel = np.flatnonzero(snapped & (closing[:, 0] == i) & (closing[:, 1] == j))
             warm = start[sel] if blk.cache is not None else z[sel]
             z[sel] = _contact(z, sel, i, j, warm)
         blk.cache = z.copy()
+        blk.__dict__["jcache"] = jnew
         blk.closing = np.where(snapped[:, None], closing, -1)
-    Fn, _, x = loads(z, np.ones(r), everyone)
+    if np.any(blk.kind == 3):             # a latch state reads the loads; every other observable the geometry
+        Fn, _, x = loads(z, np.ones(r), everyone)
+    else:
+        x = disp(z)
     xc = x[:, blk.cap_node]
-    p = blk.rest[None, blk.orif_cap] + blk.offsets[None] + xc[:, blk.orif_cap]
+    p = PTS0[mem] + xc[:, blk.orif_cap]
     rr = np.arange(r)
     gap = np.linalg.norm(p[rr, blk.oj] - p[rr, blk.oi], axis=1)
-    rest_gap = np.linalg.norm(pts0[blk.oj] - pts0[blk.oi], axis=1)
+    rest_gap = np.linalg.norm(PTS0[mem, blk.oj] - PTS0[mem, blk.oi], axis=1)
     contact = snapped & (((closing[:, 0] == blk.oi) & (closing[:, 1] == blk.oj))
                          | ((closing[:, 0] == blk.oj) & (closing[:, 1] == blk.oi)))
     gap = np.where(contact, 0.0, gap)
@@ -506,5 +668,7 @@ def predict(P, blk: GroupBlock, coeffs, effects, w, gamma, alpha, es, lam, grad,
         if blk.law[i] == 3:
             sel = (blk.kind == 3) & (node == i)
             push = np.einsum("rk,k->r", Fn[sel, i], blk.basis[i, :, 0])
-            ratio[sel] = np.maximum(push, 0.0) / (blk.latch[i][2] * es)
-    return np.where(blk.kind == 0, gap - rest_gap, moved), snapped, ratio
+            ratio[sel] = np.maximum(push, 0.0) / (blk.latch[i][2] * item(es, np.flatnonzero(sel)))
+    change = np.where(blk.kind == 0, gap - rest_gap, moved)
+    return [(change[k_ * r0:(k_ + 1) * r0], snapped[k_ * r0:(k_ + 1) * r0], ratio[k_ * r0:(k_ + 1) * r0])
+            for k_ in range(K)]

@@ -71,6 +71,7 @@ class Instance:
     units: dict                            # observable name -> Unit
     medium: tuple                          # (density, surface tension, ambient pressure, polytropic index)
     _tau: dict = field(default_factory=dict)
+    declared: dict = field(default_factory=dict)   # the design's declared effects in the fit's coordinates
 
     @property
     def kind(self):
@@ -277,10 +278,11 @@ def _check_direction(design, unit, obs) -> None:
                        "observe a direction the body moves in")
 
 
-MODELS = ("eq3", "coupled")     # the force model of a simple pair (`acl fit --model`)
+MODELS = ("coupled", "eq3")     # the force model of a simple pair (`acl fit --model`): the analysis' own
+                                # (default) or paper Eq. (3), a declared reduced model
 
 
-def build_instance(design, model: str = "eq3", coupled: bool = False) -> Instance:
+def build_instance(design, model: str = "coupled", coupled: bool = False) -> Instance:
     """Cut a resolved design into units, one per observable (raises E810 for unsupported mechanisms).
 
     ``model``: how a simple pair (two single-orifice capsules on their own supports) is modelled: ``eq3`` paper
@@ -294,8 +296,12 @@ def build_instance(design, model: str = "eq3", coupled: bool = False) -> Instanc
     included."""
     from acl.analysis.acoustics import medium_constants
 
-    # the fit's base model is the design without declared effects (the fit adds them itself: a
-    # calibrated design fitted again must not apply them twice)
+    # the design's declared effects (a calibration, a calibrated design fitted again) act in the fit's base model as
+    # fixed effects of the fit (acl.fit.effects.declared_effects; a fitted effect of the same id replaces them), so
+    # they are taken off the design here (applied once, by the fit)
+    from acl.fit.effects import declared_effects
+
+    declared = declared_effects(design)
     design = design.model_copy(update={"effects": ()}) if design.effects else design
     if not design.observes:
         raise DiagnosticError([error("E810", "the design declares no `observe`: nothing to fit",
@@ -383,7 +389,7 @@ def build_instance(design, model: str = "eq3", coupled: bool = False) -> Instanc
         net.neighboured = np.array([any(node.get(c) == i and c in near for c in net.caps)
                                     for i in range(int(net.cap_node.max()) + 1)], bool)
         med = medium_constants(design)
-        return Instance(design=design, units=units,
+        return Instance(design=design, declared=declared, units=units,
                         medium=(med.density, med.surface_tension, med.ambient_pressure, med.polytropic_index))
     for o in design.observes:
         if o.kind == "gap":
@@ -415,7 +421,7 @@ def build_instance(design, model: str = "eq3", coupled: bool = False) -> Instanc
             units_by_caps[(cap,)] = Unit("single", (_side(design, cap, t / np.linalg.norm(t)),))
         units[o.name] = units_by_caps[(cap,)]
     med = medium_constants(design)
-    return Instance(design=design, units=units,
+    return Instance(design=design, declared=declared, units=units,
                     medium=(med.density, med.surface_tension, med.ambient_pressure, med.polytropic_index))
 
 
@@ -500,7 +506,7 @@ def _group(design, caps, obs) -> Unit:
     body moving alone; each node on its own support.  Forces per orifice as in acl.analysis.acoustics.force_model:
     thrust along -n, secondary Bjerknes force between every two orifices of different capsules (paper Eq. (3)),
     the Schlichting jet of every orifice dragging every other capsule (acl.physics.forces.jet_drag)."""
-    from acl.analysis.acoustics import _outer_radius
+    from acl.analysis.rows import outer_radius
 
     caps = list(caps)
     for name in caps:        # a truss's other end interacts with the body it holds (paper Fig. 5a bars): include it
@@ -538,7 +544,7 @@ def _group(design, caps, obs) -> Unit:
     if not labels:
         raise _unsupported(obs, "no capsule of the group has an orifice: nothing pushes")
     net = Network(names, np.array([node_of[n] for n in names]), np.array([design.capsule(n).center for n in names], float),
-                  np.array([_outer_radius(design.capsule(n)) for n in names]), tuple(labels), np.array(orif_cap),
+                  np.array([outer_radius(design.capsule(n)) for n in names]), tuple(labels), np.array(orif_cap),
                   np.array(offs, float).reshape(-1, 3), np.array(nrm, float).reshape(-1, 3), np.array(modes, float),
                   tuple(bubbles))
     pts = net.points
@@ -554,10 +560,11 @@ def orifice_forces_per_v2(inst, frequency: float) -> tuple:
     volumes, transducer table, declared thrust)."""
     key = ("o", float(frequency))
     if key not in inst._tau:
-        from acl.analysis.acoustics import _engine, interface_labels
+        from acl.analysis.acoustics import interface_labels
+        from acl.analysis.rows import force_engine
         from acl.design.model import Drive, Tone
 
-        eng = _engine(inst.design, Drive(tones=(Tone(frequency=float(frequency), amplitude=1.0),)))
+        eng = force_engine(inst.design, Drive(tones=(Tone(frequency=float(frequency), amplitude=1.0),)))
         _, _, thr, att = eng.rest_forces()
         pts = eng.lay.points(eng.lay.rest)
         d2 = ((pts[:, None] - pts[None]) ** 2).sum(axis=-1)

@@ -40,10 +40,10 @@ class Problem:
     y: np.ndarray
     sigma: np.ndarray
     param_roles: dict          # design param name -> role
-    model: str = "eq3"         # force model of simple pairs: eq3 (paper Eq. 3) or coupled (acl.fit.group)
+    model: str = "coupled"     # force model of simple pairs: coupled (the analysis', acl.fit.group) or eq3
 
 
-def load_problem(design_path, data_paths, free=(), search_paths=(), model: str = "eq3", coupled: bool = False):
+def load_problem(design_path, data_paths, free=(), search_paths=(), model: str = "coupled", coupled: bool = False):
     """Load design and data, build the rows and the free coefficients; DiagnosticError on any problem.
 
     ``model``: the force model of simple pairs (acl.fit.mechanism.build_instance: ``eq3`` or ``coupled``);

@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from acl.fit import solve
-from acl.fit.effects import EFFECTS
+from acl.fit.effects import EFFECTS, SEARCHED
 
 P_LIMIT = 0.01
 K_FOLDS = 5
@@ -63,6 +63,8 @@ def applicable(eid, problem, current_kinds) -> str | None:
     eff = EFFECTS[eid]
     active = P.v.sum(axis=1) > 0
     for req in eff.requires:
+        if req == "coupled" and not (P.group_row is not None and np.any(P.group_row)):
+            return "the pairs are on the reduced Eq. (3) model (--model eq3), whose Bjerknes law is alpha/d^2"
         if req == "time" and not data.has_time:
             return "the data have no time column"
         if req == "frequencies" and np.unique(P.f[P.v > 0]).size < 2:
@@ -78,6 +80,8 @@ def applicable(eid, problem, current_kinds) -> str | None:
             return "every row has the actuator at the same height"
     if eid == "stiffness_scale" and "e_scale" in current_kinds:
         return "E is already free"
+    if eid == "bjerknes_scale" and "alpha" in current_kinds:
+        return "alpha is already free (the same freedom)"
     return None
 
 
@@ -166,13 +170,14 @@ def _cross_switch(model, problem, coefs, fit):
     given) with a row within reach of the narrowest smoothing (its prediction with LATCH_BLEND[-1] differs from the
     exact one by more than its sigma), continue from the fit through fits of the same
     model with the step smoothed into the expected travel of a switching force scattered log-normally by s
-    (acl.fit.forward.latch_travel ``blend``; the probit of the state rows), s from LATCH_BLEND[0] down to
+    (acl.fit.latch.latch_travel ``blend``; the probit of the state rows), s from LATCH_BLEND[0] down to
     LATCH_BLEND[-1]; then fit the exact model from there and keep whichever exact fit has the lower chi-square.  The
     smoothed model only supplies a start: the model, its likelihood and every statistic stay the exact ones.  A fit
     that explains its rows to the noise is not trapped and is left alone (a latch whose saturated push stays just
     below the switching force on every ramp: the smoothing would only pull gamma to its bound, where the drift's fit
     was then judged not identifiable)."""
-    from acl.fit.forward import latch_branch_mismatch, lone_latch_rows, predict
+    from acl.fit.forward import predict
+    from acl.fit.latch import latch_branch_mismatch, lone_latch_rows
 
     P = problem.prepared
     rows = lone_latch_rows(P)
@@ -316,7 +321,7 @@ def select_effects(problem, candidates=None, p_limit=P_LIMIT, k_folds=K_FOLDS, s
     selected: list[str] = []
     trials: list[Trial] = []
     cv_current = None
-    names = list(candidates) if candidates is not None else list(EFFECTS)
+    names = list(candidates) if candidates is not None else list(SEARCHED)
     for rnd in range(1, max_rounds + 1):
         for _restart in range(MAX_RESTARTS + 1):
             passing, round_trials, improved = [], [], None

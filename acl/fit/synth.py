@@ -72,8 +72,12 @@ def effect_inputs(spec: dict) -> dict:
 
 
 def generate(design_path, experiment, effects: dict | None = None, noise: float = 0.0,
-             seed: int = 0, coeffs: dict | None = None, search_paths=(), coupled: bool = False):
+             seed: int = 0, coeffs: dict | None = None, search_paths=(), coupled: bool = False,
+             model: str = "coupled"):
     """Return (Dataset, Prepared) of synthetic rows (values in SI, sigma = noise).
+
+    ``model``: the force model of a simple pair, ``coupled`` (the analysis', default) or ``eq3`` (paper Eq. 3, the
+    reduced model; acl.fit.mechanism.build_instance).
 
     ``coupled``: every design through the group model with the analysis' full force model
     (acl.fit.mechanism.build_instance), lone actuators and pairs included.
@@ -128,7 +132,7 @@ def generate(design_path, experiment, effects: dict | None = None, noise: float 
     def load_instance(key):
         if key not in cache:
             cache[key] = build_instance(acl.load(design_path, overrides=dict(key), search_paths=search_paths)
-                                        if key else design, coupled=coupled)
+                                        if key else design, model, coupled=coupled)
         return cache[key]
 
     # coefficients in ``coeffs`` (gamma, alpha) refer to f_ref of these rows: the most common frequency; a design

@@ -286,7 +286,12 @@ def coupled_volumes(blocks, slot, points, radii, frequency, density, sound_speed
                                 g.reshape(nb, fc, ncap, p, npad)).reshape(g.shape)
         a[..., diag, diag] += 1.0                                                  # I - w^2 rho H0 g (any memory layout)
         rhs = np.broadcast_to(h.sum(axis=-1).reshape(h.shape[0], fc, npad), (nb, fc, npad))
-        u = np.linalg.solve(a, rhs[..., None])[..., 0]
+        if npad == 2:              # two interfaces: Cramer's rule (a batched LAPACK call costs more)
+            det = a[..., 0, 0] * a[..., 1, 1] - a[..., 0, 1] * a[..., 1, 0]
+            u = np.stack([(a[..., 1, 1] * rhs[..., 0] - a[..., 0, 1] * rhs[..., 1]) / det,
+                          (a[..., 0, 0] * rhs[..., 1] - a[..., 1, 0] * rhs[..., 0]) / det], axis=-1)
+        else:
+            u = np.linalg.solve(a, rhs[..., None])[..., 0]
         out[:, s:s + fc] = u[..., slot]
     return out.reshape(batch + (nf, n))
 

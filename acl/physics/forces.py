@@ -159,7 +159,8 @@ def force_constants(omega, radii, body, n_capsules: int, viscosity: float, densi
 def interface_distances(points, other) -> np.ndarray:
     """|p_j - p_i| (B, n, n) of the interface pairs of different capsules (``other`` (n, n)), 1 elsewhere (:func:`bjerknes_pair_sum`'s distances)."""
     sep = points[:, None, :, :] - points[:, :, None, :]                   # (B, i, j, 3)
-    return np.where(other, np.sqrt((sep * sep).sum(axis=-1)), 1.0)
+    # two interfaces in contact (d = 0, a solver's contact configuration) pull with no direction: no force, not NaN
+    return np.where(other, np.maximum(np.sqrt((sep * sep).sum(axis=-1)), 1e-12), 1.0)
 
 
 def bjerknes_pair_sum(points, response, w2p2, coefficient, other, gap_exponent: float = 0.0, gap_ref: float = 1.0,

@@ -11,7 +11,7 @@ cluster run equals a single-process run bit for bit (tested with a LocalCluster 
   pool (numpy releases the GIL inside its array loops; no pickling, no start-up cost). Needs
   nothing beyond numpy: dask is not imported.
 * ``"tcp://HOST:PORT"`` (or ``tls://``): the scheduler of a dask.distributed cluster (the
-  ``acl[scale]`` extra). Missing dask is E-USAGE, an unreachable scheduler E601 (after
+  ``acl[scale]`` extra). Missing dask is E-USAGE, an unreachable scheduler E-CLUSTER (after
   :data:`CONNECT_TIMEOUT_S`), both located at ``<--scheduler>`` (exit 2).
 """
 from __future__ import annotations
@@ -25,7 +25,7 @@ from acl.diagnostics import DiagnosticError, Span, error
 T = TypeVar("T")
 
 CONNECT_TIMEOUT_S = 10.0
-WORKER_TIMEOUT_S = 60.0          # how long a cluster run waits with no worker before E601 (--timeout)
+WORKER_TIMEOUT_S = 60.0          # how long a cluster run waits with no worker before E-CLUSTER (--timeout)
 POLL_S = 1.0                     # how often a cluster run looks at its workers while no chunk finishes
 _ADDRESS = re.compile(r"^(tcp|tls)://(\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9_.-]+):(\d{1,5})$")
 _WHERE = Span(file="<--scheduler>", line=1, column=1)
@@ -187,13 +187,13 @@ def _client(address: str):
     except (OSError, TimeoutError) as exc:
         reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
         raise DiagnosticError([error(
-            "E601", f"--scheduler {address}: cannot reach the dask scheduler within {CONNECT_TIMEOUT_S:g} s ({reason})",
+            "E-CLUSTER", f"--scheduler {address}: cannot reach the dask scheduler within {CONNECT_TIMEOUT_S:g} s ({reason})",
             _WHERE, "start one (`dask scheduler`, then `dask worker ADDRESS` on each machine), check the address "
                     "and the firewall, or use --scheduler local")]) from None
 
 
 def _lost(address: str, what: str, hint: str) -> DiagnosticError:
-    return DiagnosticError([error("E601", f"--scheduler {address}: {what}", _WHERE, hint)])
+    return DiagnosticError([error("E-CLUSTER", f"--scheduler {address}: {what}", _WHERE, hint)])
 
 
 def _scheduler_info(client) -> dict:
@@ -206,13 +206,13 @@ def _scheduler_info(client) -> dict:
 
 def _on_cluster(client, task, n_chunks, progress, timeout: float = WORKER_TIMEOUT_S, address: str = "",
                 notify: Callable[[str], None] | None = None) -> list:
-    """Chunks on the cluster, in order.  The cluster going away is a located E601, never a hang:
+    """Chunks on the cluster, in order.  The cluster going away is a located E-CLUSTER, never a hang:
 
     * the scheduler lost (its process killed, the network gone): dask cancels every future once its
-      client has failed to reconnect (about 10 s); that is E601 "lost the connection to the scheduler";
+      client has failed to reconnect (about 10 s); that is E-CLUSTER "lost the connection to the scheduler";
     * every worker lost: the futures wait for a worker that may never come; ``notify`` is told once, and
-      after ``timeout`` seconds with no worker, E601 "no worker left";
-    * a chunk that killed the workers running it (dask's KilledWorker: out of memory, a crash): E601.
+      after ``timeout`` seconds with no worker, E-CLUSTER "no worker left";
+    * a chunk that killed the workers running it (dask's KilledWorker: out of memory, a crash): E-CLUSTER.
     """
     import concurrent.futures as cf
     import time
