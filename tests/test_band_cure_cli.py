@@ -9,21 +9,25 @@ Three claims, three tests:
   safety defect).  Before acl.fit.report.tone_gain_stderr added the offset of each tone's gain from the calibrated
   model, the calibrated design declared measured(gain) of 1.5-3 % at the three tones while its gain there was off by
   20-33 %, and the recompiled band was far narrower than the achieved error;
-* the error after the readings is the band compile promised for them (0.160 / 0.174 um RMS, 95 %), within
-  TOLERANCE.  It was not while `acl fit` calibrated one gain scale (plus tilt): three single-tone readings left the
-  per-tone gains the prior drew unexplained (rng seed 28, goal 1 / goal 2 RMS in um: truth 1 0.629 / 0.985, truth 2
-  1.39 / 2.10; a strict xfail held them).  Now acl.fit.report.tone_gains fits the gain at each read tone (kept when
-  it beats the gain model, p < 0.01), the calibrated design carries it as `measured(gain) = [(tone, Pa/V, sd)]`, and
-  compile plays the measured tones: truth 1 0.0177 / 0.0287, truth 2 0.0469 / 0.0839;
+* the error after the readings is within the band compile promised for the readings the loop takes, the first
+  goal's (goal 1: its own promise, 0.221 um RMS, 95 %; goal 2: its promise on goal 1's readings, `with_readings_of`,
+  0.354 um; its own, on the higher-voltage readings it proposes, is 0.236).  It was not while `acl fit` calibrated
+  one gain scale (plus tilt): three single-tone readings left the per-tone gains the prior drew unexplained (rng seed
+  28, goal 1 / goal 2 RMS in um: truth 1 0.629 / 0.985, truth 2 1.39 / 2.10; a strict xfail held them).  Now
+  acl.fit.report.tone_gains fits the gain at each read tone (kept when it beats the gain model, p < 0.01), the
+  calibrated design carries it as `measured(gain) = [(tone, Pa/V, sd)]`, and compile plays the measured tones:
+  truth 1 0.0177 / 0.0287, truth 2 0.0469 / 0.0839;
 * the cure's mechanism: the calibrated design carries a gain at each read tone, the recompile plays exactly those
   tones, and its band (the measured errors, plus the fit's residual as discrepancy(position)) is close to the
-  promised one: truth 1 0.213 / 0.323, truth 2 0.238 / 0.335 um (1.3-1.9x the promise).
+  promised one: truth 1 0.213 / 0.323, truth 2 0.238 / 0.335 um (at most BAND_OVER_PROMISE x the promise).
 Over 20 truths (benchmarks/band_cure.py: the same loop; about 20 min on a loaded 2-core machine): every recompile
 played the read tones, the recompiled band covered the achieved error on all 40 goals (median band / error 3.3 and
-2.9); goal 1's achieved error has median 0.067, 90th percentile 0.173 and maximum 0.222 um against the promised
-0.160 (17 of 20 within it, all within 1.5x); goal 2's (its promise assumes the readings proposed for step 2, at
-higher voltages than the step-1 readings made here) median 0.120, maximum 0.340 against 0.174.  Before the readings:
-median 1.61 / 2.54 um.
+2.9); goal 1's achieved error has median 0.067, 90th percentile 0.173 and maximum 0.222 um, goal 2's median 0.120,
+90th percentile 0.272, maximum 0.340.  The promise was the band at the nominal design's Fisher information (0.160 /
+0.174, goal 2's on step 2's readings): 17 and 14 of 20 within it.  It now counts the devices the prior allows, each
+read with the noise and fitted at its own gain (acl.schedule.experiment.promise; a device with a lower gain moves
+less under the proposed voltage and is measured worse): 19 (the worst truth 0.5 % above) and 20 of 20 within it,
+the promise 3.3 / 3.0 x the median achieved error (2.4 / 1.5 x before).  Before the readings: median 1.61 / 2.54 um.
 """
 from __future__ import annotations
 
@@ -39,7 +43,7 @@ import pytest
 ROOT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..")
 FIG3 = os.path.join(ROOT, "examples", "fig3_three_orifice.acl")
 TRUTHS = 2          # truths drawn from the prior (each loop about 15 s of CPU)
-TOLERANCE = 1.5     # achieved RMS at most 1.5 x the expected band's 95th percentile (as the engine-level study)
+TOLERANCE = 1.0     # achieved RMS at most the promise (a 95 % band; these two truths are well inside it)
 BAND_OVER_PROMISE = 2.5     # the recompiled band at most this x the promised one (measured: 1.3-1.9x)
 
 
@@ -83,11 +87,12 @@ def loop(tmp_path_factory):
     goals0 = json.loads((tmp_path / "out0" / "schedule.json").read_text())["goals"]
     m = goals0[0]["details"]["band"]["cause"]["measurement"]
     noise_um = m["noise_m"] * 1e6
-    expected_um = [g["details"]["band"]["cause"]["measurement"]["expected_rms_p95_m"] * 1e6 for g in goals0]
+    expected_um = [_promised_on(g, goals0[0]["name"]) * 1e6 for g in goals0]
     rng = np.random.default_rng(28)
     rows = []
     for k in range(TRUTHS):
-        (work / "truth.acl").write_text(_truth_text(rng.standard_normal(8)))
+        z = rng.standard_normal(8)
+        (work / "truth.acl").write_text(_truth_text(z))
         data = []
         for i, r in enumerate(m["readings"]):            # one tone at one voltage each, as compile proposed
             csv = f"reading{k}_{i}.csv"
@@ -110,14 +115,26 @@ def loop(tmp_path_factory):
                                 "-o", f"play{k}.csv", "--observe", "mx,my", cwd=tmp_path))
         before = _tracking(_acl("synth", "examples/truth.acl", "--schedule", "out0/schedule.json",
                                 "-o", f"before{k}.csv", "--observe", "mx,my", cwd=tmp_path))
-        rows.append((before, played, band, carried, plays))
+        rows.append((before, played, band, carried, plays, [float(x) for x in z]))
     return expected_um, rows, [r["frequency_hz"] for r in m["readings"]]
+
+
+def _promised_on(goal, first: str) -> float:
+    """The band (m RMS) compile promises for ``goal`` after the readings the loop takes, the first goal's: its own
+    promise for the first goal; for a later one, its promise on the first goal's readings (``with_readings_of``),
+    or its own where it proposed the same readings."""
+    m = goal["details"]["band"]["cause"]["measurement"]
+    if first in (m["readings_of"], m.get("same_readings_as")):
+        return m["expected_rms_p95_m"]
+    w = m["with_readings_of"]
+    assert w["goal"] == first, m
+    return w["expected_rms_p95_m"]
 
 
 @pytest.mark.studies
 def test_the_recompiled_band_covers_the_error_the_lab_sees(loop):
     _, rows, _ = loop
-    for _, achieved, band, _, _ in rows:
+    for _, achieved, band, _, _, _ in rows:
         assert len(achieved) == len(band) == 2, rows
         for a, b in zip(achieved, band):
             assert a <= b, rows
@@ -126,7 +143,7 @@ def test_the_recompiled_band_covers_the_error_the_lab_sees(loop):
 @pytest.mark.studies
 def test_proposed_readings_through_synth_fit_compile_leave_the_expected_band(loop):
     expected_um, rows, _ = loop
-    for _, achieved, _, _, _ in rows:
+    for _, achieved, _, _, _, _ in rows:
         assert len(achieved) == len(expected_um) == 2, rows
         for a, e in zip(achieved, expected_um):
             assert a <= TOLERANCE * e, (expected_um, rows)
@@ -138,7 +155,7 @@ def test_the_calibrated_design_carries_the_gain_at_each_read_tone_and_compile_pl
     standard error), the recompile plays exactly those tones, and its band, now the measured errors, is close to
     the promised one (at most BAND_OVER_PROMISE x; it adds the fit's residual as discrepancy(position))."""
     expected_um, rows, tones = loop
-    for _, _, band, carried, plays in rows:
+    for _, _, band, carried, plays, _ in rows:
         assert sorted(carried) == sorted(tones), carried
         assert all(g is not None and g > 0 and 0 < sd < 0.05 for g, sd in carried.values()), carried
         for freqs, unmeasured in plays:

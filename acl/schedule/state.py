@@ -87,6 +87,9 @@ class CompileState:
     forward_now: Callable | None = None                 # the current follow goal's forward provider (:func:`steps._models_for`)
     many_now: Callable | None = None                    # (designs, capsule, freqs, u) -> [prediction]: one batch, or None
     gains_now: Callable | None = None                   # and its gain provider ((design, capsule, freqs) -> GainTable)
+    cure_readings: tuple | None = None                  # (goal name, [(tone Hz, V)]): the first goal's proposed readings
+    #                                                     (acl.schedule.experiment.explain promises the later goals'
+    #                                                     bands on them too)
 
     modes_hz: np.ndarray | None = None                  # :func:`mode_frequencies`' cache
     schedule: Schedule | None = None                    # assembled once every step is planned

@@ -269,6 +269,12 @@ def _widen_expected(comp: CompileState, goal, extra: float) -> None:
     m["model_form_m"] = float(np.hypot(m.get("model_form_m", 0.0), extra))
     m["expected_rms_p95_m"] = float(np.hypot(m["expected_rms_p95_m"], extra))
     m["expected_max_p95_m"] = float(np.hypot(m["expected_max_p95_m"], extra))
+    if m.get("nominal_rms_p95_m") is not None:
+        m["nominal_rms_p95_m"] = float(np.hypot(m["nominal_rms_p95_m"], extra))
+    w = m.get("with_readings_of")
+    if w:                     # the promise on another goal's readings keeps the term too
+        for key in ("expected_rms_p95_m", "expected_max_p95_m"):
+            w[key] = float(np.hypot(w[key], extra))
     new = experiment.summary(goal.name, cause)
     comp.notes[:] = [new if n == old else n for n in comp.notes]
 

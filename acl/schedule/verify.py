@@ -200,10 +200,14 @@ def _band(comp: CompileState, rep: GoalReport, provider, capsule, u, targets, ba
                     [provider(d, capsule, f)[0](uu) for d in ds], solved or {})
     ex = experiment.explain(comp.design, many, capsule, rep.frequencies_hz, u, targets,
                             reload=comp.opts.reload, band=band, seed=comp.opts.band_seed,
-                            noise=comp.opts.reading_noise_m or experiment.READING_NOISE_M)
+                            noise=comp.opts.reading_noise_m or experiment.READING_NOISE_M, name=rep.name,
+                            earlier=comp.cure_readings)
     if ex is not None:
         rep.band_plot = ex.pop("plot", None)
         rep.details["band"]["cause"] = ex
+        m = ex.get("measurement")
+        if m and comp.cure_readings is None:
+            comp.cure_readings = (rep.name, [(r["frequency_hz"], r["voltage_v"]) for r in m["readings"]])
         comp.notes.append(experiment.summary(rep.name, ex))
     if band.failed:
         comp.notes.append(f"{rep.name}: {band.failed} of {comp.opts.band_samples} uncertainty draws lost the "
