@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import os
 
+import pytest
 from hypothesis import settings
 
 if os.environ.get("PYTEST_XDIST_WORKER"):
@@ -35,3 +36,25 @@ SLOW_FIRST = ("test_docs_sync.py", "test_fit_bodies.py", "test_fit_diagnosis.py"
 def pytest_collection_modifyitems(session, config, items):
     rank = {name: i for i, name in enumerate(SLOW_FIRST)}
     items.sort(key=lambda item: rank.get(item.path.name, len(SLOW_FIRST)))
+
+
+@pytest.fixture
+def saved_figures(monkeypatch):
+    """The figures acl saves during a test, by file name in the order saved: matplotlib's ``savefig`` is
+    recorded (and still writes the file).  Skips without matplotlib (the plot extra)."""
+    pytest.importorskip("matplotlib")
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.figure
+
+    saved = {}
+    orig = matplotlib.figure.Figure.savefig
+
+    def grab(fig, path, *a, **k):
+        out = orig(fig, path, *a, **k)
+        saved[os.path.basename(str(path))] = fig
+        return out
+
+    monkeypatch.setattr(matplotlib.figure.Figure, "savefig", grab)
+    return saved

@@ -138,31 +138,14 @@ def test_compile_cli_prints_and_writes_the_cause(tmp_path):
     assert any("dominant cause" in n for n in data["notes"])
 
 
-def test_plot_draws_the_band_around_the_path(circle, tmp_path):
-    pytest.importorskip("matplotlib")
-    import matplotlib
-
-    matplotlib.use("Agg")
+def test_plot_draws_the_band_around_the_path(circle, tmp_path, saved_figures):
     from matplotlib.patches import Ellipse
 
     from acl.emit import plot
 
     g = circle.goals[0]
-    seen = {}
-    import matplotlib.figure
-
-    orig = matplotlib.figure.Figure.savefig
-
-    def grab(fig, *a, **k):
-        seen["fig"] = fig
-        return orig(fig, *a, **k)
-
-    matplotlib.figure.Figure.savefig = grab
-    try:
-        plot.plot_goal(g, str(tmp_path / "g.png"))
-    finally:
-        matplotlib.figure.Figure.savefig = orig
-    ax = seen["fig"].axes[0]
+    plot.plot_goal(g, str(tmp_path / "g.png"))
+    ax = saved_figures["g.png"].axes[0]
     ells = [p for p in ax.patches if isinstance(p, Ellipse)]
     n = len(g.band_plot["waypoints_m"])
     assert "plot" not in g.details["band"]["cause"]          # kept off schedule.json

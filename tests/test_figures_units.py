@@ -44,23 +44,13 @@ def test_residual_axes_use_one_unit_per_kind():
     assert covariate_axis("voltage", np.array([2.0]))[1] == "voltage (V)"
 
 
-def test_modal_response_is_limited_to_the_band_and_smooth(tmp_path, monkeypatch):
-    pytest.importorskip("matplotlib")
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.figure
-
+def test_modal_response_is_limited_to_the_band_and_smooth(tmp_path, saved_figures):
+    from acl.analysis.report import analyze
     from acl.emit import analysis_figures
 
     design = acl.load(FIG3)
-    figs = []
-    orig = matplotlib.figure.Figure.savefig
-    monkeypatch.setattr(matplotlib.figure.Figure, "savefig", lambda fig, *a, **k: (figs.append(fig), orig(fig, *a, **k))[1])
-    from acl.analysis.report import analyze
-
     analysis_figures.write_figures(design, analyze(design, None, snap_in=False), str(tmp_path))
-    fig = next(f for f in figs if f.axes and "Modal response" in f.axes[0].get_title())
+    fig = next(f for f in saved_figures.values() if f.axes and "Modal response" in f.axes[0].get_title())
     ax = fig.axes[0]
     lo, hi = (b / 1e3 for b in design.transducer.band)
     assert ax.get_xlim() == pytest.approx((lo, hi))
@@ -107,14 +97,7 @@ def test_steps_are_counted_from_one_everywhere(tmp_path):
     assert c.as_dict()["segments"][0]["step"] == 1
 
 
-def test_fit_png_titles_lie_inside_the_figure_and_residual_axes_carry_units(tmp_path, monkeypatch):
-    pytest.importorskip("matplotlib")
-
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.figure
-
+def test_fit_png_titles_lie_inside_the_figure_and_residual_axes_carry_units(tmp_path, saved_figures):
     from acl.cli import main
     from acl.fit.synth import Experiment, generate, write_csv
 
@@ -124,15 +107,7 @@ def test_fit_png_titles_lie_inside_the_figure_and_residual_axes_carry_units(tmp_
     ex = Experiment(frequencies=(125e3,), voltages=tuple(np.linspace(0, 4, 9)), sets={"gap": ["30 um", "50 um"]})
     data, _ = generate(str(tmp_path / "fit_pair.acl"), ex, noise=0.3e-6, seed=2, coeffs={"alpha": 174.5e-21, "gamma": 0.027e-9})
     write_csv(data, str(tmp_path / "d.csv"))
-    figs = {}
-    orig = matplotlib.figure.Figure.savefig
-
-    def grab(fig, path, *a, **k):
-        out = orig(fig, path, *a, **k)
-        figs[os.path.basename(str(path))] = fig
-        return out
-
-    monkeypatch.setattr(matplotlib.figure.Figure, "savefig", grab)
+    figs = saved_figures
     assert main(["fit", str(tmp_path / "fit_pair.acl"), str(tmp_path / "d.csv"), "--free", "alpha",
                  "--report", str(tmp_path / "rep"), "--effects", "none"]) == 0
     fig = figs["fit.png"]

@@ -18,23 +18,13 @@ ROOT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..")
 FIG4 = os.path.join(ROOT, "examples", "fig4_facing_pair.acl")
 
 
-def test_pair_figure_is_limited_to_the_band_per_pascal_and_smooth(tmp_path, monkeypatch):
-    pytest.importorskip("matplotlib")
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.figure
-
+def test_pair_figure_is_limited_to_the_band_per_pascal_and_smooth(tmp_path, saved_figures):
     from acl.analysis.report import analyze
     from acl.emit import analysis_figures
 
     design = acl.load(FIG4)
-    figs = []
-    orig = matplotlib.figure.Figure.savefig
-    monkeypatch.setattr(matplotlib.figure.Figure, "savefig",
-                        lambda fig, *a, **k: (figs.append(fig), orig(fig, *a, **k))[1])
     analysis_figures.write_figures(design, analyze(design, None, snap_in=False), str(tmp_path))
-    fig = next(f for f in figs if f._suptitle is not None and "phase difference" in f._suptitle.get_text())
+    fig = next(f for f in saved_figures.values() if f._suptitle is not None and "phase difference" in f._suptitle.get_text())
     amp, phase = fig.axes[:2]
     lo, hi = (b / 1e3 for b in design.transducer.band)
     assert amp.get_xlim() == pytest.approx((lo, hi)) and "per pascal" in amp.get_ylabel()

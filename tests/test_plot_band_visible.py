@@ -19,27 +19,11 @@ from acl.schedule.compile import CompileOptions, compile_program
 ROOT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..")
 
 
-def _draw(goal, path):
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.figure
-
+def _draw(goal, path, saved):
     from acl.emit import plot
 
-    seen = {}
-    orig = matplotlib.figure.Figure.savefig
-
-    def grab(fig, *a, **k):
-        seen["fig"] = fig
-        return orig(fig, *a, **k)
-
-    matplotlib.figure.Figure.savefig = grab
-    try:
-        plot.plot_goal(goal, str(path))
-    finally:
-        matplotlib.figure.Figure.savefig = orig
-    return seen["fig"]
+    plot.plot_goal(goal, str(path))
+    return saved[path.name]
 
 
 def _share(png, fig, rgb, tol=0.12):
@@ -60,11 +44,11 @@ def stroke():
     return compile_program(d, "stroke", CompileOptions(band_samples=6, resim_points=20)).goals[0]
 
 
-def test_a_band_along_one_line_is_drawn_where_it_can_be_seen(stroke, tmp_path):
+def test_a_band_along_one_line_is_drawn_where_it_can_be_seen(stroke, tmp_path, saved_figures):
     from matplotlib.colors import to_rgb
 
     assert stroke.band_plot and stroke.band_plot["cov_m2"]
-    fig = _draw(stroke, tmp_path / "g.png")
+    fig = _draw(stroke, tmp_path / "g.png", saved_figures)
     # tab:orange at the band's opacity over white; its ellipses span about 18 um by 0.7 um of a 23 x 18 um panel
     orange = 1 - 0.35 * (1 - np.asarray(to_rgb("tab:orange")))
     assert _share(tmp_path / "g.png", fig, orange) > 0.005
@@ -72,8 +56,8 @@ def test_a_band_along_one_line_is_drawn_where_it_can_be_seen(stroke, tmp_path):
     assert any("drawn" in t.get_text() and "um across" in t.get_text() for t in labels)
 
 
-def test_legend_swatches_are_as_opaque_as_the_band(stroke, tmp_path):
-    fig = _draw(stroke, tmp_path / "g.png")
+def test_legend_swatches_are_as_opaque_as_the_band(stroke, tmp_path, saved_figures):
+    fig = _draw(stroke, tmp_path / "g.png", saved_figures)
     leg = fig.axes[0].get_legend()
     swatches = [(h, t.get_text()) for h, t in zip(leg.legend_handles, leg.get_texts()) if "95 % band" in t.get_text()]
     assert len(swatches) == 2 and all(h.get_alpha() >= 0.3 for h, _ in swatches), swatches
