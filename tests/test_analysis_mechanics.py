@@ -4,7 +4,7 @@ import pytest
 from scipy.optimize import minimize_scalar
 
 from acl.analysis import mechanics as M
-from acl.design.model import (Anchor, Beam, Capsule, Cavity, Design, Drive, Fix, Latch, Link, Mount,
+from acl.design.model import (Beam, Capsule, Cavity, Design, Drive, Fix, Latch, Link, Mount,
                               Orifice, Section, Spring, Tone, Truss)
 from acl.diagnostics import DiagnosticError, Span
 from acl.physics import beams

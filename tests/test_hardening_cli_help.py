@@ -4,7 +4,6 @@ from __future__ import annotations
 import shlex
 from pathlib import Path
 
-import pytest
 
 from acl.cli import EPILOG, main
 

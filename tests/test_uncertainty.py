@@ -7,7 +7,6 @@ import subprocess
 import sys
 from pathlib import Path
 
-import numpy as np
 import pytest
 
 import acl
@@ -129,7 +128,7 @@ def test_cli_bad_uncertainty_exit_code_no_traceback(tmp_path):
     out = subprocess.run([sys.executable, "-m", "acl", "check", str(f)], capture_output=True, text=True)
     assert out.returncode == 1
     assert "E320" in out.stdout + out.stderr and "Traceback" not in out.stderr
-    assert f"bad.acl:5:24" in out.stdout + out.stderr
+    assert "bad.acl:5:24" in out.stdout + out.stderr
 
 
 @pytest.mark.parametrize("spread, code, col, text", [

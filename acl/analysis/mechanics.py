@@ -21,7 +21,7 @@ Degrees of freedom (capsules translate rigidly, no rotation):
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from functools import cached_property
 from typing import Callable, Mapping
 

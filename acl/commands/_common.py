@@ -1,7 +1,6 @@
 """Shared CLI helpers: --set parsing, --path, loading a design with diagnostics rendered."""
 from __future__ import annotations
 
-import json
 import os
 import re
 import sys

@@ -2,7 +2,6 @@
 from __future__ import annotations
 
 import json
-import math
 import sys
 
 from acl.commands._common import (add_design_options, add_output_format, load_or_report,

@@ -1,7 +1,6 @@
 """`acl show FILE`: the resolved design as a rich tree, or `--json`."""
 from __future__ import annotations
 
-import json
 import sys
 
 from acl.commands._common import add_design_options, add_output_format, load_or_report, report

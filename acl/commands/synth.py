@@ -9,7 +9,7 @@ from __future__ import annotations
 import math
 import re
 
-from acl.commands._common import add_output_format, exit_code, one_design, parse_sets, quantity_text, report, seed
+from acl.commands._common import add_output_format, exit_code, one_design, quantity_text, report, seed
 
 
 def add_parser(p) -> None:

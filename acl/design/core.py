@@ -7,7 +7,6 @@ runs one way, core -> :mod:`~acl.design.evaluate` (expressions, parameters, bloc
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 from acl.design.values import CallVal, DeclVal, DirVal, IdentVal, ListVal, RangeVal, StrVal, VecVal

@@ -303,7 +303,6 @@ def _can_fork() -> bool:
 
 def select_effects(problem, candidates=None, p_limit=P_LIMIT, k_folds=K_FOLDS, seed=0, max_rounds=4,
                    progress=None, jobs=1) -> Selection:
-    from acl.fit.forward import predict
 
     P = problem.prepared
     sigma_given = problem.data.has_sigma

@@ -86,7 +86,6 @@ def generate(design_path, experiment, effects: dict | None = None, noise: float 
     rows tagged with each experiment's ``label``: e.g. a pair and its calibration beam)."""
     import acl
     from acl.fit.data import Dataset
-    from acl.fit.forward import predict, prepare
     from acl.fit.mechanism import build_instance
 
     design = acl.load(design_path, search_paths=search_paths)

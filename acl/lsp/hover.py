@@ -12,7 +12,7 @@ import functools
 import math
 import re
 
-from acl.lsp.document import LINT_CODE_RE, NAME_RE, Snapshot, Target, code_part, declaration_text, part_at, \
+from acl.lsp.document import LINT_CODE_RE, Snapshot, Target, code_part, declaration_text, part_at, \
     resolve_name, word_at
 from acl.syntax import ast as A
 

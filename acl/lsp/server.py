@@ -20,7 +20,7 @@ from pygls.uris import from_fs_path, to_fs_path
 
 from acl import __version__
 from acl.diagnostics import Diagnostic, Severity
-from acl.lsp.document import Snapshot, check_text
+from acl.lsp.document import Snapshot
 
 #: seconds without a finished check before the full garbage collection (:meth:`collect_when_idle`)
 IDLE_COLLECT_SECONDS = 2.0

@@ -49,7 +49,7 @@ STREAMING_CALIBRATION = {"radius_m": 10e-6, "frequency_hz": 125e3, "critical_dis
 
 
 def _streaming_constant() -> float:
-    from math import pi, sqrt
+    from math import pi
 
     r, f, dc = (STREAMING_CALIBRATION[k] for k in ("radius_m", "frequency_hz", "critical_distance_m"))
     delta2 = 2 * WATER_20C.viscosity / (WATER_20C.density * 2 * pi * f)

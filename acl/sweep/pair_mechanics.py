@@ -5,7 +5,6 @@ from __future__ import annotations
 import numpy as np
 
 from acl.design import model as M
-from acl.physics import batch as PB
 from acl.physics.roots import golden_max, illinois_ascending
 from acl.sweep.acoustic_state import PointAcoustics, _Rows, beam_force, beam_k0
 from acl.sweep.columns import (
