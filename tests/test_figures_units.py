@@ -124,5 +124,28 @@ def test_fit_png_titles_lie_inside_the_figure_and_residual_axes_carry_units(tmp_
         assert a.x1 <= b.x0 or a.y1 <= b.y0 or b.y1 <= a.y0, (a, b)           # nor run into the next panel's
     res = figs["residuals.png"]
     labels = [ax.get_xlabel() for ax in res.axes]
-    assert "frequency (kHz)" in labels and "voltage (V)" in labels
+    # one driven frequency (125 kHz): no frequency panel (its undriven rows sat at 0 kHz before)
+    assert "voltage (V)" in labels and "frequency (kHz)" not in labels
     assert all(lb.endswith(")") for lb in labels)
+
+
+def test_a_one_voltage_frequency_sweep_is_drawn_against_frequency(tmp_path, saved_figures):
+    """fit.png drew every run against voltage: a frequency sweep at one voltage was one stack of points at 4 V,
+    and residuals.png put a one-frequency run's undriven rows at 0 kHz (newcomer review)."""
+    from acl.cli import main
+    from acl.fit.synth import Experiment, generate, write_csv
+
+    pair = os.path.join(ROOT, "tests", "data", "fit_pair.acl")
+    freqs = tuple(np.linspace(110e3, 140e3, 7))
+    ex = Experiment(frequencies=freqs, voltages=(0.0, 2.0), sets={"gap": ["40 um"]})
+    data, _ = generate(pair, ex, noise=0.1e-6, seed=3, coeffs={"alpha": 174.5e-21, "gamma": 0.027e-9})
+    write_csv(data, str(tmp_path / "d.csv"))
+    assert main(["fit", pair, str(tmp_path / "d.csv"), "--free", "alpha", "--report", str(tmp_path / "rep"),
+                 "--effects", "none", "--calibrated", str(tmp_path / "cal.acl")]) == 0
+    ax = saved_figures["fit.png"].axes[0]
+    assert ax.get_xlabel() == "frequency (kHz)"
+    xs = np.concatenate([line.get_xdata() for line in ax.get_lines()])
+    assert xs.min() == pytest.approx(110) and xs.max() == pytest.approx(140)
+    res = [a for a in saved_figures["residuals.png"].axes if a.get_xlabel().startswith("frequency")]
+    assert res and all(np.nanmin(np.concatenate([ln.get_xdata() for ln in a.get_lines()
+                                                  if len(ln.get_xdata()) > 2])) >= 110 - 1e-9 for a in res)

@@ -561,7 +561,8 @@ def render_table(report, console=None) -> None:
 
 
 def figures(problem, selection, outdir) -> list[str]:
-    """fit.png (data and model before/after vs voltage) and residuals.png (residual vs every covariate)."""
+    """fit.png (data and model before/after vs voltage, or vs frequency for a one-voltage sweep) and residuals.png
+    (residual vs every covariate)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -576,6 +577,9 @@ def figures(problem, selection, outdir) -> list[str]:
     fig, axes = plt.subplots(2, 2 * len(names), figsize=(6 * len(names) + 2, 7), squeeze=False)
     strongest = P.f[np.arange(P.n), np.argmax(P.v, axis=1)]
     driven = P.v.sum(axis=1) > 0
+    # a frequency sweep at one voltage is drawn against frequency (against voltage it is one stack of points)
+    by_freq = (np.unique(volts[driven]).size < 2 and np.unique(strongest[driven]).size >= 2)
+    xs_all, xlabel = ((strongest / 1e3, "frequency (kHz)") if by_freq else (volts, "voltage (V)"))
     keys = np.array([" ".join(f"{k}={v}" for k, v in d.override_key(i)) for i in range(d.n)], dtype=object)
     from acl.fit.forward import predict
 
@@ -583,7 +587,8 @@ def figures(problem, selection, outdir) -> list[str]:
         m = d.observable == name
         state = problem.design.observe(name).kind == "state"     # 0/1: plotted as is, the model as a probability
         scale, unit = (1.0, "state (0 a, 1 b)") if state else (1e6, "um")
-        groups = list(dict.fromkeys((keys[i], strongest[i]) for i in np.flatnonzero(m & driven)))
+        groups = list(dict.fromkeys((keys[i], volts[i] if by_freq else strongest[i])
+                                    for i in np.flatnonzero(m & driven)))
         for k, (label, fit) in enumerate((("before", selection.base), ("after", selection.final))):
             ax, axr = axes[0, 2 * j + k], axes[1, 2 * j + k]
             model = fit.prediction
@@ -593,21 +598,24 @@ def figures(problem, selection, outdir) -> list[str]:
                     model = predict(P, *fit.as_inputs())
                 finally:
                     P.pearson = held
-            for gi, (key, freq) in enumerate(groups):
-                sel = m & (keys == key) & (~driven | (strongest == freq))
+            for gi, (key, level) in enumerate(groups):
+                if by_freq:        # one curve per voltage (undriven rows have no frequency to sit at)
+                    sel, tag = m & (keys == key) & driven & (volts == level), f"{level:g} V {key}"
+                else:
+                    sel, tag = m & (keys == key) & (~driven | (strongest == level)), f"{level / 1e3:g} kHz {key}"
                 colour = f"C{gi % 10}"
-                order = np.argsort(volts[sel], kind="stable")
-                ax.plot(volts[sel], d.value[sel] * scale, ".", ms=3, color=colour,
-                        label=f"{freq / 1e3:g} kHz {key}" if len(groups) <= 10 else None)
-                ax.plot(volts[sel][order], model[sel][order] * scale, "-", lw=0.8, color=colour)
-                axr.plot(volts[sel], fit.residual[sel] * scale, ".", ms=3, color=colour)
+                x = xs_all[sel]
+                order = np.argsort(x, kind="stable")
+                ax.plot(x, d.value[sel] * scale, ".", ms=3, color=colour, label=tag if len(groups) <= 10 else None)
+                ax.plot(x[order], model[sel][order] * scale, "-", lw=0.8, color=colour)
+                axr.plot(x, fit.residual[sel] * scale, ".", ms=3, color=colour)
             ax.set_title(f"{name}: {label}\n(dots data, lines model)", fontsize=9, wrap=True)
-            ax.set_xlabel("voltage (V)")
+            ax.set_xlabel(xlabel)
             ax.set_ylabel(unit)
             if groups and len(groups) <= 10:
                 ax.legend(fontsize=6)
             axr.axhline(0, color="k", lw=0.5)
-            axr.set_xlabel("voltage (V)")
+            axr.set_xlabel(xlabel)
             axr.set_ylabel(f"residual {label} ({'Pearson' if state else 'um'})")
     fig.tight_layout()
     _fit_titles(fig)
@@ -616,6 +624,7 @@ def figures(problem, selection, outdir) -> list[str]:
     plt.close(fig)
     files.append("fit.png")
     cov = covariates(d, P, selection.final.prediction)
+    cov["frequency"] = np.where(driven, cov["frequency"], np.nan)   # an undriven row sits at no frequency
     usable = [(k, v) for k, v in cov.items() if np.unique(v[np.isfinite(v)]).size >= 2]
     fig, axes = plt.subplots(2, max(1, len(usable)), figsize=(3.2 * max(1, len(usable)), 6), squeeze=False)
     for j, (k, x) in enumerate(usable):
