@@ -203,6 +203,27 @@ def _tiled(blk: GroupBlock, K: int) -> GroupBlock:
     return out
 
 
+def _collinear_columns(points, normals, bases, law, axes, tol: float = 1e-12):
+    """(coordinates across, along) the line of a collinear group, or (None, None): every point (orifices and capsule
+    centres at rest, (p, 3)) and every normal on one line, beams and springs only, each coordinate (``bases``: per node
+    (3, k)) and spring axis along the line or across it.  Then no force acts across the line while the coordinates
+    across it are 0: the Jacobian's block across it is decoupled (block triangular)."""
+    d = points - points[0]
+    size = np.linalg.norm(d, axis=1)
+    if size.max(initial=0.0) == 0.0 or np.any(law == LAW["latch"]):
+        return None, None
+    u = d[np.argmax(size)] / size.max()
+    if np.any(np.linalg.norm(np.cross(d, u), axis=1) > tol * size.max()) or \
+            np.any(np.linalg.norm(np.cross(normals, u), axis=1) > tol):
+        return None, None
+    along = np.abs(np.concatenate([b.T for b in bases]) @ u) if bases else np.zeros(0)
+    if any(abs(abs(float(ax @ u) / np.linalg.norm(ax)) - 0.5) < 0.5 - tol for ax in axes) or \
+            np.any((along > tol) & (np.abs(along - 1.0) > tol)):
+        return None, None
+    side = np.flatnonzero(along <= tol)
+    return (side, np.flatnonzero(along > tol)) if side.size else (None, None)
+
+
 def _predict_block(P, blk: GroupBlock, items) -> list:
     """:func:`predict_many` of every row of ``blk``: K items (coeffs, effects, w (r, T), gamma, alpha, es, lam, grad,
     c_p), their rows stacked item after item; each coefficient enters as its item's value on its rows."""
@@ -308,28 +329,24 @@ def _predict_block(P, blk: GroupBlock, items) -> list:
         if "u_rest" not in blk.__dict__:      # the coupled volumes with every capsule at rest (per pascal, (M, F, n))
             blk.__dict__["u_rest"] = eng.response(ALL_REST[:, eng.lay.body] + EOFF)[:, :, ix]
         u_rest = base.__dict__["u_rest"] = blk.__dict__["u_rest"]
-        # rows of one tone need the coupled response at their frequency only: one response per frequency, each over
-        # its rows (the same equations at fewer frequencies, acl.physics.coupling.prepared_response)
-        # its rows; a row with no tone (0 V) feels no force whatever its volumes per pascal: none computed
+        # rows of one tone need the coupled response at their frequency only: one solve over the rows, each at its
+        # own frequency and uncoupled blocks (acl.physics.coupling.coupled_volumes broadcasts them as batch axes); a
+        # row with no tone (0 V) feels no force whatever its volumes per pascal: none computed
         single = moves and eng.f.size > 1 and bool(np.all(blk.fidx[:, 1:] < 0))
-        if single and "per_f" not in blk.__dict__:
+        if single:
             from acl.physics import constants as PC
-            from acl.physics.coupling import prepared_response
-
-            blk.__dict__["per_f"] = [prepared_response(eng.system, eng.f[k:k + 1], eng.rho, eng.c,
-                                                       PC.SUBSTRATE_REFLECTION,
-                                                       h0=None if eng.h0 is None else eng.h0[k:k + 1])
-                                     for k in range(eng.f.size)]
-            base.__dict__["per_f"] = blk.__dict__["per_f"]
+            from acl.physics.coupling import coupled_volumes
 
         def response(pos, rows_):
             if not single:
                 return eng.response(pos)
             fk = blk.fidx[rows_, 0]
             u = np.zeros((pos.shape[0], eng.f.size, pos.shape[1]), complex)
-            for k in np.unique(fk[fk >= 0]):
-                sel = fk == k
-                u[sel, k] = blk.__dict__["per_f"][k](pos[sel])[:, 0]
+            on = np.flatnonzero(fk >= 0)
+            if on.size:
+                k = fk[on]
+                u[on, k] = coupled_volumes(eng.h0[k][:, None], eng.system.slot, pos[on], eng.system.radii,
+                                           eng.f[k][:, None], eng.rho, eng.c, PC.SUBSTRATE_REFLECTION)[:, 0]
             return u
     onehot = np.zeros((n, C))
     onehot[np.arange(n), blk.orif_cap] = 1.0
@@ -403,21 +420,47 @@ def _predict_block(P, blk: GroupBlock, items) -> list:
     DEN = np.where(across[None], REST_D, 1.0)[mem]                                # (r, n, n) rest distances
     scale_len = float(SCALE.min())
 
+    SIDE, AXIAL = _collinear_columns(np.concatenate([PTS0.reshape(-1, 3), REST.reshape(-1, 3)]), blk.normals,
+                                     [blk.basis[i, :, :blk.k[i]] for i in range(N)], blk.law,
+                                     [ax for _, ties in tied for _, ax in ties])
+    ALL_COLS = np.arange(m)
+
+    def sideways(zl, sl, live, Fz):
+        """The Jacobian columns (nl, m, len(SIDE)) of z - D(z) across the line of a collinear group, at zl."""
+        ns, nl = SIDE.size, live.size
+        h = H[live]
+        zp = zl[None] + h[None, :, None] * np.eye(m)[SIDE][:, None, :]                            # (ns, nl, m)
+        Dq, _ = D(zp.reshape(ns * nl, m), np.tile(sl, ns), np.tile(live, ns))
+        return np.transpose(((zp - Dq.reshape(ns, nl, m)) - Fz[None]) / h[None, :, None], (1, 2, 0))
+
     def DJ(zl, sl, live, at=None):
         """(D(z), orifice distances, finite-difference Jacobian of z - D(z)) of every row: the row and its m perturbed
         copies in one evaluation of D (per-call overhead dominates, so each Newton iteration is one call); ``at``:
-        (D(z), distances) already evaluated at zl (only the m copies are)."""
+        (D(z), distances) already evaluated at zl (only the m copies are).  A collinear group with every row on its
+        line (:func:`_collinear_columns`): the copies along the line only, the columns across it are the identity
+        (their block is decoupled: no force across the line, checked exactly) until :func:`solve` evaluates them once
+        at the solution (:func:`sideways`)."""
         nl = live.size
         h = H[live]
-        zp = np.concatenate([zl[None], zl[None] + h[None, :, None] * np.eye(m)[:, None, :]])    # (m + 1, nl, m)
+        cols = AXIAL if SIDE is not None and not np.any(zl[:, SIDE]) else ALL_COLS
+        q = cols.size
+        zp = np.concatenate([zl[None], zl[None] + h[None, :, None] * np.eye(m)[cols][:, None, :]])    # (q + 1, nl, m)
         if at is None:
-            Dp, dd = D(zp.reshape((m + 1) * nl, m), np.tile(sl, m + 1), np.tile(live, m + 1))
-            Dp = Dp.reshape(m + 1, nl, m)
+            Dp, dd = D(zp.reshape((q + 1) * nl, m), np.tile(sl, q + 1), np.tile(live, q + 1))
+            Dp = Dp.reshape(q + 1, nl, m)
         else:
-            Dq, _ = D(zp[1:].reshape(m * nl, m), np.tile(sl, m), np.tile(live, m))
-            Dp, dd = np.concatenate([at[0][None], Dq.reshape(m, nl, m)]), at[1]
+            Dq, _ = D(zp[1:].reshape(q * nl, m), np.tile(sl, q), np.tile(live, q))
+            Dp, dd = np.concatenate([at[0][None], Dq.reshape(q, nl, m)]), at[1]
         Fz = zl - Dp[0]
-        J = np.transpose(((zp[1:] - Dp[1:]) - Fz[None]) / h[None, :, None], (1, 2, 0))   # (nl, m rows, m cols)
+        Jq = np.transpose(((zp[1:] - Dp[1:]) - Fz[None]) / h[None, :, None], (1, 2, 0))   # (nl, m rows, q cols)
+        if q == m:
+            return Dp[0], dd[:nl], Jq
+        J = np.zeros((nl, m, m))
+        J[:, :, cols] = Jq
+        J[:, SIDE, SIDE] = 1.0
+        off = np.flatnonzero(np.any(Fz[:, SIDE] != 0, axis=1))
+        if off.size:                    # a force across the line after all: those rows' columns across it now
+            J[np.ix_(off, ALL_COLS, SIDE)] = sideways(zl[off], sl[off], live[off], Fz[off])
         return Dp[0], dd[:nl], J
 
     def chord(zl, sl, live, J0, Fz_all, d_all, J_all, fresh):
@@ -509,10 +552,15 @@ def _predict_block(P, blk: GroupBlock, items) -> list:
         if stale.size:
             Dz, dd, J = DJ(zl[stale], sl[stale], live[stale])
             Fz_all[stale], d_all[stale], J_all[stale] = zl[stale] - Dz, dd, J
+        rel = np.where(across[None], d_all / DEN[live], np.inf)
+        near_ok = rel.reshape(nl, -1).min(axis=1) > 0.02
+        if SIDE is not None:            # a collinear group: the columns across its line once, at each row's solution
+            on = np.flatnonzero(~np.any(zl[:, SIDE], axis=1) & (np.abs(Fz_all).max(axis=1) <= TOL[live]) & near_ok)
+            if on.size:
+                J_all[np.ix_(on, ALL_COLS, SIDE)] = sideways(zl[on], sl[on], live[on], Fz_all[on])
         det = np.linalg.det(J_all)
         last["J"] = J_all
-        rel = np.where(across[None], d_all / DEN[live], np.inf)
-        good = (np.abs(Fz_all).max(axis=1) <= TOL[live]) & (det > 0) & (rel.reshape(nl, -1).min(axis=1) > 0.02)
+        good = (np.abs(Fz_all).max(axis=1) <= TOL[live]) & (det > 0) & near_ok
         return zl, good, rel
 
     def solve_pinned(z0, rows, pinned, iters=N_NEWTON):
