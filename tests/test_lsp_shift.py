@@ -249,6 +249,9 @@ def test_lint_findings_after_shifted_edits_equal_a_fresh_lint(tmp_path):
 
     path = str(tmp_path / "fig5a.acl")
     text = (ROOT / "examples" / "fig5a_gripper.acl").read_text(encoding="utf-8")
+    # a finding to follow: an implausible pair factor (the example's own 14.985, Fig. 5b, is plausible: W402 from 38x)
+    assert "factor = calibrations.gripper_pair_factor" in text
+    text = text.replace("factor = calibrations.gripper_pair_factor", "factor = 50")
     L._PARSERS.clear()
     first = L.lint_text(path, text)
     assert any(d.code == "W402" and d.span.line > 5 for d in first)     # the effect's implausible factor
