@@ -655,7 +655,6 @@ def _predict_steps(P: Prepared, coeffs: dict, effects: dict, latch_blend: float 
 
     d_0 = np.zeros(P.n)
     d_1 = np.zeros(P.n)
-    grp = lay["grp"]
     ratio = np.zeros(P.n)                    # latch rows: push / switching force
     if lay["any_single"]:
         idx = lay["single"]

@@ -304,7 +304,6 @@ def diagnose_path(G, P, dt, limits, tolerance, u_start, slew_model, status="infe
     2. If every waypoint is reachable alone, the slew limit binds: a bisection on the prefix
        length (log2 N feasibility solves) finds the first waypoint the slew cannot follow.
     """
-    N = P.shape[0]
     bad = _first_elastic(G, P, dt, limits, tolerance, u_start, slew_model, with_slew=False)
     if bad is not None:
         binding, relax = [], []

@@ -116,7 +116,6 @@ class Mechanism:
             self.elements.append(self._element_law(el))
         self.links = []
         for (_k, _nax, ga, gb, name) in mech.links:
-            sp = d.spring(name)
             ks = ev.get(f"springs.{name}.stiffness")
             nax = _unit(ev.vec(f"springs.{name}.axis"))
             self.links.append((ks, nax, ga, gb, name))
@@ -205,7 +204,7 @@ class Mechanism:
 
     def _admissible_pairs(self):
         """Closest orifices (nominal choice, mechanics._closest_orifices) of capsules in different groups, their rest direction per point."""
-        d, mech, ev = self.ev.design, self.mech, self.ev
+        mech, ev = self.mech, self.ev
         lay = ev.layout()
         out = []
         for i, ca in enumerate(ev.caps):
