@@ -58,3 +58,11 @@ def saved_figures(monkeypatch):
 
     monkeypatch.setattr(matplotlib.figure.Figure, "savefig", grab)
     return saved
+
+
+@pytest.fixture(scope="session")
+def fig3():
+    """The paper's three-orifice module (examples/fig3_three_orifice.acl, Fig. 3), resolved once per worker."""
+    import acl
+
+    return acl.load(os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "examples", "fig3_three_orifice.acl"))

@@ -28,11 +28,6 @@ FIG3 = os.path.join(ROOT, "examples", "fig3_three_orifice.acl")
 
 
 @pytest.fixture(scope="module")
-def fig3():
-    return acl.load(FIG3)
-
-
-@pytest.fixture(scope="module")
 def circle(fig3):
     return compile_program(fig3, "circle", CompileOptions(band_samples=2, resim_points=20))
 

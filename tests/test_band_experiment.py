@@ -11,7 +11,6 @@ import sys
 import numpy as np
 import pytest
 
-import acl
 from acl.schedule import experiment
 from acl.schedule.bands import error_band
 from acl.schedule.compile import CompileOptions, compile_program
@@ -19,11 +18,6 @@ from acl.schedule.gains import model_forward, model_forward_many
 
 ROOT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..")
 FIG3 = os.path.join(ROOT, "examples", "fig3_three_orifice.acl")
-
-
-@pytest.fixture(scope="module")
-def fig3():
-    return acl.load(FIG3)
 
 
 @pytest.fixture(scope="module")
