@@ -186,29 +186,53 @@ class Terminated(KeyboardInterrupt):
 _SIGNALLED = 0
 
 
+#: True once main() is restoring the handlers: a signal then only sets _SIGNALLED (main() reports it), as an
+#: exception raised there would escape main() as a traceback.
+_QUIET_SIGNALS = False
+
+
 def _terminate(signum, frame):
     global _SIGNALLED
     _SIGNALLED = signum
-    raise Terminated(signum)
+    if not _QUIET_SIGNALS:
+        raise Terminated(signum)
 
 
 def _interrupt(signum, frame):
     """Ctrl-C as Python's default handler does it (KeyboardInterrupt), remembered for main()."""
     global _SIGNALLED
     _SIGNALLED = signum
-    raise KeyboardInterrupt
+    if not _QUIET_SIGNALS:
+        raise KeyboardInterrupt
+
+
+#: Held while a signal is sent again (below) and while main() stops signals: no signal is sent after that.
+_REDELIVERY = None
+
+
+def _redeliver(signum):
+    import time
+
+    time.sleep(0.02)                    # the hook has long returned: the signal lands where the command can unwind
+    with _REDELIVERY:
+        if not _QUIET_SIGNALS:
+            os.kill(os.getpid(), signum)
 
 
 def _unraisable(info):
     """An interrupt that lands in a callback Python cannot raise from (a weakref callback of the import system)
-    is not lost and prints no traceback: the signal is sent again and arrives where it can unwind the command."""
-    import os
+    is not lost and prints no traceback: the signal is sent again from a helper thread once this hook has
+    returned (sent from here, its handler would raise inside the hook, and Python would print that and drop it).
+    If the command ends first, main() still reports the signal (_SIGNALLED)."""
     import signal
+    import threading
 
     if info.exc_type is not None and issubclass(info.exc_type, KeyboardInterrupt):
+        global _SIGNALLED
         signum = (int(info.exc_value.args[0]) if isinstance(info.exc_value, Terminated) and info.exc_value.args
                   else int(signal.SIGINT))
-        os.kill(os.getpid(), signum)
+        _SIGNALLED = signum
+        threading.Thread(target=_redeliver, args=(signum,), daemon=True, name="acl-signal").start()
         return
     sys.__unraisablehook__(info)
 
@@ -330,12 +354,51 @@ def _terminated(exc: Terminated) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
-    import warnings
+    import threading
 
-    global _SIGNALLED
+    global _SIGNALLED, _QUIET_SIGNALS, _REDELIVERY
     _SIGNALLED = 0
+    _QUIET_SIGNALS = False
+    _REDELIVERY = threading.Lock()
     hook = sys.unraisablehook
     old = _on_termination()
+    code = 0
+    try:
+        try:
+            code = _run(argv)
+        except KeyboardInterrupt:      # a signal between the command's end and here: reported below
+            pass
+    finally:
+        import signal
+
+        _QUIET_SIGNALS = True          # from here a signal is only remembered
+        with _REDELIVERY:              # and none is sent again
+            pass
+        for sig, handler in old.items():
+            signal.signal(sig, handler)
+        sys.unraisablehook = hook
+    if _SIGNALLED and code not in (130, 128 + _SIGNALLED):
+        # the signal arrived where it could not unwind the command (a hook, the last flush): the command may
+        # have finished, but the caller asked it to stop and learns that it did not end normally
+        return _signalled(_SIGNALLED)
+    return code
+
+
+def _signalled(signum: int) -> int:
+    import signal
+
+    if signum == signal.SIGINT:
+        try:
+            sys.stderr.write("acl: interrupted\n")
+        except (OSError, ValueError):
+            pass
+        return 130
+    return _terminated(Terminated(signum))
+
+
+def _run(argv: list[str] | None) -> int:
+    import warnings
+
     _prepare_streams()
     try:
         with warnings.catch_warnings():
@@ -354,31 +417,13 @@ def main(argv: list[str] | None = None) -> int:
     except Terminated as exc:          # before or after the command ran (argument parsing, the last flush)
         return _terminated(exc)
     except KeyboardInterrupt:          # Ctrl-C while the command's modules are imported
-        try:
-            sys.stderr.write("acl: interrupted\n")
-        except (OSError, ValueError):
-            pass
-        return 130
+        return _signalled(2)
     except SystemExit:
         raise
     except BaseException:              # a signal that surfaced as an extension's error during an import
         if not _SIGNALLED:
             raise
-        import signal
-
-        if _SIGNALLED == signal.SIGINT:
-            try:
-                sys.stderr.write("acl: interrupted\n")
-            except (OSError, ValueError):
-                pass
-            return 130
-        return _terminated(Terminated(_SIGNALLED))
-    finally:
-        import signal
-
-        for sig, handler in old.items():
-            signal.signal(sig, handler)
-        sys.unraisablehook = hook
+        return _signalled(_SIGNALLED)
 
 
 def _main(argv: list[str] | None = None) -> int:

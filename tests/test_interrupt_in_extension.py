@@ -11,6 +11,9 @@ from __future__ import annotations
 
 import os
 import signal
+import sys
+import time
+import weakref
 
 import pytest
 
@@ -64,3 +67,47 @@ def test_a_signal_in_an_earlier_run_does_not_swallow_a_later_error(monkeypatch):
     monkeypatch.setattr(cli, "_main", run)
     with pytest.raises(PanicException):
         cli.main(["check", "x.acl"])
+
+
+def _interrupt_in_a_callback(exc):
+    """What CI hit: an interrupt raised inside a weakref callback, which Python cannot raise from, so it hands
+    it to sys.unraisablehook (from C, as it does for the import system's callbacks)."""
+    class Held:
+        pass
+
+    def callback(ref):
+        raise exc
+
+    held = Held()
+    ref = weakref.ref(held, callback)
+    del held
+    return ref
+
+
+@pytest.mark.parametrize("exc, code", [(KeyboardInterrupt(), 130),
+                                       (cli.Terminated(int(signal.SIGTERM)), 128 + int(signal.SIGTERM))])
+def test_an_interrupt_lost_in_a_callback_stops_the_command(monkeypatch, capsys, exc, code):
+    # Found by the signal fuzz in CI: the hook sent the signal again from inside itself, its handler raised
+    # there, and Python printed "Exception ignored in sys.unraisablehook" with a traceback and lost the signal.
+    def run(argv):
+        _interrupt_in_a_callback(exc)
+        deadline = time.monotonic() + 10
+        while time.monotonic() < deadline:        # a long command: the signal must come back and stop it
+            pass
+        raise AssertionError("the signal was lost")
+    monkeypatch.setattr(cli, "_main", run)
+    assert cli.main(["check", "x.acl"]) == code
+    err = capsys.readouterr().err
+    assert "Traceback" not in err and "Exception ignored" not in err
+
+
+def test_an_interrupt_lost_in_a_callback_of_a_command_that_ends_is_reported(monkeypatch, capsys):
+    def run(argv):
+        _interrupt_in_a_callback(KeyboardInterrupt())
+        return 0                                   # ends before the signal is sent again
+    monkeypatch.setattr(cli, "_main", run)
+    assert cli.main(["check", "x.acl"]) == 130
+    err = capsys.readouterr().err
+    assert "acl: interrupted" in err and "Traceback" not in err
+    time.sleep(0.1)                                # the helper thread sends nothing once main() has returned
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
