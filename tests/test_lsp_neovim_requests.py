@@ -206,6 +206,12 @@ def test_every_request_through_neovim_07(tmp_path):
     assert res("lens_resolve")["command"]["title"].startswith("modes: ")
     messy = _at("param   messy", "param")[0]
     assert res("organize") and res("organize")[0]["kind"] == "source.organizeImports"
+    (edits,) = res("organize")[0]["edit"]["changes"].values()       # applied: the imports sorted as acl fmt
+    lines = TEXT.split("\n")
+    for e in sorted(edits, key=lambda e: e["range"]["start"]["line"], reverse=True):
+        lines[e["range"]["start"]["line"]:e["range"]["end"]["line"]] = e["newText"].split("\n")[:-1]
+    assert lines[:5] == ["import stdlib.beams", "import stdlib.capsules", "import stdlib.media",
+                         "import stdlib.transducers", 'import "lib.acl" as lib'] and lines[5:] == L[5:]
     assert res("formatting") and "param messy = 1 um" in res("formatting")[0]["newText"]
     (edit,) = res("range_formatting")       # the line, and the blank line acl fmt puts after a program
     assert edit["range"]["start"]["line"] == messy and "param messy = 1 um" in edit["newText"]
