@@ -165,6 +165,16 @@ def pair_scale_from_uniform(u):
     return np.exp(PAIR_SCALE_LOG_MEAN + PAIR_SCALE_PREDICTIVE_LOG_SCALE * t)
 
 
+def pair_scale_cdf(s: float) -> float:
+    """P(scale <= ``s``) under the first-principles pair-scale spread (:func:`pair_scale_from_uniform`'s inverse)."""
+    lo, hi = (_predictive_cdf_of_scale(b) for b in PAIR_SCALE_BOUNDS)
+    if s <= PAIR_SCALE_BOUNDS[0]:
+        return 0.0
+    if s >= PAIR_SCALE_BOUNDS[1]:
+        return 1.0
+    return (_predictive_cdf_of_scale(s) - lo) / (hi - lo)
+
+
 def pair_scale_quantile(p: float) -> float:
     """The ``p`` quantile of the first-principles pair-scale spread (:func:`pair_scale_from_uniform`)."""
     return float(pair_scale_from_uniform(p))

@@ -166,6 +166,13 @@ def pair_scale_notes(comp: CompileState) -> None:
         comp.schedule.warnings.append(Diagnostic(
             PAIR_SCALE_CODE, Severity.INFO, msg, comp.program.steps[g.step].span,
             "calibrate the pair force on measured pairs (acl fit; effect bjerknes_scale, stdlib/calibrations.acl)"))
+    from acl.analysis.pairs import drive_step_scale_note    # a drive step has no band: its pairs' net sign instead
+
+    for k, st in enumerate(comp.program.steps, 1):
+        n = drive_step_scale_note(comp.design, st.drive, st.span, f"step {k}") if st.kind == "drive" else None
+        if n:
+            comp.schedule.warnings.append(Diagnostic(PAIR_SCALE_CODE, Severity.INFO, n["message"], st.span,
+                "calibrate the pair force on measured pairs (acl fit; effect bjerknes_scale, stdlib/calibrations.acl)"))
 
 
 PASSES = (
