@@ -129,7 +129,7 @@ PAIR_SCALE_DISTRIBUTION = (f"predictive log-Student-t ({PAIR_SCALE_DOF} dof) of 
 
 
 def student_t_cdf(t: float, dof: int) -> float:
-    """Student t CDF: closed forms for 1 and 2 degrees of freedom (Abramowitz & Stegun 26.7.3-4), scipy beyond."""
+    """Student t CDF: closed forms for 1 and 2 degrees of freedom (Johnson, Kotz & Balakrishnan vol. 2, ch. 28), scipy beyond."""
     if dof == 1:
         return 0.5 + math.atan(t) / math.pi
     if dof == 2:
