@@ -70,3 +70,20 @@ def test_reported_dc_is_where_the_beams_equilibrium_turns(gap_um, closes):
     rep = acl.analyze(d, at=Drive(tones=(Tone(frequency=125e3, amplitude=0.3),)), snap_in=False).as_dict()
     (g,) = rep["equilibrium"]["gaps"]
     assert (g["gap_m"] < gap_um * 1e-6) is closes
+
+
+@pytest.mark.parametrize("name", ["fig2_vertical_cantilever", "fig4_facing_pair"])
+def test_every_validity_warning_of_analyze_is_located(name):
+    """The drives analyze checks that are no program step (the pair table's, a frequency's largest program amplitude)
+    were printed without a location; they are now located at the capsule of the largest interface amplitude."""
+    import subprocess
+    import sys
+
+    r = subprocess.run([sys.executable, "-m", "acl", "analyze", f"examples/{name}.acl", "--no-snap"],
+                       capture_output=True, text=True, cwd=ROOT, timeout=300, env={**__import__("os").environ,
+                                                                                   "COLUMNS": "400"})
+    assert r.returncode == 0, r.stderr
+    lines = [x for x in (r.stdout + r.stderr).splitlines() if "warning[W-" in x]
+    assert any("pair analysis" in x or "largest amplitude" in x for x in lines)
+    for x in lines:
+        assert x.startswith(f"examples/{name}.acl:"), x
