@@ -87,3 +87,11 @@ def test_every_validity_warning_of_analyze_is_located(name):
     assert any("pair analysis" in x or "largest amplitude" in x for x in lines)
     for x in lines:
         assert x.startswith(f"examples/{name}.acl:"), x
+
+
+def test_a_step_that_drives_nothing_states_no_sign():
+    from acl.schedule.compile import CompileOptions, compile_program
+
+    text = H4.read_text().replace("drive 85 kHz @ volts for 1 s", "drive 85 kHz @ 0 V for 1 s")
+    s = compile_program(acl.loads(text, filename=str(H4)), "attract", CompileOptions(band_samples=0))
+    assert not [w for w in s.warnings if w.code == "N-PAIR-SCALE"]
