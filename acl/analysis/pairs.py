@@ -105,8 +105,8 @@ def drive_step_scale_note(design: Design, drive: Drive, span, step_text: str) ->
     parts = []
     for pf in pair_forces(design, drive):
         r = net_sign_over_pair_scale(design, drive, pf.a, pf.b)
-        if not r["closing_n"] and r["flip_scale"] is None:
-            continue                                # no force at all (a 0 V tone): no sign to state
+        if (not r["closing_n"] and r["flip_scale"] is None) or not np.isfinite([r["closing_n"], r["p_other_sign"]]).all():
+            continue                                # no force at all (a 0 V tone), or none defined: no sign to state
         sign, other = ("attracts", "repel") if r["attract"] else ("repels", "attract")
         s = r["flip_scale"]           # the other sign lies on the side of s* away from 1
         where = f" ({other}s {'above' if s > 1.0 else 'below'} {s:.3g}x)" if s else ""
