@@ -211,7 +211,7 @@ def test_coupled_volumes_of_an_array_gather_the_same_green_matrix_bit_for_bit(mo
     args = (blocks, sysm.slot, sysm.points, sysm.radii, f, RHO, C, WALL)
     terms = []
     green = CP._green_terms
-    monkeypatch.setattr(CP, "_green_terms", lambda k, t, r: terms.append(t[0].shape[-1]) or green(k, t, r))
+    monkeypatch.setattr(CP, "_green_terms", lambda k, t, r, *a: terms.append(t[0].shape[-1]) or green(k, t, r, *a))
     table = coupled_volumes(*args)
     pairs = sysm.n * (sysm.n + 1) // 2
     assert terms and max(terms) < pairs / 4                 # the array repeats its distances: the table path ran
@@ -272,7 +272,7 @@ def test_coupled_volumes_of_an_array_with_batched_blocks_equal_each_row(monkeypa
     w = 2 * math.pi * f
     terms = []
     green = CP._green_terms
-    monkeypatch.setattr(CP, "_green_terms", lambda k, t, r: terms.append(t[0].shape[-1]) or green(k, t, r))
+    monkeypatch.setattr(CP, "_green_terms", lambda k, t, r, *a: terms.append(t[0].shape[-1]) or green(k, t, r, *a))
 
     blocks = np.stack([np.moveaxis(uncoupled_response(sysm.phi, sysm.omega, s * sysm.damping, w), -3, 0)
                        for s in (1.0, 1.7)])                                              # (2, F, C, P, P)
