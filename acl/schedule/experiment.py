@@ -155,10 +155,10 @@ def linear_band(e0: np.ndarray, J: np.ndarray, S: np.ndarray, disc: float = 0.0,
     w, V = np.linalg.eigh(0.5 * (S + S.T))
     L = V * np.sqrt(np.maximum(w, 0.0))
     z = rng.standard_normal((DRAWS, S.shape[0])) @ L.T                     # (DRAWS, D)
-    err = e0[None] + np.einsum("nad,sd->sna", J, z)
+    err = e0[None] + (z @ J.reshape(-1, J.shape[-1]).T).reshape(z.shape[0], *J.shape[:2])    # J z per draw
     if disc > 0:
         err = err + rng.normal(0.0, disc, err.shape)
-    r = np.linalg.norm(err, axis=2)
+    r = np.sqrt(err[..., 0] * err[..., 0] + err[..., 1] * err[..., 1])       # |err| (x, y): norm's sum, 10x faster
     return float(np.percentile(np.sqrt(np.mean(r ** 2, axis=1)), 95)), float(np.percentile(r.max(axis=1), 95))
 
 
@@ -287,7 +287,7 @@ def promise(design: Design, many: Many, e0: np.ndarray, J: np.ndarray, R: np.nda
         err = err + (theta @ Jp.reshape(-1, len(pi)).T).reshape(err.shape)
     if disc > 0:
         err = err + rng.normal(0.0, disc, err.shape)
-    r2 = np.sum(err * err, axis=2)
+    r2 = err[..., 0] * err[..., 0] + err[..., 1] * err[..., 1]               # the sum over (x, y), without a reduction
     return {"rms_p95_m": float(np.percentile(np.sqrt(np.mean(r2, axis=1)), 95)),
             "max_p95_m": float(np.percentile(np.sqrt(r2.max(axis=1)), 95)),
             "tone_gain_sd": [{"frequency_hz": f, "log_sd": v} for f, v in sd0.items()],
