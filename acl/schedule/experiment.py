@@ -133,7 +133,12 @@ def sensitivity(design: Design, dirs, many: Many, tones, u_rows: np.ndarray, mov
     (:func:`prepared`), made here when not given."""
     moved = _moves(dirs) if moved is None else moved
     live = [k for k, d in enumerate(moved) if d is not None]
-    got = many([design, *[moved[k] for k in live]], list(tones), u_rows)
+    return _sensitivity_of(many([design, *[moved[k] for k in live]], list(tones), u_rows), dirs, moved, live)
+
+
+def _sensitivity_of(got: list, dirs, moved, live) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`sensitivity` from the predictions ``got`` of the nominal design and the moves ``live`` (indices into
+    ``moved``), in that order."""
     nominal = got[0]
     if isinstance(nominal, Exception):
         raise nominal
@@ -155,7 +160,7 @@ def linear_band(e0: np.ndarray, J: np.ndarray, S: np.ndarray, disc: float = 0.0,
     w, V = np.linalg.eigh(0.5 * (S + S.T))
     L = V * np.sqrt(np.maximum(w, 0.0))
     z = rng.standard_normal((DRAWS, S.shape[0])) @ L.T                     # (DRAWS, D)
-    err = e0[None] + (z @ J.reshape(-1, J.shape[-1]).T).reshape(z.shape[0], *J.shape[:2])    # J z per draw
+    err = e0[None] + np.einsum("nad,sd->sna", J, z)
     if disc > 0:
         err = err + rng.normal(0.0, disc, err.shape)
     r = np.sqrt(err[..., 0] * err[..., 0] + err[..., 1] * err[..., 1])       # |err| (x, y): norm's sum, 10x faster
@@ -294,6 +299,24 @@ def promise(design: Design, many: Many, e0: np.ndarray, J: np.ndarray, R: np.nda
             "cov_m2": _tone_covs(Jt, sd0, tones, Jp, R[np.ix_(pi, pi)], var0)}
 
 
+def _each_tone(design: Design, dirs, many_tones, by_tone: dict, moves) -> dict | None:
+    """{tone: (nominal, J) or the exception} of :func:`sensitivity` at each tone alone at its voltages ``by_tone``
+    ({tone Hz: [volts]}, the same count per tone), from one ``many_tones`` batch; None when the counts differ."""
+    if len({len(v) for v in by_tone.values()}) != 1:
+        return None
+    tones = list(by_tone)
+    live = [k for k, d in enumerate(moves) if d is not None]
+    u = np.array([[x * x for x in by_tone[f]] for f in tones])
+    got = many_tones([design, *[moves[k] for k in live]], tones, u)
+    out = {}
+    for f, g in zip(tones, got):
+        try:
+            out[f] = _sensitivity_of(g, dirs, moves, live)
+        except (ValueError, KeyError, FloatingPointError) as exc:
+            out[f] = exc
+    return out
+
+
 def _absorbed(design: Design, many: Many, dirs, moves, gi, pi, W0, tones, readings) -> np.ndarray:
     """(K, P): the log gain each played tone's fit takes up per 1 sd of each uncertain parameter, at the nominal design.
 
@@ -365,13 +388,15 @@ def candidates(design: Design, tones, u: np.ndarray) -> list[tuple[float, float]
 
 def explain(design: Design, many: Many, capsule: str, tones, u: np.ndarray, targets: np.ndarray, *,
             reload=None, band=None, noise: float = READING_NOISE_M, seed: int = 0, name: str = "",
-            earlier=None) -> dict | None:
+            earlier=None, many_tones=None) -> dict | None:
     """The band's cause and cure for a follow goal (module docstring); None when nothing is declared or the model fails.
 
     ``u`` (K, M) V^2 and ``targets`` (M, 2) m at the re-simulated waypoints; ``band`` the Monte Carlo one
     (:class:`acl.schedule.bands.Band`) for the check; ``name`` the goal's; ``earlier`` (goal name, [(tone Hz,
     volts)]): another goal's proposed readings, under which the band expected after them is promised too (a lab
-    that takes only those)."""
+    that takes only those).  ``many_tones`` (designs, tones, u (K, N) V^2 of each tone alone) -> [[prediction per
+    design] per tone]: the candidate readings' sensitivities as one batch (acl.schedule.gains.model_forward_tones),
+    the same numbers as ``many`` tone by tone."""
     dirs, R, moves = prepared(design, reload)
     if not dirs:
         return None
@@ -410,9 +435,14 @@ def explain(design: Design, many: Many, capsule: str, tones, u: np.ndarray, targ
     by_tone: dict = {}
     for f, x in cands:
         by_tone.setdefault(f, []).append(x)
+    each = _each_tone(design, dirs, many_tones, by_tone, moves) if many_tones is not None else None
     for f, vs in by_tone.items():
         try:
-            y0, Hf = sensitivity(design, dirs, many, [f], np.array([[x * x] for x in vs]), moves)
+            got = each[f] if each is not None else \
+                sensitivity(design, dirs, many, [f], np.array([[x * x] for x in vs]), moves)
+            if isinstance(got, Exception):
+                raise got
+            y0, Hf = got
         except (ValueError, KeyError, FloatingPointError):
             continue
         for r, x in enumerate(vs):
