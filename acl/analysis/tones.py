@@ -17,7 +17,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from acl.analysis.acoustics import (_apply_neighbour_drag, _centres_array, _compute_engine, _Engine, _layout,
+from acl.analysis.acoustics import (_apply_neighbour_drag, _centres_array, _compute_engine, _Engine,
                                     _thrust_scale, drive_gain, effect_pressure_factor, pressure_terms,
                                     substrate_factor)
 from acl.analysis.environment import medium_constants
@@ -45,9 +45,9 @@ def drive_factors(design: Design, frequencies) -> tuple[np.ndarray, np.ndarray]:
     in the force engine (the declared thrust coefficient is matched through the gain, :func:`_thrust_scale`)."""
     f = np.asarray(frequencies, float)
     gain, _ = drive_gain(design, f) if f.size else (np.zeros(0), None)
-    lay = _layout(design)
-    sub = np.array([substrate_factor(design, c) for c in lay.caps]) if design.effects else np.ones(len(lay.caps))
-    return np.asarray(gain, float), np.array([_thrust_scale(design, c) for c in lay.caps]) * sub
+    caps = design.capsules                   # _layout's order (a band's draws would each rebuild the layout)
+    sub = np.array([substrate_factor(design, c) for c in caps]) if design.effects else np.ones(len(caps))
+    return np.asarray(gain, float), np.array([_thrust_scale(design, c) for c in caps]) * sub
 
 
 def drive_constants(eng: _Engine, amplitudes: np.ndarray, gain: np.ndarray, scale: np.ndarray) -> dict:
