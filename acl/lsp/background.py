@@ -151,17 +151,22 @@ def content_key(value):
 
     from acl.diagnostics import Span
 
-    t = type(value)
-    if value is None or t in (str, float, int, bool):
-        return value
-    if t is tuple or t is list:
-        return tuple([content_key(v) for v in value])
-    if isinstance(value, BaseModel):
-        return (t.__qualname__,) + tuple([(k, content_key(v)) for k, v in value.__dict__.items()
-                                          if k[0] != "_" and type(v) is not Span])
-    if t is dict:
-        return ("dict",) + tuple(sorted((content_key(k), content_key(v)) for k, v in value.items()))
-    raise TypeError(f"no content key for {t.__name__}")
+    atoms = (str, float, int, bool, type(None))
+
+    def key(v):
+        t = type(v)
+        if t in atoms:
+            return v
+        if t is tuple or t is list:
+            return tuple([key(x) for x in v])
+        if isinstance(v, BaseModel):
+            return (t.__qualname__,) + tuple([(k, key(x)) for k, x in v.__dict__.items()
+                                              if k[0] != "_" and type(x) is not Span])
+        if t is dict:
+            return ("dict",) + tuple(sorted((key(k), key(x)) for k, x in v.items()))
+        raise TypeError(f"no content key for {t.__name__}")
+
+    return key(value)
 
 
 def physics_twin(design):
