@@ -4,11 +4,11 @@ from the same analysis as `acl analyze`, computed faster two ways, each checked 
 - only the hovered capsule's modes get their Q (:func:`acl.analysis.acoustics.coupled_modes_of`): the modes of
   :func:`acl.analysis.acoustics.coupled_modes` (what `acl analyze` reports) filtered by share, the same frequencies,
   shares and phases bit for bit and the same Q within 1e-12 relative (a sum over fewer modes may round differently);
-- a system of at least :data:`acl.physics.coupling.SUBSET_EIGH_MIN_MODES` bare modes finds only the modes up to the
-  listed frequency (a subset eigensolver of the scaled standard problem): against the whole generalized solution
-  within 1e-9 relative in frequency and Q, 1e-7 in the shares, and to every digit the hover and analyze print.
+- a system of at least :data:`acl.physics.coupling.SCALED_EIGH_MIN_MODES` bare modes solves the scaled standard
+  eigenproblem instead of the Cholesky reduction: against the Cholesky solution within 1e-9 relative in frequency
+  and Q, 1e-7 in the shares, and to every digit the hover and analyze print.
 
-Designs: three capsules (the examples' size, where the subset solver is not used) and 88 capsules at seeded random
+Designs: three capsules (the examples' size: the Cholesky reduction) and 88 capsules at seeded random
 positions (264 bare modes; no repeated distance, so no shared Green-function table either).
 """
 from __future__ import annotations
@@ -92,7 +92,7 @@ def test_small_design_hover_modes_are_analyze_modes_exactly():
     from acl.analysis.report import analyze
 
     design = check_text(SMALL, "/tmp/hover_small.acl").design
-    with mock.patch.object(CP, "_subset_eigh", side_effect=AssertionError("a small system uses the whole solver")):
+    with mock.patch.object(CP, "_scaled_eigh", side_effect=AssertionError("a small system uses the Cholesky reduction")):
         rep = analyze(design)
         listed = 0
         for cap in design.capsules:
@@ -106,17 +106,17 @@ def test_small_design_hover_modes_are_analyze_modes_exactly():
     assert listed >= 3          # each capsule takes part in a mode of its own at least
 
 
-def test_subset_eigensolver_equals_the_whole_solution(mid, monkeypatch):
+def test_scaled_eigensolver_equals_the_cholesky_reduction(mid, monkeypatch):
     design = mid.design
     system = AC._system(design)
     med = AC.medium_constants(design)
     phi, om, _ = CP._compact(system)
-    assert om.size >= CP.SUBSET_EIGH_MIN_MODES
+    assert om.size >= CP.SCALED_EIGH_MIN_MODES
     top = 2 * np.pi * 1.5 * AC._coupled_top(design)
-    with mock.patch.object(CP, "_subset_eigh", wraps=CP._subset_eigh) as spy:
+    with mock.patch.object(CP, "_scaled_eigh", wraps=CP._scaled_eigh) as spy:
         fast = CP.coupled_modes(system, med.density, med.sound_speed, C.SUBSTRATE_REFLECTION, top)
     assert spy.call_count == 1
-    monkeypatch.setattr(CP, "SUBSET_EIGH_MIN_MODES", 10**9)
+    monkeypatch.setattr(CP, "SCALED_EIGH_MIN_MODES", 10**9)
     whole = CP.coupled_modes(system, med.density, med.sound_speed, C.SUBSTRATE_REFLECTION, top)
     assert fast.omega.size == whole.omega.size == np.count_nonzero(whole.omega <= top) > 50
     np.testing.assert_allclose(fast.omega, whole.omega, rtol=1e-9)
@@ -124,6 +124,21 @@ def test_subset_eigensolver_equals_the_whole_solution(mid, monkeypatch):
     np.testing.assert_allclose(fast.share, whole.share, rtol=0, atol=1e-7)
     sign = np.sign((fast.volume * whole.volume).sum(axis=0))
     np.testing.assert_allclose(fast.volume * sign, whole.volume, rtol=0, atol=1e-7 * np.abs(whole.volume).max())
+
+
+def test_scaled_eigensolver_over_a_batch_axis():
+    """Both solvers of diag(omega^2) q = w^2 M q on a batch of random mass matrices (I + a positive part)."""
+    rng = np.random.default_rng(5)
+    omega = rng.uniform(1.0, 30.0, (3, 40))
+    a = rng.normal(size=(3, 40, 12))
+    mass = np.eye(40) + 0.3 * a @ np.swapaxes(a, -1, -2)
+    w1, q1 = CP._scaled_eigh(omega, mass)
+    w0, q0 = CP._diagonal_eigh(omega, mass)
+    np.testing.assert_allclose(w1, w0, rtol=1e-10)
+    assert np.all(np.diff(w1, axis=-1) > 0)
+    eye = np.swapaxes(q1, -1, -2) @ mass @ q1                      # mass-normalized
+    np.testing.assert_allclose(eye, np.broadcast_to(np.eye(40), eye.shape), atol=1e-10)
+    np.testing.assert_allclose((omega[:, :, None] ** 2) * q1, mass @ q1 * w1[:, None, :] ** 2, atol=1e-8 * 900)
 
 
 def _printed(m) -> tuple:
@@ -136,7 +151,7 @@ def test_mid_design_hover_equals_analyze_to_its_digits(mid, monkeypatch):
     design = mid.design
     lines = mid.text.split("\n")
     caps = design.capsules
-    with mock.patch.object(CP, "_subset_eigh", wraps=CP._subset_eigh) as spy:
+    with mock.patch.object(CP, "_scaled_eigh", wraps=CP._scaled_eigh) as spy:
         mine = {c.name: AC.coupled_modes_of(design, c, MIN_SHARE) for c in caps}
         shown = [c.name for c in caps if mine[c.name]][:6]
         texts = {name: hover(mid, next(i for i, ln in enumerate(lines) if ln.startswith(f"capsule {name} ")), 9)[0]
@@ -149,8 +164,8 @@ def test_mid_design_hover_equals_analyze_to_its_digits(mid, monkeypatch):
         assert "with its neighbours" in text
         rows = re.findall(r"^\| \d+ \| ([\d.]+) \| ([\d.]+) \| (.*) \|$", text.split("with its neighbours")[-1], re.M)
         assert rows == [_printed(m) for m in mine[name][:6]], name
-    # and analyze's numbers by the whole eigensolution agree to the printed digits
+    # and analyze's numbers by the Cholesky reduction agree to the printed digits
     fast = {c.name: [_printed(m) for m in mine[c.name]] for c in caps}
-    monkeypatch.setattr(CP, "SUBSET_EIGH_MIN_MODES", 10**9)
+    monkeypatch.setattr(CP, "SCALED_EIGH_MIN_MODES", 10**9)
     other = check_text(mid.text + "\n", "/tmp/hover_mid.acl").design      # a new design object: no cache
     assert {c.name: [_printed(m) for m in _filtered(other, c)] for c in caps} == fast
