@@ -209,6 +209,26 @@ def hover_text(path: str, text: str, line: int, character: int) -> str | None:
     return None if got is None else got[0]
 
 
+def warm_document(path: str, text: str) -> bool:
+    """Before the first hover on a large document (run in the worker): check ``text`` (the worker's incremental
+    parser then holds its statements, so a later text parses only what was edited) and compute what a capsule's full
+    hover on it needs (the coupled modes of all capsules, the response at the program's frequencies)."""
+    from acl.analysis import acoustics as AC
+    from acl.analysis.report import program_frequencies
+    from acl.syntax.parser import paused_gc
+
+    with paused_gc():
+        snap = checked(path, text)
+        design = physics_twin(snap.design)
+        if design is None or len(design.capsules) < 2:
+            return False
+        AC.coupled_modes_of(design, design.capsules[0])
+        freqs = program_frequencies(design)
+        if freqs:
+            AC.rest_response(design, freqs)
+    return True
+
+
 def requirement_values(path: str, text: str) -> list[dict]:
     """Each `require` of the design: its line, pass or fail, value and unit (run in the worker)."""
     from acl.analysis.report import analyze
