@@ -169,3 +169,23 @@ def test_mid_design_hover_equals_analyze_to_its_digits(mid, monkeypatch):
     monkeypatch.setattr(CP, "SCALED_EIGH_MIN_MODES", 10**9)
     other = check_text(mid.text + "\n", "/tmp/hover_mid.acl").design      # a new design object: no cache
     assert {c.name: [_printed(m) for m in _filtered(other, c)] for c in caps} == fast
+
+
+def test_phases_at_the_first_program_frequencies_equal_the_whole_programs_response():
+    """The hover solves only the frequencies it shows (PHASE_FREQUENCIES): the same phases as the response at every
+    program frequency (20 tones here, solved as one batch with the shared Green-function table)."""
+    from acl.analysis.report import program_frequencies
+    from acl.lsp.hover import PHASE_FREQUENCIES
+
+    tones = "\n".join(f"  drive {60 + 7 * i} kHz @ 2 V for 10 ms" for i in range(20))
+    text = SMALL.replace("  drive 125 kHz @ 2 V for 300 ms", tones)
+    snap = check_text(text, "/tmp/hover_phases.acl")
+    line = next(i for i, ln in enumerate(text.split("\n")) if ln.startswith("capsule c2"))
+    got = re.search(r"volume vs drive: (.*)", hover(snap, line, 9)[0]).group(1)
+    other = check_text(text, "/tmp/hover_phases.acl").design               # no cache shared with the hover's
+    freqs = program_frequencies(other)
+    assert len(freqs) == 20
+    resp = AC.orifice_response(other, other.capsule("c2"), freqs)
+    want = ", ".join(f"{f / 1e3:g} kHz: {np.degrees(np.angle(resp[j, 0])):.0f} deg"
+                     for j, f in enumerate(freqs[:PHASE_FREQUENCIES]))
+    assert got == want

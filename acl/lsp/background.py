@@ -215,6 +215,7 @@ def warm_document(path: str, text: str) -> bool:
     hover on it needs (the coupled modes of all capsules, the response at the program's frequencies)."""
     from acl.analysis import acoustics as AC
     from acl.analysis.report import program_frequencies
+    from acl.lsp.hover import PHASE_FREQUENCIES
     from acl.syntax.parser import paused_gc
 
     with paused_gc():
@@ -223,7 +224,7 @@ def warm_document(path: str, text: str) -> bool:
         if design is None or len(design.capsules) < 2:
             return False
         AC.coupled_modes_of(design, design.capsules[0])
-        freqs = program_frequencies(design)
+        freqs = program_frequencies(design)[:PHASE_FREQUENCIES]
         if freqs:
             AC.rest_response(design, freqs)
     return True
