@@ -189,3 +189,26 @@ def test_phases_at_the_first_program_frequencies_equal_the_whole_programs_respon
     want = ", ".join(f"{f / 1e3:g} kHz: {np.degrees(np.angle(resp[j, 0])):.0f} deg"
                      for j, f in enumerate(freqs[:PHASE_FREQUENCIES]))
     assert got == want
+
+
+@pytest.mark.studies
+def test_every_capsule_of_the_5000_line_design_prints_the_cholesky_solutions_numbers(monkeypatch):
+    """benchmarks/lsp.py's design (393 capsules on a lattice, 1,179 bare modes; near-degenerate modes 4.5e-6 apart):
+    every capsule's listed coupled modes, as the hover prints them, from the scaled solver and the selection, equal
+    analyze's list by the Cholesky reduction filtered by share."""
+    import importlib.util
+    from pathlib import Path
+
+    spec = importlib.util.spec_from_file_location("acl_benchmark_check",
+                                                  Path(__file__).resolve().parents[1] / "benchmarks" / "check.py")
+    bench = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bench)
+    text = bench.generate(5000)
+    fast = check_text(text, "/tmp/hover_big.acl").design
+    with mock.patch.object(CP, "_scaled_eigh", wraps=CP._scaled_eigh) as spy:
+        got = {c.name: [_printed(m) for m in AC.coupled_modes_of(fast, c, MIN_SHARE)] for c in fast.capsules}
+    assert spy.call_count == 1 and len(fast.capsules) == 393
+    monkeypatch.setattr(CP, "SCALED_EIGH_MIN_MODES", 10**9)
+    slow = check_text(text + "\n", "/tmp/hover_big.acl").design
+    assert got == {c.name: [_printed(m) for m in _filtered(slow, c)] for c in slow.capsules}
+    assert sum(1 for v in got.values() if v) >= 10
