@@ -29,8 +29,8 @@ from acl.analysis.environment import (_capsule, defaults_used, drive_gain, effec
 from acl.analysis.modal import modal_data, thermal_radius  # noqa: F401  (public here since before)
 from acl.physics import constants as C
 from acl.physics.coupling import (BubbleSystem, CoupledModes, build_system, coupled_modes as _physics_coupled_modes,
-                                  mode_shapes as _physics_mode_shapes,
-                                  coupled_response as _physics_coupled, prepared_response, uncoupled_blocks)
+                                  coupled_response as _physics_coupled, ModeShapes, mode_shapes as _physics_mode_shapes,
+                                  prepared_response, uncoupled_blocks)
 from acl.physics.forces import (bjerknes_pair_sum, capsule_forces, capsule_pair_forces, critical_distance,
                                 dominant_pair_phase, force_constants, interface_distances, interface_pairs, jet_lines,
                                 neighbour_drag, thrust_magnitude)
@@ -266,7 +266,7 @@ def _capsule_indices(design: Design) -> dict:
     return out
 
 
-def _fundamentals(cm, n_interfaces: int) -> list[int]:
+def _fundamentals(cm: CoupledModes | ModeShapes, n_interfaces: int) -> list[int]:
     """Each interface's own fundamental: the lowest mode a uniform pressure excites in which that interface moves most (ties count), else its largest-share driven mode."""
     if cm.omega.size == 0:
         return []
