@@ -65,16 +65,16 @@ capsule hover 9.9 -> 4.7 s; the full hover after a row of capsules moved 11.2 ->
 capsules' coupled modes computed anew: acl.analysis), after a comment edit 8.3 s -> 0.52 s.
 Issue 23's hover session (branch hover8: the coupled modes of >= 256 bare modes from the scaled
 standard eigenproblem, not the Cholesky reduction; only the listed modes' Q; only the shown program
-frequencies; the worker checks an opened large document and computes its coupled modes), --hover-
-only --runs 5, main at 26c62f9 (its hover code as at this branch's base bb08aba) and this branch
-alternated, two rounds each: at load 2.2-2.5, the full answer after a capsule moved 1,127 / 1,121 ->
-488 / 487 ms (max 1,814 / 1,171 -> 612 / 646 ms), after a comment edit 223 / 227 -> 177 / 173 ms,
-the session's first full hover 2,289 / 2,528 -> 162 / 171 ms; with --irregular at load 2.8-3.3,
-after a capsule moved 1,654 / 2,688 -> 799 / 862 ms (max 3,364 / 3,080 -> 934 / 1,448 ms), the first
-full hover 2,546 / 4,253 -> 1,654 / 1,899 ms (the worker's warm-up, at a lower priority, not yet
-done after the 2 s the benchmark waits). --lines 1000 --changes-only --runs 10 at load 2.4-2.7:
-didChange -> diagnostics 17-26 ms median in every case, before and after alike (target of issue 23:
-100 ms).
+frequencies; the worker checks an opened large document and computes its coupled modes),
+--hover-only --runs 5, main at 26c62f9 (its hover code as at this branch's base bb08aba) and this
+branch alternated, two rounds each: at load 2.2-2.5, the full answer after a capsule moved 1,127 /
+1,121 -> 488 / 487 ms (max 1,814 / 1,171 -> 612 / 646 ms), after a comment edit 223 / 227 -> 177 /
+173 ms, the session's first full hover 2,289 / 2,528 -> 162 / 171 ms; with --irregular at load
+2.8-3.3, after a capsule moved 1,654 / 2,688 -> 799 / 862 ms (max 3,364 / 3,080 -> 934 / 1,448 ms),
+the first full hover 2,546 / 4,253 -> 1,654 / 1,899 ms (the worker's warm-up, at a lower priority,
+not yet done after the 2 s the benchmark waits). --lines 1000 --changes-only --runs 10 at load
+2.4-2.7: didChange -> diagnostics 17-26 ms median in every case, before and after alike (target of
+issue 23: 100 ms).
 """
 from __future__ import annotations
 
