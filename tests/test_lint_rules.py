@@ -124,6 +124,29 @@ def test_acl104_quiet_when_the_neighbour_is_far_off_resonance(tmp_path):
     assert "ACL104" not in codes(lint(tmp_path, two_capsules("13 um", "drive 123 kHz @ 2 V for 1 s")))
 
 
+
+def follow_with_neighbour(linked: bool) -> str:
+    """`a` followed on its beam; `b`, resonant near the tone, trussed to `a` (it moves with it) or loose."""
+    return ONE + """\
+capsule b like capsules.design1 { center = (0, 80 um, 60 um), orifice jet { radius = 9 um, normal = +x } }
+truss tie { }
+""" + ("link b to a with tie\n" if linked else "") + """\
+program p {
+  follow a along polyline([(0, 0), (-2 um, 0)]) in 1 s, using [123 kHz]
+}
+"""
+
+
+def test_acl104_and_acl103_count_a_capsule_trussed_to_the_followed_one_as_meant(tmp_path):
+    """Issue 28: a `using` tone that drives a capsule truss-linked to the followed one was flagged as
+    unintended excitation (ACL104), and the pair as meant to be driven separately (ACL103): the
+    trussed capsule moves with the followed one, its thrust is part of the follow."""
+    loose = codes(lint(tmp_path, follow_with_neighbour(False), name="loose.acl"))
+    assert {"ACL104", "ACL103"} <= loose          # the control: a capsule that does not move with `a`
+    linked = codes(lint(tmp_path, follow_with_neighbour(True), name="linked.acl"))
+    assert "ACL104" not in linked and "ACL103" not in linked
+
+
 # ---- ACL2xx ------------------------------------------------------------------------------------
 
 def facing(gap: str, program: str) -> str:

@@ -58,12 +58,15 @@ def test_the_grammar_still_parses_every_example_without_unscoped_characters():
 def test_the_extension_manifest_needs_no_answer_from_vsce():
     m = json.loads((VSCODE / "package.json").read_text(encoding="utf-8"))
     # the project has no public repository (no URL in pyproject.toml, no git remote), so the
-    # manifest names none rather than a made-up one; vsce would then ask about it, and only its
-    # command-line flag (not the manifest) skips the question: the packaging command passes it
+    # manifest names none rather than a made-up one; vsce would then ask about it ("[y/N]") unless
+    # allowed: vsce takes its command-line options from the manifest's `vsce` object too
+    # (patchOptionsWithManifest), so the issue's plain `npx @vscode/vsce package` asks nothing
     assert "repository" not in m
-    assert m["scripts"]["package"] == "vsce package --allow-missing-repository"
-    for doc in (VSCODE / "README.md", ROOT / "docs" / "lsp.md"):
-        assert "npx @vscode/vsce package --allow-missing-repository" in doc.read_text(encoding="utf-8"), doc
+    assert m["vsce"]["allowMissingRepository"] is True
+    assert m["scripts"]["package"] == "vsce package"
+    for doc in (VSCODE / "README.md", ROOT / "docs" / "lsp.md", ROOT / "docs" / "editor.md"):
+        text = doc.read_text(encoding="utf-8")
+        assert "npx @vscode/vsce package" in text and "--allow-missing-repository" not in text, doc
     assert (VSCODE / "LICENSE").read_text(encoding="utf-8").startswith("MIT License") and m["license"] == "MIT"
     ignore = (VSCODE / ".vscodeignore").read_text(encoding="utf-8").split("\n")
     assert "node_modules/**" in ignore and "extension.js" in ignore          # only the bundle ships
@@ -73,7 +76,7 @@ def test_the_extension_manifest_needs_no_answer_from_vsce():
 
 @pytest.mark.studies
 def test_vsce_packages_a_small_bundled_vsix_without_a_prompt(tmp_path):
-    """`npm install` then the documented `npx @vscode/vsce package --allow-missing-repository` on a
+    """`npm install` then the documented `npx @vscode/vsce package` (the issue's command, no flag) on a
     terminal (where vsce would prompt): a .vsix of 8 files, under 200 KB (measured 88 KB with vsce
     3.9.2 on 2026-11-28; the unbundled one was 322 files, 470 KB)."""
     import shutil
@@ -84,11 +87,17 @@ def test_vsce_packages_a_small_bundled_vsix_without_a_prompt(tmp_path):
         pytest.skip("npm (or util-linux `script`, for a terminal) is not installed")
     work = tmp_path / "vscode"
     shutil.copytree(VSCODE, work, ignore=shutil.ignore_patterns("node_modules", "dist", "*.vsix"))
-    r = subprocess.run(["npm", "install", "--no-audit", "--no-fund"], cwd=work, capture_output=True, text=True,
-                       timeout=600)
+    # without a registry npm would retry for minutes: one short try, and a skip that says why
+    try:
+        r = subprocess.run(["npm", "install", "--no-audit", "--no-fund", "--fetch-timeout=60000", "--fetch-retries=1"],
+                           cwd=work, capture_output=True, text=True, timeout=600)
+    except subprocess.TimeoutExpired:
+        pytest.skip("npm install did not finish in 10 minutes (no registry?)")
     if r.returncode != 0:
         pytest.skip(f"npm install failed (no registry?): {r.stderr[-300:]}")
-    r = subprocess.run(["script", "-qec", "npx @vscode/vsce package --allow-missing-repository", "/dev/null"], cwd=work, capture_output=True,
+    # the issue's command as it stands, on a terminal (where vsce would prompt); the devDependency
+    # installed above is the vsce that npx runs, so this step needs no network
+    r = subprocess.run(["script", "-qec", "npx @vscode/vsce package", "/dev/null"], cwd=work, capture_output=True,
                        text=True, timeout=600, stdin=subprocess.DEVNULL)
     assert "[y/N]" not in r.stdout and r.returncode == 0, r.stdout[-2000:]
     vsix = list(work.glob("*.vsix"))

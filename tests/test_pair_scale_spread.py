@@ -48,11 +48,35 @@ def test_the_spread_is_the_log_normal_of_the_stdlib_rows():
     # the stdlib's stated figures are these, rounded to the digits it prints
     assert par["first_principles_pair_scale_median"] == round(C.FIRST_PRINCIPLES_PAIR_SCALE_MEDIAN, 2)
     assert par["first_principles_pair_scale_log_sd"] == round(C.PAIR_SCALE_LOG_SD, 2)
-    # and the moment-matched declaration it suggests: mean exp(mu + s^2/2), sd mean sqrt(exp(s^2) - 1)
+    # and the moment-matched declaration it suggests: the mean and sd of the predictive spread compile draws (midpoint
+    # rule on 200,000 equal-probability cells), and the fitted log-normal's own, exp(mu + s^2/2) and mean sqrt(exp(s^2) - 1)
+    text = (ROOT / "stdlib" / "calibrations.acl").read_text()
+    draws = C.pair_scale_from_uniform((np.arange(200_000) + 0.5) / 200_000)
+    assert f"param pair_scale = {draws.mean():.3g} +- {draws.std():.3g}" in text
     mean = math.exp(C.PAIR_SCALE_LOG_MEAN + C.PAIR_SCALE_LOG_SD ** 2 / 2)
-    assert f"param pair_scale = {mean:.3g} +- {mean * math.sqrt(math.exp(C.PAIR_SCALE_LOG_SD ** 2) - 1):.3g}" in \
-        (ROOT / "stdlib" / "calibrations.acl").read_text()
-    assert C.pair_scale_quantile(0.5) == pytest.approx(C.FIRST_PRINCIPLES_PAIR_SCALE_MEDIAN, rel=1e-12)
+    assert f"{mean:.3g} +- {mean * math.sqrt(math.exp(C.PAIR_SCALE_LOG_SD ** 2) - 1):.3g}, would be far narrower" in text
+    assert C.pair_ratio_fit_quantile(0.5) == pytest.approx(C.FIRST_PRINCIPLES_PAIR_SCALE_MEDIAN, rel=1e-12)
+
+
+def test_the_drawn_spread_is_the_truncated_predictive_student_t():
+    """The spread compile and sweep draw: the prediction of a 4th ratio from 3 (ln s = m + s_n sqrt(1 + 1/3) T,
+    T ~ t with 2 dof; Hahn & Meeker sec. 4.5), truncated to 1e-3..1e3; recomputed here with scipy's t."""
+    from scipy.stats import t as student
+
+    logs = np.log([r for _, r in C.PAIR_SCALE_ROWS])
+    m, scale = logs.mean(), logs.std(ddof=1) * math.sqrt(1 + 1 / 3)
+    assert C.PAIR_SCALE_DOF == 2 and C.PAIR_SCALE_PREDICTIVE_LOG_SCALE == pytest.approx(scale, rel=1e-12)
+    lo, hi = (student.cdf((math.log(b) - m) / scale, 2) for b in (1e-3, 1e3))
+    for p in (0.025, 0.05, 0.5, 0.95, 0.975):
+        want = math.exp(m + scale * student.ppf(lo + p * (hi - lo), 2))
+        assert C.pair_scale_quantile(p) == pytest.approx(want, rel=1e-9)
+    # wider than the known-sd log-normal at both ends of the 95 % range: that one would be the optimistic margin
+    assert C.pair_scale_quantile(0.025) < 0.2 * C.pair_ratio_fit_quantile(0.025)
+    assert C.pair_scale_quantile(0.975) > 4 * C.pair_ratio_fit_quantile(0.975)
+    for dof in (1, 2, 5):
+        for p in (0.01, 0.3, 0.9):
+            assert C.student_t_quantile(p, dof) == pytest.approx(student.ppf(p, dof), rel=1e-9)
+            assert C.student_t_cdf(C.student_t_quantile(p, dof), dof) == pytest.approx(p, rel=1e-9)
 
 
 def test_each_row_is_the_papers_constant_over_acls_first_principles_value():
@@ -77,8 +101,10 @@ def test_draws_scale_the_bjerknes_force_from_their_own_stream():
     plain = [d for _, d in bands.sample_designs(cal, n, seed=3)]
     f = np.array([d.effect("bjerknes_scale").params["factor"] for d in drawn])
     assert np.array_equal(f, bands.pair_scales(n, 3))
-    assert abs(np.log(f).mean() - C.PAIR_SCALE_LOG_MEAN) < 3 * C.PAIR_SCALE_LOG_SD / math.sqrt(n)
-    assert np.log(f).std(ddof=1) == pytest.approx(C.PAIR_SCALE_LOG_SD, rel=0.15)
+    assert f.min() >= 1e-3 and f.max() <= 1e3
+    # the draws' quartiles are the spread's (order statistics of 400 draws: within 0.05 in probability)
+    for p in (0.25, 0.5, 0.75):
+        assert C.pair_scale_quantile(p - 0.05) < np.quantile(f, p) < C.pair_scale_quantile(p + 0.05)
     # the gain draws are those of the calibrated design: the pair's stream is its own
     for a, b in zip(drawn[:5], plain[:5]):
         assert a.transducer.gain_pa_per_v == b.transducer.gain_pa_per_v
@@ -101,7 +127,8 @@ def test_a_first_principles_pair_widens_the_band_and_is_named_its_cause(follow):
     assert g.rms_error_p95_m > 2 * h.rms_error_p95_m                         # the spread widens the band
     band = g.details["band"]
     pair = band["pair_scale"]
-    assert pair["source"] == "first-principles pair force" and pair["median"] == C.FIRST_PRINCIPLES_PAIR_SCALE_MEDIAN
+    assert pair["source"] == "first-principles pair force" and pair["median"] == C.pair_scale_quantile(0.5)
+    assert pair["range_95"] == [C.pair_scale_quantile(0.025), C.pair_scale_quantile(0.975)] and pair["dof"] == 2
     assert [(r["source"], r["ratio"]) for r in pair["rows"]] == list(C.PAIR_SCALE_ROWS)
     (src,) = [s for s in band["cause"]["sources"] if s["kind"] == "pair"]
     assert src["source"].startswith("first-principles pair force") and src["share"] > 0.1
@@ -164,14 +191,18 @@ def test_the_sweep_counts_verdicts_the_spread_flips_both_ways(tmp_path):
 
 def test_the_robust_program_sees_the_pair_direction():
     """--robust's Q gains the term dG^T dG of the Bjerknes force moved by the scale's root-mean-square log distance
-    from first principles, sqrt(mu^2 + s^2) (computed here from the constants, the move through the language)."""
+    from first principles (computed here by quadrature of the spread's quantiles, the move through the language)."""
     from acl.schedule.gains import model_gain_table
 
     freqs = (110e3, 125e3, 140e3)
     gains = lambda d: model_gain_table(d, "act", freqs).gains.T       # noqa: E731
     fp = acl.load(str(FOLLOW))
     cal = acl.loads(FOLLOW.read_text() + AT_ONE, filename=str(FOLLOW))
-    r = math.hypot(C.PAIR_SCALE_LOG_MEAN, C.PAIR_SCALE_LOG_SD)
+    from scipy.integrate import quad
+
+    r = math.sqrt(quad(lambda u: math.log(C.pair_scale_quantile(u)) ** 2, 0, 1, limit=200)[0])
+    assert bands.pair_rms_log() == pytest.approx(r, rel=1e-3)
+    r = bands.pair_rms_log()          # the move itself, through the language, at the value checked above
     moved = acl.loads(FOLLOW.read_text() + f"\neffect bjerknes_scale {{ factor = {math.exp(r)!r} }}\n", filename=str(FOLLOW))
     dG = gains(moved) - gains(cal)
     assert np.abs(dG).max() > 0

@@ -12,7 +12,7 @@ import os
 import re
 
 from acl.cli import main
-from acl.physics.constants import PAIR_SCALE_ROWS, pair_scale_quantile
+from acl.physics.constants import PAIR_SCALE_ROWS, pair_ratio_fit_quantile
 from acl.physics.effect_table import EFFECT_TABLE
 
 ROOT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..")
@@ -36,7 +36,7 @@ def test_no_percentage_of_a_nonzero_uncertainty_prints_as_zero(tmp_path, capsys)
 def test_every_measured_pair_ratio_is_plausible(tmp_path, capsys):
     rng = _factor_range()
     assert all(rng.plausible_lo <= r <= rng.plausible_hi for _, r in PAIR_SCALE_ROWS)
-    assert rng.plausible_hi >= pair_scale_quantile(0.975)
+    assert rng.plausible_hi >= pair_ratio_fit_quantile(0.975)
     assert main(["check", os.path.join(EX, "fig5a_gripper.acl")]) == 0
     assert "W402" not in capsys.readouterr().err
 

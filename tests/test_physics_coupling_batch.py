@@ -211,7 +211,7 @@ def test_coupled_volumes_of_an_array_gather_the_same_green_matrix_bit_for_bit(mo
     args = (blocks, sysm.slot, sysm.points, sysm.radii, f, RHO, C, WALL)
     terms = []
     green = CP._green_terms
-    monkeypatch.setattr(CP, "_green_terms", lambda k, t, r: terms.append(t[0].shape[-1]) or green(k, t, r))
+    monkeypatch.setattr(CP, "_green_terms", lambda k, t, r, *a: terms.append(t[0].shape[-1]) or green(k, t, r, *a))
     table = coupled_volumes(*args)
     pairs = sysm.n * (sysm.n + 1) // 2
     assert terms and max(terms) < pairs / 4                 # the array repeats its distances: the table path ran
@@ -272,7 +272,7 @@ def test_coupled_volumes_of_an_array_with_batched_blocks_equal_each_row(monkeypa
     w = 2 * math.pi * f
     terms = []
     green = CP._green_terms
-    monkeypatch.setattr(CP, "_green_terms", lambda k, t, r: terms.append(t[0].shape[-1]) or green(k, t, r))
+    monkeypatch.setattr(CP, "_green_terms", lambda k, t, r, *a: terms.append(t[0].shape[-1]) or green(k, t, r, *a))
 
     blocks = np.stack([np.moveaxis(uncoupled_response(sysm.phi, sysm.omega, s * sysm.damping, w), -3, 0)
                        for s in (1.0, 1.7)])                                              # (2, F, C, P, P)
@@ -282,3 +282,30 @@ def test_coupled_volumes_of_an_array_with_batched_blocks_equal_each_row(monkeypa
         assert np.array_equal(both[b], coupled_volumes(blocks[b], sysm.slot, sysm.points, sysm.radii, f, RHO, C, WALL))
     assert not np.allclose(both[0], both[1], rtol=1e-3, atol=0.0)                     # the rows differ
     assert terms and max(terms) < sysm.n * (sysm.n + 1) // 8                           # the table path ran
+
+
+@pytest.mark.parametrize("capsules", [1, 2])
+def test_same_capsule_pairs_skip_the_phase_bit_for_bit(capsules):
+    """coupled_volumes' Green terms without cosines and sines for same-capsule pairs (phase exactly 1) are the
+    numbers of the full retarded formula, for one capsule (no pair between capsules) and two (mixed); and the
+    layout's index arrays are built once per layout."""
+    import acl.physics.coupling as CP
+
+    m3 = capsule_modes(6.51e-14, [10e-6, 8e-6, 6e-6], RHO, SIGMA, P0, 1.0, MU, C, 7e-6, n_modes=3)
+    pts = [[[0.0, 0.0, 30e-6], [0.0, 25e-6, 30e-6], [20e-6, 10e-6, 40e-6]],
+           [[60e-6, 0.0, 30e-6], [60e-6, 25e-6, 30e-6], [80e-6, 10e-6, 40e-6]]]
+    sysm = build_system([m3] * capsules, pts[:capsules], [[10e-6, 8e-6, 6e-6]] * capsules)
+    lay = CP._pad_layout(capsules, 3, sysm.slot)
+    assert CP._pad_layout(capsules, 3, np.array(sysm.slot)) is lay
+    assert lay.other_at.size == (0 if capsules == 1 else 9)
+    points = sysm.points[None] + np.random.default_rng(4).normal(0.0, 2e-6, (5, sysm.n, 3))
+    d, di = CP._pair_distances(points, sysm.radii[None], lay.iu, lay.ju, True)
+    terms = [np.where(lay.other, d, 0.0)[:, None], np.where(lay.offdiag, 1 / (4 * np.pi * d), 0.0)[:, None],
+             di[:, None], WALL / (4 * np.pi * di)[:, None]]
+    k = (2 * np.pi * np.array([60e3, 150e3]) / C)[None, :, None]
+    skip = CP._green_terms(k, terms, WALL, lay.other_at)
+    full = CP._green_terms(k, terms, WALL)
+    assert np.array_equal(skip, full) and np.array_equal(np.signbit(skip.imag), np.signbit(full.imag))
+    # the distances are _distances' (the full matrices) on the upper triangle, bit for bit
+    assert np.array_equal(d, CP._distances(points, sysm.radii, False)[:, lay.iu, lay.ju])
+    assert np.array_equal(di, CP._distances(points, sysm.radii, True)[:, lay.iu, lay.ju])

@@ -145,3 +145,33 @@ def test_drive_pressure_is_linear_in_voltage():
 def test_unsorted_gain_table_is_rejected():
     with pytest.raises(ValueError):
         pressure_per_volt(1e5, (2e5, 1e5), (1.0, 2.0))
+
+
+@pytest.mark.parametrize("capsules", [1, 2])
+def test_capsule_forces_of_one_capsule_are_its_thrust_alone(capsules):
+    """One capsule has no pair of interfaces on different capsules and no jet reaching another capsule: its force is
+    the thrust sum_o -|F_o| n_o alone (the Bjerknes and drag terms are skipped, not computed as zeros); two capsules
+    get both terms (their sum differs from the thrust)."""
+    from acl.physics.forces import capsule_forces, force_constants
+
+    rng = np.random.default_rng(9)
+    body = np.repeat(np.arange(capsules), 3)
+    n = body.size
+    offsets = rng.normal(0.0, 20e-6, (n, 3))
+    normals = offsets / np.linalg.norm(offsets, axis=1, keepdims=True)
+    onehot = (body[:, None] == np.arange(capsules)[None, :]).astype(float)
+    centres = np.array([[0.0, 0.0, 60e-6], [90e-6, 0.0, 60e-6]])[None, :capsules] + rng.normal(0, 1e-6, (4, capsules, 3))
+    radii = np.full(n, 8e-6)
+    w = 2 * math.pi * np.array([80e3, 125e3])
+    k = force_constants(w, radii, body, capsules, 1.0e-3, RHO, 0.5, np.array([1e3, 2e3]), np.ones(capsules),
+                        np.ones((capsules, capsules)))
+    resp = (rng.normal(size=(4, 2, n)) + 1j * rng.normal(size=(4, 2, n))) * 1e-16
+    total, _, thr, att = capsule_forces(centres, body, offsets, normals, onehot, np.full(capsules, 30e-6), resp, k)
+    expect_thr = ((resp.real ** 2 + resp.imag ** 2) * k["thrust"]).sum(axis=1)
+    np.testing.assert_allclose(thr, expect_thr, rtol=1e-14)
+    thrust_only = np.einsum("nc,bnk->bck", onehot, -thr[:, :, None] * normals)
+    if capsules == 1:
+        np.testing.assert_allclose(total, thrust_only, rtol=1e-14, atol=0.0)
+        assert not att.any()
+    else:
+        assert att.any() and not np.allclose(total, thrust_only, rtol=1e-6, atol=0.0)

@@ -69,6 +69,57 @@ def net_critical_distance(design: Design, drive: Drive, a: str, b: str, far: flo
     return float(closing_force(design, drive, a, b, [s], drag_fraction)[0][0])
 
 
+def net_sign_over_pair_scale(design: Design, drive: Drive, a: str, b: str) -> dict:
+    """The net closing force of ``a`` and ``b`` at rest under ``drive`` and its sign over the first-principles pair-scale
+    spread (acl.physics.constants.pair_scale_cdf): the force is c0 + s (c1 - c0) in the Bjerknes scale s (c0 with the
+    Bjerknes force off, c1 at first principles; the scale multiplies that force alone), so it changes sign at
+    s* = c0 / (c0 - c1) and P(other sign) is the spread's mass beyond s* on the far side from 1.
+    {"attract" (at s = 1), "closing_n" (c1), "flip_scale" (s*, None when the sign never changes for s > 0),
+    "p_other_sign"}."""
+    from acl.analysis.effects import with_pair_scale
+    from acl.physics.constants import pair_scale_cdf
+
+    _, (c1,) = closing_force(design, drive, a, b, [0.0])
+    _, (c0,) = closing_force(with_pair_scale(design, 0.0), drive, a, b, [0.0])
+    c0, c1 = float(c0), float(c1)
+    flip = c0 / (c0 - c1) if c0 != c1 else None
+    if flip is not None and flip <= 0.0:
+        flip = None
+    if flip is None:
+        p = 0.0
+    else:
+        p = 1.0 - pair_scale_cdf(flip) if flip > 1.0 else pair_scale_cdf(flip)
+    return {"attract": c1 > 0, "closing_n": c1, "flip_scale": flip, "p_other_sign": float(p)}
+
+
+def drive_step_scale_note(design: Design, drive: Drive, span, step_text: str) -> dict | None:
+    """N-PAIR-SCALE for a drive step of a design whose pair forces are first principles (no bjerknes_scale): such a
+    step has no goal and so no band to draw the pair force's spread; the note gives, per pair, the net sign at rest
+    and its probability of the other sign over that spread (:func:`net_sign_over_pair_scale`).  None when the pair
+    forces are calibrated or the design has fewer than two capsules."""
+    from acl.analysis.acoustics import pair_forces
+    from acl.analysis.effects import first_principles_pairs
+
+    if not first_principles_pairs(design):
+        return None
+    parts = []
+    for pf in pair_forces(design, drive):
+        r = net_sign_over_pair_scale(design, drive, pf.a, pf.b)
+        if (not r["closing_n"] and r["flip_scale"] is None) or not np.isfinite([r["closing_n"], r["p_other_sign"]]).all():
+            continue                                # no force at all (a 0 V tone), or none defined: no sign to state
+        sign, other = ("attracts", "repel") if r["attract"] else ("repels", "attract")
+        s = r["flip_scale"]           # the other sign lies on the side of s* away from 1
+        where = f" ({other}s {'above' if s > 1.0 else 'below'} {s:.3g}x)" if s else ""
+        parts.append(f"{pf.a}-{pf.b} {sign} at rest, P({other}) = {r['p_other_sign']:.2f}{where}")
+    if not parts:
+        return None
+    return {"code": "N-PAIR-SCALE", "file": span.file, "line": span.line, "column": span.column, "message": (
+        f"{step_text}: no bjerknes_scale calibrates this design's pair forces and a drive step has no band to draw "
+        "their spread; over the first-principles pair-scale spread (acl.physics.constants, 95 % 0.051-180x) the net "
+        "force " + "; ".join(parts) + " (acl analyze's P(other sign) gives the Bjerknes sign under the declared "
+        "uncertainty)")}
+
+
 def quality_bound(design: Design, name: str) -> float:
     """Largest plausible Q of capsule ``name``'s first mode (acl.physics.resonance.plausible_quality_bound: twice
     the Q of its viscous and radiation losses alone, thermal loss left out)."""

@@ -156,7 +156,10 @@ def analyze(design: M.Design, at: M.Drive | None = None, snap_in: bool = True, p
         # what this drive is for: the pair table (two or more capsules), else only the frequency's
         # largest program amplitude (or the 1 V reference where no program sets one)
         basis = "pairs" if pfs else ("largest_program_amplitude" if _program_amplitude(design, f) else "reference")
-        rep.drives.append(_drive_entry(None, None, describe_drive(drive), amps, basis=basis))
+        worst = max(amps, key=amps.get, default=None)     # located at the capsule of its largest interface amplitude
+        span = design.capsule(worst.split(".")[0]).span if worst else None
+        rep.drives.append(_drive_entry(None, None, describe_drive(drive), amps, span.line if span else None, basis,
+                                       span.file if span else None))
         for pf in pfs:
             study = _q_study(design, pf, f) if _unequal(modes, pf) else {}
             rep.pairs.append({

@@ -17,10 +17,13 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from acl.analysis.acoustics import (_apply_neighbour_drag, _centres_array, _compute_engine, _Engine, _layout,
+from acl.analysis.acoustics import (_apply_neighbour_drag, _centres_array, _compute_engine, _Engine,
                                     _thrust_scale, drive_gain, effect_pressure_factor, pressure_terms,
                                     substrate_factor)
+from acl.analysis.environment import medium_constants
 from acl.design.model import Design, Drive, Tone
+from acl.physics import constants as C
+from acl.physics.coupling import coupled_volumes
 
 _TONE_ENGINES: list = []   # [(design, frequencies, engine)]: the tone engines of the last designs
 
@@ -42,9 +45,9 @@ def drive_factors(design: Design, frequencies) -> tuple[np.ndarray, np.ndarray]:
     in the force engine (the declared thrust coefficient is matched through the gain, :func:`_thrust_scale`)."""
     f = np.asarray(frequencies, float)
     gain, _ = drive_gain(design, f) if f.size else (np.zeros(0), None)
-    lay = _layout(design)
-    sub = np.array([substrate_factor(design, c) for c in lay.caps]) if design.effects else np.ones(len(lay.caps))
-    return np.asarray(gain, float), np.array([_thrust_scale(design, c) for c in lay.caps]) * sub
+    caps = design.capsules                   # _layout's order (a band's draws would each rebuild the layout)
+    sub = np.array([substrate_factor(design, c) for c in caps]) if design.effects else np.ones(len(caps))
+    return np.asarray(gain, float), np.array([_thrust_scale(design, c) for c in caps]) * sub
 
 
 def drive_constants(eng: _Engine, amplitudes: np.ndarray, gain: np.ndarray, scale: np.ndarray) -> dict:
@@ -98,3 +101,47 @@ def force_batch_tones(design: Design, centres: np.ndarray, frequencies, amplitud
         scale = np.broadcast_to(s0, (nb, len(eng.lay.caps))) if scale is None else scale
     consts = drive_constants(eng, amplitudes, np.asarray(gain, float), np.asarray(scale, float))
     return _apply_neighbour_drag(design, eng.lay, centres, eng.forces(centres, consts=consts))
+
+
+_ONE_TONE: list = []       # [(design, frequencies, stacked single-tone engine data)]: the last designs
+
+
+def _one_tone_stack(design: Design, frequencies) -> tuple:
+    """(first engine, f (F,), thrust per unit volume (F, 1, n), w^2 (F, 1), uncoupled blocks (F, 1, C, P, P)) of the
+    single-tone engines (:func:`tone_engine` of each tone alone), stacked; cached per design identity and tones."""
+    key = tuple(float(x) for x in frequencies)
+    for d, k, hit in _ONE_TONE:
+        if d is design and k == key:
+            return hit
+    engines = [tone_engine(design, [f]) for f in key]
+    hit = (engines[0], np.array([e.f[0] for e in engines]), np.stack([e.consts["thrust_unit"] for e in engines]),
+           np.stack([e.consts["w2"] for e in engines]),
+           np.stack([e.h0 for e in engines]) if engines[0].h0 is not None else None)
+    _ONE_TONE[:] = ([(design, key, hit)] + _ONE_TONE)[:4]
+    return hit
+
+
+def force_rows_one_tone(design: Design, centres: np.ndarray, frequencies, tone: np.ndarray, amplitude: np.ndarray,
+                        gain: np.ndarray, scale: np.ndarray) -> np.ndarray:
+    """:func:`force_batch_tones` of rows that each play one tone alone: row b at tone ``frequencies[tone[b]]`` with
+    amplitude ``amplitude[b]`` V, gain ``gain[b]`` Pa/V there and thrust scales ``scale[b]`` (C,): forces (B, C, 3).
+
+    Row b is the same computation as :func:`force_batch_tones` of the single-tone engine of its tone (its uncoupled
+    blocks and constants; the coupled response solved with its own frequency as a batch axis): one evaluation for
+    rows at different tones (the band cure's single-tone readings, acl.schedule.experiment)."""
+    eng, fs, units, w2s, blocks = _one_tone_stack(design, frequencies)
+    lay = eng.lay
+    centres = np.asarray(centres, float)
+    tone = np.asarray(tone, int)
+    f = fs[tone][:, None]                                                           # (B, 1)
+    v = np.asarray(amplitude, float).reshape(-1, 1)
+    pressure = v * np.asarray(gain, float).reshape(-1, 1) * effect_pressure_factor(design, f, v.sum(axis=1, keepdims=True))
+    thrust, w2p2 = pressure_terms(units[tone], w2s[tone], pressure, np.asarray(scale, float)[:, lay.body])
+    if blocks is not None and lay.radii.size:
+        med = medium_constants(design)
+        r = coupled_volumes(blocks[tone], eng.system.slot, centres[:, lay.body, :] + lay.offsets, eng.system.radii, f,
+                            med.density, med.sound_speed, C.SUBSTRATE_REFLECTION)          # (B, 1, n) per pascal
+    else:
+        r = np.zeros((centres.shape[0], 1, lay.radii.size), complex)
+    return _apply_neighbour_drag(design, lay, centres, eng.forces(centres, consts={"thrust": thrust, "w2p2": w2p2},
+                                                                    response=r))

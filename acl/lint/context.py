@@ -111,8 +111,12 @@ class Context:
     # -- structure -----------------------------------------------------------------------------
     def carried(self, target: str) -> list[str]:
         """Capsules moving with the element ``target``: mounted on it, and rigidly tied to those by trusses."""
+        return self.tied([j.capsule for j in self.design.joints if j.kind == "mount" and j.target == target])
+
+    def tied(self, group: list[str]) -> list[str]:
+        """``group`` and every capsule rigidly tied to one of them by trusses (`link ... with truss`)."""
         d = self.design
-        group = [j.capsule for j in d.joints if j.kind == "mount" and j.target == target]
+        group = list(group)
         names = {c.name for c in d.capsules}
         grew = True
         while grew:

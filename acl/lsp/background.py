@@ -81,6 +81,18 @@ class Worker:
             while len(self._results) > self._max:
                 self._results.pop(next(iter(self._results)))
 
+    def cancel(self, key: tuple) -> None:
+        """Drop the job for ``key`` (the client cancelled it): dequeued, or the worker stopped if it
+        is running it."""
+        with self._lock:
+            fut = self._jobs.pop(key, None)
+            if fut is None or fut.done():
+                return
+            self.cancelled += 1
+        if not fut.cancel():
+            self.stop()
+            self.restarts += 1
+
     def forget(self, uri: str, keep: str | None = None) -> None:
         """Drop work and results of ``uri`` whose text key is not ``keep``; stop the worker if it is
         running such work."""

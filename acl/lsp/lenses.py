@@ -6,11 +6,14 @@ value and whether it passes (computed by the background worker: requirements nee
 analysis). Commands (``workspace/executeCommand``): ``acl.analyze``, ``acl.compile``,
 ``acl.lint`` on an open document; each runs in the worker, reports ``$/progress`` when the client
 offers a token, shows its summary (``window/showMessage``) and returns it. A newer edit of the
-document cancels a command still running on the older text.
+document cancels a command still running on the older text; so does the client, with
+``$/cancelRequest`` or the progress's cancel (``window/workDoneProgress/cancel``): the worker
+stops the job.
 """
 from __future__ import annotations
 
 import asyncio
+import itertools
 
 from lsprotocol import types as T
 
@@ -19,6 +22,7 @@ from acl.lsp.server import AclLanguageServer, _range, server
 from acl.syntax import ast as A
 
 COMMANDS = ("acl.analyze", "acl.compile", "acl.lint")
+_RUNS = itertools.count(1)
 
 
 @server.feature(T.TEXT_DOCUMENT_CODE_LENS, T.CodeLensOptions(resolve_provider=True))
@@ -157,7 +161,14 @@ async def _run(ls: AclLanguageServer, args, what: str, fn) -> str:
     snap = ls.snapshot(uri)
     extra = (args[1] if len(args) > 1 and isinstance(args[1], str) else None,) if what == "compile" else ()
     key = (uri, text_key(snap.text), what, *extra)
-    token = f"acl-{what}-{key[1][:12]}"
+    token = f"acl-{what}-{key[1][:12]}-{next(_RUNS)}"      # one token per run: pygls refuses a token twice
+    stopped: list[str] = []         # why the client stopped the work
+
+    def stop(why: str) -> None:
+        if not stopped:
+            stopped.append(why)
+            ls.worker.cancel(key)
+
     progress = False
     caps = getattr(ls.client_capabilities, "window", None)
     if caps is not None and getattr(caps, "work_done_progress", False):
@@ -167,17 +178,34 @@ async def _run(ls: AclLanguageServer, args, what: str, fn) -> str:
         except Exception:          # the client refused or did not answer: run without
             pass
     if progress:
-        ls.work_done_progress.begin(token, T.WorkDoneProgressBegin(title=f"acl {what}", message=snap.path))
-    result = ls.worker.get(key, fn, snap.path, snap.text, *extra)
-    if result is None:
-        fut = ls.worker.future(key)
-        if fut is not None:
-            try:
-                await asyncio.wrap_future(fut)
-            except (Exception, asyncio.CancelledError):    # stopped by a newer edit, or a worker that died
-                pass
-        result = ls.worker.peek(key) or f"acl {what}: cancelled (the document changed)"
+        loop = asyncio.get_running_loop()
+        ls.work_done_progress.begin(token, T.WorkDoneProgressBegin(title=f"acl {what}", message=snap.path,
+                                                                   cancellable=True))
+        asked = ls.work_done_progress.tokens.get(token)     # cancelled by window/workDoneProgress/cancel
+        if asked is not None:
+            asked.add_done_callback(lambda f: loop.call_soon_threadsafe(stop, "cancelled in the editor")
+                                    if f.cancelled() else None)
+    try:
+        result = ls.worker.get(key, fn, snap.path, snap.text, *extra)
+        if result is None:
+            fut = ls.worker.future(key)
+            if fut is not None:
+                try:
+                    await asyncio.wrap_future(fut)
+                except asyncio.CancelledError:
+                    if asyncio.current_task().cancelling():    # $/cancelRequest: this task, not the job
+                        raise
+                except Exception:      # stopped by a newer edit or by the client, or a worker that died
+                    pass
+            result = ls.worker.peek(key) or f"acl {what}: {stopped[0] if stopped else 'cancelled (the document changed)'}"
+    except asyncio.CancelledError:
+        stop("cancelled by the client")
+        if progress:
+            ls.work_done_progress.end(token, T.WorkDoneProgressEnd(message=f"acl {what}: {stopped[0]}"))
+            ls.work_done_progress.tokens.pop(token, None)
+        raise
     if progress:
         ls.work_done_progress.end(token, T.WorkDoneProgressEnd(message=str(result)[:200]))
+        ls.work_done_progress.tokens.pop(token, None)
     ls.window_show_message(T.ShowMessageParams(type=T.MessageType.Info, message=str(result)))
     return result

@@ -12,6 +12,7 @@ carries a Python traceback.
 from __future__ import annotations
 
 import logging
+from functools import partial
 from urllib.parse import unquote
 
 from lsprotocol import types as T
@@ -99,6 +100,17 @@ class AclProtocol(LanguageServerProtocol):
                 return
             self.initialized = True
         super().handle_message(message)
+
+    # ------------------------------------------------------------------------------ cancelling
+    def _execute_handler(self, msg_id, handler, callback, args=None, kwargs=None):
+        """A handler that pygls runs on behalf of a request's generator (``workspace/executeCommand``
+        runs the command this way) is cancelled with the request: ``$/cancelRequest`` then stops
+        the command, not only its reply."""
+        super()._execute_handler(msg_id, handler, callback, args, kwargs)
+        outer = callback.keywords.get("result_future") if isinstance(callback, partial) else None
+        inner = self._request_futures.get(msg_id)
+        if outer is not None and inner is not None:
+            outer.add_done_callback(lambda f: inner.cancel() if f.cancelled() else None)
 
     # ------------------------------------------------------------------------------ replying
     def _send_response(self, msg_id, result=None, error=None) -> None:

@@ -106,19 +106,83 @@ def _log_normal_of_rows() -> tuple[float, float]:
     return fmean(logs), stdev(logs)
 
 
-#: The spread of the first-principles pair force as a log-normal on the Bjerknes force scale (the distribution
-#: `acl compile`'s bands and `acl sweep`'s yield interval draw for a pair no bjerknes_scale calibrates, and
-#: `acl analyze`'s N-PAIR-SCALE reads the median of): log mean and log sd of PAIR_SCALE_ROWS (3 rows: the sd is
-#: the sample's, n - 1).  Median exp(mean) = 4.49: every measured pair attracted harder than first principles.
+#: The log-normal fitted to PAIR_SCALE_ROWS (log mean and log sd with n - 1): a DESCRIPTION of the measured ratios, the
+#: range acl lint calls plausible for a declared bjerknes_scale (acl.physics.effect_table); median exp(mean) = 4.49,
+#: every measured pair attracted harder than first principles.
 PAIR_SCALE_LOG_MEAN, PAIR_SCALE_LOG_SD = _log_normal_of_rows()
-
 
 #: The median of that log-normal (stdlib calibrations.first_principles_pair_scale_median, rounded there).
 FIRST_PRINCIPLES_PAIR_SCALE_MEDIAN = math.exp(PAIR_SCALE_LOG_MEAN)
 
+#: The spread `acl compile`'s bands and `acl sweep`'s yield interval draw for a pair no bjerknes_scale calibrates is the
+#: PREDICTIVE distribution of the next pair's log ratio, not the fitted log-normal: with the log sd estimated from 3
+#: rows, ln s = mean + sd sqrt(1 + 1/n) T, T Student t with n - 1 = 2 degrees of freedom (the prediction interval of a
+#: normal sample, e.g. Hahn & Meeker, Statistical Intervals, 1991, sec. 4.5).  Its 95 % range, 0.021-961x, is 26x wider
+#: at the top than the known-sd log-normal's 0.54-37x, which would be an optimistic margin.  It is truncated to
+#: PAIR_SCALE_BOUNDS, the ratios at which acl's coupled-bubble force is no model at all (1000x on a force, 30x on each
+#: volume amplitude: bjerknes_scale.factor's hard range, acl.physics.effect_table): 95 % range 0.051-180x.
+PAIR_SCALE_DOF = len(PAIR_SCALE_ROWS) - 1
+PAIR_SCALE_PREDICTIVE_LOG_SCALE = PAIR_SCALE_LOG_SD * math.sqrt(1.0 + 1.0 / len(PAIR_SCALE_ROWS))
+PAIR_SCALE_BOUNDS = (1e-3, 1e3)
+PAIR_SCALE_DISTRIBUTION = (f"predictive log-Student-t ({PAIR_SCALE_DOF} dof) of {len(PAIR_SCALE_ROWS)} measured ratios, "
+                           f"truncated to {PAIR_SCALE_BOUNDS[0]:g}-{PAIR_SCALE_BOUNDS[1]:g}x")
+
+
+def student_t_cdf(t: float, dof: int) -> float:
+    """Student t CDF: closed forms for 1 and 2 degrees of freedom (Johnson, Kotz & Balakrishnan vol. 2, ch. 28), scipy beyond."""
+    if dof == 1:
+        return 0.5 + math.atan(t) / math.pi
+    if dof == 2:
+        return 0.5 + t / (2.0 * math.sqrt(2.0 + t * t))
+    from scipy.stats import t as student
+
+    return float(student.cdf(t, dof))
+
+
+def student_t_quantile(p: float, dof: int) -> float:
+    """Inverse of :func:`student_t_cdf` (closed forms for 1 and 2 dof: Hill, Comm. ACM 13, 617 (1970)), scipy beyond."""
+    if dof == 1:
+        return math.tan(math.pi * (p - 0.5))
+    if dof == 2:
+        return (2.0 * p - 1.0) / math.sqrt(2.0 * p * (1.0 - p))
+    from scipy.stats import t as student
+
+    return float(student.ppf(p, dof))
+
+
+def _predictive_cdf_of_scale(s: float) -> float:
+    return student_t_cdf((math.log(s) - PAIR_SCALE_LOG_MEAN) / PAIR_SCALE_PREDICTIVE_LOG_SCALE, PAIR_SCALE_DOF)
+
+
+def pair_scale_from_uniform(u):
+    """The first-principles pair scale(s) at uniform probability(ies) ``u`` in (0, 1): the truncated predictive
+    log-Student-t above (inverse CDF), so ``u`` uniform draws it and ``u`` = p gives its p quantile."""
+    import numpy as np
+
+    lo, hi = (_predictive_cdf_of_scale(b) for b in PAIR_SCALE_BOUNDS)
+    q = lo + np.asarray(u, float) * (hi - lo)
+    t = np.vectorize(lambda x: student_t_quantile(float(x), PAIR_SCALE_DOF), otypes=[float])(q)
+    return np.exp(PAIR_SCALE_LOG_MEAN + PAIR_SCALE_PREDICTIVE_LOG_SCALE * t)
+
+
+def pair_scale_cdf(s: float) -> float:
+    """P(scale <= ``s``) under the first-principles pair-scale spread (:func:`pair_scale_from_uniform`'s inverse)."""
+    lo, hi = (_predictive_cdf_of_scale(b) for b in PAIR_SCALE_BOUNDS)
+    if s <= PAIR_SCALE_BOUNDS[0]:
+        return 0.0
+    if s >= PAIR_SCALE_BOUNDS[1]:
+        return 1.0
+    return (_predictive_cdf_of_scale(s) - lo) / (hi - lo)
+
 
 def pair_scale_quantile(p: float) -> float:
-    """The ``p`` quantile of the first-principles pair-scale log-normal (PAIR_SCALE_LOG_MEAN, PAIR_SCALE_LOG_SD)."""
+    """The ``p`` quantile of the first-principles pair-scale spread (:func:`pair_scale_from_uniform`)."""
+    return float(pair_scale_from_uniform(p))
+
+
+def pair_ratio_fit_quantile(p: float) -> float:
+    """The ``p`` quantile of the log-normal fitted to PAIR_SCALE_ROWS (PAIR_SCALE_LOG_MEAN, PAIR_SCALE_LOG_SD): the
+    measured ratios' own range (acl lint's plausible bjerknes_scale), not the spread a prediction carries."""
     from statistics import NormalDist
 
     return math.exp(PAIR_SCALE_LOG_MEAN + PAIR_SCALE_LOG_SD * NormalDist().inv_cdf(p))

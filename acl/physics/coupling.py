@@ -212,18 +212,89 @@ TABLE_MIN_EVALUATIONS = 16
 def _batched(x, batch: tuple, tail: int) -> np.ndarray:
     """``x`` (..., *tail dims) as (1, ...) when it has no batch, else broadcast to ``batch`` and flattened to (B, ...)."""
     x = np.asarray(x)
+    if x.ndim == tail:                                   # no batch axes: a view, as reshape((1,) + shape) gives
+        return x[None]
     core = x.shape[x.ndim - tail:] if tail else ()
     if int(np.prod(x.shape[:x.ndim - tail], dtype=int)) == 1:
         return x.reshape((1,) + core)
     return np.broadcast_to(x, batch + core).reshape((-1,) + core)
 
 
-def _green_terms(k, terms, wall_reflection: float) -> np.ndarray:
-    """green_matrix's exp(-ikd)/(4 pi d) + R exp(-ikd')/(4 pi d') (Pierce, Acoustics 4.3/5.1) from its frequency-independent parts: ``k`` (B, F, 1), ``terms`` [retarded d, 1/(4 pi d), d', R/(4 pi d')] (each (B, 1, m)) -> (B, F, m)."""
-    kd = k * terms[0]
-    out = np.empty(np.broadcast_shapes(kd.shape, terms[1].shape), complex)
-    np.multiply(np.cos(kd), terms[1], out=out.real)
-    np.multiply(np.sin(kd), -terms[1], out=out.imag)
+@dataclass(frozen=True)
+class _PadLayout:
+    """The index arrays of :func:`coupled_volumes`' padded layout (C*P slots), which depend on the layout only:
+    the upper triangle's pairs (i <= j) and their flat places, which pairs join different capsules."""
+
+    npad: int
+    iu: np.ndarray           # (m,) first slot of each pair of the upper triangle (diagonal included)
+    ju: np.ndarray           # (m,) second slot
+    upper: np.ndarray        # (m,) flat index i * N + j
+    lower: np.ndarray        # (m,) flat index j * N + i
+    offdiag: np.ndarray      # (m,) bool: i != j
+    other: np.ndarray        # (m,) bool: different capsules
+    other_at: np.ndarray     # (k,) indices of the True entries of ``other``
+    filled: bool             # every slot holds an interface, in order (slot == arange(N)): no padding
+
+
+_LAYOUTS: dict = {}
+
+
+def _pad_layout(ncap: int, p: int, slot: np.ndarray) -> _PadLayout:
+    """:class:`_PadLayout` of ``ncap`` capsules of ``p`` slots with interfaces at ``slot``, built once per layout (read-only)."""
+    key = (ncap, p, slot.tobytes())
+    lay = _LAYOUTS.get(key)
+    if lay is None:
+        npad = ncap * p
+        body = np.repeat(np.arange(ncap), p)
+        iu, ju = np.triu_indices(npad)
+        other = body[iu] != body[ju]
+        lay = _PadLayout(npad, iu, ju, iu * npad + ju, ju * npad + iu, iu != ju, other, np.flatnonzero(other),
+                         bool(slot.size == npad and np.array_equal(slot, np.arange(npad))))
+        for a in (lay.iu, lay.ju, lay.upper, lay.lower, lay.offdiag, lay.other, lay.other_at):
+            a.setflags(write=False)
+        if len(_LAYOUTS) >= 64:
+            _LAYOUTS.pop(next(iter(_LAYOUTS)))
+        _LAYOUTS[key] = lay
+    return lay
+
+
+def _pair_distances(points, radii, iu, ju, mirror: bool) -> np.ndarray:
+    """:func:`_distances` of the pairs (iu, ju) only: |p_i - p_j| (..., m), and with ``mirror`` also to p_j's image in z = 0, stacked (2, ..., m); smoothly floored at R_i + R_j (:func:`contact_distance`).
+
+    The same numbers as :func:`_distances` (its norm sums the squares x, y, z in that order)."""
+    xyz = np.moveaxis(points, -1, 0)                       # (3, ..., n)
+    a, b = xyz[..., iu], xyz[..., ju]
+    sq = a - b
+    sq *= sq
+    plane = sq[0] + sq[1]
+    d = np.sqrt(plane + sq[2])
+    floor = radii[..., iu] + radii[..., ju]
+    if mirror:                                             # p_i - (x_j, y_j, -z_j)
+        z = a[2] + b[2]
+        d = np.stack([d, np.sqrt(plane + z * z)])
+    return contact_distance(d, floor)
+
+
+def _green_terms(k, terms, wall_reflection: float, other_at=None) -> np.ndarray:
+    """green_matrix's exp(-ikd)/(4 pi d) + R exp(-ikd')/(4 pi d') (Pierce, Acoustics 4.3/5.1) from its frequency-independent parts: ``k`` (B, F, 1), ``terms`` [retarded d, 1/(4 pi d), d', R/(4 pi d')] (each (B, 1, m)) -> (B, F, m).
+
+    ``other_at``: the columns whose retarded distance may be non-zero (pairs of different capsules); elsewhere it is
+    0, whose phase is exactly 1 (cos 0 = 1, and -sin 0 times the positive 1/(4 pi d) is -0.0): no cosine or sine.
+    """
+    shape = np.broadcast_shapes(k.shape, terms[1].shape)
+    out = np.empty(shape, complex)
+    if other_at is None or other_at.size == terms[1].shape[-1]:
+        kd = k * terms[0]
+        np.multiply(np.cos(kd), terms[1], out=out.real)
+        np.multiply(np.sin(kd), -terms[1], out=out.imag)
+    else:
+        out.real[...] = terms[1]
+        out.imag[...] = -0.0
+        if other_at.size:
+            kd = k * terms[0][..., other_at]
+            inv = terms[1][..., other_at]
+            out.real[..., other_at] = np.cos(kd) * inv
+            out.imag[..., other_at] = np.sin(kd) * -inv
     if wall_reflection:
         kd = k * terms[2]
         out.real += np.cos(kd) * terms[3]
@@ -248,37 +319,35 @@ def coupled_volumes(blocks, slot, points, radii, frequency, density, sound_speed
     f = np.atleast_1d(f)
     n, nf = slot.size, f.shape[-1]
     ncap, p = blocks.shape[-3], blocks.shape[-1]
-    npad = ncap * p
     batch = np.broadcast_shapes(blocks.shape[:-4], points.shape[:-2], radii.shape[:-1], f.shape[:-1],
                                 np.shape(density), np.shape(sound_speed))
     nb = int(np.prod(batch, dtype=int))
-    out = np.zeros((nb, nf, n), complex)
     if n == 0 or nf == 0:
-        return out.reshape(batch + (nf, n))
+        return np.zeros(batch + (nf, n), complex)
+    lay = _pad_layout(ncap, p, slot)
+    npad = lay.npad
+    out = np.empty((nb, nf, n), complex)
     blk = _batched(blocks, batch, 4)                                                # (Bh, F, C, P, P)
     pts, rad, f = _batched(points, batch, 2), _batched(radii, batch, 1), _batched(f, batch, 1)
     rho, c = _batched(density, batch, 0), _batched(sound_speed, batch, 0)
-    # the padded layout (C*P slots); an empty slot has no interface (zero H0 row -> zero response), far from the others
-    pad_pts = np.broadcast_to(1.0 + np.arange(npad)[None, :, None], (pts.shape[0], npad, 3)).copy()
-    pad_pts[:, slot] = pts
-    pad_rad = np.full((rad.shape[0], npad), 1e-9)
-    pad_rad[:, slot] = rad
-    pad_body = np.repeat(np.arange(ncap), p)
+    if lay.filled:
+        pad_pts, pad_rad = pts, rad
+    else:   # the padded layout; an empty slot has no interface (zero H0 row -> zero response), far from the others
+        pad_pts = np.broadcast_to(1.0 + np.arange(npad)[None, :, None], (pts.shape[0], npad, 3)).copy()
+        pad_pts[:, slot] = pts
+        pad_rad = np.full((rad.shape[0], npad), 1e-9)
+        pad_rad[:, slot] = rad
     chunk = max(1, min(chunk, CHUNK_ELEMENTS // (nb * npad * npad)))   # bounded memory for large designs
-    # green_matrix's frequency-independent parts, once: 1/(4 pi d) off the diagonal, the retarded distance
-    # (between capsules only), the wall images' R/(4 pi d')
-    d = _distances(pad_pts, pad_rad, False)[:, None]                                # (Bd, 1, N, N)
-    inv = np.where(~np.eye(npad, dtype=bool), 1 / (4 * np.pi * d), 0.0)
-    retarded = np.where(pad_body[:, None] != pad_body[None, :], d, 0.0)
-    # g is symmetric (d_ij = d_ji and d'_ij = d'_ji exactly): the cosines and sines of the upper triangle, mirrored
-    iu, ju = np.triu_indices(npad)
-    diag = np.arange(npad)
-    upper, lower = iu * npad + ju, ju * npad + iu
-    tri = [np.ascontiguousarray(x.reshape(x.shape[:-2] + (npad * npad,))[..., upper]) for x in (retarded, inv)]
+    # green_matrix's frequency-independent parts on the upper triangle (g is symmetric: d_ij = d_ji and d'_ij = d'_ji
+    # exactly), once: 1/(4 pi d) off the diagonal, the retarded distance (between capsules only), the wall images'
+    # R/(4 pi d')
+    iu, ju, upper, lower = lay.iu, lay.ju, lay.upper, lay.lower
+    dd = _pair_distances(pad_pts, pad_rad, iu, ju, bool(wall_reflection))           # (Bd, m) or (2, Bd, m)
+    d = (dd[0] if wall_reflection else dd)[:, None]                                 # (Bd, 1, m)
+    tri = [np.where(lay.other, d, 0.0), np.where(lay.offdiag, 1 / (4 * np.pi * d), 0.0)]
     if wall_reflection:
-        di = _distances(pad_pts, pad_rad, True)[:, None]
-        tri += [np.ascontiguousarray(x.reshape(x.shape[:-2] + (npad * npad,))[..., upper])
-                for x in (di, wall_reflection / (4 * np.pi * di))]
+        di = dd[1][:, None]
+        tri += [di, wall_reflection / (4 * np.pi * di)]
     # one configuration (Bd = 1): the pairs share few distinct (d, d') in an array of capsules; the Green function of
     # each distinct pair once, then gathered into the full matrix (the same operations on the same numbers as
     # computing every pair: bit for bit the same g)
@@ -303,7 +372,7 @@ def coupled_volumes(blocks, slot, points, radii, frequency, density, sound_speed
             else:
                 g[...] = np.take(t, full, axis=-1)
         else:
-            gu = _green_terms(k, tri, wall_reflection)
+            gu = _green_terms(k, tri, wall_reflection, lay.other_at)
             g[..., upper] = gu
             g[..., lower] = gu
             del gu
@@ -312,12 +381,9 @@ def coupled_volumes(blocks, slot, points, radii, frequency, density, sound_speed
         if p == 1:
             g *= -coef * h[:, :, :, 0, 0, None]
             a = g
-        elif h.shape[0] == 1:
-            a = -coef * _einsum("fcpq,bfcqn->bfcpn", h[0], g.reshape(nb, fc, ncap, p, npad)).reshape(g.shape)
-        else:
-            a = -coef * _einsum("bfcpq,bfcqn->bfcpn", np.broadcast_to(h, (nb,) + h.shape[1:]),
-                                g.reshape(nb, fc, ncap, p, npad)).reshape(g.shape)
-        a[..., diag, diag] += 1.0                                                  # I - w^2 rho H0 g (any memory layout)
+        else:           # each capsule's block row of H0 g (a batched matrix product; h broadcasts over the batch)
+            a = -coef * np.matmul(h, g.reshape(nb, fc, ncap, p, npad)).reshape(g.shape)
+        a.reshape(nb * fc, npad * npad)[:, ::npad + 1] += 1.0                       # I - w^2 rho H0 g (contiguous)
         rhs = np.broadcast_to(h.sum(axis=-1).reshape(h.shape[0], fc, npad), (nb, fc, npad))
         if npad == 2:              # two interfaces: Cramer's rule (a batched LAPACK call costs more)
             det = a[..., 0, 0] * a[..., 1, 1] - a[..., 0, 1] * a[..., 1, 0]
@@ -325,7 +391,7 @@ def coupled_volumes(blocks, slot, points, radii, frequency, density, sound_speed
                           (a[..., 0, 0] * rhs[..., 1] - a[..., 1, 0] * rhs[..., 0]) / det], axis=-1)
         else:
             u = np.linalg.solve(a, rhs[..., None])[..., 0]
-        out[:, s:s + fc] = u[..., slot]
+        out[:, s:s + fc] = u if lay.filled else u[..., slot]
     return out.reshape(batch + (nf, n))
 
 

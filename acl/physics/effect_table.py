@@ -14,7 +14,7 @@ import math
 from dataclasses import dataclass
 from typing import Callable, Optional
 
-from acl.physics.constants import pair_scale_quantile
+from acl.physics.constants import pair_ratio_fit_quantile
 
 
 @dataclass(frozen=True)
@@ -73,9 +73,10 @@ TILT_BOUND = math.log(GAIN_BOUND)   # |gain_slope|: the tilt is held beyond 2 f_
 MODULUS_DECADES = 6.0     # a polymer network's modulus spans at most ~6 decades (a gel's kPa to a glass's GPa)
 GRADIENT_BOUND = 2.0 * MODULUS_DECADES * math.log(10)   # |e_gradient|: the modulus at the 50 um reference's clamp end
 GRADIENT_REFERENCE = 50e-6   # m: stiffness_gradient's length scale (acl.physics.cantilever.L_REF)
-#: bjerknes_scale.factor's plausible top: the 97.5 % quantile of the pair-scale log-normal (acl.physics.constants),
+#: bjerknes_scale.factor's plausible top: the 97.5 % quantile of the log-normal fitted to the measured pair ratios
+#: (acl.physics.constants.pair_ratio_fit_quantile; a lint range, not the predictive spread compile draws),
 #: rounded up: the paper's Fig. 5b pair alone is 15x first principles, so a 10x top warned on its calibration.
-_PAIR_SCALE_PLAUSIBLE_HI = float(math.ceil(pair_scale_quantile(0.975)))
+_PAIR_SCALE_PLAUSIBLE_HI = float(math.ceil(pair_ratio_fit_quantile(0.975)))
 F_REF_RANGE = (1e3, 1e8)  # Hz: the drive frequencies of micro-bubble actuators (Minnaert resonances of 1 mm .. 0.1 um)
 
 _F_REF = EffectRange(*F_REF_RANGE, *F_REF_RANGE,

@@ -223,9 +223,9 @@ def solve_equilibrium_batch(residual_tangent: ResidualTangent, q0, *, admissible
                 Rt, KTt, st = (np.asarray(x, float) for x in residual_tangent(trial[a], act[idx[a]]))
                 nt = np.linalg.norm(Rt, axis=1)
                 fine = np.all(np.isfinite(Rt), axis=1) & (nt < (1 - 1e-4 * t[idx[a]]) * norm[act[idx[a]]])
-                for j in np.flatnonzero(fine):
-                    r = act[idx[a[j]]]
-                    q[r], R[r], KT[r], scale[r], norm[r] = trial[a[j]], Rt[j], KTt[j], st[j], nt[j]
+                j = np.flatnonzero(fine)
+                r = act[idx[a[j]]]                    # distinct rows: one assignment for all
+                q[r], R[r], KT[r], scale[r], norm[r] = trial[a[j]], Rt[j], KTt[j], st[j], nt[j]
                 good[a[fine]] = True
             pending[idx[good]] = False
             t[idx[~good]] *= 0.5

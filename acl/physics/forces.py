@@ -173,6 +173,9 @@ def bjerknes_pair_sum(points, response, w2p2, coefficient, other, gap_exponent: 
     (:func:`acl.physics.effects.bjerknes_gap_factor`; exponent 0 is the monopole law); ``distance`` the
     :func:`interface_distances` of these points when the caller keeps them.
     """
+    if not np.any(other):     # one capsule: no pair of different capsules, no Bjerknes force (its coefficient is 0)
+        n = points.shape[-2]
+        return np.zeros(points.shape), np.zeros(points.shape[:-1] + (n,))
     d = interface_distances(points, other) if distance is None else distance
     w2p2 = np.asarray(w2p2, float)
     prod = np.einsum("t,bti,btj->bij" if w2p2.ndim == 1 else "bt,bti,btj->bij", w2p2, response,
@@ -220,8 +223,9 @@ def capsule_forces(centres, body, offsets, normals, onehot, outer, response, con
     bj, att = bjerknes_pair_sum(pts, response, consts["w2p2"], consts["bjerknes"], consts["other"],
                                 consts.get("gap_exponent", 0.0), consts.get("gap_ref", 1.0), distance)
     total = onehot.T @ (bj - thr[:, :, None] * normals)                 # (B, C, 3); thrust against the jet (module doc)
-    total = total + jet_drag_on_capsules(thr, pts, normals, centres, outer, consts["drag_mask"],
-                                         consts.get("jet_drag_fraction"), lines)
+    if np.any(consts["drag_mask"]):      # a jet that reaches another capsule (none with one capsule)
+        total = total + jet_drag_on_capsules(thr, pts, normals, centres, outer, consts["drag_mask"],
+                                             consts.get("jet_drag_fraction"), lines)
     return total, pts, thr, att
 
 

@@ -7,9 +7,9 @@ tables, which are not measured, declare 30 %).  A calibration also declares ``me
 tones its data drove, each with the standard error of a free gain there; at those tones the table is
 held to the calibrated model (:func:`pinned`), elsewhere it keeps its prior.  A design whose pair (secondary
 Bjerknes) forces no ``bjerknes_scale`` calibrates (:func:`acl.analysis.effects.first_principles_pairs`) adds one more
-source that it does not declare: its Bjerknes force drawn times a log-normal scale, the spread of the measured /
-first-principles ratio over the paper's pairs (``acl.physics.constants.PAIR_SCALE_ROWS``: median 4.49, log sd 1.08;
-:func:`pair_scales`), from a random stream of its own so the other draws stay those of the same design with its
+source that it does not declare: its Bjerknes force drawn times a scale from the predictive spread of the measured /
+first-principles ratio over the paper's pairs (``acl.physics.constants.PAIR_SCALE_ROWS``: a log-Student-t with 2 dof,
+95 % 0.051-180x; :func:`pair_scales`), from a random stream of its own so the other draws stay those of the same design with its
 force declared.  This module turns it into
 
 * :func:`sample_designs` -- designs drawn from that distribution: the table values multiplied by
@@ -93,25 +93,32 @@ PAIR_SOURCE = "first-principles pair force"
 
 
 def pair_scales(n: int, seed: int = 0) -> np.ndarray:
-    """(n,) the Bjerknes-force scales of :func:`sample_designs`' draws on a first-principles pair: the log-normal of
-    acl.physics.constants (PAIR_SCALE_LOG_MEAN, PAIR_SCALE_LOG_SD) from its own stream ``[seed, 2]``."""
-    from acl.physics.constants import PAIR_SCALE_LOG_MEAN, PAIR_SCALE_LOG_SD
+    """(n,) the Bjerknes-force scales of :func:`sample_designs`' draws on a first-principles pair: the truncated
+    predictive log-Student-t of acl.physics.constants (pair_scale_from_uniform), from its own stream ``[seed, 2]``."""
+    from acl.physics.constants import pair_scale_from_uniform
 
-    return np.exp(PAIR_SCALE_LOG_MEAN + PAIR_SCALE_LOG_SD * np.random.default_rng([seed, 2]).standard_normal(n))
+    return pair_scale_from_uniform(np.random.default_rng([seed, 2]).random(n))
+
+
+_RMS_LOG: list = []
 
 
 def pair_rms_log() -> float:
     """sqrt(E (ln s)^2) of the pair scale s (acl.physics.constants): its root-mean-square log distance from the
-    first-principles force, about which the compiler's linearised sources move it (:func:`pair_move`)."""
-    from acl.physics.constants import PAIR_SCALE_LOG_MEAN, PAIR_SCALE_LOG_SD
+    first-principles force, about which the compiler's linearised sources move it (:func:`pair_move`); the midpoint
+    rule on 20,000 equal-probability cells of the truncated predictive spread."""
+    if not _RMS_LOG:
+        from acl.physics.constants import pair_scale_from_uniform
 
-    return float(np.hypot(PAIR_SCALE_LOG_MEAN, PAIR_SCALE_LOG_SD))
+        u = (np.arange(20000) + 0.5) / 20000
+        _RMS_LOG.append(float(np.sqrt(np.mean(np.log(pair_scale_from_uniform(u)) ** 2))))
+    return _RMS_LOG[0]
 
 
 def pair_move(design: Design, t: float) -> Design:
     """``design`` with its first-principles pair force moved by ``t`` of :func:`pair_rms_log` in log scale: a linearised
     source (the robust program's Q, the band's cause) whose variance is the pair scale's second moment about first
-    principles (its median 4.49 is itself 1.5 log units away)."""
+    principles (its median is itself about 1.5 log units away)."""
     from acl.analysis.effects import with_pair_scale
 
     return with_pair_scale(design, float(np.exp(pair_rms_log() * t)))
@@ -128,8 +135,10 @@ def pair_details(design: Design, values: np.ndarray, seed: int = 0) -> dict | No
     if not first_principles_pairs(design):
         return None
     v = np.asarray(values, float)
-    out = {"source": PAIR_SOURCE, "distribution": "log-normal", "median": C.FIRST_PRINCIPLES_PAIR_SCALE_MEDIAN,
-           "log_sd": C.PAIR_SCALE_LOG_SD, "rows": [{"source": s, "ratio": r} for s, r in C.PAIR_SCALE_ROWS],
+    out = {"source": PAIR_SOURCE, "distribution": C.PAIR_SCALE_DISTRIBUTION, "median": C.pair_scale_quantile(0.5),
+           "range_95": [C.pair_scale_quantile(0.025), C.pair_scale_quantile(0.975)], "log_sd": C.PAIR_SCALE_LOG_SD,
+           "predictive_log_scale": C.PAIR_SCALE_PREDICTIVE_LOG_SCALE, "dof": C.PAIR_SCALE_DOF,
+           "rows": [{"source": s, "ratio": r} for s, r in C.PAIR_SCALE_ROWS],
            "variance_share": None}
     if v.size >= 3:
         from scipy.stats import rankdata

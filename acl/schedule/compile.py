@@ -160,12 +160,19 @@ def pair_scale_notes(comp: CompileState) -> None:
         what = ("band" if g.rms_error_p95_m is not None else "margin band")
         msg = (f"{g.name}: the {what} draws the {pair['source']}: no bjerknes_scale calibrates this design's pair forces, "
                f"and the paper's measured pairs attracted {min(r['ratio'] for r in pair['rows']):.3g}-"
-               f"{max(r['ratio'] for r in pair['rows']):.3g}x harder ({rows}); drawn log-normal, median "
-               f"{pair['median']:.3g}, log sd {pair['log_sd']:.3g}"
+               f"{max(r['ratio'] for r in pair['rows']):.3g}x harder ({rows}); drawn from the "
+               f"{pair['distribution']}, median {pair['median']:.3g}, 95 % {pair['range_95'][0]:.2g}-{pair['range_95'][1]:.3g}x"
                + (f"; its share of the spread {share:.0%} {how}" if share is not None else ""))
         comp.schedule.warnings.append(Diagnostic(
             PAIR_SCALE_CODE, Severity.INFO, msg, comp.program.steps[g.step].span,
             "calibrate the pair force on measured pairs (acl fit; effect bjerknes_scale, stdlib/calibrations.acl)"))
+    from acl.analysis.pairs import drive_step_scale_note    # a drive step has no band: its pairs' net sign instead
+
+    for k, st in enumerate(comp.program.steps, 1):
+        n = drive_step_scale_note(comp.design, st.drive, st.span, f"step {k}") if st.kind == "drive" else None
+        if n:
+            comp.schedule.warnings.append(Diagnostic(PAIR_SCALE_CODE, Severity.INFO, n["message"], st.span,
+                "calibrate the pair force on measured pairs (acl fit; effect bjerknes_scale, stdlib/calibrations.acl)"))
 
 
 PASSES = (

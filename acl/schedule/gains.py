@@ -221,26 +221,59 @@ def model_forward_many(designs, capsule: str, frequencies, u: np.ndarray, starts
     return out
 
 
-def _forward_rows(base: Design, members: list, capsule: str, freqs: list, u: np.ndarray, starts: list) -> list:
-    """:func:`model_forward_many` of one family of gain-table variants of ``base`` (rows: ``members``)."""
+def model_forward_tones(designs, capsule: str, frequencies, u: np.ndarray, starts=None) -> list:
+    """:func:`model_forward_many` of each tone alone, as one batch: ``u`` (K, N) V^2 of tone k at its N waypoints ->
+    [[entry per design] per tone], entry k, i ``model_forward_many(designs, capsule, [frequencies[k]], u[k][:, None],
+    starts)[i]``.  Every (tone, design) a row of one batched solve per waypoint (each row the same computation as in
+    its tone's own batch: the single-tone engine, acl.analysis.tones.force_rows_one_tone); designs that are not all
+    gain-table variants of the first are solved tone by tone."""
+    designs = list(designs)
+    starts = [None] * len(designs) if starts is None else list(starts)
+    freqs = [float(f) for f in frequencies]
+    u = np.asarray(u, float).reshape(len(freqs), -1)
+    if not designs or not freqs or not all(_gain_variant(designs[0], d) for d in designs):
+        return [model_forward_many(designs, capsule, [f], u[k][:, None], starts) for k, f in enumerate(freqs)]
+    nd = len(designs)
+    try:
+        preds = _forward_rows(designs[0], designs * len(freqs), capsule, freqs, u, starts * len(freqs),
+                              tone=np.repeat(np.arange(len(freqs)), nd))
+    except (ValueError, KeyError, FloatingPointError):          # which rows fail: tone by tone, as a loop would
+        return [model_forward_many(designs, capsule, [f], u[k][:, None], starts) for k, f in enumerate(freqs)]
+    return [preds[k * nd:(k + 1) * nd] for k in range(len(freqs))]
+
+
+def _forward_rows(base: Design, members: list, capsule: str, freqs: list, u: np.ndarray, starts: list,
+                  tone=None) -> list:
+    """:func:`model_forward_many` of one family of gain-table variants of ``base`` (rows: ``members``).  ``tone``
+    (rows,): each row plays tone ``freqs[tone[j]]`` alone, at ``u[tone[j]]`` V^2 per waypoint (``u`` (K, N))
+    (:func:`model_forward_tones`); else every row plays all tones at ``u`` (N, K)."""
     from acl.analysis import equilibria, tones
 
     names = [c.name for c in base.capsules]
     ci = names.index(capsule)
-    nrow, n = len(members), u.shape[0]
+    nrow = len(members)
+    one = tone is not None
+    n = u.shape[1] if one else u.shape[0]
     factors = [tones.drive_factors(d, freqs) for d in members]
     gains = np.array([g for g, _ in factors], float).reshape(nrow, len(freqs))
+    if one:
+        gains = gains[np.arange(nrow), tone][:, None]            # each row's gain at its own tone
     scales = np.array([s for _, s in factors], float).reshape(nrow, len(names))
     # rows with the same drive factors and the same start are the same computation (a gain-table point that no tone
     # interpolates from moves nothing): each solved once
     owner = {}
-    first = [owner.setdefault((gains[j].tobytes(), scales[j].tobytes(), id(starts[j])), j) for j in range(nrow)]
+    first = [owner.setdefault((gains[j].tobytes(), scales[j].tobytes(), id(starts[j]))
+                              + ((int(tone[j]),) if one else ()), j) for j in range(nrow)]
     if len(owner) < nrow:
         uniq = sorted(owner.values())
         sub = dict(zip(uniq, _forward_rows(base, [members[j] for j in uniq], capsule, freqs, u,
-                                           [starts[j] for j in uniq])))
+                                           [starts[j] for j in uniq], None if not one else tone[uniq])))
         return [sub[first[j]].copy() for j in range(nrow)]
-    amps = np.sqrt(np.maximum(u, 0.0))
+    if one:
+        amps = np.sqrt(np.maximum(u[tone], 0.0))                 # (rows, N): each row's amplitude at its tone
+        row_freq = [[freqs[t]] for t in tone]
+    else:
+        amps = np.sqrt(np.maximum(u, 0.0))
     out = np.full((nrow, n, 2), np.nan)
     prev = list(starts)                      # where each row's last waypoint left the capsules (dict), or its start
     from_start = [True] * nrow               # prev is the row's start (the scalar model's ``prev is start``)
@@ -255,14 +288,17 @@ def _forward_rows(base: Design, members: list, capsule: str, freqs: list, u: np.
         return np.array([np.asarray(pos.get(nm, rest[nm]), float) for nm in names])
 
     for i in range(n):
-        driven = bool(np.any(u[i] > 0))
-        active = [j for j in range(nrow) if not (contact[j] and driven)]
+        driven = amps[:, i] > 0 if one else np.full(nrow, bool(np.any(u[i] > 0)))
+        active = [j for j in range(nrow) if not (contact[j] and driven[j])]
         contact[active] = False          # silence releases a contact (no acoustic force: the beams pull apart)
         if not active:
             continue
 
-        def rows_force(sel, a=amps[i]):
+        def rows_force(sel, a=None if one else amps[i], i=i):
             sel = np.asarray(sel)
+            if one:
+                return lambda c, r, s: tones.force_rows_one_tone(base, c, freqs, tone[sel[r]], amps[sel[r], i] * s,
+                                                                 gains[sel[r], 0], scales[sel[r]])
             return lambda c, r, s: tones.force_batch_tones(base, c, freqs, np.broadcast_to(a * s, (r.size, a.size)),
                                                                gains[sel[r]], scales[sel[r]])
 
@@ -283,7 +319,8 @@ def _forward_rows(base: Design, members: list, capsule: str, freqs: list, u: np.
                 out[j, i] = disp
                 prev[j], from_start[j] = as_dict(pos), False
                 continue
-            drive = Drive(tones=tuple(Tone(frequency=f, amplitude=float(a)) for f, a in zip(freqs, amps[i])))
+            fj, aj = (row_freq[j], [amps[j, i]]) if one else (freqs, amps[i])
+            drive = Drive(tones=tuple(Tone(frequency=f, amplitude=float(a)) for f, a in zip(fj, aj)))
             eq = _waypoint(members[j], drive, starts[j] if from_start[j] else prev[j], starts[j])
             if eq.status == "ok":
                 out[j, i] = np.asarray(eq.displacements[capsule], float)[:2]

@@ -86,6 +86,7 @@ class CompileState:
     inner_goals: list = field(default_factory=list)     # goal records checked for coverage, not in schedule.json (sweeps)
     forward_now: Callable | None = None                 # the current follow goal's forward provider (:func:`steps._models_for`)
     many_now: Callable | None = None                    # (designs, capsule, freqs, u) -> [prediction]: one batch, or None
+    many_tones_now: Callable | None = None              # (designs, capsule, freqs, u (K, N)) -> each tone alone, or None
     gains_now: Callable | None = None                   # and its gain provider ((design, capsule, freqs) -> GainTable)
     cure_readings: tuple | None = None                  # (goal name, [(tone Hz, V)]): the first goal's proposed readings
     #                                                     (acl.schedule.experiment.explain promises the later goals'

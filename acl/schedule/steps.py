@@ -205,12 +205,14 @@ def _models_for(comp: CompileState, i: int, name: str):
     each draw of a band or of --robust at its own travel).  Fig. 6f: after `switch ctl to b` partner faces arm_cap
     inside d_c and their attraction bends the beam the other way; planned and re-simulated from the declared
     state a, a path of arm_cap after the switch was predicted as if partner were 110 um away."""
-    from acl.schedule.gains import model_forward, model_forward_many, model_gain_table, state_positions
+    from acl.schedule.gains import (model_forward, model_forward_many, model_forward_tones, model_gain_table,
+                                    state_positions)
 
     forward = comp.opts.forward_provider or model_forward
     # the re-simulation and its band's draws as one batch (gains.model_forward_many) when the model is the default
     comp.many_now = None if comp.opts.forward_provider is not None else \
         (lambda ds, capsule, freqs, u: model_forward_many(ds, capsule, freqs, u))
+    comp.many_tones_now = None if comp.opts.forward_provider is not None else model_forward_tones
     given = comp.opts.gain_provider
     gains = (lambda d, capsule, freqs=None: given(d, capsule) if freqs is None else given(d, capsule, freqs)) \
         if given is not None else model_gain_table
@@ -231,6 +233,8 @@ def _models_for(comp: CompileState, i: int, name: str):
     if comp.opts.forward_provider is None:
         forward = lambda d, capsule, freqs: model_forward(d, capsule, freqs, start=state_positions(d, states))  # noqa: E731
         comp.many_now = lambda ds, capsule, freqs, u: model_forward_many(  # noqa: E731
+            ds, capsule, freqs, u, [state_positions(d, states) for d in ds])
+        comp.many_tones_now = lambda ds, capsule, freqs, u: model_forward_tones(  # noqa: E731
             ds, capsule, freqs, u, [state_positions(d, states) for d in ds])
     if given is None:
         gains = lambda d, capsule, freqs=None: model_gain_table(d, capsule, freqs,  # noqa: E731

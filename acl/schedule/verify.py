@@ -201,7 +201,9 @@ def _band(comp: CompileState, rep: GoalReport, provider, capsule, u, targets, ba
     ex = experiment.explain(comp.design, many, capsule, rep.frequencies_hz, u, targets,
                             reload=comp.opts.reload, band=band, seed=comp.opts.band_seed,
                             noise=comp.opts.reading_noise_m or experiment.READING_NOISE_M, name=rep.name,
-                            earlier=comp.cure_readings)
+                            earlier=comp.cure_readings,
+                            many_tones=None if comp.many_now is None or comp.many_tones_now is None else
+                            (lambda ds, f, uu: comp.many_tones_now(ds, capsule, f, uu)))
     if ex is not None:
         rep.band_plot = ex.pop("plot", None)
         rep.details["band"]["cause"] = ex

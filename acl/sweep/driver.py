@@ -164,7 +164,7 @@ def model_form_notes(data) -> list[str]:
         k = int(np.count_nonzero(data["valid"] & data["model_form_pair_uncertain"]))
         out.append(f"the design's pair forces are acl's first-principles values (no bjerknes_scale): the paper's measured "
                    f"pairs attracted {min(r for _, r in C.PAIR_SCALE_ROWS):.3g}-{max(r for _, r in C.PAIR_SCALE_ROWS):.3g}x "
-                   f"harder (log-normal, median {C.FIRST_PRINCIPLES_PAIR_SCALE_MEDIAN:.3g}, log sd {C.PAIR_SCALE_LOG_SD:.3g}; "
+                   f"harder ({C.PAIR_SCALE_DISTRIBUTION}; fitted median {C.FIRST_PRINCIPLES_PAIR_SCALE_MEDIAN:.3g}; "
                    f"acl.physics.constants.PAIR_SCALE_ROWS); {k} of {len(data)} points have a margin or gap verdict that "
                    f"differs at its 2.5 or 97.5 % quantile ({C.pair_scale_quantile(0.025):.2g}x or "
                    f"{C.pair_scale_quantile(0.975):.3g}x), and the yield's interval counts them both ways "

@@ -17,13 +17,12 @@ Per point:
 
 * ``model_form_pair_uncertain``: on a design whose pair (secondary Bjerknes) forces no ``bjerknes_scale``
   calibrates (acl.analysis.effects.first_principles_pairs), a force-dependent require whose verdict differs with
-  the Bjerknes force at the 2.5 or the 97.5 % quantile of the first-principles pair-scale spread (the log-normal of
-  acl.physics.constants.PAIR_SCALE_ROWS: 0.54x .. 37x, which holds the first-principles force, 1x, at its 8th
-  percentile) from its verdict with the first-principles force; the verdict is taken as monotone in the scale
+  the Bjerknes force at the 2.5 or the 97.5 % quantile of the first-principles pair-scale spread (the predictive
+  log-Student-t of the 3 ratios of acl.physics.constants.PAIR_SCALE_ROWS: 0.051x .. 180x) from its verdict with the first-principles force; the verdict is taken as monotone in the scale
   between the two ends.  The scale is one unknown of the model, the same for every point (not a tolerance drawn per
   point), so it widens the interval instead of entering the yield; ``model_form_uncertain`` includes these points;
-* ``model_form_pair_median_pass``: every margin and gap require holds with the Bjerknes force at the spread's median
-  (4.49x), the verdict a calibration would most likely find (the note counts it beside the first-principles yield).
+* ``model_form_pair_median_pass``: every margin and gap require holds with the Bjerknes force at the fitted median
+  of the ratios (4.49x), the verdict a calibration would most likely find (the note counts it beside the first-principles yield).
 
 The table (acl.sweep.table) widens the yield's interval by these points: the lower bound counts the uncertain
 passes as failures, the upper bound the uncertain failures as passes.
@@ -118,7 +117,7 @@ class ModelForm(Checks):
             ok_median = np.ones(self.n, bool)
             if force and first_principles_pairs(self.design):
                 for p in (*PAIR_QUANTILES, 0.5):
-                    d = with_pair_scale(self.design, C.pair_scale_quantile(p))
+                    d = with_pair_scale(self.design, C.pair_scale_quantile(p) if p != 0.5 else C.FIRST_PRINCIPLES_PAIR_SCALE_MEDIAN)
                     ev = type(self)(replace(self.batch, design=d), self.at)
                     for i in force:
                         ok_p = np.asarray(ev.require(i)[1], bool)

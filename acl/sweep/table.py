@@ -447,7 +447,8 @@ def write_csv_arrow(table: SweepTable, path: str, rows_per_batch: int = ROW_GROU
     ``True``/``False``, codes and ``nan``/``inf``; a float is spelled as pyarrow spells the shortest
     digits that read back bit for bit (``3`` for ``3.0``, ``0.00001`` for ``1e-05``), so every reader
     (Python's ``float``, ``csv``, numpy, pandas) reads the same values from either file
-    (tests/test_sweep_table_io.py)."""
+    (tests/test_sweep_table_io.py); a float column whose values are all integral is spelled ``3.0``,
+    so that pandas reads it as floats, as from the Python writer's file."""
     import pyarrow as pa
     import pyarrow.compute as pc
 
@@ -459,6 +460,12 @@ def write_csv_arrow(table: SweepTable, path: str, rows_per_batch: int = ROW_GROU
             cols[c] = pc.if_else(pa.array(a), "True", "False")
         elif a.dtype.kind == "U":
             cols[c] = pa.array(a.astype(object), pa.string())
+        elif a.dtype.kind == "f" and len(a) and bool(np.all(~np.isfinite(a) | (a == np.trunc(a)))):
+            # every value integral (a column of zeros): pyarrow spells them `0`, `3`, which pandas reads
+            # as an integer column; spelled `0.0`, `3.0` as the Python writer does, it reads floats
+            s = pc.cast(pa.array(a), pa.string())
+            cols[c] = pc.if_else(pc.match_substring_regex(s, r"^-?[0-9]+$"),
+                                 pc.binary_join_element_wise(s, ".0", ""), s)
         else:
             cols[c] = pa.array(a)
     with open(path, "wb") as fh:

@@ -82,8 +82,9 @@ def separate_pairs(ctx: Context) -> dict[tuple[str, str], str]:
         if st.kind == "follow":
             alone.setdefault(st.capsule, f"program `{p.name}` follows `{st.capsule}` alone")
     for a in alone:
+        moving = set(ctx.tied([a]))              # a capsule trussed to the followed one moves with it
         for b in names:
-            if b != a:
+            if b not in moving:
                 out.setdefault(tuple(sorted((a, b))), alone[a])
     return out
 
@@ -112,10 +113,12 @@ def mode_crosstalk(ctx: Context):
 def _intended(ctx: Context, step, rel: np.ndarray, freqs) -> list[set[str]]:
     """Capsules each tone of a step is meant to drive."""
     names = [c.name for c in ctx.design.capsules]
-    if step.kind == "follow":
-        return [{step.capsule} for _ in freqs]
+    if step.kind == "follow":                  # with the capsules trussed to it: they move together
+        moving = set(ctx.tied([step.capsule]))
+        return [moving for _ in freqs]
     if step.kind == "hold":
-        return [{step.a.split(".")[0], step.b.split(".")[0]} for _ in freqs]
+        held = set(ctx.tied([step.a.split(".")[0], step.b.split(".")[0]]))
+        return [held for _ in freqs]
     if step.kind == "switch":
         on = set(ctx.carried(step.latch))
         return [on for _ in freqs]
