@@ -75,11 +75,10 @@ the first full hover 2,546 / 4,253 -> 1,654 / 1,899 ms (the worker's warm-up, at
 not yet done after the 2 s the benchmark waits). --lines 1000 --changes-only --runs 10 at load
 2.4-2.7: didChange -> diagnostics 17-26 ms median in every case, before and after alike (target of
 issue 23: 100 ms). After main (with speed8's coupled_volumes) was merged into hover8, the same
-against main at 61bd487's successor 493ec99, load 1.8-2.5: after a capsule moved 1,011 / 1,075 ->
-436 / 551 ms (max 1,171 / 1,374 -> 593 / 670 ms), after a comment edit 223 / 222 -> 120 / 182 ms,
-the first full hover 2,033 / 1,857 -> 137 / 210 ms; --irregular: after a capsule moved 1,808 / 1,482
--> 498 / 482 ms (max 1,898 / 1,645 -> 619 / 590 ms), the first full hover 2,913 / 2,290 -> 67 / 69
-ms.
+against main at 61bd487, load 1.8-2.5: after a capsule moved 1,011 / 1,075 -> 436 / 551 ms (max
+1,171 / 1,374 -> 593 / 670 ms), after a comment edit 223 / 222 -> 120 / 182 ms, the first full hover
+2,033 / 1,857 -> 137 / 210 ms; --irregular: after a capsule moved 1,808 / 1,482 -> 498 / 482 ms (max
+1,898 / 1,645 -> 619 / 590 ms), the first full hover 2,913 / 2,290 -> 67 / 69 ms.
 """
 from __future__ import annotations
 
