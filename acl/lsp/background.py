@@ -123,6 +123,10 @@ class Worker:
         with self._lock:
             left = list(self._jobs.values())
             self._jobs.clear()
+            # what warmed the stopped process (its imports, a document's parse and analyses) is gone with it: the
+            # server's next warm-up request (after its next publish) warms the new one
+            for k in [k for k in self._results if k[:1] == ("warm",)]:
+                del self._results[k]
         for f in left:
             f.cancel()
 
