@@ -78,7 +78,13 @@ issue 23: 100 ms). After main (with speed8's coupled_volumes) was merged into ho
 against main at 61bd487, load 1.8-2.5: after a capsule moved 1,011 / 1,075 -> 436 / 551 ms (max
 1,171 / 1,374 -> 593 / 670 ms), after a comment edit 223 / 222 -> 120 / 182 ms, the first full hover
 2,033 / 1,857 -> 137 / 210 ms; --irregular: after a capsule moved 1,808 / 1,482 -> 498 / 482 ms (max
-1,898 / 1,645 -> 619 / 590 ms), the first full hover 2,913 / 2,290 -> 67 / 69 ms.
+1,898 / 1,645 -> 619 / 590 ms), the first full hover 2,913 / 2,290 -> 67 / 69 ms. Again at load
+1.0-1.1 (with the warm-up redone after a worker restart): after a capsule moved 950 / 961 -> 430 /
+429 ms (max 1,057 / 1,090 -> 532 / 532 ms), the first full hover 1,702 / 1,638 -> 97 / 150 ms;
+--irregular: after a capsule moved 1,476 / 1,425 -> 429 / 432 ms (max 1,533 / 1,633 -> 533 / 533
+ms), the first full hover 2,166 / 2,242 -> 125 / 126 ms. The whole benchmark at load 1.2 (3 runs):
+after a capsule moved 446 ms (max 534), another capsule 54 ms, after a comment edit 113 ms, the
+first full hover 313 ms.
 """
 from __future__ import annotations
 
