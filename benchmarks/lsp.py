@@ -1,6 +1,6 @@
 """Benchmark of `acl lsp` through the protocol, on generated designs of 1,000 and 5,000 lines.
 
-    python benchmarks/lsp.py [--lines 1000 5000] [--runs 10] [--lint] [--changes-only]
+    python benchmarks/lsp.py [--lines 1000 5000] [--runs 10] [--lint] [--changes-only | --hover-only] [--irregular]
 
 Spawns `python -m acl lsp` and speaks the protocol (tests/lsp_client.py), opens a generated design
 (benchmarks/check.py's generator), warms up, then measures:
@@ -63,6 +63,28 @@ added) 19.3 s -> 0.96 s. Again with this file's cases, before at load 6.3, after
 place 82 / 82), paste and undo 645 -> 244 ms (CPU 474 -> 140 ms); the session's first full
 capsule hover 9.9 -> 4.7 s; the full hover after a row of capsules moved 11.2 -> 7.3 s (all 393
 capsules' coupled modes computed anew: acl.analysis), after a comment edit 8.3 s -> 0.52 s.
+Issue 23's hover session (branch hover8: the coupled modes of >= 256 bare modes from the scaled
+standard eigenproblem, not the Cholesky reduction; only the listed modes' Q; only the shown program
+frequencies; the worker checks an opened large document and computes its coupled modes),
+--hover-only --runs 5, main at 26c62f9 (its hover code as at this branch's base bb08aba) and this
+branch alternated, two rounds each: at load 2.2-2.5, the full answer after a capsule moved 1,127 /
+1,121 -> 488 / 487 ms (max 1,814 / 1,171 -> 612 / 646 ms), after a comment edit 223 / 227 -> 177 /
+173 ms, the session's first full hover 2,289 / 2,528 -> 162 / 171 ms; with --irregular at load
+2.8-3.3, after a capsule moved 1,654 / 2,688 -> 799 / 862 ms (max 3,364 / 3,080 -> 934 / 1,448 ms),
+the first full hover 2,546 / 4,253 -> 1,654 / 1,899 ms (the worker's warm-up, at a lower priority,
+not yet done after the 2 s the benchmark waits). --lines 1000 --changes-only --runs 10 at load
+2.4-2.7: didChange -> diagnostics 17-26 ms median in every case, before and after alike (target of
+issue 23: 100 ms). After main (with speed8's coupled_volumes) was merged into hover8, the same
+against main at 61bd487, load 1.8-2.5: after a capsule moved 1,011 / 1,075 -> 436 / 551 ms (max
+1,171 / 1,374 -> 593 / 670 ms), after a comment edit 223 / 222 -> 120 / 182 ms, the first full hover
+2,033 / 1,857 -> 137 / 210 ms; --irregular: after a capsule moved 1,808 / 1,482 -> 498 / 482 ms (max
+1,898 / 1,645 -> 619 / 590 ms), the first full hover 2,913 / 2,290 -> 67 / 69 ms. Again at load
+1.0-1.1 (with the warm-up redone after a worker restart): after a capsule moved 950 / 961 -> 430 /
+429 ms (max 1,057 / 1,090 -> 532 / 532 ms), the first full hover 1,702 / 1,638 -> 97 / 150 ms;
+--irregular: after a capsule moved 1,476 / 1,425 -> 429 / 432 ms (max 1,533 / 1,633 -> 533 / 533
+ms), the first full hover 2,166 / 2,242 -> 125 / 126 ms. The whole benchmark at load 1.2 (3 runs):
+after a capsule moved 446 ms (max 534), another capsule 54 ms, after a comment edit 113 ms, the
+first full hover 313 ms.
 """
 from __future__ import annotations
 
@@ -128,8 +150,21 @@ def _ms(fn, runs: int) -> list[float]:
     return out
 
 
-def bench(n_lines: int, runs: int, warmup: int, lint: bool, changes_only: bool = False) -> dict:
+def irregular(text: str, seed: int = 23) -> str:
+    """``text`` with every capsule row's x moved by its own random 0-40 um: no two distances repeat (the
+    Green-function tables of acl.physics.coupling then save nothing)."""
+    import random
+
+    rnd = random.Random(seed)
+    return "\n".join(ln.replace("* pitch", f"* pitch + {rnd.uniform(0, 40):.3f} um", 1) if ln.startswith("param x")
+                     else ln for ln in text.split("\n"))
+
+
+def bench(n_lines: int, runs: int, warmup: int, lint: bool, changes_only: bool = False, hover_only: bool = False,
+          jitter: bool = False) -> dict:
     text = generate(n_lines)
+    if jitter:
+        text = irregular(text)
     lines = text.split("\n")
     results: dict[str, list[float]] = {}
     with tempfile.TemporaryDirectory() as tmp:
@@ -142,7 +177,7 @@ def bench(n_lines: int, runs: int, warmup: int, lint: bool, changes_only: bool =
             client.wait_for("textDocument/publishDiagnostics", lambda p: p["uri"] == u and p.get("version") == 1)
             mid = next(i for i in range(len(lines) // 2, len(lines)) if lines[i].startswith("param x"))
             v = 1
-            for case in ("didChange -> diagnostics: edit a line in the middle",
+            for case in () if hover_only else ("didChange -> diagnostics: edit a line in the middle",
                          "didChange -> diagnostics: append a line",
                          "didChange -> diagnostics: insert a line in the middle (Enter)",
                          "didChange -> diagnostics: paste 10 lines in the middle, undo it"):
@@ -175,7 +210,7 @@ def bench(n_lines: int, runs: int, warmup: int, lint: bool, changes_only: bool =
                     results[f"(server CPU per change: {case.split(': ')[1]})"] = [(cpu1 - cpu0) / runs]
             if changes_only:
                 return {"lines": text.count("\n"), "results": results}
-            if body != text:                   # (the server publishes nothing for a text it has)
+            if not hover_only and body != text:     # (the server publishes nothing for a text it has)
                 v += 1
                 client.change(u, v, text)
                 client.wait_for("textDocument/publishDiagnostics", lambda p: p["uri"] == u and p.get("version") == v)
@@ -226,11 +261,11 @@ def bench(n_lines: int, runs: int, warmup: int, lint: bool, changes_only: bool =
                     break
                 time.sleep(0.05)
             results["(the session's first full capsule hover, cold worker)"] = [(time.perf_counter() - t0) * 1e3]
-            for name, fn in requests.items():
+            for name, fn in {} if hover_only else requests.items():
                 _until_answered(fn)                        # warm-up (imports, caches)
                 results[name] = _ms(fn, runs)
             fresh, fresh_done, fresh_busy = [], [], 0      # acl fmt on a text it has not seen (no cache)
-            for i in range(runs):
+            for i in range(0 if hover_only else runs):
                 v += 1
                 client.change(u, v, text + f"# fresh {i}\n")
                 client.wait_for("textDocument/publishDiagnostics", lambda p, v=v: p["uri"] == u and p.get("version") == v)
@@ -238,8 +273,9 @@ def bench(n_lines: int, runs: int, warmup: int, lint: bool, changes_only: bool =
                 fresh.append(first)
                 fresh_done.append(done)
                 fresh_busy += busy > 0
-            results[f"formatting a new text: first reply ({fresh_busy}/{runs} 'still working')"] = fresh
-            results["(formatting a new text: the edits, asked every 50 ms)"] = fresh_done
+            if not hover_only:
+                results[f"formatting a new text: first reply ({fresh_busy}/{runs} 'still working')"] = fresh
+                results["(formatting a new text: the edits, asked every 50 ms)"] = fresh_done
             _ = whole
 
             # a capsule's full hover (its coupled modes) on a text the worker has not seen
@@ -264,21 +300,23 @@ def bench(n_lines: int, runs: int, warmup: int, lint: bool, changes_only: bool =
             # of the earlier design with the same content serve it, acl.lsp.background.physics_twin)
             x1 = next(j for j, x in enumerate(lines) if x.startswith("param x1 "))
             full, other, same = [], [], []
-            for i in range(min(runs, 3)):
+            for i in range(runs if hover_only else min(runs, 3)):
                 v += 1
                 moved = lines[:x1] + [lines[x1].replace("* pitch", f"* pitch + {i + 1} um")] + lines[x1 + 1:]
                 client.change(u, v, "\n".join(moved))
                 client.wait_for("textDocument/publishDiagnostics", lambda p, v=v: p["uri"] == u and p.get("version") == v)
-                full.append(full_hover(caps[(2 * i + 1) * len(caps) // 7], first=True))
-                other.append(full_hover(caps[(2 * i + 2) * len(caps) // 7]))     # another capsule, same text
+                full.append(full_hover(caps[(2 * i + 1) * len(caps) // 7 % len(caps)], first=True))
+                other.append(full_hover(caps[(2 * i + 2) * len(caps) // 7 % len(caps)]))     # another capsule, same text
                 v += 1
                 client.change(u, v, "\n".join(moved) + f"# hover {i}\n")
                 client.wait_for("textDocument/publishDiagnostics", lambda p, v=v: p["uri"] == u and p.get("version") == v)
-                same.append(full_hover(caps[(2 * i + 3) * len(caps) // 8], first=True))
+                same.append(full_hover(caps[(2 * i + 3) * len(caps) // 8 % len(caps)], first=True))
             results["hover on a capsule of a new text: first reply"] = firsts
             results["(hover on a capsule: the full answer, a capsule moved)"] = full
             results["(then on another capsule of the same text)"] = other
             results["(the full answer after a comment edit: same physics)"] = same
+            if hover_only:
+                return {"lines": text.count("\n"), "results": results}
 
             # a hover while the worker runs `acl analyze` on the whole design
             done = threading.Event()
@@ -323,9 +361,14 @@ def main() -> int:
     ap.add_argument("--lint", action="store_true", help="also run lint in the server's worker (competes for CPU)")
     ap.add_argument("--changes-only", action="store_true",
                     help="only didChange -> diagnostics (quick: to compare two checkouts in one run)")
+    ap.add_argument("--hover-only", action="store_true",
+                    help="only the capsule hovers (the session's first, after a capsule moved, another capsule, "
+                         "after a comment edit), --runs times each")
+    ap.add_argument("--irregular", action="store_true",
+                    help="capsule rows moved by random amounts: no repeated distances between capsules")
     args = ap.parse_args()
     for n in args.lines:
-        got = bench(n, args.runs, args.warmup, args.lint, args.changes_only)
+        got = bench(n, args.runs, args.warmup, args.lint, args.changes_only, args.hover_only, args.irregular)
         load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
         print(f"acl lsp on a {got['lines']}-line design ({args.runs} runs; load average {load:.1f} on "
               f"{os.cpu_count()} CPUs{', lint worker on' if args.lint else ''}):")

@@ -38,6 +38,27 @@ def test_a_newer_text_stops_the_worker_busy_with_an_older_one():
         w.stop()
 
 
+def test_a_stopped_worker_forgets_what_warmed_it():
+    """The warm-up results (imports, a document's first parse) belonged to the stopped process: a new one is warmed
+    again (the server asks after its next publish); results keyed by a text stay."""
+    from acl.lsp.background import Worker
+
+    w = Worker()
+    try:
+        w.get(("warm",), abs, -1)
+        w.get(("warm", "/doc.acl"), abs, -2)
+        w.get(("doc", "text", "hover"), abs, -3)
+        deadline = time.monotonic() + 60
+        while w.peek(("doc", "text", "hover")) is None and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert [w.peek(k) for k in (("warm",), ("warm", "/doc.acl"), ("doc", "text", "hover"))] == [1, 2, 3]
+        w.stop()
+        assert w.peek(("warm",)) is None and w.peek(("warm", "/doc.acl")) is None
+        assert w.peek(("doc", "text", "hover")) == 3
+    finally:
+        w.stop()
+
+
 def test_queued_work_for_an_older_text_is_cancelled_and_other_documents_keep_theirs():
     from acl.lsp.background import Worker
 

@@ -138,3 +138,29 @@ def test_the_background_worker_runs_one_blas_thread(monkeypatch):
         assert threads in (None, [1])
     finally:
         w.stop()
+
+
+def test_the_warmed_document_serves_the_first_hover_and_parses_only_edits(monkeypatch):
+    """warm_document (the worker's first job on a large document) leaves the coupled modes of the opened text
+    computed and its statements parsed: the first hover on that text solves no eigenproblem, one on an edited text
+    parses only the edited statement; both equal a fresh check's hover."""
+    from acl.physics import coupling as CP
+
+    path = "/tmp/warm.acl"
+    assert B.warm_document(path, DESIGN) is True
+    solved = []
+    real = CP.mode_shapes
+    monkeypatch.setattr(CP, "mode_shapes", lambda *a, **k: solved.append(1) or real(*a, **k))
+    import acl.analysis.acoustics as AC
+
+    monkeypatch.setattr(AC, "_physics_mode_shapes", CP.mode_shapes)
+    line = _line(DESIGN, "capsule c2")
+    got = B.hover_text(path, DESIGN, line, 9)
+    assert not solved                              # the warm job's coupled modes served it
+    assert "with its neighbours" in got and got == _fresh_hover(path, DESIGN, line)
+    solved.clear()
+    edited = DESIGN.replace("param gap = 300 um", "param gap = 310 um")
+    got = B.hover_text(path, edited, line, 9)
+    assert B._PARSERS[path].stats["parsed"] == 1   # the edited statement alone
+    assert solved                                  # new physics: solved anew
+    assert got == _fresh_hover(path, edited, line)

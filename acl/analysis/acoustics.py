@@ -29,7 +29,8 @@ from acl.analysis.environment import (_capsule, defaults_used, drive_gain, effec
 from acl.analysis.modal import modal_data, thermal_radius  # noqa: F401  (public here since before)
 from acl.physics import constants as C
 from acl.physics.coupling import (BubbleSystem, CoupledModes, build_system, coupled_modes as _physics_coupled_modes,
-                                  coupled_response as _physics_coupled, prepared_response, uncoupled_blocks)
+                                  coupled_response as _physics_coupled, ModeShapes, mode_shapes as _physics_mode_shapes,
+                                  prepared_response, uncoupled_blocks)
 from acl.physics.forces import (bjerknes_pair_sum, capsule_forces, capsule_pair_forces, critical_distance,
                                 dominant_pair_phase, force_constants, interface_distances, interface_pairs, jet_lines,
                                 neighbour_drag, thrust_magnitude)
@@ -265,7 +266,7 @@ def _capsule_indices(design: Design) -> dict:
     return out
 
 
-def _fundamentals(cm: CoupledModes, n_interfaces: int) -> list[int]:
+def _fundamentals(cm: CoupledModes | ModeShapes, n_interfaces: int) -> list[int]:
     """Each interface's own fundamental: the lowest mode a uniform pressure excites in which that interface moves most (ties count), else its largest-share driven mode."""
     if cm.omega.size == 0:
         return []
@@ -308,39 +309,61 @@ def _modes_cached(design: Design, idx: tuple[int, ...], max_hz: float | None = N
 
 
 @_per_design
+def _system_shapes(design: Design, idx: tuple[int, ...], max_hz: float | None = None):
+    """:func:`acl.physics.coupling.mode_shapes` of the capsules ``idx`` as one system, up to ``max_hz`` (a little above:
+    the caller filters exactly)."""
+    med = medium_constants(design)
+    top = None if max_hz is None else 2 * math.pi * max_hz * (1 + 1e-9)
+    return _physics_mode_shapes(_system(design, idx), med.density, C.SUBSTRATE_REFLECTION, top)
+
+
+@_per_design
 def _system_modes(design: Design, idx: tuple[int, ...], max_hz: float | None = None) -> tuple[Mode, ...]:
     """:func:`_modes_cached` computed."""
+    return _modes_of_system(design, idx, max_hz)
+
+
+def _modes_of_system(design: Design, idx: tuple[int, ...], max_hz: float | None, which=None) -> tuple[Mode, ...]:
+    """The :class:`Mode` of the capsules ``idx`` as one system (a single capsule: its fundamentals); ``which``: only
+    these indices of the system's modes (their Q alone computed), else all."""
     med = medium_constants(design)
     lay = _layout(design)
     sel = np.isin(lay.body, list(idx))
     labels = [lab for lab, s in zip(lay.labels, sel) if s]
+    shapes = _system_shapes(design, idx, max_hz)
+    short = len(idx) == 1
+    picked = _fundamentals(shapes, len(labels)) if short else range(shapes.omega.size)
+    if which is not None:
+        wanted = set(which)
+        picked = [n for n in picked if n in wanted]
     # one eigensolution for both dampings: a declared Q changes the modal damping only
     predicted = _system(design, idx, predicted=True)
-    top = None if max_hz is None else 2 * math.pi * max_hz * (1 + 1e-9)     # the caller filters exactly
     cm = _physics_coupled_modes(_system(design, idx), med.density, med.sound_speed, C.SUBSTRATE_REFLECTION,
-                                max_omega=top, also_damping=(predicted.damping,))
+                                also_damping=(predicted.damping,), shapes=shapes,
+                                which=None if which is None else list(picked))
+    column = {n: j for j, n in enumerate(picked)} if which is not None else None
     cp = replace(cm, quality=cm.also_quality[0]) if cm.also_quality else cm
     declared = any(lay.caps[c].quality_factor is not None for c in idx)
     notes = defaults_used(design)
-    short = len(idx) == 1
 
     def name(s):
         return s.split(".", 1)[1] if short else s
 
     names = [name(lab) for lab in labels]
-    shares = cm.share
+    shares = shapes.share
     out = []
-    for n in (_fundamentals(cm, len(labels)) if short else range(cm.omega.size)):
+    for n in picked:
+        j = n if column is None else column[n]
         share = shares[:, n]
         k = first_max(share)                  # a symmetric pair's 50/50: the first declared (acl.physics.ties)
-        q = cm.quality[n]
+        q = cm.quality[j]
         if short and lay.caps[idx[0]].quality_factor is not None:   # a declared Q is the capsule's Q as measured
             q = lay.caps[idx[0]].quality_factor
-        same = np.where(cm.volume[:, n] * cm.volume[k, n] >= 0, 0.0, 180.0)     # in phase with the dominant one
-        out.append(Mode(frequency_hz=float(cm.frequency[n]), q=float(q),
+        same = np.where(shapes.volume[:, n] * shapes.volume[k, n] >= 0, 0.0, 180.0)   # in phase with the dominant one
+        out.append(Mode(frequency_hz=float(shapes.frequency[n]), q=float(q),
                         dominant_orifice=names[k], share=float(share[k]),
                         shares=dict(zip(names, share.tolist())),
-                        q_declared=declared, notes=notes, q_predicted=float(cp.quality[n]),
+                        q_declared=declared, notes=notes, q_predicted=float(cp.quality[j]),
                         phases=dict(zip(names, same.tolist()))))
     return tuple(out)
 
@@ -371,9 +394,37 @@ def coupled_modes(design: Design) -> list[Mode]:
     lay = _layout(design)
     if not lay.caps:
         return []
-    top = max((m.frequency_hz for c in lay.caps for m in capsule_modes(design, c)), default=0.0)
+    top = _coupled_top(design)
     ms = _modes_cached(design, tuple(range(len(lay.caps))), 1.5 * top if len(lay.caps) > 1 else None)
     return [m for m in ms if m.frequency_hz <= 1.5 * top]
+
+
+def _coupled_top(design: Design) -> float:
+    """The highest capsule fundamental (:func:`coupled_modes` lists up to 1.5x it)."""
+    return max((m.frequency_hz for c in _layout(design).caps for m in capsule_modes(design, c)), default=0.0)
+
+
+def coupled_modes_of(design: Design, capsule, min_share: float = 0.1) -> list[Mode]:
+    """The modes of :func:`coupled_modes` in which the interfaces of ``capsule`` hold at least ``min_share`` of the
+    moved volume (its shares summed in interface order), as :func:`coupled_modes` lists them.
+
+    Only these modes' Q are computed (each mode's Q depends on that mode alone): on a design of hundreds of capsules
+    a capsule takes part in a few of them.
+    """
+    lay = _layout(design)
+    c = _capsule_index(design, capsule)
+    if len(lay.caps) < 2:
+        return [m for m in coupled_modes(design)
+                if sum(v for k, v in m.shares.items() if k.split(".")[0] == lay.caps[c].name) >= min_share]
+    top = _coupled_top(design)
+    idx = tuple(range(len(lay.caps)))
+    shapes = _system_shapes(design, idx, 1.5 * top)
+    mine = [i for i, lab in enumerate(lay.labels) if lab.split(".")[0] == lay.caps[c].name]
+    share = shapes.share
+    rows = share[mine].T.tolist()                # (K, interfaces of the capsule), summed as Python floats
+    which = [n for n, (f, r) in enumerate(zip(shapes.frequency.tolist(), rows))
+             if f <= 1.5 * top and sum(r) >= min_share]
+    return list(_modes_of_system(design, idx, 1.5 * top, which)) if which else []
 
 
 def orifice_response(design: Design, capsule, frequencies) -> np.ndarray:

@@ -123,6 +123,10 @@ class Worker:
         with self._lock:
             left = list(self._jobs.values())
             self._jobs.clear()
+            # what warmed the stopped process (its imports, a document's parse and analyses) is gone with it: the
+            # server's next warm-up request (after its next publish) warms the new one
+            for k in [k for k in self._results if k[:1] == ("warm",)]:
+                del self._results[k]
         for f in left:
             f.cancel()
 
@@ -163,17 +167,22 @@ def content_key(value):
 
     from acl.diagnostics import Span
 
-    t = type(value)
-    if value is None or t in (str, float, int, bool):
-        return value
-    if t is tuple or t is list:
-        return tuple([content_key(v) for v in value])
-    if isinstance(value, BaseModel):
-        return (t.__qualname__,) + tuple([(k, content_key(v)) for k, v in value.__dict__.items()
-                                          if k[0] != "_" and type(v) is not Span])
-    if t is dict:
-        return ("dict",) + tuple(sorted((content_key(k), content_key(v)) for k, v in value.items()))
-    raise TypeError(f"no content key for {t.__name__}")
+    atoms = (str, float, int, bool, type(None))
+
+    def key(v):
+        t = type(v)
+        if t in atoms:
+            return v
+        if t is tuple or t is list:
+            return tuple([key(x) for x in v])
+        if isinstance(v, BaseModel):
+            return (t.__qualname__,) + tuple([(k, key(x)) for k, x in v.__dict__.items()
+                                              if k[0] != "_" and type(x) is not Span])
+        if t is dict:
+            return ("dict",) + tuple(sorted((key(k), key(x)) for k, x in v.items()))
+        raise TypeError(f"no content key for {t.__name__}")
+
+    return key(value)
 
 
 def physics_twin(design):
@@ -214,6 +223,27 @@ def hover_text(path: str, text: str, line: int, character: int) -> str | None:
             snap = dataclasses.replace(snap, design=twin)
         got = hover(snap, line, character)
     return None if got is None else got[0]
+
+
+def warm_document(path: str, text: str) -> bool:
+    """Before the first hover on a large document (run in the worker): check ``text`` (the worker's incremental
+    parser then holds its statements, so a later text parses only what was edited) and compute what a capsule's full
+    hover on it needs (the coupled modes of all capsules, the response at the program's frequencies)."""
+    from acl.analysis import acoustics as AC
+    from acl.analysis.report import program_frequencies
+    from acl.lsp.hover import PHASE_FREQUENCIES
+    from acl.syntax.parser import paused_gc
+
+    with paused_gc():
+        snap = checked(path, text)
+        design = physics_twin(snap.design)
+        if design is None or len(design.capsules) < 2:
+            return False
+        AC.coupled_modes_of(design, design.capsules[0])
+        freqs = program_frequencies(design)[:PHASE_FREQUENCIES]
+        if freqs:
+            AC.rest_response(design, freqs)
+    return True
 
 
 def requirement_values(path: str, text: str) -> list[dict]:

@@ -43,8 +43,12 @@ def _quantity_re() -> re.Pattern:
 
 
 #: capsules in a design up to which a capsule's hover computes its phases and coupled modes at once;
-#: beyond, the server asks its background worker (coupled modes of 393 capsules: 13 s)
+#: beyond, the server asks its background worker (393 capsules: an eigenproblem of 1,179 bare modes)
 INLINE_CAPSULES = 24
+#: the program frequencies (the lowest) at which a capsule's hover gives the phase of its volume response
+PHASE_FREQUENCIES = 6
+#: a coupled mode is listed in a capsule's hover when its interfaces hold at least this share of the moved volume
+MIN_SHARE = 0.1
 
 
 def hover(snap: Snapshot, line: int, character: int, quick: bool = False) -> tuple[str, tuple[int, int, int]] | None:
@@ -264,14 +268,14 @@ def _capsule_text(snap: Snapshot, target: Target, quick: bool = False) -> str:
     if freqs:
         import numpy as np
 
-        resp = AC.orifice_response(design, cap, freqs)
+        shown = freqs[:PHASE_FREQUENCIES]          # (each frequency is solved alone: the others are not needed)
+        resp = AC.orifice_response(design, cap, shown)
         k = [o.name for o in cap.orifices].index(modes[0].dominant_orifice) if modes else 0
         ph = ", ".join(f"{f / 1e3:g} kHz: {math.degrees(float(np.angle(resp[j, k]))):.0f} deg"
-                       for j, f in enumerate(freqs[:6]))
+                       for j, f in enumerate(shown))
         out += f"\n\nphase of `{cap.orifices[k].name}` volume vs drive: {ph}"
-    if name != "__hover" and len(design.capsules) > 1 and hasattr(AC, "coupled_modes"):
-        mine = [m for m in AC.coupled_modes(design)
-                if sum(v for k, v in m.shares.items() if k.split(".")[0] == name) >= 0.1]
+    if name != "__hover" and len(design.capsules) > 1:
+        mine = AC.coupled_modes_of(design, cap, MIN_SHARE)      # = coupled_modes(design) filtered by share
         if mine:
             rows = ["| coupled mode | f (kHz) | Q | interfaces: share (phase) |", "|---|---|---|---|"]
             for i, m in enumerate(mine[:6]):

@@ -176,13 +176,16 @@ class AclLanguageServer(LanguageServer):
         import threading
 
         from acl.lsp import formatting
-        from acl.lsp.background import warm_up
+        from acl.lsp.background import warm_document, warm_up
 
         def warm() -> None:
             if snap.text.count("\n") > formatting.PROCESS_LINES:
                 formatting.warm_up()                   # the formatting process
             warm_up()                                  # this process's imports (the quick hover's)
             self.worker.get(("warm",), warm_up)        # and the worker's
+            # the document's first text in the worker: its parse (later texts parse only their edits) and the
+            # coupled modes a capsule's hover needs; once per path (an edit never cancels it)
+            self.worker.get(("warm", snap.path), warm_document, snap.path, snap.text)
 
         threading.Thread(target=warm, daemon=True).start()
 
