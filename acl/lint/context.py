@@ -115,19 +115,7 @@ class Context:
 
     def tied(self, group: list[str]) -> list[str]:
         """``group`` and every capsule rigidly tied to one of them by trusses (`link ... with truss`)."""
-        d = self.design
-        group = list(group)
-        names = {c.name for c in d.capsules}
-        grew = True
-        while grew:
-            grew = False
-            for j in d.joints:
-                if j.kind == "link" and j.element_kind == "truss" and j.a in names and j.b in names:
-                    for x, y in ((j.a, j.b), (j.b, j.a)):
-                        if x in group and y not in group:
-                            group.append(y)
-                            grew = True
-        return group
+        return truss_group(self.design, group)
 
     # -- programs ------------------------------------------------------------------------------
     def steps(self) -> Iterator[tuple[Program, object]]:
@@ -234,3 +222,19 @@ def khz(f: float) -> str:
 
 def um(x: float) -> str:
     return f"{x * 1e6:.3g} um"
+
+
+def truss_group(design, group) -> list[str]:
+    """``group`` and every capsule rigidly tied to one of them by trusses (`link ... with truss`)."""
+    group = list(group)
+    names = {c.name for c in design.capsules}
+    grew = True
+    while grew:
+        grew = False
+        for j in design.joints:
+            if j.kind == "link" and j.element_kind == "truss" and j.a in names and j.b in names:
+                for x, y in ((j.a, j.b), (j.b, j.a)):
+                    if x in group and y not in group:
+                        group.append(y)
+                        grew = True
+    return group

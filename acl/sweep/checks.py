@@ -336,6 +336,7 @@ class Checks(PairMechanics):
     def crosstalk_ok(self, k: float) -> np.ndarray:
         """ACL103: no two modes of capsules meant to be driven separately overlap within k x their mean
         half-bandwidth (lint.rules.acoustics.mode_crosstalk), modes and Q of each point."""
+        from acl.lint.context import truss_group
         from acl.lint.rules.acoustics import separate_pairs
 
         class _Steps:                       # what separate_pairs reads: the design and its program steps
@@ -344,6 +345,10 @@ class Checks(PairMechanics):
             @staticmethod
             def steps():
                 return ((p, st) for p in self.design.programs for st in p.steps)
+
+            @staticmethod
+            def tied(group):
+                return truss_group(self.design, group)
 
         ok = np.ones(self.n, bool)
         idx = {c.name: i for i, c in enumerate(self.caps)}
