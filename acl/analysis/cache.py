@@ -180,6 +180,16 @@ class DesignAnalysis:
         return self._per(key, lambda: np.array(
             [v for v in thrust_vectors(self.design, drive).values()], float).reshape(-1, 3))
 
+    def net_force_array(self, drive: Drive) -> np.ndarray:
+        """Total acoustic force (N) on every capsule at rest (thrust, Bjerknes, jet drag), (C, 3)
+        (:func:`acl.analysis.acoustics.force_model`, the engine's cached evaluation at rest)."""
+        from acl.analysis.acoustics import force_model
+
+        self._at_rest(drive)
+        key = ("net_force", _drive_key(drive))
+        return self._per(key, lambda: np.array(
+            [v for v in force_model(self.design, None, drive).values()], float).reshape(-1, 3))
+
     def interface_amplitudes(self, drive: Drive) -> dict[str, float]:
         """:func:`acl.analysis.interfaces.interface_amplitudes` at rest: eps/R of every interface."""
         from acl.analysis.interfaces import interface_amplitudes

@@ -206,6 +206,10 @@ class Context:
         """Streaming thrust vector (N) of every capsule at rest under ``drive``, (C, 3); cached per drive."""
         return self.analysis.thrust_array(drive)
 
+    def net_force_array(self, drive: Drive) -> np.ndarray:
+        """Total acoustic force (N) on every capsule at rest under ``drive`` (thrust, Bjerknes, jet drag), (C, 3)."""
+        return self.analysis.net_force_array(drive)
+
     def fixed_pairs(self, tab) -> np.ndarray:
         """(P,) True where both capsules of a pair of ``tab`` are fixed (`fix` joints)."""
         def compute():

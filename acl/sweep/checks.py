@@ -187,9 +187,9 @@ class Checks(PairMechanics):
         return out
 
     def snap_in_ok(self, margin: float) -> np.ndarray:
-        """ACL201 (the Eq. 3 criterion; lint's default, without `mechanics`): no pair, outside the pairs a
-        program's `hold`/`cross` governs and not both fixed, is closer than margin x d_c under a drive of
-        the program while each capsule's thrust pushes it away from the other
+        """ACL201 (lint's default, without `mechanics`): no pair, outside the pairs a program's `hold`/`cross`
+        governs and not both fixed, is closer than margin x Eq. 3's d_c, or attracted at rest by the net force,
+        under a drive of the program while each capsule's thrust pushes it away from the other
         (lint.rules.forces.snap_in; acoustics.pair_table's dominant interfaces at the strongest tone)."""
         from acl.lint.rules.forces import managed_pairs
 
@@ -205,7 +205,7 @@ class Checks(PairMechanics):
             for _st, freqs, volts in self.lint_drives(p):
                 if not freqs:
                     continue
-                _, u, thr, att, pts = self.forces(lay["rest"], freqs, volts, parts=True)
+                total, u, thr, att, pts = self.forces(lay["rest"], freqs, volts, parts=True)
                 thrust_vec = np.einsum("bn,bnk,nc->bck", thr, -lay["normals"], lay["onehot"])
                 mag = np.abs(u)                                                          # (N, T, n)
                 for a, b in _pairs(self.design):
@@ -235,7 +235,10 @@ class Checks(PairMechanics):
                                   np.nan)             # paper Eq. 3, gamma2 = 2 gamma
                     pushed = (np.einsum("bk,bk->b", thrust_vec[:, ca], -unit) > 0) & \
                              (np.einsum("bk,bk->b", thrust_vec[:, cb], unit) > 0)
-                    ok &= ~((gap < margin * dc) & pushed)
+                    # or already pulled together at rest by the net force (inside analyze's d_c: where the net
+                    # force changes sign, lint.rules.forces._closing_at_rest)
+                    closing = 0.5 * np.einsum("bk,bk->b", total[:, ca] - total[:, cb], unit)
+                    ok &= ~(((gap < margin * dc) | ((attraction > 0) & (closing > 0))) & pushed)
         return ok
 
     def beam_lint(self, strain_limit: float, tolerance: float) -> dict:

@@ -9,6 +9,21 @@ from acl.lint.context import Context, khz, um
 from acl.lint.registry import rule
 
 
+#: Net critical distances computed for a lint run's messages at most (each moves one capsule over a grid of gaps
+#: through the whole force model); beyond, a finding names Eq. 3's d_c and says the net one was not computed.
+NET_DC_MESSAGES = 20
+
+
+def _closing_at_rest(ctx: Context, drive, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Net closing force (N, attraction positive) of pairs of capsule indices at rest: the mean of the two capsules'
+    total forces (thrust, Bjerknes, jet drag) along the line between them, as acl.analysis.pairs.closing_force."""
+    total = ctx.net_force_array(drive)
+    centres = np.array([c.center for c in ctx.design.capsules], float).reshape(-1, 3)
+    line = centres[b] - centres[a]
+    u = line / np.maximum(np.linalg.norm(line, axis=1), 1e-300)[:, None]
+    return 0.5 * np.einsum("pk,pk->p", total[a] - total[b], u)
+
+
 def _pushed_apart(ctx: Context, drive, a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Eq. 3's premise, for pairs of capsule indices: each capsule's own thrust pushes it away from the other."""
     thrust = ctx.thrust_array(drive)
@@ -25,7 +40,8 @@ def managed_pairs(program) -> set[tuple[str, str]]:
 
 
 @rule("ACL201", "snap-in",
-      "a bubble pair closer than its critical distance is pulled together by Bjerknes attraction (paper Eq. 3)",
+      "a bubble pair closer than its critical distance is pulled together by Bjerknes attraction (paper Eq. 3; "
+      "the net force model)",
       Severity.ERROR, "forces", ("snap_margin", "sweep_samples"))
 def snap_in(ctx: Context):
     if len(ctx.design.capsules) < 2:
@@ -49,17 +65,42 @@ def snap_in(ctx: Context):
                                    f"at the strongest drive ({amp:.3g} V)")
                 continue
             tones = " + ".join(f"{khz(t.frequency)} @ {t.amplitude:.3g} V" for t in drive.tones)
+            net = _net_critical_distance(ctx, drive, pf)
+            eq3 = "none (Eq. 3's premise fails)" if pf.critical_distance is None else um(pf.critical_distance)
+            shown = net if net is not None else pf.critical_distance
             yield ctx.finding("ACL201",
-                f"`{pf.a}` and `{pf.b}` are {um(pf.distance)} apart, closer than their critical distance "
-                f"{um(pf.critical_distance)}: program `{p.name}` snaps them together", st.span, notes=[
+                f"`{pf.a}` and `{pf.b}` are {um(pf.distance)} apart, closer than their critical distance"
+                + (f" {um(shown)}" if shown is not None else "") + f": program `{p.name}` snaps them together",
+                st.span, notes=[
                     f"strongest drive {tones}",
                     f"Bjerknes attraction {pf.attraction * 1e9:.3g} nN at rest, phase difference "
                     f"{round(float(np.degrees(pf.phase_difference)))} deg",   # round(): never "-0"
-                    f"d_c = sqrt(alpha / 2 gamma) (paper Eq. 3); threshold snap_margin = {margin:g}",
+                    ("d_c = " + (um(net) if net is not None else "not computed (more than "
+                                 f"{NET_DC_MESSAGES} pairs flagged)")
+                     + " where the net force (thrust, Bjerknes, jet drag) changes sign, as acl analyze's "
+                     f"critical_distance_m; paper Eq. 3's sqrt(alpha / 2 gamma) = {eq3}; threshold snap_margin = "
+                     f"{margin:g} (on Eq. 3's d_c; the net force is checked at rest)"),
                     "quasi-static equilibrium at this drive: " + (
                         "snaps in (acl.analysis.mechanics)" if verdict else
                         "not computed (set `mechanics = true` in the configuration or pass --mechanics)")],
                 hint="increase the gap, or use `cross gap(a, b)` if the program means to bring them together")
+
+
+def _net_critical_distance(ctx: Context, drive, pf) -> float | None:
+    """acl analyze's d_c of the pair (acl.analysis.pairs.net_critical_distance), for the first NET_DC_MESSAGES
+    findings of a run; None beyond, or where the net force never changes sign."""
+    count = ctx.cached(("net_dc_count",), lambda: [0])
+    key = ("net_dc", pf.a, pf.b, tuple((t.frequency, t.amplitude, t.phase) for t in drive.tones))
+    def compute():
+        if count[0] >= NET_DC_MESSAGES:
+            return None
+        count[0] += 1
+        from acl.analysis.pairs import net_critical_distance
+        try:
+            return net_critical_distance(ctx.design, drive, pf.a, pf.b)
+        except (ValueError, ArithmeticError, np.linalg.LinAlgError):
+            return None
+    return ctx.cached(key, compute)
 
 
 def _snap_candidates(ctx: Context, drive, margin: float):
@@ -68,9 +109,15 @@ def _snap_candidates(ctx: Context, drive, margin: float):
     thrust (Eq. 3's premise); cached per drive (the rows only: a design's pair tables are not kept)."""
     def compute():
         tab = ctx.pair_table(drive)
-        close = np.flatnonzero((tab.distance < margin * tab.critical_distance) & ~ctx.fixed_pairs(tab))
+        # closer than Eq. 3's d_c (x margin), or already pulled together at rest by the net force: the pair is inside
+        # the d_c acl analyze reports (where the net force changes sign), which can lie beyond Eq. 3's
+        live = ~ctx.fixed_pairs(tab)
+        close = np.flatnonzero(live & ((tab.distance < margin * tab.critical_distance) | (tab.attraction > 0)))
         if close.size:
             close = close[_pushed_apart(ctx, drive, tab.a[close], tab.b[close])]
+        if close.size:
+            eq3 = tab.distance[close] < margin * tab.critical_distance[close]
+            close = close[eq3 | (_closing_at_rest(ctx, drive, tab.a[close], tab.b[close]) > 0)]
         return [(tuple(sorted((tab.names[tab.a[k]], tab.names[tab.b[k]]))), tab.row(k)) for k in close.tolist()]
     key = ("snap", tuple((t.frequency, t.amplitude, t.phase) for t in drive.tones), margin)
     return ctx.cached(key, compute)
