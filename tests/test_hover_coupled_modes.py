@@ -23,28 +23,9 @@ from acl.analysis import acoustics as AC
 from acl.lsp.document import check_text
 from acl.lsp.hover import MIN_SHARE, hover
 from acl.physics import constants as C, coupling as CP
+from test_lsp_twin import DESIGN
 
-SMALL = """\
-import stdlib.media
-import stdlib.capsules
-import stdlib.beams
-import stdlib.transducers
-use medium media.pbs
-use transducer transducers.contact_piezo
-
-param gap = 300 um
-beam arm like beams.cantilever50 { clamp = (0, 0, 0) }
-capsule c1 like capsules.design1 { }
-capsule c2 like capsules.design2 { center = (gap, 0, 100 um) }
-capsule c3 like capsules.design3 { center = (2 * gap, 0, 100 um) }
-mount c1 on arm.tip
-fix c2
-fix c3
-
-program ramp {
-  drive 125 kHz @ 2 V for 300 ms
-}
-"""
+SMALL = DESIGN          # three unlike capsules, one on a beam (the twin tests' design)
 
 
 def mid_design(n: int = 88, seed: int = 23) -> str:
@@ -178,7 +159,7 @@ def test_phases_at_the_first_program_frequencies_equal_the_whole_programs_respon
     from acl.lsp.hover import PHASE_FREQUENCIES
 
     tones = "\n".join(f"  drive {60 + 7 * i} kHz @ 2 V for 10 ms" for i in range(20))
-    text = SMALL.replace("  drive 125 kHz @ 2 V for 300 ms", tones)
+    text = SMALL.replace("  drive 125 kHz @ 2 V for dwell", tones)
     snap = check_text(text, "/tmp/hover_phases.acl")
     line = next(i for i, ln in enumerate(text.split("\n")) if ln.startswith("capsule c2"))
     got = re.search(r"volume vs drive: (.*)", hover(snap, line, 9)[0]).group(1)

@@ -21,7 +21,7 @@ from hypothesis import HealthCheck, given, settings  # noqa: E402
 from hypothesis import strategies as st  # noqa: E402
 
 import fuzz_generators as G  # noqa: E402
-from lsp_client import LspClient, uri  # noqa: E402
+from lsp_client import LspClient  # noqa: E402
 
 BASES = ["fig2_vertical_cantilever.acl", "fig4_facing_pair.acl", "fig6_bistable_latch.acl"]
 PIECES = (["\n", "", " ", "{", "}", "(", ")", ",", "=", "..", "+-", "±", "#", "\"", "😀", "µm", "\t",

@@ -421,8 +421,21 @@ def volume_shares(volume) -> np.ndarray:
     return np.divide(a, s, out=np.zeros_like(a), where=s > 0)
 
 
+class _ModeViews:
+    """Frequencies (Hz) and interface shares of modes given by ``omega`` (K,) rad/s and ``volume`` (n, K)."""
+
+    @property
+    def frequency(self) -> np.ndarray:
+        return self.omega / (2 * np.pi)
+
+    @property
+    def share(self) -> np.ndarray:
+        """(n, K): |dV_o| / sum |dV| of each interface in each mode."""
+        return volume_shares(self.volume)
+
+
 @dataclass(frozen=True)
-class CoupledModes:
+class CoupledModes(_ModeViews):
     """Undamped modes of the coupled system: ``omega`` (K,) rad/s ascending, ``volume`` (n, K)
     outward volume of each interface per mass-normalized coordinate, ``quality`` (K,);
     ``also_quality`` the Q of the same modes for each of :func:`coupled_modes`' ``also_damping``."""
@@ -432,33 +445,15 @@ class CoupledModes:
     quality: np.ndarray
     also_quality: tuple = ()
 
-    @property
-    def frequency(self) -> np.ndarray:
-        return self.omega / (2 * np.pi)
-
-    @property
-    def share(self) -> np.ndarray:
-        """(n, K): |dV_o| / sum |dV| of each interface in each mode."""
-        return volume_shares(self.volume)
-
 
 @dataclass(frozen=True)
-class ModeShapes:
+class ModeShapes(_ModeViews):
     """The undamped coupled modes of a system without their Q (:func:`mode_shapes`): ``omega`` (K,) rad/s
     ascending, ``coordinates`` (M, K) over the system's real bare modes, mass-normalized, ``volume`` (n, K)."""
 
     omega: np.ndarray
     coordinates: np.ndarray
     volume: np.ndarray
-
-    @property
-    def frequency(self) -> np.ndarray:
-        return self.omega / (2 * np.pi)
-
-    @property
-    def share(self) -> np.ndarray:
-        """(n, K): |dV_o| / sum |dV| of each interface in each mode."""
-        return volume_shares(self.volume)
 
 
 def _compact(system: BubbleSystem, damping=None):
