@@ -72,3 +72,75 @@ def test_neovim_07_setup_drives_the_server(tmp_path):
     assert got[2].count('"uri"') == 2
     assert got[3] == "actions 1"
     assert got[4] == "applied param g2 = 5 µm * dwell"
+
+
+# Neovim 0.10's setup (editors/neovim/acl.lua) run on Debian's 0.7 with the three calls 0.7 lacks or gates supplied by
+# their 0.7 equivalents: vim.lsp.start (start_client + buf_attach_client), vim.fs.root (the markers searched upward)
+# and vim.filetype.add (0.7 applies it with filetype.lua on).  The snippet's own code runs unchanged: its autocmd, its
+# root markers and its command.  What 0.10's real functions do is Neovim's, not tested here.
+SHIM_010 = r"""
+vim.g.do_filetype_lua = 1
+vim.fs = vim.fs or {}
+if vim.fs.root == nil then
+  vim.fs.root = function(buf, markers)
+    local dir = vim.fn.fnamemodify(vim.api.nvim_buf_get_name(buf), ":p:h")
+    while true do
+      for _, m in ipairs(markers) do
+        if vim.loop.fs_stat(dir .. "/" .. m) then return dir end
+      end
+      local up = vim.fn.fnamemodify(dir, ":h")
+      if up == dir then return nil end
+      dir = up
+    end
+  end
+end
+if vim.lsp.start == nil then
+  vim.lsp.start = function(config)
+    local id = vim.lsp.start_client(config)
+    vim.lsp.buf_attach_client(0, id)
+    return id
+  end
+end
+dofile(vim.env.ACL_NVIM_SETUP)
+"""
+
+DRIVE_010 = r"""
+local out = {}
+vim.wait(30000, function() return #vim.diagnostic.get(0) > 0 end, 100)
+table.insert(out, "filetype " .. vim.bo.filetype)
+local client = vim.lsp.get_active_clients()[1]
+table.insert(out, "client " .. (client and client.name or "none"))
+table.insert(out, "root " .. (client and client.config.root_dir or "none"))
+for _, d in ipairs(vim.diagnostic.get(0)) do
+  table.insert(out, string.format("diag %d:%d %s", d.lnum, d.col, d.code or ""))
+end
+vim.fn.writefile(out, vim.env.ACL_NVIM_OUT)
+vim.cmd("qa!")
+"""
+
+
+def test_neovim_010_setup_runs_with_its_new_calls_supplied(tmp_path):
+    nvim = shutil.which("nvim")
+    if nvim is None:
+        pytest.skip("Neovim is not installed (Debian: apt-get install neovim)")
+    project = tmp_path / "project"
+    (project / "designs").mkdir(parents=True)
+    (project / "acl.toml").write_text("", encoding="utf-8")          # the snippet's first root marker
+    design = project / "designs" / "t.acl"
+    design.write_text("param dwell = 300 ms\nparam g2 = 5 um * dwel\n", encoding="utf-8")
+    (tmp_path / "init.lua").write_text(SHIM_010, encoding="utf-8")
+    (tmp_path / "drive.lua").write_text(DRIVE_010, encoding="utf-8")
+    out = tmp_path / "out.txt"
+    bin_dir = tmp_path / "bin"
+    bin_dir.mkdir()
+    (bin_dir / "acl").write_text(f"#!/bin/sh\nexec {sys.executable} -m acl \"$@\"\n")
+    (bin_dir / "acl").chmod(0o755)
+    env = dict(os.environ, PATH=f"{bin_dir}{os.pathsep}{os.environ['PATH']}", ACL_NVIM_OUT=str(out),
+               ACL_NVIM_SETUP=str(ROOT / "editors" / "neovim" / "acl.lua"),
+               PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""), XDG_CONFIG_HOME=str(tmp_path),
+               XDG_DATA_HOME=str(tmp_path), XDG_STATE_HOME=str(tmp_path))
+    subprocess.run([nvim, "--headless", "-u", str(tmp_path / "init.lua"), "-c", f"luafile {tmp_path / 'drive.lua'}",
+                    str(design)], cwd=tmp_path, env=env, capture_output=True, timeout=120)
+    got = out.read_text(encoding="utf-8").splitlines()
+    assert got[:3] == ["filetype acl", "client acl", f"root {project}"], got
+    assert "diag 1:18 E201" in got[3:], got          # `dwel` at column 18: an unknown name
