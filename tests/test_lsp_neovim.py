@@ -47,13 +47,12 @@ vim.cmd("qa!")
 """
 
 
-def test_neovim_07_setup_drives_the_server(tmp_path):
+def _nvim_headless(tmp_path: Path, init: Path, drive: str, design: Path, **extra_env) -> list[str]:
+    """Run Neovim headless with ``init`` on ``design``, the Lua ``drive`` after it; the lines it wrote."""
     nvim = shutil.which("nvim")
     if nvim is None:
         pytest.skip("Neovim is not installed (Debian: apt-get install neovim)")
-    design = tmp_path / "t.acl"
-    design.write_text("param dwell = 300 ms\nparam g2 = 5 µm * dwel\nparam g3 = dwell * 2\n", encoding="utf-8")
-    (tmp_path / "drive.lua").write_text(DRIVE, encoding="utf-8")
+    (tmp_path / "drive.lua").write_text(drive, encoding="utf-8")
     out = tmp_path / "out.txt"
     bin_dir = tmp_path / "bin"                 # `acl` on PATH: this checkout's, with this Python
     bin_dir.mkdir()
@@ -61,11 +60,16 @@ def test_neovim_07_setup_drives_the_server(tmp_path):
     (bin_dir / "acl").chmod(0o755)
     env = dict(os.environ, PATH=f"{bin_dir}{os.pathsep}{os.environ['PATH']}", ACL_NVIM_OUT=str(out),
                PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""), XDG_CONFIG_HOME=str(tmp_path),
-               XDG_DATA_HOME=str(tmp_path), XDG_STATE_HOME=str(tmp_path))
-    subprocess.run([nvim, "--headless", "-u", str(ROOT / "editors" / "neovim" / "acl-nvim07.lua"),
-                    "-c", f"luafile {tmp_path / 'drive.lua'}", str(design)], cwd=tmp_path, env=env,
-                   capture_output=True, timeout=120)
-    got = out.read_text(encoding="utf-8").splitlines()
+               XDG_DATA_HOME=str(tmp_path), XDG_STATE_HOME=str(tmp_path), **extra_env)
+    subprocess.run([nvim, "--headless", "-u", str(init), "-c", f"luafile {tmp_path / 'drive.lua'}", str(design)],
+                   cwd=tmp_path, env=env, capture_output=True, timeout=120)
+    return out.read_text(encoding="utf-8").splitlines()
+
+
+def test_neovim_07_setup_drives_the_server(tmp_path):
+    design = tmp_path / "t.acl"
+    design.write_text("param dwell = 300 ms\nparam g2 = 5 µm * dwel\nparam g3 = dwell * 2\n", encoding="utf-8")
+    got = _nvim_headless(tmp_path, ROOT / "editors" / "neovim" / "acl-nvim07.lua", DRIVE, design)
     # Neovim shows the diagnostic at byte column 19 (`µ` is 2 bytes); the server sent UTF-16 column 18
     assert got[0] == "diag 1:19 E201", got
     assert got[1].startswith("hover ") and "param dwell = 300 ms" in got[1]
@@ -120,27 +124,13 @@ vim.cmd("qa!")
 
 
 def test_neovim_010_setup_runs_with_its_new_calls_supplied(tmp_path):
-    nvim = shutil.which("nvim")
-    if nvim is None:
-        pytest.skip("Neovim is not installed (Debian: apt-get install neovim)")
     project = tmp_path / "project"
     (project / "designs").mkdir(parents=True)
     (project / "acl.toml").write_text("", encoding="utf-8")          # the snippet's first root marker
     design = project / "designs" / "t.acl"
     design.write_text("param dwell = 300 ms\nparam g2 = 5 um * dwel\n", encoding="utf-8")
     (tmp_path / "init.lua").write_text(SHIM_010, encoding="utf-8")
-    (tmp_path / "drive.lua").write_text(DRIVE_010, encoding="utf-8")
-    out = tmp_path / "out.txt"
-    bin_dir = tmp_path / "bin"
-    bin_dir.mkdir()
-    (bin_dir / "acl").write_text(f"#!/bin/sh\nexec {sys.executable} -m acl \"$@\"\n")
-    (bin_dir / "acl").chmod(0o755)
-    env = dict(os.environ, PATH=f"{bin_dir}{os.pathsep}{os.environ['PATH']}", ACL_NVIM_OUT=str(out),
-               ACL_NVIM_SETUP=str(ROOT / "editors" / "neovim" / "acl.lua"),
-               PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""), XDG_CONFIG_HOME=str(tmp_path),
-               XDG_DATA_HOME=str(tmp_path), XDG_STATE_HOME=str(tmp_path))
-    subprocess.run([nvim, "--headless", "-u", str(tmp_path / "init.lua"), "-c", f"luafile {tmp_path / 'drive.lua'}",
-                    str(design)], cwd=tmp_path, env=env, capture_output=True, timeout=120)
-    got = out.read_text(encoding="utf-8").splitlines()
+    got = _nvim_headless(tmp_path, tmp_path / "init.lua", DRIVE_010, design,
+                         ACL_NVIM_SETUP=str(ROOT / "editors" / "neovim" / "acl.lua"))
     assert got[:3] == ["filetype acl", "client acl", f"root {project}"], got
     assert "diag 1:18 E201" in got[3:], got          # `dwel` at column 18: an unknown name
