@@ -417,7 +417,9 @@ def _run(argv: list[str] | None) -> int:
     except Terminated as exc:          # before or after the command ran (argument parsing, the last flush)
         return _terminated(exc)
     except KeyboardInterrupt:          # Ctrl-C while the command's modules are imported
-        return _signalled(2)
+        import signal
+
+        return _signalled(int(signal.SIGINT))
     except SystemExit:
         raise
     except BaseException:              # a signal that surfaced as an extension's error during an import

@@ -19,6 +19,15 @@ from acl.design.model import Design, Drive
 GRID = 80             # gaps sampled between contact and the far end, geometric
 
 
+def closing_component(forces: np.ndarray, centres: np.ndarray, a, b) -> np.ndarray:
+    """Closing force (N, attraction positive) of capsule pairs (a, b): the mean of the two capsules' forces along the
+    line from a's centre to b's.  ``forces`` and ``centres`` (..., C, 3); ``a``, ``b`` capsule indices (ints, or
+    arrays broadcasting against the leading axes)."""
+    line = centres[..., b, :] - centres[..., a, :]
+    u = line / np.maximum(np.linalg.norm(line, axis=-1, keepdims=True), 1e-300)
+    return 0.5 * np.einsum("...k,...k->...", forces[..., a, :] - forces[..., b, :], u)
+
+
 def closing_force(design: Design, drive: Drive, a: str, b: str, shifts,
                   drag_fraction: float | None = None) -> tuple[np.ndarray, np.ndarray]:
     """(gap between the closest orifices (S,) m, closing force (S,) N, attraction positive) with capsule ``b`` moved
@@ -35,7 +44,7 @@ def closing_force(design: Design, drive: Drive, a: str, b: str, shifts,
     centres[:, ib] = centres[:, ib] + s[:, None] * unit
     f = force_batch(design, centres, drive,
                     None if drag_fraction is None else {"jet_drag_fraction": float(drag_fraction)})
-    close = 0.5 * ((f[:, ia] - f[:, ib]) @ unit)
+    close = closing_component(f, rest, ia, ib)             # along the line at rest: b moves along it
     ca, cb = design.capsule(a), design.capsule(b)
     oa = np.array([o.center for o in ca.orifices], float) - np.asarray(ca.center, float) + rest[ia]
     ob = np.array([o.center for o in cb.orifices], float) - np.asarray(cb.center, float)

@@ -191,6 +191,7 @@ class Checks(PairMechanics):
         governs and not both fixed, is closer than margin x Eq. 3's d_c, or attracted at rest by the net force,
         under a drive of the program while each capsule's thrust pushes it away from the other
         (lint.rules.forces.snap_in; acoustics.pair_table's dominant interfaces at the strongest tone)."""
+        from acl.analysis.pairs import closing_component
         from acl.lint.rules.forces import managed_pairs
 
         ok = np.ones(self.n, bool)
@@ -236,8 +237,8 @@ class Checks(PairMechanics):
                     pushed = (np.einsum("bk,bk->b", thrust_vec[:, ca], -unit) > 0) & \
                              (np.einsum("bk,bk->b", thrust_vec[:, cb], unit) > 0)
                     # or already pulled together at rest by the net force (inside analyze's d_c: where the net
-                    # force changes sign, lint.rules.forces._closing_at_rest)
-                    closing = 0.5 * np.einsum("bk,bk->b", total[:, ca] - total[:, cb], unit)
+                    # force changes sign)
+                    closing = closing_component(total, lay["rest"], ca, cb)
                     ok &= ~(((gap < margin * dc) | ((attraction > 0) & (closing > 0))) & pushed)
         return ok
 

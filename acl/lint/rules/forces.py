@@ -15,13 +15,12 @@ NET_DC_MESSAGES = 20
 
 
 def _closing_at_rest(ctx: Context, drive, a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Net closing force (N, attraction positive) of pairs of capsule indices at rest: the mean of the two capsules'
-    total forces (thrust, Bjerknes, jet drag) along the line between them, as acl.analysis.pairs.closing_force."""
-    total = ctx.net_force_array(drive)
+    """Net closing force (N, attraction positive) of pairs of capsule indices at rest from the total forces (thrust,
+    Bjerknes, jet drag): acl.analysis.pairs.closing_component, as analyze's d_c uses it."""
+    from acl.analysis.pairs import closing_component
+
     centres = np.array([c.center for c in ctx.design.capsules], float).reshape(-1, 3)
-    line = centres[b] - centres[a]
-    u = line / np.maximum(np.linalg.norm(line, axis=1), 1e-300)[:, None]
-    return 0.5 * np.einsum("pk,pk->p", total[a] - total[b], u)
+    return closing_component(ctx.net_force_array(drive), centres, a, b)
 
 
 def _pushed_apart(ctx: Context, drive, a: np.ndarray, b: np.ndarray) -> np.ndarray:
