@@ -108,7 +108,7 @@ class AclProtocol(LanguageServerProtocol):
         the command, not only its reply."""
         super()._execute_handler(msg_id, handler, callback, args, kwargs)
         outer = callback.keywords.get("result_future") if isinstance(callback, partial) else None
-        inner = self._request_futures.get(msg_id)
+        inner = getattr(self, "_request_futures", {}).get(msg_id)      # pygls's own table (2.x): absent, no link
         if outer is not None and inner is not None:
             outer.add_done_callback(lambda f: inner.cancel() if f.cancelled() else None)
 
