@@ -4,6 +4,8 @@ range formatting, inlay hints, pull diagnostics, workspace symbols; position enc
 and honoured (quick fixes never built from a range the client sends back)."""
 from __future__ import annotations
 
+import itertools
+
 import pytest
 
 pytest.importorskip("pygls", reason="acl lsp needs the optional extra acl[lsp] (pygls)")
@@ -64,6 +66,18 @@ def ws(tmp_path_factory):
     assert pub["diagnostics"] == []
     yield c, root, u
     c.close()
+
+
+_VERSIONS = itertools.count(2)
+
+
+def _edit(c, u, text) -> int:
+    """didChange to ``text`` with the next version (tests share one server and may run in any order, so versions only
+    grow), waiting for its diagnostics."""
+    v = next(_VERSIONS)
+    c.change(u, v, text)
+    c.wait_for("textDocument/publishDiagnostics", lambda p: p["uri"] == u and p.get("version") == v)
+    return v
 
 
 def _doc(u):
@@ -198,8 +212,7 @@ def test_semantic_tokens_colour_by_meaning(ws):
 def test_range_formatting_touches_only_the_range(ws):
     c, _, u = ws
     messy = MAIN.replace("param dwell = 300 ms", "param   dwell=300 ms").replace("param w = lib.gap * 2", "param  w = lib.gap*2")
-    c.change(u, 2, messy)
-    c.wait_for("textDocument/publishDiagnostics", lambda p: p["uri"] == u and p.get("version") == 2)
+    _edit(c, u, messy)
     ln = _ln("param dwell")
     edits = c.request("textDocument/rangeFormatting", {**_doc(u), "range": {"start": {"line": ln, "character": 0},
                                                                             "end": {"line": ln, "character": 5}},
@@ -209,8 +222,7 @@ def test_range_formatting_touches_only_the_range(ws):
     e = edits[0]
     assert e["range"]["end"] == {"line": ln + 1, "character": 0} and e["newText"] == "param dwell = 300 ms\n"
     assert "lib.gap*2" in lines[ln + 1]                      # the next line was left alone
-    c.change(u, 3, MAIN)
-    c.wait_for("textDocument/publishDiagnostics", lambda p: p["uri"] == u and p.get("version") == 3)
+    _edit(c, u, MAIN)
 
 
 def test_inlay_hints_give_si_values_and_first_resonances(ws):
@@ -373,8 +385,7 @@ def test_hover_on_functions_directions_and_imports(ws):
 def test_completion_items_carry_a_text_edit_and_documentation(ws):
     c, _, u = ws
     text = MAIN + "param extra = 12um\n"
-    c.change(u, 10, text)
-    c.wait_for("textDocument/publishDiagnostics", lambda p: p["uri"] == u and p.get("version") == 10)
+    _edit(c, u, text)
     ln = len(L) - 1
     line = text.split("\n")[ln]
     got = c.at("textDocument/completion", u, ln, len(line))           # right after `12um`, no space
@@ -386,8 +397,7 @@ def test_completion_items_carry_a_text_edit_and_documentation(ws):
     assert "1e-06 m" in doc
     # a key replaces what was typed with `key = `
     text2 = MAIN.replace("  center = (0, 0, 100 um)", "  center = (0, 0, 100 um),\n  cav")
-    c.change(u, 11, text2)
-    c.wait_for("textDocument/publishDiagnostics", lambda p: p["uri"] == u and p.get("version") == 11)
+    _edit(c, u, text2)
     lines2 = text2.split("\n")
     ln2 = next(i for i, x in enumerate(lines2) if x == "  cav")
     got = {i["label"]: i for i in c.at("textDocument/completion", u, ln2, 5)["items"]}
@@ -400,8 +410,7 @@ def test_completion_items_carry_a_text_edit_and_documentation(ws):
     assert "param dwell = 300 ms" in doc
     doc = c.request("completionItem/resolve", names["displacement"])["documentation"]["value"]
     assert "displacement(element, direction)" in doc
-    c.change(u, 12, MAIN)
-    c.wait_for("textDocument/publishDiagnostics", lambda p: p["uri"] == u and p.get("version") == 12)
+    _edit(c, u, MAIN)
 
 
 def test_organize_imports_sorts_them_as_acl_fmt(ws):
