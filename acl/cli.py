@@ -483,6 +483,8 @@ def _internal(exc: Exception) -> int:
     import os
     import traceback
 
+    if _SIGNALLED:     # the signal surfaced as an extension's error (pydantic-core's SchemaError around the interrupt)
+        return _signalled(_SIGNALLED)
     sys.stderr.write(f"acl: internal error[E-INTERNAL]: {type(exc).__name__}: {exc}\n")
     if os.environ.get("ACL_DEBUG"):
         traceback.print_exc()
