@@ -120,6 +120,10 @@ class Worker:
         for w in workers:
             if w.is_alive():
                 w.terminate()
+        for w in workers:                      # a worker still starting may miss SIGTERM: then SIGKILL
+            w.join(1.0)
+            if w.is_alive():
+                w.kill()
         with self._lock:
             left = list(self._jobs.values())
             self._jobs.clear()
