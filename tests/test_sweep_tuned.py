@@ -17,7 +17,8 @@ from acl.sweep.tune import clopper_pearson, prepare, tune
 
 ROOT = Path(__file__).resolve().parents[1]
 TUNABLE = sorted(p for p in (ROOT / "examples").rglob("*.acl")
-                 if re.search(r"\bfree\s+in\b", p.read_text(encoding="utf-8")))
+                 if re.search(r"\bfree\s+in\b", p.read_text(encoding="utf-8"))
+                 and re.search(r"^\s*require\b", p.read_text(encoding="utf-8"), re.M))   # a design acl tune accepts
 
 
 def _tuned(path: Path, folder: Path, samples: int, evals: int):
