@@ -145,11 +145,11 @@ def render(laws: list[Law]) -> str:
     out = ["# The physical laws and where each one lives", "",
            "Every law the compiler, the analysis, the fit and the sweep compute with is written once, in `acl/physics/`, "
            "as a function over arrays whose leading axes are any batch (design points, data rows, waypoints, band "
-           "draws).  This page is generated from the code (`python tests/laws.py --update`): one row per function "
-           "whose docstring cites its source.  *Implements* marks the one function that writes a law down; a "
-           "function that *uses* a law calls that one (its inverse, derivative or a composition).  "
-           "`tests/test_laws.py` fails when the page and the code differ, or when a second function implements a "
-           "source that another already implements (the exceptions it allows are listed there with their reason).",
+           "draws).  This page is generated from the code: one row per function whose docstring cites its source.  "
+           "*Implements* marks the one function that writes a law down; a function that *uses* a law calls that one "
+           "(its inverse, derivative or a composition).  acl's test suite fails when this page and the code differ, "
+           "or when a second function implements a source that another already implements (a few named "
+           "exceptions aside, each with its reason).",
            "", "The numerical methods (root finding, golden section, Illinois) live in `acl/physics/roots.py`.", ""]
     mod = None
     for law in laws:

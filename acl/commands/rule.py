@@ -54,9 +54,9 @@ def _severity(code: str) -> str:
 
 
 def code_entries() -> dict[str, dict]:
-    """E/W codes -> {code, text, source} from the code tables of docs/*.md (first definition wins)."""
+    """E/W codes -> {code, text, source} from the code tables of docs/*.md (docs/diagnostics.md first; first definition wins)."""
     out: dict[str, dict] = {}
-    for name in sorted(os.listdir(_docs()), key=lambda n: (n != "language.md", n)):
+    for name in sorted(os.listdir(_docs()), key=lambda n: (n != "diagnostics.md", n)):
         if not name.endswith(".md"):
             continue
         for m in _CODE_ROW.finditer(_read(name)):          # docs/rules.md: its lint configuration's code (E-CONFIG)
@@ -85,7 +85,7 @@ def with_preamble(text: str) -> str:
 
 def mention(code: str) -> dict | None:
     """A code documented in prose only: the first paragraph of docs/*.md that names it in backticks."""
-    for name in sorted(os.listdir(_docs()), key=lambda n: (n != "language.md", n)):
+    for name in sorted(os.listdir(_docs()), key=lambda n: (n != "diagnostics.md", n)):
         if not name.endswith(".md"):
             continue
         for para in re.split(r"\n\s*\n", _read(name)):

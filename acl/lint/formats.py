@@ -136,7 +136,7 @@ def help_uri(code: str) -> str:
         return (docs / "rules.md").as_uri() + "#" + code.lower()
     if code.startswith("E8"):
         return (docs / "data.md").as_uri() + "#errors"
-    return (docs / "language.md").as_uri() + "#15-diagnostic-codes"
+    return (docs / "diagnostics.md").as_uri()
 
 
 def _uri(path: str) -> str:
