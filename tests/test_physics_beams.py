@@ -166,7 +166,7 @@ def _bvp_reference(p, lam, mode):
 
 @pytest.mark.parametrize("mode", ["dead", "follower"])
 def test_elastica_tip_agrees_with_an_independent_bvp_solve(mode):
-    # docs/physics.md part B section 2: the one shooting solver vs solve_bvp (tol 1e-10), p <= 6: deflection to
+    # docs/explanation/structures.md section 2: the one shooting solver vs solve_bvp (tol 1e-10), p <= 6: deflection to
     # 1e-8 L (the follower's deflection at p = 6, l = L is small: 2e-8 relative), tip angle 1e-9 relative.
     for p, lam in ((0.5, 0.0), (2.0, 0.36), (6.0, 1.0)):
         ref_d, ref_a = _bvp_reference(p, lam, mode)

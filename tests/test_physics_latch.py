@@ -4,7 +4,7 @@ import pytest
 
 from acl.physics import latch
 
-# Assumed geometry (the paper does not give it; docs/physics.md (part B)): one geometry for all angles.
+# Assumed geometry (the paper does not give it; docs/explanation/structures.md): one geometry for all angles.
 L, W, T, E = 50e-6, 1.0e-6, 1.7e-6, 13e6          # TPETA E = 13 MPa (paper text, ref. 46)
 TABLE_S2_SIMULATION_NN = {30: 32.53, 45: 40.5, 60: 47.76}
 

@@ -313,12 +313,12 @@ def validity_at(design: M.Design, drive: M.Drive, st, modes: dict) -> list[dict]
             out.append({"code": d.code, "severity": "warning", "message": d.message,
                         **(_loc(d.span) if d.span else {"file": design.file, "line": 1, "column": 1}),
                         "evidence": "paper Eq. (1) vs the dead-load elastica (Bisshopp & Drucker 1945): 5 % apart at the "
-                                    "limit (docs/physics.md part B section 2)"})
+                                    "limit (docs/explanation/structures.md section 2)"})
     return out
 
 
 def _eq1_ratios(design: M.Design, deflections: dict) -> dict:
-    """Beam deflection / the deflection where paper Eq. (1) departs 5 % from the elastica (docs/physics.md part B section 2); > 1: outside Eq. (1)."""
+    """Beam deflection / the deflection where paper Eq. (1) departs 5 % from the elastica (docs/explanation/structures.md section 2); > 1: outside Eq. (1)."""
     from acl.physics.beams import eq1_validity_limit
 
     out = {}

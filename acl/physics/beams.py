@@ -380,7 +380,7 @@ def _eq1_limit_ratio(lam: float, tolerance: float) -> float:
 def eq1_validity_limit(L: float, l: float, tolerance: float = EQ1_TOLERANCE) -> float:
     """Deflection (m) beyond which paper Eq. (1) departs from the Bisshopp & Drucker elastica by more than ``tolerance``.
 
-    About 0.21 L without rigid segment, 0.33 L at l = L/4, 0.44 L at l = L/2 (docs/physics.md (part B)).
+    About 0.21 L without rigid segment, 0.33 L at l = L/4, 0.44 L at l = L/2 (docs/explanation/structures.md).
     """
     return L * _eq1_limit_ratio(round(l / L, 9), float(tolerance))
 
