@@ -176,7 +176,7 @@ def _fit(design, data, free=(), effects=None, seed=0, search_paths=(), model="co
     design's text is ``result.calibrated_source``.  Returns an :class:`acl.notebook.FitReport`.
 
     >>> import acl
-    >>> r = acl.fit("examples/guides/fit_cantilever.acl", "fit_data.csv", free=["gamma"], effects=[])  # doctest: +SKIP
+    >>> r = acl.fit("samples/fit_cantilever.acl", "fit_data.csv", free=["gamma"], effects=[])  # doctest: +SKIP
     >>> r.rmse_after < r.rmse_before                                                              # doctest: +SKIP
     True
     """
@@ -203,7 +203,7 @@ def _sweep(design, vary=None, tolerance=None, n=None, seed=0, quantities=None, a
     ``t.to_arrow()``, ``t.to_pandas()``.
 
     >>> import acl
-    >>> t = acl.sweep("examples/guides/sweep_cantilever.acl", vary={"radius": "9um..11um:5"})
+    >>> t = acl.sweep("samples/sweep_cantilever.acl", vary={"radius": "9um..11um:5"})
     >>> len(t), t.columns[:2]
     (5, ('point', 'radius'))
     """

@@ -2,16 +2,16 @@
 
 Targets: 30 s for cases 1 and 2; 10 s for case 3 (issue 9: 1,000 rows of a pair + calibration beam).
 
-1. Fig. 2 cantilever (examples/guides/fit_cantilever.acl): three beam lengths x three pedestal heights x
+1. Fig. 2 cantilever (samples/fit_cantilever.acl): three beam lengths x three pedestal heights x
    three frequencies x 11 voltages, repeated 4 times over time (1,188 rows), drive saturation planted,
    noise 0.2 um.
 4. Case 2 twice in one run, data and fit on paper Eq. (3) (`--model eq3`) and on the analysis' coupled force model
    (the default): CPU seconds and their ratio (issue 23: at most 3x).
 5. Per prediction, the case 2 data set (1,386 rows) on both models in one run: CPU per prediction at 20
    Jacobian-column steps (1e-6) and at 20 optimizer steps (1 %) of alpha, and the coupled/eq3 ratios.
-2. Fig. 4e facing pair (examples/guides/fit_pair.acl): 11 initial gaps x three frequencies x 21 voltages,
+2. Fig. 4e facing pair (samples/fit_pair.acl): 11 initial gaps x three frequencies x 21 voltages,
    twice (1,386 rows, the pair equilibrium solved for every row), drive saturation planted, noise 0.3 um.
-3. Pair + calibration beam (examples/guides/fit_pair_cal.acl): the pair at 4 gaps x 4 frequencies x 17 voltages,
+3. Pair + calibration beam (samples/fit_pair_cal.acl): the pair at 4 gaps x 4 frequencies x 17 voltages,
    twice, and the isolated calibration cantilever at 4 frequencies x 12 voltages, 10 times (1,024 rows,
    rows tagged by `experiment`), neighbour drag planted, noise 0.2 um, gamma and alpha free.
    Case 3 runs twice: in one process and with `jobs` = the machine's cores (`acl fit --jobs auto`: the candidate
@@ -30,11 +30,11 @@ import time
 import numpy as np
 
 HERE = os.path.dirname(os.path.abspath(__file__))
-DESIGN = os.path.join(HERE, "..", "examples", "guides", "fit_cantilever.acl")
+DESIGN = os.path.join(HERE, "..", "samples", "fit_cantilever.acl")
 
 
-PAIR = os.path.join(HERE, "..", "examples", "guides", "fit_pair.acl")
-PAIR_CAL = os.path.join(HERE, "..", "examples", "guides", "fit_pair_cal.acl")
+PAIR = os.path.join(HERE, "..", "samples", "fit_pair.acl")
+PAIR_CAL = os.path.join(HERE, "..", "samples", "fit_pair_cal.acl")
 
 
 CASES: set = {1, 2, 3}     # the cases to run (--case)

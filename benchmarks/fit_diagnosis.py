@@ -3,17 +3,17 @@
 Synthetic data from `acl.fit.synth` (the forward model of the fit) with one or two undeclared effects
 planted, every library effect in every experiment kind that can identify it:
 
-* ``cantilever``      examples/guides/fit_cantilever.acl, ramps 0..10 V at 5 frequencies, twice, timed ("ramps");
+* ``cantilever``      samples/fit_cantilever.acl, ramps 0..10 V at 5 frequencies, twice, timed ("ramps");
                        or 3 lengths x 3 pedestals x 0..8 V at 125 kHz ("geometry")
-* ``pair``            examples/guides/fit_pair.acl, gaps 40..70 um x 5 frequencies x 0..4 V
-* ``pair+cal``        examples/guides/fit_pair_cal.acl: the pair, and the isolated calibration beam to 11 V
-* ``spring+cal``      examples/guides/fit_spring_cal.acl: paper Fig. 5c spring pair at 4 gaps x 5 frequencies x 0..4 V, and
+* ``pair``            samples/fit_pair.acl, gaps 40..70 um x 5 frequencies x 0..4 V
+* ``pair+cal``        samples/fit_pair_cal.acl: the pair, and the isolated calibration beam to 11 V
+* ``spring+cal``      samples/fit_spring_cal.acl: paper Fig. 5c spring pair at 4 gaps x 5 frequencies x 0..4 V, and
                        the calibration beam; ``spring+cal/plateau`` the spring ramped to 5 V (into the drag plateau)
-* ``body-pair+cal``   examples/guides/fit_body_pair.acl: a two-orifice capsule facing a trussed body (acl.fit.group, the
+* ``body-pair+cal``   samples/fit_body_pair.acl: a two-orifice capsule facing a trussed body (acl.fit.group, the
                        analysis' coupled volumes where the capsules are), gap and sideways tip 0..3 V at 125 and
                        175 kHz (the side orifice's and the rider's mode), and the calibration beam to 11 V
 * ``latch``           benchmarks/designs/fig6_latch_simulated_modulus.acl (Fig. 6a-d at 13 MPa), ramps 0..60 V (through the switch) at 4 frequencies
-* ``latch+state``     examples/guides/fit_latch_state.acl (the latch with `observe switched = state(snap)`), ramps
+* ``latch+state``     samples/fit_latch_state.acl (the latch with `observe switched = state(snap)`), ramps
                        0..100 V in 2.5 V steps at 5 frequencies, twice: shuttle rows (noise) and 0/1 state rows
                        (drawn with the model's switching probability)
 * ``latch+state/angles`` the same at latch angles 30/45/60 deg (several switching voltages per frequency), once
@@ -55,17 +55,17 @@ import numpy as np
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.join(HERE, "..")
 sys.path.insert(0, ROOT)
-CANT = os.path.join(ROOT, "examples", "guides", "fit_cantilever.acl")
-PAIR = os.path.join(ROOT, "examples", "guides", "fit_pair.acl")
+CANT = os.path.join(ROOT, "samples", "fit_cantilever.acl")
+PAIR = os.path.join(ROOT, "samples", "fit_pair.acl")
 # The committed sweep (benchmarks/fit_diagnosis.json, ~4.7 CPU-hours) was recorded with paper Eq. (3) as the pair model,
 # the default of `acl fit` then; the default is now the analysis' coupled force model (10-20x slower on a pair), so the
 # sweep names the reduced model it ran with, and its repeats (tests/test_fit_diagnosis.py) use the same.
 MODEL = "eq3"
-PAIR_CAL = os.path.join(ROOT, "examples", "guides", "fit_pair_cal.acl")
-SPRING_CAL = os.path.join(ROOT, "examples", "guides", "fit_spring_cal.acl")
-BODY_PAIR = os.path.join(ROOT, "examples", "guides", "fit_body_pair.acl")
+PAIR_CAL = os.path.join(ROOT, "samples", "fit_pair_cal.acl")
+SPRING_CAL = os.path.join(ROOT, "samples", "fit_spring_cal.acl")
+BODY_PAIR = os.path.join(ROOT, "samples", "fit_body_pair.acl")
 LATCH = os.path.join(ROOT, "benchmarks", "designs", "fig6_latch_simulated_modulus.acl")   # the design of the committed runs
-LATCH_STATE = os.path.join(ROOT, "examples", "guides", "fit_latch_state.acl")
+LATCH_STATE = os.path.join(ROOT, "samples", "fit_latch_state.acl")
 
 FREQS = (105e3, 115e3, 125e3, 135e3, 145e3)
 

@@ -7,10 +7,10 @@ interval covered the truth, the median |fitted/truth - 1|, the effects claimed a
 1. planar: Fig. 3 three-orifice capsule (examples/fig3_three_orifice.acl), x and y at 5 frequencies, 0-6 V,
    gamma 0.8x; clean (search on: nothing may be claimed) and with drive saturation V_s = 4 V planted.
 2. trussed latch body: Fig. 6e (examples/fig6e_reversible_latch.acl), shuttle at 85 / 170 kHz, 0-90 V, gamma 1.2x.
-3. group: three capsules in a row + calibration cantilever (examples/guides/fit_group3.acl), ramps through the a-b
+3. group: three capsules in a row + calibration cantilever (samples/fit_group3.acl), ramps through the a-b
    snap-in (0-6 V), gamma 1.2x, alpha 0.7x.
    group-large: the same at 5 frequencies, 13 voltages, twice, and the calibration beam 4 times (570 rows).
-4. latch state: examples/guides/fit_latch_state.acl, 10 ramps at each of 17 voltages, spread 0.08, gamma 1.25x,
+4. latch state: samples/fit_latch_state.acl, 10 ramps at each of 17 voltages, spread 0.08, gamma 1.25x,
    gamma and spread free.
 Run: python benchmarks/fit_mechanisms.py [--seeds N] [--cases planar,truss,group,state]
 """
@@ -44,14 +44,14 @@ def cases():
         "truss": ("examples/fig6e_reversible_latch.acl",
                   Experiment(frequencies=(85e3, 170e3), voltages=tuple(np.linspace(0, 90, 19))),
                   {"gamma": 1.2}, ["gamma"], {}, False),
-        "group": ("examples/guides/fit_group3.acl", group, {"gamma": 1.2, "alpha": 0.7}, ["gamma", "alpha"], {}, False),
-        "group-large": ("examples/guides/fit_group3.acl",
+        "group": ("samples/fit_group3.acl", group, {"gamma": 1.2, "alpha": 0.7}, ["gamma", "alpha"], {}, False),
+        "group-large": ("samples/fit_group3.acl",
                         [Experiment(frequencies=(110e3, 120e3, 125e3, 130e3, 140e3), voltages=tuple(np.linspace(0, 6, 13)),
                                     observables=("d_ab", "d_bc", "tip_c"), repeats=2, label="group"),
                          Experiment(frequencies=(110e3, 120e3, 125e3, 130e3, 140e3), voltages=tuple(np.linspace(0, 8, 9)),
                                     observables=("bend",), repeats=4, label="calibration")],
                         {"gamma": 1.2, "alpha": 0.7}, ["gamma", "alpha"], {}, False),
-        "state": ("examples/guides/fit_latch_state.acl",
+        "state": ("samples/fit_latch_state.acl",
                   Experiment(frequencies=(125e3,), voltages=tuple(np.linspace(30, 46, 17)), repeats=10,
                              observables=("switched",)),
                   {"gamma": 1.25, "spread": 0.08}, ["gamma", "spread"], {}, False),

@@ -26,7 +26,7 @@ def dump(root: Path, out: str, sizes: list[int]) -> None:
     spec = importlib.util.spec_from_file_location("acl_benchmark_check", root / "benchmarks" / "check.py")
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
-    files = sorted(str(p) for pattern in ("examples/*.acl", "stdlib/*.acl", "examples/guides/**/*.acl", "benchmarks/designs/*.acl")
+    files = sorted(str(p) for pattern in ("examples/*.acl", "stdlib/*.acl", "samples/**/*.acl", "benchmarks/designs/*.acl")
                    for p in root.glob(pattern))
     res = {}
     with tempfile.TemporaryDirectory() as tmp:

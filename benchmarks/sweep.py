@@ -6,7 +6,7 @@
 2. 100,000 samples of the Fig. 4 facing pair (examples/fig4_facing_pair.acl) with the snap-in
    voltage at 125 kHz, the gap and the thrust coefficient spread. Target: under 20 s on one core.
 4. 5,000 samples of the Fig. 4 pair with spread drive voltages, step limit, amplifier maximum and
-   transducer gain (examples/guides/sweep_drives.acl): the per-point drive and transducer checks alone
+   transducer gain (samples/sweep_drives.acl): the per-point drive and transducer checks alone
    (acl.sweep.validity.check_drives; at 286b796 each unique value was re-resolved: 5.13 s CPU for
    these 5,000 points), then the whole sweep with forces, snap-in and `require gap` at each point's
    drive (at 286b796 those columns were left out).
@@ -51,7 +51,7 @@ CANTILEVER_Q = ["resonance_act_1_hz", "q_act_1", "tip_deflection_arm_m", "requir
 CANTILEVER_AT = "125 kHz @ 2 V"
 PAIR_Q = ["snap_in_left_right_125khz_v", "requires_pass"]
 PAIR_TOL = ["gap=normal(0, 1 um)", "gamma=10 %"]
-DRIVES = os.path.join(ROOT, "examples", "guides", "sweep_drives.acl")
+DRIVES = os.path.join(ROOT, "samples", "sweep_drives.acl")
 SPRING = os.path.join(ROOT, "benchmarks", "designs", "sweep_spring.acl")
 SPRING_Q = ["snap_in_top_bottom_125khz_v", "deflection_flexure_m", "require_1_value", "requires_pass"]
 SPRING_AT = "125 kHz @ 10 V"

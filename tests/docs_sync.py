@@ -21,7 +21,7 @@ Generated parts of a page are marked with HTML comments (invisible once rendered
 A marker quoted in inline code (right after a backtick) is left alone.
 A page is stale when its text differs from a fresh run other than in numbers that agree to 0.2 %
 (magnitudes below 1e-20 in SI, solver residuals, are noise); JSON blocks show 6 significant digits.
-Every page runs in a fresh scratch folder holding a copy of ``examples/`` (with ``examples/guides/``), in
+Every page runs in a fresh scratch folder holding copies of ``examples/`` and ``samples/``, in
 page order, so commands may use files made by earlier ones and nothing is written to the repository.
 
 Regenerate after a change that moves numbers (physics, fit, output format):
@@ -62,7 +62,7 @@ class Session:
     def __init__(self, page: str):
         self.page = page
         self.dir = tempfile.mkdtemp(prefix="acl-docs-")
-        for name in ("examples",):
+        for name in ("examples", "samples"):
             if (ROOT / name).is_dir():
                 shutil.copytree(ROOT / name, Path(self.dir) / name)
         self.cache: dict[str, tuple[int, str, str]] = {}

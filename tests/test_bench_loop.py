@@ -15,7 +15,7 @@ import pytest
 
 from acl.cli import main
 
-DATA = os.path.join(os.path.dirname(__file__), "..", "examples", "guides", "bench")
+DATA = os.path.join(os.path.dirname(__file__), "..", "samples", "bench")
 
 
 def test_fit_of_the_tracked_video_recovers_the_planted_thrust(tmp_path, capsys, monkeypatch):

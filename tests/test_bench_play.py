@@ -1,6 +1,6 @@
 """acl play: the command stream of a compiled schedule, replayed on simulated instruments (pyvisa-sim).
 
-Two SCPI dialects (examples/guides/bench/*.yaml): a GW Instek AFG-2225 (the paper's generator; steps, one
+Two SCPI dialects (samples/bench/*.yaml): a GW Instek AFG-2225 (the paper's generator; steps, one
 channel per tone) and a Keysight 33522B (sequence of looped segments).  Every setting is read back.
 """
 from __future__ import annotations
@@ -15,7 +15,7 @@ import pytest
 from acl.cli import main
 
 HERE = os.path.dirname(__file__)
-DATA = os.path.join(HERE, "..", "examples", "guides", "bench")
+DATA = os.path.join(HERE, "..", "samples", "bench")
 TWO = os.path.join(DATA, "two_drives.json")
 AFG = ("afg2225.yaml", "USB0::0x2184::0x0049::SIM00001::INSTR", "afg2225")
 KEY = ("keysight33522b.yaml", "USB0::0x2A8D::0x2C07::SIM00001::INSTR", "33522b")

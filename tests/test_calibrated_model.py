@@ -14,7 +14,7 @@ from acl.fit import run_fit
 from acl.fit.synth import Experiment, generate, write_csv
 
 HERE = os.path.dirname(os.path.abspath(__file__))
-PAIR = os.path.join(HERE, "..", "examples", "guides", "fit_pair.acl")
+PAIR = os.path.join(HERE, "..", "samples", "fit_pair.acl")
 CANT = os.path.join(HERE, "..", "examples", "fig2_vertical_cantilever.acl")
 
 

@@ -302,7 +302,7 @@ def test_a_file_the_design_extends_is_named_relative_to_how_the_design_was_named
 
 
 def test_fit_names_the_files_it_read_and_wrote_as_given(tmp_path):
-    shutil.copy(ROOT / "examples" / "guides" / "fit_cantilever.acl", tmp_path / "d.acl")
+    shutil.copy(ROOT / "samples" / "fit_cantilever.acl", tmp_path / "d.acl")
     shutil.copy(ROOT / "tests" / "hostile" / "inputs" / "data_ok.csv", tmp_path / "m.csv")
     (tmp_path / "out").mkdir()
     r = run("fit", "d.acl", "./m.csv", "--free", "gamma", "--calibrated", "out/c.acl", cwd=tmp_path)
@@ -320,7 +320,7 @@ def test_fit_names_the_files_it_read_and_wrote_as_given(tmp_path):
 def test_fit_report_names_the_default_calibrated_design_as_given(tmp_path):
     pytest.importorskip("matplotlib")
     (tmp_path / "designs").mkdir()
-    shutil.copy(ROOT / "examples" / "guides" / "fit_cantilever.acl", tmp_path / "designs" / "d.acl")
+    shutil.copy(ROOT / "samples" / "fit_cantilever.acl", tmp_path / "designs" / "d.acl")
     shutil.copy(ROOT / "tests" / "hostile" / "inputs" / "data_ok.csv", tmp_path / "m.csv")
     r = run("fit", "designs", "m.csv", "--free", "gamma", "--report", "rep", cwd=tmp_path)
     assert r.returncode == 0, r.stderr

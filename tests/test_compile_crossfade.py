@@ -15,7 +15,7 @@ from acl.schedule.gains import latch_forces
 from acl.schedule.model import Schedule, Segment
 
 ROOT = Path(__file__).resolve().parents[1]
-DATA = ROOT / "examples" / "guides" / "crossfade_latch.acl"
+DATA = ROOT / "samples" / "crossfade_latch.acl"
 OPTS = CompileOptions(allow_nonlinear=True, band_samples=0)   # the Fig. 6e latch needs eps/R > 0.25 (docs/physics.md)
 
 
@@ -277,7 +277,7 @@ def test_the_fig4_pair_held_at_its_margin_then_driven_at_another_tone_is_left_al
     schedule is the two steps' segments with nothing between."""
     from acl.schedule.gains import critical_scale
 
-    d = acl.load(str(ROOT / "examples" / "guides" / "crossfade_hold.acl"), search_paths=[str(ROOT / "examples")])
+    d = acl.load(str(ROOT / "samples" / "crossfade_hold.acl"), search_paths=[str(ROOT / "examples")])
     s = compile_program(d, "hold_then_drive", CompileOptions(band_samples=0))
     hold, drive = s.segments
     assert hold.goal.startswith("step 1: hold") and not _fades(s)

@@ -25,7 +25,7 @@ from acl.schedule.gains import latch_forces
 from acl.schedule.model import ScheduledTone, Segment
 
 ROOT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..")
-DATA = os.path.join(ROOT, "examples", "guides", "latch_path.acl")
+DATA = os.path.join(ROOT, "samples", "latch_path.acl")
 FLIP, STATE = "W-SCHED-LATCH-FLIP", "W-SCHED-LATCH-STATE"
 OPTS = CompileOptions(band_samples=0, allow_nonlinear=True, resim_points=5)
 M12 = 1.2          # the latch-state margin (LATCH_STATE_MARGIN, the switch step's default)
@@ -221,11 +221,11 @@ def test_the_crossfade_between_waypoints_can_push_beyond_both_ends():
 # the push with the capsules where the drive puts them (static equilibrium), not at rest
 # ------------------------------------------------------------------------------------------------
 
-DEFLECT = os.path.join(ROOT, "examples", "guides", "latch_deflect.acl")
+DEFLECT = os.path.join(ROOT, "samples", "latch_deflect.acl")
 
 
 def test_the_push_at_the_drives_equilibrium_differs_from_the_push_at_rest_in_the_fixture():
-    """examples/guides/latch_deflect.acl: 125 kHz at 10 V pushes the shuttle towards a at rest (-0.018 x), but bends the
+    """samples/latch_deflect.acl: 125 kHz at 10 V pushes the shuttle towards a at rest (-0.018 x), but bends the
     cantilever ~28 um towards `partner` before it snaps in; there the Bjerknes attraction pulls the shuttle towards
     b with ~1.2 x the switching force (acl.analysis.mechanics.equilibrium, acl.schedule.gains.latch_drive_forces)."""
     from acl.analysis import acoustics, mechanics

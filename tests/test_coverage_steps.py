@@ -245,7 +245,7 @@ def latch_fits(tmp_path_factory):
 
     tmp = tmp_path_factory.mktemp("latchcov")
     design = tmp / "latch.acl"
-    shutil.copy(os.path.join(ROOT, "examples", "guides", "fit_latch_state.acl"), design)
+    shutil.copy(os.path.join(ROOT, "samples", "fit_latch_state.acl"), design)
     out = {}
     for name, rows in (("switched", ((10, 0), (40, 0), (60, 1), (80, 1))), ("stayed", ((10, 0), (40, 0)))):
         csv = tmp / f"{name}.csv"

@@ -13,7 +13,7 @@ import pytest
 from acl.cli import main
 
 ROOT = Path(__file__).resolve().parents[1]
-CANTILEVER = str(ROOT / "examples" / "guides" / "fit_cantilever.acl")
+CANTILEVER = str(ROOT / "samples" / "fit_cantilever.acl")
 HEADER = "observable,value,unit,drive,time,sigma,set:length\n"
 GOOD = "deflection,1.2,um,125 kHz @ 3 V,0,0.2,50 um\n"
 
@@ -23,7 +23,7 @@ def _fit(capsys, tmp_path, body: bytes | str, *extra):
     path.write_bytes(body if isinstance(body, bytes) else body.encode())
     with warnings.catch_warnings():
         warnings.simplefilter("error")          # a numpy RuntimeWarning fails the test
-        # --calibrated in tmp_path: a fit that wrongly succeeds must not write next to the design in examples/guides
+        # --calibrated in tmp_path: a fit that wrongly succeeds must not write next to the design in samples
         code = main(["fit", CANTILEVER, str(path), "--free", "gamma", "--report", str(tmp_path / "rep"),
                      "--calibrated", str(tmp_path / "cal.acl"), *extra])
     err = capsys.readouterr().err

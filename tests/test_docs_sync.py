@@ -16,7 +16,7 @@ def test_page_matches_a_fresh_run(page):
 
 
 def test_harness_regenerates_commands_values_and_sessions(tmp_path):
-    page = ("<!-- doc-run: acl synth examples/guides/fit_cantilever.acl -o s.csv --voltages 0V..2V:3 -->\n"
+    page = ("<!-- doc-run: acl synth samples/fit_cantilever.acl -o s.csv --voltages 0V..2V:3 -->\n"
             "<!-- doc: $ acl check examples/fig2_vertical_cantilever.acl -->stale<!-- /doc -->\n"
             "<!-- doc: $ acl check nowhere.acl -> exit 2 --><!-- /doc -->\n"
             "rows: <!-- doc: = len(open('s.csv').read().splitlines()) - 1 -->0<!-- /doc -->\n"

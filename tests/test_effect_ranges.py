@@ -24,8 +24,8 @@ from acl.design.core import EFFECT_RANGES, EFFECT_UNITS, PROPERTY_RANGES
 from acl.design.resolve import check_design
 
 ROOT = Path(__file__).resolve().parents[1]
-CANTILEVER = ROOT / "examples" / "guides" / "fit_cantilever.acl"
-PAIR_CAL = ROOT / "examples" / "guides" / "fit_pair_cal.acl"
+CANTILEVER = ROOT / "samples" / "fit_cantilever.acl"
+PAIR_CAL = ROOT / "samples" / "fit_pair_cal.acl"
 
 # the unit each coefficient is written in (its SI unit in acl syntax)
 _WRITE = {"": "", "Hz": "Hz", "V": "V", "1/V^2": "V^-2", "m": "m", "m/s": "m/s", "1/s": "Hz", "1/m": "m^-1"}

@@ -1,6 +1,6 @@
 """Declared effects change the analysis exactly as the fit's forward model, and `acl fit` writes them back.
 
-The comparison case is the fit's cantilever (examples/guides/fit_cantilever.acl): the tip deflection from
+The comparison case is the fit's cantilever (samples/fit_cantilever.acl): the tip deflection from
 `acl.analysis.mechanics.equilibrium` of a design extending it with `effect ID { ... }` against
 `acl.fit.forward` (through `acl.fit.synth.generate`, noise 0) with the same effect parameters.
 Both use the formulas of `acl.physics.effects`; the analysis inverts the deflection law with a
@@ -26,7 +26,7 @@ from acl.design.model import Drive, Tone
 from acl.fit.synth import Experiment, generate
 
 HERE = os.path.dirname(__file__)
-CANTILEVER = os.path.join(HERE, "..", "examples", "guides", "fit_cantilever.acl")
+CANTILEVER = os.path.join(HERE, "..", "samples", "fit_cantilever.acl")
 REL = 1e-6
 
 # (effect, fit parameters (acl.fit.synth form), declaration, frequency, voltage, data frequencies -> f_ref)
@@ -87,7 +87,7 @@ def test_neighbour_drag_acts_on_the_pair_not_on_the_isolated_calibration_actuato
     """Paper Fig. 5b: drag 'applied to the moving actuators by the anchored ones' needs a neighbour.  In the
     analysis (force on each capsule x (1 - displacement/plateau)) and in the fit's forward model alike, the sides of
     the pair are dragged and the calibration actuator 400 um away (no neighbour) is not."""
-    pair_cal = os.path.join(HERE, "..", "examples", "guides", "fit_pair_cal.acl")
+    pair_cal = os.path.join(HERE, "..", "samples", "fit_pair_cal.acl")
     shutil.copy(pair_cal, tmp_path / "fit_pair_cal.acl")
     path = tmp_path / "with.acl"
     path.write_text('extends "fit_pair_cal.acl"\neffect neighbour_drag { plateau = 8 um }\n')

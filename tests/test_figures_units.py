@@ -101,7 +101,7 @@ def test_fit_png_titles_lie_inside_the_figure_and_residual_axes_carry_units(tmp_
     from acl.cli import main
     from acl.fit.synth import Experiment, generate, write_csv
 
-    pair = os.path.join(ROOT, "examples", "guides", "fit_pair.acl")
+    pair = os.path.join(ROOT, "samples", "fit_pair.acl")
     text = open(pair, encoding="utf-8").read().replace("observe distance =", "observe orifice_distance_between_jets =")
     (tmp_path / "fit_pair.acl").write_text(text, encoding="utf-8")
     ex = Experiment(frequencies=(125e3,), voltages=tuple(np.linspace(0, 4, 9)), sets={"gap": ["30 um", "50 um"]})
@@ -135,7 +135,7 @@ def test_a_one_voltage_frequency_sweep_is_drawn_against_frequency(tmp_path, save
     from acl.cli import main
     from acl.fit.synth import Experiment, generate, write_csv
 
-    pair = os.path.join(ROOT, "examples", "guides", "fit_pair.acl")
+    pair = os.path.join(ROOT, "samples", "fit_pair.acl")
     freqs = tuple(np.linspace(110e3, 140e3, 7))
     ex = Experiment(frequencies=freqs, voltages=(0.0, 2.0), sets={"gap": ["40 um"]})
     data, _ = generate(pair, ex, noise=0.1e-6, seed=3, coeffs={"alpha": 174.5e-21, "gamma": 0.027e-9})

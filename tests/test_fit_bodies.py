@@ -15,10 +15,10 @@ HERE = os.path.dirname(__file__)
 EXAMPLES = os.path.join(HERE, "..", "examples")
 FIG3 = os.path.join(EXAMPLES, "fig3_three_orifice.acl")
 FIG6E = os.path.join(EXAMPLES, "fig6e_reversible_latch.acl")
-GROUP = os.path.join(HERE, "..", "examples", "guides", "fit_group3.acl")
-BODY_PAIR = os.path.join(HERE, "..", "examples", "guides", "fit_body_pair.acl")
-LATCH = os.path.join(HERE, "..", "examples", "guides", "fit_latch_state.acl")
-RIGID = os.path.join(HERE, "..", "examples", "guides", "gripper_rigid_truss.acl")    # Fig. 5a with rigid trusses: arms held still
+GROUP = os.path.join(HERE, "..", "samples", "fit_group3.acl")
+BODY_PAIR = os.path.join(HERE, "..", "samples", "fit_body_pair.acl")
+LATCH = os.path.join(HERE, "..", "samples", "fit_latch_state.acl")
+RIGID = os.path.join(HERE, "..", "samples", "gripper_rigid_truss.acl")    # Fig. 5a with rigid trusses: arms held still
 SWEEP3 = Experiment(frequencies=(80e3, 100e3, 125e3, 150e3, 170e3), voltages=tuple(np.linspace(0, 6, 7)))
 
 
@@ -143,7 +143,7 @@ def test_what_the_fit_model_cannot_follow_is_a_located_E810(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "E-USAGE" in err and "<--free>:1:1" in err and "no orifice `high.nozzle`" in err and "high.jet" in err and "Traceback" not in err
     # --free f0 of a capsule that no observed unit holds: nothing in the data can tell it
-    lone = _variant(tmp_path, os.path.join(HERE, "..", "examples", "guides", "fit_cantilever.acl"), "mount act on arm.tip",
+    lone = _variant(tmp_path, os.path.join(HERE, "..", "samples", "fit_cantilever.acl"), "mount act on arm.tip",
                     "mount act on arm.tip\nbeam far like beams.cantilever50 { clamp = (0 um, 400 um, 0 um) }\n"
                     "capsule idle like capsules.design1 { }\nmount idle on far.tip", "lone.acl")
     csv.write_text("observable,value,unit,drive\ndeflection,1,um,125 kHz @ 3 V\n")

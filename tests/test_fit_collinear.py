@@ -11,7 +11,7 @@ import numpy as np
 from acl.fit.synth import Experiment, generate
 
 HERE = os.path.dirname(__file__)
-PAIR = os.path.join(HERE, "..", "examples", "guides", "fit_pair.acl")
+PAIR = os.path.join(HERE, "..", "samples", "fit_pair.acl")
 # gaps 20-60 um to 4 V at three tones: rows at rest, bent and past their snap-in
 EX = Experiment(frequencies=(120e3, 125e3, 130e3), voltages=tuple(np.linspace(0, 4, 9)),
                 sets={"gap": ["20 um", "40 um", "60 um"]})

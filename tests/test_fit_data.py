@@ -9,7 +9,7 @@ import pytest
 from acl.cli import main
 
 HERE = os.path.dirname(__file__)
-CANTILEVER = os.path.join(HERE, "..", "examples", "guides", "fit_cantilever.acl")
+CANTILEVER = os.path.join(HERE, "..", "samples", "fit_cantilever.acl")
 HEADER = "observable,value,unit,drive,time,sigma,set:length\n"
 GOOD = "deflection,1.2,um,125 kHz @ 3 V,0,0.2,50 um\n"
 
@@ -141,7 +141,7 @@ def test_synth_rejects_unknown_effects_and_parameters(tmp_path, capsys):
     assert not out.exists()
 
 
-@pytest.mark.parametrize("example,obs", [("../examples/guides/gripper_rigid_truss.acl", "left_delta")])
+@pytest.mark.parametrize("example,obs", [("../samples/gripper_rigid_truss.acl", "left_delta")])
 def test_mechanisms_outside_the_fit_model_are_a_diagnostic_not_a_guess(tmp_path, capsys, example, obs):
     """A rigid truss along the line of attraction holds the arm: nothing the data can tell (E810)."""
     design = os.path.join(HERE, example)

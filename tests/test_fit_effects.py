@@ -16,8 +16,8 @@ from acl.fit.select import select_effects
 from acl.fit.synth import Experiment, generate, write_csv
 
 HERE = os.path.dirname(__file__)
-CANTILEVER = os.path.join(HERE, "..", "examples", "guides", "fit_cantilever.acl")
-PAIR_CAL = os.path.join(HERE, "..", "examples", "guides", "fit_pair_cal.acl")    # a facing pair + an isolated calibration beam
+CANTILEVER = os.path.join(HERE, "..", "samples", "fit_cantilever.acl")
+PAIR_CAL = os.path.join(HERE, "..", "samples", "fit_pair_cal.acl")    # a facing pair + an isolated calibration beam
 NOISE = 0.2e-6
 
 # voltage ramps at three frequencies, twice, timed: identifies drive, gain, beam and time effects

@@ -12,7 +12,7 @@ from acl.cli import main
 from acl.fit import run_fit
 from acl.fit.synth import Experiment, generate, write_csv
 
-PAIR = os.path.join(os.path.dirname(__file__), "..", "examples", "guides", "fit_pair.acl")
+PAIR = os.path.join(os.path.dirname(__file__), "..", "samples", "fit_pair.acl")
 ALPHA = 174.5e-9 * 1e-12     # paper: 174.5 nN um^2 / V^2
 GAMMA = 0.027e-9             # paper: 0.027 nN / V^2
 NOISE = 0.3e-6

@@ -58,7 +58,7 @@ def test_vectorized_pair_agrees_with_the_mechanics_analysis_layer():
     from acl.fit.forward import predict, prepare
     from acl.fit.mechanism import build_instance
 
-    path = os.path.join(os.path.dirname(__file__), "..", "examples", "guides", "fit_pair.acl")
+    path = os.path.join(os.path.dirname(__file__), "..", "samples", "fit_pair.acl")
     alpha, gamma = 1.745e-19, 2.7e-11
     cases = [("35 um", 0.8), ("45 um", 1.5), ("70 um", 2.5)]
     n = len(cases)

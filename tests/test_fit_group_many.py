@@ -15,8 +15,8 @@ import numpy as np
 import pytest
 
 ROOT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..")
-PAIR = os.path.join(ROOT, "examples", "guides", "fit_pair.acl")
-GROUP3 = os.path.join(ROOT, "examples", "guides", "fit_group3.acl")
+PAIR = os.path.join(ROOT, "samples", "fit_pair.acl")
+GROUP3 = os.path.join(ROOT, "samples", "fit_group3.acl")
 TOL = 1e-9          # m: the brief's bound on a prediction's change
 
 

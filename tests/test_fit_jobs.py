@@ -11,7 +11,7 @@ import pytest
 
 from acl.fit.synth import Experiment, generate, write_csv
 
-DATA = os.path.join(os.path.dirname(__file__), "..", "examples", "guides")
+DATA = os.path.join(os.path.dirname(__file__), "..", "samples")
 PAIR_CAL = os.path.join(DATA, "fit_pair_cal.acl")
 FREQS = (105e3, 115e3, 125e3, 135e3, 145e3)
 

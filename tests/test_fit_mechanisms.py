@@ -11,7 +11,7 @@ import acl
 from acl.fit.synth import Experiment, generate, write_csv
 
 HERE = os.path.dirname(__file__)
-DATA = os.path.join(HERE, "..", "examples", "guides")
+DATA = os.path.join(HERE, "..", "samples")
 PAIR_CAL = os.path.join(DATA, "fit_pair_cal.acl")
 SPRING_CAL = os.path.join(DATA, "fit_spring_cal.acl")
 CANT = os.path.join(DATA, "fit_cantilever.acl")

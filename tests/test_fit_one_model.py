@@ -1,7 +1,7 @@
 """`acl fit` calibrates the force model `acl analyze` and `acl compile` use (issue 23, one model engine).
 
 Data that `acl synth` makes from the Fig. 4e pair (examples/first_principles/fig4_facing_pair.acl, the first-principles pair: the shipped example declares the paper's calibration), from a pair of Fig. 3
-three-orifice capsules (examples/guides/fit_pair_prism3.acl) and from the Fig. 5a gripper (capsules on cantilevers tied
+three-orifice capsules (samples/fit_pair_prism3.acl) and from the Fig. 5a gripper (capsules on cantilevers tied
 by elastic trusses to anchored ones, examples/first_principles/fig5a_gripper.acl), each with a planted ``bjerknes_scale`` factor, are fitted with that effect: the factor comes back within its 95 % interval, with no
 W-FIT-PAIR-MODEL and no ``fit_pair_model_scale`` (those belong to the paper's Eq. (3), now only the reduced model a
 user asks for with ``--model eq3``), and the calibrated design, analyzed row by row with acl.analysis.mechanics (a
@@ -87,7 +87,7 @@ def test_calibrated_design_analyzed_reproduces_the_data(fitted):
 
 
 CASES = {   # design, experiment, noise (m): a pair of three-orifice capsules (E810 before), the Fig. 5a gripper
-    "prism3_pair": (os.path.join(ROOT, "examples", "guides", "fit_pair_prism3.acl"),
+    "prism3_pair": (os.path.join(ROOT, "samples", "fit_pair_prism3.acl"),
                     dict(frequencies=[72e3, 130e3], voltages=[0.0, 0.5, 1.0, 1.5], sets={"gap": ["40 um", "60 um"]}),
                     0.02e-6),
     "fig5a_gripper": (os.path.join(EX, "first_principles", "fig5a_gripper.acl"),

@@ -33,8 +33,8 @@ DESIGNS = [
     # below the 12.2 V at which 85 kHz switches the Table S2 calibrated latch (docs/physics.md, issue 24)
     ("examples/fig6f_control_module.acl", True, (2.0, 4.0, 6.0, 8.0, 10.0), ("gamma", "alpha")),
     ("examples/figS6_flextensional.acl", True, (0.3, 0.6, 0.9, 1.2), ("gamma", "alpha")),
-    ("examples/guides/fit_group3.acl", True, (0.5, 1.0, 1.5, 2.0), ("gamma", "alpha")),
-    ("examples/guides/fit_body_pair.acl", True, (0.5, 1.0, 1.5, 2.0, 2.5), ("gamma", "alpha")),
+    ("samples/fit_group3.acl", True, (0.5, 1.0, 1.5, 2.0), ("gamma", "alpha")),
+    ("samples/fit_body_pair.acl", True, (0.5, 1.0, 1.5, 2.0, 2.5), ("gamma", "alpha")),
 ]
 IDS = [("calibrated_" if "first_principles" not in d[0] and "fig4_facing" in d[0] else "") + os.path.basename(d[0])[:-4] for d in DESIGNS]
 
@@ -76,7 +76,7 @@ def test_a_group_is_the_whole_design():
     volume move the far tip by 3 % (what the fit missed when units did not interact)."""
     from acl.fit.mechanism import build_instance
 
-    inst = build_instance(acl.load(os.path.join(HERE, "..", "examples", "guides", "fit_group3.acl")))
+    inst = build_instance(acl.load(os.path.join(HERE, "..", "samples", "fit_group3.acl")))
     assert {u.net.caps for u in inst.units.values()} == {("a", "b", "c", "cal")}
 
 
@@ -118,7 +118,7 @@ def test_planted_coefficients_come_back_inside_their_intervals(tmp_path, rel, gr
 
 
 def test_thrust_declared_on_some_capsules_is_fitted_and_applied_on_exactly_those(tmp_path):
-    """examples/guides/fit_body_pair.acl declares `thrust = gamma` on a, b and calcap, not on the rider: the fit's gamma
+    """samples/fit_body_pair.acl declares `thrust = gamma` on a, b and calcap, not on the rider: the fit's gamma
     scales those three (as the analysis applies the parameter), the calibrated design says so, and its analysis
     at a drive the data never used is the fit's own prediction (1e-5 relative: the file prints 9 digits)."""
     from acl.analysis import acoustics as A
@@ -127,7 +127,7 @@ def test_thrust_declared_on_some_capsules_is_fitted_and_applied_on_exactly_those
     from acl.fit import run_fit
     from acl.fit.forward import predict
 
-    path = os.path.join(HERE, "..", "examples", "guides", "fit_body_pair.acl")
+    path = os.path.join(HERE, "..", "samples", "fit_body_pair.acl")
     obs = ("distance", "a_y", "cal")
     ex = Experiment(frequencies=(125e3, 175e3), voltages=tuple(np.linspace(0, 2.5, 6)), observables=obs)
     _, P = generate(path, ex)

@@ -115,7 +115,7 @@ def test_check_uses_each_rows_set_overrides(tmp_path):
     from acl.fit import run_fit
     from acl.fit.synth import Experiment, generate, write_csv
 
-    pair = os.path.join(ROOT, "examples", "guides", "fit_pair.acl")
+    pair = os.path.join(ROOT, "samples", "fit_pair.acl")
     ex = Experiment(frequencies=(125e3,), voltages=tuple(np.linspace(0, 4, 17)),
                     sets={"gap": ["20 um", "30 um", "40 um", "50 um", "60 um"]})
     data, _ = generate(pair, ex, noise=0.3e-6, seed=4, coeffs={"alpha": 174.5e-21, "gamma": 0.027e-9}, model="eq3")

@@ -19,7 +19,7 @@ from acl.fit import solve
 from acl.fit.synth import Experiment, generate
 
 HERE = os.path.dirname(__file__)
-PAIR_CAL = os.path.join(HERE, "..", "examples", "guides", "fit_pair_cal.acl")
+PAIR_CAL = os.path.join(HERE, "..", "samples", "fit_pair_cal.acl")
 EX = [Experiment(frequencies=(120e3, 130e3), voltages=tuple(np.linspace(0, 4, 7)), observables=("distance",),
                  sets={"gap": ["40 um", "60 um"]}, label="pair"),
       Experiment(frequencies=(120e3, 130e3), voltages=tuple(np.linspace(0, 11, 4)), observables=("cal",),

@@ -57,7 +57,7 @@ def test_synth_prints_planted_effects_in_their_units(tmp_path):
     import sys
 
     root = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..")
-    r = subprocess.run([sys.executable, "-m", "acl", "synth", "examples/guides/fit_cantilever.acl", "-o",
+    r = subprocess.run([sys.executable, "-m", "acl", "synth", "samples/fit_cantilever.acl", "-o",
                         str(tmp_path / "d.csv"), "--effect", "offset_drift=offset:0.5um,drift:0.01um/s",
                         "--effect", "drive_saturation=v_sat:6V", "--voltages", "0V..4V:3"],
                        capture_output=True, text=True, cwd=root, env={**os.environ, "PYTHONPATH": root})

@@ -31,7 +31,7 @@ pytestmark = pytest.mark.studies
 
 ROOT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..")
 EX = os.path.join(ROOT, "examples")
-DATA = os.path.join(ROOT, "examples", "guides")
+DATA = os.path.join(ROOT, "samples")
 LOCATED = re.compile(r"^(?:\S.*):\d+:\d+: (?:error|warning)\[[A-Za-z0-9-]+\]")
 STUDY = settings(max_examples=int(os.environ.get("ACL_FUZZ_EXAMPLES", "40")), deadline=None, derandomize=True,
                  suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture,

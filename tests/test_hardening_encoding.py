@@ -14,7 +14,7 @@ from acl.cli import main
 from acl.diagnostics import DiagnosticError
 
 ROOT = Path(__file__).resolve().parents[1]
-CANTILEVER = str(ROOT / "examples" / "guides" / "fit_cantilever.acl")
+CANTILEVER = str(ROOT / "samples" / "fit_cantilever.acl")
 BOM = b"\xef\xbb\xbf"
 
 

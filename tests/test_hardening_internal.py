@@ -17,7 +17,7 @@ from acl.cli import main
 
 ROOT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..")
 EX = os.path.join(ROOT, "examples")
-DATA = os.path.join(ROOT, "examples", "guides")
+DATA = os.path.join(ROOT, "samples")
 CANTILEVER = os.path.join(EX, "fig2_vertical_cantilever.acl")
 
 

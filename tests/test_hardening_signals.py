@@ -22,7 +22,7 @@ from acl.cli import main
 
 ROOT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..")
 EX = os.path.join(ROOT, "examples")
-DATA = os.path.join(ROOT, "examples", "guides")
+DATA = os.path.join(ROOT, "samples")
 
 LONG = 'extends "fig2_vertical_cantilever.acl"\nprogram long {\n  drive 125 kHz @ 1 V for 2000 s\n}\n'
 

@@ -22,7 +22,7 @@ import pytest
 from acl.cli import main
 
 ROOT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..")
-DATA = os.path.join(ROOT, "examples", "guides")
+DATA = os.path.join(ROOT, "samples")
 EX = os.path.join(ROOT, "examples")
 
 needs_root = pytest.mark.skipif(os.geteuid() != 0, reason="making a device node (mknod) needs root")

@@ -33,7 +33,7 @@ ROOT = Path(__file__).resolve().parent.parent
 HOSTILE = Path(__file__).parent / "hostile"
 INPUTS = HOSTILE / "inputs"
 EXAMPLES = ROOT / "examples"
-DATA = Path(__file__).parent.parent / "examples" / "guides"
+DATA = Path(__file__).parent.parent / "samples"
 IN_PROCESS_LIMIT_S = 60      # a run in-process longer than this counts as a hang
 SUBPROCESS_LIMIT_S = 60
 MAX_OUTPUT = 2_000_000       # characters a run may print (a 20,000-column header once printed 6 GB)
@@ -370,7 +370,7 @@ _BEFORE = _listing()
 
 def test_the_corpus_left_the_repository_alone():
     """Runs last in this file: no command of the corpus wrote beside its inputs (the default
-    calibrated design of `acl fit --report` once landed in examples/guides/)."""
+    calibrated design of `acl fit --report` once landed in samples/)."""
     assert _listing() == _BEFORE
 
 

@@ -140,7 +140,7 @@ def test_synth_into_a_folder_or_nowhere_leaves_no_temporary_file(target, tmp_pat
     """`acl synth D -o DIR` wrote DIR.tmpPID and left it (and `-o ""` left .tmpPID) after a `<command line>` error."""
     monkeypatch.chdir(tmp_path)
     (tmp_path / "folder").mkdir()
-    code, out, err = _main(["synth", ROOT / "examples" / "guides" / "fit_cantilever.acl", "-o", target], capsys)
+    code, out, err = _main(["synth", ROOT / "samples" / "fit_cantilever.acl", "-o", target], capsys)
     assert code == 2 and "<--output>:1:1: error[E-USAGE]: cannot write" in err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["folder"] and not any((tmp_path / "folder").iterdir())
 
@@ -176,7 +176,7 @@ def test_an_intact_short_schedule_still_replays(tmp_path, capsys):
 
 def test_compile_of_a_design_without_programs_says_so(tmp_path, capsys):
     """It said "the design has 0 programs; choose one with --program" (help: "programs: none")."""
-    code, out, err = _main(["compile", ROOT / "examples" / "guides" / "fit_cantilever.acl", "-o", tmp_path / "o"], capsys)
+    code, out, err = _main(["compile", ROOT / "samples" / "fit_cantilever.acl", "-o", tmp_path / "o"], capsys)
     assert code == 1 and "fit_cantilever.acl:1:1: error[E-COMPILE-PROGRAM]" in err and "declares no program" in err
 
 
@@ -189,12 +189,12 @@ def test_a_huge_cell_is_quoted_clipped(tmp_path, capsys):
     """A 1 MB number cell was quoted whole in E806 (1 MB of stderr)."""
     f = tmp_path / "d.csv"
     f.write_text("observable,value,unit,drive,time\ndeflection," + "9" * 1_000_000 + ",um,125 kHz @ 1 V,1\n")
-    code, out, err = _main(["fit", ROOT / "examples" / "guides" / "fit_cantilever.acl", f], capsys)
+    code, out, err = _main(["fit", ROOT / "samples" / "fit_cantilever.acl", f], capsys)
     assert code == 1 and "d.csv:2:12: error[E806]" in err and "characters]..." in err and len(err) < 5_000
 
 
 def test_an_empty_header_cell_is_named_as_such(capsys):
-    code, out, err = _main(["fit", ROOT / "examples" / "guides" / "fit_cantilever.acl",
+    code, out, err = _main(["fit", ROOT / "samples" / "fit_cantilever.acl",
                             INPUTS / "h3_data_trailing_commas.csv"], capsys)
     assert code == 1 and ":1:34: error[E801]: a column without a name" in err
 

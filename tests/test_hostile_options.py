@@ -17,7 +17,7 @@ from acl.diagnostics import DiagnosticError
 
 ROOT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..")
 EX = os.path.join(ROOT, "examples")
-DATA = os.path.join(ROOT, "examples", "guides")
+DATA = os.path.join(ROOT, "samples")
 CSV = os.path.join(ROOT, "tests", "hostile", "inputs", "data_ok.csv")
 
 

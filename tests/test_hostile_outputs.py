@@ -26,7 +26,7 @@ from acl.cli import main
 
 ROOT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..")
 EX = os.path.join(ROOT, "examples")
-DATA = os.path.join(ROOT, "examples", "guides")
+DATA = os.path.join(ROOT, "samples")
 HOSTILE = os.path.join(ROOT, "tests", "hostile", "inputs")
 
 

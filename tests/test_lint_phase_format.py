@@ -6,7 +6,7 @@ from pathlib import Path
 
 from acl.lint import LintConfig, lint_file
 
-DATA = Path(__file__).parent.parent / "examples" / "guides"
+DATA = Path(__file__).parent.parent / "samples"
 
 
 def test_snap_in_note_of_a_symmetric_pair_says_0_deg():

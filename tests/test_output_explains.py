@@ -7,7 +7,7 @@ from types import SimpleNamespace
 
 from acl.cli import main
 
-DATA = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "examples", "guides")
+DATA = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "samples")
 
 TRUSSED = """import stdlib.beams
 import stdlib.capsules

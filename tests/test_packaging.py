@@ -134,7 +134,7 @@ def test_a_broken_matplotlib_stops_fit_report_before_the_fit(tmp_path):
             "def run_fit(*a, **k):\n    print('FIT RAN'); raise SystemExit(99)\n"
             "acl.fit.run_fit = run_fit\n"
             "from acl.cli import main\n"
-            f"sys.exit(main(['fit', {str(ROOT / 'examples' / 'guides' / 'fit_cantilever.acl')!r}, {str(data)!r}, "
+            f"sys.exit(main(['fit', {str(ROOT / 'samples' / 'fit_cantilever.acl')!r}, {str(data)!r}, "
             f"'--free', 'gamma', '--report', 'rep', '--calibrated', 'cal.acl']))\n")
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(tmp_path / "site"), str(ROOT)])}
     proc = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, env=env, capture_output=True, text=True,

@@ -18,7 +18,7 @@ from acl.schedule.compile import CompileOptions, compile_program
 from example_designs import first_principles_path
 
 ROOT = Path(__file__).resolve().parents[1]
-FOLLOW = ROOT / "examples" / "guides" / "pair_follow.acl"
+FOLLOW = ROOT / "samples" / "pair_follow.acl"
 FIG5C = ROOT / "examples" / "fig5c_linear_spring.acl"
 SPRING = ROOT / "benchmarks" / "designs" / "sweep_spring.acl"
 AT_ONE = "\neffect bjerknes_scale { factor = 1 }\n"     # the same force, declared: no spread to draw

@@ -144,11 +144,11 @@ def test_fit_report_is_the_json_of_acl_fit(tmp_path, monkeypatch):
 
     monkeypatch.chdir(ROOT)
     ex = Experiment(frequencies=(110e3, 125e3, 140e3), voltages=tuple(np.linspace(0, 10, 11)), repeats=1)
-    data, _ = generate("examples/guides/fit_cantilever.acl", ex, {}, noise=0.2e-6, seed=2)
+    data, _ = generate("samples/fit_cantilever.acl", ex, {}, noise=0.2e-6, seed=2)
     csv = tmp_path / "clean.csv"
     write_csv(data, str(csv))
-    got = acl.fit("examples/guides/fit_cantilever.acl", csv, free=["gamma"], effects=[])
-    want = json.loads(_cli("fit", "examples/guides/fit_cantilever.acl", str(csv), "--free", "gamma", "--effects", "none",
+    got = acl.fit("samples/fit_cantilever.acl", csv, free=["gamma"], effects=[])
+    want = json.loads(_cli("fit", "samples/fit_cantilever.acl", str(csv), "--free", "gamma", "--effects", "none",
                            "--output-format", "json").stdout)
     a, b = got.as_dict(), want
     for k in ("timing_s",):

@@ -13,7 +13,7 @@ import pytest
 from acl.cli import main
 
 ROOT = Path(__file__).resolve().parents[1]
-CANTILEVER = str(ROOT / "examples" / "guides" / "sweep_cantilever.acl")
+CANTILEVER = str(ROOT / "samples" / "sweep_cantilever.acl")
 
 
 def test_sweep_writes_a_table_and_prints_the_yield(tmp_path):
@@ -152,7 +152,7 @@ def test_design_errors_exit_1_without_output(tmp_path, capsys):
 def test_check_and_lint_do_not_import_the_sweep_stage():
     """`acl check` and `acl lint` start fast: neither numpy-heavy acl.sweep nor scipy/matplotlib/dask/pyarrow."""
     code = ("import sys\nfrom acl.cli import main\n"
-            "rc = main(['check', 'examples/guides/sweep_cantilever.acl']) + main(['lint', 'examples/guides/sweep_cantilever.acl'])\n"
+            "rc = main(['check', 'samples/sweep_cantilever.acl']) + main(['lint', 'samples/sweep_cantilever.acl'])\n"
             "heavy = sorted({m for m in sys.modules if m.startswith('acl.sweep')} | ({m.split('.')[0] for m in sys.modules}"
             " & {'cvxpy', 'matplotlib', 'dask', 'distributed', 'pyarrow'}))\n"
             "sys.stderr.write('HEAVY=' + ','.join(heavy) + ' RC=' + str(rc))\n")

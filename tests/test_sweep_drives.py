@@ -1,7 +1,7 @@
 """Sweeps that move drive voltages, limits and transducer values: checked and evaluated per point, vectorised.
 
 * Validity: every point's code equals the first error `acl check` gives the same design (``acl.load``
-  with the point's parameters), over random points of examples/guides/sweep_drives.acl whose spreads reach
+  with the point's parameters), over random points of samples/sweep_drives.acl whose spreads reach
   every drive and transducer check (E401, E413, E320, E502, E503, E505, and valid points).
 * Columns: forces, d_c, snap-in voltages, `require gap`, latch margins and the lint columns of a
   point equal `acl analyze` / `acl lint` of the same design (tolerances of tests/test_sweep_evaluate.py:
@@ -25,7 +25,7 @@ from acl.diagnostics import DiagnosticError
 from test_sweep_evaluate import TOL, _expected
 
 ROOT = Path(__file__).resolve().parents[1]
-DRIVES = ROOT / "examples" / "guides" / "sweep_drives.acl"
+DRIVES = ROOT / "samples" / "sweep_drives.acl"
 EX = ROOT / "examples"
 
 WIDE = {"volts": "normal(0, 3 V)", "limit": "normal(0, 4 V)", "vmax": "normal(0, 8 V)", "g125": "normal(0, 200 Pa/V)",

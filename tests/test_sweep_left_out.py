@@ -10,7 +10,7 @@ import os
 from acl import load
 from acl.sweep.driver import left_out
 
-DATA = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "examples", "guides")
+DATA = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "samples")
 
 
 def test_a_design_with_effects_names_the_columns_it_lacks():
@@ -51,13 +51,13 @@ def test_the_note_reaches_the_table(tmp_path, capsys):
     assert "columns not computed: tip_deflection" in " ".join((out.out + out.err).split())
 
 
-EXAMPLES = os.path.dirname(os.path.abspath(DATA))
+EXAMPLES = os.path.join(os.path.dirname(os.path.abspath(DATA)), "examples")
 
 
 def _designs():
     import glob
 
-    ex = EXAMPLES    # the examples and their first-principles versions; of the guides' designs, those that stand alone
+    ex = EXAMPLES    # the examples and their first-principles versions; of the sample designs, those that stand alone
     return sorted(glob.glob(os.path.join(ex, "*.acl")) + glob.glob(os.path.join(ex, "first_principles", "*.acl"))
                   + glob.glob(os.path.join(DATA, "sweep_*.acl")) + glob.glob(os.path.join(DATA, "fit_*.acl"))
                   + [os.path.join(DATA, n) for n in ("gripper_rigid_truss.acl", "latch_deflect.acl", "latch_path.acl")])

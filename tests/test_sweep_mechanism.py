@@ -183,7 +183,7 @@ def test_four_capsules_perturbed_equal_analyze():
 
 
 def test_trusses_hold_the_gripper_still_at_every_point():
-    d = acl.load(str(Path(__file__).parent.parent / "examples" / "guides" / "gripper_rigid_truss.acl"))   # Fig. 5a with rigid trusses
+    d = acl.load(str(Path(__file__).parent.parent / "samples" / "gripper_rigid_truss.acl"))   # Fig. 5a with rigid trusses
     b = _batch(d, {"gap": [40e-6, 35e-6, 46e-6]}, {})
     at = "125 kHz @ 10 V"
     cols = evaluate(b, ["snap_in_left_right_125khz_v", "tip_deflection_left_arm_m", "equilibrium_ok"], at)

@@ -13,7 +13,7 @@ import acl
 from acl.design.resolve import load_design
 from example_designs import first_principles_path
 
-DATA = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "examples", "guides")
+DATA = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "samples")
 RTOL = 1e-6
 
 

@@ -13,7 +13,7 @@ from acl.sweep.sample import chunk_points
 from acl.sweep.spec import build_spec, parse_vary
 
 ROOT = Path(__file__).resolve().parents[1]
-CANTILEVER = ROOT / "examples" / "guides" / "sweep_cantilever.acl"
+CANTILEVER = ROOT / "samples" / "sweep_cantilever.acl"
 
 
 @pytest.fixture(scope="module")

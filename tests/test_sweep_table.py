@@ -12,7 +12,7 @@ import acl
 from acl.sweep import table as T
 
 ROOT = Path(__file__).resolve().parents[1]
-CANTILEVER = ROOT / "examples" / "guides" / "sweep_cantilever.acl"
+CANTILEVER = ROOT / "samples" / "sweep_cantilever.acl"
 
 
 @pytest.mark.parametrize("k, n", [(0, 10), (10, 10), (93, 100), (1, 2), (930, 1000), (0, 1)])

@@ -19,7 +19,7 @@ from acl.sweep import table as T
 
 pa = pytest.importorskip("pyarrow")
 ROOT = Path(__file__).resolve().parents[1]
-CANTILEVER = ROOT / "examples" / "guides" / "sweep_cantilever.acl"
+CANTILEVER = ROOT / "samples" / "sweep_cantilever.acl"
 AWKWARD = np.array([0.0, -0.0, 3.0, 100.0, 1e-05, 2.5e-07, 1.2345678901234567e-06, 1e15, 1e16, 1e22, 0.1 + 0.2,
                     5e-324, 2.2250738585072014e-308, 1.7976931348623157e308, -1.5e-300, np.nan, np.inf, -np.inf,
                     123456789012345678.0, 9.999999999999999e-05])

@@ -14,7 +14,7 @@ import pytest
 import acl.fit.synth as S
 from acl.cli import main
 
-DATA = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "examples", "guides")
+DATA = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "samples")
 
 CASES = {
     "cantilever": ["fit_cantilever.acl", "--voltages", "0V..2V:37", "--noise", "0.02um"],

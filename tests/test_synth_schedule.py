@@ -100,7 +100,7 @@ def test_schedule_with_effect_option_is_a_usage_error(compiled):
 # -- issue 11: a replay is capped (a 200,000-segment schedule replayed for minutes) ------------------
 
 _SEG = '{"start_s": %d, "duration_s": 0.5, "tones": [{"frequency_hz": 125e3, "amplitude_v": %.2f}]}'
-CANTILEVER = os.path.join(ROOT, "examples", "guides", "fit_cantilever.acl")
+CANTILEVER = os.path.join(ROOT, "samples", "fit_cantilever.acl")
 
 
 def _schedule(path, n, bad_at=None):

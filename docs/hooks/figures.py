@@ -4,7 +4,7 @@ A page links a figure by the path the page's commands write it to, relative to t
 ``![...](figs/modal_response.png)`` after ``acl analyze ... --plot figs/``.  For every page that links a
 missing ``.png``, this hook replays the page's ``<!-- doc-run: ... -->``, ``<!-- doc: $ ... -->`` and
 ``<!-- doc-py: ... -->`` markers in order, in a scratch folder (``tests/docs_sync.py``'s session: copies of
-``examples/``), until every linked figure exists, and adds those PNGs to the site
+``examples/`` and ``samples/``), until every linked figure exists, and adds those PNGs to the site
 beside the page.  Nothing is committed or written to the repository: a figure cannot drift from the run
 that draws it, and a figure no command draws is a missing link (an error under ``mkdocs build --strict``).
 
