@@ -1,4 +1,4 @@
-"""Crossfades between program steps (docs/schedule.md, Crossfades between steps): a kept tone with a counter-pushing
+"""Crossfades between program steps (docs/explanation/steps.md, Crossfades between steps): a kept tone with a counter-pushing
 tone that changes can push a latch over its switching force, or a held pair nearer snap-in, while each step alone is
 within its margin; the compiler fades through silence there.  Every check here recomputes the push independently:
 from the worst phases by brute force, or from the rendered waveform itself."""

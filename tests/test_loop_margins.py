@@ -1,6 +1,6 @@
 """Goals without a path (hold, switch) tried as a lab would: compile -> play on a truth (issue 9, 4-5).
 
-Found by playing the examples' programs on truths (docs/fit.md, closing the loop):
+Found by playing the examples' programs on truths (docs/explanation/closed-loop.md):
 
 * a `switch` was planned with the force per V^2 at 1 V even when the design declares
   drive_saturation (a calibrated design does): examples/fig6_bistable_latch.acl with V_s = 60 V

@@ -172,7 +172,7 @@ def pair_notes(design: Design, pair: dict) -> list[dict]:
         out.append(_note(design, b, "N-PAIR-DC", (
             f"{a}-{b} at {f:g} kHz: d_c {dc * 1e6:.1f} um with the laminar-jet drag of the neighbour, "
             f"{dc1 * 1e6:.1f} um with paper Eq. (3)'s F_d = F_AS (one thrust); the interval is d_c's model-form "
-            "uncertainty (docs/physics.md, Paper vs acl)")))
+            "uncertainty (docs/explanation/paper-comparison.md)")))
     if pair.get("phase_difference_predicted_q_deg") is None:
         return out                                  # an identical pair: no sign study
     qmax = min(quality_bound(design, a), quality_bound(design, b))

@@ -2,7 +2,7 @@
 
 `acl synth TRUTH.acl --schedule out/schedule.json -o run.csv` instead plays a compiled schedule on a
 design (the analysis' nonlinear model with the design's declared effects) and writes every
-observable at every waypoint (docs/fit.md, closing the loop).
+observable at every waypoint (docs/explanation/closed-loop.md).
 """
 from __future__ import annotations
 

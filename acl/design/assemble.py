@@ -157,7 +157,7 @@ def _effect(b: Builder, blk: A.Block) -> M.Effect | None:
             need = {"positive": "positive", "nonneg": "not negative", "unit": "in 0 .. 1"}[dom]
             b.bag.error("E401", f"effect {blk.name}.{ent.key} must be {need}, got {v.value:g}"
                         + (f" {si_unit(v.dims)}" if si_unit(v.dims) else ""), ent.value.span,
-                        "its physical range (docs/fit.md, effect library)")
+                        "its physical range (docs/explanation/fit-effects.md)")
             return None
         if not _effect_in_range(b, blk.name, ent.key, v, ent.value.span):
             return None

@@ -190,7 +190,7 @@ def calibrated_text(problem, selection, out_path: str, data_paths=(), report_dir
     amb = getattr(selection, "ambiguous", None) or []
     if amb:
         lines.append(f"# AMBIGUOUS: these data do not tell the selected effects ({', '.join(selection.selected)}) from "
-                     "the alternatives below, which explain them as well (docs/fit.md, ambiguity); the effects applied "
+                     "the alternatives below, which explain them as well (docs/explanation/fit-effects.md); the effects applied "
                      "here are one choice among them.  The discrepancy below covers the alternatives' predictions at "
                      "the data; outside the covered range nothing does (acl compile warns there).")
         for a in amb:

@@ -1,4 +1,4 @@
-"""The library of named physical effects the base model lacks (docs/fit.md has the full table).
+"""The library of named physical effects the base model lacks (docs/explanation/fit-effects.md has the full table).
 
 Each :class:`Effect` has a stable identifier, few parameters (internal parametrisation nested in the
 base model at its ``null`` value), a physical reason and the kind of data that identifies it.  The

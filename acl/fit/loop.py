@@ -1,7 +1,7 @@
 """The closed loop in one place: compile on the nominal design -> play on a truth -> fit -> recompile -> play.
 
 What a lab does with acl, with a synthetic "truth" design standing in for the device
-(docs/fit.md, closing the loop).  Every stage is the one the commands run:
+(docs/explanation/closed-loop.md).  Every stage is the one the commands run:
 
 1. ``acl compile NOMINAL --program P``            (acl.schedule.compile_program)
 2. ``acl synth TRUTH --schedule schedule.json``  (acl.fit.synth.replay, with measurement noise)
