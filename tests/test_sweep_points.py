@@ -112,7 +112,7 @@ def test_the_calibrated_fig4_pair_is_batched_and_equals_analyze(monkeypatch):
     """The shipped Fig. 4 pair declares the calibration `bjerknes_scale { factor, gap_exponent, gap_ref }`: every
     force, snap-in and deflection column comes from the batched engine (no point-by-point analysis) and equals a
     loop of `acl.analyze` to 1e-6."""
-    path = os.path.join(os.path.dirname(DATA), "..", "examples", "fig4_facing_pair.acl")
+    path = os.path.join(os.path.dirname(DATA), "examples", "fig4_facing_pair.acl")
     at = "125 kHz @ 2 V"
     _no_point_loop(monkeypatch)
     t = acl.sweep(path, vary={"gap": "30um,40um,52um"}, at=at)
