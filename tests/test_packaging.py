@@ -50,8 +50,8 @@ def test_wheel_ships_every_module_the_stdlib_and_the_docs(wheel):
             assert path.relative_to(ROOT).as_posix() in names, f"{path} is not in the wheel"
     for acl_file in (ROOT / "stdlib").glob("*.acl"):
         assert f"acl/stdlib/{acl_file.name}" in names
-    for md in (ROOT / "docs").glob("*.md"):
-        assert f"acl/docs/{md.name}" in names
+    for md in (ROOT / "docs").rglob("*.md"):     # the explanation, how-to and tutorial pages too
+        assert f"acl/docs/{md.relative_to(ROOT / 'docs').as_posix()}" in names, md
 
 
 def test_plotting_is_an_extra_and_test_pulls_in_every_extra(wheel):
